@@ -1,0 +1,153 @@
+"""``radar`` material and Sionna RT's ``itu-radio-material``: what a surface does to a radar wave.
+
+``radar`` parameters:
+
+.. pluginparameters::
+
+ * - material
+   - string
+   - A named ITU-R P.2040 material (``concrete``, ``brick``, ``glass``, ``metal``, ``wood``,
+     ``medium_dry_ground``, ...; see :data:`sarmitsuba.materials.ITU_MATERIALS`). Its
+     permittivity follows the P.2040 frequency fit; frequencies outside the fit's range
+     are an error.
+ * - relative_permittivity, conductivity
+   - float, -, S/m
+   - Explicit complex permittivity eta = eps_r - j sigma / (omega eps_0), instead of ``material``.
+ * - model
+   - string
+   - ``half_space`` (default), ``slab`` (single layer in vacuum, P.2040 eqs. 43/44, needs
+     ``thickness``) or ``pec`` (perfect conductor, |r| = 1).
+ * - thickness
+   - float, m
+   - Slab thickness (only with ``model = slab``).
+ * - color
+   - rgb
+   - Colour for optical previews only.
+
+``itu-radio-material`` (Sionna RT 2.x scenes, loaded unchanged): ``type`` (ITU name),
+``thickness`` (default 0.1 m, as in Sionna), so the model is the single-layer **slab**, as
+Sionna computes it. ``scattering_coefficient``, ``xpd_coefficient`` and the scattering-pattern
+attributes are read and kept in :attr:`RadarMaterial.ignored`; a non-zero scattering
+coefficient gives a warning because diffuse scattering is not part of this material model.
+
+For optical renders (``mi.render``) the material behaves as a diffuse BSDF of its colour.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import mitsuba as mi
+
+from sarmitsuba import materials
+from sarmitsuba.constants import VACUUM_PERMITTIVITY
+from sarmitsuba.radar import ParameterError
+
+_RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "color")
+_ITU_KEYS = ("type", "thickness", "scattering_coefficient", "xpd_coefficient", "color", "reflectance",
+             "base_color", "alpha_r", "alpha_i", "lambda_", "scattering_pattern")
+_ITU_DEFAULT_THICKNESS = 0.1   # m, Sionna RT's DEFAULT_THICKNESS
+
+
+class RadarMaterial(mi.BSDF):
+    """Radar material (see module docstring). :meth:`material_at` gives the electromagnetic model."""
+
+    def __init__(self, props: mi.Properties, sionna: bool = False) -> None:
+        super().__init__(props)
+        plugin = "itu-radio-material" if sionna else "radar"
+        valid = _ITU_KEYS if sionna else _RADAR_KEYS
+        values = {}
+        for key in props.keys():
+            if key not in valid:
+                raise ParameterError(f"{plugin} '{props.id()}': unknown parameter {key!r}; "
+                                     f"valid parameters: {', '.join(valid)}")
+            values[key] = props[key]
+        color = next((values.pop(k) for k in ("color", "reflectance", "base_color") if k in values),
+                     (0.6, 0.6, 0.6))
+        self.name = props.id() or plugin
+        if sionna:
+            self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
+                              thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
+            #: Parameters read but not modelled (Sionna's diffuse-scattering settings).
+            self.ignored = values
+            if float(values.get("scattering_coefficient", 0.0)) > 0.0:
+                warnings.warn(f"itu-radio-material '{self.name}': scattering_coefficient = "
+                              f"{values['scattering_coefficient']} is not modelled (specular PO only)",
+                              stacklevel=2)
+        else:
+            self.ignored = {}
+            self._spec = _radar_spec(self.name, values)
+        _check_spec(plugin, self.name, **self._spec)
+        self._optical = mi.load_dict({"type": "diffuse", "reflectance": {
+            "type": "rgb", "value": [float(c) for c in _as_rgb(color)]}})
+        self.m_flags = self._optical.flags()
+        self.m_components = [self.m_flags]
+
+    def material_at(self, frequency: float) -> "materials.Material":
+        """The electromagnetic model at ``frequency`` [Hz] (raises MaterialError outside the fit's range)."""
+        spec = self._spec
+        if spec["model"] == "pec":
+            return materials.Material.pec(self.name)
+        if spec["material"] is not None:
+            eta = materials.itu_permittivity(spec["material"], frequency)
+        else:   # eta = eps_r - j sigma / (omega eps_0), ITU-R P.2040 eq. (9b)
+            eta = complex(spec["relative_permittivity"],
+                          -spec["conductivity"] / (2.0 * math.pi * frequency * VACUUM_PERMITTIVITY))
+        return materials.Material(self.name, eta, spec["model"], spec["thickness"])
+
+    # optical behaviour: a diffuse surface of the material's colour
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        return self._optical.sample(ctx, si, sample1, sample2, active)
+
+    def eval(self, ctx, si, wo, active=True):
+        return self._optical.eval(ctx, si, wo, active)
+
+    def pdf(self, ctx, si, wo, active=True):
+        return self._optical.pdf(ctx, si, wo, active)
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        return self._optical.eval_pdf(ctx, si, wo, active)
+
+    def traverse(self, callback):
+        pass
+
+    def to_string(self):
+        return f"RadarMaterial[{self.name}: {self._spec}]"
+
+
+def _radar_spec(name: str, values: dict) -> dict:
+    model = str(values.get("model", "half_space"))
+    has_named = "material" in values
+    has_explicit = "relative_permittivity" in values or "conductivity" in values
+    if has_named and has_explicit:
+        raise ParameterError(f"radar '{name}': give either material or relative_permittivity/conductivity, not both")
+    if model != "pec" and not (has_named or has_explicit):
+        raise ParameterError(f"radar '{name}': needs material (ITU name), relative_permittivity/conductivity "
+                             "or model = pec")
+    if "thickness" in values and model != "slab":
+        raise ParameterError(f"radar '{name}': thickness is only used with model = slab (model is {model!r})")
+    return dict(material=str(values["material"]) if has_named else None, model=model,
+                relative_permittivity=float(values.get("relative_permittivity", 1.0)) if has_explicit else None,
+                conductivity=float(values.get("conductivity", 0.0)) if has_explicit else None,
+                thickness=float(values["thickness"]) if "thickness" in values else None)
+
+
+def _check_spec(plugin: str, name: str, material, model, thickness, **_) -> None:
+    if model not in ("half_space", "slab", "pec"):
+        raise ParameterError(f"{plugin} '{name}': model = {model!r}; valid: half_space, slab, pec")
+    if material is not None and material not in materials.itu_material_names():
+        raise ParameterError(f"{plugin} '{name}': unknown ITU material {material!r}; valid: "
+                             f"{', '.join(materials.itu_material_names())}")
+    if model == "slab" and not (thickness is not None and thickness > 0):
+        raise ParameterError(f"{plugin} '{name}': model = slab needs thickness > 0 m, got {thickness}")
+
+
+def _as_rgb(color) -> tuple[float, float, float]:
+    try:
+        return tuple(float(c) for c in color)[:3]
+    except TypeError:
+        return (float(color),) * 3
+
+
+mi.register_bsdf("radar", lambda props: RadarMaterial(props))
+mi.register_bsdf("itu-radio-material", lambda props: RadarMaterial(props, sionna=True))

@@ -1,0 +1,128 @@
+"""``sar`` sensor: a side-looking SAR platform on a straight, level track.
+
+.. pluginparameters::
+
+ * - frequency
+   - float, Hz
+   - Carrier frequency (default 9.6e9, X-band).
+ * - bandwidth
+   - float, Hz
+   - Chirp bandwidth B; slant-range resolution c/(2B) (default 150e6).
+ * - pulse_length
+   - float, s
+   - Chirp duration T_p (default 10e-6).
+ * - prf
+   - float, Hz
+   - Pulse repetition frequency (default 250).
+ * - sampling_rate
+   - float, Hz
+   - Fast-time complex sampling rate, >= bandwidth (default 180e6).
+ * - velocity
+   - float, m/s
+   - Platform speed (default 100).
+ * - altitude
+   - float, m
+   - Platform height above the scene centre (default 1000).
+ * - incidence_angle
+   - float, deg
+   - Incidence angle at the scene centre, in (0, 90) (default 45).
+ * - scene_center
+   - point or string "x, y, z", m
+   - Where the beam centre looks at mid-aperture (default: centre of the scene's
+     bounding box at its lowest z).
+ * - look_side
+   - string
+   - ``right`` (default) or ``left`` of the track.
+ * - heading
+   - float, deg
+   - Track direction counter-clockwise from +x (default 0: flying along +x, looking -y).
+ * - n_pulses
+   - integer
+   - Number of pulses; 0 (default) = enough to sweep the beam over the whole scene.
+ * - aperture_length
+   - float, m
+   - Alternative to ``n_pulses``: track length; n_pulses = aperture_length * prf / velocity.
+ * - azimuth_beamwidth
+   - float, deg
+   - Width of the ideal (uniformly illuminated) azimuth beam; azimuth resolution
+     lambda / (2 beta) (default 1.8).
+ * - polarization
+   - string
+   - ``VV`` (default) or ``HH``; scalar single-polarisation model.
+
+The sensor holds parameters only: the tracer (:mod:`sarmitsuba.trace`) shoots the rays.
+Its ``sample_ray`` gives the optical view from the mid-aperture antenna toward the
+scene centre, so ``mi.render`` can draw what the radar sees.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+
+from sarmitsuba.radar import ParameterError, RadarParameters, coerce_parameters
+
+#: Parameters that the sensor accepts besides the fields of RadarParameters.
+EXTRA_PARAMETERS = ("aperture_length",)
+
+
+class SarSensor(mi.Sensor):
+    """Mitsuba sensor holding a :class:`sarmitsuba.radar.RadarParameters` (see module docstring)."""
+
+    def __init__(self, props: mi.Properties) -> None:
+        super().__init__(props)
+        values = {}
+        valid = set(RadarParameters.names()) | set(EXTRA_PARAMETERS)
+        for key in props.keys():
+            if key in ("film", "sampler") or key.startswith("_"):
+                continue
+            if key not in valid:
+                raise ParameterError(
+                    f"sar sensor: unknown parameter {key!r}; valid parameters: {', '.join(sorted(valid))}")
+            value = props[key]
+            values[key] = value if isinstance(value, (int, float, str)) else list(value)
+        aperture = values.pop("aperture_length", None)
+        #: Parameters exactly as written in the scene (before defaults), for overrides.
+        self.given = dict(values)
+        if aperture is not None:
+            self.given["aperture_length"] = float(aperture)
+        self.parameters = RadarParameters(**coerce_parameters(values))
+        if aperture is not None:
+            if not (aperture > 0 and math.isfinite(aperture)):
+                raise ParameterError(f"aperture_length = {aperture} m must be a finite number > 0")
+            n = max(1, int(round(aperture * self.parameters.prf / self.parameters.velocity)))
+            self.parameters = RadarParameters(**{**coerce_parameters(values), "n_pulses": n})
+
+    def _view(self):
+        p = self.parameters
+        center = mi.ScalarPoint3f(p.scene_center or (0.0, 0.0, 0.0))
+        h, inc = math.radians(p.heading), math.radians(p.incidence_angle)
+        sign = 1.0 if p.look_side == "right" else -1.0
+        look = mi.ScalarVector3f(sign * math.sin(h), -sign * math.cos(h), 0.0)
+        origin = center - look * p.ground_range + mi.ScalarVector3f(0, 0, p.altitude)
+        return origin, dr.normalize(center - origin), math.tan(0.5 * math.radians(20.0)) * (1.0 / math.cos(inc))
+
+    def sample_ray(self, time, wavelength_sample, position_sample, aperture_sample, active=True):
+        origin, forward, half = self._view()
+        frame = mi.Frame3f(mi.Vector3f(forward))
+        u = (position_sample.x * 2.0 - 1.0) * half
+        v = (position_sample.y * 2.0 - 1.0) * half
+        d = dr.normalize(frame.to_world(mi.Vector3f(u, v, 1.0)))
+        return mi.Ray3f(mi.Point3f(origin), d, time, []), mi.Spectrum(1.0)
+
+    def sample_ray_differential(self, time, wavelength_sample, position_sample, aperture_sample, active=True):
+        ray, weight = self.sample_ray(time, wavelength_sample, position_sample, aperture_sample, active)
+        return mi.RayDifferential3f(ray), weight
+
+    def bbox(self):
+        return mi.ScalarBoundingBox3f()
+
+    def traverse(self, callback):
+        pass
+
+    def to_string(self):
+        return f"SarSensor[{self.parameters}]"
+
+
+mi.register_sensor("sar", lambda props: SarSensor(props))

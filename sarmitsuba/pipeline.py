@@ -1,0 +1,177 @@
+"""The render pipeline: scene -> trace -> raw data -> focus -> products (DESIGN.md section 2)."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import binning, planning, products
+from .focus import ImageGrid, backproject
+from .image import SarImage
+from .radar import AcquisitionGeometry, acquisition_geometry
+from .raw import RawData, _json_default
+from .scene import LoadedScene, load_scene, material_table
+from .trace import trace
+
+__all__ = ["RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES"]
+
+#: Files written by :func:`render`, by role.
+OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
+                "summary": "summary.json"}
+
+
+@dataclass(frozen=True)
+class RenderSummary:
+    """What a render did: timings [s] per stage, counts, energy per bounce order [m^2], outputs."""
+
+    scene: str
+    timings: dict
+    n_pulses: int
+    rays_traced: int
+    rays_per_order: list
+    shadow_rays: int
+    energy_per_order: list
+    energy_outside_window: float
+    raw_shape: tuple
+    image_shape: tuple
+    outputs: dict
+
+    def line(self) -> str:
+        """One-line summary for the end of a run."""
+        return (f"rendered {self.scene}: {self.timings['total']:.1f} s, {self.rays_traced:,} rays traced, "
+                f"{self.n_pulses} pulses, raw {self.raw_shape[0]}x{self.raw_shape[1]}, image "
+                f"{self.image_shape[0]}x{self.image_shape[1]} -> {Path(self.outputs['png']).parent}")
+
+
+def check_output_dir(out_dir: str | os.PathLike) -> Path:
+    """Create ``out_dir`` and check it is writable, before any long work.
+
+    Raises
+    ------
+    OSError
+        With a message naming the directory when it cannot be created or written.
+    """
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OSError(f"output directory {str(out)!r} is not writable: {exc.strerror or exc}") from None
+    return out
+
+
+def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
+    """Ground grid around the scene centre covering the scene and its layover.
+
+    Ground-range extent: the bounding box, widened toward the sensor by ``(z_max - z0) / tan(theta)``
+    (where the tallest points lay over). Pixel spacing: half the finer of the ground-range and
+    azimuth resolutions.
+    """
+    p = loaded.params
+    corners = planning.box_corners(loaded.bbox_lo, loaded.bbox_hi) - geometry.scene_center
+    along = corners @ geometry.track_direction
+    across = corners @ geometry.look_direction
+    layover = max(0.0, loaded.bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
+    spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
+    half_range = max(abs(across.min() - layover), abs(across.max())) + 4 * p.ground_range_resolution
+    half_az = np.abs(along).max() + 4 * p.azimuth_resolution
+    return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
+                            azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
+
+
+def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
+           integrator_overrides: Mapping[str, Any] | None = None, progress: bool = True) -> RenderSummary:
+    """Render a scene into raw data and a focused ground-range image, and write the products.
+
+    Parameters
+    ----------
+    source : str or None
+        XML path, built-in scene name or ``sionna:NAME`` (None = built-in ``urban``).
+    out_dir : path
+        Output directory; receives :data:`OUTPUT_FILES`. Checked for writing before tracing.
+    sensor_overrides, integrator_overrides : mapping, optional
+        Parameter values replacing the scene's ``sar`` sensor / ``sbr`` integrator ones.
+    progress : bool
+        Show tqdm progress bars.
+
+    Raises
+    ------
+    SceneError, ParameterError, materials.MaterialError, OSError
+        Before tracing starts, for a bad scene, parameter, material or output directory.
+    """
+    t = {"start": time.perf_counter()}
+    out = check_output_dir(out_dir)
+    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    params, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    table = material_table(loaded.scene, params.frequency, params.polarization)
+    t["load"] = time.perf_counter()
+    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
+    t["trace"] = time.perf_counter()
+    raw = binning.to_raw_data(result, window, params, geometry, settings.range_kernel,
+                              _metadata(loaded, footprint.spacing_azimuth, result))
+    t["bin"] = time.perf_counter()
+    image = backproject(raw, image_grid(loaded, geometry), progress=progress)
+    t["focus"] = time.perf_counter()
+    paths = _write_products(out, raw, image, params)
+    t["products"] = time.perf_counter()
+    stages = ("load", "trace", "bin", "focus", "products")
+    timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
+    timings["total"] = t["products"] - t["start"]
+    summary = RenderSummary(
+        scene=loaded.source, timings=timings, n_pulses=params.n_pulses,
+        rays_traced=int(result.rays_per_order.sum() + result.shadow_rays),
+        rays_per_order=result.rays_per_order.tolist(), shadow_rays=result.shadow_rays,
+        energy_per_order=result.energy_per_order.tolist(), energy_outside_window=result.energy_outside_window,
+        raw_shape=raw.data.shape, image_shape=image.data.shape, outputs={k: str(v) for k, v in paths.items()})
+    _write_summary(out / OUTPUT_FILES["summary"], summary, raw.metadata)
+    return summary
+
+
+def _write_products(out: Path, raw: RawData, image: SarImage, params) -> dict:
+    paths = {role: out / name for role, name in OUTPUT_FILES.items()}
+    raw.save(paths["raw"])
+    image.save(paths["image"])
+    products.write_exr(image, paths["exr"])
+    title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
+             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}")
+    products.write_quicklook(image, paths["png"], title=title)
+    return paths
+
+
+def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
+    body = {**dataclasses.asdict(summary), "radar": metadata["radar"], "settings": metadata["settings"],
+            "scene_info": metadata["scene_info"], "effects": metadata["effects"]}
+    tmp = path.with_name(f".{path.name}.partial")
+    tmp.write_text(json.dumps(body, indent=2, default=_json_default))
+    os.replace(tmp, path)
+
+
+def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
+    import drjit
+    import mitsuba
+
+    from . import __version__
+    settings = loaded.settings
+    effects = [f"bounce orders 1..{settings.max_depth} (integrator max_depth = {settings.max_depth})"]
+    return {
+        "scene": loaded.source, "scene_path": str(loaded.path),
+        "radar": dataclasses.asdict(loaded.params), "settings": dataclasses.asdict(settings),
+        "ray_spacing": ray_spacing, "effects": effects, "units": "sqrt(m^2) (normalised radiometry)",
+        "scene_info": {"shapes": loaded.n_shapes, "triangles": loaded.n_triangles, "has_sar_sensor": loaded.has_sensor,
+                       "bbox_min": loaded.bbox_lo.tolist(), "bbox_max": loaded.bbox_hi.tolist()},
+        "trace": {"seconds": result.seconds, "rays_per_order": result.rays_per_order.tolist(),
+                  "shadow_rays": result.shadow_rays, "energy_per_order": result.energy_per_order.tolist()},
+        "versions": {"sarmitsuba": __version__, "mitsuba": mitsuba.__version__, "drjit": drjit.__version__},
+    }

@@ -1,0 +1,113 @@
+"""Planning an acquisition before tracing: defaults from the scene, fast-time window, ray footprint.
+
+All functions are pure (NumPy, float64) and take the scene's axis-aligned bounding box as
+``(lo, hi)``, each float64 [3] in metres.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from scipy import fft as sp_fft
+
+from .constants import SPEED_OF_LIGHT
+from .radar import AcquisitionGeometry, RadarParameters, track_frame
+from .trace import FastTimeWindow, RayFootprint, TraceSettings
+
+__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "box_corners"]
+
+#: Samples kept beyond the nearest and farthest scene delay, for the compressed pulse's tails.
+WINDOW_MARGIN_SAMPLES = 16
+
+
+def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners of an axis-aligned box, float64 [8, 3]."""
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
+def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> RadarParameters:
+    """Fill in ``scene_center`` (bbox centre at its lowest z) and ``n_pulses`` (0 = automatic).
+
+    The automatic aperture sweeps the beam over the scene: its length is the scene's
+    along-track extent plus the beam footprint at the farthest scene point,
+    ``n_pulses = ceil(length * prf / velocity) + 1``.
+    """
+    if params.scene_center is None:
+        params = replace(params, scene_center=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), float(lo[2])))
+    if params.n_pulses == 0:
+        track, look = track_frame(params)
+        rel = box_corners(lo, hi) - np.asarray(params.scene_center)
+        along = rel @ track
+        r_far = _far_range(params, lo, hi)
+        length = float(along.max() - along.min()) + 2.0 * r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2)
+        params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
+    return params
+
+
+def _far_range(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> float:
+    track, look = track_frame(params)
+    center = np.asarray(params.scene_center, float)
+    mid = center - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
+    rel = box_corners(lo, hi) - mid
+    rel -= np.outer(rel @ track, track)         # distance at broadside
+    return float(np.linalg.norm(rel, axis=1).max())
+
+
+def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                     hi: np.ndarray, settings: TraceSettings) -> FastTimeWindow:
+    """Fast-time window covering every scene point from every pulse, plus margins.
+
+    Nearest delay: twice the distance from the antenna to the box; farthest: twice the
+    farthest corner, plus ``(max_depth - 1) * 10 %`` of the box diagonal for multi-bounce
+    paths longer than the direct one (energy still falling outside is reported by the
+    tracer, never clamped into edge bins). The sample count is a fast FFT length.
+    """
+    positions = geometry.positions
+    closest = np.clip(positions, lo, hi)
+    l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
+    corners = box_corners(lo, hi)
+    l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
+    l_max += (settings.max_depth - 1) * 0.1 * float(np.linalg.norm(hi - lo))
+    margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
+    t0 = l_min / SPEED_OF_LIGHT - margin
+    n = int(math.ceil((l_max / SPEED_OF_LIGHT + margin - t0) * params.sampling_rate))
+    return FastTimeWindow(t0=t0, fs=params.sampling_rate, n_samples=sp_fft.next_fast_len(n),
+                          oversample=settings.oversample)
+
+
+def ray_spacing(params: RadarParameters, settings: TraceSettings) -> float:
+    """Ray-tube width at the scene centre [m]: the setting, or a third of the finer resolution."""
+    if settings.ray_spacing > 0:
+        return settings.ray_spacing
+    return min(params.slant_range_resolution, params.azimuth_resolution) / 3.0
+
+
+def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                  hi: np.ndarray, settings: TraceSettings) -> RayFootprint:
+    """World-fixed ground grid of ray aim points covering the scene (see :class:`RayFootprint`).
+
+    The ground-range extent is the box's, widened so that rays aimed at the grid also reach
+    points above the ground plane (up to ``(z_max - z0) tan(theta)`` beyond the far edge)
+    and below it (before the near edge). Spacing: ``s`` along track, ``s / cos(theta)`` in
+    ground range, so tubes are square, ``s`` wide, perpendicular to the line of sight.
+    """
+    s = ray_spacing(params, settings)
+    origin = np.asarray(params.scene_center, float)
+    track, look = geometry.track_direction, geometry.look_direction
+    rel = box_corners(lo, hi) - origin
+    along, across = rel @ track, rel @ look
+    z0 = origin[2]
+    tan_far = (params.ground_range + across.max()) / params.altitude
+    g_min = across.min() - max(0.0, z0 - lo[2]) * tan_far - s
+    g_max = across.max() + max(0.0, hi[2] - z0) * tan_far + s
+    spacing_range = s / math.cos(math.radians(params.incidence_angle))
+    n_range = int(math.ceil((g_max - g_min) / spacing_range)) + 1
+    r_far = _far_range(params, lo, hi)
+    width = 2.0 * r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0) + 2 * s
+    n_azimuth = int(math.ceil(width / s)) + 1
+    ant_along = (geometry.positions - origin) @ track
+    k0 = np.floor((ant_along - 0.5 * width) / s).astype(np.int64)
+    return RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
+                        range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range,
+                        azimuth_limits=(float(along.min() - s), float(along.max() + s)), k0=k0)

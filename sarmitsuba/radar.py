@@ -1,0 +1,247 @@
+"""Radar and platform parameters, and the acquisition geometry derived from them.
+
+:class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (DESIGN.md
+section 4); :func:`acquisition_geometry` turns it into per-pulse antenna positions
+(float64, world frame, z up) for a straight, level track (stop-and-hop, DESIGN.md section 5).
+
+Conventions (DESIGN.md section 4): the platform flies along +x rotated by ``heading``
+(degrees, counter-clockwise from +x). ``look_side="right"`` looks to the right of the
+track, i.e. toward -y for heading 0: the sensor sits on the +y side of the scene.
+Angles are degrees at the interface, radians inside.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any, Mapping
+
+import numpy as np
+
+from .constants import SPEED_OF_LIGHT
+
+__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError"]
+
+
+class ParameterError(ValueError):
+    """A radar, platform or tracer parameter is outside its valid range."""
+
+
+@dataclass(frozen=True)
+class RadarParameters:
+    """Radar and platform parameters of a SAR acquisition (the ``sar`` sensor's manual).
+
+    Attributes
+    ----------
+    frequency : float, Hz
+        Carrier frequency ``fc``; (0, inf).
+    bandwidth : float, Hz
+        Transmitted chirp bandwidth ``B``; (0, sampling_rate].
+    pulse_length : float, s
+        Chirp duration ``T_p``; the chirp rate is ``B / T_p``.
+    prf : float, Hz
+        Pulse repetition frequency.
+    sampling_rate : float, Hz
+        Fast-time complex sampling rate ``fs``; must be >= ``bandwidth``.
+    velocity : float, m/s
+        Platform speed along the track.
+    altitude : float, m
+        Platform height above the scene centre.
+    incidence_angle : float, deg
+        Incidence (= look, flat earth) angle at the scene centre; (0, 90).
+    scene_center : tuple of 3 float, m
+        Point the beam centre looks at, mid-aperture; ``None`` = centre of the scene's
+        bounding box at ground level, resolved by the scene loader.
+    look_side : str
+        ``"right"`` or ``"left"`` of the track.
+    heading : float, deg
+        Track direction, counter-clockwise from +x.
+    n_pulses : int
+        Number of pulses; 0 = enough to illuminate the whole scene (resolved by the loader).
+    azimuth_beamwidth : float, deg
+        Two-way azimuth beamwidth of the ideal (uniform) beam; rays are shot over this
+        footprint only. Default ~ lambda / (1 m antenna).
+    polarization : str
+        ``"VV"`` or ``"HH"`` (scalar single-polarisation model).
+    """
+
+    frequency: float = 9.6e9
+    bandwidth: float = 150e6
+    pulse_length: float = 10e-6
+    prf: float = 250.0
+    sampling_rate: float = 180e6
+    velocity: float = 100.0
+    altitude: float = 1000.0
+    incidence_angle: float = 45.0
+    scene_center: tuple[float, float, float] | None = None
+    look_side: str = "right"
+    heading: float = 0.0
+    n_pulses: int = 0
+    azimuth_beamwidth: float = 1.8
+    polarization: str = "VV"
+
+    def __post_init__(self) -> None:
+        _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
+                  "velocity", "altitude", "azimuth_beamwidth")
+        if not 0.0 < self.incidence_angle < 90.0:
+            raise ParameterError(
+                f"incidence_angle = {self.incidence_angle} deg is outside the valid range (0, 90) deg")
+        if self.sampling_rate < self.bandwidth:
+            raise ParameterError(
+                f"sampling_rate = {self.sampling_rate:g} Hz is below bandwidth = {self.bandwidth:g} Hz: "
+                "complex sampling needs sampling_rate >= bandwidth")
+        if self.look_side not in ("right", "left"):
+            raise ParameterError(f"look_side = {self.look_side!r}; valid values are 'right' and 'left'")
+        if self.polarization not in ("VV", "HH"):
+            raise ParameterError(f"polarization = {self.polarization!r}; valid values are 'VV' and 'HH'")
+        if int(self.n_pulses) != self.n_pulses or self.n_pulses < 0:
+            raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
+        if not 0.0 < self.azimuth_beamwidth < 90.0:
+            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is outside (0, 90) deg")
+        if self.scene_center is not None and (len(self.scene_center) != 3
+                                              or not np.all(np.isfinite(self.scene_center))):
+            raise ParameterError(f"scene_center = {self.scene_center} must be three finite numbers [m]")
+
+    # -- derived quantities (standard formulas; Cumming & Wong 2005, ch. 4) -----------------
+    @property
+    def wavelength(self) -> float:
+        """Carrier wavelength ``c / fc`` [m]."""
+        return SPEED_OF_LIGHT / self.frequency
+
+    @property
+    def chirp_rate(self) -> float:
+        """LFM chirp rate ``K_r = B / T_p`` [Hz/s]."""
+        return self.bandwidth / self.pulse_length
+
+    @property
+    def slant_range_resolution(self) -> float:
+        """Slant-range resolution ``c / (2 B)`` [m] (IRW is 0.886 of this, unweighted)."""
+        return SPEED_OF_LIGHT / (2.0 * self.bandwidth)
+
+    @property
+    def ground_range_resolution(self) -> float:
+        """Ground-range resolution ``c / (2 B sin(theta_inc))`` [m]."""
+        return self.slant_range_resolution / math.sin(math.radians(self.incidence_angle))
+
+    @property
+    def azimuth_resolution(self) -> float:
+        """Stripmap azimuth resolution ``lambda / (2 beta_az)`` [m] for an ideal beam of width beta_az."""
+        return self.wavelength / (2.0 * math.radians(self.azimuth_beamwidth))
+
+    @property
+    def slant_range(self) -> float:
+        """Slant range from the mid-aperture antenna to the scene centre [m] (flat earth)."""
+        return self.altitude / math.cos(math.radians(self.incidence_angle))
+
+    @property
+    def ground_range(self) -> float:
+        """Horizontal distance from the nadir track to the scene centre [m]."""
+        return self.altitude * math.tan(math.radians(self.incidence_angle))
+
+    @property
+    def footprint_length(self) -> float:
+        """Azimuth extent of the beam footprint at the scene centre [m]: ``2 R tan(beta/2)``."""
+        return 2.0 * self.slant_range * math.tan(math.radians(self.azimuth_beamwidth) / 2.0)
+
+    @property
+    def doppler_bandwidth(self) -> float:
+        """Azimuth Doppler bandwidth ``2 v sin(beta/2) * 2 / lambda`` [Hz] of the ideal beam."""
+        return 4.0 * self.velocity * math.sin(math.radians(self.azimuth_beamwidth) / 2.0) / self.wavelength
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> "RadarParameters":
+        """Return a copy with some parameters replaced (names checked, values validated)."""
+        return replace(self, **coerce_parameters(overrides))
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all parameters."""
+        return tuple(f.name for f in fields(cls))
+
+
+def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Convert strings / numbers to the field types of :class:`RadarParameters`.
+
+    Raises :class:`ParameterError` for unknown names (listing the valid ones) and for
+    values that cannot be converted.
+    """
+    types = {f.name: f.type for f in fields(RadarParameters)}
+    out: dict[str, Any] = {}
+    for name, value in values.items():
+        if name not in types:
+            raise ParameterError(f"unknown sar sensor parameter {name!r}; valid: {', '.join(sorted(types))}")
+        try:
+            if name == "scene_center":
+                parts = value.replace(",", " ").split() if isinstance(value, str) else list(value)
+                out[name] = tuple(float(v) for v in parts)
+            elif name == "n_pulses":
+                out[name] = int(value)
+            elif name in ("look_side", "polarization"):
+                out[name] = str(value)
+            else:
+                out[name] = float(value)
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(f"sar sensor parameter {name}: cannot use value {value!r} ({exc})") from None
+    return out
+
+
+def _positive(obj: Any, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
+
+
+@dataclass(frozen=True)
+class AcquisitionGeometry:
+    """Per-pulse geometry of a straight, level stripmap track.
+
+    Attributes
+    ----------
+    positions : float64 [n_pulses, 3], m
+        Antenna phase centre at each pulse (monostatic, stop-and-hop).
+    velocity : float64 [n_pulses, 3], m/s
+    pulse_time : float64 [n_pulses], s
+        Slow time, zero at mid-aperture.
+    scene_center : float64 [3], m
+    track_direction : float64 [3]
+        Unit vector along the track.
+    look_direction : float64 [3]
+        Horizontal unit vector from the track toward the scene (away from the sensor).
+    """
+
+    positions: np.ndarray
+    velocity: np.ndarray
+    pulse_time: np.ndarray
+    scene_center: np.ndarray
+    track_direction: np.ndarray
+    look_direction: np.ndarray
+
+
+def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
+    """Unit track direction and horizontal look direction, float64 [3] each."""
+    h = math.radians(params.heading)
+    track = np.array([math.cos(h), math.sin(h), 0.0])
+    right = np.array([math.sin(h), -math.cos(h), 0.0])      # track x z_hat
+    return track, (right if params.look_side == "right" else -right)
+
+
+def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
+    """Antenna positions for every pulse (DESIGN.md section 4 conventions).
+
+    The mid-aperture antenna sits at ``scene_center - ground_range * look + altitude * z``;
+    pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
+    ``scene_center`` and ``n_pulses > 0``.
+
+    Raises
+    ------
+    ParameterError
+        When ``scene_center`` or ``n_pulses`` are unresolved.
+    """
+    if params.scene_center is None or params.n_pulses <= 0:
+        raise ParameterError("scene_center and n_pulses must be resolved before computing the geometry")
+    track, look = track_frame(params)
+    center = np.asarray(params.scene_center, dtype=np.float64)
+    mid = center - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
+    t = (np.arange(params.n_pulses, dtype=np.float64) - (params.n_pulses - 1) / 2.0) / params.prf
+    positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :]
+    velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)
+    return AcquisitionGeometry(positions, velocity, t, center, track, look)

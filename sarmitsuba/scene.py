@@ -1,0 +1,213 @@
+"""Loading a scene: XML path, built-in name or ``sionna:NAME``, plus the SAR sensor and tracer settings.
+
+A scene is a Mitsuba XML file (DESIGN.md section 4). ``load_scene`` resolves where it is,
+loads it with sarmitsuba's plugins, reads the ``sar`` sensor and ``sbr`` integrator (or
+uses the defaults when the scene has none, as Sionna RT scenes do), applies overrides
+(from the CLI), and resolves the automatic parameters against the scene's bounding box.
+"""
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from . import materials
+from .planning import resolve_parameters
+from .radar import ParameterError, RadarParameters, coerce_parameters
+from .trace import MaterialTable, TraceSettings
+
+__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table",
+           "builtin_scenes", "sionna_scenes"]
+
+#: Number of cos(incidence) samples of each material's reflection table.
+TABLE_SIZE = 257
+
+
+class SceneError(ValueError):
+    """A scene cannot be found or loaded; the message says which file and why."""
+
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """A loaded scene with its resolved radar parameters and tracer settings.
+
+    Attributes
+    ----------
+    scene : mitsuba.Scene
+    path : Path
+        The XML file.
+    source : str
+        What the user asked for (path, built-in name or ``sionna:NAME``).
+    params : RadarParameters
+        Resolved (scene_center and n_pulses filled in).
+    settings : TraceSettings
+    bbox_lo, bbox_hi : float64 [3], m
+        Axis-aligned bounding box of the geometry.
+    has_sensor : bool
+        Whether the scene defines a ``sar`` sensor (otherwise defaults were used).
+    n_shapes, n_triangles : int
+    """
+
+    scene: Any
+    path: Path
+    source: str
+    params: RadarParameters
+    settings: TraceSettings
+    bbox_lo: np.ndarray
+    bbox_hi: np.ndarray
+    has_sensor: bool
+    n_shapes: int
+    n_triangles: int
+
+
+def _package_dir(name: str) -> Path | None:
+    spec = importlib.util.find_spec(name)          # does not import the package's code
+    if spec is None or spec.origin is None:
+        return None
+    return Path(spec.origin).parent
+
+
+def builtin_scenes() -> dict[str, Path]:
+    """Built-in scenes shipped in ``scenes/``: name -> XML path."""
+    folder = _package_dir("sarmitsuba_scenes")
+    return {} if folder is None else {p.stem: p for p in sorted(folder.glob("*.xml"))}
+
+
+def sionna_scenes() -> dict[str, Path]:
+    """Scenes of the installed Sionna RT package (found without importing it): name -> XML path."""
+    folder = _package_dir("sionna")
+    if folder is None:
+        return {}
+    root = folder / "rt" / "scenes"
+    return {p.name: p / f"{p.name}.xml" for p in sorted(root.iterdir()) if (p / f"{p.name}.xml").is_file()}
+
+
+def resolve_source(source: str | Path | None) -> Path:
+    """Path of the XML file for ``source`` (None = the default ``urban`` scene).
+
+    Raises
+    ------
+    SceneError
+        Unknown built-in or Sionna scene name (listing the valid ones), Sionna RT not
+        installed, or a file that does not exist.
+    """
+    source = "urban" if source is None else str(source)
+    if source.startswith("sionna:"):
+        name = source.split(":", 1)[1]
+        scenes = sionna_scenes()
+        if not scenes:
+            raise SceneError(f"{source}: Sionna RT is not installed; install it with "
+                             "`pip install 'sarmitsuba[sionna]'` (or `pip install sionna-rt`)")
+        if name not in scenes:
+            raise SceneError(f"{source}: no Sionna RT scene named {name!r}; available: {', '.join(scenes)}")
+        return scenes[name]
+    builtins = builtin_scenes()
+    if source in builtins:
+        return builtins[source]
+    path = Path(source)
+    if not path.is_file():
+        hint = f"; built-in scenes: {', '.join(builtins)}" if builtins else ""
+        raise SceneError(f"scene file {str(path)!r} does not exist{hint}")
+    return path
+
+
+def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, Any] | None = None,
+               integrator_overrides: Mapping[str, Any] | None = None) -> LoadedScene:
+    """Load a scene and resolve its radar parameters and tracer settings.
+
+    Parameters
+    ----------
+    source : str or Path or None
+        XML path, built-in scene name (``urban``, ``dihedral``, ``trihedral``) or
+        ``sionna:NAME``; None = ``urban``.
+    sensor_overrides, integrator_overrides : mapping, optional
+        Parameter values replacing the scene's (names as in the plugin manuals).
+
+    Raises
+    ------
+    SceneError
+        File missing or malformed, or a plugin rejected its parameters.
+    ParameterError
+        An override names an unknown parameter or has an invalid value.
+    """
+    path = resolve_source(source)
+    level = mi.log_level()
+    mi.set_log_level(mi.LogLevel.Error)      # silences the irrelevant default-film warning
+    try:
+        scene = mi.load_file(str(path), optimize=False)   # one shape per object: ids and materials
+    except RuntimeError as exc:
+        raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
+    finally:
+        mi.set_log_level(level)
+    sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
+    given = dict(sensor.given) if sensor is not None else {}
+    given.update(sensor_overrides or {})
+    params = _radar_parameters(given)
+    integrator = scene.integrator()
+    settings_given = dict(getattr(integrator, "given", {}))
+    settings_given.update(integrator_overrides or {})
+    settings = TraceSettings.from_mapping(settings_given)
+    bbox = scene.bbox()
+    lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
+    if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
+        raise SceneError(f"scene {str(path)!r} has no geometry (empty bounding box)")
+    params = resolve_parameters(params, lo, hi)
+    n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
+    return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
+                       params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
+                       has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri)
+
+
+def _radar_parameters(given: Mapping[str, Any]) -> RadarParameters:
+    given = dict(given)
+    aperture = given.pop("aperture_length", None)
+    params = RadarParameters(**coerce_parameters(given))
+    if aperture is not None:
+        aperture = float(aperture)
+        if not aperture > 0:
+            raise ParameterError(f"aperture_length = {aperture} m must be > 0")
+        params = RadarParameters(**{**coerce_parameters(given),
+                                    "n_pulses": max(1, round(aperture * params.prf / params.velocity))})
+    return params
+
+
+def _clean(exc: Exception) -> str:
+    text = str(exc)
+    return text.split("]", 1)[1].strip() if text.startswith("[") and "]" in text else text
+
+
+def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
+    """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz].
+
+    Raises
+    ------
+    SceneError
+        A shape whose BSDF is not a radar material (``radar`` or ``itu-radio-material``).
+    materials.MaterialError
+        A material used outside its valid frequency range.
+    """
+    rows: dict[str, int] = {}
+    tables, ids = [], []
+    for shape in scene.shapes():
+        bsdf = shape.bsdf()
+        if not hasattr(bsdf, "material_at"):
+            raise SceneError(f"shape {shape.id()!r} uses BSDF {bsdf.class_().name() if hasattr(bsdf, 'class_') else bsdf}"
+                             ", which has no radar properties; give it a <bsdf type=\"radar\"> or "
+                             "<bsdf type=\"itu-radio-material\">")
+        material = bsdf.material_at(frequency)
+        key = bsdf.name
+        if key not in rows:
+            rows[key] = len(tables)
+            tables.append(materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
+        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+        ids.append((shape_id, rows[key]))
+    row_of_shape = np.zeros(max(i for i, _ in ids) + 1, np.uint32)
+    for shape_id, row in ids:
+        row_of_shape[shape_id] = row
+    return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
+                         names=list(rows))

@@ -1,0 +1,413 @@
+"""Shoot-and-bounce-rays tracer with a physical-optics return at every bounce (DESIGN.md sections 5, 6).
+
+For every pulse, ray tubes leave the antenna toward a fixed ground-plane grid covering the
+beam footprint (a world-fixed grid, so every pulse samples the surfaces identically). Each
+tube follows specular bounces up to ``max_depth``; at every hit a shadow ray tests whether
+the antenna sees the hit point, and the tube's footprint contributes the physical-optics
+integral over that footprint (``docs/physics.md``, eq. (PO)):
+
+    a = j (2 sqrt(pi) / lambda) * A_perp * (cos_b + cos_i) / (2 cos_i)
+        * sinc(g . e1 / 2) * sinc(g . e2 / 2) * prod(r_1 .. r_k)
+
+with ``A_perp = Omega s^2`` the tube cross-section at unfolded length ``s``, ``g = k (d - b)``
+the phase gradient, ``e1, e2`` the tube edges projected on the facet and ``r_i`` the
+reflection coefficients of this and all earlier bounces. The coherent sum over tubes gives
+the PO radar cross-section (Ling, Chou and Lee, IEEE TAP 37(2), 1989; Knott, Shaeffer and
+Tuley, *Radar Cross Section*, ch. 5).
+
+Precision (DESIGN.md section 5): rays start near the scene (float64 offset carried
+separately); the first leg and the return leg are float64 norms from the exact hit point;
+a per-pulse float64 reference length is subtracted before anything becomes float32.
+
+Output: per pulse, a complex deposit on a fine fast-time grid (``oversample`` x the
+sampling rate) holding ``a * exp(-j k (L - L_ref))``; :mod:`sarmitsuba.binning` restores
+the reference phase in float64 and range-compresses.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, fields
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+from tqdm import tqdm
+
+from .constants import SPEED_OF_LIGHT
+from .radar import AcquisitionGeometry, ParameterError, RadarParameters
+
+__all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "TraceResult", "trace"]
+
+_RANGE_KERNELS = ("linear", "nearest")
+
+
+@dataclass(frozen=True)
+class TraceSettings:
+    """Settings of the ``sbr`` integrator (see :mod:`sarmitsuba_plugins.sbr_integrator`)."""
+
+    max_depth: int = 3
+    ray_spacing: float = 0.0
+    range_kernel: str = "linear"
+    oversample: int = 8
+    max_batch_rays: int = 1 << 22
+
+    def __post_init__(self) -> None:
+        if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
+            raise ParameterError(f"max_depth = {self.max_depth} must be a whole number in [1, 64]")
+        if not (math.isfinite(self.ray_spacing) and self.ray_spacing >= 0):
+            raise ParameterError(f"ray_spacing = {self.ray_spacing} m must be >= 0 (0 = automatic)")
+        if self.range_kernel not in _RANGE_KERNELS:
+            raise ParameterError(f"range_kernel = {self.range_kernel!r}; valid values: {', '.join(_RANGE_KERNELS)}")
+        if int(self.oversample) != self.oversample or not 1 <= self.oversample <= 64:
+            raise ParameterError(f"oversample = {self.oversample} must be a whole number in [1, 64]")
+        if int(self.max_batch_rays) != self.max_batch_rays or self.max_batch_rays < 1024:
+            raise ParameterError(f"max_batch_rays = {self.max_batch_rays} must be a whole number >= 1024")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all settings."""
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values) -> "TraceSettings":
+        """Build from a name -> value mapping (strings allowed), checking the names."""
+        types = {f.name: f.type for f in fields(cls)}
+        kwargs = {}
+        for name, value in values.items():
+            if name not in types:
+                raise ParameterError(f"unknown sbr integrator parameter {name!r}; valid: {', '.join(types)}")
+            try:
+                kwargs[name] = {"int": int, "float": float, "str": str}[types[name]](value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}") from None
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class FastTimeWindow:
+    """The fast-time sampling window shared by all pulses.
+
+    Attributes
+    ----------
+    t0 : float, s
+        Two-way delay of sample 0.
+    fs : float, Hz
+        Sampling rate.
+    n_samples : int
+        Samples per pulse.
+    oversample : int
+        Fine-grid factor used by the tracer's deposit.
+    """
+
+    t0: float
+    fs: float
+    n_samples: int
+    oversample: int
+
+    @property
+    def fast_time(self) -> np.ndarray:
+        """float64 [n_samples] sample delays, s."""
+        return self.t0 + np.arange(self.n_samples, dtype=np.float64) / self.fs
+
+    @property
+    def n_fine(self) -> int:
+        """Samples of the fine deposit grid."""
+        return self.n_samples * self.oversample
+
+    @property
+    def fine_step_length(self) -> float:
+        """Two-way path length of one fine bin, m."""
+        return SPEED_OF_LIGHT / (self.fs * self.oversample)
+
+
+@dataclass(frozen=True)
+class RayFootprint:
+    """World-fixed ground-plane grid the rays are aimed at.
+
+    Ray ``(i, j)`` of pulse ``p`` aims at ``origin + (k0[p] + i) * spacing_azimuth * track
+    + (range_min + j * spacing_range) * look`` (float64, m). Rays whose point lies outside the
+    ideal beam (``|along-track offset| > R tan(beta / 2)``) or outside the scene's along-track
+    extent are never cast.
+    """
+
+    origin: np.ndarray
+    track: np.ndarray
+    look: np.ndarray
+    spacing_azimuth: float
+    spacing_range: float
+    range_min: float
+    n_azimuth: int
+    n_range: int
+    azimuth_limits: tuple[float, float]
+    k0: np.ndarray
+
+    @property
+    def rays_per_pulse(self) -> int:
+        """Grid points per pulse (an upper bound of the rays cast per pulse)."""
+        return self.n_azimuth * self.n_range
+
+
+@dataclass(frozen=True)
+class TraceResult:
+    """What the tracer returns for the whole acquisition.
+
+    Attributes
+    ----------
+    deposit : complex64 [n_pulses, n_fine]
+        Sum of ``a * exp(-j k (L - L_ref))`` per fine fast-time bin (kernel-weighted).
+    reference_length : float64 [n_pulses], m
+        Per-pulse reference two-way length ``L_ref = 2 |A - scene_center|``.
+    energy_per_order : float64 [max_depth], m^2
+        Incoherent sum of ``|a|^2`` of visible contributions per bounce order (1, 2, ...).
+    energy_outside_window : float, m^2
+        Energy of visible contributions whose delay fell outside the fast-time window.
+    rays_per_order : int64 [max_depth]
+        Closest-hit casts per bounce order (order 1 = primary rays).
+    shadow_rays : int
+        Shadow (visibility) casts.
+    seconds : float
+        Wall time of tracing, s.
+    """
+
+    deposit: np.ndarray
+    reference_length: np.ndarray
+    energy_per_order: np.ndarray
+    energy_outside_window: float
+    rays_per_order: np.ndarray
+    shadow_rays: int
+    seconds: float
+
+
+def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
+          window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
+          material_table: "MaterialTable", progress: bool = False) -> TraceResult:
+    """Trace all pulses of an acquisition (see module docstring for the model).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        Loaded scene (any ``*_mono`` variant).
+    params : RadarParameters
+    geometry : AcquisitionGeometry
+        float64 antenna positions [n_pulses, 3].
+    window : FastTimeWindow
+    footprint : RayFootprint
+    settings : TraceSettings
+    material_table : MaterialTable
+        Reflection coefficient against cos(incidence) per shape.
+    progress : bool
+        Show a tqdm bar over pulse batches.
+
+    Returns
+    -------
+    TraceResult
+    """
+    n_pulses = geometry.positions.shape[0]
+    lref = 2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1)
+    radius, center = _bounding_sphere(scene)
+    r_near = np.maximum(np.linalg.norm(geometry.positions - center, axis=1) - radius - 1.0, 0.0)
+    offset = lref - SPEED_OF_LIGHT * window.t0
+
+    per_batch = max(1, min(n_pulses, settings.max_batch_rays // max(footprint.rays_per_pulse, 1),
+                           (1 << 23) // window.n_fine))
+    deposit = np.zeros((n_pulses, window.n_fine), np.complex64)
+    energy = np.zeros(settings.max_depth)
+    rays = np.zeros(settings.max_depth, np.int64)
+    outside = 0.0
+    shadow = 0
+    start = time.perf_counter()
+    kernel = _Kernel(scene, params, window, footprint, settings, material_table)
+    for p0 in tqdm(range(0, n_pulses, per_batch), desc="trace", unit="batch", disable=not progress):
+        p1 = min(n_pulses, p0 + per_batch)
+        out = kernel(geometry.positions[p0:p1], r_near[p0:p1], lref[p0:p1], offset[p0:p1],
+                     footprint.k0[p0:p1])
+        deposit[p0:p1] = out["deposit"]
+        energy += out["energy"]
+        rays += out["rays"]
+        outside += out["outside"]
+        shadow += out["shadow"]
+    return TraceResult(deposit, lref, energy, float(outside), rays, int(shadow), time.perf_counter() - start)
+
+
+def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
+    bbox = scene.bbox()
+    lo, hi = np.array(bbox.min, float), np.array(bbox.max, float)
+    return 0.5 * float(np.linalg.norm(hi - lo)), 0.5 * (lo + hi)
+
+
+@dataclass(frozen=True)
+class MaterialTable:
+    """Reflection coefficient tables indexed by shape id, for the Dr.Jit kernel.
+
+    Attributes
+    ----------
+    row_of_shape : uint32 [max_shape_id + 1]
+        Table row of each Mitsuba shape id (``reinterpret(UInt32, ShapePtr)``).
+    table : complex64 [n_rows, n_cos]
+        ``r(cos_i)`` sampled uniformly for cos_i in [0, 1]; interpolated linearly.
+    names : list of str
+        Material name of each row.
+    """
+
+    row_of_shape: np.ndarray
+    table: np.ndarray
+    names: list
+
+
+class _Kernel:
+    """One compiled tracing kernel per configuration; called once per pulse batch."""
+
+    def __init__(self, scene, params, window, footprint, settings, material_table):
+        self.scene = scene
+        self.settings = settings
+        self.window = window
+        self.fp = footprint
+        self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+        self.lam = params.wavelength
+        self.tan_half_beam = math.tan(0.5 * math.radians(params.azimuth_beamwidth))
+        n_cos = material_table.table.shape[1]
+        self.n_cos = n_cos
+        self.row_of_shape = mi.UInt32(material_table.row_of_shape.astype(np.uint32))
+        self.tab_re = mi.Float(material_table.table.real.ravel().astype(np.float32))
+        self.tab_im = mi.Float(material_table.table.imag.ravel().astype(np.float32))
+
+    def __call__(self, ant, r_near, lref, offset, k0):
+        fp, win, st = self.fp, self.window, self.settings
+        n_b = ant.shape[0]
+        n_lanes = n_b * fp.rays_per_pulse
+        f64, a64 = mi.Float64, mi.Array3f64
+
+        # ---- lanes -> (pulse, i, j) -> ground aim point (float64) ----
+        lane = dr.arange(mi.UInt32, n_lanes)
+        pulse = lane // fp.rays_per_pulse
+        rest = lane - pulse * fp.rays_per_pulse
+        i = rest // fp.n_range
+        j = rest - i * fp.n_range
+        A = dr.gather(a64, a64(*(ant[:, c].copy() for c in range(3))), pulse)
+        kk0 = dr.gather(mi.Int32, mi.Int32(k0.astype(np.int32)), pulse)
+        along = f64(mi.Int32(i) + kk0) * fp.spacing_azimuth
+        across = f64(j) * fp.spacing_range + fp.range_min
+        P = a64(*fp.origin.tolist()) + a64(*fp.track.tolist()) * along + a64(*fp.look.tolist()) * across
+        to_p = P - A
+        r = dr.norm(to_p)
+        d64 = to_p / r
+        # ---- ideal beam and scene extent ----
+        ant_along = dr.dot(A - a64(*fp.origin.tolist()), a64(*fp.track.tolist()))
+        active = mi.Bool(dr.abs(along - ant_along) <= r * self.tan_half_beam)
+        active &= (along >= fp.azimuth_limits[0]) & (along <= fp.azimuth_limits[1])
+        # ---- tube: solid angle of one ground cell, Omega = dA cos / r^2 ----
+        cos_loc = dr.abs(d64.z)
+        omega = mi.Float(fp.spacing_azimuth * fp.spacing_range * cos_loc / (r * r))
+        ell0 = dr.sqrt(omega)                      # tube side = ell0 * s
+        rn = dr.gather(f64, f64(r_near), pulse)
+        origin = mi.Point3f(A + d64 * rn)
+        d = mi.Vector3f(d64)
+        u1 = dr.normalize(mi.Vector3f(*fp.track.tolist()) - d * dr.dot(d, mi.Vector3f(*fp.track.tolist())))
+        ray = mi.Ray3f(origin, d)
+        ctx = dict(
+            A=A, ell0=ell0,
+            lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
+            base=pulse * win.n_fine,
+            hist_re=dr.zeros(mi.Float, n_b * win.n_fine), hist_im=dr.zeros(mi.Float, n_b * win.n_fine),
+            energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
+        )
+        state = (ray, u1, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.UInt32(0), active)
+        body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
+        if st.max_depth == 1:                       # no reflection loop in the kernel at all
+            body(*state)
+        else:
+            dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
+                "ray", "u1", "s", "gamma_re", "gamma_im", "depth", "active"), label="sbr")
+        dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"])
+        hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
+        energy = ctx["energy"].numpy().astype(np.float64)
+        rays = ctx["rays"].numpy().astype(np.int64)
+        return dict(deposit=hist.reshape(n_b, win.n_fine), energy=energy[:st.max_depth],
+                    outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
+                    shadow=int(rays[st.max_depth]))
+
+    def _bounce(self, ctx, ray, u1, s, g_re, g_im, depth, active):
+        """One bounce: intersect, PO return to the antenna, reflect. Returns the new loop state."""
+        f64 = type(s)
+        a64 = type(ctx["A"])
+        st, win = self.settings, self.window
+        # ---- intersect ----
+        dr.scatter_add(ctx["rays"], mi.UInt32(1), depth, active)
+        si = self.scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=False, active=active)
+        active = active & si.is_valid()
+        d = ray.d
+        n = mi.Vector3f(si.n)
+        n = dr.select(dr.dot(n, d) > 0, -n, n)
+        cos_i = -dr.dot(d, n)
+        cos_safe = dr.maximum(cos_i, 1e-4)
+        p64 = a64(si.p)
+        to_ant = ctx["A"] - p64
+        dist = dr.norm(to_ant)
+        b = mi.Vector3f(to_ant / dist)
+        cos_b = dr.dot(n, b)
+        s_new = dr.select(depth == 0, dr.norm(p64 - ctx["A"]), s + f64(si.t))
+        # ---- reflection coefficient r(cos_i) of the hit material ----
+        row = dr.gather(mi.UInt32, self.row_of_shape, dr.reinterpret_array(mi.UInt32, si.shape), active)
+        x = dr.clip(cos_i, 0.0, 1.0) * (self.n_cos - 1)
+        i0 = mi.UInt32(dr.minimum(dr.floor(x), self.n_cos - 2))
+        w = x - mi.Float(i0)
+        idx = row * self.n_cos + i0
+        r_re = dr.lerp(dr.gather(mi.Float, self.tab_re, idx, active), dr.gather(mi.Float, self.tab_re, idx + 1, active), w)
+        r_im = dr.lerp(dr.gather(mi.Float, self.tab_im, idx, active), dr.gather(mi.Float, self.tab_im, idx + 1, active), w)
+        c_re = g_re * r_re - g_im * r_im          # prod r_1..r_k (this bounce included)
+        c_im = g_re * r_im + g_im * r_re
+        # ---- PO return of the tube footprint, eq. (PO) ----
+        ell = ctx["ell0"] * mi.Float(s_new)
+        e1 = ell * u1
+        e2 = ell * dr.cross(d, u1)
+        g = self.k * (d - b)
+        x1 = 0.5 * dr.dot(g, e1 + d * (dr.dot(n, e1) / cos_safe))
+        x2 = 0.5 * dr.dot(g, e2 + d * (dr.dot(n, e2) / cos_safe))
+        mag = (2.0 * math.sqrt(math.pi) / self.lam) * ell * ell * (cos_b + cos_i) / (2.0 * cos_safe) \
+            * _sinc(x1) * _sinc(x2)
+        # ---- shadow test toward the antenna ----
+        vis = active & (cos_b > 0)
+        vis &= ~self.scene.ray_test(si.spawn_ray(b), vis)
+        dr.scatter_add(ctx["rays"], mi.UInt32(1), st.max_depth, vis)
+        # ---- deposit a * exp(-j k (L - L_ref)) on the fine fast-time grid ----
+        rel = s_new + dist - ctx["lref"]
+        phase = -self.k * rel
+        phase = mi.Float(phase - (2.0 * math.pi) * dr.round(phase * (1.0 / (2.0 * math.pi))))
+        sn, cs = dr.sincos(phase)
+        a_re, a_im = -mag * c_im, mag * c_re      # the PO factor j
+        v_re = a_re * cs - a_im * sn
+        v_im = a_re * sn + a_im * cs
+        pos = (ctx["off"] + rel) * (1.0 / win.fine_step_length)
+        k_lo = dr.floor(pos)
+        frac = mi.Float(pos - k_lo)
+        k_lo = mi.Int32(k_lo)
+        if st.range_kernel == "nearest":
+            k_lo = mi.Int32(dr.round(pos))
+            inside = vis & (k_lo >= 0) & (k_lo < win.n_fine)
+            self._deposit(ctx, k_lo, v_re, v_im, inside)
+        else:
+            inside = vis & (k_lo >= 0) & (k_lo < win.n_fine - 1)
+            self._deposit(ctx, k_lo, v_re * (1.0 - frac), v_im * (1.0 - frac), inside)
+            self._deposit(ctx, k_lo + 1, v_re * frac, v_im * frac, inside)
+        power = mag * mag * (c_re * c_re + c_im * c_im)
+        dr.scatter_add(ctx["energy"], power, depth, vis)
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
+        # ---- next bounce: specular reflection ----
+        d_next = d - 2.0 * dr.dot(d, n) * n
+        u1 = u1 - 2.0 * dr.dot(u1, n) * n
+        ray = si.spawn_ray(d_next)
+        depth = depth + 1
+        active = active & (depth < st.max_depth)
+        return ray, u1, dr.select(active, s_new, s), c_re, c_im, depth, active
+
+    @staticmethod
+    def _deposit(ctx, k, v_re, v_im, mask):
+        index = ctx["base"] + mi.UInt32(k)
+        dr.scatter_add(ctx["hist_re"], v_re, index, mask)
+        dr.scatter_add(ctx["hist_im"], v_im, index, mask)
+
+
+def _sinc(x):
+    """sin(x) / x, 1 at 0 (unnormalised sinc)."""
+    return dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x)
