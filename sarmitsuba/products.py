@@ -1,0 +1,202 @@
+"""Image products: OpenEXR channels and PNG quicklooks of a :class:`SarImage` (DESIGN.md section 3).
+
+This is the only module with figure code. Every writer is atomic: it writes a temporary
+file next to the target (``.<name>.partial``) and renames it over the target with
+:func:`os.replace`, so readers never see half a file and a failed write leaves any
+previous file untouched.
+
+=========================  ===================================================================
+:func:`write_exr`          float32 channels ``intensity`` (``|data|^2``), ``real``, ``imag``.
+:func:`write_quicklook`    PNG: dB of ``|data|`` over a fixed dynamic range, axes in metres.
+=========================  ===================================================================
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .image import SarImage
+from .raw import _json_default
+
+__all__ = ["write_exr", "write_quicklook"]
+
+_MAX_HEADER_JSON = 1 << 18  # characters of JSON in the EXR header attribute "sarmitsuba"
+
+
+def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
+    """Write ``image`` as a single-part scanline OpenEXR file with float32 channels.
+
+    Parameters
+    ----------
+    image : SarImage
+        The focused image; ``data`` is complex64 ``[n_az, n_rg]``.
+    path : str or os.PathLike
+        Target file, conventionally ``*.exr``.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Notes
+    -----
+    Channels (each float32 ``[n_az, n_rg]``; EXR width = ``n_rg``, height = ``n_az``,
+    row ``i`` of the file is ``azimuth[i]``, so the first row is the smallest azimuth):
+
+    ``intensity``
+        ``|data|^2`` in m^2 (normalised radiometry), computed in float64 then rounded.
+    ``real``, ``imag``
+        The complex samples, exactly as stored in complex64.
+
+    Custom channel names keep OpenEXR 3.5's Python reader (``OpenEXR.File``) from
+    grouping them into an RGB(A) array; they are read back as
+    ``File(path).channels()["intensity"].pixels``. ZIP compression (lossless). The header
+    attribute ``sarmitsuba`` holds JSON: plane, algorithm, window, origin, directions,
+    both axes in metres and the image metadata (replaced by a note when longer than
+    256 Ki characters).
+
+    Raises
+    ------
+    OSError
+        When the directory is not writable.
+    """
+    import OpenEXR
+
+    data = image.data
+    intensity = (data.real.astype(np.float64) ** 2 + data.imag.astype(np.float64) ** 2).astype(np.float32)
+    channels = {"intensity": intensity,
+                "real": np.ascontiguousarray(data.real, dtype=np.float32),
+                "imag": np.ascontiguousarray(data.imag, dtype=np.float32)}
+    info = {"plane": image.plane, "algorithm": image.algorithm, "window": image.window,
+            "origin": image.origin, "azimuth_direction": image.azimuth_direction,
+            "range_direction": image.range_direction, "azimuth": image.azimuth, "range": image.range,
+            "units": {"intensity": "m^2", "real": "sqrt(m^2)", "imag": "sqrt(m^2)", "axes": "m"},
+            "metadata": image.metadata}
+    text = json.dumps(info, default=_json_default)
+    if len(text) > _MAX_HEADER_JSON:  # keep EXR headers small; the .npz keeps the full metadata
+        info["metadata"] = {"omitted": f"metadata longer than {_MAX_HEADER_JSON} characters"}
+        text = json.dumps(info, default=_json_default)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+              "comment": f"sarmitsuba {image.algorithm} image, {image.plane} plane: "
+                         "channels intensity = |data|^2, real, imag",
+              "sarmitsuba": text}
+    exr = OpenEXR.File(header, channels)
+    return _atomic_write(Path(path), lambda tmp: exr.write(str(tmp)))
+
+
+def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: float = 40.0,
+                    title: str | None = None, *, figsize: tuple[float, float] = (8.0, 6.0),
+                    dpi: int = 100, aspect: str | float = "equal") -> Path:
+    """Write a PNG quicklook: ``20 log10(|data| / max |data|)`` clipped to the dynamic range.
+
+    Parameters
+    ----------
+    image : SarImage
+        The focused image.
+    path : str or os.PathLike
+        Target file, conventionally ``*.png``.
+    dynamic_range_db : float, default 40
+        Shown range below the peak in dB (> 0); darker pixels are clipped to
+        ``-dynamic_range_db``.
+    title : str, optional
+        First title line; default ``metadata["scene"]`` or ``"SAR image"``. A second line
+        lists the key parameters (algorithm, window, plane, fc, B, pulses, size).
+    figsize : (float, float), default (8, 6)
+        Figure size in inches; the PNG is ``figsize * dpi`` pixels (no tight cropping).
+    dpi : int, default 100
+        Dots per inch.
+    aspect : "equal", "auto" or float, default "equal"
+        Passed to :meth:`matplotlib.axes.Axes.imshow`; "equal" keeps metres square.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Notes
+    -----
+    The x axis is range (ground or slant, per ``image.plane``), the y axis azimuth, both in
+    metres with pixel centres at the axis values (``origin="lower"``: azimuth increases
+    upward). An all-zero or non-finite image is drawn uniformly at ``-dynamic_range_db``
+    and says so in the title; no NaN or divide-by-zero warning is raised.
+    Rendered with matplotlib's Agg canvas and no pyplot state.
+
+    Raises
+    ------
+    ValueError
+        When ``dynamic_range_db`` is not a finite positive number, or ``figsize``/``dpi``
+        are not positive.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    dynamic_range_db = float(dynamic_range_db)
+    if not (np.isfinite(dynamic_range_db) and dynamic_range_db > 0):
+        raise ValueError(f"dynamic_range_db must be a finite number > 0 (dB), got {dynamic_range_db!r}")
+    if not (len(figsize) == 2 and min(figsize) > 0 and dpi > 0):
+        raise ValueError(f"figsize must be two positive inches and dpi > 0, got {figsize!r}, {dpi!r}")
+    db, empty = _decibels(image.data, dynamic_range_db)
+
+    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
+                      extent=(*_edges(image.range), *_edges(image.azimuth)), aspect=aspect,
+                      interpolation="nearest")
+    ax.set_xlabel(f"{'ground' if image.plane == 'ground' else 'slant'} range [m]")
+    ax.set_ylabel("azimuth [m]")
+    fig.colorbar(shown, ax=ax, label="dB")
+    ax.set_title(_title(image, title, dynamic_range_db, empty), fontsize="small")
+    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+
+
+# ============================================================================ helpers
+def _decibels(data: np.ndarray, dynamic_range_db: float) -> tuple[np.ndarray, bool]:
+    """dB of ``|data|`` relative to its finite maximum, floored at ``-dynamic_range_db``."""
+    magnitude = np.abs(data).astype(np.float64)
+    finite = np.isfinite(magnitude)
+    peak = float(magnitude[finite].max()) if finite.any() else 0.0
+    if not peak > 0.0:
+        return np.full(magnitude.shape, -dynamic_range_db), True
+    floor = peak * 10.0 ** (-dynamic_range_db / 20.0)
+    magnitude = np.where(finite, np.maximum(magnitude, floor), floor)
+    return 20.0 * np.log10(magnitude / peak), False
+
+
+def _edges(axis: np.ndarray) -> tuple[float, float]:
+    """Outer pixel edges of an axis of pixel centres (half a spacing beyond each end)."""
+    half = 0.5 * float(axis[-1] - axis[0]) / (axis.size - 1) if axis.size > 1 else 0.5
+    return float(axis[0]) - half, float(axis[-1]) + half
+
+
+def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: bool) -> str:
+    meta = image.metadata
+    focus = meta.get("focus", {}) if isinstance(meta.get("focus"), dict) else {}
+    first = title if title is not None else str(meta.get("scene", "SAR image"))
+    parts = [image.algorithm, f"{image.window} window", f"{image.plane} plane"]
+    if "fc" in focus:
+        parts.append(f"fc {focus['fc'] / 1e9:.3g} GHz")
+    if "bandwidth" in focus:
+        parts.append(f"B {focus['bandwidth'] / 1e6:.4g} MHz")
+    if "n_pulses" in focus:
+        parts.append(f"{focus['n_pulses']} pulses")
+    parts.append(f"{image.data.shape[0]}x{image.data.shape[1]} px, {dynamic_range_db:g} dB")
+    if empty:
+        parts.append("all-zero image")
+    return f"{first}\n" + ", ".join(parts)
+
+
+def _atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
+    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename it to ``path``."""
+    tmp = path.with_name(f".{path.name}.partial")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
