@@ -7,16 +7,16 @@
    - Carrier frequency (default 9.6e9, X-band).
  * - bandwidth
    - float, Hz
-   - Chirp bandwidth B; slant-range resolution c/(2B) (default 150e6).
+   - Chirp bandwidth B; slant-range resolution c/(2B) (default 100e6).
  * - pulse_length
    - float, s
    - Chirp duration T_p (default 10e-6).
  * - prf
    - float, Hz
-   - Pulse repetition frequency (default 250).
+   - Pulse repetition frequency (default 150).
  * - sampling_rate
    - float, Hz
-   - Fast-time complex sampling rate, >= bandwidth (default 180e6).
+   - Fast-time complex sampling rate, >= bandwidth (default 120e6).
  * - velocity
    - float, m/s
    - Platform speed (default 100).
@@ -45,7 +45,7 @@
  * - azimuth_beamwidth
    - float, deg
    - Width of the ideal (uniformly illuminated) azimuth beam; azimuth resolution
-     lambda / (2 beta) (default 1.8).
+     lambda / (2 beta) (default 1.0).
  * - polarization
    - string
    - ``VV`` (default) or ``HH``; scalar single-polarisation model.

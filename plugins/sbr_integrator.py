@@ -9,7 +9,7 @@
  * - ray_spacing
    - float, m
    - Ray-tube width perpendicular to the line of sight at the scene centre; 0 (default) =
-     one third of the finer of the slant-range and azimuth resolutions.
+     half of the finer of the slant-range and azimuth resolutions.
  * - range_kernel
    - string
    - How a path is deposited on the fast-time grid before range compression:

@@ -18,9 +18,9 @@ from .image import SarImage
 from .radar import AcquisitionGeometry, acquisition_geometry
 from .raw import RawData, _json_default
 from .scene import LoadedScene, load_scene, material_table
-from .trace import trace
+from .trace import TraceResult, trace
 
-__all__ = ["RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES"]
+__all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES"]
 
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
@@ -88,6 +88,44 @@ def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
 
 
+@dataclass(frozen=True)
+class Simulation:
+    """Everything one simulation produced, in memory (see :func:`simulate`)."""
+
+    loaded: LoadedScene
+    raw: RawData
+    image: SarImage
+    trace: TraceResult
+    timings: dict
+
+
+def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
+             integrator_overrides: Mapping[str, Any] | None = None, progress: bool = False) -> Simulation:
+    """Load, trace, bin and focus a scene, in memory (no files written).
+
+    Parameters are those of :func:`render`. Raises SceneError, ParameterError or
+    materials.MaterialError before tracing starts.
+    """
+    t = {"start": time.perf_counter()}
+    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    params, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    table = material_table(loaded.scene, params.frequency, params.polarization)
+    t["load"] = time.perf_counter()
+    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
+    t["trace"] = time.perf_counter()
+    raw = binning.to_raw_data(result, window, params, geometry, settings.range_kernel,
+                              _metadata(loaded, footprint.spacing_azimuth, result))
+    t["bin"] = time.perf_counter()
+    image = backproject(raw, image_grid(loaded, geometry), progress=progress)
+    t["focus"] = time.perf_counter()
+    stages = ("load", "trace", "bin", "focus")
+    timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
+    return Simulation(loaded, raw, image, result, timings)
+
+
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
            integrator_overrides: Mapping[str, Any] | None = None, progress: bool = True) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
@@ -103,39 +141,33 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     progress : bool
         Show tqdm progress bars.
 
+    Returns
+    -------
+    RenderSummary
+        Also written to ``out_dir/summary.json``.
+
     Raises
     ------
     SceneError, ParameterError, materials.MaterialError, OSError
         Before tracing starts, for a bad scene, parameter, material or output directory.
     """
-    t = {"start": time.perf_counter()}
+    start = time.perf_counter()
     out = check_output_dir(out_dir)
-    loaded = load_scene(source, sensor_overrides, integrator_overrides)
-    params, settings = loaded.params, loaded.settings
-    geometry = acquisition_geometry(params)
-    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
-    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
-    table = material_table(loaded.scene, params.frequency, params.polarization)
-    t["load"] = time.perf_counter()
-    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
-    t["trace"] = time.perf_counter()
-    raw = binning.to_raw_data(result, window, params, geometry, settings.range_kernel,
-                              _metadata(loaded, footprint.spacing_azimuth, result))
-    t["bin"] = time.perf_counter()
-    image = backproject(raw, image_grid(loaded, geometry), progress=progress)
-    t["focus"] = time.perf_counter()
-    paths = _write_products(out, raw, image, params)
-    t["products"] = time.perf_counter()
-    stages = ("load", "trace", "bin", "focus", "products")
-    timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
-    timings["total"] = t["products"] - t["start"]
+    sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
+                   progress=progress)
+    t_products = time.perf_counter()
+    paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
+    timings = {**sim.timings, "products": time.perf_counter() - t_products}
+    timings["total"] = time.perf_counter() - start
+    result = sim.trace
     summary = RenderSummary(
-        scene=loaded.source, timings=timings, n_pulses=params.n_pulses,
+        scene=sim.loaded.source, timings=timings, n_pulses=sim.raw.n_pulses,
         rays_traced=int(result.rays_per_order.sum() + result.shadow_rays),
         rays_per_order=result.rays_per_order.tolist(), shadow_rays=result.shadow_rays,
         energy_per_order=result.energy_per_order.tolist(), energy_outside_window=result.energy_outside_window,
-        raw_shape=raw.data.shape, image_shape=image.data.shape, outputs={k: str(v) for k, v in paths.items()})
-    _write_summary(out / OUTPUT_FILES["summary"], summary, raw.metadata)
+        raw_shape=sim.raw.data.shape, image_shape=sim.image.data.shape,
+        outputs={k: str(v) for k, v in paths.items()})
+    _write_summary(out / OUTPUT_FILES["summary"], summary, sim.raw.metadata)
     return summary
 
 

@@ -77,10 +77,10 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
 
 
 def ray_spacing(params: RadarParameters, settings: TraceSettings) -> float:
-    """Ray-tube width at the scene centre [m]: the setting, or a third of the finer resolution."""
+    """Ray-tube width at the scene centre [m]: the setting, or half the finer resolution."""
     if settings.ray_spacing > 0:
         return settings.ray_spacing
-    return min(params.slant_range_resolution, params.azimuth_resolution) / 3.0
+    return min(params.slant_range_resolution, params.azimuth_resolution) / 2.0
 
 
 def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,

@@ -59,16 +59,16 @@ class RadarParameters:
         Number of pulses; 0 = enough to illuminate the whole scene (resolved by the loader).
     azimuth_beamwidth : float, deg
         Two-way azimuth beamwidth of the ideal (uniform) beam; rays are shot over this
-        footprint only. Default ~ lambda / (1 m antenna).
+        footprint only (default 1.0; azimuth resolution lambda / (2 beta) = 0.9 m at X-band).
     polarization : str
         ``"VV"`` or ``"HH"`` (scalar single-polarisation model).
     """
 
     frequency: float = 9.6e9
-    bandwidth: float = 150e6
+    bandwidth: float = 100e6
     pulse_length: float = 10e-6
-    prf: float = 250.0
-    sampling_rate: float = 180e6
+    prf: float = 150.0
+    sampling_rate: float = 120e6
     velocity: float = 100.0
     altitude: float = 1000.0
     incidence_angle: float = 45.0
@@ -76,7 +76,7 @@ class RadarParameters:
     look_side: str = "right"
     heading: float = 0.0
     n_pulses: int = 0
-    azimuth_beamwidth: float = 1.8
+    azimuth_beamwidth: float = 1.0
     polarization: str = "VV"
 
     def __post_init__(self) -> None:

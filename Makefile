@@ -1,0 +1,41 @@
+# sarmitsuba: one command to set up and render, one to set up and test (see README).
+# `make setup` installs libLLVM >= 16 (Debian's libllvm19; Dr.Jit's LLVM backend needs it),
+# creates .venv and installs the package with its dev and Sionna extras.
+
+VENV   ?= .venv
+PYTHON ?= python3
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+SCENE  ?=
+OUT    ?= out/urban
+
+.PHONY: setup llvm render test bench clean
+
+setup: llvm $(STAMP)
+
+llvm:
+	@if ldconfig -p | grep -qE 'libLLVM(-(1[6-9]|[2-9][0-9])\.so|\.so\.(1[6-9]|[2-9][0-9]))'; then \
+	  echo "libLLVM >= 16 found"; \
+	else \
+	  echo "installing libllvm19 (Dr.Jit's LLVM backend needs libLLVM >= 16)"; \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq libllvm19; \
+	fi
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev,sionna]'
+	touch $(STAMP)
+
+render: setup
+	$(PY) -m sarmitsuba render $(SCENE) --out $(OUT)
+
+test: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	$(PY) benchmarks/run.py
+
+clean:
+	rm -rf out .pytest_cache

@@ -1,0 +1,94 @@
+"""End-to-end geometry: where dihedral, trihedral and elevated returns land in the focused image.
+
+Each expectation is a closed form of DESIGN.md section 9 / docs/physics.md (G1)-(G2), not
+an earlier output: the double bounce focuses on the fold line, a trihedral at its apex, a
+point at height h lays over toward the sensor by h / tan(theta_inc).
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401  (variant and plugins)
+from sarmitsuba.pipeline import simulate
+
+SCENES = Path(__file__).parent / "scenes"
+
+
+def _peak(image) -> tuple[float, float, float]:
+    """Azimuth [m], ground range [m] and amplitude of the image's brightest pixel."""
+    mag = np.abs(image.data)
+    i, j = np.unravel_index(np.argmax(mag), mag.shape)
+    return float(image.azimuth[i]), float(image.range[j]), float(mag[i, j])
+
+
+def _cells(sim):
+    p = sim.loaded.params
+    return p.azimuth_resolution, p.ground_range_resolution
+
+
+@pytest.fixture(scope="module")
+def dihedral_depth2():
+    return simulate("dihedral", integrator_overrides={"max_depth": 2})
+
+
+@pytest.fixture(scope="module")
+def dihedral_depth1():
+    return simulate("dihedral", integrator_overrides={"max_depth": 1})
+
+
+def test_dihedral_double_bounce_on_fold_line(dihedral_depth2):
+    """(G1): the brightest return lies on the fold line (ground range 0) within one cell."""
+    sim = dihedral_depth2
+    az, gr, _ = _peak(sim.image)
+    _, cell_gr = _cells(sim)
+    assert abs(gr) <= cell_gr, f"double bounce at ground range {gr:.2f} m, fold line at 0 (cell {cell_gr:.2f} m)"
+    assert abs(az) <= 10.0, "peak must lie on the 20 m long fold line"
+
+
+def test_dihedral_line_spans_the_wall(dihedral_depth2):
+    """The double-bounce line is bright along the whole 20 m fold, dark beyond its ends."""
+    sim = dihedral_depth2
+    col = np.argmin(np.abs(sim.image.range))
+    line = np.abs(sim.image.data[:, col - 1:col + 2]).max(axis=1)
+    az = sim.image.azimuth
+    inside = line[np.abs(az) < 8.0]
+    outside = line[np.abs(az) > 14.0]
+    assert inside.min() > 0.2 * line.max(), "the line must be continuous along the fold"
+    assert outside.max() < 0.1 * line.max(), "no line beyond the wall's ends"
+
+
+def test_max_depth_1_has_no_double_bounce(dihedral_depth1, dihedral_depth2):
+    """With max_depth 1 the fold line is absent (> 20 dB weaker); with 2 it is present."""
+    def fold_power(sim):
+        col = np.argmin(np.abs(sim.image.range))
+        return float(np.max(np.abs(sim.image.data[:, col - 1:col + 2]) ** 2))
+
+    ratio_db = 10 * math.log10(fold_power(dihedral_depth1) / fold_power(dihedral_depth2))
+    assert ratio_db < -20.0, f"fold line with max_depth 1 only {ratio_db:.1f} dB below max_depth 2"
+    e1 = dihedral_depth1.trace.energy_per_order
+    assert e1.shape == (1,) and dihedral_depth2.trace.energy_per_order[1] > 100 * e1[0]
+
+
+def test_trihedral_peaks_at_apex():
+    """The triple bounce focuses at the apex (0, 0, 0) within one cell in both directions."""
+    sim = simulate("trihedral")
+    az, gr, _ = _peak(sim.image)
+    cell_az, cell_gr = _cells(sim)
+    assert abs(az) <= cell_az and abs(gr) <= cell_gr, f"peak at az {az:.2f} m, gr {gr:.2f} m; apex at 0, 0"
+    energy = sim.trace.energy_per_order
+    assert energy[2] > 10 * energy[:2].sum(), "the trihedral's energy is triple bounce"
+
+
+def test_elevated_point_lays_over_toward_sensor():
+    """(G2): a trihedral on a 30 m tower roof appears 30 m / tan(45 deg) closer in ground range."""
+    sim = simulate(str(SCENES / "tower.xml"))
+    p = sim.loaded.params
+    az, gr, _ = _peak(sim.image)
+    expected = -30.0 / math.tan(math.radians(p.incidence_angle))   # toward the sensor = negative
+    cell_az, cell_gr = _cells(sim)
+    assert abs(gr - expected) <= cell_gr, f"roof reflector at {gr:.2f} m, expected {expected:.2f} m"
+    assert abs(az) <= cell_az
