@@ -82,8 +82,8 @@ def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
     across = corners @ geometry.look_direction
     layover = max(0.0, loaded.bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
     spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
-    half_range = max(abs(across.min() - layover), abs(across.max())) + 4 * p.ground_range_resolution
-    half_az = np.abs(along).max() + 4 * p.azimuth_resolution
+    half_range = max(abs(across.min() - layover), abs(across.max())) + 8 * p.ground_range_resolution
+    half_az = np.abs(along).max() + 8 * p.azimuth_resolution
     return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
 
@@ -119,7 +119,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     raw = binning.to_raw_data(result, window, params, geometry, settings.range_kernel,
                               _metadata(loaded, footprint.spacing_azimuth, result))
     t["bin"] = time.perf_counter()
-    image = backproject(raw, image_grid(loaded, geometry), progress=progress)
+    image = backproject(raw, image_grid(loaded, geometry), azimuth_beamwidth=params.azimuth_beamwidth,
+                        progress=progress)
     t["focus"] = time.perf_counter()
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
@@ -178,7 +179,7 @@ def _write_products(out: Path, raw: RawData, image: SarImage, params) -> dict:
     products.write_exr(image, paths["exr"])
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
              f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}")
-    products.write_quicklook(image, paths["png"], title=title)
+    products.write_quicklook(image, paths["png"], title=title, figsize=(10.0, 8.0), dpi=110)
     return paths
 
 

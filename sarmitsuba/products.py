@@ -90,8 +90,12 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
 
 def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: float = 40.0,
                     title: str | None = None, *, figsize: tuple[float, float] = (8.0, 6.0),
-                    dpi: int = 100, aspect: str | float = "equal") -> Path:
-    """Write a PNG quicklook: ``20 log10(|data| / max |data|)`` clipped to the dynamic range.
+                    dpi: int = 100, aspect: str | float = "equal", max_pixels: int = 800) -> Path:
+    """Write a PNG quicklook: ``10 log10(I / max I)`` clipped to the dynamic range.
+
+    ``I`` is the intensity ``|data|^2``, multilooked (block-averaged) by whole factors per
+    axis so that neither axis exceeds ``max_pixels``: a one-pixel-wide double-bounce line
+    survives as a block average instead of vanishing in screen resampling.
 
     Parameters
     ----------
@@ -111,6 +115,8 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
         Dots per inch.
     aspect : "equal", "auto" or float, default "equal"
         Passed to :meth:`matplotlib.axes.Axes.imshow`; "equal" keeps metres square.
+    max_pixels : int, default 800
+        Largest number of multilooked pixels shown per axis (>= 1).
 
     Returns
     -------
@@ -139,32 +145,45 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
         raise ValueError(f"dynamic_range_db must be a finite number > 0 (dB), got {dynamic_range_db!r}")
     if not (len(figsize) == 2 and min(figsize) > 0 and dpi > 0):
         raise ValueError(f"figsize must be two positive inches and dpi > 0, got {figsize!r}, {dpi!r}")
-    db, empty = _decibels(image.data, dynamic_range_db)
+    if int(max_pixels) != max_pixels or max_pixels < 1:
+        raise ValueError(f"max_pixels must be a whole number >= 1, got {max_pixels!r}")
+    looks = tuple(max(1, -(-n // int(max_pixels))) for n in image.data.shape)
+    db, empty = _decibels(_multilook(image.data, looks), dynamic_range_db)
 
     fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
-                      extent=(*_edges(image.range), *_edges(image.azimuth)), aspect=aspect,
+                      extent=(*_edges(image.range[:db.shape[1] * looks[1]]),
+                              *_edges(image.azimuth[:db.shape[0] * looks[0]])), aspect=aspect,
                       interpolation="nearest")
     ax.set_xlabel(f"{'ground' if image.plane == 'ground' else 'slant'} range [m]")
     ax.set_ylabel("azimuth [m]")
     fig.colorbar(shown, ax=ax, label="dB")
-    ax.set_title(_title(image, title, dynamic_range_db, empty), fontsize="small")
+    ax.set_title(_title(image, title, dynamic_range_db, empty, looks), fontsize="small")
     return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
 
 
 # ============================================================================ helpers
-def _decibels(data: np.ndarray, dynamic_range_db: float) -> tuple[np.ndarray, bool]:
-    """dB of ``|data|`` relative to its finite maximum, floored at ``-dynamic_range_db``."""
-    magnitude = np.abs(data).astype(np.float64)
-    finite = np.isfinite(magnitude)
-    peak = float(magnitude[finite].max()) if finite.any() else 0.0
+def _multilook(data: np.ndarray, looks: tuple[int, int]) -> np.ndarray:
+    """Intensity ``|data|^2`` averaged over ``looks`` blocks (trailing partial blocks dropped)."""
+    power = np.abs(data).astype(np.float64) ** 2
+    n0, n1 = (max(1, power.shape[0] // looks[0]) * looks[0], max(1, power.shape[1] // looks[1]) * looks[1])
+    if looks == (1, 1):
+        return power
+    power = power[:n0, :n1]
+    return power.reshape(n0 // looks[0], looks[0], n1 // looks[1], looks[1]).mean(axis=(1, 3))
+
+
+def _decibels(power: np.ndarray, dynamic_range_db: float) -> tuple[np.ndarray, bool]:
+    """dB of the intensity relative to its finite maximum, floored at ``-dynamic_range_db``."""
+    finite = np.isfinite(power)
+    peak = float(power[finite].max()) if finite.any() else 0.0
     if not peak > 0.0:
-        return np.full(magnitude.shape, -dynamic_range_db), True
-    floor = peak * 10.0 ** (-dynamic_range_db / 20.0)
-    magnitude = np.where(finite, np.maximum(magnitude, floor), floor)
-    return 20.0 * np.log10(magnitude / peak), False
+        return np.full(power.shape, -dynamic_range_db), True
+    floor = peak * 10.0 ** (-dynamic_range_db / 10.0)
+    power = np.where(finite, np.maximum(power, floor), floor)
+    return 10.0 * np.log10(power / peak), False
 
 
 def _edges(axis: np.ndarray) -> tuple[float, float]:
@@ -173,7 +192,8 @@ def _edges(axis: np.ndarray) -> tuple[float, float]:
     return float(axis[0]) - half, float(axis[-1]) + half
 
 
-def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: bool) -> str:
+def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: bool,
+           looks: tuple[int, int] = (1, 1)) -> str:
     meta = image.metadata
     focus = meta.get("focus", {}) if isinstance(meta.get("focus"), dict) else {}
     first = title if title is not None else str(meta.get("scene", "SAR image"))
@@ -185,6 +205,8 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
     if "n_pulses" in focus:
         parts.append(f"{focus['n_pulses']} pulses")
     parts.append(f"{image.data.shape[0]}x{image.data.shape[1]} px, {dynamic_range_db:g} dB")
+    if looks != (1, 1):
+        parts.append(f"{looks[0]}x{looks[1]} looks")
     if empty:
         parts.append("all-zero image")
     return f"{first}\n" + ", ".join(parts)

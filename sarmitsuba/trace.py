@@ -127,7 +127,7 @@ class RayFootprint:
 
     Ray ``(i, j)`` of pulse ``p`` aims at ``origin + (k0[p] + i) * spacing_azimuth * track
     + (range_min + j * spacing_range) * look`` (float64, m). Rays whose point lies outside the
-    ideal beam (``|along-track offset| > R tan(beta / 2)``) or outside the scene's along-track
+    ideal beam (``|along-track offset| > R sin(beta / 2)``, R the slant distance) or outside the scene's along-track
     extent are never cast.
     """
 
@@ -265,7 +265,7 @@ class _Kernel:
         self.fp = footprint
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
-        self.tan_half_beam = math.tan(0.5 * math.radians(params.azimuth_beamwidth))
+        self.sin_half_beam = math.sin(0.5 * math.radians(params.azimuth_beamwidth))
         n_cos = material_table.table.shape[1]
         self.n_cos = n_cos
         self.row_of_shape = mi.UInt32(material_table.row_of_shape.astype(np.uint32))
@@ -294,31 +294,34 @@ class _Kernel:
         d64 = to_p / r
         # ---- ideal beam and scene extent ----
         ant_along = dr.dot(A - a64(*fp.origin.tolist()), a64(*fp.track.tolist()))
-        active = mi.Bool(dr.abs(along - ant_along) <= r * self.tan_half_beam)
+        active = mi.Bool(dr.abs(along - ant_along) <= r * self.sin_half_beam)
         active &= (along >= fp.azimuth_limits[0]) & (along <= fp.azimuth_limits[1])
-        # ---- tube: solid angle of one ground cell, Omega = dA cos / r^2 ----
-        cos_loc = dr.abs(d64.z)
-        omega = mi.Float(fp.spacing_azimuth * fp.spacing_range * cos_loc / (r * r))
-        ell0 = dr.sqrt(omega)                      # tube side = ell0 * s
+        # ---- tube: the ground cell's edges seen perpendicular to the ray, per metre of path ----
+        # At the aim point (distance r) the tube's edges are the cell edges E_j projected
+        # normal to d; at unfolded length s they scale by s / r, so on the ground plane the
+        # footprints tile the cells exactly (area Omega s^2 with Omega = dA cos / r^2).
+        e1 = mi.Vector3f((a64(*fp.track.tolist()) * fp.spacing_azimuth) / r)
+        e2 = mi.Vector3f((a64(*fp.look.tolist()) * fp.spacing_range) / r)
+        d = mi.Vector3f(d64)
+        e1 = e1 - d * dr.dot(d, e1)
+        e2 = e2 - d * dr.dot(d, e2)
         rn = dr.gather(f64, f64(r_near), pulse)
         origin = mi.Point3f(A + d64 * rn)
-        d = mi.Vector3f(d64)
-        u1 = dr.normalize(mi.Vector3f(*fp.track.tolist()) - d * dr.dot(d, mi.Vector3f(*fp.track.tolist())))
         ray = mi.Ray3f(origin, d)
         ctx = dict(
-            A=A, ell0=ell0,
+            A=A,
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
             base=pulse * win.n_fine,
             hist_re=dr.zeros(mi.Float, n_b * win.n_fine), hist_im=dr.zeros(mi.Float, n_b * win.n_fine),
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
         )
-        state = (ray, u1, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.UInt32(0), active)
+        state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.UInt32(0), active)
         body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
         if st.max_depth == 1:                       # no reflection loop in the kernel at all
             body(*state)
         else:
             dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
-                "ray", "u1", "s", "gamma_re", "gamma_im", "depth", "active"), label="sbr")
+                "ray", "e1", "e2", "s", "gamma_re", "gamma_im", "depth", "active"), label="sbr")
         dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"])
         hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
         energy = ctx["energy"].numpy().astype(np.float64)
@@ -327,7 +330,7 @@ class _Kernel:
                     outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
                     shadow=int(rays[st.max_depth]))
 
-    def _bounce(self, ctx, ray, u1, s, g_re, g_im, depth, active):
+    def _bounce(self, ctx, ray, t1, t2, s, g_re, g_im, depth, active):
         """One bounce: intersect, PO return to the antenna, reflect. Returns the new loop state."""
         f64 = type(s)
         a64 = type(ctx["A"])
@@ -358,13 +361,13 @@ class _Kernel:
         c_re = g_re * r_re - g_im * r_im          # prod r_1..r_k (this bounce included)
         c_im = g_re * r_im + g_im * r_re
         # ---- PO return of the tube footprint, eq. (PO) ----
-        ell = ctx["ell0"] * mi.Float(s_new)
-        e1 = ell * u1
-        e2 = ell * dr.cross(d, u1)
+        sf = mi.Float(s_new)
+        e1, e2 = t1 * sf, t2 * sf                  # tube edges at this hit, normal to d
+        area = dr.norm(dr.cross(e1, e2))          # A_perp = Omega s^2
         g = self.k * (d - b)
         x1 = 0.5 * dr.dot(g, e1 + d * (dr.dot(n, e1) / cos_safe))
         x2 = 0.5 * dr.dot(g, e2 + d * (dr.dot(n, e2) / cos_safe))
-        mag = (2.0 * math.sqrt(math.pi) / self.lam) * ell * ell * (cos_b + cos_i) / (2.0 * cos_safe) \
+        mag = (2.0 * math.sqrt(math.pi) / self.lam) * area * (cos_b + cos_i) / (2.0 * cos_safe) \
             * _sinc(x1) * _sinc(x2)
         # ---- shadow test toward the antenna ----
         vis = active & (cos_b > 0)
@@ -395,11 +398,12 @@ class _Kernel:
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
         # ---- next bounce: specular reflection ----
         d_next = d - 2.0 * dr.dot(d, n) * n
-        u1 = u1 - 2.0 * dr.dot(u1, n) * n
+        t1 = t1 - 2.0 * dr.dot(t1, n) * n
+        t2 = t2 - 2.0 * dr.dot(t2, n) * n
         ray = si.spawn_ray(d_next)
         depth = depth + 1
         active = active & (depth < st.max_depth)
-        return ray, u1, dr.select(active, s_new, s), c_re, c_im, depth, active
+        return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, depth, active
 
     @staticmethod
     def _deposit(ctx, k, v_re, v_im, mask):

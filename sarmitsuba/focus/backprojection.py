@@ -65,7 +65,8 @@ _MAX_OVERSAMPLE = 64
 
 # ============================================================================ public API
 def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_block: int = 128,
-                workers: int | None = None, progress: bool = False) -> SarImage:
+                workers: int | None = None, azimuth_beamwidth: float | None = None,
+                progress: bool = False) -> SarImage:
     """Focus range-compressed data by time-domain backprojection (fast path).
 
     Parameters
@@ -83,6 +84,15 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         (``pulse_block * n_samples * oversample * 16`` bytes); also the progress step.
     workers : int, optional
         Threads (NumPy releases the GIL in its loops). Default: the CPUs available.
+    azimuth_beamwidth : float, optional
+        Full width [deg] of the ideal azimuth beam, in (0, 90). When given, a pulse
+        contributes to a pixel tile only if the tile lies within the beam, i.e. its
+        angle from the zero-Doppler plane (normal to the platform velocity) is at most
+        half the beamwidth plus the tile's own angular half-size (beam-limited
+        backprojection): pixels do not integrate pulses that never illuminated them,
+        which removes the azimuth-ambiguity ghosts at ``lambda R PRF / (2 v)`` and skips
+        most of the work in stripmap. The image is then normalised by the number of
+        pulses that illuminate the grid origin, so a point target there has peak ``a``.
     progress : bool, default False
         Show a :mod:`tqdm` bar over pulse blocks.
 
@@ -90,7 +100,8 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     -------
     SarImage
         complex64 ``[n_az, n_rg]`` on ``grid`` (``algorithm="backprojection"``,
-        ``window="rect"``), normalised by ``1 / n_pulses``. ``metadata`` is a deep copy of
+        ``window="rect"``), normalised by ``1 / n_pulses`` (or, with
+        ``azimuth_beamwidth``, by the pulses illuminating the grid origin). ``metadata`` is a deep copy of
         ``raw.metadata`` plus ``"focus"``: the parameters, ``seconds`` and
         ``pixel_pulses_per_second``.
 
@@ -153,6 +164,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     """
     t_start = time.perf_counter()
     t0, oversample, pulse_block, workers = _check_inputs(raw, grid, oversample, pulse_block, workers)
+    beam = _beam_half_sine(raw, azimuth_beamwidth)
     n_pulses, n_samples = raw.data.shape
     n_up = (n_samples - 1) * oversample + 1
     n_tab = n_up + 2 * _PAD
@@ -185,6 +197,8 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
             lines = _fft_upsample(raw.data[p0:p1], oversample, workers=workers)
             block = _Block(lines, modulation, [leg[p0:p1] for leg in legs], monostatic, unit,
                            t0, fine_rate, grid, weights)
+            if beam is not None:
+                block.beam = (beam, _unit_rows(raw.velocity[p0:p1]))
             jobs = [(tile, block) for tile in tiles]
             if pool is None:
                 for job in jobs:
@@ -196,10 +210,12 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         if pool is not None:
             pool.shutdown()
         bar.close()
-    data = (image / n_pulses).astype(np.complex64)
+    norm = n_pulses if beam is None else max(1, int(_in_beam(raw, grid.origin, beam).sum()))
+    data = (image / norm).astype(np.complex64)
     seconds = time.perf_counter() - t_start
     focus = _focus_metadata(raw, grid, seconds, oversample=oversample, pulse_block=pulse_block,
                             workers=workers, implementation="numpy-hybrid-float32",
+                            azimuth_beamwidth=azimuth_beamwidth, normalisation_pulses=norm,
                             tile=list(_TILE), weight_table_bins=weights[1], monostatic=monostatic)
     return _make_image(raw, grid, data, focus)
 
@@ -364,6 +380,8 @@ class _Tile:
         cross = 2.0 * cos_ar * alpha[:, None] * rho[None, :]
         q = alpha[:, None] ** 2 + rho[None, :] ** 2 + cross
         self.rmax = float(np.sqrt(q.max())) / half_sample
+        #: Largest distance [m] of a tile pixel from the tile centre.
+        self.half_size = float(np.sqrt(q.max()))
         self.alpha, self.rho = alpha / unit, rho / unit
         self.cross = (cross / unit**2).astype(np.float32).reshape(-1) if abs(cos_ar) > 1e-12 else None
 
@@ -427,6 +445,8 @@ class _Block:
         self.t0, self.fine_rate = t0, fine_rate
         self.e_az, self.e_rg = grid.azimuth_direction, grid.range_direction
         self.weights, self.n_weights = weights
+        #: (sin(beta / 2), unit velocity [P, 3]) for beam-limited backprojection, or None.
+        self.beam: tuple[float, np.ndarray] | None = None
 
 
 class _Workspace:
@@ -467,6 +487,8 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
         length *= 2.0
     offset = (length / SPEED_OF_LIGHT - block.t0) * block.fine_rate  # fine-sample index of the centre
     skip = (offset + tile.rmax + 1.0 < -1.0) | (offset - tile.rmax - 1.0 > block.n_up)
+    if block.beam is not None:
+        skip |= _outside_beam(tile, block)
     inside = (offset - tile.rmax - 1.0 >= -1.0) & (offset + tile.rmax + 1.0 <= block.n_up)
     whole = np.where(skip, 0.0, np.floor(offset))
     first = whole + _PAD  # table index of fine sample `whole` within its row
@@ -479,6 +501,37 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
         "high": np.where(skip, -_PAD, block.n_tab - 1 - first).astype(np.float32)[:, None],
         "skip": skip, "inside": inside,
     }
+
+
+def _beam_half_sine(raw: RawData, azimuth_beamwidth: float | None) -> float | None:
+    """sin(beta / 2) of the ideal beam, or None; checks the value and the platform velocity."""
+    if azimuth_beamwidth is None:
+        return None
+    beta = float(azimuth_beamwidth)
+    if not 0.0 < beta < 90.0:
+        raise ValueError(f"azimuth_beamwidth = {azimuth_beamwidth!r} deg is outside the valid range (0, 90) deg")
+    if not np.all(np.linalg.norm(raw.velocity, axis=1) > 0):
+        raise ValueError("azimuth_beamwidth needs a non-zero platform velocity for every pulse (raw.velocity)")
+    return float(np.sin(np.radians(beta) / 2.0))
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _in_beam(raw: RawData, point: np.ndarray, half_sine: float) -> np.ndarray:
+    """bool [n_pulses]: whether ``point`` lies within the ideal beam of each pulse."""
+    e = point - raw.tx_position
+    return np.abs(np.einsum("ij,ij->i", e, _unit_rows(raw.velocity))) <= half_sine * np.linalg.norm(e, axis=1)
+
+
+def _outside_beam(tile: _Tile, block: _Block) -> np.ndarray:
+    """bool [P]: pulses whose beam misses the whole tile (angle test with the tile's half-size)."""
+    half_sine, v = block.beam
+    e = tile.centre - block.legs[0]
+    dist = np.linalg.norm(e, axis=1)
+    along = np.abs(np.einsum("ij,ij->i", e, v))
+    return along > (half_sine * dist + tile.half_size)
 
 
 def _backproject_tile(tile: _Tile, block: _Block, ws: _Workspace, image: np.ndarray) -> None:
