@@ -16,7 +16,7 @@
    - Pulse repetition frequency (default 150).
  * - sampling_rate
    - float, Hz
-   - Fast-time complex sampling rate, >= bandwidth (default 120e6).
+   - Fast-time complex sampling rate, >= bandwidth (default 0 = 1.2 x bandwidth).
  * - velocity
    - float, m/s
    - Platform speed (default 100).

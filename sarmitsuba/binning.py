@@ -27,22 +27,26 @@ from .trace import FastTimeWindow, TraceResult
 __all__ = ["compressed_pulse_spectrum", "range_compress", "to_raw_data"]
 
 
-def compressed_pulse_spectrum(window: FastTimeWindow, bandwidth: float, range_kernel: str) -> np.ndarray:
-    """Filter applied to the coarse spectrum, float64 [n_samples] in FFT order.
+def compressed_pulse_spectrum(n: int, fs: float, oversample: int, bandwidth: float,
+                              range_kernel: str) -> np.ndarray:
+    """Filter applied to an ``n``-point coarse spectrum, float64 [n] in FFT order.
 
     ``H(f) = rect(f / B) / D(f) / g`` with ``D`` the deposit kernel's droop (1 for
-    ``nearest``, ``sinc^2(f / fs_fine)`` for ``linear``) and ``g`` the normalisation that gives
-    the compressed pulse a unit peak: ``g = sum(rect) / n_samples``.
+    ``nearest``, ``sinc^2(f / fs_fine)`` for ``linear``) and ``g = sum(rect) / n``, which gives
+    the compressed pulse a unit peak.
     """
-    f = sp_fft.fftfreq(window.n_samples, d=1.0 / window.fs)
+    f = sp_fft.fftfreq(n, d=1.0 / fs)
     band = (np.abs(f) <= 0.5 * bandwidth).astype(np.float64)
-    droop = np.sinc(f / (window.fs * window.oversample)) ** 2 if range_kernel == "linear" else 1.0
-    return band / droop / (band.sum() / window.n_samples)
+    droop = np.sinc(f / (fs * oversample)) ** 2 if range_kernel == "linear" else 1.0
+    return band / droop / (band.sum() / n)
 
 
 def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
-                   frequency: float, bandwidth: float, range_kernel: str) -> np.ndarray:
+                   frequency: float, bandwidth: float, range_kernel: str, block: int = 256) -> np.ndarray:
     """Range-compressed samples from the fine deposit.
+
+    The deposit is zero-padded to twice the window before filtering, so the compressed
+    pulse's sinc tails do not wrap around the window (linear, not circular, convolution).
 
     Parameters
     ----------
@@ -51,6 +55,8 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     window : FastTimeWindow
     frequency, bandwidth : float, Hz
     range_kernel : {"linear", "nearest"}
+    block : int
+        Pulses filtered at once (bounds the memory of the padded FFT).
 
     Returns
     -------
@@ -59,13 +65,18 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     from .constants import SPEED_OF_LIGHT
     k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
     phase = np.mod(-k * reference_length, 2.0 * math.pi)           # float64, reduced before use
-    spectrum = sp_fft.fft(deposit, axis=1, workers=-1)
-    n, n_fine = window.n_samples, window.n_fine
-    keep = np.concatenate([np.arange(0, (n + 1) // 2), np.arange(n_fine - n // 2, n_fine)])
-    coarse = spectrum[:, keep] * compressed_pulse_spectrum(window, bandwidth, range_kernel)[None, :]
-    coarse *= np.exp(1j * phase)[:, None]
-    out = sp_fft.ifft(coarse, axis=1, workers=-1)
-    return out.astype(np.complex64)
+    n, os_ = window.n_samples, window.oversample
+    n_pad = sp_fft.next_fast_len(2 * n)
+    n_fine = n_pad * os_
+    keep = np.concatenate([np.arange(0, (n_pad + 1) // 2), np.arange(n_fine - n_pad // 2, n_fine)])
+    filt = compressed_pulse_spectrum(n_pad, window.fs, os_, bandwidth, range_kernel)
+    out = np.empty((deposit.shape[0], n), np.complex64)
+    for p0 in range(0, deposit.shape[0], block):
+        rows = slice(p0, p0 + block)
+        spectrum = sp_fft.fft(deposit[rows], n=n_fine, axis=1, workers=-1)
+        coarse = spectrum[:, keep] * (filt[None, :] * np.exp(1j * phase[rows])[:, None]).astype(np.complex64)
+        out[rows] = sp_fft.ifft(coarse, axis=1, workers=-1)[:, :n]
+    return out
 
 
 def to_raw_data(result: TraceResult, window: FastTimeWindow, params: RadarParameters,

@@ -18,7 +18,7 @@ from .trace import FastTimeWindow, RayFootprint, TraceSettings
 __all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "box_corners"]
 
 #: Samples kept beyond the nearest and farthest scene delay, for the compressed pulse's tails.
-WINDOW_MARGIN_SAMPLES = 16
+WINDOW_MARGIN_SAMPLES = 64
 
 
 def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

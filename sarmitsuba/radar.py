@@ -41,7 +41,8 @@ class RadarParameters:
     prf : float, Hz
         Pulse repetition frequency.
     sampling_rate : float, Hz
-        Fast-time complex sampling rate ``fs``; must be >= ``bandwidth``.
+        Fast-time complex sampling rate ``fs``; must be >= ``bandwidth``; 0 (default) =
+        ``1.2 * bandwidth``.
     velocity : float, m/s
         Platform speed along the track.
     altitude : float, m
@@ -68,7 +69,7 @@ class RadarParameters:
     bandwidth: float = 100e6
     pulse_length: float = 10e-6
     prf: float = 150.0
-    sampling_rate: float = 120e6
+    sampling_rate: float = 0.0
     velocity: float = 100.0
     altitude: float = 1000.0
     incidence_angle: float = 45.0
@@ -80,6 +81,8 @@ class RadarParameters:
     polarization: str = "VV"
 
     def __post_init__(self) -> None:
+        if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
+            object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
         _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
                   "velocity", "altitude", "azimuth_beamwidth")
         if not 0.0 < self.incidence_angle < 90.0:

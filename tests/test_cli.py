@@ -1,0 +1,67 @@
+"""``python -m sarmitsuba render``: outputs, summary, errors before any long work."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import matplotlib.image
+import numpy as np
+import OpenEXR
+
+from sarmitsuba.cli import main
+from sarmitsuba.image import SarImage
+from sarmitsuba.raw import RawData
+
+FILES = ("raw.npz", "image.npz", "image.exr", "image.png", "summary.json")
+
+
+def test_render_writes_all_products(tmp_path, capsys):
+    out = tmp_path / "dihedral"
+    assert main(["render", "dihedral", "--out", str(out), "--no-progress", "--max-depth", "2"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("rendered dihedral:") and "rays traced" in line and "pulses" in line
+
+    summary = json.loads((out / "summary.json").read_text())
+    raw = RawData.load(out / "raw.npz")
+    image = SarImage.load(out / "image.npz")
+    assert summary["n_pulses"] == raw.n_pulses == summary["radar"]["n_pulses"]
+    assert len(summary["energy_per_order"]) == 2 and summary["rays_traced"] > 0
+    assert set(summary["timings"]) >= {"load", "trace", "bin", "focus", "products", "total"}
+    assert summary["outputs"]["png"] == str(out / "image.png")
+
+    with np.load(out / "raw.npz") as f:                       # loads without sarmitsuba
+        assert f["data"].dtype == np.complex64 and f["data"].shape == raw.data.shape
+    png = matplotlib.image.imread(out / "image.png")
+    assert png.shape[0] > 400 and png.shape[1] > 400 and png[..., :3].std() > 0.01
+    exr = OpenEXR.File(str(out / "image.exr"))
+    intensity = exr.channels()["intensity"].pixels
+    assert np.allclose(intensity, np.abs(image.data) ** 2, rtol=1e-5, atol=0)
+
+
+def test_missing_scene_exits_2_with_message(tmp_path, capsys):
+    out = tmp_path / "x"
+    assert main(["render", str(tmp_path / "missing.xml"), "--out", str(out)]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not any(out.glob("*.npz"))
+
+
+def test_unwritable_output_directory_fails_before_tracing(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    assert main(["render", "dihedral", "--out", str(blocker / "sub"), "--no-progress"]) == 2
+    assert "is not writable" in capsys.readouterr().err
+
+
+def test_bad_override_exits_2(tmp_path, capsys):
+    assert main(["render", "dihedral", "--out", str(tmp_path), "--set", "incidence_angle=0"]) == 2
+    assert "incidence_angle" in capsys.readouterr().err
+    assert not any(tmp_path.glob("*.npz"))
+
+
+def test_python_dash_m_entry_point(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "sarmitsuba", "render", "trihedral", "--out", str(tmp_path),
+                             "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert "rendered trihedral" in result.stdout and (tmp_path / "image.png").is_file()
