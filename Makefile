@@ -14,7 +14,7 @@ OUT    ?= out/urban
 setup: llvm $(STAMP)
 
 llvm:
-	@if ldconfig -p | grep -qE 'libLLVM(-(1[6-9]|[2-9][0-9])\.so|\.so\.(1[6-9]|[2-9][0-9]))'; then \
+	@if PATH="$$PATH:/sbin:/usr/sbin" ldconfig -p | grep -qE 'libLLVM(-(1[6-9]|[2-9][0-9])\.so|\.so\.(1[6-9]|[2-9][0-9]))'; then \
 	  echo "libLLVM >= 16 found"; \
 	else \
 	  echo "installing libllvm19 (Dr.Jit's LLVM backend needs libLLVM >= 16)"; \
