@@ -125,8 +125,9 @@ class FastTimeWindow:
 class RayFootprint:
     """World-fixed ground-plane grid the rays are aimed at.
 
-    Ray ``(i, j)`` of pulse ``p`` aims at ``origin + (k0[p] + i) * spacing_azimuth * track
-    + (range_min + j * spacing_range) * look`` (float64, m). Rays whose point lies outside the
+    Ray ``(i, j)`` of pulse ``p`` aims at ``origin + (k0[p] + i + 1/2) * spacing_azimuth * track
+    + (range_min + (j + 1/2) * spacing_range) * look`` (float64, m): cell centres, so that no
+    aim point lies on the edges scenes tend to put at round coordinates. Rays whose point lies outside the
     ideal beam (``|along-track offset| > R sin(beta / 2)``, R the slant distance) or outside the scene's along-track
     extent are never cast.
     """
@@ -286,8 +287,8 @@ class _Kernel:
         j = rest - i * fp.n_range
         A = dr.gather(a64, a64(*(ant[:, c].copy() for c in range(3))), pulse)
         kk0 = dr.gather(mi.Int32, mi.Int32(k0.astype(np.int32)), pulse)
-        along = f64(mi.Int32(i) + kk0) * fp.spacing_azimuth
-        across = f64(j) * fp.spacing_range + fp.range_min
+        along = (f64(mi.Int32(i) + kk0) + 0.5) * fp.spacing_azimuth    # cell centres: no aim point
+        across = (f64(j) + 0.5) * fp.spacing_range + fp.range_min      # on edges at round coordinates
         P = a64(*fp.origin.tolist()) + a64(*fp.track.tolist()) * along + a64(*fp.look.tolist()) * across
         to_p = P - A
         r = dr.norm(to_p)
