@@ -61,7 +61,7 @@ import math
 import drjit as dr
 import mitsuba as mi
 
-from sarmitsuba.radar import ParameterError, RadarParameters, coerce_parameters
+from sarmitsuba.radar import ParameterError, RadarParameters
 
 #: Parameters that the sensor accepts besides the fields of RadarParameters.
 EXTRA_PARAMETERS = ("aperture_length",)
@@ -75,24 +75,14 @@ class SarSensor(mi.Sensor):
         values = {}
         valid = set(RadarParameters.names()) | set(EXTRA_PARAMETERS)
         for key in props.keys():
-            if key in ("film", "sampler") or key.startswith("_"):
-                continue
             if key not in valid:
                 raise ParameterError(
                     f"sar sensor: unknown parameter {key!r}; valid parameters: {', '.join(sorted(valid))}")
             value = props[key]
             values[key] = value if isinstance(value, (int, float, str)) else list(value)
-        aperture = values.pop("aperture_length", None)
         #: Parameters exactly as written in the scene (before defaults), for overrides.
         self.given = dict(values)
-        if aperture is not None:
-            self.given["aperture_length"] = float(aperture)
-        self.parameters = RadarParameters(**coerce_parameters(values))
-        if aperture is not None:
-            if not (aperture > 0 and math.isfinite(aperture)):
-                raise ParameterError(f"aperture_length = {aperture} m must be a finite number > 0")
-            n = max(1, int(round(aperture * self.parameters.prf / self.parameters.velocity)))
-            self.parameters = RadarParameters(**{**coerce_parameters(values), "n_pulses": n})
+        self.parameters = RadarParameters.from_mapping(values)
 
     def _view(self):
         p = self.parameters

@@ -156,8 +156,33 @@ class RadarParameters:
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
-        """Names of all parameters."""
+        """Names of all parameters (plus ``aperture_length``, accepted by :meth:`from_mapping`)."""
         return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> "RadarParameters":
+        """Build from a name -> value mapping (strings allowed), as read from XML or the CLI.
+
+        ``aperture_length`` [m] may replace ``n_pulses``:
+        ``n_pulses = max(1, round(aperture_length * prf / velocity))``.
+
+        Raises
+        ------
+        ParameterError
+            Unknown names (listing the valid ones) or invalid values.
+        """
+        values = dict(values)
+        aperture = values.pop("aperture_length", None)
+        params = cls(**coerce_parameters(values))
+        if aperture is None:
+            return params
+        try:
+            aperture = float(aperture)
+        except (TypeError, ValueError):
+            raise ParameterError(f"aperture_length: cannot use value {aperture!r}") from None
+        if not (math.isfinite(aperture) and aperture > 0):
+            raise ParameterError(f"aperture_length = {aperture} m must be a finite number > 0")
+        return replace(params, n_pulses=max(1, round(aperture * params.prf / params.velocity)))
 
 
 def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import materials
 from .planning import resolve_parameters
-from .radar import ParameterError, RadarParameters, coerce_parameters
+from .radar import RadarParameters
 from .trace import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table",
@@ -147,7 +147,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
-    params = _radar_parameters(given)
+    params = RadarParameters.from_mapping(given)
     integrator = scene.integrator()
     settings_given = dict(getattr(integrator, "given", {}))
     settings_given.update(integrator_overrides or {})
@@ -161,19 +161,6 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri)
-
-
-def _radar_parameters(given: Mapping[str, Any]) -> RadarParameters:
-    given = dict(given)
-    aperture = given.pop("aperture_length", None)
-    params = RadarParameters(**coerce_parameters(given))
-    if aperture is not None:
-        aperture = float(aperture)
-        if not aperture > 0:
-            raise ParameterError(f"aperture_length = {aperture} m must be > 0")
-        params = RadarParameters(**{**coerce_parameters(given),
-                                    "n_pulses": max(1, round(aperture * params.prf / params.velocity))})
-    return params
 
 
 def _clean(exc: Exception) -> str:

@@ -136,3 +136,12 @@ def test_track_geometry_conventions():
     assert np.allclose(g.positions[1], [0.0, 1000.0, 1000.0])
     assert np.allclose(np.diff(g.positions[:, 0]), p.velocity / p.prf)
     assert np.allclose(g.look_direction, [0, -1, 0]) and np.allclose(g.track_direction, [1, 0, 0])
+
+
+def test_aperture_length_sets_the_pulse_count():
+    """aperture_length [m] replaces n_pulses: round(aperture * prf / velocity)."""
+    loaded = load_scene("dihedral", sensor_overrides={"aperture_length": 40.0})
+    p = loaded.params
+    assert p.n_pulses == round(40.0 * p.prf / p.velocity)
+    with pytest.raises(ParameterError, match="aperture_length = -5.0 m"):
+        load_scene("dihedral", sensor_overrides={"aperture_length": -5})
