@@ -47,7 +47,7 @@ from ..image import SarImage
 from ..raw import RawData
 from .grid import ImageGrid
 
-__all__ = ["backproject", "backproject_reference"]
+__all__ = ["backproject", "backproject_reference", "illumination_count"]
 
 #: Zero samples added before and after every upsampled range line. Linear interpolation
 #: between the first (last) sample and these zeros is the "masked" edge of the window.
@@ -91,8 +91,10 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         half the beamwidth plus the tile's own angular half-size (beam-limited
         backprojection): pixels do not integrate pulses that never illuminated them,
         which removes the azimuth-ambiguity ghosts at ``lambda R PRF / (2 v)`` and skips
-        most of the work in stripmap. The image is then normalised by the number of
-        pulses that illuminate the grid origin, so a point target there has peak ``a``.
+        most of the work in stripmap. Each pixel is then normalised by the number of
+        pulses that illuminate it (:func:`illumination_count`), so a point target of
+        amplitude ``a`` has peak ``a`` anywhere in the swath (``|a|^2`` = its RCS in
+        normalised radiometry).
     progress : bool, default False
         Show a :mod:`tqdm` bar over pulse blocks.
 
@@ -101,7 +103,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     SarImage
         complex64 ``[n_az, n_rg]`` on ``grid`` (``algorithm="backprojection"``,
         ``window="rect"``), normalised by ``1 / n_pulses`` (or, with
-        ``azimuth_beamwidth``, by the pulses illuminating the grid origin). ``metadata`` is a deep copy of
+        ``azimuth_beamwidth``, per pixel by the pulses illuminating it). ``metadata`` is a deep copy of
         ``raw.metadata`` plus ``"focus"``: the parameters, ``seconds`` and
         ``pixel_pulses_per_second``.
 
@@ -210,12 +212,17 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         if pool is not None:
             pool.shutdown()
         bar.close()
-    norm = n_pulses if beam is None else max(1, int(_in_beam(raw, grid.origin, beam).sum()))
-    data = (image / norm).astype(np.complex64)
+    if beam is None:
+        norm = float(n_pulses)
+        data = (image / norm).astype(np.complex64)
+    else:
+        counts = illumination_count(raw, grid, azimuth_beamwidth)
+        norm = float(counts.max()) if counts.size else 0.0
+        data = np.where(counts > 0, image / np.maximum(counts, 1.0), 0.0).astype(np.complex64)
     seconds = time.perf_counter() - t_start
     focus = _focus_metadata(raw, grid, seconds, oversample=oversample, pulse_block=pulse_block,
                             workers=workers, implementation="numpy-hybrid-float32",
-                            azimuth_beamwidth=azimuth_beamwidth, normalisation_pulses=norm,
+                            azimuth_beamwidth=azimuth_beamwidth, max_pulses_per_pixel=norm,
                             tile=list(_TILE), weight_table_bins=weights[1], monostatic=monostatic)
     return _make_image(raw, grid, data, focus)
 
@@ -519,10 +526,30 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def _in_beam(raw: RawData, point: np.ndarray, half_sine: float) -> np.ndarray:
-    """bool [n_pulses]: whether ``point`` lies within the ideal beam of each pulse."""
-    e = point - raw.tx_position
-    return np.abs(np.einsum("ij,ij->i", e, _unit_rows(raw.velocity))) <= half_sine * np.linalg.norm(e, axis=1)
+def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, step: int = 16) -> np.ndarray:
+    """Number of pulses whose ideal beam contains each pixel, float64 [n_az, n_rg].
+
+    A pixel ``x`` is in the beam of pulse ``p`` when ``|(x - A_p) . v_p| <= sin(beta / 2) |x - A_p|``
+    (``v_p`` the unit velocity): its angle from the zero-Doppler plane is at most half the
+    beamwidth, the criterion the tracer uses. Counted exactly on every ``step``-th row and
+    column (and the last ones) and interpolated bilinearly in between (the count varies
+    smoothly, with the slant range).
+    """
+    half_sine = _beam_half_sine(raw, azimuth_beamwidth)
+    n_az, n_rg = grid.shape
+    rows = np.unique(np.r_[np.arange(0, n_az, step), n_az - 1])
+    cols = np.unique(np.r_[np.arange(0, n_rg, step), n_rg - 1])
+    pts = (grid.origin + grid.azimuth[rows, None, None] * grid.azimuth_direction
+           + grid.range[None, cols, None] * grid.range_direction).reshape(-1, 3)
+    v = _unit_rows(raw.velocity)
+    counts = np.zeros(pts.shape[0])
+    for p0 in range(0, raw.n_pulses, 32):
+        e = pts[:, None, :] - raw.tx_position[None, p0:p0 + 32, :]
+        along = np.abs(np.einsum("npk,pk->np", e, v[p0:p0 + 32]))
+        counts += (along <= half_sine * np.linalg.norm(e, axis=2)).sum(axis=1)
+    coarse = counts.reshape(rows.size, cols.size)
+    along_range = np.array([np.interp(np.arange(n_rg), cols, line) for line in coarse])   # [rows, n_rg]
+    return np.array([np.interp(np.arange(n_az), rows, column) for column in along_range.T]).T
 
 
 def _outside_beam(tile: _Tile, block: _Block) -> np.ndarray:
