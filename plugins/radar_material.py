@@ -20,22 +20,27 @@
  * - thickness
    - float, m
    - Slab thickness (only with ``model = slab``).
+ * - gamma_db
+   - float, dB
+   - Switches distributed clutter and speckle on: a rough surface of constant gamma,
+     sigma0 = gamma cos(theta) (monostatic; docs/physics.md (C)). Absent = smooth (PO only).
  * - color
    - rgb
    - Colour for optical previews only.
 
 ``itu-radio-material`` (Sionna RT 2.x scenes, loaded unchanged): ``type`` (ITU name),
 ``thickness`` (default 0.1 m, as in Sionna), so the model is the single-layer **slab**, as
-Sionna computes it. ``scattering_coefficient``, ``xpd_coefficient`` and the scattering-pattern
-attributes are read and kept in :attr:`RadarMaterial.ignored`; a non-zero scattering
-coefficient gives a warning because diffuse scattering is not part of this material model.
+Sionna computes it. A non-zero ``scattering_coefficient`` S switches distributed clutter on,
+with Sionna's energy split: the specular reflection is scaled by sqrt(1 - S^2) and a
+Lambertian backscatter sigma0 = 4 S^2 |r|^2 cos^2(theta) is added (docs/physics.md (C)).
+``xpd_coefficient`` and the scattering-pattern attributes are read and kept in
+:attr:`RadarMaterial.ignored` (single polarisation, Lambertian pattern).
 
 For optical renders (``mi.render``) the material behaves as a diffuse BSDF of its colour.
 """
 from __future__ import annotations
 
 import math
-import warnings
 
 import mitsuba as mi
 
@@ -43,7 +48,7 @@ from sarmitsuba import materials
 from sarmitsuba.constants import VACUUM_PERMITTIVITY
 from sarmitsuba.radar import ParameterError
 
-_RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "color")
+_RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "color")
 _ITU_KEYS = ("type", "thickness", "scattering_coefficient", "xpd_coefficient", "color", "reflectance",
              "base_color", "alpha_r", "alpha_i", "lambda_", "scattering_pattern")
 _ITU_DEFAULT_THICKNESS = 0.1   # m, Sionna RT's DEFAULT_THICKNESS
@@ -68,14 +73,21 @@ class RadarMaterial(mi.BSDF):
         if sionna:
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
-            #: Parameters read but not modelled (Sionna's diffuse-scattering settings).
+            scattering = float(values.pop("scattering_coefficient", 0.0))
+            if not 0.0 <= scattering <= 1.0:
+                raise ParameterError(f"itu-radio-material '{self.name}': scattering_coefficient = "
+                                     f"{scattering} is outside the valid range [0, 1]")
+            #: (kind, value) of the distributed-clutter model, see MaterialTable.clutter.
+            self.clutter = (2, 4.0 * scattering**2) if scattering > 0 else (0, 0.0)
+            #: Factor on the specular reflection coefficient.
+            self.specular_factor = math.sqrt(1.0 - scattering**2)
+            #: Parameters read but not modelled (single polarisation, Lambertian pattern).
             self.ignored = values
-            if float(values.get("scattering_coefficient", 0.0)) > 0.0:
-                warnings.warn(f"itu-radio-material '{self.name}': scattering_coefficient = "
-                              f"{values['scattering_coefficient']} is not modelled (specular PO only)",
-                              stacklevel=2)
         else:
             self.ignored = {}
+            gamma_db = values.pop("gamma_db", None)
+            self.clutter = (1, 10.0 ** (float(gamma_db) / 10.0)) if gamma_db is not None else (0, 0.0)
+            self.specular_factor = 1.0
             self._spec = _radar_spec(self.name, values)
         _check_spec(plugin, self.name, **self._spec)
         self._optical = mi.load_dict({"type": "diffuse", "reflectance": {

@@ -91,7 +91,10 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
 def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: float = 40.0,
                     title: str | None = None, *, figsize: tuple[float, float] = (8.0, 6.0),
                     dpi: int = 100, aspect: str | float = "equal", max_pixels: int = 800) -> Path:
-    """Write a PNG quicklook: ``10 log10(I / max I)`` clipped to the dynamic range.
+    """Write a PNG quicklook: ``10 log10(I / I_ref)`` clipped to ``[-dynamic_range_db, 0]``.
+
+    ``I_ref`` is the 99.5th percentile of the non-zero intensities, so a few bright corner
+    reflectors saturate instead of pushing distributed clutter below the display range.
 
     ``I`` is the intensity ``|data|^2``, multilooked (block-averaged) by whole factors per
     axis so that neither axis exceeds ``max_pixels``: a one-pixel-wide double-bounce line
@@ -175,15 +178,21 @@ def _multilook(data: np.ndarray, looks: tuple[int, int]) -> np.ndarray:
     return power.reshape(n0 // looks[0], looks[0], n1 // looks[1], looks[1]).mean(axis=(1, 3))
 
 
+#: Percentile of the non-zero intensities shown as 0 dB (brighter pixels saturate).
+REFERENCE_PERCENTILE = 99.5
+
+
 def _decibels(power: np.ndarray, dynamic_range_db: float) -> tuple[np.ndarray, bool]:
-    """dB of the intensity relative to its finite maximum, floored at ``-dynamic_range_db``."""
+    """dB of the intensity relative to its 99.5th percentile of non-zero values (0 dB; the few
+    brighter pixels, such as corner reflectors, saturate), floored at ``-dynamic_range_db``."""
     finite = np.isfinite(power)
-    peak = float(power[finite].max()) if finite.any() else 0.0
-    if not peak > 0.0:
+    positive = power[finite & (power > 0)]
+    if positive.size == 0:
         return np.full(power.shape, -dynamic_range_db), True
+    peak = float(np.percentile(positive, REFERENCE_PERCENTILE))
     floor = peak * 10.0 ** (-dynamic_range_db / 10.0)
     power = np.where(finite, np.maximum(power, floor), floor)
-    return 10.0 * np.log10(power / peak), False
+    return np.minimum(10.0 * np.log10(power / peak), 0.0), False
 
 
 def _edges(axis: np.ndarray) -> tuple[float, float]:
@@ -204,7 +213,8 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
         parts.append(f"B {focus['bandwidth'] / 1e6:.4g} MHz")
     if "n_pulses" in focus:
         parts.append(f"{focus['n_pulses']} pulses")
-    parts.append(f"{image.data.shape[0]}x{image.data.shape[1]} px, {dynamic_range_db:g} dB")
+    parts.append(f"{image.data.shape[0]}x{image.data.shape[1]} px, {dynamic_range_db:g} dB "
+                 f"below the {REFERENCE_PERCENTILE:g}th percentile")
     if looks != (1, 1):
         parts.append(f"{looks[0]}x{looks[1]} looks")
     if empty:

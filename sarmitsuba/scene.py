@@ -8,6 +8,7 @@ uses the defaults when the scene has none, as Sionna RT scenes do), applies over
 from __future__ import annotations
 
 import importlib.util
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -179,7 +180,7 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         A material used outside its valid frequency range.
     """
     rows: dict[str, int] = {}
-    tables, ids = [], []
+    tables, clutter, ids = [], [], []
     for shape in scene.shapes():
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -190,11 +191,16 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         key = bsdf.name
         if key not in rows:
             rows[key] = len(tables)
-            tables.append(materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
+            tables.append(bsdf.specular_factor
+                          * materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
+            clutter.append(bsdf.clutter)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-        ids.append((shape_id, rows[key]))
-    row_of_shape = np.zeros(max(i for i, _ in ids) + 1, np.uint32)
-    for shape_id, row in ids:
+        ids.append((shape_id, rows[key], zlib.crc32(shape.id().encode())))
+    row_of_shape = np.zeros(max(i for i, _, _ in ids) + 1, np.uint32)
+    shape_key = np.zeros_like(row_of_shape)
+    for shape_id, row, stable in ids:
         row_of_shape[shape_id] = row
+        shape_key[shape_id] = stable
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
-                         names=list(rows))
+                         names=list(rows), clutter=np.array(clutter, np.float32).reshape(-1, 2),
+                         shape_key=shape_key)

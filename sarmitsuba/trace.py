@@ -51,6 +51,7 @@ class TraceSettings:
     range_kernel: str = "linear"
     oversample: int = 8
     max_batch_rays: int = 1 << 22
+    seed: int = 0
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -63,6 +64,8 @@ class TraceSettings:
             raise ParameterError(f"oversample = {self.oversample} must be a whole number in [1, 64]")
         if int(self.max_batch_rays) != self.max_batch_rays or self.max_batch_rays < 1024:
             raise ParameterError(f"max_batch_rays = {self.max_batch_rays} must be a whole number >= 1024")
+        if int(self.seed) != self.seed or not 0 <= self.seed < 2**32:
+            raise ParameterError(f"seed = {self.seed} must be a whole number in [0, 2^32)")
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -249,11 +252,26 @@ class MaterialTable:
         ``r(cos_i)`` sampled uniformly for cos_i in [0, 1]; interpolated linearly.
     names : list of str
         Material name of each row.
+    shape_key : uint32 [max_shape_id + 1]
+        Stable identity of each shape (CRC-32 of its scene id), for clutter phases that do
+        not change between loads of the same scene.
+    clutter : float32 [n_rows, 2]
+        Distributed-clutter model of each row: ``(kind, value)`` with kind 0 = none,
+        1 = constant gamma (``sigma0 = value * sqrt(cos_i cos_b)``, value = gamma),
+        2 = Lambertian (``sigma0 = value * |r|^2 cos_i cos_b``, value = 4 S^2). See
+        docs/physics.md (C).
     """
 
     row_of_shape: np.ndarray
     table: np.ndarray
     names: list
+    clutter: np.ndarray | None = None
+    shape_key: np.ndarray | None = None
+
+    @property
+    def has_clutter(self) -> bool:
+        """Whether any material has a distributed-clutter model (switches the term on)."""
+        return self.clutter is not None and bool(np.any(self.clutter[:, 0] > 0))
 
 
 class _Kernel:
@@ -272,6 +290,11 @@ class _Kernel:
         self.row_of_shape = mi.UInt32(material_table.row_of_shape.astype(np.uint32))
         self.tab_re = mi.Float(material_table.table.real.ravel().astype(np.float32))
         self.tab_im = mi.Float(material_table.table.imag.ravel().astype(np.float32))
+        self.clutter = material_table.has_clutter
+        if self.clutter:
+            self.clutter_kind = mi.UInt32(material_table.clutter[:, 0].astype(np.uint32))
+            self.clutter_value = mi.Float(material_table.clutter[:, 1].astype(np.float32))
+            self.shape_key = mi.UInt32(material_table.shape_key.astype(np.uint32))
 
     def __call__(self, ant, r_near, lref, offset, k0):
         fp, win, st = self.fp, self.window, self.settings
@@ -310,7 +333,7 @@ class _Kernel:
         origin = mi.Point3f(A + d64 * rn)
         ray = mi.Ray3f(origin, d)
         ctx = dict(
-            A=A,
+            A=A, cell_a=mi.UInt32(mi.Int32(i) + kk0), cell_r=j,
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
             base=pulse * win.n_fine,
             hist_re=dr.zeros(mi.Float, n_b * win.n_fine), hist_im=dr.zeros(mi.Float, n_b * win.n_fine),
@@ -370,6 +393,12 @@ class _Kernel:
         x2 = 0.5 * dr.dot(g, e2 + d * (dr.dot(n, e2) / cos_safe))
         mag = (2.0 * math.sqrt(math.pi) / self.lam) * area * (cos_b + cos_i) / (2.0 * cos_safe) \
             * _sinc(x1) * _sinc(x2)
+        a_re, a_im = -mag * c_im, mag * c_re      # the PO factor j
+        # ---- distributed clutter: a fixed scatterer per tube cell, eq. (C) ----
+        if self.clutter:
+            k_re, k_im = self._clutter(ctx, si, row, depth, cos_i, cos_b, area / cos_safe,
+                                       r_re * r_re + r_im * r_im, g_re, g_im, active)
+            a_re, a_im = a_re + k_re, a_im + k_im
         # ---- shadow test toward the antenna ----
         vis = active & (cos_b > 0)
         vis &= ~self.scene.ray_test(si.spawn_ray(b), vis)
@@ -379,7 +408,6 @@ class _Kernel:
         phase = -self.k * rel
         phase = mi.Float(phase - (2.0 * math.pi) * dr.round(phase * (1.0 / (2.0 * math.pi))))
         sn, cs = dr.sincos(phase)
-        a_re, a_im = -mag * c_im, mag * c_re      # the PO factor j
         v_re = a_re * cs - a_im * sn
         v_im = a_re * sn + a_im * cs
         pos = (ctx["off"] + rel) * (1.0 / win.fine_step_length)
@@ -394,7 +422,7 @@ class _Kernel:
             inside = vis & (k_lo >= 0) & (k_lo < win.n_fine - 1)
             self._deposit(ctx, k_lo, v_re * (1.0 - frac), v_im * (1.0 - frac), inside)
             self._deposit(ctx, k_lo + 1, v_re * frac, v_im * frac, inside)
-        power = mag * mag * (c_re * c_re + c_im * c_im)
+        power = a_re * a_re + a_im * a_im
         dr.scatter_add(ctx["energy"], power, depth, vis)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
         # ---- next bounce: specular reflection ----
@@ -405,6 +433,24 @@ class _Kernel:
         depth = depth + 1
         active = active & (depth < st.max_depth)
         return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, depth, active
+
+    def _clutter(self, ctx, si, row, depth, cos_i, cos_b, footprint, r2, g_re, g_im, active):
+        """Clutter amplitude sqrt(sigma0 A_footprint) prod(r_1..r_{k-1}) exp(j phi_cell), eq. (C).
+
+        ``phi_cell`` is uniform in [0, 2 pi), a hash (TEA) of the tube's world-fixed ground cell,
+        the shape, the bounce order and the seed: the same scatterer for every pulse (coherent
+        across the aperture), the same for the same seed, independent for another seed.
+        """
+        kind = dr.gather(mi.UInt32, self.clutter_kind, row, active)
+        value = dr.gather(mi.Float, self.clutter_value, row, active)
+        cosines = dr.maximum(cos_i, 0.0) * dr.maximum(cos_b, 0.0)
+        sigma0 = dr.select(kind == 1, value * dr.sqrt(cosines), dr.select(kind == 2, value * r2 * cosines, 0.0))
+        amp = dr.sqrt(sigma0 * footprint)
+        key = dr.gather(mi.UInt32, self.shape_key, dr.reinterpret_array(mi.UInt32, si.shape), active)
+        h0, h1 = mi.sample_tea_32(ctx["cell_a"], ctx["cell_r"] ^ (depth << 27))
+        u = mi.sample_tea_float32(h0 ^ key, h1 ^ mi.UInt32(self.settings.seed))
+        sn, cs = dr.sincos(2.0 * math.pi * u)
+        return amp * (g_re * cs - g_im * sn), amp * (g_re * sn + g_im * cs)
 
     @staticmethod
     def _deposit(ctx, k, v_re, v_im, mask):
