@@ -18,6 +18,13 @@
  * - oversample
    - integer
    - Fine-grid oversampling of the fast-time axis for the deposit (default 8).
+ * - seed
+   - integer
+   - Seed of the distributed-clutter scatterer phases (default 0); same seed, same speckle.
+ * - split_bounces
+   - boolean
+   - Also produce raw data and images of each bounce order separately (default false; when
+     off, the kernel keeps one histogram).
  * - max_batch_rays
    - integer
    - Upper bound of rays in flight per kernel launch (default 4194304); pulses are batched

@@ -79,10 +79,10 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     return out
 
 
-def to_raw_data(result: TraceResult, window: FastTimeWindow, params: RadarParameters,
+def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow, params: RadarParameters,
                 geometry: AcquisitionGeometry, range_kernel: str, metadata: dict) -> RawData:
-    """Package the range-compressed tracer output as :class:`RawData`."""
-    data = range_compress(result.deposit, result.reference_length, window, params.frequency,
+    """Range-compress a deposit (``result.deposit`` or one bounce order of it) into :class:`RawData`."""
+    data = range_compress(deposit, result.reference_length, window, params.frequency,
                           params.bandwidth, range_kernel)
     return RawData(
         data=data, fast_time=window.fast_time, pulse_time=geometry.pulse_time.copy(),

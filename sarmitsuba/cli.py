@@ -38,6 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
     render.add_argument("--integrator-set", type=_assignment, action="append", default=[],
                         metavar="NAME=VALUE", help="override an sbr integrator parameter (repeatable)")
+    render.add_argument("--split-bounces", action="store_true",
+                        help="also write raw data and images per bounce order (*_order1, *_order2, ...)")
+    render.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
@@ -53,9 +56,11 @@ def _render(args: argparse.Namespace) -> int:
     if args.pulses is not None:
         sensor["n_pulses"] = args.pulses
     integrator = dict(args.integrator_set)
-    for key in ("max_depth", "ray_spacing", "range_kernel"):
+    for key in ("max_depth", "ray_spacing", "range_kernel", "seed"):
         if getattr(args, key) is not None:
             integrator[key] = getattr(args, key)
+    if args.split_bounces:
+        integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, progress=not args.no_progress)
     print(summary.line())

@@ -97,6 +97,9 @@ class Simulation:
     image: SarImage
     trace: TraceResult
     timings: dict
+    #: Raw data and images of each bounce order (1, 2, ...) when ``split_bounces`` is on.
+    raw_per_order: tuple = ()
+    images_per_order: tuple = ()
 
 
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -116,15 +119,20 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["load"] = time.perf_counter()
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
     t["trace"] = time.perf_counter()
-    raw = binning.to_raw_data(result, window, params, geometry, settings.range_kernel,
-                              _metadata(loaded, footprint.spacing_azimuth, result))
+    metadata = _metadata(loaded, footprint.spacing_azimuth, result)
+    raw = binning.to_raw_data(result.deposit, result, window, params, geometry, settings.range_kernel, metadata)
+    per_order = () if result.deposit_per_order is None else tuple(
+        binning.to_raw_data(d, result, window, params, geometry, settings.range_kernel,
+                            {**metadata, "bounce_order": k + 1}) for k, d in enumerate(result.deposit_per_order))
     t["bin"] = time.perf_counter()
-    image = backproject(raw, image_grid(loaded, geometry), azimuth_beamwidth=params.azimuth_beamwidth,
-                        progress=progress)
+    grid = image_grid(loaded, geometry)
+    focus = lambda r: backproject(r, grid, azimuth_beamwidth=params.azimuth_beamwidth, progress=progress)  # noqa: E731
+    image = focus(raw)
+    images = tuple(focus(r) for r in per_order)
     t["focus"] = time.perf_counter()
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
-    return Simulation(loaded, raw, image, result, timings)
+    return Simulation(loaded, raw, image, result, timings, per_order, images)
 
 
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -158,6 +166,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
                    progress=progress)
     t_products = time.perf_counter()
     paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
+    for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):
+        paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"_order{k}"))
     timings = {**sim.timings, "products": time.perf_counter() - t_products}
     timings["total"] = time.perf_counter() - start
     result = sim.trace
@@ -172,14 +182,17 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     return summary
 
 
-def _write_products(out: Path, raw: RawData, image: SarImage, params) -> dict:
-    paths = {role: out / name for role, name in OUTPUT_FILES.items()}
-    raw.save(paths["raw"])
-    image.save(paths["image"])
-    products.write_exr(image, paths["exr"])
+def _write_products(out: Path, raw: RawData, image: SarImage, params, suffix: str = "") -> dict:
+    """Write raw, image, EXR and PNG; ``suffix`` (e.g. ``_order2``) goes before the extension."""
+    roles = ("raw", "image", "exr", "png")
+    paths = {f"{role}{suffix}": out / OUTPUT_FILES[role].replace(".", f"{suffix}.") for role in roles}
+    raw.save(paths[f"raw{suffix}"])
+    image.save(paths[f"image{suffix}"])
+    products.write_exr(image, paths[f"exr{suffix}"])
+    order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
-             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}")
-    products.write_quicklook(image, paths["png"], title=title, figsize=(10.0, 8.0), dpi=110)
+             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}{order}")
+    products.write_quicklook(image, paths[f"png{suffix}"], title=title, figsize=(10.0, 8.0), dpi=110)
     return paths
 
 

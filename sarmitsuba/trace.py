@@ -52,6 +52,7 @@ class TraceSettings:
     oversample: int = 8
     max_batch_rays: int = 1 << 22
     seed: int = 0
+    split_bounces: bool = False
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -81,10 +82,18 @@ class TraceSettings:
             if name not in types:
                 raise ParameterError(f"unknown sbr integrator parameter {name!r}; valid: {', '.join(types)}")
             try:
-                kwargs[name] = {"int": int, "float": float, "str": str}[types[name]](value)
+                kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
             except (TypeError, ValueError):
                 raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}") from None
         return cls(**kwargs)
+
+
+def _boolean(value) -> bool:
+    if isinstance(value, str):
+        if value.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(value)
+        return value.lower() in ("true", "1")
+    return bool(value)
 
 
 @dataclass(frozen=True)
@@ -160,6 +169,9 @@ class TraceResult:
     ----------
     deposit : complex64 [n_pulses, n_fine]
         Sum of ``a * exp(-j k (L - L_ref))`` per fine fast-time bin (kernel-weighted).
+    deposit_per_order : complex64 [max_depth, n_pulses, n_fine] or None
+        The same split by bounce order (order k at index k - 1) when ``split_bounces`` is on;
+        ``deposit`` is then their sum.
     reference_length : float64 [n_pulses], m
         Per-pulse reference two-way length ``L_ref = 2 |A - scene_center|``.
     energy_per_order : float64 [max_depth], m^2
@@ -181,6 +193,7 @@ class TraceResult:
     rays_per_order: np.ndarray
     shadow_rays: int
     seconds: float
+    deposit_per_order: np.ndarray | None = None
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -213,9 +226,10 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     r_near = np.maximum(np.linalg.norm(geometry.positions - center, axis=1) - radius - 1.0, 0.0)
     offset = lref - SPEED_OF_LIGHT * window.t0
 
+    groups = settings.max_depth if settings.split_bounces else 1
     per_batch = max(1, min(n_pulses, settings.max_batch_rays // max(footprint.rays_per_pulse, 1),
-                           (1 << 23) // window.n_fine))
-    deposit = np.zeros((n_pulses, window.n_fine), np.complex64)
+                           (1 << 23) // (window.n_fine * groups)))
+    deposit = np.zeros((groups, n_pulses, window.n_fine), np.complex64)
     energy = np.zeros(settings.max_depth)
     rays = np.zeros(settings.max_depth, np.int64)
     outside = 0.0
@@ -226,12 +240,15 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         p1 = min(n_pulses, p0 + per_batch)
         out = kernel(geometry.positions[p0:p1], r_near[p0:p1], lref[p0:p1], offset[p0:p1],
                      footprint.k0[p0:p1])
-        deposit[p0:p1] = out["deposit"]
+        deposit[:, p0:p1] = out["deposit"]
         energy += out["energy"]
         rays += out["rays"]
         outside += out["outside"]
         shadow += out["shadow"]
-    return TraceResult(deposit, lref, energy, float(outside), rays, int(shadow), time.perf_counter() - start)
+    seconds = time.perf_counter() - start
+    total = deposit.sum(axis=0) if groups > 1 else deposit[0]
+    return TraceResult(total, lref, energy, float(outside), rays, int(shadow), seconds,
+                       deposit_per_order=deposit if settings.split_bounces else None)
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
@@ -299,6 +316,7 @@ class _Kernel:
     def __call__(self, ant, r_near, lref, offset, k0):
         fp, win, st = self.fp, self.window, self.settings
         n_b = ant.shape[0]
+        groups = st.max_depth if st.split_bounces else 1
         n_lanes = n_b * fp.rays_per_pulse
         f64, a64 = mi.Float64, mi.Array3f64
 
@@ -335,8 +353,8 @@ class _Kernel:
         ctx = dict(
             A=A, cell_a=mi.UInt32(mi.Int32(i) + kk0), cell_r=j,
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
-            base=pulse * win.n_fine,
-            hist_re=dr.zeros(mi.Float, n_b * win.n_fine), hist_im=dr.zeros(mi.Float, n_b * win.n_fine),
+            base=pulse * win.n_fine, order_stride=n_b * win.n_fine,
+            hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine), hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine),
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
         )
         state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.UInt32(0), active)
@@ -350,7 +368,7 @@ class _Kernel:
         hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
         energy = ctx["energy"].numpy().astype(np.float64)
         rays = ctx["rays"].numpy().astype(np.int64)
-        return dict(deposit=hist.reshape(n_b, win.n_fine), energy=energy[:st.max_depth],
+        return dict(deposit=hist.reshape(groups, n_b, win.n_fine), energy=energy[:st.max_depth],
                     outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
                     shadow=int(rays[st.max_depth]))
 
@@ -414,14 +432,15 @@ class _Kernel:
         k_lo = dr.floor(pos)
         frac = mi.Float(pos - k_lo)
         k_lo = mi.Int32(k_lo)
+        base = ctx["base"] + depth * ctx["order_stride"] if st.split_bounces else ctx["base"]
         if st.range_kernel == "nearest":
             k_lo = mi.Int32(dr.round(pos))
             inside = vis & (k_lo >= 0) & (k_lo < win.n_fine)
-            self._deposit(ctx, k_lo, v_re, v_im, inside)
+            self._deposit(ctx, base, k_lo, v_re, v_im, inside)
         else:
             inside = vis & (k_lo >= 0) & (k_lo < win.n_fine - 1)
-            self._deposit(ctx, k_lo, v_re * (1.0 - frac), v_im * (1.0 - frac), inside)
-            self._deposit(ctx, k_lo + 1, v_re * frac, v_im * frac, inside)
+            self._deposit(ctx, base, k_lo, v_re * (1.0 - frac), v_im * (1.0 - frac), inside)
+            self._deposit(ctx, base, k_lo + 1, v_re * frac, v_im * frac, inside)
         power = a_re * a_re + a_im * a_im
         dr.scatter_add(ctx["energy"], power, depth, vis)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
@@ -453,8 +472,8 @@ class _Kernel:
         return amp * (g_re * cs - g_im * sn), amp * (g_re * sn + g_im * cs)
 
     @staticmethod
-    def _deposit(ctx, k, v_re, v_im, mask):
-        index = ctx["base"] + mi.UInt32(k)
+    def _deposit(ctx, base, k, v_re, v_im, mask):
+        index = base + mi.UInt32(k)
         dr.scatter_add(ctx["hist_re"], v_re, index, mask)
         dr.scatter_add(ctx["hist_im"], v_im, index, mask)
 

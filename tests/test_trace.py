@@ -75,3 +75,16 @@ def test_beam_hitting_nothing_gives_zero_data():
     assert far.trace.rays_per_order.sum() == 0
     assert np.count_nonzero(far.raw.data) == 0 and np.all(np.isfinite(far.raw.data))
     assert np.count_nonzero(far.image.data) == 0 and np.all(np.isfinite(far.image.data))
+
+
+def test_split_bounces_sum_to_total_and_separate_orders():
+    """Per-order raw data add up to the total (linearity), and the dihedral's fold-line
+    return lives in order 2 only."""
+    sim = simulate("dihedral", integrator_overrides={"max_depth": 2, "split_bounces": True})
+    assert len(sim.raw_per_order) == 2 and len(sim.images_per_order) == 2
+    total = sim.raw_per_order[0].data + sim.raw_per_order[1].data
+    assert np.abs(total - sim.raw.data).max() <= 1e-4 * np.abs(sim.raw.data).max()
+    col = np.argmin(np.abs(sim.image.range))
+    fold = [np.abs(im.data[:, col]).max() for im in sim.images_per_order]
+    assert fold[1] > 100 * fold[0]
+    assert sim.raw_per_order[1].metadata["bounce_order"] == 2
