@@ -44,8 +44,13 @@
    - Alternative to ``n_pulses``: track length; n_pulses = aperture_length * prf / velocity.
  * - azimuth_beamwidth
    - float, deg
-   - Width of the ideal (uniformly illuminated) azimuth beam; azimuth resolution
-     lambda / (2 beta) (default 1.0).
+   - Full azimuth width of the illuminated beam. Default 0 = automatic: 1.0 for an ideal,
+     uniformly illuminated beam (azimuth resolution lambda / (2 beta)), or the main lobe
+     between first nulls with ``antenna_length``.
+ * - antenna_length, antenna_height
+   - float, m
+   - Switch the two-way antenna pattern on (sinc^2 of a uniform aperture) in azimuth and
+     elevation; default 0 = no pattern.
  * - polarization
    - string
    - ``VV`` (default) or ``HH``; scalar single-polarisation model.

@@ -59,10 +59,17 @@ class RadarParameters:
     n_pulses : int
         Number of pulses; 0 = enough to illuminate the whole scene (resolved by the loader).
     azimuth_beamwidth : float, deg
-        Two-way azimuth beamwidth of the ideal (uniform) beam; rays are shot over this
-        footprint only (default 1.0; azimuth resolution lambda / (2 beta) = 0.9 m at X-band).
+        Full azimuth width of the illuminated beam; rays are shot, and pulses backprojected,
+        over this footprint only. 0 (default) = automatic: 1.0 deg (an ideal, uniform beam;
+        azimuth resolution lambda / (2 beta) = 0.9 m at X-band), or with ``antenna_length``
+        the main lobe between its first nulls, ``2 asin(lambda / L_a)``.
     polarization : str
         ``"VV"`` or ``"HH"`` (scalar single-polarisation model).
+    antenna_length, antenna_height : float, m
+        Antenna aperture along track (L_a) and in elevation (H_a). Each switches on its
+        two-way pattern ``sinc^2(L_a sin(phi_az) / lambda)``, ``sinc^2(H_a sin(phi_el) / lambda)``
+        (uniform aperture; phi_el measured from the look direction to the scene centre).
+        0 (default) = no pattern in that plane.
     """
 
     frequency: float = 9.6e9
@@ -77,12 +84,25 @@ class RadarParameters:
     look_side: str = "right"
     heading: float = 0.0
     n_pulses: int = 0
-    azimuth_beamwidth: float = 1.0
+    azimuth_beamwidth: float = 0.0
     polarization: str = "VV"
+    antenna_length: float = 0.0
+    antenna_height: float = 0.0
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
             object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
+        for name in ("antenna_length", "antenna_height"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ParameterError(f"{name} = {value!r} m must be a finite number >= 0 (0 = no pattern)")
+            if 0 < value <= SPEED_OF_LIGHT / self.frequency:
+                raise ParameterError(f"{name} = {value} m must exceed the wavelength "
+                                     f"{SPEED_OF_LIGHT / self.frequency:.4g} m (or be 0 for no pattern)")
+        if self.azimuth_beamwidth == 0:
+            beam = (math.degrees(2.0 * math.asin(SPEED_OF_LIGHT / self.frequency / self.antenna_length))
+                    if self.antenna_length > 0 else 1.0)
+            object.__setattr__(self, "azimuth_beamwidth", beam)
         _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
                   "velocity", "altitude", "azimuth_beamwidth")
         if not 0.0 < self.incidence_angle < 90.0:
@@ -127,7 +147,10 @@ class RadarParameters:
 
     @property
     def azimuth_resolution(self) -> float:
-        """Stripmap azimuth resolution ``lambda / (2 beta_az)`` [m] for an ideal beam of width beta_az."""
+        """Stripmap azimuth resolution [m]: ``lambda / (2 beta_az)`` for an ideal beam of width
+        beta_az; ``L_a / 2`` with an antenna pattern (Cumming and Wong 2005, eq. 4.37)."""
+        if self.antenna_length > 0:
+            return self.antenna_length / 2.0
         return self.wavelength / (2.0 * math.radians(self.azimuth_beamwidth))
 
     @property

@@ -308,6 +308,15 @@ class _Kernel:
         self.tab_re = mi.Float(material_table.table.real.ravel().astype(np.float32))
         self.tab_im = mi.Float(material_table.table.imag.ravel().astype(np.float32))
         self.clutter = material_table.has_clutter
+        # antenna pattern (an effect: absent from the kernel unless the sensor has dimensions)
+        self.pattern = params.antenna_length > 0 or params.antenna_height > 0
+        if self.pattern:
+            boresight = footprint.look * params.ground_range - np.array([0.0, 0.0, params.altitude])
+            boresight /= np.linalg.norm(boresight)
+            self.track = footprint.track.tolist()
+            self.elevation_axis = np.cross(footprint.track, boresight).tolist()
+            self.length_in_wavelengths = params.antenna_length / params.wavelength
+            self.height_in_wavelengths = params.antenna_height / params.wavelength
         if self.clutter:
             self.clutter_kind = mi.UInt32(material_table.clutter[:, 0].astype(np.uint32))
             self.clutter_value = mi.Float(material_table.clutter[:, 1].astype(np.float32))
@@ -351,7 +360,7 @@ class _Kernel:
         origin = mi.Point3f(A + d64 * rn)
         ray = mi.Ray3f(origin, d)
         ctx = dict(
-            A=A, cell_a=mi.UInt32(mi.Int32(i) + kk0), cell_r=j,
+            A=A, cell_a=mi.UInt32(mi.Int32(i) + kk0), cell_r=j, g_tx=self._gain(d) if self.pattern else None,
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
             base=pulse * win.n_fine, order_stride=n_b * win.n_fine,
             hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine), hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine),
@@ -417,6 +426,9 @@ class _Kernel:
             k_re, k_im = self._clutter(ctx, si, row, depth, cos_i, cos_b, area / cos_safe,
                                        r_re * r_re + r_im * r_im, g_re, g_im, active)
             a_re, a_im = a_re + k_re, a_im + k_im
+        if self.pattern:                          # two-way antenna pattern, eq. (A)
+            gain = ctx["g_tx"] * self._gain(-b)
+            a_re, a_im = a_re * gain, a_im * gain
         # ---- shadow test toward the antenna ----
         vis = active & (cos_b > 0)
         vis &= ~self.scene.ray_test(si.spawn_ray(b), vis)
@@ -453,6 +465,19 @@ class _Kernel:
         active = active & (depth < st.max_depth)
         return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, depth, active
 
+    def _gain(self, v):
+        """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
+        ``sinc(L_a sin(phi_az) / lambda) sinc(H_a sin(phi_el) / lambda)``, eq. (A)."""
+        track = mi.Vector3f(*self.track)
+        along = dr.dot(v, track)
+        gain = mi.Float(1.0)
+        if self.length_in_wavelengths > 0:
+            gain *= _sinc_pi(self.length_in_wavelengths * along)
+        if self.height_in_wavelengths > 0:
+            across = dr.normalize(v - track * along)
+            gain *= _sinc_pi(self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))
+        return gain
+
     def _clutter(self, ctx, si, row, depth, cos_i, cos_b, footprint, r2, g_re, g_im, active):
         """Clutter amplitude sqrt(sigma0 A_footprint) prod(r_1..r_{k-1}) exp(j phi_cell), eq. (C).
 
@@ -481,3 +506,8 @@ class _Kernel:
 def _sinc(x):
     """sin(x) / x, 1 at 0 (unnormalised sinc)."""
     return dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x)
+
+
+def _sinc_pi(x):
+    """sin(pi x) / (pi x), 1 at 0 (normalised sinc, as numpy.sinc)."""
+    return _sinc(math.pi * x)
