@@ -80,10 +80,27 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
 
 
 def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow, params: RadarParameters,
-                geometry: AcquisitionGeometry, range_kernel: str, metadata: dict) -> RawData:
-    """Range-compress a deposit (``result.deposit`` or one bounce order of it) into :class:`RawData`."""
+                geometry: AcquisitionGeometry, range_kernel: str, metadata: dict,
+                noise_seed: int | None = None) -> RawData:
+    """Range-compress a deposit (``result.deposit`` or one bounce order of it) into :class:`RawData`.
+
+    With absolute radiometry (sensor ``transmit_power``) the samples are scaled to sqrt(W) by the
+    radar equation at each pulse's reference range (the tracer has applied the path's own
+    ``R_ref^2 / (R_tx R_rx)``), and thermal noise of power ``k T B F`` per sample is added
+    when the sensor has noise parameters and ``noise_seed`` is given (docs/physics.md (R1)-(R4)).
+    """
+    from .radiometry import radar_equation, thermal_noise
     data = range_compress(deposit, result.reference_length, window, params.frequency,
                           params.bandwidth, range_kernel)
+    equation = radar_equation(params)
+    if equation is not None:
+        scale = equation.amplitude_scale(0.5 * result.reference_length)        # float64 [n_pulses]
+        data = (data * scale[:, None]).astype(np.complex64)
+        metadata = {**metadata, "units": "sqrt(W) at the receiver, unit-energy matched filter"}
+        if equation.noise_power > 0 and noise_seed is not None:
+            data += thermal_noise(data.shape, equation.noise_power, params.sampling_rate, params.bandwidth,
+                                  noise_seed)
+            metadata = {**metadata, "noise_power_w": equation.noise_power}
     return RawData(
         data=data, fast_time=window.fast_time, pulse_time=geometry.pulse_time.copy(),
         tx_position=geometry.positions.copy(), rx_position=geometry.positions.copy(),

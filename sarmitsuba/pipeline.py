@@ -120,19 +120,35 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
     t["trace"] = time.perf_counter()
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
-    raw = binning.to_raw_data(result.deposit, result, window, params, geometry, settings.range_kernel, metadata)
+    raw = binning.to_raw_data(result.deposit, result, window, params, geometry, settings.range_kernel, metadata,
+                              noise_seed=settings.seed)
     per_order = () if result.deposit_per_order is None else tuple(
         binning.to_raw_data(d, result, window, params, geometry, settings.range_kernel,
                             {**metadata, "bounce_order": k + 1}) for k, d in enumerate(result.deposit_per_order))
     t["bin"] = time.perf_counter()
     grid = image_grid(loaded, geometry)
-    focus = lambda r: backproject(r, grid, azimuth_beamwidth=params.azimuth_beamwidth, progress=progress)  # noqa: E731
+    focus = lambda r: _calibrated(backproject(r, grid, azimuth_beamwidth=params.azimuth_beamwidth,  # noqa: E731
+                                              progress=progress), params, geometry)
     image = focus(raw)
     images = tuple(focus(r) for r in per_order)
     t["focus"] = time.perf_counter()
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
     return Simulation(loaded, raw, image, result, timings, per_order, images)
+
+
+def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
+    """In absolute radiometry, divide by the radar equation per pixel so the image is in sqrt(m^2)."""
+    from .radiometry import calibrate_image, radar_equation
+    equation = radar_equation(params)
+    if equation is None:
+        return image
+    mid = geometry.positions[len(geometry.positions) // 2]
+    data = calibrate_image(image.data, image.positions(), mid, geometry.track_direction, equation)
+    meta = {**image.metadata, "units": "sqrt(m^2) (calibrated from absolute radiometry)",
+            "calibration": {"radar_constant_w_m2": equation.constant, "time_bandwidth": equation.time_bandwidth,
+                            "noise_power_w": equation.noise_power}}
+    return dataclasses.replace(image, data=data, metadata=meta)
 
 
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -204,13 +220,32 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
     os.replace(tmp, path)
 
 
+def _effects(loaded: LoadedScene) -> list[str]:
+    """The optional effects this run simulates, each with the reason it is on (DESIGN.md section 7)."""
+    p, st = loaded.params, loaded.settings
+    effects = [f"bounce orders 1..{st.max_depth} (integrator max_depth = {st.max_depth})"]
+    rough = [s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0]
+    if rough:
+        effects.append(f"distributed clutter and speckle (rough materials: {', '.join(sorted(set(rough)))}; "
+                       f"seed {st.seed})")
+    if p.antenna_length > 0 or p.antenna_height > 0:
+        effects.append(f"antenna pattern (antenna_length {p.antenna_length} m, antenna_height {p.antenna_height} m)")
+    if p.transmit_power is not None:
+        effects.append(f"absolute radiometry (transmit_power {p.transmit_power} W)")
+    if p.noise_figure_db is not None or p.noise_temperature is not None:
+        effects.append(f"thermal noise (noise_figure_db {p.noise_figure_db}, noise_temperature {p.noise_temperature})")
+    if st.split_bounces:
+        effects.append("per-bounce-order products (split_bounces)")
+    return effects
+
+
 def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
     import drjit
     import mitsuba
 
     from . import __version__
     settings = loaded.settings
-    effects = [f"bounce orders 1..{settings.max_depth} (integrator max_depth = {settings.max_depth})"]
+    effects = _effects(loaded)
     return {
         "scene": loaded.source, "scene_path": str(loaded.path),
         "radar": dataclasses.asdict(loaded.params), "settings": dataclasses.asdict(settings),

@@ -70,6 +70,17 @@ class RadarParameters:
         two-way pattern ``sinc^2(L_a sin(phi_az) / lambda)``, ``sinc^2(H_a sin(phi_el) / lambda)``
         (uniform aperture; phi_el measured from the look direction to the scene centre).
         0 (default) = no pattern in that plane.
+    transmit_power : float, W, optional
+        Peak transmit power; switches absolute radiometry on (radar equation, eq. (R1)).
+    antenna_gain_db : float, dBi, optional
+        Antenna gain; default ``4 pi L_a H_a / lambda^2`` from the antenna dimensions.
+    losses_db : float, dB
+        System losses (default 0).
+    noise_temperature : float, K, optional
+        Receiver noise temperature (default 290 K when ``noise_figure_db`` is given).
+    noise_figure_db : float, dB, optional
+        Receiver noise figure; with ``noise_temperature`` it switches thermal noise of power
+        ``k T B F`` per sample on.
     """
 
     frequency: float = 9.6e9
@@ -88,6 +99,11 @@ class RadarParameters:
     polarization: str = "VV"
     antenna_length: float = 0.0
     antenna_height: float = 0.0
+    transmit_power: float | None = None
+    antenna_gain_db: float | None = None
+    losses_db: float = 0.0
+    noise_temperature: float | None = None
+    noise_figure_db: float | None = None
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -99,6 +115,17 @@ class RadarParameters:
             if 0 < value <= SPEED_OF_LIGHT / self.frequency:
                 raise ParameterError(f"{name} = {value} m must exceed the wavelength "
                                      f"{SPEED_OF_LIGHT / self.frequency:.4g} m (or be 0 for no pattern)")
+        for name in ("transmit_power", "noise_temperature"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
+        for name in ("antenna_gain_db", "losses_db", "noise_figure_db"):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise ParameterError(f"{name} = {value!r} dB must be finite")
+        if self.losses_db < 0 or (self.noise_figure_db is not None and self.noise_figure_db < 0):
+            raise ParameterError(f"losses_db = {self.losses_db} and noise_figure_db = {self.noise_figure_db} "
+                                 "must be >= 0 dB")
         if self.azimuth_beamwidth == 0:
             beam = (math.degrees(2.0 * math.asin(SPEED_OF_LIGHT / self.frequency / self.antenna_length))
                     if self.antenna_length > 0 else 1.0)
@@ -225,6 +252,8 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = tuple(float(v) for v in parts)
             elif name == "n_pulses":
                 out[name] = int(value)
+            elif value is None:
+                out[name] = None
             elif name in ("look_side", "polarization"):
                 out[name] = str(value)
             else:

@@ -19,6 +19,7 @@ import numpy as np
 
 from . import materials
 from .planning import resolve_parameters
+from .radiometry import radar_equation
 from .radar import RadarParameters
 from .trace import MaterialTable, TraceSettings
 
@@ -158,6 +159,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
         raise SceneError(f"scene {str(path)!r} has no geometry (empty bounding box)")
     params = resolve_parameters(params, lo, hi)
+    radar_equation(params)                   # radiometry parameters checked before any tracing
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
     return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,

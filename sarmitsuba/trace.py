@@ -308,6 +308,8 @@ class _Kernel:
         self.tab_re = mi.Float(material_table.table.real.ravel().astype(np.float32))
         self.tab_im = mi.Float(material_table.table.imag.ravel().astype(np.float32))
         self.clutter = material_table.has_clutter
+        # absolute radiometry: 1 / (R_tx R_rx) spreading, relative to the pulse's R_ref^2 (eq. (R1))
+        self.radiometry = params.transmit_power is not None
         # antenna pattern (an effect: absent from the kernel unless the sensor has dimensions)
         self.pattern = params.antenna_length > 0 or params.antenna_height > 0
         if self.pattern:
@@ -362,17 +364,18 @@ class _Kernel:
         ctx = dict(
             A=A, cell_a=mi.UInt32(mi.Int32(i) + kk0), cell_r=j, g_tx=self._gain(d) if self.pattern else None,
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
+            rref=mi.Float(dr.gather(f64, f64(lref), pulse) * 0.5),
             base=pulse * win.n_fine, order_stride=n_b * win.n_fine,
             hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine), hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine),
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
         )
-        state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.UInt32(0), active)
+        state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.UInt32(0), active)
         body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
         if st.max_depth == 1:                       # no reflection loop in the kernel at all
             body(*state)
         else:
             dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
-                "ray", "e1", "e2", "s", "gamma_re", "gamma_im", "depth", "active"), label="sbr")
+                "ray", "e1", "e2", "s", "gamma_re", "gamma_im", "r_tx", "depth", "active"), label="sbr")
         dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"])
         hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
         energy = ctx["energy"].numpy().astype(np.float64)
@@ -381,7 +384,7 @@ class _Kernel:
                     outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
                     shadow=int(rays[st.max_depth]))
 
-    def _bounce(self, ctx, ray, t1, t2, s, g_re, g_im, depth, active):
+    def _bounce(self, ctx, ray, t1, t2, s, g_re, g_im, r_tx, depth, active):
         """One bounce: intersect, PO return to the antenna, reflect. Returns the new loop state."""
         f64 = type(s)
         a64 = type(ctx["A"])
@@ -429,6 +432,10 @@ class _Kernel:
         if self.pattern:                          # two-way antenna pattern, eq. (A)
             gain = ctx["g_tx"] * self._gain(-b)
             a_re, a_im = a_re * gain, a_im * gain
+        if self.radiometry:                       # spreading R_ref^2 / (R_tx R_rx), eq. (R1)
+            r_tx = dr.select(depth == 0, mi.Float(s_new), r_tx)
+            spread = ctx["rref"] * ctx["rref"] / (r_tx * mi.Float(dist))
+            a_re, a_im = a_re * spread, a_im * spread
         # ---- shadow test toward the antenna ----
         vis = active & (cos_b > 0)
         vis &= ~self.scene.ray_test(si.spawn_ray(b), vis)
@@ -463,7 +470,7 @@ class _Kernel:
         ray = si.spawn_ray(d_next)
         depth = depth + 1
         active = active & (depth < st.max_depth)
-        return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, depth, active
+        return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, r_tx, depth, active
 
     def _gain(self, v):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):

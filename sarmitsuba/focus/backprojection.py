@@ -182,6 +182,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     weights = _weight_table(kh)
     tiles = _make_tiles(grid, unit, half_sample, raw.fc)
     image = np.zeros(grid.shape, np.complex128)
+    counts = np.zeros(grid.shape) if beam is not None else None
     workspaces = threading.local()
 
     def run_tile(args: tuple[_Tile, _Block]) -> None:
@@ -189,7 +190,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         ws = getattr(workspaces, "ws", None)
         if ws is None:
             ws = workspaces.ws = _Workspace(max(_STEP, _TILE[0] * _TILE[1]))
-        _backproject_tile(tile, block, ws, image)
+        _backproject_tile(tile, block, ws, image, counts)
 
     bar = _progress_bar(progress, n_pulses)
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
@@ -215,8 +216,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     if beam is None:
         norm = float(n_pulses)
         data = (image / norm).astype(np.complex64)
-    else:
-        counts = illumination_count(raw, grid, azimuth_beamwidth)
+    else:      # each pixel divided by the pulses it integrated (exactly those of its beam mask)
         norm = float(counts.max()) if counts.size else 0.0
         data = np.where(counts > 0, image / np.maximum(counts, 1.0), 0.0).astype(np.complex64)
     seconds = time.perf_counter() - t_start
@@ -389,6 +389,8 @@ class _Tile:
         self.rmax = float(np.sqrt(q.max())) / half_sample
         #: Largest distance [m] of a tile pixel from the tile centre.
         self.half_size = float(np.sqrt(q.max()))
+        #: Row offsets from the tile centre along the azimuth axis, float64 [n_a] m.
+        self.row_offsets = alpha.copy()
         self.alpha, self.rho = alpha / unit, rho / unit
         self.cross = (cross / unit**2).astype(np.float32).reshape(-1) if abs(cos_ar) > 1e-12 else None
 
@@ -494,8 +496,10 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
         length *= 2.0
     offset = (length / SPEED_OF_LIGHT - block.t0) * block.fine_rate  # fine-sample index of the centre
     skip = (offset + tile.rmax + 1.0 < -1.0) | (offset - tile.rmax - 1.0 > block.n_up)
+    mask = None
     if block.beam is not None:
-        skip |= _outside_beam(tile, block)
+        mask = _beam_mask(tile, block)
+        skip |= ~mask.any(axis=1)
     inside = (offset - tile.rmax - 1.0 >= -1.0) & (offset + tile.rmax + 1.0 <= block.n_up)
     whole = np.where(skip, 0.0, np.floor(offset))
     first = whole + _PAD  # table index of fine sample `whole` within its row
@@ -506,7 +510,7 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
         "base": (first + rows).astype(block.index_dtype)[:, None],
         "low": np.where(skip, -_PAD, -first).astype(np.float32)[:, None],
         "high": np.where(skip, -_PAD, block.n_tab - 1 - first).astype(np.float32)[:, None],
-        "skip": skip, "inside": inside,
+        "skip": skip, "inside": inside, "mask": mask,
     }
 
 
@@ -552,18 +556,27 @@ def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, 
     return np.array([np.interp(np.arange(n_az), rows, column) for column in along_range.T]).T
 
 
-def _outside_beam(tile: _Tile, block: _Block) -> np.ndarray:
-    """bool [P]: pulses whose beam misses the whole tile (angle test with the tile's half-size)."""
+def _beam_mask(tile: _Tile, block: _Block) -> np.ndarray:
+    """float32 [P, n_a]: 1 where a tile row lies within pulse p's ideal beam, else 0.
+
+    Row ``i`` is in the beam when ``|(c_T - A_p) . v_p + alpha_i (e_az . v_p)| <= sin(beta / 2) |c_T - A_p|``:
+    the along-track offset is exact per row, the distance is the tile centre's (so the beam
+    edge of a pixel is placed to within ``sin(beta / 2)`` times the tile's range half-extent).
+    """
     half_sine, v = block.beam
     e = tile.centre - block.legs[0]
     dist = np.linalg.norm(e, axis=1)
-    along = np.abs(np.einsum("ij,ij->i", e, v))
-    return along > (half_sine * dist + tile.half_size)
+    along = np.einsum("ij,ij->i", e, v)[:, None] + np.outer(v @ block.e_az, tile.row_offsets)
+    return (np.abs(along) <= (half_sine * dist)[:, None]).astype(np.float32)
 
 
-def _backproject_tile(tile: _Tile, block: _Block, ws: _Workspace, image: np.ndarray) -> None:
-    """Add one pulse block's contribution to one tile of ``image`` (complex128, in place)."""
+def _backproject_tile(tile: _Tile, block: _Block, ws: _Workspace, image: np.ndarray,
+                      counts: np.ndarray | None = None) -> None:
+    """Add one pulse block's contribution to one tile of ``image`` (complex128, in place), and
+    with a beam the number of pulses integrated per pixel to ``counts``."""
     geo = _tile_geometry(tile, block)
+    if counts is not None and geo["mask"] is not None:
+        counts[tile.rows, tile.cols] += geo["mask"][~geo["skip"]].sum(axis=0)[:, None]
     n_pixels = tile.shape[0] * tile.shape[1]
     acc = np.zeros(2 * n_pixels, np.complex64)  # interleaved sums of T0 P0 and T1 P1
     step = max(1, ws.size // n_pixels)
@@ -614,4 +627,7 @@ def _kernel(tile: _Tile, geo: dict[str, Any], pulses: slice, clip: bool, block: 
     np.take(block.weights, flat, out=weights, mode="clip")
     product = samples.view(np.complex64)
     np.multiply(product, weights.view(np.complex64), out=product)
+    if geo["mask"] is not None:                      # beam-limited: drop rows outside the beam
+        rows = product.reshape(n_p, n_a, 2 * n_r)
+        np.multiply(rows, geo["mask"][pulses, :, None], out=rows)
     acc += np.add.reduce(product.reshape(n_p, -1), axis=0)

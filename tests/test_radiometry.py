@@ -1,0 +1,84 @@
+"""Radar equation, thermal noise and calibration (docs/physics.md (R1)-(R4), (K)).
+
+Closed forms: noise power k T B F per sample; point-target image SNR =
+P_t G^2 lambda^2 sigma / ((4 pi)^3 R^4 k T B F L) x B T_p x N_pulses (Skolnik, *Radar
+Handbook*, 3rd ed., eq. 1.1 and ch. 17 for the SAR integration gain).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401
+from sarmitsuba.constants import BOLTZMANN
+from sarmitsuba.focus.backprojection import illumination_count
+from sarmitsuba.pipeline import simulate
+from sarmitsuba.radar import ParameterError
+from sarmitsuba.radiometry import radar_equation
+
+RADAR = {"transmit_power": 200.0, "antenna_gain_db": 30.0, "losses_db": 2.0}
+NOISE = {"noise_figure_db": 3.0, "noise_temperature": 290.0}
+
+
+def test_noise_power_per_sample_is_k_t_b_f():
+    """An empty beam with noise: raw samples have power k T B F within 2 %."""
+    sim = simulate("trihedral", sensor_overrides={**RADAR, **NOISE, "scene_center": "500, 500, 0", "n_pulses": 300})
+    p = sim.loaded.params
+    expected = BOLTZMANN * 290.0 * p.bandwidth * 10 ** 0.3
+    measured = float(np.mean(np.abs(sim.raw.data) ** 2))
+    assert abs(measured / expected - 1.0) < 0.02, f"noise {measured:.4g} W, k T B F = {expected:.4g} W"
+
+
+def test_point_target_image_snr_matches_radar_equation():
+    """Image SNR of the trihedral = radar-equation SNR x B T_p x N_pulses within 1 dB."""
+    signal = simulate("trihedral", sensor_overrides=RADAR)
+    noisy = simulate("trihedral", sensor_overrides={**RADAR, **NOISE})
+    p = signal.loaded.params
+    peak = np.unravel_index(np.argmax(np.abs(signal.image.data)), signal.image.data.shape)
+    rcs = float(np.abs(signal.image.data[peak]) ** 2)              # calibrated: |peak|^2 = sigma
+    noise_image = noisy.image.data - signal.image.data
+    snr_measured = rcs / float(np.mean(np.abs(noise_image) ** 2))
+    equation = radar_equation(noisy.loaded.params)
+    slant = float(np.linalg.norm(signal.raw.tx_position[signal.raw.n_pulses // 2]))   # apex at the origin
+    n_pulses = illumination_count(signal.raw, _grid_of(signal.image), p.azimuth_beamwidth)[peak]
+    snr_expected = equation.image_snr(rcs, slant, n_pulses)
+    assert abs(10 * math.log10(snr_measured / snr_expected)) < 1.0, \
+        f"image SNR {10 * math.log10(snr_measured):.2f} dB, radar equation {10 * math.log10(snr_expected):.2f} dB"
+
+
+def _grid_of(image):
+    from sarmitsuba.focus import ImageGrid
+    return ImageGrid(image.origin, image.azimuth_direction, image.range_direction, image.azimuth, image.range,
+                     image.plane)
+
+
+def test_absolute_mode_is_calibrated_like_normalised_mode():
+    """The calibrated image of absolute-unit raw data equals the normalised image (RCS unchanged)."""
+    absolute = simulate("trihedral", sensor_overrides=RADAR)
+    normalised = simulate("trihedral")
+    a, b = np.abs(absolute.image.data).max() ** 2, np.abs(normalised.image.data).max() ** 2
+    assert abs(10 * math.log10(a / b)) < 0.1
+    assert absolute.raw.metadata["units"].startswith("sqrt(W)")
+    assert np.abs(absolute.raw.data).max() < 1e-3 * np.abs(normalised.raw.data).max()   # really in sqrt(W)
+
+
+def test_satellite_range_radiometry_representable_in_float32():
+    """1/R^4 at 800 km with a small RCS: finite, non-zero, normal float32 values (no underflow)."""
+    sim = simulate("trihedral", sensor_overrides={**RADAR, "altitude": 800e3 * math.cos(math.pi / 4), "n_pulses": 3})
+    peak = np.abs(sim.raw.data).max()
+    assert np.all(np.isfinite(sim.raw.data)) and peak > np.finfo(np.float32).tiny * 1e6
+    expected = math.sqrt(radar_equation(sim.loaded.params).received_power(1.0, 800e3) * 1e3)  # order of magnitude
+    assert 1e-3 < peak / expected < 1e5
+
+
+@pytest.mark.parametrize("override, message", [
+    ({"noise_figure_db": 3.0}, "need transmit_power"),
+    ({"transmit_power": 100.0}, "needs the antenna gain"),
+    ({"transmit_power": -1.0, "antenna_gain_db": 30}, "transmit_power = -1.0"),
+])
+def test_radiometry_parameter_errors_before_tracing(override, message):
+    from sarmitsuba.scene import load_scene
+    with pytest.raises(ParameterError, match=message):
+        load_scene("trihedral", sensor_overrides=override)
