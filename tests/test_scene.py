@@ -145,3 +145,17 @@ def test_aperture_length_sets_the_pulse_count():
     assert p.n_pulses == round(40.0 * p.prf / p.velocity)
     with pytest.raises(ParameterError, match="aperture_length = -5.0 m"):
         load_scene("dihedral", sensor_overrides={"aperture_length": -5})
+
+
+def test_explicit_permittivity_material_uses_fresnel(tmp_path):
+    """radar material with relative_permittivity/conductivity: eta = eps_r - j sigma/(omega eps_0),
+    half-space Fresnel at normal incidence |r| = |1 - sqrt(eta)| / |1 + sqrt(eta)|."""
+    xml = tmp_path / "eps.xml"
+    xml.write_text("<scene version='3.0.0'><bsdf type='radar' id='m'><float name='relative_permittivity' value='6'/>"
+                   "<float name='conductivity' value='0.1'/></bsdf><shape type='rectangle'><ref id='m'/></shape></scene>")
+    loaded = load_scene(str(xml))
+    f = loaded.params.frequency
+    eta = 6 - 1j * 0.1 / (2 * math.pi * f * 8.8541878128e-12)
+    expected = abs((1 - np.sqrt(eta)) / (1 + np.sqrt(eta)))
+    table = material_table(loaded.scene, f, "VV")
+    assert abs(abs(complex(table.table[0, -1])) - expected) < 1e-4

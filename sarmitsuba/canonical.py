@@ -1,4 +1,4 @@
-"""Canonical radar targets as scenes for tests and benchmarks: meshes made with trimesh,
+"""Canonical radar targets as scenes (validation, tests, benchmarks): meshes made with trimesh,
 oriented toward the default sensor (45 deg incidence from the +y side), with their
 closed-form radar cross-sections (Knott, Shaeffer and Tuley, *Radar Cross Section*, table 6.1).
 """
@@ -19,6 +19,13 @@ SENSOR = """<sensor type="sar">
         <float name="prf" value="250"/>
         <string name="scene_center" value="0, 0, 0"/>
     </sensor>"""
+
+
+__all__ = ["plate", "dihedral", "trihedral", "scene_xml", "rcs_plate", "rcs_dihedral", "rcs_trihedral",
+           "rcs_sphere", "PEC", "SPHERE", "TOWARD_SENSOR"]
+
+#: A metal sphere shape of radius 0.5 m for :func:`scene_xml`'s ``extra_shapes``.
+SPHERE = '<shape type="sphere"><float name="radius" value="0.5"/><ref id="mat"/></shape>'
 
 
 def _rotation_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
