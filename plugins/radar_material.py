@@ -95,6 +95,20 @@ class RadarMaterial(mi.BSDF):
         self.m_flags = self._optical.flags()
         self.m_components = [self.m_flags]
 
+    def set_roughness(self, gamma_db: float | None = None, scattering_coefficient: float | None = None) -> None:
+        """Make the surface rough after loading (the CLI's ``--material-set``): constant gamma
+        ``gamma_db`` [dB], or Sionna's Lambertian ``scattering_coefficient`` S in [0, 1]."""
+        if gamma_db is not None:
+            if not math.isfinite(float(gamma_db)):
+                raise ParameterError(f"{self.name}: gamma_db = {gamma_db} must be finite")
+            self.clutter, self.specular_factor = (1, 10.0 ** (float(gamma_db) / 10.0)), 1.0
+        if scattering_coefficient is not None:
+            s = float(scattering_coefficient)
+            if not 0.0 <= s <= 1.0:
+                raise ParameterError(f"{self.name}: scattering_coefficient = {s} is outside the valid range [0, 1]")
+            self.clutter = (2, 4.0 * s**2) if s > 0 else (0, 0.0)
+            self.specular_factor = math.sqrt(1.0 - s**2)
+
     def material_at(self, frequency: float) -> "materials.Material":
         """The electromagnetic model at ``frequency`` [Hz] (raises MaterialError outside the fit's range)."""
         spec = self._spec

@@ -38,6 +38,8 @@ def build_parser() -> argparse.ArgumentParser:
                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
     render.add_argument("--integrator-set", type=_assignment, action="append", default=[],
                         metavar="NAME=VALUE", help="override an sbr integrator parameter (repeatable)")
+    render.add_argument("--material-set", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+                        help="make every material rough: gamma_db=DB (constant gamma) or scattering_coefficient=S")
     render.add_argument("--split-bounces", action="store_true",
                         help="also write raw data and images per bounce order (*_order1, *_order2, ...)")
     render.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
@@ -62,7 +64,8 @@ def _render(args: argparse.Namespace) -> int:
     if args.split_bounces:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
-                     integrator_overrides=integrator, progress=not args.no_progress)
+                     integrator_overrides=integrator, material_overrides=dict(args.material_set),
+                     progress=not args.no_progress)
     print(summary.line())
     return 0
 

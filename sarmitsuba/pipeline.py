@@ -103,14 +103,15 @@ class Simulation:
 
 
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
-             integrator_overrides: Mapping[str, Any] | None = None, progress: bool = False) -> Simulation:
+             integrator_overrides: Mapping[str, Any] | None = None,
+             material_overrides: Mapping[str, Any] | None = None, progress: bool = False) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
     Parameters are those of :func:`render`. Raises SceneError, ParameterError or
     materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
-    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
     geometry = acquisition_geometry(params)
     window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
@@ -152,7 +153,8 @@ def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarIm
 
 
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
-           integrator_overrides: Mapping[str, Any] | None = None, progress: bool = True) -> RenderSummary:
+           integrator_overrides: Mapping[str, Any] | None = None,
+           material_overrides: Mapping[str, Any] | None = None, progress: bool = True) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -163,6 +165,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         Output directory; receives :data:`OUTPUT_FILES`. Checked for writing before tracing.
     sensor_overrides, integrator_overrides : mapping, optional
         Parameter values replacing the scene's ``sar`` sensor / ``sbr`` integrator ones.
+    material_overrides : mapping, optional
+        Roughness for every material (``gamma_db`` or ``scattering_coefficient``).
     progress : bool
         Show tqdm progress bars.
 
@@ -179,7 +183,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     out = check_output_dir(out_dir)
     sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
-                   progress=progress)
+                   material_overrides=material_overrides, progress=progress)
     t_products = time.perf_counter()
     paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
     for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):

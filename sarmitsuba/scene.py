@@ -20,7 +20,7 @@ import numpy as np
 from . import materials
 from .planning import resolve_parameters
 from .radiometry import radar_equation
-from .radar import RadarParameters
+from .radar import ParameterError, RadarParameters
 from .trace import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table",
@@ -119,7 +119,8 @@ def resolve_source(source: str | Path | None) -> Path:
 
 
 def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, Any] | None = None,
-               integrator_overrides: Mapping[str, Any] | None = None) -> LoadedScene:
+               integrator_overrides: Mapping[str, Any] | None = None,
+               material_overrides: Mapping[str, Any] | None = None) -> LoadedScene:
     """Load a scene and resolve its radar parameters and tracer settings.
 
     Parameters
@@ -129,6 +130,8 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         ``sionna:NAME``; None = ``urban``.
     sensor_overrides, integrator_overrides : mapping, optional
         Parameter values replacing the scene's (names as in the plugin manuals).
+    material_overrides : mapping, optional
+        Roughness applied to every material: ``gamma_db`` [dB] or ``scattering_coefficient``.
 
     Raises
     ------
@@ -146,6 +149,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
     finally:
         mi.set_log_level(level)
+    _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
@@ -164,6 +168,20 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri)
+
+
+MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient")
+
+
+def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
+    unknown = set(overrides) - set(MATERIAL_OVERRIDES)
+    if unknown:
+        raise ParameterError(f"unknown material override {sorted(unknown)}; valid: {', '.join(MATERIAL_OVERRIDES)}")
+    if not overrides:
+        return
+    for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():
+        if hasattr(bsdf, "set_roughness"):
+            bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
 
 
 def _clean(exc: Exception) -> str:

@@ -78,3 +78,15 @@ def test_smooth_scene_has_no_clutter_term():
     assert not table.has_clutter
     rough = load_scene(SCENE)
     assert material_table(rough.scene, rough.params.frequency, rough.params.polarization).has_clutter
+
+
+def test_material_override_makes_a_smooth_scene_rough():
+    """--material-set gamma_db=-10 turns the smooth plane into the rough ground's statistics."""
+    smooth = str(Path(__file__).parent / "scenes" / "plane.xml")
+    sim = simulate(smooth, material_overrides={"gamma_db": -10}, integrator_overrides={"ray_spacing": SPACING})
+    p = sim.loaded.params
+    values, positions = _interior(sim)
+    measured = np.mean(np.abs(values) ** 2) / (p.azimuth_resolution * p.ground_range_resolution)
+    assert abs(10 * math.log10(measured / (GAMMA * math.cos(math.radians(p.incidence_angle))))) < 0.7
+    with pytest.raises(Exception, match="unknown material override"):
+        simulate(smooth, material_overrides={"roughness": 1})
