@@ -47,7 +47,7 @@ def dihedral(a: float, b: float) -> trimesh.Trimesh:
     """Dihedral of two a x b plates (fold of length a along x), bisector toward the sensor."""
     v = np.array([[-a / 2, 0, 0], [a / 2, 0, 0], [a / 2, b, 0], [-a / 2, b, 0],     # floor (z = 0)
                   [-a / 2, 0, b], [a / 2, 0, b]])                                    # wall (y = 0)
-    f = np.array([[0, 1, 2], [0, 2, 3], [0, 1, 5], [0, 5, 4]])
+    f = np.array([[0, 1, 2], [0, 2, 3], [1, 0, 4], [1, 4, 5]])         # consistently wound
     mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
     # bisector of floor (normal +z) and wall (normal +y) is already (0, 1, 1)/sqrt2 = TOWARD_SENSOR
     return mesh
@@ -56,7 +56,7 @@ def dihedral(a: float, b: float) -> trimesh.Trimesh:
 def trihedral(a: float) -> trimesh.Trimesh:
     """Triangular trihedral with edges a along its three axes, boresight toward the sensor."""
     v = np.array([[0, 0, 0], [a, 0, 0], [0, a, 0], [0, 0, a]], float)
-    f = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3]])
+    f = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3]])                   # consistently wound
     mesh = trimesh.Trimesh(vertices=v, faces=f, process=False)
     mesh.apply_transform(_rotation_to(np.ones(3) / math.sqrt(3.0), TOWARD_SENSOR))
     return mesh

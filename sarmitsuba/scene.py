@@ -18,6 +18,7 @@ import mitsuba as mi
 import numpy as np
 
 from . import materials
+from .meshcheck import check_meshes, warn_mesh_defects
 from .planning import resolve_parameters
 from .radiometry import radar_equation
 from .radar import ParameterError, RadarParameters
@@ -149,6 +150,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
     finally:
         mi.set_log_level(level)
+    warn_mesh_defects(check_meshes(scene), str(path))
     _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}

@@ -169,6 +169,10 @@ class TraceResult:
     ----------
     deposit : complex64 [n_pulses, n_fine]
         Sum of ``a * exp(-j k (L - L_ref))`` per fine fast-time bin (kernel-weighted).
+    carried_power_per_order : float64 [max_depth], sr
+        Power carried into each bounce order by the rays that hit there, ``sum Omega |r_1 ... r_{k-1}|^2``
+        (solid angle times the reflection losses so far): non-increasing with the order for
+        passive materials, the energy-conservation check of the bounce loop.
     deposit_per_order : complex64 [max_depth, n_pulses, n_fine] or None
         The same split by bounce order (order k at index k - 1) when ``split_bounces`` is on;
         ``deposit`` is then their sum.
@@ -194,6 +198,7 @@ class TraceResult:
     shadow_rays: int
     seconds: float
     deposit_per_order: np.ndarray | None = None
+    carried_power_per_order: np.ndarray | None = None
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -231,6 +236,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                            (1 << 23) // (window.n_fine * groups)))
     deposit = np.zeros((groups, n_pulses, window.n_fine), np.complex64)
     energy = np.zeros(settings.max_depth)
+    carried = np.zeros(settings.max_depth)
     rays = np.zeros(settings.max_depth, np.int64)
     outside = 0.0
     shadow = 0
@@ -242,13 +248,15 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                      footprint.k0[p0:p1])
         deposit[:, p0:p1] = out["deposit"]
         energy += out["energy"]
+        carried += out["carried"]
         rays += out["rays"]
         outside += out["outside"]
         shadow += out["shadow"]
     seconds = time.perf_counter() - start
     total = deposit.sum(axis=0) if groups > 1 else deposit[0]
     return TraceResult(total, lref, energy, float(outside), rays, int(shadow), seconds,
-                       deposit_per_order=deposit if settings.split_bounces else None)
+                       deposit_per_order=deposit if settings.split_bounces else None,
+                       carried_power_per_order=carried)
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
@@ -368,6 +376,7 @@ class _Kernel:
             base=pulse * win.n_fine, order_stride=n_b * win.n_fine,
             hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine), hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine),
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
+            carried=dr.zeros(mi.Float, st.max_depth),
         )
         state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.UInt32(0), active)
         body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
@@ -376,12 +385,13 @@ class _Kernel:
         else:
             dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
                 "ray", "e1", "e2", "s", "gamma_re", "gamma_im", "r_tx", "depth", "active"), label="sbr")
-        dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"])
+        dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"], ctx["carried"])
         hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
         energy = ctx["energy"].numpy().astype(np.float64)
         rays = ctx["rays"].numpy().astype(np.int64)
         return dict(deposit=hist.reshape(groups, n_b, win.n_fine), energy=energy[:st.max_depth],
                     outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
+                    carried=ctx["carried"].numpy().astype(np.float64),
                     shadow=int(rays[st.max_depth]))
 
     def _bounce(self, ctx, ray, t1, t2, s, g_re, g_im, r_tx, depth, active):
@@ -392,9 +402,9 @@ class _Kernel:
         # ---- intersect ----
         dr.scatter_add(ctx["rays"], mi.UInt32(1), depth, active)
         si = self.scene.ray_intersect(ray, ray_flags=mi.RayFlags.Minimal, coherent=False, active=active)
-        active = active & si.is_valid()
-        d = ray.d
         n = mi.Vector3f(si.n)
+        active = active & si.is_valid() & (dr.squared_norm(n) > 0.5)   # degenerate triangle: NaN normal
+        d = ray.d
         n = dr.select(dr.dot(n, d) > 0, -n, n)
         cos_i = -dr.dot(d, n)
         cos_safe = dr.maximum(cos_i, 1e-4)
@@ -412,6 +422,7 @@ class _Kernel:
         idx = row * self.n_cos + i0
         r_re = dr.lerp(dr.gather(mi.Float, self.tab_re, idx, active), dr.gather(mi.Float, self.tab_re, idx + 1, active), w)
         r_im = dr.lerp(dr.gather(mi.Float, self.tab_im, idx, active), dr.gather(mi.Float, self.tab_im, idx + 1, active), w)
+        dr.scatter_add(ctx["carried"], dr.norm(dr.cross(t1, t2)) * (g_re * g_re + g_im * g_im), depth, active)
         c_re = g_re * r_re - g_im * r_im          # prod r_1..r_k (this bounce included)
         c_im = g_re * r_im + g_im * r_re
         # ---- PO return of the tube footprint, eq. (PO) ----
