@@ -47,6 +47,15 @@
    - Full azimuth width of the illuminated beam. Default 0 = automatic: 1.0 for an ideal,
      uniformly illuminated beam (azimuth resolution lambda / (2 beta)), or the main lobe
      between first nulls with ``antenna_length``.
+ * - output
+   - string
+   - ``compressed`` (default) or ``raw``: chirped echoes instead of range-compressed data.
+ * - transmit_power, antenna_gain_db, losses_db
+   - float, W, dBi, dB
+   - Switch absolute radiometry on (radar equation; raw data in sqrt(W), calibrated image).
+ * - noise_temperature, noise_figure_db
+   - float, K, dB
+   - Switch thermal noise k T B F per sample on (needs transmit_power).
  * - antenna_length, antenna_height
    - float, m
    - Switch the two-way antenna pattern on (sinc^2 of a uniform aperture) in azimuth and

@@ -42,10 +42,11 @@ def compressed_pulse_spectrum(n: int, fs: float, oversample: int, bandwidth: flo
 
 
 def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
-                   frequency: float, bandwidth: float, range_kernel: str, block: int = 256) -> np.ndarray:
+                   frequency: float, bandwidth: float, range_kernel: str, block: int = 256,
+                   chirp: tuple[float, float] | None = None) -> np.ndarray:
     """Range-compressed samples from the fine deposit.
 
-    The deposit is zero-padded to twice the window before filtering, so the compressed
+    The deposit is zero-padded (to twice the window, and by at least 2048 samples) before filtering, so the compressed
     pulse's sinc tails do not wrap around the window (linear, not circular, convolution).
 
     Parameters
@@ -57,6 +58,12 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     range_kernel : {"linear", "nearest"}
     block : int
         Pulses filtered at once (bounds the memory of the padded FFT).
+    chirp : (pulse_length [s], chirp_rate [Hz/s]), optional
+        Produce chirped echoes instead, as a receiver records them: the deposit's spectrum times
+        ``fs S(f) R(f) / D(f)``, with ``S`` the chirp's exact spectrum, ``R`` the receiver's
+        anti-aliasing response (flat over the band, raised-cosine roll-off to ``fs / 2``;
+        :func:`sarmitsuba.synthetic.receiver_response`) and ``D`` the deposit kernel's droop.
+        :func:`sarmitsuba.focus.range_compression.range_compress` inverts it exactly.
 
     Returns
     -------
@@ -66,10 +73,16 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
     phase = np.mod(-k * reference_length, 2.0 * math.pi)           # float64, reduced before use
     n, os_ = window.n_samples, window.oversample
-    n_pad = sp_fft.next_fast_len(2 * n)
+    n_pad = sp_fft.next_fast_len(max(2 * n, n + 2048))
     n_fine = n_pad * os_
     keep = np.concatenate([np.arange(0, (n_pad + 1) // 2), np.arange(n_fine - n_pad // 2, n_fine)])
     filt = compressed_pulse_spectrum(n_pad, window.fs, os_, bandwidth, range_kernel)
+    if chirp is not None:
+        from .focus.range_compression import chirp_spectrum
+        from .synthetic import receiver_response
+        f = sp_fft.fftfreq(n_pad, d=1.0 / window.fs)
+        droop = np.sinc(f / (window.fs * os_)) ** 2 if range_kernel == "linear" else 1.0
+        filt = window.fs * chirp_spectrum(f, *chirp) * receiver_response(f, window.fs, bandwidth) / droop
     out = np.empty((deposit.shape[0], n), np.complex64)
     for p0 in range(0, deposit.shape[0], block):
         rows = slice(p0, p0 + block)
@@ -90,8 +103,9 @@ def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow
     when the sensor has noise parameters and ``noise_seed`` is given (docs/physics.md (R1)-(R4)).
     """
     from .radiometry import radar_equation, thermal_noise
-    data = range_compress(deposit, result.reference_length, window, params.frequency,
-                          params.bandwidth, range_kernel)
+    chirped = params.output == "raw"
+    data = range_compress(deposit, result.reference_length, window, params.frequency, params.bandwidth,
+                          range_kernel, chirp=(params.pulse_length, params.chirp_rate) if chirped else None)
     equation = radar_equation(params)
     if equation is not None:
         scale = equation.amplitude_scale(0.5 * result.reference_length)        # float64 [n_pulses]
@@ -106,4 +120,4 @@ def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow
         tx_position=geometry.positions.copy(), rx_position=geometry.positions.copy(),
         velocity=geometry.velocity.copy(), fc=params.frequency, bandwidth=params.bandwidth,
         chirp_rate=params.chirp_rate, pulse_length=params.pulse_length, fs=params.sampling_rate,
-        prf=params.prf, range_compressed=True, metadata=metadata)
+        prf=params.prf, range_compressed=not chirped, metadata=metadata)

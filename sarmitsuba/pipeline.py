@@ -82,8 +82,8 @@ def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
     across = corners @ geometry.look_direction
     layover = max(0.0, loaded.bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
     spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
-    half_range = max(abs(across.min() - layover), abs(across.max())) + 8 * p.ground_range_resolution
-    half_az = np.abs(along).max() + 8 * p.azimuth_resolution
+    half_range = max(abs(across.min() - layover), abs(across.max())) + 16 * p.ground_range_resolution
+    half_az = np.abs(along).max() + 16 * p.azimuth_resolution
     return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
 
@@ -128,7 +128,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
                             {**metadata, "bounce_order": k + 1}) for k, d in enumerate(result.deposit_per_order))
     t["bin"] = time.perf_counter()
     grid = image_grid(loaded, geometry)
-    focus = lambda r: _calibrated(backproject(r, grid, azimuth_beamwidth=params.azimuth_beamwidth,  # noqa: E731
+    focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=params.azimuth_beamwidth,  # noqa: E731
                                               progress=progress), params, geometry)
     image = focus(raw)
     images = tuple(focus(r) for r in per_order)
@@ -136,6 +136,14 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
     return Simulation(loaded, raw, image, result, timings, per_order, images)
+
+
+def _compressed(raw: RawData) -> RawData:
+    """Range-compressed data for focusing: chirped raw output is compressed first (matched filter)."""
+    if raw.range_compressed:
+        return raw
+    from .focus.range_compression import range_compress
+    return range_compress(raw)
 
 
 def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
@@ -240,6 +248,8 @@ def _effects(loaded: LoadedScene) -> list[str]:
         effects.append(f"thermal noise (noise_figure_db {p.noise_figure_db}, noise_temperature {p.noise_temperature})")
     if st.split_bounces:
         effects.append("per-bounce-order products (split_bounces)")
+    if p.output == "raw":
+        effects.append(f"chirped raw echoes (sensor output = raw, T_p {p.pulse_length} s)")
     return effects
 
 

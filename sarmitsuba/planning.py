@@ -61,7 +61,8 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     Nearest delay: twice the distance from the antenna to the box; farthest: twice the
     farthest corner, plus ``(max_depth - 1) * 10 %`` of the box diagonal for multi-bounce
     paths longer than the direct one (energy still falling outside is reported by the
-    tracer, never clamped into edge bins). The sample count is a fast FFT length.
+    tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
+    and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
     positions = geometry.positions
     closest = np.clip(positions, lo, hi)
@@ -70,6 +71,8 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
     l_max += (settings.max_depth - 1) * 0.1 * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
+    if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
+        margin += 0.5 * params.pulse_length
     t0 = l_min / SPEED_OF_LIGHT - margin
     n = int(math.ceil((l_max / SPEED_OF_LIGHT + margin - t0) * params.sampling_rate))
     return FastTimeWindow(t0=t0, fs=params.sampling_rate, n_samples=sp_fft.next_fast_len(n),

@@ -81,6 +81,10 @@ class RadarParameters:
     noise_figure_db : float, dB, optional
         Receiver noise figure; with ``noise_temperature`` it switches thermal noise of power
         ``k T B F`` per sample on.
+    output : str
+        ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
+        ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
+        window grows by ``T_p`` so every chirp fits).
     """
 
     frequency: float = 9.6e9
@@ -104,6 +108,7 @@ class RadarParameters:
     losses_db: float = 0.0
     noise_temperature: float | None = None
     noise_figure_db: float | None = None
+    output: str = "compressed"
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -141,6 +146,8 @@ class RadarParameters:
                 "complex sampling needs sampling_rate >= bandwidth")
         if self.look_side not in ("right", "left"):
             raise ParameterError(f"look_side = {self.look_side!r}; valid values are 'right' and 'left'")
+        if self.output not in ("compressed", "raw"):
+            raise ParameterError(f"output = {self.output!r}; valid values are 'compressed' and 'raw'")
         if self.polarization not in ("VV", "HH"):
             raise ParameterError(f"polarization = {self.polarization!r}; valid values are 'VV' and 'HH'")
         if int(self.n_pulses) != self.n_pulses or self.n_pulses < 0:
@@ -254,7 +261,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization"):
+            elif name in ("look_side", "polarization", "output"):
                 out[name] = str(value)
             else:
                 out[name] = float(value)

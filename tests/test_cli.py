@@ -65,3 +65,23 @@ def test_python_dash_m_entry_point(tmp_path):
                              "--no-progress"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert "rendered trihedral" in result.stdout and (tmp_path / "image.png").is_file()
+
+
+def test_analyze_prints_point_target_report(tmp_path, capsys):
+    """render trihedral, then analyze the apex: JSON with the peak on the apex within 1/20 cell."""
+    assert main(["render", "trihedral", "--out", str(tmp_path), "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["analyze", str(tmp_path / "image.npz"), "--target", "0,0,0"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    text = json.dumps(report)
+    assert "irw" in text and "pslr" in text
+    errors = [v for k, v in _flatten(report) if "error" in k and "cell" in k and isinstance(v, (int, float))]
+    assert errors and max(abs(e) for e in errors) < 0.05
+
+
+def _flatten(d, prefix=""):
+    for k, v in d.items():
+        if isinstance(v, dict):
+            yield from _flatten(v, prefix + k + ".")
+        else:
+            yield prefix + k, v

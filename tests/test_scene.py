@@ -42,7 +42,10 @@ def test_sionna_floor_wall_loads_unchanged_with_default_sensor():
 
 @pytest.mark.skipif("munich" not in sionna_scenes(), reason="sionna-rt extra not installed")
 def test_sionna_munich_loads_all_objects():
-    loaded = load_scene("sionna:munich")
+    """Munich loads whole; its few defective meshes (Sionna's own data) are reported, not fatal."""
+    from sarmitsuba.meshcheck import MeshDefectWarning
+    with pytest.warns(MeshDefectWarning, match="non-manifold"):
+        loaded = load_scene("sionna:munich")
     assert loaded.n_shapes > 2000 and loaded.n_triangles > 30000
     assert loaded.params.n_pulses > 0
 

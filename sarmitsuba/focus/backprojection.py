@@ -91,10 +91,11 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         half the beamwidth plus the tile's own angular half-size (beam-limited
         backprojection): pixels do not integrate pulses that never illuminated them,
         which removes the azimuth-ambiguity ghosts at ``lambda R PRF / (2 v)`` and skips
-        most of the work in stripmap. Each pixel is then normalised by the number of
-        pulses that illuminate it (:func:`illumination_count`), so a point target of
-        amplitude ``a`` has peak ``a`` anywhere in the swath (``|a|^2`` = its RCS in
-        normalised radiometry).
+        most of the work in stripmap. Each range column is then normalised by the number
+        of pulses a fully illuminated pixel of it integrates, so a point target of
+        amplitude ``a`` has peak ``a`` anywhere in the fully illuminated swath (``|a|^2`` =
+        its RCS in normalised radiometry); pixels whose aperture the track's ends cut keep
+        a proportionally lower gain.
     progress : bool, default False
         Show a :mod:`tqdm` bar over pulse blocks.
 
@@ -216,9 +217,13 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     if beam is None:
         norm = float(n_pulses)
         data = (image / norm).astype(np.complex64)
-    else:      # each pixel divided by the pulses it integrated (exactly those of its beam mask)
-        norm = float(counts.max()) if counts.size else 0.0
-        data = np.where(counts > 0, image / np.maximum(counts, 1.0), 0.0).astype(np.complex64)
+    else:
+        # each range column divided by its full-aperture pulse count (the most pulses any of
+        # its pixels integrated): exact for fully illuminated pixels; pixels whose aperture
+        # is cut by the end of the track keep their reduced gain instead of being amplified
+        full = counts.max(axis=0, keepdims=True)
+        norm = float(full.max()) if full.size else 0.0
+        data = np.where(full > 0, image / np.maximum(full, 1.0), 0.0).astype(np.complex64)
     seconds = time.perf_counter() - t_start
     focus = _focus_metadata(raw, grid, seconds, oversample=oversample, pulse_block=pulse_block,
                             workers=workers, implementation="numpy-hybrid-float32",
