@@ -46,7 +46,7 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
                    chirp: tuple[float, float] | None = None) -> np.ndarray:
     """Range-compressed samples from the fine deposit.
 
-    The deposit is zero-padded (to twice the window, and by at least 512 samples) before filtering, so the compressed
+    The deposit is zero-padded (to twice the window, and by at least 2048 samples) before filtering, so the compressed
     pulse's sinc tails do not wrap around the window (linear, not circular, convolution).
 
     Parameters
@@ -73,7 +73,7 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
     phase = np.mod(-k * reference_length, 2.0 * math.pi)           # float64, reduced before use
     n, os_ = window.n_samples, window.oversample
-    n_pad = sp_fft.next_fast_len(max(2 * n, n + 512))
+    n_pad = sp_fft.next_fast_len(max(2 * n, n + 2048))
     n_fine = n_pad * os_
     keep = np.concatenate([np.arange(0, (n_pad + 1) // 2), np.arange(n_fine - n_pad // 2, n_fine)])
     filt = compressed_pulse_spectrum(n_pad, window.fs, os_, bandwidth, range_kernel)

@@ -121,13 +121,16 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
     t["trace"] = time.perf_counter()
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
-    raw = binning.to_raw_data(result.deposit, result, window, params, geometry, settings.range_kernel, metadata,
+    world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
+    raw = binning.to_raw_data(result.deposit, result, window, params, world, settings.range_kernel, metadata,
                               noise_seed=settings.seed)
     per_order = () if result.deposit_per_order is None else tuple(
-        binning.to_raw_data(d, result, window, params, geometry, settings.range_kernel,
+        binning.to_raw_data(d, result, window, params, world, settings.range_kernel,
                             {**metadata, "bounce_order": k + 1}) for k, d in enumerate(result.deposit_per_order))
     t["bin"] = time.perf_counter()
     grid = image_grid(loaded, geometry)
+    grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
+    geometry = world
     focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=params.azimuth_beamwidth,  # noqa: E731
                                               progress=progress), params, geometry)
     image = focus(raw)
@@ -136,6 +139,14 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
     return Simulation(loaded, raw, image, result, timings, per_order, images)
+
+
+def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGeometry:
+    """The same acquisition in the world frame (scenes far from the origin are traced locally)."""
+    if not np.any(offset):
+        return geometry
+    return dataclasses.replace(geometry, positions=geometry.positions + offset,
+                               scene_center=geometry.scene_center + offset)
 
 
 def _compressed(raw: RawData) -> RawData:
@@ -232,6 +243,12 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
     os.replace(tmp, path)
 
 
+def _world_params(loaded: LoadedScene):
+    """Radar parameters with the scene centre in the world frame."""
+    center = np.asarray(loaded.params.scene_center) + loaded.offset
+    return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()))
+
+
 def _effects(loaded: LoadedScene) -> list[str]:
     """The optional effects this run simulates, each with the reason it is on (DESIGN.md section 7)."""
     p, st = loaded.params, loaded.settings
@@ -262,7 +279,8 @@ def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
     effects = _effects(loaded)
     return {
         "scene": loaded.source, "scene_path": str(loaded.path),
-        "radar": dataclasses.asdict(loaded.params), "settings": dataclasses.asdict(settings),
+        "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),
+        "frame_offset": loaded.offset.tolist(),
         "ray_spacing": ray_spacing, "effects": effects, "units": "sqrt(m^2) (normalised radiometry)",
         "scene_info": {"shapes": loaded.n_shapes, "triangles": loaded.n_triangles, "has_sar_sensor": loaded.has_sensor,
                        "bbox_min": loaded.bbox_lo.tolist(), "bbox_max": loaded.bbox_hi.tolist()},

@@ -7,7 +7,9 @@ uses the defaults when the scene has none, as Sionna RT scenes do), applies over
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
+import xml.etree.ElementTree as ET
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +56,10 @@ class LoadedScene:
     has_sensor : bool
         Whether the scene defines a ``sar`` sensor (otherwise defaults were used).
     n_shapes, n_triangles : int
+    offset : float64 [3], m
+        World position of the local frame's origin: geometry, ``params`` and the bounding box
+        are local (world minus offset); zero unless the scene lies more than
+        :data:`RECENTER_DISTANCE` from the origin.
     """
 
     scene: Any
@@ -66,6 +72,7 @@ class LoadedScene:
     has_sensor: bool
     n_shapes: int
     n_triangles: int
+    offset: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
 
 
 def _package_dir(name: str) -> Path | None:
@@ -142,20 +149,20 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         An override names an unknown parameter or has an invalid value.
     """
     path = resolve_source(source)
-    level = mi.log_level()
-    mi.set_log_level(mi.LogLevel.Error)      # silences the irrelevant default-film warning
-    try:
-        scene = mi.load_file(str(path), optimize=False)   # one shape per object: ids and materials
-    except RuntimeError as exc:
-        raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
-    finally:
-        mi.set_log_level(level)
+    scene = _load_mitsuba(path)
+    center = 0.5 * (np.array(scene.bbox().min, np.float64) + np.array(scene.bbox().max, np.float64))
+    offset = np.zeros(3)
+    if np.all(np.isfinite(center)) and np.linalg.norm(center) > RECENTER_DISTANCE:
+        offset = np.round(center)              # whole metres: exact in float32 below 2^24 m
+        scene = _load_mitsuba(path, offset)
     warn_mesh_defects(check_meshes(scene), str(path))
     _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
     params = RadarParameters.from_mapping(given)
+    if params.scene_center is not None and np.any(offset):
+        params = dataclasses.replace(params, scene_center=tuple((np.asarray(params.scene_center) - offset).tolist()))
     integrator = scene.integrator()
     settings_given = dict(getattr(integrator, "given", {}))
     settings_given.update(integrator_overrides or {})
@@ -169,7 +176,46 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
     return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
-                       has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri)
+                       has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
+                       offset=offset)
+
+
+#: Scenes whose bounding-box centre lies farther than this [m] from the origin are traced in a
+#: local frame (float32 geometry has 6 cm steps at 1e6 m, 12 rad of X-band phase).
+RECENTER_DISTANCE = 1000.0
+
+
+def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
+    """``mi.load_file`` (one shape per object), or with every top-level shape translated by
+    ``-offset`` (appended to its ``to_world``: in float32 ``t - offset`` is exact for ``t`` near
+    ``offset``, so the vertices arrive in local coordinates at full precision)."""
+    level = mi.log_level()
+    mi.set_log_level(mi.LogLevel.Error)      # silences the irrelevant default-film warning
+    resolver = mi.file_resolver()
+    saved = [str(resolver[i]) for i in range(len(resolver))]
+    try:
+        if offset is None:
+            return mi.load_file(str(path), optimize=False)
+        resolver.prepend(str(path.parent.resolve()))
+        return mi.load_string(_shifted_xml(path, offset), optimize=False)
+    except (RuntimeError, ET.ParseError) as exc:
+        raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
+    finally:
+        mi.set_log_level(level)
+        resolver.clear()
+        for entry in saved:
+            resolver.append(entry)
+
+
+def _shifted_xml(path: Path, offset: np.ndarray) -> str:
+    root = ET.parse(path).getroot()
+    for shape in root.findall("shape"):
+        transform = shape.find("transform[@name='to_world']")
+        if transform is None:
+            transform = ET.SubElement(shape, "transform", name="to_world")
+        ET.SubElement(transform, "translate", x=repr(-float(offset[0])), y=repr(-float(offset[1])),
+                      z=repr(-float(offset[2])))
+    return ET.tostring(root, encoding="unicode")
 
 
 MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient")

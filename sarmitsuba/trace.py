@@ -378,13 +378,13 @@ class _Kernel:
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
             carried=dr.zeros(mi.Float, st.max_depth),
         )
-        state = (ray, e1, e2, f64(0.0), mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.UInt32(0), active)
+        state = (ray, e1, e2, f64(0.0), a64(A), mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.UInt32(0), active)
         body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
         if st.max_depth == 1:                       # no reflection loop in the kernel at all
             body(*state)
         else:
             dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
-                "ray", "e1", "e2", "s", "gamma_re", "gamma_im", "r_tx", "depth", "active"), label="sbr")
+                "ray", "e1", "e2", "s", "p_prev", "gamma_re", "gamma_im", "r_tx", "depth", "active"), label="sbr")
         dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"], ctx["carried"])
         hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
         energy = ctx["energy"].numpy().astype(np.float64)
@@ -394,7 +394,7 @@ class _Kernel:
                     carried=ctx["carried"].numpy().astype(np.float64),
                     shadow=int(rays[st.max_depth]))
 
-    def _bounce(self, ctx, ray, t1, t2, s, g_re, g_im, r_tx, depth, active):
+    def _bounce(self, ctx, ray, t1, t2, s, p_prev, g_re, g_im, r_tx, depth, active):
         """One bounce: intersect, PO return to the antenna, reflect. Returns the new loop state."""
         f64 = type(s)
         a64 = type(ctx["A"])
@@ -413,7 +413,9 @@ class _Kernel:
         dist = dr.norm(to_ant)
         b = mi.Vector3f(to_ant / dist)
         cos_b = dr.dot(n, b)
-        s_new = dr.select(depth == 0, dr.norm(p64 - ctx["A"]), s + f64(si.t))
+        # leg length in float64 between exact hit points (not si.t: spawn_ray moves each
+        # secondary origin ~1e-4 (1 + |p|) m off the surface, a position-dependent mm)
+        s_new = s + dr.norm(p64 - p_prev)
         # ---- reflection coefficient r(cos_i) of the hit material ----
         row = dr.gather(mi.UInt32, self.row_of_shape, dr.reinterpret_array(mi.UInt32, si.shape), active)
         x = dr.clip(cos_i, 0.0, 1.0) * (self.n_cos - 1)
@@ -449,7 +451,7 @@ class _Kernel:
             a_re, a_im = a_re * spread, a_im * spread
         # ---- shadow test toward the antenna ----
         vis = active & (cos_b > 0)
-        vis &= ~self.scene.ray_test(si.spawn_ray(b), vis)
+        vis &= ~self.scene.ray_test(_spawn(si.p, n, b), vis)
         dr.scatter_add(ctx["rays"], mi.UInt32(1), st.max_depth, vis)
         # ---- deposit a * exp(-j k (L - L_ref)) on the fine fast-time grid ----
         rel = s_new + dist - ctx["lref"]
@@ -478,10 +480,10 @@ class _Kernel:
         d_next = d - 2.0 * dr.dot(d, n) * n
         t1 = t1 - 2.0 * dr.dot(t1, n) * n
         t2 = t2 - 2.0 * dr.dot(t2, n) * n
-        ray = si.spawn_ray(d_next)
+        ray = _spawn(si.p, n, d_next)
         depth = depth + 1
         active = active & (depth < st.max_depth)
-        return ray, t1, t2, dr.select(active, s_new, s), c_re, c_im, r_tx, depth, active
+        return ray, t1, t2, dr.select(active, s_new, s), dr.select(active, p64, p_prev), c_re, c_im, r_tx, depth, active
 
     def _gain(self, v):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
@@ -519,6 +521,18 @@ class _Kernel:
         index = base + mi.UInt32(k)
         dr.scatter_add(ctx["hist_re"], v_re, index, mask)
         dr.scatter_add(ctx["hist_im"], v_im, index, mask)
+
+
+def _spawn(p, n, d):
+    """Ray leaving the surface point ``p`` (normal ``n`` on the side of ``d``) toward ``d``.
+
+    The origin is lifted ``1e-4 m + 1e-6 |p|`` off the surface: enough to clear float32
+    rounding of ``p`` and Embree's own error, and (unlike Mitsuba's ``spawn_ray``, which lifts
+    by ~9e-5 (1 + max|p_i|)) almost independent of where the scene sits, so a translated
+    scene decides visibility near edges the same way.
+    """
+    lift = 1e-4 + 1e-6 * dr.norm(p)
+    return mi.Ray3f(p + n * lift, d)
 
 
 def _sinc(x):
