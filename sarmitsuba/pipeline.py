@@ -70,17 +70,21 @@ def check_output_dir(out_dir: str | os.PathLike) -> Path:
 
 
 def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
-    """Ground grid around the scene centre covering the scene and its layover.
+    """Ground grid around the scene centre covering the scene and its layover (see :func:`ground_grid`)."""
+    return ground_grid(loaded.params, loaded.bbox_lo, loaded.bbox_hi, geometry)
+
+
+def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
+    """Ground grid around the scene centre covering a bounding box and its layover.
 
     Ground-range extent: the bounding box, widened toward the sensor by ``(z_max - z0) / tan(theta)``
-    (where the tallest points lay over). Pixel spacing: half the finer of the ground-range and
-    azimuth resolutions.
+    (where the tallest points lay over), plus 16 resolution cells on every side. Pixel spacing:
+    half the finer of the ground-range and azimuth resolutions.
     """
-    p = loaded.params
-    corners = planning.box_corners(loaded.bbox_lo, loaded.bbox_hi) - geometry.scene_center
+    corners = planning.box_corners(bbox_lo, bbox_hi) - geometry.scene_center
     along = corners @ geometry.track_direction
     across = corners @ geometry.look_direction
-    layover = max(0.0, loaded.bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
+    layover = max(0.0, bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
     spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
     half_range = max(abs(across.min() - layover), abs(across.max())) + 16 * p.ground_range_resolution
     half_az = np.abs(along).max() + 16 * p.azimuth_resolution
@@ -219,6 +223,66 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         outputs={k: str(v) for k, v in paths.items()})
     _write_summary(out / OUTPUT_FILES["summary"], summary, sim.raw.metadata)
     return summary
+
+
+ALGORITHMS = ("bp", "omegak", "rda")
+
+
+def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", window_azimuth: str = "rect",
+            progress: bool = False) -> SarImage:
+    """Focus any RawData honouring the contract (DESIGN.md section 3) with the chosen algorithm.
+
+    ``bp``: backprojection; onto the scene's ground grid when the metadata carry sarmitsuba's
+    radar parameters and scene box (with their beam gating), else onto the slant-plane grid of
+    the straight-track geometry. ``omegak`` / ``rda``: the FFT focusers (straight track).
+    Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser.
+
+    Raises
+    ------
+    ValueError
+        Unknown algorithm, or a track the FFT focusers cannot handle (they name backprojection).
+    """
+    from .focus import apply_range_window, omega_k, range_compress, range_doppler, slant_output_grid, stripmap_geometry
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
+    grid, beam, doppler = _metadata_grid(raw)
+    if algorithm == "omegak":
+        return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler)
+    if algorithm == "rda":
+        return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
+                             doppler_bandwidth=doppler)
+    if window_azimuth != "rect":
+        raise ValueError("backprojection applies no azimuth window; use --window-azimuth rect, or omegak/rda")
+    compressed = range_compress(raw, window_range) if not raw.range_compressed else (
+        apply_range_window(raw, window_range) if window_range != "rect" else raw)
+    if grid is None:
+        grid = slant_output_grid(stripmap_geometry(raw), raw)
+    return backproject(compressed, grid, azimuth_beamwidth=beam, progress=progress)
+
+
+def _metadata_grid(raw: RawData):
+    """Ground grid, azimuth beamwidth [deg] and Doppler bandwidth [Hz] of a sarmitsuba render, from
+    the RawData metadata; (None, None, None) for other data."""
+    from .radar import RadarParameters
+    meta = raw.metadata
+    try:
+        params = RadarParameters.from_mapping({k: v for k, v in meta["radar"].items() if v is not None})
+        offset = np.asarray(meta.get("frame_offset", [0.0, 0.0, 0.0]), float)
+        lo = np.asarray(meta["scene_info"]["bbox_min"], float) + offset
+        hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
+    except (KeyError, TypeError, ValueError):
+        return None, None, None
+    geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
+    return ground_grid(params, lo, hi, geometry), params.azimuth_beamwidth, params.doppler_bandwidth
+
+
+def write_image_products(out: Path, image: SarImage, title: str) -> dict:
+    """Write ``image.npz``, ``image.exr`` and ``image.png`` to ``out``; returns their paths."""
+    paths = {role: out / OUTPUT_FILES[role] for role in ("image", "exr", "png")}
+    image.save(paths["image"])
+    products.write_exr(image, paths["exr"])
+    products.write_quicklook(image, paths["png"], title=title, figsize=(10.0, 8.0), dpi=110)
+    return paths
 
 
 def _write_products(out: Path, raw: RawData, image: SarImage, params, suffix: str = "") -> dict:

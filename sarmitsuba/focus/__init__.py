@@ -15,11 +15,29 @@ Algorithms
 ----------
 ==================================  =========================================================
 :func:`backproject`                 Time-domain backprojection, hybrid float64/float32
-                                    precision, vectorised and threaded (the fast path).
+                                    precision, vectorised and threaded (the fast path);
+                                    any track, stripmap and spotlight.
 :func:`backproject_reference`       Plain float64 loop over pulses; the test oracle.
+:func:`omega_k`                     Accurate omega-K with Stolt interpolation (straight track,
+                                    squinted too; Cumming and Wong ch. 8).
+:func:`range_doppler`               Range-Doppler with RCMC and optional SRC (ch. 6).
+==================================  =========================================================
+
+Range processing and geometry
+-----------------------------
+==================================  =========================================================
+:func:`range_compress`              Matched filter of chirped raw data, with a window.
+:func:`apply_range_window`          Window compressed data over the band.
+:func:`stripmap_geometry`           Straight-track geometry, Doppler centroid, checks.
+:func:`slant_output_grid`           The slant-plane grid of the FFT focusers.
 ==================================  =========================================================
 """
 from .backprojection import backproject, backproject_reference
 from .grid import ImageGrid
+from .omegak import omega_k
+from .range_compression import apply_range_window, range_compress
+from .rda import range_doppler
+from .stripmap import StripmapGeometry, slant_output_grid, stripmap_geometry
 
-__all__ = ["ImageGrid", "backproject", "backproject_reference"]
+__all__ = ["ImageGrid", "backproject", "backproject_reference", "omega_k", "range_doppler", "range_compress",
+           "apply_range_window", "StripmapGeometry", "stripmap_geometry", "slant_output_grid"]
