@@ -47,6 +47,10 @@
    - Full azimuth width of the illuminated beam. Default 0 = automatic: 1.0 for an ideal,
      uniformly illuminated beam (azimuth resolution lambda / (2 beta)), or the main lobe
      between first nulls with ``antenna_length``.
+ * - mode
+   - string
+   - ``stripmap`` (default) or ``spotlight`` (beam steered at the scene centre; automatic
+     n_pulses gives an azimuth resolution equal to the slant-range resolution).
  * - output
    - string
    - ``compressed`` (default) or ``raw``: chirped echoes instead of range-compressed data.

@@ -135,7 +135,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     grid = image_grid(loaded, geometry)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     geometry = world
-    focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=params.azimuth_beamwidth,  # noqa: E731
+    beam = params.azimuth_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
+    focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=beam,  # noqa: E731
                                               progress=progress), params, geometry)
     image = focus(raw)
     images = tuple(focus(r) for r in per_order)
@@ -273,7 +274,8 @@ def _metadata_grid(raw: RawData):
     except (KeyError, TypeError, ValueError):
         return None, None, None
     geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
-    return ground_grid(params, lo, hi, geometry), params.azimuth_beamwidth, params.doppler_bandwidth
+    beam = params.azimuth_beamwidth if params.mode == "stripmap" else None
+    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth
 
 
 def write_image_products(out: Path, image: SarImage, title: str) -> dict:
@@ -329,6 +331,9 @@ def _effects(loaded: LoadedScene) -> list[str]:
         effects.append(f"thermal noise (noise_figure_db {p.noise_figure_db}, noise_temperature {p.noise_temperature})")
     if st.split_bounces:
         effects.append("per-bounce-order products (split_bounces)")
+    if p.mode == "spotlight":
+        effects.append(f"spotlight (beam steered at the scene centre, integration angle "
+                       f"{math.degrees(p.integration_angle):.2f} deg)")
     if p.output == "raw":
         effects.append(f"chirped raw echoes (sensor output = raw, T_p {p.pulse_length} s)")
     return effects

@@ -35,6 +35,10 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
     """
     if params.scene_center is None:
         params = replace(params, scene_center=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), float(lo[2])))
+    if params.n_pulses == 0 and params.mode == "spotlight":
+        angle = params.wavelength / (2.0 * params.slant_range_resolution)
+        length = angle * params.slant_range
+        params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
     if params.n_pulses == 0:
         track, look = track_frame(params)
         rel = box_corners(lo, hi) - np.asarray(params.scene_center)
@@ -114,6 +118,8 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     extent = float(along.max() - along.min()) + 2 * s
     n_azimuth = int(math.ceil(min(width, extent) / s)) + 2
     ant_along = (geometry.positions - origin) @ track
+    if params.mode == "spotlight":        # the beam stays on the scene centre: a fixed patch
+        ant_along = np.zeros_like(ant_along)
     k0 = np.floor(np.maximum(ant_along - 0.5 * width, along.min() - s) / s).astype(np.int64)
     return RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
                         range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range,

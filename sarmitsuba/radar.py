@@ -81,6 +81,11 @@ class RadarParameters:
     noise_figure_db : float, dB, optional
         Receiver noise figure; with ``noise_temperature`` it switches thermal noise of power
         ``k T B F`` per sample on.
+    mode : str
+        ``"stripmap"`` (default; beam fixed at broadside, sweeping the scene) or ``"spotlight"``
+        (beam steered at ``scene_center`` for every pulse; the patch is ``R beta`` wide and the
+        integration angle ``dtheta = n_pulses v / (prf R)`` sets the azimuth resolution
+        ``lambda / (2 dtheta)``; automatic ``n_pulses`` gives ``dtheta = lambda / (2 rho_slant)``).
     output : str
         ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
         ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
@@ -109,6 +114,7 @@ class RadarParameters:
     noise_temperature: float | None = None
     noise_figure_db: float | None = None
     output: str = "compressed"
+    mode: str = "stripmap"
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -146,6 +152,8 @@ class RadarParameters:
                 "complex sampling needs sampling_rate >= bandwidth")
         if self.look_side not in ("right", "left"):
             raise ParameterError(f"look_side = {self.look_side!r}; valid values are 'right' and 'left'")
+        if self.mode not in ("stripmap", "spotlight"):
+            raise ParameterError(f"mode = {self.mode!r}; valid values are 'stripmap' and 'spotlight'")
         if self.output not in ("compressed", "raw"):
             raise ParameterError(f"output = {self.output!r}; valid values are 'compressed' and 'raw'")
         if self.polarization not in ("VV", "HH"):
@@ -183,9 +191,16 @@ class RadarParameters:
     def azimuth_resolution(self) -> float:
         """Stripmap azimuth resolution [m]: ``lambda / (2 beta_az)`` for an ideal beam of width
         beta_az; ``L_a / 2`` with an antenna pattern (Cumming and Wong 2005, eq. 4.37)."""
+        if self.mode == "spotlight" and self.n_pulses > 0:
+            return self.wavelength / (2.0 * self.integration_angle)
         if self.antenna_length > 0:
             return self.antenna_length / 2.0
         return self.wavelength / (2.0 * math.radians(self.azimuth_beamwidth))
+
+    @property
+    def integration_angle(self) -> float:
+        """Spotlight integration angle ``n_pulses v / (prf R)`` [rad] seen from the scene centre."""
+        return self.n_pulses * self.velocity / (self.prf * self.slant_range)
 
     @property
     def slant_range(self) -> float:
@@ -261,7 +276,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization", "output"):
+            elif name in ("look_side", "polarization", "output", "mode"):
                 out[name] = str(value)
             else:
                 out[name] = float(value)

@@ -310,6 +310,7 @@ class _Kernel:
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
         self.sin_half_beam = math.sin(0.5 * math.radians(params.azimuth_beamwidth))
+        self.spotlight = params.mode == "spotlight"
         n_cos = material_table.table.shape[1]
         self.n_cos = n_cos
         self.row_of_shape = mi.UInt32(material_table.row_of_shape.astype(np.uint32))
@@ -353,9 +354,13 @@ class _Kernel:
         to_p = P - A
         r = dr.norm(to_p)
         d64 = to_p / r
-        # ---- ideal beam and scene extent ----
-        ant_along = dr.dot(A - a64(*fp.origin.tolist()), a64(*fp.track.tolist()))
-        active = mi.Bool(dr.abs(along - ant_along) <= r * self.sin_half_beam)
+        # ---- ideal beam and scene extent: |sin(phi_ray) - sin(phi_beam centre)| <= sin(beta / 2) ----
+        track64 = a64(*fp.track.tolist())
+        sin_ray = dr.dot(to_p, track64) / r
+        if self.spotlight:                 # beam steered at the scene centre for every pulse
+            to_c = a64(*fp.origin.tolist()) - A
+            sin_ray -= dr.dot(to_c, track64) / dr.norm(to_c)
+        active = mi.Bool(dr.abs(sin_ray) <= self.sin_half_beam)
         active &= (along >= fp.azimuth_limits[0]) & (along <= fp.azimuth_limits[1])
         # ---- tube: the ground cell's edges seen perpendicular to the ray, per metre of path ----
         # At the aim point (distance r) the tube's edges are the cell edges E_j projected
