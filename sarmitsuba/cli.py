@@ -53,7 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     from .analysis import add_arguments as analysis_arguments
-    analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
+    analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
+    analyze.add_argument("--raw", type=Path, default=None,
+                         help="the RawData that were focused (default: raw.npz beside the image, if any): gives "
+                              "the exact carrier ramp, so the peak phase is right between pixels")
     return parser
 
 
@@ -108,9 +111,14 @@ def _render(args: argparse.Namespace) -> int:
 def _analyze(args: argparse.Namespace) -> int:
     """Point-target analysis; the energy widths for the RCS come from the image's radar metadata
     when not given (``c / (2 B sin(theta))`` and ``lambda / (2 beta)``, or ``L_a / 2``)."""
-    from .analysis import run
+    from .analysis import carrier_ramp, run
+    from .image import SarImage
+    from .raw import RawData
     if args.resolution is None:
         args.resolution = _resolution_from_metadata(args.image)
+    raw_path = args.raw or Path(args.image).with_name("raw.npz")
+    if args.carrier is None and raw_path.is_file() and len(args.target) == 3:
+        args.carrier = list(carrier_ramp(RawData.load(raw_path), SarImage.load(args.image), args.target))
     return run(args)
 
 

@@ -120,6 +120,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     geometry = acquisition_geometry(params)
     window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
     footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
     table = material_table(loaded.scene, params.frequency, params.polarization)
     t["load"] = time.perf_counter()
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)

@@ -15,7 +15,12 @@ from .constants import SPEED_OF_LIGHT
 from .radar import AcquisitionGeometry, RadarParameters, track_frame
 from .trace import FastTimeWindow, RayFootprint, TraceSettings
 
-__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "box_corners"]
+__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "box_corners",
+           "check_acquisition", "AcquisitionWarning"]
+
+
+class AcquisitionWarning(UserWarning):
+    """Radar settings the user may mean but should know about (ambiguities, an empty beam)."""
 
 #: Samples kept beyond the nearest and farthest scene delay, for the compressed pulse's tails.
 WINDOW_MARGIN_SAMPLES = 64
@@ -68,11 +73,7 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
     and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
-    positions = geometry.positions
-    closest = np.clip(positions, lo, hi)
-    l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
-    corners = box_corners(lo, hi)
-    l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
+    l_min, l_max = _echo_lengths(geometry.positions, lo, hi)
     l_max += (settings.max_depth - 1) * 0.1 * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
     if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
@@ -81,6 +82,15 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     n = int(math.ceil((l_max / SPEED_OF_LIGHT + margin - t0) * params.sampling_rate))
     return FastTimeWindow(t0=t0, fs=params.sampling_rate, n_samples=sp_fft.next_fast_len(n),
                           oversample=settings.oversample)
+
+
+def _echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Shortest and longest two-way lengths [m] from the track to the scene's box (direct paths)."""
+    closest = np.clip(positions, lo, hi)
+    l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
+    corners = box_corners(lo, hi)
+    l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
+    return l_min, l_max
 
 
 def ray_spacing(params: RadarParameters, settings: TraceSettings) -> float:
@@ -124,3 +134,45 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     return RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
                         range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range,
                         azimuth_limits=(float(along.min() - s), float(along.max() + s)), k0=k0)
+
+
+def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                      lo: np.ndarray, hi: np.ndarray) -> list[str]:
+    """Warn (:class:`AcquisitionWarning`) about settings that give ambiguities or an empty image.
+
+    - azimuth ambiguities: ``prf`` below the Doppler bandwidth ``4 v sin(beta / 2) / lambda``
+      (stripmap; Cumming and Wong 2005, eq. 4.36);
+    - range ambiguities: the echo window (scene depth plus pulse length) longer than the pulse
+      repetition interval, i.e. ``prf > c / (2 swath depth)``: echoes of consecutive pulses
+      overlap (Curlander and McDonough 1991, sec. 6.5);
+    - a scene outside the beam footprint: no ray can hit it.
+
+    Returns the messages (also issued as warnings).
+    """
+    import warnings
+    messages = []
+    if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
+        messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
+                        f"(azimuth_beamwidth {params.azimuth_beamwidth:.3g} deg, velocity {params.velocity:g} m/s): "
+                        "azimuth ambiguities (ghosts) will appear; raise prf or narrow the beam")
+    l_min, l_max = _echo_lengths(geometry.positions, lo, hi)
+    echo = (l_max - l_min) / SPEED_OF_LIGHT + params.pulse_length      # receive time of one pulse's echoes
+    if echo > 1.0 / params.prf:
+        messages.append(f"prf = {params.prf:g} Hz exceeds 1 / (echo duration) = {1.0 / echo:.1f} Hz "
+                        f"(scene depth {0.5 * (l_max - l_min):.0f} m slant plus pulse_length {params.pulse_length:g} s): "
+                        "echoes of consecutive pulses overlap (range ambiguities), which this simulation does not "
+                        "model; lower prf or shrink the scene")
+    rel = box_corners(lo, hi) - geometry.scene_center
+    along = rel @ geometry.track_direction
+    across = rel @ geometry.look_direction
+    half = 0.5 * _far_range(params, lo, hi) * 2 * math.tan(math.radians(params.azimuth_beamwidth) / 2)
+    track = (geometry.positions - geometry.scene_center) @ geometry.track_direction
+    reach = (half if params.mode == "stripmap" else 0.0)
+    if (along.max() < track.min() - reach - half or along.min() > track.max() + reach + half
+            or across.max() < -params.ground_range * 0.99):
+        messages.append(f"the scene (bounding box {lo.round(1).tolist()} .. {hi.round(1).tolist()}) lies outside the "
+                        f"beam footprint around scene_center {np.round(geometry.scene_center, 1).tolist()}: "
+                        "the raw data and image will be empty")
+    for message in messages:
+        warnings.warn(message, AcquisitionWarning, stacklevel=2)
+    return messages

@@ -182,7 +182,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
 
 #: Scenes whose bounding-box centre lies farther than this [m] from the origin are traced in a
 #: local frame (float32 geometry has 6 cm steps at 1e6 m, 12 rad of X-band phase).
-RECENTER_DISTANCE = 1000.0
+RECENTER_DISTANCE = 100.0
 
 
 def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:

@@ -19,7 +19,7 @@ def test_azimuth_pattern_is_two_way_sinc_squared():
     """Pulse by pulse, the trihedral's echo with a 1 m antenna over the echo without pattern
     (same pulses) is sinc^2(L_a sin(phi_az) / lambda) within 0.1 dB over the -6 dB main lobe
     (the 1.5 m trihedral spans +-0.05 % of the beam, so its faces see slightly different gains)."""
-    common = {"azimuth_beamwidth": 3.5}
+    common = {"azimuth_beamwidth": 3.5, "prf": 500.0}      # PRF above the 3.5 deg beam's Doppler bandwidth
     sim, with_pattern = _pulse_peaks({**common, "antenna_length": 1.0})
     _, without = _pulse_peaks(common)
     e = -sim.raw.tx_position                               # apex at the origin

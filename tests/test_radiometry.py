@@ -24,7 +24,10 @@ NOISE = {"noise_figure_db": 3.0, "noise_temperature": 290.0}
 
 def test_noise_power_per_sample_is_k_t_b_f():
     """An empty beam with noise: raw samples have power k T B F within 2 %."""
-    sim = simulate("trihedral", sensor_overrides={**RADAR, **NOISE, "scene_center": "500, 500, 0", "n_pulses": 300})
+    from sarmitsuba.planning import AcquisitionWarning
+    with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):
+        sim = simulate("trihedral", sensor_overrides={**RADAR, **NOISE, "scene_center": "500, 500, 0",
+                                                      "n_pulses": 300})
     p = sim.loaded.params
     expected = BOLTZMANN * 290.0 * p.bandwidth * 10 ** 0.3
     measured = float(np.mean(np.abs(sim.raw.data) ** 2))

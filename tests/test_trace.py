@@ -71,7 +71,9 @@ def test_energy_per_order_and_rays_are_consistent():
 def test_beam_hitting_nothing_gives_zero_data():
     """Empty beam: a beam pointed 500 m away from all geometry yields exactly zero raw data
     and a zero image (not NaN), and casts no ray."""
-    far = simulate("trihedral", sensor_overrides={"scene_center": "500, 500, 0", "n_pulses": 4})
+    from sarmitsuba.planning import AcquisitionWarning
+    with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):
+        far = simulate("trihedral", sensor_overrides={"scene_center": "500, 500, 0", "n_pulses": 4})
     assert far.trace.rays_per_order.sum() == 0
     assert np.count_nonzero(far.raw.data) == 0 and np.all(np.isfinite(far.raw.data))
     assert np.count_nonzero(far.image.data) == 0 and np.all(np.isfinite(far.image.data))
