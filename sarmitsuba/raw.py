@@ -173,7 +173,11 @@ def _atomic_savez(path: Path, **arrays: Any) -> Path:
     """``np.savez`` to ``path`` through a temporary name in the same directory, then rename."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial")
-    with open(tmp, "wb") as f:
-        np.savez(f, **arrays)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:              # Ctrl-C or a full disk: no half-written file is left
+        tmp.unlink(missing_ok=True)
+        raise
     return path
