@@ -21,6 +21,27 @@ def _assignment(text: str) -> tuple[str, str]:
     return name.strip(), value.strip()
 
 
+def _resolution(text: str) -> tuple[int, int]:
+    width, sep, height = text.lower().partition("x")
+    try:
+        size = (int(width), int(height))
+    except ValueError:
+        size = (0, 0)
+    if not sep or min(size) <= 0:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, e.g. 960x720, got {text!r}")
+    return size
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of all sub-commands."""
     parser = argparse.ArgumentParser(prog="sarmitsuba", description=__doc__.splitlines()[0])
@@ -44,6 +65,19 @@ def build_parser() -> argparse.ArgumentParser:
                         help="also write raw data and images per bounce order (*_order1, *_order2, ...)")
     render.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
+    render.add_argument("--figures", action="store_true",
+                        help="also draw explanatory figures (fig_*.png, figures.json) from the files written")
+    preview = sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)")
+    preview.add_argument("scene", nargs="?", default=None,
+                         help="XML path, built-in name (urban, dihedral, trihedral) or sionna:NAME; default: urban")
+    preview.add_argument("--out", type=Path, default=None,
+                         help="output directory (default: out/<scene name>); receives preview.png")
+    preview.add_argument("--spp", type=_positive_int, default=16, help="samples per pixel (default 16)")
+    preview.add_argument("--resolution", type=_resolution, default=(960, 720), metavar="WxH",
+                         help="PNG size in pixels (default 960x720)")
+    preview.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
+    preview.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
+                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
     focus = sub.add_parser("focus", help="focus a raw.npz (any RawData) into image.npz/.exr/.png")
     focus.add_argument("raw", type=Path, help="RawData file (.npz)")
     focus.add_argument("--algorithm", choices=("bp", "omegak", "rda"), default="bp",
@@ -54,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     from .analysis import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
+    analyze.add_argument("--figure", type=Path, default=None, metavar="PNG",
+                         help="also draw the point-target figure (chip, cuts, IRW, PSLR) to this file")
     analyze.add_argument("--raw", type=Path, default=None,
                          help="the RawData that were focused (default: raw.npz beside the image, if any): gives "
                               "the exact carrier ramp, so the peak phase is right between pixels")
@@ -105,6 +141,24 @@ def _render(args: argparse.Namespace) -> int:
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
                      progress=not args.no_progress)
     print(summary.line())
+    if args.figures:
+        from .figures import redraw
+        paths = redraw(args.out or _default_out(args.scene))
+        print(f"figures: {', '.join(str(p) for p in paths.values())}")
+    return 0
+
+
+def _preview(args: argparse.Namespace) -> int:
+    from .pipeline import check_output_dir
+    from .preview import render_preview
+    from .scene import load_scene
+    sensor = dict(args.sensor_set)
+    if args.pulses is not None:
+        sensor["n_pulses"] = args.pulses
+    out = check_output_dir(args.out or _default_out(args.scene))
+    loaded = load_scene(args.scene, sensor_overrides=sensor)
+    path = render_preview(loaded, out / "preview.png", spp=args.spp, resolution=args.resolution)
+    print(f"preview of {loaded.source} -> {path}")
     return 0
 
 
@@ -119,7 +173,18 @@ def _analyze(args: argparse.Namespace) -> int:
     raw_path = args.raw or Path(args.image).with_name("raw.npz")
     if args.carrier is None and raw_path.is_file() and len(args.target) == 3:
         args.carrier = list(carrier_ramp(RawData.load(raw_path), SarImage.load(args.image), args.target))
-    return run(args)
+    code = run(args)
+    if code == 0 and args.figure is not None:
+        from .analysis import analyze_point_target
+        from .figures import point_target_figure
+        image = SarImage.load(args.image)
+        report = analyze_point_target(
+            image, args.target, chip=args.chip, oversample=args.oversample, predicted=args.predicted,
+            resolution=None if args.resolution is None else tuple(args.resolution),
+            carrier=None if args.carrier is None else tuple(args.carrier),
+            sidelobes=args.sidelobes, energy_extent=args.energy_extent)
+        print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
+    return code
 
 
 def _resolution_from_metadata(path) -> list[float] | None:
@@ -141,14 +206,15 @@ def main(argv: list[str] | None = None) -> int:
         import sarmitsuba  # noqa: F401  (libLLVM check, variant, plugins)
         from .materials import MaterialError
         from .radar import ParameterError
+        from .image import SarImageError
         from .raw import RawDataError
         from .scene import SceneError
     except RuntimeError as exc:          # LibLLVMError and variant problems
         print(f"error: {exc}", file=sys.stderr)
         return 2
     try:
-        return {"render": _render, "analyze": _analyze, "focus": _focus}[args.command](args)
-    except (SceneError, ParameterError, MaterialError, RawDataError, OSError) as exc:
+        return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview}[args.command](args)
+    except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

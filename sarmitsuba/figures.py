@@ -1,0 +1,742 @@
+"""Figures that explain a simulation, drawn from the saved containers only (no tracing).
+
+Every function reads :class:`~sarmitsuba.raw.RawData` / :class:`~sarmitsuba.image.SarImage`
+objects (as loaded from ``raw.npz`` / ``image*.npz``) and, where it needs geometry, a
+:class:`~sarmitsuba.scene.LoadedScene` for the geometric ground truth of
+:mod:`sarmitsuba.groundtruth` (ray casts against the scene, no SAR tracing). Each writes
+one PNG with matplotlib's Agg canvas (no pyplot state), atomically (temporary name, then
+rename).
+
+==============================  ================================================================
+:func:`raw_figure`              Raw data: magnitude (dB) and phase, pulses x slant range; zoom on
+                                the brightest point target: range migration, phase history.
+:func:`image_figure`            Focused image in dB, axes in metres.
+:func:`bounce_orders_figure`    Single, double, triple bounce side by side, on one dB scale.
+:func:`overlay_figure`          Image with building footprints, layover, shadow and double-bounce
+                                lines from the scene; returns how well they match the image.
+:func:`comparison_figure`       Any labelled images side by side, resolutions annotated.
+:func:`point_target_figure`     Point-target chip and cuts with IRW, PSLR and ISLR marked.
+:func:`write_figures`           All figures that apply, into a directory (plus ``figures.json``).
+:func:`redraw`                  :func:`write_figures` from the files of a ``render`` output.
+==============================  ================================================================
+
+Display conventions (as :func:`sarmitsuba.products.write_quicklook`): intensity ``|I|^2``
+multilooked by whole factors so no axis exceeds ``max_pixels``; ``10 log10(I / I_ref)``
+with ``I_ref`` the 99.5th percentile of the non-zero intensities (bright corners saturate),
+clipped to ``dynamic_range_db``; range on x, azimuth on y (increasing upward), metres.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .constants import SPEED_OF_LIGHT
+from .image import SarImage
+from .products import REFERENCE_PERCENTILE, _atomic_write, _edges, _multilook
+from .raw import RawData, _json_default
+
+__all__ = ["raw_figure", "image_figure", "bounce_orders_figure", "overlay_figure", "comparison_figure",
+           "point_target_figure", "write_figures", "redraw", "image_resolution", "FIGURE_FILES"]
+
+#: Files written by :func:`write_figures`, by role.
+FIGURE_FILES = {"raw": "fig_raw.png", "image": "fig_image.png", "bounce_orders": "fig_bounce_orders.png",
+                "overlay": "fig_overlay.png", "stats": "figures.json"}
+_ORDER_NAMES = {1: "single bounce", 2: "double bounce", 3: "triple bounce"}
+
+
+# ============================================================================ helpers
+def _figure(figsize: tuple[float, float], dpi: int) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    if not (len(figsize) == 2 and min(figsize) > 0 and dpi > 0):
+        raise ValueError(f"figsize must be two positive inches and dpi > 0, got {figsize!r}, {dpi!r}")
+    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Any, path: str | os.PathLike, dpi: int) -> Path:
+    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+
+
+def _check_range(dynamic_range_db: float) -> float:
+    value = float(dynamic_range_db)
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"dynamic_range_db must be a finite number > 0 (dB), got {dynamic_range_db!r}")
+    return value
+
+
+def _looks(shape: tuple[int, ...], max_pixels: int) -> tuple[int, int]:
+    if int(max_pixels) != max_pixels or max_pixels < 1:
+        raise ValueError(f"max_pixels must be a whole number >= 1, got {max_pixels!r}")
+    return tuple(max(1, -(-n // int(max_pixels))) for n in shape[:2])  # type: ignore[return-value]
+
+
+def _reference(*powers: np.ndarray) -> float:
+    """``I_ref``: the 99.5th percentile of all non-zero finite intensities (1.0 when none)."""
+    values = np.concatenate([p[np.isfinite(p) & (p > 0)].ravel() for p in powers])
+    return float(np.percentile(values, REFERENCE_PERCENTILE)) if values.size else 1.0
+
+
+def _db(power: np.ndarray, reference: float, dynamic_range_db: float) -> np.ndarray:
+    floor = reference * 10.0 ** (-dynamic_range_db / 10.0)
+    power = np.where(np.isfinite(power), np.maximum(power, floor), floor)
+    return np.minimum(10.0 * np.log10(power / reference), 0.0)
+
+
+def _image_extent(image: SarImage, shown: tuple[int, int], looks: tuple[int, int]) -> tuple[float, ...]:
+    return (*_edges(image.range[:shown[1] * looks[1]]), *_edges(image.azimuth[:shown[0] * looks[0]]))
+
+
+def _show_image(ax: Any, image: SarImage, power: np.ndarray, looks: tuple[int, int], reference: float,
+                dynamic_range_db: float) -> Any:
+    """Draw multilooked ``power`` of ``image`` in dB on ``ax``; returns the AxesImage."""
+    db = _db(power, reference, dynamic_range_db)
+    shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
+                      extent=_image_extent(image, db.shape, looks), aspect="equal", interpolation="nearest")
+    ax.set_xlabel(f"{'ground' if image.plane == 'ground' else 'slant'} range [m]")
+    ax.set_ylabel("azimuth [m]")
+    return shown
+
+
+def _percent(fraction: float | None) -> str:
+    return "n/a" if fraction is None else f"{100 * fraction:.0f} %"
+
+
+def _block(mask: np.ndarray, looks: tuple[int, int], how: str) -> np.ndarray:
+    """Downsample a bool mask by ``looks``: ``"any"`` pixel or ``"half"`` of the block set."""
+    n0, n1 = (max(1, mask.shape[0] // looks[0]) * looks[0], max(1, mask.shape[1] // looks[1]) * looks[1])
+    blocks = mask[:n0, :n1].reshape(n0 // looks[0], looks[0], n1 // looks[1], looks[1])
+    return blocks.any(axis=(1, 3)) if how == "any" else blocks.mean(axis=(1, 3)) >= 0.5
+
+
+def image_resolution(image: SarImage) -> tuple[float, float] | None:
+    """Nominal (unweighted) ``(rho_azimuth, rho_range)`` [m] of an image, from its metadata, or None.
+
+    ``metadata["focus"]["azimuth_resolution"]`` / ``["range_resolution"]`` when the focuser
+    recorded them (e.g. spotlight), else from ``metadata["radar"]``
+    (:class:`~sarmitsuba.radar.RadarParameters`): ground- or slant-range resolution per
+    ``image.plane`` and the stripmap azimuth resolution.
+    """
+    focus = image.metadata.get("focus") if isinstance(image.metadata.get("focus"), dict) else {}
+    if "azimuth_resolution" in focus and "range_resolution" in focus:
+        return float(focus["azimuth_resolution"]), float(focus["range_resolution"])
+    radar = image.metadata.get("radar")
+    if not isinstance(radar, dict):
+        return None
+    from .radar import RadarParameters
+    try:
+        names = set(RadarParameters.names())
+        values = {k: v for k, v in radar.items() if k in names}
+        if values.get("scene_center") is not None:
+            values["scene_center"] = tuple(values["scene_center"])
+        p = RadarParameters(**values)
+    except (TypeError, ValueError):
+        return None
+    rho_rg = p.ground_range_resolution if image.plane == "ground" else p.slant_range_resolution
+    return float(p.azimuth_resolution), float(rho_rg)
+
+
+def _order_label(image: SarImage, k: int) -> str:
+    order = int(image.metadata.get("bounce_order", k))
+    return f"order {order} ({_ORDER_NAMES.get(order, f'{order} bounces')})"
+
+
+# ============================================================================ raw data
+def raw_figure(raw: RawData, path: str | os.PathLike, *, dynamic_range_db: float = 50.0,
+               figsize: tuple[float, float] = (12.0, 9.0), dpi: int = 100, max_pixels: int = 800) -> Path:
+    """Raw data: magnitude and phase (pulses x slant range), and a zoom on the brightest echo.
+
+    Panels: (a) ``|s|`` in dB of the data as stored (range compressed or chirped);
+    (b) their phase (cyclic colour map), blank where the magnitude is more than 30 dB below
+    ``I_ref``; (c) the range-compressed magnitude around the brightest echo, with the
+    range-migration curve ``R(p) = sqrt(R0^2 + |A_p - A_0|^2)`` of a point at closest range
+    ``R0`` seen broadside at pulse ``p_0`` (found by a coarse azimuth compression, see
+    ``_pick_echo``); (d) the unwrapped phase along that echo against the azimuth phase
+    history ``-4 pi (R(p) - R0) / lambda``, the chirp that azimuth focusing compresses.
+
+    Parameters
+    ----------
+    raw : RawData
+        Chirped data are range compressed for (c) and (d) with
+        :func:`sarmitsuba.focus.range_compression.range_compress`.
+    path : str or os.PathLike
+        Target PNG.
+    dynamic_range_db : float, default 50
+        Shown range below ``I_ref`` in dB.
+    figsize, dpi : figure size in inches and dots per inch (PNG = ``figsize * dpi`` pixels).
+    max_pixels : int, default 800
+        Display decimation: no axis of (a)/(b) exceeds this many pixels.
+
+    Returns
+    -------
+    Path
+    """
+    dynamic_range_db = _check_range(dynamic_range_db)
+    compressed = raw.data
+    if not raw.range_compressed:
+        from .focus.range_compression import range_compress
+        compressed = range_compress(raw).data
+    slant = SPEED_OF_LIGHT * raw.fast_time / 2.0
+    fig = _figure(figsize, dpi)
+    axes = fig.subplots(2, 2)
+    looks = _looks(raw.data.shape, max_pixels)
+    power = _multilook(raw.data, looks)
+    reference = _reference(power)
+    extent = (*_edges(slant[:power.shape[1] * looks[1]]), -0.5, power.shape[0] * looks[0] - 0.5)
+    shown = axes[0, 0].imshow(_db(power, reference, dynamic_range_db), cmap="gray", vmin=-dynamic_range_db,
+                              vmax=0, origin="lower", aspect="auto", extent=extent, interpolation="nearest")
+    fig.colorbar(shown, ax=axes[0, 0], label="dB")
+    kind = "range compressed" if raw.range_compressed else "chirped (not range compressed)"
+    axes[0, 0].set_title(f"(a) |raw|, {kind}: {raw.n_pulses} pulses x {raw.n_samples} samples", fontsize="small")
+    sub = raw.data[::looks[0], ::looks[1]]
+    phase = np.where(np.abs(sub) ** 2 >= reference * 1e-3, np.angle(sub), np.nan)
+    shown = axes[0, 1].imshow(phase, cmap="twilight", vmin=-np.pi, vmax=np.pi, origin="lower", aspect="auto",
+                              extent=extent, interpolation="nearest")
+    fig.colorbar(shown, ax=axes[0, 1], label="phase [rad]")
+    axes[0, 1].set_title("(b) phase (blank: more than 30 dB below the reference)", fontsize="small")
+    for ax in axes[0]:
+        ax.set_xlabel("slant range c tau / 2 [m]")
+        ax.set_ylabel("pulse")
+    _raw_zoom(fig, axes[1], raw, compressed, slant, dynamic_range_db)
+    fig.suptitle(f"{raw.metadata.get('scene', 'raw data')}: fc {raw.fc / 1e9:.3g} GHz, B {raw.bandwidth / 1e6:.4g} "
+                 f"MHz, PRF {raw.prf:g} Hz, fs {raw.fs / 1e6:.4g} MHz", fontsize="medium")
+    return _save(fig, path, dpi)
+
+
+def _pick_echo(raw: RawData, compressed: np.ndarray, slant: np.ndarray) -> tuple[int, int, int, int]:
+    """The brightest point target: ``(range sample, broadside pulse, first, last pulse of its beam)``.
+
+    Every range line along the pulses is correlated with the azimuth phase history of a
+    point at that range, ``exp(-j 4 pi sqrt(R^2 + s^2) / lambda)`` over the azimuth beam
+    (``metadata["radar"]["azimuth_beamwidth"]``, default 1 degree; ``s`` = along-track
+    offset): a coarse azimuth compression without range-cell migration correction. Its
+    maximum is the strongest point-like scatterer and its broadside (zero-Doppler) pulse.
+    Extended targets, such as the double bounce of a wall parallel to the track, have a
+    flat phase history and compress less.
+    """
+    radar = raw.metadata.get("radar") if isinstance(raw.metadata.get("radar"), dict) else {}
+    half_beam = math.tan(math.radians(float(radar.get("azimuth_beamwidth") or 1.0)) / 2.0)
+    direction = raw.velocity[0] / max(float(np.linalg.norm(raw.velocity[0])), 1e-12)
+    along = (raw.tx_position - raw.tx_position[0]) @ direction
+    step = float(np.median(np.abs(np.diff(along)))) if raw.n_pulses > 1 else 1.0
+    n_fft = int(2 ** math.ceil(math.log2(2 * raw.n_pulses)))
+    offsets = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step                 # m, circular lag order
+    best = (-1.0, 0, 0)
+    for cols in np.array_split(np.arange(raw.n_samples), max(1, raw.n_samples // 256)):
+        r0 = slant[cols][None, :]
+        history = np.exp(-4j * np.pi * raw.fc / SPEED_OF_LIGHT * (np.sqrt(r0 ** 2 + offsets[:, None] ** 2) - r0))
+        history[np.abs(offsets)[:, None] > r0 * half_beam] = 0.0
+        focused = np.abs(np.fft.ifft(np.fft.fft(compressed[:, cols], n_fft, axis=0)
+                                     * np.conj(np.fft.fft(history, axis=0)), axis=0))[:raw.n_pulses]
+        p, c = np.unravel_index(int(np.argmax(focused)), focused.shape)
+        if focused[p, c] > best[0]:
+            best = (float(focused[p, c]), int(cols[c]), int(p))
+    _, k, p0 = best
+    half = int(round(slant[k] * half_beam / step))
+    return k, p0, max(0, p0 - half), min(raw.n_pulses - 1, p0 + half)
+
+
+def _raw_zoom(fig: Any, axes: Any, raw: RawData, compressed: np.ndarray, slant: np.ndarray,
+              dynamic_range_db: float) -> None:
+    """Panels (c) and (d) of :func:`raw_figure`."""
+    magnitude = np.abs(compressed)
+    if not np.any(magnitude > 0):
+        for ax in axes:
+            ax.text(0.5, 0.5, "no echo", ha="center", va="center", transform=ax.transAxes)
+        return
+    k_peak, p0, p_a, p_b = _pick_echo(raw, compressed, slant)        # p0: broadside (zero Doppler)
+    peak = float(magnitude[p_a:p_b + 1, max(0, k_peak - 3):k_peak + 4].max())
+    k0 = int(np.argmax(magnitude[p0, max(0, k_peak - 3):k_peak + 4])) + max(0, k_peak - 3)
+    r0 = float(slant[k0])
+    if 0 < k0 < raw.n_samples - 1:                                  # parabolic peak refinement
+        y = magnitude[p0, k0 - 1:k0 + 2].astype(np.float64)
+        denom = y[0] - 2 * y[1] + y[2]
+        if denom < 0:
+            r0 += 0.5 * (y[0] - y[2]) / denom * (slant[1] - slant[0])
+    along = np.linalg.norm(raw.tx_position - raw.tx_position[p0], axis=1)
+    curve = np.sqrt(r0 ** 2 + along ** 2)
+    migration = float(curve[[p_a, p_b]].max() - r0)
+    dr = float(slant[1] - slant[0]) if raw.n_samples > 1 else 1.0
+    half_cols = max(16, int(math.ceil(2 * migration / dr)) + 8)
+    span = p_b - p_a + 1
+    rows = slice(max(0, p_a - span // 4), min(raw.n_pulses, p_b + span // 4 + 1))
+    cols = slice(max(0, k_peak - half_cols), min(raw.n_samples, k_peak + half_cols + 1))
+    zoom = compressed[rows, cols]
+    extent = (*_edges(slant[cols]), rows.start - 0.5, rows.stop - 0.5)
+    db = _db(np.abs(zoom).astype(np.float64) ** 2, peak ** 2, dynamic_range_db)
+    shown = axes[0].imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0, origin="lower", aspect="auto",
+                           extent=extent, interpolation="nearest")
+    fig.colorbar(shown, ax=axes[0], label="dB (peak = 0)")
+    pulses = np.arange(rows.start, rows.stop)
+    axes[0].plot(curve[rows], pulses, "--", color="orangered", lw=1.2,
+                 label=f"R(p): migration {migration:.3g} m = {migration / dr:.2g} samples")
+    axes[0].legend(loc="upper right", fontsize="x-small")
+    axes[0].set_title(f"(c) range compressed, brightest point target (R0 = {r0:.2f} m, pulses {p_a}-{p_b})",
+                      fontsize="small")
+    # (d) phase history along the echo's range sample, against -4 pi (R(p) - R0) / lambda
+    pulses_lit = np.arange(p_a, p_b + 1)
+    measured = np.unwrap(np.angle(compressed[pulses_lit, k0].astype(np.complex128)))
+    expected = -4.0 * np.pi * raw.fc / SPEED_OF_LIGHT * (curve[pulses_lit] - r0)
+    measured += expected[p0 - p_a] - measured[p0 - p_a]
+    axes[1].plot(pulses_lit, measured, color="k", lw=1.2, label="measured (unwrapped, sample at R0)")
+    axes[1].plot(pulses_lit, expected, "--", color="orangered", lw=1.2, label="-4 pi (R(p) - R0) / lambda")
+    axes[1].set_xlabel("pulse")
+    axes[1].set_ylabel("phase [rad]")
+    axes[1].legend(loc="lower center", fontsize="x-small")
+    axes[1].set_title("(d) its azimuth phase history: the chirp that azimuth focusing compresses",
+                      fontsize="small")
+    axes[0].set_xlabel("slant range c tau / 2 [m]")
+    axes[0].set_ylabel("pulse")
+
+
+# ============================================================================ images
+def image_figure(image: SarImage, path: str | os.PathLike, *, dynamic_range_db: float = 40.0,
+                 title: str | None = None, figsize: tuple[float, float] = (9.0, 7.5), dpi: int = 100,
+                 max_pixels: int = 800) -> Path:
+    """The focused image in dB with axes in metres, resolution and grid annotated.
+
+    Parameters
+    ----------
+    image : SarImage
+    path : str or os.PathLike
+        Target PNG.
+    dynamic_range_db : float, default 40
+        Shown range below ``I_ref`` (99.5th percentile) in dB.
+    title : str, optional
+        First title line (default: the scene name).
+    figsize, dpi, max_pixels
+        As :func:`raw_figure`.
+
+    Returns
+    -------
+    Path
+    """
+    dynamic_range_db = _check_range(dynamic_range_db)
+    looks = _looks(image.data.shape, max_pixels)
+    power = _multilook(image.data, looks)
+    fig = _figure(figsize, dpi)
+    ax = fig.add_subplot()
+    shown = _show_image(ax, image, power, looks, _reference(power), dynamic_range_db)
+    fig.colorbar(shown, ax=ax, label=f"dB re the {REFERENCE_PERCENTILE:g}th percentile")
+    ax.set_title(f"{title or image.metadata.get('scene', 'SAR image')}\n{_describe(image, looks)}", fontsize="small")
+    return _save(fig, path, dpi)
+
+
+def _window_label(image: SarImage) -> str:
+    """``image.window``, or the range window of ``metadata["range_window"]`` when that was
+    applied before a focuser that itself records ``"rect"`` (backprojection)."""
+    applied = image.metadata.get("range_window")
+    name = applied.get("name") if isinstance(applied, dict) else None
+    if image.window == "rect" and name and name != "rect":
+        return f"{name} range"
+    return image.window
+
+
+def _describe(image: SarImage, looks: tuple[int, int] = (1, 1)) -> str:
+    spacing = (abs(float(image.azimuth[1] - image.azimuth[0])) if image.azimuth.size > 1 else float("nan"),
+               abs(float(image.range[1] - image.range[0])) if image.range.size > 1 else float("nan"))
+    first = (f"{image.algorithm}, {_window_label(image)} window, {image.plane} plane, "
+             f"{image.data.shape[0]}x{image.data.shape[1]} px of {spacing[0]:.2f} x {spacing[1]:.2f} m")
+    second = []
+    res = image_resolution(image)
+    if res is not None:
+        second.append(f"nominal resolution {res[0]:.2f} m (az) x {res[1]:.2f} m ({image.plane} rg)")
+    if looks != (1, 1):
+        second.append(f"shown with {looks[0]}x{looks[1]} looks")
+    return first + ("\n" + ", ".join(second) if second else "")
+
+
+def bounce_orders_figure(images_per_order: Sequence[SarImage] | Mapping[str, SarImage], path: str | os.PathLike, *,
+                         dynamic_range_db: float = 40.0, dpi: int = 100, max_pixels: int = 600,
+                         panel_size: tuple[float, float] = (5.0, 5.2)) -> Path:
+    """Images of each bounce order side by side, on one dB scale.
+
+    Parameters
+    ----------
+    images_per_order : sequence of SarImage (order 1, 2, ...) or mapping label -> SarImage
+        As :attr:`sarmitsuba.pipeline.Simulation.images_per_order` or the saved
+        ``image_order*.npz``; all on the same grid.
+    path : str or os.PathLike
+        Target PNG.
+    dynamic_range_db : float, default 40
+        Shown range in dB below the common reference: the 99.5th percentile of the pooled
+        intensities of all panels, so a dark panel is dark because its order is weak.
+    dpi, max_pixels
+        As :func:`raw_figure`.
+    panel_size : (float, float), default (5, 5.2)
+        Inches per panel; the PNG is ``(n * width, height) * dpi`` pixels.
+
+    Returns
+    -------
+    Path
+
+    Notes
+    -----
+    Each title gives the order's share of the total image energy ``sum |I|^2``.
+    """
+    dynamic_range_db = _check_range(dynamic_range_db)
+    if isinstance(images_per_order, Mapping):
+        labelled = list(images_per_order.items())
+    else:
+        labelled = [(_order_label(im, k), im) for k, im in enumerate(images_per_order, start=1)]
+    if not labelled:
+        raise ValueError("bounce_orders_figure needs at least one image")
+    looks = _looks(labelled[0][1].data.shape, max_pixels)
+    powers = [_multilook(im.data, looks) for _, im in labelled]
+    reference = _reference(*powers)
+    energy = np.array([float(np.sum(np.abs(im.data.astype(np.complex128)) ** 2)) for _, im in labelled])
+    share = energy / energy.sum() if energy.sum() > 0 else np.zeros_like(energy)
+    fig = _figure((panel_size[0] * len(labelled), panel_size[1]), dpi)
+    axes = np.atleast_1d(fig.subplots(1, len(labelled), sharex=True, sharey=True))
+    for ax, (label, im), power, s in zip(axes, labelled, powers, share):
+        shown = _show_image(ax, im, power, looks, reference, dynamic_range_db)
+        ax.set_title(f"{label}\n{100 * s:.1f} % of the image energy", fontsize="small")
+    fig.colorbar(shown, ax=list(axes), label="dB re common reference", shrink=0.8)
+    fig.suptitle(f"{labelled[0][1].metadata.get('scene', '')}: bounce orders on one scale "
+                 f"({dynamic_range_db:g} dB shown)", fontsize="medium")
+    return _save(fig, path, dpi)
+
+
+def comparison_figure(images: Mapping[str, SarImage], path: str | os.PathLike, *, dynamic_range_db: float = 40.0,
+                      common_scale: bool = True, dpi: int = 100, max_pixels: int = 600,
+                      panel_size: tuple[float, float] = (5.5, 5.5)) -> Path:
+    """Labelled images side by side (e.g. stripmap vs spotlight), resolutions annotated.
+
+    Parameters
+    ----------
+    images : mapping label -> SarImage
+        Any images (grids may differ); one panel each, in order.
+    path : str or os.PathLike
+        Target PNG.
+    dynamic_range_db : float, default 40
+    common_scale : bool, default True
+        One dB reference for all panels (calibrated images compare directly); False = each
+        panel relative to its own 99.5th percentile.
+    dpi, max_pixels, panel_size
+        As :func:`bounce_orders_figure`.
+
+    Returns
+    -------
+    Path
+
+    Notes
+    -----
+    Each panel title gives the algorithm, window, grid and pixel spacing, and the nominal
+    resolution of :func:`image_resolution` when the metadata allow it.
+    """
+    dynamic_range_db = _check_range(dynamic_range_db)
+    if not images:
+        raise ValueError("comparison_figure needs at least one image")
+    labelled = list(images.items())
+    looks = [_looks(im.data.shape, max_pixels) for _, im in labelled]
+    powers = [_multilook(im.data, lk) for (_, im), lk in zip(labelled, looks)]
+    common = _reference(*powers)
+    fig = _figure((panel_size[0] * len(labelled), panel_size[1]), dpi)
+    axes = np.atleast_1d(fig.subplots(1, len(labelled)))
+    for ax, (label, im), power, lk in zip(axes, labelled, powers, looks):
+        shown = _show_image(ax, im, power, lk, common if common_scale else _reference(power), dynamic_range_db)
+        ax.set_title(f"{label}\n" + _describe(im, lk), fontsize="x-small")
+    fig.colorbar(shown, ax=list(axes), label="dB" + (" re common reference" if common_scale else ""), shrink=0.8)
+    return _save(fig, path, dpi)
+
+
+# ============================================================================ ground truth
+def overlay_figure(image: SarImage, loaded: Any, path: str | os.PathLike, *, truth: Any = None,
+                   threshold_db: float = 6.0, dynamic_range_db: float = 40.0, dpi: int = 100,
+                   max_pixels: int = 700, figsize: tuple[float, float] = (13.0, 5.4)) -> dict[str, Any]:
+    """The image with the scene's geometric ground truth drawn in, and how well they agree.
+
+    Left: the image in dB with layover (orange) and shadow (blue) as transparent fills,
+    building footprints as yellow outlines and the double-bounce lines (wall feet facing
+    the sensor) in red. Right: the same masks as a label map.
+
+    Parameters
+    ----------
+    image : SarImage
+        Ground-plane image.
+    loaded : LoadedScene
+        The scene the image was made from (see :func:`sarmitsuba.groundtruth.ground_truth`).
+    path : str or os.PathLike
+        Target PNG.
+    truth : GroundTruth, optional
+        Precomputed masks; default computed here (ray casts, about 1 s for ``urban``).
+    threshold_db : float, default 6
+        "Bright" means an intensity ``threshold_db`` above the image median; "dark" means
+        ``threshold_db`` below it.
+    dynamic_range_db, dpi, max_pixels, figsize
+        Display, as :func:`image_figure`.
+
+    Returns
+    -------
+    dict
+        ``path`` (Path) plus the numbers of :func:`sarmitsuba.groundtruth.agreement`:
+        ``layover_overlap`` (fraction of layover-mask pixels whose intensity exceeds the
+        image median by ``threshold_db``), ``double_bounce_bright``, ``shadow_dark``, mean
+        levels and pixel counts.
+    """
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    from .groundtruth import agreement, ground_truth
+    dynamic_range_db = _check_range(dynamic_range_db)
+    truth = ground_truth(loaded, image) if truth is None else truth
+    stats = agreement(image, truth, threshold_db)
+    looks = _looks(image.data.shape, max_pixels)
+    power = _multilook(image.data, looks)
+    fig = _figure(figsize, dpi)
+    ax, ax_labels = fig.subplots(1, 2, sharex=True, sharey=True)
+    shown = _show_image(ax, image, power, looks, _reference(power), dynamic_range_db)
+    fig.colorbar(shown, ax=ax, label="dB", shrink=0.8)
+    extent = _image_extent(image, power.shape, looks)
+    layers = (("layover", "half", (1.0, 0.55, 0.0, 0.40)), ("shadow", "half", (0.1, 0.55, 1.0, 0.45)),
+              ("double_bounce", "any", (1.0, 0.0, 0.0, 0.95)))
+    footprint = _block(truth.footprint, looks, "half").astype(float)
+    if footprint.any() and footprint.shape[0] > 1 and footprint.shape[1] > 1:
+        x = np.linspace(extent[0], extent[1], footprint.shape[1] + 1)
+        y = np.linspace(extent[2], extent[3], footprint.shape[0] + 1)
+        ax.contour(0.5 * (x[1:] + x[:-1]), 0.5 * (y[1:] + y[:-1]), footprint, levels=[0.5], colors="yellow",
+                   linewidths=1.0, zorder=2)
+    for name, how, colour in layers:
+        mask = _block(getattr(truth, name), looks, how)
+        rgba = np.zeros((*mask.shape, 4))
+        rgba[mask] = colour
+        ax.imshow(rgba, origin="lower", extent=extent, aspect="equal", interpolation="nearest",
+                  zorder=3 if name == "double_bounce" else 1)
+    ax.set_title(f"{image.metadata.get('scene', 'SAR image')} with the scene's ground truth\n"
+                 f"layover: {_percent(stats['layover_overlap'])} of its pixels > median + {threshold_db:g} dB; "
+                 f"shadow: {_percent(stats['shadow_dark'])} < median - {threshold_db:g} dB", fontsize="small")
+    labels = np.zeros(power.shape, np.uint8)          # later labels win: double bounce on top
+    for value, name in ((1, "footprint"), (2, "shadow"), (3, "layover"), (4, "double_bounce")):
+        labels[_block(getattr(truth, name), looks, "any" if name == "double_bounce" else "half")] = value
+    colours = ["0.92", "0.45", "deepskyblue", "darkorange", "red"]
+    ax_labels.imshow(labels, cmap=ListedColormap(colours), vmin=-0.5, vmax=4.5,
+                     origin="lower", extent=extent, aspect="equal", interpolation="nearest")
+    ax_labels.set_xlabel(ax.get_xlabel())
+    ax_labels.set_title(f"ground truth from the scene geometry (height threshold {truth.height_threshold:g} m)",
+                        fontsize="small")
+    names = ["open ground", "building footprint", "shadow", "layover", "double bounce (wall foot)"]
+    ax_labels.legend(handles=[Patch(color=c, label=n) for c, n in zip(colours, names)], loc="upper center",
+                     bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize="x-small", frameon=False)
+    stats["path"] = _save(fig, path, dpi)
+    return stats
+
+
+# ============================================================================ point target
+def _report_value(report: Any, name: str, default: Any = None) -> Any:
+    if isinstance(report, Mapping):
+        value = report.get(name, default)
+    else:
+        value = getattr(report, name, default)
+    return default if value is None else value
+
+
+def _dft_kernel(n: int, u: np.ndarray) -> np.ndarray:
+    """Rows evaluating the periodic band-limited interpolant of n samples at positions u."""
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+    e = np.exp(2j * np.pi * np.outer(u, np.fft.fftfreq(n))) / n
+    if n % 2 == 0:
+        e[:, n // 2] = np.cos(np.pi * u) / n          # Nyquist bin split symmetrically
+    return e
+
+
+def point_target_figure(image: SarImage, report: Any, path: str | os.PathLike, *, oversample: int = 16,
+                        dynamic_range_db: float = 40.0, figsize: tuple[float, float] = (13.0, 4.6),
+                        dpi: int = 100) -> Path:
+    """The standard point-target figure: chip, range and azimuth cuts, with IRW and sidelobes.
+
+    Parameters
+    ----------
+    image : SarImage
+        The analysed image.
+    report : PointTargetReport or mapping
+        From :func:`sarmitsuba.analysis.analyze_point_target`, or a dict with the same keys.
+        Required: ``row``, ``column`` (fractional pixel of the peak), ``irw_azimuth``,
+        ``irw_range`` [m], ``pslr_azimuth_db``, ``pslr_range_db`` [dB]. Optional:
+        ``first_null_azimuth``, ``first_null_range`` [m], ``islr_azimuth_nullbounded_db``,
+        ``islr_range_nullbounded_db`` [dB], ``phase_ramp_azimuth``, ``phase_ramp_range``
+        [rad / pixel] (default: estimated from the chip, as the analysis does), ``chip``
+        [pixels] (default 64), ``rcs_db``, ``azimuth_error``, ``range_error`` [m].
+    path : str or os.PathLike
+        Target PNG.
+    oversample : int, default 16
+        Samples per pixel of the drawn cuts (exact band-limited DFT interpolation of the
+        de-ramped chip); the chip image is drawn at ``oversample / 4``.
+    dynamic_range_db : float, default 40
+        Shown range below the peak.
+    figsize, dpi
+        As :func:`raw_figure`.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ValueError
+        A required key is missing or the chip does not fit in the image.
+    """
+    dynamic_range_db = _check_range(dynamic_range_db)
+    missing = [k for k in ("row", "column", "irw_azimuth", "irw_range", "pslr_azimuth_db", "pslr_range_db")
+               if _report_value(report, k) is None]
+    if missing:
+        raise ValueError(f"point-target report lacks {missing}")
+    ov = int(oversample)
+    if ov < 1:
+        raise ValueError(f"oversample must be >= 1, got {oversample!r}")
+    n_az, n_rg = image.data.shape
+    row, col = float(_report_value(report, "row")), float(_report_value(report, "column"))
+    r, c = int(round(row)), int(round(col))
+    chip = min(int(_report_value(report, "chip", 64)), 2 * min(r, n_az - r, c, n_rg - c)) // 2 * 2
+    if chip < 8:
+        raise ValueError(f"the peak at pixel ({row:.1f}, {col:.1f}) is too close to the image edge for a chip")
+    i0, j0 = r - chip // 2, c - chip // 2
+    z = image.data[i0:i0 + chip, j0:j0 + chip].astype(np.complex128)
+    w_az = _report_value(report, "phase_ramp_azimuth", float(np.angle(np.sum(z[1:] * np.conj(z[:-1])))))
+    w_rg = _report_value(report, "phase_ramp_range", float(np.angle(np.sum(z[:, 1:] * np.conj(z[:, :-1])))))
+    n = np.arange(chip)
+    spectrum = np.fft.fft2(z * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :])))
+    u_pk, v_pk = row - i0, col - j0
+    steps = (abs(float(image.azimuth[1] - image.azimuth[0])), abs(float(image.range[1] - image.range[0])))
+    t = np.arange(-(chip // 2) * ov, (chip // 2) * ov) / ov                       # pixels from the peak
+    cut_az = np.abs(_dft_kernel(chip, u_pk + t) @ spectrum @ _dft_kernel(chip, [v_pk]).T)[:, 0]
+    cut_rg = np.abs(_dft_kernel(chip, [u_pk]) @ spectrum @ _dft_kernel(chip, v_pk + t).T)[0]
+    peak = max(cut_az.max(), cut_rg.max())
+    fine = np.arange(0, chip, 4 / ov) if ov >= 4 else np.arange(chip, dtype=float)
+    chip_img = np.abs(_dft_kernel(chip, fine) @ spectrum @ _dft_kernel(chip, fine).T) ** 2
+    fig = _figure(figsize, dpi)
+    ax_chip, ax_rg, ax_az = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.0, 1.3, 1.3]})
+    extent = ((fine[0] - v_pk) * steps[1], (fine[-1] - v_pk) * steps[1],
+              (fine[0] - u_pk) * steps[0], (fine[-1] - u_pk) * steps[0])
+    db = _db(chip_img, peak ** 2, dynamic_range_db)
+    shown = ax_chip.imshow(db, cmap="viridis", vmin=-dynamic_range_db, vmax=0, origin="lower", extent=extent,
+                           aspect="equal", interpolation="bilinear")
+    ax_chip.contour(db, levels=[-3.0], colors="white", linewidths=0.8, origin="lower", extent=extent)
+    ax_chip.axhline(0, color="w", lw=0.5, ls=":")
+    ax_chip.axvline(0, color="w", lw=0.5, ls=":")
+    fig.colorbar(shown, ax=ax_chip, label="dB (peak = 0)", shrink=0.8)
+    ax_chip.set_xlabel("range from peak [m]")
+    ax_chip.set_ylabel("azimuth from peak [m]")
+    ax_chip.set_title(f"chip {chip}x{chip} px (white: -3 dB)", fontsize="small")
+    for ax, cut, axis, step in ((ax_rg, cut_rg, "range", steps[1]), (ax_az, cut_az, "azimuth", steps[0])):
+        _draw_cut(ax, t * step, cut / peak, report, axis, dynamic_range_db)
+    extra = [f"{k.replace('_', ' ').replace(' db', '')} {float(_report_value(report, k)):.3g} {unit}"
+             for k, unit in (("azimuth_error", "m"), ("range_error", "m"), ("rcs_db", "dBsm"))
+             if _report_value(report, k) is not None]
+    fig.suptitle(f"point target at azimuth {float(image.azimuth[0]) + row * steps[0]:.2f} m, range "
+                 f"{float(image.range[0]) + col * steps[1]:.2f} m ({_window_label(image)} window)"
+                 + (f"; {', '.join(extra)}" if extra else ""), fontsize="medium")
+    return _save(fig, path, dpi)
+
+
+def _draw_cut(ax: Any, x: np.ndarray, amplitude: np.ndarray, report: Any, axis: str,
+              dynamic_range_db: float) -> None:
+    """One cut in dB with -3 dB, IRW, first nulls and PSLR marked."""
+    db = 20 * np.log10(np.maximum(amplitude, 10 ** (-dynamic_range_db / 20 - 1)))
+    irw = float(_report_value(report, f"irw_{axis}"))
+    pslr = float(_report_value(report, f"pslr_{axis}_db"))
+    islr = _report_value(report, f"islr_{axis}_nullbounded_db")
+    null = _report_value(report, f"first_null_{axis}")
+    ax.plot(x, db, color="k", lw=1.0)
+    ax.axhline(-3.0, color="tab:blue", lw=0.8, ls="--", label="-3 dB")
+    for s in (-0.5, 0.5):
+        ax.axvline(s * irw, color="tab:blue", lw=0.8)
+    ax.axhline(pslr, color="tab:red", lw=0.8, ls="--", label=f"PSLR {pslr:.2f} dB")
+    if null is not None:
+        for s in (-1.0, 1.0):
+            ax.axvline(s * float(null), color="0.5", lw=0.6, ls=":")
+    ax.set_xlim(x[0], x[-1])
+    ax.set_ylim(-dynamic_range_db, 3.0)
+    ax.set_xlabel(f"{axis} from peak [m]")
+    ax.set_ylabel("dB (peak = 0)")
+    text = f"IRW {irw:.3f} m" + (f", ISLR {float(islr):.2f} dB" if islr is not None else "")
+    ax.set_title(f"{axis} cut: {text}", fontsize="small")
+    ax.legend(loc="upper right", fontsize="x-small")
+
+
+# ============================================================================ batch
+def write_figures(out_dir: str | os.PathLike, raw: RawData | None, image: SarImage,
+                  images_per_order: Sequence[SarImage] = (), loaded: Any = None) -> dict[str, Path]:
+    """Write every figure that applies into ``out_dir`` (names: :data:`FIGURE_FILES`).
+
+    Parameters
+    ----------
+    out_dir : path
+        Existing or new directory.
+    raw : RawData or None
+        Gives ``fig_raw.png``.
+    image : SarImage
+        Gives ``fig_image.png``.
+    images_per_order : sequence of SarImage
+        Per-bounce-order images (``fig_bounce_orders.png`` when there are any).
+    loaded : LoadedScene, optional
+        The scene (``fig_overlay.png``, ground-plane images only).
+
+    Returns
+    -------
+    dict
+        Role -> path written. ``"stats"`` is ``figures.json``: the overlay numbers of
+        :func:`overlay_figure` (when drawn) and the list of figures.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, Path] = {}
+    stats: dict[str, Any] = {}
+    if raw is not None:
+        paths["raw"] = raw_figure(raw, out / FIGURE_FILES["raw"])
+    paths["image"] = image_figure(image, out / FIGURE_FILES["image"])
+    if len(images_per_order):
+        paths["bounce_orders"] = bounce_orders_figure(list(images_per_order), out / FIGURE_FILES["bounce_orders"])
+    if loaded is not None and image.plane == "ground":
+        overlay = overlay_figure(image, loaded, out / FIGURE_FILES["overlay"])
+        paths["overlay"] = overlay.pop("path")
+        stats["overlay"] = overlay
+    stats["figures"] = {role: str(p) for role, p in paths.items()}
+    target = out / FIGURE_FILES["stats"]
+    paths["stats"] = _atomic_write(target, lambda tmp: tmp.write_text(
+        json.dumps(stats, indent=2, default=_json_default)))
+    return paths
+
+
+def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]:
+    """Redraw every figure from the files of a ``render`` output directory, without tracing.
+
+    Reads ``raw.npz`` (if present), ``image.npz`` and ``image_order<k>.npz`` (sorted by
+    ``k``); with ``scene`` (default), also loads the scene named in
+    ``image.metadata["scene_path"]`` with the radar parameters the image was made with
+    (``image.metadata["radar"]``) for the overlay, when that file exists.
+
+    Returns
+    -------
+    dict
+        As :func:`write_figures`.
+
+    Raises
+    ------
+    sarmitsuba.image.SarImageError
+        No readable ``image.npz``.
+    """
+    out = Path(out_dir)
+    image = SarImage.load(out / "image.npz")
+    raw = RawData.load(out / "raw.npz") if (out / "raw.npz").is_file() else None
+    orders = sorted(out.glob("image_order*.npz"), key=lambda p: int(re.sub(r"\D", "", p.stem) or 0))
+    per_order = [SarImage.load(p) for p in orders]
+    loaded = _scene_of(image) if scene else None
+    return write_figures(out, raw, image, per_order, loaded)
+
+
+def _scene_of(image: SarImage) -> Any:
+    """The scene an image was made from, with its radar parameters; None when unavailable."""
+    path = image.metadata.get("scene_path")
+    if not path or not Path(path).is_file():
+        return None
+    from .scene import load_scene
+    radar = image.metadata.get("radar") or {}
+    overrides = {k: v for k, v in radar.items() if v is not None}
+    return load_scene(path, sensor_overrides=overrides)

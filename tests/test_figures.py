@@ -1,0 +1,170 @@
+"""Figures from saved containers: written atomically, expected pixel size, not blank, right numbers,
+and redrawn from a render's files without tracing again."""
+from __future__ import annotations
+
+import json
+import math
+
+import matplotlib.image
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401  (variant and plugins)
+from sarmitsuba import figures
+from sarmitsuba.analysis import analyze_point_target
+from sarmitsuba.image import SarImage
+from sarmitsuba.pipeline import render, simulate
+from sarmitsuba.raw import RawData
+
+
+def check_png(path, size: tuple[int, int], min_std: float = 0.02) -> np.ndarray:
+    """The file exists, is ``size`` = (width, height) pixels and not blank; returns its pixels."""
+    assert path.is_file() and not any(p.name.endswith(".partial") for p in path.parent.iterdir())
+    pixels = matplotlib.image.imread(path)
+    assert pixels.shape[:2] == (size[1], size[0]), pixels.shape
+    assert pixels[..., :3].mean(axis=2).std() > min_std, "blank figure"
+    return pixels
+
+
+@pytest.fixture(scope="module")
+def dihedral():
+    """The dihedral traced once, with per-bounce-order products (about 1 s)."""
+    return simulate("dihedral", integrator_overrides={"split_bounces": True})
+
+
+def sinc_image(shape=(96, 96), d_az=0.25, d_rg=0.4, rho=(0.6, 1.2), peak=(0.3, -0.55)) -> SarImage:
+    """A closed-form point target: separable unit-peak sinc response with a carrier ramp."""
+    az = (np.arange(shape[0]) - shape[0] // 2) * d_az
+    rg = (np.arange(shape[1]) - shape[1] // 2) * d_rg
+    response = np.sinc((az[:, None] - peak[0]) / rho[0]) * np.sinc((rg[None, :] - peak[1]) / rho[1])
+    data = (2.0 * response * np.exp(1j * (0.8 * az[:, None] / d_az + 1.9 * rg[None, :] / d_rg))).astype(np.complex64)
+    return SarImage(data=data, azimuth=az, range=rg, origin=np.zeros(3), azimuth_direction=np.array([1.0, 0, 0]),
+                    range_direction=np.array([0.0, -1, 0]), metadata={"scene": "sinc"})
+
+
+# ============================================================================ single figures
+def test_raw_figure(dihedral, tmp_path):
+    path = figures.raw_figure(dihedral.raw, tmp_path / "raw.png", figsize=(12.0, 9.0), dpi=80)
+    check_png(path, (960, 720))
+
+
+def test_raw_figure_of_chirped_data(tmp_path):
+    """Chirped echoes are range compressed for the zoom; a point's broadside pulse is found."""
+    fc, bandwidth, tp, fs, prf, v = 9.6e9, 20e6, 2e-6, 24e6, 250.0, 100.0
+    n_p, n_s = 64, 160
+    tx = np.zeros((n_p, 3))
+    tx[:, 0] = (np.arange(n_p) - 40) * v / prf                 # target broadside at pulse 40
+    tx[:, 1], tx[:, 2] = 1000.0, 1000.0
+    r = np.linalg.norm(tx, axis=1)
+    t = 2 * 1400.0 / 3e8 + np.arange(n_s) / fs
+    tau = t[None, :] - 2 * r[:, None] / 299792458.0
+    data = ((np.abs(tau) <= tp / 2) * np.exp(1j * np.pi * bandwidth / tp * tau**2)
+            * np.exp(-4j * np.pi * fc * r[:, None] / 299792458.0)).astype(np.complex64)
+    raw = RawData(data=data, fast_time=t, pulse_time=np.arange(n_p) / prf, tx_position=tx, rx_position=tx.copy(),
+                  velocity=np.tile([v, 0.0, 0.0], (n_p, 1)), fc=fc, bandwidth=bandwidth, chirp_rate=bandwidth / tp,
+                  pulse_length=tp, fs=fs, prf=prf, range_compressed=False,
+                  metadata={"scene": "chirp", "radar": {"azimuth_beamwidth": 1.0}})
+    lag = ((np.arange(n_s) + n_s // 2) % n_s - n_s // 2) / fs                 # circular delay, s
+    chirp = (np.abs(lag) <= tp / 2) * np.exp(1j * np.pi * bandwidth / tp * lag**2)
+    compressed = np.fft.ifft(np.fft.fft(data, axis=1) * np.conj(np.fft.fft(chirp)), axis=1)   # matched filter
+    k, p0, first, last = figures._pick_echo(raw, compressed.astype(np.complex64), 299792458.0 * t / 2)
+    assert abs(p0 - 40) <= 1
+    check_png(figures.raw_figure(raw, tmp_path / "chirp.png", figsize=(8.0, 6.0), dpi=50), (400, 300))
+
+
+def test_image_figure(dihedral, tmp_path):
+    check_png(figures.image_figure(dihedral.image, tmp_path / "image.png", figsize=(9.0, 7.5), dpi=80), (720, 600))
+
+
+def test_bounce_orders_figure(dihedral, tmp_path):
+    images = dihedral.images_per_order
+    assert len(images) == 2
+    path = figures.bounce_orders_figure(images, tmp_path / "orders.png", dpi=60, panel_size=(5.0, 5.0))
+    check_png(path, (600, 300))
+    labelled = figures.bounce_orders_figure({"single": images[0], "double": images[1], "all": dihedral.image},
+                                            tmp_path / "labelled.png", dpi=50, panel_size=(4.0, 4.0))
+    check_png(labelled, (600, 200))
+
+
+def test_comparison_figure_stripmap_vs_spotlight(tmp_path):
+    """Any labelled images side by side; the annotated resolutions are the closed forms:
+    lambda / (2 beta) in stripmap, lambda / (2 dtheta) in spotlight, c / (2 B sin(theta))."""
+    strip = simulate("trihedral")
+    spot = simulate("trihedral", sensor_overrides={"mode": "spotlight"})
+    p, q = strip.loaded.params, spot.loaded.params
+    wavelength = 299792458.0 / p.frequency
+    rho_gr = 299792458.0 / (2 * p.bandwidth * math.sin(math.radians(p.incidence_angle)))
+    assert figures.image_resolution(strip.image) == pytest.approx(
+        (wavelength / (2 * math.radians(p.azimuth_beamwidth)), rho_gr))
+    assert figures.image_resolution(spot.image) == pytest.approx(
+        (wavelength / (2 * q.n_pulses * q.velocity / (q.prf * q.slant_range)), rho_gr))
+    path = figures.comparison_figure({"stripmap": strip.image, "spotlight": spot.image}, tmp_path / "cmp.png",
+                                     dpi=60, panel_size=(5.0, 5.0))
+    check_png(path, (600, 300))
+    assert figures.image_resolution(sinc_image()) is None
+
+
+def test_overlay_figure_numbers(dihedral, tmp_path):
+    stats = figures.overlay_figure(dihedral.image, dihedral.loaded, tmp_path / "overlay.png", dpi=60,
+                                   figsize=(13.0, 5.4))
+    check_png(stats["path"], (780, 324))
+    assert stats["double_bounce_pixels"] > 0 and stats["layover_pixels"] > 0
+    assert stats["double_bounce_bright"] == 1.0, "the fold line is the brightest thing in a dihedral image"
+    assert 0.0 <= stats["layover_overlap"] <= 1.0
+    assert stats["shadow_dark"] is None, "the dihedral has no ground behind its wall: no shadow in the scene area"
+
+
+def test_point_target_figure(tmp_path):
+    """Drawn from an analysis report and from a plain dict; its cuts' -3 dB width is the IRW."""
+    image = sinc_image()
+    report = analyze_point_target(image, (0.3, -0.55))
+    assert report.irw_azimuth == pytest.approx(0.886 * 0.6, rel=0.01)
+    assert report.irw_range == pytest.approx(0.886 * 1.2, rel=0.01)
+    check_png(figures.point_target_figure(image, report, tmp_path / "pt.png", dpi=60), (780, 276))
+    plain = {"row": report.row, "column": report.column, "irw_azimuth": report.irw_azimuth,
+             "irw_range": report.irw_range, "pslr_azimuth_db": -13.26, "pslr_range_db": -13.26}
+    check_png(figures.point_target_figure(image, plain, tmp_path / "pt_dict.png", dpi=50), (650, 230))
+    # the drawn range cut (exact band-limited interpolation, ramp estimated) has the report's IRW
+    chip = image.data.astype(np.complex128)
+    n = np.arange(chip.shape[0])
+    w_az = float(np.angle(np.sum(chip[1:] * np.conj(chip[:-1]))))
+    w_rg = float(np.angle(np.sum(chip[:, 1:] * np.conj(chip[:, :-1]))))
+    spectrum = np.fft.fft2(chip * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :])))
+    t = np.arange(-10 * 64, 10 * 64) / 64
+    cut = np.abs(figures._dft_kernel(96, [report.row]) @ spectrum @ figures._dft_kernel(96, report.column + t).T)[0]
+    above = t[cut ** 2 >= cut.max() ** 2 / 2]
+    assert (above[-1] - above[0]) * 0.4 == pytest.approx(report.irw_range, abs=2 * 0.4 / 64)
+    with pytest.raises(ValueError, match="lacks"):
+        figures.point_target_figure(image, {"row": 1.0}, tmp_path / "bad.png")
+
+
+# ============================================================================ batch and redraw
+def test_write_figures_and_redraw_without_tracing(tmp_path, monkeypatch):
+    """render writes the containers; redraw draws every figure from them, tracing nothing."""
+    out = tmp_path / "dihedral"
+    render("dihedral", out, integrator_overrides={"split_bounces": True}, progress=False)
+
+    def no_tracing(*args, **kwargs):
+        raise AssertionError("redraw must not trace")
+
+    import sarmitsuba.pipeline
+    import sarmitsuba.trace
+    monkeypatch.setattr(sarmitsuba.trace, "trace", no_tracing)
+    monkeypatch.setattr(sarmitsuba.pipeline, "trace", no_tracing)
+    monkeypatch.setattr(sarmitsuba.pipeline, "simulate", no_tracing)
+    paths = figures.redraw(out)
+    assert set(paths) == {"raw", "image", "bounce_orders", "overlay", "stats"}
+    for role in ("raw", "image", "bounce_orders", "overlay"):
+        check_png(paths[role], matplotlib.image.imread(paths[role]).shape[1::-1])
+        assert paths[role].name == figures.FIGURE_FILES[role]
+    stats = json.loads(paths["stats"].read_text())
+    assert stats["overlay"]["double_bounce_bright"] == 1.0
+    assert math.isfinite(stats["overlay"]["layover_overlap"])
+    # without the scene: no overlay, the rest still drawn
+    paths = figures.redraw(out, scene=False)
+    assert "overlay" not in paths and paths["image"].is_file()
+
+
+def test_bad_dynamic_range(dihedral, tmp_path):
+    with pytest.raises(ValueError, match="dynamic_range_db"):
+        figures.image_figure(dihedral.image, tmp_path / "x.png", dynamic_range_db=0)
