@@ -18,8 +18,18 @@ raw data               :mod:`~sarmitsuba.binning` -- ``to_raw_data``; :mod:`~sar
                        -- ``RawData``
 focus                  :mod:`~sarmitsuba.focus` -- ``backproject``, ``ImageGrid``;
                        :mod:`~sarmitsuba.image` -- ``SarImage``
-products               :mod:`~sarmitsuba.products` -- EXR, PNG quicklook
-orchestration          :mod:`~sarmitsuba.pipeline` -- ``render``; :mod:`~sarmitsuba.cli`
+                       :func:`~sarmitsuba.focus.omega_k`, :func:`~sarmitsuba.focus.range_doppler`
+radiometry             :mod:`~sarmitsuba.radiometry` -- radar equation, noise, calibration
+products               :mod:`~sarmitsuba.products` -- EXR, PNG quicklook;
+                       :mod:`~sarmitsuba.figures` -- explanatory figures from saved files;
+                       :mod:`~sarmitsuba.groundtruth` -- layover/shadow masks from the scene;
+                       :mod:`~sarmitsuba.preview` -- optical preview of scene and acquisition
+analysis               :mod:`~sarmitsuba.analysis` -- point-target analysis;
+                       :mod:`~sarmitsuba.synthetic` -- analytic point targets;
+                       :mod:`~sarmitsuba.canonical` -- canonical radar targets
+checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings
+orchestration          :mod:`~sarmitsuba.pipeline` -- ``simulate``, ``render``, ``refocus``;
+                       :mod:`~sarmitsuba.cli`
 =====================  ====================================================================
 """
 from ._variant import activate as _activate
