@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import sarmitsuba  # noqa: F401
+from sarmitsuba import analysis
 from sarmitsuba import canonical as C
 from sarmitsuba import materials
 from sarmitsuba.pipeline import simulate
@@ -27,12 +28,10 @@ WAVELENGTH = 299_792_458.0 / 9.6e9
 
 
 def integrated_rcs(sim, half_cells: float = 6.0) -> float:
-    """sum |I|^2 dA / (rho_az rho_gr) over +-half_cells resolution cells around the scene centre."""
-    im, p = sim.image, sim.loaded.params
-    az, gr = np.meshgrid(im.azimuth, im.range, indexing="ij")
-    box = (np.abs(az) <= half_cells * p.azimuth_resolution) & (np.abs(gr) <= half_cells * p.ground_range_resolution)
-    pixel = abs(im.azimuth[1] - im.azimuth[0]) * abs(im.range[1] - im.range[0])
-    return float((np.abs(im.data[box]) ** 2).sum() * pixel / (p.azimuth_resolution * p.ground_range_resolution))
+    """RCS of the target at the scene centre from the focused image (integrated point energy)."""
+    p = sim.loaded.params
+    return analysis.integrated_rcs(sim.image, p.azimuth_resolution, p.ground_range_resolution,
+                                   half_cells=half_cells)
 
 
 def cases() -> dict:

@@ -605,8 +605,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return parser
 
 
-def run(args: argparse.Namespace) -> int:
-    """Analyse ``args.image`` and print the report as JSON; returns the exit code (0, or 2 on bad input)."""
+def run(args: argparse.Namespace, figure=None) -> int:
+    """Analyse ``args.image`` and print the report as JSON; returns the exit code (0, or 2 on bad input).
+
+    ``figure``, if given, is called as ``figure(image, report)`` after a successful analysis.
+    """
     from .image import SarImageError
     try:
         image = SarImage.load(args.image)
@@ -619,7 +622,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(json.dumps(report.to_dict(), indent=2))
+    if figure is not None:
+        figure(image, report)
     return 0
+
+
+def integrated_rcs(image: SarImage, resolution_azimuth: float, resolution_range: float,
+                   center: tuple[float, float] = (0.0, 0.0), half_cells: float = 6.0) -> float:
+    """RCS [m^2] by integrated point energy in a box of +-``half_cells`` resolution cells around
+    ``center`` (azimuth, range) [m]: ``sum |I|^2 dA / (rho_az rho_rg)`` (docs/physics.md (K)); for a
+    calibrated image whose unit point target has unit peak. No clutter subtraction (see
+    :func:`analyze_point_target` for that)."""
+    az, rg = np.meshgrid(image.azimuth - center[0], image.range - center[1], indexing="ij")
+    box = (np.abs(az) <= half_cells * resolution_azimuth) & (np.abs(rg) <= half_cells * resolution_range)
+    pixel = abs(image.azimuth[1] - image.azimuth[0]) * abs(image.range[1] - image.range[0])
+    return float((np.abs(image.data[box]) ** 2).sum() * pixel / (resolution_azimuth * resolution_range))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -173,18 +173,11 @@ def _analyze(args: argparse.Namespace) -> int:
     raw_path = args.raw or Path(args.image).with_name("raw.npz")
     if args.carrier is None and raw_path.is_file() and len(args.target) == 3:
         args.carrier = list(carrier_ramp(RawData.load(raw_path), SarImage.load(args.image), args.target))
-    code = run(args)
-    if code == 0 and args.figure is not None:
-        from .analysis import analyze_point_target
+    def figure(image, report):
         from .figures import point_target_figure
-        image = SarImage.load(args.image)
-        report = analyze_point_target(
-            image, args.target, chip=args.chip, oversample=args.oversample, predicted=args.predicted,
-            resolution=None if args.resolution is None else tuple(args.resolution),
-            carrier=None if args.carrier is None else tuple(args.carrier),
-            sidelobes=args.sidelobes, energy_extent=args.energy_extent)
         print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
-    return code
+
+    return run(args, figure=figure if args.figure is not None else None)
 
 
 def _resolution_from_metadata(path) -> list[float] | None:
