@@ -90,10 +90,19 @@ class RadarMaterial(mi.BSDF):
             self.specular_factor = 1.0
             self._spec = _radar_spec(self.name, values)
         _check_spec(plugin, self.name, **self._spec)
-        self._optical = mi.load_dict({"type": "diffuse", "reflectance": {
-            "type": "rgb", "value": [float(c) for c in _as_rgb(color)]}})
-        self.m_flags = self._optical.flags()
+        # The optical BSDF is built on first optical use, not here: plugin constructors run on
+        # Mitsuba's parallel scene-loading threads, where a nested mi.load_dict is not safe.
+        self._color = [float(c) for c in _as_rgb(color)]
+        self._optical_bsdf = None
+        self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
         self.m_components = [self.m_flags]
+
+    @property
+    def _optical(self):
+        """The diffuse BSDF of the material's colour, for optical previews (created lazily)."""
+        if self._optical_bsdf is None:
+            self._optical_bsdf = mi.load_dict({"type": "diffuse", "reflectance": {"type": "rgb", "value": self._color}})
+        return self._optical_bsdf
 
     def set_roughness(self, gamma_db: float | None = None, scattering_coefficient: float | None = None) -> None:
         """Make the surface rough after loading (the CLI's ``--material-set``): constant gamma
