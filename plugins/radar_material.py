@@ -70,6 +70,8 @@ class RadarMaterial(mi.BSDF):
         color = next((values.pop(k) for k in ("color", "reflectance", "base_color") if k in values),
                      (0.6, 0.6, 0.6))
         self.name = props.id() or plugin
+        #: Identity of this BSDF object (material tables key rows by it, not by the name).
+        self.id_key = id(self)
         if sionna:
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))

@@ -247,8 +247,8 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     materials.MaterialError
         A material used outside its valid frequency range.
     """
-    rows: dict[str, int] = {}
-    tables, clutter, ids = [], [], []
+    rows: dict[int, int] = {}
+    tables, clutter, ids, names = [], [], [], []
     for shape in scene.shapes():
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -256,9 +256,10 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                              ", which has no radar properties; give it a <bsdf type=\"radar\"> or "
                              "<bsdf type=\"itu-radio-material\">")
         material = bsdf.material_at(frequency)
-        key = bsdf.name
+        key = bsdf.id_key            # one row per BSDF object: inline (id-less) BSDFs share no name
         if key not in rows:
             rows[key] = len(tables)
+            names.append(bsdf.name)
             tables.append(bsdf.specular_factor
                           * materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
             clutter.append(bsdf.clutter)
@@ -270,5 +271,5 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         row_of_shape[shape_id] = row
         shape_key[shape_id] = stable
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
-                         names=list(rows), clutter=np.array(clutter, np.float32).reshape(-1, 2),
+                         names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
                          shape_key=shape_key)

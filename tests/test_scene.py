@@ -162,3 +162,16 @@ def test_explicit_permittivity_material_uses_fresnel(tmp_path):
     expected = abs((1 - np.sqrt(eta)) / (1 + np.sqrt(eta)))
     table = material_table(loaded.scene, f, "VV")
     assert abs(abs(complex(table.table[0, -1])) - expected) < 1e-4
+
+
+def test_inline_materials_keep_their_own_tables(tmp_path):
+    """Two id-less (inline) radar BSDFs of different materials get their own reflection rows."""
+    xml = tmp_path / "inline.xml"
+    xml.write_text("<scene version='3.0.0'>"
+                   "<shape type='rectangle'><bsdf type='radar'><string name='model' value='pec'/></bsdf></shape>"
+                   "<shape type='rectangle'><transform name='to_world'><translate x='5'/></transform>"
+                   "<bsdf type='radar'><float name='relative_permittivity' value='4'/></bsdf></shape></scene>")
+    loaded = load_scene(str(xml))
+    table = material_table(loaded.scene, loaded.params.frequency, "VV")
+    assert table.table.shape[0] == 2
+    assert sorted(abs(complex(v)) for v in table.table[:, -1]) == pytest.approx([1 / 3, 1.0], abs=1e-4)
