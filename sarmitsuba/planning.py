@@ -121,8 +121,8 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     g_min = across.min() - max(0.0, z0 - lo[2]) * tan_far - s
     g_max = across.max() + max(0.0, hi[2] - z0) * tan_far + s
     spacing_range = s / math.cos(math.radians(params.incidence_angle))
-    g_min = math.floor(g_min / spacing_range) * spacing_range   # a lattice anchored at the scene centre:
-    n_range = int(math.ceil((g_max - g_min) / spacing_range)) + 1   # cell centres never on box edges
+    g_min = math.floor(g_min / spacing_range) * spacing_range   # lattice anchored at the scene centre, not at
+    n_range = int(math.ceil((g_max - g_min) / spacing_range)) + 1   # the box edge (whose rows could sit on it)
     r_far = _far_range(params, lo, hi)
     width = 2.0 * r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0) + 2 * s
     # per pulse, only the overlap of the beam with the scene's along-track extent is sampled
