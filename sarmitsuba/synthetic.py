@@ -35,6 +35,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from .constants import SPEED_OF_LIGHT
+from .focus.grid import _readonly
 from .focus.range_compression import chirp_spectrum
 from .focus.windows import check_window, compressed_pulse
 from .raw import RawData
@@ -61,12 +62,6 @@ def _positive(name: str, value: Any, unit: str) -> float:
     if not (np.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be a finite positive number [{unit}], got {value!r}")
     return v
-
-
-def _readonly(arr: np.ndarray) -> np.ndarray:
-    arr = np.array(arr, dtype=np.float64, copy=True)
-    arr.flags.writeable = False
-    return arr
 
 
 # ============================================================================ containers

@@ -74,7 +74,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
 from .stripmap import (StripmapGeometry, _band_weights, _cis, _doppler_axis, _Interpolator, _window_label,
-                       _window_spec, _workers, slant_output_grid, stripmap_geometry)
+                       _focus_setup, slant_output_grid)
 
 __all__ = ["omega_k"]
 
@@ -146,20 +146,13 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     """
     t_start = time.perf_counter()
     raw = _range_compressed(raw)
-    geo = geometry if geometry is not None else stripmap_geometry(
-        raw, scene_centre=scene_centre, squint=squint, reference_range=reference_range)
-    if not isinstance(geo, StripmapGeometry):
-        raise TypeError(f"geometry must be a StripmapGeometry, got {type(geo).__name__}")
-    w_r, w_a = _window_spec(window_range), _window_spec(window_azimuth)
+    geo, w_r, w_a, workers, band_a = _focus_setup(raw, geometry, scene_centre, squint, reference_range,
+                                                  window_range, window_azimuth, doppler_bandwidth, workers)
     oversample = float(oversample)
     if not (np.isfinite(oversample) and 1.1 <= oversample <= 4.0):
         raise ValueError(f"oversample must be in [1.1, 4], got {oversample!r}")
-    workers = _workers(workers)
     n_a, n_r = raw.data.shape
     f0, bw, fs, prf, vel = raw.fc, raw.bandwidth, raw.fs, raw.prf, geo.velocity
-    band_a = prf if doppler_bandwidth is None else float(doppler_bandwidth)
-    if not (np.isfinite(band_a) and 0 < band_a <= prf * (1 + 1e-9)):
-        raise ValueError(f"doppler_bandwidth must be in (0, prf = {prf:g}] Hz, got {doppler_bandwidth!r}")
     if bw > fs:
         raise ValueError(f"bandwidth {bw:g} Hz exceeds fs = {fs:g} Hz: the range spectrum is aliased")
     grid = slant_output_grid(geo, raw)

@@ -66,7 +66,7 @@ from ..image import SarImage
 from ..raw import RawData
 from .omegak import _make_image, _range_compressed
 from .stripmap import (StripmapGeometry, _band_weights, _cis, _doppler_axis, _Interpolator, _window_label,
-                       _window_spec, _workers, slant_output_grid, stripmap_geometry)
+                       _focus_setup, slant_output_grid)
 
 __all__ = ["range_doppler"]
 
@@ -129,19 +129,12 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
     if src not in _SRC_MODES:
         raise ValueError(f"src must be False, True, 'none', '2d' or 'range', got {src!r}")
     src_mode = _SRC_MODES[src]
-    geo = geometry if geometry is not None else stripmap_geometry(
-        raw, scene_centre=scene_centre, squint=squint, reference_range=reference_range)
-    if not isinstance(geo, StripmapGeometry):
-        raise TypeError(f"geometry must be a StripmapGeometry, got {type(geo).__name__}")
-    w_r, w_a = _window_spec(window_range), _window_spec(window_azimuth)
+    geo, w_r, w_a, workers, band_a = _focus_setup(raw, geometry, scene_centre, squint, reference_range,
+                                                  window_range, window_azimuth, doppler_bandwidth, workers)
     if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 8:
         raise ValueError(f"upsample must be an integer in [1, 8], got {upsample!r}")
-    workers = _workers(workers)
     n_a, n_r = raw.data.shape
     f0, bw, fs, prf, vel = raw.fc, raw.bandwidth, raw.fs, raw.prf, geo.velocity
-    band_a = prf if doppler_bandwidth is None else float(doppler_bandwidth)
-    if not (np.isfinite(band_a) and 0 < band_a <= prf * (1 + 1e-9)):
-        raise ValueError(f"doppler_bandwidth must be in (0, prf = {prf:g}] Hz, got {doppler_bandwidth!r}")
     grid = slant_output_grid(geo, raw)
     r_src = geo.reference_range
     f_eta = _doppler_axis(n_a, prf, geo.doppler_centroid)

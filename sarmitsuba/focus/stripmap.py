@@ -66,7 +66,7 @@ import scipy.special
 
 from ..constants import SPEED_OF_LIGHT
 from ..raw import RawData
-from .grid import ImageGrid
+from .grid import ImageGrid, _readonly
 
 __all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
 
@@ -410,10 +410,21 @@ def slant_output_grid(geometry: StripmapGeometry, raw: RawData, *, n_azimuth: in
 
 
 # ============================================================================ validation helpers
-def _readonly(arr: np.ndarray) -> np.ndarray:
-    arr = np.array(arr, dtype=np.float64, copy=True)
-    arr.flags.writeable = False
-    return arr
+def _focus_setup(raw: RawData, geometry: Any, scene_centre: Any, squint: Any, reference_range: Any,
+                 window_range: Any, window_azimuth: Any, doppler_bandwidth: Any, workers: Any):
+    """Checks and geometry shared by the FFT focusers.
+
+    Returns ``(geometry, range window spec, azimuth window spec, workers, processed Doppler band [Hz])``.
+    Raises TypeError / ValueError for a bad geometry or a band outside ``(0, prf]``.
+    """
+    geo = geometry if geometry is not None else stripmap_geometry(
+        raw, scene_centre=scene_centre, squint=squint, reference_range=reference_range)
+    if not isinstance(geo, StripmapGeometry):
+        raise TypeError(f"geometry must be a StripmapGeometry, got {type(geo).__name__}")
+    band = raw.prf if doppler_bandwidth is None else float(doppler_bandwidth)
+    if not (np.isfinite(band) and 0 < band <= raw.prf * (1 + 1e-9)):
+        raise ValueError(f"doppler_bandwidth must be in (0, prf = {raw.prf:g}] Hz, got {doppler_bandwidth!r}")
+    return geo, _window_spec(window_range), _window_spec(window_azimuth), _workers(workers), band
 
 
 def _point(name: str, value: Any) -> np.ndarray:
