@@ -10,15 +10,14 @@ Usage: ``python benchmarks/rcs.py [--spacings 0.05 0.02 0.01]``
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 
 import sarmitsuba  # noqa: F401
+from _table import write_csv
 from sarmitsuba import analysis
 from sarmitsuba import canonical as C
 from sarmitsuba import materials
@@ -69,13 +68,7 @@ def main() -> None:
                              "rays_per_pulse": int(sim.trace.rays_per_order[0] / sim.raw.n_pulses),
                              "pulses": sim.raw.n_pulses, "seconds": round(seconds, 3)})
                 print("  ".join(f"{key}={value}" for key, value in rows[-1].items()), flush=True)
-    out = Path(__file__).parent / "out"
-    out.mkdir(exist_ok=True)
-    with open(out / "rcs.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    print(f"wrote {out / 'rcs.csv'}")
+    write_csv("rcs.csv", rows)
 
 
 if __name__ == "__main__":

@@ -15,14 +15,13 @@ Usage: ``python benchmarks/run.py [--scene urban] [--max-depth 5]``
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import platform
-from pathlib import Path
 
 import numpy as np
 
 import sarmitsuba  # noqa: F401
+from _table import write_csv
 from sarmitsuba.pipeline import simulate
 
 
@@ -49,15 +48,9 @@ def main() -> None:
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, {platform.python_version()}")
     rows = bounce_depth(args.scene, list(range(1, args.max_depth + 1)))
-    out = Path(__file__).parent / "out"
-    out.mkdir(exist_ok=True)
-    with open(out / "bounce_depth.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
     for row in rows:
         print("  ".join(f"{k}={v}" for k, v in row.items()))
-    print(f"wrote {out / 'bounce_depth.csv'}")
+    write_csv("bounce_depth.csv", rows)
 
 
 if __name__ == "__main__":
