@@ -1,0 +1,51 @@
+"""Shared plot of the benchmark scripts: error (or any accuracy figure) against seconds, one point per setting."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def plot_cost(name: str, series: dict[str, list[tuple[float, float, str]]], *, xlabel: str = "time [s]",
+              ylabel: str, title: str, logx: bool = True, logy: bool = False) -> Path:
+    """Write ``benchmarks/out/NAME`` (PNG): accuracy against cost, one point per setting.
+
+    Parameters
+    ----------
+    name : str
+        File name, e.g. ``"bounce_depth.png"``.
+    series : dict
+        Label -> list of ``(x, y, point_label)``; each series is drawn as a line through its
+        points, each point annotated with its setting (e.g. ``"depth 3"``).
+    xlabel, ylabel, title : str
+    logx, logy : bool
+        Logarithmic axes (time usually spans decades).
+    """
+    out = Path(__file__).parent / "out"
+    out.mkdir(exist_ok=True)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4), dpi=120)
+    for label, points in series.items():
+        xs = [p[0] for p in points]
+        ys = [p[1] for p in points]
+        ax.plot(xs, ys, "o-", label=label)
+        for x, y, text in points:
+            ax.annotate(text, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    if len(series) > 1:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = out / name
+    fig.savefig(path)
+    plt.close(fig)
+    print(f"wrote {path}")
+    return path
