@@ -12,9 +12,12 @@
      half of the finer of the slant-range and azimuth resolutions.
  * - range_kernel
    - string
-   - How a path is deposited on the fast-time grid before range compression:
-     ``linear`` (default; linear splat on an oversampled grid, droop corrected) or
-     ``nearest`` (nearest fine bin; faster, envelope jitter up to half a fine bin).
+   - How a path reaches the fast-time samples (an accuracy knob; docs/physics.md (D1)-(D4)):
+     ``nearest`` (nearest fine bin; fastest, envelope jitter up to half a fine bin),
+     ``linear`` (default; linear splat on the oversampled grid, droop corrected),
+     ``sinc`` (8-tap Lanczos-windowed sinc on the grid, droop corrected) or
+     ``exact`` (no grid: every path kept and its compressed pulse ``sinc(B t)`` evaluated
+     at every sample; cost paths x samples, needs sar ``output = compressed``).
  * - oversample
    - integer
    - Fine-grid oversampling of the fast-time axis for the deposit (default 8).

@@ -20,25 +20,53 @@ import math
 import numpy as np
 from scipy import fft as sp_fft
 
-from .radar import AcquisitionGeometry, RadarParameters
+from .radar import AcquisitionGeometry, ParameterError, RadarParameters
 from .raw import RawData
-from .trace import FastTimeWindow, TraceResult
+from .trace import FastTimeWindow, PathList, TraceResult
 
-__all__ = ["compressed_pulse_spectrum", "range_compress", "to_raw_data"]
+__all__ = ["compressed_pulse_spectrum", "deposit_droop", "exact_compress", "range_compress", "to_raw_data"]
+
+
+def deposit_droop(nu: np.ndarray, range_kernel: str) -> np.ndarray | float:
+    """Spectral response ``D(nu)`` of a deposit kernel, ``nu = f / fs_fine`` (float64, any shape).
+
+    The continuous Fourier transform of the kernel ``h(x)`` (x in fine bins), which the
+    deposit multiplies into the spectrum of the path sum (docs/physics.md (D2)):
+    1 for ``nearest`` (taken as exact; its error is the up-to-half-bin shift),
+    ``sinc^2(nu)`` for ``linear`` (triangle), and for ``sinc`` (Lanczos,
+    ``h(x) = sinc(x) sinc(x / A)``) the integral ``int h(x) cos(2 pi nu x) dx`` evaluated
+    with Simpson's rule on 64 points per bin (accurate to ~1e-9).
+    """
+    if range_kernel == "linear":
+        return np.sinc(nu) ** 2
+    if range_kernel == "sinc":
+        from scipy.integrate import simpson
+
+        from .trace import LANCZOS_A
+        x = np.linspace(-LANCZOS_A, LANCZOS_A, 128 * LANCZOS_A + 1)
+        h = np.sinc(x) * np.sinc(x / LANCZOS_A)
+        nu = np.asarray(nu, dtype=np.float64)
+        flat = nu.reshape(-1)
+        out = np.empty_like(flat)
+        for i0 in range(0, flat.size, 1024):            # bounded memory: 1024 frequencies at a time
+            out[i0:i0 + 1024] = simpson(h[None, :] * np.cos(2 * np.pi * flat[i0:i0 + 1024, None] * x[None, :]), x=x)
+        return out.reshape(nu.shape)
+    return 1.0
 
 
 def compressed_pulse_spectrum(n: int, fs: float, oversample: int, bandwidth: float,
                               range_kernel: str) -> np.ndarray:
     """Filter applied to an ``n``-point coarse spectrum, float64 [n] in FFT order.
 
-    ``H(f) = rect(f / B) / D(f) / g`` with ``D`` the deposit kernel's droop (1 for
-    ``nearest``, ``sinc^2(f / fs_fine)`` for ``linear``) and ``g = sum(rect) / n``, which gives
-    the compressed pulse a unit peak.
+    ``H(f) = rect(f / B) / D(f) / g`` with ``D`` the deposit kernel's droop
+    (:func:`deposit_droop`) and ``g = sum(rect) / n``, which gives the compressed pulse a
+    unit peak.
     """
     f = sp_fft.fftfreq(n, d=1.0 / fs)
-    band = (np.abs(f) <= 0.5 * bandwidth).astype(np.float64)
-    droop = np.sinc(f / (fs * oversample)) ** 2 if range_kernel == "linear" else 1.0
-    return band / droop / (band.sum() / n)
+    band = (np.abs(f) <= 0.5 * bandwidth)
+    droop = np.ones(n)
+    droop[band] = deposit_droop(f[band] / (fs * oversample), range_kernel)
+    return band.astype(np.float64) / droop / (band.sum() / n)
 
 
 def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
@@ -55,7 +83,7 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     reference_length : float64 [n_pulses], m
     window : FastTimeWindow
     frequency, bandwidth : float, Hz
-    range_kernel : {"linear", "nearest"}
+    range_kernel : {"nearest", "linear", "sinc"}
     block : int
         Pulses filtered at once (bounds the memory of the padded FFT).
     chirp : (pulse_length [s], chirp_rate [Hz/s]), optional
@@ -81,8 +109,8 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
         from .focus.range_compression import chirp_spectrum
         from .synthetic import receiver_response
         f = sp_fft.fftfreq(n_pad, d=1.0 / window.fs)
-        droop = np.sinc(f / (window.fs * os_)) ** 2 if range_kernel == "linear" else 1.0
-        filt = window.fs * chirp_spectrum(f, *chirp) * receiver_response(f, window.fs, bandwidth) / droop
+        filt = window.fs * chirp_spectrum(f, *chirp) * receiver_response(f, window.fs, bandwidth) \
+            / deposit_droop(f / (window.fs * os_), range_kernel)
     out = np.empty((deposit.shape[0], n), np.complex64)
     for p0 in range(0, deposit.shape[0], block):
         rows = slice(p0, p0 + block)
@@ -92,10 +120,71 @@ def range_compress(deposit: np.ndarray, reference_length: np.ndarray, window: Fa
     return out
 
 
-def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow, params: RadarParameters,
+def exact_compress(paths: PathList, n_pulses: int, reference_length: np.ndarray, window: FastTimeWindow,
+                   frequency: float, bandwidth: float, block_lanes: int = 1 << 21) -> np.ndarray:
+    """Range-compressed samples evaluated path by path: the ``exact`` range kernel.
+
+    ``s_p[n] = exp(-j k L_ref,p) sum_i v_i sinc(B (n - x_i) / fs)`` with ``v_i`` the path's
+    value relative to the reference phase and ``x_i`` its delay in samples
+    (docs/physics.md (D4)): the unit-peak, rect-spectrum compressed pulse of
+    :func:`compressed_pulse_spectrum`, without a deposit grid, padding or truncation. Every
+    path contributes to every sample (its sinc tails included), so the cost is
+    paths x samples: a Dr.Jit kernel with one lane per output sample looping over the
+    paths of its pulse, summing in float64.
+
+    Parameters
+    ----------
+    paths : PathList
+    n_pulses : int
+    reference_length : float64 [n_pulses], m
+    window : FastTimeWindow
+    frequency, bandwidth : float, Hz
+    block_lanes : int
+        Output samples per kernel launch (bounds memory).
+
+    Returns
+    -------
+    complex64 [n_pulses, n_samples]
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    from .constants import SPEED_OF_LIGHT
+    n = window.n_samples
+    order = np.argsort(paths.pulse, kind="stable")
+    position, value = paths.position[order], paths.value[order]
+    start = np.searchsorted(paths.pulse[order], np.arange(n_pulses + 1)).astype(np.uint32)
+    pos = mi.Float64(position)
+    v_re, v_im = mi.Float(value.real.astype(np.float32)), mi.Float(value.imag.astype(np.float32))
+    ratio = bandwidth / window.fs
+    out = np.zeros((n_pulses, n), np.complex128)
+    per_block = max(1, block_lanes // n)
+    for p0 in range(0, n_pulses, per_block):
+        p1 = min(n_pulses, p0 + per_block)
+        lane = dr.arange(mi.UInt32, (p1 - p0) * n)
+        pulse = lane // n
+        sample = mi.Float64(lane - pulse * n)
+        k = dr.gather(mi.UInt32, mi.UInt32(start[p0:p1]), pulse)
+        end = dr.gather(mi.UInt32, mi.UInt32(start[p0 + 1:p1 + 1]), pulse)
+
+        def body(k, acc_re, acc_im):
+            x = mi.Float((math.pi * ratio) * (sample - dr.gather(mi.Float64, pos, k)))
+            w = mi.Float64(dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x))
+            return (k + 1, acc_re + w * mi.Float64(dr.gather(mi.Float, v_re, k)),
+                    acc_im + w * mi.Float64(dr.gather(mi.Float, v_im, k)))
+
+        _, acc_re, acc_im = dr.while_loop((k, mi.Float64(0.0), mi.Float64(0.0)), lambda k, *_: k < end, body,
+                                          label="exact_range_kernel")
+        out[p0:p1] = (acc_re.numpy() + 1j * acc_im.numpy()).reshape(p1 - p0, n)
+    k_wave = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
+    phase = np.mod(-k_wave * reference_length, 2.0 * math.pi)
+    return (out * np.exp(1j * phase)[:, None]).astype(np.complex64)
+
+
+def to_raw_data(deposit: "np.ndarray | PathList", result: TraceResult, window: FastTimeWindow, params: RadarParameters,
                 geometry: AcquisitionGeometry, range_kernel: str, metadata: dict,
                 noise_seed: int | None = None) -> RawData:
-    """Range-compress a deposit (``result.deposit`` or one bounce order of it) into :class:`RawData`.
+    """Range-compress a deposit or path list (``result.contributions(order)``) into :class:`RawData`.
 
     With absolute radiometry (sensor ``transmit_power``) the samples are scaled to sqrt(W) by the
     radar equation at each pulse's reference range (the tracer has applied the path's own
@@ -104,8 +193,15 @@ def to_raw_data(deposit: np.ndarray, result: TraceResult, window: FastTimeWindow
     """
     from .radiometry import radar_equation, thermal_noise
     chirped = params.output == "raw"
-    data = range_compress(deposit, result.reference_length, window, params.frequency, params.bandwidth,
-                          range_kernel, chirp=(params.pulse_length, params.chirp_rate) if chirped else None)
+    if isinstance(deposit, PathList):
+        if chirped:
+            raise ParameterError("range_kernel = 'exact' evaluates range-compressed samples; "
+                                 "use it with sensor output = 'compressed' (or range_kernel linear|sinc for raw)")
+        data = exact_compress(deposit, len(result.reference_length), result.reference_length, window,
+                              params.frequency, params.bandwidth)
+    else:
+        data = range_compress(deposit, result.reference_length, window, params.frequency, params.bandwidth,
+                              range_kernel, chirp=(params.pulse_length, params.chirp_rate) if chirped else None)
     equation = radar_equation(params)
     if equation is not None:
         scale = equation.amplitude_scale(0.5 * result.reference_length)        # float64 [n_pulses]

@@ -1,5 +1,7 @@
 """Command-line interface: ``python -m sarmitsuba render [SCENE] [--out DIR] [...]``.
 
+Sub-commands: ``render``, ``preview``, ``info`` (plan only, no tracing), ``focus``, ``analyze``.
+
 Exit codes: 0 success, 2 bad input (scene, parameter, material, output directory), 130
 interrupted (Ctrl-C; outputs are written under temporary names and renamed, so nothing
 truncated is left looking complete).
@@ -42,42 +44,69 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _add_scene_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the scene and sar sensor flags shared by render, preview and info: SCENE, --pulses, --set."""
+    parser.add_argument("scene", nargs="?", default=None,
+                        help="XML path, built-in name (urban, dihedral, trihedral) or sionna:NAME; default: urban")
+    parser.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
+    parser.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
+                        metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
+    return parser
+
+
+def _add_tracer_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the sbr integrator and material flags shared by render and info."""
+    parser.add_argument("--max-depth", type=int, default=None, help="bounce orders traced (sbr max_depth)")
+    parser.add_argument("--ray-spacing", type=float, default=None, help="ray-tube width at the scene centre [m]")
+    parser.add_argument("--range-kernel", choices=("nearest", "linear", "sinc", "exact"), default=None,
+                        help="fast-time deposit kernel")
+    parser.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
+    parser.add_argument("--integrator-set", type=_assignment, action="append", default=[],
+                        metavar="NAME=VALUE", help="override an sbr integrator parameter (repeatable)")
+    parser.add_argument("--material-set", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+                        help="make every material rough: gamma_db=DB (constant gamma) or scattering_coefficient=S")
+    return parser
+
+
+def _sensor_overrides(args: argparse.Namespace) -> dict:
+    """sar sensor overrides from --set and --pulses (which wins)."""
+    sensor = dict(args.sensor_set)
+    if args.pulses is not None:
+        sensor["n_pulses"] = args.pulses
+    return sensor
+
+
+def _integrator_overrides(args: argparse.Namespace) -> dict:
+    """sbr integrator overrides from --integrator-set and the dedicated flags (which win)."""
+    integrator = dict(args.integrator_set)
+    for key in ("max_depth", "ray_spacing", "range_kernel", "seed"):
+        if getattr(args, key) is not None:
+            integrator[key] = getattr(args, key)
+    return integrator
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of all sub-commands."""
     parser = argparse.ArgumentParser(prog="sarmitsuba", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    render = sub.add_parser("render", help="trace a scene into raw data and a focused SAR image")
-    render.add_argument("scene", nargs="?", default=None,
-                        help="XML path, built-in name (urban, dihedral, trihedral) or sionna:NAME; default: urban")
+    render = _add_tracer_arguments(_add_scene_arguments(
+        sub.add_parser("render", help="trace a scene into raw data and a focused SAR image")))
     render.add_argument("--out", type=Path, default=None, help="output directory (default: out/<scene name>)")
-    render.add_argument("--max-depth", type=int, default=None, help="bounce orders traced (sbr max_depth)")
-    render.add_argument("--ray-spacing", type=float, default=None, help="ray-tube width at the scene centre [m]")
-    render.add_argument("--range-kernel", choices=("linear", "nearest"), default=None,
-                        help="fast-time deposit kernel")
-    render.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
-    render.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
-                        metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
-    render.add_argument("--integrator-set", type=_assignment, action="append", default=[],
-                        metavar="NAME=VALUE", help="override an sbr integrator parameter (repeatable)")
-    render.add_argument("--material-set", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
-                        help="make every material rough: gamma_db=DB (constant gamma) or scattering_coefficient=S")
     render.add_argument("--split-bounces", action="store_true",
                         help="also write raw data and images per bounce order (*_order1, *_order2, ...)")
-    render.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     render.add_argument("--figures", action="store_true",
                         help="also draw explanatory figures (fig_*.png, figures.json) from the files written")
-    preview = sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)")
-    preview.add_argument("scene", nargs="?", default=None,
-                         help="XML path, built-in name (urban, dihedral, trihedral) or sionna:NAME; default: urban")
+    preview = _add_scene_arguments(
+        sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)"))
     preview.add_argument("--out", type=Path, default=None,
                          help="output directory (default: out/<scene name>); receives preview.png")
     preview.add_argument("--spp", type=_positive_int, default=16, help="samples per pixel (default 16)")
     preview.add_argument("--resolution", type=_resolution, default=(960, 720), metavar="WxH",
                          help="PNG size in pixels (default 960x720)")
-    preview.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
-    preview.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
-                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
+    info = _add_tracer_arguments(_add_scene_arguments(sub.add_parser(
+        "info", help="radar summary, scene size, active effects and estimated cost, without tracing")))
+    info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     focus = sub.add_parser("focus", help="focus a raw.npz (any RawData) into image.npz/.exr/.png")
     focus.add_argument("raw", type=Path, help="RawData file (.npz)")
     focus.add_argument("--algorithm", choices=("bp", "omegak", "rda"), default="bp",
@@ -128,13 +157,7 @@ def _default_out(scene: str | None) -> Path:
 
 def _render(args: argparse.Namespace) -> int:
     from .pipeline import render
-    sensor = dict(args.sensor_set)
-    if args.pulses is not None:
-        sensor["n_pulses"] = args.pulses
-    integrator = dict(args.integrator_set)
-    for key in ("max_depth", "ray_spacing", "range_kernel", "seed"):
-        if getattr(args, key) is not None:
-            integrator[key] = getattr(args, key)
+    sensor, integrator = _sensor_overrides(args), _integrator_overrides(args)
     if args.split_bounces:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
@@ -152,13 +175,19 @@ def _preview(args: argparse.Namespace) -> int:
     from .pipeline import check_output_dir
     from .preview import render_preview
     from .scene import load_scene
-    sensor = dict(args.sensor_set)
-    if args.pulses is not None:
-        sensor["n_pulses"] = args.pulses
     out = check_output_dir(args.out or _default_out(args.scene))
-    loaded = load_scene(args.scene, sensor_overrides=sensor)
+    loaded = load_scene(args.scene, sensor_overrides=_sensor_overrides(args))
     path = render_preview(loaded, out / "preview.png", spp=args.spp, resolution=args.resolution)
     print(f"preview of {loaded.source} -> {path}")
+    return 0
+
+
+def _info(args: argparse.Namespace) -> int:
+    """Print the radar summary, scene size, effects and estimated cost, without tracing."""
+    from .info import format_text, scene_info, to_json
+    info = scene_info(args.scene, sensor_overrides=_sensor_overrides(args),
+                      integrator_overrides=_integrator_overrides(args), material_overrides=dict(args.material_set))
+    print(to_json(info) if args.json else format_text(info), end="\n" if args.json else "")
     return 0
 
 
@@ -206,7 +235,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     try:
-        return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview}[args.command](args)
+        return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
+                "info": _info}[args.command](args)
     except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

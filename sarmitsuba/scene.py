@@ -167,6 +167,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     settings_given = dict(getattr(integrator, "given", {}))
     settings_given.update(integrator_overrides or {})
     settings = TraceSettings.from_mapping(settings_given)
+    if settings.range_kernel == "exact" and params.output == "raw":
+        raise ParameterError("sbr range_kernel = 'exact' evaluates range-compressed samples and cannot make chirped "
+                             "echoes: use sar output = 'compressed', or range_kernel 'linear' or 'sinc' with output = 'raw'")
     bbox = scene.bbox()
     lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
     if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):

@@ -21,7 +21,17 @@ a per-pulse float64 reference length is subtracted before anything becomes float
 
 Output: per pulse, a complex deposit on a fine fast-time grid (``oversample`` x the
 sampling rate) holding ``a * exp(-j k (L - L_ref))``; :mod:`sarmitsuba.binning` restores
-the reference phase in float64 and range-compresses.
+the reference phase in float64 and range-compresses. The deposit kernel is the
+``range_kernel`` accuracy knob (DESIGN.md section 5, docs/physics.md (D1)-(D4)):
+
+* ``nearest``: the nearest fine bin (1 scatter; envelope shifted by up to half a fine bin);
+* ``linear``: linear splatting on two bins (2 scatters; spectral droop ``sinc^2`` divided out);
+* ``sinc``: Lanczos-windowed sinc on 8 bins (8 scatters; droop divided out, aliasing
+  below the linear kernel's);
+* ``exact``: no grid at all. Every visible path is kept (:class:`PathList`) and
+  :mod:`sarmitsuba.binning` evaluates ``sum_i a_i sinc(B (t_n - tau_i))`` at every sample,
+  the reference the other kernels are measured against; its cost grows as
+  paths x samples.
 """
 from __future__ import annotations
 
@@ -37,9 +47,11 @@ from tqdm import tqdm
 from .constants import SPEED_OF_LIGHT
 from .radar import AcquisitionGeometry, ParameterError, RadarParameters
 
-__all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "TraceResult", "trace"]
+__all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "PathList", "TraceResult", "trace"]
 
-_RANGE_KERNELS = ("linear", "nearest")
+_RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
+#: Half-width (lobes) of the Lanczos window of the ``sinc`` deposit kernel: 2 * LANCZOS_A taps.
+LANCZOS_A = 4
 
 
 @dataclass(frozen=True)
@@ -162,13 +174,50 @@ class RayFootprint:
 
 
 @dataclass(frozen=True)
+class PathList:
+    """Every visible path of an acquisition, kept for the ``exact`` range kernel.
+
+    Attributes
+    ----------
+    pulse : int32 [n_paths]
+        Pulse index.
+    order : uint8 [n_paths]
+        Bounce order (1 = single bounce).
+    position : float64 [n_paths]
+        Two-way delay in coarse samples from the window's first sample,
+        ``(L - c t0) fs / c``.
+    value : complex64 [n_paths]
+        ``a exp(-j k (L - L_ref))``, the path's amplitude relative to the pulse's reference
+        phase (the same quantity the gridded kernels deposit).
+    """
+
+    pulse: np.ndarray
+    order: np.ndarray
+    position: np.ndarray
+    value: np.ndarray
+
+    def of_order(self, order: int) -> "PathList":
+        """The paths of one bounce order."""
+        keep = self.order == order
+        return PathList(self.pulse[keep], self.order[keep], self.position[keep], self.value[keep])
+
+    @staticmethod
+    def concatenate(parts: list["PathList"]) -> "PathList":
+        """One list from per-batch lists."""
+        if not parts:
+            return PathList(np.zeros(0, np.int32), np.zeros(0, np.uint8), np.zeros(0), np.zeros(0, np.complex64))
+        return PathList(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(PathList)))
+
+
+@dataclass(frozen=True)
 class TraceResult:
     """What the tracer returns for the whole acquisition.
 
     Attributes
     ----------
     deposit : complex64 [n_pulses, n_fine]
-        Sum of ``a * exp(-j k (L - L_ref))`` per fine fast-time bin (kernel-weighted).
+        Sum of ``a * exp(-j k (L - L_ref))`` per fine fast-time bin (kernel-weighted); all
+        zero (shape [n_pulses, 0]) for the ``exact`` kernel, which keeps ``paths`` instead.
     carried_power_per_order : float64 [max_depth], sr
         Power carried into each bounce order by the rays that hit there, ``sum Omega |r_1 ... r_{k-1}|^2``
         (solid angle times the reflection losses so far): non-increasing with the order for
@@ -199,6 +248,28 @@ class TraceResult:
     seconds: float
     deposit_per_order: np.ndarray | None = None
     carried_power_per_order: np.ndarray | None = None
+    #: Every visible path (``exact`` range kernel only).
+    paths: PathList | None = None
+    #: Whether the result was traced with ``split_bounces`` (paths keep their order anyway).
+    split: bool = False
+
+    @property
+    def n_orders(self) -> int:
+        """Bounce orders available separately (``split_bounces``), 0 when not split."""
+        if self.deposit_per_order is not None:
+            return self.deposit_per_order.shape[0]
+        return len(self.energy_per_order) if self.split else 0
+
+    def contributions(self, order: int | None = None) -> "np.ndarray | PathList":
+        """What :func:`sarmitsuba.binning.to_raw_data` range-compresses: the fine deposit
+        (complex64 [n_pulses, n_fine]) or, for the ``exact`` kernel, the :class:`PathList`;
+        of all bounce orders, or of bounce order ``order`` (1, 2, ...; needs ``split_bounces``)."""
+        if order is None:
+            return self.paths if self.paths is not None else self.deposit
+        if not 1 <= order <= self.n_orders:
+            raise ParameterError(f"bounce order {order}: the result holds orders 1..{self.n_orders} "
+                                 "(trace with split_bounces = true)")
+        return self.paths.of_order(order) if self.paths is not None else self.deposit_per_order[order - 1]
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -231,10 +302,13 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     r_near = np.maximum(np.linalg.norm(geometry.positions - center, axis=1) - radius - 1.0, 0.0)
     offset = lref - SPEED_OF_LIGHT * window.t0
 
+    exact = settings.range_kernel == "exact"
     groups = settings.max_depth if settings.split_bounces else 1
-    per_batch = max(1, min(n_pulses, settings.max_batch_rays // max(footprint.rays_per_pulse, 1),
-                           (1 << 23) // (window.n_fine * groups)))
-    deposit = np.zeros((groups, n_pulses, window.n_fine), np.complex64)
+    n_fine = 0 if exact else window.n_fine
+    per_batch = max(1, min(n_pulses, settings.max_batch_rays // max(footprint.rays_per_pulse * (
+        settings.max_depth if exact else 1), 1), (1 << 23) // (max(n_fine, 1) * groups)))
+    deposit = np.zeros((groups, n_pulses, n_fine), np.complex64)
+    paths = []
     energy = np.zeros(settings.max_depth)
     carried = np.zeros(settings.max_depth)
     rays = np.zeros(settings.max_depth, np.int64)
@@ -246,7 +320,10 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         p1 = min(n_pulses, p0 + per_batch)
         out = kernel(geometry.positions[p0:p1], r_near[p0:p1], lref[p0:p1], offset[p0:p1],
                      footprint.k0[p0:p1])
-        deposit[:, p0:p1] = out["deposit"]
+        if exact:
+            paths.append(_offset_pulses(out["paths"], p0))
+        else:
+            deposit[:, p0:p1] = out["deposit"]
         energy += out["energy"]
         carried += out["carried"]
         rays += out["rays"]
@@ -255,8 +332,14 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     seconds = time.perf_counter() - start
     total = deposit.sum(axis=0) if groups > 1 else deposit[0]
     return TraceResult(total, lref, energy, float(outside), rays, int(shadow), seconds,
-                       deposit_per_order=deposit if settings.split_bounces else None,
-                       carried_power_per_order=carried)
+                       deposit_per_order=deposit if settings.split_bounces and not exact else None,
+                       carried_power_per_order=carried, paths=PathList.concatenate(paths) if exact else None,
+                       split=settings.split_bounces)
+
+
+def _offset_pulses(paths: PathList, p0: int) -> PathList:
+    """Batch-local pulse indices to acquisition indices."""
+    return PathList(paths.pulse + np.int32(p0), paths.order, paths.position, paths.value)
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
@@ -379,10 +462,19 @@ class _Kernel:
             lref=dr.gather(f64, f64(lref), pulse), off=dr.gather(f64, f64(offset), pulse),
             rref=mi.Float(dr.gather(f64, f64(lref), pulse) * 0.5),
             base=pulse * win.n_fine, order_stride=n_b * win.n_fine,
-            hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine), hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine),
+            lane=lane,
             energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
             carried=dr.zeros(mi.Float, st.max_depth),
         )
+        if st.range_kernel == "exact":          # every visible path: (lane, order) slots
+            slots = n_lanes * st.max_depth
+            ctx.update(path_pos=dr.zeros(f64, slots), path_re=dr.zeros(mi.Float, slots),
+                       path_im=dr.zeros(mi.Float, slots), path_order=dr.zeros(mi.UInt32, slots))
+            outputs = ("path_pos", "path_re", "path_im", "path_order")
+        else:
+            ctx.update(hist_re=dr.zeros(mi.Float, groups * n_b * win.n_fine),
+                       hist_im=dr.zeros(mi.Float, groups * n_b * win.n_fine))
+            outputs = ("hist_re", "hist_im")
         state = (ray, e1, e2, f64(0.0), a64(A), mi.Float(1.0), mi.Float(0.0), mi.Float(0.0), mi.UInt32(0), active)
         body = lambda *s: self._bounce(ctx, *s)   # noqa: E731
         if st.max_depth == 1:                       # no reflection loop in the kernel at all
@@ -390,11 +482,20 @@ class _Kernel:
         else:
             dr.while_loop(state=state, cond=lambda *s: s[-1], body=body, labels=(
                 "ray", "e1", "e2", "s", "p_prev", "gamma_re", "gamma_im", "r_tx", "depth", "active"), label="sbr")
-        dr.eval(ctx["hist_re"], ctx["hist_im"], ctx["energy"], ctx["rays"], ctx["carried"])
-        hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
+        dr.eval(*(ctx[name] for name in outputs), ctx["energy"], ctx["rays"], ctx["carried"])
         energy = ctx["energy"].numpy().astype(np.float64)
         rays = ctx["rays"].numpy().astype(np.int64)
-        return dict(deposit=hist.reshape(groups, n_b, win.n_fine), energy=energy[:st.max_depth],
+        if st.range_kernel == "exact":
+            order = ctx["path_order"].numpy()
+            keep = np.flatnonzero(order)
+            found = dict(paths=PathList(
+                pulse=(keep // (st.max_depth * fp.rays_per_pulse)).astype(np.int32), order=order[keep].astype(np.uint8),
+                position=ctx["path_pos"].numpy()[keep],
+                value=(ctx["path_re"].numpy()[keep] + 1j * ctx["path_im"].numpy()[keep]).astype(np.complex64)))
+        else:
+            hist = (ctx["hist_re"].numpy() + 1j * ctx["hist_im"].numpy()).astype(np.complex64)
+            found = dict(deposit=hist.reshape(groups, n_b, win.n_fine))
+        return dict(**found, energy=energy[:st.max_depth],
                     outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
                     carried=ctx["carried"].numpy().astype(np.float64),
                     shadow=int(rays[st.max_depth]))
@@ -474,10 +575,22 @@ class _Kernel:
             k_lo = mi.Int32(dr.round(pos))
             inside = vis & (k_lo >= 0) & (k_lo < win.n_fine)
             self._deposit(ctx, base, k_lo, v_re, v_im, inside)
-        else:
+        elif st.range_kernel == "linear":
             inside = vis & (k_lo >= 0) & (k_lo < win.n_fine - 1)
             self._deposit(ctx, base, k_lo, v_re * (1.0 - frac), v_im * (1.0 - frac), inside)
             self._deposit(ctx, base, k_lo + 1, v_re * frac, v_im * frac, inside)
+        elif st.range_kernel == "sinc":
+            inside = vis & (k_lo >= LANCZOS_A - 1) & (k_lo < win.n_fine - LANCZOS_A)
+            for m, w in _lanczos_weights(frac):
+                self._deposit(ctx, base, k_lo + m, v_re * w, v_im * w, inside)
+        else:                                     # exact: keep the path itself
+            slot = ctx["lane"] * st.max_depth + depth
+            coarse = pos * (1.0 / win.oversample)
+            inside = vis & (coarse >= 0) & (coarse <= win.n_samples - 1)
+            dr.scatter(ctx["path_pos"], coarse, slot, vis)
+            dr.scatter(ctx["path_re"], v_re, slot, vis)
+            dr.scatter(ctx["path_im"], v_im, slot, vis)
+            dr.scatter(ctx["path_order"], depth + 1, slot, vis)
         power = a_re * a_re + a_im * a_im
         dr.scatter_add(ctx["energy"], power, depth, vis)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
@@ -538,6 +651,25 @@ def _spawn(p, n, d):
     """
     lift = 1e-4 + 1e-6 * dr.norm(p)
     return mi.Ray3f(p + n * lift, d)
+
+
+def _lanczos_weights(frac):
+    """Taps ``(m, w_m)``, m = -A+1 .. A, of the Lanczos kernel ``L(x) = sinc(x) sinc(x / A)`` at
+    ``x = m - frac`` (``frac`` in [0, 1), A = :data:`LANCZOS_A`); docs/physics.md (D3).
+
+    Uses ``sin(pi (m - f)) = -(-1)^m sin(pi f)`` and the angle-sum form of ``sin(pi (m - f) / A)``:
+    one ``sincos`` per path, not one per tap.
+    """
+    a = LANCZOS_A
+    s1 = dr.sin(math.pi * frac)
+    s2, c2 = dr.sincos((math.pi / a) * frac)
+    taps = []
+    for m in range(-a + 1, a + 1):
+        x = m - frac
+        num = -(1.0 if m % 2 == 0 else -1.0) * s1 * (math.sin(math.pi * m / a) * c2 - math.cos(math.pi * m / a) * s2)
+        w = dr.select(dr.abs(x) < 1e-6, 1.0, num * (a / (math.pi * math.pi)) / dr.maximum(x * x, 1e-12))
+        taps.append((m, w))
+    return taps
 
 
 def _sinc(x):
