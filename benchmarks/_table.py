@@ -1,8 +1,21 @@
-"""Shared output of the benchmark scripts: a CSV table under benchmarks/out/."""
+"""Shared output of the benchmark scripts: a CSV table under benchmarks/out/, and the machine line."""
 from __future__ import annotations
 
 import csv
+import os
+import platform
 from pathlib import Path
+
+
+def machine() -> str:
+    """One line naming the machine the benchmark ran on (ratios, not absolute times, are comparable)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return f"machine: {cpu}, {os.cpu_count()} cpus, Python {platform.python_version()}, {platform.system()}"
 
 
 def write_csv(name: str, rows: list[dict]) -> Path:

@@ -1,57 +1,69 @@
-"""Benchmark: what bounce depth costs and what it changes (accuracy against time).
+"""The benchmark suite: what each fidelity knob costs and buys, measured in one run.
 
-For max_depth 1..N on one scene, measured in one run (a warm-up first, so kernel compilation
-is not counted): trace and focus seconds, rays traced, energy per bounce order, and the
-image difference from the deepest setting, NRMSE = ||I_d - I_N|| / ||I_N|| in dB.
-Writes ``benchmarks/out/bounce_depth.csv`` and prints a table with the machine it ran on.
+Runs, in order (each a module of this folder with ``run(quick) -> rows`` and, where it
+asserts ratios, ``checks(rows)``):
 
-Floor: two images of identical paths differ by about -30 dB NRMSE when only the fast-time
-window length changes, because backprojection interpolates each range line by 8x FFT
-upsampling plus linear interpolation (8x vs 16x differ by -29 dB on the urban scene).
-Differences above that floor are the physics of the extra bounce orders.
+============== =========================================================================
+bounce_depth   max_depth 1..6 on the urban scene and Sionna's Munich: time, energy per
+               order, image NRMSE against the deepest setting
+range_kernel   nearest / linear / sinc / exact: PSLR, IRW and raw NRMSE against exact,
+               against time
+ray_density    rays per resolution cell: canonical-target RCS error and speckle statistics
+               against time
+focus          backprojection, omega-K, range-Doppler: point-target quality and time
+scaling        time against buildings (1..1000), pulses and image size; the 16-building
+               512 x 512 case against Franceschetti et al. (2003)
+============== =========================================================================
 
-Usage: ``python benchmarks/run.py [--scene urban] [--max-depth 5]``
+Each writes ``benchmarks/out/<name>.csv`` and ``<name>.png`` (accuracy against seconds, one
+point per setting). The suite prints the machine, every table, and PASS/FAIL for the ratio
+checks, writes ``benchmarks/out/checks.csv``, and exits 1 if a check fails. Absolute times
+depend on the machine (and on what else runs on it); ratios measured in one run do not.
+
+Usage: ``python benchmarks/run.py [--quick] [--only NAME ...]`` or ``python -m sarmitsuba bench ...``.
 """
 from __future__ import annotations
 
 import argparse
-import os
-import platform
+import importlib
+import sys
+import time
+from pathlib import Path
 
-import numpy as np
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import sarmitsuba  # noqa: F401
-from _table import write_csv
-from sarmitsuba.pipeline import simulate
+from _table import machine, write_csv  # noqa: E402
 
-
-def bounce_depth(scene: str, depths: list[int]) -> list[dict]:
-    simulate(scene, integrator_overrides={"max_depth": depths[-1]})          # warm-up (compile)
-    sims = {d: simulate(scene, integrator_overrides={"max_depth": d}) for d in depths}
-    ref = sims[depths[-1]].image.data
-    rows = []
-    for d, sim in sims.items():
-        diff = np.linalg.norm(sim.image.data - ref) / max(np.linalg.norm(ref), 1e-30)
-        rows.append({
-            "max_depth": d, "trace_s": round(sim.timings["trace"], 3), "focus_s": round(sim.timings["focus"], 3),
-            "rays_traced": int(sim.trace.rays_per_order.sum() + sim.trace.shadow_rays),
-            "energy_per_order": " ".join(f"{e:.4g}" for e in sim.trace.energy_per_order),
-            "nrmse_vs_deepest_db": round(20 * np.log10(diff), 1) if diff > 0 else float("-inf"),
-        })
-    return rows
+#: Suite name -> module of this folder.
+SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
+         "focus": "focus_algorithms", "scaling": "scaling"}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="urban")
-    parser.add_argument("--max-depth", type=int, default=5)
-    args = parser.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus, {platform.python_version()}")
-    rows = bounce_depth(args.scene, list(range(1, args.max_depth + 1)))
-    for row in rows:
-        print("  ".join(f"{k}={v}" for k, v in row.items()))
-    write_csv("bounce_depth.csv", rows)
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="sarmitsuba bench", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small settings (about a minute per benchmark)")
+    parser.add_argument("--only", nargs="+", choices=list(SUITE), default=None, metavar="NAME",
+                        help=f"run only these ({', '.join(SUITE)})")
+    args = parser.parse_args(argv)
+    print(machine())
+    results = []
+    start = time.perf_counter()
+    for name in args.only or list(SUITE):
+        print(f"\n=== {name} ===")
+        module = importlib.import_module(SUITE[name])
+        t0 = time.perf_counter()
+        rows = module.run(quick=args.quick)
+        for check, ok, detail in getattr(module, "checks", lambda rows: [])(rows):
+            results.append({"benchmark": name, "check": check, "ok": ok, "detail": detail})
+            print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+        print(f"{name}: {time.perf_counter() - t0:.1f} s")
+    if results:
+        write_csv("checks.csv", results)
+    failed = [r for r in results if not r["ok"]]
+    print(f"\nsuite: {time.perf_counter() - start:.1f} s, {len(results)} checks, {len(failed)} failed; "
+          f"outputs in {Path(__file__).resolve().parent / 'out'}")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
