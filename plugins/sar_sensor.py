@@ -51,6 +51,10 @@
    - string
    - ``stripmap`` (default) or ``spotlight`` (beam steered at the scene centre; automatic
      n_pulses gives an azimuth resolution equal to the slant-range resolution).
+ * - squint
+   - float, deg
+   - Beam squint from broadside, positive forward, in (-60, 60); default 0. The aperture
+     centre trails the scene centre by R0 tan(squint); Doppler centroid 2 v sin(squint) / lambda.
  * - output
    - string
    - ``compressed`` (default) or ``raw``: chirped echoes instead of range-compressed data.
@@ -108,7 +112,8 @@ class SarSensor(mi.Sensor):
         h, inc = math.radians(p.heading), math.radians(p.incidence_angle)
         sign = 1.0 if p.look_side == "right" else -1.0
         look = mi.ScalarVector3f(sign * math.sin(h), -sign * math.cos(h), 0.0)
-        origin = center - look * p.ground_range + mi.ScalarVector3f(0, 0, p.altitude)
+        track = mi.ScalarVector3f(math.cos(h), math.sin(h), 0.0)
+        origin = center - track * p.squint_offset - look * p.ground_range + mi.ScalarVector3f(0, 0, p.altitude)
         return origin, dr.normalize(center - origin), math.tan(0.5 * math.radians(20.0)) * (1.0 / math.cos(inc))
 
     def sample_ray(self, time, wavelength_sample, position_sample, aperture_sample, active=True):

@@ -13,6 +13,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import binning, planning, products
+from .effects import active_effects
 from .focus import ImageGrid, backproject
 from .image import SarImage
 from .radar import AcquisitionGeometry, acquisition_geometry
@@ -127,18 +128,18 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["trace"] = time.perf_counter()
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
-    raw = binning.to_raw_data(result.deposit, result, window, params, world, settings.range_kernel, metadata,
+    raw = binning.to_raw_data(result.contributions(), result, window, params, world, settings.range_kernel, metadata,
                               noise_seed=settings.seed)
-    per_order = () if result.deposit_per_order is None else tuple(
-        binning.to_raw_data(d, result, window, params, world, settings.range_kernel,
-                            {**metadata, "bounce_order": k + 1}) for k, d in enumerate(result.deposit_per_order))
+    per_order = tuple(
+        binning.to_raw_data(result.contributions(k), result, window, params, world, settings.range_kernel,
+                            {**metadata, "bounce_order": k}) for k in range(1, result.n_orders + 1))
     t["bin"] = time.perf_counter()
     grid = image_grid(loaded, geometry)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     geometry = world
     beam = params.azimuth_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=beam,  # noqa: E731
-                                              progress=progress), params, geometry)
+                                              squint=params.squint, progress=progress), params, geometry)
     image = focus(raw)
     images = tuple(focus(r) for r in per_order)
     t["focus"] = time.perf_counter()
@@ -247,7 +248,7 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
     from .focus import apply_range_window, omega_k, range_compress, range_doppler, slant_output_grid, stripmap_geometry
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
-    grid, beam, doppler = _metadata_grid(raw)
+    grid, beam, doppler, squint = _metadata_grid(raw)
     if algorithm == "omegak":
         return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler)
     if algorithm == "rda":
@@ -259,12 +260,12 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
         apply_range_window(raw, window_range) if window_range != "rect" else raw)
     if grid is None:
         grid = slant_output_grid(stripmap_geometry(raw), raw)
-    return backproject(compressed, grid, azimuth_beamwidth=beam, progress=progress)
+    return backproject(compressed, grid, azimuth_beamwidth=beam, squint=squint, progress=progress)
 
 
 def _metadata_grid(raw: RawData):
-    """Ground grid, azimuth beamwidth [deg] and Doppler bandwidth [Hz] of a sarmitsuba render, from
-    the RawData metadata; (None, None, None) for other data."""
+    """Ground grid, azimuth beamwidth [deg], Doppler bandwidth [Hz] and squint [deg] of a sarmitsuba
+    render, from the RawData metadata; (None, None, None, 0) for other data."""
     from .radar import RadarParameters
     meta = raw.metadata
     try:
@@ -273,10 +274,10 @@ def _metadata_grid(raw: RawData):
         lo = np.asarray(meta["scene_info"]["bbox_min"], float) + offset
         hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
     except (KeyError, TypeError, ValueError):
-        return None, None, None
+        return None, None, None, 0.0
     geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
     beam = params.azimuth_beamwidth if params.mode == "stripmap" else None
-    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth
+    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint
 
 
 def write_image_products(out: Path, image: SarImage, title: str) -> dict:
@@ -316,37 +317,13 @@ def _world_params(loaded: LoadedScene):
     return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()))
 
 
-def _effects(loaded: LoadedScene) -> list[str]:
-    """The optional effects this run simulates, each with the reason it is on (DESIGN.md section 7)."""
-    p, st = loaded.params, loaded.settings
-    effects = [f"bounce orders 1..{st.max_depth} (integrator max_depth = {st.max_depth})"]
-    rough = [s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0]
-    if rough:
-        effects.append(f"distributed clutter and speckle (rough materials: {', '.join(sorted(set(rough)))}; "
-                       f"seed {st.seed})")
-    if p.antenna_length > 0 or p.antenna_height > 0:
-        effects.append(f"antenna pattern (antenna_length {p.antenna_length} m, antenna_height {p.antenna_height} m)")
-    if p.transmit_power is not None:
-        effects.append(f"absolute radiometry (transmit_power {p.transmit_power} W)")
-    if p.noise_figure_db is not None or p.noise_temperature is not None:
-        effects.append(f"thermal noise (noise_figure_db {p.noise_figure_db}, noise_temperature {p.noise_temperature})")
-    if st.split_bounces:
-        effects.append("per-bounce-order products (split_bounces)")
-    if p.mode == "spotlight":
-        effects.append(f"spotlight (beam steered at the scene centre, integration angle "
-                       f"{math.degrees(p.integration_angle):.2f} deg)")
-    if p.output == "raw":
-        effects.append(f"chirped raw echoes (sensor output = raw, T_p {p.pulse_length} s)")
-    return effects
-
-
 def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
     import drjit
     import mitsuba
 
     from . import __version__
     settings = loaded.settings
-    effects = _effects(loaded)
+    effects = [str(e) for e in active_effects(loaded)]   # DESIGN.md section 7, with reasons
     return {
         "scene": loaded.source, "scene_path": str(loaded.path),
         "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),

@@ -48,19 +48,34 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
         track, look = track_frame(params)
         rel = box_corners(lo, hi) - np.asarray(params.scene_center)
         along = rel @ track
-        r_far = _far_range(params, lo, hi)
-        length = float(along.max() - along.min()) + 2.0 * r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2)
+        a_lo, a_hi = beam_offsets(params, lo, hi)
+        length = float(along.max() - along.min()) + (a_hi - a_lo)
         params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
     return params
 
 
-def _far_range(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> float:
+def _closest_ranges(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     track, look = track_frame(params)
     center = np.asarray(params.scene_center, float)
     mid = center - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
     rel = box_corners(lo, hi) - mid
-    rel -= np.outer(rel @ track, track)         # distance at broadside
-    return float(np.linalg.norm(rel, axis=1).max())
+    rel -= np.outer(rel @ track, track)         # distance at closest approach
+    return np.linalg.norm(rel, axis=1)
+
+
+def _far_range(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> float:
+    return float(_closest_ranges(params, lo, hi).max())
+
+
+def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Along-track interval ``(a_lo, a_hi)`` [m], relative to the antenna, that the stripmap beam
+    covers at the scene's closest-approach ranges ``R0``: ``R0 tan(squint -/+ beta / 2)``,
+    bounded over the near and far range (ray tube aim and automatic aperture length).
+    At broadside it is ``-/+ R_far tan(beta / 2)``."""
+    ranges = _closest_ranges(params, lo, hi)
+    r = (max(0.0, float(ranges.min()) - float(np.linalg.norm(hi - lo))), float(ranges.max()))
+    half, squint = math.radians(params.azimuth_beamwidth) / 2.0, math.radians(params.squint)
+    return (min(x * math.tan(squint - half) for x in r), max(x * math.tan(squint + half) for x in r))
 
 
 def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
@@ -123,15 +138,19 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     spacing_range = s / math.cos(math.radians(params.incidence_angle))
     g_min = math.floor(g_min / spacing_range) * spacing_range   # lattice anchored at the scene centre, not at
     n_range = int(math.ceil((g_max - g_min) / spacing_range)) + 1   # the box edge (whose rows could sit on it)
-    r_far = _far_range(params, lo, hi)
-    width = 2.0 * r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0) + 2 * s
+    a_lo, a_hi = beam_offsets(params, lo, hi)
+    if params.mode == "spotlight":        # the beam stays on the scene centre: a fixed patch
+        r_far = _far_range(params, lo, hi)
+        a_lo, a_hi = -r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0), \
+            r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0)
+    width = a_hi - a_lo + 2 * s
     # per pulse, only the overlap of the beam with the scene's along-track extent is sampled
     extent = float(along.max() - along.min()) + 2 * s
     n_azimuth = int(math.ceil(min(width, extent) / s)) + 2
     ant_along = (geometry.positions - origin) @ track
-    if params.mode == "spotlight":        # the beam stays on the scene centre: a fixed patch
+    if params.mode == "spotlight":
         ant_along = np.zeros_like(ant_along)
-    k0 = np.floor(np.maximum(ant_along - 0.5 * width, along.min() - s) / s).astype(np.int64)
+    k0 = np.floor(np.maximum(ant_along + a_lo - s, along.min() - s) / s).astype(np.int64)
     return RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
                         range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range,
                         azimuth_limits=(float(along.min() - s), float(along.max() + s)), k0=k0)
@@ -166,10 +185,11 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
     rel = box_corners(lo, hi) - geometry.scene_center
     along = rel @ geometry.track_direction
     across = rel @ geometry.look_direction
-    half = 0.5 * _far_range(params, lo, hi) * 2 * math.tan(math.radians(params.azimuth_beamwidth) / 2)
+    a_lo, a_hi = beam_offsets(params, lo, hi)
     track = (geometry.positions - geometry.scene_center) @ geometry.track_direction
-    reach = (half if params.mode == "stripmap" else 0.0)
-    if (along.max() < track.min() - reach - half or along.min() > track.max() + reach + half
+    if params.mode == "spotlight":        # the beam follows the scene centre
+        a_lo, a_hi, track = -0.5 * (a_hi - a_lo), 0.5 * (a_hi - a_lo), np.zeros(1)
+    if (along.max() < track.min() + a_lo or along.min() > track.max() + a_hi
             or across.max() < -params.ground_range * 0.99):
         messages.append(f"the scene (bounding box {lo.round(1).tolist()} .. {hi.round(1).tolist()}) lies outside the "
                         f"beam footprint around scene_center {np.round(geometry.scene_center, 1).tolist()}: "

@@ -86,6 +86,14 @@ class RadarParameters:
         (beam steered at ``scene_center`` for every pulse; the patch is ``R beta`` wide and the
         integration angle ``dtheta = n_pulses v / (prf R)`` sets the azimuth resolution
         ``lambda / (2 dtheta)``; automatic ``n_pulses`` gives ``dtheta = lambda / (2 rho_slant)``).
+    squint : float, deg
+        Beam squint: the angle of the beam centre from the zero-Doppler plane, positive
+        forward (looking ahead); (-60, 60), default 0 (broadside). The mid-aperture antenna
+        then sits ``R0 tan(squint)`` behind the scene centre (``R0`` the closest-approach
+        slant range), the beam spans sines ``[sin(squint - beta / 2), sin(squint + beta / 2)]``
+        along track, and the Doppler centroid is ``2 v sin(squint) / lambda`` (Cumming and
+        Wong 2005, eq. 4.34). Spotlight: the aperture is centred on the squinted position and
+        the beam follows the scene centre.
     output : str
         ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
         ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
@@ -115,6 +123,7 @@ class RadarParameters:
     noise_figure_db: float | None = None
     output: str = "compressed"
     mode: str = "stripmap"
+    squint: float = 0.0
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -162,6 +171,8 @@ class RadarParameters:
             raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
         if not 0.0 < self.azimuth_beamwidth < 90.0:
             raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is outside (0, 90) deg")
+        if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
+            raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
         if self.scene_center is not None and (len(self.scene_center) != 3
                                               or not np.all(np.isfinite(self.scene_center))):
             raise ParameterError(f"scene_center = {self.scene_center} must be three finite numbers [m]")
@@ -218,9 +229,30 @@ class RadarParameters:
         return 2.0 * self.slant_range * math.tan(math.radians(self.azimuth_beamwidth) / 2.0)
 
     @property
+    def beam_sines(self) -> tuple[float, float]:
+        """Along-track sines ``(sin(squint - beta/2), sin(squint + beta/2))`` bounding the ideal
+        stripmap beam: a direction ``u`` from the antenna is in the beam when ``u . track``
+        lies between them."""
+        half = math.radians(self.azimuth_beamwidth) / 2.0
+        squint = math.radians(self.squint)
+        return math.sin(squint - half), math.sin(squint + half)
+
+    @property
     def doppler_bandwidth(self) -> float:
-        """Azimuth Doppler bandwidth ``2 v sin(beta/2) * 2 / lambda`` [Hz] of the ideal beam."""
-        return 4.0 * self.velocity * math.sin(math.radians(self.azimuth_beamwidth) / 2.0) / self.wavelength
+        """Azimuth Doppler bandwidth ``2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda`` [Hz] of
+        the ideal beam (``4 v sin(beta/2) / lambda`` at broadside)."""
+        lo, hi = self.beam_sines
+        return 2.0 * self.velocity * (hi - lo) / self.wavelength
+
+    @property
+    def doppler_centroid(self) -> float:
+        """Doppler centroid ``2 v sin(squint) / lambda`` [Hz] (Cumming and Wong 2005, eq. 4.34)."""
+        return 2.0 * self.velocity * math.sin(math.radians(self.squint)) / self.wavelength
+
+    @property
+    def squint_offset(self) -> float:
+        """Along-track distance ``R0 tan(squint)`` [m] by which the mid-aperture antenna trails the scene centre."""
+        return self.slant_range * math.tan(math.radians(self.squint))
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> "RadarParameters":
         """Return a copy with some parameters replaced (names checked, values validated)."""
@@ -329,7 +361,7 @@ def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
 def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
     """Antenna positions for every pulse (DESIGN.md section 4 conventions).
 
-    The mid-aperture antenna sits at ``scene_center - ground_range * look + altitude * z``;
+    The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``;
     pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
     ``scene_center`` and ``n_pulses > 0``.
 
@@ -342,7 +374,7 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
         raise ParameterError("scene_center and n_pulses must be resolved before computing the geometry")
     track, look = track_frame(params)
     center = np.asarray(params.scene_center, dtype=np.float64)
-    mid = center - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
+    mid = center - params.squint_offset * track - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
     t = (np.arange(params.n_pulses, dtype=np.float64) - (params.n_pulses - 1) / 2.0) / params.prf
     positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :]
     velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)

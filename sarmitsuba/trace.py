@@ -392,7 +392,9 @@ class _Kernel:
         self.fp = footprint
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
-        self.sin_half_beam = math.sin(0.5 * math.radians(params.azimuth_beamwidth))
+        half = math.sin(0.5 * math.radians(params.azimuth_beamwidth))
+        # along-track sines bounding the beam: squinted stripmap, or spotlight relative to the centre
+        self.beam_sines = params.beam_sines if params.mode == "stripmap" else (-half, half)
         self.spotlight = params.mode == "spotlight"
         n_cos = material_table.table.shape[1]
         self.n_cos = n_cos
@@ -407,7 +409,9 @@ class _Kernel:
         if self.pattern:
             boresight = footprint.look * params.ground_range - np.array([0.0, 0.0, params.altitude])
             boresight /= np.linalg.norm(boresight)
-            self.track = footprint.track.tolist()
+            # the aperture's long axis, turned with the squinted boresight (in the track-boresight plane)
+            squint = math.radians(params.squint) if params.mode == "stripmap" else 0.0
+            self.track = (math.cos(squint) * footprint.track - math.sin(squint) * boresight).tolist()
             self.elevation_axis = np.cross(footprint.track, boresight).tolist()
             self.length_in_wavelengths = params.antenna_length / params.wavelength
             self.height_in_wavelengths = params.antenna_height / params.wavelength
@@ -437,13 +441,14 @@ class _Kernel:
         to_p = P - A
         r = dr.norm(to_p)
         d64 = to_p / r
-        # ---- ideal beam and scene extent: |sin(phi_ray) - sin(phi_beam centre)| <= sin(beta / 2) ----
+        # ---- ideal beam and scene extent: sin(squint - beta / 2) <= sin(phi_ray) <= sin(squint + beta / 2),
+        #      spotlight: |sin(phi_ray) - sin(phi_centre)| <= sin(beta / 2) ----
         track64 = a64(*fp.track.tolist())
         sin_ray = dr.dot(to_p, track64) / r
         if self.spotlight:                 # beam steered at the scene centre for every pulse
             to_c = a64(*fp.origin.tolist()) - A
             sin_ray -= dr.dot(to_c, track64) / dr.norm(to_c)
-        active = mi.Bool(dr.abs(sin_ray) <= self.sin_half_beam)
+        active = mi.Bool((sin_ray >= self.beam_sines[0]) & (sin_ray <= self.beam_sines[1]))
         active &= (along >= fp.azimuth_limits[0]) & (along <= fp.azimuth_limits[1])
         # ---- tube: the ground cell's edges seen perpendicular to the ray, per metre of path ----
         # At the aim point (distance r) the tube's edges are the cell edges E_j projected

@@ -66,7 +66,7 @@ _MAX_OVERSAMPLE = 64
 # ============================================================================ public API
 def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_block: int = 128,
                 workers: int | None = None, azimuth_beamwidth: float | None = None,
-                progress: bool = False) -> SarImage:
+                squint: float = 0.0, progress: bool = False) -> SarImage:
     """Focus range-compressed data by time-domain backprojection (fast path).
 
     Parameters
@@ -96,6 +96,11 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         amplitude ``a`` has peak ``a`` anywhere in the fully illuminated swath (``|a|^2`` =
         its RCS in normalised radiometry); pixels whose aperture the track's ends cut keep
         a proportionally lower gain.
+    squint : float, deg, default 0
+        Squint of that beam (positive forward, in (-60, 60)): a pixel is in the beam of
+        pulse ``p`` when its along-track sine ``(x - A_p) . v_p / |x - A_p|`` lies in
+        ``[sin(squint - beta / 2), sin(squint + beta / 2)]``, the tracer's criterion.
+        Used only with ``azimuth_beamwidth``.
     progress : bool, default False
         Show a :mod:`tqdm` bar over pulse blocks.
 
@@ -167,7 +172,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     """
     t_start = time.perf_counter()
     t0, oversample, pulse_block, workers = _check_inputs(raw, grid, oversample, pulse_block, workers)
-    beam = _beam_half_sine(raw, azimuth_beamwidth)
+    beam = _beam_sines(raw, azimuth_beamwidth, squint)
     n_pulses, n_samples = raw.data.shape
     n_up = (n_samples - 1) * oversample + 1
     n_tab = n_up + 2 * _PAD
@@ -227,7 +232,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     seconds = time.perf_counter() - t_start
     focus = _focus_metadata(raw, grid, seconds, oversample=oversample, pulse_block=pulse_block,
                             workers=workers, implementation="numpy-hybrid-float32",
-                            azimuth_beamwidth=azimuth_beamwidth, max_pulses_per_pixel=norm,
+                            azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
                             tile=list(_TILE), weight_table_bins=weights[1], monostatic=monostatic)
     return _make_image(raw, grid, data, focus)
 
@@ -459,8 +464,8 @@ class _Block:
         self.t0, self.fine_rate = t0, fine_rate
         self.e_az, self.e_rg = grid.azimuth_direction, grid.range_direction
         self.weights, self.n_weights = weights
-        #: (sin(beta / 2), unit velocity [P, 3]) for beam-limited backprojection, or None.
-        self.beam: tuple[float, np.ndarray] | None = None
+        #: ((sin_lo, sin_hi), unit velocity [P, 3]) for beam-limited backprojection, or None.
+        self.beam: tuple[tuple[float, float], np.ndarray] | None = None
 
 
 class _Workspace:
@@ -519,32 +524,38 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
     }
 
 
-def _beam_half_sine(raw: RawData, azimuth_beamwidth: float | None) -> float | None:
-    """sin(beta / 2) of the ideal beam, or None; checks the value and the platform velocity."""
+def _beam_sines(raw: RawData, azimuth_beamwidth: float | None, squint: float = 0.0) -> tuple[float, float] | None:
+    """Along-track sines ``(sin(squint - beta / 2), sin(squint + beta / 2))`` bounding the ideal
+    beam, or None; checks the values and the platform velocity."""
     if azimuth_beamwidth is None:
         return None
     beta = float(azimuth_beamwidth)
     if not 0.0 < beta < 90.0:
         raise ValueError(f"azimuth_beamwidth = {azimuth_beamwidth!r} deg is outside the valid range (0, 90) deg")
+    if not -60.0 < float(squint) < 60.0:
+        raise ValueError(f"squint = {squint!r} deg is outside the valid range (-60, 60) deg")
     if not np.all(np.linalg.norm(raw.velocity, axis=1) > 0):
         raise ValueError("azimuth_beamwidth needs a non-zero platform velocity for every pulse (raw.velocity)")
-    return float(np.sin(np.radians(beta) / 2.0))
+    half, centre = np.radians(beta) / 2.0, np.radians(float(squint))
+    return float(np.sin(centre - half)), float(np.sin(centre + half))
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
-def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, step: int = 16) -> np.ndarray:
+def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, step: int = 16,
+                       squint: float = 0.0) -> np.ndarray:
     """Number of pulses whose ideal beam contains each pixel, float64 [n_az, n_rg].
 
-    A pixel ``x`` is in the beam of pulse ``p`` when ``|(x - A_p) . v_p| <= sin(beta / 2) |x - A_p|``
-    (``v_p`` the unit velocity): its angle from the zero-Doppler plane is at most half the
-    beamwidth, the criterion the tracer uses. Counted exactly on every ``step``-th row and
+    A pixel ``x`` is in the beam of pulse ``p`` when
+    ``sin(squint - beta / 2) |x - A_p| <= (x - A_p) . v_p <= sin(squint + beta / 2) |x - A_p|``
+    (``v_p`` the unit velocity): its angle from the zero-Doppler plane is within half the
+    beamwidth of the squint, the criterion the tracer uses. Counted exactly on every ``step``-th row and
     column (and the last ones) and interpolated bilinearly in between (the count varies
     smoothly, with the slant range).
     """
-    half_sine = _beam_half_sine(raw, azimuth_beamwidth)
+    sin_lo, sin_hi = _beam_sines(raw, azimuth_beamwidth, squint)
     n_az, n_rg = grid.shape
     rows = np.unique(np.r_[np.arange(0, n_az, step), n_az - 1])
     cols = np.unique(np.r_[np.arange(0, n_rg, step), n_rg - 1])
@@ -554,8 +565,9 @@ def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, 
     counts = np.zeros(pts.shape[0])
     for p0 in range(0, raw.n_pulses, 32):
         e = pts[:, None, :] - raw.tx_position[None, p0:p0 + 32, :]
-        along = np.abs(np.einsum("npk,pk->np", e, v[p0:p0 + 32]))
-        counts += (along <= half_sine * np.linalg.norm(e, axis=2)).sum(axis=1)
+        along = np.einsum("npk,pk->np", e, v[p0:p0 + 32])
+        dist = np.linalg.norm(e, axis=2)
+        counts += ((along >= sin_lo * dist) & (along <= sin_hi * dist)).sum(axis=1)
     coarse = counts.reshape(rows.size, cols.size)
     along_range = np.array([np.interp(np.arange(n_rg), cols, line) for line in coarse])   # [rows, n_rg]
     return np.array([np.interp(np.arange(n_az), rows, column) for column in along_range.T]).T
@@ -564,15 +576,16 @@ def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, 
 def _beam_mask(tile: _Tile, block: _Block) -> np.ndarray:
     """float32 [P, n_a]: 1 where a tile row lies within pulse p's ideal beam, else 0.
 
-    Row ``i`` is in the beam when ``|(c_T - A_p) . v_p + alpha_i (e_az . v_p)| <= sin(beta / 2) |c_T - A_p|``:
+    Row ``i`` is in the beam when ``(c_T - A_p) . v_p + alpha_i (e_az . v_p)`` lies between
+    ``sin_lo |c_T - A_p|`` and ``sin_hi |c_T - A_p|``:
     the along-track offset is exact per row, the distance is the tile centre's (so the beam
     edge of a pixel is placed to within ``sin(beta / 2)`` times the tile's range half-extent).
     """
-    half_sine, v = block.beam
+    (sin_lo, sin_hi), v = block.beam
     e = tile.centre - block.legs[0]
-    dist = np.linalg.norm(e, axis=1)
+    dist = np.linalg.norm(e, axis=1)[:, None]
     along = np.einsum("ij,ij->i", e, v)[:, None] + np.outer(v @ block.e_az, tile.row_offsets)
-    return (np.abs(along) <= (half_sine * dist)[:, None]).astype(np.float32)
+    return ((along >= sin_lo * dist) & (along <= sin_hi * dist)).astype(np.float32)
 
 
 def _backproject_tile(tile: _Tile, block: _Block, ws: _Workspace, image: np.ndarray,
