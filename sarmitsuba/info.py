@@ -1,0 +1,602 @@
+"""``sarmitsuba info``: what a scene will simulate, and what it will cost, without tracing.
+
+:func:`scene_info` loads a scene (:func:`sarmitsuba.scene.load_scene`), plans the
+acquisition (:mod:`sarmitsuba.planning`) and collects, in one :class:`SceneInfo`:
+
+- the radar summary from the standard formulas (resolutions, Doppler bandwidth, PRF
+  limits, swath, synthetic aperture, angles), mostly properties of
+  :class:`sarmitsuba.radar.RadarParameters`;
+- the point-target SNR and NESZ of the radar equation when ``transmit_power`` is given
+  (:func:`sarmitsuba.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
+- the scene's size and materials;
+- every optional effect, on or off, with the reason (:func:`sarmitsuba.effects.list_effects`);
+- the estimated cost: ray casts, trace time, memory, image size and backprojection time.
+
+Nothing is traced: the cost is an estimate from the measured rates below. Every number is
+SI with its unit in the field name (``_m``, ``_hz``, ``_s``, ``_deg``, ``_db``, ``_bytes``).
+
+References
+----------
+.. [1] I. G. Cumming and F. H. Wong, *Digital Processing of Synthetic Aperture Radar Data*,
+   Artech House, 2005, ch. 4: resolutions (eqs. 4.35-4.37), Doppler bandwidth, aperture.
+.. [2] J. C. Curlander and R. N. McDonough, *Synthetic Aperture Radar: Systems and Signal
+   Processing*, Wiley, 1991, sec. 6.5 (PRF limits from azimuth and range ambiguities),
+   eq. 7.6.5 (image SNR).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import planning
+from .constants import SPEED_OF_LIGHT
+from .effects import Effect, list_effects
+from .pipeline import image_grid
+from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
+from .radiometry import radar_equation
+from .scene import LoadedScene, load_scene, material_table
+from .trace import FastTimeWindow, RayFootprint
+
+__all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
+           "scene_info", "cast_rates", "format_text", "to_dict", "to_json"]
+
+#: Measured ray-cast rates [casts/s] of Mitsuba's llvm backend on 2 threads of a 2-core x86-64
+#: VM, as ``(triangles, closest-hit, shadow)``: a plane and a box (14 triangles: 38-59 M
+#: closest-hit, 140-167 M shadow casts/s) and Sionna RT's Munich (38,936 triangles: ~10 M and
+#: ~20 M/s). Sources: DESIGN.md section 10; ../shared/notes/mitsuba-drjit.md section 2a.
+CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
+
+#: Factor on the pure ray-cast time for the bounce loop, materials and binning (DESIGN.md
+#: section 10 budgets this overhead below 30 %).
+TRACE_OVERHEAD = 1.3
+
+#: Bytes per path of the ``exact`` range kernel's path list (int32 pulse, uint8 order,
+#: float64 position, complex64 value: :class:`sarmitsuba.trace.PathList`).
+PATH_BYTES = 4 + 1 + 8 + 8
+
+#: Backprojection throughput [pixel-pulses/s] on the same machine: 2.1e8 measured by
+#: benchmarks/focus_bench.py (1024 x 1024 grid, 1024 pulses, no beam limit).
+BACKPROJECTION_RATE = 2e8
+
+#: Fixed cost [s] of one (pixel tile, pulse block) pair of the beam-limited backprojection,
+#: paid whether or not the tile is in the beam (its float64 reference geometry): fitted to
+#: two renders on the 2-core machine, urban (707 x 1041 pixels, 680 pulses: 1.0 s) and
+#: sionna:munich (3363 x 3287 pixels, 2264 pulses: 24 s), given BACKPROJECTION_RATE.
+BACKPROJECTION_TILE_SECONDS = 2.2e-4
+
+#: Pixel tile ``(azimuth, range)`` and pulse block of :func:`sarmitsuba.focus.backproject`
+#: (its ``_TILE`` and default ``pulse_block``), the units of the fixed cost above.
+BACKPROJECTION_TILE = (16, 128)
+BACKPROJECTION_PULSE_BLOCK = 128
+
+
+@dataclass(frozen=True)
+class MaterialInfo:
+    """One radar material of the scene.
+
+    Attributes
+    ----------
+    name : str
+        The BSDF's id in the scene.
+    kind : str
+        ``"PEC"`` (perfect conductor), ``"ITU"`` (ITU-R P.2040 named material) or ``"explicit"``
+        (relative permittivity and conductivity given).
+    description : str
+        E.g. ``"ITU concrete, slab 0.3 m"``.
+    model : str
+        ``"pec"``, ``"half_space"`` or ``"slab"``.
+    permittivity_real, permittivity_imag : float or None
+        Complex relative permittivity at the carrier (None for PEC).
+    thickness_m : float or None
+        Slab thickness.
+    rough : bool
+        Whether it has a clutter model (distributed clutter and speckle).
+    roughness : str
+        ``"gamma_db -14"`` or ``"scattering_coefficient 0.3"``; ``""`` when smooth.
+    n_shapes : int
+        Shapes using it.
+    """
+
+    name: str
+    kind: str
+    description: str
+    model: str
+    permittivity_real: float | None
+    permittivity_imag: float | None
+    thickness_m: float | None
+    rough: bool
+    roughness: str
+    n_shapes: int
+
+
+@dataclass(frozen=True)
+class SceneSize:
+    """Size and contents of the scene. Coordinates are world frame, float, m."""
+
+    source: str
+    path: str
+    has_sar_sensor: bool
+    n_shapes: int
+    n_triangles: int
+    bbox_min_m: tuple[float, float, float]
+    bbox_max_m: tuple[float, float, float]
+    #: World position of the local frame the scene is traced in (zero near the origin).
+    frame_offset_m: tuple[float, float, float]
+    scene_center_m: tuple[float, float, float]
+    materials: tuple[MaterialInfo, ...]
+
+
+@dataclass(frozen=True)
+class RadarSummary:
+    """Radar parameters and the quantities derived from them (refs. [1], [2]; SI units).
+
+    Resolutions: slant range ``c / (2B)``, ground range ``c / (2B sin(theta))``, azimuth
+    ``lambda / (2 beta)`` (ideal beam), ``L_a / 2`` (antenna) or ``lambda / (2 dtheta)``
+    (spotlight). ``doppler_bandwidth_hz`` is ``2 v beta_3dB / lambda`` with
+    ``beta_3dB = lambda / L_a`` with an antenna (``2 v / L_a``), else the beamwidth;
+    ``illuminated_doppler_bandwidth_hz`` is ``4 v sin(beta / 2) / lambda`` over the full
+    simulated beam (null to null with an antenna). PRF limits: lower = the illuminated
+    Doppler bandwidth (azimuth ambiguities), upper = ``1 / (2 dR / c + T_p)`` with ``dR``
+    the scene's slant depth seen from the track (range ambiguities: one pulse's echoes
+    must fit in one PRI); the same tests as :func:`sarmitsuba.planning.check_acquisition`.
+    """
+
+    frequency_hz: float
+    wavelength_m: float
+    bandwidth_hz: float
+    pulse_length_s: float
+    sampling_rate_hz: float
+    prf_hz: float
+    velocity_m_s: float
+    altitude_m: float
+    mode: str
+    look_side: str
+    polarization: str
+    output: str
+    azimuth_beamwidth_deg: float
+    incidence_angle_deg: float
+    #: Off-nadir look angle at the scene centre (flat earth: equal to the incidence angle).
+    look_angle_deg: float
+    incidence_near_deg: float
+    incidence_far_deg: float
+    slant_range_m: float
+    ground_range_m: float
+    slant_range_resolution_m: float
+    ground_range_resolution_m: float
+    azimuth_resolution_m: float
+    azimuth_resolution_formula: str
+    doppler_bandwidth_hz: float
+    illuminated_doppler_bandwidth_hz: float
+    prf_min_hz: float
+    prf_max_hz: float
+    prf_ok: bool
+    #: Scene extent across track (ground range) and along track, from its bounding box.
+    swath_ground_m: float
+    scene_azimuth_extent_m: float
+    #: Slant depth of the scene seen from the whole track, ``(L_max - L_min) / 2``.
+    swath_slant_m: float
+    window_start_s: float
+    window_samples: int
+    window_duration_s: float
+    window_slant_m: float
+    #: Synthetic aperture integrated per point: the beam footprint ``2 R tan(beta / 2)`` in
+    #: stripmap, the whole track ``N v / prf`` in spotlight.
+    aperture_length_m: float
+    aperture_time_s: float
+    pulses_per_point: int
+    n_pulses: int
+    track_length_m: float
+    acquisition_time_s: float
+
+
+@dataclass(frozen=True)
+class RadiometrySummary:
+    """Radar-equation figures at the scene centre (``docs/physics.md`` (R1)-(R4)).
+
+    SNR fields and NESZ are None when thermal noise is off (no ``noise_figure_db`` /
+    ``noise_temperature``). ``nesz_db`` is ``10 log10(1 / (SNR_image(1 m^2) rho_az rho_gr))``:
+    the sigma-nought whose clutter equals the noise floor of the focused image.
+    """
+
+    antenna_gain_dbi: float
+    radar_constant_w_m2: float
+    received_power_1m2_w: float
+    noise_power_w: float | None
+    single_pulse_snr_1m2_db: float | None
+    image_snr_1m2_db: float | None
+    nesz_db: float | None
+    pulses_integrated: int
+
+
+@dataclass(frozen=True)
+class CostEstimate:
+    """Estimated work and memory of a render (the times are estimates, within a factor ~2).
+
+    Rays: ``rays_per_pulse`` is the size of the ray grid aimed at the scene per pulse (rays
+    outside the beam are not cast, so it is an upper bound). Casts: every ray reaching
+    ``max_depth`` bounces, ``primary_rays * max_depth`` closest-hit and as many shadow casts
+    (upper bound). Trace time: ``TRACE_OVERHEAD * (closest_hit / closest_hit_rate + shadow /
+    shadow_rate)`` with the rates of :func:`cast_rates`, from every primary ray ending at its
+    first hit (``trace_time_low_s``) to the upper-bound casts (``trace_time_high_s``).
+
+    Memory: the tracer's fine deposit, complex64 ``[groups, n_pulses, fine_samples]`` (groups
+    = ``max_depth`` with ``split_bounces``, else 1), or with the ``exact`` range kernel its
+    path list instead, at most one path per closest-hit cast of :data:`PATH_BYTES` each; one
+    raw data set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64
+    ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth`` with
+    ``split_bounces``).
+
+    Backprojection, per image: the pixel-pulses inside the beam (stripmap: each pulse
+    reaches the beam footprint's rows plus one tile; spotlight: every pixel and pulse) at
+    :data:`BACKPROJECTION_RATE`, plus :data:`BACKPROJECTION_TILE_SECONDS` per (tile, pulse
+    block) pair.
+    """
+
+    ray_spacing_m: float
+    rays_per_pulse: int
+    n_pulses: int
+    primary_rays: int
+    max_depth: int
+    closest_hit_casts: int
+    shadow_casts: int
+    closest_hit_rate_per_s: float
+    shadow_rate_per_s: float
+    trace_time_low_s: float
+    trace_time_high_s: float
+    fast_time_samples: int
+    fine_samples: int
+    deposit_bytes: int
+    path_list_bytes: int
+    raw_bytes: int
+    image_shape: tuple[int, int]
+    image_bytes: int
+    n_products: int
+    backprojection_pixel_pulses: int
+    backprojection_time_s: float
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """Everything ``sarmitsuba info`` reports about a scene (see the module docstring)."""
+
+    scene: SceneSize
+    radar: RadarSummary
+    radiometry: RadiometrySummary | None
+    effects: tuple[Effect, ...]
+    cost: CostEstimate
+    #: What render would warn about (ambiguities, a scene outside the beam).
+    warnings: tuple[str, ...]
+
+
+def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
+               integrator_overrides: Mapping[str, Any] | None = None,
+               material_overrides: Mapping[str, Any] | None = None) -> SceneInfo:
+    """Load and plan a scene, without tracing, and summarise it.
+
+    Parameters are those of :func:`sarmitsuba.pipeline.render` (no output directory).
+
+    Raises
+    ------
+    SceneError, ParameterError, materials.MaterialError
+        The errors render would raise before tracing.
+    """
+    loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
+    params, lo, hi = loaded.params, loaded.bbox_lo, loaded.bbox_hi
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, lo, hi, loaded.settings)
+    footprint = planning.ray_footprint(params, geometry, lo, hi, loaded.settings)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
+        messages = planning.check_acquisition(params, geometry, window, lo, hi)
+    material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
+    radar = _radar_summary(params, geometry, window, lo, hi)
+    return SceneInfo(scene=_scene_size(loaded), radar=radar,
+                     radiometry=_radiometry(params, radar.pulses_per_point), effects=list_effects(loaded),
+                     cost=_cost(loaded, geometry, window, footprint),
+                     warnings=tuple(messages))
+
+
+# ============================================================================ scene
+def _scene_size(loaded: LoadedScene) -> SceneSize:
+    offset = loaded.offset
+    center = np.asarray(loaded.params.scene_center) + offset
+    return SceneSize(source=loaded.source, path=str(loaded.path), has_sar_sensor=loaded.has_sensor,
+                     n_shapes=loaded.n_shapes, n_triangles=loaded.n_triangles,
+                     bbox_min_m=_floats(loaded.bbox_lo + offset), bbox_max_m=_floats(loaded.bbox_hi + offset),
+                     frame_offset_m=_floats(offset), scene_center_m=_floats(center),
+                     materials=_materials(loaded.scene, loaded.params.frequency))
+
+
+def _materials(scene: Any, frequency: float) -> tuple[MaterialInfo, ...]:
+    """One :class:`MaterialInfo` per BSDF object, in order of first use."""
+    bsdfs: dict[int, Any] = {}
+    counts: dict[int, int] = {}
+    for shape in scene.shapes():
+        bsdf = shape.bsdf()
+        bsdfs.setdefault(bsdf.id_key, bsdf)
+        counts[bsdf.id_key] = counts.get(bsdf.id_key, 0) + 1
+    return tuple(_material(bsdf, frequency, counts[key]) for key, bsdf in bsdfs.items())
+
+
+def _material(bsdf: Any, frequency: float, n_shapes: int) -> MaterialInfo:
+    material = bsdf.material_at(frequency)
+    itu_name = getattr(bsdf, "_spec", {}).get("material")   # the plugin keeps the ITU name here
+    slab = f", slab {material.thickness:g} m" if material.model == "slab" else ""
+    eta = material.relative_permittivity
+    if material.model == "pec":
+        kind, description = "PEC", "perfect conductor"
+    elif itu_name is not None:
+        kind, description = "ITU", f"ITU {itu_name}{slab or ', half-space'}"
+    else:
+        kind, description = "explicit", f"explicit permittivity{slab or ', half-space'}"
+    if eta is not None:
+        description += f", eta = {eta.real:.3g}{eta.imag:+.3g}j"
+    clutter_kind, value = bsdf.clutter
+    roughness = {0: "", 1: f"gamma_db {10.0 * math.log10(value):g}" if value > 0 else "",
+                 2: f"scattering_coefficient {math.sqrt(value / 4.0):g}"}[int(clutter_kind)]
+    return MaterialInfo(name=bsdf.name, kind=kind, description=description, model=material.model,
+                        permittivity_real=None if eta is None else float(eta.real),
+                        permittivity_imag=None if eta is None else float(eta.imag),
+                        thickness_m=material.thickness, rough=clutter_kind > 0, roughness=roughness,
+                        n_shapes=n_shapes)
+
+
+# ============================================================================ radar
+def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                   lo: np.ndarray, hi: np.ndarray) -> RadarSummary:
+    rel = planning.box_corners(lo, hi) - geometry.scene_center
+    along, across = rel @ geometry.track_direction, rel @ geometry.look_direction
+    l_min, l_max = planning._echo_lengths(geometry.positions, lo, hi)   # as check_acquisition
+    aperture_length, pulses_per_point = _aperture(p)
+    beam_3db = p.wavelength / p.antenna_length if p.antenna_length > 0 else math.radians(p.azimuth_beamwidth)
+    prf_min = p.doppler_bandwidth
+    prf_max = 1.0 / ((l_max - l_min) / SPEED_OF_LIGHT + p.pulse_length)
+    return RadarSummary(
+        frequency_hz=p.frequency, wavelength_m=p.wavelength, bandwidth_hz=p.bandwidth, pulse_length_s=p.pulse_length,
+        sampling_rate_hz=p.sampling_rate, prf_hz=p.prf, velocity_m_s=p.velocity, altitude_m=p.altitude,
+        mode=p.mode, look_side=p.look_side, polarization=p.polarization, output=p.output,
+        azimuth_beamwidth_deg=p.azimuth_beamwidth, incidence_angle_deg=p.incidence_angle,
+        look_angle_deg=p.incidence_angle,
+        incidence_near_deg=math.degrees(math.atan2(p.ground_range + float(across.min()), p.altitude)),
+        incidence_far_deg=math.degrees(math.atan2(p.ground_range + float(across.max()), p.altitude)),
+        slant_range_m=p.slant_range, ground_range_m=p.ground_range,
+        slant_range_resolution_m=p.slant_range_resolution, ground_range_resolution_m=p.ground_range_resolution,
+        azimuth_resolution_m=p.azimuth_resolution, azimuth_resolution_formula=_azimuth_formula(p),
+        doppler_bandwidth_hz=2.0 * p.velocity * beam_3db / p.wavelength,
+        illuminated_doppler_bandwidth_hz=p.doppler_bandwidth,
+        prf_min_hz=prf_min, prf_max_hz=prf_max, prf_ok=prf_min <= p.prf <= prf_max,
+        swath_ground_m=float(across.max() - across.min()), scene_azimuth_extent_m=float(along.max() - along.min()),
+        swath_slant_m=0.5 * (l_max - l_min), window_start_s=window.t0, window_samples=window.n_samples,
+        window_duration_s=window.n_samples / window.fs,
+        window_slant_m=SPEED_OF_LIGHT * window.n_samples / (2 * window.fs),
+        aperture_length_m=aperture_length, aperture_time_s=aperture_length / p.velocity,
+        pulses_per_point=pulses_per_point, n_pulses=p.n_pulses,
+        track_length_m=(p.n_pulses - 1) * p.velocity / p.prf, acquisition_time_s=(p.n_pulses - 1) / p.prf)
+
+
+def _aperture(p: RadarParameters) -> tuple[float, int]:
+    """Synthetic aperture length [m] integrated per point, and the pulses in it.
+
+    Stripmap: the beam footprint ``2 R tan(beta / 2)`` at the scene centre (each point is
+    lit while the platform flies that far; capped by the track). Spotlight: the whole
+    track, ``N v / prf`` (the length behind :attr:`RadarParameters.integration_angle`).
+    """
+    if p.mode == "spotlight":
+        return p.n_pulses * p.velocity / p.prf, p.n_pulses
+    length = p.footprint_length
+    return length, int(min(p.n_pulses, max(1, round(length * p.prf / p.velocity))))
+
+
+def _azimuth_formula(p: RadarParameters) -> str:
+    if p.mode == "spotlight":
+        return (f"lambda / (2 dtheta), integration angle dtheta = N v / (prf R) = "
+                f"{math.degrees(p.integration_angle):.3g} deg")
+    if p.antenna_length > 0:
+        return f"L_a / 2, antenna_length L_a = {p.antenna_length:g} m"
+    return f"lambda / (2 beta), azimuth_beamwidth beta = {p.azimuth_beamwidth:g} deg"
+
+
+def _radiometry(p: RadarParameters, pulses: int) -> RadiometrySummary | None:
+    """Radar-equation figures for a 1 m^2 target at the scene centre; None when radiometry is off."""
+    equation = radar_equation(p)
+    if equation is None:
+        return None
+    r = p.slant_range
+    snr = image = nesz = None
+    if equation.noise_power > 0:
+        snr = _db(equation.snr(1.0, r))
+        image_snr = equation.image_snr(1.0, r, pulses)                          # eq. (R3)
+        image = _db(image_snr)
+        nesz = _db(1.0 / (image_snr * p.azimuth_resolution * p.ground_range_resolution))   # eq. (R4)
+    return RadiometrySummary(antenna_gain_dbi=_db(equation.gain), radar_constant_w_m2=equation.constant,
+                             received_power_1m2_w=equation.received_power(1.0, r),
+                             noise_power_w=equation.noise_power or None, single_pulse_snr_1m2_db=snr,
+                             image_snr_1m2_db=image, nesz_db=nesz, pulses_integrated=pulses)
+
+
+# ============================================================================ cost
+def cast_rates(n_triangles: int) -> tuple[float, float]:
+    """Estimated closest-hit and shadow ray-cast rates [casts/s] for a scene of ``n_triangles``.
+
+    ``log(rate)`` is linear in ``log(n_triangles)`` between the two measured anchors of
+    :data:`CAST_RATE_ANCHORS` (Embree's BVH makes the cost grow about logarithmically with
+    the triangle count). Below the small anchor the small scene's rates are used; above the
+    large one the line is extrapolated (an assumption, not a measurement). An estimate for
+    the 2-core reference machine: expect a factor of 2 either way.
+    """
+    (t0, hit0, shadow0), (t1, hit1, shadow1) = CAST_RATE_ANCHORS
+    x = (math.log(max(n_triangles, t0)) - math.log(t0)) / (math.log(t1) - math.log(t0))
+    return hit0 * (hit1 / hit0) ** x, shadow0 * (shadow1 / shadow0) ** x
+
+
+def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
+          footprint: RayFootprint) -> CostEstimate:
+    st, n_pulses = loaded.settings, loaded.params.n_pulses
+    primary = footprint.rays_per_pulse * n_pulses
+    casts = primary * st.max_depth
+    hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
+    groups = st.max_depth if st.split_bounces else 1
+    exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
+    grid = image_grid(loaded, geometry)
+    n_products = 1 + (st.max_depth if st.split_bounces else 0)
+    pixel_pulses, seconds = _backprojection(loaded.params, grid)
+    return CostEstimate(
+        ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
+        primary_rays=primary, max_depth=st.max_depth, closest_hit_casts=casts, shadow_casts=casts,
+        closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
+        trace_time_low_s=TRACE_OVERHEAD * (primary / hit_rate + primary / shadow_rate),
+        trace_time_high_s=TRACE_OVERHEAD * (casts / hit_rate + casts / shadow_rate),
+        fast_time_samples=window.n_samples, fine_samples=window.n_fine,
+        deposit_bytes=0 if exact else groups * n_pulses * window.n_fine * 8,
+        path_list_bytes=casts * PATH_BYTES if exact else 0, raw_bytes=n_pulses * window.n_samples * 8,
+        image_shape=grid.shape, image_bytes=grid.shape[0] * grid.shape[1] * 8, n_products=n_products,
+        backprojection_pixel_pulses=n_products * pixel_pulses, backprojection_time_s=n_products * seconds)
+
+
+def _backprojection(p: RadarParameters, grid) -> tuple[int, float]:
+    """Pixel-pulses and estimated seconds of one beam-limited backprojection onto ``grid``
+    (the model of :class:`CostEstimate`)."""
+    n_az, n_rg = grid.shape
+    rows = n_az
+    if p.mode == "stripmap" and n_az > 1:        # the pipeline limits stripmap focusing to the beam
+        spacing = float(grid.azimuth[1] - grid.azimuth[0])
+        rows = min(n_az, math.ceil(p.footprint_length / spacing) + BACKPROJECTION_TILE[0])
+    pixel_pulses = p.n_pulses * rows * n_rg
+    pairs = (math.ceil(n_az / BACKPROJECTION_TILE[0]) * math.ceil(n_rg / BACKPROJECTION_TILE[1])
+             * math.ceil(p.n_pulses / BACKPROJECTION_PULSE_BLOCK))
+    return pixel_pulses, pixel_pulses / BACKPROJECTION_RATE + pairs * BACKPROJECTION_TILE_SECONDS
+
+
+# ============================================================================ output
+def to_dict(info: SceneInfo) -> dict:
+    """The info as plain JSON types (numbers as numbers, units in the key names)."""
+    return dataclasses.asdict(info)
+
+
+def to_json(info: SceneInfo, indent: int | None = 2) -> str:
+    """:func:`to_dict` as a JSON text (one object)."""
+    return json.dumps(to_dict(info), indent=indent)
+
+
+def format_text(info: SceneInfo) -> str:
+    """A human-readable report of ``info`` (what ``sarmitsuba info`` prints)."""
+    lines = [f"scene {info.scene.source} ({info.scene.path}): planned, not traced; costs are estimates", ""]
+    for title, body in (("Scene", _scene_lines(info.scene)), ("Radar", _radar_lines(info.radar)),
+                        ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
+                        ("Estimated cost", _cost_lines(info.cost)), ("Warnings", list(info.warnings) or ["none"])):
+        lines += [title] + [f"  {line}" for line in body] + [""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _scene_lines(s: SceneSize) -> list[str]:
+    lines = [f"shapes {s.n_shapes}, triangles {s.n_triangles:,}, sar sensor "
+             f"{'in the scene' if s.has_sar_sensor else 'absent (defaults)'}",
+             f"bounding box {_vec(s.bbox_min_m)} .. {_vec(s.bbox_max_m)} m",
+             f"scene centre {_vec(s.scene_center_m)} m, frame offset {_vec(s.frame_offset_m)} m",
+             f"materials ({len(s.materials)}):"]
+    for m in s.materials:
+        rough = f"rough ({m.roughness})" if m.rough else "smooth"
+        lines.append(f"  {m.name:<14} {m.kind:<8} {m.description}; {rough}; {m.n_shapes} shape(s)")
+    return lines
+
+
+def _radar_lines(r: RadarSummary) -> list[str]:
+    prf_state = "inside" if r.prf_ok else "OUTSIDE (ambiguities: see warnings)"
+    return [
+        f"carrier {_eng(r.frequency_hz, 'Hz')}, wavelength {_eng(r.wavelength_m, 'm')}, "
+        f"polarisation {r.polarization}, output {r.output}",
+        f"bandwidth {_eng(r.bandwidth_hz, 'Hz')}, pulse {_eng(r.pulse_length_s, 's')}, "
+        f"sampling {_eng(r.sampling_rate_hz, 'Hz')}, prf {_eng(r.prf_hz, 'Hz')}",
+        f"{r.mode}, looking {r.look_side}, altitude {r.altitude_m:g} m, velocity {r.velocity_m_s:g} m/s, "
+        f"azimuth beam {r.azimuth_beamwidth_deg:.3g} deg",
+        f"incidence {r.incidence_angle_deg:g} deg at the centre ({r.incidence_near_deg:.1f} .. "
+        f"{r.incidence_far_deg:.1f} deg across the scene), look angle {r.look_angle_deg:g} deg (flat earth)",
+        f"slant range to the centre {r.slant_range_m:.1f} m, ground range {r.ground_range_m:.1f} m",
+        f"resolution: slant range {r.slant_range_resolution_m:.3g} m = c/(2B); ground range "
+        f"{r.ground_range_resolution_m:.3g} m = c/(2B sin theta); azimuth {r.azimuth_resolution_m:.3g} m = "
+        f"{r.azimuth_resolution_formula}",
+        f"Doppler bandwidth {r.doppler_bandwidth_hz:.1f} Hz = 2 v beta_3dB / lambda; illuminated "
+        f"{r.illuminated_doppler_bandwidth_hz:.1f} Hz = 4 v sin(beta/2) / lambda",
+        f"PRF limits {_eng(r.prf_min_hz, 'Hz')} .. {_eng(r.prf_max_hz, 'Hz')}: "
+        f"prf {_eng(r.prf_hz, 'Hz')} is {prf_state}",
+        "  lower: azimuth ambiguity, prf >= illuminated Doppler bandwidth; upper: range ambiguity, "
+        "prf <= 1 / (2 dR / c + T_p) (one pulse's echoes fit in one PRI)",
+        f"swath: scene {r.swath_ground_m:.1f} m ground range x {r.scene_azimuth_extent_m:.1f} m azimuth, slant "
+        f"depth dR {r.swath_slant_m:.1f} m; fast-time window {r.window_samples} samples = "
+        f"{_eng(r.window_duration_s, 's')} = {r.window_slant_m:.1f} m slant",
+        f"synthetic aperture {r.aperture_length_m:.1f} m = {r.aperture_time_s:.3g} s = {r.pulses_per_point} pulses "
+        f"per point; track {r.track_length_m:.1f} m, {r.n_pulses} pulses, {r.acquisition_time_s:.3g} s"]
+
+
+def _radiometry_lines(r: RadiometrySummary | None) -> list[str]:
+    if r is None:
+        return ["off (normalised amplitudes, sqrt(m^2)); transmit_power switches it on"]
+    lines = [f"antenna gain {r.antenna_gain_dbi:.1f} dBi, radar constant {r.radar_constant_w_m2:.3g} W m^2, "
+             f"received power of 1 m^2 at the centre {r.received_power_1m2_w:.3g} W"]
+    if r.noise_power_w is None:
+        return lines + ["thermal noise off: no SNR / NESZ (noise_figure_db switches it on)"]
+    return lines + [f"noise power {r.noise_power_w:.3g} W; SNR of 1 m^2: single pulse "
+                    f"{r.single_pulse_snr_1m2_db:.1f} dB, "
+                    f"image {r.image_snr_1m2_db:.1f} dB ({r.pulses_integrated} pulses); NESZ {r.nesz_db:.1f} dB"]
+
+
+def _effect_lines(effects: tuple[Effect, ...]) -> list[str]:
+    return [f"[{'on ' if e.active else 'off'}] {e.name}: {e.reason}" for e in effects]
+
+
+def _cost_lines(c: CostEstimate) -> list[str]:
+    memory = (f"fine deposit {_bytes(c.deposit_bytes)} ({c.n_pulses} x {c.fine_samples} complex64)"
+              if not c.path_list_bytes else f"path list (exact kernel) up to {_bytes(c.path_list_bytes)}")
+    return [
+        f"rays: {c.rays_per_pulse:,} per pulse (grid spacing {c.ray_spacing_m:.3g} m; rays outside the beam are "
+        f"not cast) x {c.n_pulses:,} pulses = {c.primary_rays:,} primary rays",
+        f"casts (upper bound, every ray to max_depth {c.max_depth}): {c.closest_hit_casts:,} closest-hit + "
+        f"{c.shadow_casts:,} shadow",
+        f"trace time ~ {_duration(c.trace_time_low_s)} .. {_duration(c.trace_time_high_s)} (primary rays only .. "
+        f"upper-bound casts, at {c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and "
+        f"{c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s on 2 cores + {TRACE_OVERHEAD - 1:.0%} overhead)",
+        f"memory: {memory}, raw data {_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
+        f"image {_bytes(c.image_bytes)}",
+        f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
+        + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
+        f"backprojection ~ {_duration(c.backprojection_time_s)} ({c.backprojection_pixel_pulses:.3g} pixel-pulses "
+        f"in the beam at {BACKPROJECTION_RATE:.0e}/s + {BACKPROJECTION_TILE_SECONDS * 1e3:g} ms per tile and "
+        f"pulse block)"]
+
+
+def _db(x: float) -> float:
+    return 10.0 * math.log10(x)
+
+
+def _floats(v: np.ndarray) -> tuple[float, float, float]:
+    return tuple(float(x) for x in v)
+
+
+def _vec(v) -> str:
+    return "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
+
+
+def _eng(value: float, unit: str) -> str:
+    """``value`` with an SI prefix, e.g. ``_eng(9.6e9, 'Hz') == '9.6 GHz'``."""
+    if value == 0:
+        return f"0 {unit}"
+    exponent = max(-9, min(9, 3 * math.floor(math.log10(abs(value)) / 3)))
+    prefix = {-9: "n", -6: "u", -3: "m", 0: "", 3: "k", 6: "M", 9: "G"}[exponent]
+    return f"{value / 10.0 ** exponent:.4g} {prefix}{unit}"
+
+
+def _bytes(n: int) -> str:
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} B"
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.2g} s" if seconds < 120 else f"{seconds / 60:.1f} min"
