@@ -27,7 +27,9 @@ products               :mod:`~sarmitsuba.products` -- EXR, PNG quicklook;
 analysis               :mod:`~sarmitsuba.analysis` -- point-target analysis;
                        :mod:`~sarmitsuba.synthetic` -- analytic point targets;
                        :mod:`~sarmitsuba.canonical` -- canonical radar targets
-checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings
+checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings;
+                       :mod:`~sarmitsuba.effects` -- which optional effects a run simulates, and why;
+                       :mod:`~sarmitsuba.info` -- ``info``: radar summary and cost estimate, no tracing
 orchestration          :mod:`~sarmitsuba.pipeline` -- ``simulate``, ``render``, ``refocus``;
                        :mod:`~sarmitsuba.cli`
 =====================  ====================================================================

@@ -173,6 +173,8 @@ class RadarSummary:
     azimuth_resolution_formula: str
     doppler_bandwidth_hz: float
     illuminated_doppler_bandwidth_hz: float
+    squint_deg: float
+    doppler_centroid_hz: float
     prf_min_hz: float
     prf_max_hz: float
     prf_ok: bool
@@ -368,8 +370,9 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         slant_range_m=p.slant_range, ground_range_m=p.ground_range,
         slant_range_resolution_m=p.slant_range_resolution, ground_range_resolution_m=p.ground_range_resolution,
         azimuth_resolution_m=p.azimuth_resolution, azimuth_resolution_formula=_azimuth_formula(p),
-        doppler_bandwidth_hz=2.0 * p.velocity * beam_3db / p.wavelength,
+        doppler_bandwidth_hz=2.0 * p.velocity * beam_3db * math.cos(math.radians(p.squint)) / p.wavelength,
         illuminated_doppler_bandwidth_hz=p.doppler_bandwidth,
+        squint_deg=p.squint, doppler_centroid_hz=p.doppler_centroid,
         prf_min_hz=prf_min, prf_max_hz=prf_max, prf_ok=prf_min <= p.prf <= prf_max,
         swath_ground_m=float(across.max() - across.min()), scene_azimuth_extent_m=float(along.max() - along.min()),
         swath_slant_m=0.5 * (l_max - l_min), window_start_s=window.t0, window_samples=window.n_samples,
@@ -521,8 +524,9 @@ def _radar_lines(r: RadarSummary) -> list[str]:
         f"resolution: slant range {r.slant_range_resolution_m:.3g} m = c/(2B); ground range "
         f"{r.ground_range_resolution_m:.3g} m = c/(2B sin theta); azimuth {r.azimuth_resolution_m:.3g} m = "
         f"{r.azimuth_resolution_formula}",
-        f"Doppler bandwidth {r.doppler_bandwidth_hz:.1f} Hz = 2 v beta_3dB / lambda; illuminated "
-        f"{r.illuminated_doppler_bandwidth_hz:.1f} Hz = 4 v sin(beta/2) / lambda",
+        f"Doppler bandwidth {r.doppler_bandwidth_hz:.1f} Hz = 2 v beta_3dB cos(squint) / lambda; illuminated "
+        f"{r.illuminated_doppler_bandwidth_hz:.1f} Hz = 2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda",
+        f"squint {r.squint_deg:g} deg, Doppler centroid {r.doppler_centroid_hz:.1f} Hz = 2 v sin(squint) / lambda",
         f"PRF limits {_eng(r.prf_min_hz, 'Hz')} .. {_eng(r.prf_max_hz, 'Hz')}: "
         f"prf {_eng(r.prf_hz, 'Hz')} is {prf_state}",
         "  lower: azimuth ambiguity, prf >= illuminated Doppler bandwidth; upper: range ambiguity, "
