@@ -122,7 +122,30 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--raw", type=Path, default=None,
                          help="the RawData that were focused (default: raw.npz beside the image, if any): gives "
                               "the exact carrier ramp, so the peak phase is right between pixels")
+    bench = sub.add_parser("bench", help="benchmark suite: accuracy against time for each fidelity knob "
+                                         "(needs the source checkout's benchmarks/ folder)", add_help=False)
+    bench.add_argument("bench_args", nargs="*", metavar="...",
+                       help="arguments of benchmarks/run.py (--quick, --only NAME ...; --help for all)")
     return parser
+
+
+def benchmarks_dir() -> Path:
+    """The source checkout's ``benchmarks/`` folder (beside the package); raises OSError naming the fix."""
+    folder = Path(__file__).resolve().parent.parent / "benchmarks"
+    if not (folder / "run.py").is_file():
+        raise OSError(f"benchmarks not found at {folder}: the suite lives in the source checkout; "
+                      "install with `pip install -e .` from a clone, or run `python benchmarks/run.py` there")
+    return folder
+
+
+def _bench(args: argparse.Namespace) -> int:
+    import importlib.util
+    folder = benchmarks_dir()
+    sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location("sarmitsuba_benchmarks_run", folder / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.main(args.bench_args)
 
 
 #: Windows accepted by the focusing commands (default parameters: Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
@@ -223,7 +246,11 @@ def _resolution_from_metadata(path) -> list[float] | None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code."""
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["bench"]:            # everything after `bench` belongs to benchmarks/run.py
+        args = argparse.Namespace(command="bench", bench_args=argv[1:])
+    else:
+        args = build_parser().parse_args(argv)
     try:
         import sarmitsuba  # noqa: F401  (libLLVM check, variant, plugins)
         from .materials import MaterialError
@@ -236,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
-                "info": _info}[args.command](args)
+                "info": _info, "bench": _bench}[args.command](args)
     except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

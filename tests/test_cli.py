@@ -109,3 +109,13 @@ def test_focus_rejects_corrupt_raw_file(tmp_path, capsys):
     np.savez(mismatched, data=np.zeros((3, 4), np.complex64))
     assert main(["focus", str(mismatched), "--out", str(tmp_path / "o")]) == 2
     assert "not a RawData file" in capsys.readouterr().err
+
+
+def test_bench_forwards_its_arguments_to_the_suite(capsys):
+    """``sarmitsuba bench ...`` runs benchmarks/run.py with the arguments after ``bench``."""
+    from sarmitsuba.cli import benchmarks_dir, main
+    assert (benchmarks_dir() / "run.py").is_file()
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "--only", "no_such_benchmark"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'no_such_benchmark'" in capsys.readouterr().err
