@@ -8,6 +8,7 @@ import sys
 import matplotlib.image
 import numpy as np
 import OpenEXR
+import pytest
 
 from sarmitsuba.cli import main
 from sarmitsuba.image import SarImage
@@ -113,7 +114,7 @@ def test_focus_rejects_corrupt_raw_file(tmp_path, capsys):
 
 def test_bench_forwards_its_arguments_to_the_suite(capsys):
     """``sarmitsuba bench ...`` runs benchmarks/run.py with the arguments after ``bench``."""
-    from sarmitsuba.cli import benchmarks_dir, main
+    from sarmitsuba.cli import benchmarks_dir
     assert (benchmarks_dir() / "run.py").is_file()
     with pytest.raises(SystemExit) as exc:
         main(["bench", "--only", "no_such_benchmark"])
