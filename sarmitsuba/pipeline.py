@@ -306,9 +306,9 @@ def _write_products(out: Path, raw: RawData, image: SarImage, params, suffix: st
 def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
     body = {**dataclasses.asdict(summary), "radar": metadata["radar"], "settings": metadata["settings"],
             "scene_info": metadata["scene_info"], "effects": metadata["effects"]}
-    tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_text(json.dumps(body, indent=2, default=_json_default))
-    os.replace(tmp, path)
+    from .products import _atomic_write
+    text = json.dumps(body, indent=2, default=_json_default)
+    _atomic_write(path, lambda tmp: tmp.write_text(text))
 
 
 def _world_params(loaded: LoadedScene):
