@@ -93,6 +93,26 @@ def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: Acquisiti
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
 
 
+def sized_grid(p, geometry: AcquisitionGeometry, size: tuple[int, int], spacing: float | None = None) -> ImageGrid:
+    """Ground grid of exactly ``size = (n_azimuth, n_range)`` pixels centred on the scene centre.
+
+    ``spacing`` [m] defaults to half the finer of the ground-range and azimuth resolutions of
+    the radar parameters ``p`` (as :func:`ground_grid`; ``p`` is unused when ``spacing`` is given). Raises ParameterError for sizes below 2 or a non-positive spacing.
+    """
+    from .radar import ParameterError
+    n_az, n_rg = (int(v) for v in size)
+    if min(n_az, n_rg) < 2 or (n_az, n_rg) != tuple(size):
+        raise ParameterError(f"image_size = {size}: two whole numbers >= 2 (azimuth, range pixels)")
+    if spacing is None:
+        spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
+    spacing = float(spacing)
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise ParameterError(f"image_spacing = {spacing} m must be > 0")
+    return ImageGrid(origin=np.asarray(geometry.scene_center, float), azimuth_direction=geometry.track_direction,
+                     range_direction=geometry.look_direction, azimuth=(np.arange(n_az) - n_az // 2) * spacing,
+                     range=(np.arange(n_rg) - n_rg // 2) * spacing, plane="ground")
+
+
 @dataclass(frozen=True)
 class Simulation:
     """Everything one simulation produced, in memory (see :func:`simulate`)."""
@@ -109,11 +129,14 @@ class Simulation:
 
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
              integrator_overrides: Mapping[str, Any] | None = None,
-             material_overrides: Mapping[str, Any] | None = None, progress: bool = False) -> Simulation:
+             material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
+             image_size: tuple[int, int] | None = None, image_spacing: float | None = None) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
-    Parameters are those of :func:`render`. Raises SceneError, ParameterError or
-    materials.MaterialError before tracing starts.
+    Parameters are those of :func:`render`, plus ``image_size = (n_azimuth, n_range)`` pixels and
+    ``image_spacing`` [m] for a ground grid of exactly that size around the scene centre
+    (:func:`sized_grid`; default: :func:`image_grid`, which covers the scene and its layover).
+    Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
@@ -122,6 +145,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
     footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
     planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
+    grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
+    grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
     table = material_table(loaded.scene, params.frequency, params.polarization)
     t["load"] = time.perf_counter()
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
@@ -134,8 +159,6 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
         binning.to_raw_data(result.contributions(k), result, window, params, world, settings.range_kernel,
                             {**metadata, "bounce_order": k}) for k in range(1, result.n_orders + 1))
     t["bin"] = time.perf_counter()
-    grid = image_grid(loaded, geometry)
-    grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     geometry = world
     beam = params.azimuth_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=beam,  # noqa: E731

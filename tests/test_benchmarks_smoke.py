@@ -1,0 +1,78 @@
+"""Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
+
+Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py`` and ``scaling.py`` runs with
+``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
+kernel compilation) and must return rows with the expected columns and finite numbers, and
+write ``benchmarks/out/<name>_tiny.csv`` and ``.png`` (tiny runs never overwrite the real
+outputs). Their ``checks(rows)`` must return well-formed results (they are not asserted:
+tiny settings are not what the checks are about).
+"""
+from __future__ import annotations
+
+import csv
+import importlib
+import math
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+
+#: module -> (columns every row has, numeric columns that must be finite in every row,
+#:            numeric columns that must be finite where not empty)
+EXPECTED = {
+    "ray_density": (
+        {"case", "ray_spacing_m", "rays_per_cell", "rays_per_pulse", "pulses", "seconds", "trace_s", "time_ratio",
+         "expected_db", "measured_db", "error_db", "speckle_contrast", "speckle_contrast_error_db"},
+        ("ray_spacing_m", "rays_per_cell", "rays_per_pulse", "seconds", "time_ratio", "expected_db", "measured_db",
+         "error_db"),
+        ("speckle_contrast", "speckle_contrast_error_db")),
+    "focus_algorithms": (
+        {"case", "algorithm", "option", "shape", "processed_doppler_hz", "seconds", "time_ratio",
+         "irw_range_err_pct", "irw_azimuth_err_pct", "pslr_err_db", "islr_err_db", "position_err_cells",
+         "phase_err_deg", "peak_err_db", "nrmse_vs_finest_db"},
+        ("seconds", "time_ratio", "irw_range_err_pct", "irw_azimuth_err_pct", "pslr_err_db", "islr_err_db",
+         "position_err_cells", "phase_err_deg", "peak_err_db", "nrmse_vs_finest_db"),
+        ()),
+    "scaling": (
+        {"sweep", "n", "buildings", "pulses", "pixels", "triangles", "rays_traced", "load_s", "trace_s", "bin_s",
+         "focus_s", "total_s", "exponent_total", "exponent_stage", "reference_s", "reference_over_ours"},
+        ("n", "buildings", "pulses", "pixels", "rays_traced", "trace_s", "bin_s", "focus_s", "total_s",
+         "exponent_total", "exponent_stage"),
+        ("reference_s", "reference_over_ours")),
+}
+
+
+def _finite(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+@pytest.mark.parametrize("module_name", list(EXPECTED))
+def test_benchmark_runs_tiny(module_name):
+    start = time.time()
+    module = importlib.import_module(module_name)
+    rows = module.run(tiny=True)
+    columns, finite, optional = EXPECTED[module_name]
+    assert rows, f"{module_name}.run returned no rows"
+    for row in rows:
+        assert set(row) == columns, f"{module_name}: columns {sorted(set(row) ^ columns)} differ"
+        for key in finite:
+            assert _finite(row[key]), f"{module_name}: {key} = {row[key]!r} in {row}"
+        for key in optional:
+            assert row[key] == "" or _finite(row[key]), f"{module_name}: {key} = {row[key]!r} in {row}"
+    if module_name == "scaling":
+        assert {r["sweep"] for r in rows} == {"buildings", "pulses", "pixels"}
+    out = BENCHMARKS / "out"
+    for suffix in (".csv", ".png"):
+        path = out / f"{module.NAME}_tiny{suffix}"
+        assert path.is_file() and path.stat().st_size > 0, f"{path} missing"
+        assert path.stat().st_mtime >= start - 1.0, f"{path} was not rewritten by this run"
+    with open(out / f"{module.NAME}_tiny.csv", newline="") as f:
+        table = list(csv.DictReader(f))
+    assert len(table) == len(rows) and set(table[0]) == columns
+    for check in module.checks(rows):
+        name, ok, detail = check
+        assert isinstance(name, str) and isinstance(ok, bool) and isinstance(detail, str)
