@@ -26,6 +26,7 @@ products               :mod:`~sarmitsuba.products` -- EXR, PNG quicklook;
                        :mod:`~sarmitsuba.preview` -- optical preview of scene and acquisition
 analysis               :mod:`~sarmitsuba.analysis` -- point-target analysis;
                        :mod:`~sarmitsuba.synthetic` -- analytic point targets;
+                       :mod:`~sarmitsuba.reference_cases` -- standard stripmap point-target acquisitions;
                        :mod:`~sarmitsuba.canonical` -- canonical radar targets
 checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings;
                        :mod:`~sarmitsuba.effects` -- which optional effects a run simulates, and why;

@@ -1,25 +1,11 @@
-"""Straight-track stripmap geometry (sarmitsuba.focus.stripmap) and the shared test cases.
+"""Straight-track stripmap geometry (sarmitsuba.focus.stripmap) and the shared test helpers.
 
-The point-target cases used by ``test_omegak.py`` and ``test_rda.py`` live here
-(:class:`Case`, :data:`CASES`, :func:`simulate`, :func:`analyse`). Raw data are made
-analytically by :mod:`sarmitsuba.synthetic` in float64 (never by the tracer): a straight
-level track along +x at altitude ``h``, the sensor on the +y side looking toward -y, an
-ideal azimuth beam (all or nothing) of given width and squint, point targets on the
-ground plane z = 0 (a flat earth: the 800 km spaceborne case is a straight line over a
-flat earth, an approximation of an orbit that the FFT focusers treat exactly).
-
-Targets: a 3 x 3 grid (near/centre/far x early/centre/late) placed 10 % inside the edges
-of the region where a target is fully focused: its whole beam exposure lies inside the
-recorded pulses and its range history inside the fast-time window (with a chip margin).
-They are predicted at (zero-Doppler along-track coordinate, distance to the track line).
-
-Squinted impulse responses: with a processed Doppler band of fixed width the 2-D spectrum
-is a parallelogram whose range sides are tilted by the squint, so the range sidelobes lie
-along the beam-centre line of sight, not along the zero-Doppler range axis. The range
-cut is therefore measured after a deskew (each column shifted in azimuth by
-``tan(squint) (R - R_target)``, an exact band-limited shift), which turns the
-parallelogram into a rectangle; the zero-Doppler range IRW is then
-``0.886 c / (2 B) cos(squint)`` and its line-of-sight value ``0.886 c / (2 B)``.
+The point-target cases (:class:`Case`, :data:`CASES`, :data:`AIRBORNE_X`, :data:`SPACEBORNE_C`,
+:data:`CW_LOW`, :data:`CW_HIGH`), their analytic raw data and the squint deskew live in
+:mod:`sarmitsuba.reference_cases` (geometry, targets, sources and the deskew convention are
+described there); this module re-exports them for ``test_omegak.py`` and ``test_rda.py``
+and adds the cached per-name data and geometry (:func:`simulate`, :func:`geometry`) and the
+analysis helpers the focusing tests share (:func:`analyse`, :func:`chip`, :func:`correlation`).
 """
 from __future__ import annotations
 
@@ -36,135 +22,16 @@ from sarmitsuba.focus.stripmap import (StripmapGeometry, estimate_doppler_centro
                                        stripmap_geometry)
 from sarmitsuba.image import SarImage
 from sarmitsuba.raw import RawData
-
-# ============================================================================ cases
-@dataclasses.dataclass(frozen=True)
-class Case:
-    """A straight-track stripmap acquisition with a 3 x 3 target grid."""
-
-    name: str
-    fc: float  # Hz
-    bandwidth: float  # Hz
-    fs: float  # Hz
-    prf: float  # Hz
-    speed: float  # m/s
-    beam_range: float  # m, beam-centre slant range at mid-swath
-    altitude: float  # m
-    squint_deg: float  # deg, positive forward
-    doppler_beam: float  # Hz, Doppler bandwidth of the beam at fc
-    doppler_processed: float  # Hz, processed Doppler bandwidth (fixed band around the centroid)
-    n_pulses: int
-    n_samples: int
-    pulse_length: float = 2.5e-6  # s
-
-    @property
-    def wavelength(self) -> float:
-        return C / self.fc
-
-    @property
-    def squint(self) -> float:
-        return float(np.radians(self.squint_deg))
-
-    @property
-    def beamwidth_deg(self) -> float:
-        """Full angular beamwidth whose Doppler band at fc is ``doppler_beam``."""
-        s = self.wavelength * self.doppler_beam / (4.0 * self.speed * np.cos(self.squint))
-        return float(np.degrees(2.0 * np.arcsin(s)))
-
-    @property
-    def closest_range(self) -> float:
-        return self.beam_range * np.cos(self.squint)
-
-    @property
-    def track_offset(self) -> float:
-        """y of the track: the mid-swath beam centre at mid-aperture lies on y = 0."""
-        return float(np.sqrt(self.closest_range**2 - self.altitude**2))
-
-    @property
-    def scene_centre(self) -> np.ndarray:
-        return np.array([self.beam_range * np.sin(self.squint), 0.0, 0.0])
-
-    @property
-    def fast_time0(self) -> float:
-        return 2.0 * self.beam_range / C - (self.n_samples // 2) / self.fs
-
-    def track(self) -> synthetic.Track:
-        return synthetic.straight_track(self.n_pulses, self.prf, self.speed,
-                                        center=(0.0, self.track_offset, self.altitude))
-
-    def beam(self) -> synthetic.AzimuthBeam:
-        return synthetic.AzimuthBeam(self.beamwidth_deg, self.squint_deg)
-
-    # ------------------------------------------------------------------ theory
-    def range_irw(self, k_w: float = 1.0) -> float:
-        """Line-of-sight slant-range IRW, 0.886 c / (2 B) x broadening."""
-        return 0.886 * C / (2.0 * self.bandwidth) * k_w
-
-    def azimuth_irw(self, band: float, k_w: float = 1.0) -> float:
-        """0.886 V / B_a x broadening (along track)."""
-        return 0.886 * self.speed / band * k_w
-
-    # ------------------------------------------------------------------ targets
-    def exposure(self, r0: float) -> tuple[float, float]:
-        """Along-track offsets (target - antenna) [m] at the beam edges, for range ``r0``."""
-        half = np.radians(self.beamwidth_deg) / 2.0
-        return r0 * np.tan(self.squint - half), r0 * np.tan(self.squint + half)
-
-    def targets(self) -> list[synthetic.PointTarget]:
-        """3 x 3 grid, 10 % inside the fully focused region; amplitudes with distinct phases."""
-        pos = self.track().position[:, 0]
-        s_first, s_last = pos[0], pos[-1]
-        dr = C / (2.0 * self.fs)
-        r_lo = C * self.fast_time0 / 2.0
-        r_hi = r_lo + (self.n_samples - 1) * dr
-        margin = 40 * dr
-        r0_mid = self.closest_range
-        lo, hi = self.exposure(r0_mid)
-        walk = r0_mid * abs(1 / np.cos(self.squint + np.radians(self.beamwidth_deg) / 2)
-                            - 1 / np.cos(self.squint - np.radians(self.beamwidth_deg) / 2))
-        rc_lo, rc_hi = r_lo + margin + walk / 2, r_hi - margin - walk / 2
-        out = []
-        for k, frac_r in enumerate((0.1, 0.5, 0.9)):
-            r_c = rc_lo + frac_r * (rc_hi - rc_lo)  # beam-centre range
-            r0 = r_c * np.cos(self.squint)
-            lo, hi = self.exposure(r0)
-            # antenna positions seeing the target: x - hi .. x - lo; keep them inside the track
-            x_lo, x_hi = s_first + hi, s_last + lo
-            for m, frac_a in enumerate((0.1, 0.5, 0.9)):
-                x = x_lo + frac_a * (x_hi - x_lo)
-                y = self.track_offset - np.sqrt(r0**2 - self.altitude**2)
-                phase = np.radians(40.0 * (3 * k + m) - 170.0)
-                out.append(synthetic.PointTarget((x, y, 0.0), np.exp(1j * phase)))
-        return out
+# cases and helpers of sarmitsuba.reference_cases, re-exported for test_omegak.py and test_rda.py
+from sarmitsuba.reference_cases import (AIRBORNE_X, CASES, CW_HIGH, CW_LOW, SPACEBORNE_C, Case,  # noqa: F401
+                                        deskew, focused_carrier, phase_error_deg, simulate_case)
 
 
-AIRBORNE_X = Case("airborne-X-10km", fc=9.6e9, bandwidth=150e6, fs=180e6, prf=125.0, speed=100.0,
-                  beam_range=10e3, altitude=6000.0, squint_deg=0.0, doppler_beam=100.0, doppler_processed=90.0,
-                  n_pulses=512, n_samples=512)
-SPACEBORNE_C = Case("spaceborne-C-800km", fc=5.405e9, bandwidth=50e6, fs=60e6, prf=875.0, speed=7500.0,
-                    beam_range=800e3, altitude=800e3 * np.cos(np.radians(30.0)), squint_deg=0.0,
-                    doppler_beam=700.0, doppler_processed=630.0, n_pulses=512, n_samples=512)
-# Cumming & Wong Table 6.1: R = 20 km, Vr = 150 m/s, Tr = 2.5 us, Kr = 20 MHz/us (B = 50 MHz),
-# f0 = 5.3 GHz, Fr = 60 MHz, Fa = 100 Hz, Doppler bandwidth 80 Hz; more pulses than C&W's 256
-# so that a 3 x 3 grid of fully exposed targets fits.
-CW_LOW = Case("cw-3.5deg", fc=5.3e9, bandwidth=50e6, fs=60e6, prf=100.0, speed=150.0, beam_range=20e3,
-              altitude=8000.0, squint_deg=3.5, doppler_beam=80.0, doppler_processed=72.0,
-              n_pulses=512, n_samples=256)
-CW_HIGH = Case("cw-21.9deg", fc=5.3e9, bandwidth=50e6, fs=60e6, prf=100.0, speed=150.0, beam_range=20e3,
-               altitude=8000.0, squint_deg=21.9, doppler_beam=80.0, doppler_processed=60.0,
-               n_pulses=600, n_samples=512)
-CASES = {c.name: c for c in (AIRBORNE_X, SPACEBORNE_C, CW_LOW, CW_HIGH)}
-
-
+# ============================================================================ cached data of the cases
 @functools.lru_cache(maxsize=8)
 def simulate(name: str, range_window: str = "rect") -> RawData:
     """Range-compressed analytic data of case ``name`` (cached: tests share it)."""
-    case = CASES[name]
-    track = case.track()
-    return synthetic.simulate_point_targets(
-        case.targets(), track.position, case.fc, case.bandwidth, case.fs, case.fast_time0, case.n_samples,
-        prf=case.prf, velocity=track.velocity, pulse_length=case.pulse_length, beam=case.beam(),
-        pulse_time=track.pulse_time, range_window=range_window)
+    return simulate_case(CASES[name], range_window)
 
 
 def geometry(name: str) -> StripmapGeometry:
@@ -173,40 +40,10 @@ def geometry(name: str) -> StripmapGeometry:
 
 
 # ============================================================================ analysis helpers
-def deskew(image: SarImage, geo: StripmapGeometry, r_target: float) -> SarImage:
-    """Shift every column in azimuth by ``tan(squint) (R - r_target)`` (band-limited, exact),
-    so that the line-of-sight range sidelobes through a target at ``r_target`` align with
-    the range axis. Identity at zero squint."""
-    if geo.squint == 0.0:
-        return image
-    n_a = image.data.shape[0]
-    dx = float(np.diff(image.azimuth).mean())
-    k = np.fft.fftfreq(n_a, dx)  # cycles/m, wrapped
-    kc = geo.doppler_centroid / geo.velocity
-    k = k + np.floor((kc + 0.5 / dx - k) * dx) / dx  # unwrapped around the Doppler centroid
-    shift = np.tan(geo.squint) * (image.range - r_target)
-    spec = np.fft.fft(image.data.astype(np.complex128), axis=0)
-    spec *= np.exp(2j * np.pi * k[:, None] * shift[None, :])
-    data = np.fft.ifft(spec, axis=0).astype(np.complex64)
-    return dataclasses.replace(image, data=data)
-
-
-def carrier(geo: StripmapGeometry, fc: float) -> tuple[float, float]:
-    """(k_azimuth, k_range) [rad/m] of a focused stripmap image near a target after deskew:
-    ``2 pi f_dc / V`` and ``4 pi fc cos(squint) / c + tan(squint) k_azimuth``."""
-    k_az = 2.0 * np.pi * geo.doppler_centroid / geo.velocity
-    return k_az, 4.0 * np.pi * fc * np.cos(geo.squint) / C + np.tan(geo.squint) * k_az
-
-
 def analyse(image: SarImage, geo: StripmapGeometry, fc: float, target: synthetic.PointTarget, **kw):
     """Point-target report (deskewed for squint) and the predicted (azimuth, range)."""
     az, rg = geo.zero_doppler(target.position)
-    return analyze_point_target(deskew(image, geo, rg), (az, rg), carrier=carrier(geo, fc), **kw), (az, rg)
-
-
-def phase_error_deg(report, target: synthetic.PointTarget) -> float:
-    d = report.predicted_phase_deg - np.degrees(np.angle(target.amplitude))
-    return float((d + 180.0) % 360.0 - 180.0)
+    return analyze_point_target(deskew(image, geo, rg), (az, rg), carrier=focused_carrier(geo, fc), **kw), (az, rg)
 
 
 def correlation(a: np.ndarray, b: np.ndarray) -> float:
