@@ -29,3 +29,16 @@ def write_csv(name: str, rows: list[dict]) -> Path:
         writer.writerows(rows)
     print(f"wrote {path}")
     return path
+
+
+def bench_main(doc: str, run, checks, quick_help: str, tiny_help: str | None = None) -> None:
+    """Command line of one benchmark script: ``--quick`` (and ``--tiny``), run, print the ratio checks."""
+    import argparse
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    if tiny_help:
+        parser.add_argument("--tiny", action="store_true", help=tiny_help)
+    args = parser.parse_args()
+    rows = run(args.quick, tiny=True) if getattr(args, "tiny", False) else run(args.quick)
+    for check, ok, detail in checks(rows):
+        print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")

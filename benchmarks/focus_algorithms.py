@@ -38,7 +38,6 @@ error against seconds). Usage: ``python benchmarks/focus_algorithms.py [--quick]
 """
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from typing import Callable
@@ -46,7 +45,7 @@ from typing import Callable
 import numpy as np
 
 from _plot import plot_cost
-from _table import machine, write_csv
+from _table import bench_main, machine, write_csv
 from sarmitsuba import synthetic
 from sarmitsuba.analysis import analyze_point_target, carrier_ramp
 from sarmitsuba.focus import backproject, omega_k, range_doppler
@@ -217,12 +216,7 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="airborne case only (< 60 s)")
-    parser.add_argument("--tiny", action="store_true", help="the three default settings only (smoke test)")
-    args = parser.parse_args()
-    for check, ok, detail in checks(run(args.quick, tiny=args.tiny)):
-        print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+    bench_main(__doc__, run, checks, quick_help="airborne case only (< 60 s)", tiny_help="the three default settings only (smoke test)")
 
 
 if __name__ == "__main__":

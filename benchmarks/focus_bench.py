@@ -86,10 +86,12 @@ def main(argv: list[str] | None = None) -> int:
     geo = stripmap_geometry(raw, squint=0.0, scene_centre=(0.0, 0.0, 0.0))
     rows = []
 
-    # ---- omega-K (default 12 taps, oversample 1.5)
-    t_wk = best(lambda: omega_k(raw, geometry=geo, workers=workers), args.repeat)
-    n_pad = omega_k(noise_raw(8, n), squint=0.0, scene_centre=(0, 0, 0)).metadata["focus"]["n_pad"]
-    floor_wk = fft_passes([((n, n_pad), 1, False), ((n, n_pad), 0, False), ((n, n_pad), 1, True),
+    # ---- omega-K (default 12 taps, oversample 1.5): forward FFTs on the padded n_pad columns,
+    # range IFFT on the Stolt output's n_out columns (metadata of the timed run)
+    focus = {}
+    t_wk = best(lambda: focus.update(omega_k(raw, geometry=geo, workers=workers).metadata["focus"]), args.repeat)
+    n_pad, n_out = focus["n_pad"], focus["n_out"]
+    floor_wk = fft_passes([((n, n_pad), 1, False), ((n, n_pad), 0, False), ((n, n_out), 1, True),
                            ((n, n), 0, True)], workers, args.repeat)
     # ---- RDA (8 taps, upsample 2)
     t_rd = best(lambda: range_doppler(raw, geometry=geo, workers=workers), args.repeat)

@@ -17,14 +17,13 @@ Usage: ``python benchmarks/range_kernel.py [--quick]``
 """
 from __future__ import annotations
 
-import argparse
 import math
 
 import numpy as np
 
 import sarmitsuba  # noqa: F401
 from _plot import plot_cost
-from _table import machine, write_csv
+from _table import bench_main, machine, write_csv
 from sarmitsuba.analysis import analyze_point_target
 from sarmitsuba.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
@@ -97,11 +96,7 @@ def run(quick: bool = False) -> list[dict]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="trihedral only, 64 pulses")
-    rows = run(parser.parse_args().quick)
-    for name, ok, detail in checks(rows):
-        print(f"{'PASS' if ok else 'FAIL'}  {name}  {detail}")
+    bench_main(__doc__, run, checks, quick_help="trihedral only, 64 pulses")
 
 
 if __name__ == "__main__":

@@ -27,7 +27,6 @@ Usage: ``python benchmarks/ray_density.py [--quick]``
 """
 from __future__ import annotations
 
-import argparse
 import math
 import tempfile
 import time
@@ -37,7 +36,7 @@ import numpy as np
 
 import sarmitsuba  # noqa: F401
 from _plot import plot_cost
-from _table import machine, write_csv
+from _table import bench_main, machine, write_csv
 from rcs import cases, integrated_rcs
 from sarmitsuba import canonical as C
 from sarmitsuba.pipeline import simulate
@@ -187,12 +186,7 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer spacings (< 60 s)")
-    parser.add_argument("--tiny", action="store_true", help="two spacings per case (smoke test)")
-    args = parser.parse_args()
-    for check, ok, detail in checks(run(args.quick, tiny=args.tiny)):
-        print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+    bench_main(__doc__, run, checks, quick_help="fewer spacings (< 60 s)", tiny_help="two spacings per case (smoke test)")
 
 
 if __name__ == "__main__":

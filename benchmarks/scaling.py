@@ -40,7 +40,6 @@ Usage: ``python benchmarks/scaling.py [--quick]``
 """
 from __future__ import annotations
 
-import argparse
 import math
 import tempfile
 import time
@@ -52,7 +51,7 @@ import trimesh
 
 import sarmitsuba  # noqa: F401
 from _plot import plot_cost
-from _table import machine, write_csv
+from _table import bench_main, machine, write_csv
 from sarmitsuba import planning
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.pipeline import simulate, sized_grid
@@ -286,12 +285,7 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="1, 2, 16 buildings; small sweeps (< 60 s)")
-    parser.add_argument("--tiny", action="store_true", help="a 64 m city and small images (smoke test)")
-    args = parser.parse_args()
-    for check, ok, detail in checks(run(args.quick, tiny=args.tiny)):
-        print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+    bench_main(__doc__, run, checks, quick_help="1, 2, 16 buildings; small sweeps (< 60 s)", tiny_help="a 64 m city and small images (smoke test)")
 
 
 if __name__ == "__main__":
