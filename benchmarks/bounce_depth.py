@@ -49,7 +49,7 @@ def bounce_depth(scene: str, depths: list[int], sensor: dict | None = None) -> l
             "closest_hit_casts": int(sim.trace.rays_per_order.sum()), "shadow_casts": int(sim.trace.shadow_rays),
             "energy_per_order": " ".join(f"{e:.4g}" for e in energy),
             "energy_deepest_order_fraction": round(float(energy[-1] / max(energy.sum(), 1e-300)), 6),
-            "nrmse_vs_deepest_db": round(20 * np.log10(diff), 1) if diff > 0 else float("-inf"),
+            "nrmse_vs_deepest_db": round(float(20 * np.log10(diff)), 1) if diff > 0 else float("-inf"),
         })
     return rows
 

@@ -39,7 +39,7 @@ def _sim(scene: str, kernel: str, oversample: int, sensor: dict):
 
 
 def _nrmse_db(a: np.ndarray, ref: np.ndarray) -> float:
-    return round(20 * math.log10(max(np.linalg.norm(a - ref) / np.linalg.norm(ref), 1e-15)), 1)
+    return round(20 * math.log10(max(float(np.linalg.norm(a - ref) / np.linalg.norm(ref)), 1e-15)), 1)
 
 
 def sweep(scene: str, sensor: dict, oversamples: tuple[int, ...], point_target: bool) -> list[dict]:
