@@ -7,8 +7,9 @@ run (the machine is shared and noisy, DESIGN.md section 10):
 * **omega-K** and **RDA** on an ``N x N`` (default 4096 x 4096) complex64 range-compressed
   array (white noise on a straight track: the cost does not depend on the scene), each
   against the time of *the same scipy FFT passes* on arrays of the same shapes (the
-  padded range axis included), i.e. the cost of the algorithm if its interpolation and
-  phase multiplies were free. Also the ratio to four plain N x N FFT passes.
+  padded range axis included; omega-K's range IFFT on its ``n_out`` Stolt output bins),
+  i.e. the cost of the algorithm if its interpolation and phase multiplies were free.
+  Also the ratio to four plain N x N FFT passes.
 * **Backprojection** (:func:`sarmitsuba.focus.backproject`) on a 1024 x 1024 slant grid
   from 1024 pulses, in pixel-pulses (backprojections) per second.
 

@@ -208,3 +208,55 @@ def test_output_grid_and_metadata():
     assert focus["algorithm"] == "omega-k" and focus["seconds"] > 0 and focus["taps"] == 12
     assert focus["geometry"]["reference_range"] == pytest.approx(geo.reference_range)
     assert image.metadata["scene"] == raw.metadata["scene"]
+
+
+# ============================================================================ Stolt kernel: fast vs reference
+@pytest.mark.parametrize("n_data, oversample, taps", [(256, 1.5, 12), (301, 1.5, 6), (200, 1.25, 8), (128, 1.1, 12)])
+def test_stolt_fast_interpolation_matches_reference(n_data, oversample, taps):
+    """The fast Stolt kernel (deconvolved Kaiser-Bessel, table weights, tap-loop gather)
+    against its readable reference, the exact non-uniform DFT, on random complex data at
+    random positions over the whole spectrum (row edges included, where the taps wrap):
+    max error below -55 dB of the RMS value (measured -66 to -70 dB, set by the weight
+    table's 1/8192-bin position rounding; the kernel's worst-case aliasing bound is -73 dB
+    or better for these settings)."""
+    import scipy.fft
+    from sarmitsuba.focus.stolt import StoltInterpolator, centred_buffer, stolt_reference
+
+    rng = np.random.default_rng(n_data + taps)
+    n_pad = int(scipy.fft.next_fast_len(int(np.ceil(n_data * oversample))))
+    n_pad += n_pad % 2
+    interp = StoltInterpolator(taps, n_data, n_pad)
+    data = (rng.standard_normal((5, n_data)) + 1j * rng.standard_normal((5, n_data))).astype(np.complex64)
+    pos = rng.uniform(0.0, n_pad, (5, 400))
+    pos[:, :4] = [0.0, 0.3, n_pad - 0.6, n_pad - 1e-9]  # both row edges
+    spec = scipy.fft.fft(centred_buffer(data, n_pad, interp.prefilter()), axis=1)
+    fast = interp(spec, pos)
+    ref = stolt_reference(data, pos, n_pad)
+    assert fast.dtype == np.complex64 and fast.shape == pos.shape
+    error_db = 20 * np.log10(np.abs(fast - ref).max() / np.sqrt(np.mean(np.abs(ref) ** 2)))
+    assert error_db < -55.0, f"fast Stolt kernel error {error_db:.1f} dB (taps {taps}, n_pad {n_pad})"
+    assert interp.error_bound < 10 ** (-55 / 20)
+
+
+def test_omega_k_fast_stolt_matches_exact_stolt(monkeypatch):
+    """Whole omega-K with the fast kernel against omega-K whose Stolt step is the exact
+    non-uniform DFT of each range line (same deconvolved spectrum, inverted back to time):
+    the images differ by less than -80 dB of the peak (measured about -110 dB)."""
+    import scipy.fft
+    from sarmitsuba.focus import stolt
+
+    case = CW_LOW
+    raw, geo = simulate(case.name), geometry(case.name)
+    fast = omega_k(raw, geometry=geo).data
+
+    def exact(self, spec, pos, out=None):
+        buf = scipy.fft.ifft(spec.astype(np.complex128), axis=1)  # the centred, deconvolved range lines
+        half = self.n_data // 2
+        lines = np.concatenate([buf[:, self.n_pad - half:], buf[:, :self.n_data - half]], axis=1)
+        lines *= np.where((np.arange(self.n_data) - half) % 2 == 0, 1.0, -1.0) / self.prefilter()
+        return stolt.stolt_reference(lines, pos, self.n_pad).astype(np.complex64)
+
+    monkeypatch.setattr(stolt.StoltInterpolator, "__call__", exact)
+    reference = omega_k(raw, geometry=geo).data
+    error_db = 20 * np.log10(np.abs(fast - reference).max() / np.abs(reference).max())
+    assert error_db < -80.0, f"omega-K fast vs exact Stolt: {error_db:.1f} dB of the peak"

@@ -19,21 +19,40 @@ unwrapped Doppler frequency) then becomes a linear phase too, and a 2-D inverse 
 focuses the whole scene. Steps here:
 
 1. place each range line circularly centred in a zero-padded buffer (``oversample``,
-   default 1.5, so that the spectrum is sampled finely enough for the interpolator) and
-   take the 2-D FFT (complex64, ``scipy.fft`` with threads);
+   default 1.5, so that the spectrum is sampled finely enough for a short interpolation
+   kernel), multiplied by the kernel's deconvolution weights ``1 / Phi`` (NUFFT style,
+   :mod:`sarmitsuba.focus.stolt`), and take the 2-D FFT (complex64; range FFTs per block
+   of rows in threads, azimuth FFT with ``scipy.fft`` workers);
 2. for each block of Doppler rows (true Doppler ``f_eta``, unwrapped around the Doppler
    centroid) and each output range frequency ``q = f0 + f'`` on the grid
-   ``k * Delta f`` (the band of the row only), find ``f_tau = sqrt(q^2 + (c f_eta / 2Vr)^2) - f0``
-   and interpolate the spectrum there with a Kaiser-windowed sinc (``taps``, default 12;
-   worst-case error about -55 dB for the default ``oversample``), vectorised over the
-   block;
+   ``k * fs / n_out`` (the band of the row only), find
+   ``f_tau = sqrt(q^2 + (c f_eta / 2Vr)^2) - f0`` and interpolate the spectrum there with
+   the deconvolved Kaiser-Bessel kernel (``taps``, default 12; weights from a table,
+   ``taps`` gather / multiply-add passes over the block, float32 weights and complex64
+   data). With deconvolution the only kernel error is aliasing: worst case -76 dB at 6
+   taps and below float32 precision at 12 taps for ``oversample`` 1.5 (-84 dB at 12 taps,
+   1.1; table in :mod:`sarmitsuba.focus.stolt`); the table rounds positions to 1/8192 bin
+   (a phase error below -70 dB). Against the exact non-uniform DFT, point-target images
+   differ by less than -100 dB of the peak at 12 taps and -90 dB at 6 taps (the
+   Kaiser-windowed sinc without deconvolution used before: about -55 dB at 12 taps);
 3. multiply by the analytic factors at the mapped positions: the reference function
    and the output-range origin (together ``exp(+j 4 pi R_start q / c)``), the fast-time
    origin ``exp(-j 2 pi f_tau tau_ref)``, the range window ``w_r(f_tau)``, the Stolt
    Jacobian ``q / (f0 + f_tau)``, the azimuth window, the azimuth origin and the
-   amplitude normalisation; all phases formed in float64 and reduced modulo 2 pi;
-4. scatter row ``k`` to FFT bin ``k mod n`` and take the range IFFT (which lands column
-   ``m`` at ``R_start + m c / (2 fs)``) and the azimuth IFFT.
+   amplitude normalisation; all phases formed in float64 per output sample and reduced
+   modulo 1 cycle before one float32 cos/sin;
+4. scatter row ``k`` to FFT bin ``k mod n_out`` and take the range IFFT (which lands
+   column ``m`` at ``R_start + m c / (2 fs)``; first ``n_samples`` columns kept, still per
+   block of rows) and the azimuth IFFT.
+
+The Stolt output is sampled on ``n_out`` range bins, not the ``n_pad`` of the input: data
+inside the fast-time window focus within the closest-approach ranges
+``c tau / 2 * q / sqrt(q^2 + (c f_eta / 2Vr)^2)`` over the window, band and Doppler rows,
+and ``n_out = next_fast_len(that support + guard)``, the guard being ``max(128,
+n_samples / 8)`` samples (images up to 1024 samples: 128; 4096: 512), over which the range
+sidelobes of a target at one edge of the window decay before they wrap onto the other
+edge (to about ``1 / (pi guard B / fs)``: -62 dB for 4096 samples at ``B / fs`` = 0.83,
+unweighted). Fewer output bins mean fewer interpolated samples (``B n_out / fs`` per row).
 
 Validity
 --------
@@ -49,8 +68,8 @@ Validity
 * The Doppler spectrum (over the whole range band) must fit in one PRF around the Doppler
   centroid; the Stolt-mapped range band ``B / cos(squint)`` must be below ``fs``.
 * Images are periodic in azimuth and range (FFT): targets whose zero-Doppler position
-  lies outside the output grid wrap around; targets whose aperture is cut by the start or
-  end of the data are partially focused.
+  lies outside the output grid wrap around (in range beyond the guard above); targets
+  whose aperture is cut by the start or end of the data are partially focused.
 
 References
 ----------
@@ -73,14 +92,18 @@ import scipy.fft
 from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
-from .stripmap import (StripmapGeometry, _band_weights, _cis, _doppler_axis, _Interpolator, _window_label,
-                       _focus_setup, slant_output_grid)
+from .stolt import Scratch, StoltInterpolator, centred_buffer
+from .stripmap import (StripmapGeometry, _band_weights, _doppler_axis, _window_label, _focus_setup,
+                       slant_output_grid)
 
 __all__ = ["omega_k"]
 
 C = SPEED_OF_LIGHT
-#: Doppler rows per vectorised block (per-thread working set ~ 40 bytes x rows x n_pad).
-_BLOCK_ROWS = 64
+#: Doppler rows per vectorised block (per-thread working set ~ 60 bytes x rows x n_out).
+_BLOCK_ROWS = 32
+#: Range guard of the Stolt output beyond the focused support: max(_GUARD_MIN, n / _GUARD_FRACTION).
+_GUARD_MIN = 128
+_GUARD_FRACTION = 8
 
 
 def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "rect",
@@ -114,12 +137,15 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     squint : float, deg, optional
         Beam squint, when it is not recorded in the metadata (else estimated from data).
     taps : int, default 12
-        Stolt interpolation kernel length (even, 4..32).
+        Stolt interpolation kernel length (even, 4..32): Kaiser-Bessel with deconvolution
+        (:mod:`sarmitsuba.focus.stolt`). Worst-case kernel error at ``oversample`` 1.5:
+        -45 dB at 4 taps, -76 dB at 6, -107 dB at 8, below float32 precision at 12. Cost:
+        about 1.5 ns per tap and output sample (one core), the largest part of the run.
     oversample : float, default 1.5
         Range zero-padding factor before the range FFT (>= 1.1): the spectrum is sampled
         ``oversample`` times more finely than the data need, which is what lets a short
-        kernel interpolate it accurately (worst-case kernel error about -55 dB at 12 taps,
-        1.5; -35 dB at 12 taps, 1.25).
+        kernel interpolate it accurately (worst-case kernel error at 12 taps: -84 dB at
+        1.1, -127 dB at 1.25; at 6 taps: -58 dB at 1.25).
     workers : int, optional
         Threads for the FFTs and the row blocks; default all available CPUs.
 
@@ -140,9 +166,16 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
 
     Notes
     -----
-    Cost: two 2-D FFT passes on ``n_pulses x oversample n_samples`` and ``taps`` gather /
-    multiply-add passes (the interpolation, which dominates in NumPy, as focusing.md
-    section 5a found for RCMC), plus a few float64 passes for the exact phases.
+    Cost: the FFT passes (range and azimuth FFT on ``n_pulses x n_pad``, ``n_pad`` about
+    ``oversample n_samples``; range IFFT on ``n_pulses x n_out``; azimuth IFFT on
+    ``n_pulses x n_samples``), plus per interpolated sample (``B n_out / fs`` per row)
+    ``taps`` gather / multiply-add passes (the interpolation, which dominates in NumPy, as
+    focusing.md section 5a found for RCMC) and about 10 float64/float32 passes for the
+    exact positions, phases and gains. All temporaries are per-thread buffers reused from
+    block to block (fresh arrays would page-fault as much as the arithmetic costs). On
+    4096 x 4096 with 2 threads (shared 2-core VM) that is about 2.3 times the FFT passes
+    alone at 12 taps and 1.9 times at 6 taps (``benchmarks/focus_bench.py``; 8 to 9 times
+    with the previous windowed-sinc gather).
     """
     t_start = time.perf_counter()
     raw = _range_compressed(raw)
@@ -157,19 +190,20 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
         raise ValueError(f"bandwidth {bw:g} Hz exceeds fs = {fs:g} Hz: the range spectrum is aliased")
     grid = slant_output_grid(geo, raw)
 
-    # ---- 1. centred, zero-padded 2-D FFT; (-1)^n puts f_tau = (j - n/2) df at column j
+    # ---- 1. centred, deconvolved, zero-padded 2-D FFT; (-1)^n puts f_tau = (j - n/2) df at column j
     n_pad = int(scipy.fft.next_fast_len(int(np.ceil(n_r * oversample))))
     n_pad += n_pad % 2
     df = fs / n_pad
-    half = n_r // 2
-    sign = np.where((np.arange(n_r) - half) % 2 == 0, 1.0, -1.0).astype(np.float32)
-    spec = np.zeros((n_a, n_pad), np.complex64)
-    np.multiply(raw.data[:, half:], sign[half:], out=spec[:, :n_r - half])
-    np.multiply(raw.data[:, :half], sign[:half], out=spec[:, n_pad - half:])
-    spec = scipy.fft.fft2(spec, workers=workers, overwrite_x=True)
-    tau_ref = raw.fast_time[0] + half / fs  # fast time of buffer sample 0
+    interp = StoltInterpolator(taps, n_r, n_pad)
+    prefilter = interp.prefilter()
+    tau_ref = raw.fast_time[0] + (n_r // 2) / fs  # fast time of buffer sample 0
+    spec = np.empty((n_a, n_pad), np.complex64)
 
-    # ---- 2.-3. Stolt interpolation and analytic factors, row block by row block
+    def range_fft(rows: slice) -> None:  # row block: centred copy and range FFT, in place
+        block = centred_buffer(raw.data[rows], n_pad, prefilter, out=spec[rows])
+        _store(block, scipy.fft.fft(block, axis=1, overwrite_x=True, workers=1))
+
+    # ---- 2.-4. setup: Doppler rows, band limits, output range FFT length, per-row factors
     f_eta = _doppler_axis(n_a, prf, geo.doppler_centroid)
     alpha = C * f_eta / (2.0 * vel)
     if np.any(np.abs(alpha) >= f0 - bw / 2):
@@ -179,51 +213,136 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     if np.max(q_hi - q_lo) >= fs:
         raise ValueError(f"the Stolt-mapped range band (up to {np.max(q_hi - q_lo):.4g} Hz = B / cos(squint)) "
                          f"exceeds fs = {fs:.4g} Hz: the output would alias; sample faster or reduce the squint")
-    k0 = np.ceil(q_lo / df).astype(np.int64)
-    n_k = int(np.max(np.floor(q_hi / df).astype(np.int64) - k0)) + 1
     r_start = float(grid.range[0])
-    range_cycles_per_bin = np.mod(2.0 * r_start * df / C, 1.0)  # exp(j 4 pi R_start q / c), q = k df
+    n_out = _output_length(raw, q_lo, q_hi, r_start)
+    df_out = fs / n_out
+    k0 = np.ceil(q_lo / df_out).astype(np.int64)  # row r holds output bins k0[r] .. k0[r] + n_valid[r] - 1
+    n_valid = np.floor(q_hi / df_out).astype(np.int64) - k0 + 1
+    range_cycles_per_bin = np.mod(2.0 * r_start * df_out / C, 1.0)  # exp(j 4 pi R_start q / c), q = k df_out
     # azimuth: FFT origin at the first pulse, output origin at grid.azimuth[0]
     # (+1/8 cycle: the -pi/4 of the stationary-phase azimuth spectrum, concave range history)
     row_cycles = f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / vel + 0.125
     d_eta = np.sqrt(1.0 - (alpha / f0) ** 2)
     row_gain = (_band_weights(w_a, f_eta - geo.doppler_centroid, band_a)
-                * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / (C * geo.reference_range)) / band_a)
-    interp = _Interpolator(taps, passband=n_r / n_pad)
-    j = np.arange(n_k, dtype=np.int64)
+                * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / (C * geo.reference_range)) / band_a).astype(np.float32)
+    alpha2 = alpha**2
+    k0f = k0.astype(np.float64)
+    amplitude = np.sqrt(geo.reference_range / grid.range).astype(np.float32)  # point-target amplitude vs range
+    image = np.empty((n_a, n_r), np.complex64)
 
-    def run_block(rows: slice) -> None:
-        kk = k0[rows, None] + j[None, :]  # int64 [R, n_k]
-        q = kk * df
-        f_tau = np.sqrt(q * q + alpha[rows, None] ** 2) - f0
-        values = interp(spec[rows], f_tau / df + n_pad / 2)
-        gain = _band_weights(w_r, f_tau, bw) * (q / (f0 + f_tau)) * row_gain[rows, None]
-        cycles = kk * range_cycles_per_bin - f_tau * tau_ref + row_cycles[rows, None]  # reduced in _cis
-        values *= _cis(cycles)
-        values *= gain.astype(np.float32)
-        spec[rows] = 0
-        np.put_along_axis(spec[rows], np.mod(kk, n_pad), values, axis=1)
+    scratch = Scratch()
+
+    def stolt(rows: slice) -> None:  # row block: Stolt interpolation, factors, range IFFT -> image rows
+        shape = (rows.stop - rows.start, int(n_valid[rows].max()))
+        kq = np.add(k0f[rows, None], np.arange(shape[1], dtype=np.float64),
+                    out=scratch.get("kq", shape, np.float64))  # output bin k, float64
+        q = np.multiply(kq, df_out, out=scratch.get("q", shape, np.float64))
+        np.minimum(q, q_hi[rows, None], out=q)  # beyond a row's band (discarded below): clamp into it
+        f_tau = np.multiply(q, q, out=scratch.get("f_tau", shape, np.float64))
+        f_tau += alpha2[rows, None]
+        np.sqrt(f_tau, out=f_tau)  # f0 + f_tau = sqrt(q^2 + alpha^2)
+        gain = scratch.get("gain", shape, np.float32)
+        np.divide(q, f_tau, out=gain)  # Stolt Jacobian q / (f0 + f_tau)
+        f_tau -= f0
+        pos = np.multiply(f_tau, 1.0 / df, out=q)
+        pos += n_pad / 2
+        values = interp(spec[rows], pos, out=scratch.get("values", shape, np.complex64))
+        gain *= row_gain[rows, None]
+        if w_r[0] != "rect":  # (rect: every kept bin lies in |f_tau| <= B/2)
+            gain *= _band_weights(w_r, f_tau, bw).astype(np.float32)
+        kq *= range_cycles_per_bin  # phase in cycles, float64: k df_out 2 R_start / c - f_tau tau_ref + row
+        f_tau *= tau_ref
+        kq -= f_tau
+        kq += row_cycles[rows, None]
+        _multiply_cis(values, kq, gain, scratch)
+        out = scratch.get("out", (shape[0], n_out), np.complex64)
+        out[...] = 0
+        for i, r in enumerate(range(rows.start, rows.stop)):  # bin k to FFT column k mod n_out
+            first, count = int(k0[r] % n_out), int(n_valid[r])
+            stop = min(first + count, n_out)
+            out[i, first:stop] = values[i, :stop - first]
+            out[i, :count - (stop - first)] = values[i, stop - first:count]
+        out = scipy.fft.ifft(out, axis=1, overwrite_x=True, workers=1)  # column m at grid.range[m]
+        np.multiply(out[:, :n_r], amplitude, out=image[rows])
 
     blocks = [slice(i, min(i + _BLOCK_ROWS, n_a)) for i in range(0, n_a, _BLOCK_ROWS)]
-    if workers > 1:
-        with ThreadPoolExecutor(workers) as pool:
-            list(pool.map(run_block, blocks))
-    else:
-        for block in blocks:
-            run_block(block)
-
-    # ---- 4. range IFFT (column m at grid.range[m]), amplitude vs range, azimuth IFFT
-    image = scipy.fft.ifft(spec, axis=1, workers=workers, overwrite_x=True)[:, :n_r]
-    image *= np.sqrt(geo.reference_range / grid.range).astype(np.float32)
-    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True).astype(np.complex64, copy=False)
+    with ThreadPoolExecutor(workers) if workers > 1 else _Serial() as pool:
+        list(pool.map(range_fft, blocks))
+        _store(spec, scipy.fft.fft(spec, axis=0, overwrite_x=True, workers=workers))
+        list(pool.map(stolt, blocks))
+    spec = None  # free the spectrum (n_pulses x n_pad) before the azimuth IFFT
+    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True)
 
     seconds = time.perf_counter() - t_start
     window = f"range={_window_label(*w_r)}, azimuth={_window_label(*w_a)}"
     focus = {"algorithm": "omega-k", "window": window, "taps": int(taps), "kaiser_beta": interp.beta,
-             "oversample": oversample, "n_pad": n_pad, "doppler_bandwidth": band_a,
+             "oversample": oversample, "n_pad": n_pad, "n_out": n_out, "doppler_bandwidth": band_a,
              "geometry": geo.to_dict(), "workers": workers, "seconds": seconds,
-             "interpolation": "Stolt, Kaiser-windowed sinc", "normalisation": "peak = a over the processed band"}
+             "interpolation": "Stolt, deconvolved Kaiser-Bessel kernel",
+             "interpolation_error_bound": interp.error_bound, "normalisation": "peak = a over the processed band"}
     return _make_image(raw, grid, image, "omega-k", window, focus)
+
+
+def _output_length(raw: RawData, q_lo: np.ndarray, q_hi: np.ndarray, r_start: float) -> int:
+    """Range FFT length of the Stolt output (its bins are ``fs / n_out`` apart).
+
+    Data at fast time ``tau`` and Doppler row ``alpha`` focus at the closest-approach range
+    ``c tau / 2 * q / sqrt(q^2 + alpha^2)`` (``q`` over the row's band), i.e. at output
+    sample ``m = fs (tau q / sqrt(q^2 + alpha^2) - 2 R_start / c)``; the extreme corners
+    (first and last fast time, band edges) bound that support. The output must hold it
+    without wrapping onto ``[0, n_samples)``, plus ``_guard(n_samples)`` samples over which
+    the range sidelobes of edge targets decay before they wrap onto the other edge.
+    """
+    fs, f0, bw, n_r = raw.fs, raw.fc, raw.bandwidth, raw.n_samples
+    # q / sqrt(q^2 + alpha^2) increases with q: its extremes are at the band edges, where sqrt(...) = f0 -+ B/2
+    d_lo = np.min(q_lo / (f0 - bw / 2))
+    d_hi = np.max(q_hi / (f0 + bw / 2))
+    m_min = fs * (raw.fast_time[0] * d_lo - 2.0 * r_start / C)
+    m_max = fs * (raw.fast_time[-1] * d_hi - 2.0 * r_start / C)
+    need = max(m_max + 1.0, n_r) - min(m_min, 0.0)
+    return int(scipy.fft.next_fast_len(int(np.ceil(need)) + _guard(n_r)))
+
+
+def _guard(n_samples: int) -> int:
+    """Range samples of the Stolt output beyond the data's focused support (module docstring)."""
+    return max(_GUARD_MIN, n_samples // _GUARD_FRACTION)
+
+
+class _Serial:
+    """Stand-in for a thread pool when ``workers == 1``: maps in the calling thread."""
+
+    def __enter__(self) -> "_Serial":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        return None
+
+    @staticmethod
+    def map(fn: Any, items: Any) -> Any:
+        return map(fn, items)
+
+
+def _store(dest: np.ndarray, result: np.ndarray) -> None:
+    """Make ``dest`` hold ``result`` (an in-place FFT's output; copied only if it was not in place)."""
+    if not np.may_share_memory(dest, result):
+        dest[...] = result
+
+
+def _multiply_cis(values: np.ndarray, cycles: np.ndarray, gain: np.ndarray, scratch: Scratch) -> None:
+    """``values *= gain * exp(j 2 pi cycles)`` in place: ``cycles`` float64 (overwritten),
+    reduced modulo 1 in float64 before the float32 cos/sin (phases of 1e8 rad stay exact)."""
+    cycles -= np.round(cycles, out=scratch.get("round", cycles.shape, np.float64))
+    cycles *= 2.0 * np.pi
+    ang = scratch.get("angle", cycles.shape, np.float32)
+    np.copyto(ang, cycles, casting="same_kind")
+    factor = scratch.get("factor", cycles.shape, np.complex64)
+    part = np.cos(ang, out=scratch.get("part", cycles.shape, np.float32))
+    part *= gain
+    factor.real = part
+    np.sin(ang, out=part)
+    part *= gain
+    factor.imag = part
+    values *= factor
 
 
 # ============================================================================ shared with rda
