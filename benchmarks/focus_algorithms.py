@@ -216,7 +216,8 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    bench_main(__doc__, run, checks, quick_help="airborne case only (< 60 s)", tiny_help="the three default settings only (smoke test)")
+    bench_main(__doc__, run, checks, quick_help="airborne case only (< 60 s)",
+               tiny_help="the three default settings only (smoke test)")
 
 
 if __name__ == "__main__":

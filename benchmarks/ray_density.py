@@ -186,7 +186,8 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    bench_main(__doc__, run, checks, quick_help="fewer spacings (< 60 s)", tiny_help="two spacings per case (smoke test)")
+    bench_main(__doc__, run, checks, quick_help="fewer spacings (< 60 s)",
+               tiny_help="two spacings per case (smoke test)")
 
 
 if __name__ == "__main__":

@@ -285,7 +285,8 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 
 
 def main() -> None:
-    bench_main(__doc__, run, checks, quick_help="1, 2, 16 buildings; small sweeps (< 60 s)", tiny_help="a 64 m city and small images (smoke test)")
+    bench_main(__doc__, run, checks, quick_help="1, 2, 16 buildings; small sweeps (< 60 s)",
+               tiny_help="a 64 m city and small images (smoke test)")
 
 
 if __name__ == "__main__":
