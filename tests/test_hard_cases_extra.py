@@ -466,7 +466,10 @@ def test_ctrl_c_while_tracing_exits_130_and_leaves_no_truncated_output(tmp_path)
         proc = subprocess.Popen(
             [sys.executable, "-m", "sarmitsuba", "render", "urban", "--out", str(out),
              "--ray-spacing", str(spacing)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            # a shell's background job (CI runners, nohup ... &) inherits SIGINT ignored, and then
+            # Python installs no KeyboardInterrupt handler: give the child the default disposition
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         seen, tracing = [], threading.Event()
 
         def read(stream=proc.stderr):
