@@ -127,7 +127,7 @@ def _spotlight(loaded: "LoadedScene") -> Effect:
 
 
 def _squint(loaded: "LoadedScene") -> Effect:
-    squint = getattr(loaded.params, "squint", 0.0)     # sensors without a squint parameter are broadside
+    squint = loaded.params.squint
     if squint != 0:
         return Effect("squint", True, f"sensor squint = {squint:g} deg: beam {'ahead' if squint > 0 else 'behind'}"
                                       " of broadside, Doppler centroid off zero")
