@@ -318,8 +318,13 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     kernel = _Kernel(scene, params, window, footprint, settings, material_table)
     for p0 in tqdm(range(0, n_pulses, per_batch), desc="trace", unit="batch", disable=not progress):
         p1 = min(n_pulses, p0 + per_batch)
-        out = kernel(geometry.positions[p0:p1], r_near[p0:p1], lref[p0:p1], offset[p0:p1],
-                     footprint.k0[p0:p1])
+        try:
+            out = kernel(geometry.positions[p0:p1], r_near[p0:p1], lref[p0:p1], offset[p0:p1],
+                         footprint.k0[p0:p1])
+        except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces the loop body
+            if _caused_by_interrupt(exc):
+                raise KeyboardInterrupt from exc
+            raise
         if exact:
             paths.append(_offset_pulses(out["paths"], p0))
         else:
@@ -335,6 +340,17 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                        deposit_per_order=deposit if settings.split_bounces and not exact else None,
                        carried_power_per_order=carried, paths=PathList.concatenate(paths) if exact else None,
                        split=settings.split_bounces)
+
+
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the exception's cause/context chain."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _offset_pulses(paths: PathList, p0: int) -> PathList:

@@ -584,3 +584,18 @@ def test_fresnel_is_continuous_near_vacuum_and_toward_pec():
                 step_coarse, step_fine = np.abs(np.diff(r_coarse)).max(), np.abs(np.diff(r_fine)).max()
                 assert np.all(np.isfinite(r_fine)) and np.abs(r_fine).max() <= 1 + 1e-12
                 assert step_fine < step_coarse / 3 or step_coarse < 1e-9, (eta, model, step_coarse, step_fine)
+
+
+def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch):
+    """Dr.Jit wraps an exception raised while it traces the bounce loop's body in a RuntimeError;
+    a Ctrl-C landing there must still reach the CLI as KeyboardInterrupt (exit 130), not as a
+    crash with exit code 1."""
+    from sarmitsuba import trace as trace_module
+    from sarmitsuba.pipeline import simulate
+
+    def interrupted(self, *args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(trace_module._Kernel, "_bounce", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        simulate("trihedral", sensor_overrides={"n_pulses": 4}, integrator_overrides={"max_depth": 3})
