@@ -270,3 +270,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted: no output file was left half-written", file=sys.stderr)
         return 130
+    except RuntimeError as exc:          # a Ctrl-C that Dr.Jit wrapped while tracing a loop
+        from .trace import _caused_by_interrupt
+        if not _caused_by_interrupt(exc):
+            raise
+        print("interrupted: no output file was left half-written", file=sys.stderr)
+        return 130
