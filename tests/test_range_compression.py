@@ -17,6 +17,7 @@ from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus import windows as w
 from sarmitsuba.focus.range_compression import apply_range_window, chirp_spectrum, range_compress
 from sarmitsuba.synthetic import PointTarget, simulate_point_targets, straight_track
+from test_backprojection import _width
 
 FC = 9.6e9
 B = 150e6
@@ -62,15 +63,7 @@ def measure(line, fs, factor=64):
     k = int(np.argmax(power))
     y0, y1, y2 = np.log(power[k - 1:k + 2])
     frac = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
-    half = power[k] / 2
-    lo = k
-    while power[lo - 1] > half:
-        lo -= 1
-    hi = k
-    while power[hi + 1] > half:
-        hi += 1
-    width = (hi - lo + (power[lo] - half) / (power[lo] - power[lo - 1])
-             + (power[hi] - half) / (power[hi] - power[hi + 1])) / (fs * factor)
+    width = _width(power, k) / (fs * factor)
     nl = k
     while power[nl - 1] < power[nl]:
         nl -= 1

@@ -60,35 +60,21 @@ def test_missing_file_is_a_clear_error(tmp_path):
         load_scene(str(tmp_path / "nope.xml"))
 
 
-def test_malformed_xml_is_a_clear_error(tmp_path):
-    bad = tmp_path / "bad.xml"
-    bad.write_text("<scene version='3.0.0'><shape type='rectangle'>")
-    with pytest.raises(SceneError, match="cannot load scene"):
-        load_scene(str(bad))
-
-
-def test_missing_mesh_file_is_a_clear_error(tmp_path):
-    xml = tmp_path / "mesh.xml"
-    xml.write_text("<scene version='3.0.0'><bsdf type='radar' id='m'><string name='model' value='pec'/></bsdf>"
-                   "<shape type='ply'><string name='filename' value='missing.ply'/><ref id='m'/></shape></scene>")
-    with pytest.raises(SceneError, match="missing.ply"):
-        load_scene(str(xml))
-
-
-def test_misspelt_sensor_parameter_names_valid_ones(tmp_path):
-    xml = tmp_path / "typo.xml"
-    xml.write_text("<scene version='3.0.0'><sensor type='sar'><float name='frequncy' value='9e9'/></sensor>"
-                   "<shape type='rectangle'/></scene>")
-    with pytest.raises(SceneError, match="unknown parameter 'frequncy'.*frequency"):
-        load_scene(str(xml))
-
-
-def test_unknown_material_name_lists_valid_ones(tmp_path):
-    xml = tmp_path / "mat.xml"
-    xml.write_text("<scene version='3.0.0'><bsdf type='radar' id='m'><string name='material' value='cheese'/>"
-                   "</bsdf><shape type='rectangle'><ref id='m'/></shape></scene>")
-    with pytest.raises(SceneError, match="unknown ITU material 'cheese'.*concrete"):
-        load_scene(str(xml))
+@pytest.mark.parametrize("xml, message", [
+    ("<scene version='3.0.0'><shape type='rectangle'>", "cannot load scene"),          # malformed XML
+    ("<scene version='3.0.0'><bsdf type='radar' id='m'><string name='model' value='pec'/></bsdf>"
+     "<shape type='ply'><string name='filename' value='missing.ply'/><ref id='m'/></shape></scene>", "missing.ply"),
+    ("<scene version='3.0.0'><sensor type='sar'><float name='frequncy' value='9e9'/></sensor>"
+     "<shape type='rectangle'/></scene>", "unknown parameter 'frequncy'.*frequency"),
+    ("<scene version='3.0.0'><bsdf type='radar' id='m'><string name='material' value='cheese'/>"
+     "</bsdf><shape type='rectangle'><ref id='m'/></shape></scene>", "unknown ITU material 'cheese'.*concrete"),
+], ids=["malformed-xml", "missing-mesh", "misspelt-sensor-parameter", "unknown-material"])
+def test_bad_scene_file_is_a_clear_error(tmp_path, xml, message):
+    """Each names what is wrong (and, for names, the valid ones)."""
+    path = tmp_path / "bad.xml"
+    path.write_text(xml)
+    with pytest.raises(SceneError, match=message):
+        load_scene(str(path))
 
 
 def test_shape_without_radar_material_is_rejected(tmp_path):
