@@ -44,9 +44,13 @@
    - Alternative to ``n_pulses``: track length; n_pulses = aperture_length * prf / velocity.
  * - azimuth_beamwidth
    - float, deg
-   - Full azimuth width of the illuminated beam. Default 0 = automatic: 1.0 for an ideal,
-     uniformly illuminated beam (azimuth resolution lambda / (2 beta)), or the main lobe
-     between first nulls with ``antenna_length``.
+   - Azimuth 3 dB beamwidth beta of the default tapered beam (the two-way sinc^2 pattern of
+     the aperture of that width, traced to its first nulls), or the full width of a
+     ``uniform`` beam. Default 0 = automatic: 1.0, or the 3 dB width of ``antenna_length``.
+ * - beam
+   - string
+   - ``tapered`` (default; no hard beam edge) or ``uniform`` (hard-edged, uniformly
+     illuminated beam of width ``azimuth_beamwidth``; on request only).
  * - mode
    - string
    - ``stripmap`` (default) or ``spotlight`` (beam steered at the scene centre; automatic

@@ -160,7 +160,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
                             {**metadata, "bounce_order": k}) for k in range(1, result.n_orders + 1))
     t["bin"] = time.perf_counter()
     geometry = world
-    beam = params.azimuth_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
+    beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=beam,  # noqa: E731
                                               squint=params.squint, progress=progress), params, geometry)
     image = focus(raw)
@@ -299,7 +299,7 @@ def _metadata_grid(raw: RawData):
     except (KeyError, TypeError, ValueError):
         return None, None, None, 0.0
     geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
-    beam = params.azimuth_beamwidth if params.mode == "stripmap" else None
+    beam = params.traced_beamwidth if params.mode == "stripmap" else None
     return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint
 
 

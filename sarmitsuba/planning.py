@@ -74,7 +74,7 @@ def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tup
     At broadside it is ``-/+ R_far tan(beta / 2)``."""
     ranges = _closest_ranges(params, lo, hi)
     r = (max(0.0, float(ranges.min()) - float(np.linalg.norm(hi - lo))), float(ranges.max()))
-    half, squint = math.radians(params.azimuth_beamwidth) / 2.0, math.radians(params.squint)
+    half, squint = params.traced_half_angle, math.radians(params.squint)
     return (min(x * math.tan(squint - half) for x in r), max(x * math.tan(squint + half) for x in r))
 
 
@@ -141,8 +141,7 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     a_lo, a_hi = beam_offsets(params, lo, hi)
     if params.mode == "spotlight":        # the beam stays on the scene centre: a fixed patch
         r_far = _far_range(params, lo, hi)
-        a_lo, a_hi = -r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0), \
-            r_far * math.tan(math.radians(params.azimuth_beamwidth) / 2.0)
+        a_lo, a_hi = -r_far * math.tan(params.traced_half_angle), r_far * math.tan(params.traced_half_angle)
     width = a_hi - a_lo + 2 * s
     # per pulse, only the overlap of the beam with the scene's along-track extent is sampled
     extent = float(along.max() - along.min()) + 2 * s

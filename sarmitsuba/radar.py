@@ -19,7 +19,11 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 
-__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError"]
+__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC"]
+
+#: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
+#: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
+HALF_POWER_SINC = 0.44294647
 
 
 class ParameterError(ValueError):
@@ -59,10 +63,20 @@ class RadarParameters:
     n_pulses : int
         Number of pulses; 0 = enough to illuminate the whole scene (resolved by the loader).
     azimuth_beamwidth : float, deg
-        Full azimuth width of the illuminated beam; rays are shot, and pulses backprojected,
-        over this footprint only. 0 (default) = automatic: 1.0 deg (an ideal, uniform beam;
-        azimuth resolution lambda / (2 beta) = 0.9 m at X-band), or with ``antenna_length``
-        the main lobe between its first nulls, ``2 asin(lambda / L_a)``.
+        Azimuth beamwidth ``beta``. With ``beam = "tapered"`` (default) it is the one-way 3 dB
+        width of the uniform aperture whose two-way pattern weights the echoes
+        (:attr:`pattern_length`), and rays are traced, and pulses backprojected, out to that
+        pattern's first nulls (:attr:`beam_sines`, about ``2.26 beta`` wide); with
+        ``beam = "uniform"`` it is the full width of a hard-edged, uniformly illuminated beam.
+        0 (default) = automatic: ``2 asin(0.443 lambda / L_a)`` with ``antenna_length``,
+        else 1.0 deg. docs/physics.md (A).
+    beam : str
+        ``"tapered"`` (default): the two-way pattern ``sinc^2(L sin(phi) / lambda)`` of an
+        aperture of length ``L`` = ``antenna_length``, or of the aperture whose 3 dB width is
+        ``azimuth_beamwidth``, traced to its first nulls (no hard beam edge). ``"uniform"``:
+        a hard-edged beam of full width ``azimuth_beamwidth`` with no pattern, on request
+        only (extended targets streak along azimuth beyond their ends); needs
+        ``antenna_length = 0``.
     polarization : str
         ``"VV"`` or ``"HH"`` (scalar single-polarisation model).
     antenna_length, antenna_height : float, m
@@ -124,6 +138,7 @@ class RadarParameters:
     output: str = "compressed"
     mode: str = "stripmap"
     squint: float = 0.0
+    beam: str = "tapered"
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -146,10 +161,22 @@ class RadarParameters:
         if self.losses_db < 0 or (self.noise_figure_db is not None and self.noise_figure_db < 0):
             raise ParameterError(f"losses_db = {self.losses_db} and noise_figure_db = {self.noise_figure_db} "
                                  "must be >= 0 dB")
+        if self.beam not in ("tapered", "uniform"):
+            raise ParameterError(f"beam = {self.beam!r}; valid values are 'tapered' and 'uniform'")
+        if self.beam == "uniform" and self.antenna_length > 0:
+            raise ParameterError(f"beam = 'uniform' ignores the pattern of antenna_length = {self.antenna_length} m: "
+                                 "remove antenna_length, or use beam = 'tapered'")
         if self.azimuth_beamwidth == 0:
-            beam = (math.degrees(2.0 * math.asin(SPEED_OF_LIGHT / self.frequency / self.antenna_length))
+            beam = (math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency
+                                                 / self.antenna_length))
                     if self.antenna_length > 0 else 1.0)
             object.__setattr__(self, "azimuth_beamwidth", beam)
+        elif self.antenna_length > 0:
+            own = math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency / self.antenna_length))
+            if not math.isclose(self.azimuth_beamwidth, own, rel_tol=1e-3):
+                raise ParameterError(
+                    f"azimuth_beamwidth = {self.azimuth_beamwidth:g} deg disagrees with antenna_length = "
+                    f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them")
         _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
                   "velocity", "altitude", "azimuth_beamwidth")
         if not 0.0 < self.incidence_angle < 90.0:
@@ -171,6 +198,11 @@ class RadarParameters:
             raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
         if not 0.0 < self.azimuth_beamwidth < 90.0:
             raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is outside (0, 90) deg")
+        if self.beam == "tapered" and self.antenna_length == 0 and \
+                math.sin(math.radians(self.azimuth_beamwidth) / 2.0) / HALF_POWER_SINC >= 1.0:
+            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is too wide for a tapered beam "
+                                 f"(its first nulls would pass 90 deg): use at most "
+                                 f"{math.degrees(2 * math.asin(HALF_POWER_SINC * 0.99)):.1f} deg, or beam = 'uniform'")
         if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
             raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
         if self.scene_center is not None and (len(self.scene_center) != 3
@@ -199,13 +231,39 @@ class RadarParameters:
         return self.slant_range_resolution / math.sin(math.radians(self.incidence_angle))
 
     @property
+    def pattern_length(self) -> float:
+        """Length ``L`` [m] of the uniform aperture whose two-way azimuth pattern
+        ``sinc^2(L sin(phi) / lambda)`` weights the echoes: ``antenna_length``, or for the tapered
+        default beam ``L = 0.443 lambda / sin(beta / 2)`` (3 dB width ``beta`` =
+        ``azimuth_beamwidth``); 0 for ``beam = "uniform"``. docs/physics.md (A)."""
+        if self.antenna_length > 0:
+            return self.antenna_length
+        if self.beam == "uniform":
+            return 0.0
+        return HALF_POWER_SINC * self.wavelength / math.sin(math.radians(self.azimuth_beamwidth) / 2.0)
+
+    @property
+    def traced_half_angle(self) -> float:
+        """Half-width [rad] of the traced (and backprojected) beam about its centre: the
+        pattern's first null ``asin(lambda / L)``, or ``beta / 2`` for a uniform beam."""
+        if self.pattern_length > 0:
+            return math.asin(self.wavelength / self.pattern_length)
+        return math.radians(self.azimuth_beamwidth) / 2.0
+
+    @property
+    def traced_beamwidth(self) -> float:
+        """Full width [deg] of the traced beam, ``2 traced_half_angle``."""
+        return math.degrees(2.0 * self.traced_half_angle)
+
+    @property
     def azimuth_resolution(self) -> float:
-        """Stripmap azimuth resolution [m]: ``lambda / (2 beta_az)`` for an ideal beam of width
-        beta_az; ``L_a / 2`` with an antenna pattern (Cumming and Wong 2005, eq. 4.37)."""
+        """Stripmap azimuth resolution [m]: ``L / 2`` for an aperture of length ``L``
+        (:attr:`pattern_length`; Cumming and Wong 2005, eq. 4.37), ``lambda / (2 beta)`` for a
+        uniform beam of width ``beta``; spotlight: ``lambda / (2 dtheta)``."""
         if self.mode == "spotlight" and self.n_pulses > 0:
             return self.wavelength / (2.0 * self.integration_angle)
-        if self.antenna_length > 0:
-            return self.antenna_length / 2.0
+        if self.pattern_length > 0:
+            return self.pattern_length / 2.0
         return self.wavelength / (2.0 * math.radians(self.azimuth_beamwidth))
 
     @property
@@ -225,24 +283,27 @@ class RadarParameters:
 
     @property
     def footprint_length(self) -> float:
-        """Azimuth extent of the beam footprint at the scene centre [m]: ``2 R tan(beta/2)``."""
-        return 2.0 * self.slant_range * math.tan(math.radians(self.azimuth_beamwidth) / 2.0)
+        """Azimuth extent of the traced beam footprint at the scene centre [m]:
+        ``2 R tan(traced_half_angle)``."""
+        return 2.0 * self.slant_range * math.tan(self.traced_half_angle)
 
     @property
     def beam_sines(self) -> tuple[float, float]:
-        """Along-track sines ``(sin(squint - beta/2), sin(squint + beta/2))`` bounding the ideal
-        stripmap beam: a direction ``u`` from the antenna is in the beam when ``u . track``
-        lies between them."""
-        half = math.radians(self.azimuth_beamwidth) / 2.0
+        """Along-track sines ``(sin(squint - h), sin(squint + h))`` bounding the traced
+        stripmap beam, ``h`` = :attr:`traced_half_angle`: a direction ``u`` from the antenna
+        is in the beam when ``u . track`` lies between them."""
+        half = self.traced_half_angle
         squint = math.radians(self.squint)
         return math.sin(squint - half), math.sin(squint + half)
 
     @property
     def doppler_bandwidth(self) -> float:
-        """Azimuth Doppler bandwidth ``2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda`` [Hz] of
-        the ideal beam (``4 v sin(beta/2) / lambda`` at broadside)."""
-        lo, hi = self.beam_sines
-        return 2.0 * self.velocity * (hi - lo) / self.wavelength
+        """Azimuth Doppler bandwidth ``2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda`` [Hz]
+        of the beam's 3 dB width ``beta`` (the full width of a uniform beam); ``4 v sin(beta/2) / lambda``
+        at broadside. The PRF must exceed it (Cumming and Wong 2005, eq. 4.36)."""
+        half = math.radians(self.azimuth_beamwidth) / 2.0
+        squint = math.radians(self.squint)
+        return 2.0 * self.velocity * (math.sin(squint + half) - math.sin(squint - half)) / self.wavelength
 
     @property
     def doppler_centroid(self) -> float:
@@ -308,7 +369,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization", "output", "mode"):
+            elif name in ("look_side", "polarization", "output", "mode", "beam"):
                 out[name] = str(value)
             else:
                 out[name] = float(value)

@@ -408,7 +408,7 @@ class _Kernel:
         self.fp = footprint
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
-        half = math.sin(0.5 * math.radians(params.azimuth_beamwidth))
+        half = math.sin(params.traced_half_angle)
         # along-track sines bounding the beam: squinted stripmap, or spotlight relative to the centre
         self.beam_sines = params.beam_sines if params.mode == "stripmap" else (-half, half)
         self.spotlight = params.mode == "spotlight"
@@ -421,7 +421,7 @@ class _Kernel:
         # absolute radiometry: 1 / (R_tx R_rx) spreading, relative to the pulse's R_ref^2 (eq. (R1))
         self.radiometry = params.transmit_power is not None
         # antenna pattern (an effect: absent from the kernel unless the sensor has dimensions)
-        self.pattern = params.antenna_length > 0 or params.antenna_height > 0
+        self.pattern = params.pattern_length > 0 or params.antenna_height > 0
         if self.pattern:
             boresight = footprint.look * params.ground_range - np.array([0.0, 0.0, params.altitude])
             boresight /= np.linalg.norm(boresight)
@@ -429,7 +429,7 @@ class _Kernel:
             squint = math.radians(params.squint) if params.mode == "stripmap" else 0.0
             self.track = (math.cos(squint) * footprint.track - math.sin(squint) * boresight).tolist()
             self.elevation_axis = np.cross(footprint.track, boresight).tolist()
-            self.length_in_wavelengths = params.antenna_length / params.wavelength
+            self.length_in_wavelengths = params.pattern_length / params.wavelength
             self.height_in_wavelengths = params.antenna_height / params.wavelength
         if self.clutter:
             self.clutter_kind = mi.UInt32(material_table.clutter[:, 0].astype(np.uint32))
