@@ -38,8 +38,14 @@ Definitions (every report field carries its unit):
   ``energy_extent`` first-null distances of the peak on each axis (a box), minus the mean
   clutter power of the four ``chip/8``-square chip corners times the box's pixel count.
   Unit: m^2 times the image's intensity unit (m^2 x m^2 in normalised radiometry).
-  **RCS** ``= integrated_energy / (rho_az rho_rg)`` when the energy widths ``resolution``
-  are given (for a rect spectrum the reciprocal bandwidths, ``IRW / 0.886``).
+  **RCS** ``= integrated_energy / (rho_E,az rho_E,rg)``, with ``rho_E`` the energy widths
+  ``int |h|^2`` of the unit-peak impulse response along each axis: given as ``resolution``, or
+  derived from the image metadata by :func:`energy_widths` (docs/physics.md (K2)), so that the
+  same target reads the same RCS whatever the focusing window.
+* **Target position**: a world point (3 numbers) is looked for where the focuser puts it,
+  :func:`image_coordinates`: at the intersection of its zero-Doppler plane with the image
+  plane, at its closest-approach slant range from the straight track (a point above a
+  ground-plane image lays over toward the sensor, docs/physics.md (G2)).
 
 References
 ----------
@@ -50,6 +56,11 @@ References
 .. [3] A. L. Gray, P. W. Vachon, C. E. Livingstone and T. I. Lukowski, "Synthetic aperture
    radar calibration using reference reflectors", IEEE TGRS 28(3), 374-383, 1990
    (integral method).
+.. [4] I. G. Cumming and F. H. Wong, *Digital Processing of Synthetic Aperture Radar Data*,
+   Artech House, 2005 (sections 2.6 and 4.5: window broadening, Doppler bandwidth and
+   azimuth resolution; section 4.2: zero-Doppler geometry).
+.. [5] W. G. Carrara, R. S. Goodman and R. M. Majewski, *Spotlight Synthetic Aperture Radar*,
+   Artech House, 1995, appendix D (Taylor weighting).
 """
 from __future__ import annotations
 
@@ -57,7 +68,7 @@ import argparse
 import json
 import math
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -66,8 +77,8 @@ import scipy.optimize
 from .constants import SPEED_OF_LIGHT
 from .image import SarImage
 
-__all__ = ["PointTargetReport", "analyze_point_target", "carrier_ramp", "image_coordinates",
-           "add_arguments", "run", "main"]
+__all__ = ["PointTargetReport", "analyze_point_target", "carrier_ramp", "image_coordinates", "layover_position",
+           "energy_widths", "integrated_rcs", "add_arguments", "run", "main"]
 
 
 # ============================================================================ report
@@ -128,11 +139,19 @@ class PointTargetReport:
     energy_extent : float
         Half-size of the energy box, in first-null distances.
     rcs : float or None, m^2
-        ``integrated_energy / (rho_az rho_rg)`` when ``resolution`` was given.
+        ``integrated_energy / (rho_az rho_rg)`` when the energy widths are known (given as
+        ``resolution``, or from the image metadata, :func:`energy_widths`).
     rcs_db : float or None, dBsm
         ``10 log10(rcs)``.
     chip, oversample : int
         Chip size [pixels] and oversampling factor used.
+    energy_width_azimuth, energy_width_range : float or None, m
+        The energy widths ``rho_az``, ``rho_rg`` the RCS was divided by.
+    energy_fraction : float or None
+        With energy widths from the metadata: the share of the unit-peak response's energy
+        inside the integration box (model of :func:`energy_widths`), also divided out, so that
+        a rect image's sidelobes beyond the box do not bias its RCS low (None when
+        ``resolution`` was given: then nothing is assumed about the response's shape).
     """
 
     azimuth: float
@@ -172,6 +191,9 @@ class PointTargetReport:
     rcs_db: float | None
     chip: int
     oversample: int
+    energy_width_azimuth: float | None = None
+    energy_width_range: float | None = None
+    energy_fraction: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable dict of all fields (floats, ints, strings, lists, None)."""
@@ -199,21 +221,28 @@ def _axis_step(name: str, axis: np.ndarray) -> float:
     return d
 
 
-def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray) -> tuple[float, float]:
-    """``(azimuth, range)`` image coordinates [m] of a world point or of a coordinate pair.
+def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray, *,
+                      layover: bool = True) -> tuple[float, float]:
+    """``(azimuth, range)`` image coordinates [m] where a world point appears, or a coordinate pair.
 
     Parameters
     ----------
     image : SarImage
     point : 3 floats (world position, m) or 2 floats (azimuth, range in m)
-        A world point is projected on the image axes:
-        ``((x - origin) . azimuth_direction, (x - origin) . range_direction)``. For a
-        slant-plane image pass image coordinates unless the point lies in the image plane.
+        A world point is mapped through the range / zero-Doppler geometry when the image
+        metadata record the straight track (``metadata["focus"]["track"]`` of a
+        backprojected image, or sarmitsuba's ``metadata["radar"]``): see
+        :func:`layover_position`. Otherwise, or with ``layover=False``, it is projected
+        orthogonally on the image axes, ``((x - origin) . azimuth_direction,
+        (x - origin) . range_direction)``. Both agree for a point on the image plane.
+    layover : bool, default True
+        Map world points through the imaging geometry when it is known.
 
     Raises
     ------
     ValueError
-        When ``point`` is not 2 or 3 finite numbers.
+        When ``point`` is not 2 or 3 finite numbers, or the point's closest-approach circle
+        does not meet the image plane.
     """
     p = np.asarray(point, dtype=np.float64).reshape(-1)
     if p.size not in (2, 3) or not np.all(np.isfinite(p)):
@@ -221,8 +250,112 @@ def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray) -> t
                          f"got {point!r}")
     if p.size == 2:
         return float(p[0]), float(p[1])
+    if layover and _track_of(image) is not None:
+        return layover_position(image, p)
     rel = p - image.origin
     return float(rel @ image.azimuth_direction), float(rel @ image.range_direction)
+
+
+def _track_of(image: SarImage) -> tuple[np.ndarray, np.ndarray] | None:
+    """(a point of the straight track, its unit direction), float64 [3] each, from the image
+    metadata: the backprojection's ``focus["track"]`` (mid-aperture transmitter, unit velocity),
+    else the acquisition geometry of sarmitsuba's ``radar`` parameters; None when neither."""
+    meta = image.metadata if isinstance(image.metadata, dict) else {}
+    track = (meta.get("focus") or {}).get("track") if isinstance(meta.get("focus"), dict) else None
+    try:
+        if track and track.get("direction") is not None:
+            point = np.asarray(track["position"], float).reshape(3)
+            direction = np.asarray(track["direction"], float).reshape(3)
+            if np.all(np.isfinite(point)) and np.all(np.isfinite(direction)) and np.linalg.norm(direction) > 0:
+                return point, direction / np.linalg.norm(direction)
+    except (TypeError, ValueError, KeyError):
+        pass
+    params = _radar_of(image)
+    if params is None:
+        return None
+    from .radar import acquisition_geometry
+    geometry = acquisition_geometry(replace(params, n_pulses=max(params.n_pulses, 1)))
+    return geometry.positions[len(geometry.positions) // 2], geometry.track_direction
+
+
+def _radar_of(image: SarImage):
+    """The RadarParameters recorded in the image metadata (sarmitsuba renders), or None."""
+    meta = image.metadata if isinstance(image.metadata, dict) else {}
+    if not isinstance(meta.get("radar"), dict):
+        return None
+    from .radar import RadarParameters
+    try:
+        params = RadarParameters.from_mapping({k: v for k, v in meta["radar"].items() if v is not None})
+    except (TypeError, ValueError, KeyError):
+        return None
+    return params if params.scene_center is not None else None
+
+
+def layover_position(image: SarImage, point: Sequence[float] | np.ndarray) -> tuple[float, float]:
+    """``(azimuth, range)`` image coordinates [m] at which a focuser puts a world point.
+
+    For a straight track (point ``A``, unit direction ``t``, from the image metadata, see
+    :func:`image_coordinates`), every point of the circle about the track through ``X`` has the
+    same range history as ``X``: the same closest-approach range ``R0 = |X - F|``, at the same
+    along-track position ``F = A + ((X - A) . t) t`` (its zero-Doppler point). A focuser matched
+    to that history (backprojection, omega-K) therefore images ``X`` where this circle meets the
+    image plane, on ``X``'s side of the track: ``Q = origin + a e_az + r e_rg`` with
+    ``(Q - F) . t = 0`` and ``|Q - F| = R0`` (Cumming and Wong 2005, section 4.2). For a point at
+    height ``h`` above a flat ground-plane image, a track at height ``H`` and ground distance ``Y``
+    this is the layover ``sqrt(Y^2 - 2 H h + h^2) ~ Y - h / tan(theta)``: toward the sensor by
+    ``h / tan(theta)`` in ground range (docs/physics.md (G2)). A point on the plane maps to itself.
+
+    Parameters
+    ----------
+    image : SarImage
+        Image whose metadata record the track.
+    point : 3 floats, m
+        World position.
+
+    Returns
+    -------
+    (azimuth, range) : tuple of float, m
+
+    Raises
+    ------
+    ValueError
+        When the metadata record no track, the image plane contains the track direction in
+        neither axis, or the circle does not reach the image plane.
+    """
+    x = np.asarray(point, dtype=np.float64).reshape(-1)
+    if x.size != 3 or not np.all(np.isfinite(x)):
+        raise ValueError(f"point must be 3 finite numbers (world x, y, z in m), got {point!r}")
+    track = _track_of(image)
+    if track is None:
+        raise ValueError("the image metadata record no track (focus['track'] or radar parameters): "
+                         "give the target in image coordinates (azimuth, range)")
+    a_point, t = track
+    foot = a_point + float((x - a_point) @ t) * t
+    r0 = float(np.linalg.norm(x - foot))
+    e_a, e_r = np.asarray(image.azimuth_direction, float), np.asarray(image.range_direction, float)
+    d = np.asarray(image.origin, float) - foot
+    # (d + a e_a + r e_r) . t = 0: a line in (a, r); least-norm point plus a direction along it
+    g = np.array([e_a @ t, e_r @ t])
+    if np.linalg.norm(g) < 1e-12:
+        raise ValueError("the image plane is normal to the track: no zero-Doppler line to map the target onto")
+    base = -float(d @ t) * g / float(g @ g)
+    step = np.array([g[1], -g[0]]) / np.linalg.norm(g)
+    v0 = d + base[0] * e_a + base[1] * e_r
+    v1 = step[0] * e_a + step[1] * e_r
+    qa, qb, qc = float(v1 @ v1), 2.0 * float(v0 @ v1), float(v0 @ v0) - r0 * r0
+    disc = qb * qb - 4.0 * qa * qc
+    if qa <= 0 or disc < 0:
+        raise ValueError(f"the point {x.tolist()} lies {r0:.3f} m from the track, which the image plane does "
+                         "not reach along its zero-Doppler line: it cannot appear in this image")
+    best = None
+    for lam in ((-qb + np.sqrt(disc)) / (2 * qa), (-qb - np.sqrt(disc)) / (2 * qa)):
+        ar = base + lam * step
+        q = d + ar[0] * e_a + ar[1] * e_r                   # Q - F
+        score = float(q @ (x - foot))                       # on the point's side of the track
+        if best is None or score > best[0]:
+            best = (score, ar)
+    a, r = best[1]
+    return float(a), float(r)
 
 
 def carrier_ramp(raw: Any, image: SarImage, point: Sequence[float], *,
@@ -260,6 +393,157 @@ def carrier_ramp(raw: Any, image: SarImage, point: Sequence[float], *,
             + (x - rx) / np.linalg.norm(x - rx, axis=1)[:, None]).mean(axis=0)
     k = 2.0 * np.pi * raw.fc / SPEED_OF_LIGHT * grad
     return float(k @ image.azimuth_direction), float(k @ image.range_direction)
+
+
+# ============================================================================ energy widths
+#: Samples of u in [0, 1] for the azimuth energy-width quadrature (Simpson).
+_QUADRATURE = 8193
+
+
+def energy_widths(image: SarImage, position: Sequence[float] | None = None) -> tuple[float, float]:
+    """Energy widths ``(rho_E,az, rho_E,rg)`` [m] of the image's unit-peak impulse response.
+
+    A point target of RCS ``sigma`` imaged with unit peak gain (peak ``sqrt(sigma)``) carries the
+    integrated energy ``int |I|^2 dA = sigma rho_E,az rho_E,rg`` (docs/physics.md (K2)). By
+    Parseval, for a response ``I(x) = int W(s) exp(j 4 pi s x / lambda) ds / int W ds`` along the
+    track and the range pulse of a window ``w_r`` over the band ``B``:
+
+    * range: ``rho_E,rg = c / (2 B) * energy_width(w_r) / n_r``, with ``energy_width`` of
+      :mod:`sarmitsuba.focus.windows` (``int w^2 / (int w)^2``, 1 for rect, 1.23 for Taylor
+      4 / -35 dB) and ``n_r = n . e_rg`` the projection on the image's range axis of the unit
+      vector ``n`` from the target's zero-Doppler point on the track to the target
+      (``sin(theta_inc)`` for a flat ground-plane image, 1 for a slant-plane one);
+    * azimuth: ``rho_E,az = (lambda / 2) int S(s)^2 cos(phi) ds / (int S(s) ds)^2`` over the
+      along-track sines ``s = sin(phi)`` of the processed beam, ``S = W rho`` the Doppler
+      weighting ``W`` (the azimuth window ``w(u)``, ``u = (s - sin_lo) / (sin_hi - sin_lo)``,
+      times the two-way pattern ``sinc^2(L / lambda * sin(phi - squint))`` when the data carry
+      one) times the pulses' density ``rho ~ cos(phi)^-3`` in ``s`` (a straight track, pulses
+      evenly spaced). ``cos(phi)`` is the Jacobian of the 2-D wavenumber support (range and
+      azimuth frequencies are not orthogonal under squint). For a narrow beam at broadside
+      this is ``(lambda / 2) int W^2 ds / (int W ds)^2``: ``lambda / (4 sin(beta / 2))`` for a
+      uniform beam of width ``beta``, ``energy_width(w)`` times that with a window. Without a
+      beam (spotlight) ``u`` is the pulse's place in the aperture and ``s`` its sine seen from
+      the target.
+
+    Parameters
+    ----------
+    image : SarImage
+        A backprojected image (:func:`sarmitsuba.focus.backproject`), whose
+        ``metadata["focus"]`` records ``fc``, ``bandwidth``, ``window_range``,
+        ``window_azimuth``, ``azimuth_pattern``, ``beam_sines`` and ``track``; image axes
+        along the track and across it.
+    position : 2 floats (azimuth, range image coordinates, m) or 3 (world, m), optional
+        Where the target is (``n_r`` and, without a beam, the sines depend on it); default the
+        image centre.
+
+    Returns
+    -------
+    (rho_E,az, rho_E,rg) : tuple of float, m
+
+    Raises
+    ------
+    ValueError
+        When the metadata lack any of these keys or hold invalid values.
+    """
+    model = _ImpulseModel(image, position)
+    return model.rho_az, model.rho_rg
+
+
+class _ImpulseModel:
+    """The unit-peak impulse response of a backprojected image at one position, from its
+    metadata (see :func:`energy_widths`): energy widths and the energy fraction a box holds."""
+
+    def __init__(self, image: SarImage, position: Sequence[float] | None):
+        from .focus.stripmap import _window_spec
+        from .focus.windows import energy_width, spectral_window
+        focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
+        keys = ("fc", "bandwidth", "window_range", "window_azimuth", "track")
+        if not isinstance(focus, dict) or any(k not in focus for k in keys):
+            raise ValueError(f"energy widths need image.metadata['focus'] with {', '.join(keys)} (a backprojected "
+                             "image); pass resolution=(rho_az, rho_rg) for other images")
+        try:
+            fc, bandwidth = float(focus["fc"]), float(focus["bandwidth"])
+            self.w_rg = _window_spec((focus["window_range"]["name"],
+                                      {k: v for k, v in focus["window_range"].items() if k != "name"}))
+            w_az = _window_spec((focus["window_azimuth"]["name"],
+                                 {k: v for k, v in focus["window_azimuth"].items() if k != "name"}))
+        except (TypeError, KeyError, AttributeError) as exc:
+            raise ValueError(f"image.metadata['focus'] holds no valid windows ({exc})") from None
+        track = _track_of(image)
+        if track is None or not (fc > 0 and bandwidth > 0):
+            raise ValueError("image.metadata['focus'] needs fc > 0, bandwidth > 0 and the track")
+        a_point, t = track
+        if position is None:
+            position = (float(image.azimuth[image.azimuth.size // 2]), float(image.range[image.range.size // 2]))
+        az, rg = image_coordinates(image, position)
+        e_r = np.asarray(image.range_direction, float)
+        q = np.asarray(image.origin, float) + az * np.asarray(image.azimuth_direction, float) + rg * e_r
+        foot = a_point + float((q - a_point) @ t) * t
+        r0 = float(np.linalg.norm(q - foot))
+        n_r = abs(float((q - foot) @ e_r)) / r0 if r0 > 0 else 0.0
+        if n_r < 1e-6:
+            raise ValueError("the image's range axis is normal to the line of sight: no range resolution")
+        self.bandwidth, self.n_r = bandwidth, n_r
+        self.rho_rg = SPEED_OF_LIGHT / (2.0 * bandwidth) * energy_width(self.w_rg[0], **self.w_rg[1]) / n_r
+
+        u = np.linspace(0.0, 1.0, _QUADRATURE)
+        w = spectral_window(w_az[0], u - 0.5, 1.0, **w_az[1])
+        sines = focus.get("beam_sines")
+        if sines is not None:
+            sin_lo, sin_hi = (float(v) for v in sines)
+            sine = sin_lo + u * (sin_hi - sin_lo)
+            slope = np.full_like(u, sin_hi - sin_lo)                      # ds / du
+            amplitude = w / (1.0 - sine ** 2) ** 1.5                      # W rho per du
+            pattern = focus.get("azimuth_pattern")
+            if pattern is not None:
+                squint = np.radians(float(focus.get("squint") or 0.0))
+                amplitude = amplitude * np.sinc(float(pattern) * np.sin(np.arcsin(sine) - squint)) ** 2
+        else:
+            length = float(focus["track"].get("length") or 0.0) if isinstance(focus["track"], dict) else 0.0
+            if not length > 0:
+                raise ValueError("image.metadata['focus']['track'] needs the aperture length for a beamless image")
+            along = float((q - a_point) @ t) - (u - 0.5) * length          # target minus antenna, along track
+            sine = along / np.hypot(along, r0)
+            slope = length * (1.0 - sine ** 2) ** 1.5 / r0                 # |ds / du|
+            amplitude = w
+        self.wavelength = SPEED_OF_LIGHT / fc
+        self.u, self.sine, self.slope, self.amplitude = u, sine, slope, amplitude
+        cos_phi = np.sqrt(1.0 - sine ** 2)
+        self.rho_az = float(0.5 * self.wavelength * _simpson(amplitude ** 2 * cos_phi / slope, u)
+                            / _simpson(amplitude, u) ** 2)
+
+    def fraction(self, half_azimuth: float, half_range: float) -> float:
+        """Energy fraction of the unit-peak response inside ``|d_az| <= half_azimuth``,
+        ``|d_rg| <= half_range`` [m] (separable model): the box of an integrated-energy RCS.
+
+        Range: ``int p^2`` of the window's closed-form pulse over the box, over its energy
+        width. Azimuth: ``|I(x)|^2``, ``I(x) = int A(u) exp(j 4 pi s(u) x / lambda) du``,
+        integrated over the box, over ``(lambda / 2) int A^2 / (ds/du) du`` (Parseval)."""
+        import scipy.integrate
+
+        from .focus.windows import compressed_pulse, energy_width
+        name, params = self.w_rg
+        v_max = 2.0 * self.n_r * self.bandwidth * half_range / SPEED_OF_LIGHT   # box half-width in 1 / B
+        edges = np.append(np.arange(0.0, v_max, 1.0), v_max)
+        inside = 2.0 * sum(scipy.integrate.quad(lambda v: compressed_pulse(v, 1.0, name, **params) ** 2, a, b,
+                                                epsabs=0, epsrel=1e-10)[0] for a, b in zip(edges[:-1], edges[1:]))
+        f_rg = inside / energy_width(name, **params)
+        # azimuth: the cut sampled at 1/16 of its nominal resolution, Simpson over the box
+        total = 0.5 * self.wavelength * _simpson(self.amplitude ** 2 / self.slope, self.u)
+        span = float(np.ptp(self.sine))
+        n = 2 * int(np.ceil(16.0 * half_azimuth * 2.0 * span / self.wavelength)) + 1
+        x = np.linspace(-half_azimuth, half_azimuth, max(n, 33))
+        cut = np.empty(x.size)
+        for k in range(0, x.size, 256):
+            phase = np.exp(4j * np.pi / self.wavelength * np.outer(x[k:k + 256], self.sine))
+            cut[k:k + 256] = np.abs(scipy.integrate.simpson(phase * self.amplitude, x=self.u, axis=1)) ** 2
+        f_az = _simpson(cut, x) / total
+        return float(min(f_az, 1.0) * min(f_rg, 1.0))
+
+
+def _simpson(y: np.ndarray, x: np.ndarray) -> float:
+    import scipy.integrate
+    return float(scipy.integrate.simpson(y, x=x))
 
 
 # ============================================================================ band-limited chip
@@ -378,8 +662,9 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
     image : SarImage
         Focused image with uniformly spaced axes; ``plane`` ``"slant"`` or ``"ground"``.
     target : 3 floats (world position, m) or 2 floats (azimuth, range image coordinates, m)
-        Where to cut the chip. The chip is re-centred on the brightest pixel within
-        ``search_radius`` pixels of it.
+        Where to cut the chip: a world point at its position in the image,
+        :func:`image_coordinates` (its layover position when the metadata record the track).
+        The chip is re-centred on the brightest pixel within ``search_radius`` pixels of it.
     chip : int, default 64
         Chip size in pixels (both axes), even, in [16, 1024]; the chip must fit in the
         image (a target nearer than ``chip / 2`` pixels to an edge is an error).
@@ -391,7 +676,10 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
         ``(rho_az, rho_rg)``: impulse-response energy widths ``int |h|^2`` of the unit-peak
         response along each image axis (rect spectrum: the reciprocal bandwidths,
         ``c / (2 B)`` in slant range, ``/ sin(incidence)`` in ground range; with a window,
-        times :func:`sarmitsuba.focus.windows.energy_width`). Enables ``rcs``.
+        times :func:`sarmitsuba.focus.windows.energy_width`). Default: from the image
+        metadata at the peak (:func:`energy_widths`), when it records the focusing; else no
+        ``rcs``; the energy outside the integration box is then also restored
+        (``energy_fraction``).
     carrier : (float, float), rad/m, optional
         True linear phase gradient of the image along (azimuth, range) near the target,
         e.g. :func:`carrier_ramp` for a backprojected image. Default: estimated from the
@@ -524,18 +812,28 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
            & (np.abs(n - v_pk) <= energy_extent * m_rg.null)[None, :])
     pixel_area = d_az * d_rg * float(np.linalg.norm(np.cross(image.azimuth_direction, image.range_direction)))
     energy = float((power[box].sum() - clutter * box.sum()) * pixel_area)
-    rcs = rcs_db = None
+    row, col = i0 + u_pk, j0 + v_pk
+    az = float(image.azimuth[0] + row * d_az)
+    rg = float(image.range[0] + col * d_rg)
+    rcs = rcs_db = fraction = None
+    rho = None
     if resolution is not None:
         rho = np.asarray(resolution, dtype=np.float64).reshape(-1)
         if rho.shape != (2,) or not np.all(np.isfinite(rho)) or np.any(rho <= 0):
             raise ValueError(f"resolution must be 2 positive numbers (rho_az, rho_rg) in m, got {resolution!r}")
-        rcs = energy / float(rho[0] * rho[1])
+    else:
+        try:
+            model = _ImpulseModel(image, (az, rg))
+        except ValueError:
+            model = None
+        if model is not None:
+            rho = np.array([model.rho_az, model.rho_rg])
+            fraction = model.fraction(0.5 * box.any(axis=1).sum() * d_az, 0.5 * box.any(axis=0).sum() * d_rg)
+    if rho is not None:
+        rcs = energy / float(rho[0] * rho[1] * (fraction or 1.0))
         rcs_db = 10.0 * math.log10(rcs) if rcs > 0 else None
 
     # ---- assemble
-    row, col = i0 + u_pk, j0 + v_pk
-    az = float(image.azimuth[0] + row * d_az)
-    rg = float(image.range[0] + col * d_rg)
     world = image.origin + az * image.azimuth_direction + rg * image.range_direction
     irw_az, irw_rg = m_az.irw * d_az, m_rg.irw * d_rg
     return PointTargetReport(
@@ -554,7 +852,9 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
         predicted_phase_deg=None if at_pred is None else float(np.degrees(np.angle(at_pred))),
         phase_ramp_azimuth=w_az, phase_ramp_range=w_rg, carrier=carrier_source,
         integrated_energy=energy, clutter_level=clutter, energy_extent=energy_extent,
-        rcs=rcs, rcs_db=rcs_db, chip=chip, oversample=ov)
+        rcs=rcs, rcs_db=rcs_db, chip=chip, oversample=ov,
+        energy_width_azimuth=None if rho is None else float(rho[0]),
+        energy_width_range=None if rho is None else float(rho[1]), energy_fraction=fraction)
 
 
 def _int_in(name: str, value: Any, low: int, high: int) -> int:
@@ -588,14 +888,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``analyze`` arguments to ``parser`` (a sub-command parser); returns it."""
     parser.add_argument("image", help="focused image (.npz written by SarImage.save)")
     parser.add_argument("--target", required=True, type=_floats, metavar="X,Y,Z|AZ,RG",
-                        help="target: world position [m] or image coordinates (azimuth, range) [m]; "
-                             "write --target=-1,2,0 when the first value is negative")
+                        help="target: world position [m] (looked for at its layover position in the image) or "
+                             "image coordinates (azimuth, range) [m]; write --target=-1,2,0 when the first value "
+                             "is negative")
     parser.add_argument("--predicted", type=_floats, default=None, metavar="X,Y,Z|AZ,RG",
                         help="expected peak position (default: the target)")
     parser.add_argument("--chip", type=int, default=64, help="chip size in pixels (even; default 64)")
     parser.add_argument("--oversample", type=int, default=32, help="cut sampling per pixel (default 32)")
     parser.add_argument("--resolution", type=_floats, default=None, metavar="RHO_AZ,RHO_RG",
-                        help="impulse-response energy widths [m] along the image axes; enables the RCS")
+                        help="impulse-response energy widths [m] along the image axes for the RCS (default: from "
+                             "the image metadata: bandwidth, windows, antenna pattern, geometry)")
     parser.add_argument("--carrier", type=_floats, default=None, metavar="K_AZ,K_RG",
                         help="true carrier phase gradient [rad/m] (default: estimated from the chip)")
     parser.add_argument("--sidelobes", type=float, default=10.0,
@@ -627,16 +929,49 @@ def run(args: argparse.Namespace, figure=None) -> int:
     return 0
 
 
-def integrated_rcs(image: SarImage, resolution_azimuth: float, resolution_range: float,
-                   center: tuple[float, float] = (0.0, 0.0), half_cells: float = 6.0) -> float:
-    """RCS [m^2] by integrated point energy in a box of +-``half_cells`` resolution cells around
-    ``center`` (azimuth, range) [m]: ``sum |I|^2 dA / (rho_az rho_rg)`` (docs/physics.md (K)); for a
-    calibrated image whose unit point target has unit peak. No clutter subtraction (see
-    :func:`analyze_point_target` for that)."""
+def integrated_rcs(image: SarImage, resolution_azimuth: float | None = None, resolution_range: float | None = None,
+                   center: Sequence[float] = (0.0, 0.0), half_cells: float = 6.0) -> float:
+    """RCS [m^2] by integrated point energy: ``sum |I|^2 dA / (rho_az rho_rg)`` over a box of
+    +-``half_cells`` energy widths around ``center`` (docs/physics.md (K), (K2)).
+
+    Parameters
+    ----------
+    image : SarImage
+        A calibrated image whose unit point target has unit peak (every focuser here).
+    resolution_azimuth, resolution_range : float, m, optional
+        Energy widths ``rho_az``, ``rho_rg`` of the unit-peak impulse response; default (both
+        None) from the image metadata at ``center``, :func:`energy_widths` (window, pattern and
+        geometry included, so rect and Taylor images read the same RCS).
+    center : 2 floats (azimuth, range image coordinates, m) or 3 (world point, m)
+        Box centre; a world point is taken at its layover position (:func:`image_coordinates`).
+    half_cells : float, default 6
+        Half-size of the box in energy widths. With widths from the metadata, the share of
+        the response's energy outside the box (a rect image's far sidelobes) is restored from
+        the same model.
+
+    Returns
+    -------
+    float, m^2 (no clutter subtraction; see :func:`analyze_point_target` for that)
+
+    Raises
+    ------
+    ValueError
+        When only one resolution is given, or the metadata cannot provide them.
+    """
+    center = image_coordinates(image, center)
+    if (resolution_azimuth is None) != (resolution_range is None):
+        raise ValueError("give both resolution_azimuth and resolution_range, or neither (then from the metadata)")
+    model = None
+    if resolution_azimuth is None:
+        model = _ImpulseModel(image, center)
+        resolution_azimuth, resolution_range = model.rho_az, model.rho_rg
     az, rg = np.meshgrid(image.azimuth - center[0], image.range - center[1], indexing="ij")
     box = (np.abs(az) <= half_cells * resolution_azimuth) & (np.abs(rg) <= half_cells * resolution_range)
-    pixel = abs(image.azimuth[1] - image.azimuth[0]) * abs(image.range[1] - image.range[0])
-    return float((np.abs(image.data[box]) ** 2).sum() * pixel / (resolution_azimuth * resolution_range))
+    d_az, d_rg = abs(image.azimuth[1] - image.azimuth[0]), abs(image.range[1] - image.range[0])
+    fraction = 1.0 if model is None else model.fraction(0.5 * box.any(axis=1).sum() * d_az,
+                                                        0.5 * box.any(axis=0).sum() * d_rg)
+    return float((np.abs(image.data[box]) ** 2).sum() * d_az * d_rg
+                 / (resolution_azimuth * resolution_range * fraction))
 
 
 def main(argv: list[str] | None = None) -> int:

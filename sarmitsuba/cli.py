@@ -215,16 +215,25 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _analyze(args: argparse.Namespace) -> int:
-    """Point-target analysis; the energy widths for the RCS come from the image's radar metadata
-    when not given (``c / (2 B sin(theta))`` and ``lambda / (2 beta)``, or ``L_a / 2``)."""
-    from .analysis import carrier_ramp, run
-    from .image import SarImage
+    """Point-target analysis. A world target is looked for at its layover position on the image
+    plane, and the energy widths for the RCS come from the image's metadata (windows, pattern,
+    geometry) when not given: :func:`sarmitsuba.analysis.energy_widths` for backprojected
+    images; for others (omega-K, RDA) the unweighted widths of its radar parameters
+    (``c / (2 B sin(theta))`` and the azimuth resolution)."""
+    from .analysis import carrier_ramp, image_coordinates, run
+    from .image import SarImage, SarImageError
     from .raw import RawData
     if args.resolution is None:
         args.resolution = _resolution_from_metadata(args.image)
     raw_path = args.raw or Path(args.image).with_name("raw.npz")
     if args.carrier is None and raw_path.is_file() and len(args.target) == 3:
-        args.carrier = list(carrier_ramp(RawData.load(raw_path), SarImage.load(args.image), args.target))
+        try:
+            image = SarImage.load(args.image)
+            position = image_coordinates(image, args.target)       # the target's layover position
+            world = image.origin + position[0] * image.azimuth_direction + position[1] * image.range_direction
+            args.carrier = list(carrier_ramp(RawData.load(raw_path), image, world))
+        except (SarImageError, ValueError):
+            pass                                                  # run() reports the bad image or target
     def figure(image, report):
         from .figures import point_target_figure
         print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
@@ -233,12 +242,23 @@ def _analyze(args: argparse.Namespace) -> int:
 
 
 def _resolution_from_metadata(path) -> list[float] | None:
+    """None when :func:`sarmitsuba.analysis.energy_widths` can read the image (it then runs in
+    the analysis itself, at the peak), else the radar parameters' unweighted widths, else None."""
+    from .analysis import energy_widths
     from .image import SarImage, SarImageError
     from .radar import RadarParameters
     try:
         image = SarImage.load(path)
+    except (SarImageError, OSError):
+        return None
+    try:
+        energy_widths(image)
+        return None
+    except ValueError:
+        pass
+    try:
         radar = RadarParameters.from_mapping({k: v for k, v in image.metadata["radar"].items() if v is not None})
-    except (SarImageError, KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError):
         return None
     ground = radar.ground_range_resolution if image.plane == "ground" else radar.slant_range_resolution
     return [radar.azimuth_resolution, ground]

@@ -576,7 +576,8 @@ def test_weighting_metadata():
     assert focus["window_range"] == {"name": "rect"}
     assert image.window == "range=rect, azimuth=taylor(nbar=4, sll=-35)" == focus["window"]
     assert focus["azimuth_pattern"] == 100.0
-    assert focus["beam_sines"] == pytest.approx([np.sin(np.radians(0.1 - BEAM / 2)), np.sin(np.radians(0.1 + BEAM / 2))])
+    assert focus["beam_sines"] == pytest.approx([np.sin(np.radians(0.1 - BEAM / 2)),
+                                                 np.sin(np.radians(0.1 + BEAM / 2))])
     mid = raw.n_pulses // 2
     assert focus["track"]["position"] == pytest.approx(raw.tx_position[mid].tolist())
     assert focus["track"]["direction"] == pytest.approx([1.0, 0.0, 0.0])

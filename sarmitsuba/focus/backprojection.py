@@ -134,7 +134,8 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         target). ``metadata`` is a deep copy of ``raw.metadata`` plus ``"focus"``: the
         parameters (``window_range`` and ``window_azimuth`` as ``{"name": ..., params}``,
         ``azimuth_pattern``, ``beam_sines``, ``squint``), the straight-track reference
-        ``track`` (``{"position": mid-aperture transmitter [m], "direction": unit velocity}``,
+        ``track`` (``{"position": mid-aperture transmitter [m], "direction": unit velocity,
+        "length": first to last transmitter [m]}``,
         used by :mod:`sarmitsuba.analysis` for layover and energy widths), ``seconds`` and
         ``pixel_pulses_per_second``.
 
@@ -396,7 +397,8 @@ def _focus_metadata(raw: RawData, grid: ImageGrid, seconds: float, beam: "_BeamW
     velocity = np.asarray(raw.velocity[mid], float)
     speed = float(np.linalg.norm(velocity))
     track = {"position": [float(v) for v in raw.tx_position[mid]],
-             "direction": [float(v) for v in velocity / speed] if speed > 0 else None}
+             "direction": [float(v) for v in velocity / speed] if speed > 0 else None,
+             "length": float(np.linalg.norm(raw.tx_position[-1] - raw.tx_position[0]))}
     normalisation = ("1/n_pulses" if beam.sines is None and beam.is_rect else
                      "1/sum(w)" if beam.sines is None else "per range column: 1/max sum(w g^2)")
     return {"algorithm": "backprojection", "window": label, **params,
