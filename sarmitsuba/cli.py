@@ -97,6 +97,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     render.add_argument("--figures", action="store_true",
                         help="also draw explanatory figures (fig_*.png, figures.json) from the files written")
+    render.add_argument("--window", default="taylor", choices=FOCUS_WINDOWS, metavar="NAME",
+                        help="focusing window in range and azimuth (default taylor: nbar 4, -35 dB sidelobes; "
+                             f"rect for none); one of {', '.join(FOCUS_WINDOWS)}")
     preview = _add_scene_arguments(
         sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)"))
     preview.add_argument("--out", type=Path, default=None,
@@ -112,7 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--algorithm", choices=("bp", "omegak", "rda"), default="bp",
                        help="backprojection (any track), omega-K or range-Doppler (straight track)")
     focus.add_argument("--window-range", default="rect", choices=WINDOWS, help="range window")
-    focus.add_argument("--window-azimuth", default="rect", choices=WINDOWS, help="azimuth window (omegak, rda)")
+    focus.add_argument("--window-azimuth", default="rect", choices=WINDOWS,
+                       help="azimuth window (omegak, rda: over the Doppler band; bp: over the beam)")
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     from .analysis import add_arguments as analysis_arguments
@@ -150,6 +154,8 @@ def _bench(args: argparse.Namespace) -> int:
 
 #: Windows accepted by the focusing commands (default parameters: Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
 WINDOWS = ("rect", "taylor", "hamming", "kaiser")
+#: Windows of ``render --window``: every window of :mod:`sarmitsuba.focus.windows`, default parameters.
+FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
 
 
 def _focus(args: argparse.Namespace) -> int:
@@ -185,7 +191,7 @@ def _render(args: argparse.Namespace) -> int:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
-                     progress=not args.no_progress)
+                     progress=not args.no_progress, window=args.window)
     print(summary.line())
     if args.figures:
         from .figures import redraw

@@ -130,15 +130,18 @@ class Simulation:
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
              integrator_overrides: Mapping[str, Any] | None = None,
              material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
-             image_size: tuple[int, int] | None = None, image_spacing: float | None = None) -> Simulation:
+             image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
+             window: Any = "taylor") -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
-    Parameters are those of :func:`render`, plus ``image_size = (n_azimuth, n_range)`` pixels and
-    ``image_spacing`` [m] for a ground grid of exactly that size around the scene centre
-    (:func:`sized_grid`; default: :func:`image_grid`, which covers the scene and its layover).
+    Parameters are those of :func:`render` (``window`` included), plus
+    ``image_size = (n_azimuth, n_range)`` pixels and ``image_spacing`` [m] for a ground grid of
+    exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
+    which covers the scene and its layover).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
+    window_spec = focus_window(window)                       # checked before anything is loaded
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
     geometry = acquisition_geometry(params)
@@ -161,8 +164,10 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["bin"] = time.perf_counter()
     geometry = world
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
-    focus = lambda r: _calibrated(backproject(_compressed(r), grid, azimuth_beamwidth=beam,  # noqa: E731
-                                              squint=params.squint, progress=progress), params, geometry)
+    pattern = _azimuth_pattern(params)
+    focus = lambda r: _calibrated(backproject(  # noqa: E731
+        _compressed(r, window_spec), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
+        window_azimuth=window_spec, progress=progress), params, geometry)
     image = focus(raw)
     images = tuple(focus(r) for r in per_order)
     t["focus"] = time.perf_counter()
@@ -179,12 +184,34 @@ def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGe
                                scene_center=geometry.scene_center + offset)
 
 
-def _compressed(raw: RawData) -> RawData:
-    """Range-compressed data for focusing: chirped raw output is compressed first (matched filter)."""
-    if raw.range_compressed:
-        return raw
-    from .focus.range_compression import range_compress
-    return range_compress(raw)
+def focus_window(window: Any) -> tuple[str, dict]:
+    """Check the focusing window of :func:`simulate` / :func:`render`: a name of
+    :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
+    ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
+    from .focus.stripmap import _window_spec
+    from .radar import ParameterError
+    try:
+        return _window_spec(window)
+    except ValueError as exc:
+        raise ParameterError(f"window: {exc}") from None
+
+
+def _azimuth_pattern(params) -> float | None:
+    """``L / lambda`` of the two-way azimuth pattern the tracer applied (stripmap, tapered beam), or None."""
+    if params.mode != "stripmap" or params.pattern_length <= 0:
+        return None
+    return params.pattern_length / params.wavelength
+
+
+def _compressed(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawData:
+    """Range-compressed data for focusing, weighted by the range ``window`` (name, params):
+    chirped raw output is compressed with it (matched filter); compressed output, whose pulse
+    has a rect spectrum, is windowed over the band (:func:`~sarmitsuba.focus.apply_range_window`)."""
+    from .focus.range_compression import apply_range_window, range_compress
+    name, params = window
+    if not raw.range_compressed:
+        return range_compress(raw, name, **params)
+    return apply_range_window(raw, name, **params) if name != "rect" else raw
 
 
 def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
@@ -203,7 +230,8 @@ def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarIm
 
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
            integrator_overrides: Mapping[str, Any] | None = None,
-           material_overrides: Mapping[str, Any] | None = None, progress: bool = True) -> RenderSummary:
+           material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
+           window: Any = "taylor") -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -218,6 +246,14 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         Roughness for every material (``gamma_db`` or ``scattering_coefficient``).
     progress : bool
         Show tqdm progress bars.
+    window : str or (str, dict), default "taylor"
+        Focusing window, applied in range (over the band, to the range-compressed data) and in
+        azimuth (over the traced beam's along-track sines, in backprojection): a name of
+        :mod:`sarmitsuba.focus.windows` (Taylor: nbar 4, -35 dB sidelobes; ``"rect"`` for
+        none: the sinc impulse response with -13 dB sidelobes), or ``(name, {params})``. The
+        image keeps unit peak gain for a point target; the window is recorded in
+        ``image.metadata["focus"]`` (``window``, ``window_range``, ``window_azimuth``), which
+        :mod:`sarmitsuba.analysis` reads to turn integrated energy into RCS.
 
     Returns
     -------
@@ -227,12 +263,13 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     Raises
     ------
     SceneError, ParameterError, materials.MaterialError, OSError
-        Before tracing starts, for a bad scene, parameter, material or output directory.
+        Before tracing starts, for a bad scene, parameter, window, material or output directory.
     """
     start = time.perf_counter()
+    focus_window(window)
     out = check_output_dir(out_dir)
     sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
-                   material_overrides=material_overrides, progress=progress)
+                   material_overrides=material_overrides, progress=progress, window=window)
     t_products = time.perf_counter()
     paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
     for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):
@@ -261,34 +298,37 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
     ``bp``: backprojection; onto the scene's ground grid when the metadata carry sarmitsuba's
     radar parameters and scene box (with their beam gating), else onto the slant-plane grid of
     the straight-track geometry. ``omegak`` / ``rda``: the FFT focusers (straight track).
-    Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser.
+    Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser (hann);
+    backprojection applies the azimuth window over the beam (or, without a beam, over the
+    aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
 
     Raises
     ------
     ValueError
-        Unknown algorithm, or a track the FFT focusers cannot handle (they name backprojection).
+        Unknown algorithm or window, or a track the FFT focusers cannot handle (they name
+        backprojection).
     """
     from .focus import apply_range_window, omega_k, range_compress, range_doppler, slant_output_grid, stripmap_geometry
     if algorithm not in ALGORITHMS:
         raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
-    grid, beam, doppler, squint = _metadata_grid(raw)
+    grid, beam, doppler, squint, pattern = _metadata_grid(raw)
     if algorithm == "omegak":
         return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler)
     if algorithm == "rda":
         return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
                              doppler_bandwidth=doppler)
-    if window_azimuth != "rect":
-        raise ValueError("backprojection applies no azimuth window; use --window-azimuth rect, or omegak/rda")
     compressed = range_compress(raw, window_range) if not raw.range_compressed else (
         apply_range_window(raw, window_range) if window_range != "rect" else raw)
     if grid is None:
         grid = slant_output_grid(stripmap_geometry(raw), raw)
-    return backproject(compressed, grid, azimuth_beamwidth=beam, squint=squint, progress=progress)
+    return backproject(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
+                       window_azimuth=window_azimuth, progress=progress)
 
 
 def _metadata_grid(raw: RawData):
-    """Ground grid, azimuth beamwidth [deg], Doppler bandwidth [Hz] and squint [deg] of a sarmitsuba
-    render, from the RawData metadata; (None, None, None, 0) for other data."""
+    """Ground grid, azimuth beamwidth [deg], Doppler bandwidth [Hz], squint [deg] and azimuth pattern
+    ``L / lambda`` of a sarmitsuba render, from the RawData metadata; (None, None, None, 0, None) for
+    other data."""
     from .radar import RadarParameters
     meta = raw.metadata
     try:
@@ -297,10 +337,21 @@ def _metadata_grid(raw: RawData):
         lo = np.asarray(meta["scene_info"]["bbox_min"], float) + offset
         hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
     except (KeyError, TypeError, ValueError):
-        return None, None, None, 0.0
+        return None, None, None, 0.0, None
     geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
     beam = params.traced_beamwidth if params.mode == "stripmap" else None
-    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint
+    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint, \
+        _azimuth_pattern(params)
+
+
+def window_title(image: SarImage) -> str:
+    """The focusing window of an image for a title: ``"taylor"`` when range and azimuth share it,
+    else ``"range/azimuth"`` names (``image.window`` when the metadata do not record them)."""
+    focus = image.metadata.get("focus", {}) if isinstance(image.metadata, dict) else {}
+    names = [(focus.get(key) or {}).get("name") for key in ("window_range", "window_azimuth")]
+    if None in names:
+        return image.window
+    return names[0] if names[0] == names[1] else "/".join(names)
 
 
 def write_image_products(out: Path, image: SarImage, title: str) -> dict:
@@ -321,7 +372,8 @@ def _write_products(out: Path, raw: RawData, image: SarImage, params, suffix: st
     products.write_exr(image, paths[f"exr{suffix}"])
     order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
-             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}{order}")
+             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}  "
+             f"window {window_title(image)}{order}")
     products.write_quicklook(image, paths[f"png{suffix}"], title=title, figsize=(10.0, 8.0), dpi=110)
     return paths
 

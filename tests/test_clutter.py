@@ -1,7 +1,9 @@
 """Distributed clutter and speckle (docs/physics.md (C)) against the material model and speckle theory.
 
 A homogeneous rough ground of constant gamma (sigma0 = gamma cos(theta)): the mean of the
-calibrated image intensity over rho_az rho_gr is sigma0 (within 0.5 dB), the intensity is
+calibrated image intensity over rho_az rho_gr is sigma0 (within 0.5 dB), with rho the energy
+widths of the image's unit-peak impulse response (window and antenna pattern included;
+sarmitsuba.analysis.energy_widths, docs/physics.md (K2)), the intensity is
 fully developed speckle (std / mean within 10 % of 1: exponential statistics, Goodman 1976),
 the same seed reproduces it, another seed gives independent speckle (|coherence| < 0.1).
 """
@@ -14,6 +16,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
+from sarmitsuba.analysis import energy_widths
 from sarmitsuba.pipeline import simulate
 
 SCENE = str(Path(__file__).parent / "scenes" / "rough_ground.xml")
@@ -35,10 +38,9 @@ def seed0():
 
 def test_mean_sigma_nought_matches_model(seed0):
     values, positions = _interior(seed0)
-    p = seed0.loaded.params
     antenna = seed0.raw.tx_position.mean(axis=0)
     cos_theta = (antenna[2] - positions[:, 2]) / np.linalg.norm(antenna - positions, axis=1)
-    measured = np.mean(np.abs(values) ** 2) / (p.azimuth_resolution * p.ground_range_resolution)
+    measured = np.mean(np.abs(values) ** 2) / np.prod(energy_widths(seed0.image))
     expected = np.mean(GAMMA * cos_theta)
     assert abs(10 * math.log10(measured / expected)) < 0.5, \
         f"sigma0 {10 * math.log10(measured):.2f} dB, model {10 * math.log10(expected):.2f} dB"
@@ -65,8 +67,7 @@ def test_speckle_is_coherent_across_the_aperture(seed0):
     intensity with the full aperture equals the model, which fails if phases were redrawn per
     pulse (the sum over pulses would then average down by the number of pulses)."""
     values, _ = _interior(seed0)
-    p = seed0.loaded.params
-    ratio = np.mean(np.abs(values) ** 2) / (GAMMA * 0.7 * p.azimuth_resolution * p.ground_range_resolution)
+    ratio = np.mean(np.abs(values) ** 2) / (GAMMA * 0.7 * np.prod(energy_widths(seed0.image)))
     assert ratio > 0.5
 
 
@@ -86,7 +87,7 @@ def test_material_override_makes_a_smooth_scene_rough():
     sim = simulate(smooth, material_overrides={"gamma_db": -10}, integrator_overrides={"ray_spacing": SPACING})
     p = sim.loaded.params
     values, positions = _interior(sim)
-    measured = np.mean(np.abs(values) ** 2) / (p.azimuth_resolution * p.ground_range_resolution)
+    measured = np.mean(np.abs(values) ** 2) / np.prod(energy_widths(sim.image))
     assert abs(10 * math.log10(measured / (GAMMA * math.cos(math.radians(p.incidence_angle))))) < 0.7
     with pytest.raises(Exception, match="unknown material override"):
         simulate(smooth, material_overrides={"roughness": 1})

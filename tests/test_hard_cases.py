@@ -76,7 +76,7 @@ def test_same_target_from_10_km_to_800_km_is_identical():
     from sarmitsuba.analysis import analyze_point_target
     reports = []
     for slant in (10e3, 100e3, 800e3):
-        sim = simulate("trihedral", sensor_overrides={"altitude": slant * math.cos(math.pi / 4)})
+        sim = simulate("trihedral", sensor_overrides={"altitude": slant * math.cos(math.pi / 4)}, window="rect")
         reports.append(analyze_point_target(sim.image, np.zeros(3)))
         assert np.all(np.isfinite(sim.image.data))
     ref = reports[-1]

@@ -111,7 +111,7 @@ def test_one_km_joins_the_long_range_series(tmp_path):
     results = []
     for slant in (1e3, 10e3, 100e3):
         sim = simulate(str(scene), sensor_overrides={"altitude": slant * math.cos(math.pi / 4)},
-                       integrator_overrides={"ray_spacing": 0.02})
+                       integrator_overrides={"ray_spacing": 0.02}, window="rect")
         assert np.all(np.isfinite(sim.image.data)) and np.all(np.isfinite(sim.raw.data))
         p = sim.loaded.params
         n_beam = _pulses_in_beam(sim.raw, np.zeros(3), p.azimuth_beamwidth).size

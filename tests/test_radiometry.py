@@ -36,8 +36,8 @@ def test_noise_power_per_sample_is_k_t_b_f():
 
 def test_point_target_image_snr_matches_radar_equation():
     """Image SNR of the trihedral = radar-equation SNR x B T_p x N_pulses within 1 dB."""
-    signal = simulate("trihedral", sensor_overrides=RADAR)
-    noisy = simulate("trihedral", sensor_overrides={**RADAR, **NOISE})
+    signal = simulate("trihedral", sensor_overrides=RADAR, window="rect")   # unweighted: no window SNR loss
+    noisy = simulate("trihedral", sensor_overrides={**RADAR, **NOISE}, window="rect")
     p = signal.loaded.params
     peak = np.unravel_index(np.argmax(np.abs(signal.image.data)), signal.image.data.shape)
     rcs = float(np.abs(signal.image.data[peak]) ** 2)              # calibrated: |peak|^2 = sigma

@@ -25,9 +25,7 @@ SPACING = 0.01      # m, ray-tube width: ~30 rays per target side
 
 def integrated_rcs(sim, half_cells: float = 6.0) -> float:
     """RCS of the target at the scene centre from the focused image (integrated point energy)."""
-    p = sim.loaded.params
-    return analysis.integrated_rcs(sim.image, p.azimuth_resolution, p.ground_range_resolution,
-                                   half_cells=half_cells)
+    return analysis.integrated_rcs(sim.image, half_cells=half_cells)  # energy widths from the metadata
 
 
 def db(x: float) -> float:

@@ -102,7 +102,7 @@ def test_traced_trihedral_point_target_quality():
     PEC triple-bounce phase j (-1)^3 = -90 deg within 2 deg. At 10 km slant range: at the
     scene's own 1.4 km the 2 m reflector's near field adds ~2 deg of quadratic phase."""
     from sarmitsuba.analysis import analyze_point_target
-    sim = simulate("trihedral", sensor_overrides={"altitude": 10e3 * math.cos(math.pi / 4)})
+    sim = simulate("trihedral", sensor_overrides={"altitude": 10e3 * math.cos(math.pi / 4)}, window="rect")
     p = sim.loaded.params
     r = analyze_point_target(sim.image, np.zeros(3))
     assert abs(r.irw_azimuth / (0.886 * p.azimuth_resolution) - 1) < 0.03
@@ -121,7 +121,7 @@ def test_spotlight_resolution_follows_the_integration_angle(n_pulses):
     dtheta = n_pulses v / (prf R) (Carrara, Goodman and Majewski, *Spotlight SAR*, eq. 2.9),
     within 3 %, whatever the aperture; the apex stays put."""
     from sarmitsuba.analysis import analyze_point_target
-    sim = simulate("trihedral", sensor_overrides={"mode": "spotlight", "n_pulses": n_pulses})
+    sim = simulate("trihedral", sensor_overrides={"mode": "spotlight", "n_pulses": n_pulses}, window="rect")
     p = sim.loaded.params
     r = analyze_point_target(sim.image, np.zeros(3))
     expected = 0.886 * p.wavelength / (2 * p.integration_angle)
