@@ -41,7 +41,7 @@ from __future__ import annotations
 import mitsuba as mi
 
 from sarmitsuba.radar import ParameterError
-from sarmitsuba.trace import TraceSettings
+from sarmitsuba.trace_inputs import TraceSettings
 
 
 class SbrIntegrator(mi.SamplingIntegrator):

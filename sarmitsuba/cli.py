@@ -297,8 +297,8 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted: no output file was left half-written", file=sys.stderr)
         return 130
     except RuntimeError as exc:          # a Ctrl-C that Dr.Jit wrapped while tracing a loop
-        from .trace import _caused_by_interrupt
-        if not _caused_by_interrupt(exc):
+        from .trace import caused_by_interrupt
+        if not caused_by_interrupt(exc):
             raise
         print("interrupted: no output file was left half-written", file=sys.stderr)
         return 130

@@ -41,7 +41,7 @@ from .pipeline import image_grid
 from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
 from .radiometry import radar_equation
 from .scene import LoadedScene, load_scene, material_table
-from .trace import FastTimeWindow, RayFootprint
+from .trace_inputs import FastTimeWindow, RayFootprint
 
 __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
            "scene_info", "cast_rates", "format_text", "to_dict", "to_json"]

@@ -146,7 +146,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     params, settings = loaded.params, loaded.settings
     geometry = acquisition_geometry(params)
     window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
-    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
+                                       shape_boxes=loaded.shape_boxes)
     planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
@@ -156,10 +157,10 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["trace"] = time.perf_counter()
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
-    raw = binning.to_raw_data(result.contributions(), result, window, params, world, settings.range_kernel, metadata,
+    raw = binning.to_raw_data(result.contributions(), result, window, params, world, metadata,
                               noise_seed=settings.seed)
     per_order = tuple(
-        binning.to_raw_data(result.contributions(k), result, window, params, world, settings.range_kernel,
+        binning.to_raw_data(result.contributions(k), result, window, params, world,
                             {**metadata, "bounce_order": k}) for k in range(1, result.n_orders + 1))
     t["bin"] = time.perf_counter()
     geometry = world

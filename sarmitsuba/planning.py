@@ -5,6 +5,7 @@ All functions are pure (NumPy, float64) and take the scene's axis-aligned boundi
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 
@@ -12,11 +13,11 @@ import numpy as np
 from scipy import fft as sp_fft
 
 from .constants import SPEED_OF_LIGHT
-from .radar import AcquisitionGeometry, RadarParameters, track_frame
-from .trace import FastTimeWindow, RayFootprint, TraceSettings
+from .radar import AcquisitionGeometry, ParameterError, RadarParameters, track_frame
+from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
-__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "box_corners",
-           "check_acquisition", "AcquisitionWarning"]
+__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
+           "project_to_aim_plane", "box_corners", "check_acquisition", "AcquisitionWarning"]
 
 
 class AcquisitionWarning(UserWarning):
@@ -63,10 +64,6 @@ def _closest_ranges(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> 
     return np.linalg.norm(rel, axis=1)
 
 
-def _far_range(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> float:
-    return float(_closest_ranges(params, lo, hi).max())
-
-
 def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
     """Along-track interval ``(a_lo, a_hi)`` [m], relative to the antenna, that the stripmap beam
     covers at the scene's closest-approach ranges ``R0``: ``R0 tan(squint -/+ beta / 2)``,
@@ -108,51 +105,155 @@ def _echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tupl
     return l_min, l_max
 
 
-def ray_spacing(params: RadarParameters, settings: TraceSettings) -> float:
-    """Ray-tube width at the scene centre [m]: the setting, or half the finer resolution."""
+def ray_spacing(params: RadarParameters, settings: TraceSettings) -> tuple[float, float]:
+    """Ray-tube lattice spacing ``(along track, ground range)`` [m] on the aim plane.
+
+    With the ``ray_spacing`` setting ``s``: square tubes ``s`` wide normal to the line of sight,
+    ``(s, s / cos(theta))``. Automatic: one tube per resolution cell, ``(rho_az, rho_gr)``. Each
+    tube's PO return is exact across the band (docs/physics.md (PO2)), clutter has its own
+    lattice (:func:`scatterer_spacing`) and small objects get finer tubes (:func:`ray_footprint`),
+    so the default tubes only need to place large geometry (edges, shadow and layover
+    boundaries) to within a resolution cell."""
     if settings.ray_spacing > 0:
-        return settings.ray_spacing
-    return min(params.slant_range_resolution, params.azimuth_resolution) / 2.0
+        return settings.ray_spacing, settings.ray_spacing / math.cos(math.radians(params.incidence_angle))
+    return params.azimuth_resolution, params.ground_range_resolution
+
+
+#: Automatic clutter-scatterer cell size in units of ``sqrt(rho_slant rho_az)``.
+SCATTERER_CELL = 0.8
+
+
+def scatterer_spacing(params: RadarParameters, settings: TraceSettings) -> float:
+    """Cell size [m] of the clutter scatterers' surface lattice: the setting, or
+    ``0.8 sqrt(rho_slant rho_az)``: about ``1.6 / sin(theta)`` scatterers per ground resolution
+    cell (2.2 at 45 deg). The jittered lattice and the impulse response's sidelobes make that
+    fully developed speckle (intensity contrast 0.95-1.0 measured for 1.7 to 10 scatterers
+    per cell; docs/physics.md (C)). It does not depend on the ray spacing, so
+    denser rays see the same scatterers."""
+    if settings.scatterer_spacing > 0:
+        return settings.scatterer_spacing
+    return SCATTERER_CELL * math.sqrt(params.slant_range_resolution * params.azimuth_resolution)
+
+
+def project_to_aim_plane(points: np.ndarray, antenna: np.ndarray, z0: float) -> np.ndarray:
+    """Where the rays from ``antenna`` through ``points`` meet the horizontal plane ``z = z0``.
+
+    ``points`` float64 [..., 3], ``antenna`` float64 [3] or broadcastable; returns float64
+    [..., 3]. Raises ParameterError for points at or above the antenna (no downward ray
+    reaches them)."""
+    points = np.asarray(points, np.float64)
+    height = antenna[..., 2] - points[..., 2]
+    if np.any(height <= 1e-6 * np.maximum(np.abs(antenna[..., 2] - z0), 1.0)):
+        raise ParameterError("the scene reaches the antenna's height or above it: rays aimed down from the antenna "
+                             "cannot reach it; raise the sensor's altitude or lower the geometry")
+    t = (antenna[..., 2] - z0) / height
+    return antenna + (points - antenna) * t[..., None]
+
+
+def _aim_extent(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray):
+    """Along-track limits per pulse [n_pulses, 2] and the ground-range interval of the box's
+    corners projected from every pulse's antenna onto the aim plane (relative to the scene centre)."""
+    origin = np.asarray(geometry.scene_center, float)
+    corners = box_corners(lo, hi)
+    aim = project_to_aim_plane(corners[None, :, :], geometry.positions[:, None, :], origin[2])
+    rel = aim - origin
+    along = rel @ geometry.track_direction                       # [n_pulses, 8]
+    across = rel @ geometry.look_direction
+    return np.stack([along.min(axis=1), along.max(axis=1)], axis=1), (float(across.min()), float(across.max()))
 
 
 def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
-                  hi: np.ndarray, settings: TraceSettings) -> RayFootprint:
-    """World-fixed ground grid of ray aim points covering the scene (see :class:`RayFootprint`).
+                  hi: np.ndarray, settings: TraceSettings, shape_boxes: np.ndarray | None = None) -> RayFootprint:
+    """World-fixed lattice of ray aim points covering everything the beam sees (see
+    :class:`~sarmitsuba.trace_inputs.RayFootprint`; docs/physics.md (T1), (T2)).
 
-    The ground-range extent is the box's, widened so that rays aimed at the grid also reach
-    points above the ground plane (up to ``(z_max - z0) tan(theta)`` beyond the far edge)
-    and below it (before the near edge). Spacing: ``s`` along track, ``s / cos(theta)`` in
-    ground range, so tubes are square, ``s`` wide, perpendicular to the line of sight.
-    Along track, each pulse samples the overlap of its beam with the scene's extent (a
-    satellite's 17 km footprint over a 2 m target costs a handful of rays, not 45,000).
+    Every corner of the scene's box is projected from every pulse's antenna onto the aim plane
+    (horizontal, through the scene centre), so that a ray reaches each point in view, however
+    high or low: in ground range the lattice covers the projections of all pulses, along track
+    each pulse's own (a point at height ``h`` and horizontal distance ``G + a`` from the
+    antenna projects ``(G + a) h / (H - h)`` beyond itself). Spacing: :func:`ray_spacing`.
+    Per pulse, only the overlap of the traced beam with that
+    pulse's limits is sampled.
+
+    ``shape_boxes`` (float64 [n_shapes, 2, 3], each shape's bounding box) switches the
+    refinement around small objects on: a shape whose box diagonal ``D`` is below
+    ``tubes_per_object`` tubes is traced with tubes ``D / tubes_per_object`` wide (at least
+    a quarter wavelength), over the cells its box and its mirror image below the aim plane
+    project onto.
     """
-    s = ray_spacing(params, settings)
+    s, spacing_range = ray_spacing(params, settings)
     origin = np.asarray(params.scene_center, float)
     track, look = geometry.track_direction, geometry.look_direction
-    rel = box_corners(lo, hi) - origin
-    along, across = rel @ track, rel @ look
-    z0 = origin[2]
-    tan_far = (params.ground_range + across.max()) / params.altitude
-    g_min = across.min() - max(0.0, z0 - lo[2]) * tan_far - s
-    g_max = across.max() + max(0.0, hi[2] - z0) * tan_far + s
-    spacing_range = s / math.cos(math.radians(params.incidence_angle))
-    g_min = math.floor(g_min / spacing_range) * spacing_range   # lattice anchored at the scene centre, not at
-    n_range = int(math.ceil((g_max - g_min) / spacing_range)) + 1   # the box edge (whose rows could sit on it)
-    a_lo, a_hi = beam_offsets(params, lo, hi)
-    if params.mode == "spotlight":        # the beam stays on the scene centre: a fixed patch
-        r_far = _far_range(params, lo, hi)
-        a_lo, a_hi = -r_far * math.tan(params.traced_half_angle), r_far * math.tan(params.traced_half_angle)
-    width = a_hi - a_lo + 2 * s
-    # per pulse, only the overlap of the beam with the scene's along-track extent is sampled
-    extent = float(along.max() - along.min()) + 2 * s
-    n_azimuth = int(math.ceil(min(width, extent) / s)) + 2
+    limits, (g_lo, g_hi) = _aim_extent(params, geometry, lo, hi)
+    limits = limits + np.array([-s, s])
+    g_min = math.floor((g_lo - spacing_range) / spacing_range) * spacing_range  # lattice anchored at the scene
+    n_range = int(math.ceil((g_hi + spacing_range - g_min) / spacing_range)) + 1  # centre, not at the box edge
+    # the traced beam on the aim plane: along-track offsets R tan(phi) from the antenna, phi between
+    # the beam's sines, for the perpendicular distances R of the aim rows
+    height = geometry.positions[0, 2] - origin[2]
+    ant_across = float((geometry.positions[0] - origin) @ look)
+    r_perp = np.hypot(height, np.array([g_min, g_min + n_range * spacing_range]) - ant_across)
+    tangents = np.tan(np.arcsin(np.array(params.beam_sines if params.mode == "stripmap" else
+                                         (-math.sin(params.traced_half_angle), math.sin(params.traced_half_angle)))))
+    a_lo, a_hi = float((r_perp[:, None] * tangents[0]).min()), float((r_perp[:, None] * tangents[1]).max())
     ant_along = (geometry.positions - origin) @ track
-    if params.mode == "spotlight":
+    if params.mode == "spotlight":        # the beam stays on the scene centre
         ant_along = np.zeros_like(ant_along)
-    k0 = np.floor(np.maximum(ant_along + a_lo - s, along.min() - s) / s).astype(np.int64)
-    return RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
-                        range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range,
-                        azimuth_limits=(float(along.min() - s), float(along.max() + s)), k0=k0)
+        a_lo, a_hi = 1.1 * a_lo, 1.1 * a_hi
+    lo_p = np.maximum(ant_along + a_lo, limits[:, 0]) - s
+    hi_p = np.minimum(ant_along + a_hi, limits[:, 1]) + s
+    k0 = np.floor(lo_p / s).astype(np.int64)
+    seen = hi_p > lo_p
+    n_azimuth = int(np.max(np.ceil(hi_p[seen] / s) - k0[seen])) + 1 if np.any(seen) else 1
+    footprint = RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
+                             range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range, k0=k0,
+                             along_limits=limits, scatterer_spacing=scatterer_spacing(params, settings))
+    if shape_boxes is None or settings.tubes_per_object == 0:
+        return footprint
+    return dataclasses.replace(footprint, refinements=_refinements(params, geometry, footprint, shape_boxes,
+                                                                   settings.tubes_per_object, (a_lo, a_hi)))
+
+
+def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: RayFootprint, shape_boxes: np.ndarray,
+                 tubes: int, beam: tuple[float, float]) -> tuple[Refinement, ...]:
+    """Refined cells per subdivision factor for shapes smaller than ``tubes`` ray tubes (docs/physics.md (T2))."""
+    # the tubes' largest width normal to the line of sight
+    s = max(fp.spacing_azimuth, fp.spacing_range * math.cos(math.radians(params.incidence_angle)))
+    smallest = params.wavelength / 4.0
+    factor = {}
+    ant_along = (geometry.positions - fp.origin) @ fp.track
+    for box_lo, box_hi in np.asarray(shape_boxes, float).reshape(-1, 2, 3):
+        size = float(np.linalg.norm(box_hi - box_lo))
+        if not (np.all(np.isfinite(box_lo)) and size < tubes * s):
+            continue
+        m = int(math.ceil(s * tubes / max(size, 1e-9)))
+        m = max(1, min(m, int(s / smallest)))
+        if m < 2:
+            continue
+        corners = box_corners(box_lo, box_hi)
+        points = corners
+        if box_lo[2] - fp.origin[2] < size:      # near the ground: its mirror image too (ground bounces)
+            points = np.concatenate([corners, corners * np.array([1.0, 1.0, -1.0])
+                                     + np.array([0.0, 0.0, 2.0 * fp.origin[2]])])
+        along = (points - fp.origin) @ fp.track
+        # the pulses whose beam can hold the object: projections from the first and last of them
+        first, last = along.min() - beam[1] - s, along.max() - beam[0] + s
+        pulses = np.flatnonzero((ant_along >= first) & (ant_along <= last))
+        if params.mode == "spotlight" or pulses.size == 0:
+            pulses = np.arange(len(ant_along))
+        ends = geometry.positions[[pulses[0], pulses[-1]]]
+        aim = project_to_aim_plane(points[None, :, :], ends[:, None, :], fp.origin[2]) - fp.origin
+        a, g = aim @ fp.track, aim @ fp.look
+        i = np.arange(math.floor(a.min() / fp.spacing_azimuth) - 1, math.floor(a.max() / fp.spacing_azimuth) + 2)
+        j = np.arange(max(0, math.floor((g.min() - fp.range_min) / fp.spacing_range) - 1),
+                      min(fp.n_range, math.floor((g.max() - fp.range_min) / fp.spacing_range) + 2))
+        for ii in i:
+            for jj in j:
+                factor[ii, jj] = max(factor.get((ii, jj), 0), m)
+    groups = {}
+    for cell, m in factor.items():
+        groups.setdefault(m, []).append(cell)
+    return tuple(Refinement(m, np.array(sorted(cells), np.int64)) for m, cells in sorted(groups.items()))
 
 
 def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,

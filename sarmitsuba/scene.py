@@ -24,7 +24,7 @@ from .meshcheck import check_meshes, warn_mesh_defects
 from .planning import resolve_parameters
 from .radiometry import radar_equation
 from .radar import ParameterError, RadarParameters
-from .trace import MaterialTable, TraceSettings
+from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table",
            "builtin_scenes", "sionna_scenes"]
@@ -60,6 +60,9 @@ class LoadedScene:
         World position of the local frame's origin: geometry, ``params`` and the bounding box
         are local (world minus offset); zero unless the scene lies more than
         :data:`RECENTER_DISTANCE` from the origin.
+    shape_boxes : float64 [n_shapes, 2, 3], m
+        Each shape's bounding box ``(lo, hi)`` (local frame), for the ray planner's refinement
+        around small objects.
     """
 
     scene: Any
@@ -73,6 +76,7 @@ class LoadedScene:
     n_shapes: int
     n_triangles: int
     offset: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    shape_boxes: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2, 3)))
 
 
 def _package_dir(name: str) -> Path | None:
@@ -180,7 +184,13 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
-                       offset=offset)
+                       offset=offset, shape_boxes=_shape_boxes(scene))
+
+
+def _shape_boxes(scene: Any) -> np.ndarray:
+    """float64 [n_shapes, 2, 3]: every shape's axis-aligned bounding box."""
+    boxes = [(np.array(s.bbox().min, np.float64), np.array(s.bbox().max, np.float64)) for s in scene.shapes()]
+    return np.array(boxes, np.float64).reshape(-1, 2, 3)
 
 
 #: Scenes whose bounding-box centre lies farther than this [m] from the origin are traced in a

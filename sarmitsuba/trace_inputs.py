@@ -1,0 +1,270 @@
+"""What the tracer consumes: its settings, the planned fast-time window and ray lattice, and
+the material table (the contracts between scene loading, planning and tracing; DESIGN.md section 2).
+
+* :class:`TraceSettings` -- the ``sbr`` integrator's parameters (read by the plugin, overridden by
+  the CLI);
+* :class:`FastTimeWindow` -- fast-time sampling shared by all pulses (:func:`sarmitsuba.planning.fast_time_window`);
+* :class:`RayFootprint` -- the world-fixed lattice of ray-tube aim points, its refinement around
+  small objects and the clutter scatterers' surface lattice (:func:`sarmitsuba.planning.ray_footprint`);
+* :class:`MaterialTable` -- reflection coefficients and clutter models per shape
+  (:func:`sarmitsuba.scene.material_table`).
+
+All are frozen dataclasses of NumPy arrays and Python numbers: no Dr.Jit types cross a stage boundary.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .constants import SPEED_OF_LIGHT
+from .deposit import RANGE_KERNELS
+from .radar import ParameterError
+
+__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable"]
+
+
+@dataclass(frozen=True)
+class TraceSettings:
+    """Settings of the ``sbr`` integrator (see :mod:`sarmitsuba_plugins.sbr_integrator` for the manual).
+
+    Attributes
+    ----------
+    max_depth : int
+        Bounce orders traced, [1, 64].
+    ray_spacing : float, m
+        Ray-tube width at the scene centre; 0 = automatic (:func:`sarmitsuba.planning.ray_spacing`).
+    range_kernel : str
+        ``nearest``, ``linear``, ``sinc`` or ``exact`` (docs/physics.md (D1)-(D4)).
+    oversample : int
+        Fine fast-time bins per sample of the deposit grid, [1, 64].
+    max_batch_rays : int
+        Ceiling on the ray tubes of one kernel launch (>= 1024).
+    seed : int
+        Seed of the clutter scatterers' phases and positions, [0, 2^32).
+    split_bounces : bool
+        Keep each bounce order's contributions separately.
+    scatterer_spacing : float, m
+        Cell size of the surface-attached clutter scatterer lattice; 0 = automatic
+        (:func:`sarmitsuba.planning.scatterer_spacing`). Independent of ``ray_spacing``.
+    tubes_per_object : int
+        Objects (Mitsuba shapes) smaller than ``tubes_per_object`` ray tubes are traced with
+        tubes ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
+    """
+
+    max_depth: int = 3
+    ray_spacing: float = 0.0
+    range_kernel: str = "linear"
+    oversample: int = 8
+    max_batch_rays: int = 1 << 22
+    seed: int = 0
+    split_bounces: bool = False
+    scatterer_spacing: float = 0.0
+    tubes_per_object: int = 24
+
+    def __post_init__(self) -> None:
+        if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
+            raise ParameterError(f"max_depth = {self.max_depth} must be a whole number in [1, 64]")
+        for name in ("ray_spacing", "scatterer_spacing"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ParameterError(f"{name} = {value} m must be >= 0 (0 = automatic)")
+        if self.range_kernel not in RANGE_KERNELS:
+            raise ParameterError(f"range_kernel = {self.range_kernel!r}; valid values: {', '.join(RANGE_KERNELS)}")
+        if int(self.oversample) != self.oversample or not 1 <= self.oversample <= 64:
+            raise ParameterError(f"oversample = {self.oversample} must be a whole number in [1, 64]")
+        if int(self.max_batch_rays) != self.max_batch_rays or self.max_batch_rays < 1024:
+            raise ParameterError(f"max_batch_rays = {self.max_batch_rays} must be a whole number >= 1024")
+        if int(self.seed) != self.seed or not 0 <= self.seed < 2**32:
+            raise ParameterError(f"seed = {self.seed} must be a whole number in [0, 2^32)")
+        if int(self.tubes_per_object) != self.tubes_per_object or not 0 <= self.tubes_per_object <= 256:
+            raise ParameterError(f"tubes_per_object = {self.tubes_per_object} must be a whole number in [0, 256] "
+                                 "(0 = no refinement around small objects)")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all settings."""
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values) -> "TraceSettings":
+        """Build from a name -> value mapping (strings allowed), checking the names.
+
+        Raises
+        ------
+        ParameterError
+            Unknown names (listing the valid ones) or values that cannot be converted.
+        """
+        types = {f.name: f.type for f in fields(cls)}
+        kwargs = {}
+        for name, value in values.items():
+            if name not in types:
+                raise ParameterError(f"unknown sbr integrator parameter {name!r}; valid: {', '.join(types)}")
+            try:
+                kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}") from None
+        return cls(**kwargs)
+
+
+def _boolean(value) -> bool:
+    if isinstance(value, str):
+        if value.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(value)
+        return value.lower() in ("true", "1")
+    return bool(value)
+
+
+@dataclass(frozen=True)
+class FastTimeWindow:
+    """The fast-time sampling window shared by all pulses.
+
+    Attributes
+    ----------
+    t0 : float, s
+        Two-way delay of sample 0.
+    fs : float, Hz
+        Sampling rate.
+    n_samples : int
+        Samples per pulse.
+    oversample : int
+        Fine-grid factor used by the tracer's deposit.
+    """
+
+    t0: float
+    fs: float
+    n_samples: int
+    oversample: int
+
+    @property
+    def fast_time(self) -> np.ndarray:
+        """float64 [n_samples] sample delays, s."""
+        return self.t0 + np.arange(self.n_samples, dtype=np.float64) / self.fs
+
+    @property
+    def n_fine(self) -> int:
+        """Samples of the fine deposit grid."""
+        return self.n_samples * self.oversample
+
+    @property
+    def fine_step_length(self) -> float:
+        """Two-way path length of one fine bin, m."""
+        return SPEED_OF_LIGHT / (self.fs * self.oversample)
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """Cells of the coarse ray lattice traced with finer tubes (docs/physics.md (T2)).
+
+    Attributes
+    ----------
+    factor : int
+        Each cell is split into ``factor x factor`` tubes.
+    cells : int64 [n, 2]
+        World-fixed lattice indices ``(i, j)`` (along track, ground range) of the cells.
+    """
+
+    factor: int
+    cells: np.ndarray
+
+
+@dataclass(frozen=True)
+class RayFootprint:
+    """World-fixed ground-plane lattice the ray tubes are aimed at (docs/physics.md (T1)).
+
+    Cell ``(i, j)`` has its centre at ``origin + (i + 1/2) spacing_azimuth track +
+    (range_min + (j + 1/2) spacing_range) look`` (float64, m; the aim plane is horizontal
+    through ``origin``). Pulse ``p`` aims one tube at each cell ``i`` in
+    ``[k0[p], k0[p] + n_azimuth)``, ``j`` in ``[0, n_range)`` whose centre lies inside the
+    pulse's along-track limits and whose direction lies inside the traced beam; cells listed
+    in ``refinements`` are traced with ``factor^2`` smaller tubes instead.
+
+    Attributes
+    ----------
+    origin, track, look : float64 [3]
+        Lattice origin (the scene centre), unit track direction, unit horizontal look direction.
+    spacing_azimuth, spacing_range : float, m
+        Cell size along track (the tube width ``s``) and in ground range (``s / cos(theta)``).
+    range_min : float, m
+        Ground-range offset of the lattice's first row from ``origin``.
+    n_azimuth, n_range : int
+        Cells per pulse along track, and rows in ground range.
+    k0 : int64 [n_pulses]
+        First along-track cell of each pulse.
+    along_limits : float64 [n_pulses, 2], m
+        Along-track interval of aim points (relative to ``origin``) through which a pulse's
+        rays can reach the scene's bounding box: its corners projected from the antenna onto
+        the aim plane.
+    scatterer_spacing : float, m
+        Cell size of the surface-attached clutter scatterer lattice (docs/physics.md (C)).
+    refinements : tuple of Refinement
+        Finer tubes around objects smaller than ``tubes_per_object`` tubes.
+    """
+
+    origin: np.ndarray
+    track: np.ndarray
+    look: np.ndarray
+    spacing_azimuth: float
+    spacing_range: float
+    range_min: float
+    n_azimuth: int
+    n_range: int
+    k0: np.ndarray
+    along_limits: np.ndarray
+    scatterer_spacing: float
+    refinements: tuple = ()
+
+    @property
+    def rays_per_pulse(self) -> int:
+        """Coarse cells per pulse (an upper bound of the coarse rays cast per pulse)."""
+        return self.n_azimuth * self.n_range
+
+    @property
+    def refined_rays(self) -> int:
+        """Fine tubes of all refined cells (each traced only by the pulses whose beam holds it)."""
+        return int(sum(r.cells.shape[0] * r.factor**2 for r in self.refinements))
+
+    def refined_mask(self) -> tuple[int, np.ndarray]:
+        """``(i0, mask)``: uint8 [n_i, n_range], 1 where cell ``(i0 + a, j)`` is refined."""
+        if not self.refinements:
+            return 0, np.zeros((1, self.n_range), np.uint8)
+        cells = np.concatenate([r.cells for r in self.refinements])
+        i0 = int(cells[:, 0].min())
+        mask = np.zeros((int(cells[:, 0].max()) - i0 + 1, self.n_range), np.uint8)
+        mask[cells[:, 0] - i0, cells[:, 1]] = 1
+        return i0, mask
+
+
+@dataclass(frozen=True)
+class MaterialTable:
+    """Reflection coefficient tables and clutter models indexed by shape id, for the kernel.
+
+    Attributes
+    ----------
+    row_of_shape : uint32 [max_shape_id + 1]
+        Table row of each Mitsuba shape id (``reinterpret(UInt32, ShapePtr)``).
+    table : complex64 [n_rows, n_cos]
+        ``r(cos_i)`` sampled uniformly for cos_i in [0, 1]; interpolated linearly.
+    names : list of str
+        Material name of each row.
+    clutter : float32 [n_rows, 2]
+        Distributed-clutter model of each row: ``(kind, value)`` with kind 0 = none,
+        1 = constant gamma (``sigma0 = value * sqrt(cos_i cos_b)``, value = gamma),
+        2 = Lambertian (``sigma0 = value * |r|^2 cos_i cos_b``, value = 4 S^2). See
+        docs/physics.md (C).
+    shape_key : uint32 [max_shape_id + 1]
+        Stable identity of each shape (CRC-32 of its scene id), so that clutter scatterers do
+        not change between loads of the same scene.
+    """
+
+    row_of_shape: np.ndarray
+    table: np.ndarray
+    names: list
+    clutter: np.ndarray | None = None
+    shape_key: np.ndarray | None = None
+
+    @property
+    def has_clutter(self) -> bool:
+        """Whether any material has a distributed-clutter model (switches the term on)."""
+        return self.clutter is not None and bool(np.any(self.clutter[:, 0] > 0))
