@@ -8,7 +8,7 @@ each setting warmed up once (untimed: kernel compilation is not counted), best o
   and closed forms from ``benchmarks/rcs.py`` / :mod:`sarmitsuba.canonical`): RCS by
   integrated point energy, error in dB against the closed form;
 * **rough ground** (80 m x 80 m, gamma -10 dB, the scene of ``tests/scenes/rough_ground.xml``):
-  over the interior 60 m x 60 m, the mean sigma0 (mean intensity / (rho_az rho_gr)) against
+  over the interior 60 m x 60 m, the mean sigma0 (mean intensity / (rho_E,az rho_E,gr), the energy widths) against
   the model ``gamma cos(theta)`` in dB, and the speckle contrast std / mean of the intensity
   (1 for fully developed speckle, Goodman 1976), also as ``10 log10(contrast)`` dB.
   The contrast is an estimate from ~2,800 resolution cells: about +-2 % statistical scatter.
@@ -38,6 +38,7 @@ import sarmitsuba  # noqa: F401
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
 from rcs import cases, integrated_rcs
+from sarmitsuba import analysis
 from sarmitsuba import canonical as C
 from sarmitsuba.pipeline import simulate
 
@@ -95,11 +96,11 @@ def ground_statistics(sim) -> tuple[float, float, float]:
     az, gr = np.meshgrid(im.azimuth, im.range, indexing="ij")
     box = (np.abs(az) < 30.0) & (np.abs(gr) < 30.0)
     values, positions = im.data[box], im.positions()[box]
-    p = sim.loaded.params
     antenna = sim.raw.tx_position.mean(axis=0)
     cos_theta = (antenna[2] - positions[:, 2]) / np.linalg.norm(antenna - positions, axis=1)
     intensity = np.abs(values.astype(np.complex128)) ** 2
-    measured = intensity.mean() / (p.azimuth_resolution * p.ground_range_resolution)
+    # sigma0 = mean intensity over the weighted impulse response's energy widths (physics (K2))
+    measured = intensity.mean() / float(np.prod(analysis.energy_widths(im)))
     return float(measured), float(np.mean(GAMMA * cos_theta)), float(intensity.std() / intensity.mean())
 
 
