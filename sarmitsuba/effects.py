@@ -90,9 +90,14 @@ def _antenna(loaded: "LoadedScene") -> Effect:
     if p.antenna_length > 0 or p.antenna_height > 0:
         return Effect("antenna pattern", True,
                       f"antenna_length {p.antenna_length} m, antenna_height {p.antenna_height} m")
+    if p.beam == "uniform":
+        return Effect("antenna pattern", False,
+                      f"beam = uniform (on request): a hard-edged {p.azimuth_beamwidth:.3g} deg beam, no pattern; "
+                      "extended targets streak in azimuth beyond their ends")
     return Effect("antenna pattern", False,
-                  f"no antenna_length / antenna_height: uniform illumination inside the "
-                  f"{p.azimuth_beamwidth:.3g} deg azimuth_beamwidth footprint")
+                  f"no antenna_length / antenna_height: the default tapered beam, the two-way sinc^2 of the "
+                  f"{p.pattern_length:.3g} m aperture whose 3 dB width is azimuth_beamwidth {p.azimuth_beamwidth:.3g} deg, "
+                  f"traced to its first nulls ({p.traced_beamwidth:.3g} deg)")
 
 
 def _noise(loaded: "LoadedScene") -> Effect:

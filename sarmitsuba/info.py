@@ -39,8 +39,9 @@ from .constants import SPEED_OF_LIGHT
 from .effects import Effect, list_effects
 from .pipeline import image_grid
 from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
-from .radiometry import radar_equation
+from .radiometry import effective_pulses, radar_equation
 from .scene import LoadedScene, load_scene, material_table
+from .deposit import padded_length
 from .trace_inputs import FastTimeWindow, RayFootprint
 
 __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
@@ -137,14 +138,16 @@ class RadarSummary:
     """Radar parameters and the quantities derived from them (refs. [1], [2]; SI units).
 
     Resolutions: slant range ``c / (2B)``, ground range ``c / (2B sin(theta))``, azimuth
-    ``lambda / (2 beta)`` (ideal beam), ``L_a / 2`` (antenna) or ``lambda / (2 dtheta)``
-    (spotlight). ``doppler_bandwidth_hz`` is ``2 v beta_3dB / lambda`` with
-    ``beta_3dB = lambda / L_a`` with an antenna (``2 v / L_a``), else the beamwidth;
-    ``illuminated_doppler_bandwidth_hz`` is ``4 v sin(beta / 2) / lambda`` over the full
-    simulated beam (null to null with an antenna). PRF limits: lower = the illuminated
-    Doppler bandwidth (azimuth ambiguities), upper = ``1 / (2 dR / c + T_p)`` with ``dR``
-    the scene's slant depth seen from the track (range ambiguities: one pulse's echoes
-    must fit in one PRI); the same tests as :func:`sarmitsuba.planning.check_acquisition`.
+    ``L / 2`` for the aperture ``L`` of a tapered beam or antenna, ``lambda / (2 beta)`` for a
+    uniform beam, or ``lambda / (2 dtheta)`` (spotlight). ``doppler_bandwidth_hz`` is the 3 dB
+    Doppler bandwidth ``2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda`` of the 3 dB
+    beamwidth ``beta`` (``2 v beta cos(squint) / lambda`` for small beams);
+    ``illuminated_doppler_bandwidth_hz`` the same over the traced beam (to the pattern's first
+    nulls for a tapered beam, about 2.26 beta). PRF limits: lower = the 3 dB Doppler bandwidth
+    (azimuth ambiguities; the tapered beam's tails beyond it alias at a low level), upper =
+    ``1 / (2 dR / c + T_p)`` with ``dR`` the scene's slant depth seen from the track (range
+    ambiguities: one pulse's echoes must fit in one PRI); the same tests as
+    :func:`sarmitsuba.planning.check_acquisition`.
     """
 
     frequency_hz: float
@@ -159,7 +162,12 @@ class RadarSummary:
     look_side: str
     polarization: str
     output: str
+    #: ``tapered`` (two-way sinc^2 of an aperture) or ``uniform`` (hard-edged, on request).
+    beam: str
     azimuth_beamwidth_deg: float
+    #: Full width of the traced (and backprojected) beam: to the pattern's first nulls, or the
+    #: uniform beam's width.
+    traced_beamwidth_deg: float
     incidence_angle_deg: float
     #: Off-nadir look angle at the scene centre (flat earth: equal to the incidence angle).
     look_angle_deg: float
@@ -220,16 +228,17 @@ class RadiometrySummary:
 class CostEstimate:
     """Estimated work and memory of a render (the times are estimates, within a factor ~2).
 
-    Rays: ``rays_per_pulse`` is the size of the ray grid aimed at the scene per pulse (rays
-    outside the beam are not cast, so it is an upper bound). Casts: every ray reaching
+    Rays: ``rays_per_pulse`` is the size of the coarse ray grid aimed at the scene per pulse
+    (rays outside the beam are not cast, so it is an upper bound); ``primary_rays`` adds the
+    finer tubes around small objects for the pulses that see them. Casts: every ray reaching
     ``max_depth`` bounces, ``primary_rays * max_depth`` closest-hit and as many shadow casts
     (upper bound). Trace time: ``TRACE_OVERHEAD * (closest_hit / closest_hit_rate + shadow /
     shadow_rate)`` with the rates of :func:`cast_rates`, from every primary ray ending at its
     first hit (``trace_time_low_s``) to the upper-bound casts (``trace_time_high_s``).
 
-    Memory: the tracer's fine deposit, complex64 ``[groups, n_pulses, fine_samples]`` (groups
-    = ``max_depth`` with ``split_bounces``, else 1), or with the ``exact`` range kernel its
-    path list instead, at most one path per closest-hit cast of :data:`PATH_BYTES` each; one
+    Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
+    = ``max_depth`` with ``split_bounces``, else 1; :func:`sarmitsuba.deposit.padded_length`),
+    or with the ``exact`` range kernel its term list instead, at most one path per closest-hit cast of :data:`PATH_BYTES` each; one
     raw data set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64
     ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth`` with
     ``split_bounces``).
@@ -292,7 +301,7 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     params, lo, hi = loaded.params, loaded.bbox_lo, loaded.bbox_hi
     geometry = acquisition_geometry(params)
     window = planning.fast_time_window(params, geometry, lo, hi, loaded.settings)
-    footprint = planning.ray_footprint(params, geometry, lo, hi, loaded.settings)
+    footprint = planning.ray_footprint(params, geometry, lo, hi, loaded.settings, shape_boxes=loaded.shape_boxes)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
@@ -356,22 +365,23 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
     along, across = rel @ geometry.track_direction, rel @ geometry.look_direction
     l_min, l_max = planning._echo_lengths(geometry.positions, lo, hi)   # as check_acquisition
     aperture_length, pulses_per_point = _aperture(p)
-    beam_3db = p.wavelength / p.antenna_length if p.antenna_length > 0 else math.radians(p.azimuth_beamwidth)
+    sin_lo, sin_hi = p.beam_sines
     prf_min = p.doppler_bandwidth
     prf_max = 1.0 / ((l_max - l_min) / SPEED_OF_LIGHT + p.pulse_length)
     return RadarSummary(
         frequency_hz=p.frequency, wavelength_m=p.wavelength, bandwidth_hz=p.bandwidth, pulse_length_s=p.pulse_length,
         sampling_rate_hz=p.sampling_rate, prf_hz=p.prf, velocity_m_s=p.velocity, altitude_m=p.altitude,
-        mode=p.mode, look_side=p.look_side, polarization=p.polarization, output=p.output,
-        azimuth_beamwidth_deg=p.azimuth_beamwidth, incidence_angle_deg=p.incidence_angle,
+        mode=p.mode, look_side=p.look_side, polarization=p.polarization, output=p.output, beam=p.beam,
+        azimuth_beamwidth_deg=p.azimuth_beamwidth, traced_beamwidth_deg=p.traced_beamwidth,
+        incidence_angle_deg=p.incidence_angle,
         look_angle_deg=p.incidence_angle,
         incidence_near_deg=math.degrees(math.atan2(p.ground_range + float(across.min()), p.altitude)),
         incidence_far_deg=math.degrees(math.atan2(p.ground_range + float(across.max()), p.altitude)),
         slant_range_m=p.slant_range, ground_range_m=p.ground_range,
         slant_range_resolution_m=p.slant_range_resolution, ground_range_resolution_m=p.ground_range_resolution,
         azimuth_resolution_m=p.azimuth_resolution, azimuth_resolution_formula=_azimuth_formula(p),
-        doppler_bandwidth_hz=2.0 * p.velocity * beam_3db * math.cos(math.radians(p.squint)) / p.wavelength,
-        illuminated_doppler_bandwidth_hz=p.doppler_bandwidth,
+        doppler_bandwidth_hz=p.doppler_bandwidth,
+        illuminated_doppler_bandwidth_hz=2.0 * p.velocity * (sin_hi - sin_lo) / p.wavelength,
         squint_deg=p.squint, doppler_centroid_hz=p.doppler_centroid,
         prf_min_hz=prf_min, prf_max_hz=prf_max, prf_ok=prf_min <= p.prf <= prf_max,
         swath_ground_m=float(across.max() - across.min()), scene_azimuth_extent_m=float(along.max() - along.min()),
@@ -386,7 +396,7 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
 def _aperture(p: RadarParameters) -> tuple[float, int]:
     """Synthetic aperture length [m] integrated per point, and the pulses in it.
 
-    Stripmap: the beam footprint ``2 R tan(beta / 2)`` at the scene centre (each point is
+    Stripmap: the traced beam's footprint ``2 R tan(h)`` at the scene centre (each point is
     lit while the platform flies that far; capped by the track). Spotlight: the whole
     track, ``N v / prf`` (the length behind :attr:`RadarParameters.integration_angle`).
     """
@@ -402,7 +412,10 @@ def _azimuth_formula(p: RadarParameters) -> str:
                 f"{math.degrees(p.integration_angle):.3g} deg")
     if p.antenna_length > 0:
         return f"L_a / 2, antenna_length L_a = {p.antenna_length:g} m"
-    return f"lambda / (2 beta), azimuth_beamwidth beta = {p.azimuth_beamwidth:g} deg"
+    if p.pattern_length > 0:
+        return (f"L / 2, L = 0.443 lambda / sin(beta / 2) = {p.pattern_length:.3g} m: the aperture whose 3 dB "
+                f"beamwidth is azimuth_beamwidth beta = {p.azimuth_beamwidth:g} deg (tapered beam)")
+    return f"lambda / (2 beta), uniform beam of width beta = {p.azimuth_beamwidth:g} deg"
 
 
 def _radiometry(p: RadarParameters, pulses: int) -> RadiometrySummary | None:
@@ -414,7 +427,7 @@ def _radiometry(p: RadarParameters, pulses: int) -> RadiometrySummary | None:
     snr = image = nesz = None
     if equation.noise_power > 0:
         snr = _db(equation.snr(1.0, r))
-        image_snr = equation.image_snr(1.0, r, pulses)                          # eq. (R3)
+        image_snr = equation.image_snr(1.0, r, effective_pulses(p, pulses))     # eq. (R3)
         image = _db(image_snr)
         nesz = _db(1.0 / (image_snr * p.azimuth_resolution * p.ground_range_resolution))   # eq. (R4)
     return RadiometrySummary(antenna_gain_dbi=_db(equation.gain), radar_constant_w_m2=equation.constant,
@@ -441,7 +454,8 @@ def cast_rates(n_triangles: int) -> tuple[float, float]:
 def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
           footprint: RayFootprint) -> CostEstimate:
     st, n_pulses = loaded.settings, loaded.params.n_pulses
-    primary = footprint.rays_per_pulse * n_pulses
+    # coarse tubes every pulse; each refined cell's fine tubes for the pulses whose beam holds it
+    primary = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * _aperture(loaded.params)[1]
     casts = primary * st.max_depth
     hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
     groups = st.max_depth if st.split_bounces else 1
@@ -456,7 +470,7 @@ def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWi
         trace_time_low_s=TRACE_OVERHEAD * (primary / hit_rate + primary / shadow_rate),
         trace_time_high_s=TRACE_OVERHEAD * (casts / hit_rate + casts / shadow_rate),
         fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=0 if exact else groups * n_pulses * window.n_fine * 8,
+        deposit_bytes=0 if exact else groups * n_pulses * padded_length(window.n_samples) * 8,
         path_list_bytes=casts * PATH_BYTES if exact else 0, raw_bytes=n_pulses * window.n_samples * 8,
         image_shape=grid.shape, image_bytes=grid.shape[0] * grid.shape[1] * 8, n_products=n_products,
         backprojection_pixel_pulses=n_products * pixel_pulses, backprojection_time_s=n_products * seconds)
@@ -517,15 +531,17 @@ def _radar_lines(r: RadarSummary) -> list[str]:
         f"bandwidth {_eng(r.bandwidth_hz, 'Hz')}, pulse {_eng(r.pulse_length_s, 's')}, "
         f"sampling {_eng(r.sampling_rate_hz, 'Hz')}, prf {_eng(r.prf_hz, 'Hz')}",
         f"{r.mode}, looking {r.look_side}, altitude {r.altitude_m:g} m, velocity {r.velocity_m_s:g} m/s, "
-        f"azimuth beam {r.azimuth_beamwidth_deg:.3g} deg",
+        f"azimuth beam {r.azimuth_beamwidth_deg:.3g} deg ("
+        + (f"tapered: two-way sinc^2 pattern traced to its first nulls, {r.traced_beamwidth_deg:.3g} deg)"
+           if r.beam == "tapered" else "uniform and hard-edged, on request: extended targets streak in azimuth)"),
         f"incidence {r.incidence_angle_deg:g} deg at the centre ({r.incidence_near_deg:.1f} .. "
         f"{r.incidence_far_deg:.1f} deg across the scene), look angle {r.look_angle_deg:g} deg (flat earth)",
         f"slant range to the centre {r.slant_range_m:.1f} m, ground range {r.ground_range_m:.1f} m",
         f"resolution: slant range {r.slant_range_resolution_m:.3g} m = c/(2B); ground range "
         f"{r.ground_range_resolution_m:.3g} m = c/(2B sin theta); azimuth {r.azimuth_resolution_m:.3g} m = "
         f"{r.azimuth_resolution_formula}",
-        f"Doppler bandwidth {r.doppler_bandwidth_hz:.1f} Hz = 2 v beta_3dB cos(squint) / lambda; illuminated "
-        f"{r.illuminated_doppler_bandwidth_hz:.1f} Hz = 2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda",
+        f"Doppler bandwidth {r.doppler_bandwidth_hz:.1f} Hz = 2 v (sin(squint + beta/2) - sin(squint - beta/2)) / "
+        f"lambda (3 dB); traced {r.illuminated_doppler_bandwidth_hz:.1f} Hz over the traced beam",
         f"squint {r.squint_deg:g} deg, Doppler centroid {r.doppler_centroid_hz:.1f} Hz = 2 v sin(squint) / lambda",
         f"PRF limits {_eng(r.prf_min_hz, 'Hz')} .. {_eng(r.prf_max_hz, 'Hz')}: "
         f"prf {_eng(r.prf_hz, 'Hz')} is {prf_state}",

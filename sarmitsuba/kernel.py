@@ -264,6 +264,7 @@ class _Tables:
     clutter_kind: mi.UInt32 | None = None
     clutter_value: mi.Float | None = None
     shape_key: mi.UInt32 | None = None
+    shape_origin: mi.Point3f | None = None
 
 
 # ============================================================================ the kernel
@@ -301,6 +302,7 @@ class Kernel:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
             self.tables.shape_key = mi.UInt32(table.shape_key.astype(np.uint32))
+            self.tables.shape_origin = mi.Point3f(*(table.shape_origin[:, c].astype(np.float32) for c in range(3)))
         # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
         self.radiometry = params.transmit_power is not None
         # antenna pattern, eq. (A): the tapered default beam or the antenna's dimensions
@@ -328,11 +330,15 @@ class Kernel:
         ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
                    carried=dr.zeros(mi.Float, st.max_depth), scatterers=dr.zeros(mi.UInt32, st.max_depth))
         if self.exact:
-            capacity = capacity or max(1024, 4 * n_lanes * st.max_depth)
-            ctx.update(count=dr.zeros(mi.UInt32, 1), path_pos=dr.zeros(mi.Float64, capacity),
-                       path_re=dr.zeros(mi.Float, capacity), path_im=dr.zeros(mi.Float, capacity),
-                       path_order=dr.zeros(mi.UInt32, capacity), path_pulse=dr.zeros(mi.UInt32, capacity),
-                       path_spectral=dr.zeros(mi.UInt32, capacity))
+            # slots: 4 fixed ones per tube and bounce for the PO terms, then the clutter scatterers,
+            # appended (one dr.scatter_inc per scatterer-loop iteration)
+            fixed = 4 * n_lanes * st.max_depth
+            capacity = capacity or max(1024, fixed)
+            size = fixed + capacity
+            ctx.update(count=dr.zeros(mi.UInt32, 1), fixed=fixed, lane=dr.arange(mi.UInt32, n_lanes),
+                       path_pos=dr.zeros(mi.Float64, size), path_re=dr.zeros(mi.Float, size),
+                       path_im=dr.zeros(mi.Float, size), path_order=dr.zeros(mi.UInt32, size),
+                       path_pulse=dr.zeros(mi.UInt32, size), path_spectral=dr.zeros(mi.UInt32, size))
             outputs = ("count", "path_pos", "path_re", "path_im", "path_order", "path_pulse", "path_spectral")
         else:
             size = len(SPECTRAL_ORDERS) * self.groups * n_b * win.n_fine
@@ -355,9 +361,10 @@ class Kernel:
                    scatterers=ctx["scatterers"].numpy().astype(np.int64))
         if self.exact:
             count = int(ctx["count"].numpy()[0])
-            if count > capacity:                  # too many terms for the buffer: run again, larger
+            if count > capacity:                  # too many scatterers for the buffer: run again, larger
                 return self(launch, capacity=count + 1024)
-            out["paths"] = {name: ctx[name].numpy()[:count] for name in outputs[1:]}
+            filled = np.flatnonzero(ctx["path_order"].numpy())
+            out["paths"] = {name: ctx[name].numpy()[filled] for name in outputs[1:]}
         else:
             hist = ctx["hist"].numpy().view(np.complex64)
             out["hist"] = hist.reshape(len(SPECTRAL_ORDERS), self.groups, n_b, win.n_fine)
@@ -413,9 +420,11 @@ class Kernel:
         # ---- traced beam: sin(squint - h) <= sin(phi_ray) <= sin(squint + h); spotlight: relative to
         #      the direction of the scene centre ----
         sin_ray = dr.dot(to_p, track) / r
+        steer = None
         if self.spotlight:
             to_c = origin - antenna
-            sin_ray -= dr.dot(to_c, track) / dr.norm(to_c)
+            steer = mi.Float(dr.dot(to_c, track) / dr.norm(to_c))
+            sin_ray -= steer
         lo = dr.gather(f64, f64(launch.along_limits[:, 0].copy()), pulse)
         hi = dr.gather(f64, f64(launch.along_limits[:, 1].copy()), pulse)
         active = mi.Bool((sin_ray >= self.beam_sines[0]) & (sin_ray <= self.beam_sines[1])
@@ -430,8 +439,8 @@ class Kernel:
         rn = dr.gather(f64, f64(launch.r_near.copy()), pulse)
         tube = Tube(ray=mi.Ray3f(mi.Point3f(antenna + d64 * rn), d), t1=e1, t2=e2, s=f64(0.0), origin=a64(antenna),
                     gamma=mi.Complex2f(1.0, 0.0), depth=mi.UInt32(0), active=active)
-        lanes = dict(antenna=antenna, pulse=pulse, lref=dr.gather(f64, f64(launch.lref.copy()), pulse),
-                     g_tx=self._gain(d) if self.pattern else None)
+        lanes = dict(antenna=antenna, pulse=pulse, lref=dr.gather(f64, f64(launch.lref.copy()), pulse), steer=steer)
+        lanes["g_tx"] = self._gain(d, lanes) if self.pattern else None
         return tube, lanes
 
     # ------------------------------------------------------------------ one bounce
@@ -446,7 +455,7 @@ class Kernel:
         # ---- what multiplies every return of this hit: pattern (A) and spreading (R1) ----
         weight = mi.Float(1.0)
         if self.pattern:
-            weight *= lanes["g_tx"] * self._gain(-hit.b)
+            weight *= lanes["g_tx"] * self._gain(-hit.b, lanes)
         if self.radiometry:
             rref = mi.Float(0.5 * lanes["lref"])
             weight *= rref * rref / (mi.Float(hit.s) * mi.Float(hit.dist))
@@ -462,9 +471,9 @@ class Kernel:
         carrier = self._carrier_phase(rel)                      # exp(-j k (L - L_ref))
         anchor = self._anchor(lanes, rel)
         inside = mi.Bool(True)
-        for offset, coefficient, exists in terms.terms:
+        for t, (offset, coefficient, exists) in enumerate(terms.terms):
             inside &= self._deposit(ctx, lanes, tube.depth, anchor, offset, coefficient * carrier,
-                                    terms.order_index, vis & exists)
+                                    terms.order_index, vis & exists, term=t) | ~exists
         power = dr.squared_norm(terms.carrier)
         dr.scatter_add(ctx["energy"], power, tube.depth, vis)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
@@ -489,15 +498,21 @@ class Kernel:
         first = dr.floor(position)
         return mi.Int32(first), mi.Float(position - first)
 
-    def _deposit(self, ctx, lanes, depth, anchor, offset, value, order_index, mask) -> mi.Bool:
+    def _deposit(self, ctx, lanes, depth, anchor, offset, value, order_index, mask, term=None) -> mi.Bool:
         """Deposit ``value`` at the two-way length ``offset`` [m] (float32) beyond the tube centre's
-        ``anchor``, eqs. (D1)-(D4). Returns whether the term lies inside the fast-time window."""
+        ``anchor``, eqs. (D1)-(D4); ``term`` numbers a PO term of the tube (0-3; None for a clutter
+        scatterer). Returns whether the term lies inside the fast-time window."""
         st, win = self.settings, self.window
         position = anchor[1] + offset * (1.0 / win.fine_step_length)       # fine bins after anchor[0]
         if self.exact:
             coarse = (mi.Float64(anchor[0]) + mi.Float64(position)) * (1.0 / win.oversample)
-            slot = dr.scatter_inc(ctx["count"], mi.UInt32(0), mask)
-            keep = mask & (slot < ctx["capacity"])
+            if term is None:                      # a clutter scatterer: the next free slot
+                slot = dr.scatter_inc(ctx["count"], mi.UInt32(0), mask)
+                keep = mask & (slot < ctx["capacity"])
+                slot = slot + ctx["fixed"]
+            else:                                 # PO term: its own slot
+                slot = (ctx["lane"] * self.settings.max_depth + depth) * 4 + term
+                keep = mask
             dr.scatter(ctx["path_pos"], coarse, slot, keep)
             dr.scatter(ctx["path_re"], value.real, slot, keep)
             dr.scatter(ctx["path_im"], value.imag, slot, keep)
@@ -519,8 +534,8 @@ class Kernel:
     def _scatterers(self, ctx, lanes, tube, hit, row, r, footprint, anchor, carrier, weight, vis):
         """Clutter: every scatterer of the surface's own lattice inside the footprint, eq. (C).
 
-        The lattice lies in the plane of the hit (frame ``u, v`` from the surface normal), cells
-        ``c`` wide; cell ``(iu, iv)`` of a shape holds one scatterer at a hashed position inside
+        The lattice lies in the plane of the hit (frame ``u, v`` from the surface normal, origin
+        at a point fixed to the shape), cells ``c`` wide; cell ``(iu, iv)`` of a shape holds one scatterer at a hashed position inside
         it with a hashed phase (an integer hash of the shape, the plane, the cell and the seed). Its
         amplitude is ``sqrt(sigma0) c prod(r_1 .. r_{k-1})``; its two-way length is the tube's
         expanded to second order in the offset from the tube centre. Footprints tile a plane,
@@ -540,7 +555,8 @@ class Kernel:
         u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n))
         u_axis = dr.normalize(u_axis - n * dr.dot(n, u_axis))
         v_axis = dr.cross(n, u_axis)
-        pu, pv = dr.dot(hit.p, u_axis) / c, dr.dot(hit.p, v_axis) / c
+        local = hit.p - dr.gather(mi.Point3f, self.tables.shape_origin, hit.shape, rough)   # the shape's own frame
+        pu, pv = dr.dot(local, u_axis) / c, dr.dot(local, v_axis) / c
         e1, e2 = footprint
         au, av = dr.dot(e1, u_axis) / c, dr.dot(e1, v_axis) / c
         bu, bv = dr.dot(e2, u_axis) / c, dr.dot(e2, v_axis) / c
@@ -553,7 +569,7 @@ class Kernel:
         # ---- which surface: shape, side, plane offset and direction ----
         shape_key = dr.gather(mi.UInt32, self.tables.shape_key, hit.shape, rough)
         side = mi.UInt32(dr.dot(n, tube.ray.d) > 0)
-        plane = (mi.UInt32(mi.Int32(dr.floor(dr.dot(n, hit.p) / c)))
+        plane = (mi.UInt32(mi.Int32(dr.round(dr.dot(n, local) / c)))
                  ^ (mi.UInt32(mi.Int32(dr.round(n.x * 1024.0))) * 0x01000193)
                  ^ (mi.UInt32(mi.Int32(dr.round(n.y * 1024.0))) * 0x00010001)
                  ^ (mi.UInt32(mi.Int32(dr.round(n.z * 1024.0))) * 0x00000101))
@@ -594,14 +610,17 @@ class Kernel:
         dr.scatter_add(ctx["scatterers"], found, tube.depth, rough)
 
     # ------------------------------------------------------------------ antenna pattern
-    def _gain(self, v):
+    def _gain(self, v, lanes):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
-        ``sinc(L sin(phi_az) / lambda) sinc(H_a sin(phi_el) / lambda)``, eq. (A)."""
+        ``sinc(L sin(phi_az) / lambda) sinc(H_a sin(phi_el) / lambda)``, eq. (A). In spotlight the
+        beam is steered at the scene centre, as a phased array steers: ``sin(phi_az)`` is taken
+        relative to the centre's, ``sin(phi) - sin(phi_c)``."""
         axis = mi.Vector3f(*self.aperture_axis)
         along = dr.dot(v, axis)
         gain = mi.Float(1.0)
         if self.length_in_wavelengths > 0:
-            gain *= _sinc_pi(self.length_in_wavelengths * along)
+            steered = along - lanes["steer"] if lanes["steer"] is not None else along
+            gain *= _sinc_pi(self.length_in_wavelengths * steered)
         if self.height_in_wavelengths > 0:
             across = dr.normalize(v - axis * along)
             gain *= _sinc_pi(self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))

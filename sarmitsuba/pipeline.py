@@ -314,10 +314,11 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
         raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
     grid, beam, doppler, squint, pattern = _metadata_grid(raw)
     if algorithm == "omegak":
-        return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler)
+        return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler,
+                       azimuth_pattern=pattern)
     if algorithm == "rda":
         return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
-                             doppler_bandwidth=doppler)
+                             doppler_bandwidth=doppler, azimuth_pattern=pattern)
     compressed = range_compress(raw, window_range) if not raw.range_compressed else (
         apply_range_window(raw, window_range) if window_range != "rect" else raw)
     if grid is None:

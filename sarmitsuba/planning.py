@@ -244,9 +244,11 @@ def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: Ray
         ends = geometry.positions[[pulses[0], pulses[-1]]]
         aim = project_to_aim_plane(points[None, :, :], ends[:, None, :], fp.origin[2]) - fp.origin
         a, g = aim @ fp.track, aim @ fp.look
-        i = np.arange(math.floor(a.min() / fp.spacing_azimuth) - 1, math.floor(a.max() / fp.spacing_azimuth) + 2)
-        j = np.arange(max(0, math.floor((g.min() - fp.range_min) / fp.spacing_range) - 1),
-                      min(fp.n_range, math.floor((g.max() - fp.range_min) / fp.spacing_range) + 2))
+        # every coarse cell the projections touch (they are exact at the corners; the rays in
+        # between move linearly with the antenna)
+        i = np.arange(math.floor(a.min() / fp.spacing_azimuth), math.floor(a.max() / fp.spacing_azimuth) + 1)
+        j = np.arange(max(0, math.floor((g.min() - fp.range_min) / fp.spacing_range)),
+                      min(fp.n_range, math.floor((g.max() - fp.range_min) / fp.spacing_range) + 1))
         for ii in i:
             for jj in j:
                 factor[ii, jj] = max(factor.get((ii, jj), 0), m)

@@ -176,7 +176,8 @@ class RadarParameters:
             if not math.isclose(self.azimuth_beamwidth, own, rel_tol=1e-3):
                 raise ParameterError(
                     f"azimuth_beamwidth = {self.azimuth_beamwidth:g} deg disagrees with antenna_length = "
-                    f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them")
+                    f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them "
+                    "(e.g. --set azimuth_beamwidth=0 when the scene file sets a beamwidth)")
         _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
                   "velocity", "altitude", "azimuth_beamwidth")
         if not 0.0 < self.incidence_angle < 90.0:

@@ -19,7 +19,7 @@ from scipy import fft as sp_fft
 from .constants import BOLTZMANN
 from .radar import ParameterError, RadarParameters
 
-__all__ = ["RadarEquation", "radar_equation", "thermal_noise", "calibrate_image"]
+__all__ = ["RadarEquation", "radar_equation", "thermal_noise", "calibrate_image", "effective_pulses"]
 
 
 @dataclass(frozen=True)
@@ -135,3 +135,20 @@ def calibrate_image(data: np.ndarray, positions: np.ndarray, track_point: np.nda
     perp = rel - (rel @ track_direction)[..., None] * track_direction
     slant = np.linalg.norm(perp, axis=-1)
     return (data / equation.amplitude_scale(slant)).astype(np.complex64)
+
+
+def effective_pulses(params: RadarParameters, pulses: int) -> float:
+    """Coherent integration gain of ``pulses`` pulses spread evenly over the traced beam, eq. (R3).
+
+    Each pulse's echo carries the two-way field pattern ``g^2 = sinc^2(L sin(phi) / lambda)``
+    (docs/physics.md (A)); summed unweighted, the signal grows as ``sum g^2`` and the noise as
+    ``sqrt(N)``, so the image SNR gains ``N_eff = (sum g^2)^2 / N`` (``N`` for a uniform beam,
+    about 0.5 N for the tapered beam traced to its nulls).
+    """
+    if params.pattern_length <= 0 or pulses <= 0:
+        return float(pulses)
+    lo, hi = params.beam_sines
+    squint = math.radians(params.squint) if params.mode == "stripmap" else 0.0
+    sines = np.linspace(lo, hi, max(int(pulses), 2))
+    g2 = np.sinc(params.pattern_length / params.wavelength * np.sin(np.arcsin(sines) - squint)) ** 2
+    return float(g2.sum() ** 2 / g2.size) * pulses / g2.size

@@ -277,12 +277,14 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                           * materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
             clutter.append(bsdf.clutter)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-        ids.append((shape_id, rows[key], zlib.crc32(shape.id().encode())))
-    row_of_shape = np.zeros(max(i for i, _, _ in ids) + 1, np.uint32)
+        ids.append((shape_id, rows[key], zlib.crc32(shape.id().encode()), np.array(shape.bbox().min, np.float32)))
+    row_of_shape = np.zeros(max(i[0] for i in ids) + 1, np.uint32)
     shape_key = np.zeros_like(row_of_shape)
-    for shape_id, row, stable in ids:
+    shape_origin = np.zeros((row_of_shape.size, 3), np.float32)
+    for shape_id, row, stable, origin in ids:
         row_of_shape[shape_id] = row
         shape_key[shape_id] = stable
+        shape_origin[shape_id] = origin
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
                          names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
-                         shape_key=shape_key)
+                         shape_key=shape_key, shape_origin=shape_origin)

@@ -61,7 +61,7 @@ class TraceSettings:
     seed: int = 0
     split_bounces: bool = False
     scatterer_spacing: float = 0.0
-    tubes_per_object: int = 24
+    tubes_per_object: int = 48
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -256,6 +256,9 @@ class MaterialTable:
     shape_key : uint32 [max_shape_id + 1]
         Stable identity of each shape (CRC-32 of its scene id), so that clutter scatterers do
         not change between loads of the same scene.
+    shape_origin : float32 [max_shape_id + 1, 3], m
+        A point fixed to each shape (its bounding box's lowest corner) that anchors its clutter
+        scatterer lattice: the scatterers move with the shape, whatever the world frame.
     """
 
     row_of_shape: np.ndarray
@@ -263,6 +266,7 @@ class MaterialTable:
     names: list
     clutter: np.ndarray | None = None
     shape_key: np.ndarray | None = None
+    shape_origin: np.ndarray | None = None
 
     @property
     def has_clutter(self) -> bool:

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
@@ -16,12 +17,16 @@ def _pulse_peaks(overrides):
 
 
 def test_azimuth_pattern_is_two_way_sinc_squared():
-    """Pulse by pulse, the trihedral's echo with a 1 m antenna over the echo without pattern
-    (same pulses) is sinc^2(L_a sin(phi_az) / lambda) within 0.1 dB over the -6 dB main lobe
-    (the 1.5 m trihedral spans +-0.05 % of the beam, so its faces see slightly different gains)."""
-    common = {"azimuth_beamwidth": 3.5, "prf": 500.0}      # PRF above the 3.5 deg beam's Doppler bandwidth
+    """Pulse by pulse, the trihedral's echo with a 1 m antenna over the echo of a uniform beam
+    as wide as the antenna's traced main lobe (same pulses) is sinc^2(L_a sin(phi_az) / lambda)
+    within 0.1 dB over the -6 dB main lobe (the 1.5 m trihedral spans +-0.05 % of the beam, so
+    its faces see slightly different gains)."""
+    lam = 299_792_458.0 / 9.6e9
+    nulls = math.degrees(2 * math.asin(lam / 1.0))            # the 1 m antenna's main lobe, null to null
+    common = {"prf": 500.0, "azimuth_beamwidth": 0}            # PRF above that lobe's Doppler bandwidth
     sim, with_pattern = _pulse_peaks({**common, "antenna_length": 1.0})
-    _, without = _pulse_peaks(common)
+    assert sim.loaded.params.traced_beamwidth == pytest.approx(nulls)
+    _, without = _pulse_peaks({**common, "beam": "uniform", "azimuth_beamwidth": nulls})
     e = -sim.raw.tx_position                               # apex at the origin
     sin_az = (e @ np.array([1.0, 0.0, 0.0])) / np.linalg.norm(e, axis=1)
     model = np.sinc(1.0 / sim.loaded.params.wavelength * sin_az) ** 2
@@ -50,7 +55,32 @@ def test_elevation_pattern_off_boresight():
 
 
 def test_pattern_sets_the_beam_and_resolution():
+    """A 2 m antenna: resolution L_a / 2, 3 dB beamwidth 2 asin(0.443 lambda / L_a) (where
+    sinc^2 = 1/2), traced to the first nulls 2 asin(lambda / L_a)."""
     sim = simulate("trihedral", sensor_overrides={"antenna_length": 2.0, "azimuth_beamwidth": 0})
     p = sim.loaded.params
     assert p.azimuth_resolution == 1.0
-    assert math.isclose(p.azimuth_beamwidth, math.degrees(2 * math.asin(p.wavelength / 2.0)))
+    half_power = 0.4429464706890664                            # sinc(x)^2 = 1/2 (scipy brentq)
+    assert p.azimuth_beamwidth == pytest.approx(math.degrees(2 * math.asin(half_power * p.wavelength / 2.0)), rel=1e-7)
+    assert math.isclose(p.traced_beamwidth, math.degrees(2 * math.asin(p.wavelength / 2.0)))
+    assert np.sinc(2.0 / p.wavelength * math.sin(math.radians(p.azimuth_beamwidth / 2))) ** 2 == pytest.approx(0.5)
+
+
+def test_default_beam_is_tapered_and_uniform_on_request():
+    """No antenna dimensions: the default beam is the aperture whose 3 dB width is
+    azimuth_beamwidth (1 deg), traced to its nulls; ``beam = uniform`` is the hard-edged beam of
+    that full width, with resolution lambda / (2 beta); a uniform beam with an antenna is refused."""
+    from sarmitsuba.radar import ParameterError, RadarParameters
+    tapered, uniform = RadarParameters(), RadarParameters(beam="uniform")
+    beta = math.radians(1.0)
+    assert np.sinc(tapered.pattern_length / tapered.wavelength * math.sin(beta / 2)) ** 2 == pytest.approx(0.5)
+    assert tapered.traced_beamwidth == pytest.approx(math.degrees(2 * math.asin(tapered.wavelength
+                                                                                 / tapered.pattern_length)))
+    assert 2.2 < tapered.traced_beamwidth < 2.3
+    assert tapered.azimuth_resolution == pytest.approx(tapered.pattern_length / 2)
+    assert uniform.pattern_length == 0 and uniform.traced_beamwidth == pytest.approx(1.0)
+    assert uniform.azimuth_resolution == pytest.approx(uniform.wavelength / (2 * beta))
+    with pytest.raises(ParameterError, match="beam = 'uniform'"):
+        RadarParameters(beam="uniform", antenna_length=1.0)
+    with pytest.raises(ParameterError, match="disagrees with antenna_length"):
+        RadarParameters(antenna_length=1.0, azimuth_beamwidth=3.5)

@@ -3,20 +3,20 @@
 1. Kernel inspection. With Dr.Jit's ``KernelHistory`` flag every launched kernel is recorded
    with its ``operation_count`` and its LLVM IR (present even for cache hits: the IR is what the
    cache is keyed on). A scene asking for no optional effect (smooth plane, ``max_depth = 1``)
-   compiles a tracing kernel with no bounce loop, no clutter hash, no antenna pattern, no
+   compiles a tracing kernel with no bounce loop, no clutter hash, no elevation pattern, no
    radar-equation spreading and no beam steering; turning each effect on adds operations and the
-   effect's signature instruction (the ``sbr`` symbolic loop, the TEA constant, the antenna's
-   length in wavelengths, a float32 division, a float64 square root, an integer multiplication).
+   effect's signature instruction (the ``sbr`` symbolic loop, the scatterer hash's multiplier,
+   the antenna's height in wavelengths, a float32 division, a float64 square root, an integer
+   multiplication). The default beam is tapered (docs/physics.md (A)): its azimuth pattern is in
+   every kernel except the ``uniform`` beam's, which compiles no pattern at all.
    Effects applied after tracing (thermal noise, chirped output) leave the kernel unchanged.
 2. An effect the scene does not contain changes nothing. Which comparisons are exact:
 
-   * the tracer's deposit: the same contributions summed by float32 atomic adds whose order
-     may depend on thread scheduling, so equal to ~1e-6 relative (bitwise equal in practice at
+   * the tracer's spectra: the same contributions summed by float32 adds whose order may
+     depend on thread scheduling, so equal to ~1e-6 relative (bitwise equal in practice at
      these sizes); compared with a 1e-6 relative tolerance;
-   * raw data: ``max_depth`` widens the fast-time window (room for longer multi-bounce
-     delays), and a different FFT length changes the band-limiting filter by ~3e-3, so depth-1
-     and depth-3 raw data are compared in the same window (the depth-1 deposit binned into the
-     depth-3 window); same window and same deposit give identical raw data;
+   * ``max_depth`` widens the fast-time window (room for longer multi-bounce delays), so
+     depth-1 and depth-3 are traced into the same (depth-3) window and compared there;
    * ``split_bounces``: the total is the sum of the per-order deposits, so with single-bounce
      paths only, the order-1 raw data equal the total bit for bit;
    * noise parameters without a noise seed: the same arithmetic, bitwise equal.
@@ -37,7 +37,6 @@ import pytest
 from sarmitsuba import binning, pipeline, planning, radiometry   # first: finds libLLVM, sets the variant
 from sarmitsuba.focus import range_compression
 from sarmitsuba.radar import acquisition_geometry
-from sarmitsuba.trace import FastTimeWindow
 
 import drjit as dr  # noqa: E402  (after sarmitsuba)
 
@@ -56,7 +55,7 @@ EIGHT = {"n_pulses": 8}
 FINER = {"max_depth": 1, "ray_spacing": 1.0}
 RADIOMETRY = {"transmit_power": 1000.0, "antenna_gain_db": 30.0}
 
-TEA_DELTA = re.compile(r"\b(2654435769|-1640531527)\b")      # 0x9e3779b9, the TEA round constant
+SCATTERER_HASH = re.compile(r"\b(2221713035|-2073254261)\b")   # 0x846ca68b, the scatterer hash's multiplier
 
 
 @dataclasses.dataclass
@@ -135,13 +134,18 @@ def _loop(t: Traced) -> int:
     return t.ir.count("; Symbolic loop: sbr")            # the dr.while_loop of the bounce orders
 
 
-def _tea(t: Traced) -> int:
-    return len(TEA_DELTA.findall(t.ir))                   # the clutter phase hash (mi.sample_tea_32)
+def _hash(t: Traced) -> int:
+    return len(SCATTERER_HASH.findall(t.ir))              # the clutter scatterers' hash (kernel._hash)
 
 
-def _length_in_wavelengths(t: Traced, length: float = 2.0) -> int:
-    p = t.sim.loaded.params                               # sinc(L_a sin(phi) / lambda): L_a / lambda
+def _length_in_wavelengths(t: Traced, length: float = 1.5) -> int:
+    p = t.sim.loaded.params                               # sinc(H_a sin(phi) / lambda): H_a / lambda
     return _count(re.escape(_float_literal(length / p.wavelength)), t.ir)
+
+
+def _taper(t: Traced) -> int:
+    p = t.sim.loaded.params                               # the tapered beam's L / lambda
+    return _count(re.escape(_float_literal(p.pattern_length / p.wavelength)), t.ir) if p.pattern_length else 0
 
 
 def _f32_divisions(t: Traced) -> int:
@@ -157,13 +161,11 @@ def _i32_multiplications(t: Traced) -> int:
 
 
 #: effect -> (baseline overrides, effect overrides, signature, minimum extra operations).
-#: Measured on this machine (llvm, AVX-512): plain 607-610 ops; loop +101, clutter +215,
-#: pattern +103, radiometry +10, spotlight +10, split_bounces +3 (on a max_depth 3 baseline).
 EFFECTS = {
     "bounce_loop": ({}, {"integrator": {"max_depth": 3}}, _loop, 50),
-    "clutter_gamma": ({}, {"material": {"gamma_db": -10.0}}, _tea, 100),
-    "clutter_lambert": ({}, {"material": {"scattering_coefficient": 0.3}}, _tea, 100),
-    "antenna_pattern": ({}, {"sensor": {"antenna_length": 2.0}}, _length_in_wavelengths, 50),
+    "clutter_gamma": ({}, {"material": {"gamma_db": -10.0}}, _hash, 100),
+    "clutter_lambert": ({}, {"material": {"scattering_coefficient": 0.3}}, _hash, 100),
+    "antenna_pattern": ({}, {"sensor": {"antenna_height": 1.5}}, _length_in_wavelengths, 20),
     "radiometry": ({}, {"sensor": RADIOMETRY}, _f32_divisions, 5),
     "spotlight": ({}, {"sensor": {"mode": "spotlight"}}, _f64_square_roots, 5),
     "split_bounces": ({"integrator": {"max_depth": 3}},
@@ -179,7 +181,7 @@ def plain() -> Traced:
 def test_plain_scene_kernel_has_no_optional_effect(plain):
     """Smooth plane, max_depth 1: one straight-line kernel, one closest-hit cast per primary ray."""
     assert _loop(plain) == 0, "a reflection loop was compiled for max_depth = 1"
-    assert _tea(plain) == 0, "the clutter hash was compiled for a smooth scene"
+    assert _hash(plain) == 0, "the clutter hash was compiled for a smooth scene"
     assert "Symbolic loop" not in plain.ir
     rays = plain.sim.trace.rays_per_order
     assert rays.shape == (1,) and rays[0] > 0
@@ -199,11 +201,19 @@ def test_effect_adds_its_code_to_the_kernel(effect, plain):
           f"{signature(on)}; casts {base.casts} -> {on.casts}")
     assert extra >= min_extra, f"{effect}: {base.ops} -> {on.ops} operations"
     assert signature(on) > signature(base), f"{effect}: signature instruction missing from the kernel"
-    if signature in (_loop, _tea, _length_in_wavelengths):
+    if signature in (_loop, _hash, _length_in_wavelengths):
         assert signature(base) == 0 and signature(plain) == 0
     if effect == "bounce_loop":
         assert on.sim.trace.rays_per_order.shape == (3,)
         assert on.casts > base.casts                      # reflected rays are cast (and miss)
+
+
+def test_uniform_beam_compiles_no_pattern(plain):
+    """The tapered default beam weights every return with its azimuth pattern; ``beam = uniform``
+    (a hard-edged beam, on request) compiles none: fewer operations, no L / lambda constant."""
+    uniform = traced(PLANE, sensor={"beam": "uniform"})
+    assert _taper(plain) > 0 and _taper(uniform) == 0
+    assert uniform.ops < plain.ops - 20, f"{plain.ops} -> {uniform.ops} operations"
 
 
 @pytest.mark.parametrize("effect", ["thermal_noise", "chirped_output"])
@@ -230,6 +240,23 @@ def _assert_close(a: np.ndarray, b: np.ndarray, what: str, rtol: float = 1e-6) -
     assert err <= rtol * scale, f"{what}: max difference {err:.3g} of {scale:.3g}"
 
 
+def _trace_in_window(source, window_from, integrator):
+    """Trace ``source`` with ``integrator`` overrides into the fast-time window and ray lattice
+    planned for ``window_from`` (another max_depth): the same samples for both."""
+    from sarmitsuba.scene import load_scene, material_table
+    from sarmitsuba.trace import trace
+    settings = {**FINER, **integrator}
+    loaded = load_scene(source, EIGHT, settings)
+    planned = load_scene(source, EIGHT, {**FINER, **window_from})
+    p = loaded.params
+    geometry = acquisition_geometry(p)
+    window = planning.fast_time_window(p, geometry, planned.bbox_lo, planned.bbox_hi, planned.settings)
+    footprint = planning.ray_footprint(p, geometry, loaded.bbox_lo, loaded.bbox_hi, loaded.settings,
+                                       shape_boxes=loaded.shape_boxes)
+    return trace(loaded.scene, p, geometry, window, footprint, loaded.settings,
+                 material_table(loaded.scene, p.frequency, p.polarization))
+
+
 def test_bounce_loop_on_a_single_bounce_scene_changes_nothing():
     """Rough plate: reflected rays leave for the sky. max_depth 3 spends casts, adds nothing."""
     one = traced(ROUGH, base_sensor=EIGHT, base_integrator=FINER)
@@ -239,31 +266,18 @@ def test_bounce_loop_on_a_single_bounce_scene_changes_nothing():
     assert rays[0] == one.sim.trace.rays_per_order[0] and rays[1] > 0        # order-2 casts ...
     assert three.sim.trace.shadow_rays == one.sim.trace.shadow_rays          # ... that never hit
     assert not np.any(three.sim.trace.energy_per_order[1:])
-    # the window grows with max_depth; the common fine bins hold the same deposit, the rest is empty
-    d1, d3 = one.sim.trace.deposit, three.sim.trace.deposit
-    n = d1.shape[1]
-    assert three.sim.raw.fast_time[0] == one.sim.raw.fast_time[0] and d3.shape[1] >= n
-    assert not np.any(d3[:, n:])
-    _assert_close(d1, d3[:, :n], "deposit")
-    # raw data in the same window: the depth-1 deposit binned into the depth-3 window
-    raw3 = three.sim.raw
-    window = FastTimeWindow(t0=float(raw3.fast_time[0]), fs=raw3.fs, n_samples=raw3.data.shape[1],
-                            oversample=three.sim.loaded.settings.oversample)
-    padded = np.zeros_like(d3)
-    padded[:, :n] = d1
-    p = one.sim.loaded.params
-    rebinned = binning.range_compress(padded, one.sim.trace.reference_length, window, p.frequency, p.bandwidth,
-                                      three.sim.loaded.settings.range_kernel)
-    _assert_close(rebinned, raw3.data, "raw data")
+    # in the same (depth-3) window, depth 1 and depth 3 give the same spectra
+    d1 = _trace_in_window(ROUGH, {"max_depth": 3}, {"max_depth": 1}).spectrum
+    _assert_close(d1, three.sim.trace.spectrum, "spectrum")
 
 
 def test_rough_material_used_by_no_shape_changes_nothing(plain):
     """A rough BSDF that no shape references: no clutter term in the kernel, plane.xml's output."""
     unused = traced(UNUSED_ROUGH)
-    assert _tea(unused) == 0
+    assert _hash(unused) == 0
     assert unused.ops == plain.ops
     np.testing.assert_array_equal(unused.sim.trace.rays_per_order, plain.sim.trace.rays_per_order)
-    _assert_close(plain.sim.trace.deposit, unused.sim.trace.deposit, "deposit")
+    _assert_close(plain.sim.trace.spectrum, unused.sim.trace.spectrum, "spectrum")
     _assert_close(plain.sim.raw.data, unused.sim.raw.data, "raw data")
     _assert_close(plain.sim.image.data, unused.sim.image.data, "image")
 
@@ -273,10 +287,10 @@ def test_rough_shape_no_ray_reaches_changes_nothing():
     has a rough material) but contributes exactly zero to the visible smooth plane."""
     rough = traced(HIDDEN_ROUGH, base_sensor=EIGHT, base_integrator=FINER)
     smooth = traced(HIDDEN_SMOOTH, base_sensor=EIGHT, base_integrator=FINER)
-    assert _tea(rough) > 0 and _tea(smooth) == 0
+    assert _hash(rough) > 0 and _hash(smooth) == 0
     assert rough.ops > smooth.ops
     assert rough.casts == smooth.casts
-    _assert_close(smooth.sim.trace.deposit, rough.sim.trace.deposit, "deposit")
+    _assert_close(smooth.sim.trace.spectrum, rough.sim.trace.spectrum, "spectrum")
     _assert_close(smooth.sim.raw.data, rough.sim.raw.data, "raw data")
     _assert_close(smooth.sim.image.data, rough.sim.image.data, "image")
 
@@ -291,8 +305,8 @@ def test_split_bounces_with_single_bounce_paths_only():
     assert np.abs(sim.raw.data).max() > 0
     np.testing.assert_array_equal(sim.raw_per_order[0].data, sim.raw.data)     # exact: total = order 1 + 0
     assert not np.any(sim.raw_per_order[1].data)
-    assert not np.any(sim.trace.deposit_per_order[1])
-    _assert_close(merged.sim.trace.deposit, sim.trace.deposit, "deposit")
+    assert not np.any(sim.trace.spectrum_per_order[1])
+    _assert_close(merged.sim.trace.spectrum, sim.trace.spectrum, "spectrum")
     _assert_close(merged.sim.raw.data, sim.raw.data, "raw data")
 
 
@@ -333,13 +347,13 @@ def test_noise_parameters_without_noise_seed_change_nothing(monkeypatch):
     geometry = acquisition_geometry(loaded.params)
     window = planning.fast_time_window(loaded.params, geometry, loaded.bbox_lo, loaded.bbox_hi, loaded.settings)
     with_noise_params = dataclasses.replace(loaded.params, noise_figure_db=3.0)
-    quiet = binning.to_raw_data(sim.trace.deposit, sim.trace, window, with_noise_params, geometry,
-                                loaded.settings.range_kernel, {}, noise_seed=None)
+    quiet = binning.to_raw_data(sim.trace.spectrum, sim.trace, window, with_noise_params, geometry,
+                                {}, noise_seed=None)
     assert not calls
     assert np.abs(sim.raw.data).max() > 0
     np.testing.assert_array_equal(quiet.data, sim.raw.data)
-    seeded = binning.to_raw_data(sim.trace.deposit, sim.trace, window, with_noise_params, geometry,
-                                 loaded.settings.range_kernel, {}, noise_seed=0)
+    seeded = binning.to_raw_data(sim.trace.spectrum, sim.trace, window, with_noise_params, geometry,
+                                 {}, noise_seed=0)
     assert len(calls) == 1 and not np.array_equal(seeded.data, sim.raw.data)
 
 

@@ -88,14 +88,15 @@ def test_bounce_orders_figure(dihedral, tmp_path):
 
 def test_comparison_figure_stripmap_vs_spotlight(tmp_path):
     """Any labelled images side by side; the annotated resolutions are the closed forms:
-    lambda / (2 beta) in stripmap, lambda / (2 dtheta) in spotlight, c / (2 B sin(theta))."""
+    L / 2 in stripmap (the tapered beam's aperture, L = 0.443 lambda / sin(beta / 2) for a
+    3 dB width beta), lambda / (2 dtheta) in spotlight, c / (2 B sin(theta))."""
     strip = simulate("trihedral")
     spot = simulate("trihedral", sensor_overrides={"mode": "spotlight"})
     p, q = strip.loaded.params, spot.loaded.params
     wavelength = 299792458.0 / p.frequency
     rho_gr = 299792458.0 / (2 * p.bandwidth * math.sin(math.radians(p.incidence_angle)))
-    assert figures.image_resolution(strip.image) == pytest.approx(
-        (wavelength / (2 * math.radians(p.azimuth_beamwidth)), rho_gr))
+    aperture = 0.44294647 * wavelength / math.sin(math.radians(p.azimuth_beamwidth) / 2)
+    assert figures.image_resolution(strip.image) == pytest.approx((aperture / 2, rho_gr))
     assert figures.image_resolution(spot.image) == pytest.approx(
         (wavelength / (2 * q.n_pulses * q.velocity / (q.prf * q.slant_range)), rho_gr))
     path = figures.comparison_figure({"stripmap": strip.image, "spotlight": spot.image}, tmp_path / "cmp.png",

@@ -198,8 +198,9 @@ def test_traced_trihedral_fft_focusers_agree_with_backprojection():
     origin = np.zeros(3)
     bp_phase, bp_mag = phase_at(sim.image, raw, origin)
     assert abs(wrap(bp_phase - TRUE_PHASE)) < PHASE_TOL
-    for name, image in (("omega-k", omega_k(raw, doppler_bandwidth=band)),
-                        ("rda", range_doppler(raw, src=True, doppler_bandwidth=band))):
+    pattern = sim.loaded.params.pattern_length / sim.loaded.params.wavelength     # the tapered beam's
+    for name, image in (("omega-k", omega_k(raw, doppler_bandwidth=band, azimuth_pattern=pattern)),
+                        ("rda", range_doppler(raw, src=True, doppler_bandwidth=band, azimuth_pattern=pattern))):
         phase, mag = phase_at(image, raw, origin)
         assert abs(wrap(phase - bp_phase)) < PHASE_TOL, f"{name}: {phase:.2f} deg vs backprojection {bp_phase:.2f}"
         assert abs(20.0 * np.log10(mag / bp_mag)) < 0.5, f"{name}: |{mag:.2f}| vs backprojection |{bp_mag:.2f}|"

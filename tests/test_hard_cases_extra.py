@@ -29,7 +29,8 @@ from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.pipeline import image_grid, simulate
 from sarmitsuba.radar import acquisition_geometry
 from sarmitsuba.scene import builtin_scenes, load_scene, material_table
-from sarmitsuba.trace import FastTimeWindow, trace
+from sarmitsuba.trace import trace
+from sarmitsuba.trace_inputs import FastTimeWindow
 
 SCENES = Path(__file__).parent / "scenes"
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)        # smallest normal float32, 1.18e-38
@@ -50,7 +51,8 @@ def _trihedral_scene(folder: Path, edge: float) -> Path:
 
 
 def _pulses_in_beam(raw, point, beamwidth_deg: float) -> np.ndarray:
-    """Indices of the pulses whose ideal beam contains ``point`` (the tracer's criterion)."""
+    """Indices of the pulses whose traced beam (full width ``beamwidth_deg``) contains ``point``
+    (the tracer's criterion)."""
     e = np.asarray(point, float) - raw.tx_position
     v = raw.velocity / np.linalg.norm(raw.velocity, axis=1, keepdims=True)
     along = np.abs(np.einsum("ij,ij->i", e, v))
@@ -88,7 +90,8 @@ def test_one_km_joins_the_long_range_series(tmp_path):
 
     - peak position (1/20 cell), range IRW (1 %), range PSLR (0.2 dB) and peak phase (2 deg;
       measured 0.07 deg) are the same at 1 km;
-    - three differences at 1 km are not precision but closed forms, checked here:
+    - three differences at 1 km are not precision but closed forms, checked here with a
+      uniform (hard-edged) beam, whose gated response has the closed form below:
 
       * the target's near field: the triple-bounce path through a trihedral exit point at
         distance rho from the boresight line is 2 R + rho^2 / R, so the peak phase moves by
@@ -110,7 +113,7 @@ def test_one_km_joins_the_long_range_series(tmp_path):
     rho2 = 5.0 * edge**2 / 54.0
     results = []
     for slant in (1e3, 10e3, 100e3):
-        sim = simulate(str(scene), sensor_overrides={"altitude": slant * math.cos(math.pi / 4)},
+        sim = simulate(str(scene), sensor_overrides={"altitude": slant * math.cos(math.pi / 4), "beam": "uniform"},
                        integrator_overrides={"ray_spacing": 0.02}, window="rect")
         assert np.all(np.isfinite(sim.image.data)) and np.all(np.isfinite(sim.raw.data))
         p = sim.loaded.params
@@ -194,7 +197,7 @@ class _OnePulsePlate:
         window = FastTimeWindow(t0=self.length / SPEED_OF_LIGHT - pos / p.sampling_rate, fs=p.sampling_rate,
                                 n_samples=n_samples, oversample=st.oversample)
         result = trace(self.loaded.scene, p, self.geometry, window, self.footprint, st, self.table)
-        raw = binning.to_raw_data(result.deposit, result, window, p, self.geometry, st.range_kernel, {})
+        raw = binning.to_raw_data(result.contributions(), result, window, p, self.geometry, {})
         return raw, result
 
     def expected(self, n_samples: int, pos: float) -> np.ndarray:
@@ -283,34 +286,42 @@ def _trihedrals(folder: Path, apexes, edge: float = 0.2) -> Path:
 
 
 def test_targets_at_the_along_track_ends_image_like_the_centre(tmp_path):
-    """Three 0.2 m trihedrals at x = -40, 0, +40 m: the outer ones are at the scene's along-track
-    ends, the middle one exactly at the scene centre. 40 m is a whole number of pulse spacings
+    """Three 0.2 m trihedrals at x = -60, 0, +60 m: the outer ones are at the scene's along-track
+    ends, the middle one exactly at the scene centre, farther apart than the traced beam's
+    footprint (55 m), so no pulse sees two of them. 60 m is a whole number of pulse spacings
     (0.4 m) and ray spacings (0.02 m), so each target sees the same pulses and the same ray
     lattice: the planner (aperture, window, footprint limits) must give the edge targets the
-    same echo, pulse for pulse (1e-3 of the peak, the float32 geometry floor 40 m from the
-    frame origin; measured 1.6e-4), and focused on a grid
+    same echo, pulse for pulse (1e-3 of the peak, the float32 geometry floor 60 m from the
+    frame origin, but for a tube on a face edge), and focused on a grid
     centred on each target, the same chip (1e-3). In the render's own image all three peaks sit
     on their apex (1/20 cell).
 
     (The render's image places the three apexes differently between pixels and between
     pulses; with each pixel integrating its own beam's pulses, that alone moves the peak by up
     to 0.14 dB and the azimuth IRW by 2 %, so peaks are compared on congruent chips.)"""
-    d = 40.0
+    d = 60.0
     apexes = [np.array([x, 0.0, 0.0]) for x in (0.0, d, -d)]
     sim = simulate(str(_trihedrals(tmp_path, apexes)), integrator_overrides={"ray_spacing": 0.02})
     p = sim.loaded.params
     assert sim.trace.energy_outside_window == 0.0
     assert round(d / (p.velocity / p.prf)) * p.velocity / p.prf == pytest.approx(d)
-    pulses = [_pulses_in_beam(sim.raw, a, p.azimuth_beamwidth) for a in apexes]
+    pulses = [_pulses_in_beam(sim.raw, a, p.traced_beamwidth) for a in apexes]
     assert len({len(q) for q in pulses}) == 1 and all(np.all(np.diff(q) == 1) for q in pulses)
     centre = sim.raw.data[pulses[0]]
     peak = np.abs(centre).max()
-    for q in pulses[1:]:        # float32 geometry 40 m from the frame origin: ~4e-6 m, 2e-3 rad
-        assert np.abs(sim.raw.data[q] - centre).max() < 1e-3 * peak
+    rows = np.abs(centre).max(axis=1)
+    for q in pulses[1:]:        # float32 geometry 60 m from the frame origin: ~4e-6 m, 2e-3 rad
+        error = np.abs(sim.raw.data[q] - centre).max(axis=1)
+        # a tube whose central ray grazes a face's edge (within the vertices' float32 step, 4e-6 m
+        # here) may bounce differently: at most a few pulses lose or gain that one tube, 1/58 of
+        # the triple-bounce echo (measured: 2 pulses, 1.7 %)
+        flipped = error >= 1e-3 * peak
+        assert flipped.sum() <= 3 and np.all(error[flipped] < 0.025 * rows[flipped] + 1e-3 * peak), error[flipped]
     chips = []
     for a in apexes:
-        grid = ImageGrid.ground(a, (1, 0, 0), (0, -1, -1), 24.0, 24.0, 0.25)
-        chips.append(backproject(sim.raw, grid, azimuth_beamwidth=p.azimuth_beamwidth).data)
+        # 8 m chips: their pixels beyond the edge targets still see (almost) their whole beam
+        grid = ImageGrid.ground(a, (1, 0, 0), (0, -1, -1), 8.0, 8.0, 0.25)
+        chips.append(backproject(sim.raw, grid, azimuth_beamwidth=p.traced_beamwidth).data)
     top = np.abs(chips[0]).max()
     assert top > 1.0
     for chip in chips[1:]:
@@ -392,7 +403,7 @@ def test_no_subnormal_values_far_below_the_noise_floor(tmp_path):
     flush-to-zero and denormals-are-zero (nanothread's pool, ftz=1: checked below on a 1024-lane
     kernel; kernels of <= 16 lanes run on the calling thread without it, too small to matter),
     so the tracer never computes with subnormals: the carried power is exactly 0 from the order
-    where it would be subnormal on, and the deposit, raw data, image and energies hold no
+    where it would be subnormal on, and the spectra, raw data, image and energies hold no
     subnormal float32 value. (Timing belongs in benchmarks.)"""
     import re
 
@@ -415,7 +426,7 @@ def test_no_subnormal_values_far_below_the_noise_floor(tmp_path):
     assert 0 < positive.size < 10 and np.all(carried[positive.size:] == 0), carried
     assert sim.trace.rays_per_order[positive.size] > 0, "rays do reach the first order carrying 0"
     assert positive[-1] >= FLOAT32_TINY                                  # 0, never subnormal
-    for name, values in (("deposit", sim.trace.deposit), ("raw", sim.raw.data), ("image", sim.image.data),
+    for name, values in (("spectrum", sim.trace.spectrum), ("raw", sim.raw.data), ("image", sim.image.data),
                          ("energy", sim.trace.energy_per_order.astype(np.float32)),
                          ("carried", carried.astype(np.float32))):
         assert np.all(np.isfinite(values)), name
@@ -590,12 +601,12 @@ def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch):
     """Dr.Jit wraps an exception raised while it traces the bounce loop's body in a RuntimeError;
     a Ctrl-C landing there must still reach the CLI as KeyboardInterrupt (exit 130), not as a
     crash with exit code 1."""
-    from sarmitsuba import trace as trace_module
+    from sarmitsuba import kernel as kernel_module
     from sarmitsuba.pipeline import simulate
 
     def interrupted(self, *args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(trace_module._Kernel, "_bounce", interrupted)
+    monkeypatch.setattr(kernel_module.Kernel, "_bounce", interrupted)
     with pytest.raises(KeyboardInterrupt):
         simulate("trihedral", sensor_overrides={"n_pulses": 4}, integrator_overrides={"max_depth": 3})

@@ -12,11 +12,13 @@ import pytest
 from scipy.integrate import quad
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import binning
+from sarmitsuba import binning, deposit
+from sarmitsuba.deposit import LANCZOS_A
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.radar import ParameterError
 from sarmitsuba.scene import load_scene
-from sarmitsuba.trace import LANCZOS_A, FastTimeWindow, PathList
+from sarmitsuba.trace import PathList
+from sarmitsuba.trace_inputs import FastTimeWindow
 
 
 def _nrmse_db(a: np.ndarray, ref: np.ndarray) -> float:
@@ -28,8 +30,8 @@ def test_sinc_kernel_droop_matches_independent_quadrature(nu):
     """(D2)/(D3): the Lanczos kernel's response D(nu) = int h(x) cos(2 pi nu x) dx (adaptive quad)."""
     h = lambda x: np.sinc(x) * np.sinc(x / LANCZOS_A) * math.cos(2 * math.pi * nu * x)  # noqa: E731
     expected = quad(h, -LANCZOS_A, LANCZOS_A, limit=200)[0]
-    assert binning.deposit_droop(np.array([nu]), "sinc")[0] == pytest.approx(expected, abs=1e-8)
-    assert binning.deposit_droop(np.array([nu]), "linear")[0] == pytest.approx(np.sinc(nu) ** 2)
+    assert deposit.droop(np.array([nu]), "sinc")[0] == pytest.approx(expected, abs=1e-8)
+    assert deposit.droop(np.array([nu]), "linear")[0] == pytest.approx(np.sinc(nu) ** 2)
 
 
 def test_exact_kernel_is_the_direct_sum_of_compressed_pulses():
@@ -41,7 +43,8 @@ def test_exact_kernel_is_the_direct_sum_of_compressed_pulses():
     paths = PathList(pulse=rng.integers(0, n_pulses, n_paths).astype(np.int32),
                      order=np.ones(n_paths, np.uint8),
                      position=np.concatenate([rng.uniform(0, 95, n_paths - 1), [101.3]]),
-                     value=(rng.normal(size=n_paths) + 1j * rng.normal(size=n_paths)).astype(np.complex64))
+                     value=(rng.normal(size=n_paths) + 1j * rng.normal(size=n_paths)).astype(np.complex64),
+                     spectral=np.zeros(n_paths, np.int8))
     lref = np.array([3000.1, 3000.2, 3000.3])
     fc, bw = 9.6e9, 100e6
     got = binning.exact_compress(paths, n_pulses, lref, window, fc, bw, block_lanes=100)   # several launches
@@ -84,7 +87,7 @@ def test_exact_kernel_traces_the_same_paths(traced):
         np.testing.assert_array_equal(sim.rays_per_order, ref.rays_per_order)
         np.testing.assert_allclose(sim.energy_per_order, ref.energy_per_order, rtol=1e-4)
     assert len(traced["exact", 8].trace.paths.pulse) > 0
-    assert traced["exact", 8].trace.deposit.size == 0
+    assert traced["exact", 8].trace.spectrum.size == 0
 
 
 def test_exact_kernel_splits_bounce_orders():

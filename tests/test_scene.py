@@ -112,7 +112,10 @@ def test_derived_radar_quantities_follow_standard_formulas():
     c = 299_792_458.0
     assert p.slant_range_resolution == pytest.approx(c / 3e8)
     assert p.ground_range_resolution == pytest.approx(c / 3e8 / 0.5)
-    assert p.azimuth_resolution == pytest.approx(p.wavelength / (2 * math.radians(1.0)))
+    # tapered default beam: resolution L / 2 of the aperture whose 3 dB width is 1 deg
+    assert p.azimuth_resolution == pytest.approx(0.44294647 * p.wavelength / math.sin(math.radians(0.5)) / 2)
+    uniform = RadarParameters(bandwidth=150e6, azimuth_beamwidth=1.0, beam="uniform")
+    assert uniform.azimuth_resolution == pytest.approx(p.wavelength / (2 * math.radians(1.0)))
     assert p.slant_range == pytest.approx(2000.0 / math.cos(math.radians(30)))
     assert p.ground_range == pytest.approx(2000.0 * math.tan(math.radians(30)))
 

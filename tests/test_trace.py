@@ -107,3 +107,10 @@ def test_chirped_raw_output_focuses_like_compressed_output():
     a, b = raw.image.data, compressed.image.data
     nrmse = np.linalg.norm(a - b) / np.linalg.norm(b)
     assert 20 * math.log10(nrmse) < -50.0, f"NRMSE {20 * math.log10(nrmse):.1f} dB"
+
+
+def test_info_estimates_the_memory_the_tracer_keeps():
+    """``info``'s deposit estimate is the size of the spectra the tracer returns (no tracing in info)."""
+    from sarmitsuba.info import scene_info
+    overrides = dict(integrator_overrides={"max_depth": 2, "ray_spacing": 0.25})
+    assert scene_info("dihedral", **overrides).cost.deposit_bytes == simulate("dihedral", **overrides).trace.spectrum.nbytes

@@ -93,7 +93,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
 from .stolt import Scratch, StoltInterpolator, centred_buffer
-from .stripmap import (StripmapGeometry, _band_weights, _doppler_axis, _window_label, _focus_setup,
+from .stripmap import (StripmapGeometry, _azimuth_weights, _band_weights, _doppler_axis, _focus_setup, _window_label,
                        slant_output_grid)
 
 __all__ = ["omega_k"]
@@ -110,7 +110,7 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
             reference_range: float | None = None, doppler_bandwidth: float | None = None,
             geometry: StripmapGeometry | None = None, scene_centre: Sequence[float] | None = None,
             squint: float | None = None, taps: int = 12, oversample: float = 1.5,
-            workers: int | None = None) -> SarImage:
+            workers: int | None = None, azimuth_pattern: float | None = None) -> SarImage:
     """Focus straight-track stripmap data with the accurate omega-K algorithm.
 
     Parameters
@@ -148,6 +148,12 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
         1.1, -127 dB at 1.25; at 6 taps: -58 dB at 1.25).
     workers : int, optional
         Threads for the FFTs and the row blocks; default all available CPUs.
+
+    azimuth_pattern : float, optional
+        ``L / lambda`` of the two-way azimuth pattern ``sinc^2(L sin(phi - squint) / lambda)``
+        that weights the data (the tracer's tapered beam or antenna; ``sin(phi) = lambda f_eta / (2 v)``):
+        the azimuth window is normalised by the mean of window times pattern over the processed
+        band, so a point target keeps its peak amplitude (as backprojection does).
 
     Returns
     -------
@@ -223,7 +229,8 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     # (+1/8 cycle: the -pi/4 of the stationary-phase azimuth spectrum, concave range history)
     row_cycles = f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / vel + 0.125
     d_eta = np.sqrt(1.0 - (alpha / f0) ** 2)
-    row_gain = (_band_weights(w_a, f_eta - geo.doppler_centroid, band_a)
+    row_gain = (_azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, azimuth_pattern, C / f0, vel,
+                                 geo.squint)
                 * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / (C * geo.reference_range)) / band_a).astype(np.float32)
     alpha2 = alpha**2
     k0f = k0.astype(np.float64)

@@ -65,8 +65,8 @@ from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
 from .omegak import _make_image, _range_compressed
-from .stripmap import (StripmapGeometry, _band_weights, _cis, _doppler_axis, _Interpolator, _window_label,
-                       _focus_setup, slant_output_grid)
+from .stripmap import (StripmapGeometry, _azimuth_weights, _band_weights, _cis, _doppler_axis, _Interpolator,
+                       _window_label, _focus_setup, slant_output_grid)
 
 __all__ = ["range_doppler"]
 
@@ -82,7 +82,8 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
                   src: bool | str = False, reference_range: float | None = None,
                   doppler_bandwidth: float | None = None, geometry: StripmapGeometry | None = None,
                   scene_centre: Sequence[float] | None = None, squint: float | None = None,
-                  taps: int = 8, upsample: int = 2, workers: int | None = None) -> SarImage:
+                  taps: int = 8, upsample: int = 2, workers: int | None = None,
+                  azimuth_pattern: float | None = None) -> SarImage:
     """Focus straight-track stripmap data with the range-Doppler algorithm.
 
     Parameters
@@ -111,6 +112,12 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
         errs by less than -60 dB; with 1 it would reach -20 dB at the band edge.
     workers : int, optional
         Threads for the FFTs and the RCMC row blocks.
+
+    azimuth_pattern : float, optional
+        ``L / lambda`` of the two-way azimuth pattern ``sinc^2(L sin(phi - squint) / lambda)``
+        that weights the data (the tracer's tapered beam or antenna; ``sin(phi) = lambda f_eta / (2 v)``):
+        the azimuth window is normalised by the mean of window times pattern over the processed
+        band, so a point target keeps its peak amplitude (as backprojection does).
 
     Returns
     -------
@@ -188,7 +195,8 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
     else:
         applied = residual
     row_cycles += 2.0 * r_src * (residual - applied) / C
-    row_gain = (_band_weights(w_a, f_eta - geo.doppler_centroid, band_a)
+    row_gain = (_azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, azimuth_pattern, C / f0, vel,
+                                 geo.squint)
                 * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / C) / band_a)
     col_gain = (1.0 / np.sqrt(grid.range)).astype(np.float32)
     image = np.empty((n_a, n_r), np.complex64)

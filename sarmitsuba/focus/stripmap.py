@@ -535,6 +535,26 @@ def _band_weights(spec: tuple[str, dict[str, float]], freqs: np.ndarray, bandwid
     return w / _window_mean(name, tuple(sorted(params.items())))
 
 
+def _azimuth_weights(spec: tuple[str, dict[str, float]], f_eta: np.ndarray, centroid: float, bandwidth: float,
+                     pattern: float | None, wavelength: float, velocity: float, squint: float) -> np.ndarray:
+    """Azimuth window over the processed Doppler band, normalised so that a point target keeps
+    its peak amplitude; float64 like ``f_eta`` [Hz] (the rows' true Doppler frequencies).
+
+    Without a pattern, the window at unit mean (:func:`_band_weights`). With one (``pattern`` =
+    ``L / lambda`` of the two-way field pattern ``g^2 = sinc^2(L sin(phi - squint) / lambda)``
+    that weights the data, ``sin(phi) = lambda f_eta / (2 v)``, ``squint`` in rad), the window divided by the mean
+    of ``w g^2`` over the band's rows: the target's peak is ``a mean(w g^2) / mean(w g^2)``,
+    its amplitude, as in backprojection (docs/physics.md (K))."""
+    w = _band_weights(spec, f_eta - centroid, bandwidth)
+    if not pattern:
+        return w
+    sine = np.clip(wavelength * f_eta / (2.0 * velocity), -1.0, 1.0)
+    g2 = np.sinc(pattern * (sine * np.cos(squint) - np.sqrt(1.0 - sine**2) * np.sin(squint))) ** 2
+    inside = np.abs(f_eta - centroid) <= bandwidth / 2.0
+    gain = float(np.mean((w * g2)[inside])) if np.any(inside) else 1.0
+    return w / gain if gain > 0 else w
+
+
 def _cis(cycles: np.ndarray) -> np.ndarray:
     """``exp(j 2 pi cycles)`` as complex64; ``cycles`` float64, reduced modulo 1 in float64
     first, so arguments of 1e8 rad (800 km) keep their sub-milliradian phase."""
