@@ -82,8 +82,10 @@ class Tube:
 
     ``t1``, ``t2`` are the tube's edges per metre of unfolded path, normal to ``ray.d``: at
     unfolded length ``s`` its cross-section is spanned by ``s t1`` and ``s t2``. ``origin`` is
-    the last hit point (the antenna before the first hit) and ``s`` the unfolded length
-    there, float64. ``gamma`` is the product of the reflection coefficients so far.
+    the last hit point (the antenna before the first hit), ``direction`` the central ray's
+    direction and ``s`` the unfolded length at ``origin``, all float64: the central ray is the
+    float64 line ``origin + t direction``, of which ``ray`` is the float32 copy Embree traces.
+    ``gamma`` is the product of the reflection coefficients so far.
     """
 
     ray: mi.Ray3f
@@ -91,6 +93,7 @@ class Tube:
     t2: mi.Vector3f
     s: mi.Float64
     origin: mi.Array3f64
+    direction: mi.Array3f64
     gamma: mi.Complex2f
     depth: mi.UInt32
     active: mi.Bool
@@ -103,6 +106,7 @@ class Hit:
     valid: mi.Bool
     p: mi.Point3f
     p64: mi.Array3f64
+    n64: mi.Array3f64       # the facet's unit normal, float64, facing the incoming ray
     n: mi.Vector3f          # unit normal facing the incoming ray
     n_geo: mi.Vector3f      # the surface's own normal (side-independent), for the scatterer lattice
     cos_i: mi.Float         # -n . d
@@ -114,26 +118,46 @@ class Hit:
 
 
 # ============================================================================ the steps
-def intersect(scene, tube: Tube, antenna: mi.Array3f64) -> Hit:
+def intersect(scene, tube: Tube, antenna: mi.Array3f64, is_mesh: mi.UInt32) -> Hit:
     """Closest hit of the tube's central ray, the facing normal and the float64 legs, eq. (T1), (S1).
 
-    The leg lengths are float64 norms between exact hit points (not ``si.t``, which a lifted
-    origin would bias by a position-dependent fraction of a millimetre).
+    Embree finds the hit in float32; on a mesh, the hit point is then recomputed in float64 as
+    the central ray's float64 line meeting the triangle's plane (normal and offset from its
+    float32 vertices, the same for every tube on the triangle). Neighbouring tubes on a facet
+    then agree on their shared footprint corners to float64 precision, which the cancellation
+    of their PO terms needs (float32 hit points 30 m from the origin are 2e-6 m apart from the
+    plane: 4e-4 rad at X band, -48 dB of translation noise). The leg lengths are float64
+    norms between these points (not ``si.t``, which a lifted origin would bias). ``is_mesh``:
+    uint32 per shape id, 1 for meshes (other shapes keep Embree's float32 point).
     """
     si = scene.ray_intersect(tube.ray, ray_flags=mi.RayFlags.Minimal, coherent=False, active=tube.active)
-    n_geo = mi.Vector3f(si.n)
-    d = tube.ray.d
-    n = dr.select(dr.dot(n_geo, d) > 0, -n_geo, n_geo)
-    cos_i = -dr.dot(d, n)
+    shape = dr.reinterpret_array(mi.UInt32, si.shape)
+    found = tube.active & si.is_valid()
+    mesh_hit = found & (dr.gather(mi.UInt32, is_mesh, shape, found) > 0)
+    mesh = mi.MeshPtr(si.shape)
+    face = mesh.face_indices(si.prim_index, mesh_hit)
+    v0 = mi.Array3f64(mesh.vertex_position(face.x, mesh_hit))
+    normal64 = dr.cross(mi.Array3f64(mesh.vertex_position(face.y, mesh_hit)) - v0,
+                        mi.Array3f64(mesh.vertex_position(face.z, mesh_hit)) - v0)
+    length = dr.norm(normal64)
+    mesh_hit &= length > 0
+    normal64 = dr.select(mesh_hit, normal64 / dr.select(length > 0, length, 1.0), mi.Array3f64(si.n))
+    denominator = dr.dot(normal64, tube.direction)
+    p64 = dr.select(mesh_hit & (dr.abs(denominator) > 0),
+                    tube.origin + tube.direction * (dr.dot(normal64, v0 - tube.origin)
+                                                    / dr.select(denominator != 0, denominator, 1.0)),
+                    mi.Array3f64(si.p))
+    n64 = dr.select(denominator > 0, -normal64, normal64)                  # facing the ray
+    n_geo = mi.Vector3f(dr.select(dr.dot(normal64, mi.Array3f64(si.n)) < 0, -normal64, normal64))
+    n = mi.Vector3f(n64)
+    cos_i = -dr.dot(tube.ray.d, n)
     # degenerate triangles give a NaN normal; grazing hits have no bounded footprint
-    valid = tube.active & si.is_valid() & (dr.squared_norm(n_geo) > 0.5) & (cos_i > COS_GRAZING)
-    p64 = mi.Array3f64(si.p)
+    valid = found & (dr.squared_norm(n_geo) > 0.5) & (cos_i > COS_GRAZING)
     to_ant = antenna - p64
     dist = dr.norm(to_ant)
     b = mi.Vector3f(to_ant / dist)
-    return Hit(valid=valid, p=mi.Point3f(si.p), p64=p64, n=n, n_geo=n_geo, cos_i=cos_i, b=b,
-               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin),
-               shape=dr.reinterpret_array(mi.UInt32, si.shape))
+    return Hit(valid=valid, p=mi.Point3f(p64), p64=p64, n64=n64, n=n, n_geo=n_geo, cos_i=cos_i, b=b,
+               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape)
 
 
 def reflection(table: "_Tables", hit: Hit) -> tuple[mi.UInt32, mi.Complex2f]:
@@ -217,12 +241,14 @@ def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
 
 def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, max_depth: int) -> Tube:
     """Specular reflection of the ray and the tube edges at the hit, eq. (T1)."""
-    n, d = hit.n, tube.ray.d
+    n = hit.n
     depth = tube.depth + 1
     active = hit.valid & (depth < max_depth)
-    return Tube(ray=_spawn(hit.p, n, d - 2.0 * dr.dot(d, n) * n),
+    direction = tube.direction - 2.0 * dr.dot(tube.direction, hit.n64) * hit.n64       # float64 mirror
+    return Tube(ray=_spawn(hit.p, n, mi.Vector3f(direction)),
                 t1=tube.t1 - 2.0 * dr.dot(tube.t1, n) * n, t2=tube.t2 - 2.0 * dr.dot(tube.t2, n) * n,
                 s=dr.select(active, hit.s, tube.s), origin=dr.select(active, hit.p64, tube.origin),
+                direction=dr.select(active, direction, tube.direction),
                 gamma=tube.gamma * r, depth=depth, active=active)
 
 
@@ -236,6 +262,15 @@ def _spawn(p, n, d):
     """
     lift = 1e-4 + 1e-6 * dr.norm(p)
     return mi.Ray3f(p + n * lift, d)
+
+
+def _mesh_flags(scene, size: int) -> np.ndarray:
+    """uint32 [size]: 1 at the shape id of every triangle mesh of the scene."""
+    flags = np.zeros(size, np.uint32)
+    for shape in scene.shapes():
+        if shape.is_mesh():
+            flags[int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])] = 1
+    return flags
 
 
 def _hash(x):
@@ -258,6 +293,7 @@ class _Tables:
     """Material data uploaded once per kernel."""
 
     row_of_shape: mi.UInt32
+    is_mesh: mi.UInt32
     re: mi.Float
     im: mi.Float
     n_cos: int
@@ -295,6 +331,7 @@ class Kernel:
         self.groups = settings.max_depth if settings.split_bounces else 1
         table = material_table
         self.tables = _Tables(mi.UInt32(table.row_of_shape.astype(np.uint32)),
+                              mi.UInt32(_mesh_flags(scene, table.row_of_shape.size)),
                               mi.Float(table.table.real.ravel().astype(np.float32)),
                               mi.Float(table.table.imag.ravel().astype(np.float32)), table.table.shape[1])
         self.clutter = table.has_clutter
@@ -438,7 +475,7 @@ class Kernel:
         e2 = e2 - d * dr.dot(d, e2)
         rn = dr.gather(f64, f64(launch.r_near.copy()), pulse)
         tube = Tube(ray=mi.Ray3f(mi.Point3f(antenna + d64 * rn), d), t1=e1, t2=e2, s=f64(0.0), origin=a64(antenna),
-                    gamma=mi.Complex2f(1.0, 0.0), depth=mi.UInt32(0), active=active)
+                    direction=d64, gamma=mi.Complex2f(1.0, 0.0), depth=mi.UInt32(0), active=active)
         lanes = dict(antenna=antenna, pulse=pulse, lref=dr.gather(f64, f64(launch.lref.copy()), pulse), steer=steer)
         lanes["g_tx"] = self._gain(d, lanes) if self.pattern else None
         return tube, lanes
@@ -448,7 +485,7 @@ class Kernel:
         """One bounce: intersect, PO return and clutter toward the antenna, reflect."""
         st = self.settings
         dr.scatter_add(ctx["rays"], mi.UInt32(1), tube.depth, tube.active)
-        hit = intersect(self.scene, tube, lanes["antenna"])
+        hit = intersect(self.scene, tube, lanes["antenna"], self.tables.is_mesh)
         row, r = reflection(self.tables, hit)
         dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * dr.squared_norm(tube.gamma),
                        tube.depth, hit.valid)
@@ -555,7 +592,8 @@ class Kernel:
         u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n))
         u_axis = dr.normalize(u_axis - n * dr.dot(n, u_axis))
         v_axis = dr.cross(n, u_axis)
-        local = hit.p - dr.gather(mi.Point3f, self.tables.shape_origin, hit.shape, rough)   # the shape's own frame
+        # the hit in the shape's own frame (float64 difference, then float32)
+        local = mi.Vector3f(hit.p64 - mi.Array3f64(dr.gather(mi.Point3f, self.tables.shape_origin, hit.shape, rough)))
         pu, pv = dr.dot(local, u_axis) / c, dr.dot(local, v_axis) / c
         e1, e2 = footprint
         au, av = dr.dot(e1, u_axis) / c, dr.dot(e1, v_axis) / c
