@@ -351,10 +351,17 @@ def test_any_translation_stays_at_the_float32_floor(scene, shift, sensor, integr
     """Any offset, 1 mm to 1e6 m in mm steps: the image is the same to NRMSE < -50 dB.
 
     A sub-metre move changes which float32 values hold the geometry (about 2e-6 m apart 30 m
-    from the frame origin, 1e-3 rad of two-way X-band phase), at the origin as much as at
-    1e6 m. Over 300 random examples the worst NRMSE was -55.1 dB (a 0.2 m move, no local
-    frame), the median -66 dB; far-frame errors would be tens of dB worse."""
-    _assert_same_image(scene, shift, sensor, integrator, limit_db=-50.0)
+    from the frame origin), at the origin as much as at 1e6 m; hit points are recomputed in
+    float64 on the triangles' planes, so smooth scenes agree to about -70 dB. Far-frame errors
+    would be tens of dB worse. One thing rounding may still move: a clutter scatterer on the
+    boundary between the footprints of a tube that hits a surface and one that misses it (at
+    the surface's edge) is found in one frame and not in the other. All scatterers of a
+    material have one amplitude, so that costs ``10 log10(1 / N)`` for ``N`` scatterers per
+    pulse (-37 dB for 5,000): rough scenes are held to the larger of -50 dB and that."""
+    reference = run(scene, sensor_overrides=sensor, integrator_overrides=integrator)
+    per_pulse = float(reference.trace.scatterers_per_order.sum()) / reference.raw.n_pulses
+    limit = max(-50.0, 10.0 * math.log10(1.0 / per_pulse)) if per_pulse >= 1 else -50.0
+    _assert_same_image(scene, shift, sensor, integrator, limit_db=limit)
 
 
 @settings(max_examples=30, **FAST)
