@@ -8,11 +8,24 @@
      has no reflection loop. 2 adds wall-ground double bounce, 3 trihedral returns.
  * - ray_spacing
    - float, m
-   - Ray-tube width perpendicular to the line of sight at the scene centre; 0 (default) =
-     half of the finer of the slant-range and azimuth resolutions.
+   - Ray-tube width ``s`` normal to the line of sight: square tubes, ``s`` along track and
+     ``s / cos(theta)`` in ground range on the aim plane. 0 (default) = one tube per
+     resolution cell, ``(rho_az, rho_gr)``: each tube's physical-optics return is exact
+     across the band, so denser rays only place large geometry's boundaries more finely
+     (docs/physics.md (T1), (PO2)).
+ * - tubes_per_object
+   - integer
+   - Shapes smaller than this many tubes (bounding-box diagonal) are traced with tubes
+     ``diagonal / tubes_per_object`` wide, at least a quarter wavelength (default 48;
+     0 = off; docs/physics.md (T2)): a 1 m corner reflector gets about 48 x 48 tubes.
+ * - scatterer_spacing
+   - float, m
+   - Cell of the clutter scatterers' lattice attached to every rough surface, one jittered
+     scatterer per cell; 0 (default) = ``0.8 sqrt(rho_slant rho_az)``, about
+     ``1.6 / sin(theta)`` scatterers per ground resolution cell (docs/physics.md (C)).
  * - range_kernel
    - string
-   - How a path reaches the fast-time samples (an accuracy knob; docs/physics.md (D1)-(D4)):
+   - How a path reaches the fast-time samples (an accuracy knob; docs/physics.md (D1)-(D5)):
      ``nearest`` (nearest fine bin; fastest, envelope jitter up to half a fine bin),
      ``linear`` (default; linear splat on the oversampled grid, droop corrected),
      ``sinc`` (8-tap Lanczos-windowed sinc on the grid, droop corrected) or
@@ -23,15 +36,17 @@
    - Fine-grid oversampling of the fast-time axis for the deposit (default 8).
  * - seed
    - integer
-   - Seed of the distributed-clutter scatterer phases (default 0); same seed, same speckle.
+   - Seed of the clutter scatterers' positions and phases (default 0); same seed, same
+     speckle, another seed independent speckle.
  * - split_bounces
    - boolean
    - Also produce raw data and images of each bounce order separately (default false; when
      off, the kernel keeps one histogram).
  * - max_batch_rays
    - integer
-   - Upper bound of rays in flight per kernel launch (default 4194304); pulses are batched
-     to stay below it.
+   - Ceiling on the ray tubes of one kernel launch (default 4194304, at least 1024):
+     pulses are batched, and a pulse's lattice split into row chunks, to stay below it
+     (one refined cell's tubes are never split).
 
 The tracing itself is :func:`sarmitsuba.trace.trace` (a Dr.Jit symbolic loop); this
 plugin only carries the settings from the scene file, so ``mi.render`` is not used.

@@ -2,7 +2,7 @@
 return at every bounce and surface-attached clutter scatterers (docs/physics.md).
 
 One :class:`Kernel` is built per acquisition; its configuration decides which effects are
-compiled in (DESIGN.md section 7: bounce loop, clutter, antenna pattern, radiometric
+compiled in (docs/design.md section 7: bounce loop, clutter, antenna pattern, radiometric
 spreading, beam steering) and it is called once per :class:`Launch` (a batch of pulses and a
 set of tubes per pulse). The body of the bounce loop is the model's steps, one function each:
 
@@ -160,75 +160,104 @@ def intersect(scene, tube: Tube, antenna: mi.Array3f64, is_mesh: mi.UInt32) -> H
                cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape)
 
 
-def reflection(table: "_Tables", hit: Hit) -> tuple[mi.UInt32, mi.Complex2f]:
-    """Material row and reflection coefficient ``r(cos_i)`` (linear in a 257-point table), eq. (R)."""
+def reflection(table: "_Tables", hit: Hit) -> tuple[mi.UInt32, mi.Complex2f, mi.Float]:
+    """Material row, reflection coefficient ``r(cos_i)`` at the hit, eq. (R), and the factor on its
+    specular field (``sqrt(1 - S^2)`` for a Lambertian scatterer, else 1; eq. (C))."""
     row = dr.gather(mi.UInt32, table.row_of_shape, hit.shape, hit.valid)
-    x = dr.clip(hit.cos_i, 0.0, 1.0) * (table.n_cos - 1)
+    return row, reflection_at(table, row, hit.cos_i, hit.valid), dr.gather(mi.Float, table.specular, row, hit.valid)
+
+
+def reflection_at(table: "_Tables", row: mi.UInt32, cos_i: mi.Float, active: mi.Bool) -> mi.Complex2f:
+    """``r(cos_i)`` of material ``row``, linear in its 257-point table, eq. (R)."""
+    x = dr.clip(cos_i, 0.0, 1.0) * (table.n_cos - 1)
     i0 = mi.UInt32(dr.minimum(dr.floor(x), table.n_cos - 2))
     w = x - mi.Float(i0)
     idx = row * table.n_cos + i0
-    re = dr.lerp(dr.gather(mi.Float, table.re, idx, hit.valid), dr.gather(mi.Float, table.re, idx + 1, hit.valid), w)
-    im = dr.lerp(dr.gather(mi.Float, table.im, idx, hit.valid), dr.gather(mi.Float, table.im, idx + 1, hit.valid), w)
-    return row, mi.Complex2f(re, im)
+    re = dr.lerp(dr.gather(mi.Float, table.re, idx, active), dr.gather(mi.Float, table.re, idx + 1, active), w)
+    im = dr.lerp(dr.gather(mi.Float, table.im, idx, active), dr.gather(mi.Float, table.im, idx + 1, active), w)
+    return mi.Complex2f(re, im)
 
 
 @dataclass
 class Terms:
-    """The tube footprint's PO integral as point terms, eq. (PO2).
+    """The tube footprint's PO integral as point terms, eqs. (PO2), (PO4).
 
-    ``terms`` holds four ``(offset [m], coefficient, active)``: the two-way path-length offset
-    of each term from the footprint centre, its complex value at the carrier relative to the
-    centre's propagation phase (i.e. including ``exp(-j k offset)``; multiply by
-    ``exp(-j k L_c)``), and whether it exists (a dimension in the sinc regime has
-    one term, a split one two). ``order_index`` indexes :data:`SPECTRAL_ORDERS`;
-    ``carrier`` is the whole tube's value at the carrier, ``prefactor sinc(alpha_1) sinc(alpha_2)``.
+    ``terms`` holds four ``(rel, coefficient, active)``: each term's two-way length minus the
+    pulse's reference (float64, exact: from its own point), its complex value at the carrier
+    including the propagation phase ``exp(-j k rel)``, and whether it exists (an edge in the
+    sinc regime has one term, a split one two). ``order_index`` indexes :data:`SPECTRAL_ORDERS`;
+    ``carrier`` is the whole tube's value at the carrier, ``A sinc(alpha_1) sinc(alpha_2)`` times
+    the amplitude density at the centre (before its propagation phase), for the energy tally.
     """
 
     terms: list
     order_index: mi.UInt32
     carrier: mi.Complex2f
-    footprint: tuple        # (e1', e2'): the footprint's edge vectors on the facet, m
+    footprint: tuple        # (e1', e2'): the footprint's edge vectors on the facet at its centre, m
 
 
-def po_terms(k: float, tube: Tube, hit: Hit, prefactor: mi.Complex2f) -> Terms:
-    """The PO integral of the tube's footprint, exact at every frequency, eqs. (PO1)-(PO3).
-
-    The footprint is the parallelogram spanned by ``e_j' = e_j + d (n . e_j) / cos_i``
-    (``e_j = s t_j``); the two-way length varies across it as ``beta_j`` per edge,
-    ``beta_j = (d - b) . e_j'``. Its integral ``A sinc(alpha_1) sinc(alpha_2)`` with
-    ``alpha_j = k beta_j / 2`` is split, per edge with ``|alpha_j| >= SINC_REGIME``, into its two
-    end terms ``+-exp(+-j alpha_j) / (2 j alpha_j)``: neighbouring tubes' shared ends cancel at
-    every frequency. ``prefactor`` is ``j (2 sqrt(pi) / lambda) A_perp (cos_b + cos_i) / (2 cos_i)``
-    times everything else that multiplies the tube (reflection coefficients, pattern, spreading).
-    """
-    d = tube.ray.d
-    sf = mi.Float(hit.s)
-    u = d - hit.b
-    inv_cos = 1.0 / hit.cos_i
-    edges = []
-    dims = []
+def footprint_edges(tube: Tube, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
+    """The tube's footprint edges on the facet where its ray of direction ``d`` meets it at unfolded
+    length ``s``: ``e_j' = e_j + d (n . e_j) / cos_i`` with ``e_j = s t_j``, eq. (T1)."""
+    out = []
     for t in (tube.t1, tube.t2):
-        e = t * sf
-        e_f = e + d * (dr.dot(hit.n, e) * inv_cos)                   # footprint edge on the facet
-        beta = dr.dot(u, e_f)
-        alpha = 0.5 * k * beta
-        split = dr.abs(alpha) >= SINC_REGIME
-        inv = dr.select(split, 1.0 / (k * beta), 0.0)
-        # taps: (offset, coefficient times its propagation phase exp(-j k offset), active); eq. (PO2)
-        sin_a, cos_a = dr.sincos(alpha)
-        sinc = dr.select(dr.abs(alpha) < 1e-4, 1.0, sin_a / alpha)
-        first = (dr.select(split, -0.5 * beta, 0.0),
-                 dr.select(split, mi.Complex2f(inv * sin_a, -inv * cos_a), mi.Complex2f(sinc, 0.0)), mi.Bool(True))
-        second = (0.5 * beta, mi.Complex2f(inv * sin_a, inv * cos_a), split)
-        dims.append((first, second, split, sinc))
-        edges.append(e_f)
+        e = t * s
+        out.append(e + d * (dr.dot(n, e) / cos_i))
+    return tuple(out)
+
+
+def po_terms(k: float, tube: Tube, hit: Hit, antenna: mi.Array3f64, lref: mi.Float64, density) -> Terms:
+    """The PO integral of the tube's footprint, exact at every frequency, eqs. (PO1)-(PO4).
+
+    The footprint is the parallelogram spanned by ``e_j'`` (:func:`footprint_edges`); the
+    two-way length varies across it as ``beta_j = (d - b) . e_j'`` per edge. Its integral
+    ``A sinc(alpha_1) sinc(alpha_2)`` (``alpha_j = k beta_j / 2``) is split, per edge with
+    ``|alpha_j| >= SINC_REGIME``, into the terms of the edge's two ends, eq. (PO2). Every term is
+    then evaluated at its own point on the facet (eq. (PO4)): its exact two-way length, its
+    directions, footprint edges and amplitude density ``density(cos_i, cos_b, b, s, R_rx)``
+    (``j (2 sqrt(pi) / lambda) (cos_i + cos_b) / 2`` times the reflection coefficients, pattern
+    and spreading). Two neighbouring tubes evaluate their shared edge or corner at the same
+    point, so their terms cancel exactly, at every frequency, whatever the amplitude varies
+    with: only the boundary of the lit area returns.
+    """
+    n = hit.n
+    d = tube.ray.d
+    centre_edges = footprint_edges(tube, n, d, mi.Float(hit.s), hit.cos_i)
+    u = d - hit.b
+    splits, sincs = [], []
+    for e in centre_edges:
+        alpha = 0.5 * k * dr.dot(u, e)
+        splits.append(dr.abs(alpha) >= SINC_REGIME)
+        sincs.append(dr.select(dr.abs(alpha) < 1e-4, 1.0, dr.sin(alpha) / alpha))
+    area = dr.norm(dr.cross(*centre_edges))
+    carrier = density(hit.cos_i, hit.cos_b, d, hit.b, hit.s, hit.dist) * (area * sincs[0] * sincs[1])
+    source = hit.p64 - tube.direction * hit.s                    # the tube's (image) source, float64
     terms = []
-    for a in dims[0][:2]:
-        for b in dims[1][:2]:
-            terms.append((a[0] + b[0], prefactor * a[1] * b[1], a[2] & b[2]))
-    n_split = mi.UInt32(dims[0][2]) + mi.UInt32(dims[1][2])
+    for a in (0, 1):
+        for b_ in (0, 1):
+            sigma = [dr.select(splits[0], 2.0 * a - 1.0, 0.0), dr.select(splits[1], 2.0 * b_ - 1.0, 0.0)]
+            exists = (splits[0] | (a == 0)) & (splits[1] | (b_ == 0))
+            # ---- the term's point, and the geometry there (float64 lengths) ----
+            point = hit.p64 + mi.Array3f64(centre_edges[0] * (0.5 * sigma[0]) + centre_edges[1] * (0.5 * sigma[1]))
+            incoming, outgoing = point - source, antenna - point
+            s, dist = dr.norm(incoming), dr.norm(outgoing)
+            d_x, b_x = mi.Vector3f(incoming / s), mi.Vector3f(outgoing / dist)
+            cos_i, cos_b = -dr.dot(n, d_x), dr.dot(n, b_x)
+            edges = footprint_edges(tube, n, d_x, mi.Float(s), cos_i)
+            u_x = d_x - b_x
+            value = density(cos_i, cos_b, d_x, b_x, s, dist) * (dr.norm(dr.cross(*edges)))
+            for j, e in enumerate(edges):
+                length = dr.norm(e)
+                grad = dr.dot(u_x, e) / length                       # d(two-way length) / d(distance along e)
+                alpha = 0.5 * k * grad * length
+                sinc = dr.select(dr.abs(alpha) < 1e-4, 1.0, dr.sin(alpha) / alpha)
+                # split end: -sigma / (j k grad) (the edge length cancels the area's); sinc: the edge's own
+                value = value * dr.select(splits[j], mi.Complex2f(0.0, sigma[j] / (k * grad * length)),
+                                          mi.Complex2f(sinc, 0.0))
+            terms.append((s + dist - lref, value, exists))
+    n_split = mi.UInt32(splits[0]) + mi.UInt32(splits[1])
     order_index = mi.UInt32(SPECTRAL_ORDERS.index(1)) - n_split     # order m = 1 - n_split
-    return Terms(terms, order_index, prefactor * (dims[0][3] * dims[1][3]), tuple(edges))
+    return Terms(terms, order_index, carrier, centre_edges)
 
 
 def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
@@ -294,6 +323,7 @@ class _Tables:
 
     row_of_shape: mi.UInt32
     is_mesh: mi.UInt32
+    specular: mi.Float
     re: mi.Float
     im: mi.Float
     n_cos: int
@@ -332,6 +362,8 @@ class Kernel:
         table = material_table
         self.tables = _Tables(mi.UInt32(table.row_of_shape.astype(np.uint32)),
                               mi.UInt32(_mesh_flags(scene, table.row_of_shape.size)),
+                              mi.Float(table.specular if table.specular is not None
+                                       else np.ones(table.table.shape[0], np.float32)),
                               mi.Float(table.table.real.ravel().astype(np.float32)),
                               mi.Float(table.table.imag.ravel().astype(np.float32)), table.table.shape[1])
         self.clutter = table.has_clutter
@@ -486,40 +518,57 @@ class Kernel:
         st = self.settings
         dr.scatter_add(ctx["rays"], mi.UInt32(1), tube.depth, tube.active)
         hit = intersect(self.scene, tube, lanes["antenna"], self.tables.is_mesh)
-        row, r = reflection(self.tables, hit)
+        row, r, specular = reflection(self.tables, hit)
         dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * dr.squared_norm(tube.gamma),
                        tube.depth, hit.valid)
-        # ---- what multiplies every return of this hit: pattern (A) and spreading (R1) ----
-        weight = mi.Float(1.0)
-        if self.pattern:
-            weight *= lanes["g_tx"] * self._gain(-hit.b, lanes)
-        if self.radiometry:
-            rref = mi.Float(0.5 * lanes["lref"])
-            weight *= rref * rref / (mi.Float(hit.s) * mi.Float(hit.dist))
-        # ---- PO return of the tube footprint, eqs. (PO1)-(PO3) ----
-        area = dr.norm(dr.cross(tube.t1, tube.t2)) * mi.Float(hit.s * hit.s)          # A_perp = Omega s^2
-        scale = (2.0 * math.sqrt(math.pi) / self.lam) * area * (hit.cos_b + hit.cos_i) / (2.0 * hit.cos_i) * weight
-        gamma = tube.gamma * r
-        terms = po_terms(self.k, tube, hit, mi.Complex2f(0.0, scale) * gamma)
+        # ---- what multiplies every return of this hit: pattern (A) and spreading (R1) at the centre ----
+        weight = self._weight(lanes, tube.depth, tube.ray.d, hit.b, hit.s, hit.dist)
+        # ---- PO return of the tube footprint, eqs. (PO1)-(PO4) ----
+        gamma_before = tube.gamma
+
+        def density(cos_i, cos_b, d, b, s, dist):
+            """PO amplitude per unit footprint area at a point of the facet, eq. (PO1): its own
+            reflection coefficient, pattern and spreading."""
+            r_here = reflection_at(self.tables, row, cos_i, hit.valid)
+            scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
+                * self._weight(lanes, tube.depth, d, b, s, dist)
+            return mi.Complex2f(0.0, scale) * (gamma_before * r_here)
+
+        terms = po_terms(self.k, tube, hit, lanes["antenna"], lanes["lref"], density)
         # ---- visibility from the antenna ----
         vis = visible(self.scene, hit, hit.valid & (hit.cos_b > 0))
         dr.scatter_add(ctx["rays"], mi.UInt32(1), st.max_depth, vis)
-        rel = hit.s + hit.dist - lanes["lref"]                  # L - L_ref, float64
-        carrier = self._carrier_phase(rel)                      # exp(-j k (L - L_ref))
-        anchor = self._anchor(lanes, rel)
         inside = mi.Bool(True)
-        for t, (offset, coefficient, exists) in enumerate(terms.terms):
-            inside &= self._deposit(ctx, lanes, tube.depth, anchor, offset, coefficient * carrier,
-                                    terms.order_index, vis & exists, term=t) | ~exists
+        for t, (rel_t, value, exists) in enumerate(terms.terms):
+            inside &= self._deposit(ctx, lanes, tube.depth, self._anchor(lanes, rel_t), 0.0,
+                                    value * self._carrier_phase(rel_t), terms.order_index, vis & exists,
+                                    term=t) | ~exists
         power = dr.squared_norm(terms.carrier)
         dr.scatter_add(ctx["energy"], power, tube.depth, vis)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & ~inside)
+        rel = hit.s + hit.dist - lanes["lref"]                  # the centre's L - L_ref, float64
+        carrier = self._carrier_phase(rel)
+        anchor = self._anchor(lanes, rel)
         # ---- distributed clutter: the surface's own scatterers inside the footprint, eq. (C) ----
         if self.clutter:
             self._scatterers(ctx, lanes, tube, hit, row, r, terms.footprint, anchor, carrier, weight, vis)
-        return reflect(tube, hit, r, st.max_depth)
+        return reflect(tube, hit, r * specular, st.max_depth)
 
     # ------------------------------------------------------------------ deposit
+    def _weight(self, lanes, depth, d, b, s, dist):
+        """Antenna pattern (A) and radiometric spreading (R1) of a return from a point reached along
+        ``d`` at unfolded length ``s`` and leaving toward the antenna along ``b``, ``dist`` away
+        (float64 lengths): the two-way pattern ``g(d_first) g(-b)`` (the first leg is ``d`` itself at
+        the first bounce, the tube's central first leg after it) and ``R_ref^2 / (s R_rx)``; 1 when
+        neither effect is on."""
+        weight = mi.Float(1.0)
+        if self.pattern:
+            weight *= dr.select(depth == 0, self._gain(d, lanes), lanes["g_tx"]) * self._gain(-b, lanes)
+        if self.radiometry:
+            rref = mi.Float(0.5 * lanes["lref"])
+            weight *= rref * rref / (mi.Float(s) * mi.Float(dist))
+        return weight
+
     def _carrier_phase(self, rel) -> mi.Complex2f:
         """``exp(-j k rel)`` for a float64 length ``rel`` (reduced mod 2 pi in float64 first), eq. (S1)."""
         phase = -self.k * rel

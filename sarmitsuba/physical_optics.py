@@ -1,8 +1,9 @@
 """Ray-tube physical optics in plain NumPy (docs/physics.md (PO1)-(PO3)): the readable reference
 of the tracer's PO return, and the closed form it is tested against.
 
-* :func:`tube_terms` -- one tube footprint's PO integral as 1, 2 or 4 point terms, exactly as
-  :func:`sarmitsuba.kernel.po_terms` computes it in Dr.Jit;
+* :func:`tube_terms` -- one tube footprint's PO integral as 1, 2 or 4 point terms, each evaluated
+  at its own point, as :func:`sarmitsuba.kernel.po_terms` computes it in Dr.Jit;
+* :func:`plane_wave`, :func:`point_sources` -- the geometry a term sees at its point;
 * :func:`terms_spectrum` -- the terms' sum at any frequency of the band;
 * :func:`polygon_integral` -- the PO integral of a planar polygon under a linear phase
   (Gordon, IEEE TAP 23(4), 1975), the closed form that tubes tiling a plate must reproduce
@@ -14,54 +15,97 @@ import math
 
 import numpy as np
 
-__all__ = ["SINC_REGIME", "tube_terms", "terms_spectrum", "polygon_integral"]
+__all__ = ["SINC_REGIME", "tube_terms", "plane_wave", "point_sources", "terms_spectrum", "polygon_integral"]
 
 #: Footprint edges whose phase half-width ``|alpha| = |k beta| / 2`` is below this keep the
-#: carrier's ``sinc(alpha)`` (one term; its relative error across a band B is about
-#: ``alpha^2 B / (6 fc)``, -63 dB at X band, 150 MHz); wider ones are split into their two end
-#: terms (docs/physics.md (PO2)).
-SINC_REGIME = 0.5
+#: carrier's ``sinc(alpha)`` (one term); wider ones are split into their two end terms
+#: (docs/physics.md (PO2)). The sinc's error across a band B is about ``alpha^2 B / (6 fc)`` (1 %
+#: at X band, 150 MHz): it matters only where tubes resonate with the band, at ``alpha`` of
+#: multiples of pi, which the split avoids. Ends closer than that to a stationary point of the
+#: phase (the zero-Doppler line, where the phase is quadratic across the tube) are not well
+#: described by their gradient alone, so the split waits for ``alpha`` of 2.
+SINC_REGIME = 2.0
 
 
-def tube_terms(k: float, d: np.ndarray, b: np.ndarray, n: np.ndarray, e1: np.ndarray, e2: np.ndarray,
-               prefactor: complex) -> tuple[np.ndarray, np.ndarray, int]:
-    """The PO integral of one tube footprint as point terms, eq. (PO2).
+def plane_wave(d: np.ndarray, b: np.ndarray, s: float):
+    """Geometry of a plane wave arriving along ``d`` and returning along ``b`` (unit vectors): for
+    a point ``x`` its ``(d, b, s, L)`` with the tube's unfolded length ``s`` and the two-way length
+    ``L = (d - b) . x`` (the far-field limit of :func:`point_sources`)."""
+    return lambda x: (d, b, s, float((d - b) @ x))
+
+
+def point_sources(source: np.ndarray, antenna: np.ndarray):
+    """Geometry of a spherical wave from the tube's (image) ``source`` returning to ``antenna``: for a
+    point ``x``, ``d = (x - source) / s``, ``b = (antenna - x) / R``, ``s = |x - source|`` and the
+    two-way length ``L = s + R``."""
+    def geometry(x):
+        s, r = np.linalg.norm(x - source), np.linalg.norm(antenna - x)
+        return (x - source) / s, (antenna - x) / r, s, s + r
+    return geometry
+
+
+def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: np.ndarray, geometry,
+               density) -> tuple[np.ndarray, np.ndarray, int]:
+    """The PO integral of one tube footprint as point terms, eqs. (PO2), (PO4); the readable
+    NumPy reference of :func:`sarmitsuba.kernel.po_terms`.
 
     Parameters
     ----------
     k : float, rad/m
         Carrier wavenumber ``2 pi fc / c``.
-    d, b, n : float64 [3]
-        Unit incoming direction, unit direction to the antenna, unit normal facing the ray.
-    e1, e2 : float64 [3], m
-        The tube's cross-section edges at the hit (normal to ``d``).
-    prefactor : complex
-        What multiplies the footprint integral: ``j (2 sqrt(pi) / lambda) A_perp (cos_b + cos_i) / (2 cos_i)``
-        times the reflection coefficients (and pattern, spreading).
+    centre : float64 [3], m
+        Where the tube's central ray meets the facet.
+    n : float64 [3]
+        Unit normal of the facet, facing the ray.
+    t1, t2 : float64 [3]
+        The tube's cross-section edges per metre of unfolded length (at unfolded length ``s`` the
+        tube is spanned by ``s t1`` and ``s t2``).
+    geometry : callable
+        ``x -> (d, b, s, L)`` at a point of the facet (:func:`plane_wave`, :func:`point_sources`).
+    density : callable
+        ``(cos_i, cos_b, d, b, s, L) -> complex``: the PO amplitude per unit footprint area there
+        (``j (2 sqrt(pi) / lambda) (cos_i + cos_b) / 2`` times reflection coefficients, pattern
+        and spreading; eq. (PO1)).
 
     Returns
     -------
-    offsets : float64 [t], m
-        Two-way length of each term relative to the footprint centre's.
+    lengths : float64 [t], m
+        Two-way length of each term (at its own point).
     coefficients : complex128 [t]
-        Each term's value at the carrier before the propagation phase ``exp(-j k L)``.
+        Each term's value at the carrier before its propagation phase ``exp(-j k L)``.
     order : int
         Spectral order ``m = 1 - (number of split edges)``: the terms scale as ``(f / fc)^m``.
+
+    Notes
+    -----
+    The footprint edges are ``e_j' = e_j + d (n . e_j) / cos_i`` with ``e_j = s t_j``. An edge
+    with ``|alpha_j| = |k (d - b) . e_j'| / 2 >= SINC_REGIME`` at the centre is split into its two
+    ends, ``-sigma / (j k g_j)`` at ``x = centre + sigma e_j' / 2`` (``g_j`` the two-way length's
+    gradient along the edge); otherwise it contributes ``|e_j'| sinc(alpha_j)`` at the centre line.
+    Every term is evaluated at its own point: its geometry, footprint edges and density.
     """
-    cos_i = -float(np.dot(n, d))
-    u = d - b
-    per_edge = []
-    for e in (e1, e2):
-        footprint = e + d * np.dot(n, e) / cos_i
-        beta = float(np.dot(u, footprint))
-        alpha = 0.5 * k * beta
-        if abs(alpha) >= SINC_REGIME:     # the two ends: +-exp(+-j alpha) / (2 j alpha)
-            per_edge.append(([-0.5 * beta, 0.5 * beta], [1.0 / (1j * k * beta), -1.0 / (1j * k * beta)], 1))
-        else:
-            per_edge.append(([0.0], [math.sin(alpha) / alpha if alpha else 1.0], 0))
-    offsets = np.array([a + c for a in per_edge[0][0] for c in per_edge[1][0]])
-    coefficients = prefactor * np.array([a * c for a in per_edge[0][1] for c in per_edge[1][1]])
-    return offsets, coefficients, 1 - per_edge[0][2] - per_edge[1][2]
+    def edges_at(d, s):
+        cos_i = -float(n @ d)
+        return [s * t + d * (n @ (s * t)) / cos_i for t in (t1, t2)], cos_i
+
+    d, b, s, _ = geometry(centre)
+    centre_edges, _ = edges_at(d, s)
+    split = [abs(0.5 * k * float((d - b) @ e)) >= SINC_REGIME for e in centre_edges]
+    lengths, coefficients = [], []
+    for s1 in ((-1.0, 1.0) if split[0] else (0.0,)):
+        for s2 in ((-1.0, 1.0) if split[1] else (0.0,)):
+            x = centre + 0.5 * s1 * centre_edges[0] + 0.5 * s2 * centre_edges[1]
+            d_x, b_x, s_x, length = geometry(x)
+            edges, cos_i = edges_at(d_x, s_x)
+            value = density(cos_i, float(n @ b_x), d_x, b_x, s_x, length) * np.linalg.norm(np.cross(*edges))
+            for sigma, is_split, e in zip((s1, s2), split, edges):
+                grad = float((d_x - b_x) @ e) / np.linalg.norm(e)
+                alpha = 0.5 * k * grad * np.linalg.norm(e)
+                value *= -sigma / (1j * k * grad * np.linalg.norm(e)) if is_split else \
+                    (math.sin(alpha) / alpha if alpha else 1.0)
+            lengths.append(length)
+            coefficients.append(value)
+    return np.array(lengths), np.array(coefficients), 1 - int(split[0]) - int(split[1])
 
 
 def terms_spectrum(lengths: np.ndarray, coefficients: np.ndarray, orders: np.ndarray, frequencies: np.ndarray,

@@ -1,6 +1,6 @@
 """Loading a scene: XML path, built-in name or ``sionna:NAME``, plus the SAR sensor and tracer settings.
 
-A scene is a Mitsuba XML file (DESIGN.md section 4). ``load_scene`` resolves where it is,
+A scene is a Mitsuba XML file (docs/design.md section 4). ``load_scene`` resolves where it is,
 loads it with sarmitsuba's plugins, reads the ``sar`` sensor and ``sbr`` integrator (or
 uses the defaults when the scene has none, as Sionna RT scenes do), applies overrides
 (from the CLI), and resolves the automatic parameters against the scene's bounding box.
@@ -261,8 +261,8 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         A material used outside its valid frequency range.
     """
     rows: dict[int, int] = {}
-    tables, clutter, ids, names = [], [], [], []
-    for shape in scene.shapes():
+    tables, clutter, specular, ids, names = [], [], [], [], []
+    for index, shape in enumerate(scene.shapes()):
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
             raise SceneError(f"shape {shape.id()!r} uses BSDF {bsdf.class_().name() if hasattr(bsdf, 'class_') else bsdf}"
@@ -273,11 +273,15 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         if key not in rows:
             rows[key] = len(tables)
             names.append(bsdf.name)
-            tables.append(bsdf.specular_factor
-                          * materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
+            tables.append(materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
             clutter.append(bsdf.clutter)
+            specular.append(bsdf.specular_factor)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-        ids.append((shape_id, rows[key], zlib.crc32(shape.id().encode()), np.array(shape.bbox().min, np.float32)))
+        # the clutter hash's key: the shape's id, or for an id-less shape its place in the file
+        # (never its position, so moving it keeps its speckle; never shared, so two id-less
+        # copies of one shape get independent speckle)
+        name = shape.id() or f"#shape{index}"
+        ids.append((shape_id, rows[key], zlib.crc32(name.encode()), np.array(shape.bbox().min, np.float32)))
     row_of_shape = np.zeros(max(i[0] for i in ids) + 1, np.uint32)
     shape_key = np.zeros_like(row_of_shape)
     shape_origin = np.zeros((row_of_shape.size, 3), np.float32)
@@ -287,4 +291,5 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         shape_origin[shape_id] = origin
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
                          names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
-                         shape_key=shape_key, shape_origin=shape_origin)
+                         shape_key=shape_key, shape_origin=shape_origin,
+                         specular=np.array(specular, np.float32))

@@ -1,6 +1,6 @@
 """Tracing an acquisition: pulses in batches through the shoot-and-bounce-rays kernel
 (:mod:`sarmitsuba.kernel`), each batch's deposit reduced to a band-limited spectrum
-(:mod:`sarmitsuba.deposit`), DESIGN.md sections 5 and 6.
+(:mod:`sarmitsuba.deposit`), docs/design.md sections 5 and 6.
 
 For every pulse, ray tubes leave the antenna toward a world-fixed lattice of aim points on a
 horizontal plane through the scene centre, finer around small objects
@@ -12,7 +12,7 @@ scatterers of their own lattice that lie inside the footprint ((C)). The coheren
 tubes gives physical optics: canonical targets' radar cross-sections, and nothing from the
 interior of a smooth plane.
 
-Precision (DESIGN.md section 5): rays start near the scene (float64 offset carried
+Precision (docs/design.md section 5): rays start near the scene (float64 offset carried
 separately); the first and return legs are float64 norms from the exact hit point; a per-pulse
 float64 reference length is subtracted before anything becomes float32.
 
@@ -207,15 +207,13 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         launch = Launch(antenna=geometry.positions[batch], r_near=r_near[batch], lref=lref[batch],
                         k0=footprint.k0[batch], along_limits=footprint.along_limits[batch])
         hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), groups, p1 - p0, window.n_fine), np.complex64)
-        for part in _launches(launch, footprint, rows_per_launch, settings.max_batch_rays):
+        for offset, part in _launches(launch, footprint, rows_per_launch, settings.max_batch_rays):
             try:
                 out = kernel(part)
             except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces the loop body
                 if caused_by_interrupt(exc):
                     raise KeyboardInterrupt from exc
                 raise
-            offset = int(np.searchsorted(geometry.positions[batch, 0], part.antenna[0, 0])) \
-                if part.n_pulses < p1 - p0 else 0
             if exact:
                 paths.append(_path_list(out["paths"], p0 + offset))
             else:
@@ -239,9 +237,10 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
 def _launches(launch: Launch, footprint: RayFootprint, rows: int, max_rays: int):
     """The kernel launches of one pulse batch: coarse tubes in chunks of ``rows`` lattice rows,
     then each refinement group's cells near the batch's beam, at most ``max_rays`` tubes each
-    (a single pulse's tubes are split when they alone exceed it)."""
+    (a single pulse's tubes are split when they alone exceed it). Yields ``(offset, launch)``:
+    the launch's first pulse within the batch, and the launch."""
     for j0 in range(0, footprint.n_range, rows):
-        yield dataclasses.replace(launch, rows=(j0, min(footprint.n_range, j0 + rows)))
+        yield 0, dataclasses.replace(launch, rows=(j0, min(footprint.n_range, j0 + rows)))
     lo, hi = int(launch.k0.min()) - 1, int(launch.k0.max()) + footprint.n_azimuth + 1
     for group in footprint.refinements:
         near = group.cells[(group.cells[:, 0] >= lo) & (group.cells[:, 0] <= hi)]
@@ -255,7 +254,7 @@ def _launches(launch: Launch, footprint: RayFootprint, rows: int, max_rays: int)
             part = dataclasses.replace(launch, antenna=launch.antenna[q], r_near=launch.r_near[q],
                                        lref=launch.lref[q], k0=launch.k0[q], along_limits=launch.along_limits[q])
             for c0 in range(0, near.shape[0], cells):
-                yield dataclasses.replace(part, refinement=Refinement(group.factor, near[c0:c0 + cells]))
+                yield q0, dataclasses.replace(part, refinement=Refinement(group.factor, near[c0:c0 + cells]))
 
 
 def _path_list(found: dict, p0: int) -> "PathList":

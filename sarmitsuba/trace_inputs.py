@@ -1,5 +1,5 @@
 """What the tracer consumes: its settings, the planned fast-time window and ray lattice, and
-the material table (the contracts between scene loading, planning and tracing; DESIGN.md section 2).
+the material table (the contracts between scene loading, planning and tracing; docs/design.md section 2).
 
 * :class:`TraceSettings` -- the ``sbr`` integrator's parameters (read by the plugin, overridden by
   the CLI);
@@ -40,7 +40,8 @@ class TraceSettings:
     oversample : int
         Fine fast-time bins per sample of the deposit grid, [1, 64].
     max_batch_rays : int
-        Ceiling on the ray tubes of one kernel launch (>= 1024).
+        Ceiling on the ray tubes of one kernel launch (>= 1024): pulses are batched and a pulse's
+        lattice split to stay below it (one refined cell's ``m^2`` tubes are never split).
     seed : int
         Seed of the clutter scatterers' phases and positions, [0, 2^32).
     split_bounces : bool
@@ -245,7 +246,8 @@ class MaterialTable:
     row_of_shape : uint32 [max_shape_id + 1]
         Table row of each Mitsuba shape id (``reinterpret(UInt32, ShapePtr)``).
     table : complex64 [n_rows, n_cos]
-        ``r(cos_i)`` sampled uniformly for cos_i in [0, 1]; interpolated linearly.
+        The material's reflection coefficient ``r(cos_i)`` sampled uniformly for cos_i in [0, 1];
+        interpolated linearly.
     names : list of str
         Material name of each row.
     clutter : float32 [n_rows, 2]
@@ -259,6 +261,10 @@ class MaterialTable:
     shape_origin : float32 [max_shape_id + 1, 3], m
         A point fixed to each shape (its bounding box's lowest corner) that anchors its clutter
         scatterer lattice: the scatterers move with the shape, whatever the world frame.
+    specular : float32 [n_rows]
+        Factor on the specular (PO and reflected) field of each row: ``sqrt(1 - S^2)`` for a
+        Lambertian scattering coefficient ``S`` (the power the surface scatters diffusely), else
+        1 (docs/physics.md (C)).
     """
 
     row_of_shape: np.ndarray
@@ -267,6 +273,7 @@ class MaterialTable:
     clutter: np.ndarray | None = None
     shape_key: np.ndarray | None = None
     shape_origin: np.ndarray | None = None
+    specular: np.ndarray | None = None
 
     @property
     def has_clutter(self) -> bool:

@@ -1,4 +1,4 @@
-"""Optional effects are simulated only when the scene calls for them (DESIGN.md section 7, issue #6).
+"""Optional effects are simulated only when the scene calls for them (docs/design.md section 7, issue #6).
 
 1. Kernel inspection. With Dr.Jit's ``KernelHistory`` flag every launched kernel is recorded
    with its ``operation_count`` and its LLVM IR (present even for cache hits: the IR is what the
@@ -187,7 +187,9 @@ def test_plain_scene_kernel_has_no_optional_effect(plain):
     assert rays.shape == (1,) and rays[0] > 0
     assert 0 < plain.sim.trace.shadow_rays <= rays[0]     # at most one shadow cast per hit
     assert plain.casts == rays[0] + plain.sim.trace.shadow_rays
-    assert 300 < plain.ops < 2000, f"plain kernel has {plain.ops} operations"
+    # up to four PO terms, each evaluated at its own point (reflection coefficient, two-way
+    # pattern of the default beam; docs/physics.md (PO4)): about 2400 operations
+    assert 300 < plain.ops < 3000, f"plain kernel has {plain.ops} operations"
     print(f"\nplain kernel: {plain.ops} operations, {len(plain.ir)} chars of IR, {plain.casts} casts")
 
 

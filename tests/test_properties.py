@@ -267,7 +267,7 @@ def _plates_scene(bsdfs: list[str], named: bool):
 
 def _assert_each_shape_sees_its_material(loaded, polarization):
     """The tracer's table row of every shape holds that shape's own r(cos_i), finite and |r| <= 1
-    (complex64 rounding: 1e-6), sampled at 257 incidence angles."""
+    (complex64 rounding: 1e-6), sampled at 257 incidence angles, and its specular factor."""
     import drjit as dr
     import mitsuba as mi
     table = material_table(loaded.scene, FREQUENCY, polarization)
@@ -277,9 +277,12 @@ def _assert_each_shape_sees_its_material(loaded, polarization):
     for shape in loaded.scene.shapes():
         bsdf = shape.bsdf()
         row = table.row_of_shape[int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])]
-        own = bsdf.specular_factor * materials.reflection_table(bsdf.material_at(FREQUENCY), FREQUENCY, polarization)
+        own = materials.reflection_table(bsdf.material_at(FREQUENCY), FREQUENCY, polarization)
         assert np.allclose(table.table[row], own, rtol=0, atol=1e-6), \
             f"shape {shape.id()} traced with row {row} ({table.names[row]}), not its own material {bsdf}"
+        # the specular field keeps its own factor (sqrt(1 - S^2) for a Lambertian surface)
+        assert abs(float(table.specular[row]) - bsdf.specular_factor) <= 1e-7
+        assert 0.0 <= table.specular[row] <= 1.0
 
 
 @settings(max_examples=40, **FAST)

@@ -1,4 +1,4 @@
-"""Radar cross-sections measured from the focused image against closed forms (docs/physics.md (PO)).
+"""Radar cross-sections measured from the focused image against closed forms (docs/physics.md (PO1)).
 
 RCS is measured by integrated point energy: sum |I|^2 dA over +-6 resolution cells around the
 target, divided by rho_az * rho_gr (the energy of a unit-peak impulse response); the image is
