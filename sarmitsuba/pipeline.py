@@ -1,4 +1,4 @@
-"""The render pipeline: scene -> trace -> raw data -> focus -> products (DESIGN.md section 2)."""
+"""The render pipeline: scene -> trace -> raw data -> focus -> products (docs/design.md section 2)."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +16,7 @@ from . import binning, planning, products
 from .effects import active_effects
 from .focus import ImageGrid, backproject
 from .image import SarImage
-from .radar import AcquisitionGeometry, acquisition_geometry
+from .radar import AcquisitionGeometry, acquisition_geometry, ground_layover
 from .raw import RawData, _json_default
 from .scene import LoadedScene, load_scene, material_table
 from .trace import TraceResult, trace
@@ -78,16 +78,20 @@ def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
 def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
     """Ground grid around the scene centre covering a bounding box and its layover.
 
-    Ground-range extent: the bounding box, widened toward the sensor by ``(z_max - z0) / tan(theta)``
-    (where the tallest points lay over), plus 16 resolution cells on every side. Pixel spacing:
-    half the finer of the ground-range and azimuth resolutions.
+    Ground-range extent: the bounding box's corners and the points where the focuser lays them
+    over (:func:`radar.ground_layover`, exact for a straight track: toward the sensor by about
+    ``h / tan(theta)``), plus 16 resolution cells on every side. Pixel spacing: half the finer
+    of the ground-range and azimuth resolutions.
     """
-    corners = planning.box_corners(bbox_lo, bbox_hi) - geometry.scene_center
-    along = corners @ geometry.track_direction
-    across = corners @ geometry.look_direction
-    layover = max(0.0, bbox_hi[2] - geometry.scene_center[2]) / math.tan(math.radians(p.incidence_angle))
+    corners = planning.box_corners(bbox_lo, bbox_hi)
+    relative = corners - geometry.scene_center
+    along = relative @ geometry.track_direction
+    across = relative @ geometry.look_direction
+    laid = ground_layover(geometry, corners)
+    laid = laid[np.all(np.isfinite(laid), axis=1)]
+    along, across = np.concatenate([along, laid[:, 0]]), np.concatenate([across, laid[:, 1]])
     spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
-    half_range = max(abs(across.min() - layover), abs(across.max())) + 16 * p.ground_range_resolution
+    half_range = np.abs(across).max() + 16 * p.ground_range_resolution
     half_az = np.abs(along).max() + 16 * p.azimuth_resolution
     return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
@@ -294,7 +298,7 @@ ALGORITHMS = ("bp", "omegak", "rda")
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", window_azimuth: str = "rect",
             progress: bool = False) -> SarImage:
-    """Focus any RawData honouring the contract (DESIGN.md section 3) with the chosen algorithm.
+    """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
 
     ``bp``: backprojection; onto the scene's ground grid when the metadata carry sarmitsuba's
     radar parameters and scene box (with their beam gating), else onto the slant-plane grid of
@@ -400,7 +404,7 @@ def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
 
     from . import __version__
     settings = loaded.settings
-    effects = [str(e) for e in active_effects(loaded)]   # DESIGN.md section 7, with reasons
+    effects = [str(e) for e in active_effects(loaded)]   # docs/design.md section 7, with reasons
     return {
         "scene": loaded.source, "scene_path": str(loaded.path),
         "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),

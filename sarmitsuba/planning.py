@@ -36,8 +36,10 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
     """Fill in ``scene_center`` (bbox centre at its lowest z) and ``n_pulses`` (0 = automatic).
 
     The automatic aperture sweeps the beam over the scene: its length is the scene's
-    along-track extent plus the beam footprint at the farthest scene point,
-    ``n_pulses = ceil(length * prf / velocity) + 1``.
+    along-track extent plus the beam footprint at the farthest scene point, plus twice the
+    along-track offset of the scene's middle from ``scene_center`` (the track is centred on
+    ``scene_center``, so a scene given an off-centre ``scene_center`` is still swept from end
+    to end), ``n_pulses = ceil(length * prf / velocity) + 1``.
     """
     if params.scene_center is None:
         params = replace(params, scene_center=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), float(lo[2])))
@@ -50,7 +52,9 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
         rel = box_corners(lo, hi) - np.asarray(params.scene_center)
         along = rel @ track
         a_lo, a_hi = beam_offsets(params, lo, hi)
-        length = float(along.max() - along.min()) + (a_hi - a_lo)
+        # the track is centred on scene_center: a scene off it along track needs twice its offset more
+        offset = abs(0.5 * float(along.max() + along.min()))
+        length = float(along.max() - along.min()) + (a_hi - a_lo) + 2.0 * offset
         params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
     return params
 

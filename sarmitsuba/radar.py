@@ -1,10 +1,10 @@
 """Radar and platform parameters, and the acquisition geometry derived from them.
 
-:class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (DESIGN.md
+:class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (docs/design.md
 section 4); :func:`acquisition_geometry` turns it into per-pulse antenna positions
-(float64, world frame, z up) for a straight, level track (stop-and-hop, DESIGN.md section 5).
+(float64, world frame, z up) for a straight, level track (stop-and-hop, docs/design.md section 5).
 
-Conventions (DESIGN.md section 4): the platform flies along +x rotated by ``heading``
+Conventions (docs/design.md section 4): the platform flies along +x rotated by ``heading``
 (degrees, counter-clockwise from +x). ``look_side="right"`` looks to the right of the
 track, i.e. toward -y for heading 0: the sensor sits on the +y side of the scene.
 Angles are degrees at the interface, radians inside.
@@ -412,6 +412,31 @@ class AcquisitionGeometry:
     look_direction: np.ndarray
 
 
+def ground_layover(geometry: AcquisitionGeometry, points: np.ndarray) -> np.ndarray:
+    """Where a focuser matched to the track images world points on the horizontal plane through
+    the scene centre: ``(along, across)`` [m] from the scene centre along the track and look
+    directions, float64 [n, 2] (NaN for a point the plane cannot show).
+
+    Every point of the circle about the straight track through ``X`` has ``X``'s range history
+    (the same closest approach ``R0 = |X - F|`` at the same foot ``F`` on the track), so ``X``
+    appears where that circle meets the plane, on ``X``'s side: at the foot's along-track
+    position and ``sqrt(R0^2 - H^2)`` from the track's ground trace, ``H`` the track's height
+    above the plane (docs/physics.md (G2); Cumming and Wong 2005, section 4.2). A point with
+    ``R0 < H`` lies nowhere on the plane (NaN).
+    """
+    x = np.atleast_2d(np.asarray(points, dtype=np.float64)) - geometry.scene_center
+    a = geometry.positions[0] - geometry.scene_center
+    t, look = geometry.track_direction, geometry.look_direction
+    foot = a + ((x - a) @ t)[:, None] * t
+    r0 = np.linalg.norm(x - foot, axis=1)
+    height = float(a[2])                                     # the level track above the plane
+    trace_across = foot @ look                               # the foot's ground trace, across-track
+    side = np.where((x - foot) @ look >= 0.0, 1.0, -1.0)
+    with np.errstate(invalid="ignore"):
+        ground = np.sqrt(r0 * r0 - height * height)
+    return np.stack([foot @ t, trace_across + side * ground], axis=1)
+
+
 def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
     """Unit track direction and horizontal look direction, float64 [3] each."""
     h = math.radians(params.heading)
@@ -421,7 +446,7 @@ def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
 
 
 def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
-    """Antenna positions for every pulse (DESIGN.md section 4 conventions).
+    """Antenna positions for every pulse (docs/design.md section 4 conventions).
 
     The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``;
     pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
