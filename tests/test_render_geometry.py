@@ -1,6 +1,6 @@
 """End-to-end geometry: where dihedral, trihedral and elevated returns land in the focused image.
 
-Each expectation is a closed form of DESIGN.md section 9 / docs/physics.md (G1)-(G2), not
+Each expectation is a closed form of docs/design.md section 9 / docs/physics.md (G1)-(G2), not
 an earlier output: the double bounce focuses on the fold line, a trihedral at its apex, a
 point at height h lays over toward the sensor by h / tan(theta_inc).
 """
@@ -150,3 +150,27 @@ def test_spotlight_resolution_follows_the_integration_angle(n_pulses):
     assert abs(r.irw_azimuth / expected - 1) < 0.03, f"IRW {r.irw_azimuth:.3f} m, theory {expected:.3f} m"
     assert abs(r.azimuth_error_cells) < 0.05 and abs(r.range_error_cells) < 0.05
     assert any("spotlight" in e for e in sim.raw.metadata["effects"])
+
+
+@pytest.mark.parametrize("incidence", [30.0, 60.0])
+def test_ground_layover_of_raised_points_is_the_closed_form(incidence):
+    """(G2): a point ``h`` up at ground distance ``Y`` from the track (height ``H``) images at
+    ground distance ``sqrt(Y^2 - 2 H h + h^2)``, at its own along-track position; a point on
+    the ground maps to itself, and one nearer the track than ``R0 < H`` allows maps nowhere
+    (NaN). At 30 deg the layover is about 1.73 h, at 60 deg 0.58 h."""
+    from sarmitsuba.radar import RadarParameters, acquisition_geometry, ground_layover
+    p = RadarParameters(scene_center=(0.0, 0.0, 0.0), n_pulses=5, incidence_angle=incidence, heading=20.0)
+    g = acquisition_geometry(p)
+    H, Y0 = p.altitude, p.ground_range
+    along, across, h = np.array([-7.0, 3.0, 12.0]), np.array([4.0, -9.0, 0.0]), np.array([25.0, 0.0, 60.0])
+    points = (along[:, None] * g.track_direction + across[:, None] * g.look_direction
+              + h[:, None] * np.array([0.0, 0.0, 1.0]))
+    laid = ground_layover(g, points)
+    y = Y0 + across                                   # ground distance of each point from the track
+    expected = np.sqrt(y**2 - 2.0 * H * h + h**2) - Y0
+    np.testing.assert_allclose(laid[:, 0], along, atol=1e-9)
+    np.testing.assert_allclose(laid[:, 1], expected, atol=1e-9)
+    assert laid[1, 1] == pytest.approx(across[1], abs=1e-9)
+    assert across[0] - laid[0, 1] == pytest.approx(25.0 / math.tan(math.radians(incidence)), rel=0.05)
+    beyond = ground_layover(g, np.array([[0.0, 0.0, 0.9 * H]]) - 0.8 * Y0 * g.look_direction)
+    assert np.all(np.isnan(beyond[:, 1]))
