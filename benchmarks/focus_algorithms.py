@@ -11,7 +11,8 @@ broadside, so the FFT images are measured without deskew.
 
 Each focuser setting is warmed up once (untimed), then timed (best of ``repeat``), and
 every target is measured by :func:`sarmitsuba.analysis.analyze_point_target` with the true
-carrier, against theory (``focusing.md`` section 4, rect windows):
+carrier, against theory (rect windows; closed forms of :mod:`sarmitsuba.focus.windows`,
+docs/design.md section 9):
 
 * range IRW ``0.886 c / (2 B)`` (slant), azimuth IRW ``0.886 V / B_a``; ``B_a`` is the
   processed Doppler band: 90 Hz for omega-K and RDA (``doppler_bandwidth``, as in the

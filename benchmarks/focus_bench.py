@@ -2,7 +2,7 @@
 
 Run ``python benchmarks/focus_bench.py`` (``--size`` to change the FFT-focuser size). It
 prints a table and writes ``benchmarks/out/focus.csv``. Ratios are measured in the same
-run (the machine is shared and noisy, DESIGN.md section 10):
+run (the machine is shared and noisy, docs/design.md section 10):
 
 * **omega-K** and **RDA** on an ``N x N`` (default 4096 x 4096) complex64 range-compressed
   array (white noise on a straight track: the cost does not depend on the scene), each

@@ -4,7 +4,7 @@ Importing the package finds a libLLVM >= 16 for Dr.Jit's LLVM backend, sets the 
 variant (``llvm_ad_mono``) and registers the plugins (``sar`` sensor, ``sbr`` integrator,
 ``radar`` and ``itu-radio-material`` BSDFs).
 
-Pipeline (DESIGN.md section 2), one module per stage:
+Pipeline (docs/design.md section 2), one module per stage:
 
 =====================  ====================================================================
 stage                  module / main entry points

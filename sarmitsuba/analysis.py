@@ -1,4 +1,4 @@
-"""Point-target analysis of focused images (DESIGN.md section 8, focusing.md section 4d).
+"""Point-target analysis of focused images (docs/design.md section 8; procedure of [1]_ and [2]_).
 
 :func:`analyze_point_target` measures a point target's impulse response the way ISCE3
 (``isce3.cal.point_target_info``) and the Aresys quality toolkit do:

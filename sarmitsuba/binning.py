@@ -1,4 +1,4 @@
-"""From the tracer's band-limited spectra to raw data (DESIGN.md section 5, docs/physics.md (S1), (S2)).
+"""From the tracer's band-limited spectra to raw data (docs/design.md section 5, docs/physics.md (S1), (S2)).
 
 Per pulse ``p`` the tracer returns the spectrum of the term sum
 ``sum_i a_i (1 + f / fc)^m_i exp(-j 2 pi f (tau_i - t0)) exp(-j k (L_i - L_ref,p))`` over the coarse
@@ -12,7 +12,7 @@ sampling band, on a padded grid (:func:`sarmitsuba.deposit.reduce_deposit`). Thi
 3. keeps the window's samples.
 
 The result is ``sum_i a_i p_r(tau - L_i / c) exp(-j 2 pi fc L_i / c)`` sampled at ``t0 + n / fs``:
-the RawData contract of DESIGN.md section 3. The ``exact`` kernel's terms are evaluated
+the RawData contract of docs/design.md section 3. The ``exact`` kernel's terms are evaluated
 directly instead (:func:`exact_compress`).
 """
 from __future__ import annotations

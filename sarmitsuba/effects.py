@@ -1,8 +1,8 @@
-"""Which optional effects a scene switches on, and why (DESIGN.md section 7).
+"""Which optional effects a scene switches on, and why (docs/design.md section 7).
 
 A simulation pays only for what the scene asks for: each effect below is compiled into the
 tracer, or applied by the later stages, only when a sensor, integrator or material
-parameter calls for it. :func:`list_effects` names every effect of the DESIGN.md section 7
+parameter calls for it. :func:`list_effects` names every effect of the docs/design.md section 7
 table with the parameter that switches it on, or the reason it is off and what it is
 replaced by; ``python -m sarmitsuba info`` prints that list, and rendered data carry the
 active ones in their metadata (``metadata["effects"]``, one string each).
@@ -26,7 +26,7 @@ class Effect:
     Attributes
     ----------
     name : str
-        The effect, as in DESIGN.md section 7 (e.g. ``"bounce orders > 1"``).
+        The effect, as in docs/design.md section 7 (e.g. ``"bounce orders > 1"``).
     active : bool
         Whether this scene, with its overrides, simulates it.
     reason : str
@@ -44,7 +44,7 @@ class Effect:
 
 
 def list_effects(loaded: "LoadedScene") -> tuple[Effect, ...]:
-    """Every optional effect of DESIGN.md section 7 for a loaded scene, on or off, with the reason.
+    """Every optional effect of docs/design.md section 7 for a loaded scene, on or off, with the reason.
 
     Parameters
     ----------
@@ -54,7 +54,7 @@ def list_effects(loaded: "LoadedScene") -> tuple[Effect, ...]:
     Returns
     -------
     tuple of Effect
-        In the order of the DESIGN.md table: bounce orders > 1, distributed clutter and
+        In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
         spotlight, squint, then per-bounce-order products.
     """

@@ -1,4 +1,4 @@
-"""Focused SAR image: the contract between the focusing stage and the products (DESIGN.md section 3).
+"""Focused SAR image: the contract between the focusing stage and the products (docs/design.md section 3).
 
 A ground-plane image lives on a local grid around the scene centre. Pixel ``(i, j)`` sits
 at the world position ``origin + azimuth[i] * azimuth_direction + range[j] * range_direction``
@@ -23,7 +23,7 @@ _PLANES = ("ground", "slant")
 
 
 class SarImageError(ValueError):
-    """A SarImage file or array set does not honour the contract of DESIGN.md section 3."""
+    """A SarImage file or array set does not honour the contract of docs/design.md section 3."""
 
 
 @dataclass(frozen=True)

@@ -50,10 +50,12 @@ __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "Co
 #: Measured ray-cast rates [casts/s] of Mitsuba's llvm backend on 2 threads of a 2-core x86-64
 #: VM, as ``(triangles, closest-hit, shadow)``: a plane and a box (14 triangles: 38-59 M
 #: closest-hit, 140-167 M shadow casts/s) and Sionna RT's Munich (38,936 triangles: ~10 M and
-#: ~20 M/s). Sources: DESIGN.md section 10; ../shared/notes/mitsuba-drjit.md section 2a.
+#: ~20 M/s), with Mitsuba 3.9.1 / Dr.Jit 1.5.0, variant ``llvm_ad_mono``, on incoherent rays
+#: (``ray_intersect`` with ``Minimal`` flags or ``ray_intersect_preliminary``; ``ray_test``);
+#: docs/design.md section 10.
 CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
 
-#: Factor on the pure ray-cast time for the bounce loop, materials and binning (DESIGN.md
+#: Factor on the pure ray-cast time for the bounce loop, materials and binning (docs/design.md
 #: section 10 budgets this overhead below 30 %).
 TRACE_OVERHEAD = 1.3
 

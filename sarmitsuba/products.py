@@ -1,4 +1,4 @@
-"""Image products: OpenEXR channels and PNG quicklooks of a :class:`SarImage` (DESIGN.md section 3).
+"""Image products: OpenEXR channels and PNG quicklooks of a :class:`SarImage` (docs/design.md section 3).
 
 This is the only module with figure code. Every writer is atomic: it writes a temporary
 file next to the target (``.<name>.partial``) and renames it over the target with

@@ -1,10 +1,10 @@
-"""Raw data: the contract between the tracer and the focusing stage (DESIGN.md section 3).
+"""Raw data: the contract between the tracer and the focusing stage (docs/design.md section 3).
 
 :class:`RawData` is CPHD-like: slow time (pulses) on axis 0, fast time on axis 1,
 complex64 samples and float64 geometry and timing. It is saved as one ``.npz``
 file that loads with NumPy alone (``numpy.load(path, allow_pickle=False)``).
 
-Signal convention (DESIGN.md section 5, eq. (S2) of ``docs/physics.md``): a path
+Signal convention (docs/design.md section 5, eq. (S2) of ``docs/physics.md``): a path
 of two-way length ``L`` with complex amplitude ``a`` contributes, after range
 compression, ``a * p_r(tau - L / c) * exp(-j 2 pi fc L / c)`` where ``p_r`` is the
 compressed pulse with unit peak. Focusing multiplies by ``exp(+j 2 pi fc L / c)``.
@@ -23,7 +23,7 @@ __all__ = ["RawData", "RawDataError"]
 
 
 class RawDataError(ValueError):
-    """A RawData file or array set does not honour the contract of DESIGN.md section 3."""
+    """A RawData file or array set does not honour the contract of docs/design.md section 3."""
 
 
 _ARRAYS = ("data", "fast_time", "pulse_time", "tx_position", "rx_position", "velocity")

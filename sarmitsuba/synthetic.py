@@ -1,7 +1,7 @@
-"""Analytic point-target raw data: the test oracle for every focuser (focusing.md section 7).
+"""Analytic point-target raw data: the test oracle for every focuser (docs/design.md section 9).
 
 :func:`simulate_point_targets` writes, for point targets of complex amplitude ``a`` at
-positions ``X``, the echo that DESIGN.md section 5 prescribes, exactly and in float64:
+positions ``X``, the echo that docs/design.md section 5 prescribes, exactly and in float64:
 
 * raw chirp (``compressed=False``)::
 
@@ -25,7 +25,7 @@ azimuth beam: all or nothing, no antenna pattern), for stripmap with squint or s
 :func:`spotlight` put the pieces together for the common airborne/spaceborne test cases.
 
 Frame: right-handed, metres, z up; by default the track runs along +x and the sensor looks
-right, toward -y (DESIGN.md section 4).
+right, toward -y (docs/design.md section 4).
 """
 from __future__ import annotations
 
@@ -373,7 +373,7 @@ def simulate_point_targets(targets: Iterable[PointTarget] | PointTarget, tx_posi
         at ``fs/2`` (:func:`receiver_response`); computed exactly from the chirp's
         closed-form spectrum
         (:func:`sarmitsuba.focus.range_compression.chirp_spectrum`). Its spectrum over the band is
-        exactly the chirp's, so compressing it gives ``p_r`` (focusing.md T10).
+        exactly the chirp's, so compressing it gives ``p_r`` (docs/design.md section 5).
     metadata : dict, optional
         Merged into the RawData metadata (after the generator's own keys).
 

@@ -1,4 +1,4 @@
-"""Point-target analysis against closed forms (focusing.md sections 4 and 7).
+"""Point-target analysis against closed forms (docs/design.md sections 8 and 9).
 
 Two kinds of input:
 
@@ -7,7 +7,7 @@ Two kinds of input:
   with a steep linear phase ramp (aliased by the pixels, as in a ground-plane image), whose
   IRW, PSLR, ISLR, energy and phase are known in closed form;
 * a ground-plane backprojected image of analytic raw data (:mod:`sarmitsuba.synthetic`),
-  against the resolution formulas of DESIGN.md section 9.
+  against the resolution formulas of docs/design.md section 9.
 
 ISLR is the null-bounded 1-D definition of :mod:`sarmitsuba.analysis`: mainlobe between the
 first nulls, sidelobes out to ``sidelobes`` null distances beyond them or to the chip edge;

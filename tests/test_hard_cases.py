@@ -71,7 +71,8 @@ def test_same_target_from_10_km_to_800_km_is_identical():
     same IRW (1 %), sidelobe level (the peak sidelobe's amplitude within 1e-3 of the peak's: 0.2 dB
     of a -13 dB sidelobe, or 2 dB of the tapered beam's -41 dB azimuth sidelobe), position
     (1/20 cell) and peak phase (2 deg). A float32 path
-    length would be off by up to 12 rad at 800 km (focusing.md section 6). At 1 km the 1.5 m
+    length would be off by up to 12 rad at 800 km (float32 ulp 6.25 cm; docs/design.md section 5).
+    At 1 km the 1.5 m
     reflector's near field shifts its phase by -k (5 a^2 / 54) / R (~2.2 deg), and the beam-gated
     backprojection's shorter aperture lifts the azimuth PSLR by ~0.4 dB: both closed forms, tested
     in test_hard_cases_extra.py with a target small enough for 1 km to be like-for-like."""

@@ -1,4 +1,5 @@
-"""Omega-K focusing against closed forms and against backprojection (focusing.md T1-T4, T8, T10).
+"""Omega-K focusing against closed forms and against backprojection (Cumming and Wong 2005,
+ch. 8; docs/design.md section 9).
 
 Cases, targets and analysis helpers: ``test_stripmap.py`` (analytic float64 point targets,
 straight flat-earth tracks, 3 x 3 target grid 10 % inside the fully focused region).
@@ -64,7 +65,7 @@ def assert_quality(image, case: Case, geo, band: float, window_range=RECT, windo
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_omega_k_point_targets(name):
-    """T1/T3/T4: unweighted, 3 x 3 grid, airborne 10 km, spaceborne 800 km, C&W 3.5 and 21.9 deg."""
+    """Unweighted, 3 x 3 grid, airborne 10 km, spaceborne 800 km, C&W 3.5 and 21.9 deg."""
     case = CASES[name]
     geo = geometry(name)
     image = omega_k(simulate(name), geometry=geo, doppler_bandwidth=case.doppler_processed)
@@ -74,7 +75,7 @@ def test_omega_k_point_targets(name):
 
 
 def test_omega_k_windows_high_squint():
-    """T2: Taylor (4, -35 dB) in range, Kaiser 2.5 in azimuth, at 21.9 deg squint.
+    """Weighting: Taylor (4, -35 dB) in range, Kaiser 2.5 in azimuth, at 21.9 deg squint.
 
     (A -35 dB Taylor in azimuth measures about -34.9 dB here: the ideal all-or-nothing beam
     gives the azimuth spectrum Fresnel ripple, whose paired echoes show at that level.)
@@ -115,7 +116,8 @@ def _chip_grid(image, az: float, rg: float, half: int) -> ImageGrid:
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_cross_algorithm_agreement(name):
-    """T8: omega-K vs RDA vs backprojection on the slant grid: correlation > 0.99 at every target.
+    """Cross-algorithm: omega-K vs RDA vs backprojection on the slant grid: correlation > 0.99
+    at every target.
 
     All three process the whole beam (no Doppler band limit, rect windows). Backprojection
     is run per target on single-target data over a chip of the same slant grid: it sums
@@ -164,7 +166,7 @@ def test_backprojection_quality_broadside(case):
 
 
 def test_raw_chirp_input_matches_compressed_input():
-    """T10: raw chirps are range compressed first; the image equals that of compressed data."""
+    """Raw chirps are range compressed first; the image equals that of compressed data."""
     case = CW_LOW
     track = case.track()
     targets = case.targets()[3:6]  # mid-range row: chirps entirely inside the fast-time window

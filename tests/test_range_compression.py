@@ -1,4 +1,5 @@
-"""Range compression and range weighting against closed forms (focusing.md T1, T2, T10).
+"""Range compression and range weighting against closed forms (Cumming and Wong 2005, ch. 3;
+raw and compressed data of one scene agree: docs/design.md section 5).
 
 Raw chirps come from :mod:`sarmitsuba.synthetic`; "the truth" is the compressed echo
 ``a p_r(tau - L/c) exp(-j 2 pi fc L/c)`` written directly by the same generator (its
@@ -87,7 +88,7 @@ def test_chirp_spectrum_against_quadrature(sign):
         assert abs(chirp_spectrum(f, tp, kr) - (re + 1j * im)) < 1e-8 * tp
 
 
-# ============================================================================ T10: raw == compressed
+# ============================================================================ raw == compressed
 @pytest.mark.parametrize("window, params", WINDOWS, ids=IDS)
 def test_raw_and_precompressed_give_the_same_data(window, params):
     raw = scene(compressed=False)
@@ -100,7 +101,8 @@ def test_raw_and_precompressed_give_the_same_data(window, params):
 
 
 def test_raw_and_precompressed_give_the_same_image():
-    """focusing.md T10 on the image: backprojection of both inputs agrees to < -60 dB."""
+    """Raw and compressed inputs give the same image (docs/design.md section 5): backprojection
+    of both agrees to < -60 dB."""
     targets = [PointTarget((0.3, 0.1, 0.0), 1.0), PointTarget((2.0, -3.0, 0.0), 0.6j)]
     raw = scene(n_pulses=241, compressed=False, targets=targets)
     truth = scene(n_pulses=241, compressed=True, targets=targets)
@@ -119,7 +121,7 @@ def test_directly_sampled_chirps_are_limited_by_aliasing():
         assert nrmse_db(range_compress(raw).data, truth.data) < bound + 3.0
 
 
-# ============================================================================ T1/T2: IRW, PSLR, peak
+# ============================================================================ IRW, PSLR, peak
 @pytest.mark.parametrize("window, params", WINDOWS, ids=IDS)
 def test_compressed_pulse_figures(window, params):
     target = PointTarget((0.37, 0.11, 0.0), 0.9 * np.exp(0.4j))

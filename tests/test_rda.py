@@ -1,4 +1,5 @@
-"""Range-Doppler algorithm against closed forms, and where it is expected to fail (focusing.md T1-T4).
+"""Range-Doppler algorithm against closed forms, and where it is expected to fail (Cumming and
+Wong 2005, ch. 6 and Table 6.1).
 
 Cases and helpers: ``test_stripmap.py``; quality assertions: ``test_omegak.assert_quality``
 (range IRW 2 %, azimuth IRW 3 %, PSLR 0.3 dB, ISLR 0.5 dB, position 1/20 cell, phase 2 deg).
@@ -30,7 +31,7 @@ VALID = [(AIRBORNE_X, False), (SPACEBORNE_C, False), (CW_LOW, "range"), (CW_HIGH
 
 @pytest.mark.parametrize("case,src", VALID, ids=[f"{c.name}-src={s}" for c, s in VALID])
 def test_rda_point_targets(case, src):
-    """T1/T3/T4: the 3 x 3 grid meets every tolerance where RDA is valid."""
+    """The 3 x 3 grid meets every tolerance where RDA is valid."""
     geo = geometry(case.name)
     image = range_doppler(simulate(case.name), geometry=geo, src=src, doppler_bandwidth=case.doppler_processed)
     assert image.algorithm == "rda" and image.plane == "slant"
@@ -39,7 +40,7 @@ def test_rda_point_targets(case, src):
 
 
 def test_rda_windows():
-    """T2: Taylor (4, -35 dB) in range, Kaiser 2.5 in azimuth (airborne, broadside)."""
+    """Weighting: Taylor (4, -35 dB) in range, Kaiser 2.5 in azimuth (airborne, broadside)."""
     case = AIRBORNE_X
     geo = geometry(case.name)
     image = range_doppler(simulate(case.name), geometry=geo, doppler_bandwidth=case.doppler_processed,
@@ -64,8 +65,8 @@ def test_rda_low_squint_without_src_focuses_but_biases_phase():
 
 
 def test_rda_high_squint_without_src_fails():
-    """C&W 21.9 deg without SRC (discriminating test, focusing.md T4): the range response is
-    defocused far beyond tolerance, while omega-K and RDA with SRC pass on the same data."""
+    """C&W 21.9 deg without SRC (discriminating test; Cumming and Wong 2005, ch. 6, SRC): the
+    range response is defocused far beyond tolerance, while omega-K and RDA with SRC pass on the same data."""
     case = CW_HIGH
     geo = geometry(case.name)
     raw = simulate(case.name)

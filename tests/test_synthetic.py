@@ -1,6 +1,6 @@
 """The analytic point-target generator against closed forms (the oracle must be right first).
 
-Each expectation is recomputed independently here from the signal model of DESIGN.md
+Each expectation is recomputed independently here from the signal model of docs/design.md
 section 5: delay ``L/c`` with ``L = 2 |S_p - X|``, carrier ``exp(-j 4 pi R / lambda)``,
 compressed pulse ``sinc(B t)``, chirp ``exp(j pi K_r t^2)`` over ``|t| <= T_p / 2``, and an
 ideal azimuth beam that is a condition on ``x_target - x_antenna``.

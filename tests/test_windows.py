@@ -1,9 +1,11 @@
-"""Windows and their impulse-response figures against closed forms and focusing.md table 4b.
+"""Windows and their impulse-response figures against closed forms and the reference table below.
 
-Table 4b (``../shared/notes/focusing.md``) was computed with a 512-point window and a
-256x zero-padded FFT; here the figures come from the closed-form compressed pulse of the
-continuous window, so the tolerances are those of focusing.md T2: broadening within 1 %,
-PSLR within 0.5 dB (ISLR within 0.5 dB as well).
+``TABLE_4B`` was computed numerically with a 512-point window and a 256x zero-padded FFT
+(window definitions and their standard figures: Harris, Proc. IEEE 66(1), 1978, for Hann,
+Hamming and Kaiser; Carrara, Goodman and Majewski 1995, appendix D, for Taylor; Cumming and
+Wong 2005, section 2.6, for Kaiser beta = 2.5); here the figures come from the closed-form
+compressed pulse of the continuous window, so the tolerances allow for the sampled window:
+broadening within 1 %, PSLR within 0.5 dB (ISLR within 0.5 dB as well).
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ def test_table_4b(name, params, irw, k_w, pslr, islr20, null):
     assert w.broadening_factor(name, **params) == pytest.approx(k_w, rel=0.01)
     assert w.pslr_theory(name, **params) == pytest.approx(pslr, abs=0.5)
     assert w.first_null(name, **params) == pytest.approx(null, rel=0.01)
-    # table 4b integrates the sidelobes over +-20 cells (1/B) from the peak
+    # TABLE_4B integrates the sidelobes over +-20 cells (1/B) from the peak
     u1 = w.first_null(name, **params)
     assert w.islr_theory(name, sidelobes=20.0 / u1 - 1.0, **params) == pytest.approx(islr20, abs=0.5)
 

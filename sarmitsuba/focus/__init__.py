@@ -1,7 +1,7 @@
 """Focusing stage: range-compressed :class:`~sarmitsuba.raw.RawData` to a :class:`~sarmitsuba.image.SarImage`.
 
-DESIGN.md section 8; conventions, precision and validation targets in
-``../shared/notes/focusing.md``.
+docs/design.md section 8; conventions and precision in docs/design.md section 5 and
+docs/physics.md (S1)-(S3), validation targets in docs/design.md section 9.
 
 Grids
 -----

@@ -1,4 +1,4 @@
-"""Image grids: where the focusing stage evaluates the image (DESIGN.md sections 3 and 8).
+"""Image grids: where the focusing stage evaluates the image (docs/design.md sections 3 and 8).
 
 An :class:`ImageGrid` is a regular or irregular lattice spanned by two unit vectors.
 Pixel ``(i, j)`` sits at the world position

@@ -1,4 +1,4 @@
-"""Range compression of raw chirps, and range weighting of compressed data (DESIGN.md section 8).
+"""Range compression of raw chirps, and range weighting of compressed data (docs/design.md section 8).
 
 :func:`range_compress` turns raw LFM echoes ``a rect((tau - L/c)/T_p) exp(j pi K_r (tau -
 L/c)^2) exp(-j 2 pi fc L/c)`` into the range-compressed echoes of the RawData contract,
@@ -10,7 +10,7 @@ data that are already compressed (rect spectrum) with a window.
 Both work in the frequency domain along fast time, on zero-padded FFTs, and keep the
 fast-time axis unchanged (same ``t0``, ``fs`` and ``n_samples``): the reference chirp is
 centred on zero delay (the transmitted pulse is ``rect(t / T_p) exp(j pi K_r t^2)``,
-DESIGN.md section 5), so a target at delay ``L/c`` peaks at ``fast_time = L/c`` with
+docs/design.md section 5), so a target at delay ``L/c`` peaks at ``fast_time = L/c`` with
 value ``a`` (at its continuous peak; the samples are those of ``a p_r``).
 
 Filters (``method``), with ``S(f)`` the exact spectrum of the continuous chirp
@@ -20,8 +20,8 @@ Filters (``method``), with ``S(f)`` the exact spectrum of the continuous chirp
   outside. A chirp's spectrum has Fresnel ripple, so this is the matched filter ``S*``
   followed by the equaliser ``1/|S|^2``: for a band-limited (properly sampled) echo the
   output spectrum of a target is exactly the windowed rect and its response exactly
-  ``p_r``, so raw and pre-compressed data of the same scene agree (focusing.md T10). The
-  equaliser colours white noise by ``1/|S|^2`` (a small SNR loss, under 0.2 dB for a
+  ``p_r``, so raw and pre-compressed data of the same scene agree (docs/design.md
+  section 5). The equaliser colours white noise by ``1/|S|^2`` (a small SNR loss, under 0.2 dB for a
   time-bandwidth product above about 100).
 * ``"matched"``: ``H(f) = w(f/B) S*(f)`` on the band (the windowed matched filter, best
   SNR); the response keeps the chirp's Fresnel ripple and differs from ``p_r`` by

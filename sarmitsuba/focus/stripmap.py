@@ -191,8 +191,9 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     tolerance : float, m, optional
         Largest allowed deviation of the antenna positions from a uniformly sampled
         straight line, both across and along the track, and of the receiver from the
-        transmitter. Default ``lambda / 16`` (a two-way phase error of pi/4, the
-        focusing.md section 4c budget).
+        transmitter. Default ``lambda / 16`` (a two-way phase error of pi/4; a quadratic
+        phase error of pi/4 at the aperture edge widens an unweighted impulse response by
+        about 1.3 % and lowers its peak by 0.24 dB).
 
     Returns
     -------

@@ -1,4 +1,4 @@
-"""Spectral weighting windows and their impulse-response figures (DESIGN.md section 8).
+"""Spectral weighting windows and their impulse-response figures (docs/design.md section 8).
 
 A window weights the processed band of a SAR dimension (range or azimuth) to trade
 resolution for sidelobe level. Every window here is defined on the normalised frequency
@@ -23,7 +23,7 @@ The compressed pulse (unit-peak impulse response) of a window over a band ``B`` 
 
 in closed form here (:func:`compressed_pulse`): cosine-series windows give a weighted sum
 of shifted sincs and the Kaiser window gives ``sinh(sqrt(beta^2 - (pi B t)^2)) /
-sqrt(...)``. From it the figures of ``../shared/notes/focusing.md`` table 4b are computed
+sqrt(...)``. From it the standard figures of each window ([1]_-[3]_) are computed
 numerically: -3 dB width (:func:`impulse_response_width`), broadening against rect
 (:func:`broadening_factor`), first null (:func:`first_null`), PSLR (:func:`pslr_theory`)
 and null-bounded ISLR (:func:`islr_theory`).
@@ -344,7 +344,7 @@ def impulse_response_width(name: str = "rect", **params: Any) -> float:
 
 
 def broadening_factor(name: str = "rect", **params: Any) -> float:
-    """IRW of the window divided by the IRW of rect (focusing.md table 4b, ``k_w``).
+    """IRW of the window divided by the IRW of rect (``k_w``; Cumming and Wong 2005, section 2.6).
 
     Returns 1.0 for rect, about 1.177 for Kaiser 2.5, 1.337 for Taylor (4, -35 dB),
     1.471 for Hamming. Raises ``ValueError`` on a bad window.
