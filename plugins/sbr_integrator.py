@@ -15,7 +15,7 @@
      (docs/physics.md (T1), (PO2)).
  * - tubes_per_object
    - integer
-   - Shapes smaller than this many tubes (bounding-box diagonal) are traced with tubes
+   - Shapes smaller than 8 default tubes (bounding-box diagonal) are traced with tubes
      ``diagonal / tubes_per_object`` wide, at least a quarter wavelength (default 48;
      0 = off; docs/physics.md (T2)): a 1 m corner reflector gets about 48 x 48 tubes.
  * - scatterer_spacing

@@ -50,8 +50,8 @@ class TraceSettings:
         Cell size of the surface-attached clutter scatterer lattice; 0 = automatic
         (:func:`sarmitsuba.planning.scatterer_spacing`). Independent of ``ray_spacing``.
     tubes_per_object : int
-        Objects (Mitsuba shapes) smaller than ``tubes_per_object`` ray tubes are traced with
-        tubes ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
+        Objects (Mitsuba shapes) smaller than 8 default ray tubes are traced with tubes
+        ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
     """
 
     max_depth: int = 3
