@@ -25,11 +25,11 @@ sys.path.insert(0, str(BENCHMARKS))
 #:            numeric columns that must be finite where not empty)
 EXPECTED = {
     "ray_density": (
-        {"case", "ray_spacing_m", "rays_per_cell", "rays_per_pulse", "pulses", "seconds", "trace_s", "time_ratio",
-         "expected_db", "measured_db", "error_db", "speckle_contrast", "speckle_contrast_error_db"},
-        ("ray_spacing_m", "rays_per_cell", "rays_per_pulse", "seconds", "time_ratio", "expected_db", "measured_db",
-         "error_db"),
-        ("speckle_contrast", "speckle_contrast_error_db")),
+        {"case", "setting", "ray_spacing_m", "tube_m", "rays_per_cell", "rays_per_pulse", "pulses", "seconds",
+         "trace_s", "time_ratio", "expected_db", "measured_db", "error_db", "max_db", "speckle_contrast",
+         "speckle_contrast_error_db"},
+        ("ray_spacing_m", "tube_m", "rays_per_cell", "rays_per_pulse", "seconds", "time_ratio", "measured_db"),
+        ("expected_db", "error_db", "max_db", "speckle_contrast", "speckle_contrast_error_db")),
     "focus_algorithms": (
         {"case", "algorithm", "option", "shape", "processed_doppler_hz", "seconds", "time_ratio",
          "irw_range_err_pct", "irw_azimuth_err_pct", "pslr_err_db", "islr_err_db", "position_err_cells",
