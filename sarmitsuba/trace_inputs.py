@@ -200,7 +200,7 @@ class RayFootprint:
     scatterer_spacing : float, m
         Cell size of the surface-attached clutter scatterer lattice (docs/physics.md (C)).
     refinements : tuple of Refinement
-        Finer tubes around objects smaller than ``tubes_per_object`` tubes.
+        Finer tubes around objects smaller than ``planning.SMALL_OBJECT_TUBES`` tubes.
     """
 
     origin: np.ndarray

@@ -205,6 +205,31 @@ def test_refinement_around_a_small_object_is_what_makes_it_right(tmp_path):
     assert rcs <= 0 or abs(_db(rcs / expected)) > 2.0
 
 
+def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
+    """Planner rule (T2): a box whose diagonal is 7.5 default tubes is traced with
+    ``ceil(48 / 7.5) = 7`` times finer tubes over the cells it covers; one of 8.5 tubes (a
+    building, at scale) keeps the default lattice. Bugs caught: refining every shape smaller
+    than ``tubes_per_object`` tubes (48: Munich's buildings, 17x the tubes), or none."""
+    from sarmitsuba import planning
+    from sarmitsuba.radar import acquisition_geometry
+    from sarmitsuba.scene import load_scene
+    loaded = load_scene(str(C.scene_xml(tmp_path, C.trihedral(1.0), C.PEC, 3)))
+    p, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(p)
+    lo, hi = np.array([-20.0, -20.0, 0.0]), np.array([20.0, 20.0, 5.0])
+    plain = planning.ray_footprint(p, geometry, lo, hi, settings)
+    tube = max(plain.spacing_azimuth, plain.spacing_range * math.cos(math.radians(p.incidence_angle)))
+
+    def planned(tubes):
+        half = tubes * tube / (2.0 * math.sqrt(3.0))            # a cube of that diagonal at the centre
+        box = np.array([[[-half, -half, 0.0], [half, half, 2.0 * half]]])
+        return planning.ray_footprint(p, geometry, lo, hi, settings, shape_boxes=box).refinements
+
+    small, large = planned(7.5), planned(8.5)
+    assert [r.factor for r in small] == [7] and len(small[0].cells) > 0
+    assert large == ()
+
+
 # ---------------------------------------------------------------------------------------------
 # The default beam has no hard edge
 # ---------------------------------------------------------------------------------------------
