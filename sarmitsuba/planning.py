@@ -123,10 +123,11 @@ def ray_spacing(params: RadarParameters, settings: TraceSettings) -> tuple[float
     return params.azimuth_resolution, params.ground_range_resolution
 
 
-#: Shapes whose bounding-box diagonal is below this many default tubes are refined (docs/physics.md
-#: (T2)). Measured at the default spacing without refinement (X band, 45 deg, 1 m tubes): 1-2 m
-#: dihedrals and trihedrals are 3 to 40 dB off, 3 m ones up to 1.7 dB, 4-6 m ones (6-8 tubes)
-#: within 0.7 dB of the refined result; larger shapes (buildings) gain nothing from it.
+#: Shapes whose bounding-box diagonal is below this many default tubes (resolution cells, whatever
+#: the ``ray_spacing`` setting) are refined (docs/physics.md (T2)). Measured at the default spacing
+#: without refinement (X band, 45 deg, 1 m tubes): 1-2 m dihedrals and trihedrals are 3 to 40 dB
+#: off, 3 m ones up to 1.7 dB, 4-6 m ones (6-8 tubes) within 0.7 dB of the refined result; larger
+#: shapes (buildings) gain nothing from it.
 SMALL_OBJECT_TUBES = 8
 
 #: Automatic clutter-scatterer cell size in units of ``sqrt(rho_slant rho_az)``.
@@ -187,9 +188,9 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
 
     ``shape_boxes`` (float64 [n_shapes, 2, 3], each shape's bounding box) switches the
     refinement around small objects on: a shape whose box diagonal ``D`` is below
-    :data:`SMALL_OBJECT_TUBES` tubes is traced with tubes ``D / tubes_per_object`` wide (at
-    least a quarter wavelength), over the cells its box and its mirror image below the aim
-    plane project onto.
+    :data:`SMALL_OBJECT_TUBES` default tubes (resolution cells) is traced with tubes about
+    ``D / tubes_per_object`` wide (at least a quarter wavelength; none when the lattice is that
+    fine already), over the cells its box and its mirror image below the aim plane project onto.
     """
     s, spacing_range = ray_spacing(params, settings)
     origin = np.asarray(params.scene_center, float)
@@ -226,16 +227,19 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
 
 def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: RayFootprint, shape_boxes: np.ndarray,
                  tubes: int, beam: tuple[float, float]) -> tuple[Refinement, ...]:
-    """Refined cells per subdivision factor for shapes smaller than :data:`SMALL_OBJECT_TUBES` ray
-    tubes: ``tubes`` tubes across them (docs/physics.md (T2))."""
-    # the tubes' largest width normal to the line of sight
-    s = max(fp.spacing_azimuth, fp.spacing_range * math.cos(math.radians(params.incidence_angle)))
+    """Refined cells per subdivision factor for shapes smaller than :data:`SMALL_OBJECT_TUBES`
+    default tubes (resolution cells, whatever ``ray_spacing`` is): ``tubes`` tubes across them
+    (docs/physics.md (T2))."""
+    cos_theta = math.cos(math.radians(params.incidence_angle))
+    # the tubes' largest width normal to the line of sight, and that of the default tubes
+    s = max(fp.spacing_azimuth, fp.spacing_range * cos_theta)
+    cell = max(params.azimuth_resolution, params.ground_range_resolution * cos_theta)
     smallest = params.wavelength / 4.0
     factor = {}
     ant_along = (geometry.positions - fp.origin) @ fp.track
     for box_lo, box_hi in np.asarray(shape_boxes, float).reshape(-1, 2, 3):
         size = float(np.linalg.norm(box_hi - box_lo))
-        if not (np.all(np.isfinite(box_lo)) and size < SMALL_OBJECT_TUBES * s):
+        if not (np.all(np.isfinite(box_lo)) and size < SMALL_OBJECT_TUBES * cell):
             continue
         m = int(math.ceil(s * tubes / max(size, 1e-9)))
         m = max(1, min(m, int(s / smallest)))

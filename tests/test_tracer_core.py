@@ -209,7 +209,10 @@ def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
     """Planner rule (T2): a box whose diagonal is 7.5 default tubes is traced with
     ``ceil(48 / 7.5) = 7`` times finer tubes over the cells it covers; one of 8.5 tubes (a
     building, at scale) keeps the default lattice. Bugs caught: refining every shape smaller
-    than ``tubes_per_object`` tubes (48: Munich's buildings, 17x the tubes), or none."""
+    than ``tubes_per_object`` tubes (48: Munich's buildings, 17x the tubes), or none, or sizing
+    objects in tubes of an explicit ``ray_spacing`` (a 0.5 m trihedral at 0.1 m spacing: -1.3 dB)."""
+    import dataclasses
+
     from sarmitsuba import planning
     from sarmitsuba.radar import acquisition_geometry
     from sarmitsuba.scene import load_scene
@@ -228,6 +231,12 @@ def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
     small, large = planned(7.5), planned(8.5)
     assert [r.factor for r in small] == [7] and len(small[0].cells) > 0
     assert large == ()
+    # the size class is in resolution cells whatever the spacing: at 0.1 m tubes a 0.87 m box
+    # (8.7 tubes, 1.1 cells) still gets ceil(48 x 0.1 / 0.87) = 6 x 6 tubes per cell
+    fine = dataclasses.replace(settings, ray_spacing=0.1)
+    box = np.array([[[-0.25, -0.25, 0.0], [0.25, 0.25, 0.5]]])      # diagonal 0.866 m
+    refined = planning.ray_footprint(p, geometry, lo, hi, fine, shape_boxes=box).refinements
+    assert [r.factor for r in refined] == [6]
 
 
 # ---------------------------------------------------------------------------------------------
