@@ -39,6 +39,11 @@ __all__ = ["Launch", "Kernel", "Tube", "Hit", "intersect", "reflection", "po_ter
 #: Hits this close to grazing (cos of the incidence angle) return nothing and end the tube: the
 #: facet model needs a footprint, which is unbounded at grazing incidence.
 COS_GRAZING = 1e-6
+#: Below this cosine of the incidence angle (84.3 deg) a tube's clutter footprint is shortened to
+#: 1 / CLUTTER_COS_MIN tube widths along the plane of incidence and its sigma0 raised by the same
+#: factor (docs/physics.md (C)): the same clutter power, on scatterers near the hit, at a bounded
+#: cost (a tube grazing a wall would otherwise loop over scatterers kilometres away).
+CLUTTER_COS_MIN = 0.1
 
 
 @dataclass(frozen=True)
@@ -634,9 +639,20 @@ class Kernel:
         cosines = dr.maximum(hit.cos_i, 0.0) * dr.maximum(hit.cos_b, 0.0)
         sigma0 = dr.select(kind == 1, value * dr.sqrt(cosines),
                            dr.select(kind == 2, value * dr.squared_norm(r) * cosines, 0.0))
+        # ---- near grazing (cos_i < CLUTTER_COS_MIN) the footprint, 1 / cos_i long along the plane of
+        #      incidence, is shortened to 1 / CLUTTER_COS_MIN and sigma0 raised by the same factor:
+        #      the tube keeps its clutter power, and no tube loops over kilometres of scatterers ----
+        e1, e2 = footprint
+        shorten = dr.maximum(hit.cos_i, 0.0) / CLUTTER_COS_MIN
+        grazing = shorten < 1.0
+        n = hit.n_geo
+        along = tube.ray.d - n * dr.dot(n, tube.ray.d)                 # the elongation direction
+        along = along * dr.rsqrt(dr.maximum(dr.squared_norm(along), 1e-30))
+        e1 = dr.select(grazing, e1 - along * ((1.0 - shorten) * dr.dot(e1, along)), e1)
+        e2 = dr.select(grazing, e2 - along * ((1.0 - shorten) * dr.dot(e2, along)), e2)
+        sigma0 = dr.select(grazing, sigma0 / dr.maximum(shorten, 1e-30), sigma0)
         rough = vis & (sigma0 > 0)
         # ---- the plane's frame and the footprint in it (units of cells) ----
-        n = hit.n_geo
         horizontal = dr.abs(n.z) > 0.9999
         u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n))
         u_axis = dr.normalize(u_axis - n * dr.dot(n, u_axis))
@@ -644,7 +660,6 @@ class Kernel:
         # the hit in the shape's own frame (float64 difference, then float32)
         local = mi.Vector3f(hit.p64 - mi.Array3f64(dr.gather(mi.Point3f, self.tables.shape_origin, hit.shape, rough)))
         pu, pv = dr.dot(local, u_axis) / c, dr.dot(local, v_axis) / c
-        e1, e2 = footprint
         au, av = dr.dot(e1, u_axis) / c, dr.dot(e1, v_axis) / c
         bu, bv = dr.dot(e2, u_axis) / c, dr.dot(e2, v_axis) / c
         inv_det = 1.0 / (au * bv - av * bu)
@@ -714,4 +729,4 @@ class Kernel:
         return gain
 
 
-__all__ += ["COS_GRAZING", "LANCZOS_A"]
+__all__ += ["CLUTTER_COS_MIN", "COS_GRAZING", "LANCZOS_A"]

@@ -91,3 +91,19 @@ def test_material_override_makes_a_smooth_scene_rough():
     assert abs(10 * math.log10(measured / (GAMMA * math.cos(math.radians(p.incidence_angle))))) < 0.7
     with pytest.raises(Exception, match="unknown material override"):
         simulate(smooth, material_overrides={"roughness": 1})
+
+
+def test_sigma_nought_at_grazing_incidence():
+    """At 87 deg incidence (cos 0.052, below kernel.CLUTTER_COS_MIN = 0.1) every tube's clutter
+    footprint is shortened to 10 tube widths and its sigma0 raised by the same factor: the
+    calibrated mean intensity is still gamma cos(theta) (within 0.5 dB). Bug caught: shortening
+    without the raise (-2.8 dB), or the raise applied where the footprint is not shortened."""
+    sim = simulate(SCENE, sensor_overrides={"incidence_angle": 87.0}, integrator_overrides={"seed": 0})
+    values, positions = _interior(sim)
+    antenna = sim.raw.tx_position.mean(axis=0)
+    cos_theta = (antenna[2] - positions[:, 2]) / np.linalg.norm(antenna - positions, axis=1)
+    assert cos_theta.max() < 0.1                                # the shortened regime everywhere
+    measured = np.mean(np.abs(values) ** 2) / np.prod(energy_widths(sim.image))
+    expected = np.mean(GAMMA * cos_theta)
+    assert abs(10 * math.log10(measured / expected)) < 0.5, \
+        f"sigma0 {10 * math.log10(measured):.2f} dB, model {10 * math.log10(expected):.2f} dB"
