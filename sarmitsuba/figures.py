@@ -342,15 +342,16 @@ def _window_label(image: SarImage) -> str:
 def _describe(image: SarImage, looks: tuple[int, int] = (1, 1)) -> str:
     spacing = (abs(float(image.azimuth[1] - image.azimuth[0])) if image.azimuth.size > 1 else float("nan"),
                abs(float(image.range[1] - image.range[0])) if image.range.size > 1 else float("nan"))
-    first = (f"{image.algorithm}, {_window_label(image)} window, {image.plane} plane, "
-             f"{image.data.shape[0]}x{image.data.shape[1]} px of {spacing[0]:.2f} x {spacing[1]:.2f} m")
-    second = []
+    # the window on a line of its own: weighted windows have long names (taylor(nbar=4, sll=-35) twice)
+    first = f"{image.algorithm}, {_window_label(image)} window"
+    second = [f"{image.plane} plane, {image.data.shape[0]}x{image.data.shape[1]} px of "
+              f"{spacing[0]:.2f} x {spacing[1]:.2f} m"]
     res = image_resolution(image)
     if res is not None:
         second.append(f"nominal resolution {res[0]:.2f} m (az) x {res[1]:.2f} m ({image.plane} rg)")
     if looks != (1, 1):
         second.append(f"shown with {looks[0]}x{looks[1]} looks")
-    return first + ("\n" + ", ".join(second) if second else "")
+    return "\n".join([first, second[0]] + ([", ".join(second[1:])] if second[1:] else []))
 
 
 def bounce_orders_figure(images_per_order: Sequence[SarImage] | Mapping[str, SarImage], path: str | os.PathLike, *,

@@ -206,7 +206,9 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
     meta = image.metadata
     focus = meta.get("focus", {}) if isinstance(meta.get("focus"), dict) else {}
     first = title if title is not None else str(meta.get("scene", "SAR image"))
-    parts = [image.algorithm, f"{image.window} window", f"{image.plane} plane"]
+    # the window on a line of its own: weighted windows have long names (taylor(nbar=4, sll=-35) twice)
+    window = f"{image.algorithm}, {image.window} window"
+    parts = [f"{image.plane} plane"]
     if "fc" in focus:
         parts.append(f"fc {focus['fc'] / 1e9:.3g} GHz")
     if "bandwidth" in focus:
@@ -219,7 +221,7 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
         parts.append(f"{looks[0]}x{looks[1]} looks")
     if empty:
         parts.append("all-zero image")
-    return f"{first}\n" + ", ".join(parts)
+    return f"{first}\n{window}\n" + ", ".join(parts)
 
 
 def _atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
