@@ -44,28 +44,27 @@ per resolution cell: target RCS error, plane interior sigma0, ground sigma0 erro
 contrast). ``time_ratio`` is each setting's time over the first setting of the same case
 (ratios, not absolute times, are what the suite compares).
 
-Before and after the wideband ray-tube PO tracer (``--quick`` on the same machine; before =
-commit 1bcba29: one hard-edged tube per ``min(rho_slant, rho_az) / 2`` (4.5 rays per cell),
-uniform 1 deg beam, rect images, the broadside closed forms; after = commit d859c1b; the
-later bound of 8 tubes on refinement changes none of these cases). Errors
-in dB, rays per resolution cell in brackets:
+Before and after the wideband ray-tube PO tracer, on the same machine. Before = commit
+1bcba29 (``--quick``): one hard-edged tube per ``min(rho_slant, rho_az) / 2`` (4.5 rays per
+cell), a uniform 1 deg beam, rect images, the broadside closed forms. After = the full run
+of the current tracer. Errors are in dB, rays per resolution cell in brackets:
 
 ============================ ========================================= ==========================================
 case                         before                                    after
 ============================ ========================================= ==========================================
 plate 0.3 m                  -0.38 (89) .. -0.33 (36,000)              +0.07 (default: 13,000 at the target);
-                                                                       -0.02 at every explicit spacing
-dihedral 0.3 x 0.3 m         -1.79 (89), -0.72 (358), -0.23 (2,200),   +0.32 (default: 8,600); -0.13 at every
-                             -0.43 (36,000)                            explicit spacing
-trihedral 0.5 m              -1.31 (89), -0.34 (358), -0.12 (36,000)   -0.18 (default: 2,700); -0.03 .. -0.01
+                                                                       -0.27 at 0.2 m, -0.02 from 0.1 m down
+dihedral 0.3 x 0.3 m         -1.79 (89), -0.72 (358), -0.23 (2,200),   +0.32 (default: 8,600); -0.24 at 0.2 m,
+                             -0.43 (36,000)                            -0.13 .. +0.02 from 0.1 m down
+trihedral 0.5 m              -1.31 (89), -0.34 (358), -0.12 (36,000)   -0.18 (default: 2,700); -0.07 .. -0.003
 1 m plate / dihedral /       -1.77 / +1.22 / +2.55 at the default      -0.15 / +0.21 / -0.16 at the default,
 trihedral                    (plate, dihedral against the average)     -0.01 / -0.08 / -0.07 at 0.02 m
 trihedral 0.3 m              no energy at the default                  -0.17 (default), -0.14 (0.02 m)
 no refinement, 0.3-0.5 m     (the only mode)                           +0.9 .. +4.9 (20), -1.3 .. -0.05 (79),
 targets                                                                -0.4 .. -0.02 (317), +0.14 .. -0.17 (2,000)
 smooth plane, interior mean  -13.4 (3), -13.3 (default, 5.4),          -65.3 (default, 1), -62.0 (2.6),
-sigma0 (max) dB              -15.7 (19): 20 m stripes, max -5 .. -6;   -66.6 (17), -66.7 (66); max -56 .. -59:
-                             -51.4 (75), max -40                       no stripes at any spacing
+sigma0 (max) dB              -15.7 (19): 20 m stripes, max -5 .. -6;   -66.6 (17), -66.7 (66), -60.8 (264);
+                             -51.4 (75), max -40                       max -55 .. -59: no stripes at any spacing
 rough ground: sigma0 error,  +0.60, 0.84 (1.2); +0.25, 0.98 (8.3);     -0.17, 0.94 at every spacing (1 .. 7
 speckle contrast             -0.01, 0.98 (75)                          rays per cell): the scatterer lattice
 ============================ ========================================= ==========================================
