@@ -162,8 +162,8 @@ def test_cost_matches_an_independent_count():
     assert c.closest_hit_casts == c.shadow_casts == c.rays_per_pulse * n * 2
     hit, shadow = info_mod.cast_rates(4)                                # dihedral: 2 rectangles
     assert (hit, shadow) == (50e6, 150e6)                               # below the small anchor: its rates
-    assert c.trace_time_high_s == pytest.approx(1.3 * (c.closest_hit_casts / hit + c.shadow_casts / shadow))
-    assert c.trace_time_low_s == pytest.approx(1.3 * (c.primary_rays / hit + c.primary_rays / shadow))
+    assert c.trace_time_high_s == pytest.approx(3.0 * (c.closest_hit_casts / hit + c.shadow_casts / shadow))
+    assert c.trace_time_low_s == pytest.approx(3.0 * (c.primary_rays / hit + c.primary_rays / shadow))
     assert c.raw_bytes == n * window.n_samples * 8
     # the padded spectra: at least twice the window, at most the window plus 2048 samples and rounding
     assert 2 * c.raw_bytes <= c.deposit_bytes <= 2 * (c.raw_bytes + n * 2048 * 8)    # test_trace: exact
