@@ -239,6 +239,25 @@ def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
     assert [r.factor for r in refined] == [6]
 
 
+def test_points_the_antenna_cannot_see_return_nothing(tmp_path):
+    """Shadowed target (the shadow ray, eq. (PO1)). A smooth metal canopy 5 m above rough
+    metal ground, y from -1 to 12 m, with the sensor on +y at 45 deg. Rays that pass under its
+    near edge hit the ground at y = 7..15 m, rise to the canopy's underside and come down on
+    the ground again at y = -3..5 m. From there the line to the antenna climbs through the
+    canopy (it crosses z = 5 m at y = 2..10 m), so the third bounce returns nothing. The first
+    bounce, on the ground in the open, does return. Bug caught: no shadow ray, or one that
+    starts on the wrong side of the surface."""
+    body = ('<bsdf type="radar" id="rough"><string name="model" value="pec"/><float name="gamma_db" value="-10"/></bsdf>'
+            '<bsdf type="radar" id="metal"><string name="model" value="pec"/></bsdf>'
+            + _rectangle(20.0, 12.5, "rough", centre=(0.0, 2.5, 0.0), name="ground")
+            + _rectangle(25.0, 6.5, "metal", centre=(0.0, 5.5, 5.0), name="canopy"))
+    sim = simulate(_scene(tmp_path, body, name="canopy", depth=3, sensor='<integer name="n_pulses" value="32"/>'))
+    t = sim.trace
+    assert t.rays_per_order[2] > 0 and t.scatterers_per_order[0] > 0     # the paths exist; open ground returns
+    assert t.scatterers_per_order[2] == 0, t.scatterers_per_order
+    assert t.energy_per_order[2] <= 1e-6 * t.energy_per_order[0], t.energy_per_order
+
+
 # ---------------------------------------------------------------------------------------------
 # The default beam has no hard edge
 # ---------------------------------------------------------------------------------------------
