@@ -8,8 +8,9 @@ segments), writes each footprint's PO integral with the textbook scalar obliquit
 and :func:`sarmitsuba.physical_optics.tube_terms`, and the bistatic radar equation's spreading
 ``1 / (s R_rx)`` with ``s`` the unfolded length from the antenna (image theory). The mirror
 makes the plate's paths non-retro-reflecting (cos_i = 0.5, cos_b = 0.87 on the plate), so an
-obliquity factor of 1, a spreading over the first leg, a missing shadow ray or a wrong term all
-change the comparison by far more than its 1e-4 tolerance.
+obliquity factor of 1, a spreading over the first leg or a wrong term all change the comparison
+by far more than its 1e-4 tolerance. No term of this scene is shadowed: the shadow ray is
+tested in test_tracer_core.py (a ground under a canopy).
 """
 from __future__ import annotations
 
