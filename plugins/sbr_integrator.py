@@ -44,12 +44,24 @@
      off, the kernel keeps one histogram).
  * - max_batch_rays
    - integer
-   - Ceiling on the ray tubes of one kernel launch (default 4194304, at least 1024):
-     pulses are batched, and a pulse's lattice split into row chunks, to stay below it
-     (one refined cell's tubes are never split).
+   - Ceiling on the ray tubes of one kernel launch (default 1048576, at least 1024):
+     sub-apertures are batched, and a sub-aperture's lattice split into row chunks, to stay
+     below it (one refined cell's tubes are never split).
+ * - pulses_per_trace
+   - integer
+   - Pulses of a sub-aperture: its ray tubes are traced once, from the middle of its track,
+     and every pulse's return is evaluated from the recorded hits with its own antenna
+     position (docs/physics.md (T3)). An accuracy knob: 1 traces every pulse on its own (the
+     reference); 0 (default) = automatic, about 16 azimuth resolution cells of travel
+     (``benchmarks/subaperture.py`` measures image error and time against it).
+ * - cancel_interior
+   - boolean
+   - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;
+     docs/physics.md (PO5)). False evaluates them all, at several times the cost: the
+     reference the cancellation is checked against.
 
-The tracing itself is :func:`sarmitsuba.trace.trace` (a Dr.Jit symbolic loop); this
-plugin only carries the settings from the scene file, so ``mi.render`` is not used.
+The tracing itself is :func:`sarmitsuba.trace.trace` (Dr.Jit kernels, one per bounce order);
+this plugin only carries the settings from the scene file, so ``mi.render`` is not used.
 """
 from __future__ import annotations
 

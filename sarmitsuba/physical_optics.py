@@ -2,7 +2,9 @@
 of the tracer's PO return, and the closed form it is tested against.
 
 * :func:`tube_terms` -- one tube footprint's PO integral as 1, 2 or 4 point terms, each evaluated
-  at its own point, as :func:`sarmitsuba.kernel.po_terms` computes it in Dr.Jit;
+  at its own point, on the parallelogram tangent to the tube at its centre;
+* :func:`cell_terms` -- the same for the tile of an aim cell as one pulse sees it (the images of
+  the cell's corners), as :meth:`sarmitsuba.returns.Returns.po` computes it in Dr.Jit;
 * :func:`plane_wave`, :func:`point_sources` -- the geometry a term sees at its point;
 * :func:`terms_spectrum` -- the terms' sum at any frequency of the band;
 * :func:`polygon_integral` -- the PO integral of a planar polygon under a linear phase
@@ -15,16 +17,27 @@ import math
 
 import numpy as np
 
-__all__ = ["SINC_REGIME", "tube_terms", "plane_wave", "point_sources", "terms_spectrum", "polygon_integral"]
+__all__ = ["SINC_REGIME", "split_threshold", "tube_terms", "cell_terms", "cell_alphas", "plane_wave", "point_sources", "terms_spectrum", "polygon_integral"]
 
-#: Footprint edges whose phase half-width ``|alpha| = |k beta| / 2`` is below this keep the
-#: carrier's ``sinc(alpha)`` (one term); wider ones are split into their two end terms
-#: (docs/physics.md (PO2)). The sinc's error across a band B is about ``alpha^2 B / (6 fc)`` (1 %
-#: at X band, 150 MHz): it matters only where tubes resonate with the band, at ``alpha`` of
-#: multiples of pi, which the split avoids. Ends closer than that to a stationary point of the
-#: phase (the zero-Doppler line, where the phase is quadratic across the tube) are not well
-#: described by their gradient alone, so the split waits for ``alpha`` of 2.
+#: Footprint edges whose phase half-width ``|alpha| = |k beta| / 2`` is below this always keep the
+#: carrier's ``sinc(alpha)`` (one term); wider ones may be split into their two end terms
+#: (docs/physics.md (PO2)). Ends closer than that to a stationary point of the phase (the
+#: zero-Doppler line, where the phase is quadratic across the tube) are not well described by
+#: their gradient alone. A pulse splits an edge at :func:`split_threshold`; a sub-aperture whose
+#: pulses all see ``|alpha| >= SINC_REGIME`` may split it for all of them (docs/physics.md (T3)).
 SINC_REGIME = 2.0
+
+
+def split_threshold(bandwidth: float, frequency: float) -> float:
+    """``|alpha|`` [rad] at which a pulse splits a footprint edge: ``0.95 pi / (1 + B / (2 fc))``.
+
+    Below it the edge keeps ``sinc(alpha)``, whose error across the band is about
+    ``alpha^2 B / (6 fc)`` (2 % at ``alpha`` = 2.9, X band, 150 MHz); the sinc must not reach its
+    first zero anywhere in the band (``alpha (1 + B / (2 fc)) < pi``), where a lattice of equal tubes
+    resonates with the band (docs/physics.md (PO2)). Between :data:`SINC_REGIME` and this value
+    both forms hold. 2.92 at X band (9.6 GHz) and 150 MHz.
+    """
+    return 0.95 * math.pi / (1.0 + bandwidth / (2.0 * frequency))
 
 
 def plane_wave(d: np.ndarray, b: np.ndarray, s: float):
@@ -45,7 +58,7 @@ def point_sources(source: np.ndarray, antenna: np.ndarray):
 
 
 def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: np.ndarray, geometry,
-               density) -> tuple[np.ndarray, np.ndarray, int]:
+               density, split_at: float = SINC_REGIME) -> tuple[np.ndarray, np.ndarray, int]:
     """The PO integral of one tube footprint as point terms, eqs. (PO2), (PO4); the readable
     NumPy reference of :func:`sarmitsuba.kernel.po_terms`.
 
@@ -66,6 +79,8 @@ def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: 
         ``(cos_i, cos_b, d, b, s, L) -> complex``: the PO amplitude per unit footprint area there
         (``j (2 sqrt(pi) / lambda) (cos_i + cos_b) / 2`` times reflection coefficients, pattern
         and spreading; eq. (PO1)).
+    split_at : float
+        ``|alpha|`` from which an edge is split (the tracer uses :func:`split_threshold`).
 
     Returns
     -------
@@ -79,7 +94,7 @@ def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: 
     Notes
     -----
     The footprint edges are ``e_j' = e_j + d (n . e_j) / cos_i`` with ``e_j = s t_j``. An edge
-    with ``|alpha_j| = |k (d - b) . e_j'| / 2 >= SINC_REGIME`` at the centre is split into its two
+    with ``|alpha_j| = |k (d - b) . e_j'| / 2 >= split_at`` at the centre is split into its two
     ends, ``-sigma / (j k g_j)`` at ``x = centre + sigma e_j' / 2`` (``g_j`` the two-way length's
     gradient along the edge); otherwise it contributes ``|e_j'| sinc(alpha_j)`` at the centre line.
     Every term is evaluated at its own point: its geometry, footprint edges and density.
@@ -90,7 +105,7 @@ def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: 
 
     d, b, s, _ = geometry(centre)
     centre_edges, _ = edges_at(d, s)
-    split = [abs(0.5 * k * float((d - b) @ e)) >= SINC_REGIME for e in centre_edges]
+    split = [abs(0.5 * k * float((d - b) @ e)) >= split_at for e in centre_edges]
     lengths, coefficients = [], []
     for s1 in ((-1.0, 1.0) if split[0] else (0.0,)):
         for s2 in ((-1.0, 1.0) if split[1] else (0.0,)):
@@ -106,6 +121,81 @@ def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: 
             lengths.append(length)
             coefficients.append(value)
     return np.array(lengths), np.array(coefficients), 1 - int(split[0]) - int(split[1])
+
+
+def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path, density,
+               split_at: float = SINC_REGIME, step: float = 1e-4, split=None) -> tuple[np.ndarray, np.ndarray, int]:
+    """The PO integral of one aim cell's tile as one pulse sees it, as point terms, eqs. (T3),
+    (PO2), (PO4): the readable NumPy reference of :meth:`sarmitsuba.returns.Returns.po`.
+
+    Every point of the tile is where the ray from the antenna through a point of the aim cell
+    meets the facet after its mirrors. A term belongs to a corner, edge midpoint or the centre of
+    the cell; its tile edges there are the images of the cell's edges, taken here by central
+    finite differences of ``path`` (the kernel differentiates the projection analytically).
+
+    Parameters
+    ----------
+    k : float, rad/m
+        Carrier wavenumber.
+    antenna : float64 [3], m
+        The pulse's antenna position.
+    aim : float64 [3], m
+        Centre of the aim cell (on the aim plane).
+    cell : (float64 [3], float64 [3]), m
+        The aim cell's edge vectors (along track, ground range).
+    path : callable
+        ``point -> (x, d, s, n)``: the ray from the antenna toward ``point`` (on the aim plane)
+        meets the facet at ``x`` (float64 [3]) arriving along ``d`` after an unfolded length ``s``
+        [m]; ``n`` is the facet's unit normal facing the ray.
+    density : callable
+        ``(cos_i, cos_b, d, b, s, L) -> complex``, as for :func:`tube_terms`.
+    split_at : float
+        ``|alpha|`` from which an edge is split, decided at the cell's centre.
+    step : float
+        Finite-difference step, in cell edges.
+    split : (bool, bool), optional
+        Which edges are split, when decided elsewhere (a sub-aperture, docs/physics.md (T3));
+        ``split_at`` is then unused.
+
+    Returns
+    -------
+    lengths : float64 [t], m
+        Two-way length ``s + |A - x|`` of each term.
+    coefficients : complex128 [t]
+        Values at the carrier before the propagation phase.
+    order : int
+        Spectral order ``1 - (number of split edges)``.
+    """
+    def at(point):
+        x, d, s, n = path(point)
+        edges = [(path(point + step * v)[0] - path(point - step * v)[0]) / (2.0 * step) for v in cell]
+        to_antenna = antenna - x
+        dist = float(np.linalg.norm(to_antenna))
+        return x, d, s, n, to_antenna / dist, dist, edges
+
+    if split is None:
+        split = np.abs(cell_alphas(k, antenna, aim, cell, path, step)) >= split_at
+    lengths, coefficients = [], []
+    for s1 in ((-1.0, 1.0) if split[0] else (0.0,)):
+        for s2 in ((-1.0, 1.0) if split[1] else (0.0,)):
+            x, d, s, n, b, dist, edges = at(aim + 0.5 * s1 * cell[0] + 0.5 * s2 * cell[1])
+            value = density(-float(n @ d), float(n @ b), d, b, s, s + dist) * np.linalg.norm(np.cross(*edges))
+            for sigma, is_split, e in zip((s1, s2), split, edges):
+                g = float((d - b) @ e)
+                value *= -sigma / (1j * k * g) if is_split else (math.sin(0.5 * k * g) / (0.5 * k * g) if g else 1.0)
+            lengths.append(s + dist)
+            coefficients.append(value)
+    return np.array(lengths), np.array(coefficients), 1 - int(split[0]) - int(split[1])
+
+
+def cell_alphas(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path, step: float = 1e-4) -> np.ndarray:
+    """``alpha_j = k (d - b) . e_j / 2`` at the centre of an aim cell's tile (float64 [2]): half the
+    phase across each of its edges as the pulse at ``antenna`` sees it (arguments as
+    :func:`cell_terms`), eq. (PO2)."""
+    x, d, _, _ = path(aim)
+    b = (antenna - x) / np.linalg.norm(antenna - x)
+    edges = [(path(aim + step * v)[0] - path(aim - step * v)[0]) / (2.0 * step) for v in cell]
+    return np.array([0.5 * k * float((d - b) @ e) for e in edges])
 
 
 def terms_spectrum(lengths: np.ndarray, coefficients: np.ndarray, orders: np.ndarray, frequencies: np.ndarray,

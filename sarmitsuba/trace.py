@@ -24,6 +24,7 @@ the reference phase in float64, band-limits (range compression) or chirps it.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, fields
 
@@ -32,12 +33,13 @@ import numpy as np
 from tqdm import tqdm
 
 from .deposit import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
-from .kernel import Kernel, Launch
+from .kernel import Blocks, Kernel, Launch
 from .radar import AcquisitionGeometry, ParameterError, RadarParameters
 from .trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, Refinement, TraceSettings
 
 __all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
-           "caused_by_interrupt", "LANCZOS_A"]
+           "caused_by_interrupt", "LANCZOS_A", "SubApertures",
+           "subapertures", "pulses_per_trace", "SUBAPERTURE_CELLS"]
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,11 @@ class TraceResult:
         Clutter scatterers deposited per bounce order.
     n_pad : int
         Coarse samples of the padded grid of ``spectrum`` (0 for ``exact``).
+    pulses_per_trace : int
+        Pulses per sub-aperture: each sub-aperture's tubes were traced once (docs/physics.md (T3)).
+    pulse_paths : int
+        Returns evaluated: PO terms times the pulses they were evaluated for, plus clutter
+        scatterers deposited (the tracer's unit of work after the casts).
     """
 
     spectrum: np.ndarray
@@ -134,6 +141,8 @@ class TraceResult:
     split: bool = False
     scatterers_per_order: np.ndarray | None = None
     n_pad: int = 0
+    pulses_per_trace: int = 1
+    pulse_paths: int = 0
 
     @property
     def n_orders(self) -> int:
@@ -154,8 +163,9 @@ class TraceResult:
         return self.paths.of_order(order) if self.paths is not None else self.spectrum_per_order[order - 1]
 
 
-#: Histogram entries per launch: at most Dr.Jit's threshold for per-thread (non-atomic) scatter-adds.
-EXPAND_THRESHOLD = 1 << 20
+#: Complex entries of a batch's fine-grid histogram (orders x pulses x fine samples; each thread keeps
+#: its own copy for non-atomic scatter-adds): 32 MiB per copy.
+HISTOGRAM_ENTRIES = 1 << 22
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -173,10 +183,11 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     window : FastTimeWindow
     footprint : RayFootprint
     settings : TraceSettings
+        ``pulses_per_trace`` sets the sub-aperture: its pulses share one trace (docs/physics.md (T3)).
     material_table : MaterialTable
         Reflection coefficient against cos(incidence) and clutter model per shape.
     progress : bool
-        Show a tqdm bar over pulse batches.
+        Show a tqdm bar over pulses.
 
     Returns
     -------
@@ -184,46 +195,49 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     """
     n_pulses = geometry.positions.shape[0]
     lref = 2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1)
-    radius, center = _bounding_sphere(scene)
-    r_near = np.maximum(np.linalg.norm(geometry.positions - center, axis=1) - radius - 1.0, 0.0)
     exact = settings.range_kernel == "exact"
     groups = settings.max_depth if settings.split_bounces else 1
     n_pad = padded_length(window.n_samples)
-    per_pulse = footprint.rays_per_pulse
-    per_batch = max(1, min(n_pulses, settings.max_batch_rays // max(per_pulse, 1),
-                           EXPAND_THRESHOLD // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups)))
-    rows_per_launch = footprint.n_range if per_pulse <= settings.max_batch_rays else \
-        max(1, settings.max_batch_rays // footprint.n_azimuth)
+    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
+    per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
+    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups))
+    per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
     spectrum = np.zeros((groups, n_pulses, 0 if exact else n_pad), np.complex64)
     paths = []
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
-                  outside=0.0, shadow=0)
+                  outside=0.0, shadow=0, evaluated=0)
     start = time.perf_counter()
     kernel = Kernel(scene, params, window, footprint, settings, material_table)
-    for p0 in tqdm(range(0, n_pulses, per_batch), desc="trace", unit="batch", disable=not progress):
-        p1 = min(n_pulses, p0 + per_batch)
-        batch = slice(p0, p1)
-        launch = Launch(antenna=geometry.positions[batch], r_near=r_near[batch], lref=lref[batch],
-                        k0=footprint.k0[batch], along_limits=footprint.along_limits[batch])
-        hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), groups, p1 - p0, window.n_fine), np.complex64)
-        for offset, part in _launches(launch, footprint, rows_per_launch, settings.max_batch_rays):
-            try:
-                out = kernel(part)
-            except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces the loop body
-                if caused_by_interrupt(exc):
-                    raise KeyboardInterrupt from exc
-                raise
-            if exact:
-                paths.append(_path_list(out["paths"], p0 + offset))
-            else:
-                hist[:, :, offset:offset + part.n_pulses] += out["hist"]
-            for name in ("energy", "carried", "rays", "scatterers", "outside", "shadow"):
-                totals[name] = totals[name] + out[name]
-        if not exact:
-            for g in range(groups):
-                spectrum[g, batch] = reduce_deposit(hist[:, g], window.fs, window.oversample, params.frequency,
-                                                    settings.range_kernel, n_pad)
+    bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
+    try:
+        for g0 in range(0, len(subs.first), per_batch):
+            g = slice(g0, min(len(subs.first), g0 + per_batch))
+            p0, p1 = int(subs.first[g][0]), int(subs.first[g][-1] + subs.count[g][-1])
+            hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), groups, p1 - p0, window.n_fine), np.complex64)
+            for blocks in _blocks(subs, g, footprint, settings.max_batch_rays):
+                launch = Launch(antenna=geometry.positions[p0:p1], lref=lref[p0:p1], first=subs.first[g] - p0,
+                                count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
+                                along_limits=subs.along_limits[g], blocks=blocks)
+                try:
+                    out = kernel(launch)
+                except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces a loop body
+                    if caused_by_interrupt(exc):
+                        raise KeyboardInterrupt from exc
+                    raise
+                if exact:
+                    paths.append(_path_list(out["paths"], p0))
+                else:
+                    hist += out["hist"]
+                for name in totals:
+                    totals[name] = totals[name] + out[name]
+            if not exact:
+                for k in range(groups):
+                    spectrum[k, p0:p1] = reduce_deposit(hist[:, k], window.fs, window.oversample, params.frequency,
+                                                        settings.range_kernel, n_pad)
+            bar.update(p1 - p0)
+    finally:
+        bar.close()
     seconds = time.perf_counter() - start
     return TraceResult(spectrum=spectrum.sum(axis=0) if groups > 1 else spectrum[0], reference_length=lref,
                        energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),
@@ -231,30 +245,102 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                        spectrum_per_order=spectrum if settings.split_bounces and not exact else None,
                        carried_power_per_order=totals["carried"],
                        paths=PathList.concatenate(paths) if exact else None, split=settings.split_bounces,
-                       scatterers_per_order=totals["scatterers"], n_pad=0 if exact else n_pad)
+                       scatterers_per_order=totals["scatterers"], n_pad=0 if exact else n_pad,
+                       pulses_per_trace=subs.size, pulse_paths=int(totals["evaluated"]))
 
 
-def _launches(launch: Launch, footprint: RayFootprint, rows: int, max_rays: int):
-    """The kernel launches of one pulse batch: coarse tubes in chunks of ``rows`` lattice rows,
-    then each refinement group's cells near the batch's beam, at most ``max_rays`` tubes each
-    (a single pulse's tubes are split when they alone exceed it). Yields ``(offset, launch)``:
-    the launch's first pulse within the batch, and the launch."""
-    for j0 in range(0, footprint.n_range, rows):
-        yield 0, dataclasses.replace(launch, rows=(j0, min(footprint.n_range, j0 + rows)))
-    lo, hi = int(launch.k0.min()) - 1, int(launch.k0.max()) + footprint.n_azimuth + 1
-    for group in footprint.refinements:
-        near = group.cells[(group.cells[:, 0] >= lo) & (group.cells[:, 0] <= hi)]
-        if near.shape[0] == 0:
-            continue
-        per_cell = group.factor ** 2
-        pulses = max(1, min(launch.n_pulses, max_rays // (per_cell * near.shape[0])))
-        cells = max(1, max_rays // (per_cell * pulses))
-        for q0 in range(0, launch.n_pulses, pulses):
-            q = slice(q0, q0 + pulses)
-            part = dataclasses.replace(launch, antenna=launch.antenna[q], r_near=launch.r_near[q],
-                                       lref=launch.lref[q], k0=launch.k0[q], along_limits=launch.along_limits[q])
-            for c0 in range(0, near.shape[0], cells):
-                yield q0, dataclasses.replace(part, refinement=Refinement(group.factor, near[c0:c0 + cells]))
+@dataclass(frozen=True)
+class SubApertures:
+    """The sub-apertures of an acquisition: runs of consecutive pulses that share one trace
+    (docs/physics.md (T3)).
+
+    Attributes
+    ----------
+    size : int
+        Pulses per sub-aperture (the last may have fewer).
+    first, count : int64 [n_s]
+        First pulse and number of pulses of each.
+    reference : float64 [n_s, 3], m
+        Reference position: the midpoint of the first and last antenna positions, the source of
+        the sub-aperture's ray tubes.
+    r_near : float64 [n_s], m
+        Distance from the reference position at which rays start (just short of the scene).
+    k0 : int64 [n_s]
+        First along-track lattice cell of the union of the pulses' cells.
+    n_i : int
+        Along-track cells per sub-aperture (the pulses' ``n_azimuth`` plus the widest spread of
+        their first cells).
+    along_limits : float64 [n_s, 2], m
+        Union of the pulses' along-track aim limits.
+    """
+
+    size: int
+    first: np.ndarray
+    count: np.ndarray
+    reference: np.ndarray
+    r_near: np.ndarray
+    k0: np.ndarray
+    n_i: int
+    along_limits: np.ndarray
+
+
+def pulses_per_trace(params: RadarParameters, settings: TraceSettings, n_pulses: int) -> int:
+    """Pulses per sub-aperture: the ``pulses_per_trace`` setting, or automatically
+    :data:`SUBAPERTURE_CELLS` along-track resolution cells of antenna travel (at least 1, at most
+    every pulse), docs/physics.md (T3)."""
+    if settings.pulses_per_trace > 0:
+        return min(settings.pulses_per_trace, max(n_pulses, 1))
+    spacing = params.velocity / params.prf
+    return int(max(1, min(max(n_pulses, 1), math.floor(SUBAPERTURE_CELLS * params.azimuth_resolution / spacing))))
+
+
+#: Automatic sub-aperture: the antenna travels this many azimuth resolution cells between traces
+#: (``pulses_per_trace = 0``); chosen from ``benchmarks/subaperture.py`` (image NRMSE against
+#: per-pulse tracing, urban and Munich).
+SUBAPERTURE_CELLS = 16.0
+
+
+def subapertures(geometry: AcquisitionGeometry, footprint: RayFootprint, scene, size: int) -> SubApertures:
+    """Split the acquisition's pulses into sub-apertures of ``size`` consecutive pulses."""
+    n_pulses = geometry.positions.shape[0]
+    first = np.arange(0, n_pulses, size, dtype=np.int64)
+    last = np.minimum(first + size, n_pulses) - 1
+    positions = geometry.positions
+    reference = 0.5 * (positions[first] + positions[last])
+    radius, center = _bounding_sphere(scene)
+    r_near = np.maximum(np.linalg.norm(reference - center, axis=1) - radius - 1.0, 0.0)
+    k0_lo = np.minimum.reduceat(footprint.k0, first)
+    k0_hi = np.maximum.reduceat(footprint.k0, first)
+    limits = np.stack([np.minimum.reduceat(footprint.along_limits[:, 0], first),
+                       np.maximum.reduceat(footprint.along_limits[:, 1], first)], axis=1)
+    return SubApertures(size=size, first=first, count=last - first + 1, reference=reference, r_near=r_near,
+                        k0=k0_lo, n_i=footprint.n_azimuth + int((k0_hi - k0_lo).max()), along_limits=limits)
+
+
+def _blocks(subs: SubApertures, batch: slice, footprint: RayFootprint, max_rays: int):
+    """The lattice blocks of a batch of sub-apertures (sub-aperture indices relative to the batch),
+    in launches of at most ``max_rays`` tubes: each sub-aperture's coarse lattice (in chunks of
+    rows when it alone exceeds the ceiling), and the refined cells near its beam, one block each
+    (a refined cell's ``m^2`` tubes are never split). Yields :class:`Blocks`."""
+    rows_per_block = footprint.n_range if subs.n_i * footprint.n_range <= max_rays else max(1, max_rays // subs.n_i)
+    rows = []
+    for q, g in enumerate(range(batch.start, batch.stop)):
+        k0 = int(subs.k0[g])
+        for j0 in range(0, footprint.n_range, rows_per_block):
+            rows.append((q, k0, j0, subs.n_i, min(rows_per_block, footprint.n_range - j0), 1))
+        for group in footprint.refinements:
+            near = group.cells[(group.cells[:, 0] >= k0 - 1) & (group.cells[:, 0] <= k0 + subs.n_i + 1)]
+            rows.extend((q, int(ci), int(cj), group.factor, group.factor, group.factor) for ci, cj in near)
+    part, lanes = [], 0
+    for row in rows:
+        size = row[3] * row[4]
+        if part and lanes + size > max_rays:
+            yield Blocks.of(part)
+            part, lanes = [], 0
+        part.append(row)
+        lanes += size
+    if part:
+        yield Blocks.of(part)
 
 
 def _path_list(found: dict, p0: int) -> "PathList":

@@ -52,17 +52,26 @@ class TraceSettings:
     tubes_per_object : int
         Objects (Mitsuba shapes) smaller than 8 default ray tubes are traced with tubes
         ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
+    pulses_per_trace : int
+        Pulses of a sub-aperture, which share one trace of the ray tubes (docs/physics.md (T3)),
+        [0, 65536]; 1 = every pulse traced on its own (the reference); 0 = automatic
+        (:func:`sarmitsuba.trace.pulses_per_trace`).
+    cancel_interior : bool
+        Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
+        evaluates every term (slower; the reference the cancellation is checked against).
     """
 
     max_depth: int = 3
     ray_spacing: float = 0.0
     range_kernel: str = "linear"
     oversample: int = 8
-    max_batch_rays: int = 1 << 22
+    max_batch_rays: int = 1 << 20
     seed: int = 0
     split_bounces: bool = False
     scatterer_spacing: float = 0.0
     tubes_per_object: int = 48
+    pulses_per_trace: int = 0
+    cancel_interior: bool = True
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -82,6 +91,9 @@ class TraceSettings:
         if int(self.tubes_per_object) != self.tubes_per_object or not 0 <= self.tubes_per_object <= 256:
             raise ParameterError(f"tubes_per_object = {self.tubes_per_object} must be a whole number in [0, 256] "
                                  "(0 = no refinement around small objects)")
+        if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
+            raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
+                                 "(1 = trace every pulse, 0 = automatic)")
 
     @classmethod
     def names(cls) -> tuple[str, ...]:

@@ -289,7 +289,7 @@ def test_targets_at_the_along_track_ends_image_like_the_centre(tmp_path):
     """Three 0.2 m trihedrals at x = -60, 0, +60 m: the outer ones are at the scene's along-track
     ends, the middle one exactly at the scene centre, farther apart than the traced beam's
     footprint (55 m), so no pulse sees two of them. 60 m is a whole number of pulse spacings
-    (0.4 m) and ray spacings (0.02 m), so each target sees the same pulses and the same ray
+    (0.4 m), sub-apertures (4 m) and ray spacings (0.02 m), so each target sees the same pulses and the same ray
     lattice: the planner (aperture, window, footprint limits) must give the edge targets the
     same echo, pulse for pulse (1e-3 of the peak, the float32 geometry floor 60 m from the
     frame origin, but for a tube on a face edge), and focused on a grid
@@ -301,7 +301,10 @@ def test_targets_at_the_along_track_ends_image_like_the_centre(tmp_path):
     to 0.14 dB and the azimuth IRW by 2 %, so peaks are compared on congruent chips.)"""
     d = 60.0
     apexes = [np.array([x, 0.0, 0.0]) for x in (0.0, d, -d)]
-    sim = simulate(str(_trihedrals(tmp_path, apexes)), integrator_overrides={"ray_spacing": 0.02})
+    # sub-apertures of 10 pulses (4 m): 60 m is a whole number of them too, so each target also
+    # sees the same sub-aperture boundaries (docs/physics.md (T3))
+    sim = simulate(str(_trihedrals(tmp_path, apexes)), integrator_overrides={"ray_spacing": 0.02,
+                                                                            "pulses_per_trace": 10})
     p = sim.loaded.params
     assert sim.trace.energy_outside_window == 0.0
     assert round(d / (p.velocity / p.prf)) * p.velocity / p.prf == pytest.approx(d)

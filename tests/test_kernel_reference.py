@@ -3,10 +3,12 @@
 Scene: a PEC ground mirror and a PEC plate above it, tilted by 15 deg, one broadside pulse,
 two bounce orders. The reference traces each tube of the planner's lattice through the two
 rectangles with plain vector algebra (plane intersections, the law of reflection, shadow
-segments), writes each footprint's PO integral with the textbook scalar obliquity
-``(cos_i + cos_b) / 2`` per unit area (Knott, Shaeffer and Tuley, *Radar Cross Section*, ch. 5)
-and :func:`sarmitsuba.physical_optics.tube_terms`, and the bistatic radar equation's spreading
-``1 / (s R_rx)`` with ``s`` the unfolded length from the antenna (image theory). The mirror
+segments), finds each aim cell's tile by tracing the rays through the cell's corners along the
+same mirrors and differentiating them by finite differences, writes the tile's PO integral with
+the textbook scalar obliquity ``(cos_i + cos_b) / 2`` per unit area (Knott, Shaeffer and Tuley,
+*Radar Cross Section*, ch. 5) and :func:`sarmitsuba.physical_optics.cell_terms`, and the bistatic
+radar equation's spreading ``1 / (s R_rx)`` with ``s`` the unfolded length from the antenna
+(image theory). Every term is kept (``cancel_interior`` off), so the two lists match one to one. The mirror
 makes the plate's paths non-retro-reflecting (cos_i = 0.5, cos_b = 0.87 on the plate), so an
 obliquity factor of 1, a spreading over the first leg or a wrong term all change the comparison
 by far more than its 1e-4 tolerance. No term of this scene is shadowed: the shadow ray is
@@ -15,6 +17,7 @@ tested in test_tracer_core.py (a ground under a canopy).
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +26,9 @@ import pytest
 import sarmitsuba  # noqa: F401
 from sarmitsuba import planning
 from sarmitsuba.constants import SPEED_OF_LIGHT
-from sarmitsuba.physical_optics import point_sources, tube_terms
+from sarmitsuba.physical_optics import SINC_REGIME, cell_alphas, cell_terms, split_threshold
 from sarmitsuba.pipeline import simulate
+from sarmitsuba.planning import AcquisitionWarning
 from sarmitsuba.radar import acquisition_geometry
 
 TILT = math.radians(15.0)
@@ -35,17 +39,20 @@ GROUND_HALF = (4.113, 4.371)
 SCENE = """<scene version="3.0.0">
     <sensor type="sar">
         <float name="bandwidth" value="150e6"/>
-        <float name="prf" value="250"/>
+        <float name="prf" value="{prf}"/>
+        <float name="azimuth_beamwidth" value="{beam}"/>
         <string name="scene_center" value="0, 0, 0"/>
         <string name="beam" value="uniform"/>
-        <integer name="n_pulses" value="1"/>
+        <integer name="n_pulses" value="{pulses}"/>
         {radar}
     </sensor>
     <integrator type="sbr">
         <integer name="max_depth" value="2"/>
-        <float name="ray_spacing" value="0.2"/>
+        <float name="ray_spacing" value="{spacing}"/>
         <integer name="tubes_per_object" value="0"/>
         <string name="range_kernel" value="exact"/>
+        <boolean name="cancel_interior" value="false"/>
+        <integer name="pulses_per_trace" value="{pulses}"/>
     </integrator>
     <bsdf type="radar" id="metal"><string name="model" value="pec"/></bsdf>
     <shape type="rectangle" id="ground">
@@ -63,10 +70,10 @@ SCENE = """<scene version="3.0.0">
 </scene>"""
 
 
-def _rectangles():
+def _rectangles(ground_half=GROUND_HALF):
     """(centre, unit normal, half-edge vectors) of the ground and the plate, as the XML places them."""
     ground = (np.zeros(3), np.array([0.0, 0.0, 1.0]),
-              (np.array([GROUND_HALF[0], 0, 0]), np.array([0, GROUND_HALF[1], 0])))
+              (np.array([ground_half[0], 0, 0]), np.array([0, ground_half[1], 0])))
     # the rectangle's normal +z, rotated about x by -(90 - 15) deg: (0, -sin a, cos a) = (0, cos 15, sin 15),
     # facing the sensor (+y) and tilted up by 15 deg
     a = -math.radians(90.0 - math.degrees(TILT))
@@ -91,62 +98,97 @@ def _hit(origin, direction, rect, eps=1e-9):
     return None
 
 
-def _reference_terms(sim, radiometry: bool):
-    """Every term of the pulse, from the planner's lattice, traced in NumPy."""
-    p = sim.loaded.params
+def _through_planes(antenna, point, planes):
+    """The ray from ``antenna`` toward ``point``, reflected in each plane ``(centre, normal)`` of the
+    list but the last and met by the last: ``(x, d, s, n)`` with ``n`` facing the ray."""
+    origin, d, s = antenna, (point - antenna) / np.linalg.norm(point - antenna), 0.0
+    for q, (centre, normal) in enumerate(planes):
+        t = ((centre - origin) @ normal) / (d @ normal)
+        origin, s = origin + t * d, s + t
+        n = normal if normal @ d < 0 else -normal
+        if q < len(planes) - 1:
+            d = d - 2 * (d @ n) * n
+    return origin, d, s, n
+
+
+def _split(alphas: np.ndarray, split_at: float) -> np.ndarray:
+    """docs/physics.md (T3): per edge, from ``alpha`` at the reference, first and last pulse
+    (rows): True (split), False (sinc) or None (each pulse decides)."""
+    low, high = np.abs(alphas).min(axis=0), np.abs(alphas).max(axis=0)
+    same = np.all(alphas * alphas[:1] > 0, axis=0)
+    return [False if h < split_at else (True if (lo >= SINC_REGIME and ok) else None)
+            for lo, h, ok in zip(low, high, same)]
+
+
+def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
+    """Every term of every pulse, from the planner's lattice, traced in NumPy (docs/physics.md (T3)):
+    each sub-aperture's tubes are traced from its reference position (the midpoint of its first
+    and last antenna), which decides their facets and visibility; each pulse then takes each aim
+    cell's tile where the rays from its own antenna through the cell meet those facets after the
+    same mirrors (:func:`cell_terms`)."""
+    p, settings = sim.loaded.params, sim.loaded.settings
     geometry = acquisition_geometry(p)
-    fp = planning.ray_footprint(p, geometry, sim.loaded.bbox_lo, sim.loaded.bbox_hi, sim.loaded.settings)
-    antenna = geometry.positions[0]
-    lref = 2 * np.linalg.norm(antenna - geometry.scene_center)
+    fp = planning.ray_footprint(p, geometry, sim.loaded.bbox_lo, sim.loaded.bbox_hi, settings)
     k = 2 * math.pi * p.frequency / SPEED_OF_LIGHT
     t0, fs = float(sim.raw.fast_time[0]), sim.raw.fs
-    rects = _rectangles()
+    rects = _rectangles(ground_half)
     lo_sine, hi_sine = p.beam_sines
-    positions, values, orders = [], [], []
-    for ii in range(fp.n_azimuth):
-        i = fp.k0[0] + ii
-        along = (i + 0.5) * fp.spacing_azimuth
-        if not fp.along_limits[0, 0] <= along <= fp.along_limits[0, 1]:
-            continue
-        for j in range(fp.n_range):
-            aim = fp.origin + along * fp.track + (fp.range_min + (j + 0.5) * fp.spacing_range) * fp.look
-            r = np.linalg.norm(aim - antenna)
-            d = (aim - antenna) / r
-            if not lo_sine <= d @ fp.track <= hi_sine:
+    cell = (fp.track * fp.spacing_azimuth, fp.look * fp.spacing_range)
+    split_at = split_threshold(p.bandwidth, p.frequency)
+    size = settings.pulses_per_trace
+    positions, values, orders, pulses = [], [], [], []
+    for first in range(0, geometry.positions.shape[0], size):
+        group = np.arange(first, min(first + size, geometry.positions.shape[0]))
+        antennas = geometry.positions[group]
+        reference = 0.5 * (antennas[0] + antennas[-1])
+        lrefs = 2 * np.linalg.norm(antennas - geometry.scene_center, axis=1)
+        limits = (fp.along_limits[group, 0].min(), fp.along_limits[group, 1].max())
+        for i in range(fp.k0[group].min(), fp.k0[group].max() + fp.n_azimuth):
+            along = (i + 0.5) * fp.spacing_azimuth
+            if not limits[0] <= along <= limits[1]:
                 continue
-            t1 = fp.track * fp.spacing_azimuth / r
-            t2 = fp.look * fp.spacing_range / r
-            t1, t2 = t1 - d * (d @ t1), t2 - d * (d @ t2)
-            origin, s, gamma = antenna, 0.0, 1.0 + 0j
-            for depth in range(2):
-                hits = [(h, q) for q, rect in enumerate(rects) if (h := _hit(origin, d, rect)) is not None]
-                if not hits:
-                    break
-                (t, point), q = min(hits, key=lambda x: x[0][0])
-                s += t
-                n = rects[q][1] if rects[q][1] @ d < 0 else -rects[q][1]
-                gamma *= -1.0                                                # PEC
-                to_ant = antenna - point
-                dist = np.linalg.norm(to_ant)
-                b = to_ant / dist
-                cos_i, cos_b = -(n @ d), n @ b
-                shadowed = any(_hit(point, b, rects[o]) is not None for o in range(2) if o != q)
-                if cos_b > 0 and not shadowed:
-                    def density(cos_i, cos_b, d_x, b_x, s_x, length, gamma=gamma):
-                        value = 1j * 2 * math.sqrt(math.pi) / p.wavelength * (cos_i + cos_b) / 2 * gamma
-                        if radiometry:                                   # bistatic radar equation
-                            value *= (0.5 * lref) ** 2 / (s_x * (length - s_x))
-                        return value
-                    source = point - d * s                               # the tube's image source
-                    lengths, coefficients, order = tube_terms(k, point, n, t1, t2, point_sources(source, antenna),
-                                                              density)
-                    positions.extend((lengths - SPEED_OF_LIGHT * t0) * fs / SPEED_OF_LIGHT)
-                    values.extend(coefficients * np.exp(-1j * k * (lengths - lref)))
-                    orders.extend([order] * len(coefficients))
-                d = d - 2 * (d @ n) * n
-                t1, t2 = t1 - 2 * (t1 @ n) * n, t2 - 2 * (t2 @ n) * n
-                origin = point
-    return np.array(positions), np.array(values), np.array(orders)
+            for j in range(fp.n_range):
+                aim = fp.origin + along * fp.track + (fp.range_min + (j + 0.5) * fp.spacing_range) * fp.look
+                sines = [((aim - a) @ fp.track) / np.linalg.norm(aim - a) for a in antennas[[0, -1]]]
+                if max(sines) < lo_sine or min(sines) > hi_sine:
+                    continue                                     # no pulse of the sub-aperture casts it
+                d = (aim - reference) / np.linalg.norm(aim - reference)
+                origin, gamma, planes = reference, 1.0 + 0j, []
+                for depth in range(2):
+                    hits = [(h, q) for q, rect in enumerate(rects) if (h := _hit(origin, d, rect)) is not None]
+                    if not hits:
+                        break
+                    (t, point), q = min(hits, key=lambda x: x[0][0])
+                    planes.append((rects[q][0], rects[q][1]))
+                    n = rects[q][1] if rects[q][1] @ d < 0 else -rects[q][1]
+                    gamma *= -1.0                                            # PEC
+                    b = (reference - point) / np.linalg.norm(reference - point)
+                    shadowed = any(_hit(point, b, rects[o]) is not None for o in range(2) if o != q)
+                    if n @ b > 0 and not shadowed:
+                        path = (lambda x, a, planes=tuple(planes): _through_planes(a, x, planes))
+                        ends = (reference, antennas[0], antennas[-1])
+                        split = _split(np.array([cell_alphas(k, a, aim, cell, lambda x, a=a: path(x, a))
+                                                 for a in ends]), split_at)
+                        for antenna, lref, pulse in zip(antennas, lrefs, group):
+                            sine = ((aim - antenna) @ fp.track) / np.linalg.norm(aim - antenna)
+                            if not lo_sine <= sine <= hi_sine:
+                                continue                         # uniform beam: cut per pulse at the aim
+                            def density(cos_i, cos_b, d_x, b_x, s_x, length, gamma=gamma, lref=lref):
+                                value = 1j * 2 * math.sqrt(math.pi) / p.wavelength * (cos_i + cos_b) / 2 * gamma
+                                if radiometry:                               # bistatic radar equation
+                                    value *= (0.5 * lref) ** 2 / (s_x * (length - s_x))
+                                return value
+                            mine = lambda x, antenna=antenna: path(x, antenna)      # noqa: E731
+                            own = [bool(abs(a) >= split_at) if s_ is None else s_
+                                   for s_, a in zip(split, cell_alphas(k, antenna, aim, cell, mine))]
+                            lengths, coefficients, order = cell_terms(k, antenna, aim, cell, mine, density, split=own)
+                            positions.extend((lengths - SPEED_OF_LIGHT * t0) * fs / SPEED_OF_LIGHT)
+                            values.extend(coefficients * np.exp(-1j * k * (lengths - lref)))
+                            orders.extend([order] * len(coefficients))
+                            pulses.extend([pulse] * len(coefficients))
+                    d = d - 2 * (d @ n) * n
+                    origin = point
+    return np.array(positions), np.array(values), np.array(orders), np.array(pulses)
 
 
 def _spectrum(positions, values, orders, fs, fc):
@@ -155,23 +197,37 @@ def _spectrum(positions, values, orders, fs, fc):
     return np.sum(values * (1 + f / fc) ** orders * np.exp(-2j * math.pi * f * positions / fs), axis=1)
 
 
-@pytest.mark.parametrize("radiometry", [False, True], ids=["normalised", "absolute"])
-def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry):
+@pytest.mark.parametrize("radiometry,pulses,prf,beam,spacing", [
+    (False, 1, 250.0, 1.0, 0.2), (True, 1, 250.0, 1.0, 0.2), (False, 6, 250.0, 1.0, 0.2), (False, 6, 50.0, 3.0, 1.0)],
+    ids=["normalised", "absolute", "sub-aperture of 6 pulses", "splits decided per pulse"])
+def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry, pulses, prf, beam, spacing):
+    """One pulse: the kernel's terms are the reference's. Six pulses in one sub-aperture (2.4 m of
+    track; the plate is traced once): every pulse's terms are the reference's for that pulse's
+    own antenna (its tile corners, lengths and phase gradients), on the facets and visibility of
+    the reference position. With 0.5 m tubes, a 3 deg beam, a 72 m long mirror and 12 m of track, the
+    edges' phase half-width sweeps through the split threshold within the sub-aperture: those
+    edges are split or not pulse by pulse (docs/physics.md (T3))."""
     radar = ('<float name="transmit_power" value="100"/><float name="antenna_gain_db" value="30"/>'
              if radiometry else "")
     a, b, c = PLATE_SIZE[0] / 2, PLATE_SIZE[1] / 2, PLATE_CENTRE
     xml = tmp_path / "mirror_plate.xml"
-    xml.write_text(SCENE.format(radar=radar, gx=GROUND_HALF[0], gy=GROUND_HALF[1], px=a, py=b,
-                                angle=-(90.0 - math.degrees(TILT)), cx=c[0], cy=c[1], cz=c[2]))
-    sim = simulate(str(xml), window="rect")
+    ground = GROUND_HALF if beam == 1.0 else (36.0, GROUND_HALF[1])   # reaching 2.5 deg off broadside
+    xml.write_text(SCENE.format(radar=radar, gx=ground[0], gy=ground[1], px=a, py=b,
+                                angle=-(90.0 - math.degrees(TILT)), cx=c[0], cy=c[1], cz=c[2], pulses=pulses,
+                                prf=prf, beam=beam, spacing=spacing))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AcquisitionWarning)          # 3 deg at 50 Hz: azimuth ambiguities
+        sim = simulate(str(xml), window="rect")
     paths = sim.trace.paths
-    assert set(np.unique(paths.order)) == {1, 2} and np.all(paths.pulse == 0)
-    ref = _reference_terms(sim, radiometry)
+    assert set(np.unique(paths.order)) == {1, 2} and set(np.unique(paths.pulse)) == set(range(pulses))
+    ref = _reference_terms(sim, radiometry, ground)
     assert len(ref[0]) == len(paths.position)                           # the same tubes and terms
     fs, fc = sim.raw.fs, sim.raw.fc
-    kernel = _spectrum(paths.position, paths.value.astype(complex), paths.spectral, fs, fc)
-    reference = _spectrum(*ref, fs, fc)
-    assert np.abs(kernel - reference).max() < 1e-4 * np.abs(reference).max(), \
-        np.abs(kernel - reference).max() / np.abs(reference).max()
+    for pulse in range(pulses):
+        mine, theirs = paths.pulse == pulse, ref[3] == pulse
+        kernel = _spectrum(paths.position[mine], paths.value[mine].astype(complex), paths.spectral[mine], fs, fc)
+        reference = _spectrum(ref[0][theirs], ref[1][theirs], ref[2][theirs], fs, fc)
+        assert np.abs(kernel - reference).max() < 1e-4 * np.abs(reference).max(), \
+            (pulse, np.abs(kernel - reference).max() / np.abs(reference).max())
     # the plate's non-retro-reflecting returns are a real part of it (obliquity 1.37 there)
     assert np.abs(reference).max() > 0

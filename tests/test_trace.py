@@ -118,11 +118,11 @@ def test_info_estimates_the_memory_the_tracer_keeps():
 
 
 def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monkeypatch):
-    """A small ``max_batch_rays`` splits the pulses into batches, a pulse's lattice into row
-    chunks and a small object's refined cells into groups of pulses and cells: every launch
-    stays within the ceiling (or one refined cell's m^2 tubes, which are not split) and the
-    raw data equal the default's, on a track whose heading (37 deg) is along no axis (a launch
-    placed at the wrong pulse, a chunk dropped or traced twice would show)."""
+    """A small ``max_batch_rays`` splits the sub-apertures into batches, a sub-aperture's lattice
+    into row chunks and a small object's refined cells into several launches: every launch stays
+    within the ceiling (or one refined cell's m^2 tubes, which are not split) and the raw data
+    equal the default's, on a track whose heading (37 deg) is along no axis (a launch placed at
+    the wrong pulse, a chunk dropped or traced twice would show)."""
     from sarmitsuba import canonical as C
     from sarmitsuba import trace as trace_module
 
@@ -130,22 +130,19 @@ def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monk
         '<shape type="rectangle"><transform name="to_world"><scale x="6" y="6"/></transform>'
         '<bsdf type="radar"><string name="material" value="concrete"/></bsdf></shape>'))
     sensor = {"heading": 37.0, "n_pulses": 24}
-    reference = simulate(str(xml), sensor_overrides=sensor)
+    integrator = {"pulses_per_trace": 4}                 # six sub-apertures
+    reference = simulate(str(xml), sensor_overrides=sensor, integrator_overrides=integrator)
     launches = []
 
     class Recording(trace_module.Kernel):
         def __call__(self, launch, **kwargs):
-            if launch.refinement is None:
-                lanes = launch.n_pulses * self.fp.n_azimuth * (launch.rows[1] - launch.rows[0])
-                launches.append((lanes, 0))
-            else:
-                m = launch.refinement.factor
-                launches.append((launch.n_pulses * launch.refinement.cells.shape[0] * m * m, m * m))
+            blocks = launch.blocks
+            launches.append((launch.n_lanes, int((blocks.m.astype(np.int64) ** 2 * (blocks.m > 1)).max())))
             return super().__call__(launch, **kwargs)
 
     monkeypatch.setattr(trace_module, "Kernel", Recording)
     ceiling = 4096
-    small = simulate(str(xml), sensor_overrides=sensor, integrator_overrides={"max_batch_rays": ceiling})
+    small = simulate(str(xml), sensor_overrides=sensor, integrator_overrides={**integrator, "max_batch_rays": ceiling})
     assert len(launches) > 8 and any(tubes for _, tubes in launches)       # chunked, refinement included
     assert all(lanes <= max(ceiling, tubes) for lanes, tubes in launches), launches
     a, b = reference.raw.data, small.raw.data

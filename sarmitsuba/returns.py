@@ -1,0 +1,625 @@
+"""Every pulse's return from the recorded hits of a sub-aperture's ray tubes (docs/physics.md
+(T3), (PO1)-(PO5), (C), (A), (R1), (D1)-(D4)).
+
+:class:`sarmitsuba.kernel.Kernel` traces the tubes of a sub-aperture once, from its reference
+position, and records every visible hit (:class:`sarmitsuba.kernel.Record`). This module turns
+the records of one bounce order into returns:
+
+1. :meth:`Returns.terms` -- the footprint's PO integral as 1, 2 or 4 point terms (PO2), less the
+   terms that neighbouring tubes cancel exactly (PO5): what is left is the boundary of the lit
+   area and the near-specular footprints;
+2. :meth:`Returns.po` -- per pulse of the sub-aperture, each term evaluated at its own point with
+   that pulse's antenna position: exact float64 legs from the pulse's image source, the phase
+   gradient and amplitude density there (PO4), deposited on the fast-time grid;
+3. :meth:`Returns.clutter` -- per pulse, the rough surface's own scatterers inside the
+   footprint, eq. (C).
+
+The footprints (which tiles of a facet a tube integrates over) and the visibility are the
+sub-aperture's; everything that carries phase is the pulse's own.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .constants import SPEED_OF_LIGHT
+from .deposit import SPECTRAL_ORDERS, taps
+from .physical_optics import SINC_REGIME, split_threshold
+
+__all__ = ["Returns", "hash32", "footprint_edges", "CLUTTER_COS_MIN"]
+
+#: Below this cosine of the incidence angle (84.3 deg) a tube's clutter footprint is shortened to
+#: 1 / CLUTTER_COS_MIN tube widths along the plane of incidence and its sigma0 raised by the same
+#: factor (docs/physics.md (C)): the same clutter power, on scatterers near the hit, at a bounded
+#: cost (a tube grazing a wall would otherwise loop over scatterers kilometres away).
+CLUTTER_COS_MIN = 0.1
+_INVALID = 0xFFFFFFFF
+# flags of kernel.Flags (repeated here: the kernel imports this module)
+_HAS_I_LO, _HAS_I_HI, _HAS_J_LO, _HAS_J_HI, _INTERIOR, _SPLIT_1, _SPLIT_2, _BACK = 1, 2, 4, 8, 16, 32, 64, 128
+_UNDECIDED_1, _UNDECIDED_2 = 256, 512
+#: Flags two tubes must share for their PO terms at a common point to cancel (PO5).
+_MATCH = _INTERIOR | _SPLIT_1 | _SPLIT_2 | _BACK | _UNDECIDED_1 | _UNDECIDED_2
+
+
+def hash32(x):
+    """A 32-bit integer hash with full avalanche (two xorshift-multiply rounds, Wellons' "lowbias32")."""
+    x = x ^ (x >> 16)
+    x = x * 0x7FEB352D
+    x = x ^ (x >> 15)
+    x = x * 0x846CA68B
+    return x ^ (x >> 16)
+
+
+def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
+    """The tube's footprint edges on the facet where its ray of direction ``d`` meets it at unfolded
+    length ``s``: ``e_j' = e_j + d (n . e_j) / cos_i`` with ``e_j = s t_j``, eq. (T1)."""
+    out = []
+    for t in (t1, t2):
+        e = t * s
+        out.append(e + d * (dr.dot(n, e) / cos_i))
+    return tuple(out)
+
+
+def _sinc_pi(x):
+    """sin(pi x) / (pi x), 1 at 0 (normalised sinc, as numpy.sinc)."""
+    y = math.pi * x
+    return dr.select(dr.abs(y) < 1e-4, 1.0, dr.sin(y) / y)
+
+
+def _sinc(x):
+    """sin(x) / x, 1 at 0."""
+    return dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x)
+
+
+class Returns:
+    """Per-pulse returns of recorded hits: configuration fixed per acquisition.
+
+    Parameters
+    ----------
+    params : RadarParameters
+    window : FastTimeWindow
+    footprint : RayFootprint
+    settings : TraceSettings
+    tables : kernel tables (materials, clutter models)
+    clutter : bool
+        Whether any material is rough (compiles the clutter term).
+    beam_sines : (float, float)
+        Along-track sines bounding the traced beam.
+    """
+
+    def __init__(self, params, window, footprint, settings, tables, clutter: bool, beam_sines):
+        self.settings, self.window, self.fp, self.tables = settings, window, footprint, tables
+        self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+        self.lam = params.wavelength
+        self.beam_sines = beam_sines
+        self.spotlight = params.mode == "spotlight"
+        self.exact = settings.range_kernel == "exact"
+        self.groups = settings.max_depth if settings.split_bounces else 1
+        self.clutter_on = clutter
+        self.cancel_interior = settings.cancel_interior
+        self.split_at = split_threshold(params.bandwidth, params.frequency)
+        # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
+        self.radiometry = params.transmit_power is not None
+        # antenna pattern, eq. (A): the tapered default beam or the antenna's dimensions
+        self.pattern = params.pattern_length > 0 or params.antenna_height > 0
+        if self.pattern:
+            boresight = footprint.look * params.ground_range - np.array([0.0, 0.0, params.altitude])
+            boresight /= np.linalg.norm(boresight)
+            squint = math.radians(params.squint) if params.mode == "stripmap" else 0.0
+            self.aperture_axis = (math.cos(squint) * footprint.track - math.sin(squint) * boresight).tolist()
+            self.elevation_axis = np.cross(footprint.track, boresight).tolist()
+            self.length_in_wavelengths = params.pattern_length / params.wavelength
+            self.height_in_wavelengths = params.antenna_height / params.wavelength
+        # the azimuth pattern's main lobe bounds every pulse's beam continuously (the gain is zero at
+        # its first nulls, where the traced beam ends): no tube needs cutting per pulse. A uniform
+        # (hard-edged) beam is cut per pulse at the aim points, as each pulse's own lattice would be.
+        self.aim_mask = not (self.pattern and self.length_in_wavelengths > 0)
+
+    # ------------------------------------------------------------------ per launch
+    def context(self, launch, capacity: int = 0) -> dict:
+        """Buffers and per-pulse inputs of one launch: counters, the fine-grid histogram (or the
+        path list of the ``exact`` kernel), antenna positions, reference lengths, sub-apertures."""
+        st, win = self.settings, self.window
+        n_b = launch.n_pulses
+        a64, f64 = mi.Array3f64, mi.Float64
+        ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
+                   carried=dr.zeros(mi.Float, st.max_depth), scatterers=dr.zeros(mi.UInt32, st.max_depth),
+                   antenna=a64(*(launch.antenna[:, c].copy() for c in range(3))), lref=f64(launch.lref.copy()),
+                   first=mi.UInt32(launch.first.astype(np.uint32)), count=mi.UInt32(launch.count.astype(np.uint32)),
+                   reference=a64(*(launch.reference[:, c].copy() for c in range(3))),
+                   middle=f64(launch.lref[launch.first + launch.count // 2].copy()),
+                   block_nj=mi.UInt32(launch.blocks.n_j), block_m=mi.UInt32(launch.blocks.m),
+                   max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
+        if self.spotlight:
+            to_c = np.asarray(self.fp.origin, float) - launch.antenna
+            ctx["steer"] = mi.Float((to_c @ self.fp.track / np.linalg.norm(to_c, axis=1)).astype(np.float32))
+        if not self.exact:
+            size = len(SPECTRAL_ORDERS) * self.groups * n_b * win.n_fine
+            ctx["hist"] = dr.zeros(mi.Float, 2 * size)          # (re, im) packets
+        return ctx
+
+    def collect(self, ctx) -> dict | None:
+        """NumPy results of a launch (None when the exact kernel's clutter buffer overflowed)."""
+        st, win = self.settings, self.window
+        if self.exact and ctx["needed"]:
+            return None
+        names = ["energy", "rays", "carried", "scatterers"] + ([] if self.exact else ["hist"])
+        dr.eval(*(ctx[name] for name in names))
+        energy = ctx["energy"].numpy().astype(np.float64)
+        rays = ctx["rays"].numpy().astype(np.int64)
+        out = dict(energy=energy[:st.max_depth], outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
+                   shadow=int(rays[st.max_depth]), carried=ctx["carried"].numpy().astype(np.float64),
+                   scatterers=ctx["scatterers"].numpy().astype(np.int64))
+        out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
+        if self.exact:
+            empty = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, path_order=np.uint32,
+                         path_pulse=np.uint32, path_spectral=np.uint32)
+            out["paths"] = {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
+                            for name, dtype in empty.items()}
+        else:
+            hist = ctx["hist"].numpy().view(np.complex64)
+            out["hist"] = hist.reshape(len(SPECTRAL_ORDERS), self.groups, ctx["n_b"], win.n_fine)
+        return out
+
+    # ------------------------------------------------------------------ geometry helpers
+    def aim_sine(self, aim, antenna):
+        """Along-track sine of the direction from ``antenna`` to ``aim`` (float64 points), relative
+        to the direction of the scene centre in spotlight (the steered beam)."""
+        track = mi.Array3f64(*self.fp.track.tolist())
+        to_p = aim - antenna
+        sine = dr.dot(to_p, track) / dr.norm(to_p)
+        if self.spotlight:
+            to_c = mi.Array3f64(*self.fp.origin.tolist()) - antenna
+            sine -= dr.dot(to_c, track) / dr.norm(to_c)
+        return sine
+
+    def reflection_at(self, row: mi.UInt32, cos_i: mi.Float, active: mi.Bool) -> mi.Complex2f:
+        """``r(cos_i)`` of material ``row``, linear in its 257-point table, eq. (R)."""
+        t = self.tables
+        x = dr.clip(cos_i, 0.0, 1.0) * (t.n_cos - 1)
+        i0 = mi.UInt32(dr.minimum(dr.floor(x), t.n_cos - 2))
+        w = x - mi.Float(i0)
+        idx = row * t.n_cos + i0
+        re = dr.lerp(dr.gather(mi.Float, t.re, idx, active), dr.gather(mi.Float, t.re, idx + 1, active), w)
+        im = dr.lerp(dr.gather(mi.Float, t.im, idx, active), dr.gather(mi.Float, t.im, idx + 1, active), w)
+        return mi.Complex2f(re, im)
+
+    def gain(self, v, steer):
+        """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
+        ``sinc(L sin(phi_az) / lambda) sinc(H_a sin(phi_el) / lambda)``, eq. (A). In spotlight the
+        beam is steered at the scene centre, as a phased array steers: ``sin(phi_az)`` is taken
+        relative to the centre's, ``sin(phi) - sin(phi_c)``."""
+        axis = mi.Vector3f(*self.aperture_axis)
+        along = dr.dot(v, axis)
+        gain = mi.Float(1.0)
+        if self.length_in_wavelengths > 0:          # the main lobe, zero beyond its first nulls
+            x = self.length_in_wavelengths * (along - steer if steer is not None else along)
+            gain *= dr.select(dr.abs(x) < 1.0, _sinc_pi(x), 0.0)
+        if self.height_in_wavelengths > 0:
+            across = dr.normalize(v - axis * along)
+            gain *= _sinc_pi(self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))
+        return gain
+
+    def weight(self, d_first, b, s, dist, lref, steer):
+        """Antenna pattern (A) and radiometric spreading (R1) of a return reached along ``d_first`` on
+        its first leg and leaving toward the antenna along ``b``, ``dist`` away, at unfolded length
+        ``s`` (float64 lengths): the two-way pattern ``g(d_first) g(-b)`` and ``R_ref^2 / (s R_rx)``;
+        1 when neither effect is on."""
+        weight = mi.Float(1.0)
+        if self.pattern:
+            weight *= self.gain(d_first, steer) * self.gain(-b, steer)
+        if self.radiometry:
+            rref = mi.Float(0.5 * lref)
+            weight *= rref * rref / (mi.Float(s) * mi.Float(dist))
+        return weight
+
+    def carrier_phase(self, rel) -> mi.Complex2f:
+        """``exp(-j k rel)`` for a float64 length ``rel`` (reduced mod 2 pi in float64 first), eq. (S1)."""
+        phase = -self.k * rel
+        phase = mi.Float(phase - (2.0 * math.pi) * dr.round(phase * (1.0 / (2.0 * math.pi))))
+        sn, cs = dr.sincos(phase)
+        return mi.Complex2f(cs, sn)
+
+    def anchor(self, rel, lref) -> tuple[mi.Int32, mi.Float]:
+        """A delay on the fine grid, from ``L - L_ref`` (float64): ``(bin, frac)``, ``bin + frac`` fine
+        bins after ``t0``, ``frac`` in [0, 1). Offsets from it are added in float32."""
+        position = (rel + (lref - SPEED_OF_LIGHT * self.window.t0)) * (1.0 / self.window.fine_step_length)
+        first = dr.floor(position)
+        return mi.Int32(first), mi.Float(position - first)
+
+    def _pulse(self, ctx, sub, q):
+        """Pulse ``first[sub] + q`` of a lane's sub-aperture: its batch index, antenna position,
+        reference length and beam steering (spotlight)."""
+        pulse = dr.gather(mi.UInt32, ctx["first"], sub) + q
+        antenna = dr.gather(mi.Array3f64, ctx["antenna"], pulse)
+        lref = dr.gather(mi.Float64, ctx["lref"], pulse)
+        steer = dr.gather(mi.Float, ctx["steer"], pulse) if self.spotlight else None
+        return pulse, antenna, lref, steer
+
+    @staticmethod
+    def _folded(rec, v, depth: int):
+        """A vector of the unfolded path in the scene: ``M v`` (the mirror chain's linear part)."""
+        if depth == 0:
+            return mi.Vector3f(v)
+        v = mi.Vector3f(v)
+        return rec.m1 * v.x + rec.m2 * v.y + rec.m3 * v.z
+
+    def _in_beam(self, aim, antenna):
+        """Whether the pulse at ``antenna`` casts the tube aimed at ``aim`` (its traced beam)."""
+        sine = self.aim_sine(aim, antenna)
+        return (sine >= self.beam_sines[0]) & (sine <= self.beam_sines[1])
+
+    def _d_first(self, depth, d, first_hit, antenna):
+        """The first leg's direction: the term's own incoming direction at the first bounce, the
+        direction to the tube's first hit after it (transmit pattern, eq. (A))."""
+        if depth == 0:
+            return d
+        return mi.Vector3f(dr.normalize(first_hit - antenna))
+
+    # ------------------------------------------------------------------ tallies at the reference
+    def tally(self, ctx, rec, hit, d, alpha, specular, r, count, depth: int, vis) -> None:
+        """Energy of the visible returns (each tube's whole PO value at the carrier, at the
+        sub-aperture's reference position, times its pulses) and of those outside the window;
+        ``d`` is the tube's direction at the hit."""
+        st = self.settings
+        lref = dr.gather(mi.Float64, ctx["middle"], rec.sub)
+        antenna = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
+        steer = None
+        if self.spotlight:
+            track = mi.Array3f64(*self.fp.track.tolist())
+            to_c = mi.Array3f64(*self.fp.origin.tolist()) - antenna
+            steer = mi.Float(dr.dot(to_c, track) / dr.norm(to_c))
+        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), hit.b, hit.s, hit.dist, lref, steer)
+        scale = (math.sqrt(math.pi) / self.lam) * (hit.cos_i + hit.cos_b) * specular * weight
+        area = dr.norm(dr.cross(rec.e1, rec.e2))
+        carrier = rec.gamma * r * (scale * area * _sinc(alpha[0]) * _sinc(alpha[1]))
+        power = dr.squared_norm(carrier) * count
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), vis)
+        rel = hit.s + hit.dist - lref
+        bin_, frac = self.anchor(rel, lref)
+        outside = (bin_ < 0) | (bin_ >= self.window.n_fine - 1)
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & outside)
+
+    # ------------------------------------------------------------------ the returns of one order
+    def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:
+        """Deposit the returns of one bounce order's records for every pulse of their sub-apertures."""
+        index, code = self.terms(ctx, rec, n_lanes)
+        if dr.width(index):
+            ctx["evaluated"] += int(dr.sum(dr.gather(mi.UInt32, ctx["count"], dr.gather(mi.UInt32, rec.sub, index)))[0])
+            undecided = (dr.gather(mi.UInt32, rec.flags, index) & (_UNDECIDED_1 | _UNDECIDED_2)) != 0
+            for per_pulse in (False, True):
+                part = dr.compress(undecided if per_pulse else ~undecided)
+                if dr.width(part):
+                    self.po(ctx, dr.gather(type(rec), rec, dr.gather(mi.UInt32, index, part)),
+                            dr.gather(mi.UInt32, code, part), depth, per_pulse)
+        if self.clutter_on:
+            kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
+            rough = dr.compress(kind > 0)
+            if dr.width(rough):
+                self.clutter(ctx, dr.gather(type(rec), rec, rough), depth)
+
+    def terms(self, ctx, rec, n_lanes: int):
+        """The PO terms of the records that survive cancellation, eqs. (PO2), (PO5).
+
+        A footprint's edge that is split has a term at each end (``sigma = -1, +1``), an unsplit
+        one a term on its centre line (``sigma = 0``); an edge whose split depends on the pulse
+        (undecided over the sub-aperture, (T3)) has all three candidates, and each pulse keeps the
+        ones its own split says. Where the tubes sharing a term's point (the lattice neighbours
+        across the split edges) all hit the same facet plane after the same facets, are all
+        visible, split the same edges for every pulse and lie inside the beam of every pulse of
+        the sub-aperture, their terms are the same function of the pulse with signs that sum to
+        zero: they cancel at every frequency, and none is evaluated. Returns the term list: record
+        index and term code ``3 (sigma_1 + 1) + (sigma_2 + 1)``.
+        """
+        n_rec = dr.width(rec.flags)
+        lane = dr.arange(mi.UInt32, 9 * n_rec)
+        r_i = lane // 9
+        c = lane - 9 * r_i
+        sig1, sig2 = mi.Int32(c // 3) - 1, mi.Int32(c % 3) - 1
+        flags = dr.gather(mi.UInt32, rec.flags, r_i)
+        split1, split2 = (flags & _SPLIT_1) != 0, (flags & _SPLIT_2) != 0
+        open1, open2 = (flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0
+        survive = (open1 | dr.select(split1, sig1 != 0, sig1 == 0)) & (open2 | dr.select(split2, sig2 != 0, sig2 == 0))
+        if self.cancel_interior:
+            where = dr.full(mi.UInt32, _INVALID, n_lanes)
+            dr.scatter(where, dr.arange(mi.UInt32, n_rec), rec.lattice)
+            key = dr.gather(mi.UInt32, rec.key, r_i)
+            lattice = dr.gather(mi.UInt32, rec.lattice, r_i)
+            has_i = (flags & dr.select(sig1 > 0, _HAS_I_HI, _HAS_I_LO)) != 0
+            has_j = (flags & dr.select(sig2 > 0, _HAS_J_HI, _HAS_J_LO)) != 0
+            stride = mi.Int32(dr.gather(mi.UInt32, ctx["block_nj"], dr.gather(mi.UInt32, rec.block, r_i)))
+
+            def compatible(step_i, step_j, exists):
+                other = dr.gather(mi.UInt32, where, mi.UInt32(mi.Int32(lattice) + step_i * stride + step_j), exists)
+                ok = exists & (other != _INVALID)
+                return ok & (dr.gather(mi.UInt32, rec.key, other, ok) == key) \
+                    & ((dr.gather(mi.UInt32, rec.flags, other, ok) & _MATCH) == (flags & _MATCH))
+
+            zero = mi.Int32(0)
+            cancelled = ((flags & _INTERIOR) != 0) & (split1 | split2) & ~open1 & ~open2
+            cancelled &= ~split1 | compatible(sig1, zero, has_i)
+            cancelled &= ~split2 | compatible(zero, sig2, has_j)
+            cancelled &= ~(split1 & split2) | compatible(sig1, sig2, has_i & has_j)
+            survive &= ~cancelled
+        dr.eval(survive)
+        index = dr.compress(survive)
+        r_index = index // 9
+        return r_index, index - 9 * r_index
+
+    def _cell(self, ctx, block):
+        """The aim cell's edge vectors (along track, ground range) of the tubes of ``block``, float64."""
+        scale = 1.0 / mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], block))
+        return [mi.Array3f64(*self.fp.track.tolist()) * (self.fp.spacing_azimuth * scale),
+                mi.Array3f64(*self.fp.look.tolist()) * (self.fp.spacing_range * scale)]
+
+    def _alpha(self, rec, antenna, cell, depth: int):
+        """Half the phase across each of the tile's edges at its centre, ``k (d - b) . e_j / 2``, as
+        the pulse at ``antenna`` sees it (float32 pair)."""
+        centre, _, d, edges = self._tile(rec, antenna, rec.aim, cell, mi.Array3f64(rec.n_unfolded), depth)
+        u = d - mi.Vector3f(dr.normalize(antenna - centre))
+        return [0.5 * self.k * dr.dot(u, e) for e in edges]
+
+    def splits(self, ctx, rec, reference, depth: int):
+        """Which footprint edges split (PO2): ``alpha`` at the reference position (for the energy
+        tally), and per edge whether it splits for every pulse of the sub-aperture or only for
+        some, eq. (T3). Over the sub-aperture (its first, middle and last pulse) an edge keeps its
+        sinc when ``|alpha|`` stays below the split threshold (:func:`split_threshold`), splits when
+        it reaches it somewhere and stays at least :data:`SINC_REGIME` with one sign (both forms
+        hold in between), and is decided per pulse otherwise. With one pulse per trace an edge
+        splits at the threshold."""
+        cell = self._cell(ctx, rec.block)
+        first = dr.gather(mi.UInt32, ctx["first"], rec.sub)
+        last = first + dr.gather(mi.UInt32, ctx["count"], rec.sub) - 1
+        alpha = self._alpha(rec, reference, cell, depth)
+        ends = [self._alpha(rec, dr.gather(mi.Array3f64, ctx["antenna"], p), cell, depth) for p in (first, last)]
+        split, undecided = [], []
+        for j in range(2):
+            values = (alpha[j], ends[0][j], ends[1][j])
+            low = dr.minimum(dr.abs(values[0]), dr.minimum(dr.abs(values[1]), dr.abs(values[2])))
+            high = dr.maximum(dr.abs(values[0]), dr.maximum(dr.abs(values[1]), dr.abs(values[2])))
+            same = (values[0] * values[1] > 0) & (values[0] * values[2] > 0)
+            sinc = high < self.split_at
+            split.append(~sinc & (low >= SINC_REGIME) & same)
+            undecided.append(~split[j] & ~sinc)
+        return alpha, split, undecided
+
+    def _tile(self, rec, antenna, corner, cell, nu, depth: int):
+        """Where the pulse at ``antenna`` puts a point ``corner`` of the tube's aim cell on the facet:
+        the unfolded ray meets the facet's unfolded plane (eq. (T3)). Returns the scene point
+        (float64), the unfolded length ``s`` to it, the incoming direction ``d`` there and the tile's
+        local edges (the projections of the aim cell's edges ``cell``)."""
+        w = corner - antenna
+        nw = dr.dot(nu, w)
+        t = dr.dot(nu, rec.unfolded - antenna) / nw
+        point = rec.p64 + mi.Array3f64(self._folded(rec, antenna + w * t - rec.unfolded, depth))
+        length = dr.norm(w)
+        edges = [self._folded(rec, (v - w * (dr.dot(nu, v) / nw)) * t, depth) for v in cell]
+        return point, t * length, self._folded(rec, w / length, depth), edges
+
+    def po(self, ctx, rec, code, depth: int, per_pulse: bool) -> None:
+        """Per pulse, the PO terms at their own points, eqs. (PO1)-(PO4), (T3).
+
+        A term belongs to a corner, edge midpoint or the centre of the tube's aim cell ``c``
+        (world-fixed on the aim plane). For each pulse at ``A`` the unfolded ray ``A -> c`` meets
+        the facet's unfolded plane at the pulse's own tile corner (exactly where the pulse's own
+        tube would put it), which the mirror chain takes to the scene point ``x`` (:meth:`_tile`).
+        There: the unfolded length ``s`` and the distance ``R = |A - x|`` (float64), the
+        directions, obliquity, reflection coefficient, pattern and spreading, and the phase
+        gradient ``(d - b) . e_j`` along the tile's local edges ``e_j``:
+        ``j sigma / (k (d - b) . e_j)`` for a split edge's end, ``sinc(k (d - b) . e_j / 2)`` for
+        an unsplit edge. Tubes that share a corner compute it alike, so their terms there cancel
+        (PO5). ``per_pulse``: the records' splits are undecided over the sub-aperture; each
+        pulse decides them at the tube's centre, as its own trace would.
+        """
+        k = self.k
+        flags = rec.flags
+        decided = [(flags & _SPLIT_1) != 0, (flags & _SPLIT_2) != 0]
+        sigma = [mi.Float(code // 3) - 1.0, mi.Float(code % 3) - 1.0]
+        n, nu = rec.n, mi.Array3f64(rec.n_unfolded)
+        cell = self._cell(ctx, rec.block)
+        corner = rec.aim + cell[0] * mi.Float64(0.5 * sigma[0]) + cell[1] * mi.Float64(0.5 * sigma[1])
+        specular = dr.gather(mi.Float, self.tables.specular, rec.row)
+        count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
+        term = dr.arange(mi.UInt32, dr.width(code))
+        paths = self._path_buffers(dr.width(code) * ctx["max_count"]) if self.exact else None
+        open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]
+
+        def body(q):
+            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+            split, active = decided, self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
+            if per_pulse:                     # the pulse's own split at the tube's centre
+                centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)
+                u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
+                split = [dr.select(o, dr.abs(0.5 * k * dr.dot(u_c, e)) >= self.split_at, s_)
+                         for o, s_, e in zip(open_, decided, edges_c)]
+                for s_, sg in zip(split, sigma):
+                    active &= dr.select(s_, sg != 0.0, sg == 0.0)
+            point, s, d, edges = self._tile(rec, antenna, corner, cell, nu, depth)
+            outgoing = antenna - point
+            dist = dr.norm(outgoing)
+            b = mi.Vector3f(outgoing / dist)
+            cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
+            r_here = self.reflection_at(rec.row, cos_i, True)
+            scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular * dr.norm(dr.cross(*edges)) \
+                * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+            value = mi.Complex2f(0.0, scale) * (rec.gamma * r_here)
+            u = d - b
+            for j, e in enumerate(edges):
+                g = dr.dot(u, e)
+                value = value * dr.select(split[j], mi.Complex2f(0.0, sigma[j] / (k * g)),
+                                          mi.Complex2f(_sinc(0.5 * k * g), 0.0))
+            rel = s + dist - lref
+            order_index = mi.UInt32(SPECTRAL_ORDERS.index(1)) - mi.UInt32(split[0]) - mi.UInt32(split[1])
+            self._deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, value * self.carrier_phase(rel),
+                          order_index, active, paths, term * ctx["max_count"] + q)
+            return (q + 1,)
+
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="pulses")
+        if paths is not None:
+            self._keep_paths(ctx, paths)
+
+    # ------------------------------------------------------------------ clutter scatterers
+    def clutter(self, ctx, rec, depth: int) -> None:
+        """Per pulse, every scatterer of the surface's own lattice inside the footprint, eq. (C).
+
+        The lattice lies in the plane of the hit (frame ``u, v`` from the surface normal, origin
+        at a point fixed to the shape), cells ``c`` wide; cell ``(iu, iv)`` of a shape holds one
+        scatterer at a hashed position inside it with a hashed phase (an integer hash of the shape,
+        the plane, the cell and the seed). Its amplitude is ``sqrt(sigma0) c prod(r_1 .. r_{k-1})``;
+        its two-way length is the pulse's length to the tube's hit point expanded to second order in
+        the offset. The footprints (the reference position's) tile a plane, so every scatterer is
+        counted once per pulse: the same scatterers, with the same phases and positions, for every
+        pulse, bounce order and pass.
+        """
+        t, c = self.tables, self.fp.scatterer_spacing
+        kind = dr.gather(mi.UInt32, t.clutter_kind, rec.row)
+        value = dr.gather(mi.Float, t.clutter_value, rec.row)
+        back = (rec.flags & _BACK) != 0
+        n = rec.n
+        n_geo = dr.select(back, -n, n)                                  # the surface's own normal
+        d_ref = self._folded(rec, dr.normalize(rec.unfolded - dr.gather(mi.Array3f64, ctx["reference"], rec.sub)),
+                             depth)
+        # ---- near grazing (cos_i < CLUTTER_COS_MIN) the footprint, 1 / cos_i long along the plane of
+        #      incidence, is shortened to 1 / CLUTTER_COS_MIN and sigma0 raised by the same factor:
+        #      the tube keeps its clutter power, and no tube loops over kilometres of scatterers ----
+        e1, e2 = rec.e1, rec.e2
+        shorten = dr.maximum(-dr.dot(n, d_ref), 0.0) / CLUTTER_COS_MIN
+        grazing = shorten < 1.0
+        along = d_ref - n_geo * dr.dot(n_geo, d_ref)                    # the elongation direction
+        along = along * dr.rsqrt(dr.maximum(dr.squared_norm(along), 1e-30))
+        e1 = dr.select(grazing, e1 - along * ((1.0 - shorten) * dr.dot(e1, along)), e1)
+        e2 = dr.select(grazing, e2 - along * ((1.0 - shorten) * dr.dot(e2, along)), e2)
+        raise_by = dr.select(grazing, 1.0 / dr.maximum(shorten, 1e-30), 1.0)
+        # ---- the plane's frame and the footprint in it (units of cells) ----
+        horizontal = dr.abs(n_geo.z) > 0.9999
+        u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n_geo))
+        u_axis = dr.normalize(u_axis - n_geo * dr.dot(n_geo, u_axis))
+        v_axis = dr.cross(n_geo, u_axis)
+        # the hit in the shape's own frame (float64 difference, then float32)
+        local = mi.Vector3f(rec.p64 - mi.Array3f64(dr.gather(mi.Point3f, t.shape_origin, rec.shape)))
+        pu, pv = dr.dot(local, u_axis) / c, dr.dot(local, v_axis) / c
+        au, av = dr.dot(e1, u_axis) / c, dr.dot(e1, v_axis) / c
+        bu, bv = dr.dot(e2, u_axis) / c, dr.dot(e2, v_axis) / c
+        inv_det = 1.0 / (au * bv - av * bu)
+        hu, hv = 0.5 * (dr.abs(au) + dr.abs(bu)), 0.5 * (dr.abs(av) + dr.abs(bv))
+        iu0, iv0 = mi.Int32(dr.floor(pu - hu)), mi.Int32(dr.floor(pv - hv))
+        nu = dr.maximum(mi.Int32(dr.floor(pu + hu)) - iu0 + 1, 1)
+        nv = mi.Int32(dr.floor(pv + hv)) - iv0 + 1
+        cells = mi.UInt32(dr.select(dr.isfinite(inv_det), nu * nv, 0))
+        m11, m12, m21, m22 = bv * inv_det, -bu * inv_det, -av * inv_det, au * inv_det
+        # ---- which surface: shape, side, plane offset and direction ----
+        shape_key = dr.gather(mi.UInt32, t.shape_key, rec.shape)
+        plane = (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, local) / c)))
+                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.x * 1024.0))) * 0x01000193)
+                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.y * 1024.0))) * 0x00010001)
+                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.z * 1024.0))) * 0x00000101))
+        key0 = hash32(shape_key ^ (mi.UInt32(back) << 31) ^ hash32(plane ^ mi.UInt32(self.settings.seed)))
+        du_axis, dv_axis = (mi.Vector3f(u_axis), mi.Vector3f(v_axis))
+        mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
+        nu32 = mi.UInt32(nu)
+        count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
+        paths = self._path_buffers(max(ctx["capacity"], 1024)) if self.exact else None
+
+        def pulse_body(q):
+            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+            incoming, outgoing = rec.unfolded - antenna, antenna - rec.p64       # unfolded first leg
+            s, dist = dr.norm(incoming), dr.norm(outgoing)
+            d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
+            cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
+            r = self.reflection_at(rec.row, cos_i, True)
+            sigma0 = dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
+                               dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * raise_by
+            rough = (sigma0 > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
+            weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+            rel = s + dist - lref
+            anchor = self.anchor(rel, lref)
+            amplitude = rec.gamma * self.carrier_phase(rel) * (dr.sqrt(sigma0) * c * weight)
+            # two-way length offset of a scatterer (du, dv) cells from the hit, to second order:
+            # incoming from the image source at distance s, outgoing to the antenna at R_rx
+            inv_s, inv_r = c * c / mi.Float(s), c * c / mi.Float(dist)
+            du_d, dv_d, du_b, dv_b = dr.dot(d, du_axis), dr.dot(d, dv_axis), dr.dot(b, du_axis), dr.dot(b, dv_axis)
+            g_u, g_v = c * (du_d - du_b), c * (dv_d - dv_b)
+            q_uu = 0.5 * ((1.0 - du_d * du_d) * inv_s + (1.0 - du_b * du_b) * inv_r)
+            q_vv = 0.5 * ((1.0 - dv_d * dv_d) * inv_s + (1.0 - dv_b * dv_b) * inv_r)
+            q_uv = -(du_d * dv_d * inv_s + du_b * dv_b * inv_r)
+            n_cells = dr.select(rough, cells, 0)
+
+            def step(i, found, outside):
+                iv = i // nu32
+                iu_, iv_ = iu0 + mi.Int32(i - iv * nu32), iv0 + mi.Int32(iv)
+                h0 = hash32(mi.UInt32(iu_) * 0x9E3779B1 ^ mi.UInt32(iv_) * 0x85EBCA77 ^ key0)
+                du = mi.Float(iu_) + mi.Float(h0 & 0xFFFF) * (1.0 / 65536.0) - pu     # scatterer - hit, in cells
+                dv = mi.Float(iv_) + mi.Float(h0 >> 16) * (1.0 / 65536.0) - pv
+                s1, s2 = m11 * du + m12 * dv, m21 * du + m22 * dv                    # footprint coordinates
+                own = (i < n_cells) & (s1 >= -0.5) & (s1 < 0.5) & (s2 >= -0.5) & (s2 < 0.5)
+                dl = g_u * du + g_v * dv + q_uu * du * du + q_uv * du * dv + q_vv * dv * dv
+                phase = mi.Float(hash32(h0 ^ 0x68E31DA4)) * (2.0 * math.pi / 4294967296.0) - self.k * dl
+                sn, cs = dr.sincos(phase)
+                inside = self._deposit(ctx, pulse, depth, anchor, dl, amplitude * mi.Complex2f(cs, sn), mid, own,
+                                       paths, None)
+                return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
+
+            _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
+                                              lambda i, *_: i < n_cells, step, label="scatterers")
+            power = dr.squared_norm(amplitude)
+            dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
+            dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
+            dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
+            return (q + 1,)
+
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, label="pulses")
+        if paths is not None:
+            self._keep_paths(ctx, paths)
+
+    # ------------------------------------------------------------------ deposit
+    def _deposit(self, ctx, pulse, depth: int, anchor, offset, value, order_index, mask, paths, slot) -> mi.Bool:
+        """Deposit ``value`` at the two-way length ``offset`` [m] (float32) beyond ``anchor`` for batch
+        pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO term in the exact kernel's path list (None:
+        a clutter scatterer, appended). Returns whether the term lies inside the fast-time window."""
+        st, win = self.settings, self.window
+        position = anchor[1] + offset * (1.0 / win.fine_step_length)       # fine bins after anchor[0]
+        if self.exact:
+            coarse = (mi.Float64(anchor[0]) + mi.Float64(position)) * (1.0 / win.oversample)
+            if slot is None:
+                slot = dr.scatter_inc(paths["count"], mi.UInt32(0), mask)
+                keep = mask & (slot < paths["capacity"])
+            else:
+                keep = mask
+            dr.scatter(paths["path_pos"], coarse, slot, keep)
+            dr.scatter(paths["path_re"], value.real, slot, keep)
+            dr.scatter(paths["path_im"], value.imag, slot, keep)
+            dr.scatter(paths["path_order"], mi.UInt32(depth + 1), slot, keep)
+            dr.scatter(paths["path_pulse"], pulse, slot, keep)
+            dr.scatter(paths["path_spectral"], order_index, slot, keep)
+            return (coarse >= 0) & (coarse <= win.n_samples - 1)
+        k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
+        k0 = k0 + anchor[0]
+        inside = (k0 >= lo) & (k0 < win.n_fine - hi)
+        group = depth if st.split_bounces else 0
+        base = ((order_index * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
+        for offset_, w in tap_list:            # one (re, im) packet per tap
+            dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
+                           mask & inside, mode=dr.ReduceMode.Expand)
+        return inside
+
+    @staticmethod
+    def _path_buffers(size: int) -> dict:
+        return dict(count=dr.zeros(mi.UInt32, 1), capacity=size, path_pos=dr.zeros(mi.Float64, size),
+                    path_re=dr.zeros(mi.Float, size), path_im=dr.zeros(mi.Float, size),
+                    path_order=dr.zeros(mi.UInt32, size), path_pulse=dr.zeros(mi.UInt32, size),
+                    path_spectral=dr.zeros(mi.UInt32, size))
+
+    @staticmethod
+    def _keep_paths(ctx, paths: dict) -> None:
+        """Move a path buffer to NumPy (filled slots only); note an overflow of the appended part."""
+        names = ("path_pos", "path_re", "path_im", "path_order", "path_pulse", "path_spectral")
+        dr.eval(paths["count"], *(paths[name] for name in names))
+        count = int(paths["count"].numpy()[0])
+        if count > paths["capacity"]:
+            ctx["needed"] = max(ctx["needed"], count + 1024)
+            return
+        filled = np.flatnonzero(paths["path_order"].numpy())
+        ctx["paths"].append({name: paths[name].numpy()[filled] for name in names})
