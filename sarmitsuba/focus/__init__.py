@@ -18,6 +18,10 @@ Algorithms
                                     precision, vectorised and threaded (the fast path);
                                     any track, stripmap and spotlight.
 :func:`backproject_reference`       Plain float64 loop over pulses; the test oracle.
+:func:`ffbp`                        Fast factorised backprojection (Ulander et al. 2003):
+                                    sub-aperture polar images, then the grid; same options
+                                    and normalisation as :func:`backproject`, any track
+                                    (monostatic), interpolation error set by its knobs.
 :func:`omega_k`                     Accurate omega-K with Stolt interpolation (straight track,
                                     squinted too; Cumming and Wong ch. 8).
 :func:`range_doppler`               Range-Doppler with RCMC and optional SRC (ch. 6).
@@ -33,11 +37,12 @@ Range processing and geometry
 ==================================  =========================================================
 """
 from .backprojection import backproject, backproject_reference
+from .ffbp import ffbp
 from .grid import ImageGrid
 from .omegak import omega_k
 from .range_compression import apply_range_window, range_compress
 from .rda import range_doppler
 from .stripmap import StripmapGeometry, slant_output_grid, stripmap_geometry
 
-__all__ = ["ImageGrid", "backproject", "backproject_reference", "omega_k", "range_doppler", "range_compress",
+__all__ = ["ImageGrid", "backproject", "backproject_reference", "ffbp", "omega_k", "range_doppler", "range_compress",
            "apply_range_window", "StripmapGeometry", "stripmap_geometry", "slant_output_grid"]

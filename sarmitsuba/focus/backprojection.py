@@ -33,37 +33,32 @@ References
 """
 from __future__ import annotations
 
-import copy
-import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
-import scipy.fft
 
 from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
+from .beam import BeamWeighting, beam_weighting, illumination_count, normalise_columns, unit_rows
+from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar
 from .grid import ImageGrid
-from .stripmap import _window_label, _window_spec
-from .windows import check_window, spectral_window
+from .range_lines import PAD, carrier_table, fft_upsample, premodulated_pairs, residual_carrier_table
+from .windows import spectral_window
 
 __all__ = ["backproject", "backproject_reference", "illumination_count"]
 
-#: Zero samples added before and after every upsampled range line. Linear interpolation
-#: between the first (last) sample and these zeros is the "masked" edge of the window.
-_PAD = 2
-#: Zero samples appended in fast time before the upsampling FFT, so the periodic
-#: interpolation kernel does not wrap the end of the window onto its start.
-_FFT_GUARD = 32
+#: The upsampler under the name tests/test_backprojection.py imports (now :func:`.range_lines.fft_upsample`).
+_fft_upsample = fft_upsample
+
 #: Pixel tile (rows, columns). Each tile has its own float64 reference point, so float32
 #: residuals stay small; with ``_STEP`` it sets the working set.
 _TILE = (16, 128)
 #: Pixel-pulses per vectorised step (per-thread working set: 48 bytes each, ~3 MiB).
 _STEP = 1 << 16
-_MAX_OVERSAMPLE = 64
 
 
 # ============================================================================ public API
@@ -206,12 +201,12 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     >>> image = backproject(raw, grid, progress=True)  # doctest: +SKIP
     """
     t_start = time.perf_counter()
-    t0, oversample, pulse_block, workers = _check_inputs(raw, grid, oversample, pulse_block, workers)
-    beam = _beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
+    t0, oversample, pulse_block, workers = check_inputs(raw, grid, oversample, pulse_block, workers)
+    beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
     pulse_weights = None if beam.sines is not None else beam.pulse_weights(raw.n_pulses)
     n_pulses, n_samples = raw.data.shape
     n_up = (n_samples - 1) * oversample + 1
-    n_tab = n_up + 2 * _PAD
+    n_tab = n_up + 2 * PAD
     fine_rate = raw.fs * oversample  # upsampled samples per second
     kh = 2.0 * np.pi * raw.fc / fine_rate  # carrier phase per fine sample [rad]
     monostatic = bool(np.array_equal(raw.tx_position, raw.rx_position))
@@ -220,8 +215,8 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
     # residual unit: the per-leg residuals, summed over the legs (doubled when monostatic),
     # count fine samples of two-way delay
     unit = half_sample * len(legs)
-    modulation = _carrier_table(raw.fc, t0, raw.fc / fine_rate, n_tab)
-    weights = _weight_table(kh)
+    modulation = carrier_table(raw.fc, t0, raw.fc / fine_rate, n_tab)
+    weights = residual_carrier_table(kh)
     tiles = _make_tiles(grid, unit, half_sample, raw.fc)
     image = np.zeros(grid.shape, np.complex128)
     counts = np.zeros(grid.shape) if beam.sines is not None else None
@@ -234,7 +229,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
             ws = workspaces.ws = _Workspace(max(_STEP, _TILE[0] * _TILE[1]))
         _backproject_tile(tile, block, ws, image, counts)
 
-    bar = _progress_bar(progress, n_pulses)
+    bar = progress_bar(progress, n_pulses)
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
     try:
         for p0 in range(0, n_pulses, pulse_block):
@@ -242,11 +237,11 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
             data = raw.data[p0:p1]
             if pulse_weights is not None and not beam.is_rect:
                 data = data * pulse_weights[p0:p1, None].astype(np.float32)
-            lines = _fft_upsample(data, oversample, workers=workers)
+            lines = fft_upsample(data, oversample, workers=workers)
             block = _Block(lines, modulation, [leg[p0:p1] for leg in legs], monostatic, unit,
                            t0, fine_rate, grid, weights)
             if beam.sines is not None:
-                block.beam = (beam, _unit_rows(raw.velocity[p0:p1]))
+                block.beam = (beam, unit_rows(raw.velocity[p0:p1]))
             jobs = [(tile, block) for tile in tiles]
             if pool is None:
                 for job in jobs:
@@ -262,25 +257,13 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         norm = float(pulse_weights.sum())
         data = (image / norm if norm > 0 else np.zeros_like(image)).astype(np.complex64)
     else:
-        data, norm = _normalise_columns(image, counts)
+        data, norm = normalise_columns(image, counts)
     seconds = time.perf_counter() - t_start
-    focus = _focus_metadata(raw, grid, seconds, beam, oversample=oversample, pulse_block=pulse_block,
+    focus = focus_metadata(raw, grid, seconds, beam, oversample=oversample, pulse_block=pulse_block,
                             workers=workers, implementation="numpy-hybrid-float32",
                             azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
                             tile=list(_TILE), weight_table_bins=weights[1], monostatic=monostatic)
-    return _make_image(raw, grid, data, focus)
-
-
-def _normalise_columns(image: np.ndarray, gain: np.ndarray) -> tuple[np.ndarray, float]:
-    """Divide each range column by its full-aperture gain (the largest expected point-target
-    gain ``sum_p w g^2`` of its pixels): exact for fully illuminated pixels; pixels whose
-    aperture the end of the track cuts keep their reduced gain instead of being amplified.
-    Returns the complex64 image and the largest gain."""
-    full = gain.max(axis=0, keepdims=True)
-    norm = float(full.max()) if full.size else 0.0
-    floor = 1e-6 * norm if norm > 0 else 1.0
-    data = np.where(full > floor, image / np.maximum(full, floor), 0.0).astype(np.complex64)
-    return data, norm
+    return make_image(raw, grid, data, focus)
 
 
 def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
@@ -299,8 +282,8 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
     errors as :func:`backproject`; tens of times slower, so use it on small grids only.
     """
     t_start = time.perf_counter()
-    t0, oversample, _, _ = _check_inputs(raw, grid, oversample, 1, 1)
-    beam = _beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
+    t0, oversample, _, _ = check_inputs(raw, grid, oversample, 1, 1)
+    beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
     w_name, w_params = beam.window
     n_pulses, n_samples = raw.data.shape
     dt = 1.0 / (raw.fs * oversample)
@@ -311,7 +294,7 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
     gain = np.zeros(x.shape[0])
     for p in range(n_pulses):
         line = np.zeros(n_up + 2, np.complex128)
-        line[1:-1] = _fft_upsample(raw.data[p].astype(np.complex128), oversample)
+        line[1:-1] = fft_upsample(raw.data[p].astype(np.complex128), oversample)
         length = (np.linalg.norm(raw.tx_position[p] - x, axis=1)
                   + np.linalg.norm(x - raw.rx_position[p], axis=1))
         echo = np.interp(length / SPEED_OF_LIGHT, tau_line, line, left=0.0, right=0.0)
@@ -335,136 +318,11 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
         total = gain[0] if gain.size else 0.0
         data = (image / total if total > 0 else 0.0 * image).reshape(grid.shape).astype(np.complex64)
     else:
-        data, _ = _normalise_columns(image.reshape(grid.shape), gain.reshape(grid.shape))
-    focus = _focus_metadata(raw, grid, time.perf_counter() - t_start, beam, oversample=oversample,
+        data, _ = normalise_columns(image.reshape(grid.shape), gain.reshape(grid.shape))
+    focus = focus_metadata(raw, grid, time.perf_counter() - t_start, beam, oversample=oversample,
                             azimuth_beamwidth=azimuth_beamwidth, squint=squint,
                             implementation="numpy-reference-float64")
-    return _make_image(raw, grid, data, focus)
-
-
-# ============================================================================ checks and products
-def _check_inputs(raw: RawData, grid: ImageGrid, oversample: Any, pulse_block: Any,
-                  workers: Any) -> tuple[float, int, int, int]:
-    if not isinstance(raw, RawData):
-        raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
-    if not isinstance(grid, ImageGrid):
-        raise TypeError(f"grid must be a sarmitsuba.focus.ImageGrid, got {type(grid).__name__}")
-    if not raw.range_compressed:
-        raise ValueError("backprojection needs range-compressed data, but raw.range_compressed is False; "
-                         "range-compress the raw chirps first (matched filter)")
-    if raw.n_pulses < 1 or raw.n_samples < 2:
-        raise ValueError(f"raw.data must have >= 1 pulse and >= 2 fast-time samples, got shape {raw.data.shape}")
-    t0 = float(raw.fast_time[0])
-    step = np.diff(raw.fast_time)
-    if not np.allclose(step, 1.0 / raw.fs, rtol=1e-6, atol=0.0):
-        raise ValueError(f"raw.fast_time must be t0 + i / fs with fs = raw.fs = {raw.fs} Hz; its steps span "
-                         f"[{step.min()!r}, {step.max()!r}] s instead of {1.0 / raw.fs!r} s")
-    for name, value in (("tx_position", raw.tx_position), ("rx_position", raw.rx_position)):
-        if not np.all(np.isfinite(value)):
-            raise ValueError(f"raw.{name} must be finite")
-    checked = []
-    for name, value, low, high in (("oversample", oversample, 1, _MAX_OVERSAMPLE),
-                                   ("pulse_block", pulse_block, 1, None),
-                                   ("workers", workers, 1, None)):
-        if name == "workers" and value is None:
-            value = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) \
-                or value < low or (high is not None and value > high):
-            bound = f"{low} .. {high}" if high is not None else f">= {low}"
-            raise ValueError(f"{name} must be an integer in {bound}, got {value!r}")
-        checked.append(int(value))
-    return (t0, *checked)  # type: ignore[return-value]
-
-
-def _range_window_of(raw: RawData) -> tuple[str, dict[str, float]]:
-    """The range window the data were compressed with: ``raw.metadata["range_window"]`` when it
-    names a window of :mod:`.windows`, else rect (the tracer's ``sinc(B t)`` pulses)."""
-    spec = raw.metadata.get("range_window") if isinstance(raw.metadata, dict) else None
-    if isinstance(spec, dict) and isinstance(spec.get("name"), str):
-        params = {k: v for k, v in spec.items() if k != "name"}
-        try:
-            return check_window(spec["name"], **params)
-        except ValueError:
-            pass
-    return "rect", {}
-
-
-def _focus_metadata(raw: RawData, grid: ImageGrid, seconds: float, beam: "_BeamWeighting",
-                    **params: Any) -> dict[str, Any]:
-    pixel_pulses = grid.shape[0] * grid.shape[1] * raw.n_pulses
-    w_rg, w_az = _range_window_of(raw), beam.window
-    label = "rect" if w_rg[0] == w_az[0] == "rect" else \
-        f"range={_window_label(*w_rg)}, azimuth={_window_label(*w_az)}"
-    mid = raw.n_pulses // 2
-    velocity = np.asarray(raw.velocity[mid], float)
-    speed = float(np.linalg.norm(velocity))
-    track = {"position": [float(v) for v in raw.tx_position[mid]],
-             "direction": [float(v) for v in velocity / speed] if speed > 0 else None,
-             "length": float(np.linalg.norm(raw.tx_position[-1] - raw.tx_position[0]))}
-    normalisation = ("1/n_pulses" if beam.sines is None and beam.is_rect else
-                     "1/sum(w)" if beam.sines is None else "per range column: 1/max sum(w g^2)")
-    return {"algorithm": "backprojection", "window": label, **params,
-            "window_range": {"name": w_rg[0], **w_rg[1]}, "window_azimuth": {"name": w_az[0], **w_az[1]},
-            "azimuth_pattern": beam.pattern,
-            "beam_sines": None if beam.sines is None else list(beam.sines), "track": track,
-            "interpolation": "fft-upsample + linear", "normalisation": normalisation,
-            "n_pulses": raw.n_pulses, "grid_shape": list(grid.shape), "plane": grid.plane,
-            "fc": raw.fc, "bandwidth": raw.bandwidth, "fs": raw.fs, "prf": raw.prf,
-            "seconds": seconds, "pixel_pulses_per_second": pixel_pulses / max(seconds, 1e-12)}
-
-
-def _make_image(raw: RawData, grid: ImageGrid, data: np.ndarray, focus: dict[str, Any]) -> SarImage:
-    metadata = copy.deepcopy(raw.metadata)
-    metadata["focus"] = focus
-    return SarImage(data=data, azimuth=np.array(grid.azimuth), range=np.array(grid.range),
-                    origin=np.array(grid.origin), azimuth_direction=np.array(grid.azimuth_direction),
-                    range_direction=np.array(grid.range_direction), plane=grid.plane,
-                    algorithm="backprojection", window=focus["window"], metadata=metadata)
-
-
-def _progress_bar(enabled: bool, total: int) -> Any:
-    from tqdm.auto import tqdm
-    return tqdm(total=total, desc="backprojection", unit="pulse", disable=not enabled)
-
-
-# ============================================================================ range interpolation
-def _fft_upsample(lines: np.ndarray, factor: int, *, workers: int | None = None) -> np.ndarray:
-    """Band-limited upsampling of the last axis by ``factor`` (dtype preserved).
-
-    Returns ``(n - 1) * factor + 1`` samples: sample ``i * factor`` equals input sample
-    ``i`` (to rounding). The line is zero-padded by ``_FFT_GUARD`` samples, transformed,
-    its spectrum zero-padded in the middle (an even transform's Nyquist bin split half
-    and half between the positive and negative ends) and transformed back, times
-    ``factor`` to keep amplitudes.
-    """
-    n = lines.shape[-1]
-    if factor == 1:
-        return np.array(lines, copy=True)
-    n_fft = scipy.fft.next_fast_len(n + _FFT_GUARD)
-    spec = scipy.fft.fft(lines, n=n_fft, axis=-1, workers=workers)
-    n_big = n_fft * factor
-    big = np.zeros(lines.shape[:-1] + (n_big,), dtype=spec.dtype)
-    half = (n_fft + 1) // 2  # DC and positive frequencies (no Nyquist)
-    big[..., :half] = spec[..., :half]
-    n_neg = n_fft - half
-    if n_fft % 2 == 0:
-        n_neg -= 1
-        nyquist = 0.5 * spec[..., n_fft // 2]
-        big[..., n_fft // 2] = nyquist
-        big[..., n_big - n_fft // 2] = nyquist
-    if n_neg:
-        big[..., n_big - n_neg:] = spec[..., n_fft - n_neg:]
-    out = scipy.fft.ifft(big, axis=-1, workers=workers, overwrite_x=True)
-    out = out[..., :(n - 1) * factor + 1]
-    out *= factor
-    return out
-
-
-def _carrier_table(fc: float, t0: float, cycles_per_sample: float, n_tab: int) -> np.ndarray:
-    """``exp(+j 2 pi fc (t0 + (k - _PAD) / fine_rate))`` for table index k, float64 then complex64."""
-    k = np.arange(n_tab, dtype=np.float64) - _PAD
-    cycles = np.mod(fc * t0, 1.0) + np.mod(cycles_per_sample * k, 1.0)
-    return np.exp(2j * np.pi * cycles).astype(np.complex64)
+    return make_image(raw, grid, data, focus)
 
 
 # ============================================================================ fast path internals
@@ -473,9 +331,6 @@ def _carrier_table(fc: float, t0: float, cycles_per_sample: float, n_tab: int) -
 #: 2**15 * 2**-24 = 0.002 rad (X band: tiles up to ~115 m a side; only grids with pixels
 #: coarser than ~1 m get tiles smaller than ``_TILE``).
 _MAX_TILE_PHASE = 2.0**15
-#: Largest phase error [rad] of the quantised residual-carrier table (see `_weight_table`).
-_MAX_QUANTUM_PHASE = 2e-3
-_MAX_WEIGHT_BITS = 16
 
 
 class _Tile:
@@ -521,25 +376,6 @@ def _make_tiles(grid: ImageGrid, unit: float, half_sample: float, fc: float) -> 
             for i in range(0, n_az, sizes[0]) for j in range(0, n_rg, sizes[1])]
 
 
-def _weight_table(kh: float) -> tuple[np.ndarray, int]:
-    """Residual carrier and interpolation weight as a function of the fraction ``w``.
-
-    Returns complex128 ``[m]`` packing the complex64 pair
-    ``(exp(j kh w_n), w_n exp(j kh w_n))`` at the bin centres ``w_n = (n + 0.5) / m``, and
-    ``m = 2**b`` with ``b`` the smallest number of bits (<= 16) that keeps the phase
-    error ``kh / (2 m)`` below ``_MAX_QUANTUM_PHASE`` (b = 14 at X band, fs = 180 MHz,
-    oversample 8). Truncating ``w * m`` then picks the nearest bin centre; the weight
-    error is at most ``1 / (2 m)`` fine sample.
-    """
-    bits = int(np.clip(np.ceil(np.log2(max(kh, 1e-30) / (2 * _MAX_QUANTUM_PHASE))), 8, _MAX_WEIGHT_BITS))
-    m = 1 << bits
-    w = (np.arange(m) + 0.5) / m
-    pairs = np.empty((m, 2), np.complex64)
-    pairs[:, 0] = np.exp(1j * kh * w)
-    pairs[:, 1] = w * np.exp(1j * kh * w)
-    return pairs.reshape(-1).view(np.complex128), m
-
-
 class _Block:
     """Upsampled, carrier-premodulated range lines of one pulse block, plus its geometry.
 
@@ -548,18 +384,14 @@ class _Block:
     upsampled line and ``E`` the carrier table, so one gather yields both interpolation
     terms. The echo times ``exp(+j 2 pi fc tau)`` at fine position ``k + w`` is then
     ``(T0 + w T1) exp(j kh w) = T0 P0(w) + T1 P1(w)`` with ``(P0, P1)`` from
-    :func:`_weight_table`: two gathers and one complex64 multiply per pixel and pulse.
+    :func:`~.range_lines.residual_carrier_table`: two gathers and one complex64 multiply per pixel and pulse.
     """
 
     def __init__(self, lines: np.ndarray, modulation: np.ndarray, legs: list[np.ndarray], monostatic: bool,
                  unit: float, t0: float, fine_rate: float, grid: ImageGrid, weights: tuple[np.ndarray, int]):
         n_pulses, n_up = lines.shape
         n_tab = modulation.size
-        tab = np.zeros((n_pulses, n_tab, 2), np.complex64)
-        tab[:, _PAD:_PAD + n_up, 0] = lines
-        np.subtract(tab[:, 1:, 0], tab[:, :-1, 0], out=tab[:, :-1, 1])
-        tab *= modulation[None, :, None]
-        self.table = tab.reshape(-1).view(np.complex128)
+        self.table = premodulated_pairs(lines, modulation)
         self.index_dtype = np.int32 if self.table.size < 2**31 else np.int64
         self.n_pulses, self.n_tab, self.n_up = n_pulses, n_tab, n_up
         self.legs, self.monostatic, self.unit = legs, monostatic, unit
@@ -567,7 +399,7 @@ class _Block:
         self.e_az, self.e_rg = grid.azimuth_direction, grid.range_direction
         self.weights, self.n_weights = weights
         #: (beam weighting, unit velocity [P, 3]) for beam-limited backprojection, or None.
-        self.beam: tuple[_BeamWeighting, np.ndarray] | None = None
+        self.beam: tuple[BeamWeighting, np.ndarray] | None = None
 
 
 class _Workspace:
@@ -614,141 +446,16 @@ def _tile_geometry(tile: _Tile, block: _Block) -> dict[str, Any]:
         skip |= ~mask.any(axis=1)
     inside = (offset - tile.rmax - 1.0 >= -1.0) & (offset + tile.rmax + 1.0 <= block.n_up)
     whole = np.where(skip, 0.0, np.floor(offset))
-    first = whole + _PAD  # table index of fine sample `whole` within its row
+    first = whole + PAD  # table index of fine sample `whole` within its row
     rows = np.arange(block.n_pulses) * block.n_tab
     return {
         "legs": legs,
         "phi": np.where(skip, 0.0, offset - whole).astype(np.float32)[:, None],
         "base": (first + rows).astype(block.index_dtype)[:, None],
-        "low": np.where(skip, -_PAD, -first).astype(np.float32)[:, None],
-        "high": np.where(skip, -_PAD, block.n_tab - 1 - first).astype(np.float32)[:, None],
+        "low": np.where(skip, -PAD, -first).astype(np.float32)[:, None],
+        "high": np.where(skip, -PAD, block.n_tab - 1 - first).astype(np.float32)[:, None],
         "skip": skip, "inside": inside, "mask": mask, "gain": gain,
     }
-
-
-def _beam_sines(raw: RawData, azimuth_beamwidth: float | None, squint: float = 0.0) -> tuple[float, float] | None:
-    """Along-track sines ``(sin(squint - beta / 2), sin(squint + beta / 2))`` bounding the ideal
-    beam, or None; checks the values and the platform velocity."""
-    if azimuth_beamwidth is None:
-        return None
-    beta = float(azimuth_beamwidth)
-    if not 0.0 < beta < 90.0:
-        raise ValueError(f"azimuth_beamwidth = {azimuth_beamwidth!r} deg is outside the valid range (0, 90) deg")
-    if not -60.0 < float(squint) < 60.0:
-        raise ValueError(f"squint = {squint!r} deg is outside the valid range (-60, 60) deg")
-    if not np.all(np.linalg.norm(raw.velocity, axis=1) > 0):
-        raise ValueError("azimuth_beamwidth needs a non-zero platform velocity for every pulse (raw.velocity)")
-    half, centre = np.radians(beta) / 2.0, np.radians(float(squint))
-    return float(np.sin(centre - half)), float(np.sin(centre + half))
-
-
-#: Samples of the beam-weight tables over u in [0, 1] (linear interpolation between them:
-#: relative error below 1e-6 for every window of the windows module and patterns of up to two
-#: lobes across the beam).
-_WINDOW_TABLE = 4097
-
-
-class _BeamWeighting:
-    """Azimuth weighting of one backprojection: beam sines (or None), window, pattern ``L / lambda``.
-
-    Both the weight ``w(u)`` and the expected gain ``w(u) g^2`` are functions of the along-track
-    sine ``s`` alone, so they are tabulated once over the beam (``_WINDOW_TABLE`` samples of
-    ``u``) and interpolated linearly per (pulse, tile row) from their samples and slopes.
-    """
-
-    def __init__(self, sines: tuple[float, float] | None, squint: float, pattern: float | None,
-                 window: tuple[str, dict[str, float]]):
-        self.sines, self.squint, self.pattern, self.window = sines, squint, pattern, window
-        self.is_rect = window[0] == "rect"
-        self.u = np.linspace(0.0, 1.0, _WINDOW_TABLE)
-        #: w(u) sampled on [0, 1], float64
-        self.table = spectral_window(window[0], self.u - 0.5, 1.0, **window[1])
-        self.gain_table = self.table
-        if sines is not None and pattern is not None:
-            s = sines[0] + self.u * (sines[1] - sines[0])
-            # sin(phi - squint) = sin(phi) cos(squint) - cos(phi) sin(squint)
-            off = s * np.cos(squint) - np.sqrt(1.0 - s * s) * np.sin(squint)
-            self.gain_table = self.table * np.sinc(pattern * off) ** 2
-        self.slope, self.gain_slope = np.diff(self.table), np.diff(self.gain_table)
-
-    def pulse_weights(self, n_pulses: int) -> np.ndarray:
-        """Without a beam: ``w(p / (n - 1))`` per pulse, float64 [n_pulses]."""
-        u = np.arange(n_pulses) / (n_pulses - 1) if n_pulses > 1 else np.full(1, 0.5)
-        return np.ones(n_pulses) if self.is_rect else np.interp(u, self.u, self.table)
-
-    def weights(self, along: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Weight ``w(u)`` (float32) and expected gain ``w(u) g^2`` (float64) of along-track
-        offsets ``along`` at distances ``dist`` (broadcast), zero outside the beam."""
-        sin_lo, sin_hi = self.sines
-        if self.is_rect and self.pattern is None:
-            w = ((along >= sin_lo * dist) & (along <= sin_hi * dist)).astype(np.float64)
-            return w.astype(np.float32), w
-        # fractional table index of u = (s - sin_lo) / (sin_hi - sin_lo); outside [0, 1] -> 0
-        x = (along / dist - sin_lo) * ((_WINDOW_TABLE - 1) / (sin_hi - sin_lo))
-        inside = (x >= 0.0) & (x <= _WINDOW_TABLE - 1)
-        np.clip(x, 0.0, _WINDOW_TABLE - 1, out=x)
-        i = np.minimum(x.astype(np.intp), _WINDOW_TABLE - 2)
-        x -= i
-        w = self.table[i] + x * self.slope[i]
-        w *= inside
-        if self.pattern is None:
-            gain = w
-        else:
-            gain = self.gain_table[i] + x * self.gain_slope[i]
-            gain *= inside
-        return w.astype(np.float32), gain
-
-
-def _beam_weighting(raw: RawData, azimuth_beamwidth: float | None, squint: float, azimuth_pattern: Any,
-                    window_azimuth: Any) -> _BeamWeighting:
-    """Check the beam, pattern and window options; the weighting of one backprojection."""
-    window = _window_spec(window_azimuth)
-    sines = _beam_sines(raw, azimuth_beamwidth, squint)
-    pattern = None
-    if azimuth_pattern is not None:
-        try:
-            pattern = float(azimuth_pattern)
-        except (TypeError, ValueError):
-            pattern = float("nan")
-        if not (np.isfinite(pattern) and pattern > 0):
-            raise ValueError(f"azimuth_pattern = {azimuth_pattern!r} must be a finite number > 0 "
-                             "(L / lambda of the antenna pattern), or None")
-        if sines is None:
-            raise ValueError("azimuth_pattern needs azimuth_beamwidth (the traced beam the pattern lies in)")
-    return _BeamWeighting(sines, float(np.radians(float(squint))), pattern, window)
-
-
-def _unit_rows(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
-def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, step: int = 16,
-                       squint: float = 0.0) -> np.ndarray:
-    """Number of pulses whose ideal beam contains each pixel, float64 [n_az, n_rg].
-
-    A pixel ``x`` is in the beam of pulse ``p`` when
-    ``sin(squint - beta / 2) |x - A_p| <= (x - A_p) . v_p <= sin(squint + beta / 2) |x - A_p|``
-    (``v_p`` the unit velocity): its angle from the zero-Doppler plane is within half the
-    beamwidth of the squint, the criterion the tracer uses. Counted exactly on every ``step``-th row and
-    column (and the last ones) and interpolated bilinearly in between (the count varies
-    smoothly, with the slant range).
-    """
-    sin_lo, sin_hi = _beam_sines(raw, azimuth_beamwidth, squint)
-    n_az, n_rg = grid.shape
-    rows = np.unique(np.r_[np.arange(0, n_az, step), n_az - 1])
-    cols = np.unique(np.r_[np.arange(0, n_rg, step), n_rg - 1])
-    pts = (grid.origin + grid.azimuth[rows, None, None] * grid.azimuth_direction
-           + grid.range[None, cols, None] * grid.range_direction).reshape(-1, 3)
-    v = _unit_rows(raw.velocity)
-    counts = np.zeros(pts.shape[0])
-    for p0 in range(0, raw.n_pulses, 32):
-        e = pts[:, None, :] - raw.tx_position[None, p0:p0 + 32, :]
-        along = np.einsum("npk,pk->np", e, v[p0:p0 + 32])
-        dist = np.linalg.norm(e, axis=2)
-        counts += ((along >= sin_lo * dist) & (along <= sin_hi * dist)).sum(axis=1)
-    coarse = counts.reshape(rows.size, cols.size)
-    along_range = np.array([np.interp(np.arange(n_rg), cols, line) for line in coarse])   # [rows, n_rg]
-    return np.array([np.interp(np.arange(n_az), rows, column) for column in along_range.T]).T
 
 
 def _beam_mask(tile: _Tile, block: _Block) -> tuple[np.ndarray, np.ndarray]:

@@ -67,6 +67,7 @@ import scipy.special
 from ..constants import SPEED_OF_LIGHT
 from ..raw import RawData
 from .grid import ImageGrid, _readonly
+from .windows import window_label, window_spec
 
 __all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
 
@@ -503,19 +504,9 @@ def _doppler_axis(n: int, prf: float, centroid: float) -> np.ndarray:
     return f + prf * np.floor((centroid + prf / 2.0 - f) / prf)
 
 
-def _window_spec(spec: Any) -> tuple[str, dict[str, float]]:
-    """``"name"`` or ``("name", {params})`` -> canonical (name, params)."""
-    from .windows import check_window
-    if isinstance(spec, str):
-        return check_window(spec)
-    if isinstance(spec, (tuple, list)) and len(spec) == 2 and isinstance(spec[1], Mapping):
-        return check_window(spec[0], **dict(spec[1]))
-    raise ValueError(f"a window must be a name or (name, {{params}}), e.g. 'rect' or ('kaiser', {{'beta': 2.5}}), "
-                     f"got {spec!r}")
-
-
-def _window_label(name: str, params: Mapping[str, float]) -> str:
-    return name if not params else f"{name}(" + ", ".join(f"{k}={v:g}" for k, v in sorted(params.items())) + ")"
+#: The window option parsers of :mod:`.windows`, under the names this package's focusers import.
+_window_spec = window_spec
+_window_label = window_label
 
 
 @lru_cache(maxsize=32)

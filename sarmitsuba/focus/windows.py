@@ -40,7 +40,7 @@ References
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 import scipy.integrate
@@ -50,7 +50,7 @@ import scipy.special
 
 __all__ = ["WINDOWS", "window", "spectral_window", "compressed_pulse", "impulse_response_width",
            "broadening_factor", "first_null", "pslr_theory", "islr_theory", "energy_width", "window_mean",
-           "check_window"]
+           "check_window", "window_spec", "window_label"]
 
 #: Window names and their parameters with defaults.
 WINDOWS: dict[str, dict[str, float]] = {
@@ -115,6 +115,22 @@ def check_window(name: str, **params: Any) -> tuple[str, dict[str, float]]:
                              f"(e.g. -35), got {full['sll']!r}")
         full["sll"] = -sll
     return key, full
+
+
+def window_spec(spec: Any) -> tuple[str, dict[str, float]]:
+    """A window option, ``"name"`` or ``("name", {params})``, as the canonical ``(name, params)`` of
+    :func:`check_window`. Raises ValueError for any other form, an unknown name or a bad parameter."""
+    if isinstance(spec, str):
+        return check_window(spec)
+    if isinstance(spec, (tuple, list)) and len(spec) == 2 and isinstance(spec[1], Mapping):
+        return check_window(spec[0], **dict(spec[1]))
+    raise ValueError(f"a window must be a name or (name, {{params}}), e.g. 'rect' or ('kaiser', {{'beta': 2.5}}), "
+                     f"got {spec!r}")
+
+
+def window_label(name: str, params: Mapping[str, float]) -> str:
+    """Short label of a window for titles and metadata: ``"taylor(nbar=4, sll=-35)"``, ``"rect"``."""
+    return name if not params else f"{name}(" + ", ".join(f"{k}={v:g}" for k, v in sorted(params.items())) + ")"
 
 
 def _finite(label: str, value: Any, low: float, high: float) -> float:

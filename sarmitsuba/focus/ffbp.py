@@ -1,0 +1,430 @@
+"""Fast factorised backprojection (FFBP) of range-compressed data onto an :class:`ImageGrid`.
+
+The direct sum (S3) of :func:`~sarmitsuba.focus.backproject` is factorised over sub-apertures
+(Ulander, Hellsten and Stenstrom 2003, two levels): the pulses are split into sub-apertures of
+``subaperture`` consecutive pulses; each is backprojected onto a polar grid of the image plane
+around its own phase centre (:mod:`.polar`), which only has to sample the sub-aperture's own,
+coarse, angular resolution; every polar image is then interpolated onto the pixels it reaches
+and the results are summed. The interpolation is two 1-D passes (cubic B-splines): along the
+sines onto each grid row at the image's own range samples, then along range onto the row's
+pixels, with the carrier restored from tables in float64 phase. Nothing assumes a straight
+track: each polar image is exact in its own frame (mean position and velocity of its pulses),
+and each pulse keeps its own beam gate and window weight.
+
+Cost, for pixels integrating ``N_a`` pulses each: ``subaperture x (polar samples)`` pixel-pulses
+in the first stage (the polar samples of all sub-apertures together are about the swath's range
+samples x the pulses x the beam's sines x ``4 |p - c| / lambda`` per sub-aperture pulse x the
+angular oversampling: independent of ``subaperture``), then ``(pixels) x (N_a / subaperture + 1)``
+interpolations, instead of ``(pixels) x N_a`` for the direct sum. docs/ffbp.md derives the
+factorisation, the error knobs and the defaults.
+
+References
+----------
+.. [1] L. M. H. Ulander, H. Hellsten and G. Stenstrom, "Synthetic-aperture radar processing
+   using fast factorized back-projection", IEEE Trans. Aerosp. Electron. Syst. 39(3),
+   760-776, 2003.
+"""
+from __future__ import annotations
+
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from ..constants import SPEED_OF_LIGHT
+from ..image import SarImage
+from ..raw import RawData
+from .beam import BeamWeighting, beam_weighting, column_gain, unit_rows
+from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar
+from .grid import ImageGrid
+from .polar import (CHUNK, GeometryNotSupported, RSTEP, PolarAxes, PolarFrame, PolarImage, beam_table, carrier_bits, premodulated_rows,
+                    prepare, pulses_to_polar, r_pass, s_pass, spline_tables, workspace)
+from .range_lines import PAD, carrier_table, fft_upsample, premodulated_pairs, residual_carrier_table
+
+__all__ = ["ffbp", "GeometryNotSupported"]
+
+#: Default pulses per sub-aperture (docs/physics.md (F1); measured in benchmarks/ffbp.py).
+SUBAPERTURE = 16
+#: Extra polar samples beyond the needed sines (cubic spline support and prefilter start-up).
+S_MARGIN = 6
+#: Extra range samples beyond the needed ranges (more than polar.TAPER + the spline support).
+R_MARGIN = 16
+#: Cycles per beam width of the beam weighting ``w(u)`` (and of the pattern in the data) that the
+#: polar images resolve on top of the sub-aperture's own angular band (Taylor nbar 4: 3).
+WEIGHT_CYCLES = 4.0
+#: Range samples kept beyond the delays a first-stage polar image needs, and of them tapered.
+LINE_GUARD, LINE_TAPER = 48, 16
+#: Largest number of sines of one polar image.
+MAX_SINES = 1 << 16
+#: Rows and columns between the exact evaluations of the expected gain (the normalisation).
+GAIN_STEP = 32
+#: Grid columns per range block of the last step (the unit of work of one thread).
+BLOCK_COLUMNS = 512
+
+
+# ============================================================================ public API
+def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle_oversample: float = 2.0,
+         range_oversample: int = 2, oversample: int = 8, workers: int | None = None,
+         azimuth_beamwidth: float | None = None, squint: float = 0.0, azimuth_pattern: float | None = None,
+         window_azimuth: Any = "rect", progress: bool = False) -> SarImage:
+    """Focus range-compressed data by fast factorised backprojection.
+
+    Same data, grid, beam options, normalisation and result as
+    :func:`~sarmitsuba.focus.backproject` (read its Parameters for ``azimuth_beamwidth``,
+    ``squint``, ``azimuth_pattern``, ``window_azimuth``, ``oversample``, ``workers`` and
+    ``progress``), computed with fewer operations and an interpolation error set by the knobs
+    below (docs/ffbp.md; measured against ``backproject`` in benchmarks/ffbp.py).
+
+    Parameters
+    ----------
+    raw : RawData
+        Range-compressed, monostatic echoes (``tx_position == rx_position``) with uniform fast time.
+    grid : ImageGrid
+        Pixels to focus, all on one side of the track (no pixel under the antenna's path).
+    subaperture : int, optional
+        Pulses per sub-aperture (1 .. n_pulses; default 16, or every pulse when there are
+        fewer): the factorisation. Each sub-aperture is
+        backprojected directly onto its polar grid (cost ``subaperture x`` polar samples), then
+        every pixel interpolates the ``(pulses in its beam) / subaperture + 1`` polar images that
+        reach it.
+    angle_oversample : float, default 2.0
+        Sampling of the polar images in sine over their Nyquist rate (1.25 .. 8): sets the
+        angular interpolation error (cubic B-spline, about -45 dB at 2 for a flat angular
+        spectrum, lower with a tapered beam).
+    range_oversample : int, default 2
+        FFT upsampling of the polar images in range before the cubic B-spline (1 .. 8; -53 dB at
+        2 for ``fs = 1.2 B``).
+    oversample : int, default 8
+        Upsampling of the range lines for the first stage, as in ``backproject`` (1 .. 64).
+    workers : int, optional
+        Threads (default: the CPUs available).
+    azimuth_beamwidth, squint, azimuth_pattern, window_azimuth, progress
+        As in :func:`~sarmitsuba.focus.backproject`.
+
+    Returns
+    -------
+    SarImage
+        complex64 ``[n_az, n_rg]`` on ``grid``, normalised as ``backproject`` (a point target of
+        amplitude ``a`` peaks at ``a``; per range column by the largest expected gain
+        ``sum_p w g^2`` with a beam). ``metadata["focus"]`` as ``backproject``'s (``algorithm``
+        ``"backprojection"``) plus ``implementation = "ffbp"``, the knobs, ``subapertures`` (polar
+        images), ``polar_samples`` (their samples), ``stage_seconds`` and
+        ``pixel_pulses_per_second`` (pixels x pulses of the equivalent direct backprojection per
+        second).
+
+    Raises
+    ------
+    ValueError
+        As ``backproject``; or a knob outside its range.
+    GeometryNotSupported
+        (a ValueError) Bistatic data, a velocity normal to the image plane, or a grid that
+        straddles the track (a pixel under the antenna path): use ``backproject``.
+
+    Notes
+    -----
+    Accuracy (docs/ffbp.md): against ``backproject`` on analytic point targets the image NRMSE
+    is -43 to -48 dB at the defaults (-33 dB with an ideal, all-or-nothing beam gate: a polar
+    image interpolates the gate's single-pulse steps); on Sionna's Munich -33.5 dB, while
+    ``backproject`` itself moves by -31.4 dB when its pixel tiles shift (its gate is placed per
+    tile row). Precision: float64 geometry, float32 residuals as ``backproject``, and float64
+    polar coordinates, so nothing depends on the range to the sensor.
+    """
+    t_start = time.perf_counter()
+    t0, oversample, _, workers = check_inputs(raw, grid, oversample, 1, workers)
+    knobs = _check_knobs(raw, min(SUBAPERTURE, raw.n_pulses) if subaperture is None else subaperture,
+                         angle_oversample, range_oversample)
+    beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
+    pool = ThreadPoolExecutor(workers) if workers > 1 else None
+    run = (lambda f, jobs: list(pool.map(f, jobs))) if pool else (lambda f, jobs: [f(j) for j in jobs])
+    spans = _subaperture_spans(raw.n_pulses, knobs["subaperture"])
+    bar = progress_bar(progress, len(spans) + _n_blocks(grid), desc="ffbp", unit="step")
+    clock = {"start": time.perf_counter()}
+    try:
+        images = _first_stage(raw, grid, beam, spans, t0, oversample, knobs, run, bar)
+        clock["subaperture_images"] = time.perf_counter()
+        summed = _last_step(grid, images, raw.fc, run, bar)
+        clock["grid"] = time.perf_counter()
+    finally:
+        if pool is not None:
+            pool.shutdown()
+        bar.close()
+    data, norm = _normalise(raw, grid, beam, summed)
+    clock["normalisation"] = time.perf_counter()
+    seconds = clock["normalisation"] - t_start
+    steps = list(clock)
+    stage_seconds = {name: round(clock[name] - clock[prev], 4) for prev, name in zip(steps, steps[1:])}
+    focus = focus_metadata(raw, grid, seconds, beam, oversample=oversample, workers=workers,
+                           implementation="ffbp", **knobs, subapertures=len(images),
+                           polar_samples=sum(i.axes.n_s * i.axes.n_r for i in images), stage_seconds=stage_seconds,
+                           azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
+                           monostatic=True)
+    focus["interpolation"] = "first stage: fft-upsample + linear; polar images: cubic B-spline (s, then r)"
+    return make_image(raw, grid, data, focus)
+
+
+def _check_knobs(raw: RawData, subaperture: Any, angle_oversample: Any, range_oversample: Any) -> dict[str, Any]:
+    if not np.array_equal(raw.tx_position, raw.rx_position):
+        raise GeometryNotSupported("ffbp needs monostatic data (raw.tx_position == raw.rx_position); "
+                         "use backproject for bistatic data")
+    out: dict[str, Any] = {}
+    for name, value, low, high in (("subaperture", subaperture, 1, raw.n_pulses),
+                                   ("range_oversample", range_oversample, 1, 8)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+            raise ValueError(f"{name} must be an integer in {low} .. {high}, got {value!r}")
+        out[name] = int(value)
+    try:
+        angle = float(angle_oversample)
+    except (TypeError, ValueError):
+        angle = float("nan")
+    if not 1.25 <= angle <= 8.0:
+        raise ValueError(f"angle_oversample must be a number in [1.25, 8], got {angle_oversample!r}")
+    out["angle_oversample"] = angle
+    return out
+
+
+def _subaperture_spans(n_pulses: int, length: int) -> list[tuple[int, int]]:
+    return [(p0, min(p0 + length, n_pulses)) for p0 in range(0, n_pulses, length)]
+
+
+def _n_blocks(grid: ImageGrid) -> int:
+    return -(-grid.shape[1] // BLOCK_COLUMNS)
+
+
+# ============================================================================ planning
+def _grid_edge_points(grid: ImageGrid) -> np.ndarray:
+    """World points of every pixel on the four edges of the grid, float64 [n, 3]."""
+    a, r = grid.azimuth, grid.range
+    aa = np.r_[a, a, np.full(r.size, a[0]), np.full(r.size, a[-1])]
+    rr = np.r_[np.full(a.size, r[0]), np.full(a.size, r[-1]), r, r]
+    return grid.origin + aa[:, None] * grid.azimuth_direction + rr[:, None] * grid.range_direction
+
+
+def _plan(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: slice, angle_oversample: float,
+          edges: np.ndarray) -> tuple[PolarFrame, PolarAxes, tuple[float, float], tuple[float, float]] | None:
+    """Frame, axes and nonzero sines of the polar image of the pulses ``pulses``; None when it
+    sees no pixel.
+
+    Sines: the grid's, cut to the beam widened by the sub-aperture's extent (``|A_p - c| / r``
+    and the turn of the velocity). Ranges: those of the grid's edge pixels within these sines
+    (the extremes of the distance over a region of the plane lie on its boundary), cut to the
+    fast-time window. The sine step resolves ``2 (fc + B/2) / c x max |A_p - c| x |du/ds|``
+    cycles per unit sine plus :data:`WEIGHT_CYCLES` per beam width, ``angle_oversample`` times;
+    the range step is ``c / (2 fs)``. Both axes get margins (:data:`S_MARGIN`, :data:`R_MARGIN`).
+    """
+    antennas = raw.tx_position[pulses]
+    centre = antennas.mean(axis=0)
+    velocity = unit_rows(raw.velocity[pulses])
+    direction = velocity.mean(axis=0)
+    direction /= np.linalg.norm(direction)
+    frame = PolarFrame(centre, direction, grid)
+    s_edge, r_edge = frame.coordinates(edges)
+    spread = float(np.max(np.linalg.norm(antennas - centre, axis=1)))
+    s_lo, s_hi = float(s_edge.min()), float(s_edge.max())
+    if beam.sines is not None:
+        turn = float(np.max(np.linalg.norm(velocity - direction, axis=1)))
+        margin = 1.05 * spread / max(float(r_edge.min()), 1e-9) + turn + 1e-9
+        s_lo, s_hi = max(s_lo, beam.sines[0] - margin), min(s_hi, beam.sines[1] + margin)
+    inside = (s_edge >= s_lo) & (s_edge <= s_hi)
+    if s_lo > s_hi or not inside.any():
+        return None
+    window = SPEED_OF_LIGHT * raw.fast_time[[0, -1]] / 2.0
+    step = max([float(np.max(np.diff(axis))) for axis in (grid.azimuth, grid.range) if axis.size > 1] + [0.0])
+    r_lo = max(float(r_edge[inside].min()) - step, window[0] - spread)
+    r_hi = min(float(r_edge[inside].max()) + step, window[1] + spread)
+    if r_lo > r_hi:
+        return None
+    rate = frame.s_rate(np.array([s_lo, s_lo, s_hi, s_hi]), np.array([r_lo, r_hi, r_lo, r_hi]))
+    f_max = 2.0 * (raw.fc + raw.bandwidth / 2.0) / SPEED_OF_LIGHT * spread * float(np.max(rate))
+    if not np.isfinite(f_max):
+        raise GeometryNotSupported("ffbp: the grid reaches the track's vertical plane (a point of it lies under "
+                         "the antenna path); use backproject")
+    if beam.sines is not None:       # the beam weight varies across the beam: resolve a few cycles of it
+        f_max += WEIGHT_CYCLES / (beam.sines[1] - beam.sines[0])
+    ds = 1.0 / (2.0 * max(f_max, 1e-12) * angle_oversample)
+    n_s = min(int(np.ceil((s_hi - s_lo) / ds)) + 1, MAX_SINES)
+    ds = max(ds, (s_hi - s_lo) / max(n_s - 1, 1))
+    dr = SPEED_OF_LIGHT / (2.0 * raw.fs)
+    n_r = int(np.ceil((r_hi - r_lo) / dr)) + 1 + 2 * R_MARGIN
+    axes = PolarAxes(s_lo - S_MARGIN * ds, ds, n_s + 2 * S_MARGIN, r_lo - R_MARGIN * dr, dr,
+                     -(-n_r // RSTEP) * RSTEP)
+    return frame, axes, (s_lo, s_hi), (float(window[0]), float(window[1]))
+
+
+# ============================================================================ stages
+def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list[tuple[int, int]], t0: float,
+                 oversample: int, knobs: dict[str, Any], run, bar) -> list[PolarImage]:
+    """Polar images of the first-stage sub-apertures, prepared for interpolation."""
+    fine_rate = raw.fs * oversample
+    carrier = residual_carrier_table(2.0 * np.pi * raw.fc / fine_rate)
+    weights = None if beam.sines is not None or beam.is_rect else beam.pulse_weights(raw.n_pulses)
+    table = None if beam.sines is None else (beam_table(beam.u, beam.table), *beam.sines)
+    edges = _grid_edge_points(grid)
+    velocity = unit_rows(raw.velocity)
+
+    def one(span: tuple[int, int]) -> PolarImage | None:
+        pulses = slice(*span)
+        planned = _plan(raw, grid, beam, pulses, knobs["angle_oversample"], edges)
+        if planned is not None:
+            frame, axes, s_span, window = planned
+            start, data = _cropped_lines(raw, pulses, axes)
+            if weights is not None:
+                data *= weights[pulses, None].astype(np.float32)
+            t_start = t0 + start / raw.fs
+            n_tab = (data.shape[1] - 1) * oversample + 1 + 2 * PAD
+            lines = premodulated_pairs(fft_upsample(data, oversample, workers=1),
+                                       carrier_table(raw.fc, t_start, raw.fc / fine_rate, n_tab))
+            polar, (d_lo, d_hi) = pulses_to_polar(frame, axes, raw.tx_position[pulses], velocity[pulses], lines,
+                                                  carrier, t_start, raw.fs, oversample, raw.fc, table)
+            # ranges where every pulse's delay lies beyond the window (plus a fine sample): zero there
+            guard = SPEED_OF_LIGHT / (2.0 * raw.fs * oversample)
+            r_span = (window[0] - d_hi - guard, window[1] - d_lo + guard)
+            planned = prepare(PolarImage(frame, axes, polar, s_span, r_span), knobs["range_oversample"])
+        bar.update(1)
+        return planned
+
+    return [image for image in run(one, spans) if image is not None]
+
+
+def _cropped_lines(raw: RawData, pulses: slice, axes: PolarAxes) -> tuple[int, np.ndarray]:
+    """First sample and a copy of the pulses' range lines over the delays of a polar image
+    (``2 (r -+ |A_p - c|) / c``) plus :data:`LINE_GUARD` samples, whose outer :data:`LINE_TAPER`
+    samples are tapered to zero where the crop cuts the line (so that the FFT upsampling does not
+    ring into the needed delays)."""
+    antennas = raw.tx_position[pulses]
+    spread = float(np.max(np.linalg.norm(antennas - antennas.mean(axis=0), axis=1)))
+    r_first, r_last = axes.r0 - spread, axes.r0 + (axes.n_r - 1) * axes.dr + spread
+    t0 = float(raw.fast_time[0])
+    lo = int(np.floor((2.0 * r_first / SPEED_OF_LIGHT - t0) * raw.fs)) - LINE_GUARD
+    hi = int(np.ceil((2.0 * r_last / SPEED_OF_LIGHT - t0) * raw.fs)) + LINE_GUARD + 1
+    lo, hi = max(lo, 0), min(hi, raw.n_samples)
+    data = np.array(raw.data[pulses, lo:hi], dtype=np.complex64)
+    ramp = (0.5 - 0.5 * np.cos(np.pi * (np.arange(LINE_TAPER) + 0.5) / LINE_TAPER)).astype(np.float32)
+    if lo > 0:
+        data[:, :LINE_TAPER] *= ramp[:min(LINE_TAPER, data.shape[1])]
+    if hi < raw.n_samples:
+        data[:, -LINE_TAPER:] *= ramp[::-1][-min(LINE_TAPER, data.shape[1]):]
+    return lo, data
+
+
+def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, bar) -> np.ndarray:
+    """Sum of the polar images interpolated onto the grid, complex64 [n_az, n_rg] (one range block
+    of :data:`BLOCK_COLUMNS` columns per job, so that jobs write disjoint pixels)."""
+    kappa = 4.0 * np.pi * fc / SPEED_OF_LIGHT
+    s_tables = spline_tables(12)
+    fine_dr = images[0].fine.dr if images else 1.0
+    r_tables = spline_tables(carrier_bits(kappa * fine_dr), kappa * fine_dr)
+    out = np.zeros(grid.shape, np.complex64)
+    blocks = [slice(b * BLOCK_COLUMNS, min((b + 1) * BLOCK_COLUMNS, grid.shape[1])) for b in range(_n_blocks(grid))]
+    reach = run(lambda image: _rows_reached(grid, image, blocks), images)
+
+    def block(b: int) -> None:
+        for image, rows in zip(images, reach):
+            if rows[b] is not None:
+                _image_to_block(grid, image, rows[b], blocks[b], kappa, s_tables, r_tables, out)
+        bar.update(1)
+
+    run(block, range(len(blocks)))
+    return out
+
+
+def _row_geometry(grid: ImageGrid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(p, q)`` float64 [n_az]: on row ``i``, ``|x - c|^2 = rho^2 + 2 rho p_i + q_i`` for the pixel at
+    range coordinate ``rho``."""
+    rel = grid.origin - centre
+    e_a, e_r = grid.azimuth_direction, grid.range_direction
+    p = rel @ e_r + grid.azimuth * (e_a @ e_r)
+    q = rel @ rel + 2.0 * grid.azimuth * (rel @ e_a) + grid.azimuth ** 2
+    return p, q
+
+
+def _rows_reached(grid: ImageGrid, image: PolarImage, blocks: list[slice]) -> list[slice | None]:
+    """Per range block, the rows with a pixel whose sine lies in the image's nonzero sines (probed at
+    the block's first, middle and last columns), or None."""
+    frame = image.frame
+    p, q = _row_geometry(grid, frame.centre)
+    v = frame.direction
+    rel = grid.origin - frame.centre
+    probe = np.array([[grid.range[b.start], grid.range[(b.start + b.stop - 1) // 2], grid.range[b.stop - 1]]
+                      for b in blocks])                                                       # [n_b, 3]
+    r = np.sqrt(q[:, None, None] + probe[None] * (2.0 * p[:, None, None] + probe[None]))
+    s = (rel @ v + grid.azimuth[:, None, None] * (grid.azimuth_direction @ v)
+         + probe[None] * (grid.range_direction @ v)) / r
+    hit = (s.max(axis=2) >= image.s_span[0]) & (s.min(axis=2) <= image.s_span[1])          # [n_az, n_b]
+    out: list[slice | None] = []
+    for b in range(len(blocks)):
+        rows = np.flatnonzero(hit[:, b])
+        out.append(slice(int(rows[0]), int(rows[-1]) + 1) if rows.size else None)
+    return out
+
+
+def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice, kappa: float, s_tables,
+                    r_tables, out: np.ndarray) -> None:
+    """Add one prepared polar image to the pixels ``rows x cols`` of ``out`` (in place): the s-pass
+    onto the rows at the image's fine range samples, then the r-pass onto the pixels."""
+    frame, fine = image.frame, image.fine
+    rho = grid.range[cols]
+    p, q = _row_geometry(grid, frame.centre)
+    p, h2 = p[rows], q[rows] - p[rows] ** 2                # |x - c|^2 = (rho + p)^2 + h2 on each row
+    ends = rho[[0, -1]][None, :] + p[:, None]
+    side = 1.0 if ends[0, 0] > 0 else -1.0
+    if np.any(ends * side <= 0):
+        raise GeometryNotSupported("ffbp: an image row crosses the closest point to a sub-aperture centre inside the "
+                         "grid (the grid straddles the track); use backproject")
+    r_ends = np.sqrt(ends * ends + h2[:, None])
+    k0 = max(0, int(np.floor((r_ends.min() - fine.r0) / fine.dr)) - 3)
+    k1 = min(fine.n_r, int(np.ceil((r_ends.max() - fine.r0) / fine.dr)) + 4)
+    if k1 - k0 < 4:
+        return
+    # pixels beyond the image's ranges, or where all its pulses' delays leave the window, read zeros
+    clip = k0 == 0 or k1 == fine.n_r or r_ends.min() < image.r_span[0] or r_ends.max() > image.r_span[1]
+    outside = ((image.r_span[0] - fine.r0) / fine.dr - k0, (image.r_span[1] - fine.r0) / fine.dr - k0)
+    r_k = fine.r0 + fine.dr * np.arange(k0, k1)
+    carrier = np.exp(1j * np.mod(kappa * r_k, 2.0 * np.pi)).astype(np.complex64)
+    v = frame.direction
+    along = (grid.origin - frame.centre) @ v + grid.azimuth[rows] * (grid.azimuth_direction @ v)
+    step = max(1, CHUNK // (max(rho.size, r_k.size) + 2 * 4))
+    ws = workspace(step * (max(rho.size, r_k.size) + 8))
+    r_k2 = r_k * r_k
+    for i0 in range(0, p.size, step):
+        part = slice(i0, min(i0 + step, p.size))
+        n_rows = part.stop - part.start
+        # s-pass: the point of each row at each fine range sample, its sine, the image there
+        rho_k = np.subtract(r_k2[None, :], h2[part, None], out=ws.f64[0, :n_rows * r_k.size].reshape(n_rows, -1))
+        np.maximum(rho_k, 0.0, out=rho_k)
+        np.sqrt(rho_k, out=rho_k)
+        rho_k *= side
+        rho_k -= p[part, None]
+        rho_k *= grid.range_direction @ v
+        rho_k += along[part, None]
+        rho_k /= r_k[None, :]
+        coeffs = s_pass(image, rho_k, k0, s_tables, ws.c64[1, :rho_k.size].reshape(rho_k.shape))
+        # r-pass: each pixel's range in fine samples from r_k[0], the coefficients there with the carrier
+        position = np.add(rho[None, :], p[part, None], out=ws.f64[1, :n_rows * rho.size].reshape(n_rows, -1))
+        position *= position
+        position += h2[part, None]
+        np.sqrt(position, out=position)
+        position -= r_k[0]
+        position *= 1.0 / fine.dr
+        if clip:
+            position[(position < outside[0]) | (position > outside[1])] = -1e9
+            np.clip(position, -2.0, r_k.size + 1.0, out=position)
+        target = out[rows.start + i0:rows.start + part.stop, cols]
+        target += r_pass(premodulated_rows(coeffs, carrier, ws), r_k.size, position, r_tables,
+                         ws.c64[0, :position.size].reshape(position.shape))
+
+
+# ============================================================================ normalisation
+def _normalise(raw: RawData, grid: ImageGrid, beam: BeamWeighting, image: np.ndarray) -> tuple[np.ndarray, float]:
+    """Divide (in place) as ``backproject`` does: by the summed pulse weights, or per range column by
+    the largest expected gain of its pixels (:func:`~.beam.column_gain` from every
+    :data:`GAIN_STEP`-th row and column)."""
+    if beam.sines is None:
+        norm = float(beam.pulse_weights(raw.n_pulses).sum())
+        image *= np.float32(1.0 / norm) if norm > 0 else np.float32(0.0)
+        return image, norm
+    full = column_gain(raw, grid, beam, step=GAIN_STEP)
+    norm = float(full.max()) if full.size else 0.0
+    floor = 1e-6 * norm if norm > 0 else 1.0
+    image *= np.where(full > floor, 1.0 / np.maximum(full, floor), 0.0).astype(np.float32)[None, :]
+    return image, norm

@@ -1,0 +1,518 @@
+"""Sub-aperture polar images of fast factorised backprojection (:mod:`sarmitsuba.focus.ffbp`).
+
+A sub-aperture ``j`` (consecutive pulses, phase centre ``c`` = mean antenna position, axis
+``v`` = unit mean velocity) is imaged on a polar grid of the image plane (Ulander, Hellsten and
+Stenstrom 2003, section III): a point ``x`` of the plane has the coordinates
+
+.. math:: r = |\\mathbf{x} - \\mathbf{c}|, \\qquad s = (\\mathbf{x} - \\mathbf{c}) \\cdot \\hat{\\mathbf{v}} / r,
+
+(range and along-track sine), and the sub-aperture image is stored demodulated,
+
+.. math:: S_j(s, r) = e^{-j \\kappa r} \\sum_{p \\in j} w_p(\\mathbf{x})\\, d_p(L_p(\\mathbf{x}) / c)\\,
+          e^{+j 2 \\pi f_c L_p(\\mathbf{x}) / c}, \\qquad \\kappa = 4 \\pi f_c / c,
+
+so that ``S_j`` is band limited: in ``r`` to the signal band (``|f_r| <= B / c``), in ``s`` to
+``|f_s| <= 2 |p - c|_max / lambda_min`` cycles per unit sine (the sub-aperture's angular
+resolution). :class:`PolarFrame` maps ``(s, r)`` to plane points exactly for any track (a
+3-D point on the plane, on the grid's side of the track), so nothing assumes a straight or
+level track. This module holds the frame, the pulse-to-polar backprojection of the first
+stage (:func:`pulses_to_polar`), the preparation of a polar image for interpolation
+(:func:`prepare`: range upsampling and cubic B-spline coefficients) and the two 1-D passes that
+resample a polar image onto rows of target points (:func:`s_pass`, :func:`r_pass`).
+
+References
+----------
+.. [1] L. M. H. Ulander, H. Hellsten and G. Stenstrom, "Synthetic-aperture radar processing
+   using fast factorized back-projection", IEEE Trans. Aerosp. Electron. Syst. 39(3),
+   760-776, 2003.
+.. [2] M. Unser, "Splines: a perfect fit for signal and image processing", IEEE Signal
+   Process. Mag. 16(6), 22-38, 1999 (cubic B-spline interpolation and its prefilter).
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+from ..constants import SPEED_OF_LIGHT
+from .grid import ImageGrid
+from .range_lines import FFT_GUARD, PAD, MAX_WEIGHT_BITS
+
+
+class GeometryNotSupported(ValueError):
+    """An acquisition the factorisation does not handle (bistatic data, a grid that straddles the
+    track or reaches its vertical plane, a velocity normal to the image plane): direct
+    backprojection (:func:`~sarmitsuba.focus.backproject`) focuses it."""
+
+__all__ = ["PolarFrame", "PolarAxes", "PolarImage", "pulses_to_polar", "prepare", "s_pass", "r_pass",
+           "premodulated_rows", "spline_tables", "carrier_bits", "beam_table", "spline_prefilter", "Workspace",
+           "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER", "CHUNK", "RSTEP"]
+
+#: Pole of the cubic B-spline prefilter, ``sqrt(3) - 2`` (Unser 1999).
+SPLINE_POLE = float(np.sqrt(3.0) - 2.0)
+#: Samples of the beam-weight table over u in [0, 1] (nearest sample: error below 2e-4 of the
+#: largest slope of w g^2 across the beam).
+BEAM_TABLE = 1 << 14
+#: Largest carrier phase error [rad] of the r-pass tables (16 bits at X band with dr = c / (4 fs);
+#: 8e-3 rad, 14 bits, left a -51 dB floor against a 64x-oversampled direct sum).
+CARRIER_PHASE = 2e-3
+#: Zero samples padded at each end of a gather table (a cubic spline reaches 2 samples out).
+_EDGE = 4
+#: Range samples of a polar image tapered to zero at each end before range upsampling.
+TAPER = 12
+#: Elements per vectorised step (cache-sized: gathers from larger arrays run 2-3x slower).
+CHUNK = 1 << 15
+#: Pixel-pulses per vectorised step of the first stage.
+_STEP = CHUNK
+#: Range samples between the float64 geometry points of the first stage.
+RSTEP = 16
+
+
+# ============================================================================ geometry
+class PolarFrame:
+    """Polar coordinates ``(s, r)`` of the plane of ``grid`` around ``centre`` with axis ``direction``.
+
+    With ``n`` the plane normal, ``h`` the signed height of the plane over ``centre`` along ``n``,
+    ``e1`` the unit in-plane part of the axis (``|v_in|`` its length) and ``e2 = n x e1``, a plane
+    point is ``c + h n + xi1 e1 + xi2 e2`` with ``xi1 = (s r - h v.n) / |v_in|`` and
+    ``xi2 = side sqrt(r^2 - h^2 - xi1^2)``; ``side`` (+1 or -1) is the side of the track the grid
+    lies on. Raises ValueError when the axis is (nearly) normal to the plane.
+    """
+
+    def __init__(self, centre: np.ndarray, direction: np.ndarray, grid: ImageGrid):
+        self.centre = np.asarray(centre, float)
+        self.direction = np.asarray(direction, float)
+        n = np.cross(grid.azimuth_direction, grid.range_direction)
+        self.normal = n / np.linalg.norm(n)
+        self.h = float((grid.origin - self.centre) @ self.normal)
+        self.v_n = float(self.direction @ self.normal)
+        v_in = self.direction - self.v_n * self.normal
+        self.v_in = float(np.linalg.norm(v_in))
+        if self.v_in < 1e-6:
+            raise GeometryNotSupported("fast backprojection needs a platform velocity with a component in the "
+                                       "image plane; use backproject")
+        self.e1 = v_in / self.v_in
+        self.e2 = np.cross(self.normal, self.e1)
+        middle = grid.origin + grid.azimuth.mean() * grid.azimuth_direction + grid.range.mean() * grid.range_direction
+        self.side = 1.0 if (middle - self.centre) @ self.e2 >= 0 else -1.0
+
+    def in_plane(self, s: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(xi1, xi2, valid)`` of the points ``(s, r)`` (broadcast, float64); invalid points
+        (no plane point at that range and sine) get ``xi2 = 0``."""
+        xi1 = (s * r - self.h * self.v_n) / self.v_in
+        rho2 = r * r - self.h * self.h - xi1 * xi1
+        valid = rho2 > 0.0
+        return xi1, self.side * np.sqrt(np.where(valid, rho2, 0.0)), valid
+
+    def units(self, s: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unit vectors from the centre to the points ``(s, r)``: float64 [..., 3], and validity."""
+        xi1, xi2, valid = self.in_plane(s, r)
+        x = (self.h * self.normal + xi1[..., None] * self.e1 + xi2[..., None] * self.e2)
+        return x / np.asarray(r)[..., None], valid
+
+    def coordinates(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(s, r)`` of world points ``x`` [..., 3] (float64)."""
+        d = x - self.centre
+        r = np.sqrt(np.square(d).sum(axis=-1))
+        return (d * self.direction).sum(axis=-1) / r, r
+
+    def s_rate(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """``|d u / d s|`` at fixed ``r``: ``sqrt(1 + (xi1 / xi2)^2) / |v_in|`` (the factor turning
+        an antenna offset into cycles per unit sine); inf where ``xi2`` vanishes."""
+        xi1, xi2, valid = self.in_plane(s, r)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(valid & (xi2 != 0), xi1 / xi2, np.inf)
+        return np.sqrt(1.0 + ratio * ratio) / self.v_in
+
+
+@dataclass(frozen=True)
+class PolarAxes:
+    """Uniform axes of a polar image: ``s_m = s0 + m ds`` (m < n_s), ``r_k = r0 + k dr`` (k < n_r)."""
+
+    s0: float
+    ds: float
+    n_s: int
+    r0: float
+    dr: float
+    n_r: int
+
+    @property
+    def s(self) -> np.ndarray:
+        return self.s0 + self.ds * np.arange(self.n_s)
+
+    @property
+    def r(self) -> np.ndarray:
+        return self.r0 + self.dr * np.arange(self.n_r)
+
+
+@dataclass
+class PolarImage:
+    """One sub-aperture's polar image: frame, axes, demodulated data and, after :func:`prepare`,
+    the gather table of its cubic B-spline coefficients (range upsampled by ``factor``).
+
+    ``s_span``: the sines ``(lo, hi)`` outside which the image is zero (the union of its pulses'
+    beams; the whole axis without a beam); ``r_span``: the ranges ``(lo, hi)`` outside which every
+    pulse's delay lies outside the fast-time window (there ``backproject`` masks to zero).
+    """
+
+    frame: PolarFrame
+    axes: PolarAxes
+    data: np.ndarray                  # complex64 [n_s, n_r]
+    s_span: tuple[float, float]
+    r_span: tuple[float, float] = (-np.inf, np.inf)
+    table: np.ndarray | None = None   # complex128 [n_r_up * (n_s + 2 EDGE - 1)]: s-pairs per range sample
+    fine: PolarAxes | None = None     # axes of the coefficients (range step dr / factor)
+
+
+# ============================================================================ first stage
+def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, velocities: np.ndarray,
+                    lines: np.ndarray, carrier: tuple[np.ndarray, int], t0: float, fs: float, oversample: int,
+                    fc: float, beam: tuple[np.ndarray, float, float] | None) -> tuple[np.ndarray, tuple[float, float]]:
+    """Backproject pulses onto a polar grid (the first stage): complex64 [n_s, n_r] ``S_j``, and the
+    smallest and largest one-way residual ``|x - A_p| - r`` [m] over its samples and pulses.
+
+    Parameters
+    ----------
+    frame, axes : PolarFrame, PolarAxes
+        The sub-aperture's polar grid; ``axes.dr`` must be ``c / (2 fs)`` and ``axes.n_r`` a
+        multiple of :data:`RSTEP`.
+    antennas, velocities : float64 [P, 3]
+        Antenna positions [m] and unit velocities of the pulses (monostatic).
+    lines : complex128 [P * n_tab]
+        :func:`~.range_lines.premodulated_pairs` of the pulses' lines upsampled ``oversample`` times.
+    carrier : (complex128 [m], int)
+        :func:`~.range_lines.residual_carrier_table` for ``kh = 2 pi fc / (fs oversample)`` and its size.
+    t0, fs : float
+        Fast time of the first sample [s] and the sampling rate [Hz].
+    fc : float
+        Carrier [Hz].
+    beam : (float32 table, sin_lo, sin_hi) or None
+        :func:`beam_table` of ``w(u)`` and the beam sines, or None (every pulse sees every point).
+
+    Notes
+    -----
+    The one-way residual ``Delta_p = |x - A_p| - r`` of every sample and pulse, and with a beam
+    the table position of the sample's along-track sine from pulse ``p``,
+    ``(x - A_p) . v_p / |x - A_p|``, are formed in float64 at every :data:`RSTEP`-th range sample
+    and interpolated linearly in between in float32 (both vary slowly along range: the
+    interpolation error of ``Delta`` is below ``|A_p - c|^2 (RSTEP dr)^2 / (8 r^3)``, 1e-7 m for a
+    16-pulse airborne sub-aperture). With ``dr = c / (2 fs)`` the fine-sample index of the echo
+    is ``(2 r_k / c - t0) fs oversample + 2 Delta_p fs oversample / c``, whose first term is
+    ``I_0 + k oversample + phi`` exactly, so only ``phi + 2 Delta_p fs oversample / c`` (a few
+    fine samples) is ever rounded in float32. The echo is then interpolated linearly in the
+    upsampled line with the carrier from the tables, as in :func:`~sarmitsuba.focus.backproject`,
+    weighted, summed over the pulses and demodulated by ``exp(-j kappa r_k)`` (float64 phase).
+    """
+    n_s, n_r, n_pulses = axes.n_s, axes.n_r, antennas.shape[0]
+    n_c = n_r // RSTEP
+    fine_rate = fs * oversample
+    coarse = axes.r0 + axes.dr * RSTEP * np.arange(n_c + 1)
+    offset = (2.0 * axes.r0 / SPEED_OF_LIGHT - t0) * fine_rate
+    whole = float(np.floor(offset))
+    psi, position, valid = _coarse_geometry(frame, axes, coarse, antennas, velocities, beam)
+    residuals = (float(psi.min()), float(psi.max()))
+    psi = psi * (2.0 * fine_rate / SPEED_OF_LIGHT) + (offset - whole)       # fine samples past sample `whole`
+    table, m = carrier
+    bits = m.bit_length() - 1
+    bias = float(np.ceil(max(-psi.min(), 0.0))) + 1.0                      # keeps the fixed point positive
+    n_tab = lines.size // n_pulses
+    index_dtype = np.int32 if lines.size < 2**31 else np.int64
+    first = whole + PAD + oversample * np.arange(n_r)                      # table index of psi = 0
+    base = (first[None, :] - bias + (np.arange(n_pulses) * n_tab)[:, None]).astype(index_dtype)
+    clip = (psi.min() + first[0] < 1) or (psi.max() + first[-1] > n_tab - 2)
+    low = ((bias - first) * m).astype(np.float32)
+    high = ((n_tab - 1 - first + bias) * m).astype(np.float32)
+    fixed = ((psi + bias) * m).astype(np.float32)                           # fixed point: fine sample * m
+    t = (np.arange(RSTEP) / RSTEP).astype(np.float32)
+    acc = np.zeros((n_s, n_r), np.complex64)
+    rows = max(1, _STEP // max(1, n_pulses * n_r))
+    ws = workspace(n_pulses * rows * n_r)
+    for m0 in range(0, n_s, rows):
+        sl = slice(m0, min(m0 + rows, n_s))
+        n = n_pulses * (sl.stop - sl.start) * n_r
+        shape = (n_pulses, sl.stop - sl.start, n_r)
+        iota = _lerp(fixed[:, sl], t, ws.f32[0, :n].reshape(shape))                   # fixed point [P, M, n_r]
+        if clip:
+            np.clip(iota, low, high, out=iota)
+        index = ws.index(index_dtype)[:n].reshape(shape)
+        np.copyto(index, iota, casting="unsafe")
+        bins = ws.i32[:n]
+        np.bitwise_and(index.reshape(-1), m - 1, out=bins, casting="unsafe")
+        np.right_shift(index, bits, out=index)
+        np.add(index, base[:, None, :], out=index)
+        product = np.take(lines, index.reshape(-1), out=ws.c128[0, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+        weights = np.take(table, bins, out=ws.c128[1, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+        np.multiply(product, weights, out=product)
+        value = np.add(product[:, 0], product[:, 1], out=ws.c64[0, :n])
+        if beam is not None:
+            where = _lerp(position[:, sl], t, ws.f32[0, :n].reshape(shape))
+            np.clip(where, 0.0, BEAM_TABLE + 2.0, out=where)
+            np.copyto(bins, where.reshape(-1), casting="unsafe")
+            np.multiply(value, np.take(beam[0], bins, out=ws.f32[1, :n], mode="clip"), out=value)
+        acc[sl] += value.reshape(shape).sum(axis=0)
+    out = acc
+    out *= np.exp(-2j * np.pi * np.mod(2.0 * fc * axes.r / SPEED_OF_LIGHT, 1.0)).astype(np.complex64)[None, :]
+    out[~np.repeat(valid[:, :-1] & valid[:, 1:], RSTEP, axis=1)] = 0.0
+    return out, residuals
+
+
+def _coarse_geometry(frame: PolarFrame, axes: PolarAxes, coarse: np.ndarray, antennas: np.ndarray,
+                     velocities: np.ndarray, beam: tuple[np.ndarray, float, float] | None
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """float64 [P, n_s, n_c] residuals ``|x - A_p| - r`` and (with a beam) beam-table positions
+    ``(s_p - sin_lo) / (sin_hi - sin_lo) BEAM_TABLE + 1.5`` at the coarse ranges, and the validity
+    [n_s, n_c] of the points."""
+    u, valid = frame.units(axes.s[:, None], coarse[None, :])                         # [n_s, n_c, 3]
+    rel = coarse[None, None, :, None] * u[None] - (antennas - frame.centre)[:, None, None, :]
+    dist = np.sqrt(np.square(rel).sum(axis=-1))
+    position = None
+    if beam is not None:
+        _, sin_lo, sin_hi = beam
+        sine = (rel * velocities[:, None, None, :]).sum(axis=-1) / dist
+        position = ((sine - sin_lo) * (BEAM_TABLE / (sin_hi - sin_lo)) + 1.5).astype(np.float32)
+    return dist - coarse, position, valid
+
+
+def _lerp(coarse: np.ndarray, t: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Linear interpolation along the last axis into ``out``: [..., n_c + 1] samples every ``t.size``
+    fine samples to [..., n_c t.size] (float32). Returns ``out``."""
+    left = coarse[..., :-1, None]
+    fine = out.reshape(coarse.shape[:-1] + (-1, t.size))
+    np.multiply(coarse[..., 1:, None] - left, t, out=fine)
+    np.add(fine, left, out=fine)
+    return out
+
+
+class Workspace:
+    """Scratch buffers of one thread, reused across chunks (fresh arrays of this size come from
+    mmap and cost a page fault per 4 kB). Grows on demand."""
+
+    def __init__(self) -> None:
+        self.size = 0
+
+    def ensure(self, size: int) -> "Workspace":
+        if size > self.size:
+            self.size = size
+            self.f32 = np.empty((2, size), np.float32)
+            self.f64 = np.empty((2, size), np.float64)
+            self.i32 = np.empty(size, np.int32)       # fraction bins
+            self.i64 = np.empty(size, np.int64)       # table indices
+            self.index32 = np.empty(size, np.int32)   # table indices of the first stage
+            self.c64 = np.empty((3, size), np.complex64)
+            self.c128 = np.empty((3, size), np.complex128)
+        return self
+
+    def index(self, dtype: type) -> np.ndarray:
+        return self.index32 if dtype == np.int32 else self.i64
+
+
+_LOCAL = threading.local()
+
+
+def workspace(size: int = 0) -> Workspace:
+    """This thread's :class:`Workspace`, at least ``size`` elements."""
+    ws = getattr(_LOCAL, "workspace", None)
+    if ws is None:
+        ws = _LOCAL.workspace = Workspace()
+    return ws.ensure(max(size, CHUNK))
+
+
+def beam_table(weights_u: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """float32 [BEAM_TABLE + 3]: ``values`` (sampled at ``weights_u`` in [0, 1]) at ``u = i / BEAM_TABLE``
+    for table index ``i + 1``, with zeros at index 0 and the last two (outside the beam)."""
+    out = np.zeros(BEAM_TABLE + 3, np.float32)
+    out[1:BEAM_TABLE + 2] = np.interp(np.arange(BEAM_TABLE + 1) / BEAM_TABLE, weights_u, values)
+    return out
+
+
+# ============================================================================ preparation
+def spline_prefilter(data: np.ndarray, axis: int) -> np.ndarray:
+    """Cubic B-spline coefficients of ``data`` along a (short) ``axis``, in place (causal and
+    anti-causal first-order recursions with pole :data:`SPLINE_POLE`, mirror-symmetric start;
+    Unser 1999). Returns ``data``."""
+    z = SPLINE_POLE
+    x = np.moveaxis(data, axis, 0)
+    n = x.shape[0]
+    if n < 2:
+        return data
+    x *= (1.0 - z) * (1.0 - 1.0 / z)
+    start = x[0].copy()                     # sum_k z^k x[k] (no BLAS: its threads cost more than the sum)
+    for k in range(1, min(n, 24)):
+        start += z ** k * x[k]
+    x[0] = start
+    for k in range(1, n):
+        x[k] += z * x[k - 1]
+    x[n - 1] = (z / (z * z - 1.0)) * (x[n - 1] + z * x[n - 2])
+    for k in range(n - 2, -1, -1):
+        x[k] = z * (x[k + 1] - x[k])
+    return data
+
+
+def prepare(image: PolarImage, factor: int, workers: int = 1) -> PolarImage:
+    """Make a polar image ready for :func:`s_pass`: taper the ends of its range lines over
+    :data:`TAPER` samples, upsample them ``factor`` times by FFT with the cubic B-spline prefilter
+    ``3 / (2 + cos(2 pi f))`` of the fine grid applied in the spectrum, prefilter along ``s``, and
+    store the coefficients transposed (range-major) as complex128 pairs of neighbouring sines with
+    :data:`_EDGE` zeros at each end of every range sample's column. Returns ``image``."""
+    axes = image.axes
+    # along s first (it commutes with the range FFT); in complex128: the recursion decays into
+    # float32 subnormals over the empty parts of the image, which are 100x slower
+    lines = spline_prefilter(image.data * _taper(axes.n_r).astype(np.float64)[None, :], axis=0)
+    n_fft = scipy.fft.next_fast_len(axes.n_r + FFT_GUARD)
+    spec = scipy.fft.fft(lines, n=n_fft, axis=1, workers=workers)
+    n_big = n_fft * factor
+    big = np.zeros((axes.n_s, n_big), np.complex64)
+    half = (n_fft + 1) // 2
+    big[:, :half] = spec[:, :half]
+    n_neg = n_fft - half
+    if n_fft % 2 == 0:
+        n_neg -= 1
+        big[:, n_fft // 2] = big[:, n_big - n_fft // 2] = 0.5 * spec[:, n_fft // 2]
+    if n_neg:
+        big[:, n_big - n_neg:] = spec[:, n_fft - n_neg:]
+    f = np.fft.fftfreq(n_big)
+    big *= (factor * 3.0 / (2.0 + np.cos(2.0 * np.pi * f))).astype(np.float32)[None, :]
+    n_up = (axes.n_r - 1) * factor + 1
+    coeffs = scipy.fft.ifft(big, axis=1, workers=workers, overwrite_x=True)[:, :n_up]
+    padded = np.zeros((n_up, axes.n_s + 2 * _EDGE), np.complex64)
+    padded[:, _EDGE:_EDGE + axes.n_s] = coeffs.T
+    image.table = _pairs(padded)
+    image.fine = PolarAxes(axes.s0, axes.ds, axes.n_s, axes.r0, axes.dr / factor, n_up)
+    return image
+
+
+def _taper(n: int) -> np.ndarray:
+    """float32 [n]: 1 inside, a raised cosine over the outer :data:`TAPER` samples of each end."""
+    w = np.ones(n, np.float32)
+    k = min(TAPER, n // 2)
+    if k:
+        ramp = (0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 0.5) / k)).astype(np.float32)
+        w[:k], w[n - k:] = ramp, ramp[::-1]
+    return w
+
+
+def _pairs(rows: np.ndarray) -> np.ndarray:
+    """complex128 [n_rows * (n - 1)]: element ``i (n - 1) + k`` packs ``(rows[i, k], rows[i, k + 1])``."""
+    n_rows, n = rows.shape
+    out = np.empty((n_rows, n - 1, 2), np.complex64)
+    out[:, :, 0] = rows[:, :-1]
+    out[:, :, 1] = rows[:, 1:]
+    return out.reshape(-1).view(np.complex128)
+
+
+# ============================================================================ the two passes
+def _cubic_bspline(x: np.ndarray) -> np.ndarray:
+    """The centred cubic B-spline ``beta3(x)`` (float64)."""
+    a = np.abs(x)
+    return np.where(a < 1.0, 2.0 / 3.0 - a * a + 0.5 * a ** 3, np.where(a < 2.0, (2.0 - a) ** 3 / 6.0, 0.0))
+
+
+def spline_tables(bits: int, phase_per_sample: float = 0.0) -> tuple[np.ndarray, np.ndarray, int]:
+    """Weights of the four taps ``k - 1 .. k + 2`` at the fraction ``f`` of position ``k + f``:
+    ``beta3(f - b) exp(j phase_per_sample (f - b))``, ``b = -1 .. 2``, at the bin centres
+    ``(n + 0.5) / 2**bits``. Returns two complex128 [2**bits] tables packing the complex64 pairs
+    (taps -1, 0) and (1, 2), and ``2**bits``. With ``phase_per_sample = kappa dr`` the weights carry
+    the carrier from each tap to the point (:func:`r_pass`)."""
+    m = 1 << bits
+    f = (np.arange(m) + 0.5) / m
+    b = np.arange(-1, 3)
+    x = f[:, None] - b[None, :]
+    w = (_cubic_bspline(x) * np.exp(1j * phase_per_sample * x)).astype(np.complex64)
+    return (np.ascontiguousarray(w[:, :2]).reshape(-1).view(np.complex128),
+            np.ascontiguousarray(w[:, 2:]).reshape(-1).view(np.complex128), m)
+
+
+def carrier_bits(phase_per_sample: float) -> int:
+    """Bits (10 .. 16) of a :func:`spline_tables` table whose quantised carrier errs by at most
+    :data:`CARRIER_PHASE`: the fraction is quantised to its bin centre, ``phase_per_sample / (2 2**bits)``."""
+    need = np.log2(max(phase_per_sample, 1e-30) / (2.0 * CARRIER_PHASE))
+    return int(np.clip(np.ceil(need), 10, MAX_WEIGHT_BITS))
+
+
+def _gather4(pairs: np.ndarray, index: np.ndarray, tables: tuple[np.ndarray, np.ndarray, int],
+             bins: np.ndarray, ws: Workspace, out: np.ndarray) -> np.ndarray:
+    """``out`` (complex64 [n]) = ``sum_b W_b(f) D[k + b]`` from the pair table (``index``, int64, points
+    at the pair of taps (-1, 0); +2 at (1, 2)) and the weight tables at the fraction ``bins``."""
+    w_lo, w_hi, _ = tables
+    n = index.size
+    product = np.take(pairs, index, out=ws.c128[0, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+    weights = np.take(w_lo, bins, out=ws.c128[1, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+    np.multiply(product, weights, out=product)
+    np.add(product[:, 0], product[:, 1], out=out)
+    index += 2
+    product = np.take(pairs, index, out=ws.c128[0, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+    weights = np.take(w_hi, bins, out=ws.c128[1, :n], mode="clip").view(np.complex64).reshape(-1, 2)
+    np.multiply(product, weights, out=product)
+    out += product[:, 0]
+    out += product[:, 1]
+    return out
+
+
+def _locate(position: np.ndarray, m: int, ws: Workspace) -> tuple[np.ndarray, np.ndarray]:
+    """Integer part (int64) and fraction bin (int32, ``m = 2**bits`` bins) of non-negative
+    fractional sample positions (float64, scaled in place), from one fixed-point conversion."""
+    n = position.size
+    position *= float(m)
+    q = ws.i64[:n].reshape(position.shape)
+    np.copyto(q, position, casting="unsafe")
+    bins = ws.i32[:n]
+    np.bitwise_and(q.reshape(-1), m - 1, out=bins, casting="unsafe")
+    np.right_shift(q, int(m).bit_length() - 1, out=q)
+    return q, bins
+
+
+def s_pass(image: PolarImage, s: np.ndarray, k0: int, tables: tuple[np.ndarray, np.ndarray, int],
+           out: np.ndarray) -> np.ndarray:
+    """Interpolate a prepared polar image along ``s`` at fixed fine range samples.
+
+    ``s`` float64 [rows, n] (overwritten): the sine of the target point of each row at fine range
+    sample ``k0 + column``. Fills ``out`` (complex64 [rows, n]) with the cubic-spline value there
+    (still spline coefficients along range, since the range prefilter commutes with the pass to
+    first order: B-splines reproduce linear functions). Sines beyond the axis by more than two
+    samples read zeros. At most :data:`CHUNK` points per call (cache-sized gathers)."""
+    fine = image.fine
+    ws = workspace(s.size)
+    position = s
+    position -= fine.s0
+    position *= 1.0 / fine.ds
+    np.clip(position, -2.0, fine.n_s + 1.0, out=position)
+    position += 2.0                                                    # non-negative for _locate
+    whole, bins = _locate(position, tables[2], ws)
+    whole += (np.arange(k0, k0 + s.shape[1]) * (fine.n_s + 2 * _EDGE - 1) + (_EDGE - 3))[None, :]
+    _gather4(image.table, whole.reshape(-1), tables, bins, ws, out.reshape(-1))
+    return out
+
+
+def premodulated_rows(coeffs: np.ndarray, carrier: np.ndarray, ws: Workspace) -> np.ndarray:
+    """The gather table of :func:`r_pass`: complex128 pairs of neighbouring range coefficients times
+    the carrier ``exp(+j kappa r_k)`` (complex64 [n]), :data:`_EDGE` zeros at each end of each row
+    (in ``ws.c128[2]``)."""
+    rows, n = coeffs.shape
+    width = n + 2 * _EDGE
+    padded = ws.c64[2, :rows * width].reshape(rows, width)
+    padded[:, :_EDGE] = 0.0
+    padded[:, _EDGE + n:] = 0.0
+    np.multiply(coeffs, carrier[None, :], out=padded[:, _EDGE:_EDGE + n])
+    pairs = ws.c128[2, :rows * (width - 1)].view(np.complex64).reshape(rows, width - 1, 2)
+    pairs[:, :, 0] = padded[:, :-1]
+    pairs[:, :, 1] = padded[:, 1:]
+    return ws.c128[2, :rows * (width - 1)]
+
+
+def r_pass(table: np.ndarray, n: int, position: np.ndarray,
+           tables: tuple[np.ndarray, np.ndarray, int], out: np.ndarray) -> np.ndarray:
+    """Interpolate rows of range coefficients with the carrier restored.
+
+    ``table`` from :func:`premodulated_rows` of ``n`` coefficients per row at ranges ``r_k``;
+    ``position`` float64 [rows, m] (overwritten), the target ranges in samples of ``r_k``, within
+    [-2, n + 1] (beyond the row's ends the spline reads the zero edges); ``tables`` from
+    :func:`spline_tables` with ``phase_per_sample = kappa dr``. Fills ``out`` (complex64
+    [rows, m]) with ``S(r) exp(+j kappa r)``."""
+    ws = workspace(position.size)
+    position += 2.0                                                    # non-negative for _locate
+    whole, bins = _locate(position, tables[2], ws)
+    whole += (np.arange(position.shape[0]) * (n + 2 * _EDGE - 1) + (_EDGE - 3))[:, None]
+    _gather4(table, whole.reshape(-1), tables, bins, ws, out.reshape(-1))
+    return out
