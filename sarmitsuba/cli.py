@@ -100,6 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--window", default="taylor", choices=FOCUS_WINDOWS, metavar="NAME",
                         help="focusing window in range and azimuth (default taylor: nbar 4, -35 dB sidelobes; "
                              f"rect for none); one of {', '.join(FOCUS_WINDOWS)}")
+    render.add_argument("--focuser", default="ffbp", choices=("ffbp", "bp"),
+                        help="fast factorised backprojection (default) or direct backprojection (its reference, "
+                             "slower)")
     preview = _add_scene_arguments(
         sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)"))
     preview.add_argument("--out", type=Path, default=None,
@@ -112,8 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     focus = sub.add_parser("focus", help="focus a raw.npz (any RawData) into image.npz/.exr/.png")
     focus.add_argument("raw", type=Path, help="RawData file (.npz)")
-    focus.add_argument("--algorithm", choices=("bp", "omegak", "rda"), default="bp",
-                       help="backprojection (any track), omega-K or range-Doppler (straight track)")
+    focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
+                       help="fast factorised backprojection (default) or direct backprojection (any track), "
+                            "omega-K or range-Doppler (straight track)")
     focus.add_argument("--window-range", default="rect", choices=WINDOWS, help="range window")
     focus.add_argument("--window-azimuth", default="rect", choices=WINDOWS,
                        help="azimuth window (omegak, rda: over the Doppler band; bp: over the beam)")
@@ -191,7 +195,7 @@ def _render(args: argparse.Namespace) -> int:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
-                     progress=not args.no_progress, window=args.window)
+                     progress=not args.no_progress, window=args.window, focuser=args.focuser)
     print(summary.line())
     if args.figures:
         from .figures import redraw

@@ -22,7 +22,8 @@ def test_render_writes_all_products(tmp_path, capsys):
     assert main(["render", "dihedral", "--out", str(out), "--no-progress", "--max-depth", "2"]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert line.startswith("rendered dihedral:") and "rays traced" in line and "pulses" in line
+    assert line.startswith("rendered dihedral:") and "rays cast" in line and "pulses" in line
+    assert "pulse-paths/s" in line and "pulses per trace" in line
 
     summary = json.loads((out / "summary.json").read_text())
     raw = RawData.load(out / "raw.npz")
@@ -31,6 +32,9 @@ def test_render_writes_all_products(tmp_path, capsys):
     assert len(summary["energy_per_order"]) == 2 and summary["rays_traced"] > 0
     assert set(summary["timings"]) >= {"load", "trace", "bin", "focus", "products", "total"}
     assert summary["outputs"]["png"] == str(out / "image.png")
+    # the returns evaluated: every pulse sees the dihedral's double bounce
+    assert 1 < summary["pulses_per_trace"] <= raw.n_pulses and summary["pulse_paths"] > raw.n_pulses
+    assert summary["pulse_paths_per_second"] > 0
 
     with np.load(out / "raw.npz") as f:                       # loads without sarmitsuba
         assert f["data"].dtype == np.complex64 and f["data"].shape == raw.data.shape

@@ -113,8 +113,10 @@ def test_one_km_joins_the_long_range_series(tmp_path):
     rho2 = 5.0 * edge**2 / 54.0
     results = []
     for slant in (1e3, 10e3, 100e3):
+        # direct backprojection: fast factorised backprojection's interpolation moves the peak
+        # phase by 0.4 deg at 1 km (its error is measured in test_ffbp.py and benchmarks/ffbp.py)
         sim = simulate(str(scene), sensor_overrides={"altitude": slant * math.cos(math.pi / 4), "beam": "uniform"},
-                       integrator_overrides={"ray_spacing": 0.02}, window="rect")
+                       integrator_overrides={"ray_spacing": 0.02}, window="rect", focuser="bp")
         assert np.all(np.isfinite(sim.image.data)) and np.all(np.isfinite(sim.raw.data))
         p = sim.loaded.params
         n_beam = _pulses_in_beam(sim.raw, np.zeros(3), p.azimuth_beamwidth).size

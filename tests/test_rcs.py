@@ -84,14 +84,15 @@ def test_plate_aspect_pattern_first_null(tmp_path):
 
 @pytest.mark.parametrize("name", ["dihedral 0.3 x 0.3 m", "trihedral 0.5 m"])
 def test_rcs_converges_with_ray_density(name, tmp_path):
-    """The PO sum converges as tubes shrink: the error at 0.01 m rays is below the error at
-    0.05 m and below 0.5 dB. (A plate aligned with the ray grid is converged at any density:
-    its tubes tile it exactly.) Every pulse is traced on its own here: the convergence is the
-    tubes'; sub-apertures are compared with it in test_subaperture.py."""
+    """The PO sum converges as tubes shrink: the error at 0.01 m rays is no larger than the error
+    at 0.05 m and below 0.5 dB. (A plate, or a dihedral, aligned with the ray grid is converged
+    at any density: the tubes' tiles, projected from each pulse, tile it exactly; the dihedral's
+    -0.22 dB is its aperture-averaged pattern.) Every pulse is traced on its own here: the
+    convergence is the tubes'; sub-apertures are compared with it in test_subaperture.py."""
     make, depth, extra, expected = CASES[name]
     xml = C.scene_xml(tmp_path, make(), C.PEC, depth, extra)
     error = {s: abs(db(integrated_rcs(simulate(str(xml), integrator_overrides={"ray_spacing": s,
                                                                               "pulses_per_trace": 1})))
                     - db(expected))
              for s in (0.05, 0.01)}
-    assert error[0.01] < error[0.05] and error[0.01] < 0.5, error
+    assert error[0.01] <= error[0.05] + 0.01 and error[0.01] < 0.5, error
