@@ -54,7 +54,8 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
 
     Custom channel names keep OpenEXR 3.5's Python reader (``OpenEXR.File``) from
     grouping them into an RGB(A) array; they are read back as
-    ``File(path).channels()["intensity"].pixels``. ZIP compression (lossless). The header
+    ``File(path).channels()["intensity"].pixels``. Uncompressed: float32 SAR data hardly
+    compress (ZIP: 145 MB instead of 146 MB for Munich's image, at 1.9 s instead of 0.07 s). The header
     attribute ``sarmitsuba`` holds JSON: plane, algorithm, window, origin, directions,
     both axes in metres and the image metadata (replaced by a note when longer than
     256 Ki characters).
@@ -80,7 +81,7 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
     if len(text) > _MAX_HEADER_JSON:  # keep EXR headers small; the .npz keeps the full metadata
         info["metadata"] = {"omitted": f"metadata longer than {_MAX_HEADER_JSON} characters"}
         text = json.dumps(info, default=_json_default)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+    header = {"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage,
               "comment": f"sarmitsuba {image.algorithm} image, {image.plane} plane: "
                          "channels intensity = |data|^2, real, imag",
               "sarmitsuba": text}
