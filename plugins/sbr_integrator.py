@@ -44,7 +44,7 @@
      off, the kernel keeps one histogram).
  * - max_batch_rays
    - integer
-   - Ceiling on the ray tubes of one kernel launch (default 1048576, at least 1024):
+   - Ceiling on the ray tubes of one kernel launch (default 262144, at least 1024):
      sub-apertures are batched, and a sub-aperture's lattice split into row chunks, to stay
      below it (one refined cell's tubes are never split).
  * - pulses_per_trace

@@ -490,7 +490,9 @@ class Kernel:
         dr.eval(rec, vis, *(() if last else (nxt,)))
         keep = dr.compress(vis)
         if dr.width(keep):
-            ret.deposit(ctx, dr.gather(Record, rec, keep), depth, n_lanes)
+            visible_hits = dr.gather(Record, rec, keep)
+            dr.eval(visible_hits)             # one kernel for all fields (not one per field, later)
+            ret.deposit(ctx, visible_hits, depth, n_lanes)
         if last:
             return dr.zeros(Tube, 0)
         nxt = dr.gather(Tube, nxt, dr.compress(nxt.active))

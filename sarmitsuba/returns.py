@@ -293,13 +293,16 @@ class Returns:
             for per_pulse in (False, True):
                 part = dr.compress(undecided if per_pulse else ~undecided)
                 if dr.width(part):
-                    self.po(ctx, dr.gather(type(rec), rec, dr.gather(mi.UInt32, index, part)),
-                            dr.gather(mi.UInt32, code, part), depth, per_pulse)
+                    terms, codes = dr.gather(type(rec), rec, dr.gather(mi.UInt32, index, part)), dr.gather(mi.UInt32, code, part)
+                    dr.eval(terms, codes)
+                    self.po(ctx, terms, codes, depth, per_pulse)
         if self.clutter_on:
             kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
             rough = dr.compress(kind > 0)
             if dr.width(rough):
-                self.clutter(ctx, dr.gather(type(rec), rec, rough), depth)
+                hits = dr.gather(type(rec), rec, rough)
+                dr.eval(hits)
+                self.clutter(ctx, hits, depth)
 
     def terms(self, ctx, rec, n_lanes: int):
         """The PO terms of the records that survive cancellation, eqs. (PO2), (PO5).

@@ -28,6 +28,7 @@ import math
 import time
 from dataclasses import dataclass, fields
 
+import drjit as dr
 import mitsuba as mi
 import numpy as np
 from tqdm import tqdm
@@ -238,6 +239,8 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
             bar.update(p1 - p0)
     finally:
         bar.close()
+        del kernel
+        dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
     seconds = time.perf_counter() - start
     return TraceResult(spectrum=spectrum.sum(axis=0) if groups > 1 else spectrum[0], reference_length=lref,
                        energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),

@@ -65,7 +65,7 @@ class TraceSettings:
     ray_spacing: float = 0.0
     range_kernel: str = "linear"
     oversample: int = 8
-    max_batch_rays: int = 1 << 20
+    max_batch_rays: int = 1 << 18
     seed: int = 0
     split_bounces: bool = False
     scatterer_spacing: float = 0.0
