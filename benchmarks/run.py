@@ -13,6 +13,13 @@ ray_density    rays per resolution cell: canonical-target RCS error and speckle 
 focus          backprojection, omega-K, range-Doppler: point-target quality and time
 scaling        time against buildings (1..1000), pulses and image size; the 16-building
                512 x 512 case against Franceschetti et al. (2003)
+subaperture    pulses per trace 1..64 on urban and Munich: image NRMSE against per-pulse
+               tracing (and the ray lattice's own), trace time, casts, returns
+ffbp           fast factorised backprojection's knobs: NRMSE against direct
+               backprojection and seconds, omega-K's time in the same run
+munich         the Munich acceptance of issue 12: default render in units of bare
+               Mitsuba casting, memory, NRMSE against the per-pulse/direct reference,
+               backprojection against omega-K, info's estimate against the render
 ============== =========================================================================
 
 Each writes ``benchmarks/out/<name>.csv`` and ``<name>.png`` (accuracy against seconds, one
@@ -36,7 +43,8 @@ from _table import machine, write_csv  # noqa: E402
 
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
-         "focus": "focus_algorithms", "scaling": "scaling"}
+         "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
+         "munich": "munich"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,7 +10,8 @@ acquisition (:mod:`sarmitsuba.planning`) and collects, in one :class:`SceneInfo`
   (:func:`sarmitsuba.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.effects.list_effects`);
-- the estimated cost: ray casts, trace time, memory, image size and backprojection time.
+- the estimated cost: sub-apertures, ray casts, returns, trace time, memory, image size and
+  focusing time.
 
 Nothing is traced: the cost is an estimate from the measured rates below. Every number is
 SI with its unit in the field name (``_m``, ``_hz``, ``_s``, ``_deg``, ``_db``, ``_bytes``).
@@ -55,24 +56,47 @@ __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "Co
 #: docs/design.md section 10.
 CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
 
-#: Factor on the pure ray-cast time for the work done at every hit: the PO terms at up to four
-#: points per tube, the clutter scatterers, materials and the deposit (docs/design.md section
-#: 10). Measured on the 2-core machine, trace time over the time of its casts at the rates of
-#: CAST_RATE_ANCHORS: 2.7 for sionna:munich (smooth), 4.8 for urban (rough facades).
-TRACE_OVERHEAD = 3.0
+#: Factor on the sum of the tracer's parts (casts, returns, spectra) for what is not in them:
+#: kernel launches and their Python tracing, compaction between bounce orders. Measured on the
+#: 2-core machine (issue 12): 1.2-1.6 for urban and sionna:munich, smooth and rough.
+TRACE_OVERHEAD = 1.3
+
+#: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
+#: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
+RETURN_SECONDS = 9e-9
+#: Seconds per clutter scatterer deposited for one pulse (hash, length, deposit): about 20 ns
+#: (urban: 31.6 M scatterers).
+SCATTERER_SECONDS = 2e-8
+#: Seconds per fine fast-time sample, spectral order and pulse of the reduction to the band
+#: (its FFT, docs/physics.md (D5)): 5.6 ns (Munich: 195 M, 1.1 s).
+FFT_SECONDS = 5.6e-9
+#: PO returns evaluated per ray tube and pulse (the terms that do not cancel, (PO5)), for the
+#: estimate: 0.97 measured in Munich (a city; 0.2 on the urban block's open ground).
+RETURNS_PER_TUBE = 1.0
+#: Clutter scatterers per square metre of tube footprint is ``1 / scatterer_spacing^2``; the
+#: estimate assumes every hit is rough when any material is (Munich rough: 2.2 per tube).
 
 #: Bytes per path of the ``exact`` range kernel's path list (int32 pulse, uint8 order,
 #: float64 position, complex64 value: :class:`sarmitsuba.trace.PathList`).
 PATH_BYTES = 4 + 1 + 8 + 8
 
-#: Backprojection throughput [pixel-pulses/s] on the same machine: 2.1e8 measured by
+#: Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`): seconds per in-beam
+#: pixel-pulse (its first stage) and per lit pixel (the interpolations onto the grid), fitted to
+#: urban (0.97 M pixels, 2.1e8 pixel-pulses: 0.8 s) and sionna:munich (12.2 M pixels, 1.2e9
+#: pixel-pulses: 5.5 s) on the 2-core machine; plus a fixed 0.05 s.
+FFBP_PIXEL_PULSE_SECONDS = 3.2e-9
+FFBP_PIXEL_SECONDS = 1.45e-7
+FFBP_FIXED_SECONDS = 0.05
+
+#: Direct backprojection throughput [pixel-pulses/s] on the same machine: 2.1e8 measured by
 #: benchmarks/focus_bench.py (1024 x 1024 grid, 1024 pulses, no beam limit).
 BACKPROJECTION_RATE = 2e8
 
-#: Fixed cost [s] of one (pixel tile, pulse block) pair of the beam-limited backprojection,
-#: paid whether or not the tile is in the beam (its float64 reference geometry): fitted to
-#: two renders on the 2-core machine, urban (707 x 1041 pixels, 680 pulses: 1.0 s) and
-#: sionna:munich (3363 x 3287 pixels, 2264 pulses: 24 s), given BACKPROJECTION_RATE.
+#: Fixed cost [s] of one (pixel tile, pulse block) pair of the beam-limited direct
+#: backprojection, paid whether or not the tile is in the beam (its float64 reference
+#: geometry): fitted to two renders on the 2-core machine, urban (707 x 1041 pixels, 680
+#: pulses: 1.0 s) and sionna:munich (3363 x 3287 pixels, 2264 pulses: 24 s), given
+#: BACKPROJECTION_RATE.
 BACKPROJECTION_TILE_SECONDS = 2.2e-4
 
 #: Pixel tile ``(azimuth, range)`` and pulse block of :func:`sarmitsuba.focus.backproject`
@@ -232,38 +256,48 @@ class RadiometrySummary:
 class CostEstimate:
     """Estimated work and memory of a render (the times are estimates, within a factor ~2).
 
-    Rays: ``rays_per_pulse`` is the size of the coarse ray grid aimed at the scene per pulse
-    (rays outside the beam are not cast, so it is an upper bound); ``primary_rays`` adds the
-    finer tubes around small objects for the pulses that see them. Casts: every ray reaching
-    ``max_depth`` bounces, ``primary_rays * max_depth`` closest-hit and as many shadow casts
-    (upper bound). Trace time: ``TRACE_OVERHEAD * (closest_hit / closest_hit_rate + shadow /
-    shadow_rate)`` with the rates of :func:`cast_rates`, from every primary ray ending at its
-    first hit (``trace_time_low_s``) to the upper-bound casts (``trace_time_high_s``).
+    Rays: ``rays_per_pulse`` is the coarse ray grid a pulse aims at the scene (rays outside the
+    beam are not cast, so it is an upper bound). A sub-aperture of ``pulses_per_trace`` pulses
+    traces the union of its pulses' grids once (docs/physics.md (T3)): ``primary_rays`` are the
+    tubes of all ``subapertures``, plus the finer tubes around small objects for the
+    sub-apertures that see them. Casts: ``primary_rays`` (low) to ``primary_rays * max_depth``
+    (high) closest-hit casts, as many shadow casts. Returns: every pulse evaluates
+    :data:`RETURNS_PER_TUBE` PO terms per tube it casts and, when a material is rough, the
+    clutter scatterers of its tubes' footprints (``tube area / scatterer_spacing^2`` each):
+    ``pulse_paths``. Trace time: :data:`TRACE_OVERHEAD` times the casts at the rates of
+    :func:`cast_rates`, the returns at :data:`RETURN_SECONDS` and :data:`SCATTERER_SECONDS` and
+    the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
+    between low and high.
 
     Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
     = ``max_depth`` with ``split_bounces``, else 1; :func:`sarmitsuba.deposit.padded_length`),
-    or with the ``exact`` range kernel its term list instead, at most one path per closest-hit cast of :data:`PATH_BYTES` each; one
-    raw data set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64
-    ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth`` with
-    ``split_bounces``).
+    or with the ``exact`` range kernel its term list instead, at most one path per return of
+    :data:`PATH_BYTES` each; one raw data set, complex64 ``[n_pulses, fast_time_samples]``; one
+    image, complex64 ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth``
+    with ``split_bounces``).
 
-    Backprojection, per image: the pixel-pulses inside the beam (stripmap: each pulse
-    reaches the beam footprint's rows plus one tile; spotlight: every pixel and pulse) at
-    :data:`BACKPROJECTION_RATE`, plus :data:`BACKPROJECTION_TILE_SECONDS` per (tile, pulse
-    block) pair.
+    Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
+    footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
+    lights. Fast factorised backprojection (the render's focuser): :data:`FFBP_PIXEL_PULSE_SECONDS`
+    per pixel-pulse and :data:`FFBP_PIXEL_SECONDS` per lit pixel; direct backprojection (``bp``):
+    :data:`BACKPROJECTION_RATE` plus :data:`BACKPROJECTION_TILE_SECONDS` per (tile, pulse block).
     """
 
     ray_spacing_m: float
     rays_per_pulse: int
     n_pulses: int
+    pulses_per_trace: int
+    subapertures: int
     primary_rays: int
     max_depth: int
     closest_hit_casts: int
     shadow_casts: int
     closest_hit_rate_per_s: float
     shadow_rate_per_s: float
+    pulse_paths: int
     trace_time_low_s: float
     trace_time_high_s: float
+    trace_time_s: float
     fast_time_samples: int
     fine_samples: int
     deposit_bytes: int
@@ -273,7 +307,8 @@ class CostEstimate:
     image_bytes: int
     n_products: int
     backprojection_pixel_pulses: int
-    backprojection_time_s: float
+    focus_time_s: float
+    direct_backprojection_time_s: float
 
 
 @dataclass(frozen=True)
@@ -457,41 +492,65 @@ def cast_rates(n_triangles: int) -> tuple[float, float]:
 
 def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
           footprint: RayFootprint) -> CostEstimate:
-    st, n_pulses = loaded.settings, loaded.params.n_pulses
-    # coarse tubes every pulse; each refined cell's fine tubes for the pulses whose beam holds it
-    primary = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * _aperture(loaded.params)[1]
+    from .trace import pulses_per_trace
+    st, p = loaded.settings, loaded.params
+    n_pulses = p.n_pulses
+    size = pulses_per_trace(p, st, n_pulses)
+    n_subs = math.ceil(n_pulses / size)
+    # a sub-aperture's union of its pulses' lattices: the cells its antenna travel adds along track
+    spread = math.ceil(min(size - 1, n_pulses - 1) * p.velocity / p.prf / footprint.spacing_azimuth)
+    per_sub = (footprint.n_azimuth + spread) * footprint.n_range
+    pulses_seeing = _aperture(p)[1]
+    primary = per_sub * n_subs + footprint.refined_rays * math.ceil(pulses_seeing / size)
     casts = primary * st.max_depth
     hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
+    tube_pulses = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * pulses_seeing
+    table = material_table(loaded.scene, p.frequency, p.polarization)
+    tube_area = footprint.spacing_azimuth * footprint.spacing_range
+    scatterers = (footprint.rays_per_pulse * n_pulses * tube_area / footprint.scatterer_spacing**2
+                  if table.has_clutter else 0.0)
+    paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)
     groups = st.max_depth if st.split_bounces else 1
+    n_pad = padded_length(window.n_samples)
+    work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
+            + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
+
+    def trace_time(closest: float) -> float:
+        return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work)
+
     exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
     grid = image_grid(loaded, geometry)
     n_products = 1 + (st.max_depth if st.split_bounces else 0)
-    pixel_pulses, seconds = _backprojection(loaded.params, grid)
+    pixel_pulses, lit, direct = _backprojection(p, grid)
+    fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
-        primary_rays=primary, max_depth=st.max_depth, closest_hit_casts=casts, shadow_casts=casts,
-        closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
-        trace_time_low_s=TRACE_OVERHEAD * (primary / hit_rate + primary / shadow_rate),
-        trace_time_high_s=TRACE_OVERHEAD * (casts / hit_rate + casts / shadow_rate),
+        pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
+        closest_hit_casts=casts, shadow_casts=casts, closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
+        pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
+        trace_time_s=trace_time(0.5 * (primary + casts)),
         fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=0 if exact else groups * n_pulses * padded_length(window.n_samples) * 8,
-        path_list_bytes=casts * PATH_BYTES if exact else 0, raw_bytes=n_pulses * window.n_samples * 8,
+        deposit_bytes=0 if exact else groups * n_pulses * n_pad * 8,
+        path_list_bytes=paths * PATH_BYTES if exact else 0, raw_bytes=n_pulses * window.n_samples * 8,
         image_shape=grid.shape, image_bytes=grid.shape[0] * grid.shape[1] * 8, n_products=n_products,
-        backprojection_pixel_pulses=n_products * pixel_pulses, backprojection_time_s=n_products * seconds)
+        backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
+        direct_backprojection_time_s=n_products * direct)
 
 
-def _backprojection(p: RadarParameters, grid) -> tuple[int, float]:
-    """Pixel-pulses and estimated seconds of one beam-limited backprojection onto ``grid``
-    (the model of :class:`CostEstimate`)."""
+def _backprojection(p: RadarParameters, grid) -> tuple[int, int, float]:
+    """Pixel-pulses inside the beam, pixels some pulse lights, and the estimated seconds of one
+    direct beam-limited backprojection onto ``grid`` (the model of :class:`CostEstimate`)."""
     n_az, n_rg = grid.shape
-    rows = n_az
+    rows, lit_rows = n_az, n_az
     if p.mode == "stripmap" and n_az > 1:        # the pipeline limits stripmap focusing to the beam
         spacing = float(grid.azimuth[1] - grid.azimuth[0])
         rows = min(n_az, math.ceil(p.footprint_length / spacing) + BACKPROJECTION_TILE[0])
+        track = (p.n_pulses - 1) * p.velocity / p.prf
+        lit_rows = min(n_az, math.ceil((track + p.footprint_length) / spacing))
     pixel_pulses = p.n_pulses * rows * n_rg
     pairs = (math.ceil(n_az / BACKPROJECTION_TILE[0]) * math.ceil(n_rg / BACKPROJECTION_TILE[1])
              * math.ceil(p.n_pulses / BACKPROJECTION_PULSE_BLOCK))
-    return pixel_pulses, pixel_pulses / BACKPROJECTION_RATE + pairs * BACKPROJECTION_TILE_SECONDS
+    return pixel_pulses, lit_rows * n_rg, pixel_pulses / BACKPROJECTION_RATE + pairs * BACKPROJECTION_TILE_SECONDS
 
 
 # ============================================================================ output
@@ -579,19 +638,20 @@ def _cost_lines(c: CostEstimate) -> list[str]:
               if not c.path_list_bytes else f"path list (exact kernel) up to {_bytes(c.path_list_bytes)}")
     return [
         f"rays: {c.rays_per_pulse:,} per pulse (grid spacing {c.ray_spacing_m:.3g} m; rays outside the beam are "
-        f"not cast) x {c.n_pulses:,} pulses = {c.primary_rays:,} primary rays",
+        f"not cast); {c.n_pulses:,} pulses in {c.subapertures:,} sub-apertures of {c.pulses_per_trace} pulses, each "
+        f"traced once: {c.primary_rays:,} primary rays",
         f"casts (upper bound, every ray to max_depth {c.max_depth}): {c.closest_hit_casts:,} closest-hit + "
-        f"{c.shadow_casts:,} shadow",
-        f"trace time ~ {_duration(c.trace_time_low_s)} .. {_duration(c.trace_time_high_s)} (primary rays only .. "
-        f"upper-bound casts, at {c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and "
-        f"{c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s on 2 cores, x {TRACE_OVERHEAD:g} for the work at each hit)",
+        f"{c.shadow_casts:,} shadow; returns evaluated ~ {c.pulse_paths:.3g} (pulse x path)",
+        f"trace time ~ {_duration(c.trace_time_s)} ({_duration(c.trace_time_low_s)} .. "
+        f"{_duration(c.trace_time_high_s)}: primary rays only .. upper-bound casts, at "
+        f"{c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and {c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s "
+        f"and {RETURN_SECONDS * 1e9:g} ns per return on 2 cores)",
         f"memory: {memory}, raw data {_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
         f"image {_bytes(c.image_bytes)}",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
-        f"backprojection ~ {_duration(c.backprojection_time_s)} ({c.backprojection_pixel_pulses:.3g} pixel-pulses "
-        f"in the beam at {BACKPROJECTION_RATE:.0e}/s + {BACKPROJECTION_TILE_SECONDS * 1e3:g} ms per tile and "
-        f"pulse block)"]
+        f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "
+        f"pixel-pulses in the beam; direct backprojection ~ {_duration(c.direct_backprojection_time_s)})"]
 
 
 def _db(x: float) -> float:

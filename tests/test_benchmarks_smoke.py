@@ -1,6 +1,7 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
-Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py`` and ``scaling.py`` runs with
+Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``
+and ``scaling.py`` runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
 write ``benchmarks/out/<name>_tiny.csv`` and ``.png`` (tiny runs never overwrite the real
@@ -37,6 +38,16 @@ EXPECTED = {
         ("seconds", "time_ratio", "irw_range_err_pct", "irw_azimuth_err_pct", "pslr_err_db", "islr_err_db",
          "position_err_cells", "phase_err_deg", "peak_err_db", "nrmse_vs_finest_db"),
         ()),
+    "subaperture": (
+        {"scene", "setting", "trace_s", "pulses_per_trace", "closest_hit_casts", "shadow_casts", "pulse_paths",
+         "pulses", "nrmse_db", "trace_ratio"},
+        ("trace_s", "pulses_per_trace", "closest_hit_casts", "shadow_casts", "pulse_paths", "pulses", "trace_ratio"),
+        ()),
+    "ffbp": (
+        {"case", "method", "setting", "seconds", "nrmse_db", "subapertures", "polar_samples", "over_omega_k",
+         "over_direct"},
+        ("seconds", "over_omega_k", "over_direct"),
+        ("subapertures", "polar_samples")),
     "scaling": (
         {"sweep", "n", "buildings", "pulses", "pixels", "triangles", "rays_traced", "load_s", "trace_s", "bin_s",
          "focus_s", "total_s", "exponent_total", "exponent_stage", "reference_s", "reference_over_ours"},

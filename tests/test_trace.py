@@ -110,11 +110,21 @@ def test_chirped_raw_output_focuses_like_compressed_output():
     assert 20 * math.log10(nrmse) < -50.0, f"NRMSE {20 * math.log10(nrmse):.1f} dB"
 
 
-def test_info_estimates_the_memory_the_tracer_keeps():
-    """``info``'s deposit estimate is the size of the spectra the tracer returns (no tracing in info)."""
+def test_info_estimates_bound_what_the_tracer_does():
+    """``info`` (no tracing) against a trace of the same scene: the same sub-apertures; its primary
+    rays bound the tubes the tracer casts (within a factor 3 from above: cells outside the beam
+    are counted), its casts bound the tracer's; the deposit, raw data and image sizes are the
+    tracer's."""
     from sarmitsuba.info import scene_info
     overrides = dict(integrator_overrides={"max_depth": 2, "ray_spacing": 0.25})
-    assert scene_info("dihedral", **overrides).cost.deposit_bytes == simulate("dihedral", **overrides).trace.spectrum.nbytes
+    c = scene_info("dihedral", **overrides).cost
+    sim = simulate("dihedral", **overrides)
+    cast = sim.trace.rays_per_order
+    assert c.pulses_per_trace == sim.trace.pulses_per_trace > 1
+    assert cast[0] <= c.primary_rays <= 3 * cast[0]
+    assert cast.sum() <= c.closest_hit_casts and sim.trace.shadow_rays <= c.shadow_casts
+    assert c.deposit_bytes == sim.trace.spectrum.nbytes
+    assert c.raw_bytes == sim.raw.data.nbytes and c.image_bytes == sim.image.data.nbytes
 
 
 def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monkeypatch):

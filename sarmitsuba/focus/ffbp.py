@@ -15,7 +15,7 @@ Cost, for pixels integrating ``N_a`` pulses each: ``subaperture x (polar samples
 in the first stage (the polar samples of all sub-apertures together are about the swath's range
 samples x the pulses x the beam's sines x ``4 |p - c| / lambda`` per sub-aperture pulse x the
 angular oversampling: independent of ``subaperture``), then ``(pixels) x (N_a / subaperture + 1)``
-interpolations, instead of ``(pixels) x N_a`` for the direct sum. docs/ffbp.md derives the
+interpolations, instead of ``(pixels) x N_a`` for the direct sum. docs/physics.md (F1)-(F9) derives the
 factorisation, the error knobs and the defaults.
 
 References
@@ -74,7 +74,7 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     :func:`~sarmitsuba.focus.backproject` (read its Parameters for ``azimuth_beamwidth``,
     ``squint``, ``azimuth_pattern``, ``window_azimuth``, ``oversample``, ``workers`` and
     ``progress``), computed with fewer operations and an interpolation error set by the knobs
-    below (docs/ffbp.md; measured against ``backproject`` in benchmarks/ffbp.py).
+    below (docs/physics.md (F3), (F7); measured against ``backproject`` in benchmarks/ffbp.py).
 
     Parameters
     ----------
@@ -123,7 +123,7 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
 
     Notes
     -----
-    Accuracy (docs/ffbp.md): against ``backproject`` on analytic point targets the image NRMSE
+    Accuracy (docs/physics.md (F7), (F8)): against ``backproject`` on analytic point targets the image NRMSE
     is -43 to -48 dB at the defaults (-33 dB with an ideal, all-or-nothing beam gate: a polar
     image interpolates the gate's single-pulse steps); on Sionna's Munich -33.5 dB, while
     ``backproject`` itself moves by -31.4 dB when its pixel tiles shift (its gate is placed per

@@ -1,0 +1,199 @@
+"""Benchmark: Munich in seconds (issue 12's acceptance), every figure measured in one run.
+
+1. **Unit of work**: bare Mitsuba casting 279 M closest-hit rays on Sionna's Munich, the primary
+   rays of per-pulse tracing before issue 12 (every pulse aims one ray at each lattice cell of its
+   beam), cast as that tracer cast them: ``scene.ray_intersect(ray, RayFlags.Minimal,
+   coherent=False)``. Timed on the rays of 64 pulses spread over the aperture (about 3 M) and
+   scaled to 279 M. Embree alone (``ray_intersect_preliminary``, no surface interaction) is timed
+   on the same rays for comparison.
+2. **The default render**, ``python -m sarmitsuba render sionna:munich``, start to end in a
+   subprocess: wall seconds (also in units) and peak memory (the process's maximum resident set).
+3. **The reference render**: every pulse traced on its own and direct backprojection
+   (``--integrator-set pulses_per_trace=1 --focuser bp``), seconds and memory, and the image
+   NRMSE between the default and the reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB].
+4. ``sarmitsuba info``'s estimate of trace and focus time (no tracing) against the render's.
+5. **Backprojection against omega-K** on the default render's raw data (both warm, best of two):
+   fast factorised backprojection (the render's focuser) and direct backprojection, on the
+   render's ground grid, against omega-K on its slant grid.
+6. The same on the built-in ``urban`` scene (no unit of work: it is Munich's).
+
+Memory before issue 12 (commit c4b9c92, the same command, measured with GNU time): 1,136 MB
+(:data:`MEMORY_BEFORE_MB`); its render took 168 s on the same machine.
+
+Writes ``benchmarks/out/munich.csv``. Needs Sionna RT (``pip install sionna-rt``); ``--quick``:
+urban only. Usage: ``python benchmarks/munich.py [--quick]``
+"""
+from __future__ import annotations
+
+import gc
+import importlib.util
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import sarmitsuba  # noqa: F401
+from _table import bench_main, machine, write_csv
+
+NAME = "munich"
+#: Closest-hit casts of the unit of work (the primary rays of per-pulse tracing before issue 12).
+UNIT_RAYS = 279e6
+#: Peak memory of the Munich default render before issue 12 [MB] (commit c4b9c92, GNU time).
+MEMORY_BEFORE_MB = 1136.0
+#: Pulses whose primary rays are timed for the unit.
+UNIT_PULSES = 64
+
+#: Runs a CLI command and prints the process's peak resident memory [MB] on exit.
+_PROFILED = ("import atexit, resource, runpy, sys; sys.argv = ['sarmitsuba'] + sys.argv[1:]; "
+             "atexit.register(lambda: print('peak_rss_mb', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)); "
+             "runpy.run_module('sarmitsuba', run_name='__main__')")
+
+
+def unit_of_work(scene: str = "sionna:munich") -> dict:
+    """Seconds to cast :data:`UNIT_RAYS` primary rays of per-pulse tracing, as ``ray_intersect``
+    (Minimal) and as Embree alone; best of three each."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from sarmitsuba import planning
+    from sarmitsuba.radar import acquisition_geometry
+    from sarmitsuba.scene import load_scene
+    loaded = load_scene(scene)
+    p = loaded.params
+    geometry = acquisition_geometry(p)
+    fp = planning.ray_footprint(p, geometry, loaded.bbox_lo, loaded.bbox_hi, loaded.settings)
+    origins, directions = [], []
+    for q in np.linspace(0, geometry.positions.shape[0] - 1, UNIT_PULSES).astype(int):
+        i, j = np.meshgrid(fp.k0[q] + np.arange(fp.n_azimuth), np.arange(fp.n_range), indexing="ij")
+        along = ((i + 0.5) * fp.spacing_azimuth).reshape(-1)
+        aim = fp.origin + along[:, None] * fp.track + ((j + 0.5) * fp.spacing_range + fp.range_min).reshape(-1)[:, None] * fp.look
+        v = aim - geometry.positions[q]
+        r = np.linalg.norm(v, axis=1)
+        d = v / r[:, None]
+        sine = d @ fp.track
+        keep = ((sine >= p.beam_sines[0]) & (sine <= p.beam_sines[1])
+                & (along >= fp.along_limits[q, 0]) & (along <= fp.along_limits[q, 1]))
+        origins.append(geometry.positions[q] + d[keep] * (r[keep, None] - 500.0))
+        directions.append(d[keep])
+    o, d = np.concatenate(origins), np.concatenate(directions)
+    ray = mi.Ray3f(mi.Point3f(*(o[:, c].astype(np.float32) for c in range(3))),
+                   mi.Vector3f(*(d[:, c].astype(np.float32) for c in range(3))))
+    seconds = {}
+    for name, cast in (("ray_intersect", lambda: loaded.scene.ray_intersect(ray, mi.RayFlags.Minimal, False).t),
+                       ("embree", lambda: loaded.scene.ray_intersect_preliminary(ray, coherent=False).t)):
+        best = float("inf")
+        for _ in range(3):
+            start = time.perf_counter()
+            dr.eval(cast())
+            dr.sync_thread()
+            best = min(best, time.perf_counter() - start)
+        seconds[name] = best * UNIT_RAYS / o.shape[0]
+    del loaded, ray
+    gc.collect()
+    return {"unit_s": seconds["ray_intersect"], "embree_unit_s": seconds["embree"], "unit_sample_rays": o.shape[0]}
+
+
+def render(scene: str, out: Path, *args: str) -> dict:
+    """``sarmitsuba render`` in a subprocess: wall seconds, peak memory [MB], summary.json."""
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _PROFILED, "render", scene, "--out", str(out), "--no-progress",
+                           *args], capture_output=True, text=True, check=True)
+    seconds = time.perf_counter() - start
+    peak = float(next(line.split()[1] for line in done.stdout.splitlines() if line.startswith("peak_rss_mb")))
+    summary = json.loads((out / "summary.json").read_text())
+    return {"seconds": seconds, "peak_mb": peak, "timings": summary["timings"], "summary": summary}
+
+
+def nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
+    """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB]."""
+    return float(10.0 * np.log10(np.sum(np.abs(a - b) ** 2) / np.sum(np.abs(b) ** 2)))
+
+
+def focusing(raw_path: Path) -> dict:
+    """Fast and direct backprojection of a render's raw data onto its ground grid, and omega-K on
+    its slant grid: seconds (best of two, after a warm-up), the fast image's NRMSE against direct."""
+    from sarmitsuba.pipeline import refocus
+    from sarmitsuba.raw import RawData
+    raw = RawData.load(raw_path)
+    out, images = {}, {}
+    for name in ("omegak", "ffbp", "bp"):
+        refocus(raw, name, window_range="taylor", window_azimuth="taylor")          # warm-up
+        best = float("inf")
+        for _ in range(1 if name == "bp" else 2):
+            start = time.perf_counter()
+            images[name] = refocus(raw, name, window_range="taylor", window_azimuth="taylor").data
+            best = min(best, time.perf_counter() - start)
+        out[f"{name}_s"] = best
+    out["ffbp_nrmse_db"] = nrmse_db(images["ffbp"], images["bp"])
+    return out
+
+
+def scene_rows(scene: str, folder: Path, with_unit: bool) -> list[dict]:
+    """The default and reference renders of one scene, their NRMSE, and (Munich) the unit and focusing."""
+    from sarmitsuba.image import SarImage
+    default = render(scene, folder / "default")
+    reference = render(scene, folder / "reference", "--integrator-set", "pulses_per_trace=1", "--focuser", "bp")
+    error = nrmse_db(SarImage.load(folder / "default" / "image.npz").data,
+                     SarImage.load(folder / "reference" / "image.npz").data)
+    row = {"scene": scene, "render_s": round(default["seconds"], 2), "peak_mb": round(default["peak_mb"]),
+           **{f"{k}_s": round(v, 2) for k, v in default["timings"].items() if k != "total"},
+           "pulses_per_trace": default["summary"]["pulses_per_trace"],
+           "pulse_paths_per_s": default["summary"].get("pulse_paths_per_second"),
+           "reference_render_s": round(reference["seconds"], 2), "reference_peak_mb": round(reference["peak_mb"]),
+           "nrmse_vs_reference_db": round(error, 1)}
+    from sarmitsuba.info import scene_info
+    estimate = scene_info(scene).cost
+    measured = default["timings"]["trace"] + default["timings"]["focus"]
+    row.update({"info_trace_focus_s": round(estimate.trace_time_s + estimate.focus_time_s, 2),
+                "info_over_measured": round((estimate.trace_time_s + estimate.focus_time_s) / measured, 2)})
+    focus = focusing(folder / "default" / "raw.npz")
+    row.update({k: round(v, 2) for k, v in focus.items()})
+    row["ffbp_over_omegak"] = round(focus["ffbp_s"] / focus["omegak_s"], 1)
+    if with_unit:
+        unit = unit_of_work(scene)
+        row.update({k: round(v, 2) if isinstance(v, float) else v for k, v in unit.items()})
+        row["render_units"] = round(default["seconds"] / unit["unit_s"], 3)
+        row["render_embree_units"] = round(default["seconds"] / unit["embree_unit_s"], 3)
+    return [row]
+
+
+def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    """Issue 12's acceptance, as ratios of this run."""
+    out = []
+    for row in rows:
+        scene = row["scene"]
+        out.append((f"{scene}: info's trace + focus estimate within a factor 2 of the render's",
+                    bool(0.5 <= row["info_over_measured"] <= 2.0), f"estimate / measured = {row['info_over_measured']}"))
+        out.append((f"{scene}: image NRMSE against per-pulse tracing and direct backprojection <= -30 dB",
+                    bool(row["nrmse_vs_reference_db"] <= -30.0), f"{row['nrmse_vs_reference_db']} dB"))
+        if "render_units" in row:
+            out.append((f"{scene}: default render <= 1.0 unit", bool(row["render_units"] <= 1.0),
+                        f"{row['render_s']} s = {row['render_units']} units of {row['unit_s']} s "
+                        f"({row['render_embree_units']} Embree-only units of {row['embree_unit_s']} s)"))
+            out.append((f"{scene}: backprojection <= 3x omega-K", bool(row["ffbp_over_omegak"] <= 3.0),
+                        f"ffbp {row['ffbp_s']} s, omega-K {row['omegak_s']} s, direct {row['bp_s']} s"))
+            out.append((f"{scene}: peak memory <= before issue 12 ({MEMORY_BEFORE_MB:.0f} MB)",
+                        bool(row["peak_mb"] <= MEMORY_BEFORE_MB), f"{row['peak_mb']} MB"))
+    return out
+
+
+def run(quick: bool = False, tiny: bool = False) -> list[dict]:
+    """Run the renders and timings, print and write the table; returns the rows."""
+    print(machine())
+    scenes = ["urban"] if quick or tiny or importlib.util.find_spec("sionna") is None else ["sionna:munich", "urban"]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scene in scenes:
+            rows += scene_rows(scene, Path(tmp) / scene.replace(":", "_"), with_unit=scene == "sionna:munich")
+    for row in rows:
+        print("  ".join(f"{k}={v}" for k, v in row.items()))
+    write_csv(f"{NAME}.csv", rows)
+    return rows
+
+
+if __name__ == "__main__":
+    bench_main(__doc__, run, checks, "urban only")
