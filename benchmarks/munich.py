@@ -47,9 +47,11 @@ MEMORY_BEFORE_MB = 1136.0
 #: Pulses whose primary rays are timed for the unit.
 UNIT_PULSES = 64
 
-#: Runs a CLI command and prints the process's peak resident memory [MB] on exit.
-_PROFILED = ("import atexit, resource, runpy, sys; sys.argv = ['sarmitsuba'] + sys.argv[1:]; "
-             "atexit.register(lambda: print('peak_rss_mb', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)); "
+#: Runs a CLI command and prints the process's peak resident memory [MB] on exit: VmHWM of
+#: /proc/self/status (getrusage's ru_maxrss would carry the parent's peak across fork and exec).
+_PROFILED = ("import atexit, re, runpy, sys; sys.argv = ['sarmitsuba'] + sys.argv[1:]; "
+             "atexit.register(lambda: print('peak_rss_mb', int(re.search(r'VmHWM:\\s+(\\d+)', "
+             "open('/proc/self/status').read()).group(1)) / 1024)); "
              "runpy.run_module('sarmitsuba', run_name='__main__')")
 
 

@@ -68,7 +68,7 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
     import OpenEXR
 
     data = image.data
-    intensity = (data.real.astype(np.float64) ** 2 + data.imag.astype(np.float64) ** 2).astype(np.float32)
+    intensity = _intensity(data, np.float32)
     channels = {"intensity": intensity,
                 "real": np.ascontiguousarray(data.real, dtype=np.float32),
                 "imag": np.ascontiguousarray(data.imag, dtype=np.float32)}
@@ -170,13 +170,33 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
 
 # ============================================================================ helpers
 def _multilook(data: np.ndarray, looks: tuple[int, int]) -> np.ndarray:
-    """Intensity ``|data|^2`` averaged over ``looks`` blocks (trailing partial blocks dropped)."""
-    power = np.abs(data).astype(np.float64) ** 2
-    n0, n1 = (max(1, power.shape[0] // looks[0]) * looks[0], max(1, power.shape[1] // looks[1]) * looks[1])
+    """Intensity ``|data|^2`` averaged over ``looks`` blocks (trailing partial blocks dropped),
+    float64; computed a band of rows at a time (:func:`_intensity`)."""
+    n0 = max(1, data.shape[0] // looks[0]) * looks[0]
+    n1 = max(1, data.shape[1] // looks[1]) * looks[1]
     if looks == (1, 1):
-        return power
-    power = power[:n0, :n1]
-    return power.reshape(n0 // looks[0], looks[0], n1 // looks[1], looks[1]).mean(axis=(1, 3))
+        return _intensity(data, np.float64)
+    out = np.empty((n0 // looks[0], n1 // looks[1]))
+    band = max(1, _ROWS // looks[0]) * looks[0]
+    for r0 in range(0, n0, band):
+        power = _intensity(data[r0:min(r0 + band, n0), :n1], np.float64)
+        out[r0 // looks[0]:r0 // looks[0] + power.shape[0] // looks[0]] = \
+            power.reshape(-1, looks[0], n1 // looks[1], looks[1]).mean(axis=(1, 3))
+    return out
+
+
+#: Rows of an image turned into intensity at once (bounds the float64 temporaries).
+_ROWS = 256
+
+
+def _intensity(data: np.ndarray, dtype) -> np.ndarray:
+    """``|data|^2`` of complex64 ``data``, computed in float64 a band of :data:`_ROWS` rows at a
+    time, stored as ``dtype``."""
+    out = np.empty(data.shape, dtype)
+    for r0 in range(0, data.shape[0], _ROWS):
+        part = data[r0:r0 + _ROWS]
+        out[r0:r0 + _ROWS] = part.real.astype(np.float64) ** 2 + part.imag.astype(np.float64) ** 2
+    return out
 
 
 #: Percentile of the non-zero intensities shown as 0 dB (brighter pixels saturate).

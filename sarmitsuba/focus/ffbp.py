@@ -61,6 +61,8 @@ MAX_SINES = 1 << 16
 GAIN_STEP = 32
 #: Grid columns per range block of the last step (the unit of work of one thread).
 BLOCK_COLUMNS = 512
+#: Sub-apertures whose polar images are held at once (each is added to the grid, then dropped).
+CHUNK_SUBAPERTURES = 24
 
 
 # ============================================================================ public API
@@ -140,11 +142,24 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     spans = _subaperture_spans(raw.n_pulses, knobs["subaperture"])
     bar = progress_bar(progress, len(spans) + _n_blocks(grid), desc="ffbp", unit="step")
     clock = {"start": time.perf_counter()}
+    summed = np.zeros(grid.shape, np.complex64)
+    counts = {"subapertures": 0, "polar_samples": 0, "first": 0.0, "last": 0.0}
     try:
-        images = _first_stage(raw, grid, beam, spans, t0, oversample, knobs, run, bar)
-        clock["subaperture_images"] = time.perf_counter()
-        summed = _last_step(grid, images, raw.fc, run, bar)
-        clock["grid"] = time.perf_counter()
+        # the polar images of CHUNK_SUBAPERTURES sub-apertures at a time (memory: their prepared
+        # tables, about 32 bytes per polar sample), added to the grid and dropped
+        for c0 in range(0, len(spans), CHUNK_SUBAPERTURES):
+            start = time.perf_counter()
+            images = _first_stage(raw, grid, beam, spans[c0:c0 + CHUNK_SUBAPERTURES], t0, oversample, knobs, run, bar)
+            middle = time.perf_counter()
+            _last_step(grid, images, raw.fc, run, summed)
+            counts["first"] += middle - start
+            counts["last"] += time.perf_counter() - middle
+            counts["subapertures"] += len(images)
+            counts["polar_samples"] += sum(i.axes.n_s * i.axes.n_r for i in images)
+            del images
+        bar.update(_n_blocks(grid))
+        clock["subaperture_images"] = clock["start"] + counts["first"]
+        clock["grid"] = clock["subaperture_images"] + counts["last"]
     finally:
         if pool is not None:
             pool.shutdown()
@@ -155,8 +170,8 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     steps = list(clock)
     stage_seconds = {name: round(clock[name] - clock[prev], 4) for prev, name in zip(steps, steps[1:])}
     focus = focus_metadata(raw, grid, seconds, beam, oversample=oversample, workers=workers,
-                           implementation="ffbp", **knobs, subapertures=len(images),
-                           polar_samples=sum(i.axes.n_s * i.axes.n_r for i in images), stage_seconds=stage_seconds,
+                           implementation="ffbp", **knobs, subapertures=counts["subapertures"],
+                           polar_samples=counts["polar_samples"], stage_seconds=stage_seconds,
                            azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
                            monostatic=True)
     focus["interpolation"] = "first stage: fft-upsample + linear; polar images: cubic B-spline (s, then r)"
@@ -307,14 +322,16 @@ def _cropped_lines(raw: RawData, pulses: slice, axes: PolarAxes) -> tuple[int, n
     return lo, data
 
 
-def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, bar) -> np.ndarray:
-    """Sum of the polar images interpolated onto the grid, complex64 [n_az, n_rg] (one range block
-    of :data:`BLOCK_COLUMNS` columns per job, so that jobs write disjoint pixels)."""
+def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, out: np.ndarray) -> None:
+    """Add the polar images, interpolated onto the grid, to ``out`` (complex64 [n_az, n_rg], in
+    place; one range block of :data:`BLOCK_COLUMNS` columns per job, so that jobs write disjoint
+    pixels)."""
+    if not images:
+        return
     kappa = 4.0 * np.pi * fc / SPEED_OF_LIGHT
     s_tables = spline_tables(12)
-    fine_dr = images[0].fine.dr if images else 1.0
+    fine_dr = images[0].fine.dr
     r_tables = spline_tables(carrier_bits(kappa * fine_dr), kappa * fine_dr)
-    out = np.zeros(grid.shape, np.complex64)
     blocks = [slice(b * BLOCK_COLUMNS, min((b + 1) * BLOCK_COLUMNS, grid.shape[1])) for b in range(_n_blocks(grid))]
     reach = run(lambda image: _rows_reached(grid, image, blocks), images)
 
@@ -322,10 +339,8 @@ def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, bar) -
         for image, rows in zip(images, reach):
             if rows[b] is not None:
                 _image_to_block(grid, image, rows[b], blocks[b], kappa, s_tables, r_tables, out)
-        bar.update(1)
 
     run(block, range(len(blocks)))
-    return out
 
 
 def _row_geometry(grid: ImageGrid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
