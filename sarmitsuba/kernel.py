@@ -39,14 +39,13 @@ import numpy as np
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from .physical_optics import SINC_REGIME
-from .returns import Returns, footprint_edges
+from .returns import COS_GRAZING, Returns, footprint_edges
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
            "footprint_edges", "COS_GRAZING", "INVALID", "Flags"]
 
 #: Hits this close to grazing (cos of the incidence angle) return nothing and end the tube: the
 #: facet model needs a footprint, which is unbounded at grazing incidence.
-COS_GRAZING = 1e-6
 #: No record / no lane.
 INVALID = 0xFFFFFFFF
 

@@ -31,6 +31,9 @@ from .physical_optics import SINC_REGIME, split_threshold
 
 __all__ = ["Returns", "hash32", "footprint_edges", "CLUTTER_COS_MIN"]
 
+#: A tile corner seen this close to grazing (cos of the incidence angle) by a pulse returns nothing
+#: (as kernel.COS_GRAZING for the tube's centre).
+COS_GRAZING = 1e-6
 #: Below this cosine of the incidence angle (84.3 deg) a tube's clutter footprint is shortened to
 #: 1 / CLUTTER_COS_MIN tube widths along the plane of incidence and its sigma0 raised by the same
 #: factor (docs/physics.md (C)): the same clutter power, on scatterers near the hit, at a bounded
@@ -455,6 +458,10 @@ class Returns:
                 value = value * dr.select(split[j], mi.Complex2f(0.0, sigma[j] / (k * g)),
                                           mi.Complex2f(_sinc(0.5 * k * g), 0.0))
             rel = s + dist - lref
+            # a tile corner the pulse sees from behind the facet, or edge-on (the unfolded ray in the
+            # facet's plane): no return. A property of the corner and the pulse, so the tubes sharing
+            # the corner agree and cancellation (PO5) is unaffected.
+            active &= (cos_i > COS_GRAZING) & (s > 0)
             order_index = mi.UInt32(SPECTRAL_ORDERS.index(1)) - mi.UInt32(split[0]) - mi.UInt32(split[1])
             self._deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, value * self.carrier_phase(rel),
                           order_index, active, paths, term * ctx["max_count"] + q)
