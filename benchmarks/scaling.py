@@ -24,8 +24,9 @@ mode does not warm up each pulse count, see ``MODES``):
     (pixel 2 m .. 0.125 m); the trace is done once, only the focus is repeated.
 
 Stage times: ``load`` (scene load, planning), ``trace`` (ray tracing), ``bin``
-(deposit to range-compressed raw data), ``focus`` (beam-limited backprojection with
-:func:`sarmitsuba.focus.backproject`); ``total`` is their sum. The growth exponent ``a``
+(deposit to range-compressed raw data), ``focus`` (the render's default, fast factorised
+backprojection, in (a) and (b); beam-limited direct backprojection with
+:func:`sarmitsuba.focus.backproject` in (c)); ``total`` is their sum. The growth exponent ``a``
 of ``time ~ N^a`` is fitted by least squares on log-log (on the total time, and on the
 stage that depends on the swept quantity: trace for (a) and (b), focus for (c)).
 
