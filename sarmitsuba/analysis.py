@@ -231,7 +231,8 @@ def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray, *,
     point : 3 floats (world position, m) or 2 floats (azimuth, range in m)
         A world point is mapped through the range / zero-Doppler geometry when the image
         metadata record the straight track (``metadata["focus"]["track"]`` of a
-        backprojected image, or sarmitsuba's ``metadata["radar"]``): see
+        backprojected image, ``metadata["focus"]["geometry"]`` of an omega-K or RDA image,
+        or sarmitsuba's ``metadata["radar"]``): see
         :func:`layover_position`. Otherwise, or with ``layover=False``, it is projected
         orthogonally on the image axes, ``((x - origin) . azimuth_direction,
         (x - origin) . range_direction)``. Both agree for a point on the image plane.
@@ -259,23 +260,38 @@ def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray, *,
 def _track_of(image: SarImage) -> tuple[np.ndarray, np.ndarray] | None:
     """(a point of the straight track, its unit direction), float64 [3] each, from the image
     metadata: the backprojection's ``focus["track"]`` (mid-aperture transmitter, unit velocity),
-    else the acquisition geometry of sarmitsuba's ``radar`` parameters; None when neither."""
+    else the FFT focusers' ``focus["geometry"]`` (its ``origin`` lies on the fitted track line,
+    ``azimuth_direction`` along it), else the acquisition geometry of sarmitsuba's ``radar``
+    parameters; None when none of them."""
     meta = image.metadata if isinstance(image.metadata, dict) else {}
-    track = (meta.get("focus") or {}).get("track") if isinstance(meta.get("focus"), dict) else None
-    try:
-        if track and track.get("direction") is not None:
-            point = np.asarray(track["position"], float).reshape(3)
-            direction = np.asarray(track["direction"], float).reshape(3)
-            if np.all(np.isfinite(point)) and np.all(np.isfinite(direction)) and np.linalg.norm(direction) > 0:
-                return point, direction / np.linalg.norm(direction)
-    except (TypeError, ValueError, KeyError):
-        pass
+    focus = meta.get("focus") if isinstance(meta.get("focus"), dict) else {}
+    for record, point_key, direction_key in ((focus.get("track"), "position", "direction"),
+                                             (focus.get("geometry"), "origin", "azimuth_direction")):
+        line = _line_of(record, point_key, direction_key)
+        if line is not None:
+            return line
     params = _radar_of(image)
     if params is None:
         return None
     from .radar import acquisition_geometry
     geometry = acquisition_geometry(replace(params, n_pulses=max(params.n_pulses, 1)))
     return geometry.positions[len(geometry.positions) // 2], geometry.track_direction
+
+
+def _line_of(record: Any, point_key: str, direction_key: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(point, unit direction) of a track line recorded as ``record[point_key]``,
+    ``record[direction_key]`` (3 finite numbers each); None when absent or malformed."""
+    if not isinstance(record, dict) or record.get(point_key) is None or record.get(direction_key) is None:
+        return None
+    try:
+        point = np.asarray(record[point_key], float).reshape(3)
+        direction = np.asarray(record[direction_key], float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    norm = float(np.linalg.norm(direction))
+    if not (np.all(np.isfinite(point)) and np.isfinite(norm) and norm > 0):
+        return None
+    return point, direction / norm
 
 
 def _radar_of(image: SarImage):

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -68,7 +70,10 @@ class RawData:
     Raises
     ------
     RawDataError
-        On inconsistent shapes, dtypes or non-positive scalars.
+        On inconsistent shapes or dtypes (naming which array disagrees with ``data``),
+        non-positive or non-finite scalars, non-finite geometry or timing, a fast-time axis
+        that does not increase, or non-finite samples (their count and first (pulse, sample)).
+        The sample check is one ``np.isfinite`` pass (about 25 ms for 2000 x 4000 samples).
     """
 
     data: np.ndarray
@@ -87,25 +92,41 @@ class RawData:
     metadata: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        self._check_shapes()
+        self._check_values()
+
+    def _check_shapes(self) -> None:
+        """Dtypes and shapes: every array's length agrees with ``data``."""
         if self.data.ndim != 2 or self.data.dtype != np.complex64:
-            raise RawDataError(
-                f"data must be complex64 [n_pulses, n_samples], got {self.data.dtype} {self.data.shape}")
+            hint = " (convert with .astype(numpy.complex64))" if self.data.ndim == 2 else ""
+            raise RawDataError(f"data must be complex64 [n_pulses, n_samples], got {self.data.dtype} "
+                               f"{list(self.data.shape)}{hint}")
         n_pulses, n_samples = self.data.shape
-        expected = {
-            "fast_time": (n_samples,), "pulse_time": (n_pulses,),
-            "tx_position": (n_pulses, 3), "rx_position": (n_pulses, 3), "velocity": (n_pulses, 3),
-        }
-        for name, shape in expected.items():
-            value = getattr(self, name)
-            if value.shape != shape or value.dtype != np.float64:
-                raise RawDataError(
-                    f"{name} must be float64 {list(shape)}, got {value.dtype} {list(value.shape)}")
+        _check_axis("fast_time", self.fast_time, (n_samples,), f"data has {n_samples} fast-time samples (columns)")
+        for name in ("pulse_time", "tx_position", "rx_position", "velocity"):
+            shape = (n_pulses,) if name == "pulse_time" else (n_pulses, 3)
+            _check_axis(name, getattr(self, name), shape, f"data has {n_pulses} pulses (rows)")
+
+    def _check_values(self) -> None:
+        """Positive finite scalars, finite geometry, increasing fast time, finite samples."""
         for name in ("fc", "bandwidth", "pulse_length", "fs", "prf"):
             value = float(getattr(self, name))
             if not (np.isfinite(value) and value > 0):
                 raise RawDataError(f"{name} must be a finite positive number, got {value}")
-        if n_samples > 1 and not np.all(np.diff(self.fast_time) > 0):
-            raise RawDataError("fast_time must be strictly increasing")
+        if not np.isfinite(float(self.chirp_rate)):
+            raise RawDataError(f"chirp_rate must be a finite number (Hz/s), got {self.chirp_rate}")
+        for name in ("fast_time", "pulse_time", "tx_position", "rx_position", "velocity"):
+            labels = ("sample",) if name == "fast_time" else ("pulse", "axis")
+            _refuse_non_finite(getattr(self, name), name, "value", labels, RawDataError,
+                               "the geometry is corrupt: re-create the data (sarmitsuba render)")
+        steps = np.diff(self.fast_time)
+        if np.any(steps <= 0):
+            k = int(np.argmax(steps <= 0)) + 1
+            raise RawDataError(f"fast_time must be strictly increasing (t0 + i / fs), but sample {k} "
+                               f"({float(self.fast_time[k])!r} s) is not after sample {k - 1}")
+        _refuse_non_finite(self.data, "data", "sample", ("pulse", "sample"), RawDataError,
+                           "focusing would spread NaN over the whole image; re-create the data (sarmitsuba "
+                           "render), or zero the bad samples (numpy.nan_to_num) if they are known to be void")
 
     @property
     def n_pulses(self) -> int:
@@ -141,22 +162,92 @@ class RawData:
         Raises
         ------
         RawDataError
-            When the file is missing a field, is not an ``.npz`` or has wrong shapes.
+            Naming ``path`` and the problem: missing or unreadable file, not an ``.npz``
+            archive, damaged archive (truncated, bad CRC), missing field, arrays whose
+            lengths disagree, non-finite samples or geometry (count and first position).
         """
+        kwargs = _read_npz(path, "RawData", RawDataError, _read_raw_fields)
         try:
-            with np.load(path, allow_pickle=False) as f:
-                missing = [k for k in (*_ARRAYS, *_SCALARS) if k not in f.files]
-                if missing:
-                    raise RawDataError(f"{path}: not a RawData file, missing {missing}")
-                kwargs: dict[str, Any] = {k: f[k] for k in _ARRAYS}
-                kwargs.update({k: float(f[k]) for k in _SCALARS})
-                kwargs["range_compressed"] = bool(f["range_compressed"]) if "range_compressed" in f.files else True
-                kwargs["metadata"] = json.loads(str(f["metadata"])) if "metadata" in f.files else {}
-        except (OSError, ValueError, EOFError) as exc:
-            if isinstance(exc, RawDataError):
-                raise
-            raise RawDataError(f"{path}: cannot read RawData ({exc})") from exc
-        return cls(**kwargs)
+            return cls(**kwargs)
+        except RawDataError as exc:
+            raise RawDataError(f"{path}: {exc}") from None
+
+
+def _read_raw_fields(f: Any) -> dict[str, Any]:
+    """The keyword arguments of :class:`RawData` from an open ``NpzFile``."""
+    missing = [k for k in (*_ARRAYS, *_SCALARS) if k not in f.files]
+    if missing:
+        raise KeyError(f"not a RawData file, missing {missing}: give a raw.npz written by RawData.save "
+                       "(sarmitsuba render) or one with every field of docs/design.md section 3")
+    kwargs: dict[str, Any] = {k: np.asarray(f[k]) for k in _ARRAYS}
+    kwargs.update({k: float(f[k]) for k in _SCALARS})
+    kwargs["range_compressed"] = bool(f["range_compressed"]) if "range_compressed" in f.files else True
+    kwargs["metadata"] = json.loads(str(f["metadata"])) if "metadata" in f.files else {}
+    return kwargs
+
+
+def _check_axis(name: str, value: np.ndarray, shape: tuple[int, ...], owner: str) -> None:
+    """Raise :class:`RawDataError` unless ``value`` is float64 of ``shape``; ``owner`` says
+    what fixes the length (e.g. "data has 8 pulses (rows)")."""
+    if value.ndim == len(shape) and value.shape[0] != shape[0]:
+        raise RawDataError(f"{owner} but {name} has {value.shape[0]} {'rows' if value.ndim == 2 else 'entries'}: "
+                           "the arrays are not of one acquisition; re-create the file (RawData.save, sarmitsuba "
+                           "render)")
+    if value.shape != shape or value.dtype != np.float64:
+        hint = " (convert with .astype(numpy.float64))" if value.shape == shape else ""
+        raise RawDataError(f"{name} must be float64 {list(shape)}, got {value.dtype} {list(value.shape)}{hint}")
+
+
+def _refuse_non_finite(array: np.ndarray, name: str, noun: str, labels: tuple[str, ...],
+                       error: type[ValueError], fix: str) -> None:
+    """Raise ``error`` when ``array`` holds NaN or Inf: their count, the first index (named by
+    ``labels``, C order) and ``fix``. One ``np.isfinite`` pass when all values are finite."""
+    finite = np.isfinite(array)
+    if finite.all():
+        return
+    bad = ~finite
+    count = int(np.count_nonzero(bad))
+    first = np.unravel_index(int(np.argmax(bad)), array.shape)
+    where = ", ".join(f"{label} {'xyz'[i] if label == 'axis' else i}" for label, i in zip(labels, first))
+    raise error(f"{name} has {count} non-finite {noun}{'s' if count > 1 else ''} (NaN or Inf) out of "
+                f"{array.size}, the first at ({where}): {fix}")
+
+
+#: First bytes of a zip archive (``.npz``): a local file header, or the end record of an empty one.
+_ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
+
+
+def _read_npz(path: str | os.PathLike, what: str, error: type[ValueError], read: Any) -> Any:
+    """``read(npz)`` on the opened ``.npz`` at ``path``, every failure raised as ``error``.
+
+    ``what`` names the contract ("RawData", "SarImage") in messages. ``read`` may raise
+    ``KeyError`` for a missing field. Truncated or corrupted archives (``zipfile.BadZipFile``,
+    ``zlib.error``, ``EOFError``), files that are no ``.npz`` (text, ``.npy``, pickles) and
+    unreadable members (``ValueError``, ``TypeError`` from NumPy) all become ``error`` with
+    the file name, the problem and the likely fix.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+    if head not in _ZIP_MAGIC:
+        found = "an empty file" if not head else f"a file starting with {head!r}"
+        example = f"out/urban/{'raw' if what == 'RawData' else 'image'}.npz"
+        raise error(f"{path}: cannot read {what}: not an .npz {what} file ({found}; an .npz archive starts with "
+                    f"b'PK'): give the .npz that sarmitsuba wrote (e.g. {example})")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return read(npz)
+    except (zipfile.BadZipFile, zlib.error, EOFError) as exc:
+        raise error(f"{path}: cannot read {what}: damaged .npz archive ({exc}): the file is truncated or "
+                    "corrupted (an interrupted write or copy?); copy it again or re-create it") from exc
+    except KeyError as exc:
+        raise error(f"{path}: {exc.args[0] if exc.args else exc}") from exc
+    except (OSError, ValueError, TypeError) as exc:
+        reason = ("it holds a pickled Python object, which no field of the contract is"
+                  if "allow_pickle" in str(exc) else str(exc))
+        raise error(f"{path}: cannot read {what} ({reason}); the file is damaged or not a {what} file") from exc
 
 
 def _json_default(obj: Any) -> Any:

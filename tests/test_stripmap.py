@@ -107,16 +107,19 @@ def test_flat_earth_default_scene_centre():
 
 
 def test_slant_grid_convention():
-    """Origin on the track at mid-aperture, range absolute, azimuth centred on R_ref tan(squint)."""
+    """Origin on the track at the scene centre's closest approach (azimuth 0 = the scene centre),
+    range absolute, azimuth centred on the mid-aperture antenna's coordinate + R_ref tan(squint)."""
     case = CW_HIGH
     raw = simulate(case.name)
     geo = geometry(case.name)
     grid = slant_output_grid(geo, raw)
     assert grid.plane == "slant" and grid.shape == raw.data.shape
-    np.testing.assert_allclose(geo.origin, raw.tx_position.mean(axis=0), atol=1e-9)
+    mid = raw.tx_position.mean(axis=0)  # track along +x: the origin is the track point at the centre's x
+    np.testing.assert_allclose(geo.origin, [case.scene_centre[0], mid[1], mid[2]], atol=1e-9)
     assert grid.range[case.n_samples // 2] == pytest.approx(geo.reference_range, rel=1e-15)
     assert np.diff(grid.range).mean() == pytest.approx(C / (2 * case.fs), rel=1e-12)
-    assert grid.azimuth[case.n_pulses // 2] == pytest.approx(geo.reference_range * np.tan(case.squint), rel=1e-12)
+    assert grid.azimuth[case.n_pulses // 2] == pytest.approx(
+        mid[0] - case.scene_centre[0] + geo.reference_range * np.tan(case.squint), abs=1e-6)
     assert np.diff(grid.azimuth).mean() == pytest.approx(case.speed / case.prf, rel=1e-12)
     # a pixel's world position is at its range from the track line, at its zero-Doppler azimuth
     i, j = 17, 101

@@ -159,9 +159,12 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     -------
     SarImage
         complex64 ``[n_pulses, n_samples]`` on :func:`~sarmitsuba.focus.stripmap.slant_output_grid`
-        (``plane="slant"``, ``algorithm="omega-k"``). A point target of amplitude ``a``
-        whose Doppler spectrum fills the processed band has peak ``a`` at its predicted
-        position, with the carrier removed there (as in backprojection).
+        (``plane="slant"``, ``algorithm="omega-k"``): origin the scene centre's closest-approach
+        point on the track, rows the zero-Doppler along-track coordinate from it, columns the
+        absolute closest-approach slant range (docs/design.md section 8, Frames). A point target
+        of amplitude ``a`` at ``X`` whose Doppler spectrum fills the processed band has peak ``a``
+        at ``geometry.zero_doppler(X)`` (``SarImage.pixel_of(X)``), with the carrier removed there
+        (as in backprojection).
         ``metadata["focus"]`` records the parameters, geometry and ``seconds``.
 
     Raises

@@ -29,14 +29,20 @@ This module
 
 Output grid convention (:func:`slant_output_grid`)
 ---------------------------------------------------
-``SarImage.plane == "slant"``; ``origin`` is the mid-aperture point of the fitted track
-line; ``azimuth_direction`` the unit track direction; ``range_direction`` the unit vector
-perpendicular to the track, in the plane of the track and the scene centre, toward the
-scene centre. Row ``i`` is the zero-Doppler along-track coordinate ``azimuth[i]`` [m]
-relative to ``origin``, column ``j`` the absolute closest-approach (zero-Doppler) slant
-range ``range[j]`` [m], so ``origin + azimuth * azimuth_direction + range * range_direction``
-is the slant-plane position of the pixel, and a target at ``X`` is predicted at
-``StripmapGeometry.zero_doppler(X)``. Pixel values follow backprojection's convention: the
+``SarImage.plane == "slant"``; ``origin`` is the scene centre's zero-Doppler point: the foot
+of the perpendicular from the scene centre to the fitted track line (not the mid-aperture
+antenna, which trails it by ``R0 tan(squint)``); ``azimuth_direction`` the unit track
+direction; ``range_direction`` the unit vector perpendicular to the track, in the plane of
+the track and the scene centre, toward the scene centre. Row ``i`` is the zero-Doppler
+along-track coordinate ``azimuth[i]`` [m] relative to ``origin`` (the scene centre is at
+azimuth 0, as in a backprojected ground image, whose azimuth axis is the same along-track
+distance from the scene centre), column ``j`` the absolute closest-approach (zero-Doppler)
+slant range ``range[j]`` [m] (distance from the track line), so ``origin + azimuth *
+azimuth_direction + range * range_direction`` is the slant-plane position of the pixel, and
+a target at ``X`` is imaged at ``StripmapGeometry.zero_doppler(X)`` whether or not it lies in
+the slant plane (the data see only its cylindrical coordinates about the track;
+:func:`sarmitsuba.analysis.image_coordinates` and :meth:`sarmitsuba.image.SarImage.pixel_of`
+map world points this way). Pixel values follow backprojection's convention: the
 image of a target of amplitude ``a`` is ``a`` at the target's own pixel position (carrier
 phase removed there), so the three focusers agree sample by sample.
 
@@ -82,7 +88,9 @@ class StripmapGeometry:
     Attributes
     ----------
     origin : float64 [3], m
-        Mid-aperture point of the least-squares track line (mean antenna position).
+        Zero-Doppler point of ``scene_centre``: the foot of the perpendicular from the scene
+        centre to the least-squares track line. Azimuth (along-track) coordinates are
+        measured from it, so the scene centre is at azimuth 0 in every focuser's image.
     azimuth_direction : float64 [3]
         Unit track (flight) direction.
     range_direction : float64 [3]
@@ -95,7 +103,9 @@ class StripmapGeometry:
     pulse_spacing : float, m
         Along-track distance between pulses.
     pulse_azimuth : float64 [n_pulses], m
-        Along-track coordinate of each antenna position relative to ``origin`` (fitted).
+        Along-track coordinate of each antenna position relative to ``origin`` (fitted);
+        the mid-aperture antenna is at ``pulse_azimuth.mean()`` (``-R0 tan(squint)`` for a
+        beam centred on the scene centre, ``R0`` its closest-approach range).
     prf : float, Hz
     wavelength : float, m
         ``c / fc``.
@@ -265,7 +275,6 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
             np.any(np.linalg.norm(raw.velocity - v_data[:, None] * u, axis=1) > 0.01 * velocity):
         raise ValueError(f"raw.velocity disagrees by more than 1 % with the track (pulse spacing x PRF = "
                          f"{velocity:.6g} m/s along {u.round(6).tolist()}); check prf and velocity")
-    pulse_azimuth = k * spacing
 
     # ---- squint and Doppler centroid
     t_mid = 0.5 * (raw.fast_time[0] + raw.fast_time[-1])
@@ -311,12 +320,14 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     else:
         centre = _flat_earth_centre(mean, u, r_beam, theta, str(radar.get("look_side", "right")))
     rel = centre - mean
-    perp = rel - (rel @ u) * u
+    foot = float(rel @ u)  # along-track coordinate of the scene centre's closest approach
+    perp = rel - foot * u
     norm = float(np.linalg.norm(perp))
     if not norm > 1e-6:
         raise ValueError("the scene centre lies on the track line: it cannot fix the slant plane")
+    pulse_azimuth = k * spacing - foot
     return StripmapGeometry(
-        origin=_readonly(mean), azimuth_direction=_readonly(u), range_direction=_readonly(perp / norm),
+        origin=_readonly(mean + foot * u), azimuth_direction=_readonly(u), range_direction=_readonly(perp / norm),
         scene_centre=_readonly(centre), velocity=float(velocity), pulse_spacing=spacing,
         pulse_azimuth=_readonly(pulse_azimuth), prf=float(raw.prf), wavelength=wavelength,
         reference_range=float(r_ref), beam_centre_range=float(r_beam), squint=theta, doppler_centroid=float(fdc),
@@ -392,17 +403,20 @@ def slant_output_grid(geometry: StripmapGeometry, raw: RawData, *, n_azimuth: in
     Returns
     -------
     ImageGrid
-        ``plane == "slant"``. ``range[j] = R_ref + (j - n_range // 2) c / (2 fs)``
-        (absolute zero-Doppler slant range); ``azimuth[i] = x_c + (i - n_azimuth // 2) V / PRF``
-        with ``x_c = R_ref tan(squint)``, the zero-Doppler along-track coordinate of the
-        point at ``R_ref`` on the beam centre at mid-aperture. An FFT focuser's image is
+        ``plane == "slant"``, ``origin`` the scene centre's zero-Doppler point on the track
+        (``geometry.origin``). ``range[j] = R_ref + (j - n_range // 2) c / (2 fs)`` (absolute
+        zero-Doppler slant range: distance from the track line); ``azimuth[i] = x_c +
+        (i - n_azimuth // 2) V / PRF`` with ``x_c = x_mid + R_ref tan(squint)``, the zero-Doppler
+        along-track coordinate of the point at ``R_ref`` on the beam centre at mid-aperture
+        (``x_mid = mean(pulse_azimuth)``, the mid-aperture antenna; ``x_c`` is about 0 when the
+        beam centre passes through the scene centre). An FFT focuser's image is
         periodic in azimuth with period ``n_azimuth V / PRF``: in squinted geometry a
         target whose zero-Doppler coordinate falls outside the grid wraps around.
     """
     n_a = raw.n_pulses if n_azimuth is None else _count("n_azimuth", n_azimuth)
     n_r = raw.n_samples if n_range is None else _count("n_range", n_range)
     dr = C / (2.0 * raw.fs)
-    x_c = geometry.reference_range * np.tan(geometry.squint)
+    x_c = float(np.mean(geometry.pulse_azimuth)) + geometry.reference_range * np.tan(geometry.squint)
     rng = geometry.reference_range + (np.arange(n_r, dtype=np.float64) - n_r // 2) * dr
     az = x_c + (np.arange(n_a, dtype=np.float64) - n_a // 2) * geometry.pulse_spacing
     if rng[0] <= 0:
