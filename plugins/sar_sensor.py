@@ -76,12 +76,18 @@
    - string
    - ``VV`` (default) or ``HH``; scalar single-polarisation model.
 
+Every parameter with a unit must lie in its valid range (:data:`sarmitsuba.radar.VALID_RANGES`,
+docs/design.md section 4: frequency [1e6, 1e12] Hz, bandwidth [1e5, 1e11] Hz, velocity
+[0.01, 1.2e4] m/s, altitude [1, 4e7] m, ...); a value outside raises ParameterError naming the
+unit and, when it looks like another unit (9.6 for 9.6 GHz), the value meant.
+
 The sensor holds parameters only: the tracer (:mod:`sarmitsuba.trace`) shoots the rays.
 Its ``sample_ray`` gives the optical view from the mid-aperture antenna toward the
 scene centre, so ``mi.render`` can draw what the radar sees.
 """
 from __future__ import annotations
 
+import difflib
 import math
 
 import drjit as dr
@@ -102,8 +108,10 @@ class SarSensor(mi.Sensor):
         valid = set(RadarParameters.names()) | set(EXTRA_PARAMETERS)
         for key in props.keys():
             if key not in valid:
+                close = difflib.get_close_matches(key, valid, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
                 raise ParameterError(
-                    f"sar sensor: unknown parameter {key!r}; valid parameters: {', '.join(sorted(valid))}")
+                    f"sar sensor: unknown parameter {key!r}{hint}; valid parameters: {', '.join(sorted(valid))}")
             value = props[key]
             values[key] = value if isinstance(value, (int, float, str)) else list(value)
         #: Parameters exactly as written in the scene (before defaults), for overrides.

@@ -65,6 +65,8 @@ this plugin only carries the settings from the scene file, so ``mi.render`` is n
 """
 from __future__ import annotations
 
+import difflib
+
 import mitsuba as mi
 
 from sarmitsuba.radar import ParameterError
@@ -80,8 +82,10 @@ class SbrIntegrator(mi.SamplingIntegrator):
         values = {}
         for key in props.keys():
             if key not in valid:
+                close = difflib.get_close_matches(key, valid, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
                 raise ParameterError(
-                    f"sbr integrator: unknown parameter {key!r}; valid parameters: {', '.join(valid)}")
+                    f"sbr integrator: unknown parameter {key!r}{hint}; valid parameters: {', '.join(valid)}")
             values[key] = props[key]
         #: Settings exactly as written in the scene, for overrides.
         self.given = dict(values)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -39,14 +40,15 @@ from . import planning
 from .constants import SPEED_OF_LIGHT
 from .effects import Effect, list_effects
 from .pipeline import image_grid
-from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
+from .radar import AcquisitionGeometry, ParameterError, RadarParameters, acquisition_geometry
 from .radiometry import effective_pulses, radar_equation
 from .scene import LoadedScene, load_scene, material_table
 from .deposit import padded_length
 from .trace_inputs import FastTimeWindow, RayFootprint
 
 __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
-           "scene_info", "cast_rates", "format_text", "to_dict", "to_json"]
+           "scene_info", "cast_rates", "format_text", "to_dict", "to_json", "available_memory", "memory_problem",
+           "check_memory", "MEMORY_LIMIT_ENV"]
 
 #: Measured ray-cast rates [casts/s] of Mitsuba's llvm backend on 2 threads of a 2-core x86-64
 #: VM, as ``(triangles, closest-hit, shadow)``: a plane and a box (14 triangles: 38-59 M
@@ -274,7 +276,9 @@ class CostEstimate:
     or with the ``exact`` range kernel its term list instead, at most one path per return of
     :data:`PATH_BYTES` each; one raw data set, complex64 ``[n_pulses, fast_time_samples]``; one
     image, complex64 ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth``
-    with ``split_bounces``).
+    with ``split_bounces``). ``peak_memory_bytes``: the spectra (or path list) and every raw data
+    set and image, all held at once at the end of a render (:func:`check_memory` compares it with
+    the memory available).
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
     footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
@@ -309,6 +313,7 @@ class CostEstimate:
     backprojection_pixel_pulses: int
     focus_time_s: float
     direct_backprojection_time_s: float
+    peak_memory_bytes: int
 
 
 @dataclass(frozen=True)
@@ -346,17 +351,19 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
     radar = _radar_summary(params, geometry, window, lo, hi)
+    cost = _cost(loaded, geometry, window, footprint)
+    memory = memory_problem(cost, params)
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point), effects=list_effects(loaded),
-                     cost=_cost(loaded, geometry, window, footprint),
-                     warnings=tuple(messages))
+                     cost=cost, warnings=tuple(messages) + ((memory,) if memory else ()))
 
 
 # ============================================================================ scene
 def _scene_size(loaded: LoadedScene) -> SceneSize:
     offset = loaded.offset
     center = np.asarray(loaded.params.scene_center) + offset
-    return SceneSize(source=loaded.source, path=str(loaded.path), has_sar_sensor=loaded.has_sensor,
+    return SceneSize(source=loaded.source, path=str(loaded.path or "built in Python"),
+                     has_sar_sensor=loaded.has_sensor,
                      n_shapes=loaded.n_shapes, n_triangles=loaded.n_triangles,
                      bbox_min_m=_floats(loaded.bbox_lo + offset), bbox_max_m=_floats(loaded.bbox_hi + offset),
                      frame_offset_m=_floats(offset), scene_center_m=_floats(center),
@@ -519,10 +526,12 @@ def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWi
         return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work)
 
     exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
-    grid = image_grid(loaded, geometry)
+    grid = _image_grid(loaded, geometry)
     n_products = 1 + (st.max_depth if st.split_bounces else 0)
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
+    deposit = 0 if exact else groups * n_pulses * n_pad * 8
+    raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
         pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
@@ -530,11 +539,108 @@ def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWi
         pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
         trace_time_s=trace_time(0.5 * (primary + casts)),
         fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=0 if exact else groups * n_pulses * n_pad * 8,
-        path_list_bytes=paths * PATH_BYTES if exact else 0, raw_bytes=n_pulses * window.n_samples * 8,
-        image_shape=grid.shape, image_bytes=grid.shape[0] * grid.shape[1] * 8, n_products=n_products,
+        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES if exact else 0, raw_bytes=raw_bytes,
+        image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
         backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
-        direct_backprojection_time_s=n_products * direct)
+        direct_backprojection_time_s=n_products * direct,
+        peak_memory_bytes=deposit + (paths * PATH_BYTES if exact else 0) + n_products * (raw_bytes + image_bytes))
+
+
+def _image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry):
+    """The render's image grid (:func:`sarmitsuba.pipeline.image_grid`); ParameterError naming the
+    parameters that set its size when it would be too large."""
+    try:
+        return image_grid(loaded, geometry)
+    except ValueError as exc:
+        p = loaded.params
+        raise ParameterError(
+            f"the image grid is too large ({exc}): its pixels are half the finer of the ground-range resolution "
+            f"{p.ground_range_resolution:.3g} m (bandwidth {p.bandwidth / 1e6:g} MHz) and the azimuth resolution "
+            f"{p.azimuth_resolution:.3g} m (azimuth_beamwidth / antenna_length) across a scene of "
+            f"{np.ptp(np.stack([loaded.bbox_lo, loaded.bbox_hi]), axis=0).max():.4g} m: lower bandwidth, narrow the "
+            "beam or use a smaller scene") from None
+
+
+# ============================================================================ memory
+#: Environment variable that sets the memory [bytes] a render may use (tests, batch jobs); without
+#: it :func:`available_memory` reads the machine's.
+MEMORY_LIMIT_ENV = "SARMITSUBA_MEMORY_LIMIT"
+
+
+def available_memory() -> int:
+    """Bytes of memory a render may use: ``$SARMITSUBA_MEMORY_LIMIT`` when set, else ``MemAvailable``
+    of ``/proc/meminfo`` (Linux), else the physical memory (``os.sysconf``).
+
+    Raises
+    ------
+    ParameterError
+        ``SARMITSUBA_MEMORY_LIMIT`` is not a whole number of bytes > 0.
+    """
+    text = os.environ.get(MEMORY_LIMIT_ENV)
+    if text is not None:
+        try:
+            limit = int(float(text))
+        except ValueError:
+            limit = 0
+        if limit <= 0:
+            raise ParameterError(f"{MEMORY_LIMIT_ENV} = {text!r} must be a number of bytes > 0 (e.g. 8e9)")
+        return limit
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def memory_problem(cost: CostEstimate, params: RadarParameters, available: int | None = None) -> str | None:
+    """Why a render of estimated ``cost`` cannot fit in ``available`` bytes (default
+    :func:`available_memory`) and what to change, led by the term that dominates; None when it fits."""
+    available = available_memory() if available is None else available
+    if cost.peak_memory_bytes <= available:
+        return None
+    n = cost.n_products
+    terms = {"spectra": cost.deposit_bytes, "path list": cost.path_list_bytes,
+             "raw data": n * cost.raw_bytes, "image": n * cost.image_bytes}
+    parts = ", ".join(f"{name} {_bytes(size)}" for name, size in terms.items() if size)
+    text = (f"the render would need about {_bytes(cost.peak_memory_bytes)} of memory ({parts}) but "
+            f"{_bytes(available)} is available ({MEMORY_LIMIT_ENV} overrides it)")
+    largest = max(terms, key=terms.get)
+    if largest == "image":
+        return (f"{text}: the image grid {cost.image_shape[0]} x {cost.image_shape[1]} pixels dominates; its pixels "
+                "are half the finer resolution: lower bandwidth, narrow the beam or use a smaller scene")
+    per_pulse = (cost.peak_memory_bytes - n * cost.image_bytes) / max(cost.n_pulses, 1)
+    fit = max(1, int((available - n * cost.image_bytes) // max(per_pulse, 1)))
+    fix = (f"use fewer pulses (--pulses {fit} or fewer; sar n_pulses = {cost.n_pulses} now) or a shorter "
+           f"fast-time window ({cost.fast_time_samples} samples: a smaller scene, or --set "
+           f"sampling_rate=... closer to bandwidth = {params.bandwidth / 1e6:g} MHz)")
+    if largest == "path list":
+        fix = f"the exact range kernel's path list dominates: use --range-kernel linear, or {fix}"
+    else:
+        fix = f"the {largest} (pulses x fast-time samples) dominate: {fix}"
+    if n > 1:
+        fix += f", or drop split_bounces ({n} raw data sets and images)"
+    return f"{text}: {fix}"
+
+
+def check_memory(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                 footprint: RayFootprint, available: int | None = None) -> CostEstimate:
+    """The cost of rendering ``loaded`` (:class:`CostEstimate`), checked against the memory
+    ``available`` [bytes] (default :func:`available_memory`) before any tracing.
+
+    Raises
+    ------
+    ParameterError
+        The estimated peak memory exceeds it (:func:`memory_problem` says what to change), or the
+        image grid would be too large.
+    """
+    cost = _cost(loaded, geometry, window, footprint)
+    problem = memory_problem(cost, loaded.params, available)
+    if problem is not None:
+        raise ParameterError(problem)
+    return cost
 
 
 def _backprojection(p: RadarParameters, grid) -> tuple[int, int, float]:
@@ -634,7 +740,8 @@ def _effect_lines(effects: tuple[Effect, ...]) -> list[str]:
 
 
 def _cost_lines(c: CostEstimate) -> list[str]:
-    memory = (f"fine deposit {_bytes(c.deposit_bytes)} ({c.n_pulses} x {c.fine_samples} complex64)"
+    memory = (f"spectra {_bytes(c.deposit_bytes)} ({c.n_pulses} pulses x "
+              f"{c.deposit_bytes // (8 * max(c.n_pulses, 1))} padded samples, complex64)"
               if not c.path_list_bytes else f"path list (exact kernel) up to {_bytes(c.path_list_bytes)}")
     return [
         f"rays: {c.rays_per_pulse:,} per pulse (grid spacing {c.ray_spacing_m:.3g} m; rays outside the beam are "
@@ -647,7 +754,7 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         f"{c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and {c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s "
         f"and {RETURN_SECONDS * 1e9:g} ns per return on 2 cores)",
         f"memory: {memory}, raw data {_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
-        f"image {_bytes(c.image_bytes)}",
+        f"image {_bytes(c.image_bytes)}; peak ~ {_bytes(c.peak_memory_bytes)}",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
         f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "

@@ -17,7 +17,7 @@ from .radar import AcquisitionGeometry, ParameterError, RadarParameters, track_f
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
 __all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
-           "project_to_aim_plane", "box_corners", "check_acquisition", "AcquisitionWarning"]
+           "project_to_aim_plane", "box_corners", "check_acquisition", "check_memory", "AcquisitionWarning"]
 
 
 class AcquisitionWarning(UserWarning):
@@ -271,6 +271,16 @@ def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: Ray
     for cell, m in factor.items():
         groups.setdefault(m, []).append(cell)
     return tuple(Refinement(m, np.array(sorted(cells), np.int64)) for m, cells in sorted(groups.items()))
+
+
+def check_memory(loaded, geometry: AcquisitionGeometry, window: FastTimeWindow, footprint: RayFootprint,
+                 available: int | None = None) -> None:
+    """Raise ParameterError, before any tracing, when the estimated peak memory of rendering the
+    :class:`~sarmitsuba.scene.LoadedScene` ``loaded`` exceeds the memory ``available`` [bytes]
+    (default: the machine's, or ``$SARMITSUBA_MEMORY_LIMIT``), or its image grid is too large.
+    The estimate is that of ``sarmitsuba info`` (:func:`sarmitsuba.info.check_memory`)."""
+    from .info import check_memory as check       # info builds on this module and the pipeline
+    check(loaded, geometry, window, footprint, available)
 
 
 def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,

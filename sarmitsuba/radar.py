@@ -19,7 +19,8 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 
-__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC"]
+__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC",
+           "ValidRange", "VALID_RANGES"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
 #: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
@@ -37,7 +38,7 @@ class RadarParameters:
     Attributes
     ----------
     frequency : float, Hz
-        Carrier frequency ``fc``; (0, inf).
+        Carrier frequency ``fc``.
     bandwidth : float, Hz
         Transmitted chirp bandwidth ``B``; (0, sampling_rate].
     pulse_length : float, s
@@ -112,6 +113,19 @@ class RadarParameters:
         ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
         ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
         window grows by ``T_p`` so every chirp fits).
+
+    Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
+    frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
+    [1, 1e7] Hz; pulse_length [1e-9, 0.1] s; velocity [0.01, 1.2e4] m/s; altitude [1, 4e7] m;
+    antenna_length, antenna_height 0 or [wavelength, 100] m; scene_center each coordinate
+    within +-1e8 m; heading [-360, 360] deg; transmit_power [1e-6, 1e9] W; noise_temperature
+    [1, 1e5] K; antenna_gain_db [-30, 80] dBi; losses_db [0, 100] dB; noise_figure_db [0, 50] dB.
+
+    Raises
+    ------
+    ParameterError
+        A value outside its valid range, with the unit and, when the value looks like another
+        unit (9.6 for 9.6 GHz, 10 for 10 us), the value it probably meant.
     """
 
     frequency: float = 9.6e9
@@ -143,24 +157,12 @@ class RadarParameters:
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
             object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
+        _check_ranges(self)                  # units and ranges first: the checks below divide by them
         for name in ("antenna_length", "antenna_height"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ParameterError(f"{name} = {value!r} m must be a finite number >= 0 (0 = no pattern)")
             if 0 < value <= SPEED_OF_LIGHT / self.frequency:
                 raise ParameterError(f"{name} = {value} m must exceed the wavelength "
                                      f"{SPEED_OF_LIGHT / self.frequency:.4g} m (or be 0 for no pattern)")
-        for name in ("transmit_power", "noise_temperature"):
-            value = getattr(self, name)
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
-        for name in ("antenna_gain_db", "losses_db", "noise_figure_db"):
-            value = getattr(self, name)
-            if value is not None and not math.isfinite(value):
-                raise ParameterError(f"{name} = {value!r} dB must be finite")
-        if self.losses_db < 0 or (self.noise_figure_db is not None and self.noise_figure_db < 0):
-            raise ParameterError(f"losses_db = {self.losses_db} and noise_figure_db = {self.noise_figure_db} "
-                                 "must be >= 0 dB")
         if self.beam not in ("tapered", "uniform"):
             raise ParameterError(f"beam = {self.beam!r}; valid values are 'tapered' and 'uniform'")
         if self.beam == "uniform" and self.antenna_length > 0:
@@ -178,8 +180,7 @@ class RadarParameters:
                     f"azimuth_beamwidth = {self.azimuth_beamwidth:g} deg disagrees with antenna_length = "
                     f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them "
                     "(e.g. --set azimuth_beamwidth=0 when the scene file sets a beamwidth)")
-        _positive(self, "frequency", "bandwidth", "pulse_length", "prf", "sampling_rate",
-                  "velocity", "altitude", "azimuth_beamwidth")
+        _positive(self, "azimuth_beamwidth")
         if not 0.0 < self.incidence_angle < 90.0:
             raise ParameterError(
                 f"incidence_angle = {self.incidence_angle} deg is outside the valid range (0, 90) deg")
@@ -206,9 +207,6 @@ class RadarParameters:
                                  f"{math.degrees(2 * math.asin(HALF_POWER_SINC * 0.99)):.1f} deg, or beam = 'uniform'")
         if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
             raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
-        if self.scene_center is not None and (len(self.scene_center) != 3
-                                              or not np.all(np.isfinite(self.scene_center))):
-            raise ParameterError(f"scene_center = {self.scene_center} must be three finite numbers [m]")
 
     # -- derived quantities (standard formulas; Cumming & Wong 2005, ch. 4) -----------------
     @property
@@ -384,6 +382,102 @@ def _positive(obj: Any, *names: str) -> None:
         value = getattr(obj, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
+
+
+@dataclass(frozen=True)
+class ValidRange:
+    """The valid range ``[lo, hi]`` of one :class:`RadarParameters` field, in ``unit``.
+
+    ``note`` says what typical values look like; ``hints`` are the ``(power of ten, unit)``
+    a value outside the range may have been written in (9.6 for 9.6 GHz): the first whose
+    rescaled value lies in ``typical`` is suggested. ``zero`` marks a field where 0 means
+    "off" (antenna dimensions); ``optional`` one that may be None.
+    """
+
+    unit: str
+    lo: float
+    hi: float
+    note: str = ""
+    hints: tuple[tuple[int, str], ...] = ()
+    typical: tuple[float, float] = (0.0, 0.0)
+    zero: bool = False
+    optional: bool = False
+
+
+_HZ_BAND = ((6, "MHz"), (9, "GHz"))
+_ANTENNA = ValidRange("m", 0.0, 100.0, "0 = no pattern, else metres (airborne ~0.3-2 m, spaceborne ~5-15 m)",
+                      ((-2, "cm"), (-3, "mm")), (0.1, 20.0), zero=True)
+
+#: Valid range of every :class:`RadarParameters` field with a physical unit (VHF to sub-THz radars,
+#: drones to LEO / MEO platforms), checked in the order given. ``antenna_length`` and
+#: ``antenna_height`` must moreover exceed the wavelength; ``scene_center`` is checked per coordinate.
+VALID_RANGES: dict[str, ValidRange] = {
+    "frequency": ValidRange("Hz", 1e6, 1e12, "P band ~0.4e9, L 1.3e9, C 5.4e9, X 9.6e9, Ka 35e9",
+                            ((9, "GHz"), (6, "MHz")), (1e8, 1e11)),
+    "bandwidth": ValidRange("Hz", 1e5, 1e11, "typically 10e6 to 1e9", _HZ_BAND, (1e7, 1e10)),
+    "sampling_rate": ValidRange("Hz", 1e5, 1e12, "at least the bandwidth; 0 = 1.2 x bandwidth", _HZ_BAND,
+                                (1e7, 1e10)),
+    "prf": ValidRange("Hz", 1.0, 1e7, "airborne ~100-2000, spaceborne ~1000-10000", ((3, "kHz"),), (10.0, 1e5)),
+    "pulse_length": ValidRange("s", 1e-9, 0.1, "typically 1e-6 to 1e-4", ((-6, "us"), (-3, "ms"), (-9, "ns")),
+                               (1e-7, 1e-3)),
+    "velocity": ValidRange("m/s", 0.01, 1.2e4, "drones ~10, aircraft ~100-250, LEO satellites ~7600"),
+    "altitude": ValidRange("m", 1.0, 4e7, "above the scene centre: drones ~100, aircraft 1e3-1.2e4, LEO ~7e5",
+                           ((3, "km"),), (10.0, 4e7)),
+    "antenna_length": _ANTENNA,
+    "antenna_height": _ANTENNA,
+    "scene_center": ValidRange("m", -1e8, 1e8, "three world coordinates x, y, z"),
+    "heading": ValidRange("deg", -360.0, 360.0, "counter-clockwise from +x"),
+    "transmit_power": ValidRange("W", 1e-6, 1e9, "peak power: drones ~1, aircraft ~100-1e4", optional=True),
+    "noise_temperature": ValidRange("K", 1.0, 1e5, "290 K is room temperature", optional=True),
+    "antenna_gain_db": ValidRange("dBi", -30.0, 80.0, "in dB: a linear gain G is 10 log10(G) dBi", optional=True),
+    "losses_db": ValidRange("dB", 0.0, 100.0, "0 = lossless"),
+    "noise_figure_db": ValidRange("dB", 0.0, 50.0, "typically 2-5 dB", optional=True),
+}
+
+
+def _number(x: float) -> str:
+    """``x`` in short form, powers of ten as Python writes them: 1e6, 9.6e9, 1.2e4, 1e-5, 0.1, 250."""
+    if x == 0 or 1e-3 <= abs(x) < 1e4:
+        return f"{x:g}"
+    mantissa, exponent = f"{x:.5e}".split("e")
+    return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+
+
+def _range_error(name: str, value: Any, spec: ValidRange) -> str:
+    """The message for ``name = value`` outside ``spec``: range, unit, note and a unit hint."""
+    span = f"[{_number(spec.lo)}, {_number(spec.hi)}] {spec.unit}"
+    if not (isinstance(value, (int, float)) and math.isfinite(value)) or (value <= 0 < spec.lo):
+        shown = _number(value) if isinstance(value, float) and math.isfinite(value) and abs(value) >= 1e4 else repr(value)
+        return (f"{name} = {shown} must be a finite number > 0; valid range {span} "
+                f"({name} is in {spec.unit}: {spec.note})")
+    text = f"{name} = {_number(value)} {spec.unit} is outside the valid range {span}: {name} is in {spec.unit}"
+    for power, unit in spec.hints:
+        if spec.typical[0] <= value * 10.0 ** power <= spec.typical[1]:
+            return f"{text}; did you mean {_number(value)}e{power} ({_number(value)} {unit})?"
+    if name == "antenna_gain_db" and value > spec.hi:
+        return f"{text}; a linear gain of {_number(value)} is {10.0 * math.log10(value):.1f} dBi"
+    return f"{text} ({spec.note})"
+
+
+def _check_ranges(params: "RadarParameters") -> None:
+    """Check every field of :data:`VALID_RANGES`; raises ParameterError with :func:`_range_error`'s message."""
+    for name, spec in VALID_RANGES.items():
+        value = getattr(params, name)
+        if value is None and (spec.optional or name == "scene_center"):
+            continue
+        if name == "scene_center":
+            if not (isinstance(value, (tuple, list, np.ndarray)) and len(value) == 3):
+                raise ParameterError(f"scene_center = {value!r} must be three finite numbers x, y, z [m]")
+            for axis, coordinate in zip("xyz", value):
+                if not (isinstance(coordinate, (int, float, np.floating)) and spec.lo <= coordinate <= spec.hi):
+                    raise ParameterError(f"scene_center = {tuple(value)}: {axis} = {coordinate!r} m is outside "
+                                         f"the valid range [{_number(spec.lo)}, {_number(spec.hi)}] m "
+                                         "(world coordinates in metres)")
+            continue
+        if spec.zero and value == 0:
+            continue
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and spec.lo <= value <= spec.hi):
+            raise ParameterError(_range_error(name, value, spec))
 
 
 @dataclass(frozen=True)

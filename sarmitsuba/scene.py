@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import re
 import xml.etree.ElementTree as ET
 import zlib
 from dataclasses import dataclass
@@ -44,10 +45,11 @@ class LoadedScene:
     Attributes
     ----------
     scene : mitsuba.Scene
-    path : Path
-        The XML file.
+    path : Path or None
+        The XML file; None for a scene built in Python (:class:`sarmitsuba.pyscene.Scene`).
     source : str
-        What the user asked for (path, built-in name or ``sionna:NAME``).
+        What the user asked for (path, built-in name or ``sionna:NAME``), or
+        ``python:<name>`` for a scene built in Python.
     params : RadarParameters
         Resolved (scene_center and n_pulses filled in).
     settings : TraceSettings
@@ -66,7 +68,7 @@ class LoadedScene:
     """
 
     scene: Any
-    path: Path
+    path: Path | None
     source: str
     params: RadarParameters
     settings: TraceSettings
@@ -101,8 +103,9 @@ def sionna_scenes() -> dict[str, Path]:
     return {p.name: p / f"{p.name}.xml" for p in sorted(root.iterdir()) if (p / f"{p.name}.xml").is_file()}
 
 
-def resolve_source(source: str | Path | None) -> Path:
-    """Path of the XML file for ``source`` (None = the default ``urban`` scene).
+def resolve_source(source: Any) -> Path | None:
+    """Path of the XML file for ``source`` (None = the default ``urban`` scene); None for a
+    scene built in Python (:class:`sarmitsuba.pyscene.Scene`), which has no file.
 
     Raises
     ------
@@ -110,6 +113,8 @@ def resolve_source(source: str | Path | None) -> Path:
         Unknown built-in or Sionna scene name (listing the valid ones), Sionna RT not
         installed, or a file that does not exist.
     """
+    if _built_in_python(source):
+        return None
     source = "urban" if source is None else str(source)
     if source.startswith("sionna:"):
         name = source.split(":", 1)[1]
@@ -137,9 +142,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
 
     Parameters
     ----------
-    source : str or Path or None
-        XML path, built-in scene name (``urban``, ``dihedral``, ``trihedral``) or
-        ``sionna:NAME``; None = ``urban``.
+    source : str or Path or sarmitsuba.pyscene.Scene or None
+        XML path, built-in scene name (``urban``, ``dihedral``, ``trihedral``),
+        ``sionna:NAME``, or a scene built in Python (:class:`sarmitsuba.Scene`); None = ``urban``.
     sensor_overrides, integrator_overrides : mapping, optional
         Parameter values replacing the scene's (names as in the plugin manuals).
     material_overrides : mapping, optional
@@ -153,13 +158,15 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         An override names an unknown parameter or has an invalid value.
     """
     path = resolve_source(source)
-    scene = _load_mitsuba(path)
+    label = str(path) if path is not None else source.source      # a Python scene: python:<name>
+    load = source.to_mitsuba if path is None else lambda offset=None: _load_mitsuba(path, offset)
+    scene = load()
     center = 0.5 * (np.array(scene.bbox().min, np.float64) + np.array(scene.bbox().max, np.float64))
     offset = np.zeros(3)
     if np.all(np.isfinite(center)) and np.linalg.norm(center) > RECENTER_DISTANCE:
         offset = np.round(center)              # whole metres: exact in float32 below 2^24 m
-        scene = _load_mitsuba(path, offset)
-    warn_mesh_defects(check_meshes(scene), str(path))
+        scene = load(offset)
+    warn_mesh_defects(check_meshes(scene), label)
     _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}
@@ -177,14 +184,21 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     bbox = scene.bbox()
     lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
     if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
-        raise SceneError(f"scene {str(path)!r} has no geometry (empty bounding box)")
+        raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
     params = resolve_parameters(params, lo, hi)
     radar_equation(params)                   # radiometry parameters checked before any tracing
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
-    return LoadedScene(scene=scene, path=path, source=str(source if source is not None else "urban"),
+    name = label if path is None else str(source if source is not None else "urban")
+    return LoadedScene(scene=scene, path=path, source=name,
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
                        offset=offset, shape_boxes=_shape_boxes(scene))
+
+
+def _built_in_python(source: Any) -> bool:
+    """Whether ``source`` is a :class:`sarmitsuba.pyscene.Scene` (imported lazily: it imports this module)."""
+    from .pyscene import Scene
+    return isinstance(source, Scene)
 
 
 def _shape_boxes(scene: Any) -> np.ndarray:
@@ -212,7 +226,10 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
         resolver.prepend(str(path.parent.resolve()))
         return mi.load_string(_shifted_xml(path, offset), optimize=False)
     except (RuntimeError, ET.ParseError) as exc:
-        raise SceneError(f"cannot load scene {str(path)!r}: {_clean(exc)}") from None
+        file, line, message = _located(exc)
+        where = "" if line is None else (f", line {line}" if file is None or Path(file) == path
+                                         else f" ({file!r}, line {line})")
+        raise SceneError(f"cannot load scene {str(path)!r}{where}: {message}") from None
     finally:
         mi.set_log_level(level)
         resolver.clear()
@@ -246,8 +263,75 @@ def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
 
 
 def _clean(exc: Exception) -> str:
-    text = str(exc)
-    return text.split("]", 1)[1].strip() if text.startswith("[") and "]" in text else text
+    """The message of a Mitsuba loading error without its source prefix and Python traceback frames,
+    led by ``FILE, line N:`` when it names a place in a file (see :func:`_located`)."""
+    file, line, message = _located(exc)
+    return message if file is None else f"{file}, line {line}: {message}"
+
+
+#: Where Mitsuba's scene parser says an error happened: ``At FILE (line N, col M): ...`` (a plugin's
+#: constructor failed) or ``Error while loading FILE (line N, col M): ...`` (a malformed value).
+_MITSUBA_AT = re.compile(r"^(?:At|Error while loading) (?P<file>.+?) \(line (?P<line>\d+), col \d+\): (?P<rest>.*)$",
+                         re.S)
+#: ``Parsing of XML file "FILE" failed: MESSAGE (line N, col M)``: malformed XML.
+_MITSUBA_XML = re.compile(r'^Parsing of XML file "(?P<file>.*?)" failed: (?P<rest>.*) \(line (?P<line>\d+), col \d+\)$',
+                          re.S)
+#: The plugin that failed: ``failed to instantiate sensor plugin of type "sar": ...``.
+_MITSUBA_PLUGIN = re.compile(r'^failed to instantiate (?P<tag>\w+) plugin of type "[^"]*": (?P<rest>.*)$', re.S)
+#: The parameter an error message names: ``name = value ...``, ``unknown parameter 'name'``, ``parameter name:``.
+_NAMED_PARAMETER = re.compile(r"^(?P<a>\w+) = |unknown parameter '(?P<b>\w+)'|parameter (?P<c>\w+):")
+
+
+def _located(exc: Exception) -> tuple[str | None, int | None, str]:
+    """``(file, line, message)`` of a Mitsuba loading error (file and line None when it names none).
+
+    The message drops Mitsuba's ``[parser.cpp:1718]`` prefix, its ``At FILE (line, col)`` and
+    "failed to instantiate" framing, and the traceback of a Python plugin (frames and the
+    exception's class name). The line is that of the offending parameter's element when the
+    message names one that the failing plugin's element sets (``<float name="frequency" .../>``),
+    else the plugin's element."""
+    text = re.sub(r"^\[[\w.]+:\d+\]\s*", "", str(exc).strip())
+    file = line = tag = None
+    while (match := _MITSUBA_AT.match(text) or _MITSUBA_XML.match(text)) is not None:
+        file, line, text = match["file"], int(match["line"]), match["rest"].strip()
+        plugin = _MITSUBA_PLUGIN.match(text)
+        if plugin is not None:
+            tag, text = plugin["tag"], plugin["rest"].strip()
+    message = _without_traceback(text)
+    named = _NAMED_PARAMETER.search(message)
+    if file is not None and line is not None and tag is not None and named is not None:
+        line = _parameter_line(file, line, tag, named["a"] or named["b"] or named["c"])
+    return file, line, message
+
+
+def _without_traceback(text: str) -> str:
+    """The exception message at the end of a Python traceback (frames and, for sarmitsuba's own
+    errors, the class name dropped); ``text`` itself when it holds no traceback."""
+    if "Traceback (most recent call last)" not in text:
+        return text
+    lines = text.splitlines()
+    frames = [i for i, line in enumerate(lines) if line.startswith("  File ")]
+    i = frames[-1] + 1 if frames else 1
+    while i < len(lines) - 1 and lines[i].startswith("    "):       # source lines and carets of the last frame
+        i += 1
+    message = "\n".join(lines[i:]).strip()
+    return re.sub(r"^(?:\w+\.)*(?:ParameterError|SceneError|MaterialError|ValueError): ", "", message)
+
+
+def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
+    """Line of the first element ``name="NAME"`` from the plugin element ``<TAG`` on ``line`` to its
+    closing tag; ``line`` when there is none (a default or derived value) or the file is unreadable."""
+    try:
+        lines = Path(file).read_text(errors="replace").splitlines()
+    except OSError:
+        return line
+    pattern = re.compile(rf"""name\s*=\s*["']{re.escape(name)}["']""")
+    for number in range(line, len(lines) + 1):
+        if pattern.search(lines[number - 1]):
+            return number
+        if f"</{tag}" in lines[number - 1] or (number > line and re.search(rf"<{tag}\b", lines[number - 1])):
+            break
+    return line
 
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
