@@ -4,6 +4,40 @@ Importing the package finds a libLLVM >= 16 for Dr.Jit's LLVM backend, sets the 
 variant (``llvm_ad_mono``) and registers the plugins (``sar`` sensor, ``sbr`` integrator,
 ``radar`` and ``itu-radio-material`` BSDFs).
 
+Python API: the command line's steps, one call each (imported on first use, so ``import
+sarmitsuba`` stays as cheap as the variant set-up)::
+
+    import sarmitsuba
+    sim = sarmitsuba.simulate("trihedral")                         # in memory: sim.raw, sim.image
+    summary = sarmitsuba.render("trihedral", "out/trihedral")      # files
+    image = sarmitsuba.refocus(sim.raw, "omegak")                  # any RawData
+    report = sarmitsuba.analyze(sim.image, (0.0, 0.0, 0.0))        # point target at the apex
+
+================================  ====================================================================
+name                              what it is
+================================  ====================================================================
+``simulate(scene, ...)``          :func:`sarmitsuba.pipeline.simulate`: load, trace, bin and focus in
+                                  memory; returns a ``Simulation`` (``.raw``, ``.image``, ...)
+``render(scene, out_dir, ...)``   :func:`sarmitsuba.pipeline.render`: the same, writing raw.npz,
+                                  image.npz/.exr/.png and summary.json
+``refocus(raw, algorithm)``       :func:`sarmitsuba.pipeline.refocus`: focus any RawData with ``bp``,
+                                  ``ffbp``, ``omegak`` or ``rda`` (the ``focus`` command)
+``focus``                         the focusing subpackage (:mod:`sarmitsuba.focus`: ``backproject``,
+                                  ``ffbp``, ``omega_k``, ...); ``sarmitsuba.focus.focus(raw, ...)`` is
+                                  ``refocus``
+``analyze(image, target)``        :func:`sarmitsuba.api.analyze`: point-target report (IRW, PSLR,
+                                  ISLR, RCS) of a SarImage or image.npz (the ``analyze`` command)
+``Scene(meshes, sensor, ...)``    :class:`sarmitsuba.pyscene.Scene`: a scene built in Python from
+                                  trimesh meshes and materials, accepted wherever a scene path is
+================================  ====================================================================
+
+``scene`` is an XML path, a built-in name (``urban``, ``dihedral``, ``trihedral``),
+``sionna:NAME`` or a :class:`Scene`. Why ``refocus`` and not ``focus``: ``sarmitsuba.focus``
+is the focusing subpackage, and importing it rebinds the package attribute ``focus`` to it,
+so a top-level function of that name would be replaced by the module as soon as any code
+imports ``sarmitsuba.focus``; the subpackage therefore keeps the name and offers the entry
+as ``sarmitsuba.focus.focus``, and the top level as ``refocus``.
+
 Pipeline (docs/design.md section 2), one module per stage:
 
 =====================  ====================================================================
@@ -32,13 +66,35 @@ checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings;
                        :mod:`~sarmitsuba.effects` -- which optional effects a run simulates, and why;
                        :mod:`~sarmitsuba.info` -- ``info``: radar summary and cost estimate, no tracing
 orchestration          :mod:`~sarmitsuba.pipeline` -- ``simulate``, ``render``, ``refocus``;
-                       :mod:`~sarmitsuba.cli`
+                       :mod:`~sarmitsuba.pyscene` -- ``Scene`` (built in Python);
+                       :mod:`~sarmitsuba.api` -- ``analyze``; :mod:`~sarmitsuba.cli`
 =====================  ====================================================================
 """
+import importlib as _importlib
+
 from ._variant import activate as _activate
 
 __version__ = "0.1.0"
 
 VARIANT = _activate()
 
-__all__ = ["VARIANT", "__version__"]
+#: Top-level names imported on first use: name -> (module, attribute; None for the module itself).
+_LAZY = {"simulate": ("pipeline", "simulate"), "render": ("pipeline", "render"),
+         "refocus": ("pipeline", "refocus"), "analyze": ("api", "analyze"), "Scene": ("pyscene", "Scene"),
+         "focus": ("focus", None)}
+
+__all__ = ["VARIANT", "__version__", "simulate", "render", "refocus", "focus", "analyze", "Scene"]
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module_name, attribute = _LAZY[name]
+    module = _importlib.import_module(f".{module_name}", __name__)
+    value = module if attribute is None else getattr(module, attribute)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -27,6 +27,11 @@ Algorithms
 :func:`range_doppler`               Range-Doppler with RCMC and optional SRC (ch. 6).
 ==================================  =========================================================
 
+One call
+--------
+:func:`focus` (also ``sarmitsuba.refocus``) focuses any RawData with a named algorithm, on the
+scene's ground grid when the metadata record it, as the ``focus`` command does.
+
 Range processing and geometry
 -----------------------------
 ==================================  =========================================================
@@ -44,5 +49,12 @@ from .range_compression import apply_range_window, range_compress
 from .rda import range_doppler
 from .stripmap import StripmapGeometry, slant_output_grid, stripmap_geometry
 
-__all__ = ["ImageGrid", "backproject", "backproject_reference", "ffbp", "omega_k", "range_doppler", "range_compress",
+__all__ = ["focus", "ImageGrid", "backproject", "backproject_reference", "ffbp", "omega_k", "range_doppler", "range_compress",
            "apply_range_window", "StripmapGeometry", "stripmap_geometry", "slant_output_grid"]
+
+
+def focus(raw, algorithm: str = "bp", **options):
+    """Focus any RawData with ``algorithm`` (``bp``, ``ffbp``, ``omegak``, ``rda``): the same as
+    :func:`sarmitsuba.pipeline.refocus` (``sarmitsuba.refocus``), whose parameters and errors it has."""
+    from ..pipeline import refocus
+    return refocus(raw, algorithm, **options)
