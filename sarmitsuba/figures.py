@@ -9,7 +9,8 @@ rename).
 
 ==============================  ================================================================
 :func:`raw_figure`              Raw data: magnitude (dB) and phase, pulses x slant range; zoom on
-                                the brightest point target: range migration, phase history.
+                                the brightest point-like target (or a note that none is):
+                                range migration, phase history against a point's.
 :func:`image_figure`            Focused image in dB, axes in metres.
 :func:`bounce_orders_figure`    Single, double, triple bounce side by side, on one dB scale.
 :func:`overlay_figure`          Image with building footprints, layover, shadow and double-bounce
@@ -23,7 +24,11 @@ rename).
 Display conventions (as :func:`sarmitsuba.products.write_quicklook`): intensity ``|I|^2``
 multilooked by whole factors so no axis exceeds ``max_pixels``; ``10 log10(I / I_ref)``
 with ``I_ref`` the 99.5th percentile of the non-zero intensities (bright corners saturate),
-clipped to ``dynamic_range_db``; range on x, azimuth on y (increasing upward), metres.
+clipped to ``dynamic_range_db``; range on x (near range, the sensor side, on the left),
+azimuth on y (the flight direction, upward), metres from the scene centre (ground images) or
+closest-approach slant range and azimuth from the scene centre (slant images), marked on every
+image panel; colour bars as tall as the images. A figure that cannot be written raises
+:class:`sarmitsuba.products.WriteError` naming the target file (no temporary file is left).
 """
 from __future__ import annotations
 
@@ -31,6 +36,7 @@ import json
 import math
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -38,7 +44,7 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .image import SarImage
-from .products import REFERENCE_PERCENTILE, _atomic_write, _edges, _multilook
+from .products import REFERENCE_PERCENTILE, _atomic_write, _colorbar, _edges, _label_image_axes, _multilook
 from .raw import RawData, _json_default
 
 __all__ = ["raw_figure", "image_figure", "bounce_orders_figure", "overlay_figure", "comparison_figure",
@@ -51,18 +57,21 @@ _ORDER_NAMES = {1: "single bounce", 2: "double bounce", 3: "triple bounce"}
 
 
 # ============================================================================ helpers
-def _figure(figsize: tuple[float, float], dpi: int) -> Any:
+def _figure(figsize: tuple[float, float], dpi: int, layout: str = "constrained") -> Any:
+    """An Agg figure; ``layout="compressed"`` for rows of equal-aspect images sharing a colour bar
+    (the bar then spans the images' height, not the grid cell's; not with a suptitle, which
+    upsets it)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     if not (len(figsize) == 2 and min(figsize) > 0 and dpi > 0):
         raise ValueError(f"figsize must be two positive inches and dpi > 0, got {figsize!r}, {dpi!r}")
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+    fig = Figure(figsize=figsize, dpi=dpi, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
 
 def _save(fig: Any, path: str | os.PathLike, dpi: int) -> Path:
-    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "figure")
 
 
 def _check_range(dynamic_range_db: float) -> float:
@@ -100,8 +109,7 @@ def _show_image(ax: Any, image: SarImage, power: np.ndarray, looks: tuple[int, i
     db = _db(power, reference, dynamic_range_db)
     shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
                       extent=_image_extent(image, db.shape, looks), aspect="equal", interpolation="nearest")
-    ax.set_xlabel(f"{'ground' if image.plane == 'ground' else 'slant'} range [m]")
-    ax.set_ylabel("azimuth [m]")
+    _label_image_axes(ax, image)
     return shown
 
 
@@ -151,15 +159,20 @@ def _order_label(image: SarImage, k: int) -> str:
 # ============================================================================ raw data
 def raw_figure(raw: RawData, path: str | os.PathLike, *, dynamic_range_db: float = 50.0,
                figsize: tuple[float, float] = (12.0, 9.0), dpi: int = 100, max_pixels: int = 800) -> Path:
-    """Raw data: magnitude and phase (pulses x slant range), and a zoom on the brightest echo.
+    """Raw data: magnitude and phase (pulses x slant range), and a zoom on a point target's echo.
 
     Panels: (a) ``|s|`` in dB of the data as stored (range compressed or chirped);
     (b) their phase (cyclic colour map), blank where the magnitude is more than 30 dB below
-    ``I_ref``; (c) the range-compressed magnitude around the brightest echo, with the
-    range-migration curve ``R(p) = sqrt(R0^2 + |A_p - A_0|^2)`` of a point at closest range
-    ``R0`` seen broadside at pulse ``p_0`` (found by a coarse azimuth compression, see
-    ``_pick_echo``); (d) the unwrapped phase along that echo against the azimuth phase
-    history ``-4 pi (R(p) - R0) / lambda``, the chirp that azimuth focusing compresses.
+    ``I_ref``; (c) the range-compressed magnitude around the brightest point-like echo, with
+    the range-migration curve ``R(p) = sqrt(R0^2 + |A_p - A_0|^2)`` of a point at closest
+    range ``R0`` seen broadside at pulse ``p_0``; (d) the unwrapped phase along that echo
+    against the azimuth phase history of a point, ``-4 pi (R(p) - R0) / lambda`` (with a
+    fitted phase and broadside pulse), the chirp that azimuth focusing compresses. An echo
+    counts as point-like only when its phase history matches a point's within
+    :data:`POINT_PHASE_RMS` rad RMS over its beam and it is compact in range (``_pick_echo``):
+    the brightest echoes of walls (urban, dihedral) are not. When no echo is, (c) and (d)
+    show the brightest echo and its measured phase, say "no point-like target found" and
+    draw no point-target curves.
 
     Parameters
     ----------
@@ -210,37 +223,172 @@ def raw_figure(raw: RawData, path: str | os.PathLike, *, dynamic_range_db: float
     return _save(fig, path, dpi)
 
 
-def _pick_echo(raw: RawData, compressed: np.ndarray, slant: np.ndarray) -> tuple[int, int, int, int]:
-    """The brightest point target: ``(range sample, broadside pulse, first, last pulse of its beam)``.
+#: A candidate is a point target when its measured azimuth phase history differs from a point's
+#: by at most this RMS [rad] (after a fitted constant and slope, i.e. phase and broadside pulse).
+POINT_PHASE_RMS = 1.0
+#: ... and lights at least this fraction of the pulses of its beam (within 20 dB of its brightest).
+MIN_LIT_FRACTION = 0.8
+_COHERENCE = 0.5             # normalised correlation with a point's history to be tested
+_CANDIDATES = 8              # echoes tested, brightest first (coarse azimuth compression)
 
-    Every range line along the pulses is correlated with the azimuth phase history of a
-    point at that range, ``exp(-j 4 pi sqrt(R^2 + s^2) / lambda)`` over the azimuth beam
-    (``metadata["radar"]["azimuth_beamwidth"]``, default 1 degree; ``s`` = along-track
-    offset): a coarse azimuth compression without range-cell migration correction. Its
-    maximum is the strongest point-like scatterer and its broadside (zero-Doppler) pulse.
-    Extended targets, such as the double bounce of a wall parallel to the track, have a
-    flat phase history and compress less.
+
+@dataclass(frozen=True)
+class _Echo:
+    """An echo of the raw data and how well it follows a point target (see :func:`_pick_echo`).
+
+    ``sample``: range sample of the peak at the broadside pulse ``pulse``; ``first``/``last``:
+    the pulses of its beam; ``r0`` [m]: closest-approach slant range; ``pulses`` [n] int,
+    ``curve`` [n] m: the point's range history ``R(p)`` over them; ``measured`` [n] rad: the
+    unwrapped phase sampled along ``R(p)``; ``model`` [n] rad: the point's
+    ``-4 pi (R(p) - R0) / lambda`` plus the constant and slope (phase, broadside pulse) fitted
+    to ``measured``; both NaN where the echo is more than 20 dB below its brightest, and
+    shifted together so that ``model`` is 0 at ``pulse``; ``rms`` [rad] of ``measured -
+    model`` (weighted by magnitude); ``width`` [m]: half-power width in slant range at the
+    broadside pulse; ``lit``: fraction of those pulses within 20 dB of the brightest;
+    ``point_like``: ``rms <= POINT_PHASE_RMS``, ``width`` within two range resolutions
+    (``c / B``) plus a sample, and ``lit >= MIN_LIT_FRACTION``.
     """
+
+    sample: int
+    pulse: int
+    first: int
+    last: int
+    r0: float
+    pulses: np.ndarray
+    curve: np.ndarray
+    measured: np.ndarray
+    model: np.ndarray
+    rms: float
+    width: float
+    lit: float
+    point_like: bool
+
+
+def _pick_echo(raw: RawData, compressed: np.ndarray, slant: np.ndarray) -> _Echo:
+    """The brightest point-like echo, or (``point_like`` False) the brightest echo when none is.
+
+    Candidates: the peaks of a coarse azimuth compression (every range line correlated with
+    the phase history of a point at that range, ``exp(-j 4 pi sqrt(R^2 + s^2) / lambda)``
+    over the azimuth beam ``metadata["radar"]["azimuth_beamwidth"]`` (default 1 degree),
+    no range-cell migration correction), brightest first. Each is tested as a point target
+    (:func:`_point_test`): its phase history sampled along the point's range history
+    ``R(p)`` must follow ``-4 pi (R(p) - R0) / lambda`` within :data:`POINT_PHASE_RMS` and
+    its echo must be compact in range. Extended targets fail: a wall parallel to the track
+    has a flat phase history (its stationary point moves with the antenna).
+
+    Parameters
+    ----------
+    raw : RawData
+    compressed : complex [n_pulses, n_samples]
+        The range-compressed data.
+    slant : float64 [n_samples], m
+        ``c tau / 2`` of each sample.
+    """
+    half_beam, step = _beam(raw)
+    for _, k, p in _candidates(raw, compressed, slant, half_beam, step):
+        half = int(round(slant[k] * half_beam / step))
+        echo = _point_test(raw, compressed, slant, k, p, max(0, p - half), min(raw.n_pulses - 1, p + half))
+        if echo.point_like:
+            return echo
+    return echo                                          # the brightest echo, not point-like
+
+
+def _beam(raw: RawData) -> tuple[float, float]:
+    """``tan(beamwidth / 2)`` of the azimuth beam and the along-track pulse spacing [m]."""
     radar = raw.metadata.get("radar") if isinstance(raw.metadata.get("radar"), dict) else {}
     half_beam = math.tan(math.radians(float(radar.get("azimuth_beamwidth") or 1.0)) / 2.0)
     direction = raw.velocity[0] / max(float(np.linalg.norm(raw.velocity[0])), 1e-12)
     along = (raw.tx_position - raw.tx_position[0]) @ direction
     step = float(np.median(np.abs(np.diff(along)))) if raw.n_pulses > 1 else 1.0
+    return half_beam, max(step, 1e-12)
+
+
+def _candidates(raw: RawData, compressed: np.ndarray, slant: np.ndarray, half_beam: float,
+                step: float) -> list[tuple[float, int, int]]:
+    """Peaks ``(value, sample, pulse)`` of the coarse azimuth compression to test as point targets.
+
+    First up to ``_CANDIDATES`` peaks whose normalised correlation with a point's phase
+    history, ``|sum s h*| / sqrt(sum |s|^2 sum |h|^2)`` over the overlap, is at least
+    :data:`_COHERENCE` (brightest first, at least a beam apart in pulses or 4 samples in
+    range: a bright wall's range sidelobes do not crowd out a weaker point); last the
+    brightest peak of all, the echo shown when none of them is point-like.
+    """
     n_fft = int(2 ** math.ceil(math.log2(2 * raw.n_pulses)))
     offsets = np.fft.fftfreq(n_fft, 1.0 / n_fft) * step                 # m, circular lag order
-    best = (-1.0, 0, 0)
+    support = np.fft.fft(np.arange(n_fft) < raw.n_pulses)
+    found, brightest = [], (0.0, 0, raw.n_pulses // 2)
     for cols in np.array_split(np.arange(raw.n_samples), max(1, raw.n_samples // 256)):
         r0 = slant[cols][None, :]
         history = np.exp(-4j * np.pi * raw.fc / SPEED_OF_LIGHT * (np.sqrt(r0 ** 2 + offsets[:, None] ** 2) - r0))
         history[np.abs(offsets)[:, None] > r0 * half_beam] = 0.0
-        focused = np.abs(np.fft.ifft(np.fft.fft(compressed[:, cols], n_fft, axis=0)
-                                     * np.conj(np.fft.fft(history, axis=0)), axis=0))[:raw.n_pulses]
+        window = np.conj(np.fft.fft(np.abs(history) ** 2, axis=0))
+        data = compressed[:, cols].astype(np.complex128)
+        correlate = lambda spectrum, kernel: np.fft.ifft(spectrum * kernel, axis=0)[:raw.n_pulses]  # noqa: E731
+        focused = np.abs(correlate(np.fft.fft(data, n_fft, axis=0), np.conj(np.fft.fft(history, axis=0))))
+        energy = correlate(np.fft.fft(np.abs(data) ** 2, n_fft, axis=0), window).real
+        taps = correlate(support[:, None], window).real
+        coherence = focused / np.sqrt(np.maximum(energy * taps, 1e-300))
         p, c = np.unravel_index(int(np.argmax(focused)), focused.shape)
-        if focused[p, c] > best[0]:
-            best = (float(focused[p, c]), int(cols[c]), int(p))
-    _, k, p0 = best
-    half = int(round(slant[k] * half_beam / step))
-    return k, p0, max(0, p0 - half), min(raw.n_pulses - 1, p0 + half)
+        if focused[p, c] > brightest[0]:
+            brightest = (float(focused[p, c]), int(cols[c]), int(p))
+        focused[coherence < _COHERENCE] = 0.0
+        for _ in range(_CANDIDATES):
+            p, c = np.unravel_index(int(np.argmax(focused)), focused.shape)
+            if not focused[p, c] > 0:
+                break
+            found.append((float(focused[p, c]), int(cols[c]), int(p)))
+            half = max(1, int(round(slant[cols[c]] * half_beam / step)))
+            focused[max(0, p - half):p + half + 1, max(0, c - 4):c + 5] = 0.0
+    kept: list[tuple[float, int, int]] = []
+    for value, k, p in sorted(found, reverse=True):
+        half = max(1, int(round(slant[k] * half_beam / step)))
+        if all(abs(k - k2) > 4 or abs(p - p2) > half for _, k2, p2 in kept):
+            kept.append((value, k, p))
+    return kept[:_CANDIDATES] + [brightest]
+
+
+def _point_test(raw: RawData, compressed: np.ndarray, slant: np.ndarray, k: int, p0: int, p_a: int,
+                p_b: int) -> _Echo:
+    """Compare the echo at sample ``k``, broadside pulse ``p0`` with a point target (:class:`_Echo`)."""
+    magnitude = np.abs(compressed[p0]).astype(np.float64)
+    dr = float(slant[1] - slant[0]) if raw.n_samples > 1 else 1.0
+    k0 = int(np.argmax(magnitude[max(0, k - 3):k + 4])) + max(0, k - 3)
+    r0 = float(slant[k0])
+    if 0 < k0 < raw.n_samples - 1:                                  # parabolic peak refinement
+        y = magnitude[k0 - 1:k0 + 2]
+        denom = y[0] - 2 * y[1] + y[2]
+        if denom < 0:
+            r0 += 0.5 * (y[0] - y[2]) / denom * dr
+    above = magnitude >= magnitude[k0] / math.sqrt(2.0)
+    lo, hi = k0, k0
+    while lo > 0 and above[lo - 1]:
+        lo -= 1
+    while hi < raw.n_samples - 1 and above[hi + 1]:
+        hi += 1
+    width = (hi - lo + 1) * dr
+    antenna = 0.5 * (raw.tx_position + raw.rx_position)
+    pulses = np.arange(p_a, p_b + 1)
+    curve = np.sqrt(r0 ** 2 + np.sum((antenna[pulses] - antenna[p0]) ** 2, axis=1))
+    samples = np.clip(np.rint((curve - slant[0]) / dr).astype(int), 0, raw.n_samples - 1)
+    echo = compressed[pulses, samples].astype(np.complex128)
+    model = -4.0 * np.pi * raw.fc / SPEED_OF_LIGHT * (curve - r0)
+    weight = np.abs(echo)
+    lit = weight >= 0.1 * weight.max() if weight.max() > 0 else np.zeros(pulses.size, bool)
+    measured, fitted = np.full(pulses.size, np.nan), np.full(pulses.size, np.nan)
+    rms = math.inf
+    if lit.sum() >= 3:            # unwrap the difference from the model: slow for a point, so unwrapping is safe
+        residual = np.unwrap(np.angle(echo[lit] * np.exp(-1j * model[lit])))
+        basis = np.stack([np.ones(int(lit.sum())), (pulses[lit] - p0) / max(1, p_b - p_a)], axis=1)
+        w = weight[lit]
+        coef = np.linalg.lstsq(basis * w[:, None], residual * w, rcond=None)[0]
+        rms = float(np.sqrt(np.sum(w * (residual - basis @ coef) ** 2) / np.sum(w)))
+        measured[lit], fitted[lit] = model[lit] + residual, model[lit] + basis @ coef
+        shift = fitted[lit][np.argmin(np.abs(pulses[lit] - p0))]
+        measured, fitted = measured - shift, fitted - shift
+    resolution = SPEED_OF_LIGHT / (2.0 * raw.bandwidth)
+    covered = float(lit.mean())                 # a point is lit over its whole beam, a wall's end over half
+    point_like = rms <= POINT_PHASE_RMS and width <= 2.0 * resolution + dr and covered >= MIN_LIT_FRACTION
+    return _Echo(k0, p0, p_a, p_b, r0, pulses, curve, measured, fitted, rms, width, covered, point_like)
 
 
 def _raw_zoom(fig: Any, axes: Any, raw: RawData, compressed: np.ndarray, slant: np.ndarray,
@@ -251,49 +399,59 @@ def _raw_zoom(fig: Any, axes: Any, raw: RawData, compressed: np.ndarray, slant: 
         for ax in axes:
             ax.text(0.5, 0.5, "no echo", ha="center", va="center", transform=ax.transAxes)
         return
-    k_peak, p0, p_a, p_b = _pick_echo(raw, compressed, slant)        # p0: broadside (zero Doppler)
+    echo = _pick_echo(raw, compressed, slant)
+    p_a, p_b, k_peak = echo.first, echo.last, echo.sample
     peak = float(magnitude[p_a:p_b + 1, max(0, k_peak - 3):k_peak + 4].max())
-    k0 = int(np.argmax(magnitude[p0, max(0, k_peak - 3):k_peak + 4])) + max(0, k_peak - 3)
-    r0 = float(slant[k0])
-    if 0 < k0 < raw.n_samples - 1:                                  # parabolic peak refinement
-        y = magnitude[p0, k0 - 1:k0 + 2].astype(np.float64)
-        denom = y[0] - 2 * y[1] + y[2]
-        if denom < 0:
-            r0 += 0.5 * (y[0] - y[2]) / denom * (slant[1] - slant[0])
-    along = np.linalg.norm(raw.tx_position - raw.tx_position[p0], axis=1)
-    curve = np.sqrt(r0 ** 2 + along ** 2)
-    migration = float(curve[[p_a, p_b]].max() - r0)
+    migration = float(echo.curve.max() - echo.r0)
     dr = float(slant[1] - slant[0]) if raw.n_samples > 1 else 1.0
     half_cols = max(16, int(math.ceil(2 * migration / dr)) + 8)
     span = p_b - p_a + 1
     rows = slice(max(0, p_a - span // 4), min(raw.n_pulses, p_b + span // 4 + 1))
     cols = slice(max(0, k_peak - half_cols), min(raw.n_samples, k_peak + half_cols + 1))
-    zoom = compressed[rows, cols]
     extent = (*_edges(slant[cols]), rows.start - 0.5, rows.stop - 0.5)
-    db = _db(np.abs(zoom).astype(np.float64) ** 2, peak ** 2, dynamic_range_db)
+    db = _db(magnitude[rows, cols].astype(np.float64) ** 2, peak ** 2, dynamic_range_db)
     shown = axes[0].imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0, origin="lower", aspect="auto",
                            extent=extent, interpolation="nearest")
     fig.colorbar(shown, ax=axes[0], label="dB (peak = 0)")
-    pulses = np.arange(rows.start, rows.stop)
-    axes[0].plot(curve[rows], pulses, "--", color="orangered", lw=1.2,
-                 label=f"R(p): migration {migration:.3g} m = {migration / dr:.2g} samples")
-    axes[0].legend(loc="upper right", fontsize="x-small")
-    axes[0].set_title(f"(c) range compressed, brightest point target (R0 = {r0:.2f} m, pulses {p_a}-{p_b})",
-                      fontsize="small")
-    # (d) phase history along the echo's range sample, against -4 pi (R(p) - R0) / lambda
-    pulses_lit = np.arange(p_a, p_b + 1)
-    measured = np.unwrap(np.angle(compressed[pulses_lit, k0].astype(np.complex128)))
-    expected = -4.0 * np.pi * raw.fc / SPEED_OF_LIGHT * (curve[pulses_lit] - r0)
-    measured += expected[p0 - p_a] - measured[p0 - p_a]
-    axes[1].plot(pulses_lit, measured, color="k", lw=1.2, label="measured (unwrapped, sample at R0)")
-    axes[1].plot(pulses_lit, expected, "--", color="orangered", lw=1.2, label="-4 pi (R(p) - R0) / lambda")
+    axes[0].set_xlabel("slant range c tau / 2 [m]")
+    axes[0].set_ylabel("pulse")
     axes[1].set_xlabel("pulse")
     axes[1].set_ylabel("phase [rad]")
+    if echo.point_like:
+        _draw_point_echo(axes, echo, migration, dr)
+    else:
+        _draw_extended_echo(axes, echo)
+
+
+def _draw_point_echo(axes: Any, echo: _Echo, migration: float, dr: float) -> None:
+    """Panels (c), (d) for a point-like echo: its range migration and phase history against a point's."""
+    axes[0].plot(echo.curve, echo.pulses, "--", color="orangered", lw=1.2,
+                 label=f"R(p): migration {migration:.3g} m = {migration / dr:.2g} samples")
+    axes[0].legend(loc="upper right", fontsize="x-small")
+    axes[0].set_title(f"(c) range compressed, brightest point target (R0 = {echo.r0:.2f} m, "
+                      f"pulses {echo.first}-{echo.last})", fontsize="small")
+    axes[1].plot(echo.pulses, echo.measured, color="k", lw=1.2, label="measured (unwrapped, along R(p))")
+    axes[1].plot(echo.pulses, echo.model, "--", color="orangered", lw=1.2,
+                 label=f"point target -4 pi (R(p) - R0) / lambda, fitted (RMS difference {echo.rms:.2f} rad)")
     axes[1].legend(loc="lower center", fontsize="x-small")
     axes[1].set_title("(d) its azimuth phase history: the chirp that azimuth focusing compresses",
                       fontsize="small")
-    axes[0].set_xlabel("slant range c tau / 2 [m]")
-    axes[0].set_ylabel("pulse")
+
+
+def _draw_extended_echo(axes: Any, echo: _Echo) -> None:
+    """Panels (c), (d) when no echo is point-like: the brightest echo, no point-target model."""
+    if echo.rms > POINT_PHASE_RMS:
+        reason = f"phase history {echo.rms:.3g} rad RMS from a point's"
+    elif echo.lit < MIN_LIT_FRACTION:
+        reason = f"lit over {100 * echo.lit:.0f} % of its beam only"
+    else:
+        reason = f"echo {echo.width:.2f} m wide in range"
+
+    axes[0].set_title(f"(c) range compressed, brightest echo: no point-like target found\n({reason}; "
+                      "an extended target such as a wall)", fontsize="small")
+    axes[1].plot(echo.pulses, echo.measured, color="k", lw=1.2, label="measured (unwrapped, along the echo)")
+    axes[1].legend(loc="lower center", fontsize="x-small")
+    axes[1].set_title("(d) its azimuth phase history: not a point target's, no parabola drawn", fontsize="small")
 
 
 # ============================================================================ images
@@ -324,7 +482,7 @@ def image_figure(image: SarImage, path: str | os.PathLike, *, dynamic_range_db: 
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot()
     shown = _show_image(ax, image, power, looks, _reference(power), dynamic_range_db)
-    fig.colorbar(shown, ax=ax, label=f"dB re the {REFERENCE_PERCENTILE:g}th percentile")
+    _colorbar(fig, ax, shown, f"dB re the {REFERENCE_PERCENTILE:g}th percentile")
     ax.set_title(f"{title or image.metadata.get('scene', 'SAR image')}\n{_describe(image, looks)}", fontsize="small")
     return _save(fig, path, dpi)
 
@@ -399,7 +557,7 @@ def bounce_orders_figure(images_per_order: Sequence[SarImage] | Mapping[str, Sar
     for ax, (label, im), power, s in zip(axes, labelled, powers, share):
         shown = _show_image(ax, im, power, looks, reference, dynamic_range_db)
         ax.set_title(f"{label}\n{100 * s:.1f} % of the image energy", fontsize="small")
-    fig.colorbar(shown, ax=list(axes), label="dB re common reference", shrink=0.8)
+    _colorbar(fig, axes[-1], shown, "dB re common reference")      # all panels share the grid and scale
     fig.suptitle(f"{labelled[0][1].metadata.get('scene', '')}: bounce orders on one scale "
                  f"({dynamic_range_db:g} dB shown)", fontsize="medium")
     return _save(fig, path, dpi)
@@ -439,12 +597,12 @@ def comparison_figure(images: Mapping[str, SarImage], path: str | os.PathLike, *
     looks = [_looks(im.data.shape, max_pixels) for _, im in labelled]
     powers = [_multilook(im.data, lk) for (_, im), lk in zip(labelled, looks)]
     common = _reference(*powers)
-    fig = _figure((panel_size[0] * len(labelled), panel_size[1]), dpi)
+    fig = _figure((panel_size[0] * len(labelled), panel_size[1]), dpi, layout="compressed")
     axes = np.atleast_1d(fig.subplots(1, len(labelled)))
     for ax, (label, im), power, lk in zip(axes, labelled, powers, looks):
         shown = _show_image(ax, im, power, lk, common if common_scale else _reference(power), dynamic_range_db)
         ax.set_title(f"{label}\n" + _describe(im, lk), fontsize="x-small")
-    fig.colorbar(shown, ax=list(axes), label="dB" + (" re common reference" if common_scale else ""), shrink=0.8)
+    fig.colorbar(shown, ax=list(axes), label="dB" + (" re common reference" if common_scale else ""))
     return _save(fig, path, dpi)
 
 
@@ -494,7 +652,7 @@ def overlay_figure(image: SarImage, loaded: Any, path: str | os.PathLike, *, tru
     fig = _figure(figsize, dpi)
     ax, ax_labels = fig.subplots(1, 2, sharex=True, sharey=True)
     shown = _show_image(ax, image, power, looks, _reference(power), dynamic_range_db)
-    fig.colorbar(shown, ax=ax, label="dB", shrink=0.8)
+    _colorbar(fig, ax, shown, "dB")
     extent = _image_extent(image, power.shape, looks)
     layers = (("layover", "half", (1.0, 0.55, 0.0, 0.40)), ("shadow", "half", (0.1, 0.55, 1.0, 0.45)),
               ("double_bounce", "any", (1.0, 0.0, 0.0, 0.95)))
@@ -523,8 +681,8 @@ def overlay_figure(image: SarImage, loaded: Any, path: str | os.PathLike, *, tru
     ax_labels.set_title(f"ground truth from the scene geometry (height threshold {truth.height_threshold:g} m)",
                         fontsize="small")
     names = ["open ground", "building footprint", "shadow", "layover", "double bounce (wall foot)"]
-    ax_labels.legend(handles=[Patch(color=c, label=n) for c, n in zip(colours, names)], loc="upper center",
-                     bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize="x-small", frameon=False)
+    ax_labels.legend(handles=[Patch(color=c, label=n) for c, n in zip(colours, names)], loc="center left",
+                     bbox_to_anchor=(1.02, 0.5), fontsize="x-small", frameon=False)   # beside: clear of the labels
     stats["path"] = _save(fig, path, dpi)
     return stats
 
@@ -701,7 +859,7 @@ def write_figures(out_dir: str | os.PathLike, raw: RawData | None, image: SarIma
     stats["figures"] = {role: str(p) for role, p in paths.items()}
     target = out / FIGURE_FILES["stats"]
     paths["stats"] = _atomic_write(target, lambda tmp: tmp.write_text(
-        json.dumps(stats, indent=2, default=_json_default)))
+        json.dumps(stats, indent=2, default=_json_default)), "figure statistics")
     return paths
 
 

@@ -3,7 +3,8 @@
 This is the only module with figure code. Every writer is atomic: it writes a temporary
 file next to the target (``.<name>.partial``) and renames it over the target with
 :func:`os.replace`, so readers never see half a file and a failed write leaves any
-previous file untouched.
+previous file untouched. A failed write removes the temporary file and raises :class:`WriteError`,
+an OSError whose message names the target path the caller gave.
 
 =========================  ===================================================================
 :func:`write_exr`          float32 channels ``intensity`` (``|data|^2``), ``real``, ``imag``.
@@ -12,6 +13,7 @@ previous file untouched.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -22,7 +24,7 @@ import numpy as np
 from .image import SarImage
 from .raw import _json_default
 
-__all__ = ["write_exr", "write_quicklook"]
+__all__ = ["write_exr", "write_quicklook", "WriteError"]
 
 _MAX_HEADER_JSON = 1 << 18  # characters of JSON in the EXR header attribute "sarmitsuba"
 
@@ -62,8 +64,8 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
 
     Raises
     ------
-    OSError
-        When the directory is not writable.
+    WriteError
+        An OSError naming ``path`` when it cannot be written (no temporary file is left).
     """
     import OpenEXR
 
@@ -86,7 +88,16 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
                          "channels intensity = |data|^2, real, imag",
               "sarmitsuba": text}
     exr = OpenEXR.File(header, channels)
-    return _atomic_write(Path(path), lambda tmp: exr.write(str(tmp)))
+    return _atomic_write(Path(path), lambda tmp: _write_exr_file(exr, tmp, Path(path)), "EXR image")
+
+
+def _write_exr_file(exr: Any, tmp: Path, path: Path) -> None:
+    """``exr.write(tmp)``, with OpenEXR's RuntimeErrors as OSErrors that name ``path``."""
+    tmp.open("wb").close()                      # a missing folder or no permission: a plain OSError
+    try:
+        exr.write(str(tmp))
+    except RuntimeError as exc:
+        raise OSError(None, str(exc).replace(str(tmp), str(path))) from None
 
 
 def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: float = 40.0,
@@ -111,8 +122,10 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
         Shown range below the peak in dB (> 0); darker pixels are clipped to
         ``-dynamic_range_db``.
     title : str, optional
-        First title line; default ``metadata["scene"]`` or ``"SAR image"``. A second line
-        lists the key parameters (algorithm, window, plane, fc, B, pulses, size).
+        First title line; default ``metadata["scene"]`` or ``"SAR image"``. Then the
+        algorithm and window, and a line of the key parameters (plane, fc, B, pulses, size);
+        fc and B are left out when ``title`` already gives a frequency in GHz and a
+        bandwidth in MHz.
     figsize : (float, float), default (8, 6)
         Figure size in inches; the PNG is ``figsize * dpi`` pixels (no tight cropping).
     dpi : int, default 100
@@ -129,10 +142,13 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
 
     Notes
     -----
-    The x axis is range (ground or slant, per ``image.plane``), the y axis azimuth, both in
-    metres with pixel centres at the axis values (``origin="lower"``: azimuth increases
-    upward). An all-zero or non-finite image is drawn uniformly at ``-dynamic_range_db``
-    and says so in the title; no NaN or divide-by-zero warning is raised.
+    The x axis is range (ground range from the scene centre, or closest-approach slant range,
+    per ``image.plane``), the y axis azimuth, both in metres with pixel centres at the axis
+    values (``origin="lower"``: azimuth, the flight direction, increases upward; an arrow
+    marks it). Near range (the sensor side) is on the left, marked under the axis label with
+    far range on the right. The colour bar is as tall as the image. An all-zero or non-finite
+    image is drawn uniformly at ``-dynamic_range_db`` and says so in the title; no NaN or
+    divide-by-zero warning is raised.
     Rendered with matplotlib's Agg canvas and no pyplot state.
 
     Raises
@@ -140,6 +156,8 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     ValueError
         When ``dynamic_range_db`` is not a finite positive number, or ``figsize``/``dpi``
         are not positive.
+    WriteError
+        An OSError naming ``path`` when it cannot be written (no temporary file is left).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -161,14 +179,54 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
                       extent=(*_edges(image.range[:db.shape[1] * looks[1]]),
                               *_edges(image.azimuth[:db.shape[0] * looks[0]])), aspect=aspect,
                       interpolation="nearest")
-    ax.set_xlabel(f"{'ground' if image.plane == 'ground' else 'slant'} range [m]")
-    ax.set_ylabel("azimuth [m]")
-    fig.colorbar(shown, ax=ax, label="dB")
+    _label_image_axes(ax, image)
+    _colorbar(fig, ax, shown, "dB")
     ax.set_title(_title(image, title, dynamic_range_db, empty, looks), fontsize="small")
-    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "quicklook")
 
 
 # ============================================================================ helpers
+def _axis_labels(image: SarImage) -> tuple[str, str]:
+    """``(x, y)`` axis labels of an image: what range and azimuth are measured from.
+
+    Ground images (:meth:`~sarmitsuba.focus.ImageGrid.ground`, :func:`sarmitsuba.pipeline.image_grid`)
+    are centred on the scene centre; slant images
+    (:func:`~sarmitsuba.focus.stripmap.slant_output_grid`) hold the absolute closest-approach
+    slant range and the azimuth from the scene centre's closest approach (docs/design.md section 8).
+    """
+    if image.plane == "ground":
+        return "ground range from scene centre [m]", "azimuth from scene centre [m]"
+    return "slant range (closest approach) [m]", "azimuth from scene centre [m]"
+
+
+def _label_image_axes(ax: Any, image: SarImage) -> None:
+    """Axis labels, near/far range under the x label and a flight arrow, on an image's axes.
+
+    Range grows away from the sensor (``image.range_direction``), so near range is on the left;
+    azimuth grows along the flight direction (upward with ``origin="lower"``).
+    """
+    x_label, y_label = _axis_labels(image)
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    below = {"xycoords": (ax.transAxes, ax.xaxis.label), "xytext": (0, -2), "textcoords": "offset points",
+             "va": "top", "fontsize": "x-small", "color": "0.2"}
+    ax.annotate("\u2190 near range (sensor side)", xy=(0.0, 0.0), ha="left", **below)
+    ax.annotate("far range \u2192", xy=(1.0, 0.0), ha="right", **below)
+    from matplotlib import patheffects
+    outline = [patheffects.withStroke(linewidth=2.0, foreground="black")]
+    head = {"xy": (0.03, 0.97), "xycoords": "axes fraction", "textcoords": "offset points"}
+    ax.annotate("", xytext=(0, -32), **head,
+                arrowprops={"arrowstyle": "-|>", "color": "yellow", "lw": 1.2, "path_effects": outline})
+    ax.annotate("flight\n(azimuth)", xytext=(5, -16), ha="left", va="center", fontsize="x-small",
+                color="yellow", path_effects=outline, **head)
+
+
+def _colorbar(fig: Any, ax: Any, mappable: Any, label: str) -> Any:
+    """A colour bar beside ``ax`` exactly as tall as its (aspect-locked) image box."""
+    cax = ax.inset_axes([1.03, 0.0, 0.035, 1.0])
+    return fig.colorbar(mappable, cax=cax, label=label)
+
+
 def _multilook(data: np.ndarray, looks: tuple[int, int]) -> np.ndarray:
     """Intensity ``|data|^2`` averaged over ``looks`` blocks (trailing partial blocks dropped),
     float64; computed a band of rows at a time (:func:`_intensity`)."""
@@ -224,15 +282,18 @@ def _edges(axis: np.ndarray) -> tuple[float, float]:
 
 def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: bool,
            looks: tuple[int, int] = (1, 1)) -> str:
+    """Three title lines: ``title`` (or the scene name), algorithm and window, then plane, fc
+    and B (left out when ``title`` already names a frequency in GHz / a bandwidth in MHz),
+    pulses, size, display range and looks."""
     meta = image.metadata
     focus = meta.get("focus", {}) if isinstance(meta.get("focus"), dict) else {}
     first = title if title is not None else str(meta.get("scene", "SAR image"))
     # the window on a line of its own: weighted windows have long names (taylor(nbar=4, sll=-35) twice)
     window = f"{image.algorithm}, {image.window} window"
     parts = [f"{image.plane} plane"]
-    if "fc" in focus:
+    if "fc" in focus and "GHz" not in first:             # once: a caller's title may already give fc and B
         parts.append(f"fc {focus['fc'] / 1e9:.3g} GHz")
-    if "bandwidth" in focus:
+    if "bandwidth" in focus and "MHz" not in first:
         parts.append(f"B {focus['bandwidth'] / 1e6:.4g} MHz")
     if "n_pulses" in focus:
         parts.append(f"{focus['n_pulses']} pulses")
@@ -245,13 +306,44 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
     return f"{first}\n{window}\n" + ", ".join(parts)
 
 
-def _atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
-    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename it to ``path``."""
+class WriteError(OSError):
+    """A product could not be written: names the file asked for, never the temporary one.
+
+    ``errno`` and ``strerror`` are those of the underlying error; ``filename`` is the target
+    path and ``what`` says what it is (``"figure"``, ``"quicklook"``, ...). ``str()`` reads
+    ``cannot write figure /ro/fig.png: Permission denied (check the folder's permissions or
+    choose another path)``.
+    """
+
+    what = "file"
+    _HINTS = {errno.EACCES: "check the folder's permissions or choose another path",
+              errno.EPERM: "check the folder's permissions or choose another path",
+              errno.EROFS: "the file system is read-only: choose another path",
+              errno.ENOENT: "its folder does not exist: create it or choose another path",
+              errno.ENOTDIR: "a part of the path is a file, not a folder",
+              errno.EISDIR: "it is a folder: give a file name",
+              errno.ENOSPC: "free some space or choose another path"}
+
+    def __str__(self) -> str:
+        hint = self._HINTS.get(self.errno)
+        return f"cannot write {self.what} {self.filename}: {self.strerror}" + (f" ({hint})" if hint else "")
+
+
+def _atomic_write(path: Path, write: Callable[[Path], Any], what: str = "file") -> Path:
+    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename it to ``path``.
+
+    On any failure the temporary file is removed; an OSError comes back as :class:`WriteError`
+    naming ``path`` (described as ``what``), not the temporary name.
+    """
     tmp = path.with_name(f".{path.name}.partial")
     try:
         write(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+            error = WriteError(exc.errno, exc.strerror or str(exc), str(path))
+            error.what = what
+            raise error from None
         raise
     return path

@@ -117,3 +117,60 @@ def test_single_pixel_and_non_finite_images(tmp_path):
         write_quicklook(one, tmp_path / "one.png")
         write_quicklook(make_image(data), tmp_path / "nan.png")
     assert matplotlib.image.imread(tmp_path / "nan.png").shape[:2] == (600, 800)
+
+
+# ============================================================================ issue 13: what the quicklook says
+def quicklook_axes(fig):
+    """(image axes, colour-bar axes): the bar is an inset of the image axes."""
+    ax = fig.axes[0]
+    bars = [a for a in (*fig.axes, *ax.child_axes) if hasattr(a, "_colorbar")]
+    return ax, bars[0]
+
+
+@pytest.mark.parametrize("plane, x_from", [("ground", "ground range from scene centre"),
+                                           ("slant", "slant range (closest approach)")])
+def test_quicklook_marks_range_origin_sensor_side_and_flight(tmp_path, drawn, plane, x_from):
+    write_quicklook(make_image(plane=plane), tmp_path / "q.png", figsize=(6, 4.5), dpi=60)
+    fig = drawn[-1]
+    ax, bar = quicklook_axes(fig)
+    renderer = fig.canvas.get_renderer()
+    assert ax.get_xlabel().startswith(x_from) and ax.get_ylabel().startswith("azimuth from")
+    texts = {t.get_text(): t.get_window_extent(renderer) for t in ax.texts}
+    near = [box for text, box in texts.items() if "near range" in text and "sensor" in text]
+    far = [box for text, box in texts.items() if "far range" in text]
+    assert near and far and any("flight" in text for text in texts)
+    assert near[0].x1 < far[0].x0, "near range on the left (small range), far range on the right"
+    label = ax.xaxis.label.get_window_extent(renderer)
+    assert not near[0].overlaps(label) and not far[0].overlaps(label)
+    # the image is 41 x 57 pixels of 0.25 x 0.5 m: wide, so an equal-aspect box is shorter than its cell
+    assert bar.get_window_extent(renderer).height == pytest.approx(ax.get_window_extent(renderer).height, rel=0.05)
+
+
+def test_quicklook_title_gives_fc_and_b_once(tmp_path, drawn):
+    """A caller's title with fc and B (as render's) is not followed by them again; without one, the
+    metadata's fc and B are given (once)."""
+    write_quicklook(make_image(), tmp_path / "a.png", title="dihedral  9.60 GHz  B=150 MHz  inc=45 deg", dpi=30)
+    write_quicklook(make_image(), tmp_path / "b.png", dpi=30)
+    given, default = (fig.axes[0].get_title() for fig in drawn[-2:])
+    assert given.count("GHz") == 1 and given.count("MHz") == 1
+    assert default.count("GHz") == 1 and "fc 9.6 GHz" in default and "B 150 MHz" in default
+
+
+def test_render_quicklook_title_gives_fc_and_b_once(tmp_path, drawn):
+    from sarmitsuba.pipeline import render
+    render("dihedral", tmp_path / "out", progress=False)
+    titles = [fig.axes[0].get_title() for fig in drawn]
+    assert titles and all(t.count("GHz") == 1 and t.count("MHz") == 1 for t in titles), titles
+
+
+@pytest.mark.parametrize("writer, what", [(write_quicklook, "quicklook"), (write_exr, "EXR image")])
+def test_unwritable_target_is_named_and_nothing_is_left(tmp_path, unwritable_paths, writer, what):
+    from sarmitsuba.products import WriteError
+    for target in unwritable_paths:
+        with pytest.raises(WriteError) as caught:
+            writer(make_image(), target)
+        message = str(caught.value)
+        assert message.startswith(f"cannot write {what} {target}: ") and ".partial" not in message
+        assert caught.value.filename == str(target) and caught.value.errno is not None
+        assert not list(tmp_path.rglob("*.partial"))
+    assert (tmp_path / "folder").is_dir() and not any((tmp_path / "folder").iterdir())

@@ -65,7 +65,7 @@ _STEP = 1 << 16
 def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_block: int = 128,
                 workers: int | None = None, azimuth_beamwidth: float | None = None,
                 squint: float = 0.0, azimuth_pattern: float | None = None, window_azimuth: Any = "rect",
-                progress: bool = False) -> SarImage:
+                progress: bool = False, desc: str = "backprojection") -> SarImage:
     """Focus range-compressed data by time-domain backprojection (fast path).
 
     Parameters
@@ -117,6 +117,8 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         the pulse's place in the aperture.
     progress : bool, default False
         Show a :mod:`tqdm` bar over pulse blocks.
+    desc : str, default "backprojection"
+        The bar's label (e.g. ``"focus order 2"`` when several images are focused in turn).
 
     Returns
     -------
@@ -229,7 +231,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
             ws = workspaces.ws = _Workspace(max(_STEP, _TILE[0] * _TILE[1]))
         _backproject_tile(tile, block, ws, image, counts)
 
-    bar = progress_bar(progress, n_pulses)
+    bar = progress_bar(progress, n_pulses, desc=desc)
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
     try:
         for p0 in range(0, n_pulses, pulse_block):

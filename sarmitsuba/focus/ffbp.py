@@ -69,7 +69,7 @@ CHUNK_SUBAPERTURES = 24
 def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle_oversample: float = 2.0,
          range_oversample: int = 2, oversample: int = 8, workers: int | None = None,
          azimuth_beamwidth: float | None = None, squint: float = 0.0, azimuth_pattern: float | None = None,
-         window_azimuth: Any = "rect", progress: bool = False) -> SarImage:
+         window_azimuth: Any = "rect", progress: bool = False, desc: str = "ffbp") -> SarImage:
     """Focus range-compressed data by fast factorised backprojection.
 
     Same data, grid, beam options, normalisation and result as
@@ -103,6 +103,8 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
         Threads (default: the CPUs available).
     azimuth_beamwidth, squint, azimuth_pattern, window_azimuth, progress
         As in :func:`~sarmitsuba.focus.backproject`.
+    desc : str, default "ffbp"
+        The progress bar's label.
 
     Returns
     -------
@@ -140,7 +142,7 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
     run = (lambda f, jobs: list(pool.map(f, jobs))) if pool else (lambda f, jobs: [f(j) for j in jobs])
     spans = _subaperture_spans(raw.n_pulses, knobs["subaperture"])
-    bar = progress_bar(progress, len(spans) + _n_blocks(grid), desc="ffbp", unit="step")
+    bar = progress_bar(progress, len(spans) + _n_blocks(grid), desc=desc, unit="step")
     clock = {"start": time.perf_counter()}
     summed = np.zeros(grid.shape, np.complex64)
     counts = {"subapertures": 0, "polar_samples": 0, "first": 0.0, "last": 0.0}
