@@ -7,11 +7,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from _table import output_dir  # noqa: E402
 
 
 def plot_cost(name: str, series: dict[str, list[tuple[float, float, str]]], *, xlabel: str = "time [s]",
               ylabel: str, title: str, logx: bool = True, logy: bool = False) -> Path:
-    """Write ``benchmarks/out/NAME`` (PNG): accuracy against cost, one point per setting.
+    """Write ``NAME`` (PNG) into the benchmarks' output folder (``_table.output_dir``): accuracy against cost, one point per setting.
 
     Parameters
     ----------
@@ -24,8 +25,7 @@ def plot_cost(name: str, series: dict[str, list[tuple[float, float, str]]], *, x
     logx, logy : bool
         Logarithmic axes (time usually spans decades).
     """
-    out = Path(__file__).parent / "out"
-    out.mkdir(exist_ok=True)
+    out = output_dir()
     fig, ax = plt.subplots(figsize=(6.4, 4.4), dpi=120)
     for label, points in series.items():
         xs = [p[0] for p in points]

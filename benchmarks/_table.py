@@ -1,4 +1,8 @@
-"""Shared output of the benchmark scripts: a CSV table under benchmarks/out/, and the machine line."""
+"""Shared output of the benchmark scripts: the output folder, a CSV table in it, and the machine line.
+
+The folder is ``$SARMITSUBA_BENCH_OUT`` when set (``run.py --out DIR`` sets it), else ``out/bench``
+under the current directory: the suite never writes into the source checkout unless asked to.
+"""
 from __future__ import annotations
 
 import csv
@@ -18,11 +22,16 @@ def machine() -> str:
     return f"machine: {cpu}, {os.cpu_count()} cpus, Python {platform.python_version()}, {platform.system()}"
 
 
+def output_dir() -> Path:
+    """The folder the benchmarks write to (created): ``$SARMITSUBA_BENCH_OUT``, else ``./out/bench``."""
+    out = Path(os.environ.get("SARMITSUBA_BENCH_OUT") or Path("out") / "bench")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
 def write_csv(name: str, rows: list[dict]) -> Path:
-    """Write ``rows`` (dicts with the same keys) to ``benchmarks/out/NAME``; returns the path."""
-    out = Path(__file__).parent / "out"
-    out.mkdir(exist_ok=True)
-    path = out / name
+    """Write ``rows`` (dicts with the same keys) to ``output_dir() / NAME``; returns the path."""
+    path = output_dir() / name
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()

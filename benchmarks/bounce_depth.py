@@ -10,7 +10,7 @@ Floor: two images of identical paths differ by about -30 dB NRMSE when only the 
 window length changes (backprojection interpolates each range line by 8x FFT upsampling
 plus linear interpolation), so differences below about -30 dB are not physics.
 
-Writes ``benchmarks/out/bounce_depth.csv`` and ``bounce_depth.png`` (NRMSE against trace
+Writes ``bounce_depth.csv`` (in the output folder, ``_table.output_dir``) and ``bounce_depth.png`` (NRMSE against trace
 seconds, one point per depth, one line per scene).
 
 Usage: ``python benchmarks/bounce_depth.py [--quick] [--max-depth 6] [--scenes urban sionna:munich]``

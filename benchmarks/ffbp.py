@@ -17,7 +17,7 @@ Each is refocused in one run by
 
 Reported per setting: seconds (best of two after a warm-up run of the default), the time over
 omega-K's and direct backprojection's (same run), and the image NRMSE against the direct
-image, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB]. Writes ``benchmarks/out/ffbp.csv`` and
+image, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB]. Writes ``ffbp.csv`` (in the output folder, ``_table.output_dir``) and
 ``ffbp.png`` (NRMSE against seconds, one point per setting).
 
 Usage: ``python benchmarks/ffbp.py [--quick] [--tiny]``

@@ -34,7 +34,7 @@ same algorithm's finest setting (backprojection oversample 64, omega-K 32 taps a
 RDA 32 taps and 8, untimed): it shows kernel errors below what the point-target metrics
 resolve (on this broadside case omega-K's Stolt kernel errs by about -65 dB at 4 taps, -76 dB at 6).
 
-Writes ``benchmarks/out/focus_algorithms.csv`` and ``focus_algorithms.png`` (worst PSLR
+Writes ``focus_algorithms.csv`` (in the output folder, ``_table.output_dir``) and ``focus_algorithms.png`` (worst PSLR
 error against seconds). Usage: ``python benchmarks/focus_algorithms.py [--quick]``
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Focusing benchmark: omega-K and range-Doppler against their FFT floor, backprojection throughput.
 
 Run ``python benchmarks/focus_bench.py`` (``--size`` to change the FFT-focuser size). It
-prints a table and writes ``benchmarks/out/focus.csv``. Ratios are measured in the same
+prints a table and writes ``focus.csv`` into the benchmarks' output folder (``--out`` of run.py, default ``./out/bench``). Ratios are measured in the same
 run (the machine is shared and noisy, docs/design.md section 10):
 
 * **omega-K** and **RDA** on an ``N x N`` (default 4096 x 4096) complex64 range-compressed
@@ -21,6 +21,7 @@ import argparse
 import csv
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -34,7 +35,9 @@ from sarmitsuba.focus.rda import _GUARD, range_doppler
 from sarmitsuba.focus.stripmap import slant_output_grid, stripmap_geometry
 from sarmitsuba.raw import RawData
 
-OUT = Path(__file__).parent / "out" / "focus.csv"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _table import output_dir  # noqa: E402
+
 
 
 def noise_raw(n_pulses: int, n_samples: int, *, seed: int = 1) -> RawData:
@@ -133,12 +136,12 @@ def main(argv: list[str] | None = None) -> int:
         ratio = f"{r['ratio_to_fft_floor']:.2f}" if r["ratio_to_fft_floor"] != "" else "-"
         plain_r = f"{r['ratio_to_4_plain_fft_passes']:.2f}" if r["ratio_to_4_plain_fft_passes"] != "" else "-"
         print(f"{r['benchmark']:<22}{r['shape']:<28}{r['seconds']:>9.3f}{floor:>11}{ratio:>8}{plain_r:>8}{rate:>14}")
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    with open(OUT, "w", newline="") as f:
+    out = output_dir() / "focus.csv"
+    with open(out, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    print(f"wrote {OUT}")
+    print(f"wrote {out}")
     return 0
 
 

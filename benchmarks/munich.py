@@ -20,7 +20,7 @@
 Memory before issue 12 (commit c4b9c92, the same command, measured with GNU time): 1,136 MB
 (:data:`MEMORY_BEFORE_MB`); its render took 168 s on the same machine.
 
-Writes ``benchmarks/out/munich.csv``. Needs Sionna RT (``pip install sionna-rt``); ``--quick``:
+Writes ``munich.csv`` (in the output folder, ``_table.output_dir``). Needs Sionna RT (``pip install sionna-rt``); ``--quick``:
 urban only. Usage: ``python benchmarks/munich.py [--quick]``
 """
 from __future__ import annotations

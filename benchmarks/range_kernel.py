@@ -10,7 +10,7 @@ a warm-up run of the same setting:
 * **cost on a city block** (the built-in urban scene, 64 pulses): trace + binning seconds and
   the raw-data NRMSE against ``exact`` — where ``exact`` (paths x samples) shows its price.
 
-Writes ``benchmarks/out/range_kernel.csv`` and ``range_kernel.png`` (raw NRMSE against
+Writes ``range_kernel.csv`` (in the output folder, ``_table.output_dir``) and ``range_kernel.png`` (raw NRMSE against
 seconds, one point per kernel and oversample).
 
 Usage: ``python benchmarks/range_kernel.py [--quick]``

@@ -39,7 +39,7 @@ wavelength). ``rays_per_cell`` is the density the target is traced at (``m^2`` t
 lattice's), ``tube_m`` the finest tube width along track. The default thus traces the 0.3 m plate at about 13,000 rays per cell
 and a 1 m target at about 1,200, while a 100 m plane keeps one.
 
-Writes ``benchmarks/out/ray_density.csv`` and ``ray_density.png`` (three panels against rays
+Writes ``ray_density.csv`` (in the output folder, ``_table.output_dir``) and ``ray_density.png`` (three panels against rays
 per resolution cell: target RCS error, plane interior sigma0, ground sigma0 error and speckle
 contrast). ``time_ratio`` is each setting's time over the first setting of the same case
 (ratios, not absolute times, are what the suite compares).
@@ -81,7 +81,7 @@ from pathlib import Path
 import numpy as np
 
 import sarmitsuba  # noqa: F401
-from _table import bench_main, machine, write_csv
+from _table import bench_main, machine, output_dir, write_csv
 from rcs import WAVELENGTH, cases
 from sarmitsuba import analysis, planning
 from sarmitsuba import canonical as C
@@ -375,9 +375,7 @@ def plot(name: str, rows: list[dict]) -> Path:
         ax.set_xlabel("rays per resolution cell (at the target)")
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
-    out = Path(__file__).parent / "out"
-    out.mkdir(exist_ok=True)
-    path = out / name
+    path = output_dir() / name
     fig.savefig(path)
     plt.close(fig)
     print(f"wrote {path}")

@@ -3,7 +3,7 @@
 For each canonical target (metal plate, dihedral, trihedral, sphere; a concrete trihedral)
 and each ray spacing, it measures the RCS from the focused image by integrated point energy
 (docs/physics.md (K)). It reports the error against the closed form, the rays cast per pulse
-and the seconds of the whole simulation (warm kernels). Writes ``benchmarks/out/rcs.csv``.
+and the seconds of the whole simulation (warm kernels). Writes ``rcs.csv`` (in the output folder, ``_table.output_dir``).
 
 Usage: ``python benchmarks/rcs.py [--spacings 0.05 0.02 0.01]``
 """

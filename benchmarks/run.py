@@ -22,24 +22,26 @@ munich         the Munich acceptance of issue 12: default render in units of bar
                backprojection against omega-K, info's estimate against the render
 ============== =========================================================================
 
-Each writes ``benchmarks/out/<name>.csv`` and ``<name>.png`` (accuracy against seconds, one
+Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
+``out/bench`` under the current directory) (accuracy against seconds, one
 point per setting). The suite prints the machine, every table, and PASS/FAIL for the ratio
-checks, writes ``benchmarks/out/checks.csv``, and exits 1 if a check fails. Absolute times
+checks, writes ``checks.csv`` there, and exits 1 if a check fails. Absolute times
 depend on the machine (and on what else runs on it); ratios measured in one run do not.
 
-Usage: ``python benchmarks/run.py [--quick] [--only NAME ...]`` or ``python -m sarmitsuba bench ...``.
+Usage: ``python benchmarks/run.py [--quick] [--only NAME ...] [--out DIR]`` or ``python -m sarmitsuba bench ...``.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _table import machine, write_csv  # noqa: E402
+from _table import machine, output_dir, write_csv  # noqa: E402
 
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
@@ -52,7 +54,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="small settings (about a minute per benchmark)")
     parser.add_argument("--only", nargs="+", choices=list(SUITE), default=None, metavar="NAME",
                         help=f"run only these ({', '.join(SUITE)})")
+    parser.add_argument("--out", type=Path, default=Path("out") / "bench", metavar="DIR",
+                        help="folder for the CSV tables, plots and checks.csv (default: out/bench in the current "
+                             "directory)")
     args = parser.parse_args(argv)
+    if args.out.exists() and not args.out.is_dir():
+        parser.error(f"--out {args.out} is an existing file, not a directory: give a folder path")
+    os.environ["SARMITSUBA_BENCH_OUT"] = str(args.out)
     print(machine())
     results = []
     start = time.perf_counter()
@@ -69,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         write_csv("checks.csv", results)
     failed = [r for r in results if not r["ok"]]
     print(f"\nsuite: {time.perf_counter() - start:.1f} s, {len(results)} checks, {len(failed)} failed; "
-          f"outputs in {Path(__file__).resolve().parent / 'out'}")
+          f"outputs in {output_dir()}")
     return 1 if failed else 0
 
 

@@ -36,7 +36,7 @@ Pentium IV (34 s for 1 building, 62 s for 2; growing linearly). The buildings sw
 reports our time for the same counts and image size and the ratio ``reference / ours``
 (a different machine, scene and method: an order-of-magnitude comparison only).
 
-Writes ``benchmarks/out/scaling.csv`` and ``scaling.png`` (seconds against N, log-log).
+Writes ``scaling.csv`` (in the output folder, ``_table.output_dir``) and ``scaling.png`` (seconds against N, log-log).
 Usage: ``python benchmarks/scaling.py [--quick]``
 """
 from __future__ import annotations

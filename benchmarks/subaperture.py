@@ -14,7 +14,7 @@ a warm-up:
   and ``N = 1`` evaluating every PO term (``cancel_interior = false``, docs/physics.md (PO5)).
 
 The automatic sub-aperture (``N = 0``, 16 azimuth resolution cells of travel) is one of the
-points. Writes ``benchmarks/out/subaperture.csv`` and ``subaperture.png`` (NRMSE against trace
+points. Writes ``subaperture.csv`` (in the output folder, ``_table.output_dir``) and ``subaperture.png`` (NRMSE against trace
 seconds, one line per scene).
 
 Usage: ``python benchmarks/subaperture.py [--quick] [--tiny]``

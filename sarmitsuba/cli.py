@@ -87,7 +87,19 @@ def _integrator_overrides(args: argparse.Namespace) -> dict:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of all sub-commands."""
-    parser = argparse.ArgumentParser(prog="sarmitsuba", description=__doc__.splitlines()[0])
+    from . import __version__
+    parser = argparse.ArgumentParser(
+        prog="sarmitsuba", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Ray-traced SAR simulation of urban scenes: trace a scene into raw data, focus it into an "
+                    "image, analyse it.",
+        epilog="examples:\n"
+               "  python -m sarmitsuba render                  the built-in urban scene -> out/urban\n"
+               "  python -m sarmitsuba info sionna:munich      radar summary and cost, no tracing\n"
+               "  python -m sarmitsuba render dihedral --set frequency=5.4e9 --out out/c-band\n"
+               "  python -m sarmitsuba focus out/urban/raw.npz --algorithm omegak --out out/urban-wk\n"
+               "  python -m sarmitsuba COMMAND --help          the options of one command\n"
+               "exit codes: 0 success, 2 bad input (the message names it and the fix), 130 interrupted")
+    parser.add_argument("--version", action="version", version=f"sarmitsuba {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     render = _add_tracer_arguments(_add_scene_arguments(
         sub.add_parser("render", help="trace a scene into raw data and a focused SAR image")))
@@ -156,19 +168,20 @@ def _bench(args: argparse.Namespace) -> int:
     return module.main(args.bench_args)
 
 
-#: Windows accepted by the focusing commands (default parameters: Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
-WINDOWS = ("rect", "taylor", "hamming", "kaiser")
-#: Windows of ``render --window``: every window of :mod:`sarmitsuba.focus.windows`, default parameters.
+#: Windows of ``render --window`` and ``focus --window-range/--window-azimuth``: every window of
+#: :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
 FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
+WINDOWS = FOCUS_WINDOWS
 
 
 def _focus(args: argparse.Namespace) -> int:
     import time
 
-    from .pipeline import check_output_dir, refocus, write_image_products
+    from .outputs import OutputDirectory, check_output_dir
+    from .pipeline import refocus, write_image_products
     from .raw import RawData
     start = time.perf_counter()
-    out = check_output_dir(args.out)
+    check_output_dir(args.out)
     raw = RawData.load(args.raw)
     try:
         image = refocus(raw, args.algorithm, window_range=args.window_range, window_azimuth=args.window_azimuth,
@@ -177,7 +190,8 @@ def _focus(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {args.window_range}/{args.window_azimuth}"
-    paths = write_image_products(out, image, title)
+    with OutputDirectory(args.out) as out:
+        paths = write_image_products(out, image, title)
     print(f"focused {args.raw} with {args.algorithm}: {time.perf_counter() - start:.1f} s, "
           f"{raw.n_pulses} pulses, image {image.data.shape[0]}x{image.data.shape[1]} -> {paths['png'].parent}")
     return 0
@@ -205,12 +219,13 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _preview(args: argparse.Namespace) -> int:
-    from .pipeline import check_output_dir
+    from .outputs import OutputDirectory
     from .preview import render_preview
     from .scene import load_scene
-    out = check_output_dir(args.out or _default_out(args.scene))
-    loaded = load_scene(args.scene, sensor_overrides=_sensor_overrides(args))
-    path = render_preview(loaded, out / "preview.png", spp=args.spp, resolution=args.resolution)
+    with OutputDirectory(args.out or _default_out(args.scene)) as out:
+        loaded = load_scene(args.scene, sensor_overrides=_sensor_overrides(args))
+        path = out.write("preview.png", lambda staged: render_preview(
+            loaded, staged, spp=args.spp, resolution=args.resolution))
     print(f"preview of {loaded.source} -> {path}")
     return 0
 
@@ -230,20 +245,12 @@ def _analyze(args: argparse.Namespace) -> int:
     geometry) when not given: :func:`sarmitsuba.analysis.energy_widths` for backprojected
     images; for others (omega-K, RDA) the unweighted widths of its radar parameters
     (``c / (2 B sin(theta))`` and the azimuth resolution)."""
-    from .analysis import carrier_ramp, image_coordinates, run
-    from .image import SarImage, SarImageError
-    from .raw import RawData
+    from .analysis import run
     if args.resolution is None:
         args.resolution = _resolution_from_metadata(args.image)
-    raw_path = args.raw or Path(args.image).with_name("raw.npz")
-    if args.carrier is None and raw_path.is_file() and len(args.target) == 3:
-        try:
-            image = SarImage.load(args.image)
-            position = image_coordinates(image, args.target)       # the target's layover position
-            world = image.origin + position[0] * image.azimuth_direction + position[1] * image.range_direction
-            args.carrier = list(carrier_ramp(RawData.load(raw_path), image, world))
-        except (SarImageError, ValueError):
-            pass                                                  # run() reports the bad image or target
+    if args.carrier is None and len(args.target) == 3:
+        args.carrier = _carrier_from_raw(args)
+
     def figure(image, report):
         from .figures import point_target_figure
         print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
@@ -251,27 +258,45 @@ def _analyze(args: argparse.Namespace) -> int:
     return run(args, figure=figure if args.figure is not None else None)
 
 
-def _resolution_from_metadata(path) -> list[float] | None:
-    """None when :func:`sarmitsuba.analysis.energy_widths` can read the image (it then runs in
-    the analysis itself, at the peak), else the radar parameters' unweighted widths, else None."""
-    from .analysis import energy_widths
+def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
+    """Carrier ramp [rad/m] at the target's layover position, from ``args.raw`` (default: the
+    raw.npz beside the image, if any). None without raw data, or when the image or target is
+    bad (``run`` reports those). Raises RawDataError, naming the file, when the raw data are
+    damaged: a damaged file is never silently skipped."""
+    from .analysis import carrier_ramp, image_coordinates
     from .image import SarImage, SarImageError
-    from .radar import RadarParameters
+    from .raw import RawData, RawDataError
+    raw_path = args.raw or Path(args.image).with_name("raw.npz")
+    if args.raw is None and not raw_path.is_file():
+        return None
     try:
-        image = SarImage.load(path)
+        image = SarImage.load(args.image)
+        position = image_coordinates(image, args.target)           # the target's layover position
+    except (SarImageError, ValueError):
+        return None
+    try:
+        raw = RawData.load(raw_path)
+    except RawDataError as exc:
+        source = "--raw" if args.raw is not None else "the raw.npz beside the image"
+        raise RawDataError(f"{exc} (analyze reads {source} for the carrier ramp: give --raw an intact RawData "
+                           "file, or move the damaged one away to analyse without it)") from None
+    world = image.origin + position[0] * image.azimuth_direction + position[1] * image.range_direction
+    try:
+        return list(carrier_ramp(raw, image, world))
+    except ValueError:
+        return None
+
+
+def _resolution_from_metadata(path) -> list[float] | None:
+    """The resolutions :func:`sarmitsuba.api.unweighted_widths` gives for the image at ``path``
+    (None when the image cannot be read: the analysis then reports it)."""
+    from .api import unweighted_widths
+    from .image import SarImage, SarImageError
+    try:
+        widths = unweighted_widths(SarImage.load(path))
     except (SarImageError, OSError):
         return None
-    try:
-        energy_widths(image)
-        return None
-    except ValueError:
-        pass
-    try:
-        radar = RadarParameters.from_mapping({k: v for k, v in image.metadata["radar"].items() if v is not None})
-    except (KeyError, TypeError, ValueError):
-        return None
-    ground = radar.ground_range_resolution if image.plane == "ground" else radar.slant_range_resolution
-    return [radar.azimuth_resolution, ground]
+    return None if widths is None else list(widths)
 
 
 def main(argv: list[str] | None = None) -> int:

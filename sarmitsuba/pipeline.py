@@ -17,6 +17,7 @@ from .effects import active_effects
 from .focus import ImageGrid, backproject, ffbp
 from .focus.ffbp import GeometryNotSupported
 from .image import SarImage
+from .outputs import OutputDirectory, check_output_dir
 from .radar import AcquisitionGeometry, acquisition_geometry, ground_layover
 from .raw import RawData, _json_default
 from .scene import LoadedScene, load_scene, material_table
@@ -60,25 +61,6 @@ class RenderSummary:
                 f"({self.pulses_per_trace} pulses per trace), {self.pulse_paths_per_second:.3g} pulse-paths/s, "
                 f"raw {self.raw_shape[0]}x{self.raw_shape[1]}, image {self.image_shape[0]}x{self.image_shape[1]} "
                 f"-> {Path(self.outputs['png']).parent}")
-
-
-def check_output_dir(out_dir: str | os.PathLike) -> Path:
-    """Create ``out_dir`` and check it is writable, before any long work.
-
-    Raises
-    ------
-    OSError
-        With a message naming the directory when it cannot be created or written.
-    """
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise OSError(f"output directory {str(out)!r} is not writable: {exc.strerror or exc}") from None
-    return out
 
 
 def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
@@ -165,6 +147,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
                                        shape_boxes=loaded.shape_boxes)
     planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
+    planning.check_memory(loaded, geometry, window, footprint)               # peak memory, before tracing
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
     table = material_table(loaded.scene, params.frequency, params.polarization)
@@ -182,11 +165,11 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     geometry = world
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     pattern = _azimuth_pattern(params)
-    focus = lambda r: _calibrated(focus_with(  # noqa: E731
+    focus = lambda r, desc: _calibrated(focus_with(  # noqa: E731
         _compressed(r, window_spec), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
-        window_azimuth=window_spec, progress=progress), params, geometry)
-    image = focus(raw)
-    images = tuple(focus(r) for r in per_order)
+        window_azimuth=window_spec, progress=progress, desc=desc), params, geometry)
+    image = focus(raw, "focus all orders" if per_order else "focus")          # progress bar labels
+    images = tuple(focus(r, f"focus order {k}") for k, r in enumerate(per_order, start=1))
     t["focus"] = time.perf_counter()
     stages = ("load", "trace", "bin", "focus")
     timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
@@ -279,8 +262,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
 
     Parameters
     ----------
-    source : str or None
-        XML path, built-in scene name or ``sionna:NAME`` (None = built-in ``urban``).
+    source : str or sarmitsuba.Scene or None
+        XML path, built-in scene name, ``sionna:NAME`` or a scene built in Python
+        (:class:`sarmitsuba.Scene`); None = built-in ``urban``.
     out_dir : path
         Output directory; receives :data:`OUTPUT_FILES`. Checked for writing before tracing.
     sensor_overrides, integrator_overrides : mapping, optional
@@ -316,17 +300,24 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     focus_window(window)
     _focuser(focuser)
-    out = check_output_dir(out_dir)
-    sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
-                   material_overrides=material_overrides, progress=progress, window=window, focuser=focuser)
-    t_products = time.perf_counter()
-    paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
-    for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):
-        paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"_order{k}"))
+    with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
+        sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
+                       material_overrides=material_overrides, progress=progress, window=window, focuser=focuser)
+        t_products = time.perf_counter()
+        paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
+        for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):
+            paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"_order{k}"))
+        summary = _summary(sim, paths, start, t_products)
+        out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
+    return summary
+
+
+def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> RenderSummary:
+    """The RenderSummary of a finished simulation whose products went to ``paths``."""
     timings = {**sim.timings, "products": time.perf_counter() - t_products}
     timings["total"] = time.perf_counter() - start
     result = sim.trace
-    summary = RenderSummary(
+    return RenderSummary(
         scene=sim.loaded.source, timings=timings, n_pulses=sim.raw.n_pulses,
         rays_traced=int(result.rays_per_order.sum() + result.shadow_rays),
         rays_per_order=result.rays_per_order.tolist(), shadow_rays=result.shadow_rays,
@@ -334,8 +325,6 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         raw_shape=sim.raw.data.shape, image_shape=sim.image.data.shape,
         outputs={k: str(v) for k, v in paths.items()}, pulses_per_trace=result.pulses_per_trace,
         pulse_paths=result.pulse_paths)
-    _write_summary(out / OUTPUT_FILES["summary"], summary, sim.raw.metadata)
-    return summary
 
 
 ALGORITHMS = ("bp", "ffbp", "omegak", "rda")
@@ -348,7 +337,9 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
     ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
     ground grid when the metadata carry sarmitsuba's radar parameters and scene box (with their
     beam gating), else onto the slant-plane grid of the straight-track geometry. ``omegak`` / ``rda``: the FFT focusers (straight track).
-    Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser (hann);
+    Every image measures azimuth from the scene centre's closest approach, so a target reads the
+    same azimuth in all of them; ground or slant range by plane (frames: docs/design.md section 8;
+    ``SarImage.pixel_of`` and ``analyze`` find a world point in either). Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser (hann);
     backprojection applies the azimuth window over the beam (or, without a beam, over the
     aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
 
@@ -405,27 +396,28 @@ def window_title(image: SarImage) -> str:
     return names[0] if names[0] == names[1] else "/".join(names)
 
 
-def write_image_products(out: Path, image: SarImage, title: str) -> dict:
-    """Write ``image.npz``, ``image.exr`` and ``image.png`` to ``out``; returns their paths."""
-    paths = {role: out / OUTPUT_FILES[role] for role in ("image", "exr", "png")}
-    image.save(paths["image"])
-    products.write_exr(image, paths["exr"])
-    products.write_quicklook(image, paths["png"], title=title, figsize=(10.0, 8.0), dpi=110)
-    return paths
+def write_image_products(out: OutputDirectory, image: SarImage, title: str) -> dict:
+    """Write ``image.npz``, ``image.exr`` and ``image.png`` into the open output directory
+    ``out``; returns their final paths by role."""
+    return {"image": out.write(OUTPUT_FILES["image"], image.save),
+            "exr": out.write(OUTPUT_FILES["exr"], lambda path: products.write_exr(image, path)),
+            "png": out.write(OUTPUT_FILES["png"], lambda path: products.write_quicklook(
+                image, path, title=title, figsize=(10.0, 8.0), dpi=110))}
 
 
-def _write_products(out: Path, raw: RawData, image: SarImage, params, suffix: str = "") -> dict:
-    """Write raw, image, EXR and PNG; ``suffix`` (e.g. ``_order2``) goes before the extension."""
-    roles = ("raw", "image", "exr", "png")
-    paths = {f"{role}{suffix}": out / OUTPUT_FILES[role].replace(".", f"{suffix}.") for role in roles}
-    raw.save(paths[f"raw{suffix}"])
-    image.save(paths[f"image{suffix}"])
-    products.write_exr(image, paths[f"exr{suffix}"])
+def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params, suffix: str = "") -> dict:
+    """Write raw, image, EXR and PNG into the open output directory ``out``; ``suffix`` (e.g.
+    ``_order2``) goes before the extension. Returns the final paths by role."""
+    names = {f"{role}{suffix}": OUTPUT_FILES[role].replace(".", f"{suffix}.") for role in ("raw", "image", "exr", "png")}
+    paths = {f"raw{suffix}": out.write(names[f"raw{suffix}"], raw.save),
+             f"image{suffix}": out.write(names[f"image{suffix}"], image.save),
+             f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: products.write_exr(image, path))}
     order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
              f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}  "
              f"window {window_title(image)}{order}")
-    products.write_quicklook(image, paths[f"png{suffix}"], title=title, figsize=(10.0, 8.0), dpi=110)
+    paths[f"png{suffix}"] = out.write(names[f"png{suffix}"], lambda path: products.write_quicklook(
+        image, path, title=title, figsize=(10.0, 8.0), dpi=110))
     return paths
 
 
@@ -433,9 +425,7 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
     body = {**dataclasses.asdict(summary), "pulse_paths_per_second": summary.pulse_paths_per_second,
             "radar": metadata["radar"], "settings": metadata["settings"],
             "scene_info": metadata["scene_info"], "effects": metadata["effects"]}
-    from .products import _atomic_write
-    text = json.dumps(body, indent=2, default=_json_default)
-    _atomic_write(path, lambda tmp: tmp.write_text(text))
+    path.write_text(json.dumps(body, indent=2, default=_json_default))   # staged: appears whole
 
 
 def _world_params(loaded: LoadedScene):
@@ -452,7 +442,7 @@ def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
     settings = loaded.settings
     effects = [str(e) for e in active_effects(loaded)]   # docs/design.md section 7, with reasons
     return {
-        "scene": loaded.source, "scene_path": str(loaded.path),
+        "scene": loaded.source, "scene_path": None if loaded.path is None else str(loaded.path),
         "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),
         "frame_offset": loaded.offset.tolist(),
         "ray_spacing": ray_spacing, "effects": effects, "units": "sqrt(m^2) (normalised radiometry)",

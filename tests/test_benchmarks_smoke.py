@@ -4,8 +4,8 @@ Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py
 and ``scaling.py`` runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
-write ``benchmarks/out/<name>_tiny.csv`` and ``.png`` (tiny runs never overwrite the real
-outputs). Their ``checks(rows)`` must return well-formed results (they are not asserted:
+write ``<name>_tiny.csv`` and ``.png`` into the output folder named by ``SARMITSUBA_BENCH_OUT``
+(here a temporary folder: the tests never write into the checkout). Their ``checks(rows)`` must return well-formed results (they are not asserted:
 tiny settings are not what the checks are about).
 """
 from __future__ import annotations
@@ -62,7 +62,8 @@ def _finite(value) -> bool:
 
 
 @pytest.mark.parametrize("module_name", list(EXPECTED))
-def test_benchmark_runs_tiny(module_name):
+def test_benchmark_runs_tiny(module_name, tmp_path, monkeypatch):
+    monkeypatch.setenv("SARMITSUBA_BENCH_OUT", str(tmp_path))
     start = time.time()
     module = importlib.import_module(module_name)
     rows = module.run(tiny=True)
@@ -76,7 +77,7 @@ def test_benchmark_runs_tiny(module_name):
             assert row[key] == "" or _finite(row[key]), f"{module_name}: {key} = {row[key]!r} in {row}"
     if module_name == "scaling":
         assert {r["sweep"] for r in rows} == {"buildings", "pulses", "pixels"}
-    out = BENCHMARKS / "out"
+    out = tmp_path
     for suffix in (".csv", ".png"):
         path = out / f"{module.NAME}_tiny{suffix}"
         assert path.is_file() and path.stat().st_size > 0, f"{path} missing"

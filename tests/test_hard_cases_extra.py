@@ -517,9 +517,10 @@ def test_ctrl_c_while_tracing_exits_130_and_leaves_no_truncated_output(tmp_path)
 
 @pytest.mark.parametrize("victim", FINAL_FILES)
 def test_interrupt_during_each_output_write(tmp_path, monkeypatch, victim):
-    """Ctrl-C arriving while ``victim`` is being written (its temporary file complete, the
-    rename not yet done): ``render`` exits 130, ``victim`` does not exist, the files written
-    before it load completely, and no ``.partial`` file is left behind."""
+    """Ctrl-C arriving while ``victim`` is being written (its staged file complete, the move into
+    place not yet done): ``render`` exits 130 and the output is all or nothing
+    (sarmitsuba/outputs.py): no product at all, no staging folder, no ``.partial`` file, and
+    the directory the run created is gone; an existing directory keeps only what it held."""
     from sarmitsuba.cli import main
     real_replace = os.replace
 
@@ -531,16 +532,16 @@ def test_interrupt_during_each_output_write(tmp_path, monkeypatch, victim):
     monkeypatch.setattr(os, "replace", interrupted)
     out = tmp_path / "out"
     assert main(["render", "trihedral", "--out", str(out), "--no-progress"]) == 130
-    present = _assert_final_files_complete(out)
-    assert victim not in present
-    assert present == list(FINAL_FILES[:FINAL_FILES.index(victim)])
-    leftovers = sorted(p.name for p in out.iterdir() if p.name.endswith(".partial"))
-    assert not leftovers, leftovers
+    assert not out.exists()
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "mine.txt").write_text("a user's file")
+    assert main(["render", "trihedral", "--out", str(kept), "--no-progress"]) == 130
+    assert sorted(p.name for p in kept.iterdir()) == ["mine.txt"]
 
 
 def test_interrupt_in_the_middle_of_writing_raw_data(tmp_path, monkeypatch):
-    """Ctrl-C while np.savez is half-way through raw.npz: exit 130, no raw.npz and no
-    temporary file left."""
+    """Ctrl-C while np.savez is half-way through raw.npz: exit 130, nothing left behind."""
     from sarmitsuba.cli import main
 
     def half_written(file, **arrays):
@@ -549,6 +550,7 @@ def test_interrupt_in_the_middle_of_writing_raw_data(tmp_path, monkeypatch):
 
     monkeypatch.setattr(np, "savez", half_written)
     out = tmp_path / "out"
+    out.mkdir()
     assert main(["render", "trihedral", "--out", str(out), "--no-progress"]) == 130
     assert sorted(p.name for p in out.iterdir()) == []
 

