@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,15 +16,17 @@ def test_ten_bounces_in_a_closed_street_canyon():
     """max_depth 10 in a lossy canyon: the power the rays carry into each order falls from order
     to order (|r| < 1 at every bounce, rays only leave), rays really reach order 10, and every
     order's returned energy is finite and non-negative (which orders the antenna sees depends on
-    the geometry, so that energy need not be monotonic)."""
-    start = time.perf_counter()
+    the geometry, so that energy need not be monotonic). The loop stops at max_depth: closest-hit
+    casts are counted for exactly ten orders, and no order casts more rays than the one before
+    (a ray is cast again only after a hit)."""
     sim = simulate(str(SCENES / "canyon.xml"))
     carried, energy = sim.trace.carried_power_per_order, sim.trace.energy_per_order
     assert carried.shape == (10,) and np.all(np.diff(carried) < 0), carried
     assert carried[9] > 0, "rays bounce ten times in a closed canyon"
     assert np.all(np.isfinite(energy)) and np.all(energy >= 0) and energy.sum() > 0
     assert np.all(np.isfinite(sim.raw.data)) and np.all(np.isfinite(sim.image.data))
-    assert time.perf_counter() - start < 60
+    rays = sim.trace.rays_per_order
+    assert rays.shape == (10,) and np.all(np.diff(rays) <= 0) and rays[9] > 0, rays
 
 
 def _fold_energy(spacing: float) -> float:
@@ -58,12 +59,15 @@ def test_no_self_intersection_after_reflection(tmp_path):
 
 
 def test_grazing_incidence_stays_finite():
-    """89.9 deg incidence on rough ground: finite output, and sigma0 follows gamma cos(theta)
-    (tiny but not NaN)."""
+    """89.9 deg incidence on rough ground (cos 0.0017): the raw data, image and per-order energies
+    are finite (no NaN / inf from dividing by cos(theta) or a vanishing footprint) and the clutter
+    still returns energy. This checks robustness only: the law sigma0 = gamma cos(theta) is checked
+    against its closed form at 30 and 60 deg (tests/test_clutter.py::test_sigma_nought_follows_gamma_cos_theta)
+    and at 87 deg in the shortened-footprint regime (test_clutter.py::test_sigma_nought_at_grazing_incidence)."""
     sim = simulate(str(SCENES / "rough_ground.xml"),
                    sensor_overrides={"incidence_angle": 89.9, "altitude": 10.0, "n_pulses": 64})
     assert np.all(np.isfinite(sim.raw.data)) and np.all(np.isfinite(sim.image.data))
-    assert np.all(np.isfinite(sim.trace.energy_per_order))
+    assert np.all(np.isfinite(sim.trace.energy_per_order)) and sim.trace.energy_per_order[0] > 0
 
 
 def test_same_target_from_10_km_to_800_km_is_identical():

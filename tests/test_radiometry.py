@@ -15,9 +15,27 @@ import sarmitsuba  # noqa: F401
 from sarmitsuba.constants import BOLTZMANN
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.radar import ParameterError
-from sarmitsuba.radiometry import radar_equation
 
 RADAR = {"transmit_power": 200.0, "antenna_gain_db": 30.0, "losses_db": 2.0}
+P_T, GAIN, LOSSES = 200.0, 10 ** 3.0, 10 ** 0.2                  # RADAR, linear
+TRIHEDRAL_EDGE = 1.5                                             # m, the built-in trihedral
+
+
+def _snr_by_hand(rcs, slant, wavelength, bandwidth, noise_figure=10 ** 0.3, temperature=290.0):
+    """Single-pulse SNR written out: P_t G^2 lambda^2 sigma / ((4 pi)^3 R^4 k T B F L)."""
+    return (P_T * GAIN ** 2 * wavelength ** 2 * rcs
+            / ((4 * math.pi) ** 3 * slant ** 4 * BOLTZMANN * temperature * bandwidth * noise_figure * LOSSES))
+
+
+def test_single_pulse_snr_worked_example():
+    """A worked example by hand: P_t 1 kW, G 30 dB, lambda 3 cm, sigma 1 m^2, R 10 km, T 290 K,
+    B 1 MHz, F = L = 1: SNR = 1e3 x 1e6 x 9e-4 / (1984.40 x 1e16 x 4.00388e-15) = 9e5 / 79454
+    = 11.327 (10.54 dB). Kills (4 pi)^2 for (4 pi)^3 (x 12.6), R^3 for R^4, G for G^2, lambda for lambda^2."""
+    from sarmitsuba.radiometry import RadarEquation
+    eq = RadarEquation(transmit_power=1e3, gain=1e3, losses=1.0, wavelength=0.03, bandwidth=1e6,
+                       pulse_length=1e-5, noise_power=BOLTZMANN * 290.0 * 1e6)
+    assert eq.snr(1.0, 10e3) == pytest.approx(11.327, rel=1e-3)
+    assert eq.image_snr(1.0, 10e3, 100) == pytest.approx(11.327 * 10.0 * 100, rel=1e-3)   # x B T_p x N
 NOISE = {"noise_figure_db": 3.0, "noise_temperature": 290.0}
 
 
@@ -45,7 +63,6 @@ def test_point_target_image_snr_matches_radar_equation():
     noise_image = noisy.image.data - signal.image.data
     full = np.abs(signal.image.azimuth) < 3.0          # rows with a full aperture, like the target's
     snr_measured = rcs / float(np.mean(np.abs(noise_image[full]) ** 2))
-    equation = radar_equation(noisy.loaded.params)
     slant = float(np.linalg.norm(signal.raw.tx_position[signal.raw.n_pulses // 2]))   # apex at the origin
     # coherent gain of the pattern-weighted aperture: the echo of pulse p carries the two-way field
     # pattern g_p^2 = sinc^2(L sin(phi_p) / lambda); with every pulse of the traced beam summed
@@ -56,7 +73,8 @@ def test_point_target_image_snr_matches_radar_equation():
     g2 = np.sinc(p.pattern_length / p.wavelength * sines[(sines >= lo) & (sines <= hi)]) ** 2
     n_effective = g2.sum() ** 2 / g2.size
     assert n_effective < 0.75 * g2.size                                 # the taper costs integration gain
-    snr_expected = equation.image_snr(rcs, slant, n_effective)
+    # written out here, not taken from the pipeline's RadarEquation: single-pulse SNR x B T_p x N_eff
+    snr_expected = _snr_by_hand(rcs, slant, p.wavelength, p.bandwidth) * p.bandwidth * p.pulse_length * n_effective
     assert abs(10 * math.log10(snr_measured / snr_expected)) < 1.0, \
         f"image SNR {10 * math.log10(snr_measured):.2f} dB, radar equation {10 * math.log10(snr_expected):.2f} dB"
 
@@ -72,12 +90,21 @@ def test_absolute_mode_is_calibrated_like_normalised_mode():
 
 
 def test_satellite_range_radiometry_representable_in_float32():
-    """1/R^4 at 800 km with a small RCS: finite, non-zero, normal float32 values (no underflow)."""
+    """1/R^4 at 800 km: finite, normal float32 values (no underflow), and the range-compressed
+    peak amplitude is the closed form sqrt(P_r B T_p), P_r from the radar equation written out with
+    the trihedral's boresight RCS 4 pi a^4 / (3 lambda^2), within [0.6, 1.15] in amplitude: below 1
+    by at most the range window's peak loss and the sample straddle loss (at most -3.9 dB, 0.64, for
+    a peak between two samples; measured 0.96), above 1 by at most the few % by which PO and the
+    sampled beam pattern can exceed the geometric-optics RCS. (4 pi)^2 for (4 pi)^3 gives x 3.5,
+    R^3 for R^4 x 900, a missing B T_p x 39."""
     sim = simulate("trihedral", sensor_overrides={**RADAR, "altitude": 800e3 * math.cos(math.pi / 4), "n_pulses": 3})
     peak = np.abs(sim.raw.data).max()
     assert np.all(np.isfinite(sim.raw.data)) and peak > np.finfo(np.float32).tiny * 1e6
-    expected = math.sqrt(radar_equation(sim.loaded.params).received_power(1.0, 800e3) * 1e3)  # order of magnitude
-    assert 1e-3 < peak / expected < 1e5
+    p = sim.loaded.params
+    rcs = 4 * math.pi * TRIHEDRAL_EDGE ** 4 / (3 * p.wavelength ** 2)
+    received = P_T * GAIN ** 2 * p.wavelength ** 2 * rcs / ((4 * math.pi) ** 3 * 800e3 ** 4 * LOSSES)
+    expected = math.sqrt(received * p.bandwidth * p.pulse_length)
+    assert 0.6 < peak / expected < 1.15, f"peak / closed form = {peak / expected:.3f}"
 
 
 @pytest.mark.parametrize("override, message", [
