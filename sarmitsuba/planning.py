@@ -79,18 +79,30 @@ def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tup
     return (min(x * math.tan(squint - half) for x in r), max(x * math.tan(squint + half) for x in r))
 
 
+#: Extra two-way length allowed per bounce beyond the first, as a fraction of the scene box's
+#: diagonal. A bounce inside the box can add up to a whole diagonal, but sizing the window for
+#: that would lengthen it by ``max_depth - 1`` diagonals for paths that carry little energy
+#: (each bounce multiplies by a reflection coefficient below 1 and most later bounces stay close
+#: to the earlier ones: corners, wall-ground); 10 % is that compromise. Longer paths are not
+#: clamped into the edge bins: their terms are dropped and their energy is added to
+#: ``TraceResult.energy_outside_window`` (copied into the ``RenderSummary``; no warning is
+#: printed), so check that figure when a scene has long multi-bounce paths (deep canyons, high
+#: ``max_depth``).
+EXTRA_BOUNCE_FRACTION = 0.1
+
+
 def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
                      hi: np.ndarray, settings: TraceSettings) -> FastTimeWindow:
     """Fast-time window covering every scene point from every pulse, plus margins.
 
     Nearest delay: twice the distance from the antenna to the box; farthest: twice the
-    farthest corner, plus ``(max_depth - 1) * 10 %`` of the box diagonal for multi-bounce
-    paths longer than the direct one (energy still falling outside is reported by the
+    farthest corner, plus ``(max_depth - 1) * EXTRA_BOUNCE_FRACTION`` (10 %) of the box
+    diagonal for multi-bounce paths longer than the direct one (energy still falling outside is reported by the
     tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
     and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
     l_min, l_max = _echo_lengths(geometry.positions, lo, hi)
-    l_max += (settings.max_depth - 1) * 0.1 * float(np.linalg.norm(hi - lo))
+    l_max += (settings.max_depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
     if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
         margin += 0.5 * params.pulse_length

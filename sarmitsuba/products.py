@@ -1,9 +1,11 @@
 """Image products: OpenEXR channels and PNG quicklooks of a :class:`SarImage` (docs/design.md section 3).
 
-This is the only module with figure code. Every writer is atomic: it writes a temporary
-file next to the target (``.<name>.partial``) and renames it over the target with
-:func:`os.replace`, so readers never see half a file and a failed write leaves any
-previous file untouched. A failed write removes the temporary file and raises :class:`WriteError`,
+Figures are drawn here and in two other modules: :mod:`sarmitsuba.figures` (the explanatory
+figures of a simulation) and :mod:`sarmitsuba.preview` (the optical preview of an
+acquisition), which share this module's atomic writes (and, for figures, its axis labels and
+colour bars). Every writer here is atomic: it writes a temporary file next to the target
+(``.<name>.partial``) and renames it over the target with :func:`os.replace`, so readers
+never see half a file and a failed write leaves any previous file untouched. A failed write removes the temporary file and raises :class:`WriteError`,
 an OSError whose message names the target path the caller gave.
 
 =========================  ===================================================================

@@ -303,15 +303,25 @@ def pulses_per_trace(params: RadarParameters, settings: TraceSettings, n_pulses:
 SUBAPERTURE_CELLS = 16.0
 
 
+#: Rays start this far [m] short of the scene's bounding sphere (``r_near``), not at the antenna.
+#: The origin is placed in float64 and rounded to float32 (``mi.Point3f``); starting next to the
+#: scene keeps the float32 ray parameter at scene scale instead of at the antenna's range (the
+#: float32 step at 800 km is 0.06 m). The margin only has to keep the rounded origin outside the
+#: sphere, so that no geometry lies behind it: 1 m is far above that rounding (about 1e-3 m for
+#: coordinates of 10 km) and costs nothing. Path lengths are counted in float64 from the
+#: reference position, so the margin does not enter any length.
+RAY_START_MARGIN = 1.0
+
+
 def subapertures(geometry: AcquisitionGeometry, footprint: RayFootprint, scene, size: int) -> SubApertures:
     """Split the acquisition's pulses into sub-apertures of ``size`` consecutive pulses."""
     n_pulses = geometry.positions.shape[0]
     first = np.arange(0, n_pulses, size, dtype=np.int64)
     last = np.minimum(first + size, n_pulses) - 1
     positions = geometry.positions
-    reference = 0.5 * (positions[first] + positions[last])
+    reference = 0.5 * (positions[first] + positions[last])     # midpoint of first and last antenna
     radius, center = _bounding_sphere(scene)
-    r_near = np.maximum(np.linalg.norm(reference - center, axis=1) - radius - 1.0, 0.0)
+    r_near = np.maximum(np.linalg.norm(reference - center, axis=1) - radius - RAY_START_MARGIN, 0.0)
     k0_lo = np.minimum.reduceat(footprint.k0, first)
     k0_hi = np.maximum.reduceat(footprint.k0, first)
     limits = np.stack([np.minimum.reduceat(footprint.along_limits[:, 0], first),
@@ -366,6 +376,7 @@ def caused_by_interrupt(exc: BaseException) -> bool:
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
+    """Radius [m] (half the box diagonal) and centre [3] of the sphere around the scene's box."""
     bbox = scene.bbox()
     lo, hi = np.array(bbox.min, float), np.array(bbox.max, float)
     return 0.5 * float(np.linalg.norm(hi - lo)), 0.5 * (lo + hi)

@@ -1,4 +1,6 @@
-"""Test configuration: make the helper modules in tests/ (canonical targets) importable; shared fixtures."""
+"""Test configuration: put tests/ on ``sys.path`` so that test modules can import each other's
+shared cases and checks (``test_stripmap``, ``test_omegak``, ``test_backprojection``); shared
+fixtures."""
 import sys
 from pathlib import Path
 
