@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .raw import _atomic_savez, _json_default, _read_npz, _refuse_non_finite
+from .raw import _atomic_savez, _json_default, read_npz, refuse_non_finite
 
 __all__ = ["SarImage", "SarImageError"]
 
@@ -102,7 +102,7 @@ class SarImage:
                                     "of one image; focus the raw data again (sarmitsuba focus)")
             if value.shape != shape or value.dtype != np.float64:
                 raise SarImageError(f"{name} must be float64 {list(shape)}, got {value.dtype} {list(value.shape)}")
-            _refuse_non_finite(value, name, "value", {"azimuth": ("row",), "range": ("column",)}.get(name, ("axis",)),
+            refuse_non_finite(value, name, "value", {"azimuth": ("row",), "range": ("column",)}.get(name, ("axis",)),
                                SarImageError,
                                "the image geometry is corrupt: focus the raw data again (sarmitsuba focus)")
         if self.plane not in _PLANES:
@@ -157,10 +157,10 @@ class SarImage:
             disagree with the data shape, non-finite geometry or pixels (count and first
             (azimuth, range) pixel).
         """
-        kwargs = _read_npz(path, "SarImage", SarImageError, _read_image_fields)
+        kwargs = read_npz(path, "SarImage", SarImageError, _read_image_fields)
         try:
             image = cls(**kwargs)
-            _refuse_non_finite(image.data, "data", "pixel", ("azimuth", "range"), SarImageError,
+            refuse_non_finite(image.data, "data", "pixel", ("azimuth", "range"), SarImageError,
                                "the image is damaged or was focused from non-finite raw data; focus a finite "
                                "raw.npz again (sarmitsuba focus)")
         except SarImageError as exc:

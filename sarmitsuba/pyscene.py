@@ -27,7 +27,7 @@ import numpy as np
 
 from . import materials
 from .radar import ParameterError, RadarParameters
-from .scene import SceneError, _clean
+from .scene import SceneError, mitsuba_message
 from .trace_inputs import TraceSettings
 
 __all__ = ["Scene", "material_names"]
@@ -128,7 +128,7 @@ class Scene:
         try:
             return mi.load_dict(tree, optimize=False)
         except RuntimeError as exc:
-            raise SceneError(f"cannot build scene {self.source!r}: {_clean(exc)}") from None
+            raise SceneError(f"cannot build scene {self.source!r}: {mitsuba_message(exc)}") from None
         finally:
             mi.set_log_level(level)
 

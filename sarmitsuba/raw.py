@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RawData", "RawDataError"]
+__all__ = ["RawData", "RawDataError", "read_npz", "refuse_non_finite"]
 
 
 class RawDataError(ValueError):
@@ -117,14 +117,14 @@ class RawData:
             raise RawDataError(f"chirp_rate must be a finite number (Hz/s), got {self.chirp_rate}")
         for name in ("fast_time", "pulse_time", "tx_position", "rx_position", "velocity"):
             labels = ("sample",) if name == "fast_time" else ("pulse", "axis")
-            _refuse_non_finite(getattr(self, name), name, "value", labels, RawDataError,
+            refuse_non_finite(getattr(self, name), name, "value", labels, RawDataError,
                                "the geometry is corrupt: re-create the data (sarmitsuba render)")
         steps = np.diff(self.fast_time)
         if np.any(steps <= 0):
             k = int(np.argmax(steps <= 0)) + 1
             raise RawDataError(f"fast_time must be strictly increasing (t0 + i / fs), but sample {k} "
                                f"({float(self.fast_time[k])!r} s) is not after sample {k - 1}")
-        _refuse_non_finite(self.data, "data", "sample", ("pulse", "sample"), RawDataError,
+        refuse_non_finite(self.data, "data", "sample", ("pulse", "sample"), RawDataError,
                            "focusing would spread NaN over the whole image; re-create the data (sarmitsuba "
                            "render), or zero the bad samples (numpy.nan_to_num) if they are known to be void")
 
@@ -166,7 +166,7 @@ class RawData:
             archive, damaged archive (truncated, bad CRC), missing field, arrays whose
             lengths disagree, non-finite samples or geometry (count and first position).
         """
-        kwargs = _read_npz(path, "RawData", RawDataError, _read_raw_fields)
+        kwargs = read_npz(path, "RawData", RawDataError, _read_raw_fields)
         try:
             return cls(**kwargs)
         except RawDataError as exc:
@@ -198,7 +198,7 @@ def _check_axis(name: str, value: np.ndarray, shape: tuple[int, ...], owner: str
         raise RawDataError(f"{name} must be float64 {list(shape)}, got {value.dtype} {list(value.shape)}{hint}")
 
 
-def _refuse_non_finite(array: np.ndarray, name: str, noun: str, labels: tuple[str, ...],
+def refuse_non_finite(array: np.ndarray, name: str, noun: str, labels: tuple[str, ...],
                        error: type[ValueError], fix: str) -> None:
     """Raise ``error`` when ``array`` holds NaN or Inf: their count, the first index (named by
     ``labels``, C order) and ``fix``. One ``np.isfinite`` pass when all values are finite."""
@@ -217,7 +217,7 @@ def _refuse_non_finite(array: np.ndarray, name: str, noun: str, labels: tuple[st
 _ZIP_MAGIC = (b"PK\x03\x04", b"PK\x05\x06")
 
 
-def _read_npz(path: str | os.PathLike, what: str, error: type[ValueError], read: Any) -> Any:
+def read_npz(path: str | os.PathLike, what: str, error: type[ValueError], read: Any) -> Any:
     """``read(npz)`` on the opened ``.npz`` at ``path``, every failure raised as ``error``.
 
     ``what`` names the contract ("RawData", "SarImage") in messages. ``read`` may raise

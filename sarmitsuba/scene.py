@@ -27,7 +27,7 @@ from .radiometry import radar_equation
 from .radar import ParameterError, RadarParameters
 from .trace_inputs import MaterialTable, TraceSettings
 
-__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table",
+__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "mitsuba_message",
            "builtin_scenes", "sionna_scenes"]
 
 #: Number of cos(incidence) samples of each material's reflection table.
@@ -262,7 +262,7 @@ def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
             bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
 
 
-def _clean(exc: Exception) -> str:
+def mitsuba_message(exc: Exception) -> str:
     """The message of a Mitsuba loading error without its source prefix and Python traceback frames,
     led by ``FILE, line N:`` when it names a place in a file (see :func:`_located`)."""
     file, line, message = _located(exc)
