@@ -44,8 +44,9 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .image import SarImage
-from .products import REFERENCE_PERCENTILE, _atomic_write, _colorbar, _edges, _label_image_axes, _multilook
-from .raw import RawData, _json_default
+from .outputs import atomic_write, json_default
+from .products import REFERENCE_PERCENTILE, _colorbar, _edges, _label_image_axes, _multilook
+from .raw import RawData
 
 __all__ = ["raw_figure", "image_figure", "bounce_orders_figure", "overlay_figure", "comparison_figure",
            "point_target_figure", "write_figures", "redraw", "image_resolution", "FIGURE_FILES"]
@@ -71,7 +72,7 @@ def _figure(figsize: tuple[float, float], dpi: int, layout: str = "constrained")
 
 
 def _save(fig: Any, path: str | os.PathLike, dpi: int) -> Path:
-    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "figure")
+    return atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "figure")
 
 
 def _check_range(dynamic_range_db: float) -> float:
@@ -858,8 +859,8 @@ def write_figures(out_dir: str | os.PathLike, raw: RawData | None, image: SarIma
         stats["overlay"] = overlay
     stats["figures"] = {role: str(p) for role, p in paths.items()}
     target = out / FIGURE_FILES["stats"]
-    paths["stats"] = _atomic_write(target, lambda tmp: tmp.write_text(
-        json.dumps(stats, indent=2, default=_json_default)), "figure statistics")
+    paths["stats"] = atomic_write(target, lambda tmp: tmp.write_text(
+        json.dumps(stats, indent=2, default=json_default)), "figure statistics")
     return paths
 
 

@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from .image import SarImage
+from .outputs import atomic_savez
 from .radar import acquisition_geometry
 
 __all__ = ["GroundTruth", "ground_truth", "layover_mask", "shadow_mask", "footprint_mask",
@@ -109,8 +110,7 @@ class GroundTruth:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the masks as ``.npz`` (bool arrays plus the two scalars), atomically."""
-        from .raw import _atomic_savez
-        return _atomic_savez(Path(path), layover=self.layover, shadow=self.shadow, footprint=self.footprint,
+        return atomic_savez(Path(path), layover=self.layover, shadow=self.shadow, footprint=self.footprint,
                              double_bounce=self.double_bounce, scene_area=self.scene_area,
                              height_threshold=np.float64(self.height_threshold), z0=np.float64(self.z0))
 

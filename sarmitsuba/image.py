@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from .raw import _atomic_savez, _json_default, read_npz, refuse_non_finite
+from .outputs import atomic_savez, json_default
+from .raw import read_npz, refuse_non_finite
 
 __all__ = ["SarImage", "SarImageError"]
 
@@ -136,11 +137,11 @@ class SarImage:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the image as ``.npz`` atomically (temporary name, then rename)."""
-        return _atomic_savez(
+        return atomic_savez(
             Path(path), data=self.data, azimuth=self.azimuth, range=self.range, origin=self.origin,
             azimuth_direction=self.azimuth_direction, range_direction=self.range_direction,
             plane=np.str_(self.plane), algorithm=np.str_(self.algorithm), window=np.str_(self.window),
-            metadata=np.str_(json.dumps(self.metadata, default=_json_default)))
+            metadata=np.str_(json.dumps(self.metadata, default=json_default)))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "SarImage":

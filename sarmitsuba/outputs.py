@@ -21,7 +21,9 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["OutputDirectory", "check_output_dir"]
+import numpy as np
+
+__all__ = ["OutputDirectory", "WriteError", "atomic_savez", "atomic_write", "check_output_dir", "json_default"]
 
 
 class OutputDirectory:
@@ -122,3 +124,71 @@ def check_output_dir(out_dir: str | os.PathLike) -> Path:
     out = OutputDirectory(out_dir).__enter__()
     out.abandon()
     return out.path
+
+
+class WriteError(OSError):
+    """A product could not be written: names the file asked for, never the temporary one.
+
+    ``errno`` and ``strerror`` are those of the underlying error; ``filename`` is the target
+    path and ``what`` says what it is (``"figure"``, ``"quicklook"``, ...). ``str()`` reads
+    ``cannot write figure /ro/fig.png: Permission denied (check the folder's permissions or
+    choose another path)``.
+    """
+
+    what = "file"
+    _HINTS = {errno.EACCES: "check the folder's permissions or choose another path",
+              errno.EPERM: "check the folder's permissions or choose another path",
+              errno.EROFS: "the file system is read-only: choose another path",
+              errno.ENOENT: "its folder does not exist: create it or choose another path",
+              errno.ENOTDIR: "a part of the path is a file, not a folder",
+              errno.EISDIR: "it is a folder: give a file name",
+              errno.ENOSPC: "free some space or choose another path"}
+
+    def __str__(self) -> str:
+        hint = self._HINTS.get(self.errno)
+        return f"cannot write {self.what} {self.filename}: {self.strerror}" + (f" ({hint})" if hint else "")
+
+
+def atomic_write(path: Path, write: Callable[[Path], Any], what: str = "file") -> Path:
+    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename it to ``path``.
+
+    On any failure the temporary file is removed; an OSError comes back as :class:`WriteError`
+    naming ``path`` (described as ``what``), not the temporary name.
+    """
+    tmp = path.with_name(f".{path.name}.partial")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+            error = WriteError(exc.errno, exc.strerror or str(exc), str(path))
+            error.what = what
+            raise error from None
+        raise
+    return path
+
+
+def json_default(obj: Any) -> Any:
+    """``default=`` for :func:`json.dumps` of metadata: NumPy scalars and arrays, paths.
+
+    Raises
+    ------
+    TypeError
+        For any other type, naming it.
+    """
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"metadata value of type {type(obj).__name__} is not JSON-serialisable")
+
+
+def atomic_savez(path: str | os.PathLike, what: str = "npz file", **arrays: Any) -> Path:
+    """``np.savez`` (uncompressed) to ``path`` through :func:`atomic_write`."""
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+    return atomic_write(Path(path), write, what)

@@ -17,9 +17,9 @@ from .effects import active_effects
 from .focus import ImageGrid, backproject, ffbp
 from .focus.ffbp import GeometryNotSupported
 from .image import SarImage
-from .outputs import OutputDirectory, check_output_dir
+from .outputs import OutputDirectory, check_output_dir, json_default
 from .radar import AcquisitionGeometry, acquisition_geometry, ground_layover
-from .raw import RawData, _json_default
+from .raw import RawData
 from .scene import LoadedScene, load_scene, material_table
 from .trace import TraceResult, trace
 
@@ -425,7 +425,7 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
     body = {**dataclasses.asdict(summary), "pulse_paths_per_second": summary.pulse_paths_per_second,
             "radar": metadata["radar"], "settings": metadata["settings"],
             "scene_info": metadata["scene_info"], "effects": metadata["effects"]}
-    path.write_text(json.dumps(body, indent=2, default=_json_default))   # staged: appears whole
+    path.write_text(json.dumps(body, indent=2, default=json_default))   # staged: appears whole
 
 
 def _world_params(loaded: LoadedScene):

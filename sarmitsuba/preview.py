@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .products import _atomic_write
+from .outputs import atomic_write
 from .radar import acquisition_geometry
 
 __all__ = ["render_preview", "PreviewGeometry", "preview_geometry"]
@@ -437,7 +437,7 @@ def render_preview(loaded: Any, path: str | os.PathLike, *, spp: int = 16,
                 bbox={"facecolor": "white", "alpha": 0.75, "edgecolor": "none", "pad": 2})
         if full:
             ax.legend(loc="lower left", fontsize=7, framealpha=0.8)
-    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    return atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
 
 
 def _header_text(loaded: Any, geo: PreviewGeometry) -> str:

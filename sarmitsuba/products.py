@@ -15,16 +15,15 @@ an OSError whose message names the target path the caller gave.
 """
 from __future__ import annotations
 
-import errno
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 from .image import SarImage
-from .raw import _json_default
+from .outputs import WriteError, atomic_write, json_default
 
 __all__ = ["write_exr", "write_quicklook", "WriteError"]
 
@@ -81,16 +80,16 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
             "range_direction": image.range_direction, "azimuth": image.azimuth, "range": image.range,
             "units": {"intensity": "m^2", "real": "sqrt(m^2)", "imag": "sqrt(m^2)", "axes": "m"},
             "metadata": image.metadata}
-    text = json.dumps(info, default=_json_default)
+    text = json.dumps(info, default=json_default)
     if len(text) > _MAX_HEADER_JSON:  # keep EXR headers small; the .npz keeps the full metadata
         info["metadata"] = {"omitted": f"metadata longer than {_MAX_HEADER_JSON} characters"}
-        text = json.dumps(info, default=_json_default)
+        text = json.dumps(info, default=json_default)
     header = {"compression": OpenEXR.NO_COMPRESSION, "type": OpenEXR.scanlineimage,
               "comment": f"sarmitsuba {image.algorithm} image, {image.plane} plane: "
                          "channels intensity = |data|^2, real, imag",
               "sarmitsuba": text}
     exr = OpenEXR.File(header, channels)
-    return _atomic_write(Path(path), lambda tmp: _write_exr_file(exr, tmp, Path(path)), "EXR image")
+    return atomic_write(Path(path), lambda tmp: _write_exr_file(exr, tmp, Path(path)), "EXR image")
 
 
 def _write_exr_file(exr: Any, tmp: Path, path: Path) -> None:
@@ -184,7 +183,7 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     _label_image_axes(ax, image)
     _colorbar(fig, ax, shown, "dB")
     ax.set_title(_title(image, title, dynamic_range_db, empty, looks), fontsize="small")
-    return _atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "quicklook")
+    return atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "quicklook")
 
 
 # ============================================================================ helpers
@@ -306,46 +305,3 @@ def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: b
     if empty:
         parts.append("all-zero image")
     return f"{first}\n{window}\n" + ", ".join(parts)
-
-
-class WriteError(OSError):
-    """A product could not be written: names the file asked for, never the temporary one.
-
-    ``errno`` and ``strerror`` are those of the underlying error; ``filename`` is the target
-    path and ``what`` says what it is (``"figure"``, ``"quicklook"``, ...). ``str()`` reads
-    ``cannot write figure /ro/fig.png: Permission denied (check the folder's permissions or
-    choose another path)``.
-    """
-
-    what = "file"
-    _HINTS = {errno.EACCES: "check the folder's permissions or choose another path",
-              errno.EPERM: "check the folder's permissions or choose another path",
-              errno.EROFS: "the file system is read-only: choose another path",
-              errno.ENOENT: "its folder does not exist: create it or choose another path",
-              errno.ENOTDIR: "a part of the path is a file, not a folder",
-              errno.EISDIR: "it is a folder: give a file name",
-              errno.ENOSPC: "free some space or choose another path"}
-
-    def __str__(self) -> str:
-        hint = self._HINTS.get(self.errno)
-        return f"cannot write {self.what} {self.filename}: {self.strerror}" + (f" ({hint})" if hint else "")
-
-
-def _atomic_write(path: Path, write: Callable[[Path], Any], what: str = "file") -> Path:
-    """Call ``write(tmp)`` for a temporary name beside ``path``, then rename it to ``path``.
-
-    On any failure the temporary file is removed; an OSError comes back as :class:`WriteError`
-    naming ``path`` (described as ``what``), not the temporary name.
-    """
-    tmp = path.with_name(f".{path.name}.partial")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
-            error = WriteError(exc.errno, exc.strerror or str(exc), str(path))
-            error.what = what
-            raise error from None
-        raise
-    return path

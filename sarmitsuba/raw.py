@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from .outputs import atomic_savez, json_default
+
 __all__ = ["RawData", "RawDataError", "read_npz", "refuse_non_finite"]
 
 
@@ -151,9 +153,9 @@ class RawData:
         """
         arrays = {name: getattr(self, name) for name in _ARRAYS}
         scalars = {name: np.float64(getattr(self, name)) for name in _SCALARS}
-        return _atomic_savez(Path(path), **arrays, **scalars,
+        return atomic_savez(Path(path), **arrays, **scalars,
                              range_compressed=np.bool_(self.range_compressed),
-                             metadata=np.str_(json.dumps(self.metadata, default=_json_default)))
+                             metadata=np.str_(json.dumps(self.metadata, default=json_default)))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "RawData":
@@ -248,27 +250,3 @@ def read_npz(path: str | os.PathLike, what: str, error: type[ValueError], read: 
         reason = ("it holds a pickled Python object, which no field of the contract is"
                   if "allow_pickle" in str(exc) else str(exc))
         raise error(f"{path}: cannot read {what} ({reason}); the file is damaged or not a {what} file") from exc
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"metadata value of type {type(obj).__name__} is not JSON-serialisable")
-
-
-def _atomic_savez(path: Path, **arrays: Any) -> Path:
-    """``np.savez`` to ``path`` through a temporary name in the same directory, then rename."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.partial")
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:              # Ctrl-C or a full disk: no half-written file is left
-        tmp.unlink(missing_ok=True)
-        raise
-    return path

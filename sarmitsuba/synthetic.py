@@ -35,7 +35,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from .constants import SPEED_OF_LIGHT
-from .focus.grid import _readonly
+from .arrays import readonly, vector3
 from .focus.range_compression import chirp_spectrum
 from .focus.windows import check_window, compressed_pulse
 from .raw import RawData
@@ -45,13 +45,6 @@ __all__ = ["PointTarget", "Track", "AzimuthBeam", "straight_track", "simulate_po
            "receiver_response"]
 
 C = SPEED_OF_LIGHT
-
-
-def _vector3(name: str, value: Any) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64).reshape(-1)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be 3 finite numbers (x, y, z in metres), got {value!r}")
-    return arr
 
 
 def _positive(name: str, value: Any, unit: str) -> float:
@@ -87,7 +80,7 @@ class PointTarget:
     amplitude: complex = 1.0 + 0.0j
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _readonly(_vector3("position", self.position)))
+        object.__setattr__(self, "position", readonly(vector3("position", self.position)))
         a = complex(self.amplitude)
         if not np.isfinite(a):
             raise ValueError(f"amplitude must be a finite complex number, got {self.amplitude!r}")
@@ -120,11 +113,11 @@ class Track:
             arr = np.asarray(getattr(self, name), dtype=np.float64)
             if arr.ndim != 2 or arr.shape[1] != 3 or not np.all(np.isfinite(arr)):
                 raise ValueError(f"{name} must be finite float64 [n_pulses, 3], got shape {arr.shape}")
-            object.__setattr__(self, name, _readonly(arr))
+            object.__setattr__(self, name, readonly(arr))
         t = np.asarray(self.pulse_time, dtype=np.float64)
         if t.shape != (self.position.shape[0],) or self.velocity.shape != self.position.shape:
             raise ValueError("position, velocity and pulse_time must agree in the number of pulses")
-        object.__setattr__(self, "pulse_time", _readonly(t))
+        object.__setattr__(self, "pulse_time", readonly(t))
         object.__setattr__(self, "prf", _positive("prf", self.prf, "Hz"))
 
     @property
@@ -173,7 +166,7 @@ class AzimuthBeam:
         object.__setattr__(self, "width", width)
         object.__setattr__(self, "squint", squint)
         if self.center is not None:
-            object.__setattr__(self, "center", _readonly(_vector3("beam center", self.center)))
+            object.__setattr__(self, "center", readonly(vector3("beam center", self.center)))
 
     @property
     def mode(self) -> str:
@@ -226,13 +219,13 @@ def straight_track(n_pulses: int, prf: float, velocity: float | Sequence[float],
     prf = _positive("prf", prf, "Hz")
     if np.ndim(velocity) == 0:
         speed = _positive("velocity", velocity, "m/s")
-        d = _vector3("direction", direction)
+        d = vector3("direction", direction)
         norm = np.linalg.norm(d)
         if not norm > 0:
             raise ValueError("direction must be a non-zero vector")
         v = speed * d / norm
     else:
-        v = _vector3("velocity", velocity)
+        v = vector3("velocity", velocity)
         if not np.linalg.norm(v) > 0:
             raise ValueError("velocity must be a non-zero vector [m/s]")
     if (center is None) == (start is None):
@@ -240,10 +233,10 @@ def straight_track(n_pulses: int, prf: float, velocity: float | Sequence[float],
     k = np.arange(n_pulses, dtype=np.float64)
     if center is not None:
         t = (k - (n_pulses - 1) / 2.0) / prf
-        pos = _vector3("center", center)[None, :] + t[:, None] * v[None, :]
+        pos = vector3("center", center)[None, :] + t[:, None] * v[None, :]
     else:
         t = k / prf
-        pos = _vector3("start", start)[None, :] + t[:, None] * v[None, :]
+        pos = vector3("start", start)[None, :] + t[:, None] * v[None, :]
     return Track(position=pos, velocity=np.tile(v, (n_pulses, 1)), pulse_time=t, prf=prf)
 
 

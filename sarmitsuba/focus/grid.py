@@ -17,24 +17,13 @@ from typing import Sequence
 
 import numpy as np
 
+from ..arrays import readonly, vector3
+
 __all__ = ["ImageGrid"]
 
 _PLANES = ("ground", "slant")
 _UNIT_TOL = 1e-9  # tolerance on |e| - 1 for the direction vectors
 _MAX_AXIS = 1 << 20  # guard against a typo in extent/spacing allocating terabytes
-
-
-def _vector3(name: str, value: Sequence[float] | np.ndarray) -> np.ndarray:
-    arr = np.array(value, dtype=np.float64).reshape(-1)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be 3 finite numbers (x, y, z in metres), got {value!r}")
-    return arr
-
-
-def _readonly(arr: np.ndarray) -> np.ndarray:
-    arr = np.array(arr, dtype=np.float64, copy=True)
-    arr.flags.writeable = False
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,7 +68,7 @@ class ImageGrid:
 
     def __post_init__(self) -> None:
         for name in ("origin", "azimuth_direction", "range_direction"):
-            object.__setattr__(self, name, _readonly(_vector3(name, getattr(self, name))))
+            object.__setattr__(self, name, readonly(vector3(name, getattr(self, name))))
         for name in ("azimuth_direction", "range_direction"):
             norm = float(np.linalg.norm(getattr(self, name)))
             if abs(norm - 1.0) > _UNIT_TOL:
@@ -90,7 +79,7 @@ class ImageGrid:
                 raise ValueError(f"{name} must be a non-empty 1-D array of finite metres, got shape {axis.shape}")
             if axis.size > 1 and not np.all(np.diff(axis) > 0):
                 raise ValueError(f"{name} must be strictly increasing (metres along its direction)")
-            object.__setattr__(self, name, _readonly(axis))
+            object.__setattr__(self, name, readonly(axis))
         if self.plane not in _PLANES:
             raise ValueError(f"plane must be one of {_PLANES}, got {self.plane!r}")
 
@@ -139,9 +128,9 @@ class ImageGrid:
         >>> g.shape, g.range_direction.tolist()
         ((21, 13), [0.0, -1.0, 0.0])
         """
-        origin_v = _vector3("origin", origin)
-        track = _vector3("track_direction", track_direction)
-        look = _vector3("look_direction", look_direction)
+        origin_v = vector3("origin", origin)
+        track = vector3("track_direction", track_direction)
+        look = vector3("look_direction", look_direction)
         track[2] = 0.0
         norm = np.linalg.norm(track)
         if not norm > 1e-12:

@@ -72,7 +72,8 @@ import scipy.special
 
 from ..constants import SPEED_OF_LIGHT
 from ..raw import RawData
-from .grid import ImageGrid, _readonly
+from ..arrays import readonly
+from .grid import ImageGrid
 from .windows import window_label, window_spec
 
 __all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
@@ -327,9 +328,9 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
         raise ValueError("the scene centre lies on the track line: it cannot fix the slant plane")
     pulse_azimuth = k * spacing - foot
     return StripmapGeometry(
-        origin=_readonly(mean + foot * u), azimuth_direction=_readonly(u), range_direction=_readonly(perp / norm),
-        scene_centre=_readonly(centre), velocity=float(velocity), pulse_spacing=spacing,
-        pulse_azimuth=_readonly(pulse_azimuth), prf=float(raw.prf), wavelength=wavelength,
+        origin=readonly(mean + foot * u), azimuth_direction=readonly(u), range_direction=readonly(perp / norm),
+        scene_centre=readonly(centre), velocity=float(velocity), pulse_spacing=spacing,
+        pulse_azimuth=readonly(pulse_azimuth), prf=float(raw.prf), wavelength=wavelength,
         reference_range=float(r_ref), beam_centre_range=float(r_beam), squint=theta, doppler_centroid=float(fdc),
         doppler_source=source, max_cross_track_error=cross, max_along_track_error=along_err, tolerance=tol)
 
