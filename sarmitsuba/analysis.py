@@ -74,6 +74,7 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.optimize
 
+from .bandlimited import Interpolant2D
 from .constants import SPEED_OF_LIGHT
 from .image import SarImage
 
@@ -563,30 +564,7 @@ def _simpson(y: np.ndarray, x: np.ndarray) -> float:
 
 
 # ============================================================================ band-limited chip
-class _Interpolant:
-    """Exact DFT (periodic band-limited) interpolant of a baseband chip, Nyquist bins split."""
-
-    def __init__(self, base: np.ndarray):
-        self.spectrum = np.fft.fft2(base)
-        self.shape = base.shape
-
-    @staticmethod
-    def _kernel(n: int, u: np.ndarray) -> np.ndarray:
-        u = np.atleast_1d(np.asarray(u, dtype=np.float64))
-        k = np.fft.fftfreq(n)
-        e = np.exp(2j * np.pi * np.outer(u, k)) / n
-        if n % 2 == 0:
-            e[:, n // 2] = np.cos(np.pi * u) / n
-        return e
-
-    def __call__(self, u: np.ndarray | float, v: np.ndarray | float) -> np.ndarray:
-        """Values at rows ``u`` x columns ``v`` (chip pixel units): complex [len(u), len(v)]."""
-        ea = self._kernel(self.shape[0], u)
-        er = self._kernel(self.shape[1], v)
-        return ea @ self.spectrum @ er.T
-
-
-def _refine_peak(interp: _Interpolant, u: float, v: float, step: float) -> tuple[float, float]:
+def _refine_peak(interp: Interpolant2D, u: float, v: float, step: float) -> tuple[float, float]:
     """Maximise ``|interp|^2`` from a grid maximum by alternating parabolic (log-power) vertex
     fits along each axis, with shrinking steps; each vertex move is limited to one step."""
     for h in (step, step / 8.0, step / 64.0, step / 512.0):
@@ -777,7 +755,7 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
         carrier_source = "given"
     n = np.arange(chip, dtype=np.float64)
     base = z * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :]))
-    interp = _Interpolant(base)
+    interp = Interpolant2D(base)
 
     def value(u: float, v: float) -> complex:
         """Ramp-restored image value at chip-local fractional pixel (u, v)."""

@@ -44,6 +44,7 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .image import SarImage
+from .bandlimited import dft_rows
 from .outputs import atomic_write, json_default
 from .products import REFERENCE_PERCENTILE, _colorbar, _edges, _label_image_axes, _multilook
 from .raw import RawData
@@ -697,15 +698,6 @@ def _report_value(report: Any, name: str, default: Any = None) -> Any:
     return default if value is None else value
 
 
-def _dft_kernel(n: int, u: np.ndarray) -> np.ndarray:
-    """Rows evaluating the periodic band-limited interpolant of n samples at positions u."""
-    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
-    e = np.exp(2j * np.pi * np.outer(u, np.fft.fftfreq(n))) / n
-    if n % 2 == 0:
-        e[:, n // 2] = np.cos(np.pi * u) / n          # Nyquist bin split symmetrically
-    return e
-
-
 def point_target_figure(image: SarImage, report: Any, path: str | os.PathLike, *, oversample: int = 16,
                         dynamic_range_db: float = 40.0, figsize: tuple[float, float] = (13.0, 4.6),
                         dpi: int = 100) -> Path:
@@ -765,11 +757,11 @@ def point_target_figure(image: SarImage, report: Any, path: str | os.PathLike, *
     u_pk, v_pk = row - i0, col - j0
     steps = (abs(float(image.azimuth[1] - image.azimuth[0])), abs(float(image.range[1] - image.range[0])))
     t = np.arange(-(chip // 2) * ov, (chip // 2) * ov) / ov                       # pixels from the peak
-    cut_az = np.abs(_dft_kernel(chip, u_pk + t) @ spectrum @ _dft_kernel(chip, [v_pk]).T)[:, 0]
-    cut_rg = np.abs(_dft_kernel(chip, [u_pk]) @ spectrum @ _dft_kernel(chip, v_pk + t).T)[0]
+    cut_az = np.abs(dft_rows(chip, u_pk + t) @ spectrum @ dft_rows(chip, [v_pk]).T)[:, 0]
+    cut_rg = np.abs(dft_rows(chip, [u_pk]) @ spectrum @ dft_rows(chip, v_pk + t).T)[0]
     peak = max(cut_az.max(), cut_rg.max())
     fine = np.arange(0, chip, 4 / ov) if ov >= 4 else np.arange(chip, dtype=float)
-    chip_img = np.abs(_dft_kernel(chip, fine) @ spectrum @ _dft_kernel(chip, fine).T) ** 2
+    chip_img = np.abs(dft_rows(chip, fine) @ spectrum @ dft_rows(chip, fine).T) ** 2
     fig = _figure(figsize, dpi)
     ax_chip, ax_rg, ax_az = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.0, 1.3, 1.3]})
     extent = ((fine[0] - v_pk) * steps[1], (fine[-1] - v_pk) * steps[1],

@@ -12,6 +12,7 @@ import pytest
 import sarmitsuba  # noqa: F401  (variant and plugins)
 from sarmitsuba import figures
 from sarmitsuba.analysis import analyze_point_target
+from sarmitsuba.bandlimited import dft_rows
 from sarmitsuba.image import SarImage
 from sarmitsuba.pipeline import render, simulate
 from sarmitsuba.raw import RawData
@@ -132,7 +133,7 @@ def test_point_target_figure(tmp_path):
     w_rg = float(np.angle(np.sum(chip[:, 1:] * np.conj(chip[:, :-1]))))
     spectrum = np.fft.fft2(chip * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :])))
     t = np.arange(-10 * 64, 10 * 64) / 64
-    cut = np.abs(figures._dft_kernel(96, [report.row]) @ spectrum @ figures._dft_kernel(96, report.column + t).T)[0]
+    cut = np.abs(dft_rows(96, [report.row]) @ spectrum @ dft_rows(96, report.column + t).T)[0]
     above = t[cut ** 2 >= cut.max() ** 2 / 2]
     assert (above[-1] - above[0]) * 0.4 == pytest.approx(report.irw_range, abs=2 * 0.4 / 64)
     with pytest.raises(ValueError, match="lacks"):
