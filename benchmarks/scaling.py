@@ -55,7 +55,8 @@ from _plot import plot_cost
 from _table import bench_main, machine, write_csv
 from sarmitsuba import planning
 from sarmitsuba.focus import ImageGrid, backproject
-from sarmitsuba.pipeline import _azimuth_pattern, focus_window, simulate, sized_grid
+from sarmitsuba.focus.dispatch import azimuth_pattern
+from sarmitsuba.pipeline import focus_window, simulate, sized_grid
 from sarmitsuba.radar import acquisition_geometry
 
 NAME = "scaling"
@@ -223,7 +224,7 @@ def run(quick: bool = False, *, tiny: bool = False) -> list[dict]:
         # as simulate() focuses: over the traced beam (to the tapered pattern's first nulls, 2.26x
         # its 3 dB width), pattern divided out, Taylor azimuth window
         focus_args = {"azimuth_beamwidth": p.traced_beamwidth, "squint": p.squint,
-                      "azimuth_pattern": _azimuth_pattern(p), "window_azimuth": focus_window("taylor")}
+                      "azimuth_pattern": azimuth_pattern(p), "window_azimuth": focus_window("taylor")}
         for n in m["sides"]:
             grid = square_grid(geometry, n, extent)
             backproject(raw, grid, **focus_args)                        # warm-up (untimed)

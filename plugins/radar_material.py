@@ -69,27 +69,21 @@ class RadarMaterial(mi.BSDF):
             values[key] = props[key]
         color = next((values.pop(k) for k in ("color", "reflectance", "base_color") if k in values),
                      (0.6, 0.6, 0.6))
-        self.name = props.id() or plugin
+        self.plugin, self.name = plugin, props.id() or plugin
         #: Identity of this BSDF object (material tables key rows by it, not by the name).
         self.id_key = id(self)
+        #: (kind, value) of the distributed-clutter model (see MaterialTable.clutter) and the factor
+        #: on the specular reflection coefficient: smooth unless :meth:`set_roughness` says otherwise.
+        self.clutter, self.specular_factor = (0, 0.0), 1.0
         if sionna:
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
-            scattering = float(values.pop("scattering_coefficient", 0.0))
-            if not 0.0 <= scattering <= 1.0:
-                raise ParameterError(f"itu-radio-material '{self.name}': scattering_coefficient = "
-                                     f"{scattering} is outside the valid range [0, 1]")
-            #: (kind, value) of the distributed-clutter model, see MaterialTable.clutter.
-            self.clutter = (2, 4.0 * scattering**2) if scattering > 0 else (0, 0.0)
-            #: Factor on the specular reflection coefficient.
-            self.specular_factor = math.sqrt(1.0 - scattering**2)
+            self.set_roughness(scattering_coefficient=values.pop("scattering_coefficient", 0.0))
             #: Parameters read but not modelled (single polarisation, Lambertian pattern).
             self.ignored = values
         else:
             self.ignored = {}
-            gamma_db = values.pop("gamma_db", None)
-            self.clutter = (1, 10.0 ** (float(gamma_db) / 10.0)) if gamma_db is not None else (0, 0.0)
-            self.specular_factor = 1.0
+            self.set_roughness(gamma_db=values.pop("gamma_db", None))
             self._spec = _radar_spec(self.name, values)
         _check_spec(plugin, self.name, **self._spec)
         # The optical BSDF is built on first optical use, not here: plugin constructors run on
@@ -107,16 +101,24 @@ class RadarMaterial(mi.BSDF):
         return self._optical_bsdf
 
     def set_roughness(self, gamma_db: float | None = None, scattering_coefficient: float | None = None) -> None:
-        """Make the surface rough after loading (the CLI's ``--material-set``): constant gamma
-        ``gamma_db`` [dB], or Sionna's Lambertian ``scattering_coefficient`` S in [0, 1]."""
+        """Set the distributed-clutter model (docs/physics.md (C)), on loading and after it (the
+        CLI's ``--material-set``): constant gamma ``gamma_db`` [dB], or Sionna's Lambertian
+        ``scattering_coefficient`` S in [0, 1] (0: smooth). A parameter left None changes nothing.
+
+        Raises
+        ------
+        ParameterError
+            ``gamma_db`` not finite, or S outside [0, 1].
+        """
+        label = f"{self.plugin} '{self.name}'"
         if gamma_db is not None:
             if not math.isfinite(float(gamma_db)):
-                raise ParameterError(f"{self.name}: gamma_db = {gamma_db} must be finite")
+                raise ParameterError(f"{label}: gamma_db = {gamma_db} must be finite")
             self.clutter, self.specular_factor = (1, 10.0 ** (float(gamma_db) / 10.0)), 1.0
         if scattering_coefficient is not None:
             s = float(scattering_coefficient)
             if not 0.0 <= s <= 1.0:
-                raise ParameterError(f"{self.name}: scattering_coefficient = {s} is outside the valid range [0, 1]")
+                raise ParameterError(f"{label}: scattering_coefficient = {s} is outside the valid range [0, 1]")
             self.clutter = (2, 4.0 * s**2) if s > 0 else (0, 0.0)
             self.specular_factor = math.sqrt(1.0 - s**2)
 

@@ -18,6 +18,11 @@
    measure the -3 dB width (IRW), the first nulls, PSLR and ISLR, the peak magnitude and
    phase, the offset from the prediction, and the integrated energy with clutter removed.
 
+Steps 4 and 5 on the interpolant are in :mod:`sarmitsuba.cut_metrics`; where a world point
+appears (:func:`image_coordinates`, :func:`layover_position`) in :mod:`sarmitsuba.image`; the
+energy widths and the integrated RCS (:func:`energy_widths`, :func:`integrated_rcs`) in
+:mod:`sarmitsuba.impulse_model`. All are importable from here.
+
 Definitions (every report field carries its unit):
 
 * **IRW**: -3 dB width of ``|I|^2`` along the cut, in metres along the image axis.
@@ -68,15 +73,16 @@ import argparse
 import json
 import math
 import sys
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any, Sequence
 
 import numpy as np
-import scipy.optimize
 
 from .bandlimited import Interpolant2D
 from .constants import SPEED_OF_LIGHT
-from .image import SarImage
+from .cut_metrics import measure_cut, refine_peak
+from .image import SarImage, image_coordinates, layover_position
+from .impulse_model import ImpulseModel, energy_widths, integrated_rcs
 
 __all__ = ["PointTargetReport", "analyze_point_target", "carrier_ramp", "image_coordinates", "layover_position",
            "energy_widths", "integrated_rcs", "add_arguments", "run", "main"]
@@ -210,8 +216,10 @@ class PointTargetReport:
         return out
 
 
-# ============================================================================ geometry helpers
+# ============================================================================ carrier
 def _axis_step(name: str, axis: np.ndarray) -> float:
+    """Step [m] of the uniformly spaced, increasing image axis ``image.<name>`` (float [n], n >= 2);
+    ValueError otherwise."""
     if axis.size < 2:
         raise ValueError(f"image.{name} must have >= 2 samples for point-target analysis, got {axis.size}")
     step = np.diff(axis)
@@ -220,159 +228,6 @@ def _axis_step(name: str, axis: np.ndarray) -> float:
         raise ValueError(f"image.{name} must be uniformly spaced and increasing; steps span "
                          f"[{step.min()!r}, {step.max()!r}] m")
     return d
-
-
-def image_coordinates(image: SarImage, point: Sequence[float] | np.ndarray, *,
-                      layover: bool = True) -> tuple[float, float]:
-    """``(azimuth, range)`` image coordinates [m] where a world point appears, or a coordinate pair.
-
-    Parameters
-    ----------
-    image : SarImage
-    point : 3 floats (world position, m) or 2 floats (azimuth, range in m)
-        A world point is mapped through the range / zero-Doppler geometry when the image
-        metadata record the straight track (``metadata["focus"]["track"]`` of a
-        backprojected image, ``metadata["focus"]["geometry"]`` of an omega-K or RDA image,
-        or sarmitsuba's ``metadata["radar"]``): see
-        :func:`layover_position`. Otherwise, or with ``layover=False``, it is projected
-        orthogonally on the image axes, ``((x - origin) . azimuth_direction,
-        (x - origin) . range_direction)``. Both agree for a point on the image plane.
-    layover : bool, default True
-        Map world points through the imaging geometry when it is known.
-
-    Raises
-    ------
-    ValueError
-        When ``point`` is not 2 or 3 finite numbers, or the point's closest-approach circle
-        does not meet the image plane.
-    """
-    p = np.asarray(point, dtype=np.float64).reshape(-1)
-    if p.size not in (2, 3) or not np.all(np.isfinite(p)):
-        raise ValueError(f"a target must be 3 finite numbers (world x, y, z in m) or 2 (azimuth, range in m), "
-                         f"got {point!r}")
-    if p.size == 2:
-        return float(p[0]), float(p[1])
-    if layover and _track_of(image) is not None:
-        return layover_position(image, p)
-    rel = p - image.origin
-    return float(rel @ image.azimuth_direction), float(rel @ image.range_direction)
-
-
-def _track_of(image: SarImage) -> tuple[np.ndarray, np.ndarray] | None:
-    """(a point of the straight track, its unit direction), float64 [3] each, from the image
-    metadata: the backprojection's ``focus["track"]`` (mid-aperture transmitter, unit velocity),
-    else the FFT focusers' ``focus["geometry"]`` (its ``origin`` lies on the fitted track line,
-    ``azimuth_direction`` along it), else the acquisition geometry of sarmitsuba's ``radar``
-    parameters; None when none of them."""
-    meta = image.metadata if isinstance(image.metadata, dict) else {}
-    focus = meta.get("focus") if isinstance(meta.get("focus"), dict) else {}
-    for record, point_key, direction_key in ((focus.get("track"), "position", "direction"),
-                                             (focus.get("geometry"), "origin", "azimuth_direction")):
-        line = _line_of(record, point_key, direction_key)
-        if line is not None:
-            return line
-    params = _radar_of(image)
-    if params is None:
-        return None
-    from .radar import acquisition_geometry
-    geometry = acquisition_geometry(replace(params, n_pulses=max(params.n_pulses, 1)))
-    return geometry.positions[len(geometry.positions) // 2], geometry.track_direction
-
-
-def _line_of(record: Any, point_key: str, direction_key: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """(point, unit direction) of a track line recorded as ``record[point_key]``,
-    ``record[direction_key]`` (3 finite numbers each); None when absent or malformed."""
-    if not isinstance(record, dict) or record.get(point_key) is None or record.get(direction_key) is None:
-        return None
-    try:
-        point = np.asarray(record[point_key], float).reshape(3)
-        direction = np.asarray(record[direction_key], float).reshape(3)
-    except (TypeError, ValueError):
-        return None
-    norm = float(np.linalg.norm(direction))
-    if not (np.all(np.isfinite(point)) and np.isfinite(norm) and norm > 0):
-        return None
-    return point, direction / norm
-
-
-def _radar_of(image: SarImage):
-    """The RadarParameters recorded in the image metadata (sarmitsuba renders), or None."""
-    meta = image.metadata if isinstance(image.metadata, dict) else {}
-    if not isinstance(meta.get("radar"), dict):
-        return None
-    from .radar import RadarParameters
-    try:
-        params = RadarParameters.from_mapping({k: v for k, v in meta["radar"].items() if v is not None})
-    except (TypeError, ValueError, KeyError):
-        return None
-    return params if params.scene_center is not None else None
-
-
-def layover_position(image: SarImage, point: Sequence[float] | np.ndarray) -> tuple[float, float]:
-    """``(azimuth, range)`` image coordinates [m] at which a focuser puts a world point.
-
-    For a straight track (point ``A``, unit direction ``t``, from the image metadata, see
-    :func:`image_coordinates`), every point of the circle about the track through ``X`` has the
-    same range history as ``X``: the same closest-approach range ``R0 = |X - F|``, at the same
-    along-track position ``F = A + ((X - A) . t) t`` (its zero-Doppler point). A focuser matched
-    to that history (backprojection, omega-K) therefore images ``X`` where this circle meets the
-    image plane, on ``X``'s side of the track: ``Q = origin + a e_az + r e_rg`` with
-    ``(Q - F) . t = 0`` and ``|Q - F| = R0`` (Cumming and Wong 2005, section 4.2). For a point at
-    height ``h`` above a flat ground-plane image, a track at height ``H`` and ground distance ``Y``
-    this is the layover ``sqrt(Y^2 - 2 H h + h^2) ~ Y - h / tan(theta)``: toward the sensor by
-    ``h / tan(theta)`` in ground range (docs/physics.md (G2)). A point on the plane maps to itself.
-
-    Parameters
-    ----------
-    image : SarImage
-        Image whose metadata record the track.
-    point : 3 floats, m
-        World position.
-
-    Returns
-    -------
-    (azimuth, range) : tuple of float, m
-
-    Raises
-    ------
-    ValueError
-        When the metadata record no track, the image plane contains the track direction in
-        neither axis, or the circle does not reach the image plane.
-    """
-    x = np.asarray(point, dtype=np.float64).reshape(-1)
-    if x.size != 3 or not np.all(np.isfinite(x)):
-        raise ValueError(f"point must be 3 finite numbers (world x, y, z in m), got {point!r}")
-    track = _track_of(image)
-    if track is None:
-        raise ValueError("the image metadata record no track (focus['track'] or radar parameters): "
-                         "give the target in image coordinates (azimuth, range)")
-    a_point, t = track
-    foot = a_point + float((x - a_point) @ t) * t
-    r0 = float(np.linalg.norm(x - foot))
-    e_a, e_r = np.asarray(image.azimuth_direction, float), np.asarray(image.range_direction, float)
-    d = np.asarray(image.origin, float) - foot
-    # (d + a e_a + r e_r) . t = 0: a line in (a, r); least-norm point plus a direction along it
-    g = np.array([e_a @ t, e_r @ t])
-    if np.linalg.norm(g) < 1e-12:
-        raise ValueError("the image plane is normal to the track: no zero-Doppler line to map the target onto")
-    base = -float(d @ t) * g / float(g @ g)
-    step = np.array([g[1], -g[0]]) / np.linalg.norm(g)
-    v0 = d + base[0] * e_a + base[1] * e_r
-    v1 = step[0] * e_a + step[1] * e_r
-    qa, qb, qc = float(v1 @ v1), 2.0 * float(v0 @ v1), float(v0 @ v0) - r0 * r0
-    disc = qb * qb - 4.0 * qa * qc
-    if qa <= 0 or disc < 0:
-        raise ValueError(f"the point {x.tolist()} lies {r0:.3f} m from the track, which the image plane does "
-                         "not reach along its zero-Doppler line: it cannot appear in this image")
-    best = None
-    for lam in ((-qb + np.sqrt(disc)) / (2 * qa), (-qb - np.sqrt(disc)) / (2 * qa)):
-        ar = base + lam * step
-        q = d + ar[0] * e_a + ar[1] * e_r                   # Q - F
-        score = float(q @ (x - foot))                       # on the point's side of the track
-        if best is None or score > best[0]:
-            best = (score, ar)
-    a, r = best[1]
-    return float(a), float(r)
 
 
 def carrier_ramp(raw: Any, image: SarImage, point: Sequence[float], *,
@@ -410,237 +265,6 @@ def carrier_ramp(raw: Any, image: SarImage, point: Sequence[float], *,
             + (x - rx) / np.linalg.norm(x - rx, axis=1)[:, None]).mean(axis=0)
     k = 2.0 * np.pi * raw.fc / SPEED_OF_LIGHT * grad
     return float(k @ image.azimuth_direction), float(k @ image.range_direction)
-
-
-# ============================================================================ energy widths
-#: Samples of u in [0, 1] for the azimuth energy-width quadrature (Simpson).
-_QUADRATURE = 8193
-
-
-def energy_widths(image: SarImage, position: Sequence[float] | None = None) -> tuple[float, float]:
-    """Energy widths ``(rho_E,az, rho_E,rg)`` [m] of the image's unit-peak impulse response.
-
-    A point target of RCS ``sigma`` imaged with unit peak gain (peak ``sqrt(sigma)``) carries the
-    integrated energy ``int |I|^2 dA = sigma rho_E,az rho_E,rg`` (docs/physics.md (K2)). By
-    Parseval, for a response ``I(x) = int W(s) exp(j 4 pi s x / lambda) ds / int W ds`` along the
-    track and the range pulse of a window ``w_r`` over the band ``B``:
-
-    * range: ``rho_E,rg = c / (2 B) * energy_width(w_r) / n_r``, with ``energy_width`` of
-      :mod:`sarmitsuba.focus.windows` (``int w^2 / (int w)^2``, 1 for rect, 1.23 for Taylor
-      4 / -35 dB) and ``n_r = n . e_rg`` the projection on the image's range axis of the unit
-      vector ``n`` from the target's zero-Doppler point on the track to the target
-      (``sin(theta_inc)`` for a flat ground-plane image, 1 for a slant-plane one);
-    * azimuth: ``rho_E,az = (lambda / 2) int S(s)^2 cos(phi) ds / (int S(s) ds)^2`` over the
-      along-track sines ``s = sin(phi)`` of the processed beam, ``S = W rho`` the Doppler
-      weighting ``W`` (the azimuth window ``w(u)``, ``u = (s - sin_lo) / (sin_hi - sin_lo)``,
-      times the two-way pattern ``sinc^2(L / lambda * sin(phi - squint))`` when the data carry
-      one) times the pulses' density ``rho ~ cos(phi)^-3`` in ``s`` (a straight track, pulses
-      evenly spaced). ``cos(phi)`` is the Jacobian of the 2-D wavenumber support (range and
-      azimuth frequencies are not orthogonal under squint). For a narrow beam at broadside
-      this is ``(lambda / 2) int W^2 ds / (int W ds)^2``: ``lambda / (4 sin(beta / 2))`` for a
-      uniform beam of width ``beta``, ``energy_width(w)`` times that with a window. Without a
-      beam (spotlight) ``u`` is the pulse's place in the aperture and ``s`` its sine seen from
-      the target.
-
-    Parameters
-    ----------
-    image : SarImage
-        A backprojected image (:func:`sarmitsuba.focus.backproject`), whose
-        ``metadata["focus"]`` records ``fc``, ``bandwidth``, ``window_range``,
-        ``window_azimuth``, ``azimuth_pattern``, ``beam_sines`` and ``track``; image axes
-        along the track and across it.
-    position : 2 floats (azimuth, range image coordinates, m) or 3 (world, m), optional
-        Where the target is (``n_r`` and, without a beam, the sines depend on it); default the
-        image centre.
-
-    Returns
-    -------
-    (rho_E,az, rho_E,rg) : tuple of float, m
-
-    Raises
-    ------
-    ValueError
-        When the metadata lack any of these keys or hold invalid values.
-    """
-    model = _ImpulseModel(image, position)
-    return model.rho_az, model.rho_rg
-
-
-class _ImpulseModel:
-    """The unit-peak impulse response of a backprojected image at one position, from its
-    metadata (see :func:`energy_widths`): energy widths and the energy fraction a box holds."""
-
-    def __init__(self, image: SarImage, position: Sequence[float] | None):
-        from .focus.stripmap import _window_spec
-        from .focus.windows import energy_width, spectral_window
-        focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
-        keys = ("fc", "bandwidth", "window_range", "window_azimuth", "track")
-        if not isinstance(focus, dict) or any(k not in focus for k in keys):
-            raise ValueError(f"energy widths need image.metadata['focus'] with {', '.join(keys)} (a backprojected "
-                             "image); pass resolution=(rho_az, rho_rg) for other images")
-        try:
-            fc, bandwidth = float(focus["fc"]), float(focus["bandwidth"])
-            self.w_rg = _window_spec((focus["window_range"]["name"],
-                                      {k: v for k, v in focus["window_range"].items() if k != "name"}))
-            w_az = _window_spec((focus["window_azimuth"]["name"],
-                                 {k: v for k, v in focus["window_azimuth"].items() if k != "name"}))
-        except (TypeError, KeyError, AttributeError) as exc:
-            raise ValueError(f"image.metadata['focus'] holds no valid windows ({exc})") from None
-        track = _track_of(image)
-        if track is None or not (fc > 0 and bandwidth > 0):
-            raise ValueError("image.metadata['focus'] needs fc > 0, bandwidth > 0 and the track")
-        a_point, t = track
-        if position is None:
-            position = (float(image.azimuth[image.azimuth.size // 2]), float(image.range[image.range.size // 2]))
-        az, rg = image_coordinates(image, position)
-        e_r = np.asarray(image.range_direction, float)
-        q = np.asarray(image.origin, float) + az * np.asarray(image.azimuth_direction, float) + rg * e_r
-        foot = a_point + float((q - a_point) @ t) * t
-        r0 = float(np.linalg.norm(q - foot))
-        n_r = abs(float((q - foot) @ e_r)) / r0 if r0 > 0 else 0.0
-        if n_r < 1e-6:
-            raise ValueError("the image's range axis is normal to the line of sight: no range resolution")
-        self.bandwidth, self.n_r = bandwidth, n_r
-        self.rho_rg = SPEED_OF_LIGHT / (2.0 * bandwidth) * energy_width(self.w_rg[0], **self.w_rg[1]) / n_r
-
-        u = np.linspace(0.0, 1.0, _QUADRATURE)
-        w = spectral_window(w_az[0], u - 0.5, 1.0, **w_az[1])
-        sines = focus.get("beam_sines")
-        if sines is not None:
-            sin_lo, sin_hi = (float(v) for v in sines)
-            sine = sin_lo + u * (sin_hi - sin_lo)
-            slope = np.full_like(u, sin_hi - sin_lo)                      # ds / du
-            amplitude = w / (1.0 - sine ** 2) ** 1.5                      # W rho per du
-            pattern = focus.get("azimuth_pattern")
-            if pattern is not None:
-                squint = np.radians(float(focus.get("squint") or 0.0))
-                amplitude = amplitude * np.sinc(float(pattern) * np.sin(np.arcsin(sine) - squint)) ** 2
-        else:
-            length = float(focus["track"].get("length") or 0.0) if isinstance(focus["track"], dict) else 0.0
-            if not length > 0:
-                raise ValueError("image.metadata['focus']['track'] needs the aperture length for a beamless image")
-            along = float((q - a_point) @ t) - (u - 0.5) * length          # target minus antenna, along track
-            sine = along / np.hypot(along, r0)
-            slope = length * (1.0 - sine ** 2) ** 1.5 / r0                 # |ds / du|
-            amplitude = w
-        self.wavelength = SPEED_OF_LIGHT / fc
-        self.u, self.sine, self.slope, self.amplitude = u, sine, slope, amplitude
-        cos_phi = np.sqrt(1.0 - sine ** 2)
-        self.rho_az = float(0.5 * self.wavelength * _simpson(amplitude ** 2 * cos_phi / slope, u)
-                            / _simpson(amplitude, u) ** 2)
-
-    def fraction(self, half_azimuth: float, half_range: float) -> float:
-        """Energy fraction of the unit-peak response inside ``|d_az| <= half_azimuth``,
-        ``|d_rg| <= half_range`` [m] (separable model): the box of an integrated-energy RCS.
-
-        Range: ``int p^2`` of the window's closed-form pulse over the box, over its energy
-        width. Azimuth: ``|I(x)|^2``, ``I(x) = int A(u) exp(j 4 pi s(u) x / lambda) du``,
-        integrated over the box, over ``(lambda / 2) int A^2 / (ds/du) du`` (Parseval)."""
-        import scipy.integrate
-
-        from .focus.windows import compressed_pulse, energy_width
-        name, params = self.w_rg
-        v_max = 2.0 * self.n_r * self.bandwidth * half_range / SPEED_OF_LIGHT   # box half-width in 1 / B
-        edges = np.append(np.arange(0.0, v_max, 1.0), v_max)
-        inside = 2.0 * sum(scipy.integrate.quad(lambda v: compressed_pulse(v, 1.0, name, **params) ** 2, a, b,
-                                                epsabs=0, epsrel=1e-10)[0] for a, b in zip(edges[:-1], edges[1:]))
-        f_rg = inside / energy_width(name, **params)
-        # azimuth: the cut sampled at 1/16 of its nominal resolution, Simpson over the box
-        total = 0.5 * self.wavelength * _simpson(self.amplitude ** 2 / self.slope, self.u)
-        span = float(np.ptp(self.sine))
-        n = 2 * int(np.ceil(16.0 * half_azimuth * 2.0 * span / self.wavelength)) + 1
-        x = np.linspace(-half_azimuth, half_azimuth, max(n, 33))
-        cut = np.empty(x.size)
-        for k in range(0, x.size, 256):
-            phase = np.exp(4j * np.pi / self.wavelength * np.outer(x[k:k + 256], self.sine))
-            cut[k:k + 256] = np.abs(scipy.integrate.simpson(phase * self.amplitude, x=self.u, axis=1)) ** 2
-        f_az = _simpson(cut, x) / total
-        return float(min(f_az, 1.0) * min(f_rg, 1.0))
-
-
-def _simpson(y: np.ndarray, x: np.ndarray) -> float:
-    import scipy.integrate
-    return float(scipy.integrate.simpson(y, x=x))
-
-
-# ============================================================================ band-limited chip
-def _refine_peak(interp: Interpolant2D, u: float, v: float, step: float) -> tuple[float, float]:
-    """Maximise ``|interp|^2`` from a grid maximum by alternating parabolic (log-power) vertex
-    fits along each axis, with shrinking steps; each vertex move is limited to one step."""
-    for h in (step, step / 8.0, step / 64.0, step / 512.0):
-        for _ in range(2):
-            for axis in (0, 1):
-                offsets = np.array([-h, 0.0, h])
-                if axis == 0:
-                    values = np.abs(interp(u + offsets, v)[:, 0]) ** 2
-                else:
-                    values = np.abs(interp(u, v + offsets)[0, :]) ** 2
-                y0, y1, y2 = np.log(np.maximum(values, 1e-300))
-                curvature = y0 - 2.0 * y1 + y2
-                shift = 0.5 * (y0 - y2) / curvature * h if curvature < 0 else 0.0
-                shift = float(np.clip(shift, -h, h))
-                if axis == 0:
-                    u += shift
-                else:
-                    v += shift
-    return float(u), float(v)
-
-
-# ============================================================================ 1-D cut metrics
-@dataclass(frozen=True)
-class _CutMetrics:
-    irw: float  # pixels
-    null: float  # pixels, mean peak-to-null distance
-    pslr_db: float
-    islr_db: float
-    extent: float  # null distances actually integrated
-
-
-def _first_null(power: np.ndarray, k0: int, step: int) -> int:
-    """Index of the first local minimum of ``power`` walking from ``k0`` by ``step`` (+-1)."""
-    k = k0
-    n = power.size
-    while 0 <= k + step < n and power[k + step] <= power[k]:
-        k += step
-    if k + step < 0 or k + step >= n:
-        raise ValueError("no null found in a cut through the peak before the chip edge: the target is not "
-                         "resolved in this chip (increase chip or check the focus)")
-    return k
-
-
-def _cut_metrics(profile: np.ndarray, k0: int, ov: int, sidelobes: float,
-                 half_power_root: Any) -> _CutMetrics:
-    power = np.abs(profile) ** 2
-    left = _first_null(power, k0, -1)
-    right = _first_null(power, k0, +1)
-    null = 0.5 * (right - left) / ov
-    # -3 dB points refined on the exact interpolant (brentq between bracketing samples)
-    half = power[k0] / 2.0
-    lo = k0
-    while power[lo - 1] > half:
-        lo -= 1
-        if lo <= left:
-            raise ValueError("the -3 dB point lies beyond the first null: not a point-target response")
-    hi = k0
-    while power[hi + 1] > half:
-        hi += 1
-        if hi >= right:
-            raise ValueError("the -3 dB point lies beyond the first null: not a point-target response")
-    x_lo = half_power_root(lo - 1, lo)
-    x_hi = half_power_root(hi, hi + 1)
-    irw = (x_hi - x_lo) / ov
-    span_l = (k0 - left) * sidelobes
-    span_r = (right - k0) * sidelobes
-    side_lo = max(0, int(round(left - span_l)))
-    side_hi = min(power.size - 1, int(round(right + span_r)))
-    extent = min((left - side_lo) / max(k0 - left, 1), (side_hi - right) / max(right - k0, 1))
-    main = power[left:right + 1].sum()
-    side = power[side_lo:left].sum() + power[right + 1:side_hi + 1].sum()
-    side_max = max(power[side_lo:left].max(initial=0.0), power[right + 1:side_hi + 1].max(initial=0.0))
-    with np.errstate(divide="ignore"):
-        pslr = 10.0 * np.log10(side_max / power[k0]) if side_max > 0 else -np.inf
-        islr = 10.0 * np.log10(side / main) if side > 0 else -np.inf
-    return _CutMetrics(irw=irw, null=null, pslr_db=float(pslr), islr_db=float(islr), extent=float(extent))
 
 
 # ============================================================================ analysis
@@ -708,126 +332,27 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
     """
     if not isinstance(image, SarImage):
         raise ValueError(f"image must be a sarmitsuba.image.SarImage, got {type(image).__name__}")
-    chip = _int_in("chip", chip, 16, 1024)
-    if chip % 2:
-        raise ValueError(f"chip must be even (Nyquist-bin split of the interpolant), got {chip}")
-    ov = _int_in("oversample", oversample, 4, 1024)
-    sidelobes = _float_in("sidelobes", sidelobes, 0.0, 1e3, open_low=True)
-    energy_extent = _float_in("energy_extent", energy_extent, 0.0, 1e3, open_low=True)
-    radius = chip // 4 if search_radius is None else _int_in("search_radius", search_radius, 0, chip // 2)
+    chip, ov, sidelobes, energy_extent, radius = _checked_options(chip, oversample, sidelobes, energy_extent,
+                                                                  search_radius)
     d_az = _axis_step("azimuth", image.azimuth)
     d_rg = _axis_step("range", image.range)
-    n_az, n_rg = image.data.shape
-    az0, rg0 = image_coordinates(image, target)
-    pred_az, pred_rg = (az0, rg0) if predicted is None else image_coordinates(image, predicted)
-    row_t = (az0 - image.azimuth[0]) / d_az
-    col_t = (rg0 - image.range[0]) / d_rg
-    if not (0 <= row_t <= n_az - 1 and 0 <= col_t <= n_rg - 1):
-        raise ValueError(f"target at image coordinates ({az0:.3f}, {rg0:.3f}) m lies outside the image "
-                         f"(azimuth [{image.azimuth[0]:.3f}, {image.azimuth[-1]:.3f}] m, range "
-                         f"[{image.range[0]:.3f}, {image.range[-1]:.3f}] m)")
-
-    # ---- chip, re-centred on the brightest pixel near the target
-    r, c = int(round(row_t)), int(round(col_t))
-    r_lo, r_hi = max(0, r - radius), min(n_az, r + radius + 1)
-    c_lo, c_hi = max(0, c - radius), min(n_rg, c + radius + 1)
-    window = np.abs(image.data[r_lo:r_hi, c_lo:c_hi])
-    if not np.any(window):
-        raise ValueError(f"the image is zero within {radius} pixels of the target: nothing to analyse")
-    i, j = np.unravel_index(int(np.argmax(window)), window.shape)
-    r, c = r_lo + int(i), c_lo + int(j)
-    i0, j0 = r - chip // 2, c - chip // 2
-    if i0 < 0 or j0 < 0 or i0 + chip > n_az or j0 + chip > n_rg:
-        raise ValueError(f"the target peak at pixel ({r}, {c}) is closer than chip/2 = {chip // 2} pixels to the "
-                         f"edge of the {n_az} x {n_rg} image; reduce chip or enlarge the image")
-    z = image.data[i0:i0 + chip, j0:j0 + chip].astype(np.complex128)
-
-    # ---- phase ramp (spectral centroid) -> baseband
-    if carrier is None:
-        w_az = float(np.angle(np.sum(z[1:, :] * np.conj(z[:-1, :]))))
-        w_rg = float(np.angle(np.sum(z[:, 1:] * np.conj(z[:, :-1]))))
-        carrier_source = "estimated"
-    else:
-        k = np.asarray(carrier, dtype=np.float64).reshape(-1)
-        if k.shape != (2,) or not np.all(np.isfinite(k)):
-            raise ValueError(f"carrier must be 2 finite numbers (k_azimuth, k_range) in rad/m, got {carrier!r}")
-        w_az, w_rg = float(k[0] * d_az), float(k[1] * d_rg)
-        carrier_source = "given"
-    n = np.arange(chip, dtype=np.float64)
-    base = z * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :]))
-    interp = Interpolant2D(base)
-
-    def value(u: float, v: float) -> complex:
-        """Ramp-restored image value at chip-local fractional pixel (u, v)."""
-        return complex(interp(u, v)[0, 0]) * np.exp(1j * (w_az * u + w_rg * v))
-
-    # ---- peak: oversampled grid +-2 pixels around the brightest pixel, then refined
-    pr, pc = chip // 2, chip // 2
-    fine = np.arange(-2 * ov, 2 * ov + 1) / ov
-    grid = np.abs(interp(pr + fine, pc + fine))
-    a, b = np.unravel_index(int(np.argmax(grid)), grid.shape)
-    u_pk, v_pk = _refine_peak(interp, pr + fine[a], pc + fine[b], 1.0 / ov)
-    peak = value(u_pk, v_pk)
-
-    # ---- cuts through the peak, sampled every 1/ov pixel, the peak exactly a sample
-    metrics = []
-    for axis, centre, other in ((0, u_pk, v_pk), (1, v_pk, u_pk)):
-        k_lo = -int(np.floor(centre * ov))
-        k_hi = int(np.floor((chip - 1 - centre) * ov))
-        pos = centre + np.arange(k_lo, k_hi + 1) / ov
-        prof = interp(pos, other)[:, 0] if axis == 0 else interp(other, pos)[0, :]
-
-        def along(x: float, _axis: int = axis, _c: float = centre, _o: float = other, _k: int = k_lo) -> float:
-            t = _c + (x + _k) / ov
-            val = interp(t, _o)[0, 0] if _axis == 0 else interp(_o, t)[0, 0]
-            return abs(val) ** 2 - abs(peak) ** 2 / 2.0
-
-        def root(k1: int, k2: int, _f: Any = along) -> float:
-            return scipy.optimize.brentq(_f, k1, k2, xtol=1e-9)
-
-        metrics.append(_cut_metrics(prof, -k_lo, ov, sidelobes, root))
-    m_az, m_rg = metrics
-
-    # ---- predicted position: magnitude and phase there
-    u_pred = (pred_az - image.azimuth[0]) / d_az - i0
-    v_pred = (pred_rg - image.range[0]) / d_rg - j0
-    if 0 <= u_pred <= chip - 1 and 0 <= v_pred <= chip - 1:
-        at_pred: complex | None = value(u_pred, v_pred)
-    else:
-        at_pred = None
-
-    # ---- integrated energy with corner clutter removed
-    power = np.abs(z) ** 2
-    corner = max(2, chip // 8)
-    clutter = float(np.mean(np.concatenate([
-        power[:corner, :corner].ravel(), power[:corner, -corner:].ravel(),
-        power[-corner:, :corner].ravel(), power[-corner:, -corner:].ravel()])))
-    box = ((np.abs(n - u_pk) <= energy_extent * m_az.null)[:, None]
-           & (np.abs(n - v_pk) <= energy_extent * m_rg.null)[None, :])
-    pixel_area = d_az * d_rg * float(np.linalg.norm(np.cross(image.azimuth_direction, image.range_direction)))
-    energy = float((power[box].sum() - clutter * box.sum()) * pixel_area)
+    (row_t, col_t), (pred_az, pred_rg) = _target_pixel(image, target, predicted, d_az, d_rg)
+    i0, j0, z = _cut_chip(image, row_t, col_t, chip, radius)
+    (w_az, w_rg), carrier_source = _phase_ramp(z, carrier, d_az, d_rg)
+    interp = _baseband_interpolant(z, w_az, w_rg)
+    u_pk, v_pk = _locate_peak(interp, chip, ov)
+    peak = _ramp_restored(interp, w_az, w_rg, u_pk, v_pk)
+    m_az = measure_cut(interp, 0, u_pk, v_pk, peak, chip, ov, sidelobes)
+    m_rg = measure_cut(interp, 1, v_pk, u_pk, peak, chip, ov, sidelobes)
+    u_pred, v_pred = (pred_az - image.azimuth[0]) / d_az - i0, (pred_rg - image.range[0]) / d_rg - j0
+    inside = 0 <= u_pred <= chip - 1 and 0 <= v_pred <= chip - 1             # the value at the prediction
+    at_pred = _ramp_restored(interp, w_az, w_rg, u_pred, v_pred) if inside else None
+    energy, clutter, box = _integrated_energy(image, z, (u_pk, v_pk), (m_az.null, m_rg.null), energy_extent,
+                                              d_az, d_rg)
     row, col = i0 + u_pk, j0 + v_pk
     az = float(image.azimuth[0] + row * d_az)
     rg = float(image.range[0] + col * d_rg)
-    rcs = rcs_db = fraction = None
-    rho = None
-    if resolution is not None:
-        rho = np.asarray(resolution, dtype=np.float64).reshape(-1)
-        if rho.shape != (2,) or not np.all(np.isfinite(rho)) or np.any(rho <= 0):
-            raise ValueError(f"resolution must be 2 positive numbers (rho_az, rho_rg) in m, got {resolution!r}")
-    else:
-        try:
-            model = _ImpulseModel(image, (az, rg))
-        except ValueError:
-            model = None
-        if model is not None:
-            rho = np.array([model.rho_az, model.rho_rg])
-            fraction = model.fraction(0.5 * box.any(axis=1).sum() * d_az, 0.5 * box.any(axis=0).sum() * d_rg)
-    if rho is not None:
-        rcs = energy / float(rho[0] * rho[1] * (fraction or 1.0))
-        rcs_db = 10.0 * math.log10(rcs) if rcs > 0 else None
-
-    # ---- assemble
+    rcs, rcs_db, rho, fraction = _rcs(image, resolution, (az, rg), energy, box, d_az, d_rg)
     world = image.origin + az * image.azimuth_direction + rg * image.range_direction
     irw_az, irw_rg = m_az.irw * d_az, m_rg.irw * d_rg
     return PointTargetReport(
@@ -849,6 +374,128 @@ def analyze_point_target(image: SarImage, target: Sequence[float] | np.ndarray, 
         rcs=rcs, rcs_db=rcs_db, chip=chip, oversample=ov,
         energy_width_azimuth=None if rho is None else float(rho[0]),
         energy_width_range=None if rho is None else float(rho[1]), energy_fraction=fraction)
+
+
+def _checked_options(chip: Any, oversample: Any, sidelobes: Any, energy_extent: Any,
+                     search_radius: Any) -> tuple[int, int, float, float, int]:
+    """The validated (chip, oversample, sidelobes, energy_extent, search radius) of :func:`analyze_point_target`."""
+    chip = _int_in("chip", chip, 16, 1024)
+    if chip % 2:
+        raise ValueError(f"chip must be even (Nyquist-bin split of the interpolant), got {chip}")
+    ov = _int_in("oversample", oversample, 4, 1024)
+    sidelobes = _float_in("sidelobes", sidelobes, 0.0, 1e3, open_low=True)
+    energy_extent = _float_in("energy_extent", energy_extent, 0.0, 1e3, open_low=True)
+    radius = chip // 4 if search_radius is None else _int_in("search_radius", search_radius, 0, chip // 2)
+    return chip, ov, sidelobes, energy_extent, radius
+
+
+def _target_pixel(image: SarImage, target: Any, predicted: Any, d_az: float,
+                  d_rg: float) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Step 0: the target's fractional (row, column), and the predicted (azimuth, range) [m]."""
+    n_az, n_rg = image.data.shape
+    az0, rg0 = image_coordinates(image, target)
+    pred_az, pred_rg = (az0, rg0) if predicted is None else image_coordinates(image, predicted)
+    row_t = (az0 - image.azimuth[0]) / d_az
+    col_t = (rg0 - image.range[0]) / d_rg
+    if not (0 <= row_t <= n_az - 1 and 0 <= col_t <= n_rg - 1):
+        raise ValueError(f"target at image coordinates ({az0:.3f}, {rg0:.3f}) m lies outside the image "
+                         f"(azimuth [{image.azimuth[0]:.3f}, {image.azimuth[-1]:.3f}] m, range "
+                         f"[{image.range[0]:.3f}, {image.range[-1]:.3f}] m)")
+    return (row_t, col_t), (pred_az, pred_rg)
+
+
+def _cut_chip(image: SarImage, row_t: float, col_t: float, chip: int,
+              radius: int) -> tuple[int, int, np.ndarray]:
+    """Step 1: the ``chip x chip`` window (complex128) centred on the brightest pixel within
+    ``radius`` pixels of the target, and its first (row, column)."""
+    n_az, n_rg = image.data.shape
+    r, c = int(round(row_t)), int(round(col_t))
+    r_lo, r_hi = max(0, r - radius), min(n_az, r + radius + 1)
+    c_lo, c_hi = max(0, c - radius), min(n_rg, c + radius + 1)
+    window = np.abs(image.data[r_lo:r_hi, c_lo:c_hi])
+    if not np.any(window):
+        raise ValueError(f"the image is zero within {radius} pixels of the target: nothing to analyse")
+    i, j = np.unravel_index(int(np.argmax(window)), window.shape)
+    r, c = r_lo + int(i), c_lo + int(j)
+    i0, j0 = r - chip // 2, c - chip // 2
+    if i0 < 0 or j0 < 0 or i0 + chip > n_az or j0 + chip > n_rg:
+        raise ValueError(f"the target peak at pixel ({r}, {c}) is closer than chip/2 = {chip // 2} pixels to the "
+                         f"edge of the {n_az} x {n_rg} image; reduce chip or enlarge the image")
+    return i0, j0, image.data[i0:i0 + chip, j0:j0 + chip].astype(np.complex128)
+
+
+def _phase_ramp(z: np.ndarray, carrier: Any, d_az: float, d_rg: float) -> tuple[tuple[float, float], str]:
+    """Step 2: the linear phase ramp [rad / pixel] of the chip along (azimuth, range): the spectral
+    centroid (lag-one correlation phase, wrapped) or the given ``carrier`` [rad/m]; and its source."""
+    if carrier is None:
+        w_az = float(np.angle(np.sum(z[1:, :] * np.conj(z[:-1, :]))))
+        w_rg = float(np.angle(np.sum(z[:, 1:] * np.conj(z[:, :-1]))))
+        return (w_az, w_rg), "estimated"
+    k = np.asarray(carrier, dtype=np.float64).reshape(-1)
+    if k.shape != (2,) or not np.all(np.isfinite(k)):
+        raise ValueError(f"carrier must be 2 finite numbers (k_azimuth, k_range) in rad/m, got {carrier!r}")
+    return (float(k[0] * d_az), float(k[1] * d_rg)), "given"
+
+
+def _baseband_interpolant(z: np.ndarray, w_az: float, w_rg: float) -> Interpolant2D:
+    """Step 3: the band-limited interpolant of the chip with its phase ramp removed."""
+    n = np.arange(z.shape[0], dtype=np.float64)
+    return Interpolant2D(z * np.exp(-1j * (w_az * n[:, None] + w_rg * n[None, :])))
+
+
+def _ramp_restored(interp: Interpolant2D, w_az: float, w_rg: float, u: float, v: float) -> complex:
+    """Image value at chip-local fractional pixel ``(u, v)``: the interpolant times the ramp."""
+    return complex(interp(u, v)[0, 0]) * np.exp(1j * (w_az * u + w_rg * v))
+
+
+def _locate_peak(interp: Interpolant2D, chip: int, ov: int) -> tuple[float, float]:
+    """Step 4: the peak on the ``ov``-fold grid +-2 pixels about the chip centre, then refined."""
+    pr, pc = chip // 2, chip // 2
+    fine = np.arange(-2 * ov, 2 * ov + 1) / ov
+    grid = np.abs(interp(pr + fine, pc + fine))
+    a, b = np.unravel_index(int(np.argmax(grid)), grid.shape)
+    return refine_peak(interp, pr + fine[a], pc + fine[b], 1.0 / ov)
+
+
+def _integrated_energy(image: SarImage, z: np.ndarray, peak: tuple[float, float], nulls: tuple[float, float],
+                       energy_extent: float, d_az: float, d_rg: float) -> tuple[float, float, np.ndarray]:
+    """Step 6: (energy [m^2 x intensity], clutter [intensity / pixel], box bool [chip, chip]):
+    ``sum |I|^2 dA`` over the box of ``energy_extent`` null distances about the peak, minus the
+    mean power of the four ``chip/8`` corners per box pixel (integral method, Gray et al. 1990)."""
+    n = np.arange(z.shape[0], dtype=np.float64)
+    power = np.abs(z) ** 2
+    corner = max(2, z.shape[0] // 8)
+    clutter = float(np.mean(np.concatenate([
+        power[:corner, :corner].ravel(), power[:corner, -corner:].ravel(),
+        power[-corner:, :corner].ravel(), power[-corner:, -corner:].ravel()])))
+    box = ((np.abs(n - peak[0]) <= energy_extent * nulls[0])[:, None]
+           & (np.abs(n - peak[1]) <= energy_extent * nulls[1])[None, :])
+    pixel_area = d_az * d_rg * float(np.linalg.norm(np.cross(image.azimuth_direction, image.range_direction)))
+    return float((power[box].sum() - clutter * box.sum()) * pixel_area), clutter, box
+
+
+def _rcs(image: SarImage, resolution: Any, position: tuple[float, float], energy: float, box: np.ndarray,
+         d_az: float, d_rg: float) -> tuple[float | None, float | None, np.ndarray | None, float | None]:
+    """Step 7: (rcs [m^2], rcs [dBsm], energy widths [2] m, energy fraction): the energy over the
+    energy widths, given or from the metadata at ``position`` (then also over the box's share)."""
+    rcs = rcs_db = fraction = None
+    rho = None
+    if resolution is not None:
+        rho = np.asarray(resolution, dtype=np.float64).reshape(-1)
+        if rho.shape != (2,) or not np.all(np.isfinite(rho)) or np.any(rho <= 0):
+            raise ValueError(f"resolution must be 2 positive numbers (rho_az, rho_rg) in m, got {resolution!r}")
+    else:
+        try:
+            model = ImpulseModel(image, position)
+        except ValueError:
+            model = None
+        if model is not None:
+            rho = np.array([model.rho_az, model.rho_rg])
+            fraction = model.fraction(0.5 * box.any(axis=1).sum() * d_az, 0.5 * box.any(axis=0).sum() * d_rg)
+    if rho is not None:
+        rcs = energy / float(rho[0] * rho[1] * (fraction or 1.0))
+        rcs_db = 10.0 * math.log10(rcs) if rcs > 0 else None
+    return rcs, rcs_db, rho, fraction
 
 
 def _int_in(name: str, value: Any, low: int, high: int) -> int:
@@ -921,51 +568,6 @@ def run(args: argparse.Namespace, figure=None) -> int:
     if figure is not None:
         figure(image, report)
     return 0
-
-
-def integrated_rcs(image: SarImage, resolution_azimuth: float | None = None, resolution_range: float | None = None,
-                   center: Sequence[float] = (0.0, 0.0), half_cells: float = 6.0) -> float:
-    """RCS [m^2] by integrated point energy: ``sum |I|^2 dA / (rho_az rho_rg)`` over a box of
-    +-``half_cells`` energy widths around ``center`` (docs/physics.md (K), (K2)).
-
-    Parameters
-    ----------
-    image : SarImage
-        A calibrated image whose unit point target has unit peak (every focuser here).
-    resolution_azimuth, resolution_range : float, m, optional
-        Energy widths ``rho_az``, ``rho_rg`` of the unit-peak impulse response; default (both
-        None) from the image metadata at ``center``, :func:`energy_widths` (window, pattern and
-        geometry included, so rect and Taylor images read the same RCS).
-    center : 2 floats (azimuth, range image coordinates, m) or 3 (world point, m)
-        Box centre; a world point is taken at its layover position (:func:`image_coordinates`).
-    half_cells : float, default 6
-        Half-size of the box in energy widths. With widths from the metadata, the share of
-        the response's energy outside the box (a rect image's far sidelobes) is restored from
-        the same model.
-
-    Returns
-    -------
-    float, m^2 (no clutter subtraction; see :func:`analyze_point_target` for that)
-
-    Raises
-    ------
-    ValueError
-        When only one resolution is given, or the metadata cannot provide them.
-    """
-    center = image_coordinates(image, center)
-    if (resolution_azimuth is None) != (resolution_range is None):
-        raise ValueError("give both resolution_azimuth and resolution_range, or neither (then from the metadata)")
-    model = None
-    if resolution_azimuth is None:
-        model = _ImpulseModel(image, center)
-        resolution_azimuth, resolution_range = model.rho_az, model.rho_rg
-    az, rg = np.meshgrid(image.azimuth - center[0], image.range - center[1], indexing="ij")
-    box = (np.abs(az) <= half_cells * resolution_azimuth) & (np.abs(rg) <= half_cells * resolution_range)
-    d_az, d_rg = abs(image.azimuth[1] - image.azimuth[0]), abs(image.range[1] - image.range[0])
-    fraction = 1.0 if model is None else model.fraction(0.5 * box.any(axis=1).sum() * d_az,
-                                                        0.5 * box.any(axis=0).sum() * d_rg)
-    return float((np.abs(image.data[box]) ** 2).sum() * d_az * d_rg
-                 / (resolution_azimuth * resolution_range * fraction))
 
 
 def main(argv: list[str] | None = None) -> int:

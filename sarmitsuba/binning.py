@@ -8,7 +8,7 @@ sampling band, on a padded grid (:func:`sarmitsuba.deposit.reduce_deposit`). Thi
    mod 2 pi before the cast (eq. (S1));
 2. band-limits it to the transmitted band ``|f| <= B / 2`` with a unit-peak compressed pulse
    ``p_r(t) = sinc(B t)`` (rect spectrum; range compression), or multiplies it by the chirp's
-   spectrum and the receiver's response (chirped raw echoes);
+   spectrum and the receiver's response (chirped raw echoes; :mod:`sarmitsuba.signal_model`);
 3. keeps the window's samples.
 
 The result is ``sum_i a_i p_r(tau - L_i / c) exp(-j 2 pi fc L_i / c)`` sampled at ``t0 + n / fs``:
@@ -26,10 +26,25 @@ from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS, order_factor
 from .radar import AcquisitionGeometry, ParameterError, RadarParameters
 from .raw import RawData
+from .signal_model import received_chirp_spectrum
 from .trace import PathList, TraceResult
 from .trace_inputs import FastTimeWindow
 
-__all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "to_raw_data"]
+__all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "reference_carrier_phase", "to_raw_data"]
+
+#: Pulses filtered per block in :func:`range_compress`. Its temporaries are a few
+#: [block, n_pad] arrays (the complex128 filter-times-phase the largest: 128 MB at
+#: n_pad = 32768), so the block bounds memory whatever the number of pulses, while each
+#: threaded inverse FFT call still gets many rows (a memory/throughput choice, from the code).
+PULSE_BLOCK = 256
+#: Output samples (kernel lanes) per Dr.Jit launch of the ``exact`` kernel. A lane carries about
+#: 56 bytes (float64 sample and two float64 sums, uint32 indices, its complex128 output row
+#: entry), so 2^21 lanes bound a launch to ~120 MB, and are still thousands per core (a
+#: memory/throughput choice, derived from the code).
+EXACT_BLOCK_LANES = 1 << 21
+#: Below this ``|x|`` the kernel takes ``sin(x) / x = 1``: the neglected ``x^2 / 6 < 2e-9`` is far
+#: below float32's resolution (6e-8), and it avoids the 0 / 0 at ``x = 0``.
+SINC_SMALL_ARGUMENT = 1e-4
 
 
 def compressed_pulse_spectrum(n: int, fs: float, bandwidth: float) -> np.ndarray:
@@ -42,7 +57,7 @@ def compressed_pulse_spectrum(n: int, fs: float, bandwidth: float) -> np.ndarray
 
 
 def range_compress(spectrum: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
-                   frequency: float, bandwidth: float, block: int = 256,
+                   frequency: float, bandwidth: float, block: int = PULSE_BLOCK,
                    chirp: tuple[float, float] | None = None) -> np.ndarray:
     """Samples of the window from the tracer's padded spectra.
 
@@ -60,23 +75,20 @@ def range_compress(spectrum: np.ndarray, reference_length: np.ndarray, window: F
         Produce chirped echoes instead, as a receiver records them: the spectrum times
         ``fs S(f) R(f)``, with ``S`` the chirp's exact spectrum and ``R`` the receiver's
         anti-aliasing response (flat over the band, raised-cosine roll-off to ``fs / 2``;
-        :func:`sarmitsuba.synthetic.receiver_response`).
+        :func:`sarmitsuba.signal_model.received_chirp_spectrum`).
         :func:`sarmitsuba.focus.range_compression.range_compress` inverts it exactly.
 
     Returns
     -------
     complex64 [n_pulses, n_samples]
     """
-    k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
-    phase = np.mod(-k * reference_length, 2.0 * math.pi)           # float64, reduced before use
+    phase = reference_carrier_phase(reference_length, frequency)
     n, n_pad = window.n_samples, spectrum.shape[1]
     if chirp is None:
         filt = compressed_pulse_spectrum(n_pad, window.fs, bandwidth)
     else:
-        from .focus.range_compression import chirp_spectrum
-        from .synthetic import receiver_response
         f = sp_fft.fftfreq(n_pad, d=1.0 / window.fs)
-        filt = window.fs * chirp_spectrum(f, *chirp) * receiver_response(f, window.fs, bandwidth)
+        filt = received_chirp_spectrum(f, window.fs, bandwidth, *chirp)
     out = np.empty((spectrum.shape[0], n), np.complex64)
     for p0 in range(0, spectrum.shape[0], block):
         rows = slice(p0, p0 + block)
@@ -85,8 +97,16 @@ def range_compress(spectrum: np.ndarray, reference_length: np.ndarray, window: F
     return out
 
 
+def reference_carrier_phase(reference_length: np.ndarray, frequency: float) -> np.ndarray:
+    """The reference carrier phase ``-k L_ref`` of each pulse, formed in float64 and reduced mod
+    2 pi before any cast, eq. (S1): float64 [n_pulses], rad in [0, 2 pi), from ``reference_length``
+    float64 [n_pulses] in m and the carrier ``frequency`` in Hz."""
+    k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
+    return np.mod(-k * reference_length, 2.0 * math.pi)
+
+
 def exact_compress(paths: PathList, n_pulses: int, reference_length: np.ndarray, window: FastTimeWindow,
-                   frequency: float, bandwidth: float, block_lanes: int = 1 << 21) -> np.ndarray:
+                   frequency: float, bandwidth: float, block_lanes: int = EXACT_BLOCK_LANES) -> np.ndarray:
     """Range-compressed samples evaluated term by term: the ``exact`` range kernel.
 
     ``s_p[n] = exp(-j k L_ref,p) sum_i v_i sinc(B (n - x_i) / fs)`` with ``v_i`` the term's
@@ -128,8 +148,7 @@ def exact_compress(paths: PathList, n_pulses: int, reference_length: np.ndarray,
             part = sp_fft.ifft(sp_fft.fft(part, n=n_pad, axis=1) * order_factor(f, frequency, m),
                                axis=1)[:, :window.n_samples]
         out += part
-    k_wave = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
-    phase = np.mod(-k_wave * reference_length, 2.0 * math.pi)
+    phase = reference_carrier_phase(reference_length, frequency)
     return (out * np.exp(1j * phase)[:, None]).astype(np.complex64)
 
 
@@ -157,7 +176,7 @@ def _sinc_sum(pulse: np.ndarray, position: np.ndarray, values: np.ndarray, n_pul
 
         def body(k, acc_re, acc_im):
             x = mi.Float((math.pi * ratio) * (sample - dr.gather(mi.Float64, pos, k)))
-            w = mi.Float64(dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x))
+            w = mi.Float64(dr.select(dr.abs(x) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(x) / x))
             return (k + 1, acc_re + w * mi.Float64(dr.gather(mi.Float, v_re, k)),
                     acc_im + w * mi.Float64(dr.gather(mi.Float, v_im, k)))
 

@@ -9,11 +9,13 @@ acquisition (:mod:`sarmitsuba.planning`) and collects, in one :class:`SceneInfo`
 - the point-target SNR and NESZ of the radar equation when ``transmit_power`` is given
   (:func:`sarmitsuba.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
 - the scene's size and materials;
-- every optional effect, on or off, with the reason (:func:`sarmitsuba.effects.list_effects`);
+- every optional effect, on or off, with the reason (:func:`sarmitsuba.effects.active_effects`,
+  computed once and handed to the cost model and the radar equation);
 - the estimated cost: sub-apertures, ray casts, returns, trace time, memory, image size and
-  focusing time.
+  focusing time (:mod:`sarmitsuba.cost`, re-exported here: :class:`CostEstimate`,
+  :func:`cast_rates`, :func:`check_memory`, ...).
 
-Nothing is traced: the cost is an estimate from the measured rates below. Every number is
+Nothing is traced: the cost is an estimate from the measured rates of :mod:`sarmitsuba.cost`. Every number is
 SI with its unit in the field name (``_m``, ``_hz``, ``_s``, ``_deg``, ``_db``, ``_bytes``).
 
 References
@@ -29,7 +31,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -38,73 +39,17 @@ import numpy as np
 
 from . import planning
 from .constants import SPEED_OF_LIGHT
-from .effects import Effect, list_effects
-from .pipeline import image_grid
-from .radar import AcquisitionGeometry, ParameterError, RadarParameters, acquisition_geometry
+from .cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory,
+                   cost_estimate, format_bytes, memory_problem, synthetic_aperture)
+from .effects import Effect, EffectSet, active_effects
+from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
 from .radiometry import effective_pulses, radar_equation
 from .scene import LoadedScene, load_scene, material_table
-from .deposit import padded_length
-from .trace_inputs import FastTimeWindow, RayFootprint
+from .trace_inputs import FastTimeWindow
 
 __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
            "scene_info", "cast_rates", "format_text", "to_dict", "to_json", "available_memory", "memory_problem",
            "check_memory", "MEMORY_LIMIT_ENV"]
-
-#: Measured ray-cast rates [casts/s] of Mitsuba's llvm backend on 2 threads of a 2-core x86-64
-#: VM, as ``(triangles, closest-hit, shadow)``: a plane and a box (14 triangles: 38-59 M
-#: closest-hit, 140-167 M shadow casts/s) and Sionna RT's Munich (38,936 triangles: ~10 M and
-#: ~20 M/s), with Mitsuba 3.9.1 / Dr.Jit 1.5.0, variant ``llvm_ad_mono``, on incoherent rays
-#: (``ray_intersect`` with ``Minimal`` flags or ``ray_intersect_preliminary``; ``ray_test``);
-#: docs/design.md section 10.
-CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
-
-#: Factor on the sum of the tracer's parts (casts, returns, spectra) for what is not in them:
-#: kernel launches and their Python tracing, compaction between bounce orders. Measured on the
-#: 2-core machine (issue 12): 1.2-1.6 for urban and sionna:munich, smooth and rough.
-TRACE_OVERHEAD = 1.3
-
-#: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
-#: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
-RETURN_SECONDS = 9e-9
-#: Seconds per clutter scatterer deposited for one pulse (hash, length, deposit): about 20 ns
-#: (urban: 31.6 M scatterers).
-SCATTERER_SECONDS = 2e-8
-#: Seconds per fine fast-time sample, spectral order and pulse of the reduction to the band
-#: (its FFT, docs/physics.md (D5)): 5.6 ns (Munich: 195 M, 1.1 s).
-FFT_SECONDS = 5.6e-9
-#: PO returns evaluated per ray tube and pulse (the terms that do not cancel, (PO5)), for the
-#: estimate: 0.97 measured in Munich (a city; 0.2 on the urban block's open ground).
-RETURNS_PER_TUBE = 1.0
-#: Clutter scatterers per square metre of tube footprint is ``1 / scatterer_spacing^2``; the
-#: estimate assumes every hit is rough when any material is (Munich rough: 2.2 per tube).
-
-#: Bytes per path of the ``exact`` range kernel's path list (int32 pulse, uint8 order,
-#: float64 position, complex64 value: :class:`sarmitsuba.trace.PathList`).
-PATH_BYTES = 4 + 1 + 8 + 8
-
-#: Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`): seconds per in-beam
-#: pixel-pulse (its first stage) and per lit pixel (the interpolations onto the grid), fitted to
-#: urban (0.97 M pixels, 2.1e8 pixel-pulses: 0.8 s) and sionna:munich (12.2 M pixels, 1.2e9
-#: pixel-pulses: 5.5 s) on the 2-core machine; plus a fixed 0.05 s.
-FFBP_PIXEL_PULSE_SECONDS = 3.2e-9
-FFBP_PIXEL_SECONDS = 1.45e-7
-FFBP_FIXED_SECONDS = 0.05
-
-#: Direct backprojection throughput [pixel-pulses/s] on the same machine: 2.1e8 measured by
-#: benchmarks/focus_bench.py (1024 x 1024 grid, 1024 pulses, no beam limit).
-BACKPROJECTION_RATE = 2e8
-
-#: Fixed cost [s] of one (pixel tile, pulse block) pair of the beam-limited direct
-#: backprojection, paid whether or not the tile is in the beam (its float64 reference
-#: geometry): fitted to two renders on the 2-core machine, urban (707 x 1041 pixels, 680
-#: pulses: 1.0 s) and sionna:munich (3363 x 3287 pixels, 2264 pulses: 24 s), given
-#: BACKPROJECTION_RATE.
-BACKPROJECTION_TILE_SECONDS = 2.2e-4
-
-#: Pixel tile ``(azimuth, range)`` and pulse block of :func:`sarmitsuba.focus.backproject`
-#: (its ``_TILE`` and default ``pulse_block``), the units of the fixed cost above.
-BACKPROJECTION_TILE = (16, 128)
-BACKPROJECTION_PULSE_BLOCK = 128
 
 
 @dataclass(frozen=True)
@@ -255,68 +200,6 @@ class RadiometrySummary:
 
 
 @dataclass(frozen=True)
-class CostEstimate:
-    """Estimated work and memory of a render (the times are estimates, within a factor ~2).
-
-    Rays: ``rays_per_pulse`` is the coarse ray grid a pulse aims at the scene (rays outside the
-    beam are not cast, so it is an upper bound). A sub-aperture of ``pulses_per_trace`` pulses
-    traces the union of its pulses' grids once (docs/physics.md (T3)): ``primary_rays`` are the
-    tubes of all ``subapertures``, plus the finer tubes around small objects for the
-    sub-apertures that see them. Casts: ``primary_rays`` (low) to ``primary_rays * max_depth``
-    (high) closest-hit casts, as many shadow casts. Returns: every pulse evaluates
-    :data:`RETURNS_PER_TUBE` PO terms per tube it casts and, when a material is rough, the
-    clutter scatterers of its tubes' footprints (``tube area / scatterer_spacing^2`` each):
-    ``pulse_paths``. Trace time: :data:`TRACE_OVERHEAD` times the casts at the rates of
-    :func:`cast_rates`, the returns at :data:`RETURN_SECONDS` and :data:`SCATTERER_SECONDS` and
-    the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
-    between low and high.
-
-    Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
-    = ``max_depth`` with ``split_bounces``, else 1; :func:`sarmitsuba.deposit.padded_length`),
-    or with the ``exact`` range kernel its term list instead, at most one path per return of
-    :data:`PATH_BYTES` each; one raw data set, complex64 ``[n_pulses, fast_time_samples]``; one
-    image, complex64 ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth``
-    with ``split_bounces``). ``peak_memory_bytes``: the spectra (or path list) and every raw data
-    set and image, all held at once at the end of a render (:func:`check_memory` compares it with
-    the memory available).
-
-    Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
-    footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
-    lights. Fast factorised backprojection (the render's focuser): :data:`FFBP_PIXEL_PULSE_SECONDS`
-    per pixel-pulse and :data:`FFBP_PIXEL_SECONDS` per lit pixel; direct backprojection (``bp``):
-    :data:`BACKPROJECTION_RATE` plus :data:`BACKPROJECTION_TILE_SECONDS` per (tile, pulse block).
-    """
-
-    ray_spacing_m: float
-    rays_per_pulse: int
-    n_pulses: int
-    pulses_per_trace: int
-    subapertures: int
-    primary_rays: int
-    max_depth: int
-    closest_hit_casts: int
-    shadow_casts: int
-    closest_hit_rate_per_s: float
-    shadow_rate_per_s: float
-    pulse_paths: int
-    trace_time_low_s: float
-    trace_time_high_s: float
-    trace_time_s: float
-    fast_time_samples: int
-    fine_samples: int
-    deposit_bytes: int
-    path_list_bytes: int
-    raw_bytes: int
-    image_shape: tuple[int, int]
-    image_bytes: int
-    n_products: int
-    backprojection_pixel_pulses: int
-    focus_time_s: float
-    direct_backprojection_time_s: float
-    peak_memory_bytes: int
-
-
-@dataclass(frozen=True)
 class SceneInfo:
     """Everything ``sarmitsuba info`` reports about a scene (see the module docstring)."""
 
@@ -350,11 +233,12 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
         warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
+    effects = active_effects(loaded)                                      # decided once, handed on
     radar = _radar_summary(params, geometry, window, lo, hi)
-    cost = _cost(loaded, geometry, window, footprint)
+    cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory = memory_problem(cost, params)
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
-                     radiometry=_radiometry(params, radar.pulses_per_point), effects=list_effects(loaded),
+                     radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
                      cost=cost, warnings=tuple(messages) + ((memory,) if memory else ()))
 
 
@@ -409,8 +293,8 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
                    lo: np.ndarray, hi: np.ndarray) -> RadarSummary:
     rel = planning.box_corners(lo, hi) - geometry.scene_center
     along, across = rel @ geometry.track_direction, rel @ geometry.look_direction
-    l_min, l_max = planning._echo_lengths(geometry.positions, lo, hi)   # as check_acquisition
-    aperture_length, pulses_per_point = _aperture(p)
+    l_min, l_max = planning.echo_lengths(geometry.positions, lo, hi)   # as check_acquisition
+    aperture_length, pulses_per_point = synthetic_aperture(p)
     sin_lo, sin_hi = p.beam_sines
     prf_min = p.doppler_bandwidth
     prf_max = 1.0 / ((l_max - l_min) / SPEED_OF_LIGHT + p.pulse_length)
@@ -439,19 +323,6 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         track_length_m=(p.n_pulses - 1) * p.velocity / p.prf, acquisition_time_s=(p.n_pulses - 1) / p.prf)
 
 
-def _aperture(p: RadarParameters) -> tuple[float, int]:
-    """Synthetic aperture length [m] integrated per point, and the pulses in it.
-
-    Stripmap: the traced beam's footprint ``2 R tan(h)`` at the scene centre (each point is
-    lit while the platform flies that far; capped by the track). Spotlight: the whole
-    track, ``N v / prf`` (the length behind :attr:`RadarParameters.integration_angle`).
-    """
-    if p.mode == "spotlight":
-        return p.n_pulses * p.velocity / p.prf, p.n_pulses
-    length = p.footprint_length
-    return length, int(min(p.n_pulses, max(1, round(length * p.prf / p.velocity))))
-
-
 def _azimuth_formula(p: RadarParameters) -> str:
     if p.mode == "spotlight":
         return (f"lambda / (2 dtheta), integration angle dtheta = N v / (prf R) = "
@@ -464,9 +335,9 @@ def _azimuth_formula(p: RadarParameters) -> str:
     return f"lambda / (2 beta), uniform beam of width beta = {p.azimuth_beamwidth:g} deg"
 
 
-def _radiometry(p: RadarParameters, pulses: int) -> RadiometrySummary | None:
+def _radiometry(p: RadarParameters, pulses: int, effects: EffectSet) -> RadiometrySummary | None:
     """Radar-equation figures for a 1 m^2 target at the scene centre; None when radiometry is off."""
-    equation = radar_equation(p)
+    equation = radar_equation(p, effects)
     if equation is None:
         return None
     r = p.slant_range
@@ -480,183 +351,6 @@ def _radiometry(p: RadarParameters, pulses: int) -> RadiometrySummary | None:
                              received_power_1m2_w=equation.received_power(1.0, r),
                              noise_power_w=equation.noise_power or None, single_pulse_snr_1m2_db=snr,
                              image_snr_1m2_db=image, nesz_db=nesz, pulses_integrated=pulses)
-
-
-# ============================================================================ cost
-def cast_rates(n_triangles: int) -> tuple[float, float]:
-    """Estimated closest-hit and shadow ray-cast rates [casts/s] for a scene of ``n_triangles``.
-
-    ``log(rate)`` is linear in ``log(n_triangles)`` between the two measured anchors of
-    :data:`CAST_RATE_ANCHORS` (Embree's BVH makes the cost grow about logarithmically with
-    the triangle count). Below the small anchor the small scene's rates are used; above the
-    large one the line is extrapolated (an assumption, not a measurement). An estimate for
-    the 2-core reference machine: expect a factor of 2 either way.
-    """
-    (t0, hit0, shadow0), (t1, hit1, shadow1) = CAST_RATE_ANCHORS
-    x = (math.log(max(n_triangles, t0)) - math.log(t0)) / (math.log(t1) - math.log(t0))
-    return hit0 * (hit1 / hit0) ** x, shadow0 * (shadow1 / shadow0) ** x
-
-
-def _cost(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
-          footprint: RayFootprint) -> CostEstimate:
-    from .trace import pulses_per_trace
-    st, p = loaded.settings, loaded.params
-    n_pulses = p.n_pulses
-    size = pulses_per_trace(p, st, n_pulses)
-    n_subs = math.ceil(n_pulses / size)
-    # a sub-aperture's union of its pulses' lattices: the cells its antenna travel adds along track
-    spread = math.ceil(min(size - 1, n_pulses - 1) * p.velocity / p.prf / footprint.spacing_azimuth)
-    per_sub = (footprint.n_azimuth + spread) * footprint.n_range
-    pulses_seeing = _aperture(p)[1]
-    primary = per_sub * n_subs + footprint.refined_rays * math.ceil(pulses_seeing / size)
-    casts = primary * st.max_depth
-    hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
-    tube_pulses = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * pulses_seeing
-    table = material_table(loaded.scene, p.frequency, p.polarization)
-    tube_area = footprint.spacing_azimuth * footprint.spacing_range
-    scatterers = (footprint.rays_per_pulse * n_pulses * tube_area / footprint.scatterer_spacing**2
-                  if table.has_clutter else 0.0)
-    paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)
-    groups = st.max_depth if st.split_bounces else 1
-    n_pad = padded_length(window.n_samples)
-    work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
-            + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
-
-    def trace_time(closest: float) -> float:
-        return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work)
-
-    exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
-    grid = _image_grid(loaded, geometry)
-    n_products = 1 + (st.max_depth if st.split_bounces else 0)
-    pixel_pulses, lit, direct = _backprojection(p, grid)
-    fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
-    deposit = 0 if exact else groups * n_pulses * n_pad * 8
-    raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
-    return CostEstimate(
-        ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
-        pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
-        closest_hit_casts=casts, shadow_casts=casts, closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
-        pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
-        trace_time_s=trace_time(0.5 * (primary + casts)),
-        fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES if exact else 0, raw_bytes=raw_bytes,
-        image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
-        backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
-        direct_backprojection_time_s=n_products * direct,
-        peak_memory_bytes=deposit + (paths * PATH_BYTES if exact else 0) + n_products * (raw_bytes + image_bytes))
-
-
-def _image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry):
-    """The render's image grid (:func:`sarmitsuba.pipeline.image_grid`); ParameterError naming the
-    parameters that set its size when it would be too large."""
-    try:
-        return image_grid(loaded, geometry)
-    except ValueError as exc:
-        p = loaded.params
-        raise ParameterError(
-            f"the image grid is too large ({exc}): its pixels are half the finer of the ground-range resolution "
-            f"{p.ground_range_resolution:.3g} m (bandwidth {p.bandwidth / 1e6:g} MHz) and the azimuth resolution "
-            f"{p.azimuth_resolution:.3g} m (azimuth_beamwidth / antenna_length) across a scene of "
-            f"{np.ptp(np.stack([loaded.bbox_lo, loaded.bbox_hi]), axis=0).max():.4g} m: lower bandwidth, narrow the "
-            "beam or use a smaller scene") from None
-
-
-# ============================================================================ memory
-#: Environment variable that sets the memory [bytes] a render may use (tests, batch jobs); without
-#: it :func:`available_memory` reads the machine's.
-MEMORY_LIMIT_ENV = "SARMITSUBA_MEMORY_LIMIT"
-
-
-def available_memory() -> int:
-    """Bytes of memory a render may use: ``$SARMITSUBA_MEMORY_LIMIT`` when set, else ``MemAvailable``
-    of ``/proc/meminfo`` (Linux), else the physical memory (``os.sysconf``).
-
-    Raises
-    ------
-    ParameterError
-        ``SARMITSUBA_MEMORY_LIMIT`` is not a whole number of bytes > 0.
-    """
-    text = os.environ.get(MEMORY_LIMIT_ENV)
-    if text is not None:
-        try:
-            limit = int(float(text))
-        except ValueError:
-            limit = 0
-        if limit <= 0:
-            raise ParameterError(f"{MEMORY_LIMIT_ENV} = {text!r} must be a number of bytes > 0 (e.g. 8e9)")
-        return limit
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
-def memory_problem(cost: CostEstimate, params: RadarParameters, available: int | None = None) -> str | None:
-    """Why a render of estimated ``cost`` cannot fit in ``available`` bytes (default
-    :func:`available_memory`) and what to change, led by the term that dominates; None when it fits."""
-    available = available_memory() if available is None else available
-    if cost.peak_memory_bytes <= available:
-        return None
-    n = cost.n_products
-    terms = {"spectra": cost.deposit_bytes, "path list": cost.path_list_bytes,
-             "raw data": n * cost.raw_bytes, "image": n * cost.image_bytes}
-    parts = ", ".join(f"{name} {_bytes(size)}" for name, size in terms.items() if size)
-    text = (f"the render would need about {_bytes(cost.peak_memory_bytes)} of memory ({parts}) but "
-            f"{_bytes(available)} is available ({MEMORY_LIMIT_ENV} overrides it)")
-    largest = max(terms, key=terms.get)
-    if largest == "image":
-        return (f"{text}: the image grid {cost.image_shape[0]} x {cost.image_shape[1]} pixels dominates; its pixels "
-                "are half the finer resolution: lower bandwidth, narrow the beam or use a smaller scene")
-    per_pulse = (cost.peak_memory_bytes - n * cost.image_bytes) / max(cost.n_pulses, 1)
-    fit = max(1, int((available - n * cost.image_bytes) // max(per_pulse, 1)))
-    fix = (f"use fewer pulses (--pulses {fit} or fewer; sar n_pulses = {cost.n_pulses} now) or a shorter "
-           f"fast-time window ({cost.fast_time_samples} samples: a smaller scene, or --set "
-           f"sampling_rate=... closer to bandwidth = {params.bandwidth / 1e6:g} MHz)")
-    if largest == "path list":
-        fix = f"the exact range kernel's path list dominates: use --range-kernel linear, or {fix}"
-    else:
-        fix = f"the {largest} (pulses x fast-time samples) dominate: {fix}"
-    if n > 1:
-        fix += f", or drop split_bounces ({n} raw data sets and images)"
-    return f"{text}: {fix}"
-
-
-def check_memory(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
-                 footprint: RayFootprint, available: int | None = None) -> CostEstimate:
-    """The cost of rendering ``loaded`` (:class:`CostEstimate`), checked against the memory
-    ``available`` [bytes] (default :func:`available_memory`) before any tracing.
-
-    Raises
-    ------
-    ParameterError
-        The estimated peak memory exceeds it (:func:`memory_problem` says what to change), or the
-        image grid would be too large.
-    """
-    cost = _cost(loaded, geometry, window, footprint)
-    problem = memory_problem(cost, loaded.params, available)
-    if problem is not None:
-        raise ParameterError(problem)
-    return cost
-
-
-def _backprojection(p: RadarParameters, grid) -> tuple[int, int, float]:
-    """Pixel-pulses inside the beam, pixels some pulse lights, and the estimated seconds of one
-    direct beam-limited backprojection onto ``grid`` (the model of :class:`CostEstimate`)."""
-    n_az, n_rg = grid.shape
-    rows, lit_rows = n_az, n_az
-    if p.mode == "stripmap" and n_az > 1:        # the pipeline limits stripmap focusing to the beam
-        spacing = float(grid.azimuth[1] - grid.azimuth[0])
-        rows = min(n_az, math.ceil(p.footprint_length / spacing) + BACKPROJECTION_TILE[0])
-        track = (p.n_pulses - 1) * p.velocity / p.prf
-        lit_rows = min(n_az, math.ceil((track + p.footprint_length) / spacing))
-    pixel_pulses = p.n_pulses * rows * n_rg
-    pairs = (math.ceil(n_az / BACKPROJECTION_TILE[0]) * math.ceil(n_rg / BACKPROJECTION_TILE[1])
-             * math.ceil(p.n_pulses / BACKPROJECTION_PULSE_BLOCK))
-    return pixel_pulses, lit_rows * n_rg, pixel_pulses / BACKPROJECTION_RATE + pairs * BACKPROJECTION_TILE_SECONDS
 
 
 # ============================================================================ output
@@ -740,9 +434,9 @@ def _effect_lines(effects: tuple[Effect, ...]) -> list[str]:
 
 
 def _cost_lines(c: CostEstimate) -> list[str]:
-    memory = (f"spectra {_bytes(c.deposit_bytes)} ({c.n_pulses} pulses x "
+    memory = (f"spectra {format_bytes(c.deposit_bytes)} ({c.n_pulses} pulses x "
               f"{c.deposit_bytes // (8 * max(c.n_pulses, 1))} padded samples, complex64)"
-              if not c.path_list_bytes else f"path list (exact kernel) up to {_bytes(c.path_list_bytes)}")
+              if not c.path_list_bytes else f"path list (exact kernel) up to {format_bytes(c.path_list_bytes)}")
     return [
         f"rays: {c.rays_per_pulse:,} per pulse (grid spacing {c.ray_spacing_m:.3g} m; rays outside the beam are "
         f"not cast); {c.n_pulses:,} pulses in {c.subapertures:,} sub-apertures of {c.pulses_per_trace} pulses, each "
@@ -753,8 +447,8 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         f"{_duration(c.trace_time_high_s)}: primary rays only .. upper-bound casts, at "
         f"{c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and {c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s "
         f"and {RETURN_SECONDS * 1e9:g} ns per return on 2 cores)",
-        f"memory: {memory}, raw data {_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
-        f"image {_bytes(c.image_bytes)}; peak ~ {_bytes(c.peak_memory_bytes)}",
+        f"memory: {memory}, raw data {format_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
+        f"image {format_bytes(c.image_bytes)}; peak ~ {format_bytes(c.peak_memory_bytes)}",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
         f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "
@@ -780,13 +474,6 @@ def _eng(value: float, unit: str) -> str:
     exponent = max(-9, min(9, 3 * math.floor(math.log10(abs(value)) / 3)))
     prefix = {-9: "n", -6: "u", -3: "m", 0: "", 3: "k", 6: "M", 9: "G"}[exponent]
     return f"{value / 10.0 ** exponent:.4g} {prefix}{unit}"
-
-
-def _bytes(n: int) -> str:
-    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
-        if n >= size:
-            return f"{n / size:.1f} {unit}"
-    return f"{n} B"
 
 
 def _duration(seconds: float) -> str:

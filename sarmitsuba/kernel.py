@@ -38,7 +38,7 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
-from .physical_optics import SINC_REGIME
+from .effects import EffectSet, rough_materials
 from .returns import COS_GRAZING, Returns, footprint_edges
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
@@ -410,17 +410,23 @@ class Kernel:
     footprint : RayFootprint
     settings : TraceSettings
     material_table : MaterialTable
+    effects : EffectSet, optional
+        Which effects to compile in (:func:`sarmitsuba.effects.active_effects`); default: those of
+        ``params``, ``settings`` and the rough materials of ``material_table``.
     """
 
-    def __init__(self, scene, params, window, footprint, settings, material_table):
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects: EffectSet | None = None):
+        if effects is None:
+            effects = EffectSet.of(params, settings, rough_materials(material_table))
+        self.effects = effects
         self.scene = scene
         self.settings = settings
         self.window = window
         self.fp = footprint
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         half = math.sin(params.traced_half_angle)
-        self.beam_sines = params.beam_sines if params.mode == "stripmap" else (-half, half)
-        self.spotlight = params.mode == "spotlight"
+        self.spotlight = effects.spotlight
+        self.beam_sines = (-half, half) if self.spotlight else params.beam_sines
         table = material_table
         size = table.row_of_shape.size
         is_mesh, base, normal, offset, other = _triangle_table(scene, size)
@@ -430,13 +436,12 @@ class Kernel:
                                        else np.ones(table.table.shape[0], np.float32)),
                               mi.Float(table.table.real.ravel().astype(np.float32)),
                               mi.Float(table.table.imag.ravel().astype(np.float32)), table.table.shape[1])
-        if table.has_clutter:
+        if effects.clutter:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
             self.tables.shape_key = mi.UInt32(table.shape_key.astype(np.uint32))
             self.tables.shape_origin = mi.Point3f(*(table.shape_origin[:, c].astype(np.float32) for c in range(3)))
-        self.returns = Returns(params, window, footprint, settings, self.tables, table.has_clutter,
-                               self.beam_sines)
+        self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import time
 from dataclasses import dataclass
@@ -13,12 +12,15 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import binning, planning, products
+from .cost import check_memory
 from .effects import active_effects
-from .focus import ImageGrid, backproject, ffbp
-from .focus.ffbp import GeometryNotSupported
+from .focus import backproject, ffbp
+from .focus.dispatch import azimuth_pattern, backprojector
+from .focus.dispatch import focus as focus_by_name
+from .focus.scene_grid import image_grid, sized_grid
 from .image import SarImage
 from .outputs import OutputDirectory, check_output_dir, json_default
-from .radar import AcquisitionGeometry, acquisition_geometry, ground_layover
+from .radar import AcquisitionGeometry, acquisition_geometry
 from .raw import RawData
 from .scene import LoadedScene, load_scene, material_table
 from .trace import TraceResult, trace
@@ -63,53 +65,6 @@ class RenderSummary:
                 f"-> {Path(self.outputs['png']).parent}")
 
 
-def image_grid(loaded: LoadedScene, geometry: AcquisitionGeometry) -> ImageGrid:
-    """Ground grid around the scene centre covering the scene and its layover (see :func:`ground_grid`)."""
-    return ground_grid(loaded.params, loaded.bbox_lo, loaded.bbox_hi, geometry)
-
-
-def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
-    """Ground grid around the scene centre covering a bounding box and its layover.
-
-    Ground-range extent: the bounding box's corners and the points where the focuser lays them
-    over (:func:`radar.ground_layover`, exact for a straight track: toward the sensor by about
-    ``h / tan(theta)``), plus 16 resolution cells on every side. Pixel spacing: half the finer
-    of the ground-range and azimuth resolutions.
-    """
-    corners = planning.box_corners(bbox_lo, bbox_hi)
-    relative = corners - geometry.scene_center
-    along = relative @ geometry.track_direction
-    across = relative @ geometry.look_direction
-    laid = ground_layover(geometry, corners)
-    laid = laid[np.all(np.isfinite(laid), axis=1)]
-    along, across = np.concatenate([along, laid[:, 0]]), np.concatenate([across, laid[:, 1]])
-    spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
-    half_range = np.abs(across).max() + 16 * p.ground_range_resolution
-    half_az = np.abs(along).max() + 16 * p.azimuth_resolution
-    return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
-                            azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
-
-
-def sized_grid(p, geometry: AcquisitionGeometry, size: tuple[int, int], spacing: float | None = None) -> ImageGrid:
-    """Ground grid of exactly ``size = (n_azimuth, n_range)`` pixels centred on the scene centre.
-
-    ``spacing`` [m] defaults to half the finer of the ground-range and azimuth resolutions of
-    the radar parameters ``p`` (as :func:`ground_grid`; ``p`` is unused when ``spacing`` is given). Raises ParameterError for sizes below 2 or a non-positive spacing.
-    """
-    from .radar import ParameterError
-    n_az, n_rg = (int(v) for v in size)
-    if min(n_az, n_rg) < 2 or (n_az, n_rg) != tuple(size):
-        raise ParameterError(f"image_size = {size}: two whole numbers >= 2 (azimuth, range pixels)")
-    if spacing is None:
-        spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
-    spacing = float(spacing)
-    if not (math.isfinite(spacing) and spacing > 0):
-        raise ParameterError(f"image_spacing = {spacing} m must be > 0")
-    return ImageGrid(origin=np.asarray(geometry.scene_center, float), azimuth_direction=geometry.track_direction,
-                     range_direction=geometry.look_direction, azimuth=(np.arange(n_az) - n_az // 2) * spacing,
-                     range=(np.arange(n_rg) - n_rg // 2) * spacing, plane="ground")
-
-
 @dataclass(frozen=True)
 class Simulation:
     """Everything one simulation produced, in memory (see :func:`simulate`)."""
@@ -147,12 +102,14 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
                                        shape_boxes=loaded.shape_boxes)
     planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
-    planning.check_memory(loaded, geometry, window, footprint)               # peak memory, before tracing
+    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
+    check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
     table = material_table(loaded.scene, params.frequency, params.polarization)
     t["load"] = time.perf_counter()
-    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress)
+    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress,
+                   effects=effects)
     t["trace"] = time.perf_counter()
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
@@ -164,7 +121,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["bin"] = time.perf_counter()
     geometry = world
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
-    pattern = _azimuth_pattern(params)
+    pattern = azimuth_pattern(params)
     focus = lambda r, desc: _calibrated(focus_with(  # noqa: E731
         _compressed(r, window_spec), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
         window_azimuth=window_spec, progress=progress, desc=desc), params, geometry)
@@ -189,17 +146,7 @@ def _focuser(name: str):
     if name not in FOCUSERS:
         raise ParameterError(f"focuser = {name!r}; valid: {', '.join(FOCUSERS)} (ffbp: fast factorised "
                              "backprojection, the default; bp: direct backprojection, its reference)")
-    if name == "bp":
-        return backproject
-
-    def fast(raw, grid, **kwargs):
-        try:
-            return ffbp(raw, grid, **kwargs)
-        except GeometryNotSupported as exc:
-            image = backproject(raw, grid, **kwargs)
-            image.metadata["focus"]["fallback"] = f"direct backprojection: {exc}"
-            return image
-    return fast
+    return backprojector(name)
 
 
 def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGeometry:
@@ -214,19 +161,12 @@ def focus_window(window: Any) -> tuple[str, dict]:
     """Check the focusing window of :func:`simulate` / :func:`render`: a name of
     :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
     ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
-    from .focus.stripmap import _window_spec
+    from .focus.windows import window_spec
     from .radar import ParameterError
     try:
-        return _window_spec(window)
+        return window_spec(window)
     except ValueError as exc:
         raise ParameterError(f"window: {exc}") from None
-
-
-def _azimuth_pattern(params) -> float | None:
-    """``L / lambda`` of the two-way azimuth pattern the tracer applied (stripmap, tapered beam), or None."""
-    if params.mode != "stripmap" or params.pattern_length <= 0:
-        return None
-    return params.pattern_length / params.wavelength
 
 
 def _compressed(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawData:
@@ -327,9 +267,6 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths)
 
 
-ALGORITHMS = ("bp", "ffbp", "omegak", "rda")
-
-
 def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", window_azimuth: str = "rect",
             progress: bool = False) -> SarImage:
     """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
@@ -349,41 +286,8 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
         Unknown algorithm or window, or a track the FFT focusers cannot handle (they name
         backprojection).
     """
-    from .focus import apply_range_window, omega_k, range_compress, range_doppler, slant_output_grid, stripmap_geometry
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
-    grid, beam, doppler, squint, pattern = _metadata_grid(raw)
-    if algorithm == "omegak":
-        return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler,
-                       azimuth_pattern=pattern)
-    if algorithm == "rda":
-        return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
-                             doppler_bandwidth=doppler, azimuth_pattern=pattern)
-    compressed = range_compress(raw, window_range) if not raw.range_compressed else (
-        apply_range_window(raw, window_range) if window_range != "rect" else raw)
-    if grid is None:
-        grid = slant_output_grid(stripmap_geometry(raw), raw)
-    return _focuser(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
-                               window_azimuth=window_azimuth, progress=progress)
-
-
-def _metadata_grid(raw: RawData):
-    """Ground grid, azimuth beamwidth [deg], Doppler bandwidth [Hz], squint [deg] and azimuth pattern
-    ``L / lambda`` of a sarmitsuba render, from the RawData metadata; (None, None, None, 0, None) for
-    other data."""
-    from .radar import RadarParameters
-    meta = raw.metadata
-    try:
-        params = RadarParameters.from_mapping({k: v for k, v in meta["radar"].items() if v is not None})
-        offset = np.asarray(meta.get("frame_offset", [0.0, 0.0, 0.0]), float)
-        lo = np.asarray(meta["scene_info"]["bbox_min"], float) + offset
-        hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
-    except (KeyError, TypeError, ValueError):
-        return None, None, None, 0.0, None
-    geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
-    beam = params.traced_beamwidth if params.mode == "stripmap" else None
-    return ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint, \
-        _azimuth_pattern(params)
+    return focus_by_name(raw, algorithm, window_range=window_range, window_azimuth=window_azimuth,
+                         progress=progress)
 
 
 def window_title(image: SarImage) -> str:

@@ -17,7 +17,7 @@ from .radar import AcquisitionGeometry, ParameterError, RadarParameters, track_f
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
 __all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
-           "project_to_aim_plane", "box_corners", "check_acquisition", "check_memory", "AcquisitionWarning"]
+           "project_to_aim_plane", "box_corners", "echo_lengths", "check_acquisition", "AcquisitionWarning"]
 
 
 class AcquisitionWarning(UserWarning):
@@ -101,7 +101,7 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
     and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
-    l_min, l_max = _echo_lengths(geometry.positions, lo, hi)
+    l_min, l_max = echo_lengths(geometry.positions, lo, hi)
     l_max += (settings.max_depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
     if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
@@ -112,8 +112,11 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
                           oversample=settings.oversample)
 
 
-def _echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
-    """Shortest and longest two-way lengths [m] from the track to the scene's box (direct paths)."""
+def echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Shortest and longest two-way lengths ``(L_min, L_max)`` [m, float] from the track to the
+    scene's box (direct paths): ``positions`` float64 [n_pulses, 3] antenna positions, ``lo`` and
+    ``hi`` float64 [3] the box. ``L_min`` is twice the distance from the nearest pulse to the box,
+    ``L_max`` twice the farthest corner from the first, middle and last pulse."""
     closest = np.clip(positions, lo, hi)
     l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
     corners = box_corners(lo, hi)
@@ -285,16 +288,6 @@ def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: Ray
     return tuple(Refinement(m, np.array(sorted(cells), np.int64)) for m, cells in sorted(groups.items()))
 
 
-def check_memory(loaded, geometry: AcquisitionGeometry, window: FastTimeWindow, footprint: RayFootprint,
-                 available: int | None = None) -> None:
-    """Raise ParameterError, before any tracing, when the estimated peak memory of rendering the
-    :class:`~sarmitsuba.scene.LoadedScene` ``loaded`` exceeds the memory ``available`` [bytes]
-    (default: the machine's, or ``$SARMITSUBA_MEMORY_LIMIT``), or its image grid is too large.
-    The estimate is that of ``sarmitsuba info`` (:func:`sarmitsuba.info.check_memory`)."""
-    from .info import check_memory as check       # info builds on this module and the pipeline
-    check(loaded, geometry, window, footprint, available)
-
-
 def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
                       lo: np.ndarray, hi: np.ndarray) -> list[str]:
     """Warn (:class:`AcquisitionWarning`) about settings that give ambiguities or an empty image.
@@ -314,7 +307,7 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
         messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
                         f"(azimuth_beamwidth {params.azimuth_beamwidth:.3g} deg, velocity {params.velocity:g} m/s): "
                         "azimuth ambiguities (ghosts) will appear; raise prf or narrow the beam")
-    l_min, l_max = _echo_lengths(geometry.positions, lo, hi)
+    l_min, l_max = echo_lengths(geometry.positions, lo, hi)
     echo = (l_max - l_min) / SPEED_OF_LIGHT + params.pulse_length      # receive time of one pulse's echoes
     if echo > 1.0 / params.prf:
         messages.append(f"prf = {params.prf:g} Hz exceeds 1 / (echo duration) = {1.0 / echo:.1f} Hz "

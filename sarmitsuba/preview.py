@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .outputs import atomic_write
+from .plotting import agg_figure, save_png
 from .radar import acquisition_geometry
 
 __all__ = ["render_preview", "PreviewGeometry", "preview_geometry"]
@@ -101,7 +101,7 @@ def preview_geometry(loaded: Any) -> PreviewGeometry:
     -------
     PreviewGeometry
     """
-    from .pipeline import image_grid
+    from .focus.scene_grid import image_grid
     from .planning import box_corners
 
     params = loaded.params
@@ -391,9 +391,6 @@ def render_preview(loaded: Any, path: str | os.PathLike, *, spp: int = 16,
     panel's Mitsuba sensor (``sample_direction``), so overlays and render agree to the
     pixel; lines are clipped where they pass behind a camera.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     if int(spp) != spp or spp < 1:
         raise ValueError(f"spp must be a whole number >= 1, got {spp!r}")
     width, height = (int(v) for v in resolution)
@@ -421,8 +418,7 @@ def render_preview(loaded: Any, path: str | os.PathLike, *, spp: int = 16,
     scene_cam = _camera(scene_target, _rotate_z(los, 30.0), np.vstack([geo.bbox_corners, geo.imaged_area]),
                         panel, 35.0, spp)
 
-    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
-    FigureCanvasAgg(fig)
+    fig = agg_figure((width / dpi, height / dpi), dpi, layout=None)
     fig.text(0.01, 1.0 - 0.5 * header / height, _header_text(loaded, geo), fontsize=8,
              va="center", ha="left", family="monospace")
     for k, (camera, title, full) in enumerate(((overview, "overview: track, antenna, beam, imaged area", True),
@@ -437,7 +433,7 @@ def render_preview(loaded: Any, path: str | os.PathLike, *, spp: int = 16,
                 bbox={"facecolor": "white", "alpha": 0.75, "edgecolor": "none", "pad": 2})
         if full:
             ax.legend(loc="lower left", fontsize=7, framealpha=0.8)
-    return atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi))
+    return save_png(fig, path, dpi, "preview")
 
 
 def _header_text(loaded: Any, geo: PreviewGeometry) -> str:

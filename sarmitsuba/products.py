@@ -1,12 +1,15 @@
 """Image products: OpenEXR channels and PNG quicklooks of a :class:`SarImage` (docs/design.md section 3).
 
-Figures are drawn here and in two other modules: :mod:`sarmitsuba.figures` (the explanatory
-figures of a simulation) and :mod:`sarmitsuba.preview` (the optical preview of an
-acquisition), which share this module's atomic writes (and, for figures, its axis labels and
-colour bars). Every writer here is atomic: it writes a temporary file next to the target
+Images are drawn here and in other modules: :mod:`sarmitsuba.figures` (the explanatory
+figures of a simulation, with :mod:`sarmitsuba.figures_raw` and :mod:`sarmitsuba.figures_point`)
+and :mod:`sarmitsuba.preview` (the optical preview of an acquisition). All of them take the
+display conventions (dB re the 99.5th percentile, multilooks, axis labels, colour bars, Agg
+figures) from :mod:`sarmitsuba.plotting` and the atomic writes from :mod:`sarmitsuba.outputs`.
+Every writer here is atomic: it writes a temporary file next to the target
 (``.<name>.partial``) and renames it over the target with :func:`os.replace`, so readers
-never see half a file and a failed write leaves any previous file untouched. A failed write removes the temporary file and raises :class:`WriteError`,
-an OSError whose message names the target path the caller gave.
+never see half a file and a failed write leaves any previous file untouched. A failed write
+removes the temporary file and raises :class:`WriteError`, an OSError whose message names the
+target path the caller gave.
 
 =========================  ===================================================================
 :func:`write_exr`          float32 channels ``intensity`` (``|data|^2``), ``real``, ``imag``.
@@ -24,6 +27,8 @@ import numpy as np
 
 from .image import SarImage
 from .outputs import WriteError, atomic_write, json_default
+from .plotting import (REFERENCE_PERCENTILE, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
+                       has_signal, intensity, multilook, reference_intensity, save_png, show_db_image)
 
 __all__ = ["write_exr", "write_quicklook", "WriteError"]
 
@@ -71,8 +76,8 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
     import OpenEXR
 
     data = image.data
-    intensity = _intensity(data, np.float32)
-    channels = {"intensity": intensity,
+    power = intensity(data, np.float32)
+    channels = {"intensity": power,
                 "real": np.ascontiguousarray(data.real, dtype=np.float32),
                 "imag": np.ascontiguousarray(data.imag, dtype=np.float32)}
     info = {"plane": image.plane, "algorithm": image.algorithm, "window": image.window,
@@ -160,127 +165,21 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     WriteError
         An OSError naming ``path`` when it cannot be written (no temporary file is left).
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    dynamic_range_db = float(dynamic_range_db)
-    if not (np.isfinite(dynamic_range_db) and dynamic_range_db > 0):
-        raise ValueError(f"dynamic_range_db must be a finite number > 0 (dB), got {dynamic_range_db!r}")
-    if not (len(figsize) == 2 and min(figsize) > 0 and dpi > 0):
-        raise ValueError(f"figsize must be two positive inches and dpi > 0, got {figsize!r}, {dpi!r}")
-    if int(max_pixels) != max_pixels or max_pixels < 1:
-        raise ValueError(f"max_pixels must be a whole number >= 1, got {max_pixels!r}")
-    looks = tuple(max(1, -(-n // int(max_pixels))) for n in image.data.shape)
-    db, empty = _decibels(_multilook(image.data, looks), dynamic_range_db)
-
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
-    FigureCanvasAgg(fig)
+    dynamic_range_db = check_dynamic_range(dynamic_range_db)
+    fig = agg_figure(figsize, dpi)
+    looks = display_looks(image.data.shape, max_pixels)
+    power = multilook(image.data, looks)
+    empty = not has_signal(power)
+    db = np.full(power.shape, -dynamic_range_db) if empty else \
+        decibels(power, reference_intensity(power), dynamic_range_db)
     ax = fig.add_subplot()
-    shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
-                      extent=(*_edges(image.range[:db.shape[1] * looks[1]]),
-                              *_edges(image.azimuth[:db.shape[0] * looks[0]])), aspect=aspect,
-                      interpolation="nearest")
-    _label_image_axes(ax, image)
-    _colorbar(fig, ax, shown, "dB")
+    shown = show_db_image(ax, image, db, looks, dynamic_range_db, aspect=aspect)
+    colorbar(fig, ax, shown, "dB")
     ax.set_title(_title(image, title, dynamic_range_db, empty, looks), fontsize="small")
-    return atomic_write(Path(path), lambda tmp: fig.savefig(tmp, format="png", dpi=dpi), "quicklook")
+    return save_png(fig, path, dpi, "quicklook")
 
 
 # ============================================================================ helpers
-def _axis_labels(image: SarImage) -> tuple[str, str]:
-    """``(x, y)`` axis labels of an image: what range and azimuth are measured from.
-
-    Ground images (:meth:`~sarmitsuba.focus.ImageGrid.ground`, :func:`sarmitsuba.pipeline.image_grid`)
-    are centred on the scene centre; slant images
-    (:func:`~sarmitsuba.focus.stripmap.slant_output_grid`) hold the absolute closest-approach
-    slant range and the azimuth from the scene centre's closest approach (docs/design.md section 8).
-    """
-    if image.plane == "ground":
-        return "ground range from scene centre [m]", "azimuth from scene centre [m]"
-    return "slant range (closest approach) [m]", "azimuth from scene centre [m]"
-
-
-def _label_image_axes(ax: Any, image: SarImage) -> None:
-    """Axis labels, near/far range under the x label and a flight arrow, on an image's axes.
-
-    Range grows away from the sensor (``image.range_direction``), so near range is on the left;
-    azimuth grows along the flight direction (upward with ``origin="lower"``).
-    """
-    x_label, y_label = _axis_labels(image)
-    ax.set_xlabel(x_label)
-    ax.set_ylabel(y_label)
-    below = {"xycoords": (ax.transAxes, ax.xaxis.label), "xytext": (0, -2), "textcoords": "offset points",
-             "va": "top", "fontsize": "x-small", "color": "0.2"}
-    ax.annotate("\u2190 near range (sensor side)", xy=(0.0, 0.0), ha="left", **below)
-    ax.annotate("far range \u2192", xy=(1.0, 0.0), ha="right", **below)
-    from matplotlib import patheffects
-    outline = [patheffects.withStroke(linewidth=2.0, foreground="black")]
-    head = {"xy": (0.03, 0.97), "xycoords": "axes fraction", "textcoords": "offset points"}
-    ax.annotate("", xytext=(0, -32), **head,
-                arrowprops={"arrowstyle": "-|>", "color": "yellow", "lw": 1.2, "path_effects": outline})
-    ax.annotate("flight\n(azimuth)", xytext=(5, -16), ha="left", va="center", fontsize="x-small",
-                color="yellow", path_effects=outline, **head)
-
-
-def _colorbar(fig: Any, ax: Any, mappable: Any, label: str) -> Any:
-    """A colour bar beside ``ax`` exactly as tall as its (aspect-locked) image box."""
-    cax = ax.inset_axes([1.03, 0.0, 0.035, 1.0])
-    return fig.colorbar(mappable, cax=cax, label=label)
-
-
-def _multilook(data: np.ndarray, looks: tuple[int, int]) -> np.ndarray:
-    """Intensity ``|data|^2`` averaged over ``looks`` blocks (trailing partial blocks dropped),
-    float64; computed a band of rows at a time (:func:`_intensity`)."""
-    n0 = max(1, data.shape[0] // looks[0]) * looks[0]
-    n1 = max(1, data.shape[1] // looks[1]) * looks[1]
-    if looks == (1, 1):
-        return _intensity(data, np.float64)
-    out = np.empty((n0 // looks[0], n1 // looks[1]))
-    band = max(1, _ROWS // looks[0]) * looks[0]
-    for r0 in range(0, n0, band):
-        power = _intensity(data[r0:min(r0 + band, n0), :n1], np.float64)
-        out[r0 // looks[0]:r0 // looks[0] + power.shape[0] // looks[0]] = \
-            power.reshape(-1, looks[0], n1 // looks[1], looks[1]).mean(axis=(1, 3))
-    return out
-
-
-#: Rows of an image turned into intensity at once (bounds the float64 temporaries).
-_ROWS = 256
-
-
-def _intensity(data: np.ndarray, dtype) -> np.ndarray:
-    """``|data|^2`` of complex64 ``data``, computed in float64 a band of :data:`_ROWS` rows at a
-    time, stored as ``dtype``."""
-    out = np.empty(data.shape, dtype)
-    for r0 in range(0, data.shape[0], _ROWS):
-        part = data[r0:r0 + _ROWS]
-        out[r0:r0 + _ROWS] = part.real.astype(np.float64) ** 2 + part.imag.astype(np.float64) ** 2
-    return out
-
-
-#: Percentile of the non-zero intensities shown as 0 dB (brighter pixels saturate).
-REFERENCE_PERCENTILE = 99.5
-
-
-def _decibels(power: np.ndarray, dynamic_range_db: float) -> tuple[np.ndarray, bool]:
-    """dB of the intensity relative to its 99.5th percentile of non-zero values (0 dB; the few
-    brighter pixels, such as corner reflectors, saturate), floored at ``-dynamic_range_db``."""
-    finite = np.isfinite(power)
-    positive = power[finite & (power > 0)]
-    if positive.size == 0:
-        return np.full(power.shape, -dynamic_range_db), True
-    peak = float(np.percentile(positive, REFERENCE_PERCENTILE))
-    floor = peak * 10.0 ** (-dynamic_range_db / 10.0)
-    power = np.where(finite, np.maximum(power, floor), floor)
-    return np.minimum(10.0 * np.log10(power / peak), 0.0), False
-
-
-def _edges(axis: np.ndarray) -> tuple[float, float]:
-    """Outer pixel edges of an axis of pixel centres (half a spacing beyond each end)."""
-    half = 0.5 * float(axis[-1] - axis[0]) / (axis.size - 1) if axis.size > 1 else 0.5
-    return float(axis[0]) - half, float(axis[-1]) + half
-
-
 def _title(image: SarImage, title: str | None, dynamic_range_db: float, empty: bool,
            looks: tuple[int, int] = (1, 1)) -> str:
     """Three title lines: ``title`` (or the scene name), algorithm and window, then plane, fc

@@ -17,6 +17,7 @@ import numpy as np
 from scipy import fft as sp_fft
 
 from .constants import BOLTZMANN
+from .effects import EffectSet
 from .radar import ParameterError, RadarParameters
 
 __all__ = ["RadarEquation", "radar_equation", "thermal_noise", "calibrate_image", "effective_pulses"]
@@ -76,8 +77,11 @@ class RadarEquation:
         return np.sqrt(self.constant * self.time_bandwidth) / np.asarray(slant_range) ** 2
 
 
-def radar_equation(params: RadarParameters) -> RadarEquation | None:
+def radar_equation(params: RadarParameters, effects: EffectSet | None = None) -> RadarEquation | None:
     """The radar equation of a sensor, or None when absolute radiometry is off.
+
+    ``effects`` (:class:`~sarmitsuba.effects.EffectSet`, default ``EffectSet.of(params)``) says
+    whether absolute radiometry and thermal noise are on.
 
     Gain: ``antenna_gain_db``, else ``4 pi L_a H_a / lambda^2`` (uniform aperture, efficiency 1;
     Skolnik, *Radar Handbook*, 3rd ed., eq. 9.3). Noise power ``k T B F`` with T = noise
@@ -88,9 +92,9 @@ def radar_equation(params: RadarParameters) -> RadarEquation | None:
     ParameterError
         Noise without transmit power, or transmit power without any way to get the gain.
     """
-    noise_on = params.noise_figure_db is not None or params.noise_temperature is not None
-    if params.transmit_power is None:
-        if noise_on:
+    effects = EffectSet.of(params) if effects is None else effects
+    if not effects.radiometry:
+        if effects.noise:
             raise ParameterError("noise_figure_db / noise_temperature need transmit_power (absolute radiometry); "
                                  "give transmit_power [W] too")
         return None
@@ -103,7 +107,7 @@ def radar_equation(params: RadarParameters) -> RadarEquation | None:
                              "antenna_length and antenna_height [m]")
     temperature = params.noise_temperature if params.noise_temperature is not None else 290.0
     figure = 10.0 ** ((params.noise_figure_db or 0.0) / 10.0)
-    noise = BOLTZMANN * temperature * params.bandwidth * figure if noise_on else 0.0
+    noise = BOLTZMANN * temperature * params.bandwidth * figure if effects.noise else 0.0
     return RadarEquation(params.transmit_power, gain, 10.0 ** (params.losses_db / 10.0), params.wavelength,
                          params.bandwidth, params.pulse_length, noise)
 

@@ -26,34 +26,28 @@ import mitsuba as mi
 import numpy as np
 
 from .constants import SPEED_OF_LIGHT
+from .clutter_lattice import (footprint_cells, lattice_frame, length_expansion, scatterer, shortened_footprint,
+                              surface_key)
 from .deposit import SPECTRAL_ORDERS, taps
 from .physical_optics import SINC_REGIME, split_threshold
 
-__all__ = ["Returns", "hash32", "footprint_edges", "CLUTTER_COS_MIN"]
+__all__ = ["Returns", "footprint_edges"]
 
 #: A tile corner seen this close to grazing (cos of the incidence angle) by a pulse returns nothing
 #: (as kernel.COS_GRAZING for the tube's centre).
 COS_GRAZING = 1e-6
-#: Below this cosine of the incidence angle (84.3 deg) a tube's clutter footprint is shortened to
-#: 1 / CLUTTER_COS_MIN tube widths along the plane of incidence and its sigma0 raised by the same
-#: factor (docs/physics.md (C)): the same clutter power, on scatterers near the hit, at a bounded
-#: cost (a tube grazing a wall would otherwise loop over scatterers kilometres away).
-CLUTTER_COS_MIN = 0.1
+#: Below this ``|x|`` a sinc is taken as 1: the neglected ``x^2 / 6 < 2e-9`` is far below float32's
+#: resolution (6e-8), and it avoids the 0 / 0 at ``x = 0``.
+SINC_SMALL_ARGUMENT = 1e-4
+#: The ``exact`` kernel's clutter path buffer holds at least this many scatterers, and a launch
+#: that overflowed it asks for this many more than it found (slack, so a retry rarely overflows).
+PATH_HEADROOM = 1024
 _INVALID = 0xFFFFFFFF
 # flags of kernel.Flags (repeated here: the kernel imports this module)
 _HAS_I_LO, _HAS_I_HI, _HAS_J_LO, _HAS_J_HI, _INTERIOR, _SPLIT_1, _SPLIT_2, _BACK = 1, 2, 4, 8, 16, 32, 64, 128
 _UNDECIDED_1, _UNDECIDED_2 = 256, 512
 #: Flags two tubes must share for their PO terms at a common point to cancel (PO5).
 _MATCH = _INTERIOR | _SPLIT_1 | _SPLIT_2 | _BACK | _UNDECIDED_1 | _UNDECIDED_2
-
-
-def hash32(x):
-    """A 32-bit integer hash with full avalanche (two xorshift-multiply rounds, Wellons' "lowbias32")."""
-    x = x ^ (x >> 16)
-    x = x * 0x7FEB352D
-    x = x ^ (x >> 15)
-    x = x * 0x846CA68B
-    return x ^ (x >> 16)
 
 
 def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
@@ -69,12 +63,12 @@ def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
 def _sinc_pi(x):
     """sin(pi x) / (pi x), 1 at 0 (normalised sinc, as numpy.sinc)."""
     y = math.pi * x
-    return dr.select(dr.abs(y) < 1e-4, 1.0, dr.sin(y) / y)
+    return dr.select(dr.abs(y) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(y) / y)
 
 
 def _sinc(x):
     """sin(x) / x, 1 at 0."""
-    return dr.select(dr.abs(x) < 1e-4, 1.0, dr.sin(x) / x)
+    return dr.select(dr.abs(x) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(x) / x)
 
 
 class Returns:
@@ -87,27 +81,28 @@ class Returns:
     footprint : RayFootprint
     settings : TraceSettings
     tables : kernel tables (materials, clutter models)
-    clutter : bool
-        Whether any material is rough (compiles the clutter term).
+    effects : EffectSet
+        Which effects to compile in (:class:`sarmitsuba.effects.EffectSet`: clutter, antenna
+        pattern, absolute radiometry, spotlight steering, per-order spectra).
     beam_sines : (float, float)
         Along-track sines bounding the traced beam.
     """
 
-    def __init__(self, params, window, footprint, settings, tables, clutter: bool, beam_sines):
+    def __init__(self, params, window, footprint, settings, tables, effects, beam_sines):
         self.settings, self.window, self.fp, self.tables = settings, window, footprint, tables
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
         self.beam_sines = beam_sines
-        self.spotlight = params.mode == "spotlight"
+        self.spotlight = effects.spotlight
         self.exact = settings.range_kernel == "exact"
-        self.groups = settings.max_depth if settings.split_bounces else 1
-        self.clutter_on = clutter
+        self.groups = effects.groups
+        self.clutter_on = effects.clutter
         self.cancel_interior = settings.cancel_interior
         self.split_at = split_threshold(params.bandwidth, params.frequency)
         # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
-        self.radiometry = params.transmit_power is not None
+        self.radiometry = effects.radiometry
         # antenna pattern, eq. (A): the tapered default beam or the antenna's dimensions
-        self.pattern = params.pattern_length > 0 or params.antenna_height > 0
+        self.pattern = effects.pattern
         if self.pattern:
             boresight = footprint.look * params.ground_range - np.array([0.0, 0.0, params.altitude])
             boresight /= np.linalg.norm(boresight)
@@ -482,107 +477,71 @@ class Returns:
         its two-way length is the pulse's length to the tube's hit point expanded to second order in
         the offset. The footprints (the reference position's) tile a plane, so every scatterer is
         counted once per pulse: the same scatterers, with the same phases and positions, for every
-        pulse, bounce order and pass.
+        pulse, bounce order and pass. The lattice's steps are :mod:`sarmitsuba.clutter_lattice`'s.
         """
-        t, c = self.tables, self.fp.scatterer_spacing
-        kind = dr.gather(mi.UInt32, t.clutter_kind, rec.row)
-        value = dr.gather(mi.Float, t.clutter_value, rec.row)
-        back = (rec.flags & _BACK) != 0
-        n = rec.n
-        n_geo = dr.select(back, -n, n)                                  # the surface's own normal
-        d_ref = self._folded(rec, dr.normalize(rec.unfolded - dr.gather(mi.Array3f64, ctx["reference"], rec.sub)),
-                             depth)
-        # ---- near grazing (cos_i < CLUTTER_COS_MIN) the footprint, 1 / cos_i long along the plane of
-        #      incidence, is shortened to 1 / CLUTTER_COS_MIN and sigma0 raised by the same factor:
-        #      the tube keeps its clutter power, and no tube loops over kilometres of scatterers ----
-        e1, e2 = rec.e1, rec.e2
-        shorten = dr.maximum(-dr.dot(n, d_ref), 0.0) / CLUTTER_COS_MIN
-        grazing = shorten < 1.0
-        along = d_ref - n_geo * dr.dot(n_geo, d_ref)                    # the elongation direction
-        along = along * dr.rsqrt(dr.maximum(dr.squared_norm(along), 1e-30))
-        e1 = dr.select(grazing, e1 - along * ((1.0 - shorten) * dr.dot(e1, along)), e1)
-        e2 = dr.select(grazing, e2 - along * ((1.0 - shorten) * dr.dot(e2, along)), e2)
-        raise_by = dr.select(grazing, 1.0 / dr.maximum(shorten, 1e-30), 1.0)
-        # ---- the plane's frame and the footprint in it (units of cells) ----
-        horizontal = dr.abs(n_geo.z) > 0.9999
-        u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n_geo))
-        u_axis = dr.normalize(u_axis - n_geo * dr.dot(n_geo, u_axis))
-        v_axis = dr.cross(n_geo, u_axis)
-        # the hit in the shape's own frame (float64 difference, then float32)
-        local = mi.Vector3f(rec.p64 - mi.Array3f64(dr.gather(mi.Point3f, t.shape_origin, rec.shape)))
-        pu, pv = dr.dot(local, u_axis) / c, dr.dot(local, v_axis) / c
-        au, av = dr.dot(e1, u_axis) / c, dr.dot(e1, v_axis) / c
-        bu, bv = dr.dot(e2, u_axis) / c, dr.dot(e2, v_axis) / c
-        inv_det = 1.0 / (au * bv - av * bu)
-        hu, hv = 0.5 * (dr.abs(au) + dr.abs(bu)), 0.5 * (dr.abs(av) + dr.abs(bv))
-        iu0, iv0 = mi.Int32(dr.floor(pu - hu)), mi.Int32(dr.floor(pv - hv))
-        nu = dr.maximum(mi.Int32(dr.floor(pu + hu)) - iu0 + 1, 1)
-        nv = mi.Int32(dr.floor(pv + hv)) - iv0 + 1
-        cells = mi.UInt32(dr.select(dr.isfinite(inv_det), nu * nv, 0))
-        m11, m12, m21, m22 = bv * inv_det, -bu * inv_det, -av * inv_det, au * inv_det
-        # ---- which surface: shape, side, plane offset and direction ----
-        shape_key = dr.gather(mi.UInt32, t.shape_key, rec.shape)
-        plane = (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, local) / c)))
-                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.x * 1024.0))) * 0x01000193)
-                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.y * 1024.0))) * 0x00010001)
-                 ^ (mi.UInt32(mi.Int32(dr.round(n_geo.z * 1024.0))) * 0x00000101))
-        key0 = hash32(shape_key ^ (mi.UInt32(back) << 31) ^ hash32(plane ^ mi.UInt32(self.settings.seed)))
-        du_axis, dv_axis = (mi.Vector3f(u_axis), mi.Vector3f(v_axis))
-        mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
-        nu32 = mi.UInt32(nu)
+        lattice = self._clutter_lattice(ctx, rec, depth)
         count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
-        paths = self._path_buffers(max(ctx["capacity"], 1024)) if self.exact else None
+        paths = self._path_buffers(max(ctx["capacity"], PATH_HEADROOM)) if self.exact else None
 
         def pulse_body(q):
-            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
-            incoming, outgoing = rec.unfolded - antenna, antenna - rec.p64       # unfolded first leg
-            s, dist = dr.norm(incoming), dr.norm(outgoing)
-            d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
-            cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
-            r = self.reflection_at(rec.row, cos_i, True)
-            sigma0 = dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
-                               dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * raise_by
-            rough = (sigma0 > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
-            weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
-            rel = s + dist - lref
-            anchor = self.anchor(rel, lref)
-            amplitude = rec.gamma * self.carrier_phase(rel) * (dr.sqrt(sigma0) * c * weight)
-            # two-way length offset of a scatterer (du, dv) cells from the hit, to second order:
-            # incoming from the image source at distance s, outgoing to the antenna at R_rx
-            inv_s, inv_r = c * c / mi.Float(s), c * c / mi.Float(dist)
-            du_d, dv_d, du_b, dv_b = dr.dot(d, du_axis), dr.dot(d, dv_axis), dr.dot(b, du_axis), dr.dot(b, dv_axis)
-            g_u, g_v = c * (du_d - du_b), c * (dv_d - dv_b)
-            q_uu = 0.5 * ((1.0 - du_d * du_d) * inv_s + (1.0 - du_b * du_b) * inv_r)
-            q_vv = 0.5 * ((1.0 - dv_d * dv_d) * inv_s + (1.0 - dv_b * dv_b) * inv_r)
-            q_uv = -(du_d * dv_d * inv_s + du_b * dv_b * inv_r)
-            n_cells = dr.select(rough, cells, 0)
-
-            def step(i, found, outside):
-                iv = i // nu32
-                iu_, iv_ = iu0 + mi.Int32(i - iv * nu32), iv0 + mi.Int32(iv)
-                h0 = hash32(mi.UInt32(iu_) * 0x9E3779B1 ^ mi.UInt32(iv_) * 0x85EBCA77 ^ key0)
-                du = mi.Float(iu_) + mi.Float(h0 & 0xFFFF) * (1.0 / 65536.0) - pu     # scatterer - hit, in cells
-                dv = mi.Float(iv_) + mi.Float(h0 >> 16) * (1.0 / 65536.0) - pv
-                s1, s2 = m11 * du + m12 * dv, m21 * du + m22 * dv                    # footprint coordinates
-                own = (i < n_cells) & (s1 >= -0.5) & (s1 < 0.5) & (s2 >= -0.5) & (s2 < 0.5)
-                dl = g_u * du + g_v * dv + q_uu * du * du + q_uv * du * dv + q_vv * dv * dv
-                phase = mi.Float(hash32(h0 ^ 0x68E31DA4)) * (2.0 * math.pi / 4294967296.0) - self.k * dl
-                sn, cs = dr.sincos(phase)
-                inside = self._deposit(ctx, pulse, depth, anchor, dl, amplitude * mi.Complex2f(cs, sn), mid, own,
-                                       paths, None)
-                return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
-
-            _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
-                                              lambda i, *_: i < n_cells, step, label="scatterers")
-            power = dr.squared_norm(amplitude)
-            dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
-            dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
-            dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
+            self._clutter_pulse(ctx, rec, depth, lattice, q, paths)
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, label="pulses")
         if paths is not None:
             self._keep_paths(ctx, paths)
+
+    def _clutter_lattice(self, ctx, rec, depth: int) -> dict:
+        """The pulse-independent part of eq. (C) per hit: the (shortened) footprint's cells on the
+        surface's lattice, the lattice's frame and hash key, the clutter model and sigma0's raise."""
+        t, c = self.tables, self.fp.scatterer_spacing
+        back = (rec.flags & _BACK) != 0
+        n_geo = dr.select(back, -rec.n, rec.n)                          # the surface's own normal
+        d_ref = self._folded(rec, dr.normalize(rec.unfolded - dr.gather(mi.Array3f64, ctx["reference"], rec.sub)),
+                             depth)
+        e1, e2, raise_by = shortened_footprint(rec.e1, rec.e2, rec.n, n_geo, d_ref)
+        u_axis, v_axis = lattice_frame(n_geo)
+        # the hit in the shape's own frame (float64 difference, then float32)
+        local = mi.Vector3f(rec.p64 - mi.Array3f64(dr.gather(mi.Point3f, t.shape_origin, rec.shape)))
+        return dict(kind=dr.gather(mi.UInt32, t.clutter_kind, rec.row),
+                    value=dr.gather(mi.Float, t.clutter_value, rec.row), raise_by=raise_by, axes=(u_axis, v_axis), cells=footprint_cells(local, e1, e2, u_axis, v_axis, c),
+                    key0=surface_key(dr.gather(mi.UInt32, t.shape_key, rec.shape), back, n_geo, local, c,
+                                     self.settings.seed))
+
+    def _clutter_pulse(self, ctx, rec, depth: int, lattice: dict, q, paths) -> None:
+        """Pulse ``q`` of the hits' sub-apertures: sigma0 and the amplitude ``a_c`` at the hit, then
+        each scatterer of the footprint at its second-order length ``L_c``, deposited, eq. (C)."""
+        c, n, kind, value = self.fp.scatterer_spacing, rec.n, lattice["kind"], lattice["value"]
+        pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+        incoming, outgoing = rec.unfolded - antenna, antenna - rec.p64       # unfolded first leg
+        s, dist = dr.norm(incoming), dr.norm(outgoing)
+        d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
+        cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
+        r = self.reflection_at(rec.row, cos_i, True)
+        sigma0 = dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
+                           dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * lattice["raise_by"]
+        rough = (sigma0 > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
+        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+        rel = s + dist - lref
+        anchor = self.anchor(rel, lref)
+        amplitude = rec.gamma * self.carrier_phase(rel) * (dr.sqrt(sigma0) * c * weight)
+        expansion = length_expansion(d, b, s, dist, *lattice["axes"], c)
+        n_cells = dr.select(rough, lattice["cells"].cells, 0)
+        mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
+
+        def step(i, found, outside):
+            own, dl, phase = scatterer(i, lattice["cells"], lattice["key0"], expansion, n_cells, self.k)
+            sn, cs = dr.sincos(phase)
+            inside = self._deposit(ctx, pulse, depth, anchor, dl, amplitude * mi.Complex2f(cs, sn), mid, own,
+                                   paths, None)
+            return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
+
+        _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
+                                          lambda i, *_: i < n_cells, step, label="scatterers")
+        power = dr.squared_norm(amplitude)
+        dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
+        dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
+        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
 
     # ------------------------------------------------------------------ deposit
     def _deposit(self, ctx, pulse, depth: int, anchor, offset, value, order_index, mask, paths, slot) -> mi.Bool:
@@ -608,7 +567,7 @@ class Returns:
         k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
         k0 = k0 + anchor[0]
         inside = (k0 >= lo) & (k0 < win.n_fine - hi)
-        group = depth if st.split_bounces else 0
+        group = depth if self.groups > 1 else 0
         base = ((order_index * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
         for offset_, w in tap_list:            # one (re, im) packet per tap
             dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
@@ -629,7 +588,7 @@ class Returns:
         dr.eval(paths["count"], *(paths[name] for name in names))
         count = int(paths["count"].numpy()[0])
         if count > paths["capacity"]:
-            ctx["needed"] = max(ctx["needed"], count + 1024)
+            ctx["needed"] = max(ctx["needed"], count + PATH_HEADROOM)
             return
         filled = np.flatnonzero(paths["path_order"].numpy())
         ctx["paths"].append({name: paths[name].numpy()[filled] for name in names})

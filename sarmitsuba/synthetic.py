@@ -36,13 +36,12 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .arrays import readonly, vector3
-from .focus.range_compression import chirp_spectrum
 from .focus.windows import check_window, compressed_pulse
 from .raw import RawData
+from .signal_model import received_chirp_spectrum
 
 __all__ = ["PointTarget", "Track", "AzimuthBeam", "straight_track", "simulate_point_targets",
-           "two_way_length", "along_track_angle", "illuminated", "stripmap", "spotlight",
-           "receiver_response"]
+           "two_way_length", "along_track_angle", "illuminated", "stripmap", "spotlight"]
 
 C = SPEED_OF_LIGHT
 
@@ -363,9 +362,9 @@ def simulate_point_targets(targets: Iterable[PointTarget] | PointTarget, tx_posi
         ``fs = 1.2 B``), which bounds how closely any range compression can reproduce
         ``p_r``. True: the echo as received through an ideal anti-aliasing filter, flat
         (unit gain, zero phase) over ``|f| <= B/2`` with a raised-cosine roll-off to zero
-        at ``fs/2`` (:func:`receiver_response`); computed exactly from the chirp's
-        closed-form spectrum
-        (:func:`sarmitsuba.focus.range_compression.chirp_spectrum`). Its spectrum over the band is
+        at ``fs/2`` (:func:`sarmitsuba.signal_model.receiver_response`); computed exactly from
+        the chirp's closed-form spectrum
+        (:func:`sarmitsuba.signal_model.received_chirp_spectrum`). Its spectrum over the band is
         exactly the chirp's, so compressing it gives ``p_r`` (docs/design.md section 5).
     metadata : dict, optional
         Merged into the RawData metadata (after the generator's own keys).
@@ -474,18 +473,6 @@ def simulate_point_targets(targets: Iterable[PointTarget] | PointTarget, tx_posi
 
 
 # ============================================================================ chirp spectrum
-def receiver_response(freqs: np.ndarray, fs: float, bandwidth: float) -> np.ndarray:
-    """Anti-aliasing filter of ``anti_alias=True``: 1 over ``|f| <= B/2``, a raised-cosine
-    roll-off to 0 at ``|f| = fs/2`` (a brick wall when ``fs == B``), 0 beyond. float64."""
-    f = np.abs(np.asarray(freqs, dtype=np.float64))
-    edge = bandwidth / 2.0
-    width = fs / 2.0 - edge
-    if width <= 0:
-        return (f <= edge).astype(np.float64)
-    x = np.clip((f - edge) / width, 0.0, 1.0)
-    return np.cos(0.5 * np.pi * x) ** 2
-
-
 def _received_chirps(offset: np.ndarray, n: int, fs: float, bandwidth: float, pulse_length: float,
                      chirp_rate: float) -> np.ndarray:
     """Anti-aliased chirp samples: ``x_p[i] = int H(f) S(f) exp(j 2 pi f (offset_p + i / fs)) df``.
@@ -500,7 +487,7 @@ def _received_chirps(offset: np.ndarray, n: int, fs: float, bandwidth: float, pu
     n_fft = int(2 ** np.ceil(np.log2(n + (pulse_length + 2 * guard) * fs + 1)))
     k = np.fft.fftfreq(n_fft) * n_fft
     f = k * fs / n_fft
-    spectrum = receiver_response(f, fs, bandwidth) * chirp_spectrum(f, pulse_length, chirp_rate) * fs
+    spectrum = received_chirp_spectrum(f, fs, bandwidth, pulse_length, chirp_rate)
     out = np.empty((offset.size, n), np.complex128)
     for p0 in range(0, offset.size, 128):
         off = offset[p0:p0 + 128]

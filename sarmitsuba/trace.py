@@ -23,7 +23,6 @@ the reference phase in float64, band-limits (range compression) or chirps it.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, fields
@@ -34,9 +33,10 @@ import numpy as np
 from tqdm import tqdm
 
 from .deposit import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
+from .effects import EffectSet, rough_materials
 from .kernel import Blocks, Kernel, Launch
 from .radar import AcquisitionGeometry, ParameterError, RadarParameters
-from .trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, Refinement, TraceSettings
+from .trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, TraceSettings
 
 __all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
            "caused_by_interrupt", "LANCZOS_A", "SubApertures",
@@ -171,7 +171,7 @@ HISTOGRAM_ENTRIES = 1 << 22
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
           window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
-          material_table: MaterialTable, progress: bool = False) -> TraceResult:
+          material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None) -> TraceResult:
     """Trace all pulses of an acquisition (see module docstring for the model).
 
     Parameters
@@ -189,6 +189,9 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         Reflection coefficient against cos(incidence) and clutter model per shape.
     progress : bool
         Show a tqdm bar over pulses.
+    effects : EffectSet, optional
+        The effects to trace (:func:`sarmitsuba.effects.active_effects` of the loaded scene);
+        default: those of ``params``, ``settings`` and the rough materials of ``material_table``.
 
     Returns
     -------
@@ -196,8 +199,10 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     """
     n_pulses = geometry.positions.shape[0]
     lref = 2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1)
+    if effects is None:
+        effects = EffectSet.of(params, settings, rough_materials(material_table))
     exact = settings.range_kernel == "exact"
-    groups = settings.max_depth if settings.split_bounces else 1
+    groups = effects.groups
     n_pad = padded_length(window.n_samples)
     subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
@@ -209,7 +214,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
                   outside=0.0, shadow=0, evaluated=0)
     start = time.perf_counter()
-    kernel = Kernel(scene, params, window, footprint, settings, material_table)
+    kernel = Kernel(scene, params, window, footprint, settings, material_table, effects)
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
     try:
         for g0 in range(0, len(subs.first), per_batch):
@@ -245,9 +250,9 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     return TraceResult(spectrum=spectrum.sum(axis=0) if groups > 1 else spectrum[0], reference_length=lref,
                        energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),
                        rays_per_order=totals["rays"], shadow_rays=int(totals["shadow"]), seconds=seconds,
-                       spectrum_per_order=spectrum if settings.split_bounces and not exact else None,
+                       spectrum_per_order=spectrum if effects.split_bounces and not exact else None,
                        carried_power_per_order=totals["carried"],
-                       paths=PathList.concatenate(paths) if exact else None, split=settings.split_bounces,
+                       paths=PathList.concatenate(paths) if exact else None, split=effects.split_bounces,
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else n_pad,
                        pulses_per_trace=subs.size, pulse_paths=int(totals["evaluated"]))
 

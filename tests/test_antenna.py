@@ -60,9 +60,14 @@ def test_pattern_sets_the_beam_and_resolution():
     sim = simulate("trihedral", sensor_overrides={"antenna_length": 2.0, "azimuth_beamwidth": 0})
     p = sim.loaded.params
     assert p.azimuth_resolution == 1.0
-    half_power = 0.4429464706890664                            # sinc(x)^2 = 1/2 (scipy brentq)
-    assert p.azimuth_beamwidth == pytest.approx(math.degrees(2 * math.asin(half_power * p.wavelength / 2.0)), rel=1e-7)
-    assert math.isclose(p.traced_beamwidth, math.degrees(2 * math.asin(p.wavelength / 2.0)))
+    # worked by hand, lambda = c / 9.6 GHz = 0.0312284 m: 2 asin(0.442946 * 0.0312284 / 2)
+    # = 2 asin(0.00691625) = 0.792550 deg (a half-power point at 0.886 lambda / L, i.e. the
+    # two-way pattern's 3 dB taken for the one-way one, gives 1.585 deg; a beamwidth left in
+    # radians, 0.01383)
+    assert p.azimuth_beamwidth == pytest.approx(0.792550, abs=2e-6)
+    # first nulls 2 asin(0.0312284 / 2) = 2 asin(0.0156142) = 1.789327 deg (3 dB instead: 0.79)
+    assert p.traced_beamwidth == pytest.approx(1.789327, abs=2e-6)
+    # and the pattern is indeed at half power there (second method: the pattern itself)
     assert np.sinc(2.0 / p.wavelength * math.sin(math.radians(p.azimuth_beamwidth / 2))) ** 2 == pytest.approx(0.5)
 
 
@@ -73,13 +78,16 @@ def test_default_beam_is_tapered_and_uniform_on_request():
     from sarmitsuba.radar import ParameterError, RadarParameters
     tapered, uniform = RadarParameters(), RadarParameters(beam="uniform")
     beta = math.radians(1.0)
+    # worked by hand: L = 0.442946 lambda / sin(0.5 deg) = 0.442946 * 0.0312284 / 0.00872654
+    # = 1.585108 m (sin(1 deg), the full width for the half: 0.7927 m)
+    assert tapered.pattern_length == pytest.approx(1.585108, abs=2e-6)
     assert np.sinc(tapered.pattern_length / tapered.wavelength * math.sin(beta / 2)) ** 2 == pytest.approx(0.5)
-    assert tapered.traced_beamwidth == pytest.approx(math.degrees(2 * math.asin(tapered.wavelength
-                                                                                 / tapered.pattern_length)))
-    assert 2.2 < tapered.traced_beamwidth < 2.3
-    assert tapered.azimuth_resolution == pytest.approx(tapered.pattern_length / 2)
+    # nulls: 2 asin(0.0312284 / 1.585108) = 2 asin(0.0197011) = 2.257727 deg; resolution L / 2
+    assert tapered.traced_beamwidth == pytest.approx(2.257727, abs=2e-6)
+    assert tapered.azimuth_resolution == pytest.approx(0.792554, abs=2e-6)
     assert uniform.pattern_length == 0 and uniform.traced_beamwidth == pytest.approx(1.0)
-    assert uniform.azimuth_resolution == pytest.approx(uniform.wavelength / (2 * beta))
+    # lambda / (2 beta) = 0.0312284 / (2 * 0.0174533) = 0.894627 m (beta in degrees: 0.0156)
+    assert uniform.azimuth_resolution == pytest.approx(0.894627, abs=2e-6)
     with pytest.raises(ParameterError, match="beam = 'uniform'"):
         RadarParameters(beam="uniform", antenna_length=1.0)
     with pytest.raises(ParameterError, match="disagrees with antenna_length"):

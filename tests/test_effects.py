@@ -31,8 +31,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sarmitsuba import binning, pipeline, planning, radiometry
-from sarmitsuba.focus import range_compression
+from sarmitsuba import binning, pipeline, planning, radiometry, signal_model
 from sarmitsuba.radar import acquisition_geometry
 
 SCENES = Path(__file__).parent / "scenes"
@@ -280,7 +279,7 @@ def test_noise_parameters_without_noise_seed_change_nothing(monkeypatch):
 
 
 def test_compressed_output_computes_no_chirp_spectrum(monkeypatch):
-    monkeypatch.setattr(range_compression, "chirp_spectrum", _forbidden("chirp_spectrum"))
+    monkeypatch.setattr(signal_model, "chirp_spectrum", _forbidden("chirp_spectrum"))
     sim = pipeline.simulate(PLANE, sensor_overrides=SMALL, integrator_overrides=COARSE)
     assert sim.raw.range_compressed
 
@@ -288,7 +287,33 @@ def test_compressed_output_computes_no_chirp_spectrum(monkeypatch):
 def test_raw_output_computes_the_chirp_spectrum(monkeypatch):
     """Positive control for the patch above: chirped output does call it."""
     calls: list = []
-    monkeypatch.setattr(range_compression, "chirp_spectrum", _counting(range_compression.chirp_spectrum, calls))
+    monkeypatch.setattr(signal_model, "chirp_spectrum", _counting(signal_model.chirp_spectrum, calls))
     sim = pipeline.simulate(PLANE, sensor_overrides={**SMALL, "output": "raw"}, integrator_overrides=COARSE)
     assert not sim.raw.range_compressed
     assert len(calls) >= 1
+
+
+# ---- 4. the effect set is decided once and obeyed by those it is handed to -------------------------
+
+def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
+    """``active_effects`` decides; the tracer and the radar equation obey the set they are given
+    instead of re-deriving it from the parameters or the material table. Fails if the kernel
+    re-reads ``material_table.has_clutter`` or radar_equation re-reads ``transmit_power``."""
+    from sarmitsuba.effects import active_effects
+    from sarmitsuba.scene import load_scene, material_table
+    from sarmitsuba.trace import trace
+    loaded = load_scene(ROUGH, SMALL, COARSE)
+    p = loaded.params
+    geometry = acquisition_geometry(p)
+    window = planning.fast_time_window(p, geometry, loaded.bbox_lo, loaded.bbox_hi, loaded.settings)
+    footprint = planning.ray_footprint(p, geometry, loaded.bbox_lo, loaded.bbox_hi, loaded.settings)
+    table = material_table(loaded.scene, p.frequency, p.polarization)
+    effects = active_effects(loaded)
+    assert effects.clutter and [e.name for e in effects] == ["distributed clutter and speckle"]
+    rough = trace(loaded.scene, p, geometry, window, footprint, loaded.settings, table, effects=effects)
+    smooth = trace(loaded.scene, p, geometry, window, footprint, loaded.settings, table,
+                   effects=dataclasses.replace(effects, rough_materials=()))
+    assert rough.scatterers_per_order.sum() > 0 and smooth.scatterers_per_order.sum() == 0
+    loud = dataclasses.replace(p, **RADIOMETRY)
+    assert radiometry.radar_equation(loud) is not None
+    assert radiometry.radar_equation(loud, dataclasses.replace(effects, radiometry=False)) is None

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import figures
+from sarmitsuba import figures, figures_raw
 from sarmitsuba.analysis import analyze_point_target
 from sarmitsuba.bandlimited import dft_rows
 from sarmitsuba.image import SarImage
@@ -68,7 +68,7 @@ def test_raw_figure_of_chirped_data(tmp_path):
     lag = ((np.arange(n_s) + n_s // 2) % n_s - n_s // 2) / fs                 # circular delay, s
     chirp = (np.abs(lag) <= tp / 2) * np.exp(1j * np.pi * bandwidth / tp * lag**2)
     compressed = np.fft.ifft(np.fft.fft(data, axis=1) * np.conj(np.fft.fft(chirp)), axis=1)   # matched filter
-    echo = figures._pick_echo(raw, compressed.astype(np.complex64), 299792458.0 * t / 2)
+    echo = figures_raw.pick_echo(raw, compressed.astype(np.complex64), 299792458.0 * t / 2)
     assert abs(echo.pulse - 40) <= 1 and echo.point_like
     check_png(figures.raw_figure(raw, tmp_path / "chirp.png", figsize=(8.0, 6.0), dpi=50), (400, 300))
 
@@ -211,7 +211,7 @@ def test_raw_figure_draws_the_phase_history_of_a_true_point(tmp_path, drawn):
     offset = drawn_model[ok] - truth[ok]
     assert np.ptp(offset) < 0.05, "the drawn point-target phase history is not the point's"
     assert np.nanmax(np.abs(np.asarray(measured.get_ydata()) - drawn_model)) < 0.05
-    echo = figures._pick_echo(raw, raw.data, C * raw.fast_time / 2)
+    echo = figures_raw.pick_echo(raw, raw.data, C * raw.fast_time / 2)
     broadside = int(np.argmin(np.linalg.norm(raw.tx_position - target, axis=1)))
     assert abs(echo.pulse - broadside) <= 1
     assert echo.r0 == pytest.approx(np.linalg.norm(raw.tx_position[broadside] - target), abs=0.3)
@@ -222,7 +222,7 @@ def test_raw_figure_of_an_extended_target_finds_no_point(tmp_path, drawn):
     no point-like target, no parabola drawn, and the figure says so."""
     from sarmitsuba.synthetic import stripmap
     raw = stripmap(line_of_points(), **STRIP)
-    echo = figures._pick_echo(raw, raw.data, C * raw.fast_time / 2)
+    echo = figures_raw.pick_echo(raw, raw.data, C * raw.fast_time / 2)
     assert not echo.point_like and echo.rms > 5.0
     figures.raw_figure(raw, tmp_path / "line.png", figsize=(8.0, 6.0), dpi=50)
     sim = simulate("dihedral")
@@ -241,7 +241,7 @@ def test_raw_figure_prefers_a_weak_point_to_a_bright_wall(tmp_path):
     slant = C * raw.fast_time / 2
     brightest = np.unravel_index(int(np.argmax(np.abs(raw.data))), raw.data.shape)
     assert abs(slant[brightest[1]] - np.hypot(1000.0, 1000.0)) < 3.0, "the line is the brightest echo"
-    echo = figures._pick_echo(raw, raw.data, slant)
+    echo = figures_raw.pick_echo(raw, raw.data, slant)
     assert echo.point_like and echo.rms < 0.5
     broadside = int(np.argmin(np.linalg.norm(raw.tx_position - target, axis=1)))
     assert abs(echo.pulse - broadside) <= 1

@@ -72,6 +72,29 @@ def test_urban_radar_summary_matches_closed_forms():
     assert r.track_length_m == pytest.approx((r.n_pulses - 1) * v / 250.0)
 
 
+@pytest.mark.parametrize("incidence, slant, ground, ground_resolution, near, far", [
+    # 30 deg: R = 1000 / cos 30 = 1000 / 0.866025; Y = 1000 tan 30 = 1000 * 0.577350;
+    # c / (2B sin 30) = 0.999308 / 0.5; near/far atan((577.350 -+ 120) / 1000)
+    (30.0, 1154.7005, 577.3503, 1.998616, 24.577000, 34.890002),
+    # 60 deg: R = 1000 / 0.5; Y = 1000 * 1.732051; 0.999308 / 0.866025; atan((1732.051 -+ 120) / 1000)
+    (60.0, 2000.0000, 1732.0508, 1.153902, 58.187521, 61.633527),
+])
+def test_radar_summary_away_from_45_degrees(incidence, slant, ground, ground_resolution, near, far):
+    """urban.xml (H = 1000 m, B = 150 MHz, ground range +-120 m) flown at 30 and 60 deg, values
+    worked by hand. At 45 deg sin = cos and tan = 1 / tan, so only these catch a swap: slant
+    range H / sin instead of H / cos (2000 against 1154.7 m at 30 deg, 1154.7 against 2000 at
+    60), ground range H / tan (1732 against 577 m), ground resolution over cos instead of sin
+    (1.154 against 1.999 m at 30 deg, the reverse at 60)."""
+    r = scene_info("urban", sensor_overrides={"incidence_angle": incidence}).radar
+    assert r.look_angle_deg == r.incidence_angle_deg == incidence
+    assert r.slant_range_m == pytest.approx(slant, abs=1e-3)
+    assert r.ground_range_m == pytest.approx(ground, abs=1e-3)
+    assert r.slant_range_resolution_m == pytest.approx(0.999308, abs=1e-6)
+    assert r.ground_range_resolution_m == pytest.approx(ground_resolution, abs=1e-6)
+    assert r.incidence_near_deg == pytest.approx(near, abs=1e-5)
+    assert r.incidence_far_deg == pytest.approx(far, abs=1e-5)
+
+
 def test_antenna_length_sets_azimuth_resolution_and_doppler_bandwidth():
     """With an antenna of length D (automatic beam): azimuth resolution D / 2, 3-dB Doppler
     bandwidth 4 v (0.443 lambda / D) / lambda = 1.772 v / D; the simulated beam is null to null,

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sarmitsuba.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
+from sarmitsuba.constants import SPEED_OF_LIGHT
 from sarmitsuba.materials import (
     ITU_MATERIALS,
     Material,
@@ -103,17 +103,36 @@ class TestItu:
             ours = [((r[0], r[1]), r[2:]) for r in ITU_MATERIALS[name]]
             assert ours == list(rows.items()), name
 
-    @pytest.mark.parametrize("name", sorted(ITU_MATERIALS))
-    def test_formula_in_each_range(self, name):
-        for f_min, f_max, a, b, c, d in ITU_MATERIALS[name]:
-            f_ghz = math.sqrt(f_min * f_max)
-            f = f_ghz * 1e9
-            # first matching row applies where ranges overlap
-            row = next(r for r in ITU_MATERIALS[name] if r[0] <= f_ghz <= r[1])
-            a, b, c, d = row[2:]
-            expected = complex(a * f_ghz ** b,
-                               -c * f_ghz ** d / (2 * math.pi * f * VACUUM_PERMITTIVITY))
-            assert itu_permittivity(name, f) == pytest.approx(expected, rel=1e-12)
+    # Worked examples of ITU-R P.2040-1 eqs. (9a), (9b) and (12), evaluated by hand from Table 3:
+    # eta' = a f^b, sigma = c f^d [S/m] (f in GHz), eta'' = 17.975 sigma / f (P.2040 eq. 9b with
+    # 1 / (2 pi eps_0 1 GHz) = 17.975); eta = eta' - j eta''.
+    @pytest.mark.parametrize("name, f_ghz, eta_real, eta_imag", [
+        # concrete 9.6 GHz: 5.24; sigma = 0.0462 * 9.6^0.7822 = 0.0462 * 5.8659 = 0.27100
+        ("concrete", 9.6, 5.24, 17.975 * 0.27100 / 9.6),                  # 0.50743
+        # wet ground 5 GHz: 30 * 5^-0.4 = 30 * 0.52531 = 15.759; sigma = 0.15 * 5^1.3 = 0.15 * 8.1033 = 1.2155
+        ("wet_ground", 5.0, 15.759, 17.975 * 1.2155 / 5.0),                # 4.3697
+        # medium dry ground 2 GHz: 15 * 2^-0.1 = 15 * 0.93303 = 13.995; sigma = 0.035 * 2^1.63 = 0.035 * 3.0951 = 0.10833
+        ("medium_dry_ground", 2.0, 13.995, 17.975 * 0.10833 / 2.0),        # 0.97362
+        # brick 28 GHz: 3.91; sigma = 0.0238 * 28^0.16 = 0.0238 * 1.7043 = 0.040562
+        ("brick", 28.0, 3.91, 17.975 * 0.040562 / 28.0),                   # 0.026040
+        # plywood 10 GHz: d = 0, sigma = 0.33 at every frequency
+        ("plywood", 10.0, 2.71, 17.975 * 0.33 / 10.0),                     # 0.59318
+        # plasterboard 150 GHz lies in two rows (110-330 and 100-400): the first one applies,
+        # 2.56; sigma = 0.0001 * 150^1.7799 = 0.0001 * 7468.4 = 0.74684
+        ("plasterboard", 150.0, 2.56, 17.975 * 0.74684 / 150.0),           # 0.089496
+        # plasterboard 105 GHz: only the 100-400 row, 2.65; sigma = 0.0002 * 105^1.598 = 0.0002 * 1697.7 = 0.33954
+        ("plasterboard", 105.0, 2.65, 17.975 * 0.33954 / 105.0),           # 0.058126
+        # metal 10 GHz: 1; sigma = 1e7 S/m
+        ("metal", 10.0, 1.0, 17.975 * 1e7 / 10.0),                          # 1.7975e7
+    ])
+    def test_worked_examples_of_the_itu_formula(self, name, f_ghz, eta_real, eta_imag):
+        """Against hand-evaluated values (4-5 digits). Catches: f in Hz instead of GHz in the power
+        laws (wet ground: 30 * (5e9)^-0.4 = 4e-3), the exponents b and d swapped (wet ground eta'
+        = 30 * 5^1.3 = 243), omega replaced by f (eta'' 2 pi too large), a positive imaginary part,
+        the last matching row used instead of the first (plasterboard 150 GHz: 2.65, not 2.56)."""
+        eta = itu_permittivity(name, f_ghz * 1e9)
+        assert eta.real == pytest.approx(eta_real, rel=1e-4)
+        assert eta.imag == pytest.approx(-eta_imag, rel=2e-4)
 
     def test_concrete_value(self):
         eta = itu_permittivity("concrete", F_X)

@@ -16,7 +16,8 @@ import scipy.integrate
 from sarmitsuba.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus import windows as w
-from sarmitsuba.focus.range_compression import apply_range_window, chirp_spectrum, range_compress
+from sarmitsuba.focus.range_compression import apply_range_window, range_compress
+from sarmitsuba.signal_model import chirp_spectrum
 from sarmitsuba.synthetic import PointTarget, simulate_point_targets, straight_track
 from test_backprojection import _width
 

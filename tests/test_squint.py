@@ -39,11 +39,27 @@ def test_mid_aperture_line_of_sight_has_the_squint(squint):
     assert np.linalg.norm(los - (los @ g.track_direction) * g.track_direction) == pytest.approx(p.slant_range, rel=1e-12)
 
 
+#: f_DC = 2 v sin(squint) / lambda worked by hand for the trihedral scene (v = 100 m/s,
+#: lambda = c / 9.6 GHz = 0.0312284 m): 200 * sin(-15 deg) / 0.0312284 = 200 * -0.258819 / 0.0312284
+#: and 200 * sin(25 deg) / 0.0312284 = 200 * 0.422618 / 0.0312284.
+DOPPLER_CENTROID_HZ = {-15.0: -1657.59, 25.0: 2706.63}
+
+
 def test_doppler_centroid_of_traced_data(squinted):
+    """The parameter against the worked values, and against a second method: the Doppler
+    -2/lambda dR/dt of the scene centre seen from the traced mid-aperture pulses (central
+    difference of the antenna-to-target distance). Catches tan instead of sin (2986 Hz at 25
+    deg, +10 %), a dropped factor 2 (1353 Hz), degrees taken as radians (sin(25 rad) < 0) and
+    a sign flip of the squint."""
     for squint, sim in squinted.items():
         p = sim.loaded.params
-        expected = 2 * p.velocity * math.sin(math.radians(squint)) / p.wavelength
-        assert p.doppler_centroid == pytest.approx(expected)
+        expected = DOPPLER_CENTROID_HZ[squint]
+        assert p.doppler_centroid == pytest.approx(expected, abs=0.02)
+        lo = (sim.raw.n_pulses - 2) // 2                 # lo and hi straddle the mid-aperture
+        hi = sim.raw.n_pulses - 1 - lo
+        distance = np.linalg.norm(sim.raw.tx_position[[lo, hi]] - np.asarray(p.scene_center), axis=1)
+        dt = sim.raw.pulse_time[hi] - sim.raw.pulse_time[lo]
+        assert -2.0 / p.wavelength * (distance[1] - distance[0]) / dt == pytest.approx(expected, rel=1e-4)
         # the data's energy centroid: the trihedral's aspect pattern across the beam skews it by a few %
         assert abs(estimate_doppler_centroid(sim.raw) - expected) < 0.05 * p.doppler_bandwidth
 

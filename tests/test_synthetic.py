@@ -12,8 +12,9 @@ import pytest
 
 from sarmitsuba.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.raw import RawData
-from sarmitsuba.synthetic import (AzimuthBeam, PointTarget, illuminated, receiver_response, simulate_point_targets,
-                                  spotlight, straight_track, stripmap)
+from sarmitsuba.signal_model import receiver_response
+from sarmitsuba.synthetic import (AzimuthBeam, PointTarget, illuminated, simulate_point_targets, spotlight,
+                                  straight_track, stripmap)
 
 FC = 9.6e9
 B = 150e6

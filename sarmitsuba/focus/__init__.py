@@ -29,8 +29,9 @@ Algorithms
 
 One call
 --------
-:func:`focus` (also ``sarmitsuba.refocus``) focuses any RawData with a named algorithm, on the
-scene's ground grid when the metadata record it, as the ``focus`` command does.
+:func:`focus` (also ``sarmitsuba.refocus``) focuses any RawData with a named algorithm
+(:data:`ALGORITHMS`), on the scene's ground grid when the metadata record it, as the ``focus``
+command does (:mod:`sarmitsuba.focus.dispatch`).
 
 Range processing and geometry
 -----------------------------
@@ -42,6 +43,7 @@ Range processing and geometry
 ==================================  =========================================================
 """
 from .backprojection import backproject, backproject_reference
+from .dispatch import ALGORITHMS, focus
 from .ffbp import ffbp
 from .grid import ImageGrid
 from .omegak import omega_k
@@ -49,12 +51,6 @@ from .range_compression import apply_range_window, range_compress
 from .rda import range_doppler
 from .stripmap import StripmapGeometry, slant_output_grid, stripmap_geometry
 
-__all__ = ["focus", "ImageGrid", "backproject", "backproject_reference", "ffbp", "omega_k", "range_doppler", "range_compress",
+__all__ = ["focus", "ALGORITHMS", "ImageGrid", "backproject", "backproject_reference", "ffbp", "omega_k", "range_doppler", "range_compress",
            "apply_range_window", "StripmapGeometry", "stripmap_geometry", "slant_output_grid"]
 
-
-def focus(raw, algorithm: str = "bp", **options):
-    """Focus any RawData with ``algorithm`` (``bp``, ``ffbp``, ``omegak``, ``rda``): the same as
-    :func:`sarmitsuba.pipeline.refocus` (``sarmitsuba.refocus``), whose parameters and errors it has."""
-    from ..pipeline import refocus
-    return refocus(raw, algorithm, **options)

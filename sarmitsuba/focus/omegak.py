@@ -81,9 +81,9 @@ References
 """
 from __future__ import annotations
 
-import copy
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -92,9 +92,10 @@ import scipy.fft
 from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
+from .fft_contract import (azimuth_weights, doppler_rows, focus_setup, range_compressed, slant_image,
+                           unit_mean_window, windows_label)
 from .stolt import Scratch, StoltInterpolator, centred_buffer
-from .stripmap import (StripmapGeometry, _azimuth_weights, _band_weights, _doppler_axis, _focus_setup, _window_label,
-                       slant_output_grid)
+from .stripmap import StripmapGeometry, slant_output_grid
 
 __all__ = ["omega_k"]
 
@@ -188,110 +189,186 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     with the previous windowed-sinc gather).
     """
     t_start = time.perf_counter()
-    raw = _range_compressed(raw)
-    geo, w_r, w_a, workers, band_a = _focus_setup(raw, geometry, scene_centre, squint, reference_range,
-                                                  window_range, window_azimuth, doppler_bandwidth, workers)
+    raw = range_compressed(raw)
+    geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
+                                                 window_range, window_azimuth, doppler_bandwidth, workers)
     oversample = float(oversample)
     if not (np.isfinite(oversample) and 1.1 <= oversample <= 4.0):
         raise ValueError(f"oversample must be in [1.1, 4], got {oversample!r}")
-    n_a, n_r = raw.data.shape
-    f0, bw, fs, prf, vel = raw.fc, raw.bandwidth, raw.fs, raw.prf, geo.velocity
-    if bw > fs:
-        raise ValueError(f"bandwidth {bw:g} Hz exceeds fs = {fs:g} Hz: the range spectrum is aliased")
+    if raw.bandwidth > raw.fs:
+        raise ValueError(f"bandwidth {raw.bandwidth:g} Hz exceeds fs = {raw.fs:g} Hz: the range spectrum is aliased")
     grid = slant_output_grid(geo, raw)
+    plan = _stolt_plan(raw, geo, grid, taps, oversample, w_r, w_a, band_a, azimuth_pattern)
+    image = _range_focus(raw, plan, workers)                                      # steps 1-4 in range
+    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True)     # step 4: azimuth IFFT
 
-    # ---- 1. centred, deconvolved, zero-padded 2-D FFT; (-1)^n puts f_tau = (j - n/2) df at column j
+    seconds = time.perf_counter() - t_start
+    window = windows_label(w_r, w_a)
+    focus = {"algorithm": "omega-k", "window": window, "taps": int(taps), "kaiser_beta": plan.interp.beta,
+             "oversample": oversample, "n_pad": plan.n_pad, "n_out": plan.n_out, "doppler_bandwidth": band_a,
+             "geometry": geo.to_dict(), "workers": workers, "seconds": seconds,
+             "interpolation": "Stolt, deconvolved Kaiser-Bessel kernel",
+             "interpolation_error_bound": plan.interp.error_bound, "normalisation": "peak = a over the processed band"}
+    return slant_image(raw, grid, image, "omega-k", window, focus)
+
+
+# ============================================================================ plan: sizes, bands, per-row factors
+@dataclass(frozen=True, eq=False)
+class _StoltPlan:
+    """Layout and factors of steps 1-4; arrays are per Doppler row (float64 unless stated)."""
+
+    n_r: int                      # range samples of the data and the image
+    n_pad: int                    # zero-padded range FFT length of step 1
+    n_out: int                    # range FFT length of the Stolt output (_output_length)
+    f0: float                     # carrier [Hz]
+    bw: float                     # range bandwidth [Hz]
+    df: float                     # input range-frequency bin fs / n_pad [Hz]
+    df_out: float                 # output range-frequency bin fs / n_out [Hz]
+    tau_ref: float                # fast time of buffer sample 0 [s]
+    interp: StoltInterpolator
+    prefilter: np.ndarray         # kernel deconvolution weights 1 / Phi of step 1
+    w_r: tuple                    # range window spec
+    alpha2: np.ndarray            # (c f_eta / 2Vr)^2 [Hz^2]
+    q_hi: np.ndarray              # upper edge of the row's Stolt band [Hz]
+    k0: np.ndarray                # int64: first output bin of the row
+    k0f: np.ndarray               # k0 as float64
+    n_valid: np.ndarray           # int64: output bins of the row
+    range_cycles_per_bin: float   # 2 R_start df_out / c modulo 1
+    row_cycles: np.ndarray        # azimuth-origin phase [cycles]
+    row_gain: np.ndarray          # float32: azimuth window and amplitude normalisation
+    amplitude: np.ndarray         # float32 [n_r]: point-target amplitude vs range, sqrt(R_ref / R)
+
+
+def _stolt_plan(raw: RawData, geo: StripmapGeometry, grid: Any, taps: int, oversample: float, w_r: Any, w_a: Any,
+                band_a: float, pattern: float | None) -> _StoltPlan:
+    """Sizes, Stolt bands, output bins and the per-row factors of steps 1-4."""
+    n_r = raw.data.shape[1]
+    fs = raw.fs
     n_pad = int(scipy.fft.next_fast_len(int(np.ceil(n_r * oversample))))
     n_pad += n_pad % 2
-    df = fs / n_pad
     interp = StoltInterpolator(taps, n_r, n_pad)
     prefilter = interp.prefilter()
-    tau_ref = raw.fast_time[0] + (n_r // 2) / fs  # fast time of buffer sample 0
-    spec = np.empty((n_a, n_pad), np.complex64)
-
-    def range_fft(rows: slice) -> None:  # row block: centred copy and range FFT, in place
-        block = centred_buffer(raw.data[rows], n_pad, prefilter, out=spec[rows])
-        _store(block, scipy.fft.fft(block, axis=1, overwrite_x=True, workers=1))
-
-    # ---- 2.-4. setup: Doppler rows, band limits, output range FFT length, per-row factors
-    f_eta = _doppler_axis(n_a, prf, geo.doppler_centroid)
-    alpha = C * f_eta / (2.0 * vel)
-    if np.any(np.abs(alpha) >= f0 - bw / 2):
-        raise ValueError("the Doppler band reaches the evanescent region (c f_eta / 2Vr >= fc - B/2)")
-    q_lo = np.sqrt((f0 - bw / 2) ** 2 - alpha**2)
-    q_hi = np.sqrt((f0 + bw / 2) ** 2 - alpha**2)
-    if np.max(q_hi - q_lo) >= fs:
-        raise ValueError(f"the Stolt-mapped range band (up to {np.max(q_hi - q_lo):.4g} Hz = B / cos(squint)) "
-                         f"exceeds fs = {fs:.4g} Hz: the output would alias; sample faster or reduce the squint")
+    f_eta, alpha, q_lo, q_hi = _stolt_bands(raw, geo)
     r_start = float(grid.range[0])
     n_out = _output_length(raw, q_lo, q_hi, r_start)
     df_out = fs / n_out
     k0 = np.ceil(q_lo / df_out).astype(np.int64)  # row r holds output bins k0[r] .. k0[r] + n_valid[r] - 1
     n_valid = np.floor(q_hi / df_out).astype(np.int64) - k0 + 1
-    range_cycles_per_bin = np.mod(2.0 * r_start * df_out / C, 1.0)  # exp(j 4 pi R_start q / c), q = k df_out
     # azimuth: FFT origin at the first pulse, output origin at grid.azimuth[0]
     # (+1/8 cycle: the -pi/4 of the stationary-phase azimuth spectrum, concave range history)
-    row_cycles = f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / vel + 0.125
+    row_cycles = f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / geo.velocity + 0.125
+    return _StoltPlan(
+        n_r=n_r, n_pad=n_pad, n_out=n_out, f0=raw.fc, bw=raw.bandwidth, df=fs / n_pad, df_out=df_out,
+        tau_ref=raw.fast_time[0] + (n_r // 2) / fs, interp=interp, prefilter=prefilter, w_r=w_r,
+        alpha2=alpha**2, q_hi=q_hi, k0=k0, k0f=k0.astype(np.float64), n_valid=n_valid,
+        range_cycles_per_bin=np.mod(2.0 * r_start * df_out / C, 1.0),  # exp(j 4 pi R_start q / c), q = k df_out
+        row_cycles=row_cycles, row_gain=_row_gain(raw, geo, f_eta, alpha, w_a, band_a, pattern),
+        amplitude=np.sqrt(geo.reference_range / grid.range).astype(np.float32))
+
+
+def _stolt_bands(raw: RawData, geo: StripmapGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """True Doppler ``f_eta`` of each row, ``alpha = c f_eta / 2Vr`` and the Stolt-mapped band
+    ``q = sqrt((f0 -+ B/2)^2 - alpha^2)`` of the row (C&W eq. 8.5); checks it is neither
+    evanescent nor wider than ``fs``."""
+    f0, bw, fs = raw.fc, raw.bandwidth, raw.fs
+    f_eta, alpha = doppler_rows(raw, geo)
+    q_lo = np.sqrt((f0 - bw / 2) ** 2 - alpha**2)
+    q_hi = np.sqrt((f0 + bw / 2) ** 2 - alpha**2)
+    if np.max(q_hi - q_lo) >= fs:
+        raise ValueError(f"the Stolt-mapped range band (up to {np.max(q_hi - q_lo):.4g} Hz = B / cos(squint)) "
+                         f"exceeds fs = {fs:.4g} Hz: the output would alias; sample faster or reduce the squint")
+    return f_eta, alpha, q_lo, q_hi
+
+
+def _row_gain(raw: RawData, geo: StripmapGeometry, f_eta: np.ndarray, alpha: np.ndarray, w_a: Any, band_a: float,
+              pattern: float | None) -> np.ndarray:
+    """Azimuth window times the point-target normalisation ``D^1.5 sqrt(2 f0 Vr^2 / (c R_ref)) / B_a``
+    of each Doppler row, ``D = sqrt(1 - (alpha / f0)^2)`` (float32)."""
+    f0, vel = raw.fc, geo.velocity
     d_eta = np.sqrt(1.0 - (alpha / f0) ** 2)
-    row_gain = (_azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, azimuth_pattern, C / f0, vel,
-                                 geo.squint)
-                * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / (C * geo.reference_range)) / band_a).astype(np.float32)
-    alpha2 = alpha**2
-    k0f = k0.astype(np.float64)
-    amplitude = np.sqrt(geo.reference_range / grid.range).astype(np.float32)  # point-target amplitude vs range
-    image = np.empty((n_a, n_r), np.complex64)
+    return (azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, pattern, C / f0, vel, geo.squint)
+            * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / (C * geo.reference_range)) / band_a).astype(np.float32)
 
+
+# ============================================================================ steps 1-4 per block of rows
+def _range_focus(raw: RawData, plan: _StoltPlan, workers: int) -> np.ndarray:
+    """Steps 1-4 up to the azimuth IFFT: 2-D spectrum, then per block of Doppler rows the Stolt
+    interpolation, factors and range IFFT; complex64 ``[n_pulses, n_samples]``."""
+    n_a = raw.data.shape[0]
+    spec = np.empty((n_a, plan.n_pad), np.complex64)
+    image = np.empty((n_a, plan.n_r), np.complex64)
     scratch = Scratch()
-
-    def stolt(rows: slice) -> None:  # row block: Stolt interpolation, factors, range IFFT -> image rows
-        shape = (rows.stop - rows.start, int(n_valid[rows].max()))
-        kq = np.add(k0f[rows, None], np.arange(shape[1], dtype=np.float64),
-                    out=scratch.get("kq", shape, np.float64))  # output bin k, float64
-        q = np.multiply(kq, df_out, out=scratch.get("q", shape, np.float64))
-        np.minimum(q, q_hi[rows, None], out=q)  # beyond a row's band (discarded below): clamp into it
-        f_tau = np.multiply(q, q, out=scratch.get("f_tau", shape, np.float64))
-        f_tau += alpha2[rows, None]
-        np.sqrt(f_tau, out=f_tau)  # f0 + f_tau = sqrt(q^2 + alpha^2)
-        gain = scratch.get("gain", shape, np.float32)
-        np.divide(q, f_tau, out=gain)  # Stolt Jacobian q / (f0 + f_tau)
-        f_tau -= f0
-        pos = np.multiply(f_tau, 1.0 / df, out=q)
-        pos += n_pad / 2
-        values = interp(spec[rows], pos, out=scratch.get("values", shape, np.complex64))
-        gain *= row_gain[rows, None]
-        if w_r[0] != "rect":  # (rect: every kept bin lies in |f_tau| <= B/2)
-            gain *= _band_weights(w_r, f_tau, bw).astype(np.float32)
-        kq *= range_cycles_per_bin  # phase in cycles, float64: k df_out 2 R_start / c - f_tau tau_ref + row
-        f_tau *= tau_ref
-        kq -= f_tau
-        kq += row_cycles[rows, None]
-        _multiply_cis(values, kq, gain, scratch)
-        out = scratch.get("out", (shape[0], n_out), np.complex64)
-        out[...] = 0
-        for i, r in enumerate(range(rows.start, rows.stop)):  # bin k to FFT column k mod n_out
-            first, count = int(k0[r] % n_out), int(n_valid[r])
-            stop = min(first + count, n_out)
-            out[i, first:stop] = values[i, :stop - first]
-            out[i, :count - (stop - first)] = values[i, stop - first:count]
-        out = scipy.fft.ifft(out, axis=1, overwrite_x=True, workers=1)  # column m at grid.range[m]
-        np.multiply(out[:, :n_r], amplitude, out=image[rows])
-
     blocks = [slice(i, min(i + _BLOCK_ROWS, n_a)) for i in range(0, n_a, _BLOCK_ROWS)]
     with ThreadPoolExecutor(workers) if workers > 1 else _Serial() as pool:
-        list(pool.map(range_fft, blocks))
-        _store(spec, scipy.fft.fft(spec, axis=0, overwrite_x=True, workers=workers))
-        list(pool.map(stolt, blocks))
-    spec = None  # free the spectrum (n_pulses x n_pad) before the azimuth IFFT
-    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True)
+        list(pool.map(lambda rows: _range_fft(raw, plan, spec, rows), blocks))
+        _store(spec, scipy.fft.fft(spec, axis=0, overwrite_x=True, workers=workers))  # azimuth FFT
+        list(pool.map(lambda rows: _stolt_block(plan, spec, rows, scratch, image), blocks))
+    return image
 
-    seconds = time.perf_counter() - t_start
-    window = f"range={_window_label(*w_r)}, azimuth={_window_label(*w_a)}"
-    focus = {"algorithm": "omega-k", "window": window, "taps": int(taps), "kaiser_beta": interp.beta,
-             "oversample": oversample, "n_pad": n_pad, "n_out": n_out, "doppler_bandwidth": band_a,
-             "geometry": geo.to_dict(), "workers": workers, "seconds": seconds,
-             "interpolation": "Stolt, deconvolved Kaiser-Bessel kernel",
-             "interpolation_error_bound": interp.error_bound, "normalisation": "peak = a over the processed band"}
-    return _make_image(raw, grid, image, "omega-k", window, focus)
+
+def _range_fft(raw: RawData, plan: _StoltPlan, spec: np.ndarray, rows: slice) -> None:
+    """Step 1 on a block of rows: centred, deconvolved, zero-padded copy and range FFT, in place;
+    ``(-1)^n`` puts ``f_tau = (j - n/2) df`` at column ``j``."""
+    block = centred_buffer(raw.data[rows], plan.n_pad, plan.prefilter, out=spec[rows])
+    _store(block, scipy.fft.fft(block, axis=1, overwrite_x=True, workers=1))
+
+
+def _stolt_block(plan: _StoltPlan, spec: np.ndarray, rows: slice, scratch: Scratch, image: np.ndarray) -> None:
+    """Steps 2-4 on a block of Doppler rows: Stolt interpolation, analytic factors, range IFFT
+    into ``image[rows]``."""
+    shape = (rows.stop - rows.start, int(plan.n_valid[rows].max()))
+    kq, f_tau, pos, gain = _stolt_mapping(plan, rows, shape, scratch)
+    values = plan.interp(spec[rows], pos, out=scratch.get("values", shape, np.complex64))
+    _apply_factors(plan, rows, values, kq, f_tau, gain, scratch)
+    out = _scatter_bins(plan, rows, values, scratch.get("out", (shape[0], plan.n_out), np.complex64))
+    out = scipy.fft.ifft(out, axis=1, overwrite_x=True, workers=1)  # column m at grid.range[m]
+    np.multiply(out[:, :plan.n_r], plan.amplitude, out=image[rows])
+
+
+def _stolt_mapping(plan: _StoltPlan, rows: slice, shape: tuple[int, int],
+                   scratch: Scratch) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step 2, the Stolt change of variable (C&W eq. 8.5): for output bin ``k`` (``q = k df_out``)
+    the input frequency ``f_tau = sqrt(q^2 + alpha^2) - f0``. Returns ``(k, f_tau, position in the
+    padded spectrum [bins], Jacobian q / (f0 + f_tau))`` (scratch buffers)."""
+    kq = np.add(plan.k0f[rows, None], np.arange(shape[1], dtype=np.float64),
+                out=scratch.get("kq", shape, np.float64))  # output bin k, float64
+    q = np.multiply(kq, plan.df_out, out=scratch.get("q", shape, np.float64))
+    np.minimum(q, plan.q_hi[rows, None], out=q)  # beyond a row's band (discarded below): clamp into it
+    f_tau = np.multiply(q, q, out=scratch.get("f_tau", shape, np.float64))
+    f_tau += plan.alpha2[rows, None]
+    np.sqrt(f_tau, out=f_tau)  # f0 + f_tau = sqrt(q^2 + alpha^2)
+    gain = scratch.get("gain", shape, np.float32)
+    np.divide(q, f_tau, out=gain)  # Stolt Jacobian q / (f0 + f_tau)
+    f_tau -= plan.f0
+    pos = np.multiply(f_tau, 1.0 / plan.df, out=q)
+    pos += plan.n_pad / 2
+    return kq, f_tau, pos, gain
+
+
+def _apply_factors(plan: _StoltPlan, rows: slice, values: np.ndarray, kq: np.ndarray, f_tau: np.ndarray,
+                   gain: np.ndarray, scratch: Scratch) -> None:
+    """Step 3: reference function and output-range origin ``exp(+j 4 pi R_start q / c)`` (C&W
+    eq. 8.3), fast-time origin, range window, Jacobian, azimuth factors; ``kq``, ``f_tau`` and
+    ``gain`` are overwritten."""
+    gain *= plan.row_gain[rows, None]
+    if plan.w_r[0] != "rect":  # (rect: every kept bin lies in |f_tau| <= B/2)
+        gain *= unit_mean_window(plan.w_r, f_tau, plan.bw).astype(np.float32)
+    kq *= plan.range_cycles_per_bin  # phase in cycles, float64: k df_out 2 R_start / c - f_tau tau_ref + row
+    f_tau *= plan.tau_ref
+    kq -= f_tau
+    kq += plan.row_cycles[rows, None]
+    _multiply_cis(values, kq, gain, scratch)
+
+
+def _scatter_bins(plan: _StoltPlan, rows: slice, values: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Step 4 (first half): row ``r``'s output bin ``k`` to FFT column ``k mod n_out`` of ``out``."""
+    out[...] = 0
+    for i, r in enumerate(range(rows.start, rows.stop)):
+        first, count = int(plan.k0[r] % plan.n_out), int(plan.n_valid[r])
+        stop = min(first + count, plan.n_out)
+        out[i, first:stop] = values[i, :stop - first]
+        out[i, :count - (stop - first)] = values[i, stop - first:count]
+    return out
 
 
 def _output_length(raw: RawData, q_lo: np.ndarray, q_hi: np.ndarray, r_start: float) -> int:
@@ -354,25 +431,3 @@ def _multiply_cis(values: np.ndarray, cycles: np.ndarray, gain: np.ndarray, scra
     part *= gain
     factor.imag = part
     values *= factor
-
-
-# ============================================================================ shared with rda
-def _range_compressed(raw: RawData) -> RawData:
-    """``raw`` itself when range compressed, else its matched-filter output (unweighted)."""
-    if not isinstance(raw, RawData):
-        raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
-    if raw.range_compressed:
-        return raw
-    from .range_compression import range_compress  # written alongside; imported only when needed
-    return range_compress(raw)
-
-
-def _make_image(raw: RawData, grid: Any, data: np.ndarray, algorithm: str, window: str,
-                focus: dict[str, Any]) -> SarImage:
-    metadata = copy.deepcopy(raw.metadata)
-    metadata["focus"] = focus
-    return SarImage(data=np.ascontiguousarray(data, dtype=np.complex64), azimuth=np.array(grid.azimuth),
-                    range=np.array(grid.range), origin=np.array(grid.origin),
-                    azimuth_direction=np.array(grid.azimuth_direction),
-                    range_direction=np.array(grid.range_direction), plane="slant", algorithm=algorithm,
-                    window=window, metadata=metadata)

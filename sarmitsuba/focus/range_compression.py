@@ -14,7 +14,7 @@ docs/design.md section 5), so a target at delay ``L/c`` peaks at ``fast_time = L
 value ``a`` (at its continuous peak; the samples are those of ``a p_r``).
 
 Filters (``method``), with ``S(f)`` the exact spectrum of the continuous chirp
-(:func:`chirp_spectrum`, Fresnel integrals) as the reference:
+(:func:`sarmitsuba.signal_model.chirp_spectrum`, Fresnel integrals) as the reference:
 
 * ``"inverse"`` (default): ``H(f) = w(f/B) / S(f)`` on the band ``|f| <= B/2``, zero
   outside. A chirp's spectrum has Fresnel ripple, so this is the matched filter ``S*``
@@ -61,52 +61,19 @@ from typing import Any
 
 import numpy as np
 import scipy.fft
-import scipy.special
 
 from ..raw import RawData
+from ..signal_model import chirp_spectrum
 from .windows import check_window, spectral_window, window_mean
 
-__all__ = ["range_compress", "apply_range_window", "chirp_spectrum"]
+__all__ = ["range_compress", "apply_range_window"]
 
 #: Pulses processed per FFT block (bounds the working set at N x 256 x 16 bytes).
 _BLOCK = 256
 _METHODS = ("inverse", "matched")
 
 
-def chirp_spectrum(freqs: np.ndarray, pulse_length: float, chirp_rate: float) -> np.ndarray:
-    """Exact Fourier transform of the transmitted pulse ``rect(t / T_p) exp(j pi K_r t^2)``.
-
-    Parameters
-    ----------
-    freqs : array_like of float, Hz
-    pulse_length : float, s
-    chirp_rate : float, Hz/s (either sign)
-
-    Returns
-    -------
-    complex128, shape of ``freqs``
-        ``S(f) = int_{-T_p/2}^{T_p/2} exp(j pi K_r t^2 - j 2 pi f t) dt``, in s.
-
-    Notes
-    -----
-    Completing the square, with ``v = sqrt(2 |K_r|) (t - f / K_r)``:
-    ``S(f) = exp(-j pi f^2 / K_r) / sqrt(2 |K_r|) [C(v) + j sgn(K_r) S(v)]`` between
-    ``v(-T_p/2)`` and ``v(T_p/2)``, with the Fresnel integrals ``C``, ``S``
-    (:func:`scipy.special.fresnel`; Cumming and Wong 2005, section 3.2).
-    """
-    f = np.asarray(freqs, dtype=np.float64)
-    k = float(chirp_rate)
-    scale = np.sqrt(2.0 * abs(k))
-    v1 = scale * (-pulse_length / 2.0 - f / k)
-    v2 = scale * (pulse_length / 2.0 - f / k)
-    s1, c1 = scipy.special.fresnel(v1)
-    s2, c2 = scipy.special.fresnel(v2)
-    # pi f^2 / K_r can be ~1e6 rad: reduce in cycles first
-    phase = np.exp(-2j * np.pi * np.mod(0.5 * f * f / k, 1.0))
-    return phase / scale * ((c2 - c1) + 1j * np.sign(k) * (s2 - s1))
-
-
-def _band_weights(n_fft: int, fs: float, bandwidth: float, name: str, params: dict[str, Any]) -> np.ndarray:
+def _windowed_band_fraction(n_fft: int, fs: float, bandwidth: float, name: str, params: dict[str, Any]) -> np.ndarray:
     """Window times the fraction of each DFT cell inside ``|f| <= B/2`` (float64 [n_fft])."""
     f = scipy.fft.fftfreq(n_fft, 1.0 / fs)
     df = fs / n_fft
@@ -213,7 +180,7 @@ def range_compress(raw: RawData, window: str = "rect", *, method: str = "inverse
     n_fft = scipy.fft.next_fast_len(n_min)
     # reference: the exact spectrum of the continuous chirp centred on zero delay
     spec = chirp_spectrum(scipy.fft.fftfreq(n_fft, 1.0 / raw.fs), raw.pulse_length, raw.chirp_rate) * raw.fs
-    weights = _band_weights(n_fft, raw.fs, raw.bandwidth, name, params)
+    weights = _windowed_band_fraction(n_fft, raw.fs, raw.bandwidth, name, params)
     band = weights > 0
     if method == "inverse":
         mag = np.abs(spec[band])

@@ -56,17 +56,20 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Sequence
+from functools import lru_cache
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 import scipy.fft
+import scipy.optimize
+import scipy.special
 
 from ..constants import SPEED_OF_LIGHT
 from ..image import SarImage
 from ..raw import RawData
-from .omegak import _make_image, _range_compressed
-from .stripmap import (StripmapGeometry, _azimuth_weights, _band_weights, _cis, _doppler_axis, _Interpolator,
-                       _window_label, _focus_setup, slant_output_grid)
+from .fft_contract import (azimuth_weights, cis, doppler_rows, focus_setup, range_compressed, slant_image,
+                           unit_mean_window, windows_label)
+from .stripmap import StripmapGeometry, slant_output_grid
 
 __all__ = ["range_doppler"]
 
@@ -130,42 +133,56 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
         Invalid geometry, unknown ``src``, or a bad option.
     """
     t_start = time.perf_counter()
-    raw = _range_compressed(raw)
+    raw = range_compressed(raw)
+    src_mode = _src_mode(src)
+    geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
+                                                 window_range, window_azimuth, doppler_bandwidth, workers)
+    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 8:
+        raise ValueError(f"upsample must be an integer in [1, 8], got {upsample!r}")
+    grid = slant_output_grid(geo, raw)
+    f_eta, alpha = doppler_rows(raw, geo)
+    rd = _range_doppler_domain(raw, geo, w_r, src_mode, alpha, upsample, workers)          # steps 1-3
+    interp = _Interpolator(taps, passband=min(0.95, raw.bandwidth / (raw.fs * upsample)))
+    filt = _azimuth_filter(raw, geo, grid, f_eta, alpha, w_r, w_a, band_a, src_mode, azimuth_pattern)
+    image = _rcmc_and_azimuth_compression(rd, raw, grid, filt, interp, upsample, workers)   # steps 4-5
+    del rd
+    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True).astype(np.complex64, copy=False)  # 6.
+    seconds = time.perf_counter() - t_start
+    window = windows_label(w_r, w_a)
+    focus = {"algorithm": "rda", "window": window, "src": src_mode or "none", "src_range": geo.reference_range,
+             "taps": int(taps), "kaiser_beta": interp.beta, "upsample": int(upsample),
+             "doppler_bandwidth": band_a, "geometry": geo.to_dict(), "workers": workers, "seconds": seconds,
+             "interpolation": "RCMC, Kaiser-windowed sinc", "normalisation": "peak = a over the processed band"}
+    return slant_image(raw, grid, image, "rda", window, focus)
+
+
+def _src_mode(src: bool | str) -> str | None:
+    """The SRC option as ``None``, ``"2d"`` or ``"range"``; ValueError for anything else."""
     if isinstance(src, str):
         src = src.strip().lower()
     if src not in _SRC_MODES:
         raise ValueError(f"src must be False, True, 'none', '2d' or 'range', got {src!r}")
-    src_mode = _SRC_MODES[src]
-    geo, w_r, w_a, workers, band_a = _focus_setup(raw, geometry, scene_centre, squint, reference_range,
-                                                  window_range, window_azimuth, doppler_bandwidth, workers)
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 8:
-        raise ValueError(f"upsample must be an integer in [1, 8], got {upsample!r}")
-    n_a, n_r = raw.data.shape
-    f0, bw, fs, prf, vel = raw.fc, raw.bandwidth, raw.fs, raw.prf, geo.velocity
-    grid = slant_output_grid(geo, raw)
-    r_src = geo.reference_range
-    f_eta = _doppler_axis(n_a, prf, geo.doppler_centroid)
-    alpha = C * f_eta / (2.0 * vel)
-    if np.any(np.abs(alpha) >= f0 - bw / 2):
-        raise ValueError("the Doppler band reaches the evanescent region (c f_eta / 2Vr >= fc - B/2)")
-    q0 = np.sqrt(f0**2 - alpha**2)  # Q(0, f_eta) = f0 D(f_eta)
+    return _SRC_MODES[src]
 
+
+# ============================================================================ steps 1-3: to the range-Doppler domain
+def _range_doppler_domain(raw: RawData, geo: StripmapGeometry, w_r: Any, src_mode: str | None, alpha: np.ndarray,
+                          upsample: int, workers: int) -> np.ndarray:
+    """Steps 1-3: range FFT, range window and SRC option 3; azimuth FFT and SRC option 2;
+    range IFFT upsampled by zero-padding the spectrum. complex64 ``[n_pulses, n1 * upsample]``,
+    columns ``fast_time[0] + m / (fs upsample)``."""
+    n_a, n_r = raw.data.shape
+    f0, r_src = raw.fc, geo.reference_range
     # ---- 1. range FFT, window, SRC option 3
     n1 = int(scipy.fft.next_fast_len(n_r + _GUARD))
     spec = scipy.fft.fft(raw.data, n=n1, axis=1, workers=workers)
-    f_tau = np.fft.fftfreq(n1, 1.0 / fs)
-    range_filter = _band_weights(w_r, f_tau, bw).astype(np.complex128)
-    if src_mode == "range":
-        a_c = C * geo.doppler_centroid / (2.0 * vel)
-        range_filter *= _cis(_src_cycles(r_src, f_tau, f0, a_c))
-    spec *= range_filter.astype(np.complex64)
-
+    f_tau = np.fft.fftfreq(n1, 1.0 / raw.fs)
+    spec *= _range_filter(raw, geo, w_r, src_mode, f_tau)
     # ---- 2. azimuth FFT, SRC option 2
     spec = scipy.fft.fft(spec, axis=0, workers=workers, overwrite_x=True)
     if src_mode == "2d":
         for rows in _blocks(n_a):
-            spec[rows] *= _cis(_src_cycles(r_src, f_tau[None, :], f0, alpha[rows, None]))
-
+            spec[rows] *= cis(_src_cycles(r_src, f_tau[None, :], f0, alpha[rows, None]))
     # ---- 3. range IFFT upsampled by zero-padding the spectrum
     n2 = n1 * upsample
     if upsample > 1:
@@ -176,38 +193,80 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
         spec = big
     rd = scipy.fft.ifft(spec, axis=1, workers=workers, overwrite_x=True)
     rd *= np.float32(upsample)
-    del spec
+    return rd
 
-    # ---- 4.-5. RCMC (R -> R / D) and azimuth matched filter, row block by row block
-    interp = _Interpolator(taps, passband=min(0.95, bw / (fs * upsample)))
-    fine_rate = fs * upsample
-    t0 = float(raw.fast_time[0])
+
+def _range_filter(raw: RawData, geo: StripmapGeometry, w_r: Any, src_mode: str | None,
+                  f_tau: np.ndarray) -> np.ndarray:
+    """Step 1's range-frequency filter (complex64 like ``f_tau`` [Hz]): the range window at unit
+    mean, times the SRC filter at the Doppler centroid for option 3 (C&W section 6.2.3)."""
+    range_filter = unit_mean_window(w_r, f_tau, raw.bandwidth).astype(np.complex128)
+    if src_mode == "range":
+        a_c = C * geo.doppler_centroid / (2.0 * geo.velocity)
+        range_filter *= cis(_src_cycles(geo.reference_range, f_tau, raw.fc, a_c))
+    return range_filter.astype(np.complex64)
+
+
+# ============================================================================ steps 4-5: RCMC and azimuth compression
+class _AzimuthFilter(NamedTuple):
+    """Factors of step 5 (float64 per Doppler row or per output range gate unless stated)."""
+
+    q0: np.ndarray          # [n_pulses] Q(0, f_eta) = f0 D(f_eta) [Hz]
+    d_eta: np.ndarray       # [n_pulses] D(f_eta), the migration factor
+    residual: np.ndarray    # [n_pulses] band-mean coupling left after SRC [Hz]
+    row_cycles: np.ndarray  # [n_pulses] reference-range and azimuth-origin phase [cycles]
+    row_gain: np.ndarray    # [n_pulses] azimuth window and amplitude normalisation
+    d_r: np.ndarray         # [n_samples] R - R_src [m]
+    col_cycles: np.ndarray  # [n_samples] 2 f0 (R - R_src) / c [cycles]
+    col_gain: np.ndarray    # float32 [n_samples] 1 / sqrt(R)
+
+
+def _azimuth_filter(raw: RawData, geo: StripmapGeometry, grid: Any, f_eta: np.ndarray, alpha: np.ndarray, w_r: Any,
+                    w_a: Any, band_a: float, src_mode: str | None, pattern: float | None) -> _AzimuthFilter:
+    """Step 5's azimuth matched filter ``exp(+j 4 pi R f0 D(f_eta) / c)`` (C&W eq. 6.26), split into
+    row and column factors, with the azimuth window, normalisation and SRC residual."""
+    f0, bw, vel, r_src = raw.fc, raw.bandwidth, geo.velocity, geo.reference_range
+    q0 = np.sqrt(f0**2 - alpha**2)  # Q(0, f_eta) = f0 D(f_eta)
     d_r = grid.range - r_src
     col_cycles = 2.0 * f0 * d_r / C  # float64 [n_r]: 2 R f0 D / c = 2 (R_src + d) (f0 + (Q0 - f0)) / c
     row_cycles = (2.0 * r_src * q0 / C + f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / vel + 0.125)
     d_eta = q0 / f0
-    # SRC is exact at R_src only: a target at R keeps (R - R_src) x coupling. Its band-mean
-    # (the part that biases the peak phase) is removed per range gate; the zero-mean rest
-    # only broadens, by far less (see module docstring).
-    residual = _mean_coupling(w_r, bw, f0, alpha) if src_mode is not None else np.zeros(n_a)
-    if src_mode == "range":
-        applied = np.full(n_a, _mean_coupling(w_r, bw, f0, np.array([C * geo.doppler_centroid / (2.0 * vel)]))[0])
-    else:
-        applied = residual
+    residual, applied = _src_residual(w_r, bw, f0, alpha, src_mode, C * geo.doppler_centroid / (2.0 * vel))
     row_cycles += 2.0 * r_src * (residual - applied) / C
-    row_gain = (_azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, azimuth_pattern, C / f0, vel,
-                                 geo.squint)
+    row_gain = (azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, pattern, C / f0, vel, geo.squint)
                 * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / C) / band_a)
     col_gain = (1.0 / np.sqrt(grid.range)).astype(np.float32)
+    return _AzimuthFilter(q0, d_eta, residual, row_cycles, row_gain, d_r, col_cycles, col_gain)
+
+
+def _src_residual(w_r: Any, bw: float, f0: float, alpha: np.ndarray, src_mode: str | None,
+                  alpha_centroid: float) -> tuple[np.ndarray, np.ndarray]:
+    """Band-mean coupling per Doppler row [Hz] a target at ``R`` keeps as ``(R - R_src) x coupling``
+    (SRC is exact at ``R_src`` only), and the part of it SRC applied (the centroid's for option 3).
+    Removing the mean per range gate keeps it from biasing the peak phase; the zero-mean rest
+    only broadens, by far less (module docstring). Zeros without SRC."""
+    n_a = alpha.shape[0]
+    residual = _mean_coupling(w_r, bw, f0, alpha) if src_mode is not None else np.zeros(n_a)
+    if src_mode == "range":
+        return residual, np.full(n_a, _mean_coupling(w_r, bw, f0, np.array([alpha_centroid]))[0])
+    return residual, residual
+
+
+def _rcmc_and_azimuth_compression(rd: np.ndarray, raw: RawData, grid: Any, filt: _AzimuthFilter,
+                                  interp: "_Interpolator", upsample: int, workers: int) -> np.ndarray:
+    """Steps 4-5 per block of Doppler rows: RCMC (output gate ``R`` reads ``R / D(f_eta)``, C&W
+    eq. 6.23) and the azimuth matched filter; complex64 ``[n_pulses, n_samples]`` (range-Doppler)."""
+    n_a, n_r = raw.data.shape
+    f0, fine_rate, t0 = raw.fc, raw.fs * upsample, float(raw.fast_time[0])
     image = np.empty((n_a, n_r), np.complex64)
 
     def run_block(rows: slice) -> None:
-        pos = (2.0 * grid.range[None, :] / (C * d_eta[rows, None]) - t0) * fine_rate
+        pos = (2.0 * grid.range[None, :] / (C * filt.d_eta[rows, None]) - t0) * fine_rate
         values = interp(rd[rows], pos)
-        cycles = (row_cycles[rows, None] + col_cycles[None, :]
-                  + 2.0 * d_r[None, :] * (q0[rows, None] - f0 + residual[rows, None]) / C)
-        values *= _cis(cycles)
-        values *= (row_gain[rows, None] * col_gain[None, :]).astype(np.float32)
+        cycles = (filt.row_cycles[rows, None] + filt.col_cycles[None, :]
+                  + 2.0 * filt.d_r[None, :] * (filt.q0[rows, None] - f0 + filt.residual[rows, None]) / C)
+        values *= cis(cycles)
+        values *= (filt.row_gain[rows, None] * filt.col_gain[None, :]).astype(np.float32)
         image[rows] = values
 
     blocks = _blocks(n_a)
@@ -217,17 +276,7 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
     else:
         for block in blocks:
             run_block(block)
-    del rd
-
-    # ---- 6. azimuth IFFT
-    image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True).astype(np.complex64, copy=False)
-    seconds = time.perf_counter() - t_start
-    window = f"range={_window_label(*w_r)}, azimuth={_window_label(*w_a)}"
-    focus = {"algorithm": "rda", "window": window, "src": src_mode or "none", "src_range": r_src,
-             "taps": int(taps), "kaiser_beta": interp.beta, "upsample": int(upsample),
-             "doppler_bandwidth": band_a, "geometry": geo.to_dict(), "workers": workers, "seconds": seconds,
-             "interpolation": "RCMC, Kaiser-windowed sinc", "normalisation": "peak = a over the processed band"}
-    return _make_image(raw, grid, image, "rda", window, focus)
+    return image
 
 
 def _blocks(n: int) -> list[slice]:
@@ -237,7 +286,7 @@ def _blocks(n: int) -> list[slice]:
 def _mean_coupling(w_r: tuple[str, dict[str, float]], bw: float, f0: float, alpha: np.ndarray) -> np.ndarray:
     """Band mean [Hz] of the coupling ``Q - Q(0) - f f0 / Q(0)`` per Doppler row, weighted by the range window."""
     f = (np.arange(513) / 512 - 0.5) * bw
-    w = _band_weights(w_r, f, bw)
+    w = unit_mean_window(w_r, f, bw)
     return (_src_cycles(C / 2.0, f[None, :], f0, alpha[:, None]) * w).sum(axis=1) / w.sum()
 
 
@@ -251,3 +300,82 @@ def _src_cycles(r_src: float, f_tau: np.ndarray, f0: float, alpha: np.ndarray | 
     q = np.sqrt((f0 + f_tau) ** 2 - alpha2)
     coupling = f_tau * (2.0 * f0 + f_tau) / (q + q00) - f_tau * f0 / q00
     return 2.0 * r_src * coupling / C
+
+
+# ============================================================================ interpolation kernel
+#: Fractional positions tabulated per tap (nearest entry; weight error <= pi / (2 * 4096)).
+_TABLE_BINS = 4096
+
+
+@lru_cache(maxsize=16)
+def _kaiser_beta(taps: int, passband: float) -> float:
+    """Kaiser beta minimising the worst-case interpolation error over ``|omega| <= passband pi``."""
+    def err(beta: float) -> float:
+        h, d = _sinc_table(taps, beta, 64)
+        om = np.linspace(0.0, passband * np.pi, 96)
+        r = np.einsum("mt,wmt->wm", h, np.exp(-1j * om[:, None, None] * d[None]))
+        return float(np.abs(r - 1.0).max())
+    res = scipy.optimize.minimize_scalar(err, bounds=(0.0, 2.0 * taps), method="bounded", options={"xatol": 1e-3})
+    return float(res.x)
+
+
+def _sinc_table(taps: int, beta: float, bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Kaiser-windowed sinc weights [bins + 1, taps] at fractions ``b / bins``, each row
+    normalised to unit sum (exact DC gain), and the tap distances ``d = mu + taps/2 - 1 - t``."""
+    half = taps // 2
+    mu = np.arange(bins + 1, dtype=np.float64) / bins
+    d = mu[:, None] + (half - 1) - np.arange(taps)[None, :]
+    w = scipy.special.i0(beta * np.sqrt(np.clip(1.0 - (d / half) ** 2, 0.0, None))) / scipy.special.i0(beta)
+    h = np.sinc(d) * w
+    return h / h.sum(axis=1, keepdims=True), d
+
+
+class _Interpolator:
+    """Windowed-sinc interpolation of complex rows at fractional positions, vectorised.
+
+    ``taps`` (even, 4..32) Kaiser-windowed sinc weights, Kaiser beta chosen for the
+    worst-case error over the band ``|omega| <= passband * pi`` (fraction of Nyquist
+    occupied by the signal), tabulated at 4096 fractions. Samples outside the row are
+    zero. Cost per output sample: ``taps`` gathers and multiply-adds on float32 pairs,
+    run as ``taps`` vectorised passes over a block of rows (never a Python loop over
+    samples).
+    """
+
+    def __init__(self, taps: int, passband: float):
+        if isinstance(taps, bool) or not isinstance(taps, (int, np.integer)) or taps % 2 or not 4 <= taps <= 32:
+            raise ValueError(f"interpolation taps must be an even integer in [4, 32], got {taps!r}")
+        self.taps = int(taps)
+        self.passband = float(passband)
+        self.beta = _kaiser_beta(self.taps, round(self.passband, 3))
+        h, _ = _sinc_table(self.taps, self.beta, _TABLE_BINS)
+        self.table = np.ascontiguousarray(h.T.astype(np.float32))  # [taps, bins + 1]
+
+    def __call__(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """Interpolate ``rows`` (complex64 [R, N]) at ``pos`` (float [R, M], sample units)."""
+        n_rows, n = rows.shape
+        taps, half = self.taps, self.taps // 2
+        width = n + 2 * taps
+        padded = np.zeros((n_rows, width), np.complex64)
+        padded[:, taps:taps + n] = rows
+        flat = padded.reshape(-1)
+        whole = np.floor(pos)
+        frac = pos - whole
+        first = whole.astype(np.int64) - (half - 1) + taps  # padded index of tap 0
+        outside = (first < 0) | (first > width - taps)
+        np.clip(first, 0, width - taps, out=first)
+        first += (np.arange(n_rows, dtype=np.int64) * width)[:, None]
+        if flat.size < 2**31:
+            first = first.astype(np.int32)
+        bins = np.rint(frac * _TABLE_BINS).astype(np.int32)
+        out = np.zeros(pos.shape + (2,), np.float32)
+        value = np.empty(pos.shape, np.complex64)
+        weight = np.empty(pos.shape, np.float32)
+        for t in range(taps):
+            np.take(flat[t:], first, out=value, mode="clip")
+            np.take(self.table[t], bins, out=weight)
+            pair = value.view(np.float32).reshape(pos.shape + (2,))
+            pair *= weight[..., None]
+            out += pair
+        result = out.view(np.complex64).reshape(pos.shape)
+        result[outside] = 0
+        return result

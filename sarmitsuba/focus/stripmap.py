@@ -24,8 +24,8 @@ This module
   valid);
 * defines the slant-plane output grid shared by the FFT focusers
   (:func:`slant_output_grid`);
-* holds the numerical helpers both focusers use: unwrapped Doppler axis, band windows,
-  float64 phase reduction and the windowed-sinc interpolator (private).
+* the options, Doppler-domain helpers and output image the two focusers share live in
+  :mod:`sarmitsuba.focus.fft_contract`.
 
 Output grid convention (:func:`slant_output_grid`)
 ---------------------------------------------------
@@ -59,22 +59,16 @@ References
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from functools import lru_cache
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 import scipy.fft
-import scipy.integrate
-import scipy.optimize
-import scipy.special
 
 from ..constants import SPEED_OF_LIGHT
 from ..raw import RawData
 from ..arrays import readonly
 from .grid import ImageGrid
-from .windows import window_label, window_spec
 
 __all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
 
@@ -233,15 +227,52 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     """
     if not isinstance(raw, RawData):
         raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
+    wavelength = C / raw.fc
+    tol = _check_sampling(raw, wavelength, tolerance)
+    track = _fit_track(raw, tol)
+    t_mid = 0.5 * (raw.fast_time[0] + raw.fast_time[-1])
+    r_beam = 0.5 * C * t_mid
+    meta = raw.metadata if isinstance(raw.metadata, Mapping) else {}
+    radar = meta.get("radar") if isinstance(meta.get("radar"), Mapping) else {}
+    if beam_centre is not None:
+        beam_centre = _point("beam_centre", beam_centre)
+    fdc, source = _resolve_doppler_centroid(raw, track, wavelength, doppler_centroid, squint, beam_centre,
+                                             meta, radar)
+    theta = _squint_of(fdc, track.velocity, wavelength)
+    r_ref = r_beam * np.cos(theta) if reference_range is None else _finite("reference_range", reference_range)
+    if not r_ref > 0:
+        raise ValueError(f"reference_range must be positive, got {r_ref!r} m")
+    centre, foot, range_direction = _slant_plane(track, scene_centre, beam_centre, radar, r_beam, theta)
+    return StripmapGeometry(
+        origin=readonly(track.mean + foot * track.u), azimuth_direction=readonly(track.u),
+        range_direction=readonly(range_direction), scene_centre=readonly(centre), velocity=float(track.velocity),
+        pulse_spacing=track.spacing, pulse_azimuth=readonly(track.k * track.spacing - foot), prf=float(raw.prf),
+        wavelength=wavelength, reference_range=float(r_ref), beam_centre_range=float(r_beam), squint=theta,
+        doppler_centroid=float(fdc), doppler_source=source, max_cross_track_error=track.cross,
+        max_along_track_error=track.along, tolerance=tol)
+
+
+class _Track(NamedTuple):
+    """Least-squares uniform straight track ``mean + k * spacing * u`` (:func:`_fit_track`)."""
+
+    k: np.ndarray           # float64 [n_pulses]: pulse index about the middle of the aperture
+    mean: np.ndarray        # float64 [3], m: mid-aperture point of the fitted line
+    u: np.ndarray           # float64 [3]: unit track direction
+    spacing: float          # m per pulse
+    velocity: float         # m/s, spacing x PRF
+    cross: float            # m, largest deviation across the fitted line
+    along: float            # m, largest deviation from uniform spacing along it
+
+
+def _check_sampling(raw: RawData, wavelength: float, tolerance: float | None) -> float:
+    """Step 1: >= 2 pulses, monostatic within the tolerance, uniform PRF; returns the tolerance [m]."""
     n = raw.n_pulses
     if n < 2:
         raise ValueError(f"straight-track focusing needs >= 2 pulses, got {n}")
-    wavelength = C / raw.fc
     tol = wavelength / 16.0 if tolerance is None else float(tolerance)
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tolerance must be a positive number of metres, got {tolerance!r}")
-    tx, rx = raw.tx_position, raw.rx_position
-    bistatic = float(np.max(np.linalg.norm(tx - rx, axis=1)))
+    bistatic = float(np.max(np.linalg.norm(raw.tx_position - raw.rx_position, axis=1)))
     if bistatic > tol:
         raise ValueError(f"the FFT focusers need monostatic data: transmitter and receiver differ by up to "
                          f"{bistatic:.3g} m (tolerance {tol:.3g} m); use backprojection for bistatic data")
@@ -249,8 +280,14 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     if not np.allclose(dt, 1.0 / raw.prf, rtol=1e-6, atol=0.0):
         raise ValueError(f"pulse_time steps span [{dt.min()!r}, {dt.max()!r}] s, not 1 / prf = {1.0 / raw.prf!r} s: "
                          f"the FFT focusers need a uniform PRF; use backprojection")
+    return tol
 
-    # ---- least-squares uniform straight line through the antenna positions
+
+def _fit_track(raw: RawData, tol: float) -> _Track:
+    """Step 2: the least-squares uniform straight line through the antenna positions, checked
+    against ``tol`` across and along the track and against ``raw.velocity`` (1 %)."""
+    tx = raw.tx_position
+    n = raw.n_pulses
     k = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
     mean = tx.mean(axis=0)
     step = (k @ (tx - mean)) / (k @ k)  # float64 [3], m per pulse
@@ -276,42 +313,43 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
             np.any(np.linalg.norm(raw.velocity - v_data[:, None] * u, axis=1) > 0.01 * velocity):
         raise ValueError(f"raw.velocity disagrees by more than 1 % with the track (pulse spacing x PRF = "
                          f"{velocity:.6g} m/s along {u.round(6).tolist()}); check prf and velocity")
+    return _Track(k, mean, u, spacing, velocity, cross, along_err)
 
-    # ---- squint and Doppler centroid
-    t_mid = 0.5 * (raw.fast_time[0] + raw.fast_time[-1])
-    r_beam = 0.5 * C * t_mid
-    meta = raw.metadata if isinstance(raw.metadata, Mapping) else {}
-    radar = meta.get("radar") if isinstance(meta.get("radar"), Mapping) else {}
-    if beam_centre is not None:
-        beam_centre = _point("beam_centre", beam_centre)
+
+def _resolve_doppler_centroid(raw: RawData, track: _Track, wavelength: float, doppler_centroid: Any, squint: Any,
+                              beam_centre: np.ndarray | None, meta: Mapping[str, Any],
+                              radar: Mapping[str, Any]) -> tuple[float, str]:
+    """Step 3: absolute Doppler centroid [Hz] ``f_dc = 2 Vr sin(squint) / lambda`` (C&W ch. 4)
+    and its source, from the first of: stated centroid, stated squint, beam centre, metadata, data."""
+    velocity, mean, u = track.velocity, track.mean, track.u
     if doppler_centroid is not None:
-        fdc = _finite("doppler_centroid", doppler_centroid)
-        source = "doppler_centroid"
-    elif squint is not None:
-        fdc = 2.0 * velocity * np.sin(np.radians(_angle("squint", squint))) / wavelength
-        source = "squint"
-    elif beam_centre is not None:
-        fdc = 2.0 * velocity * _sin_along(beam_centre - mean, u) / wavelength
-        source = "beam_centre"
-    elif _metadata_squint(meta) is not None:
-        fdc = 2.0 * velocity * np.sin(np.radians(_metadata_squint(meta))) / wavelength
-        source = "metadata"
-    elif radar.get("scene_center") is not None:
-        fdc = 2.0 * velocity * _sin_along(_point("metadata scene_center", radar["scene_center"]) - mean, u) / wavelength
-        source = "metadata"
-    else:
-        fdc = estimate_doppler_centroid(raw)
-        source = "data"
+        return _finite("doppler_centroid", doppler_centroid), "doppler_centroid"
+    if squint is not None:
+        return 2.0 * velocity * np.sin(np.radians(_angle("squint", squint))) / wavelength, "squint"
+    if beam_centre is not None:
+        return 2.0 * velocity * _sin_along(beam_centre - mean, u) / wavelength, "beam_centre"
+    if _metadata_squint(meta) is not None:
+        return 2.0 * velocity * np.sin(np.radians(_metadata_squint(meta))) / wavelength, "metadata"
+    if radar.get("scene_center") is not None:
+        centre = _point("metadata scene_center", radar["scene_center"])
+        return 2.0 * velocity * _sin_along(centre - mean, u) / wavelength, "metadata"
+    return estimate_doppler_centroid(raw), "data"
+
+
+def _squint_of(fdc: float, velocity: float, wavelength: float) -> float:
+    """Step 4: squint [rad] ``asin(lambda f_dc / (2 Vr))`` (C&W ch. 4), checked to be a stripmap angle."""
     sin_sq = wavelength * fdc / (2.0 * velocity)
     if not abs(sin_sq) < 0.99:
         raise ValueError(f"Doppler centroid {fdc:.6g} Hz implies |sin(squint)| = {abs(sin_sq):.3g} >= 0.99 "
                          f"(Vr = {velocity:.6g} m/s, lambda = {wavelength:.4g} m): not a stripmap geometry")
-    theta = float(np.arcsin(sin_sq))
-    r_ref = r_beam * np.cos(theta) if reference_range is None else _finite("reference_range", reference_range)
-    if not r_ref > 0:
-        raise ValueError(f"reference_range must be positive, got {r_ref!r} m")
+    return float(np.arcsin(sin_sq))
 
-    # ---- slant plane
+
+def _slant_plane(track: _Track, scene_centre: Any, beam_centre: np.ndarray | None, radar: Mapping[str, Any],
+                 r_beam: float, theta: float) -> tuple[np.ndarray, float, np.ndarray]:
+    """Step 5: scene centre, the along-track coordinate of its closest approach (from the
+    mid-aperture point) and the unit range direction toward it, perpendicular to the track."""
+    mean, u = track.mean, track.u
     if scene_centre is not None:
         centre = _point("scene_centre", scene_centre)
     elif beam_centre is not None:
@@ -326,13 +364,7 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     norm = float(np.linalg.norm(perp))
     if not norm > 1e-6:
         raise ValueError("the scene centre lies on the track line: it cannot fix the slant plane")
-    pulse_azimuth = k * spacing - foot
-    return StripmapGeometry(
-        origin=readonly(mean + foot * u), azimuth_direction=readonly(u), range_direction=readonly(perp / norm),
-        scene_centre=readonly(centre), velocity=float(velocity), pulse_spacing=spacing,
-        pulse_azimuth=readonly(pulse_azimuth), prf=float(raw.prf), wavelength=wavelength,
-        reference_range=float(r_ref), beam_centre_range=float(r_beam), squint=theta, doppler_centroid=float(fdc),
-        doppler_source=source, max_cross_track_error=cross, max_along_track_error=along_err, tolerance=tol)
+    return centre, foot, perp / norm
 
 
 def estimate_doppler_centroid(raw: RawData) -> float:
@@ -427,23 +459,6 @@ def slant_output_grid(geometry: StripmapGeometry, raw: RawData, *, n_azimuth: in
 
 
 # ============================================================================ validation helpers
-def _focus_setup(raw: RawData, geometry: Any, scene_centre: Any, squint: Any, reference_range: Any,
-                 window_range: Any, window_azimuth: Any, doppler_bandwidth: Any, workers: Any):
-    """Checks and geometry shared by the FFT focusers.
-
-    Returns ``(geometry, range window spec, azimuth window spec, workers, processed Doppler band [Hz])``.
-    Raises TypeError / ValueError for a bad geometry or a band outside ``(0, prf]``.
-    """
-    geo = geometry if geometry is not None else stripmap_geometry(
-        raw, scene_centre=scene_centre, squint=squint, reference_range=reference_range)
-    if not isinstance(geo, StripmapGeometry):
-        raise TypeError(f"geometry must be a StripmapGeometry, got {type(geo).__name__}")
-    band = raw.prf if doppler_bandwidth is None else float(doppler_bandwidth)
-    if not (np.isfinite(band) and 0 < band <= raw.prf * (1 + 1e-9)):
-        raise ValueError(f"doppler_bandwidth must be in (0, prf = {raw.prf:g}] Hz, got {doppler_bandwidth!r}")
-    return geo, _window_spec(window_range), _window_spec(window_azimuth), _workers(workers), band
-
-
 def _point(name: str, value: Any) -> np.ndarray:
     arr = np.array(value, dtype=np.float64).reshape(-1)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
@@ -501,152 +516,3 @@ def _flat_earth_centre(antenna: np.ndarray, u: np.ndarray, r_beam: float, theta:
         right = -right
     ground = np.sqrt(r0**2 - h**2)
     return antenna + r_beam * np.sin(theta) * u + ground * right - np.array([0.0, 0.0, h])
-
-
-# ============================================================================ shared focusing helpers
-def _workers(workers: int | None) -> int:
-    if workers is None:
-        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    return int(workers)
-
-
-def _doppler_axis(n: int, prf: float, centroid: float) -> np.ndarray:
-    """True Doppler frequency [Hz] of each FFT bin: ``fftfreq`` unwrapped into
-    ``[centroid - prf/2, centroid + prf/2)``."""
-    f = np.fft.fftfreq(n, 1.0 / prf)
-    return f + prf * np.floor((centroid + prf / 2.0 - f) / prf)
-
-
-#: The window option parsers of :mod:`.windows`, under the names this package's focusers import.
-_window_spec = window_spec
-_window_label = window_label
-
-
-@lru_cache(maxsize=32)
-def _window_mean(name: str, items: tuple[tuple[str, float], ...]) -> float:
-    """Mean of the window over its band, ``int_{-1/2}^{1/2} w(x) dx``."""
-    from .windows import spectral_window
-    return float(scipy.integrate.quad(lambda x: spectral_window(name, x, 1.0, **dict(items)), -0.5, 0.5,
-                                      epsabs=0, epsrel=1e-12, limit=200)[0])
-
-
-def _band_weights(spec: tuple[str, dict[str, float]], freqs: np.ndarray, bandwidth: float) -> np.ndarray:
-    """Window over ``|f| <= bandwidth / 2`` scaled to unit mean (peak-preserving), 0 outside; float64."""
-    from .windows import spectral_window
-    name, params = spec
-    if name == "rect":  # fast path: the indicator of the band
-        return (np.abs(freqs) <= bandwidth / 2.0).astype(np.float64)
-    w = spectral_window(name, freqs, bandwidth, **params)
-    return w / _window_mean(name, tuple(sorted(params.items())))
-
-
-def _azimuth_weights(spec: tuple[str, dict[str, float]], f_eta: np.ndarray, centroid: float, bandwidth: float,
-                     pattern: float | None, wavelength: float, velocity: float, squint: float) -> np.ndarray:
-    """Azimuth window over the processed Doppler band, normalised so that a point target keeps
-    its peak amplitude; float64 like ``f_eta`` [Hz] (the rows' true Doppler frequencies).
-
-    Without a pattern, the window at unit mean (:func:`_band_weights`). With one (``pattern`` =
-    ``L / lambda`` of the two-way field pattern ``g^2 = sinc^2(L sin(phi - squint) / lambda)``
-    that weights the data, ``sin(phi) = lambda f_eta / (2 v)``, ``squint`` in rad), the window divided by the mean
-    of ``w g^2`` over the band's rows: the target's peak is ``a mean(w g^2) / mean(w g^2)``,
-    its amplitude, as in backprojection (docs/physics.md (K))."""
-    w = _band_weights(spec, f_eta - centroid, bandwidth)
-    if not pattern:
-        return w
-    sine = np.clip(wavelength * f_eta / (2.0 * velocity), -1.0, 1.0)
-    g2 = np.sinc(pattern * (sine * np.cos(squint) - np.sqrt(1.0 - sine**2) * np.sin(squint))) ** 2
-    inside = np.abs(f_eta - centroid) <= bandwidth / 2.0
-    gain = float(np.mean((w * g2)[inside])) if np.any(inside) else 1.0
-    return w / gain if gain > 0 else w
-
-
-def _cis(cycles: np.ndarray) -> np.ndarray:
-    """``exp(j 2 pi cycles)`` as complex64; ``cycles`` float64, reduced modulo 1 in float64
-    first, so arguments of 1e8 rad (800 km) keep their sub-milliradian phase."""
-    frac = cycles - np.round(cycles)
-    ang = (2.0 * np.pi * frac).astype(np.float32)
-    out = np.empty(ang.shape, np.complex64)
-    out.real = np.cos(ang)
-    out.imag = np.sin(ang)
-    return out
-
-
-# ============================================================================ interpolation kernel
-#: Fractional positions tabulated per tap (nearest entry; weight error <= pi / (2 * 4096)).
-_TABLE_BINS = 4096
-
-
-@lru_cache(maxsize=16)
-def _kaiser_beta(taps: int, passband: float) -> float:
-    """Kaiser beta minimising the worst-case interpolation error over ``|omega| <= passband pi``."""
-    def err(beta: float) -> float:
-        h, d = _sinc_table(taps, beta, 64)
-        om = np.linspace(0.0, passband * np.pi, 96)
-        r = np.einsum("mt,wmt->wm", h, np.exp(-1j * om[:, None, None] * d[None]))
-        return float(np.abs(r - 1.0).max())
-    res = scipy.optimize.minimize_scalar(err, bounds=(0.0, 2.0 * taps), method="bounded", options={"xatol": 1e-3})
-    return float(res.x)
-
-
-def _sinc_table(taps: int, beta: float, bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Kaiser-windowed sinc weights [bins + 1, taps] at fractions ``b / bins``, each row
-    normalised to unit sum (exact DC gain), and the tap distances ``d = mu + taps/2 - 1 - t``."""
-    half = taps // 2
-    mu = np.arange(bins + 1, dtype=np.float64) / bins
-    d = mu[:, None] + (half - 1) - np.arange(taps)[None, :]
-    w = scipy.special.i0(beta * np.sqrt(np.clip(1.0 - (d / half) ** 2, 0.0, None))) / scipy.special.i0(beta)
-    h = np.sinc(d) * w
-    return h / h.sum(axis=1, keepdims=True), d
-
-
-class _Interpolator:
-    """Windowed-sinc interpolation of complex rows at fractional positions, vectorised.
-
-    ``taps`` (even, 4..32) Kaiser-windowed sinc weights, Kaiser beta chosen for the
-    worst-case error over the band ``|omega| <= passband * pi`` (fraction of Nyquist
-    occupied by the signal), tabulated at 4096 fractions. Samples outside the row are
-    zero. Cost per output sample: ``taps`` gathers and multiply-adds on float32 pairs,
-    run as ``taps`` vectorised passes over a block of rows (never a Python loop over
-    samples).
-    """
-
-    def __init__(self, taps: int, passband: float):
-        if isinstance(taps, bool) or not isinstance(taps, (int, np.integer)) or taps % 2 or not 4 <= taps <= 32:
-            raise ValueError(f"interpolation taps must be an even integer in [4, 32], got {taps!r}")
-        self.taps = int(taps)
-        self.passband = float(passband)
-        self.beta = _kaiser_beta(self.taps, round(self.passband, 3))
-        h, _ = _sinc_table(self.taps, self.beta, _TABLE_BINS)
-        self.table = np.ascontiguousarray(h.T.astype(np.float32))  # [taps, bins + 1]
-
-    def __call__(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
-        """Interpolate ``rows`` (complex64 [R, N]) at ``pos`` (float [R, M], sample units)."""
-        n_rows, n = rows.shape
-        taps, half = self.taps, self.taps // 2
-        width = n + 2 * taps
-        padded = np.zeros((n_rows, width), np.complex64)
-        padded[:, taps:taps + n] = rows
-        flat = padded.reshape(-1)
-        whole = np.floor(pos)
-        frac = pos - whole
-        first = whole.astype(np.int64) - (half - 1) + taps  # padded index of tap 0
-        outside = (first < 0) | (first > width - taps)
-        np.clip(first, 0, width - taps, out=first)
-        first += (np.arange(n_rows, dtype=np.int64) * width)[:, None]
-        if flat.size < 2**31:
-            first = first.astype(np.int32)
-        bins = np.rint(frac * _TABLE_BINS).astype(np.int32)
-        out = np.zeros(pos.shape + (2,), np.float32)
-        value = np.empty(pos.shape, np.complex64)
-        weight = np.empty(pos.shape, np.float32)
-        for t in range(taps):
-            np.take(flat[t:], first, out=value, mode="clip")
-            np.take(self.table[t], bins, out=weight)
-            pair = value.view(np.float32).reshape(pos.shape + (2,))
-            pair *= weight[..., None]
-            out += pair
-        result = out.view(np.complex64).reshape(pos.shape)
-        result[outside] = 0
-        return result

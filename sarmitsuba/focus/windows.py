@@ -317,6 +317,13 @@ def compressed_pulse(t: np.ndarray, bandwidth: float, name: str = "rect", **para
 
 # ============================================================================ figures (units of 1/B)
 @lru_cache(maxsize=64)
+def _mean(key: str, items: tuple[tuple[str, float], ...]) -> float:
+    """``int_{-1/2}^{1/2} w(x) dx`` of the canonical window ``key`` with parameters ``items``."""
+    return scipy.integrate.quad(lambda x: spectral_window(key, x, 1.0, **dict(items)), -0.5, 0.5,
+                                epsabs=0, epsrel=1e-13, limit=200)[0]
+
+
+@lru_cache(maxsize=64)
 def _figures(key: str, items: tuple[tuple[str, float], ...]) -> dict[str, float]:
     params = dict(items)
 
@@ -342,8 +349,7 @@ def _figures(key: str, items: tuple[tuple[str, float], ...]) -> dict[str, float]
     peak_sidelobe = max(float(-best.fun), float(power[j]))
     main = 2.0 * scipy.integrate.quad(lambda x: p(x) ** 2, 0.0, null, epsabs=0, epsrel=1e-12, limit=200)[0]
     # total energy by Parseval: int p^2 du = int w^2 dx / (int w dx)^2 over |x| <= 1/2
-    w1 = scipy.integrate.quad(lambda x: spectral_window(key, x, 1.0, **params), -0.5, 0.5,
-                              epsabs=0, epsrel=1e-13, limit=200)[0]
+    w1 = _mean(key, items)
     w2 = scipy.integrate.quad(lambda x: spectral_window(key, x, 1.0, **params) ** 2, -0.5, 0.5,
                               epsabs=0, epsrel=1e-13, limit=200)[0]
     return {"null": null, "irw": 2.0 * half, "peak_sidelobe": peak_sidelobe, "main": main,
@@ -423,7 +429,7 @@ def islr_theory(name: str = "rect", sidelobes: float | None = None, **params: An
 def window_mean(name: str = "rect", **params: Any) -> float:
     """Mean of the window over its band, ``int_{-1/2}^{1/2} w(x) dx`` (1 for rect, ``alpha``
     for Hamming): the peak gain of the weighted band relative to rect."""
-    return _figures(*_key(name, params))["mean"]
+    return _mean(*_key(name, params))
 
 
 def energy_width(name: str = "rect", **params: Any) -> float:

@@ -1,0 +1,131 @@
+"""Focusing by name: an algorithm name (``bp``, ``ffbp``, ``omegak``, ``rda``) to its focuser call.
+
+:func:`focus` is what ``sarmitsuba.focus.focus``, ``sarmitsuba.refocus`` and the ``focus``
+command run: any :class:`~sarmitsuba.raw.RawData` honouring the contract (docs/design.md
+section 3), focused with the options a sarmitsuba render records in its metadata (ground
+grid, traced beam, Doppler bandwidth, squint, antenna pattern; :func:`render_focusing`).
+:func:`backprojector` and :func:`azimuth_pattern` are the pieces ``simulate`` shares.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, NamedTuple
+
+import numpy as np
+
+from ..image import SarImage
+from ..radar import RadarParameters, acquisition_geometry
+from ..raw import RawData
+from .backprojection import backproject
+from .ffbp import GeometryNotSupported, ffbp
+from .grid import ImageGrid
+from .omegak import omega_k
+from .range_compression import apply_range_window, range_compress
+from .rda import range_doppler
+from .scene_grid import ground_grid
+from .stripmap import slant_output_grid, stripmap_geometry
+
+__all__ = ["ALGORITHMS", "focus", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing"]
+
+#: Algorithm names of :func:`focus`: direct and fast factorised backprojection, omega-K, range-Doppler.
+ALGORITHMS = ("bp", "ffbp", "omegak", "rda")
+
+
+class RenderFocusing(NamedTuple):
+    """Focusing options a sarmitsuba render records (:func:`render_focusing`)."""
+
+    grid: ImageGrid | None                 # ground grid of the scene, None for other data
+    azimuth_beamwidth: float | None        # deg, traced stripmap beam (None: spotlight or unknown)
+    doppler_bandwidth: float | None        # Hz
+    squint: float                          # deg
+    azimuth_pattern: float | None          # L / lambda of the two-way azimuth pattern
+
+
+def azimuth_pattern(params: RadarParameters) -> float | None:
+    """``L / lambda`` of the two-way azimuth pattern the tracer applied (stripmap with a tapered
+    beam or antenna of length ``L`` [m]), or None."""
+    if params.mode != "stripmap" or params.pattern_length <= 0:
+        return None
+    return params.pattern_length / params.wavelength
+
+
+def backprojector(name: str) -> Callable[..., SarImage]:
+    """The backprojection focuser ``name``: ``"bp"`` is :func:`~sarmitsuba.focus.backproject`;
+    ``"ffbp"`` is :func:`~sarmitsuba.focus.ffbp`, which hands the acquisitions it does not
+    factorise (bistatic, a grid straddling the track) to direct backprojection and says so in
+    ``metadata["focus"]["fallback"]``. Both take ``(raw, grid, **options)``.
+
+    Raises ValueError for any other name."""
+    if name == "bp":
+        return backproject
+    if name != "ffbp":
+        raise ValueError(f"backprojection focuser = {name!r}; valid: bp, ffbp")
+
+    def fast(raw: RawData, grid: ImageGrid, **kwargs: Any) -> SarImage:
+        try:
+            return ffbp(raw, grid, **kwargs)
+        except GeometryNotSupported as exc:
+            image = backproject(raw, grid, **kwargs)
+            image.metadata["focus"]["fallback"] = f"direct backprojection: {exc}"
+            return image
+    return fast
+
+
+def render_focusing(raw: RawData) -> RenderFocusing:
+    """Ground grid, azimuth beamwidth [deg], Doppler bandwidth [Hz], squint [deg] and azimuth
+    pattern ``L / lambda`` of a sarmitsuba render, from the RawData metadata (radar parameters,
+    scene box, frame offset); ``(None, None, None, 0.0, None)`` for other data."""
+    meta = raw.metadata
+    try:
+        params = RadarParameters.from_mapping({k: v for k, v in meta["radar"].items() if v is not None})
+        offset = np.asarray(meta.get("frame_offset", [0.0, 0.0, 0.0]), float)
+        lo = np.asarray(meta["scene_info"]["bbox_min"], float) + offset
+        hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
+    except (KeyError, TypeError, ValueError):
+        return RenderFocusing(None, None, None, 0.0, None)
+    geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
+    beam = params.traced_beamwidth if params.mode == "stripmap" else None
+    return RenderFocusing(ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint,
+                          azimuth_pattern(params))
+
+
+def focus(raw: RawData, algorithm: str = "bp", *, window_range: Any = "rect", window_azimuth: Any = "rect",
+          progress: bool = False) -> SarImage:
+    """Focus any RawData honouring the contract (docs/design.md section 3) with ``algorithm``.
+
+    ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
+    ground grid when the metadata carry sarmitsuba's radar parameters and scene box (with their
+    beam gating), else onto the slant-plane grid of the straight-track geometry. ``omegak`` /
+    ``rda`` (with SRC): the FFT focusers (straight track), on their slant-plane grid. Every image
+    measures azimuth from the scene centre's closest approach (frames: docs/design.md section 8).
+    Chirped input is range-compressed first. Windows: names of :mod:`sarmitsuba.focus.windows`
+    (rect, taylor, hamming, kaiser, hann) or ``(name, {params})``; backprojection applies the
+    azimuth window over the beam (or, without a beam, over the aperture) and divides out the
+    recorded antenna pattern.
+
+    Returns
+    -------
+    SarImage
+        complex64; ``metadata["focus"]`` records the algorithm and its options.
+
+    Raises
+    ------
+    ValueError
+        Unknown algorithm or window, or a track the FFT focusers cannot handle (they name
+        backprojection).
+    """
+    if algorithm not in ALGORITHMS:
+        raise ValueError(f"algorithm = {algorithm!r}; valid: {', '.join(ALGORITHMS)}")
+    grid, beam, doppler, squint, pattern = render_focusing(raw)
+    if algorithm == "omegak":
+        return omega_k(raw, window_range=window_range, window_azimuth=window_azimuth, doppler_bandwidth=doppler,
+                       azimuth_pattern=pattern)
+    if algorithm == "rda":
+        return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
+                             doppler_bandwidth=doppler, azimuth_pattern=pattern)
+    compressed = range_compress(raw, window_range) if not raw.range_compressed else (
+        apply_range_window(raw, window_range) if window_range != "rect" else raw)
+    if grid is None:
+        grid = slant_output_grid(stripmap_geometry(raw), raw)
+    return backprojector(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
+                                    window_azimuth=window_azimuth, progress=progress)

@@ -1,0 +1,71 @@
+"""The image grid a render focuses onto: a ground grid around the scene (docs/design.md section 8).
+
+:func:`image_grid` covers a loaded scene and its layover (:func:`ground_grid` from the radar
+parameters and a bounding box); :func:`sized_grid` is a grid of a given size around the scene
+centre. All grids are :class:`~sarmitsuba.focus.grid.ImageGrid` s on the ground plane through
+the scene centre (float64, metres, world or local frame as the geometry given).
+"""
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..planning import box_corners
+from ..radar import AcquisitionGeometry, ParameterError, ground_layover
+from .grid import ImageGrid
+
+if TYPE_CHECKING:                      # only for annotations
+    from ..scene import LoadedScene
+
+__all__ = ["image_grid", "ground_grid", "sized_grid"]
+
+
+def image_grid(loaded: "LoadedScene", geometry: AcquisitionGeometry) -> ImageGrid:
+    """Ground grid around the scene centre covering the scene and its layover (see :func:`ground_grid`).
+
+    Raises ValueError (from :meth:`ImageGrid.ground`) when the grid would be too large."""
+    return ground_grid(loaded.params, loaded.bbox_lo, loaded.bbox_hi, geometry)
+
+
+def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
+    """Ground grid around the scene centre covering a bounding box and its layover.
+
+    Ground-range extent: the bounding box's corners and the points where the focuser lays them
+    over (:func:`radar.ground_layover`, exact for a straight track: toward the sensor by about
+    ``h / tan(theta)``), plus 16 resolution cells on every side. Pixel spacing: half the finer
+    of the ground-range and azimuth resolutions.
+    """
+    corners = box_corners(bbox_lo, bbox_hi)
+    relative = corners - geometry.scene_center
+    along = relative @ geometry.track_direction
+    across = relative @ geometry.look_direction
+    laid = ground_layover(geometry, corners)
+    laid = laid[np.all(np.isfinite(laid), axis=1)]
+    along, across = np.concatenate([along, laid[:, 0]]), np.concatenate([across, laid[:, 1]])
+    spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
+    half_range = np.abs(across).max() + 16 * p.ground_range_resolution
+    half_az = np.abs(along).max() + 16 * p.azimuth_resolution
+    return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
+                            azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
+
+
+def sized_grid(p, geometry: AcquisitionGeometry, size: tuple[int, int], spacing: float | None = None) -> ImageGrid:
+    """Ground grid of exactly ``size = (n_azimuth, n_range)`` pixels centred on the scene centre.
+
+    ``spacing`` [m] defaults to half the finer of the ground-range and azimuth resolutions of
+    the radar parameters ``p`` (as :func:`ground_grid`; ``p`` is unused when ``spacing`` is
+    given). Raises ParameterError for sizes below 2 or a non-positive spacing.
+    """
+    n_az, n_rg = (int(v) for v in size)
+    if min(n_az, n_rg) < 2 or (n_az, n_rg) != tuple(size):
+        raise ParameterError(f"image_size = {size}: two whole numbers >= 2 (azimuth, range pixels)")
+    if spacing is None:
+        spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
+    spacing = float(spacing)
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise ParameterError(f"image_spacing = {spacing} m must be > 0")
+    return ImageGrid(origin=np.asarray(geometry.scene_center, float), azimuth_direction=geometry.track_direction,
+                     range_direction=geometry.look_direction, azimuth=(np.arange(n_az) - n_az // 2) * spacing,
+                     range=(np.arange(n_rg) - n_rg // 2) * spacing, plane="ground")
