@@ -44,10 +44,15 @@ from .returns import COS_GRAZING, Returns, footprint_edges
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
            "footprint_edges", "COS_GRAZING", "INVALID", "Flags"]
 
-#: Hits this close to grazing (cos of the incidence angle) return nothing and end the tube: the
-#: facet model needs a footprint, which is unbounded at grazing incidence.
 #: No record / no lane.
 INVALID = 0xFFFFFFFF
+#: Rays leaving a surface (reflections, shadow rays) start this far off it, along the normal:
+#: ``SURFACE_LIFT + SURFACE_LIFT_RELATIVE |p|`` [m]. 1e-4 m clears Embree's own intersection
+#: error; 1e-6 |p| clears the float32 rounding of ``p`` (6e-8 relative) with a factor of ~16 to
+#: spare, so visibility near edges does not depend on where the scene sits. Both stay far
+#: below a wavelength (3 cm at X band) and a ray tube's footprint, so no path length changes.
+SURFACE_LIFT = 1e-4
+SURFACE_LIFT_RELATIVE = 1e-6
 
 
 class Flags:
@@ -293,7 +298,7 @@ def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
     """Whether the reference position sees the hit point: a shadow ray toward it, no farther than
     the antenna (geometry behind the antenna must not occlude), eq. (PO1); one test serves every
     pulse of the sub-aperture, eq. (T3)."""
-    lift = 1e-4 + 1e-6 * dr.norm(hit.p)
+    lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(hit.p)
     ray = mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
     return active & ~scene.ray_test(ray, active)
 
@@ -346,7 +351,7 @@ def _spawn(p, n, d):
     by ~9e-5 (1 + max|p_i|)) almost independent of where the scene sits, so a translated
     scene decides visibility near edges the same way.
     """
-    lift = 1e-4 + 1e-6 * dr.norm(p)
+    lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(p)
     return mi.Ray3f(p + n * lift, d)
 
 

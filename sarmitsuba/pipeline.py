@@ -111,6 +111,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress,
                    effects=effects)
     t["trace"] = time.perf_counter()
+    planning.check_window_energy(result.energy_outside_window, float(np.sum(result.energy_per_order)),
+                                 settings.max_depth)
     metadata = _metadata(loaded, footprint.spacing_azimuth, result)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
     raw = binning.to_raw_data(result.contributions(), result, window, params, world, metadata,

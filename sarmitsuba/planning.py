@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import replace
 
 import numpy as np
@@ -85,10 +86,14 @@ def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tup
 #: (each bounce multiplies by a reflection coefficient below 1 and most later bounces stay close
 #: to the earlier ones: corners, wall-ground); 10 % is that compromise. Longer paths are not
 #: clamped into the edge bins: their terms are dropped and their energy is added to
-#: ``TraceResult.energy_outside_window`` (copied into the ``RenderSummary``; no warning is
-#: printed), so check that figure when a scene has long multi-bounce paths (deep canyons, high
-#: ``max_depth``).
+#: ``TraceResult.energy_outside_window`` (copied into the ``RenderSummary``), and
+#: :func:`check_window_energy` warns when it exceeds :data:`OUTSIDE_ENERGY_WARNING` of the energy
+#: inside (deep canyons, high ``max_depth``).
 EXTRA_BOUNCE_FRACTION = 0.1
+#: Fraction of the in-window energy that may fall outside the fast-time window before
+#: :func:`check_window_energy` warns: 1e-3 (-30 dB), below which the missing returns change no
+#: image pixel by more than the ray lattice's own noise (about -30 dB, benchmarks/subaperture.py).
+OUTSIDE_ENERGY_WARNING = 1e-3
 
 
 def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
@@ -301,7 +306,6 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
 
     Returns the messages (also issued as warnings).
     """
-    import warnings
     messages = []
     if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
         messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
@@ -329,3 +333,28 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
     for message in messages:
         warnings.warn(message, AcquisitionWarning, stacklevel=2)
     return messages
+
+
+def check_window_energy(outside: float, inside: float, max_depth: int) -> str | None:
+    """Warn (:class:`AcquisitionWarning`) when returns carrying more than
+    :data:`OUTSIDE_ENERGY_WARNING` of the in-window energy fell outside the fast-time window.
+
+    Parameters
+    ----------
+    outside, inside : float, m^2
+        ``TraceResult.energy_outside_window`` and the energy of the returns deposited
+        (``TraceResult.energy_per_order.sum()``).
+    max_depth : int
+        The ``sbr`` bounce limit, named in the advice.
+
+    Returns the message (also issued as a warning), or None.
+    """
+    if not outside > OUTSIDE_ENERGY_WARNING * max(inside, 0.0):
+        return None
+    fraction = outside / (outside + inside)
+    message = (f"{100 * fraction:.2g} % of the returned energy came back after the fast-time window closed "
+               f"(multi-bounce paths longer than the window allows, max_depth = {max_depth}); those returns "
+               f"are missing from the image: lower max_depth, or see planning.EXTRA_BOUNCE_FRACTION")
+    warnings.warn(message, AcquisitionWarning, stacklevel=2)
+    return message
+
