@@ -51,7 +51,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Module (path under sarmitsuba/) -> the test files that cover it, fastest first.
 TARGETS: dict[str, tuple[str, ...]] = {
     "radar.py": ("tests/test_render_geometry.py", "tests/test_geometry_angles.py", "tests/test_antenna.py",
-                 "tests/test_input_errors.py", "tests/test_acquisition_checks.py"),
+                 "tests/test_input_errors.py", "tests/test_acquisition_checks.py", "tests/test_info.py"),
     "planning.py": ("tests/test_acquisition_checks.py", "tests/test_info.py", "tests/test_hard_cases.py"),
     "radiometry.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
     "materials.py": ("tests/test_materials.py", "tests/test_physical_optics.py", "tests/test_clutter.py"),

@@ -64,3 +64,48 @@ def test_window_energy_threshold():
     with pytest.warns(UserWarning, match="max_depth = 3"):
         message = check_window_energy(0.25, 0.75, 3)
     assert message.startswith("25 %")            # of the total returned energy, 0.25 / (0.25 + 0.75)
+
+
+def test_automatic_spotlight_aperture_gives_integration_angle_lambda_over_two_rho():
+    """Spotlight, n_pulses = 0: integration angle dtheta = lambda / (2 rho_slant), by hand:
+    fc = 9.6 GHz, B = 96 MHz: rho = c / (2 B) = 1.56142 m, lambda = 0.0312284 m,
+    dtheta = lambda / (2 rho) = B / fc = 0.01 rad. Altitude 1000 m, incidence 45 deg:
+    R = 1000 / cos 45 = 1414.214 m, aperture dtheta R = 14.142 m, flown at v = 100 m/s with
+    prf = 150 Hz: 14.142 x 150 / 100 = 21.21 pulse intervals -> ceil + 1 = 23 pulses.
+    Kills lambda / (2 rho) -> lambda / (2 / rho) (0.0244 rad, 53 pulses)."""
+    import numpy as np
+
+    from sarmitsuba.planning import resolve_parameters
+    from sarmitsuba.radar import RadarParameters
+    p = RadarParameters(frequency=9.6e9, bandwidth=96e6, altitude=1000.0, incidence_angle=45.0, velocity=100.0,
+                        prf=150.0, mode="spotlight", n_pulses=0)
+    resolved = resolve_parameters(p, np.array([-10.0, -10.0, 0.0]), np.array([10.0, 10.0, 5.0]))
+    assert resolved.n_pulses == 23
+    # the n - 1 = 22 pulse intervals flown, (n - 1) v / (prf R) = 0.010371 rad, cover the 0.01 rad
+    # asked for, by less than one interval (v / (prf R) = 4.714e-4 rad) more
+    flown = (resolved.n_pulses - 1) * 100.0 / (150.0 * 1414.214)
+    assert 0.01 <= flown < 0.01 + 100.0 / (150.0 * 1414.214)
+
+
+def test_scene_far_from_the_origin_inside_the_beam_does_not_warn():
+    """A scene 5 km from the origin (along track and across) that the beam covers: no footprint
+    warning; the same box moved 500 m along track (beam footprint about +-28 m, aperture 43 m) warns.
+    Kills measuring the antennas' along-track offsets from -scene_center instead of scene_center."""
+    import numpy as np
+
+    from sarmitsuba import planning
+    from sarmitsuba.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.trace_inputs import TraceSettings
+    center = np.array([5000.0, -3000.0, 0.0])
+    p = RadarParameters(scene_center=tuple(center), n_pulses=64)
+    geometry = acquisition_geometry(p)
+    for shift, warns in ((0.0, False), (500.0, True)):
+        lo = center + np.array([shift - 5.0, -5.0, 0.0])
+        hi = center + np.array([shift + 5.0, 5.0, 3.0])
+        window = planning.fast_time_window(p, geometry, lo, hi, TraceSettings())
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            messages = planning.check_acquisition(p, geometry, window, lo, hi)
+        footprint = [m for m in messages if "outside the beam footprint" in m]
+        assert bool(footprint) == warns, (shift, messages)
+        assert bool([w for w in caught if issubclass(w.category, AcquisitionWarning)]) == bool(messages)

@@ -166,3 +166,21 @@ def test_bistatic_and_bad_prf_are_rejected():
         stripmap_geometry(dataclasses.replace(raw, velocity=raw.velocity * 1.05))
     with pytest.raises(ValueError, match="squint"):
         stripmap_geometry(raw, squint=85.0)
+
+
+@pytest.mark.parametrize("parameter", ["n_azimuth", "n_range"])
+def test_slant_output_grid_sizes_are_counts_of_at_least_two(parameter):
+    """``slant_output_grid``'s n_azimuth / n_range: 0 and 1 (and non-integers) raise ValueError
+    naming the parameter; 2 and 3 give a grid of that many samples, spaced as the default's."""
+    case = CW_LOW
+    raw, geo = simulate(case.name), geometry(case.name)
+    for bad in (0, 1, -3, 2.0, True):
+        with pytest.raises(ValueError, match=parameter):
+            slant_output_grid(geo, raw, **{parameter: bad})
+    full = slant_output_grid(geo, raw)
+    for n in (2, 3):
+        grid = slant_output_grid(geo, raw, **{parameter: n})
+        axis, other = (grid.azimuth, grid.range) if parameter == "n_azimuth" else (grid.range, grid.azimuth)
+        ref, ref_other = (full.azimuth, full.range) if parameter == "n_azimuth" else (full.range, full.azimuth)
+        assert axis.shape == (n,) and other.shape == ref_other.shape
+        assert np.diff(axis) == pytest.approx(np.diff(ref).mean(), rel=1e-12)

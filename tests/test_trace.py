@@ -157,3 +157,35 @@ def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monk
     assert all(lanes <= max(ceiling, tubes) for lanes, tubes in launches), launches
     a, b = reference.raw.data, small.raw.data
     assert np.abs(a - b).max() <= 1e-4 * np.abs(a).max()
+
+
+def test_ray_footprint_covers_the_beam_at_the_far_range_edge():
+    """Planner (T1): along track, each pulse's aim cells ``[k0 s, (k0 + n_azimuth) s]`` cover the
+    traced beam where it is widest, at the far edge of the scene: offsets ``R_far tan(phi)`` from
+    the antenna, ``sin(phi)`` the beam's sines (first nulls), ``R_far`` the perpendicular
+    distance from the track to the far edge on the aim plane; and by no more than a few cells
+    (the scene, 4 km along track, is far wider than the beam, so only the beam bounds the
+    cells). Hand numbers: 45 deg, H = 1000 m, ground range 1000 +- 400 m: R_far = hypot(1000,
+    1400) = 1720.5 m, the near edge's hypot(1000, 600) = 1166.2 m would be 11 m (14 cells) short."""
+    from sarmitsuba import planning
+    from sarmitsuba.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.trace import TraceSettings
+    lo, hi = np.array([-2000.0, -400.0, 0.0]), np.array([2000.0, 400.0, 0.0])
+    params = planning.resolve_parameters(RadarParameters(incidence_angle=45.0, altitude=1000.0, n_pulses=4), lo, hi)
+    geometry = acquisition_geometry(params)
+    fp = planning.ray_footprint(params, geometry, lo, hi, TraceSettings())
+    assert params.mode == "stripmap" and params.squint == 0.0
+    antenna = geometry.positions - np.asarray(params.scene_center)
+    height = float(antenna[0, 2])
+    ground = -float(antenna[0] @ fp.look)                              # antenna to scene centre, on the ground
+    assert height == pytest.approx(1000.0) and ground == pytest.approx(1000.0, rel=1e-9)
+    r_far = math.hypot(height, ground + 400.0)
+    tangents = np.tan(np.arcsin(np.array(params.beam_sines)))
+    s = fp.spacing_azimuth
+    along = antenna @ fp.track
+    first, last = fp.k0 * s, (fp.k0 + fp.n_azimuth) * s
+    beam_lo, beam_hi = along + r_far * tangents[0], along + r_far * tangents[1]
+    assert np.all(beam_hi - beam_lo > 40 * s)                         # the beam spans many cells
+    assert np.all(first <= beam_lo) and np.all(last >= beam_hi), "the far edge's beam is not covered"
+    assert np.all(first >= beam_lo - 3 * s), "cells start far before the beam"
+    assert fp.n_azimuth * s <= (beam_hi - beam_lo)[0] + 6 * s, "cells extend far beyond the beam"
