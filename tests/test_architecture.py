@@ -21,7 +21,7 @@ STAGES = {
     1: ("scene", {"radar", "materials", "meshcheck", "canonical", "pyscene", "scene", "trace_inputs",
                   "effects", "planning", "radiometry", "signal_model", "fresnel",
                   "polarimetry"}),
-    2: ("trace", {"physical_optics", "clutter_lattice", "returns", "kernel", "trace"}),
+    2: ("trace", {"physical_optics", "clutter_lattice", "returns", "kernel", "trace", "jones"}),
     3: ("raw data", {"raw", "binning"}),
     4: ("focus", {"image", "focus", "focus.*"}),
     5: ("products", {"products", "groundtruth", "plotting"}),

@@ -1,0 +1,140 @@
+"""The Dr.Jit (P3') reflection of sarmitsuba.jones against the NumPy reference
+sarmitsuba.polarimetry.reflect_jones (docs/physics.md (P2), (P3), (P3')) and image theory.
+
+Inputs are rounded to float32 once and the same values fed to both, so the comparison measures
+the kernel's float32 arithmetic only. Errors are relative to ``max(|r_te|, |r_tm|) |E|`` per lane.
+Bugs these catch: s/p swapped (r_te applied to the TM part), the complex product written
+wrong (a sign of the imaginary cross terms), the mirror M applied to the wrong vector or not at
+all, s left un-normalised, and NaN at normal incidence (no fallback). Not caught: dropping the
+Gram-Schmidt step (in float32 it changes s by rounding only, below these tolerances).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401  (first: picks libLLVM and sets the variant before drjit loads)
+import drjit as dr  # noqa: I001
+import mitsuba as mi
+from sarmitsuba import polarimetry
+from sarmitsuba.jones import reflect_jones
+
+RTOL = 1e-5
+N = 1000
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _f32(a):
+    """Round to float32 (complex64 for complex), back in float64 / complex128."""
+    a = np.asarray(a)
+    return a.astype(np.complex64 if np.iscomplexobj(a) else np.float32).astype(a.dtype)
+
+
+def _vec(a):
+    return mi.Array3f(*(mi.Float(np.ascontiguousarray(a[:, i], dtype=np.float32)) for i in range(3)))
+
+
+def _np(v):
+    return np.stack([np.array(v.x), np.array(v.y), np.array(v.z)], axis=-1).astype(np.float64)
+
+
+def _complex(z):
+    return mi.Complex2f(mi.Float(z.real.astype(np.float32)), mi.Float(z.imag.astype(np.float32)))
+
+
+def _transverse(rng, d):
+    """Random complex field vectors normal to ``d``, rounded to float32."""
+    g = rng.normal(size=d.shape) + 1j * rng.normal(size=d.shape)
+    return _f32(g - np.sum(d * g, axis=-1, keepdims=True) * d)
+
+
+def _coefficients(rng, n, scale=1.0):
+    return _f32(scale * np.sqrt(rng.uniform(0, 1, n)) * np.exp(2j * np.pi * rng.uniform(0, 1, n)))
+
+
+def _compare(d, n, e, r_te, r_tm):
+    """Max relative error of the kernel's E' against the reference, and of d'."""
+    d, n, e, r_te, r_tm = _f32(d), _f32(n), _f32(e), _f32(r_te), _f32(r_tm)
+    out_re, out_im, out_d = reflect_jones(_vec(e.real), _vec(e.imag), _vec(d), _vec(n),
+                                          _complex(r_te), _complex(r_tm))
+    got = _np(out_re) + 1j * _np(out_im)
+    assert np.all(np.isfinite(got)) and np.all(np.isfinite(_np(out_d)))
+    J = np.stack([e, np.zeros_like(e)], axis=-1)
+    ref, ref_d = polarimetry.reflect_jones(J, d, n, r_te, r_tm)
+    scale = np.maximum(np.abs(r_te), np.abs(r_tm)) * np.linalg.norm(e, axis=-1)
+    err = np.linalg.norm(got - ref[..., 0], axis=-1) / scale
+    return float(np.max(err)), float(np.max(np.abs(_np(out_d) - ref_d)))
+
+
+def test_random_geometry_and_coefficients():
+    """~1000 random directions, normals (both orientations) and complex coefficients."""
+    rng = np.random.default_rng(1)
+    d = _unit(rng.normal(size=(N, 3)))
+    n = _unit(rng.normal(size=(N, 3)))
+    err, err_d = _compare(d, n, _transverse(rng, _f32(d)), _coefficients(rng, N), _coefficients(rng, N))
+    assert err < RTOL and err_d < 1e-6
+
+
+def test_grazing():
+    """d . n from 0 to 1e-1 (either side): TE and TM still told apart, d' ~ d."""
+    rng = np.random.default_rng(2)
+    n = _unit(rng.normal(size=(N, 3)))
+    t = _unit(np.cross(n, rng.normal(size=(N, 3))))                  # in the facet plane
+    cos = np.concatenate([[0.0], np.logspace(-7, -1, N - 1)]) * rng.choice([-1.0, 1.0], N)
+    d = _unit(np.sqrt(1 - cos[:, None] ** 2) * t + cos[:, None] * n)
+    err, err_d = _compare(d, n, _transverse(rng, _f32(d)), _coefficients(rng, N), _coefficients(rng, N))
+    assert err < RTOL and err_d < 1e-6
+
+
+@pytest.mark.parametrize("axis_normals", [False, True])
+def test_near_normal_incidence_is_continuous(axis_normals):
+    """sin(theta) from 0 (d = -n, d = +n) to 1e-2, physical coefficients (r_te - r_tm ~
+    sin^2 theta, equal at normal incidence): no NaN, no jump at the normal-incidence fallback;
+    normals along the coordinate axes exercise each choice of the least-aligned axis."""
+    rng = np.random.default_rng(3)
+    if axis_normals:
+        n = np.eye(3)[rng.integers(0, 3, N)] * rng.choice([-1.0, 1.0], (N, 1))
+    else:
+        n = _unit(rng.normal(size=(N, 3)))
+    t = _unit(np.cross(n, rng.normal(size=(N, 3))))
+    sin = np.concatenate([[0.0, 0.0], np.logspace(-8, -2, N - 2)])
+    sign = np.where(np.arange(N) == 1, 1.0, -1.0)[:, None]          # lane 1: d = +n
+    d = _unit(sign * np.sqrt(1 - sin[:, None] ** 2) * n + sin[:, None] * t)
+    r_te = _coefficients(rng, N)
+    r_tm = r_te + _coefficients(rng, N, scale=sin ** 2)
+    err, err_d = _compare(d, n, _transverse(rng, _f32(d)), r_te, r_tm)
+    assert err < RTOL and err_d < 1e-6
+
+
+def test_pec_image_theory():
+    """PEC (r_te = r_tm = -1): E' = -E + 2 (n . E) n, normal to d', for any geometry."""
+    rng = np.random.default_rng(4)
+    d = _f32(_unit(rng.normal(size=(N, 3))))
+    n = _f32(_unit(rng.normal(size=(N, 3))))
+    n[:10] = -d[:10]                                                 # exactly normal incidence
+    e = _transverse(rng, d)
+    pec = np.full(N, -1.0 + 0.0j)
+    out_re, out_im, out_d = reflect_jones(_vec(e.real), _vec(e.imag), _vec(d), _vec(n),
+                                          _complex(pec), _complex(pec))
+    got = _np(out_re) + 1j * _np(out_im)
+    image = -e + 2.0 * np.sum(n * e, axis=-1, keepdims=True) * n
+    norm_e = np.linalg.norm(e, axis=-1)
+    assert np.max(np.linalg.norm(got - image, axis=-1) / norm_e) < RTOL
+    assert np.max(np.abs(np.sum(got * _np(out_d), axis=-1)) / norm_e) < RTOL
+    assert np.allclose(_np(out_d), d - 2.0 * np.sum(d * n, axis=-1, keepdims=True) * n, atol=1e-6)
+
+
+def test_single_lane_and_dtypes():
+    """One lane works (no lane loop, no shape assumptions) and float32 results come back."""
+    out_re, out_im, out_d = reflect_jones(mi.Array3f(1, 0, 0), mi.Array3f(0, 0, 0), mi.Array3f(0, 0, -1),
+                                          mi.Array3f(0, 0, 1), mi.Complex2f(0.5, 0.1), mi.Complex2f(-0.3, 0.2))
+    assert dr.width(out_re) == 1 and isinstance(out_re.x, mi.Float)
+    # d = -z at normal incidence on a level facet: E' = r_tm M E = r_tm E for horizontal E, + the
+    # s-term with r_te - r_tm along the fallback s; compare with the reference.
+    ref, _ = polarimetry.reflect_jones(np.array([[1.0], [0.0], [0.0]]) * np.array([1.0, 0.0]),
+                                       [0, 0, -1], [0, 0, 1], 0.5 + 0.1j, -0.3 + 0.2j)
+    got = _np(out_re)[0] + 1j * _np(out_im)[0]
+    assert np.allclose(got, ref[:, 0], atol=1e-6)
