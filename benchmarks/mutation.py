@@ -56,7 +56,7 @@ TARGETS: dict[str, tuple[str, ...]] = {
     "radiometry.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
     "materials.py": ("tests/test_materials.py", "tests/test_physical_optics.py", "tests/test_clutter.py"),
     "fresnel.py": ("tests/test_materials.py", "tests/test_physical_optics.py"),
-    "signal_model.py": ("tests/test_range_compression.py", "tests/test_synthetic.py", "tests/test_range_kernels.py"),
+    "signal_model.py": ("tests/test_signal_model.py", "tests/test_range_compression.py", "tests/test_synthetic.py", "tests/test_range_kernels.py"),
     "binning.py": ("tests/test_range_kernels.py", "tests/test_range_compression.py", "tests/test_trace.py",
                    "tests/test_radiometry.py"),
     "focus/windows.py": ("tests/test_windows.py", "tests/test_weighted_images.py"),

@@ -47,30 +47,25 @@ class MaterialError(ValueError):
 # Argument validation (shared with sarmitsuba.materials)
 # --------------------------------------------------------------------------
 
+def _positive(name: str, value, unit: str, what: str = "") -> float:
+    """``value`` as a float; MaterialError naming ``name`` unless it is a finite number > 0."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise MaterialError(f"{name} must be a real number in {unit}, got {value!r}") from None
+    if not (math.isfinite(x) and x > 0.0):
+        raise MaterialError(f"{name} must be finite and > 0 {unit}{what}, got {value!r}")
+    return x
+
+
 def check_frequency(frequency_hz) -> float:
     """``frequency_hz`` as a float [Hz]; MaterialError unless it is a finite number > 0."""
-    try:
-        f = float(frequency_hz)
-    except (TypeError, ValueError):
-        raise MaterialError(
-            f"frequency_hz must be a real number in Hz, got {frequency_hz!r}") from None
-    if not (math.isfinite(f) and f > 0.0):
-        raise MaterialError(
-            f"frequency_hz must be finite and > 0 Hz, got {frequency_hz!r}")
-    return f
+    return _positive("frequency_hz", frequency_hz, "Hz")
 
 
 def check_thickness(thickness) -> float:
     """A slab ``thickness`` as a float [m]; MaterialError unless it is a finite number > 0."""
-    try:
-        d = float(thickness)
-    except (TypeError, ValueError):
-        raise MaterialError(
-            f"thickness must be a real number in metres, got {thickness!r}") from None
-    if not (math.isfinite(d) and d > 0.0):
-        raise MaterialError(
-            f"thickness must be finite and > 0 m for a slab, got {thickness!r}")
-    return d
+    return _positive("thickness", thickness, "m", " for a slab")
 
 
 def check_cos(cos_theta) -> np.ndarray:

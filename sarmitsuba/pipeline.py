@@ -113,7 +113,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["trace"] = time.perf_counter()
     planning.check_window_energy(result.energy_outside_window, float(np.sum(result.energy_per_order)),
                                  settings.max_depth)
-    metadata = _metadata(loaded, footprint.spacing_azimuth, result)
+    metadata = _metadata(loaded, footprint.spacing_azimuth, result, effects)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
     raw = binning.to_raw_data(result.contributions(), result, window, params, world, metadata,
                               noise_seed=settings.seed)
@@ -340,18 +340,17 @@ def _world_params(loaded: LoadedScene):
     return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()))
 
 
-def _metadata(loaded: LoadedScene, ray_spacing: float, result) -> dict:
+def _metadata(loaded: LoadedScene, ray_spacing: float, result, effects) -> dict:
     import drjit
     import mitsuba
 
     from . import __version__
     settings = loaded.settings
-    effects = [str(e) for e in active_effects(loaded)]   # docs/design.md section 7, with reasons
     return {
         "scene": loaded.source, "scene_path": None if loaded.path is None else str(loaded.path),
         "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),
         "frame_offset": loaded.offset.tolist(),
-        "ray_spacing": ray_spacing, "effects": effects, "units": "sqrt(m^2) (normalised radiometry)",
+        "ray_spacing": ray_spacing, "effects": [str(e) for e in effects], "units": "sqrt(m^2) (normalised radiometry)",
         "scene_info": {"shapes": loaded.n_shapes, "triangles": loaded.n_triangles, "has_sar_sensor": loaded.has_sensor,
                        "bbox_min": loaded.bbox_lo.tolist(), "bbox_max": loaded.bbox_hi.tolist()},
         "trace": {"seconds": result.seconds, "rays_per_order": result.rays_per_order.tolist(),
