@@ -24,6 +24,12 @@
    - float, dB
    - Switches distributed clutter and speckle on: a rough surface of constant gamma,
      sigma0 = gamma cos(theta) (monostatic; docs/physics.md (C)). Absent = smooth (PO only).
+ * - cross_pol_db
+   - float, dB
+   - Polarimetric runs only (``polarization`` ``HV``, ``VH`` or ``quad``): sigma0 of the
+     rough surface's cross-polarised return relative to the mean of its co-polarised ones,
+     ``sigma0_HV = q (sigma0_HH + sigma0_VV) / 2`` with ``q = 10^(cross_pol_db / 10)``,
+     uncorrelated with them (docs/physics.md (P7)). Default -15 dB.
  * - color
    - rgb
    - Colour for optical previews only.
@@ -33,8 +39,10 @@
 Sionna computes it. A non-zero ``scattering_coefficient`` S switches distributed clutter on,
 with Sionna's energy split: the specular reflection is scaled by sqrt(1 - S^2) and a
 Lambertian backscatter sigma0 = 4 S^2 |r|^2 cos^2(theta) is added (docs/physics.md (C)).
-``xpd_coefficient`` and the scattering-pattern attributes are read and kept in
-:attr:`RadarMaterial.ignored` (single polarisation, Lambertian pattern).
+``xpd_coefficient`` K (default 0, as in Sionna), the fraction of the diffusely scattered power
+that is cross-polarised, sets the clutter's cross-polarised level of polarimetric runs:
+``q = K / (1 - K)`` (docs/physics.md (P7); K < 1). The scattering-pattern attributes are read
+and kept in :attr:`RadarMaterial.ignored` (Lambertian pattern).
 
 For optical renders (``mi.render``) the material behaves as a diffuse BSDF of its colour.
 """
@@ -48,7 +56,10 @@ from sarmitsuba import materials
 from sarmitsuba.constants import VACUUM_PERMITTIVITY
 from sarmitsuba.radar import ParameterError
 
-_RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "color")
+_RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "cross_pol_db",
+               "color")
+#: dB: default cross-polarised level of a rough ``radar`` surface (docs/physics.md (P7)).
+DEFAULT_CROSS_POL_DB = -15.0
 _ITU_KEYS = ("type", "thickness", "scattering_coefficient", "xpd_coefficient", "color", "reflectance",
              "base_color", "alpha_r", "alpha_i", "lambda_", "scattering_pattern")
 _ITU_DEFAULT_THICKNESS = 0.1   # m, Sionna RT's DEFAULT_THICKNESS
@@ -79,11 +90,21 @@ class RadarMaterial(mi.BSDF):
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
             self.set_roughness(scattering_coefficient=values.pop("scattering_coefficient", 0.0))
-            #: Parameters read but not modelled (single polarisation, Lambertian pattern).
+            xpd = float(values.pop("xpd_coefficient", 0.0))
+            if not 0.0 <= xpd < 1.0:
+                raise ParameterError(f"{plugin} '{self.name}': xpd_coefficient = {xpd} is outside the valid "
+                                     "range [0, 1) (the fraction of scattered power that is cross-polarised)")
+            #: sigma0_HV / mean co-polarised sigma0 of the clutter, docs/physics.md (P7).
+            self.cross_pol = xpd / (1.0 - xpd)
+            #: Parameters read but not modelled (the scattering pattern: Lambertian here).
             self.ignored = values
         else:
             self.ignored = {}
             self.set_roughness(gamma_db=values.pop("gamma_db", None))
+            cross_db = float(values.pop("cross_pol_db", DEFAULT_CROSS_POL_DB))
+            if not math.isfinite(cross_db):
+                raise ParameterError(f"radar '{self.name}': cross_pol_db = {cross_db} must be finite (dB)")
+            self.cross_pol = 10.0 ** (cross_db / 10.0)
             self._spec = _radar_spec(self.name, values)
         _check_spec(plugin, self.name, **self._spec)
         # The optical BSDF is built on first optical use, not here: plugin constructors run on

@@ -48,6 +48,8 @@ JITTER_STEP = 1.0 / 65536.0
 PHASE_STEP = 2.0 * math.pi / 4294967296.0
 #: Salt that makes the phase hash independent of the position hash of the same cell.
 PHASE_SALT = 0x68E31DA4
+#: Salt of the cross-polarised phase (polarimetric runs, eq. (P7)): independent of both.
+CROSS_PHASE_SALT = 0x2C1B3C6D
 
 
 def hash32(x):
@@ -145,10 +147,12 @@ def length_expansion(d, b, s, dist, u_axis, v_axis, c: float):
     return g_u, g_v, q_uu, q_uv, q_vv
 
 
-def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float):
+def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float, cross: bool = False):
     """The scatterer of the footprint's ``i``-th cell (UInt32), eq. (C): whether the footprint
     holds it (and ``i < n_cells``), its two-way length offset ``dl`` (m, :func:`length_expansion`)
-    and its phase ``phi - k dl`` (rad). Returns ``(own, dl, phase)``."""
+    and its phase ``phi - k dl`` (rad). Returns ``(own, dl, phase, phase_x)``: ``phase_x`` is the
+    phase of its cross-polarised return, ``phi_x - k dl`` with ``phi_x`` hashed independently of
+    ``phi`` (eq. (P7)), when ``cross``; else None (nothing compiled)."""
     g_u, g_v, q_uu, q_uv, q_vv = expansion
     iv = i // cells.nu
     iu_, iv_ = cells.iu0 + mi.Int32(i - iv * cells.nu), cells.iv0 + mi.Int32(iv)
@@ -159,4 +163,5 @@ def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float):
     own = (i < n_cells) & (s1 >= -0.5) & (s1 < 0.5) & (s2 >= -0.5) & (s2 < 0.5)
     dl = g_u * du + g_v * dv + q_uu * du * du + q_uv * du * dv + q_vv * dv * dv
     phase = mi.Float(hash32(h0 ^ PHASE_SALT)) * PHASE_STEP - k * dl
-    return own, dl, phase
+    phase_x = mi.Float(hash32(h0 ^ CROSS_PHASE_SALT)) * PHASE_STEP - k * dl if cross else None
+    return own, dl, phase, phase_x

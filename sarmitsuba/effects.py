@@ -82,6 +82,10 @@ class EffectSet:
         Sensor ``squint`` != 0.
     split_bounces : bool
         One raw data set and image per bounce order as well.
+    channels : tuple of str
+        The polarimetric channels simulated (sensor ``polarization``; ``("VV",)`` by default).
+        Cross-polarised channels and ``quad`` compile a Jones matrix per ray tube
+        (:attr:`polarimetric`, docs/physics.md (P1)-(P7)); one co-polarised channel does not.
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -99,6 +103,12 @@ class EffectSet:
     squint: bool
     split_bounces: bool
     listed: tuple[Effect, ...]
+    channels: tuple[str, ...] = ("VV",)
+
+    @property
+    def polarimetric(self) -> bool:
+        """A Jones matrix per tube: any cross-polarised channel (``HV``, ``VH``, ``quad``)."""
+        return any(c[0] != c[1] for c in self.channels)
 
     @property
     def bounces(self) -> bool:
@@ -137,7 +147,7 @@ class EffectSet:
                       noise=params.noise_figure_db is not None or params.noise_temperature is not None,
                       chirped=params.output == "raw", radiometry=params.transmit_power is not None,
                       spotlight=params.mode == "spotlight", squint=params.squint != 0, split_bounces=split,
-                      listed=())
+                      listed=(), channels=params.channels)
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -169,7 +179,7 @@ def list_effects(loaded: "LoadedScene") -> tuple[Effect, ...]:
     tuple of Effect
         In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
-        spotlight, squint, then per-bounce-order products (:attr:`EffectSet.listed`).
+        spotlight, squint, per-bounce-order products, then polarimetry (:attr:`EffectSet.listed`).
     """
     return active_effects(loaded).listed
 
@@ -178,7 +188,7 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     """The docs/design.md section 7 table for the decided effects ``e``: each on or off with its reason."""
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
-            _split(e.split_bounces))
+            _split(e.split_bounces), _polarimetry(e))
 
 
 def _bounces(depth: int) -> Effect:
@@ -248,3 +258,11 @@ def _split(on: bool) -> Effect:
     if on:
         return Effect("per-bounce-order products", True, "split_bounces")
     return Effect("per-bounce-order products", False, "split_bounces off: one raw data set and image for all orders")
+
+
+def _polarimetry(e: EffectSet) -> Effect:
+    if e.polarimetric:
+        return Effect("polarimetry", True, f"polarization = {'quad' if len(e.channels) > 1 else e.channels[0]}: "
+                      f"{', '.join(e.channels)} from one trace, a Jones matrix per ray tube")
+    return Effect("polarimetry", False, f"polarization = {e.channels[0]}: one co-polarised channel, scalar "
+                  "reflection coefficients, no Jones algebra (HV, VH or quad switch it on)")

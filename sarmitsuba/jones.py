@@ -1,17 +1,23 @@
 """One specular reflection of a complex field vector in Dr.Jit: the kernel side of (P3').
 
-docs/physics.md, section "Polarimetry", (P2), (P3'). Groundwork for the quad-pol tracer (not
-wired into :mod:`sarmitsuba.kernel` yet); vectorised over lanes in float32 (``llvm_ad_mono``,
+docs/physics.md, section "Polarimetry", (P2), (P3'). The kernel (:mod:`sarmitsuba.kernel`,
+:mod:`sarmitsuba.returns`) compiles these only for a polarimetric acquisition (``HV``, ``VH``
+or ``quad``); vectorised over lanes in float32 (``llvm_ad_mono``,
 set by ``import sarmitsuba``). Its NumPy reference is
 :func:`sarmitsuba.polarimetry.reflect_jones`, applied per column of a Jones matrix;
 tests/test_jones.py checks one against the other.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import drjit as dr
 import mitsuba as mi
 
-__all__ = ["NORMAL_TOLERANCE", "reflect_jones"]
+from .radar import CHANNELS
+
+__all__ = ["NORMAL_TOLERANCE", "CHANNELS", "Jones", "NoJones", "bsa_vectors", "launch", "reflect", "receive", "power",
+           "scatter", "reflect_jones"]
 
 #: Below this ``|n x d|`` (sine of the incidence angle) the incidence counts as normal and
 #: ``s = unit(a x d)``, ``a`` the coordinate axis least aligned with ``d`` (P2). In float32,
@@ -74,3 +80,100 @@ def reflect_jones(e_re: mi.Array3f, e_im: mi.Array3f, d: mi.Array3f, n: mi.Array
     out_re = t_re * m_re - t_im * m_im + (c_re * s_re - c_im * s_im) * s
     out_im = t_re * m_im + t_im * m_re + (c_re * s_im + c_im * s_re) * s
     return out_re, out_im, mirror(d)
+
+
+# ============================================================================ the tube's Jones matrix
+@dataclass
+class Jones:
+    """The Jones matrix a ray tube carries (docs/physics.md (P1), (P3')): the complex field vectors
+    for unit transmission on H (``h_*``) and on V (``v_*``), real and imaginary parts, float32,
+    normal to the tube's direction. A tube of the scalar model carries :class:`NoJones` instead."""
+
+    h_re: mi.Vector3f
+    h_im: mi.Vector3f
+    v_re: mi.Vector3f
+    v_im: mi.Vector3f
+
+
+@dataclass
+class NoJones:
+    """The scalar model's placeholder: no field, nothing compiled (docs/design.md section 7)."""
+
+
+def bsa_vectors(look: mi.Vector3f, fallback: mi.Vector3f) -> tuple[mi.Vector3f, mi.Vector3f]:
+    """The H and V unit vectors of a line of sight ``look`` (unit, antenna -> scene), (P1):
+    ``h = unit(z x look)``, ``v = look x h`` (up-ish). ``fallback`` (a unit horizontal vector,
+    the track direction) replaces ``z x look`` within 1e-6 of the vertical, where H is undefined
+    (a SAR never looks there; the check keeps the kernel finite)."""
+    zx = mi.Vector3f(-look.y, look.x, 0.0)                 # z x look
+    h = dr.select(dr.squared_norm(zx) < 1e-12, fallback, zx)
+    h = dr.normalize(h - dr.dot(h, look) * look)
+    return h, dr.cross(look, h)
+
+
+def launch(direction: mi.Vector3f, fallback: mi.Vector3f) -> Jones:
+    """The Jones matrix a tube leaves the antenna with along ``direction``: ``[h v]`` (P1)."""
+    h, v = bsa_vectors(direction, fallback)
+    zero = mi.Vector3f(0.0)
+    return Jones(h_re=h, h_im=zero, v_re=v, v_im=zero)
+
+
+def reflect(jones: Jones, d: mi.Vector3f, n: mi.Vector3f, r_te: mi.Complex2f, r_tm: mi.Complex2f) -> Jones:
+    """Both columns of ``jones`` reflected at a facet by (P3') (:func:`reflect_jones`)."""
+    h_re, h_im, _ = reflect_jones(jones.h_re, jones.h_im, d, n, r_te, r_tm)
+    v_re, v_im, _ = reflect_jones(jones.v_re, jones.v_im, d, n, r_te, r_tm)
+    return Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
+
+
+def receive(jones: Jones, look: mi.Vector3f, fallback: mi.Vector3f, channels: tuple[str, ...]) -> list:
+    """``S[rx, tx] = b_rx . J[:, tx]`` (P4) for each of ``channels`` (names of :data:`CHANNELS`),
+    with the H, V vectors of the receiving line of sight ``look`` (antenna -> the last hit).
+    Returns one mi.Complex2f per channel; only the products a channel needs are compiled."""
+    h, v = bsa_vectors(look, fallback)
+    columns = {"H": (jones.h_re, jones.h_im), "V": (jones.v_re, jones.v_im)}
+    out = []
+    for name in channels:
+        b = h if name[0] == "H" else v
+        re, im = columns[name[1]]
+        out.append(mi.Complex2f(dr.dot(b, re), dr.dot(b, im)))
+    return out
+
+
+def power(jones: Jones) -> mi.Float:
+    """``|J|_F^2 / 2``: the power carried, averaged over the two transmit channels (1 at launch)."""
+    return 0.5 * (dr.squared_norm(jones.h_re) + dr.squared_norm(jones.h_im)
+                  + dr.squared_norm(jones.v_re) + dr.squared_norm(jones.v_im))
+
+
+def scatter(jones: Jones, d: mi.Vector3f, b: mi.Vector3f, n: mi.Vector3f,
+            a_te: mi.Complex2f, a_tm: mi.Complex2f, a_x: mi.Complex2f | None = None) -> Jones:
+    """The field a facet sends toward the antenna (along ``b``) for the incoming columns of
+    ``jones`` (along ``d``), docs/physics.md (P4'), (P7):
+
+        E' = (a_te (s.E) + a_x (p.E)) s_b + (a_x (s.E) + a_tm (p.E)) p_b
+
+    with ``s = unit(n x d)``, ``p = d x s`` (P2), ``s_b = unit(s - (s.b) b)`` and
+    ``p_b = (-b) x s_b``. For the specular direction (``b = d'``) ``s_b = s``, ``p_b = p'`` and,
+    with ``a_te, a_tm = r_te, r_tm`` and no ``a_x``, this is the reflection (P3); for
+    backscatter (``b = -d``) ``p_b = p``: the Kirchhoff backscatter ``r_te`` on TE and ``r_tm`` on
+    TM (PEC: ``E' = -E``, as physical optics gives). ``a_x`` (None: not compiled) couples TE and
+    TM symmetrically: a rough surface's cross-polarised scatterer (P7). Where ``s`` is within
+    1e-6 of ``b`` (the return leaves along the facet's TE direction), ``s_b = unit(n x (-b))``."""
+    s_i = _te_vector(d, n)
+    p_i = dr.cross(d, s_i)
+    back = -b
+    s_b = s_i - dr.dot(s_i, back) * back
+    s_b = dr.normalize(dr.select(dr.squared_norm(s_b) < 1e-12, _te_vector(back, n), s_b))
+    p_b = dr.cross(back, s_b)
+
+    def column(e_re, e_im):
+        e_s = mi.Complex2f(dr.dot(s_i, e_re), dr.dot(s_i, e_im))
+        e_p = mi.Complex2f(dr.dot(p_i, e_re), dr.dot(p_i, e_im))
+        along_s, along_p = a_te * e_s, a_tm * e_p
+        if a_x is not None:
+            along_s, along_p = along_s + a_x * e_p, along_p + a_x * e_s
+        return (s_b * dr.real(along_s) + p_b * dr.real(along_p), s_b * dr.imag(along_s) + p_b * dr.imag(along_p))
+
+    h_re, h_im = column(jones.h_re, jones.h_im)
+    v_re, v_im = column(jones.v_re, jones.v_im)
+    return Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)

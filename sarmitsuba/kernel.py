@@ -39,6 +39,7 @@ import numpy as np
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from .effects import EffectSet, rough_materials
+from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
@@ -166,7 +167,9 @@ class Tube:
     copy Embree traces. ``m1, m2, m3`` are the columns of the linear part ``M`` of the mirrors
     met so far (the identity before the first bounce): a direction ``v`` of the unfolded path
     (the straight line from the reference position through the aim point) is ``M v`` in the
-    scene. ``gamma`` is the product of the reflection coefficients so far, ``first_hit`` the first
+    scene. ``gamma`` is the product of the reflection coefficients so far (of the specular factors
+    only when the tube carries a Jones matrix ``jones``, docs/physics.md (P3'); a
+    :class:`~sarmitsuba.jones.NoJones` in the scalar model), ``first_hit`` the first
     bounce's hit point (for the transmit pattern of later bounces). ``lattice`` is the tube's
     lattice id (its lane at launch), ``sub`` its sub-aperture, ``aim`` its aim point, ``key`` a
     hash of the facets met so far.
@@ -183,6 +186,7 @@ class Tube:
     m3: mi.Vector3f
     first_hit: mi.Array3f64
     gamma: mi.Complex2f
+    jones: "pol.Jones | pol.NoJones"
     aim: mi.Array3f64
     lattice: mi.UInt32
     block: mi.UInt32
@@ -222,7 +226,7 @@ class Record:
     first direction), ``n_unfolded`` the facet's normal there, ``M^T n``, and ``m1, m2, m3`` the
     columns of ``M``: a pulse's own tile corners, lengths and directions follow from its antenna
     position (eq. (T3)). ``gamma`` holds the reflection coefficients of the earlier bounces
-    (with their specular factors).
+    (with their specular factors), ``jones`` the Jones matrix arriving at the hit (as :class:`Tube`).
     """
 
     p64: mi.Array3f64
@@ -236,6 +240,7 @@ class Record:
     m3: mi.Vector3f
     first_hit: mi.Array3f64
     gamma: mi.Complex2f
+    jones: "pol.Jones | pol.NoJones"
     aim: mi.Array3f64
     row: mi.UInt32
     shape: mi.UInt32
@@ -313,7 +318,7 @@ def record(tube: Tube, hit: Hit, unfolded: mi.Array3f64, row: mi.UInt32, edges: 
     n_unfolded = mi.Vector3f(dr.dot(tube.m1, hit.n), dr.dot(tube.m2, hit.n), dr.dot(tube.m3, hit.n))
     return Record(p64=hit.p64, n=hit.n, e1=edges[0], e2=edges[1], unfolded=unfolded, n_unfolded=n_unfolded,
                   m1=tube.m1, m2=tube.m2, m3=tube.m3, first_hit=hit.p64 if first else tube.first_hit,
-                  gamma=tube.gamma, aim=tube.aim, row=row, shape=hit.shape, lattice=tube.lattice, block=tube.block,
+                  gamma=tube.gamma, jones=tube.jones, aim=tube.aim, row=row, shape=hit.shape, lattice=tube.lattice, block=tube.block,
                   sub=tube.sub,
                   flags=mi.UInt32(flags), key=_facet_key(tube, hit))
 
@@ -327,9 +332,10 @@ def _facet_key(tube: Tube, hit: Hit) -> mi.UInt32:
     return (x ^ (x >> 13)) * 0xC2B2AE35
 
 
-def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, first: bool) -> Tube:
+def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, first: bool, jones=None) -> Tube:
     """Specular reflection of the ray, the tube edges and the mirror chain at the hit, eq. (T1),
-    (T3). ``first``: this is the first bounce (its hit becomes ``first_hit``)."""
+    (T3): ``gamma`` times ``r``, and the reflected Jones matrix ``jones`` (docs/physics.md (P3'))
+    when the tube carries one. ``first``: this is the first bounce (its hit becomes ``first_hit``)."""
     n, n64 = hit.n, hit.n64
     direction = tube.direction - 2.0 * dr.dot(tube.direction, n64) * n64       # float64 mirror
 
@@ -339,7 +345,7 @@ def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, first: bool) -> Tube:
     return Tube(ray=_spawn(hit.p, n, mi.Vector3f(direction)), t1=mirror(tube.t1), t2=mirror(tube.t2), s=hit.s,
                 origin=hit.p64, direction=direction, m1=mirror(tube.m1), m2=mirror(tube.m2),
                 m3=mirror(tube.m3), first_hit=hit.p64 if first else tube.first_hit, gamma=tube.gamma * r,
-                aim=tube.aim, lattice=tube.lattice, block=tube.block, sub=tube.sub, flags=tube.flags,
+                jones=tube.jones if jones is None else jones, aim=tube.aim, lattice=tube.lattice, block=tube.block, sub=tube.sub, flags=tube.flags,
                 key=_facet_key(tube, hit), active=hit.valid)
 
 
@@ -373,6 +379,9 @@ class _Tables:
     clutter_value: mi.Float | None = None
     shape_key: mi.UInt32 | None = None
     shape_origin: mi.Point3f | None = None
+    re_tm: mi.Float | None = None             # polarimetric runs: r_tm table (re with r_te), (P3')
+    im_tm: mi.Float | None = None
+    cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
 
 
 def _triangle_table(scene, size: int):
@@ -441,6 +450,10 @@ class Kernel:
                                        else np.ones(table.table.shape[0], np.float32)),
                               mi.Float(table.table.real.ravel().astype(np.float32)),
                               mi.Float(table.table.imag.ravel().astype(np.float32)), table.table.shape[1])
+        if effects.polarimetric:
+            self.tables.re_tm = mi.Float(table.table_tm.real.ravel().astype(np.float32))
+            self.tables.im_tm = mi.Float(table.table_tm.imag.ravel().astype(np.float32))
+            self.tables.cross_pol = mi.Float(table.cross_pol.astype(np.float32))
         if effects.clutter:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
@@ -459,7 +472,7 @@ class Kernel:
         ctx = self.returns.context(launch, capacity)
         tube, n_lanes = self.launch(launch)
         for depth in range(st.max_depth):
-            if dr.width(tube.active) == 0:
+            if tube is None or dr.width(tube.active) == 0:
                 break
             tube = self._bounce(ctx, launch, tube, depth, n_lanes)
         out = self.returns.collect(ctx)
@@ -477,10 +490,17 @@ class Kernel:
         dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(depth), tube.active)
         hit = intersect(self.scene, self.tables, tube, reference)
         row = dr.gather(mi.UInt32, self.tables.row_of_shape, hit.shape, hit.valid)
-        r = ret.reflection_at(row, hit.cos_i, hit.valid)
         specular = dr.gather(mi.Float, self.tables.specular, row, hit.valid)
+        if self.effects.polarimetric:          # docs/physics.md (P3'): the Jones matrix reflected
+            r_te, r_tm = ret.reflection_pair(row, hit.cos_i, hit.valid)
+            reflected = pol.reflect(tube.jones, tube.ray.d, hit.n, r_te, r_tm)
+            carried = dr.squared_norm(tube.gamma) * pol.power(tube.jones)
+            r = mi.Complex2f(dr.sqrt(pol.power(reflected)), 0.0)     # for the energy tally only
+        else:
+            r, reflected = ret.reflection_at(row, hit.cos_i, hit.valid), None
+            carried = dr.squared_norm(tube.gamma)
         count = mi.Float(dr.gather(mi.UInt32, ctx["count"], tube.sub))
-        dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * dr.squared_norm(tube.gamma) * count,
+        dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * carried * count,
                        mi.UInt32(depth), hit.valid)
         # ---- the footprint seen from the reference position, and which of its edges split (PO2):
         #      for every pulse of the sub-aperture (its first and last pulse agree), or per pulse ----
@@ -495,7 +515,12 @@ class Kernel:
         dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0))
         ret.tally(ctx, rec, hit, d, alpha, specular, r, count, depth, vis)
         last = depth + 1 == st.max_depth          # the last bounce order: no reflection compiled
-        nxt = None if last else reflect(tube, hit, r * specular, first=depth == 0)
+        if last:
+            nxt = None
+        elif reflected is None:
+            nxt = reflect(tube, hit, r * specular, first=depth == 0)
+        else:
+            nxt = reflect(tube, hit, mi.Complex2f(specular, 0.0), first=depth == 0, jones=reflected)
         dr.eval(rec, vis, *(() if last else (nxt,)))
         keep = dr.compress(vis)
         if dr.width(keep):
@@ -503,7 +528,7 @@ class Kernel:
             dr.eval(visible_hits)             # one kernel for all fields (not one per field, later)
             ret.deposit(ctx, visible_hits, depth, n_lanes)
         if last:
-            return dr.zeros(Tube, 0)
+            return None
         nxt = dr.gather(Tube, nxt, dr.compress(nxt.active))
         dr.eval(nxt)
         return nxt
@@ -574,7 +599,9 @@ class Kernel:
         zero = mi.Vector3f(0.0)
         tube = Tube(ray=mi.Ray3f(mi.Point3f(reference + d64 * rn), d), t1=e1, t2=e2, s=f64(0.0), origin=reference,
                     direction=d64, m1=mi.Vector3f(1.0, 0.0, 0.0), m2=mi.Vector3f(0.0, 1.0, 0.0),
-                    m3=mi.Vector3f(0.0, 0.0, 1.0), first_hit=a64(zero), gamma=mi.Complex2f(1.0, 0.0), aim=aim,
+                    m3=mi.Vector3f(0.0, 0.0, 1.0), first_hit=a64(zero), gamma=mi.Complex2f(1.0, 0.0),
+                    jones=pol.launch(d, mi.Vector3f(*fp.track.tolist())) if self.effects.polarimetric
+                    else pol.NoJones(), aim=aim,
                     lattice=lane, block=block, sub=sub, flags=mi.UInt32(flags), key=mi.UInt32(0), active=active)
         dr.eval(tube)
         alive = dr.compress(tube.active)

@@ -20,7 +20,7 @@ from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
 from .image import SarImage
 from .outputs import OutputDirectory, check_output_dir, json_default
-from .radar import AcquisitionGeometry, acquisition_geometry
+from .radar import POLARIZATIONS, AcquisitionGeometry, acquisition_geometry
 from .raw import RawData
 from .scene import LoadedScene, load_scene, material_table
 from .trace import TraceResult, trace
@@ -67,7 +67,11 @@ class RenderSummary:
 
 @dataclass(frozen=True)
 class Simulation:
-    """Everything one simulation produced, in memory (see :func:`simulate`)."""
+    """Everything one simulation produced, in memory (see :func:`simulate`).
+
+    With ``polarization = quad`` every channel has its own raw data and image on one image grid:
+    :attr:`channels` maps ``"HH"``, ``"HV"``, ``"VH"``, ``"VV"`` to a one-channel Simulation each,
+    and :attr:`raw` and :attr:`image` are the HH channel's."""
 
     loaded: LoadedScene
     raw: RawData
@@ -77,6 +81,8 @@ class Simulation:
     #: Raw data and images of each bounce order (1, 2, ...) when ``split_bounces`` is on.
     raw_per_order: tuple = ()
     images_per_order: tuple = ()
+    #: ``quad``: one Simulation per channel (:data:`sarmitsuba.radar.CHANNELS`); else empty.
+    channels: Mapping[str, "Simulation"] = dataclasses.field(default_factory=dict)
 
 
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -115,24 +121,34 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
                                  settings.max_depth)
     metadata = _metadata(loaded, footprint.spacing_azimuth, result, effects)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
-    raw = binning.to_raw_data(result.contributions(), result, window, params, world, metadata,
-                              noise_seed=settings.seed)
-    per_order = tuple(
-        binning.to_raw_data(result.contributions(k), result, window, params, world,
-                            {**metadata, "bounce_order": k}) for k in range(1, result.n_orders + 1))
-    t["bin"] = time.perf_counter()
-    geometry = world
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     pattern = azimuth_pattern(params)
     focus = lambda r, desc: _calibrated(focus_with(  # noqa: E731
         _compressed(r, window_spec), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
-        window_azimuth=window_spec, progress=progress, desc=desc), params, geometry)
-    image = focus(raw, "focus all orders" if per_order else "focus")          # progress bar labels
-    images = tuple(focus(r, f"focus order {k}") for k, r in enumerate(per_order, start=1))
-    t["focus"] = time.perf_counter()
-    stages = ("load", "trace", "bin", "focus")
-    timings = {name: t[name] - t[prev] for prev, name in zip(("start",) + stages, stages)}
-    return Simulation(loaded, raw, image, result, timings, per_order, images)
+        window_azimuth=window_spec, progress=progress, desc=desc), params, world)
+    products, spent = {}, {"bin": 0.0, "focus": 0.0}
+    for name in params.channels:                         # one trace, then each channel's raw data and images
+        channel = result.channel(name)
+        meta = {**metadata, "polarization": name}
+        label = f" {name}" if result.channels else ""
+        raw = binning.to_raw_data(channel.contributions(), channel, window, params, world, meta,
+                                  noise_seed=settings.seed + (POLARIZATIONS.index(name) << 32))
+        per_order = tuple(
+            binning.to_raw_data(channel.contributions(k), channel, window, params, world,
+                                {**meta, "bounce_order": k}) for k in range(1, channel.n_orders + 1))
+        binned = time.perf_counter()
+        image = focus(raw, f"focus{label} all orders" if per_order else f"focus{label}")   # progress bar labels
+        images = tuple(focus(r, f"focus{label} order {k}") for k, r in enumerate(per_order, start=1))
+        spent["bin"] += binned - t["trace"] - spent["bin"] - spent["focus"]
+        spent["focus"] += time.perf_counter() - binned
+        products[name] = (raw, image, channel, per_order, images)
+    timings = {"load": t["load"] - t["start"], "trace": t["trace"] - t["load"], **spent}
+    if not result.channels:
+        raw, image, _, per_order, images = products[params.polarization]
+        return Simulation(loaded, raw, image, result, timings, per_order, images)
+    channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images)
+                for name, (raw, image, channel, per_order, images) in products.items()}
+    return dataclasses.replace(channels["HH"], trace=result, channels=channels)
 
 
 #: Focusers of :func:`simulate` / :func:`render`: fast factorised backprojection (the default) and

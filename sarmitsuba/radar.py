@@ -19,7 +19,7 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 
-__all__ = ["RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC",
+__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC",
            "ValidRange", "VALID_RANGES"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
@@ -30,6 +30,12 @@ HALF_POWER_SINC = 0.44294647
 class ParameterError(ValueError):
     """A radar, platform or tracer parameter is outside its valid range."""
 
+
+#: The channels of a quad-pol acquisition, receive then transmit letter (Lee and Pottier's
+#: ``S_rx,tx``): ``HV`` is received on H and transmitted on V (docs/physics.md (P4)).
+CHANNELS = ("HH", "HV", "VH", "VV")
+#: Valid values of the sensor parameter ``polarization``.
+POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
 
 @dataclass(frozen=True)
 class RadarParameters:
@@ -79,7 +85,10 @@ class RadarParameters:
         only (extended targets streak along azimuth beyond their ends); needs
         ``antenna_length = 0``.
     polarization : str
-        ``"VV"`` or ``"HH"`` (scalar single-polarisation model).
+        ``"VV"`` (default) or ``"HH"``: one co-polarised channel of the scalar model (R), (P6),
+        no Jones algebra compiled; ``"HV"`` or ``"VH"`` (receive, transmit): one
+        cross-polarised channel; ``"quad"``: all four channels (:data:`CHANNELS`) from one
+        trace. The last three carry a Jones matrix per ray tube, docs/physics.md (P1)-(P7).
     antenna_length, antenna_height : float, m
         Antenna aperture along track (L_a) and in elevation (H_a). Each switches on its
         two-way pattern ``sinc^2(L_a sin(phi_az) / lambda)``, ``sinc^2(H_a sin(phi_el) / lambda)``
@@ -194,8 +203,10 @@ class RadarParameters:
             raise ParameterError(f"mode = {self.mode!r}; valid values are 'stripmap' and 'spotlight'")
         if self.output not in ("compressed", "raw"):
             raise ParameterError(f"output = {self.output!r}; valid values are 'compressed' and 'raw'")
-        if self.polarization not in ("VV", "HH"):
-            raise ParameterError(f"polarization = {self.polarization!r}; valid values are 'VV' and 'HH'")
+        if self.polarization not in POLARIZATIONS:
+            raise ParameterError(f"polarization = {self.polarization!r}; valid values are "
+                                 f"{', '.join(repr(p) for p in POLARIZATIONS)} (case matters: 'quad' "
+                                 "for all four channels)")
         if int(self.n_pulses) != self.n_pulses or self.n_pulses < 0:
             raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
         if not 0.0 < self.azimuth_beamwidth < 90.0:
@@ -240,6 +251,16 @@ class RadarParameters:
         if self.beam == "uniform":
             return 0.0
         return HALF_POWER_SINC * self.wavelength / math.sin(math.radians(self.azimuth_beamwidth) / 2.0)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The polarimetric channels simulated: :data:`CHANNELS` for ``quad``, else the one named."""
+        return CHANNELS if self.polarization == "quad" else (self.polarization,)
+
+    @property
+    def polarimetric(self) -> bool:
+        """Whether the tracer carries Jones matrices (``HV``, ``VH``, ``quad``; docs/physics.md (P3'))."""
+        return self.polarization in ("HV", "VH", "quad")
 
     @property
     def traced_half_angle(self) -> float:

@@ -29,6 +29,8 @@ from .constants import SPEED_OF_LIGHT
 from .clutter_lattice import (footprint_cells, lattice_frame, length_expansion, scatterer, shortened_footprint,
                               surface_key)
 from .deposit import SPECTRAL_ORDERS, taps
+from . import jones as pol
+from .radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
 
 __all__ = ["Returns", "footprint_edges"]
@@ -98,6 +100,13 @@ class Returns:
         self.groups = effects.groups
         self.clutter_on = effects.clutter
         self.cancel_interior = settings.cancel_interior
+        # polarimetry, docs/physics.md (P1)-(P7): the channels deposited, and whether the records
+        # carry Jones matrices (a single co-polarised channel: the scalar model (R), (P6))
+        self.channels = effects.channels
+        self.polarimetric = effects.polarimetric
+        self.track = footprint.track.tolist()             # H where z x look vanishes (never, for a SAR)
+        # the scalar VV channel takes the sign (-1)^(k+1) of a k-bounce chain in the plane of the look (P6)
+        self.vv_sign = self.channels == ("VV",)
         self.split_at = split_threshold(params.bandwidth, params.frequency)
         # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
         self.radiometry = effects.radiometry
@@ -135,7 +144,7 @@ class Returns:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
             ctx["steer"] = mi.Float((to_c @ self.fp.track / np.linalg.norm(to_c, axis=1)).astype(np.float32))
         if not self.exact:
-            size = len(SPECTRAL_ORDERS) * self.groups * n_b * win.n_fine
+            size = len(SPECTRAL_ORDERS) * len(self.channels) * self.groups * n_b * win.n_fine
             ctx["hist"] = dr.zeros(mi.Float, 2 * size)          # (re, im) packets
         return ctx
 
@@ -154,12 +163,12 @@ class Returns:
         out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
         if self.exact:
             empty = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, path_order=np.uint32,
-                         path_pulse=np.uint32, path_spectral=np.uint32)
+                         path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
             out["paths"] = {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                             for name, dtype in empty.items()}
         else:
             hist = ctx["hist"].numpy().view(np.complex64)
-            out["hist"] = hist.reshape(len(SPECTRAL_ORDERS), self.groups, ctx["n_b"], win.n_fine)
+            out["hist"] = hist.reshape(len(SPECTRAL_ORDERS), len(self.channels) * self.groups, ctx["n_b"], win.n_fine)
         return out
 
     # ------------------------------------------------------------------ geometry helpers
@@ -184,6 +193,32 @@ class Returns:
         re = dr.lerp(dr.gather(mi.Float, t.re, idx, active), dr.gather(mi.Float, t.re, idx + 1, active), w)
         im = dr.lerp(dr.gather(mi.Float, t.im, idx, active), dr.gather(mi.Float, t.im, idx + 1, active), w)
         return mi.Complex2f(re, im)
+
+    def reflection_pair(self, row: mi.UInt32, cos_i: mi.Float, active: mi.Bool) -> tuple:
+        """``(r_te, r_tm)`` of material ``row`` at ``cos_i``, linear in its tables (polarimetric runs
+        only), eqs. (R), (P3')."""
+        t = self.tables
+        x = dr.clip(cos_i, 0.0, 1.0) * (t.n_cos - 1)
+        i0 = mi.UInt32(dr.minimum(dr.floor(x), t.n_cos - 2))
+        w = x - mi.Float(i0)
+        idx = row * t.n_cos + i0
+        out = []
+        for re_, im_ in ((t.re, t.im), (t.re_tm, t.im_tm)):
+            re = dr.lerp(dr.gather(mi.Float, re_, idx, active), dr.gather(mi.Float, re_, idx + 1, active), w)
+            im = dr.lerp(dr.gather(mi.Float, im_, idx, active), dr.gather(mi.Float, im_, idx + 1, active), w)
+            out.append(mi.Complex2f(re, im))
+        return tuple(out)
+
+    def po_channels(self, rec, d, b, n, cos_i, depth: int) -> list:
+        """The reflection factor of a PO term per channel (docs/physics.md (PO1), (P4)): the scalar
+        ``r(cos_i)`` of the one co-polarised channel (with the VV sign of (P6)), or, with Jones
+        matrices, ``S[rx, tx] = b_rx . R J`` for the pulse's own incidence ``d`` and return ``b``."""
+        if not self.polarimetric:
+            r = self.reflection_at(rec.row, cos_i, True)
+            return [-r if self.vv_sign and depth % 2 else r]
+        r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
+        field = pol.scatter(rec.jones, d, b, n, r_te, r_tm)
+        return pol.receive(field, -b, mi.Vector3f(*self.track), self.channels)
 
     def gain(self, v, steer):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
@@ -443,10 +478,9 @@ class Returns:
             dist = dr.norm(outgoing)
             b = mi.Vector3f(outgoing / dist)
             cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
-            r_here = self.reflection_at(rec.row, cos_i, True)
             scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular * dr.norm(dr.cross(*edges)) \
                 * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
-            value = mi.Complex2f(0.0, scale) * (rec.gamma * r_here)
+            value = mi.Complex2f(0.0, scale) * rec.gamma
             u = d - b
             for j, e in enumerate(edges):
                 g = dr.dot(u, e)
@@ -458,7 +492,9 @@ class Returns:
             # the corner agree and cancellation (PO5) is unaffected.
             active &= (cos_i > COS_GRAZING) & (s > 0)
             order_index = mi.UInt32(SPECTRAL_ORDERS.index(1)) - mi.UInt32(split[0]) - mi.UInt32(split[1])
-            self._deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, value * self.carrier_phase(rel),
+            value = value * self.carrier_phase(rel)
+            values = [value * c for c in self.po_channels(rec, d, b, n, cos_i, depth)]
+            self._deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, values,
                           order_index, active, paths, term * ctx["max_count"] + q)
             return (q + 1,)
 
@@ -517,37 +553,74 @@ class Returns:
         s, dist = dr.norm(incoming), dr.norm(outgoing)
         d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
         cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
-        r = self.reflection_at(rec.row, cos_i, True)
-        sigma0 = dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
-                           dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * lattice["raise_by"]
-        rough = (sigma0 > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
+        def sigma0(r):
+            return dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
+                             dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * lattice["raise_by"]
+
+        if self.polarimetric:       # co- and cross-polarised parts of S per scatterer, eq. (P7)
+            co, cross, level = self._rough_channels(rec, d, b, n, sigma0, cos_i, depth)
+        else:
+            level = sigma0(self.reflection_at(rec.row, cos_i, True))
+            co, cross = [dr.sqrt(level)], None
+        rough = (level > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
         weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
         rel = s + dist - lref
         anchor = self.anchor(rel, lref)
-        amplitude = rec.gamma * self.carrier_phase(rel) * (dr.sqrt(sigma0) * c * weight)
+        amplitude = rec.gamma * self.carrier_phase(rel) * (c * weight)
         expansion = length_expansion(d, b, s, dist, *lattice["axes"], c)
         n_cells = dr.select(rough, lattice["cells"].cells, 0)
         mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
 
         def step(i, found, outside):
-            own, dl, phase = scatterer(i, lattice["cells"], lattice["key0"], expansion, n_cells, self.k)
+            own, dl, phase, phase_x = scatterer(i, lattice["cells"], lattice["key0"], expansion, n_cells, self.k,
+                                                cross=cross is not None)
             sn, cs = dr.sincos(phase)
-            inside = self._deposit(ctx, pulse, depth, anchor, dl, amplitude * mi.Complex2f(cs, sn), mid, own,
-                                   paths, None)
+            here = amplitude * mi.Complex2f(cs, sn)
+            values = [here * a for a in co]
+            if cross is not None:
+                sn, cs = dr.sincos(phase_x)
+                there = amplitude * mi.Complex2f(cs, sn)
+                values = [v + there * a for v, a in zip(values, cross)]
+            inside = self._deposit(ctx, pulse, depth, anchor, dl, values, mid, own, paths, None)
             return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
 
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
                                           lambda i, *_: i < n_cells, step, label="scatterers")
-        power = dr.squared_norm(amplitude)
+        power = dr.squared_norm(amplitude) * level
         dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
         dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
         dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
 
+    def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
+        """Per channel, the co-polarised and the cross-polarised factor of a rough surface's
+        scatterer (its own phase aside), eq. (P7): ``S = B^T C J`` with ``C`` of
+        :func:`sarmitsuba.jones.scatter`, ``a_te = sqrt(sigma0(r_te))``,
+        ``a_tm = sqrt(sigma0(r_tm))`` and ``a_x = sqrt(q (a_te^2 + a_tm^2) / 2)``. After earlier
+        bounces (whose reverse path is not traced) both are made symmetric, ``(S + S^T) / 2``.
+        Returns ``(co, cross, level)``, ``level`` the mean co-polarised sigma0 (the energy tally)."""
+        r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
+        s_te, s_tm = sigma0(r_te), sigma0(r_tm)
+        q = dr.gather(mi.Float, self.tables.cross_pol, rec.row)
+        zero = mi.Complex2f(0.0, 0.0)
+        amplitudes = ((mi.Complex2f(dr.sqrt(s_te), 0.0), mi.Complex2f(dr.sqrt(s_tm), 0.0), zero),
+                      (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
+        track = mi.Vector3f(*self.track)
+        parts = []
+        for a_te, a_tm, a_x in amplitudes:
+            s_full = dict(zip(CHANNELS, pol.receive(pol.scatter(rec.jones, d, b, n, a_te, a_tm, a_x), -b, track,
+                                                    CHANNELS)))
+            if depth > 0:
+                s_full["HV"] = s_full["VH"] = 0.5 * (s_full["HV"] + s_full["VH"])
+            parts.append([s_full[c] for c in self.channels])
+        level = 0.5 * (s_te + s_tm) * (1.0 + q)
+        return parts[0], parts[1], level
+
     # ------------------------------------------------------------------ deposit
-    def _deposit(self, ctx, pulse, depth: int, anchor, offset, value, order_index, mask, paths, slot) -> mi.Bool:
-        """Deposit ``value`` at the two-way length ``offset`` [m] (float32) beyond ``anchor`` for batch
-        pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO term in the exact kernel's path list (None:
-        a clutter scatterer, appended). Returns whether the term lies inside the fast-time window."""
+    def _deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
+        """Deposit ``values`` (one mi.Complex2f per channel) at the two-way length ``offset`` [m]
+        (float32) beyond ``anchor`` for batch pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO
+        term in the exact kernel's path list (None: a clutter scatterer, appended). Returns whether
+        the term lies inside the fast-time window."""
         st, win = self.settings, self.window
         position = anchor[1] + offset * (1.0 / win.fine_step_length)       # fine bins after anchor[0]
         if self.exact:
@@ -557,34 +630,41 @@ class Returns:
                 keep = mask & (slot < paths["capacity"])
             else:
                 keep = mask
-            dr.scatter(paths["path_pos"], coarse, slot, keep)
-            dr.scatter(paths["path_re"], value.real, slot, keep)
-            dr.scatter(paths["path_im"], value.imag, slot, keep)
-            dr.scatter(paths["path_order"], mi.UInt32(depth + 1), slot, keep)
-            dr.scatter(paths["path_pulse"], pulse, slot, keep)
-            dr.scatter(paths["path_spectral"], order_index, slot, keep)
+            n_ch = len(values)
+            for c, value in enumerate(values):
+                index = slot * n_ch + c
+                dr.scatter(paths["path_pos"], coarse, index, keep)
+                dr.scatter(paths["path_re"], value.real, index, keep)
+                dr.scatter(paths["path_im"], value.imag, index, keep)
+                dr.scatter(paths["path_order"], mi.UInt32(depth + 1), index, keep)
+                dr.scatter(paths["path_pulse"], pulse, index, keep)
+                dr.scatter(paths["path_spectral"], order_index, index, keep)
+                dr.scatter(paths["path_channel"], mi.UInt32(c), index, keep)
             return (coarse >= 0) & (coarse <= win.n_samples - 1)
         k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
         k0 = k0 + anchor[0]
         inside = (k0 >= lo) & (k0 < win.n_fine - hi)
         group = depth if self.groups > 1 else 0
-        base = ((order_index * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
-        for offset_, w in tap_list:            # one (re, im) packet per tap
-            dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
-                           mask & inside, mode=dr.ReduceMode.Expand)
+        n_groups = len(values) * self.groups               # channel-major: group c * groups + order
+        for c, value in enumerate(values):
+            base = ((order_index * n_groups + c * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
+            for offset_, w in tap_list:            # one (re, im) packet per tap
+                dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
+                               mask & inside, mode=dr.ReduceMode.Expand)
         return inside
 
-    @staticmethod
-    def _path_buffers(size: int) -> dict:
-        return dict(count=dr.zeros(mi.UInt32, 1), capacity=size, path_pos=dr.zeros(mi.Float64, size),
-                    path_re=dr.zeros(mi.Float, size), path_im=dr.zeros(mi.Float, size),
-                    path_order=dr.zeros(mi.UInt32, size), path_pulse=dr.zeros(mi.UInt32, size),
-                    path_spectral=dr.zeros(mi.UInt32, size))
+    def _path_buffers(self, size: int) -> dict:
+        """The exact kernel's path list: ``size`` slots of one entry per channel."""
+        n = size * len(self.channels)
+        return dict(count=dr.zeros(mi.UInt32, 1), capacity=size, path_pos=dr.zeros(mi.Float64, n),
+                    path_re=dr.zeros(mi.Float, n), path_im=dr.zeros(mi.Float, n),
+                    path_order=dr.zeros(mi.UInt32, n), path_pulse=dr.zeros(mi.UInt32, n),
+                    path_spectral=dr.zeros(mi.UInt32, n), path_channel=dr.zeros(mi.UInt32, n))
 
     @staticmethod
     def _keep_paths(ctx, paths: dict) -> None:
         """Move a path buffer to NumPy (filled slots only); note an overflow of the appended part."""
-        names = ("path_pos", "path_re", "path_im", "path_order", "path_pulse", "path_spectral")
+        names = ("path_pos", "path_re", "path_im", "path_order", "path_pulse", "path_spectral", "path_channel")
         dr.eval(paths["count"], *(paths[name] for name in names))
         count = int(paths["count"].numpy()[0])
         if count > paths["capacity"]:

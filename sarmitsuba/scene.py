@@ -335,7 +335,9 @@ def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
 
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
-    """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz].
+    """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz]: ``r`` of the
+    ``polarization``'s channel (R), or for ``HV``, ``VH`` and ``quad`` both ``r_te`` and ``r_tm``
+    and the clutter's cross-polarised level (docs/physics.md (P3'), (P7)).
 
     Raises
     ------
@@ -346,6 +348,8 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     """
     rows: dict[int, int] = {}
     tables, clutter, specular, ids, names = [], [], [], [], []
+    polarimetric = polarization in ("HV", "VH", "quad")       # r_te and r_tm tables, docs/physics.md (P3')
+    tables_tm, cross_pol = [], []
     for index, shape in enumerate(scene.shapes()):
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -357,7 +361,11 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         if key not in rows:
             rows[key] = len(tables)
             names.append(bsdf.name)
-            tables.append(materials.reflection_table(material, frequency, polarization, n=TABLE_SIZE))
+            tables.append(materials.reflection_table(material, frequency, "HH" if polarimetric else polarization,
+                                                     n=TABLE_SIZE))
+            if polarimetric:
+                tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
+                cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
             clutter.append(bsdf.clutter)
             specular.append(bsdf.specular_factor)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
@@ -376,4 +384,6 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
                          names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
                          shape_key=shape_key, shape_origin=shape_origin,
-                         specular=np.array(specular, np.float32))
+                         specular=np.array(specular, np.float32),
+                         table_tm=np.stack(tables_tm).astype(np.complex64) if polarimetric else None,
+                         cross_pol=np.array(cross_pol, np.float32) if polarimetric else None)

@@ -23,6 +23,7 @@ the reference phase in float64, band-limits (range compression) or chirps it.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, fields
@@ -61,6 +62,9 @@ class PathList:
         reference phase (the same quantity the gridded kernels deposit).
     spectral : int8 [n_paths]
         Spectral order ``m``: the term's amplitude scales as ``(f / fc)^m`` (docs/physics.md (PO3)).
+    channel : uint8 [n_paths] or None
+        Polarimetric channel, an index into :attr:`TraceResult.channels` (``quad`` only; None
+        for one channel).
     """
 
     pulse: np.ndarray
@@ -68,11 +72,16 @@ class PathList:
     position: np.ndarray
     value: np.ndarray
     spectral: np.ndarray
+    channel: np.ndarray | None = None
+
+    def select(self, keep: np.ndarray) -> "PathList":
+        """The terms where the bool array ``keep`` is true."""
+        return PathList(*(None if getattr(self, f.name) is None else getattr(self, f.name)[keep]
+                          for f in fields(PathList)))
 
     def of_order(self, order: int) -> "PathList":
         """The terms of one bounce order."""
-        keep = self.order == order
-        return PathList(*(getattr(self, f.name)[keep] for f in fields(PathList)))
+        return self.select(self.order == order)
 
     @staticmethod
     def concatenate(parts: list["PathList"]) -> "PathList":
@@ -80,7 +89,8 @@ class PathList:
         if not parts:
             return PathList(np.zeros(0, np.int32), np.zeros(0, np.uint8), np.zeros(0), np.zeros(0, np.complex64),
                             np.zeros(0, np.int8))
-        return PathList(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(PathList)))
+        return PathList(*(None if getattr(parts[0], f.name) is None else
+                          np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(PathList)))
 
 
 @dataclass(frozen=True)
@@ -127,6 +137,11 @@ class TraceResult:
     pulse_paths : int
         Returns evaluated: PO terms times the pulses they were evaluated for, plus clutter
         scatterers deposited (the tracer's unit of work after the casts).
+    channels : tuple of str
+        ``quad``: the polarimetric channels (:data:`sarmitsuba.radar.CHANNELS`), one trace for
+        all; ``spectrum`` and ``spectrum_per_order`` then have a leading channel axis and
+        :meth:`channel` gives each as a one-channel result. Empty for one channel. The energy
+        tallies are the channels' mean (docs/physics.md (P4)).
     """
 
     spectrum: np.ndarray
@@ -144,6 +159,21 @@ class TraceResult:
     n_pad: int = 0
     pulses_per_trace: int = 1
     pulse_paths: int = 0
+    channels: tuple = ()
+
+    def channel(self, name: str) -> "TraceResult":
+        """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
+        result itself for a one-channel trace of that channel. Raises ParameterError otherwise."""
+        if not self.channels:
+            return self
+        if name not in self.channels:
+            raise ParameterError(f"channel {name!r}: the trace holds {', '.join(self.channels)}")
+        c = self.channels.index(name)
+        return dataclasses.replace(
+            self, spectrum=self.spectrum[c], channels=(),
+            spectrum_per_order=None if self.spectrum_per_order is None else self.spectrum_per_order[c],
+            paths=None if self.paths is None else dataclasses.replace(self.paths.select(self.paths.channel == c),
+                                                                      channel=None))
 
     @property
     def n_orders(self) -> int:
@@ -202,13 +232,15 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     if effects is None:
         effects = EffectSet.of(params, settings, rough_materials(material_table))
     exact = settings.range_kernel == "exact"
+    n_channels = len(effects.channels)
     groups = effects.groups
     n_pad = padded_length(window.n_samples)
     subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
-    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups))
+    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
+                                                        * n_channels))
     per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
-    spectrum = np.zeros((groups, n_pulses, 0 if exact else n_pad), np.complex64)
+    spectrum = np.zeros((n_channels * groups, n_pulses, 0 if exact else n_pad), np.complex64)
     paths = []
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
@@ -220,7 +252,8 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         for g0 in range(0, len(subs.first), per_batch):
             g = slice(g0, min(len(subs.first), g0 + per_batch))
             p0, p1 = int(subs.first[g][0]), int(subs.first[g][-1] + subs.count[g][-1])
-            hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), groups, p1 - p0, window.n_fine), np.complex64)
+            hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), n_channels * groups, p1 - p0, window.n_fine),
+                                               np.complex64)
             for blocks in _blocks(subs, g, footprint, settings.max_batch_rays):
                 launch = Launch(antenna=geometry.positions[p0:p1], lref=lref[p0:p1], first=subs.first[g] - p0,
                                 count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
@@ -232,13 +265,13 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                         raise KeyboardInterrupt from exc
                     raise
                 if exact:
-                    paths.append(_path_list(out["paths"], p0))
+                    paths.append(_path_list(out["paths"], p0, n_channels > 1))
                 else:
                     hist += out["hist"]
                 for name in totals:
                     totals[name] = totals[name] + out[name]
             if not exact:
-                for k in range(groups):
+                for k in range(n_channels * groups):
                     spectrum[k, p0:p1] = reduce_deposit(hist[:, k], window.fs, window.oversample, params.frequency,
                                                         settings.range_kernel, n_pad)
             bar.update(p1 - p0)
@@ -247,10 +280,13 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         del kernel
         dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
     seconds = time.perf_counter() - start
-    return TraceResult(spectrum=spectrum.sum(axis=0) if groups > 1 else spectrum[0], reference_length=lref,
+    spectrum = spectrum.reshape(n_channels, groups, n_pulses, -1)
+    quad = n_channels > 1
+    return TraceResult(spectrum=spectrum.sum(axis=1) if quad else spectrum[0].sum(axis=0), reference_length=lref,
                        energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),
                        rays_per_order=totals["rays"], shadow_rays=int(totals["shadow"]), seconds=seconds,
-                       spectrum_per_order=spectrum if effects.split_bounces and not exact else None,
+                       spectrum_per_order=(spectrum if quad else spectrum[0]) if effects.split_bounces and not exact
+                       else None, channels=effects.channels if quad else (),
                        carried_power_per_order=totals["carried"],
                        paths=PathList.concatenate(paths) if exact else None, split=effects.split_bounces,
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else n_pad,
@@ -361,12 +397,13 @@ def _blocks(subs: SubApertures, batch: slice, footprint: RayFootprint, max_rays:
         yield Blocks.of(part)
 
 
-def _path_list(found: dict, p0: int) -> "PathList":
+def _path_list(found: dict, p0: int, channels: bool) -> "PathList":
     """The exact kernel's terms as a PathList with acquisition pulse indices."""
     return PathList(pulse=found["path_pulse"].astype(np.int32) + np.int32(p0),
                     order=found["path_order"].astype(np.uint8), position=found["path_pos"],
                     value=(found["path_re"] + 1j * found["path_im"]).astype(np.complex64),
-                    spectral=(np.asarray(SPECTRAL_ORDERS)[found["path_spectral"]]).astype(np.int8))
+                    spectral=(np.asarray(SPECTRAL_ORDERS)[found["path_spectral"]]).astype(np.int8),
+                    channel=found["path_channel"].astype(np.uint8) if channels else None)
 
 
 def caused_by_interrupt(exc: BaseException) -> bool:

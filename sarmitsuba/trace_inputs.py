@@ -277,6 +277,12 @@ class MaterialTable:
         Factor on the specular (PO and reflected) field of each row: ``sqrt(1 - S^2)`` for a
         Lambertian scattering coefficient ``S`` (the power the surface scatters diffusely), else
         1 (docs/physics.md (C)).
+    table_tm : complex64 [n_rows, n_cos] or None
+        Polarimetric runs only (``HV``, ``VH``, ``quad``): ``r_tm(cos_i)``, with ``table`` holding
+        ``r_te`` (docs/physics.md (P3')). None for a single co-polarised channel.
+    cross_pol : float32 [n_rows] or None
+        Polarimetric runs only: the clutter's ``sigma0_HV`` relative to the mean co-polarised
+        sigma0 of each row (docs/physics.md (P7)).
     """
 
     row_of_shape: np.ndarray
@@ -286,6 +292,8 @@ class MaterialTable:
     shape_key: np.ndarray | None = None
     shape_origin: np.ndarray | None = None
     specular: np.ndarray | None = None
+    table_tm: np.ndarray | None = None
+    cross_pol: np.ndarray | None = None
 
     @property
     def has_clutter(self) -> bool:
