@@ -258,15 +258,22 @@ def _analyze(args: argparse.Namespace) -> int:
     return run(args, figure=figure if args.figure is not None else None)
 
 
+def raw_beside(image_path: Path) -> Path:
+    """The raw data a render wrote beside an image: ``raw.npz`` for ``image.npz``,
+    ``raw_HV.npz`` for a quad-pol ``image_HV.npz``, ``raw_order2.npz`` for ``image_order2.npz``."""
+    name = image_path.name
+    return image_path.with_name("raw" + name[len("image"):] if name.startswith("image") else "raw.npz")
+
+
 def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     """Carrier ramp [rad/m] at the target's layover position, from ``args.raw`` (default: the
-    raw.npz beside the image, if any). None without raw data, or when the image or target is
+    raw data beside the image, :func:`raw_beside`, if any). None without raw data, or when the image or target is
     bad (``run`` reports those). Raises RawDataError, naming the file, when the raw data are
     damaged: a damaged file is never silently skipped."""
     from .analysis import carrier_ramp, image_coordinates
     from .image import SarImage, SarImageError
     from .raw import RawData, RawDataError
-    raw_path = args.raw or Path(args.image).with_name("raw.npz")
+    raw_path = args.raw or raw_beside(Path(args.image))
     if args.raw is None and not raw_path.is_file():
         return None
     try:
@@ -277,7 +284,7 @@ def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     try:
         raw = RawData.load(raw_path)
     except RawDataError as exc:
-        source = "--raw" if args.raw is not None else "the raw.npz beside the image"
+        source = "--raw" if args.raw is not None else f"{raw_path.name} beside the image"
         raise RawDataError(f"{exc} (analyze reads {source} for the carrier ramp: give --raw an intact RawData "
                            "file, or move the damaged one away to analyse without it)") from None
     world = image.origin + position[0] * image.azimuth_direction + position[1] * image.range_direction

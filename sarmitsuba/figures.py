@@ -383,7 +383,7 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
     """Redraw every figure from the files of a ``render`` output directory, without tracing.
 
     Reads ``raw.npz`` (if present), ``image.npz`` and ``image_order<k>.npz`` (sorted by
-    ``k``); with ``scene`` (default), also loads the scene named in
+    ``k``), or for a quad-pol render the HH channel's (``raw_HH.npz``, ``image_HH.npz``, ...); with ``scene`` (default), also loads the scene named in
     ``image.metadata["scene_path"]`` with the radar parameters the image was made with
     (``image.metadata["radar"]``) for the overlay, when that file exists.
 
@@ -398,9 +398,11 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
         No readable ``image.npz``.
     """
     out = Path(out_dir)
-    image = SarImage.load(out / "image.npz")
-    raw = RawData.load(out / "raw.npz") if (out / "raw.npz").is_file() else None
-    orders = sorted(out.glob("image_order*.npz"), key=lambda p: int(re.sub(r"\D", "", p.stem) or 0))
+    # a quad-pol render has no image.npz: its HH channel is drawn (image_HH.npz, raw_HH.npz, ...)
+    tag = "_HH" if not (out / "image.npz").is_file() and (out / "image_HH.npz").is_file() else ""
+    image = SarImage.load(out / f"image{tag}.npz")
+    raw = RawData.load(out / f"raw{tag}.npz") if (out / f"raw{tag}.npz").is_file() else None
+    orders = sorted(out.glob(f"image{tag}_order*.npz"), key=lambda p: int(re.sub(r"\D", "", p.stem) or 0))
     per_order = [SarImage.load(p) for p in orders]
     loaded = _scene_of(image) if scene else None
     return write_figures(out, raw, image, per_order, loaded)

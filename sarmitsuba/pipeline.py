@@ -29,7 +29,7 @@ __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "c
 
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
-                "summary": "summary.json"}
+                "summary": "summary.json", "pauli": "pauli.png"}
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class RenderSummary:
                 f"focus {self.timings['focus']:.1f} s), {self.n_pulses} pulses, {self.rays_traced:,} rays cast "
                 f"({self.pulses_per_trace} pulses per trace), {self.pulse_paths_per_second:.3g} pulse-paths/s, "
                 f"raw {self.raw_shape[0]}x{self.raw_shape[1]}, image {self.image_shape[0]}x{self.image_shape[1]} "
-                f"-> {Path(self.outputs['png']).parent}")
+                f"-> {Path(next(iter(self.outputs.values()))).parent}")
 
 
 @dataclass(frozen=True)
@@ -262,12 +262,24 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser)
         t_products = time.perf_counter()
-        paths = _write_products(out, sim.raw, sim.image, sim.loaded.params)
-        for k, (raw_k, image_k) in enumerate(zip(sim.raw_per_order, sim.images_per_order), start=1):
-            paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"_order{k}"))
+        paths = {}
+        for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
+            label = f"_{name}" if name else ""
+            paths.update(_write_products(out, channel.raw, channel.image, sim.loaded.params, suffix=label))
+            for k, (raw_k, image_k) in enumerate(zip(channel.raw_per_order, channel.images_per_order), start=1):
+                paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
+        if sim.channels:
+            paths["pauli"] = _write_pauli(out, sim)
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
     return summary
+
+
+def _write_pauli(out: OutputDirectory, sim: Simulation) -> Path:
+    """``pauli.png`` of a quad-pol simulation: |HH - VV| red, |HV + VH| green, |HH + VV| blue."""
+    from .figures_pol import write_pauli
+    images = {name: channel.image for name, channel in sim.channels.items()}
+    return out.write(OUTPUT_FILES["pauli"], lambda path: write_pauli(images, path, title=str(sim.raw.metadata["scene"])))
 
 
 def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> RenderSummary:
@@ -336,7 +348,8 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
              f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: products.write_exr(image, path))}
     order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
-             f"inc={params.incidence_angle:g} deg  depth={raw.metadata['settings']['max_depth']}  "
+             f"inc={params.incidence_angle:g} deg  {raw.metadata.get('polarization', params.polarization)}  "
+             f"depth={raw.metadata['settings']['max_depth']}  "
              f"window {window_title(image)}{order}")
     paths[f"png{suffix}"] = out.write(names[f"png{suffix}"], lambda path: products.write_quicklook(
         image, path, title=title, figsize=(10.0, 8.0), dpi=110))

@@ -212,13 +212,23 @@ class Returns:
     def po_channels(self, rec, d, b, n, cos_i, depth: int) -> list:
         """The reflection factor of a PO term per channel (docs/physics.md (PO1), (P4)): the scalar
         ``r(cos_i)`` of the one co-polarised channel (with the VV sign of (P6)), or, with Jones
-        matrices, ``S[rx, tx] = b_rx . R J`` for the pulse's own incidence ``d`` and return ``b``."""
+        matrices, ``S[rx, tx] = b_rx . E'`` with ``E'`` of (P4') for the pulse's own incidence ``d``
+        and return ``b``, made reciprocal after more than one bounce (P8)."""
         if not self.polarimetric:
             r = self.reflection_at(rec.row, cos_i, True)
             return [-r if self.vv_sign and depth % 2 else r]
         r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
         field = pol.scatter(rec.jones, d, b, n, r_te, r_tm)
-        return pol.receive(field, -b, mi.Vector3f(*self.track), self.channels)
+        return self._reciprocal(pol.receive(field, -b, mi.Vector3f(*self.track), CHANNELS), depth)
+
+    def _reciprocal(self, entries: list, depth: int) -> list:
+        """The requested channels of ``S`` (entries in :data:`CHANNELS` order), made reciprocal
+        after more than one bounce: ``(S + S^T) / 2``, docs/physics.md (P8). Only the entries the
+        channels need are compiled."""
+        s_full = dict(zip(CHANNELS, entries))
+        if depth > 0:
+            s_full["HV"] = s_full["VH"] = 0.5 * (s_full["HV"] + s_full["VH"])
+        return [s_full[c] for c in self.channels]
 
     def gain(self, v, steer):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
@@ -596,7 +606,7 @@ class Returns:
         scatterer (its own phase aside), eq. (P7): ``S = B^T C J`` with ``C`` of
         :func:`sarmitsuba.jones.scatter`, ``a_te = sqrt(sigma0(r_te))``,
         ``a_tm = sqrt(sigma0(r_tm))`` and ``a_x = sqrt(q (a_te^2 + a_tm^2) / 2)``. After earlier
-        bounces (whose reverse path is not traced) both are made symmetric, ``(S + S^T) / 2``.
+        bounces (whose reverse path is not traced) both are made symmetric, (P8).
         Returns ``(co, cross, level)``, ``level`` the mean co-polarised sigma0 (the energy tally)."""
         r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
         s_te, s_tm = sigma0(r_te), sigma0(r_tm)
@@ -605,13 +615,8 @@ class Returns:
         amplitudes = ((mi.Complex2f(dr.sqrt(s_te), 0.0), mi.Complex2f(dr.sqrt(s_tm), 0.0), zero),
                       (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
         track = mi.Vector3f(*self.track)
-        parts = []
-        for a_te, a_tm, a_x in amplitudes:
-            s_full = dict(zip(CHANNELS, pol.receive(pol.scatter(rec.jones, d, b, n, a_te, a_tm, a_x), -b, track,
-                                                    CHANNELS)))
-            if depth > 0:
-                s_full["HV"] = s_full["VH"] = 0.5 * (s_full["HV"] + s_full["VH"])
-            parts.append([s_full[c] for c in self.channels])
+        parts = [self._reciprocal(pol.receive(pol.scatter(rec.jones, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
+                                  depth) for a_te, a_tm, a_x in amplitudes]
         level = 0.5 * (s_te + s_tm) * (1.0 + q)
         return parts[0], parts[1], level
 

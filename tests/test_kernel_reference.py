@@ -173,7 +173,8 @@ def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
                             sine = ((aim - antenna) @ fp.track) / np.linalg.norm(aim - antenna)
                             if not lo_sine <= sine <= hi_sine:
                                 continue                         # uniform beam: cut per pulse at the aim
-                            def density(cos_i, cos_b, d_x, b_x, s_x, length, gamma=gamma, lref=lref):
+                            # VV (the default): a k-bounce chain in the plane of the look takes (-1)^(k+1) (P6)
+                            def density(cos_i, cos_b, d_x, b_x, s_x, length, gamma=gamma * (-1) ** depth, lref=lref):
                                 value = 1j * 2 * math.sqrt(math.pi) / p.wavelength * (cos_i + cos_b) / 2 * gamma
                                 if radiometry:                               # bistatic radar equation
                                     value *= (0.5 * lref) ** 2 / (s_x * (length - s_x))
