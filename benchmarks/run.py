@@ -20,6 +20,8 @@ ffbp           fast factorised backprojection's knobs: NRMSE against direct
 munich         the Munich acceptance of issue 12: default render in units of bare
                Mitsuba casting, memory, NRMSE against the per-pulse/direct reference,
                backprojection against omega-K, info's estimate against the render
+polarimetry    VV, HH, HV and quad on urban and Munich: seconds, casts, quad's cost
+               over single-channel renders, quad's HH and VV against the single ones
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -46,7 +48,7 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
-         "munich": "munich"}
+         "munich": "munich", "polarimetry": "polarimetry"}
 
 
 def main(argv: list[str] | None = None) -> int:

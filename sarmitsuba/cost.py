@@ -104,11 +104,13 @@ class CostEstimate:
     between low and high.
 
     Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
-    = ``max_depth`` with ``split_bounces``, else 1; :func:`sarmitsuba.deposit.padded_length`),
-    or with the ``exact`` range kernel its term list instead, at most one path per return of
-    :data:`PATH_BYTES` each; one raw data set, complex64 ``[n_pulses, fast_time_samples]``; one
-    image, complex64 ``image_shape``. ``n_products`` raw/image pairs are made (``1 + max_depth``
-    with ``split_bounces``). ``peak_memory_bytes``: the spectra (or path list) and every raw data
+    = ``max_depth`` with ``split_bounces``, else 1, times the channels: 4 for ``quad``;
+    :func:`sarmitsuba.deposit.padded_length`), or with the ``exact`` range kernel its term list
+    instead, at most one path per return and channel of :data:`PATH_BYTES` each; one raw data
+    set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64 ``image_shape``.
+    ``n_products`` raw/image pairs are made (``1 + max_depth`` with ``split_bounces``, times the
+    channels). The casts are the same for every polarisation (one trace for all channels); the
+    returns' extra work per channel is not modelled. ``peak_memory_bytes``: the spectra (or path list) and every raw data
     set and image, all held at once at the end of a render (:func:`check_memory` compares it with
     the memory available).
 
@@ -203,8 +205,8 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     tube_area = footprint.spacing_azimuth * footprint.spacing_range
     scatterers = (footprint.rays_per_pulse * n_pulses * tube_area / footprint.scatterer_spacing**2
                   if effects.clutter else 0.0)
-    paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)
-    groups = effects.groups
+    paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)      # per channel in the exact kernel's list
+    groups = effects.groups * len(effects.channels)      # quad: four channels' spectra from one trace
     n_pad = padded_length(window.n_samples)
     work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
             + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
@@ -214,7 +216,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
 
     exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
     grid = _checked_grid(loaded, geometry)
-    n_products = 1 + (st.max_depth if effects.split_bounces else 0)
+    n_products = (1 + (st.max_depth if effects.split_bounces else 0)) * len(effects.channels)
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
     deposit = 0 if exact else groups * n_pulses * n_pad * 8
@@ -226,11 +228,12 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
         pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
         trace_time_s=trace_time(0.5 * (primary + casts)),
         fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES if exact else 0, raw_bytes=raw_bytes,
+        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES * len(effects.channels) if exact else 0, raw_bytes=raw_bytes,
         image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
         backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
         direct_backprojection_time_s=n_products * direct,
-        peak_memory_bytes=deposit + (paths * PATH_BYTES if exact else 0) + n_products * (raw_bytes + image_bytes))
+        peak_memory_bytes=deposit + (paths * PATH_BYTES * len(effects.channels) if exact else 0)
+        + n_products * (raw_bytes + image_bytes))
 
 
 def _checked_grid(loaded: LoadedScene, geometry: AcquisitionGeometry):

@@ -19,8 +19,8 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 
-__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError", "HALF_POWER_SINC",
-           "ValidRange", "VALID_RANGES"]
+__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
+           "HALF_POWER_SINC", "ValidRange", "VALID_RANGES"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
 #: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
@@ -36,6 +36,7 @@ class ParameterError(ValueError):
 CHANNELS = ("HH", "HV", "VH", "VV")
 #: Valid values of the sensor parameter ``polarization``.
 POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
+
 
 @dataclass(frozen=True)
 class RadarParameters:

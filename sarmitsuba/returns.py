@@ -28,7 +28,8 @@ import numpy as np
 from .constants import SPEED_OF_LIGHT
 from .clutter_lattice import (footprint_cells, lattice_frame, length_expansion, scatterer, shortened_footprint,
                               surface_key)
-from .deposit import SPECTRAL_ORDERS, taps
+from .accumulate import PATH_HEADROOM, Accumulator
+from .deposit import SPECTRAL_ORDERS
 from . import jones as pol
 from .radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
@@ -41,9 +42,6 @@ COS_GRAZING = 1e-6
 #: Below this ``|x|`` a sinc is taken as 1: the neglected ``x^2 / 6 < 2e-9`` is far below float32's
 #: resolution (6e-8), and it avoids the 0 / 0 at ``x = 0``.
 SINC_SMALL_ARGUMENT = 1e-4
-#: The ``exact`` kernel's clutter path buffer holds at least this many scatterers, and a launch
-#: that overflowed it asks for this many more than it found (slack, so a retry rarely overflows).
-PATH_HEADROOM = 1024
 _INVALID = 0xFFFFFFFF
 # flags of kernel.Flags (repeated here: the kernel imports this module)
 _HAS_I_LO, _HAS_I_HI, _HAS_J_LO, _HAS_J_HI, _INTERIOR, _SPLIT_1, _SPLIT_2, _BACK = 1, 2, 4, 8, 16, 32, 64, 128
@@ -107,6 +105,7 @@ class Returns:
         self.track = footprint.track.tolist()             # H where z x look vanishes (never, for a SAR)
         # the scalar VV channel takes the sign (-1)^(k+1) of a k-bounce chain in the plane of the look (P6)
         self.vv_sign = self.channels == ("VV",)
+        self.sums = Accumulator(settings, window, self.groups, len(self.channels))
         self.split_at = split_threshold(params.bandwidth, params.frequency)
         # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
         self.radiometry = effects.radiometry
@@ -129,7 +128,7 @@ class Returns:
     def context(self, launch, capacity: int = 0) -> dict:
         """Buffers and per-pulse inputs of one launch: counters, the fine-grid histogram (or the
         path list of the ``exact`` kernel), antenna positions, reference lengths, sub-apertures."""
-        st, win = self.settings, self.window
+        st = self.settings
         n_b = launch.n_pulses
         a64, f64 = mi.Array3f64, mi.Float64
         ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
@@ -143,14 +142,12 @@ class Returns:
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
             ctx["steer"] = mi.Float((to_c @ self.fp.track / np.linalg.norm(to_c, axis=1)).astype(np.float32))
-        if not self.exact:
-            size = len(SPECTRAL_ORDERS) * len(self.channels) * self.groups * n_b * win.n_fine
-            ctx["hist"] = dr.zeros(mi.Float, 2 * size)          # (re, im) packets
+        self.sums.open(ctx)
         return ctx
 
     def collect(self, ctx) -> dict | None:
         """NumPy results of a launch (None when the exact kernel's clutter buffer overflowed)."""
-        st, win = self.settings, self.window
+        st = self.settings
         if self.exact and ctx["needed"]:
             return None
         names = ["energy", "rays", "carried", "scatterers"] + ([] if self.exact else ["hist"])
@@ -161,14 +158,7 @@ class Returns:
                    shadow=int(rays[st.max_depth]), carried=ctx["carried"].numpy().astype(np.float64),
                    scatterers=ctx["scatterers"].numpy().astype(np.int64))
         out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
-        if self.exact:
-            empty = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, path_order=np.uint32,
-                         path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
-            out["paths"] = {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
-                            for name, dtype in empty.items()}
-        else:
-            hist = ctx["hist"].numpy().view(np.complex64)
-            out["hist"] = hist.reshape(len(SPECTRAL_ORDERS), len(self.channels) * self.groups, ctx["n_b"], win.n_fine)
+        out.update(self.sums.collect(ctx))
         return out
 
     # ------------------------------------------------------------------ geometry helpers
@@ -470,7 +460,7 @@ class Returns:
         specular = dr.gather(mi.Float, self.tables.specular, rec.row)
         count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
         term = dr.arange(mi.UInt32, dr.width(code))
-        paths = self._path_buffers(dr.width(code) * ctx["max_count"]) if self.exact else None
+        paths = self.sums.path_buffers(dr.width(code) * ctx["max_count"]) if self.exact else None
         open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]
 
         def body(q):
@@ -504,13 +494,13 @@ class Returns:
             order_index = mi.UInt32(SPECTRAL_ORDERS.index(1)) - mi.UInt32(split[0]) - mi.UInt32(split[1])
             value = value * self.carrier_phase(rel)
             values = [value * c for c in self.po_channels(rec, d, b, n, cos_i, depth)]
-            self._deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, values,
+            self.sums.deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0, values,
                           order_index, active, paths, term * ctx["max_count"] + q)
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="pulses")
         if paths is not None:
-            self._keep_paths(ctx, paths)
+            self.sums.keep_paths(ctx, paths)
 
     # ------------------------------------------------------------------ clutter scatterers
     def clutter(self, ctx, rec, depth: int) -> None:
@@ -527,7 +517,7 @@ class Returns:
         """
         lattice = self._clutter_lattice(ctx, rec, depth)
         count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
-        paths = self._path_buffers(max(ctx["capacity"], PATH_HEADROOM)) if self.exact else None
+        paths = self.sums.path_buffers(max(ctx["capacity"], PATH_HEADROOM)) if self.exact else None
 
         def pulse_body(q):
             self._clutter_pulse(ctx, rec, depth, lattice, q, paths)
@@ -535,7 +525,7 @@ class Returns:
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, label="pulses")
         if paths is not None:
-            self._keep_paths(ctx, paths)
+            self.sums.keep_paths(ctx, paths)
 
     def _clutter_lattice(self, ctx, rec, depth: int) -> dict:
         """The pulse-independent part of eq. (C) per hit: the (shortened) footprint's cells on the
@@ -591,7 +581,7 @@ class Returns:
                 sn, cs = dr.sincos(phase_x)
                 there = amplitude * mi.Complex2f(cs, sn)
                 values = [v + there * a for v, a in zip(values, cross)]
-            inside = self._deposit(ctx, pulse, depth, anchor, dl, values, mid, own, paths, None)
+            inside = self.sums.deposit(ctx, pulse, depth, anchor, dl, values, mid, own, paths, None)
             return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
 
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
@@ -619,61 +609,3 @@ class Returns:
                                   depth) for a_te, a_tm, a_x in amplitudes]
         level = 0.5 * (s_te + s_tm) * (1.0 + q)
         return parts[0], parts[1], level
-
-    # ------------------------------------------------------------------ deposit
-    def _deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
-        """Deposit ``values`` (one mi.Complex2f per channel) at the two-way length ``offset`` [m]
-        (float32) beyond ``anchor`` for batch pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO
-        term in the exact kernel's path list (None: a clutter scatterer, appended). Returns whether
-        the term lies inside the fast-time window."""
-        st, win = self.settings, self.window
-        position = anchor[1] + offset * (1.0 / win.fine_step_length)       # fine bins after anchor[0]
-        if self.exact:
-            coarse = (mi.Float64(anchor[0]) + mi.Float64(position)) * (1.0 / win.oversample)
-            if slot is None:
-                slot = dr.scatter_inc(paths["count"], mi.UInt32(0), mask)
-                keep = mask & (slot < paths["capacity"])
-            else:
-                keep = mask
-            n_ch = len(values)
-            for c, value in enumerate(values):
-                index = slot * n_ch + c
-                dr.scatter(paths["path_pos"], coarse, index, keep)
-                dr.scatter(paths["path_re"], value.real, index, keep)
-                dr.scatter(paths["path_im"], value.imag, index, keep)
-                dr.scatter(paths["path_order"], mi.UInt32(depth + 1), index, keep)
-                dr.scatter(paths["path_pulse"], pulse, index, keep)
-                dr.scatter(paths["path_spectral"], order_index, index, keep)
-                dr.scatter(paths["path_channel"], mi.UInt32(c), index, keep)
-            return (coarse >= 0) & (coarse <= win.n_samples - 1)
-        k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
-        k0 = k0 + anchor[0]
-        inside = (k0 >= lo) & (k0 < win.n_fine - hi)
-        group = depth if self.groups > 1 else 0
-        n_groups = len(values) * self.groups               # channel-major: group c * groups + order
-        for c, value in enumerate(values):
-            base = ((order_index * n_groups + c * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
-            for offset_, w in tap_list:            # one (re, im) packet per tap
-                dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
-                               mask & inside, mode=dr.ReduceMode.Expand)
-        return inside
-
-    def _path_buffers(self, size: int) -> dict:
-        """The exact kernel's path list: ``size`` slots of one entry per channel."""
-        n = size * len(self.channels)
-        return dict(count=dr.zeros(mi.UInt32, 1), capacity=size, path_pos=dr.zeros(mi.Float64, n),
-                    path_re=dr.zeros(mi.Float, n), path_im=dr.zeros(mi.Float, n),
-                    path_order=dr.zeros(mi.UInt32, n), path_pulse=dr.zeros(mi.UInt32, n),
-                    path_spectral=dr.zeros(mi.UInt32, n), path_channel=dr.zeros(mi.UInt32, n))
-
-    @staticmethod
-    def _keep_paths(ctx, paths: dict) -> None:
-        """Move a path buffer to NumPy (filled slots only); note an overflow of the appended part."""
-        names = ("path_pos", "path_re", "path_im", "path_order", "path_pulse", "path_spectral", "path_channel")
-        dr.eval(paths["count"], *(paths[name] for name in names))
-        count = int(paths["count"].numpy()[0])
-        if count > paths["capacity"]:
-            ctx["needed"] = max(ctx["needed"], count + PATH_HEADROOM)
-            return
-        filled = np.flatnonzero(paths["path_order"].numpy())
-        ctx["paths"].append({name: paths[name].numpy()[filled] for name in names})
