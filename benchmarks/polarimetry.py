@@ -1,7 +1,10 @@
-"""Benchmark: what quad-pol costs against single-channel renders (issue 15).
+"""Benchmark: what quad-pol costs against single-channel renders, and what the Jones model costs
+against the scalar one (issue 15).
 
 ``polarization = quad`` traces once and carries a Jones matrix per path, so that one trace gives
-all four channels (docs/physics.md (P1)-(P6)); each channel is then binned and focused on its own.
+all four channels (docs/physics.md (P1)-(P8)); each channel is then binned and focused on its own.
+Single channels carry the Jones matrix too, by default; ``VV scalar`` is the same render with the
+``sbr`` parameter ``polarimetry = scalar`` (scalar coefficients, no Jones algebra).
 For the built-in ``urban`` scene and Sionna's Munich (128 pulses, as in ``bounce_depth``;
 ``--quick``: urban only, 128 pulses) it measures in one run, each polarization ``VV``, ``HH``,
 ``HV`` and ``quad`` after a warm-up run of the same setting (kernel compilation not counted),
@@ -12,8 +15,9 @@ the fastest of two runs (``--tiny``: one):
 * the cost ratios against ``VV``: total and trace seconds, and ``quad`` total over four ``VV``
   totals (``quad_over_4_vv``: "well under 4 single-channel renders" means well under 1);
 * consistency: ``NRMSE = 10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] between ``quad``'s ``HH``
-  (``VV``) image and the single-channel ``HH`` (``VV``) image. They differ where a path's facets
-  are out of the look plane, for the single channel keeps the scalar model (docs/physics.md (P6)).
+  (``VV``) image and the single-channel ``HH`` (``VV``) image (the same model: float rounding
+  only); and the error of the scalar model, ``VV scalar`` against the Jones ``VV``, which is
+  exact only where every facet of a path contains H (docs/physics.md (P6)).
 
 A finished simulation is dropped at once: a live Mitsuba scene slows every later trace.
 Writes ``polarimetry.csv`` (in the output folder, ``_table.output_dir``) and ``polarimetry.png``
@@ -34,8 +38,9 @@ from _table import bench_main, machine, write_csv
 from sarmitsuba.pipeline import simulate
 
 NAME = "polarimetry"
-#: Polarizations measured, the reference (``VV``) first.
-POLARIZATIONS = ("VV", "HH", "HV", "quad")
+#: Settings measured, the reference (``VV``) first: name -> (sensor polarization, sbr polarimetry).
+POLARIZATIONS = {"VV": ("VV", "jones"), "VV scalar": ("VV", "scalar"), "HH": ("HH", "jones"),
+                 "HV": ("HV", "jones"), "quad": ("quad", "jones")}
 #: Scene -> sensor overrides (Munich: 128 pulses, as in ``bounce_depth``).
 SCENES = {"urban": {}, "sionna:munich": {"n_pulses": 128}}
 #: Measured runs per setting (after the warm-up); the fastest counts (other work shares the CPU).
@@ -48,15 +53,16 @@ def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
     return 10.0 * np.log10(error / float(np.sum(np.abs(reference) ** 2))) if error > 0 else float("-inf")
 
 
-def _run(scene: str, sensor: dict, polarization: str, repeats: int = REPEATS) -> tuple[dict, dict]:
+def _run(scene: str, sensor: dict, setting: str, repeats: int = REPEATS) -> tuple[dict, dict]:
     """The fastest of ``repeats`` simulations after a warm-up: its numbers and its co-polarised
     images (each simulation is dropped as soon as it is measured)."""
-    overrides = {**sensor, "polarization": polarization}
-    simulate(scene, sensor_overrides=overrides)
+    polarization, model = POLARIZATIONS[setting]
+    overrides, integrator = {**sensor, "polarization": polarization}, {"polarimetry": model}
+    simulate(scene, sensor_overrides=overrides, integrator_overrides=integrator)
     gc.collect()
     best = None
     for _ in range(repeats):
-        sim = simulate(scene, sensor_overrides=overrides)
+        sim = simulate(scene, sensor_overrides=overrides, integrator_overrides=integrator)
         numbers, images = _measured(sim, polarization)
         del sim
         gc.collect()
@@ -73,18 +79,20 @@ def _measured(sim, polarization: str) -> tuple[dict, dict]:
                "total_s": round(t["load"] + t["trace"] + t["bin"] + t["focus"], 3),
                "closest_hit_casts": int(sim.trace.rays_per_order.sum()), "shadow_casts": int(sim.trace.shadow_rays)}
     images = ({name: sim.channels[name].image.data for name in ("HH", "VV")} if sim.channels
-              else {polarization: sim.image.data})
+              else {sim.loaded.params.polarization: sim.image.data})
     return numbers, images
 
 
 def polarimetry(scene: str, sensor: dict, repeats: int = REPEATS) -> list[dict]:
-    """Rows of one scene: ``VV``, ``HH``, ``HV`` and ``quad``, with their ratios to ``VV``."""
+    """Rows of one scene: each of :data:`POLARIZATIONS`, with their ratios to ``VV``."""
     rows, single = [], {}
     for polarization in POLARIZATIONS:
         numbers, images = _run(scene, sensor, polarization, repeats)
         row = {"scene": scene, "polarization": polarization, **numbers}
         if polarization == "quad":
             row["nrmse_hh_db"] = round(nrmse_db(images["HH"], single["HH"]), 1)
+            row["nrmse_vv_db"] = round(nrmse_db(images["VV"], single["VV"]), 1)
+        elif polarization == "VV scalar":
             row["nrmse_vv_db"] = round(nrmse_db(images["VV"], single["VV"]), 1)
         else:
             single.update((k, v) for k, v in images.items() if k in ("HH", "VV"))

@@ -74,10 +74,10 @@
      elevation; default 0 = no pattern.
  * - polarization
    - string
-   - ``VV`` (default) or ``HH``: one co-polarised channel, scalar reflection coefficients (no
-     Jones algebra compiled); ``HV`` or ``VH`` (receive, transmit): one cross-polarised
-     channel; ``quad``: HH, HV, VH and VV from one trace, written as ``raw_XX.npz`` /
-     ``image_XX.npz`` with ``pauli.png``. docs/physics.md, Polarimetry (P1)-(P8).
+   - ``VV`` (default) or ``HH``: one co-polarised channel; ``HV`` or ``VH`` (receive,
+     transmit): one cross-polarised channel; ``quad``: HH, HV, VH and VV from one trace, written as ``raw_XX.npz`` /
+     ``image_XX.npz`` with ``pauli.png``. Every ray tube carries a Jones matrix (sbr
+     ``polarimetry``), docs/physics.md, Polarimetry (P1)-(P8).
 
 Every parameter with a unit must lie in its valid range (:data:`sarmitsuba.radar.VALID_RANGES`,
 docs/design.md section 4: frequency [1e6, 1e12] Hz, bandwidth [1e5, 1e11] Hz, velocity

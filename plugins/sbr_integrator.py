@@ -54,6 +54,14 @@
      position (docs/physics.md (T3)). An accuracy knob: 1 traces every pulse on its own (the
      reference); 0 (default) = automatic, about 16 azimuth resolution cells of travel
      (``benchmarks/subaperture.py`` measures image error and time against it).
+ * - polarimetry
+   - string
+   - ``jones`` (default): every ray tube carries a Jones matrix through its bounces, the
+     polarisation model of docs/physics.md (P1)-(P8), for any sar ``polarization``.
+     ``scalar``: one co-polarised channel (``HH`` or ``VV``) with scalar reflection
+     coefficients, no Jones algebra compiled; exact only where every facet of a path contains
+     H (a concrete trihedral at boresight comes out 16 dB too bright in HH). An accuracy knob,
+     measured in ``benchmarks/polarimetry.py``.
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

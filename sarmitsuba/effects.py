@@ -84,8 +84,10 @@ class EffectSet:
         One raw data set and image per bounce order as well.
     channels : tuple of str
         The polarimetric channels simulated (sensor ``polarization``; ``("VV",)`` by default).
-        Cross-polarised channels and ``quad`` compile a Jones matrix per ray tube
-        (:attr:`polarimetric`, docs/physics.md (P1)-(P7)); one co-polarised channel does not.
+    jones : bool
+        Ray tubes carry a Jones matrix (docs/physics.md (P1)-(P8)): ``sbr`` ``polarimetry =
+        jones`` (the default), or any cross-polarised channel. Off only for one co-polarised
+        channel with ``polarimetry = scalar``: scalar coefficients (R), (P6), no Jones algebra.
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -104,11 +106,17 @@ class EffectSet:
     split_bounces: bool
     listed: tuple[Effect, ...]
     channels: tuple[str, ...] = ("VV",)
+    jones: bool = True
+
+    @property
+    def cross_polarised(self) -> bool:
+        """Some channel is cross-polarised (``HV``, ``VH``, ``quad``): the optional effect."""
+        return any(c[0] != c[1] for c in self.channels)
 
     @property
     def polarimetric(self) -> bool:
-        """A Jones matrix per tube: any cross-polarised channel (``HV``, ``VH``, ``quad``)."""
-        return any(c[0] != c[1] for c in self.channels)
+        """A Jones matrix per tube (:attr:`jones`)."""
+        return self.jones
 
     @property
     def bounces(self) -> bool:
@@ -147,7 +155,8 @@ class EffectSet:
                       noise=params.noise_figure_db is not None or params.noise_temperature is not None,
                       chirped=params.output == "raw", radiometry=params.transmit_power is not None,
                       spotlight=params.mode == "spotlight", squint=params.squint != 0, split_bounces=split,
-                      listed=(), channels=params.channels)
+                      listed=(), channels=params.channels,
+                      jones=getattr(settings, "polarimetry", "jones") == "jones" or params.polarimetric)
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -261,8 +270,10 @@ def _split(on: bool) -> Effect:
 
 
 def _polarimetry(e: EffectSet) -> Effect:
-    if e.polarimetric:
-        return Effect("polarimetry", True, f"polarization = {'quad' if len(e.channels) > 1 else e.channels[0]}: "
-                      f"{', '.join(e.channels)} from one trace, a Jones matrix per ray tube")
-    return Effect("polarimetry", False, f"polarization = {e.channels[0]}: one co-polarised channel, scalar "
-                  "reflection coefficients, no Jones algebra (HV, VH or quad switch it on)")
+    if e.cross_polarised:
+        return Effect("cross-polarised channels", True, f"polarization = "
+                      f"{'quad' if len(e.channels) > 1 else e.channels[0]}: {', '.join(e.channels)} from one trace")
+    model = ("a Jones matrix per ray tube" if e.jones else
+             "sbr polarimetry = scalar: scalar reflection coefficients, no Jones algebra")
+    return Effect("cross-polarised channels", False, f"polarization = {e.channels[0]}: one co-polarised channel, "
+                  f"{model} (HV, VH or quad switch it on)")

@@ -1,11 +1,18 @@
-"""One specular reflection of a complex field vector in Dr.Jit: the kernel side of (P3').
+"""The ray tube's Jones matrix in Dr.Jit: the kernel side of docs/physics.md, section
+"Polarimetry".
 
-docs/physics.md, section "Polarimetry", (P2), (P3'). The kernel (:mod:`sarmitsuba.kernel`,
-:mod:`sarmitsuba.returns`) compiles these only for a polarimetric acquisition (``HV``, ``VH``
-or ``quad``); vectorised over lanes in float32 (``llvm_ad_mono``,
-set by ``import sarmitsuba``). Its NumPy reference is
-:func:`sarmitsuba.polarimetry.reflect_jones`, applied per column of a Jones matrix;
-tests/test_jones.py checks one against the other.
+=======================  ===================================================================
+:func:`launch`           the matrix a tube leaves the antenna with, ``[h v]`` (P1)
+:func:`reflect`          one specular reflection of both columns (P3') (:func:`reflect_jones`)
+:func:`scatter`          the field a facet sends back toward the antenna: the last bounce's
+                         PO field (P4') and a rough surface's scatterer (P7)
+:func:`receive`          ``S[rx, tx]`` in the BSA basis of the receiving line of sight (P4)
+=======================  ===================================================================
+
+The kernel (:mod:`sarmitsuba.kernel`, :mod:`sarmitsuba.returns`) compiles these for every
+``polarization`` unless the ``sbr`` parameter ``polarimetry = scalar`` asks for the scalar model;
+vectorised over lanes in float32 (``llvm_ad_mono``, set by ``import sarmitsuba``). Their NumPy
+reference is :mod:`sarmitsuba.polarimetry`; tests/test_jones.py checks one against the other.
 """
 from __future__ import annotations
 

@@ -379,7 +379,7 @@ class _Tables:
     clutter_value: mi.Float | None = None
     shape_key: mi.UInt32 | None = None
     shape_origin: mi.Point3f | None = None
-    re_tm: mi.Float | None = None             # polarimetric runs: r_tm table (re with r_te), (P3')
+    re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
 
@@ -451,6 +451,8 @@ class Kernel:
                               mi.Float(table.table.real.ravel().astype(np.float32)),
                               mi.Float(table.table.imag.ravel().astype(np.float32)), table.table.shape[1])
         if effects.polarimetric:
+            self.tables.re = mi.Float(table.table_te.real.ravel().astype(np.float32))    # r_te, r_tm: (P3')
+            self.tables.im = mi.Float(table.table_te.imag.ravel().astype(np.float32))
             self.tables.re_tm = mi.Float(table.table_tm.real.ravel().astype(np.float32))
             self.tables.im_tm = mi.Float(table.table_tm.imag.ravel().astype(np.float32))
             self.tables.cross_pol = mi.Float(table.cross_pol.astype(np.float32))

@@ -86,10 +86,11 @@ class RadarParameters:
         only (extended targets streak along azimuth beyond their ends); needs
         ``antenna_length = 0``.
     polarization : str
-        ``"VV"`` (default) or ``"HH"``: one co-polarised channel of the scalar model (R), (P6),
-        no Jones algebra compiled; ``"HV"`` or ``"VH"`` (receive, transmit): one
-        cross-polarised channel; ``"quad"``: all four channels (:data:`CHANNELS`) from one
-        trace. The last three carry a Jones matrix per ray tube, docs/physics.md (P1)-(P7).
+        ``"VV"`` (default) or ``"HH"``: one co-polarised channel; ``"HV"`` or ``"VH"``
+        (receive, transmit): one cross-polarised channel; ``"quad"``: all four channels
+        (:data:`CHANNELS`) from one trace. The polarisation model (a Jones matrix per ray tube,
+        or for one co-polarised channel the scalar coefficients) is the ``sbr`` parameter
+        ``polarimetry`` (docs/physics.md (P1)-(P8)).
     antenna_length, antenna_height : float, m
         Antenna aperture along track (L_a) and in elevation (H_a). Each switches on its
         two-way pattern ``sinc^2(L_a sin(phi_az) / lambda)``, ``sinc^2(H_a sin(phi_el) / lambda)``
@@ -260,7 +261,8 @@ class RadarParameters:
 
     @property
     def polarimetric(self) -> bool:
-        """Whether the tracer carries Jones matrices (``HV``, ``VH``, ``quad``; docs/physics.md (P3'))."""
+        """Whether a cross-polarised channel is asked for (``HV``, ``VH``, ``quad``), which needs
+        the Jones model (docs/physics.md (P3'))."""
         return self.polarization in ("HV", "VH", "quad")
 
     @property

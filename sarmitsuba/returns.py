@@ -208,8 +208,14 @@ class Returns:
             r = self.reflection_at(rec.row, cos_i, True)
             return [-r if self.vv_sign and depth % 2 else r]
         r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
-        field = pol.scatter(rec.jones, d, b, n, r_te, r_tm)
+        field = pol.scatter(self._arriving(rec, d, depth), d, b, n, r_te, r_tm)
         return self._reciprocal(pol.receive(field, -b, mi.Vector3f(*self.track), CHANNELS), depth)
+
+    def _arriving(self, rec, d, depth: int):
+        """The Jones matrix arriving at a term's point for the pulse: at the first bounce the
+        pulse's own ``[h v]`` of its incoming direction ``d`` (P1), after it the tube's (from the
+        sub-aperture's reference position, as its reflection coefficients, eq. (T3))."""
+        return pol.launch(d, mi.Vector3f(*self.track)) if depth == 0 else rec.jones
 
     def _reciprocal(self, entries: list, depth: int) -> list:
         """The requested channels of ``S`` (entries in :data:`CHANNELS` order), made reciprocal
@@ -605,7 +611,8 @@ class Returns:
         amplitudes = ((mi.Complex2f(dr.sqrt(s_te), 0.0), mi.Complex2f(dr.sqrt(s_tm), 0.0), zero),
                       (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
         track = mi.Vector3f(*self.track)
-        parts = [self._reciprocal(pol.receive(pol.scatter(rec.jones, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
+        arriving = self._arriving(rec, d, depth)
+        parts = [self._reciprocal(pol.receive(pol.scatter(arriving, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
                                   depth) for a_te, a_tm, a_x in amplitudes]
         level = 0.5 * (s_te + s_tm) * (1.0 + q)
         return parts[0], parts[1], level

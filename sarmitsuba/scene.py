@@ -181,6 +181,10 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     if settings.range_kernel == "exact" and params.output == "raw":
         raise ParameterError("sbr range_kernel = 'exact' evaluates range-compressed samples and cannot make chirped "
                              "echoes: use sar output = 'compressed', or range_kernel 'linear' or 'sinc' with output = 'raw'")
+    if settings.polarimetry == "scalar" and params.polarimetric:
+        raise ParameterError(f"sbr polarimetry = 'scalar' has one co-polarised channel only, but sar polarization = "
+                             f"{params.polarization!r}: use polarimetry = 'jones' (the default), or polarization "
+                             "'HH' or 'VV'")
     bbox = scene.bbox()
     lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
     if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
@@ -336,7 +340,7 @@ def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
     """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz]: ``r`` of the
-    ``polarization``'s channel (R), or for ``HV``, ``VH`` and ``quad`` both ``r_te`` and ``r_tm``
+    ``polarization``'s channel (the scalar model (R)), ``r_te`` and ``r_tm`` (the Jones model)
     and the clutter's cross-polarised level (docs/physics.md (P3'), (P7)).
 
     Raises
@@ -348,8 +352,7 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     """
     rows: dict[int, int] = {}
     tables, clutter, specular, ids, names = [], [], [], [], []
-    polarimetric = polarization in ("HV", "VH", "quad")       # r_te and r_tm tables, docs/physics.md (P3')
-    tables_tm, cross_pol = [], []
+    tables_te, tables_tm, cross_pol = [], [], []           # for the Jones model, docs/physics.md (P3')
     for index, shape in enumerate(scene.shapes()):
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -361,11 +364,10 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         if key not in rows:
             rows[key] = len(tables)
             names.append(bsdf.name)
-            tables.append(materials.reflection_table(material, frequency, "HH" if polarimetric else polarization,
-                                                     n=TABLE_SIZE))
-            if polarimetric:
-                tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
-                cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
+            tables_te.append(materials.reflection_table(material, frequency, "HH", n=TABLE_SIZE))
+            tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
+            tables.append(tables_tm[-1] if polarization == "VV" else tables_te[-1])
+            cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
             clutter.append(bsdf.clutter)
             specular.append(bsdf.specular_factor)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
@@ -385,5 +387,6 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                          names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
                          shape_key=shape_key, shape_origin=shape_origin,
                          specular=np.array(specular, np.float32),
-                         table_tm=np.stack(tables_tm).astype(np.complex64) if polarimetric else None,
-                         cross_pol=np.array(cross_pol, np.float32) if polarimetric else None)
+                         table_te=np.stack(tables_te).astype(np.complex64),
+                         table_tm=np.stack(tables_tm).astype(np.complex64),
+                         cross_pol=np.array(cross_pol, np.float32))

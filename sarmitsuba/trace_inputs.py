@@ -22,7 +22,10 @@ from .constants import SPEED_OF_LIGHT
 from .deposit import RANGE_KERNELS
 from .radar import ParameterError
 
-__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable"]
+__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS"]
+
+#: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
+POLARIMETRY_MODELS = ("jones", "scalar")
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,12 @@ class TraceSettings:
     cancel_interior : bool
         Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
         evaluates every term (slower; the reference the cancellation is checked against).
+    polarimetry : str
+        ``jones`` (default): every ray tube carries a Jones matrix (docs/physics.md (P1)-(P8)),
+        for any ``polarization``; ``scalar``: a single co-polarised channel (``HH`` or ``VV``)
+        takes the scalar coefficients of (R), (P6) instead, exact only where every facet of a
+        path contains H (an accuracy knob, ``benchmarks/polarimetry.py``). Cross-polarised
+        channels always need ``jones``.
     """
 
     max_depth: int = 3
@@ -72,6 +81,7 @@ class TraceSettings:
     tubes_per_object: int = 48
     pulses_per_trace: int = 0
     cancel_interior: bool = True
+    polarimetry: str = "jones"
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -91,6 +101,10 @@ class TraceSettings:
         if int(self.tubes_per_object) != self.tubes_per_object or not 0 <= self.tubes_per_object <= 256:
             raise ParameterError(f"tubes_per_object = {self.tubes_per_object} must be a whole number in [0, 256] "
                                  "(0 = no refinement around small objects)")
+        if self.polarimetry not in POLARIMETRY_MODELS:
+            raise ParameterError(f"polarimetry = {self.polarimetry!r}; valid values: "
+                                 f"{', '.join(repr(m) for m in POLARIMETRY_MODELS)} (jones: a Jones matrix per "
+                                 "ray tube; scalar: one co-polarised channel with scalar coefficients)")
         if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")
@@ -258,8 +272,9 @@ class MaterialTable:
     row_of_shape : uint32 [max_shape_id + 1]
         Table row of each Mitsuba shape id (``reinterpret(UInt32, ShapePtr)``).
     table : complex64 [n_rows, n_cos]
-        The material's reflection coefficient ``r(cos_i)`` sampled uniformly for cos_i in [0, 1];
-        interpolated linearly.
+        The material's reflection coefficient ``r(cos_i)`` of the channel's own polarisation
+        (``r_tm`` for ``VV``, else ``r_te``) sampled uniformly for cos_i in [0, 1]; interpolated
+        linearly. The scalar model's coefficient (R).
     names : list of str
         Material name of each row.
     clutter : float32 [n_rows, 2]
@@ -277,12 +292,12 @@ class MaterialTable:
         Factor on the specular (PO and reflected) field of each row: ``sqrt(1 - S^2)`` for a
         Lambertian scattering coefficient ``S`` (the power the surface scatters diffusely), else
         1 (docs/physics.md (C)).
-    table_tm : complex64 [n_rows, n_cos] or None
-        Polarimetric runs only (``HV``, ``VH``, ``quad``): ``r_tm(cos_i)``, with ``table`` holding
-        ``r_te`` (docs/physics.md (P3')). None for a single co-polarised channel.
+    table_te, table_tm : complex64 [n_rows, n_cos] or None
+        ``r_te(cos_i)`` and ``r_tm(cos_i)`` on the same samples, for the Jones model
+        (docs/physics.md (P3')).
     cross_pol : float32 [n_rows] or None
-        Polarimetric runs only: the clutter's ``sigma0_HV`` relative to the mean co-polarised
-        sigma0 of each row (docs/physics.md (P7)).
+        The clutter's ``sigma0_HV`` relative to the mean co-polarised sigma0 of each row
+        (docs/physics.md (P7)).
     """
 
     row_of_shape: np.ndarray
@@ -292,6 +307,7 @@ class MaterialTable:
     shape_key: np.ndarray | None = None
     shape_origin: np.ndarray | None = None
     specular: np.ndarray | None = None
+    table_te: np.ndarray | None = None
     table_tm: np.ndarray | None = None
     cross_pol: np.ndarray | None = None
 

@@ -97,7 +97,7 @@ EFFECTS = {
     "squint": ({"sensor": {"squint": 0.0}}, {"sensor": {"squint": 3.0}}),
     "per-bounce-order products": ({"integrator": {"split_bounces": False}},
                                   {"integrator": {"split_bounces": True}}),
-    "polarimetry": ({"sensor": {"polarization": "VV"}}, {"sensor": {"polarization": "HV"}}),
+    "cross-polarised channels": ({"sensor": {"polarization": "VV"}}, {"sensor": {"polarization": "HV"}}),
 }
 NO_DEPTH = {"ray_spacing": 2.0}
 

@@ -50,7 +50,7 @@ N_SAMPLES = 132
 T0_SAMPLES = 66.17429056251785
 DOPPLER_BAND = 2.0 * SPEED / (C / FC) * 2.0 * math.sin(math.radians(BEAMWIDTH / 2.0))
 PHASE_TOL = 2.0  # deg
-TRUE_PHASE = -90.0  # deg: a PEC trihedral, j (-1)^3
+TRUE_PHASE = 90.0  # deg: a PEC trihedral, j S_VV with S = +I (image theory, docs/physics.md (P5))
 
 
 def tracer_like(target: synthetic.PointTarget, *, n_pulses: int = 530, look: str = "right",
@@ -190,7 +190,7 @@ def test_estimated_carrier_is_ambiguous_between_samples():
 # ============================================================================ the tracer
 def test_traced_trihedral_fft_focusers_agree_with_backprojection():
     """PEC trihedral traced at 10 km slant range: omega-K and RDA read backprojection's phase
-    within 2 deg (and the closed form -90 deg) and its magnitude within 0.5 dB, at the target,
+    within 2 deg (and the closed form +90 deg) and its magnitude within 0.5 dB, at the target,
     with the true carrier."""
     from sarmitsuba.pipeline import simulate
     sim = simulate("trihedral", sensor_overrides={"altitude": ALTITUDE}, window="rect")  # as the FFT focusers

@@ -10,6 +10,8 @@ Gram-Schmidt step (in float32 it changes s by rounding only, below these toleran
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -138,3 +140,63 @@ def test_single_lane_and_dtypes():
                                        [0, 0, -1], [0, 0, 1], 0.5 + 0.1j, -0.3 + 0.2j)
     got = _np(out_re)[0] + 1j * _np(out_im)[0]
     assert np.allclose(got, ref[:, 0], atol=1e-6)
+
+
+# ---- the tube's Jones matrix: launch, scatter, receive ----------------------------------------------
+def _jones_of(h, v):
+    """A Jones matrix with real columns h, v (float64 [n, 3])."""
+    from sarmitsuba import jones
+    zero = _vec(np.zeros_like(h))
+    return jones.Jones(h_re=_vec(h), h_im=zero, v_re=_vec(v), v_im=zero)
+
+
+def test_scatter_in_the_specular_direction_is_the_reflection():
+    """(P4') with b = d' equals (P3'): the NumPy reference's reflection of both columns. Fails if
+    s_b or p_b is built with the wrong sign (p_b = b x s_b instead of (-b) x s_b gives -p')."""
+    from sarmitsuba import jones
+    rng = np.random.default_rng(5)
+    d = _f32(_unit(rng.normal(size=(N, 3))))
+    n = _f32(_unit(rng.normal(size=(N, 3))))
+    h, v = polarimetry.bsa_basis(np.where(np.abs(d[:, 2:3]) > 0.99, [[0.3, 0.2, -0.9]], d))
+    h = h - np.sum(h * d, axis=1, keepdims=True) * d
+    h = _f32(_unit(h))
+    v = _f32(np.cross(d, h))
+    r_te, r_tm = _coefficients(rng, N), _coefficients(rng, N)
+    d_out = d - 2 * np.sum(d * n, axis=1, keepdims=True) * n
+    out = jones.scatter(_jones_of(h, v), _vec(d), _vec(d_out), _vec(n), _complex(r_te), _complex(r_tm))
+    ref, _ = polarimetry.reflect_jones(np.stack([h, v], axis=-1).astype(complex), d, n, r_te, r_tm)
+    for column, (re, im) in enumerate(((out.h_re, out.h_im), (out.v_re, out.v_im))):
+        got = _np(re) + 1j * _np(im)
+        assert np.max(np.linalg.norm(got - ref[..., column], axis=-1)) < 1e-5
+
+
+@pytest.mark.parametrize("incidence", [30.0, 60.0])
+def test_backscatter_from_level_ground_is_diagonal_in_h_and_v(incidence):
+    """Ground (n = z) seen at ``incidence`` and scattering straight back (b = -d): S = [[a_te,
+    a_x], [a_x, a_tm]] in the antenna's h, v (P7), so HH carries a_te, VV a_tm (the Kirchhoff
+    backscatter); fails if TE and TM are swapped or the cross term is not symmetric."""
+    from sarmitsuba import jones
+    t = math.radians(incidence)
+    d = np.array([[0.0, -math.sin(t), -math.cos(t)]])
+    h, v = polarimetry.bsa_basis(d)
+    a_te, a_tm, a_x = np.array([0.5 + 0.1j]), np.array([-0.2 + 0.3j]), np.array([0.05 - 0.02j])
+    up = np.array([[0.0, 0.0, 1.0]])
+    out = jones.scatter(_jones_of(h, v), _vec(d), _vec(-d), _vec(up), _complex(a_te), _complex(a_tm), _complex(a_x))
+    s = jones.receive(out, _vec(d), _vec(np.array([[1.0, 0.0, 0.0]])), ("HH", "HV", "VH", "VV"))
+    got = [complex(np.array(c.real)[0], np.array(c.imag)[0]) for c in s]
+    expected = [a_te[0], a_x[0], a_x[0], a_tm[0]]
+    assert np.allclose(got, expected, atol=1e-6), (got, expected)
+
+
+def test_launch_basis_is_h_horizontal_and_v_up():
+    """(P1): h = unit(z x d) horizontal and normal to d, v = d x h with v . z > 0, at 30 and 60
+    deg incidence and with the track turned (heading): fails if v points down (the sign
+    convention of texts using theta-hat) or h is not horizontal."""
+    from sarmitsuba import jones
+    for incidence, heading in ((30.0, 0.0), (60.0, 37.0)):
+        t, a = math.radians(incidence), math.radians(heading)
+        d = np.array([[math.sin(t) * math.sin(a), -math.sin(t) * math.cos(a), -math.cos(t)]])
+        j = jones.launch(_vec(d), _vec(np.array([[math.cos(a), math.sin(a), 0.0]])))
+        h, v = _np(j.h_re)[0], _np(j.v_re)[0]
+        assert abs(h[2]) < 1e-7 and abs(h @ d[0]) < 1e-6 and abs(np.linalg.norm(h) - 1) < 1e-6
+        assert np.allclose(v, np.cross(d[0], h), atol=1e-6) and v[2] == pytest.approx(math.sin(t), abs=1e-6)

@@ -48,17 +48,34 @@ def test_canonical_metal_targets_within_1_db(name, tmp_path):
     assert abs(db(measured) - db(expected)) < 1.0, f"{name}: {db(measured):.2f} dBsm, expected {db(expected):.2f}"
 
 
-def test_concrete_trihedral_scales_with_fresnel_product(tmp_path):
+@pytest.mark.parametrize("model", ["scalar", "jones"])
+def test_concrete_trihedral_scales_with_fresnel_products(tmp_path, model):
     """A concrete (half-space) trihedral at boresight: every triple-bounce path meets each face
-    once at cos(theta) = 1/sqrt(3), so sigma = sigma_PEC |r(1/sqrt 3)|^6. HH (TE, |r| = 0.55):
-    in VV the TM coefficient is near Brewster (0.17) and edge returns compete with the corner."""
+    once at cos(theta) = 1/sqrt(3). The scalar model (``polarimetry = scalar``) multiplies the
+    three TE coefficients: sigma = sigma_PEC |r_te(1/sqrt 3)|^6 in HH (|r_te| = 0.55). The Jones
+    model (the default) turns the field between TE and TM along the path: sigma = sigma_PEC
+    |S_HH|^2 with S the mean of the six facet orders' chain matrices of the NumPy reference
+    (docs/physics.md (P5)), 16 dB less."""
+    import itertools
+    from sarmitsuba import polarimetry
     material = '<string name="material" value="concrete"/>'
-    xml = C.scene_xml(tmp_path, C.trihedral(0.5), material, 3)
+    mesh = C.trihedral(0.5)
+    xml = C.scene_xml(tmp_path, mesh, material, 3)
     measured = integrated_rcs(simulate(str(xml), sensor_overrides={"polarization": "HH"},
-                                       integrator_overrides={"ray_spacing": SPACING}))
+                                       integrator_overrides={"ray_spacing": SPACING, "polarimetry": model}))
     concrete = materials.Material("concrete", materials.itu_permittivity("concrete", 9.6e9), "half_space")
-    r = abs(complex(materials.reflection_coefficient(concrete, 1.0 / math.sqrt(3.0), 9.6e9, "HH")))
-    expected = C.rcs_trihedral(0.5, WAVELENGTH) * r**6
+
+    def fresnel(c):
+        return tuple(complex(materials.reflection_coefficient(concrete, float(c), 9.6e9, p)) for p in ("HH", "VV"))
+
+    if model == "scalar":
+        factor = abs(fresnel(1.0 / math.sqrt(3.0))[0]) ** 6
+    else:
+        look = -C.TOWARD_SENSOR
+        chains = [polarimetry.scattering_matrix(mesh.face_normals[list(order)], look, [fresnel] * 3)
+                  for order in itertools.permutations(range(3))]
+        factor = abs(np.mean(chains, axis=0)[0, 0]) ** 2
+    expected = C.rcs_trihedral(0.5, WAVELENGTH) * factor
     assert abs(db(measured) - db(expected)) < 1.0, f"{db(measured):.2f} dBsm, expected {db(expected):.2f}"
 
 

@@ -117,7 +117,8 @@ def test_traced_trihedral_point_target_quality(beam):
     for a uniform beam; 0.886 c / (2 B sin(theta)) in ground range) within 3 %, the rect-window
     PSLR (-13.26 dB in range within 0.5 dB; in azimuth the quadrature's, -13.26 dB for a uniform
     beam and -40 dB for the tapered one, the sidelobe's amplitude within 0.01 of the peak's),
-    the apex position within 1/20 cell and the PEC triple-bounce phase j (-1)^3 = -90 deg
+    the apex position within 1/20 cell and the PEC triple-bounce phase j S_VV = +90 deg (S = +I,
+    docs/physics.md (P5))
     within 2 deg. At 10 km slant range: at the scene's own 1.4 km the 2 m reflector's near
     field adds ~2 deg of quadratic phase."""
     from sarmitsuba.analysis import analyze_point_target
@@ -134,7 +135,7 @@ def test_traced_trihedral_point_target_quality(beam):
     assert abs(10 ** (r.pslr_azimuth_db / 20) - 10 ** (pslr / 20)) < 0.01, (r.pslr_azimuth_db, pslr)
     assert abs(r.pslr_range_db + 13.26) < 0.5
     assert abs(r.azimuth_error_cells) < 0.05 and abs(r.range_error_cells) < 0.05
-    assert abs((r.peak_phase_deg + 90.0 + 180.0) % 360.0 - 180.0) < 2.0
+    assert abs((r.peak_phase_deg - 90.0 + 180.0) % 360.0 - 180.0) < 2.0
 
 
 @pytest.mark.parametrize("n_pulses", [0, 160])

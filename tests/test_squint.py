@@ -3,7 +3,7 @@
 Closed forms: the mid-aperture line of sight to the scene centre has along-track sine
 ``sin(squint)``; the Doppler centroid is ``2 v sin(squint) / lambda``; a point at
 closest-approach range ``R0`` is in the beam over ``R0 (tan(squint + beta/2) - tan(squint - beta/2))``
-of track. The traced trihedral must focus at its apex with its -90 deg phase at any squint.
+of track. The traced trihedral must focus at its apex with its +90 deg phase at any squint.
 """
 from __future__ import annotations
 
@@ -65,13 +65,14 @@ def test_doppler_centroid_of_traced_data(squinted):
 
 
 def test_backprojection_focuses_the_apex_with_its_phase(squinted):
-    """Position within 1/20 cell; the PEC triple-bounce phase (-90 deg, aspect independent) within
+    """Position within 1/20 cell; the PEC triple-bounce phase (+90 deg: j S_VV with S = +I, docs/physics.md
+    (P5); aspect independent) within
     2 deg of the broadside acquisition's. The phase is read with the chip's own spectral-centroid
     carrier: at squint the carrier is steep (2 k sin(squint) ~ 100 rad/m), and the pulse-averaged
     :func:`carrier_ramp` ignores the trihedral's aspect weighting, which a 1 % slope error turns
     into ~10 deg half a pixel from the peak."""
     broadside = analysis.analyze_point_target(simulate("trihedral").image, [0.0, 0.0, 0.0]).peak_phase_deg
-    assert abs(broadside + 90.0) < 2.0
+    assert abs(broadside - 90.0) < 2.0
     for squint, sim in squinted.items():
         rep = analysis.analyze_point_target(sim.image, [0.0, 0.0, 0.0])
         assert abs(rep.azimuth_error_cells) < 0.05 and abs(rep.range_error_cells) < 0.05, squint

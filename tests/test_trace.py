@@ -21,7 +21,8 @@ def _wrap_deg(x: float) -> float:
 @pytest.mark.parametrize("slant_range", [100e3, 800e3])
 def test_trihedral_phase_and_delay_exact_at_satellite_range(slant_range):
     """(S1): one broadside pulse on a PEC trihedral has its peak at tau = 2 R_apex / c and the
-    phase of j * (-1)^3 * exp(-j k 2 R_apex), i.e. -90 deg after removing the carrier, at 100 km
+    phase of j * S_VV * exp(-j k 2 R_apex), S_VV = +1 for a PEC trihedral (image theory: three mirrors
+    give -M3 M2 M1 = +I, docs/physics.md (P5)), i.e. +90 deg after removing the carrier, at 100 km
     and 800 km alike (float32 lengths would be off by up to 12 rad at 800 km)."""
     inc = 45.0
     altitude = slant_range * math.cos(math.radians(inc))
@@ -35,7 +36,7 @@ def test_trihedral_phase_and_delay_exact_at_satellite_range(slant_range):
     assert abs(delay_error) <= 0.5 / raw.fs, f"peak {delay_error * 1e9:.2f} ns from 2 R_apex / c"
     k = 2.0 * math.pi * raw.fc / SPEED_OF_LIGHT
     phase = _wrap_deg(math.degrees(np.angle(row[i]) + (k * length) % (2 * math.pi)))
-    assert abs(_wrap_deg(phase + 90.0)) < 2.0, f"peak phase {phase:.2f} deg, expected -90 deg"
+    assert abs(_wrap_deg(phase - 90.0)) < 2.0, f"peak phase {phase:.2f} deg, expected +90 deg"
     assert np.all(np.isfinite(raw.data))
 
 
