@@ -408,3 +408,16 @@ def test_concrete_trihedral_against_the_chain_reference(tmp_path):
     assert _db(concrete["HV"] / concrete["HH"]) < -25.0
     scalar = 3 * _db(fresnel(1.0 / math.sqrt(3.0))[0])
     assert scalar - _db(reference[0, 0]) > 10.0           # what the scalar model would get wrong
+
+
+def test_scalar_model_with_a_cross_polarised_channel_exits_2(tmp_path, capsys):
+    """The scalar model has no cross-polarised channel: one message naming both parameters."""
+    from sarmitsuba.cli import main
+    out = tmp_path / "x"
+    assert main(["render", "dihedral", "--out", str(out), "--set", "polarization=HV",
+                 "--integrator-set", "polarimetry=scalar"]) == 2
+    err = capsys.readouterr().err
+    assert "polarimetry = 'scalar'" in err and "polarization = 'HV'" in err and "Traceback" not in err
+    assert not out.exists()
+    assert main(["render", "dihedral", "--out", str(out), "--integrator-set", "polarimetry=vector"]) == 2
+    assert "'jones', 'scalar'" in capsys.readouterr().err
