@@ -30,6 +30,11 @@
    - point or string "x, y, z", m
    - Where the beam centre looks at mid-aperture (default: centre of the scene's
      bounding box at its lowest z).
+ * - track_offset
+   - string "dx, dy, dz", m
+   - Shift of the whole track (default 0, 0, 0): a second pass for repeat-pass
+     interferometry. The beam keeps its pointing and the image grid its place, so two
+     passes focus on one grid (``python -m sarmitsuba interferogram``; docs/physics.md (I1)).
  * - look_side
    - string
    - ``right`` (default) or ``left`` of the track.

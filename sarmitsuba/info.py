@@ -38,6 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import planning
+from .baseline import baseline
 from .constants import SPEED_OF_LIGHT
 from .cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory,
                    cost_estimate, format_bytes, memory_problem, synthetic_aperture)
@@ -178,6 +179,14 @@ class RadarSummary:
     n_pulses: int
     track_length_m: float
     acquisition_time_s: float
+    #: Repeat-pass interferometry (:mod:`sarmitsuba.baseline`): the sensor's ``track_offset``
+    #: against the nominal track, its perpendicular and parallel baselines, the critical
+    #: perpendicular baseline and the height of ambiguity (None without a perpendicular baseline).
+    track_offset_m: tuple = (0.0, 0.0, 0.0)
+    baseline_perpendicular_m: float = 0.0
+    baseline_parallel_m: float = 0.0
+    critical_baseline_m: float = 0.0
+    height_of_ambiguity_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -298,6 +307,7 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
     sin_lo, sin_hi = p.beam_sines
     prf_min = p.doppler_bandwidth
     prf_max = 1.0 / ((l_max - l_min) / SPEED_OF_LIGHT + p.pulse_length)
+    b = baseline(p)
     return RadarSummary(
         frequency_hz=p.frequency, wavelength_m=p.wavelength, bandwidth_hz=p.bandwidth, pulse_length_s=p.pulse_length,
         sampling_rate_hz=p.sampling_rate, prf_hz=p.prf, velocity_m_s=p.velocity, altitude_m=p.altitude,
@@ -320,7 +330,10 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         window_slant_m=SPEED_OF_LIGHT * window.n_samples / (2 * window.fs),
         aperture_length_m=aperture_length, aperture_time_s=aperture_length / p.velocity,
         pulses_per_point=pulses_per_point, n_pulses=p.n_pulses,
-        track_length_m=(p.n_pulses - 1) * p.velocity / p.prf, acquisition_time_s=(p.n_pulses - 1) / p.prf)
+        track_length_m=(p.n_pulses - 1) * p.velocity / p.prf, acquisition_time_s=(p.n_pulses - 1) / p.prf,
+        track_offset_m=tuple(float(v) for v in p.track_offset), baseline_perpendicular_m=b.perpendicular,
+        baseline_parallel_m=b.parallel, critical_baseline_m=b.critical,
+        height_of_ambiguity_m=b.height_of_ambiguity if math.isfinite(b.height_of_ambiguity) else None)
 
 
 def _azimuth_formula(p: RadarParameters) -> str:
@@ -414,7 +427,11 @@ def _radar_lines(r: RadarSummary) -> list[str]:
         f"depth dR {r.swath_slant_m:.1f} m; fast-time window {r.window_samples} samples = "
         f"{_eng(r.window_duration_s, 's')} = {r.window_slant_m:.1f} m slant",
         f"synthetic aperture {r.aperture_length_m:.1f} m = {r.aperture_time_s:.3g} s = {r.pulses_per_point} pulses "
-        f"per point; track {r.track_length_m:.1f} m, {r.n_pulses} pulses, {r.acquisition_time_s:.3g} s"]
+        f"per point; track {r.track_length_m:.1f} m, {r.n_pulses} pulses, {r.acquisition_time_s:.3g} s",
+        f"baseline: track_offset {_vec(r.track_offset_m)} m: perpendicular {r.baseline_perpendicular_m:.3f} m, "
+        f"parallel {r.baseline_parallel_m:.3f} m; critical {r.critical_baseline_m:.1f} m = lambda R tan(theta) B / c; "
+        + ("no height of ambiguity (no perpendicular baseline)" if r.height_of_ambiguity_m is None else
+           f"height of ambiguity {r.height_of_ambiguity_m:.4g} m = lambda R sin(theta) / (2 B_perp)")]
 
 
 def _radiometry_lines(r: RadiometrySummary | None) -> list[str]:

@@ -64,6 +64,10 @@ class RadarParameters:
     scene_center : tuple of 3 float, m
         Point the beam centre looks at, mid-aperture; ``None`` = centre of the scene's
         bounding box at ground level, resolved by the scene loader.
+    track_offset : tuple of 3 float, m
+        Shift of the whole track (every antenna position; the beam keeps its pointing and the
+        image grid its place): a second pass with a baseline, for interferometry
+        (docs/physics.md (I1)). Default ``(0, 0, 0)``.
     look_side : str
         ``"right"`` or ``"left"`` of the track.
     heading : float, deg
@@ -148,6 +152,7 @@ class RadarParameters:
     altitude: float = 1000.0
     incidence_angle: float = 45.0
     scene_center: tuple[float, float, float] | None = None
+    track_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     look_side: str = "right"
     heading: float = 0.0
     n_pulses: int = 0
@@ -385,7 +390,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
         if name not in types:
             raise ParameterError(f"unknown sar sensor parameter {name!r}; valid: {', '.join(sorted(types))}")
         try:
-            if name == "scene_center":
+            if name in ("scene_center", "track_offset"):
                 parts = value.replace(",", " ").split() if isinstance(value, str) else list(value)
                 out[name] = tuple(float(v) for v in parts)
             elif name == "n_pulses":
@@ -450,6 +455,7 @@ VALID_RANGES: dict[str, ValidRange] = {
     "antenna_length": _ANTENNA,
     "antenna_height": _ANTENNA,
     "scene_center": ValidRange("m", -1e8, 1e8, "three world coordinates x, y, z"),
+    "track_offset": ValidRange("m", -1e5, 1e5, "a shift of the whole track: dx, dy, dz"),
     "heading": ValidRange("deg", -360.0, 360.0, "counter-clockwise from +x"),
     "transmit_power": ValidRange("W", 1e-6, 1e9, "peak power: drones ~1, aircraft ~100-1e4", optional=True),
     "noise_temperature": ValidRange("K", 1.0, 1e5, "290 K is room temperature", optional=True),
@@ -489,14 +495,13 @@ def _check_ranges(params: "RadarParameters") -> None:
         value = getattr(params, name)
         if value is None and (spec.optional or name == "scene_center"):
             continue
-        if name == "scene_center":
+        if name in ("scene_center", "track_offset"):
             if not (isinstance(value, (tuple, list, np.ndarray)) and len(value) == 3):
-                raise ParameterError(f"scene_center = {value!r} must be three finite numbers x, y, z [m]")
+                raise ParameterError(f"{name} = {value!r} must be three finite numbers x, y, z [m]")
             for axis, coordinate in zip("xyz", value):
                 if not (isinstance(coordinate, (int, float, np.floating)) and spec.lo <= coordinate <= spec.hi):
-                    raise ParameterError(f"scene_center = {tuple(value)}: {axis} = {coordinate!r} m is outside "
-                                         f"the valid range [{_number(spec.lo)}, {_number(spec.hi)}] m "
-                                         "(world coordinates in metres)")
+                    raise ParameterError(f"{name} = {tuple(value)}: {axis} = {coordinate!r} m is outside "
+                                         f"the valid range [{_number(spec.lo)}, {_number(spec.hi)}] m ({spec.note})")
             continue
         if spec.zero and value == 0:
             continue
@@ -566,7 +571,8 @@ def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
 def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
     """Antenna positions for every pulse (docs/design.md section 4 conventions).
 
-    The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``;
+    The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``
+    plus ``track_offset``;
     pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
     ``scene_center`` and ``n_pulses > 0``.
 
@@ -581,6 +587,6 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
     center = np.asarray(params.scene_center, dtype=np.float64)
     mid = center - params.squint_offset * track - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
     t = (np.arange(params.n_pulses, dtype=np.float64) - (params.n_pulses - 1) / 2.0) / params.prf
-    positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :]
+    positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :] + np.asarray(params.track_offset, float)
     velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)
     return AcquisitionGeometry(positions, velocity, t, center, track, look)

@@ -7,6 +7,7 @@ the scene centre (float64, metres, world or local frame as the geometry given).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING
 
@@ -25,7 +26,13 @@ __all__ = ["image_grid", "ground_grid", "sized_grid"]
 def image_grid(loaded: "LoadedScene", geometry: AcquisitionGeometry) -> ImageGrid:
     """Ground grid around the scene centre covering the scene and its layover (see :func:`ground_grid`).
 
+    The grid depends on the scene and the track's direction, never on the sensor's
+    ``track_offset``: the layover is taken from the nominal track (``geometry`` less the offset),
+    so the two passes of an interferometric pair focus on one grid.
     Raises ValueError (from :meth:`ImageGrid.ground`) when the grid would be too large."""
+    offset = np.asarray(loaded.params.track_offset, dtype=np.float64)
+    if np.any(offset):
+        geometry = dataclasses.replace(geometry, positions=geometry.positions - offset)
     return ground_grid(loaded.params, loaded.bbox_lo, loaded.bbox_hi, geometry)
 
 
