@@ -1,6 +1,7 @@
 """Command-line interface: ``python -m sarmitsuba render [SCENE] [--out DIR] [...]``.
 
-Sub-commands: ``render``, ``preview``, ``info`` (plan only, no tracing), ``focus``, ``analyze``.
+Sub-commands: ``render``, ``preview``, ``info`` (plan only, no tracing), ``focus``, ``analyze``,
+``interferogram`` (repeat-pass InSAR of two renders).
 
 Exit codes: 0 success, 2 bad input (scene, parameter, material, output directory), 130
 interrupted (Ctrl-C; outputs are written under temporary names and renamed, so nothing
@@ -85,6 +86,17 @@ def _integrator_overrides(args: argparse.Namespace) -> dict:
     return integrator
 
 
+def _looks(text: str) -> tuple[int, int]:
+    parts = text.split(",")
+    try:
+        looks = tuple(int(p) for p in parts)
+    except ValueError:
+        looks = ()
+    if len(looks) != 2 or min(looks) < 1:
+        raise argparse.ArgumentTypeError(f"expected AZ,RG: two whole numbers >= 1, e.g. 4,4, got {text!r}")
+    return looks
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of all sub-commands."""
     from . import __version__
@@ -142,6 +154,13 @@ def build_parser() -> argparse.ArgumentParser:
     analyze.add_argument("--raw", type=Path, default=None,
                          help="the RawData that were focused (default: raw.npz beside the image, if any): gives "
                               "the exact carrier ramp, so the peak phase is right between pixels")
+    ifg = sub.add_parser("interferogram", help="repeat-pass InSAR of two renders on one ground grid: "
+                                              "interferogram, coherence, height (npz) and a figure")
+    ifg.add_argument("primary", type=Path, help="render directory of the primary pass (image.npz, raw.npz)")
+    ifg.add_argument("secondary", type=Path, help="render directory of the secondary pass (same ground grid)")
+    ifg.add_argument("--out", type=Path, required=True, help="output directory")
+    ifg.add_argument("--looks", type=_looks, default=(4, 4), metavar="AZ,RG",
+                     help="boxcar window for coherence and height, azimuth,range pixels (default 4,4)")
     bench = sub.add_parser("bench", help="benchmark suite: accuracy against time for each fidelity knob "
                                          "(needs the source checkout's benchmarks/ folder)", add_help=False)
     bench.add_argument("bench_args", nargs="*", metavar="...",
@@ -227,6 +246,18 @@ def _preview(args: argparse.Namespace) -> int:
         path = out.write("preview.png", lambda staged: render_preview(
             loaded, staged, spp=args.spp, resolution=args.resolution))
     print(f"preview of {loaded.source} -> {path}")
+    return 0
+
+
+def _interferogram(args: argparse.Namespace) -> int:
+    """Interferogram, coherence, height and figure of two render directories."""
+    from .interferometry import InterferometryError, write_products
+    try:
+        products = write_products(args.out, args.primary, args.secondary, looks=args.looks)
+    except InterferometryError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.primary} x {args.secondary}: {products.line()}")
     return 0
 
 
@@ -325,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
-                "info": _info, "bench": _bench}[args.command](args)
+                "info": _info, "bench": _bench, "interferogram": _interferogram}[args.command](args)
     except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -27,7 +27,8 @@ STAGES = {
     5: ("products", {"products", "groundtruth", "plotting", "figures_pol"}),
     6: ("analysis and figures", {"analysis", "analysis.*", "figures", "figures.*", "figures_raw", "figures_point",
                                  "preview", "info", "cost",
-                                 "synthetic", "reference_cases", "cut_metrics", "impulse_model"}),
+                                 "synthetic", "reference_cases", "cut_metrics", "impulse_model",
+                                 "interferometry"}),
     7: ("orchestration and CLI", {"pipeline", "api", "cli", "__init__", "__main__"}),
 }
 #: Only the tracer kernel's banner-sectioned loop may be longer (docs/design.md section 5).
