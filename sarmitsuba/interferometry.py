@@ -587,10 +587,14 @@ def write_products(out_dir: str | os.PathLike, primary_dir: str | os.PathLike, s
 
 def _draw(path: Path, image: SarImage, multilooked: np.ndarray, gamma: np.ndarray, heights: np.ndarray,
           baseline: Baseline, looks: tuple[int, int]) -> Path:
-    """The three-panel figure: wrapped phase (twilight), coherence [0, 1], height [m]."""
+    """The three-panel figure: wrapped phase (twilight), coherence [0, 1], height [m]; pixels whose
+    ``|<I1 I2*>|`` is 40 dB below its 99th percentile (no scene there) are drawn grey."""
     from .plotting import agg_figure, colorbar, image_extent, label_image_axes, save_png
     fig = agg_figure((16.0, 5.2), 100)
     extent = image_extent(image, multilooked.shape, (1, 1))
+    strength = np.abs(multilooked)
+    dark = strength <= 1e-4 * np.percentile(strength, 99)
+    multilooked, gamma, heights = (np.where(dark, np.nan, v) for v in (multilooked, gamma, heights))
     finite = heights[np.isfinite(heights)]
     low, high = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
     panels = (("interferometric phase (flat earth removed)", np.angle(multilooked), "twilight", -np.pi, np.pi,
@@ -599,7 +603,7 @@ def _draw(path: Path, image: SarImage, multilooked: np.ndarray, gamma: np.ndarra
               ("height above the ground plane", heights, "viridis", float(low), float(max(high, low + 1e-6)),
                "height [m]"))
     for k, (title, values, cmap, vmin, vmax, label) in enumerate(panels):
-        ax = fig.add_subplot(1, 3, k + 1)
+        ax = fig.add_subplot(1, 3, k + 1, facecolor="0.8")
         shown = ax.imshow(values, cmap=cmap, vmin=vmin, vmax=vmax, origin="lower", extent=extent,
                           aspect="equal", interpolation="nearest")
         ax.set_title(title, fontsize="medium")
