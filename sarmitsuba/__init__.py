@@ -71,12 +71,20 @@ orchestration          :mod:`~sarmitsuba.pipeline` -- ``simulate``, ``render``, 
 =====================  ====================================================================
 """
 import importlib as _importlib
+import sys as _sys
 
+from ._variant import VariantError as _VariantError
 from ._variant import activate as _activate
 
 __version__ = "0.1.0"
 
-VARIANT = _activate()
+try:
+    VARIANT = _activate()
+except _VariantError as _error:
+    if _sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py")):
+        print(f"error: {_error}", file=_sys.stderr)          # the command line: one message, exit 2
+        raise SystemExit(2) from None
+    raise
 
 #: Top-level names imported on first use: name -> (module, attribute; None for the module itself).
 _LAZY = {"simulate": ("pipeline", "simulate"), "render": ("pipeline", "render"),

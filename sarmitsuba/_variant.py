@@ -14,6 +14,10 @@ import os
 DEFAULT_VARIANT = "llvm_ad_mono"
 
 
+class VariantError(ImportError):
+    """``SARMITSUBA_VARIANT`` names no usable variant (unknown, not ``*_mono``, or CUDA without a GPU)."""
+
+
 def activate() -> str:
     """Set the variant and register the plugins; returns the variant name. Idempotent."""
     variant = os.environ.get("SARMITSUBA_VARIANT", DEFAULT_VARIANT)
@@ -23,7 +27,7 @@ def activate() -> str:
     import mitsuba as mi
 
     if mi.variant() is None:
-        mi.set_variant(variant)
+        _set(mi, variant)
     if not mi.variant().endswith("_mono"):
         raise RuntimeError(
             f"sarmitsuba needs a *_mono Mitsuba variant, but {mi.variant()!r} is active "
@@ -49,3 +53,16 @@ def _register_plugins(reload: bool) -> None:
         module = importlib.import_module(module_name)
         if reload:
             importlib.reload(module)
+
+
+def _set(mi, variant: str) -> None:
+    """``mi.set_variant(variant)``, or VariantError saying what ``SARMITSUBA_VARIANT`` may be."""
+    usable = [v for v in mi.variants() if v.endswith("_mono")]
+    if variant not in usable:
+        raise VariantError(f"SARMITSUBA_VARIANT = {variant!r} is not a usable variant of this Mitsuba build; "
+                           f"valid: {', '.join(usable)} (unset it for {DEFAULT_VARIANT!r}, the CPU)")
+    try:
+        mi.set_variant(variant)
+    except (ImportError, RuntimeError) as exc:
+        raise VariantError(f"SARMITSUBA_VARIANT = {variant!r} cannot start on this machine ({exc}); a cuda variant "
+                           f"needs an NVIDIA GPU and driver: unset it for {DEFAULT_VARIANT!r}, the CPU") from None
