@@ -97,6 +97,23 @@ def _looks(text: str) -> tuple[int, int]:
     return looks
 
 
+def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
+    """The standard-format flags of ``render`` (``--cphd``, ``--sicd``, ``--geotiff``) and ``focus``."""
+    if cphd:
+        parser.add_argument("--cphd", action="store_true",
+                            help="also write the raw data as CPHD 1.1 (raw.cphd; NGA standard, through sarkit)")
+    parser.add_argument("--sicd", action="store_true",
+                        help="also write the complex image as SICD in NITF (image.nitf; NGA standard, through sarkit)")
+    parser.add_argument("--geotiff", action="store_true",
+                        help="also write the ground-plane intensity as a GeoTIFF in UTM (image.tif: dB and "
+                             "linear bands), placed by the sensor's geo_origin")
+
+
+def _formats(args: argparse.Namespace) -> tuple[str, ...]:
+    """The standard formats asked for by ``--cphd``, ``--sicd``, ``--geotiff``."""
+    return tuple(f for f in ("cphd", "sicd", "geotiff") if getattr(args, f, False))
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of all sub-commands."""
     from . import __version__
@@ -127,6 +144,10 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--focuser", default="ffbp", choices=("ffbp", "bp"),
                         help="fast factorised backprojection (default) or direct backprojection (its reference, "
                              "slower)")
+    _add_format_arguments(render, cphd=True)
+    render.add_argument("--scheduler", default=None, metavar="local|tcp://HOST:PORT",
+                        help="trace the pulse batches on Dask: 'local' starts a LocalCluster of processes, "
+                             "tcp://HOST:PORT uses a running `dask scheduler` with its `dask worker`s")
     preview = _add_scene_arguments(
         sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)"))
     preview.add_argument("--out", type=Path, default=None,
@@ -138,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
         "info", help="radar summary, scene size, active effects and estimated cost, without tracing")))
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     focus = sub.add_parser("focus", help="focus a raw.npz (any RawData) into image.npz/.exr/.png")
-    focus.add_argument("raw", type=Path, help="RawData file (.npz)")
+    focus.add_argument("raw", type=Path, help="RawData file (.npz) or one-channel CPHD file (.cphd)")
     focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
                        help="fast factorised backprojection (default) or direct backprojection (any track), "
                             "omega-K or range-Doppler (straight track)")
@@ -147,6 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="azimuth window (omegak, rda: over the Doppler band; bp: over the beam)")
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _add_format_arguments(focus, cphd=False)
     from .analysis import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
     analyze.add_argument("--figure", type=Path, default=None, metavar="PNG",
@@ -197,11 +219,10 @@ def _focus(args: argparse.Namespace) -> int:
     import time
 
     from .outputs import OutputDirectory, check_output_dir
-    from .pipeline import refocus, write_image_products
-    from .raw import RawData
+    from .pipeline import refocus, write_exports, write_image_products
     start = time.perf_counter()
     check_output_dir(args.out)
-    raw = RawData.load(args.raw)
+    raw = load_raw(args.raw)
     try:
         image = refocus(raw, args.algorithm, window_range=args.window_range, window_azimuth=args.window_azimuth,
                         progress=not args.no_progress)
@@ -211,9 +232,23 @@ def _focus(args: argparse.Namespace) -> int:
     title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {args.window_range}/{args.window_azimuth}"
     with OutputDirectory(args.out) as out:
         paths = write_image_products(out, image, title)
+        paths.update(write_exports(out, raw, image, _formats(args)))
     print(f"focused {args.raw} with {args.algorithm}: {time.perf_counter() - start:.1f} s, "
           f"{raw.n_pulses} pulses, image {image.data.shape[0]}x{image.data.shape[1]} -> {paths['png'].parent}")
     return 0
+
+
+def load_raw(path: Path):
+    """RawData from ``path``: a ``.cphd`` file through :func:`sarmitsuba.cphd.read_cphd`, anything
+    else through :meth:`RawData.load`. Raises RawDataError naming the file."""
+    from .raw import RawData, RawDataError
+    if Path(path).suffix.lower() != ".cphd":
+        return RawData.load(path)
+    from .cphd import CphdError, read_cphd
+    try:
+        return read_cphd(path)
+    except CphdError as exc:
+        raise RawDataError(str(exc)) from None
 
 
 def _default_out(scene: str | None) -> Path:
@@ -228,7 +263,8 @@ def _render(args: argparse.Namespace) -> int:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
-                     progress=not args.no_progress, window=args.window, focuser=args.focuser)
+                     progress=not args.no_progress, window=args.window, focuser=args.focuser,
+                     formats=_formats(args), scheduler=args.scheduler)
     print(summary.line())
     if args.figures:
         from .figures import redraw
@@ -303,7 +339,7 @@ def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     damaged: a damaged file is never silently skipped."""
     from .analysis import carrier_ramp, image_coordinates
     from .image import SarImage, SarImageError
-    from .raw import RawData, RawDataError
+    from .raw import RawDataError
     raw_path = args.raw or raw_beside(Path(args.image))
     if args.raw is None and not raw_path.is_file():
         return None
@@ -313,7 +349,7 @@ def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     except (SarImageError, ValueError):
         return None
     try:
-        raw = RawData.load(raw_path)
+        raw = load_raw(raw_path)
     except RawDataError as exc:
         source = "--raw" if args.raw is not None else f"{raw_path.name} beside the image"
         raise RawDataError(f"{exc} (analyze reads {source} for the carrier ramp: give --raw an intact RawData "

@@ -37,7 +37,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from . import planning
+from . import georef, planning
 from .baseline import baseline
 from .constants import SPEED_OF_LIGHT
 from .cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory,
@@ -187,6 +187,11 @@ class RadarSummary:
     baseline_parallel_m: float = 0.0
     critical_baseline_m: float = 0.0
     height_of_ambiguity_m: float | None = None
+    #: WGS84 position of the world frame's origin (latitude deg, longitude deg, height m;
+    #: :mod:`sarmitsuba.georef`), whether it is the placeholder default, and its UTM zone's EPSG code.
+    geo_origin: tuple = (0.0, 0.0, 0.0)
+    geo_origin_default: bool = True
+    utm_epsg: int = 32631
 
 
 @dataclass(frozen=True)
@@ -333,7 +338,9 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         track_length_m=(p.n_pulses - 1) * p.velocity / p.prf, acquisition_time_s=(p.n_pulses - 1) / p.prf,
         track_offset_m=tuple(float(v) for v in p.track_offset), baseline_perpendicular_m=b.perpendicular,
         baseline_parallel_m=b.parallel, critical_baseline_m=b.critical,
-        height_of_ambiguity_m=b.height_of_ambiguity if math.isfinite(b.height_of_ambiguity) else None)
+        height_of_ambiguity_m=b.height_of_ambiguity if math.isfinite(b.height_of_ambiguity) else None,
+        geo_origin=georef.of(p).as_tuple(), geo_origin_default=p.geo_origin is None,
+        utm_epsg=int(georef.utm_crs(georef.of(p)).to_epsg()))
 
 
 def _azimuth_formula(p: RadarParameters) -> str:
@@ -431,7 +438,10 @@ def _radar_lines(r: RadarSummary) -> list[str]:
         f"baseline: track_offset {_vec(r.track_offset_m)} m: perpendicular {r.baseline_perpendicular_m:.3f} m, "
         f"parallel {r.baseline_parallel_m:.3f} m; critical {r.critical_baseline_m:.1f} m = lambda R tan(theta) B / c; "
         + ("no height of ambiguity (no perpendicular baseline)" if r.height_of_ambiguity_m is None else
-           f"height of ambiguity {r.height_of_ambiguity_m:.4g} m = lambda R sin(theta) / (2 B_perp)")]
+           f"height of ambiguity {r.height_of_ambiguity_m:.4g} m = lambda R sin(theta) / (2 B_perp)"),
+        f"geographic origin: {georef.GeoReference(*r.geo_origin).describe()} (WGS84; world x east, y north, z up), "
+        f"UTM EPSG:{r.utm_epsg}" + (" - the default placeholder: set sar geo_origin = \"lat, lon, h\" to place "
+                                    "the scene" if r.geo_origin_default else "")]
 
 
 def _radiometry_lines(r: RadiometrySummary | None) -> list[str]:

@@ -7,7 +7,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -25,11 +25,16 @@ from .raw import RawData
 from .scene import LoadedScene, load_scene, material_table
 from .trace import TraceResult, trace
 
-__all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES"]
+__all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES",
+           "EXPORT_FILES", "write_exports"]
 
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
                 "summary": "summary.json", "pauli": "pauli.png"}
+#: Standard-format files of ``render(formats=...)`` and ``focus --sicd``, by format: CPHD 1.1
+#: phase history (:mod:`sarmitsuba.cphd`), SICD 1.x complex image in NITF (:mod:`sarmitsuba.sicd`),
+#: GeoTIFF ground-plane intensity in UTM (:mod:`sarmitsuba.geotiff`).
+EXPORT_FILES = {"cphd": "raw.cphd", "sicd": "image.nitf", "geotiff": "image.tif"}
 
 
 @dataclass(frozen=True)
@@ -89,7 +94,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
              integrator_overrides: Mapping[str, Any] | None = None,
              material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
              image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
-             window: Any = "taylor", focuser: str = "ffbp") -> Simulation:
+             window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
     Parameters are those of :func:`render` (``window`` and ``focuser`` included), plus
@@ -215,7 +220,8 @@ def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarIm
 def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: Mapping[str, Any] | None = None,
            integrator_overrides: Mapping[str, Any] | None = None,
            material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
-           window: Any = "taylor", focuser: str = "ffbp") -> RenderSummary:
+           window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
+           scheduler: str | None = None) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -244,6 +250,14 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         interpolation error measured in ``benchmarks/ffbp.py``: -33 dB NRMSE against direct
         backprojection on Munich) or direct backprojection (:func:`sarmitsuba.focus.backproject`,
         the reference, about 10 times slower on a city).
+    formats : sequence of {"cphd", "sicd", "geotiff"}
+        Standard-format files written beside the npz products (:data:`EXPORT_FILES`; per channel
+        with a ``_XX`` suffix in quad-pol), placed on the WGS84 ellipsoid by the sensor's
+        ``geo_origin`` (:mod:`sarmitsuba.georef`).
+    scheduler : str, optional
+        ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
+        Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.distributed`).
+        None: in this process.
 
     Returns
     -------
@@ -258,14 +272,17 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     focus_window(window)
     _focuser(focuser)
+    check_formats(formats)
     with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
-                       material_overrides=material_overrides, progress=progress, window=window, focuser=focuser)
+                       material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
+                       scheduler=scheduler)
         t_products = time.perf_counter()
         paths = {}
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
             label = f"_{name}" if name else ""
             paths.update(_write_products(out, channel.raw, channel.image, sim.loaded.params, suffix=label))
+            paths.update(write_exports(out, channel.raw, channel.image, formats, suffix=label))
             for k, (raw_k, image_k) in enumerate(zip(channel.raw_per_order, channel.images_per_order), start=1):
                 paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
         if sim.channels:
@@ -273,6 +290,33 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
     return summary
+
+
+def check_formats(formats: Sequence[str]) -> None:
+    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`."""
+    from .radar import ParameterError
+    unknown = [f for f in formats if f not in EXPORT_FILES]
+    if unknown:
+        raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
+
+
+def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | None, formats: Sequence[str],
+                  suffix: str = "") -> dict:
+    """Write the standard-format files of ``formats`` (:data:`EXPORT_FILES`) into the open output
+    directory ``out``: CPHD from ``raw``, SICD from ``image`` (with ``raw``'s geometry when given),
+    GeoTIFF from ``image``. ``suffix`` (``_HV``) goes before the extension. Returns paths by format."""
+    writers = {}
+    if "cphd" in formats:
+        from .cphd import write_cphd
+        writers["cphd"] = lambda path: write_cphd(raw, path)
+    if "sicd" in formats:
+        from .sicd import write_sicd
+        writers["sicd"] = lambda path: write_sicd(image, path, raw=raw)
+    if "geotiff" in formats:
+        from .geotiff import write_geotiff
+        writers["geotiff"] = lambda path: write_geotiff(image, path)
+    return {f"{fmt}{suffix}": out.write(EXPORT_FILES[fmt].replace(".", f"{suffix}."), writer)
+            for fmt, writer in writers.items()}
 
 
 def _write_pauli(out: OutputDirectory, sim: Simulation) -> Path:

@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from . import georef
 from .constants import SPEED_OF_LIGHT
 
 __all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
@@ -68,6 +69,11 @@ class RadarParameters:
         Shift of the whole track (every antenna position; the beam keeps its pointing and the
         image grid its place): a second pass with a baseline, for interferometry
         (docs/physics.md (I1)). Default ``(0, 0, 0)``.
+    geo_origin : tuple (latitude deg, longitude deg, height m) or None
+        WGS84 position of the world frame's origin, whose x, y, z axes are taken as east,
+        north, up (docs/physics.md (G1)); written into CPHD, SICD and GeoTIFF products. ``None``
+        = the scene's known origin (``sionna:munich``) or :data:`sarmitsuba.georef.DEFAULT`.
+        Given as ``"48.138, 11.576, 566"``; latitude in [-90, 90], longitude in [-180, 180].
     look_side : str
         ``"right"`` or ``"left"`` of the track.
     heading : float, deg
@@ -153,6 +159,7 @@ class RadarParameters:
     incidence_angle: float = 45.0
     scene_center: tuple[float, float, float] | None = None
     track_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    geo_origin: tuple[float, float, float] | None = None
     look_side: str = "right"
     heading: float = 0.0
     n_pulses: int = 0
@@ -174,6 +181,10 @@ class RadarParameters:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
             object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
         _check_ranges(self)                  # units and ranges first: the checks below divide by them
+        try:
+            georef.parse(self.geo_origin)
+        except georef.GeoReferenceError as exc:
+            raise ParameterError(str(exc)) from None
         for name in ("antenna_length", "antenna_height"):
             value = getattr(self, name)
             if 0 < value <= SPEED_OF_LIGHT / self.frequency:
@@ -393,6 +404,9 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
             if name in ("scene_center", "track_offset"):
                 parts = value.replace(",", " ").split() if isinstance(value, str) else list(value)
                 out[name] = tuple(float(v) for v in parts)
+            elif name == "geo_origin":
+                ref = georef.parse(value)
+                out[name] = None if ref is None else ref.as_tuple()
             elif name == "n_pulses":
                 out[name] = int(value)
             elif value is None:
@@ -401,6 +415,8 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = str(value)
             else:
                 out[name] = float(value)
+        except georef.GeoReferenceError as exc:
+            raise ParameterError(str(exc)) from None
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"sar sensor parameter {name}: cannot use value {value!r} ({exc})") from None
     return out

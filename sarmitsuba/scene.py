@@ -20,7 +20,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from . import materials
+from . import georef, materials
 from .meshcheck import check_meshes, warn_mesh_defects
 from .planning import resolve_parameters
 from .radiometry import radar_equation
@@ -172,6 +172,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
     params = RadarParameters.from_mapping(given)
+    if params.geo_origin is None and isinstance(source, str) and source.startswith("sionna:"):
+        known = georef.SCENE_ORIGINS.get(source.split(":", 1)[1])
+        params = params if known is None else dataclasses.replace(params, geo_origin=known.as_tuple())
     if params.scene_center is not None and np.any(offset):
         params = dataclasses.replace(params, scene_center=tuple((np.asarray(params.scene_center) - offset).tolist()))
     integrator = scene.integrator()

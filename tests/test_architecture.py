@@ -18,11 +18,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "sarmitsuba"
 STAGES = {
     0: ("utilities", {"constants", "arrays", "outputs", "bandlimited", "deposit", "_llvm", "_variant",
                       "focus.windows", "focus.grid", "focus.range_lines", "focus.stolt"}),
-    1: ("scene", {"radar", "baseline", "materials", "meshcheck", "canonical", "pyscene", "scene", "trace_inputs",
+    1: ("scene", {"georef", "radar", "baseline", "materials", "meshcheck", "canonical", "pyscene", "scene", "trace_inputs",
                   "effects", "planning", "radiometry", "signal_model", "fresnel",
                   "polarimetry"}),
     2: ("trace", {"physical_optics", "clutter_lattice", "accumulate", "returns", "kernel", "trace", "jones"}),
-    3: ("raw data", {"raw", "binning"}),
+    3: ("raw data", {"raw", "binning", "cphd"}),
     4: ("focus", {"image", "focus", "focus.*"}),
     5: ("products", {"products", "groundtruth", "plotting", "figures_pol"}),
     6: ("analysis and figures", {"analysis", "analysis.*", "figures", "figures.*", "figures_raw", "figures_point",

@@ -1,0 +1,125 @@
+"""CPHD export and import through sarkit (issue 17, item 2): checker, geometry, samples, focusing."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+sarkit_cphd = pytest.importorskip("sarkit.cphd")
+from sarmitsuba import georef, pipeline  # noqa: E402
+from sarmitsuba.constants import SPEED_OF_LIGHT  # noqa: E402
+from sarmitsuba.outputs import json_default  # noqa: E402
+from sarmitsuba.cphd import CphdError, check_cphd, read_cphd, write_cphd  # noqa: E402
+
+#: A place far from the equator and the prime meridian, so that a swapped or dropped axis shows.
+REF = georef.GeoReference(48.1, 11.6, 520.0)
+
+
+@pytest.fixture(scope="module")
+def compressed():
+    """A tiny trihedral render (range compressed)."""
+    return pipeline.simulate("trihedral", sensor_overrides={"n_pulses": 32}).raw
+
+
+@pytest.fixture(scope="module")
+def written(compressed, tmp_path_factory):
+    """(RawData, path of its raw.cphd)."""
+    path = tmp_path_factory.mktemp("cphd") / "raw.cphd"
+    write_cphd(compressed, path, REF)
+    return compressed, path
+
+
+def read_parts(path):
+    """(signal, pvp, xml tree) of channel 1, straight from sarkit."""
+    with open(path, "rb") as f, sarkit_cphd.Reader(f) as reader:
+        signal, pvp = reader.read_channel("1")
+        return signal, pvp, reader.metadata.xmltree
+
+
+def test_sarkit_consistency_checker_reports_no_failures(written):
+    assert check_cphd(written[1]) == []
+
+
+def test_scene_reference_point_is_the_geo_origin_in_wgs84(written):
+    """The scene centre is the local origin: sarkit's own geodetic maths must give back REF."""
+    import sarkit.wgs84
+    raw, path = written
+    assert list(raw.metadata["radar"]["scene_center"]) == [0.0, 0.0, 0.0]
+    _, pvp, _ = read_parts(path)
+    llh = sarkit.wgs84.cartesian_to_geodetic(pvp["SRPPos"])
+    np.testing.assert_allclose(llh[:, 0], REF.latitude_deg, atol=1e-9)   # ~0.1 mm
+    np.testing.assert_allclose(llh[:, 1], REF.longitude_deg, atol=1e-9)
+    np.testing.assert_allclose(llh[:, 2], REF.height_m, atol=1e-3)
+
+
+def test_pvp_ranges_and_times_match_the_local_geometry(written):
+    """A rigid ENU->ECEF map keeps every antenna-to-SRP distance (1 mm) and the two-way delay."""
+    raw, path = written
+    _, pvp, _ = read_parts(path)
+    local = np.linalg.norm(raw.tx_position, axis=1)          # SRP at the local origin
+    np.testing.assert_allclose(np.linalg.norm(pvp["TxPos"] - pvp["SRPPos"], axis=1), local, atol=1e-3)
+    np.testing.assert_allclose(np.linalg.norm(pvp["RcvPos"] - pvp["SRPPos"], axis=1), local, atol=1e-3)
+    np.testing.assert_allclose(np.linalg.norm(pvp["TxVel"], axis=1), np.linalg.norm(raw.velocity, axis=1),
+                               rtol=1e-12)
+    np.testing.assert_allclose(pvp["RcvTime"] - pvp["TxTime"], 2 * local / SPEED_OF_LIGHT, rtol=1e-12)
+    np.testing.assert_allclose(np.diff(pvp["TxTime"]), np.diff(raw.pulse_time), atol=1e-15)
+    # Straight level track: the ECEF velocity is the direction between successive positions.
+    step = np.diff(pvp["TxPos"], axis=0)
+    np.testing.assert_allclose(step / np.diff(pvp["TxTime"])[:, None], pvp["TxVel"][1:], atol=1e-6)
+
+
+def test_samples_are_compensated_to_the_scene_reference_point(written):
+    """The trihedral sits at the SRP: in the file its peak is at dTOA = 0 with one constant phase."""
+    raw, path = written
+    signal, pvp, _ = read_parts(path)
+    peak = np.argmax(np.abs(signal), axis=1)
+    dtoa = pvp["SC0"] + peak * pvp["SCSS"]
+    assert np.all(np.abs(dtoa) <= pvp["SCSS"])
+    phase = np.unwrap(np.angle(signal[np.arange(len(peak)), peak]))
+    assert np.ptp(phase) < 0.05
+    raw_peak = np.argmax(np.abs(raw.data), axis=1)
+    assert np.ptp(np.unwrap(np.angle(raw.data[np.arange(len(raw_peak)), raw_peak]))) > 1.0  # not yet compensated
+
+
+def test_read_back_gives_the_geometry_and_samples(written):
+    raw, path = written
+    back = read_cphd(path)
+    for name in ("tx_position", "rx_position"):
+        np.testing.assert_allclose(getattr(back, name), getattr(raw, name), atol=1e-3, err_msg=name)
+    np.testing.assert_allclose(back.velocity, raw.velocity, atol=1e-9)
+    np.testing.assert_allclose(back.pulse_time, raw.pulse_time, atol=1e-12)
+    np.testing.assert_allclose(back.fast_time, raw.fast_time, rtol=0, atol=1e-15)
+    # The SRP phase is taken out and put back in float32: equal within float32 rounding.
+    np.testing.assert_allclose(back.data, raw.data, rtol=0, atol=1e-6 * np.abs(raw.data).max())
+    assert (back.fc, back.bandwidth, back.fs, back.prf, back.pulse_length, back.chirp_rate) == \
+        (raw.fc, raw.bandwidth, raw.fs, raw.prf, raw.pulse_length, raw.chirp_rate)
+    assert back.range_compressed
+    assert back.metadata == json.loads(json.dumps(raw.metadata, default=json_default))  # as RawData.save keeps it
+
+
+def test_focusing_the_read_back_data_gives_the_same_image(written):
+    raw, path = written
+    original = pipeline.refocus(raw, "bp").data
+    again = pipeline.refocus(read_cphd(path), "bp").data
+    nrmse_db = 20 * np.log10(np.linalg.norm(again - original) / np.linalg.norm(original))
+    assert nrmse_db <= -60.0
+
+
+def test_chirped_data_round_trip_and_pass_the_checker(tmp_path):
+    raw = pipeline.simulate("trihedral", sensor_overrides={"n_pulses": 16, "output": "raw"}).raw
+    assert not raw.range_compressed
+    path = write_cphd(raw, tmp_path / "raw.cphd", REF)
+    assert check_cphd(path) == []
+    back = read_cphd(path)
+    assert not back.range_compressed
+    np.testing.assert_allclose(back.data, raw.data, rtol=0, atol=1e-6 * np.abs(raw.data).max())
+
+
+def test_reading_a_file_that_is_no_cphd_names_it(tmp_path):
+    path = tmp_path / "raw.cphd"
+    path.write_bytes(b"not a phase history\n")
+    with pytest.raises(CphdError, match="raw.cphd"):
+        read_cphd(path)
+    with pytest.raises(CphdError, match="missing.cphd"):
+        read_cphd(tmp_path / "missing.cphd")
