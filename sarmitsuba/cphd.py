@@ -8,7 +8,7 @@ only maps :class:`~sarmitsuba.raw.RawData` onto it:
   :class:`~sarmitsuba.georef.GeoReference` origin, which is also written as the scene's IARP;
 - the scene reference point (SRP) is the scene centre (``metadata["radar"]["scene_center"]``,
   else the mean of the pulses' closest points on the ground);
-- the samples are compensated to the SRP as CPHD requires: sample ``s`` of vector ``v`` sits
+- the samples are compensated to the SRP as CPHD requires (docs/physics.md (G2)): sample ``s`` of vector ``v`` sits
   at ``dTOA = SC0[v] + s SCSS`` relative to the SRP delay ``tau_srp[v]`` and carries the phase
   factor ``exp(+j 2 pi fc tau_srp[v])`` (a point at the SRP reads zero phase at ``dTOA = 0``).
   :func:`read_cphd` undoes both, so the samples come back within float32 rounding;

@@ -7,7 +7,7 @@ ellipsoid normal (docs/physics.md (G1)). The maps to Earth-centred Earth-fixed (
 geodetic (EPSG:4979) and UTM coordinates are PROJ's, through pyproj (the ``cart`` and
 ``topocentric`` operations; Snyder 1987 for UTM); this module only assembles them.
 
-Defaults (docs/design.md section 10):
+Defaults:
 
 - a scene that gives no ``geo_origin`` sits at :data:`DEFAULT`, 0 deg N 0 deg E 0 m, a
   placeholder that GIS users recognise ("null island") and that ``info`` marks as such;
