@@ -35,6 +35,11 @@
    - Shift of the whole track (default 0, 0, 0): a second pass for repeat-pass
      interferometry. The beam keeps its pointing and the image grid its place, so two
      passes focus on one grid (``python -m sarmitsuba interferogram``; docs/physics.md (I1)).
+ * - geo_origin
+   - string "latitude, longitude, height", deg, deg, m
+   - WGS84 position of the scene's origin; x, y, z are east, north, up there
+     (docs/physics.md (G1)). Places the CPHD, SICD and GeoTIFF products on Earth. Default:
+     the scene's known origin (``sionna:munich``), else 0 N 0 E 0 m, a placeholder.
  * - look_side
    - string
    - ``right`` (default) or ``left`` of the track.
