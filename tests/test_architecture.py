@@ -24,7 +24,7 @@ STAGES = {
     2: ("trace", {"physical_optics", "clutter_lattice", "accumulate", "returns", "kernel", "trace", "jones"}),
     3: ("raw data", {"raw", "binning", "cphd"}),
     4: ("focus", {"image", "focus", "focus.*"}),
-    5: ("products", {"products", "groundtruth", "plotting", "figures_pol"}),
+    5: ("products", {"products", "groundtruth", "plotting", "figures_pol", "geotiff", "sicd"}),
     6: ("analysis and figures", {"analysis", "analysis.*", "figures", "figures.*", "figures_raw", "figures_point",
                                  "preview", "info", "cost",
                                  "synthetic", "reference_cases", "cut_metrics", "impulse_model",

@@ -1,0 +1,97 @@
+"""GeoTIFF of the ground-plane image (issue 17, item 3): corners on the map, bands, errors."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+rasterio = pytest.importorskip("rasterio")
+
+from pyproj import Transformer  # noqa: E402
+
+from sarmitsuba import georef, pipeline  # noqa: E402
+from sarmitsuba.cli import main  # noqa: E402
+from sarmitsuba.geotiff import GeoTiffError, write_geotiff  # noqa: E402
+from sarmitsuba.image import SarImage  # noqa: E402
+
+
+def synthetic(heading_deg, n_az=40, n_rg=60, spacing=(0.5, 0.8)):
+    """A ground image whose azimuth axis points along ``heading_deg`` (ccw from east), range to its right."""
+    h = np.radians(heading_deg)
+    a = np.array([np.cos(h), np.sin(h), 0.0])
+    r = np.array([np.sin(h), -np.cos(h), 0.0])           # right of the track
+    rng = np.random.default_rng(1)
+    data = (rng.normal(size=(n_az, n_rg)) + 1j * rng.normal(size=(n_az, n_rg))).astype(np.complex64)
+    return SarImage(data=data, azimuth=np.arange(n_az) * spacing[0] - 7.0, range=np.arange(n_rg) * spacing[1] - 11.0,
+                    origin=np.array([30.0, -20.0, 0.0]), azimuth_direction=a, range_direction=r, plane="ground",
+                    algorithm="backprojection", window="rect", metadata={"units": "sqrt(m^2)"})
+
+
+def corner_centres_lonlat(path):
+    """Longitude, latitude of the four corner pixel centres, read with rasterio and pyproj only."""
+    with rasterio.open(path) as src:
+        rows, cols = [0, 0, src.height - 1, src.height - 1], [0, src.width - 1, 0, src.width - 1]
+        xs, ys = rasterio.transform.xy(src.transform, rows, cols, offset="center")
+        to_ll = Transformer.from_crs(src.crs, "EPSG:4326", always_xy=True)
+        return np.column_stack(to_ll.transform(xs, ys)), src
+
+
+@pytest.mark.parametrize("heading, ref", [(0.0, georef.GeoReference(48.1, 11.6, 520.0)),
+                                          (30.0, georef.GeoReference(48.1, 11.6, 520.0)),
+                                          (-110.0, georef.GeoReference(-33.9, 151.2, 40.0))])
+def test_corners_on_the_map_within_a_pixel(tmp_path, heading, ref):
+    """The four corner pixel centres land on the geodetic positions of the image's corner pixels."""
+    image = synthetic(heading)
+    path = write_geotiff(image, tmp_path / "image.tif", ref)
+    got, src = corner_centres_lonlat(path)
+    pos = image.positions()
+    corners = np.array([pos[0, 0], pos[0, -1], pos[-1, 0], pos[-1, -1]])
+    llh = georef.enu_to_geodetic(corners, ref)
+    want = llh[:, [1, 0]]
+    # the file may list the azimuth lines last first: compare as sets of points
+    d = np.linalg.norm((got[:, None, :] - want[None, :, :]) * [np.cos(np.radians(ref.latitude_deg)), 1.0], axis=2)
+    metres = d.min(axis=1) * 111_320.0
+    assert np.all(metres < 0.5 * min(0.5, 0.8)), metres      # well within one pixel (0.5 m)
+    assert src.crs.to_epsg() == georef.utm_crs(ref).to_epsg()
+    assert src.transform.a * src.transform.e - src.transform.b * src.transform.d < 0   # not mirrored
+
+
+def test_bands_hold_db_and_linear_intensity(tmp_path):
+    image = synthetic(30.0)
+    image = dataclasses.replace(image, data=image.data.copy())
+    image.data[3, 4] = 0
+    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(10.0, 20.0, 0.0))
+    with rasterio.open(path) as src:
+        db, lin = src.read(1), src.read(2)
+        flipped = "last first" in src.tags()["LAYOUT"]
+        assert src.descriptions == ("intensity_db", "intensity")
+    want = np.abs(image.data.astype(np.complex128)) ** 2
+    want = want[::-1] if flipped else want
+    np.testing.assert_allclose(lin, want, rtol=1e-6)
+    finite = want > 0
+    np.testing.assert_allclose(db[finite], 10 * np.log10(want[finite]), atol=1e-4)
+    assert np.isnan(db[~finite]).sum() == 1
+
+
+def test_a_slant_plane_image_is_refused(tmp_path):
+    image = dataclasses.replace(synthetic(0.0), plane="slant")
+    with pytest.raises(GeoTiffError, match="ground"):
+        write_geotiff(image, tmp_path / "image.tif")
+    assert not (tmp_path / "image.tif").exists()
+
+
+def test_render_geotiff_puts_the_trihedral_on_the_geo_origin(tmp_path):
+    """The trihedral's apex is the local origin: its brightest pixel lies on geo_origin within a pixel."""
+    out = tmp_path / "r"
+    assert main(["render", "trihedral", "--pulses", "32", "--geotiff", "--out", str(out), "--no-progress",
+                 "--set", "geo_origin=-33.9, 151.2, 40", "--set", "heading=30"]) == 0
+    with rasterio.open(out / "image.tif") as src:
+        band = src.read(2)
+        row, col = np.unravel_index(np.argmax(band), band.shape)
+        x, y = rasterio.transform.xy(src.transform, [row], [col], offset="center")
+        lon, lat = Transformer.from_crs(src.crs, "EPSG:4326", always_xy=True).transform(x[0], y[0])
+        pixel = max(np.hypot(src.transform.a, src.transform.d), np.hypot(src.transform.b, src.transform.e))
+    north = (lat + 33.9) * 110_900.0
+    east = (lon - 151.2) * 111_320.0 * np.cos(np.radians(33.9))
+    assert np.hypot(north, east) <= pixel
