@@ -22,6 +22,8 @@ munich         the Munich acceptance of issue 12: default render in units of bar
                backprojection against omega-K, info's estimate against the render
 polarimetry    VV, HH, HV and quad on urban and Munich: seconds, casts, quad's cost
                over single-channel renders, quad's HH and VV against the single ones
+dask_scaling   tracing on a Dask LocalCluster of 1 and 2 workers against one process:
+               trace seconds, speed-up, raw NRMSE against one process
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -48,7 +50,8 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
-         "munich": "munich", "polarimetry": "polarimetry"}
+         "munich": "munich", "polarimetry": "polarimetry",
+         "dask_scaling": "dask_scaling"}
 
 
 def main(argv: list[str] | None = None) -> int:

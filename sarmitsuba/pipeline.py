@@ -100,7 +100,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     Parameters are those of :func:`render` (``window`` and ``focuser`` included), plus
     ``image_size = (n_azimuth, n_range)`` pixels and ``image_spacing`` [m] for a ground grid of
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
-    which covers the scene and its layover).
+    which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
+    traces the pulse batches on Dask workers (:func:`sarmitsuba.distributed.trace_on_cluster`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
@@ -108,19 +109,19 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
-    geometry = acquisition_geometry(params)
-    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
-    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
-                                       shape_boxes=loaded.shape_boxes)
-    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
-    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
+    setup = prepare_trace(loaded)
+    geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
-    table = material_table(loaded.scene, params.frequency, params.polarization)
     t["load"] = time.perf_counter()
-    result = trace(loaded.scene, params, geometry, window, footprint, settings, table, progress=progress,
-                   effects=effects)
+    if scheduler is None:
+        result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, progress=progress,
+                       effects=effects)
+    else:
+        from .distributed import trace_on_cluster
+        result = trace_on_cluster(scheduler, (source, sensor_overrides, integrator_overrides, material_overrides),
+                                  loaded, setup, progress=progress)
     t["trace"] = time.perf_counter()
     planning.check_window_energy(result.energy_outside_window, float(np.sum(result.energy_per_order)),
                                  settings.max_depth)
@@ -154,6 +155,32 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images)
                 for name, (raw, image, channel, per_order, images) in products.items()}
     return dataclasses.replace(channels["HH"], trace=result, channels=channels)
+
+
+@dataclass(frozen=True)
+class TraceSetup:
+    """What :func:`trace` needs besides the scene, derived from a loaded scene alone (so any
+    process that loads the same scene with the same overrides derives the same setup)."""
+
+    geometry: AcquisitionGeometry
+    window: Any
+    footprint: Any
+    effects: Any
+    table: Any
+
+
+def prepare_trace(loaded: LoadedScene) -> TraceSetup:
+    """Acquisition geometry, fast-time window, ray footprint, active effects and material table of
+    ``loaded``; checks the acquisition (ParameterError) before any tracing."""
+    params, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
+                                       shape_boxes=loaded.shape_boxes)
+    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
+    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
+    table = material_table(loaded.scene, params.frequency, params.polarization)
+    return TraceSetup(geometry, window, footprint, effects, table)
 
 
 #: Focusers of :func:`simulate` / :func:`render`: fast factorised backprojection (the default) and
@@ -273,6 +300,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     focus_window(window)
     _focuser(focuser)
     check_formats(formats)
+    if scheduler is not None:
+        from .distributed import check_scheduler
+        check_scheduler(scheduler)
     with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,

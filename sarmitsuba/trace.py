@@ -199,9 +199,102 @@ class TraceResult:
 HISTOGRAM_ENTRIES = 1 << 22
 
 
+@dataclass(frozen=True)
+class TracePlan:
+    """How :func:`trace` splits an acquisition into batches of sub-apertures; the same inputs
+    give the same plan in any process, so a batch can be traced anywhere (docs/design.md section 11).
+
+    Attributes
+    ----------
+    subs : SubApertures
+    per_batch : int
+        Sub-apertures per batch; batch ``b`` covers sub-apertures ``[b per_batch, (b + 1) per_batch)``.
+    lref : float64 [n_pulses], m
+        Per-pulse reference length ``2 |P - scene_center|``.
+    n_channels, groups, n_pad : int
+        Channels, deposit groups (bounce orders when split), padded spectrum length.
+    exact : bool
+        ``range_kernel = exact``: batches return path lists instead of spectra.
+    """
+
+    subs: SubApertures
+    per_batch: int
+    lref: np.ndarray
+    n_channels: int
+    groups: int
+    n_pad: int
+    exact: bool
+
+    @property
+    def batches(self) -> list[int]:
+        """First sub-aperture of each batch."""
+        return list(range(0, len(self.subs.first), self.per_batch))
+
+    def pulses(self, g0: int) -> tuple[int, int]:
+        """Pulse range ``[p0, p1)`` of the batch starting at sub-aperture ``g0``."""
+        g = slice(g0, min(len(self.subs.first), g0 + self.per_batch))
+        return int(self.subs.first[g][0]), int(self.subs.first[g][-1] + self.subs.count[g][-1])
+
+
+def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
+               footprint: RayFootprint, settings: TraceSettings, effects: EffectSet) -> TracePlan:
+    """The :class:`TracePlan` of an acquisition: sub-apertures and the batch size that keeps a
+    launch within ``max_batch_rays`` tubes and the histogram within :data:`HISTOGRAM_ENTRIES`."""
+    n_pulses = geometry.positions.shape[0]
+    n_channels, groups = len(effects.channels), effects.groups
+    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
+    per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
+    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
+                                                        * n_channels))
+    per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
+    return TracePlan(subs=subs, per_batch=per_batch,
+                     lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
+                     n_channels=n_channels, groups=groups, n_pad=padded_length(window.n_samples),
+                     exact=settings.range_kernel == "exact")
+
+
+def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                footprint: RayFootprint, settings: TraceSettings, frequency: float) -> dict:
+    """Trace the batch of sub-apertures starting at ``g0``: ``{"pulses": (p0, p1), "spectrum":
+    complex64 [n_channels groups, p1 - p0, n_pad] (None for exact), "paths": PathList or None,
+    "totals": {counter: value}}``."""
+    subs = plan.subs
+    g = slice(g0, min(len(subs.first), g0 + plan.per_batch))
+    p0, p1 = plan.pulses(g0)
+    n_groups = plan.n_channels * plan.groups
+    hist = None if plan.exact else np.zeros((len(SPECTRAL_ORDERS), n_groups, p1 - p0, window.n_fine), np.complex64)
+    totals, paths = {}, None
+    for blocks in _blocks(subs, g, footprint, settings.max_batch_rays):
+        launch = Launch(antenna=geometry.positions[p0:p1], lref=plan.lref[p0:p1], first=subs.first[g] - p0,
+                        count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
+                        along_limits=subs.along_limits[g], blocks=blocks)
+        try:
+            out = kernel(launch)
+        except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces a loop body
+            if caused_by_interrupt(exc):
+                raise KeyboardInterrupt from exc
+            raise
+        if plan.exact:
+            part = _path_list(out["paths"], p0, plan.n_channels > 1)
+            paths = part if paths is None else PathList.concatenate([paths, part])
+        else:
+            hist += out["hist"]
+        for name in TOTALS:
+            totals[name] = totals.get(name, 0) + out[name]
+    spectrum = None if plan.exact else np.stack(
+        [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
+         for k in range(n_groups)])
+    return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
+
+
+#: Counters every kernel launch returns and :func:`trace` sums.
+TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated")
+
+
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
           window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
-          material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None) -> TraceResult:
+          material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None,
+          run_batches=None) -> TraceResult:
     """Trace all pulses of an acquisition (see module docstring for the model).
 
     Parameters
@@ -222,75 +315,66 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     effects : EffectSet, optional
         The effects to trace (:func:`sarmitsuba.effects.active_effects` of the loaded scene);
         default: those of ``params``, ``settings`` and the rough materials of ``material_table``.
+    run_batches : callable, optional
+        ``run_batches(plan, batches)`` yields the :func:`trace_batch` results of the batches
+        (first sub-aperture indices) in any order, traced elsewhere (for instance on Dask
+        workers, :mod:`sarmitsuba.distributed`). Default: traced here, in order.
 
     Returns
     -------
     TraceResult
     """
     n_pulses = geometry.positions.shape[0]
-    lref = 2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1)
     if effects is None:
         effects = EffectSet.of(params, settings, rough_materials(material_table))
-    exact = settings.range_kernel == "exact"
-    n_channels = len(effects.channels)
-    groups = effects.groups
-    n_pad = padded_length(window.n_samples)
-    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
-    per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
-    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
-                                                        * n_channels))
-    per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
-    spectrum = np.zeros((n_channels * groups, n_pulses, 0 if exact else n_pad), np.complex64)
-    paths = []
+    plan = plan_trace(scene, params, geometry, window, footprint, settings, effects)
+    spectrum = np.zeros((plan.n_channels * plan.groups, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
+    paths = {}
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
                   outside=0.0, shadow=0, evaluated=0)
     start = time.perf_counter()
-    kernel = Kernel(scene, params, window, footprint, settings, material_table, effects)
+    kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
+                                                         material_table, effects)
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
     try:
-        for g0 in range(0, len(subs.first), per_batch):
-            g = slice(g0, min(len(subs.first), g0 + per_batch))
-            p0, p1 = int(subs.first[g][0]), int(subs.first[g][-1] + subs.count[g][-1])
-            hist = None if exact else np.zeros((len(SPECTRAL_ORDERS), n_channels * groups, p1 - p0, window.n_fine),
-                                               np.complex64)
-            for blocks in _blocks(subs, g, footprint, settings.max_batch_rays):
-                launch = Launch(antenna=geometry.positions[p0:p1], lref=lref[p0:p1], first=subs.first[g] - p0,
-                                count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
-                                along_limits=subs.along_limits[g], blocks=blocks)
-                try:
-                    out = kernel(launch)
-                except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces a loop body
-                    if caused_by_interrupt(exc):
-                        raise KeyboardInterrupt from exc
-                    raise
-                if exact:
-                    paths.append(_path_list(out["paths"], p0, n_channels > 1))
-                else:
-                    hist += out["hist"]
-                for name in totals:
-                    totals[name] = totals[name] + out[name]
-            if not exact:
-                for k in range(n_channels * groups):
-                    spectrum[k, p0:p1] = reduce_deposit(hist[:, k], window.fs, window.oversample, params.frequency,
-                                                        settings.range_kernel, n_pad)
+        results = run_batches(plan, plan.batches) if run_batches is not None else (
+            trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+            for g0 in plan.batches)
+        for out in results:
+            p0, p1 = out["pulses"]
+            if plan.exact:
+                paths[p0] = out["paths"]
+            else:
+                spectrum[:, p0:p1] = out["spectrum"]
+            for name in totals:
+                totals[name] = totals[name] + out["totals"].get(name, 0)
             bar.update(p1 - p0)
     finally:
         bar.close()
         del kernel
         dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
     seconds = time.perf_counter() - start
-    spectrum = spectrum.reshape(n_channels, groups, n_pulses, -1)
-    quad = n_channels > 1
-    return TraceResult(spectrum=spectrum.sum(axis=1) if quad else spectrum[0].sum(axis=0), reference_length=lref,
+    return _result(plan, spectrum, paths, totals, seconds, effects)
+
+
+def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, seconds: float,
+            effects: EffectSet) -> TraceResult:
+    """The TraceResult of the merged batches (paths keyed by their batch's first pulse)."""
+    n_pulses = spectrum.shape[1]
+    spectrum = spectrum.reshape(plan.n_channels, plan.groups, n_pulses, -1)
+    quad = plan.n_channels > 1
+    exact = plan.exact
+    merged = PathList.concatenate([paths[k] for k in sorted(paths) if paths[k] is not None]) if exact else None
+    return TraceResult(spectrum=spectrum.sum(axis=1) if quad else spectrum[0].sum(axis=0), reference_length=plan.lref,
                        energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),
                        rays_per_order=totals["rays"], shadow_rays=int(totals["shadow"]), seconds=seconds,
                        spectrum_per_order=(spectrum if quad else spectrum[0]) if effects.split_bounces and not exact
                        else None, channels=effects.channels if quad else (),
                        carried_power_per_order=totals["carried"],
-                       paths=PathList.concatenate(paths) if exact else None, split=effects.split_bounces,
-                       scatterers_per_order=totals["scatterers"], n_pad=0 if exact else n_pad,
-                       pulses_per_trace=subs.size, pulse_paths=int(totals["evaluated"]))
+                       paths=merged, split=effects.split_bounces,
+                       scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
+                       pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]))
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ STAGES = {
                                  "preview", "info", "cost",
                                  "synthetic", "reference_cases", "cut_metrics", "impulse_model",
                                  "interferometry"}),
-    7: ("orchestration and CLI", {"pipeline", "api", "cli", "__init__", "__main__"}),
+    7: ("orchestration and CLI", {"pipeline", "distributed", "api", "cli", "__init__", "__main__"}),
 }
 #: Only the tracer kernel's banner-sectioned loop may be longer (docs/design.md section 5).
 LONG_FUNCTION_EXEMPT = {("kernel", "launch")}
