@@ -554,8 +554,9 @@ def run(args: argparse.Namespace, figure=None) -> int:
     ``figure``, if given, is called as ``figure(image, report)`` after a successful analysis.
     """
     from .image import SarImageError
+    from .sicd import load_image
     try:
-        image = SarImage.load(args.image)
+        image = load_image(args.image)
         report = analyze_point_target(
             image, args.target, chip=args.chip, oversample=args.oversample, predicted=args.predicted,
             resolution=None if args.resolution is None else tuple(args.resolution),

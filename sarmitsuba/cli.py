@@ -338,13 +338,14 @@ def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     bad (``run`` reports those). Raises RawDataError, naming the file, when the raw data are
     damaged: a damaged file is never silently skipped."""
     from .analysis import carrier_ramp, image_coordinates
-    from .image import SarImage, SarImageError
+    from .image import SarImageError
+    from .sicd import load_image
     from .raw import RawDataError
     raw_path = args.raw or raw_beside(Path(args.image))
     if args.raw is None and not raw_path.is_file():
         return None
     try:
-        image = SarImage.load(args.image)
+        image = load_image(args.image)
         position = image_coordinates(image, args.target)           # the target's layover position
     except (SarImageError, ValueError):
         return None
@@ -365,9 +366,10 @@ def _resolution_from_metadata(path) -> list[float] | None:
     """The resolutions :func:`sarmitsuba.api.unweighted_widths` gives for the image at ``path``
     (None when the image cannot be read: the analysis then reports it)."""
     from .api import unweighted_widths
-    from .image import SarImage, SarImageError
+    from .image import SarImageError
+    from .sicd import load_image
     try:
-        widths = unweighted_widths(SarImage.load(path))
+        widths = unweighted_widths(load_image(path))
     except (SarImageError, OSError):
         return None
     return None if widths is None else list(widths)

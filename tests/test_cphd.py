@@ -150,15 +150,15 @@ def test_render_cphd_then_focus_it_gives_the_npz_image(tmp_path, capsys):
     for raw_name in ("raw.npz", "raw.cphd"):
         assert main(["analyze", str(out / "image.npz"), "--target", "0,0,0", "--raw", str(out / raw_name)]) == 0
         reports.append(json.loads(capsys.readouterr().out))
-    assert _close(reports[0], reports[1])
+    assert reports_close(reports[0], reports[1])
 
 
-def _close(a, b):
+def reports_close(a, b):
     """Nested reports equal within 1e-6 relative (numbers) and exactly (everything else)."""
     if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+        return a.keys() == b.keys() and all(reports_close(a[k], b[k]) for k in a)
     if isinstance(a, list):
-        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(reports_close(x, y) for x, y in zip(a, b))
     if isinstance(a, float):
         return a == pytest.approx(b, rel=1e-6, abs=1e-9)
     return a == b
