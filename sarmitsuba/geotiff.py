@@ -9,10 +9,10 @@ kilometres across, UTM is affine in the local frame to well under a pixel).
 
 Layout:
 
-- raster row = azimuth index ``i``, raster column = range index ``j`` of ``image.data``; the
-  rows are reversed when that keeps the geotransform's determinant negative (the orientation of
-  a north-up map, so that viewers that ignore rotation do not show a mirror image); the
-  geotransform carries the rest, including the rotation by the track heading;
+- the raster holds ``image.data`` [azimuth, range] transposed and/or with rows or columns
+  reversed, whichever makes it closest to north-up (columns east, rows south: exactly so for a
+  track flying east, the default heading); the ``LAYOUT`` tag says which. The geotransform
+  carries the rest, including the rotation by the track heading;
 - pixel-is-area (``AREA_OR_POINT=Area``): the geotransform maps the outer corner of the first
   pixel, as GDAL expects;
 - band 1 ``intensity_db`` = ``10 log10 |s|^2`` (NaN, the nodata value, where ``s = 0``), band 2
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -66,17 +67,53 @@ def pixel_corners(image: SarImage) -> np.ndarray:
     return np.array([first, first + n_rg * dr * r, first + n_az * da * a])
 
 
-def geotransform(image: SarImage, ref: georef.GeoReference) -> tuple[Any, bool]:
-    """(rasterio Affine from (column, row) to UTM metres, whether the rows are reversed)."""
+@dataclass(frozen=True)
+class Layout:
+    """How the raster holds ``image.data`` [n_azimuth, n_range]: ``transpose`` (rows = range),
+    then ``flip_rows`` / ``flip_cols`` (reversed order)."""
+
+    transpose: bool
+    flip_rows: bool
+    flip_cols: bool
+
+    def apply(self, array: np.ndarray) -> np.ndarray:
+        """``array`` [n_azimuth, n_range] in this layout."""
+        out = array.T if self.transpose else array
+        return out[::-1 if self.flip_rows else 1, ::-1 if self.flip_cols else 1]
+
+    def describe(self) -> str:
+        """The LAYOUT tag: what raster rows and columns are."""
+        rows, cols = ("range samples", "azimuth lines") if self.transpose else ("azimuth lines", "range samples")
+        return (f"rows: {rows}{', last first' if self.flip_rows else ''}; "
+                f"columns: {cols}{', last first' if self.flip_cols else ''}")
+
+
+def geotransform(image: SarImage, ref: georef.GeoReference) -> tuple[Any, Layout]:
+    """(rasterio Affine from (column, row) to UTM metres, raster layout).
+
+    Of the eight layouts (transposed or not, rows and columns reversed or not) the one whose
+    columns run most nearly east and rows most nearly south is taken, so that the raster is as
+    close to north-up as the grid's rotation allows (exactly north-up for a track flying east).
+    """
     from rasterio.transform import Affine
     corner, col_end, row_end = georef.enu_to_utm(pixel_corners(image), ref)
     n_az, n_rg = image.data.shape
-    a, d = (col_end - corner) / n_rg
-    b, e = (row_end - corner) / n_az
-    if a * e - b * d < 0:
-        return Affine(a, b, corner[0], d, e, corner[1]), False
-    # reversed rows: row 0 is the last azimuth line, whose outer corner is ``row_end``
-    return Affine(a, -b, row_end[0], d, -e, row_end[1]), True
+    step_rg, step_az = (col_end - corner) / n_rg, (row_end - corner) / n_az
+    best = None
+    for transpose in (False, True):
+        for flip_rows in (False, True):
+            for flip_cols in (False, True):
+                layout = Layout(transpose, flip_rows, flip_cols)
+                col_step, n_col, row_step, n_row = ((step_az, n_az, step_rg, n_rg) if transpose
+                                                    else (step_rg, n_rg, step_az, n_az))
+                origin = corner + (n_row * row_step if flip_rows else 0.0) + (n_col * col_step if flip_cols else 0.0)
+                col_step = -col_step if flip_cols else col_step
+                row_step = -row_step if flip_rows else row_step
+                score = col_step[0] / np.linalg.norm(col_step) - row_step[1] / np.linalg.norm(row_step)
+                if best is None or score > best[0] + 1e-9:
+                    best = (score, Affine(col_step[0], row_step[0], origin[0], col_step[1], row_step[1], origin[1]),
+                            layout)
+    return best[1], best[2]
 
 
 def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoReference | None = None) -> Path:
@@ -100,9 +137,9 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
         raise GeoTiffError(f"a GeoTIFF needs a ground-plane image, and this one lies in the {image.plane!r} plane: "
                            "focus with backprojection (bp or ffbp), which images onto the ground grid")
     ref = reference_of(image) if ref is None else ref
-    transform, reversed_rows = geotransform(image, ref)
+    transform, layout = geotransform(image, ref)
     intensity = (np.abs(image.data.astype(np.complex64)) ** 2).astype(np.float32)
-    intensity = intensity[::-1] if reversed_rows else intensity
+    intensity = np.ascontiguousarray(layout.apply(intensity))
     with np.errstate(divide="ignore"):
         db = np.where(intensity > 0, 10.0 * np.log10(intensity), np.nan).astype(np.float32)
     profile = {"driver": "GTiff", "height": intensity.shape[0], "width": intensity.shape[1], "count": 2,
@@ -110,7 +147,7 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
                "compress": "deflate", "predictor": 3}
     if min(intensity.shape) >= 256:
         profile.update(tiled=True, blockxsize=256, blockysize=256)
-    tags = geotiff_tags(image, ref, reversed_rows)
+    tags = geotiff_tags(image, ref, layout)
 
     def write(tmp: Path) -> None:
         with rasterio.open(tmp, "w", **profile) as dst:
@@ -125,13 +162,12 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
     return atomic_write(Path(path), write, "GeoTIFF")
 
 
-def geotiff_tags(image: SarImage, ref: georef.GeoReference, reversed_rows: bool) -> dict[str, str]:
+def geotiff_tags(image: SarImage, ref: georef.GeoReference, layout: Layout) -> dict[str, str]:
     """Dataset tags: scene, polarization, carrier, geographic origin, units and layout."""
     meta = image.metadata if isinstance(image.metadata, dict) else {}
     radar = meta.get("radar", {}) if isinstance(meta.get("radar"), dict) else {}
     return {"SCENE": str(meta.get("scene", "")), "POLARIZATION": str(meta.get("polarization", "")),
             "FREQUENCY_HZ": repr(radar.get("frequency", "")), "GEO_ORIGIN": json.dumps(ref.as_tuple()),
             "UNITS": str(meta.get("units", "sqrt(m^2)")).split(" (")[0],
-            "LAYOUT": ("rows: azimuth lines, last first; columns: range samples" if reversed_rows
-                       else "rows: azimuth lines; columns: range samples"),
+            "LAYOUT": layout.describe(),
             "SOFTWARE": "sarmitsuba"}

@@ -49,7 +49,7 @@ def test_corners_on_the_map_within_a_pixel(tmp_path, heading, ref):
     corners = np.array([pos[0, 0], pos[0, -1], pos[-1, 0], pos[-1, -1]])
     llh = georef.enu_to_geodetic(corners, ref)
     want = llh[:, [1, 0]]
-    # the file may list the azimuth lines last first: compare as sets of points
+    # the raster may hold the grid transposed or reversed: compare as sets of points
     d = np.linalg.norm((got[:, None, :] - want[None, :, :]) * [np.cos(np.radians(ref.latitude_deg)), 1.0], axis=2)
     metres = d.min(axis=1) * 111_320.0
     assert np.all(metres < 0.5 * min(0.5, 0.8)), metres      # well within one pixel (0.5 m)
@@ -58,20 +58,33 @@ def test_corners_on_the_map_within_a_pixel(tmp_path, heading, ref):
 
 
 def test_bands_hold_db_and_linear_intensity(tmp_path):
+    """Band 2 holds |s|^2 of every pixel, band 1 its dB, NaN where s = 0 (compared as value sets:
+    the corner test checks where they are)."""
     image = synthetic(30.0)
     image = dataclasses.replace(image, data=image.data.copy())
     image.data[3, 4] = 0
     path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(10.0, 20.0, 0.0))
     with rasterio.open(path) as src:
         db, lin = src.read(1), src.read(2)
-        flipped = "last first" in src.tags()["LAYOUT"]
         assert src.descriptions == ("intensity_db", "intensity")
     want = np.abs(image.data.astype(np.complex128)) ** 2
-    want = want[::-1] if flipped else want
-    np.testing.assert_allclose(lin, want, rtol=1e-6)
-    finite = want > 0
-    np.testing.assert_allclose(db[finite], 10 * np.log10(want[finite]), atol=1e-4)
-    assert np.isnan(db[~finite]).sum() == 1
+    np.testing.assert_allclose(np.sort(lin.ravel()), np.sort(want.ravel()), rtol=1e-6)
+    np.testing.assert_allclose(db[lin > 0], 10 * np.log10(lin[lin > 0].astype(np.float64)), atol=1e-4)
+    assert np.isnan(db).sum() == 1 and np.isnan(db[lin == 0]).all()
+
+
+def test_a_track_flying_east_gives_a_north_up_raster(tmp_path):
+    """Heading 0 (east), looking right (south): columns run east, rows south, turned only by the
+    UTM grid convergence, gamma = dlambda sin(phi) to first order (Snyder 1987, eq. 8-14 ff.)."""
+    image = synthetic(0.0)
+    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(48.1, 9.5, 0.0))
+    with rasterio.open(path) as src:
+        t = src.transform
+        assert (src.width, src.height) == (image.data.shape[0], image.data.shape[1])   # columns: azimuth
+    assert t.a > 0 and t.e < 0
+    gamma = 0.5 * np.sin(np.radians(48.1))                   # deg: 0.5 deg east of the central meridian 9 E
+    assert abs(np.degrees(np.arctan2(t.d, t.a))) == pytest.approx(gamma, abs=0.01)
+    assert abs(np.degrees(np.arctan2(t.b, -t.e))) == pytest.approx(gamma, abs=0.01)
 
 
 def test_a_slant_plane_image_is_refused(tmp_path):
