@@ -26,7 +26,7 @@ from typing import Any, Iterator
 from .radar import ParameterError
 from .trace import TraceResult, plan_trace, trace, trace_batch
 
-__all__ = ["ClusterError", "check_scheduler", "connect", "trace_on_cluster", "trace_task", "LOCAL_WORKERS"]
+__all__ = ["ClusterError", "check_scheduler", "connect", "trace_on_cluster", "trace_task", "worker_loads", "LOCAL_WORKERS"]
 
 #: Worker processes of ``--scheduler local`` (one thread each).
 LOCAL_WORKERS = 2
@@ -37,6 +37,8 @@ _ADDRESS = re.compile(r"^(tcp|tls)://[A-Za-z0-9_.\-\[\]:]+:\d+$")
 #: The worker's scene, setup, plan and kernel, for one scene key at a time (a live Mitsuba scene
 #: slows the tracing of later ones, so an older entry is dropped when another scene arrives).
 _WORKER_CACHE: dict[str, Any] = {}
+#: Scenes this process has loaded as a worker (see :func:`worker_loads`).
+_LOADS = [0]
 
 
 class ClusterError(OSError):
@@ -100,6 +102,7 @@ def _worker_state(spec: tuple, key: str) -> tuple:
         from .scene import load_scene
         _WORKER_CACHE.clear()
         loaded = load_scene(*spec)
+        _LOADS[0] += 1
         setup = prepare_trace(loaded)
         plan = plan_trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint,
                           loaded.settings, setup.effects)
@@ -109,10 +112,30 @@ def _worker_state(spec: tuple, key: str) -> tuple:
     return _WORKER_CACHE[key]
 
 
+#: Fault injection for the tests: a worker whose environment names a file here that does not
+#: exist yet creates it and dies (the whole process) in its first task, as a crashed node would.
+KILL_ONCE_ENV = "SARMITSUBA_DASK_KILL_ONCE"
+
+
+def _fault_injection() -> None:
+    """Die once if :data:`KILL_ONCE_ENV` names a missing file (tests of worker loss only)."""
+    import os
+    marker = os.environ.get(KILL_ONCE_ENV)
+    if marker and not os.path.exists(marker):
+        open(marker, "w").close()
+        os._exit(17)
+
+
+def worker_loads() -> int:
+    """How many times this (worker) process has loaded a scene for :func:`trace_task`."""
+    return _LOADS[0]
+
+
 def trace_task(spec: tuple, key: str, g0: int, pulses: tuple[int, int]) -> dict:
     """Dask task: trace the batch at sub-aperture ``g0`` of the scene ``spec`` on this worker
     (:func:`sarmitsuba.trace.trace_batch`'s result). Raises RuntimeError if this worker's plan
     gives the batch other pulses than the driver's (a different scene or package version)."""
+    _fault_injection()
     loaded, setup, plan, kernel = _worker_state(spec, key)
     if plan.pulses(g0) != tuple(pulses):
         raise RuntimeError(f"worker plan differs from the driver's: batch {g0} covers pulses {plan.pulses(g0)}, "

@@ -60,9 +60,12 @@ def free_port():
 
 
 @pytest.fixture
-def external_cluster():
-    """`dask scheduler` and one `dask worker` on 127.0.0.1, stopped afterwards; yields the address."""
+def external_cluster(tmp_path):
+    """`dask scheduler` and one `dask worker` on 127.0.0.1, stopped afterwards; yields the address.
+    The worker dies in its first task (``distributed.KILL_ONCE_ENV``); its nanny restarts it."""
+    import os
     dask = Path(sys.executable).parent / "dask"
+    env = {**os.environ, distributed.KILL_ONCE_ENV: str(tmp_path / "killed")}
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     procs = [subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", str(port),
@@ -75,7 +78,7 @@ def external_cluster():
                     break
             time.sleep(0.2)
         procs.append(subprocess.Popen([str(dask), "worker", address, "--nworkers", "1", "--nthreads", "1",
-                                       "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                                       "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env))
         yield address
     finally:
         for proc in reversed(procs):
@@ -87,12 +90,18 @@ def external_cluster():
                 proc.kill()
 
 
-def test_external_cluster_through_the_cli(tmp_path, external_cluster, reference):
+def test_external_cluster_through_the_cli_survives_a_dead_worker(tmp_path, external_cluster, reference):
     args = ["render", "dihedral", "--pulses", "48", "--max-depth", "2", "--integrator-set", "max_batch_rays=1024", "--integrator-set", "pulses_per_trace=2",
             "--material-set", "gamma_db=-10", "--no-progress"]
     assert main(args + ["--out", str(tmp_path / "dask"), "--scheduler", external_cluster]) == 0
     raw = RawData.load(tmp_path / "dask" / "raw.npz")
     assert nrmse_db(raw.data, reference.data) <= -100.0
+    # the worker died in its first batch and was restarted: the batch was traced again, the raw
+    # data are whole; the restarted worker traced every batch (more than 20) and loaded the scene once
+    assert (tmp_path / "killed").exists()
+    from distributed import Client
+    with Client(external_cluster, timeout=10) as client:
+        assert list(client.run(distributed.worker_loads).values()) == [1]
 
 
 def test_a_failing_batch_fails_the_run_cleanly(tmp_path, monkeypatch, capsys):
