@@ -266,12 +266,19 @@ def read_sicd(path: str | os.PathLike) -> SarImage:
 
     Raises SicdError naming ``path``: unreadable, not a SICD, or a grid other than PLANE.
     """
+    import logging
+
     import sarkit.sicd as sksicd
+    nitf_log = logging.getLogger("jbpy")       # logs every bad field of a foreign file, with tracebacks
+    level = nitf_log.level
+    nitf_log.setLevel(logging.CRITICAL + 1)     # its modules' loggers inherit it
     try:
         with open(path, "rb") as f, sksicd.NitfReader(f) as reader:
             array, tree = reader.read_image(), reader.metadata.xmltree
     except (OSError, ValueError, KeyError, AttributeError, TypeError, IndexError) as exc:
         raise SicdError(f"cannot read SICD file {path}: {exc} (is it a SICD NITF?)") from None
+    finally:
+        nitf_log.setLevel(level)
     return image_from_parts(path, tree, array)
 
 
