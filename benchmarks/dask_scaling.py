@@ -7,6 +7,9 @@ trihedral, 32 pulses) it measures, in one run, the trace seconds of
 * a Dask ``LocalCluster`` of 1 and of 2 worker processes (``scheduler="local"``), each worker
   loading the scene once (its load and kernel compilation are inside the trace time, since a
   fresh cluster starts for every run), cluster start-up included in ``total_s``;
+* a running 2-worker cluster (started beforehand, reached by its ``tcp://`` address as
+  ``--scheduler tcp://HOST:PORT`` would), twice: cold (each worker loads the scene and compiles
+  its kernel) and warm (the workers kept the scene from the cold run: tracing and transfer only);
 
 and the raw data's NRMSE against the one-process run, ``10 log10(sum |a - b|^2 / sum |b|^2)``
 [dB]. The speed-up a cluster can give depends on the cores it adds: on a 2-core machine two
@@ -38,17 +41,22 @@ def nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
     return 10.0 * np.log10(error / float(np.sum(np.abs(b) ** 2))) if error > 0 else float("-inf")
 
 
-def _one(scene: str, sensor: dict, workers: int | None) -> tuple[dict, np.ndarray]:
-    """One simulation (``workers`` None: one process), its seconds and raw samples."""
+def _one(scene: str, sensor: dict, workers: int | str | None) -> tuple[dict, np.ndarray]:
+    """One simulation (``workers`` None: one process; int: a fresh LocalCluster of that many;
+    str: the running cluster at that address), its seconds and raw samples."""
     start = time.perf_counter()
     if workers is None:
         sim = simulate(scene, sensor_overrides=sensor)
+    elif isinstance(workers, str):
+        sim = simulate(scene, sensor_overrides=sensor, scheduler=workers)
     else:
         distributed.LOCAL_WORKERS = workers
         sim = simulate(scene, sensor_overrides=sensor, scheduler="local")
     total = time.perf_counter() - start
-    row = {"scene": scene, "pulses": sim.raw.n_pulses, "setting": "one process" if workers is None else
-           f"LocalCluster, {workers} worker(s)", "trace_s": round(sim.timings["trace"], 3), "total_s": round(total, 3)}
+    setting = ("one process" if workers is None else f"LocalCluster, {workers} worker(s)" if isinstance(workers, int)
+               else "running cluster, 2 workers")
+    row = {"scene": scene, "pulses": sim.raw.n_pulses, "setting": setting, "trace_s": round(sim.timings["trace"], 3),
+           "total_s": round(total, 3)}
     data = sim.raw.data.copy()
     del sim
     gc.collect()
@@ -69,6 +77,13 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
             reference = data if reference is None else reference
             row["nrmse_db"] = round(nrmse_db(data, reference), 1)
             rows.append(row)
+        from distributed import LocalCluster
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            for state in ("cold", "warm"):
+                row, data = _one(scene, sensor, cluster.scheduler_address)
+                row["setting"] += f", {state}"
+                row["nrmse_db"] = round(nrmse_db(data, reference), 1)
+                rows.append(row)
     finally:
         distributed.LOCAL_WORKERS = saved
     for row in rows:

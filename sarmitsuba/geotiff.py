@@ -14,7 +14,9 @@ Layout:
   track flying east, the default heading); the ``LAYOUT`` tag says which. The geotransform
   carries the rest, including the rotation by the track heading;
 - pixel-is-area (``AREA_OR_POINT=Area``): the geotransform maps the outer corner of the first
-  pixel, as GDAL expects;
+  pixel, as GDAL expects: ``E = a col + b row + c``, ``N = d col + e row + f`` (GDAL's
+  geotransform, UTM metres, col/row counting pixel edges), with ``a e - b d < 0``, so a
+  north-up display is never mirrored;
 - band 1 ``intensity_db`` = ``10 log10 |s|^2`` (NaN, the nodata value, where ``s = 0``), band 2
   ``intensity`` = ``|s|^2``, both float32, in the image's units squared
   (``metadata["units"]``); tags name the scene, polarization, carrier and ``geo_origin``.
@@ -30,14 +32,17 @@ from typing import Any
 import numpy as np
 
 from . import georef
-from .image import SarImage
+from .image import SarImage, SarImageError
 from .outputs import atomic_write
 
 __all__ = ["GeoTiffError", "write_geotiff", "pixel_corners", "geotransform"]
 
 
-class GeoTiffError(ValueError):
-    """An image that cannot be written as a map (names the reason and the fix)."""
+class GeoTiffError(SarImageError):
+    """An image that cannot be written as a map (names the reason and the fix).
+
+    A :class:`~sarmitsuba.image.SarImageError` (so a ValueError): the image does not honour the
+    GeoTIFF's contract, and the CLI reports it as bad input (exit 2, one message)."""
 
 
 def reference_of(image: SarImage) -> georef.GeoReference:
@@ -134,8 +139,10 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
     """
     import rasterio
     if image.plane != "ground":
-        raise GeoTiffError(f"a GeoTIFF needs a ground-plane image, and this one lies in the {image.plane!r} plane: "
-                           "focus with backprojection (bp or ffbp), which images onto the ground grid")
+        raise GeoTiffError(f"--geotiff: a GeoTIFF needs a ground-plane image, and this {image.algorithm} image lies "
+                           f"in the {image.plane!r} plane: focus with backprojection (focus --algorithm bp or ffbp), "
+                           "which images onto the scene's ground grid when the raw data carry sarmitsuba's radar "
+                           "parameters, or leave out --geotiff")
     ref = reference_of(image) if ref is None else ref
     transform, layout = geotransform(image, ref)
     intensity = (np.abs(image.data.astype(np.complex64)) ** 2).astype(np.float32)

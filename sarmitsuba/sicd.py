@@ -5,33 +5,47 @@ implementation); this module maps a :class:`~sarmitsuba.image.SarImage` onto SIC
 
 - **Array.** SICD's first index is the row. Rows are range (ground or slant range, increasing
   away from the sensor), columns azimuth, so the SICD array is ``image.data.T``
-  (``[n_range, n_azimuth]``); a file read back is transposed again.
+  (``[n_range, n_azimuth]``); a file read back is transposed again. Signs: rows increase away
+  from the sensor, columns along the flight direction, so ``Row x Col`` points up (away from
+  the Earth) for a right-looking image and down for a left-looking one.
 - **Grid** (``Type = PLANE``, ``ImagePlane = GROUND`` or ``SLANT``; standard vol. 1, sec. 4):
   ``Row/UVectECF`` is the image's range direction, ``Col/UVectECF`` its azimuth direction,
   both in ECEF through the geographic reference (docs/physics.md (G1), (G3)); ``SS`` the pixel
   spacings; the SCP is the centre pixel. Spatial-frequency support of the two-way phase:
   in range ``KCtr = 2 fc sin(theta) / c`` and ``ImpRespBW = 2 B sin(theta) / c`` on the ground
   (``theta`` the incidence angle at the SCP; ``2 fc / c`` and ``2 B / c`` in the slant plane), in
-  azimuth ``ImpRespBW = 2 (s2 - s1) / lambda`` over the processed beam sines ``s1 .. s2`` (the
-  track's span seen from the SCP when the image records no beam). ``ImpRespWid`` is the focusing
-  window's -3 dB width over ``ImpRespBW`` (:func:`sarmitsuba.focus.windows.impulse_response_width`;
-  0.8859 / ImpRespBW for ``UNIFORM``). ``Sgn = -1``. ``TimeCOAPoly`` is the time at which each
-  column's ground point is broadside (stripmap; the middle of the aperture in spotlight).
+  azimuth ``ImpRespBW = 2 (s2 - s1) / lambda`` over the sines ``s1 .. s2`` off broadside that
+  both the processed beam and the track's span seen from the SCP cover (a short track, not the
+  beam, bounds the aperture of a few-pulse render). ``ImpRespWid`` is the focusing window's -3 dB
+  width over ``ImpRespBW`` (:func:`sarmitsuba.focus.windows.impulse_response_width`; 0.8859 /
+  ImpRespBW for ``UNIFORM``); when the track cuts the beam's window short, the width of the part
+  kept (:func:`segment_irw`), ``WgtType`` still naming the window. ``Sgn = -1``.
+  ``TimeCOAPoly`` is the time at which each column's ground point is broadside (stripmap; the
+  middle of the aperture in spotlight).
 - **Geometry.** ``Position/ARPPoly`` is a quadratic fit of the antenna positions in ECEF against
-  time from the first pulse; ``Timeline`` one IPP set at the PRF; ``SCPCOA`` is sarkit's own
-  computation (``compute_scp_coa``).
+  time from the first pulse: the raw data's transmit positions, else the track the image's
+  radar parameters synthesise (:func:`track_of`); ``Timeline`` one IPP set at the PRF;
+  ``SCPCOA`` is sarkit's own computation (``compute_scp_coa``); ``GeoData/ImageCorners`` the
+  corner pixels projected along their R/Rdot contours onto the SCP's height above the ellipsoid
+  by sarkit (``image_to_constant_hae_surface``; NGA.STND.0024-3, Image Projections), which
+  for a slant-plane image is not the corner's own latitude and longitude.
 - **Radar.** ``RadarCollection`` carries the band, the polarization and one receive channel;
   ``ImageFormation/ImageFormAlgo = OTHER`` (backprojection is neither PFA, RMA nor RGAZCOMP).
 - **sarmitsuba's own metadata** (JSON, with the geographic origin of the local frame and the
   image grid's origin) travel as ``CollectionInfo/Parameter`` elements, so that :func:`read_sicd`
   gives back the SarImage (grid within micrometres, samples exactly); other tools' PLANE-grid
   SICDs are read in the east-north-up frame of their SCP.
+- **Checks.** :func:`check_sicd` runs sarkit's ``sicdcheck`` (schema, NITF headers, every
+  consistency check). sarmitsuba's default grids sample the impulse response more than 2.2
+  times, which draws only the advisory oversampling-ratio warnings (SICD wants 1.1 to 2.2); a
+  grid inside that range passes every check.
 """
 from __future__ import annotations
 
 import datetime
 import json
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -81,65 +95,117 @@ def _window(image: SarImage, key: str) -> tuple[str, dict]:
     return str(spec["name"]), {k: v for k, v in spec.items() if k != "name"}
 
 
+@dataclass(frozen=True)
+class Track:
+    """The collection a SICD describes: per-pulse times [s] (float64 [n]), antenna positions and
+    velocities (float64 [n, 3], local frame, m and m/s), carrier ``fc`` [Hz], ``bandwidth`` [Hz], ``prf`` [Hz]."""
+
+    pulse_time: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    fc: float
+    bandwidth: float
+    prf: float
+
+
+def track_of(image: SarImage, raw: RawData | None) -> Track:
+    """The :class:`Track` of ``raw`` (its transmit positions), else the one the radar parameters in
+    ``image.metadata["radar"]`` synthesise (:func:`sarmitsuba.radar.acquisition_geometry`, world frame).
+
+    Raises SicdError when neither is available.
+    """
+    if raw is not None:
+        return Track(raw.pulse_time, raw.tx_position, raw.velocity, raw.fc, raw.bandwidth, raw.prf)
+    from .radar import ParameterError, RadarParameters, acquisition_geometry
+    radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
+    try:
+        params = RadarParameters.from_mapping({k: v for k, v in radar.items() if v is not None})
+        geometry = acquisition_geometry(params)
+    except (AttributeError, TypeError, ValueError, KeyError, ParameterError):
+        raise SicdError("writing SICD needs the raw data that were focused, or an image whose metadata record "
+                        "the resolved radar parameters (metadata['radar'] of a sarmitsuba render): pass raw=") from None
+    return Track(geometry.pulse_time, geometry.positions, geometry.velocity, params.frequency, params.bandwidth,
+                 params.prf)
+
+
 def grid_direction(unit_ecef: np.ndarray, spacing: float, bandwidth: float, kctr: float,
-                   window: tuple[str, dict]) -> dict[str, Any]:
-    """One ``Grid/Row`` or ``Grid/Col`` element (sarkit's dictionary form)."""
+                   window: tuple[str, dict], width: float | None = None) -> dict[str, Any]:
+    """One ``Grid/Row`` or ``Grid/Col`` element (sarkit's dictionary form); ``width`` is the
+    impulse-response width in units of ``1 / bandwidth`` (default: the window's own)."""
     from .focus.windows import impulse_response_width
     name, params = window
     half = min(0.5 * bandwidth, 0.5 / spacing)           # a support wider than the sampling wraps
     weight = {"WindowName": _WINDOW_NAMES.get(name, name.upper())}
     if params:
         weight["Parameter"] = [(k.upper(), str(v)) for k, v in params.items()]
-    return {"UVectECF": unit_ecef, "SS": float(spacing), "ImpRespWid": impulse_response_width(name, **params) / bandwidth,
+    width = impulse_response_width(name, **params) if width is None else width
+    return {"UVectECF": unit_ecef, "SS": float(spacing), "ImpRespWid": width / bandwidth,
             "Sgn": -1, "ImpRespBW": float(bandwidth), "KCtr": float(kctr), "DeltaK1": -half, "DeltaK2": half,
             "WgtType": weight}
 
 
-def azimuth_support(image: SarImage, raw: RawData, scp: np.ndarray, wavelength: float) -> tuple[float, float]:
-    """(bandwidth, centre) [cycles/m] of the azimuth spatial frequencies ``2 s / lambda``, ``s`` the
-    sine of the angle off broadside: over the image's beam sines, else the track seen from the SCP."""
+def segment_irw(window: tuple[str, dict], u0: float, u1: float, samples: int = 512, fft: int = 1 << 17) -> float:
+    """-3 dB width of ``|p|^2``, in units of ``1 / B``, of the window ``w(u - 1/2)`` kept over
+    ``u0 <= u <= u1`` only (0 <= u0 < u1 <= 1) and spread over a support ``B``: the weighting left
+    when the track, not the beam, bounds the aperture. 0.8859 for ``rect``."""
+    from .focus.windows import spectral_window
+    u = u0 + (np.arange(samples) + 0.5) / samples * (u1 - u0)
+    power = np.abs(np.fft.rfft(spectral_window(window[0], u - 0.5, 1.0, **window[1]), fft)) ** 2
+    power /= power[0]
+    k = int(np.argmax(power < 0.5))
+    half = k - 1 + (power[k - 1] - 0.5) / (power[k - 1] - power[k])
+    return 2.0 * half * samples / fft
+
+
+def azimuth_support(image: SarImage, track: Track, scp: np.ndarray, wavelength: float,
+                    window: tuple[str, dict]) -> tuple[float, float, float | None]:
+    """(bandwidth, centre) [cycles/m] of the azimuth spatial frequencies ``2 s / lambda`` seen at the
+    SCP (``s`` the sine off broadside, over the image's beam sines and the track's span, whichever
+    is narrower), and the impulse-response width in units of ``1 / bandwidth`` (None: the window's)."""
     focus = image.metadata.get("focus", {}) if isinstance(image.metadata, dict) else {}
-    sines = focus.get("beam_sines") if isinstance(focus, dict) else None
-    if not sines:
-        track = raw.velocity.mean(axis=0) / np.linalg.norm(raw.velocity.mean(axis=0))
-        rel = raw.tx_position[[0, -1]] - scp
-        sines = np.sort(rel @ track / np.linalg.norm(rel, axis=1))
-    s1, s2 = float(sines[0]), float(sines[1])
-    return 2.0 * (s2 - s1) / wavelength, (s1 + s2) / wavelength
+    beam = focus.get("beam_sines") if isinstance(focus, dict) else None
+    heading = track.velocity.mean(axis=0) / np.linalg.norm(track.velocity.mean(axis=0))
+    rel = scp - track.position[[0, -1]]
+    lo, hi = np.sort(rel @ heading / np.linalg.norm(rel, axis=1))
+    width = None
+    if beam and min(hi, beam[1]) > max(lo, beam[0]):
+        b0, b1 = float(beam[0]), float(beam[1])
+        u0, u1 = (max(lo, b0) - b0) / (b1 - b0), (min(hi, b1) - b0) / (b1 - b0)
+        if u1 - u0 < 1.0 - 1e-9:                       # the track, not the beam, bounds the aperture
+            width = segment_irw(window, u0, u1)
+        lo, hi = max(lo, b0), min(hi, b1)
+    return 2.0 * float(hi - lo) / wavelength, float(hi + lo) / wavelength, width
 
 
-def closest_approach_time(raw: RawData, point: np.ndarray) -> float:
+def closest_approach_time(track: Track, point: np.ndarray) -> float:
     """Time [s] from the first pulse at which the antenna passes broadside of ``point`` (straight track)."""
-    velocity = raw.velocity.mean(axis=0)
-    along = (point - raw.tx_position[0]) @ velocity / float(velocity @ velocity)
-    return float(np.clip(along, 0.0, raw.pulse_time[-1] - raw.pulse_time[0]))
+    velocity = track.velocity.mean(axis=0)
+    along = (point - track.position[0]) @ velocity / float(velocity @ velocity)
+    return float(np.clip(along, 0.0, track.pulse_time[-1] - track.pulse_time[0]))
 
 
-def sicd_dict(image: SarImage, raw: RawData, ref: georef.GeoReference) -> dict[str, Any]:
-    """The SICD XML (less SCPCOA) in sarkit's dictionary form."""
-    import sarkit.wgs84
+def sicd_dict(image: SarImage, track: Track, ref: georef.GeoReference) -> dict[str, Any]:
+    """The SICD XML (less SCPCOA, ImageCorners zero) in sarkit's dictionary form."""
     axes = georef.enu_axes(ref)
     (scp_row, scp_col), scp = scene_centre_point(image)
     scp_ecf = georef.enu_to_ecef(scp, ref)
-    times = raw.pulse_time - raw.pulse_time[0]
-    duration = raw.n_pulses / raw.prf                  # IPP count n at TEnd: IPPEnd = n - 1 (vol. 1, Timeline)
-    t_scp = closest_approach_time(raw, scp)
-    antenna = raw.tx_position[int(np.argmin(np.abs(times - t_scp)))]
+    times, n_pulses = track.pulse_time - track.pulse_time[0], len(track.pulse_time)
+    duration = n_pulses / track.prf                  # IPP count n at TEnd: IPPEnd = n - 1 (vol. 1, Timeline)
+    t_scp = closest_approach_time(track, scp)
+    antenna = track.position[int(np.argmin(np.abs(times - t_scp)))]
     sin_inc = float(np.hypot(*(antenna - scp)[:2]) / np.linalg.norm(antenna - scp))
     ground = image.plane == "ground"
     projection = sin_inc if ground else 1.0
-    wavelength = SPEED_OF_LIGHT / raw.fc
-    az_bw, az_ctr = azimuth_support(image, raw, scp, wavelength)
-    velocity = raw.velocity.mean(axis=0)
+    wavelength = SPEED_OF_LIGHT / track.fc
+    az_window = _window(image, "window_azimuth")
+    az_bw, az_ctr, az_width = azimuth_support(image, track, scp, wavelength, az_window)
+    velocity = track.velocity.mean(axis=0)
     mode = str(image.metadata.get("radar", {}).get("mode", "stripmap")) if isinstance(image.metadata, dict) else ""
     slope = 0.0 if mode == "spotlight" else float(np.asarray(image.azimuth_direction) @ velocity / (velocity @ velocity))
     pol = _polarization(image)
-    fit = np.polynomial.polynomial.polyfit(times, georef.enu_to_ecef(raw.tx_position, ref), 2 if len(times) > 2 else 1)
+    fit = np.polynomial.polynomial.polyfit(times, georef.enu_to_ecef(track.position, ref), 2 if len(times) > 2 else 1)
     n_az, n_rg = image.data.shape
-    rows, cols = np.array([0, 0, n_rg - 1, n_rg - 1]), np.array([0, n_az - 1, n_az - 1, 0])
-    corners = (scp + ((rows - scp_row) * _spacing(image.range))[:, None] * np.asarray(image.range_direction)
-               + ((cols - scp_col) * _spacing(image.azimuth))[:, None] * np.asarray(image.azimuth_direction))
-    band = (raw.fc - 0.5 * raw.bandwidth, raw.fc + 0.5 * raw.bandwidth)
+    band = (track.fc - 0.5 * track.bandwidth, track.fc + 0.5 * track.bandwidth)
     return {
         "CollectionInfo": {"CollectorName": "sarmitsuba", "CoreName": str(image.metadata.get("scene", "scene")) or
                            "scene", "CollectType": "MONOSTATIC",
@@ -149,17 +215,17 @@ def sicd_dict(image: SarImage, raw: RawData, ref: georef.GeoReference) -> dict[s
         "ImageData": {"PixelType": "RE32F_IM32F", "NumRows": n_rg, "NumCols": n_az, "FirstRow": 0, "FirstCol": 0,
                       "FullImage": {"NumRows": n_rg, "NumCols": n_az}, "SCPPixel": np.array([scp_row, scp_col])},
         "GeoData": {"EarthModel": "WGS_84", "SCP": {"ECF": scp_ecf, "LLH": georef.enu_to_geodetic(scp, ref)},
-                    "ImageCorners": sarkit.wgs84.cartesian_to_geodetic(georef.enu_to_ecef(corners, ref))[:, :2]},
+                    "ImageCorners": np.zeros((4, 2))},              # projected by project_corners
         "Grid": {"ImagePlane": "GROUND" if ground else "SLANT", "Type": "PLANE",
                  "TimeCOAPoly": np.array([[t_scp, slope]]),
                  "Row": grid_direction(np.asarray(image.range_direction) @ axes, _spacing(image.range),
-                                       2.0 * raw.bandwidth * projection / SPEED_OF_LIGHT,
-                                       2.0 * raw.fc * projection / SPEED_OF_LIGHT, _window(image, "window_range")),
+                                       2.0 * track.bandwidth * projection / SPEED_OF_LIGHT,
+                                       2.0 * track.fc * projection / SPEED_OF_LIGHT, _window(image, "window_range")),
                  "Col": grid_direction(np.asarray(image.azimuth_direction) @ axes, _spacing(image.azimuth), az_bw,
-                                       az_ctr, _window(image, "window_azimuth"))},
+                                       az_ctr, az_window, az_width)},
         "Timeline": {"CollectStart": _COLLECTION_START, "CollectDuration": duration,
-                     "IPP": {"Set": [{"TStart": 0.0, "TEnd": duration, "IPPStart": 0, "IPPEnd": raw.n_pulses - 1,
-                                      "IPPPoly": np.array([0.0, raw.prf])}]}},
+                     "IPP": {"Set": [{"TStart": 0.0, "TEnd": duration, "IPPStart": 0, "IPPEnd": n_pulses - 1,
+                                      "IPPPoly": np.array([0.0, track.prf])}]}},
         "Position": {"ARPPoly": fit},
         "RadarCollection": {"TxFrequency": {"Min": band[0], "Max": band[1]}, "TxPolarization": pol[0],
                             "RcvChannels": {"ChanParameters": [{"TxRcvPolarization": f"{pol[0]}:{pol[1]}"}]}},
@@ -192,12 +258,12 @@ def _parameters(image: SarImage, ref: georef.GeoReference) -> list[tuple[str, st
     return [(_PARAM_GRID, json.dumps(grid)), (_PARAM_METADATA, json.dumps(image.metadata, default=json_default))]
 
 
-def build_xml(image: SarImage, raw: RawData, ref: georef.GeoReference) -> Any:
+def build_xml(image: SarImage, track: Track, ref: georef.GeoReference) -> Any:
     """The SICD XML tree (lxml ElementTree) of ``image``, SCPCOA computed by sarkit."""
     import lxml.etree
     import sarkit.sicd as sksicd
     root = sksicd.ElementWrapper(lxml.etree.Element(f"{{{SICD_NAMESPACE}}}SICD"))
-    root.from_dict(sicd_dict(image, raw, ref))
+    root.from_dict(sicd_dict(image, track, ref))
     for parent, child in (("{*}Timeline/{*}IPP", "{*}Set"), ("{*}RadarCollection/{*}RcvChannels", "{*}ChanParameters")):
         holder = root.elem.find(parent)
         holder.set("size", str(len(holder.findall(child))))
@@ -205,7 +271,26 @@ def build_xml(image: SarImage, raw: RawData, ref: georef.GeoReference) -> Any:
             elem.set("index", str(index))
     tree = lxml.etree.ElementTree(root.elem)
     root.elem.find("{*}ImageFormation").addnext(sksicd.compute_scp_coa(tree))
+    project_corners(tree)
     return tree
+
+
+def project_corners(tree: Any) -> None:
+    """Set ``GeoData/ImageCorners``: the corner pixels (first row and column,
+    then clockwise in (row, col)) projected along their R/Rdot contours onto the WGS84 surface of
+    the SCP's height, by sarkit (``image_to_constant_hae_surface``, the image-to-scene projection).
+    A slant-plane corner lies off the Earth, so its own latitude and longitude would be wrong."""
+    import sarkit.sicd as sksicd
+    import sarkit.wgs84
+    xml = sksicd.XmlHelper(tree)
+    n_rows, n_cols = xml.load("{*}ImageData/{*}NumRows"), xml.load("{*}ImageData/{*}NumCols")
+    rowcol = np.array([[0, 0], [0, n_cols - 1], [n_rows - 1, n_cols - 1], [n_rows - 1, 0]])
+    rowcol += np.array([xml.load("{*}ImageData/{*}FirstRow"), xml.load("{*}ImageData/{*}FirstCol")])
+    hae = xml.load("{*}GeoData/{*}SCP/{*}LLH")[2]
+    points, _, success = sksicd.image_to_constant_hae_surface(tree, sksicd.rowcol_to_xrowycol(tree, rowcol), hae)
+    if not success or not np.all(np.isfinite(points)):
+        raise SicdError("the image's corners do not project onto the Earth (is the track above the scene?)")
+    xml.set("{*}GeoData/{*}ImageCorners", sarkit.wgs84.cartesian_to_geodetic(points)[:, :2])
 
 
 def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = None,
@@ -218,18 +303,18 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         complex64 [n_azimuth, n_range] on a uniform plane grid (local frame, m).
     path : path-like
         The ``.nitf`` file to write.
-    raw : RawData
+    raw : RawData, optional
         The data that were focused: their track gives ``Position``, ``Timeline`` and the band.
+        Without them, the track the radar parameters in ``image.metadata["radar"]`` synthesise
+        (a sarmitsuba render's images record them) stands in (:func:`track_of`).
     ref : GeoReference, optional
         WGS84 origin of the local frame (default: ``geo_origin`` in ``image.metadata["radar"]``).
 
-    Raises SicdError without ``raw`` or on a non-uniform grid; :class:`outputs.WriteError`
+    Raises SicdError without ``raw`` and without radar parameters, or on a non-uniform grid; :class:`outputs.WriteError`
     (an OSError) when the file cannot be written, leaving nothing behind.
     """
     import sarkit.sicd as sksicd
-    if raw is None:
-        raise SicdError("writing SICD needs the raw data that were focused (their track and band)")
-    tree = build_xml(image, raw, _reference(image, ref))
+    tree = build_xml(image, track_of(image, raw), _reference(image, ref))
     security = sksicd.NitfSecurityFields(clas="U")
     metadata = sksicd.NitfMetadata(
         xmltree=tree, file_header_part=sksicd.NitfFileHeaderPart(ostaid="sarmitsuba", security=security),
@@ -243,19 +328,23 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
     return atomic_write(Path(path), write, "SICD file")
 
 
-def check_sicd(path: str | os.PathLike) -> dict[str, str]:
-    """Run sarkit's SICD consistency checker (``sicdcheck``) on ``path``.
+def check_sicd(path: str | os.PathLike, advisory: bool = True) -> list[str]:
+    """Run sarkit's SICD consistency checker (``sicdcheck``: the XML schema, the NITF headers and
+    every consistency check) on ``path``; the sorted names of the checks that failed.
 
-    Returns the failed checks' names mapped to their severity: ``"Error"`` when a required
-    ("need") assertion failed, else ``"Warning"`` (only advisory "want" assertions failed).
+    ``advisory`` False leaves out the checks whose only failures are advisory ("want", severity
+    Warning, such as the oversampling-ratio checks ``check_iprbw_to_ss_osr_row``/``_col``, which
+    SICD wants in 1.1 to 2.2); required ("need", Error) failures are always listed. A file whose
+    grid samples the impulse response 1.1 to 2.2 times in both directions gives ``[]``.
+    Raises OSError when the file cannot be opened.
     """
     import sarkit.verification as skver
     with open(path, "rb") as f:
         con = skver.SicdConsistency.from_file(f)
         con.check()
     failed = con.failures(omit_passed_sub=True)
-    return {name: "Error" if any(d["severity"] == "Error" for d in result["details"]) else "Warning"
-            for name, result in sorted(failed.items())}
+    return sorted(name for name, result in failed.items()
+                  if advisory or any(d["severity"] == "Error" for d in result["details"]))
 
 
 def read_sicd(path: str | os.PathLike) -> SarImage:

@@ -337,6 +337,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
+    batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
     try:
         results = run_batches(plan, plan.batches) if run_batches is not None else (
             trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
@@ -347,13 +348,15 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                 paths[p0] = out["paths"]
             else:
                 spectrum[:, p0:p1] = out["spectrum"]
-            for name in totals:
-                totals[name] = totals[name] + out["totals"].get(name, 0)
+            batch_totals[p0] = out["totals"]
             bar.update(p1 - p0)
     finally:
         bar.close()
         del kernel
         dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
+    for p0 in sorted(batch_totals):
+        for name in totals:
+            totals[name] = totals[name] + batch_totals[p0].get(name, 0)
     seconds = time.perf_counter() - start
     return _result(plan, spectrum, paths, totals, seconds, effects)
 
