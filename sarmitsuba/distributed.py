@@ -5,7 +5,7 @@
 ``dask worker``s, docs/design.md section 11). The driver loads the scene as usual (it needs
 the scene's box for the plan and the image grid) and sends each worker only the scene's
 source and overrides; a worker loads the scene once, derives the same plan
-(:func:`sarmitsuba.pipeline.prepare_trace`, :func:`sarmitsuba.trace.plan_trace`: the same
+(:func:`sarmitsuba.trace.prepare_trace`, :func:`sarmitsuba.trace.plan_trace`: the same
 inputs give the same batches in every process) and traces the batches it is given
 (:func:`sarmitsuba.trace.trace_batch`). The driver merges the batches by pulse index (and sums
 the diagnostic totals in pulse order). The kernels and seeds are the one-process run's, so the
@@ -31,7 +31,7 @@ import re
 from typing import Any, Iterator
 
 from .radar import ParameterError
-from .trace import TraceResult, plan_trace, trace, trace_batch
+from .trace import TraceResult, plan_trace, prepare_trace, trace, trace_batch
 
 __all__ = ["ClusterError", "check_scheduler", "connect", "trace_on_cluster", "trace_task", "worker_loads", "LOCAL_WORKERS"]
 
@@ -110,7 +110,6 @@ def _worker_state(spec: tuple, key: str) -> tuple:
     """(loaded scene, setup, plan, kernel) for ``spec``, loaded once per worker process."""
     if key not in _WORKER_CACHE:
         from .kernel import Kernel
-        from .pipeline import prepare_trace
         from .scene import load_scene
         _WORKER_CACHE.clear()
         loaded = load_scene(*spec)

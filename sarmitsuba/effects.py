@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING, Iterable
 
 if TYPE_CHECKING:                      # only for annotations: no import cycle with scene.py
     from .radar import RadarParameters
-    from .scene import LoadedScene
     from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["Effect", "EffectSet", "list_effects", "active_effects", "rough_materials"]
@@ -160,7 +159,7 @@ class EffectSet:
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
-def active_effects(loaded: "LoadedScene") -> EffectSet:
+def active_effects(loaded) -> EffectSet:
     """The :class:`EffectSet` of a loaded scene (overrides applied, parameters resolved): compute it
     once and hand it on. Rough materials are those of the BSDFs the scene's shapes use."""
     return EffectSet.of(loaded.params, loaded.settings,
@@ -175,7 +174,7 @@ def rough_materials(table: "MaterialTable") -> tuple[str, ...]:
     return tuple(sorted({name for name, (kind, _) in zip(table.names, table.clutter) if kind > 0}))
 
 
-def list_effects(loaded: "LoadedScene") -> tuple[Effect, ...]:
+def list_effects(loaded) -> tuple[Effect, ...]:
     """Every optional effect of docs/design.md section 7 for a loaded scene, on or off, with the reason.
 
     Parameters

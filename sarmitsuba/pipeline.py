@@ -13,17 +13,16 @@ import numpy as np
 
 from . import binning, planning, products
 from .cost import check_memory
-from .effects import active_effects
 from .focus import backproject, ffbp
 from .focus.dispatch import azimuth_pattern, backprojector
 from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
 from .image import SarImage
 from .outputs import OutputDirectory, check_output_dir, json_default
-from .radar import POLARIZATIONS, AcquisitionGeometry, acquisition_geometry
+from .radar import POLARIZATIONS, AcquisitionGeometry
 from .raw import RawData
-from .scene import LoadedScene, load_scene, material_table
-from .trace import TraceResult, trace
+from .scene import LoadedScene, load_scene
+from .trace import TraceResult, prepare_trace, trace
 
 __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES",
            "EXPORT_FILES", "write_exports"]
@@ -155,32 +154,6 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images)
                 for name, (raw, image, channel, per_order, images) in products.items()}
     return dataclasses.replace(channels["HH"], trace=result, channels=channels)
-
-
-@dataclass(frozen=True)
-class TraceSetup:
-    """What :func:`trace` needs besides the scene, derived from a loaded scene alone (so any
-    process that loads the same scene with the same overrides derives the same setup)."""
-
-    geometry: AcquisitionGeometry
-    window: Any
-    footprint: Any
-    effects: Any
-    table: Any
-
-
-def prepare_trace(loaded: LoadedScene) -> TraceSetup:
-    """Acquisition geometry, fast-time window, ray footprint, active effects and material table of
-    ``loaded``; checks the acquisition (ParameterError) before any tracing."""
-    params, settings = loaded.params, loaded.settings
-    geometry = acquisition_geometry(params)
-    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
-    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
-                                       shape_boxes=loaded.shape_boxes)
-    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
-    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
-    table = material_table(loaded.scene, params.frequency, params.polarization)
-    return TraceSetup(geometry, window, footprint, effects, table)
 
 
 #: Focusers of :func:`simulate` / :func:`render`: fast factorised backprojection (the default) and

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import os
 import re
 import xml.etree.ElementTree as ET
 import zlib
@@ -203,9 +204,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
 
 
 def _built_in_python(source: Any) -> bool:
-    """Whether ``source`` is a :class:`sarmitsuba.pyscene.Scene` (imported lazily: it imports this module)."""
-    from .pyscene import Scene
-    return isinstance(source, Scene)
+    """Whether ``source`` is a scene built in Python (:class:`sarmitsuba.pyscene.Scene`): it builds its
+    own Mitsuba scene (``to_mitsuba``), where a path names a file or a built-in scene."""
+    return not isinstance(source, (str, os.PathLike)) and source is not None and callable(getattr(source, "to_mitsuba", None))
 
 
 def _shape_boxes(scene: Any) -> np.ndarray:

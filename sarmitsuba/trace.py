@@ -35,13 +35,43 @@ from tqdm import tqdm
 
 from .deposit import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
 from .effects import EffectSet, rough_materials
+from . import planning
+from .effects import active_effects
 from .kernel import Blocks, Kernel, Launch
-from .radar import AcquisitionGeometry, ParameterError, RadarParameters
+from .radar import AcquisitionGeometry, ParameterError, RadarParameters, acquisition_geometry
+from .scene import LoadedScene, material_table
 from .trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, TraceSettings
 
-__all__ = ["TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
+__all__ = ["TraceSetup", "prepare_trace", "TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
            "caused_by_interrupt", "LANCZOS_A", "SubApertures",
            "subapertures", "pulses_per_trace", "SUBAPERTURE_CELLS"]
+
+
+@dataclass(frozen=True)
+class TraceSetup:
+    """What :func:`trace` needs besides the scene, derived from a loaded scene alone (so any
+    process that loads the same scene with the same overrides derives the same setup)."""
+
+    geometry: AcquisitionGeometry
+    window: FastTimeWindow
+    footprint: RayFootprint
+    effects: EffectSet
+    table: MaterialTable
+
+
+def prepare_trace(loaded: LoadedScene) -> TraceSetup:
+    """Acquisition geometry, fast-time window, ray footprint, active effects and material table of
+    ``loaded``; checks the acquisition (ParameterError) before any tracing."""
+    params, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
+                                       shape_boxes=loaded.shape_boxes)
+    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
+    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
+    table = material_table(loaded.scene, params.frequency, params.polarization)
+    return TraceSetup(geometry, window, footprint, effects, table)
+
 
 
 @dataclass(frozen=True)
