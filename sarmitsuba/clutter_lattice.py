@@ -35,9 +35,10 @@ CLUTTER_COS_MIN = 0.1
 #: elongation direction (0 / 0), and exact grazing no shortening ratio. Far below any float32
 #: quantity that matters here, above float32's smallest normal (1.2e-38).
 DIVISION_FLOOR = 1e-30
-#: A facet whose ``|n_z|`` exceeds this (normal within 0.81 deg of vertical) is horizontal: its
-#: lattice's ``u`` axis is x, as docs/physics.md (C) defines it (``z x n`` would be ill-conditioned).
-HORIZONTAL_NZ = 0.9999
+#: A facet whose normal is within 0.81 deg of its shape's first axis (``|n . a1|`` above this)
+#: takes its lattice's ``u`` axis from the shape's second axis, as docs/physics.md (C) defines it
+#: (the first axis' projection on the plane would be ill-conditioned).
+ALONG_FIRST_AXIS = 0.9999
 #: The facet normal is quantised to 1/1024 per component in the plane's hash: float32 round-off
 #: of one plane's normal (~1e-7) keeps its key, planes ~1e-3 rad apart get their own lattices.
 NORMAL_QUANTUM = 1024.0
@@ -77,11 +78,14 @@ def shortened_footprint(e1, e2, n, n_geo, d_ref):
     return e1, e2, raise_by
 
 
-def lattice_frame(n_geo):
-    """The lattice's unit axes ``(u, v)`` in the plane of normal ``n_geo`` (Vector3f): ``u`` = x on
-    horizontal facets, else ``z x n`` normalised; ``v = n x u``, eq. (C)."""
-    horizontal = dr.abs(n_geo.z) > HORIZONTAL_NZ
-    u_axis = dr.select(horizontal, mi.Vector3f(1.0, 0.0, 0.0), dr.cross(mi.Vector3f(0.0, 0.0, 1.0), n_geo))
+def lattice_frame(n_geo, axes):
+    """The lattice's unit axes ``(u, v)`` in the plane of normal ``n_geo`` (Vector3f), eq. (C):
+    ``u`` is the shape's first axis ``a1`` projected on the plane and normalised, or its second
+    axis' projection where ``n`` lies along ``a1``; ``v = n x u``. ``axes`` are the shape's own
+    axes ``(a1, a2, a3)`` (Vector3f each, :func:`sarmitsuba.scene.shape_frame`), so the lattice
+    turns with the shape."""
+    along = dr.abs(dr.dot(n_geo, axes[0])) > ALONG_FIRST_AXIS
+    u_axis = dr.select(along, axes[1], axes[0])
     u_axis = dr.normalize(u_axis - n_geo * dr.dot(n_geo, u_axis))
     return u_axis, dr.cross(n_geo, u_axis)
 
@@ -122,13 +126,15 @@ def footprint_cells(local, e1, e2, u_axis, v_axis, c: float) -> FootprintCells:
                           bv * inv_det, -bu * inv_det, -av * inv_det, au * inv_det)
 
 
-def surface_key(shape_key, back, n_geo, local, c: float, seed: int):
+def surface_key(shape_key, back, n_geo, local, axes, c: float, seed: int):
     """The hash key of a surface's lattice (UInt32): the shape, the side (``back``), the facet
-    plane (its offset in cells and its quantised normal) and the integrator's seed, eq. (C)."""
+    plane (its offset in cells from the shape's origin and its normal quantised in the shape's
+    own ``axes``, so that the key moves and turns with the shape) and the integrator's seed,
+    eq. (C)."""
     plane = (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, local) / c)))
-             ^ (mi.UInt32(mi.Int32(dr.round(n_geo.x * NORMAL_QUANTUM))) * 0x01000193)
-             ^ (mi.UInt32(mi.Int32(dr.round(n_geo.y * NORMAL_QUANTUM))) * 0x00010001)
-             ^ (mi.UInt32(mi.Int32(dr.round(n_geo.z * NORMAL_QUANTUM))) * 0x00000101))
+             ^ (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, axes[0]) * NORMAL_QUANTUM))) * 0x01000193)
+             ^ (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, axes[1]) * NORMAL_QUANTUM))) * 0x00010001)
+             ^ (mi.UInt32(mi.Int32(dr.round(dr.dot(n_geo, axes[2]) * NORMAL_QUANTUM))) * 0x00000101))
     return hash32(shape_key ^ (mi.UInt32(back) << 31) ^ hash32(plane ^ mi.UInt32(seed)))
 
 

@@ -378,7 +378,8 @@ class _Tables:
     clutter_kind: mi.UInt32 | None = None
     clutter_value: mi.Float | None = None
     shape_key: mi.UInt32 | None = None
-    shape_origin: mi.Point3f | None = None
+    shape_origin: mi.Array3f64 | None = None
+    shape_axes: tuple | None = None           # three mi.Vector3f: each shape's own axes (C)
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
@@ -460,7 +461,9 @@ class Kernel:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
             self.tables.shape_key = mi.UInt32(table.shape_key.astype(np.uint32))
-            self.tables.shape_origin = mi.Point3f(*(table.shape_origin[:, c].astype(np.float32) for c in range(3)))
+            self.tables.shape_origin = mi.Array3f64(*(table.shape_origin[:, c].astype(np.float64) for c in range(3)))
+            self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
+                                           for a in range(3))
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]

@@ -542,12 +542,13 @@ class Returns:
         d_ref = self._folded(rec, dr.normalize(rec.unfolded - dr.gather(mi.Array3f64, ctx["reference"], rec.sub)),
                              depth)
         e1, e2, raise_by = shortened_footprint(rec.e1, rec.e2, rec.n, n_geo, d_ref)
-        u_axis, v_axis = lattice_frame(n_geo)
-        # the hit in the shape's own frame (float64 difference, then float32)
-        local = mi.Vector3f(rec.p64 - mi.Array3f64(dr.gather(mi.Point3f, t.shape_origin, rec.shape)))
+        axes = tuple(dr.gather(mi.Vector3f, a, rec.shape) for a in t.shape_axes)   # the shape's own frame
+        u_axis, v_axis = lattice_frame(n_geo, axes)
+        # the hit from the shape's origin (float64 difference, then float32)
+        local = mi.Vector3f(rec.p64 - dr.gather(mi.Array3f64, t.shape_origin, rec.shape))
         return dict(kind=dr.gather(mi.UInt32, t.clutter_kind, rec.row),
                     value=dr.gather(mi.Float, t.clutter_value, rec.row), raise_by=raise_by, axes=(u_axis, v_axis), cells=footprint_cells(local, e1, e2, u_axis, v_axis, c),
-                    key0=surface_key(dr.gather(mi.UInt32, t.shape_key, rec.shape), back, n_geo, local, c,
+                    key0=surface_key(dr.gather(mi.UInt32, t.shape_key, rec.shape), back, n_geo, local, axes, c,
                                      self.settings.seed))
 
     def _clutter_pulse(self, ctx, rec, depth: int, lattice: dict, q, paths) -> None:

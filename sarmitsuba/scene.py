@@ -342,6 +342,67 @@ def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
     return line
 
 
+#: A vertex counts as distinct from the frame's origin, and from the line of its first axis,
+#: beyond this fraction of the shape's largest extent (:func:`shape_frame`): far above float32
+#: round-off of the vertex positions (1e-7), far below any shape's features.
+FRAME_TOLERANCE = 1e-3
+
+
+def shape_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A frame fixed to a shape, from its vertices in their stored order: the frame the clutter
+    scatterer lattice is anchored to (docs/physics.md (C)).
+
+    The origin is vertex 0; the first axis points to the first vertex farther than
+    ``FRAME_TOLERANCE`` times the shape's extent, the second to the first vertex that far off the
+    first axis' line (made orthogonal to it), the third is their cross product. Vertex order does
+    not change when a shape is translated or rotated, so the frame moves rigidly with the shape:
+    rotating the vertices by ``R`` and translating them by ``t`` gives origin ``R o + t`` and
+    axes ``R a``.
+
+    Parameters
+    ----------
+    vertices : float [n, 3], m
+
+    Returns
+    -------
+    origin : float64 [3], m
+    axes : float64 [3, 3]
+        Rows: the frame's orthonormal axes, right-handed. Without two distinct vertices the axes
+        are the world's; without a third off the first axis' line (a shape on one line), the
+        second axis is the world's ``z x a1`` (or ``x x a1`` for a vertical line), which is then
+        not rigid about that line.
+    """
+    v = np.asarray(vertices, np.float64).reshape(-1, 3)
+    if v.shape[0] == 0:
+        return np.zeros(3), np.eye(3)
+    offsets = v - v[0]
+    tolerance = FRAME_TOLERANCE * max(float(np.ptp(v, axis=0).max()), np.finfo(np.float64).tiny)
+    distance = np.linalg.norm(offsets, axis=1)
+    far = np.flatnonzero(distance > tolerance)
+    if far.size == 0:
+        return v[0].copy(), np.eye(3)
+    first = offsets[far[0]] / distance[far[0]]
+    across = offsets - np.outer(offsets @ first, first)
+    off_line = np.linalg.norm(across, axis=1)
+    wide = np.flatnonzero(off_line > tolerance)
+    if wide.size:
+        second = across[wide[0]] / off_line[wide[0]]
+    else:
+        helper = np.array([0.0, 0.0, 1.0]) if abs(first[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        second = np.cross(helper, first)
+        second /= np.linalg.norm(second)
+    return v[0].copy(), np.stack([first, second, np.cross(first, second)])
+
+
+def _shape_frame_of(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`shape_frame` of a Mitsuba shape; a shape without vertices (an analytic sphere, say)
+    gets its bounding box's lowest corner and the world's axes, which translate with it but do not
+    rotate."""
+    if shape.is_mesh() and shape.vertex_count() > 0:
+        return shape_frame(np.array(shape.vertex_positions_buffer(), np.float64))
+    return np.array(shape.bbox().min, np.float64), np.eye(3)
+
+
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
     """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz]: ``r`` of the
     ``polarization``'s channel (the scalar model (R)), ``r_te`` and ``r_tm`` (the Jones model)
@@ -379,17 +440,20 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         # (never its position, so moving it keeps its speckle; never shared, so two id-less
         # copies of one shape get independent speckle)
         name = shape.id() or f"#shape{index}"
-        ids.append((shape_id, rows[key], zlib.crc32(name.encode()), np.array(shape.bbox().min, np.float32)))
+        # the scatterer lattice's anchor: a frame that moves and turns with the shape (C)
+        ids.append((shape_id, rows[key], zlib.crc32(name.encode()), *_shape_frame_of(shape)))
     row_of_shape = np.zeros(max(i[0] for i in ids) + 1, np.uint32)
     shape_key = np.zeros_like(row_of_shape)
-    shape_origin = np.zeros((row_of_shape.size, 3), np.float32)
-    for shape_id, row, stable, origin in ids:
+    shape_origin = np.zeros((row_of_shape.size, 3), np.float64)
+    shape_axes = np.tile(np.eye(3), (row_of_shape.size, 1, 1))
+    for shape_id, row, stable, origin, axes in ids:
         row_of_shape[shape_id] = row
         shape_key[shape_id] = stable
         shape_origin[shape_id] = origin
+        shape_axes[shape_id] = axes
     return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
                          names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
-                         shape_key=shape_key, shape_origin=shape_origin,
+                         shape_key=shape_key, shape_origin=shape_origin, shape_axes=shape_axes,
                          specular=np.array(specular, np.float32),
                          table_te=np.stack(tables_te).astype(np.complex64),
                          table_tm=np.stack(tables_tm).astype(np.complex64),

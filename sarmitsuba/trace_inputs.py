@@ -285,9 +285,12 @@ class MaterialTable:
     shape_key : uint32 [max_shape_id + 1]
         Stable identity of each shape (CRC-32 of its scene id), so that clutter scatterers do
         not change between loads of the same scene.
-    shape_origin : float32 [max_shape_id + 1, 3], m
-        A point fixed to each shape (its bounding box's lowest corner) that anchors its clutter
-        scatterer lattice: the scatterers move with the shape, whatever the world frame.
+    shape_origin : float64 [max_shape_id + 1, 3], m
+        A point fixed to each shape (its vertex 0, :func:`sarmitsuba.scene.shape_frame`) that
+        anchors its clutter scatterer lattice: the scatterers move with the shape.
+    shape_axes : float64 [max_shape_id + 1, 3, 3]
+        Each shape's own orthonormal axes (rows), which orient its lattice in every facet plane
+        and key the plane's hash: the scatterers turn with the shape (docs/physics.md (C)).
     specular : float32 [n_rows]
         Factor on the specular (PO and reflected) field of each row: ``sqrt(1 - S^2)`` for a
         Lambertian scattering coefficient ``S`` (the power the surface scatters diffusely), else
@@ -306,6 +309,7 @@ class MaterialTable:
     clutter: np.ndarray | None = None
     shape_key: np.ndarray | None = None
     shape_origin: np.ndarray | None = None
+    shape_axes: np.ndarray | None = None
     specular: np.ndarray | None = None
     table_te: np.ndarray | None = None
     table_tm: np.ndarray | None = None
