@@ -24,6 +24,9 @@ polarimetry    VV, HH, HV and quad on urban and Munich: seconds, casts, quad's c
                over single-channel renders, quad's HH and VV against the single ones
 dask_scaling   tracing on a Dask LocalCluster of 1 and 2 workers against one process:
                trace seconds, speed-up, raw NRMSE against one process
+invariance     what the tracer's lattices leave in the image: NRMSE against the default
+               render with the ray lattice moved, with dense rays and with one pulse per
+               trace, on urban, a smooth oblique block and Munich, with trace seconds
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -51,7 +54,7 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
-         "dask_scaling": "dask_scaling"}
+         "dask_scaling": "dask_scaling", "invariance": "invariance"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,7 +1,7 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
 Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``,
-``scaling.py`` and ``polarimetry.py`` runs with
+``scaling.py``, ``polarimetry.py`` and ``invariance.py`` runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
 write ``<name>_tiny.csv`` and ``.png`` into the output folder named by ``SARMITSUBA_BENCH_OUT``
@@ -61,6 +61,11 @@ EXPECTED = {
         ("pulses", "load_s", "trace_s", "bin_focus_s", "total_s", "closest_hit_casts", "shadow_casts",
          "total_over_vv", "trace_over_vv"),
         ("quad_over_4_vv", "nrmse_hh_db", "nrmse_vv_db")),
+    "invariance": (
+        {"scene", "setting", "trace_s", "closest_hit_casts", "pulses", "nrmse_complex_db", "nrmse_magnitude_db",
+         "trace_ratio", "meets"},
+        ("trace_s", "closest_hit_casts", "pulses", "trace_ratio"),
+        ("nrmse_complex_db", "nrmse_magnitude_db")),
 }
 
 

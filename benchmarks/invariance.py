@@ -1,0 +1,171 @@
+"""Benchmark: how much of the image is the scene's, and how much the tracer's lattices (issue 26).
+
+The image should be a function of the scene alone. Three things the tracer chooses, and the
+scene does not, can change it; for each scene this measures, in one run, the image NRMSE
+``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (complex, and of magnitudes) against the default
+render, with each setting's trace seconds (the faster of two runs):
+
+* **lattice moved**: the ray-tube lattice moved by (0.37, 0.41) of a cell along track and in
+  ground range. Moving every mesh by whole image pixels that are not whole lattice cells, and
+  moving the image back, is the same change (the lattice is anchored at the scene centre): it
+  measures the staircase that tubes leave at facet edges and shadow boundaries
+  (docs/physics.md (T3));
+* **dense rays**: tubes a third of the default width (nine times the rays), the reference the
+  default converges to;
+* **one pulse per trace**: every pulse traced from its own antenna, against the default
+  sub-aperture (docs/physics.md (T3)).
+
+Scenes: the built-in ``urban``, a smooth block of nine buildings turned 30 to 86 deg from the
+track (``block``, built here), and Sionna's Munich as shipped (512 central pulses; needs the
+``sionna`` extra). The issue's acceptance asks for <= -30 dB in every row (magnitudes for the
+lattice move, complex images otherwise); the ``meets`` column says which rows do. Writes ``invariance.csv`` and ``invariance.png`` (NRMSE against
+trace seconds) into the output folder (``_table.output_dir``).
+
+Usage: ``python benchmarks/invariance.py [--quick] [--tiny]`` (quick: urban and the block;
+tiny: the block with 200 pulses, lattice move and one pulse per trace, a smoke test).
+"""
+from __future__ import annotations
+
+import dataclasses
+import gc
+import importlib.util
+import math
+
+import numpy as np
+import trimesh
+
+import sarmitsuba
+from _plot import plot_cost
+from _table import bench_main, machine, write_csv
+from sarmitsuba import planning
+from sarmitsuba.pipeline import simulate
+
+NAME = "invariance"
+#: Lattice offset of the "lattice moved" setting, in cells (along track, ground range).
+LATTICE_SHIFT = (0.37, 0.41)
+#: The dense reference's tube width, as a fraction of the default (the azimuth resolution).
+DENSE = 1.0 / 3.0
+#: The issue's acceptance level for every comparison [dB].
+TARGET_DB = -30.0
+
+
+def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
+    """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (-inf when identical)."""
+    error = float(np.sum(np.abs(image - reference) ** 2))
+    return 10.0 * math.log10(error / float(np.sum(np.abs(reference) ** 2))) if error > 0 else float("-inf")
+
+
+def block(n_pulses: int | None = None) -> sarmitsuba.Scene:
+    """Nine smooth concrete boxes, 14 m x 10 m x 8..25 m, on a 160 m smooth ground, each turned
+    30 + 7 k deg from the track (oblique: their edges cross the ray lattice), X band, 1 km up."""
+    rng = np.random.default_rng(1)
+    ground = trimesh.Trimesh([[-80, -80, 0], [80, -80, 0], [80, 80, 0], [-80, 80, 0]], [[0, 1, 2], [0, 2, 3]])
+    meshes = [(ground, {"material": "medium_dry_ground"}, "ground")]
+    for k, (ix, iy) in enumerate((ix, iy) for ix in (-1, 0, 1) for iy in (-1, 0, 1)):
+        height = float(rng.uniform(8, 25))
+        jx, jy = rng.uniform(-3, 3, size=2)
+        box = trimesh.creation.box((14, 10, height))
+        box.apply_translation((0, 0, height / 2))
+        box.apply_transform(trimesh.transformations.rotation_matrix(math.radians(30 + 7 * k), (0, 0, 1)))
+        box.apply_translation((ix * 30 + jx, iy * 30 + jy, 0))
+        meshes.append((box, {"material": "concrete"}, f"building{k}"))
+    sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
+              "altitude": 1000, "incidence_angle": 45, "scene_center": (0.0, 0.0, 0.0), "azimuth_beamwidth": 1.2}
+    if n_pulses:
+        sensor["n_pulses"] = n_pulses
+    return sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3}, name="block")
+
+
+def _shifted_footprint(shift):
+    """planning.ray_footprint with its lattice origin moved by ``shift`` cells."""
+    real = planning.ray_footprint
+
+    def footprint(*args, **kwargs):
+        fp = real(*args, **kwargs)
+        return dataclasses.replace(fp, origin=fp.origin + shift[0] * fp.spacing_azimuth * fp.track
+                                   + shift[1] * fp.spacing_range * fp.look)
+    return footprint
+
+
+def _run(scene, sensor: dict, integrator: dict, shift=None) -> tuple[dict, np.ndarray, float]:
+    """One simulation, run twice: its numbers (the faster trace's seconds), image and azimuth
+    resolution (the simulation itself is dropped: a live scene slows later traces)."""
+    real = planning.ray_footprint
+    if shift is not None:
+        planning.ray_footprint = _shifted_footprint(shift)
+    try:
+        seconds = []
+        for _ in range(2):
+            sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
+            seconds.append(sim.timings["trace"])
+            numbers = {"trace_s": round(min(seconds), 3), "closest_hit_casts": int(sim.trace.rays_per_order.sum()),
+                       "pulses": sim.raw.n_pulses}
+            image, resolution = sim.image.data.copy(), sim.loaded.params.azimuth_resolution
+            del sim
+            gc.collect()
+    finally:
+        planning.ray_footprint = real
+    return numbers, image, resolution
+
+
+def sweep(label: str, scene, sensor: dict, tiny: bool = False) -> list[dict]:
+    """Rows of one scene: the default render and each comparison against it."""
+    base, reference, resolution = _run(scene, sensor, {})
+    rows = [{"scene": label, "setting": "default", **base, "nrmse_complex_db": float("-inf"),
+             "nrmse_magnitude_db": float("-inf")}]
+    settings = [("lattice moved", {}, LATTICE_SHIFT), ("one pulse per trace", {"pulses_per_trace": 1}, None)]
+    if not tiny:
+        settings.insert(1, (f"dense rays (1/{round(1 / DENSE)} width)", {"ray_spacing": DENSE * resolution}, None))
+    for setting, integrator, shift in settings:
+        numbers, other, _ = _run(scene, sensor, integrator, shift)
+        rows.append({"scene": label, "setting": setting, **numbers,
+                     "nrmse_complex_db": round(nrmse_db(reference, other), 1),
+                     "nrmse_magnitude_db": round(nrmse_db(np.abs(reference), np.abs(other)), 1)})
+    for row in rows:
+        row["trace_ratio"] = round(row["trace_s"] / rows[0]["trace_s"], 3)
+        # the acceptance compares magnitudes for lattice moves (a move in ground range changes
+        # the carrier), complex images otherwise
+        column = "nrmse_magnitude_db" if row["setting"] == "lattice moved" else "nrmse_complex_db"
+        row["meets"] = bool(row[column] <= TARGET_DB) if row["setting"] != "default" else ""
+    return rows
+
+
+def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    """Ratios that hold today: the default sub-aperture changes the image less than moving the
+    lattice does (the lattice is the larger fingerprint). The issue's -30 dB acceptance is the
+    ``meets`` column, not a check: it is not met yet."""
+    out = []
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        mine = {r["setting"]: r for r in rows if r["scene"] == scene}
+        lattice, per_pulse = mine["lattice moved"], mine["one pulse per trace"]
+        out.append((f"{scene}: the sub-aperture changes the image less than the lattice does",
+                    bool(per_pulse["nrmse_complex_db"] <= lattice["nrmse_complex_db"]),
+                    f"{per_pulse['nrmse_complex_db']} dB against {lattice['nrmse_complex_db']} dB"))
+    return out
+
+
+def run(quick: bool = False, tiny: bool = False) -> list[dict]:
+    """Run the comparisons, print the table, write CSV and PNG; returns the rows."""
+    print(machine())
+    scenes = {"urban": ("urban", {}), "block": (block(), {})}
+    if not (quick or tiny) and importlib.util.find_spec("sionna") is not None:
+        scenes["munich"] = ("sionna:munich", {"n_pulses": 512})
+    if tiny:
+        scenes = {"block": (block(200), {})}
+    rows = []
+    for label, (scene, sensor) in scenes.items():
+        rows += sweep(label, scene, sensor, tiny)
+    for row in rows:
+        print("  ".join(f"{k}={v}" for k, v in row.items()))
+    suffix = "_tiny" if tiny else ""
+    write_csv(f"{NAME}{suffix}.csv", rows)
+    plot_cost(f"{NAME}{suffix}.png", {
+        scene: [(r["trace_s"], r["nrmse_magnitude_db"], r["setting"]) for r in rows
+                if r["scene"] == scene and np.isfinite(r["nrmse_magnitude_db"])] for scene in scenes},
+        xlabel="trace time [s]", ylabel="image NRMSE of magnitudes vs default [dB]",
+        title="what the tracer's lattices leave in the image")
+    return rows
+
+
+if __name__ == "__main__":
+    bench_main(__doc__, run, checks, "urban and the block only", "the block, 200 pulses, two comparisons (smoke test)")
