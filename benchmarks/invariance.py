@@ -33,10 +33,10 @@ import math
 
 import numpy as np
 import trimesh
-
-import sarmitsuba
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
+
+import sarmitsuba
 from sarmitsuba import planning
 from sarmitsuba.pipeline import simulate
 

@@ -28,7 +28,7 @@ from .radiometry import radar_equation
 from .radar import ParameterError, RadarParameters
 from .trace_inputs import MaterialTable, TraceSettings
 
-__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "mitsuba_message",
+__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "shape_frame", "mitsuba_message",
            "builtin_scenes", "sionna_scenes"]
 
 #: Number of cos(incidence) samples of each material's reflection table.
