@@ -26,18 +26,17 @@ tiny: the block with 200 pulses, lattice move and one pulse per trace, a smoke t
 """
 from __future__ import annotations
 
-import dataclasses
 import gc
 import importlib.util
 import math
 
 import numpy as np
 import trimesh
+from _lattice import moved_lattice, nrmse_db
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
 
 import sarmitsuba
-from sarmitsuba import planning
 from sarmitsuba.pipeline import simulate
 
 NAME = "invariance"
@@ -47,12 +46,6 @@ LATTICE_SHIFT = (0.37, 0.41)
 DENSE = 1.0 / 3.0
 #: The issue's acceptance level for every comparison [dB].
 TARGET_DB = -30.0
-
-
-def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
-    """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (-inf when identical)."""
-    error = float(np.sum(np.abs(image - reference) ** 2))
-    return 10.0 * math.log10(error / float(np.sum(np.abs(reference) ** 2))) if error > 0 else float("-inf")
 
 
 def block(n_pulses: int | None = None) -> sarmitsuba.Scene:
@@ -76,24 +69,10 @@ def block(n_pulses: int | None = None) -> sarmitsuba.Scene:
     return sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3}, name="block")
 
 
-def _shifted_footprint(shift):
-    """planning.ray_footprint with its lattice origin moved by ``shift`` cells."""
-    real = planning.ray_footprint
-
-    def footprint(*args, **kwargs):
-        fp = real(*args, **kwargs)
-        return dataclasses.replace(fp, origin=fp.origin + shift[0] * fp.spacing_azimuth * fp.track
-                                   + shift[1] * fp.spacing_range * fp.look)
-    return footprint
-
-
 def _run(scene, sensor: dict, integrator: dict, shift=None) -> tuple[dict, np.ndarray, float]:
     """One simulation, run twice: its numbers (the faster trace's seconds), image and azimuth
     resolution (the simulation itself is dropped: a live scene slows later traces)."""
-    real = planning.ray_footprint
-    if shift is not None:
-        planning.ray_footprint = _shifted_footprint(shift)
-    try:
+    with moved_lattice(shift):
         seconds = []
         for _ in range(2):
             sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
@@ -103,8 +82,6 @@ def _run(scene, sensor: dict, integrator: dict, shift=None) -> tuple[dict, np.nd
             image, resolution = sim.image.data.copy(), sim.loaded.params.azimuth_resolution
             del sim
             gc.collect()
-    finally:
-        planning.ray_footprint = real
     return numbers, image, resolution
 
 

@@ -21,16 +21,15 @@ Usage: ``python benchmarks/subaperture.py [--quick] [--tiny]``
 """
 from __future__ import annotations
 
-import dataclasses
 import gc
 import importlib.util
 
 import numpy as np
-
-import sarmitsuba  # noqa: F401
+from _lattice import moved_lattice, nrmse_db
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
-from sarmitsuba import planning
+
+import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
 
 NAME = "subaperture"
@@ -43,34 +42,12 @@ SCENES = {"urban": {}, "sionna:munich": {"n_pulses": 512}}
 LATTICE_SHIFT = (0.37, 0.41)
 
 
-def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
-    """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (-inf when identical)."""
-    error = float(np.sum(np.abs(image - reference) ** 2))
-    return 10.0 * np.log10(error / float(np.sum(np.abs(reference) ** 2))) if error > 0 else float("-inf")
-
-
-def _shifted_lattice(shift):
-    """planning.ray_footprint with its lattice moved by ``shift`` cells (a context for one run)."""
-    real = planning.ray_footprint
-
-    def footprint(*args, **kwargs):
-        fp = real(*args, **kwargs)
-        return dataclasses.replace(fp, origin=fp.origin + shift[0] * fp.spacing_azimuth * fp.track
-                                   + shift[1] * fp.spacing_range * fp.look)
-    return real, footprint
-
-
 def _run(scene: str, sensor: dict, integrator: dict, shift=None) -> tuple[dict, np.ndarray]:
     """One simulation after a warm-up: its numbers and image (the simulation itself is dropped)."""
-    real = planning.ray_footprint
-    if shift is not None:
-        planning.ray_footprint = _shifted_lattice(shift)[1]
-    try:
+    with moved_lattice(shift):
         simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
         gc.collect()
         sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
-    finally:
-        planning.ray_footprint = real
     numbers = {"trace_s": round(sim.timings["trace"], 3), "pulses_per_trace": sim.trace.pulses_per_trace,
                "closest_hit_casts": int(sim.trace.rays_per_order.sum()), "shadow_casts": int(sim.trace.shadow_rays),
                "pulse_paths": sim.trace.pulse_paths, "pulses": sim.raw.n_pulses}

@@ -1,0 +1,34 @@
+"""Shared by the benchmarks that compare images: NRMSE in dB, and the ray lattice moved for one run."""
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+
+import numpy as np
+
+from sarmitsuba import planning
+
+
+def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
+    """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (-inf when identical)."""
+    error = float(np.sum(np.abs(image - reference) ** 2))
+    return 10.0 * np.log10(error / float(np.sum(np.abs(reference) ** 2))) if error > 0 else float("-inf")
+
+
+@contextlib.contextmanager
+def moved_lattice(shift):
+    """Within the block, :func:`sarmitsuba.planning.ray_footprint` anchors the ray lattice
+    ``shift = (along track, ground range)`` cells from the scene centre (nothing moved for
+    ``None``): the same change as moving every mesh by that fraction of a cell."""
+    real = planning.ray_footprint
+
+    def footprint(*args, **kwargs):
+        fp = real(*args, **kwargs)
+        return dataclasses.replace(fp, origin=fp.origin + shift[0] * fp.spacing_azimuth * fp.track
+                                   + shift[1] * fp.spacing_range * fp.look)
+    if shift is not None:
+        planning.ray_footprint = footprint
+    try:
+        yield
+    finally:
+        planning.ray_footprint = real
