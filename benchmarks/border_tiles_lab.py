@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from sarmitsuba.owned_regions import owned_regions, polygon_integral_2d, region_polygons
+from sarmitsuba.owned_regions import owned_regions, region_polygons
 from sarmitsuba.physical_optics import polygon_integral
 
 C = 299_792_458.0
@@ -40,6 +40,11 @@ def project(points: np.ndarray, antenna: np.ndarray, z: float) -> np.ndarray:
     """Rays from ``antenna`` through ``points`` meet the plane ``z``."""
     t = (antenna[2] - z) / (antenna[2] - points[..., 2])
     return antenna + (points - antenna) * t[..., None]
+
+
+def _integral(poly2d: np.ndarray, q: np.ndarray) -> complex:
+    """Gordon's closed form over a horizontal polygon given in (x, y), without the ``q_z h`` phase."""
+    return polygon_integral(np.c_[poly2d, np.zeros(len(poly2d))], UP, np.r_[q[:2], 0.0])
 
 
 def inside(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
@@ -103,7 +108,7 @@ class Lab:
         for a, b in zip(*np.nonzero(grid)):
             tile = np.array([project(self.cell_point(i[a], j[b], fa, fg, shift), antenna, self.h)[:2]
                              for fa, fg in ((0, 0), (1, 0), (1, 1), (0, 1))])
-            out += [polygon_integral_2d(tile, self.q(antenna, k)[:2]) for k in self.k]
+            out += [_integral(tile, self.q(antenna, k)) for k in self.k]
         return out * self.phase(antenna)
 
     def owned(self, antenna, reference, shift) -> np.ndarray:
@@ -115,7 +120,7 @@ class Lab:
         row = lambda g: (point(0, g), point(-1, g))              # noqa: E731  (left: row g - 1)
         polys = [p for ps in region_polygons(self.plate[:, :2], owned_regions(members, column, row)).values()
                  for p in ps]
-        out = np.array([sum(polygon_integral_2d(p, self.q(antenna, k)[:2]) for p in polys) for k in self.k])
+        out = np.array([sum(_integral(p, self.q(antenna, k)) for p in polys) for k in self.k])
         return out * self.phase(antenna)
 
     def phase(self, antenna) -> np.ndarray:

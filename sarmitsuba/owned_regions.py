@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "polygon_integral_2d"]
+__all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons"]
 
 #: A half-plane as a directed line ``(a, b)`` (float64 [2] points): the side on its left,
 #: ``cross(b - a, x - a) >= 0``.
@@ -142,17 +142,3 @@ def region_polygons(facet: np.ndarray, regions: dict) -> dict:
         out[cell] = polys
     return out
 
-
-def polygon_integral_2d(vertices: np.ndarray, q: np.ndarray) -> complex:
-    """``int_P exp(j q . x) dA`` over a counter-clockwise polygon in the plane (Gordon 1975; the
-    2-D form of :func:`sarmitsuba.physical_optics.polygon_integral`): ``sum_n (a_n x q) exp(j q .
-    c_n) sinc(q . a_n / 2) / (j |q|^2)``, edges ``a_n``, midpoints ``c_n``; the area times
-    ``exp(j q . x_0)`` when ``q = 0``."""
-    v = np.asarray(vertices, float)
-    q = np.asarray(q, float)
-    a = np.roll(v, -1, axis=0) - v
-    if float(q @ q) < 1e-18:
-        return complex(0.5 * np.sum(_cross(v, np.roll(v, -1, axis=0))) * np.exp(1j * (q @ v.mean(axis=0))))
-    x = 0.5 * (a @ q)
-    terms = (a[:, 1] * q[0] - a[:, 0] * q[1]) * np.exp(1j * ((v + 0.5 * a) @ q)) * np.sinc(x / np.pi)
-    return complex(terms.sum() / (1j * float(q @ q)))
