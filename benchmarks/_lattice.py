@@ -22,10 +22,13 @@ def moved_lattice(shift):
     ``None``): the same change as moving every mesh by that fraction of a cell."""
     real = planning.ray_footprint
 
-    def footprint(*args, **kwargs):
-        fp = real(*args, **kwargs)
-        return dataclasses.replace(fp, origin=fp.origin + shift[0] * fp.spacing_azimuth * fp.track
-                                   + shift[1] * fp.spacing_range * fp.look)
+    def footprint(params, geometry, *args, **kwargs):
+        # the lattice is anchored at the scene centre: anchor it ``shift`` cells away, before the
+        # refinement around small objects is laid out on it (so the refined cells follow it)
+        track, look = geometry.track_direction, geometry.look_direction
+        s, spacing_range = planning.ray_spacing(params, args[2] if len(args) > 2 else kwargs["settings"])
+        centre = np.asarray(params.scene_center, float) + shift[0] * s * track + shift[1] * spacing_range * look
+        return real(dataclasses.replace(params, scene_center=tuple(centre)), geometry, *args, **kwargs)
     if shift is not None:
         planning.ray_footprint = footprint
     try:

@@ -62,6 +62,14 @@
      coefficients, no Jones algebra compiled; exact only where every facet of a path contains
      H (a concrete trihedral at boresight comes out 16 dB too bright in HH). An accuracy knob,
      measured in ``benchmarks/polarimetry.py``.
+ * - lit_regions
+   - string
+   - ``tiles`` (default): a first-bounce ray tube integrates its whole tile, so a facet's lit
+     region ends in the tubes' staircase, which moves with the lattice (docs/physics.md (T3)).
+     ``owned``: on a convex part that no shadow, beam edge or other tube size cuts, the tubes at
+     its border integrate their owned regions, and the border returns as the part's straight
+     edges (docs/physics.md (T6)). First bounce only; slower (6x the trace time on an oblique
+     block), and no gain where occlusion bounds the lit regions.
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

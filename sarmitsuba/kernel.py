@@ -39,6 +39,7 @@ import numpy as np
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from .effects import EffectSet, rough_materials
+from .facets import scene_parts
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
 
@@ -64,6 +65,7 @@ class Flags:
     SPLIT_1, SPLIT_2 = 32, 64   # footprint edge split into its two end terms (PO2) for every pulse
     BACK = 128             # the ray met the surface from its back (against its own normal)
     UNDECIDED_1, UNDECIDED_2 = 256, 512   # split for some pulses of the sub-aperture only (T3)
+    OWNED = 1024           # integrates its owned region (T6) instead of its tile
 
 
 @dataclass(frozen=True)
@@ -213,6 +215,7 @@ class Hit:
     s: mi.Float64           # unfolded length reference -> hit, m
     shape: mi.UInt32        # Mitsuba shape id
     plane: mi.UInt32        # hash of the facet's plane (quantised normal and offset)
+    part: mi.UInt32         # convex part of the mesh (:mod:`.facets`), INVALID when not tabled
 
 
 @dataclass
@@ -249,6 +252,7 @@ class Record:
     sub: mi.UInt32
     flags: mi.UInt32
     key: mi.UInt32
+    part: mi.UInt32
 
 
 # ============================================================================ the steps
@@ -291,12 +295,15 @@ def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> 
     to_ref = reference - p64
     dist = dr.norm(to_ref)
     b = mi.Vector3f(to_ref / dist)
+    part = mi.UInt32(INVALID)
+    if tables.triangle_part is not None:   # owned regions (T6): the hit's convex part
+        part = dr.select(mesh_hit, dr.gather(mi.UInt32, tables.triangle_part, triangle, mesh_hit), INVALID)
     plane = (mi.UInt32(mi.Int32(dr.round(offset * 100.0)))                   # the facet's plane: offset [cm],
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.x * 16384.0))) * 0x01000193)   # normal to 6e-5
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.y * 16384.0))) * 0x00010001)
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.z * 16384.0))) * 0x00000101))
     return Hit(valid=valid, p=mi.Point3f(p64), p64=p64, n64=n64, n=n, back=back, cos_i=cos_i, b=b,
-               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape, plane=plane)
+               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape, plane=plane, part=part)
 
 
 def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
@@ -320,7 +327,7 @@ def record(tube: Tube, hit: Hit, unfolded: mi.Array3f64, row: mi.UInt32, edges: 
                   m1=tube.m1, m2=tube.m2, m3=tube.m3, first_hit=hit.p64 if first else tube.first_hit,
                   gamma=tube.gamma, jones=tube.jones, aim=tube.aim, row=row, shape=hit.shape, lattice=tube.lattice, block=tube.block,
                   sub=tube.sub,
-                  flags=mi.UInt32(flags), key=_facet_key(tube, hit))
+                  flags=mi.UInt32(flags), key=_facet_key(tube, hit), part=hit.part)
 
 
 def _facet_key(tube: Tube, hit: Hit) -> mi.UInt32:
@@ -383,6 +390,11 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
+    triangle_part: mi.UInt32 | None = None    # owned regions (T6): each triangle's convex part,
+    part_corners: mi.Array3f64 | None = None  # the parts' corners (part * MAX_PART_VERTICES + slot),
+    part_normal: mi.Array3f64 | None = None   # unit normals and plane offsets (float64),
+    part_offset: mi.Float64 | None = None
+    part_vertices: np.ndarray | None = None   # and the corners again for the host's plan
 
 
 def _triangle_table(scene, size: int):
@@ -464,10 +476,24 @@ class Kernel:
             self.tables.shape_origin = mi.Array3f64(*(table.shape_origin[:, c].astype(np.float64) for c in range(3)))
             self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
                                            for a in range(3))
+        if settings.lit_regions == "owned":
+            self._part_table(scene)
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None
+
+    def _part_table(self, scene) -> None:
+        """The convex parts of the scene's meshes (:func:`sarmitsuba.facets.scene_parts`) for owned
+        regions, eq. (T6): each triangle's part (INVALID for degenerate ones), corners, normal, offset."""
+        parts = scene_parts(scene)
+        t = self.tables
+        t.triangle_part = mi.UInt32(np.where(parts.triangle_part < 0, INVALID, parts.triangle_part).astype(np.uint32))
+        corners = parts.vertices.reshape(-1, 3)
+        t.part_corners = mi.Array3f64(*(corners[:, c].copy() for c in range(3)))
+        t.part_normal = mi.Array3f64(*(parts.normal[:, c].copy() for c in range(3)))
+        t.part_offset = mi.Float64(parts.offset.copy())
+        t.part_vertices = parts.vertices
 
     # ------------------------------------------------------------------ one launch
     def __call__(self, launch: Launch, capacity: int = 0) -> dict:

@@ -1,8 +1,10 @@
 """Owned regions: a partition of a facet among the ray tubes that meet it (docs/physics.md (T6)).
 
-The readable NumPy reference of the design chosen for issue 26's lit regions; the kernel does
-not use it yet. A tube whose central ray meets a convex facet (a *member*, decided once per
-sub-aperture at its reference position) owns a convex region of the facet's plane:
+The readable NumPy reference of the design chosen for issue 26's lit regions, and the host-side
+plan the kernel follows with ``lit_regions = owned`` (:func:`plan`; the per-pulse integrals are
+:meth:`sarmitsuba.returns.Returns.owned_po`). A tube whose central ray meets a convex facet (a
+*member*, decided once per sub-aperture at its reference position) owns a convex region of the
+facet's plane:
 
 * its own cell;
 * when it ends its column (no member above, or below, in ground range): the rest of its column's
@@ -21,9 +23,11 @@ straight edges it has, not as the tubes' staircase.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons"]
+__all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
 #: A half-plane as a directed line ``(a, b)`` (float64 [2] points): the side on its left,
 #: ``cross(b - a, x - a) >= 0``.
@@ -142,3 +146,207 @@ def region_polygons(facet: np.ndarray, regions: dict) -> dict:
         out[cell] = polys
     return out
 
+
+
+# ============================================================================ the kernel's plan
+#: A piece's side that runs to infinity (in lattice lines); the kernel clamps it to
+#: the part's projection.
+UNBOUNDED = 1e30
+
+
+@dataclass(frozen=True)
+class OwnedPlan:
+    """Which first-bounce records of a launch integrate owned regions, and their pieces.
+
+    Attributes
+    ----------
+    owned : ndarray
+        bool [n_records]: the record integrates its owned pieces (polygon terms) instead of its
+        whole tile; the others keep their tile terms (PO2)-(PO5).
+    record : ndarray
+        int64 [n_pieces]: the record of each piece.
+    bounds : ndarray
+        float64 [n_pieces, 4]: the piece's rectangle ``[ia0, ia1] x [jb0, jb1]`` in the lattice
+        lines of the record's tube size ``m`` (:func:`lattice_lines` with ``i0 = j0 = 0``: cell
+        ``(i, j)`` is ``[i, i + 1] x [j, j + 1]``), +-:data:`UNBOUNDED` where it runs to infinity.
+    groups, fallback : int
+        Facet-and-sub-aperture groups seen, and those left to whole tiles (members not contiguous,
+        a lattice cell inside the part that is no member: occlusion, the beam's edge, tubes of
+        several sizes).
+    """
+
+    owned: np.ndarray
+    record: np.ndarray
+    bounds: np.ndarray
+    groups: int = 0
+    fallback: int = 0
+
+
+def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
+    """Scene points seen from ``antenna`` on the aim plane, in a block's lattice lines.
+
+    Parameters
+    ----------
+    points : float64 [..., 3], m
+    antenna : float64 [..., 3], m (broadcast against ``points``)
+    fp : RayFootprint (``origin``, ``track``, ``look``, ``spacing_azimuth``, ``spacing_range``,
+        ``range_min``)
+    i0, j0, m : block origin (coarse cells) and tubes per coarse cell edge, broadcast
+
+    Returns float64 [..., 2]: ``(x, y)`` with cell ``(i, j)`` of the block at ``[i, i+1] x [j, j+1]``
+    (the central projection of docs/physics.md (T3): lines stay lines).
+    """
+    origin, track, look = (np.asarray(v, float) for v in (fp.origin, fp.track, fp.look))
+    normal = np.cross(track, look)
+    w = np.asarray(points, float) - antenna
+    t = ((origin - antenna) @ normal)[..., None] / (w @ normal)[..., None]
+    x = antenna + w * t - origin
+    a = (x @ track) / fp.spacing_azimuth
+    r = (x @ look - fp.range_min) / fp.spacing_range
+    return np.stack([(a - i0) * m, (r - j0) * m], axis=-1)
+
+
+def _pair_ranges(g, x, y):
+    """For the distinct pairs ``(g, x)``: their keys, ``min y``, ``max y``, count, and each input's pair."""
+    pairs, inverse = np.unique(np.stack([g, x], 1), axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    lo = np.full(len(pairs), np.iinfo(np.int64).max)
+    hi = np.full(len(pairs), np.iinfo(np.int64).min)
+    np.minimum.at(lo, inverse, y)
+    np.maximum.at(hi, inverse, y)
+    return pairs, lo, hi, np.bincount(inverse, minlength=len(pairs)), inverse
+
+
+def _inside(polygon, points, tolerance=1e-9):
+    """Whether ``points`` [n, k, 2] lie in the convex ``polygon`` [n, v, 2] (either orientation;
+    repeated corners allowed)."""
+    p0 = polygon[:, :1]
+    e = np.roll(polygon, -1, axis=1) - polygon
+    area = _cross(polygon - p0, np.roll(polygon, -1, axis=1) - p0).sum(1)
+    side = np.sign(area)[:, None, None] * _cross(e[:, None], points[:, :, None] - polygon[:, None])
+    scale = np.linalg.norm(e, axis=-1)[:, None]
+    return (side >= -tolerance * np.maximum(scale, 1e-300)).all(-1)
+
+
+def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
+    """The owned pieces of a launch's first-bounce records, eq. (T6) (vectorised NumPy).
+
+    A group is one part (convex planar polygon of :mod:`sarmitsuba.facets`) and one
+    sub-aperture. Members are counted on the lattice of their tubes' size (``m`` tubes per coarse
+    cell edge, from the scene's lattice origin), whatever block traced them. It gets owned
+    regions when its members have one tube size, the members of each
+    column and row and the member columns and rows are contiguous, and the members are exactly
+    the lattice cells whose centres the reference position sees inside the part: so every
+    boundary of the members' cells is the part's own border, never a shadow, the beam's edge or
+    a cell traced by tubes of another size. Its owned records are the ends of columns and rows and every member whose
+    cell leaves the part as the sub-aperture's first, middle or last pulse sees it (parallax);
+    the rest keep their whole tiles, which lie inside the part for every pulse.
+
+    Parameters
+    ----------
+    sub, part, block, lane : int arrays [n_records]
+        Each record's sub-aperture, part (-1: not on a mesh part), block and launch lane.
+    blocks : kernel.Blocks
+    vertices : float64 [n_parts, k, 3], m
+        Each part's corners in order (repeated corners allowed).
+    views : float64 [n_subapertures, 3, 3], m
+        Reference, first and last pulse's antenna position of each sub-aperture.
+    fp : RayFootprint
+
+    Returns
+    -------
+    OwnedPlan
+    """
+    sub, part, block, lane = (np.asarray(a, np.int64) for a in (sub, part, block, lane))
+    n = len(sub)
+    empty = OwnedPlan(np.zeros(n, bool), np.zeros(0, np.int64), np.zeros((0, 4)))
+    idx = np.flatnonzero(part >= 0)
+    if idx.size == 0:
+        return empty
+    _, g = np.unique(np.stack([sub[idx], part[idx]], 1), axis=0, return_inverse=True)
+    g = g.ravel()
+    n_g = int(g.max()) + 1
+    b = block[idx]
+    # the lattice of the records' own tube size: (i, j) counted from the scene's lattice origin
+    m_rec = blocks.m.astype(np.int64)[b]
+    g_m = np.zeros(n_g, np.int64)
+    g_m[g] = m_rec
+    ok = np.ones(n_g, bool)
+    np.logical_and.at(ok, g, m_rec == g_m[g])
+    n_j = blocks.n_j.astype(np.int64)[b]
+    rest = lane[idx] - blocks.start.astype(np.int64)[b]
+    i = blocks.i0.astype(np.int64)[b] * m_rec + rest // n_j
+    j = blocks.j0.astype(np.int64)[b] * m_rec + rest % n_j
+    cols, jmin, jmax, ccount, col_of = _pair_ranges(g, i, j)
+    rows, imin, imax, rcount, row_of = _pair_ranges(g, j, i)
+    ok &= np.bincount(cols[:, 0], weights=ccount != jmax - jmin + 1, minlength=n_g) == 0
+    ok &= np.bincount(rows[:, 0], weights=rcount != imax - imin + 1, minlength=n_g) == 0
+    bounds_g = []
+    for values, keys in ((cols[:, 1], cols[:, 0]), (rows[:, 1], rows[:, 0])):
+        lo = np.full(n_g, np.iinfo(np.int64).max)
+        hi = np.full(n_g, np.iinfo(np.int64).min)
+        np.minimum.at(lo, keys, values)
+        np.maximum.at(hi, keys, values)
+        ok &= np.bincount(keys, minlength=n_g) == hi - lo + 1
+        bounds_g.append((lo, hi))
+    (cmin, cmax), (rmin, rmax) = bounds_g
+    # ---- the part as the reference position and the ends of the sub-aperture see it, in lattice lines ----
+    gsub = np.zeros(n_g, np.int64)
+    gsub[g] = sub[idx]
+    gpart = np.zeros(n_g, np.int64)
+    gpart[g] = part[idx]
+    polys = [lattice_lines(vertices[gpart], views[gsub, v][:, None], fp, 0.0, 0.0, g_m[:, None].astype(float))
+             for v in range(3)]
+    ref = polys[0]
+    ok &= np.isfinite(ref).all((1, 2))
+    # a part much larger than its members has cells that are not members: left to tiles unseen
+    ok &= (ref[..., 0].min(1) >= cmin - 2) & (ref[..., 0].max(1) <= cmax + 3)
+    ok &= (ref[..., 1].min(1) >= rmin - 2) & (ref[..., 1].max(1) <= rmax + 3)
+    # every cell centre inside the part is a member: per column, the centres' rows inside
+    c_lo = np.ceil(np.where(ok, ref[..., 0].min(1), 0) - 0.5).astype(np.int64)
+    c_hi = np.floor(np.where(ok, ref[..., 0].max(1), -1) - 0.5).astype(np.int64)
+    count = np.maximum(c_hi - c_lo + 1, 0)
+    cg = np.repeat(np.arange(n_g), count)
+    cc = c_lo[cg] + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+    x = cc + 0.5
+    pa, pb = ref[cg], np.roll(ref[cg], -1, axis=1)
+    xa, xb, ya, yb = pa[..., 0], pb[..., 0], pa[..., 1], pb[..., 1]
+    spans = (np.minimum(xa, xb) <= x[:, None]) & (np.maximum(xa, xb) >= x[:, None]) & (xa != xb)
+    t = np.where(spans, (x[:, None] - xa) / np.where(xa != xb, xb - xa, 1.0), 0.0)
+    y = ya + t * (yb - ya)
+    y_lo = np.where(spans, y, np.inf).min(1)
+    y_hi = np.where(spans, y, -np.inf).max(1)
+    j_lo, j_hi = np.ceil(y_lo - 0.5), np.floor(y_hi - 0.5)
+    has = np.isfinite(j_lo) & np.isfinite(j_hi) & (j_lo <= j_hi)
+    geometric = np.stack([cg[has], cc[has], j_lo[has].astype(np.int64), j_hi[has].astype(np.int64)], 1)
+    member = np.stack([cols[:, 0], cols[:, 1], jmin, jmax], 1)
+    both, seen = np.unique(np.concatenate([geometric, member]), axis=0, return_counts=True)
+    matched = np.bincount(both[seen == 2, 0], minlength=n_g)
+    ok &= (matched == np.bincount(geometric[:, 0], minlength=n_g)) & (matched == np.bincount(member[:, 0], minlength=n_g))
+    # ---- owned: ends of columns and rows, and cells some view sees leave the part ----
+    good = ok[g]
+    end = (j == jmin[col_of]) | (j == jmax[col_of]) | (i == imin[row_of]) | (i == imax[row_of])
+    corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
+    leaves = np.zeros(idx.size, bool)
+    for poly in polys:
+        leaves |= ~_inside(poly[g], corners).all(1)
+    mine = good & (end | leaves)
+    owned = np.zeros(n, bool)
+    owned[idx[mine]] = True
+    # ---- the pieces ----
+    inf = UNBOUNDED
+    rec = np.flatnonzero(mine)
+    gi, ii, jj = g[rec], i[rec], j[rec]
+    c_of, r_of = col_of[rec], row_of[rec]
+    column = np.stack([ii, ii + 1, np.where(jj > jmin[c_of], jj, -inf), np.where(jj < jmax[c_of], jj + 1, inf)], 1)
+    band_lo = np.where(jj > rmin[gi], jj, -inf)
+    band_hi = np.where(jj < rmax[gi], jj + 1, inf)
+    left = ii == imin[r_of]
+    right = ii == imax[r_of]
+    pieces = [column,
+              np.stack([np.full(rec.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
+              np.stack([cmax[gi] + 1.0, np.full(rec.size, inf), band_lo, band_hi], 1)[right]]
+    records = np.concatenate([idx[rec], idx[rec][left], idx[rec][right]])
+    order = np.argsort(records, kind="stable")
+    return OwnedPlan(owned, records[order], np.concatenate(pieces).astype(float)[order],
+                     groups=n_g, fallback=int(n_g - ok.sum()))

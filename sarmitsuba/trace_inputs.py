@@ -22,10 +22,13 @@ from .constants import SPEED_OF_LIGHT
 from .deposit import RANGE_KERNELS
 from .radar import ParameterError
 
-__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS"]
+__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
+           "LIT_REGIONS"]
 
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
+#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (T3), (T6)).
+LIT_REGIONS = ("tiles", "owned")
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,12 @@ class TraceSettings:
         takes the scalar coefficients of (R), (P6) instead, exact only where every facet of a
         path contains H (an accuracy knob, ``benchmarks/polarimetry.py``). Cross-polarised
         channels always need ``jones``.
+    lit_regions : str
+        ``tiles`` (default): a first-bounce tube integrates its whole tile, so a facet's lit region
+        is bounded by the tubes' staircase (T3). ``owned``: on a convex part whose members are
+        exactly the cells it covers, the tubes at its border integrate their owned regions (T6)
+        and the border returns as the part's straight edges; other groups (occluded, at the
+        beam's edge) keep their tiles.
     """
 
     max_depth: int = 3
@@ -82,6 +91,7 @@ class TraceSettings:
     pulses_per_trace: int = 0
     cancel_interior: bool = True
     polarimetry: str = "jones"
+    lit_regions: str = "tiles"
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -105,6 +115,10 @@ class TraceSettings:
             raise ParameterError(f"polarimetry = {self.polarimetry!r}; valid values: "
                                  f"{', '.join(repr(m) for m in POLARIMETRY_MODELS)} (jones: a Jones matrix per "
                                  "ray tube; scalar: one co-polarised channel with scalar coefficients)")
+        if self.lit_regions not in LIT_REGIONS:
+            raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
+                                 f"{', '.join(repr(m) for m in LIT_REGIONS)} (tiles: whole tubes' tiles; owned: "
+                                 "facet borders as straight edges, docs/physics.md (T6))")
         if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")

@@ -91,3 +91,94 @@ def test_owned_regions_refuses_gaps_and_empty_sets():
         owned_regions(set(), column, row)
     with pytest.raises(ValueError, match="column 0 has a gap"):
         owned_regions({(0, 0), (0, 2)}, column, row)
+
+
+# ============================================================================ the kernel's plan
+from types import SimpleNamespace  # noqa: E402
+
+from sarmitsuba.kernel import Blocks  # noqa: E402
+from sarmitsuba.owned_regions import UNBOUNDED, clip_convex, lattice_lines, plan  # noqa: E402
+
+_FP = SimpleNamespace(origin=np.zeros(3), track=np.array([1.0, 0.0, 0.0]), look=np.array([0.0, 1.0, 0.0]),
+                      spacing_azimuth=0.5, spacing_range=0.7, range_min=-20.0)
+
+
+def _shoelace(poly):
+    return 0.5 * float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - poly[:, 1] * np.roll(poly[:, 0], -1)))
+
+
+def _ccw(poly):
+    return poly if _shoelace(poly) > 0 else poly[::-1]
+
+
+def _plan_case(deg, height, occluded=False, m=1):
+    """A triangle turned ``deg`` at ``height`` over the aim plane, seen from 1 km up and 1 km
+    across; its members are the cells whose centre the reference position sees inside it."""
+    tri = np.c_[_rotated([[-3.0, -2.0], [4.0, -1.0], [0.5, 3.5]], deg), np.full(3, height)]
+    tri[:, 1] += 2.0
+    views = np.array([[[0.0, -1000.0, 1000.0], [-9.0, -1000.0, 1000.0], [9.0, -1000.0, 1000.0]]])
+    blocks = Blocks.of([(0, -20, 10, 40 * m, 100 * m, m)])
+    poly = _ccw(lattice_lines(tri, views[0, 0], _FP, 0.0, 0.0, float(m)))
+    ii, jj = np.meshgrid(np.arange(40 * m), np.arange(100 * m), indexing="ij")
+    gi, gj = ii - 20 * m, jj + 10 * m
+    centres = np.stack([gi + 0.5, gj + 0.5], -1).reshape(-1, 2)
+    inside = np.ones(len(centres), bool)
+    for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+        inside &= (b - a)[0] * (centres - a)[:, 1] - (b - a)[1] * (centres - a)[:, 0] > 0
+    lane = np.flatnonzero(inside)
+    if occluded == "interior":         # an occluder hides one interior member
+        lane = np.delete(lane, len(lane) // 2)
+    elif occluded == "border":         # ... or the last member of the top row: still contiguous
+        top = np.flatnonzero(gj.ravel()[lane] == gj.ravel()[lane].max())
+        lane = np.delete(lane, top[np.argmax(gi.ravel()[lane][top])])
+    n = len(lane)
+    result = plan(np.zeros(n), np.zeros(n), np.zeros(n), lane, blocks, np.concatenate([tri, tri[-1:]])[None], views, _FP)
+    return tri, views, result, np.stack([gi.ravel()[lane], gj.ravel()[lane]], 1)
+
+
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+@pytest.mark.parametrize("height", [0.0, 35.0])
+def test_plan_pieces_and_whole_tiles_tile_the_part_for_every_view(deg, height):
+    """The plan's owned pieces (cut to the part) and the tiles of the members it leaves whole
+    tile the part as each pulse sees it: areas and Gordon's integral over the part, for the
+    sub-aperture's reference, first and last pulse and one between (35 m up: 0.7 cells of
+    parallax between the ends)."""
+    tri, views, result, cells = _plan_case(deg, height)
+    assert result.fallback == 0 and result.owned.any() and not result.owned.all()
+    for antenna in (*views[0], 0.3 * views[0, 1] + 0.7 * views[0, 0]):
+        part = _ccw(lattice_lines(tri, antenna, _FP, 0.0, 0.0, 1.0))
+        edges = [(part[n], part[(n + 1) % 3]) for n in range(3)]
+        pieces = []
+        for x0, x1, y0, y1 in result.bounds:
+            x0, x1, y0, y1 = (float(np.clip(v, -1e4, 1e4)) for v in (x0, x1, y0, y1))
+            poly = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+            for line in edges:
+                poly = clip_convex(poly, line)
+            if len(poly) >= 3:
+                pieces.append(poly)
+        for i, j in cells[~result.owned]:
+            tile = np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float)
+            assert len(clip_convex(clip_convex(clip_convex(tile, edges[0]), edges[1]), edges[2])) == 4
+            pieces.append(tile)
+        assert sum(_shoelace(p) for p in pieces) == pytest.approx(_shoelace(part), rel=1e-12)
+        for q in ([2.1, -1.3], [0.4, 3.7]):
+            total = sum(_integral(p, np.array(q)) for p in pieces)
+            assert abs(total - _integral(part, np.array(q))) < 1e-10 * _shoelace(part)
+
+
+@pytest.mark.parametrize("where", ["interior", "border"])
+def test_plan_leaves_an_occluded_part_to_whole_tiles(where):
+    """A cell inside the part that is no member (an occluder's shadow): inside, it breaks
+    contiguity; at the border, the members stay contiguous but no longer match the cells the part
+    covers. Either way the group keeps its tiles (its border is not only the part's edges)."""
+    _, _, result, _ = _plan_case(30.0, 0.0, occluded=where)
+    assert result.fallback == result.groups == 1 and not result.owned.any() and len(result.record) == 0
+
+
+def test_plan_counts_cells_on_the_refined_lattice():
+    """Tubes 3 to a coarse cell: members counted on the fine lattice, pieces in its lines."""
+    tri, views, result, cells = _plan_case(60.0, 0.0, m=3)
+    assert result.fallback == 0 and result.owned.any()
+    part = _ccw(lattice_lines(tri, views[0, 0], _FP, 0.0, 0.0, 3.0))
+    assert np.all(np.abs(result.bounds[(np.abs(result.bounds) < UNBOUNDED)]) < 200)
+    assert abs(_shoelace(part)) > 100       # the part spans many fine cells
