@@ -39,12 +39,12 @@ import numpy as np
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from .effects import EffectSet, rough_materials
-from .facets import scene_parts
+from .owned_terms import PartTable
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
-           "footprint_edges", "COS_GRAZING", "INVALID", "Flags"]
+           "footprint_edges", "COS_GRAZING", "INVALID", "Flags", "SPECTRAL_ORDERS"]
 
 #: No record / no lane.
 INVALID = 0xFFFFFFFF
@@ -259,15 +259,12 @@ class Record:
 def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> Hit:
     """Closest hit of the tube's central ray, the facet's plane and the float64 legs, eq. (T1), (S1).
 
-    Embree finds the hit in float32 (``ray_intersect_preliminary``: no surface interaction is
-    computed, so tracing the kernel does not visit every shape of the scene). On a mesh, the
-    hit point is then recomputed in float64 as the central ray's float64 line meeting the
-    triangle's plane, taken from the kernel's triangle table (unit normal and offset in float64
-    from the float32 vertices, the same for every tube on the triangle). Neighbouring tubes on a
-    facet then agree on their shared footprint corners to float64 precision, which the
-    cancellation of their PO terms needs (float32 hit points 30 m from the origin are 2e-6 m
-    apart from the plane: 4e-4 rad at X band). Other shapes (spheres, disks, cylinders) take
-    Mitsuba's float32 point and normal. The leg lengths are float64 norms between these points.
+    Embree finds the hit in float32 (``ray_intersect_preliminary``: no surface interaction, so the
+    kernel does not visit every shape). On a mesh the hit point is the central ray's float64 line
+    met with the triangle's float64 plane (the kernel's triangle table), so neighbouring tubes on a
+    facet agree on shared footprint corners to float64 precision, as (PO5) needs (float32 points
+    30 m out are 2e-6 m off the plane: 4e-4 rad at X band). Other shapes take Mitsuba's float32
+    point and normal. The leg lengths are float64 norms between these points.
     """
     pi = scene.ray_intersect_preliminary(tube.ray, coherent=False, active=tube.active)
     found = tube.active & pi.is_valid()
@@ -296,8 +293,8 @@ def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> 
     dist = dr.norm(to_ref)
     b = mi.Vector3f(to_ref / dist)
     part = mi.UInt32(INVALID)
-    if tables.triangle_part is not None:   # owned regions (T6): the hit's convex part
-        part = dr.select(mesh_hit, dr.gather(mi.UInt32, tables.triangle_part, triangle, mesh_hit), INVALID)
+    if tables.parts is not None:           # owned regions (T6): the hit's convex part
+        part = dr.select(mesh_hit, dr.gather(mi.UInt32, tables.parts.triangle_part, triangle, mesh_hit), INVALID)
     plane = (mi.UInt32(mi.Int32(dr.round(offset * 100.0)))                   # the facet's plane: offset [cm],
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.x * 16384.0))) * 0x01000193)   # normal to 6e-5
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.y * 16384.0))) * 0x00010001)
@@ -357,13 +354,11 @@ def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, first: bool, jones=None) -> T
 
 
 def _spawn(p, n, d):
-    """Ray leaving the surface point ``p`` (normal ``n`` on the side of ``d``) toward ``d``.
-
-    The origin is lifted ``1e-4 m + 1e-6 |p|`` off the surface: enough to clear float32
-    rounding of ``p`` and Embree's own error, and (unlike Mitsuba's ``spawn_ray``, which lifts
-    by ~9e-5 (1 + max|p_i|)) almost independent of where the scene sits, so a translated
-    scene decides visibility near edges the same way.
-    """
+    """Ray leaving the surface point ``p`` (normal ``n`` on the side of ``d``) toward ``d``, its
+    origin lifted ``1e-4 m + 1e-6 |p|`` off the surface: enough to clear float32 rounding of ``p``
+    and Embree's own error, and (unlike Mitsuba's ``spawn_ray``, which lifts by ~9e-5 (1 + max|p_i|))
+    almost independent of where the scene sits, so a translated scene decides visibility near
+    edges the same way."""
     lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(p)
     return mi.Ray3f(p + n * lift, d)
 
@@ -390,11 +385,7 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
-    triangle_part: mi.UInt32 | None = None    # owned regions (T6): each triangle's convex part,
-    part_corners: mi.Array3f64 | None = None  # the parts' corners (part * MAX_PART_VERTICES + slot),
-    part_normal: mi.Array3f64 | None = None   # unit normals and plane offsets (float64),
-    part_offset: mi.Float64 | None = None
-    part_vertices: np.ndarray | None = None   # and the corners again for the host's plan
+    parts: "PartTable | None" = None          # owned regions (T6): the meshes' convex parts
 
 
 def _triangle_table(scene, size: int):
@@ -477,23 +468,11 @@ class Kernel:
             self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
                                            for a in range(3))
         if settings.lit_regions == "owned":
-            self._part_table(scene)
+            self.tables.parts = PartTable.of(scene)
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None
-
-    def _part_table(self, scene) -> None:
-        """The convex parts of the scene's meshes (:func:`sarmitsuba.facets.scene_parts`) for owned
-        regions, eq. (T6): each triangle's part (INVALID for degenerate ones), corners, normal, offset."""
-        parts = scene_parts(scene)
-        t = self.tables
-        t.triangle_part = mi.UInt32(np.where(parts.triangle_part < 0, INVALID, parts.triangle_part).astype(np.uint32))
-        corners = parts.vertices.reshape(-1, 3)
-        t.part_corners = mi.Array3f64(*(corners[:, c].copy() for c in range(3)))
-        t.part_normal = mi.Array3f64(*(parts.normal[:, c].copy() for c in range(3)))
-        t.part_offset = mi.Float64(parts.offset.copy())
-        t.part_vertices = parts.vertices
 
     # ------------------------------------------------------------------ one launch
     def __call__(self, launch: Launch, capacity: int = 0) -> dict:
@@ -639,6 +618,3 @@ class Kernel:
         out = dr.gather(Tube, tube, alive)
         dr.eval(out)
         return out, launch.n_lanes
-
-
-__all__ += ["SPECTRAL_ORDERS"]

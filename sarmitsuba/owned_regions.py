@@ -333,20 +333,26 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     mine = good & (end | leaves)
     owned = np.zeros(n, bool)
     owned[idx[mine]] = True
-    # ---- the pieces ----
+    records, bounds = _pieces(idx[mine], g[mine], i[mine], j[mine], col_of[mine], row_of[mine],
+                              (jmin, jmax, imin, imax), (cmin, cmax, rmin, rmax))
+    return OwnedPlan(owned, records, bounds, groups=n_g, fallback=int(n_g - ok.sum()))
+
+
+def _pieces(records, gi, ii, jj, c_of, r_of, lines, extent):
+    """The owned records' pieces (T6), sorted by record: the column piece, and the row band in the
+    member-less columns left and right when the record ends its row. ``lines``: per column its
+    ``jmin, jmax``, per row its ``imin, imax``; ``extent``: per group ``cmin, cmax, rmin, rmax``."""
+    jmin, jmax, imin, imax = lines
+    cmin, cmax, rmin, rmax = extent
     inf = UNBOUNDED
-    rec = np.flatnonzero(mine)
-    gi, ii, jj = g[rec], i[rec], j[rec]
-    c_of, r_of = col_of[rec], row_of[rec]
     column = np.stack([ii, ii + 1, np.where(jj > jmin[c_of], jj, -inf), np.where(jj < jmax[c_of], jj + 1, inf)], 1)
     band_lo = np.where(jj > rmin[gi], jj, -inf)
     band_hi = np.where(jj < rmax[gi], jj + 1, inf)
     left = ii == imin[r_of]
     right = ii == imax[r_of]
     pieces = [column,
-              np.stack([np.full(rec.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
-              np.stack([cmax[gi] + 1.0, np.full(rec.size, inf), band_lo, band_hi], 1)[right]]
-    records = np.concatenate([idx[rec], idx[rec][left], idx[rec][right]])
-    order = np.argsort(records, kind="stable")
-    return OwnedPlan(owned, records[order], np.concatenate(pieces).astype(float)[order],
-                     groups=n_g, fallback=int(n_g - ok.sum()))
+              np.stack([np.full(ii.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
+              np.stack([cmax[gi] + 1.0, np.full(ii.size, inf), band_lo, band_hi], 1)[right]]
+    out = np.concatenate([records, records[left], records[right]])
+    order = np.argsort(out, kind="stable")
+    return out[order], np.concatenate(pieces).astype(float)[order]

@@ -3,19 +3,13 @@
 
 :class:`sarmitsuba.kernel.Kernel` traces the tubes of a sub-aperture once, from its reference
 position, and records every visible hit (:class:`sarmitsuba.kernel.Record`). This module turns
-the records of one bounce order into returns:
-
-1. :meth:`Returns.terms` -- the footprint's PO integral as 1, 2 or 4 point terms (PO2), less the
-   terms that neighbouring tubes cancel exactly (PO5): what is left is the boundary of the lit
-   area and the near-specular footprints;
-2. :meth:`Returns.po` -- per pulse of the sub-aperture, each term evaluated at its own point with
-   that pulse's antenna position: exact float64 legs from the pulse's image source, the phase
-   gradient and amplitude density there (PO4), deposited on the fast-time grid;
-3. :meth:`Returns.clutter` -- per pulse, the rough surface's own scatterers inside the
-   footprint, eq. (C).
-
-The footprints (which tiles of a facet a tube integrates over) and the visibility are the
-sub-aperture's; everything that carries phase is the pulse's own.
+the records of one bounce order into returns: :meth:`Returns.terms`, the footprint's PO integral
+as 1, 2 or 4 point terms (PO2), less those that neighbouring tubes cancel exactly (PO5);
+:meth:`Returns.po`, per pulse, each term at its own point with that pulse's antenna position
+(exact float64 legs, phase gradient and amplitude there, (PO4)), deposited on the fast-time grid;
+:meth:`Returns.clutter`, per pulse, the rough surface's scatterers in the footprint, eq. (C); and,
+with ``lit_regions = owned``, the owned pieces of (T6) (:mod:`.owned_terms`). The footprints and
+the visibility are the sub-aperture's; everything that carries phase is the pulse's own.
 """
 from __future__ import annotations
 
@@ -33,8 +27,7 @@ from .deposit import SPECTRAL_ORDERS
 from . import jones as pol
 from .radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
-from .facets import MAX_PART_VERTICES
-from .owned_regions import UNBOUNDED, plan as owned_plan
+from .owned_terms import OwnedTerms
 
 __all__ = ["Returns", "footprint_edges"]
 
@@ -50,11 +43,6 @@ _HAS_I_LO, _HAS_I_HI, _HAS_J_LO, _HAS_J_HI, _INTERIOR, _SPLIT_1, _SPLIT_2, _BACK
 _UNDECIDED_1, _UNDECIDED_2, _OWNED = 256, 512, 1024
 #: Flags two tubes must share for their PO terms at a common point to cancel (PO5).
 _MATCH = _INTERIOR | _SPLIT_1 | _SPLIT_2 | _BACK | _UNDECIDED_1 | _UNDECIDED_2 | _OWNED
-#: Below this ``(k |u_t|)^2 A`` a piece's phase is flat: one term, its area at its centroid (the
-#: neglected second moment is below about a 24th of it), eq. (T6).
-FLAT_PHASE = 2.5e-3
-#: Boundary segments of an owned piece: the part's corner slots and the rectangle's four sides.
-_SEGMENTS = MAX_PART_VERTICES + 4
 
 
 def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
@@ -67,18 +55,12 @@ def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
     return tuple(out)
 
 
-def _sinc_pi(x):
-    """sin(pi x) / (pi x), 1 at 0 (normalised sinc, as numpy.sinc)."""
-    y = math.pi * x
-    return dr.select(dr.abs(y) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(y) / y)
-
-
 def _sinc(x):
     """sin(x) / x, 1 at 0."""
     return dr.select(dr.abs(x) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(x) / x)
 
 
-class Returns:
+class Returns(OwnedTerms):
     """Per-pulse returns of recorded hits: configuration fixed per acquisition.
 
     Parameters
@@ -94,6 +76,9 @@ class Returns:
     beam_sines : (float, float)
         Along-track sines bounding the traced beam.
     """
+
+    cos_grazing = COS_GRAZING
+    sinc = staticmethod(_sinc)
 
     def __init__(self, params, window, footprint, settings, tables, effects, beam_sines):
         self.settings, self.window, self.fp, self.tables = settings, window, footprint, tables
@@ -245,10 +230,10 @@ class Returns:
         gain = mi.Float(1.0)
         if self.length_in_wavelengths > 0:          # the main lobe, zero beyond its first nulls
             x = self.length_in_wavelengths * (along - steer if steer is not None else along)
-            gain *= dr.select(dr.abs(x) < 1.0, _sinc_pi(x), 0.0)
+            gain *= dr.select(dr.abs(x) < 1.0, _sinc(math.pi * x), 0.0)
         if self.height_in_wavelengths > 0:
             across = dr.normalize(v - axis * along)
-            gain *= _sinc_pi(self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))
+            gain *= _sinc(math.pi * self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))
         return gain
 
     def weight(self, d_first, b, s, dist, lref, steer):
@@ -334,9 +319,7 @@ class Returns:
     # ------------------------------------------------------------------ the returns of one order
     def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:
         """Deposit the returns of one bounce order's records for every pulse of their sub-apertures."""
-        pieces = None
-        if depth == 0 and self.settings.lit_regions == "owned":
-            pieces = self._owned(ctx, rec)
+        pieces = self._owned(ctx, rec) if depth == 0 and self.settings.lit_regions == "owned" else None
         index, code = self.terms(ctx, rec, n_lanes)
         if dr.width(index):
             ctx["evaluated"] += int(dr.sum(dr.gather(mi.UInt32, ctx["count"], dr.gather(mi.UInt32, rec.sub, index)))[0])
@@ -520,214 +503,6 @@ class Returns:
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="pulses")
-        if paths is not None:
-            self.sums.keep_paths(ctx, paths)
-
-    # ------------------------------------------------------------------ owned regions (T6)
-    def _owned(self, ctx, rec):
-        """Plan the first-bounce records' owned regions on the host (:func:`owned_regions.plan`),
-        flag the owned records (their tiles are not evaluated, and no neighbour cancels against
-        them) and return the pieces: ``(records, bounds)`` or None when there are none."""
-        launch = ctx["launch"]
-        part = rec.part.numpy().astype(np.int64)
-        part[part == _INVALID] = -1
-        views = np.stack([launch.reference, launch.antenna[launch.first],
-                          launch.antenna[launch.first + launch.count - 1]], 1)
-        result = owned_plan(rec.sub.numpy(), part, rec.block.numpy(), rec.lattice.numpy(), launch.blocks,
-                            self.tables.part_vertices, views, self.fp)
-        ctx["owned_groups"] += result.groups
-        ctx["owned_fallback"] += result.fallback
-        if not result.owned.any():
-            return None
-        rec.flags |= dr.select(mi.Bool(result.owned), mi.UInt32(_OWNED), mi.UInt32(0))
-        dr.eval(rec.flags)
-        pieces = dr.gather(type(rec), rec, mi.UInt32(result.record.astype(np.uint32)))
-        bounds = [mi.Float64(result.bounds[:, c].copy()) for c in range(4)]
-        dr.eval(pieces, bounds)
-        return pieces, bounds
-
-    def _corner_lines(self, ctx, rec, antenna):
-        """The record's part as the pulse at ``antenna`` sees it on the aim plane, in the lattice
-        lines of its tube size (as :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)``."""
-        fp = self.fp
-        origin, track, look = (mi.Array3f64(*v.tolist()) for v in (fp.origin, fp.track, fp.look))
-        normal = mi.Array3f64(*np.cross(fp.track, fp.look).tolist())
-        i0 = j0 = mi.Float64(0.0)           # lines counted from the scene's lattice origin
-        m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
-        height = dr.dot(normal, origin - antenna)
-        out = []
-        for k in range(MAX_PART_VERTICES):
-            w = dr.gather(mi.Array3f64, self.tables.part_corners, rec.part * MAX_PART_VERTICES + k) - antenna
-            x = antenna + w * (height / dr.dot(normal, w)) - origin
-            out.append(((dr.dot(x, track) / fp.spacing_azimuth - i0) * m,
-                        ((dr.dot(x, look) - fp.range_min) / fp.spacing_range - j0) * m))
-        return out, i0, j0, m
-
-    def _aim_point(self, x, y, m):
-        """The aim-plane point at lattice lines ``(x, y)`` of tube size ``m`` (float64)."""
-        fp = self.fp
-        return mi.Array3f64(*fp.origin.tolist()) + mi.Array3f64(*fp.track.tolist()) * ((x / m) * fp.spacing_azimuth) \
-            + mi.Array3f64(*fp.look.tolist()) * ((y / m) * fp.spacing_range + fp.range_min)
-
-    @staticmethod
-    def _clip(p, q, t0, t1):
-        """Narrow ``[t0, t1]`` to where ``p t <= q`` (Liang and Barsky 1984); ``p = 0``: all or nothing."""
-        safe = dr.select(p != 0, p, 1.0)
-        t0 = dr.select(p < 0, dr.maximum(t0, q / safe), t0)
-        t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
-        return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
-
-    def _segments(self, corners, box):
-        """The boundary of (part ∩ rectangle) as segments in lattice lines, all in the part's
-        orientation: the part's edges clipped to the rectangle, then the rectangle's sides
-        clipped to the part. Returns ``[(x0, y0, x1, y1, exists)]``, :data:`_SEGMENTS` of them.
-        A side lying on a part edge of the same direction is left to the edge (no double count)."""
-        x0, x1, y0, y1 = box
-        px0, py0 = corners[0]
-        area = mi.Float64(0.0)
-        for k in range(MAX_PART_VERTICES):
-            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
-            area += (ax - px0) * (by - py0) - (ay - py0) * (bx - px0)
-        sign = dr.select(area >= 0, 1.0, -1.0)
-        out = []
-        for k in range(MAX_PART_VERTICES):
-            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
-            dx, dy = bx - ax, by - ay
-            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
-            for p, q in ((-dx, ax - x0), (dx, x1 - ax), (-dy, ay - y0), (dy, y1 - ay)):
-                t0, t1 = self._clip(p, q, t0, t1)
-            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy,
-                        (t1 > t0) & ((dx != 0) | (dy != 0))))
-        sides = ((x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0))
-        for sx0, sy0, sx1, sy1 in sides:
-            ax, ay = dr.select(sign > 0, sx0, sx1), dr.select(sign > 0, sy0, sy1)
-            bx, by = dr.select(sign > 0, sx1, sx0), dr.select(sign > 0, sy1, sy0)
-            dx, dy = bx - ax, by - ay
-            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
-            keep = mi.Bool(True)
-            for k in range(MAX_PART_VERTICES):
-                (cx, cy), (ex, ey) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
-                fx, fy = ex - cx, ey - cy
-                p = -sign * (fx * dy - fy * dx)
-                q = sign * (fx * (ay - cy) - fy * (ax - cx))
-                keep &= ~((p == 0) & (q == 0) & (fx * dx + fy * dy > 0))
-                t0, t1 = self._clip(p, q, t0, t1)
-            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy, keep & (t1 > t0)))
-        return out
-
-    def owned_po(self, ctx, rec, bounds) -> None:
-        """Per pulse, the PO integral over each owned piece, eqs. (T6), (PO1), (PO2), (PO5).
-
-        The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
-        as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
-        antenna, :meth:`_corner_lines`). Its integral is a flux through its boundary segments
-        ``a`` (counter-clockwise about the part's normal ``N``): with a fixed in-plane ``p``,
-        ``j (N . (p x a)) / (k u . p)`` times ``sinc(k u . a / 2)`` at the segment's midpoint, or
-        split into its ends as (PO2). ``p`` is the tile edge that the record splits (``e_2``, else
-        ``e_1``): on a side shared with a neighbour's tile the term is then the tile's own side or
-        corner term, evaluated at the same point by :meth:`_tile`, and the two cancel as (PO5)
-        says. With neither edge split, ``p = u_t`` (Gordon's form), and where the phase is flat over
-        the piece (``(k |u_t|)^2 A`` below :data:`FLAT_PHASE`) one term, the area at the centroid.
-        First bounce only.
-        """
-        k = self.k
-        n, nu = rec.n, mi.Array3f64(rec.n_unfolded)
-        normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.part_normal, rec.part))
-        specular = dr.gather(mi.Float, self.tables.specular, rec.row)
-        count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
-        cell = self._cell(ctx, rec.block)
-        flags = rec.flags
-        decided = [(flags & _SPLIT_1) != 0, (flags & _SPLIT_2) != 0]
-        open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]
-        lane = dr.arange(mi.UInt32, dr.width(rec.sub))
-        slots = 2 * _SEGMENTS + 1
-        paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
-        ctx["evaluated"] += slots * int(dr.sum(count)[0])
-
-        def body(q):
-            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
-            active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
-            # the record's splits, as its own tile takes them for this pulse (Returns.po)
-            centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, 0)
-            u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
-            split = [dr.select(o, dr.abs(0.5 * k * dr.dot(u_c, e)) >= self.split_at, s_)
-                     for o, s_, e in zip(open_, decided, edges_c)]
-            corners, _, _, m = self._corner_lines(ctx, rec, antenna)
-            xs, ys = [c[0] for c in corners], [c[1] for c in corners]
-            lo_x, hi_x, lo_y, hi_y = xs[0], xs[0], ys[0], ys[0]
-            for x_, y_ in zip(xs[1:], ys[1:]):
-                lo_x, hi_x = dr.minimum(lo_x, x_), dr.maximum(hi_x, x_)
-                lo_y, hi_y = dr.minimum(lo_y, y_), dr.maximum(hi_y, y_)
-            box = (dr.maximum(bounds[0], lo_x - 1.0), dr.minimum(bounds[1], hi_x + 1.0),
-                   dr.maximum(bounds[2], lo_y - 1.0), dr.minimum(bounds[3], hi_y + 1.0))
-            segments = self._segments(corners, box)
-            # area and centroid of the piece on the facet (float64, about the tube's centre)
-            ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0)[0],
-                     self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0)[0], exists)
-                    for x0, y0, x1, y1, exists in segments]
-            twice_area, moment = mi.Float64(0.0), mi.Array3f64(0.0)
-            for a, b, exists in ends:
-                cross = dr.select(exists, dr.dot(mi.Array3f64(normal), dr.cross(a - centre, b - centre)), 0.0)
-                twice_area += cross
-                moment += (a + b - 2.0 * centre) * cross
-            area = 0.5 * twice_area
-            centroid = centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
-            active &= area > 0
-            u_t = u_c - normal * dr.dot(u_c, normal)
-            flat = ~split[0] & ~split[1] & ((k * k) * dr.squared_norm(u_t) * mi.Float(area) < FLAT_PHASE)
-
-            def term(point, s, d, edges, factor, order, live, slot):
-                """Deposit ``j scale factor`` of a term at the facet point ``point`` (its unfolded
-                length ``s``, incoming direction ``d``, tile edges ``edges``)."""
-                outgoing = antenna - point
-                dist = dr.norm(outgoing)
-                b = mi.Vector3f(outgoing / dist)
-                cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
-                scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
-                    * self.weight(d, b, s, dist, lref, steer)
-                rel = s + dist - lref
-                value = mi.Complex2f(0.0, scale) * rec.gamma * factor * self.carrier_phase(rel)
-                live &= active & (cos_i > COS_GRAZING) & (s > 0)
-                self.sums.deposit(ctx, pulse, 0, self.anchor(rel, lref), 0.0,
-                                  [value * c for c in self.po_channels(rec, d, b, n, cos_i, 0)],
-                                  order, live, paths, (lane * slots + slot) * ctx["max_count"] + q)
-
-            # the flat piece: its area at its centroid (slot 0)
-            w = centroid - antenna
-            s_f = dr.norm(w)
-            term(centroid, s_f, mi.Vector3f(w / s_f), None, mi.Complex2f(mi.Float(area), 0.0),
-                 mi.UInt32(SPECTRAL_ORDERS.index(1)), flat, 0)
-            for index, ((x0, y0, x1, y1, exists), (a, b, _)) in enumerate(zip(segments, ends)):
-                seg = mi.Vector3f(b - a)
-                # a side of the rectangle takes its split from the record's tile, a part edge its own
-                along_x, along_y = index >= MAX_PART_VERTICES and index % 2 == 0, index >= MAX_PART_VERTICES and index % 2 == 1
-                own = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
-                cut = split[0] if along_x else split[1] if along_y else own
-                for end in range(2):
-                    if end == 0:
-                        x, y = dr.select(cut, x1, 0.5 * (x0 + x1)), dr.select(cut, y1, 0.5 * (y0 + y1))
-                    else:
-                        x, y = x0, y0
-                    point, s, d, edges = self._tile(rec, antenna, self._aim_point(x, y, m), cell, nu, 0)
-                    u = d - mi.Vector3f(dr.normalize(antenna - point))
-                    p = dr.select(split[1], edges[1], dr.select(split[0], edges[0], u - normal * dr.dot(u, normal)))
-                    up = dr.dot(u, p)
-                    flux = dr.dot(normal, dr.cross(p, seg)) / (k * dr.select(up != 0, up, 1.0))
-                    g = dr.dot(u, seg)
-                    g_safe = dr.select(g != 0, g, 1.0)
-                    if end == 0:
-                        factor = dr.select(cut, mi.Complex2f(-flux / (k * g_safe), 0.0),
-                                           mi.Complex2f(0.0, flux * _sinc(0.5 * k * g)))
-                        order = dr.select(cut, mi.UInt32(SPECTRAL_ORDERS.index(-1)), mi.UInt32(SPECTRAL_ORDERS.index(0)))
-                        live = exists & ~flat
-                    else:
-                        factor = mi.Complex2f(flux / (k * g_safe), 0.0)
-                        order = mi.UInt32(SPECTRAL_ORDERS.index(-1))
-                        live = exists & ~flat & cut
-                    term(point, s, d, edges, factor, order, live, 2 * index + 1 + end)
-            return (q + 1,)
-
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="owned_pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
 

@@ -1,0 +1,271 @@
+"""Owned regions in the kernel: the first-bounce PO integral over each owned piece of a part,
+per pulse (docs/physics.md (T6), (PO1), (PO2), (PO5)); a part of
+:class:`sarmitsuba.returns.Returns`, with ``lit_regions = owned``.
+
+The host plans which records own which pieces (:func:`sarmitsuba.owned_regions.plan`, the
+readable NumPy reference of the partition); here each piece is cut to its part as each pulse sees
+it, in lattice lines on the aim plane, and integrated as a flux through its boundary segments.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .deposit import SPECTRAL_ORDERS
+from .facets import MAX_PART_VERTICES, scene_parts
+from .owned_regions import plan as owned_plan
+
+__all__ = ["OwnedTerms", "PartTable", "FLAT_PHASE"]
+
+#: Below this ``(k |u_t|)^2 A`` a piece's phase is flat: one term, its area at its centroid (the
+#: neglected second moment is below about a 24th of it), eq. (T6).
+FLAT_PHASE = 2.5e-3
+#: Boundary segments of an owned piece: the part's corner slots and the rectangle's four sides.
+_SEGMENTS = MAX_PART_VERTICES + 4
+_INVALID = 0xFFFFFFFF
+# flags of kernel.Flags (repeated here: the kernel imports this module through returns)
+_SPLIT_1, _SPLIT_2, _UNDECIDED_1, _UNDECIDED_2, _OWNED = 32, 64, 256, 512, 1024
+
+
+@dataclass
+class PartTable:
+    """The convex parts of a scene's meshes (:func:`sarmitsuba.facets.scene_parts`) on the device:
+    each triangle's part (INVALID for degenerate ones), the corner slots (``part *
+    MAX_PART_VERTICES + slot``), unit normals and plane offsets (float64), and the corners again
+    (NumPy, for the host's plan)."""
+
+    triangle_part: mi.UInt32
+    corners: mi.Array3f64
+    normal: mi.Array3f64
+    offset: mi.Float64
+    vertices: np.ndarray
+
+    @staticmethod
+    def of(scene) -> "PartTable":
+        parts = scene_parts(scene)
+        corners = parts.vertices.reshape(-1, 3)
+        return PartTable(mi.UInt32(np.where(parts.triangle_part < 0, _INVALID, parts.triangle_part).astype(np.uint32)),
+                         mi.Array3f64(*(corners[:, c].copy() for c in range(3))),
+                         mi.Array3f64(*(parts.normal[:, c].copy() for c in range(3))),
+                         mi.Float64(parts.offset.copy()), parts.vertices)
+
+
+class OwnedTerms:
+    """The owned-region methods of :class:`sarmitsuba.returns.Returns` (which provides the tables,
+    the footprint, ``_tile``, ``_pulse``, ``weight``, ``po_channels``, the accumulator)."""
+
+    def _owned(self, ctx, rec):
+        """Plan the first-bounce records' owned regions on the host (:func:`owned_regions.plan`),
+        flag the owned records (their tiles are not evaluated, and no neighbour cancels against
+        them) and return the pieces: ``(records, bounds)`` or None when there are none."""
+        launch = ctx["launch"]
+        part = rec.part.numpy().astype(np.int64)
+        part[part == _INVALID] = -1
+        views = np.stack([launch.reference, launch.antenna[launch.first],
+                          launch.antenna[launch.first + launch.count - 1]], 1)
+        result = owned_plan(rec.sub.numpy(), part, rec.block.numpy(), rec.lattice.numpy(), launch.blocks,
+                            self.tables.parts.vertices, views, self.fp)
+        ctx["owned_groups"] += result.groups
+        ctx["owned_fallback"] += result.fallback
+        if not result.owned.any():
+            return None
+        rec.flags |= dr.select(mi.Bool(result.owned), mi.UInt32(_OWNED), mi.UInt32(0))
+        dr.eval(rec.flags)
+        pieces = dr.gather(type(rec), rec, mi.UInt32(result.record.astype(np.uint32)))
+        bounds = [mi.Float64(result.bounds[:, c].copy()) for c in range(4)]
+        dr.eval(pieces, bounds)
+        return pieces, bounds
+
+    def _corner_lines(self, ctx, rec, antenna):
+        """The record's part as the pulse at ``antenna`` sees it on the aim plane, in the lattice
+        lines of its tube size (as :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)``."""
+        fp = self.fp
+        origin, track, look = (mi.Array3f64(*v.tolist()) for v in (fp.origin, fp.track, fp.look))
+        normal = mi.Array3f64(*np.cross(fp.track, fp.look).tolist())
+        i0 = j0 = mi.Float64(0.0)           # lines counted from the scene's lattice origin
+        m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
+        height = dr.dot(normal, origin - antenna)
+        out = []
+        for k in range(MAX_PART_VERTICES):
+            w = dr.gather(mi.Array3f64, self.tables.parts.corners, rec.part * MAX_PART_VERTICES + k) - antenna
+            x = antenna + w * (height / dr.dot(normal, w)) - origin
+            out.append(((dr.dot(x, track) / fp.spacing_azimuth - i0) * m,
+                        ((dr.dot(x, look) - fp.range_min) / fp.spacing_range - j0) * m))
+        return out, i0, j0, m
+
+    def _aim_point(self, x, y, m):
+        """The aim-plane point at lattice lines ``(x, y)`` of tube size ``m`` (float64)."""
+        fp = self.fp
+        return mi.Array3f64(*fp.origin.tolist()) + mi.Array3f64(*fp.track.tolist()) * ((x / m) * fp.spacing_azimuth) \
+            + mi.Array3f64(*fp.look.tolist()) * ((y / m) * fp.spacing_range + fp.range_min)
+
+    @staticmethod
+    def _clip(p, q, t0, t1):
+        """Narrow ``[t0, t1]`` to where ``p t <= q`` (Liang and Barsky 1984); ``p = 0``: all or nothing."""
+        safe = dr.select(p != 0, p, 1.0)
+        t0 = dr.select(p < 0, dr.maximum(t0, q / safe), t0)
+        t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
+        return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
+
+    def _segments(self, corners, box):
+        """The boundary of (part ∩ rectangle) as segments in lattice lines, all in the part's
+        orientation: the part's edges clipped to the rectangle, then the rectangle's sides
+        clipped to the part. Returns ``[(x0, y0, x1, y1, exists)]``, :data:`_SEGMENTS` of them.
+        A side lying on a part edge of the same direction is left to the edge (no double count)."""
+        x0, x1, y0, y1 = box
+        px0, py0 = corners[0]
+        area = mi.Float64(0.0)
+        for k in range(MAX_PART_VERTICES):
+            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
+            area += (ax - px0) * (by - py0) - (ay - py0) * (bx - px0)
+        sign = dr.select(area >= 0, 1.0, -1.0)
+        out = []
+        for k in range(MAX_PART_VERTICES):
+            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
+            dx, dy = bx - ax, by - ay
+            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
+            for p, q in ((-dx, ax - x0), (dx, x1 - ax), (-dy, ay - y0), (dy, y1 - ay)):
+                t0, t1 = self._clip(p, q, t0, t1)
+            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy,
+                        (t1 > t0) & ((dx != 0) | (dy != 0))))
+        sides = ((x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0))
+        for sx0, sy0, sx1, sy1 in sides:
+            ax, ay = dr.select(sign > 0, sx0, sx1), dr.select(sign > 0, sy0, sy1)
+            bx, by = dr.select(sign > 0, sx1, sx0), dr.select(sign > 0, sy1, sy0)
+            dx, dy = bx - ax, by - ay
+            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
+            keep = mi.Bool(True)
+            for k in range(MAX_PART_VERTICES):
+                (cx, cy), (ex, ey) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
+                fx, fy = ex - cx, ey - cy
+                p = -sign * (fx * dy - fy * dx)
+                q = sign * (fx * (ay - cy) - fy * (ax - cx))
+                keep &= ~((p == 0) & (q == 0) & (fx * dx + fy * dy > 0))
+                t0, t1 = self._clip(p, q, t0, t1)
+            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy, keep & (t1 > t0)))
+        return out
+
+    @staticmethod
+    def _box(corners, bounds):
+        """The piece's rectangle ``bounds`` with its unbounded sides brought in to one line beyond
+        the part's projection ``corners``."""
+        xs, ys = [c[0] for c in corners], [c[1] for c in corners]
+        lo_x, hi_x, lo_y, hi_y = xs[0], xs[0], ys[0], ys[0]
+        for x_, y_ in zip(xs[1:], ys[1:]):
+            lo_x, hi_x = dr.minimum(lo_x, x_), dr.maximum(hi_x, x_)
+            lo_y, hi_y = dr.minimum(lo_y, y_), dr.maximum(hi_y, y_)
+        return (dr.maximum(bounds[0], lo_x - 1.0), dr.minimum(bounds[1], hi_x + 1.0),
+                dr.maximum(bounds[2], lo_y - 1.0), dr.minimum(bounds[3], hi_y + 1.0))
+
+    @staticmethod
+    def _area_centroid(ends, normal, centre):
+        """Area and centroid of a piece from its boundary segments ``(a, b, exists)`` on the facet
+        (float64, about the tube's centre ``centre``)."""
+        twice_area, moment = mi.Float64(0.0), mi.Array3f64(0.0)
+        for a, b, exists in ends:
+            cross = dr.select(exists, dr.dot(mi.Array3f64(normal), dr.cross(a - centre, b - centre)), 0.0)
+            twice_area += cross
+            moment += (a + b - 2.0 * centre) * cross
+        return 0.5 * twice_area, centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
+
+    def owned_po(self, ctx, rec, bounds) -> None:
+        """Per pulse, the PO integral over each owned piece, eqs. (T6), (PO1), (PO2), (PO5).
+
+        The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
+        as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
+        antenna, :meth:`_corner_lines`). Its integral is a flux through its boundary segments
+        ``a`` (counter-clockwise about the part's normal ``N``): with a fixed in-plane ``p``,
+        ``j (N . (p x a)) / (k u . p)`` times ``sinc(k u . a / 2)`` at the segment's midpoint, or
+        split into its ends as (PO2). ``p`` is the tile edge that the record splits (``e_2``, else
+        ``e_1``): on a side shared with a neighbour's tile the term is then the tile's own side or
+        corner term, evaluated at the same point by :meth:`_tile`, and the two cancel as (PO5)
+        says. With neither edge split, ``p = u_t`` (Gordon's form), and where the phase is flat over
+        the piece (``(k |u_t|)^2 A`` below :data:`FLAT_PHASE`) one term, the area at the centroid.
+        First bounce only.
+        """
+        k, n, nu, flags = self.k, rec.n, mi.Array3f64(rec.n_unfolded), rec.flags
+        normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part))
+        specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
+        cell, decided = self._cell(ctx, rec.block), [(flags & bit) != 0 for bit in (_SPLIT_1, _SPLIT_2)]
+        open_ = [(flags & bit) != 0 for bit in (_UNDECIDED_1, _UNDECIDED_2)]
+        lane, slots = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * _SEGMENTS + 1
+        paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
+        ctx["evaluated"] += slots * int(dr.sum(count)[0])
+
+        def body(q):
+            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+            active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
+            centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, 0)
+            u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
+            split = [dr.select(o, dr.abs(0.5 * k * dr.dot(u_c, e)) >= self.split_at, s_)   # as Returns.po
+                     for o, s_, e in zip(open_, decided, edges_c)]
+            corners, _, _, m = self._corner_lines(ctx, rec, antenna)
+            segments = self._segments(corners, self._box(corners, bounds))
+            ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0)[0],
+                     self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0)[0], exists)
+                    for x0, y0, x1, y1, exists in segments]
+            area, centroid = self._area_centroid(ends, normal, centre)
+            active &= area > 0
+            u_t = u_c - normal * dr.dot(u_c, normal)
+            flat = ~split[0] & ~split[1] & ((k * k) * dr.squared_norm(u_t) * mi.Float(area) < FLAT_PHASE)
+
+            def term(point, s, d, edges, factor, order, live, slot):
+                """Deposit ``j scale factor`` of a term at the facet point ``point`` (its unfolded
+                length ``s``, incoming direction ``d``, tile edges ``edges``)."""
+                outgoing = antenna - point
+                dist = dr.norm(outgoing)
+                b = mi.Vector3f(outgoing / dist)
+                cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
+                scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
+                    * self.weight(d, b, s, dist, lref, steer)
+                rel = s + dist - lref
+                value = mi.Complex2f(0.0, scale) * rec.gamma * factor * self.carrier_phase(rel)
+                live &= active & (cos_i > self.cos_grazing) & (s > 0)
+                self.sums.deposit(ctx, pulse, 0, self.anchor(rel, lref), 0.0,
+                                  [value * c for c in self.po_channels(rec, d, b, n, cos_i, 0)],
+                                  order, live, paths, (lane * slots + slot) * ctx["max_count"] + q)
+
+            # the flat piece: its area at its centroid (slot 0)
+            w = centroid - antenna
+            s_f = dr.norm(w)
+            term(centroid, s_f, mi.Vector3f(w / s_f), None, mi.Complex2f(mi.Float(area), 0.0),
+                 mi.UInt32(SPECTRAL_ORDERS.index(1)), flat, 0)
+            for index, ((x0, y0, x1, y1, exists), (a, b, _)) in enumerate(zip(segments, ends)):
+                seg = mi.Vector3f(b - a)
+                # a side of the rectangle takes its split from the record's tile, a part edge its own
+                along_x, along_y = index >= MAX_PART_VERTICES and index % 2 == 0, index >= MAX_PART_VERTICES and index % 2 == 1
+                own = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
+                cut = split[0] if along_x else split[1] if along_y else own
+                for end in range(2):
+                    if end == 0:
+                        x, y = dr.select(cut, x1, 0.5 * (x0 + x1)), dr.select(cut, y1, 0.5 * (y0 + y1))
+                    else:
+                        x, y = x0, y0
+                    point, s, d, edges = self._tile(rec, antenna, self._aim_point(x, y, m), cell, nu, 0)
+                    u = d - mi.Vector3f(dr.normalize(antenna - point))
+                    p = dr.select(split[1], edges[1], dr.select(split[0], edges[0], u - normal * dr.dot(u, normal)))
+                    up = dr.dot(u, p)
+                    flux = dr.dot(normal, dr.cross(p, seg)) / (k * dr.select(up != 0, up, 1.0))
+                    g = dr.dot(u, seg)
+                    g_safe = dr.select(g != 0, g, 1.0)
+                    if end == 0:
+                        factor = dr.select(cut, mi.Complex2f(-flux / (k * g_safe), 0.0),
+                                           mi.Complex2f(0.0, flux * self.sinc(0.5 * k * g)))
+                        order = dr.select(cut, mi.UInt32(SPECTRAL_ORDERS.index(-1)), mi.UInt32(SPECTRAL_ORDERS.index(0)))
+                        live = exists & ~flat
+                    else:
+                        factor = mi.Complex2f(flux / (k * g_safe), 0.0)
+                        order = mi.UInt32(SPECTRAL_ORDERS.index(-1))
+                        live = exists & ~flat & cut
+                    term(point, s, d, edges, factor, order, live, 2 * index + 1 + end)
+            return (q + 1,)
+
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="owned_pulses")
+        if paths is not None:
+            self.sums.keep_paths(ctx, paths)
+
