@@ -70,8 +70,6 @@ class OwnedTerms:
                           launch.antenna[launch.first + launch.count - 1]], 1)
         result = owned_plan(rec.sub.numpy(), part, rec.block.numpy(), rec.lattice.numpy(), launch.blocks,
                             self.tables.parts.vertices, views, self.fp)
-        ctx["owned_groups"] += result.groups
-        ctx["owned_fallback"] += result.fallback
         if not result.owned.any():
             return None
         rec.flags |= dr.select(mi.Bool(result.owned), mi.UInt32(_OWNED), mi.UInt32(0))
@@ -83,20 +81,20 @@ class OwnedTerms:
 
     def _corner_lines(self, ctx, rec, antenna):
         """The record's part as the pulse at ``antenna`` sees it on the aim plane, in the lattice
-        lines of its tube size (as :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)``."""
+        lines of its tube size, counted from the scene's lattice origin (as
+        :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)`` and the tube size ``m``."""
         fp = self.fp
         origin, track, look = (mi.Array3f64(*v.tolist()) for v in (fp.origin, fp.track, fp.look))
         normal = mi.Array3f64(*np.cross(fp.track, fp.look).tolist())
-        i0 = j0 = mi.Float64(0.0)           # lines counted from the scene's lattice origin
         m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
         height = dr.dot(normal, origin - antenna)
         out = []
         for k in range(MAX_PART_VERTICES):
             w = dr.gather(mi.Array3f64, self.tables.parts.corners, rec.part * MAX_PART_VERTICES + k) - antenna
             x = antenna + w * (height / dr.dot(normal, w)) - origin
-            out.append(((dr.dot(x, track) / fp.spacing_azimuth - i0) * m,
-                        ((dr.dot(x, look) - fp.range_min) / fp.spacing_range - j0) * m))
-        return out, i0, j0, m
+            out.append((dr.dot(x, track) / fp.spacing_azimuth * m,
+                        (dr.dot(x, look) - fp.range_min) / fp.spacing_range * m))
+        return out, m
 
     def _aim_point(self, x, y, m):
         """The aim-plane point at lattice lines ``(x, y)`` of tube size ``m`` (float64)."""
@@ -178,15 +176,14 @@ class OwnedTerms:
 
         The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
         as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
-        antenna, :meth:`_corner_lines`). Its integral is a flux through its boundary segments
-        ``a`` (counter-clockwise about the part's normal ``N``): with a fixed in-plane ``p``,
-        ``j (N . (p x a)) / (k u . p)`` times ``sinc(k u . a / 2)`` at the segment's midpoint, or
-        split into its ends as (PO2). ``p`` is the tile edge that the record splits (``e_2``, else
-        ``e_1``): on a side shared with a neighbour's tile the term is then the tile's own side or
-        corner term, evaluated at the same point by :meth:`_tile`, and the two cancel as (PO5)
-        says. With neither edge split, ``p = u_t`` (Gordon's form), and where the phase is flat over
-        the piece (``(k |u_t|)^2 A`` below :data:`FLAT_PHASE`) one term, the area at the centroid.
-        First bounce only.
+        antenna, :meth:`_corner_lines`). Its integral is Gordon's edge form: per boundary segment
+        ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``
+        times ``sinc(k u . a / 2)`` at the segment's midpoint, or split into its ends as (PO2)
+        (a side of the rectangle where the record's tile splits that edge, a part edge where its
+        own ``|alpha|`` reaches the threshold). Every term is evaluated at its own point as the
+        tile terms are (:meth:`_tile`: exact float64 legs, the amplitude and ``u = d - b``
+        there). Where the phase is flat over the piece (``(k |u_t|)^2 A`` below
+        :data:`FLAT_PHASE`) the piece returns one term, its area at its centroid. First bounce only.
         """
         k, n, nu, flags = self.k, rec.n, mi.Array3f64(rec.n_unfolded), rec.flags
         normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part))
@@ -200,23 +197,22 @@ class OwnedTerms:
         def body(q):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
-            centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, 0)
-            u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
-            split = [dr.select(o, dr.abs(0.5 * k * dr.dot(u_c, e)) >= self.split_at, s_)   # as Returns.po
-                     for o, s_, e in zip(open_, decided, edges_c)]
-            corners, _, _, m = self._corner_lines(ctx, rec, antenna)
+            split, centre, u_c = self.pulse_split(rec, antenna, cell, nu, 0, decided, open_)
+            corners, m = self._corner_lines(ctx, rec, antenna)
             segments = self._segments(corners, self._box(corners, bounds))
-            ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0)[0],
-                     self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0)[0], exists)
-                    for x0, y0, x1, y1, exists in segments]
-            area, centroid = self._area_centroid(ends, normal, centre)
+            # each segment's ends on the facet (point, unfolded length, direction, tile edges)
+            ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0),
+                     self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0))
+                    for x0, y0, x1, y1, _ in segments]
+            area, centroid = self._area_centroid([(a[0], b[0], seg[4]) for (a, b), seg in zip(ends, segments)],
+                                                 normal, centre)
             active &= area > 0
             u_t = u_c - normal * dr.dot(u_c, normal)
             flat = ~split[0] & ~split[1] & ((k * k) * dr.squared_norm(u_t) * mi.Float(area) < FLAT_PHASE)
 
-            def term(point, s, d, edges, factor, order, live, slot):
+            def term(point, s, d, factor, order, live, slot):
                 """Deposit ``j scale factor`` of a term at the facet point ``point`` (its unfolded
-                length ``s``, incoming direction ``d``, tile edges ``edges``)."""
+                length ``s``, incoming direction ``d``)."""
                 outgoing = antenna - point
                 dist = dr.norm(outgoing)
                 b = mi.Vector3f(outgoing / dist)
@@ -233,24 +229,23 @@ class OwnedTerms:
             # the flat piece: its area at its centroid (slot 0)
             w = centroid - antenna
             s_f = dr.norm(w)
-            term(centroid, s_f, mi.Vector3f(w / s_f), None, mi.Complex2f(mi.Float(area), 0.0),
+            term(centroid, s_f, mi.Vector3f(w / s_f), mi.Complex2f(mi.Float(area), 0.0),
                  mi.UInt32(SPECTRAL_ORDERS.index(1)), flat, 0)
-            for index, ((x0, y0, x1, y1, exists), (a, b, _)) in enumerate(zip(segments, ends)):
-                seg = mi.Vector3f(b - a)
+            for index, ((x0, y0, x1, y1, exists), (start, stop)) in enumerate(zip(segments, ends)):
+                seg = mi.Vector3f(stop[0] - start[0])
                 # a side of the rectangle takes its split from the record's tile, a part edge its own
                 along_x, along_y = index >= MAX_PART_VERTICES and index % 2 == 0, index >= MAX_PART_VERTICES and index % 2 == 1
                 own = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
                 cut = split[0] if along_x else split[1] if along_y else own
-                for end in range(2):
-                    if end == 0:
-                        x, y = dr.select(cut, x1, 0.5 * (x0 + x1)), dr.select(cut, y1, 0.5 * (y0 + y1))
-                    else:
-                        x, y = x0, y0
-                    point, s, d, edges = self._tile(rec, antenna, self._aim_point(x, y, m), cell, nu, 0)
+                middle = self._tile(rec, antenna, self._aim_point(0.5 * (x0 + x1), 0.5 * (y0 + y1), m), cell, nu, 0)
+                for end in range(2):       # the stop (split) or the middle (sinc); the start (split)
+                    point, s, d, edges = start if end else (
+                        *(dr.select(cut, a, b) for a, b in zip(stop[:3], middle[:3])),
+                        [dr.select(cut, a, b) for a, b in zip(stop[3], middle[3])])
                     u = d - mi.Vector3f(dr.normalize(antenna - point))
-                    p = dr.select(split[1], edges[1], dr.select(split[0], edges[0], u - normal * dr.dot(u, normal)))
-                    up = dr.dot(u, p)
-                    flux = dr.dot(normal, dr.cross(p, seg)) / (k * dr.select(up != 0, up, 1.0))
+                    u_t = u - normal * dr.dot(u, normal)
+                    up = dr.dot(u, u_t)
+                    flux = dr.dot(normal, dr.cross(u_t, seg)) / (k * dr.select(up != 0, up, 1.0))
                     g = dr.dot(u, seg)
                     g_safe = dr.select(g != 0, g, 1.0)
                     if end == 0:
@@ -262,7 +257,7 @@ class OwnedTerms:
                         factor = mi.Complex2f(flux / (k * g_safe), 0.0)
                         order = mi.UInt32(SPECTRAL_ORDERS.index(-1))
                         live = exists & ~flat & cut
-                    term(point, s, d, edges, factor, order, live, 2 * index + 1 + end)
+                    term(point, s, d, factor, order, live, 2 * index + 1 + end)
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="owned_pulses")

@@ -131,7 +131,6 @@ class Returns(OwnedTerms):
                    middle=f64(launch.lref[launch.first + launch.count // 2].copy()),
                    block_nj=mi.UInt32(launch.blocks.n_j), block_m=mi.UInt32(launch.blocks.m),
                    launch=launch,
-                   owned_groups=0, owned_fallback=0,
                    max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
@@ -426,6 +425,14 @@ class Returns(OwnedTerms):
             undecided.append(~split[j] & ~sinc)
         return alpha, split, undecided
 
+    def pulse_split(self, rec, antenna, cell, nu, depth: int, decided, undecided):
+        """The tile's two split flags for the pulse at ``antenna`` (``decided``, or where ``undecided``
+        its own ``|alpha|`` at the tube's centre, (T3)), that centre and ``u = d - b`` there."""
+        centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)
+        u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
+        return [dr.select(o, dr.abs(0.5 * self.k * dr.dot(u_c, e)) >= self.split_at, s_)
+                for o, s_, e in zip(undecided, decided, edges_c)], centre, u_c
+
     def _tile(self, rec, antenna, corner, cell, nu, depth: int):
         """Where the pulse at ``antenna`` puts a point ``corner`` of the tube's aim cell on the facet:
         the unfolded ray meets the facet's unfolded plane (eq. (T3)). Returns the scene point
@@ -462,8 +469,7 @@ class Returns(OwnedTerms):
         cell = self._cell(ctx, rec.block)
         corner = rec.aim + cell[0] * mi.Float64(0.5 * sigma[0]) + cell[1] * mi.Float64(0.5 * sigma[1])
         specular = dr.gather(mi.Float, self.tables.specular, rec.row)
-        count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
-        term = dr.arange(mi.UInt32, dr.width(code))
+        count, term = dr.gather(mi.UInt32, ctx["count"], rec.sub), dr.arange(mi.UInt32, dr.width(code))
         paths = self.sums.path_buffers(dr.width(code) * ctx["max_count"]) if self.exact else None
         open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]
 
@@ -471,10 +477,7 @@ class Returns(OwnedTerms):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             split, active = decided, self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             if per_pulse:                     # the pulse's own split at the tube's centre
-                centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)
-                u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
-                split = [dr.select(o, dr.abs(0.5 * k * dr.dot(u_c, e)) >= self.split_at, s_)
-                         for o, s_, e in zip(open_, decided, edges_c)]
+                split = self.pulse_split(rec, antenna, cell, nu, depth, decided, open_)[0]
                 for s_, sg in zip(split, sigma):
                     active &= dr.select(s_, sg != 0.0, sg == 0.0)
             point, s, d, edges = self._tile(rec, antenna, corner, cell, nu, depth)
