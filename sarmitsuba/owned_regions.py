@@ -170,9 +170,8 @@ class OwnedPlan:
         lines of the record's tube size ``m`` (:func:`lattice_lines` with ``i0 = j0 = 0``: cell
         ``(i, j)`` is ``[i, i + 1] x [j, j + 1]``), +-:data:`UNBOUNDED` where it runs to infinity.
     groups, fallback : int
-        Facet-and-sub-aperture groups seen, and those left to whole tiles (members not contiguous,
-        a lattice cell inside the part that is no member: occlusion, the beam's edge, tubes of
-        several sizes).
+        Facet-and-sub-aperture groups seen, and those left to whole tiles (member columns or rows
+        not contiguous, a member where the part is not, tubes of several sizes).
     """
 
     owned: np.ndarray
@@ -206,15 +205,32 @@ def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
     return np.stack([(a - i0) * m, (r - j0) * m], axis=-1)
 
 
+def _key(a, b):
+    """One int64 key per pair of non-negative ``a`` < 2**31 and int32 ``b`` (sorted as the pairs)."""
+    return (np.asarray(a, np.int64) << 32) + (np.asarray(b, np.int64) + (1 << 31))
+
+
 def _pair_ranges(g, x, y):
     """For the distinct pairs ``(g, x)``: their keys, ``min y``, ``max y``, count, and each input's pair."""
-    pairs, inverse = np.unique(np.stack([g, x], 1), axis=0, return_inverse=True)
+    keys, inverse = np.unique(_key(g, x), return_inverse=True)
     inverse = inverse.ravel()
+    pairs = np.stack([keys >> 32, (keys & 0xFFFFFFFF) - (1 << 31)], 1)
     lo = np.full(len(pairs), np.iinfo(np.int64).max)
     hi = np.full(len(pairs), np.iinfo(np.int64).min)
     np.minimum.at(lo, inverse, y)
     np.maximum.at(hi, inverse, y)
     return pairs, lo, hi, np.bincount(inverse, minlength=len(pairs)), inverse
+
+
+def _depth(polygon, points):
+    """How far ``points`` [n, 2] lie inside the convex ``polygon`` [n, v, 2] (either orientation;
+    repeated corners allowed): the smallest distance to an edge's line, negative outside."""
+    e = np.roll(polygon, -1, axis=1) - polygon
+    p0 = polygon[:, :1]
+    area = _cross(polygon - p0, np.roll(polygon, -1, axis=1) - p0).sum(1)
+    length = np.linalg.norm(e, axis=-1)
+    side = np.sign(area)[:, None] * _cross(e, points[:, None] - polygon) / np.where(length > 0, length, 1.0)
+    return np.where(length > 0, side, np.inf).min(1)
 
 
 def _inside(polygon, points, tolerance=1e-9):
@@ -233,14 +249,17 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
 
     A group is one part (convex planar polygon of :mod:`sarmitsuba.facets`) and one
     sub-aperture. Members are counted on the lattice of their tubes' size (``m`` tubes per coarse
-    cell edge, from the scene's lattice origin), whatever block traced them. It gets owned
-    regions when its members have one tube size, the members of each
-    column and row and the member columns and rows are contiguous, and the members are exactly
-    the lattice cells whose centres the reference position sees inside the part: so every
-    boundary of the members' cells is the part's own border, never a shadow, the beam's edge or
-    a cell traced by tubes of another size. Its owned records are the ends of columns and rows and every member whose
-    cell leaves the part as the sub-aperture's first, middle or last pulse sees it (parallax);
-    the rest keep their whole tiles, which lie inside the part for every pulse.
+    cell edge, from the scene's lattice origin), whatever block traced them. A group gets owned
+    regions when its members have one tube size, its member columns and rows are contiguous, and
+    every column's and row's members lie among the cells whose centres the reference position sees
+    inside the part. An end of a column or row is the part's edge when the next cell's centre is
+    outside the part; else it is *cut* (a shadow, the beam's edge, the range window), and the
+    cell owns nothing beyond itself there. Members may leave holes (occluders): the tiles around
+    a hole bound it. Where a side of the members has a cut end, every piece stops at the members'
+    last lattice line on that side (exact for a straight cut). The owned records are the ends at
+    the part's edge and every member whose cell leaves the part as the sub-aperture's first,
+    middle or last pulse sees it (parallax); the rest keep their whole tiles, which lie inside the
+    part for every pulse.
 
     Parameters
     ----------
@@ -263,7 +282,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     idx = np.flatnonzero(part >= 0)
     if idx.size == 0:
         return empty
-    _, g = np.unique(np.stack([sub[idx], part[idx]], 1), axis=0, return_inverse=True)
+    _, g = np.unique(_key(sub[idx], part[idx]), return_inverse=True)
     g = g.ravel()
     n_g = int(g.max()) + 1
     b = block[idx]
@@ -279,8 +298,6 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     j = blocks.j0.astype(np.int64)[b] * m_rec + rest % n_j
     cols, jmin, jmax, ccount, col_of = _pair_ranges(g, i, j)
     rows, imin, imax, rcount, row_of = _pair_ranges(g, j, i)
-    ok &= np.bincount(cols[:, 0], weights=ccount != jmax - jmin + 1, minlength=n_g) == 0
-    ok &= np.bincount(rows[:, 0], weights=rcount != imax - imin + 1, minlength=n_g) == 0
     bounds_g = []
     for values, keys in ((cols[:, 1], cols[:, 0]), (rows[:, 1], rows[:, 0])):
         lo = np.full(n_g, np.iinfo(np.int64).max)
@@ -299,60 +316,97 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
              for v in range(3)]
     ref = polys[0]
     ok &= np.isfinite(ref).all((1, 2))
-    # a part much larger than its members has cells that are not members: left to tiles unseen
-    ok &= (ref[..., 0].min(1) >= cmin - 2) & (ref[..., 0].max(1) <= cmax + 3)
-    ok &= (ref[..., 1].min(1) >= rmin - 2) & (ref[..., 1].max(1) <= rmax + 3)
-    # every cell centre inside the part is a member: per column, the centres' rows inside
-    c_lo = np.ceil(np.where(ok, ref[..., 0].min(1), 0) - 0.5).astype(np.int64)
-    c_hi = np.floor(np.where(ok, ref[..., 0].max(1), -1) - 0.5).astype(np.int64)
+    # ---- each column's and row's members lie in the cells whose centres the reference position
+    #      sees inside the part; an end short of the part's edge is cut (shadow, beam, range) ----
+    column_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref, 0.0)), cols, jmin, jmax, n_g)
+    row_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0)), rows, imin, imax, n_g)
+    ok &= column_ends[0] & row_ends[0]
+    (_, lo_part, hi_part), (_, left_part, right_part) = column_ends, row_ends
+    # a side of the group with a cut end bounds every piece at the members' last lattice line
+    box = np.stack([np.where(_all_by(rows[:, 0], left_part, n_g), -UNBOUNDED, cmin),
+                    np.where(_all_by(rows[:, 0], right_part, n_g), UNBOUNDED, cmax + 1),
+                    np.where(_all_by(cols[:, 0], lo_part, n_g), -UNBOUNDED, rmin),
+                    np.where(_all_by(cols[:, 0], hi_part, n_g), UNBOUNDED, rmax + 1)], 1).astype(float)
+    # ---- owned: ends at the part's edge, and cells some view sees leave the part ----
+    good = ok[g]
+    ends = ((j == jmin[col_of]) & lo_part[col_of], (j == jmax[col_of]) & hi_part[col_of],
+            (i == imin[row_of]) & left_part[row_of], (i == imax[row_of]) & right_part[row_of])
+    corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
+    # a cell can leave the part only near its edge: farther (in cells) than the views' largest
+    # corner shift, plus the cell's half diagonal, it stays inside in every view
+    shift = np.max([np.abs(poly - ref).max((1, 2)) for poly in polys[1:]], axis=0)
+    near = good & (_depth(ref[g], corners.mean(1)) <= shift[g] + 1.0)
+    leaves = np.zeros(idx.size, bool)
+    for poly in polys:
+        leaves[near] |= ~_inside(poly[g[near]], corners[near]).all(1)
+    mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves)
+    owned = np.zeros(n, bool)
+    owned[idx[mine]] = True
+    records, bounds = _pieces(idx[mine], g[mine], i[mine], j[mine], [e[mine] for e in ends], (cmin, cmax, rmin, rmax),
+                              box)
+    return OwnedPlan(owned, records, bounds, groups=n_g, fallback=int(n_g - ok.sum()))
+
+
+def _all_by(keys, values, n):
+    """Per group (``keys`` in ``[0, n)``): whether every one of its ``values`` is true."""
+    return np.bincount(keys, weights=~values, minlength=n) == 0
+
+
+def _centre_spans(poly):
+    """The cells whose centres lie inside each convex polygon (float64 [n_g, v, 2], lattice lines;
+    repeated corners allowed), per column: int64 [n, 4] rows ``(group, column, row_lo, row_hi)``."""
+    n_g = len(poly)
+    c_lo = np.ceil(poly[..., 0].min(1) - 0.5).astype(np.int64)
+    c_hi = np.floor(poly[..., 0].max(1) - 0.5).astype(np.int64)
     count = np.maximum(c_hi - c_lo + 1, 0)
     cg = np.repeat(np.arange(n_g), count)
     cc = c_lo[cg] + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
     x = cc + 0.5
-    pa, pb = ref[cg], np.roll(ref[cg], -1, axis=1)
+    pa, pb = poly[cg], np.roll(poly[cg], -1, axis=1)
     xa, xb, ya, yb = pa[..., 0], pb[..., 0], pa[..., 1], pb[..., 1]
     spans = (np.minimum(xa, xb) <= x[:, None]) & (np.maximum(xa, xb) >= x[:, None]) & (xa != xb)
     t = np.where(spans, (x[:, None] - xa) / np.where(xa != xb, xb - xa, 1.0), 0.0)
     y = ya + t * (yb - ya)
-    y_lo = np.where(spans, y, np.inf).min(1)
-    y_hi = np.where(spans, y, -np.inf).max(1)
-    j_lo, j_hi = np.ceil(y_lo - 0.5), np.floor(y_hi - 0.5)
+    j_lo = np.ceil(np.where(spans, y, np.inf).min(1) - 0.5)
+    j_hi = np.floor(np.where(spans, y, -np.inf).max(1) - 0.5)
     has = np.isfinite(j_lo) & np.isfinite(j_hi) & (j_lo <= j_hi)
-    geometric = np.stack([cg[has], cc[has], j_lo[has].astype(np.int64), j_hi[has].astype(np.int64)], 1)
-    member = np.stack([cols[:, 0], cols[:, 1], jmin, jmax], 1)
-    both, seen = np.unique(np.concatenate([geometric, member]), axis=0, return_counts=True)
-    matched = np.bincount(both[seen == 2, 0], minlength=n_g)
-    ok &= (matched == np.bincount(geometric[:, 0], minlength=n_g)) & (matched == np.bincount(member[:, 0], minlength=n_g))
-    # ---- owned: ends of columns and rows, and cells some view sees leave the part ----
-    good = ok[g]
-    end = (j == jmin[col_of]) | (j == jmax[col_of]) | (i == imin[row_of]) | (i == imax[row_of])
-    corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
-    leaves = np.zeros(idx.size, bool)
-    for poly in polys:
-        leaves |= ~_inside(poly[g], corners).all(1)
-    mine = good & (end | leaves)
-    owned = np.zeros(n, bool)
-    owned[idx[mine]] = True
-    records, bounds = _pieces(idx[mine], g[mine], i[mine], j[mine], col_of[mine], row_of[mine],
-                              (jmin, jmax, imin, imax), (cmin, cmax, rmin, rmax))
-    return OwnedPlan(owned, records, bounds, groups=n_g, fallback=int(n_g - ok.sum()))
+    return np.stack([cg[has], cc[has], j_lo[has].astype(np.int64), j_hi[has].astype(np.int64)], 1)
 
 
-def _pieces(records, gi, ii, jj, c_of, r_of, lines, extent):
-    """The owned records' pieces (T6), sorted by record: the column piece, and the row band in the
-    member-less columns left and right when the record ends its row. ``lines``: per column its
-    ``jmin, jmax``, per row its ``imin, imax``; ``extent``: per group ``cmin, cmax, rmin, rmax``."""
-    jmin, jmax, imin, imax = lines
+def _ends(spans, lines, lo, hi, n_g):
+    """Per group, whether each member line (``lines`` [n, 2]: group, column or row) has its members
+    ``[lo, hi]`` inside the cells whose centres lie in the part (``spans`` of
+    :func:`_centre_spans`), and per line whether its low and high end is the part's edge."""
+    keys = spans[:, 0] * (1 << 32) + spans[:, 1]
+    order = np.argsort(keys)
+    query = lines[:, 0] * (1 << 32) + lines[:, 1]
+    at = np.clip(np.searchsorted(keys[order], query), 0, max(len(keys) - 1, 0))
+    found = (keys[order][at] == query) if len(keys) else np.zeros(len(query), bool)
+    s_lo, s_hi = (spans[order, c][at] if len(keys) else np.zeros(len(query), np.int64) for c in (2, 3))
+    inside = found & (lo >= s_lo) & (hi <= s_hi)
+    return _all_by(lines[:, 0], inside, n_g), inside & (lo == s_lo), inside & (hi == s_hi)
+
+
+def _pieces(records, gi, ii, jj, ends, extent, box):
+    """The owned records' pieces (T6), sorted by record: the column piece (beyond the record's
+    cell where it ends its column at the part's edge), and the row band in the member-less columns
+    left and right when it ends its row at the part's edge. ``ends``: the record ends its column
+    low, high, its row left, right at the part's edge; ``extent``: per group ``cmin, cmax, rmin,
+    rmax``; ``box``: per group the lines every piece stays within (``UNBOUNDED`` where no cut)."""
+    low, high, left, right = ends
     cmin, cmax, rmin, rmax = extent
     inf = UNBOUNDED
-    column = np.stack([ii, ii + 1, np.where(jj > jmin[c_of], jj, -inf), np.where(jj < jmax[c_of], jj + 1, inf)], 1)
+    column = np.stack([ii, ii + 1, np.where(low, -inf, jj), np.where(high, inf, jj + 1)], 1)
     band_lo = np.where(jj > rmin[gi], jj, -inf)
     band_hi = np.where(jj < rmax[gi], jj + 1, inf)
-    left = ii == imin[r_of]
-    right = ii == imax[r_of]
     pieces = [column,
               np.stack([np.full(ii.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
               np.stack([cmax[gi] + 1.0, np.full(ii.size, inf), band_lo, band_hi], 1)[right]]
     out = np.concatenate([records, records[left], records[right]])
-    order = np.argsort(out, kind="stable")
-    return out[order], np.concatenate(pieces).astype(float)[order]
+    groups = np.concatenate([gi, gi[left], gi[right]])
+    bounds = np.concatenate(pieces).astype(float)
+    lo, hi = box[groups][:, 0::2], box[groups][:, 1::2]
+    bounds = np.clip(bounds, np.repeat(lo, 2, axis=1), np.repeat(hi, 2, axis=1))
+    keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
+    order = np.argsort(out[keep], kind="stable")
+    return out[keep][order], bounds[keep][order]

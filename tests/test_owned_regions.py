@@ -111,9 +111,11 @@ def _ccw(poly):
     return poly if _shoelace(poly) > 0 else poly[::-1]
 
 
-def _plan_case(deg, height, occluded=False, m=1):
+def _plan_case(deg, height, occluded=False, m=1, cut=None):
     """A triangle turned ``deg`` at ``height`` over the aim plane, seen from 1 km up and 1 km
-    across; its members are the cells whose centre the reference position sees inside it."""
+    across; its members are the cells whose centre the reference position sees inside it (and
+    inside the lattice-line rectangle ``cut``, ``(x0, x1, y0, y1)``, when given: the beam's edge
+    or the range window)."""
     tri = np.c_[_rotated([[-3.0, -2.0], [4.0, -1.0], [0.5, 3.5]], deg), np.full(3, height)]
     tri[:, 1] += 2.0
     views = np.array([[[0.0, -1000.0, 1000.0], [-9.0, -1000.0, 1000.0], [9.0, -1000.0, 1000.0]]])
@@ -125,29 +127,36 @@ def _plan_case(deg, height, occluded=False, m=1):
     inside = np.ones(len(centres), bool)
     for a, b in zip(poly, np.roll(poly, -1, axis=0)):
         inside &= (b - a)[0] * (centres - a)[:, 1] - (b - a)[1] * (centres - a)[:, 0] > 0
+    if cut is not None:
+        inside &= np.any([(gi.ravel() >= x0) & (gi.ravel() + 1 <= x1) & (gj.ravel() >= y0) & (gj.ravel() + 1 <= y1)
+                          for x0, x1, y0, y1 in cut], axis=0)
     lane = np.flatnonzero(inside)
     if occluded == "interior":         # an occluder hides one interior member
         lane = np.delete(lane, len(lane) // 2)
-    elif occluded == "border":         # ... or the last member of the top row: still contiguous
-        top = np.flatnonzero(gj.ravel()[lane] == gj.ravel()[lane].max())
-        lane = np.delete(lane, top[np.argmax(gi.ravel()[lane][top])])
+    elif occluded == "stray":          # ... or a tube meets the part outside it (no member may)
+        lane = np.append(lane, lane.max() + 1)
+    elif occluded == "column":         # ... or a whole column of members
+        lane = lane[gi.ravel()[lane] != np.median(gi.ravel()[lane]).round()]
     n = len(lane)
     result = plan(np.zeros(n), np.zeros(n), np.zeros(n), lane, blocks, np.concatenate([tri, tri[-1:]])[None], views, _FP)
     return tri, views, result, np.stack([gi.ravel()[lane], gj.ravel()[lane]], 1)
 
 
-@pytest.mark.parametrize("deg", [30.0, 60.0])
-@pytest.mark.parametrize("height", [0.0, 35.0])
-def test_plan_pieces_and_whole_tiles_tile_the_part_for_every_view(deg, height):
-    """The plan's owned pieces (cut to the part) and the tiles of the members it leaves whole
-    tile the part as each pulse sees it: areas and Gordon's integral over the part, for the
-    sub-aperture's reference, first and last pulse and one between (35 m up: 0.7 cells of
-    parallax between the ends)."""
-    tri, views, result, cells = _plan_case(deg, height)
-    assert result.fallback == 0 and result.owned.any() and not result.owned.all()
+def _assert_tiles(tri, views, result, cells, cut=None, hole=None):
+    """The plan's owned pieces (cut to the part) and the tiles of the members it leaves whole tile
+    the part (within ``cut``, less the cell ``hole``) as each pulse sees it: areas and Gordon's
+    integral, for the sub-aperture's reference, first and last pulse and one between."""
     for antenna in (*views[0], 0.3 * views[0, 1] + 0.7 * views[0, 0]):
         part = _ccw(lattice_lines(tri, antenna, _FP, 0.0, 0.0, 1.0))
         edges = [(part[n], part[(n + 1) % 3]) for n in range(3)]
+        targets = [part]
+        if cut is not None:      # the part within each rectangle, as half-planes (left side kept)
+            targets = []
+            for x0, x1, y0, y1 in cut:
+                target = part
+                for line in (((x0, 1), (x0, 0)), ((x1, 0), (x1, 1)), ((0, y0), (1, y0)), ((1, y1), (0, y1))):
+                    target = clip_convex(target, line)
+                targets.append(target)
         pieces = []
         for x0, x1, y0, y1 in result.bounds:
             x0, x1, y0, y1 = (float(np.clip(v, -1e4, 1e4)) for v in (x0, x1, y0, y1))
@@ -160,18 +169,76 @@ def test_plan_pieces_and_whole_tiles_tile_the_part_for_every_view(deg, height):
             tile = np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float)
             assert len(clip_convex(clip_convex(clip_convex(tile, edges[0]), edges[1]), edges[2])) == 4
             pieces.append(tile)
-        assert sum(_shoelace(p) for p in pieces) == pytest.approx(_shoelace(part), rel=1e-12)
+        holes = [] if hole is None else [hole]
+        area = sum(_shoelace(t) for t in targets) - sum(_shoelace(h) for h in holes)
+        assert sum(_shoelace(p) for p in pieces) == pytest.approx(area, rel=1e-12)
         for q in ([2.1, -1.3], [0.4, 3.7]):
             total = sum(_integral(p, np.array(q)) for p in pieces)
-            assert abs(total - _integral(part, np.array(q))) < 1e-10 * _shoelace(part)
+            expected = sum(_integral(t, np.array(q)) for t in targets if len(t) >= 3) \
+                - sum(_integral(h, np.array(q)) for h in holes)
+            assert abs(total - expected) < 1e-10 * area
 
 
-@pytest.mark.parametrize("where", ["interior", "border"])
-def test_plan_leaves_an_occluded_part_to_whole_tiles(where):
-    """A cell inside the part that is no member (an occluder's shadow): inside, it breaks
-    contiguity; at the border, the members stay contiguous but no longer match the cells the part
-    covers. Either way the group keeps its tiles (its border is not only the part's edges)."""
-    _, _, result, _ = _plan_case(30.0, 0.0, occluded=where)
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+@pytest.mark.parametrize("height", [0.0, 35.0])
+def test_plan_pieces_and_whole_tiles_tile_the_part_for_every_view(deg, height):
+    """The part alone (35 m up: 0.7 cells of parallax between the sub-aperture's ends)."""
+    tri, views, result, cells = _plan_case(deg, height)
+    assert result.fallback == 0 and result.owned.any() and not result.owned.all()
+    _assert_tiles(tri, views, result, cells)
+
+
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+@pytest.mark.parametrize("height", [0.0, 35.0])
+def test_plan_pieces_stop_where_the_members_are_cut(deg, height):
+    """Members cut short of the part's edge (the beam's edge along track, the range window's near
+    and far edge, all lattice lines): the pieces and tiles cover the part within the cut exactly, so the
+    part's own edges return as edges and nothing beyond the cut is integrated."""
+    whole = _plan_case(deg, height)[3]
+    top = whole[(whole[:, 0] >= -1) & (whole[:, 0] < 3), 1].max()     # the top row loses one cell
+    cut = [(-1.0, 3.0, 28.0 if height == 0 else 82.0, float(top))]    # each side cuts some member line
+    tri, views, result, cells = _plan_case(deg, height, cut=cut)
+    assert result.fallback == 0 and result.owned.any() and not result.owned.all()
+    _assert_tiles(tri, views, result, cells, cut)
+
+
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+def test_plan_pieces_stop_at_a_staircase_cut(deg):
+    """A cut that is no straight line (the beam's edge across range is a conic on the aim plane,
+    cut at each row's own column): ends short of the part's edge own nothing beyond their cell, so
+    the pieces cover the part within the staircase exactly. (Where a side of the members has a cut
+    end, every piece stops at the members' last line on that side, exact for a straight cut: so
+    here each side a step cuts is cut along its whole length, physics.md (T6).)"""
+    steps = {30.0: ((1.0, 30.0), (4.0, 32.0), (6.0, 33.0)), 60.0: ((-4.0, 35.0), (0.0, 33.0), (3.0, 31.0), (1e4, 34.0))}
+    edges = [-1e4] + [x for x, _ in steps[deg]]
+    cut = [(x0, x1, y0, 1e4) for x0, (x1, y0) in zip(edges, steps[deg])]
+    tri, views, result, cells = _plan_case(deg, 0.0, cut=cut)
+    assert result.fallback == 0 and result.owned.any()
+    _assert_tiles(tri, views, result, cells, cut)
+
+
+def test_plan_leaves_a_stray_member_to_whole_tiles():
+    """A tube that meets the part where the reference position sees no part (a cell beyond a
+    row's end): the ends are not where the part says, so the group keeps its tiles."""
+    _, _, result, _ = _plan_case(30.0, 0.0, occluded="stray")
+    assert result.fallback == result.groups == 1 and not result.owned.any()
+
+
+def test_plan_leaves_a_hole_to_the_tiles_around_it():
+    """An interior cell that is no member (an occluder's shadow): the rest of the part is still
+    tiled exactly, and the hole is not covered (the tiles around it bound it)."""
+    tri, views, result, cells = _plan_case(30.0, 0.0, occluded="interior")
+    assert result.fallback == 0 and result.owned.any()
+    hole = sorted(set(map(tuple, _plan_case(30.0, 0.0)[3])) - set(map(tuple, cells)))
+    assert len(hole) == 1
+    i, j = hole[0]
+    _assert_tiles(tri, views, result, cells, hole=np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float))
+
+
+def test_plan_leaves_a_part_cut_in_two_to_whole_tiles():
+    """A shadow across a whole member column leaves member-less columns inside the part that no
+    band covers: the group keeps its tiles."""
+    _, _, result, _ = _plan_case(30.0, 0.0, occluded="column")
     assert result.fallback == result.groups == 1 and not result.owned.any() and len(result.record) == 0
 
 
