@@ -66,10 +66,11 @@
    - string
    - ``tiles`` (default): a first-bounce ray tube integrates its whole tile, so a facet's lit
      region ends in the tubes' staircase, which moves with the lattice (docs/physics.md (T3)).
-     ``owned``: on a convex part that no shadow, beam edge or other tube size cuts, the tubes at
-     its border integrate their owned regions, and the border returns as the part's straight
-     edges (docs/physics.md (T6)). First bounce only; slower (6x the trace time on an oblique
-     block), and no gain where occlusion bounds the lit regions.
+     ``owned``: on each convex part, the tubes at its border integrate their owned regions, and
+     the part's own edges return as the straight edges they are (docs/physics.md (T6)). Where a
+     shadow, the beam's edge or the range window cuts the part, that cut keeps the tubes'
+     staircase. Physical-optics terms of the first bounce only (not clutter, not later
+     bounces); 2.3x the first-bounce trace time on an oblique block.
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

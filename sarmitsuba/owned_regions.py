@@ -296,8 +296,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     rest = lane[idx] - blocks.start.astype(np.int64)[b]
     i = blocks.i0.astype(np.int64)[b] * m_rec + rest // n_j
     j = blocks.j0.astype(np.int64)[b] * m_rec + rest % n_j
-    cols, jmin, jmax, ccount, col_of = _pair_ranges(g, i, j)
-    rows, imin, imax, rcount, row_of = _pair_ranges(g, j, i)
+    cols, jmin, jmax, _, col_of = _pair_ranges(g, i, j)
+    rows, imin, imax, _, row_of = _pair_ranges(g, j, i)
     bounds_g = []
     for values, keys in ((cols[:, 1], cols[:, 0]), (rows[:, 1], rows[:, 0])):
         lo = np.full(n_g, np.iinfo(np.int64).max)
