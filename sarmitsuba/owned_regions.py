@@ -223,25 +223,15 @@ def _pair_ranges(g, x, y):
 
 
 def _depth(polygon, points):
-    """How far ``points`` [n, 2] lie inside the convex ``polygon`` [n, v, 2] (either orientation;
-    repeated corners allowed): the smallest distance to an edge's line, negative outside."""
+    """How far ``points`` [n, k, 2] lie inside the convex ``polygon`` [n, v, 2] (either
+    orientation; repeated corners allowed): float64 [n, k], the smallest distance to an edge's
+    line, negative outside."""
     e = np.roll(polygon, -1, axis=1) - polygon
     p0 = polygon[:, :1]
     area = _cross(polygon - p0, np.roll(polygon, -1, axis=1) - p0).sum(1)
-    length = np.linalg.norm(e, axis=-1)
-    side = np.sign(area)[:, None] * _cross(e, points[:, None] - polygon) / np.where(length > 0, length, 1.0)
-    return np.where(length > 0, side, np.inf).min(1)
-
-
-def _inside(polygon, points, tolerance=1e-9):
-    """Whether ``points`` [n, k, 2] lie in the convex ``polygon`` [n, v, 2] (either orientation;
-    repeated corners allowed)."""
-    p0 = polygon[:, :1]
-    e = np.roll(polygon, -1, axis=1) - polygon
-    area = _cross(polygon - p0, np.roll(polygon, -1, axis=1) - p0).sum(1)
+    length = np.linalg.norm(e, axis=-1)[:, None]
     side = np.sign(area)[:, None, None] * _cross(e[:, None], points[:, :, None] - polygon[:, None])
-    scale = np.linalg.norm(e, axis=-1)[:, None]
-    return (side >= -tolerance * np.maximum(scale, 1e-300)).all(-1)
+    return np.where(length > 0, side / np.where(length > 0, length, 1.0), np.inf).min(-1)
 
 
 def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
@@ -335,10 +325,10 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     # a cell can leave the part only near its edge: farther (in cells) than the views' largest
     # corner shift, plus the cell's half diagonal, it stays inside in every view
     shift = np.max([np.abs(poly - ref).max((1, 2)) for poly in polys[1:]], axis=0)
-    near = good & (_depth(ref[g], corners.mean(1)) <= shift[g] + 1.0)
+    near = good & (_depth(ref[g], corners.mean(1)[:, None])[:, 0] <= shift[g] + 1.0)
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
-        leaves[near] |= ~_inside(poly[g[near]], corners[near]).all(1)
+        leaves[near] |= (_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves)
     owned = np.zeros(n, bool)
     owned[idx[mine]] = True
@@ -377,12 +367,15 @@ def _ends(spans, lines, lo, hi, n_g):
     """Per group, whether each member line (``lines`` [n, 2]: group, column or row) has its members
     ``[lo, hi]`` inside the cells whose centres lie in the part (``spans`` of
     :func:`_centre_spans`), and per line whether its low and high end is the part's edge."""
-    keys = spans[:, 0] * (1 << 32) + spans[:, 1]
+    if len(spans) == 0:
+        none = np.zeros(len(lines), bool)
+        return _all_by(lines[:, 0], none, n_g), none, none
+    keys = _key(spans[:, 0], spans[:, 1])
     order = np.argsort(keys)
-    query = lines[:, 0] * (1 << 32) + lines[:, 1]
-    at = np.clip(np.searchsorted(keys[order], query), 0, max(len(keys) - 1, 0))
-    found = (keys[order][at] == query) if len(keys) else np.zeros(len(query), bool)
-    s_lo, s_hi = (spans[order, c][at] if len(keys) else np.zeros(len(query), np.int64) for c in (2, 3))
+    query = _key(lines[:, 0], lines[:, 1])
+    at = np.minimum(np.searchsorted(keys[order], query), len(keys) - 1)
+    found = keys[order][at] == query
+    s_lo, s_hi = spans[order, 2][at], spans[order, 3][at]
     inside = found & (lo >= s_lo) & (hi <= s_hi)
     return _all_by(lines[:, 0], inside, n_g), inside & (lo == s_lo), inside & (hi == s_hi)
 
