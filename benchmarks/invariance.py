@@ -33,8 +33,8 @@ import math
 import numpy as np
 import trimesh
 from _lattice import moved_lattice, nrmse_db
-from _plot import plot_cost
-from _table import bench_main, machine, write_csv
+from _plot import report_per_scene
+from _table import bench_main, machine
 
 import sarmitsuba
 from sarmitsuba.pipeline import simulate
@@ -132,15 +132,8 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     rows = []
     for label, (scene, sensor) in scenes.items():
         rows += sweep(label, scene, sensor, tiny)
-    for row in rows:
-        print("  ".join(f"{k}={v}" for k, v in row.items()))
-    suffix = "_tiny" if tiny else ""
-    write_csv(f"{NAME}{suffix}.csv", rows)
-    plot_cost(f"{NAME}{suffix}.png", {
-        scene: [(r["trace_s"], r["nrmse_magnitude_db"], r["setting"]) for r in rows
-                if r["scene"] == scene and np.isfinite(r["nrmse_magnitude_db"])] for scene in scenes},
-        xlabel="trace time [s]", ylabel="image NRMSE of magnitudes vs default [dB]",
-        title="what the tracer's lattices leave in the image")
+    report_per_scene(f"{NAME}{'_tiny' if tiny else ''}", rows, scenes, "nrmse_magnitude_db",
+                     ylabel="image NRMSE of magnitudes vs default [dB]", title="what the tracer's lattices leave in the image")
     return rows
 
 

@@ -26,8 +26,8 @@ import importlib.util
 
 import numpy as np
 from _lattice import moved_lattice, nrmse_db
-from _plot import plot_cost
-from _table import bench_main, machine, write_csv
+from _plot import report_per_scene
+from _table import bench_main, machine
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
@@ -106,15 +106,9 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     rows = []
     for scene, sensor in scenes.items():
         rows += sweep(scene, sensor, (4, 0) if tiny else SWEEP)
-    for row in rows:
-        print("  ".join(f"{k}={v}" for k, v in row.items()))
-    suffix = "_tiny" if tiny else ""
-    write_csv(f"{NAME}{suffix}.csv", rows)
-    plot_cost(f"{NAME}{suffix}.png", {
-        scene: [(r["trace_s"], r["nrmse_db"], r["setting"].replace(" (automatic)", "*")) for r in rows
-                if r["scene"] == scene and np.isfinite(r["nrmse_db"])] for scene in scenes},
-        xlabel="trace time [s]", ylabel="image NRMSE vs N = 1 [dB]",
-        title="pulses per trace: image change against trace time (* automatic)")
+    report_per_scene(f"{NAME}{'_tiny' if tiny else ''}", rows, scenes, "nrmse_db", ylabel="image NRMSE vs N = 1 [dB]",
+                     title="pulses per trace: image change against trace time (* automatic)",
+                     label=lambda setting: setting.replace(" (automatic)", "*"))
     return rows
 
 
