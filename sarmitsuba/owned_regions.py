@@ -23,7 +23,7 @@ straight edges it has, not as the tubes' staircase.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -147,7 +147,6 @@ def region_polygons(facet: np.ndarray, regions: dict) -> dict:
     return out
 
 
-
 # ============================================================================ the kernel's plan
 #: A piece's side that runs to infinity (in lattice lines); the kernel clamps it to
 #: the part's projection.
@@ -169,6 +168,10 @@ class OwnedPlan:
         float64 [n_pieces, 4]: the piece's rectangle ``[ia0, ia1] x [jb0, jb1]`` in the lattice
         lines of the record's tube size ``m`` (:func:`lattice_lines` with ``i0 = j0 = 0``: cell
         ``(i, j)`` is ``[i, i + 1] x [j, j + 1]``), +-:data:`UNBOUNDED` where it runs to infinity.
+    cut_piece, cut_part : ndarray
+        int64 [n_cuts]: a piece and a part in front of it (an occluder) whose projection from each
+        pulse's antenna is cut out of the piece: the kernel subtracts the integral over
+        ``piece ∩ part ∩ occluder`` as that pulse sees them (T6).
     groups, fallback : int
         Facet-and-sub-aperture groups seen, and those left to whole tiles (member columns or rows
         not contiguous, a member where the part is not, tubes of several sizes).
@@ -177,6 +180,8 @@ class OwnedPlan:
     owned: np.ndarray
     record: np.ndarray
     bounds: np.ndarray
+    cut_piece: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    cut_part: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     groups: int = 0
     fallback: int = 0
 
@@ -311,12 +316,17 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     column_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref, 0.0)), cols, jmin, jmax, n_g)
     row_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0)), rows, imin, imax, n_g)
     ok &= column_ends[0] & row_ends[0]
-    (_, lo_part, hi_part), (_, left_part, right_part) = column_ends, row_ends
-    # a side of the group with a cut end bounds every piece at the members' last lattice line
-    box = np.stack([np.where(_all_by(rows[:, 0], left_part, n_g), -UNBOUNDED, cmin),
-                    np.where(_all_by(rows[:, 0], right_part, n_g), UNBOUNDED, cmax + 1),
-                    np.where(_all_by(cols[:, 0], lo_part, n_g), -UNBOUNDED, rmin),
-                    np.where(_all_by(cols[:, 0], hi_part, n_g), UNBOUNDED, rmax + 1)], 1).astype(float)
+    (_, lo_part, hi_part, span_lo, span_hi), (_, left_part, right_part, row_lo, row_hi) = column_ends, row_ends
+    # ---- holes: cells inside the part that a part in front hides; the members and holes near
+    #      their border own their cells less the occluders' projections ----
+    shift = np.max([np.abs(poly - ref).max((1, 2)) for poly in polys[1:]], axis=0)   # parallax, cells
+    reach = np.zeros(int(gsub.max()) + 1)
+    np.maximum.at(reach, gsub[ok], shift[ok])
+    holes = _holes(g, i, j, ok, ((cols, span_lo, span_hi), (rows, imin, imax)), (gsub, gpart, g_m),
+                   1 + np.ceil(reach[gsub]).astype(np.int64), (sub[idx], part[idx], m_rec))
+    # a row whose cells beyond its end are holes up to the part's edge ends at the part's edge
+    left_part = left_part | _hidden_run(rows, row_lo, imin - 1, holes.occluded)
+    right_part = right_part | _hidden_run(rows, imax + 1, row_hi, holes.occluded)
     # ---- owned: ends at the part's edge, and cells some view sees leave the part ----
     good = ok[g]
     ends = ((j == jmin[col_of]) & lo_part[col_of], (j == jmax[col_of]) & hi_part[col_of],
@@ -324,17 +334,202 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
     # a cell can leave the part only near its edge: farther (in cells) than the views' largest
     # corner shift, plus the cell's half diagonal, it stays inside in every view
-    shift = np.max([np.abs(poly - ref).max((1, 2)) for poly in polys[1:]], axis=0)
     near = good & (_depth(ref[g], corners.mean(1)[:, None])[:, 0] <= shift[g] + 1.0)
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
         leaves[near] |= (_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
-    mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves)
+    holes = _touching(holes, (g, i, j), ends[0] | ends[1] | ends[2] | ends[3], vertices, views, fp, (gsub, g_m))
+    box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
+                     (cmin, cmax, rmin, rmax), n_g)
+    mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)
     owned = np.zeros(n, bool)
     owned[idx[mine]] = True
-    records, bounds = _pieces(idx[mine], g[mine], i[mine], j[mine], [e[mine] for e in ends], (cmin, cmax, rmin, rmax),
-                              box)
-    return OwnedPlan(owned, records, bounds, groups=n_g, fallback=int(n_g - ok.sum()))
+    at = np.flatnonzero(mine)
+    records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
+                                      (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
+    piece, occluder = _occluders(holes, origin, idx.size)
+    return OwnedPlan(owned, records, bounds, piece, occluder, groups=n_g, fallback=int(n_g - ok.sum()))
+
+
+def _occluders(holes, origin, n_members):
+    """Each piece's occluders (``origin``: its member's place, or ``n_members`` plus its hole's):
+    ``(piece, part)`` pairs, int64 [n_cuts] each."""
+    key = np.concatenate([holes.member_cuts[0], n_members + holes.hole_cuts[0]])
+    parts = np.concatenate([holes.member_cuts[1], holes.hole_cuts[1]])
+    order = np.argsort(key, kind="stable")
+    piece, pos = _matches(key[order], origin)
+    return piece, parts[order][pos]
+
+
+@dataclass(frozen=True)
+class _Holes:
+    """The cells a part in front hides between a group's members, near the members (T6).
+
+    ``border``: bool [n_members], the members with a hole within ``radius``; ``cells``: int64
+    [3, n_holes] ``(g, i, j)`` of the holes with a member within ``radius``, ``owner`` int64
+    [n_holes] that member (its record integrates the hole's piece); ``member_cuts``,
+    ``hole_cuts``: ``(member or hole, occluding part)`` pairs, the parts of the records in the holes
+    within ``radius`` of each; ``occluded``: int64, the sorted keys (:func:`_key3`) of every hole."""
+
+    border: np.ndarray
+    cells: np.ndarray
+    owner: np.ndarray
+    member_cuts: tuple
+    hole_cuts: tuple
+    occluded: np.ndarray
+
+
+def _holes(g, i, j, ok, lines, groups, radius, records) -> _Holes:
+    """Find the holes and their occluders (:class:`_Holes`). ``g, i, j``: each record's group and
+    cell (its own tube size); ``lines``: the ``(pairs, lo, hi)`` of the member columns (the
+    part's first and last cell on each: a shadow may cut a column's end) and rows (the first and
+    last member); ``groups``: each group's sub-aperture, part and tube size; ``radius``: per group, in cells
+    (1 plus the parallax of the sub-aperture); ``records``: each record's sub-aperture, part and
+    tube size (any record in a hole's cell, on another part, is an occluder)."""
+    gsub, gpart, g_m = groups
+    member = _key3(g, i, j)
+    order = np.argsort(member)
+    members = member[order]
+    gaps = [_key3(*_gaps(pairs, lo, hi, ok, swap)) for (pairs, lo, hi), swap in zip(lines, (False, True))]
+    cand = np.unique(np.concatenate(gaps))
+    if members.size:
+        cand = cand[members[np.minimum(np.searchsorted(members, cand), members.size - 1)] != cand]
+    hg, hi, hj = _unkey3(cand)
+    sub_r, part_r, m_r = records
+    pair_h, pair_p = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for m in np.unique(g_m[hg]):
+        sel = np.flatnonzero(g_m[hg] == m)
+        rkey = _key3(sub_r, (i * m) // m_r, (j * m) // m_r)
+        o = np.argsort(rkey)
+        q, pos = _matches(rkey[o], _key3(gsub[hg[sel]], hi[sel], hj[sel]))
+        p = part_r[o][pos]
+        keep = p != gpart[hg[sel][q]]
+        pair_h.append(sel[q][keep])
+        pair_p.append(p[keep])
+    pair = np.unique(_key(np.concatenate(pair_h), np.concatenate(pair_p)))
+    pair_h, pair_p = pair >> 32, (pair & 0xFFFFFFFF) - (1 << 31)
+    hole_keys = cand[pair_h]                     # sorted: the pairs are
+    cand = np.unique(hole_keys)                  # a gap no part in front explains is no hole
+    hg, hi, hj = _unkey3(cand)
+    n_holes = len(cand)
+    border = np.zeros(len(g), bool)
+    owner = np.full(n_holes, -1)
+    member_cuts, hole_cuts = [], []
+    reach = int(radius.max()) if len(radius) else 0
+    for di in range(-reach, reach + 1):
+        for dj in range(-reach, reach + 1):
+            near = np.flatnonzero(ok[g] & (radius[g] >= max(abs(di), abs(dj))))
+            q, pos = _matches(hole_keys, _key3(g[near], i[near] + di, j[near] + dj))
+            border[near[q]] = True
+            member_cuts.append((near[q], pair_p[pos]))
+            near = np.flatnonzero(radius[hg] >= max(abs(di), abs(dj)))
+            q, pos = _matches(members, _key3(hg[near], hi[near] + di, hj[near] + dj))
+            first = near[q][owner[near[q]] < 0]
+            owner[first] = order[pos][owner[near[q]] < 0]
+            q, pos = _matches(hole_keys, _key3(hg[near], hi[near] + di, hj[near] + dj))
+            hole_cuts.append((near[q], pair_p[pos]))
+    keep = owner >= 0
+    renumber = np.cumsum(keep) - 1
+    member_cuts = _unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
+    h, p = _unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
+    return _Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
+                  (renumber[h][keep[h]], p[keep[h]]), cand)
+
+
+def _touching(holes: _Holes, members, extended, vertices, views, fp, groups) -> _Holes:
+    """Keep the occluders whose projection meets the member's or hole's cell in some view of the
+    sub-aperture (all of them for the members ``extended`` beyond their cell: the ends at the
+    part's edge), and the holes no one occluder covers in every view; the border members are those
+    with an occluder left. The projections are tested as the convex hull of the occluder's corners
+    in the reference, first and last view (conservative where the corners move along lines
+    between them), by separating axes: the lattice's two and the occluder's edge normals."""
+    gsub, g_m = groups
+    g, i, j = members
+    hg, hi, hj = holes.cells
+    kept = []
+    for (who, part), (cg, ci, cj) in ((holes.member_cuts, (g, i, j)), (holes.hole_cuts, (hg, hi, hj))):
+        cg, ci, cj = cg[who], ci[who].astype(float), cj[who].astype(float)
+        m = g_m[cg][:, None].astype(float)
+        polys = [lattice_lines(vertices[part], views[gsub[cg], v][:, None], fp, 0.0, 0.0, m) for v in range(3)]
+        cell = np.stack([np.stack([ci + di, cj + dj], 1) for di in (0, 1) for dj in (0, 1)], 1)
+        points = np.concatenate(polys, axis=1)
+        e = np.roll(polys[0], -1, axis=1) - polys[0]
+        axes = np.concatenate([np.broadcast_to(np.eye(2), (len(cg), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
+        a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", cell, axes)
+        apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
+        covered = np.all([(_depth(poly, cell) > 1e-9).all(1) for poly in polys], axis=0)
+        kept.append((who, part, ~apart.any(1), covered))
+    (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
+    m_meets |= extended[mw]
+    live = np.ones(hg.size, bool)
+    live[hw[h_covered]] = False
+    h_keep = h_meets & live[hw]
+    renumber = np.cumsum(live) - 1
+    border = np.zeros(len(g), bool)
+    border[mw[m_meets]] = True
+    return _Holes(border, holes.cells[:, live], holes.owner[live], (mw[m_meets], mp[m_meets]),
+                  (renumber[hw[h_keep]], hp[h_keep]), holes.occluded)
+
+
+def _unique_pairs(a, b):
+    pair = np.unique(_key(a, b))
+    return pair >> 32, (pair & 0xFFFFFFFF) - (1 << 31)
+
+
+def _gaps(pairs, lo, hi, ok, swap):
+    """The cells ``lo`` to ``hi`` of each member column (or row, ``swap``) of the groups ``ok``,
+    members included: ``(g, i, j)``."""
+    count = np.where(ok[pairs[:, 0]], hi - lo + 1, 0)
+    at = np.repeat(np.arange(len(pairs)), count)
+    other = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return (pairs[at, 0], other, pairs[at, 1]) if swap else (pairs[at, 0], pairs[at, 1], other)
+
+
+_SPAN = 1 << 20
+
+
+def _key3(g, i, j):
+    """One int64 key per triple (``0 <= g < 2**22``, ``|i|, |j| < 2**20``), sorted as the triples."""
+    return (np.asarray(g, np.int64) << 42) + ((np.asarray(i, np.int64) + _SPAN) << 21) + (np.asarray(j, np.int64) + _SPAN)
+
+
+def _unkey3(key):
+    return key >> 42, ((key >> 21) & (2 * _SPAN - 1)) - _SPAN, (key & (2 * _SPAN - 1)) - _SPAN
+
+
+def _matches(sorted_keys, query):
+    """Every ``(query index, position in sorted_keys)`` pair with equal keys: int64 [n] each."""
+    lo = np.searchsorted(sorted_keys, query, "left")
+    count = np.searchsorted(sorted_keys, query, "right") - lo
+    q = np.repeat(np.arange(len(query)), count)
+    return q, np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(lo, count)
+
+
+def _hidden_run(pairs, lo, hi, occluded):
+    """Per row ``pairs`` [n, 2] (group, row): whether its cells ``lo..hi`` (columns) are all holes
+    (``occluded``, sorted :func:`_key3` keys); False where the run is empty."""
+    count = np.maximum(hi - lo + 1, 0)
+    at = np.repeat(np.arange(len(pairs)), count)
+    x = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    hidden = np.isin(_key3(pairs[at, 0], x, pairs[at, 1]), occluded)
+    return (count > 0) & (np.bincount(at, weights=hidden, minlength=len(pairs)) == count)
+
+
+def _bands_box(occluded, columns, rows, extent, n_g):
+    """Per group the lines every row band stays within (T6): where a side of the members has a cut
+    end, the members' last lattice line on that side (``UNBOUNDED`` where none). An end next to a
+    hole is no cut: the hole's pieces and their occluders bound it."""
+    cmin, cmax, rmin, rmax = extent
+
+    def edge(part_edge, pairs, step, swap):
+        nxt = (pairs[:, 0], step, pairs[:, 1]) if swap else (pairs[:, 0], pairs[:, 1], step)
+        return part_edge | np.isin(_key3(*nxt), occluded)
+    (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part) = columns, rows
+    return np.stack([np.where(_all_by(rows[:, 0], edge(left_part, rows, imin - 1, True), n_g), -UNBOUNDED, cmin),
+                     np.where(_all_by(rows[:, 0], edge(right_part, rows, imax + 1, True), n_g), UNBOUNDED, cmax + 1),
+                     np.where(_all_by(cols[:, 0], edge(lo_part, cols, jmin - 1, False), n_g), -UNBOUNDED, rmin),
+                     np.where(_all_by(cols[:, 0], edge(hi_part, cols, jmax + 1, False), n_g), UNBOUNDED, rmax + 1)],
+                    1).astype(float)
 
 
 def _all_by(keys, values, n):
@@ -366,10 +561,11 @@ def _centre_spans(poly):
 def _ends(spans, lines, lo, hi, n_g):
     """Per group, whether each member line (``lines`` [n, 2]: group, column or row) has its members
     ``[lo, hi]`` inside the cells whose centres lie in the part (``spans`` of
-    :func:`_centre_spans`), and per line whether its low and high end is the part's edge."""
+    :func:`_centre_spans`); per line whether its low and high end is the part's edge, and the
+    first and last cell of the part on it (its members' where they are not inside)."""
     if len(spans) == 0:
         none = np.zeros(len(lines), bool)
-        return _all_by(lines[:, 0], none, n_g), none, none
+        return _all_by(lines[:, 0], none, n_g), none, none, lo, hi
     keys = _key(spans[:, 0], spans[:, 1])
     order = np.argsort(keys)
     query = _key(lines[:, 0], lines[:, 1])
@@ -377,15 +573,24 @@ def _ends(spans, lines, lo, hi, n_g):
     found = keys[order][at] == query
     s_lo, s_hi = spans[order, 2][at], spans[order, 3][at]
     inside = found & (lo >= s_lo) & (hi <= s_hi)
-    return _all_by(lines[:, 0], inside, n_g), inside & (lo == s_lo), inside & (hi == s_hi)
+    return (_all_by(lines[:, 0], inside, n_g), inside & (lo == s_lo), inside & (hi == s_hi),
+            np.where(inside, s_lo, lo), np.where(inside, s_hi, hi))
 
 
-def _pieces(records, gi, ii, jj, ends, extent, box):
+def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
     """The owned records' pieces (T6), sorted by record: the column piece (beyond the record's
     cell where it ends its column at the part's edge), and the row band in the member-less columns
-    left and right when it ends its row at the part's edge. ``ends``: the record ends its column
-    low, high, its row left, right at the part's edge; ``extent``: per group ``cmin, cmax, rmin,
-    rmax``; ``box``: per group the lines every piece stays within (``UNBOUNDED`` where no cut)."""
+    left and right when it ends its row at the part's edge; then each hole's cell, integrated by
+    its owner's record (to the part's edge where it is its column's first or last cell of the
+    part: ``hole_pieces`` is the :class:`_Holes`, the member columns and their first and last
+    cells of the part). ``origin``: each record's
+    place among the members; ``ends``: the record
+    ends its column low, high, its row left, right at the part's edge; ``extent``: per group
+    ``cmin, cmax, rmin, rmax``; ``box``: per group the lines every row band stays within
+    (``UNBOUNDED`` where no cut). A column's own extension runs to the part's edge: the lattice
+    covers every part in range (:func:`sarmitsuba.planning.ray_footprint`), so only the beam's
+    edge (where the pattern is at its null) and shadows cut a column, and a shadow is a hole. Returns the records, bounds and origins (the member's place, or
+    ``len(idx)`` plus the hole's) of the pieces."""
     low, high, left, right = ends
     cmin, cmax, rmin, rmax = extent
     inf = UNBOUNDED
@@ -396,10 +601,20 @@ def _pieces(records, gi, ii, jj, ends, extent, box):
               np.stack([np.full(ii.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
               np.stack([cmax[gi] + 1.0, np.full(ii.size, inf), band_lo, band_hi], 1)[right]]
     out = np.concatenate([records, records[left], records[right]])
+    src = np.concatenate([origin, origin[left], origin[right]])
     groups = np.concatenate([gi, gi[left], gi[right]])
     bounds = np.concatenate(pieces).astype(float)
     lo, hi = box[groups][:, 0::2], box[groups][:, 1::2]
-    bounds = np.clip(bounds, np.repeat(lo, 2, axis=1), np.repeat(hi, 2, axis=1))
+    band = np.arange(len(out)) >= len(records)
+    bounds[band] = np.clip(bounds[band], np.repeat(lo, 2, axis=1)[band], np.repeat(hi, 2, axis=1)[band])
     keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
-    order = np.argsort(out[keep], kind="stable")
-    return out[keep][order], bounds[keep][order]
+    holes, cols, span_lo, span_hi = hole_pieces
+    hg, hi_, hj = holes.cells
+    col = np.searchsorted(_key(cols[:, 0], cols[:, 1]), _key(hg, hi_))
+    first, last = (hj == span_lo[col], hj == span_hi[col]) if len(cols) else (hj < 0, hj < 0)
+    out = np.concatenate([out[keep], idx[holes.owner]])
+    src = np.concatenate([src[keep], len(idx) + np.arange(len(hi_))])
+    cells = np.stack([hi_, hi_ + 1, np.where(first, -inf, hj), np.where(last, inf, hj + 1)], 1).astype(float)
+    bounds = np.concatenate([bounds[keep], cells.reshape(-1, 4)])
+    order = np.argsort(out, kind="stable")
+    return out[order], bounds[order], src[order]

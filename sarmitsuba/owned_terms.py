@@ -62,7 +62,8 @@ class OwnedTerms:
     def _owned(self, ctx, rec):
         """Plan the first-bounce records' owned regions on the host (:func:`owned_regions.plan`),
         flag the owned records (their tiles are not evaluated, and no neighbour cancels against
-        them) and return the pieces: ``(records, bounds)`` or None when there are none."""
+        them) and return the pieces, then the occluders cut out of them: a list of ``(records,
+        bounds, occluding part or None)``, or None when no record owns pieces."""
         launch = ctx["launch"]
         part = rec.part.numpy().astype(np.int64)
         part[part == _INVALID] = -1
@@ -74,14 +75,21 @@ class OwnedTerms:
             return None
         rec.flags |= dr.select(mi.Bool(result.owned), mi.UInt32(_OWNED), mi.UInt32(0))
         dr.eval(rec.flags)
-        pieces = dr.gather(type(rec), rec, mi.UInt32(result.record.astype(np.uint32)))
-        bounds = [mi.Float64(result.bounds[:, c].copy()) for c in range(4)]
-        dr.eval(pieces, bounds)
-        return pieces, bounds
+        launches = []
+        for piece, occluder in ((slice(None), None), (result.cut_piece, result.cut_part)):
+            records, bounds = result.record[piece], result.bounds[piece]
+            if len(records) == 0:
+                continue
+            pieces = dr.gather(type(rec), rec, mi.UInt32(records.astype(np.uint32)))
+            bounds = [mi.Float64(bounds[:, c].copy()) for c in range(4)]
+            occluder = None if occluder is None else mi.UInt32(occluder.astype(np.uint32))
+            dr.eval(pieces, bounds, occluder)
+            launches.append((pieces, bounds, occluder))
+        return launches
 
-    def _corner_lines(self, ctx, rec, antenna):
-        """The record's part as the pulse at ``antenna`` sees it on the aim plane, in the lattice
-        lines of its tube size, counted from the scene's lattice origin (as
+    def _corner_lines(self, ctx, rec, antenna, part):
+        """The ``part`` as the pulse at ``antenna`` sees it on the aim plane, in the lattice lines
+        of the record's tube size, counted from the scene's lattice origin (as
         :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)`` and the tube size ``m``."""
         fp = self.fp
         origin, track, look = (mi.Array3f64(*v.tolist()) for v in (fp.origin, fp.track, fp.look))
@@ -90,7 +98,7 @@ class OwnedTerms:
         height = dr.dot(normal, origin - antenna)
         out = []
         for k in range(MAX_PART_VERTICES):
-            w = dr.gather(mi.Array3f64, self.tables.parts.corners, rec.part * MAX_PART_VERTICES + k) - antenna
+            w = dr.gather(mi.Array3f64, self.tables.parts.corners, part * MAX_PART_VERTICES + k) - antenna
             x = antenna + w * (height / dr.dot(normal, w)) - origin
             out.append((dr.dot(x, track) / fp.spacing_azimuth * m,
                         (dr.dot(x, look) - fp.range_min) / fp.spacing_range * m))
@@ -110,42 +118,52 @@ class OwnedTerms:
         t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
         return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
 
-    def _segments(self, corners, box):
-        """The boundary of (part ∩ rectangle) as segments in lattice lines, all in the part's
-        orientation: the part's edges clipped to the rectangle, then the rectangle's sides
-        clipped to the part. Returns ``[(x0, y0, x1, y1, exists)]``, :data:`_SEGMENTS` of them.
-        A side lying on a part edge of the same direction is left to the edge (no double count)."""
-        x0, x1, y0, y1 = box
-        px0, py0 = corners[0]
-        area = mi.Float64(0.0)
-        for k in range(MAX_PART_VERTICES):
-            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
+    def _piece(self, ctx, rec, antenna, bounds, occluder):
+        """The boundary segments of the piece (the rectangle ``bounds`` cut to the record's part,
+        and to the ``occluder``'s projection when given) as the pulse at ``antenna`` sees it, in
+        lattice lines of tube size ``m``: ``(segments, m)``."""
+        corners, m = self._corner_lines(ctx, rec, antenna, rec.part)
+        x0, x1, y0, y1 = self._box(corners, bounds)
+        polygons = [corners, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]]
+        if occluder is not None:
+            polygons.append(self._corner_lines(ctx, rec, antenna, occluder)[0])
+        return self._segments(polygons), m
+
+    @staticmethod
+    def _orientation(corners):
+        """+1 where the corners run counter-clockwise in ``(x, y)``, -1 where clockwise."""
+        (px0, py0), area = corners[0], mi.Float64(0.0)
+        for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
             area += (ax - px0) * (by - py0) - (ay - py0) * (bx - px0)
-        sign = dr.select(area >= 0, 1.0, -1.0)
+        return dr.select(area >= 0, 1.0, -1.0)
+
+    def _segments(self, polygons):
+        """The boundary of the intersection of convex polygons (lists of ``(x, y)`` corners in
+        lattice lines, either orientation, repeated corners allowed) as segments, all in the
+        first polygon's orientation: each polygon's edges clipped to all the others (Cyrus and
+        Beck 1978). Returns ``[(x0, y0, x1, y1, exists)]``, one per edge slot in order. An edge
+        lying on a same-direction edge of an earlier polygon is left to that one (no double
+        count)."""
+        signs = [self._orientation(c) for c in polygons]
         out = []
-        for k in range(MAX_PART_VERTICES):
-            (ax, ay), (bx, by) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
-            dx, dy = bx - ax, by - ay
-            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
-            for p, q in ((-dx, ax - x0), (dx, x1 - ax), (-dy, ay - y0), (dy, y1 - ay)):
-                t0, t1 = self._clip(p, q, t0, t1)
-            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy,
-                        (t1 > t0) & ((dx != 0) | (dy != 0))))
-        sides = ((x0, y0, x1, y0), (x1, y0, x1, y1), (x1, y1, x0, y1), (x0, y1, x0, y0))
-        for sx0, sy0, sx1, sy1 in sides:
-            ax, ay = dr.select(sign > 0, sx0, sx1), dr.select(sign > 0, sy0, sy1)
-            bx, by = dr.select(sign > 0, sx1, sx0), dr.select(sign > 0, sy1, sy0)
-            dx, dy = bx - ax, by - ay
-            t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
-            keep = mi.Bool(True)
-            for k in range(MAX_PART_VERTICES):
-                (cx, cy), (ex, ey) = corners[k], corners[(k + 1) % MAX_PART_VERTICES]
-                fx, fy = ex - cx, ey - cy
-                p = -sign * (fx * dy - fy * dx)
-                q = sign * (fx * (ay - cy) - fy * (ax - cx))
-                keep &= ~((p == 0) & (q == 0) & (fx * dx + fy * dy > 0))
-                t0, t1 = self._clip(p, q, t0, t1)
-            out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy, keep & (t1 > t0)))
+        for n, corners in enumerate(polygons):
+            flip = signs[n] != signs[0]          # traverse every boundary in the first's orientation
+            for a, b in zip(corners, corners[1:] + corners[:1]):
+                ax, ay = dr.select(flip, b[0], a[0]), dr.select(flip, b[1], a[1])
+                dx, dy = dr.select(flip, a[0], b[0]) - ax, dr.select(flip, a[1], b[1]) - ay
+                t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
+                keep = (dx != 0) | (dy != 0)
+                for other, (sign, clip) in enumerate(zip(signs, polygons)):
+                    if other == n:
+                        continue
+                    for (cx, cy), (ex, ey) in zip(clip, clip[1:] + clip[:1]):
+                        fx, fy = ex - cx, ey - cy
+                        p = -sign * (fx * dy - fy * dx)
+                        q = sign * (fx * (ay - cy) - fy * (ax - cx))
+                        if other < n:
+                            keep &= ~((p == 0) & (q == 0) & (sign * signs[0] * (fx * dx + fy * dy) > 0))
+                        t0, t1 = self._clip(p, q, t0, t1)
+                out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy, keep & (t1 > t0)))
         return out
 
     @staticmethod
@@ -171,12 +189,14 @@ class OwnedTerms:
             moment += (a + b - 2.0 * centre) * cross
         return 0.5 * twice_area, centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
 
-    def owned_po(self, ctx, rec, bounds) -> None:
+    def owned_po(self, ctx, rec, bounds, occluder=None) -> None:
         """Per pulse, the PO integral over each owned piece, eqs. (T6), (PO1), (PO2), (PO5).
 
         The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
         as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
-        antenna, :meth:`_corner_lines`). Its integral is Gordon's edge form: per boundary segment
+        antenna, :meth:`_corner_lines`). With ``occluder`` (a part in front, per piece) the
+        integral over the piece cut to the occluder's projection too is subtracted instead: the
+        occluder's shadow on the piece as that pulse sees it. Its integral is Gordon's edge form: per boundary segment
         ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``
         times ``sinc(k u . a / 2)`` at the segment's midpoint, or split into its ends as (PO2)
         (a side of the rectangle where the record's tile splits that edge, a part edge where its
@@ -190,7 +210,8 @@ class OwnedTerms:
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
         cell, decided = self._cell(ctx, rec.block), [(flags & bit) != 0 for bit in (_SPLIT_1, _SPLIT_2)]
         open_ = [(flags & bit) != 0 for bit in (_UNDECIDED_1, _UNDECIDED_2)]
-        lane, slots = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * _SEGMENTS + 1
+        n_segments = _SEGMENTS + (0 if occluder is None else MAX_PART_VERTICES)
+        lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * n_segments + 1, 1.0 if occluder is None else -1.0
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
 
@@ -198,8 +219,7 @@ class OwnedTerms:
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             split, centre, u_c = self.pulse_split(rec, antenna, cell, nu, 0, decided, open_)
-            corners, m = self._corner_lines(ctx, rec, antenna)
-            segments = self._segments(corners, self._box(corners, bounds))
+            segments, m = self._piece(ctx, rec, antenna, bounds, occluder)
             # each segment's ends on the facet (point, unfolded length, direction, tile edges)
             ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0),
                      self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0))
@@ -220,7 +240,7 @@ class OwnedTerms:
                 scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
                     * self.weight(d, b, s, dist, lref, steer)
                 rel = s + dist - lref
-                value = mi.Complex2f(0.0, scale) * rec.gamma * factor * self.carrier_phase(rel)
+                value = mi.Complex2f(0.0, sign * scale) * rec.gamma * factor * self.carrier_phase(rel)
                 live &= active & (cos_i > self.cos_grazing) & (s > 0)
                 self.sums.deposit(ctx, pulse, 0, self.anchor(rel, lref), 0.0,
                                   [value * c for c in self.po_channels(rec, d, b, n, cos_i, 0)],
@@ -234,7 +254,8 @@ class OwnedTerms:
             for index, ((x0, y0, x1, y1, exists), (start, stop)) in enumerate(zip(segments, ends)):
                 seg = mi.Vector3f(stop[0] - start[0])
                 # a side of the rectangle takes its split from the record's tile, a part edge its own
-                along_x, along_y = index >= MAX_PART_VERTICES and index % 2 == 0, index >= MAX_PART_VERTICES and index % 2 == 1
+                side = MAX_PART_VERTICES <= index < _SEGMENTS
+                along_x, along_y = side and index % 2 == 0, side and index % 2 == 1
                 own = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
                 cut = split[0] if along_x else split[1] if along_y else own
                 middle = self._tile(rec, antenna, self._aim_point(0.5 * (x0 + x1), 0.5 * (y0 + y1), m), cell, nu, 0)

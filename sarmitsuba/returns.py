@@ -329,8 +329,8 @@ class Returns(OwnedTerms):
                     terms, codes = dr.gather(type(rec), rec, dr.gather(mi.UInt32, index, part)), dr.gather(mi.UInt32, code, part)
                     dr.eval(terms, codes)
                     self.po(ctx, terms, codes, depth, per_pulse)
-        if pieces is not None:
-            self.owned_po(ctx, *pieces)
+        for launch in pieces or ():
+            self.owned_po(ctx, *launch)
         if self.clutter_on:
             kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
             rough = dr.compress(kind > 0)
@@ -384,9 +384,8 @@ class Returns(OwnedTerms):
             cancelled &= ~(split1 & split2) | compatible(sig1, sig2, has_i & has_j)
             survive &= ~cancelled
         dr.eval(survive)
-        index = dr.compress(survive)
-        r_index = index // 9
-        return r_index, index - 9 * r_index
+        index = dr.compress(survive)      # (empty where every term is cancelled or owned)
+        return (index // 9, index - 9 * (index // 9)) if dr.width(index) else (index, index)
 
     def _cell(self, ctx, block):
         """The aim cell's edge vectors (along track, ground range) of the tubes of ``block``, float64."""

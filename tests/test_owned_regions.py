@@ -2,6 +2,7 @@
 
 Truth: Gordon's closed form over the whole facet (``physical_optics.polygon_integral``, itself
 tested against numerical quadrature) and the shoelace area."""
+import dataclasses
 import math
 
 import numpy as np
@@ -142,13 +143,21 @@ def _plan_case(deg, height, occluded=False, m=1, cut=None):
     return tri, views, result, np.stack([gi.ravel()[lane], gj.ravel()[lane]], 1)
 
 
-def _assert_tiles(tri, views, result, cells, cut=None, hole=None):
-    """The plan's owned pieces (cut to the part) and the tiles of the members it leaves whole tile
-    the part (within ``cut``, less the cell ``hole``) as each pulse sees it: areas and Gordon's
-    integral, for the sub-aperture's reference, first and last pulse and one between."""
+def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None, owned=None):
+    """The plan's owned pieces (cut to the part, less the projections of their occluders) and the
+    tiles of the members it leaves whole tile the part (within ``cut``, less the cell ``hole``,
+    less the projection of the convex ``occluder`` [k, 3]) as each pulse sees it: areas and
+    Gordon's integral, for the sub-aperture's reference, first and last pulse and one between.
+    ``owned``: whether each member in ``cells`` is owned (``result.owned`` when the part's
+    records are all there are)."""
+    owned = result.owned if owned is None else owned
     for antenna in (*views[0], 0.3 * views[0, 1] + 0.7 * views[0, 0]):
         part = _ccw(lattice_lines(tri, antenna, _FP, 0.0, 0.0, 1.0))
         edges = [(part[n], part[(n + 1) % 3]) for n in range(3)]
+        shadow = []
+        if occluder is not None:          # the occluder's projection: its edges, left side inside
+            occ = _ccw(lattice_lines(occluder, antenna, _FP, 0.0, 0.0, 1.0))
+            shadow = [(occ[n], occ[(n + 1) % len(occ)]) for n in range(len(occ))]
         targets = [part]
         if cut is not None:      # the part within each rectangle, as half-planes (left side kept)
             targets = []
@@ -157,23 +166,33 @@ def _assert_tiles(tri, views, result, cells, cut=None, hole=None):
                 for line in (((x0, 1), (x0, 0)), ((x1, 0), (x1, 1)), ((0, y0), (1, y0)), ((1, y1), (0, y1))):
                     target = clip_convex(target, line)
                 targets.append(target)
-        pieces = []
-        for x0, x1, y0, y1 in result.bounds:
+        pieces, cuts = [], []
+        for q, (x0, x1, y0, y1) in enumerate(result.bounds):
             x0, x1, y0, y1 = (float(np.clip(v, -1e4, 1e4)) for v in (x0, x1, y0, y1))
             poly = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
             for line in edges:
                 poly = clip_convex(poly, line)
             if len(poly) >= 3:
                 pieces.append(poly)
-        for i, j in cells[~result.owned]:
+            for _ in range(int(np.sum(result.cut_piece == q))):
+                for line in shadow:
+                    poly = clip_convex(poly, line)
+                if len(poly) >= 3:
+                    cuts.append(poly)
+        for i, j in cells[~owned]:
             tile = np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float)
             assert len(clip_convex(clip_convex(clip_convex(tile, edges[0]), edges[1]), edges[2])) == 4
             pieces.append(tile)
         holes = [] if hole is None else [hole]
+        if shadow:
+            in_shadow = part
+            for line in shadow:
+                in_shadow = clip_convex(in_shadow, line)
+            holes.append(in_shadow)
         area = sum(_shoelace(t) for t in targets) - sum(_shoelace(h) for h in holes)
-        assert sum(_shoelace(p) for p in pieces) == pytest.approx(area, rel=1e-12)
+        assert sum(_shoelace(p) for p in pieces) - sum(_shoelace(c) for c in cuts) == pytest.approx(area, rel=1e-12)
         for q in ([2.1, -1.3], [0.4, 3.7]):
-            total = sum(_integral(p, np.array(q)) for p in pieces)
+            total = sum(_integral(p, np.array(q)) for p in pieces) - sum(_integral(c, np.array(q)) for c in cuts)
             expected = sum(_integral(t, np.array(q)) for t in targets if len(t) >= 3) \
                 - sum(_integral(h, np.array(q)) for h in holes)
             assert abs(total - expected) < 1e-10 * area
@@ -190,13 +209,13 @@ def test_plan_pieces_and_whole_tiles_tile_the_part_for_every_view(deg, height):
 
 @pytest.mark.parametrize("deg", [30.0, 60.0])
 @pytest.mark.parametrize("height", [0.0, 35.0])
-def test_plan_pieces_stop_where_the_members_are_cut(deg, height):
-    """Members cut short of the part's edge (the beam's edge along track, the range window's near
-    and far edge, all lattice lines): the pieces and tiles cover the part within the cut exactly, so the
-    part's own edges return as edges and nothing beyond the cut is integrated."""
-    whole = _plan_case(deg, height)[3]
-    top = whole[(whole[:, 0] >= -1) & (whole[:, 0] < 3), 1].max()     # the top row loses one cell
-    cut = [(-1.0, 3.0, 28.0 if height == 0 else 82.0, float(top))]    # each side cuts some member line
+def test_plan_pieces_stop_where_the_beam_cuts_the_members(deg, height):
+    """Members cut short of the part's edge by the beam's edges along track (lattice lines on both
+    sides): the pieces and tiles cover the part within the cut exactly, so the part's own edges
+    return as edges and nothing beyond the beam is integrated. (The lattice covers every part in
+    range, planning.ray_footprint, so nothing cuts a column but the beam's curved edge, tested
+    next, and shadows, tested with the occluders.)"""
+    cut = [(-1.0, 3.0, -1e4, 1e4)]
     tri, views, result, cells = _plan_case(deg, height, cut=cut)
     assert result.fallback == 0 and result.owned.any() and not result.owned.all()
     _assert_tiles(tri, views, result, cells, cut)
@@ -215,6 +234,61 @@ def test_plan_pieces_stop_at_a_staircase_cut(deg):
     tri, views, result, cells = _plan_case(deg, 0.0, cut=cut)
     assert result.fallback == 0 and result.owned.any()
     _assert_tiles(tri, views, result, cells, cut)
+
+
+def _occluded_case(deg, offset):
+    """The 30 or 60 deg triangle on the aim plane with a square 1.6 m wide, 30 m above it, in front
+    (0.5 cells of parallax between the sub-aperture's ends): its projection is ``offset`` [m] from
+    the triangle's centroid. Cells whose centre the reference position sees in the square's
+    projection are its records (part 1); the triangle's members are the rest of its cells."""
+    tri = np.c_[_rotated([[-3.0, -2.0], [4.0, -1.0], [0.5, 3.5]], deg), np.zeros(3)]
+    tri[:, 1] += 2.0
+    views = np.array([[[0.0, -1000.0, 1000.0], [-9.0, -1000.0, 1000.0], [9.0, -1000.0, 1000.0]]])
+    centre = tri.mean(0)[:2] + offset
+    square = np.array([[-0.8, -0.8], [0.8, -0.8], [0.8, 0.8], [-0.8, 0.8]]) + centre
+    # at 30 m, seen from 1 km up and 1 km across, the square shows about 30 m further in range
+    occluder = np.c_[square[:, 0], square[:, 1] - 30.0 * (1000.0 + square[:, 1]) / 970.0, np.full(4, 30.0)]
+    blocks = Blocks.of([(0, -20, 10, 40, 100, 1)])
+    ii, jj = np.meshgrid(np.arange(40), np.arange(100), indexing="ij")
+    gi, gj = ii.ravel() - 20, jj.ravel() + 10
+    centres = np.stack([gi + 0.5, gj + 0.5], -1)
+
+    def inside(poly):
+        poly = _ccw(lattice_lines(poly, views[0, 0], _FP, 0.0, 0.0, 1.0))
+        keep = np.ones(len(centres), bool)
+        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
+            keep &= (b - a)[0] * (centres - a)[:, 1] - (b - a)[1] * (centres - a)[:, 0] > 0
+        return keep
+    on_occluder, on_part = inside(occluder), inside(tri)
+    lane = np.flatnonzero(on_occluder | on_part)
+    part = np.where(on_occluder[lane], 1, 0)
+    vertices = np.stack([np.concatenate([tri, tri[-1:]]), occluder])
+    result = plan(np.zeros(len(lane)), part, np.zeros(len(lane)), lane, blocks, vertices, views, _FP)
+    mine = part == 0
+    return (tri, occluder, views, _part_only(result, mine), np.stack([gi[lane], gj[lane]], 1)[mine], result.owned[mine],
+            int(np.sum(on_part & on_occluder)))
+
+
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+@pytest.mark.parametrize("offset", [(0.0, 0.0), (0.7, 0.8), (-1.8, 0.0)], ids=["inside", "off-centre", "across the edge"])
+def test_plan_cuts_the_shadow_of_a_part_in_front_out_of_the_pieces(deg, offset):
+    """A part in front hides some of the triangle's cells (a hole; or, across the triangle's edge,
+    the ends of some columns and rows): the pieces around the hole, less the occluder's projection
+    as each pulse sees it, and the whole tiles tile the triangle less the shadow exactly. Truth:
+    the shoelace area and Gordon's closed form of the triangle less those of (triangle ∩ shadow),
+    both convex."""
+    tri, occluder, views, result, cells, owned, hidden = _occluded_case(deg, np.array(offset))
+    assert hidden >= 2 and len(result.cut_piece) > 0 and result.fallback == 0
+    _assert_tiles(tri, views, result, cells, occluder=occluder, owned=owned)
+
+
+def _part_only(result, mine):
+    """The plan's pieces of the records ``mine`` (the occluder's own group is not under test)."""
+    keep = mine[result.record]
+    cut = keep[result.cut_piece]
+    renumber = np.cumsum(keep) - 1
+    return dataclasses.replace(result, record=result.record[keep], bounds=result.bounds[keep],
+                               cut_piece=renumber[result.cut_piece[cut]], cut_part=result.cut_part[cut])
 
 
 def test_plan_leaves_a_stray_member_to_whole_tiles():
