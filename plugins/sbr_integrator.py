@@ -67,10 +67,11 @@
    - ``tiles`` (default): a first-bounce ray tube integrates its whole tile, so a facet's lit
      region ends in the tubes' staircase, which moves with the lattice (docs/physics.md (T3)).
      ``owned``: on each convex part, the tubes at its border integrate their owned regions, and
-     the part's own edges return as the straight edges they are (docs/physics.md (T6)). Where a
-     shadow, the beam's edge or the range window cuts the part, that cut keeps the tubes'
-     staircase. Physical-optics terms of the first bounce only (not clutter, not later
-     bounces); 2.3x the first-bounce trace time on an oblique block.
+     the part's own edges return as the straight edges they are (docs/physics.md (T6)). The
+     shadows of parts in front are cut out of the pieces from each pulse; the beam's edge keeps
+     the tubes' staircase. Physical-optics terms of the first bounce only (not clutter, not
+     later bounces, not parts traced with tubes of several sizes); 9x the first-bounce trace
+     time on an oblique block (mostly the host's plan).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

@@ -248,13 +248,14 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     regions when its members have one tube size, its member columns and rows are contiguous, and
     every column's and row's members lie among the cells whose centres the reference position sees
     inside the part. An end of a column or row is the part's edge when the next cell's centre is
-    outside the part; else it is *cut* (a shadow, the beam's edge, the range window), and the
-    cell owns nothing beyond itself there. Members may leave holes (occluders): the tiles around
-    a hole bound it. Where a side of the members has a cut end, every piece stops at the members'
-    last lattice line on that side (exact for a straight cut). The owned records are the ends at
-    the part's edge and every member whose cell leaves the part as the sub-aperture's first,
-    middle or last pulse sees it (parallax); the rest keep their whole tiles, which lie inside the
-    part for every pulse.
+    outside the part; a hole's when that cell is hidden by another part (an occluder); else it is
+    cut by the beam's edge and owns nothing beyond its cell. Holes near members are pieces of a
+    neighbouring member's record; the pieces near holes are integrated less each occluder's
+    projection (``cut_piece``, ``cut_part``). Where a side of the members has an end cut by the
+    beam, every row band stops at the members' last lattice line on that side. The owned records
+    are the ends at the part's edge, the members near holes and every member whose cell leaves
+    the part as the sub-aperture's first, middle or last pulse sees it (parallax); the rest keep
+    their whole tiles (inside the part, and lit, for every pulse).
 
     Parameters
     ----------
@@ -406,8 +407,7 @@ def _holes(g, i, j, ok, lines, groups, radius, records) -> _Holes:
         keep = p != gpart[hg[sel][q]]
         pair_h.append(sel[q][keep])
         pair_p.append(p[keep])
-    pair = np.unique(_key(np.concatenate(pair_h), np.concatenate(pair_p)))
-    pair_h, pair_p = pair >> 32, (pair & 0xFFFFFFFF) - (1 << 31)
+    pair_h, pair_p = _unique_pairs(np.concatenate(pair_h), np.concatenate(pair_p))
     hole_keys = cand[pair_h]                     # sorted: the pairs are
     cand = np.unique(hole_keys)                  # a gap no part in front explains is no hole
     hg, hi, hj = _unkey3(cand)
@@ -471,7 +471,7 @@ def _touching(holes: _Holes, members, extended, vertices, views, fp, groups) -> 
                   (renumber[hw[h_keep]], hp[h_keep]), holes.occluded)
 
 
-def _unique_pairs(a, b):
+def _unique_pairs(a, b):    # the distinct pairs (a, b), sorted
     pair = np.unique(_key(a, b))
     return pair >> 32, (pair & 0xFFFFFFFF) - (1 << 31)
 

@@ -73,10 +73,10 @@ class TraceSettings:
         channels always need ``jones``.
     lit_regions : str
         ``tiles`` (default): a first-bounce tube integrates its whole tile, so a facet's lit region
-        is bounded by the tubes' staircase (T3). ``owned``: on a convex part whose members are
-        exactly the cells it covers, the tubes at its border integrate their owned regions (T6)
-        and the border returns as the part's straight edges; other groups (occluded, at the
-        beam's edge) keep their tiles.
+        is bounded by the tubes' staircase (T3). ``owned``: on each convex part the tubes at its
+        border and at its shadows integrate their owned regions, less the shadows of the parts in
+        front as each pulse sees them (T6), so the border and the shadows return as straight
+        edges; parts cut in two, or traced with tubes of several sizes, keep their tiles.
     """
 
     max_depth: int = 3
