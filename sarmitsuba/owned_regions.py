@@ -27,6 +27,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key
+from .shadow_plan import find_holes, hidden_run, piece_occluders, touching
+
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
 #: A half-plane as a directed line ``(a, b)`` (float64 [2] points): the side on its left,
@@ -186,59 +189,6 @@ class OwnedPlan:
     fallback: int = 0
 
 
-def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
-    """Scene points seen from ``antenna`` on the aim plane, in a block's lattice lines.
-
-    Parameters
-    ----------
-    points : float64 [..., 3], m
-    antenna : float64 [..., 3], m (broadcast against ``points``)
-    fp : RayFootprint (``origin``, ``track``, ``look``, ``spacing_azimuth``, ``spacing_range``,
-        ``range_min``)
-    i0, j0, m : block origin (coarse cells) and tubes per coarse cell edge, broadcast
-
-    Returns float64 [..., 2]: ``(x, y)`` with cell ``(i, j)`` of the block at ``[i, i+1] x [j, j+1]``
-    (the central projection of docs/physics.md (T3): lines stay lines).
-    """
-    origin, track, look = (np.asarray(v, float) for v in (fp.origin, fp.track, fp.look))
-    normal = np.cross(track, look)
-    w = np.asarray(points, float) - antenna
-    t = ((origin - antenna) @ normal)[..., None] / (w @ normal)[..., None]
-    x = antenna + w * t - origin
-    a = (x @ track) / fp.spacing_azimuth
-    r = (x @ look - fp.range_min) / fp.spacing_range
-    return np.stack([(a - i0) * m, (r - j0) * m], axis=-1)
-
-
-def _key(a, b):
-    """One int64 key per pair of non-negative ``a`` < 2**31 and int32 ``b`` (sorted as the pairs)."""
-    return (np.asarray(a, np.int64) << 32) + (np.asarray(b, np.int64) + (1 << 31))
-
-
-def _pair_ranges(g, x, y):
-    """For the distinct pairs ``(g, x)``: their keys, ``min y``, ``max y``, count, and each input's pair."""
-    keys, inverse = np.unique(_key(g, x), return_inverse=True)
-    inverse = inverse.ravel()
-    pairs = np.stack([keys >> 32, (keys & 0xFFFFFFFF) - (1 << 31)], 1)
-    lo = np.full(len(pairs), np.iinfo(np.int64).max)
-    hi = np.full(len(pairs), np.iinfo(np.int64).min)
-    np.minimum.at(lo, inverse, y)
-    np.maximum.at(hi, inverse, y)
-    return pairs, lo, hi, np.bincount(inverse, minlength=len(pairs)), inverse
-
-
-def _depth(polygon, points):
-    """How far ``points`` [n, k, 2] lie inside the convex ``polygon`` [n, v, 2] (either
-    orientation; repeated corners allowed): float64 [n, k], the smallest distance to an edge's
-    line, negative outside."""
-    e = np.roll(polygon, -1, axis=1) - polygon
-    p0 = polygon[:, :1]
-    area = _cross(polygon - p0, np.roll(polygon, -1, axis=1) - p0).sum(1)
-    length = np.linalg.norm(e, axis=-1)[:, None]
-    side = np.sign(area)[:, None, None] * _cross(e[:, None], points[:, :, None] - polygon[:, None])
-    return np.where(length > 0, side / np.where(length > 0, length, 1.0), np.inf).min(-1)
-
-
 def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     """The owned pieces of a launch's first-bounce records, eq. (T6) (vectorised NumPy).
 
@@ -278,7 +228,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     idx = np.flatnonzero(part >= 0)
     if idx.size == 0:
         return empty
-    _, g = np.unique(_key(sub[idx], part[idx]), return_inverse=True)
+    _, g = np.unique(pair_key(sub[idx], part[idx]), return_inverse=True)
     g = g.ravel()
     n_g = int(g.max()) + 1
     b = block[idx]
@@ -292,8 +242,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     rest = lane[idx] - blocks.start.astype(np.int64)[b]
     i = blocks.i0.astype(np.int64)[b] * m_rec + rest // n_j
     j = blocks.j0.astype(np.int64)[b] * m_rec + rest % n_j
-    cols, jmin, jmax, _, col_of = _pair_ranges(g, i, j)
-    rows, imin, imax, _, row_of = _pair_ranges(g, j, i)
+    cols, jmin, jmax, _, col_of = pair_ranges(g, i, j)
+    rows, imin, imax, _, row_of = pair_ranges(g, j, i)
     bounds_g = []
     for values, keys in ((cols[:, 1], cols[:, 0]), (rows[:, 1], rows[:, 0])):
         lo = np.full(n_g, np.iinfo(np.int64).max)
@@ -323,11 +273,11 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     shift = np.max([np.abs(poly - ref).max((1, 2)) for poly in polys[1:]], axis=0)   # parallax, cells
     reach = np.zeros(int(gsub.max()) + 1)
     np.maximum.at(reach, gsub[ok], shift[ok])
-    holes = _holes(g, i, j, ok, ((cols, span_lo, span_hi), (rows, imin, imax)), (gsub, gpart, g_m),
+    holes = find_holes(g, i, j, ok, ((cols, span_lo, span_hi), (rows, imin, imax)), (gsub, gpart, g_m),
                    1 + np.ceil(reach[gsub]).astype(np.int64), (sub[idx], part[idx], m_rec))
     # a row whose cells beyond its end are holes up to the part's edge ends at the part's edge
-    left_part = left_part | _hidden_run(rows, row_lo, imin - 1, holes.occluded)
-    right_part = right_part | _hidden_run(rows, imax + 1, row_hi, holes.occluded)
+    left_part = left_part | hidden_run(rows, row_lo, imin - 1, holes.occluded)
+    right_part = right_part | hidden_run(rows, imax + 1, row_hi, holes.occluded)
     # ---- owned: ends at the part's edge, and cells some view sees leave the part ----
     good = ok[g]
     ends = ((j == jmin[col_of]) & lo_part[col_of], (j == jmax[col_of]) & hi_part[col_of],
@@ -335,11 +285,11 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
     # a cell can leave the part only near its edge: farther (in cells) than the views' largest
     # corner shift, plus the cell's half diagonal, it stays inside in every view
-    near = good & (_depth(ref[g], corners.mean(1)[:, None])[:, 0] <= shift[g] + 1.0)
+    near = good & (convex_depth(ref[g], corners.mean(1)[:, None])[:, 0] <= shift[g] + 1.0)
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
-        leaves[near] |= (_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
-    holes = _touching(holes, (g, i, j), ends[0] | ends[1] | ends[2] | ends[3], vertices, views, fp, (gsub, g_m))
+        leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
+    holes = touching(holes, (g, i, j), ends[0] | ends[1] | ends[2] | ends[3], vertices, views, fp, (gsub, g_m))
     box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                      (cmin, cmax, rmin, rmax), n_g)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)
@@ -348,171 +298,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
                                       (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
-    piece, occluder = _occluders(holes, origin, idx.size)
+    piece, occluder = piece_occluders(holes, origin, idx.size)
     return OwnedPlan(owned, records, bounds, piece, occluder, groups=n_g, fallback=int(n_g - ok.sum()))
-
-
-def _occluders(holes, origin, n_members):
-    """Each piece's occluders (``origin``: its member's place, or ``n_members`` plus its hole's):
-    ``(piece, part)`` pairs, int64 [n_cuts] each."""
-    key = np.concatenate([holes.member_cuts[0], n_members + holes.hole_cuts[0]])
-    parts = np.concatenate([holes.member_cuts[1], holes.hole_cuts[1]])
-    order = np.argsort(key, kind="stable")
-    piece, pos = _matches(key[order], origin)
-    return piece, parts[order][pos]
-
-
-@dataclass(frozen=True)
-class _Holes:
-    """The cells a part in front hides between a group's members, near the members (T6).
-
-    ``border``: bool [n_members], the members with a hole within ``radius``; ``cells``: int64
-    [3, n_holes] ``(g, i, j)`` of the holes with a member within ``radius``, ``owner`` int64
-    [n_holes] that member (its record integrates the hole's piece); ``member_cuts``,
-    ``hole_cuts``: ``(member or hole, occluding part)`` pairs, the parts of the records in the holes
-    within ``radius`` of each; ``occluded``: int64, the sorted keys (:func:`_key3`) of every hole."""
-
-    border: np.ndarray
-    cells: np.ndarray
-    owner: np.ndarray
-    member_cuts: tuple
-    hole_cuts: tuple
-    occluded: np.ndarray
-
-
-def _holes(g, i, j, ok, lines, groups, radius, records) -> _Holes:
-    """Find the holes and their occluders (:class:`_Holes`). ``g, i, j``: each record's group and
-    cell (its own tube size); ``lines``: the ``(pairs, lo, hi)`` of the member columns (the
-    part's first and last cell on each: a shadow may cut a column's end) and rows (the first and
-    last member); ``groups``: each group's sub-aperture, part and tube size; ``radius``: per group, in cells
-    (1 plus the parallax of the sub-aperture); ``records``: each record's sub-aperture, part and
-    tube size (any record in a hole's cell, on another part, is an occluder)."""
-    gsub, gpart, g_m = groups
-    member = _key3(g, i, j)
-    order = np.argsort(member)
-    members = member[order]
-    gaps = [_key3(*_gaps(pairs, lo, hi, ok, swap)) for (pairs, lo, hi), swap in zip(lines, (False, True))]
-    cand = np.unique(np.concatenate(gaps))
-    if members.size:
-        cand = cand[members[np.minimum(np.searchsorted(members, cand), members.size - 1)] != cand]
-    hg, hi, hj = _unkey3(cand)
-    sub_r, part_r, m_r = records
-    pair_h, pair_p = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for m in np.unique(g_m[hg]):
-        sel = np.flatnonzero(g_m[hg] == m)
-        rkey = _key3(sub_r, (i * m) // m_r, (j * m) // m_r)
-        o = np.argsort(rkey)
-        q, pos = _matches(rkey[o], _key3(gsub[hg[sel]], hi[sel], hj[sel]))
-        p = part_r[o][pos]
-        keep = p != gpart[hg[sel][q]]
-        pair_h.append(sel[q][keep])
-        pair_p.append(p[keep])
-    pair_h, pair_p = _unique_pairs(np.concatenate(pair_h), np.concatenate(pair_p))
-    hole_keys = cand[pair_h]                     # sorted: the pairs are
-    cand = np.unique(hole_keys)                  # a gap no part in front explains is no hole
-    hg, hi, hj = _unkey3(cand)
-    n_holes = len(cand)
-    border = np.zeros(len(g), bool)
-    owner = np.full(n_holes, -1)
-    member_cuts, hole_cuts = [], []
-    reach = int(radius.max()) if len(radius) else 0
-    for di in range(-reach, reach + 1):
-        for dj in range(-reach, reach + 1):
-            near = np.flatnonzero(ok[g] & (radius[g] >= max(abs(di), abs(dj))))
-            q, pos = _matches(hole_keys, _key3(g[near], i[near] + di, j[near] + dj))
-            border[near[q]] = True
-            member_cuts.append((near[q], pair_p[pos]))
-            near = np.flatnonzero(radius[hg] >= max(abs(di), abs(dj)))
-            q, pos = _matches(members, _key3(hg[near], hi[near] + di, hj[near] + dj))
-            first = near[q][owner[near[q]] < 0]
-            owner[first] = order[pos][owner[near[q]] < 0]
-            q, pos = _matches(hole_keys, _key3(hg[near], hi[near] + di, hj[near] + dj))
-            hole_cuts.append((near[q], pair_p[pos]))
-    keep = owner >= 0
-    renumber = np.cumsum(keep) - 1
-    member_cuts = _unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
-    h, p = _unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
-    return _Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
-                  (renumber[h][keep[h]], p[keep[h]]), cand)
-
-
-def _touching(holes: _Holes, members, extended, vertices, views, fp, groups) -> _Holes:
-    """Keep the occluders whose projection meets the member's or hole's cell in some view of the
-    sub-aperture (all of them for the members ``extended`` beyond their cell: the ends at the
-    part's edge), and the holes no one occluder covers in every view; the border members are those
-    with an occluder left. The projections are tested as the convex hull of the occluder's corners
-    in the reference, first and last view (conservative where the corners move along lines
-    between them), by separating axes: the lattice's two and the occluder's edge normals."""
-    gsub, g_m = groups
-    g, i, j = members
-    hg, hi, hj = holes.cells
-    kept = []
-    for (who, part), (cg, ci, cj) in ((holes.member_cuts, (g, i, j)), (holes.hole_cuts, (hg, hi, hj))):
-        cg, ci, cj = cg[who], ci[who].astype(float), cj[who].astype(float)
-        m = g_m[cg][:, None].astype(float)
-        polys = [lattice_lines(vertices[part], views[gsub[cg], v][:, None], fp, 0.0, 0.0, m) for v in range(3)]
-        cell = np.stack([np.stack([ci + di, cj + dj], 1) for di in (0, 1) for dj in (0, 1)], 1)
-        points = np.concatenate(polys, axis=1)
-        e = np.roll(polys[0], -1, axis=1) - polys[0]
-        axes = np.concatenate([np.broadcast_to(np.eye(2), (len(cg), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
-        a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", cell, axes)
-        apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
-        covered = np.all([(_depth(poly, cell) > 1e-9).all(1) for poly in polys], axis=0)
-        kept.append((who, part, ~apart.any(1), covered))
-    (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
-    m_meets |= extended[mw]
-    live = np.ones(hg.size, bool)
-    live[hw[h_covered]] = False
-    h_keep = h_meets & live[hw]
-    renumber = np.cumsum(live) - 1
-    border = np.zeros(len(g), bool)
-    border[mw[m_meets]] = True
-    return _Holes(border, holes.cells[:, live], holes.owner[live], (mw[m_meets], mp[m_meets]),
-                  (renumber[hw[h_keep]], hp[h_keep]), holes.occluded)
-
-
-def _unique_pairs(a, b):    # the distinct pairs (a, b), sorted
-    pair = np.unique(_key(a, b))
-    return pair >> 32, (pair & 0xFFFFFFFF) - (1 << 31)
-
-
-def _gaps(pairs, lo, hi, ok, swap):
-    """The cells ``lo`` to ``hi`` of each member column (or row, ``swap``) of the groups ``ok``,
-    members included: ``(g, i, j)``."""
-    count = np.where(ok[pairs[:, 0]], hi - lo + 1, 0)
-    at = np.repeat(np.arange(len(pairs)), count)
-    other = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    return (pairs[at, 0], other, pairs[at, 1]) if swap else (pairs[at, 0], pairs[at, 1], other)
-
-
-_SPAN = 1 << 20
-
-
-def _key3(g, i, j):
-    """One int64 key per triple (``0 <= g < 2**22``, ``|i|, |j| < 2**20``), sorted as the triples."""
-    return (np.asarray(g, np.int64) << 42) + ((np.asarray(i, np.int64) + _SPAN) << 21) + (np.asarray(j, np.int64) + _SPAN)
-
-
-def _unkey3(key):
-    return key >> 42, ((key >> 21) & (2 * _SPAN - 1)) - _SPAN, (key & (2 * _SPAN - 1)) - _SPAN
-
-
-def _matches(sorted_keys, query):
-    """Every ``(query index, position in sorted_keys)`` pair with equal keys: int64 [n] each."""
-    lo = np.searchsorted(sorted_keys, query, "left")
-    count = np.searchsorted(sorted_keys, query, "right") - lo
-    q = np.repeat(np.arange(len(query)), count)
-    return q, np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) + np.repeat(lo, count)
-
-
-def _hidden_run(pairs, lo, hi, occluded):
-    """Per row ``pairs`` [n, 2] (group, row): whether its cells ``lo..hi`` (columns) are all holes
-    (``occluded``, sorted :func:`_key3` keys); False where the run is empty."""
-    count = np.maximum(hi - lo + 1, 0)
-    at = np.repeat(np.arange(len(pairs)), count)
-    x = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    hidden = np.isin(_key3(pairs[at, 0], x, pairs[at, 1]), occluded)
-    return (count > 0) & (np.bincount(at, weights=hidden, minlength=len(pairs)) == count)
 
 
 def _bands_box(occluded, columns, rows, extent, n_g):
@@ -523,7 +310,7 @@ def _bands_box(occluded, columns, rows, extent, n_g):
 
     def edge(part_edge, pairs, step, swap):
         nxt = (pairs[:, 0], step, pairs[:, 1]) if swap else (pairs[:, 0], pairs[:, 1], step)
-        return part_edge | np.isin(_key3(*nxt), occluded)
+        return part_edge | np.isin(triple_key(*nxt), occluded)
     (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part) = columns, rows
     return np.stack([np.where(_all_by(rows[:, 0], edge(left_part, rows, imin - 1, True), n_g), -UNBOUNDED, cmin),
                      np.where(_all_by(rows[:, 0], edge(right_part, rows, imax + 1, True), n_g), UNBOUNDED, cmax + 1),
@@ -566,9 +353,9 @@ def _ends(spans, lines, lo, hi, n_g):
     if len(spans) == 0:
         none = np.zeros(len(lines), bool)
         return _all_by(lines[:, 0], none, n_g), none, none, lo, hi
-    keys = _key(spans[:, 0], spans[:, 1])
+    keys = pair_key(spans[:, 0], spans[:, 1])
     order = np.argsort(keys)
-    query = _key(lines[:, 0], lines[:, 1])
+    query = pair_key(lines[:, 0], lines[:, 1])
     at = np.minimum(np.searchsorted(keys[order], query), len(keys) - 1)
     found = keys[order][at] == query
     s_lo, s_hi = spans[order, 2][at], spans[order, 3][at]
@@ -582,7 +369,7 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
     cell where it ends its column at the part's edge), and the row band in the member-less columns
     left and right when it ends its row at the part's edge; then each hole's cell, integrated by
     its owner's record (to the part's edge where it is its column's first or last cell of the
-    part: ``hole_pieces`` is the :class:`_Holes`, the member columns and their first and last
+    part: ``hole_pieces`` is the :class:`Holes`, the member columns and their first and last
     cells of the part). ``origin``: each record's
     place among the members; ``ends``: the record
     ends its column low, high, its row left, right at the part's edge; ``extent``: per group
@@ -610,7 +397,7 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
     keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
     holes, cols, span_lo, span_hi = hole_pieces
     hg, hi_, hj = holes.cells
-    col = np.searchsorted(_key(cols[:, 0], cols[:, 1]), _key(hg, hi_))
+    col = np.searchsorted(pair_key(cols[:, 0], cols[:, 1]), pair_key(hg, hi_))
     first, last = (hj == span_lo[col], hj == span_hi[col]) if len(cols) else (hj < 0, hj < 0)
     out = np.concatenate([out[keep], idx[holes.owner]])
     src = np.concatenate([src[keep], len(idx) + np.arange(len(hi_))])

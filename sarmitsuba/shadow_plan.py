@@ -1,0 +1,150 @@
+"""Shadows in the owned-region plan (docs/physics.md (T6)): the cells of a part that a part in
+front hides (holes), which members and holes near them own pieces, and which occluders each
+piece is cut by. Vectorised NumPy, called by :func:`sarmitsuba.owned_regions.plan`."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lattice_index import convex_depth, lattice_lines, matches, split_triple_key, triple_key, unique_pairs
+
+__all__ = ["Holes", "find_holes", "touching", "hidden_run", "piece_occluders"]
+
+
+def piece_occluders(holes, origin, n_members):
+    """Each piece's occluders (``origin``: its member's place, or ``n_members`` plus its hole's):
+    ``(piece, part)`` pairs, int64 [n_cuts] each."""
+    key = np.concatenate([holes.member_cuts[0], n_members + holes.hole_cuts[0]])
+    parts = np.concatenate([holes.member_cuts[1], holes.hole_cuts[1]])
+    order = np.argsort(key, kind="stable")
+    piece, pos = matches(key[order], origin)
+    return piece, parts[order][pos]
+
+
+@dataclass(frozen=True)
+class Holes:
+    """The cells a part in front hides between a group's members, near the members (T6).
+
+    ``border``: bool [n_members], the members with a hole within ``radius``; ``cells``: int64
+    [3, n_holes] ``(g, i, j)`` of the holes with a member within ``radius``, ``owner`` int64
+    [n_holes] that member (its record integrates the hole's piece); ``member_cuts``,
+    ``hole_cuts``: ``(member or hole, occluding part)`` pairs, the parts of the records in the holes
+    within ``radius`` of each; ``occluded``: int64, the sorted keys (:func:`triple_key`) of every hole."""
+
+    border: np.ndarray
+    cells: np.ndarray
+    owner: np.ndarray
+    member_cuts: tuple
+    hole_cuts: tuple
+    occluded: np.ndarray
+
+
+def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
+    """Find the holes and their occluders (:class:`Holes`). ``g, i, j``: each record's group and
+    cell (its own tube size); ``lines``: the ``(pairs, lo, hi)`` of the member columns (the
+    part's first and last cell on each: a shadow may cut a column's end) and rows (the first and
+    last member); ``groups``: each group's sub-aperture, part and tube size; ``radius``: per group, in cells
+    (1 plus the parallax of the sub-aperture); ``records``: each record's sub-aperture, part and
+    tube size (any record in a hole's cell, on another part, is an occluder)."""
+    gsub, gpart, g_m = groups
+    member = triple_key(g, i, j)
+    order = np.argsort(member)
+    members = member[order]
+    gaps = [triple_key(*_gaps(pairs, lo, hi, ok, swap)) for (pairs, lo, hi), swap in zip(lines, (False, True))]
+    cand = np.unique(np.concatenate(gaps))
+    if members.size:
+        cand = cand[members[np.minimum(np.searchsorted(members, cand), members.size - 1)] != cand]
+    hg, hi, hj = split_triple_key(cand)
+    sub_r, part_r, m_r = records
+    pair_h, pair_p = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for m in np.unique(g_m[hg]):
+        sel = np.flatnonzero(g_m[hg] == m)
+        rkey = triple_key(sub_r, (i * m) // m_r, (j * m) // m_r)
+        o = np.argsort(rkey)
+        q, pos = matches(rkey[o], triple_key(gsub[hg[sel]], hi[sel], hj[sel]))
+        p = part_r[o][pos]
+        keep = p != gpart[hg[sel][q]]
+        pair_h.append(sel[q][keep])
+        pair_p.append(p[keep])
+    pair_h, pair_p = unique_pairs(np.concatenate(pair_h), np.concatenate(pair_p))
+    hole_keys = cand[pair_h]                     # sorted: the pairs are
+    cand = np.unique(hole_keys)                  # a gap no part in front explains is no hole
+    hg, hi, hj = split_triple_key(cand)
+    n_holes = len(cand)
+    border = np.zeros(len(g), bool)
+    owner = np.full(n_holes, -1)
+    member_cuts, hole_cuts = [], []
+    reach = int(radius.max()) if len(radius) else 0
+    for di in range(-reach, reach + 1):
+        for dj in range(-reach, reach + 1):
+            near = np.flatnonzero(ok[g] & (radius[g] >= max(abs(di), abs(dj))))
+            q, pos = matches(hole_keys, triple_key(g[near], i[near] + di, j[near] + dj))
+            border[near[q]] = True
+            member_cuts.append((near[q], pair_p[pos]))
+            near = np.flatnonzero(radius[hg] >= max(abs(di), abs(dj)))
+            q, pos = matches(members, triple_key(hg[near], hi[near] + di, hj[near] + dj))
+            first = near[q][owner[near[q]] < 0]
+            owner[first] = order[pos][owner[near[q]] < 0]
+            q, pos = matches(hole_keys, triple_key(hg[near], hi[near] + di, hj[near] + dj))
+            hole_cuts.append((near[q], pair_p[pos]))
+    keep = owner >= 0
+    renumber = np.cumsum(keep) - 1
+    member_cuts = unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
+    h, p = unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
+    return Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
+                  (renumber[h][keep[h]], p[keep[h]]), cand)
+
+
+def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Holes:
+    """Keep the occluders whose projection meets the member's or hole's cell in some view of the
+    sub-aperture (all of them for the members ``extended`` beyond their cell: the ends at the
+    part's edge), and the holes no one occluder covers in every view; the border members are those
+    with an occluder left. The projections are tested as the convex hull of the occluder's corners
+    in the reference, first and last view (conservative where the corners move along lines
+    between them), by separating axes: the lattice's two and the occluder's edge normals."""
+    gsub, g_m = groups
+    g, i, j = members
+    hg, hi, hj = holes.cells
+    kept = []
+    for (who, part), (cg, ci, cj) in ((holes.member_cuts, (g, i, j)), (holes.hole_cuts, (hg, hi, hj))):
+        cg, ci, cj = cg[who], ci[who].astype(float), cj[who].astype(float)
+        m = g_m[cg][:, None].astype(float)
+        polys = [lattice_lines(vertices[part], views[gsub[cg], v][:, None], fp, 0.0, 0.0, m) for v in range(3)]
+        cell = np.stack([np.stack([ci + di, cj + dj], 1) for di in (0, 1) for dj in (0, 1)], 1)
+        points = np.concatenate(polys, axis=1)
+        e = np.roll(polys[0], -1, axis=1) - polys[0]
+        axes = np.concatenate([np.broadcast_to(np.eye(2), (len(cg), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
+        a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", cell, axes)
+        apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
+        covered = np.all([(convex_depth(poly, cell) > 1e-9).all(1) for poly in polys], axis=0)
+        kept.append((who, part, ~apart.any(1), covered))
+    (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
+    m_meets |= extended[mw]
+    live = np.ones(hg.size, bool)
+    live[hw[h_covered]] = False
+    h_keep = h_meets & live[hw]
+    renumber = np.cumsum(live) - 1
+    border = np.zeros(len(g), bool)
+    border[mw[m_meets]] = True
+    return Holes(border, holes.cells[:, live], holes.owner[live], (mw[m_meets], mp[m_meets]),
+                  (renumber[hw[h_keep]], hp[h_keep]), holes.occluded)
+
+
+def _gaps(pairs, lo, hi, ok, swap):
+    """The cells ``lo`` to ``hi`` of each member column (or row, ``swap``) of the groups ``ok``,
+    members included: ``(g, i, j)``."""
+    count = np.where(ok[pairs[:, 0]], hi - lo + 1, 0)
+    at = np.repeat(np.arange(len(pairs)), count)
+    other = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return (pairs[at, 0], other, pairs[at, 1]) if swap else (pairs[at, 0], pairs[at, 1], other)
+
+
+def hidden_run(pairs, lo, hi, occluded):
+    """Per row ``pairs`` [n, 2] (group, row): whether its cells ``lo..hi`` (columns) are all holes
+    (``occluded``, sorted :func:`triple_key` keys); False where the run is empty."""
+    count = np.maximum(hi - lo + 1, 0)
+    at = np.repeat(np.arange(len(pairs)), count)
+    x = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    hidden = np.isin(triple_key(pairs[at, 0], x, pairs[at, 1]), occluded)
+    return (count > 0) & (np.bincount(at, weights=hidden, minlength=len(pairs)) == count)
