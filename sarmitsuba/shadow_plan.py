@@ -9,7 +9,7 @@ import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, matches, split_triple_key, triple_key, unique_pairs
 
-__all__ = ["Holes", "find_holes", "touching", "hidden_run", "piece_occluders"]
+__all__ = ["Holes", "find_holes", "touching", "hidden_run", "piece_occluders", "neighbour_occluders", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -148,3 +148,67 @@ def hidden_run(pairs, lo, hi, occluded):
     x = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     hidden = np.isin(triple_key(pairs[at, 0], x, pairs[at, 1]), occluded)
     return (count > 0) & (np.bincount(at, weights=hidden, minlength=len(pairs)) == count)
+
+
+def neighbour_occluders(g, i, j, ok, groups, radius, records, geometry):
+    """The parts in front of each member's part near it: ``(member, part)`` pairs for the records
+    of other parts within ``radius`` cells of the member (of its sub-aperture, counted on its tube
+    size) whose part lies in front of the member's where their projections overlap in some view
+    of the sub-aperture (:func:`in_front`). Such a part can hide some of the member's cell from a
+    pulse although it hides no cell centre from the reference position (parallax).
+
+    ``g, i, j, ok, groups, radius, records``: as :func:`find_holes`; ``geometry``: ``(vertices,
+    views, fp)`` as :func:`sarmitsuba.owned_regions.plan` takes them. Returns int64 [n] twice."""
+    gsub, gpart, g_m = groups
+    sub_r, part_r, m_r = records
+    member, occluder = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    reach = int(radius.max()) if len(radius) else 0
+    for m in np.unique(g_m[g[ok[g]]]):
+        rkey = triple_key(sub_r, (i * m) // m_r, (j * m) // m_r)
+        o = np.argsort(rkey)
+        mine = np.flatnonzero(ok[g] & (g_m[g] == m))
+        for di in range(-reach, reach + 1):
+            for dj in range(-reach, reach + 1):
+                near = mine[radius[g[mine]] >= max(abs(di), abs(dj))]
+                q, pos = matches(rkey[o], triple_key(gsub[g[near]], i[near] + di, j[near] + dj))
+                p = part_r[o][pos]
+                other = p != gpart[g[near[q]]]
+                member.append(near[q][other])
+                occluder.append(p[other])
+    member, occluder = unique_pairs(np.concatenate(member), np.concatenate(occluder))
+    pairs, inverse = np.unique(np.stack([g[member], occluder], 1), axis=0, return_inverse=True)
+    front = in_front(gpart[pairs[:, 0]], pairs[:, 1], gsub[pairs[:, 0]], *geometry)
+    keep = front[inverse.ravel()]
+    return member[keep], occluder[keep]
+
+
+def in_front(part, other, sub, vertices, views, fp):
+    """Whether ``other`` lies in front of ``part`` (int64 [n] each) where their projections from
+    the sub-aperture's reference, first and last position overlap: at some corner of one inside
+    the other, the ray from the antenna meets ``other``'s plane first. Planar convex parts that do
+    not cross keep one order over their overlap; an overlap with no corner of either inside the
+    other is not seen. Returns bool [n]."""
+    out = np.zeros(len(part), bool)
+    if len(part) == 0:
+        return out
+    origin, track, look = (np.asarray(v, float) for v in (fp.origin, fp.track, fp.look))
+
+    def plane(p):
+        v = vertices[p]
+        normal = np.cross(v, np.roll(v, -1, axis=1)).sum(1)              # Newell's normal
+        return normal, v[:, 0]
+    (n_a, o_a), (n_b, o_b) = plane(part), plane(other)
+    for view in range(3):
+        antenna = views[sub, view]
+        a = lattice_lines(vertices[part], antenna[:, None], fp, 0.0, 0.0, 1.0)
+        b = lattice_lines(vertices[other], antenna[:, None], fp, 0.0, 0.0, 1.0)
+        points = np.concatenate([a, b], axis=1)
+        inside = (convex_depth(a, points) >= -1e-9) & (convex_depth(b, points) >= -1e-9)
+        aim = origin + points[..., :1] * fp.spacing_azimuth * track + (points[..., 1:] * fp.spacing_range
+                                                                       + fp.range_min) * look
+        ray = aim - antenna[:, None]
+
+        def distance(normal, point):
+            return np.einsum("nd,nd->n", normal, point - antenna)[:, None] / np.einsum("nd,nkd->nk", normal, ray)
+        out |= (inside & (distance(n_b, o_b) < distance(n_a, o_a) * (1.0 - 1e-9))).any(1)
+    return out
