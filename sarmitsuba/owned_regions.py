@@ -23,13 +23,12 @@ straight edges it has, not as the tubes' staircase.
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
-from .shadow_plan import find_holes, hidden_run, neighbour_occluders, piece_occluders, touching
+from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key
+from .shadow_plan import find_holes, hidden_run, piece_occluders, touching
 
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
@@ -276,7 +275,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     np.maximum.at(reach, gsub[ok], shift[ok])
     radius = 1 + np.ceil(reach[gsub]).astype(np.int64)
     holes = find_holes(g, i, j, ok, ((cols, span_lo, span_hi), (rows, imin, imax)), (gsub, gpart, g_m), radius,
-                       (sub[idx], part[idx], m_rec))
+                       (sub[idx], part[idx], m_rec), (vertices, views, fp))
     # a row whose cells beyond its end are holes up to the part's edge ends at the part's edge
     left_part = left_part | hidden_run(rows, row_lo, imin - 1, holes.occluded)
     right_part = right_part | hidden_run(rows, imax + 1, row_hi, holes.occluded)
@@ -291,10 +290,6 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
         leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
-    # ... and the parts in front near the members, which may hide some of a cell from some pulse
-    extra = neighbour_occluders(g, i, j, ok, (gsub, gpart, g_m), radius, (sub[idx], part[idx], m_rec),
-                                (vertices, views, fp))
-    holes = dataclasses.replace(holes, member_cuts=unique_pairs(*(np.concatenate(c) for c in zip(holes.member_cuts, extra))))
     holes = touching(holes, (g, i, j), ends[0] | ends[1] | ends[2] | ends[3], vertices, views, fp, (gsub, g_m))
     box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                      (cmin, cmax, rmin, rmax), n_g)

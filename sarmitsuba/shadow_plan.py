@@ -40,13 +40,14 @@ class Holes:
     occluded: np.ndarray
 
 
-def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
+def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
     """Find the holes and their occluders (:class:`Holes`). ``g, i, j``: each record's group and
     cell (its own tube size); ``lines``: the ``(pairs, lo, hi)`` of the member columns (the
     part's first and last cell on each: a shadow may cut a column's end) and rows (the first and
     last member); ``groups``: each group's sub-aperture, part and tube size; ``radius``: per group, in cells
     (1 plus the parallax of the sub-aperture); ``records``: each record's sub-aperture, part and
-    tube size (any record in a hole's cell, on another part, is an occluder)."""
+    tube size (any record in a hole's cell, on another part, is an occluder); ``geometry``: as
+    :func:`neighbour_occluders`, whose pairs join the members' occluders."""
     gsub, gpart, g_m = groups
     member = triple_key(g, i, j)
     order = np.argsort(member)
@@ -90,6 +91,7 @@ def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
             hole_cuts.append((near[q], pair_p[pos]))
     keep = owner >= 0
     renumber = np.cumsum(keep) - 1
+    member_cuts.append(neighbour_occluders(g, i, j, ok, groups, radius, records, geometry))
     member_cuts = unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
     h, p = unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
     return Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
