@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key
-from .shadow_plan import find_holes, hidden_run, piece_occluders, touching
+from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
+from .shadow_plan import band_occluders, find_holes, hidden_run, piece_occluders, touching
 
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
@@ -290,7 +290,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
         leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
-    holes = touching(holes, (g, i, j), ends[0] | ends[1] | ends[2] | ends[3], vertices, views, fp, (gsub, g_m))
+    extended = ends[0] | ends[1] | ends[2] | ends[3]
+    holes = touching(holes, (g, i, j), extended, vertices, views, fp, (gsub, g_m))
     box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                      (cmin, cmax, rmin, rmax), n_g)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)
@@ -299,8 +300,24 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
                                       (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
-    piece, occluder = piece_occluders(holes, origin, idx.size)
+    piece, occluder = _cuts(holes, holes.named, (origin, bounds), extended, g, polys, (gsub, g_m), (vertices, views, fp))
     return OwnedPlan(owned, records, bounds, piece, occluder, groups=n_g, fallback=int(n_g - ok.sum()))
+
+
+def _cuts(holes, named, pieces, extended, g, polys, groups, geometry):
+    """Each piece's occluders: its member's or hole's (:func:`piece_occluders`), and for the pieces
+    of the ends at the part's edge, which reach beyond their cell, every occluder ``named`` in the
+    group that meets them (:func:`band_occluders`, with the part's box over the sub-aperture's
+    views ``polys``). Returns ``(piece, part)`` int64 [n_cuts] twice, sorted."""
+    origin, bounds = pieces
+    piece, occluder = piece_occluders(holes, origin, len(g))
+    wide = np.flatnonzero(origin < len(g))
+    wide = wide[extended[origin[wide]]]
+    corners = np.concatenate(polys, axis=1)
+    box = np.stack([corners[..., 0].min(1) - 1, corners[..., 0].max(1) + 1, corners[..., 1].min(1) - 1,
+                    corners[..., 1].max(1) + 1], 1)
+    more = band_occluders((wide, g[origin[wide]], bounds[wide]), named, box, groups, geometry)
+    return unique_pairs(np.concatenate([piece, more[0]]), np.concatenate([occluder, more[1]]))
 
 
 def _bands_box(occluded, columns, rows, extent, n_g):

@@ -9,7 +9,8 @@ import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, matches, split_triple_key, triple_key, unique_pairs
 
-__all__ = ["Holes", "find_holes", "touching", "hidden_run", "piece_occluders", "neighbour_occluders", "in_front"]
+__all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
+           "neighbour_occluders", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -30,7 +31,8 @@ class Holes:
     [3, n_holes] ``(g, i, j)`` of the holes with a member within ``radius``, ``owner`` int64
     [n_holes] that member (its record integrates the hole's piece); ``member_cuts``,
     ``hole_cuts``: ``(member or hole, occluding part)`` pairs, the parts of the records in the holes
-    within ``radius`` of each; ``occluded``: int64, the sorted keys (:func:`triple_key`) of every hole."""
+    within ``radius`` of each; ``occluded``: int64, the sorted keys (:func:`triple_key`) of every hole;
+    ``named``: ``(group, part)``, every occluder found in a group, sorted."""
 
     border: np.ndarray
     cells: np.ndarray
@@ -38,6 +40,7 @@ class Holes:
     member_cuts: tuple
     hole_cuts: tuple
     occluded: np.ndarray
+    named: tuple
 
 
 def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
@@ -94,8 +97,9 @@ def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
     member_cuts.append(neighbour_occluders(g, i, j, ok, groups, radius, records, geometry))
     member_cuts = unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
     h, p = unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
+    named = unique_pairs(np.concatenate([g[member_cuts[0]], hg[h]]), np.concatenate([member_cuts[1], p]))
     return Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
-                  (renumber[h][keep[h]], p[keep[h]]), cand)
+                 (renumber[h][keep[h]], p[keep[h]]), cand, named)
 
 
 def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Holes:
@@ -111,16 +115,8 @@ def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Ho
     kept = []
     for (who, part), (cg, ci, cj) in ((holes.member_cuts, (g, i, j)), (holes.hole_cuts, (hg, hi, hj))):
         cg, ci, cj = cg[who], ci[who].astype(float), cj[who].astype(float)
-        m = g_m[cg][:, None].astype(float)
-        polys = [lattice_lines(vertices[part], views[gsub[cg], v][:, None], fp, 0.0, 0.0, m) for v in range(3)]
-        cell = np.stack([np.stack([ci + di, cj + dj], 1) for di in (0, 1) for dj in (0, 1)], 1)
-        points = np.concatenate(polys, axis=1)
-        e = np.roll(polys[0], -1, axis=1) - polys[0]
-        axes = np.concatenate([np.broadcast_to(np.eye(2), (len(cg), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
-        a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", cell, axes)
-        apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
-        covered = np.all([(convex_depth(poly, cell) > 1e-9).all(1) for poly in polys], axis=0)
-        kept.append((who, part, ~apart.any(1), covered))
+        meet, covered = meets(np.stack([ci, ci + 1, cj, cj + 1], 1), part, gsub[cg], g_m[cg], vertices, views, fp)
+        kept.append((who, part, meet, covered))
     (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
     m_meets |= extended[mw]
     live = np.ones(hg.size, bool)
@@ -130,7 +126,43 @@ def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Ho
     border = np.zeros(len(g), bool)
     border[mw[m_meets]] = True
     return Holes(border, holes.cells[:, live], holes.owner[live], (mw[m_meets], mp[m_meets]),
-                  (renumber[hw[h_keep]], hp[h_keep]), holes.occluded)
+                 (renumber[hw[h_keep]], hp[h_keep]), holes.occluded, holes.named)
+
+
+def meets(rect, part, sub, m, vertices, views, fp):
+    """Whether the projection of ``part`` (int64 [n]) from sub-aperture ``sub``'s reference, first
+    and last position meets the rectangle ``rect`` (float64 [n, 4], ``x0, x1, y0, y1`` in lattice
+    lines of tube size ``m``) in some view, and whether it covers it in every one. Tested on the
+    convex hull of the corners in the three views (conservative where the corners move along
+    lines between them) by separating axes: the lattice's two and the part's edge normals.
+    Returns bool [n] twice."""
+    polys = [lattice_lines(vertices[part], views[sub, v][:, None], fp, 0.0, 0.0, m[:, None].astype(float))
+             for v in range(3)]
+    x0, x1, y0, y1 = rect.T
+    corners = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
+    points = np.concatenate(polys, axis=1)
+    e = np.roll(polys[0], -1, axis=1) - polys[0]
+    axes = np.concatenate([np.broadcast_to(np.eye(2), (len(part), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
+    a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", corners, axes)
+    apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
+    covered = np.all([(convex_depth(poly, corners) > 1e-9).all(1) for poly in polys], axis=0)
+    return ~apart.any(1), covered
+
+
+def band_occluders(pieces, group_pairs, box, groups, geometry):
+    """Occluders of the pieces that reach beyond their member's cell (the column extensions and row
+    bands of the ends at the part's edge): every part named as an occluder anywhere in the
+    piece's group whose projection meets the piece (:func:`meets`, the piece clamped to the part's
+    box in the sub-aperture's views). ``pieces``: ``(index, group, bounds)`` of those pieces;
+    ``group_pairs``: ``(group, part)``, sorted; ``box``: float64 [n_groups, 4]. Returns ``(piece,
+    part)`` int64 [n] twice."""
+    index, group, bounds = pieces
+    gsub, g_m = groups
+    q, pos = matches(group_pairs[0], group)
+    rect = np.clip(bounds[q], np.repeat(box[group[q]][:, 0::2], 2, axis=1), np.repeat(box[group[q]][:, 1::2], 2, axis=1))
+    part = group_pairs[1][pos]
+    meet, _ = meets(rect, part, gsub[group[q]], g_m[group[q]], *geometry)
+    return index[q][meet], part[meet]
 
 
 def _gaps(pairs, lo, hi, ok, swap):
