@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
-from .shadow_plan import band_occluders, find_holes, hidden_run, piece_occluders, touching
+from .shadow_plan import band_occluders, find_holes, hidden_run, overlapping_occluders, piece_occluders, touching
 
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
@@ -262,8 +262,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
              for v in range(3)]
     ref = polys[0]
     ok &= np.isfinite(ref).all((1, 2))
-    # ---- each column's and row's members lie in the cells whose centres the reference position
-    #      sees inside the part; an end short of the part's edge is cut (shadow, beam, range) ----
+    # ---- each column's and row's members lie in the cells whose centres the reference sees in the part ----
     column_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref, 0.0)), cols, jmin, jmax, n_g)
     row_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0)), rows, imin, imax, n_g)
     ok &= column_ends[0] & row_ends[0]
@@ -300,23 +299,28 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
                                       (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
-    piece, occluder = _cuts(holes, holes.named, (origin, bounds), extended, g, polys, (gsub, g_m), (vertices, views, fp))
+    piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys, sub[idx], part[idx]), (gsub, gpart, g_m),
+                            (vertices, views, fp))
     return OwnedPlan(owned, records, bounds, piece, occluder, groups=n_g, fallback=int(n_g - ok.sum()))
 
 
-def _cuts(holes, named, pieces, extended, g, polys, groups, geometry):
+def _cuts(holes, pieces, extended, records, groups, geometry):
     """Each piece's occluders: its member's or hole's (:func:`piece_occluders`), and for the pieces
-    of the ends at the part's edge, which reach beyond their cell, every occluder ``named`` in the
-    group that meets them (:func:`band_occluders`, with the part's box over the sub-aperture's
-    views ``polys``). Returns ``(piece, part)`` int64 [n_cuts] twice, sorted."""
-    origin, bounds = pieces
+    of the ends at the part's edge, which reach beyond their cell, every occluder of the group
+    (found in its holes, or in front where the projections overlap: :func:`overlapping_occluders`)
+    that meets them (:func:`band_occluders`, with the part's box over the sub-aperture's views
+    ``polys``). ``records``: each record's group, the groups' parts in the three views, each
+    record's sub-aperture and part. Returns ``(piece, part)`` int64 [n_cuts] twice, sorted."""
+    (origin, bounds), (g, polys, sub, part), (gsub, gpart, g_m) = pieces, records, groups
+    named = unique_pairs(*(np.concatenate(c) for c in zip(holes.named, overlapping_occluders(
+        (gsub, gpart), (sub, part), geometry))))
     piece, occluder = piece_occluders(holes, origin, len(g))
     wide = np.flatnonzero(origin < len(g))
     wide = wide[extended[origin[wide]]]
     corners = np.concatenate(polys, axis=1)
     box = np.stack([corners[..., 0].min(1) - 1, corners[..., 0].max(1) + 1, corners[..., 1].min(1) - 1,
                     corners[..., 1].max(1) + 1], 1)
-    more = band_occluders((wide, g[origin[wide]], bounds[wide]), named, box, groups, geometry)
+    more = band_occluders((wide, g[origin[wide]], bounds[wide]), named, box, (gsub, g_m), geometry)
     return unique_pairs(np.concatenate([piece, more[0]]), np.concatenate([occluder, more[1]]))
 
 

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lattice_index import convex_depth, lattice_lines, matches, split_triple_key, triple_key, unique_pairs
+from .lattice_index import convex_depth, lattice_lines, matches, pair_key, split_triple_key, triple_key, unique_pairs
 
 __all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
-           "neighbour_occluders", "in_front"]
+           "neighbour_occluders", "overlapping_occluders", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -246,3 +246,25 @@ def in_front(part, other, sub, vertices, views, fp):
             return np.einsum("nd,nd->n", normal, point - antenna)[:, None] / np.einsum("nd,nkd->nk", normal, ray)
         out |= (inside & (distance(n_b, o_b) < distance(n_a, o_a) * (1.0 - 1e-9))).any(1)
     return out
+
+
+def overlapping_occluders(groups, records, geometry):
+    """Every part in front of a group's part where their projections overlap in some view of the
+    sub-aperture, among the parts its records meet (bounding boxes of the three views, then
+    :func:`in_front`). ``groups``: each group's sub-aperture and part; ``records``: each record's
+    sub-aperture and part; ``geometry``: ``(vertices, views, fp)``. Returns ``(group, part)`` int64
+    [n] twice."""
+    gsub, gpart = groups
+    vertices, views, fp = geometry
+    sub, part = unique_pairs(*records)                       # the parts each sub-aperture meets
+    if len(sub) == 0 or len(gsub) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    points = np.concatenate([lattice_lines(vertices[part], views[sub, v][:, None], fp, 0.0, 0.0, 1.0)
+                             for v in range(3)], axis=1)
+    lo, hi = points.min(1), points.max(1)
+    at = np.searchsorted(pair_key(sub, part), pair_key(gsub, gpart))     # each group's own box
+    q, pos = matches(sub, gsub)                                           # (group, part of its sub-aperture)
+    keep = (part[pos] != gpart[q]) & np.all(lo[pos] <= hi[at[q]], 1) & np.all(hi[pos] >= lo[at[q]], 1)
+    q, pos = q[keep], pos[keep]
+    front = in_front(gpart[q], part[pos], gsub[q], vertices, views, fp)
+    return q[front], part[pos][front]
