@@ -274,7 +274,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     np.maximum.at(reach, gsub[ok], shift[ok])
     radius = 1 + np.ceil(reach[gsub]).astype(np.int64)
     holes = find_holes(g, i, j, ok, ((cols, span_lo, span_hi), (rows, imin, imax)), (gsub, gpart, g_m), radius,
-                       (sub[idx], part[idx], m_rec), (vertices, views, fp))
+                       (sub[idx], part[idx], m_rec))
     # a row whose cells beyond its end are holes up to the part's edge ends at the part's edge
     left_part = left_part | hidden_run(rows, row_lo, imin - 1, holes.occluded)
     right_part = right_part | hidden_run(rows, imax + 1, row_hi, holes.occluded)
@@ -290,7 +290,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     for poly in polys:
         leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
     extended = ends[0] | ends[1] | ends[2] | ends[3]
-    holes = touching(holes, (g, i, j), extended, vertices, views, fp, (gsub, g_m))
+    holes = touching(holes, (g, i, j), vertices, views, fp, (gsub, g_m))
     box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                      (cmin, cmax, rmin, rmax), n_g)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)

@@ -10,7 +10,7 @@ import numpy as np
 from .lattice_index import convex_depth, lattice_lines, matches, pair_key, split_triple_key, triple_key, unique_pairs
 
 __all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
-           "neighbour_occluders", "overlapping_occluders", "in_front"]
+           "overlapping_occluders", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -43,14 +43,13 @@ class Holes:
     named: tuple
 
 
-def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
+def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
     """Find the holes and their occluders (:class:`Holes`). ``g, i, j``: each record's group and
     cell (its own tube size); ``lines``: the ``(pairs, lo, hi)`` of the member columns (the
     part's first and last cell on each: a shadow may cut a column's end) and rows (the first and
     last member); ``groups``: each group's sub-aperture, part and tube size; ``radius``: per group, in cells
     (1 plus the parallax of the sub-aperture); ``records``: each record's sub-aperture, part and
-    tube size (any record in a hole's cell, on another part, is an occluder); ``geometry``: as
-    :func:`neighbour_occluders`, whose pairs join the members' occluders."""
+    tube size (any record in a hole's cell, on another part, is an occluder)."""
     gsub, gpart, g_m = groups
     member = triple_key(g, i, j)
     order = np.argsort(member)
@@ -94,7 +93,6 @@ def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
             hole_cuts.append((near[q], pair_p[pos]))
     keep = owner >= 0
     renumber = np.cumsum(keep) - 1
-    member_cuts.append(neighbour_occluders(g, i, j, ok, groups, radius, records, geometry))
     member_cuts = unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
     h, p = unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
     named = unique_pairs(np.concatenate([g[member_cuts[0]], hg[h]]), np.concatenate([member_cuts[1], p]))
@@ -102,11 +100,11 @@ def find_holes(g, i, j, ok, lines, groups, radius, records, geometry) -> Holes:
                  (renumber[h][keep[h]], p[keep[h]]), cand, named)
 
 
-def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Holes:
+def touching(holes: Holes, members, vertices, views, fp, groups) -> Holes:
     """Keep the occluders whose projection meets the member's or hole's cell in some view of the
-    sub-aperture (all of them for the members ``extended`` beyond their cell: the ends at the
-    part's edge), and the holes no one occluder covers in every view; the border members are those
-    with an occluder left. The projections are tested as the convex hull of the occluder's corners
+    sub-aperture (:func:`meets`; the pieces beyond a cell get theirs from :func:`band_occluders`),
+    and the holes no one occluder covers in every view; the border members are those with an
+    occluder left. The projections are tested as the convex hull of the occluder's corners
     in the reference, first and last view (conservative where the corners move along lines
     between them), by separating axes: the lattice's two and the occluder's edge normals."""
     gsub, g_m = groups
@@ -118,7 +116,6 @@ def touching(holes: Holes, members, extended, vertices, views, fp, groups) -> Ho
         meet, covered = meets(np.stack([ci, ci + 1, cj, cj + 1], 1), part, gsub[cg], g_m[cg], vertices, views, fp)
         kept.append((who, part, meet, covered))
     (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
-    m_meets |= extended[mw]
     live = np.ones(hg.size, bool)
     live[hw[h_covered]] = False
     h_keep = h_meets & live[hw]
@@ -182,38 +179,6 @@ def hidden_run(pairs, lo, hi, occluded):
     x = lo[at] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     hidden = np.isin(triple_key(pairs[at, 0], x, pairs[at, 1]), occluded)
     return (count > 0) & (np.bincount(at, weights=hidden, minlength=len(pairs)) == count)
-
-
-def neighbour_occluders(g, i, j, ok, groups, radius, records, geometry):
-    """The parts in front of each member's part near it: ``(member, part)`` pairs for the records
-    of other parts within ``radius`` cells of the member (of its sub-aperture, counted on its tube
-    size) whose part lies in front of the member's where their projections overlap in some view
-    of the sub-aperture (:func:`in_front`). Such a part can hide some of the member's cell from a
-    pulse although it hides no cell centre from the reference position (parallax).
-
-    ``g, i, j, ok, groups, radius, records``: as :func:`find_holes`; ``geometry``: ``(vertices,
-    views, fp)`` as :func:`sarmitsuba.owned_regions.plan` takes them. Returns int64 [n] twice."""
-    gsub, gpart, g_m = groups
-    sub_r, part_r, m_r = records
-    member, occluder = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    reach = int(radius.max()) if len(radius) else 0
-    for m in np.unique(g_m[g[ok[g]]]):
-        rkey = triple_key(sub_r, (i * m) // m_r, (j * m) // m_r)
-        o = np.argsort(rkey)
-        mine = np.flatnonzero(ok[g] & (g_m[g] == m))
-        for di in range(-reach, reach + 1):
-            for dj in range(-reach, reach + 1):
-                near = mine[radius[g[mine]] >= max(abs(di), abs(dj))]
-                q, pos = matches(rkey[o], triple_key(gsub[g[near]], i[near] + di, j[near] + dj))
-                p = part_r[o][pos]
-                other = p != gpart[g[near[q]]]
-                member.append(near[q][other])
-                occluder.append(p[other])
-    member, occluder = unique_pairs(np.concatenate(member), np.concatenate(occluder))
-    pairs, inverse = np.unique(np.stack([g[member], occluder], 1), axis=0, return_inverse=True)
-    front = in_front(gpart[pairs[:, 0]], pairs[:, 1], gsub[pairs[:, 0]], *geometry)
-    keep = front[inverse.ravel()]
-    return member[keep], occluder[keep]
 
 
 def in_front(part, other, sub, vertices, views, fp):
