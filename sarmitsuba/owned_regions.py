@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
-from .shadow_plan import band_occluders, find_holes, hidden_run, overlapping_occluders, piece_occluders, touching
+from .shadow_plan import (band_occluders, find_holes, hidden_run, overlapping_occluders, overlapping_pairs,
+                          piece_occluders, touching)
 
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
 
@@ -175,6 +176,9 @@ class OwnedPlan:
         int64 [n_cuts]: a piece and a part in front of it (an occluder) whose projection from each
         pulse's antenna is cut out of the piece: the kernel subtracts the integral over
         ``piece ∩ part ∩ occluder`` as that pulse sees them (T6).
+    pair_piece, pair_parts : ndarray, (ndarray, ndarray)
+        int64 [n_pairs]: a piece and two of its occluders whose projections overlap in some view;
+        the kernel adds back the integral over ``piece ∩ part ∩ both`` (inclusion and exclusion).
     groups, fallback : int
         Facet-and-sub-aperture groups seen, and those left to whole tiles (member columns or rows
         not contiguous, a member where the part is not, tubes of several sizes).
@@ -185,6 +189,8 @@ class OwnedPlan:
     bounds: np.ndarray
     cut_piece: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     cut_part: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pair_piece: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    pair_parts: tuple = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     groups: int = 0
     fallback: int = 0
 
@@ -283,8 +289,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     ends = ((j == jmin[col_of]) & lo_part[col_of], (j == jmax[col_of]) & hi_part[col_of],
             (i == imin[row_of]) & left_part[row_of], (i == imax[row_of]) & right_part[row_of])
     corners = np.stack([np.stack([i + di, j + dj], 1) for di in (0, 1) for dj in (0, 1)], 1).astype(float)
-    # a cell can leave the part only near its edge: farther (in cells) than the views' largest
-    # corner shift, plus the cell's half diagonal, it stays inside in every view
+    # a cell farther from the part's edge than the views' largest corner shift + 1 stays inside
     near = good & (convex_depth(ref[g], corners.mean(1)[:, None])[:, 0] <= shift[g] + 1.0)
     leaves = np.zeros(idx.size, bool)
     for poly in polys:
@@ -301,7 +306,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
                                       (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
     piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys, sub[idx], part[idx]), (gsub, gpart, g_m),
                             (vertices, views, fp))
-    return OwnedPlan(owned, records, bounds, piece, occluder, groups=n_g, fallback=int(n_g - ok.sum()))
+    pairs = overlapping_pairs(piece, occluder, sub[records[piece]], (vertices, views, fp))
+    return OwnedPlan(owned, records, bounds, piece, occluder, *pairs, groups=n_g, fallback=int(n_g - ok.sum()))
 
 
 def _cuts(holes, pieces, extended, records, groups, geometry):

@@ -62,8 +62,9 @@ class OwnedTerms:
     def _owned(self, ctx, rec):
         """Plan the first-bounce records' owned regions on the host (:func:`owned_regions.plan`),
         flag the owned records (their tiles are not evaluated, and no neighbour cancels against
-        them) and return the pieces, then the occluders cut out of them: a list of ``(records,
-        bounds, occluding part or None)``, or None when no record owns pieces."""
+        them) and return the pieces, then the occluders cut out of them, then the pairs of
+        occluders whose overlap is added back: a list of ``(records, bounds, occluding parts)``
+        (none, one or two per piece), or None when no record owns pieces."""
         launch = ctx["launch"]
         part = rec.part.numpy().astype(np.int64)
         part[part == _INVALID] = -1
@@ -76,15 +77,16 @@ class OwnedTerms:
         rec.flags |= dr.select(mi.Bool(result.owned), mi.UInt32(_OWNED), mi.UInt32(0))
         dr.eval(rec.flags)
         launches = []
-        for piece, occluder in ((slice(None), None), (result.cut_piece, result.cut_part)):
+        for piece, occluders in ((slice(None), ()), (result.cut_piece, (result.cut_part,)),
+                                 (result.pair_piece, result.pair_parts)):
             records, bounds = result.record[piece], result.bounds[piece]
             if len(records) == 0:
                 continue
             pieces = dr.gather(type(rec), rec, mi.UInt32(records.astype(np.uint32)))
             bounds = [mi.Float64(bounds[:, c].copy()) for c in range(4)]
-            occluder = None if occluder is None else mi.UInt32(occluder.astype(np.uint32))
-            dr.eval(pieces, bounds, occluder)
-            launches.append((pieces, bounds, occluder))
+            occluders = tuple(mi.UInt32(o.astype(np.uint32)) for o in occluders)
+            dr.eval(pieces, bounds, occluders)
+            launches.append((pieces, bounds, occluders))
         return launches
 
     def _corner_lines(self, ctx, rec, antenna, part):
@@ -118,14 +120,14 @@ class OwnedTerms:
         t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
         return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
 
-    def _piece(self, ctx, rec, antenna, bounds, occluder):
+    def _piece(self, ctx, rec, antenna, bounds, occluders):
         """The boundary segments of the piece (the rectangle ``bounds`` cut to the record's part,
-        and to the ``occluder``'s projection when given) as the pulse at ``antenna`` sees it, in
+        and to the ``occluders``' projections) as the pulse at ``antenna`` sees it, in
         lattice lines of tube size ``m``: ``(segments, m)``."""
         corners, m = self._corner_lines(ctx, rec, antenna, rec.part)
         x0, x1, y0, y1 = self._box(corners, bounds)
         polygons = [corners, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]]
-        if occluder is not None:
+        for occluder in occluders:
             polygons.append(self._corner_lines(ctx, rec, antenna, occluder)[0])
         return self._segments(polygons), m
 
@@ -189,14 +191,15 @@ class OwnedTerms:
             moment += (a + b - 2.0 * centre) * cross
         return 0.5 * twice_area, centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
 
-    def owned_po(self, ctx, rec, bounds, occluder=None) -> None:
+    def owned_po(self, ctx, rec, bounds, occluders=()) -> None:
         """Per pulse, the PO integral over each owned piece, eqs. (T6), (PO1), (PO2), (PO5).
 
         The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
         as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
-        antenna, :meth:`_corner_lines`). With ``occluder`` (a part in front, per piece) the
-        integral over the piece cut to the occluder's projection too is subtracted instead: the
-        occluder's shadow on the piece as that pulse sees it. Its integral is Gordon's edge form: per boundary segment
+        antenna, :meth:`_corner_lines`). With one of ``occluders`` (a part in front, per piece)
+        the integral over the piece cut to the occluder's projection too is subtracted instead:
+        the occluder's shadow on the piece as that pulse sees it; with two, the integral over
+        their overlap there is added back (inclusion and exclusion). Its integral is Gordon's edge form: per boundary segment
         ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``
         times ``sinc(k u . a / 2)`` at the segment's midpoint, or split into its ends as (PO2)
         (a side of the rectangle where the record's tile splits that edge, a part edge where its
@@ -210,8 +213,8 @@ class OwnedTerms:
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
         cell, decided = self._cell(ctx, rec.block), [(flags & bit) != 0 for bit in (_SPLIT_1, _SPLIT_2)]
         open_ = [(flags & bit) != 0 for bit in (_UNDECIDED_1, _UNDECIDED_2)]
-        n_segments = _SEGMENTS + (0 if occluder is None else MAX_PART_VERTICES)
-        lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * n_segments + 1, 1.0 if occluder is None else -1.0
+        n_segments = _SEGMENTS + MAX_PART_VERTICES * len(occluders)
+        lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * n_segments + 1, (-1.0) ** len(occluders)
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
 
@@ -219,7 +222,7 @@ class OwnedTerms:
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             split, centre, u_c = self.pulse_split(rec, antenna, cell, nu, 0, decided, open_)
-            segments, m = self._piece(ctx, rec, antenna, bounds, occluder)
+            segments, m = self._piece(ctx, rec, antenna, bounds, occluders)
             # each segment's ends on the facet (point, unfolded length, direction, tile edges)
             ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, 0),
                      self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, 0))

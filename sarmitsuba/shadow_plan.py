@@ -10,7 +10,7 @@ import numpy as np
 from .lattice_index import convex_depth, lattice_lines, matches, pair_key, split_triple_key, triple_key, unique_pairs
 
 __all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
-           "overlapping_occluders", "in_front"]
+           "overlapping_occluders", "overlapping_pairs", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -233,3 +233,26 @@ def overlapping_occluders(groups, records, geometry):
     q, pos = q[keep], pos[keep]
     front = in_front(gpart[q], part[pos], gsub[q], vertices, views, fp)
     return q[front], part[pos][front]
+
+
+def overlapping_pairs(piece, part, sub, geometry):
+    """The pairs of one piece's occluders (``piece``, ``part`` int64 [n], sorted by piece) whose
+    projections from the piece's sub-aperture (``sub``, per cut) overlap in some view: the hulls of
+    their corners in the three views are not separated by an edge normal of either (separating
+    axes, conservative). Their overlap was cut out twice; the kernel adds it back once.
+    Returns ``(piece, (part_a, part_b))``, int64 [n_pairs]."""
+    vertices, views, fp = geometry
+    start = np.flatnonzero(np.r_[True, piece[1:] != piece[:-1]]) if len(piece) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[start, len(piece)])
+    rank = np.arange(len(piece)) - np.repeat(start, size)
+    later = np.repeat(size, size) - rank - 1                  # the cuts after each one in its piece
+    a = np.repeat(np.arange(len(piece)), later)
+    b = a + 1 + np.arange(later.sum()) - np.repeat(np.cumsum(later) - later, later)
+    polys = [[lattice_lines(vertices[part[c]], views[sub[c], v][:, None], fp, 0.0, 0.0, 1.0) for v in range(3)]
+             for c in (a, b)]
+    points = [np.concatenate(p, axis=1) for p in polys]
+    edges = [np.roll(p[0], -1, axis=1) - p[0] for p in polys]
+    axes = np.concatenate([np.stack([-e[..., 1], e[..., 0]], -1) for e in edges], 1)
+    pa, pb = (np.einsum("nkd,nad->nak", pts, axes) for pts in points)
+    apart = ((pa.max(-1) < pb.min(-1)) | (pa.min(-1) > pb.max(-1))).any(1)
+    return piece[a][~apart], (part[a][~apart], part[b][~apart])
