@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
-from .shadow_plan import (band_occluders, find_holes, hidden_run, overlapping_occluders, overlapping_pairs,
+from .shadow_plan import (band_occluders, find_holes, hidden_run, occluders_near, overlapping_pairs,
                           piece_occluders, touching)
 
 __all__ = ["HalfPlane", "owned_regions", "clip_convex", "region_polygons", "OwnedPlan", "UNBOUNDED", "lattice_lines", "plan"]
@@ -295,6 +295,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     for poly in polys:
         leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
     extended = ends[0] | ends[1] | ends[2] | ends[3]
+    holes = occluders_near(holes, (g, i, j), (gsub, gpart, g_m), (sub[idx], part[idx]), (vertices, views, fp))
     holes = touching(holes, (g, i, j), vertices, views, fp, (gsub, g_m))
     box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                      (cmin, cmax, rmin, rmax), n_g)
@@ -304,8 +305,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
                                       (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
-    piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys, sub[idx], part[idx]), (gsub, gpart, g_m),
-                            (vertices, views, fp))
+    piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys), (gsub, g_m), (vertices, views, fp))
     pairs = overlapping_pairs(piece, occluder, sub[records[piece]], (vertices, views, fp))
     return OwnedPlan(owned, records, bounds, piece, occluder, *pairs, groups=n_g, fallback=int(n_g - ok.sum()))
 
@@ -313,20 +313,18 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
 def _cuts(holes, pieces, extended, records, groups, geometry):
     """Each piece's occluders: its member's or hole's (:func:`piece_occluders`), and for the pieces
     of the ends at the part's edge, which reach beyond their cell, every occluder of the group
-    (found in its holes, or in front where the projections overlap: :func:`overlapping_occluders`)
-    that meets them (:func:`band_occluders`, with the part's box over the sub-aperture's views
-    ``polys``). ``records``: each record's group, the groups' parts in the three views, each
-    record's sub-aperture and part. Returns ``(piece, part)`` int64 [n_cuts] twice, sorted."""
-    (origin, bounds), (g, polys, sub, part), (gsub, gpart, g_m) = pieces, records, groups
-    named = unique_pairs(*(np.concatenate(c) for c in zip(holes.named, overlapping_occluders(
-        (gsub, gpart), (sub, part), geometry))))
+    (``holes.named``: found in its holes, or in front where the projections overlap) that meets
+    them (:func:`band_occluders`, with the part's box over the sub-aperture's views ``polys``).
+    ``records``: each record's group, and the groups' parts in the three views. Returns ``(piece,
+    part)`` int64 [n_cuts] twice, sorted."""
+    (origin, bounds), (g, polys), (gsub, g_m) = pieces, records, groups
     piece, occluder = piece_occluders(holes, origin, len(g))
     wide = np.flatnonzero(origin < len(g))
     wide = wide[extended[origin[wide]]]
     corners = np.concatenate(polys, axis=1)
     box = np.stack([corners[..., 0].min(1) - 1, corners[..., 0].max(1) + 1, corners[..., 1].min(1) - 1,
                     corners[..., 1].max(1) + 1], 1)
-    more = band_occluders((wide, g[origin[wide]], bounds[wide]), named, box, (gsub, g_m), geometry)
+    more = band_occluders((wide, g[origin[wide]], bounds[wide]), holes.named, box, (gsub, g_m), geometry)
     return unique_pairs(np.concatenate([piece, more[0]]), np.concatenate([occluder, more[1]]))
 
 

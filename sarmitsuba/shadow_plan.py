@@ -10,7 +10,7 @@ import numpy as np
 from .lattice_index import convex_depth, lattice_lines, matches, pair_key, split_triple_key, triple_key, unique_pairs
 
 __all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
-           "overlapping_occluders", "overlapping_pairs", "in_front"]
+           "overlapping_occluders", "occluders_near", "overlapping_pairs", "in_front"]
 
 
 def piece_occluders(holes, origin, n_members):
@@ -256,3 +256,30 @@ def overlapping_pairs(piece, part, sub, geometry):
     pa, pb = (np.einsum("nkd,nad->nak", pts, axes) for pts in points)
     apart = ((pa.max(-1) < pb.min(-1)) | (pa.min(-1) > pb.max(-1))).any(1)
     return piece[a][~apart], (part[a][~apart], part[b][~apart])
+
+
+def occluders_near(holes: Holes, members, groups, records, geometry) -> Holes:
+    """Add to the holes' occluders every part in front of a group's part where their projections
+    overlap (:func:`overlapping_occluders`), and name it for every member whose cell lies in the
+    box of its projection over the sub-aperture's three views (:func:`touching` then keeps those
+    it meets). ``members``: each record's group and cell; ``groups``: each group's sub-aperture,
+    part and tube size; ``records``: each record's sub-aperture and part."""
+    g, i, j = members
+    gsub, gpart, g_m = groups
+    vertices, views, fp = geometry
+    more = overlapping_occluders((gsub, gpart), records, geometry)
+    named = unique_pairs(*(np.concatenate(c) for c in zip(holes.named, more)))
+    grp, part = more
+    points = np.concatenate([lattice_lines(vertices[part], views[gsub[grp], v][:, None], fp, 0.0, 0.0,
+                                           g_m[grp][:, None].astype(float)) for v in range(3)], axis=1)
+    lo, hi = np.floor(points.min(1)).astype(np.int64), np.floor(points.max(1)).astype(np.int64)
+    width, height = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+    count = width * height
+    at = np.repeat(np.arange(len(grp)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cells = triple_key(grp[at], lo[at, 0] + k // height[at], lo[at, 1] + k % height[at])
+    order = np.argsort(triple_key(g, i, j))
+    q, pos = matches(triple_key(g, i, j)[order], cells)
+    cuts = unique_pairs(np.concatenate([holes.member_cuts[0], order[pos]]),
+                        np.concatenate([holes.member_cuts[1], part[at[q]]]))
+    return Holes(holes.border, holes.cells, holes.owner, cuts, holes.hole_cuts, holes.occluded, named)
