@@ -70,8 +70,8 @@
      the part's own edges return as the straight edges they are (docs/physics.md (T6)). The
      shadows of parts in front are cut out of the pieces from each pulse; the beam's edge keeps
      the tubes' staircase. Physical-optics terms of the first bounce only (not clutter, not
-     later bounces, not parts traced with tubes of several sizes); 9x the first-bounce trace
-     time on an oblique block (mostly the host's plan).
+     later bounces, not parts traced with tubes of several sizes); about 100x the first-bounce
+     trace time on an oblique block (mostly compiling the kernel of overlapping shadows).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;
