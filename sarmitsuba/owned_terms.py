@@ -49,7 +49,8 @@ class PartTable:
     def of(scene) -> "PartTable":
         parts = scene_parts(scene)
         corners = parts.vertices.reshape(-1, 3)
-        return PartTable(mi.UInt32(np.where(parts.triangle_part < 0, _INVALID, parts.triangle_part).astype(np.uint32)),
+        part = np.where(parts.triangle_part < 0, _INVALID, parts.triangle_part.astype(np.int64))  # int32 cannot hold INVALID
+        return PartTable(mi.UInt32(part.astype(np.uint32)),
                          mi.Array3f64(*(corners[:, c].copy() for c in range(3))),
                          mi.Array3f64(*(parts.normal[:, c].copy() for c in range(3))),
                          mi.Float64(parts.offset.copy()), parts.vertices)
