@@ -402,8 +402,9 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
     ``cmin, cmax, rmin, rmax``; ``box``: per group the lines every row band stays within
     (``UNBOUNDED`` where no cut). A column's own extension runs to the part's edge: the lattice
     covers every part in range (:func:`sarmitsuba.planning.ray_footprint`), so only the beam's
-    edge (where the pattern is at its null) and shadows cut a column, and a shadow is a hole. Returns the records, bounds and origins (the member's place, or
-    ``len(idx)`` plus the hole's) of the pieces."""
+    edge (where the pattern is at its null) and shadows cut a column, and a shadow is a hole.
+    Returns the records, bounds and origins (the member's place, or ``len(idx)`` plus the hole's)
+    of the pieces."""
     low, high, left, right = ends
     cmin, cmax, rmin, rmax = extent
     inf = UNBOUNDED

@@ -200,8 +200,8 @@ class OwnedTerms:
         antenna, :meth:`_corner_lines`). With one of ``occluders`` (a part in front, per piece)
         the integral over the piece cut to the occluder's projection too is subtracted instead:
         the occluder's shadow on the piece as that pulse sees it; with two, the integral over
-        their overlap there is added back (inclusion and exclusion). Its integral is Gordon's edge form: per boundary segment
-        ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``
+        their overlap there is added back (inclusion and exclusion). Its integral is Gordon's edge
+        form: per boundary segment ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``
         times ``sinc(k u . a / 2)`` at the segment's midpoint, or split into its ends as (PO2)
         (a side of the rectangle where the record's tile splits that edge, a part edge where its
         own ``|alpha|`` reaches the threshold). Every term is evaluated at its own point as the

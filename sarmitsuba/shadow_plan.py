@@ -13,6 +13,26 @@ __all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden
            "overlapping_occluders", "occluders_near", "overlapping_pairs", "in_front"]
 
 
+def _views(part, sub, m, vertices, views, fp):
+    """The ``part``s (int64 [n]) as sub-aperture ``sub``'s reference, first and last position see
+    them, in lattice lines of tube size ``m`` (scalar or [n]): three float64 [n, k, 2]."""
+    m = np.broadcast_to(np.asarray(m, float), (len(part),))[:, None]
+    return [lattice_lines(vertices[part], views[sub, v][:, None], fp, 0.0, 0.0, m) for v in range(3)]
+
+
+def _apart(points_a, points_b, axes):
+    """Whether two point sets (float64 [n, k, 2], [n, l, 2]) are separated along one of ``axes``
+    [n, a, 2] (separating axes: then their convex hulls do not meet). Returns bool [n]."""
+    pa, pb = np.einsum("nkd,nad->nak", points_a, axes), np.einsum("nkd,nad->nak", points_b, axes)
+    return ((pa.max(-1) < pb.min(-1)) | (pa.min(-1) > pb.max(-1))).any(1)
+
+
+def _normals(poly):
+    """The edge normals of polygons [n, k, 2] (unnormalised): float64 [n, k, 2]."""
+    e = np.roll(poly, -1, axis=1) - poly
+    return np.stack([-e[..., 1], e[..., 0]], -1)
+
+
 def piece_occluders(holes, origin, n_members):
     """Each piece's occluders (``origin``: its member's place, or ``n_members`` plus its hole's):
     ``(piece, part)`` pairs, int64 [n_cuts] each."""
@@ -133,17 +153,12 @@ def meets(rect, part, sub, m, vertices, views, fp):
     convex hull of the corners in the three views (conservative where the corners move along
     lines between them) by separating axes: the lattice's two and the part's edge normals.
     Returns bool [n] twice."""
-    polys = [lattice_lines(vertices[part], views[sub, v][:, None], fp, 0.0, 0.0, m[:, None].astype(float))
-             for v in range(3)]
+    polys = _views(part, sub, m, vertices, views, fp)
     x0, x1, y0, y1 = rect.T
     corners = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1), np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
-    points = np.concatenate(polys, axis=1)
-    e = np.roll(polys[0], -1, axis=1) - polys[0]
-    axes = np.concatenate([np.broadcast_to(np.eye(2), (len(part), 2, 2)), np.stack([-e[..., 1], e[..., 0]], -1)], 1)
-    a, b = np.einsum("nkd,nad->nak", points, axes), np.einsum("nkd,nad->nak", corners, axes)
-    apart = (a.max(-1) < b.min(-1)) | (a.min(-1) > b.max(-1))
+    axes = np.concatenate([np.broadcast_to(np.eye(2), (len(part), 2, 2)), _normals(polys[0])], 1)
     covered = np.all([(convex_depth(poly, corners) > 1e-9).all(1) for poly in polys], axis=0)
-    return ~apart.any(1), covered
+    return ~_apart(np.concatenate(polys, axis=1), corners, axes), covered
 
 
 def band_occluders(pieces, group_pairs, box, groups, geometry):
@@ -156,7 +171,8 @@ def band_occluders(pieces, group_pairs, box, groups, geometry):
     index, group, bounds = pieces
     gsub, g_m = groups
     q, pos = matches(group_pairs[0], group)
-    rect = np.clip(bounds[q], np.repeat(box[group[q]][:, 0::2], 2, axis=1), np.repeat(box[group[q]][:, 1::2], 2, axis=1))
+    lo, hi = (np.repeat(box[group[q]][:, side::2], 2, axis=1) for side in (0, 1))
+    rect = np.clip(bounds[q], lo, hi)
     part = group_pairs[1][pos]
     meet, _ = meets(rect, part, gsub[group[q]], g_m[group[q]], *geometry)
     return index[q][meet], part[meet]
@@ -224,8 +240,7 @@ def overlapping_occluders(groups, records, geometry):
     sub, part = unique_pairs(*records)                       # the parts each sub-aperture meets
     if len(sub) == 0 or len(gsub) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    points = np.concatenate([lattice_lines(vertices[part], views[sub, v][:, None], fp, 0.0, 0.0, 1.0)
-                             for v in range(3)], axis=1)
+    points = np.concatenate(_views(part, sub, 1.0, *geometry), axis=1)
     lo, hi = points.min(1), points.max(1)
     at = np.searchsorted(pair_key(sub, part), pair_key(gsub, gpart))     # each group's own box
     q, pos = matches(sub, gsub)                                           # (group, part of its sub-aperture)
@@ -248,13 +263,9 @@ def overlapping_pairs(piece, part, sub, geometry):
     later = np.repeat(size, size) - rank - 1                  # the cuts after each one in its piece
     a = np.repeat(np.arange(len(piece)), later)
     b = a + 1 + np.arange(later.sum()) - np.repeat(np.cumsum(later) - later, later)
-    polys = [[lattice_lines(vertices[part[c]], views[sub[c], v][:, None], fp, 0.0, 0.0, 1.0) for v in range(3)]
-             for c in (a, b)]
-    points = [np.concatenate(p, axis=1) for p in polys]
-    edges = [np.roll(p[0], -1, axis=1) - p[0] for p in polys]
-    axes = np.concatenate([np.stack([-e[..., 1], e[..., 0]], -1) for e in edges], 1)
-    pa, pb = (np.einsum("nkd,nad->nak", pts, axes) for pts in points)
-    apart = ((pa.max(-1) < pb.min(-1)) | (pa.min(-1) > pb.max(-1))).any(1)
+    pa, pb = (_views(part[c], sub[c], 1.0, vertices, views, fp) for c in (a, b))
+    apart = _apart(np.concatenate(pa, axis=1), np.concatenate(pb, axis=1),
+                   np.concatenate([_normals(pa[0]), _normals(pb[0])], 1))
     return piece[a][~apart], (part[a][~apart], part[b][~apart])
 
 
@@ -266,12 +277,10 @@ def occluders_near(holes: Holes, members, groups, records, geometry) -> Holes:
     part and tube size; ``records``: each record's sub-aperture and part."""
     g, i, j = members
     gsub, gpart, g_m = groups
-    vertices, views, fp = geometry
     more = overlapping_occluders((gsub, gpart), records, geometry)
     named = unique_pairs(*(np.concatenate(c) for c in zip(holes.named, more)))
     grp, part = more
-    points = np.concatenate([lattice_lines(vertices[part], views[gsub[grp], v][:, None], fp, 0.0, 0.0,
-                                           g_m[grp][:, None].astype(float)) for v in range(3)], axis=1)
+    points = np.concatenate(_views(part, gsub[grp], g_m[grp], *geometry), axis=1)
     lo, hi = np.floor(points.min(1)).astype(np.int64), np.floor(points.max(1)).astype(np.int64)
     width, height = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
     count = width * height
