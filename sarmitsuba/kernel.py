@@ -38,6 +38,7 @@ import numpy as np
 
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
+from .device import device_array
 from .effects import EffectSet, rough_materials
 from .owned_terms import PartTable
 from . import jones as pol
@@ -151,10 +152,9 @@ class Launch:
     def n_lanes(self) -> int:
         return self.blocks.n_lanes
 
-    def lane_block(self) -> np.ndarray:
-        """uint32 [n_lanes]: the block of every lane."""
-        sizes = self.blocks.n_a.astype(np.int64) * self.blocks.n_j
-        return np.repeat(np.arange(sizes.size, dtype=np.uint32), sizes)
+    def lane_block(self) -> mi.UInt32:
+        """[n_lanes]: the block of every lane, on the device."""
+        return device_array(mi.UInt32, np.repeat(np.arange(self.blocks.n_a.size), self.blocks.n_a.astype(np.int64) * self.blocks.n_j))
 
 
 @dataclass
@@ -553,7 +553,7 @@ class Kernel:
         f64, a64 = mi.Float64, mi.Array3f64
         blocks = launch.blocks
         lane = dr.arange(mi.UInt32, launch.n_lanes)
-        block = mi.UInt32(launch.lane_block())
+        block = launch.lane_block()
         rest = lane - dr.gather(mi.UInt32, mi.UInt32(blocks.start), block)
         n_a = dr.gather(mi.UInt32, mi.UInt32(blocks.n_a), block)
         n_j = dr.maximum(dr.gather(mi.UInt32, mi.UInt32(blocks.n_j), block), 1)   # never 0, even in padding lanes

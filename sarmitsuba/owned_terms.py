@@ -17,6 +17,7 @@ import mitsuba as mi
 import numpy as np
 
 from .deposit import SPECTRAL_ORDERS
+from .device import device_array
 from .facets import MAX_PART_VERTICES, scene_parts
 from .owned_regions import plan as owned_plan
 
@@ -83,9 +84,9 @@ class OwnedTerms:
             records, bounds = result.record[piece], result.bounds[piece]
             if len(records) == 0:
                 continue
-            pieces = dr.gather(type(rec), rec, mi.UInt32(records.astype(np.uint32)))
-            bounds = [mi.Float64(bounds[:, c].copy()) for c in range(4)]
-            occluders = tuple(mi.UInt32(o.astype(np.uint32)) for o in occluders)
+            pieces = dr.gather(type(rec), rec, device_array(mi.UInt32, records.astype(np.uint32)))
+            bounds = [device_array(mi.Float64, bounds[:, c]) for c in range(4)]
+            occluders = tuple(device_array(mi.UInt32, o.astype(np.uint32)) for o in occluders)
             dr.eval(pieces, bounds, occluders)
             launches.append((pieces, bounds, occluders))
         return launches

@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "sarmitsuba"
 
 #: Pipeline order: a module may import from stages at or before its own.
 STAGES = {
-    0: ("utilities", {"constants", "arrays", "outputs", "bandlimited", "deposit", "_llvm", "_variant",
+    0: ("utilities", {"constants", "arrays", "outputs", "bandlimited", "deposit", "device", "_llvm", "_variant",
                       "focus.windows", "focus.grid", "focus.range_lines", "focus.stolt"}),
     1: ("scene", {"georef", "radar", "baseline", "materials", "meshcheck", "canonical", "pyscene", "scene", "trace_inputs",
                   "effects", "planning", "radiometry", "signal_model", "fresnel",
