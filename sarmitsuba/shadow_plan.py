@@ -33,6 +33,18 @@ def _normals(poly):
     return np.stack([-e[..., 1], e[..., 0]], -1)
 
 
+def _around(keys, radius):
+    """The cells within ``radius[g]`` (Chebyshev, in cells) of each cell ``keys`` (:func:`triple_key`,
+    group ``g``): ``(row, offset, key)``, int64 each, the key's index, the offset's index (offsets
+    ``(di, dj)`` in row-major order from ``(-r, -r)``) and the neighbour's key."""
+    reach = int(radius.max()) if len(radius) else 0
+    d = np.arange(-reach, reach + 1)
+    di, dj = np.repeat(d, d.size), np.tile(d, d.size)
+    g, i, j = split_triple_key(keys)
+    row, offset = np.nonzero(np.maximum(np.abs(di), np.abs(dj))[None, :] <= radius[g][:, None])
+    return row, offset, triple_key(g[row], i[row] + di[offset], j[row] + dj[offset])
+
+
 def piece_occluders(holes, origin, n_members):
     """Each piece's occluders (``origin``: its member's place, or ``n_members`` plus its hole's):
     ``(piece, part)`` pairs, int64 [n_cuts] each."""
@@ -95,26 +107,26 @@ def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
     cand = np.unique(hole_keys)                  # a gap no part in front explains is no hole
     hg, hi, hj = split_triple_key(cand)
     n_holes = len(cand)
+    # members within radius of a hole: their pieces are cut by the hole's occluders
+    row, _, around = _around(hole_keys, radius)
+    o = np.argsort(around, kind="stable")
+    near = np.flatnonzero(ok[g])
+    q, pos = matches(around[o], member[near])
     border = np.zeros(len(g), bool)
+    border[near[q]] = True
+    member_cuts = unique_pairs(near[q], pair_p[row[o][pos]])
+    # each hole's owner: a member within radius, the first in the order of :func:`_around`'s offsets
+    row, offset, around = _around(cand, radius)
+    q, pos = matches(members, around)
+    first = np.lexsort((pos, offset[q], row[q]))
+    first = first[np.r_[True, row[q][first][1:] != row[q][first][:-1]]] if first.size else first
     owner = np.full(n_holes, -1)
-    member_cuts, hole_cuts = [], []
-    reach = int(radius.max()) if len(radius) else 0
-    for di in range(-reach, reach + 1):
-        for dj in range(-reach, reach + 1):
-            near = np.flatnonzero(ok[g] & (radius[g] >= max(abs(di), abs(dj))))
-            q, pos = matches(hole_keys, triple_key(g[near], i[near] + di, j[near] + dj))
-            border[near[q]] = True
-            member_cuts.append((near[q], pair_p[pos]))
-            near = np.flatnonzero(radius[hg] >= max(abs(di), abs(dj)))
-            q, pos = matches(members, triple_key(hg[near], hi[near] + di, hj[near] + dj))
-            first = near[q][owner[near[q]] < 0]
-            owner[first] = order[pos][owner[near[q]] < 0]
-            q, pos = matches(hole_keys, triple_key(hg[near], hi[near] + di, hj[near] + dj))
-            hole_cuts.append((near[q], pair_p[pos]))
+    owner[row[q][first]] = order[pos[first]]
+    # holes within radius of a hole: their pieces are cut by that hole's occluders
+    q, pos = matches(hole_keys, around)
+    h, p = unique_pairs(row[q], pair_p[pos])
     keep = owner >= 0
     renumber = np.cumsum(keep) - 1
-    member_cuts = unique_pairs(*(np.concatenate(c) for c in zip(*member_cuts)))
-    h, p = unique_pairs(*(np.concatenate(c) for c in zip(*hole_cuts)))
     named = unique_pairs(np.concatenate([g[member_cuts[0]], hg[h]]), np.concatenate([member_cuts[1], p]))
     return Holes(border, np.stack([hg, hi, hj])[:, keep], owner[keep], member_cuts,
                  (renumber[h][keep[h]], p[keep[h]]), cand, named)
