@@ -153,12 +153,14 @@ def length_expansion(d, b, s, dist, u_axis, v_axis, c: float):
     return g_u, g_v, q_uu, q_uv, q_vv
 
 
-def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float, cross: bool = False):
+def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float, cross: bool = False, inside=None):
     """The scatterer of the footprint's ``i``-th cell (UInt32), eq. (C): whether the footprint
-    holds it (and ``i < n_cells``), its two-way length offset ``dl`` (m, :func:`length_expansion`)
-    and its phase ``phi - k dl`` (rad). Returns ``(own, dl, phase, phase_x)``: ``phase_x`` is the
-    phase of its cross-polarised return, ``phi_x - k dl`` with ``phi_x`` hashed independently of
-    ``phi`` (eq. (P7)), when ``cross``; else None (nothing compiled)."""
+    holds it (and ``i < n_cells``, and ``inside(du, dv)`` of its offset from the hit in cells when
+    given: an owned piece's own test, (T6)), its two-way length offset ``dl`` (m,
+    :func:`length_expansion`) and its phase ``phi - k dl`` (rad). Returns ``(own, dl, phase,
+    phase_x)``: ``phase_x`` is the phase of its cross-polarised return, ``phi_x - k dl`` with
+    ``phi_x`` hashed independently of ``phi`` (eq. (P7)), when ``cross``; else None (nothing
+    compiled)."""
     g_u, g_v, q_uu, q_uv, q_vv = expansion
     iv = i // cells.nu
     iu_, iv_ = cells.iu0 + mi.Int32(i - iv * cells.nu), cells.iv0 + mi.Int32(iv)
@@ -167,6 +169,8 @@ def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float, cros
     dv = mi.Float(iv_) + mi.Float(h0 >> 16) * JITTER_STEP - cells.pv
     s1, s2 = cells.m11 * du + cells.m12 * dv, cells.m21 * du + cells.m22 * dv   # footprint coordinates
     own = (i < n_cells) & (s1 >= -0.5) & (s1 < 0.5) & (s2 >= -0.5) & (s2 < 0.5)
+    if inside is not None:
+        own &= inside(du, dv)
     dl = g_u * du + g_v * dv + q_uu * du * du + q_uv * du * dv + q_vv * dv * dv
     phase = mi.Float(hash32(h0 ^ PHASE_SALT)) * PHASE_STEP - k * dl
     phase_x = mi.Float(hash32(h0 ^ CROSS_PHASE_SALT)) * PHASE_STEP - k * dl if cross else None

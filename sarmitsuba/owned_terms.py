@@ -16,6 +16,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .clutter_lattice import FootprintCells
 from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from .facets import MAX_PART_VERTICES, scene_parts
@@ -95,18 +96,19 @@ class OwnedTerms:
         """The ``part`` as the pulse at ``antenna`` sees it on the aim plane, in the lattice lines
         of the record's tube size, counted from the scene's lattice origin (as
         :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)`` and the tube size ``m``."""
+        m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
+        return [self._lines(antenna, dr.gather(mi.Array3f64, self.tables.parts.corners, part * MAX_PART_VERTICES + k), m)
+                for k in range(MAX_PART_VERTICES)], m
+
+    def _lines(self, antenna, point, m):
+        """The scene ``point`` seen from ``antenna`` on the aim plane, in lattice lines of tube size
+        ``m``: ``(x, y)``, float64 (the central projection of (T3): lines stay lines)."""
         fp = self.fp
         origin, track, look = (mi.Array3f64(*v.tolist()) for v in (fp.origin, fp.track, fp.look))
         normal = mi.Array3f64(*np.cross(fp.track, fp.look).tolist())
-        m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
-        height = dr.dot(normal, origin - antenna)
-        out = []
-        for k in range(MAX_PART_VERTICES):
-            w = dr.gather(mi.Array3f64, self.tables.parts.corners, part * MAX_PART_VERTICES + k) - antenna
-            x = antenna + w * (height / dr.dot(normal, w)) - origin
-            out.append((dr.dot(x, track) / fp.spacing_azimuth * m,
-                        (dr.dot(x, look) - fp.range_min) / fp.spacing_range * m))
-        return out, m
+        w = point - antenna
+        x = antenna + w * (dr.dot(normal, origin - antenna) / dr.dot(normal, w)) - origin
+        return dr.dot(x, track) / fp.spacing_azimuth * m, (dr.dot(x, look) - fp.range_min) / fp.spacing_range * m
 
     def _aim_point(self, x, y, m):
         """The aim-plane point at lattice lines ``(x, y)`` of tube size ``m`` (float64)."""
@@ -122,15 +124,21 @@ class OwnedTerms:
         t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
         return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
 
-    def _piece(self, ctx, rec, antenna, bounds, occluders):
-        """The boundary segments of the piece (the rectangle ``bounds`` cut to the record's part,
-        and to the ``occluders``' projections) as the pulse at ``antenna`` sees it, in
-        lattice lines of tube size ``m``: ``(segments, m)``."""
+    def _polygons(self, ctx, rec, antenna, bounds, occluders):
+        """The convex polygons whose intersection is the piece (the record's part, the rectangle
+        ``bounds``, the ``occluders``' projections) as the pulse at ``antenna`` sees them, in
+        lattice lines of tube size ``m``: ``(polygons, m)``, each a list of ``(x, y)`` corners."""
         corners, m = self._corner_lines(ctx, rec, antenna, rec.part)
         x0, x1, y0, y1 = self._box(corners, bounds)
         polygons = [corners, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]]
         for occluder in occluders:
             polygons.append(self._corner_lines(ctx, rec, antenna, occluder)[0])
+        return polygons, m
+
+    def _piece(self, ctx, rec, antenna, bounds, occluders):
+        """The boundary segments of the piece (:meth:`_polygons`) as the pulse at ``antenna`` sees
+        it: ``(segments, m)``."""
+        polygons, m = self._polygons(ctx, rec, antenna, bounds, occluders)
         return self._segments(polygons), m
 
     @staticmethod
@@ -289,4 +297,57 @@ class OwnedTerms:
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="owned_pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
+        if self.clutter_on:
+            self.owned_clutter(ctx, rec, bounds, occluders)
+
+    def owned_clutter(self, ctx, rec, bounds, occluders=()) -> None:
+        """Per pulse, the rough surface's scatterers inside each owned piece, eqs. (C), (T6).
+
+        The piece is the one :meth:`owned_po` integrates, as the sub-aperture's reference position
+        sees it (the view in which the whole tiles of (C) count theirs, so that pieces and tiles
+        share every scatterer out exactly once). Its cells are those of the box of its boundary
+        on the facet; a scatterer counts where its projection onto the aim plane lies in every
+        polygon of the piece. An occluder's cut-out (``occluders``) subtracts the same
+        scatterers, a pair adds them back, as :meth:`owned_po` does. The record's tile, sigma0's
+        raise near grazing and the tile's own scatterers are not used."""
+        rough = dr.compress(dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row) > 0)
+        if not dr.width(rough):
+            return
+        rec = dr.gather(type(rec), rec, rough)
+        bounds = [dr.gather(mi.Float64, b, rough) for b in bounds]
+        occluders = tuple(dr.gather(mi.UInt32, o, rough) for o in occluders)
+        reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
+        polygons, m = self._polygons(ctx, rec, reference, bounds, occluders)
+        signs = [self._orientation(p) for p in polygons]
+        lattice = self._clutter_lattice(ctx, rec, 0)
+        c, cells = self.fp.scatterer_spacing, lattice["cells"]
+        u_axis, v_axis = (mi.Array3f64(a) for a in lattice["axes"])
+        normal = dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part)
+        lo_u, hi_u, lo_v, hi_v = mi.Float64(math.inf), mi.Float64(-math.inf), mi.Float64(math.inf), mi.Float64(-math.inf)
+        for x0, y0, x1, y1, exists in self._segments(polygons):
+            for x, y in ((x0, y0), (x1, y1)):           # the boundary's ends on the facet, in cells from the hit
+                w = self._aim_point(x, y, m) - reference
+                offset = reference + w * (dr.dot(normal, rec.p64 - reference) / dr.dot(normal, w)) - rec.p64
+                du, dv = dr.dot(offset, u_axis) / c, dr.dot(offset, v_axis) / c
+                lo_u, hi_u = dr.select(exists, dr.minimum(lo_u, du), lo_u), dr.select(exists, dr.maximum(hi_u, du), hi_u)
+                lo_v, hi_v = dr.select(exists, dr.minimum(lo_v, dv), lo_v), dr.select(exists, dr.maximum(hi_v, dv), hi_v)
+        some = lo_u <= hi_u
+        iu0 = mi.Int32(dr.floor(mi.Float64(cells.pu) + dr.select(some, lo_u, 0.0)))
+        iv0 = mi.Int32(dr.floor(mi.Float64(cells.pv) + dr.select(some, lo_v, 0.0)))
+        nu = dr.maximum(mi.Int32(dr.floor(mi.Float64(cells.pu) + dr.select(some, hi_u, 0.0))) - iu0 + 1, 1)
+        nv = dr.maximum(mi.Int32(dr.floor(mi.Float64(cells.pv) + dr.select(some, hi_v, 0.0))) - iv0 + 1, 1)
+
+        def inside(du, dv):
+            """Whether the scatterer ``(du, dv)`` cells from the hit lies in every polygon."""
+            x, y = self._lines(reference, rec.p64 + u_axis * (c * mi.Float64(du)) + v_axis * (c * mi.Float64(dv)), m)
+            held = mi.Bool(True)
+            for sign, corners in zip(signs, polygons):
+                for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
+                    held &= sign * ((bx - ax) * (y - ay) - (by - ay) * (x - ax)) >= 0
+            return held
+
+        lattice.update(cells=FootprintCells(cells.pu, cells.pv, iu0, iv0, mi.UInt32(nu),
+                                            dr.select(some, mi.UInt32(nu * nv), 0), 0.0, 0.0, 0.0, 0.0),
+                       inside=inside, sign=(-1) ** len(occluders), raise_by=1.0)
+        self.clutter(ctx, rec, 0, lattice)
 

@@ -333,7 +333,7 @@ class Returns(OwnedTerms):
             self.owned_po(ctx, *launch)
         if self.clutter_on:
             kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
-            rough = dr.compress(kind > 0)
+            rough = dr.compress((kind > 0) & ((rec.flags & _OWNED) == 0))     # owned: their pieces' (T6)
             if dr.width(rough):
                 hits = dr.gather(type(rec), rec, rough)
                 dr.eval(hits)
@@ -509,7 +509,7 @@ class Returns(OwnedTerms):
             self.sums.keep_paths(ctx, paths)
 
     # ------------------------------------------------------------------ clutter scatterers
-    def clutter(self, ctx, rec, depth: int) -> None:
+    def clutter(self, ctx, rec, depth: int, lattice: dict | None = None) -> None:
         """Per pulse, every scatterer of the surface's own lattice inside the footprint, eq. (C).
 
         The lattice lies in the plane of the hit (frame ``u, v`` from the surface normal, origin
@@ -521,7 +521,7 @@ class Returns(OwnedTerms):
         counted once per pulse: the same scatterers, with the same phases and positions, for every
         pulse, bounce order and pass. The lattice's steps are :mod:`sarmitsuba.clutter_lattice`'s.
         """
-        lattice = self._clutter_lattice(ctx, rec, depth)
+        lattice = lattice or self._clutter_lattice(ctx, rec, depth)
         count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
         paths = self.sums.path_buffers(max(ctx["capacity"], PATH_HEADROOM)) if self.exact else None
 
@@ -573,14 +573,14 @@ class Returns(OwnedTerms):
         weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
         rel = s + dist - lref
         anchor = self.anchor(rel, lref)
-        amplitude = rec.gamma * self.carrier_phase(rel) * (c * weight)
+        amplitude = rec.gamma * self.carrier_phase(rel) * (c * lattice.get("sign", 1) * weight)
         expansion = length_expansion(d, b, s, dist, *lattice["axes"], c)
         n_cells = dr.select(rough, lattice["cells"].cells, 0)
         mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
 
         def step(i, found, outside):
             own, dl, phase, phase_x = scatterer(i, lattice["cells"], lattice["key0"], expansion, n_cells, self.k,
-                                                cross=cross is not None)
+                                                cross=cross is not None, inside=lattice.get("inside"))
             sn, cs = dr.sincos(phase)
             here = amplitude * mi.Complex2f(cs, sn)
             values = [here * a for a in co]
@@ -593,10 +593,10 @@ class Returns(OwnedTerms):
 
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
                                           lambda i, *_: i < n_cells, step, label="scatterers")
-        power = dr.squared_norm(amplitude) * level
+        power = dr.squared_norm(amplitude) * level * lattice.get("sign", 1)   # an occluder's cut-out: -1 (T6)
         dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
         dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
-        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
+        dr.scatter_add(ctx["scatterers"], found * (lattice.get("sign", 1) % 2**32), mi.UInt32(depth), rough)  # mod 2^32
 
     def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
         """Per channel, the co-polarised and the cross-polarised factor of a rough surface's
