@@ -68,10 +68,10 @@ def test_turned_tilted_plate_follows_the_closed_form_with_five_tubes_across(tmp_
         assert abs(errors[4.5]["tiles"]) > 3.0, errors
 
 
-def _oblique_plate(psi: float, *extra, rough: bool = False) -> sarmitsuba.Scene:
+def _oblique_plate(psi: float, *extra, rough: bool = False, height: float = 0.0) -> sarmitsuba.Scene:
     """A level 4 m metal plate (or ``rough`` ground, gamma -10 dB, one tube size) turned ``psi``
-    from the track at the scene centre (and the ``extra`` meshes), first bounce."""
-    mesh = trimesh.Trimesh([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], [[0, 1, 2], [0, 2, 3]])
+    from the track, ``height`` above the scene centre (and the ``extra`` meshes), first bounce."""
+    mesh = trimesh.Trimesh([[-2, -2, height], [2, -2, height], [2, 2, height], [-2, 2, height]], [[0, 1, 2], [0, 2, 3]])
     mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(psi), (0, 0, 1)))
     sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
               "altitude": 1000, "incidence_angle": 45, "scene_center": (0.0, 0.0, 0.0), "azimuth_beamwidth": 1.2,
@@ -176,9 +176,10 @@ def _scatterers_and_image(scene, mode: str, shift=None, **overrides):
     return out
 
 
-@pytest.mark.parametrize("shadowed", [False, True], ids=["open", "in a shadow"])
-def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(shadowed):
-    """The oblique 4 m plate made rough, open and with the small plate's shadow on it: its own
+@pytest.mark.parametrize("case", ["open", "in a shadow", "30 m up"])
+def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(case):
+    """The oblique 4 m plate made rough: open, with the small plate's shadow on it, and 30 m above
+    the aim plane (where the sub-aperture's pulses see the lattice apart by parallax): its own
     scatterers (fixed to the surface, (C)) are counted by the owned pieces that hold them, not by
     the tubes' tiles. Truth: the same surface seen through a second lattice (moved by (0.37, 0.41)
     cells) and through a third (tubes half as wide): the scatterer count is the same integer and
@@ -186,7 +187,8 @@ def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(shadow
     count the staircase's scatterers: both counts move and the image changes by about 0 dB. A
     piece that kept its tile's scatterers, missed the ones beyond its cell, or added an
     occluder's instead of cutting them out fails."""
-    scene = _shadowed_plate(25.0, rough=True) if shadowed else _oblique_plate(25.0, rough=True)
+    scene = _shadowed_plate(25.0, rough=True) if case == "in a shadow" else \
+        _oblique_plate(25.0, rough=True, height=30.0 if case == "30 m up" else 0.0)
     base = _scatterers_and_image(scene, "owned")
     moved = _scatterers_and_image(scene, "owned", (0.37, 0.41))
     finer = _scatterers_and_image(scene, "owned", ray_spacing=0.5)
