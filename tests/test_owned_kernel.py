@@ -183,10 +183,10 @@ def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(case):
     scatterers (fixed to the surface, (C)) are counted by the owned pieces that hold them, not by
     the tubes' tiles. Truth: the same surface seen through a second lattice (moved by (0.37, 0.41)
     cells) and through a third (tubes half as wide): the scatterer count is the same integer and
-    the image the same to -30 dB (complex; measured -38.7 dB open, -33.3 dB shadowed). Whole tiles
-    count the staircase's scatterers: both counts move and the image changes by about 0 dB. A
-    piece that kept its tile's scatterers, missed the ones beyond its cell, or added an
-    occluder's instead of cutting them out fails."""
+    the image the same to -30 dB (complex; measured -38.7 dB open, -33.3 dB shadowed, -40.7 dB
+    raised). Whole tiles count the staircase's scatterers: both counts move and the image changes
+    by -5.4 to +2.5 dB. A piece that kept its tile's scatterers, missed the ones beyond its cell, added an occluder's
+    instead of cutting them out, or saw itself from another position than the tiles' fails."""
     scene = _shadowed_plate(25.0, rough=True) if case == "in a shadow" else \
         _oblique_plate(25.0, rough=True, height=30.0 if case == "30 m up" else 0.0)
     base = _scatterers_and_image(scene, "owned")
@@ -196,4 +196,4 @@ def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(case):
     assert nrmse_db(moved[1], base[1]) < -30.0
     tiles = [_scatterers_and_image(scene, "tiles", shift) for shift in (None, (0.37, 0.41))]
     assert tiles[0][0] != tiles[1][0]
-    assert nrmse_db(tiles[1][1], tiles[0][1]) > -10.0
+    assert nrmse_db(tiles[1][1], tiles[0][1]) > -5.0
