@@ -196,4 +196,4 @@ def test_rough_plate_counts_the_same_scatterers_wherever_the_lattice_lies(case):
     assert nrmse_db(moved[1], base[1]) < -30.0
     tiles = [_scatterers_and_image(scene, "tiles", shift) for shift in (None, (0.37, 0.41))]
     assert tiles[0][0] != tiles[1][0]
-    assert nrmse_db(tiles[1][1], tiles[0][1]) > -5.0
+    assert nrmse_db(tiles[1][1], tiles[0][1]) > -10.0
