@@ -69,9 +69,10 @@
      ``owned``: on each convex part, the tubes at its border integrate their owned regions, and
      the part's own edges return as the straight edges they are (docs/physics.md (T6)). The
      shadows of parts in front are cut out of the pieces from each pulse; the beam's edge keeps
-     the tubes' staircase. Physical-optics terms of the first bounce only (not clutter, not
-     later bounces, not parts traced with tubes of several sizes); about 100x the first-bounce
-     trace time on an oblique block (mostly compiling the kernel of overlapping shadows).
+     the tubes' staircase. First bounce only, physical optics and clutter (not later bounces,
+     not parts traced with tubes of several sizes); about 8x the first-bounce trace time on
+     urban and 17x on an oblique block (mostly the host's plan). Not yet right on Munich
+     (docs/physics.md (T6)).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

@@ -1,4 +1,4 @@
-"""NumPy arrays on the Dr.Jit device, in memory Dr.Jit allocates (docs/design.md section 5).
+"""NumPy arrays on the Dr.Jit device, in memory Dr.Jit allocates (docs/design.md section 10).
 
 ``mi.Float64(ndarray)`` maps NumPy's buffer without copying it. A kernel that loads such an array
 element by element (an array as wide as the kernel, not a table it gathers from) takes the
