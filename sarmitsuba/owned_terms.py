@@ -201,6 +201,13 @@ class OwnedTerms:
             moment += (a + b - 2.0 * centre) * cross
         return 0.5 * twice_area, centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
 
+    def owned_returns(self, ctx, rec, bounds, occluders=()) -> None:
+        """The returns of one launch of owned pieces (:meth:`_owned`): their physical optics
+        (:meth:`owned_po`) and, on rough parts, their scatterers (:meth:`owned_clutter`)."""
+        self.owned_po(ctx, rec, bounds, occluders)
+        if self.clutter_on:
+            self.owned_clutter(ctx, rec, bounds, occluders)
+
     def owned_po(self, ctx, rec, bounds, occluders=()) -> None:
         """Per pulse, the PO integral over each owned piece, eqs. (T6), (PO1), (PO2), (PO5).
 
@@ -297,8 +304,6 @@ class OwnedTerms:
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="owned_pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
-        if self.clutter_on:
-            self.owned_clutter(ctx, rec, bounds, occluders)
 
     def owned_clutter(self, ctx, rec, bounds, occluders=()) -> None:
         """Per pulse, the rough surface's scatterers inside each owned piece, eqs. (C), (T6).

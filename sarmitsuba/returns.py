@@ -330,7 +330,7 @@ class Returns(OwnedTerms):
                     dr.eval(terms, codes)
                     self.po(ctx, terms, codes, depth, per_pulse)
         for launch in pieces or ():
-            self.owned_po(ctx, *launch)
+            self.owned_returns(ctx, *launch)
         if self.clutter_on:
             kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
             rough = dr.compress((kind > 0) & ((rec.flags & _OWNED) == 0))     # owned: their pieces' (T6)
