@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
+from .lattice_index import clip_to_boxes, convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
 from .shadow_plan import (band_occluders, find_holes, hidden_run, occluders_near, overlapping_pairs,
                           piece_occluders, touching)
 
@@ -234,12 +234,12 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     idx = np.flatnonzero(part >= 0)
     if idx.size == 0:
         return empty
-    _, g = np.unique(pair_key(sub[idx], part[idx]), return_inverse=True)
-    g = g.ravel()
-    n_g = int(g.max()) + 1
     b = block[idx]
     # the lattice of the records' own tube size: (i, j) counted from the scene's lattice origin
     m_rec = blocks.m.astype(np.int64)[b]
+    # a group: a part in one sub-aperture, on the coarse lattice or in one refined cell's block
+    g, region = _groups(sub[idx], part[idx], np.where(m_rec > 1, b, -1))
+    n_g = len(region)
     g_m = np.zeros(n_g, np.int64)
     g_m[g] = m_rec
     ok = np.ones(n_g, bool)
@@ -256,22 +256,30 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
         hi = np.full(n_g, np.iinfo(np.int64).min)
         np.minimum.at(lo, keys, values)
         np.maximum.at(hi, keys, values)
-        ok &= np.bincount(keys, minlength=n_g) == hi - lo + 1
         bounds_g.append((lo, hi))
     (cmin, cmax), (rmin, rmax) = bounds_g
+    column_gaps, row_gaps = _gaps(cols), _gaps(rows)
     # ---- the part as the reference position and the ends of the sub-aperture see it, in lattice lines ----
     gsub = np.zeros(n_g, np.int64)
     gsub[g] = sub[idx]
     gpart = np.zeros(n_g, np.int64)
     gpart[g] = part[idx]
-    polys = [lattice_lines(vertices[gpart], views[gsub, v][:, None], fp, 0.0, 0.0, g_m[:, None].astype(float))
-             for v in range(3)]
+    box = _region_box(region, blocks)
+    polys = [clip_to_boxes(lattice_lines(vertices[gpart], views[gsub, v][:, None], fp, 0.0, 0.0,
+                                         g_m[:, None].astype(float)), box) for v in range(3)]
     ref = polys[0]
-    ok &= np.isfinite(ref).all((1, 2))
+    ok &= np.all([np.isfinite(poly).all((1, 2)) for poly in polys], axis=0)
+    ok &= ~_meets_refined(polys, region, gsub, blocks)
     # ---- each column's and row's members lie in the cells whose centres the reference sees in the part ----
-    column_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref, 0.0)), cols, jmin, jmax, n_g)
-    row_ends = _ends(_centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0)), rows, imin, imax, n_g)
+    column_spans = _centre_spans(np.where(ok[:, None, None], ref, 0.0))
+    row_spans = _centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0))
+    column_ends = _ends(column_spans, cols, jmin, jmax, n_g)
+    row_ends = _ends(row_spans, rows, imin, imax, n_g)
     ok &= column_ends[0] & row_ends[0]
+    # the runs of member-less columns (rows) between members where the part holds no cell centre
+    # (it is a sliver there) are its row bands'; the others hold hidden or refined cells
+    column_gaps = column_gaps[_empty(column_gaps, column_spans)]
+    row_gaps = row_gaps[_empty(row_gaps, row_spans)]
     (_, lo_part, hi_part, span_lo, span_hi), (_, left_part, right_part, row_lo, row_hi) = column_ends, row_ends
     # ---- holes: cells inside the part that a part in front hides; the members and holes near
     #      their border own their cells less the occluders' projections ----
@@ -297,14 +305,15 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     extended = ends[0] | ends[1] | ends[2] | ends[3]
     holes = occluders_near(holes, (g, i, j), (gsub, gpart, g_m), (sub[idx], part[idx]), (vertices, views, fp))
     holes = touching(holes, (g, i, j), vertices, views, fp, (gsub, g_m))
-    box = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
-                     (cmin, cmax, rmin, rmax), n_g)
+    bands = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
+                       (cmin, cmax, rmin, rmax), n_g)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)
     owned = np.zeros(n, bool)
     owned[idx[mine]] = True
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
-                                      (cmin, cmax, rmin, rmax), box, (holes, cols, span_lo, span_hi), idx)
+                                      (cmin, cmax, rmin, rmax), (bands, box), (holes, cols, span_lo, span_hi), idx,
+                                      (column_gaps, _next_row(rows, row_gaps)[row_of[mine]]))
     piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys), (gsub, g_m), (vertices, views, fp))
     pairs = overlapping_pairs(piece, occluder, sub[records[piece]], (vertices, views, fp))
     return OwnedPlan(owned, records, bounds, piece, occluder, *pairs, groups=n_g, fallback=int(n_g - ok.sum()))
@@ -390,7 +399,87 @@ def _ends(spans, lines, lo, hi, n_g):
             np.where(inside, s_lo, lo), np.where(inside, s_hi, hi))
 
 
-def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
+def _groups(sub, part, region):
+    """Each record's group (a part in one sub-aperture and one lattice region: -1 the coarse
+    lattice, else a refined cell's block) and each group's region: int64 arrays."""
+    _, first = np.unique(pair_key(sub, part), return_inverse=True)
+    keys, g = np.unique(pair_key(first.ravel(), region), return_inverse=True)
+    return g.ravel(), (keys & 0xFFFFFFFF) - (1 << 31)
+
+
+def _region_box(region, blocks):
+    """Per group the lines ``[x0, x1, y0, y1]`` of its lattice region: a refined cell's block, in
+    its own tube size (+-:data:`UNBOUNDED` on the coarse lattice)."""
+    box = np.tile(np.array([-UNBOUNDED, UNBOUNDED, -UNBOUNDED, UNBOUNDED]), (len(region), 1))
+    fine = region >= 0
+    r = region[fine]
+    m = blocks.m.astype(np.int64)[r]
+    x0, y0 = blocks.i0.astype(np.int64)[r] * m, blocks.j0.astype(np.int64)[r] * m
+    box[fine] = np.stack([x0, x0 + blocks.n_a.astype(np.int64)[r], y0, y0 + blocks.n_j.astype(np.int64)[r]], 1)
+    return box
+
+
+def _meets_refined(polys, region, gsub, blocks):
+    """Per group, whether it is on the coarse lattice and a refined cell of its sub-aperture lies
+    within a cell of its part in some view: bool [n_g]. Its coarse partition would reach into the
+    refined cell, or leave the part beyond it to nobody, so it keeps its whole tiles (the refined
+    cells' groups own theirs)."""
+    out = np.zeros(len(region), bool)
+    fine = np.flatnonzero(blocks.m > 1)
+    if fine.size == 0:
+        return out
+    corners = np.concatenate(polys, axis=1)
+    lo, hi = corners.min(1) - 1.0, corners.max(1) + 1.0
+    cells = np.stack([blocks.i0[fine], blocks.j0[fine]], 1).astype(float)
+    for s in np.unique(gsub[region < 0]):
+        groups = np.flatnonzero((region < 0) & (gsub == s))
+        here = cells[blocks.sub[fine] == s]
+        if len(here):
+            inside = (here[None] + 1 >= lo[groups, None]) & (here[None] <= hi[groups, None])
+            out[groups] = inside.all(-1).any(1)
+    return out
+
+
+def _gaps(lines):
+    """The runs of member-less lines between member lines of each group (``lines`` int64 [n, 2]:
+    group, column or row, sorted): int64 [n_gaps, 3] rows ``(group, first, last + 1)``."""
+    step = (lines[1:, 0] == lines[:-1, 0]) & (lines[1:, 1] > lines[:-1, 1] + 1)
+    return np.stack([lines[:-1, 0][step], lines[:-1, 1][step] + 1, lines[1:, 1][step]], 1).reshape(-1, 3)
+
+
+def _empty(gaps, spans):
+    """Whether each run of member-less lines (``gaps`` of :func:`_gaps`) holds no cell centre
+    inside the part (``spans`` of :func:`_centre_spans`): bool [n_gaps]."""
+    if len(gaps) == 0 or len(spans) == 0:
+        return np.ones(len(gaps), bool)
+    keys = pair_key(gaps[:, 0], gaps[:, 1])
+    at = np.searchsorted(keys, pair_key(spans[:, 0], spans[:, 1]), "right") - 1
+    run = gaps[np.maximum(at, 0)]
+    inside = (at >= 0) & (run[:, 0] == spans[:, 0]) & (spans[:, 1] < run[:, 2])
+    return np.bincount(np.maximum(at, 0)[inside], minlength=len(gaps)) == 0
+
+
+def _next_row(rows, gaps):
+    """The top of each member row's band (``rows`` int64 [n, 2], sorted): the next member row of
+    its group where only a run of ``gaps`` (centre-free member-less rows) lies between, the next
+    row where none or another lies between, :data:`UNBOUNDED` for the last member row."""
+    last = np.r_[rows[1:, 0] != rows[:-1, 0], True]
+    above = np.isin(pair_key(rows[:, 0], rows[:, 1] + 1), pair_key(gaps[:, 0], gaps[:, 1]))
+    return np.where(last, UNBOUNDED, np.where(above, np.r_[rows[1:, 1], 0], rows[:, 1] + 1)).astype(float)
+
+
+def _run_pieces(gi, ii, gaps, right):
+    """For row ends at ``(gi, ii)``: every member-less column run of their group on their right
+    (left) side. Returns the ends' and the runs' indices, int64 [n] each."""
+    start = np.searchsorted(gaps[:, 0], gi, "left")
+    count = np.searchsorted(gaps[:, 0], gi, "right") - start
+    end = np.repeat(np.arange(len(gi)), count)
+    run = start[end] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    keep = gaps[run, 1] > ii[end] if right else gaps[run, 2] <= ii[end]
+    return end[keep], run[keep]
+
+
+def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx, gaps):
     """The owned records' pieces (T6), sorted by record: the column piece (beyond the record's
     cell where it ends its column at the part's edge), and the row band in the member-less columns
     left and right when it ends its row at the part's edge; then each hole's cell, integrated by
@@ -407,28 +496,41 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx):
     of the pieces."""
     low, high, left, right = ends
     cmin, cmax, rmin, rmax = extent
+    column_gaps, next_row = gaps
     inf = UNBOUNDED
     column = np.stack([ii, ii + 1, np.where(low, -inf, jj), np.where(high, inf, jj + 1)], 1)
     band_lo = np.where(jj > rmin[gi], jj, -inf)
-    band_hi = np.where(jj < rmax[gi], jj + 1, inf)
+    band_hi = next_row
     pieces = [column,
               np.stack([np.full(ii.size, -inf), cmin[gi], band_lo, band_hi], 1)[left],
               np.stack([cmax[gi] + 1.0, np.full(ii.size, inf), band_lo, band_hi], 1)[right]]
-    out = np.concatenate([records, records[left], records[right]])
-    src = np.concatenate([origin, origin[left], origin[right]])
-    groups = np.concatenate([gi, gi[left], gi[right]])
+    ends_of = [np.flatnonzero(left), np.flatnonzero(right)]
+    for n, side in enumerate((left, right)):         # the member-less column runs between members
+        end, run = _run_pieces(gi[side], ii[side], column_gaps, right=n == 1)
+        at = np.flatnonzero(side)[end]
+        pieces.append(np.stack([column_gaps[run, 1], column_gaps[run, 2], band_lo[at], band_hi[at]], 1))
+        ends_of.append(at)
+    more = np.concatenate(ends_of)
+    out = np.concatenate([records, records[more]])
+    src = np.concatenate([origin, origin[more]])
+    groups = np.concatenate([gi, gi[more]])
     bounds = np.concatenate(pieces).astype(float)
-    lo, hi = box[groups][:, 0::2], box[groups][:, 1::2]
+    bands, region = box
+    lo, hi = bands[groups][:, 0::2], bands[groups][:, 1::2]
     band = np.arange(len(out)) >= len(records)
     bounds[band] = np.clip(bounds[band], np.repeat(lo, 2, axis=1)[band], np.repeat(hi, 2, axis=1)[band])
-    keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
     holes, cols, span_lo, span_hi = hole_pieces
     hg, hi_, hj = holes.cells
     col = np.searchsorted(pair_key(cols[:, 0], cols[:, 1]), pair_key(hg, hi_))
     first, last = (hj == span_lo[col], hj == span_hi[col]) if len(cols) else (hj < 0, hj < 0)
-    out = np.concatenate([out[keep], idx[holes.owner]])
-    src = np.concatenate([src[keep], len(idx) + np.arange(len(hi_))])
+    out = np.concatenate([out, idx[holes.owner]])
+    src = np.concatenate([src, len(idx) + np.arange(len(hi_))])
     cells = np.stack([hi_, hi_ + 1, np.where(first, -inf, hj), np.where(last, inf, hj + 1)], 1).astype(float)
-    bounds = np.concatenate([bounds[keep], cells.reshape(-1, 4)])
+    bounds = np.concatenate([bounds, cells.reshape(-1, 4)])
+    # no piece leaves its group's lattice region (a refined cell's block)
+    edge = region[np.concatenate([groups, hg])]
+    bounds = np.clip(bounds, np.repeat(edge[:, 0::2], 2, axis=1), np.repeat(edge[:, 1::2], 2, axis=1))
+    keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
+    out, bounds, src = out[keep], bounds[keep], src[keep]
     order = np.argsort(out, kind="stable")
     return out[order], bounds[order], src[order]

@@ -98,6 +98,7 @@ def test_owned_regions_refuses_gaps_and_empty_sets():
 from types import SimpleNamespace  # noqa: E402
 
 from sarmitsuba.kernel import Blocks  # noqa: E402
+from sarmitsuba.lattice_index import convex_depth  # noqa: E402
 from sarmitsuba.owned_regions import UNBOUNDED, clip_convex, lattice_lines, plan  # noqa: E402
 
 _FP = SimpleNamespace(origin=np.zeros(3), track=np.array([1.0, 0.0, 0.0]), look=np.array([0.0, 1.0, 0.0]),
@@ -112,12 +113,18 @@ def _ccw(poly):
     return poly if _shoelace(poly) > 0 else poly[::-1]
 
 
-def _plan_case(deg, height, occluded=False, m=1, cut=None):
-    """A triangle turned ``deg`` at ``height`` over the aim plane, seen from 1 km up and 1 km
-    across; its members are the cells whose centre the reference position sees inside it (and
-    inside the lattice-line rectangle ``cut``, ``(x0, x1, y0, y1)``, when given: the beam's edge
-    or the range window)."""
-    tri = np.c_[_rotated([[-3.0, -2.0], [4.0, -1.0], [0.5, 3.5]], deg), np.full(3, height)]
+#: The plan's triangle, and a sliver 9 m long and at most 0.2 m wide: between cell centres in
+#: many of its columns and rows.
+TRIANGLE = [[-3.0, -2.0], [4.0, -1.0], [0.5, 3.5]]
+SLIVER = [[-4.5, -0.1], [4.5, 0.0], [-4.5, 0.1]]
+
+
+def _plan_case(deg, height, occluded=False, m=1, cut=None, shape=TRIANGLE):
+    """A triangle (``shape``) turned ``deg`` at ``height`` over the aim plane, seen from 1 km up
+    and 1 km across; its members are the cells whose centre the reference position sees inside it
+    (and inside the lattice-line rectangle ``cut``, ``(x0, x1, y0, y1)``, when given: the beam's
+    edge or the range window)."""
+    tri = np.c_[_rotated(shape, deg), np.full(3, height)]
     tri[:, 1] += 2.0
     views = np.array([[[0.0, -1000.0, 1000.0], [-9.0, -1000.0, 1000.0], [9.0, -1000.0, 1000.0]]])
     blocks = Blocks.of([(0, -20, 10, 40 * m, 100 * m, m)])
@@ -143,14 +150,17 @@ def _plan_case(deg, height, occluded=False, m=1, cut=None):
     return tri, views, result, np.stack([gi.ravel()[lane], gj.ravel()[lane]], 1)
 
 
-def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None, owned=None):
+def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None, owned=None, scale=1.0, cell=1.0):
     """The plan's owned pieces (cut to the part, less the projections of their occluders) and the
     tiles of the members it leaves whole tile the part (within ``cut``, less the cell ``hole``,
     less the projection of the convex ``occluder`` [k, 3]) as each pulse sees it: areas and
     Gordon's integral, for the sub-aperture's reference, first and last pulse and one between.
     ``owned``: whether each member in ``cells`` is owned (``result.owned`` when the part's
-    records are all there are)."""
+    records are all there are). ``scale``: each piece's tubes per coarse cell edge (its bounds are
+    in those lines); ``cells`` are in coarse lines, each ``cell`` wide."""
     owned = result.owned if owned is None else owned
+    scale = np.broadcast_to(scale, (len(result.bounds),))
+    cell = np.broadcast_to(cell, (len(cells),))
     for antenna in (*views[0], 0.3 * views[0, 1] + 0.7 * views[0, 0]):
         part = _ccw(lattice_lines(tri, antenna, _FP, 0.0, 0.0, 1.0))
         edges = [(part[n], part[(n + 1) % 3]) for n in range(3)]
@@ -168,7 +178,7 @@ def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None,
                 targets.append(target)
         pieces, cuts = [], []
         for q, (x0, x1, y0, y1) in enumerate(result.bounds):
-            x0, x1, y0, y1 = (float(np.clip(v, -1e4, 1e4)) for v in (x0, x1, y0, y1))
+            x0, x1, y0, y1 = (float(np.clip(v, -1e4, 1e4)) / scale[q] for v in (x0, x1, y0, y1))
             poly = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
             for line in edges:
                 poly = clip_convex(poly, line)
@@ -179,8 +189,8 @@ def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None,
                     poly = clip_convex(poly, line)
                 if len(poly) >= 3:
                     cuts.append(poly)
-        for i, j in cells[~owned]:
-            tile = np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float)
+        for (i, j), w in zip(cells[~owned], cell[~owned]):
+            tile = np.array([[i, j], [i + w, j], [i + w, j + w], [i, j + w]], float)
             assert len(clip_convex(clip_convex(clip_convex(tile, edges[0]), edges[1]), edges[2])) == 4
             pieces.append(tile)
         holes = [] if hole is None else [hole]
@@ -190,7 +200,7 @@ def _assert_tiles(tri, views, result, cells, cut=None, hole=None, occluder=None,
                 in_shadow = clip_convex(in_shadow, line)
             holes.append(in_shadow)
         area = sum(_shoelace(t) for t in targets) - sum(_shoelace(h) for h in holes)
-        assert sum(_shoelace(p) for p in pieces) - sum(_shoelace(c) for c in cuts) == pytest.approx(area, rel=1e-12)
+        assert sum(_shoelace(p) for p in pieces) - sum(_shoelace(c) for c in cuts) == pytest.approx(area, rel=1e-10)
         for q in ([2.1, -1.3], [0.4, 3.7]):
             total = sum(_integral(p, np.array(q)) for p in pieces) - sum(_integral(c, np.array(q)) for c in cuts)
             expected = sum(_integral(t, np.array(q)) for t in targets if len(t) >= 3) \
@@ -357,17 +367,89 @@ def test_plan_leaves_a_hole_to_the_tiles_around_it():
     _assert_tiles(tri, views, result, cells, hole=np.array([[i, j], [i + 1, j], [i + 1, j + 1], [i, j + 1]], float))
 
 
-def test_plan_leaves_a_part_cut_in_two_to_whole_tiles():
-    """A shadow across a whole member column leaves member-less columns inside the part that no
-    band covers: the group keeps its tiles."""
-    _, _, result, _ = _plan_case(30.0, 0.0, occluded="column")
-    assert result.fallback == result.groups == 1 and not result.owned.any() and len(result.record) == 0
+def test_plan_leaves_a_missing_column_to_whoever_traced_it():
+    """A whole column of cell centres inside the part with no member (cells a refined block
+    traced, or an occluder's shadow): no row band covers it, the rest is tiled exactly."""
+    tri, views, result, cells = _plan_case(30.0, 0.0, occluded="column")
+    assert result.fallback == 0 and result.owned.any()
+    full = _plan_case(30.0, 0.0)[3]
+    gone = sorted(set(map(tuple, full)) - set(map(tuple, cells)))
+    column = {i for i, _ in gone}
+    assert len(column) == 1 and len(gone) > 3
+    i = column.pop()
+    part = _ccw(lattice_lines(tri, views[0, 0], _FP, 0.0, 0.0, 1.0))
+    strip = clip_convex(clip_convex(part, ((i, 1.0), (i, 0.0))), ((i + 1, 0.0), (i + 1, 1.0)))
+    _assert_tiles(tri, views, result, cells, hole=strip)
+
+
+@pytest.mark.parametrize("deg", [8.0, 30.0, 60.0])
+@pytest.mark.parametrize("height", [0.0, 35.0])
+def test_plan_tiles_a_sliver_between_cell_centres(deg, height):
+    """A sliver whose centre-free columns and rows lie between member ones: the row bands cover
+    those runs, and the pieces tile the part exactly for every view (a Munich roof's acute corner
+    fell back to whole tiles before, and moved its image by +4 dB with the lattice)."""
+    tri, views, result, cells = _plan_case(deg, height, shape=SLIVER)
+    columns, rows = np.unique(cells[:, 0]), np.unique(cells[:, 1])
+    assert np.ptp(columns) + 1 > len(columns) or np.ptp(rows) + 1 > len(rows)      # the premise: gaps
+    assert result.fallback == 0 and result.owned.any()
+    _assert_tiles(tri, views, result, cells)
 
 
 def test_plan_counts_cells_on_the_refined_lattice():
-    """Tubes 3 to a coarse cell: members counted on the fine lattice, pieces in its lines."""
+    """Tubes 3 to a coarse cell: members counted on the fine lattice, pieces in its lines (and
+    within the block's, a refined region)."""
     tri, views, result, cells = _plan_case(60.0, 0.0, m=3)
     assert result.fallback == 0 and result.owned.any()
     part = _ccw(lattice_lines(tri, views[0, 0], _FP, 0.0, 0.0, 3.0))
-    assert np.all(np.abs(result.bounds[(np.abs(result.bounds) < UNBOUNDED)]) < 200)
+    inner = result.bounds[(np.abs(result.bounds) < UNBOUNDED)]
+    assert np.all((inner >= -60) & (inner <= 330)) and np.any(np.abs(inner) < 59)
     assert abs(_shoelace(part)) > 100       # the part spans many fine cells
+    _assert_tiles(tri, views, result, cells / 3.0, scale=3.0, cell=1 / 3)
+
+
+@pytest.mark.parametrize("deg", [30.0, 60.0])
+@pytest.mark.parametrize("height", [0.0, 35.0])
+def test_plan_tiles_a_part_within_each_refined_cell(deg, height):
+    """A part traced on the coarse lattice and, in three of its cells (one inside, two its edge
+    crosses), by tubes 3 to a coarse cell: each refined cell's pieces tile the part within that
+    cell exactly, for every view; the coarse records keep their whole tiles (their partition would
+    reach into the refined cells, or leave the part beyond them to nobody)."""
+    tri = np.c_[_rotated(TRIANGLE, deg), np.full(3, height)]
+    tri[:, 1] += 2.0
+    views = np.array([[[0.0, -1000.0, 1000.0], [-9.0, -1000.0, 1000.0], [9.0, -1000.0, 1000.0]]])
+    poly = _ccw(lattice_lines(tri, views[0, 0], _FP, 0.0, 0.0, 1.0))
+    gi, gj = (a.ravel() for a in np.meshgrid(np.arange(-20, 20), np.arange(10, 110), indexing="ij"))
+    depth = convex_depth(poly[None], np.stack([gi + 0.5, gj + 0.5], 1)[None])[0]
+    order = np.argsort(depth)
+    refined = [order[np.searchsorted(depth[order], d)] for d in (-0.15, 0.2, depth.max() - 0.5)]
+    blocks = Blocks.of([(0, -20, 10, 40, 100, 1)] + [(0, gi[k], gj[k], 3, 3, 3) for k in refined])
+    coarse = np.flatnonzero((depth > 0) & ~np.isin(np.arange(len(gi)), refined))
+    lanes, block = [coarse], [np.zeros(len(coarse), int)]
+    a, b = (x.ravel() for x in np.meshgrid(np.arange(3), np.arange(3), indexing="ij"))
+    for n, k in enumerate(refined):
+        inside = convex_depth(poly[None], (np.stack([3 * gi[k] + a, 3 * gj[k] + b], 1) + 0.5)[None] / 3.0)[0] > 0
+        lanes.append(4000 + 9 * n + np.flatnonzero(inside))
+        block.append(np.full(inside.sum(), n + 1))
+    lanes, block = np.concatenate(lanes), np.concatenate(block)
+    assert len(np.unique(block)) == 4            # the premise: every refined cell holds members
+    n = len(lanes)
+    result = plan(np.zeros(n), np.zeros(n), block, lanes, blocks, np.concatenate([tri, tri[-1:]])[None], views, _FP)
+    shapely = pytest.importorskip("shapely")
+    assert not result.owned[block == 0].any() and result.owned[block > 0].any()
+    owner = block[result.record]
+    for antenna in (*views[0], 0.3 * views[0, 1] + 0.7 * views[0, 0]):
+        part = shapely.Polygon(_ccw(lattice_lines(tri, antenna, _FP, 0.0, 0.0, 1.0)))
+        for n, k in enumerate(refined):
+            cell = part.intersection(shapely.box(gi[k], gj[k], gi[k] + 1, gj[k] + 1))
+            pieces = [part.intersection(shapely.box(*(np.clip(r, -1e4, 1e4)[[0, 2, 1, 3]] / 3.0)))
+                      for r in result.bounds[owner == n + 1]]
+            whole = [shapely.box(*(np.array([i, j, i + 1, j + 1]) / 3.0)) for i, j in _fine_cells(blocks, block, lanes, n + 1, ~result.owned)]
+            assert sum(p.area for p in pieces + whole) == pytest.approx(cell.area, rel=1e-9, abs=1e-12)
+            assert shapely.unary_union(pieces + whole).symmetric_difference(cell).area < 1e-9
+
+
+def _fine_cells(blocks, block, lanes, b, keep):
+    """The fine cells ``(i, j)`` of block ``b``'s records where ``keep``."""
+    sel = (block == b) & keep
+    rest = lanes[sel] - int(blocks.start[b])
+    return np.stack([blocks.i0[b] * 3 + rest // 3, blocks.j0[b] * 3 + rest % 3], 1)
