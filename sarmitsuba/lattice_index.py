@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["lattice_lines", "clip_to_boxes", "pair_key", "pair_ranges", "convex_depth", "triple_key", "split_triple_key", "matches",
+__all__ = ["lattice_lines", "pair_key", "pair_ranges", "convex_depth", "triple_key", "split_triple_key", "matches",
            "unique_pairs"]
 
 
@@ -36,33 +36,6 @@ def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
     a = (x @ track) / fp.spacing_azimuth
     r = (x @ look - fp.range_min) / fp.spacing_range
     return np.stack([(a - i0) * m, (r - j0) * m], axis=-1)
-
-
-def clip_to_boxes(polygon, box):
-    """Convex polygons clipped to axis-aligned boxes (Sutherland and Hodgman 1974, vectorised).
-
-    ``polygon`` float64 [n, v, 2] (either orientation; repeated corners allowed), ``box`` float64
-    [n, 4] ``(x0, x1, y0, y1)``. Returns float64 [n, v + 4, 2], corners in the same order, the last
-    repeated; NaN where nothing is left."""
-    out = np.asarray(polygon, float)
-    for axis, column, sign in ((0, 0, 1.0), (0, 1, -1.0), (1, 2, 1.0), (1, 3, -1.0)):
-        n, v = out.shape[:2]
-        value = box[:, column][:, None]
-        inside = sign * (out[..., axis] - value) >= 0
-        nxt = np.roll(out, -1, axis=1)
-        d = nxt[..., axis] - out[..., axis]
-        t = np.where(d != 0, (value - out[..., axis]) / np.where(d != 0, d, 1.0), 0.0)
-        point = out + t[..., None] * (nxt - out)
-        point[..., axis] = np.broadcast_to(value, point.shape[:2])
-        candidates = np.stack([out, point], 2).reshape(n, 2 * v, 2)
-        emit = np.stack([inside, inside != np.roll(inside, -1, axis=1)], 2).reshape(n, 2 * v)
-        order = np.argsort(~emit, axis=1, kind="stable")[:, :v + 1]
-        kept = np.take_along_axis(candidates, order[..., None], 1)
-        count = emit.sum(1)
-        last = np.take_along_axis(kept, np.maximum(count - 1, 0)[:, None, None], 1)
-        out = np.where(np.arange(v + 1)[None, :, None] < count[:, None, None], kept, last)
-        out[count == 0] = np.nan
-    return out
 
 
 def pair_key(a, b):

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice_index import clip_to_boxes, convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
+from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
 from .shadow_plan import (band_occluders, find_holes, hidden_run, occluders_near, overlapping_pairs,
                           piece_occluders, touching)
 
@@ -264,11 +264,10 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     gsub[g] = sub[idx]
     gpart = np.zeros(n_g, np.int64)
     gpart[g] = part[idx]
-    box = _region_box(region, blocks)
-    polys = [clip_to_boxes(lattice_lines(vertices[gpart], views[gsub, v][:, None], fp, 0.0, 0.0,
-                                         g_m[:, None].astype(float)), box) for v in range(3)]
+    polys = [lattice_lines(vertices[gpart], views[gsub, v][:, None], fp, 0.0, 0.0, g_m[:, None].astype(float))
+             for v in range(3)]
     ref = polys[0]
-    ok &= np.all([np.isfinite(poly).all((1, 2)) for poly in polys], axis=0)
+    ok &= np.isfinite(ref).all((1, 2))
     ok &= ~_meets_refined(polys, region, gsub, blocks)
     # ---- each column's and row's members lie in the cells whose centres the reference sees in the part ----
     column_spans = _centre_spans(np.where(ok[:, None, None], ref, 0.0))
@@ -312,7 +311,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     owned[idx[mine]] = True
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
-                                      (cmin, cmax, rmin, rmax), (bands, box), (holes, cols, span_lo, span_hi), idx,
+                                      (cmin, cmax, rmin, rmax), (bands, _region_box(region, blocks)), (holes, cols, span_lo, span_hi), idx,
                                       (column_gaps, _next_row(rows, row_gaps)[row_of[mine]]))
     piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys), (gsub, g_m), (vertices, views, fp))
     pairs = overlapping_pairs(piece, occluder, sub[records[piece]], (vertices, views, fp))
