@@ -237,9 +237,9 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     b = block[idx]
     # the lattice of the records' own tube size: (i, j) counted from the scene's lattice origin
     m_rec = blocks.m.astype(np.int64)[b]
-    # a group: a part in one sub-aperture, on the coarse lattice or in one refined cell's block
-    g, region = _groups(sub[idx], part[idx], np.where(m_rec > 1, b, -1))
-    n_g = len(region)
+    _, g = np.unique(pair_key(sub[idx], part[idx]), return_inverse=True)
+    g = g.ravel()
+    n_g = int(g.max()) + 1
     g_m = np.zeros(n_g, np.int64)
     g_m[g] = m_rec
     ok = np.ones(n_g, bool)
@@ -250,15 +250,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     j = blocks.j0.astype(np.int64)[b] * m_rec + rest % n_j
     cols, jmin, jmax, _, col_of = pair_ranges(g, i, j)
     rows, imin, imax, _, row_of = pair_ranges(g, j, i)
-    bounds_g = []
-    for values, keys in ((cols[:, 1], cols[:, 0]), (rows[:, 1], rows[:, 0])):
-        lo = np.full(n_g, np.iinfo(np.int64).max)
-        hi = np.full(n_g, np.iinfo(np.int64).min)
-        np.minimum.at(lo, keys, values)
-        np.maximum.at(hi, keys, values)
-        bounds_g.append((lo, hi))
-    (cmin, cmax), (rmin, rmax) = bounds_g
-    column_gaps, row_gaps = _gaps(cols), _gaps(rows)
+    (cmin, cmax), (rmin, rmax) = _extent(cols, n_g), _extent(rows, n_g)
     # ---- the part as the reference position and the ends of the sub-aperture see it, in lattice lines ----
     gsub = np.zeros(n_g, np.int64)
     gsub[g] = sub[idx]
@@ -268,7 +260,6 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
              for v in range(3)]
     ref = polys[0]
     ok &= np.isfinite(ref).all((1, 2))
-    ok &= ~_meets_refined(polys, region, gsub, blocks)
     # ---- each column's and row's members lie in the cells whose centres the reference sees in the part ----
     column_spans = _centre_spans(np.where(ok[:, None, None], ref, 0.0))
     row_spans = _centre_spans(np.where(ok[:, None, None], ref[..., ::-1], 0.0))
@@ -276,9 +267,8 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     row_ends = _ends(row_spans, rows, imin, imax, n_g)
     ok &= column_ends[0] & row_ends[0]
     # the runs of member-less columns (rows) between members where the part holds no cell centre
-    # (it is a sliver there) are its row bands'; the others hold hidden or refined cells
-    column_gaps = column_gaps[_empty(column_gaps, column_spans)]
-    row_gaps = row_gaps[_empty(row_gaps, row_spans)]
+    # (it is a sliver there) are its row bands'; the others hold hidden cells
+    column_gaps, row_gaps = _gaps(cols, column_spans), _gaps(rows, row_spans)
     (_, lo_part, hi_part, span_lo, span_hi), (_, left_part, right_part, row_lo, row_hi) = column_ends, row_ends
     # ---- holes: cells inside the part that a part in front hides; the members and holes near
     #      their border own their cells less the occluders' projections ----
@@ -311,7 +301,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     owned[idx[mine]] = True
     at = np.flatnonzero(mine)
     records, bounds, origin = _pieces(idx[mine], at, g[mine], i[mine], j[mine], [e[mine] for e in ends],
-                                      (cmin, cmax, rmin, rmax), (bands, _region_box(region, blocks)), (holes, cols, span_lo, span_hi), idx,
+                                      (cmin, cmax, rmin, rmax), bands, (holes, cols, span_lo, span_hi), idx,
                                       (column_gaps, _next_row(rows, row_gaps)[row_of[mine]]))
     piece, occluder = _cuts(holes, (origin, bounds), extended, (g, polys), (gsub, g_m), (vertices, views, fp))
     pairs = overlapping_pairs(piece, occluder, sub[records[piece]], (vertices, views, fp))
@@ -398,52 +388,23 @@ def _ends(spans, lines, lo, hi, n_g):
             np.where(inside, s_lo, lo), np.where(inside, s_hi, hi))
 
 
-def _groups(sub, part, region):
-    """Each record's group (a part in one sub-aperture and one lattice region: -1 the coarse
-    lattice, else a refined cell's block) and each group's region: int64 arrays."""
-    _, first = np.unique(pair_key(sub, part), return_inverse=True)
-    keys, g = np.unique(pair_key(first.ravel(), region), return_inverse=True)
-    return g.ravel(), (keys & 0xFFFFFFFF) - (1 << 31)
+def _extent(lines, n_g):
+    """Per group the first and last of its member lines (``lines`` int64 [n, 2]: group, column
+    or row): int64 [n_g] twice."""
+    lo = np.full(n_g, np.iinfo(np.int64).max)
+    hi = np.full(n_g, np.iinfo(np.int64).min)
+    np.minimum.at(lo, lines[:, 0], lines[:, 1])
+    np.maximum.at(hi, lines[:, 0], lines[:, 1])
+    return lo, hi
 
 
-def _region_box(region, blocks):
-    """Per group the lines ``[x0, x1, y0, y1]`` of its lattice region: a refined cell's block, in
-    its own tube size (+-:data:`UNBOUNDED` on the coarse lattice)."""
-    box = np.tile(np.array([-UNBOUNDED, UNBOUNDED, -UNBOUNDED, UNBOUNDED]), (len(region), 1))
-    fine = region >= 0
-    r = region[fine]
-    m = blocks.m.astype(np.int64)[r]
-    x0, y0 = blocks.i0.astype(np.int64)[r] * m, blocks.j0.astype(np.int64)[r] * m
-    box[fine] = np.stack([x0, x0 + blocks.n_a.astype(np.int64)[r], y0, y0 + blocks.n_j.astype(np.int64)[r]], 1)
-    return box
-
-
-def _meets_refined(polys, region, gsub, blocks):
-    """Per group, whether it is on the coarse lattice and a refined cell of its sub-aperture lies
-    within a cell of its part in some view: bool [n_g]. Its coarse partition would reach into the
-    refined cell, or leave the part beyond it to nobody, so it keeps its whole tiles (the refined
-    cells' groups own theirs)."""
-    out = np.zeros(len(region), bool)
-    fine = np.flatnonzero(blocks.m > 1)
-    if fine.size == 0:
-        return out
-    corners = np.concatenate(polys, axis=1)
-    lo, hi = corners.min(1) - 1.0, corners.max(1) + 1.0
-    cells = np.stack([blocks.i0[fine], blocks.j0[fine]], 1).astype(float)
-    for s in np.unique(gsub[region < 0]):
-        groups = np.flatnonzero((region < 0) & (gsub == s))
-        here = cells[blocks.sub[fine] == s]
-        if len(here):
-            inside = (here[None] + 1 >= lo[groups, None]) & (here[None] <= hi[groups, None])
-            out[groups] = inside.all(-1).any(1)
-    return out
-
-
-def _gaps(lines):
+def _gaps(lines, spans):
     """The runs of member-less lines between member lines of each group (``lines`` int64 [n, 2]:
-    group, column or row, sorted): int64 [n_gaps, 3] rows ``(group, first, last + 1)``."""
+    group, column or row, sorted) that hold no cell centre inside the part (``spans`` of
+    :func:`_centre_spans`): int64 [n_gaps, 3] rows ``(group, first, last + 1)``."""
     step = (lines[1:, 0] == lines[:-1, 0]) & (lines[1:, 1] > lines[:-1, 1] + 1)
-    return np.stack([lines[:-1, 0][step], lines[:-1, 1][step] + 1, lines[1:, 1][step]], 1).reshape(-1, 3)
+    gaps = np.stack([lines[:-1, 0][step], lines[:-1, 1][step] + 1, lines[1:, 1][step]], 1).reshape(-1, 3)
+    return gaps[_empty(gaps, spans)]
 
 
 def _empty(gaps, spans):
@@ -514,8 +475,7 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx, ga
     src = np.concatenate([origin, origin[more]])
     groups = np.concatenate([gi, gi[more]])
     bounds = np.concatenate(pieces).astype(float)
-    bands, region = box
-    lo, hi = bands[groups][:, 0::2], bands[groups][:, 1::2]
+    lo, hi = box[groups][:, 0::2], box[groups][:, 1::2]
     band = np.arange(len(out)) >= len(records)
     bounds[band] = np.clip(bounds[band], np.repeat(lo, 2, axis=1)[band], np.repeat(hi, 2, axis=1)[band])
     holes, cols, span_lo, span_hi = hole_pieces
@@ -526,9 +486,6 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx, ga
     src = np.concatenate([src, len(idx) + np.arange(len(hi_))])
     cells = np.stack([hi_, hi_ + 1, np.where(first, -inf, hj), np.where(last, inf, hj + 1)], 1).astype(float)
     bounds = np.concatenate([bounds, cells.reshape(-1, 4)])
-    # no piece leaves its group's lattice region (a refined cell's block)
-    edge = region[np.concatenate([groups, hg])]
-    bounds = np.clip(bounds, np.repeat(edge[:, 0::2], 2, axis=1), np.repeat(edge[:, 1::2], 2, axis=1))
     keep = (bounds[:, 1] > bounds[:, 0]) & (bounds[:, 3] > bounds[:, 2])
     out, bounds, src = out[keep], bounds[keep], src[keep]
     order = np.argsort(out, kind="stable")
