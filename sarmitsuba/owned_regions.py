@@ -180,8 +180,8 @@ class OwnedPlan:
         int64 [n_pairs]: a piece and two of its occluders whose projections overlap in some view;
         the kernel adds back the integral over ``piece ∩ part ∩ both`` (inclusion and exclusion).
     groups, fallback : int
-        Facet-and-sub-aperture groups seen, and those left to whole tiles (member columns or rows
-        not contiguous, a member where the part is not, tubes of several sizes).
+        Facet-and-sub-aperture groups seen, and those left to whole tiles (a member where the
+        part is not, tubes of several sizes).
     """
 
     owned: np.ndarray
@@ -201,9 +201,11 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
     A group is one part (convex planar polygon of :mod:`sarmitsuba.facets`) and one
     sub-aperture. Members are counted on the lattice of their tubes' size (``m`` tubes per coarse
     cell edge, from the scene's lattice origin), whatever block traced them. A group gets owned
-    regions when its members have one tube size, its member columns and rows are contiguous, and
-    every column's and row's members lie among the cells whose centres the reference position sees
-    inside the part. An end of a column or row is the part's edge when the next cell's centre is
+    regions when its members have one tube size and every column's and row's members lie among
+    the cells whose centres the reference position sees inside the part. A run of member-less
+    columns (rows) between member ones where the part holds no cell centre (a sliver between
+    centres) belongs to the row bands, as in :func:`owned_regions`; one that holds centres (hidden
+    cells) is owned by no band. An end of a column or row is the part's edge when the next cell's centre is
     outside the part; a hole's when that cell is hidden by another part (an occluder); else it is
     cut by the beam's edge and owns nothing beyond its cell. Holes near members are pieces of a
     neighbouring member's record; the pieces near holes are integrated less each occluder's
