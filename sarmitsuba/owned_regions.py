@@ -422,9 +422,10 @@ def _empty(gaps, spans):
 
 
 def _next_row(rows, gaps):
-    """The top of each member row's band (``rows`` int64 [n, 2], sorted): the next member row of
-    its group where only a run of ``gaps`` (centre-free member-less rows) lies between, the next
-    row where none or another lies between, :data:`UNBOUNDED` for the last member row."""
+    """The top of each member row's band (``rows`` int64 [n, 2], sorted), float64 [n]: the next
+    member row of its group across a run of ``gaps`` (centre-free member-less rows), else the row
+    above it (the next is a member row, or the rows between hold hidden cells);
+    :data:`UNBOUNDED` for the group's last member row."""
     last = np.r_[rows[1:, 0] != rows[:-1, 0], True]
     above = np.isin(pair_key(rows[:, 0], rows[:, 1] + 1), pair_key(gaps[:, 0], gaps[:, 1]))
     return np.where(last, UNBOUNDED, np.where(above, np.r_[rows[1:, 1], 0], rows[:, 1] + 1)).astype(float)
@@ -451,7 +452,10 @@ def _pieces(records, origin, gi, ii, jj, ends, extent, box, hole_pieces, idx, ga
     place among the members; ``ends``: the record
     ends its column low, high, its row left, right at the part's edge; ``extent``: per group
     ``cmin, cmax, rmin, rmax``; ``box``: per group the lines every row band stays within
-    (``UNBOUNDED`` where no cut). A column's own extension runs to the part's edge: the lattice
+    (``UNBOUNDED`` where no cut); ``gaps``: the group's centre-free runs of member-less columns
+    (:func:`_gaps`) and each record's band top (:func:`_next_row`). A row end's band covers every
+    such run on its side, and the columns beyond its group's last member column. A column's own
+    extension runs to the part's edge: the lattice
     covers every part in range (:func:`sarmitsuba.planning.ray_footprint`), so only the beam's
     edge (where the pattern is at its null) and shadows cut a column, and a shadow is a hole.
     Returns the records, bounds and origins (the member's place, or ``len(idx)`` plus the hole's)
