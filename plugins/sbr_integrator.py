@@ -71,8 +71,8 @@
      shadows of parts in front are cut out of the pieces from each pulse; the beam's edge keeps
      the tubes' staircase. First bounce only, physical optics and clutter (not later bounces,
      not parts traced with tubes of several sizes); about 8x the first-bounce trace time on
-     urban and 17x on an oblique block (mostly the host's plan). Not yet right on Munich
-     (docs/physics.md (T6)).
+     urban and 17x on an oblique block (mostly the host's plan). Not yet right on Munich, where
+     walls cross their neighbours' roof planes (docs/physics.md (T6)).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;
