@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice_index import convex_depth, lattice_lines, pair_key, pair_ranges, triple_key, unique_pairs
+from .lattice_index import convex_depth, lattice_lines, matches, pair_key, pair_ranges, triple_key, unique_pairs
 from .shadow_plan import (band_occluders, find_holes, hidden_run, occluders_near, overlapping_pairs,
                           piece_occluders, touching)
 
@@ -434,10 +434,7 @@ def _next_row(rows, gaps):
 def _run_pieces(gi, ii, gaps, right):
     """For row ends at ``(gi, ii)``: every member-less column run of their group on their right
     (left) side. Returns the ends' and the runs' indices, int64 [n] each."""
-    start = np.searchsorted(gaps[:, 0], gi, "left")
-    count = np.searchsorted(gaps[:, 0], gi, "right") - start
-    end = np.repeat(np.arange(len(gi)), count)
-    run = start[end] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    end, run = matches(gaps[:, 0], gi)
     keep = gaps[run, 1] > ii[end] if right else gaps[run, 2] <= ii[end]
     return end[keep], run[keep]
 
