@@ -295,7 +295,7 @@ def plan(sub, part, block, lane, blocks, vertices, views, fp) -> OwnedPlan:
         leaves[near] |= (convex_depth(poly[g[near]], corners[near]) < -1e-9).any(1)
     extended = ends[0] | ends[1] | ends[2] | ends[3]
     holes = occluders_near(holes, (g, i, j), (gsub, gpart, g_m), (sub[idx], part[idx]), (vertices, views, fp))
-    holes = touching(holes, (g, i, j), vertices, views, fp, (gsub, g_m))
+    holes = touching(holes, (g, i, j), vertices, views, fp, (gsub, gpart, g_m))
     bands = _bands_box(holes.occluded, (cols, jmin, jmax, lo_part, hi_part), (rows, imin, imax, left_part, right_part),
                        (cmin, cmax, rmin, rmax), n_g)
     mine = good & (ends[0] | ends[1] | ends[2] | ends[3] | leaves | holes.border)

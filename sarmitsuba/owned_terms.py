@@ -20,6 +20,7 @@ from .clutter_lattice import FootprintCells
 from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from .facets import MAX_PART_VERTICES, scene_parts
+from .shadow_plan import CROSSING_TOLERANCE
 from .owned_regions import plan as owned_plan
 
 __all__ = ["OwnedTerms", "PartTable", "FLAT_PHASE"]
@@ -133,7 +134,52 @@ class OwnedTerms:
         polygons = [corners, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]]
         for occluder in occluders:
             polygons.append(self._corner_lines(ctx, rec, antenna, occluder)[0])
+            polygons.append(self._in_front(rec, antenna, occluder, corners, m))
         return polygons, m
+
+    def _in_front(self, rec, antenna, occluder, corners, m):
+        """Where the ``occluder`` lies between the pulse at ``antenna`` and the record's part: the
+        half-plane of the aim plane (lattice lines of tube size ``m``) whose rays meet the
+        occluder's plane on the antenna's side of the part's plane, as a quadrilateral with one
+        side on that line and the others far beyond the part's projection ``corners`` (the whole
+        plane, or none of it, where the planes do not cross there). An occluder that crosses the
+        part's plane hides the part only with its side in front, eq. (T6).
+
+        For a ray ``w`` (from the antenna to an aim point) meeting the occluder's plane
+        ``n_o . x = d_o`` at ``q``, the part's plane ``n_p . x = d_p`` has ``f(q) = n_p . q - d_p``
+        with ``f(q) (n_o . w) = G . w``, ``G = f(a) n_o + (d_o - n_o . a) n_p``: a linear form in
+        ``w``, so affine in the lattice lines; ``n_o . w`` keeps one sign over the occluder."""
+        fp, parts = self.fp, self.tables.parts
+        n_p, d_p = dr.gather(mi.Array3f64, parts.normal, rec.part), dr.gather(mi.Float64, parts.offset, rec.part)
+        n_o, d_o = dr.gather(mi.Array3f64, parts.normal, occluder), dr.gather(mi.Float64, parts.offset, occluder)
+        f_a = dr.dot(n_p, antenna) - d_p
+        front, behind = mi.Bool(False), mi.Bool(False)       # corners clearly on either side
+        for k in range(MAX_PART_VERTICES):
+            corner = dr.gather(mi.Array3f64, parts.corners, occluder * MAX_PART_VERTICES + k)
+            side = dr.select(f_a >= 0, 1.0, -1.0) * (dr.dot(n_p, corner) - d_p)
+            front |= side > CROSSING_TOLERANCE
+            behind |= side < -CROSSING_TOLERANCE
+        g = f_a * n_o + (d_o - dr.dot(n_o, antenna)) * n_p
+        sign = dr.select((dr.dot(n_o, corner - antenna) >= 0) == (f_a >= 0), 1.0, -1.0)
+        track, look = mi.Array3f64(*fp.track.tolist()), mi.Array3f64(*fp.look.tolist())
+        a = sign * dr.dot(g, track) * (fp.spacing_azimuth / m)
+        b = sign * dr.dot(g, look) * (fp.spacing_range / m)
+        c = sign * dr.dot(g, mi.Array3f64(*fp.origin.tolist()) + look * fp.range_min - antenna)
+        xs, ys = [p[0] for p in corners], [p[1] for p in corners]
+        cx, cy = sum(xs[1:], xs[0]) / len(xs), sum(ys[1:], ys[0]) / len(ys)
+        size = mi.Float64(2.0)
+        for x_, y_ in zip(xs, ys):
+            size = dr.maximum(size, dr.maximum(dr.abs(x_ - cx), dr.abs(y_ - cy)) + 2.0)
+        norm = dr.sqrt(a * a + b * b)
+        crossing = (norm > 0) & front & behind
+        ux, uy = dr.select(crossing, a / dr.select(crossing, norm, 1.0), 1.0), dr.select(crossing, b / dr.select(crossing, norm, 1.0), 0.0)
+        # the signed distance of the part's centre from the line, kept within twice its size
+        reach = 2.0 * size
+        dist = dr.select(crossing, (a * cx + b * cy + c) / dr.select(crossing, norm, 1.0), dr.select(front | ~behind, reach, -reach))
+        dist = dr.clip(dist, -reach, reach)
+        px, py, far = cx - dist * ux, cy - dist * uy, 4.0 * size
+        return [(px + far * uy, py - far * ux), (px - far * uy, py + far * ux),
+                (px - far * uy + far * ux, py + far * ux + far * uy), (px + far * uy + far * ux, py - far * ux + far * uy)]
 
     def _piece(self, ctx, rec, antenna, bounds, occluders):
         """The boundary segments of the piece (:meth:`_polygons`) as the pulse at ``antenna`` sees
@@ -230,7 +276,7 @@ class OwnedTerms:
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
         cell, decided = self._cell(ctx, rec.block), [(flags & bit) != 0 for bit in (_SPLIT_1, _SPLIT_2)]
         open_ = [(flags & bit) != 0 for bit in (_UNDECIDED_1, _UNDECIDED_2)]
-        n_segments = _SEGMENTS + MAX_PART_VERTICES * len(occluders)
+        n_segments = _SEGMENTS + (MAX_PART_VERTICES + 4) * len(occluders)
         lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 2 * n_segments + 1, (-1.0) ** len(occluders)
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])

@@ -9,7 +9,11 @@ import numpy as np
 
 from .lattice_index import convex_depth, lattice_lines, matches, pair_key, split_triple_key, triple_key, unique_pairs
 
-__all__ = ["Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
+#: m: an occluder's corner this close to a part's plane lies in it (:func:`crosses`); walls
+#: standing on a roof or the ground touch its plane, they do not cross it.
+CROSSING_TOLERANCE = 1e-4
+
+__all__ = ["CROSSING_TOLERANCE", "crosses", "Holes", "find_holes", "touching", "meets", "band_occluders", "hidden_run", "piece_occluders",
            "overlapping_occluders", "occluders_near", "overlapping_pairs", "in_front"]
 
 
@@ -132,21 +136,34 @@ def find_holes(g, i, j, ok, lines, groups, radius, records) -> Holes:
                  (renumber[h][keep[h]], p[keep[h]]), cand, named)
 
 
+def crosses(part, other, vertices, tolerance: float = CROSSING_TOLERANCE):
+    """Whether ``other``'s corners lie on both sides of ``part``'s plane, each farther than
+    ``tolerance`` [m] (int64 [n] parts each; their corners ``vertices``): then only its side in
+    front hides the part (T6). Returns bool [n]."""
+    v = vertices[part]
+    normal = np.cross(v, np.roll(v, -1, axis=1)).sum(1)              # Newell's normal
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    side = np.einsum("nd,nkd->nk", normal, vertices[other] - v[:, :1])
+    return (side.max(1) > tolerance) & (side.min(1) < -tolerance)
+
+
 def touching(holes: Holes, members, vertices, views, fp, groups) -> Holes:
     """Keep the occluders whose projection meets the member's or hole's cell in some view of the
     sub-aperture (:func:`meets`; the pieces beyond a cell get theirs from :func:`band_occluders`),
     and the holes no one occluder covers in every view; the border members are those with an
     occluder left. The projections are tested as the convex hull of the occluder's corners
     in the reference, first and last view (conservative where the corners move along lines
-    between them), by separating axes: the lattice's two and the occluder's edge normals."""
-    gsub, g_m = groups
+    between them), by separating axes: the lattice's two and the occluder's edge normals. An
+    occluder that crosses the hole's part (:func:`crosses`) hides it only with its side in front:
+    it covers no hole. ``groups``: each group's sub-aperture, part and tube size."""
+    gsub, gpart, g_m = groups
     g, i, j = members
     hg, hi, hj = holes.cells
     kept = []
     for (who, part), (cg, ci, cj) in ((holes.member_cuts, (g, i, j)), (holes.hole_cuts, (hg, hi, hj))):
         cg, ci, cj = cg[who], ci[who].astype(float), cj[who].astype(float)
         meet, covered = meets(np.stack([ci, ci + 1, cj, cj + 1], 1), part, gsub[cg], g_m[cg], vertices, views, fp)
-        kept.append((who, part, meet, covered))
+        kept.append((who, part, meet, covered & ~crosses(gpart[cg], part, vertices)))
     (mw, mp, m_meets, _), (hw, hp, h_meets, h_covered) = kept
     live = np.ones(hg.size, bool)
     live[hw[h_covered]] = False
