@@ -72,7 +72,7 @@
      the tubes' staircase. First bounce only, physical optics and clutter (not later bounces,
      not parts traced with tubes of several sizes); about 8x the first-bounce trace time on
      urban and 17x on an oblique block (mostly the host's plan). Not yet right on Munich, where
-     walls cross their neighbours' roof planes (docs/physics.md (T6)).
+     the ground and large roofs are traced with tubes of two sizes (docs/physics.md (T6)).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

@@ -260,7 +260,8 @@ class OwnedTerms:
         The piece is the rectangle ``bounds`` of the record's lattice lines cut to its part, both
         as the pulse sees them (the part's corners projected onto the aim plane from the pulse's
         antenna, :meth:`_corner_lines`). With one of ``occluders`` (a part in front, per piece)
-        the integral over the piece cut to the occluder's projection too is subtracted instead:
+        the integral over the piece cut to the occluder's projection too (its side in front of the
+        part's plane, :meth:`_in_front`) is subtracted instead:
         the occluder's shadow on the piece as that pulse sees it; with two, the integral over
         their overlap there is added back (inclusion and exclusion). Its integral is Gordon's edge
         form: per boundary segment ``a`` (counter-clockwise about the part's normal ``N``), ``j (N . (u_t x a)) / (k |u_t|^2)``

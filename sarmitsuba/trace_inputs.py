@@ -77,8 +77,8 @@ class TraceSettings:
         border and at its shadows integrate their owned regions, less the shadows of the parts in
         front as each pulse sees them (T6), so the border and the shadows return as straight
         edges, and a rough part's scatterers are counted by the pieces that hold them; parts
-        traced with tubes of several sizes keep their tiles. Not yet right on Munich, where walls
-        cross their neighbours' roof planes (T6).
+        traced with tubes of several sizes keep their tiles. Not yet right on Munich, where the
+        ground and large roofs are traced with tubes of two sizes (T6).
     """
 
     max_depth: int = 3
