@@ -93,13 +93,18 @@ class OwnedTerms:
             launches.append((pieces, bounds, occluders))
         return launches
 
-    def _corner_lines(self, ctx, rec, antenna, part):
+    def _corner_lines(self, ctx, rec, antenna, part, corners=None):
         """The ``part`` as the pulse at ``antenna`` sees it on the aim plane, in the lattice lines
         of the record's tube size, counted from the scene's lattice origin (as
-        :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)`` and the tube size ``m``."""
+        :func:`owned_regions.lattice_lines`): the corner slots' ``(x, y)`` and the tube size ``m``.
+        ``corners``: the part's corner slots (:meth:`_corners`), when already gathered."""
         m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
-        return [self._lines(antenna, dr.gather(mi.Array3f64, self.tables.parts.corners, part * MAX_PART_VERTICES + k), m)
-                for k in range(MAX_PART_VERTICES)], m
+        return [self._lines(antenna, c, m) for c in corners or self._corners(part)], m
+
+    def _corners(self, part):
+        """The corner slots of ``part`` (float64 points, :data:`MAX_PART_VERTICES` of them)."""
+        return [dr.gather(mi.Array3f64, self.tables.parts.corners, part * MAX_PART_VERTICES + k)
+                for k in range(MAX_PART_VERTICES)]
 
     def _lines(self, antenna, point, m):
         """The scene ``point`` seen from ``antenna`` on the aim plane, in lattice lines of tube size
@@ -132,17 +137,25 @@ class OwnedTerms:
         corners, m = self._corner_lines(ctx, rec, antenna, rec.part)
         x0, x1, y0, y1 = self._box(corners, bounds)
         polygons = [corners, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]]
+        if occluders:               # the part's centre and half-size in lattice lines, plus 2
+            xs, ys = [p[0] for p in corners], [p[1] for p in corners]
+            centre = (sum(xs[1:], xs[0]) / len(xs), sum(ys[1:], ys[0]) / len(ys))
+            size = mi.Float64(2.0)
+            for x_, y_ in corners:
+                size = dr.maximum(size, dr.maximum(dr.abs(x_ - centre[0]), dr.abs(y_ - centre[1])) + 2.0)
         for occluder in occluders:
-            polygons.append(self._corner_lines(ctx, rec, antenna, occluder)[0])
-            polygons.append(self._in_front(rec, antenna, occluder, corners, m))
+            points = self._corners(occluder)
+            polygons.append(self._corner_lines(ctx, rec, antenna, occluder, points)[0])
+            polygons.append(self._in_front(rec, antenna, occluder, points, (centre, size), m))
         return polygons, m
 
-    def _in_front(self, rec, antenna, occluder, corners, m):
+    def _in_front(self, rec, antenna, occluder, points, box, m):
         """Where the ``occluder`` lies between the pulse at ``antenna`` and the record's part: the
         half-plane of the aim plane (lattice lines of tube size ``m``) whose rays meet the
         occluder's plane on the antenna's side of the part's plane, as a quadrilateral with one
-        side on that line and the others far beyond the part's projection ``corners`` (the whole
-        plane, or none of it, where the planes do not cross there). An occluder that crosses the
+        side on that line and the others far beyond the part's projection (``box``: its centre
+        and half-size plus 2, in lattice lines): the whole plane, or none of it, where the
+        occluder's corner slots ``points`` lie on one side of the part's plane. An occluder that crosses the
         part's plane hides the part only with its side in front, eq. (T6).
 
         For a ray ``w`` (from the antenna to an aim point) meeting the occluder's plane
@@ -154,28 +167,24 @@ class OwnedTerms:
         n_o, d_o = dr.gather(mi.Array3f64, parts.normal, occluder), dr.gather(mi.Float64, parts.offset, occluder)
         f_a = dr.dot(n_p, antenna) - d_p
         front, behind = mi.Bool(False), mi.Bool(False)       # corners clearly on either side
-        for k in range(MAX_PART_VERTICES):
-            corner = dr.gather(mi.Array3f64, parts.corners, occluder * MAX_PART_VERTICES + k)
+        for corner in points:
             side = dr.select(f_a >= 0, 1.0, -1.0) * (dr.dot(n_p, corner) - d_p)
             front |= side > CROSSING_TOLERANCE
             behind |= side < -CROSSING_TOLERANCE
         g = f_a * n_o + (d_o - dr.dot(n_o, antenna)) * n_p
-        sign = dr.select((dr.dot(n_o, corner - antenna) >= 0) == (f_a >= 0), 1.0, -1.0)
+        sign = dr.select((dr.dot(n_o, points[0] - antenna) >= 0) == (f_a >= 0), 1.0, -1.0)
         track, look = mi.Array3f64(*fp.track.tolist()), mi.Array3f64(*fp.look.tolist())
         a = sign * dr.dot(g, track) * (fp.spacing_azimuth / m)
         b = sign * dr.dot(g, look) * (fp.spacing_range / m)
         c = sign * dr.dot(g, mi.Array3f64(*fp.origin.tolist()) + look * fp.range_min - antenna)
-        xs, ys = [p[0] for p in corners], [p[1] for p in corners]
-        cx, cy = sum(xs[1:], xs[0]) / len(xs), sum(ys[1:], ys[0]) / len(ys)
-        size = mi.Float64(2.0)
-        for x_, y_ in zip(xs, ys):
-            size = dr.maximum(size, dr.maximum(dr.abs(x_ - cx), dr.abs(y_ - cy)) + 2.0)
+        (cx, cy), size = box
         norm = dr.sqrt(a * a + b * b)
         crossing = (norm > 0) & front & behind
-        ux, uy = dr.select(crossing, a / dr.select(crossing, norm, 1.0), 1.0), dr.select(crossing, b / dr.select(crossing, norm, 1.0), 0.0)
+        safe = dr.select(crossing, norm, 1.0)
+        ux, uy = dr.select(crossing, a / safe, 1.0), dr.select(crossing, b / safe, 0.0)
         # the signed distance of the part's centre from the line, kept within twice its size
         reach = 2.0 * size
-        dist = dr.select(crossing, (a * cx + b * cy + c) / dr.select(crossing, norm, 1.0), dr.select(front | ~behind, reach, -reach))
+        dist = dr.select(crossing, (a * cx + b * cy + c) / safe, dr.select(front | ~behind, reach, -reach))
         dist = dr.clip(dist, -reach, reach)
         px, py, far = cx - dist * ux, cy - dist * uy, 4.0 * size
         return [(px + far * uy, py - far * ux), (px - far * uy, py + far * ux),

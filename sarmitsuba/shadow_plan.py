@@ -140,11 +140,17 @@ def crosses(part, other, vertices, tolerance: float = CROSSING_TOLERANCE):
     """Whether ``other``'s corners lie on both sides of ``part``'s plane, each farther than
     ``tolerance`` [m] (int64 [n] parts each; their corners ``vertices``): then only its side in
     front hides the part (T6). Returns bool [n]."""
-    v = vertices[part]
-    normal = np.cross(v, np.roll(v, -1, axis=1)).sum(1)              # Newell's normal
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    side = np.einsum("nd,nkd->nk", normal, vertices[other] - v[:, :1])
+    normal, point = _plane(part, vertices)
+    normal = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    side = np.einsum("nd,nkd->nk", normal, vertices[other] - point[:, None])
     return (side.max(1) > tolerance) & (side.min(1) < -tolerance)
+
+
+def _plane(part, vertices):
+    """The planes of ``part`` (int64 [n]): Newell's normal (unnormalised) and a corner, float64
+    [n, 3] each."""
+    v = vertices[part]
+    return np.cross(v, np.roll(v, -1, axis=1)).sum(1), v[:, 0]
 
 
 def touching(holes: Holes, members, vertices, views, fp, groups) -> Holes:
@@ -236,12 +242,7 @@ def in_front(part, other, sub, vertices, views, fp):
     if len(part) == 0:
         return out
     origin, track, look = (np.asarray(v, float) for v in (fp.origin, fp.track, fp.look))
-
-    def plane(p):
-        v = vertices[p]
-        normal = np.cross(v, np.roll(v, -1, axis=1)).sum(1)              # Newell's normal
-        return normal, v[:, 0]
-    (n_a, o_a), (n_b, o_b) = plane(part), plane(other)
+    (n_a, o_a), (n_b, o_b) = _plane(part, vertices), _plane(other, vertices)
     for view in range(3):
         antenna = views[sub, view]
         a = lattice_lines(vertices[part], antenna[:, None], fp, 0.0, 0.0, 1.0)
