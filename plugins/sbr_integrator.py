@@ -66,13 +66,11 @@
    - string
    - ``tiles`` (default): a first-bounce ray tube integrates its whole tile, so a facet's lit
      region ends in the tubes' staircase, which moves with the lattice (docs/physics.md (T3)).
-     ``owned``: on each convex part, the tubes at its border integrate their owned regions, and
-     the part's own edges return as the straight edges they are (docs/physics.md (T6)). The
-     shadows of parts in front are cut out of the pieces from each pulse; the beam's edge keeps
-     the tubes' staircase. First bounce only, physical optics and clutter (not later bounces,
-     not parts traced with tubes of several sizes); about 8x the first-bounce trace time on
-     urban and 17x on an oblique block (mostly the host's plan). Not yet right on Munich, where
-     the ground and large roofs are traced with tubes of two sizes (docs/physics.md (T6)).
+     ``cells``: at every bounce order, the cells where the neighbouring rays followed other
+     chains of facets or were hidden integrate each chain's exact piece of the cell, as each
+     pulse sees it, so facet borders, shadows and multi-bounce footprints return as the
+     straight edges they are (docs/physics.md (T6)); the beam's edge and the borders between
+     tube sizes keep the tubes' staircase. Several times the trace time (docs/physics.md (T6)).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

@@ -34,7 +34,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts"]
+__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "triangle_table"]
 
 #: Most corners a part may have (vertex slots of :attr:`Parts.vertices`).
 MAX_PART_VERTICES = 8
@@ -444,3 +444,34 @@ def _adjacency(triangle_part, tri, cluster, n_parts):
     touch.eliminate_zeros()
     touch.sort_indices()
     return touch.indptr.astype(np.int64), touch.indices.astype(np.int32)
+
+
+def triangle_table(scene, size: int):
+    """Per shape id: mesh flag and first row of the float64 triangle table; per triangle: its unit
+    normal (float64 cross product of the float32 edges; zero for a degenerate triangle) and its
+    plane's offset ``n . v0``. Returns ``(is_mesh, base, normal [n, 3], offset [n], other)``,
+    ``other`` whether the scene has shapes that are not meshes (a Mitsuba scene; ``size`` exceeds
+    every shape id)."""
+    import drjit as dr
+    import mitsuba as mi
+    is_mesh = np.zeros(size, np.uint32)
+    base = np.zeros(size, np.uint32)
+    normals, offsets, other, count = [], [], False, 0
+    for shape in scene.shapes():
+        sid = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+        if not shape.is_mesh():
+            other = True
+            continue
+        v = np.array(shape.vertex_positions_buffer(), np.float32).astype(np.float64).reshape(-1, 3)
+        f = np.array(shape.faces_buffer(), np.int64).reshape(-1, 3)
+        v0, v1, v2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        normal = np.cross(v1 - v0, v2 - v0)
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = np.where(length > 0, normal / np.where(length > 0, length, 1.0), 0.0)
+        is_mesh[sid], base[sid] = 1, count
+        normals.append(normal)
+        offsets.append(np.einsum("ij,ij->i", normal, v0))
+        count += f.shape[0]
+    normal = np.concatenate(normals) if normals else np.zeros((1, 3))
+    offset = np.concatenate(offsets) if offsets else np.zeros(1)
+    return is_mesh, base, normal, offset, other

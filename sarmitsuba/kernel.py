@@ -36,11 +36,12 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .cell_terms import PartTable
 from .constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from .effects import EffectSet, rough_materials
-from .owned_terms import PartTable
+from .facets import triangle_table
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
 
@@ -66,7 +67,7 @@ class Flags:
     SPLIT_1, SPLIT_2 = 32, 64   # footprint edge split into its two end terms (PO2) for every pulse
     BACK = 128             # the ray met the surface from its back (against its own normal)
     UNDECIDED_1, UNDECIDED_2 = 256, 512   # split for some pulses of the sub-aperture only (T3)
-    OWNED = 1024           # integrates its owned region (T6) instead of its tile
+    PIECED = 1024          # a mixed cell: its pieces (T6) replace its tile
 
 
 @dataclass(frozen=True)
@@ -293,7 +294,7 @@ def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> 
     dist = dr.norm(to_ref)
     b = mi.Vector3f(to_ref / dist)
     part = mi.UInt32(INVALID)
-    if tables.parts is not None:           # owned regions (T6): the hit's convex part
+    if tables.parts is not None:           # cell pieces (T6): the hit's convex part
         part = dr.select(mesh_hit, dr.gather(mi.UInt32, tables.parts.triangle_part, triangle, mesh_hit), INVALID)
     plane = (mi.UInt32(mi.Int32(dr.round(offset * 100.0)))                   # the facet's plane: offset [cm],
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.x * 16384.0))) * 0x01000193)   # normal to 6e-5
@@ -310,6 +311,19 @@ def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
     lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(hit.p)
     ray = mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
     return active & ~scene.ray_test(ray, active)
+
+
+def blocker(scene, tables: "_Tables", hit: Hit, active: mi.Bool) -> mi.UInt32:
+    """The convex part that hides the hit from the reference position (its shadow ray's first
+    hit; INVALID where none or not a mesh part)."""
+    lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(hit.p)
+    ray = mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
+    pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+    found = active & pi.is_valid()
+    shape = dr.reinterpret_array(mi.UInt32, pi.shape)
+    mesh = found & (dr.gather(mi.UInt32, tables.is_mesh, shape, found) > 0)
+    triangle = dr.gather(mi.UInt32, tables.triangle_base, shape, mesh) + pi.prim_index
+    return dr.select(mesh, dr.gather(mi.UInt32, tables.parts.triangle_part, triangle, mesh), INVALID)
 
 
 def record(tube: Tube, hit: Hit, unfolded: mi.Array3f64, row: mi.UInt32, edges: tuple, first: bool) -> Record:
@@ -385,35 +399,7 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
-    parts: "PartTable | None" = None          # owned regions (T6): the meshes' convex parts
-
-
-def _triangle_table(scene, size: int):
-    """Per shape id: mesh flag and first row of the float64 triangle table; per triangle: its unit
-    normal (float64 cross product of the float32 edges; zero for a degenerate triangle) and its
-    plane's offset ``n . v0``. Returns ``(is_mesh, base, normal [n, 3], offset [n], other)``,
-    ``other`` whether the scene has shapes that are not meshes."""
-    is_mesh = np.zeros(size, np.uint32)
-    base = np.zeros(size, np.uint32)
-    normals, offsets, other, count = [], [], False, 0
-    for shape in scene.shapes():
-        sid = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
-        if not shape.is_mesh():
-            other = True
-            continue
-        v = np.array(shape.vertex_positions_buffer(), np.float32).astype(np.float64).reshape(-1, 3)
-        f = np.array(shape.faces_buffer(), np.int64).reshape(-1, 3)
-        v0, v1, v2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-        normal = np.cross(v1 - v0, v2 - v0)
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-        normal = np.where(length > 0, normal / np.where(length > 0, length, 1.0), 0.0)
-        is_mesh[sid], base[sid] = 1, count
-        normals.append(normal)
-        offsets.append(np.einsum("ij,ij->i", normal, v0))
-        count += f.shape[0]
-    normal = np.concatenate(normals) if normals else np.zeros((1, 3))
-    offset = np.concatenate(offsets) if offsets else np.zeros(1)
-    return is_mesh, base, normal, offset, other
+    parts: "PartTable | None" = None          # cell pieces (T6): the meshes' convex parts
 
 
 # ============================================================================ the kernel
@@ -447,7 +433,7 @@ class Kernel:
         self.beam_sines = (-half, half) if self.spotlight else params.beam_sines
         table = material_table
         size = table.row_of_shape.size
-        is_mesh, base, normal, offset, other = _triangle_table(scene, size)
+        is_mesh, base, normal, offset, other = triangle_table(scene, size)
         self.tables = _Tables(mi.UInt32(table.row_of_shape.astype(np.uint32)), mi.UInt32(is_mesh), mi.UInt32(base),
                               mi.Array3f64(*(normal[:, c].copy() for c in range(3))), mi.Float64(offset), other,
                               mi.Float(table.specular if table.specular is not None
@@ -467,7 +453,7 @@ class Kernel:
             self.tables.shape_origin = mi.Array3f64(*(table.shape_origin[:, c].astype(np.float64) for c in range(3)))
             self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
                                            for a in range(3))
-        if settings.lit_regions == "owned":
+        if settings.lit_regions == "cells":
             self.tables.parts = PartTable.of(scene)
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         i0, mask = footprint.refined_mask()
@@ -481,6 +467,8 @@ class Kernel:
         st = self.settings
         ctx = self.returns.context(launch, capacity)
         tube, n_lanes = self.launch(launch)
+        if st.lit_regions == "cells":
+            self.returns.open_lanes(ctx, self._traced, n_lanes)
         for depth in range(st.max_depth):
             if tube is None or dr.width(tube.active) == 0:
                 break
@@ -522,6 +510,10 @@ class Kernel:
         rec.flags |= dr.select(split[0], Flags.SPLIT_1, 0) | dr.select(split[1], Flags.SPLIT_2, 0) \
             | dr.select(undecided[0], Flags.UNDECIDED_1, 0) | dr.select(undecided[1], Flags.UNDECIDED_2, 0)
         vis = visible(self.scene, hit, hit.valid & (hit.cos_b > 0))
+        if st.lit_regions == "cells":          # what each lane met, for the cell plan (T6)
+            hidden = hit.valid & (hit.cos_b > 0) & ~vis
+            ret.note_lanes(ctx, tube.lattice, hit.part, _facet_key(tube, hit), hit.valid, vis,
+                           blocker(self.scene, self.tables, hit, hidden))
         dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0))
         ret.tally(ctx, rec, hit, d, alpha, specular, r, count, depth, vis)
         last = depth + 1 == st.max_depth          # the last bounce order: no reflection compiled
@@ -614,6 +606,7 @@ class Kernel:
                     else pol.NoJones(), aim=aim,
                     lattice=lane, block=block, sub=sub, flags=mi.UInt32(flags), key=mi.UInt32(0), active=active)
         dr.eval(tube)
+        self._traced = tube.active
         alive = dr.compress(tube.active)
         out = dr.gather(Tube, tube, alive)
         dr.eval(out)

@@ -1,0 +1,362 @@
+"""Cell pieces: each lattice cell integrates exactly what its tubes' chains see in it
+(docs/physics.md (T6)). The plan, in NumPy.
+
+The tracer records, per bounce order ``d`` and per lattice cell (lane) of a launch, the convex
+part its central ray met (:mod:`sarmitsuba.facets`), the hash of the facets met so far (the
+chain's key), and whether the hit sees the antenna (and if not, the part that hides it). A
+cell whose 3 x 3 neighbourhood of traced central rays all reached the same chain, all visible,
+keeps its whole tile (PO5). Every other traced cell next to a visible hit is *mixed*: for each
+chain ``C = (X_0, ..., X_d)`` that a visible hit of its neighbourhood followed (a *candidate*),
+the cell integrates
+
+    cell ∩ X_0' ∩ X_1'' ∩ ... ∩ X_d^(d)  less the parts in front at each level, less the parts
+    that hide the last hit from the antenna,
+
+where ``X_i^(i)`` is part ``X_i`` mirrored in the planes of ``X_0 .. X_{i-1}`` and projected from
+the pulse's antenna onto the aim plane. The parts in front at level ``i`` are those that the
+neighbourhood's rays with the same chain up to ``i - 1`` met instead of ``X_i``; the receive
+side's are the parts that hid the neighbourhood's hits of the same chain. Unions of several
+occluders are handled by inclusion and exclusion up to :data:`MAX_OVERLAP` at a time.
+
+At the first bounce the candidates also include the parts adjacent to a met part (sharing a
+corner) whose projection meets the cell: a wall seen nearly edge-on, narrower than a cell, that
+no central ray met.
+
+Everything here is host-side bookkeeping; the per-pulse integrals are
+:class:`sarmitsuba.cell_terms.CellTerms`.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lattice_index import lattice_lines, pair_key
+
+__all__ = ["CellPlan", "LaneTable", "plan_cells", "lane_grid", "MAX_OVERLAP", "RECEIVE"]
+
+#: The centre first, then the four edge neighbours, then the corners (the donor's preference).
+OFFSETS = ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1))
+#: Corners of an occluder closer than this to the part's plane [m] lie on it.
+ON_PLANE = 1e-4
+#: A candidate's projection is kept where it comes this close to the cell [cells].
+MARGIN = 0.05
+#: Most occluders of one piece combined by inclusion and exclusion.
+MAX_OVERLAP = 3
+#: The level of an occluder that hides the last hit from the antenna (receive side).
+RECEIVE = 255
+_MISS = -1
+
+
+@dataclass(frozen=True)
+class LaneTable:
+    """What each lane's central ray met at one bounce order: int64 [n_lanes] each.
+
+    ``part`` the convex part (-1: nothing, or no part), ``key`` the chain's key (-1: nothing),
+    ``visible`` whether the hit sees the antenna, ``blocker`` the part that hides it (-1)."""
+
+    part: np.ndarray
+    key: np.ndarray
+    visible: np.ndarray
+    blocker: np.ndarray
+
+
+@dataclass(frozen=True)
+class CellPlan:
+    """The pieces of one bounce order's mixed cells.
+
+    Attributes
+    ----------
+    replaced : bool [n_records]
+        The record's tile is replaced by its cell's pieces.
+    record : int64 [n_pieces]
+        A record of the cell's neighbourhood (its sub-aperture, block and chain's reflections).
+    chain : int64 [n_pieces, depth + 1]
+        The piece's parts, level by level.
+    bounds : float64 [n_pieces, 4]
+        The cell: x0, x1, y0, y1 in lattice lines of its tube size.
+    cuts : list of (int64 [n], int64 [n, k], int64 [n, k])
+        For k = 1 .. MAX_OVERLAP occluders: the pieces, the occluders' parts and their levels
+        (``RECEIVE`` for the receive side); the piece less their common projection is added
+        with the sign ``(-1)^k``.
+    """
+
+    replaced: np.ndarray
+    record: np.ndarray
+    chain: np.ndarray
+    bounds: np.ndarray
+    cuts: list
+
+
+def lane_grid(blocks, n_lanes):
+    """Per lane: block, ``(ii, jj)`` within it, ``n_a``, ``n_j``, its cell ``(i, j)`` on the lattice
+    of its tube size, and the tube size ``m`` (all int64 [n_lanes])."""
+    sizes = blocks.n_a.astype(np.int64) * blocks.n_j.astype(np.int64)
+    block = np.repeat(np.arange(sizes.size), sizes)[:n_lanes]
+    rest = np.arange(n_lanes) - blocks.start.astype(np.int64)[block]
+    n_j = blocks.n_j.astype(np.int64)[block]
+    n_a = blocks.n_a.astype(np.int64)[block]
+    ii, jj = rest // n_j, rest % n_j
+    m = blocks.m.astype(np.int64)[block]
+    return block, ii, jj, n_a, n_j, blocks.i0.astype(np.int64)[block] * m + ii, blocks.j0.astype(np.int64)[block] * m + jj, m
+
+
+def _cell_key(sub, m, gi, gj):
+    """One int64 key per cell of one tube size ``m`` of one sub-aperture (``gi``, ``gj``: the
+    cell on the lattice of its tube size, within +-2**19)."""
+    offset = 1 << 19
+    return ((sub * 64 + m) << 40) + ((gi + offset) << 20) + (gj + offset)
+
+
+def neighbourhoods(lanes, traced, grid, sub, reach: int = 1):
+    """The traced neighbours of ``lanes`` on the lattice of their tube size, in any block of their
+    sub-aperture, ``reach`` cells around (1: the 3 x 3 in :data:`OFFSETS` order): int64
+    [n, (2 reach + 1)^2], -1 where there is none (no traced cell of that size there: the beam's
+    edge, or a block of another tube size)."""
+    gi, gj, m = grid[5], grid[6], grid[7]
+    offsets = OFFSETS if reach == 1 else [(di, dj) for di in range(-reach, reach + 1) for dj in range(-reach, reach + 1)]
+    have = np.flatnonzero(traced)
+    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
+    order = np.argsort(keys)
+    keys, have = keys[order], have[order]
+    out = np.full((lanes.size, len(offsets)), -1, np.int64)
+    for k, (di, dj) in enumerate(offsets):
+        want = _cell_key(sub[lanes], m[lanes], gi[lanes] + di, gj[lanes] + dj)
+        at = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
+        found = (keys[at] == want) if len(keys) else np.zeros(lanes.size, bool)
+        out[:, k] = np.where(found, have[at] if len(keys) else -1, -1)
+    return out
+
+
+def meets_box(poly, box, margin):
+    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
+    meet the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin`` (separating axes)."""
+    x0, x1, y0, y1 = (box[:, k] for k in range(4))
+    x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
+    px, py = poly[..., 0], poly[..., 1]
+    ok = (px.max(1) >= x0) & (px.min(1) <= x1) & (py.max(1) >= y0) & (py.min(1) <= y1)
+    ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
+    sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
+    outside = np.ones(px.shape, bool)
+    for cx, cy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
+        outside &= sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) < 0
+    return ok & ~(outside & ((ex != 0) | (ey != 0))).any(1)
+
+
+def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp) -> CellPlan:
+    """The pieces of bounce order ``depth``'s mixed cells.
+
+    Parameters
+    ----------
+    depth : int
+        Bounce order (0: first bounce).
+    tables : list of LaneTable
+        Bounce orders ``0 .. depth``.
+    records : int64 [n_records]
+        The lane of each record (visible hit) of this order.
+    traced : bool [n_lanes]
+        The lanes the launch traced.
+    blocks : kernel.Blocks
+    parts : (vertices [n_parts, V, 3], face [n_parts], normal [n_parts, 3], offset [n_parts],
+        adjacency_start, adjacency, closed)
+    views : float64 [n_subapertures, 3, 3]
+        Each sub-aperture's reference position, first and last antenna position.
+    fp : RayFootprint
+    """
+    table = tables[depth]
+    n_rec = len(records)
+    rec_of = np.full(n_lanes, -1, np.int64)
+    rec_of[records] = np.arange(n_rec)
+    grid = lane_grid(blocks, n_lanes)
+    block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
+    lanes = np.flatnonzero(traced)
+    state = np.where(rec_of >= 0, table.key, _MISS)                    # a visible chain, or a miss
+    sub = blocks.sub.astype(np.int64)[block]
+    nb = neighbourhoods(lanes, traced, grid, sub)
+    safe = np.maximum(nb, 0)
+    r = np.where(nb >= 0, rec_of[safe], -1)
+    has = r >= 0
+    s3 = state[safe]
+    # a neighbour of another chain, hidden, or missing (beyond the beam, or tubes of another size)
+    mixed = ((s3 != s3[:, :1]) | (nb < 0)).any(1) & has.any(1)
+    # cells whose own chain runs on, but near a change (5 x 5): a corner of an adjacent part may
+    # reach into them between the central rays
+    wide = neighbourhoods(lanes, traced, grid, sub, reach=2)
+    near = ~mixed & has[:, 0] & ((state[np.maximum(wide, 0)] != state[lanes][:, None]) & (wide >= 0)).any(1)
+    bad = (has & (table.part[safe] < 0)).any(1)                         # shapes with no parts keep tiles
+    mixed &= ~bad
+    near &= ~bad
+    # cells with no visible hit in their 3 x 3 but some in their 5 x 5: a part's acute corner can
+    # reach into them past the central rays
+    wide_safe = np.maximum(wide, 0)
+    has5 = (wide >= 0) & (rec_of[wide_safe] >= 0)
+    fringe = ~has.any(1) & has5.any(1) & ~(has5 & (table.part[wide_safe] < 0)).any(1)
+    look = mixed | near | fringe
+    cell, nb, wide, has5, has = lanes[look], nb[look], wide[look], has5[look], has[look]
+    mixed = (mixed | fringe)[look]
+    # candidates: the distinct visible chains of the 3 x 3 (first record in OFFSETS order; a cell
+    # near a change only its own), then those of the 5 x 5 whose last part reaches into the cell
+    key3 = np.where(has, table.key[np.maximum(nb, 0)], _MISS)
+    first = has.copy()
+    first[~mixed, 1:] = False
+    for k in range(1, 9):
+        for q in range(k):
+            first[:, k] &= key3[:, k] != key3[:, q]
+    c_of, col = np.nonzero(first)
+    donor_lane = nb[c_of, col]
+    rows, cols = np.nonzero(has5)
+    keys5 = rows * (1 << 33) + table.key[wide[rows, cols]]
+    keys5, first5 = np.unique(keys5, return_index=True)
+    new = ~np.isin(keys5, c_of * (1 << 33) + table.key[donor_lane])
+    w_row, w_donor = rows[first5][new], wide[rows[first5][new], cols[first5][new]]
+    w_chain = np.stack([tables[i].part[w_donor] for i in range(depth + 1)], 1)
+    reach = np.all(w_chain >= 0, 1)
+    reach[reach] = _reaches(cell[w_row[reach]], w_chain[reach], w_chain[reach, -1], grid, blocks, parts, views, fp)
+    chain = np.stack([tables[i].part[donor_lane] for i in range(depth + 1)], 1)
+    c_of, chain, donor_lane = (np.concatenate([c_of, w_row[reach]]), np.concatenate([chain, w_chain[reach]]),
+                               np.concatenate([donor_lane, w_donor[reach]]))
+    c_of, chain, donor_lane = _adjacent(c_of, chain, donor_lane, cell, grid, blocks, parts, views, fp)
+    pieced = mixed | (np.bincount(c_of, minlength=len(cell)) > 1)
+    keep = pieced[c_of]
+    c_of, chain, donor_lane = c_of[keep], chain[keep], donor_lane[keep]
+    replaced = np.zeros(n_rec, bool)
+    own = rec_of[cell[pieced]]
+    replaced[own[own >= 0]] = True
+    c_lane = cell[c_of]
+    bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1).astype(float)
+    donor = rec_of[donor_lane]
+    occ_piece, occ_part, occ_level = _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views,
+                                                blocks.sub.astype(np.int64)[block[c_lane]])
+    cuts = _overlaps(occ_piece, occ_part, occ_level, len(c_of))
+    return CellPlan(replaced=replaced, record=donor, chain=chain, bounds=bounds, cuts=cuts)
+
+
+def unfold(points, mirrors):
+    """Scene ``points`` [n, ..., 3] in the unfolded frame of a chain whose earlier parts' planes are
+    ``mirrors`` (list of (normal [n, 3], offset [n]), the first part's first)."""
+    for normal, offset in reversed(mirrors):
+        d = np.einsum("n...k,nk->n...", points, normal) - offset.reshape((-1,) + (1,) * (points.ndim - 2))
+        points = points - 2.0 * d[..., None] * normal.reshape((-1,) + (1,) * (points.ndim - 2) + (3,))
+    return points
+
+
+def _adjacent(c_of, chain, donor_lane, cell, grid, blocks, parts, views, fp):
+    """Add, to the candidates, each chain whose last part is adjacent to a candidate's (sharing a
+    corner) where that part, unfolded as the candidate's, meets the cell from some view and faces
+    the antenna (or belongs to an open surface)."""
+    adj_start, adjacency = parts[4], parts[5]
+    last = chain[:, -1]
+    count = adj_start[last + 1] - adj_start[last]
+    at = np.repeat(np.arange(len(last)), count)
+    neighbour = adjacency[np.repeat(adj_start[last], count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))]
+    known = np.unique(pair_key(c_of, last))
+    fresh_key, first = np.unique(pair_key(c_of[at], neighbour), return_index=True)
+    new = ~np.isin(fresh_key, known)
+    at, neighbour = at[first][new], neighbour[first][new]
+    if at.size:
+        near = _reaches(cell[c_of[at]], chain[at], neighbour, grid, blocks, parts, views, fp)
+        at, neighbour = at[near], neighbour[near]
+    extra = chain[at].copy()
+    extra[:, -1] = neighbour
+    order = np.argsort(np.concatenate([c_of, c_of[at]]), kind="stable")
+    return (np.concatenate([c_of, c_of[at]])[order], np.concatenate([chain, extra])[order],
+            np.concatenate([donor_lane, donor_lane[at]])[order])
+
+
+def _reaches(lane, chain, last, grid, blocks, parts, views, fp):
+    """Whether part ``last`` [n], unfolded as the chains ``chain`` [n, depth + 1] take it (the
+    mirrors of their parts before the last level), meets the cells ``lane`` [n] from some view
+    of their sub-aperture (by :data:`MARGIN`) and, at the first bounce, faces the antenna (or
+    belongs to an open surface): bool [n]."""
+    vertices, normal, offset, closed = parts[0], parts[2], parts[3], parts[6]
+    block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
+    sub = blocks.sub.astype(np.int64)[block[lane]]
+    box = np.stack([gi[lane], gi[lane] + 1, gj[lane], gj[lane] + 1], 1).astype(float)
+    mirrors = [(normal[chain[:, i]], offset[chain[:, i]]) for i in range(chain.shape[1] - 1)]
+    corners = unfold(vertices[last], mirrors)
+    near = np.zeros(len(lane), bool)
+    for v in range(views.shape[1]):
+        poly = lattice_lines(corners, views[sub, v][:, None], fp, 0.0, 0.0, m[lane][:, None].astype(float))
+        near |= meets_box(poly, box, MARGIN)
+    if chain.shape[1] == 1:
+        near &= (np.einsum("ij,ij->i", normal[last], views[sub, 0]) - offset[last] > 0) | ~closed[last]
+    return near
+
+
+def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
+    """Every piece's occluders: ``(piece, part, level)`` int64 arrays, sorted by piece.
+
+    At level ``i``, the parts that the neighbourhood's rays with the piece's chain up to ``i - 1``
+    met instead of ``X_i`` (and, at the first bounce, the cell's other candidates), on another
+    face and with a corner on the antenna's side of ``X_i``'s plane; on the receive side (after
+    the first bounce), the parts that hid the neighbourhood's hits of the piece's chain."""
+    vertices, face, normal, offset = parts[:4]
+    n = len(c_of)
+    pieces, occ, levels = [], [], []
+    nbp = nb[c_of]                                                     # [n, 9]
+    safe = np.maximum(nbp, 0)
+    for level in range(depth + 1):
+        same = nbp >= 0
+        if level > 0:
+            same &= tables[level - 1].key[safe] == tables[level - 1].key[donor_lane][:, None]
+        other = np.where(same, tables[level].part[safe], -1)
+        x = chain[:, level]
+        pieces.append(np.repeat(np.arange(n), 9))
+        occ.append(other.ravel())
+        levels.append(np.full(9 * n, level))
+    # the cell's other candidates with the same chain up to the last level (adjacent parts no
+    # central ray met included)
+    start = np.concatenate([[0], np.cumsum(np.bincount(c_of))])
+    count = np.diff(start)[c_of]
+    rep = np.repeat(np.arange(n), count)
+    others = start[c_of][rep] + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+    same = np.all(chain[others, :depth] == chain[rep, :depth], axis=1)
+    pieces.append(rep[same])
+    occ.append(chain[others[same], depth])
+    levels.append(np.full(same.sum(), depth))
+    if depth > 0:             # receive side: the neighbours with the same chain that were hidden
+        same = (nbp >= 0) & (tables[depth].key[safe] == tables[depth].key[donor_lane][:, None]) \
+            & (tables[depth].visible[safe] == 0)
+        pieces.append(np.repeat(np.arange(n), 9))
+        occ.append(np.where(same, tables[depth].blocker[safe], -1).ravel())
+        levels.append(np.full(9 * n, RECEIVE))
+    piece, part, level = (np.concatenate(a) for a in (pieces, occ, levels))
+    keep = part >= 0
+    piece, part, level = piece[keep], part[keep], level[keep]
+    key = (piece * (1 << 20) + part) * 256 + level
+    key, first = np.unique(key, return_index=True)
+    piece, part, level = piece[first], part[first], level[first]
+    lv = np.minimum(level, depth)
+    x = chain[piece, lv]
+    keep = (part != x) & (face[part] != face[x])
+    # transmit side: a corner on the antenna's side of X_i's (unfolded) plane. Checked at level 0
+    # only (deeper levels' mirrors are the kernel's); receive side: kept.
+    ref = views[sub[piece], 0]
+    side = np.sign(np.einsum("ij,ij->i", normal[x], ref) - offset[x])
+    d = np.einsum("ijk,ik->ij", vertices[part], normal[x]) - offset[x][:, None]
+    front = (side[:, None] * d > ON_PLANE).any(1)
+    keep &= front | (level > 0)
+    return piece[keep], part[keep], level[keep]
+
+
+def _overlaps(piece, part, level, n_pieces):
+    """Inclusion and exclusion: for k = 1 .. MAX_OVERLAP, every k-subset of each piece's
+    occluders as ``(pieces, parts [n, k], levels [n, k])``."""
+    counts = np.bincount(piece, minlength=n_pieces)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    cuts = []
+    for size in range(1, MAX_OVERLAP + 1):
+        rows, parts_k, levels_k = [], [], []
+        for n_occ in range(size, int(counts.max(initial=0)) + 1):
+            have = np.flatnonzero(counts == n_occ)
+            if have.size == 0:
+                continue
+            for combo in itertools.combinations(range(n_occ), size):
+                index = starts[have][:, None] + np.asarray(combo)[None]
+                rows.append(have)
+                parts_k.append(part[index])
+                levels_k.append(level[index])
+        if rows:
+            cuts.append((np.concatenate(rows), np.concatenate(parts_k), np.concatenate(levels_k)))
+    return cuts
