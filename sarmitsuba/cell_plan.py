@@ -4,10 +4,12 @@
 The tracer records, per bounce order ``d`` and per lattice cell (lane) of a launch, the convex
 part its central ray met (:mod:`sarmitsuba.facets`), the hash of the facets met so far (the
 chain's key), and whether the hit sees the antenna (and if not, the part that hides it). A
-cell whose 3 x 3 neighbourhood of traced central rays all reached the same chain, all visible,
-keeps its whole tile (PO5). Every other traced cell next to a visible hit is *mixed*: for each
-chain ``C = (X_0, ..., X_d)`` that a visible hit of its neighbourhood followed (a *candidate*),
-the cell integrates
+cell whose 3 x 3 neighbourhood of traced central rays (on the lattice of its tube size, in any
+block of its sub-aperture) all reached the same chain, all visible, keeps its whole tile (PO5).
+Every other cell with a visible hit in its 3 x 3 is *mixed* (a missing neighbour counts as a
+change: the beam's edge, or a block of another tube size): for each chain
+``C = (X_0, ..., X_d)`` that a visible hit of its neighbourhood followed (a *candidate*), the
+cell integrates
 
     cell ∩ X_0' ∩ X_1'' ∩ ... ∩ X_d^(d)  less the parts in front at each level, less the parts
     that hide the last hit from the antenna,
@@ -18,9 +20,11 @@ neighbourhood's rays with the same chain up to ``i - 1`` met instead of ``X_i``;
 side's are the parts that hid the neighbourhood's hits of the same chain. Unions of several
 occluders are handled by inclusion and exclusion up to :data:`MAX_OVERLAP` at a time.
 
-At the first bounce the candidates also include the parts adjacent to a met part (sharing a
-corner) whose projection meets the cell: a wall seen nearly edge-on, narrower than a cell, that
-no central ray met.
+The candidates also include the chains of the 5 x 5 neighbourhood whose last part reaches into
+the cell from some view (a part's acute corner, a small occluder, between the central rays; cells
+with no visible hit in their 3 x 3 are examined for these too), and the chains ending on a part
+adjacent to a candidate's last part (sharing a corner) that reaches into the cell: a wall seen
+nearly edge-on, narrower than a cell, that no central ray met.
 
 Everything here is host-side bookkeeping; the per-pulse integrals are
 :class:`sarmitsuba.cell_terms.CellTerms`.
