@@ -224,15 +224,14 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     pieced = mixed | (np.bincount(c_of, minlength=len(cell)) > 1)
     keep = pieced[c_of]
     c_of, chain, donor_lane = c_of[keep], chain[keep], donor_lane[keep]
+    occluders = _near_occluders(depth, tables, c_of, chain, donor_lane, nb, cell, grid, blocks, parts, views, fp)
     replaced = np.zeros(n_rec, bool)
     own = rec_of[cell[pieced]]
     replaced[own[own >= 0]] = True
     c_lane = cell[c_of]
     bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1).astype(float)
     donor = rec_of[donor_lane]
-    occ_piece, occ_part, occ_level = _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views,
-                                                blocks.sub.astype(np.int64)[block[c_lane]])
-    cuts = _overlaps(occ_piece, occ_part, occ_level, len(c_of))
+    cuts = _overlaps(*occluders, len(c_of))
     return CellPlan(replaced=replaced, record=donor, chain=chain, bounds=bounds, cuts=cuts)
 
 
@@ -268,11 +267,11 @@ def _adjacent(c_of, chain, donor_lane, cell, grid, blocks, parts, views, fp):
             np.concatenate([donor_lane, donor_lane[at]])[order])
 
 
-def _reaches(lane, chain, last, grid, blocks, parts, views, fp):
+def _reaches(lane, chain, last, grid, blocks, parts, views, fp, facing: bool = True):
     """Whether part ``last`` [n], unfolded as the chains ``chain`` [n, depth + 1] take it (the
     mirrors of their parts before the last level), meets the cells ``lane`` [n] from some view
     of their sub-aperture (by :data:`MARGIN`) and, at the first bounce, faces the antenna (or
-    belongs to an open surface): bool [n]."""
+    belongs to an open surface; with ``facing``): bool [n]."""
     vertices, normal, offset, closed = parts[0], parts[2], parts[3], parts[6]
     block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
     sub = blocks.sub.astype(np.int64)[block[lane]]
@@ -283,9 +282,24 @@ def _reaches(lane, chain, last, grid, blocks, parts, views, fp):
     for v in range(views.shape[1]):
         poly = lattice_lines(corners, views[sub, v][:, None], fp, 0.0, 0.0, m[lane][:, None].astype(float))
         near |= meets_box(poly, box, MARGIN)
-    if chain.shape[1] == 1:
+    if facing and chain.shape[1] == 1:
         near &= (np.einsum("ij,ij->i", normal[last], views[sub, 0]) - offset[last] > 0) | ~closed[last]
     return near
+
+
+def _near_occluders(depth, tables, c_of, chain, donor_lane, nb, cell, grid, blocks, parts, views, fp):
+    """:func:`_occluders` of the pieces, less the transmit-side ones whose projection (mirrored as
+    the chain's part of their level) meets the piece's cell from no view of the sub-aperture."""
+    block = grid[0]
+    piece, part, level = _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views,
+                                    blocks.sub.astype(np.int64)[block[cell[c_of]]])
+    near = np.ones(len(piece), bool)
+    for lv in range(depth + 1):
+        at = np.flatnonzero(level == lv)
+        if at.size:
+            prefix = np.concatenate([chain[piece[at], :lv], part[at, None]], 1)
+            near[at] = _reaches(cell[c_of[piece[at]]], prefix, part[at], grid, blocks, parts, views, fp, facing=False)
+    return piece[near], part[near], level[near]
 
 
 def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
