@@ -70,7 +70,7 @@
      chains of facets or were hidden integrate each chain's exact piece of the cell, as each
      pulse sees it, so facet borders, shadows and multi-bounce footprints return as the
      straight edges they are (docs/physics.md (T6)); the beam's edge and the borders between
-     tube sizes keep the tubes' staircase. 10 to 50 times the trace time, and minutes of kernel compilation on the first render at depth 2 and 3 (docs/physics.md (T6)).
+     tube sizes keep the tubes' staircase. 2 to 25 times the trace time, and minutes of kernel compilation on the first render at depth 2 and 3 (docs/physics.md (T6)).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

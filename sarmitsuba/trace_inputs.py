@@ -78,7 +78,7 @@ class TraceSettings:
         each chain's exact piece of it (the parts mirrored and projected from the pulse's
         antenna, less the parts in front and the shadows), so facet borders, shadows and the
         footprints of multi-bounce chains return as straight edges, and a rough part's
-        scatterers are counted by the pieces that hold them (T6). 10 to 50 times the trace time,
+        scatterers are counted by the pieces that hold them (T6). 2 to 25 times the trace time,
         and minutes of kernel compilation at depth 2 and 3 on a cold LLVM cache (T6).
     """
 
