@@ -433,12 +433,11 @@ class CellTerms:
         is evaluated at its own point as the tile terms are (:meth:`_tile`: exact float64 legs, the
         amplitude and ``u = d - b`` there). With ``k`` occluders, the integral over the piece cut to
         their projections is added with the sign ``(-1)^k`` (inclusion and exclusion)."""
-        k, n, nu, flags = self.k, rec.n, mi.Array3f64(rec.n_unfolded), rec.flags
+        k, n, nu = self.k, rec.n, mi.Array3f64(rec.n_unfolded)
         # segments run counter-clockwise about the part's own normal (its corners' order)
         normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part))
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
-        cell, decided = self._cell(ctx, rec.block), [(flags & bit) != 0 for bit in (_SPLIT_1, _SPLIT_2)]
-        open_ = [(flags & bit) != 0 for bit in (_UNDECIDED_1, _UNDECIDED_2)]
+        cell = self._cell(ctx, rec.block)
         n_segments = self.tables.parts.slots * (depth + 1 + len(occluders)) + 4 * (1 + len(occluders))
         lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 3 * n_segments + 1, (-1.0) ** len(occluders)
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
@@ -447,7 +446,8 @@ class CellTerms:
         def body(q):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
-            split, centre, u_c = self.pulse_split(rec, antenna, cell, nu, depth, decided, open_)
+            centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)     # the tile's centre
+            u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
             polygons, m = self._polygons(ctx, rec, antenna, bounds, chain, occluders, depth)
             segments = self._segments(polygons)
             ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, depth),
@@ -457,7 +457,7 @@ class CellTerms:
                                                  normal, centre)
             active &= area > 0
             along_1, split_any, flat, linear, (c_point, c_s, c_d, c_dist), u_g, u_gt = self._regime(
-                rec, antenna, cell, nu, depth, u_c, normal, area, centroid, m)
+                rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m)
 
             def term(point, s, d, factor, order, live, slot, rel=None):
                 outgoing = antenna - point
@@ -513,9 +513,9 @@ class CellTerms:
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
 
-    def _regime(self, rec, antenna, cell, nu, depth, u_c, normal, area, centroid, m):
+    def _regime(self, rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m):
         """A piece's term form for one pulse, eq. (T6). Where the tile at the cell's centre would
-        split an edge (``split_any``, (PO2)), the flux runs along its edge of larger ``|alpha|``
+        split an edge (``split_any``, (PO2); ``u_c`` and ``edges_c`` there), the flux runs along its edge of larger ``|alpha|``
         (``along_1``) and every term is evaluated at its own point, as the tiles' terms are; where
         it keeps both sincs, the piece's phase is taken as the linear one about its centroid (as
         the tile's sincs take it about the centre) and integrated exactly (Gordon, ``linear``), or
@@ -523,7 +523,6 @@ class CellTerms:
         Returns ``(along_1, split_any, flat, linear, (point, s, d, distance) at the centroid, u
         there, its part in the plane)``."""
         k = self.k
-        edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)[3]
         alpha = [0.5 * k * dr.dot(u_c, e) for e in edges_c]
         along_1 = dr.abs(alpha[0]) >= dr.abs(alpha[1])
         split_any = dr.maximum(dr.abs(alpha[0]), dr.abs(alpha[1])) >= self.split_at

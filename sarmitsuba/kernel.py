@@ -304,21 +304,23 @@ def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> 
                cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape, plane=plane, part=part)
 
 
-def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
-    """Whether the reference position sees the hit point: a shadow ray toward it, no farther than
-    the antenna (geometry behind the antenna must not occlude), eq. (PO1); one test serves every
-    pulse of the sub-aperture, eq. (T3)."""
+def shadow_ray(hit: Hit) -> mi.Ray3f:
+    """The shadow ray from the hit toward the reference position, lifted off the surface and no
+    farther than the antenna (geometry behind the antenna must not occlude), eq. (PO1)."""
     lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(hit.p)
-    ray = mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
-    return active & ~scene.ray_test(ray, active)
+    return mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
+
+
+def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
+    """Whether the reference position sees the hit point (:func:`shadow_ray`); one test serves
+    every pulse of the sub-aperture, eq. (T3)."""
+    return active & ~scene.ray_test(shadow_ray(hit), active)
 
 
 def blocker(scene, tables: "_Tables", hit: Hit, active: mi.Bool) -> mi.UInt32:
-    """The convex part that hides the hit from the reference position (its shadow ray's first
-    hit; INVALID where none or not a mesh part)."""
-    lift = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(hit.p)
-    ray = mi.Ray3f(hit.p + hit.n * lift, hit.b, mi.Float(hit.dist) * (1.0 - 1e-6) - lift, 0.0, [])
-    pi = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+    """The convex part that hides the hit from the reference position (the first hit of its
+    :func:`shadow_ray`; INVALID where none or not a mesh part)."""
+    pi = scene.ray_intersect_preliminary(shadow_ray(hit), coherent=False, active=active)
     found = active & pi.is_valid()
     shape = dr.reinterpret_array(mi.UInt32, pi.shape)
     mesh = found & (dr.gather(mi.UInt32, tables.is_mesh, shape, found) > 0)
