@@ -7,7 +7,8 @@ chain's key), and whether the hit sees the antenna (and if not, the part that hi
 cell whose 3 x 3 neighbourhood of traced central rays (on the lattice of its tube size, in any
 block of its sub-aperture) all reached the same chain, all visible, keeps its whole tile (PO5).
 Every other cell with a visible hit in its 3 x 3 is *mixed* (a missing neighbour counts as a
-change: the beam's edge, or a block of another tube size): for each chain
+change: the beam's edge, or a block of another tube size, whose lanes about the cell
+(:func:`across_sizes`) join its candidates and occluders): for each chain
 ``C = (X_0, ..., X_d)`` that a visible hit of its neighbourhood followed (a *candidate*), the
 cell integrates
 
@@ -133,6 +134,41 @@ def neighbourhoods(lanes, traced, grid, sub, reach: int = 1):
     return out
 
 
+def across_sizes(lanes, traced, grid, sub, reach: int = 1):
+    """The traced lanes of *other* tube sizes, in the same sub-aperture, whose cells meet the
+    ``(2 reach + 1)^2`` cells about each of ``lanes`` (on the lattice of its own size): where
+    blocks of two tube sizes meet (the refinement of (T2)), the neighbours that
+    :func:`neighbourhoods` cannot name. Blocks start on coarse cells, so a cell ``(i, j)`` of
+    size ``m`` covers ``[i / m, (i + 1) / m)`` coarse cells. Returns ``(row, lane)`` int64 pairs,
+    ``row`` indexing ``lanes``."""
+    gi, gj, m = grid[5], grid[6], grid[7]
+    have = np.flatnonzero(traced)
+    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
+    order = np.argsort(keys)
+    keys, have = keys[order], have[order]
+    out_row, out_lane = [], []
+    sizes = np.unique(m[have])
+    for m2 in sizes.tolist():
+        at = np.flatnonzero(m[lanes] != m2)
+        if at.size == 0:
+            continue
+        lane, m1 = lanes[at], m[lanes[at]]
+        lo_i, hi_i = (gi[lane] - reach) * m2 // m1, -((-(gi[lane] + reach + 1) * m2) // m1)
+        lo_j, hi_j = (gj[lane] - reach) * m2 // m1, -((-(gj[lane] + reach + 1) * m2) // m1)
+        span_i, span_j = int((hi_i - lo_i).max()), int((hi_j - lo_j).max())
+        for di in range(span_i):
+            for dj in range(span_j):
+                ok = (lo_i + di < hi_i) & (lo_j + dj < hi_j)
+                want = _cell_key(sub[lane], np.full(lane.size, m2), lo_i + di, lo_j + dj)
+                pos = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+                ok &= keys[pos] == want
+                out_row.append(at[ok])
+                out_lane.append(have[pos[ok]])
+    if not out_row:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(out_row), np.concatenate(out_lane)
+
+
 def meets_box(poly, box, margin):
     """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
     meet the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin`` (separating axes)."""
@@ -191,12 +227,24 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     bad = (has & (table.part[safe] < 0)).any(1)                         # shapes with no parts keep tiles
     mixed &= ~bad
     near &= ~bad
-    # cells with no visible hit in their 3 x 3 but some in their 5 x 5: a part's acute corner can
-    # reach into them past the central rays
+    # where blocks of two tube sizes meet, the other size's lanes about the cell (its visible
+    # hits of parts only)
+    edge = np.flatnonzero((wide < 0).any(1))
+    x_row, x_lane = across_sizes(lanes[edge], traced, grid, sub, reach=2)
+    x_row = edge[x_row]
+    changed = np.bincount(x_row[state[x_lane] != state[lanes[x_row]]], minlength=lanes.size) > 0
+    near |= ~mixed & has[:, 0] & changed & ~bad
+    x_vis = (rec_of[x_lane] >= 0) & (table.part[x_lane] >= 0)
+    x_row, x_lane = x_row[x_vis], x_lane[x_vis]
+    # cells with no visible hit in their 3 x 3 but some in their 5 x 5 (or of the other size): a
+    # part's acute corner can reach into them past the central rays
     wide_safe = np.maximum(wide, 0)
     has5 = (wide >= 0) & (rec_of[wide_safe] >= 0)
-    fringe = ~has.any(1) & has5.any(1) & ~(has5 & (table.part[wide_safe] < 0)).any(1)
+    fringe = ~has.any(1) & (has5.any(1) | (np.bincount(x_row, minlength=lanes.size) > 0)) \
+        & ~(has5 & (table.part[wide_safe] < 0)).any(1)
     look = mixed | near | fringe
+    row_of = np.cumsum(look) - 1
+    x_row, x_lane = row_of[x_row[look[x_row]]], x_lane[look[x_row]]
     cell, nb, wide, has5, has = lanes[look], nb[look], wide[look], has5[look], has[look]
     mixed = (mixed | fringe)[look]
     # candidates: the distinct visible chains of the 3 x 3 (first record in OFFSETS order; a cell
@@ -210,10 +258,11 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     c_of, col = np.nonzero(first)
     donor_lane = nb[c_of, col]
     rows, cols = np.nonzero(has5)
-    keys5 = rows * (1 << 33) + table.key[wide[rows, cols]]
+    rows, w_lanes = np.concatenate([rows, x_row]), np.concatenate([wide[rows, cols], x_lane])
+    keys5 = rows * (1 << 33) + table.key[w_lanes]
     keys5, first5 = np.unique(keys5, return_index=True)
     new = ~np.isin(keys5, c_of * (1 << 33) + table.key[donor_lane])
-    w_row, w_donor = rows[first5][new], wide[rows[first5][new], cols[first5][new]]
+    w_row, w_donor = rows[first5][new], w_lanes[first5][new]
     w_chain = np.stack([tables[i].part[w_donor] for i in range(depth + 1)], 1)
     reach = np.all(w_chain >= 0, 1)
     reach[reach] = _reaches(cell[w_row[reach]], w_chain[reach], w_chain[reach, -1], grid, blocks, parts, views, fp)
@@ -224,12 +273,14 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     pieced = mixed | (np.bincount(c_of, minlength=len(cell)) > 1)
     keep = pieced[c_of]
     c_of, chain, donor_lane = c_of[keep], chain[keep], donor_lane[keep]
-    occluders = _near_occluders(depth, tables, c_of, chain, donor_lane, nb, cell, grid, blocks, parts, views, fp)
+    occluders = _near_occluders(depth, tables, c_of, chain, donor_lane, _neighbours(c_of, nb, x_row, x_lane),
+                                cell, grid, blocks, parts, views, fp)
     replaced = np.zeros(n_rec, bool)
     own = rec_of[cell[pieced]]
     replaced[own[own >= 0]] = True
     c_lane = cell[c_of]
-    bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1).astype(float)
+    # the cell in lattice lines of the donor's tube size (the kernel reads the donor's block)
+    bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1) * (m[donor_lane] / m[c_lane])[:, None]
     donor = rec_of[donor_lane]
     cuts = _overlaps(*occluders, len(c_of))
     return CellPlan(replaced=replaced, record=donor, chain=chain, bounds=bounds, cuts=cuts)
@@ -287,6 +338,20 @@ def _reaches(lane, chain, last, grid, blocks, parts, views, fp, facing: bool = T
     return near
 
 
+def _neighbours(c_of, nb, x_row, x_lane):
+    """Each piece's neighbourhood lanes as ``(piece, lane)`` int64 pairs: its cell's 3 x 3 ``nb``
+    (-1 kept) and the other tube size's lanes ``x_lane`` about cell ``x_row``."""
+    n = len(c_of)
+    order = np.argsort(x_row, kind="stable")
+    x_row, x_lane = x_row[order], x_lane[order]
+    start = np.searchsorted(x_row, c_of)
+    count = np.searchsorted(x_row, c_of, side="right") - start
+    piece = np.repeat(np.arange(n), count)
+    within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return (np.concatenate([np.repeat(np.arange(n), nb.shape[1]), piece]),
+            np.concatenate([nb[c_of].ravel(), x_lane[np.repeat(start, count) + within]]))
+
+
 def _near_occluders(depth, tables, c_of, chain, donor_lane, nb, cell, grid, blocks, parts, views, fp):
     """:func:`_occluders` of the pieces, less the transmit-side ones whose projection (mirrored as
     the chain's part of their level) meets the piece's cell from no view of the sub-aperture."""
@@ -303,6 +368,7 @@ def _near_occluders(depth, tables, c_of, chain, donor_lane, nb, cell, grid, bloc
 
 
 def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
+    # nb: (piece, lane) pairs of the pieces' neighbourhoods (:func:`_neighbours`)
     """Every piece's occluders: ``(piece, part, level)`` int64 arrays, sorted by piece.
 
     At level ``i``, the parts that the neighbourhood's rays with the piece's chain up to ``i - 1``
@@ -312,17 +378,15 @@ def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
     vertices, face, normal, offset = parts[:4]
     n = len(c_of)
     pieces, occ, levels = [], [], []
-    nbp = nb[c_of]                                                     # [n, 9]
-    safe = np.maximum(nbp, 0)
+    at, lane = nb                                                      # (piece, lane) pairs
+    safe = np.maximum(lane, 0)
     for level in range(depth + 1):
-        same = nbp >= 0
+        same = lane >= 0
         if level > 0:
-            same &= tables[level - 1].key[safe] == tables[level - 1].key[donor_lane][:, None]
-        other = np.where(same, tables[level].part[safe], -1)
-        x = chain[:, level]
-        pieces.append(np.repeat(np.arange(n), 9))
-        occ.append(other.ravel())
-        levels.append(np.full(9 * n, level))
+            same &= tables[level - 1].key[safe] == tables[level - 1].key[donor_lane[at]]
+        pieces.append(at)
+        occ.append(np.where(same, tables[level].part[safe], -1))
+        levels.append(np.full(at.size, level))
     # the cell's other candidates with the same chain up to the last level (adjacent parts no
     # central ray met included)
     start = np.concatenate([[0], np.cumsum(np.bincount(c_of))])
@@ -334,11 +398,11 @@ def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
     occ.append(chain[others[same], depth])
     levels.append(np.full(same.sum(), depth))
     if depth > 0:             # receive side: the neighbours with the same chain that were hidden
-        same = (nbp >= 0) & (tables[depth].key[safe] == tables[depth].key[donor_lane][:, None]) \
+        same = (lane >= 0) & (tables[depth].key[safe] == tables[depth].key[donor_lane[at]]) \
             & (tables[depth].visible[safe] == 0)
-        pieces.append(np.repeat(np.arange(n), 9))
-        occ.append(np.where(same, tables[depth].blocker[safe], -1).ravel())
-        levels.append(np.full(9 * n, RECEIVE))
+        pieces.append(at)
+        occ.append(np.where(same, tables[depth].blocker[safe], -1))
+        levels.append(np.full(at.size, RECEIVE))
     piece, part, level = (np.concatenate(a) for a in (pieces, occ, levels))
     keep = part >= 0
     piece, part, level = piece[keep], part[keep], level[keep]
