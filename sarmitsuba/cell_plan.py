@@ -18,8 +18,10 @@ cell integrates
 where ``X_i^(i)`` is part ``X_i`` mirrored in the planes of ``X_0 .. X_{i-1}`` and projected from
 the pulse's antenna onto the aim plane. The parts in front at level ``i`` are those that the
 neighbourhood's rays with the same chain up to ``i - 1`` met instead of ``X_i``; the receive
-side's are the parts that hid the neighbourhood's hits of the same chain. Unions of several
-occluders are handled by inclusion and exclusion up to :data:`MAX_OVERLAP` at a time.
+side's are the parts that hid the neighbourhood's hits of the same chain. A piece takes out the
+exact union of up to :data:`MAX_OCCLUDERS` occluders (the kernel trims every boundary edge by
+the others' projections); pieces are launched in groups of equal occluder counts
+(:data:`OCCLUDER_GROUPS`).
 
 The candidates also include the chains of the 5 x 5 neighbourhood whose last part reaches into
 the cell from some view (a part's acute corner, a small occluder, between the central rays; cells
@@ -32,14 +34,13 @@ Everything here is host-side bookkeeping; the per-pulse integrals are
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
 from .lattice_index import lattice_lines, pair_key
 
-__all__ = ["CellPlan", "LaneTable", "plan_cells", "lane_grid", "MAX_OVERLAP", "RECEIVE"]
+__all__ = ["CellPlan", "LaneTable", "plan_cells", "lane_grid", "MAX_OCCLUDERS", "OCCLUDER_GROUPS", "RECEIVE", "NONE"]
 
 #: The centre first, then the four edge neighbours, then the corners (the donor's preference).
 OFFSETS = ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1))
@@ -47,10 +48,16 @@ OFFSETS = ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1),
 ON_PLANE = 1e-4
 #: A candidate's projection is kept where it comes this close to the cell [cells].
 MARGIN = 0.05
-#: Most occluders of one piece combined by inclusion and exclusion.
-MAX_OVERLAP = 3
+#: Occluder counts of the launches: a piece with ``k`` occluders goes to the first group of at
+#: least ``k`` (the rest padded with :data:`NONE`), so that few kernels serve all counts.
+OCCLUDER_GROUPS = (1, 2, 3, 4, 6, 8)
+#: Most occluders of one piece: beyond them a piece keeps the first ones by part index
+#: (Munich, first bounce: 81 of 74,533 pieces have more).
+MAX_OCCLUDERS = OCCLUDER_GROUPS[-1]
 #: The level of an occluder that hides the last hit from the antenna (receive side).
 RECEIVE = 255
+#: The level of a padding slot of an occluder group (no occluder).
+NONE = 254
 _MISS = -1
 
 
@@ -82,9 +89,10 @@ class CellPlan:
     bounds : float64 [n_pieces, 4]
         The cell: x0, x1, y0, y1 in lattice lines of its tube size.
     cuts : list of (int64 [n], int64 [n, k], int64 [n, k])
-        For k = 1 .. MAX_OVERLAP occluders: the pieces, the occluders' parts and their levels
-        (``RECEIVE`` for the receive side); the piece less their common projection is added
-        with the sign ``(-1)^k``.
+        The pieces with occluders, grouped by :data:`OCCLUDER_GROUPS`: for group ``k``, the
+        pieces, their occluders' parts and levels (``RECEIVE`` for the receive side, ``NONE``
+        for padding). Each piece is integrated less the union of its occluders' projections;
+        the pieces in no group have none.
     """
 
     replaced: np.ndarray
@@ -282,7 +290,7 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     # the cell in lattice lines of the donor's tube size (the kernel reads the donor's block)
     bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1) * (m[donor_lane] / m[c_lane])[:, None]
     donor = rec_of[donor_lane]
-    cuts = _overlaps(*occluders, len(c_of))
+    cuts = _groups(*occluders, len(c_of))
     return CellPlan(replaced=replaced, record=donor, chain=chain, bounds=bounds, cuts=cuts)
 
 
@@ -422,23 +430,20 @@ def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
     return piece[keep], part[keep], level[keep]
 
 
-def _overlaps(piece, part, level, n_pieces):
-    """Inclusion and exclusion: for k = 1 .. MAX_OVERLAP, every k-subset of each piece's
-    occluders as ``(pieces, parts [n, k], levels [n, k])``."""
+def _groups(piece, part, level, n_pieces):
+    """The pieces with occluders, in groups of :data:`OCCLUDER_GROUPS` occluders (padded with
+    ``NONE`` levels, cut to :data:`MAX_OCCLUDERS`): ``[(pieces, parts [n, k], levels [n, k])]``.
+    ``piece`` must be sorted."""
     counts = np.bincount(piece, minlength=n_pieces)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    cuts = []
-    for size in range(1, MAX_OVERLAP + 1):
-        rows, parts_k, levels_k = [], [], []
-        for n_occ in range(size, int(counts.max(initial=0)) + 1):
-            have = np.flatnonzero(counts == n_occ)
-            if have.size == 0:
-                continue
-            for combo in itertools.combinations(range(n_occ), size):
-                index = starts[have][:, None] + np.asarray(combo)[None]
-                rows.append(have)
-                parts_k.append(part[index])
-                levels_k.append(level[index])
-        if rows:
-            cuts.append((np.concatenate(rows), np.concatenate(parts_k), np.concatenate(levels_k)))
+    cuts, low = [], 1
+    for size in OCCLUDER_GROUPS:
+        have = np.flatnonzero((counts >= low) & ((counts <= size) | (size == MAX_OCCLUDERS)))
+        low = size + 1
+        if have.size == 0:
+            continue
+        slot = np.arange(size)[None]
+        index = starts[have][:, None] + np.minimum(slot, counts[have][:, None] - 1)
+        pad = slot >= counts[have][:, None]
+        cuts.append((have, part[index], np.where(pad, NONE, level[index])))
     return cuts

@@ -17,13 +17,14 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .cell_plan import RECEIVE, LaneTable, plan_cells
+from .cell_clip import inside, pack
+from .cell_plan import NONE, RECEIVE, LaneTable, plan_cells
 from .clutter_lattice import FootprintCells
 from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from .facets import MAX_PART_VERTICES, scene_parts
 
-__all__ = ["CellTerms", "PartTable", "FLAT_ALPHA", "CROSSING_TOLERANCE"]
+__all__ = ["CellTerms", "PartTable", "FLAT_PHASE", "CROSSING_TOLERANCE"]
 
 #: Below this ``k |u_t| sqrt(A)`` a piece's phase is flat: one term, its area at its centroid
 #: (the neglected second moment is below a 24th of its square), eq. (T6).
@@ -31,9 +32,6 @@ FLAT_PHASE = 0.01
 #: An occluder's corners closer than this to a part's plane [m] lie on it (a wall standing on a
 #: roof touches the roof's plane).
 CROSSING_TOLERANCE = 1e-4
-#: Two edges on one line to this many lattice cells (and parallel to as many radians) are one
-#: line: rounding of lines that meet exactly (a wall's foot on the ground seen through two parts).
-COINCIDENT = 1e-8
 _INVALID = 0xFFFFFFFF
 # flags of kernel.Flags (repeated here: the kernel imports this module through returns)
 _SPLIT_1, _SPLIT_2, _BACK, _UNDECIDED_1, _UNDECIDED_2, _PIECED = 32, 64, 128, 256, 512, 1024
@@ -115,8 +113,8 @@ class CellTerms:
     # ------------------------------------------------------------------ the plan
     def cells(self, ctx, rec, depth: int):
         """Plan bounce order ``depth``'s mixed cells on the host, flag the records whose tiles they
-        replace, and return the launches of :meth:`cell_returns`: the pieces, then the pieces less
-        one, two and three occluders."""
+        replace, and return the launches of :meth:`cell_returns`: the pieces without occluders,
+        then each group of pieces less their occluders (:data:`cell_plan.OCCLUDER_GROUPS`)."""
         launch = ctx["launch"]
         views = np.stack([launch.reference, launch.antenna[launch.first],
                           launch.antenna[launch.first + launch.count - 1]], 1)
@@ -128,7 +126,8 @@ class CellTerms:
         rec.flags |= dr.select(mi.Bool(plan.replaced), mi.UInt32(_PIECED), mi.UInt32(0))
         dr.eval(rec.flags)
         launches = []
-        base = (np.arange(len(plan.record)), np.zeros((len(plan.record), 0), np.int64), np.zeros((len(plan.record), 0), np.int64))
+        alone = np.setdiff1d(np.arange(len(plan.record)), np.concatenate([c[0] for c in plan.cuts] + [np.zeros(0, np.int64)]))
+        base = (alone, np.zeros((len(alone), 0), np.int64), np.zeros((len(alone), 0), np.int64))
         for piece, occ_parts, occ_levels in [base] + list(plan.cuts):
             if len(piece) == 0:
                 continue
@@ -217,8 +216,9 @@ class CellTerms:
     def _polygons(self, ctx, rec, antenna, bounds, chain, occluders, depth: int):
         """The convex polygons whose intersection is the piece, as the pulse at ``antenna`` sees
         them on the aim plane in lattice lines of tube size ``m``: the rectangle ``bounds``, each
-        level's part of the chain in the unfolded frame, and for each occluder its projection and
-        the half-plane where it lies in front (:meth:`_half_plane`). Returns ``(polygons, m)``."""
+        level's part of the chain in the unfolded frame; and for each occluder the cut-out
+        ``([projection, half-plane where it lies in front (:meth:`_half_plane`)], live)``, live
+        where it is not padding. Returns ``(polygons, cutouts, m)``."""
         m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
         planes = [self._plane(p) for p in chain]
         mirrors = planes[:depth]
@@ -233,9 +233,9 @@ class CellTerms:
         x0, x1, y0, y1 = self._box(projected[-1], bounds)
         box = (0.5 * (x0 + x1), 0.5 * (y0 + y1)), 0.5 * dr.maximum(x1 - x0, y1 - y0) + 2.0
         polygons = [projected[-1], [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]] + projected[:-1]
-        for part, level in occluders:
-            polygons += self._occluder(ctx, rec, antenna, part, level, levels, mirrors, box, m, depth)
-        return polygons, m
+        cutouts = [(self._occluder(ctx, rec, antenna, part, level, levels, mirrors, box, m, depth), level != NONE)
+                   for part, level in occluders]
+        return polygons, cutouts, m
 
     def _occluder(self, ctx, rec, antenna, part, level, levels, mirrors, box, m, depth):
         """An occluder's two polygons (its projection, and the half-plane where it is in front):
@@ -340,58 +340,6 @@ class CellTerms:
                 (px - far * uy + far * ux, py + far * ux + far * uy), (px + far * uy + far * ux, py - far * ux + far * uy)]
 
     @staticmethod
-    def _clip(p, q, t0, t1):
-        """Narrow ``[t0, t1]`` to where ``p t <= q`` (Liang and Barsky 1984); ``p = 0``: all or nothing."""
-        safe = dr.select(p != 0, p, 1.0)
-        t0 = dr.select(p < 0, dr.maximum(t0, q / safe), t0)
-        t1 = dr.select(p > 0, dr.minimum(t1, q / safe), t1)
-        return t0, dr.select((p == 0) & (q < 0), -1.0, t1)
-
-    @staticmethod
-    def _orientation(corners):
-        """+1 where the corners run counter-clockwise in ``(x, y)``, -1 where clockwise."""
-        (px0, py0), area = corners[0], mi.Float64(0.0)
-        for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
-            area += (ax - px0) * (by - py0) - (ay - py0) * (bx - px0)
-        return dr.select(area >= 0, 1.0, -1.0)
-
-    def _segments(self, polygons):
-        """The boundary of the intersection of convex polygons (lists of ``(x, y)`` corners, either
-        orientation, repeated corners allowed) as segments, all in the first polygon's orientation:
-        each polygon's edges clipped to all the others (Cyrus and Beck 1978). Returns
-        ``[(x0, y0, x1, y1, exists)]``. An edge lying on a same-direction edge of an earlier polygon
-        is left to that one (no double count)."""
-        signs = [self._orientation(c) for c in polygons]
-        out = []
-        for n, corners in enumerate(polygons):
-            flip = signs[n] != signs[0]
-            for a, b in zip(corners, corners[1:] + corners[:1]):
-                ax, ay = dr.select(flip, b[0], a[0]), dr.select(flip, b[1], a[1])
-                dx, dy = dr.select(flip, a[0], b[0]) - ax, dr.select(flip, a[1], b[1]) - ay
-                t0, t1 = mi.Float64(0.0), mi.Float64(1.0)
-                keep = (dx != 0) | (dy != 0)
-                length = dr.sqrt(dx * dx + dy * dy)
-                for other, (sign, clip) in enumerate(zip(signs, polygons)):
-                    if other == n:
-                        continue
-                    for (cx, cy), (ex, ey) in zip(clip, clip[1:] + clip[:1]):
-                        fx, fy = ex - cx, ey - cy
-                        p = -sign * (fx * dy - fy * dx)
-                        q = sign * (fx * (ay - cy) - fy * (ax - cx))
-                        # the two edges on one line (to COINCIDENT cells: rounding of lines that meet
-                        # exactly, as a wall's foot on the ground): on the same side, the earlier
-                        # polygon's edge is the boundary; on opposite sides the polygons only touch
-                        f_length = dr.sqrt(fx * fx + fy * fy)
-                        on_line = (dr.abs(p) <= COINCIDENT * f_length * length) & (dr.abs(q) <= COINCIDENT * f_length) \
-                            & (f_length > 0)
-                        same = sign * signs[0] * (fx * dx + fy * dy) > 0
-                        keep &= ~(on_line & (~same | (other < n)))
-                        p, q = dr.select(on_line, 0.0, p), dr.select(on_line, 0.0, q)
-                        t0, t1 = self._clip(p, q, t0, t1)
-                out.append((ax + t0 * dx, ay + t0 * dy, ax + t1 * dx, ay + t1 * dy, keep & (t1 > t0)))
-        return out
-
-    @staticmethod
     def _box(corners, bounds):
         """The rectangle ``bounds`` brought in to one line beyond the polygon ``corners``."""
         xs, ys = [c[0] for c in corners], [c[1] for c in corners]
@@ -402,15 +350,16 @@ class CellTerms:
         return (dr.maximum(bounds[0], lo_x - 1.0), dr.minimum(bounds[1], hi_x + 1.0),
                 dr.maximum(bounds[2], lo_y - 1.0), dr.minimum(bounds[3], hi_y + 1.0))
 
-    @staticmethod
-    def _area_centroid(ends, normal, centre):
-        """Area and centroid of a piece from its boundary segments ``(a, b, exists)`` on the facet
-        (float64, about ``centre``)."""
-        twice_area, moment = mi.Float64(0.0), mi.Array3f64(0.0)
-        for a, b, exists in ends:
-            cross = dr.select(exists, dr.dot(mi.Array3f64(normal), dr.cross(a - centre, b - centre)), 0.0)
-            twice_area += cross
-            moment += (a + b - 2.0 * centre) * cross
+    def _area_centroid(self, rec, antenna, ends, n_live, m, cell, nu, depth, normal, centre):
+        """Area and centroid of a piece on the facet (float64, about ``centre``) from its
+        ``n_live`` boundary segments in the local buffers ``ends`` (x0, y0, x1, y1)."""
+        def step(i, twice_area, moment):
+            a, b = (self._tile(rec, antenna, self._aim_point(ends[0 + e][i], ends[1 + e][i], m), cell, nu, depth)[0]
+                    for e in (0, 2))
+            cross = dr.dot(mi.Array3f64(normal), dr.cross(a - centre, b - centre))
+            return i + 1, twice_area + cross, moment + (a + b - 2.0 * centre) * cross
+        _, twice_area, moment = dr.while_loop((mi.UInt32(0), mi.Float64(0.0), mi.Array3f64(0.0)),
+                                              lambda i, t, mo: i < n_live, step, label="cell_area")
         return 0.5 * twice_area, centre + moment / (3.0 * dr.select(twice_area != 0, twice_area, 1.0))
 
     # ------------------------------------------------------------------ the returns
@@ -431,15 +380,18 @@ class CellTerms:
         own ``|alpha|`` reaches the threshold; where the phase is flat over the piece
         (``(k |u_t|)^2 A`` below :data:`FLAT_PHASE`) one term, its area at its centroid. Every term
         is evaluated at its own point as the tile terms are (:meth:`_tile`: exact float64 legs, the
-        amplitude and ``u = d - b`` there). With ``k`` occluders, the integral over the piece cut to
-        their projections is added with the sign ``(-1)^k`` (inclusion and exclusion)."""
-        k, n, nu = self.k, rec.n, mi.Array3f64(rec.n_unfolded)
+        amplitude and ``u = d - b`` there). The boundary is the chain's polygons' less the exact
+        union of the occluders' cut-outs (:func:`sarmitsuba.cell_clip.boundary`); its live
+        segments are gathered into local memory and integrated in a loop, so one copy of the
+        term code serves any number of occluders."""
+        n, nu = rec.n, mi.Array3f64(rec.n_unfolded)
         # segments run counter-clockwise about the part's own normal (its corners' order)
         normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part))
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
         cell = self._cell(ctx, rec.block)
-        n_segments = self.tables.parts.slots * (depth + 1 + len(occluders)) + 4 * (1 + len(occluders))
-        lane, slots, sign = dr.arange(mi.UInt32, dr.width(rec.sub)), 3 * n_segments + 1, (-1.0) ** len(occluders)
+        n_occ = len(occluders)      # pack's bound: every polygon's edges, each in up to n_occ + 1 pieces
+        n_segments = (depth + 2 + 2 * n_occ) * max(self.tables.parts.slots, 4) * (n_occ + 1)
+        lane, slots = dr.arange(mi.UInt32, dr.width(rec.sub)), 3 * n_segments + 1
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
 
@@ -448,16 +400,12 @@ class CellTerms:
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)     # the tile's centre
             u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
-            polygons, m = self._polygons(ctx, rec, antenna, bounds, chain, occluders, depth)
-            segments = self._segments(polygons)
-            ends = [(self._tile(rec, antenna, self._aim_point(x0, y0, m), cell, nu, depth),
-                     self._tile(rec, antenna, self._aim_point(x1, y1, m), cell, nu, depth))
-                    for x0, y0, x1, y1, _ in segments]
-            area, centroid = self._area_centroid([(a[0], b[0], seg[4]) for (a, b), seg in zip(ends, segments)],
-                                                 normal, centre)
+            polygons, cutouts, m = self._polygons(ctx, rec, antenna, bounds, chain, occluders, depth)
+            ends, n_live = pack(polygons, cutouts)
+            area, centroid = self._area_centroid(rec, antenna, ends, n_live, m, cell, nu, depth, normal, centre)
             active &= area > 0
-            along_1, split_any, flat, linear, (c_point, c_s, c_d, c_dist), u_g, u_gt = self._regime(
-                rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m)
+            regime = self._regime(rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m)
+            flat, (c_point, c_s, c_d, c_dist) = regime[2], regime[4]
 
             def term(point, s, d, factor, order, live, slot, rel=None):
                 outgoing = antenna - point
@@ -467,7 +415,7 @@ class CellTerms:
                 scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
                     * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
                 rel = s + dist - lref if rel is None else rel
-                value = mi.Complex2f(0.0, sign * scale) * rec.gamma * factor * self.carrier_phase(rel)
+                value = mi.Complex2f(0.0, scale) * rec.gamma * factor * self.carrier_phase(rel)
                 live &= active & (cos_i > self.cos_grazing) & (s > 0)
                 self.sums.deposit(ctx, pulse, depth, self.anchor(rel, lref), 0.0,
                                   [value * c for c in self.po_channels(rec, d, b, n, cos_i, depth)],
@@ -475,43 +423,57 @@ class CellTerms:
 
             c_rel = c_s + c_dist - lref
             term(c_point, c_s, c_d, mi.Complex2f(mi.Float(area), 0.0), mi.UInt32(SPECTRAL_ORDERS.index(1)), flat, 0, c_rel)
-            for index, ((x0, y0, x1, y1, exists), (start, stop)) in enumerate(zip(segments, ends)):
-                seg = mi.Vector3f(stop[0] - start[0])
-                middle = self._tile(rec, antenna, self._aim_point(0.5 * (x0 + x1), 0.5 * (y0 + y1), m), cell, nu, depth)
-                # the linear regime: one term per segment at its midpoint, the flux of u_t at the
-                # centroid, the phase linear about it (exact for that phase, eq. (T6))
-                g_lin = dr.dot(u_g, seg)
-                flux_lin = dr.dot(normal, dr.cross(u_gt, seg)) / (k * dr.select(linear, dr.squared_norm(u_gt), 1.0))
-                rel_lin = c_rel + mi.Float64(dr.dot(u_g, mi.Vector3f(middle[0] - c_point)))
-                term(c_point, c_s, c_d, mi.Complex2f(0.0, flux_lin * self.sinc(0.5 * k * g_lin)),
-                     mi.UInt32(SPECTRAL_ORDERS.index(0)), exists & linear, 3 * index + 1, rel_lin)
-                # the split regime: the flux along the split tile edge, each term at its own point
-                cut = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
-                for end in range(2):       # the stop (split) or the middle (sinc); the start (split)
-                    point, s, d, edges = start if end else (
-                        *(dr.select(cut, a, b) for a, b in zip(stop[:3], middle[:3])),
-                        [dr.select(cut, a, b) for a, b in zip(stop[3], middle[3])])
-                    u = d - mi.Vector3f(dr.normalize(antenna - point))
-                    v = dr.select(along_1, edges[0], edges[1])         # the tile's edge at the point
-                    up = dr.dot(u, v)
-                    flux = dr.dot(normal, dr.cross(v, seg)) / (k * dr.select(split_any & (up != 0), up, 1.0))
-                    g = dr.dot(u, seg)
-                    g_safe = dr.select(g != 0, g, 1.0)
-                    if end == 0:
-                        factor = dr.select(cut, mi.Complex2f(-flux / (k * g_safe), 0.0),
-                                           mi.Complex2f(0.0, flux * self.sinc(0.5 * k * g)))
-                        order = dr.select(cut, mi.UInt32(SPECTRAL_ORDERS.index(-1)), mi.UInt32(SPECTRAL_ORDERS.index(0)))
-                        live = exists & split_any
-                    else:
-                        factor = mi.Complex2f(flux / (k * g_safe), 0.0)
-                        order = mi.UInt32(SPECTRAL_ORDERS.index(-1))
-                        live = exists & split_any & cut
-                    term(point, s, d, factor, order, live, 3 * index + 2 + end)
+
+            def step(index):
+                self._segment_terms(rec, antenna, [b[index] for b in ends], m, cell, nu, depth, normal, regime,
+                                    u_c, c_rel, term, index)
+                return (index + 1,)
+            dr.while_loop((mi.UInt32(0),), lambda i: i < n_live, step, label="cell_segments")
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="cell_pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
+
+    def _segment_terms(self, rec, antenna, segment, m, cell, nu, depth, normal, regime, u_c, c_rel, term, index):
+        """The terms of one boundary segment ``(x0, y0, x1, y1)`` (:meth:`cell_po`): in the linear
+        regime one at its midpoint, in the split regime the flux along the split tile edge at its
+        ends (or its middle), each at its own point; ``index`` numbers its path slots."""
+        k = self.k
+        along_1, split_any, _, linear, (c_point, c_s, c_d, _), u_g, u_gt = regime
+        x0, y0, x1, y1 = segment
+        start, stop, middle = (self._tile(rec, antenna, self._aim_point(x, y, m), cell, nu, depth)
+                               for x, y in ((x0, y0), (x1, y1), (0.5 * (x0 + x1), 0.5 * (y0 + y1))))
+        seg = mi.Vector3f(stop[0] - start[0])
+        # the linear regime: one term per segment at its midpoint, the flux of u_t at the
+        # centroid, the phase linear about it (exact for that phase, eq. (T6))
+        g_lin = dr.dot(u_g, seg)
+        flux_lin = dr.dot(normal, dr.cross(u_gt, seg)) / (k * dr.select(linear, dr.squared_norm(u_gt), 1.0))
+        rel_lin = c_rel + mi.Float64(dr.dot(u_g, mi.Vector3f(middle[0] - c_point)))
+        term(c_point, c_s, c_d, mi.Complex2f(0.0, flux_lin * self.sinc(0.5 * k * g_lin)),
+             mi.UInt32(SPECTRAL_ORDERS.index(0)), linear, 3 * index + 1, rel_lin)
+        # the split regime: the flux along the split tile edge, each term at its own point
+        cut = dr.abs(0.5 * k * dr.dot(u_c, seg)) >= self.split_at
+        for end in range(2):       # the stop (split) or the middle (sinc); the start (split)
+            point, s, d, edges = start if end else (
+                *(dr.select(cut, a, b) for a, b in zip(stop[:3], middle[:3])),
+                [dr.select(cut, a, b) for a, b in zip(stop[3], middle[3])])
+            u = d - mi.Vector3f(dr.normalize(antenna - point))
+            v = dr.select(along_1, edges[0], edges[1])         # the tile's edge at the point
+            up = dr.dot(u, v)
+            flux = dr.dot(normal, dr.cross(v, seg)) / (k * dr.select(split_any & (up != 0), up, 1.0))
+            g = dr.dot(u, seg)
+            g_safe = dr.select(g != 0, g, 1.0)
+            if end == 0:
+                factor = dr.select(cut, mi.Complex2f(-flux / (k * g_safe), 0.0),
+                                   mi.Complex2f(0.0, flux * self.sinc(0.5 * k * g)))
+                order = dr.select(cut, mi.UInt32(SPECTRAL_ORDERS.index(-1)), mi.UInt32(SPECTRAL_ORDERS.index(0)))
+                live = split_any
+            else:
+                factor = mi.Complex2f(flux / (k * g_safe), 0.0)
+                order = mi.UInt32(SPECTRAL_ORDERS.index(-1))
+                live = split_any & cut
+            term(point, s, d, factor, order, live, 3 * index + 2 + end)
 
     def _regime(self, rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m):
         """A piece's term form for one pulse, eq. (T6). Where the tile at the cell's centre would
@@ -554,8 +516,8 @@ class CellTerms:
         The piece is the one :meth:`cell_po` integrates, as the sub-aperture's reference position
         sees it (the view in which whole tiles count theirs, so pieces and tiles hand out every
         scatterer exactly once). Its cells are those of the box of its boundary on the facet; a
-        scatterer counts where its projection onto the aim plane lies in every polygon. An
-        occluder's cut-out subtracts the same scatterers, a pair adds them back."""
+        scatterer counts where its projection onto the aim plane lies in every polygon of the
+        chain and in no occluder's cut-out (:func:`sarmitsuba.cell_clip.inside`)."""
         rough = dr.compress(dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row) > 0)
         if not dr.width(rough):
             return
@@ -564,36 +526,35 @@ class CellTerms:
         chain = [dr.gather(mi.UInt32, c, rough) for c in chain]
         occluders = [tuple(dr.gather(mi.UInt32, a, rough) for a in o) for o in occluders]
         reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
-        polygons, m = self._polygons(ctx, rec, reference, bounds, chain, occluders, 0)
-        signs = [self._orientation(p) for p in polygons]
+        polygons, cutouts, m = self._polygons(ctx, rec, reference, bounds, chain, occluders, 0)
         lattice = self._clutter_lattice(ctx, rec, 0)
         c, cells = self.fp.scatterer_spacing, lattice["cells"]
         u_axis, v_axis = (mi.Array3f64(a) for a in lattice["axes"])
         normal = mi.Array3f64(rec.n)
         lo_u, hi_u, lo_v, hi_v = mi.Float64(math.inf), mi.Float64(-math.inf), mi.Float64(math.inf), mi.Float64(-math.inf)
-        for x0, y0, x1, y1, exists in self._segments(polygons):
-            for x, y in ((x0, y0), (x1, y1)):
+        ends, n_live = pack(polygons, cutouts)
+
+        def grow(i, lo_u, hi_u, lo_v, hi_v):
+            for x, y in ((ends[0][i], ends[1][i]), (ends[2][i], ends[3][i])):
                 w = self._aim_point(x, y, m) - reference
                 offset = reference + w * (dr.dot(normal, rec.p64 - reference) / dr.dot(normal, w)) - rec.p64
                 du, dv = dr.dot(offset, u_axis) / c, dr.dot(offset, v_axis) / c
-                lo_u, hi_u = dr.select(exists, dr.minimum(lo_u, du), lo_u), dr.select(exists, dr.maximum(hi_u, du), hi_u)
-                lo_v, hi_v = dr.select(exists, dr.minimum(lo_v, dv), lo_v), dr.select(exists, dr.maximum(hi_v, dv), hi_v)
+                lo_u, hi_u, lo_v, hi_v = dr.minimum(lo_u, du), dr.maximum(hi_u, du), dr.minimum(lo_v, dv), dr.maximum(hi_v, dv)
+            return i + 1, lo_u, hi_u, lo_v, hi_v
+        _, lo_u, hi_u, lo_v, hi_v = dr.while_loop((mi.UInt32(0), lo_u, hi_u, lo_v, hi_v), lambda i, *_: i < n_live, grow,
+                                                  label="cell_box")
         some = lo_u <= hi_u
         iu0 = mi.Int32(dr.floor(mi.Float64(cells.pu) + dr.select(some, lo_u, 0.0)))
         iv0 = mi.Int32(dr.floor(mi.Float64(cells.pv) + dr.select(some, lo_v, 0.0)))
         nu = dr.maximum(mi.Int32(dr.floor(mi.Float64(cells.pu) + dr.select(some, hi_u, 0.0))) - iu0 + 1, 1)
         nv = dr.maximum(mi.Int32(dr.floor(mi.Float64(cells.pv) + dr.select(some, hi_v, 0.0))) - iv0 + 1, 1)
 
-        def inside(du, dv):
-            """Whether the scatterer ``(du, dv)`` cells from the hit lies in every polygon."""
+        def held(du, dv):
+            """Whether the scatterer ``(du, dv)`` cells from the hit lies in the piece."""
             x, y = self._lines(reference, rec.p64 + u_axis * (c * mi.Float64(du)) + v_axis * (c * mi.Float64(dv)), m)
-            held = mi.Bool(True)
-            for sign, corners in zip(signs, polygons):
-                for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
-                    held &= sign * ((bx - ax) * (y - ay) - (by - ay) * (x - ax)) >= 0
-            return held
+            return inside(x, y, polygons, cutouts)
 
         lattice.update(cells=FootprintCells(cells.pu, cells.pv, iu0, iv0, mi.UInt32(nu),
                                             dr.select(some, mi.UInt32(nu * nv), 0), 0.0, 0.0, 0.0, 0.0),
-                       inside=inside, sign=(-1) ** len(occluders), raise_by=1.0)
+                       inside=held, raise_by=1.0)
         self.clutter(ctx, rec, 0, lattice)

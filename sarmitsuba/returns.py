@@ -573,7 +573,7 @@ class Returns(CellTerms):
         weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
         rel = s + dist - lref
         anchor = self.anchor(rel, lref)
-        amplitude = rec.gamma * self.carrier_phase(rel) * (c * lattice.get("sign", 1) * weight)
+        amplitude = rec.gamma * self.carrier_phase(rel) * (c * weight)
         expansion = length_expansion(d, b, s, dist, *lattice["axes"], c)
         n_cells = dr.select(rough, lattice["cells"].cells, 0)
         mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
@@ -593,10 +593,10 @@ class Returns(CellTerms):
 
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
                                           lambda i, *_: i < n_cells, step, label="scatterers")
-        power = dr.squared_norm(amplitude) * level * lattice.get("sign", 1)   # an occluder's cut-out: -1 (T6)
+        power = dr.squared_norm(amplitude) * level
         dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
         dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
-        dr.scatter_add(ctx["scatterers"], found * (lattice.get("sign", 1) % 2**32), mi.UInt32(depth), rough)  # mod 2^32
+        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
 
     def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
         """Per channel, the co-polarised and the cross-polarised factor of a rough surface's
