@@ -23,7 +23,7 @@ from __future__ import annotations
 import drjit as dr
 import mitsuba as mi
 
-__all__ = ["COINCIDENT", "orientation", "segments", "boundary", "inside"]
+__all__ = ["COINCIDENT", "orientation", "segments", "boundary", "inside", "pack", "packed_size"]
 
 #: Two edges on one line to this many lattice cells (and parallel to as many radians) are one
 #: line: rounding of lines that meet exactly (a wall's foot on the ground seen through two parts).
@@ -159,10 +159,17 @@ def inside(x, y, base, cutouts):
     return out
 
 
+def packed_size(n_base: int, n_cut: int, corners: int) -> int:
+    """The most segments :func:`pack` can give: ``n_base`` polygons and ``n_cut`` cut-outs of two
+    polygons each, every polygon padded to ``corners`` corners, each edge in ``n_cut + 1`` pieces."""
+    return (n_base + 2 * n_cut) * corners * (n_cut + 1)
+
+
 def pack(base, cutouts):
-    """:func:`boundary`'s live segments packed into local memory, in symbolic loops (one edge of
-    any polygon per iteration, then each of its up to ``n + 1`` pieces), so that the code's size
-    grows with the number of edges, not with its square times the cut-outs. Returns ``(ends,
+    """:func:`boundary`'s live segments packed into local memory by a symbolic loop over the
+    polygons' edges (one edge, clipped and trimmed into its up to ``n + 1`` pieces, per
+    iteration), so that the code's size grows with the number of edges, not with its square
+    times the cut-outs. At most :func:`packed_size` segments. Returns ``(ends,
     count)``: four ``dr.Local`` float64 buffers (x0, y0, x1, y1) holding ``count`` segments
     (mi.UInt32), in :func:`boundary`'s orientation; the same set of segments (tested)."""
     polygons = list(base) + [p for polys, _ in cutouts for p in polys]
@@ -173,13 +180,13 @@ def pack(base, cutouts):
     signs = [orientation(p) for p in polygons]
     n_base, n_cut = len(base), len(cutouts)
     n_edges = len(polygons) * cap
+    size = packed_size(n_base, n_cut, cap)
     corner_x, corner_y = dr.alloc_local(mi.Float64, n_edges), dr.alloc_local(mi.Float64, n_edges)
     sign_of = dr.alloc_local(mi.Float64, len(polygons))
     for k, corners in enumerate(polygons):
         sign_of[k] = signs[k]
         for c, (x, y) in enumerate(corners):
             corner_x[k * cap + c], corner_y[k * cap + c] = x, y
-    size = n_edges * (n_cut + 1)
     ends = [dr.alloc_local(mi.Float64, size) for _ in range(4)]
 
     def edge_step(t, count, *ends):      # buffers written in a loop are its state

@@ -122,6 +122,24 @@ def _cell_key(sub, m, gi, gj):
     return ((sub * 64 + m) << 40) + ((gi + offset) << 20) + (gj + offset)
 
 
+def _traced_cells(traced, grid, sub):
+    """A lookup of the traced lanes by cell: ``find(sub, m, gi, gj)`` gives the lane of each cell
+    (int64), -1 where no traced lane has it."""
+    gi, gj, m = grid[5], grid[6], grid[7]
+    have = np.flatnonzero(traced)
+    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
+    order = np.argsort(keys)
+    keys, have = keys[order], have[order]
+
+    def find(sub_, m_, gi_, gj_):
+        want = _cell_key(sub_, m_, gi_, gj_)
+        if len(keys) == 0:
+            return np.full(want.shape, -1, np.int64)
+        at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+        return np.where(keys[at] == want, have[at], -1)
+    return find
+
+
 def neighbourhoods(lanes, traced, grid, sub, reach: int = 1):
     """The traced neighbours of ``lanes`` on the lattice of their tube size, in any block of their
     sub-aperture, ``reach`` cells around (1: the 3 x 3 in :data:`OFFSETS` order): int64
@@ -129,16 +147,10 @@ def neighbourhoods(lanes, traced, grid, sub, reach: int = 1):
     edge, or a block of another tube size)."""
     gi, gj, m = grid[5], grid[6], grid[7]
     offsets = OFFSETS if reach == 1 else [(di, dj) for di in range(-reach, reach + 1) for dj in range(-reach, reach + 1)]
-    have = np.flatnonzero(traced)
-    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
-    order = np.argsort(keys)
-    keys, have = keys[order], have[order]
+    find = _traced_cells(traced, grid, sub)
     out = np.full((lanes.size, len(offsets)), -1, np.int64)
     for k, (di, dj) in enumerate(offsets):
-        want = _cell_key(sub[lanes], m[lanes], gi[lanes] + di, gj[lanes] + dj)
-        at = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
-        found = (keys[at] == want) if len(keys) else np.zeros(lanes.size, bool)
-        out[:, k] = np.where(found, have[at] if len(keys) else -1, -1)
+        out[:, k] = find(sub[lanes], m[lanes], gi[lanes] + di, gj[lanes] + dj)
     return out
 
 
@@ -150,28 +162,21 @@ def across_sizes(lanes, traced, grid, sub, reach: int = 1):
     size ``m`` covers ``[i / m, (i + 1) / m)`` coarse cells. Returns ``(row, lane)`` int64 pairs,
     ``row`` indexing ``lanes``."""
     gi, gj, m = grid[5], grid[6], grid[7]
-    have = np.flatnonzero(traced)
-    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
-    order = np.argsort(keys)
-    keys, have = keys[order], have[order]
+    find = _traced_cells(traced, grid, sub)
     out_row, out_lane = [], []
-    sizes = np.unique(m[have])
-    for m2 in sizes.tolist():
+    for m2 in np.unique(m[traced]).tolist():
         at = np.flatnonzero(m[lanes] != m2)
         if at.size == 0:
             continue
         lane, m1 = lanes[at], m[lanes[at]]
         lo_i, hi_i = (gi[lane] - reach) * m2 // m1, -((-(gi[lane] + reach + 1) * m2) // m1)
         lo_j, hi_j = (gj[lane] - reach) * m2 // m1, -((-(gj[lane] + reach + 1) * m2) // m1)
-        span_i, span_j = int((hi_i - lo_i).max()), int((hi_j - lo_j).max())
-        for di in range(span_i):
-            for dj in range(span_j):
-                ok = (lo_i + di < hi_i) & (lo_j + dj < hi_j)
-                want = _cell_key(sub[lane], np.full(lane.size, m2), lo_i + di, lo_j + dj)
-                pos = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-                ok &= keys[pos] == want
+        for di in range(int((hi_i - lo_i).max())):
+            for dj in range(int((hi_j - lo_j).max())):
+                found = find(sub[lane], np.full(lane.size, m2), lo_i + di, lo_j + dj)
+                ok = (lo_i + di < hi_i) & (lo_j + dj < hi_j) & (found >= 0)
                 out_row.append(at[ok])
-                out_lane.append(have[pos[ok]])
+                out_lane.append(found[ok])
     if not out_row:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.concatenate(out_row), np.concatenate(out_lane)

@@ -17,7 +17,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .cell_clip import inside, pack
+from .cell_clip import inside, pack, packed_size
 from .cell_plan import NONE, RECEIVE, LaneTable, plan_cells
 from .clutter_lattice import FootprintCells
 from .deposit import SPECTRAL_ORDERS
@@ -389,8 +389,7 @@ class CellTerms:
         normal = mi.Vector3f(dr.gather(mi.Array3f64, self.tables.parts.normal, rec.part))
         specular, count = dr.gather(mi.Float, self.tables.specular, rec.row), dr.gather(mi.UInt32, ctx["count"], rec.sub)
         cell = self._cell(ctx, rec.block)
-        n_occ = len(occluders)      # pack's bound: every polygon's edges, each in up to n_occ + 1 pieces
-        n_segments = (depth + 2 + 2 * n_occ) * max(self.tables.parts.slots, 4) * (n_occ + 1)
+        n_segments = packed_size(depth + 2, len(occluders), max(self.tables.parts.slots, 4))
         lane, slots = dr.arange(mi.UInt32, dr.width(rec.sub)), 3 * n_segments + 1
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
