@@ -354,7 +354,7 @@ class CellTerms:
         """Area and centroid of a piece on the facet (float64, about ``centre``) from its
         ``n_live`` boundary segments in the local buffers ``ends`` (x0, y0, x1, y1)."""
         def step(i, twice_area, moment):
-            a, b = (self._tile(rec, antenna, self._aim_point(ends[0 + e][i], ends[1 + e][i], m), cell, nu, depth)[0]
+            a, b = (self._tile(rec, antenna, antenna, self._aim_point(ends[0 + e][i], ends[1 + e][i], m), cell, nu, depth)[0]
                     for e in (0, 2))
             cross = dr.dot(mi.Array3f64(normal), dr.cross(a - centre, b - centre))
             return i + 1, twice_area + cross, moment + (a + b - 2.0 * centre) * cross
@@ -394,16 +394,21 @@ class CellTerms:
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
 
+        # the piece as the sub-aperture's reference position sees it: fixed on the surface for
+        # all of its pulses, as the tiles are (T3), so it is cut once
+        reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
+        centre = self._tile(rec, reference, reference, rec.aim, cell, nu, depth)[0]      # the tile's centre
+        polygons, cutouts, m = self._polygons(ctx, rec, reference, bounds, chain, occluders, depth)
+        ends, n_live = pack(polygons, cutouts)
+        area, centroid = self._area_centroid(rec, reference, ends, n_live, m, cell, nu, depth, normal, centre)
+
         def body(q):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
-            centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)     # the tile's centre
+            _, _, d_c, edges_c = self._tile(rec, reference, antenna, rec.aim, cell, nu, depth)
             u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
-            polygons, cutouts, m = self._polygons(ctx, rec, antenna, bounds, chain, occluders, depth)
-            ends, n_live = pack(polygons, cutouts)
-            area, centroid = self._area_centroid(rec, antenna, ends, n_live, m, cell, nu, depth, normal, centre)
             active &= area > 0
-            regime = self._regime(rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m)
+            regime = self._regime(rec, reference, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m)
             flat, (c_point, c_s, c_d, c_dist) = regime[2], regime[4]
 
             def term(point, s, d, factor, order, live, slot, rel=None):
@@ -424,7 +429,7 @@ class CellTerms:
             term(c_point, c_s, c_d, mi.Complex2f(mi.Float(area), 0.0), mi.UInt32(SPECTRAL_ORDERS.index(1)), flat, 0, c_rel)
 
             def step(index):
-                self._segment_terms(rec, antenna, [b[index] for b in ends], m, cell, nu, depth, normal, regime,
+                self._segment_terms(rec, reference, antenna, [b[index] for b in ends], m, cell, nu, depth, normal, regime,
                                     u_c, c_rel, term, index)
                 return (index + 1,)
             dr.while_loop((mi.UInt32(0),), lambda i: i < n_live, step, label="cell_segments")
@@ -434,14 +439,14 @@ class CellTerms:
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
 
-    def _segment_terms(self, rec, antenna, segment, m, cell, nu, depth, normal, regime, u_c, c_rel, term, index):
+    def _segment_terms(self, rec, reference, antenna, segment, m, cell, nu, depth, normal, regime, u_c, c_rel, term, index):
         """The terms of one boundary segment ``(x0, y0, x1, y1)`` (:meth:`cell_po`): in the linear
         regime one at its midpoint, in the split regime the flux along the split tile edge at its
         ends (or its middle), each at its own point; ``index`` numbers its path slots."""
         k = self.k
         along_1, split_any, _, linear, (c_point, c_s, c_d, _), u_g, u_gt = regime
         x0, y0, x1, y1 = segment
-        start, stop, middle = (self._tile(rec, antenna, self._aim_point(x, y, m), cell, nu, depth)
+        start, stop, middle = (self._tile(rec, reference, antenna, self._aim_point(x, y, m), cell, nu, depth)
                                for x, y in ((x0, y0), (x1, y1), (0.5 * (x0 + x1), 0.5 * (y0 + y1))))
         seg = mi.Vector3f(stop[0] - start[0])
         # the linear regime: one term per segment at its midpoint, the flux of u_t at the
@@ -474,7 +479,7 @@ class CellTerms:
                 live = split_any & cut
             term(point, s, d, factor, order, live, 3 * index + 2 + end)
 
-    def _regime(self, rec, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m):
+    def _regime(self, rec, reference, antenna, cell, nu, depth, u_c, edges_c, normal, area, centroid, m):
         """A piece's term form for one pulse, eq. (T6). Where the tile at the cell's centre would
         split an edge (``split_any``, (PO2); ``u_c`` and ``edges_c`` there), the flux runs along its edge of larger ``|alpha|``
         (``along_1``) and every term is evaluated at its own point, as the tiles' terms are; where
@@ -487,7 +492,7 @@ class CellTerms:
         alpha = [0.5 * k * dr.dot(u_c, e) for e in edges_c]
         along_1 = dr.abs(alpha[0]) >= dr.abs(alpha[1])
         split_any = dr.maximum(dr.abs(alpha[0]), dr.abs(alpha[1])) >= self.split_at
-        c_point, c_s, c_d, _ = self._tile(rec, antenna, self._centroid_aim(centroid, rec, antenna, nu, m, depth),
+        c_point, c_s, c_d, _ = self._tile(rec, reference, antenna, self._centroid_aim(centroid, rec, reference, nu, m, depth),
                                           cell, nu, depth)
         c_out = antenna - c_point
         c_dist = dr.norm(c_out)

@@ -128,8 +128,9 @@ def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path
     """The PO integral of one aim cell's tile as one pulse sees it, as point terms, eqs. (T3),
     (PO2), (PO4): the readable NumPy reference of :meth:`sarmitsuba.returns.Returns.po`.
 
-    Every point of the tile is where the ray from the antenna through a point of the aim cell
-    meets the facet after its mirrors. A term belongs to a corner, edge midpoint or the centre of
+    Every point of the tile is where the ray from the sub-aperture's reference position (the
+    pulse's antenna with one pulse per trace) through a point of the aim cell meets the facet
+    after its mirrors; the pulse reaches it along its own unfolded leg. A term belongs to a corner, edge midpoint or the centre of
     the cell; its tile edges there are the images of the cell's edges, taken here by central
     finite differences of ``path`` (the kernel differentiates the projection analytically).
 
@@ -144,9 +145,9 @@ def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path
     cell : (float64 [3], float64 [3]), m
         The aim cell's edge vectors (along track, ground range).
     path : callable
-        ``point -> (x, d, s, n)``: the ray from the antenna toward ``point`` (on the aim plane)
-        meets the facet at ``x`` (float64 [3]) arriving along ``d`` after an unfolded length ``s``
-        [m]; ``n`` is the facet's unit normal facing the ray.
+        ``point -> (x, d, s, n)``: the ray from the reference position toward ``point`` (on the
+        aim plane) meets the facet at ``x`` (float64 [3]), which the pulse's ray reaches along
+        ``d`` after an unfolded length ``s`` [m]; ``n`` is the facet's unit normal facing the ray.
     density : callable
         ``(cos_i, cos_b, d, b, s, L) -> complex``, as for :func:`tube_terms`.
     split_at : float

@@ -393,10 +393,10 @@ class Returns(CellTerms):
         return [mi.Array3f64(*self.fp.track.tolist()) * (self.fp.spacing_azimuth * scale),
                 mi.Array3f64(*self.fp.look.tolist()) * (self.fp.spacing_range * scale)]
 
-    def _alpha(self, rec, antenna, cell, depth: int):
-        """Half the phase across each of the tile's edges at its centre, ``k (d - b) . e_j / 2``, as
-        the pulse at ``antenna`` sees it (float32 pair)."""
-        centre, _, d, edges = self._tile(rec, antenna, rec.aim, cell, mi.Array3f64(rec.n_unfolded), depth)
+    def _alpha(self, rec, reference, antenna, cell, depth: int):
+        """Half the phase across each of the sub-aperture's tile's edges at its centre,
+        ``k (d - b) . e_j / 2``, as the pulse at ``antenna`` sees it (float32 pair)."""
+        centre, _, d, edges = self._tile(rec, reference, antenna, rec.aim, cell, mi.Array3f64(rec.n_unfolded), depth)
         u = d - mi.Vector3f(dr.normalize(antenna - centre))
         return [0.5 * self.k * dr.dot(u, e) for e in edges]
 
@@ -411,8 +411,8 @@ class Returns(CellTerms):
         cell = self._cell(ctx, rec.block)
         first = dr.gather(mi.UInt32, ctx["first"], rec.sub)
         last = first + dr.gather(mi.UInt32, ctx["count"], rec.sub) - 1
-        alpha = self._alpha(rec, reference, cell, depth)
-        ends = [self._alpha(rec, dr.gather(mi.Array3f64, ctx["antenna"], p), cell, depth) for p in (first, last)]
+        alpha = self._alpha(rec, reference, reference, cell, depth)
+        ends = [self._alpha(rec, reference, dr.gather(mi.Array3f64, ctx["antenna"], p), cell, depth) for p in (first, last)]
         split, undecided = [], []
         for j in range(2):
             values = (alpha[j], ends[0][j], ends[1][j])
@@ -424,39 +424,39 @@ class Returns(CellTerms):
             undecided.append(~split[j] & ~sinc)
         return alpha, split, undecided
 
-    def pulse_split(self, rec, antenna, cell, nu, depth: int, decided, undecided):
+    def pulse_split(self, rec, reference, antenna, cell, nu, depth: int, decided, undecided):
         """The tile's two split flags for the pulse at ``antenna`` (``decided``, or where ``undecided``
-        its own ``|alpha|`` at the tube's centre, (T3)), that centre and ``u = d - b`` there."""
-        centre, _, d_c, edges_c = self._tile(rec, antenna, rec.aim, cell, nu, depth)
+        its own ``|alpha|`` at the tile's centre, (T3)), that centre and ``u = d - b`` there."""
+        centre, _, d_c, edges_c = self._tile(rec, reference, antenna, rec.aim, cell, nu, depth)
         u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
         return [dr.select(o, dr.abs(0.5 * self.k * dr.dot(u_c, e)) >= self.split_at, s_)
                 for o, s_, e in zip(undecided, decided, edges_c)], centre, u_c
 
-    def _tile(self, rec, antenna, corner, cell, nu, depth: int):
-        """Where the pulse at ``antenna`` puts a point ``corner`` of the tube's aim cell on the facet:
-        the unfolded ray meets the facet's unfolded plane (eq. (T3)). Returns the scene point
-        (float64), the unfolded length ``s`` to it, the incoming direction ``d`` there and the tile's
-        local edges (the projections of the aim cell's edges ``cell``)."""
-        w = corner - antenna
+    def _tile(self, rec, reference, antenna, corner, cell, nu, depth: int):
+        """A point ``corner`` of the aim cell on the facet, where the unfolded ray from ``reference``
+        meets its unfolded plane (``x_u``, fixed on the surface for the sub-aperture), as the pulse
+        at ``antenna`` reaches it, eq. (T3): the scene point (float64), the unfolded length
+        ``|x_u - A_p|``, the direction ``d`` there and the tile's local edges."""
+        w = corner - reference
         nw = dr.dot(nu, w)
-        t = dr.dot(nu, rec.unfolded - antenna) / nw
-        point = rec.p64 + mi.Array3f64(self._folded(rec, antenna + w * t - rec.unfolded, depth))
-        length = dr.norm(w)
+        t = dr.dot(nu, rec.unfolded - reference) / nw
+        unfolded = reference + w * t                    # x_u
+        point = rec.p64 + mi.Array3f64(self._folded(rec, unfolded - rec.unfolded, depth))
         edges = [self._folded(rec, (v - w * (dr.dot(nu, v) / nw)) * t, depth) for v in cell]
-        return point, t * length, self._folded(rec, w / length, depth), edges
+        leg = unfolded - antenna
+        return point, dr.norm(leg), self._folded(rec, leg / dr.norm(leg), depth), edges
 
     def po(self, ctx, rec, code, depth: int, per_pulse: bool) -> None:
         """Per pulse, the PO terms at their own points, eqs. (PO1)-(PO4), (T3).
 
         A term belongs to a corner, edge midpoint or the centre of the tube's aim cell ``c``
-        (world-fixed on the aim plane). For each pulse at ``A`` the unfolded ray ``A -> c`` meets
-        the facet's unfolded plane at the pulse's own tile corner (exactly where the pulse's own
-        tube would put it), which the mirror chain takes to the scene point ``x`` (:meth:`_tile`).
-        There: the unfolded length ``s`` and the distance ``R = |A - x|`` (float64), the
-        directions, obliquity, reflection coefficient, pattern and spreading, and the phase
-        gradient ``(d - b) . e_j`` along the tile's local edges ``e_j``:
-        ``j sigma / (k (d - b) . e_j)`` for a split edge's end, ``sinc(k (d - b) . e_j / 2)`` for
-        an unsplit edge. Tubes that share a corner compute it alike, so their terms there cancel
+        (world-fixed on the aim plane), at the tile's point ``x`` where the unfolded ray from
+        ``A_ref`` through ``c`` meets the facet (:meth:`_tile`: fixed on the surface for the
+        sub-aperture, as its membership is). For each pulse at ``A``: the unfolded length ``s``
+        and ``R = |A - x|`` (float64), the directions, obliquity, reflection coefficient, pattern
+        and spreading, and the phase gradient ``(d - b) . e_j`` along the tile's local edges
+        ``e_j``: ``j sigma / (k (d - b) . e_j)`` for a split edge's end, ``sinc(k (d - b) . e_j /
+        2)`` for an unsplit edge. Tubes that share a corner compute it alike, so their terms there cancel
         (PO5). ``per_pulse``: the records' splits are undecided over the sub-aperture; each
         pulse decides them at the tube's centre, as its own trace would.
         """
@@ -466,6 +466,7 @@ class Returns(CellTerms):
         sigma = [mi.Float(code // 3) - 1.0, mi.Float(code % 3) - 1.0]
         n, nu = rec.n, mi.Array3f64(rec.n_unfolded)
         cell = self._cell(ctx, rec.block)
+        reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
         corner = rec.aim + cell[0] * mi.Float64(0.5 * sigma[0]) + cell[1] * mi.Float64(0.5 * sigma[1])
         specular = dr.gather(mi.Float, self.tables.specular, rec.row)
         count, term = dr.gather(mi.UInt32, ctx["count"], rec.sub), dr.arange(mi.UInt32, dr.width(code))
@@ -476,10 +477,10 @@ class Returns(CellTerms):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
             split, active = decided, self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             if per_pulse:                     # the pulse's own split at the tube's centre
-                split = self.pulse_split(rec, antenna, cell, nu, depth, decided, open_)[0]
+                split = self.pulse_split(rec, reference, antenna, cell, nu, depth, decided, open_)[0]
                 for s_, sg in zip(split, sigma):
                     active &= dr.select(s_, sg != 0.0, sg == 0.0)
-            point, s, d, edges = self._tile(rec, antenna, corner, cell, nu, depth)
+            point, s, d, edges = self._tile(rec, reference, antenna, corner, cell, nu, depth)
             outgoing = antenna - point
             dist = dr.norm(outgoing)
             b = mi.Vector3f(outgoing / dist)

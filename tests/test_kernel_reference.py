@@ -111,6 +111,22 @@ def _through_planes(antenna, point, planes):
     return origin, d, s, n
 
 
+def _tile_point(reference, antenna, point, planes):
+    """The tile's point where the ray from the sub-aperture's ``reference`` toward ``point`` meets
+    the last plane after the mirrors, and how the pulse at ``antenna`` reaches it (image theory:
+    the point reflected back through the mirrors, last first, lies straight ahead of the antenna):
+    ``(x, d, s, n)``, ``d`` the arriving direction and ``s`` the unfolded length."""
+    x, _, _, n = _through_planes(reference, point, planes)
+    image = x
+    for centre, normal in reversed(planes[:-1]):
+        image = image - 2 * ((image - centre) @ normal) * normal
+    s = float(np.linalg.norm(image - antenna))
+    d = (image - antenna) / s
+    for _, normal in planes[:-1]:
+        d = d - 2 * (d @ normal) * normal
+    return x, d, s, n
+
+
 def _split(alphas: np.ndarray, split_at: float) -> np.ndarray:
     """docs/physics.md (T3): per edge, from ``alpha`` at the reference, first and last pulse
     (rows): True (split), False (sinc) or None (each pulse decides)."""
@@ -123,9 +139,9 @@ def _split(alphas: np.ndarray, split_at: float) -> np.ndarray:
 def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
     """Every term of every pulse, from the planner's lattice, traced in NumPy (docs/physics.md (T3)):
     each sub-aperture's tubes are traced from its reference position (the midpoint of its first
-    and last antenna), which decides their facets and visibility; each pulse then takes each aim
-    cell's tile where the rays from its own antenna through the cell meet those facets after the
-    same mirrors (:func:`cell_terms`)."""
+    and last antenna), which decides their facets and visibility and puts each aim cell's tile
+    on them (the rays from the reference through the cell, after the same mirrors); each pulse
+    then takes the tile's terms with its own lengths and directions (:func:`cell_terms`)."""
     p, settings = sim.loaded.params, sim.loaded.settings
     geometry = acquisition_geometry(p)
     fp = planning.ray_footprint(p, geometry, sim.loaded.bbox_lo, sim.loaded.bbox_hi, settings)
@@ -165,7 +181,7 @@ def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
                     b = (reference - point) / np.linalg.norm(reference - point)
                     shadowed = any(_hit(point, b, rects[o]) is not None for o in range(2) if o != q)
                     if n @ b > 0 and not shadowed:
-                        path = (lambda x, a, planes=tuple(planes): _through_planes(a, x, planes))
+                        path = (lambda x, a, planes=tuple(planes): _tile_point(reference, a, x, planes))
                         ends = (reference, antennas[0], antennas[-1])
                         split = _split(np.array([cell_alphas(k, a, aim, cell, lambda x, a=a: path(x, a))
                                                  for a in ends]), split_at)
@@ -204,8 +220,9 @@ def _spectrum(positions, values, orders, fs, fc):
 def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry, pulses, prf, beam, spacing):
     """One pulse: the kernel's terms are the reference's. Six pulses in one sub-aperture (2.4 m of
     track; the plate is traced once): every pulse's terms are the reference's for that pulse's
-    own antenna (its tile corners, lengths and phase gradients), on the facets and visibility of
-    the reference position. With 0.5 m tubes, a 3 deg beam, a 72 m long mirror and 12 m of track, the
+    own antenna (lengths and phase gradients) on the tiles, facets and visibility of the
+    reference position; tiles projected from each pulse's own antenna instead fail it (the plate
+    stands 3 m above the aim plane). With 0.5 m tubes, a 3 deg beam, a 72 m long mirror and 12 m of track, the
     edges' phase half-width sweeps through the split threshold within the sub-aperture: those
     edges are split or not pulse by pulse (docs/physics.md (T3))."""
     radar = ('<float name="transmit_power" value="100"/><float name="antenna_gain_db" value="30"/>'
