@@ -213,12 +213,14 @@ class CellTerms:
             points = [_reflect_point(p, mirror) for p in points]
         return points
 
-    def _polygons(self, ctx, rec, antenna, bounds, chain, occluders, depth: int):
-        """The convex polygons whose intersection is the piece, as the pulse at ``antenna`` sees
-        them on the aim plane in lattice lines of tube size ``m``: the rectangle ``bounds``, each
-        level's part of the chain in the unfolded frame; and for each occluder the cut-out
+    def _polygons(self, ctx, rec, reference, antenna, bounds, chain, occluders, depth: int):
+        """The convex polygons whose intersection is the piece for the pulse at ``antenna``, on the
+        aim plane as ``reference`` sees it (lattice lines of tube size ``m``): the rectangle
+        ``bounds`` and the last part of the chain, fixed on the surface as the tiles are (T3);
+        each earlier level's part in the unfolded frame and for each occluder the cut-out
         ``([projection, half-plane where it lies in front (:meth:`_half_plane`)], live)``, live
-        where it is not padding. Returns ``(polygons, cutouts, m)``."""
+        where it is not padding, as the pulse sees them on the last part's plane. Returns
+        ``(polygons, cutouts, m)``."""
         m = mi.Float64(dr.gather(mi.UInt32, ctx["block_m"], rec.block))
         planes = [self._plane(p) for p in chain]
         mirrors = planes[:depth]
@@ -229,13 +231,29 @@ class CellTerms:
             for mirror in reversed(mirrors[:level]):
                 plane = _reflect_plane(plane, mirror)
             levels.append((corners, plane))
-        projected = [[self._lines(antenna, c, m) for c in corners] for corners, _ in levels]
-        x0, x1, y0, y1 = self._box(projected[-1], bounds)
+        last = [self._lines(reference, c, m) for c in levels[-1][0]]
+        x0, x1, y0, y1 = self._box(last, bounds)
         box = (0.5 * (x0 + x1), 0.5 * (y0 + y1)), 0.5 * dr.maximum(x1 - x0, y1 - y0) + 2.0
-        polygons = [projected[-1], [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]] + projected[:-1]
-        cutouts = [(self._occluder(ctx, rec, antenna, part, level, levels, mirrors, box, m, depth), level != NONE)
-                   for part, level in occluders]
+        if antenna is reference:
+            seen, box_p = (lambda poly: poly), box
+        else:           # the pulse's view, carried over the last part's plane into the reference's
+            seen = lambda poly: [self._rebase(p, antenna, reference, levels[-1][1], m) for p in poly]   # noqa: E731
+            box_p = self._rebase(box[0], reference, antenna, levels[-1][1], m), box[1]
+        polygons = [last, [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]] \
+            + [seen([self._lines(antenna, c, m) for c in corners]) for corners, _ in levels[:-1]]
+        cutouts = [([seen(p) for p in self._occluder(ctx, rec, antenna, part, level, levels, mirrors, box_p, m, depth)],
+                    level != NONE) for part, level in occluders]
         return polygons, cutouts, m
+
+    def _rebase(self, point, source, target, plane, m):
+        """Lattice lines ``point`` on the aim plane seen from ``source``, seen from ``target``: the
+        ray from ``source`` meets the (unfolded) ``plane`` there, and ``target`` projects that
+        point back onto the aim plane (central projections: lines stay lines)."""
+        normal, offset = plane
+        w = self._aim_point(point[0], point[1], m) - source
+        den = dr.dot(normal, w)
+        on_plane = source + w * ((offset - dr.dot(normal, source)) / dr.select(den != 0, den, 1.0))
+        return self._lines(target, on_plane, m)
 
     def _occluder(self, ctx, rec, antenna, part, level, levels, mirrors, box, m, depth):
         """An occluder's two polygons (its projection, and the half-plane where it is in front):
@@ -394,16 +412,22 @@ class CellTerms:
         paths = self.sums.path_buffers(dr.width(rec.sub) * slots * ctx["max_count"]) if self.exact else None
         ctx["evaluated"] += slots * int(dr.sum(count)[0])
 
-        # the piece as the sub-aperture's reference position sees it: fixed on the surface for
-        # all of its pulses, as the tiles are (T3), so it is cut once
+        # the piece on the aim plane as the reference position sees it: the cell and the last
+        # part fixed on the surface, as the tiles are (T3); what the chain's earlier parts and
+        # the occluders leave of it is each pulse's own
         reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
         centre = self._tile(rec, reference, reference, rec.aim, cell, nu, depth)[0]      # the tile's centre
-        polygons, cutouts, m = self._polygons(ctx, rec, reference, bounds, chain, occluders, depth)
-        ends, n_live = pack(polygons, cutouts)
-        area, centroid = self._area_centroid(rec, reference, ends, n_live, m, cell, nu, depth, normal, centre)
+
+        def piece(antenna):
+            polygons, cutouts, m = self._polygons(ctx, rec, reference, antenna, bounds, chain, occluders, depth)
+            ends, n_live = pack(polygons, cutouts)
+            return (ends, n_live, m, *self._area_centroid(rec, reference, ends, n_live, m, cell, nu, depth, normal, centre))
+        # a first-bounce piece without occluders is the same for every pulse: cut once
+        shared = piece(reference) if depth == 0 and not occluders else None
 
         def body(q):
             pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+            ends, n_live, m, area, centroid = shared if shared is not None else piece(antenna)
             active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
             _, _, d_c, edges_c = self._tile(rec, reference, antenna, rec.aim, cell, nu, depth)
             u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
@@ -530,7 +554,7 @@ class CellTerms:
         chain = [dr.gather(mi.UInt32, c, rough) for c in chain]
         occluders = [tuple(dr.gather(mi.UInt32, a, rough) for a in o) for o in occluders]
         reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
-        polygons, cutouts, m = self._polygons(ctx, rec, reference, bounds, chain, occluders, 0)
+        polygons, cutouts, m = self._polygons(ctx, rec, reference, reference, bounds, chain, occluders, 0)
         lattice = self._clutter_lattice(ctx, rec, 0)
         c, cells = self.fp.scatterer_spacing, lattice["cells"]
         u_axis, v_axis = (mi.Array3f64(a) for a in lattice["axes"])
