@@ -289,3 +289,72 @@ def test_double_bounce_does_not_depend_on_the_lattice(turn):
     assert nrmse_db(np.abs(both[1]), np.abs(both[0])) < -30.0
     tiles = [_image(scene, "tiles", shift) for shift in (None, (0.37, 0.41))]
     assert nrmse_db(np.abs(tiles[1]), np.abs(tiles[0])) > -25.0          # the staircase moves
+
+
+def test_coincident_plates_of_two_shapes_count_once():
+    """A 0.3 m PEC plate facing the sensor and its twin in a second shape, the same corners with
+    the opposite winding (two shapes' walls back to back, as in Sionna's Munich): one surface, so
+    the closed form of one plate, within 0.5 dB (measured -0.13 dB). The tracer meets either twin
+    at random; were the coincident twin no occluder of the other, the cells that saw both would
+    integrate the surface twice (+5.9 dB measured)."""
+    k = 2 * math.pi / WAVELENGTH
+    front = C.plate(SIDE)
+    front.apply_transform(trimesh.transformations.rotation_matrix(math.radians(30.0), C.TOWARD_SENSOR))
+    front.apply_transform(trimesh.transformations.rotation_matrix(math.radians(1.5), [1, 0, 0]))
+    back = trimesh.Trimesh(front.vertices.copy(), front.faces[:, ::-1].copy(), process=False)
+    v = np.asarray(front.vertices, float)
+    normal = np.cross(v[1] - v[0], v[2] - v[0])
+    normal /= np.linalg.norm(normal)
+    truth = 4 * math.pi / WAVELENGTH**2 * abs((normal @ C.TOWARD_SENSOR)
+                                               * polygon_integral(v, normal, 2 * k * C.TOWARD_SENSOR)) ** 2
+    scene = sarmitsuba.Scene(meshes=[(front, "pec", "front"), (back, "pec", "back")],
+                             sensor={"bandwidth": 150e6, "azimuth_beamwidth": 1.0, "prf": 250,
+                                     "scene_center": (0.0, 0.0, 0.0)}, integrator={"max_depth": 1})
+    sim = simulate(scene, integrator_overrides={**COARSE, "lit_regions": "cells"})
+    error = 10 * math.log10(analysis.integrated_rcs(sim.image, half_cells=6.0) / truth)
+    del sim
+    gc.collect()
+    assert abs(error) < 0.5, error
+
+
+def test_a_grating_of_coplanar_plates_in_one_shape_follows_the_closed_form(tmp_path):
+    """Six 0.1 m PEC plates 3 cm apart, facing the sensor, in one mesh (one shape, one plane, six
+    faces: the tracer's chain key, shape and plane, is the same on all of them), turned 30 deg
+    and tilted 1.5 deg. Truth: the coherent sum of their Gordon integrals. Cells within 0.5 dB
+    (measured -0.15 dB); a cell between two plates must integrate both, which it does only when
+    its chains tell the faces apart (-1.1 dB when a cell took the donor's plate alone)."""
+    k = 2 * math.pi / WAVELENGTH
+    u = np.array([1.0, 0.0, 0.0])
+    v = np.cross(C.TOWARD_SENSOR, u)
+    plates = []
+    for i in range(3):
+        for j in range(2):
+            plate = C.plate(0.1)
+            plate.apply_translation(0.13 * (i - 1) * u + 0.13 * (j - 0.5) * v)
+            plates.append(plate)
+    mesh = trimesh.util.concatenate(plates)
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(30.0), C.TOWARD_SENSOR))
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(1.5), [1, 0, 0]))
+    corners = np.asarray(mesh.vertices, float).reshape(-1, 4, 3)
+    normal = np.cross(corners[0, 1] - corners[0, 0], corners[0, 2] - corners[0, 0])
+    normal /= np.linalg.norm(normal)
+    integral = sum(polygon_integral(c, normal, 2 * k * C.TOWARD_SENSOR) for c in corners)
+    truth = 4 * math.pi / WAVELENGTH**2 * abs((normal @ C.TOWARD_SENSOR) * integral) ** 2
+    error = 10 * math.log10(_rcs(C.scene_xml(tmp_path, mesh, C.PEC, 1, name="grating"), "cells") / truth)
+    assert abs(error) < 0.5, error
+
+
+@pytest.mark.parametrize("count", [12, 40])
+def test_a_piece_keeps_every_occluder(count):
+    """A piece behind ``count`` occluders is launched with all of them (Sionna's Munich has pieces
+    behind 15: a roof under a turret's walls and spire). Truth: the occluders handed in. Keeping
+    only the first eight lit a roof where the others' shadows fell, a spot that moved with the
+    lattice (Munich, 64 pulses, first bounce: -25.8 dB against -43.5 dB with all of them)."""
+    from sarmitsuba.cell_plan import NONE, occluder_groups
+    piece = np.array([0] * 3 + [1] * count + [2] * 5)
+    part = np.arange(piece.size) + 100
+    level = np.zeros(piece.size, np.int64)
+    groups = {len(parts[0]): (pieces, parts, levels) for pieces, parts, levels in occluder_groups(piece, part, level, 3)}
+    held = {int(p): set(parts[r][levels[r] != NONE].tolist()) for pieces, parts, levels in groups.values()
+            for r, p in enumerate(pieces)}
+    assert held == {k: set(part[piece == k].tolist()) for k in range(3)}
