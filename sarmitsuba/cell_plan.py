@@ -20,7 +20,8 @@ the pulse's antenna onto the aim plane. The parts in front at level ``i`` are th
 neighbourhood's rays with the same chain up to ``i - 1`` met instead of ``X_i``; the receive
 side's are the parts that hid the neighbourhood's hits of the same chain. A piece takes out the
 exact union of all its occluders (the kernel trims every boundary edge by the others'
-projections); pieces are launched in groups of equal occluder counts (:func:`group_sizes`).
+projections); pieces are launched in groups of equal occluder counts (:data:`OCCLUDER_GROUPS`),
+a piece with more than the most split into quarters of its cell (:func:`split_crowded`).
 
 The candidates also include the chains of the 5 x 5 neighbourhood whose last part reaches into
 the cell from some view (a part's acute corner, a small occluder, between the central rays; cells
@@ -37,22 +38,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cell_lanes import OFFSETS, across_sizes, lane_grid, neighbourhoods
 from .lattice_index import lattice_lines, pair_key
+from .scene import SceneError
 
-__all__ = ["CellPlan", "LaneTable", "plan_cells", "lane_grid", "across_sizes", "across_sizes_reference", "group_sizes", "occluder_groups", "OCCLUDER_GROUPS", "RECEIVE", "NONE"]
+__all__ = ["CellPlan", "LaneTable", "plan_cells", "split_crowded", "occluder_groups", "OCCLUDER_GROUPS", "MOST_OCCLUDERS", "RECEIVE", "NONE"]
 
-#: The centre first, then the four edge neighbours, then the corners (the donor's preference).
-OFFSETS = ((0, 0), (-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1))
 #: Corners of an occluder closer than this to the part's plane [m] lie on it.
 ON_PLANE = 1e-4
 #: A candidate's projection is kept where it comes this close to the cell [cells].
 MARGIN = 0.05
 #: Occluder counts of the launches: a piece with ``k`` occluders goes to the first group of at
-#: least ``k`` (the rest padded with :data:`NONE`), so that few kernels serve all counts; beyond
-#: the last, the groups double (:func:`group_sizes`). No occluder is ever left out: Munich has
+#: least ``k`` (the rest padded with :data:`NONE`), so that few kernels serve all counts; a piece
+#: with more than the last is split (:data:`MOST_OCCLUDERS`). No occluder is ever left out: Munich has
 #: pieces with up to 15, and keeping only the first eight let a shadowed roof light up where the
 #: others fell (a spot that moved with the lattice: -25.8 dB against -43.5 dB with all of them).
 OCCLUDER_GROUPS = (1, 2, 3, 4, 6, 8, 12, 16)
+#: The most occluders of one piece: the packed boundary (:func:`sarmitsuba.cell_clip.pack`) lives
+#: in local (stack) memory, which grows with the square of the count (32 overflow an 8 MiB
+#: stack). A piece with more is split into quarters of its cell (:func:`split_crowded`).
+MOST_OCCLUDERS = OCCLUDER_GROUPS[-1]
+#: The halvings of a crowded piece's cell before :func:`split_crowded` gives up.
+MOST_SPLITS = 4
 #: The level of an occluder that hides the last hit from the antenna (receive side).
 RECEIVE = 255
 #: The level of a padding slot of an occluder group (no occluder).
@@ -101,159 +108,6 @@ class CellPlan:
     chain: np.ndarray
     bounds: np.ndarray
     cuts: list
-
-
-def lane_grid(blocks, n_lanes):
-    """Per lane: block, ``(ii, jj)`` within it, ``n_a``, ``n_j``, its cell ``(i, j)`` on the lattice
-    of its tube size, and the tube size ``m`` (all int64 [n_lanes])."""
-    sizes = blocks.n_a.astype(np.int64) * blocks.n_j.astype(np.int64)
-    block = np.repeat(np.arange(sizes.size), sizes)[:n_lanes]
-    rest = np.arange(n_lanes) - blocks.start.astype(np.int64)[block]
-    n_j = blocks.n_j.astype(np.int64)[block]
-    n_a = blocks.n_a.astype(np.int64)[block]
-    ii, jj = rest // n_j, rest % n_j
-    m = blocks.m.astype(np.int64)[block]
-    return block, ii, jj, n_a, n_j, blocks.i0.astype(np.int64)[block] * m + ii, blocks.j0.astype(np.int64)[block] * m + jj, m
-
-
-def _cell_key(sub, m, gi, gj):
-    """One int64 key per cell of one tube size ``m`` (below 1024: tubes are never finer than a
-    quarter wavelength, (T2)) of one sub-aperture (below 8192 in a launch; ``gi``, ``gj``: the cell
-    on the lattice of its tube size, within +-2**19)."""
-    offset = 1 << 19
-    return ((sub * 1024 + m) << 40) + ((gi + offset) << 20) + (gj + offset)
-
-
-def _traced_cells(traced, grid, sub):
-    """A lookup of the traced lanes by cell: ``find(sub, m, gi, gj)`` gives the lane of each cell
-    (int64), -1 where no traced lane has it."""
-    gi, gj, m = grid[5], grid[6], grid[7]
-    have = np.flatnonzero(traced)
-    keys = _cell_key(sub[have], m[have], gi[have], gj[have])
-    order = np.argsort(keys)
-    keys, have = keys[order], have[order]
-
-    def find(sub_, m_, gi_, gj_):
-        want = _cell_key(sub_, m_, gi_, gj_)
-        if len(keys) == 0:
-            return np.full(want.shape, -1, np.int64)
-        at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
-        return np.where(keys[at] == want, have[at], -1)
-    return find
-
-
-def neighbourhoods(lanes, traced, grid, sub, reach: int = 1):
-    """The traced neighbours of ``lanes`` on the lattice of their tube size, in any block of their
-    sub-aperture, ``reach`` cells around (1: the 3 x 3 in :data:`OFFSETS` order): int64
-    [n, (2 reach + 1)^2], -1 where there is none (no traced cell of that size there: the beam's
-    edge, or a block of another tube size)."""
-    gi, gj, m = grid[5], grid[6], grid[7]
-    offsets = OFFSETS if reach == 1 else [(di, dj) for di in range(-reach, reach + 1) for dj in range(-reach, reach + 1)]
-    find = _traced_cells(traced, grid, sub)
-    out = np.full((lanes.size, len(offsets)), -1, np.int64)
-    for k, (di, dj) in enumerate(offsets):
-        out[:, k] = find(sub[lanes], m[lanes], gi[lanes] + di, gj[lanes] + dj)
-    return out
-
-
-def across_sizes(lanes, traced, grid, sub, reach: int = 1, signature=None):
-    """:func:`across_sizes_reference`'s pairs, with the other size's lanes of one signature
-    (``signature``, int64 [n_lanes]: what the plan reads of a lane, equal for interchangeable
-    lanes; None: every lane its own) in one cell of ``lanes``' lattice given once.
-
-    Finer lanes are put in buckets by the cell of the coarser lattice they lie in (a finer cell
-    lies in one coarser cell where the sizes divide, in up to two per axis otherwise), so each of
-    ``lanes`` looks up its ``(2 reach + 1)^2`` cells' buckets; coarser lanes are looked up cell by
-    cell, as in the reference (a few per axis). Returns ``(row, lane)`` int64 pairs."""
-    gi, gj, m = grid[5], grid[6], grid[7]
-    signature = np.arange(m.size, dtype=np.int64) if signature is None else signature
-    out_row, out_lane = [], []
-    sizes = np.unique(m[traced]).tolist()
-    for m2 in sizes:
-        targets = np.flatnonzero(traced & (m == m2))
-        for m1 in np.unique(m[lanes]).tolist():
-            at = np.flatnonzero(m[lanes] == m1)
-            if m1 == m2 or at.size == 0:
-                continue
-            lane = lanes[at]
-            if m2 < m1:                  # coarser neighbours: at most a few cells per axis
-                row, found = _cells_about(lane, targets, grid, sub, reach, m1, m2)
-                out_row.append(at[row])
-                out_lane.append(found)
-                continue
-            # finer neighbours: bucketed by the cell of the lattice m1 they lie in
-            ci = [(gi[targets] * m1) // m2, ((gi[targets] + 1) * m1 - 1) // m2]
-            cj = [(gj[targets] * m1) // m2, ((gj[targets] + 1) * m1 - 1) // m2]
-            keys = np.concatenate([_cell_key(sub[targets], m1, a, b) for a in ci for b in cj])
-            owner = np.tile(targets, 4)
-            pair = np.unique(np.stack([keys, signature[owner]], 1), axis=0, return_index=True)[1]
-            keys, owner = keys[pair], owner[pair]
-            order = np.argsort(keys, kind="stable")
-            keys, owner = keys[order], owner[order]
-            for di in range(-reach, reach + 1):
-                for dj in range(-reach, reach + 1):
-                    want = _cell_key(sub[lane], m1, gi[lane] + di, gj[lane] + dj)
-                    first = np.searchsorted(keys, want)
-                    count = np.searchsorted(keys, want, side="right") - first
-                    rows = np.repeat(np.arange(lane.size), count)
-                    within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-                    out_row.append(at[rows])
-                    out_lane.append(owner[np.repeat(first, count) + within])
-    if not out_row:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(out_row), np.concatenate(out_lane)
-
-
-def _cells_about(lane, targets, grid, sub, reach, m1, m2):
-    """The lanes ``targets`` (tube size ``m2``, coarser than ``lane``'s ``m1``) whose cells meet the
-    ``(2 reach + 1)^2`` cells about each of ``lane``: ``(row, target)`` pairs, cell by cell."""
-    gi, gj = grid[5], grid[6]
-    keys = _cell_key(sub[targets], m2, gi[targets], gj[targets])
-    order = np.argsort(keys)
-    keys, targets = keys[order], targets[order]
-    rows, found = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    if keys.size == 0:
-        return rows[0], found[0]
-    lo_i, hi_i = (gi[lane] - reach) * m2 // m1, -((-(gi[lane] + reach + 1) * m2) // m1)
-    lo_j, hi_j = (gj[lane] - reach) * m2 // m1, -((-(gj[lane] + reach + 1) * m2) // m1)
-    for di in range(int((hi_i - lo_i).max(initial=0))):
-        for dj in range(int((hi_j - lo_j).max(initial=0))):
-            want = _cell_key(sub[lane], m2, lo_i + di, lo_j + dj)
-            at = np.minimum(np.searchsorted(keys, want), keys.size - 1)
-            ok = (lo_i + di < hi_i) & (lo_j + dj < hi_j) & (keys[at] == want)
-            rows.append(np.flatnonzero(ok))
-            found.append(targets[at[ok]])
-    return np.concatenate(rows), np.concatenate(found)
-
-
-def across_sizes_reference(lanes, traced, grid, sub, reach: int = 1):
-    """The traced lanes of *other* tube sizes, in the same sub-aperture, whose cells meet the
-    ``(2 reach + 1)^2`` cells about each of ``lanes`` (on the lattice of its own size): where
-    blocks of two tube sizes meet (the refinement of (T2)), the neighbours that
-    :func:`neighbourhoods` cannot name. Blocks start on coarse cells, so a cell ``(i, j)`` of
-    size ``m`` covers ``[i / m, (i + 1) / m)`` coarse cells. Returns ``(row, lane)`` int64 pairs,
-    ``row`` indexing ``lanes``: every such lane, each cell of the region looked up in turn (the
-    readable reference of :func:`across_sizes`, which is quadratic in the size ratio: a coarse
-    cell next to tubes 69 times finer looks up 345^2 cells)."""
-    gi, gj, m = grid[5], grid[6], grid[7]
-    find = _traced_cells(traced, grid, sub)
-    out_row, out_lane = [], []
-    for m2 in np.unique(m[traced]).tolist():
-        at = np.flatnonzero(m[lanes] != m2)
-        if at.size == 0:
-            continue
-        lane, m1 = lanes[at], m[lanes[at]]
-        lo_i, hi_i = (gi[lane] - reach) * m2 // m1, -((-(gi[lane] + reach + 1) * m2) // m1)
-        lo_j, hi_j = (gj[lane] - reach) * m2 // m1, -((-(gj[lane] + reach + 1) * m2) // m1)
-        for di in range(int((hi_i - lo_i).max())):
-            for dj in range(int((hi_j - lo_j).max())):
-                found = find(sub[lane], np.full(lane.size, m2), lo_i + di, lo_j + dj)
-                ok = (lo_i + di < hi_i) & (lo_j + dj < hi_j) & (found >= 0)
-                out_row.append(at[ok])
-                out_lane.append(found[ok])
-    if not out_row:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(out_row), np.concatenate(out_lane)
 
 
 def meets_box(poly, box, margin):
@@ -366,12 +220,120 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     replaced = np.zeros(n_rec, bool)
     own = rec_of[cell[pieced]]
     replaced[own[own >= 0]] = True
-    c_lane = cell[c_of]
+    return _pieces(depth, replaced, cell[c_of], chain, donor_lane, rec_of, occluders, grid, blocks, parts, views, fp)
+
+
+def _pieces(depth, replaced, c_lane, chain, donor_lane, rec_of, occluders, grid, blocks, parts, views, fp):
+    """The plan of pieces on cells ``c_lane`` with their donors and occluders, crowded pieces
+    split (:func:`split_crowded`)."""
+    gi, gj, m = grid[5], grid[6], grid[7]
     # the cell in lattice lines of the donor's tube size (the kernel reads the donor's block)
-    bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1) * (m[donor_lane] / m[c_lane])[:, None]
-    donor = rec_of[donor_lane]
-    cuts = occluder_groups(*occluders, len(c_of))
-    return CellPlan(replaced=replaced, record=donor, chain=chain, bounds=bounds, cuts=cuts)
+    scale = m[donor_lane].astype(float)
+    bounds = np.stack([gi[c_lane], gi[c_lane] + 1, gj[c_lane], gj[c_lane] + 1], 1) * (scale / m[c_lane])[:, None]
+    sub = blocks.sub.astype(np.int64)[grid[0][c_lane]]
+    index, bounds, occluders = split_crowded(depth, chain, sub, scale, bounds, occluders, parts, views, fp)
+    cuts = occluder_groups(*occluders, len(index))
+    return CellPlan(replaced=replaced, record=rec_of[donor_lane][index], chain=chain[index], bounds=bounds, cuts=cuts)
+
+
+def split_crowded(depth, chain, sub, scale, bounds, occluders, parts, views, fp, most: int = MOST_OCCLUDERS):
+    """Pieces with more than ``most`` occluders split into the quarters of their rectangle, each
+    with those of the piece's occluders whose projection meets it from some view (:func:`_meets`;
+    receive-side ones as the shadows the kernel casts), again until none has more. A quarter
+    that one first-level occluder hides whole (wholly in front of the chain's first part, its
+    projection holding the quarter from every view) is empty and left out: a tower's many
+    walls all cross a roof's cell, but the front ones hide it.
+
+    Parameters
+    ----------
+    depth : int
+    chain : int64 [n, depth + 1]
+        The pieces' parts, level by level.
+    sub, scale : int64 [n], float64 [n]
+        The pieces' sub-apertures, and the tubes per cell edge of their lattice lines.
+    bounds : float64 [n, 4]
+        x0, x1, y0, y1 in lattice lines.
+    occluders : (piece, part, level) int64 arrays, sorted by piece.
+    most : int
+
+    Returns ``(index, bounds, occluders)``: the piece each output piece comes from (int64
+    [n_out]), the output rectangles (float64 [n_out, 4]) and their occluders, sorted by piece.
+
+    Raises
+    ------
+    SceneError
+        When a piece still has more than ``most`` after :data:`MOST_SPLITS` halvings of its cell.
+    """
+    piece, part, level = occluders
+    index = np.arange(len(chain))
+    for split in range(MOST_SPLITS + 1):
+        counts = np.bincount(piece, minlength=len(index))
+        crowded = counts > most
+        if not crowded.any():
+            return index, bounds, (piece, part, level)
+        if split == MOST_SPLITS:
+            raise SceneError(f"lit_regions = cells: a piece of bounce order {depth + 1} still has {counts.max()} "
+                             f"occluders in 1/{4 ** MOST_SPLITS} of its cell (at most {most} each); render this "
+                             "scene with lit_regions = tiles")
+        # new numbering: the pieces that stay, then four quarters of each crowded one
+        n_stay = int((~crowded).sum())
+        new_id = np.where(crowded, -1, np.cumsum(~crowded) - 1)
+        quarter0 = n_stay + 4 * (np.cumsum(crowded) - 1)
+        x0, x1, y0, y1 = bounds[crowded].T
+        xm, ym = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        quarters = np.stack([np.stack(q, 1) for q in ((x0, xm, y0, ym), (xm, x1, y0, ym), (x0, xm, ym, y1),
+                                                      (xm, x1, ym, y1))], 1).reshape(-1, 4)
+        stay = ~crowded[piece]
+        c_piece, c_part, c_level = (np.repeat(a[~stay], 4) for a in (piece, part, level))
+        q = np.tile(np.arange(4), int((~stay).sum()))
+        c_new = quarter0[c_piece] + q
+        source = index[c_piece]
+        near, hides = np.ones(len(c_new), bool), np.zeros(len(c_new), bool)
+        for lv in np.unique(c_level):
+            at = np.flatnonzero(c_level == lv)
+            upto = depth if lv == RECEIVE else lv
+            prefix = np.concatenate([chain[source[at], :upto], c_part[at, None]], 1)
+            near[at], hides[at] = _meets(sub[source[at]], quarters[c_new[at] - n_stay], scale[source[at]], prefix,
+                                         c_part[at], parts, views, fp, covers=True,
+                                         shadow=chain[source[at], depth] if lv == RECEIVE else None)
+        # a quarter that one first-level occluder hides whole (wholly in front of the chain's
+        # first part, its projection over the quarter from every view) is empty: left out
+        hides &= (c_level == 0) & _in_front(c_part, chain[source, 0], sub[source], parts, views)
+        alive = np.bincount(c_new[hides] - n_stay, minlength=len(quarters)) == 0
+        renumber = np.concatenate([np.arange(n_stay), n_stay + np.cumsum(alive) - 1])
+        near &= alive[c_new - n_stay]
+        piece = renumber[np.concatenate([new_id[piece[stay]], c_new[near]])]
+        part, level = np.concatenate([part[stay], c_part[near]]), np.concatenate([level[stay], c_level[near]])
+        order = np.argsort(piece, kind="stable")
+        piece, part, level = piece[order], part[order], level[order]
+        index = np.concatenate([index[~crowded], np.repeat(index[crowded], 4)[alive]])
+        bounds = np.concatenate([bounds[~crowded], quarters[alive]])
+
+
+def _in_front(part, x, sub, parts, views):
+    """Whether every corner of part ``part`` [n] lies on the antenna's side of part ``x``'s plane
+    (by :data:`ON_PLANE`) from every view of sub-aperture ``sub``: bool [n]."""
+    vertices, normal, offset = parts[0], parts[2], parts[3]
+    d = np.einsum("nvk,nk->nv", vertices[part], normal[x]) - offset[x][:, None]
+    out = np.ones(len(part), bool)
+    for v in range(views.shape[1]):
+        side = np.sign(np.einsum("nk,nk->n", views[sub, v], normal[x]) - offset[x])
+        out &= (side[:, None] * d > ON_PLANE).all(1)
+    return out
+
+
+def covers_box(poly, box, margin):
+    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
+    hold the whole boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin``."""
+    x0, x1, y0, y1 = (box[:, k] for k in range(4))
+    px, py = poly[..., 0], poly[..., 1]
+    ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
+    sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
+    held = np.ones(len(box), bool)
+    for cx, cy in ((x0 - margin, y0 - margin), (x1 + margin, y0 - margin), (x1 + margin, y1 + margin),
+                   (x0 - margin, y1 + margin)):
+        held &= (sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) >= 0).all(1)
+    return held
 
 
 def _signature(tables, rec_of):
@@ -434,19 +396,45 @@ def _reaches(lane, chain, last, grid, blocks, parts, views, fp, facing: bool = T
     mirrors of their parts before the last level), meets the cells ``lane`` [n] from some view
     of their sub-aperture (by :data:`MARGIN`) and, at the first bounce, faces the antenna (or
     belongs to an open surface; with ``facing``): bool [n]."""
-    vertices, normal, offset, closed = parts[0], parts[2], parts[3], parts[6]
+    normal, offset, closed = parts[2], parts[3], parts[6]
     block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
     sub = blocks.sub.astype(np.int64)[block[lane]]
     box = np.stack([gi[lane], gi[lane] + 1, gj[lane], gj[lane] + 1], 1).astype(float)
-    mirrors = [(normal[chain[:, i]], offset[chain[:, i]]) for i in range(chain.shape[1] - 1)]
-    corners = unfold(vertices[last], mirrors)
-    near = np.zeros(len(lane), bool)
-    for v in range(views.shape[1]):
-        poly = lattice_lines(corners, views[sub, v][:, None], fp, 0.0, 0.0, m[lane][:, None].astype(float))
-        near |= meets_box(poly, box, MARGIN)
+    near = _meets(sub, box, m[lane].astype(float), chain, last, parts, views, fp)
     if facing and chain.shape[1] == 1:
         near &= (np.einsum("ij,ij->i", normal[last], views[sub, 0]) - offset[last] > 0) | ~closed[last]
     return near
+
+
+def _meets(sub, box, scale, chain, last, parts, views, fp, shadow=None, covers: bool = False):
+    """Whether part ``last`` [n], unfolded as the chains ``chain`` [n, k + 1] take it (the mirrors
+    of their parts before the last), meets the rectangles ``box`` [n, 4] (x0, x1, y0, y1 in
+    lattice lines of ``scale`` [n] tubes per cell) from some view of sub-aperture ``sub`` [n]
+    (by :data:`MARGIN`): bool [n]. With ``shadow`` (int64 [n], a part), ``last`` is first cast
+    from the view onto that part's plane (a receive-side occluder's shadow, as the kernel casts
+    it); where a cast is not in front of the view the answer is True (kept). With ``covers``,
+    also whether the projection holds the whole box from every view (:func:`covers_box`)."""
+    vertices, normal, offset = parts[0], parts[2], parts[3]
+    mirrors = [(normal[chain[:, i]], offset[chain[:, i]]) for i in range(chain.shape[1] - 1)]
+    near, whole = np.zeros(len(sub), bool), np.ones(len(sub), bool)
+    for v in range(views.shape[1]):
+        view = views[sub, v][:, None]
+        corners = vertices[last]
+        if shadow is not None:
+            n_d, o_d = normal[shadow], offset[shadow]
+            den = np.einsum("nvk,nk->nv", corners - view, n_d)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = (o_d - np.einsum("nvk,nk->n", view, n_d))[:, None] / den
+            cast = np.isfinite(t).all(1) & (t > 0).all(1)
+            near |= ~cast
+            whole &= cast
+            corners = np.where(cast[:, None, None], view + (corners - view) * np.where(cast[:, None], t, 1.0)[..., None],
+                               corners)
+        poly = lattice_lines(unfold(corners, mirrors), view, fp, 0.0, 0.0, scale[:, None])
+        near |= meets_box(poly, box, MARGIN)
+        if covers:
+            whole &= covers_box(poly, box, MARGIN)
+    return (near, whole) if covers else near
 
 
 def _neighbours(c_of, nb, x_row, x_lane):
@@ -536,22 +524,14 @@ def _occluders(depth, tables, c_of, chain, donor_lane, nb, parts, views, sub):
     return piece[keep], part[keep], level[keep]
 
 
-def group_sizes(most: int) -> list[int]:
-    """The occluder counts of the launches that hold pieces of up to ``most`` occluders:
-    :data:`OCCLUDER_GROUPS`, then doubling."""
-    sizes = list(OCCLUDER_GROUPS)
-    while sizes[-1] < most:
-        sizes.append(2 * sizes[-1])
-    return sizes
-
-
 def occluder_groups(piece, part, level, n_pieces):
-    """The pieces with occluders, in groups of :func:`group_sizes` occluders (padded with
+    """The pieces with occluders, in groups of :data:`OCCLUDER_GROUPS` occluders (padded with
     ``NONE`` levels): ``[(pieces, parts [n, k], levels [n, k])]``. ``piece`` must be sorted."""
     counts = np.bincount(piece, minlength=n_pieces)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     cuts, low = [], 1
-    for size in group_sizes(int(counts.max(initial=0))):
+    assert counts.max(initial=0) <= MOST_OCCLUDERS, "crowded pieces are split first (split_crowded)"
+    for size in OCCLUDER_GROUPS:
         have = np.flatnonzero((counts >= low) & (counts <= size))
         low = size + 1
         if have.size == 0:

@@ -344,7 +344,7 @@ def test_a_grating_of_coplanar_plates_in_one_shape_follows_the_closed_form(tmp_p
     assert abs(error) < 0.5, error
 
 
-@pytest.mark.parametrize("count", [12, 40])
+@pytest.mark.parametrize("count", [12, 16])
 def test_a_piece_keeps_every_occluder(count):
     """A piece behind ``count`` occluders is launched with all of them (Sionna's Munich has pieces
     behind 15: a roof under a turret's walls and spire). Truth: the occluders handed in. Keeping

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.cell_plan import across_sizes, across_sizes_reference, lane_grid
+from sarmitsuba.cell_lanes import across_sizes, across_sizes_reference, lane_grid
 from sarmitsuba.kernel import Blocks
 
 
@@ -32,3 +32,92 @@ def test_bucketed_lookup_across_tube_sizes_finds_what_the_cell_by_cell_one_finds
     rows_s, found_s = across_sizes(lanes, traced, grid, sub, reach=reach, signature=signature)
     assert rows_s.size < rows.size / 2
     assert set(zip(rows_s.tolist(), signature[found_s].tolist())) == set(zip(rows.tolist(), signature[found].tolist()))
+
+
+def _square(centre, half, z):
+    x, y = centre
+    return [[x - half, y - half, z], [x + half, y - half, z], [x + half, y + half, z], [x - half, y + half, z]]
+
+
+def _shadow_box(corners, antenna, mirror_x=None):
+    """An occluder's shadow on the ground z = 0 cast from ``antenna``, mirrored in the wall
+    x = ``mirror_x`` where given, as a shapely polygon in metres (lattice lines of a 1 m lattice
+    whose aim plane is the ground): similar triangles, independent of the plan's projection."""
+    import shapely
+    a = np.asarray(antenna, float)
+    pts = []
+    for b in np.asarray(corners, float):
+        s = a + (b - a) * a[2] / (a[2] - b[2])
+        pts.append((2 * mirror_x - s[0] if mirror_x is not None else s[0], s[1]))
+    return shapely.Polygon(pts).convex_hull
+
+
+@pytest.mark.parametrize("depth", [0, 1])
+def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_reach_it(depth):
+    """A piece on a 1 m cell of the ground behind 24 small plates 2 m up (at the first bounce the
+    transmit side's, after a wall the receive side's) and one larger plate whose shadow covers the
+    cell's first quarter is split into quarters with at most 16 each. Truth: which plates'
+    shadows, cast from the antenna by similar triangles (and mirrored in the wall), meet each
+    quarter (shapely; within the plan's margin they may be kept); at the first bounce the covered
+    quarter is empty and left out (on the receive side it is kept: only first-level occluders
+    are checked for cover), while a quarter covered by a triangle that dips under the ground (not
+    wholly in front) is kept. The other piece keeps its three occluders."""
+    import shapely
+    from types import SimpleNamespace
+    from sarmitsuba.cell_plan import MARGIN, MOST_OCCLUDERS, RECEIVE, split_crowded
+    antenna = np.array([0.3, -700.0, 900.0])
+    rng = np.random.default_rng(3)
+    wall_x = 10.0
+    # the piece's cell [2, 3] x [5, 6] where the unfolded ground lies (mirrored in the wall at depth 1)
+    spots = rng.uniform(0.08, 0.92, size=(24, 2)) + (2.0, 5.0)
+    blockers = []
+    for sx, sy in spots:                 # a plate 2 m up whose shadow falls about (sx, sy)
+        x = 2 * wall_x - sx if depth else sx
+        ground = np.array([x, sy, 0.0])
+        top = ground + (antenna - ground) * (2.0 / antenna[2])
+        blockers.append(_square(top[:2], 0.04, 2.0))
+    x = 2 * wall_x - 2.25 if depth else 2.25          # the cover: its shadow holds [2, 2.5] x [5, 5.5] and more
+    top = np.array([x, 5.25, 0.0]) + (antenna - np.array([x, 5.25, 0.0])) * (2.0 / antenna[2])
+    blockers.append(_square(top[:2], 0.35, 2.0))
+    if not depth:         # a triangle whose shadow holds [2.5, 3] x [5.5, 6] but that dips under the ground
+        ground_points = np.array([[2.4, 5.4, 0.0], [3.8, 5.4, 0.0], [2.4, 6.8, 0.0]])
+        heights = np.array([2.0, 2.0, -0.5])
+        tri = ground_points + (antenna - ground_points) * (heights / antenna[2])[:, None]
+        blockers.append(np.concatenate([tri, tri[-1:]]).tolist())
+    ground = _square((0.0, 0.0), 50.0, 0.0)
+    wall = [[wall_x, -50, 0], [wall_x, 50, 0], [wall_x, 50, 30], [wall_x, -50, 30]]
+    vertices = np.array([ground, wall] + blockers, float)
+    normal = np.cross(vertices[:, 1] - vertices[:, 0], vertices[:, 2] - vertices[:, 0])
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    offset = np.einsum("ij,ij->i", normal, vertices[:, 0])
+    parts = (vertices, np.arange(len(vertices)), normal, offset, None, None, np.zeros(len(vertices), bool))
+    fp = SimpleNamespace(origin=np.zeros(3), track=np.array([1.0, 0, 0]), look=np.array([0, 1.0, 0]),
+                         spacing_azimuth=1.0, spacing_range=1.0, range_min=0.0)
+    views = np.repeat(antenna[None, None], 3, axis=1)
+    chain = np.array([[1, 0]] * 2 if depth else [[0]] * 2)
+    n = len(blockers)
+    level = RECEIVE if depth else 0
+    piece = np.array([0] * n + [1] * 3)
+    part = np.concatenate([np.arange(n) + 2, [2, 3, 4]])
+    bounds = np.array([[2.0, 3.0, 5.0, 6.0], [5.0, 6.0, 5.0, 6.0]])
+    index, out, (o_piece, o_part, o_level) = split_crowded(
+        depth, chain, np.zeros(2, np.int64), np.ones(2), bounds, (piece, part, np.full(piece.size, level)),
+        parts, views, fp)
+    assert sorted(index.tolist()) == [0] * (4 if depth else 3) + [1]
+    assert np.all(np.diff(o_piece) >= 0) and set(o_level.tolist()) == {level}
+    quarters = np.flatnonzero(index == 0)
+    covered = [] if depth else [shapely.box(2, 5, 2.5, 5.5)]
+    boxes = [shapely.box(*out[q][[0, 2, 1, 3]]) for q in quarters]
+    assert shapely.union_all(boxes + covered).equals(shapely.box(2, 5, 3, 6))
+    assert np.isclose(sum(b.area for b in boxes + covered), 1.0)
+    shadows = [_shadow_box(b, antenna, wall_x if depth else None) for b in blockers]
+    for q in quarters:
+        held = set(o_part[o_piece == q].tolist())
+        assert 0 < len(held) <= MOST_OCCLUDERS
+        box = shapely.box(*out[q][[0, 2, 1, 3]])
+        must = {k + 2 for k, s in enumerate(shadows) if s.intersects(box)}
+        may = {k + 2 for k, s in enumerate(shadows) if s.distance(box) <= MARGIN + 1e-9}
+        assert must <= held <= may, (q, must - held, held - may)
+        assert len(must) > 2
+    other = np.flatnonzero(index == 1)[0]
+    assert out[other].tolist() == [5.0, 6.0, 5.0, 6.0] and sorted(o_part[o_piece == other].tolist()) == [2, 3, 4]
