@@ -39,31 +39,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cell_lanes import OFFSETS, across_sizes, lane_grid, neighbourhoods
+from .cell_split import MARGIN, MOST_OCCLUDERS, NONE, ON_PLANE, RECEIVE, meets, meets_box, split_crowded, unfold
 from .lattice_index import lattice_lines, pair_key
-from .scene import SceneError
 
 __all__ = ["CellPlan", "LaneTable", "plan_cells", "split_crowded", "occluder_groups", "OCCLUDER_GROUPS", "MOST_OCCLUDERS", "RECEIVE", "NONE"]
 
-#: Corners of an occluder closer than this to the part's plane [m] lie on it.
-ON_PLANE = 1e-4
-#: A candidate's projection is kept where it comes this close to the cell [cells].
-MARGIN = 0.05
 #: Occluder counts of the launches: a piece with ``k`` occluders goes to the first group of at
 #: least ``k`` (the rest padded with :data:`NONE`), so that few kernels serve all counts; a piece
 #: with more than the last is split (:data:`MOST_OCCLUDERS`). No occluder is ever left out: Munich has
 #: pieces with up to 15, and keeping only the first eight let a shadowed roof light up where the
 #: others fell (a spot that moved with the lattice: -25.8 dB against -43.5 dB with all of them).
 OCCLUDER_GROUPS = (1, 2, 3, 4, 6, 8, 12, 16)
-#: The most occluders of one piece: the packed boundary (:func:`sarmitsuba.cell_clip.pack`) lives
-#: in local (stack) memory, which grows with the square of the count (32 overflow an 8 MiB
-#: stack). A piece with more is split into quarters of its cell (:func:`split_crowded`).
-MOST_OCCLUDERS = OCCLUDER_GROUPS[-1]
-#: The halvings of a crowded piece's cell before :func:`split_crowded` gives up.
-MOST_SPLITS = 4
-#: The level of an occluder that hides the last hit from the antenna (receive side).
-RECEIVE = 255
-#: The level of a padding slot of an occluder group (no occluder).
-NONE = 254
 _MISS = -1
 #: A prime below 2**31 for the face chain's running hash (:func:`face_keys`).
 _PRIME = 2_147_483_647
@@ -108,21 +94,6 @@ class CellPlan:
     chain: np.ndarray
     bounds: np.ndarray
     cuts: list
-
-
-def meets_box(poly, box, margin):
-    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
-    meet the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin`` (separating axes)."""
-    x0, x1, y0, y1 = (box[:, k] for k in range(4))
-    x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
-    px, py = poly[..., 0], poly[..., 1]
-    ok = (px.max(1) >= x0) & (px.min(1) <= x1) & (py.max(1) >= y0) & (py.min(1) <= y1)
-    ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
-    sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
-    outside = np.ones(px.shape, bool)
-    for cx, cy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
-        outside &= sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) < 0
-    return ok & ~(outside & ((ex != 0) | (ey != 0))).any(1)
 
 
 def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp) -> CellPlan:
@@ -236,106 +207,6 @@ def _pieces(depth, replaced, c_lane, chain, donor_lane, rec_of, occluders, grid,
     return CellPlan(replaced=replaced, record=rec_of[donor_lane][index], chain=chain[index], bounds=bounds, cuts=cuts)
 
 
-def split_crowded(depth, chain, sub, scale, bounds, occluders, parts, views, fp, most: int = MOST_OCCLUDERS):
-    """Pieces with more than ``most`` occluders split into the quarters of their rectangle, each
-    with those of the piece's occluders whose projection meets it from some view (:func:`_meets`;
-    receive-side ones as the shadows the kernel casts), again until none has more. A quarter
-    that one first-level occluder hides whole (wholly in front of the chain's first part, its
-    projection holding the quarter from every view) is empty and left out: a tower's many
-    walls all cross a roof's cell, but the front ones hide it.
-
-    Parameters
-    ----------
-    depth : int
-    chain : int64 [n, depth + 1]
-        The pieces' parts, level by level.
-    sub, scale : int64 [n], float64 [n]
-        The pieces' sub-apertures, and the tubes per cell edge of their lattice lines.
-    bounds : float64 [n, 4]
-        x0, x1, y0, y1 in lattice lines.
-    occluders : (piece, part, level) int64 arrays, sorted by piece.
-    most : int
-
-    Returns ``(index, bounds, occluders)``: the piece each output piece comes from (int64
-    [n_out]), the output rectangles (float64 [n_out, 4]) and their occluders, sorted by piece.
-
-    Raises
-    ------
-    SceneError
-        When a piece still has more than ``most`` after :data:`MOST_SPLITS` halvings of its cell.
-    """
-    piece, part, level = occluders
-    index = np.arange(len(chain))
-    for split in range(MOST_SPLITS + 1):
-        counts = np.bincount(piece, minlength=len(index))
-        crowded = counts > most
-        if not crowded.any():
-            return index, bounds, (piece, part, level)
-        if split == MOST_SPLITS:
-            raise SceneError(f"lit_regions = cells: a piece of bounce order {depth + 1} still has {counts.max()} "
-                             f"occluders in 1/{4 ** MOST_SPLITS} of its cell (at most {most} each); render this "
-                             "scene with lit_regions = tiles")
-        # new numbering: the pieces that stay, then four quarters of each crowded one
-        n_stay = int((~crowded).sum())
-        new_id = np.where(crowded, -1, np.cumsum(~crowded) - 1)
-        quarter0 = n_stay + 4 * (np.cumsum(crowded) - 1)
-        x0, x1, y0, y1 = bounds[crowded].T
-        xm, ym = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-        quarters = np.stack([np.stack(q, 1) for q in ((x0, xm, y0, ym), (xm, x1, y0, ym), (x0, xm, ym, y1),
-                                                      (xm, x1, ym, y1))], 1).reshape(-1, 4)
-        stay = ~crowded[piece]
-        c_piece, c_part, c_level = (np.repeat(a[~stay], 4) for a in (piece, part, level))
-        q = np.tile(np.arange(4), int((~stay).sum()))
-        c_new = quarter0[c_piece] + q
-        source = index[c_piece]
-        near, hides = np.ones(len(c_new), bool), np.zeros(len(c_new), bool)
-        for lv in np.unique(c_level):
-            at = np.flatnonzero(c_level == lv)
-            upto = depth if lv == RECEIVE else lv
-            prefix = np.concatenate([chain[source[at], :upto], c_part[at, None]], 1)
-            near[at], hides[at] = _meets(sub[source[at]], quarters[c_new[at] - n_stay], scale[source[at]], prefix,
-                                         c_part[at], parts, views, fp, covers=True,
-                                         shadow=chain[source[at], depth] if lv == RECEIVE else None)
-        # a quarter that one first-level occluder hides whole (wholly in front of the chain's
-        # first part, its projection over the quarter from every view) is empty: left out
-        hides &= (c_level == 0) & _in_front(c_part, chain[source, 0], sub[source], parts, views)
-        alive = np.bincount(c_new[hides] - n_stay, minlength=len(quarters)) == 0
-        renumber = np.concatenate([np.arange(n_stay), n_stay + np.cumsum(alive) - 1])
-        near &= alive[c_new - n_stay]
-        piece = renumber[np.concatenate([new_id[piece[stay]], c_new[near]])]
-        part, level = np.concatenate([part[stay], c_part[near]]), np.concatenate([level[stay], c_level[near]])
-        order = np.argsort(piece, kind="stable")
-        piece, part, level = piece[order], part[order], level[order]
-        index = np.concatenate([index[~crowded], np.repeat(index[crowded], 4)[alive]])
-        bounds = np.concatenate([bounds[~crowded], quarters[alive]])
-
-
-def _in_front(part, x, sub, parts, views):
-    """Whether every corner of part ``part`` [n] lies on the antenna's side of part ``x``'s plane
-    (by :data:`ON_PLANE`) from every view of sub-aperture ``sub``: bool [n]."""
-    vertices, normal, offset = parts[0], parts[2], parts[3]
-    d = np.einsum("nvk,nk->nv", vertices[part], normal[x]) - offset[x][:, None]
-    out = np.ones(len(part), bool)
-    for v in range(views.shape[1]):
-        side = np.sign(np.einsum("nk,nk->n", views[sub, v], normal[x]) - offset[x])
-        out &= (side[:, None] * d > ON_PLANE).all(1)
-    return out
-
-
-def covers_box(poly, box, margin):
-    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
-    hold the whole boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin``."""
-    x0, x1, y0, y1 = (box[:, k] for k in range(4))
-    px, py = poly[..., 0], poly[..., 1]
-    ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
-    sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
-    held = np.ones(len(box), bool)
-    for cx, cy in ((x0 - margin, y0 - margin), (x1 + margin, y0 - margin), (x1 + margin, y1 + margin),
-                   (x0 - margin, y1 + margin)):
-        held &= (sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) >= 0).all(1)
-    return held
-
-
 def _signature(tables, rec_of):
     """One int64 per lane for what the plan reads of it (its chain's keys and parts, whether it
     is a record, its visibility and blocker): lanes of one signature are interchangeable."""
@@ -357,15 +228,6 @@ def face_keys(tables, face):
         key = np.where(table.key >= 0, (table.key * 2_654_435_761 + chain) % (1 << 32), -1)
         out.append(LaneTable(part=table.part, key=key, visible=table.visible, blocker=table.blocker))
     return out
-
-
-def unfold(points, mirrors):
-    """Scene ``points`` [n, ..., 3] in the unfolded frame of a chain whose earlier parts' planes are
-    ``mirrors`` (list of (normal [n, 3], offset [n]), the first part's first)."""
-    for normal, offset in reversed(mirrors):
-        d = np.einsum("n...k,nk->n...", points, normal) - offset.reshape((-1,) + (1,) * (points.ndim - 2))
-        points = points - 2.0 * d[..., None] * normal.reshape((-1,) + (1,) * (points.ndim - 2) + (3,))
-    return points
 
 
 def _adjacent(c_of, chain, donor_lane, cell, grid, blocks, parts, views, fp):
@@ -400,41 +262,10 @@ def _reaches(lane, chain, last, grid, blocks, parts, views, fp, facing: bool = T
     block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
     sub = blocks.sub.astype(np.int64)[block[lane]]
     box = np.stack([gi[lane], gi[lane] + 1, gj[lane], gj[lane] + 1], 1).astype(float)
-    near = _meets(sub, box, m[lane].astype(float), chain, last, parts, views, fp)
+    near = meets(sub, box, m[lane].astype(float), chain, last, parts, views, fp)
     if facing and chain.shape[1] == 1:
         near &= (np.einsum("ij,ij->i", normal[last], views[sub, 0]) - offset[last] > 0) | ~closed[last]
     return near
-
-
-def _meets(sub, box, scale, chain, last, parts, views, fp, shadow=None, covers: bool = False):
-    """Whether part ``last`` [n], unfolded as the chains ``chain`` [n, k + 1] take it (the mirrors
-    of their parts before the last), meets the rectangles ``box`` [n, 4] (x0, x1, y0, y1 in
-    lattice lines of ``scale`` [n] tubes per cell) from some view of sub-aperture ``sub`` [n]
-    (by :data:`MARGIN`): bool [n]. With ``shadow`` (int64 [n], a part), ``last`` is first cast
-    from the view onto that part's plane (a receive-side occluder's shadow, as the kernel casts
-    it); where a cast is not in front of the view the answer is True (kept). With ``covers``,
-    also whether the projection holds the whole box from every view (:func:`covers_box`)."""
-    vertices, normal, offset = parts[0], parts[2], parts[3]
-    mirrors = [(normal[chain[:, i]], offset[chain[:, i]]) for i in range(chain.shape[1] - 1)]
-    near, whole = np.zeros(len(sub), bool), np.ones(len(sub), bool)
-    for v in range(views.shape[1]):
-        view = views[sub, v][:, None]
-        corners = vertices[last]
-        if shadow is not None:
-            n_d, o_d = normal[shadow], offset[shadow]
-            den = np.einsum("nvk,nk->nv", corners - view, n_d)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (o_d - np.einsum("nvk,nk->n", view, n_d))[:, None] / den
-            cast = np.isfinite(t).all(1) & (t > 0).all(1)
-            near |= ~cast
-            whole &= cast
-            corners = np.where(cast[:, None, None], view + (corners - view) * np.where(cast[:, None], t, 1.0)[..., None],
-                               corners)
-        poly = lattice_lines(unfold(corners, mirrors), view, fp, 0.0, 0.0, scale[:, None])
-        near |= meets_box(poly, box, MARGIN)
-        if covers:
-            whole &= covers_box(poly, box, MARGIN)
-    return (near, whole) if covers else near
 
 
 def _neighbours(c_of, nb, x_row, x_lane):

@@ -21,7 +21,7 @@ STAGES = {
     1: ("scene", {"georef", "radar", "baseline", "materials", "meshcheck", "canonical", "pyscene", "scene", "trace_inputs",
                   "effects", "planning", "radiometry", "signal_model", "fresnel",
                   "polarimetry"}),
-    2: ("trace", {"physical_optics", "facets", "lattice_index", "cell_lanes", "cell_plan", "cell_clip", "cell_terms", "clutter_lattice", "accumulate", "returns", "kernel", "trace", "jones"}),
+    2: ("trace", {"physical_optics", "facets", "lattice_index", "cell_lanes", "cell_split", "cell_plan", "cell_clip", "cell_terms", "clutter_lattice", "accumulate", "returns", "kernel", "trace", "jones"}),
     3: ("raw data", {"raw", "binning", "cphd"}),
     4: ("focus", {"image", "focus", "focus.*"}),
     5: ("products", {"products", "groundtruth", "plotting", "figures_pol", "geotiff", "sicd"}),

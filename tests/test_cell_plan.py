@@ -52,38 +52,24 @@ def _shadow_box(corners, antenna, mirror_x=None):
     return shapely.Polygon(pts).convex_hull
 
 
-@pytest.mark.parametrize("depth", [0, 1])
-def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_reach_it(depth):
-    """A piece on a 1 m cell of the ground behind 24 small plates 2 m up (at the first bounce the
-    transmit side's, after a wall the receive side's) and one larger plate whose shadow covers the
-    cell's first quarter is split into quarters with at most 16 each. Truth: which plates'
-    shadows, cast from the antenna by similar triangles (and mirrored in the wall), meet each
-    quarter (shapely; within the plan's margin they may be kept); at the first bounce the covered
-    quarter is empty and left out (on the receive side it is kept: only first-level occluders
-    are checked for cover), while a quarter covered by a triangle that dips under the ground (not
-    wholly in front) is kept. The other piece keeps its three occluders."""
-    import shapely
+ANTENNA = np.array([0.3, -700.0, 900.0])
+WALL_X = 10.0
+
+
+def _above(x, y, height, depth):
+    """The point ``height`` up on the ray from the antenna to ground point (x, y) (the ground
+    mirrored in the wall x = WALL_X at depth 1)."""
+    ground = np.array([2 * WALL_X - x if depth else x, y, 0.0])
+    return ground + (ANTENNA - ground) * (height / ANTENNA[2])
+
+
+def _split(depth, blockers):
+    """split_crowded on a piece on the ground's cell [2, 3] x [5, 6] (after the wall x = WALL_X at
+    depth 1) behind ``blockers`` (the transmit side's at depth 0, the receive side's at 1) and a
+    second piece elsewhere behind three of them."""
     from types import SimpleNamespace
-    from sarmitsuba.cell_plan import MARGIN, MOST_OCCLUDERS, RECEIVE, split_crowded
-    antenna = np.array([0.3, -700.0, 900.0])
-    rng = np.random.default_rng(3)
-    wall_x = 10.0
-    # the piece's cell [2, 3] x [5, 6] where the unfolded ground lies (mirrored in the wall at depth 1)
-    spots = rng.uniform(0.08, 0.92, size=(24, 2)) + (2.0, 5.0)
-    blockers = []
-    for sx, sy in spots:                 # a plate 2 m up whose shadow falls about (sx, sy)
-        x = 2 * wall_x - sx if depth else sx
-        ground = np.array([x, sy, 0.0])
-        top = ground + (antenna - ground) * (2.0 / antenna[2])
-        blockers.append(_square(top[:2], 0.04, 2.0))
-    x = 2 * wall_x - 2.25 if depth else 2.25          # the cover: its shadow holds [2, 2.5] x [5, 5.5] and more
-    top = np.array([x, 5.25, 0.0]) + (antenna - np.array([x, 5.25, 0.0])) * (2.0 / antenna[2])
-    blockers.append(_square(top[:2], 0.35, 2.0))
-    if not depth:         # a triangle whose shadow holds [2.5, 3] x [5.5, 6] but that dips under the ground
-        ground_points = np.array([[2.4, 5.4, 0.0], [3.8, 5.4, 0.0], [2.4, 6.8, 0.0]])
-        heights = np.array([2.0, 2.0, -0.5])
-        tri = ground_points + (antenna - ground_points) * (heights / antenna[2])[:, None]
-        blockers.append(np.concatenate([tri, tri[-1:]]).tolist())
+    from sarmitsuba.cell_plan import RECEIVE, split_crowded
+    wall_x, antenna = WALL_X, ANTENNA
     ground = _square((0.0, 0.0), 50.0, 0.0)
     wall = [[wall_x, -50, 0], [wall_x, 50, 0], [wall_x, 50, 30], [wall_x, -50, 30]]
     vertices = np.array([ground, wall] + blockers, float)
@@ -100,9 +86,42 @@ def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_rea
     piece = np.array([0] * n + [1] * 3)
     part = np.concatenate([np.arange(n) + 2, [2, 3, 4]])
     bounds = np.array([[2.0, 3.0, 5.0, 6.0], [5.0, 6.0, 5.0, 6.0]])
-    index, out, (o_piece, o_part, o_level) = split_crowded(
-        depth, chain, np.zeros(2, np.int64), np.ones(2), bounds, (piece, part, np.full(piece.size, level)),
-        parts, views, fp)
+    out = split_crowded(depth, chain, np.zeros(2, np.int64), np.ones(2), bounds, (piece, part, np.full(piece.size, level)),
+                        parts, views, fp)
+    return out, level
+
+
+@pytest.mark.parametrize("depth", [0, 1])
+def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_reach_it(depth):
+    """A piece on a 1 m cell of the ground behind 24 small plates 2 m up (at the first bounce the
+    transmit side's, after a wall the receive side's) and one larger plate whose shadow covers the
+    cell's first quarter is split into quarters with at most 16 each. Truth: which plates'
+    shadows, cast from the antenna by similar triangles (and mirrored in the wall), meet each
+    quarter (shapely; within the plan's margin they may be kept); at the first bounce the covered
+    quarter is empty and left out (on the receive side it is kept: only first-level occluders
+    are checked for cover), while a quarter covered by a triangle that dips under the ground (not
+    wholly in front) is kept. The other piece keeps its three occluders."""
+    import shapely
+    from sarmitsuba.cell_plan import MARGIN, MOST_OCCLUDERS
+    antenna, wall_x = ANTENNA, WALL_X
+    rng = np.random.default_rng(3)
+    # the piece's cell [2, 3] x [5, 6] where the unfolded ground lies (mirrored in the wall at depth 1)
+    spots = rng.uniform(0.08, 0.92, size=(24, 2)) + (2.0, 5.0)
+    blockers = []
+    for sx, sy in spots:                 # a plate 2 m up whose shadow falls about (sx, sy)
+        x = 2 * wall_x - sx if depth else sx
+        ground = np.array([x, sy, 0.0])
+        top = ground + (antenna - ground) * (2.0 / antenna[2])
+        blockers.append(_square(top[:2], 0.04, 2.0))
+    x = 2 * wall_x - 2.25 if depth else 2.25          # the cover: its shadow holds [2, 2.5] x [5, 5.5] and more
+    top = np.array([x, 5.25, 0.0]) + (antenna - np.array([x, 5.25, 0.0])) * (2.0 / antenna[2])
+    blockers.append(_square(top[:2], 0.35, 2.0))
+    if not depth:         # a triangle whose shadow holds [2.5, 3] x [5.5, 6] but that dips under the ground
+        ground_points = np.array([[2.4, 5.4, 0.0], [3.8, 5.4, 0.0], [2.4, 6.8, 0.0]])
+        heights = np.array([2.0, 2.0, -0.5])
+        tri = ground_points + (antenna - ground_points) * (heights / antenna[2])[:, None]
+        blockers.append(np.concatenate([tri, tri[-1:]]).tolist())
+    (index, out, (o_piece, o_part, o_level)), level = _split(depth, blockers)
     assert sorted(index.tolist()) == [0] * (4 if depth else 3) + [1]
     assert np.all(np.diff(o_piece) >= 0) and set(o_level.tolist()) == {level}
     quarters = np.flatnonzero(index == 0)
@@ -121,3 +140,34 @@ def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_rea
         assert len(must) > 2
     other = np.flatnonzero(index == 1)[0]
     assert out[other].tolist() == [5.0, 6.0, 5.0, 6.0] and sorted(o_part[o_piece == other].tolist()) == [2, 3, 4]
+
+
+@pytest.mark.parametrize("depth", [0, 1])
+def test_a_spire_apex_too_crowded_to_split_is_decided_by_the_central_ray(depth):
+    """Twenty faces of an open cone 2 to 3 m up meet at its apex, whose shadow falls in the
+    piece's cell: no split separates them there. The sub-pieces are split down to 1/16 of the
+    cell; those still crowded are tiles of their own, left out where the central ray is hidden.
+    Truth: the union of the faces' shadows cast by similar triangles (shapely). Every output
+    has at most 16 occluders, every output whose centre is in shadow has some, and what is left
+    out lies in shadow (within half a finest sub-piece)."""
+    import shapely
+    from sarmitsuba.cell_plan import MOST_OCCLUDERS
+    from sarmitsuba.cell_split import MOST_SPLITS
+    apex = _above(2.43, 5.61, 3.0, depth)
+    blockers = []
+    for k in range(20):
+        a, b = 2 * np.pi * k / 20, 2 * np.pi * (k + 1) / 20
+        base = [apex + (0.3 * np.cos(t), 0.3 * np.sin(t), -1.0) for t in (a, b)]
+        blockers.append([apex.tolist(), base[0].tolist(), base[1].tolist(), base[1].tolist()])
+    (index, out, (o_piece, o_part, o_level)), _ = _split(depth, blockers)
+    shadows = shapely.union_all([_shadow_box(b, ANTENNA, WALL_X if depth else None) for b in blockers])
+    mine = np.flatnonzero(index == 0)
+    counts = np.bincount(o_piece, minlength=len(index))
+    assert counts.max() <= MOST_OCCLUDERS
+    finest = 1.0 / 2 ** MOST_SPLITS
+    assert np.isclose((out[mine, 1] - out[mine, 0]).min(), finest)          # split down to the last halving
+    centres = shapely.points(0.5 * (out[mine, 0] + out[mine, 1]), 0.5 * (out[mine, 2] + out[mine, 3]))
+    in_shadow = shapely.contains(shadows, centres)
+    assert in_shadow.any() and np.all(counts[mine][in_shadow] > 0)
+    left = shapely.box(2, 5, 3, 6).difference(shapely.union_all([shapely.box(*b[[0, 2, 1, 3]]) for b in out[mine]]))
+    assert left.area > 0 and left.difference(shadows.buffer(finest * 0.75)).area < 1e-12
