@@ -16,9 +16,10 @@ render, with each setting's trace seconds (the faster of two runs):
   sub-aperture (docs/physics.md (T3)).
 
 Scenes: the built-in ``urban``, a smooth block of nine buildings turned 30 to 86 deg from the
-track (``block``, built here), and Sionna's Munich as shipped (512 central pulses; needs the
-``sionna`` extra); then urban and the block again with ``lit_regions = cells`` (docs/physics.md
-(T6)), each against its own cells render, and three second-bounce scenes (a wall on the ground
+track (``block``, built here), the same block rough, and Sionna's Munich as shipped (512 central
+pulses; needs the ``sionna`` extra); then urban and both blocks again with ``lit_regions = cells``
+(docs/physics.md (T6)), each against its own cells render, Munich at 64 pulses with tiles and with
+cells (the lattice move only), and three second-bounce scenes (a wall on the ground
 parallel to the track and turned 37 deg, a box turned 37 deg; :func:`wall_scenes`) with tiles and
 with cells. The issue's acceptance asks for <= -30 dB in every row (magnitudes for the
 lattice move, complex images otherwise); the ``meets`` column says which rows do. Writes ``invariance.csv`` and ``invariance.png`` (NRMSE against
@@ -51,12 +52,14 @@ DENSE = 1.0 / 3.0
 TARGET_DB = -30.0
 
 
-def block(n_pulses: int | None = None) -> sarmitsuba.Scene:
+def block(n_pulses: int | None = None, rough: bool = False) -> sarmitsuba.Scene:
     """Nine smooth concrete boxes, 14 m x 10 m x 8..25 m, on a 160 m smooth ground, each turned
-    30 + 7 k deg from the track (oblique: their edges cross the ray lattice), X band, 1 km up."""
+    30 + 7 k deg from the track (oblique: their edges cross the ray lattice), X band, 1 km up;
+    ``rough``: the ground and the walls rough (constant gamma, -15 dB and -10 dB)."""
     rng = np.random.default_rng(1)
     ground = trimesh.Trimesh([[-80, -80, 0], [80, -80, 0], [80, 80, 0], [-80, 80, 0]], [[0, 1, 2], [0, 2, 3]])
-    meshes = [(ground, {"material": "medium_dry_ground"}, "ground")]
+    wall = {"material": "concrete", **({"gamma_db": -10.0} if rough else {})}
+    meshes = [(ground, {"material": "medium_dry_ground", **({"gamma_db": -15.0} if rough else {})}, "ground")]
     for k, (ix, iy) in enumerate((ix, iy) for ix in (-1, 0, 1) for iy in (-1, 0, 1)):
         height = float(rng.uniform(8, 25))
         jx, jy = rng.uniform(-3, 3, size=2)
@@ -64,12 +67,12 @@ def block(n_pulses: int | None = None) -> sarmitsuba.Scene:
         box.apply_translation((0, 0, height / 2))
         box.apply_transform(trimesh.transformations.rotation_matrix(math.radians(30 + 7 * k), (0, 0, 1)))
         box.apply_translation((ix * 30 + jx, iy * 30 + jy, 0))
-        meshes.append((box, {"material": "concrete"}, f"building{k}"))
+        meshes.append((box, wall, f"building{k}"))
     sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
               "altitude": 1000, "incidence_angle": 45, "scene_center": (0.0, 0.0, 0.0), "azimuth_beamwidth": 1.2}
     if n_pulses:
         sensor["n_pulses"] = n_pulses
-    return sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3}, name="block")
+    return sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3}, name="rough block" if rough else "block")
 
 
 def wall_scenes() -> dict:
@@ -108,15 +111,18 @@ def _run(scene, sensor: dict, integrator: dict, shift=None) -> tuple[dict, np.nd
     return numbers, image, resolution
 
 
-def sweep(label: str, scene, sensor: dict, tiny: bool = False, lit: dict | None = None) -> list[dict]:
+def sweep(label: str, scene, sensor: dict, tiny: bool = False, lit: dict | None = None,
+          per_pulse: bool = True) -> list[dict]:
     """Rows of one scene: the default render and each comparison against it; with ``lit`` (for
     example ``{"lit_regions": "cells"}``) every render takes those integrator settings, and the
-    rows compare the lattice move and one pulse per trace only."""
+    rows compare the lattice move and (``per_pulse``) one pulse per trace only."""
     lit = lit or {}
     base, reference, resolution = _run(scene, sensor, dict(lit))
     rows = [{"scene": label, "setting": "default", **base, "nrmse_complex_db": float("-inf"),
              "nrmse_magnitude_db": float("-inf")}]
-    settings = [("lattice moved", {}, LATTICE_SHIFT), ("one pulse per trace", {"pulses_per_trace": 1}, None)]
+    settings = [("lattice moved", {}, LATTICE_SHIFT)]
+    if per_pulse:
+        settings.append(("one pulse per trace", {"pulses_per_trace": 1}, None))
     if not tiny and not lit:
         settings.insert(1, (f"dense rays (1/{round(1 / DENSE)} width)", {"ray_spacing": DENSE * resolution}, None))
     for setting, integrator, shift in settings:
@@ -134,33 +140,44 @@ def sweep(label: str, scene, sensor: dict, tiny: bool = False, lit: dict | None 
 
 
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
-    """Ratios that hold today: the default sub-aperture changes the image less than moving the
-    lattice does (the lattice is the larger fingerprint). The issue's -30 dB acceptance is the
-    ``meets`` column, not a check: it is not met yet."""
+    """Ratios that hold today: with whole tiles (the default) the sub-aperture changes the image
+    less than moving the lattice does (the lattice is the larger fingerprint); with cell pieces
+    the lattice move stays within the issue's -30 dB (magnitudes). The default's own -30 dB is the
+    ``meets`` column, not a check: it is not met (docs/physics.md (T6))."""
     out = []
     for scene in dict.fromkeys(r["scene"] for r in rows):
         mine = {r["setting"]: r for r in rows if r["scene"] == scene}
-        lattice, per_pulse = mine["lattice moved"], mine["one pulse per trace"]
-        out.append((f"{scene}: the sub-aperture changes the image less than the lattice does",
-                    bool(per_pulse["nrmse_complex_db"] <= lattice["nrmse_complex_db"]),
-                    f"{per_pulse['nrmse_complex_db']} dB against {lattice['nrmse_complex_db']} dB"))
+        lattice = mine["lattice moved"]
+        if scene.endswith("cells"):
+            out.append((f"{scene}: the lattice move stays within {TARGET_DB:g} dB", bool(lattice["meets"]),
+                        f"{lattice['nrmse_magnitude_db']} dB"))
+        elif "one pulse per trace" in mine:
+            per_pulse = mine["one pulse per trace"]
+            out.append((f"{scene}: the sub-aperture changes the image less than the lattice does",
+                        bool(per_pulse["nrmse_complex_db"] <= lattice["nrmse_complex_db"]),
+                        f"{per_pulse['nrmse_complex_db']} dB against {lattice['nrmse_complex_db']} dB"))
     return out
 
 
 def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     """Run the comparisons, print the table, write CSV and PNG; returns the rows."""
     print(machine())
-    scenes = {"urban": ("urban", {}), "block": (block(), {})}
-    if not (quick or tiny) and importlib.util.find_spec("sionna") is not None:
+    scenes = {"urban": ("urban", {}), "block": (block(), {}), "rough block": (block(rough=True), {})}
+    munich = not (quick or tiny) and importlib.util.find_spec("sionna") is not None
+    if munich:
         scenes["munich"] = ("sionna:munich", {"n_pulses": 512})
     if tiny:
         scenes = {"block": (block(200), {})}
     rows = []
     for label, (scene, sensor) in scenes.items():
         rows += sweep(label, scene, sensor, tiny)
-    if not tiny:                  # cell pieces (T6), opt-in: urban and the block (Munich: not yet)
-        for label in ("urban", "block"):
+    if not tiny:                  # cell pieces (T6), opt-in
+        for label in ("urban", "block", "rough block"):
             rows += sweep(f"{label}, cells", *scenes[label], lit={"lit_regions": "cells"})
+        if munich:                # 64 pulses: cells trace Munich at about 20 s per sub-aperture
+            rows += sweep("munich (64 pulses)", "sionna:munich", {"n_pulses": 64}, per_pulse=False)
+            rows += sweep("munich (64 pulses), cells", "sionna:munich", {"n_pulses": 64},
+                          lit={"lit_regions": "cells"}, per_pulse=False)
         for label, scene in wall_scenes().items():         # the second bounce, tiles and cells
             rows += sweep(label, scene, {}, lit={"lit_regions": "tiles"})
             rows += sweep(f"{label}, cells", scene, {}, lit={"lit_regions": "cells"})
