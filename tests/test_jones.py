@@ -200,3 +200,40 @@ def test_launch_basis_is_h_horizontal_and_v_up():
         h, v = _np(j.h_re)[0], _np(j.v_re)[0]
         assert abs(h[2]) < 1e-7 and abs(h @ d[0]) < 1e-6 and abs(np.linalg.norm(h) - 1) < 1e-6
         assert np.allclose(v, np.cross(d[0], h), atol=1e-6) and v[2] == pytest.approx(math.sin(t), abs=1e-6)
+
+
+@pytest.mark.parametrize("incidence, heading", [(35.0, 20.0), (62.0, -48.0)])
+def test_receive_reads_rows_by_receive_and_columns_by_transmit(incidence, heading):
+    """(P4) with an asymmetric Jones matrix: transmit H arrives as 2 v, transmit V as 0.5j h, so
+    S = [[0, 0.5j], [2, 0]] (rows receive H, V; columns transmit H, V): HV (receive H, transmit V)
+    is 0.5j and VH is 2. Truth: the BSA basis built by hand (h = unit(z x look), v = look x h).
+    Swapping the bases (S instead of S^T) gives HV = 2; images symmetrised later would hide it."""
+    from sarmitsuba import jones
+    t, a = math.radians(incidence), math.radians(heading)
+    look = np.array([math.sin(t) * math.sin(a), -math.sin(t) * math.cos(a), -math.cos(t)])
+    h = np.cross([0.0, 0.0, 1.0], look)
+    h /= np.linalg.norm(h)
+    v = np.cross(look, h)
+    j = jones.Jones(h_re=_vec(2.0 * v[None]), h_im=_vec(np.zeros((1, 3))),
+                    v_re=_vec(np.zeros((1, 3))), v_im=_vec(0.5 * h[None]))
+    s = jones.receive(j, _vec(look[None]), _vec(np.array([[math.cos(a), math.sin(a), 0.0]])), ("HH", "HV", "VH", "VV"))
+    got = [complex(np.array(c.real)[0], np.array(c.imag)[0]) for c in s]
+    assert np.allclose(got, [0.0, 0.5j, 2.0, 0.0], atol=1e-6), got
+
+
+@pytest.mark.parametrize("incidence", [30.0, 70.0])
+def test_power_is_one_at_launch_and_scales_with_the_reflection(incidence):
+    """``power`` is the power averaged over the two transmit channels: 1 at launch (each column a
+    unit vector), still 1 after a PEC reflection (r_te = r_tm = -1) and 0.36 after one with
+    |r_te| = |r_tm| = 0.6 (|r|^2). Without its 1/2 it reads 2 at launch, doubling every order's
+    energy."""
+    from sarmitsuba import jones
+    t = math.radians(incidence)
+    d = np.array([[0.0, -math.sin(t), -math.cos(t)]])
+    j = jones.launch(_vec(d), _vec(np.array([[1.0, 0.0, 0.0]])))
+    assert np.array(jones.power(j))[0] == pytest.approx(1.0, abs=1e-6)
+    n = _vec(np.array([[0.0, 0.0, 1.0]]))
+    for r, expected in ((-1.0 + 0j, 1.0), (0.6j, 0.36)):
+        coefficient = mi.Complex2f(r.real, r.imag)
+        out = jones.reflect(j, _vec(d), n, coefficient, coefficient)
+        assert np.array(jones.power(out))[0] == pytest.approx(expected, abs=1e-6)
