@@ -38,16 +38,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cell_lanes import OFFSETS, across_sizes, lane_grid, neighbourhoods
-from .cell_split import MARGIN, MOST_OCCLUDERS, NONE, ON_PLANE, RECEIVE, meets, meets_box, split_crowded, unfold
-from .lattice_index import lattice_lines, pair_key
+from .cell_lanes import across_sizes, lane_grid, neighbourhoods
+from .cell_split import MOST_OCCLUDERS, NONE, ON_PLANE, RECEIVE, meets, split_crowded
+from .lattice_index import pair_key
 
 __all__ = ["CellPlan", "LaneTable", "plan_cells", "split_crowded", "occluder_groups", "OCCLUDER_GROUPS", "MOST_OCCLUDERS", "RECEIVE", "NONE"]
 
 #: Occluder counts of the launches: a piece with ``k`` occluders goes to the first group of at
 #: least ``k`` (the rest padded with :data:`NONE`), so that few kernels serve all counts; a piece
 #: with more than the last is split (:data:`MOST_OCCLUDERS`). No occluder is ever left out: Munich has
-#: pieces with up to 15, and keeping only the first eight let a shadowed roof light up where the
+#: pieces behind up to 18, and keeping only the first eight let a shadowed roof light up where the
 #: others fell (a spot that moved with the lattice: -25.8 dB against -43.5 dB with all of them).
 OCCLUDER_GROUPS = (1, 2, 3, 4, 6, 8, 12, 16)
 _MISS = -1
@@ -160,7 +160,7 @@ def plan_cells(depth, tables, records, traced, blocks, n_lanes, parts, views, fp
     x_row, x_lane = row_of[x_row[look[x_row]]], x_lane[look[x_row]]
     cell, nb, wide, has5, has = lanes[look], nb[look], wide[look], has5[look], has[look]
     mixed = (mixed | fringe)[look]
-    # candidates: the distinct visible chains of the 3 x 3 (first record in OFFSETS order; a cell
+    # candidates: the distinct visible chains of the 3 x 3 (first record in :data:`cell_lanes.OFFSETS` order; a cell
     # near a change only its own), then those of the 5 x 5 whose last part reaches into the cell
     key3 = np.where(has, table.key[np.maximum(nb, 0)], _MISS)
     first = has.copy()
@@ -256,7 +256,7 @@ def _adjacent(c_of, chain, donor_lane, cell, grid, blocks, parts, views, fp):
 def _reaches(lane, chain, last, grid, blocks, parts, views, fp, facing: bool = True):
     """Whether part ``last`` [n], unfolded as the chains ``chain`` [n, depth + 1] take it (the
     mirrors of their parts before the last level), meets the cells ``lane`` [n] from some view
-    of their sub-aperture (by :data:`MARGIN`) and, at the first bounce, faces the antenna (or
+    of their sub-aperture (by :data:`cell_split.MARGIN`) and, at the first bounce, faces the antenna (or
     belongs to an open surface; with ``facing``): bool [n]."""
     normal, offset, closed = parts[2], parts[3], parts[6]
     block, gi, gj, m = grid[0], grid[5], grid[6], grid[7]
@@ -361,7 +361,8 @@ def occluder_groups(piece, part, level, n_pieces):
     counts = np.bincount(piece, minlength=n_pieces)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     cuts, low = [], 1
-    assert counts.max(initial=0) <= MOST_OCCLUDERS, "crowded pieces are split first (split_crowded)"
+    assert OCCLUDER_GROUPS[-1] == MOST_OCCLUDERS and counts.max(initial=0) <= MOST_OCCLUDERS, \
+        "crowded pieces are split first (split_crowded)"
     for size in OCCLUDER_GROUPS:
         have = np.flatnonzero((counts >= low) & (counts <= size))
         low = size + 1

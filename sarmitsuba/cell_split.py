@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .lattice_index import lattice_lines
+from .lattice_index import aim_points, lattice_lines
 
 __all__ = ["ON_PLANE", "MARGIN", "MOST_OCCLUDERS", "MOST_SPLITS", "RECEIVE", "NONE", "meets_box", "covers_box",
            "unfold", "fold", "meets", "in_front", "centre_hidden", "split_crowded"]
@@ -40,19 +40,35 @@ RECEIVE = 255
 NONE = 254
 
 
-def meets_box(poly, box, margin):
-    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
-    meet the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin`` (separating axes)."""
+def _box_sides(poly, box, margin):
+    """For convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed) and
+    the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin``: the box's corners [4 x (cx, cy)],
+    and per corner the side of each polygon edge it lies on (float [n, v], > 0 inside), with the
+    polygon's coordinates, edges ``(px, py, ex, ey)``."""
     x0, x1, y0, y1 = (box[:, k] for k in range(4))
     x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
     px, py = poly[..., 0], poly[..., 1]
-    ok = (px.max(1) >= x0) & (px.min(1) <= x1) & (py.max(1) >= y0) & (py.min(1) <= y1)
     ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
     sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
-    outside = np.ones(px.shape, bool)
-    for cx, cy in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)):
-        outside &= sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) < 0
+    corners = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
+    sides = [sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) for cx, cy in corners]
+    return corners, sides, (px, py, ex, ey)
+
+
+def meets_box(poly, box, margin):
+    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
+    meet the boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin`` (separating axes)."""
+    ((x0, y0), _, (x1, y1), _), sides, (px, py, ex, ey) = _box_sides(poly, box, margin)
+    ok = (px.max(1) >= x0) & (px.min(1) <= x1) & (py.max(1) >= y0) & (py.min(1) <= y1)
+    outside = np.logical_and.reduce([side < 0 for side in sides])
     return ok & ~(outside & ((ex != 0) | (ey != 0))).any(1)
+
+
+def covers_box(poly, box, margin):
+    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
+    hold the whole boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin``."""
+    _, sides, _ = _box_sides(poly, box, margin)
+    return np.logical_and.reduce([(side >= 0).all(1) for side in sides])
 
 
 def unfold(points, mirrors):
@@ -65,11 +81,9 @@ def unfold(points, mirrors):
 
 
 def fold(points, mirrors):
-    """The inverse of :func:`unfold`: unfolded ``points`` [n, 3] back in the scene frame."""
-    for normal, offset in mirrors:
-        d = np.einsum("nk,nk->n", points, normal) - offset
-        points = points - 2.0 * d[:, None] * normal
-    return points
+    """The inverse of :func:`unfold`: unfolded ``points`` [n, ..., 3] back in the scene frame (the
+    same reflections in the opposite order)."""
+    return unfold(points, mirrors[::-1])
 
 
 def meets(sub, box, scale, chain, last, parts, views, fp, shadow=None, covers: bool = False):
@@ -115,20 +129,6 @@ def in_front(part, x, sub, parts, views):
     return out
 
 
-def covers_box(poly, box, margin):
-    """Whether convex polygons ``poly`` [n, v, 2] (either orientation, repeated corners allowed)
-    hold the whole boxes ``box`` [n, 4] (x0, x1, y0, y1) grown by ``margin``."""
-    x0, x1, y0, y1 = (box[:, k] for k in range(4))
-    px, py = poly[..., 0], poly[..., 1]
-    ex, ey = np.roll(px, -1, 1) - px, np.roll(py, -1, 1) - py
-    sign = np.where((px * np.roll(py, -1, 1) - np.roll(px, -1, 1) * py).sum(1) >= 0, 1.0, -1.0)[:, None]
-    held = np.ones(len(box), bool)
-    for cx, cy in ((x0 - margin, y0 - margin), (x1 + margin, y0 - margin), (x1 + margin, y1 + margin),
-                   (x0 - margin, y1 + margin)):
-        held &= (sign * (ex * (cy[:, None] - py) - ey * (cx[:, None] - px)) >= 0).all(1)
-    return held
-
-
 def _crosses(start, end, corners, normal, offset):
     """Whether the segments ``start`` -> ``end`` [n, 3] cross the convex planar polygons
     ``corners`` [n, v, 3] (plane ``normal`` [n, 3], ``offset`` [n]; repeated corners allowed)
@@ -165,9 +165,7 @@ def centre_hidden(depth, chain, sub, scale, bounds, occluders, parts, views, fp)
     Arguments as :func:`split_crowded`."""
     normal, offset = parts[2], parts[3]
     view = views[sub, 0]
-    x, y = 0.5 * (bounds[:, 0] + bounds[:, 1]) / scale, 0.5 * (bounds[:, 2] + bounds[:, 3]) / scale
-    aim = np.asarray(fp.origin, float) + np.outer(x * fp.spacing_azimuth, np.asarray(fp.track, float)) \
-        + np.outer(y * fp.spacing_range + fp.range_min, np.asarray(fp.look, float))
+    aim = aim_points(0.5 * (bounds[:, 0] + bounds[:, 1]), 0.5 * (bounds[:, 2] + bounds[:, 3]), fp, scale)
     mirrors = [(normal[chain[:, i]], offset[chain[:, i]]) for i in range(depth)]
     points = []
     for i in range(depth + 1):         # where the ray meets level i's unfolded plane

@@ -1,10 +1,10 @@
 """Lattice geometry for the cell plan (docs/physics.md (T6)): scene points in a block's lattice
-lines, and int64 keys of pairs. Vectorised NumPy, used by :mod:`sarmitsuba.cell_plan`."""
+lines and back, and int64 keys of pairs. Vectorised NumPy, used by :mod:`sarmitsuba.cell_plan`."""
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["lattice_lines", "pair_key"]
+__all__ = ["lattice_lines", "aim_points", "pair_key"]
 
 
 def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
@@ -29,6 +29,16 @@ def lattice_lines(points, antenna, fp, i0, j0, m) -> np.ndarray:
     a = (x @ track) / fp.spacing_azimuth
     r = (x @ look - fp.range_min) / fp.spacing_range
     return np.stack([(a - i0) * m, (r - j0) * m], axis=-1)
+
+
+def aim_points(x, y, fp, m) -> np.ndarray:
+    """The points of the aim plane at lattice lines ``(x, y)`` of tube size ``m`` (block origin
+    0): the inverse of :func:`lattice_lines` on that plane (the NumPy twin of the kernel's
+    ``CellTerms._aim_point``). float64 [n, 3], m."""
+    a = np.asarray(x, float) / m * fp.spacing_azimuth
+    r = np.asarray(y, float) / m * fp.spacing_range + fp.range_min
+    return (np.asarray(fp.origin, float) + np.multiply.outer(a, np.asarray(fp.track, float))
+            + np.multiply.outer(r, np.asarray(fp.look, float)))
 
 
 def pair_key(a, b):

@@ -102,7 +102,7 @@ def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_rea
     are checked for cover), while a quarter covered by a triangle that dips under the ground (not
     wholly in front) is kept. The other piece keeps its three occluders."""
     import shapely
-    from sarmitsuba.cell_plan import MARGIN, MOST_OCCLUDERS
+    from sarmitsuba.cell_split import MARGIN, MOST_OCCLUDERS
     antenna, wall_x = ANTENNA, WALL_X
     rng = np.random.default_rng(3)
     # the piece's cell [2, 3] x [5, 6] where the unfolded ground lies (mirrored in the wall at depth 1)
@@ -171,3 +171,38 @@ def test_a_spire_apex_too_crowded_to_split_is_decided_by_the_central_ray(depth):
     assert in_shadow.any() and np.all(counts[mine][in_shadow] > 0)
     left = shapely.box(2, 5, 3, 6).difference(shapely.union_all([shapely.box(*b[[0, 2, 1, 3]]) for b in out[mine]]))
     assert left.area > 0 and left.difference(shadows.buffer(finest * 0.75)).area < 1e-12
+
+
+def test_aim_points_invert_lattice_lines_on_an_oblique_lattice():
+    """``aim_points`` is the inverse of ``lattice_lines`` on the aim plane: scene points on the
+    plane of a lattice whose track is turned 30 deg and whose look axis dips 40 deg, seen from an
+    antenna off the plane, come back to themselves (tube size 3, spacings 0.4 m and 0.7 m).
+    Spacings or axes swapped, or the tube size applied once, fail it."""
+    from types import SimpleNamespace
+    from sarmitsuba.lattice_index import aim_points, lattice_lines
+    a, d = np.radians(30.0), np.radians(40.0)
+    track = np.array([np.cos(a), np.sin(a), 0.0])
+    look = np.cos(d) * np.array([-np.sin(a), np.cos(a), 0.0]) + np.sin(d) * np.array([0.0, 0.0, -1.0])
+    fp = SimpleNamespace(origin=np.array([5.0, -3.0, 2.0]), track=track, look=look, spacing_azimuth=0.4,
+                         spacing_range=0.7, range_min=-12.0)
+    rng = np.random.default_rng(0)
+    u, v = rng.uniform(-30, 30, size=(2, 50))
+    points = fp.origin + np.outer(u, track) + np.outer(v, look)             # on the aim plane
+    xy = lattice_lines(points, np.array([100.0, -800.0, 700.0]), fp, 0.0, 0.0, 3.0)
+    assert np.allclose(aim_points(xy[:, 0], xy[:, 1], fp, 3.0), points, atol=1e-9)
+
+
+def test_fold_undoes_unfold_through_two_mirrors_that_do_not_commute():
+    """A third-order chain's points unfolded in two walls 60 deg apart (reflections that do not
+    commute) and folded back are the points again; folding in the unfolding's order instead
+    moves them by metres. Truth: the points themselves."""
+    from sarmitsuba.cell_split import fold, unfold
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-20, 20, size=(8, 3))
+    mirrors = []
+    for angle, offset in ((0.0, 3.0), (60.0, -2.0)):
+        n = np.array([np.cos(np.radians(angle)), np.sin(np.radians(angle)), 0.0])
+        mirrors.append((np.repeat(n[None], 8, 0), np.full(8, offset)))
+    unfolded = unfold(points, mirrors)
+    assert np.abs(unfolded - points).max() > 1.0
+    assert np.allclose(fold(unfolded, mirrors), points, atol=1e-12)
