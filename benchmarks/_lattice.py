@@ -6,9 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from sarmitsuba import planning
-
-
+from sarmitsuba.scene import planning
 def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
     """``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB] (-inf when identical)."""
     error = float(np.sum(np.abs(image - reference) ** 2))
@@ -17,7 +15,7 @@ def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
 
 @contextlib.contextmanager
 def moved_lattice(shift):
-    """Within the block, :func:`sarmitsuba.planning.ray_footprint` anchors the ray lattice
+    """Within the block, :func:`sarmitsuba.scene.planning.ray_footprint` anchors the ray lattice
     ``shift = (along track, ground range)`` cells from the scene centre (nothing moved for
     ``None``): the same change as moving every mesh by that fraction of a cell."""
     real = planning.ray_footprint

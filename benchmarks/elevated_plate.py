@@ -3,7 +3,7 @@
 A 0.3 m plate (concrete, smooth or rough: its return is the PO of its edges either way) lies
 35 m above a smooth 300 m ground, with the scene centre, and so the ray lattice's aim plane, on
 the ground. For each number of pulses per trace it prints the plate's azimuth and range PSLR
-(``sarmitsuba.analysis.analyze_point_target``). The rays from two reference positions to one aim
+(``sarmitsuba.analysis.point_target.analyze_point_target``). The rays from two reference positions to one aim
 point cross the plate's plane ``h / H`` of their separation apart: tiles projected from each pulse's own
 antenna slid over the plate while the tubes meeting it stayed the reference position's, so the
 sub-aperture period showed as sidelobes (docs/physics.md (T3)). Measured on the 2-core VM with
@@ -23,7 +23,7 @@ import gc
 import trimesh
 
 import sarmitsuba
-from sarmitsuba.analysis import analyze_point_target
+from sarmitsuba.analysis.point_target import analyze_point_target
 from sarmitsuba.pipeline import simulate
 
 

@@ -1,16 +1,16 @@
 """Benchmark: backprojection vs omega-K vs range-Doppler on the same analytic raw data.
 
-The data: the airborne X-band stripmap case of :mod:`sarmitsuba.reference_cases`
+The data: the airborne X-band stripmap case of :mod:`sarmitsuba.analysis.reference_cases`
 (``AIRBORNE_X``, shared with the focusing tests: 9.6 GHz, 150 MHz, fs 180 MHz, PRF 125 Hz,
 100 m/s, 10 km beam-centre range, 6 km altitude, broadside, ideal beam of 100 Hz Doppler
 bandwidth, 512 pulses x 512 samples), with its 3 x 3 grid of point targets 10 % inside the
 fully focused region, made once in float64 by
-:func:`~sarmitsuba.reference_cases.simulate_case` (range compressed, rect). Full mode adds
+:func:`~sarmitsuba.analysis.reference_cases.simulate_case` (range compressed, rect). Full mode adds
 the spaceborne C-band 800 km case of the same module (``SPACEBORNE_C``). Both are
 broadside, so the FFT images are measured without deskew.
 
 Each focuser setting is warmed up once (untimed), then timed (best of ``repeat``), and
-every target is measured by :func:`sarmitsuba.analysis.analyze_point_target` with the true
+every target is measured by :func:`sarmitsuba.analysis.point_target.analyze_point_target` with the true
 carrier, against theory (rect windows; closed forms of :mod:`sarmitsuba.focus.windows`,
 docs/design.md section 9):
 
@@ -47,12 +47,12 @@ import numpy as np
 
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
-from sarmitsuba import synthetic
-from sarmitsuba.analysis import analyze_point_target, carrier_ramp
+from sarmitsuba.analysis import synthetic
+from sarmitsuba.analysis.point_target import analyze_point_target, carrier_ramp
 from sarmitsuba.focus import backproject, omega_k, range_doppler
 from sarmitsuba.focus.stripmap import slant_output_grid, stripmap_geometry
 from sarmitsuba.focus.windows import islr_theory, pslr_theory
-from sarmitsuba.reference_cases import AIRBORNE_X, SPACEBORNE_C, Case, focused_carrier, phase_error_deg, simulate_case
+from sarmitsuba.analysis.reference_cases import AIRBORNE_X, SPACEBORNE_C, Case, focused_carrier, phase_error_deg, simulate_case
 
 NAME = "focus_algorithms"
 PSLR_THEORY = pslr_theory("rect")

@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 import scipy.fft
 
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import backproject
 from sarmitsuba.focus.omegak import omega_k
 from sarmitsuba.focus.rda import _GUARD, range_doppler
 from sarmitsuba.focus.stripmap import slant_output_grid, stripmap_geometry
-from sarmitsuba.raw import RawData
+from sarmitsuba.core.raw import RawData
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _table import output_dir  # noqa: E402

@@ -61,9 +61,9 @@ def unit_of_work(scene: str = "sionna:munich") -> dict:
     import drjit as dr
     import mitsuba as mi
 
-    from sarmitsuba import planning
-    from sarmitsuba.radar import acquisition_geometry
-    from sarmitsuba.scene import load_scene
+    from sarmitsuba.scene import planning
+    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.scene.loader import load_scene
     loaded = load_scene(scene)
     p = loaded.params
     geometry = acquisition_geometry(p)
@@ -119,7 +119,7 @@ def focusing(raw_path: Path) -> dict:
     """Fast and direct backprojection of a render's raw data onto its ground grid, and omega-K on
     its slant grid: seconds (best of two, after a warm-up), the fast image's NRMSE against direct."""
     from sarmitsuba.pipeline import refocus
-    from sarmitsuba.raw import RawData
+    from sarmitsuba.core.raw import RawData
     raw = RawData.load(raw_path)
     out, images = {}, {}
     for name in ("omegak", "ffbp", "bp"):
@@ -136,7 +136,7 @@ def focusing(raw_path: Path) -> dict:
 
 def scene_rows(scene: str, folder: Path, with_unit: bool) -> list[dict]:
     """The default and reference renders of one scene, their NRMSE, and (Munich) the unit and focusing."""
-    from sarmitsuba.image import SarImage
+    from sarmitsuba.core.image import SarImage
     default = render(scene, folder / "default")
     reference = render(scene, folder / "reference", "--integrator-set", "pulses_per_trace=1", "--focuser", "bp")
     error = nrmse_db(SarImage.load(folder / "default" / "image.npz").data,

@@ -50,14 +50,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Module (path under sarmitsuba/) -> the test files that cover it, fastest first.
 TARGETS: dict[str, tuple[str, ...]] = {
-    "radar.py": ("tests/test_render_geometry.py", "tests/test_geometry_angles.py", "tests/test_antenna.py",
+    "core/radar.py": ("tests/test_render_geometry.py", "tests/test_geometry_angles.py", "tests/test_antenna.py",
                  "tests/test_input_errors.py", "tests/test_acquisition_checks.py", "tests/test_info.py"),
-    "planning.py": ("tests/test_acquisition_checks.py", "tests/test_info.py", "tests/test_hard_cases.py"),
-    "radiometry.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
-    "materials.py": ("tests/test_materials.py", "tests/test_physical_optics.py", "tests/test_clutter.py"),
-    "fresnel.py": ("tests/test_materials.py", "tests/test_physical_optics.py"),
-    "signal_model.py": ("tests/test_signal_model.py", "tests/test_range_compression.py", "tests/test_synthetic.py", "tests/test_range_kernels.py"),
-    "binning.py": ("tests/test_range_kernels.py", "tests/test_range_compression.py", "tests/test_trace.py",
+    "scene/planning.py": ("tests/test_acquisition_checks.py", "tests/test_info.py", "tests/test_hard_cases.py"),
+    "signal/radiometry.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
+    "scene/materials.py": ("tests/test_materials.py", "tests/test_physical_optics.py", "tests/test_clutter.py"),
+    "scene/fresnel.py": ("tests/test_materials.py", "tests/test_physical_optics.py"),
+    "signal/signal_model.py": ("tests/test_signal_model.py", "tests/test_range_compression.py", "tests/test_synthetic.py", "tests/test_range_kernels.py"),
+    "signal/binning.py": ("tests/test_range_kernels.py", "tests/test_range_compression.py", "tests/test_trace.py",
                    "tests/test_radiometry.py"),
     "focus/windows.py": ("tests/test_windows.py", "tests/test_weighted_images.py"),
     "focus/range_compression.py": ("tests/test_range_compression.py", "tests/test_synthetic.py"),
@@ -87,15 +87,15 @@ class Mutant:
 
 #: Known SAR mistakes: (module, kind, exact source text, replacement).
 PLANTED: tuple[tuple[str, str, str, str], ...] = (
-    ("radiometry.py", "(4 pi)^3 -> (4 pi)^2", "(4 * math.pi) ** 3", "(4 * math.pi) ** 2"),
-    ("radar.py", "slant range: sin for cos", "self.altitude / math.cos(math.radians(self.incidence_angle))",
+    ("signal/radiometry.py", "(4 pi)^3 -> (4 pi)^2", "(4 * math.pi) ** 3", "(4 * math.pi) ** 2"),
+    ("core/radar.py", "slant range: sin for cos", "self.altitude / math.cos(math.radians(self.incidence_angle))",
      "self.altitude / math.sin(math.radians(self.incidence_angle))"),
-    ("radar.py", "ground range: cot for tan", "self.altitude * math.tan(math.radians(self.incidence_angle))",
+    ("core/radar.py", "ground range: cot for tan", "self.altitude * math.tan(math.radians(self.incidence_angle))",
      "self.altitude / math.tan(math.radians(self.incidence_angle))"),
-    ("signal_model.py", "chirp spectrum phase sign", "phase = np.exp(-2j * np.pi", "phase = np.exp(2j * np.pi"),
+    ("signal/signal_model.py", "chirp spectrum phase sign", "phase = np.exp(-2j * np.pi", "phase = np.exp(2j * np.pi"),
     ("focus/backprojection.py", "conjugate carrier", "cycles = np.mod(raw.fc * length", "cycles = np.mod(-raw.fc * length"),
     ("focus/windows.py", "Hamming 0.54 -> 0.5", '"hamming": {"alpha": 0.54}', '"hamming": {"alpha": 0.5}'),
-    ("materials.py", "TE/TM swapped", 'return r_te if pol == "te" else r_tm', 'return r_tm if pol == "te" else r_te'),
+    ("scene/materials.py", "TE/TM swapped", 'return r_te if pol == "te" else r_tm', 'return r_tm if pol == "te" else r_te'),
 )
 
 _SWAP_BINOP = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult}

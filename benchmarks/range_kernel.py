@@ -25,8 +25,8 @@ import numpy as np
 import sarmitsuba  # noqa: F401
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
-from sarmitsuba.analysis import analyze_point_target
-from sarmitsuba.constants import SPEED_OF_LIGHT
+from sarmitsuba.analysis.point_target import analyze_point_target
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
 
 KERNELS = ("nearest", "linear", "sinc", "exact")

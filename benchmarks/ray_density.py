@@ -7,8 +7,8 @@ kernel compilation is not counted), best of ``repeat`` timed runs of the whole s
 
 * **canonical targets** (metal plate 0.3 m, dihedral 0.3 x 0.3 m, trihedral 0.5 m over the
   whole sweep; plate 1 m, dihedral 1 x 1 m, trihedral 1 m and 0.3 m at the default spacing and
-  at 0.02 m; scenes and closed forms from ``benchmarks/rcs.py`` / :mod:`sarmitsuba.canonical`):
-  RCS by integrated point energy (:func:`sarmitsuba.analysis.integrated_rcs`, the weighting's
+  at 0.02 m; scenes and closed forms from ``benchmarks/rcs.py`` / :mod:`sarmitsuba.scene.canonical`):
+  RCS by integrated point energy (:func:`sarmitsuba.analysis.point_target.integrated_rcs`, the weighting's
   energy widths from the image metadata), error in dB against the expected RCS. For plates and
   dihedrals, whose along-track pattern ``sinc^2(2 L s / lambda)`` (``L`` their length along
   track, ``s`` the along-track sine) is not flat over the traced beam, that is the closed form
@@ -83,11 +83,12 @@ import numpy as np
 import sarmitsuba  # noqa: F401
 from _table import bench_main, machine, output_dir, write_csv
 from rcs import WAVELENGTH, cases
-from sarmitsuba import analysis, planning
-from sarmitsuba import canonical as C
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba.scene import planning
+from sarmitsuba.scene import canonical as C
 from sarmitsuba.focus.windows import window
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.radar import acquisition_geometry
+from sarmitsuba.core.radar import acquisition_geometry
 
 NAME = "ray_density"
 #: The three canonical targets of ``rcs.cases()`` swept over every spacing.

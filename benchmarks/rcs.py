@@ -18,9 +18,9 @@ from pathlib import Path
 
 import sarmitsuba  # noqa: F401
 from _table import write_csv
-from sarmitsuba import analysis
-from sarmitsuba import canonical as C
-from sarmitsuba import materials
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.scene import materials
 from sarmitsuba.pipeline import simulate
 
 WAVELENGTH = 299_792_458.0 / 9.6e9

@@ -53,11 +53,11 @@ import trimesh
 import sarmitsuba  # noqa: F401
 from _plot import plot_cost
 from _table import bench_main, machine, write_csv
-from sarmitsuba import planning
+from sarmitsuba.scene import planning
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus.dispatch import azimuth_pattern
 from sarmitsuba.pipeline import focus_window, simulate, sized_grid
-from sarmitsuba.radar import acquisition_geometry
+from sarmitsuba.core.radar import acquisition_geometry
 
 NAME = "scaling"
 #: Franceschetti et al. 2003, seconds on a Pentium IV for N buildings, 512 x 512 image

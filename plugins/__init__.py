@@ -10,7 +10,7 @@ plugin name                 type         module
 ==========================  ===========  =====================================================
 
 Each module registers its plugin at import time for the Mitsuba variant that is active
-then; :mod:`sarmitsuba._variant` imports (and on a variant change reloads) them. Do not
+then; :mod:`sarmitsuba.tracing._variant` imports (and on a variant change reloads) them. Do not
 import these modules before a variant is set.
 """
 

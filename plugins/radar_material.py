@@ -7,7 +7,7 @@
  * - material
    - string
    - A named ITU-R P.2040 material (``concrete``, ``brick``, ``glass``, ``metal``, ``wood``,
-     ``medium_dry_ground``, ...; see :data:`sarmitsuba.materials.ITU_MATERIALS`). Its
+     ``medium_dry_ground``, ...; see :data:`sarmitsuba.scene.materials.ITU_MATERIALS`). Its
      permittivity follows the P.2040 frequency fit; frequencies outside the fit's range
      are an error.
  * - relative_permittivity, conductivity
@@ -52,9 +52,9 @@ import math
 
 import mitsuba as mi
 
-from sarmitsuba import materials
-from sarmitsuba.constants import VACUUM_PERMITTIVITY
-from sarmitsuba.radar import ParameterError
+from sarmitsuba.scene import materials
+from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
+from sarmitsuba.core.radar import ParameterError
 
 _RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "cross_pol_db",
                "color")

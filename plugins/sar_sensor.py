@@ -89,12 +89,12 @@
      ``image_XX.npz`` with ``pauli.png``. Every ray tube carries a Jones matrix (sbr
      ``polarimetry``), docs/physics.md, Polarimetry (P1)-(P8).
 
-Every parameter with a unit must lie in its valid range (:data:`sarmitsuba.radar.VALID_RANGES`,
+Every parameter with a unit must lie in its valid range (:data:`sarmitsuba.core.valid_ranges.VALID_RANGES`,
 docs/design.md section 4: frequency [1e6, 1e12] Hz, bandwidth [1e5, 1e11] Hz, velocity
 [0.01, 1.2e4] m/s, altitude [1, 4e7] m, ...); a value outside raises ParameterError naming the
 unit and, when it looks like another unit (9.6 for 9.6 GHz), the value meant.
 
-The sensor holds parameters only: the tracer (:mod:`sarmitsuba.trace`) shoots the rays.
+The sensor holds parameters only: the tracer (:mod:`sarmitsuba.tracing.trace`) shoots the rays.
 Its ``sample_ray`` gives the optical view from the mid-aperture antenna toward the
 scene centre, so ``mi.render`` can draw what the radar sees.
 """
@@ -106,14 +106,14 @@ import math
 import drjit as dr
 import mitsuba as mi
 
-from sarmitsuba.radar import ParameterError, RadarParameters
+from sarmitsuba.core.radar import ParameterError, RadarParameters
 
 #: Parameters that the sensor accepts besides the fields of RadarParameters.
 EXTRA_PARAMETERS = ("aperture_length",)
 
 
 class SarSensor(mi.Sensor):
-    """Mitsuba sensor holding a :class:`sarmitsuba.radar.RadarParameters` (see module docstring)."""
+    """Mitsuba sensor holding a :class:`sarmitsuba.core.radar.RadarParameters` (see module docstring)."""
 
     def __init__(self, props: mi.Properties) -> None:
         super().__init__(props)

@@ -77,7 +77,7 @@
      docs/physics.md (PO5)). False evaluates them all (three to four times the returns;
      up to 1.2x the render time): the reference the cancellation is checked against.
 
-The tracing itself is :func:`sarmitsuba.trace.trace` (Dr.Jit kernels, one per bounce order);
+The tracing itself is :func:`sarmitsuba.tracing.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.
 """
 from __future__ import annotations
@@ -86,12 +86,12 @@ import difflib
 
 import mitsuba as mi
 
-from sarmitsuba.radar import ParameterError
-from sarmitsuba.trace_inputs import TraceSettings
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.scene.trace_inputs import TraceSettings
 
 
 class SbrIntegrator(mi.SamplingIntegrator):
-    """Mitsuba integrator holding a :class:`sarmitsuba.trace.TraceSettings` (see module docstring)."""
+    """Mitsuba integrator holding a :class:`sarmitsuba.tracing.trace.TraceSettings` (see module docstring)."""
 
     def __init__(self, props: mi.Properties) -> None:
         super().__init__(props)

@@ -27,7 +27,7 @@ name                              what it is
                                   ``refocus``
 ``analyze(image, target)``        :func:`sarmitsuba.api.analyze`: point-target report (IRW, PSLR,
                                   ISLR, RCS) of a SarImage or image.npz (the ``analyze`` command)
-``Scene(meshes, sensor, ...)``    :class:`sarmitsuba.pyscene.Scene`: a scene built in Python from
+``Scene(meshes, sensor, ...)``    :class:`sarmitsuba.scene.builder.Scene`: a scene built in Python from
                                   trimesh meshes and materials, accepted wherever a scene path is
 ================================  ====================================================================
 
@@ -38,43 +38,36 @@ so a top-level function of that name would be replaced by the module as soon as 
 imports ``sarmitsuba.focus``; the subpackage therefore keeps the name and offers the entry
 as ``sarmitsuba.focus.focus``, and the top level as ``refocus``.
 
-Pipeline (docs/design.md section 2), one module per stage:
+Pipeline (docs/design.md section 0): one package per stage, each importing only the ones
+before it (``tests/test_architecture.py``):
 
 =====================  ====================================================================
-stage                  module / main entry points
+package                stage: main entry points
 =====================  ====================================================================
-scene                  :mod:`~sarmitsuba.scene` -- ``load_scene``; :mod:`~sarmitsuba.radar`
-                       -- ``RadarParameters``, ``acquisition_geometry``;
-                       :mod:`~sarmitsuba.materials` -- ITU-R P.2040, Fresnel, slab
-plan                   :mod:`~sarmitsuba.planning` -- fast-time window, ray footprint
-trace                  :mod:`~sarmitsuba.trace` -- ``trace`` (Dr.Jit SBR + PO kernel)
-raw data               :mod:`~sarmitsuba.binning` -- ``to_raw_data``; :mod:`~sarmitsuba.raw`
-                       -- ``RawData``
-focus                  :mod:`~sarmitsuba.focus` -- ``backproject``, ``ImageGrid``;
-                       :mod:`~sarmitsuba.image` -- ``SarImage``
-                       :func:`~sarmitsuba.focus.omega_k`, :func:`~sarmitsuba.focus.range_doppler`
-radiometry             :mod:`~sarmitsuba.radiometry` -- radar equation, noise, calibration
-products               :mod:`~sarmitsuba.products` -- EXR, PNG quicklook;
-                       :mod:`~sarmitsuba.figures` -- explanatory figures from saved files;
-                       :mod:`~sarmitsuba.groundtruth` -- layover/shadow masks from the scene;
-                       :mod:`~sarmitsuba.preview` -- optical preview of scene and acquisition
-analysis               :mod:`~sarmitsuba.analysis` -- point-target analysis;
-                       :mod:`~sarmitsuba.synthetic` -- analytic point targets;
-                       :mod:`~sarmitsuba.reference_cases` -- standard stripmap point-target acquisitions;
-                       :mod:`~sarmitsuba.canonical` -- canonical radar targets
-checks                 :mod:`~sarmitsuba.meshcheck` -- mesh defect warnings;
-                       :mod:`~sarmitsuba.effects` -- which optional effects a run simulates, and why;
-                       :mod:`~sarmitsuba.info` -- ``info``: radar summary and cost estimate, no tracing
-orchestration          :mod:`~sarmitsuba.pipeline` -- ``simulate``, ``render``, ``refocus``;
-                       :mod:`~sarmitsuba.pyscene` -- ``Scene`` (built in Python);
-                       :mod:`~sarmitsuba.api` -- ``analyze``; :mod:`~sarmitsuba.cli`
+:mod:`~.core`          the contracts every stage sees: ``RadarParameters``, ``RawData``,
+                       ``SarImage``, ``GeoReference``; constants, all-or-nothing files
+:mod:`~.scene`         1 scene: ``load_scene``, ``Scene``, materials, effects, planning
+:mod:`~.tracing`       2 tracing: ``trace`` (Dr.Jit SBR + PO kernel), Dask distribution
+:mod:`~.signal`        3 raw data: ``to_raw_data``, signal model, radiometry
+:mod:`~.focus`         4 focusing: ``backproject``, ``ffbp``, ``omega_k``, ``range_doppler``
+:mod:`~.products`      5 products: EXR/PNG, figures, ground truth, preview
+:mod:`~.formats`       6 standard formats: CPHD, SICD, GeoTIFF
+:mod:`~.analysis`      7 analysis: point targets, oracles, interferometry, cost model
+``pipeline``, ``api``  entry points: ``simulate``, ``render``, ``refocus``, ``analyze``;
+``info``, ``cli``      ``sarmitsuba info`` and the command line
 =====================  ====================================================================
+
+Modules that sat at the top level before the stage packages (``sarmitsuba.raw``,
+``sarmitsuba.image``, ``sarmitsuba.radar``, ...) still import, from their new place
+(:data:`MOVED_MODULES`), with a DeprecationWarning that names it.
 """
 import importlib as _importlib
 import sys as _sys
 
-from ._variant import VariantError as _VariantError
-from ._variant import activate as _activate
+from .core.moved import MOVED_MODULES
+from .core.moved import install as _install_moved_modules
+from .tracing._variant import VariantError as _VariantError
+from .tracing._variant import activate as _activate
 
 __version__ = "0.1.0"
 
@@ -88,10 +81,13 @@ except _VariantError as _error:
 
 #: Top-level names imported on first use: name -> (module, attribute; None for the module itself).
 _LAZY = {"simulate": ("pipeline", "simulate"), "render": ("pipeline", "render"),
-         "refocus": ("pipeline", "refocus"), "analyze": ("api", "analyze"), "Scene": ("pyscene", "Scene"),
+         "refocus": ("pipeline", "refocus"), "analyze": ("api", "analyze"), "Scene": ("scene.builder", "Scene"),
          "focus": ("focus", None)}
 
 __all__ = ["VARIANT", "__version__", "simulate", "render", "refocus", "focus", "analyze", "Scene"]
+
+
+_install_moved_modules()
 
 
 def __getattr__(name: str):

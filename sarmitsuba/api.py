@@ -1,7 +1,7 @@
 """One-call Python entries that the package exposes at the top level (``sarmitsuba.analyze``).
 
 :func:`analyze` does in Python what ``sarmitsuba analyze IMAGE --target ...`` does on the command
-line: the point-target report of :func:`sarmitsuba.analysis.analyze_point_target`, with the
+line: the point-target report of :func:`sarmitsuba.analysis.point_target.analyze_point_target`, with the
 carrier ramp from the raw data and the resolution read from the image's metadata.
 """
 from __future__ import annotations
@@ -20,14 +20,14 @@ def analyze(image: Any, target: Sequence[float], *, raw: Any = None, **options: 
     Parameters
     ----------
     image : SarImage or path
-        The focused image, or its ``.npz`` file (:meth:`sarmitsuba.image.SarImage.save`).
+        The focused image, or its ``.npz`` file (:meth:`sarmitsuba.core.image.SarImage.save`).
     target : 3 floats (world position, m) or 2 floats (azimuth, range image coordinates, m)
         Where the point target is; a world point is looked for at its layover position.
     raw : RawData or path, optional
         The data that were focused: with a world ``target``, gives the exact carrier ramp
-        (:func:`sarmitsuba.analysis.carrier_ramp`), so the peak phase is right between pixels.
+        (:func:`sarmitsuba.analysis.point_target.carrier_ramp`), so the peak phase is right between pixels.
     **options
-        Keyword arguments of :func:`sarmitsuba.analysis.analyze_point_target` (``chip``,
+        Keyword arguments of :func:`sarmitsuba.analysis.point_target.analyze_point_target` (``chip``,
         ``oversample``, ``predicted``, ``resolution``, ``carrier``, ``sidelobes``,
         ``energy_extent``, ``search_radius``). Without ``resolution``, the energy widths come
         from the image metadata (windows, pattern, geometry) or, when they do not record the
@@ -35,23 +35,23 @@ def analyze(image: Any, target: Sequence[float], *, raw: Any = None, **options: 
 
     Returns
     -------
-    sarmitsuba.analysis.PointTargetReport
+    sarmitsuba.analysis.point_target.PointTargetReport
         ``report.to_dict()`` is the JSON of the command line.
 
     Raises
     ------
-    sarmitsuba.image.SarImageError, sarmitsuba.raw.RawDataError
+    sarmitsuba.core.image.SarImageError, sarmitsuba.core.raw.RawDataError
         An unreadable image or raw file.
     ValueError
         A bad target or option, or a target whose chip does not fit in the image.
     """
-    from .analysis import analyze_point_target, carrier_ramp, image_coordinates
-    from .image import SarImage
-    from .raw import RawData
+    from .analysis.point_target import analyze_point_target, carrier_ramp, image_coordinates
+    from .core.image import SarImage
+    from .core.raw import RawData
     if isinstance(image, (str, os.PathLike)):
         image = SarImage.load(image)
     if not isinstance(image, SarImage):
-        raise ValueError(f"image must be a sarmitsuba.image.SarImage or the path of its .npz, "
+        raise ValueError(f"image must be a sarmitsuba.core.image.SarImage or the path of its .npz, "
                          f"got {type(image).__name__}")
     if isinstance(raw, (str, os.PathLike)):
         raw = RawData.load(raw)
@@ -65,10 +65,10 @@ def analyze(image: Any, target: Sequence[float], *, raw: Any = None, **options: 
 
 
 def unweighted_widths(image: Any) -> tuple[float, float] | None:
-    """None when :func:`sarmitsuba.analysis.energy_widths` reads the image (the analysis then uses
+    """None when :func:`sarmitsuba.analysis.point_target.energy_widths` reads the image (the analysis then uses
     it at the peak); else ``(rho_az, rho_rg)`` [m] of its radar parameters; else None."""
-    from .analysis import energy_widths
-    from .radar import RadarParameters
+    from .analysis.point_target import energy_widths
+    from .core.radar import RadarParameters
     try:
         energy_widths(image)
         return None

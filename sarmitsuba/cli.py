@@ -169,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     _add_format_arguments(focus, cphd=False)
-    from .analysis import add_arguments as analysis_arguments
+    from .analysis.point_target import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
     analyze.add_argument("--figure", type=Path, default=None, metavar="PNG",
                          help="also draw the point-target figure (chip, cuts, IRW, PSLR) to this file")
@@ -218,7 +218,7 @@ WINDOWS = FOCUS_WINDOWS
 def _focus(args: argparse.Namespace) -> int:
     import time
 
-    from .outputs import OutputDirectory, check_output_dir
+    from .core.outputs import OutputDirectory, check_output_dir
     from .pipeline import refocus, write_exports, write_image_products
     start = time.perf_counter()
     check_output_dir(args.out)
@@ -239,12 +239,12 @@ def _focus(args: argparse.Namespace) -> int:
 
 
 def load_raw(path: Path):
-    """RawData from ``path``: a ``.cphd`` file through :func:`sarmitsuba.cphd.read_cphd`, anything
+    """RawData from ``path``: a ``.cphd`` file through :func:`sarmitsuba.formats.cphd.read_cphd`, anything
     else through :meth:`RawData.load`. Raises RawDataError naming the file."""
-    from .raw import RawData, RawDataError
+    from .core.raw import RawData, RawDataError
     if Path(path).suffix.lower() != ".cphd":
         return RawData.load(path)
-    from .cphd import CphdError, read_cphd
+    from .formats.cphd import CphdError, read_cphd
     try:
         return read_cphd(path)
     except CphdError as exc:
@@ -267,16 +267,16 @@ def _render(args: argparse.Namespace) -> int:
                      formats=_formats(args), scheduler=args.scheduler)
     print(summary.line())
     if args.figures:
-        from .figures import redraw
+        from .products.figures import redraw
         paths = redraw(args.out or _default_out(args.scene))
         print(f"figures: {', '.join(str(p) for p in paths.values())}")
     return 0
 
 
 def _preview(args: argparse.Namespace) -> int:
-    from .outputs import OutputDirectory
-    from .preview import render_preview
-    from .scene import load_scene
+    from .core.outputs import OutputDirectory
+    from .products.preview import render_preview
+    from .scene.loader import load_scene
     with OutputDirectory(args.out or _default_out(args.scene)) as out:
         loaded = load_scene(args.scene, sensor_overrides=_sensor_overrides(args))
         path = out.write("preview.png", lambda staged: render_preview(
@@ -287,7 +287,8 @@ def _preview(args: argparse.Namespace) -> int:
 
 def _interferogram(args: argparse.Namespace) -> int:
     """Interferogram, coherence, height and figure of two render directories."""
-    from .interferometry import InterferometryError, write_products
+    from .analysis.insar_products import write_products
+    from .analysis.interferometry import InterferometryError
     try:
         products = write_products(args.out, args.primary, args.secondary, looks=args.looks)
     except InterferometryError as exc:
@@ -309,17 +310,17 @@ def _info(args: argparse.Namespace) -> int:
 def _analyze(args: argparse.Namespace) -> int:
     """Point-target analysis. A world target is looked for at its layover position on the image
     plane, and the energy widths for the RCS come from the image's metadata (windows, pattern,
-    geometry) when not given: :func:`sarmitsuba.analysis.energy_widths` for backprojected
+    geometry) when not given: :func:`sarmitsuba.analysis.point_target.energy_widths` for backprojected
     images; for others (omega-K, RDA) the unweighted widths of its radar parameters
     (``c / (2 B sin(theta))`` and the azimuth resolution)."""
-    from .analysis import run
+    from .analysis.point_target import run
     if args.resolution is None:
         args.resolution = _resolution_from_metadata(args.image)
     if args.carrier is None and len(args.target) == 3:
         args.carrier = _carrier_from_raw(args)
 
     def figure(image, report):
-        from .figures import point_target_figure
+        from .products.figures import point_target_figure
         print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
 
     return run(args, figure=figure if args.figure is not None else None)
@@ -337,10 +338,10 @@ def _carrier_from_raw(args: argparse.Namespace) -> list[float] | None:
     raw data beside the image, :func:`raw_beside`, if any). None without raw data, or when the image or target is
     bad (``run`` reports those). Raises RawDataError, naming the file, when the raw data are
     damaged: a damaged file is never silently skipped."""
-    from .analysis import carrier_ramp, image_coordinates
-    from .image import SarImageError
-    from .sicd import load_image
-    from .raw import RawDataError
+    from .analysis.point_target import carrier_ramp, image_coordinates
+    from .core.image import SarImageError
+    from .formats.sicd import load_image
+    from .core.raw import RawDataError
     raw_path = args.raw or raw_beside(Path(args.image))
     if args.raw is None and not raw_path.is_file():
         return None
@@ -366,8 +367,8 @@ def _resolution_from_metadata(path) -> list[float] | None:
     """The resolutions :func:`sarmitsuba.api.unweighted_widths` gives for the image at ``path``
     (None when the image cannot be read: the analysis then reports it)."""
     from .api import unweighted_widths
-    from .image import SarImageError
-    from .sicd import load_image
+    from .core.image import SarImageError
+    from .formats.sicd import load_image
     try:
         widths = unweighted_widths(load_image(path))
     except (SarImageError, OSError):
@@ -384,11 +385,11 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     try:
         import sarmitsuba  # noqa: F401  (libLLVM check, variant, plugins)
-        from .materials import MaterialError
-        from .radar import ParameterError
-        from .image import SarImageError
-        from .raw import RawDataError
-        from .scene import SceneError
+        from .scene.materials import MaterialError
+        from .core.radar import ParameterError
+        from .core.image import SarImageError
+        from .core.raw import RawDataError
+        from .scene.loader import SceneError
     except RuntimeError as exc:          # LibLLVMError and variant problems
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -402,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted: no output file was left half-written", file=sys.stderr)
         return 130
     except RuntimeError as exc:          # a Ctrl-C that Dr.Jit wrapped while tracing a loop
-        from .trace import caused_by_interrupt
+        from .tracing.trace import caused_by_interrupt
         if not caused_by_interrupt(exc):
             raise
         print("interrupted: no output file was left half-written", file=sys.stderr)

@@ -1,21 +1,21 @@
 """``sarmitsuba info``: what a scene will simulate, and what it will cost, without tracing.
 
-:func:`scene_info` loads a scene (:func:`sarmitsuba.scene.load_scene`), plans the
-acquisition (:mod:`sarmitsuba.planning`) and collects, in one :class:`SceneInfo`:
+:func:`scene_info` loads a scene (:func:`sarmitsuba.scene.loader.load_scene`), plans the
+acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`SceneInfo`:
 
 - the radar summary from the standard formulas (resolutions, Doppler bandwidth, PRF
   limits, swath, synthetic aperture, angles), mostly properties of
-  :class:`sarmitsuba.radar.RadarParameters`;
+  :class:`sarmitsuba.core.radar.RadarParameters`;
 - the point-target SNR and NESZ of the radar equation when ``transmit_power`` is given
-  (:func:`sarmitsuba.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
+  (:func:`sarmitsuba.signal.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
 - the scene's size and materials;
-- every optional effect, on or off, with the reason (:func:`sarmitsuba.effects.active_effects`,
+- every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
 - the estimated cost: sub-apertures, ray casts, returns, trace time, memory, image size and
-  focusing time (:mod:`sarmitsuba.cost`, re-exported here: :class:`CostEstimate`,
+  focusing time (:mod:`sarmitsuba.analysis.cost`, re-exported here: :class:`CostEstimate`,
   :func:`cast_rates`, :func:`check_memory`, ...).
 
-Nothing is traced: the cost is an estimate from the measured rates of :mod:`sarmitsuba.cost`. Every number is
+Nothing is traced: the cost is an estimate from the measured rates of :mod:`sarmitsuba.analysis.cost`. Every number is
 SI with its unit in the field name (``_m``, ``_hz``, ``_s``, ``_deg``, ``_db``, ``_bytes``).
 
 References
@@ -37,16 +37,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from . import georef, planning
-from .baseline import baseline
-from .constants import SPEED_OF_LIGHT
-from .cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory,
-                   cost_estimate, format_bytes, memory_problem, synthetic_aperture)
-from .effects import Effect, EffectSet, active_effects
-from .radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
-from .radiometry import effective_pulses, radar_equation
-from .scene import LoadedScene, load_scene, material_table
-from .trace_inputs import FastTimeWindow
+from .core import georef
+from .scene import planning
+from .scene.baseline import baseline
+from .core.constants import SPEED_OF_LIGHT
+from .analysis.cost import MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture
+from .scene.effects import Effect, EffectSet, active_effects
+from .core.radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
+from .signal.radiometry import effective_pulses, radar_equation
+from .scene.loader import LoadedScene, load_scene, material_table
+from .scene.trace_inputs import FastTimeWindow
 
 __all__ = ["MaterialInfo", "SceneSize", "RadarSummary", "RadiometrySummary", "CostEstimate", "SceneInfo",
            "scene_info", "cast_rates", "format_text", "to_dict", "to_json", "available_memory", "memory_problem",
@@ -123,7 +123,7 @@ class RadarSummary:
     (azimuth ambiguities; the tapered beam's tails beyond it alias at a low level), upper =
     ``1 / (2 dR / c + T_p)`` with ``dR`` the scene's slant depth seen from the track (range
     ambiguities: one pulse's echoes must fit in one PRI); the same tests as
-    :func:`sarmitsuba.planning.check_acquisition`.
+    :func:`sarmitsuba.scene.planning.check_acquisition`.
     """
 
     frequency_hz: float
@@ -179,7 +179,7 @@ class RadarSummary:
     n_pulses: int
     track_length_m: float
     acquisition_time_s: float
-    #: Repeat-pass interferometry (:mod:`sarmitsuba.baseline`): the sensor's ``track_offset``
+    #: Repeat-pass interferometry (:mod:`sarmitsuba.scene.baseline`): the sensor's ``track_offset``
     #: against the nominal track, its perpendicular and parallel baselines, the critical
     #: perpendicular baseline and the height of ambiguity (None without a perpendicular baseline).
     track_offset_m: tuple = (0.0, 0.0, 0.0)
@@ -188,7 +188,7 @@ class RadarSummary:
     critical_baseline_m: float = 0.0
     height_of_ambiguity_m: float | None = None
     #: WGS84 position of the world frame's origin (latitude deg, longitude deg, height m;
-    #: :mod:`sarmitsuba.georef`), whether it is the placeholder default, and its UTM zone's EPSG code.
+    #: :mod:`sarmitsuba.core.georef`), whether it is the placeholder default, and its UTM zone's EPSG code.
     geo_origin: tuple = (0.0, 0.0, 0.0)
     geo_origin_default: bool = True
     utm_epsg: int = 32631

@@ -11,18 +11,20 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from . import binning, planning, products
-from .cost import check_memory
+from .signal import binning
+from .scene import planning
+from .products import image_files
+from .analysis.cost import check_memory
 from .focus import backproject, ffbp
 from .focus.dispatch import azimuth_pattern, backprojector
 from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
-from .image import SarImage
-from .outputs import OutputDirectory, check_output_dir, json_default
-from .radar import POLARIZATIONS, AcquisitionGeometry
-from .raw import RawData
-from .scene import LoadedScene, load_scene
-from .trace import TraceResult, prepare_trace, trace
+from .core.image import SarImage
+from .core.outputs import OutputDirectory, check_output_dir, json_default
+from .core.radar import POLARIZATIONS, AcquisitionGeometry
+from .core.raw import RawData
+from .scene.loader import LoadedScene, load_scene
+from .tracing.trace import TraceResult, prepare_trace, trace
 
 __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES",
            "EXPORT_FILES", "write_exports"]
@@ -31,8 +33,8 @@ __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "c
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
                 "summary": "summary.json", "pauli": "pauli.png"}
 #: Standard-format files of ``render(formats=...)`` and ``focus --sicd``, by format: CPHD 1.1
-#: phase history (:mod:`sarmitsuba.cphd`), SICD 1.x complex image in NITF (:mod:`sarmitsuba.sicd`),
-#: GeoTIFF ground-plane intensity in UTM (:mod:`sarmitsuba.geotiff`).
+#: phase history (:mod:`sarmitsuba.formats.cphd`), SICD 1.x complex image in NITF (:mod:`sarmitsuba.formats.sicd`),
+#: GeoTIFF ground-plane intensity in UTM (:mod:`sarmitsuba.formats.geotiff`).
 EXPORT_FILES = {"cphd": "raw.cphd", "sicd": "image.nitf", "geotiff": "image.tif"}
 
 
@@ -85,7 +87,7 @@ class Simulation:
     #: Raw data and images of each bounce order (1, 2, ...) when ``split_bounces`` is on.
     raw_per_order: tuple = ()
     images_per_order: tuple = ()
-    #: ``quad``: one Simulation per channel (:data:`sarmitsuba.radar.CHANNELS`); else empty.
+    #: ``quad``: one Simulation per channel (:data:`sarmitsuba.core.radar.CHANNELS`); else empty.
     channels: Mapping[str, "Simulation"] = dataclasses.field(default_factory=dict)
 
 
@@ -100,7 +102,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     ``image_size = (n_azimuth, n_range)`` pixels and ``image_spacing`` [m] for a ground grid of
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
-    traces the pulse batches on Dask workers (:func:`sarmitsuba.distributed.trace_on_cluster`).
+    traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.distributed.trace_on_cluster`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
@@ -118,7 +120,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
         result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, progress=progress,
                        effects=effects)
     else:
-        from .distributed import trace_on_cluster
+        from .tracing.distributed import trace_on_cluster
         result = trace_on_cluster(scheduler, (source, sensor_overrides, integrator_overrides, material_overrides),
                                   loaded, setup, progress=progress)
     t["trace"] = time.perf_counter()
@@ -165,7 +167,7 @@ def _focuser(name: str):
     """The backprojection of ``focuser``; ParameterError naming it for anything else. ``ffbp``
     hands the acquisitions it does not factorise (bistatic, a grid straddling the track) to direct
     backprojection, and says so in ``metadata["focus"]["fallback"]``."""
-    from .radar import ParameterError
+    from .core.radar import ParameterError
     if name not in FOCUSERS:
         raise ParameterError(f"focuser = {name!r}; valid: {', '.join(FOCUSERS)} (ffbp: fast factorised "
                              "backprojection, the default; bp: direct backprojection, its reference)")
@@ -185,7 +187,7 @@ def focus_window(window: Any) -> tuple[str, dict]:
     :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
     ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
     from .focus.windows import window_spec
-    from .radar import ParameterError
+    from .core.radar import ParameterError
     try:
         return window_spec(window)
     except ValueError as exc:
@@ -205,7 +207,7 @@ def _compressed(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawDat
 
 def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
     """In absolute radiometry, divide by the radar equation per pixel so the image is in sqrt(m^2)."""
-    from .radiometry import calibrate_image, radar_equation
+    from .signal.radiometry import calibrate_image, radar_equation
     equation = radar_equation(params)
     if equation is None:
         return image
@@ -244,7 +246,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         none: the sinc impulse response with -13 dB sidelobes), or ``(name, {params})``. The
         image keeps unit peak gain for a point target; the window is recorded in
         ``image.metadata["focus"]`` (``window``, ``window_range``, ``window_azimuth``), which
-        :mod:`sarmitsuba.analysis` reads to turn integrated energy into RCS.
+        :mod:`sarmitsuba.analysis.point_target` reads to turn integrated energy into RCS.
     focuser : {"ffbp", "bp"}, default "ffbp"
         Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`; exact for any track, its
         interpolation error measured in ``benchmarks/ffbp.py``: -33 dB NRMSE against direct
@@ -253,10 +255,10 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     formats : sequence of {"cphd", "sicd", "geotiff"}
         Standard-format files written beside the npz products (:data:`EXPORT_FILES`; per channel
         with a ``_XX`` suffix in quad-pol), placed on the WGS84 ellipsoid by the sensor's
-        ``geo_origin`` (:mod:`sarmitsuba.georef`).
+        ``geo_origin`` (:mod:`sarmitsuba.core.georef`).
     scheduler : str, optional
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
-        Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.distributed`).
+        Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.distributed`).
         None: in this process.
 
     Returns
@@ -274,7 +276,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     _focuser(focuser)
     check_formats(formats)
     if scheduler is not None:
-        from .distributed import check_scheduler
+        from .tracing.distributed import check_scheduler
         check_scheduler(scheduler)
     with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
@@ -297,7 +299,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
 
 def check_formats(formats: Sequence[str]) -> None:
     """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`."""
-    from .radar import ParameterError
+    from .core.radar import ParameterError
     unknown = [f for f in formats if f not in EXPORT_FILES]
     if unknown:
         raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
@@ -310,13 +312,13 @@ def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | N
     GeoTIFF from ``image``. ``suffix`` (``_HV``) goes before the extension. Returns paths by format."""
     writers = {}
     if "cphd" in formats:
-        from .cphd import write_cphd
+        from .formats.cphd import write_cphd
         writers["cphd"] = lambda path: write_cphd(raw, path)
     if "sicd" in formats:
-        from .sicd import write_sicd
+        from .formats.sicd import write_sicd
         writers["sicd"] = lambda path: write_sicd(image, path, raw=raw)
     if "geotiff" in formats:
-        from .geotiff import write_geotiff
+        from .formats.geotiff import write_geotiff
         writers["geotiff"] = lambda path: write_geotiff(image, path)
     return {f"{fmt}{suffix}": out.write(EXPORT_FILES[fmt].replace(".", f"{suffix}."), writer)
             for fmt, writer in writers.items()}
@@ -324,7 +326,7 @@ def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | N
 
 def _write_pauli(out: OutputDirectory, sim: Simulation) -> Path:
     """``pauli.png`` of a quad-pol simulation: |HH - VV| red, |HV + VH| green, |HH + VV| blue."""
-    from .figures_pol import write_pauli
+    from .products.figures_pol import write_pauli
     images = {name: channel.image for name, channel in sim.channels.items()}
     return out.write(OUTPUT_FILES["pauli"], lambda path: write_pauli(images, path, title=str(sim.raw.metadata["scene"])))
 
@@ -381,8 +383,8 @@ def write_image_products(out: OutputDirectory, image: SarImage, title: str) -> d
     """Write ``image.npz``, ``image.exr`` and ``image.png`` into the open output directory
     ``out``; returns their final paths by role."""
     return {"image": out.write(OUTPUT_FILES["image"], image.save),
-            "exr": out.write(OUTPUT_FILES["exr"], lambda path: products.write_exr(image, path)),
-            "png": out.write(OUTPUT_FILES["png"], lambda path: products.write_quicklook(
+            "exr": out.write(OUTPUT_FILES["exr"], lambda path: image_files.write_exr(image, path)),
+            "png": out.write(OUTPUT_FILES["png"], lambda path: image_files.write_quicklook(
                 image, path, title=title, figsize=(10.0, 8.0), dpi=110))}
 
 
@@ -392,13 +394,13 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
     names = {f"{role}{suffix}": OUTPUT_FILES[role].replace(".", f"{suffix}.") for role in ("raw", "image", "exr", "png")}
     paths = {f"raw{suffix}": out.write(names[f"raw{suffix}"], raw.save),
              f"image{suffix}": out.write(names[f"image{suffix}"], image.save),
-             f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: products.write_exr(image, path))}
+             f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: image_files.write_exr(image, path))}
     order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
              f"inc={params.incidence_angle:g} deg  {raw.metadata.get('polarization', params.polarization)}  "
              f"depth={raw.metadata['settings']['max_depth']}  "
              f"window {window_title(image)}{order}")
-    paths[f"png{suffix}"] = out.write(names[f"png{suffix}"], lambda path: products.write_quicklook(
+    paths[f"png{suffix}"] = out.write(names[f"png{suffix}"], lambda path: image_files.write_quicklook(
         image, path, title=title, figsize=(10.0, 8.0), dpi=110))
     return paths
 

@@ -7,7 +7,7 @@ import pytest
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.planning import AcquisitionWarning
+from sarmitsuba.scene.planning import AcquisitionWarning
 
 
 def test_prf_below_doppler_bandwidth_warns_of_azimuth_ambiguities():
@@ -39,9 +39,9 @@ def test_energy_outside_the_window_is_warned_about(monkeypatch):
     import dataclasses
     import warnings as _warnings
 
-    from sarmitsuba import planning
+    from sarmitsuba.scene import planning
     from sarmitsuba.pipeline import simulate
-    from sarmitsuba.planning import AcquisitionWarning
+    from sarmitsuba.scene.planning import AcquisitionWarning
 
     overrides = {"n_pulses": 8}
     with _warnings.catch_warnings(record=True) as caught:
@@ -58,7 +58,7 @@ def test_energy_outside_the_window_is_warned_about(monkeypatch):
 
 
 def test_window_energy_threshold():
-    from sarmitsuba.planning import check_window_energy
+    from sarmitsuba.scene.planning import check_window_energy
     assert check_window_energy(0.0, 1.0, 3) is None
     assert check_window_energy(0.5e-3, 1.0, 3) is None
     with pytest.warns(UserWarning, match="max_depth = 3"):
@@ -75,8 +75,8 @@ def test_automatic_spotlight_aperture_gives_integration_angle_lambda_over_two_rh
     Kills lambda / (2 rho) -> lambda / (2 / rho) (0.0244 rad, 53 pulses)."""
     import numpy as np
 
-    from sarmitsuba.planning import resolve_parameters
-    from sarmitsuba.radar import RadarParameters
+    from sarmitsuba.scene.planning import resolve_parameters
+    from sarmitsuba.core.radar import RadarParameters
     p = RadarParameters(frequency=9.6e9, bandwidth=96e6, altitude=1000.0, incidence_angle=45.0, velocity=100.0,
                         prf=150.0, mode="spotlight", n_pulses=0)
     resolved = resolve_parameters(p, np.array([-10.0, -10.0, 0.0]), np.array([10.0, 10.0, 5.0]))
@@ -93,9 +93,9 @@ def test_scene_far_from_the_origin_inside_the_beam_does_not_warn():
     Kills measuring the antennas' along-track offsets from -scene_center instead of scene_center."""
     import numpy as np
 
-    from sarmitsuba import planning
-    from sarmitsuba.radar import RadarParameters, acquisition_geometry
-    from sarmitsuba.trace_inputs import TraceSettings
+    from sarmitsuba.scene import planning
+    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.scene.trace_inputs import TraceSettings
     center = np.array([5000.0, -3000.0, 0.0])
     p = RadarParameters(scene_center=tuple(center), n_pulses=64)
     geometry = acquisition_geometry(p)

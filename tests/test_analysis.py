@@ -6,10 +6,10 @@ Two kinds of input:
   unit-peak compressed pulse of a window, :func:`sarmitsuba.focus.windows.compressed_pulse`)
   with a steep linear phase ramp (aliased by the pixels, as in a ground-plane image), whose
   IRW, PSLR, ISLR, energy and phase are known in closed form;
-* a ground-plane backprojected image of analytic raw data (:mod:`sarmitsuba.synthetic`),
+* a ground-plane backprojected image of analytic raw data (:mod:`sarmitsuba.analysis.synthetic`),
   against the resolution formulas of docs/design.md section 9.
 
-ISLR is the null-bounded 1-D definition of :mod:`sarmitsuba.analysis`: mainlobe between the
+ISLR is the null-bounded 1-D definition of :mod:`sarmitsuba.analysis.point_target`: mainlobe between the
 first nulls, sidelobes out to ``sidelobes`` null distances beyond them or to the chip edge;
 it is compared with :func:`sarmitsuba.focus.windows.islr_theory` at the extent used.
 """
@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 import scipy.integrate
 
-from sarmitsuba.analysis import analyze_point_target, carrier_ramp, main
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.analysis.point_target import analyze_point_target, carrier_ramp, main
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus import windows as w
-from sarmitsuba.image import SarImage
-from sarmitsuba.synthetic import PointTarget, simulate_point_targets, straight_track
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.analysis.synthetic import PointTarget, simulate_point_targets, straight_track
 
 SPACING = 0.25  # m, both axes
 WIDTH_AZ, WIDTH_RG = 0.37, 0.41  # m, reciprocal bandwidths (1/B) of the synthetic response
@@ -207,7 +207,7 @@ TRACK = (0.0, OFFSET, ALT)
 
 def weighted_image(window="rect", pattern=False, *, amplitude=1.5 * np.exp(0.3j), point=(0.2, -0.1, 0.0),
                    squint=0.0, beam=True):
-    from sarmitsuba import synthetic
+    from sarmitsuba.analysis import synthetic
     from sarmitsuba.focus import apply_range_window
     centre = (TRACK[0] - np.hypot(ALT, OFFSET) * np.tan(np.radians(squint)), TRACK[1], TRACK[2])
     raw = synthetic.stripmap(PointTarget(point, amplitude), fc=FC, bandwidth=B, fs=1.2 * B, prf=400.0,
@@ -226,7 +226,7 @@ def weighted_image(window="rect", pattern=False, *, amplitude=1.5 * np.exp(0.3j)
 
 
 def test_energy_widths_closed_forms():
-    from sarmitsuba.analysis import energy_widths
+    from sarmitsuba.analysis.point_target import energy_widths
     point = (0.2, -0.1, 0.0)
     sin_theta = (OFFSET - point[1]) / np.hypot(ALT, OFFSET - point[1])
     wavelength = C / FC
@@ -248,7 +248,7 @@ def test_energy_widths_closed_forms():
 def test_rcs_does_not_depend_on_the_window(case):
     """The same target reads its RCS |a|^2 from rect, Taylor and Hamming images: within 0.15 dB
     each, within 0.3 dB of one another (issue 7: a trihedral read 42.4 dBsm rect, 45.4 Hamming)."""
-    from sarmitsuba.analysis import integrated_rcs
+    from sarmitsuba.analysis.point_target import integrated_rcs
     amplitude, point = 1.5 * np.exp(0.3j), (0.2, -0.1, 0.0)
     kwargs = {"uniform beam": {}, "tapered beam": {"pattern": True},
               "tapered, squint 20 deg": {"pattern": True, "squint": 20.0}, "spotlight": {"beam": False}}[case]
@@ -281,8 +281,8 @@ def test_world_target_is_looked_for_at_its_layover_position(incidence):
     about the track meets the plane: ground distance sqrt(Y^2 - 2 H h + h^2) from the nadir track
     instead of Y (~ h / tan(theta) toward the sensor: 1.73 h at 30 deg, 0.58 h at 60 deg; not
     the shadow length h tan(theta)). analyze_point_target finds the peak there."""
-    from sarmitsuba import synthetic
-    from sarmitsuba.analysis import image_coordinates, layover_position
+    from sarmitsuba.analysis import synthetic
+    from sarmitsuba.analysis.point_target import image_coordinates, layover_position
     height, slant = 6.0, 4000.0
     alt, ground = slant * np.cos(np.radians(incidence)), slant * np.sin(np.radians(incidence))
     point = np.array([0.3, 0.0, height])
@@ -306,7 +306,7 @@ def test_world_target_is_looked_for_at_its_layover_position(incidence):
 
 
 def test_layover_position_needs_a_track():
-    from sarmitsuba.analysis import layover_position
+    from sarmitsuba.analysis.point_target import layover_position
     with pytest.raises(ValueError, match="track"):
         layover_position(ipr_image(plane="ground"), (0.0, 0.0, 5.0))
 
@@ -318,7 +318,7 @@ def test_urban_roof_reflector_is_found_at_its_layover_position(tmp_path):
     import xml.etree.ElementTree as ET
     from pathlib import Path
 
-    from sarmitsuba.analysis import image_coordinates
+    from sarmitsuba.analysis.point_target import image_coordinates
     from sarmitsuba.pipeline import simulate
     scenes = Path(__file__).resolve().parent.parent / "scenes"
     root = ET.parse(scenes / "urban.xml").getroot()

@@ -75,7 +75,7 @@ def test_default_beam_is_tapered_and_uniform_on_request():
     """No antenna dimensions: the default beam is the aperture whose 3 dB width is
     azimuth_beamwidth (1 deg), traced to its nulls; ``beam = uniform`` is the hard-edged beam of
     that full width, with resolution lambda / (2 beta); a uniform beam with an antenna is refused."""
-    from sarmitsuba.radar import ParameterError, RadarParameters
+    from sarmitsuba.core.radar import ParameterError, RadarParameters
     tapered, uniform = RadarParameters(), RadarParameters(beam="uniform")
     beta = math.radians(1.0)
     # worked by hand: L = 0.442946 lambda / sin(0.5 deg) = 0.442946 * 0.0312284 / 0.00872654

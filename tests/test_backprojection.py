@@ -8,7 +8,7 @@ sample ``i`` of pulse ``p`` is
 
 with ``L`` and the carrier phase in float64 (numpy's unit-peak ``sinc``). The track runs
 along +x, the sensor sits on the +y side and looks toward -y (docs/design.md section 4). The
-point-target analysis follows ISCE3 and Aresys practice (:mod:`sarmitsuba.analysis`): chip,
+point-target analysis follows ISCE3 and Aresys practice (:mod:`sarmitsuba.analysis.point_target`): chip,
 remove the linear phase ramp, FFT-oversample (32x), peak, cuts, -3 dB widths, peak phase with
 the ramp restored.
 """
@@ -22,9 +22,9 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, backproject, backproject_reference
-from sarmitsuba.raw import RawData
+from sarmitsuba.core.raw import RawData
 
 FC = 9.6e9  # Hz, X band
 B = 150e6  # Hz
@@ -501,7 +501,7 @@ def azimuth_cut_model(geometry: Geometry, window: str, pattern: float | None, nu
 @pytest.mark.parametrize("window, pattern", [("rect", None), ("taylor", None), ("hamming", None),
                                              ("rect", "nulls"), ("taylor", "nulls")])
 def test_weighted_point_target_peaks_at_its_amplitude(window, pattern):
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     from sarmitsuba.focus import windows
 
     point, amplitude = (0.3, -0.2, 0.0), 0.7 * np.exp(0.4j)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.bandlimited import Interpolant2D, dft_rows
+from sarmitsuba.signal.bandlimited import Interpolant2D, dft_rows
 
 
 @pytest.mark.parametrize("n", [15, 16])

@@ -1,4 +1,4 @@
-"""Baselines of a pass shifted by ``track_offset`` (sarmitsuba.baseline, docs/physics.md (I1)-(I4)),
+"""Baselines of a pass shifted by ``track_offset`` (sarmitsuba.scene.baseline, docs/physics.md (I1)-(I4)),
 worked by hand at 30 and 60 deg incidence (not 45: there tan = cot and sin = cos).
 
 Geometry: altitude H, flying +x, looking right toward -y, so the sensor sits at
@@ -18,9 +18,9 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba import baseline as bl
-from sarmitsuba.constants import SPEED_OF_LIGHT
-from sarmitsuba.radar import RadarParameters
+from sarmitsuba.scene import baseline as bl
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
+from sarmitsuba.core.radar import RadarParameters
 
 ALTITUDE, FREQ, BANDWIDTH = 3000.0, 9.6e9, 150e6
 

@@ -1,7 +1,7 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
 Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``,
-``scaling.py``, ``polarimetry.py`` and ``invariance.py`` runs with
+``scaling.py``, ``tracing/polarimetry.py`` and ``invariance.py`` runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
 write ``<name>_tiny.csv`` and ``.png`` into the output folder named by ``SARMITSUBA_BENCH_OUT``

@@ -1,4 +1,4 @@
-"""A cell piece's boundary (``sarmitsuba.cell_clip``, docs/physics.md (T6)) against shapely.
+"""A cell piece's boundary (``sarmitsuba.tracing.cell_clip``, docs/physics.md (T6)) against shapely.
 
 Truth: shapely's (GEOS) area and centroid of ``∩ base - ∪ cut-outs``, a second, independent
 implementation of polygon clipping. The boundary's segments give the area and first moments by
@@ -19,7 +19,7 @@ import sarmitsuba  # noqa: F401  (the LLVM variant)
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 
-from sarmitsuba.cell_clip import boundary, inside, pack  # noqa: E402
+from sarmitsuba.tracing.cell_clip import boundary, inside, pack  # noqa: E402
 
 SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 

@@ -18,9 +18,9 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis
-from sarmitsuba import canonical as C
-from sarmitsuba.physical_optics import polygon_integral
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.tracing.physical_optics import polygon_integral
 from sarmitsuba.pipeline import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -350,7 +350,7 @@ def test_a_piece_keeps_every_occluder(count):
     behind 15: a roof under a turret's walls and spire). Truth: the occluders handed in. Keeping
     only the first eight lit a roof where the others' shadows fell, a spot that moved with the
     lattice (Munich, 64 pulses, first bounce: -25.8 dB against -43.5 dB with all of them)."""
-    from sarmitsuba.cell_plan import NONE, occluder_groups
+    from sarmitsuba.tracing.cell_plan import NONE, occluder_groups
     piece = np.array([0] * 3 + [1] * count + [2] * 5)
     part = np.arange(piece.size) + 100
     level = np.zeros(piece.size, np.int64)

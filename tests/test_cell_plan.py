@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.cell_lanes import across_sizes, across_sizes_reference, lane_grid
-from sarmitsuba.kernel import Blocks
+from sarmitsuba.tracing.cell_lanes import across_sizes, across_sizes_reference, lane_grid
+from sarmitsuba.tracing.kernel import Blocks
 
 
 @pytest.mark.parametrize("reach", [1, 2])
@@ -68,7 +68,7 @@ def _split(depth, blockers):
     depth 1) behind ``blockers`` (the transmit side's at depth 0, the receive side's at 1) and a
     second piece elsewhere behind three of them."""
     from types import SimpleNamespace
-    from sarmitsuba.cell_plan import RECEIVE, split_crowded
+    from sarmitsuba.tracing.cell_plan import RECEIVE, split_crowded
     wall_x, antenna = WALL_X, ANTENNA
     ground = _square((0.0, 0.0), 50.0, 0.0)
     wall = [[wall_x, -50, 0], [wall_x, 50, 0], [wall_x, 50, 30], [wall_x, -50, 30]]
@@ -102,7 +102,7 @@ def test_a_crowded_piece_is_split_into_quarters_each_with_the_occluders_that_rea
     are checked for cover), while a quarter covered by a triangle that dips under the ground (not
     wholly in front) is kept. The other piece keeps its three occluders."""
     import shapely
-    from sarmitsuba.cell_split import MARGIN, MOST_OCCLUDERS
+    from sarmitsuba.tracing.cell_split import MARGIN, MOST_OCCLUDERS
     antenna, wall_x = ANTENNA, WALL_X
     rng = np.random.default_rng(3)
     # the piece's cell [2, 3] x [5, 6] where the unfolded ground lies (mirrored in the wall at depth 1)
@@ -151,8 +151,8 @@ def test_a_spire_apex_too_crowded_to_split_is_decided_by_the_central_ray(depth):
     has at most 16 occluders, every output whose centre is in shadow has some, and what is left
     out lies in shadow (within half a finest sub-piece)."""
     import shapely
-    from sarmitsuba.cell_plan import MOST_OCCLUDERS
-    from sarmitsuba.cell_split import MOST_SPLITS
+    from sarmitsuba.tracing.cell_plan import MOST_OCCLUDERS
+    from sarmitsuba.tracing.cell_split import MOST_SPLITS
     apex = _above(2.43, 5.61, 3.0, depth)
     blockers = []
     for k in range(20):
@@ -179,7 +179,7 @@ def test_aim_points_invert_lattice_lines_on_an_oblique_lattice():
     antenna off the plane, come back to themselves (tube size 3, spacings 0.4 m and 0.7 m).
     Spacings or axes swapped, or the tube size applied once, fail it."""
     from types import SimpleNamespace
-    from sarmitsuba.lattice_index import aim_points, lattice_lines
+    from sarmitsuba.tracing.lattice_index import aim_points, lattice_lines
     a, d = np.radians(30.0), np.radians(40.0)
     track = np.array([np.cos(a), np.sin(a), 0.0])
     look = np.cos(d) * np.array([-np.sin(a), np.cos(a), 0.0]) + np.sin(d) * np.array([0.0, 0.0, -1.0])
@@ -196,7 +196,7 @@ def test_fold_undoes_unfold_through_two_mirrors_that_do_not_commute():
     """A third-order chain's points unfolded in two walls 60 deg apart (reflections that do not
     commute) and folded back are the points again; folding in the unfolding's order instead
     moves them by metres. Truth: the points themselves."""
-    from sarmitsuba.cell_split import fold, unfold
+    from sarmitsuba.tracing.cell_split import fold, unfold
     rng = np.random.default_rng(2)
     points = rng.uniform(-20, 20, size=(8, 3))
     mirrors = []

@@ -11,8 +11,8 @@ import OpenEXR
 import pytest
 
 from sarmitsuba.cli import main
-from sarmitsuba.image import SarImage
-from sarmitsuba.raw import RawData
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.core.raw import RawData
 
 FILES = ("raw.npz", "image.npz", "image.exr", "image.png", "summary.json")
 
@@ -95,7 +95,7 @@ def _flatten(d, prefix=""):
 def test_focus_command_with_every_algorithm(tmp_path, capsys):
     """render, then refocus raw.npz with bp, omegak and rda: each writes an image whose peak sits
     on the trihedral's apex (position from point-target analysis within 1/20 cell)."""
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     assert main(["render", "trihedral", "--out", str(tmp_path / "r"), "--no-progress"]) == 0
     for algorithm in ("bp", "omegak", "rda"):
         out = tmp_path / algorithm

@@ -3,7 +3,7 @@
 A homogeneous rough ground of constant gamma (sigma0 = gamma cos(theta)): the mean of the
 calibrated image intensity over rho_az rho_gr is sigma0 (within 0.5 dB), with rho the energy
 widths of the image's unit-peak impulse response (window and antenna pattern included;
-sarmitsuba.analysis.energy_widths, docs/physics.md (K2)), the intensity is
+sarmitsuba.analysis.point_target.energy_widths, docs/physics.md (K2)), the intensity is
 fully developed speckle (std / mean within 10 % of 1: exponential statistics, Goodman 1976),
 the same seed reproduces it, another seed gives independent speckle (|coherence| < 0.1).
 """
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba.analysis import energy_widths
+from sarmitsuba.analysis.point_target import energy_widths
 from sarmitsuba.pipeline import simulate
 
 SCENE = str(Path(__file__).parent / "scenes" / "rough_ground.xml")
@@ -106,7 +106,7 @@ def test_sigma_nought_follows_gamma_cos_theta():
 
 def test_smooth_scene_has_no_clutter_term():
     """A scene with no rough material compiles no clutter term: its table reports none."""
-    from sarmitsuba.scene import load_scene, material_table
+    from sarmitsuba.scene.loader import load_scene, material_table
     loaded = load_scene("dihedral")
     table = material_table(loaded.scene, loaded.params.frequency, loaded.params.polarization)
     assert not table.has_clutter
@@ -262,12 +262,12 @@ def test_speckle_moves_with_its_shape_along_track():
 
 
 def test_shape_frame_moves_rigidly_with_the_vertices():
-    """:func:`sarmitsuba.scene.shape_frame` of rotated and translated vertices is the rotated and
+    """:func:`sarmitsuba.scene.loader.shape_frame` of rotated and translated vertices is the rotated and
     translated frame: origin ``R o + t``, axes ``R a`` (to 1e-12), for two rotations about
     skewed axes; its axes are orthonormal and right-handed. A frame taken from the bounding box
     or the world's axes fails the rotation."""
     import trimesh
-    from sarmitsuba.scene import shape_frame
+    from sarmitsuba.scene.loader import shape_frame
     vertices = trimesh.creation.box((3.0, 2.0, 1.5)).vertices + [4.0, -1.0, 0.75]
     origin, axes = shape_frame(vertices)
     np.testing.assert_allclose(axes @ axes.T, np.eye(3), atol=1e-12)
@@ -284,7 +284,7 @@ def test_shape_frame_of_degenerate_vertex_sets():
     """No vertices: the world's origin and axes. One point (or all vertices within the tolerance
     of it): that point and the world's axes. Vertices on one line: the first axis along it, the
     frame still orthonormal. A duplicated vertex 0 is skipped for the first axis."""
-    from sarmitsuba.scene import shape_frame
+    from sarmitsuba.scene.loader import shape_frame
     origin, axes = shape_frame(np.zeros((0, 3)))
     np.testing.assert_array_equal(origin, 0.0)
     np.testing.assert_array_equal(axes, np.eye(3))

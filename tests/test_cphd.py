@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 sarkit_cphd = pytest.importorskip("sarkit.cphd")
-from sarmitsuba import georef, pipeline  # noqa: E402
-from sarmitsuba.constants import SPEED_OF_LIGHT  # noqa: E402
-from sarmitsuba.outputs import json_default  # noqa: E402
-from sarmitsuba.cphd import CphdError, check_cphd, read_cphd, write_cphd  # noqa: E402
+from sarmitsuba.core import georef
+from sarmitsuba import pipeline  # noqa: E402
+from sarmitsuba.core.constants import SPEED_OF_LIGHT  # noqa: E402
+from sarmitsuba.core.outputs import json_default  # noqa: E402
+from sarmitsuba.formats.cphd import CphdError, check_cphd, read_cphd, write_cphd  # noqa: E402
 
 #: A place far from the equator and the prime meridian, so that a swapped or dropped axis shows.
 REF = georef.GeoReference(48.1, 11.6, 520.0)
@@ -128,7 +129,7 @@ def test_reading_a_file_that_is_no_cphd_names_it(tmp_path):
 def test_render_cphd_then_focus_it_gives_the_npz_image(tmp_path, capsys):
     """`render --cphd` writes raw.cphd beside raw.npz; `focus raw.cphd` and `focus raw.npz` agree (-60 dB)."""
     from sarmitsuba.cli import main
-    from sarmitsuba.image import SarImage
+    from sarmitsuba.core.image import SarImage
     out = tmp_path / "r"
     assert main(["render", "trihedral", "--pulses", "32", "--cphd", "--out", str(out), "--no-progress",
                  "--set", "geo_origin=-33.9, 151.2, 40"]) == 0

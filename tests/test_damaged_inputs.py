@@ -13,11 +13,12 @@ import zipfile
 import numpy as np
 import pytest
 
-from sarmitsuba import figures, synthetic
+from sarmitsuba.products import figures
+from sarmitsuba.analysis import synthetic
 from sarmitsuba.cli import main
-from sarmitsuba.image import SarImage, SarImageError
-from sarmitsuba.raw import RawData, RawDataError
-from sarmitsuba.synthetic import PointTarget
+from sarmitsuba.core.image import SarImage, SarImageError
+from sarmitsuba.core.raw import RawData, RawDataError
+from sarmitsuba.analysis.synthetic import PointTarget
 
 RAW_KEYS = ("data", "fast_time", "pulse_time", "tx_position", "rx_position", "velocity",
             "fc", "bandwidth", "chirp_rate", "pulse_length", "fs", "prf", "range_compressed", "metadata")

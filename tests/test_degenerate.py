@@ -6,8 +6,8 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import canonical as C
-from sarmitsuba.meshcheck import MeshDefectWarning
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.scene.meshcheck import MeshDefectWarning
 from sarmitsuba.pipeline import simulate
 
 
@@ -45,7 +45,7 @@ def test_batched_mesh_check_equals_the_trimesh_reference():
     with one face flipped, a mesh whose coincident vertices are listed twice (merged: watertight)
     and one whose copies differ by 1e-6 m (not merged: open), an empty mesh, and all of them in
     one batch (a mesh's vertices must not merge with another's)."""
-    from sarmitsuba.meshcheck import check_all, check_mesh
+    from sarmitsuba.scene.meshcheck import check_all, check_mesh
     cube = trimesh.creation.box()
     flipped = cube.faces.copy()
     flipped[0] = flipped[0, ::-1]

@@ -1,4 +1,4 @@
-"""NumPy arrays copied onto the device (:func:`sarmitsuba.device.device_array`).
+"""NumPy arrays copied onto the device (:func:`sarmitsuba.tracing.device.device_array`).
 
 A kernel that loads an array mapped from NumPy's buffer carries the buffer's alignment in its
 code (LLVM ``align 1`` where the allocator gave less than 64 bytes), so the same kernel hashes
@@ -12,7 +12,7 @@ import pytest
 import sarmitsuba  # noqa: F401  (sets the variant before Dr.Jit loads)
 import drjit as dr
 import mitsuba as mi
-from sarmitsuba.device import device_array
+from sarmitsuba.tracing.device import device_array
 
 
 def _loads(array) -> list[str]:

@@ -31,8 +31,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sarmitsuba import binning, pipeline, planning, radiometry, signal_model
-from sarmitsuba.radar import acquisition_geometry
+from sarmitsuba.signal import binning, radiometry, signal_model
+from sarmitsuba import pipeline
+from sarmitsuba.scene import planning
+from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.signal.radiometry import radar_equation
 
 SCENES = Path(__file__).parent / "scenes"
 PLANE = str(SCENES / "plane.xml")                   # smooth plate: single bounce, no optional effect
@@ -84,7 +87,7 @@ def traced(source, sensor=None, integrator=None, material=None, base_sensor=SMAL
 
 # ---- 1. an effect's "off" value is the scene that never asked for it ------------------------------
 
-#: effect name (effects.py) -> (overrides setting it off explicitly or None, overrides switching it on).
+#: effect name (scene/effects.py) -> (overrides setting it off explicitly or None, overrides switching it on).
 #: Runs use the scene's own max_depth (1) so that "max_depth = 1" is a real explicit override.
 EFFECTS = {
     "bounce orders > 1": ({"integrator": {"max_depth": 1}}, {"integrator": {"max_depth": 3}}),
@@ -164,8 +167,8 @@ def _assert_close(a: np.ndarray, b: np.ndarray, what: str, rtol: float = 1e-6) -
 def _trace_in_window(source, window_from, integrator):
     """Trace ``source`` with ``integrator`` overrides into the fast-time window and ray lattice
     planned for ``window_from`` (another max_depth): the same samples for both."""
-    from sarmitsuba.scene import load_scene, material_table
-    from sarmitsuba.trace import trace
+    from sarmitsuba.scene.loader import load_scene, material_table
+    from sarmitsuba.tracing.trace import trace
     settings = {**FINER, **integrator}
     loaded = load_scene(source, EIGHT, settings)
     planned = load_scene(source, EIGHT, {**FINER, **window_from})
@@ -300,9 +303,9 @@ def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
     """``active_effects`` decides; the tracer and the radar equation obey the set they are given
     instead of re-deriving it from the parameters or the material table. Fails if the kernel
     re-reads ``material_table.has_clutter`` or radar_equation re-reads ``transmit_power``."""
-    from sarmitsuba.effects import active_effects
-    from sarmitsuba.scene import load_scene, material_table
-    from sarmitsuba.trace import trace
+    from sarmitsuba.scene.effects import active_effects
+    from sarmitsuba.scene.loader import load_scene, material_table
+    from sarmitsuba.tracing.trace import trace
     loaded = load_scene(ROUGH, SMALL, COARSE)
     p = loaded.params
     geometry = acquisition_geometry(p)
@@ -316,5 +319,5 @@ def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
                    effects=dataclasses.replace(effects, rough_materials=()))
     assert rough.scatterers_per_order.sum() > 0 and smooth.scatterers_per_order.sum() == 0
     loud = dataclasses.replace(p, **RADIOMETRY)
-    assert radiometry.radar_equation(loud) is not None
-    assert radiometry.radar_equation(loud, dataclasses.replace(effects, radiometry=False)) is None
+    assert radar_equation(loud) is not None
+    assert radar_equation(loud, dataclasses.replace(effects, radiometry=False)) is None

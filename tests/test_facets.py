@@ -1,4 +1,4 @@
-"""Convex planar parts of triangle meshes (sarmitsuba.facets): parts checked against areas, normals
+"""Convex planar parts of triangle meshes (sarmitsuba.tracing.facets): parts checked against areas, normals
 and vertex sharing computed here from the input triangles, on hand-made meshes and real scenes."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401  (sets the Mitsuba variant)
-from sarmitsuba.facets import MAX_PART_VERTICES, mesh_parts, scene_parts
-from sarmitsuba.scene import load_scene, sionna_scenes
+from sarmitsuba.tracing.facets import MAX_PART_VERTICES, mesh_parts, scene_parts
+from sarmitsuba.scene.loader import load_scene, sionna_scenes
 
 
 def _triangle_areas(meshes):
@@ -310,7 +310,7 @@ def test_scene_parts_of_builtin_scenes():
 
 
 @pytest.mark.skipif("munich" not in sionna_scenes(), reason="sionna-rt extra not installed")
-@pytest.mark.filterwarnings("ignore::sarmitsuba.meshcheck.MeshDefectWarning")      # 5 known defective meshes
+@pytest.mark.filterwarnings("ignore::sarmitsuba.scene.meshcheck.MeshDefectWarning")      # 5 known defective meshes
 def test_munich_decomposes_quickly_into_convex_planar_parts():
     scene = load_scene("sionna:munich").scene
     start = time.perf_counter()

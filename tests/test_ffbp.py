@@ -1,14 +1,14 @@
 """Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`) against direct backprojection and closed forms.
 
-Raw data are analytic (:mod:`sarmitsuba.synthetic`, float64, never the tracer): point targets of
+Raw data are analytic (:mod:`sarmitsuba.analysis.synthetic`, float64, never the tracer): point targets of
 known complex amplitude seen from straight, squinted, curved and 800 km tracks. Two kinds of truth:
 
 * the direct sum :func:`~sarmitsuba.focus.backproject` on the same data and grid (NRMSE bound);
 * closed forms: -3 dB widths ``0.886 c / (2 B)`` (slant, over the ground range projection) and
   ``0.886 lambda R / (2 L)``, rect PSLR -13.26 dB, Taylor's -35 dB design level, the peak at the
   target's amplitude (normalisation, with the antenna pattern divided out) and its phase, read
-  with :func:`sarmitsuba.analysis.analyze_point_target` and the true carrier
-  (:func:`~sarmitsuba.analysis.carrier_ramp`).
+  with :func:`sarmitsuba.analysis.point_target.analyze_point_target` and the true carrier
+  (:func:`~sarmitsuba.analysis.point_target.carrier_ramp`).
 
 Each test names the bug it is there to catch.
 """
@@ -20,9 +20,9 @@ import time
 import numpy as np
 import pytest
 
-from sarmitsuba import synthetic
-from sarmitsuba.analysis import analyze_point_target, carrier_ramp
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.analysis import synthetic
+from sarmitsuba.analysis.point_target import analyze_point_target, carrier_ramp
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, apply_range_window, backproject, ffbp
 from sarmitsuba.focus.windows import pslr_theory
 

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import figures, figures_raw
-from sarmitsuba.analysis import analyze_point_target
-from sarmitsuba.bandlimited import dft_rows
-from sarmitsuba.image import SarImage
+from sarmitsuba.products import figures, figures_raw
+from sarmitsuba.analysis.point_target import analyze_point_target
+from sarmitsuba.signal.bandlimited import dft_rows
+from sarmitsuba.core.image import SarImage
 from sarmitsuba.pipeline import render, simulate
-from sarmitsuba.raw import RawData
+from sarmitsuba.core.raw import RawData
 
 
 def check_png(path, size: tuple[int, int], min_std: float = 0.02) -> np.ndarray:
@@ -150,8 +150,8 @@ def test_write_figures_and_redraw_without_tracing(tmp_path, monkeypatch):
         raise AssertionError("redraw must not trace")
 
     import sarmitsuba.pipeline
-    import sarmitsuba.trace
-    monkeypatch.setattr(sarmitsuba.trace, "trace", no_tracing)
+    import sarmitsuba.tracing.trace
+    monkeypatch.setattr(sarmitsuba.tracing.trace, "trace", no_tracing)
     monkeypatch.setattr(sarmitsuba.pipeline, "trace", no_tracing)
     monkeypatch.setattr(sarmitsuba.pipeline, "simulate", no_tracing)
     paths = figures.redraw(out)
@@ -188,14 +188,14 @@ def texts(fig) -> list[str]:
 def line_of_points(spacing=0.1, amplitude=0.2):
     """A line along azimuth (x) much longer than the track and its beam footprint (an extended target:
     its echo has no azimuth chirp), as closely spaced points (spacing << azimuth resolution)."""
-    from sarmitsuba.synthetic import PointTarget
+    from sarmitsuba.analysis.synthetic import PointTarget
     return [PointTarget((x, 0.0, 0.0), amplitude) for x in np.arange(-80.0, 80.0, spacing)]
 
 
 def test_raw_figure_draws_the_phase_history_of_a_true_point(tmp_path, drawn):
     """Analytic data of one point: it is found where it is, and the drawn parabola is the
     closed-form phase history -4 pi |A_p - X| / lambda (up to a constant)."""
-    from sarmitsuba.synthetic import PointTarget, stripmap
+    from sarmitsuba.analysis.synthetic import PointTarget, stripmap
     target = np.array([5.0, 0.0, 0.0])
     raw = stripmap(PointTarget(target), **STRIP)
     figures.raw_figure(raw, tmp_path / "raw.png", figsize=(8.0, 6.0), dpi=50)
@@ -220,7 +220,7 @@ def test_raw_figure_draws_the_phase_history_of_a_true_point(tmp_path, drawn):
 def test_raw_figure_of_an_extended_target_finds_no_point(tmp_path, drawn):
     """A line of points along the track (a wall-like echo, no azimuth chirp) and the traced dihedral:
     no point-like target, no parabola drawn, and the figure says so."""
-    from sarmitsuba.synthetic import stripmap
+    from sarmitsuba.analysis.synthetic import stripmap
     raw = stripmap(line_of_points(), **STRIP)
     echo = figures_raw.pick_echo(raw, raw.data, C * raw.fast_time / 2)
     assert not echo.point_like and echo.rms > 5.0
@@ -235,7 +235,7 @@ def test_raw_figure_of_an_extended_target_finds_no_point(tmp_path, drawn):
 
 def test_raw_figure_prefers_a_weak_point_to_a_bright_wall(tmp_path):
     """A point 60 m further in range, weaker in the raw data than the line: the point is shown."""
-    from sarmitsuba.synthetic import PointTarget, stripmap
+    from sarmitsuba.analysis.synthetic import PointTarget, stripmap
     target = np.array([5.0, -60.0, 0.0])
     raw = stripmap(line_of_points() + [PointTarget(target, 0.5)], **STRIP)
     slant = C * raw.fast_time / 2
@@ -325,7 +325,7 @@ def test_focus_progress_bars_are_labelled(capsys):
 def test_unwritable_figure_names_the_path_given(tmp_path, unwritable_paths):
     image = sinc_image()
     report = analyze_point_target(image, (0.3, -0.55))
-    from sarmitsuba.products import WriteError
+    from sarmitsuba.products.image_files import WriteError
     for target in unwritable_paths:
         with pytest.raises(OSError) as caught:
             figures.point_target_figure(image, report, target, dpi=30)

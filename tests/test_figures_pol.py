@@ -1,4 +1,4 @@
-"""The Pauli RGB picture (sarmitsuba.figures_pol), against hand-made scattering matrices.
+"""The Pauli RGB picture (sarmitsuba.products.figures_pol), against hand-made scattering matrices.
 
 Truth: an ideal dihedral (HH = 1, VV = -1) is pure even bounce, a trihedral or plate
 (HH = VV) pure odd bounce, a 45-degree rotated dihedral (HV = VH, HH = VV = 0) pure k3
@@ -14,9 +14,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from sarmitsuba.figures_pol import pauli_components, pauli_rgb, write_pauli
-from sarmitsuba.image import SarImage
-from sarmitsuba.outputs import WriteError
+from sarmitsuba.products.figures_pol import pauli_components, pauli_rgb, write_pauli
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.core.outputs import WriteError
 
 DR = 30.0
 RED, GREEN, BLUE = 0, 1, 2

@@ -1,6 +1,6 @@
 """A newcomer's first hour (issue 13): nothing half-made, clear messages, a repo that stands alone.
 
-Output directories are all or nothing (sarmitsuba/outputs.py): a failed run leaves no file and
+Output directories are all or nothing (sarmitsuba/core/outputs.py): a failed run leaves no file and
 no directory it created; a disk error names the file the user asked for. The CLI has
 ``--version`` and a plain-text ``--help``; the repository carries its licence and cites only
 its own documents; the built-in trihedral faces the sensor as its comment says.
@@ -42,8 +42,7 @@ def test_bad_parameter_leaves_no_directory(tmp_path, capsys):
 def test_full_disk_names_the_file_and_writes_nothing(tmp_path, capsys, monkeypatch):
     """ENOSPC while writing image.exr (after raw.npz and image.npz were written): exit 2, the
     message names out/image.exr and the disk, and no product is left in the directory."""
-    from sarmitsuba import products
-
+    from sarmitsuba.products import image_files as products
     def full(image, path):
         raise OSError(errno.ENOSPC, "No space left on device")
     monkeypatch.setattr(products, "write_exr", full)
@@ -75,7 +74,7 @@ def test_output_path_that_is_a_file(tmp_path, capsys):
 
 def test_interrupted_writer_leaves_nothing(tmp_path):
     """Ctrl-C inside a writer (BaseException): the staged files go, the new directory too."""
-    from sarmitsuba.outputs import OutputDirectory
+    from sarmitsuba.core.outputs import OutputDirectory
     out = tmp_path / "fresh"
     with pytest.raises(KeyboardInterrupt):
         with OutputDirectory(out) as staged:
@@ -141,8 +140,8 @@ def test_trihedral_boresight_points_at_the_mid_aperture_antenna():
     of its three far vertices; it must point at the mid-aperture antenna within 0.1 deg."""
     import mitsuba as mi
 
-    from sarmitsuba.radar import acquisition_geometry
-    from sarmitsuba.scene import load_scene
+    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.scene.loader import load_scene
     loaded = load_scene("trihedral")
     (shape,) = loaded.scene.shapes()
     vertices = np.array(mi.traverse(shape)["vertex_positions"], np.float64).reshape(-1, 3)
@@ -193,7 +192,7 @@ def _azimuth_irw(path) -> float:
     """-3 dB width [samples] of the azimuth cut through the peak, from a 32x band-limited upsampling."""
     from scipy.signal import resample
 
-    from sarmitsuba.image import SarImage
+    from sarmitsuba.core.image import SarImage
     data = SarImage.load(path).data
     az, rg = np.unravel_index(np.argmax(np.abs(data)), data.shape)
     cut = data[max(az - 24, 0):az + 24, rg]

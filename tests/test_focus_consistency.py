@@ -10,7 +10,7 @@ about 335 rad (53.3 cycles) per slant-range pixel, so reading the phase at a fra
 pixel position ``v`` with the wrapped ramp is off by ``2 pi m v`` (``m`` about 53). The
 backprojected ground grid of the traced trihedral happens to put the target exactly on a
 sample (no error), the slant-plane grid of the FFT focusers at column ``x.674`` (about
-+95 deg). Measured with the true carrier (:func:`sarmitsuba.analysis.carrier_ramp`) at the
++95 deg). Measured with the true carrier (:func:`sarmitsuba.analysis.point_target.carrier_ramp`) at the
 target, the three focusers agree with each other and with the analytic truth.
 
 These tests therefore always measure the phase *at the target* with the true carrier, and
@@ -29,9 +29,9 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba import synthetic
-from sarmitsuba.analysis import analyze_point_target, carrier_ramp
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.analysis import synthetic
+from sarmitsuba.analysis.point_target import analyze_point_target, carrier_ramp
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus.omegak import omega_k
 from sarmitsuba.focus.rda import range_doppler

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba.analysis import analyze_point_target
+from sarmitsuba.analysis.point_target import analyze_point_target
 from sarmitsuba.pipeline import simulate
 
 C = 299_792_458.0

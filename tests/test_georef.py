@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba import georef
+from sarmitsuba.core import georef
 from sarmitsuba.cli import main
-from sarmitsuba.radar import ParameterError, RadarParameters
+from sarmitsuba.core.radar import ParameterError, RadarParameters
 
 A, F = 6378137.0, 1.0 / 298.257223563          # WGS84 (NIMA TR8350.2)
 E2 = F * (2.0 - F)

@@ -11,10 +11,11 @@ rasterio = pytest.importorskip("rasterio")
 
 from pyproj import Transformer  # noqa: E402
 
-from sarmitsuba import georef, pipeline  # noqa: E402
+from sarmitsuba.core import georef
+from sarmitsuba import pipeline  # noqa: E402
 from sarmitsuba.cli import main  # noqa: E402
-from sarmitsuba.geotiff import GeoTiffError, write_geotiff  # noqa: E402
-from sarmitsuba.image import SarImage  # noqa: E402
+from sarmitsuba.formats.geotiff import GeoTiffError, write_geotiff  # noqa: E402
+from sarmitsuba.core.image import SarImage  # noqa: E402
 
 
 def synthetic(heading_deg, n_az=40, n_rg=60, spacing=(0.5, 0.8)):

@@ -41,6 +41,6 @@ def test_cuda_render_equals_llvm_render(tmp_path):
     assert gpu.returncode == 0, gpu.stderr
     cpu = _run(tmp_path, "llvm_ad_mono", "llvm")
     assert cpu.returncode == 0, cpu.stderr
-    from sarmitsuba.raw import RawData
+    from sarmitsuba.core.raw import RawData
     a, b = RawData.load(tmp_path / "cuda" / "raw.npz").data, RawData.load(tmp_path / "llvm" / "raw.npz").data
     assert 10 * np.log10(np.sum(np.abs(a - b) ** 2) / np.sum(np.abs(b) ** 2)) < -60.0

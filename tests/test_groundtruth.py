@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import groundtruth
-from sarmitsuba.image import SarImage
+from sarmitsuba.products import groundtruth
+from sarmitsuba.core.image import SarImage
 from sarmitsuba.pipeline import image_grid, simulate
-from sarmitsuba.radar import acquisition_geometry
-from sarmitsuba.scene import load_scene
+from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.scene.loader import load_scene
 
 SCENES = Path(__file__).parent / "scenes"
 

@@ -65,7 +65,7 @@ def test_rays_exactly_on_the_fold_line_neither_lose_nor_double_energy():
 def test_no_self_intersection_after_reflection(tmp_path):
     """A single plate can only return single bounce: with max_depth 3, orders 2 and 3 carry no
     energy (a reflected ray re-hitting its own facet would)."""
-    from sarmitsuba import canonical as C
+    from sarmitsuba.scene import canonical as C
     xml = C.scene_xml(tmp_path, C.plate(1.0), C.PEC, 3)
     sim = simulate(str(xml), integrator_overrides={"ray_spacing": 0.02})
     energy = sim.trace.energy_per_order
@@ -105,7 +105,7 @@ def test_same_target_from_10_km_to_800_km_is_identical():
     reflector's near field shifts its phase by -k (5 a^2 / 54) / R (~2.2 deg), and the beam-gated
     backprojection's shorter aperture lifts the azimuth PSLR by ~0.4 dB: both closed forms, tested
     in test_hard_cases_extra.py with a target small enough for 1 km to be like-for-like."""
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     reports = []
     for slant in (10e3, 100e3, 800e3):
         sim = simulate("trihedral", sensor_overrides={"altitude": slant * math.cos(math.pi / 4)}, window="rect")

@@ -21,16 +21,17 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import binning, planning
-from sarmitsuba import canonical as C
-from sarmitsuba.analysis import analyze_point_target
-from sarmitsuba.constants import SPEED_OF_LIGHT
+from sarmitsuba.signal import binning
+from sarmitsuba.scene import planning
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.analysis.point_target import analyze_point_target
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.pipeline import image_grid, simulate
-from sarmitsuba.radar import acquisition_geometry
-from sarmitsuba.scene import builtin_scenes, load_scene, material_table
-from sarmitsuba.trace import trace
-from sarmitsuba.trace_inputs import FastTimeWindow
+from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.scene.loader import builtin_scenes, load_scene, material_table
+from sarmitsuba.tracing.trace import trace
+from sarmitsuba.scene.trace_inputs import FastTimeWindow
 
 SCENES = Path(__file__).parent / "scenes"
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)        # smallest normal float32, 1.18e-38
@@ -453,8 +454,8 @@ def _assert_final_files_complete(out: Path) -> list[str]:
     import matplotlib.image
     import OpenEXR
 
-    from sarmitsuba.image import SarImage
-    from sarmitsuba.raw import RawData
+    from sarmitsuba.core.image import SarImage
+    from sarmitsuba.core.raw import RawData
     present = [name for name in FINAL_FILES if (out / name).exists()]
     for name in present:
         path = out / name
@@ -519,7 +520,7 @@ def test_ctrl_c_while_tracing_exits_130_and_leaves_no_truncated_output(tmp_path)
 def test_interrupt_during_each_output_write(tmp_path, monkeypatch, victim):
     """Ctrl-C arriving while ``victim`` is being written (its staged file complete, the move into
     place not yet done): ``render`` exits 130 and the output is all or nothing
-    (sarmitsuba/outputs.py): no product at all, no staging folder, no ``.partial`` file, and
+    (sarmitsuba/core/outputs.py): no product at all, no staging folder, no ``.partial`` file, and
     the directory the run created is gone; an existing directory keeps only what it held."""
     from sarmitsuba.cli import main
     real_replace = os.replace
@@ -576,7 +577,7 @@ def test_fresnel_is_continuous_near_vacuum_and_toward_pec():
 
     r(cos = 0) itself is not continuous in eta at eta = 1 (-1 for any eta != 1, 0 for
     vacuum; documented in fresnel_half_space), so cos >= 1e-3 here."""
-    from sarmitsuba.materials import fresnel_half_space, slab_reflection
+    from sarmitsuba.scene.materials import fresnel_half_space, slab_reflection
     cos = np.array([0.1, 0.3, 0.7, 1.0])
     for delta in (1e-4, 1e-8, 1e-12, 1e-8 * (1 - 0.5j)):
         te, tm = fresnel_half_space(cos, 1 + delta)
@@ -608,7 +609,7 @@ def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch):
     """Dr.Jit wraps an exception raised while it traces the bounce loop's body in a RuntimeError;
     a Ctrl-C landing there must still reach the CLI as KeyboardInterrupt (exit 130), not as a
     crash with exit code 1."""
-    from sarmitsuba import kernel as kernel_module
+    from sarmitsuba.tracing import kernel as kernel_module
     from sarmitsuba.pipeline import simulate
 
     def interrupted(self, *args):

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis, pipeline
-from sarmitsuba.radar import ParameterError
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba import pipeline
+from sarmitsuba.core.radar import ParameterError
 
 
 def test_exact_image_size_and_spacing_keep_the_target_in_place():

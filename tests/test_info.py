@@ -14,14 +14,14 @@ import pytest
 
 
 import sarmitsuba.pipeline
-import sarmitsuba.trace
+import sarmitsuba.tracing.trace
 from sarmitsuba import info as info_mod
-from sarmitsuba import planning
+from sarmitsuba.scene import planning
 from sarmitsuba.cli import main
-from sarmitsuba.effects import active_effects, list_effects
+from sarmitsuba.scene.effects import active_effects, list_effects
 from sarmitsuba.info import scene_info
-from sarmitsuba.radar import acquisition_geometry
-from sarmitsuba.scene import load_scene
+from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.scene.loader import load_scene
 
 C = 299_792_458.0
 K_B = 1.380649e-23
@@ -33,7 +33,7 @@ def no_tracing(monkeypatch):
     """Every test here fails if anything traces."""
     def refuse(*args, **kwargs):
         raise AssertionError("info must not trace")
-    monkeypatch.setattr(sarmitsuba.trace, "trace", refuse)
+    monkeypatch.setattr(sarmitsuba.tracing.trace, "trace", refuse)
     monkeypatch.setattr(sarmitsuba.pipeline, "trace", refuse)
 
 
@@ -185,7 +185,7 @@ def test_cost_counts_the_planned_sub_apertures():
     c = scene_info("dihedral", integrator_overrides=overrides).cost
     n = loaded.params.n_pulses
     assert c.rays_per_pulse == footprint.n_azimuth * footprint.n_range
-    assert c.pulses_per_trace == sarmitsuba.trace.pulses_per_trace(loaded.params, loaded.settings, n) > 1
+    assert c.pulses_per_trace == sarmitsuba.tracing.trace.pulses_per_trace(loaded.params, loaded.settings, n) > 1
     assert c.subapertures == math.ceil(n / c.pulses_per_trace)
     assert c.closest_hit_casts == c.shadow_casts == 2 * c.primary_rays
     assert c.trace_time_low_s <= c.trace_time_s <= c.trace_time_high_s

@@ -14,8 +14,8 @@ import pytest
 from sarmitsuba.cli import main
 from sarmitsuba.info import scene_info
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.radar import ParameterError, RadarParameters
-from sarmitsuba.scene import SceneError, builtin_scenes, load_scene
+from sarmitsuba.core.radar import ParameterError, RadarParameters
+from sarmitsuba.scene.loader import SceneError, builtin_scenes, load_scene
 
 DIHEDRAL = builtin_scenes()["dihedral"]
 
@@ -135,7 +135,7 @@ def test_line_of_the_element_in_a_hand_written_scene(tmp_path):
 def test_parameter_the_plugin_does_not_set_points_at_the_plugin(tmp_path):
     """A name the failing element does not write (a default) gives the element's own line, never a
     same-named parameter of a later plugin."""
-    from sarmitsuba.scene import _parameter_line
+    from sarmitsuba.scene.loader import _parameter_line
     path = tmp_path / "scene.xml"
     path.write_text("<scene version='3.0.0'>\n"
                     "  <sensor type='sar'>\n"

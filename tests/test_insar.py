@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import interferometry as ifm
-from sarmitsuba.baseline import baseline
+from sarmitsuba.analysis import interferometry as ifm
+from sarmitsuba.scene.baseline import baseline
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.scene import load_scene
+from sarmitsuba.scene.loader import load_scene
 
 SCENES = Path(__file__).parent / "scenes"
 GROUND = str(SCENES / "rough_ground.xml")         # 80 m x 80 m of rough ground (gamma -10 dB)

@@ -1,10 +1,10 @@
-"""Repeat-pass interferometry (sarmitsuba.interferometry, ``interferogram`` CLI) against closed forms.
+"""Repeat-pass interferometry (sarmitsuba.analysis.interferometry, ``interferogram`` CLI) against closed forms.
 
 Synthetic ground grids and straight tracks, no tracer: a primary track at slant range ``R`` and
 incidence ``theta`` from the scene centre, flying +y with the scene at +x (right-looking), and a
 secondary track shifted by ``b`` along ``e = -(cos theta, 0, sin theta)``, the unit vector normal
 to the track and to the line of sight in which the look angle grows (outward and down,
-sarmitsuba.baseline's convention): a purely perpendicular baseline
+sarmitsuba.scene.baseline's convention): a purely perpendicular baseline
 ``B_perp = b`` (Hanssen, Radar Interferometry, 2001, sections 2.4-2.5).
 """
 from __future__ import annotations
@@ -14,10 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba import interferometry as ifm
-from sarmitsuba.constants import SPEED_OF_LIGHT
-from sarmitsuba.image import SarImage
-from sarmitsuba.raw import RawData
+from sarmitsuba.analysis import interferometry as ifm
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.core.raw import RawData
 
 FC = 10e9
 WAVELENGTH = SPEED_OF_LIGHT / FC

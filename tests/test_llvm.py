@@ -1,4 +1,4 @@
-"""Tests of sarmitsuba._llvm: locating a libLLVM >= 16 for Dr.Jit.
+"""Tests of sarmitsuba.tracing._llvm: locating a libLLVM >= 16 for Dr.Jit.
 
 Fake library trees are built in ``tmp_path`` (empty files and symlinks), so
 the search logic is tested without touching the system; one test checks the
@@ -11,18 +11,7 @@ import sys
 
 import pytest
 
-from sarmitsuba._llvm import (
-    ENV_VAR,
-    MIN_LLVM_VERSION,
-    LibLLVMCandidate,
-    LibLLVMError,
-    choose_libllvm,
-    find_libllvm,
-    llvm_version,
-    parse_ldconfig,
-    parse_llvm_version,
-    scan_dirs,
-)
+from sarmitsuba.tracing._llvm import ENV_VAR, MIN_LLVM_VERSION, LibLLVMCandidate, LibLLVMError, choose_libllvm, find_libllvm, llvm_version, parse_ldconfig, parse_llvm_version, scan_dirs
 
 
 def _touch(d, *names):
@@ -214,7 +203,7 @@ def test_real_machine_finds_llvm_16_or_newer():
 def test_ensure_libllvm_sets_env_in_fresh_process():
     code = (
         "import os, sys\n"
-        "from sarmitsuba._llvm import ensure_libllvm, llvm_version\n"
+        "from sarmitsuba.tracing._llvm import ensure_libllvm, llvm_version\n"
         "p = ensure_libllvm()\n"
         "assert os.environ['DRJIT_LIBLLVM_PATH'] == p\n"
         "import drjit\n"

@@ -1,4 +1,4 @@
-"""Tests of sarmitsuba.materials: ITU-R P.2040 permittivities, Fresnel and slab
+"""Tests of sarmitsuba.scene.materials: ITU-R P.2040 permittivities, Fresnel and slab
 reflection coefficients, and the lookup table used by the tracer.
 
 Oracles: closed forms (normal incidence, Brewster angle, grazing, PEC), an
@@ -17,21 +17,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sarmitsuba.constants import SPEED_OF_LIGHT
-from sarmitsuba.materials import (
-    ITU_MATERIALS,
-    Material,
-    MaterialError,
-    fresnel_half_space,
-    interpolate_table,
-    itu_material_names,
-    itu_permittivity,
-    itu_valid_ranges,
-    reflection_coefficient,
-    reflection_table,
-    slab_reflection,
-    table_error_bound,
-)
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
+from sarmitsuba.scene.materials import ITU_MATERIALS, Material, MaterialError, fresnel_half_space, interpolate_table, itu_material_names, itu_permittivity, itu_valid_ranges, reflection_coefficient, reflection_table, slab_reflection, table_error_bound
 
 F_X = 9.6e9  # X-band frequency of the Sionna reference runs [Hz]
 

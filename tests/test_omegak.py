@@ -3,7 +3,7 @@ ch. 8; docs/design.md section 9).
 
 Cases, targets and analysis helpers: ``test_stripmap.py`` (analytic float64 point targets,
 straight flat-earth tracks, 3 x 3 target grid 10 % inside the fully focused region).
-Metrics (sarmitsuba.analysis): IRW at -3 dB; PSLR outside the first nulls; ISLR 1-D,
+Metrics (sarmitsuba.analysis.point_target): IRW at -3 dB; PSLR outside the first nulls; ISLR 1-D,
 null-bounded mainlobe, sidelobes to 10 null distances (theory from
 sarmitsuba.focus.windows, -13.26 / -10.11 dB for rect); position error in resolution
 cells; phase of the image at the predicted position with the true carrier.
@@ -20,7 +20,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sarmitsuba import synthetic
+from sarmitsuba.analysis import synthetic
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus.omegak import omega_k
 from sarmitsuba.focus.rda import range_doppler

@@ -1,7 +1,7 @@
-"""The polarimetric ray-optics reference (sarmitsuba.polarimetry; docs/physics.md (P1)-(P6))
+"""The polarimetric ray-optics reference (sarmitsuba.tracing.polarimetry; docs/physics.md (P1)-(P6))
 against closed forms: image theory, PEC plate, trihedral and dihedral (level and turned about
 the line of sight), reciprocity, and dielectric half-space bounces (ITU-R P.2040 Fresnel
-coefficients of sarmitsuba.fresnel, mirror-image convention: r_tm = -R_TM of P.2040).
+coefficients of sarmitsuba.scene.fresnel, mirror-image convention: r_tm = -R_TM of P.2040).
 
 Geometry is built here independently of the module: mirror chains with ``_mirror``, rotations
 with Rodrigues' formula, the BSA basis from its definition ``h = unit(z x l)``, ``v = l x h``.
@@ -20,9 +20,8 @@ from functools import partial
 import numpy as np
 import pytest
 
-from sarmitsuba.fresnel import fresnel_half_space
-from sarmitsuba.polarimetry import (PEC, antenna_jones, bsa_basis, facet_basis, project_bsa,
-                                    reflect_jones, scattering_matrix)
+from sarmitsuba.scene.fresnel import fresnel_half_space
+from sarmitsuba.tracing.polarimetry import PEC, antenna_jones, bsa_basis, facet_basis, project_bsa, reflect_jones, scattering_matrix
 
 ETA = 5.0 - 0.5j           # the ground of the dielectric tests
 ETA_WALL = 3.0 - 0.2j      # a dielectric wall

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import groundtruth, preview
-from sarmitsuba.scene import load_scene
+from sarmitsuba.products import groundtruth, preview
+from sarmitsuba.scene.loader import load_scene
 
 
 @pytest.fixture(scope="module")

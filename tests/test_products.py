@@ -9,8 +9,8 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from sarmitsuba.image import SarImage
-from sarmitsuba.products import write_exr, write_quicklook
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.products.image_files import write_exr, write_quicklook
 
 
 def make_image(data: np.ndarray | None = None, plane: str = "ground") -> SarImage:
@@ -165,7 +165,7 @@ def test_render_quicklook_title_gives_fc_and_b_once(tmp_path, drawn):
 
 @pytest.mark.parametrize("writer, what", [(write_quicklook, "quicklook"), (write_exr, "EXR image")])
 def test_unwritable_target_is_named_and_nothing_is_left(tmp_path, unwritable_paths, writer, what):
-    from sarmitsuba.products import WriteError
+    from sarmitsuba.products.image_files import WriteError
     for target in unwritable_paths:
         with pytest.raises(WriteError) as caught:
             writer(make_image(), target)

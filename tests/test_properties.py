@@ -35,9 +35,9 @@ from hypothesis import HealthCheck, Phase, example, given, settings
 from hypothesis import strategies as st
 
 import sarmitsuba  # noqa: F401  (variant and plugins)
-from sarmitsuba import materials
+from sarmitsuba.scene import materials
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.scene import RECENTER_DISTANCE, load_scene, material_table
+from sarmitsuba.scene.loader import RECENTER_DISTANCE, load_scene, material_table
 
 FREQUENCY = 9.6e9                     # Hz: the sensor's default carrier
 GROUND_HALF = 30.0                    # m: the ground covers every box (|x|, |y| <= 20 + 7.1)
@@ -396,9 +396,9 @@ def test_ray_aim_points_avoid_the_scene_edges(incidence, spacing, half, altitude
     Edges at odd multiples of half a cell from the scene centre still meet a row (the lattice
     is anchored there); the spacing is detuned (SPACING_DETUNE) so that Hypothesis's round
     values do not construct that measure-zero coincidence."""
-    from sarmitsuba import planning
-    from sarmitsuba.radar import RadarParameters, acquisition_geometry
-    from sarmitsuba.trace import TraceSettings
+    from sarmitsuba.scene import planning
+    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.tracing.trace import TraceSettings
     lo, hi = np.array([-half, -half, 0.0]), np.array([half, half, 0.0])
     params = planning.resolve_parameters(
         RadarParameters(incidence_angle=incidence, altitude=altitude, n_pulses=4), lo, hi)

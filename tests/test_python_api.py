@@ -12,9 +12,9 @@ import pytest
 import trimesh
 
 import sarmitsuba
-from sarmitsuba.radar import ParameterError
-from sarmitsuba.raw import RawData
-from sarmitsuba.scene import SceneError, load_scene, resolve_source
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.core.raw import RawData
+from sarmitsuba.scene.loader import SceneError, load_scene, resolve_source
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 WAVELENGTH = 299_792_458.0 / 9.6e9
@@ -149,8 +149,8 @@ def test_trihedral_built_in_python_simulate_refocus_analyze():
 def test_render_and_info_of_a_python_scene(tmp_path):
     """render writes every product and names the scene python:<name>; the metadata have no
     scene file, and the figures' scene reload and ``info`` cope with that."""
-    from sarmitsuba.figures import _scene_of
-    from sarmitsuba.image import SarImage
+    from sarmitsuba.products.figures import _scene_of
+    from sarmitsuba.core.image import SarImage
     from sarmitsuba.info import format_text, scene_info
     ground = quad([(-10, 0, 0), (10, 0, 0), (10, 10, 0), (-10, 10, 0)])
     wall = quad([(-10, 0, 0), (-10, 0, 5), (10, 0, 5), (10, 0, 0)])

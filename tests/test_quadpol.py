@@ -31,7 +31,7 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import canonical as C
+from sarmitsuba.scene import canonical as C
 from sarmitsuba.pipeline import simulate
 
 PEC = C.PEC
@@ -196,12 +196,13 @@ def test_scalar_model_carries_no_jones_matrix():
     """With ``polarimetry = scalar`` HH and VV launch tubes without a Jones matrix (nothing
     compiled); by default, and for HV and quad, with one, whose columns at launch are the BSA h
     and v of the tube's direction (P1): h horizontal and normal to it, v = d x h up-ish."""
-    from sarmitsuba import jones, planning
-    from sarmitsuba.effects import active_effects
-    from sarmitsuba.kernel import Blocks, Kernel, Launch
-    from sarmitsuba.radar import acquisition_geometry
-    from sarmitsuba.scene import load_scene, material_table
-    from sarmitsuba.trace import subapertures
+    from sarmitsuba.tracing import jones
+    from sarmitsuba.scene import planning
+    from sarmitsuba.scene.effects import active_effects
+    from sarmitsuba.tracing.kernel import Blocks, Kernel, Launch
+    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.scene.loader import load_scene, material_table
+    from sarmitsuba.tracing.trace import subapertures
     cases = (("HH", "scalar", False), ("VV", "scalar", False), ("VV", "jones", True), ("HV", "jones", True),
              ("quad", "jones", True))
     for polarization, model, carried in cases:
@@ -272,7 +273,7 @@ def test_rough_ground_cross_polarised_level_and_correlations(tmp_path, cross_pol
 def test_cross_polarised_level_from_the_materials(tmp_path):
     """``itu-radio-material``'s xpd_coefficient K gives q = K / (1 - K) (K = 0.2: q = 0.25);
     ``radar``'s cross_pol_db = -10 gives q = 0.1; K = 1 is refused, naming the parameter."""
-    from sarmitsuba.scene import SceneError, load_scene, material_table
+    from sarmitsuba.scene.loader import SceneError, load_scene, material_table
     xml = tmp_path / "materials.xml"
     body = """<scene version="3.0.0">
     <bsdf type="itu-radio-material" id="a"><string name="type" value="concrete"/>
@@ -297,7 +298,7 @@ def test_quad_render_writes_four_channels_on_one_grid_and_a_pauli_picture(tmp_pa
     raw.npz / image.npz), every image on the same grid, pauli.png; ``analyze`` reads each channel
     and finds its raw data beside it; the one-channel names are unchanged for VV."""
     from sarmitsuba.cli import main
-    from sarmitsuba.image import SarImage
+    from sarmitsuba.core.image import SarImage
     out = tmp_path / "quad"
     assert main(["render", "trihedral", "--out", str(out), "--no-progress", "--set", "polarization=quad"]) == 0
     names = {p.name for p in out.iterdir()}
@@ -331,7 +332,7 @@ def _munich_crop(folder: Path, half: float = 80.0) -> Path:
     """Sionna's Munich within ``half`` m of its centre: the shapes whose box meets the square,
     their triangles with centroids inside it, and the ground as a square of the crop."""
     import xml.etree.ElementTree as ET
-    from sarmitsuba.scene import sionna_scenes
+    from sarmitsuba.scene.loader import sionna_scenes
     source = sionna_scenes()["munich"]
     tree = ET.parse(source)
     folder.mkdir(parents=True, exist_ok=True)
@@ -359,7 +360,7 @@ def _munich_crop(folder: Path, half: float = 80.0) -> Path:
     return folder / "munich_crop.xml"
 
 
-@pytest.mark.skipif(not __import__("sarmitsuba.scene", fromlist=["x"]).sionna_scenes(),
+@pytest.mark.skipif(not __import__("sarmitsuba.scene.loader", fromlist=["x"]).sionna_scenes(),
                     reason="Sionna RT is not installed (pip install sionna-rt): no Munich scene")
 def test_munich_crop_is_reciprocal_and_depolarises(tmp_path):
     """A 160 m crop of Munich (smooth ITU materials, so HV comes from geometry alone): HV carries
@@ -384,12 +385,13 @@ def test_munich_crop_is_reciprocal_and_depolarises(tmp_path):
 def test_concrete_trihedral_against_the_chain_reference(tmp_path):
     """A concrete (half-space) trihedral at boresight: by its three-fold and mirror symmetry the
     six facet orders of the triple bounce light equal areas, so S / S_PEC is the mean of the six
-    chains' matrices, each computed by the NumPy reference (sarmitsuba.polarimetry, (P5)) with
+    chains' matrices, each computed by the NumPy reference (sarmitsuba.tracing.polarimetry, (P5)) with
     Fresnel coefficients written out here: HH and VV within 0.5 dB and 10 deg, HV 25 dB below.
     The scalar model, |r_te(1/sqrt 3)|^3, is 16 dB brighter: the field turns from TE to TM
     between the facets."""
     import itertools
-    from sarmitsuba import materials, polarimetry
+    from sarmitsuba.scene import materials
+    from sarmitsuba.tracing import polarimetry
     mesh = C.trihedral(0.5)
     eta = materials.itu_permittivity("concrete", FREQ)
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba.constants import BOLTZMANN
+from sarmitsuba.core.constants import BOLTZMANN
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.radar import ParameterError
+from sarmitsuba.core.radar import ParameterError
 
 RADAR = {"transmit_power": 200.0, "antenna_gain_db": 30.0, "losses_db": 2.0}
 P_T, GAIN, LOSSES = 200.0, 10 ** 3.0, 10 ** 0.2                  # RADAR, linear
@@ -31,7 +31,7 @@ def test_single_pulse_snr_worked_example():
     """A worked example by hand: P_t 1 kW, G 30 dB, lambda 3 cm, sigma 1 m^2, R 10 km, T 290 K,
     B 1 MHz, F = L = 1: SNR = 1e3 x 1e6 x 9e-4 / (1984.40 x 1e16 x 4.00388e-15) = 9e5 / 79454
     = 11.327 (10.54 dB). Kills (4 pi)^2 for (4 pi)^3 (x 12.6), R^3 for R^4, G for G^2, lambda for lambda^2."""
-    from sarmitsuba.radiometry import RadarEquation
+    from sarmitsuba.signal.radiometry import RadarEquation
     eq = RadarEquation(transmit_power=1e3, gain=1e3, losses=1.0, wavelength=0.03, bandwidth=1e6,
                        pulse_length=1e-5, noise_power=BOLTZMANN * 290.0 * 1e6)
     assert eq.snr(1.0, 10e3) == pytest.approx(11.327, rel=1e-3)
@@ -41,7 +41,7 @@ NOISE = {"noise_figure_db": 3.0, "noise_temperature": 290.0}
 
 def test_noise_power_per_sample_is_k_t_b_f():
     """An empty beam with noise: raw samples have power k T B F within 2 %."""
-    from sarmitsuba.planning import AcquisitionWarning
+    from sarmitsuba.scene.planning import AcquisitionWarning
     with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):
         sim = simulate("trihedral", sensor_overrides={**RADAR, **NOISE, "scene_center": "500, 500, 0",
                                                       "n_pulses": 300})
@@ -113,7 +113,7 @@ def test_satellite_range_radiometry_representable_in_float32():
     ({"transmit_power": -1.0, "antenna_gain_db": 30}, "transmit_power = -1.0"),
 ])
 def test_radiometry_parameter_errors_before_tracing(override, message):
-    from sarmitsuba.scene import load_scene
+    from sarmitsuba.scene.loader import load_scene
     with pytest.raises(ParameterError, match=message):
         load_scene("trihedral", sensor_overrides=override)
 
@@ -125,8 +125,8 @@ def test_antenna_gain_from_its_dimensions_worked_example():
     With P_t = 100 W, L = 1: constant P_t G^2 lambda^2 / (4 pi)^3 = 100 (2 pi)^2 / lambda^2 / 1984.40
     = 100 x 39.4784 / 9.75212e-4 / 1984.40 = 2040.0 W m^2.
     Kills lambda^2 -> lambda * 2 in the gain (G = 402)."""
-    from sarmitsuba.radar import RadarParameters
-    from sarmitsuba.radiometry import radar_equation
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.signal.radiometry import radar_equation
     eq = radar_equation(RadarParameters(frequency=9.6e9, antenna_length=1.0, antenna_height=0.5,
                                         transmit_power=100.0))
     assert eq.gain == pytest.approx(6442.9, rel=1e-4)
@@ -144,8 +144,8 @@ def test_effective_pulses_match_the_integrated_two_way_pattern(antenna_length, s
     Kills L / lambda * sin(...) -> L / lambda / sin(...)."""
     from scipy.integrate import quad
 
-    from sarmitsuba.radar import RadarParameters
-    from sarmitsuba.radiometry import effective_pulses
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.signal.radiometry import effective_pulses
     p = RadarParameters(frequency=9.6e9, antenna_length=antenna_length, squint=squint)
     lam = 299_792_458.0 / 9.6e9
     lo, hi = p.beam_sines

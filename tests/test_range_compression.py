@@ -1,7 +1,7 @@
 """Range compression and range weighting against closed forms (Cumming and Wong 2005, ch. 3;
 raw and compressed data of one scene agree: docs/design.md section 5).
 
-Raw chirps come from :mod:`sarmitsuba.synthetic`; "the truth" is the compressed echo
+Raw chirps come from :mod:`sarmitsuba.analysis.synthetic`; "the truth" is the compressed echo
 ``a p_r(tau - L/c) exp(-j 2 pi fc L/c)`` written directly by the same generator (its
 pulse ``p_r`` is checked against quadrature in ``test_windows.py``). Widths and sidelobes
 are measured on the compressed lines by FFT interpolation, independently of the analysis
@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import scipy.integrate
 
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus import windows as w
 from sarmitsuba.focus.range_compression import apply_range_window, range_compress
-from sarmitsuba.signal_model import chirp_spectrum
-from sarmitsuba.synthetic import PointTarget, simulate_point_targets, straight_track
+from sarmitsuba.signal.signal_model import chirp_spectrum
+from sarmitsuba.analysis.synthetic import PointTarget, simulate_point_targets, straight_track
 from test_backprojection import _width
 
 FC = 9.6e9

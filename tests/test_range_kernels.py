@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import binning, deposit
+from sarmitsuba.signal import binning
+from sarmitsuba.tracing import deposit
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.radar import ParameterError
-from sarmitsuba.scene import load_scene
-from sarmitsuba.trace import PathList
-from sarmitsuba.trace_inputs import FastTimeWindow
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.scene.loader import load_scene
+from sarmitsuba.tracing.trace import PathList
+from sarmitsuba.scene.trace_inputs import FastTimeWindow
 
 
 def _nrmse_db(a: np.ndarray, ref: np.ndarray) -> float:

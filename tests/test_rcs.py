@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis
-from sarmitsuba import canonical as C
-from sarmitsuba import materials
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.scene import materials
 from sarmitsuba.pipeline import simulate
 
 WAVELENGTH = 299_792_458.0 / 9.6e9
@@ -57,7 +57,7 @@ def test_concrete_trihedral_scales_with_fresnel_products(tmp_path, model):
     |S_HH|^2 with S the mean of the six facet orders' chain matrices of the NumPy reference
     (docs/physics.md (P5)), 16 dB less."""
     import itertools
-    from sarmitsuba import polarimetry
+    from sarmitsuba.tracing import polarimetry
     material = '<string name="material" value="concrete"/>'
     mesh = C.trihedral(0.5)
     xml = C.scene_xml(tmp_path, mesh, material, 3)

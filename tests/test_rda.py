@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.analysis import analyze_point_target
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.analysis.point_target import analyze_point_target
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus.omegak import omega_k
 from sarmitsuba.focus.rda import range_doppler
 

@@ -121,7 +121,7 @@ def test_traced_trihedral_point_target_quality(beam):
     docs/physics.md (P5))
     within 2 deg. At 10 km slant range: at the scene's own 1.4 km the 2 m reflector's near
     field adds ~2 deg of quadratic phase."""
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     sim = simulate("trihedral", sensor_overrides={"altitude": 10e3 * math.cos(math.pi / 4), "beam": beam},
                    window="rect")
     p = sim.loaded.params
@@ -143,7 +143,7 @@ def test_spotlight_resolution_follows_the_integration_angle(n_pulses):
     """Spotlight: the beam stays on the scene centre; azimuth IRW = 0.886 lambda / (2 dtheta) with
     dtheta = n_pulses v / (prf R) (Carrara, Goodman and Majewski, *Spotlight SAR*, eq. 2.9),
     within 3 %, whatever the aperture; the apex stays put."""
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     sim = simulate("trihedral", sensor_overrides={"mode": "spotlight", "n_pulses": n_pulses}, window="rect")
     p = sim.loaded.params
     r = analyze_point_target(sim.image, np.zeros(3))
@@ -159,7 +159,7 @@ def test_ground_layover_of_raised_points_is_the_closed_form(incidence):
     ground distance ``sqrt(Y^2 - 2 H h + h^2)``, at its own along-track position; a point on
     the ground maps to itself, and one nearer the track than ``R0 < H`` allows maps nowhere
     (NaN). At 30 deg the layover is about 1.73 h, at 60 deg 0.58 h."""
-    from sarmitsuba.radar import RadarParameters, acquisition_geometry, ground_layover
+    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry, ground_layover
     p = RadarParameters(scene_center=(0.0, 0.0, 0.0), n_pulses=5, incidence_angle=incidence, heading=20.0)
     g = acquisition_geometry(p)
     H, Y0 = p.altitude, p.ground_range

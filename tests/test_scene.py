@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba.radar import ParameterError, RadarParameters
-from sarmitsuba.scene import SceneError, load_scene, material_table, sionna_scenes
+from sarmitsuba.core.radar import ParameterError, RadarParameters
+from sarmitsuba.scene.loader import SceneError, load_scene, material_table, sionna_scenes
 
 
 def test_builtin_scenes_have_sensor_and_integrator():
@@ -43,7 +43,7 @@ def test_sionna_floor_wall_loads_unchanged_with_default_sensor():
 @pytest.mark.skipif("munich" not in sionna_scenes(), reason="sionna-rt extra not installed")
 def test_sionna_munich_loads_all_objects():
     """Munich loads whole; its few defective meshes (Sionna's own data) are reported, not fatal."""
-    from sarmitsuba.meshcheck import MeshDefectWarning
+    from sarmitsuba.scene.meshcheck import MeshDefectWarning
     with pytest.warns(MeshDefectWarning, match="non-manifold"):
         loaded = load_scene("sionna:munich")
     assert loaded.n_shapes > 2000 and loaded.n_triangles > 30000
@@ -122,7 +122,7 @@ def test_derived_radar_quantities_follow_standard_formulas():
 
 def test_track_geometry_conventions():
     """Heading 0, right-looking: flying along +x, sensor on the +y side, at the altitude."""
-    from sarmitsuba.radar import acquisition_geometry
+    from sarmitsuba.core.radar import acquisition_geometry
     p = RadarParameters(scene_center=(0.0, 0.0, 0.0), n_pulses=3, altitude=1000.0, incidence_angle=45.0)
     g = acquisition_geometry(p)
     assert np.allclose(g.positions[1], [0.0, 1000.0, 1000.0])

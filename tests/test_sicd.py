@@ -9,9 +9,10 @@ import pytest
 
 sksicd = pytest.importorskip("sarkit.sicd")
 
-from sarmitsuba import georef, pipeline  # noqa: E402
+from sarmitsuba.core import georef
+from sarmitsuba import pipeline  # noqa: E402
 from sarmitsuba.cli import main  # noqa: E402
-from sarmitsuba.sicd import SicdError, check_sicd, read_sicd, write_sicd  # noqa: E402
+from sarmitsuba.formats.sicd import SicdError, check_sicd, read_sicd, write_sicd  # noqa: E402
 from test_cphd import reports_close  # noqa: E402
 from test_georef import ecef_closed_form  # noqa: E402
 
@@ -57,7 +58,7 @@ def test_declared_resolution_is_the_measured_one(written):
     """Row/Col ImpRespWid against the -3 dB widths the point-target analysis measures on the image:
     catches a bandwidth taken from the beam when 32 pulses of track bound the aperture (4x too
     narrow a width), a missing ground projection or window factor."""
-    from sarmitsuba.analysis import analyze_point_target
+    from sarmitsuba.analysis.point_target import analyze_point_target
     sim, path = written
     xml, _ = xml_of(path)
     report = analyze_point_target(sim.image, (0.0, 0.0, 0.0), chip=32).to_dict()
@@ -166,7 +167,7 @@ def test_a_file_that_is_no_sicd_is_named(tmp_path, capsys):
 def test_a_foreign_plane_sicd_reads_from_the_standard_fields_alone(written):
     """Without sarmitsuba's Parameters the image comes back in the ENU frame of its SCP: every
     pixel at the same place on Earth (ECEF within 1 mm), the same samples."""
-    from sarmitsuba.sicd import image_from_parts
+    from sarmitsuba.formats.sicd import image_from_parts
     sim, path = written
     with open(path, "rb") as f, sksicd.NitfReader(f) as reader:
         tree, array = reader.metadata.xmltree, reader.read_image()
@@ -181,7 +182,7 @@ def test_a_foreign_plane_sicd_reads_from_the_standard_fields_alone(written):
 
 
 def test_a_grid_other_than_plane_is_refused_by_name(written):
-    from sarmitsuba.sicd import image_from_parts
+    from sarmitsuba.formats.sicd import image_from_parts
     with open(written[1], "rb") as f, sksicd.NitfReader(f) as reader:
         tree, array = reader.metadata.xmltree, reader.read_image()
     tree.find("{*}Grid/{*}Type").text = "RGZERO"

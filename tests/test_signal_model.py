@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.signal_model import receiver_response
+from sarmitsuba.signal.signal_model import receiver_response
 
 
 @pytest.mark.parametrize("fs, bandwidth", [(120e6, 100e6), (300e6, 150e6)])

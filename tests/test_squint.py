@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis
+from sarmitsuba.analysis import point_target as analysis
 from sarmitsuba.focus import ImageGrid
 from sarmitsuba.focus.backprojection import illumination_count
 from sarmitsuba.focus.stripmap import estimate_doppler_centroid
 from sarmitsuba.pipeline import refocus, simulate
-from sarmitsuba.radar import ParameterError, RadarParameters, acquisition_geometry
-from sarmitsuba.scene import load_scene
+from sarmitsuba.core.radar import ParameterError, RadarParameters, acquisition_geometry
+from sarmitsuba.scene.loader import load_scene
 
 SQUINTS = (-15.0, 25.0)
 

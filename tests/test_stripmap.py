@@ -2,7 +2,7 @@
 
 The point-target cases (:class:`Case`, :data:`CASES`, :data:`AIRBORNE_X`, :data:`SPACEBORNE_C`,
 :data:`CW_LOW`, :data:`CW_HIGH`), their analytic raw data and the squint deskew live in
-:mod:`sarmitsuba.reference_cases` (geometry, targets, sources and the deskew convention are
+:mod:`sarmitsuba.analysis.reference_cases` (geometry, targets, sources and the deskew convention are
 described there); this module re-exports them for ``test_omegak.py`` and ``test_rda.py``
 and adds the cached per-name data and geometry (:func:`simulate`, :func:`geometry`) and the
 analysis helpers the focusing tests share (:func:`analyse`, :func:`chip`, :func:`correlation`).
@@ -15,16 +15,15 @@ import functools
 import numpy as np
 import pytest
 
-from sarmitsuba import synthetic
-from sarmitsuba.analysis import analyze_point_target
-from sarmitsuba.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.analysis import synthetic
+from sarmitsuba.analysis.point_target import analyze_point_target
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.focus.stripmap import (StripmapGeometry, estimate_doppler_centroid, slant_output_grid,
                                        stripmap_geometry)
-from sarmitsuba.image import SarImage
-from sarmitsuba.raw import RawData
-# cases and helpers of sarmitsuba.reference_cases, re-exported for test_omegak.py and test_rda.py
-from sarmitsuba.reference_cases import (AIRBORNE_X, CASES, CW_HIGH, CW_LOW, SPACEBORNE_C, Case,  # noqa: F401
-                                        deskew, focused_carrier, phase_error_deg, simulate_case)
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.core.raw import RawData
+# cases and helpers of sarmitsuba.analysis.reference_cases, re-exported for test_omegak.py and test_rda.py
+from sarmitsuba.analysis.reference_cases import AIRBORNE_X, CASES, CW_HIGH, CW_LOW, SPACEBORNE_C, Case, deskew, focused_carrier, phase_error_deg, simulate_case
 
 
 # ============================================================================ cached data of the cases

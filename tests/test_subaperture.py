@@ -30,12 +30,12 @@ import pytest
 import trimesh
 
 import sarmitsuba
-from sarmitsuba import canonical as C
-from sarmitsuba import planning
-from sarmitsuba.analysis import analyze_point_target
+from sarmitsuba.scene import canonical as C
+from sarmitsuba.scene import planning
+from sarmitsuba.analysis.point_target import analyze_point_target
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.radar import ParameterError
-from sarmitsuba.trace_inputs import TraceSettings
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.scene.trace_inputs import TraceSettings
 
 ROUGH = str(Path(__file__).parent / "scenes" / "rough_ground.xml")
 
@@ -152,9 +152,9 @@ def test_tile_corners_seen_edge_on_return_nothing_not_nan():
     the facet's plane (zero length, zero area, split edge with zero gradient). Such corners
     return nothing; before, 34 returns of one pulse were NaN and the exact kernel's raw data
     and image were NaN everywhere."""
-    from sarmitsuba.scene import load_scene, material_table
-    from sarmitsuba.radar import acquisition_geometry
-    from sarmitsuba.trace import trace
+    from sarmitsuba.scene.loader import load_scene, material_table
+    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.tracing.trace import trace
     loaded = load_scene("urban", None, {"range_kernel": "exact", "pulses_per_trace": 26})
     p, st = loaded.params, loaded.settings
     g = acquisition_geometry(p)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba.constants import SPEED_OF_LIGHT
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
 
 SCENES = Path(__file__).parent / "scenes"
@@ -73,7 +73,7 @@ def test_energy_per_order_and_rays_are_consistent():
 def test_beam_hitting_nothing_gives_zero_data():
     """Empty beam: a beam pointed 500 m away from all geometry yields exactly zero raw data
     and a zero image (not NaN), and casts no ray."""
-    from sarmitsuba.planning import AcquisitionWarning
+    from sarmitsuba.scene.planning import AcquisitionWarning
     with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):
         far = simulate("trihedral", sensor_overrides={"scene_center": "500, 500, 0", "n_pulses": 4})
     assert far.trace.rays_per_order.sum() == 0
@@ -134,8 +134,8 @@ def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monk
     within the ceiling (or one refined cell's m^2 tubes, which are not split) and the raw data
     equal the default's, on a track whose heading (37 deg) is along no axis (a launch placed at
     the wrong pulse, a chunk dropped or traced twice would show)."""
-    from sarmitsuba import canonical as C
-    from sarmitsuba import trace as trace_module
+    from sarmitsuba.scene import canonical as C
+    from sarmitsuba.tracing import trace as trace_module
 
     xml = C.scene_xml(tmp_path, C.trihedral(0.3), C.PEC, 3, extra_shapes=(
         '<shape type="rectangle"><transform name="to_world"><scale x="6" y="6"/></transform>'
@@ -168,9 +168,9 @@ def test_ray_footprint_covers_the_beam_at_the_far_range_edge():
     (the scene, 4 km along track, is far wider than the beam, so only the beam bounds the
     cells). Hand numbers: 45 deg, H = 1000 m, ground range 1000 +- 400 m: R_far = hypot(1000,
     1400) = 1720.5 m, the near edge's hypot(1000, 600) = 1166.2 m would be 11 m (14 cells) short."""
-    from sarmitsuba import planning
-    from sarmitsuba.radar import RadarParameters, acquisition_geometry
-    from sarmitsuba.trace import TraceSettings
+    from sarmitsuba.scene import planning
+    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.tracing.trace import TraceSettings
     lo, hi = np.array([-2000.0, -400.0, 0.0]), np.array([2000.0, 400.0, 0.0])
     params = planning.resolve_parameters(RadarParameters(incidence_angle=45.0, altitude=1000.0, n_pulses=4), lo, hi)
     geometry = acquisition_geometry(params)

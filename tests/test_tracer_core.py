@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis
-from sarmitsuba import canonical as C
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba.scene import canonical as C
 from sarmitsuba.focus import windows
 from sarmitsuba.pipeline import simulate
 
@@ -130,9 +130,9 @@ def test_rough_ground_sigma0_in_every_range_bin_without_stripes(tmp_path):
 
 def test_lambertian_sigma0_is_absolute(tmp_path):
     """Sionna's itu-radio-material with scattering coefficient S: sigma0 = 4 S^2 |r|^2 cos^2(theta)
-    (Lambert's law, docs/physics.md (C)), |r| the slab's coefficient from sarmitsuba.materials at
+    (Lambert's law, docs/physics.md (C)), |r| the slab's coefficient from sarmitsuba.scene.materials at
     each pixel's incidence: the mean calibrated intensity within 0.5 dB."""
-    from sarmitsuba import materials
+    from sarmitsuba.scene import materials
     s = 0.6
     body = (f'<bsdf type="itu-radio-material" id="ground"><string name="type" value="concrete"/>'
             f'<float name="thickness" value="0.2"/><float name="scattering_coefficient" value="{s}"/></bsdf>'
@@ -213,9 +213,9 @@ def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
     objects in tubes of an explicit ``ray_spacing`` (a 0.5 m trihedral at 0.1 m spacing: -1.3 dB)."""
     import dataclasses
 
-    from sarmitsuba import planning
-    from sarmitsuba.radar import acquisition_geometry
-    from sarmitsuba.scene import load_scene
+    from sarmitsuba.scene import planning
+    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.scene.loader import load_scene
     loaded = load_scene(str(C.scene_xml(tmp_path, C.trihedral(1.0), C.PEC, 3)))
     p, settings = loaded.params, loaded.settings
     geometry = acquisition_geometry(p)

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba import analysis, pipeline
+from sarmitsuba.analysis import point_target as analysis
+from sarmitsuba import pipeline
 from sarmitsuba.cli import main
 from sarmitsuba.focus import windows
-from sarmitsuba.radar import ParameterError
+from sarmitsuba.core.radar import ParameterError
 
 TAYLOR = {"name": "taylor", "nbar": 4, "sll": -35.0}
 
@@ -75,8 +76,8 @@ def test_bad_window_fails_before_tracing(monkeypatch):
 
 def test_render_window_option(tmp_path, capsys, monkeypatch):
     titles = []
-    original = pipeline.products.write_quicklook
-    monkeypatch.setattr(pipeline.products, "write_quicklook",
+    original = pipeline.image_files.write_quicklook
+    monkeypatch.setattr(pipeline.image_files, "write_quicklook",
                         lambda image, path, **kw: titles.append(kw.get("title")) or original(image, path, **kw))
     assert main(["render", "trihedral", "--out", str(tmp_path), "--no-progress", "--window", "hamming"]) == 0
     image = analysis.SarImage.load(tmp_path / "image.npz")

@@ -1,7 +1,16 @@
-"""Focusing stage: range-compressed :class:`~sarmitsuba.raw.RawData` to a :class:`~sarmitsuba.image.SarImage`.
+"""Stage 4, focusing: range-compressed :class:`~sarmitsuba.core.raw.RawData` to a :class:`~sarmitsuba.core.image.SarImage`.
 
-docs/design.md section 8; conventions and precision in docs/design.md section 5 and
-docs/physics.md (S1)-(S3), validation targets in docs/design.md section 9.
+Stage: 4 (core -> scene -> tracing -> signal -> **focus** -> products -> formats -> analysis).
+
+Takes: ``RawData`` from :mod:`sarmitsuba.signal` (or any file honouring the contract,
+docs/design.md section 3), and optionally the scene for its ground grid (:mod:`.scene_grid`).
+
+Gives: a ``SarImage`` on a ground or slant grid, weighted and normalised as the render's own.
+
+Physics: (S1)-(S3) signal model and backprojection; (A) antenna pattern; (K), (K2)
+calibration and energy widths; (F1)-(F9) fast factorised backprojection. docs/design.md
+section 8; conventions and precision in docs/design.md section 5, validation targets in
+section 9.
 
 Grids
 -----

@@ -40,9 +40,9 @@ from typing import Any
 
 import numpy as np
 
-from ..constants import SPEED_OF_LIGHT
-from ..image import SarImage
-from ..raw import RawData
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .beam import BeamWeighting, beam_weighting, illumination_count, normalise_columns, unit_rows
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar
 from .grid import ImageGrid
@@ -134,7 +134,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
         ``azimuth_pattern``, ``beam_sines``, ``squint``), the straight-track reference
         ``track`` (``{"position": mid-aperture transmitter [m], "direction": unit velocity,
         "length": first to last transmitter [m]}``,
-        used by :mod:`sarmitsuba.analysis` for layover and energy widths), ``seconds`` and
+        used by :mod:`sarmitsuba.analysis.point_target` for layover and energy widths), ``seconds`` and
         ``pixel_pulses_per_second``.
 
     Raises

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..raw import RawData
+from ..core.raw import RawData
 from .grid import ImageGrid
 from .windows import spectral_window, window_spec
 

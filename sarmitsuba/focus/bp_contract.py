@@ -1,8 +1,8 @@
 """The contract shared by the backprojection focusers: input checks, metadata and the output image.
 
 :func:`~sarmitsuba.focus.backproject`, :func:`~sarmitsuba.focus.backproject_reference` and
-:func:`~sarmitsuba.focus.ffbp` accept the same :class:`~sarmitsuba.raw.RawData` (range
-compressed, uniform fast time) and return a :class:`~sarmitsuba.image.SarImage` on the given
+:func:`~sarmitsuba.focus.ffbp` accept the same :class:`~sarmitsuba.core.raw.RawData` (range
+compressed, uniform fast time) and return a :class:`~sarmitsuba.core.image.SarImage` on the given
 :class:`~sarmitsuba.focus.ImageGrid` with the same ``metadata["focus"]`` record
 (docs/design.md section 3).
 """
@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ..image import SarImage
-from ..raw import RawData
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .beam import BeamWeighting
 from .grid import ImageGrid
 from .range_lines import MAX_OVERSAMPLE
@@ -44,7 +44,7 @@ def check_inputs(raw: RawData, grid: ImageGrid, oversample: Any, pulse_block: An
         is not an integer in its range.
     """
     if not isinstance(raw, RawData):
-        raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
+        raise TypeError(f"raw must be a sarmitsuba.core.raw.RawData, got {type(raw).__name__}")
     if not isinstance(grid, ImageGrid):
         raise TypeError(f"grid must be a sarmitsuba.focus.ImageGrid, got {type(grid).__name__}")
     if not raw.range_compressed:

@@ -1,7 +1,7 @@
 """Focusing by name: an algorithm name (``bp``, ``ffbp``, ``omegak``, ``rda``) to its focuser call.
 
 :func:`focus` is what ``sarmitsuba.focus.focus``, ``sarmitsuba.refocus`` and the ``focus``
-command run: any :class:`~sarmitsuba.raw.RawData` honouring the contract (docs/design.md
+command run: any :class:`~sarmitsuba.core.raw.RawData` honouring the contract (docs/design.md
 section 3), focused with the options a sarmitsuba render records in its metadata (ground
 grid, traced beam, Doppler bandwidth, squint, antenna pattern; :func:`render_focusing`).
 :func:`backprojector` and :func:`azimuth_pattern` are the pieces ``simulate`` shares.
@@ -13,9 +13,9 @@ from typing import Any, Callable, NamedTuple
 
 import numpy as np
 
-from ..image import SarImage
-from ..radar import RadarParameters, acquisition_geometry
-from ..raw import RawData
+from ..core.image import SarImage
+from ..core.radar import RadarParameters, acquisition_geometry
+from ..core.raw import RawData
 from .backprojection import backproject
 from .ffbp import GeometryNotSupported, ffbp
 from .grid import ImageGrid

@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from ..constants import SPEED_OF_LIGHT
-from ..image import SarImage
-from ..raw import RawData
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .beam import BeamWeighting, beam_weighting, column_gain, unit_rows
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar
 from .grid import ImageGrid

@@ -1,7 +1,7 @@
 """The contract shared by the straight-track FFT focusers (omega-K and range-Doppler).
 
 :func:`~sarmitsuba.focus.omega_k` and :func:`~sarmitsuba.focus.range_doppler` accept the same
-options and return the same slant-plane :class:`~sarmitsuba.image.SarImage`
+options and return the same slant-plane :class:`~sarmitsuba.core.image.SarImage`
 (:func:`~sarmitsuba.focus.stripmap.slant_output_grid`). What they share lives here:
 
 * input handling: :func:`range_compressed` (chirped data are matched-filtered first) and
@@ -25,9 +25,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..constants import SPEED_OF_LIGHT
-from ..image import SarImage
-from ..raw import RawData
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .bp_contract import available_cpus
 from .grid import ImageGrid
 from .stripmap import StripmapGeometry, stripmap_geometry
@@ -54,9 +54,9 @@ class FocusSetup(NamedTuple):
 def range_compressed(raw: RawData) -> RawData:
     """``raw`` itself when range compressed, else its matched-filter output (unweighted).
 
-    Raises TypeError when ``raw`` is not a :class:`~sarmitsuba.raw.RawData`."""
+    Raises TypeError when ``raw`` is not a :class:`~sarmitsuba.core.raw.RawData`."""
     if not isinstance(raw, RawData):
-        raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
+        raise TypeError(f"raw must be a sarmitsuba.core.raw.RawData, got {type(raw).__name__}")
     if raw.range_compressed:
         return raw
     from .range_compression import range_compress  # imported only when needed

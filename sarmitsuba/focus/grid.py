@@ -8,7 +8,7 @@ Pixel ``(i, j)`` sits at the world position
     \\mathbf{x}_{ij} = \\mathbf{o} + a_i \\, \\hat{\\mathbf{e}}_a + r_j \\, \\hat{\\mathbf{e}}_r
 
 (metres, right-handed world frame, z up), the same convention as
-:class:`sarmitsuba.image.SarImage`, so a focused image carries its grid unchanged.
+:class:`sarmitsuba.core.image.SarImage`, so a focused image carries its grid unchanged.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..arrays import readonly, vector3
+from ..core.arrays import readonly, vector3
 
 __all__ = ["ImageGrid"]
 
@@ -56,7 +56,7 @@ class ImageGrid:
     Arrays are copied to float64 and made read-only, so a grid is immutable (equality
     is identity: ``eq=False`` avoids element-wise array comparisons). The two
     directions need not be orthogonal for focusing, but :meth:`ground` always builds an
-    orthonormal pair and :meth:`sarmitsuba.image.SarImage.pixel_of` assumes one.
+    orthonormal pair and :meth:`sarmitsuba.core.image.SarImage.pixel_of` assumes one.
     """
 
     origin: np.ndarray

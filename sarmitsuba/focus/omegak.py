@@ -89,9 +89,9 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.fft
 
-from ..constants import SPEED_OF_LIGHT
-from ..image import SarImage
-from ..raw import RawData
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .fft_contract import (azimuth_weights, doppler_rows, focus_setup, range_compressed, slant_image,
                            unit_mean_window, windows_label)
 from .stolt import Scratch, StoltInterpolator, centred_buffer

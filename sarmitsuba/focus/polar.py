@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft
 
-from ..constants import SPEED_OF_LIGHT
+from ..core.constants import SPEED_OF_LIGHT
 from .grid import ImageGrid
 from .range_lines import FFT_GUARD, PAD, MAX_WEIGHT_BITS
 

@@ -14,7 +14,7 @@ docs/design.md section 5), so a target at delay ``L/c`` peaks at ``fast_time = L
 value ``a`` (at its continuous peak; the samples are those of ``a p_r``).
 
 Filters (``method``), with ``S(f)`` the exact spectrum of the continuous chirp
-(:func:`sarmitsuba.signal_model.chirp_spectrum`, Fresnel integrals) as the reference:
+(:func:`sarmitsuba.signal.signal_model.chirp_spectrum`, Fresnel integrals) as the reference:
 
 * ``"inverse"`` (default): ``H(f) = w(f/B) / S(f)`` on the band ``|f| <= B/2``, zero
   outside. A chirp's spectrum has Fresnel ripple, so this is the matched filter ``S*``
@@ -62,8 +62,8 @@ from typing import Any
 import numpy as np
 import scipy.fft
 
-from ..raw import RawData
-from ..signal_model import chirp_spectrum
+from ..core.raw import RawData
+from ..signal.signal_model import chirp_spectrum
 from .windows import check_window, spectral_window, window_mean
 
 __all__ = ["range_compress", "apply_range_window"]
@@ -84,7 +84,7 @@ def _windowed_band_fraction(n_fft: int, fs: float, bandwidth: float, name: str, 
 
 def _check_raw(raw: Any, compressed: bool) -> None:
     if not isinstance(raw, RawData):
-        raise ValueError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
+        raise ValueError(f"raw must be a sarmitsuba.core.raw.RawData, got {type(raw).__name__}")
     if raw.range_compressed != compressed:
         if compressed:
             raise ValueError("apply_range_window needs range-compressed data (raw.range_compressed is False); "

@@ -64,9 +64,9 @@ import scipy.fft
 import scipy.optimize
 import scipy.special
 
-from ..constants import SPEED_OF_LIGHT
-from ..image import SarImage
-from ..raw import RawData
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage
+from ..core.raw import RawData
 from .fft_contract import (azimuth_weights, cis, doppler_rows, focus_setup, range_compressed, slant_image,
                            unit_mean_window, windows_label)
 from .stripmap import StripmapGeometry, slant_output_grid

@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..planning import box_corners
-from ..radar import AcquisitionGeometry, ParameterError, ground_layover
+from ..scene.planning import box_corners
+from ..core.radar import AcquisitionGeometry, ParameterError, ground_layover
 from .grid import ImageGrid
 
 if TYPE_CHECKING:                      # only for annotations
-    from ..scene import LoadedScene
+    from ..scene.loader import LoadedScene
 
 __all__ = ["image_grid", "ground_grid", "sized_grid"]
 

@@ -15,7 +15,7 @@ images the scene in the *slant plane* spanned by the track and the scene centre.
 
 This module
 
-* extracts and validates that geometry from a :class:`~sarmitsuba.raw.RawData`
+* extracts and validates that geometry from a :class:`~sarmitsuba.core.raw.RawData`
   (:func:`stripmap_geometry`, returning a :class:`StripmapGeometry`): track direction,
   effective velocity ``Vr``, reference closest-approach range ``R_ref`` at mid-swath,
   squint and absolute Doppler centroid (from a stated beam, or estimated from the data,
@@ -41,7 +41,7 @@ slant range ``range[j]`` [m] (distance from the track line), so ``origin + azimu
 azimuth_direction + range * range_direction`` is the slant-plane position of the pixel, and
 a target at ``X`` is imaged at ``StripmapGeometry.zero_doppler(X)`` whether or not it lies in
 the slant plane (the data see only its cylindrical coordinates about the track;
-:func:`sarmitsuba.analysis.image_coordinates` and :meth:`sarmitsuba.image.SarImage.pixel_of`
+:func:`sarmitsuba.analysis.point_target.image_coordinates` and :meth:`sarmitsuba.core.image.SarImage.pixel_of`
 map world points this way). Pixel values follow backprojection's convention: the
 image of a target of amplitude ``a`` is ``a`` at the target's own pixel position (carrier
 phase removed there), so the three focusers agree sample by sample.
@@ -65,9 +65,9 @@ from typing import Any, Mapping, NamedTuple, Sequence
 import numpy as np
 import scipy.fft
 
-from ..constants import SPEED_OF_LIGHT
-from ..raw import RawData
-from ..arrays import readonly
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.raw import RawData
+from ..core.arrays import readonly
 from .grid import ImageGrid
 
 __all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
@@ -226,7 +226,7 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     however, needs a horizontal track).
     """
     if not isinstance(raw, RawData):
-        raise TypeError(f"raw must be a sarmitsuba.raw.RawData, got {type(raw).__name__}")
+        raise TypeError(f"raw must be a sarmitsuba.core.raw.RawData, got {type(raw).__name__}")
     wavelength = C / raw.fc
     tol = _check_sampling(raw, wavelength, tolerance)
     track = _fit_track(raw, tol)

@@ -1,0 +1,358 @@
+"""The cost model of a render: ray casts, returns, trace and focusing time, and peak memory,
+estimated without tracing (what ``sarmitsuba info`` reports and what a render checks first).
+
+:func:`cost_estimate` gives a :class:`CostEstimate` for a loaded, planned scene (the fast-time
+window and ray footprint of :mod:`sarmitsuba.scene.planning`, the image grid of
+:func:`sarmitsuba.focus.scene_grid.image_grid`, the effects of
+:func:`sarmitsuba.scene.effects.active_effects`); :func:`check_memory` raises, before any tracing, when
+its peak memory exceeds what is available (:func:`available_memory`, :func:`memory_problem`).
+
+Every time is an estimate from the measured rates below, for the 2-core reference machine
+(docs/design.md section 10): expect a factor of 2 either way.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..tracing.deposit import padded_length
+from ..scene.effects import EffectSet, active_effects
+from ..focus.scene_grid import image_grid
+from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters
+from ..scene.loader import LoadedScene
+from ..tracing.trace import pulses_per_trace
+from ..scene.trace_inputs import FastTimeWindow, RayFootprint
+
+__all__ = ["CostEstimate", "cost_estimate", "cast_rates", "synthetic_aperture", "available_memory", "memory_problem",
+           "check_memory", "format_bytes", "MEMORY_LIMIT_ENV"]
+
+#: Measured ray-cast rates [casts/s] of Mitsuba's llvm backend on 2 threads of a 2-core x86-64
+#: VM, as ``(triangles, closest-hit, shadow)``: a plane and a box (14 triangles: 38-59 M
+#: closest-hit, 140-167 M shadow casts/s) and Sionna RT's Munich (38,936 triangles: ~10 M and
+#: ~20 M/s), with Mitsuba 3.9.1 / Dr.Jit 1.5.0, variant ``llvm_ad_mono``, on incoherent rays
+#: (``ray_intersect`` with ``Minimal`` flags or ``ray_intersect_preliminary``; ``ray_test``);
+#: docs/design.md section 10.
+CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
+
+#: Factor on the sum of the tracer's parts (casts, returns, spectra) for what is not in them:
+#: kernel launches and their Python tracing, compaction between bounce orders. Measured on the
+#: 2-core machine (issue 12): 1.2-1.6 for urban and sionna:munich, smooth and rough.
+TRACE_OVERHEAD = 1.3
+
+#: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
+#: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
+RETURN_SECONDS = 9e-9
+#: Seconds per clutter scatterer deposited for one pulse (hash, length, deposit): about 20 ns
+#: (urban: 31.6 M scatterers).
+SCATTERER_SECONDS = 2e-8
+#: Seconds per fine fast-time sample, spectral order and pulse of the reduction to the band
+#: (its FFT, docs/physics.md (D5)): 5.6 ns (Munich: 195 M, 1.1 s).
+FFT_SECONDS = 5.6e-9
+#: PO returns evaluated per ray tube and pulse (the terms that do not cancel, (PO5)), for the
+#: estimate: 0.97 measured in Munich (a city; 0.2 on the urban block's open ground).
+RETURNS_PER_TUBE = 1.0
+#: Clutter scatterers per square metre of tube footprint is ``1 / scatterer_spacing^2``; the
+#: estimate assumes every hit is rough when any material is (Munich rough: 2.2 per tube).
+
+#: Bytes per path of the ``exact`` range kernel's path list (int32 pulse, uint8 order,
+#: float64 position, complex64 value: :class:`sarmitsuba.tracing.trace.PathList`).
+PATH_BYTES = 4 + 1 + 8 + 8
+
+#: Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`): seconds per in-beam
+#: pixel-pulse (its first stage) and per lit pixel (the interpolations onto the grid), fitted to
+#: urban (0.97 M pixels, 2.1e8 pixel-pulses: 0.8 s) and sionna:munich (12.2 M pixels, 1.2e9
+#: pixel-pulses: 5.5 s) on the 2-core machine; plus a fixed 0.05 s.
+FFBP_PIXEL_PULSE_SECONDS = 3.2e-9
+FFBP_PIXEL_SECONDS = 1.45e-7
+FFBP_FIXED_SECONDS = 0.05
+
+#: Direct backprojection throughput [pixel-pulses/s] on the same machine: 2.1e8 measured by
+#: benchmarks/focus_bench.py (1024 x 1024 grid, 1024 pulses, no beam limit).
+BACKPROJECTION_RATE = 2e8
+
+#: Fixed cost [s] of one (pixel tile, pulse block) pair of the beam-limited direct
+#: backprojection, paid whether or not the tile is in the beam (its float64 reference
+#: geometry): fitted to two renders on the 2-core machine, urban (707 x 1041 pixels, 680
+#: pulses: 1.0 s) and sionna:munich (3363 x 3287 pixels, 2264 pulses: 24 s), given
+#: BACKPROJECTION_RATE.
+BACKPROJECTION_TILE_SECONDS = 2.2e-4
+
+#: Pixel tile ``(azimuth, range)`` and pulse block of :func:`sarmitsuba.focus.backproject`
+#: (its ``_TILE`` and default ``pulse_block``), the units of the fixed cost above.
+BACKPROJECTION_TILE = (16, 128)
+BACKPROJECTION_PULSE_BLOCK = 128
+
+
+@dataclass(frozen=True)
+class CostEstimate:
+    """Estimated work and memory of a render (the times are estimates, within a factor ~2).
+
+    Rays: ``rays_per_pulse`` is the coarse ray grid a pulse aims at the scene (rays outside the
+    beam are not cast, so it is an upper bound). A sub-aperture of ``pulses_per_trace`` pulses
+    traces the union of its pulses' grids once (docs/physics.md (T3)): ``primary_rays`` are the
+    tubes of all ``subapertures``, plus the finer tubes around small objects for the
+    sub-apertures that see them. Casts: ``primary_rays`` (low) to ``primary_rays * max_depth``
+    (high) closest-hit casts, as many shadow casts. Returns: every pulse evaluates
+    :data:`RETURNS_PER_TUBE` PO terms per tube it casts and, when a material is rough, the
+    clutter scatterers of its tubes' footprints (``tube area / scatterer_spacing^2`` each):
+    ``pulse_paths``. Trace time: :data:`TRACE_OVERHEAD` times the casts at the rates of
+    :func:`cast_rates`, the returns at :data:`RETURN_SECONDS` and :data:`SCATTERER_SECONDS` and
+    the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
+    between low and high.
+
+    Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
+    = ``max_depth`` with ``split_bounces``, else 1, times the channels: 4 for ``quad``;
+    :func:`sarmitsuba.tracing.deposit.padded_length`), or with the ``exact`` range kernel its term list
+    instead, at most one path per return and channel of :data:`PATH_BYTES` each; one raw data
+    set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64 ``image_shape``.
+    ``n_products`` raw/image pairs are made (``1 + max_depth`` with ``split_bounces``, times the
+    channels). The casts are the same for every polarisation (one trace for all channels); the
+    returns' extra work per channel is not modelled. ``peak_memory_bytes``: the spectra (or path list) and every raw data
+    set and image, all held at once at the end of a render (:func:`check_memory` compares it with
+    the memory available).
+
+    Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
+    footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
+    lights. Fast factorised backprojection (the render's focuser): :data:`FFBP_PIXEL_PULSE_SECONDS`
+    per pixel-pulse and :data:`FFBP_PIXEL_SECONDS` per lit pixel; direct backprojection (``bp``):
+    :data:`BACKPROJECTION_RATE` plus :data:`BACKPROJECTION_TILE_SECONDS` per (tile, pulse block).
+    """
+
+    ray_spacing_m: float
+    rays_per_pulse: int
+    n_pulses: int
+    pulses_per_trace: int
+    subapertures: int
+    primary_rays: int
+    max_depth: int
+    closest_hit_casts: int
+    shadow_casts: int
+    closest_hit_rate_per_s: float
+    shadow_rate_per_s: float
+    pulse_paths: int
+    trace_time_low_s: float
+    trace_time_high_s: float
+    trace_time_s: float
+    fast_time_samples: int
+    fine_samples: int
+    deposit_bytes: int
+    path_list_bytes: int
+    raw_bytes: int
+    image_shape: tuple[int, int]
+    image_bytes: int
+    n_products: int
+    backprojection_pixel_pulses: int
+    focus_time_s: float
+    direct_backprojection_time_s: float
+    peak_memory_bytes: int
+
+
+def synthetic_aperture(p: RadarParameters) -> tuple[float, int]:
+    """Synthetic aperture length [m, float] integrated per point, and the pulses in it (int).
+
+    Stripmap: the traced beam's footprint ``2 R tan(h)`` at the scene centre (each point is
+    lit while the platform flies that far; capped by the track). Spotlight: the whole
+    track, ``N v / prf`` (the length behind :attr:`RadarParameters.integration_angle`).
+    """
+    if p.mode == "spotlight":
+        return p.n_pulses * p.velocity / p.prf, p.n_pulses
+    length = p.footprint_length
+    return length, int(min(p.n_pulses, max(1, round(length * p.prf / p.velocity))))
+
+
+# ============================================================================ cost
+def cast_rates(n_triangles: int) -> tuple[float, float]:
+    """Estimated closest-hit and shadow ray-cast rates [casts/s] for a scene of ``n_triangles``.
+
+    ``log(rate)`` is linear in ``log(n_triangles)`` between the two measured anchors of
+    :data:`CAST_RATE_ANCHORS` (Embree's BVH makes the cost grow about logarithmically with
+    the triangle count). Below the small anchor the small scene's rates are used; above the
+    large one the line is extrapolated (an assumption, not a measurement). An estimate for
+    the 2-core reference machine: expect a factor of 2 either way.
+    """
+    (t0, hit0, shadow0), (t1, hit1, shadow1) = CAST_RATE_ANCHORS
+    x = (math.log(max(n_triangles, t0)) - math.log(t0)) / (math.log(t1) - math.log(t0))
+    return hit0 * (hit1 / hit0) ** x, shadow0 * (shadow1 / shadow0) ** x
+
+
+def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                  footprint: RayFootprint, effects: EffectSet | None = None) -> CostEstimate:
+    """The estimated work and memory of rendering ``loaded`` (the model of :class:`CostEstimate`)
+    with its planned ``window`` and ray ``footprint``; ``effects`` default
+    :func:`~sarmitsuba.scene.effects.active_effects` of ``loaded``.
+
+    Raises
+    ------
+    ParameterError
+        The image grid would be too large (naming the parameters that set its size).
+    """
+    effects = active_effects(loaded) if effects is None else effects
+    st, p = loaded.settings, loaded.params
+    n_pulses = p.n_pulses
+    size = pulses_per_trace(p, st, n_pulses)
+    n_subs = math.ceil(n_pulses / size)
+    # a sub-aperture's union of its pulses' lattices: the cells its antenna travel adds along track
+    spread = math.ceil(min(size - 1, n_pulses - 1) * p.velocity / p.prf / footprint.spacing_azimuth)
+    per_sub = (footprint.n_azimuth + spread) * footprint.n_range
+    pulses_seeing = synthetic_aperture(p)[1]
+    primary = per_sub * n_subs + footprint.refined_rays * math.ceil(pulses_seeing / size)
+    casts = primary * st.max_depth
+    hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
+    tube_pulses = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * pulses_seeing
+    tube_area = footprint.spacing_azimuth * footprint.spacing_range
+    scatterers = (footprint.rays_per_pulse * n_pulses * tube_area / footprint.scatterer_spacing**2
+                  if effects.clutter else 0.0)
+    paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)      # per channel in the exact kernel's list
+    groups = effects.groups * len(effects.channels)      # quad: four channels' spectra from one trace
+    n_pad = padded_length(window.n_samples)
+    work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
+            + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
+
+    def trace_time(closest: float) -> float:
+        return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work)
+
+    exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
+    grid = _checked_grid(loaded, geometry)
+    n_products = (1 + (st.max_depth if effects.split_bounces else 0)) * len(effects.channels)
+    pixel_pulses, lit, direct = _backprojection(p, grid)
+    fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
+    deposit = 0 if exact else groups * n_pulses * n_pad * 8
+    raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
+    return CostEstimate(
+        ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
+        pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
+        closest_hit_casts=casts, shadow_casts=casts, closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
+        pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
+        trace_time_s=trace_time(0.5 * (primary + casts)),
+        fast_time_samples=window.n_samples, fine_samples=window.n_fine,
+        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES * len(effects.channels) if exact else 0, raw_bytes=raw_bytes,
+        image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
+        backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
+        direct_backprojection_time_s=n_products * direct,
+        peak_memory_bytes=deposit + (paths * PATH_BYTES * len(effects.channels) if exact else 0)
+        + n_products * (raw_bytes + image_bytes))
+
+
+def _checked_grid(loaded: LoadedScene, geometry: AcquisitionGeometry):
+    """The render's image grid (:func:`sarmitsuba.focus.scene_grid.image_grid`); ParameterError naming the
+    parameters that set its size when it would be too large."""
+    try:
+        return image_grid(loaded, geometry)
+    except ValueError as exc:
+        p = loaded.params
+        raise ParameterError(
+            f"the image grid is too large ({exc}): its pixels are half the finer of the ground-range resolution "
+            f"{p.ground_range_resolution:.3g} m (bandwidth {p.bandwidth / 1e6:g} MHz) and the azimuth resolution "
+            f"{p.azimuth_resolution:.3g} m (azimuth_beamwidth / antenna_length) across a scene of "
+            f"{np.ptp(np.stack([loaded.bbox_lo, loaded.bbox_hi]), axis=0).max():.4g} m: lower bandwidth, narrow the "
+            "beam or use a smaller scene") from None
+
+
+# ============================================================================ memory
+#: Environment variable that sets the memory [bytes] a render may use (tests, batch jobs); without
+#: it :func:`available_memory` reads the machine's.
+MEMORY_LIMIT_ENV = "SARMITSUBA_MEMORY_LIMIT"
+
+
+def available_memory() -> int:
+    """Bytes of memory a render may use: ``$SARMITSUBA_MEMORY_LIMIT`` when set, else ``MemAvailable``
+    of ``/proc/meminfo`` (Linux), else the physical memory (``os.sysconf``).
+
+    Raises
+    ------
+    ParameterError
+        ``SARMITSUBA_MEMORY_LIMIT`` is not a whole number of bytes > 0.
+    """
+    text = os.environ.get(MEMORY_LIMIT_ENV)
+    if text is not None:
+        try:
+            limit = int(float(text))
+        except ValueError:
+            limit = 0
+        if limit <= 0:
+            raise ParameterError(f"{MEMORY_LIMIT_ENV} = {text!r} must be a number of bytes > 0 (e.g. 8e9)")
+        return limit
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def memory_problem(cost: CostEstimate, params: RadarParameters, available: int | None = None) -> str | None:
+    """Why a render of estimated ``cost`` cannot fit in ``available`` bytes (default
+    :func:`available_memory`) and what to change, led by the term that dominates; None when it fits."""
+    available = available_memory() if available is None else available
+    if cost.peak_memory_bytes <= available:
+        return None
+    n = cost.n_products
+    terms = {"spectra": cost.deposit_bytes, "path list": cost.path_list_bytes,
+             "raw data": n * cost.raw_bytes, "image": n * cost.image_bytes}
+    parts = ", ".join(f"{name} {format_bytes(size)}" for name, size in terms.items() if size)
+    text = (f"the render would need about {format_bytes(cost.peak_memory_bytes)} of memory ({parts}) but "
+            f"{format_bytes(available)} is available ({MEMORY_LIMIT_ENV} overrides it)")
+    largest = max(terms, key=terms.get)
+    if largest == "image":
+        return (f"{text}: the image grid {cost.image_shape[0]} x {cost.image_shape[1]} pixels dominates; its pixels "
+                "are half the finer resolution: lower bandwidth, narrow the beam or use a smaller scene")
+    per_pulse = (cost.peak_memory_bytes - n * cost.image_bytes) / max(cost.n_pulses, 1)
+    fit = max(1, int((available - n * cost.image_bytes) // max(per_pulse, 1)))
+    fix = (f"use fewer pulses (--pulses {fit} or fewer; sar n_pulses = {cost.n_pulses} now) or a shorter "
+           f"fast-time window ({cost.fast_time_samples} samples: a smaller scene, or --set "
+           f"sampling_rate=... closer to bandwidth = {params.bandwidth / 1e6:g} MHz)")
+    if largest == "path list":
+        fix = f"the exact range kernel's path list dominates: use --range-kernel linear, or {fix}"
+    else:
+        fix = f"the {largest} (pulses x fast-time samples) dominate: {fix}"
+    if n > 1:
+        fix += f", or drop split_bounces ({n} raw data sets and images)"
+    return f"{text}: {fix}"
+
+
+def check_memory(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                 footprint: RayFootprint, available: int | None = None,
+                 effects: EffectSet | None = None) -> CostEstimate:
+    """The cost of rendering ``loaded`` (:func:`cost_estimate`, with its ``effects``), checked
+    against the memory ``available`` [bytes] (default :func:`available_memory`) before any tracing.
+
+    Raises
+    ------
+    ParameterError
+        The estimated peak memory exceeds it (:func:`memory_problem` says what to change), or the
+        image grid would be too large.
+    """
+    cost = cost_estimate(loaded, geometry, window, footprint, effects)
+    problem = memory_problem(cost, loaded.params, available)
+    if problem is not None:
+        raise ParameterError(problem)
+    return cost
+
+
+def _backprojection(p: RadarParameters, grid) -> tuple[int, int, float]:
+    """Pixel-pulses inside the beam, pixels some pulse lights, and the estimated seconds of one
+    direct beam-limited backprojection onto ``grid`` (the model of :class:`CostEstimate`)."""
+    n_az, n_rg = grid.shape
+    rows, lit_rows = n_az, n_az
+    if p.mode == "stripmap" and n_az > 1:        # the pipeline limits stripmap focusing to the beam
+        spacing = float(grid.azimuth[1] - grid.azimuth[0])
+        rows = min(n_az, math.ceil(p.footprint_length / spacing) + BACKPROJECTION_TILE[0])
+        track = (p.n_pulses - 1) * p.velocity / p.prf
+        lit_rows = min(n_az, math.ceil((track + p.footprint_length) / spacing))
+    pixel_pulses = p.n_pulses * rows * n_rg
+    pairs = (math.ceil(n_az / BACKPROJECTION_TILE[0]) * math.ceil(n_rg / BACKPROJECTION_TILE[1])
+             * math.ceil(p.n_pulses / BACKPROJECTION_PULSE_BLOCK))
+    return pixel_pulses, lit_rows * n_rg, pixel_pulses / BACKPROJECTION_RATE + pairs * BACKPROJECTION_TILE_SECONDS
+
+
+def format_bytes(n: int) -> str:
+    """``n`` bytes for people: ``'1.5 GiB'``, ``'12.0 MiB'``, ``'3 B'`` (binary prefixes)."""
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.1f} {unit}"
+    return f"{n} B"

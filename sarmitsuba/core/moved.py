@@ -1,0 +1,92 @@
+"""Import paths from before the stage packages (docs/design.md section 0): they keep working.
+
+Two kinds of old path:
+
+- a former top-level module (``sarmitsuba.raw``) that now lives in a stage package
+  (``sarmitsuba.core.raw``): :class:`MovedModuleFinder`, installed by ``import sarmitsuba``,
+  imports it as the new module itself (the same object, so classes compare equal) with a
+  DeprecationWarning that names the new path;
+- a former module whose name a stage package took (``sarmitsuba.scene``,
+  ``sarmitsuba.analysis``, ``sarmitsuba.products``): :func:`former_module_attributes` gives
+  the package a module ``__getattr__`` that finds the old module's names in the module that
+  holds them now (``sarmitsuba.scene.load_scene`` is ``sarmitsuba.scene.loader.load_scene``).
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+import warnings
+from pathlib import Path
+from typing import Any, Callable
+
+__all__ = ["MOVED_MODULES", "MovedModuleFinder", "install", "former_module_attributes"]
+
+PACKAGE = __name__.split(".")[0]
+
+#: Former top-level modules -> their module in the stage packages.
+MOVED_MODULES: dict[str, str] = {
+    **{m: f"core.{m}" for m in ("constants", "arrays", "outputs", "georef", "radar", "raw", "image")},
+    **{m: f"scene.{m}" for m in ("materials", "fresnel", "meshcheck", "canonical", "effects", "baseline",
+                                 "planning", "trace_inputs")},
+    "pyscene": "scene.builder",
+    **{m: f"tracing.{m}" for m in ("_llvm", "_variant", "device", "deposit", "accumulate", "physical_optics", "jones",
+                                   "polarimetry", "facets", "lattice_index", "cell_lanes", "cell_split", "cell_plan",
+                                   "cell_clip", "cell_terms", "clutter_lattice", "returns", "kernel", "trace",
+                                   "distributed")},
+    **{m: f"signal.{m}" for m in ("binning", "signal_model", "radiometry", "bandlimited")},
+    **{m: f"products.{m}" for m in ("figures", "figures_point", "figures_pol", "figures_raw", "plotting", "preview",
+                                    "groundtruth")},
+    **{m: f"formats.{m}" for m in ("cphd", "sicd", "geotiff")},
+    **{m: f"analysis.{m}" for m in ("impulse_model", "synthetic", "reference_cases", "cut_metrics", "interferometry",
+                                    "cost")},
+}
+
+
+class MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports ``sarmitsuba.<old>`` as ``sarmitsuba.<MOVED_MODULES[old]>``, warning once per import."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None):
+        package, _, name = fullname.partition(".")
+        if package != PACKAGE or name not in MOVED_MODULES:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        return None
+
+    def exec_module(self, module) -> None:
+        new = f"{PACKAGE}.{MOVED_MODULES[module.__name__.partition('.')[2]]}"
+        warnings.warn(f"{module.__name__} moved to {new} (docs/design.md section 0); import it from there",
+                      DeprecationWarning, stacklevel=2)
+        sys.modules[module.__name__] = importlib.import_module(new)   # the import returns the new module
+
+
+def install() -> None:
+    """Put one :class:`MovedModuleFinder` at the end of ``sys.meta_path`` (after the real modules)."""
+    if not any(isinstance(finder, MovedModuleFinder) for finder in sys.meta_path):
+        sys.meta_path.append(MovedModuleFinder())
+
+
+def former_module_attributes(package: str, module: str) -> Callable[[str], Any]:
+    """A module ``__getattr__`` for stage package ``package`` that looks a missing name up in its
+    module ``module``, where the former module of the package's name now lives; a submodule's
+    name is left to the import system (AttributeError, then the import).
+
+    Raises
+    ------
+    AttributeError
+        From the returned function, for a name neither the package nor ``module`` has.
+    """
+    folder = Path(sys.modules[package].__file__).parent
+
+    def __getattr__(name: str) -> Any:
+        if name.startswith("__") or (folder / f"{name}.py").exists():
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        try:
+            return getattr(importlib.import_module(f"{package}.{module}"), name)
+        except AttributeError:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
+
+    return __getattr__

@@ -1,0 +1,510 @@
+"""Radar and platform parameters, and the acquisition geometry derived from them.
+
+:class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (docs/design.md
+section 4); :func:`acquisition_geometry` turns it into per-pulse antenna positions
+(float64, world frame, z up) for a straight, level track (stop-and-hop, docs/design.md section 5).
+The valid range of each parameter with a unit: :mod:`sarmitsuba.core.valid_ranges`.
+
+Conventions (docs/design.md section 4): the platform flies along +x rotated by ``heading``
+(degrees, counter-clockwise from +x). ``look_side="right"`` looks to the right of the
+track, i.e. toward -y for heading 0: the sensor sits on the +y side of the scene.
+Angles are degrees at the interface, radians inside.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any, Mapping
+
+import numpy as np
+
+from . import georef
+from .constants import SPEED_OF_LIGHT
+from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges
+
+__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
+           "HALF_POWER_SINC", "ValidRange", "VALID_RANGES"]
+
+#: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
+#: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
+HALF_POWER_SINC = 0.44294647
+
+
+#: The channels of a quad-pol acquisition, receive then transmit letter (Lee and Pottier's
+#: ``S_rx,tx``): ``HV`` is received on H and transmitted on V (docs/physics.md (P4)).
+CHANNELS = ("HH", "HV", "VH", "VV")
+#: Valid values of the sensor parameter ``polarization``.
+POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
+
+
+@dataclass(frozen=True)
+class RadarParameters:
+    """Radar and platform parameters of a SAR acquisition (the ``sar`` sensor's manual).
+
+    Attributes
+    ----------
+    frequency : float, Hz
+        Carrier frequency ``fc``.
+    bandwidth : float, Hz
+        Transmitted chirp bandwidth ``B``; (0, sampling_rate].
+    pulse_length : float, s
+        Chirp duration ``T_p``; the chirp rate is ``B / T_p``.
+    prf : float, Hz
+        Pulse repetition frequency.
+    sampling_rate : float, Hz
+        Fast-time complex sampling rate ``fs``; must be >= ``bandwidth``; 0 (default) =
+        ``1.2 * bandwidth``.
+    velocity : float, m/s
+        Platform speed along the track.
+    altitude : float, m
+        Platform height above the scene centre.
+    incidence_angle : float, deg
+        Incidence (= look, flat earth) angle at the scene centre; (0, 90).
+    scene_center : tuple of 3 float, m
+        Point the beam centre looks at, mid-aperture; ``None`` = centre of the scene's
+        bounding box at ground level, resolved by the scene loader.
+    track_offset : tuple of 3 float, m
+        Shift of the whole track (every antenna position; the beam keeps its pointing and the
+        image grid its place): a second pass with a baseline, for interferometry
+        (docs/physics.md (I1)). Default ``(0, 0, 0)``.
+    geo_origin : tuple (latitude deg, longitude deg, height m) or None
+        WGS84 position of the world frame's origin, whose x, y, z axes are taken as east,
+        north, up (docs/physics.md (G1)); written into CPHD, SICD and GeoTIFF products. ``None``
+        = the scene's known origin (``sionna:munich``) or :data:`sarmitsuba.core.georef.DEFAULT`.
+        Given as ``"48.138, 11.576, 566"``; latitude in [-90, 90], longitude in [-180, 180].
+    look_side : str
+        ``"right"`` or ``"left"`` of the track.
+    heading : float, deg
+        Track direction, counter-clockwise from +x.
+    n_pulses : int
+        Number of pulses; 0 = enough to illuminate the whole scene (resolved by the loader).
+    azimuth_beamwidth : float, deg
+        Azimuth beamwidth ``beta``. With ``beam = "tapered"`` (default) it is the one-way 3 dB
+        width of the uniform aperture whose two-way pattern weights the echoes
+        (:attr:`pattern_length`), and rays are traced, and pulses backprojected, out to that
+        pattern's first nulls (:attr:`beam_sines`, about ``2.26 beta`` wide); with
+        ``beam = "uniform"`` it is the full width of a hard-edged, uniformly illuminated beam.
+        0 (default) = automatic: ``2 asin(0.443 lambda / L_a)`` with ``antenna_length``,
+        else 1.0 deg. docs/physics.md (A).
+    beam : str
+        ``"tapered"`` (default): the two-way pattern ``sinc^2(L sin(phi) / lambda)`` of an
+        aperture of length ``L`` = ``antenna_length``, or of the aperture whose 3 dB width is
+        ``azimuth_beamwidth``, traced to its first nulls (no hard beam edge). ``"uniform"``:
+        a hard-edged beam of full width ``azimuth_beamwidth`` with no pattern, on request
+        only (extended targets streak along azimuth beyond their ends); needs
+        ``antenna_length = 0``.
+    polarization : str
+        ``"VV"`` (default) or ``"HH"``: one co-polarised channel; ``"HV"`` or ``"VH"``
+        (receive, transmit): one cross-polarised channel; ``"quad"``: all four channels
+        (:data:`CHANNELS`) from one trace. The polarisation model (a Jones matrix per ray tube,
+        or for one co-polarised channel the scalar coefficients) is the ``sbr`` parameter
+        ``polarimetry`` (docs/physics.md (P1)-(P8)).
+    antenna_length, antenna_height : float, m
+        Antenna aperture along track (L_a) and in elevation (H_a). Each switches on its
+        two-way pattern ``sinc^2(L_a sin(phi_az) / lambda)``, ``sinc^2(H_a sin(phi_el) / lambda)``
+        (uniform aperture; phi_el measured from the look direction to the scene centre).
+        0 (default) = no pattern in that plane.
+    transmit_power : float, W, optional
+        Peak transmit power; switches absolute radiometry on (radar equation, eq. (R1)).
+    antenna_gain_db : float, dBi, optional
+        Antenna gain; default ``4 pi L_a H_a / lambda^2`` from the antenna dimensions.
+    losses_db : float, dB
+        System losses (default 0).
+    noise_temperature : float, K, optional
+        Receiver noise temperature (default 290 K when ``noise_figure_db`` is given).
+    noise_figure_db : float, dB, optional
+        Receiver noise figure; with ``noise_temperature`` it switches thermal noise of power
+        ``k T B F`` per sample on.
+    mode : str
+        ``"stripmap"`` (default; beam fixed at broadside, sweeping the scene) or ``"spotlight"``
+        (beam steered at ``scene_center`` for every pulse; the patch is ``R beta`` wide and the
+        integration angle ``dtheta = n_pulses v / (prf R)`` sets the azimuth resolution
+        ``lambda / (2 dtheta)``; automatic ``n_pulses`` gives ``dtheta = lambda / (2 rho_slant)``).
+    squint : float, deg
+        Beam squint: the angle of the beam centre from the zero-Doppler plane, positive
+        forward (looking ahead); (-60, 60), default 0 (broadside). The mid-aperture antenna
+        then sits ``R0 tan(squint)`` behind the scene centre (``R0`` the closest-approach
+        slant range), the beam spans sines ``[sin(squint - beta / 2), sin(squint + beta / 2)]``
+        along track, and the Doppler centroid is ``2 v sin(squint) / lambda`` (Cumming and
+        Wong 2005, eq. 4.34). Spotlight: the aperture is centred on the squinted position and
+        the beam follows the scene centre.
+    output : str
+        ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
+        ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
+        window grows by ``T_p`` so every chirp fits).
+
+    Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
+    frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
+    [1, 1e7] Hz; pulse_length [1e-9, 0.1] s; velocity [0.01, 1.2e4] m/s; altitude [1, 4e7] m;
+    antenna_length, antenna_height 0 or [wavelength, 100] m; scene_center each coordinate
+    within +-1e8 m; heading [-360, 360] deg; transmit_power [1e-6, 1e9] W; noise_temperature
+    [1, 1e5] K; antenna_gain_db [-30, 80] dBi; losses_db [0, 100] dB; noise_figure_db [0, 50] dB.
+
+    Raises
+    ------
+    ParameterError
+        A value outside its valid range, with the unit and, when the value looks like another
+        unit (9.6 for 9.6 GHz, 10 for 10 us), the value it probably meant.
+    """
+
+    frequency: float = 9.6e9
+    bandwidth: float = 100e6
+    pulse_length: float = 10e-6
+    prf: float = 150.0
+    sampling_rate: float = 0.0
+    velocity: float = 100.0
+    altitude: float = 1000.0
+    incidence_angle: float = 45.0
+    scene_center: tuple[float, float, float] | None = None
+    track_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    geo_origin: tuple[float, float, float] | None = None
+    look_side: str = "right"
+    heading: float = 0.0
+    n_pulses: int = 0
+    azimuth_beamwidth: float = 0.0
+    polarization: str = "VV"
+    antenna_length: float = 0.0
+    antenna_height: float = 0.0
+    transmit_power: float | None = None
+    antenna_gain_db: float | None = None
+    losses_db: float = 0.0
+    noise_temperature: float | None = None
+    noise_figure_db: float | None = None
+    output: str = "compressed"
+    mode: str = "stripmap"
+    squint: float = 0.0
+    beam: str = "tapered"
+
+    def __post_init__(self) -> None:
+        if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
+            object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
+        check_ranges(self)                   # units and ranges first: the checks below divide by them
+        try:
+            georef.parse(self.geo_origin)
+        except georef.GeoReferenceError as exc:
+            raise ParameterError(str(exc)) from None
+        for name in ("antenna_length", "antenna_height"):
+            value = getattr(self, name)
+            if 0 < value <= SPEED_OF_LIGHT / self.frequency:
+                raise ParameterError(f"{name} = {value} m must exceed the wavelength "
+                                     f"{SPEED_OF_LIGHT / self.frequency:.4g} m (or be 0 for no pattern)")
+        if self.beam not in ("tapered", "uniform"):
+            raise ParameterError(f"beam = {self.beam!r}; valid values are 'tapered' and 'uniform'")
+        if self.beam == "uniform" and self.antenna_length > 0:
+            raise ParameterError(f"beam = 'uniform' ignores the pattern of antenna_length = {self.antenna_length} m: "
+                                 "remove antenna_length, or use beam = 'tapered'")
+        if self.azimuth_beamwidth == 0:
+            beam = (math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency
+                                                 / self.antenna_length))
+                    if self.antenna_length > 0 else 1.0)
+            object.__setattr__(self, "azimuth_beamwidth", beam)
+        elif self.antenna_length > 0:
+            own = math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency / self.antenna_length))
+            if not math.isclose(self.azimuth_beamwidth, own, rel_tol=1e-3):
+                raise ParameterError(
+                    f"azimuth_beamwidth = {self.azimuth_beamwidth:g} deg disagrees with antenna_length = "
+                    f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them "
+                    "(e.g. --set azimuth_beamwidth=0 when the scene file sets a beamwidth)")
+        _positive(self, "azimuth_beamwidth")
+        if not 0.0 < self.incidence_angle < 90.0:
+            raise ParameterError(
+                f"incidence_angle = {self.incidence_angle} deg is outside the valid range (0, 90) deg")
+        if self.sampling_rate < self.bandwidth:
+            raise ParameterError(
+                f"sampling_rate = {self.sampling_rate:g} Hz is below bandwidth = {self.bandwidth:g} Hz: "
+                "complex sampling needs sampling_rate >= bandwidth")
+        if self.look_side not in ("right", "left"):
+            raise ParameterError(f"look_side = {self.look_side!r}; valid values are 'right' and 'left'")
+        if self.mode not in ("stripmap", "spotlight"):
+            raise ParameterError(f"mode = {self.mode!r}; valid values are 'stripmap' and 'spotlight'")
+        if self.output not in ("compressed", "raw"):
+            raise ParameterError(f"output = {self.output!r}; valid values are 'compressed' and 'raw'")
+        if self.polarization not in POLARIZATIONS:
+            raise ParameterError(f"polarization = {self.polarization!r}; valid values are "
+                                 f"{', '.join(repr(p) for p in POLARIZATIONS)} (case matters: 'quad' "
+                                 "for all four channels)")
+        if int(self.n_pulses) != self.n_pulses or self.n_pulses < 0:
+            raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
+        if not 0.0 < self.azimuth_beamwidth < 90.0:
+            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is outside (0, 90) deg")
+        if self.beam == "tapered" and self.antenna_length == 0 and \
+                math.sin(math.radians(self.azimuth_beamwidth) / 2.0) / HALF_POWER_SINC >= 1.0:
+            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is too wide for a tapered beam "
+                                 f"(its first nulls would pass 90 deg): use at most "
+                                 f"{math.degrees(2 * math.asin(HALF_POWER_SINC * 0.99)):.1f} deg, or beam = 'uniform'")
+        if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
+            raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
+
+    # -- derived quantities (standard formulas; Cumming & Wong 2005, ch. 4) -----------------
+    @property
+    def wavelength(self) -> float:
+        """Carrier wavelength ``c / fc`` [m]."""
+        return SPEED_OF_LIGHT / self.frequency
+
+    @property
+    def chirp_rate(self) -> float:
+        """LFM chirp rate ``K_r = B / T_p`` [Hz/s]."""
+        return self.bandwidth / self.pulse_length
+
+    @property
+    def slant_range_resolution(self) -> float:
+        """Slant-range resolution ``c / (2 B)`` [m] (IRW is 0.886 of this, unweighted)."""
+        return SPEED_OF_LIGHT / (2.0 * self.bandwidth)
+
+    @property
+    def ground_range_resolution(self) -> float:
+        """Ground-range resolution ``c / (2 B sin(theta_inc))`` [m]."""
+        return self.slant_range_resolution / math.sin(math.radians(self.incidence_angle))
+
+    @property
+    def pattern_length(self) -> float:
+        """Length ``L`` [m] of the uniform aperture whose two-way azimuth pattern
+        ``sinc^2(L sin(phi) / lambda)`` weights the echoes: ``antenna_length``, or for the tapered
+        default beam ``L = 0.443 lambda / sin(beta / 2)`` (3 dB width ``beta`` =
+        ``azimuth_beamwidth``); 0 for ``beam = "uniform"``. docs/physics.md (A)."""
+        if self.antenna_length > 0:
+            return self.antenna_length
+        if self.beam == "uniform":
+            return 0.0
+        return HALF_POWER_SINC * self.wavelength / math.sin(math.radians(self.azimuth_beamwidth) / 2.0)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The polarimetric channels simulated: :data:`CHANNELS` for ``quad``, else the one named."""
+        return CHANNELS if self.polarization == "quad" else (self.polarization,)
+
+    @property
+    def polarimetric(self) -> bool:
+        """Whether a cross-polarised channel is asked for (``HV``, ``VH``, ``quad``), which needs
+        the Jones model (docs/physics.md (P3'))."""
+        return self.polarization in ("HV", "VH", "quad")
+
+    @property
+    def traced_half_angle(self) -> float:
+        """Half-width [rad] of the traced (and backprojected) beam about its centre: the
+        pattern's first null ``asin(lambda / L)``, or ``beta / 2`` for a uniform beam."""
+        if self.pattern_length > 0:
+            return math.asin(self.wavelength / self.pattern_length)
+        return math.radians(self.azimuth_beamwidth) / 2.0
+
+    @property
+    def traced_beamwidth(self) -> float:
+        """Full width [deg] of the traced beam, ``2 traced_half_angle``."""
+        return math.degrees(2.0 * self.traced_half_angle)
+
+    @property
+    def azimuth_resolution(self) -> float:
+        """Stripmap azimuth resolution [m]: ``L / 2`` for an aperture of length ``L``
+        (:attr:`pattern_length`; Cumming and Wong 2005, eq. 4.37), ``lambda / (2 beta)`` for a
+        uniform beam of width ``beta``; spotlight: ``lambda / (2 dtheta)``."""
+        if self.mode == "spotlight" and self.n_pulses > 0:
+            return self.wavelength / (2.0 * self.integration_angle)
+        if self.pattern_length > 0:
+            return self.pattern_length / 2.0
+        return self.wavelength / (2.0 * math.radians(self.azimuth_beamwidth))
+
+    @property
+    def integration_angle(self) -> float:
+        """Spotlight integration angle ``n_pulses v / (prf R)`` [rad] seen from the scene centre."""
+        return self.n_pulses * self.velocity / (self.prf * self.slant_range)
+
+    @property
+    def slant_range(self) -> float:
+        """Slant range from the mid-aperture antenna to the scene centre [m] (flat earth)."""
+        return self.altitude / math.cos(math.radians(self.incidence_angle))
+
+    @property
+    def ground_range(self) -> float:
+        """Horizontal distance from the nadir track to the scene centre [m]."""
+        return self.altitude * math.tan(math.radians(self.incidence_angle))
+
+    @property
+    def footprint_length(self) -> float:
+        """Azimuth extent of the traced beam footprint at the scene centre [m]:
+        ``2 R tan(traced_half_angle)``."""
+        return 2.0 * self.slant_range * math.tan(self.traced_half_angle)
+
+    @property
+    def beam_sines(self) -> tuple[float, float]:
+        """Along-track sines ``(sin(squint - h), sin(squint + h))`` bounding the traced
+        stripmap beam, ``h`` = :attr:`traced_half_angle`: a direction ``u`` from the antenna
+        is in the beam when ``u . track`` lies between them."""
+        half = self.traced_half_angle
+        squint = math.radians(self.squint)
+        return math.sin(squint - half), math.sin(squint + half)
+
+    @property
+    def doppler_bandwidth(self) -> float:
+        """Azimuth Doppler bandwidth ``2 v (sin(squint + beta/2) - sin(squint - beta/2)) / lambda`` [Hz]
+        of the beam's 3 dB width ``beta`` (the full width of a uniform beam); ``4 v sin(beta/2) / lambda``
+        at broadside. The PRF must exceed it (Cumming and Wong 2005, eq. 4.36)."""
+        half = math.radians(self.azimuth_beamwidth) / 2.0
+        squint = math.radians(self.squint)
+        return 2.0 * self.velocity * (math.sin(squint + half) - math.sin(squint - half)) / self.wavelength
+
+    @property
+    def doppler_centroid(self) -> float:
+        """Doppler centroid ``2 v sin(squint) / lambda`` [Hz] (Cumming and Wong 2005, eq. 4.34)."""
+        return 2.0 * self.velocity * math.sin(math.radians(self.squint)) / self.wavelength
+
+    @property
+    def squint_offset(self) -> float:
+        """Along-track distance ``R0 tan(squint)`` [m] by which the mid-aperture antenna trails the scene centre."""
+        return self.slant_range * math.tan(math.radians(self.squint))
+
+    def with_overrides(self, overrides: Mapping[str, Any]) -> "RadarParameters":
+        """Return a copy with some parameters replaced (names checked, values validated)."""
+        return replace(self, **coerce_parameters(overrides))
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all parameters (plus ``aperture_length``, accepted by :meth:`from_mapping`)."""
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> "RadarParameters":
+        """Build from a name -> value mapping (strings allowed), as read from XML or the CLI.
+
+        ``aperture_length`` [m] may replace ``n_pulses``:
+        ``n_pulses = max(1, round(aperture_length * prf / velocity))``.
+
+        Raises
+        ------
+        ParameterError
+            Unknown names (listing the valid ones) or invalid values.
+        """
+        values = dict(values)
+        aperture = values.pop("aperture_length", None)
+        params = cls(**coerce_parameters(values))
+        if aperture is None:
+            return params
+        try:
+            aperture = float(aperture)
+        except (TypeError, ValueError):
+            raise ParameterError(f"aperture_length: cannot use value {aperture!r}") from None
+        if not (math.isfinite(aperture) and aperture > 0):
+            raise ParameterError(f"aperture_length = {aperture} m must be a finite number > 0")
+        return replace(params, n_pulses=max(1, round(aperture * params.prf / params.velocity)))
+
+
+def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
+    """Convert strings / numbers to the field types of :class:`RadarParameters`.
+
+    Raises :class:`ParameterError` for unknown names (listing the valid ones) and for
+    values that cannot be converted.
+    """
+    types = {f.name: f.type for f in fields(RadarParameters)}
+    out: dict[str, Any] = {}
+    for name, value in values.items():
+        if name not in types:
+            raise ParameterError(f"unknown sar sensor parameter {name!r}; valid: {', '.join(sorted(types))}")
+        try:
+            if name in ("scene_center", "track_offset"):
+                parts = value.replace(",", " ").split() if isinstance(value, str) else list(value)
+                out[name] = tuple(float(v) for v in parts)
+            elif name == "geo_origin":
+                ref = georef.parse(value)
+                out[name] = None if ref is None else ref.as_tuple()
+            elif name == "n_pulses":
+                out[name] = int(value)
+            elif value is None:
+                out[name] = None
+            elif name in ("look_side", "polarization", "output", "mode", "beam"):
+                out[name] = str(value)
+            else:
+                out[name] = float(value)
+        except georef.GeoReferenceError as exc:
+            raise ParameterError(str(exc)) from None
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(f"sar sensor parameter {name}: cannot use value {value!r} ({exc})") from None
+    return out
+
+
+def _positive(obj: Any, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
+
+
+@dataclass(frozen=True)
+class AcquisitionGeometry:
+    """Per-pulse geometry of a straight, level stripmap track.
+
+    Attributes
+    ----------
+    positions : float64 [n_pulses, 3], m
+        Antenna phase centre at each pulse (monostatic, stop-and-hop).
+    velocity : float64 [n_pulses, 3], m/s
+    pulse_time : float64 [n_pulses], s
+        Slow time, zero at mid-aperture.
+    scene_center : float64 [3], m
+    track_direction : float64 [3]
+        Unit vector along the track.
+    look_direction : float64 [3]
+        Horizontal unit vector from the track toward the scene (away from the sensor).
+    """
+
+    positions: np.ndarray
+    velocity: np.ndarray
+    pulse_time: np.ndarray
+    scene_center: np.ndarray
+    track_direction: np.ndarray
+    look_direction: np.ndarray
+
+
+def ground_layover(geometry: AcquisitionGeometry, points: np.ndarray) -> np.ndarray:
+    """Where a focuser matched to the track images world points on the horizontal plane through
+    the scene centre: ``(along, across)`` [m] from the scene centre along the track and look
+    directions, float64 [n, 2] (NaN for a point the plane cannot show).
+
+    Every point of the circle about the straight track through ``X`` has ``X``'s range history
+    (the same closest approach ``R0 = |X - F|`` at the same foot ``F`` on the track), so ``X``
+    appears where that circle meets the plane, on ``X``'s side: at the foot's along-track
+    position and ``sqrt(R0^2 - H^2)`` from the track's ground trace, ``H`` the track's height
+    above the plane (docs/physics.md (G2); Cumming and Wong 2005, section 4.2). A point with
+    ``R0 < H`` lies nowhere on the plane (NaN).
+    """
+    x = np.atleast_2d(np.asarray(points, dtype=np.float64)) - geometry.scene_center
+    a = geometry.positions[0] - geometry.scene_center
+    t, look = geometry.track_direction, geometry.look_direction
+    foot = a + ((x - a) @ t)[:, None] * t
+    r0 = np.linalg.norm(x - foot, axis=1)
+    height = float(a[2])                                     # the level track above the plane
+    trace_across = foot @ look                               # the foot's ground trace, across-track
+    side = np.where((x - foot) @ look >= 0.0, 1.0, -1.0)
+    with np.errstate(invalid="ignore"):
+        ground = np.sqrt(r0 * r0 - height * height)
+    return np.stack([foot @ t, trace_across + side * ground], axis=1)
+
+
+def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
+    """Unit track direction and horizontal look direction, float64 [3] each."""
+    h = math.radians(params.heading)
+    track = np.array([math.cos(h), math.sin(h), 0.0])
+    right = np.array([math.sin(h), -math.cos(h), 0.0])      # track x z_hat
+    return track, (right if params.look_side == "right" else -right)
+
+
+def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
+    """Antenna positions for every pulse (docs/design.md section 4 conventions).
+
+    The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``
+    plus ``track_offset``;
+    pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
+    ``scene_center`` and ``n_pulses > 0``.
+
+    Raises
+    ------
+    ParameterError
+        When ``scene_center`` or ``n_pulses`` are unresolved.
+    """
+    if params.scene_center is None or params.n_pulses <= 0:
+        raise ParameterError("scene_center and n_pulses must be resolved before computing the geometry")
+    track, look = track_frame(params)
+    center = np.asarray(params.scene_center, dtype=np.float64)
+    mid = center - params.squint_offset * track - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
+    t = (np.arange(params.n_pulses, dtype=np.float64) - (params.n_pulses - 1) / 2.0) / params.prf
+    positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :] + np.asarray(params.track_offset, float)
+    velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)
+    return AcquisitionGeometry(positions, velocity, t, center, track, look)

@@ -1,0 +1,19 @@
+"""Stage 6, standard formats: raw data and images in the files other SAR tools read.
+
+Stage: 6 (core -> scene -> tracing -> signal -> focus -> products -> **formats** -> analysis).
+
+Takes: ``RawData`` and ``SarImage`` with their ``RadarParameters`` and ``GeoReference``.
+
+Gives: CPHD 1.1 (raw data, read and written), SICD (complex images, read and written) and
+GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
+:mod:`sarmitsuba.core.outputs`.
+
+=======================  ===============================================================
+:mod:`.cphd`             ``write_cphd`` / ``read_cphd`` (NGA.STND.0068, via sarkit)
+:mod:`.sicd`             ``write_sicd`` / ``read_sicd`` (NGA.STND.0024, via sarkit)
+:mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
+=======================  ===============================================================
+
+Physics: (G1) local frame to ECEF, (G2) CPHD compensation to the scene reference point,
+(G3) GeoTIFF and SICD grids (section "Geographic reference and standard formats").
+"""

@@ -1,0 +1,353 @@
+"""CPHD 1.1.0 (NGA.STND.0068, Compensated Phase History Data) export and import of RawData.
+
+The format is written and read by sarkit (the NGA reference implementation); this module
+only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
+
+- one channel ``"1"``, ``Global/DomainType = TOA``, ``SGN = -1``, signal format ``CF8``;
+- PVPs per pulse in ECEF (WGS84) metres: the local east-north-up frame is placed at the
+  :class:`~sarmitsuba.core.georef.GeoReference` origin, which is also written as the scene's IARP;
+- the scene reference point (SRP) is the scene centre (``metadata["radar"]["scene_center"]``,
+  else the mean of the pulses' closest points on the ground);
+- the samples are compensated to the SRP as CPHD requires (docs/physics.md (G2)): sample ``s`` of vector ``v`` sits
+  at ``dTOA = SC0[v] + s SCSS`` relative to the SRP delay ``tau_srp[v]`` and carries the phase
+  factor ``exp(+j 2 pi fc tau_srp[v])`` (a point at the SRP reads zero phase at ``dTOA = 0``).
+  :func:`read_cphd` undoes both, so the samples come back within float32 rounding;
+- range-compressed data are written as such; chirped data (``range_compressed`` false) are
+  written uncompressed, which the file header key ``SARMITSUBA_RANGE_COMPRESSED`` records;
+- sarmitsuba's metadata (JSON), the first pulse time and the PRF travel as file-header keys
+  so that a file read back focuses exactly like the RawData it came from.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core import georef
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.outputs import atomic_write, json_default
+from ..core.raw import RawData
+
+__all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE"]
+
+#: XML namespace of the CPHD version written.
+CPHD_NAMESPACE = "http://api.nsgreg.nga.mil/schema/cphd/1.1.0"
+_CHANNEL = "1"
+_KVP_METADATA = "SARMITSUBA_METADATA"
+_KVP_TIME0 = "SARMITSUBA_PULSE_TIME0"
+_KVP_PRF = "SARMITSUBA_PRF"
+_KVP_COMPRESSED = "SARMITSUBA_RANGE_COMPRESSED"
+#: A fixed collection start keeps the files reproducible (TxTime counts from it).
+_COLLECTION_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
+#: PVP layout in 8-byte words: (name, size, format).
+_PVP_LAYOUT = (("TxTime", 1, "f8"), ("TxPos", 3, "v"), ("TxVel", 3, "v"), ("RcvTime", 1, "f8"),
+               ("RcvPos", 3, "v"), ("RcvVel", 3, "v"), ("SRPPos", 3, "v"), ("aFDOP", 1, "f8"),
+               ("aFRR1", 1, "f8"), ("aFRR2", 1, "f8"), ("FX1", 1, "f8"), ("FX2", 1, "f8"),
+               ("TOA1", 1, "f8"), ("TOA2", 1, "f8"), ("TDTropoSRP", 1, "f8"), ("SC0", 1, "f8"),
+               ("SCSS", 1, "f8"), ("SIGNAL", 1, "i8"))
+
+
+class CphdError(ValueError):
+    """A CPHD file cannot be written or read as RawData (names the file and the reason)."""
+
+
+def scene_reference_point(raw: RawData) -> np.ndarray:
+    """float64 [3] m, local frame: the scene centre, else the mid-swath ground point of the mean pulse.
+
+    The fallback (data without sarmitsuba's radar metadata) looks right of the mean velocity, at
+    the ground range of the middle fast-time sample from the mean antenna position.
+    """
+    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
+    if isinstance(radar, dict) and radar.get("scene_center") is not None:
+        return np.asarray(radar["scene_center"], dtype=np.float64)
+    position = 0.5 * (raw.tx_position + raw.rx_position).mean(axis=0)
+    slant = 0.5 * SPEED_OF_LIGHT * float(raw.fast_time[raw.n_samples // 2])
+    ground = np.sqrt(max(slant ** 2 - position[2] ** 2, 0.0))
+    heading = raw.velocity.mean(axis=0)
+    right = np.array([heading[1], -heading[0], 0.0]) / max(float(np.hypot(heading[0], heading[1])), 1e-12)
+    return np.array([position[0], position[1], 0.0]) + ground * right
+
+
+def srp_delay(tx: np.ndarray, rx: np.ndarray, srp: np.ndarray) -> np.ndarray:
+    """float64 [n]: two-way delay [s] from the Tx and Rcv positions [n, 3] to the SRP [3] (m)."""
+    return (np.linalg.norm(tx - srp, axis=-1) + np.linalg.norm(rx - srp, axis=-1)) / SPEED_OF_LIGHT
+
+
+def pvp_dtype_xml() -> dict[str, Any]:
+    """The ``PVP`` element of the XML as sarkit's dictionary form (offsets in 8-byte words)."""
+    pvp, offset = {}, 0
+    for name, size, kind in _PVP_LAYOUT:
+        dtype = np.dtype(("<f8", (3,))) if kind == "v" else np.dtype("<" + kind)
+        pvp[name] = {"Offset": offset, "Size": size, "dtype": dtype}
+        offset += size
+    return pvp
+
+
+def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.ndarray:
+    """PVP array [n_pulses] of ``dtype``: geometry in ECEF, times from the first pulse (CPHD 1.1 sec. 6)."""
+    rot = georef.enu_axes(ref)
+    srp = scene_reference_point(raw)
+    tau = srp_delay(raw.tx_position, raw.rx_position, srp)
+    pvp = np.zeros(raw.n_pulses, dtype=dtype)
+    pvp["TxTime"] = raw.pulse_time - raw.pulse_time[0]
+    pvp["RcvTime"] = pvp["TxTime"] + tau
+    pvp["TxPos"] = georef.enu_to_ecef(raw.tx_position, ref)
+    pvp["RcvPos"] = georef.enu_to_ecef(raw.rx_position, ref)
+    pvp["TxVel"] = pvp["RcvVel"] = raw.velocity @ rot
+    pvp["SRPPos"] = georef.enu_to_ecef(np.broadcast_to(srp, raw.tx_position.shape), ref)
+    rdot = 0.5 * sum(np.sum(raw.velocity * unit(pos - srp), axis=1) for pos in (raw.tx_position, raw.rx_position))
+    pvp["aFDOP"] = -2.0 * rdot / SPEED_OF_LIGHT
+    pvp["aFRR2"] = 2.0 / (SPEED_OF_LIGHT * lfm_rate(raw))
+    pvp["aFRR1"] = raw.fc * pvp["aFRR2"]
+    pvp["FX1"], pvp["FX2"] = raw.fc - 0.5 * raw.bandwidth, raw.fc + 0.5 * raw.bandwidth
+    pvp["SC0"] = raw.fast_time[0] - tau
+    pvp["SCSS"] = 1.0 / raw.fs
+    pvp["TOA1"] = pvp["SC0"]
+    pvp["TOA2"] = pvp["SC0"] + (raw.n_samples - 1) * pvp["SCSS"]
+    pvp["SIGNAL"] = 1
+    return pvp
+
+
+def sample_rate(tree: Any, pvp: np.ndarray) -> float:
+    """Fast-time sampling rate [Hz]: TxRcv's SampleRate when given, else ``1 / SCSS``."""
+    text = tree.findtext("{*}TxRcv/{*}RcvParameters/{*}SampleRate")
+    return float(text) if text else 1.0 / float(pvp["SCSS"][0])
+
+
+def lfm_rate(raw: RawData) -> float:
+    """The transmitted chirp rate [Hz/s]: ``raw.chirp_rate``, or ``bandwidth / pulse_length`` when it is 0."""
+    return float(raw.chirp_rate) if raw.chirp_rate else float(raw.bandwidth / raw.pulse_length)
+
+
+def unit(vectors: np.ndarray) -> np.ndarray:
+    """Unit vectors [..., 3] along ``vectors`` [..., 3]."""
+    return vectors / np.linalg.norm(vectors, axis=-1, keepdims=True)
+
+
+def scene_coordinates(raw: RawData, ref: georef.GeoReference,
+                      srp: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(``SceneCoordinates``, image area): IARP at the local origin, ground plane axes east, north.
+
+    The image area is a square about the origin that holds the SRP and half the track's reach.
+    """
+    import sarkit.wgs84
+    rot = georef.enu_axes(ref)
+    ground = 0.5 * (raw.tx_position + raw.rx_position)
+    half = float(np.max(np.abs(srp[:2])) + 0.5 * np.max(np.linalg.norm(ground[:, :2] - srp[:2], axis=1)) + 100.0)
+    corners = half * np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0], [1.0, -1.0]])
+    corner_ecef = georef.enu_to_ecef(np.column_stack([corners, np.zeros(4)]), ref)
+    area = {"X1Y1": corners[0], "X2Y2": corners[2], "Polygon": corners}
+    return {"EarthModel": "WGS_84",
+            "IARP": {"ECF": georef.enu_to_ecef(np.zeros(3), ref),
+                     "LLH": np.array([ref.latitude_deg, ref.longitude_deg, ref.height_m])},
+            "ReferenceSurface": {"Planar": {"uIAX": rot[0], "uIAY": rot[1]}},
+            "ImageArea": area,
+            "ImageAreaCornerPoints": sarkit.wgs84.cartesian_to_geodetic(corner_ecef)[:, :2],
+            "ImageGrid": image_grid(half, SPEED_OF_LIGHT / (2.0 * raw.bandwidth))}, area
+
+
+def image_grid(half: float, resolution: float) -> dict[str, Any]:
+    """``ImageGrid`` covering the square image area of half-width ``half`` [m] at about ``resolution`` [m]."""
+    n = int(np.ceil(2.0 * half / resolution))
+    spacing = 2.0 * half / n
+    return {"IARPLocation": np.array([0.5 * n - 0.5, 0.5 * n - 0.5]),
+            "IAXExtent": {"LineSpacing": spacing, "FirstLine": 0, "NumLines": n},
+            "IAYExtent": {"SampleSpacing": spacing, "FirstSample": 0, "NumSamples": n}}
+
+
+def radar_words(raw: RawData) -> tuple[str, str, str]:
+    """(ModeType, TxPol, RcvPol) from sarmitsuba's metadata, UNSPECIFIED where unknown."""
+    radar = raw.metadata.get("radar", {}) if isinstance(raw.metadata, dict) else {}
+    mode = {"stripmap": "STRIPMAP", "spotlight": "SPOTLIGHT"}.get(str(radar.get("mode", "")).lower(),
+                                                                   "DYNAMIC STRIPMAP")
+    pol = str(raw.metadata.get("polarization") or radar.get("polarization") or "")
+    if len(pol) == 2 and set(pol) <= {"H", "V"}:
+        return mode, pol[0], pol[1]
+    return mode, "UNSPECIFIED", "UNSPECIFIED"
+
+
+def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray) -> dict[str, Any]:
+    """The CPHD XML (less ReferenceGeometry) in sarkit's dictionary form (CPHD 1.1.0 sec. 5-9)."""
+    srp = scene_reference_point(raw)
+    scene, area = scene_coordinates(raw, ref, srp)
+    mode, tx_pol, rcv_pol = radar_words(raw)
+    tref = pvp["TxTime"] + 0.5 * (pvp["RcvTime"] - pvp["TxTime"])
+    rate = lfm_rate(raw)
+    scene_name = str(raw.metadata.get("scene", "scene")) if isinstance(raw.metadata, dict) else "scene"
+    monostatic = np.array_equal(raw.tx_position, raw.rx_position)
+    return {
+        "CollectionID": {"CollectorName": "sarmitsuba", "CoreName": scene_name or "scene",
+                         "CollectType": "MONOSTATIC" if monostatic else "BISTATIC",
+                         "RadarMode": {"ModeType": mode}, "Classification": "UNCLASSIFIED",
+                         "ReleaseInfo": "UNRESTRICTED"},
+        "Global": {"DomainType": "TOA", "SGN": -1,
+                   "Timeline": {"CollectionStart": _COLLECTION_START, "TxTime1": float(pvp["TxTime"][0]),
+                                "TxTime2": float(pvp["TxTime"][-1])},
+                   "FxBand": {"FxMin": float(pvp["FX1"].min()), "FxMax": float(pvp["FX2"].max())},
+                   "TOASwath": {"TOAMin": float(pvp["TOA1"].min()), "TOAMax": float(pvp["TOA2"].max())}},
+        "SceneCoordinates": scene,
+        "Data": {"SignalArrayFormat": "CF8", "NumBytesPVP": 8 * sum(s for _, s, _ in _PVP_LAYOUT),
+                 "NumCPHDChannels": 1,
+                 "Channel": ({"Identifier": _CHANNEL, "NumVectors": raw.n_pulses, "NumSamples": raw.n_samples,
+                              "SignalArrayByteOffset": 0, "PVPArrayByteOffset": 0},),
+                 "NumSupportArrays": 0},
+        "Channel": {"RefChId": _CHANNEL, "FXFixedCPHD": True, "TOAFixedCPHD": False, "SRPFixedCPHD": True,
+                    "Parameters": ({"Identifier": _CHANNEL, "RefVectorIndex": raw.n_pulses // 2,
+                                    "FXFixed": True, "TOAFixed": False, "SRPFixed": True, "SignalNormal": True,
+                                    "Polarization": {"TxPol": tx_pol, "RcvPol": rcv_pol},
+                                    "FxC": float(raw.fc), "FxBW": float(raw.bandwidth),
+                                    "TOASaved": float(pvp["TOA2"].max() - pvp["TOA1"].min()),
+                                    "DwellTimes": {"CODId": "1", "DwellId": "1"}, "ImageArea": area,
+                                    "TxRcv": {"TxWFId": ("tx",), "RcvId": ("rcv",)}},)},
+        "PVP": pvp_dtype_xml(),
+        "Dwell": {"NumCODTimes": 1, "CODTime": ({"Identifier": "1",
+                                                  "CODTimePoly": np.array([[0.5 * (tref[0] + tref[-1])]])},),
+                  "NumDwellTimes": 1, "DwellTime": ({"Identifier": "1",
+                                                      "DwellTimePoly": np.array([[tref[-1] - tref[0]]])},)},
+        "TxRcv": {"NumTxWFs": 1, "TxWFParameters": ({"Identifier": "tx", "PulseLength": float(raw.pulse_length),
+                                                     "RFBandwidth": float(raw.bandwidth), "FreqCenter": float(raw.fc),
+                                                     "LFMRate": rate, "Polarization": tx_pol},),
+                  "NumRcvs": 1, "RcvParameters": ({"Identifier": "rcv",
+                                                   "WindowLength": float(raw.n_samples / raw.fs),
+                                                   "SampleRate": float(raw.fs), "IFFilterBW": float(raw.fs),
+                                                   "FreqCenter": float(raw.fc), "LFMRate": rate,
+                                                   "Polarization": rcv_pol},)},
+    }
+
+
+def header_keys(raw: RawData) -> dict[str, str]:
+    """File-header keys carrying what CPHD has no place for (one line each, no ``" := "``)."""
+    text = json.dumps(raw.metadata, default=json_default, ensure_ascii=True)
+    # '=' only occurs inside JSON strings, where its escape is equivalent; it keeps ' := ' out.
+    return {_KVP_METADATA: text.replace("=", "\\u003d"), _KVP_TIME0: repr(float(raw.pulse_time[0])),
+            _KVP_PRF: repr(float(raw.prf)), _KVP_COMPRESSED: "true" if raw.range_compressed else "false"}
+
+
+def build_metadata(raw: RawData, ref: georef.GeoReference) -> tuple[Any, np.ndarray]:
+    """(sarkit.cphd.Metadata, PVP array) for ``raw`` placed at ``ref``."""
+    import lxml.etree
+    import sarkit.cphd as skcphd
+    root = skcphd.ElementWrapper(lxml.etree.Element(f"{{{CPHD_NAMESPACE}}}CPHD"))
+    dtype = skcphd.get_pvp_dtype(_tree_with_pvp_layout(raw))
+    pvp = build_pvps(raw, ref, dtype)
+    root.from_dict(cphd_dict(raw, ref, pvp))
+    tree = lxml.etree.ElementTree(root.elem)
+    refgeom = skcphd.compute_reference_geometry(tree, pvp)
+    root.elem.find("{*}Dwell").addnext(refgeom)
+    metadata = skcphd.Metadata(xmltree=tree,
+                               file_header_part=skcphd.FileHeaderPart(additional_kvps=header_keys(raw)))
+    return metadata, pvp
+
+
+def _tree_with_pvp_layout(raw: RawData) -> Any:
+    """A minimal XML tree holding only Data/NumBytesPVP and PVP, for ``get_pvp_dtype``."""
+    import lxml.etree
+    import sarkit.cphd as skcphd
+    root = skcphd.ElementWrapper(lxml.etree.Element(f"{{{CPHD_NAMESPACE}}}CPHD"))
+    root["Data"] = {"NumBytesPVP": 8 * sum(s for _, s, _ in _PVP_LAYOUT)}
+    root["PVP"] = pvp_dtype_xml()
+    return lxml.etree.ElementTree(root.elem)
+
+
+def write_cphd(raw: RawData, path: str | os.PathLike, ref: georef.GeoReference | None = None) -> Path:
+    """Write ``raw`` as a one-channel CPHD 1.1.0 file at ``path`` (atomically), placed at ``ref``.
+
+    Parameters
+    ----------
+    raw : RawData
+        Samples complex64 [n_pulses, n_samples] (range compressed or chirped, as simulated)
+        and geometry in the local ENU frame (m, m/s, s).
+    path : path-like
+        The ``.cphd`` file to write.
+    ref : GeoReference, optional
+        WGS84 origin of the local frame (default: the ``geo_origin`` recorded in
+        ``raw.metadata["radar"]``, see :func:`georef.of`).
+
+    Returns the path written. Raises :class:`outputs.WriteError` (an OSError) when the file
+    cannot be written; nothing is left behind then.
+    """
+    import sarkit.cphd as skcphd
+    ref = georef.of(raw.metadata.get("radar", {}) if isinstance(raw.metadata, dict) else {}) if ref is None else ref
+    metadata, pvp = build_metadata(raw, ref)
+    srp = scene_reference_point(raw)
+    tau = srp_delay(raw.tx_position, raw.rx_position, srp)
+    signal = (raw.data * np.exp(2j * np.pi * raw.fc * tau)[:, None]).astype(np.complex64)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f, skcphd.Writer(f, metadata) as writer:
+            writer.write_signal(_CHANNEL, signal)
+            writer.write_pvp(_CHANNEL, pvp)
+    return atomic_write(Path(path), write, "CPHD file")
+
+
+def check_cphd(path: str | os.PathLike) -> list[str]:
+    """Run sarkit's CPHD consistency checker (``cphdcheck``) on ``path``; return its failures' names."""
+    import sarkit.verification as skver
+    with open(path, "rb") as f:
+        con = skver.CphdConsistency.from_file(f, thorough=True)
+        con.check()
+    return sorted(con.failures())
+
+
+def read_cphd(path: str | os.PathLike) -> RawData:
+    """Read a one-channel TOA-domain CPHD file into RawData in the local ENU frame of its IARP.
+
+    Samples are decompensated from the SRP (see the module docstring), geometry is converted
+    from ECEF to the local east-north-up frame at ``SceneCoordinates/IARP/LLH``. Files written
+    by :func:`write_cphd` give back their RawData (metadata included; samples within float32
+    rounding, geometry within micrometres); other tools' files get metadata from the XML only.
+
+    Raises
+    ------
+    CphdError
+        Naming ``path``: missing or unreadable file, not a CPHD file, an FX-domain file, more
+        than one channel, or a fast-time axis that differs between vectors (needs resampling).
+    """
+    import sarkit.cphd as skcphd
+    try:
+        with open(path, "rb") as f, skcphd.Reader(f) as reader:
+            signal, pvp = reader.read_channel(reader.metadata.xmltree.findtext("{*}Data/{*}Channel/{*}Identifier"))
+            tree, kvps = reader.metadata.xmltree, reader.metadata.file_header_part.additional_kvps
+    except (OSError, ValueError, KeyError, AttributeError, TypeError) as exc:
+        raise CphdError(f"cannot read CPHD file {path}: {exc} (is it a CPHD 1.x file?)") from None
+    return raw_from_parts(path, tree, kvps, signal, pvp)
+
+
+def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarray, pvp: np.ndarray) -> RawData:
+    """RawData from one channel's XML, header keys, signal [n_vectors, n_samples] and PVPs."""
+    import sarkit.cphd as skcphd
+    xml = skcphd.XmlHelper(tree)
+    if xml.load("{*}Global/{*}DomainType") != "TOA":
+        raise CphdError(f"{path}: only TOA-domain CPHD files can be read (this one is FX domain)")
+    if xml.load("{*}Data/{*}NumCPHDChannels") != 1:
+        raise CphdError(f"{path}: only one-channel CPHD files can be read")
+    llh = xml.load("{*}SceneCoordinates/{*}IARP/{*}LLH")
+    ref = georef.GeoReference(float(llh[0]), float(llh[1]), float(llh[2]))
+    rot = georef.enu_axes(ref)
+    srp = georef.ecef_to_enu(pvp["SRPPos"], ref)
+    tx, rx = georef.ecef_to_enu(pvp["TxPos"], ref), georef.ecef_to_enu(pvp["RcvPos"], ref)
+    tau = srp_delay(pvp["TxPos"], pvp["RcvPos"], pvp["SRPPos"]) + pvp["TDTropoSRP"]
+    start = pvp["SC0"] + tau
+    if np.ptp(start) > 1e-3 * float(pvp["SCSS"][0]) or np.ptp(pvp["SCSS"]) > 0:
+        raise CphdError(f"{path}: the vectors' fast-time axes differ (SC0 + TOA_SRP varies by "
+                        f"{np.ptp(start):.3g} s); RawData needs one axis, resampling is not supported")
+    fc = float(xml.load("{*}Channel/{*}Parameters/{*}FxC"))
+    data = (signal * np.exp(-2j * np.pi * fc * tau)[:, None]).astype(np.complex64)
+    wf = tree.find("{*}TxRcv/{*}TxWFParameters")
+    pulse_length = float(wf.findtext("{*}PulseLength")) if wf is not None else 1.0 / float(xml.load(
+        "{*}Channel/{*}Parameters/{*}FxBW"))
+    chirp = float(wf.findtext("{*}LFMRate")) if wf is not None and wf.find("{*}LFMRate") is not None else 0.0
+    time0 = float(kvps.get(_KVP_TIME0, 0.0))
+    pulse_time = pvp["TxTime"] + time0
+    prf = float(kvps[_KVP_PRF]) if _KVP_PRF in kvps else 1.0 / float(np.median(np.diff(pvp["TxTime"])))
+    metadata = json.loads(kvps[_KVP_METADATA]) if _KVP_METADATA in kvps else {"source": str(path)}
+    return RawData(data=data, fast_time=start[0] + np.arange(signal.shape[1]) * float(pvp["SCSS"][0]),
+                   pulse_time=pulse_time, tx_position=tx, rx_position=rx,
+                   velocity=np.asarray(pvp["TxVel"]) @ rot.T, fc=fc,
+                   bandwidth=float(xml.load("{*}Channel/{*}Parameters/{*}FxBW")), chirp_rate=chirp,
+                   pulse_length=pulse_length, fs=sample_rate(tree, pvp), prf=prf,
+                   range_compressed=kvps.get(_KVP_COMPRESSED, "true") == "true", metadata=metadata)

@@ -1,0 +1,278 @@
+"""Which optional effects a scene switches on, and why (docs/design.md section 7).
+
+A simulation pays only for what the scene asks for: each effect below is compiled into the
+tracer, or applied by the later stages, only when a sensor, integrator or material
+parameter calls for it. :func:`list_effects` names every effect of the docs/design.md section 7
+table with the parameter that switches it on, or the reason it is off and what it is
+replaced by; ``python -m sarmitsuba info`` prints that list, and rendered data carry the
+active ones in their metadata (``metadata["effects"]``, one string each).
+
+The decision is made once, here: :func:`active_effects` turns a loaded scene into an
+:class:`EffectSet` that the pipeline hands to the tracer (:func:`sarmitsuba.tracing.trace.trace`,
+:class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
+(:func:`sarmitsuba.signal.radiometry.radar_equation`) and the cost model (:mod:`sarmitsuba.analysis.cost`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterable
+
+if TYPE_CHECKING:                      # only for annotations: no import cycle with scene/loader.py
+    from ..core.radar import RadarParameters
+    from .trace_inputs import MaterialTable, TraceSettings
+
+__all__ = ["Effect", "EffectSet", "list_effects", "active_effects", "rough_materials"]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One optional effect of a simulation.
+
+    Attributes
+    ----------
+    name : str
+        The effect, as in docs/design.md section 7 (e.g. ``"bounce orders > 1"``).
+    active : bool
+        Whether this scene, with its overrides, simulates it.
+    reason : str
+        When active, the parameter values that switch it on; when off, why, what is
+        simulated instead, and which parameter would switch it on.
+    """
+
+    name: str
+    active: bool
+    reason: str
+
+    def __str__(self) -> str:
+        """``"name (reason)"``: the form stored in ``metadata["effects"]``."""
+        return f"{self.name} ({self.reason})"
+
+
+@dataclass(frozen=True)
+class EffectSet:
+    """Which optional effects a simulation runs: decided once, here, from the loaded scene, and
+    handed to the tracer (:class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
+    (:func:`sarmitsuba.signal.radiometry.radar_equation`) and ``sarmitsuba info``, so that none of them
+    re-derives it from the parameters.
+
+    Attributes
+    ----------
+    max_depth : int
+        Bounce orders traced (``> 1`` compiles the reflection loop).
+    rough_materials : tuple of str
+        Sorted names of the materials used by some shape that have a clutter model (non-empty
+        compiles the clutter term).
+    antenna : bool
+        An explicit antenna (``antenna_length`` or ``antenna_height`` > 0).
+    pattern : bool
+        An antenna pattern is applied by the tracer: the tapered default beam or the antenna's
+        dimensions (``pattern_length > 0`` or ``antenna_height > 0``, docs/physics.md (A)).
+    noise : bool
+        Thermal noise (``noise_figure_db`` or ``noise_temperature`` given).
+    chirped : bool
+        Chirped raw echoes (sensor ``output = raw``).
+    radiometry : bool
+        Absolute radiometry (``transmit_power`` given).
+    spotlight : bool
+        Beam steered at the scene centre (sensor ``mode = spotlight``).
+    squint : bool
+        Sensor ``squint`` != 0.
+    split_bounces : bool
+        One raw data set and image per bounce order as well.
+    channels : tuple of str
+        The polarimetric channels simulated (sensor ``polarization``; ``("VV",)`` by default).
+    jones : bool
+        Ray tubes carry a Jones matrix (docs/physics.md (P1)-(P8)): ``sbr`` ``polarimetry =
+        jones`` (the default), or any cross-polarised channel. Off only for one co-polarised
+        channel with ``polarimetry = scalar``: scalar coefficients (R), (P6), no Jones algebra.
+    listed : tuple of Effect
+        Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
+
+    Iterating over an EffectSet yields the :class:`Effect` s that are on (:attr:`active`).
+    """
+
+    max_depth: int
+    rough_materials: tuple[str, ...]
+    antenna: bool
+    pattern: bool
+    noise: bool
+    chirped: bool
+    radiometry: bool
+    spotlight: bool
+    squint: bool
+    split_bounces: bool
+    listed: tuple[Effect, ...]
+    channels: tuple[str, ...] = ("VV",)
+    jones: bool = True
+
+    @property
+    def cross_polarised(self) -> bool:
+        """Some channel is cross-polarised (``HV``, ``VH``, ``quad``): the optional effect."""
+        return any(c[0] != c[1] for c in self.channels)
+
+    @property
+    def polarimetric(self) -> bool:
+        """A Jones matrix per tube (:attr:`jones`)."""
+        return self.jones
+
+    @property
+    def bounces(self) -> bool:
+        """Bounce orders > 1."""
+        return self.max_depth > 1
+
+    @property
+    def clutter(self) -> bool:
+        """Distributed clutter and speckle (some shape's material is rough)."""
+        return bool(self.rough_materials)
+
+    @property
+    def groups(self) -> int:
+        """Spectra the tracer keeps per pulse: one per bounce order with ``split_bounces``, else 1."""
+        return self.max_depth if self.split_bounces else 1
+
+    @property
+    def active(self) -> tuple[Effect, ...]:
+        """The listed effects that are on."""
+        return tuple(e for e in self.listed if e.active)
+
+    def __iter__(self):
+        return iter(self.active)
+
+    @classmethod
+    def of(cls, params: "RadarParameters", settings: "TraceSettings | None" = None,
+           rough_materials: Iterable[str] = ()) -> "EffectSet":
+        """The effects of radar parameters, trace settings and the names of the rough materials
+        some shape uses. Without ``settings``, the sensor's effects only (one bounce order, no
+        per-order products): what :func:`sarmitsuba.signal.radiometry.radar_equation` needs."""
+        rough = tuple(sorted(set(rough_materials)))
+        split = bool(settings.split_bounces) if settings is not None else False
+        decided = cls(max_depth=settings.max_depth if settings is not None else 1, rough_materials=rough,
+                      antenna=params.antenna_length > 0 or params.antenna_height > 0,
+                      pattern=params.pattern_length > 0 or params.antenna_height > 0,
+                      noise=params.noise_figure_db is not None or params.noise_temperature is not None,
+                      chirped=params.output == "raw", radiometry=params.transmit_power is not None,
+                      spotlight=params.mode == "spotlight", squint=params.squint != 0, split_bounces=split,
+                      listed=(), channels=params.channels,
+                      jones=getattr(settings, "polarimetry", "jones") == "jones" or params.polarimetric)
+        return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
+
+
+def active_effects(loaded) -> EffectSet:
+    """The :class:`EffectSet` of a loaded scene (overrides applied, parameters resolved): compute it
+    once and hand it on. Rough materials are those of the BSDFs the scene's shapes use."""
+    return EffectSet.of(loaded.params, loaded.settings,
+                        (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0))
+
+
+def rough_materials(table: "MaterialTable") -> tuple[str, ...]:
+    """Sorted names of the rough materials (clutter model) of a material table (its rows are the
+    BSDFs the scene's shapes use, :func:`sarmitsuba.scene.loader.material_table`)."""
+    if table.clutter is None:
+        return ()
+    return tuple(sorted({name for name, (kind, _) in zip(table.names, table.clutter) if kind > 0}))
+
+
+def list_effects(loaded) -> tuple[Effect, ...]:
+    """Every optional effect of docs/design.md section 7 for a loaded scene, on or off, with the reason.
+
+    Parameters
+    ----------
+    loaded : LoadedScene
+        A scene after :func:`sarmitsuba.scene.loader.load_scene` (overrides applied, parameters resolved).
+
+    Returns
+    -------
+    tuple of Effect
+        In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
+        speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
+        spotlight, squint, per-bounce-order products, then polarimetry (:attr:`EffectSet.listed`).
+    """
+    return active_effects(loaded).listed
+
+
+def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effect, ...]:
+    """The docs/design.md section 7 table for the decided effects ``e``: each on or off with its reason."""
+    return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
+            _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
+            _split(e.split_bounces), _polarimetry(e))
+
+
+def _bounces(depth: int) -> Effect:
+    if depth > 1:
+        return Effect("bounce orders > 1", True, f"integrator max_depth = {depth}: orders 1..{depth} traced")
+    return Effect("bounce orders > 1", False,
+                  "integrator max_depth = 1: single bounce only, no reflection loop (max_depth > 1 switches it on)")
+
+
+def _clutter(rough: tuple[str, ...], seed: int | None) -> Effect:
+    if rough:
+        return Effect("distributed clutter and speckle", True, f"rough materials: {', '.join(rough)}; seed {seed}")
+    return Effect("distributed clutter and speckle", False,
+                  "no material has gamma_db or scattering_coefficient: facets return PO only "
+                  "(--material-set gamma_db=DB switches it on)")
+
+
+def _antenna(e: EffectSet, p: "RadarParameters") -> Effect:
+    if e.antenna:
+        return Effect("antenna pattern", True,
+                      f"antenna_length {p.antenna_length} m, antenna_height {p.antenna_height} m")
+    if not e.pattern:
+        return Effect("antenna pattern", False,
+                      f"beam = uniform (on request): a hard-edged {p.azimuth_beamwidth:.3g} deg beam, no pattern; "
+                      "extended targets streak in azimuth beyond their ends")
+    return Effect("antenna pattern", False,
+                  f"no antenna_length / antenna_height: the default tapered beam, the two-way sinc^2 of the "
+                  f"{p.pattern_length:.3g} m aperture whose 3 dB width is azimuth_beamwidth {p.azimuth_beamwidth:.3g} deg, "
+                  f"traced to its first nulls ({p.traced_beamwidth:.3g} deg)")
+
+
+def _noise(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("thermal noise", True,
+                      f"noise_figure_db {p.noise_figure_db}, noise_temperature {p.noise_temperature}")
+    return Effect("thermal noise", False, "no noise_figure_db / noise_temperature: noiseless")
+
+
+def _chirped(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("chirped raw echoes", True, f"sensor output = raw, T_p {p.pulse_length} s")
+    return Effect("chirped raw echoes", False, "sensor output = compressed: range-compressed data")
+
+
+def _radiometry(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("absolute radiometry", True, f"transmit_power {p.transmit_power} W")
+    return Effect("absolute radiometry", False,
+                  "no transmit_power: normalised, unit gains, amplitudes in sqrt(m^2)")
+
+
+def _spotlight(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("spotlight", True, f"beam steered at the scene centre, integration angle "
+                                         f"{math.degrees(p.integration_angle):.2f} deg")
+    return Effect("spotlight", False, "sensor mode = stripmap: beam fixed relative to the track")
+
+
+def _squint(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("squint", True, f"sensor squint = {p.squint:g} deg: beam {'ahead' if p.squint > 0 else 'behind'}"
+                                      " of broadside, Doppler centroid off zero")
+    return Effect("squint", False, "sensor squint = 0: broadside beam, zero Doppler centroid")
+
+
+def _split(on: bool) -> Effect:
+    if on:
+        return Effect("per-bounce-order products", True, "split_bounces")
+    return Effect("per-bounce-order products", False, "split_bounces off: one raw data set and image for all orders")
+
+
+def _polarimetry(e: EffectSet) -> Effect:
+    if e.cross_polarised:
+        return Effect("cross-polarised channels", True, f"polarization = "
+                      f"{'quad' if len(e.channels) > 1 else e.channels[0]}: {', '.join(e.channels)} from one trace")
+    model = ("a Jones matrix per ray tube" if e.jones else
+             "sbr polarimetry = scalar: scalar reflection coefficients, no Jones algebra")
+    return Effect("cross-polarised channels", False, f"polarization = {e.channels[0]}: one co-polarised channel, "
+                  f"{model} (HV, VH or quad switch it on)")

@@ -1,0 +1,461 @@
+"""Loading a scene: XML path, built-in name or ``sionna:NAME``, plus the SAR sensor and tracer settings.
+
+A scene is a Mitsuba XML file (docs/design.md section 4). ``load_scene`` resolves where it is,
+loads it with sarmitsuba's plugins, reads the ``sar`` sensor and ``sbr`` integrator (or
+uses the defaults when the scene has none, as Sionna RT scenes do), applies overrides
+(from the CLI), and resolves the automatic parameters against the scene's bounding box.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import os
+import re
+import xml.etree.ElementTree as ET
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..core import georef
+from . import materials
+from .meshcheck import check_meshes, warn_mesh_defects
+from .planning import resolve_parameters
+from ..signal.radiometry import radar_equation
+from ..core.radar import ParameterError, RadarParameters
+from .trace_inputs import MaterialTable, TraceSettings
+
+__all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "shape_frame", "mitsuba_message",
+           "builtin_scenes", "sionna_scenes"]
+
+#: Number of cos(incidence) samples of each material's reflection table.
+TABLE_SIZE = 257
+
+
+class SceneError(ValueError):
+    """A scene cannot be found or loaded; the message says which file and why."""
+
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """A loaded scene with its resolved radar parameters and tracer settings.
+
+    Attributes
+    ----------
+    scene : mitsuba.Scene
+    path : Path or None
+        The XML file; None for a scene built in Python (:class:`sarmitsuba.scene.builder.Scene`).
+    source : str
+        What the user asked for (path, built-in name or ``sionna:NAME``), or
+        ``python:<name>`` for a scene built in Python.
+    params : RadarParameters
+        Resolved (scene_center and n_pulses filled in).
+    settings : TraceSettings
+    bbox_lo, bbox_hi : float64 [3], m
+        Axis-aligned bounding box of the geometry.
+    has_sensor : bool
+        Whether the scene defines a ``sar`` sensor (otherwise defaults were used).
+    n_shapes, n_triangles : int
+    offset : float64 [3], m
+        World position of the local frame's origin: geometry, ``params`` and the bounding box
+        are local (world minus offset); zero unless the scene lies more than
+        :data:`RECENTER_DISTANCE` from the origin.
+    shape_boxes : float64 [n_shapes, 2, 3], m
+        Each shape's bounding box ``(lo, hi)`` (local frame), for the ray planner's refinement
+        around small objects.
+    """
+
+    scene: Any
+    path: Path | None
+    source: str
+    params: RadarParameters
+    settings: TraceSettings
+    bbox_lo: np.ndarray
+    bbox_hi: np.ndarray
+    has_sensor: bool
+    n_shapes: int
+    n_triangles: int
+    offset: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    shape_boxes: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2, 3)))
+
+
+def _package_dir(name: str) -> Path | None:
+    spec = importlib.util.find_spec(name)          # does not import the package's code
+    if spec is None or spec.origin is None:
+        return None
+    return Path(spec.origin).parent
+
+
+def builtin_scenes() -> dict[str, Path]:
+    """Built-in scenes shipped in ``scenes/``: name -> XML path."""
+    folder = _package_dir("sarmitsuba_scenes")
+    return {} if folder is None else {p.stem: p for p in sorted(folder.glob("*.xml"))}
+
+
+def sionna_scenes() -> dict[str, Path]:
+    """Scenes of the installed Sionna RT package (found without importing it): name -> XML path."""
+    folder = _package_dir("sionna")
+    if folder is None:
+        return {}
+    root = folder / "rt" / "scenes"
+    return {p.name: p / f"{p.name}.xml" for p in sorted(root.iterdir()) if (p / f"{p.name}.xml").is_file()}
+
+
+def resolve_source(source: Any) -> Path | None:
+    """Path of the XML file for ``source`` (None = the default ``urban`` scene); None for a
+    scene built in Python (:class:`sarmitsuba.scene.builder.Scene`), which has no file.
+
+    Raises
+    ------
+    SceneError
+        Unknown built-in or Sionna scene name (listing the valid ones), Sionna RT not
+        installed, or a file that does not exist.
+    """
+    if _built_in_python(source):
+        return None
+    source = "urban" if source is None else str(source)
+    if source.startswith("sionna:"):
+        name = source.split(":", 1)[1]
+        scenes = sionna_scenes()
+        if not scenes:
+            raise SceneError(f"{source}: Sionna RT is not installed; install it with "
+                             "`pip install 'sarmitsuba[sionna]'` (or `pip install sionna-rt`)")
+        if name not in scenes:
+            raise SceneError(f"{source}: no Sionna RT scene named {name!r}; available: {', '.join(scenes)}")
+        return scenes[name]
+    builtins = builtin_scenes()
+    if source in builtins:
+        return builtins[source]
+    path = Path(source)
+    if not path.is_file():
+        hint = f"; built-in scenes: {', '.join(builtins)}" if builtins else ""
+        raise SceneError(f"scene file {str(path)!r} does not exist{hint}")
+    return path
+
+
+def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, Any] | None = None,
+               integrator_overrides: Mapping[str, Any] | None = None,
+               material_overrides: Mapping[str, Any] | None = None) -> LoadedScene:
+    """Load a scene and resolve its radar parameters and tracer settings.
+
+    Parameters
+    ----------
+    source : str or Path or sarmitsuba.scene.builder.Scene or None
+        XML path, built-in scene name (``urban``, ``dihedral``, ``trihedral``),
+        ``sionna:NAME``, or a scene built in Python (:class:`sarmitsuba.Scene`); None = ``urban``.
+    sensor_overrides, integrator_overrides : mapping, optional
+        Parameter values replacing the scene's (names as in the plugin manuals).
+    material_overrides : mapping, optional
+        Roughness applied to every material: ``gamma_db`` [dB] or ``scattering_coefficient``.
+
+    Raises
+    ------
+    SceneError
+        File missing or malformed, or a plugin rejected its parameters.
+    ParameterError
+        An override names an unknown parameter or has an invalid value.
+    """
+    path = resolve_source(source)
+    label = str(path) if path is not None else source.source      # a Python scene: python:<name>
+    load = source.to_mitsuba if path is None else lambda offset=None: _load_mitsuba(path, offset)
+    scene = load()
+    center = 0.5 * (np.array(scene.bbox().min, np.float64) + np.array(scene.bbox().max, np.float64))
+    offset = np.zeros(3)
+    if np.all(np.isfinite(center)) and np.linalg.norm(center) > RECENTER_DISTANCE:
+        offset = np.round(center)              # whole metres: exact in float32 below 2^24 m
+        scene = load(offset)
+    warn_mesh_defects(check_meshes(scene), label)
+    _override_materials(scene, material_overrides or {})
+    sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
+    given = dict(sensor.given) if sensor is not None else {}
+    given.update(sensor_overrides or {})
+    params = RadarParameters.from_mapping(given)
+    if params.geo_origin is None and isinstance(source, str) and source.startswith("sionna:"):
+        known = georef.SCENE_ORIGINS.get(source.split(":", 1)[1])
+        params = params if known is None else dataclasses.replace(params, geo_origin=known.as_tuple())
+    if params.scene_center is not None and np.any(offset):
+        params = dataclasses.replace(params, scene_center=tuple((np.asarray(params.scene_center) - offset).tolist()))
+    integrator = scene.integrator()
+    settings_given = dict(getattr(integrator, "given", {}))
+    settings_given.update(integrator_overrides or {})
+    settings = TraceSettings.from_mapping(settings_given)
+    if settings.range_kernel == "exact" and params.output == "raw":
+        raise ParameterError("sbr range_kernel = 'exact' evaluates range-compressed samples and cannot make chirped "
+                             "echoes: use sar output = 'compressed', or range_kernel 'linear' or 'sinc' with output = 'raw'")
+    if settings.polarimetry == "scalar" and params.polarimetric:
+        raise ParameterError(f"sbr polarimetry = 'scalar' has one co-polarised channel only, but sar polarization = "
+                             f"{params.polarization!r}: use polarimetry = 'jones' (the default), or polarization "
+                             "'HH' or 'VV'")
+    bbox = scene.bbox()
+    lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
+    if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
+        raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
+    params = resolve_parameters(params, lo, hi)
+    radar_equation(params)                   # radiometry parameters checked before any tracing
+    n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
+    name = label if path is None else str(source if source is not None else "urban")
+    return LoadedScene(scene=scene, path=path, source=name,
+                       params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
+                       has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
+                       offset=offset, shape_boxes=_shape_boxes(scene))
+
+
+def _built_in_python(source: Any) -> bool:
+    """Whether ``source`` is a scene built in Python (:class:`sarmitsuba.scene.builder.Scene`): it builds its
+    own Mitsuba scene (``to_mitsuba``), where a path names a file or a built-in scene."""
+    return not isinstance(source, (str, os.PathLike)) and source is not None and callable(getattr(source, "to_mitsuba", None))
+
+
+def _shape_boxes(scene: Any) -> np.ndarray:
+    """float64 [n_shapes, 2, 3]: every shape's axis-aligned bounding box."""
+    boxes = [(np.array(s.bbox().min, np.float64), np.array(s.bbox().max, np.float64)) for s in scene.shapes()]
+    return np.array(boxes, np.float64).reshape(-1, 2, 3)
+
+
+#: Scenes whose bounding-box centre lies farther than this [m] from the origin are traced in a
+#: local frame (float32 geometry has 6 cm steps at 1e6 m, 12 rad of X-band phase).
+RECENTER_DISTANCE = 100.0
+
+
+def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
+    """``mi.load_file`` (one shape per object), or with every top-level shape translated by
+    ``-offset`` (appended to its ``to_world``: in float32 ``t - offset`` is exact for ``t`` near
+    ``offset``, so the vertices arrive in local coordinates at full precision)."""
+    level = mi.log_level()
+    mi.set_log_level(mi.LogLevel.Error)      # silences the irrelevant default-film warning
+    resolver = mi.file_resolver()
+    saved = [str(resolver[i]) for i in range(len(resolver))]
+    try:
+        if offset is None:
+            return mi.load_file(str(path), optimize=False)
+        resolver.prepend(str(path.parent.resolve()))
+        return mi.load_string(_shifted_xml(path, offset), optimize=False)
+    except (RuntimeError, ET.ParseError) as exc:
+        file, line, message = _located(exc)
+        where = "" if line is None else (f", line {line}" if file is None or Path(file) == path
+                                         else f" ({file!r}, line {line})")
+        raise SceneError(f"cannot load scene {str(path)!r}{where}: {message}") from None
+    finally:
+        mi.set_log_level(level)
+        resolver.clear()
+        for entry in saved:
+            resolver.append(entry)
+
+
+def _shifted_xml(path: Path, offset: np.ndarray) -> str:
+    root = ET.parse(path).getroot()
+    for shape in root.findall("shape"):
+        transform = shape.find("transform[@name='to_world']")
+        if transform is None:
+            transform = ET.SubElement(shape, "transform", name="to_world")
+        ET.SubElement(transform, "translate", x=repr(-float(offset[0])), y=repr(-float(offset[1])),
+                      z=repr(-float(offset[2])))
+    return ET.tostring(root, encoding="unicode")
+
+
+MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient")
+
+
+def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
+    unknown = set(overrides) - set(MATERIAL_OVERRIDES)
+    if unknown:
+        raise ParameterError(f"unknown material override {sorted(unknown)}; valid: {', '.join(MATERIAL_OVERRIDES)}")
+    if not overrides:
+        return
+    for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():
+        if hasattr(bsdf, "set_roughness"):
+            bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
+
+
+def mitsuba_message(exc: Exception) -> str:
+    """The message of a Mitsuba loading error without its source prefix and Python traceback frames,
+    led by ``FILE, line N:`` when it names a place in a file (see :func:`_located`)."""
+    file, line, message = _located(exc)
+    return message if file is None else f"{file}, line {line}: {message}"
+
+
+#: Where Mitsuba's scene parser says an error happened: ``At FILE (line N, col M): ...`` (a plugin's
+#: constructor failed) or ``Error while loading FILE (line N, col M): ...`` (a malformed value).
+_MITSUBA_AT = re.compile(r"^(?:At|Error while loading) (?P<file>.+?) \(line (?P<line>\d+), col \d+\): (?P<rest>.*)$",
+                         re.S)
+#: ``Parsing of XML file "FILE" failed: MESSAGE (line N, col M)``: malformed XML.
+_MITSUBA_XML = re.compile(r'^Parsing of XML file "(?P<file>.*?)" failed: (?P<rest>.*) \(line (?P<line>\d+), col \d+\)$',
+                          re.S)
+#: The plugin that failed: ``failed to instantiate sensor plugin of type "sar": ...``.
+_MITSUBA_PLUGIN = re.compile(r'^failed to instantiate (?P<tag>\w+) plugin of type "[^"]*": (?P<rest>.*)$', re.S)
+#: The parameter an error message names: ``name = value ...``, ``unknown parameter 'name'``, ``parameter name:``.
+_NAMED_PARAMETER = re.compile(r"^(?P<a>\w+) = |unknown parameter '(?P<b>\w+)'|parameter (?P<c>\w+):")
+
+
+def _located(exc: Exception) -> tuple[str | None, int | None, str]:
+    """``(file, line, message)`` of a Mitsuba loading error (file and line None when it names none).
+
+    The message drops Mitsuba's ``[parser.cpp:1718]`` prefix, its ``At FILE (line, col)`` and
+    "failed to instantiate" framing, and the traceback of a Python plugin (frames and the
+    exception's class name). The line is that of the offending parameter's element when the
+    message names one that the failing plugin's element sets (``<float name="frequency" .../>``),
+    else the plugin's element."""
+    text = re.sub(r"^\[[\w.]+:\d+\]\s*", "", str(exc).strip())
+    file = line = tag = None
+    while (match := _MITSUBA_AT.match(text) or _MITSUBA_XML.match(text)) is not None:
+        file, line, text = match["file"], int(match["line"]), match["rest"].strip()
+        plugin = _MITSUBA_PLUGIN.match(text)
+        if plugin is not None:
+            tag, text = plugin["tag"], plugin["rest"].strip()
+    message = _without_traceback(text)
+    named = _NAMED_PARAMETER.search(message)
+    if file is not None and line is not None and tag is not None and named is not None:
+        line = _parameter_line(file, line, tag, named["a"] or named["b"] or named["c"])
+    return file, line, message
+
+
+def _without_traceback(text: str) -> str:
+    """The exception message at the end of a Python traceback (frames and, for sarmitsuba's own
+    errors, the class name dropped); ``text`` itself when it holds no traceback."""
+    if "Traceback (most recent call last)" not in text:
+        return text
+    lines = text.splitlines()
+    frames = [i for i, line in enumerate(lines) if line.startswith("  File ")]
+    i = frames[-1] + 1 if frames else 1
+    while i < len(lines) - 1 and lines[i].startswith("    "):       # source lines and carets of the last frame
+        i += 1
+    message = "\n".join(lines[i:]).strip()
+    return re.sub(r"^(?:\w+\.)*(?:ParameterError|SceneError|MaterialError|ValueError): ", "", message)
+
+
+def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
+    """Line of the first element ``name="NAME"`` from the plugin element ``<TAG`` on ``line`` to its
+    closing tag; ``line`` when there is none (a default or derived value) or the file is unreadable."""
+    try:
+        lines = Path(file).read_text(errors="replace").splitlines()
+    except OSError:
+        return line
+    pattern = re.compile(rf"""name\s*=\s*["']{re.escape(name)}["']""")
+    for number in range(line, len(lines) + 1):
+        if pattern.search(lines[number - 1]):
+            return number
+        if f"</{tag}" in lines[number - 1] or (number > line and re.search(rf"<{tag}\b", lines[number - 1])):
+            break
+    return line
+
+
+#: A vertex counts as distinct from the frame's origin, and from the line of its first axis,
+#: beyond this fraction of the shape's largest extent (:func:`shape_frame`): far above float32
+#: round-off of the vertex positions (1e-7), far below any shape's features.
+FRAME_TOLERANCE = 1e-3
+
+
+def shape_frame(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A frame fixed to a shape, from its vertices in their stored order: the frame the clutter
+    scatterer lattice is anchored to (docs/physics.md (C)).
+
+    The origin is vertex 0; the first axis points to the first vertex farther than
+    ``FRAME_TOLERANCE`` times the shape's extent, the second to the first vertex that far off the
+    first axis' line (made orthogonal to it), the third is their cross product. Vertex order does
+    not change when a shape is translated or rotated, so the frame moves rigidly with the shape:
+    rotating the vertices by ``R`` and translating them by ``t`` gives origin ``R o + t`` and
+    axes ``R a``.
+
+    Parameters
+    ----------
+    vertices : float [n, 3], m
+
+    Returns
+    -------
+    origin : float64 [3], m
+    axes : float64 [3, 3]
+        Rows: the frame's orthonormal axes, right-handed. Without two distinct vertices the axes
+        are the world's; without a third off the first axis' line (a shape on one line), the
+        second axis is the world's ``z x a1`` (or ``x x a1`` for a vertical line), which is then
+        not rigid about that line.
+    """
+    v = np.asarray(vertices, np.float64).reshape(-1, 3)
+    if v.shape[0] == 0:
+        return np.zeros(3), np.eye(3)
+    offsets = v - v[0]
+    tolerance = FRAME_TOLERANCE * max(float(np.ptp(v, axis=0).max()), np.finfo(np.float64).tiny)
+    distance = np.linalg.norm(offsets, axis=1)
+    far = np.flatnonzero(distance > tolerance)
+    if far.size == 0:
+        return v[0].copy(), np.eye(3)
+    first = offsets[far[0]] / distance[far[0]]
+    across = offsets - np.outer(offsets @ first, first)
+    off_line = np.linalg.norm(across, axis=1)
+    wide = np.flatnonzero(off_line > tolerance)
+    if wide.size:
+        second = across[wide[0]] / off_line[wide[0]]
+    else:
+        helper = np.array([0.0, 0.0, 1.0]) if abs(first[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        second = np.cross(helper, first)
+        second /= np.linalg.norm(second)
+    return v[0].copy(), np.stack([first, second, np.cross(first, second)])
+
+
+def _shape_frame_of(shape: Any) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`shape_frame` of a Mitsuba shape; a shape without vertices (an analytic sphere, say)
+    gets its bounding box's lowest corner and the world's axes, which translate with it but do not
+    rotate."""
+    if shape.is_mesh() and shape.vertex_count() > 0:
+        return shape_frame(np.array(shape.vertex_positions_buffer(), np.float64))
+    return np.array(shape.bbox().min, np.float64), np.eye(3)
+
+
+def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
+    """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz]: ``r`` of the
+    ``polarization``'s channel (the scalar model (R)), ``r_te`` and ``r_tm`` (the Jones model)
+    and the clutter's cross-polarised level (docs/physics.md (P3'), (P7)).
+
+    Raises
+    ------
+    SceneError
+        A shape whose BSDF is not a radar material (``radar`` or ``itu-radio-material``).
+    materials.MaterialError
+        A material used outside its valid frequency range.
+    """
+    rows: dict[int, int] = {}
+    tables, clutter, specular, ids, names = [], [], [], [], []
+    tables_te, tables_tm, cross_pol = [], [], []           # for the Jones model, docs/physics.md (P3')
+    for index, shape in enumerate(scene.shapes()):
+        bsdf = shape.bsdf()
+        if not hasattr(bsdf, "material_at"):
+            raise SceneError(f"shape {shape.id()!r} uses BSDF {bsdf.class_().name() if hasattr(bsdf, 'class_') else bsdf}"
+                             ", which has no radar properties; give it a <bsdf type=\"radar\"> or "
+                             "<bsdf type=\"itu-radio-material\">")
+        material = bsdf.material_at(frequency)
+        key = bsdf.id_key            # one row per BSDF object: inline (id-less) BSDFs share no name
+        if key not in rows:
+            rows[key] = len(tables)
+            names.append(bsdf.name)
+            tables_te.append(materials.reflection_table(material, frequency, "HH", n=TABLE_SIZE))
+            tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
+            tables.append(tables_tm[-1] if polarization == "VV" else tables_te[-1])
+            cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
+            clutter.append(bsdf.clutter)
+            specular.append(bsdf.specular_factor)
+        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+        # the clutter hash's key: the shape's id, or for an id-less shape its place in the file
+        # (never its position, so moving it keeps its speckle; never shared, so two id-less
+        # copies of one shape get independent speckle)
+        name = shape.id() or f"#shape{index}"
+        # the scatterer lattice's anchor: a frame that moves and turns with the shape (C)
+        ids.append((shape_id, rows[key], zlib.crc32(name.encode()), *_shape_frame_of(shape)))
+    row_of_shape = np.zeros(max(i[0] for i in ids) + 1, np.uint32)
+    shape_key = np.zeros_like(row_of_shape)
+    shape_origin = np.zeros((row_of_shape.size, 3), np.float64)
+    shape_axes = np.tile(np.eye(3), (row_of_shape.size, 1, 1))
+    for shape_id, row, stable, origin, axes in ids:
+        row_of_shape[shape_id] = row
+        shape_key[shape_id] = stable
+        shape_origin[shape_id] = origin
+        shape_axes[shape_id] = axes
+    return MaterialTable(row_of_shape=row_of_shape, table=np.stack(tables).astype(np.complex64),
+                         names=names, clutter=np.array(clutter, np.float32).reshape(-1, 2),
+                         shape_key=shape_key, shape_origin=shape_origin, shape_axes=shape_axes,
+                         specular=np.array(specular, np.float32),
+                         table_te=np.stack(tables_te).astype(np.complex64),
+                         table_tm=np.stack(tables_tm).astype(np.complex64),
+                         cross_pol=np.array(cross_pol, np.float32))

@@ -1,0 +1,360 @@
+"""Planning an acquisition before tracing: defaults from the scene, fast-time window, ray footprint.
+
+All functions are pure (NumPy, float64) and take the scene's axis-aligned bounding box as
+``(lo, hi)``, each float64 [3] in metres.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import warnings
+from dataclasses import replace
+
+import numpy as np
+from scipy import fft as sp_fft
+
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters, track_frame
+from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
+
+__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
+           "project_to_aim_plane", "box_corners", "echo_lengths", "check_acquisition", "AcquisitionWarning"]
+
+
+class AcquisitionWarning(UserWarning):
+    """Radar settings the user may mean but should know about (ambiguities, an empty beam)."""
+
+#: Samples kept beyond the nearest and farthest scene delay, for the compressed pulse's tails.
+WINDOW_MARGIN_SAMPLES = 64
+
+
+def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners of an axis-aligned box, float64 [8, 3]."""
+    return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+
+
+def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> RadarParameters:
+    """Fill in ``scene_center`` (bbox centre at its lowest z) and ``n_pulses`` (0 = automatic).
+
+    The automatic aperture sweeps the beam over the scene: its length is the scene's
+    along-track extent plus the beam footprint at the farthest scene point, plus twice the
+    along-track offset of the scene's middle from ``scene_center`` (the track is centred on
+    ``scene_center``, so a scene given an off-centre ``scene_center`` is still swept from end
+    to end), ``n_pulses = ceil(length * prf / velocity) + 1``.
+    """
+    if params.scene_center is None:
+        params = replace(params, scene_center=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), float(lo[2])))
+    if params.n_pulses == 0 and params.mode == "spotlight":
+        angle = params.wavelength / (2.0 * params.slant_range_resolution)
+        length = angle * params.slant_range
+        params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
+    if params.n_pulses == 0:
+        track, look = track_frame(params)
+        rel = box_corners(lo, hi) - np.asarray(params.scene_center)
+        along = rel @ track
+        a_lo, a_hi = beam_offsets(params, lo, hi)
+        # the track is centred on scene_center: a scene off it along track needs twice its offset more
+        offset = abs(0.5 * float(along.max() + along.min()))
+        length = float(along.max() - along.min()) + (a_hi - a_lo) + 2.0 * offset
+        params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
+    return params
+
+
+def _closest_ranges(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    track, look = track_frame(params)
+    center = np.asarray(params.scene_center, float)
+    mid = center - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
+    rel = box_corners(lo, hi) - mid
+    rel -= np.outer(rel @ track, track)         # distance at closest approach
+    return np.linalg.norm(rel, axis=1)
+
+
+def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Along-track interval ``(a_lo, a_hi)`` [m], relative to the antenna, that the stripmap beam
+    covers at the scene's closest-approach ranges ``R0``: ``R0 tan(squint -/+ beta / 2)``,
+    bounded over the near and far range (ray tube aim and automatic aperture length).
+    At broadside it is ``-/+ R_far tan(beta / 2)``."""
+    ranges = _closest_ranges(params, lo, hi)
+    r = (max(0.0, float(ranges.min()) - float(np.linalg.norm(hi - lo))), float(ranges.max()))
+    half, squint = params.traced_half_angle, math.radians(params.squint)
+    return (min(x * math.tan(squint - half) for x in r), max(x * math.tan(squint + half) for x in r))
+
+
+#: Extra two-way length allowed per bounce beyond the first, as a fraction of the scene box's
+#: diagonal. A bounce inside the box can add up to a whole diagonal, but sizing the window for
+#: that would lengthen it by ``max_depth - 1`` diagonals for paths that carry little energy
+#: (each bounce multiplies by a reflection coefficient below 1 and most later bounces stay close
+#: to the earlier ones: corners, wall-ground); 10 % is that compromise. Longer paths are not
+#: clamped into the edge bins: their terms are dropped and their energy is added to
+#: ``TraceResult.energy_outside_window`` (copied into the ``RenderSummary``), and
+#: :func:`check_window_energy` warns when it exceeds :data:`OUTSIDE_ENERGY_WARNING` of the energy
+#: inside (deep canyons, high ``max_depth``).
+EXTRA_BOUNCE_FRACTION = 0.1
+#: Fraction of the in-window energy that may fall outside the fast-time window before
+#: :func:`check_window_energy` warns: 1e-3 (-30 dB), below which the missing returns change no
+#: image pixel by more than the ray lattice's own noise (about -30 dB, benchmarks/subaperture.py).
+OUTSIDE_ENERGY_WARNING = 1e-3
+
+
+def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                     hi: np.ndarray, settings: TraceSettings) -> FastTimeWindow:
+    """Fast-time window covering every scene point from every pulse, plus margins.
+
+    Nearest delay: twice the distance from the antenna to the box; farthest: twice the
+    farthest corner, plus ``(max_depth - 1) * EXTRA_BOUNCE_FRACTION`` (10 %) of the box
+    diagonal for multi-bounce paths longer than the direct one (energy still falling outside is reported by the
+    tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
+    and, for chirped output, half a pulse length. The sample count is a fast FFT length.
+    """
+    l_min, l_max = echo_lengths(geometry.positions, lo, hi)
+    l_max += (settings.max_depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
+    margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
+    if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
+        margin += 0.5 * params.pulse_length
+    t0 = l_min / SPEED_OF_LIGHT - margin
+    n = int(math.ceil((l_max / SPEED_OF_LIGHT + margin - t0) * params.sampling_rate))
+    return FastTimeWindow(t0=t0, fs=params.sampling_rate, n_samples=sp_fft.next_fast_len(n),
+                          oversample=settings.oversample)
+
+
+def echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+    """Shortest and longest two-way lengths ``(L_min, L_max)`` [m, float] from the track to the
+    scene's box (direct paths): ``positions`` float64 [n_pulses, 3] antenna positions, ``lo`` and
+    ``hi`` float64 [3] the box. ``L_min`` is twice the distance from the nearest pulse to the box,
+    ``L_max`` twice the farthest corner from the first, middle and last pulse."""
+    closest = np.clip(positions, lo, hi)
+    l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
+    corners = box_corners(lo, hi)
+    l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
+    return l_min, l_max
+
+
+def ray_spacing(params: RadarParameters, settings: TraceSettings) -> tuple[float, float]:
+    """Ray-tube lattice spacing ``(along track, ground range)`` [m] on the aim plane.
+
+    With the ``ray_spacing`` setting ``s``: square tubes ``s`` wide normal to the line of sight,
+    ``(s, s / cos(theta))``. Automatic: one tube per resolution cell, ``(rho_az, rho_gr)``. Each
+    tube's PO return is exact across the band (docs/physics.md (PO2)), clutter has its own
+    lattice (:func:`scatterer_spacing`) and small objects get finer tubes (:func:`ray_footprint`),
+    so the default tubes only need to place large geometry (edges, shadow and layover
+    boundaries) to within a resolution cell."""
+    if settings.ray_spacing > 0:
+        return settings.ray_spacing, settings.ray_spacing / math.cos(math.radians(params.incidence_angle))
+    return params.azimuth_resolution, params.ground_range_resolution
+
+
+#: Shapes whose bounding-box diagonal is below this many default tubes (resolution cells, whatever
+#: the ``ray_spacing`` setting) are refined (docs/physics.md (T2)). Measured at the default spacing
+#: without refinement (X band, 45 deg, 1 m tubes): 1-2 m dihedrals and trihedrals are 3 to 40 dB
+#: off, 3 m ones up to 1.7 dB, 4-6 m ones (6-8 tubes) within 0.7 dB of the refined result; larger
+#: shapes (buildings) gain nothing from it.
+SMALL_OBJECT_TUBES = 8
+
+#: Automatic clutter-scatterer cell size in units of ``sqrt(rho_slant rho_az)``.
+SCATTERER_CELL = 0.8
+
+
+def scatterer_spacing(params: RadarParameters, settings: TraceSettings) -> float:
+    """Cell size [m] of the clutter scatterers' surface lattice: the setting, or
+    ``0.8 sqrt(rho_slant rho_az)``: about ``1.6 / sin(theta)`` scatterers per ground resolution
+    cell (2.2 at 45 deg). The jittered lattice and the impulse response's sidelobes make that
+    fully developed speckle (intensity contrast 0.95-1.0 measured for 1.7 to 10 scatterers
+    per cell; docs/physics.md (C)). It does not depend on the ray spacing, so
+    denser rays see the same scatterers."""
+    if settings.scatterer_spacing > 0:
+        return settings.scatterer_spacing
+    return SCATTERER_CELL * math.sqrt(params.slant_range_resolution * params.azimuth_resolution)
+
+
+def project_to_aim_plane(points: np.ndarray, antenna: np.ndarray, z0: float) -> np.ndarray:
+    """Where the rays from ``antenna`` through ``points`` meet the horizontal plane ``z = z0``.
+
+    ``points`` float64 [..., 3], ``antenna`` float64 [3] or broadcastable; returns float64
+    [..., 3]. Raises ParameterError for points at or above the antenna (no downward ray
+    reaches them)."""
+    points = np.asarray(points, np.float64)
+    height = antenna[..., 2] - points[..., 2]
+    if np.any(height <= 1e-6 * np.maximum(np.abs(antenna[..., 2] - z0), 1.0)):
+        raise ParameterError("the scene reaches the antenna's height or above it: rays aimed down from the antenna "
+                             "cannot reach it; raise the sensor's altitude or lower the geometry")
+    t = (antenna[..., 2] - z0) / height
+    return antenna + (points - antenna) * t[..., None]
+
+
+def _aim_extent(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray):
+    """Along-track limits per pulse [n_pulses, 2] and the ground-range interval of the box's
+    corners projected from every pulse's antenna onto the aim plane (relative to the scene centre)."""
+    origin = np.asarray(geometry.scene_center, float)
+    corners = box_corners(lo, hi)
+    aim = project_to_aim_plane(corners[None, :, :], geometry.positions[:, None, :], origin[2])
+    rel = aim - origin
+    along = rel @ geometry.track_direction                       # [n_pulses, 8]
+    across = rel @ geometry.look_direction
+    return np.stack([along.min(axis=1), along.max(axis=1)], axis=1), (float(across.min()), float(across.max()))
+
+
+def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                  hi: np.ndarray, settings: TraceSettings, shape_boxes: np.ndarray | None = None) -> RayFootprint:
+    """World-fixed lattice of ray aim points covering everything the beam sees (see
+    :class:`~sarmitsuba.scene.trace_inputs.RayFootprint`; docs/physics.md (T1), (T2)).
+
+    Every corner of the scene's box is projected from every pulse's antenna onto the aim plane
+    (horizontal, through the scene centre), so that a ray reaches each point in view, however
+    high or low: in ground range the lattice covers the projections of all pulses, along track
+    each pulse's own (a point at height ``h`` and horizontal distance ``G + a`` from the
+    antenna projects ``(G + a) h / (H - h)`` beyond itself). Spacing: :func:`ray_spacing`.
+    Per pulse, only the overlap of the traced beam with that
+    pulse's limits is sampled.
+
+    ``shape_boxes`` (float64 [n_shapes, 2, 3], each shape's bounding box) switches the
+    refinement around small objects on: a shape whose box diagonal ``D`` is below
+    :data:`SMALL_OBJECT_TUBES` default tubes (resolution cells) is traced with tubes about
+    ``D / tubes_per_object`` wide (at least a quarter wavelength; none when the lattice is that
+    fine already), over the cells its box and its mirror image below the aim plane project onto.
+    """
+    s, spacing_range = ray_spacing(params, settings)
+    origin = np.asarray(params.scene_center, float)
+    track, look = geometry.track_direction, geometry.look_direction
+    limits, (g_lo, g_hi) = _aim_extent(params, geometry, lo, hi)
+    limits = limits + np.array([-s, s])
+    g_min = math.floor((g_lo - spacing_range) / spacing_range) * spacing_range  # lattice anchored at the scene
+    n_range = int(math.ceil((g_hi + spacing_range - g_min) / spacing_range)) + 1  # centre, not at the box edge
+    # the traced beam on the aim plane: along-track offsets R tan(phi) from the antenna, phi between
+    # the beam's sines, for the perpendicular distances R of the aim rows
+    height = geometry.positions[0, 2] - origin[2]
+    ant_across = float((geometry.positions[0] - origin) @ look)
+    r_perp = np.hypot(height, np.array([g_min, g_min + n_range * spacing_range]) - ant_across)
+    tangents = np.tan(np.arcsin(np.array(params.beam_sines if params.mode == "stripmap" else
+                                         (-math.sin(params.traced_half_angle), math.sin(params.traced_half_angle)))))
+    a_lo, a_hi = float((r_perp[:, None] * tangents[0]).min()), float((r_perp[:, None] * tangents[1]).max())
+    ant_along = (geometry.positions - origin) @ track
+    if params.mode == "spotlight":        # the beam stays on the scene centre
+        ant_along = np.zeros_like(ant_along)
+        a_lo, a_hi = 1.1 * a_lo, 1.1 * a_hi
+    lo_p = np.maximum(ant_along + a_lo, limits[:, 0]) - s
+    hi_p = np.minimum(ant_along + a_hi, limits[:, 1]) + s
+    k0 = np.floor(lo_p / s).astype(np.int64)
+    seen = hi_p > lo_p
+    n_azimuth = int(np.max(np.ceil(hi_p[seen] / s) - k0[seen])) + 1 if np.any(seen) else 1
+    footprint = RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
+                             range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range, k0=k0,
+                             along_limits=limits, scatterer_spacing=scatterer_spacing(params, settings))
+    if shape_boxes is None or settings.tubes_per_object == 0:
+        return footprint
+    return dataclasses.replace(footprint, refinements=_refinements(params, geometry, footprint, shape_boxes,
+                                                                   settings.tubes_per_object, (a_lo, a_hi)))
+
+
+def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: RayFootprint, shape_boxes: np.ndarray,
+                 tubes: int, beam: tuple[float, float]) -> tuple[Refinement, ...]:
+    """Refined cells per subdivision factor for shapes smaller than :data:`SMALL_OBJECT_TUBES`
+    default tubes (resolution cells, whatever ``ray_spacing`` is): ``tubes`` tubes across them
+    (docs/physics.md (T2))."""
+    cos_theta = math.cos(math.radians(params.incidence_angle))
+    # the tubes' largest width normal to the line of sight, and that of the default tubes
+    s = max(fp.spacing_azimuth, fp.spacing_range * cos_theta)
+    cell = max(params.azimuth_resolution, params.ground_range_resolution * cos_theta)
+    smallest = params.wavelength / 4.0
+    factor = {}
+    ant_along = (geometry.positions - fp.origin) @ fp.track
+    for box_lo, box_hi in np.asarray(shape_boxes, float).reshape(-1, 2, 3):
+        size = float(np.linalg.norm(box_hi - box_lo))
+        if not (np.all(np.isfinite(box_lo)) and size < SMALL_OBJECT_TUBES * cell):
+            continue
+        m = int(math.ceil(s * tubes / max(size, 1e-9)))
+        m = max(1, min(m, int(s / smallest)))
+        if m < 2:
+            continue
+        corners = box_corners(box_lo, box_hi)
+        points = corners
+        if box_lo[2] - fp.origin[2] < size:      # near the ground: its mirror image too (ground bounces)
+            points = np.concatenate([corners, corners * np.array([1.0, 1.0, -1.0])
+                                     + np.array([0.0, 0.0, 2.0 * fp.origin[2]])])
+        along = (points - fp.origin) @ fp.track
+        # the pulses whose beam can hold the object: projections from the first and last of them
+        first, last = along.min() - beam[1] - s, along.max() - beam[0] + s
+        pulses = np.flatnonzero((ant_along >= first) & (ant_along <= last))
+        if params.mode == "spotlight" or pulses.size == 0:
+            pulses = np.arange(len(ant_along))
+        ends = geometry.positions[[pulses[0], pulses[-1]]]
+        aim = project_to_aim_plane(points[None, :, :], ends[:, None, :], fp.origin[2]) - fp.origin
+        a, g = aim @ fp.track, aim @ fp.look
+        # every coarse cell the projections touch (they are exact at the corners; the rays in
+        # between move linearly with the antenna)
+        i = np.arange(math.floor(a.min() / fp.spacing_azimuth), math.floor(a.max() / fp.spacing_azimuth) + 1)
+        j = np.arange(max(0, math.floor((g.min() - fp.range_min) / fp.spacing_range)),
+                      min(fp.n_range, math.floor((g.max() - fp.range_min) / fp.spacing_range) + 1))
+        for ii in i:
+            for jj in j:
+                factor[ii, jj] = max(factor.get((ii, jj), 0), m)
+    groups = {}
+    for cell, m in factor.items():
+        groups.setdefault(m, []).append(cell)
+    return tuple(Refinement(m, np.array(sorted(cells), np.int64)) for m, cells in sorted(groups.items()))
+
+
+def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                      lo: np.ndarray, hi: np.ndarray) -> list[str]:
+    """Warn (:class:`AcquisitionWarning`) about settings that give ambiguities or an empty image.
+
+    - azimuth ambiguities: ``prf`` below the Doppler bandwidth ``4 v sin(beta / 2) / lambda``
+      (stripmap; Cumming and Wong 2005, eq. 4.36);
+    - range ambiguities: the echo window (scene depth plus pulse length) longer than the pulse
+      repetition interval, i.e. ``prf > c / (2 swath depth)``: echoes of consecutive pulses
+      overlap (Curlander and McDonough 1991, sec. 6.5);
+    - a scene outside the beam footprint: no ray can hit it.
+
+    Returns the messages (also issued as warnings).
+    """
+    messages = []
+    if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
+        messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
+                        f"(azimuth_beamwidth {params.azimuth_beamwidth:.3g} deg, velocity {params.velocity:g} m/s): "
+                        "azimuth ambiguities (ghosts) will appear; raise prf or narrow the beam")
+    l_min, l_max = echo_lengths(geometry.positions, lo, hi)
+    echo = (l_max - l_min) / SPEED_OF_LIGHT + params.pulse_length      # receive time of one pulse's echoes
+    if echo > 1.0 / params.prf:
+        messages.append(f"prf = {params.prf:g} Hz exceeds 1 / (echo duration) = {1.0 / echo:.1f} Hz "
+                        f"(scene depth {0.5 * (l_max - l_min):.0f} m slant plus pulse_length {params.pulse_length:g} s): "
+                        "echoes of consecutive pulses overlap (range ambiguities), which this simulation does not "
+                        "model; lower prf or shrink the scene")
+    rel = box_corners(lo, hi) - geometry.scene_center
+    along = rel @ geometry.track_direction
+    across = rel @ geometry.look_direction
+    a_lo, a_hi = beam_offsets(params, lo, hi)
+    track = (geometry.positions - geometry.scene_center) @ geometry.track_direction
+    if params.mode == "spotlight":        # the beam follows the scene centre
+        a_lo, a_hi, track = -0.5 * (a_hi - a_lo), 0.5 * (a_hi - a_lo), np.zeros(1)
+    if (along.max() < track.min() + a_lo or along.min() > track.max() + a_hi
+            or across.max() < -params.ground_range * 0.99):
+        messages.append(f"the scene (bounding box {lo.round(1).tolist()} .. {hi.round(1).tolist()}) lies outside the "
+                        f"beam footprint around scene_center {np.round(geometry.scene_center, 1).tolist()}: "
+                        "the raw data and image will be empty")
+    for message in messages:
+        warnings.warn(message, AcquisitionWarning, stacklevel=2)
+    return messages
+
+
+def check_window_energy(outside: float, inside: float, max_depth: int) -> str | None:
+    """Warn (:class:`AcquisitionWarning`) when returns carrying more than
+    :data:`OUTSIDE_ENERGY_WARNING` of the in-window energy fell outside the fast-time window.
+
+    Parameters
+    ----------
+    outside, inside : float, m^2
+        ``TraceResult.energy_outside_window`` and the energy of the returns deposited
+        (``TraceResult.energy_per_order.sum()``).
+    max_depth : int
+        The ``sbr`` bounce limit, named in the advice.
+
+    Returns the message (also issued as a warning), or None.
+    """
+    if not outside > OUTSIDE_ENERGY_WARNING * max(inside, 0.0):
+        return None
+    fraction = outside / (outside + inside)
+    message = (f"{100 * fraction:.2g} % of the returned energy came back after the fast-time window closed "
+               f"(multi-bounce paths longer than the window allows, max_depth = {max_depth}); those returns "
+               f"are missing from the image: lower max_depth, or see planning.EXTRA_BOUNCE_FRACTION")
+    warnings.warn(message, AcquisitionWarning, stacklevel=2)
+    return message
+

@@ -1,0 +1,340 @@
+"""What the tracer consumes: its settings, the planned fast-time window and ray lattice, and
+the material table (the contracts between scene loading, planning and tracing; docs/design.md section 2).
+
+* :class:`TraceSettings` -- the ``sbr`` integrator's parameters (read by the plugin, overridden by
+  the CLI);
+* :class:`FastTimeWindow` -- fast-time sampling shared by all pulses (:func:`sarmitsuba.scene.planning.fast_time_window`);
+* :class:`RayFootprint` -- the world-fixed lattice of ray-tube aim points, its refinement around
+  small objects and the clutter scatterers' surface lattice (:func:`sarmitsuba.scene.planning.ray_footprint`);
+* :class:`MaterialTable` -- reflection coefficients and clutter models per shape
+  (:func:`sarmitsuba.scene.loader.material_table`).
+
+All are frozen dataclasses of NumPy arrays and Python numbers: no Dr.Jit types cross a stage boundary.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.radar import ParameterError
+
+__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
+           "LIT_REGIONS", "RANGE_KERNELS"]
+
+#: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
+POLARIMETRY_MODELS = ("jones", "scalar")
+#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (T3), (T6)).
+LIT_REGIONS = ("tiles", "cells")
+#: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
+#: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit`).
+RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
+
+
+@dataclass(frozen=True)
+class TraceSettings:
+    """Settings of the ``sbr`` integrator (see :mod:`sarmitsuba_plugins.sbr_integrator` for the manual).
+
+    Attributes
+    ----------
+    max_depth : int
+        Bounce orders traced, [1, 64].
+    ray_spacing : float, m
+        Ray-tube width at the scene centre; 0 = automatic (:func:`sarmitsuba.scene.planning.ray_spacing`).
+    range_kernel : str
+        ``nearest``, ``linear``, ``sinc`` or ``exact`` (docs/physics.md (D1)-(D4)).
+    oversample : int
+        Fine fast-time bins per sample of the deposit grid, [1, 64].
+    max_batch_rays : int
+        Ceiling on the ray tubes of one kernel launch (>= 1024): pulses are batched and a pulse's
+        lattice split to stay below it (one refined cell's ``m^2`` tubes are never split).
+    seed : int
+        Seed of the clutter scatterers' phases and positions, [0, 2^32).
+    split_bounces : bool
+        Keep each bounce order's contributions separately.
+    scatterer_spacing : float, m
+        Cell size of the surface-attached clutter scatterer lattice; 0 = automatic
+        (:func:`sarmitsuba.scene.planning.scatterer_spacing`). Independent of ``ray_spacing``.
+    tubes_per_object : int
+        Objects (Mitsuba shapes) smaller than 8 default ray tubes are traced with tubes
+        ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
+    pulses_per_trace : int
+        Pulses of a sub-aperture, which share one trace of the ray tubes (docs/physics.md (T3)),
+        [0, 65536]; 1 = every pulse traced on its own (the reference); 0 = automatic
+        (:func:`sarmitsuba.tracing.trace.pulses_per_trace`).
+    cancel_interior : bool
+        Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
+        evaluates every term (slower; the reference the cancellation is checked against).
+    polarimetry : str
+        ``jones`` (default): every ray tube carries a Jones matrix (docs/physics.md (P1)-(P8)),
+        for any ``polarization``; ``scalar``: a single co-polarised channel (``HH`` or ``VV``)
+        takes the scalar coefficients of (R), (P6) instead, exact only where every facet of a
+        path contains H (an accuracy knob, ``benchmarks/polarimetry.py``). Cross-polarised
+        channels always need ``jones``.
+    lit_regions : str
+        ``tiles`` (default): a first-bounce tube integrates its whole tile, so a facet's lit region
+        is bounded by the tubes' staircase (T3). ``cells``: at every bounce order, a cell whose
+        neighbours' rays followed other chains of facets or were hidden integrates, per pulse,
+        each chain's exact piece of it (the parts mirrored and projected from the pulse's
+        antenna, less the parts in front and the shadows), so facet borders, shadows and the
+        footprints of multi-bounce chains return as straight edges, and a rough part's
+        scatterers are counted by the pieces that hold them (T6). 2 to 25 times the trace time,
+        and minutes of kernel compilation at depth 2 and 3 on a cold LLVM cache (T6).
+    """
+
+    max_depth: int = 3
+    ray_spacing: float = 0.0
+    range_kernel: str = "linear"
+    oversample: int = 8
+    max_batch_rays: int = 1 << 18
+    seed: int = 0
+    split_bounces: bool = False
+    scatterer_spacing: float = 0.0
+    tubes_per_object: int = 48
+    pulses_per_trace: int = 0
+    cancel_interior: bool = True
+    polarimetry: str = "jones"
+    lit_regions: str = "tiles"
+
+    def __post_init__(self) -> None:
+        if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
+            raise ParameterError(f"max_depth = {self.max_depth} must be a whole number in [1, 64]")
+        for name in ("ray_spacing", "scatterer_spacing"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ParameterError(f"{name} = {value} m must be >= 0 (0 = automatic)")
+        if self.range_kernel not in RANGE_KERNELS:
+            raise ParameterError(f"range_kernel = {self.range_kernel!r}; valid values: {', '.join(RANGE_KERNELS)}")
+        if int(self.oversample) != self.oversample or not 1 <= self.oversample <= 64:
+            raise ParameterError(f"oversample = {self.oversample} must be a whole number in [1, 64]")
+        if int(self.max_batch_rays) != self.max_batch_rays or self.max_batch_rays < 1024:
+            raise ParameterError(f"max_batch_rays = {self.max_batch_rays} must be a whole number >= 1024")
+        if int(self.seed) != self.seed or not 0 <= self.seed < 2**32:
+            raise ParameterError(f"seed = {self.seed} must be a whole number in [0, 2^32)")
+        if int(self.tubes_per_object) != self.tubes_per_object or not 0 <= self.tubes_per_object <= 256:
+            raise ParameterError(f"tubes_per_object = {self.tubes_per_object} must be a whole number in [0, 256] "
+                                 "(0 = no refinement around small objects)")
+        if self.polarimetry not in POLARIMETRY_MODELS:
+            raise ParameterError(f"polarimetry = {self.polarimetry!r}; valid values: "
+                                 f"{', '.join(repr(m) for m in POLARIMETRY_MODELS)} (jones: a Jones matrix per "
+                                 "ray tube; scalar: one co-polarised channel with scalar coefficients)")
+        if self.lit_regions not in LIT_REGIONS:
+            raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
+                                 f"{', '.join(repr(m) for m in LIT_REGIONS)} (tiles: whole tubes' tiles; cells: "
+                                 "cells at facet borders and shadows cut to the geometry, docs/physics.md (T6))")
+        if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
+            raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
+                                 "(1 = trace every pulse, 0 = automatic)")
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all settings."""
+        return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def from_mapping(cls, values) -> "TraceSettings":
+        """Build from a name -> value mapping (strings allowed), checking the names.
+
+        Raises
+        ------
+        ParameterError
+            Unknown names (listing the valid ones) or values that cannot be converted.
+        """
+        types = {f.name: f.type for f in fields(cls)}
+        kwargs = {}
+        for name, value in values.items():
+            if name not in types:
+                raise ParameterError(f"unknown sbr integrator parameter {name!r}; valid: {', '.join(types)}")
+            try:
+                kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}") from None
+        return cls(**kwargs)
+
+
+def _boolean(value) -> bool:
+    if isinstance(value, str):
+        if value.lower() not in ("true", "false", "1", "0"):
+            raise ValueError(value)
+        return value.lower() in ("true", "1")
+    return bool(value)
+
+
+@dataclass(frozen=True)
+class FastTimeWindow:
+    """The fast-time sampling window shared by all pulses.
+
+    Attributes
+    ----------
+    t0 : float, s
+        Two-way delay of sample 0.
+    fs : float, Hz
+        Sampling rate.
+    n_samples : int
+        Samples per pulse.
+    oversample : int
+        Fine-grid factor used by the tracer's deposit.
+    """
+
+    t0: float
+    fs: float
+    n_samples: int
+    oversample: int
+
+    @property
+    def fast_time(self) -> np.ndarray:
+        """float64 [n_samples] sample delays, s."""
+        return self.t0 + np.arange(self.n_samples, dtype=np.float64) / self.fs
+
+    @property
+    def n_fine(self) -> int:
+        """Samples of the fine deposit grid."""
+        return self.n_samples * self.oversample
+
+    @property
+    def fine_step_length(self) -> float:
+        """Two-way path length of one fine bin, m."""
+        return SPEED_OF_LIGHT / (self.fs * self.oversample)
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """Cells of the coarse ray lattice traced with finer tubes (docs/physics.md (T2)).
+
+    Attributes
+    ----------
+    factor : int
+        Each cell is split into ``factor x factor`` tubes.
+    cells : int64 [n, 2]
+        World-fixed lattice indices ``(i, j)`` (along track, ground range) of the cells.
+    """
+
+    factor: int
+    cells: np.ndarray
+
+
+@dataclass(frozen=True)
+class RayFootprint:
+    """World-fixed ground-plane lattice the ray tubes are aimed at (docs/physics.md (T1)).
+
+    Cell ``(i, j)`` has its centre at ``origin + (i + 1/2) spacing_azimuth track +
+    (range_min + (j + 1/2) spacing_range) look`` (float64, m; the aim plane is horizontal
+    through ``origin``). Pulse ``p`` aims one tube at each cell ``i`` in
+    ``[k0[p], k0[p] + n_azimuth)``, ``j`` in ``[0, n_range)`` whose centre lies inside the
+    pulse's along-track limits and whose direction lies inside the traced beam; cells listed
+    in ``refinements`` are traced with ``factor^2`` smaller tubes instead.
+
+    Attributes
+    ----------
+    origin, track, look : float64 [3]
+        Lattice origin (the scene centre), unit track direction, unit horizontal look direction.
+    spacing_azimuth, spacing_range : float, m
+        Cell size along track (the tube width ``s``) and in ground range (``s / cos(theta)``).
+    range_min : float, m
+        Ground-range offset of the lattice's first row from ``origin``.
+    n_azimuth, n_range : int
+        Cells per pulse along track, and rows in ground range.
+    k0 : int64 [n_pulses]
+        First along-track cell of each pulse.
+    along_limits : float64 [n_pulses, 2], m
+        Along-track interval of aim points (relative to ``origin``) through which a pulse's
+        rays can reach the scene's bounding box: its corners projected from the antenna onto
+        the aim plane.
+    scatterer_spacing : float, m
+        Cell size of the surface-attached clutter scatterer lattice (docs/physics.md (C)).
+    refinements : tuple of Refinement
+        Finer tubes around objects smaller than ``planning.SMALL_OBJECT_TUBES`` tubes.
+    """
+
+    origin: np.ndarray
+    track: np.ndarray
+    look: np.ndarray
+    spacing_azimuth: float
+    spacing_range: float
+    range_min: float
+    n_azimuth: int
+    n_range: int
+    k0: np.ndarray
+    along_limits: np.ndarray
+    scatterer_spacing: float
+    refinements: tuple = ()
+
+    @property
+    def rays_per_pulse(self) -> int:
+        """Coarse cells per pulse (an upper bound of the coarse rays cast per pulse)."""
+        return self.n_azimuth * self.n_range
+
+    @property
+    def refined_rays(self) -> int:
+        """Fine tubes of all refined cells (each traced only by the pulses whose beam holds it)."""
+        return int(sum(r.cells.shape[0] * r.factor**2 for r in self.refinements))
+
+    def refined_mask(self) -> tuple[int, np.ndarray]:
+        """``(i0, mask)``: uint8 [n_i, n_range], 1 where cell ``(i0 + a, j)`` is refined."""
+        if not self.refinements:
+            return 0, np.zeros((1, self.n_range), np.uint8)
+        cells = np.concatenate([r.cells for r in self.refinements])
+        i0 = int(cells[:, 0].min())
+        mask = np.zeros((int(cells[:, 0].max()) - i0 + 1, self.n_range), np.uint8)
+        mask[cells[:, 0] - i0, cells[:, 1]] = 1
+        return i0, mask
+
+
+@dataclass(frozen=True)
+class MaterialTable:
+    """Reflection coefficient tables and clutter models indexed by shape id, for the kernel.
+
+    Attributes
+    ----------
+    row_of_shape : uint32 [max_shape_id + 1]
+        Table row of each Mitsuba shape id (``reinterpret(UInt32, ShapePtr)``).
+    table : complex64 [n_rows, n_cos]
+        The material's reflection coefficient ``r(cos_i)`` of the channel's own polarisation
+        (``r_tm`` for ``VV``, else ``r_te``) sampled uniformly for cos_i in [0, 1]; interpolated
+        linearly. The scalar model's coefficient (R).
+    names : list of str
+        Material name of each row.
+    clutter : float32 [n_rows, 2]
+        Distributed-clutter model of each row: ``(kind, value)`` with kind 0 = none,
+        1 = constant gamma (``sigma0 = value * sqrt(cos_i cos_b)``, value = gamma),
+        2 = Lambertian (``sigma0 = value * |r|^2 cos_i cos_b``, value = 4 S^2). See
+        docs/physics.md (C).
+    shape_key : uint32 [max_shape_id + 1]
+        Stable identity of each shape (CRC-32 of its scene id), so that clutter scatterers do
+        not change between loads of the same scene.
+    shape_origin : float64 [max_shape_id + 1, 3], m
+        A point fixed to each shape (its vertex 0, :func:`sarmitsuba.scene.loader.shape_frame`) that
+        anchors its clutter scatterer lattice: the scatterers move with the shape.
+    shape_axes : float64 [max_shape_id + 1, 3, 3]
+        Each shape's own orthonormal axes (rows), which orient its lattice in every facet plane
+        and key the plane's hash: the scatterers turn with the shape (docs/physics.md (C)).
+    specular : float32 [n_rows]
+        Factor on the specular (PO and reflected) field of each row: ``sqrt(1 - S^2)`` for a
+        Lambertian scattering coefficient ``S`` (the power the surface scatters diffusely), else
+        1 (docs/physics.md (C)).
+    table_te, table_tm : complex64 [n_rows, n_cos] or None
+        ``r_te(cos_i)`` and ``r_tm(cos_i)`` on the same samples, for the Jones model
+        (docs/physics.md (P3')).
+    cross_pol : float32 [n_rows] or None
+        The clutter's ``sigma0_HV`` relative to the mean co-polarised sigma0 of each row
+        (docs/physics.md (P7)).
+    """
+
+    row_of_shape: np.ndarray
+    table: np.ndarray
+    names: list
+    clutter: np.ndarray | None = None
+    shape_key: np.ndarray | None = None
+    shape_origin: np.ndarray | None = None
+    shape_axes: np.ndarray | None = None
+    specular: np.ndarray | None = None
+    table_te: np.ndarray | None = None
+    table_tm: np.ndarray | None = None
+    cross_pol: np.ndarray | None = None
+
+    @property
+    def has_clutter(self) -> bool:
+        """Whether any material has a distributed-clutter model (switches the term on)."""
+        return self.clutter is not None and bool(np.any(self.clutter[:, 0] > 0))
