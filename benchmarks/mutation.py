@@ -53,6 +53,7 @@ TARGETS: dict[str, tuple[str, ...]] = {
     "core/radar.py": ("tests/test_render_geometry.py", "tests/test_geometry_angles.py", "tests/test_antenna.py",
                  "tests/test_input_errors.py", "tests/test_acquisition_checks.py", "tests/test_info.py"),
     "scene/planning.py": ("tests/test_acquisition_checks.py", "tests/test_info.py", "tests/test_hard_cases.py"),
+    "scene/radar_equation.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
     "signal/radiometry.py": ("tests/test_radiometry.py", "tests/test_effects.py"),
     "scene/materials.py": ("tests/test_materials.py", "tests/test_physical_optics.py", "tests/test_clutter.py"),
     "scene/fresnel.py": ("tests/test_materials.py", "tests/test_physical_optics.py"),
@@ -87,7 +88,7 @@ class Mutant:
 
 #: Known SAR mistakes: (module, kind, exact source text, replacement).
 PLANTED: tuple[tuple[str, str, str, str], ...] = (
-    ("signal/radiometry.py", "(4 pi)^3 -> (4 pi)^2", "(4 * math.pi) ** 3", "(4 * math.pi) ** 2"),
+    ("scene/radar_equation.py", "(4 pi)^3 -> (4 pi)^2", "(4 * math.pi) ** 3", "(4 * math.pi) ** 2"),
     ("core/radar.py", "slant range: sin for cos", "self.altitude / math.cos(math.radians(self.incidence_angle))",
      "self.altitude / math.sin(math.radians(self.incidence_angle))"),
     ("core/radar.py", "ground range: cot for tan", "self.altitude * math.tan(math.radians(self.incidence_angle))",

@@ -7,7 +7,7 @@ acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`Scen
   limits, swath, synthetic aperture, angles), mostly properties of
   :class:`sarmitsuba.core.radar.RadarParameters`;
 - the point-target SNR and NESZ of the radar equation when ``transmit_power`` is given
-  (:func:`sarmitsuba.signal.radiometry.radar_equation`, ``docs/physics.md`` (R1)-(R4));
+  (:func:`sarmitsuba.scene.radar_equation.radar_equation`, ``docs/physics.md`` (R1)-(R4));
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
@@ -44,7 +44,8 @@ from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture
 from .scene.effects import Effect, EffectSet, active_effects
 from .core.radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
-from .signal.radiometry import effective_pulses, radar_equation
+from .scene.radar_equation import radar_equation
+from .signal.radiometry import effective_pulses
 from .scene.loader import LoadedScene, load_scene, material_table
 from .scene.trace_inputs import FastTimeWindow
 

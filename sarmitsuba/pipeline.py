@@ -207,7 +207,8 @@ def _compressed(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawDat
 
 def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
     """In absolute radiometry, divide by the radar equation per pixel so the image is in sqrt(m^2)."""
-    from .signal.radiometry import calibrate_image, radar_equation
+    from .scene.radar_equation import radar_equation
+    from .signal.radiometry import calibrate_image
     equation = radar_equation(params)
     if equation is None:
         return image

@@ -35,7 +35,7 @@ from sarmitsuba.signal import binning, radiometry, signal_model
 from sarmitsuba import pipeline
 from sarmitsuba.scene import planning
 from sarmitsuba.core.radar import acquisition_geometry
-from sarmitsuba.signal.radiometry import radar_equation
+from sarmitsuba.scene.radar_equation import radar_equation
 
 SCENES = Path(__file__).parent / "scenes"
 PLANE = str(SCENES / "plane.xml")                   # smooth plate: single bounce, no optional effect

@@ -31,7 +31,7 @@ def test_single_pulse_snr_worked_example():
     """A worked example by hand: P_t 1 kW, G 30 dB, lambda 3 cm, sigma 1 m^2, R 10 km, T 290 K,
     B 1 MHz, F = L = 1: SNR = 1e3 x 1e6 x 9e-4 / (1984.40 x 1e16 x 4.00388e-15) = 9e5 / 79454
     = 11.327 (10.54 dB). Kills (4 pi)^2 for (4 pi)^3 (x 12.6), R^3 for R^4, G for G^2, lambda for lambda^2."""
-    from sarmitsuba.signal.radiometry import RadarEquation
+    from sarmitsuba.scene.radar_equation import RadarEquation
     eq = RadarEquation(transmit_power=1e3, gain=1e3, losses=1.0, wavelength=0.03, bandwidth=1e6,
                        pulse_length=1e-5, noise_power=BOLTZMANN * 290.0 * 1e6)
     assert eq.snr(1.0, 10e3) == pytest.approx(11.327, rel=1e-3)
@@ -126,7 +126,7 @@ def test_antenna_gain_from_its_dimensions_worked_example():
     = 100 x 39.4784 / 9.75212e-4 / 1984.40 = 2040.0 W m^2.
     Kills lambda^2 -> lambda * 2 in the gain (G = 402)."""
     from sarmitsuba.core.radar import RadarParameters
-    from sarmitsuba.signal.radiometry import radar_equation
+    from sarmitsuba.scene.radar_equation import radar_equation
     eq = radar_equation(RadarParameters(frequency=9.6e9, antenna_length=1.0, antenna_height=0.5,
                                         transmit_power=100.0))
     assert eq.gain == pytest.approx(6442.9, rel=1e-4)

@@ -20,10 +20,11 @@ it switches on (``EffectSet``):
 :mod:`.effects`          which optional effects a scene switches on, and why
 :mod:`.planning`         defaults from the scene, fast-time window, ray footprint, checks
 :mod:`.trace_inputs`     the tracer's input records (the scene -> tracing contract)
+:mod:`.radar_equation`   the sensor's radar equation (absolute radiometry)
 :mod:`.baseline`         the interferometric baseline of a shifted pass
 =======================  ===============================================================
 
-Physics: (R) reflection coefficients, (T1)-(T2) ray footprint and
+Physics: (R) reflection coefficients, (R1)-(R3) radar equation, (T1)-(T2) ray footprint and
 refinement, (I1)-(I3) baselines.
 
 ``from sarmitsuba.scene import load_scene`` (the module ``sarmitsuba.scene`` before the stage

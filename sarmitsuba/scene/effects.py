@@ -10,7 +10,7 @@ active ones in their metadata (``metadata["effects"]``, one string each).
 The decision is made once, here: :func:`active_effects` turns a loaded scene into an
 :class:`EffectSet` that the pipeline hands to the tracer (:func:`sarmitsuba.tracing.trace.trace`,
 :class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
-(:func:`sarmitsuba.signal.radiometry.radar_equation`) and the cost model (:mod:`sarmitsuba.analysis.cost`).
+(:func:`sarmitsuba.scene.radar_equation.radar_equation`) and the cost model (:mod:`sarmitsuba.analysis.cost`).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ class Effect:
 class EffectSet:
     """Which optional effects a simulation runs: decided once, here, from the loaded scene, and
     handed to the tracer (:class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
-    (:func:`sarmitsuba.signal.radiometry.radar_equation`) and ``sarmitsuba info``, so that none of them
+    (:func:`sarmitsuba.scene.radar_equation.radar_equation`) and ``sarmitsuba info``, so that none of them
     re-derives it from the parameters.
 
     Attributes
@@ -145,7 +145,7 @@ class EffectSet:
            rough_materials: Iterable[str] = ()) -> "EffectSet":
         """The effects of radar parameters, trace settings and the names of the rough materials
         some shape uses. Without ``settings``, the sensor's effects only (one bounce order, no
-        per-order products): what :func:`sarmitsuba.signal.radiometry.radar_equation` needs."""
+        per-order products): what :func:`sarmitsuba.scene.radar_equation.radar_equation` needs."""
         rough = tuple(sorted(set(rough_materials)))
         split = bool(settings.split_bounces) if settings is not None else False
         decided = cls(max_depth=settings.max_depth if settings is not None else 1, rough_materials=rough,

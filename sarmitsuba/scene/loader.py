@@ -25,7 +25,7 @@ from ..core import georef
 from . import materials
 from .meshcheck import check_meshes, warn_mesh_defects
 from .planning import resolve_parameters
-from ..signal.radiometry import radar_equation
+from .radar_equation import radar_equation
 from ..core.radar import ParameterError, RadarParameters
 from .trace_inputs import MaterialTable, TraceSettings
 

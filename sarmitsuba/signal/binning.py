@@ -196,7 +196,8 @@ def to_raw_data(contributions: "np.ndarray | PathList", result: TraceResult, win
     spreading ``R_ref^2 / (s R_rx)``), and thermal noise of power ``k T B F`` per sample is added
     when the sensor has noise parameters and ``noise_seed`` is given (docs/physics.md (R1)-(R4)).
     """
-    from .radiometry import radar_equation, thermal_noise
+    from ..scene.radar_equation import radar_equation
+    from .radiometry import thermal_noise
     chirped = params.output == "raw"
     if isinstance(contributions, PathList):
         if chirped:
