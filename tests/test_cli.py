@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -70,6 +71,18 @@ def test_python_dash_m_entry_point(tmp_path):
                              "--no-progress"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert "rendered trihedral" in result.stdout and (tmp_path / "image.png").is_file()
+
+
+
+def test_warnings_print_one_clean_line_each(tmp_path):
+    """A PRF below the Doppler bandwidth warns (azimuth ambiguities): the command line prints it
+    as ``warning: ...`` on one line, with no Python ``file.py:NN:`` prefix and no source line."""
+    result = subprocess.run([sys.executable, "-m", "sarmitsuba", "render", "trihedral", "--out", str(tmp_path),
+                             "--no-progress", "--set", "prf=100"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert any(line.startswith("warning: prf = 100 Hz is below the Doppler bandwidth") for line in lines), lines
+    assert not [line for line in lines if re.search(r"\.py:\d+:", line) or line.startswith(" ")], lines
 
 
 def test_analyze_prints_point_target_report(tmp_path, capsys):
