@@ -137,3 +137,19 @@ def test_bench_forwards_its_arguments_to_the_suite(capsys):
         main(["bench", "--only", "no_such_benchmark"])
     assert exc.value.code == 2
     assert "invalid choice: 'no_such_benchmark'" in capsys.readouterr().err
+
+
+def test_fft_focusers_refuse_spotlight_data_and_name_backprojection(tmp_path, capsys):
+    """Spotlight raw data (the beam steered at the scene centre) given to omega-K or RDA: exit 2,
+    one line naming bp and ffbp, no output; backprojection focuses the same file."""
+    assert main(["render", "trihedral", "--out", str(tmp_path / "render"), "--no-progress",
+                 "--set", "mode=spotlight"]) == 0
+    raw = tmp_path / "render" / "raw.npz"
+    capsys.readouterr()
+    for algorithm in ("omegak", "rda"):
+        out = tmp_path / algorithm
+        assert main(["focus", str(raw), "--algorithm", algorithm, "--out", str(out), "--no-progress"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("error:") and "spotlight" in err and "bp" in err and "ffbp" in err, err
+        assert len(err.splitlines()) == 1 and not out.exists()
+    assert main(["focus", str(raw), "--algorithm", "bp", "--out", str(tmp_path / "bp"), "--no-progress"]) == 0

@@ -73,8 +73,14 @@ def focus_setup(raw: RawData, geometry: Any, scene_centre: Any, squint: Any, ref
     None (all CPUs); ``doppler_bandwidth`` [Hz] in ``(0, prf]``, None for the whole PRF.
 
     Raises TypeError for a geometry of another type, ValueError for a bad geometry, window,
-    worker count or band.
+    worker count or band, or for spotlight data (the metadata's ``radar.mode``): the FFT focusers
+    assume a beam fixed to the platform, so they name ``bp`` and ``ffbp`` instead.
     """
+    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
+    if isinstance(radar, dict) and radar.get("mode") == "spotlight":
+        raise ValueError("omega-K and range-Doppler focus stripmap data (a beam fixed to the platform); these raw "
+                         "data are spotlight (mode = spotlight: the beam steered at the scene centre). Focus them "
+                         "with backprojection: --algorithm bp or ffbp")
     geo = geometry if geometry is not None else stripmap_geometry(
         raw, scene_centre=scene_centre, squint=squint, reference_range=reference_range)
     if not isinstance(geo, StripmapGeometry):
