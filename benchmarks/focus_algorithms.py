@@ -52,7 +52,8 @@ from sarmitsuba.analysis.point_target import analyze_point_target, carrier_ramp
 from sarmitsuba.focus import backproject, omega_k, range_doppler
 from sarmitsuba.focus.stripmap import slant_output_grid, stripmap_geometry
 from sarmitsuba.focus.windows import islr_theory, pslr_theory
-from sarmitsuba.analysis.reference_cases import AIRBORNE_X, SPACEBORNE_C, Case, focused_carrier, phase_error_deg, simulate_case
+from sarmitsuba.analysis.reference_cases import (AIRBORNE_X, SPACEBORNE_C, Case, focused_carrier, phase_error_deg,
+                                                 simulate_case)
 
 NAME = "focus_algorithms"
 PSLR_THEORY = pslr_theory("rect")

@@ -41,7 +41,8 @@ from .core import georef
 from .scene import planning
 from .scene.baseline import baseline
 from .core.constants import SPEED_OF_LIGHT
-from .analysis.cost import MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates, check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture
+from .analysis.cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates,
+                            check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture)
 from .scene.effects import Effect, EffectSet, active_effects
 from .core.radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
 from .scene.radar_equation import radar_equation

@@ -11,7 +11,8 @@ import sys
 
 import pytest
 
-from sarmitsuba.tracing._llvm import ENV_VAR, MIN_LLVM_VERSION, LibLLVMCandidate, LibLLVMError, choose_libllvm, find_libllvm, llvm_version, parse_ldconfig, parse_llvm_version, scan_dirs
+from sarmitsuba.tracing._llvm import (ENV_VAR, MIN_LLVM_VERSION, LibLLVMCandidate, LibLLVMError, choose_libllvm,
+                                      find_libllvm, llvm_version, parse_ldconfig, parse_llvm_version, scan_dirs)
 
 
 def _touch(d, *names):

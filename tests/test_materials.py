@@ -18,7 +18,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
-from sarmitsuba.scene.materials import ITU_MATERIALS, Material, MaterialError, fresnel_half_space, interpolate_table, itu_material_names, itu_permittivity, itu_valid_ranges, reflection_coefficient, reflection_table, slab_reflection, table_error_bound
+from sarmitsuba.scene.materials import (ITU_MATERIALS, Material, MaterialError, fresnel_half_space,
+                                        interpolate_table, itu_material_names, itu_permittivity, itu_valid_ranges,
+                                        reflection_coefficient, reflection_table, slab_reflection,
+                                        table_error_bound)
 
 F_X = 9.6e9  # X-band frequency of the Sionna reference runs [Hz]
 

@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 from sarmitsuba.scene.fresnel import fresnel_half_space
-from sarmitsuba.tracing.polarimetry import PEC, antenna_jones, bsa_basis, facet_basis, project_bsa, reflect_jones, scattering_matrix
+from sarmitsuba.tracing.polarimetry import (PEC, antenna_jones, bsa_basis, facet_basis, project_bsa, reflect_jones,
+                                            scattering_matrix)
 
 ETA = 5.0 - 0.5j           # the ground of the dielectric tests
 ETA_WALL = 3.0 - 0.2j      # a dielectric wall

@@ -23,7 +23,8 @@ from sarmitsuba.focus.stripmap import (StripmapGeometry, estimate_doppler_centro
 from sarmitsuba.core.image import SarImage
 from sarmitsuba.core.raw import RawData
 # cases and helpers of sarmitsuba.analysis.reference_cases, re-exported for test_omegak.py and test_rda.py
-from sarmitsuba.analysis.reference_cases import AIRBORNE_X, CASES, CW_HIGH, CW_LOW, SPACEBORNE_C, Case, deskew, focused_carrier, phase_error_deg, simulate_case
+from sarmitsuba.analysis.reference_cases import (AIRBORNE_X, CASES, CW_HIGH, CW_LOW, SPACEBORNE_C, Case, deskew,
+                                                 focused_carrier, phase_error_deg, simulate_case)
 
 
 # ============================================================================ cached data of the cases

@@ -13,7 +13,8 @@ import pytest
 from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
 from sarmitsuba.core.raw import RawData
 from sarmitsuba.signal.signal_model import receiver_response
-from sarmitsuba.analysis.synthetic import AzimuthBeam, PointTarget, illuminated, simulate_point_targets, spotlight, straight_track, stripmap
+from sarmitsuba.analysis.synthetic import (AzimuthBeam, PointTarget, illuminated, simulate_point_targets, spotlight,
+                                           straight_track, stripmap)
 
 FC = 9.6e9
 B = 150e6

@@ -43,7 +43,8 @@ from typing import Literal
 import numpy as np
 
 from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
-from sarmitsuba.scene.fresnel import MaterialError, check_cos, check_eta, check_frequency, check_thickness, fresnel_half_space, slab_reflection
+from sarmitsuba.scene.fresnel import (MaterialError, check_cos, check_eta, check_frequency, check_thickness,
+                                      fresnel_half_space, slab_reflection)
 
 __all__ = [
     "MaterialError",
