@@ -71,13 +71,16 @@ from .tracing._variant import activate as _activate
 
 __version__ = "0.1.0"
 
+#: Why the variant could not start (``SARMITSUBA_VARIANT`` unusable, libLLVM missing), when the
+#: package was imported by the command line; None otherwise. The command line still answers
+#: ``--help`` and ``--version``, and reports this error (exit 2) before any other command.
+STARTUP_ERROR: Exception | None = None
 try:
     VARIANT = _activate()
-except _VariantError as _error:
-    if _sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py")):
-        print(f"error: {_error}", file=_sys.stderr)          # the command line: one message, exit 2
-        raise SystemExit(2) from None
-    raise
+except (_VariantError, RuntimeError) as _error:
+    if not (_sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py"))):
+        raise                                              # a library import: the caller sees the exception
+    VARIANT, STARTUP_ERROR = None, _error
 
 #: Top-level names imported on first use: name -> (module, attribute; None for the module itself).
 _LAZY = {"simulate": ("pipeline", "simulate"), "render": ("pipeline", "render"),

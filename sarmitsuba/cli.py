@@ -396,13 +396,15 @@ def _main(argv: list[str] | None) -> int:
     else:
         args = build_parser().parse_args(argv)
     try:
-        import sarmitsuba  # noqa: F401  (libLLVM check, variant, plugins)
+        import sarmitsuba  # libLLVM check, variant, plugins
+        if sarmitsuba.STARTUP_ERROR is not None:     # kept by the package so that --help and --version work
+            raise sarmitsuba.STARTUP_ERROR
         from .scene.materials import MaterialError
         from .core.radar import ParameterError
         from .core.image import SarImageError
         from .core.raw import RawDataError
         from .scene.loader import SceneError
-    except RuntimeError as exc:          # LibLLVMError and variant problems
+    except (RuntimeError, ImportError) as exc:          # LibLLVMError and variant problems (VariantError)
         print(f"error: {exc}", file=sys.stderr)
         return 2
     try:

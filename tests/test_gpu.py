@@ -31,6 +31,18 @@ def test_bad_variant_exits_2_with_one_message(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+@pytest.mark.parametrize("argv", [["--help"], ["--version"], ["render", "--help"]])
+def test_bad_variant_still_answers_help_and_version(argv):
+    """An unusable variant blocks tracing, not the command line's own answers: ``--help`` and
+    ``--version`` exit 0 with their usual text, while a command that traces exits 2 (above)."""
+    env = {**os.environ, "SARMITSUBA_VARIANT": "no_such_variant"}
+    result = subprocess.run([sys.executable, "-m", "sarmitsuba", *argv], env=env, cwd=ROOT, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert ("sarmitsuba 0.1" if argv == ["--version"] else "usage: sarmitsuba") in result.stdout
+    assert result.stderr == ""
+
+
 def test_cuda_render_equals_llvm_render(tmp_path):
     """The trihedral's raw data from the cuda variant equal the llvm variant's within -60 dB NRMSE
     (float32 arithmetic in another order on another device)."""
