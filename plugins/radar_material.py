@@ -55,6 +55,7 @@ import mitsuba as mi
 from sarmitsuba.scene import materials
 from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
 from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.core.valid_ranges import unknown_name
 
 _RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "cross_pol_db",
                "color")
@@ -196,8 +197,7 @@ def _check_spec(plugin: str, name: str, material, model, thickness, **_) -> None
     if model not in ("half_space", "slab", "pec"):
         raise ParameterError(f"{plugin} '{name}': model = {model!r}; valid: half_space, slab, pec")
     if material is not None and material not in materials.itu_material_names():
-        raise ParameterError(f"{plugin} '{name}': unknown ITU material {material!r}; valid: "
-                             f"{', '.join(materials.itu_material_names())}")
+        raise ParameterError(f"{plugin} '{name}': {unknown_name('ITU material', material, materials.itu_material_names())}")
     if model == "slab" and not (thickness is not None and thickness > 0):
         raise ParameterError(f"{plugin} '{name}': model = slab needs thickness > 0 m, got {thickness}")
 

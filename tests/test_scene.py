@@ -51,7 +51,7 @@ def test_sionna_munich_loads_all_objects():
 
 
 def test_unknown_sionna_scene_lists_available():
-    with pytest.raises(SceneError, match="no Sionna RT scene named 'atlantis'.*munich"):
+    with pytest.raises(SceneError, match="unknown Sionna RT scene 'atlantis'; valid: .*munich"):
         load_scene("sionna:atlantis")
 
 

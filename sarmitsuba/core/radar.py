@@ -20,7 +20,7 @@ import numpy as np
 
 from . import georef
 from .constants import SPEED_OF_LIGHT
-from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges
+from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
 
 __all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
            "HALF_POWER_SINC", "ValidRange", "VALID_RANGES"]
@@ -397,7 +397,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name, value in values.items():
         if name not in types:
-            raise ParameterError(f"unknown sar sensor parameter {name!r}; valid: {', '.join(sorted(types))}")
+            raise ParameterError(unknown_name("sar sensor parameter", name, sorted(types)))
         try:
             if name in ("scene_center", "track_offset"):
                 parts = value.replace(",", " ").split() if isinstance(value, str) else list(value)

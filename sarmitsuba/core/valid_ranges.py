@@ -6,13 +6,15 @@ section 4); a value that looks written in another unit (9.6 for 9.6 GHz) gets th
 """
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["ParameterError", "ValidRange", "VALID_RANGES", "check_ranges"]
+__all__ = ["ParameterError", "ValidRange", "VALID_RANGES", "check_ranges", "unknown_name"]
 
 
 class ParameterError(ValueError):
@@ -115,3 +117,27 @@ def check_ranges(params: Any) -> None:
             continue
         if not (isinstance(value, (int, float)) and math.isfinite(value) and spec.lo <= value <= spec.hi):
             raise ParameterError(_range_error(name, value, spec))
+
+
+def unknown_name(kind: str, name: str, valid: Iterable[str]) -> str:
+    """The message for an unknown name: ``unknown KIND 'bandwith'; did you mean 'bandwidth'?
+    valid: ...``, the closest valid names first (``difflib.get_close_matches``, ratio >= 0.6,
+    at most three), then all of them. Without a close match the question is left out.
+
+    Parameters
+    ----------
+    kind : str
+        What the name names, e.g. ``"sar sensor parameter"``.
+    name : str
+        The name given.
+    valid : iterable of str
+        Every valid name, listed in the given order.
+    """
+    valid = [str(v) for v in valid]
+    close = difflib.get_close_matches(str(name), valid, n=3)
+    if not close:
+        close = difflib.get_close_matches(str(name).lower(), [v.lower() for v in valid], n=3)
+        close = [v for v in valid if v.lower() in close]
+    question = f"did you mean {' or '.join(repr(c) for c in close)}? " if close else ""
+    return f"unknown {kind} {name!r}; {question}valid: {', '.join(valid)}"
+

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import materials
 from ..core.radar import ParameterError, RadarParameters
+from ..core.valid_ranges import unknown_name
 from .loader import SceneError, mitsuba_message
 from .trace_inputs import TraceSettings
 
@@ -196,8 +197,8 @@ def _material_spec(where: str, material: Any, shape_id: str) -> dict:
         if material == PEC:
             return {"plugin": "radar", "id": PEC, "model": "pec"}
         if material not in materials.itu_material_names():
-            raise ParameterError(f"{where}: unknown material {material!r}; valid names: "
-                                 f"{', '.join(material_names())}, or a dict of radar BSDF parameters")
+            raise ParameterError(f"{where}: {unknown_name('material', material, material_names())}, or a dict "
+                                 "of radar BSDF parameters")
         return {"plugin": "radar", "id": material, "material": material}
     if not isinstance(material, Mapping):
         raise ParameterError(f"{where}: material must be a name ({', '.join(material_names())}) or a dict "

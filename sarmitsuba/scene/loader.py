@@ -27,6 +27,7 @@ from .meshcheck import check_meshes, warn_mesh_defects
 from .planning import resolve_parameters
 from .radar_equation import radar_equation
 from ..core.radar import ParameterError, RadarParameters
+from ..core.valid_ranges import unknown_name
 from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "shape_frame", "mitsuba_message",
@@ -125,7 +126,7 @@ def resolve_source(source: Any) -> Path | None:
             raise SceneError(f"{source}: Sionna RT is not installed; install it with "
                              "`pip install 'sarmitsuba[sionna]'` (or `pip install sionna-rt`)")
         if name not in scenes:
-            raise SceneError(f"{source}: no Sionna RT scene named {name!r}; available: {', '.join(scenes)}")
+            raise SceneError(f"{source}: {unknown_name('Sionna RT scene', name, scenes)}")
         return scenes[name]
     builtins = builtin_scenes()
     if source in builtins:
@@ -133,6 +134,8 @@ def resolve_source(source: Any) -> Path | None:
     path = Path(source)
     if not path.is_file():
         hint = f"; built-in scenes: {', '.join(builtins)}" if builtins else ""
+        if builtins and path.suffix == "" and len(path.parts) == 1:         # a misspelt built-in name
+            hint = "; " + unknown_name("built-in scene", source, builtins).split("; ", 1)[1]
         raise SceneError(f"scene file {str(path)!r} does not exist{hint}")
     return path
 
@@ -263,7 +266,7 @@ MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient")
 def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
     unknown = set(overrides) - set(MATERIAL_OVERRIDES)
     if unknown:
-        raise ParameterError(f"unknown material override {sorted(unknown)}; valid: {', '.join(MATERIAL_OVERRIDES)}")
+        raise ParameterError(unknown_name("material override", sorted(unknown)[0], MATERIAL_OVERRIDES))
     if not overrides:
         return
     for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():

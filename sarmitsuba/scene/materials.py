@@ -43,6 +43,7 @@ from typing import Literal
 import numpy as np
 
 from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
+from sarmitsuba.core.valid_ranges import unknown_name
 from sarmitsuba.scene.fresnel import (MaterialError, check_cos, check_eta, check_frequency, check_thickness,
                                       fresnel_half_space, slab_reflection)
 
@@ -146,9 +147,7 @@ def itu_material_names() -> tuple[str, ...]:
 
 def _lookup(name: str) -> tuple:
     if name not in ITU_MATERIALS:
-        raise MaterialError(
-            f"unknown ITU material {name!r}; valid names are: "
-            f"{', '.join(itu_material_names())}")
+        raise MaterialError(unknown_name("ITU material", name, itu_material_names()))
     return ITU_MATERIALS[name]
 
 

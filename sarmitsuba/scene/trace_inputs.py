@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.radar import ParameterError
+from ..core.valid_ranges import unknown_name
 
 __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
            "LIT_REGIONS", "RANGE_KERNELS"]
@@ -146,7 +147,7 @@ class TraceSettings:
         kwargs = {}
         for name, value in values.items():
             if name not in types:
-                raise ParameterError(f"unknown sbr integrator parameter {name!r}; valid: {', '.join(types)}")
+                raise ParameterError(unknown_name("sbr integrator parameter", name, types))
             try:
                 kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
             except (TypeError, ValueError):
