@@ -110,6 +110,22 @@ def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
                              "linear bands), placed by the sensor's geo_origin")
 
 
+def _add_window_arguments(parser: argparse.ArgumentParser) -> None:
+    """The focusing-window flags of ``render`` and ``focus``: one default (Taylor), one set of flags."""
+    parser.add_argument("--window", default="taylor", choices=FOCUS_WINDOWS, metavar="NAME",
+                        help="focusing window in range and azimuth (default taylor: nbar 4, -35 dB sidelobes; "
+                             f"rect for none); one of {', '.join(FOCUS_WINDOWS)}")
+    for axis, where in (("range", "over the band"),
+                        ("azimuth", "bp, ffbp: over the beam; omegak, rda: over the Doppler band")):
+        parser.add_argument(f"--window-{axis}", default=None, choices=FOCUS_WINDOWS, metavar="NAME",
+                            help=f"{axis} window only ({where}; default: --window)")
+
+
+def _windows(args: argparse.Namespace) -> dict:
+    """``window``, ``window_range``, ``window_azimuth`` keywords of render and refocus from the flags."""
+    return {"window": args.window, "window_range": args.window_range, "window_azimuth": args.window_azimuth}
+
+
 def _formats(args: argparse.Namespace) -> tuple[str, ...]:
     """The standard formats asked for by ``--cphd``, ``--sicd``, ``--geotiff``."""
     return tuple(f for f in ("cphd", "sicd", "geotiff") if getattr(args, f, False))
@@ -139,9 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     render.add_argument("--figures", action="store_true",
                         help="also draw explanatory figures (fig_*.png, figures.json) from the files written")
-    render.add_argument("--window", default="taylor", choices=FOCUS_WINDOWS, metavar="NAME",
-                        help="focusing window in range and azimuth (default taylor: nbar 4, -35 dB sidelobes; "
-                             f"rect for none); one of {', '.join(FOCUS_WINDOWS)}")
+    _add_window_arguments(render)
     render.add_argument("--focuser", default="ffbp", choices=("ffbp", "bp"),
                         help="fast factorised backprojection (default) or direct backprojection (its reference, "
                              "slower)")
@@ -164,9 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
                        help="fast factorised backprojection (default) or direct backprojection (any track), "
                             "omega-K or range-Doppler (straight track)")
-    focus.add_argument("--window-range", default="rect", choices=WINDOWS, help="range window")
-    focus.add_argument("--window-azimuth", default="rect", choices=WINDOWS,
-                       help="azimuth window (omegak, rda: over the Doppler band; bp: over the beam)")
+    _add_window_arguments(focus)
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     _add_format_arguments(focus, cphd=False)
@@ -210,27 +222,25 @@ def _bench(args: argparse.Namespace) -> int:
     return module.main(args.bench_args)
 
 
-#: Windows of ``render --window`` and ``focus --window-range/--window-azimuth``: every window of
-#: :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
+#: Windows of ``--window``, ``--window-range`` and ``--window-azimuth`` (render and focus): every window
+#: of :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
 FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
-WINDOWS = FOCUS_WINDOWS
 
 
 def _focus(args: argparse.Namespace) -> int:
     import time
 
     from .core.outputs import OutputDirectory, check_output_dir
-    from .pipeline import refocus, write_exports, write_image_products
+    from .pipeline import refocus, window_title, write_exports, write_image_products
     start = time.perf_counter()
     check_output_dir(args.out)
     raw = load_raw(args.raw)
     try:
-        image = refocus(raw, args.algorithm, window_range=args.window_range, window_azimuth=args.window_azimuth,
-                        progress=not args.no_progress)
+        image = refocus(raw, args.algorithm, **_windows(args), progress=not args.no_progress)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {args.window_range}/{args.window_azimuth}"
+    title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {window_title(image)}"
     with OutputDirectory(args.out) as out:
         paths = write_image_products(out, image, title)
         paths.update(write_exports(out, raw, image, _formats(args)))
@@ -264,7 +274,7 @@ def _render(args: argparse.Namespace) -> int:
         integrator["split_bounces"] = True
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
-                     progress=not args.no_progress, window=args.window, focuser=args.focuser,
+                     progress=not args.no_progress, **_windows(args), focuser=args.focuser,
                      formats=_formats(args), scheduler=args.scheduler)
     print(summary.line())
     if args.figures:

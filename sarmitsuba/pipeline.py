@@ -95,10 +95,12 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
              integrator_overrides: Mapping[str, Any] | None = None,
              material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
              image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
-             window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None) -> Simulation:
+             window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None,
+             window_range: Any = None, window_azimuth: Any = None) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
-    Parameters are those of :func:`render` (``window`` and ``focuser`` included), plus
+    Parameters are those of :func:`render` (``window``, ``window_range``, ``window_azimuth`` and
+    ``focuser`` included), plus
     ``image_size = (n_azimuth, n_range)`` pixels and ``image_spacing`` [m] for a ground grid of
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
@@ -106,7 +108,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
-    window_spec = focus_window(window)                       # checked before anything is loaded
+    range_window, azimuth_window = focus_windows(window, window_range, window_azimuth)   # checked before loading
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
@@ -131,8 +133,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     pattern = azimuth_pattern(params)
     focus = lambda r, desc: _calibrated(focus_with(  # noqa: E731
-        _compressed(r, window_spec), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
-        window_azimuth=window_spec, progress=progress, desc=desc), params, world)
+        _compressed(r, range_window), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
+        window_azimuth=azimuth_window, progress=progress, desc=desc), params, world)
     products, spent = {}, {"bin": 0.0, "focus": 0.0}
     for name in params.channels:                         # one trace, then each channel's raw data and images
         channel = result.channel(name)
@@ -182,6 +184,14 @@ def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGe
                                scene_center=geometry.scene_center + offset)
 
 
+def focus_windows(window: Any, window_range: Any = None, window_azimuth: Any = None) -> tuple[tuple, tuple]:
+    """The range and azimuth windows ``(name, params)`` of :func:`simulate` / :func:`render`:
+    ``window_range`` and ``window_azimuth``, each defaulting to ``window``; every one checked by
+    :func:`focus_window`. Raises ParameterError naming the window."""
+    return (focus_window(window if window_range is None else window_range),
+            focus_window(window if window_azimuth is None else window_azimuth))
+
+
 def focus_window(window: Any) -> tuple[str, dict]:
     """Check the focusing window of :func:`simulate` / :func:`render`: a name of
     :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
@@ -224,7 +234,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
            integrator_overrides: Mapping[str, Any] | None = None,
            material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
            window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
-           scheduler: str | None = None) -> RenderSummary:
+           scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -248,6 +258,10 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         image keeps unit peak gain for a point target; the window is recorded in
         ``image.metadata["focus"]`` (``window``, ``window_range``, ``window_azimuth``), which
         :mod:`sarmitsuba.analysis.point_target` reads to turn integrated energy into RCS.
+        :func:`refocus` (the ``focus`` command) has the same default, so refocusing the raw
+        data with ``ffbp`` gives this image again.
+    window_range, window_azimuth : str or (str, dict), optional
+        The window of one axis, when it differs from ``window`` (default: ``window``).
     focuser : {"ffbp", "bp"}, default "ffbp"
         Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`; exact for any track, its
         interpolation error measured in ``benchmarks/ffbp.py``: -33 dB NRMSE against direct
@@ -273,7 +287,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         Before tracing starts, for a bad scene, parameter, window, material or output directory.
     """
     start = time.perf_counter()
-    focus_window(window)
+    focus_windows(window, window_range, window_azimuth)
     _focuser(focuser)
     check_formats(formats)
     if scheduler is not None:
@@ -282,7 +296,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
-                       scheduler=scheduler)
+                       scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth)
         t_products = time.perf_counter()
         paths = {}
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
@@ -347,8 +361,8 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths)
 
 
-def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", window_azimuth: str = "rect",
-            progress: bool = False) -> SarImage:
+def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,
+            window_azimuth: Any = None, progress: bool = False) -> SarImage:
     """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
 
     ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
@@ -356,9 +370,12 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
     beam gating), else onto the slant-plane grid of the straight-track geometry. ``omegak`` / ``rda``: the FFT focusers (straight track).
     Every image measures azimuth from the scene centre's closest approach, so a target reads the
     same azimuth in all of them; ground or slant range by plane (frames: docs/design.md section 8;
-    ``SarImage.pixel_of`` and ``analyze`` find a world point in either). Chirped input is range-compressed first. Windows: rect, taylor, hamming, kaiser (hann);
-    backprojection applies the azimuth window over the beam (or, without a beam, over the
-    aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
+    ``SarImage.pixel_of`` and ``analyze`` find a world point in either). Chirped input is
+    range-compressed first. Windows (rect, taylor, hamming, kaiser, hann): ``window`` in range
+    and azimuth, default Taylor as in :func:`render`, so refocusing a render's raw data with
+    ``ffbp`` gives its image; ``window_range`` / ``window_azimuth`` for one axis (default:
+    ``window``). Backprojection applies the azimuth window over the beam (or, without a beam,
+    over the aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
 
     Raises
     ------
@@ -366,7 +383,7 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window_range: str = "rect", 
         Unknown algorithm or window, or a track the FFT focusers cannot handle (they name
         backprojection).
     """
-    return focus_by_name(raw, algorithm, window_range=window_range, window_azimuth=window_azimuth,
+    return focus_by_name(raw, algorithm, window=window, window_range=window_range, window_azimuth=window_azimuth,
                          progress=progress)
 
 

@@ -95,7 +95,8 @@ def brightest_near(image, row: float, col: float, half: int = 6) -> tuple[int, i
 def focused(request):
     squint, incidence = request.param
     raw = acquisition(squint, incidence)
-    return squint, incidence, {name: pipeline.refocus(raw, name) for name in ("bp", "ffbp", "omegak", "rda")}
+    # unweighted windows: resolution() is the sinc width
+    return squint, incidence, {name: pipeline.refocus(raw, name, window="rect") for name in ("bp", "ffbp", "omegak", "rda")}
 
 
 def test_every_focuser_puts_each_target_at_pixel_of(focused):
@@ -152,7 +153,7 @@ def test_slant_images_without_radar_metadata(squint):
     incidence = 55.0
     raw = acquisition(squint, incidence, radar=False)
     for name in ("bp", "omegak", "rda"):
-        image = pipeline.refocus(raw, name)
+        image = pipeline.refocus(raw, name, window="rect")
         assert image.plane == "slant", name
         res_az, res_rg = resolution("slant", squint, incidence)
         for target in TARGETS:
