@@ -130,7 +130,30 @@ def test_licence_file_matches_the_package_metadata():
     assert licence.startswith("BSD 3-Clause License")
     assert "Neither the name of the copyright holder" in licence          # clause 3
     meta = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-    assert meta["license"] == {"text": "BSD-3-Clause"}
+    assert meta["license"] == "BSD-3-Clause" and meta["license-files"] == ["LICENSE"]       # SPDX (PEP 639)
+
+
+def test_the_wheel_builds_quietly_with_the_scene_meshes(tmp_path):
+    """Installing prints no setuptools deprecation banner (the ``project.license`` table, scene
+    meshes missing from ``packages``), and the wheel carries the built-in scenes' meshes and the
+    licence. Built from a copy, with the installed setuptools (the dev extra's >= 77)."""
+    import shutil
+    import subprocess
+    import zipfile
+    source = tmp_path / "src"
+    for name in ("sarmitsuba", "plugins", "scenes"):
+        shutil.copytree(REPO / name, source / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(REPO / name, source / name)
+    build = subprocess.run([sys.executable, "-c", "import sys; from setuptools import build_meta; "
+                            "print(build_meta.build_wheel(sys.argv[1]))", str(tmp_path / "dist")],
+                           cwd=source, capture_output=True, text=True, timeout=300)
+    assert build.returncode == 0, build.stderr
+    log = build.stdout + build.stderr
+    assert "Deprecat" not in log and "!!" not in log and "absent from the `packages`" not in log, log
+    names = zipfile.ZipFile(tmp_path / "dist" / build.stdout.strip().splitlines()[-1]).namelist()
+    assert "sarmitsuba_scenes/meshes/trihedral.obj" in names and "sarmitsuba_scenes/urban.xml" in names
+    assert any(n.endswith("licenses/LICENSE") for n in names)
 
 
 # ---- the built-in trihedral faces the sensor -----------------------------------------------------
