@@ -196,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     ifg.add_argument("--out", type=Path, required=True, help="output directory")
     ifg.add_argument("--looks", type=_looks, default=(4, 4), metavar="AZ,RG",
                      help="boxcar window for coherence and height, azimuth,range pixels (default 4,4)")
+    ifg.add_argument("--no-progress", action="store_true", help="no progress bar")
     bench = sub.add_parser("bench", help="benchmark suite: accuracy against time for each fidelity knob "
                                          "(needs the source checkout's benchmarks/ folder)", add_help=False)
     bench.add_argument("bench_args", nargs="*", metavar="...",
@@ -301,7 +302,8 @@ def _interferogram(args: argparse.Namespace) -> int:
     from .analysis.insar_products import write_products
     from .analysis.interferometry import InterferometryError
     try:
-        products = write_products(args.out, args.primary, args.secondary, looks=args.looks)
+        products = write_products(args.out, args.primary, args.secondary, looks=args.looks,
+                                  progress=not args.no_progress)
     except InterferometryError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

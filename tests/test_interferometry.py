@@ -10,6 +10,7 @@ sarmitsuba.scene.baseline's convention): a purely perpendicular baseline
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -251,8 +252,12 @@ def test_cli_writes_products_and_summary(tmp_path, capsys):
     s = speckle((33, 65), 9)
     one, two = _render_dir(tmp_path / "p", s, primary), _render_dir(tmp_path / "s", s, secondary)
     assert main(["interferogram", str(one), str(two), "--out", str(tmp_path / "insar"), "--looks", "3,5"]) == 0
-    line = capsys.readouterr().out.strip()
-    assert "mean coherence 1.000" in line and "B_perp 2.000 m" in line
+    captured = capsys.readouterr()
+    line = captured.out.strip()
+    assert "mean coherence 1.000" in line and "B_perp 2.000 m" in line and re.search(r"looks: \d+\.\d s, ", line)
+    assert "interferogram" in captured.err and "4/4" in captured.err             # the progress bar's last state
+    assert main(["interferogram", str(one), str(two), "--out", str(tmp_path / "quiet"), "--no-progress"]) == 0
+    assert capsys.readouterr().err == ""
     written = sorted(p.name for p in (tmp_path / "insar").iterdir())
     assert written == sorted(ifm.PRODUCT_FILES.values())
     with np.load(tmp_path / "insar" / "height.npz") as f:

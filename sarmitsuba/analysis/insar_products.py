@@ -10,11 +10,13 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ..scene.baseline import Baseline
 from ..core.image import SarImage
@@ -61,12 +63,14 @@ class InterferometryProducts:
     baseline: Baseline
     mean_coherence: float
     looks: tuple[int, int]
+    seconds: float = 0.0
 
     def line(self) -> str:
         """One-line summary for the CLI."""
         b = self.baseline
         ambiguity = f"{b.height_of_ambiguity:.2f} m" if math.isfinite(b.height_of_ambiguity) else "inf (no height)"
-        return (f"interferogram {self.looks[0]}x{self.looks[1]} looks: mean coherence {self.mean_coherence:.3f}, "
+        return (f"interferogram {self.looks[0]}x{self.looks[1]} looks: {self.seconds:.1f} s, "
+                f"mean coherence {self.mean_coherence:.3f}, "
                 f"B_perp {b.perpendicular:.3f} m (critical {b.critical:.3f} m), height of ambiguity {ambiguity} "
                 f"-> {self.paths['figure'].parent}")
 
@@ -88,7 +92,7 @@ def _grid(image: SarImage) -> dict[str, Any]:
 
 
 def write_products(out_dir: str | os.PathLike, primary_dir: str | os.PathLike, secondary_dir: str | os.PathLike,
-                   looks: tuple[int, int] = (4, 4)) -> InterferometryProducts:
+                   looks: tuple[int, int] = (4, 4), progress: bool = False) -> InterferometryProducts:
     """Read two render directories and write the interferometric products into ``out_dir``.
 
     Files (:data:`PRODUCT_FILES`; each ``.npz`` also holds the grid of ``image.npz`` -- ``azimuth``,
@@ -103,6 +107,8 @@ def write_products(out_dir: str | os.PathLike, primary_dir: str | os.PathLike, s
     * ``interferogram.png``: wrapped phase, coherence and height.
 
     All files appear together or none (:class:`~sarmitsuba.core.outputs.OutputDirectory`).
+    ``progress`` shows a tqdm bar over the steps after reading (interferogram, coherence, height,
+    write).
 
     Raises
     ------
@@ -113,17 +119,35 @@ def write_products(out_dir: str | os.PathLike, primary_dir: str | os.PathLike, s
     OSError
         ``out_dir`` cannot be written.
     """
-    primary, primary_raw = read_render(primary_dir, "primary")
+    start = time.perf_counter()
+    primary, primary_raw = read_render(primary_dir, "primary")          # input checked before the bar starts
     secondary, secondary_raw = read_render(secondary_dir, "secondary")
     check_pair(primary, secondary, primary_raw, secondary_raw)
     looks = check_looks(looks, primary.data.shape)
-    multilooked = multilooked_interferogram(primary, secondary, looks)
-    gamma = coherence(primary, secondary, looks)
-    k_z = height_sensitivity(primary, primary_raw, secondary_raw)
-    phase = unwrapped_phase(multilooked, gamma)
-    heights = height_from_phase(phase, k_z)
-    baseline = pair_baseline(primary, primary_raw, secondary_raw)
-    meta = np.str_(_metadata(Path(primary_dir), Path(secondary_dir), baseline, looks, primary_raw))
+    with tqdm(total=4, desc="interferogram", unit="step", disable=not progress) as bar:
+        bar.set_postfix_str("interferogram")
+        multilooked = multilooked_interferogram(primary, secondary, looks)
+        bar.update()
+        bar.set_postfix_str("coherence")
+        gamma = coherence(primary, secondary, looks)
+        bar.update()
+        bar.set_postfix_str("height")
+        k_z = height_sensitivity(primary, primary_raw, secondary_raw)
+        phase = unwrapped_phase(multilooked, gamma)
+        heights = height_from_phase(phase, k_z)
+        baseline = pair_baseline(primary, primary_raw, secondary_raw)
+        bar.update()
+        bar.set_postfix_str("write")
+        paths = _write(out_dir, primary, secondary, multilooked, gamma, k_z, phase, heights, baseline, looks,
+                       np.str_(_metadata(Path(primary_dir), Path(secondary_dir), baseline, looks, primary_raw)))
+        bar.update()
+    return InterferometryProducts(paths, baseline, float(np.mean(gamma)), looks, time.perf_counter() - start)
+
+
+def _write(out_dir, primary: SarImage, secondary: SarImage, multilooked: np.ndarray, gamma: np.ndarray,
+           k_z: np.ndarray, phase: np.ndarray, heights: np.ndarray, baseline: Baseline, looks: tuple[int, int],
+           meta: np.str_) -> dict[str, Path]:
+    """The files of :func:`write_products`, all or none."""
     grid = _grid(primary)
     with OutputDirectory(out_dir) as out:
         paths = {
@@ -135,7 +159,7 @@ def write_products(out_dir: str | os.PathLike, primary_dir: str | os.PathLike, s
                 p, height=heights, k_z=k_z, unwrapped_phase=phase, metadata=meta, **grid)),
             "figure": out.write(PRODUCT_FILES["figure"], lambda p: _draw(
                 p, primary, multilooked, gamma, heights, baseline, looks))}
-    return InterferometryProducts(paths, baseline, float(np.mean(gamma)), looks)
+    return paths
 
 
 def _draw(path: Path, image: SarImage, multilooked: np.ndarray, gamma: np.ndarray, heights: np.ndarray,
