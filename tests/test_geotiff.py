@@ -199,8 +199,9 @@ def test_large_images_are_tiled(tmp_path):
 
 
 def test_without_radar_metadata_the_image_sits_at_null_island(tmp_path):
-    """No metadata["radar"]: georef.DEFAULT, 0 N 0 E, UTM zone 31 north."""
-    path = write_geotiff(synthetic(0.0), tmp_path / "image.tif")
+    """No metadata["radar"]: georef.DEFAULT, 0 N 0 E, UTM zone 31 north, with a warning naming geo_origin."""
+    with pytest.warns(UserWarning, match="geo_origin is not set"):
+        path = write_geotiff(synthetic(0.0), tmp_path / "image.tif")
     got, src = corner_centres_lonlat(path)
     assert src.crs.to_epsg() == 32631
     assert np.all(np.abs(got) < 1e-3)                                 # within ~100 m of (0, 0)

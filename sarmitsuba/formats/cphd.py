@@ -304,17 +304,73 @@ def read_cphd(path: str | os.PathLike) -> RawData:
     Raises
     ------
     CphdError
-        Naming ``path``: missing or unreadable file, not a CPHD file, an FX-domain file, more
-        than one channel, or a fast-time axis that differs between vectors (needs resampling).
+        Naming ``path``: missing or unreadable file; an empty, truncated or otherwise damaged
+        file, or one that is not a CPHD file (one line saying which, :func:`damage_message`); an
+        FX-domain file, more than one channel, or a fast-time axis that differs between vectors
+        (needs resampling).
     """
+    import lxml.etree
     import sarkit.cphd as skcphd
     try:
-        with open(path, "rb") as f, skcphd.Reader(f) as reader:
-            signal, pvp = reader.read_channel(reader.metadata.xmltree.findtext("{*}Data/{*}Channel/{*}Identifier"))
-            tree, kvps = reader.metadata.xmltree, reader.metadata.file_header_part.additional_kvps
-    except (OSError, ValueError, KeyError, AttributeError, TypeError) as exc:
-        raise CphdError(f"cannot read CPHD file {path}: {exc} (is it a CPHD 1.x file?)") from None
+        file = open(path, "rb")
+    except OSError as exc:
+        raise CphdError(f"cannot read CPHD file {path}: {exc}") from None
+    # What sarkit's reader raises on a damaged file (found by cutting and overwriting files): ValueError
+    # (a header line without " := ", UnicodeDecodeError), KeyError (a header key missing), lxml's
+    # XMLSyntaxError (the XML cut or overwritten), RuntimeError (a short PVP or signal block).
+    damaged = (OSError, ValueError, KeyError, AttributeError, TypeError, RuntimeError, lxml.etree.LxmlError)
+    with file:
+        try:
+            with skcphd.Reader(file) as reader:
+                channel = reader.metadata.xmltree.findtext("{*}Data/{*}Channel/{*}Identifier")
+                signal, pvp = reader.read_channel(channel)
+                tree, kvps = reader.metadata.xmltree, reader.metadata.file_header_part.additional_kvps
+        except damaged as exc:
+            raise CphdError(damage_message(path, exc)) from None
     return raw_from_parts(path, tree, kvps, signal, pvp)
+
+
+def damage_message(path: str | os.PathLike, exc: BaseException) -> str:
+    """One line on a CPHD file that sarkit could not read (``exc``): ``path``, what is wrong (empty,
+    not a CPHD file, truncated against the block sizes its header declares, or damaged) and the fix."""
+    size = Path(path).stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(5)
+        f.seek(0)
+        complete, declared = declared_size(f)
+    again = "write it again with `render --cphd`, or give an intact copy"
+    if size == 0:
+        return f"cannot read CPHD file {path}: the file is empty (an interrupted write or copy?); {again}"
+    if head != b"CPHD/":
+        return (f"cannot read CPHD file {path}: not a CPHD file (it begins with {head!r}, a CPHD file with "
+                "'CPHD/'); give a CPHD 1.x file, such as the raw.cphd that `render --cphd` writes")
+    if not complete:
+        return (f"cannot read CPHD file {path}: the file is truncated: it ends inside its header, after {size} "
+                f"bytes; {again}")
+    if declared is not None and size < declared:
+        return (f"cannot read CPHD file {path}: the file is truncated: {size} of the {declared} bytes its header "
+                f"declares (an interrupted write or copy?); {again}")
+    reason = " ".join(str(exc).split())[:160] or "no detail"
+    return f"cannot read CPHD file {path}: the file is damaged ({type(exc).__name__}: {reason}); {again}"
+
+
+def declared_size(file: Any) -> tuple[bool, int | None]:
+    """(header complete, file size [bytes] its header declares) of the CPHD file open at its start
+    in ``file``. The header is complete when its terminator line is found before the file ends; the
+    size is the end of its last block (XML, support, PVP, signal), None when a size is unreadable."""
+    keys: dict[str, str] = {}
+    for line in iter(file.readline, b""):
+        if line == b"\f\n":
+            break
+        key, sep, value = line.decode("latin-1").strip().partition(" := ")
+        keys[key] = value if sep else ""
+    else:
+        return False, None
+    blocks = [name[: -len("_SIZE")] for name in keys if name.endswith("_BLOCK_SIZE")]
+    try:
+        return True, max(int(keys[f"{b}_SIZE"]) + int(keys[f"{b}_BYTE_OFFSET"]) for b in blocks)
+    except (KeyError, ValueError):
+        return True, None
 
 
 def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarray, pvp: np.ndarray) -> RawData:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,6 +50,13 @@ def reference_of(image: SarImage) -> georef.GeoReference:
     """The image's geographic reference: ``geo_origin`` of ``metadata["radar"]``, else the default."""
     radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
     return georef.of(radar if isinstance(radar, dict) else {})
+
+
+def at_placeholder(image: SarImage) -> bool:
+    """True when the image's radar metadata give no ``geo_origin``, so that it sits at the placeholder
+    :data:`georef.DEFAULT` (an origin given as 0, 0, 0 on purpose is not one)."""
+    radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
+    return georef.parse(radar.get("geo_origin") if isinstance(radar, dict) else None) is None
 
 
 def uniform_spacing(axis: np.ndarray, name: str) -> float:
@@ -135,7 +143,9 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
         ``image.metadata["radar"]``, else :data:`georef.DEFAULT`).
 
     Returns the path written. Raises GeoTiffError for a slant-plane image or an irregular
-    grid, :class:`outputs.WriteError` (an OSError) when the file cannot be written.
+    grid, :class:`outputs.WriteError` (an OSError) when the file cannot be written. Warns
+    (UserWarning, once per call) when neither ``ref`` nor the metadata give a ``geo_origin``:
+    the map then shows the placeholder 0 N 0 E (:func:`at_placeholder`).
     """
     import rasterio
     if image.plane != "ground":
@@ -143,6 +153,12 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
                            f"in the {image.plane!r} plane: focus with backprojection (focus --algorithm bp or ffbp), "
                            "which images onto the scene's ground grid when the raw data carry sarmitsuba's radar "
                            "parameters, or leave out --geotiff")
+    if ref is None and at_placeholder(image):
+        warnings.warn(f"--geotiff: the sensor's geo_origin is not set, so {Path(path).name} places the scene at the "
+                      f"placeholder {georef.DEFAULT.describe()} (null island, in the Gulf of Guinea); set it with "
+                      "--set geo_origin=LAT,LON[,H] (degrees north, degrees east, metres above WGS84) or the "
+                      "sar sensor's <string name=\"geo_origin\" value=\"LAT, LON, H\"/> in the scene XML",
+                      UserWarning, stacklevel=2)
     ref = reference_of(image) if ref is None else ref
     transform, layout = geotransform(image, ref)
     intensity = (np.abs(image.data.astype(np.complex64)) ** 2).astype(np.float32)

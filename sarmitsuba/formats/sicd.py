@@ -65,6 +65,9 @@ _PARAM_METADATA = "SARMITSUBA_METADATA"
 _PARAM_GRID = "SARMITSUBA_GRID"
 #: A fixed collection start keeps the files reproducible (times count from the first pulse).
 _COLLECTION_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
+#: Bytes of the file length FL in a NITF 2.1 / NSIF 1.0 file header (MIL-STD-2500C: every field before
+#: it has a fixed length).
+_NITF_FL = slice(342, 354)
 #: sarmitsuba window name -> SICD WgtType/WindowName.
 _WINDOW_NAMES = {"rect": "UNIFORM", "taylor": "TAYLOR", "hamming": "HAMMING", "hann": "HANNING", "kaiser": "KAISER"}
 
@@ -353,22 +356,59 @@ def read_sicd(path: str | os.PathLike) -> SarImage:
     Files written by :func:`write_sicd` come back in their own frame (grid within micrometres,
     samples exactly, metadata included); other tools' files in the frame of their SCP.
 
-    Raises SicdError naming ``path``: unreadable, not a SICD, or a grid other than PLANE.
+    Raises SicdError naming ``path``: missing or unreadable; empty, truncated, damaged, not a NITF
+    file or a NITF without SICD XML (one line saying which, :func:`damage_message`); a grid other
+    than PLANE.
     """
     import logging
 
+    import lxml.etree
     import sarkit.sicd as sksicd
+    try:
+        file = open(path, "rb")
+    except OSError as exc:
+        raise SicdError(f"cannot read SICD file {path}: {exc}") from None
+    # What jbpy and sarkit raise on a damaged or foreign file (found by cutting and overwriting files):
+    # ValueError (a header field that is no number, no SICD data extension), AssertionError (jbpy's checks
+    # of the segment structure), lxml's XMLSyntaxError (the XML cut), IndexError (no data extension).
+    damaged = (OSError, ValueError, KeyError, AttributeError, TypeError, IndexError, AssertionError, RuntimeError,
+               lxml.etree.LxmlError)
     nitf_log = logging.getLogger("jbpy")       # logs every bad field of a foreign file, with tracebacks
     level = nitf_log.level
     nitf_log.setLevel(logging.CRITICAL + 1)     # its modules' loggers inherit it
     try:
-        with open(path, "rb") as f, sksicd.NitfReader(f) as reader:
+        with file, sksicd.NitfReader(file) as reader:
             array, tree = reader.read_image(), reader.metadata.xmltree
-    except (OSError, ValueError, KeyError, AttributeError, TypeError, IndexError) as exc:
-        raise SicdError(f"cannot read SICD file {path}: {exc} (is it a SICD NITF?)") from None
+    except damaged as exc:
+        raise SicdError(damage_message(path, exc)) from None
     finally:
         nitf_log.setLevel(level)
     return image_from_parts(path, tree, array)
+
+
+def damage_message(path: str | os.PathLike, exc: BaseException) -> str:
+    """One line on a SICD file that sarkit could not read (``exc``): ``path``, what is wrong (empty, not
+    a NITF file, truncated against the file length ``FL`` of its NITF 2.1 header, or damaged or no
+    SICD) and the fix."""
+    size = Path(path).stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(_NITF_FL.stop)
+    again = "write it again with `render --sicd` (or `focus --sicd`), or give an intact copy"
+    if size == 0:
+        return f"cannot read SICD file {path}: the file is empty (an interrupted write or copy?); {again}"
+    if head[:4] not in (b"NITF", b"NSIF"):
+        return (f"cannot read SICD file {path}: not a NITF file (it begins with {head[:9]!r}, a SICD NITF with "
+                "'NITF02.10'); give a SICD NITF, such as the image.nitf that `render --sicd` writes")
+    if size < _NITF_FL.stop:
+        return (f"cannot read SICD file {path}: the file is truncated: it ends inside its NITF header, after "
+                f"{size} bytes; {again}")
+    declared = head[_NITF_FL]
+    if head[:9] in (b"NITF02.10", b"NSIF01.00") and declared.isdigit() and size < int(declared):
+        return (f"cannot read SICD file {path}: the file is truncated: {size} of the {int(declared)} bytes its "
+                f"NITF header declares (an interrupted write or copy?); {again}")
+    reason = " ".join(str(exc).split())[:160] or "no detail"
+    return (f"cannot read SICD file {path}: the file is damaged, or a NITF without SICD XML "
+            f"({type(exc).__name__}: {reason}); {again}")
 
 
 def image_from_parts(path: Any, tree: Any, array: np.ndarray) -> SarImage:
