@@ -242,7 +242,7 @@ def _focus(args: argparse.Namespace) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {window_title(image)}"
-    with OutputDirectory(args.out) as out:
+    with OutputDirectory(args.out, products="add") as out:      # joins a render folder's products
         paths = write_image_products(out, image, title)
         paths.update(write_exports(out, raw, image, _formats(args)))
     print(f"focused {args.raw} with {args.algorithm}: {time.perf_counter() - start:.1f} s, "

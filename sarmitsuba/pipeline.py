@@ -244,6 +244,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         (:class:`sarmitsuba.Scene`); None = built-in ``urban``.
     out_dir : path
         Output directory; receives :data:`OUTPUT_FILES`. Checked for writing before tracing.
+        The render owns its products: the files an earlier render there listed in its
+        ``summary.json`` (``"files"``) that this one does not write are removed when its files
+        are moved into place; other files stay (:mod:`sarmitsuba.core.outputs`, "Products").
     sensor_overrides, integrator_overrides : mapping, optional
         Parameter values replacing the scene's ``sar`` sensor / ``sbr`` integrator ones.
     material_overrides : mapping, optional
@@ -279,7 +282,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     Returns
     -------
     RenderSummary
-        Also written to ``out_dir/summary.json``.
+        Also written to ``out_dir/summary.json``, with ``"files"``: the names of every file
+        the render wrote there.
 
     Raises
     ------
@@ -293,7 +297,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     if scheduler is not None:
         from .tracing.distributed import check_scheduler
         check_scheduler(scheduler)
-    with OutputDirectory(out_dir) as out:        # all files appear at the end, or none
+    with OutputDirectory(out_dir, products="replace") as out:     # all files appear at the end, or none;
+        # an earlier render's files that this one does not write go then (core/outputs.py, "Products")
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
                        scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth)

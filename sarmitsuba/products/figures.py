@@ -47,7 +47,7 @@ import numpy as np
 from .figures_point import point_target_figure
 from .figures_raw import MIN_LIT_FRACTION, POINT_PHASE_RMS, raw_figure
 from ..core.image import SarImage
-from ..core.outputs import atomic_write, json_default
+from ..core.outputs import OutputDirectory, atomic_write, json_default
 from .plotting import (REFERENCE_PERCENTILE, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
                        image_extent, multilook, reference_intensity, save_png, show_db_image, window_label)
 from ..core.raw import RawData
@@ -336,14 +336,15 @@ def overlay_figure(image: SarImage, loaded: Any, path: str | os.PathLike, *, tru
 
 
 # ============================================================================ batch
-def write_figures(out_dir: str | os.PathLike, raw: RawData | None, image: SarImage,
+def write_figures(out_dir: str | os.PathLike | OutputDirectory, raw: RawData | None, image: SarImage,
                   images_per_order: Sequence[SarImage] = (), loaded: Any = None) -> dict[str, Path]:
     """Write every figure that applies into ``out_dir`` (names: :data:`FIGURE_FILES`).
 
     Parameters
     ----------
-    out_dir : path
-        Existing or new directory.
+    out_dir : path or OutputDirectory
+        Existing or new directory (each file written atomically), or an open
+        :class:`~sarmitsuba.core.outputs.OutputDirectory` (staged, moved in with its other files).
     raw : RawData or None
         Gives ``fig_raw.png``.
     image : SarImage
@@ -356,26 +357,39 @@ def write_figures(out_dir: str | os.PathLike, raw: RawData | None, image: SarIma
     Returns
     -------
     dict
-        Role -> path written. ``"stats"`` is ``figures.json``: the overlay numbers of
-        :func:`overlay_figure` (when drawn) and the list of figures.
+        Role -> path written (the final path). ``"stats"`` is ``figures.json``: the overlay
+        numbers of :func:`overlay_figure` (when drawn) and the list of figures.
+
+    Raises
+    ------
+    sarmitsuba.core.outputs.WriteError
+        A figure cannot be written into the directory, naming it (an OSError naming it, given an
+        OutputDirectory).
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if isinstance(out_dir, OutputDirectory):
+        put = out_dir.write
+    else:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+
+        def put(name: str, draw: Any) -> Path:
+            draw(out / name)
+            return out / name
     paths: dict[str, Path] = {}
     stats: dict[str, Any] = {}
     if raw is not None:
-        paths["raw"] = raw_figure(raw, out / FIGURE_FILES["raw"])
-    paths["image"] = image_figure(image, out / FIGURE_FILES["image"])
+        paths["raw"] = put(FIGURE_FILES["raw"], lambda path: raw_figure(raw, path))
+    paths["image"] = put(FIGURE_FILES["image"], lambda path: image_figure(image, path))
     if len(images_per_order):
-        paths["bounce_orders"] = bounce_orders_figure(list(images_per_order), out / FIGURE_FILES["bounce_orders"])
+        paths["bounce_orders"] = put(FIGURE_FILES["bounce_orders"],
+                                     lambda path: bounce_orders_figure(list(images_per_order), path))
     if loaded is not None and image.plane == "ground":
-        overlay = overlay_figure(image, loaded, out / FIGURE_FILES["overlay"])
-        paths["overlay"] = overlay.pop("path")
-        stats["overlay"] = overlay
+        paths["overlay"] = put(FIGURE_FILES["overlay"],
+                               lambda path: stats.update(overlay=overlay_figure(image, loaded, path)))
+        stats["overlay"].pop("path")
     stats["figures"] = {role: str(p) for role, p in paths.items()}
-    target = out / FIGURE_FILES["stats"]
-    paths["stats"] = atomic_write(target, lambda tmp: tmp.write_text(
-        json.dumps(stats, indent=2, default=json_default)), "figure statistics")
+    paths["stats"] = put(FIGURE_FILES["stats"], lambda path: atomic_write(path, lambda tmp: tmp.write_text(
+        json.dumps(stats, indent=2, default=json_default)), "figure statistics"))
     return paths
 
 
@@ -385,7 +399,9 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
     Reads ``raw.npz`` (if present), ``image.npz`` and ``image_order<k>.npz`` (sorted by
     ``k``), or for a quad-pol render the HH channel's (``raw_HH.npz``, ``image_HH.npz``, ...); with ``scene`` (default), also loads the scene named in
     ``image.metadata["scene_path"]`` with the radar parameters the image was made with
-    (``image.metadata["radar"]``) for the overlay, when that file exists.
+    (``image.metadata["radar"]``) for the overlay, when that file exists. The figures appear
+    together or none (:class:`~sarmitsuba.core.outputs.OutputDirectory`) and join the render's
+    list of products (``summary.json["files"]``), so a later render that draws none removes them.
 
     Returns
     -------
@@ -396,6 +412,8 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
     ------
     sarmitsuba.core.image.SarImageError
         No readable ``image.npz``.
+    OSError
+        A figure cannot be written, naming it (nothing is then written).
     """
     out = Path(out_dir)
     # a quad-pol render has no image.npz: its HH channel is drawn (image_HH.npz, raw_HH.npz, ...)
@@ -405,7 +423,8 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
     orders = sorted(out.glob(f"image{tag}_order*.npz"), key=lambda p: int(re.sub(r"\D", "", p.stem) or 0))
     per_order = [SarImage.load(p) for p in orders]
     loaded = _scene_of(image) if scene else None
-    return write_figures(out, raw, image, per_order, loaded)
+    with OutputDirectory(out, products="add") as staged:
+        return write_figures(staged, raw, image, per_order, loaded)
 
 
 def _scene_of(image: SarImage) -> Any:
