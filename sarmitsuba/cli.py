@@ -26,13 +26,15 @@ def _assignment(text: str) -> tuple[str, str]:
 
 
 def _resolution(text: str) -> tuple[int, int]:
+    from .products.preview import MIN_RESOLUTION
     width, sep, height = text.lower().partition("x")
     try:
         size = (int(width), int(height))
     except ValueError:
         size = (0, 0)
-    if not sep or min(size) <= 0:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, e.g. 960x720, got {text!r}")
+    if not sep or size[0] < MIN_RESOLUTION[0] or size[1] < MIN_RESOLUTION[1]:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, at least {MIN_RESOLUTION[0]}x"
+                                         f"{MIN_RESOLUTION[1]} (two panels and a header), e.g. 960x720, got {text!r}")
     return size
 
 

@@ -110,3 +110,15 @@ def test_preview_leaves_the_loaded_scene_usable(tmp_path):
     after = groundtruth.ground_truth(loaded, image)
     for name in ("layover", "shadow", "footprint", "double_bounce"):
         assert np.array_equal(getattr(before, name), getattr(after, name)), name
+
+
+def test_cli_refuses_a_preview_too_small_for_its_panels_before_loading(tmp_path, capsys):
+    """preview --resolution below 200x150 (two panels and the header) is a usage error, exit 2 and
+    one line, not a ValueError traceback after loading the scene; 200x150 itself parses."""
+    from sarmitsuba.cli import build_parser, main
+    with pytest.raises(SystemExit) as exc:
+        main(["preview", "trihedral", "--resolution", "199x150", "--out", str(tmp_path / "p")])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "at least 200x150" in err and "Traceback" not in err
+    assert not (tmp_path / "p").exists()
+    assert build_parser().parse_args(["preview", "--resolution", "200x150"]).resolution == (200, 150)

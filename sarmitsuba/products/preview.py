@@ -35,7 +35,10 @@ import numpy as np
 from .plotting import agg_figure, save_png
 from ..core.radar import acquisition_geometry
 
-__all__ = ["render_preview", "PreviewGeometry", "preview_geometry"]
+__all__ = ["render_preview", "PreviewGeometry", "preview_geometry", "MIN_RESOLUTION"]
+
+#: The smallest preview (width, height) [pixels] that holds its two panels and header.
+MIN_RESOLUTION = (200, 150)
 
 #: Pixel height of the text header above the two panels, at 100 dpi.
 _HEADER_PX = 56
@@ -394,8 +397,9 @@ def render_preview(loaded: Any, path: str | os.PathLike, *, spp: int = 16,
     if int(spp) != spp or spp < 1:
         raise ValueError(f"spp must be a whole number >= 1, got {spp!r}")
     width, height = (int(v) for v in resolution)
-    if width < 200 or height < 150:
-        raise ValueError(f"resolution must be at least 200 x 150 pixels, got {resolution!r}")
+    if width < MIN_RESOLUTION[0] or height < MIN_RESOLUTION[1]:
+        raise ValueError(f"resolution must be at least {MIN_RESOLUTION[0]} x {MIN_RESOLUTION[1]} pixels, "
+                         f"got {resolution!r}")
     header = int(round(_HEADER_PX * dpi / 100))
     panel = (width // 2, height - header)
     geo = preview_geometry(loaded)

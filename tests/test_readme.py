@@ -1,0 +1,213 @@
+"""Every command in the README's code blocks runs, in README order, in one working folder.
+
+Commands run as written, with only these changes, each listed in :data:`SMALL` and
+:data:`SUBSTITUTES`:
+
+* small settings (``--pulses 16 --max-depth 1``, a 200 x 150 preview), so the whole README runs in
+  about a minute; a command's own ``--max-depth`` is kept;
+* renders of Sionna's Munich trace Sionna's ``simple_street_canyon`` instead (``info`` still
+  reads Munich): the same code on a scene a hundred times smaller;
+* ``my_scene.xml`` is a copy of the built-in dihedral, ``/tmp/bench`` a folder of the test,
+  ``SCHEDULER:8786`` a ``dask scheduler`` started from the README's own line on 127.0.0.1;
+* ``bench`` runs with stand-in benchmarks that record how they were called (the real suite
+  takes 20 minutes; ``benchmarks/`` is exercised by its own tests), so the command line itself
+  is what is tested;
+* ``SARMITSUBA_VARIANT=cuda_ad_mono`` may exit 2 with "cannot start on this machine" where
+  there is no NVIDIA GPU (tests/test_gpu.py).
+
+``make render`` and ``make test`` are the fresh-clone commands: CI runs ``make test`` on a clean
+clone, which is this suite. A line of another kind fails the test, so a new README command
+cannot go untested.
+"""
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sarmitsuba.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+PYTHON = ".venv/bin/python"
+DASK = ".venv/bin/dask"
+
+#: Flags added to a sub-command unless the command gives them itself.
+SMALL = {"render": ["--pulses", "16", "--max-depth", "1", "--no-progress"],
+         "preview": ["--pulses", "16", "--spp", "1", "--resolution", "200x150"],
+         "info": ["--pulses", "16"], "focus": ["--no-progress"], "interferogram": ["--no-progress"]}
+#: README text -> what the test runs instead (see the module docstring).
+SUBSTITUTES = {"render sionna:munich": "render sionna:simple_street_canyon"}
+#: The fresh-clone commands, run by CI on a clean clone rather than inside the suite.
+FRESH_CLONE = {"make render", "make test"}
+
+
+def code_blocks(language: str) -> list[tuple[int, str]]:
+    """(first line number, text) of every ``language`` code block of README.md."""
+    blocks, lines = [], (REPO / "README.md").read_text().splitlines()
+    inside, start, body = False, 0, []
+    for number, line in enumerate(lines, start=1):
+        if line.startswith("```"):
+            if inside and body:
+                blocks.append((start, "\n".join(body)))
+            inside, start, body = (not inside and line[3:].strip() == language), number + 1, []
+        elif inside:
+            body.append(line)
+    return blocks
+
+
+def commands(block: str) -> list[str]:
+    """The block's command lines: continuations joined, comments and blank lines dropped."""
+    joined = re.sub(r"\\\n\s*", " ", block)
+    return [line for line in (re.sub(r"\s+#.*$", "", raw).strip() for raw in joined.splitlines())
+            if line and not line.startswith("#")]
+
+
+def with_small_settings(argv: list[str]) -> list[str]:
+    """``argv`` (after ``-m sarmitsuba``) with the flags of :data:`SMALL` its command lacks."""
+    extra, given = SMALL.get(argv[0], []), set(argv)
+    added, i = [], 0
+    while i < len(extra):
+        flag = extra[i]
+        takes_value = i + 1 < len(extra) and not extra[i + 1].startswith("--")
+        if flag not in given:
+            added += extra[i:i + 2] if takes_value else [flag]
+        i += 2 if takes_value else 1
+    return argv + added
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Runner:
+    """Runs README lines in ``folder``; dask processes started there are stopped by :meth:`close`."""
+
+    def __init__(self, folder: Path, capsys, monkeypatch):
+        self.folder, self.capsys, self.monkeypatch = folder, capsys, monkeypatch
+        self.port, self.processes, self.bench_calls = free_port(), [], []
+
+    def text(self, line: str) -> str:
+        for old, new in SUBSTITUTES.items():
+            line = line.replace(old, new)
+        return (line.replace("SCHEDULER:8786", f"127.0.0.1:{self.port}").replace("--port 8786", f"--port {self.port}")
+                .replace("--host 0.0.0.0", "--host 127.0.0.1").replace("/tmp/bench", str(self.folder / "bench")))
+
+    def run(self, line: str) -> None:
+        line = self.text(line)
+        line, _, grep = line.partition(" | grep ")
+        words = shlex.split(line)
+        if words[0] == DASK:
+            return self.start_dask(words, line)
+        env = dict(w.split("=", 1) for w in words if re.fullmatch(r"[A-Z_]+=\S+", w))
+        words = words[len(env):]
+        assert words[:3] == [PYTHON, "-m", "sarmitsuba"], f"a README command of an unknown kind: {line}"
+        argv = with_small_settings(words[3:])
+        if env:
+            return self.run_in_subprocess(argv, env, line)
+        if argv[0] == "bench":
+            self.stand_in_benchmarks()
+        code = main(argv)
+        out, err = self.capsys.readouterr()
+        assert code == 0, f"{line}\n-> exit {code}: {err}"
+        assert grep.strip("'\"") in out, f"{line}: no {grep!r} in its output"
+
+    def run_in_subprocess(self, argv: list[str], env: dict, line: str) -> None:
+        result = subprocess.run([sys.executable, "-m", "sarmitsuba", *argv], cwd=self.folder, env={**os.environ, **env},
+                                capture_output=True, text=True, timeout=600)
+        no_gpu = result.returncode == 2 and "cannot start on this machine" in result.stderr
+        assert result.returncode == 0 or no_gpu, f"{line}\n-> exit {result.returncode}: {result.stderr}"
+
+    def start_dask(self, words: list[str], line: str) -> None:
+        """``dask scheduler ... &`` or ``dask worker ... &``: started in the background, then waited for."""
+        executable = Path(sys.executable).parent / "dask"
+        if not executable.exists():
+            pytest.skip("the dask command is not installed (dask[distributed])")
+        words = [w for w in words if w != "&"]
+        self.processes.append(subprocess.Popen([str(executable), *words[1:]], cwd=self.folder,
+                                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        if words[1] == "worker":
+            self.wait_for_worker(line)
+
+    def wait_for_worker(self, line: str) -> None:
+        from distributed import Client
+        deadline = time.monotonic() + 60
+        with Client(f"tcp://127.0.0.1:{self.port}", timeout=60) as client:
+            while not client.scheduler_info()["workers"]:
+                assert time.monotonic() < deadline, f"{line}: no worker joined in 60 s"
+                time.sleep(0.2)
+
+    def stand_in_benchmarks(self) -> None:
+        """Every suite module replaced by one that records (module, quick) and writes one table."""
+        sys.path.insert(0, str(REPO / "benchmarks"))
+        import _table
+        import run as suite
+        for module_name in suite.SUITE.values():
+            def run(quick, name=module_name):
+                self.bench_calls.append((name, quick))
+                rows = [{"setting": 1, "seconds": 0.0}]
+                _table.write_csv(f"{name}.csv", rows)
+                return rows
+            self.monkeypatch.setitem(sys.modules, module_name, types.SimpleNamespace(run=run))
+
+    def close(self) -> None:
+        for process in reversed(self.processes):
+            process.terminate()
+            process.wait(timeout=30)
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """The README's working folder: ``scenes/`` (for the Python example's mesh) and my_scene.xml."""
+    path = tmp_path_factory.mktemp("readme")
+    (path / "scenes").symlink_to(REPO / "scenes", target_is_directory=True)
+    shutil.copy(REPO / "scenes" / "dihedral.xml", path / "my_scene.xml")       # its plates are inline
+    return path
+
+
+def test_every_command_line_is_of_a_known_kind():
+    lines = [line for _, block in code_blocks("bash") for line in commands(block)]
+    unknown = [line for line in lines if line not in FRESH_CLONE
+               and not re.match(rf"([A-Z_]+=\S+ )*({re.escape(PYTHON)} -m sarmitsuba|{re.escape(DASK)}) ", line)]
+    assert unknown == []
+    assert FRESH_CLONE <= set(lines) and len(lines) >= 30
+
+
+@pytest.mark.parametrize("start, block", [b for b in code_blocks("bash") if b[1].strip() not in
+                                          ("make render    # sets up everything, renders the built-in urban "
+                                           "scene into out/urban/\nmake test      # sets up everything, runs the "
+                                           "test suite",)],
+                         ids=lambda v: f"line{v}" if isinstance(v, int) else "")
+def test_readme_bash_block_runs(start, block, folder, capsys, monkeypatch):
+    monkeypatch.chdir(folder)
+    runner = Runner(folder, capsys, monkeypatch)
+    try:
+        for line in commands(block):
+            if line not in FRESH_CLONE:
+                runner.run(line)
+    finally:
+        runner.close()
+    if any(line.startswith(f"{PYTHON} -m sarmitsuba bench") for line in commands(block)):
+        assert ("range_kernel", False) in runner.bench_calls and ("focus_algorithms", False) in runner.bench_calls
+        assert ("bounce_depth", True) in runner.bench_calls                       # --quick reached the suite
+        assert (folder / "bench" / "range_kernel.csv").is_file()                 # --out DIR honoured
+
+
+def test_readme_python_example_runs(folder, monkeypatch):
+    """The Python API example, as written (it renders into out/house)."""
+    (block,) = [text for _, text in code_blocks("python")]
+    monkeypatch.chdir(folder)
+    namespace: dict = {}
+    exec(compile(block, "README.md (python example)", "exec"), namespace)
+    assert np.isfinite(namespace["report"].rcs_db) and (folder / "out" / "house" / "image.npz").is_file()
