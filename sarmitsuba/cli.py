@@ -175,7 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
     info = _add_tracer_arguments(_add_scene_arguments(sub.add_parser(
         "info", help="radar summary, scene size, active effects and estimated cost, without tracing")))
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    focus = sub.add_parser("focus", help="focus a raw.npz (any RawData) into image.npz/.exr/.png")
+    focus = sub.add_parser("focus", help="focus raw data (raw.npz, any RawData, or a CPHD file) into image.npz/.exr/.png")
     focus.add_argument("raw", type=Path, help="RawData file (.npz) or one-channel CPHD file (.cphd)")
     focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
                        help="fast factorised backprojection (default) or direct backprojection (any track), "
