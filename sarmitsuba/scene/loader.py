@@ -23,8 +23,8 @@ import numpy as np
 
 from ..core import georef
 from . import materials
-from .meshcheck import check_meshes, warn_mesh_defects
-from .planning import resolve_parameters
+from .meshcheck import check_meshes, shape_points, silent_scene, warn_mesh_defects
+from .planning import check_geometry, resolve_parameters
 from .radar_equation import radar_equation
 from ..core.radar import ParameterError, RadarParameters
 from ..core.valid_ranges import unknown_name
@@ -158,9 +158,12 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     Raises
     ------
     SceneError
-        File missing or malformed, or a plugin rejected its parameters.
+        File missing or malformed, a plugin rejected its parameters, or no shape can scatter
+        (every triangle of zero area; :func:`~sarmitsuba.scene.meshcheck.silent_scene`).
     ParameterError
-        An override names an unknown parameter or has an invalid value.
+        An override names an unknown parameter or has an invalid value; or the geometry cannot
+        be imaged (:func:`~sarmitsuba.scene.planning.check_geometry`: geometry at or beyond the
+        nadir, a scene beyond the radar horizon, an automatic track mostly empty).
     """
     path = resolve_source(source)
     label = str(path) if path is not None else source.source      # a Python scene: python:<name>
@@ -171,7 +174,11 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     if np.all(np.isfinite(center)) and np.linalg.norm(center) > RECENTER_DISTANCE:
         offset = np.round(center)              # whole metres: exact in float32 below 2^24 m
         scene = load(offset)
-    warn_mesh_defects(check_meshes(scene), label)
+    reports = check_meshes(scene)
+    silent = silent_scene(reports, len(scene.shapes()), label)
+    if silent is not None:
+        raise SceneError(silent)
+    warn_mesh_defects(reports, label)
     _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}
@@ -197,7 +204,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     lo, hi = np.array(bbox.min, np.float64), np.array(bbox.max, np.float64)
     if not (np.all(np.isfinite(lo)) and np.all(hi >= lo)):
         raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
+    automatic_track = params.n_pulses == 0
     params = resolve_parameters(params, lo, hi)
+    check_geometry(params, lo, hi, shape_points(scene), automatic_track, offset)   # before any cost estimate
     radar_equation(params)                   # radiometry parameters checked before any tracing
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
     name = label if path is None else str(source if source is not None else "urban")

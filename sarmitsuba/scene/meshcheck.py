@@ -1,8 +1,11 @@
-"""Geometry checks on loaded meshes: degenerate input is reported, never fatal.
+"""Geometry checks on loaded meshes: defects are reported; a scene that cannot scatter is refused.
 
 The tracer is robust to all of these (a zero-area triangle's undefined normal is treated as
 a miss; open and non-manifold meshes simply reflect what they have). They usually mean a
-modelling error, so :func:`warn_mesh_defects` says which shapes have which defects.
+modelling error, so :func:`warn_mesh_defects` says which shapes have which defects. A shape
+whose every triangle has zero area (collinear vertices, a flattened export) can neither scatter
+nor shadow: it is missing from the image, which the warning says; when no shape of the scene can
+scatter, the products would be all zero, and :func:`silent_scene` gives the loader's refusal.
 
 :func:`check_meshes` checks all meshes of a scene at once with NumPy (Munich's 2,367 meshes in
 0.1 s); :func:`check_mesh` is the readable per-mesh reference with trimesh (1.2 s for Munich),
@@ -10,13 +13,15 @@ which the tests compare it with.
 """
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-__all__ = ["MeshReport", "check_meshes", "check_all", "check_mesh", "warn_mesh_defects", "MeshDefectWarning"]
+__all__ = ["MeshReport", "check_meshes", "check_all", "check_mesh", "warn_mesh_defects", "MeshDefectWarning",
+           "shape_label", "shape_points", "silent_scene"]
 
 #: Triangles with area below this [m^2] count as degenerate (zero-area).
 DEGENERATE_AREA = 1e-12
@@ -41,6 +46,8 @@ class MeshReport:
         Neighbouring triangles disagree on orientation (normals flip across an edge).
     open : bool
         Not watertight (expected for planes and sheet-like reflectors).
+    faces : int
+        Number of triangles (-1: not counted).
     """
 
     shape: str
@@ -49,6 +56,13 @@ class MeshReport:
     non_manifold_edges: int
     inconsistent_winding: bool
     open: bool
+    faces: int = -1
+
+    @property
+    def cannot_scatter(self) -> bool:
+        """Whether every triangle has zero area (or there is none): the shape neither scatters
+        nor shadows."""
+        return self.faces >= 0 and self.degenerate_faces == self.faces
 
     @property
     def defective(self) -> bool:
@@ -57,10 +71,39 @@ class MeshReport:
                     or self.inconsistent_winding)
 
 
+#: The file a Mitsuba mesh was loaded from, in its description: ``name = "flat.ply"``.
+_MESH_NAME = re.compile(r'^\s*name = "(?P<name>[^"]+)"', re.M)
+
+
+def shape_label(shape, index: int) -> str:
+    """How messages name a Mitsuba shape: its id, else (a mesh without one) the file it was
+    loaded from, else ``#shape<index>``, its place in the scene."""
+    if shape.id():
+        return shape.id()
+    found = _MESH_NAME.search(str(shape)) if shape.is_mesh() else None
+    return found["name"] if found else f"#shape{index}"
+
+
+def shape_points(scene) -> list[tuple[str, np.ndarray]]:
+    """Every shape's :func:`shape_label` and points, float64 [n, 3] (m): a mesh's vertices, an
+    analytic shape's (sphere, disk) bounding-box corners; for the planner's geometry checks."""
+    points = []
+    for index, shape in enumerate(scene.shapes()):
+        if shape.is_mesh():
+            vertices = np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3)
+        else:
+            lo, hi = np.array(shape.bbox().min, np.float64), np.array(shape.bbox().max, np.float64)
+            vertices = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        points.append((shape_label(shape, index), vertices))
+    return points
+
+
 def check_meshes(scene) -> list[MeshReport]:
-    """Check every mesh shape of a Mitsuba scene; returns one report per mesh (scene order)."""
-    meshes = [(shape.id(), np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3),
-               np.array(shape.faces_buffer(), np.int64).reshape(-1, 3)) for shape in scene.shapes() if shape.is_mesh()]
+    """Check every mesh shape of a Mitsuba scene; returns one report per mesh (scene order),
+    named by :func:`shape_label`."""
+    meshes = [(shape_label(shape, index), np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3),
+               np.array(shape.faces_buffer(), np.int64).reshape(-1, 3))
+              for index, shape in enumerate(scene.shapes()) if shape.is_mesh()]
     return check_all(meshes)
 
 
@@ -116,7 +159,7 @@ def check_all(meshes: list) -> list[MeshReport]:
     inconsistent = np.bincount(edge_mesh[order[0::2]][same_way], minlength=n) > 0
     empty = np.bincount(kept_mesh, minlength=n) == 0
     return [MeshReport(name, int(degenerate[i]), int(duplicates[i]), int(non_manifold[i]),
-                       bool(inconsistent[i] or empty[i]), bool(open_[i] or empty[i]))
+                       bool(inconsistent[i] or empty[i]), bool(open_[i] or empty[i]), int(n_f[i]))
             for i, (name, _, _) in enumerate(meshes)]
 
 
@@ -139,15 +182,32 @@ def check_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> MeshReport
     _, counts = np.unique(edges, axis=0, return_counts=True)
     clean = trimesh.Trimesh(merged.vertices, kept, process=False)
     return MeshReport(name, degenerate, int(duplicates), int(np.count_nonzero(counts > 2)),
-                      not clean.is_winding_consistent, not clean.is_watertight)
+                      not clean.is_winding_consistent, not clean.is_watertight, len(raw.faces))
+
+
+def silent_scene(reports: list[MeshReport], n_shapes: int, source: str) -> str | None:
+    """The loader's refusal of a scene none of whose ``n_shapes`` shapes can scatter (all are
+    meshes whose every triangle has zero area: the products would be all zero), naming them;
+    None when some shape can scatter."""
+    silent = [r for r in reports if r.cannot_scatter]
+    if not silent or len(silent) < n_shapes:
+        return None
+    named = ", ".join(repr(r.shape) for r in silent[:10]) + (f" and {len(silent) - 10} more" if len(silent) > 10 else "")
+    shapes, it = ("shape " + named + " has", "it") if len(silent) == 1 else ("shapes " + named + " have", "they")
+    return (f"{source}: {shapes} only triangles of zero area (below {DEGENERATE_AREA:g} m^2: collinear or "
+            f"coincident vertices): {it} cannot scatter and the scene has nothing else, so every product would be "
+            "zero; check the mesh export (a flattened axis, units) and the shape's to_world transform (a scale of 0)")
 
 
 def warn_mesh_defects(reports: list[MeshReport], source: str) -> None:
-    """One :class:`MeshDefectWarning` summarising the defective meshes of a scene, if any."""
+    """One :class:`MeshDefectWarning` summarising the defective meshes of a scene, if any; a
+    mesh whose every triangle has zero area is said to be missing from the image."""
     bad = [r for r in reports if r.defective]
     if not bad:
         return
     listed = "; ".join(
+        f"{r.shape}: " + (f"all {r.faces} triangles have zero area" if r.faces else "no triangles")
+        + ": it cannot scatter and is missing from the image" if r.cannot_scatter else
         f"{r.shape}: " + ", ".join(part for part in (
             f"{r.degenerate_faces} zero-area triangles" if r.degenerate_faces else "",
             f"{r.duplicate_faces} duplicate triangles" if r.duplicate_faces else "",
