@@ -11,7 +11,8 @@ acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`Scen
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
-- the estimated cost: sub-apertures, ray casts, returns, trace time, memory, image size and
+- the estimated cost: sub-apertures, ray casts, returns, trace time, peak memory (the render
+  process's peak resident set: runtime, scene, tracer's working set and arrays), image size and
   focusing time (:mod:`sarmitsuba.analysis.cost`, re-exported here: :class:`CostEstimate`,
   :func:`cast_rates`, :func:`check_memory`, ...).
 
@@ -476,8 +477,13 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         f"{_duration(c.trace_time_high_s)}: primary rays only .. upper-bound casts, at "
         f"{c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and {c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s "
         f"and {RETURN_SECONDS * 1e9:g} ns per return on 2 cores)",
-        f"memory: {memory}, raw data {format_bytes(c.raw_bytes)} ({c.n_pulses} x {c.fast_time_samples} complex64), "
-        f"image {format_bytes(c.image_bytes)}; peak ~ {format_bytes(c.peak_memory_bytes)}",
+        f"memory: runtime and scene {format_bytes(c.runtime_bytes)}, tracer's working set "
+        f"{format_bytes(c.trace_working_bytes)} ({c.lanes_per_launch:,} tubes per launch, a histogram of "
+        f"{c.histogram_entries:,} entries on {c.threads} threads), {memory}, raw data {format_bytes(c.raw_bytes)} "
+        f"({c.n_pulses} x {c.fast_time_samples} complex64), image {format_bytes(c.image_bytes)}, focusing "
+        f"{format_bytes(c.focus_working_bytes)}",
+        f"peak memory ~ {format_bytes(c.peak_memory_bytes)} (the process's peak resident set, within a factor 2: "
+        "runtime and scene plus the larger of tracing and focusing)",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
         f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "

@@ -8,7 +8,10 @@ window and ray footprint of :mod:`sarmitsuba.scene.planning`, the image grid of
 its peak memory exceeds what is available (:func:`available_memory`, :func:`memory_problem`).
 
 Every time is an estimate from the measured rates below, for the 2-core reference machine
-(docs/design.md section 10): expect a factor of 2 either way.
+(docs/design.md section 10): expect a factor of 2 either way. The peak memory is the whole
+render process's peak resident set (Python, Mitsuba and Dr.Jit with its LLVM JIT, the tracer's
+working set, the arrays), from the measured constants below (issue 28): within a factor of 2 of
+the measured peak RSS on the scenes and settings listed at :data:`RUNTIME_BYTES`.
 """
 from __future__ import annotations
 
@@ -16,14 +19,15 @@ import math
 import os
 from dataclasses import dataclass
 
+import drjit as dr
 import numpy as np
 
-from ..tracing.deposit import padded_length
+from ..tracing.deposit import SPECTRAL_ORDERS, padded_length
 from ..scene.effects import EffectSet, active_effects
 from ..focus.scene_grid import image_grid
 from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters
 from ..scene.loader import LoadedScene
-from ..tracing.trace import pulses_per_trace
+from ..tracing.trace import HISTOGRAM_ENTRIES, pulses_per_trace
 from ..scene.trace_inputs import FastTimeWindow, RayFootprint
 
 __all__ = ["CostEstimate", "cost_estimate", "cast_rates", "synthetic_aperture", "available_memory", "memory_problem",
@@ -85,6 +89,50 @@ BACKPROJECTION_TILE_SECONDS = 2.2e-4
 BACKPROJECTION_TILE = (16, 128)
 BACKPROJECTION_PULSE_BLOCK = 128
 
+# ---------------------------------------------------------------------------- peak memory
+# Measured (issue 28) as the peak resident set of `sarmitsuba render` (GNU time's "Maximum resident
+# set size", and /proc/self/statm sampled every millisecond per phase) on the 2-core machine,
+# variant llvm_ad_mono, Mitsuba 3.9.1, Dr.Jit 1.5.0, libLLVM 19, NumPy 2.4, SciPy 1.17. Fitted on
+# trihedral, dihedral (219 and 4,000 pulses), urban (default; 2,000 pulses; ray spacing 0.4 m;
+# max_depth 1 and 5; quad; split_bounces; max_batch_rays 65536..524288; 600 MHz), sionna:munich
+# and a 498,002-triangle mesh: the estimate is 0.8-1.5 times the measured peak on all of them.
+
+#: Resident bytes of a render before it traces: Python, NumPy/SciPy, Mitsuba and Dr.Jit with the
+#: LLVM backend and libLLVM, sarmitsuba and a small scene loaded and planned. Measured 210-213 MiB
+#: at the start of the trace for trihedral, dihedral and urban (a render of the tiniest scenes
+#: peaks at 313 MiB in all).
+RUNTIME_BYTES = 215 * 2**20
+#: Scene bytes per triangle and per shape (Mitsuba's meshes, Embree's BVH, the kernel's float64
+#: triangle table and convex parts; the peak of loading): 800 B per triangle fitted to a
+#: 498,002-triangle mesh (+365 MiB), plus 12 kB per shape to sionna:munich (38,936 triangles in
+#: 2,367 shapes: +56 MiB).
+SCENE_TRIANGLE_BYTES = 800
+SCENE_SHAPE_BYTES = 12_000
+#: Working set of the trace that does not grow with its launches [bytes]: the compiled kernels,
+#: the JIT's buffers and the FFT block of the reduction to the band (256 pulses of the zero-padded
+#: fine grid, :func:`sarmitsuba.tracing.deposit.reduce_deposit`); fitted: 52 MiB.
+TRACE_FIXED_BYTES = 52 * 2**20
+#: Dr.Jit memory per lane of one launch [bytes]: its tubes, hits and records, the returns' term
+#: lists of every bounce order and the allocator's cache of their freed arrays (Dr.Jit keeps them
+#: until the trace ends). Fitted to urban with max_batch_rays 65,536, 131,072, 262,144 and 524,288
+#: (trace working set 163, 288, 541 and 853 MiB): 1.4 kB (1.05 kB at max_depth 1).
+LANE_BYTES = 1400
+#: Bytes per complex entry of a batch's fine-grid histogram (:data:`HISTOGRAM_ENTRIES` at most):
+#: :data:`HISTOGRAM_ENTRY_BYTES` for the NumPy sum of its launches, plus
+#: :data:`HISTOGRAM_THREAD_BYTES` per Dr.Jit worker thread, because the deposit's
+#: ``ReduceMode.Expand`` keeps one copy per thread (Dr.Jit's documentation: an array's storage
+#: grows N-fold on N cores; about 2.5 copies with the allocator's cache). Measured with 1, 2 and 8
+#: threads (``dr.set_thread_count``) on dihedral with 4,000 pulses (4.0 M entries: +62 MiB per
+#: thread) and urban (2.5 M entries: +65 MiB per thread).
+HISTOGRAM_ENTRY_BYTES = 8
+HISTOGRAM_THREAD_BYTES = 20
+#: Focusing and writing one image, per pixel [bytes]: fast factorised backprojection's sum grid,
+#: polar images and workspaces and the calibrated copy; fitted to urban (0.97 M pixels: +43 MiB),
+#: urban at 600 MHz (3.1 M: +121 MiB) and sionna:munich (12.2 M: +193 MiB).
+FOCUS_PIXEL_BYTES = 24
+#: Writing the products (NPZ files, PNG previews through matplotlib) [bytes]: 25-50 MiB measured.
+WRITE_BYTES = 30 * 2**20
+
 
 @dataclass(frozen=True)
 class CostEstimate:
@@ -103,16 +151,27 @@ class CostEstimate:
     the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
     between low and high.
 
-    Memory: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
+    Arrays: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
     = ``max_depth`` with ``split_bounces``, else 1, times the channels: 4 for ``quad``;
     :func:`sarmitsuba.tracing.deposit.padded_length`), or with the ``exact`` range kernel its term list
     instead, at most one path per return and channel of :data:`PATH_BYTES` each; one raw data
     set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64 ``image_shape``.
     ``n_products`` raw/image pairs are made (``1 + max_depth`` with ``split_bounces``, times the
     channels). The casts are the same for every polarisation (one trace for all channels); the
-    returns' extra work per channel is not modelled. ``peak_memory_bytes``: the spectra (or path list) and every raw data
-    set and image, all held at once at the end of a render (:func:`check_memory` compares it with
-    the memory available).
+    returns' extra work per channel is not modelled.
+
+    Peak memory [bytes], the render process's peak resident set (measured constants at
+    :data:`RUNTIME_BYTES`): ``runtime_bytes`` (the runtime, :data:`RUNTIME_BYTES`, and the scene,
+    :data:`SCENE_TRIANGLE_BYTES` and :data:`SCENE_SHAPE_BYTES`), plus the larger of two phases.
+    Tracing: ``trace_working_bytes`` (:data:`TRACE_FIXED_BYTES`, :data:`LANE_BYTES` per lane of the
+    largest launch, ``lanes_per_launch``, and per entry of a batch's histogram,
+    ``histogram_entries``, :data:`HISTOGRAM_ENTRY_BYTES` plus :data:`HISTOGRAM_THREAD_BYTES` per
+    Dr.Jit thread, ``threads``), the spectra filled so far and the path list twice (its batches and
+    their concatenation). Products: the spectra twice (with their sum over bounce orders), the
+    path list, every raw data set twice (with its range-windowed copy) and image, and
+    ``focus_working_bytes`` (:data:`FOCUS_PIXEL_BYTES` per pixel and :data:`WRITE_BYTES`).
+    ``pulse_memory_bytes`` is the part of the peak that grows with the pulse count (spectra, path
+    list, raw data). :func:`check_memory` compares ``peak_memory_bytes`` with the memory available.
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
     footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
@@ -147,6 +206,13 @@ class CostEstimate:
     backprojection_pixel_pulses: int
     focus_time_s: float
     direct_backprojection_time_s: float
+    threads: int
+    lanes_per_launch: int
+    histogram_entries: int
+    runtime_bytes: int
+    trace_working_bytes: int
+    focus_working_bytes: int
+    pulse_memory_bytes: int
     peak_memory_bytes: int
 
 
@@ -220,7 +286,11 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
     deposit = 0 if exact else groups * n_pulses * n_pad * 8
+    path_list = paths * PATH_BYTES * len(effects.channels) if exact else 0
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
+    arrays = dict(deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
+                  pixels=grid.shape[0] * grid.shape[1])
+    memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays)
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
         pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
@@ -228,12 +298,42 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
         pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
         trace_time_s=trace_time(0.5 * (primary + casts)),
         fast_time_samples=window.n_samples, fine_samples=window.n_fine,
-        deposit_bytes=deposit, path_list_bytes=paths * PATH_BYTES * len(effects.channels) if exact else 0, raw_bytes=raw_bytes,
+        deposit_bytes=deposit, path_list_bytes=path_list, raw_bytes=raw_bytes,
         image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
         backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
-        direct_backprojection_time_s=n_products * direct,
-        peak_memory_bytes=deposit + (paths * PATH_BYTES * len(effects.channels) if exact else 0)
-        + n_products * (raw_bytes + image_bytes))
+        direct_backprojection_time_s=n_products * direct, **memory)
+
+
+def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: bool, per_sub: int,
+            subs: tuple[int, int], arrays: dict) -> dict:
+    """The peak-memory fields of :class:`CostEstimate` (its model; constants at :data:`RUNTIME_BYTES`).
+
+    ``groups``: spectra deposited per pulse (channels x bounce groups); ``exact``: the ``exact``
+    kernel, which keeps no histogram; ``per_sub``: tubes of one sub-aperture (its lattice and refined
+    cells); ``subs``: pulses per sub-aperture and sub-apertures; ``arrays``: the bytes of
+    the spectra (``deposit``), ``path_list``, one ``raw`` data set and one ``image``, ``n_products`` and the
+    image's ``pixels``.
+    Batches follow :func:`sarmitsuba.tracing.trace.plan_trace`: as many sub-apertures as fit in
+    ``max_batch_rays`` tubes and :data:`HISTOGRAM_ENTRIES` histogram entries.
+    """
+    st, n_pulses, (size, n_subs) = loaded.settings, loaded.params.n_pulses, subs
+    per_pulse_entries = len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
+    budget = max(size, HISTOGRAM_ENTRIES // per_pulse_entries)
+    per_batch = max(1, min(n_subs, st.max_batch_rays // max(per_sub, 1), budget // size))
+    lanes = min(st.max_batch_rays, per_batch * per_sub)
+    entries = 0 if exact else per_pulse_entries * min(n_pulses, per_batch * size)
+    threads = max(1, dr.thread_count())
+    runtime = RUNTIME_BYTES + SCENE_TRIANGLE_BYTES * loaded.n_triangles + SCENE_SHAPE_BYTES * loaded.n_shapes
+    working = (TRACE_FIXED_BYTES + LANE_BYTES * lanes
+               + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * threads) * entries)
+    focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
+    n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
+    tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)
+    products = (n * arrays["image"] + focusing, 2 * deposit + path_list + 2 * n * arrays["raw"])
+    phase = max(tracing, products, key=sum)
+    return dict(threads=threads, lanes_per_launch=int(lanes), histogram_entries=int(entries),
+                runtime_bytes=int(runtime), trace_working_bytes=int(working), focus_working_bytes=int(focusing),
+                pulse_memory_bytes=int(phase[1]), peak_memory_bytes=int(runtime + sum(phase)))
 
 
 def _checked_grid(loaded: LoadedScene, geometry: AcquisitionGeometry):
@@ -292,27 +392,45 @@ def memory_problem(cost: CostEstimate, params: RadarParameters, available: int |
     if cost.peak_memory_bytes <= available:
         return None
     n = cost.n_products
-    terms = {"spectra": cost.deposit_bytes, "path list": cost.path_list_bytes,
-             "raw data": n * cost.raw_bytes, "image": n * cost.image_bytes}
+    terms = {"runtime and scene": cost.runtime_bytes, "tracer's working set": cost.trace_working_bytes,
+             "spectra": cost.deposit_bytes, "path list": cost.path_list_bytes, "raw data": n * cost.raw_bytes,
+             "image": n * cost.image_bytes, "focusing": cost.focus_working_bytes}
     parts = ", ".join(f"{name} {format_bytes(size)}" for name, size in terms.items() if size)
-    text = (f"the render would need about {format_bytes(cost.peak_memory_bytes)} of memory ({parts}) but "
-            f"{format_bytes(available)} is available ({MEMORY_LIMIT_ENV} overrides it)")
-    largest = max(terms, key=terms.get)
-    if largest == "image":
-        return (f"{text}: the image grid {cost.image_shape[0]} x {cost.image_shape[1]} pixels dominates; its pixels "
+    text = (f"the render would need about {format_bytes(cost.peak_memory_bytes)} of memory ({parts}; not all "
+            f"held at once) but {format_bytes(available)} is available ({MEMORY_LIMIT_ENV} overrides it)")
+    return f"{text}: {_memory_fix(cost, params, available, max(terms, key=terms.get))}"
+
+
+def _memory_fix(cost: CostEstimate, params: RadarParameters, available: int, largest: str) -> str:
+    """What to change when the term ``largest`` of :func:`memory_problem` dominates."""
+    if largest in ("image", "focusing"):
+        return (f"the image grid {cost.image_shape[0]} x {cost.image_shape[1]} pixels dominates; its pixels "
                 "are half the finer resolution: lower bandwidth, narrow the beam or use a smaller scene")
-    per_pulse = (cost.peak_memory_bytes - n * cost.image_bytes) / max(cost.n_pulses, 1)
-    fit = max(1, int((available - n * cost.image_bytes) // max(per_pulse, 1)))
-    fix = (f"use fewer pulses (--pulses {fit} or fewer; sar n_pulses = {cost.n_pulses} now) or a shorter "
-           f"fast-time window ({cost.fast_time_samples} samples: a smaller scene, or --set "
-           f"sampling_rate=... closer to bandwidth = {params.bandwidth / 1e6:g} MHz)")
+    if largest == "runtime and scene":
+        return (f"the runtime (Python, Mitsuba, Dr.Jit and LLVM: {format_bytes(RUNTIME_BYTES)}) and the scene "
+                "dominate: use a smaller scene (fewer triangles and shapes) or a machine with more memory")
+    if largest == "tracer's working set":
+        lanes = (available - cost.peak_memory_bytes) // LANE_BYTES + cost.lanes_per_launch   # the lanes that fit
+        return (f"the tracer's working set dominates ({cost.lanes_per_launch:,} ray tubes per launch x "
+                f"{LANE_BYTES} B, a fine-grid histogram of {cost.histogram_entries:,} entries x "
+                f"({HISTOGRAM_ENTRY_BYTES} + {HISTOGRAM_THREAD_BYTES} x {cost.threads} threads) B): launch fewer "
+                f"tubes at once (--integrator-set max_batch_rays={max(1024, lanes)} or fewer; at least 1024)")
+    fixed = cost.peak_memory_bytes - cost.pulse_memory_bytes
+    per_pulse = cost.pulse_memory_bytes / max(cost.n_pulses, 1)
+    if available <= fixed + per_pulse:
+        fix = (f"even one pulse would not fit: the runtime, scene, tracer and image alone need about "
+               f"{format_bytes(fixed)}")
+    else:
+        fix = (f"use fewer pulses (--pulses {int((available - fixed) // per_pulse)} or fewer; sar n_pulses = "
+               f"{cost.n_pulses} now) or a shorter fast-time window ({cost.fast_time_samples} samples: a smaller "
+               f"scene, or --set sampling_rate=... closer to bandwidth = {params.bandwidth / 1e6:g} MHz)")
     if largest == "path list":
         fix = f"the exact range kernel's path list dominates: use --range-kernel linear, or {fix}"
     else:
         fix = f"the {largest} (pulses x fast-time samples) dominate: {fix}"
-    if n > 1:
-        fix += f", or drop split_bounces ({n} raw data sets and images)"
-    return f"{text}: {fix}"
+    if cost.n_products > 1:
+        fix += f", or drop split_bounces ({cost.n_products} raw data sets and images)"
+    return fix
 
 
 def check_memory(loaded: LoadedScene, geometry: AcquisitionGeometry, window: FastTimeWindow,
