@@ -121,22 +121,16 @@ def test_no_module_uses_another_modules_private_attribute():
     bad = []
     for module, path in modules.items():
         tree = ast.parse(path.read_text())
+        target_at = {line: target for target, _, line in _imports(module, path)}     # ImportFrom line -> module
         aliases = {a.asname or a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
-                   for a in n.names if _resolve(_target_of(module, path, n), a.name, modules) in modules
-                   and f"{_target_of(module, path, n)}.{a.name}".strip(".") in modules}
+                   for a in n.names if _resolve(target_at.get(n.lineno, ""), a.name, modules) in modules
+                   and f"{target_at.get(n.lineno, '')}.{a.name}".strip(".") in modules}
         for node in ast.walk(tree):
             if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
                     and node.value.id in aliases and node.attr.startswith("_")
                     and not node.attr.startswith("__")):
                 bad.append(f"sarmitsuba/{path.relative_to(PACKAGE)}:{node.lineno} uses {node.value.id}.{node.attr}")
     assert not bad, "private attributes of other modules used:\n" + "\n".join(bad)
-
-
-def _target_of(module: str, path: Path, node: ast.ImportFrom) -> str:
-    for target, _, line in _imports(module, path):
-        if line == node.lineno:
-            return target
-    return ""
 
 
 def _graph() -> dict[str, set[str]]:
