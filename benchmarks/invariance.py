@@ -26,7 +26,7 @@ lattice move, complex images otherwise); the ``meets`` column says which rows do
 trace seconds) into the output folder (``_table.output_dir``).
 
 Usage: ``python benchmarks/invariance.py [--quick] [--tiny]`` (quick: urban and the block;
-tiny: the block with 200 pulses, lattice move and one pulse per trace, a smoke test).
+tiny: the block with 64 pulses, lattice move and one pulse per trace, a smoke test).
 """
 from __future__ import annotations
 
@@ -175,7 +175,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     if munich:
         scenes["munich"] = ("sionna:munich", {"n_pulses": 512})
     if tiny:
-        scenes = {"block": (block(200), {})}
+        scenes = {"block": (block(64), {})}
     rows = []
     for label, (scene, sensor) in scenes.items():
         rows += sweep(label, scene, sensor, tiny)

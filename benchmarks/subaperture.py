@@ -102,7 +102,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     print(machine())
     scenes = dict(SCENES)
     if quick or tiny or importlib.util.find_spec("sionna") is None:
-        scenes = {"urban": {"n_pulses": 96} if tiny else {}}
+        scenes = {"urban": {"n_pulses": 32} if tiny else {}}
     rows = []
     for scene, sensor in scenes.items():
         rows += sweep(scene, sensor, (4, 0) if tiny else SWEEP)
