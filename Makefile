@@ -31,8 +31,10 @@ $(STAMP): pyproject.toml
 render: setup
 	$(PY) -m sarmitsuba render $(SCENE) --out $(OUT)
 
+# -n auto: one pytest worker per core (pytest-xdist); --dist loadfile keeps a file's tests, and the
+# renders its module fixtures share, on one worker.
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 bench: setup
 	$(PY) benchmarks/run.py

@@ -119,6 +119,7 @@ def test_focus_command_with_every_algorithm(tmp_path, capsys):
 
 
 def _nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = np.asarray(a, np.complex128), np.asarray(b, np.complex128)
     return float(10 * np.log10(max(np.sum(np.abs(a - b) ** 2), 1e-300) / np.sum(np.abs(b) ** 2)))
 
 
