@@ -25,7 +25,10 @@ llvm:
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev,sionna]'
+	@# setuptools prints an information-only banner for every editable install of a package-dir layout
+	@# (plugins/ and scenes/ install as sarmitsuba_plugins and sarmitsuba_scenes): only that message is
+	@# filtered; a deprecation or any other build warning still shows
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[dev,sionna]'
 	touch $(STAMP)
 
 render: setup
