@@ -43,6 +43,10 @@
  * - look_side
    - string
    - ``right`` (default) or ``left`` of the track.
+ * - collection_start
+   - string, ISO 8601 UTC time
+   - Time of the first pulse, with an offset: ``2026-11-24T10:00:00Z`` (default: the moment
+     of the render). Written into CPHD, SICD and GeoTIFF; set it for reproducible files.
  * - heading
    - float, deg
    - Track direction counter-clockwise from +x (default 0: flying along +x, looking -y).

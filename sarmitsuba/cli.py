@@ -282,7 +282,7 @@ def _render(args: argparse.Namespace) -> int:
     print(summary.line())
     if args.figures:
         from .products.figures import redraw
-        paths = redraw(args.out or _default_out(args.scene))
+        paths = redraw(args.out or _default_out(args.scene), scene=args.scene or "urban")
         print(f"figures: {', '.join(str(p) for p in paths.values())}")
     return 0
 

@@ -357,7 +357,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
     timings["total"] = time.perf_counter() - start
     result = sim.trace
     return RenderSummary(
-        scene=sim.loaded.source, timings=timings, n_pulses=sim.raw.n_pulses,
+        scene=Path(sim.loaded.source).name, timings=timings, n_pulses=sim.raw.n_pulses,
         rays_traced=int(result.rays_per_order.sum() + result.shadow_rays),
         rays_per_order=result.rays_per_order.tolist(), shadow_rays=result.shadow_rays,
         energy_per_order=result.energy_per_order.tolist(), energy_outside_window=result.energy_outside_window,
@@ -436,9 +436,12 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
 
 
 def _world_params(loaded: LoadedScene):
-    """Radar parameters with the scene centre in the world frame."""
+    """Radar parameters with the scene centre in the world frame, and ``collection_start`` the
+    moment of the render (UTC) when the sensor does not give it."""
+    import datetime
     center = np.asarray(loaded.params.scene_center) + loaded.offset
-    return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()))
+    start = loaded.params.collection_start or datetime.datetime.now(datetime.timezone.utc).isoformat()
+    return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()), collection_start=start)
 
 
 def _metadata(loaded: LoadedScene, ray_spacing: float, result, effects) -> dict:
@@ -448,7 +451,8 @@ def _metadata(loaded: LoadedScene, ray_spacing: float, result, effects) -> dict:
     from . import __version__
     settings = loaded.settings
     return {
-        "scene": loaded.source, "scene_path": None if loaded.path is None else str(loaded.path),
+        # names, not paths: no absolute path of the user's machine travels with the products
+        "scene": Path(loaded.source).name, "scene_path": None if loaded.path is None else loaded.path.name,
         "radar": dataclasses.asdict(_world_params(loaded)), "settings": dataclasses.asdict(settings),
         "frame_offset": loaded.offset.tolist(),
         "ray_spacing": ray_spacing, "effects": [str(e) for e in effects], "units": "sqrt(m^2) (normalised radiometry)",

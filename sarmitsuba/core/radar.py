@@ -23,7 +23,7 @@ from .constants import SPEED_OF_LIGHT
 from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
 
 __all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
-           "HALF_POWER_SINC", "ValidRange", "VALID_RANGES"]
+           "HALF_POWER_SINC", "ValidRange", "VALID_RANGES", "utc_time"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
 #: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
@@ -132,6 +132,11 @@ class RadarParameters:
         ``"compressed"`` (default: range-compressed raw data) or ``"raw"`` (chirped echoes
         ``rect(t / T_p) exp(j pi K_r t^2)``, band-limited to the receiver band; the fast-time
         window grows by ``T_p`` so every chirp fits).
+    collection_start : str, optional
+        UTC time of the first pulse, ISO 8601 with an offset (``"2026-11-24T10:00:00Z"``),
+        stored as ``"2026-11-24T10:00:00+00:00"``; written into CPHD, SICD and GeoTIFF. None
+        (default): the moment of the render (:func:`sarmitsuba.pipeline.simulate`); set it
+        for reproducible files.
 
     Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
     frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
@@ -174,11 +179,14 @@ class RadarParameters:
     mode: str = "stripmap"
     squint: float = 0.0
     beam: str = "tapered"
+    collection_start: str | None = None
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
             object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
         check_ranges(self)                   # units and ranges first: the checks below divide by them
+        if self.collection_start is not None:
+            object.__setattr__(self, "collection_start", utc_time(self.collection_start))
         try:
             georef.parse(self.geo_origin)
         except georef.GeoReferenceError as exc:
@@ -409,7 +417,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization", "output", "mode", "beam"):
+            elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start"):
                 out[name] = str(value)
             else:
                 out[name] = float(value)
@@ -508,3 +516,22 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
     positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :] + np.asarray(params.track_offset, float)
     velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)
     return AcquisitionGeometry(positions, velocity, t, center, track, look)
+
+
+def utc_time(text: Any) -> str:
+    """``collection_start`` as an ISO 8601 UTC string (``"2026-11-24T10:00:00+00:00"``) from an
+    ISO 8601 time with an offset (``Z`` or ``+hh:mm``; ``datetime.fromisoformat``). Raises
+    ParameterError naming ``collection_start`` for anything else, a time without an offset
+    included (it would be read in the machine's own zone)."""
+    import datetime
+    try:
+        when = datetime.datetime.fromisoformat(str(text).strip())
+    except ValueError:
+        when = None
+    if when is None or when.tzinfo is None:
+        problem = "has no UTC offset" if when is not None else "is not an ISO 8601 time"
+        raise ParameterError(f"collection_start = {text!r} {problem}: give the UTC time of the first pulse as ISO "
+                             "8601 with an offset, e.g. --set collection_start=2026-11-24T10:00:00Z (or leave it "
+                             "out for the moment of the render)")
+    return when.astimezone(datetime.timezone.utc).isoformat()
+

@@ -393,13 +393,17 @@ def write_figures(out_dir: str | os.PathLike | OutputDirectory, raw: RawData | N
     return paths
 
 
-def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]:
+def redraw(out_dir: str | os.PathLike, *, scene: bool | str = True) -> dict[str, Path]:
     """Redraw every figure from the files of a ``render`` output directory, without tracing.
 
     Reads ``raw.npz`` (if present), ``image.npz`` and ``image_order<k>.npz`` (sorted by
-    ``k``), or for a quad-pol render the HH channel's (``raw_HH.npz``, ``image_HH.npz``, ...); with ``scene`` (default), also loads the scene named in
-    ``image.metadata["scene_path"]`` with the radar parameters the image was made with
-    (``image.metadata["radar"]``) for the overlay, when that file exists. The figures appear
+    ``k``), or for a quad-pol render the HH channel's (``raw_HH.npz``, ``image_HH.npz``, ...).
+    With ``scene`` (default True), also loads the scene with the radar parameters the image was
+    made with (``image.metadata["radar"]``) for the overlay: ``scene`` itself when it is a
+    string (a scene as ``load_scene`` takes it: the command line passes the one it rendered),
+    else the one ``image.metadata["scene"]`` names when it can be found from here (a built-in
+    or Sionna name, or a file name in the working directory: the metadata keep no absolute
+    paths). The figures appear
     together or none (:class:`~sarmitsuba.core.outputs.OutputDirectory`) and join the render's
     list of products (``summary.json["files"]``), so a later render that draws none removes them.
 
@@ -422,17 +426,24 @@ def redraw(out_dir: str | os.PathLike, *, scene: bool = True) -> dict[str, Path]
     raw = RawData.load(out / f"raw{tag}.npz") if (out / f"raw{tag}.npz").is_file() else None
     orders = sorted(out.glob(f"image{tag}_order*.npz"), key=lambda p: int(re.sub(r"\D", "", p.stem) or 0))
     per_order = [SarImage.load(p) for p in orders]
-    loaded = _scene_of(image) if scene else None
+    loaded = _scene_of(image, scene if isinstance(scene, str) else None) if scene else None
     with OutputDirectory(out, products="add") as staged:
         return write_figures(staged, raw, image, per_order, loaded)
 
 
-def _scene_of(image: SarImage) -> Any:
-    """The scene an image was made from, with its radar parameters; None when unavailable."""
-    path = image.metadata.get("scene_path")
-    if not path or not Path(path).is_file():
+def _scene_of(image: SarImage, source: str | None = None) -> Any:
+    """The scene an image was made from (``source``, else the one its metadata name), with its
+    radar parameters; None when it cannot be found."""
+    from ..scene.loader import SceneError, load_scene, resolve_source
+    for candidate in (source,) if source else (image.metadata.get("scene"), image.metadata.get("scene_path")):
+        try:
+            if candidate and resolve_source(str(candidate)) is not None:
+                source = candidate
+                break
+        except SceneError:
+            continue
+    else:
         return None
-    from ..scene.loader import load_scene
     radar = image.metadata.get("radar") or {}
     overrides = {k: v for k, v in radar.items() if v is not None}
-    return load_scene(path, sensor_overrides=overrides)
+    return load_scene(str(source), sensor_overrides=overrides)
