@@ -110,6 +110,9 @@ def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
     parser.add_argument("--geotiff", action="store_true",
                         help="also write the ground-plane intensity as a GeoTIFF in UTM (image.tif: dB and "
                              "linear bands), placed by the sensor's geo_origin")
+    parser.add_argument("--geotiff-rotated", action="store_true",
+                        help="with --geotiff: keep the image's own grid, unresampled, with a rotated geotransform "
+                             "(default: resampled onto a north-up UTM grid, which every GIS and web map reads)")
 
 
 def _add_window_arguments(parser: argparse.ArgumentParser) -> None:
@@ -246,7 +249,7 @@ def _focus(args: argparse.Namespace) -> int:
     title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {window_title(image)}"
     with OutputDirectory(args.out, products="add") as out:      # joins a render folder's products
         paths = write_image_products(out, image, title)
-        paths.update(write_exports(out, raw, image, _formats(args)))
+        paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated))
     print(f"focused {args.raw} with {args.algorithm}: {time.perf_counter() - start:.1f} s, "
           f"{raw.n_pulses} pulses, image {image.data.shape[0]}x{image.data.shape[1]} -> {paths['png'].parent}")
     return 0
@@ -278,7 +281,7 @@ def _render(args: argparse.Namespace) -> int:
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
                      progress=not args.no_progress, **_windows(args), focuser=args.focuser,
-                     formats=_formats(args), scheduler=args.scheduler)
+                     formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated)
     print(summary.line())
     if args.figures:
         from .products.figures import redraw

@@ -234,7 +234,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
            integrator_overrides: Mapping[str, Any] | None = None,
            material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
            window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
-           scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None) -> RenderSummary:
+           scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None,
+           geotiff_north_up: bool = True) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -274,6 +275,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         Standard-format files written beside the npz products (:data:`EXPORT_FILES`; per channel
         with a ``_XX`` suffix in quad-pol), placed on the WGS84 ellipsoid by the sensor's
         ``geo_origin`` (:mod:`sarmitsuba.core.georef`).
+    geotiff_north_up : bool, default True
+        GeoTIFF resampled onto a north-up UTM grid; False: the image's own grid with a rotated
+        geotransform (:func:`sarmitsuba.formats.geotiff.write_geotiff`).
     scheduler : str, optional
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
         Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.distributed`).
@@ -307,7 +311,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
             label = f"_{name}" if name else ""
             paths.update(_write_products(out, channel.raw, channel.image, sim.loaded.params, suffix=label))
-            paths.update(write_exports(out, channel.raw, channel.image, formats, suffix=label))
+            paths.update(write_exports(out, channel.raw, channel.image, formats, suffix=label,
+                                       geotiff_north_up=geotiff_north_up))
             for k, (raw_k, image_k) in enumerate(zip(channel.raw_per_order, channel.images_per_order), start=1):
                 paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
         if sim.channels:
@@ -326,10 +331,12 @@ def check_formats(formats: Sequence[str]) -> None:
 
 
 def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | None, formats: Sequence[str],
-                  suffix: str = "") -> dict:
+                  suffix: str = "", geotiff_north_up: bool = True) -> dict:
     """Write the standard-format files of ``formats`` (:data:`EXPORT_FILES`) into the open output
     directory ``out``: CPHD from ``raw``, SICD from ``image`` (with ``raw``'s geometry when given),
-    GeoTIFF from ``image``. ``suffix`` (``_HV``) goes before the extension. Returns paths by format."""
+    GeoTIFF from ``image`` (resampled onto a north-up UTM grid, or with ``geotiff_north_up``
+    False on the image's own grid with a rotated geotransform). ``suffix`` (``_HV``) goes
+    before the extension. Returns paths by format."""
     writers = {}
     if "cphd" in formats:
         from .formats.cphd import write_cphd
@@ -339,7 +346,7 @@ def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | N
         writers["sicd"] = lambda path: write_sicd(image, path, raw=raw)
     if "geotiff" in formats:
         from .formats.geotiff import write_geotiff
-        writers["geotiff"] = lambda path: write_geotiff(image, path)
+        writers["geotiff"] = lambda path: write_geotiff(image, path, north_up=geotiff_north_up)
     return {f"{fmt}{suffix}": out.write(EXPORT_FILES[fmt].replace(".", f"{suffix}."), writer)
             for fmt, writer in writers.items()}
 

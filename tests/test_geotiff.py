@@ -1,8 +1,11 @@
-"""GeoTIFF of the ground-plane image (issue 17, item 3): corners on the map, bands, errors."""
+"""GeoTIFF of the ground-plane image (issue 17, item 3; issue 29): corners on the map, bands, errors;
+north-up by default (resampled), the rotated grid on request, band units, COG layout for large images."""
 from __future__ import annotations
 
 import dataclasses
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -14,7 +17,7 @@ from pyproj import Transformer  # noqa: E402
 from sarmitsuba.core import georef
 from sarmitsuba import pipeline  # noqa: E402
 from sarmitsuba.cli import main  # noqa: E402
-from sarmitsuba.formats.geotiff import GeoTiffError, write_geotiff  # noqa: E402
+from sarmitsuba.formats.geotiff import GeoTiffError, band_units, write_geotiff  # noqa: E402
 from sarmitsuba.core.image import SarImage  # noqa: E402
 
 
@@ -46,9 +49,9 @@ EPSG = {MUNICH: 32632, SYDNEY: 32756}
 
 @pytest.mark.parametrize("heading, ref", [(0.0, MUNICH), (30.0, MUNICH), (-110.0, SYDNEY)])
 def test_corners_on_the_map_within_a_pixel(tmp_path, heading, ref):
-    """The four corner pixel centres land on the geodetic positions of the image's corner pixels."""
+    """Rotated grid: the four corner pixel centres land on the geodetic positions of the image's corner pixels."""
     image = synthetic(heading)
-    path = write_geotiff(image, tmp_path / "image.tif", ref)
+    path = write_geotiff(image, tmp_path / "image.tif", ref, north_up=False)
     got, src = corner_centres_lonlat(path)
     pos = image.positions()
     corners = np.array([pos[0, 0], pos[0, -1], pos[-1, 0], pos[-1, -1]])
@@ -63,12 +66,12 @@ def test_corners_on_the_map_within_a_pixel(tmp_path, heading, ref):
 
 
 def test_bands_hold_db_and_linear_intensity(tmp_path):
-    """Band 2 holds |s|^2 of every pixel, band 1 its dB, NaN where s = 0 (compared as value sets:
-    the corner test checks where they are)."""
+    """Rotated grid: band 2 holds |s|^2 of every pixel, band 1 its dB, NaN where s = 0 (compared as
+    value sets: the corner test checks where they are)."""
     image = synthetic(30.0)
     image = dataclasses.replace(image, data=image.data.copy())
     image.data[3, 4] = 0
-    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(10.0, 20.0, 0.0))
+    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(10.0, 20.0, 0.0), north_up=False)
     with rasterio.open(path) as src:
         db, lin = src.read(1), src.read(2)
         assert src.descriptions == ("intensity_db", "intensity")
@@ -79,10 +82,10 @@ def test_bands_hold_db_and_linear_intensity(tmp_path):
 
 
 def test_a_track_flying_east_gives_a_north_up_raster(tmp_path):
-    """Heading 0 (east), looking right (south): columns run east, rows south, turned only by the
+    """Rotated grid, heading 0 (east), looking right (south): columns run east, rows south, turned only by the
     UTM grid convergence, gamma = dlambda sin(phi) to first order (Snyder 1987, eq. 8-14 ff.)."""
     image = synthetic(0.0)
-    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(48.1, 9.5, 0.0))
+    path = write_geotiff(image, tmp_path / "image.tif", georef.GeoReference(48.1, 9.5, 0.0), north_up=False)
     with rasterio.open(path) as src:
         t = src.transform
         assert (src.width, src.height) == (image.data.shape[0], image.data.shape[1])   # columns: azimuth
@@ -107,13 +110,18 @@ def test_render_geotiff_puts_the_trihedral_on_the_geo_origin(tmp_path, capsys):
     assert "Traceback" not in capsys.readouterr().err
     with rasterio.open(out / "image.tif") as src:
         band = src.read(2)
-        row, col = np.unravel_index(np.argmax(band), band.shape)
+        row, col = np.unravel_index(np.nanargmax(band), band.shape)
         x, y = rasterio.transform.xy(src.transform, [row], [col], offset="center")
         lon, lat = Transformer.from_crs(src.crs, "EPSG:4326", always_xy=True).transform(x[0], y[0])
         pixel = max(np.hypot(src.transform.a, src.transform.d), np.hypot(src.transform.b, src.transform.e))
+        assert src.transform.b == src.transform.d == 0 and src.transform.e < 0      # north-up by default
     north = (lat + 33.9) * 110_900.0
     east = (lon - 151.2) * 111_320.0 * np.cos(np.radians(33.9))
     assert np.hypot(north, east) <= pixel
+    assert main(["focus", str(out / "raw.npz"), "--geotiff", "--geotiff-rotated", "--out", str(tmp_path / "f"),
+                 "--no-progress"]) == 0                      # the flag reaches the writer: a rotated raster
+    with rasterio.open(tmp_path / "f" / "image.tif") as src:
+        assert abs(src.transform.b) > 0.1 * abs(src.transform.a)            # heading 30: tan(30) of a pixel
 
 
 def unique_image(heading_deg, left_looking=False):
@@ -135,7 +143,7 @@ def test_every_pixel_lies_where_the_image_puts_it(tmp_path, heading, left):
     north up without a mirror. Catches a layout (transpose / reversal) that disagrees with the
     geotransform, at headings that need each of the layouts."""
     image = unique_image(heading, left)
-    path = write_geotiff(image, tmp_path / "image.tif", MUNICH)
+    path = write_geotiff(image, tmp_path / "image.tif", MUNICH, north_up=False)
     with rasterio.open(path) as src:
         lin, db, t = src.read(2).astype(np.float64), src.read(1).astype(np.float64), src.transform
         rows, cols = np.indices(lin.shape)
@@ -160,9 +168,9 @@ def trihedral():
 
 
 def test_simulated_image_corners_and_trihedral_on_the_map(tmp_path, trihedral):
-    """Acceptance on a render: the corner pixel centres lie on the image's corner pixels (within a
-    pixel), and the brightest pixel (the trihedral, at the local origin) on geo_origin."""
-    path = write_geotiff(trihedral, tmp_path / "image.tif")           # ref from metadata["radar"]
+    """Acceptance on a render, rotated grid: the corner pixel centres lie on the image's corner pixels
+    (within a pixel), and the brightest pixel (the trihedral, at the local origin) on geo_origin."""
+    path = write_geotiff(trihedral, tmp_path / "image.tif", north_up=False)           # ref from metadata["radar"]
     got, src = corner_centres_lonlat(path)
     pos = trihedral.positions()
     want = georef.enu_to_geodetic(np.array([pos[0, 0], pos[0, -1], pos[-1, 0], pos[-1, -1]]), MUNICH)[:, [1, 0]]
@@ -187,15 +195,16 @@ def test_tags_name_the_scene_and_the_conventions(tmp_path, trihedral):
         assert float(tags["FREQUENCY_HZ"]) == 9.6e9
         assert json.loads(tags["GEO_ORIGIN"]) == [48.1, 11.6, 520.0]
         assert tags["AREA_OR_POINT"] == "Area" and tags["UNITS"] == "sqrt(m^2)"
-        assert src.tags(1)["UNITS"].startswith("dB") and src.tags(2)["UNITS"] == "sqrt(m^2) squared"
+        assert src.tags(1)["UNITS"] == "dBsm" and src.tags(2)["UNITS"] == "m^2"
         assert np.isnan(src.nodata) and src.dtypes == ("float32", "float32")
         assert src.compression.value.lower() == "deflate"
 
 
 def test_large_images_are_tiled(tmp_path):
     image = synthetic(30.0, n_az=300, n_rg=260)
-    with rasterio.open(write_geotiff(image, tmp_path / "image.tif", MUNICH)) as src:
-        assert src.profile["tiled"] and src.block_shapes[0] == (256, 256)
+    for north_up in (True, False):
+        with rasterio.open(write_geotiff(image, tmp_path / f"image{north_up}.tif", MUNICH, north_up=north_up)) as src:
+            assert src.profile["tiled"] and src.block_shapes[0] == (256, 256)
 
 
 def test_without_radar_metadata_the_image_sits_at_null_island(tmp_path):
@@ -222,3 +231,109 @@ def test_focus_geotiff_of_a_slant_plane_image_exits_2(tmp_path, capsys):
     assert "Traceback" not in err and "'slant'" in err and "--algorithm bp" in err
     assert not out.exists()
 
+
+
+# ---- issue 29: north-up by default, band units, COG layout --------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def renders():
+    """32-pulse trihedral renders at 48.1 N 11.6 E by track heading [deg], made once each."""
+    cache = {}
+
+    def render(heading):
+        if heading not in cache:
+            cache[heading] = pipeline.simulate("trihedral", sensor_overrides={
+                "n_pulses": 32, "geo_origin": "48.1, 11.6, 520", "heading": heading}).image
+        return cache[heading]
+    return render
+
+
+@pytest.mark.parametrize("heading", [0.0, 30.0])
+def test_north_up_by_default_with_the_trihedral_on_geo_origin(tmp_path, renders, heading):
+    """The default GeoTIFF is north-up (no rotation terms, rows south), and its brightest pixel's
+    centre lies within one pixel of geo_origin, both taken to the file's CRS by pyproj alone.
+    At heading 0 the rotated grid is turned only by the grid convergence (1.9 deg here), at 30 deg
+    by the track too."""
+    path = write_geotiff(renders(heading), tmp_path / "image.tif")
+    with rasterio.open(path) as src:
+        t, band = src.transform, src.read(2)
+        assert t.b == 0 and t.d == 0 and t.e < 0 < t.a and t.a == pytest.approx(-t.e)
+        row, col = np.unravel_index(np.nanargmax(band), band.shape)
+        (x,), (y,) = rasterio.transform.xy(t, [row], [col], offset="center")
+        east, north = Transformer.from_crs("EPSG:4326", src.crs, always_xy=True).transform(11.6, 48.1)
+        assert src.crs.to_epsg() == 32632
+    assert np.hypot(x - east, y - north) <= t.a, (x - east, y - north, t.a)
+
+
+def test_bands_carry_units_that_rio_info_shows(tmp_path, renders):
+    """Both bands have GDAL unit types: |s|^2 of sqrt(m^2) amplitudes in m^2, its dB in dBsm;
+    `rio info` (rasterio's CLI) prints them."""
+    path = write_geotiff(renders(30.0), tmp_path / "image.tif")
+    with rasterio.open(path) as src:
+        assert src.units == ("dBsm", "m^2")
+    rio = "import sys; from rasterio.rio.main import main_group; sys.exit(main_group())"
+    info = subprocess.run([sys.executable, "-c", rio, "info", str(path)], capture_output=True, text=True, check=True)
+    assert json.loads(info.stdout)["units"] == ["dBsm", "m^2"]
+
+
+def test_band_units_of_other_amplitude_units():
+    assert band_units("sqrt(m^2)") == ("dBsm", "m^2")
+    assert band_units("sqrt(W) at the receiver, unit-energy matched filter") == ("dBW", "W")
+    assert band_units("V") == ("dB re 1 (V)^2", "(V)^2") and band_units("sqrt(J)") == ("dB re 1 J", "J")
+
+
+def test_rotated_on_request_keeps_the_image_samples(tmp_path):
+    """north_up=False: the image's own samples (no resampling) on a geotransform with rotation
+    terms at heading 30 deg; the default at the same heading has none and resampled values."""
+    image = unique_image(30.0)
+    with rasterio.open(write_geotiff(image, tmp_path / "rot.tif", MUNICH, north_up=False)) as src:
+        t, lin = src.transform, src.read(2)
+    assert abs(t.b) > 0.1 and abs(t.d) > 0.1
+    np.testing.assert_allclose(np.sort(lin.ravel()), np.sort(np.abs(image.data.ravel()) ** 2), rtol=1e-6)
+    with rasterio.open(write_geotiff(image, tmp_path / "up.tif", MUNICH)) as src:
+        assert src.transform.b == src.transform.d == 0 and "north-up" in src.tags()["LAYOUT"]
+
+
+def test_north_up_resampling_conserves_intensity_and_footprint(tmp_path):
+    """An independent check of the resampling: at heading 30 deg, with 0.5 x 0.8 m image pixels,
+    the north-up raster's linear band integrates (sum x pixel area) to the rotated raster's
+    within 2 %, its valid (non-NaN) pixels cover the image's footprint within 2 %, NaN lies
+    outside (its corners), and band 1 is 10 log10 of band 2 pixel by pixel (dB computed after
+    resampling, not interpolated)."""
+    image = synthetic(30.0, n_az=160, n_rg=120)
+    with rasterio.open(write_geotiff(image, tmp_path / "rot.tif", MUNICH, north_up=False)) as src:
+        t = src.transform
+        total_rot = src.read(2).astype(np.float64).sum() * abs(t.a * t.e - t.b * t.d)
+    with rasterio.open(write_geotiff(image, tmp_path / "up.tif", MUNICH)) as src:
+        t, db, lin = src.transform, src.read(1).astype(np.float64), src.read(2).astype(np.float64)
+    assert t.b == t.d == 0 and t.a == pytest.approx(0.5, rel=1e-3)
+    valid = ~np.isnan(lin)
+    assert np.nansum(lin) * t.a * -t.e == pytest.approx(total_rot, rel=0.02)
+    assert valid.sum() * t.a * -t.e == pytest.approx(160 * 0.5 * 120 * 0.8, rel=0.02)
+    assert np.isnan(lin[[0, 0, -1, -1], [0, -1, 0, -1]]).all() and np.array_equal(np.isnan(db), ~valid)
+    np.testing.assert_allclose(db[valid], 10 * np.log10(lin[valid]), atol=1e-4)
+
+
+def test_a_large_image_is_a_cloud_optimized_geotiff(tmp_path):
+    """2048 x 2048 pixels: 256 x 256 tiles in every band, overviews 2, 4, 8 (the last 256 pixels
+    on a side), COG layout; a small image stays a plain striped GeoTIFF."""
+    image = synthetic(0.0, n_az=2048, n_rg=2048, spacing=(0.5, 0.5))
+    with rasterio.open(write_geotiff(image, tmp_path / "big.tif", georef.GeoReference(0.0, 3.0, 0.0))) as src:
+        assert src.block_shapes == [(256, 256), (256, 256)] and src.profile["tiled"]
+        assert src.overviews(1) == src.overviews(2) == [2, 4, 8]
+        assert src.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
+        assert src.transform.b == src.transform.d == 0
+        assert src.units == ("dBsm", "m^2") and src.descriptions == ("intensity_db", "intensity")
+    with rasterio.open(write_geotiff(synthetic(0.0), tmp_path / "small.tif", MUNICH)) as src:
+        assert not src.profile.get("tiled") and src.overviews(1) == []
+
+
+def test_without_the_cog_driver_a_large_image_is_a_tiled_geotiff_with_overviews(tmp_path, monkeypatch):
+    """GDAL without its COG driver: tiles and overviews 2, 4 (factors while the level's smaller
+    side is above 256) in a plain GeoTIFF, averaged."""
+    from sarmitsuba.formats import geotiff
+    monkeypatch.setattr(geotiff, "cog_driver", lambda: False)
+    image = synthetic(0.0, n_az=600, n_rg=600, spacing=(0.5, 0.5))
+    with rasterio.open(write_geotiff(image, tmp_path / "big.tif", georef.GeoReference(0.0, 3.0, 0.0))) as src:
+        assert src.block_shapes == [(256, 256), (256, 256)] and src.overviews(2) == [2, 4]
+        assert src.tags(ns="rio_overview") == {"resampling": "average"} and src.units == ("dBsm", "m^2")

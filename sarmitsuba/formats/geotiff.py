@@ -3,28 +3,45 @@
 The file is written by rasterio (GDAL); this module only places the image. A ground-plane
 :class:`~sarmitsuba.core.image.SarImage` is a rotated rectangle of the local east-north-up frame at
 the sensor's ``geo_origin`` (docs/physics.md (G1)). Its pixel centres are mapped to UTM
-through PROJ (:func:`sarmitsuba.core.georef.enu_to_utm`), and the grid is written as one affine
-geotransform fitted to three outer pixel corners (physics.md (G3): over a scene a few
-kilometres across, UTM is affine in the local frame to well under a pixel).
+through PROJ (:func:`sarmitsuba.core.georef.enu_to_utm`), and the grid is fitted with one affine
+geotransform to three outer pixel corners (physics.md (G3): over a scene a few kilometres
+across, UTM is affine in the local frame to well under a pixel).
 
-Layout:
+Grids (``north_up`` of :func:`write_geotiff`):
 
-- the raster holds ``image.data`` [azimuth, range] transposed and/or with rows or columns
-  reversed, whichever makes it closest to north-up (columns east, rows south: exactly so for a
-  track flying east, the default heading); the ``LAYOUT`` tag says which. The geotransform
-  carries the rest, including the rotation by the track heading;
-- pixel-is-area (``AREA_OR_POINT=Area``): the geotransform maps the outer corner of the first
-  pixel, as GDAL expects: ``E = a col + b row + c``, ``N = d col + e row + f`` (GDAL's
-  geotransform, UTM metres, col/row counting pixel edges), with ``a e - b d < 0``, so a
-  north-up display is never mirrored;
-- band 1 ``intensity_db`` = ``10 log10 |s|^2`` (NaN, the nodata value, where ``s = 0``), band 2
-  ``intensity`` = ``|s|^2``, both float32, in the image's units squared
-  (``metadata["units"]``); tags name the scene, polarization, carrier and ``geo_origin``.
+- north-up (the default): the linear intensity is resampled (bilinear, GDAL's warper through
+  ``rasterio.warp.reproject``) from the image's grid onto a north-up UTM grid of square pixels
+  (the finer of the two ground spacings, corners on multiples of it) covering the image's
+  footprint; outside the footprint both bands hold NaN (the nodata value). The dB band is
+  computed from the resampled linear band, never interpolated in dB. Every GIS and web map
+  reads it (``b = d = 0`` in the geotransform). Tag ``LAYOUT`` says so;
+- rotated (``north_up=False``): the image's own samples, unresampled, with a geotransform that
+  carries the rotation by the track heading. The raster holds ``image.data`` [azimuth, range]
+  transposed and/or with rows or columns reversed, whichever makes it closest to north-up
+  (columns east, rows south: exactly so for a track flying east, the default heading); the
+  ``LAYOUT`` tag says which. Tools that ignore rotation terms misplace it.
+
+Both: pixel-is-area (``AREA_OR_POINT=Area``): the geotransform maps the outer corner of the
+first pixel, as GDAL expects: ``E = a col + b row + c``, ``N = d col + e row + f`` (GDAL's
+geotransform, UTM metres, col/row counting pixel edges), with ``a e - b d < 0``, so a north-up
+display is never mirrored. Band 1 ``intensity_db`` = ``10 log10 |s|^2`` (NaN where ``s = 0``),
+band 2 ``intensity`` = ``|s|^2``, both float32, in the image's units squared: the image has unit
+peak gain for a point target, so with amplitudes in sqrt(m^2) band 2 is the radar cross-section
+per sample in m^2 (not sigma nought) and band 1 is in dBsm. The bands carry these units as
+GDAL unit types (``rio info`` shows ``"units"``) and as ``UNITS`` tags; dataset tags name the
+scene, polarization, carrier, ``geo_origin`` and the amplitude units.
+
+An image whose smaller raster side is :data:`TILE` pixels or more is written as a Cloud-Optimized
+GeoTIFF (GDAL's COG driver): 256 x 256 tiles, deflate, and overviews by factors 2, 4, 8, ...
+(averaged, each band on its own: the dB band's overviews are means of dB) until one fits in a
+tile. Smaller ones are plain deflated GeoTIFFs. Writing is atomic (:func:`atomic_write`).
 """
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +53,13 @@ from ..core import georef
 from ..core.image import SarImage, SarImageError
 from ..core.outputs import atomic_write
 
-__all__ = ["GeoTiffError", "write_geotiff", "pixel_corners", "geotransform"]
+__all__ = ["GeoTiffError", "write_geotiff", "pixel_corners", "geotransform", "north_up_grid", "band_units",
+           "TILE"]
+
+#: Tile side [pixels] of a Cloud-Optimized GeoTIFF, and the smaller raster side from which one is written.
+TILE = 256
+#: GDAL resampling of the north-up grid (linear intensity) and of the overviews.
+RESAMPLING, OVERVIEW_RESAMPLING = "bilinear", "average"
 
 
 class GeoTiffError(SarImageError):
@@ -129,7 +152,8 @@ def geotransform(image: SarImage, ref: georef.GeoReference) -> tuple[Any, Layout
     return best[1], best[2]
 
 
-def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoReference | None = None) -> Path:
+def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoReference | None = None,
+                  north_up: bool = True) -> Path:
     """Write ``image``'s intensity as a two-band GeoTIFF in UTM at ``path`` (atomically).
 
     Parameters
@@ -141,13 +165,17 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
     ref : GeoReference, optional
         WGS84 origin of the image's world frame (default: ``geo_origin`` of
         ``image.metadata["radar"]``, else :data:`georef.DEFAULT`).
+    north_up : bool, default True
+        Resample onto a north-up UTM grid (square pixels of the finer ground spacing [m], NaN
+        outside the footprint; :func:`north_up_grid`). False: the image's own grid, unresampled,
+        with a rotated geotransform (:func:`geotransform`).
 
+    Band 1 holds ``10 log10 |s|^2`` (dB, e.g. dBsm), band 2 ``|s|^2`` (e.g. m^2; :func:`band_units`).
     Returns the path written. Raises GeoTiffError for a slant-plane image or an irregular
-    grid, :class:`outputs.WriteError` (an OSError) when the file cannot be written. Warns
-    (UserWarning, once per call) when neither ``ref`` nor the metadata give a ``geo_origin``:
-    the map then shows the placeholder 0 N 0 E (:func:`at_placeholder`).
+    grid, :class:`outputs.WriteError` (an OSError) naming ``path`` when the file cannot be
+    written. Warns (UserWarning, once per call) when neither ``ref`` nor the metadata give a
+    ``geo_origin``: the map then shows the placeholder 0 N 0 E (:func:`at_placeholder`).
     """
-    import rasterio
     if image.plane != "ground":
         raise GeoTiffError(f"--geotiff: a GeoTIFF needs a ground-plane image, and this {image.algorithm} image lies "
                            f"in the {image.plane!r} plane: focus with backprojection (focus --algorithm bp or ffbp), "
@@ -163,26 +191,107 @@ def write_geotiff(image: SarImage, path: str | os.PathLike, ref: georef.GeoRefer
     transform, layout = geotransform(image, ref)
     intensity = (np.abs(image.data.astype(np.complex64)) ** 2).astype(np.float32)
     intensity = np.ascontiguousarray(layout.apply(intensity))
-    with np.errstate(divide="ignore"):
+    crs = georef.utm_crs(ref).to_wkt()
+    layout_tag = layout.describe()
+    if north_up:
+        intensity, transform = resample_north_up(intensity, transform, crs)
+        layout_tag = (f"north-up: rows south, columns east; {RESAMPLING} resampling of the linear intensity from "
+                      "the image's azimuth-range grid, dB computed after it; NaN outside the image's footprint")
+    with np.errstate(divide="ignore", invalid="ignore"):
         db = np.where(intensity > 0, 10.0 * np.log10(intensity), np.nan).astype(np.float32)
-    profile = {"driver": "GTiff", "height": intensity.shape[0], "width": intensity.shape[1], "count": 2,
-               "dtype": "float32", "crs": georef.utm_crs(ref).to_wkt(), "transform": transform, "nodata": np.nan,
-               "compress": "deflate", "predictor": 3}
-    if min(intensity.shape) >= 256:
-        profile.update(tiled=True, blockxsize=256, blockysize=256)
-    tags = geotiff_tags(image, ref, layout)
+    tags = {**geotiff_tags(image, ref, layout), "LAYOUT": layout_tag}
+    return atomic_write(Path(path), lambda tmp: write_raster(tmp, db, intensity, crs, transform, tags), "GeoTIFF")
 
-    def write(tmp: Path) -> None:
-        with rasterio.open(tmp, "w", **profile) as dst:
-            dst.write(db, 1)
-            dst.write(intensity, 2)
-            dst.set_band_description(1, "intensity_db")
-            dst.set_band_description(2, "intensity")
-            units = str(tags["UNITS"])
-            dst.update_tags(1, UNITS=f"dB of {units} squared")
-            dst.update_tags(2, UNITS=f"{units} squared")
-            dst.update_tags(AREA_OR_POINT="Area", **tags)
-    return atomic_write(Path(path), write, "GeoTIFF")
+
+def band_units(units: str) -> tuple[str, str]:
+    """(dB band unit, linear band unit) of an image whose amplitudes are in ``units``.
+
+    The linear band holds ``|s|^2``: ``sqrt(m^2)`` gives ``m^2`` and ``dBsm`` (dB relative to
+    1 m^2), ``sqrt(W)`` gives ``W`` and ``dBW``, another ``sqrt(U)`` ``U`` and ``dB re 1 U`` (words
+    after the unit, which the ``UNITS`` tag keeps, are left out); anything else ``(units)^2`` and
+    ``dB re 1 (units)^2``."""
+    match = re.match(r"\s*sqrt\(([^()]+)\)", units)
+    if not match:
+        return f"dB re 1 ({units.strip()})^2", f"({units.strip()})^2"
+    unit = match.group(1).strip()
+    return {"m^2": "dBsm", "W": "dBW"}.get(unit, f"dB re 1 {unit}"), unit
+
+
+def north_up_grid(transform: Any, shape: tuple[int, int]) -> tuple[Any, tuple[int, int]]:
+    """(north-up rasterio Affine, (height, width)) covering a raster of ``shape`` placed by ``transform``.
+
+    Square pixels of the finer of its two pixel spacings [CRS units, UTM m]; the grid's edges lie
+    on multiples of that spacing (like ``gdalwarp -tap``) and enclose the raster's four outer corners.
+    """
+    from rasterio.transform import Affine
+    height, width = shape
+    step = min(math.hypot(transform.a, transform.d), math.hypot(transform.b, transform.e))
+    cols, rows = np.array([0, width, 0, width], float), np.array([0, 0, height, height], float)
+    xs = transform.a * cols + transform.b * rows + transform.c
+    ys = transform.d * cols + transform.e * rows + transform.f
+    tol = 1e-6 * step                                 # a corner on a grid line does not add a column of NaN
+    west, north = math.floor((min(xs) + tol) / step) * step, math.ceil((max(ys) - tol) / step) * step
+    n_cols = max(1, math.ceil((max(xs) - tol - west) / step))
+    n_rows = max(1, math.ceil((north - min(ys) - tol) / step))
+    return Affine(step, 0.0, west, 0.0, -step, north), (n_rows, n_cols)
+
+
+def resample_north_up(intensity: np.ndarray, transform: Any, crs: str) -> tuple[np.ndarray, Any]:
+    """(float32 [rows, cols] linear intensity on :func:`north_up_grid`, its Affine): the raster
+    ``intensity`` placed by ``transform`` in ``crs`` resampled (:data:`RESAMPLING`) by GDAL's
+    warper; NaN where a pixel centre falls outside the raster's footprint."""
+    from rasterio.warp import Resampling, reproject
+    dst_transform, shape = north_up_grid(transform, intensity.shape)
+    out = np.full(shape, np.nan, dtype=np.float32)
+    reproject(source=intensity, destination=out, src_transform=transform, src_crs=crs, dst_transform=dst_transform,
+              dst_crs=crs, src_nodata=None, dst_nodata=np.nan, init_dest_nodata=True,
+              resampling=Resampling[RESAMPLING])
+    return out, dst_transform
+
+
+def cog_driver() -> bool:
+    """True when GDAL has its COG driver (GDAL >= 3.1)."""
+    import rasterio
+    with rasterio.Env() as env:
+        return "COG" in env.drivers()
+
+
+def overview_factors(shape: tuple[int, int]) -> list[int]:
+    """2, 4, 8, ... while the previous level's smaller side is above :data:`TILE` pixels."""
+    factors, side = [], min(shape)
+    while side > TILE:
+        factors.append(2 * factors[-1] if factors else 2)
+        side //= 2
+    return factors
+
+
+def write_raster(path: Path, db: np.ndarray, intensity: np.ndarray, crs: str, transform: Any,
+                 tags: dict[str, str]) -> None:
+    """Write the two float32 bands, units, descriptions and tags to ``path`` with rasterio: a COG
+    (tiled, overviews) when the smaller side is :data:`TILE` or more, a plain GeoTIFF otherwise."""
+    import rasterio
+    from rasterio.enums import Resampling
+    profile = {"height": db.shape[0], "width": db.shape[1], "count": 2, "dtype": "float32", "crs": crs,
+               "transform": transform, "nodata": np.nan, "compress": "deflate"}
+    cog = min(db.shape) >= TILE and cog_driver()
+    if cog:
+        profile.update(driver="COG", blocksize=TILE, predictor="YES", overview_resampling=OVERVIEW_RESAMPLING.upper())
+    else:
+        profile.update(driver="GTiff", predictor=3)
+        if min(db.shape) >= TILE:                     # GDAL without COG: tiles and overviews in a GTiff
+            profile.update(tiled=True, blockxsize=TILE, blockysize=TILE)
+    units = band_units(str(tags["UNITS"]))
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(db, 1)
+        dst.write(intensity, 2)
+        dst.descriptions = ("intensity_db", "intensity")
+        dst.units = units
+        for band, unit in enumerate(units, start=1):
+            dst.update_tags(band, UNITS=unit)
+        dst.update_tags(AREA_OR_POINT="Area", **tags)
+        if min(db.shape) >= TILE and not cog:
+            dst.build_overviews(overview_factors(db.shape), Resampling[OVERVIEW_RESAMPLING])
+            dst.update_tags(ns="rio_overview", resampling=OVERVIEW_RESAMPLING)
 
 
 def geotiff_tags(image: SarImage, ref: georef.GeoReference, layout: Layout) -> dict[str, str]:
