@@ -10,6 +10,7 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 
 =======================  ===============================================================
 :mod:`.cphd`             ``write_cphd`` / ``read_cphd`` (NGA.STND.0068, via sarkit)
+:mod:`.cphd_geometry`    CPHD scene reference point and image area (from the scene's box)
 :mod:`.sicd`             ``write_sicd`` / ``read_sicd`` (NGA.STND.0024, via sarkit)
 :mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
 =======================  ===============================================================

@@ -7,21 +7,33 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
 - PVPs per pulse in ECEF (WGS84) metres: the local east-north-up frame is placed at the
   :class:`~sarmitsuba.core.georef.GeoReference` origin, which is also written as the scene's IARP;
 - the scene reference point (SRP) is the scene centre (``metadata["radar"]["scene_center"]``,
-  else the mean of the pulses' closest points on the ground);
+  else the mean of the pulses' closest points on the ground), and ``SceneCoordinates/ImageArea``
+  (with the channel's ``ImageArea`` and the ``ImageGrid``) bounds what the data can show: the
+  scene's bounding box with its layover and a margin, else the fast-time window projected to the
+  ground (:mod:`sarmitsuba.formats.cphd_geometry`);
 - the samples are compensated to the SRP as CPHD requires (docs/physics.md (G2)): sample ``s`` of vector ``v`` sits
   at ``dTOA = SC0[v] + s SCSS`` relative to the SRP delay ``tau_srp[v]`` and carries the phase
   factor ``exp(+j 2 pi fc tau_srp[v])`` (a point at the SRP reads zero phase at ``dTOA = 0``).
   :func:`read_cphd` undoes both, so the samples come back within float32 rounding;
 - range-compressed data are written as such; chirped data (``range_compressed`` false) are
-  written uncompressed, which the file header key ``SARMITSUBA_RANGE_COMPRESSED`` records;
-- sarmitsuba's metadata (JSON), the first pulse time and the PRF travel as file-header keys
-  so that a file read back focuses exactly like the RawData it came from.
+  written uncompressed;
+- times: ``Global/Timeline/CollectionStart`` is the first pulse's UTC time,
+  ``metadata["radar"]["collection_start"]`` (ISO 8601), else 2000-01-01T00:00:00Z; ``TxTime``
+  counts from it. ``ProductInfo/CreationInfo/DateTime`` is the moment the file is written (UTC);
+- what CPHD has no element for travels as standard ``ProductInfo/CreationInfo/Parameter``
+  elements (:data:`PARAMETERS`): sarmitsuba's metadata (JSON, with any ``scene_path`` cut to its
+  file name: no path of the user's machine leaves it), the first pulse time in RawData's clock,
+  the PRF and whether the samples are range compressed, so that a file read back focuses exactly
+  like the RawData it came from. Files written before (sarmitsuba 0.1 up to issue 29) carried the
+  same four entries as non-standard file-header keys, which other readers (sarpy) refuse;
+  :func:`read_cphd` still reads them.
 """
 from __future__ import annotations
 
 import datetime
 import json
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +43,10 @@ from ..core import georef
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
+from .cphd_geometry import scene_coordinates, scene_reference_point, srp_delay, unit
 
-__all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE"]
+__all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE", "PARAMETERS",
+           "collection_start", "portable_metadata"]
 
 #: XML namespace of the CPHD version written.
 CPHD_NAMESPACE = "http://api.nsgreg.nga.mil/schema/cphd/1.1.0"
@@ -41,7 +55,11 @@ _KVP_METADATA = "SARMITSUBA_METADATA"
 _KVP_TIME0 = "SARMITSUBA_PULSE_TIME0"
 _KVP_PRF = "SARMITSUBA_PRF"
 _KVP_COMPRESSED = "SARMITSUBA_RANGE_COMPRESSED"
-#: A fixed collection start keeps the files reproducible (TxTime counts from it).
+#: Names of the ``ProductInfo/CreationInfo/Parameter`` elements written (and, in files of
+#: earlier versions, of the file-header keys read): metadata JSON, first pulse time [s] in
+#: RawData's clock (zero at mid-aperture), PRF [Hz], ``"true"``/``"false"`` range compressed.
+PARAMETERS = (_KVP_METADATA, _KVP_TIME0, _KVP_PRF, _KVP_COMPRESSED)
+#: Collection start of data that do not give one (older versions, synthetic RawData).
 _COLLECTION_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
 #: PVP layout in 8-byte words: (name, size, format).
 _PVP_LAYOUT = (("TxTime", 1, "f8"), ("TxPos", 3, "v"), ("TxVel", 3, "v"), ("RcvTime", 1, "f8"),
@@ -53,28 +71,6 @@ _PVP_LAYOUT = (("TxTime", 1, "f8"), ("TxPos", 3, "v"), ("TxVel", 3, "v"), ("RcvT
 
 class CphdError(ValueError):
     """A CPHD file cannot be written or read as RawData (names the file and the reason)."""
-
-
-def scene_reference_point(raw: RawData) -> np.ndarray:
-    """float64 [3] m, local frame: the scene centre, else the mid-swath ground point of the mean pulse.
-
-    The fallback (data without sarmitsuba's radar metadata) looks right of the mean velocity, at
-    the ground range of the middle fast-time sample from the mean antenna position.
-    """
-    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
-    if isinstance(radar, dict) and radar.get("scene_center") is not None:
-        return np.asarray(radar["scene_center"], dtype=np.float64)
-    position = 0.5 * (raw.tx_position + raw.rx_position).mean(axis=0)
-    slant = 0.5 * SPEED_OF_LIGHT * float(raw.fast_time[raw.n_samples // 2])
-    ground = np.sqrt(max(slant ** 2 - position[2] ** 2, 0.0))
-    heading = raw.velocity.mean(axis=0)
-    right = np.array([heading[1], -heading[0], 0.0]) / max(float(np.hypot(heading[0], heading[1])), 1e-12)
-    return np.array([position[0], position[1], 0.0]) + ground * right
-
-
-def srp_delay(tx: np.ndarray, rx: np.ndarray, srp: np.ndarray) -> np.ndarray:
-    """float64 [n]: two-way delay [s] from the Tx and Rcv positions [n, 3] to the SRP [3] (m)."""
-    return (np.linalg.norm(tx - srp, axis=-1) + np.linalg.norm(rx - srp, axis=-1)) / SPEED_OF_LIGHT
 
 
 def pvp_dtype_xml() -> dict[str, Any]:
@@ -123,42 +119,6 @@ def lfm_rate(raw: RawData) -> float:
     return float(raw.chirp_rate) if raw.chirp_rate else float(raw.bandwidth / raw.pulse_length)
 
 
-def unit(vectors: np.ndarray) -> np.ndarray:
-    """Unit vectors [..., 3] along ``vectors`` [..., 3]."""
-    return vectors / np.linalg.norm(vectors, axis=-1, keepdims=True)
-
-
-def scene_coordinates(raw: RawData, ref: georef.GeoReference,
-                      srp: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(``SceneCoordinates``, image area): IARP at the local origin, ground plane axes east, north.
-
-    The image area is a square about the origin that holds the SRP and half the track's reach.
-    """
-    import sarkit.wgs84
-    rot = georef.enu_axes(ref)
-    ground = 0.5 * (raw.tx_position + raw.rx_position)
-    half = float(np.max(np.abs(srp[:2])) + 0.5 * np.max(np.linalg.norm(ground[:, :2] - srp[:2], axis=1)) + 100.0)
-    corners = half * np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0], [1.0, -1.0]])
-    corner_ecef = georef.enu_to_ecef(np.column_stack([corners, np.zeros(4)]), ref)
-    area = {"X1Y1": corners[0], "X2Y2": corners[2], "Polygon": corners}
-    return {"EarthModel": "WGS_84",
-            "IARP": {"ECF": georef.enu_to_ecef(np.zeros(3), ref),
-                     "LLH": np.array([ref.latitude_deg, ref.longitude_deg, ref.height_m])},
-            "ReferenceSurface": {"Planar": {"uIAX": rot[0], "uIAY": rot[1]}},
-            "ImageArea": area,
-            "ImageAreaCornerPoints": sarkit.wgs84.cartesian_to_geodetic(corner_ecef)[:, :2],
-            "ImageGrid": image_grid(half, SPEED_OF_LIGHT / (2.0 * raw.bandwidth))}, area
-
-
-def image_grid(half: float, resolution: float) -> dict[str, Any]:
-    """``ImageGrid`` covering the square image area of half-width ``half`` [m] at about ``resolution`` [m]."""
-    n = int(np.ceil(2.0 * half / resolution))
-    spacing = 2.0 * half / n
-    return {"IARPLocation": np.array([0.5 * n - 0.5, 0.5 * n - 0.5]),
-            "IAXExtent": {"LineSpacing": spacing, "FirstLine": 0, "NumLines": n},
-            "IAYExtent": {"SampleSpacing": spacing, "FirstSample": 0, "NumSamples": n}}
-
-
 def radar_words(raw: RawData) -> tuple[str, str, str]:
     """(ModeType, TxPol, RcvPol) from sarmitsuba's metadata, UNSPECIFIED where unknown."""
     radar = raw.metadata.get("radar", {}) if isinstance(raw.metadata, dict) else {}
@@ -170,8 +130,10 @@ def radar_words(raw: RawData) -> tuple[str, str, str]:
     return mode, "UNSPECIFIED", "UNSPECIFIED"
 
 
-def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray) -> dict[str, Any]:
-    """The CPHD XML (less ReferenceGeometry) in sarkit's dictionary form (CPHD 1.1.0 sec. 5-9)."""
+def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray, start: datetime.datetime,
+              created: datetime.datetime) -> dict[str, Any]:
+    """The CPHD XML (less ReferenceGeometry) in sarkit's dictionary form (CPHD 1.1.0 sec. 5-9): the
+    collection starting at ``start`` (the first pulse, UTC), the file made at ``created`` (UTC)."""
     srp = scene_reference_point(raw)
     scene, area = scene_coordinates(raw, ref, srp)
     mode, tx_pol, rcv_pol = radar_words(raw)
@@ -185,7 +147,7 @@ def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray) -> dict[s
                          "RadarMode": {"ModeType": mode}, "Classification": "UNCLASSIFIED",
                          "ReleaseInfo": "UNRESTRICTED"},
         "Global": {"DomainType": "TOA", "SGN": -1,
-                   "Timeline": {"CollectionStart": _COLLECTION_START, "TxTime1": float(pvp["TxTime"][0]),
+                   "Timeline": {"CollectionStart": start, "TxTime1": float(pvp["TxTime"][0]),
                                 "TxTime2": float(pvp["TxTime"][-1])},
                    "FxBand": {"FxMin": float(pvp["FX1"].min()), "FxMax": float(pvp["FX2"].max())},
                    "TOASwath": {"TOAMin": float(pvp["TOA1"].min()), "TOAMax": float(pvp["TOA2"].max())}},
@@ -216,31 +178,76 @@ def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray) -> dict[s
                                                    "SampleRate": float(raw.fs), "IFFilterBW": float(raw.fs),
                                                    "FreqCenter": float(raw.fc), "LFMRate": rate,
                                                    "Polarization": rcv_pol},)},
+        "ProductInfo": {"CreationInfo": ({"Application": application(raw), "DateTime": created,
+                                          "Parameter": creation_parameters(raw)},)},
     }
 
 
-def header_keys(raw: RawData) -> dict[str, str]:
-    """File-header keys carrying what CPHD has no place for (one line each, no ``" := "``)."""
-    text = json.dumps(raw.metadata, default=json_default, ensure_ascii=True)
-    # '=' only occurs inside JSON strings, where its escape is equivalent; it keeps ' := ' out.
-    return {_KVP_METADATA: text.replace("=", "\\u003d"), _KVP_TIME0: repr(float(raw.pulse_time[0])),
-            _KVP_PRF: repr(float(raw.prf)), _KVP_COMPRESSED: "true" if raw.range_compressed else "false"}
+def application(raw: RawData) -> str:
+    """``CreationInfo/Application``: ``"sarmitsuba"`` and the version that made the data, when recorded."""
+    versions = raw.metadata.get("versions") if isinstance(raw.metadata, dict) else None
+    version = versions.get("sarmitsuba") if isinstance(versions, dict) else None
+    return f"sarmitsuba {version}" if version else "sarmitsuba"
 
 
-def build_metadata(raw: RawData, ref: georef.GeoReference) -> tuple[Any, np.ndarray]:
-    """(sarkit.cphd.Metadata, PVP array) for ``raw`` placed at ``ref``."""
+def portable_metadata(metadata: Any) -> Any:
+    """A copy of ``metadata`` (JSON-like: dicts, lists, scalars) whose every ``"scene_path"`` string,
+    at any depth, is cut to its file name (``/home/me/scenes/a.xml`` and ``C:\\s\\a.xml`` give
+    ``a.xml``): no absolute path of the user's machine travels in a file."""
+    if isinstance(metadata, dict):
+        return {key: (re.split(r"[\\/]", value)[-1] if key == "scene_path" and isinstance(value, str)
+                      else portable_metadata(value)) for key, value in metadata.items()}
+    if isinstance(metadata, (list, tuple)):
+        return [portable_metadata(value) for value in metadata]
+    return metadata
+
+
+def creation_parameters(raw: RawData) -> list[tuple[str, str]]:
+    """``ProductInfo/CreationInfo/Parameter`` entries (name, text), :data:`PARAMETERS`: what CPHD has
+    no element for (the metadata as JSON, the first pulse time [s], the PRF [Hz], range compressed)."""
+    text = json.dumps(portable_metadata(raw.metadata), default=json_default, ensure_ascii=True)
+    return [(_KVP_METADATA, text), (_KVP_TIME0, repr(float(raw.pulse_time[0]))), (_KVP_PRF, repr(float(raw.prf))),
+            (_KVP_COMPRESSED, "true" if raw.range_compressed else "false")]
+
+
+def collection_start(raw: RawData, path: Any = "the CPHD file") -> datetime.datetime:
+    """The first pulse's UTC time (aware datetime): ``metadata["radar"]["collection_start"]``, an ISO
+    8601 time with an offset; 2000-01-01T00:00:00Z when it is missing or None (older versions,
+    synthetic RawData). Raises :class:`CphdError` naming ``path`` for any other value."""
+    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
+    text = radar.get("collection_start") if isinstance(radar, dict) else None
+    if text is None:
+        return _COLLECTION_START
+    try:
+        when = datetime.datetime.fromisoformat(str(text))
+    except ValueError:
+        when = None
+    if when is None or when.utcoffset() is None:
+        raise CphdError(f"cannot write CPHD file {path}: metadata radar collection_start = {text!r} is not an ISO "
+                        "8601 time with a UTC offset (e.g. 2026-11-24T10:00:00+00:00)")
+    return when.astimezone(datetime.timezone.utc)
+
+
+def utc_now() -> datetime.datetime:
+    """The present moment, UTC (``ProductInfo/CreationInfo/DateTime``; tests may replace it)."""
+    return datetime.datetime.now(datetime.timezone.utc)
+
+
+def build_metadata(raw: RawData, ref: georef.GeoReference, start: datetime.datetime | None = None,
+                   created: datetime.datetime | None = None) -> tuple[Any, np.ndarray]:
+    """(sarkit.cphd.Metadata, PVP array) for ``raw`` placed at ``ref``, its collection starting at
+    ``start`` (default :func:`collection_start`), the file made at ``created`` (default now, UTC)."""
     import lxml.etree
     import sarkit.cphd as skcphd
     root = skcphd.ElementWrapper(lxml.etree.Element(f"{{{CPHD_NAMESPACE}}}CPHD"))
     dtype = skcphd.get_pvp_dtype(_tree_with_pvp_layout(raw))
     pvp = build_pvps(raw, ref, dtype)
-    root.from_dict(cphd_dict(raw, ref, pvp))
+    start = collection_start(raw) if start is None else start
+    root.from_dict(cphd_dict(raw, ref, pvp, start, utc_now() if created is None else created))
     tree = lxml.etree.ElementTree(root.elem)
     refgeom = skcphd.compute_reference_geometry(tree, pvp)
     root.elem.find("{*}Dwell").addnext(refgeom)
-    metadata = skcphd.Metadata(xmltree=tree,
-                               file_header_part=skcphd.FileHeaderPart(additional_kvps=header_keys(raw)))
-    return metadata, pvp
+    return skcphd.Metadata(xmltree=tree), pvp
 
 
 def _tree_with_pvp_layout(raw: RawData) -> Any:
@@ -268,11 +275,12 @@ def write_cphd(raw: RawData, path: str | os.PathLike, ref: georef.GeoReference |
         ``raw.metadata["radar"]``, see :func:`georef.of`).
 
     Returns the path written. Raises :class:`outputs.WriteError` (an OSError) when the file
-    cannot be written; nothing is left behind then.
+    cannot be written, :class:`CphdError` naming ``path`` when ``metadata["radar"]["collection_start"]``
+    is not an ISO 8601 time with an offset; nothing is left behind then.
     """
     import sarkit.cphd as skcphd
     ref = georef.of(raw.metadata.get("radar", {}) if isinstance(raw.metadata, dict) else {}) if ref is None else ref
-    metadata, pvp = build_metadata(raw, ref)
+    metadata, pvp = build_metadata(raw, ref, collection_start(raw, path))
     srp = scene_reference_point(raw)
     tau = srp_delay(raw.tx_position, raw.rx_position, srp)
     signal = (raw.data * np.exp(2j * np.pi * raw.fc * tau)[:, None]).astype(np.complex64)
@@ -299,7 +307,8 @@ def read_cphd(path: str | os.PathLike) -> RawData:
     Samples are decompensated from the SRP (see the module docstring), geometry is converted
     from ECEF to the local east-north-up frame at ``SceneCoordinates/IARP/LLH``. Files written
     by :func:`write_cphd` give back their RawData (metadata included; samples within float32
-    rounding, geometry within micrometres); other tools' files get metadata from the XML only.
+    rounding, geometry within micrometres), those of earlier versions (the same entries as
+    file-header keys) too; other tools' files get metadata from the XML only.
 
     Raises
     ------
@@ -373,8 +382,19 @@ def declared_size(file: Any) -> tuple[bool, int | None]:
         return True, None
 
 
+def stored_parameters(tree: Any, kvps: dict[str, str]) -> dict[str, str]:
+    """sarmitsuba's :data:`PARAMETERS` found in the file: ``ProductInfo/CreationInfo/Parameter`` and
+    ``ProductInfo/Parameter`` elements, else (files of earlier versions) the file-header keys ``kvps``."""
+    found = {name: kvps[name] for name in PARAMETERS if name in kvps}
+    for elem in tree.findall("{*}ProductInfo/{*}CreationInfo/{*}Parameter") + tree.findall(
+            "{*}ProductInfo/{*}Parameter"):
+        if elem.get("name") in PARAMETERS:
+            found[elem.get("name")] = elem.text or ""
+    return found
+
+
 def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarray, pvp: np.ndarray) -> RawData:
-    """RawData from one channel's XML, header keys, signal [n_vectors, n_samples] and PVPs."""
+    """RawData from one channel's XML, file-header keys, signal [n_vectors, n_samples] and PVPs."""
     import sarkit.cphd as skcphd
     xml = skcphd.XmlHelper(tree)
     if xml.load("{*}Global/{*}DomainType") != "TOA":
@@ -397,6 +417,7 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     pulse_length = float(wf.findtext("{*}PulseLength")) if wf is not None else 1.0 / float(xml.load(
         "{*}Channel/{*}Parameters/{*}FxBW"))
     chirp = float(wf.findtext("{*}LFMRate")) if wf is not None and wf.find("{*}LFMRate") is not None else 0.0
+    kvps = stored_parameters(tree, kvps)
     time0 = float(kvps.get(_KVP_TIME0, 0.0))
     pulse_time = pvp["TxTime"] + time0
     prf = float(kvps[_KVP_PRF]) if _KVP_PRF in kvps else 1.0 / float(np.median(np.diff(pvp["TxTime"])))
