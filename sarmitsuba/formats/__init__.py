@@ -12,6 +12,10 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.cphd`             ``write_cphd`` / ``read_cphd`` (NGA.STND.0068, via sarkit)
 :mod:`.cphd_geometry`    CPHD scene reference point and image area (from the scene's box)
 :mod:`.sicd`             ``write_sicd`` / ``read_sicd`` (NGA.STND.0024, via sarkit)
+:mod:`.sicd_support`     SICD spatial-frequency support, weighting, centre-of-aperture times
+:mod:`.sicd_resample`    SICD grid spacings, carrier, resampling, ``DeltaKCOAPoly``
+:mod:`.sicd_radiometry`  SICD radiometric scale factors (RCS, beta, sigma, gamma nought)
+:mod:`.sicd_polygons`    SICD image corners, ``ValidData``, ``RadarCollection/Area``
 :mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
 =======================  ===============================================================
 

@@ -1,50 +1,52 @@
 """SICD (NGA.STND.0024, Sensor Independent Complex Data) export and import of focused images.
 
 The NITF container and the XML are written and read by sarkit (the NGA reference
-implementation); this module maps a :class:`~sarmitsuba.core.image.SarImage` onto SICD 1.4.0:
+implementation); this module maps a :class:`~sarmitsuba.core.image.SarImage` onto SICD 1.3.0, the
+oldest version sarkit writes whose schema holds everything written here (nothing of 1.4.0 is
+used; sarpy, NGA's older library, knows versions up to 1.3.0). Files of SICD 1.4.0, which
+sarmitsuba wrote before, still read.
 
 - **Array.** SICD's first index is the row. Rows are range (ground or slant range, increasing
-  away from the sensor), columns azimuth, so the SICD array is ``image.data.T``
-  (``[n_range, n_azimuth]``); a file read back is transposed again. Signs: rows increase away
-  from the sensor, columns along the flight direction, so ``Row x Col`` points up (away from
-  the Earth) for a right-looking image and down for a left-looking one.
-- **Grid** (``Type = PLANE``, ``ImagePlane = GROUND`` or ``SLANT``; standard vol. 1, sec. 4):
-  ``Row/UVectECF`` is the image's range direction, ``Col/UVectECF`` its azimuth direction,
-  both in ECEF through the geographic reference (docs/physics.md (G1), (G3)); ``SS`` the pixel
-  spacings; the SCP is the centre pixel. Spatial-frequency support of the two-way phase:
-  in range ``KCtr = 2 fc sin(theta) / c`` and ``ImpRespBW = 2 B sin(theta) / c`` on the ground
-  (``theta`` the incidence angle at the SCP; ``2 fc / c`` and ``2 B / c`` in the slant plane), in
-  azimuth ``ImpRespBW = 2 (s2 - s1) / lambda`` over the sines ``s1 .. s2`` off broadside that
-  both the processed beam and the track's span seen from the SCP cover (a short track, not the
-  beam, bounds the aperture of a few-pulse render). ``ImpRespWid`` is the focusing window's -3 dB
-  width over ``ImpRespBW`` (:func:`sarmitsuba.focus.windows.impulse_response_width`; 0.8859 /
-  ImpRespBW for ``UNIFORM``); when the track cuts the beam's window short, the width of the part
-  kept (:func:`segment_irw`), ``WgtType`` still naming the window. ``Sgn = -1``.
-  ``TimeCOAPoly`` is the time at which each column's ground point is broadside (stripmap; the
-  middle of the aperture in spotlight).
+  away from the sensor), columns azimuth, so the SICD array is ``[n_range, n_azimuth]`` (the
+  transposed image); a file read back is transposed again. Signs: rows increase away from the
+  sensor, columns along the flight direction, so ``Row x Col`` points up (away from the Earth)
+  for a right-looking image and down for a left-looking one.
+- **Grid** (``Type = PLANE``, ``ImagePlane = GROUND`` or ``SLANT``; SICD volume 1, Grid):
+  ``Row/UVectECF`` is the image's range direction, ``Col/UVectECF`` its azimuth direction, both
+  in ECEF through the geographic reference (docs/physics.md (G1), (G3)); the SCP is the image's
+  centre pixel. ``KCtr``, ``ImpRespBW``, the weighting (``WgtType``, ``WgtFunct``) and
+  ``ImpRespWid`` are those of the aperture that formed the SCP
+  (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. The image is resampled for the SICD onto
+  a grid that samples the impulse response about twice in both directions, inside SICD's
+  advised 1.1 to 2.2, carrier included, with ``DeltaKCOAPoly`` and ``DeltaK1``/``DeltaK2`` the
+  local spectral centre (:mod:`sarmitsuba.formats.sicd_resample`); the ``.npz`` image keeps its own grid.
+  ``TimeCOAPoly``: the time the antenna sees each pixel at the processed beam's centre (broadside
+  without a beam); a constant, the middle of the aperture, in spotlight.
 - **Geometry.** ``Position/ARPPoly`` is a quadratic fit of the antenna positions in ECEF against
-  time from the first pulse: the raw data's transmit positions, else the track the image's
-  radar parameters synthesise (:func:`track_of`); ``Timeline`` one IPP set at the PRF;
-  ``SCPCOA`` is sarkit's own computation (``compute_scp_coa``); ``GeoData/ImageCorners`` the
-  corner pixels projected along their R/Rdot contours onto the SCP's height above the ellipsoid
-  by sarkit (``image_to_constant_hae_surface``; NGA.STND.0024-3, Image Projections), which
-  for a slant-plane image is not the corner's own latitude and longitude.
+  time from the first pulse: the raw data's transmit positions, else the track the image's radar
+  parameters synthesise; ``Timeline`` one IPP set at the PRF from ``CollectStart``, the
+  ``collection_start`` of the image's radar metadata (2000-01-01T00:00:00Z when absent);
+  ``ImageCreation/DateTime`` the moment the file is written (UTC); ``SCPCOA`` is sarkit's own
+  computation; ``GeoData/ImageCorners``, ``ValidData`` and ``RadarCollection/Area`` are the
+  corner pixels on the ground (:mod:`sarmitsuba.formats.sicd_polygons`).
 - **Radar.** ``RadarCollection`` carries the band, the polarization and one receive channel;
-  ``ImageFormation/ImageFormAlgo = OTHER`` (backprojection is neither PFA, RMA nor RGAZCOMP).
-- **sarmitsuba's own metadata** (JSON, with the geographic origin of the local frame and the
-  image grid's origin) travel as ``CollectionInfo/Parameter`` elements, so that :func:`read_sicd`
-  gives back the SarImage (grid within micrometres, samples exactly); other tools' PLANE-grid
+  ``ImageFormation/ImageFormAlgo = OTHER`` (backprojection is neither PFA, RMA nor RGAZCOMP);
+  ``Radiometric`` the scale factors of the image's unit peak gain
+  (:mod:`sarmitsuba.formats.sicd_radiometry`).
+- **sarmitsuba's own metadata** (JSON, with the geographic origin of the local frame, the image
+  grid's origin and the carrier the pixels lack) travel as ``CollectionInfo/Parameter``
+  elements, so that :func:`read_sicd` gives back the image on the SICD grid with its metadata; no
+  absolute path is written (``scene_path`` keeps the file name only). Other tools' PLANE-grid
   SICDs are read in the east-north-up frame of their SCP.
 - **Checks.** :func:`check_sicd` runs sarkit's ``sicdcheck`` (schema, NITF headers, every
-  consistency check). sarmitsuba's default grids sample the impulse response more than 2.2
-  times, which draws only the advisory oversampling-ratio warnings (SICD wants 1.1 to 2.2); a
-  grid inside that range passes every check.
+  consistency check, advisory ones included); a file written here passes all of them.
 """
 from __future__ import annotations
 
 import datetime
 import json
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,24 +54,30 @@ from typing import Any
 import numpy as np
 
 from ..core import georef
-from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
+from .sicd_polygons import PolygonError, set_polygons
+from .sicd_radiometry import radiometric
+from .sicd_resample import (Carrier, ResampleError, centred_axis, data_carrier, deltak_limits, fit_carrier,
+                            poly2d_gradient, resample, sicd_spacing)
+from .sicd_support import Aperture, SupportError, Track, Weighting, grid_direction, track_of, window_of, \
+    window_weighting
 
-__all__ = ["SicdError", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE"]
+__all__ = ["SicdError", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
+           "sicd_layout", "build_xml", "image_from_parts", "collection_start", "portable_metadata"]
 
 #: XML namespace of the SICD version written.
-SICD_NAMESPACE = "urn:SICD:1.4.0"
+SICD_NAMESPACE = "urn:SICD:1.3.0"
 _PARAM_METADATA = "SARMITSUBA_METADATA"
 _PARAM_GRID = "SARMITSUBA_GRID"
-#: A fixed collection start keeps the files reproducible (times count from the first pulse).
-_COLLECTION_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
+#: ``CollectStart`` of images whose metadata record no ``collection_start`` (older versions).
+_DEFAULT_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
 #: Bytes of the file length FL in a NITF 2.1 / NSIF 1.0 file header (MIL-STD-2500C: every field before
 #: it has a fixed length).
 _NITF_FL = slice(342, 354)
-#: sarmitsuba window name -> SICD WgtType/WindowName.
-_WINDOW_NAMES = {"rect": "UNIFORM", "taylor": "TAYLOR", "hamming": "HAMMING", "hann": "HANNING", "kaiser": "KAISER"}
+#: Points per axis of the lattice on which the carrier and the centre-of-aperture times are fitted.
+_LATTICE = 13
 
 
 class SicdError(ValueError):
@@ -82,7 +90,7 @@ def _reference(image: SarImage, ref: georef.GeoReference | None) -> georef.GeoRe
 
 
 def scene_centre_point(image: SarImage) -> tuple[tuple[int, int], np.ndarray]:
-    """((row, col) of the SCP in the SICD array, its local position [3] m): the centre pixel."""
+    """((range index, azimuth index) of the image's centre pixel, its local position [3] m): the SCP."""
     n_az, n_rg = image.data.shape
     i, j = n_az // 2, n_rg // 2
     point = (np.asarray(image.origin, float) + image.azimuth[i] * np.asarray(image.azimuth_direction, float)
@@ -90,143 +98,190 @@ def scene_centre_point(image: SarImage) -> tuple[tuple[int, int], np.ndarray]:
     return (j, i), point
 
 
-def _window(image: SarImage, key: str) -> tuple[str, dict]:
-    focus = image.metadata.get("focus", {}) if isinstance(image.metadata, dict) else {}
-    spec = focus.get(key) if isinstance(focus, dict) else None
-    if not isinstance(spec, dict) or "name" not in spec:
-        return "rect", {}
-    return str(spec["name"]), {k: v for k, v in spec.items() if k != "name"}
+def collection_start(image: SarImage, path: Any = "the SICD file") -> datetime.datetime:
+    """``Timeline/CollectStart`` (aware UTC datetime): ``metadata["radar"]["collection_start"]``, an ISO
+    8601 time with a UTC offset (``datetime.datetime.fromisoformat``); 2000-01-01T00:00:00Z when it is
+    missing or None (older versions). Raises SicdError naming ``path`` for any other value."""
+    radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
+    text = radar.get("collection_start") if isinstance(radar, dict) else None
+    if text is None:
+        return _DEFAULT_START
+    try:
+        when = datetime.datetime.fromisoformat(str(text))
+    except ValueError:
+        when = None
+    if when is None or when.utcoffset() is None:
+        raise SicdError(f"cannot write SICD file {path}: metadata radar collection_start = {text!r} is not an ISO "
+                        "8601 time with a UTC offset (e.g. 2026-11-24T23:40:16.123456+00:00)")
+    return when.astimezone(datetime.timezone.utc)
+
+
+def utc_now() -> datetime.datetime:
+    """The present moment, UTC: ``ImageCreation/DateTime``."""
+    return datetime.datetime.now(datetime.timezone.utc)
+
+
+def portable_metadata(metadata: Any) -> Any:
+    """A copy of JSON-like ``metadata`` whose every ``"scene_path"`` string, at any depth, is cut to
+    its file name (``/home/me/scenes/a.xml`` and ``C:\\s\\a.xml`` give ``a.xml``)."""
+    if isinstance(metadata, dict):
+        return {key: (re.split(r"[\\/]", value)[-1] if key == "scene_path" and isinstance(value, str)
+                      else portable_metadata(value)) for key, value in metadata.items()}
+    if isinstance(metadata, (list, tuple)):
+        return [portable_metadata(value) for value in metadata]
+    return metadata
 
 
 @dataclass(frozen=True)
-class Track:
-    """The collection a SICD describes: per-pulse times [s] (float64 [n]), antenna positions and
-    velocities (float64 [n, 3], local frame, m and m/s), carrier ``fc`` [Hz], ``bandwidth`` [Hz], ``prf`` [Hz]."""
+class Layout:
+    """The SICD grid of an image: ``rows`` / ``cols`` the range / azimuth positions [m] of the SICD
+    rows and columns on the image's axes (float64, odd lengths, the SCP in the middle), ``scp`` the
+    SCP's (range, azimuth) [m] and local position ``scp_point`` [3] m, ``kctr`` and ``bandwidth``
+    (row, col) [cycles/m], the two :class:`~sarmitsuba.formats.sicd_support.Weighting` s, the
+    image's ``carrier``, the carrier ``removed`` from the pixels (row, col) [cycles/m],
+    ``deltakcoa`` (row, col) Poly2D [cycles/m] and ``coa`` (TimeCOAPoly, s)."""
 
-    pulse_time: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    fc: float
-    bandwidth: float
-    prf: float
+    rows: np.ndarray
+    cols: np.ndarray
+    scp: tuple[float, float]
+    scp_point: np.ndarray
+    kctr: tuple[float, float]
+    bandwidth: tuple[float, float]
+    weighting: tuple[Weighting, Weighting]
+    carrier: Carrier
+    removed: tuple[float, float]
+    deltakcoa: tuple[np.ndarray, np.ndarray]
+    coa: np.ndarray
 
 
-def track_of(image: SarImage, raw: RawData | None) -> Track:
-    """The :class:`Track` of ``raw`` (its transmit positions), else the one the radar parameters in
-    ``image.metadata["radar"]`` synthesise (:func:`sarmitsuba.core.radar.acquisition_geometry`, world frame).
+def _lattice(image: SarImage, scp: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x [n], y [n] row and column coordinates from the SCP [m], local points [n, 3]) of a
+    :data:`_LATTICE`-square lattice over the image."""
+    rg = np.linspace(image.range[0], image.range[-1], _LATTICE)
+    az = np.linspace(image.azimuth[0], image.azimuth[-1], _LATTICE)
+    rg, az = (a.ravel() for a in np.meshgrid(rg, az, indexing="ij"))
+    points = (np.asarray(image.origin, float) + az[:, None] * np.asarray(image.azimuth_direction, float)
+              + rg[:, None] * np.asarray(image.range_direction, float))
+    return rg - scp[0], az - scp[1], points
 
-    Raises SicdError when neither is available.
-    """
-    if raw is not None:
-        return Track(raw.pulse_time, raw.tx_position, raw.velocity, raw.fc, raw.bandwidth, raw.prf)
-    from ..core.radar import ParameterError, RadarParameters, acquisition_geometry
-    radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
+
+def _coa_poly(aperture: Aperture, image: SarImage, scp: tuple[float, float], scp_point: np.ndarray) -> np.ndarray:
+    """``TimeCOAPoly`` [s]: spotlight a constant; else ``1, x, x^2, y`` fitted on the lattice."""
+    if _mode(image) == "spotlight":
+        return np.array([[float(aperture.coa_time(scp_point, spotlight=True)[0])]])
+    x, y, points = _lattice(image, scp)
+    t = aperture.coa_time(points, spotlight=False)
+    design = np.stack([np.ones_like(x), y, x, x ** 2], axis=1)
+    c = np.linalg.lstsq(design, t, rcond=None)[0]
+    c[0] = float(aperture.coa_time(scp_point, spotlight=False)[0])
+    return np.array([[c[0], c[1]], [c[2], 0.0], [c[3], 0.0]])
+
+
+def _mode(image: SarImage) -> str:
+    radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
+    return str(radar.get("mode", "stripmap")) if isinstance(radar, dict) else "stripmap"
+
+
+def _folded(poly: np.ndarray, spacing: float) -> np.ndarray:
+    """``poly`` less the whole number of ``1 / spacing`` that brings its value at the SCP nearest 0."""
+    out = poly.copy()
+    out[0, 0] -= round(out[0, 0] * spacing) / spacing
+    return out
+
+
+def sicd_layout(image: SarImage, track: Track) -> Layout:
+    """The :class:`Layout` of ``image`` focused from ``track``: the support at the SCP, spacings
+    (:func:`~sarmitsuba.formats.sicd_resample.sicd_spacing`), the grid centred on the SCP within the
+    image, the carrier (the aperture's local support centres for a backprojected image, the data's
+    spectral centre otherwise). Raises SicdError when the image admits no SICD grid."""
+    (j, i), scp_point = scene_centre_point(image)
+    scp = (float(image.range[j]), float(image.azimuth[i]))
     try:
-        params = RadarParameters.from_mapping({k: v for k, v in radar.items() if v is not None})
-        geometry = acquisition_geometry(params)
-    except (AttributeError, TypeError, ValueError, KeyError, ParameterError):
-        raise SicdError("writing SICD needs the raw data that were focused, or an image whose metadata record "
-                        "the resolved radar parameters (metadata['radar'] of a sarmitsuba render): pass raw=") from None
-    return Track(geometry.pulse_time, geometry.positions, geometry.velocity, params.frequency, params.bandwidth,
-                 params.prf)
+        aperture = Aperture(image, track)
+        at_scp = {k: float(v[0]) for k, v in aperture.support(scp_point).items()}
+        kctr, bandwidth = (at_scp["kctr_row"], at_scp["kctr_col"]), (at_scp["bw_row"], at_scp["bw_col"])
+        spacing = (sicd_spacing(bandwidth[0], kctr[0]), sicd_spacing(bandwidth[1], kctr[1]))
+        rows, cols = centred_axis(image.range, scp[0], spacing[0]), centred_axis(image.azimuth, scp[1], spacing[1])
+        weighting = (window_weighting(window_of(image, "window_range")), aperture.azimuth_weighting(scp_point))
+        if image.algorithm == "backprojection":
+            x, y, points = _lattice(image, scp)
+            support = aperture.support(points)
+            lit = support["bw_col"] > 1e-3 * bandwidth[1]               # pixels some pulse imaged
+            carrier = fit_carrier(kctr, x[lit], y[lit], support["kctr_row"][lit], support["kctr_col"][lit])
+        else:
+            carrier = data_carrier(image, kctr)
+        coa = _coa_poly(aperture, image, scp, scp_point)
+    except (SupportError, ResampleError) as exc:
+        raise SicdError(str(exc)) from None
+    removed = tuple(0.0 if abs(k * s - round(k * s)) < 1e-9 else float(k - round(k * s) / s)
+                    for k, s in zip(kctr, spacing))                # KCtr SS whole: nothing removed
+    gradient = poly2d_gradient(carrier.phi)
+    deltakcoa = (_folded(gradient[0], spacing[0]), _folded(gradient[1], spacing[1]))
+    return Layout(rows, cols, scp, scp_point, kctr, bandwidth, weighting, carrier, removed, deltakcoa, coa)
 
 
-def grid_direction(unit_ecef: np.ndarray, spacing: float, bandwidth: float, kctr: float,
-                   window: tuple[str, dict], width: float | None = None) -> dict[str, Any]:
-    """One ``Grid/Row`` or ``Grid/Col`` element (sarkit's dictionary form); ``width`` is the
-    impulse-response width in units of ``1 / bandwidth`` (default: the window's own)."""
-    from ..focus.windows import impulse_response_width
-    name, params = window
-    half = min(0.5 * bandwidth, 0.5 / spacing)           # a support wider than the sampling wraps
-    weight = {"WindowName": _WINDOW_NAMES.get(name, name.upper())}
-    if params:
-        weight["Parameter"] = [(k.upper(), str(v)) for k, v in params.items()]
-    width = impulse_response_width(name, **params) if width is None else width
-    return {"UVectECF": unit_ecef, "SS": float(spacing), "ImpRespWid": width / bandwidth,
-            "Sgn": -1, "ImpRespBW": float(bandwidth), "KCtr": float(kctr), "DeltaK1": -half, "DeltaK2": half,
-            "WgtType": weight}
+def _grid(image: SarImage, layout: Layout, axes: np.ndarray) -> dict[str, Any]:
+    """``Grid`` (sarkit's dictionary form) of the SICD grid ``layout``."""
+    spacing = (float(layout.rows[1] - layout.rows[0]), float(layout.cols[1] - layout.cols[0]))
+    half = (0.5 * (layout.rows.size - 1) * spacing[0], 0.5 * (layout.cols.size - 1) * spacing[1])
+    corners_x, corners_y = np.array([-1, -1, 1, 1]) * half[0], np.array([-1, 1, 1, -1]) * half[1]
+    directions = {}
+    for k, (name, unit) in enumerate((("Row", image.range_direction), ("Col", image.azimuth_direction))):
+        deltak = deltak_limits(layout.deltakcoa[k], corners_x, corners_y, layout.bandwidth[k], spacing[k])
+        directions[name] = grid_direction(np.asarray(unit, float) @ axes, spacing[k], layout.bandwidth[k],
+                                          layout.kctr[k], layout.weighting[k], deltak, layout.deltakcoa[k])
+    return {"ImagePlane": "GROUND" if image.plane == "ground" else "SLANT", "Type": "PLANE",
+            "TimeCOAPoly": layout.coa, **directions}
 
 
-def segment_irw(window: tuple[str, dict], u0: float, u1: float, samples: int = 512, fft: int = 1 << 17) -> float:
-    """-3 dB width of ``|p|^2``, in units of ``1 / B``, of the window ``w(u - 1/2)`` kept over
-    ``u0 <= u <= u1`` only (0 <= u0 < u1 <= 1) and spread over a support ``B``: the weighting left
-    when the track, not the beam, bounds the aperture. 0.8859 for ``rect``."""
-    from ..focus.windows import spectral_window
-    u = u0 + (np.arange(samples) + 0.5) / samples * (u1 - u0)
-    power = np.abs(np.fft.rfft(spectral_window(window[0], u - 0.5, 1.0, **window[1]), fft)) ** 2
-    power /= power[0]
-    k = int(np.argmax(power < 0.5))
-    half = k - 1 + (power[k - 1] - 0.5) / (power[k - 1] - power[k])
-    return 2.0 * half * samples / fft
+def _check_uniform(axis: np.ndarray) -> None:
+    """SicdError unless ``axis`` is uniform and increasing with at least two samples (a PLANE grid)."""
+    steps = np.diff(np.asarray(axis, dtype=np.float64))
+    if steps.size == 0 or np.ptp(steps) > 1e-6 * abs(steps.mean()) or steps.mean() <= 0:
+        raise SicdError("a SICD PLANE grid needs uniformly sampled, increasing image axes with at least two samples")
 
 
-def azimuth_support(image: SarImage, track: Track, scp: np.ndarray, wavelength: float,
-                    window: tuple[str, dict]) -> tuple[float, float, float | None]:
-    """(bandwidth, centre) [cycles/m] of the azimuth spatial frequencies ``2 s / lambda`` seen at the
-    SCP (``s`` the sine off broadside, over the image's beam sines and the track's span, whichever
-    is narrower), and the impulse-response width in units of ``1 / bandwidth`` (None: the window's)."""
-    focus = image.metadata.get("focus", {}) if isinstance(image.metadata, dict) else {}
-    beam = focus.get("beam_sines") if isinstance(focus, dict) else None
-    heading = track.velocity.mean(axis=0) / np.linalg.norm(track.velocity.mean(axis=0))
-    rel = scp - track.position[[0, -1]]
-    lo, hi = np.sort(rel @ heading / np.linalg.norm(rel, axis=1))
-    width = None
-    if beam and min(hi, beam[1]) > max(lo, beam[0]):
-        b0, b1 = float(beam[0]), float(beam[1])
-        u0, u1 = (max(lo, b0) - b0) / (b1 - b0), (min(hi, b1) - b0) / (b1 - b0)
-        if u1 - u0 < 1.0 - 1e-9:                       # the track, not the beam, bounds the aperture
-            width = segment_irw(window, u0, u1)
-        lo, hi = max(lo, b0), min(hi, b1)
-    return 2.0 * float(hi - lo) / wavelength, float(hi + lo) / wavelength, width
+def _polarization(image: SarImage) -> tuple[str, str]:
+    """(transmit, receive) of the image's channel: ``"V"``/``"H"``, ``"OTHER"`` when unknown."""
+    pol = str(image.metadata.get("polarization", "")) if isinstance(image.metadata, dict) else ""
+    return (pol[0], pol[1]) if len(pol) == 2 and set(pol) <= {"H", "V"} else ("OTHER", "OTHER")
 
 
-def closest_approach_time(track: Track, point: np.ndarray) -> float:
-    """Time [s] from the first pulse at which the antenna passes broadside of ``point`` (straight track)."""
-    velocity = track.velocity.mean(axis=0)
-    along = (point - track.position[0]) @ velocity / float(velocity @ velocity)
-    return float(np.clip(along, 0.0, track.pulse_time[-1] - track.pulse_time[0]))
+def _parameters(image: SarImage, ref: georef.GeoReference, layout: Layout) -> list[tuple[str, str]]:
+    """CollectionInfo/Parameter entries: the metadata (JSON, no absolute path), the local frame, the
+    grid origin and the carrier the pixels lack."""
+    grid = {"geo_origin": ref.as_tuple(), "origin": np.asarray(image.origin, float).tolist(),
+            "azimuth0": float(layout.cols[0]), "range0": float(layout.rows[0]),
+            "algorithm": image.algorithm, "window": image.window, "carrier_removed": list(layout.removed)}
+    metadata = json.dumps(portable_metadata(image.metadata), default=json_default)
+    return [(_PARAM_GRID, json.dumps(grid)), (_PARAM_METADATA, metadata)]
 
 
-def sicd_dict(image: SarImage, track: Track, ref: georef.GeoReference) -> dict[str, Any]:
-    """The SICD XML (less SCPCOA, ImageCorners zero) in sarkit's dictionary form."""
+def sicd_dict(image: SarImage, track: Track, ref: georef.GeoReference, layout: Layout,
+              start: datetime.datetime, created: datetime.datetime) -> dict[str, Any]:
+    """The SICD XML in sarkit's dictionary form, less SCPCOA, the polygons and Radiometric."""
     axes = georef.enu_axes(ref)
-    (scp_row, scp_col), scp = scene_centre_point(image)
-    scp_ecf = georef.enu_to_ecef(scp, ref)
     times, n_pulses = track.pulse_time - track.pulse_time[0], len(track.pulse_time)
     duration = n_pulses / track.prf                  # IPP count n at TEnd: IPPEnd = n - 1 (vol. 1, Timeline)
-    t_scp = closest_approach_time(track, scp)
-    antenna = track.position[int(np.argmin(np.abs(times - t_scp)))]
-    sin_inc = float(np.hypot(*(antenna - scp)[:2]) / np.linalg.norm(antenna - scp))
-    ground = image.plane == "ground"
-    projection = sin_inc if ground else 1.0
-    wavelength = SPEED_OF_LIGHT / track.fc
-    az_window = _window(image, "window_azimuth")
-    az_bw, az_ctr, az_width = azimuth_support(image, track, scp, wavelength, az_window)
-    velocity = track.velocity.mean(axis=0)
-    mode = str(image.metadata.get("radar", {}).get("mode", "stripmap")) if isinstance(image.metadata, dict) else ""
-    slope = 0.0 if mode == "spotlight" else float(np.asarray(image.azimuth_direction) @ velocity / (velocity @ velocity))
     pol = _polarization(image)
     fit = np.polynomial.polynomial.polyfit(times, georef.enu_to_ecef(track.position, ref), 2 if len(times) > 2 else 1)
-    n_az, n_rg = image.data.shape
+    n_rows, n_cols = layout.rows.size, layout.cols.size
     band = (track.fc - 0.5 * track.bandwidth, track.fc + 0.5 * track.bandwidth)
+    mode = "SPOTLIGHT" if _mode(image) == "spotlight" else "STRIPMAP"
+    core = str(image.metadata.get("scene", "scene")) if isinstance(image.metadata, dict) else "scene"
     return {
-        "CollectionInfo": {"CollectorName": "sarmitsuba", "CoreName": str(image.metadata.get("scene", "scene")) or
-                           "scene", "CollectType": "MONOSTATIC",
-                           "RadarMode": {"ModeType": "SPOTLIGHT" if mode == "spotlight" else "STRIPMAP"},
-                           "Classification": "UNCLASSIFIED", "Parameter": _parameters(image, ref)},
-        "ImageCreation": {"Application": "sarmitsuba", "DateTime": _COLLECTION_START},
-        "ImageData": {"PixelType": "RE32F_IM32F", "NumRows": n_rg, "NumCols": n_az, "FirstRow": 0, "FirstCol": 0,
-                      "FullImage": {"NumRows": n_rg, "NumCols": n_az}, "SCPPixel": np.array([scp_row, scp_col])},
-        "GeoData": {"EarthModel": "WGS_84", "SCP": {"ECF": scp_ecf, "LLH": georef.enu_to_geodetic(scp, ref)},
-                    "ImageCorners": np.zeros((4, 2))},              # projected by project_corners
-        "Grid": {"ImagePlane": "GROUND" if ground else "SLANT", "Type": "PLANE",
-                 "TimeCOAPoly": np.array([[t_scp, slope]]),
-                 "Row": grid_direction(np.asarray(image.range_direction) @ axes, _spacing(image.range),
-                                       2.0 * track.bandwidth * projection / SPEED_OF_LIGHT,
-                                       2.0 * track.fc * projection / SPEED_OF_LIGHT, _window(image, "window_range")),
-                 "Col": grid_direction(np.asarray(image.azimuth_direction) @ axes, _spacing(image.azimuth), az_bw,
-                                       az_ctr, az_window, az_width)},
-        "Timeline": {"CollectStart": _COLLECTION_START, "CollectDuration": duration,
+        "CollectionInfo": {"CollectorName": "sarmitsuba", "CoreName": core or "scene", "CollectType": "MONOSTATIC",
+                           "RadarMode": {"ModeType": mode}, "Classification": "UNCLASSIFIED",
+                           "Parameter": _parameters(image, ref, layout)},
+        "ImageCreation": {"Application": "sarmitsuba", "DateTime": created},
+        "ImageData": {"PixelType": "RE32F_IM32F", "NumRows": n_rows, "NumCols": n_cols, "FirstRow": 0, "FirstCol": 0,
+                      "FullImage": {"NumRows": n_rows, "NumCols": n_cols},
+                      "SCPPixel": np.array([n_rows // 2, n_cols // 2])},
+        "GeoData": {"EarthModel": "WGS_84", "SCP": {"ECF": georef.enu_to_ecef(layout.scp_point, ref),
+                                                    "LLH": georef.enu_to_geodetic(layout.scp_point, ref)},
+                    "ImageCorners": np.zeros((4, 2))},              # projected by set_polygons
+        "Grid": _grid(image, layout, axes),
+        "Timeline": {"CollectStart": start, "CollectDuration": duration,
                      "IPP": {"Set": [{"TStart": 0.0, "TEnd": duration, "IPPStart": 0, "IPPEnd": n_pulses - 1,
                                       "IPPPoly": np.array([0.0, track.prf])}]}},
         "Position": {"ARPPoly": fit},
@@ -239,34 +294,15 @@ def sicd_dict(image: SarImage, track: Track, ref: georef.GeoReference) -> dict[s
     }
 
 
-def _spacing(axis: np.ndarray) -> float:
-    """The step [m] of a uniform image axis; SicdError otherwise (a PLANE grid is uniform)."""
-    steps = np.diff(np.asarray(axis, dtype=np.float64))
-    if steps.size == 0 or np.ptp(steps) > 1e-6 * abs(steps.mean()):
-        raise SicdError("a SICD PLANE grid needs uniformly sampled image axes with at least two samples")
-    return float(steps.mean())
-
-
-def _polarization(image: SarImage) -> tuple[str, str]:
-    """(transmit, receive) of the image's channel: ``"V"``/``"H"``, ``"OTHER"`` when unknown."""
-    pol = str(image.metadata.get("polarization", "")) if isinstance(image.metadata, dict) else ""
-    return (pol[0], pol[1]) if len(pol) == 2 and set(pol) <= {"H", "V"} else ("OTHER", "OTHER")
-
-
-def _parameters(image: SarImage, ref: georef.GeoReference) -> list[tuple[str, str]]:
-    """CollectionInfo/Parameter entries: the metadata (JSON) and the local frame and grid origin."""
-    grid = {"geo_origin": ref.as_tuple(), "origin": np.asarray(image.origin, float).tolist(),
-            "azimuth0": float(image.azimuth[0]), "range0": float(image.range[0]),
-            "algorithm": image.algorithm, "window": image.window}
-    return [(_PARAM_GRID, json.dumps(grid)), (_PARAM_METADATA, json.dumps(image.metadata, default=json_default))]
-
-
-def build_xml(image: SarImage, track: Track, ref: georef.GeoReference) -> Any:
-    """The SICD XML tree (lxml ElementTree) of ``image``, SCPCOA computed by sarkit."""
+def build_xml(image: SarImage, track: Track, ref: georef.GeoReference, layout: Layout,
+              start: datetime.datetime | None = None, created: datetime.datetime | None = None) -> Any:
+    """The SICD XML tree (lxml ElementTree) of ``image`` on ``layout``: SCPCOA computed by sarkit,
+    then the polygons and Radiometric. ``start`` default :func:`collection_start`, ``created`` now."""
     import lxml.etree
     import sarkit.sicd as sksicd
     root = sksicd.ElementWrapper(lxml.etree.Element(f"{{{SICD_NAMESPACE}}}SICD"))
-    root.from_dict(sicd_dict(image, track, ref))
+    root.from_dict(sicd_dict(image, track, ref, layout, collection_start(image) if start is None else start,
+                             utc_now() if created is None else created))
     for parent, child in (("{*}Timeline/{*}IPP", "{*}Set"), ("{*}RadarCollection/{*}RcvChannels", "{*}ChanParameters")):
         holder = root.elem.find(parent)
         holder.set("size", str(len(holder.findall(child))))
@@ -274,31 +310,14 @@ def build_xml(image: SarImage, track: Track, ref: georef.GeoReference) -> Any:
             elem.set("index", str(index))
     tree = lxml.etree.ElementTree(root.elem)
     root.elem.find("{*}ImageFormation").addnext(sksicd.compute_scp_coa(tree))
-    project_corners(tree)
+    set_polygons(tree)
+    root["Radiometric"] = radiometric(tree)
     return tree
-
-
-def project_corners(tree: Any) -> None:
-    """Set ``GeoData/ImageCorners``: the corner pixels (first row and column,
-    then clockwise in (row, col)) projected along their R/Rdot contours onto the WGS84 surface of
-    the SCP's height, by sarkit (``image_to_constant_hae_surface``, the image-to-scene projection).
-    A slant-plane corner lies off the Earth, so its own latitude and longitude would be wrong."""
-    import sarkit.sicd as sksicd
-    import sarkit.wgs84
-    xml = sksicd.XmlHelper(tree)
-    n_rows, n_cols = xml.load("{*}ImageData/{*}NumRows"), xml.load("{*}ImageData/{*}NumCols")
-    rowcol = np.array([[0, 0], [0, n_cols - 1], [n_rows - 1, n_cols - 1], [n_rows - 1, 0]])
-    rowcol += np.array([xml.load("{*}ImageData/{*}FirstRow"), xml.load("{*}ImageData/{*}FirstCol")])
-    hae = xml.load("{*}GeoData/{*}SCP/{*}LLH")[2]
-    points, _, success = sksicd.image_to_constant_hae_surface(tree, sksicd.rowcol_to_xrowycol(tree, rowcol), hae)
-    if not success or not np.all(np.isfinite(points)):
-        raise SicdError("the image's corners do not project onto the Earth (is the track above the scene?)")
-    xml.set("{*}GeoData/{*}ImageCorners", sarkit.wgs84.cartesian_to_geodetic(points)[:, :2])
 
 
 def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = None,
                ref: georef.GeoReference | None = None) -> Path:
-    """Write ``image`` as a SICD 1.4.0 NITF at ``path`` (atomically).
+    """Write ``image`` as a SICD 1.3.0 NITF at ``path`` (atomically), resampled onto its SICD grid.
 
     Parameters
     ----------
@@ -309,21 +328,32 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
     raw : RawData, optional
         The data that were focused: their track gives ``Position``, ``Timeline`` and the band.
         Without them, the track the radar parameters in ``image.metadata["radar"]`` synthesise
-        (a sarmitsuba render's images record them) stands in (:func:`track_of`).
+        (a sarmitsuba render's images record them) stands in.
     ref : GeoReference, optional
         WGS84 origin of the local frame (default: ``geo_origin`` in ``image.metadata["radar"]``).
 
-    Raises SicdError without ``raw`` and without radar parameters, or on a non-uniform grid; :class:`outputs.WriteError`
-    (an OSError) when the file cannot be written, leaving nothing behind.
+    Raises SicdError naming ``path``: no raw data and no radar parameters, a non-uniform grid, an
+    image too small for its SICD grid, a ``collection_start`` that is no ISO 8601 time with an
+    offset, corners that do not project onto the Earth; :class:`outputs.WriteError` (an OSError)
+    when the file cannot be written, leaving nothing behind.
     """
     import sarkit.sicd as sksicd
-    tree = build_xml(image, track_of(image, raw), _reference(image, ref))
+    try:
+        start = collection_start(image, path)
+        for axis in (image.range, image.azimuth):
+            _check_uniform(axis)
+        track = track_of(image, raw)
+        layout = sicd_layout(image, track)
+        tree = build_xml(image, track, _reference(image, ref), layout, start=start)
+    except (SicdError, SupportError, PolygonError) as exc:
+        message = str(exc)
+        raise SicdError(message if str(path) in message else f"cannot write SICD file {path}: {message}") from None
+    array = resample(image, layout.carrier, layout.scp, layout.rows, layout.cols, layout.removed)
     security = sksicd.NitfSecurityFields(clas="U")
     metadata = sksicd.NitfMetadata(
         xmltree=tree, file_header_part=sksicd.NitfFileHeaderPart(ostaid="sarmitsuba", security=security),
         im_subheader_part=sksicd.NitfImSubheaderPart(isorce="sarmitsuba", security=security),
         de_subheader_part=sksicd.NitfDeSubheaderPart(security=security))
-    array = np.ascontiguousarray(image.data.T.astype(np.complex64))
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f, sksicd.NitfWriter(f, metadata) as writer:
@@ -337,8 +367,8 @@ def check_sicd(path: str | os.PathLike, advisory: bool = True) -> list[str]:
 
     ``advisory`` False leaves out the checks whose only failures are advisory ("want", severity
     Warning, such as the oversampling-ratio checks ``check_iprbw_to_ss_osr_row``/``_col``, which
-    SICD wants in 1.1 to 2.2); required ("need", Error) failures are always listed. A file whose
-    grid samples the impulse response 1.1 to 2.2 times in both directions gives ``[]``.
+    SICD wants in 1.1 to 2.2); required ("need", Error) failures are always listed. Files of
+    :func:`write_sicd` give ``[]`` (their grid samples the impulse response about twice).
     Raises OSError when the file cannot be opened.
     """
     import sarkit.verification as skver
@@ -353,8 +383,11 @@ def check_sicd(path: str | os.PathLike, advisory: bool = True) -> list[str]:
 def read_sicd(path: str | os.PathLike) -> SarImage:
     """Read a SICD NITF with a PLANE grid into a SarImage in a local east-north-up frame.
 
-    Files written by :func:`write_sicd` come back in their own frame (grid within micrometres,
-    samples exactly, metadata included); other tools' files in the frame of their SCP.
+    Files written by :func:`write_sicd` come back in their own frame on the SICD grid (positions
+    within micrometres, the pixels with the carrier the writer took out restored, metadata
+    included; writing that image again changes no pixel); files of the former SICD 1.4.0 layout
+    as they were written (the focused image's own grid); other tools' files in the frame of
+    their SCP, their pixels as stored.
 
     Raises SicdError naming ``path``: missing or unreadable; empty, truncated, damaged, not a NITF
     file or a NITF without SICD XML (one line saying which, :func:`damage_message`); a grid other
@@ -433,11 +466,22 @@ def image_from_parts(path: Any, tree: Any, array: np.ndarray) -> SarImage:
     rng = (scp - origin) @ u_rg + (rows - scp_row) * ss_rg
     azi = (scp - origin) @ u_az + (cols - scp_col) * ss_az
     metadata = json.loads(params[_PARAM_METADATA]) if _PARAM_METADATA in params else {"source": str(path)}
-    return SarImage(data=np.ascontiguousarray(array.T).astype(np.complex64), azimuth=azi, range=rng, origin=origin,
+    data = _with_carrier(array, grid.get("carrier_removed"), (rows - scp_row) * ss_rg, (cols - scp_col) * ss_az)
+    return SarImage(data=np.ascontiguousarray(data.T).astype(np.complex64), azimuth=azi, range=rng, origin=origin,
                     azimuth_direction=u_az, range_direction=u_rg,
                     plane="ground" if xml.load("{*}Grid/{*}ImagePlane") == "GROUND" else "slant",
                     algorithm=grid.get("algorithm", "unknown"), window=grid.get("window", "unknown"),
                     metadata=metadata)
+
+
+def _with_carrier(array: np.ndarray, removed: Any, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The SICD pixels ``array`` [rows, cols] times ``exp(j 2 pi (f_row x + f_col y))``: the carrier
+    ``removed`` [cycles/m] that :func:`write_sicd` took out, at the row and column coordinates
+    ``x``, ``y`` [m] from the SCP (nothing for files without it, or where it is zero)."""
+    if not removed or not any(float(f) for f in removed):
+        return array
+    cycles = np.mod(float(removed[0]) * x, 1.0)[:, None] + np.mod(float(removed[1]) * y, 1.0)[None, :]
+    return array * np.exp(2j * np.pi * cycles)
 
 
 def load_image(path: str | os.PathLike) -> SarImage:
