@@ -337,3 +337,20 @@ def test_without_the_cog_driver_a_large_image_is_a_tiled_geotiff_with_overviews(
     with rasterio.open(write_geotiff(image, tmp_path / "big.tif", georef.GeoReference(0.0, 3.0, 0.0))) as src:
         assert src.block_shapes == [(256, 256), (256, 256)] and src.overviews(2) == [2, 4]
         assert src.tags(ns="rio_overview") == {"resampling": "average"} and src.units == ("dBsm", "m^2")
+
+
+def test_the_geotiff_dates_the_collection_and_the_file(tmp_path):
+    """ACQUISITION_START_TIME is the sensor's collection_start in UTC (given with a +02:00 offset:
+    10:00 UTC written by hand), TIFFTAG_DATETIME (the TIFF DateTime tag) the moment of writing."""
+    import datetime
+    out = tmp_path / "r"
+    before = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
+    assert main(["render", "trihedral", "--pulses", "32", "--geotiff", "--out", str(out), "--no-progress",
+                 "--set", "geo_origin=48.1,11.6,520", "--set", "collection_start=2026-11-24T12:00:00+02:00"]) == 0
+    with rasterio.open(out / "image.tif") as src:
+        tags = src.tags()
+    assert tags["ACQUISITION_START_TIME"] == "2026-11-24T10:00:00+00:00"
+    made = datetime.datetime.strptime(tags["TIFFTAG_DATETIME"], "%Y:%m:%d %H:%M:%S").replace(
+        tzinfo=datetime.timezone.utc)
+    assert before <= made <= datetime.datetime.now(datetime.timezone.utc)
+

@@ -17,6 +17,7 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.sicd_radiometry`  SICD radiometric scale factors (RCS, beta, sigma, gamma nought)
 :mod:`.sicd_polygons`    SICD image corners, ``ValidData``, ``RadarCollection/Area``
 :mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
+:mod:`.provenance`       collection start, creation time, metadata without the user's paths
 =======================  ===============================================================
 
 Physics: (G1) local frame to ECEF, (G2) CPHD compensation to the scene reference point,

@@ -33,7 +33,6 @@ from __future__ import annotations
 import datetime
 import json
 import os
-import re
 from pathlib import Path
 from typing import Any
 
@@ -44,9 +43,11 @@ from ..core.constants import SPEED_OF_LIGHT
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
 from .cphd_geometry import scene_coordinates, scene_reference_point, srp_delay, unit
+from .provenance import collection_start as provenance_start
+from .provenance import portable_metadata, utc_now
 
 __all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE", "PARAMETERS",
-           "collection_start", "portable_metadata"]
+           "collection_start"]
 
 #: XML namespace of the CPHD version written.
 CPHD_NAMESPACE = "http://api.nsgreg.nga.mil/schema/cphd/1.1.0"
@@ -59,8 +60,6 @@ _KVP_COMPRESSED = "SARMITSUBA_RANGE_COMPRESSED"
 #: earlier versions, of the file-header keys read): metadata JSON, first pulse time [s] in
 #: RawData's clock (zero at mid-aperture), PRF [Hz], ``"true"``/``"false"`` range compressed.
 PARAMETERS = (_KVP_METADATA, _KVP_TIME0, _KVP_PRF, _KVP_COMPRESSED)
-#: Collection start of data that do not give one (older versions, synthetic RawData).
-_COLLECTION_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
 #: PVP layout in 8-byte words: (name, size, format).
 _PVP_LAYOUT = (("TxTime", 1, "f8"), ("TxPos", 3, "v"), ("TxVel", 3, "v"), ("RcvTime", 1, "f8"),
                ("RcvPos", 3, "v"), ("RcvVel", 3, "v"), ("SRPPos", 3, "v"), ("aFDOP", 1, "f8"),
@@ -190,18 +189,6 @@ def application(raw: RawData) -> str:
     return f"sarmitsuba {version}" if version else "sarmitsuba"
 
 
-def portable_metadata(metadata: Any) -> Any:
-    """A copy of ``metadata`` (JSON-like: dicts, lists, scalars) whose every ``"scene_path"`` string,
-    at any depth, is cut to its file name (``/home/me/scenes/a.xml`` and ``C:\\s\\a.xml`` give
-    ``a.xml``): no absolute path of the user's machine travels in a file."""
-    if isinstance(metadata, dict):
-        return {key: (re.split(r"[\\/]", value)[-1] if key == "scene_path" and isinstance(value, str)
-                      else portable_metadata(value)) for key, value in metadata.items()}
-    if isinstance(metadata, (list, tuple)):
-        return [portable_metadata(value) for value in metadata]
-    return metadata
-
-
 def creation_parameters(raw: RawData) -> list[tuple[str, str]]:
     """``ProductInfo/CreationInfo/Parameter`` entries (name, text), :data:`PARAMETERS`: what CPHD has
     no element for (the metadata as JSON, the first pulse time [s], the PRF [Hz], range compressed)."""
@@ -211,26 +198,12 @@ def creation_parameters(raw: RawData) -> list[tuple[str, str]]:
 
 
 def collection_start(raw: RawData, path: Any = "the CPHD file") -> datetime.datetime:
-    """The first pulse's UTC time (aware datetime): ``metadata["radar"]["collection_start"]``, an ISO
-    8601 time with an offset; 2000-01-01T00:00:00Z when it is missing or None (older versions,
-    synthetic RawData). Raises :class:`CphdError` naming ``path`` for any other value."""
-    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
-    text = radar.get("collection_start") if isinstance(radar, dict) else None
-    if text is None:
-        return _COLLECTION_START
+    """The first pulse's UTC time (:func:`sarmitsuba.formats.provenance.collection_start`); raises
+    :class:`CphdError` naming ``path`` for a value that is no ISO 8601 time with a UTC offset."""
     try:
-        when = datetime.datetime.fromisoformat(str(text))
-    except ValueError:
-        when = None
-    if when is None or when.utcoffset() is None:
-        raise CphdError(f"cannot write CPHD file {path}: metadata radar collection_start = {text!r} is not an ISO "
-                        "8601 time with a UTC offset (e.g. 2026-11-24T10:00:00+00:00)")
-    return when.astimezone(datetime.timezone.utc)
-
-
-def utc_now() -> datetime.datetime:
-    """The present moment, UTC (``ProductInfo/CreationInfo/DateTime``; tests may replace it)."""
-    return datetime.datetime.now(datetime.timezone.utc)
+        return provenance_start(raw.metadata)
+    except ValueError as exc:
+        raise CphdError(f"cannot write CPHD file {path}: metadata radar {exc}") from None
 
 
 def build_metadata(raw: RawData, ref: georef.GeoReference, start: datetime.datetime | None = None,

@@ -52,6 +52,7 @@ import numpy as np
 from ..core import georef
 from ..core.image import SarImage, SarImageError
 from ..core.outputs import atomic_write
+from . import provenance
 
 __all__ = ["GeoTiffError", "write_geotiff", "pixel_corners", "geotransform", "north_up_grid", "band_units",
            "TILE"]
@@ -295,10 +296,19 @@ def write_raster(path: Path, db: np.ndarray, intensity: np.ndarray, crs: str, tr
 
 
 def geotiff_tags(image: SarImage, ref: georef.GeoReference, layout: Layout) -> dict[str, str]:
-    """Dataset tags: scene, polarization, carrier, geographic origin, units and layout."""
+    """Dataset tags: scene, polarization, carrier, geographic origin, units, layout, the collection's
+    start (``ACQUISITION_START_TIME``, ISO 8601 UTC, :func:`provenance.collection_start`) and the
+    file's making (``TIFFTAG_DATETIME``, the TIFF DateTime tag). Raises GeoTiffError for a
+    ``collection_start`` that is no ISO 8601 time with a UTC offset."""
     meta = image.metadata if isinstance(image.metadata, dict) else {}
     radar = meta.get("radar", {}) if isinstance(meta.get("radar"), dict) else {}
+    try:
+        start = provenance.collection_start(meta)
+    except ValueError as exc:
+        raise GeoTiffError(f"cannot write a GeoTIFF: metadata radar {exc}") from None
     return {"SCENE": str(meta.get("scene", "")), "POLARIZATION": str(meta.get("polarization", "")),
+            "ACQUISITION_START_TIME": start.isoformat(),
+            "TIFFTAG_DATETIME": provenance.utc_now().strftime("%Y:%m:%d %H:%M:%S"),
             "FREQUENCY_HZ": repr(radar.get("frequency", "")), "GEO_ORIGIN": json.dumps(ref.as_tuple()),
             "UNITS": str(meta.get("units", "sqrt(m^2)")).split(" (")[0],
             "LAYOUT": layout.describe(),

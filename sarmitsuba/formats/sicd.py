@@ -46,7 +46,6 @@ from __future__ import annotations
 import datetime
 import json
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,6 +56,8 @@ from ..core import georef
 from ..core.image import SarImage
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
+from .provenance import collection_start as provenance_start
+from .provenance import portable_metadata, utc_now
 from .sicd_polygons import PolygonError, set_polygons
 from .sicd_radiometry import radiometric
 from .sicd_resample import (Carrier, ResampleError, centred_axis, data_carrier, deltak_limits, fit_carrier,
@@ -65,14 +66,12 @@ from .sicd_support import Aperture, SupportError, Track, Weighting, grid_directi
     window_weighting
 
 __all__ = ["SicdError", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
-           "sicd_layout", "build_xml", "image_from_parts", "collection_start", "portable_metadata"]
+           "sicd_layout", "build_xml", "image_from_parts", "collection_start"]
 
 #: XML namespace of the SICD version written.
 SICD_NAMESPACE = "urn:SICD:1.3.0"
 _PARAM_METADATA = "SARMITSUBA_METADATA"
 _PARAM_GRID = "SARMITSUBA_GRID"
-#: ``CollectStart`` of images whose metadata record no ``collection_start`` (older versions).
-_DEFAULT_START = datetime.datetime(2000, 1, 1, tzinfo=datetime.timezone.utc)
 #: Bytes of the file length FL in a NITF 2.1 / NSIF 1.0 file header (MIL-STD-2500C: every field before
 #: it has a fixed length).
 _NITF_FL = slice(342, 354)
@@ -99,37 +98,12 @@ def scene_centre_point(image: SarImage) -> tuple[tuple[int, int], np.ndarray]:
 
 
 def collection_start(image: SarImage, path: Any = "the SICD file") -> datetime.datetime:
-    """``Timeline/CollectStart`` (aware UTC datetime): ``metadata["radar"]["collection_start"]``, an ISO
-    8601 time with a UTC offset (``datetime.datetime.fromisoformat``); 2000-01-01T00:00:00Z when it is
-    missing or None (older versions). Raises SicdError naming ``path`` for any other value."""
-    radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
-    text = radar.get("collection_start") if isinstance(radar, dict) else None
-    if text is None:
-        return _DEFAULT_START
+    """``Timeline/CollectStart`` (:func:`sarmitsuba.formats.provenance.collection_start`); raises
+    SicdError naming ``path`` for a value that is no ISO 8601 time with a UTC offset."""
     try:
-        when = datetime.datetime.fromisoformat(str(text))
-    except ValueError:
-        when = None
-    if when is None or when.utcoffset() is None:
-        raise SicdError(f"cannot write SICD file {path}: metadata radar collection_start = {text!r} is not an ISO "
-                        "8601 time with a UTC offset (e.g. 2026-11-24T23:40:16.123456+00:00)")
-    return when.astimezone(datetime.timezone.utc)
-
-
-def utc_now() -> datetime.datetime:
-    """The present moment, UTC: ``ImageCreation/DateTime``."""
-    return datetime.datetime.now(datetime.timezone.utc)
-
-
-def portable_metadata(metadata: Any) -> Any:
-    """A copy of JSON-like ``metadata`` whose every ``"scene_path"`` string, at any depth, is cut to
-    its file name (``/home/me/scenes/a.xml`` and ``C:\\s\\a.xml`` give ``a.xml``)."""
-    if isinstance(metadata, dict):
-        return {key: (re.split(r"[\\/]", value)[-1] if key == "scene_path" and isinstance(value, str)
-                      else portable_metadata(value)) for key, value in metadata.items()}
-    if isinstance(metadata, (list, tuple)):
-        return [portable_metadata(value) for value in metadata]
-    return metadata
+        return provenance_start(image.metadata)
+    except ValueError as exc:
+        raise SicdError(f"cannot write SICD file {path}: metadata radar {exc}") from None
 
 
 @dataclass(frozen=True)
