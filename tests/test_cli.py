@@ -177,3 +177,14 @@ def test_fft_focusers_refuse_spotlight_data_and_name_backprojection(tmp_path, ca
         assert err.startswith("error:") and "spotlight" in err and "bp" in err and "ffbp" in err, err
         assert len(err.splitlines()) == 1 and not out.exists()
     assert main(["focus", str(raw), "--algorithm", "bp", "--out", str(tmp_path / "bp"), "--no-progress"]) == 0
+
+
+def test_refocus_with_no_window_gives_the_simulated_image():
+    """The Python API shares the command line's default: ``refocus(raw, "ffbp")`` and
+    ``sarmitsuba.focus.focus(raw, "ffbp")`` with no window argument give ``simulate``'s own (Taylor) image again; a rect default would differ by far
+    more than -60 dB."""
+    import sarmitsuba
+    sim = sarmitsuba.simulate("trihedral", sensor_overrides={"n_pulses": 128})
+    for again in (sarmitsuba.refocus(sim.raw, "ffbp"), sarmitsuba.focus.focus(sim.raw, "ffbp")):
+        assert _nrmse_db(again.data, sim.image.data) < -60.0
+        assert again.metadata["focus"]["window_azimuth"]["name"] == "taylor"
