@@ -62,7 +62,7 @@ def unit_of_work(scene: str = "sionna:munich") -> dict:
     import mitsuba as mi
 
     from sarmitsuba.scene import planning
-    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.loader import load_scene
     loaded = load_scene(scene)
     p = loaded.params

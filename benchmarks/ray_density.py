@@ -88,7 +88,7 @@ from sarmitsuba.scene import planning
 from sarmitsuba.scene import canonical as C
 from sarmitsuba.focus.windows import window
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 
 NAME = "ray_density"
 #: The three canonical targets of ``rcs.cases()`` swept over every spacing.

@@ -57,7 +57,7 @@ from sarmitsuba.scene import planning
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus.dispatch import azimuth_pattern
 from sarmitsuba.pipeline import focus_window, simulate, sized_grid
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 
 NAME = "scaling"
 #: Franceschetti et al. 2003, seconds on a Pentium IV for N buildings, 512 x 512 image

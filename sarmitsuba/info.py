@@ -45,7 +45,8 @@ from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates,
                             check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture)
 from .scene.effects import Effect, EffectSet, active_effects
-from .core.radar import AcquisitionGeometry, RadarParameters, acquisition_geometry
+from .core.radar import RadarParameters
+from .core.geometry import AcquisitionGeometry, acquisition_geometry
 from .scene.radar_equation import radar_equation
 from .signal.radiometry import effective_pulses
 from .scene.loader import LoadedScene, load_scene, material_table

@@ -21,7 +21,8 @@ from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
 from .core.image import SarImage
 from .core.outputs import OutputDirectory, check_output_dir, json_default
-from .core.radar import POLARIZATIONS, AcquisitionGeometry
+from .core.radar import POLARIZATIONS
+from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .tracing.trace import TraceResult, prepare_trace, trace

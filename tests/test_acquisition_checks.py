@@ -94,7 +94,8 @@ def test_scene_far_from_the_origin_inside_the_beam_does_not_warn():
     import numpy as np
 
     from sarmitsuba.scene import planning
-    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.trace_inputs import TraceSettings
     center = np.array([5000.0, -3000.0, 0.0])
     p = RadarParameters(scene_center=tuple(center), n_pulses=64)

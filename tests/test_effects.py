@@ -34,7 +34,7 @@ import pytest
 from sarmitsuba.signal import binning, radiometry, signal_model
 from sarmitsuba import pipeline
 from sarmitsuba.scene import planning
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.radar_equation import radar_equation
 
 SCENES = Path(__file__).parent / "scenes"

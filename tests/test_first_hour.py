@@ -163,7 +163,7 @@ def test_trihedral_boresight_points_at_the_mid_aperture_antenna():
     of its three far vertices; it must point at the mid-aperture antenna within 0.1 deg."""
     import mitsuba as mi
 
-    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.loader import load_scene
     loaded = load_scene("trihedral")
     (shape,) = loaded.scene.shapes()

@@ -33,7 +33,8 @@ from sarmitsuba import pipeline
 from sarmitsuba.analysis import synthetic
 from sarmitsuba.cli import main
 from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
-from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+from sarmitsuba.core.radar import RadarParameters
+from sarmitsuba.core.geometry import acquisition_geometry
 
 FC, BANDWIDTH, FS, PRF, SPEED, ALTITUDE, BEAMWIDTH = 9.6e9, 150e6, 180e6, 250.0, 100.0, 1000.0, 1.2
 N_PULSES = 256

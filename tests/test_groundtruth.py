@@ -24,7 +24,7 @@ import sarmitsuba  # noqa: F401  (variant and plugins)
 from sarmitsuba.products import groundtruth
 from sarmitsuba.core.image import SarImage
 from sarmitsuba.pipeline import image_grid, simulate
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.loader import load_scene
 
 SCENES = Path(__file__).parent / "scenes"

@@ -28,7 +28,7 @@ from sarmitsuba.analysis.point_target import analyze_point_target
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.pipeline import image_grid, simulate
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.loader import builtin_scenes, load_scene, material_table
 from sarmitsuba.tracing.trace import trace
 from sarmitsuba.scene.trace_inputs import FastTimeWindow

@@ -20,7 +20,7 @@ from sarmitsuba.scene import planning
 from sarmitsuba.cli import main
 from sarmitsuba.scene.effects import active_effects, list_effects
 from sarmitsuba.info import scene_info
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.loader import load_scene
 
 C = 299_792_458.0

@@ -29,7 +29,7 @@ from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.tracing.physical_optics import SINC_REGIME, cell_alphas, cell_terms, split_threshold
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.planning import AcquisitionWarning
-from sarmitsuba.core.radar import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry
 
 TILT = math.radians(15.0)
 PLATE_CENTRE = np.array([0.173, -3.512, 3.061])

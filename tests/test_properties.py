@@ -397,7 +397,8 @@ def test_ray_aim_points_avoid_the_scene_edges(incidence, spacing, half, altitude
     is anchored there); the spacing is detuned (SPACING_DETUNE) so that Hypothesis's round
     values do not construct that measure-zero coincidence."""
     from sarmitsuba.scene import planning
-    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.tracing.trace import TraceSettings
     lo, hi = np.array([-half, -half, 0.0]), np.array([half, half, 0.0])
     params = planning.resolve_parameters(

@@ -200,7 +200,7 @@ def test_scalar_model_carries_no_jones_matrix():
     from sarmitsuba.scene import planning
     from sarmitsuba.scene.effects import active_effects
     from sarmitsuba.tracing.kernel import Blocks, Kernel, Launch
-    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.loader import load_scene, material_table
     from sarmitsuba.tracing.trace import subapertures
     cases = (("HH", "scalar", False), ("VV", "scalar", False), ("VV", "jones", True), ("HV", "jones", True),

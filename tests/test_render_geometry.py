@@ -159,7 +159,8 @@ def test_ground_layover_of_raised_points_is_the_closed_form(incidence):
     ground distance ``sqrt(Y^2 - 2 H h + h^2)``, at its own along-track position; a point on
     the ground maps to itself, and one nearer the track than ``R0 < H`` allows maps nowhere
     (NaN). At 30 deg the layover is about 1.73 h, at 60 deg 0.58 h."""
-    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry, ground_layover
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.geometry import acquisition_geometry, ground_layover
     p = RadarParameters(scene_center=(0.0, 0.0, 0.0), n_pulses=5, incidence_angle=incidence, heading=20.0)
     g = acquisition_geometry(p)
     H, Y0 = p.altitude, p.ground_range

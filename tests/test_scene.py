@@ -122,7 +122,7 @@ def test_derived_radar_quantities_follow_standard_formulas():
 
 def test_track_geometry_conventions():
     """Heading 0, right-looking: flying along +x, sensor on the +y side, at the altitude."""
-    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.core.geometry import acquisition_geometry
     p = RadarParameters(scene_center=(0.0, 0.0, 0.0), n_pulses=3, altitude=1000.0, incidence_angle=45.0)
     g = acquisition_geometry(p)
     assert np.allclose(g.positions[1], [0.0, 1000.0, 1000.0])

@@ -18,7 +18,8 @@ from sarmitsuba.focus import ImageGrid
 from sarmitsuba.focus.backprojection import illumination_count
 from sarmitsuba.focus.stripmap import estimate_doppler_centroid
 from sarmitsuba.pipeline import refocus, simulate
-from sarmitsuba.core.radar import ParameterError, RadarParameters, acquisition_geometry
+from sarmitsuba.core.radar import ParameterError, RadarParameters
+from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.loader import load_scene
 
 SQUINTS = (-15.0, 25.0)

@@ -169,7 +169,8 @@ def test_ray_footprint_covers_the_beam_at_the_far_range_edge():
     cells). Hand numbers: 45 deg, H = 1000 m, ground range 1000 +- 400 m: R_far = hypot(1000,
     1400) = 1720.5 m, the near edge's hypot(1000, 600) = 1166.2 m would be 11 m (14 cells) short."""
     from sarmitsuba.scene import planning
-    from sarmitsuba.core.radar import RadarParameters, acquisition_geometry
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.tracing.trace import TraceSettings
     lo, hi = np.array([-2000.0, -400.0, 0.0]), np.array([2000.0, 400.0, 0.0])
     params = planning.resolve_parameters(RadarParameters(incidence_angle=45.0, altitude=1000.0, n_pulses=4), lo, hi)

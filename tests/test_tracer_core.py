@@ -214,7 +214,7 @@ def test_only_objects_smaller_than_eight_tubes_are_refined(tmp_path):
     import dataclasses
 
     from sarmitsuba.scene import planning
-    from sarmitsuba.core.radar import acquisition_geometry
+    from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.loader import load_scene
     loaded = load_scene(str(C.scene_xml(tmp_path, C.trihedral(1.0), C.PEC, 3)))
     p, settings = loaded.params, loaded.settings

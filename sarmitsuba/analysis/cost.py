@@ -25,7 +25,8 @@ import numpy as np
 from ..tracing.deposit import SPECTRAL_ORDERS, padded_length
 from ..scene.effects import EffectSet, active_effects
 from ..focus.scene_grid import image_grid
-from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters
+from ..core.radar import ParameterError, RadarParameters
+from ..core.geometry import AcquisitionGeometry
 from ..scene.loader import LoadedScene
 from ..tracing.trace import HISTOGRAM_ENTRIES, pulses_per_trace
 from ..scene.trace_inputs import FastTimeWindow, RayFootprint

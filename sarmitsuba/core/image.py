@@ -232,7 +232,7 @@ def image_track(image: SarImage) -> tuple[np.ndarray, np.ndarray] | None:
     params = _radar_of(image)
     if params is None:
         return None
-    from .radar import acquisition_geometry
+    from .geometry import acquisition_geometry
     geometry = acquisition_geometry(replace(params, n_pulses=max(params.n_pulses, 1)))
     return geometry.positions[len(geometry.positions) // 2], geometry.track_direction
 

@@ -1,8 +1,8 @@
-"""Radar and platform parameters, and the acquisition geometry derived from them.
+"""Radar and platform parameters.
 
 :class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (docs/design.md
-section 4); :func:`acquisition_geometry` turns it into per-pulse antenna positions
-(float64, world frame, z up) for a straight, level track (stop-and-hop, docs/design.md section 5).
+section 4); :func:`sarmitsuba.core.geometry.acquisition_geometry` turns it into per-pulse antenna
+positions (float64, world frame, z up) along its trajectory (docs/physics.md (J1)-(J4)).
 The valid range of each parameter with a unit: :mod:`sarmitsuba.core.valid_ranges`.
 
 Conventions (docs/design.md section 4): the platform flies along +x rotated by ``heading``
@@ -20,10 +20,11 @@ import numpy as np
 
 from . import georef
 from .constants import SPEED_OF_LIGHT
+from .trajectory import MotionError, StateVectors
 from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
 
-__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "AcquisitionGeometry", "acquisition_geometry", "ParameterError",
-           "HALF_POWER_SINC", "ValidRange", "VALID_RANGES", "utc_time"]
+__all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "ParameterError", "HALF_POWER_SINC", "ValidRange",
+           "VALID_RANGES", "utc_time", "TRAJECTORIES"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
 #: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
@@ -35,6 +36,8 @@ HALF_POWER_SINC = 0.44294647
 CHANNELS = ("HH", "HV", "VH", "VV")
 #: Valid values of the sensor parameter ``polarization``.
 POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
+#: Named values of the sensor parameter ``trajectory`` (anything else names a CSV of state vectors).
+TRAJECTORIES = ("straight", "circular")
 
 
 @dataclass(frozen=True)
@@ -137,6 +140,28 @@ class RadarParameters:
         stored as ``"2026-11-24T10:00:00+00:00"``; written into CPHD, SICD and GeoTIFF. None
         (default): the moment of the render (:func:`sarmitsuba.pipeline.simulate`); set it
         for reproducible files.
+    trajectory : str or StateVectors
+        The antenna's path (docs/physics.md (J1), (J2)): ``"straight"`` (default: uniform, level,
+        along ``heading``); ``"circular"``: a level circle about the scene centre at ``altitude``
+        and ``incidence_angle`` (radius ``ground_range``), flown at ``velocity`` over ``arc_deg``,
+        the beam following the scene centre (``mode`` becomes ``spotlight``); or the path of a CSV
+        file of state vectors (``time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps]``, scene frame;
+        :func:`sarmitsuba.core.trajectory.read_state_vectors`), or :class:`StateVectors` from
+        Python, interpolated smoothly, pulses at the PRF over their span; the scene loader then
+        sets ``altitude``, ``incidence_angle``, ``velocity``, ``heading`` and ``look_side`` from the
+        mid-aperture state.
+    arc_deg : float, deg
+        ``trajectory = "circular"``: the arc flown, centred on the broadside position; (0, 360],
+        default 360 (a full circle). Sets ``n_pulses`` when that is automatic.
+    motion_error : str, optional
+        A horizontal deviation of the true track normal to the nominal one (docs/physics.md (J4)):
+        ``"AMPLITUDE_M, PERIOD_M"`` (a sinusoid along the distance flown) or ``"random, RMS_M,
+        CORRELATION_M[, SEED]"`` (a Gaussian spectrum). The raw data keep both tracks; focusing
+        uses the true one unless asked for the nominal one (``focus --track nominal``).
+    stop_and_hop : bool
+        False (default): each echo is received where the antenna has moved to by its arrival
+        (docs/physics.md (J3)); True: the antenna stands still during each echo (the classical
+        approximation, for comparison).
 
     Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
     frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
@@ -180,6 +205,10 @@ class RadarParameters:
     squint: float = 0.0
     beam: str = "tapered"
     collection_start: str | None = None
+    trajectory: str | StateVectors = "straight"
+    arc_deg: float = 360.0
+    motion_error: str | None = None
+    stop_and_hop: bool = False
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -242,6 +271,31 @@ class RadarParameters:
                                  f"{math.degrees(2 * math.asin(HALF_POWER_SINC * 0.99)):.1f} deg, or beam = 'uniform'")
         if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
             raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
+        self._check_trajectory()
+
+    def _check_trajectory(self) -> None:
+        """``trajectory``, ``arc_deg``, ``motion_error``, ``stop_and_hop`` (no file is read here)."""
+        if not (isinstance(self.trajectory, StateVectors) or (isinstance(self.trajectory, str) and self.trajectory)):
+            raise ParameterError(f"trajectory = {self.trajectory!r}: give 'straight', 'circular' or the path of a CSV "
+                                 "file of state vectors (time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps])")
+        if not (isinstance(self.arc_deg, (int, float)) and 0.0 < self.arc_deg <= 360.0):
+            raise ParameterError(f"arc_deg = {self.arc_deg!r} deg is outside the valid range (0, 360] deg (the arc "
+                                 "of a circular trajectory; 360 = a full circle)")
+        if self.trajectory == "circular":
+            if self.squint != 0:
+                raise ParameterError(f"squint = {self.squint:g} deg with trajectory = 'circular': the beam follows the "
+                                     "scene centre around the circle; remove squint")
+            if self.mode != "spotlight":           # the beam follows the scene centre
+                object.__setattr__(self, "mode", "spotlight")
+        error = MotionError.parse(self.motion_error)        # TrajectoryError: a ParameterError
+        object.__setattr__(self, "motion_error", None if error is None else str(error))
+        if not isinstance(self.stop_and_hop, bool):
+            raise ParameterError(f"stop_and_hop = {self.stop_and_hop!r}: give true or false")
+
+    @property
+    def straight_track(self) -> bool:
+        """Whether the nominal track is the built-in straight line (``trajectory = "straight"``)."""
+        return isinstance(self.trajectory, str) and self.trajectory == "straight"
 
     # -- derived quantities (standard formulas; Cumming & Wong 2005, ch. 4) -----------------
     @property
@@ -419,6 +473,12 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = None
             elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start"):
                 out[name] = str(value)
+            elif name == "trajectory":
+                out[name] = value if isinstance(value, StateVectors) else str(value).strip()
+            elif name == "motion_error":
+                out[name] = str(value).strip()
+            elif name == "stop_and_hop":
+                out[name] = _boolean(name, value)
             else:
                 out[name] = float(value)
         except georef.GeoReferenceError as exc:
@@ -428,94 +488,23 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _boolean(name: str, value: Any) -> bool:
+    """``value`` as a bool: a bool, 0 / 1, or ``true`` / ``false`` (any case)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)) and value in (0, 1):
+        return bool(value)
+    text = str(value).strip().lower()
+    if text in ("true", "false"):
+        return text == "true"
+    raise ValueError("give true or false")
+
+
 def _positive(obj: Any, *names: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
-
-
-@dataclass(frozen=True)
-class AcquisitionGeometry:
-    """Per-pulse geometry of a straight, level stripmap track.
-
-    Attributes
-    ----------
-    positions : float64 [n_pulses, 3], m
-        Antenna phase centre at each pulse (monostatic, stop-and-hop).
-    velocity : float64 [n_pulses, 3], m/s
-    pulse_time : float64 [n_pulses], s
-        Slow time, zero at mid-aperture.
-    scene_center : float64 [3], m
-    track_direction : float64 [3]
-        Unit vector along the track.
-    look_direction : float64 [3]
-        Horizontal unit vector from the track toward the scene (away from the sensor).
-    """
-
-    positions: np.ndarray
-    velocity: np.ndarray
-    pulse_time: np.ndarray
-    scene_center: np.ndarray
-    track_direction: np.ndarray
-    look_direction: np.ndarray
-
-
-def ground_layover(geometry: AcquisitionGeometry, points: np.ndarray) -> np.ndarray:
-    """Where a focuser matched to the track images world points on the horizontal plane through
-    the scene centre: ``(along, across)`` [m] from the scene centre along the track and look
-    directions, float64 [n, 2] (NaN for a point the plane cannot show).
-
-    Every point of the circle about the straight track through ``X`` has ``X``'s range history
-    (the same closest approach ``R0 = |X - F|`` at the same foot ``F`` on the track), so ``X``
-    appears where that circle meets the plane, on ``X``'s side: at the foot's along-track
-    position and ``sqrt(R0^2 - H^2)`` from the track's ground trace, ``H`` the track's height
-    above the plane (docs/physics.md (G2); Cumming and Wong 2005, section 4.2). A point with
-    ``R0 < H`` lies nowhere on the plane (NaN).
-    """
-    x = np.atleast_2d(np.asarray(points, dtype=np.float64)) - geometry.scene_center
-    a = geometry.positions[0] - geometry.scene_center
-    t, look = geometry.track_direction, geometry.look_direction
-    foot = a + ((x - a) @ t)[:, None] * t
-    r0 = np.linalg.norm(x - foot, axis=1)
-    height = float(a[2])                                     # the level track above the plane
-    trace_across = foot @ look                               # the foot's ground trace, across-track
-    side = np.where((x - foot) @ look >= 0.0, 1.0, -1.0)
-    with np.errstate(invalid="ignore"):
-        ground = np.sqrt(r0 * r0 - height * height)
-    return np.stack([foot @ t, trace_across + side * ground], axis=1)
-
-
-def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
-    """Unit track direction and horizontal look direction, float64 [3] each."""
-    h = math.radians(params.heading)
-    track = np.array([math.cos(h), math.sin(h), 0.0])
-    right = np.array([math.sin(h), -math.cos(h), 0.0])      # track x z_hat
-    return track, (right if params.look_side == "right" else -right)
-
-
-def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
-    """Antenna positions for every pulse (docs/design.md section 4 conventions).
-
-    The mid-aperture antenna sits at ``scene_center - R0 tan(squint) * track - ground_range * look + altitude * z``
-    plus ``track_offset``;
-    pulse ``i`` is at slow time ``(i - (n - 1) / 2) / prf``. Requires resolved
-    ``scene_center`` and ``n_pulses > 0``.
-
-    Raises
-    ------
-    ParameterError
-        When ``scene_center`` or ``n_pulses`` are unresolved.
-    """
-    if params.scene_center is None or params.n_pulses <= 0:
-        raise ParameterError("scene_center and n_pulses must be resolved before computing the geometry")
-    track, look = track_frame(params)
-    center = np.asarray(params.scene_center, dtype=np.float64)
-    mid = center - params.squint_offset * track - params.ground_range * look + np.array([0.0, 0.0, params.altitude])
-    t = (np.arange(params.n_pulses, dtype=np.float64) - (params.n_pulses - 1) / 2.0) / params.prf
-    positions = mid[None, :] + (params.velocity * t)[:, None] * track[None, :] + np.asarray(params.track_offset, float)
-    velocity = np.repeat((params.velocity * track)[None, :], params.n_pulses, axis=0)
-    return AcquisitionGeometry(positions, velocity, t, center, track, look)
 
 
 def utc_time(text: Any) -> str:

@@ -23,7 +23,7 @@ import numpy as np
 
 from .outputs import atomic_savez, json_default
 
-__all__ = ["RawData", "RawDataError", "read_npz", "refuse_non_finite"]
+__all__ = ["RawData", "RawDataError", "TRACKS", "read_npz", "refuse_non_finite"]
 
 
 class RawDataError(ValueError):
@@ -31,6 +31,10 @@ class RawDataError(ValueError):
 
 
 _ARRAYS = ("data", "fast_time", "pulse_time", "tx_position", "rx_position", "velocity")
+#: Optional arrays (absent or None: stop-and-hop, no separate nominal track).
+_OPTIONAL = ("rx_time", "nominal_tx_position", "nominal_rx_position", "nominal_velocity")
+#: Values of :meth:`RawData.on_track`.
+TRACKS = ("true", "nominal")
 _SCALARS = ("fc", "bandwidth", "chirp_rate", "pulse_length", "fs", "prf")
 
 
@@ -49,9 +53,10 @@ class RawData:
     pulse_time : float64 [n_pulses], s
         Transmission time of each pulse (slow time).
     tx_position, rx_position : float64 [n_pulses, 3], m
-        Antenna phase centres in the world frame (z up); equal for monostatic data.
+        Antenna phase centres in the world frame (z up): at transmission (``pulse_time``) and
+        at reception (``rx_time``); equal for monostatic, stop-and-hop data.
     velocity : float64 [n_pulses, 3], m/s
-        Platform velocity at each pulse.
+        Platform velocity at each pulse's transmission.
     fc : float, Hz
         Carrier frequency.
     bandwidth : float, Hz
@@ -68,6 +73,18 @@ class RawData:
         True when ``data`` is already range compressed.
     metadata : dict
         JSON-serialisable: scene, effects, seed, versions, timing, units.
+    rx_time : float64 [n_pulses], s, optional
+        Time at which ``rx_position`` is taken: the reception of the echo from the scene
+        reference point (the scene centre of a render; CPHD's ``RcvTime``), on the clock of
+        ``pulse_time``. None (default): ``pulse_time``, the stop-and-hop approximation. An echo
+        of delay ``tau`` is received at ``rx_position + velocity (pulse_time + tau - rx_time)``
+        to first order (docs/physics.md (J3)); backprojection uses that.
+    nominal_tx_position, nominal_rx_position : float64 [n_pulses, 3], m, optional
+        The antenna as the navigation data know it, when it differs from the true positions
+        above (sensor ``motion_error``, docs/physics.md (J4)): what a processor without precise
+        navigation focuses with (:meth:`on_track`). None (default): no separate nominal track.
+    nominal_velocity : float64 [n_pulses, 3], m/s, optional
+        The nominal track's velocity; given together with the nominal positions.
 
     Raises
     ------
@@ -92,6 +109,10 @@ class RawData:
     prf: float
     range_compressed: bool = True
     metadata: dict[str, Any] = field(default_factory=dict)
+    rx_time: np.ndarray | None = None
+    nominal_tx_position: np.ndarray | None = None
+    nominal_rx_position: np.ndarray | None = None
+    nominal_velocity: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self._check_shapes()
@@ -105,9 +126,15 @@ class RawData:
                                f"{list(self.data.shape)}{hint}")
         n_pulses, n_samples = self.data.shape
         _check_axis("fast_time", self.fast_time, (n_samples,), f"data has {n_samples} fast-time samples (columns)")
-        for name in ("pulse_time", "tx_position", "rx_position", "velocity"):
-            shape = (n_pulses,) if name == "pulse_time" else (n_pulses, 3)
+        for name in ("pulse_time", "tx_position", "rx_position", "velocity", *_OPTIONAL):
+            if getattr(self, name) is None:
+                continue
+            shape = (n_pulses,) if name in ("pulse_time", "rx_time") else (n_pulses, 3)
             _check_axis(name, getattr(self, name), shape, f"data has {n_pulses} pulses (rows)")
+        nominal = [getattr(self, name) is None for name in _OPTIONAL[1:]]
+        if any(nominal) and not all(nominal):
+            raise RawDataError("nominal_tx_position, nominal_rx_position and nominal_velocity are given together "
+                               "(the nominal track) or not at all")
 
     def _check_values(self) -> None:
         """Positive finite scalars, finite geometry, increasing fast time, finite samples."""
@@ -117,8 +144,10 @@ class RawData:
                 raise RawDataError(f"{name} must be a finite positive number, got {value}")
         if not np.isfinite(float(self.chirp_rate)):
             raise RawDataError(f"chirp_rate must be a finite number (Hz/s), got {self.chirp_rate}")
-        for name in ("fast_time", "pulse_time", "tx_position", "rx_position", "velocity"):
-            labels = ("sample",) if name == "fast_time" else ("pulse", "axis")
+        for name in ("fast_time", "pulse_time", "tx_position", "rx_position", "velocity", *_OPTIONAL):
+            if getattr(self, name) is None:
+                continue
+            labels = ("sample",) if name == "fast_time" else ("pulse",) if name.endswith("_time") else ("pulse", "axis")
             refuse_non_finite(getattr(self, name), name, "value", labels, RawDataError,
                                "the geometry is corrupt: re-create the data (sarmitsuba render)")
         steps = np.diff(self.fast_time)
@@ -146,12 +175,47 @@ class RawData:
         from .constants import SPEED_OF_LIGHT
         return SPEED_OF_LIGHT / self.fc
 
+    @property
+    def receive_time(self) -> np.ndarray:
+        """float64 [n_pulses], s: ``rx_time``, or ``pulse_time`` for stop-and-hop data."""
+        return self.pulse_time if self.rx_time is None else self.rx_time
+
+    @property
+    def has_nominal_track(self) -> bool:
+        """Whether the data carry a nominal track apart from the true one (motion errors)."""
+        return self.nominal_tx_position is not None
+
+    def on_track(self, track: str) -> "RawData":
+        """The data with the antenna positions of ``track``: ``"true"`` (the data as they are) or
+        ``"nominal"``: ``tx_position``, ``rx_position`` and ``velocity`` replaced by the nominal
+        track's (what a processor without precise navigation focuses with; docs/physics.md (J4)),
+        ``metadata["track"] = "nominal"``.
+
+        Raises
+        ------
+        RawDataError
+            ``track`` not in :data:`TRACKS`, or ``"nominal"`` for data without a nominal track
+            (no sensor ``motion_error``).
+        """
+        if track not in TRACKS:
+            raise RawDataError(f"track = {track!r}; valid values are {', '.join(repr(t) for t in TRACKS)}")
+        if track == "true":
+            return self
+        if not self.has_nominal_track:
+            raise RawDataError("track = 'nominal': these data carry no nominal track (they were simulated without "
+                               "motion errors, so the nominal track is the true one); render with the sensor parameter "
+                               "motion_error, or focus with track = 'true'")
+        from dataclasses import replace
+        return replace(self, tx_position=self.nominal_tx_position.copy(), rx_position=self.nominal_rx_position.copy(),
+                       velocity=self.nominal_velocity.copy(), nominal_tx_position=None, nominal_rx_position=None,
+                       nominal_velocity=None, metadata={**self.metadata, "track": "nominal"})
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write the data to ``path`` (``.npz``) atomically: a temporary file, then a rename.
 
         Returns the path written. Raises ``OSError`` when the directory is not writable.
         """
-        arrays = {name: getattr(self, name) for name in _ARRAYS}
+        arrays = {name: getattr(self, name) for name in (*_ARRAYS, *_OPTIONAL) if getattr(self, name) is not None}
         scalars = {name: np.float64(getattr(self, name)) for name in _SCALARS}
         return atomic_savez(Path(path), **arrays, **scalars,
                              range_compressed=np.bool_(self.range_compressed),
@@ -181,7 +245,7 @@ def _read_raw_fields(f: Any) -> dict[str, Any]:
     if missing:
         raise KeyError(f"not a RawData file, missing {missing}: give a raw.npz written by RawData.save "
                        "(sarmitsuba render) or one with every field of docs/design.md section 3")
-    kwargs: dict[str, Any] = {k: np.asarray(f[k]) for k in _ARRAYS}
+    kwargs: dict[str, Any] = {k: np.asarray(f[k]) for k in (*_ARRAYS, *_OPTIONAL) if k in f.files}
     kwargs.update({k: float(f[k]) for k in _SCALARS})
     kwargs["range_compressed"] = bool(f["range_compressed"]) if "range_compressed" in f.files else True
     kwargs["metadata"] = json.loads(str(f["metadata"])) if "metadata" in f.files else {}

@@ -14,7 +14,8 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 
 from ..core.image import SarImage
-from ..core.radar import RadarParameters, acquisition_geometry
+from ..core.radar import RadarParameters
+from ..core.geometry import acquisition_geometry
 from ..core.raw import RawData
 from .backprojection import backproject
 from .ffbp import GeometryNotSupported, ffbp

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..scene.planning import box_corners
-from ..core.radar import AcquisitionGeometry, ParameterError, ground_layover
+from ..core.radar import ParameterError
+from ..core.geometry import AcquisitionGeometry, ground_layover
 from .grid import ImageGrid
 
 if TYPE_CHECKING:                      # only for annotations

@@ -69,7 +69,8 @@ def track_of(image: SarImage, raw: RawData | None) -> Track:
     """
     if raw is not None:
         return Track(raw.pulse_time, raw.tx_position, raw.velocity, raw.fc, raw.bandwidth, raw.prf)
-    from ..core.radar import ParameterError, RadarParameters, acquisition_geometry
+    from ..core.radar import ParameterError, RadarParameters
+    from ..core.geometry import acquisition_geometry
     radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
     try:
         params = RadarParameters.from_mapping({k: v for k, v in radar.items() if v is not None})

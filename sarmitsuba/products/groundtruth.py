@@ -59,7 +59,7 @@ import numpy as np
 
 from ..core.image import SarImage
 from ..core.outputs import atomic_savez
-from ..core.radar import acquisition_geometry
+from ..core.geometry import acquisition_geometry
 
 __all__ = ["GroundTruth", "ground_truth", "layover_mask", "shadow_mask", "footprint_mask",
            "double_bounce_mask", "facade_foot_points", "agreement"]

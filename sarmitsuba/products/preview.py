@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .plotting import agg_figure, save_png
-from ..core.radar import acquisition_geometry
+from ..core.geometry import acquisition_geometry
 
 __all__ = ["render_preview", "PreviewGeometry", "preview_geometry", "MIN_RESOLUTION"]
 

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..core.radar import RadarParameters, acquisition_geometry
+from ..core.radar import RadarParameters
+from ..core.geometry import acquisition_geometry
 
 __all__ = ["Baseline", "baseline"]
 

@@ -14,7 +14,8 @@ import numpy as np
 from scipy import fft as sp_fft
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..core.radar import VALID_RANGES, AcquisitionGeometry, ParameterError, RadarParameters, track_frame
+from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
+from ..core.geometry import AcquisitionGeometry, track_frame
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
 __all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",

@@ -24,7 +24,8 @@ from scipy import fft as sp_fft
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..tracing.deposit import SPECTRAL_ORDERS, order_factor
-from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters
+from ..core.radar import ParameterError, RadarParameters
+from ..core.geometry import AcquisitionGeometry
 from ..core.raw import RawData
 from .signal_model import received_chirp_spectrum
 from ..tracing.trace import PathList, TraceResult

@@ -39,7 +39,8 @@ from ..scene import planning
 from ..scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
-from ..core.radar import AcquisitionGeometry, ParameterError, RadarParameters, acquisition_geometry
+from ..core.radar import ParameterError, RadarParameters
+from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..scene.loader import LoadedScene, material_table
 from ..scene.trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, TraceSettings
 
