@@ -184,6 +184,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="fast factorised backprojection (default) or direct backprojection (any track), "
                             "omega-K or range-Doppler (straight track)")
     _add_window_arguments(focus)
+    focus.add_argument("--track", choices=("true", "nominal"), default="true",
+                       help="antenna positions to focus with: the true track (default) or the nominal one of data "
+                            "simulated with motion_error (what a processor without precise navigation has)")
+    focus.add_argument("--autofocus", choices=("none", "pga"), default="none",
+                       help="phase gradient autofocus of the focused image (straight tracks; it warns where its "
+                            "assumptions do not fit)")
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     _add_format_arguments(focus, cphd=False)
@@ -242,16 +248,22 @@ def _focus(args: argparse.Namespace) -> int:
     check_output_dir(args.out)
     raw = load_raw(args.raw)
     try:
-        image = refocus(raw, args.algorithm, **_windows(args), progress=not args.no_progress)
+        image = refocus(raw, args.algorithm, **_windows(args), progress=not args.no_progress, track=args.track,
+                        autofocus=None if args.autofocus == "none" else args.autofocus)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}  {window_title(image)}"
+    extra = ("  nominal track" if args.track == "nominal" else "") + ("  PGA" if args.autofocus == "pga" else "")
+    title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}{extra}  {window_title(image)}"
     with OutputDirectory(args.out, products="add") as out:      # joins a render folder's products
         paths = write_image_products(out, image, title)
         paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated))
-    print(f"focused {args.raw} with {args.algorithm}: {time.perf_counter() - start:.1f} s, "
-          f"{raw.n_pulses} pulses, image {image.data.shape[0]}x{image.data.shape[1]} -> {paths['png'].parent}")
+    autofocus = image.metadata.get("autofocus")
+    note = "" if autofocus is None else (f", PGA {autofocus['iterations']} iterations, phase error "
+                                         f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
+    print(f"focused {args.raw} with {args.algorithm}{' on the nominal track' if args.track == 'nominal' else ''}: "
+          f"{time.perf_counter() - start:.1f} s, {raw.n_pulses} pulses, image {image.data.shape[0]}x"
+          f"{image.data.shape[1]}{note} -> {paths['png'].parent}")
     return 0
 
 

@@ -181,8 +181,7 @@ def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGe
     """The same acquisition in the world frame (scenes far from the origin are traced locally)."""
     if not np.any(offset):
         return geometry
-    return dataclasses.replace(geometry, positions=geometry.positions + offset,
-                               scene_center=geometry.scene_center + offset)
+    return geometry.shifted(offset)
 
 
 def focus_windows(window: Any, window_range: Any = None, window_azimuth: Any = None) -> tuple[tuple, tuple]:
@@ -375,7 +374,8 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,
-            window_azimuth: Any = None, progress: bool = False) -> SarImage:
+            window_azimuth: Any = None, progress: bool = False, track: str = "true",
+            autofocus: str | None = None) -> SarImage:
     """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
 
     ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
@@ -389,15 +389,26 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     ``ffbp`` gives its image; ``window_range`` / ``window_azimuth`` for one axis (default:
     ``window``). Backprojection applies the azimuth window over the beam (or, without a beam,
     over the aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
+    ``track = "nominal"`` focuses data simulated with motion errors on their nominal track
+    (:meth:`RawData.on_track`, docs/physics.md (J4)); ``autofocus = "pga"`` then runs phase
+    gradient autofocus on the image (:func:`sarmitsuba.focus.autofocus.pga`, (PGA)), which records
+    its estimate in ``metadata["autofocus"]``.
 
     Raises
     ------
     ValueError
-        Unknown algorithm or window, or a track the FFT focusers cannot handle (they name
-        backprojection).
+        Unknown algorithm, window, track or autofocus; ``track = "nominal"`` for data without a
+        nominal track; a track the FFT focusers cannot handle (they name backprojection); PGA on
+        an image whose azimuth axis follows no straight track.
     """
-    return focus_by_name(raw, algorithm, window=window, window_range=window_range, window_azimuth=window_azimuth,
-                         progress=progress)
+    if autofocus not in (None, "pga"):
+        raise ValueError(f"autofocus = {autofocus!r}; valid: 'pga' or None")
+    image = focus_by_name(raw.on_track(track), algorithm, window=window, window_range=window_range,
+                          window_azimuth=window_azimuth, progress=progress)
+    if autofocus == "pga":
+        from .focus.autofocus import pga
+        image, _ = pga(image, progress=progress)
+    return image
 
 
 def window_title(image: SarImage) -> str:
@@ -444,12 +455,16 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
 
 
 def _world_params(loaded: LoadedScene):
-    """Radar parameters with the scene centre in the world frame, and ``collection_start`` the
-    moment of the render (UTC) when the sensor does not give it."""
+    """Radar parameters with the scene centre in the world frame, ``collection_start`` the
+    moment of the render (UTC) when the sensor does not give it, and state vectors named by
+    their source (a file name, or ``"python"``)."""
     import datetime
     center = np.asarray(loaded.params.scene_center) + loaded.offset
     start = loaded.params.collection_start or datetime.datetime.now(datetime.timezone.utc).isoformat()
-    return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()), collection_start=start)
+    trajectory = loaded.params.trajectory                 # state vectors: their file's name (the raw data hold
+    trajectory = getattr(trajectory, "source", trajectory)    # the positions)
+    return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()), collection_start=start,
+                               trajectory=trajectory)
 
 
 def _metadata(loaded: LoadedScene, ray_spacing: float, result, effects) -> dict:

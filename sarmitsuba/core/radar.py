@@ -358,7 +358,12 @@ class RadarParameters:
     def azimuth_resolution(self) -> float:
         """Stripmap azimuth resolution [m]: ``L / 2`` for an aperture of length ``L``
         (:attr:`pattern_length`; Cumming and Wong 2005, eq. 4.37), ``lambda / (2 beta)`` for a
-        uniform beam of width ``beta``; spotlight: ``lambda / (2 dtheta)``."""
+        uniform beam of width ``beta``; spotlight: ``lambda / (2 dtheta)``; a circular arc ``a``:
+        ``lambda / (4 sin(theta_inc) sin(min(a, pi) / 2))``, the extent of its ground wavenumbers
+        (docs/physics.md (J1))."""
+        if self.trajectory == "circular" and self.n_pulses > 0:     # docs/physics.md (J1)
+            arc = min(self.n_pulses * self.velocity / (self.prf * self.ground_range), math.pi)
+            return self.wavelength / (4.0 * math.sin(math.radians(self.incidence_angle)) * math.sin(arc / 2.0))
         if self.mode == "spotlight" and self.n_pulses > 0:
             return self.wavelength / (2.0 * self.integration_angle)
         if self.pattern_length > 0:

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.image import SarImage
 from ..core.radar import RadarParameters
-from ..core.geometry import acquisition_geometry
+from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..core.raw import RawData
 from .backprojection import backproject
 from .ffbp import GeometryNotSupported, ffbp
@@ -26,7 +26,8 @@ from .rda import range_doppler
 from .scene_grid import ground_grid
 from .stripmap import slant_output_grid, stripmap_geometry
 
-__all__ = ["ALGORITHMS", "focus", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing"]
+__all__ = ["ALGORITHMS", "focus", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
+           "recorded_geometry"]
 
 #: Algorithm names of :func:`focus`: direct and fast factorised backprojection, omega-K, range-Doppler.
 ALGORITHMS = ("bp", "ffbp", "omegak", "rda")
@@ -84,10 +85,25 @@ def render_focusing(raw: RawData) -> RenderFocusing:
         hi = np.asarray(meta["scene_info"]["bbox_max"], float) + offset
     except (KeyError, TypeError, ValueError):
         return RenderFocusing(None, None, None, 0.0, None)
-    geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
+    if params.straight_track:
+        geometry = acquisition_geometry(dataclasses.replace(params, n_pulses=max(params.n_pulses, 1)))
+    else:                                  # circular or state vectors: the track the data record
+        geometry = recorded_geometry(raw, params)
     beam = params.traced_beamwidth if params.mode == "stripmap" else None
     return RenderFocusing(ground_grid(params, lo, hi, geometry), beam, params.doppler_bandwidth, params.squint,
                           azimuth_pattern(params))
+
+
+def recorded_geometry(raw: RawData, params: RadarParameters) -> AcquisitionGeometry:
+    """The :class:`~sarmitsuba.core.geometry.AcquisitionGeometry` of a curved track as the data
+    record it (transmit positions and velocities; the along-track axes their horizontal
+    directions, the track and look directions at mid-aperture), about ``params.scene_center``."""
+    velocity = raw.velocity * np.array([1.0, 1.0, 0.0])
+    axes = velocity / np.maximum(np.linalg.norm(velocity, axis=1, keepdims=True), 1e-300)
+    track = axes[raw.n_pulses // 2]
+    look = (1.0 if params.look_side == "right" else -1.0) * np.array([track[1], -track[0], 0.0])
+    return AcquisitionGeometry(raw.tx_position, raw.velocity, raw.pulse_time, np.asarray(params.scene_center, float),
+                               track, look, beam_axes=axes)
 
 
 def focus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

@@ -33,7 +33,7 @@ def image_grid(loaded: "LoadedScene", geometry: AcquisitionGeometry) -> ImageGri
     Raises ValueError (from :meth:`ImageGrid.ground`) when the grid would be too large."""
     offset = np.asarray(loaded.params.track_offset, dtype=np.float64)
     if np.any(offset):
-        geometry = dataclasses.replace(geometry, positions=geometry.positions - offset)
+        geometry = dataclasses.replace(geometry, positions=geometry.positions - offset)     # (only positions are read)
     return ground_grid(loaded.params, loaded.bbox_lo, loaded.bbox_hi, geometry)
 
 
@@ -43,10 +43,13 @@ def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: Acquisiti
     Ground-range extent: the bounding box's corners and the points where the focuser lays them
     over (:func:`radar.ground_layover`, exact for a straight track: toward the sensor by about
     ``h / tan(theta)``), plus 16 resolution cells on every side. Pixel spacing: half the finer
-    of the ground-range and azimuth resolutions.
+    of the ground-range and azimuth resolutions. A curved track gets a square grid (see
+    :func:`_curved_grid`).
     """
     corners = box_corners(bbox_lo, bbox_hi)
     relative = corners - geometry.scene_center
+    if geometry.curved:
+        return _curved_grid(p, relative, geometry)
     along = relative @ geometry.track_direction
     across = relative @ geometry.look_direction
     laid = ground_layover(geometry, corners)
@@ -57,6 +60,19 @@ def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: Acquisiti
     half_az = np.abs(along).max() + 16 * p.azimuth_resolution
     return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
                             azimuth_extent=2 * half_az, range_extent=2 * half_range, spacing=spacing)
+
+
+def _curved_grid(p, relative: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
+    """A curved track's ground grid (a circle sees the scene from every side): a square about the
+    scene centre, along the mid-aperture track, holding the box's corners and their layover toward
+    any side, ``h / tan(theta)`` for a corner ``h`` above the scene centre, plus 16 resolution cells."""
+    radius = float(np.max(np.hypot(relative[:, 0], relative[:, 1])))
+    height = float(np.max(np.abs(relative[:, 2])))
+    half = radius + height / math.tan(math.radians(p.incidence_angle)) \
+        + 16 * max(p.ground_range_resolution, p.azimuth_resolution)
+    spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
+    return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
+                            azimuth_extent=2 * half, range_extent=2 * half, spacing=spacing)
 
 
 def sized_grid(p, geometry: AcquisitionGeometry, size: tuple[int, int], spacing: float | None = None) -> ImageGrid:

@@ -19,6 +19,8 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterable
 
+from ..core.constants import SPEED_OF_LIGHT
+
 if TYPE_CHECKING:                      # only for annotations: no import cycle with scene/loader.py
     from ..core.radar import RadarParameters
     from .trace_inputs import MaterialTable, TraceSettings
@@ -87,6 +89,14 @@ class EffectSet:
         Ray tubes carry a Jones matrix (docs/physics.md (P1)-(P8)): ``sbr`` ``polarimetry =
         jones`` (the default), or any cross-polarised channel. Off only for one co-polarised
         channel with ``polarimetry = scalar``: scalar coefficients (R), (P6), no Jones algebra.
+    continuous_motion : bool
+        Each echo is received where the antenna has moved to (no stop-and-hop, (J3)): the
+        default; off with sensor ``stop_and_hop = true``.
+    curved_track : bool
+        The antenna's axes turn with the pulses (``trajectory`` circular or state vectors, (J1),
+        (J2)): per-pulse axes compiled into the beam and pattern.
+    motion_error : bool
+        The true track deviates from the nominal one (sensor ``motion_error``, (J4)).
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -106,6 +116,9 @@ class EffectSet:
     listed: tuple[Effect, ...]
     channels: tuple[str, ...] = ("VV",)
     jones: bool = True
+    continuous_motion: bool = False
+    curved_track: bool = False
+    motion_error: bool = False
 
     @property
     def cross_polarised(self) -> bool:
@@ -155,7 +168,9 @@ class EffectSet:
                       chirped=params.output == "raw", radiometry=params.transmit_power is not None,
                       spotlight=params.mode == "spotlight", squint=params.squint != 0, split_bounces=split,
                       listed=(), channels=params.channels,
-                      jones=getattr(settings, "polarimetry", "jones") == "jones" or params.polarimetric)
+                      jones=getattr(settings, "polarimetry", "jones") == "jones" or params.polarimetric,
+                      continuous_motion=not params.stop_and_hop, curved_track=not params.straight_track,
+                      motion_error=params.motion_error is not None)
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -187,7 +202,8 @@ def list_effects(loaded) -> tuple[Effect, ...]:
     tuple of Effect
         In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
-        spotlight, squint, per-bounce-order products, then polarimetry (:attr:`EffectSet.listed`).
+        spotlight, squint, per-bounce-order products, polarimetry, then the trajectory's: curved track,
+        continuous motion, motion errors (:attr:`EffectSet.listed`).
     """
     return active_effects(loaded).listed
 
@@ -196,7 +212,8 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     """The docs/design.md section 7 table for the decided effects ``e``: each on or off with its reason."""
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
-            _split(e.split_bounces), _polarimetry(e))
+            _split(e.split_bounces), _polarimetry(e), _curved(e.curved_track, p), _continuous(e.continuous_motion, p),
+            _motion_error(e.motion_error, p))
 
 
 def _bounces(depth: int) -> Effect:
@@ -276,3 +293,29 @@ def _polarimetry(e: EffectSet) -> Effect:
              "sbr polarimetry = scalar: scalar reflection coefficients, no Jones algebra")
     return Effect("cross-polarised channels", False, f"polarization = {e.channels[0]}: one co-polarised channel, "
                   f"{model} (HV, VH or quad switch it on)")
+
+
+def _curved(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        kind = "circular" if p.trajectory == "circular" else f"state vectors {p.trajectory}"
+        return Effect("curved track", True, f"trajectory = {kind}: the antenna's axes, beam and pattern turn with "
+                                            "each pulse")
+    return Effect("curved track", False, "trajectory = straight: a uniform, level line along heading "
+                                         "(trajectory = circular or a CSV of state vectors switch it on)")
+
+
+def _continuous(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("continuous motion", True, "stop_and_hop = false: every echo is received where the antenna has "
+                      f"moved to during it (v tau: {2 * p.velocity * p.slant_range / SPEED_OF_LIGHT * 1e3:.3g} mm at the "
+                      "scene centre)")
+    return Effect("continuous motion", False, "stop_and_hop = true: the antenna stands still during each echo (an "
+                  f"azimuth shift of v R / c = {p.velocity * p.slant_range / SPEED_OF_LIGHT * 1e3:.3g} mm against the "
+                  "real echo)")
+
+
+def _motion_error(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        return Effect("motion errors", True, f"motion_error = {p.motion_error}: the true track deviates across the "
+                                             "nominal one; the raw data keep both (focus --track nominal)")
+    return Effect("motion errors", False, "no motion_error: the antenna flies the nominal track")

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import math
 import os
 import re
+import warnings
 import xml.etree.ElementTree as ET
 import zlib
 from dataclasses import dataclass
@@ -24,9 +26,11 @@ import numpy as np
 from ..core import georef
 from . import materials
 from .meshcheck import check_meshes, shape_points, silent_scene, warn_mesh_defects
-from .planning import check_geometry, resolve_parameters
+from .geometry_checks import check_geometry
+from .planning import AcquisitionWarning, resolve_parameters
 from .radar_equation import radar_equation
-from ..core.radar import ParameterError, RadarParameters
+from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
+from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from .trace_inputs import MaterialTable, TraceSettings
 
@@ -162,7 +166,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         (every triangle of zero area; :func:`~sarmitsuba.scene.meshcheck.silent_scene`).
     ParameterError
         An override names an unknown parameter or has an invalid value; or the geometry cannot
-        be imaged (:func:`~sarmitsuba.scene.planning.check_geometry`: geometry at or beyond the
+        be imaged (:func:`~sarmitsuba.scene.geometry_checks.check_geometry`: geometry at or beyond the
         nadir, a scene beyond the radar horizon, an automatic track mostly empty).
     """
     path = resolve_source(source)
@@ -184,6 +188,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
     params = RadarParameters.from_mapping(given)
+    params = _read_trajectory(params, path if "trajectory" not in (sensor_overrides or {}) else None, offset)
     if params.geo_origin is None and isinstance(source, str) and source.startswith("sionna:"):
         known = georef.SCENE_ORIGINS.get(source.split(":", 1)[1])
         params = params if known is None else dataclasses.replace(params, geo_origin=known.as_tuple())
@@ -206,6 +211,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
     automatic_track = params.n_pulses == 0
     params = resolve_parameters(params, lo, hi)
+    _note_replaced(given, params)
     check_geometry(params, lo, hi, shape_points(scene), automatic_track, offset)   # before any cost estimate
     radar_equation(params)                   # radiometry parameters checked before any tracing
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
@@ -214,6 +220,44 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
                        offset=offset, shape_boxes=_shape_boxes(scene))
+
+
+def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: np.ndarray) -> RadarParameters:
+    """A trajectory file read into state vectors in the tracing frame (``offset`` subtracted): a
+    relative path from the scene file's folder when the scene names it, else from the working
+    directory (docs/physics.md (J2)). Named trajectories and Python state vectors pass through
+    (the latter moved by ``offset``)."""
+    kind = params.trajectory
+    if isinstance(kind, StateVectors):
+        return dataclasses.replace(params, trajectory=kind.shifted(offset)) if np.any(offset) else params
+    if kind in TRAJECTORIES:
+        return params
+    file = Path(kind).expanduser()
+    if not file.is_absolute() and scene_file is not None:
+        file = scene_file.parent / file
+    states = read_state_vectors(file)
+    return dataclasses.replace(params, trajectory=states.shifted(offset) if np.any(offset) else states)
+
+
+#: Platform parameters that state vectors set (docs/physics.md (J2)).
+_FROM_STATES = ("altitude", "incidence_angle", "velocity", "heading", "look_side")
+
+
+def _note_replaced(given: Mapping[str, Any], params: RadarParameters) -> None:
+    """Warn once when state vectors replace platform parameters the scene or the user gave."""
+    if not isinstance(params.trajectory, StateVectors):
+        return
+    replaced = []
+    for name in _FROM_STATES:
+        if name not in given or given[name] is None:
+            continue
+        old, new = given[name], getattr(params, name)
+        same = str(old) == new if name == "look_side" else math.isclose(float(old), new, rel_tol=1e-3, abs_tol=1e-3)
+        if not same:
+            replaced.append(f"{name} {old} -> {new:.6g}" if name != "look_side" else f"{name} {old} -> {new}")
+    if replaced:
+        warnings.warn(f"trajectory {params.trajectory.source} sets the platform from its mid-aperture state: "
+                      f"{', '.join(replaced)} (the values given are not used)", AcquisitionWarning, stacklevel=3)
 
 
 def _built_in_python(source: Any) -> bool:

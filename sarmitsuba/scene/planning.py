@@ -16,11 +16,12 @@ from scipy import fft as sp_fft
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, track_frame
+from ..core.trajectory import StateVectors, from_state_vectors
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
-__all__ = ["resolve_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
+__all__ = ["resolve_parameters", "state_vector_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
            "project_to_aim_plane", "box_corners", "echo_lengths", "check_acquisition", "AcquisitionWarning",
-           "check_geometry", "HORIZON_EARTH_RADIUS", "EMPTY_TRACK_FRACTION", "EMPTY_TRACK_PULSES"]
+           "beam_offsets"]
 
 
 class AcquisitionWarning(UserWarning):
@@ -42,10 +43,16 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
     along-track extent plus the beam footprint at the farthest scene point, plus twice the
     along-track offset of the scene's middle from ``scene_center`` (the track is centred on
     ``scene_center``, so a scene given an off-centre ``scene_center`` is still swept from end
-    to end), ``n_pulses = ceil(length * prf / velocity) + 1``.
+    to end), ``n_pulses = ceil(length * prf / velocity) + 1``. A circular trajectory flies its
+    ``arc_deg`` (docs/physics.md (J1)); state vectors set the platform parameters and their span
+    the pulses (:func:`state_vector_parameters`, (J2)).
     """
     if params.scene_center is None:
         params = replace(params, scene_center=(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), float(lo[2])))
+    if isinstance(params.trajectory, StateVectors):
+        params = state_vector_parameters(params)
+    elif params.trajectory == "circular":
+        params = _circular_pulses(params)
     if params.n_pulses == 0 and params.mode == "spotlight":
         angle = params.wavelength / (2.0 * params.slant_range_resolution)
         length = angle * params.slant_range
@@ -60,6 +67,53 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
         length = float(along.max() - along.min()) + (a_hi - a_lo) + 2.0 * offset
         params = replace(params, n_pulses=int(math.ceil(length * params.prf / params.velocity)) + 1)
     return params
+
+
+def _circular_pulses(params: RadarParameters) -> RadarParameters:
+    """``n_pulses`` of a circular trajectory (J1): ``round(2 pi G prf / v)`` for the full circle,
+    ``floor(arc G prf / v) + 1`` for an arc; a given ``n_pulses`` must not exceed the full circle."""
+    full = max(1, round(2.0 * math.pi * params.ground_range * params.prf / params.velocity))
+    if params.n_pulses > full:
+        raise ParameterError(f"n_pulses = {params.n_pulses} with trajectory = 'circular' flies more than the full circle "
+                             f"of {full} pulses (radius {params.ground_range:.1f} m at {params.velocity:g} m/s, prf "
+                             f"{params.prf:g} Hz): use at most {full}, or n_pulses = 0 and arc_deg")
+    if params.n_pulses > 0:
+        return params
+    if params.arc_deg >= 360.0:
+        return replace(params, n_pulses=full)
+    arc = math.radians(params.arc_deg) * params.ground_range
+    return replace(params, n_pulses=int(math.floor(arc * params.prf / params.velocity)) + 1)
+
+
+def state_vector_parameters(params: RadarParameters) -> RadarParameters:
+    """The platform parameters of a trajectory of state vectors, from its mid-aperture state
+    (docs/physics.md (J2)): ``altitude`` the antenna's height above the scene centre,
+    ``incidence_angle`` the angle of the line from the scene centre to it from the vertical,
+    ``velocity`` its speed, ``heading`` the direction of its horizontal velocity, ``look_side``
+    the side the scene centre lies on; ``n_pulses`` (when automatic) every pulse the span holds.
+
+    Raises ParameterError when the mid-aperture antenna is not above the scene centre, stands
+    over it (no incidence) or moves vertically."""
+    states = params.trajectory
+    path = from_state_vectors(states)
+    t_lo, t_hi = path.span
+    n = params.n_pulses or int(math.floor((t_hi - t_lo) * params.prf + 1e-9)) + 1
+    mid = 0.5 * (t_lo + t_hi)
+    antenna, v = path.position(mid), path.velocity(mid)
+    rel = np.asarray(params.scene_center, float) - antenna
+    height, ground = -float(rel[2]), float(math.hypot(rel[0], rel[1]))
+    where = f"the state vectors {states.source} put the mid-aperture antenna (t = {mid:.6g} s) at {np.round(antenna, 2).tolist()} m"
+    if not (height >= VALID_RANGES["altitude"].lo and ground > 1e-6 * height and math.hypot(v[0], v[1]) > 0):
+        problem = ("not above the scene centre" if height < VALID_RANGES["altitude"].lo else
+                   "straight above the scene centre (no incidence angle)" if ground <= 1e-6 * height else
+                   "moving vertically")
+        raise ParameterError(f"{where}, {problem} {np.round(params.scene_center, 2).tolist()} m: a side-looking SAR "
+                             "flies above the scene and to its side, moving horizontally; check the frame (metres, z up, "
+                             "the scene's own) or scene_center")
+    left = v[0] * rel[1] - v[1] * rel[0] > 0
+    return replace(params, n_pulses=n, altitude=height, incidence_angle=math.degrees(math.atan2(ground, height)),
+                   velocity=float(np.linalg.norm(v)), heading=math.degrees(math.atan2(v[1], v[0])),
+                   look_side="left" if left else "right")
 
 
 def _closest_ranges(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -80,150 +134,6 @@ def beam_offsets(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> tup
     r = (max(0.0, float(ranges.min()) - float(np.linalg.norm(hi - lo))), float(ranges.max()))
     half, squint = params.traced_half_angle, math.radians(params.squint)
     return (min(x * math.tan(squint - half) for x in r), max(x * math.tan(squint + half) for x in r))
-
-
-# ============================================================================ geometry checks
-#: Effective earth radius [m] of the radar horizon: 4/3 of the mean 6371 km, for standard
-#: refraction (docs/physics.md (G4)).
-HORIZON_EARTH_RADIUS = 4.0 / 3.0 * 6.371e6
-#: An automatic stripmap track is refused when more than this fraction of its pulses ...
-EMPTY_TRACK_FRACTION = 0.5
-#: ... and more than this many see no geometry (below it the waste costs seconds, above it the
-#: empty track dominates the render's memory and time).
-EMPTY_TRACK_PULSES = 5000
-
-
-def check_geometry(params: RadarParameters, lo: np.ndarray, hi: np.ndarray, shapes: list,
-                   automatic_track: bool, offset: np.ndarray | None = None) -> None:
-    """Refuse, before any tracing, an acquisition that cannot image the scene or whose automatic
-    track is mostly empty (docs/physics.md (G4)).
-
-    Parameters
-    ----------
-    params : RadarParameters
-        Resolved (``scene_center`` and ``n_pulses`` set, :func:`resolve_parameters`).
-    lo, hi : float64 [3], m
-        The scene's bounding box.
-    shapes : list of (str, float64 [n, 3])
-        Each shape's name and points (mesh vertices, or an analytic shape's box corners), m.
-    automatic_track : bool
-        Whether ``n_pulses`` was automatic (0): only then is an empty track refused.
-    offset : float64 [3], m, optional
-        World position of the local frame's origin, to report ``scene_center`` as the user gave it.
-
-    Raises
-    ------
-    ParameterError
-        - the scene centre beyond the radar horizon (``incidence_angle`` too close to 90 deg for
-          the ``altitude``), naming the largest valid incidence;
-        - geometry at or beyond the nadir, on the side the radar does not look (mirrored
-          ghosts), naming the shape, the geometry's ground-range extent from the nadir and the
-          ``altitude``, ``incidence_angle``, ``track_offset`` that would fix it;
-        - with an automatic stripmap track, more than :data:`EMPTY_TRACK_FRACTION` of its pulses,
-          and more than :data:`EMPTY_TRACK_PULSES`, seeing no geometry because shapes lie far
-          along track from ``scene_center``, naming the farthest shape.
-    """
-    shapes = [(name, np.asarray(p, np.float64).reshape(-1, 3)) for name, p in shapes]
-    shapes = [(name, p) for name, p in shapes if len(p)] or [("scene", box_corners(lo, hi))]
-    names = [name for name, _ in shapes]
-    points = np.concatenate([p for _, p in shapes])
-    starts = np.r_[0, np.cumsum([len(p) for _, p in shapes])[:-1]]
-    shown = np.asarray(params.scene_center, float) + (np.zeros(3) if offset is None else np.asarray(offset, float))
-    _check_horizon(params, hi)
-    _check_side(params, points, starts, names)
-    if automatic_track and params.mode == "stripmap":
-        _check_track(params, lo, hi, points, starts, names, shown)
-
-
-def _horizon(height: float) -> float:
-    """Slant range [m] to the radar horizon from ``height`` [m] above a flat scene (G4)."""
-    height = max(height, 0.0)
-    return math.sqrt(2.0 * HORIZON_EARTH_RADIUS * height + height * height)
-
-
-def _check_horizon(params: RadarParameters, hi: np.ndarray) -> None:
-    """The scene centre within the radar horizon of the antenna and the scene's top (G4)."""
-    h, theta = params.altitude, math.radians(params.incidence_angle)
-    top = max(0.0, float(hi[2]) - float(params.scene_center[2]))
-    reach = _horizon(h) + _horizon(top)
-    if params.slant_range <= reach:
-        return
-    limit = math.degrees(math.acos(h / reach))
-    # the altitude below which the scene comes into view at this incidence: the larger root of
-    # (h / cos - d)^2 = 2 k R h + h^2, d the scene top's horizon
-    secant, d = 1.0 / math.cos(theta), _horizon(top)
-    b, a = d * secant + HORIZON_EARTH_RADIUS, secant * secant - 1.0
-    lowest = (b + math.sqrt(max(b * b - a * d * d, 0.0))) / a
-    lowest = math.floor(10.0 * lowest) / 10.0          # rounded down: inside the horizon
-    altitude = f", or lower altitude below {lowest:,.1f} m" if lowest >= VALID_RANGES["altitude"].lo else ""
-    raise ParameterError(
-        f"incidence_angle = {params.incidence_angle:g} deg at altitude = {h:g} m puts the scene centre "
-        f"{_distance(params.slant_range)} away in slant range ({_distance(params.ground_range)} from the nadir "
-        f"track), beyond the radar horizon: from {h:g} m, over a scene up to {top:.3g} m high, the earth (4/3 "
-        f"radius, standard refraction) hides everything farther than {_distance(reach)} in slant range "
-        f"(docs/physics.md (G4)); at this altitude incidence_angle must be below {limit:.2f} deg (SAR images at "
-        f"about 15-60 deg): lower incidence_angle{altitude}")
-
-
-def _distance(metres: float) -> str:
-    return f"{metres / 1000:,.1f} km" if abs(metres) >= 1000 else f"{metres:.1f} m"
-
-
-def _check_side(params: RadarParameters, points: np.ndarray, starts: np.ndarray, names: list) -> None:
-    """Every point on the side the radar looks, at cross-track ground range ``g > 0`` from the nadir (G4)."""
-    _, look = track_frame(params)
-    center = np.asarray(params.scene_center, float)
-    ground = params.ground_range
-    g = (points - center) @ look + ground - float(np.asarray(params.track_offset, float) @ look)
-    i = int(np.argmin(g))
-    if g[i] > 0:
-        return
-    shape = names[int(np.searchsorted(starts, i, side="right")) - 1]
-    needed = ground - float(g[i])                  # the nadir's distance from scene_center that clears it
-    theta = math.radians(params.incidence_angle)
-    away = np.round(look * float(g[i]), 1) + 0.0         # against the look direction
-    raise ParameterError(
-        f"the track passes over the scene: altitude = {params.altitude:g} m and incidence_angle = "
-        f"{params.incidence_angle:g} deg put the nadir track {ground:.1f} m from scene_center (altitude "
-        f"tan(incidence_angle)), but the geometry spans {float(g.min()):.1f} .. {float(g.max()):.1f} m in ground range "
-        f"from the nadir (look_side = {params.look_side!r}: positive on the side the radar looks) and shape "
-        f"{shape!r} reaches {-float(g[i]):.1f} m beyond it; echoes from both sides of the track arrive at the same "
-        f"ranges, so that geometry would image as mirrored ghosts (docs/physics.md (G4)): raise altitude above "
-        f"{needed / math.tan(theta):.1f} m or incidence_angle above "
-        f"{math.degrees(math.atan2(needed, params.altitude)):.2f} deg, or shift the track by more than "
-        f"({away[0]:.1f}, {away[1]:.1f}, 0) m with track_offset (or scene_center)")
-
-
-def _check_track(params: RadarParameters, lo: np.ndarray, hi: np.ndarray, points: np.ndarray,
-                 starts: np.ndarray, names: list, shown: np.ndarray) -> None:
-    """An automatic stripmap track whose pulses mostly see no geometry: shapes far along track
-    from ``scene_center``, which the track (centred on it) must reach."""
-    track, _ = track_frame(params)
-    along = (points - np.asarray(params.scene_center, float)) @ track
-    s_lo, s_hi = np.minimum.reduceat(along, starts), np.maximum.reduceat(along, starts)
-    a_lo, a_hi = beam_offsets(params, lo, hi)
-    length = (params.n_pulses - 1) * params.velocity / params.prf
-    middle = -params.squint_offset + float(np.asarray(params.track_offset, float) @ track)
-    start, end = middle - 0.5 * length, middle + 0.5 * length
-    # the antenna positions whose beam holds part of a shape, merged
-    covered, reach = 0.0, start
-    for a, b in sorted(zip(np.clip(s_lo - a_hi, start, end), np.clip(s_hi - a_lo, start, end))):
-        covered += max(0.0, b - max(a, reach))
-        reach = max(reach, b)
-    empty = length - covered
-    empty_pulses = int(empty * params.prf / params.velocity)
-    if empty <= EMPTY_TRACK_FRACTION * length or empty_pulses <= EMPTY_TRACK_PULSES:
-        return
-    distance = np.maximum(np.abs(s_lo), np.abs(s_hi))
-    far = int(np.argmax(distance))
-    center = ", ".join(f"{c:g}" for c in np.round(shown, 1))
-    raise ParameterError(
-        f"shape {names[far]!r} lies {float(distance[far]) / 1000:.1f} km along track from scene_center ({center}) "
-        f"(the geometry spans {float(along.min()):.0f} .. {float(along.max()):.0f} m along track from it): the "
-        f"automatic track, centred on scene_center, needs {params.n_pulses:,} pulses ({_distance(length)}) to sweep "
-        f"it and {empty_pulses:,} of them ({100 * empty / length:.0f} %) see no geometry; move scene_center onto the "
-        f"scene (left unset it is the scene's centre) or move the shape, or set n_pulses (or aperture_length) for "
-        f"a track of your own")
 
 
 #: Extra two-way length allowed per bounce beyond the first, as a fraction of the scene box's
@@ -252,7 +162,7 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     tracer, never clamped into edge bins), plus margins for the compressed pulse's tails
     and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
-    l_min, l_max = echo_lengths(geometry.positions, lo, hi)
+    l_min, l_max = echo_lengths(geometry.positions, lo, hi, geometry.rx_positions)
     l_max += (settings.max_depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
     if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
@@ -263,16 +173,26 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
                           oversample=settings.oversample)
 
 
-def echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
+def echo_lengths(positions: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 rx_positions: np.ndarray | None = None) -> tuple[float, float]:
     """Shortest and longest two-way lengths ``(L_min, L_max)`` [m, float] from the track to the
-    scene's box (direct paths): ``positions`` float64 [n_pulses, 3] antenna positions, ``lo`` and
-    ``hi`` float64 [3] the box. ``L_min`` is twice the distance from the nearest pulse to the box,
-    ``L_max`` twice the farthest corner from the first, middle and last pulse."""
-    closest = np.clip(positions, lo, hi)
-    l_min = 2.0 * float(np.linalg.norm(positions - closest, axis=1).min())
+    scene's box (direct paths): ``positions`` float64 [n_pulses, 3] antenna positions at
+    transmission and ``rx_positions`` at reception (default: the same), ``lo`` and ``hi`` float64
+    [3] the box. ``L_min`` is the distance from the nearest pulse's antennas to the box, both
+    ways; ``L_max`` the farthest corner's two-way length from the first, middle and last pulse
+    (a straight track's extremes), or from every pulse of a track that is not straight."""
+    rx = positions if rx_positions is None else rx_positions
+    l_min = float((np.linalg.norm(positions - np.clip(positions, lo, hi), axis=1)
+                   + np.linalg.norm(rx - np.clip(rx, lo, hi), axis=1)).min())
     corners = box_corners(lo, hi)
-    l_max = 2.0 * max(float(np.linalg.norm(corners - p, axis=1).max()) for p in positions[[0, -1, len(positions) // 2]])
-    return l_min, l_max
+    pick = [0, -1, len(positions) // 2]
+    chord = positions[-1] - positions[0]
+    middle = positions[len(positions) // 2] - positions[0]
+    if np.linalg.norm(np.cross(chord, middle)) > 1e-6 * max(float(np.linalg.norm(chord)) ** 2, 1e-12):
+        pick = np.unique(np.linspace(0, len(positions) - 1, 4096).round().astype(int))
+    two_way = (np.linalg.norm(corners[None] - positions[pick][:, None], axis=2)
+               + np.linalg.norm(corners[None] - rx[pick][:, None], axis=2))
+    return l_min, float(two_way.max())
 
 
 def ray_spacing(params: RadarParameters, settings: TraceSettings) -> tuple[float, float]:
@@ -350,7 +270,8 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     each pulse's own (a point at height ``h`` and horizontal distance ``G + a`` from the
     antenna projects ``(G + a) h / (H - h)`` beyond itself). Spacing: :func:`ray_spacing`.
     Per pulse, only the overlap of the traced beam with that
-    pulse's limits is sampled.
+    pulse's limits is sampled; on a curved track, whose beam turns across the lattice, each pulse's
+    whole projection (the kernel casts only the tubes in a pulse's beam).
 
     ``shape_boxes`` (float64 [n_shapes, 2, 3], each shape's bounding box) switches the
     refinement around small objects on: a shape whose box diagonal ``D`` is below
@@ -377,6 +298,8 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     if params.mode == "spotlight":        # the beam stays on the scene centre
         ant_along = np.zeros_like(ant_along)
         a_lo, a_hi = 1.1 * a_lo, 1.1 * a_hi
+    if geometry.curved:                   # the beam turns with the track: every pulse's whole projection,
+        ant_along, a_lo, a_hi = np.zeros_like(ant_along), -np.inf, np.inf     # the kernel culls by beam
     lo_p = np.maximum(ant_along + a_lo, limits[:, 0]) - s
     hi_p = np.minimum(ant_along + a_hi, limits[:, 1]) + s
     k0 = np.floor(lo_p / s).astype(np.int64)
@@ -420,9 +343,11 @@ def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: Ray
         # the pulses whose beam can hold the object: projections from the first and last of them
         first, last = along.min() - beam[1] - s, along.max() - beam[0] + s
         pulses = np.flatnonzero((ant_along >= first) & (ant_along <= last))
-        if params.mode == "spotlight" or pulses.size == 0:
+        if params.mode == "spotlight" or pulses.size == 0 or geometry.curved:
             pulses = np.arange(len(ant_along))
         ends = geometry.positions[[pulses[0], pulses[-1]]]
+        if geometry.curved:               # the projections do not move linearly: from every pulse
+            ends = geometry.positions[np.unique(np.linspace(0, len(pulses) - 1, 512).round().astype(int))]
         aim = project_to_aim_plane(points[None, :, :], ends[:, None, :], fp.origin[2]) - fp.origin
         a, g = aim @ fp.track, aim @ fp.look
         # every coarse cell the projections touch (they are exact at the corners; the rays in
@@ -464,6 +389,8 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
                         f"(scene depth {0.5 * (l_max - l_min):.0f} m slant plus pulse_length {params.pulse_length:g} s): "
                         "echoes of consecutive pulses overlap (range ambiguities), which this simulation does not "
                         "model; lower prf or shrink the scene")
+    if geometry.curved:                   # the beam follows the scene centre (circular) or the track
+        return _warned(messages)
     rel = box_corners(lo, hi) - geometry.scene_center
     along = rel @ geometry.track_direction
     across = rel @ geometry.look_direction
@@ -476,8 +403,12 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
         messages.append(f"the scene (bounding box {lo.round(1).tolist()} .. {hi.round(1).tolist()}) lies outside the "
                         f"beam footprint around scene_center {np.round(geometry.scene_center, 1).tolist()}: "
                         "the raw data and image will be empty")
+    return _warned(messages)
+
+
+def _warned(messages: list[str]) -> list[str]:
     for message in messages:
-        warnings.warn(message, AcquisitionWarning, stacklevel=2)
+        warnings.warn(message, AcquisitionWarning, stacklevel=3)
     return messages
 
 

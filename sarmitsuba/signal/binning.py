@@ -220,7 +220,18 @@ def to_raw_data(contributions: "np.ndarray | PathList", result: TraceResult, win
             metadata = {**metadata, "noise_power_w": equation.noise_power}
     return RawData(
         data=data, fast_time=window.fast_time, pulse_time=geometry.pulse_time.copy(),
-        tx_position=geometry.positions.copy(), rx_position=geometry.positions.copy(),
+        tx_position=geometry.positions.copy(), rx_position=geometry.rx_positions.copy(),
         velocity=geometry.velocity.copy(), fc=params.frequency, bandwidth=params.bandwidth,
         chirp_rate=params.chirp_rate, pulse_length=params.pulse_length, fs=params.sampling_rate,
-        prf=params.prf, range_compressed=not chirped, metadata=metadata)
+        prf=params.prf, range_compressed=not chirped, metadata=metadata,
+        rx_time=None if geometry.rx_time is None else geometry.rx_time.copy(),
+        **_nominal(geometry))
+
+
+def _nominal(geometry: AcquisitionGeometry) -> dict:
+    """The nominal track's RawData fields (motion errors, docs/physics.md (J4)), or none."""
+    if geometry.nominal_positions is None:
+        return {}
+    return dict(nominal_tx_position=geometry.nominal_positions.copy(),
+                nominal_rx_position=geometry.nominal_rx_positions.copy(),
+                nominal_velocity=geometry.nominal_velocity.copy())

@@ -23,6 +23,7 @@ from .clutter_lattice import FootprintCells
 from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from .facets import MAX_PART_VERTICES, scene_parts
+from .pulse_view import receive_leg
 
 __all__ = ["CellTerms", "PartTable", "FLAT_PHASE", "CROSSING_TOLERANCE"]
 
@@ -426,9 +427,9 @@ class CellTerms:
         shared = piece(reference) if depth == 0 and not occluders else None
 
         def body(q):
-            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
+            pulse, antenna, lref, view = self._pulse(ctx, rec.sub, q)
             ends, n_live, m, area, centroid = shared if shared is not None else piece(antenna)
-            active = self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
+            active = self._in_beam(rec.aim, antenna, view) if self.aim_mask else mi.Bool(True)
             _, _, d_c, edges_c = self._tile(rec, reference, antenna, rec.aim, cell, nu, depth)
             u_c = d_c - mi.Vector3f(dr.normalize(antenna - centre))
             active &= area > 0
@@ -436,12 +437,11 @@ class CellTerms:
             flat, (c_point, c_s, c_d, c_dist) = regime[2], regime[4]
 
             def term(point, s, d, factor, order, live, slot, rel=None):
-                outgoing = antenna - point
-                dist = dr.norm(outgoing)
+                outgoing, dist = receive_leg(view, antenna, point, s)          # (J3)
                 b = mi.Vector3f(outgoing / dist)
                 cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
                 scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular \
-                    * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+                    * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, view)
                 rel = s + dist - lref if rel is None else rel
                 value = mi.Complex2f(0.0, scale) * rec.gamma * factor * self.carrier_phase(rel)
                 live &= active & (cos_i > self.cos_grazing) & (s > 0)

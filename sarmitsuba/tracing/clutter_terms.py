@@ -15,6 +15,7 @@ from .clutter_lattice import (footprint_cells, lattice_frame, length_expansion, 
                               surface_key)
 from .deposit import SPECTRAL_ORDERS
 from . import jones as pol
+from .pulse_view import receive_leg
 
 __all__ = ["ClutterTerms"]
 
@@ -74,9 +75,10 @@ class ClutterTerms:
         """Pulse ``q`` of the hits' sub-apertures: sigma0 and the amplitude ``a_c`` at the hit, then
         each scatterer of the footprint at its second-order length ``L_c``, deposited, eq. (C)."""
         c, n, kind, value = self.fp.scatterer_spacing, rec.n, lattice["kind"], lattice["value"]
-        pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
-        incoming, outgoing = rec.unfolded - antenna, antenna - rec.p64       # unfolded first leg
-        s, dist = dr.norm(incoming), dr.norm(outgoing)
+        pulse, antenna, lref, view = self._pulse(ctx, rec.sub, q)
+        incoming = rec.unfolded - antenna                                    # unfolded first leg
+        s = dr.norm(incoming)
+        outgoing, dist = receive_leg(view, antenna, rec.p64, s)             # to the antenna at reception (J3)
         d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
         cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
         def sigma0(r):
@@ -88,8 +90,8 @@ class ClutterTerms:
         else:
             level = sigma0(self.reflection_at(rec.row, cos_i, True))
             co, cross = [dr.sqrt(level)], None
-        rough = (level > 0) & (self._in_beam(rec.aim, antenna) if self.aim_mask else True)
-        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+        rough = (level > 0) & (self._in_beam(rec.aim, antenna, view) if self.aim_mask else True)
+        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, view)
         rel = s + dist - lref
         anchor = self.anchor(rel, lref)
         amplitude = rec.gamma * self.carrier_phase(rel) * (c * weight)

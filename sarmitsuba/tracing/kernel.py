@@ -489,10 +489,16 @@ class Kernel:
         #      sine of the aim point changes monotonically along a straight track); spotlight:
         #      relative to the direction of the scene centre ----
         sines = []
-        for end in (launch.first, launch.first + launch.count - 1):
+        ends = (launch.first, launch.first + launch.count - 1)
+        if launch.axes is not None:           # a curved track turns the beam: its middle pulse too
+            ends += (launch.first + launch.count // 2,)
+        for end in ends:
             antenna = dr.gather(a64, a64(*(launch.antenna[end, c].copy() for c in range(3))), sub)
-            sines.append(self.returns.aim_sine(aim, antenna))
-        lo_s, hi_s = dr.minimum(*sines), dr.maximum(*sines)
+            axis = None if launch.axes is None else dr.gather(a64, a64(*(launch.axes[end, 0, c].copy() for c in range(3))), sub)
+            sines.append(self.returns.aim_sine(aim, antenna, axis))
+        lo_s, hi_s = sines[0], sines[0]
+        for sine in sines[1:]:
+            lo_s, hi_s = dr.minimum(lo_s, sine), dr.maximum(hi_s, sine)
         lo_b, hi_b = self.beam_sines
         lo = dr.gather(f64, f64(launch.along_limits[:, 0].copy()), sub)
         hi = dr.gather(f64, f64(launch.along_limits[:, 1].copy()), sub)

@@ -76,6 +76,12 @@ class Launch:
         Along-track aim limits of each sub-aperture (the union of its pulses').
     blocks : Blocks
         The lattice pieces traced, each for one sub-aperture.
+    velocity, acceleration : float64 [n_b, 3] or None
+        The antenna's motion at each pulse's transmission, for the receive leg (docs/physics.md
+        (J3)); None with stop-and-hop.
+    axes : float64 [n_b, 3, 3] or None
+        Curved tracks: each pulse's along-track, aperture and elevation axes
+        (:func:`sarmitsuba.tracing.pulse_view.antenna_axes`); None on a straight track.
     """
 
     antenna: np.ndarray
@@ -86,6 +92,9 @@ class Launch:
     r_near: np.ndarray
     along_limits: np.ndarray
     blocks: Blocks
+    velocity: np.ndarray | None = None
+    acceleration: np.ndarray | None = None
+    axes: np.ndarray | None = None
 
     @property
     def n_pulses(self) -> int:

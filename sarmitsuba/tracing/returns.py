@@ -28,6 +28,8 @@ from ..core.radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
 from .cell_terms import CellTerms
 from .clutter_terms import ClutterTerms
+from .device import device_array
+from .pulse_view import PulseView, receive_leg
 
 __all__ = ["Returns", "footprint_edges"]
 
@@ -86,6 +88,8 @@ class Returns(CellTerms, ClutterTerms):
         self.lam = params.wavelength
         self.beam_sines = beam_sines
         self.spotlight = effects.spotlight
+        self.continuous = effects.continuous_motion      # the receive leg from the moving antenna (J3)
+        self.curved = effects.curved_track               # per-pulse antenna axes (A)
         self.exact = settings.range_kernel == "exact"
         self.groups = effects.groups
         self.clutter_on = effects.clutter
@@ -132,9 +136,16 @@ class Returns(CellTerms, ClutterTerms):
                    block_nj=mi.UInt32(launch.blocks.n_j), block_m=mi.UInt32(launch.blocks.m),
                    launch=launch,
                    max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
+        axis = np.broadcast_to(self.fp.track, launch.antenna.shape) if launch.axes is None else launch.axes[:, 0]
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
-            ctx["steer"] = mi.Float((to_c @ self.fp.track / np.linalg.norm(to_c, axis=1)).astype(np.float32))
+            ctx["steer"] = mi.Float((np.sum(to_c * axis, axis=1) / np.linalg.norm(to_c, axis=1)).astype(np.float32))
+        if self.curved:
+            ctx["axis"] = device_array(mi.Array3f64, launch.axes[:, 0].T)
+            ctx["aperture"], ctx["elevation"] = (device_array(mi.Vector3f, launch.axes[:, k].T) for k in (1, 2))
+        if self.continuous:
+            ctx["velocity"] = device_array(mi.Array3f64, launch.velocity.T)
+            ctx["acceleration"] = device_array(mi.Array3f64, launch.acceleration.T)
         self.sums.open(ctx)
         return ctx
 
@@ -155,10 +166,11 @@ class Returns(CellTerms, ClutterTerms):
         return out
 
     # ------------------------------------------------------------------ geometry helpers
-    def aim_sine(self, aim, antenna):
+    def aim_sine(self, aim, antenna, axis=None):
         """Along-track sine of the direction from ``antenna`` to ``aim`` (float64 points), relative
-        to the direction of the scene centre in spotlight (the steered beam)."""
-        track = mi.Array3f64(*self.fp.track.tolist())
+        to the direction of the scene centre in spotlight (the steered beam); along the pulse's own
+        ``axis`` on a curved track."""
+        track = mi.Array3f64(*self.fp.track.tolist()) if axis is None else axis
         to_p = aim - antenna
         sine = dr.dot(to_p, track) / dr.norm(to_p)
         if self.spotlight:
@@ -219,12 +231,14 @@ class Returns(CellTerms, ClutterTerms):
             s_full["HV"] = s_full["VH"] = 0.5 * (s_full["HV"] + s_full["VH"])
         return [s_full[c] for c in self.channels]
 
-    def gain(self, v, steer):
+    def gain(self, v, view: PulseView):
         """One-way field pattern of the uniform aperture toward unit direction ``v`` (antenna -> scene):
         ``sinc(L sin(phi_az) / lambda) sinc(H_a sin(phi_el) / lambda)``, eq. (A). In spotlight the
         beam is steered at the scene centre, as a phased array steers: ``sin(phi_az)`` is taken
-        relative to the centre's, ``sin(phi) - sin(phi_c)``."""
-        axis = mi.Vector3f(*self.aperture_axis)
+        relative to the centre's, ``sin(phi) - sin(phi_c)``. On a curved track the axes are the
+        pulse's own (``view``)."""
+        steer = view.steer
+        axis = mi.Vector3f(*self.aperture_axis) if view.aperture is None else view.aperture
         along = dr.dot(v, axis)
         gain = mi.Float(1.0)
         if self.length_in_wavelengths > 0:          # the main lobe, zero beyond its first nulls
@@ -232,17 +246,18 @@ class Returns(CellTerms, ClutterTerms):
             gain *= dr.select(dr.abs(x) < 1.0, _sinc(math.pi * x), 0.0)
         if self.height_in_wavelengths > 0:
             across = dr.normalize(v - axis * along)
-            gain *= _sinc(math.pi * self.height_in_wavelengths * dr.dot(across, mi.Vector3f(*self.elevation_axis)))
+            elevation = mi.Vector3f(*self.elevation_axis) if view.elevation is None else view.elevation
+            gain *= _sinc(math.pi * self.height_in_wavelengths * dr.dot(across, elevation))
         return gain
 
-    def weight(self, d_first, b, s, dist, lref, steer):
+    def weight(self, d_first, b, s, dist, lref, view: PulseView):
         """Antenna pattern (A) and radiometric spreading (R1) of a return reached along ``d_first`` on
         its first leg and leaving toward the antenna along ``b``, ``dist`` away, at unfolded length
         ``s`` (float64 lengths): the two-way pattern ``g(d_first) g(-b)`` and ``R_ref^2 / (s R_rx)``;
         1 when neither effect is on."""
         weight = mi.Float(1.0)
         if self.pattern:
-            weight *= self.gain(d_first, steer) * self.gain(-b, steer)
+            weight *= self.gain(d_first, view) * self.gain(-b, view)
         if self.radiometry:
             rref = mi.Float(0.5 * lref)
             weight *= rref * rref / (mi.Float(s) * mi.Float(dist))
@@ -264,12 +279,23 @@ class Returns(CellTerms, ClutterTerms):
 
     def _pulse(self, ctx, sub, q):
         """Pulse ``first[sub] + q`` of a lane's sub-aperture: its batch index, antenna position,
-        reference length and beam steering (spotlight)."""
+        reference length and :class:`PulseView` (beam steering, axes, motion)."""
         pulse = dr.gather(mi.UInt32, ctx["first"], sub) + q
         antenna = dr.gather(mi.Array3f64, ctx["antenna"], pulse)
         lref = dr.gather(mi.Float64, ctx["lref"], pulse)
-        steer = dr.gather(mi.Float, ctx["steer"], pulse) if self.spotlight else None
-        return pulse, antenna, lref, steer
+        return pulse, antenna, lref, self.view(ctx, pulse)
+
+    def view(self, ctx, pulse) -> PulseView:
+        """The :class:`PulseView` of batch pulse ``pulse``: only what the acquisition's effects need."""
+        view = PulseView(steer=dr.gather(mi.Float, ctx["steer"], pulse) if self.spotlight else None)
+        if self.curved:
+            view.axis = dr.gather(mi.Array3f64, ctx["axis"], pulse)
+            view.aperture = dr.gather(mi.Vector3f, ctx["aperture"], pulse)
+            view.elevation = dr.gather(mi.Vector3f, ctx["elevation"], pulse)
+        if self.continuous:
+            view.velocity = dr.gather(mi.Array3f64, ctx["velocity"], pulse)
+            view.acceleration = dr.gather(mi.Array3f64, ctx["acceleration"], pulse)
+        return view
 
     @staticmethod
     def _folded(rec, v, depth: int):
@@ -279,9 +305,9 @@ class Returns(CellTerms, ClutterTerms):
         v = mi.Vector3f(v)
         return rec.m1 * v.x + rec.m2 * v.y + rec.m3 * v.z
 
-    def _in_beam(self, aim, antenna):
+    def _in_beam(self, aim, antenna, view: PulseView):
         """Whether the pulse at ``antenna`` casts the tube aimed at ``aim`` (its traced beam)."""
-        sine = self.aim_sine(aim, antenna)
+        sine = self.aim_sine(aim, antenna, view.axis)
         return (sine >= self.beam_sines[0]) & (sine <= self.beam_sines[1])
 
     def _d_first(self, depth, d, first_hit, antenna):
@@ -299,12 +325,13 @@ class Returns(CellTerms, ClutterTerms):
         st = self.settings
         lref = dr.gather(mi.Float64, ctx["middle"], rec.sub)
         antenna = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
-        steer = None
-        if self.spotlight:
-            track = mi.Array3f64(*self.fp.track.tolist())
+        middle = dr.gather(mi.UInt32, ctx["first"], rec.sub) + dr.gather(mi.UInt32, ctx["count"], rec.sub) // 2
+        view = self.view(ctx, middle)
+        if self.spotlight:                   # steered from the reference position
+            track = mi.Array3f64(*self.fp.track.tolist()) if view.axis is None else view.axis
             to_c = mi.Array3f64(*self.fp.origin.tolist()) - antenna
-            steer = mi.Float(dr.dot(to_c, track) / dr.norm(to_c))
-        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), hit.b, hit.s, hit.dist, lref, steer)
+            view.steer = mi.Float(dr.dot(to_c, track) / dr.norm(to_c))
+        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), hit.b, hit.s, hit.dist, lref, view)
         scale = (math.sqrt(math.pi) / self.lam) * (hit.cos_i + hit.cos_b) * specular * weight
         area = dr.norm(dr.cross(rec.e1, rec.e2))
         carrier = rec.gamma * r * (scale * area * _sinc(alpha[0]) * _sinc(alpha[1]))
@@ -474,19 +501,18 @@ class Returns(CellTerms, ClutterTerms):
         open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]
 
         def body(q):
-            pulse, antenna, lref, steer = self._pulse(ctx, rec.sub, q)
-            split, active = decided, self._in_beam(rec.aim, antenna) if self.aim_mask else mi.Bool(True)
+            pulse, antenna, lref, view = self._pulse(ctx, rec.sub, q)
+            split, active = decided, self._in_beam(rec.aim, antenna, view) if self.aim_mask else mi.Bool(True)
             if per_pulse:                     # the pulse's own split at the tube's centre
                 split = self.pulse_split(rec, reference, antenna, cell, nu, depth, decided, open_)[0]
                 for s_, sg in zip(split, sigma):
                     active &= dr.select(s_, sg != 0.0, sg == 0.0)
             point, s, d, edges = self._tile(rec, reference, antenna, corner, cell, nu, depth)
-            outgoing = antenna - point
-            dist = dr.norm(outgoing)
+            outgoing, dist = receive_leg(view, antenna, point, s)
             b = mi.Vector3f(outgoing / dist)
             cos_i, cos_b = -dr.dot(n, d), dr.dot(n, b)
             scale = (math.sqrt(math.pi) / self.lam) * (cos_i + cos_b) * specular * dr.norm(dr.cross(*edges)) \
-                * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, steer)
+                * self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, view)
             value = mi.Complex2f(0.0, scale) * rec.gamma
             u = d - b
             for j, e in enumerate(edges):

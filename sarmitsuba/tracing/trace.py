@@ -39,6 +39,7 @@ from ..scene import planning
 from ..scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
+from .pulse_view import antenna_axes
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..scene.loader import LoadedScene, material_table
@@ -247,6 +248,8 @@ class TracePlan:
         Channels, deposit groups (bounce orders when split), padded spectrum length.
     exact : bool
         ``range_kernel = exact``: batches return path lists instead of spectra.
+    axes : float64 [n_pulses, 3, 3] or None
+        A curved track's per-pulse antenna axes (:func:`~sarmitsuba.tracing.pulse_view.antenna_axes`).
     """
 
     subs: SubApertures
@@ -256,6 +259,7 @@ class TracePlan:
     groups: int
     n_pad: int
     exact: bool
+    axes: np.ndarray | None = None
 
     @property
     def batches(self) -> list[int]:
@@ -282,7 +286,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     return TracePlan(subs=subs, per_batch=per_batch,
                      lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
                      n_channels=n_channels, groups=groups, n_pad=padded_length(window.n_samples),
-                     exact=settings.range_kernel == "exact")
+                     exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry))
 
 
 def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionGeometry, window: FastTimeWindow,
@@ -296,10 +300,13 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     n_groups = plan.n_channels * plan.groups
     hist = None if plan.exact else np.zeros((len(SPECTRAL_ORDERS), n_groups, p1 - p0, window.n_fine), np.complex64)
     totals, paths = {}, None
+    motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
+        if geometry.continuous else {}
     for blocks in _blocks(subs, g, footprint, settings.max_batch_rays):
         launch = Launch(antenna=geometry.positions[p0:p1], lref=plan.lref[p0:p1], first=subs.first[g] - p0,
                         count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
-                        along_limits=subs.along_limits[g], blocks=blocks)
+                        along_limits=subs.along_limits[g], blocks=blocks,
+                        axes=None if plan.axes is None else plan.axes[p0:p1], **motion)
         try:
             out = kernel(launch)
         except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces a loop body
