@@ -1,4 +1,4 @@
-"""``sar`` sensor: a side-looking SAR platform on a straight, level track.
+"""``sar`` sensor: a side-looking SAR platform on a straight, circular or measured track.
 
 .. pluginparameters::
 
@@ -86,6 +86,25 @@
    - float, m
    - Switch the two-way antenna pattern on (sinc^2 of a uniform aperture) in azimuth and
      elevation; default 0 = no pattern.
+ * - trajectory
+   - string
+   - ``straight`` (default: uniform and level along ``heading``), ``circular`` (a level circle
+     about the scene centre at ``altitude`` and ``incidence_angle``, the beam on the centre), or
+     the path of a CSV of state vectors ``time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps]`` in the
+     scene frame (relative to the scene file's folder), interpolated smoothly; pulses at the PRF
+     over its span, the platform parameters from its mid-aperture state (docs/physics.md (J1), (J2)).
+ * - arc_deg
+   - float, deg
+   - Arc of a circular trajectory, (0, 360], default 360 (the full circle).
+ * - motion_error
+   - string
+   - ``"AMPLITUDE_M, PERIOD_M"`` (a sinusoid) or ``"random, RMS_M, CORRELATION_M[, SEED]"``: a
+     horizontal deviation of the true track across the nominal one (docs/physics.md (J4)); the raw
+     data keep both tracks (``focus --track nominal``).
+ * - stop_and_hop
+   - boolean
+   - ``false`` (default): each echo is received where the antenna has moved to during it
+     (docs/physics.md (J3)); ``true``: the stop-and-hop approximation, for comparison.
  * - polarization
    - string
    - ``VV`` (default) or ``HH``: one co-polarised channel; ``HV`` or ``VH`` (receive,

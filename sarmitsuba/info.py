@@ -348,6 +348,10 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
 
 
 def _azimuth_formula(p: RadarParameters) -> str:
+    if p.trajectory == "circular":
+        arc = p.n_pulses * p.velocity / (p.prf * p.ground_range)
+        return (f"lambda / (4 sin(theta) sin(min(a, pi) / 2)), arc a = N v / (prf G) = {math.degrees(arc):.4g} deg "
+                "(docs/physics.md (J1))")
     if p.mode == "spotlight":
         return (f"lambda / (2 dtheta), integration angle dtheta = N v / (prf R) = "
                 f"{math.degrees(p.integration_angle):.3g} deg")

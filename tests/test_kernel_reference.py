@@ -11,7 +11,8 @@ radar equation's spreading ``1 / (s R_rx)`` with ``s`` the unfolded length from 
 (image theory). Every term is kept (``cancel_interior`` off), so the two lists match one to one. The mirror
 makes the plate's paths non-retro-reflecting (cos_i = 0.5, cos_b = 0.87 on the plate), so an
 obliquity factor of 1, a spreading over the first leg or a wrong term all change the comparison
-by far more than its 1e-4 tolerance. No term of this scene is shadowed: the shadow ray is
+by far more than its 1e-4 tolerance. Each echo is received where the straight track has carried
+the antenna (docs/physics.md (J3), solved in NumPy by ``trajectory.receive_time``). No term of this scene is shadowed: the shadow ray is
 tested in test_tracer_core.py (a ground under a canopy).
 """
 from __future__ import annotations
@@ -29,7 +30,8 @@ from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.tracing.physical_optics import SINC_REGIME, cell_alphas, cell_terms, split_threshold
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.planning import AcquisitionWarning
-from sarmitsuba.core.geometry import acquisition_geometry
+from sarmitsuba.core.geometry import acquisition_geometry, trajectory_of
+from sarmitsuba.core.trajectory import receive_time
 
 TILT = math.radians(15.0)
 PLATE_CENTRE = np.array([0.173, -3.512, 3.061])
@@ -40,6 +42,7 @@ SCENE = """<scene version="3.0.0">
     <sensor type="sar">
         <float name="bandwidth" value="150e6"/>
         <float name="prf" value="{prf}"/>
+        <float name="velocity" value="{velocity}"/>
         <float name="azimuth_beamwidth" value="{beam}"/>
         <string name="scene_center" value="0, 0, 0"/>
         <string name="beam" value="uniform"/>
@@ -144,6 +147,7 @@ def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
     then takes the tile's terms with its own lengths and directions (:func:`cell_terms`)."""
     p, settings = sim.loaded.params, sim.loaded.settings
     geometry = acquisition_geometry(p)
+    track = trajectory_of(p)            # each echo received where the track has carried the antenna (J3)
     fp = planning.ray_footprint(p, geometry, sim.loaded.bbox_lo, sim.loaded.bbox_hi, settings)
     k = 2 * math.pi * p.frequency / SPEED_OF_LIGHT
     t0, fs = float(sim.raw.fast_time[0]), sim.raw.fs
@@ -185,7 +189,7 @@ def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
                         ends = (reference, antennas[0], antennas[-1])
                         split = _split(np.array([cell_alphas(k, a, aim, cell, lambda x, a=a: path(x, a))
                                                  for a in ends]), split_at)
-                        for antenna, lref, pulse in zip(antennas, lrefs, group):
+                        for antenna, lref, pulse, t_tx in zip(antennas, lrefs, group, geometry.pulse_time[group]):
                             sine = ((aim - antenna) @ fp.track) / np.linalg.norm(aim - antenna)
                             if not lo_sine <= sine <= hi_sine:
                                 continue                         # uniform beam: cut per pulse at the aim
@@ -198,7 +202,9 @@ def _reference_terms(sim, radiometry: bool, ground_half=GROUND_HALF):
                             mine = lambda x, antenna=antenna: path(x, antenna)      # noqa: E731
                             own = [bool(abs(a) >= split_at) if s_ is None else s_
                                    for s_, a in zip(split, cell_alphas(k, antenna, aim, cell, mine))]
-                            lengths, coefficients, order = cell_terms(k, antenna, aim, cell, mine, density, split=own)
+                            receiver = (lambda x, s, t_tx=t_tx: receive_time(track, t_tx, x, first_leg=s)[1])  # noqa: E731
+                            lengths, coefficients, order = cell_terms(k, antenna, aim, cell, mine, density, split=own,
+                                                                      receiver=receiver)
                             positions.extend((lengths - SPEED_OF_LIGHT * t0) * fs / SPEED_OF_LIGHT)
                             values.extend(coefficients * np.exp(-1j * k * (lengths - lref)))
                             orders.extend([order] * len(coefficients))
@@ -214,17 +220,20 @@ def _spectrum(positions, values, orders, fs, fc):
     return np.sum(values * (1 + f / fc) ** orders * np.exp(-2j * math.pi * f * positions / fs), axis=1)
 
 
-@pytest.mark.parametrize("radiometry,pulses,prf,beam,spacing", [
-    (False, 1, 250.0, 1.0, 0.2), (True, 1, 250.0, 1.0, 0.2), (False, 6, 250.0, 1.0, 0.2), (False, 6, 50.0, 3.0, 1.0)],
-    ids=["normalised", "absolute", "sub-aperture of 6 pulses", "splits decided per pulse"])
-def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry, pulses, prf, beam, spacing):
+@pytest.mark.parametrize("radiometry,pulses,prf,beam,spacing,velocity", [
+    (False, 1, 250.0, 1.0, 0.2, 100.0), (True, 1, 250.0, 1.0, 0.2, 100.0), (False, 6, 250.0, 1.0, 0.2, 100.0),
+    (False, 6, 50.0, 3.0, 1.0, 100.0), (False, 3, 17500.0, 1.0, 0.2, 7000.0)],
+    ids=["normalised", "absolute", "sub-aperture of 6 pulses", "splits decided per pulse", "fast platform"])
+def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry, pulses, prf, beam, spacing, velocity):
     """One pulse: the kernel's terms are the reference's. Six pulses in one sub-aperture (2.4 m of
     track; the plate is traced once): every pulse's terms are the reference's for that pulse's
     own antenna (lengths and phase gradients) on the tiles, facets and visibility of the
     reference position; tiles projected from each pulse's own antenna instead fail it (the plate
     stands 3 m above the aim plane). With 0.5 m tubes, a 3 deg beam, a 72 m long mirror and 12 m of track, the
     edges' phase half-width sweeps through the split threshold within the sub-aperture: those
-    edges are split or not pulse by pulse (docs/physics.md (T3))."""
+    edges are split or not pulse by pulse (docs/physics.md (T3)). At 7 km/s the antenna moves 6.6 cm
+    during an echo: a kernel receiving at the transmit position (stop-and-hop), or moving the
+    antenna the wrong way, is 8 rad off the reference there (docs/physics.md (J3))."""
     radar = ('<float name="transmit_power" value="100"/><float name="antenna_gain_db" value="30"/>'
              if radiometry else "")
     a, b, c = PLATE_SIZE[0] / 2, PLATE_SIZE[1] / 2, PLATE_CENTRE
@@ -232,7 +241,7 @@ def test_kernel_terms_equal_the_numpy_reference(tmp_path: Path, radiometry, puls
     ground = GROUND_HALF if beam == 1.0 else (36.0, GROUND_HALF[1])   # reaching 2.5 deg off broadside
     xml.write_text(SCENE.format(radar=radar, gx=ground[0], gy=ground[1], px=a, py=b,
                                 angle=-(90.0 - math.degrees(TILT)), cx=c[0], cy=c[1], cz=c[2], pulses=pulses,
-                                prf=prf, beam=beam, spacing=spacing))
+                                prf=prf, beam=beam, spacing=spacing, velocity=velocity))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AcquisitionWarning)          # 3 deg at 50 Hz: azimuth ambiguities
         sim = simulate(str(xml), window="rect")

@@ -90,10 +90,10 @@ class StateVectors:
         _check_states(self)
 
     def row(self, i: int) -> str:
-        """How messages name sample ``i``: ``line N of FILE`` for a file, else ``row i``."""
+        """How messages name sample ``i``: ``FILE, line N`` for a file, else ``SOURCE, row i``."""
         if self.first_line:
-            return f"line {self.first_line + i} of {self.source}"
-        return f"row {i} of the state vectors"
+            return f"{self.source}, line {self.first_line + i}"
+        return f"{self.source}, row {i}"
 
     def shifted(self, offset: np.ndarray) -> "StateVectors":
         """The same states with ``offset`` [m] subtracted from every position (a local frame)."""
@@ -123,18 +123,18 @@ def _check_states(sv: StateVectors) -> None:
         bad = ~np.isfinite(values[:, 0])
         if bad.any():
             i = int(np.argmax(bad))
-            raise TrajectoryError(f"state vectors: {sv.row(i)}, column {name}: {values[i, 0]!r} is not a finite "
+            raise TrajectoryError(f"state vectors {sv.row(i)}, column {name}: {float(values[i, 0])!r} is not a finite "
                                   "number; every time, position and velocity must be finite")
     step = np.diff(t)
     if np.any(step <= 0):
         i = int(np.argmax(step <= 0)) + 1
-        raise TrajectoryError(f"state vectors: {sv.row(i)}, column time_s: {t[i]!r} s is not after the previous "
-                              f"row's {t[i - 1]!r} s; times must increase strictly (sort the rows, drop duplicates)")
+        raise TrajectoryError(f"state vectors {sv.row(i)}, column time_s: {float(t[i])!r} s is not after the previous "
+                              f"row's {float(t[i - 1])!r} s; times must increase strictly (sort the rows, drop duplicates)")
     median = float(np.median(step))
     if np.any(step > MAX_GAP_RATIO * median):
         i = int(np.argmax(step > MAX_GAP_RATIO * median)) + 1
-        raise TrajectoryError(f"state vectors: {sv.row(i)}, column time_s: a gap of {step[i - 1]:.6g} s after "
-                              f"{t[i - 1]!r} s, more than {MAX_GAP_RATIO:g} times the median spacing {median:.6g} s: "
+        raise TrajectoryError(f"state vectors {sv.row(i)}, column time_s: a gap of {step[i - 1]:.6g} s after "
+                              f"{float(t[i - 1])!r} s, more than {MAX_GAP_RATIO:g} times the median spacing {median:.6g} s: "
                               "the interpolant cannot bridge it (it would invent the motion in between); fill the "
                               "gap from the navigation data, or split the flight into two files")
 

@@ -203,7 +203,7 @@ def list_effects(loaded) -> tuple[Effect, ...]:
         In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
         spotlight, squint, per-bounce-order products, polarimetry, then the trajectory's: curved track,
-        continuous motion, motion errors (:attr:`EffectSet.listed`).
+        the stop-and-hop approximation (on request only), motion errors (:attr:`EffectSet.listed`).
     """
     return active_effects(loaded).listed
 
@@ -304,14 +304,14 @@ def _curved(on: bool, p: "RadarParameters") -> Effect:
                                          "(trajectory = circular or a CSV of state vectors switch it on)")
 
 
-def _continuous(on: bool, p: "RadarParameters") -> Effect:
-    if on:
-        return Effect("continuous motion", True, "stop_and_hop = false: every echo is received where the antenna has "
-                      f"moved to during it (v tau: {2 * p.velocity * p.slant_range / SPEED_OF_LIGHT * 1e3:.3g} mm at the "
-                      "scene centre)")
-    return Effect("continuous motion", False, "stop_and_hop = true: the antenna stands still during each echo (an "
-                  f"azimuth shift of v R / c = {p.velocity * p.slant_range / SPEED_OF_LIGHT * 1e3:.3g} mm against the "
-                  "real echo)")
+def _continuous(continuous: bool, p: "RadarParameters") -> Effect:
+    """The stop-and-hop approximation: an accuracy knob (on request), not the default physics."""
+    shift = p.velocity * p.slant_range / SPEED_OF_LIGHT * 1e3
+    if not continuous:
+        return Effect("stop-and-hop approximation", True, f"stop_and_hop = true: the antenna stands still during each "
+                      f"echo, an azimuth shift of v R / c = {shift:.3g} mm against the real echo (docs/physics.md (J3))")
+    return Effect("stop-and-hop approximation", False, f"every echo is received where the antenna has moved to during it "
+                  f"(v tau = {2 * shift:.3g} mm at the scene centre; stop_and_hop = true switches the approximation on)")
 
 
 def _motion_error(on: bool, p: "RadarParameters") -> Effect:

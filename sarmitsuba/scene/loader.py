@@ -254,7 +254,7 @@ def _note_replaced(given: Mapping[str, Any], params: RadarParameters) -> None:
         old, new = given[name], getattr(params, name)
         same = str(old) == new if name == "look_side" else math.isclose(float(old), new, rel_tol=1e-3, abs_tol=1e-3)
         if not same:
-            replaced.append(f"{name} {old} -> {new:.6g}" if name != "look_side" else f"{name} {old} -> {new}")
+            replaced.append(f"{name} {float(old):g} -> {new:.6g}" if name != "look_side" else f"{name} {old} -> {new}")
     if replaced:
         warnings.warn(f"trajectory {params.trajectory.source} sets the platform from its mid-aperture state: "
                       f"{', '.join(replaced)} (the values given are not used)", AcquisitionWarning, stacklevel=3)

@@ -124,7 +124,8 @@ def tube_terms(k: float, centre: np.ndarray, n: np.ndarray, t1: np.ndarray, t2: 
 
 
 def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path, density,
-               split_at: float = SINC_REGIME, step: float = 1e-4, split=None) -> tuple[np.ndarray, np.ndarray, int]:
+               split_at: float = SINC_REGIME, step: float = 1e-4, split=None,
+               receiver=None) -> tuple[np.ndarray, np.ndarray, int]:
     """The PO integral of one aim cell's tile as one pulse sees it, as point terms, eqs. (T3),
     (PO2), (PO4): the readable NumPy reference of :meth:`sarmitsuba.tracing.returns.Returns.po`.
 
@@ -157,11 +158,14 @@ def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path
     split : (bool, bool), optional
         Which edges are split, when decided elsewhere (a sub-aperture, docs/physics.md (T3));
         ``split_at`` is then unused.
+    receiver : callable, optional
+        ``(x, s) -> float64 [3]``: where the antenna receives the echo of ``x`` reached after the
+        unfolded length ``s`` (docs/physics.md (J3)); default ``antenna`` (stop-and-hop).
 
     Returns
     -------
     lengths : float64 [t], m
-        Two-way length ``s + |A - x|`` of each term.
+        Two-way length ``s + |A_rx - x|`` of each term.
     coefficients : complex128 [t]
         Values at the carrier before the propagation phase.
     order : int
@@ -170,7 +174,7 @@ def cell_terms(k: float, antenna: np.ndarray, aim: np.ndarray, cell: tuple, path
     def at(point):
         x, d, s, n = path(point)
         edges = [(path(point + step * v)[0] - path(point - step * v)[0]) / (2.0 * step) for v in cell]
-        to_antenna = antenna - x
+        to_antenna = (antenna if receiver is None else receiver(x, s)) - x
         dist = float(np.linalg.norm(to_antenna))
         return x, d, s, n, to_antenna / dist, dist, edges
 
