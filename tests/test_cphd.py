@@ -59,11 +59,12 @@ def test_pvp_ranges_and_times_match_the_local_geometry(written):
     raw, path = written
     _, pvp, _ = read_parts(path)
     local = np.linalg.norm(raw.tx_position, axis=1)          # SRP at the local origin
+    back = np.linalg.norm(raw.rx_position, axis=1)           # the receiver at the SRP echo's arrival
     np.testing.assert_allclose(np.linalg.norm(pvp["TxPos"] - pvp["SRPPos"], axis=1), local, atol=1e-3)
-    np.testing.assert_allclose(np.linalg.norm(pvp["RcvPos"] - pvp["SRPPos"], axis=1), local, atol=1e-3)
+    np.testing.assert_allclose(np.linalg.norm(pvp["RcvPos"] - pvp["SRPPos"], axis=1), back, atol=1e-3)
     np.testing.assert_allclose(np.linalg.norm(pvp["TxVel"], axis=1), np.linalg.norm(raw.velocity, axis=1),
                                rtol=1e-12)
-    np.testing.assert_allclose(pvp["RcvTime"] - pvp["TxTime"], 2 * local / SPEED_OF_LIGHT, rtol=1e-12)
+    np.testing.assert_allclose(pvp["RcvTime"] - pvp["TxTime"], (local + back) / SPEED_OF_LIGHT, rtol=1e-9)
     np.testing.assert_allclose(np.diff(pvp["TxTime"]), np.diff(raw.pulse_time), atol=1e-15)
     # Straight level track: the ECEF velocity is the direction between successive positions.
     step = np.diff(pvp["TxPos"], axis=0)

@@ -21,7 +21,20 @@ from .grid import ImageGrid
 from .range_lines import MAX_OVERSAMPLE
 from .windows import check_window, window_label
 
-__all__ = ["check_inputs", "range_window_of", "focus_metadata", "make_image", "progress_bar", "available_cpus"]
+__all__ = ["check_inputs", "range_window_of", "focus_metadata", "make_image", "progress_bar", "available_cpus",
+           "receiver_motion"]
+
+
+def receiver_motion(raw: RawData) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(velocity, rx_delay)`` of continuous-motion data, or None for stop-and-hop data.
+
+    ``velocity`` float64 [n_pulses, 3] m/s and ``rx_delay = rx_time - pulse_time`` float64
+    [n_pulses] s: the echo of a point ``X`` arrives at ``rx_position + velocity (L / c - rx_delay)``,
+    ``L`` its two-way length (docs/physics.md (J3)).
+    """
+    if raw.rx_time is None:
+        return None
+    return np.asarray(raw.velocity, float), np.asarray(raw.rx_time - raw.pulse_time, float)
 
 
 def available_cpus() -> int:

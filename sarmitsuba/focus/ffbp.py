@@ -36,7 +36,7 @@ from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.raw import RawData
 from .beam import BeamWeighting, beam_weighting, column_gain, unit_rows
-from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar
+from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
 from .grid import ImageGrid
 from .polar import (CHUNK, GeometryNotSupported, RSTEP, PolarAxes, PolarFrame, PolarImage, beam_table, carrier_bits, premodulated_rows,
                     prepare, pulses_to_polar, r_pass, s_pass, spline_tables, workspace)
@@ -81,7 +81,9 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     Parameters
     ----------
     raw : RawData
-        Range-compressed, monostatic echoes (``tx_position == rx_position``) with uniform fast time.
+        Range-compressed echoes with uniform fast time: monostatic (``tx_position ==
+        rx_position``), or continuous motion (``rx_time`` given: each echo received where the
+        antenna is at its arrival, eq. (J3) of docs/physics.md, exact as in ``backproject``).
     grid : ImageGrid
         Pixels to focus, all on one side of the track (no pixel under the antenna's path).
     subaperture : int, optional
@@ -122,7 +124,8 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     ValueError
         As ``backproject``; or a knob outside its range.
     GeometryNotSupported
-        (a ValueError) Bistatic data, a velocity normal to the image plane, or a grid that
+        (a ValueError) Bistatic stop-and-hop data (``rx_position != tx_position`` without
+        ``rx_time``), a velocity normal to the image plane, or a grid that
         straddles the track (a pixel under the antenna path): use ``backproject``.
 
     Notes
@@ -175,15 +178,16 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
                            implementation="ffbp", **knobs, subapertures=counts["subapertures"],
                            polar_samples=counts["polar_samples"], stage_seconds=stage_seconds,
                            azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
-                           monostatic=True)
+                           monostatic=raw.rx_time is None,
+                           motion="stop-and-hop" if raw.rx_time is None else "continuous")
     focus["interpolation"] = "first stage: fft-upsample + linear; polar images: cubic B-spline (s, then r)"
     return make_image(raw, grid, data, focus)
 
 
 def _check_knobs(raw: RawData, subaperture: Any, angle_oversample: Any, range_oversample: Any) -> dict[str, Any]:
-    if not np.array_equal(raw.tx_position, raw.rx_position):
-        raise GeometryNotSupported("ffbp needs monostatic data (raw.tx_position == raw.rx_position); "
-                         "use backproject for bistatic data")
+    if raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
+        raise GeometryNotSupported("ffbp needs monostatic or continuous-motion data (raw.tx_position == "
+                                   "raw.rx_position, or raw.rx_time given); use backproject for bistatic data")
     out: dict[str, Any] = {}
     for name, value, low, high in (("subaperture", subaperture, 1, raw.n_pulses),
                                    ("range_oversample", range_oversample, 1, 8)):
@@ -217,6 +221,15 @@ def _grid_edge_points(grid: ImageGrid) -> np.ndarray:
     return grid.origin + aa[:, None] * grid.azimuth_direction + rr[:, None] * grid.range_direction
 
 
+def _phase_centres(raw: RawData, pulses: slice) -> np.ndarray:
+    """The antenna positions that bound a sub-aperture's delays, float64 [P or 2P, 3]: the
+    transmitters, and with continuous motion the receivers too (their mean is the midpoint track,
+    the sub-aperture's effective monostatic phase centre)."""
+    if raw.rx_time is None:
+        return raw.tx_position[pulses]
+    return np.concatenate([raw.tx_position[pulses], raw.rx_position[pulses]])
+
+
 def _plan(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: slice, angle_oversample: float,
           edges: np.ndarray) -> tuple[PolarFrame, PolarAxes, tuple[float, float], tuple[float, float]] | None:
     """Frame, axes and nonzero sines of the polar image of the pulses ``pulses``; None when it
@@ -229,7 +242,7 @@ def _plan(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: slice, ang
     cycles per unit sine plus :data:`WEIGHT_CYCLES` per beam width, ``angle_oversample`` times;
     the range step is ``c / (2 fs)``. Both axes get margins (:data:`S_MARGIN`, :data:`R_MARGIN`).
     """
-    antennas = raw.tx_position[pulses]
+    antennas = _phase_centres(raw, pulses)
     centre = antennas.mean(axis=0)
     velocity = unit_rows(raw.velocity[pulses])
     direction = velocity.mean(axis=0)
@@ -278,6 +291,7 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
     table = None if beam.sines is None else (beam_table(beam.u, beam.table), *beam.sines)
     edges = _grid_edge_points(grid)
     velocity = unit_rows(raw.velocity)
+    receive = receiver_motion(raw)
 
     def one(span: tuple[int, int]) -> PolarImage | None:
         pulses = slice(*span)
@@ -291,8 +305,9 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
             n_tab = (data.shape[1] - 1) * oversample + 1 + 2 * PAD
             lines = premodulated_pairs(fft_upsample(data, oversample, workers=1),
                                        carrier_table(raw.fc, t_start, raw.fc / fine_rate, n_tab))
+            receivers = None if receive is None else (raw.rx_position[pulses], receive[0][pulses], receive[1][pulses])
             polar, (d_lo, d_hi) = pulses_to_polar(frame, axes, raw.tx_position[pulses], velocity[pulses], lines,
-                                                  carrier, t_start, raw.fs, oversample, raw.fc, table)
+                                                  carrier, t_start, raw.fs, oversample, raw.fc, table, receivers)
             # ranges where every pulse's delay lies beyond the window (plus a fine sample): zero there
             guard = SPEED_OF_LIGHT / (2.0 * raw.fs * oversample)
             r_span = (window[0] - d_hi - guard, window[1] - d_lo + guard)
@@ -308,7 +323,7 @@ def _cropped_lines(raw: RawData, pulses: slice, axes: PolarAxes) -> tuple[int, n
     (``2 (r -+ |A_p - c|) / c``) plus :data:`LINE_GUARD` samples, whose outer :data:`LINE_TAPER`
     samples are tapered to zero where the crop cuts the line (so that the FFT upsampling does not
     ring into the needed delays)."""
-    antennas = raw.tx_position[pulses]
+    antennas = _phase_centres(raw, pulses)
     spread = float(np.max(np.linalg.norm(antennas - antennas.mean(axis=0), axis=1)))
     r_first, r_last = axes.r0 - spread, axes.r0 + (axes.n_r - 1) * axes.dr + spread
     t0 = float(raw.fast_time[0])

@@ -169,7 +169,9 @@ class PolarImage:
 # ============================================================================ first stage
 def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, velocities: np.ndarray,
                     lines: np.ndarray, carrier: tuple[np.ndarray, int], t0: float, fs: float, oversample: int,
-                    fc: float, beam: tuple[np.ndarray, float, float] | None) -> tuple[np.ndarray, tuple[float, float]]:
+                    fc: float, beam: tuple[np.ndarray, float, float] | None,
+                    receivers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                    ) -> tuple[np.ndarray, tuple[float, float]]:
     """Backproject pulses onto a polar grid (the first stage): complex64 [n_s, n_r] ``S_j``, and the
     smallest and largest one-way residual ``|x - A_p| - r`` [m] over its samples and pulses.
 
@@ -190,6 +192,10 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
         Carrier [Hz].
     beam : (float32 table, sin_lo, sin_hi) or None
         :func:`beam_table` of ``w(u)`` and the beam sines, or None (every pulse sees every point).
+    receivers : (float64 [P, 3], float64 [P, 3], float64 [P]) or None
+        Continuous-motion data: the receive positions [m] at ``rx_delay`` after transmission, the
+        velocities [m/s] and ``rx_delay`` [s]. The residual is then half the two-way length of
+        eq. (J3) of docs/physics.md less ``r`` (``antennas`` transmit). None: monostatic.
 
     Notes
     -----
@@ -211,7 +217,7 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
     coarse = axes.r0 + axes.dr * RSTEP * np.arange(n_c + 1)
     offset = (2.0 * axes.r0 / SPEED_OF_LIGHT - t0) * fine_rate
     whole = float(np.floor(offset))
-    psi, position, valid = _coarse_geometry(frame, axes, coarse, antennas, velocities, beam)
+    psi, position, valid = _coarse_geometry(frame, axes, coarse, antennas, velocities, beam, receivers)
     residuals = (float(psi.min()), float(psi.max()))
     psi = psi * (2.0 * fine_rate / SPEED_OF_LIGHT) + (offset - whole)       # fine samples past sample `whole`
     table, m = carrier
@@ -259,18 +265,30 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
 
 
 def _coarse_geometry(frame: PolarFrame, axes: PolarAxes, coarse: np.ndarray, antennas: np.ndarray,
-                     velocities: np.ndarray, beam: tuple[np.ndarray, float, float] | None
+                     velocities: np.ndarray, beam: tuple[np.ndarray, float, float] | None,
+                     receivers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """float64 [P, n_s, n_c] residuals ``|x - A_p| - r`` and (with a beam) beam-table positions
-    ``(s_p - sin_lo) / (sin_hi - sin_lo) BEAM_TABLE + 1.5`` at the coarse ranges, and the validity
-    [n_s, n_c] of the points."""
+    """float64 [P, n_s, n_c] residuals ``|x - A_p| - r`` (with ``receivers``: ``(|x - t_p| +
+    |x - r_p'|) / 2 - r``, ``r_p'`` the receiver at the echo's arrival, eq. (J3)) and (with a beam)
+    beam-table positions ``(s_p - sin_lo) / (sin_hi - sin_lo) BEAM_TABLE + 1.5`` at the coarse
+    ranges, and the validity [n_s, n_c] of the points."""
     u, valid = frame.units(axes.s[:, None], coarse[None, :])                         # [n_s, n_c, 3]
-    rel = coarse[None, None, :, None] * u[None] - (antennas - frame.centre)[:, None, None, :]
+    points = coarse[None, None, :, None] * u[None]                                   # relative to the centre
+    rel = points - (antennas - frame.centre)[:, None, None, :]
     dist = np.sqrt(np.square(rel).sum(axis=-1))
+    if receivers is not None:
+        rx, velocity, delay = receivers
+        back = np.sqrt(np.square(points - (rx - frame.centre)[:, None, None, :]).sum(axis=-1))
+        shift = (dist + back) / SPEED_OF_LIGHT - delay[:, None, None]
+        moved = points - (rx - frame.centre)[:, None, None, :] - shift[..., None] * velocity[:, None, None, :]
+        dist_rx = np.sqrt(np.square(moved).sum(axis=-1))
+        sine_dist, dist = dist, 0.5 * (dist + dist_rx)
+    else:
+        sine_dist = dist
     position = None
     if beam is not None:
         _, sin_lo, sin_hi = beam
-        sine = (rel * velocities[:, None, None, :]).sum(axis=-1) / dist
+        sine = (rel * velocities[:, None, None, :]).sum(axis=-1) / sine_dist
         position = ((sine - sin_lo) * (BEAM_TABLE / (sin_hi - sin_lo)) + 1.5).astype(np.float32)
     return dist - coarse, position, valid
 

@@ -273,9 +273,9 @@ def _check_sampling(raw: RawData, wavelength: float, tolerance: float | None) ->
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tolerance must be a positive number of metres, got {tolerance!r}")
     bistatic = float(np.max(np.linalg.norm(raw.tx_position - raw.rx_position, axis=1)))
-    if bistatic > tol:
+    if raw.rx_time is None and bistatic > tol:
         raise ValueError(f"the FFT focusers need monostatic data: transmitter and receiver differ by up to "
-                         f"{bistatic:.3g} m (tolerance {tol:.3g} m); use backprojection for bistatic data")
+                         f"{bistatic:.3g} m (tolerance {tol:.3g} m); use bp or ffbp for bistatic data")
     dt = np.diff(raw.pulse_time)
     if not np.allclose(dt, 1.0 / raw.prf, rtol=1e-6, atol=0.0):
         raise ValueError(f"pulse_time steps span [{dt.min()!r}, {dt.max()!r}] s, not 1 / prf = {1.0 / raw.prf!r} s: "
@@ -285,8 +285,13 @@ def _check_sampling(raw: RawData, wavelength: float, tolerance: float | None) ->
 
 def _fit_track(raw: RawData, tol: float) -> _Track:
     """Step 2: the least-squares uniform straight line through the antenna positions, checked
-    against ``tol`` across and along the track and against ``raw.velocity`` (1 %)."""
-    tx = raw.tx_position
+    against ``tol`` across and along the track and against ``raw.velocity`` (1 %).
+
+    Continuous-motion data (``raw.rx_time``) are fitted through the midpoints ``(tx + rx) / 2``,
+    the effective monostatic phase centres (docs/physics.md (J3)): exact at the range of the echo
+    ``rx_time`` was solved for, a target at a range ``R`` elsewhere lies ``|v| (R - R_c) / c``
+    further along track."""
+    tx = raw.tx_position if raw.rx_time is None else 0.5 * (raw.tx_position + raw.rx_position)
     n = raw.n_pulses
     k = np.arange(n, dtype=np.float64) - (n - 1) / 2.0
     mean = tx.mean(axis=0)
@@ -302,11 +307,11 @@ def _fit_track(raw: RawData, tol: float) -> _Track:
     if cross > tol:
         raise ValueError(f"the track is not straight: antenna positions deviate up to {cross:.4g} m across the "
                          f"fitted line (tolerance {tol:.4g} m = lambda/16 by default); omega-K and range-Doppler "
-                         f"are invalid here, use backprojection (sarmitsuba.focus.backproject)")
+                         f"are invalid here, use bp or ffbp (sarmitsuba.focus.backproject, ffbp), exact for any track")
     if along_err > tol:
         raise ValueError(f"the pulses are not uniformly spaced along the track (constant velocity): positions "
                          f"deviate up to {along_err:.4g} m from uniform spacing (tolerance {tol:.4g} m); "
-                         f"use backprojection (sarmitsuba.focus.backproject)")
+                         f"use bp or ffbp (sarmitsuba.focus.backproject, ffbp)")
     velocity = spacing * raw.prf
     v_data = raw.velocity @ u
     if np.any(np.abs(v_data - velocity) > 0.01 * velocity) or \

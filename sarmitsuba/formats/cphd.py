@@ -15,6 +15,10 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
   at ``dTOA = SC0[v] + s SCSS`` relative to the SRP delay ``tau_srp[v]`` and carries the phase
   factor ``exp(+j 2 pi fc tau_srp[v])`` (a point at the SRP reads zero phase at ``dTOA = 0``).
   :func:`read_cphd` undoes both, so the samples come back within float32 rounding;
+- continuous-motion data (``RawData.rx_time``, docs/physics.md (J3)) write ``RcvTime``/``RcvPos``
+  at the SRP echo's arrival, ``TxTime``/``TxPos`` at transmission (``CollectType`` MONOSTATIC: one
+  antenna); stop-and-hop data write ``RcvPos = TxPos`` and ``RcvTime = TxTime + tau_srp``. Reading,
+  a receiver elsewhere with the transmitter's velocity gives ``rx_time`` back;
 - range-compressed data are written as such; chirped data (``range_compressed`` false) are
   written uncompressed;
 - times: ``Global/Timeline/CollectionStart`` is the first pulse's UTC time,
@@ -89,7 +93,9 @@ def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.nd
     tau = srp_delay(raw.tx_position, raw.rx_position, srp)
     pvp = np.zeros(raw.n_pulses, dtype=dtype)
     pvp["TxTime"] = raw.pulse_time - raw.pulse_time[0]
-    pvp["RcvTime"] = pvp["TxTime"] + tau
+    # continuous motion: the receiver at the SRP echo's arrival (docs/physics.md (J3)); stop-and-hop
+    # data: the antenna did not move, and the SRP echo arrives tau after transmission
+    pvp["RcvTime"] = pvp["TxTime"] + (tau if raw.rx_time is None else raw.rx_time - raw.pulse_time)
     pvp["TxPos"] = georef.enu_to_ecef(raw.tx_position, ref)
     pvp["RcvPos"] = georef.enu_to_ecef(raw.rx_position, ref)
     pvp["TxVel"] = pvp["RcvVel"] = raw.velocity @ rot
@@ -139,7 +145,8 @@ def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray, start: da
     tref = pvp["TxTime"] + 0.5 * (pvp["RcvTime"] - pvp["TxTime"])
     rate = lfm_rate(raw)
     scene_name = str(raw.metadata.get("scene", "scene")) if isinstance(raw.metadata, dict) else "scene"
-    monostatic = np.array_equal(raw.tx_position, raw.rx_position)
+    # one antenna, moving during the echo or not (CPHD 1.1 sec. 2: MONOSTATIC), or two (BISTATIC)
+    monostatic = raw.rx_time is not None or np.array_equal(raw.tx_position, raw.rx_position)
     return {
         "CollectionID": {"CollectorName": "sarmitsuba", "CoreName": scene_name or "scene",
                          "CollectType": "MONOSTATIC" if monostatic else "BISTATIC",
@@ -393,10 +400,14 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     kvps = stored_parameters(tree, kvps)
     time0 = float(kvps.get(_KVP_TIME0, 0.0))
     pulse_time = pvp["TxTime"] + time0
+    # one platform that moved during the echo (same velocity, receiver elsewhere): continuous motion
+    moving = (not np.array_equal(pvp["TxPos"], pvp["RcvPos"])
+              and np.allclose(pvp["RcvVel"], pvp["TxVel"], rtol=0.0, atol=1e-6))
     prf = float(kvps[_KVP_PRF]) if _KVP_PRF in kvps else 1.0 / float(np.median(np.diff(pvp["TxTime"])))
     metadata = json.loads(kvps[_KVP_METADATA]) if _KVP_METADATA in kvps else {"source": str(path)}
     return RawData(data=data, fast_time=start[0] + np.arange(signal.shape[1]) * float(pvp["SCSS"][0]),
                    pulse_time=pulse_time, tx_position=tx, rx_position=rx,
+                   rx_time=pvp["RcvTime"] + time0 if moving else None,
                    velocity=np.asarray(pvp["TxVel"]) @ rot.T, fc=fc,
                    bandwidth=float(xml.load("{*}Channel/{*}Parameters/{*}FxBW")), chirp_rate=chirp,
                    pulse_length=pulse_length, fs=sample_rate(tree, pvp), prf=prf,
