@@ -349,8 +349,8 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
 
 def _azimuth_formula(p: RadarParameters) -> str:
     if p.trajectory == "circular":
-        arc = p.n_pulses * p.velocity / (p.prf * p.ground_range)
-        return (f"lambda / (4 sin(theta) sin(min(a, pi) / 2)), arc a = N v / (prf G) = {math.degrees(arc):.4g} deg "
+        arc = max(p.n_pulses - 1, 1) * p.velocity / (p.prf * p.ground_range)
+        return (f"lambda / (4 sin(theta) sin(min(a, pi) / 2)), arc a = (N - 1) v / (prf G) = {math.degrees(arc):.4g} deg "
                 "(docs/physics.md (J1))")
     if p.mode == "spotlight":
         return (f"lambda / (2 dtheta), integration angle dtheta = N v / (prf R) = "

@@ -63,7 +63,7 @@ def test_state_vectors_set_the_platform_parameters(tmp_path):
     positions = centre + 600.0 * left + [0, 0, 800.0] + np.outer(times - 5.0, 50.0 * track)
     _write_track(tmp_path / "drone.csv", times, positions)
     xml = tmp_path / "scene.xml"
-    xml.write_text(f"""<scene version="3.0.0">
+    xml.write_text("""<scene version="3.0.0">
         <sensor type="sar"><string name="scene_center" value="10, 20, 5"/><float name="prf" value="20"/>
             <float name="altitude" value="1000"/><string name="trajectory" value="drone.csv"/></sensor>
         <bsdf type="radar" id="m"><string name="model" value="pec"/></bsdf>

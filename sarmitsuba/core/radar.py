@@ -362,7 +362,7 @@ class RadarParameters:
         ``lambda / (4 sin(theta_inc) sin(min(a, pi) / 2))``, the extent of its ground wavenumbers
         (docs/physics.md (J1))."""
         if self.trajectory == "circular" and self.n_pulses > 0:     # docs/physics.md (J1)
-            arc = min(self.n_pulses * self.velocity / (self.prf * self.ground_range), math.pi)
+            arc = min(max(self.n_pulses - 1, 1) * self.velocity / (self.prf * self.ground_range), math.pi)
             return self.wavelength / (4.0 * math.sin(math.radians(self.incidence_angle)) * math.sin(arc / 2.0))
         if self.mode == "spotlight" and self.n_pulses > 0:
             return self.wavelength / (2.0 * self.integration_angle)

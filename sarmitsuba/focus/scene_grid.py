@@ -65,11 +65,13 @@ def ground_grid(p, bbox_lo: np.ndarray, bbox_hi: np.ndarray, geometry: Acquisiti
 def _curved_grid(p, relative: np.ndarray, geometry: AcquisitionGeometry) -> ImageGrid:
     """A curved track's ground grid (a circle sees the scene from every side): a square about the
     scene centre, along the mid-aperture track, holding the box's corners and their layover toward
-    any side, ``h / tan(theta)`` for a corner ``h`` above the scene centre, plus 16 resolution cells."""
+    any side, ``h / tan(theta)`` for a corner ``h`` above the scene centre, plus 16 of the finer
+    resolution cells and 2 of the coarser (the axes turn with the look, so both margins go all round;
+    16 coarse cells at the fine spacing would multiply the pixels for nothing)."""
     radius = float(np.max(np.hypot(relative[:, 0], relative[:, 1])))
     height = float(np.max(np.abs(relative[:, 2])))
-    half = radius + height / math.tan(math.radians(p.incidence_angle)) \
-        + 16 * max(p.ground_range_resolution, p.azimuth_resolution)
+    fine, coarse = sorted((p.ground_range_resolution, p.azimuth_resolution))
+    half = radius + height / math.tan(math.radians(p.incidence_angle)) + 16 * fine + 2 * coarse
     spacing = 0.5 * min(p.ground_range_resolution, p.azimuth_resolution)
     return ImageGrid.ground(geometry.scene_center, geometry.track_direction, geometry.look_direction,
                             azimuth_extent=2 * half, range_extent=2 * half, spacing=spacing)
