@@ -133,18 +133,18 @@ def _with_positions(raw: RawData, positions: np.ndarray) -> RawData:
 
 
 def test_curved_or_uneven_track_is_rejected():
-    """Deviations beyond lambda/16 across or along the track raise ValueError naming backprojection."""
+    """Deviations beyond lambda/16 across or along the track raise ValueError naming bp and ffbp."""
     raw = simulate(AIRBORNE_X.name)
     n = raw.n_pulses
     tol = raw.wavelength / 16
     k = np.linspace(-1.0, 1.0, n)
     bent = raw.tx_position.copy()
     bent[:, 2] += 2 * tol * (1 - k**2)  # a 2 lambda/16 sag
-    with pytest.raises(ValueError, match="not straight.*backprojection"):
+    with pytest.raises(ValueError, match="not straight.*use bp or ffbp"):
         stripmap_geometry(_with_positions(raw, bent))
     uneven = raw.tx_position.copy()
     uneven[:, 0] += 3 * tol * np.sin(np.pi * k)
-    with pytest.raises(ValueError, match="uniformly spaced.*backprojection"):
+    with pytest.raises(ValueError, match="uniformly spaced.*use bp or ffbp"):
         stripmap_geometry(_with_positions(raw, uneven))
     # within tolerance: accepted, and the deviation is reported
     wobble = raw.tx_position.copy()

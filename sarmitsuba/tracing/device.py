@@ -44,4 +44,5 @@ def device_array(cls, values) -> object:
     out = dr.empty(cls, n)
     dr.scatter(out, mapped, dr.arange(mi.UInt32, n))
     dr.eval(out)
+    dr.sync_thread()          # the copy kernel runs asynchronously: finish it before the NumPy buffer may change
     return out
