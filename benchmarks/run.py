@@ -27,6 +27,8 @@ dask_scaling   tracing on a Dask LocalCluster of 1 and 2 workers against one pro
 invariance     what the tracer's lattices leave in the image: NRMSE against the default
                render with the ray lattice moved, with dense rays and with one pulse per
                trace, on urban, a smooth oblique block and Munich, with trace seconds
+trajectory     what no stop-and-hop costs (trace, focus) and the error it removes (the
+               v R / c shift, airborne and spaceborne); PGA against motion-error amplitude
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -54,7 +56,7 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
-         "dask_scaling": "dask_scaling", "invariance": "invariance"}
+         "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory"}
 
 
 def main(argv: list[str] | None = None) -> int:
