@@ -1,7 +1,8 @@
 """Command-line interface: ``python -m sarmitsuba render [SCENE] [--out DIR] [...]``.
 
 Sub-commands: ``render``, ``preview``, ``info`` (plan only, no tracing), ``focus``, ``analyze``,
-``interferogram`` (repeat-pass InSAR of two renders).
+``interferogram`` (repeat-pass InSAR of two renders), ``scene from-footprints`` (a scene folder
+from building footprints in GeoJSON).
 
 Exit codes: 0 success, 2 bad input (scene, parameter, material, output directory), 130
 interrupted (Ctrl-C; outputs are written under temporary names and renamed, so nothing
@@ -51,7 +52,8 @@ def _positive_int(text: str) -> int:
 def _add_scene_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the scene and sar sensor flags shared by render, preview and info: SCENE, --pulses, --set."""
     parser.add_argument("scene", nargs="?", default=None,
-                        help="XML path, built-in name (urban, dihedral, trihedral) or sionna:NAME; default: urban")
+                        help="XML path (or a folder holding scene.xml), built-in name (urban, dihedral, "
+                             "trihedral) or sionna:NAME; default: urban")
     parser.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
     parser.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
@@ -148,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
                "  python -m sarmitsuba info sionna:munich      radar summary and cost, no tracing\n"
                "  python -m sarmitsuba render dihedral --set frequency=5.4e9 --out out/c-band\n"
                "  python -m sarmitsuba focus out/urban/raw.npz --algorithm omegak --out out/urban-wk\n"
+               "  python -m sarmitsuba scene from-footprints city.geojson --out city   then: render city\n"
                "  python -m sarmitsuba COMMAND --help          the options of one command\n"
                "exit codes: 0 success, 2 bad input (the message names it and the fix), 130 interrupted")
     parser.add_argument("--version", action="version", version=f"sarmitsuba {__version__}")
@@ -208,11 +211,68 @@ def build_parser() -> argparse.ArgumentParser:
     ifg.add_argument("--looks", type=_looks, default=(4, 4), metavar="AZ,RG",
                      help="boxcar window for coherence and height, azimuth,range pixels (default 4,4)")
     ifg.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_scene_command(sub)
     bench = sub.add_parser("bench", help="benchmark suite: accuracy against time for each fidelity knob "
                                          "(needs the source checkout's benchmarks/ folder)", add_help=False)
     bench.add_argument("bench_args", nargs="*", metavar="...",
                        help="arguments of benchmarks/run.py (--quick, --only NAME ...; --help for all)")
     return parser
+
+
+def _add_scene_command(sub) -> None:
+    """``scene from-footprints FILE.geojson --out DIR``: a scene folder from building footprints."""
+    scene = sub.add_parser("scene", help="make scenes: `scene from-footprints FILE.geojson --out DIR`")
+    make = scene.add_subparsers(dest="scene_command", required=True)
+    fp = make.add_parser("from-footprints", help="a scene folder (scene.xml, meshes/) from building footprints in "
+                                                 "GeoJSON (OpenStreetMap, cadastral, Microsoft/Google footprints)")
+    fp.add_argument("footprints", type=Path, help="GeoJSON FeatureCollection of Polygon/MultiPolygon buildings, "
+                                                  "WGS84 longitude/latitude")
+    fp.add_argument("--out", type=Path, required=True, help="folder for scene.xml and meshes/ (render takes it)")
+    fp.add_argument("--default-height", type=float, default=None, metavar="M",
+                    help="height of buildings with neither height nor building:levels (default: refuse them)")
+    fp.add_argument("--material", default="concrete", help="material of buildings without building:material "
+                                                           "(ITU-R P.2040 name; default concrete)")
+    fp.add_argument("--ground-material", default="concrete", help="ITU-R P.2040 material of the ground "
+                                                                  "(default concrete)")
+    fp.add_argument("--dem", type=Path, default=None, help="DEM GeoTIFF for the ground (any CRS; meshed at its "
+                                                           "resolution, clipped to the area); default: a flat plane")
+    fp.add_argument("--elevation", type=float, default=0.0, metavar="M",
+                    help="height of the flat ground above the WGS84 ellipsoid (geo_origin's height; default 0)")
+    fp.add_argument("--margin", type=float, default=None, metavar="M",
+                    help="ground around the buildings (default: max(10 m, the tallest building))")
+    fp.add_argument("--scattering-coefficient", type=float, default=None, metavar="S",
+                    help="roughness of the buildings, 0 (smooth) to <1 (default 0.3)")
+    fp.add_argument("--ground-scattering-coefficient", type=float, default=None, metavar="S",
+                    help="roughness of the ground (default 0.2)")
+    fp.add_argument("--repair", action="store_true", help="mend invalid outlines with shapely's make_valid "
+                                                          "and report each (default: refuse them)")
+    fp.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
+                    metavar="NAME=VALUE", help="a sar sensor parameter written into scene.xml (repeatable)")
+
+
+def _scene(args: argparse.Namespace) -> int:
+    """``scene from-footprints``: build, check and write a footprint scene; one line per bad feature."""
+    import time
+
+    from .scene import city
+    from .scene.footprints import FootprintError
+    start = time.perf_counter()
+    options = {k: getattr(args, k) for k in ("scattering_coefficient", "ground_scattering_coefficient")
+               if getattr(args, k) is not None}
+    try:
+        built = city.build_city(args.footprints, default_height=args.default_height, material=args.material,
+                                ground_material=args.ground_material, dem=args.dem, elevation=args.elevation,
+                                margin=args.margin, repair=args.repair, sensor=dict(args.sensor_set), **options)
+    except FootprintError as exc:
+        for line in exc.problems:
+            print(f"error: {line}", file=sys.stderr)
+        return 2
+    for line in built.repairs:
+        print(f"repaired: {line}", file=sys.stderr)
+    path = city.write_city(built, args.out)
+    print(f"scene from {args.footprints}: {time.perf_counter() - start:.1f} s, {built.summary()} -> {path} "
+          f"(render it: python -m sarmitsuba render {path})")
+    return 0
 
 
 def benchmarks_dir() -> Path:
@@ -281,7 +341,8 @@ def load_raw(path: Path):
 
 
 def _default_out(scene: str | None) -> Path:
-    name = "urban" if scene is None else Path(scene.split(":", 1)[-1]).stem
+    path = Path("urban" if scene is None else scene.split(":", 1)[-1])
+    name = path.parent.name if path.name == "scene.xml" and path.parent.name else path.stem
     return Path("out") / re.sub(r"[^A-Za-z0-9_.-]", "_", name)
 
 
@@ -438,7 +499,7 @@ def _main(argv: list[str] | None) -> int:
         return 2
     try:
         return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
-                "info": _info, "bench": _bench, "interferogram": _interferogram}[args.command](args)
+                "info": _info, "bench": _bench, "interferogram": _interferogram, "scene": _scene}[args.command](args)
     except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 
 __all__ = ["GeoReference", "GeoReferenceError", "DEFAULT", "SCENE_ORIGINS", "of", "parse",
-           "enu_to_ecef", "ecef_to_enu", "enu_axes", "enu_to_geodetic", "utm_crs", "enu_to_utm"]
+           "enu_to_ecef", "ecef_to_enu", "enu_axes", "enu_to_geodetic", "geodetic_to_enu", "utm_crs",
+           "enu_to_utm"]
 
 
 class GeoReferenceError(ValueError):
@@ -160,6 +161,12 @@ def enu_axes(ref: GeoReference = DEFAULT) -> np.ndarray:
 def enu_to_geodetic(points: np.ndarray, ref: GeoReference = DEFAULT) -> np.ndarray:
     """Local ENU metres [..., 3] to geodetic [..., 3]: latitude [deg], longitude [deg], height [m] (WGS84)."""
     return _apply(_geocentric_to_geodetic(), enu_to_ecef(points, ref), inverse=False)
+
+
+def geodetic_to_enu(llh: np.ndarray, ref: GeoReference = DEFAULT) -> np.ndarray:
+    """Geodetic [..., 3] (latitude [deg], longitude [deg], height [m], WGS84) to local ENU metres
+    [..., 3] at ``ref`` (inverse of :func:`enu_to_geodetic`)."""
+    return ecef_to_enu(_apply(_geocentric_to_geodetic(), llh, inverse=True), ref)
 
 
 def utm_crs(ref: GeoReference = DEFAULT) -> Any:

@@ -100,6 +100,37 @@ class Scene:
         self.sensor = _sensor_values(sensor)
         self.integrator = _integrator_values(integrator)
 
+    @classmethod
+    def from_footprints(cls, footprints: Any, out: Any = None, **options: Any) -> "Scene":
+        """A city from building footprints in GeoJSON (``scene from-footprints``).
+
+        ``footprints`` is the GeoJSON path; ``options`` are those of
+        :func:`sarmitsuba.scene.city.build_city` (``default_height``, ``material``,
+        ``ground_material``, ``dem``, ``elevation``, ``margin``, ``repair``,
+        ``scattering_coefficient``, ``ground_scattering_coefficient``, ``sensor``, ``origin``).
+        With ``out``, the scene folder (``out/scene.xml``, ``out/meshes/``) is written as well.
+        Returns the Scene (meshes in the local ENU frame, the ``sar`` sensor with ``geo_origin``).
+
+        Raises FootprintError (a SceneError; ``problems`` lists one line per bad feature),
+        DemError, ParameterError, OSError (``out`` not writable).
+        """
+        from .city import build_city, write_city
+        city = build_city(footprints, **options)
+        if out is not None:
+            write_city(city, out)
+        return cls.from_city(city)
+
+    @classmethod
+    def from_city(cls, city: Any, name: str | None = None) -> "Scene":
+        """The Scene of a :class:`sarmitsuba.scene.city.City`: its buildings (shape ids
+        ``mesh-<slug>``), ground (``mesh-ground``), materials and ``sar`` sensor, as
+        :func:`~sarmitsuba.scene.city.write_city` writes them; named after the footprint file."""
+        from pathlib import Path
+        specs = {key: {"id": key, **spec} for key, spec in city.material_specs().items()}
+        meshes = [(mesh, specs[footprint.material], f"mesh-{footprint.slug}") for footprint, mesh in city.buildings]
+        meshes.append((city.ground, specs["ground"], "mesh-ground"))
+        return cls(meshes, sensor=city.sensor, name=name or Path(city.source).stem)
+
     @property
     def source(self) -> str:
         """How the scene is reported: ``python:<name>``."""

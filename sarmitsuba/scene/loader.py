@@ -136,6 +136,8 @@ def resolve_source(source: Any) -> Path | None:
     if source in builtins:
         return builtins[source]
     path = Path(source)
+    if path.is_dir() and (path / "scene.xml").is_file():       # a scene folder (scene from-footprints)
+        return path / "scene.xml"
     if not path.is_file():
         hint = f"; built-in scenes: {', '.join(builtins)}" if builtins else ""
         if builtins and path.suffix == "" and len(path.parts) == 1:         # a misspelt built-in name
