@@ -2,9 +2,10 @@
 
 Stage: 1 (core -> **scene** -> tracing -> signal -> focus -> products -> formats -> analysis).
 
-Takes: a Mitsuba XML file, a built-in name (``urban``, ``dihedral``, ``trihedral``),
-``sionna:NAME`` or a :class:`~.builder.Scene` built in Python; sensor overrides
-(``--set``).
+Takes: a Mitsuba XML file (or a folder holding ``scene.xml``), a built-in name (``urban``,
+``dihedral``, ``trihedral``), ``sionna:NAME`` or a :class:`~.builder.Scene` built in Python;
+sensor overrides (``--set``). Building footprints in GeoJSON become a scene folder first
+(:mod:`.city`).
 
 Gives: a loaded scene (``load_scene``) with its ``RadarParameters``, the tracer's inputs
 (``TraceSettings``, ``FastTimeWindow``, ``RayFootprint``, ``MaterialTable``) and the effects
@@ -22,10 +23,15 @@ it switches on (``EffectSet``):
 :mod:`.trace_inputs`     the tracer's input records (the scene -> tracing contract)
 :mod:`.radar_equation`   the sensor's radar equation (absolute radiometry)
 :mod:`.baseline`         the interferometric baseline of a shifted pass
+:mod:`.footprints`       GeoJSON building footprints: outlines, heights, roofs, materials
+:mod:`.city`             footprints -> local frame -> meshes -> scene folder (``City``)
+:mod:`.buildings`        closed building meshes with flat, gabled, hipped, pyramidal roofs
+:mod:`.terrain`          the ground: a plane, or a DEM GeoTIFF meshed at its resolution
+:mod:`.mesh_footprints`  a mesh scene's buildings as GeoJSON footprints
 =======================  ===============================================================
 
 Physics: (R) reflection coefficients, (R1)-(R3) radar equation, (T1)-(T2) ray footprint and
-refinement, (I1)-(I3) baselines.
+refinement, (I1)-(I3) baselines, (F1)-(F3) scenes from footprints.
 
 ``from sarmitsuba.scene import load_scene`` (the module ``sarmitsuba.scene`` before the stage
 packages) still works: names not found here are looked up in :mod:`.loader`.
