@@ -241,3 +241,65 @@ def test_rewrite_replaces_the_scene(tmp_path):
     write_city(build_city(parse_footprints(collection(two["features"][0]))), out)
     assert sorted(p.name for p in (out / "meshes").iterdir()) == ["b0.ply", "ground.ply"]
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
+
+
+def _dem(path, east0, north0, size=40, nodata_at=None):
+    """A flat 100 m DEM of ``size`` x ``size`` 5 m pixels centred on (east0, north0) in UTM 32N."""
+    import rasterio
+    from affine import Affine
+    heights = np.full((size, size), 100.0)
+    if nodata_at is not None:
+        heights[nodata_at] = -9999.0
+    with rasterio.open(path, "w", driver="GTiff", height=size, width=size, count=1, dtype="float64", nodata=-9999.0,
+                       crs="EPSG:32632", transform=Affine(5.0, 0, east0 - 2.5 * size, 0, -5.0, north0 + 2.5 * size)) as d:
+        d.write(heights, 1)
+    return path
+
+
+@pytest.mark.parametrize("case, words", [("small", "does not cover"), ("void", "no data"), ("text", "cannot read")])
+def test_bad_dem(tmp_path, capsys, case, words):
+    """A DEM that misses part of the area, has a void there, or is no GeoTIFF: one line naming --dem."""
+    from pyproj import Transformer
+    east0, north0 = Transformer.from_crs("EPSG:4326", "EPSG:32632", always_xy=True).transform(LON, LAT)
+    dem = tmp_path / "dem.tif"
+    if case == "text":
+        dem.write_text("not a raster")
+    else:
+        _dem(dem, east0, north0, size=8 if case == "small" else 40, nodata_at=(20, 20) if case == "void" else None)
+    path = write(tmp_path, collection(feature([rectangle(0, 0, 30, 20)], height=10)))
+    assert main(["scene", "from-footprints", str(path), "--out", str(tmp_path / "o"), "--dem", str(dem)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--dem" in err and words in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_failed_write_leaves_the_folder_as_it_was(tmp_path, monkeypatch):
+    """A writer failing halfway (disk full) leaves the earlier scene.xml and meshes/ untouched."""
+    import trimesh
+    out = tmp_path / "city"
+    write_city(build_city(parse_footprints(collection(feature([rectangle(0, 0, 20, 10)], height=10)))), out)
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    calls = []
+
+    def full(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 1:
+            raise OSError(28, "No space left on device")
+        return export(*args, **kwargs)
+
+    export = trimesh.exchange.ply.export_ply
+    monkeypatch.setattr(trimesh.exchange.ply, "export_ply", full)
+    three = collection(*(feature([rectangle(40 * i, 0, 20, 10)], height=10 + i) for i in range(3)))
+    with pytest.raises(OSError, match="No space"):
+        write_city(build_city(parse_footprints(three)), out)
+    assert {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_multipolygon_is_one_building():
+    """A MultiPolygon (a building in two parts, one with a courtyard) is one closed mesh of both parts."""
+    geometry = {"type": "MultiPolygon", "coordinates": [[rectangle(-30, 0, 20, 10)],
+                                                        [rectangle(30, 0, 30, 30), rectangle(30, 0, 10, 10)[::-1]]]}
+    fs = parse_footprints(collection({"type": "Feature", "properties": {"height": 9}, "geometry": geometry}))
+    [(footprint, mesh)] = build_city(fs).buildings
+    assert mesh.is_watertight and len(mesh.split(only_watertight=True)) == 2
+    assert mesh.volume == pytest.approx((20 * 10 + 30 * 30 - 10 * 10) * 10, rel=2e-3)     # 9 m + 1 m below ground

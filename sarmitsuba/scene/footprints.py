@@ -48,7 +48,8 @@ __all__ = ["FootprintError", "Footprint", "FootprintSet", "read_footprints", "pa
 
 #: m per storey of ``building:levels`` (and ``roof:levels``), OpenStreetMap's usual assumption.
 LEVEL_HEIGHT = 3.0
-#: deg: roof pitch of a gabled, hipped or pyramidal roof that gives no ``roof:height``.
+#: deg: roof pitch of a gabled, hipped or pyramidal roof that gives no ``roof:height`` (a roof within a
+#: measured ``height`` is kept to at most half of it).
 ROOF_PITCH_DEG = 30.0
 #: Roof shapes built as such; any other ``roof:shape`` is built flat (with a warning).
 ROOF_SHAPES = ("flat", "gabled", "hipped", "pyramidal")
@@ -364,8 +365,4 @@ def building_material(name: str) -> str:
     if key in OSM_MATERIALS:
         return OSM_MATERIALS[key]
     valid = tuple(n for n in materials.itu_material_names() if n != "vacuum") + tuple(OSM_MATERIALS)
-    return _raise(unknown_name("building material", str(name), valid))
-
-
-def _raise(message: str):
-    raise ValueError(message)
+    raise ValueError(unknown_name("building material", str(name), valid))
