@@ -35,7 +35,7 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from ..core import georef
-from ..core.radar import ParameterError, RadarParameters
+from ..core.radar import RadarParameters
 from .buildings import building_mesh
 from .footprints import ROOF_PITCH_DEG, FootprintError, FootprintSet, building_material, read_footprints
 from .terrain import Dem, flat_ground, read_dem
