@@ -29,6 +29,9 @@ invariance     what the tracer's lattices leave in the image: NRMSE against the 
                trace, on urban, a smooth oblique block and Munich, with trace seconds
 trajectory     what no stop-and-hop costs (trace, focus) and the error it removes (the
                v R / c shift, airborne and spaceborne); PGA against motion-error amplitude
+footprints     Munich's meshes back to GeoJSON footprints and rebuilt: double-bounce and
+               single-bounce overlap with the original, heights against the mesh tops,
+               seconds of deriving, building, writing and rendering
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -56,7 +59,8 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
-         "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory"}
+         "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
+         "footprints": "footprints"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,7 +1,8 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
 Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``,
-``scaling.py``, ``tracing/polarimetry.py`` and ``invariance.py`` runs with
+``scaling.py``, ``tracing/polarimetry.py``, ``invariance.py``, ``trajectory.py`` and
+``footprints.py`` (a 200 m crop of Sionna's Munich; skipped without Sionna RT's scenes) runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
 write ``<name>_tiny.csv`` and ``.png`` into the output folder named by ``SARMITSUBA_BENCH_OUT``
@@ -18,6 +19,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from sarmitsuba.scene.loader import sionna_scenes
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))
@@ -80,6 +83,18 @@ EXPECTED = {
          "trace_ratio", "meets"},
         ("trace_s", "closest_hit_casts", "pulses", "trace_ratio"),
         ("nrmse_complex_db", "nrmse_magnitude_db")),
+    "footprints": (
+        {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
+         "height_below_top_mean_m", "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s",
+         "render_original_s", "render_rebuilt_s", "trace_original_s", "trace_rebuilt_s", "resolution_m", "pixels",
+         "double_bounce_original_in_rebuilt", "double_bounce_rebuilt_in_original", "single_bounce_original_in_rebuilt",
+         "single_bounce_rebuilt_in_original"},
+        ("footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m", "height_below_top_mean_m",
+         "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s", "render_original_s",
+         "render_rebuilt_s", "trace_original_s", "trace_rebuilt_s", "resolution_m", "pixels",
+         "double_bounce_original_in_rebuilt",
+         "double_bounce_rebuilt_in_original", "single_bounce_original_in_rebuilt", "single_bounce_rebuilt_in_original"),
+        ()),
 }
 
 
@@ -89,6 +104,8 @@ def _finite(value) -> bool:
 
 @pytest.mark.parametrize("module_name", list(EXPECTED))
 def test_benchmark_runs_tiny(module_name, tmp_path, monkeypatch):
+    if module_name == "footprints" and "munich" not in sionna_scenes():
+        pytest.skip("Sionna RT's Munich scene is not installed")
     monkeypatch.setenv("SARMITSUBA_BENCH_OUT", str(tmp_path))
     start = time.time()
     module = importlib.import_module(module_name)
