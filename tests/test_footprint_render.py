@@ -127,6 +127,10 @@ def test_feet_on_terrain_are_laid_over(tmp_path):
         lat, lon, _ = georef.enu_to_geodetic(np.array([p[0], p[1], 0.0]), city.geo_origin)
         return 0.12 * (to_utm.transform(lon, lat)[0] - east0)
 
+    # OSM's height is from the lowest ground: the roof 15 m above the plane at the west corners
+    mesh = city.buildings[0][1]
+    top = mesh.vertices[mesh.vertices[:, 2] > mesh.vertices[:, 2].max() - 1e-6]
+    assert mesh.bounds[1, 2] == pytest.approx(min(terrain(p) for p in top[:, :2]) + 15.0, abs=0.02)
     sim = simulate(Scene.from_city(city), integrator_overrides={"split_bounces": True}, progress=False)
     [(label, p0, p1)] = _walls_facing(city, sim.images_per_order[1])
     rows = _foot_offsets(sim.images_per_order[1], p0, p1, terrain)

@@ -38,7 +38,7 @@ from ..core import georef
 from ..core.radar import RadarParameters
 from .buildings import building_mesh
 from .footprints import ROOF_PITCH_DEG, FootprintError, FootprintSet, building_material, read_footprints
-from .terrain import Dem, flat_ground, read_dem
+from .terrain import GroundSurface, flat_ground, read_dem
 
 __all__ = ["City", "build_city", "write_city", "MAX_EXTENT", "BASE_DEPTH", "WALL_THICKNESS", "GROUND_THICKNESS",
            "SCATTERING_COEFFICIENT", "GROUND_SCATTERING_COEFFICIENT"]
@@ -172,10 +172,11 @@ def build_city(footprints: str | Path | FootprintSet, default_height: float | No
                               f"{extent[3] - extent[1]:.0f} m, wider than {MAX_EXTENT:.0f} m: a flat local frame "
                               "would sink its edges by the Earth's curvature; split the area into tiles"])
     ground = flat_ground(*extent) if terrain is None else terrain.mesh(ref)
+    surface = GroundSurface(None if terrain is None else ground)
     buildings, problems = [], []
     for footprint, outline in zip(fs.footprints, outlines):
         try:
-            buildings.append((footprint, _building(footprint, outline, terrain, ground, ref)))
+            buildings.append((footprint, _building(footprint, outline, surface)))
         except ValueError as exc:
             problems.append(f"{fs.source}: {footprint.label}: {exc}")
     if problems:
@@ -223,9 +224,9 @@ def _project(polygon, ref: georef.GeoReference):
     return shapely.transform(polygon, to_local)
 
 
-def _building(footprint, outline, terrain: Dem | None, ground_mesh, ref: georef.GeoReference):
-    """The closed mesh of one footprint on the ground (flat: z = 0; DEM: its lowest height under it)."""
-    ground = 0.0 if terrain is None else _lowest_ground(outline, terrain, ground_mesh, ref)
+def _building(footprint, outline, surface: GroundSurface):
+    """The closed mesh of one footprint on its lowest ground (flat: z = 0; DEM: its mesh under the outline)."""
+    ground = surface.lowest_under(outline)
     roof = footprint.roof_height
     if roof is None:                 # a 30 deg pitch over half the rectangle's short side
         rect = np.asarray(outline.minimum_rotated_rectangle.exterior.coords)
@@ -238,20 +239,6 @@ def _building(footprint, outline, terrain: Dem | None, ground_mesh, ref: georef.
                          "or roof:height")
     return building_mesh(outline, ground - BASE_DEPTH, ground + eaves, footprint.roof_shape, roof,
                          footprint.roof_across)
-
-
-def _lowest_ground(outline, terrain: Dem, mesh, ref: georef.GeoReference) -> float:
-    """Lowest DEM height under an outline [m, local z]: over its vertices and the DEM pixel centres
-    within one pixel of it."""
-    import shapely
-    points = [np.asarray(ring.coords) for part in getattr(outline, "geoms", [outline])
-              for ring in (part.exterior, *part.interiors)]
-    xy = np.vstack(points)
-    pixel = float(np.sqrt(2.0 * mesh.area / max(len(mesh.faces), 1)))
-    near = shapely.dwithin(outline.buffer(0), shapely.points(mesh.vertices[:, :2]), pixel)
-    llh = georef.enu_to_geodetic(np.column_stack([xy, np.zeros(len(xy))]), ref)
-    heights = terrain.height_at(llh[:, 1], llh[:, 0]) - ref.height_m
-    return float(min(heights.min(), mesh.vertices[near, 2].min() if np.any(near) else np.inf))
 
 
 def write_city(city: City, out: str | Path) -> Path:

@@ -53,6 +53,7 @@ import numpy as np
 
 from ..core import georef
 from .footprints import building_material
+from .terrain import GroundSurface
 
 __all__ = ["SceneShape", "scene_shapes", "building_name", "scene_buildings", "footprints_from_scene",
            "write_scene_subset", "ROOF_NORMAL_Z", "MIN_TRIANGLE_AREA", "CLEAN_DISTANCE", "MIN_PART_AREA",
@@ -212,41 +213,6 @@ def _wall_material(shapes: list[SceneShape], meshes: list) -> str:
     return shapes[int(np.argmax(walls))].material if max(walls) > 0.0 else shapes[0].material
 
 
-class _Ground:
-    """Heights of a ground mesh under plan points (shapely's STRtree and trimesh's barycentric
-    coordinates); a plane at z = 0 when there is no ground mesh."""
-
-    def __init__(self, mesh) -> None:
-        import shapely
-        self.mesh = mesh
-        if mesh is not None:
-            self.tree = shapely.STRtree(shapely.polygons(mesh.triangles[:, :, :2]))
-
-    def lowest_under(self, outline) -> float:
-        """Lowest ground height [m] at the outline's vertices and the ground vertices inside it;
-        the ground's lowest vertex when the outline lies off the ground."""
-        import shapely
-        import trimesh
-        if self.mesh is None:
-            return 0.0
-        rings = [np.asarray(r.coords)[:, :2] for p in getattr(outline, "geoms", [outline])
-                 for r in (p.exterior, *p.interiors)]
-        xy = np.vstack(rings)
-        point_index, tri_index = self.tree.query(shapely.points(xy), predicate="intersects")
-        heights = []
-        if len(point_index):
-            tri = self.mesh.triangles[tri_index]
-            plan = tri.copy()
-            plan[:, :, 2] = 0.0
-            points = np.column_stack([xy[point_index], np.zeros(len(point_index))])
-            bary = trimesh.triangles.points_to_barycentric(plan, points)
-            heights.append(np.einsum("ij,ij->i", bary, tri[:, :, 2]))
-        inside = shapely.contains_xy(outline, self.mesh.vertices[:, 0], self.mesh.vertices[:, 1])
-        heights.append(self.mesh.vertices[inside, 2])
-        heights = np.concatenate(heights)
-        return float(heights.min()) if heights.size else float(self.mesh.vertices[:, 2].min())
-
-
 def _feature(name: str, outline, height: float, material: str, min_height: float, ref: georef.GeoReference) -> dict:
     """The GeoJSON Feature of one building (outline in local metres, RFC 7946 orientation)."""
     import shapely
@@ -308,7 +274,7 @@ def footprints_from_scene(xml_path: str | Path, geo_origin: Any, ground: str | N
     if bbox is not None and not (len(bbox) == 4 and bbox[0] < bbox[2] and bbox[1] < bbox[3]):
         raise ValueError(f"bbox = {bbox!r}: give (x0, y0, x1, y1) in metres with x0 < x1 and y0 < y1")
     buildings, ground_shapes = scene_buildings(xml_path, ground)
-    terrain = _Ground(_joined(_load(ground_shapes)) if ground_shapes else None)
+    terrain = GroundSurface(_joined(_load(ground_shapes)) if ground_shapes else None)
     features, skipped = [], []
     for name, shapes in buildings.items():
         meshes = _load(shapes)

@@ -22,7 +22,7 @@ import trimesh
 from ..core import georef
 from .loader import SceneError
 
-__all__ = ["DemError", "Dem", "read_dem", "flat_ground"]
+__all__ = ["DemError", "Dem", "read_dem", "flat_ground", "GroundSurface"]
 
 
 class DemError(SceneError):
@@ -129,3 +129,39 @@ def flat_ground(x0: float, y0: float, x1: float, y1: float) -> trimesh.Trimesh:
     """The rectangle [x0, x1] x [y0, y1] at z = 0 [m]: two triangles, normal +z."""
     vertices = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
     return trimesh.Trimesh(vertices, np.array([[0, 1, 2], [0, 2, 3]]), process=False)
+
+
+class GroundSurface:
+    """Heights of a ground mesh (a plane, a DEM mesh, a scene's ground) under building outlines:
+    shapely's STRtree finds the triangles under a point, trimesh's barycentric coordinates give
+    the height on them. ``mesh`` None is the plane z = 0."""
+
+    def __init__(self, mesh) -> None:
+        import shapely
+        self.mesh = mesh
+        if mesh is not None:
+            self.tree = shapely.STRtree(shapely.polygons(mesh.triangles[:, :, :2]))
+
+    def lowest_under(self, outline) -> float:
+        """Lowest ground height [m] at the outline's vertices and the ground vertices inside it;
+        the ground's lowest vertex when the outline lies off the ground."""
+        import shapely
+        import trimesh
+        if self.mesh is None:
+            return 0.0
+        rings = [np.asarray(r.coords)[:, :2] for p in getattr(outline, "geoms", [outline])
+                 for r in (p.exterior, *p.interiors)]
+        xy = np.vstack(rings)
+        point_index, tri_index = self.tree.query(shapely.points(xy), predicate="intersects")
+        heights = []
+        if len(point_index):
+            tri = self.mesh.triangles[tri_index]
+            plan = tri.copy()
+            plan[:, :, 2] = 0.0
+            points = np.column_stack([xy[point_index], np.zeros(len(point_index))])
+            bary = trimesh.triangles.points_to_barycentric(plan, points)
+            heights.append(np.einsum("ij,ij->i", bary, tri[:, :, 2]))
+        inside = shapely.contains_xy(outline, self.mesh.vertices[:, 0], self.mesh.vertices[:, 1])
+        heights.append(self.mesh.vertices[inside, 2])
+        heights = np.concatenate(heights)
+        return float(heights.min()) if heights.size else float(self.mesh.vertices[:, 2].min())
