@@ -232,6 +232,28 @@ def scatterer_spacing(params: RadarParameters, settings: TraceSettings) -> float
     return SCATTERER_CELL * math.sqrt(params.slant_range_resolution * params.azimuth_resolution)
 
 
+#: The largest phase [rad] a patch's quadratic part may reach at its corners, seen from the
+#: nearest antenna position: ``k P^2 / (2 R) <= PATCH_PHASE`` (docs/physics.md (M1)).
+PATCH_PHASE = math.pi / 8
+
+
+def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray,
+               settings: TraceSettings, cell: float) -> float:
+    """Side [m] of the patches fixed on every face (docs/physics.md (M1)): the setting, or the
+    slant-range resolution, kept below the size whose phase departs from linear by
+    :data:`PATCH_PHASE` at its corners, ``sqrt(2 R_near PATCH_PHASE / k)`` (``R_near`` the
+    antenna's closest distance to the scene's box), and rounded to a whole number (at least one)
+    of scatterer cells ``cell``, so that each patch holds whole cells of the clutter lattice."""
+    target = settings.patch_size
+    if target <= 0:
+        k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+        near = float(np.min(np.linalg.norm(np.clip(geometry.positions[:, None], lo, hi) - geometry.positions[:, None],
+                                           axis=2)))
+        near = max(near, 1.0)
+        target = min(params.slant_range_resolution, math.sqrt(2.0 * near * PATCH_PHASE / k))
+    return cell * max(1, round(target / cell))
+
+
 def project_to_aim_plane(points: np.ndarray, antenna: np.ndarray, z0: float) -> np.ndarray:
     """Where the rays from ``antenna`` through ``points`` meet the horizontal plane ``z = z0``.
 
@@ -305,9 +327,11 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     k0 = np.floor(lo_p / s).astype(np.int64)
     seen = hi_p > lo_p
     n_azimuth = int(np.max(np.ceil(hi_p[seen] / s) - k0[seen])) + 1 if np.any(seen) else 1
+    cell = scatterer_spacing(params, settings)
     footprint = RayFootprint(origin=origin, track=track, look=look, spacing_azimuth=s, spacing_range=spacing_range,
                              range_min=float(g_min), n_azimuth=n_azimuth, n_range=n_range, k0=k0,
-                             along_limits=limits, scatterer_spacing=scatterer_spacing(params, settings))
+                             along_limits=limits, scatterer_spacing=cell,
+                             patch_size=patch_size(params, geometry, lo, hi, settings, cell))
     if shape_boxes is None or settings.tubes_per_object == 0:
         return footprint
     return dataclasses.replace(footprint, refinements=_refinements(params, geometry, footprint, shape_boxes,

@@ -27,8 +27,8 @@ __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "Mat
 
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
-#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (T3), (T6)).
-LIT_REGIONS = ("tiles", "cells")
+#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M7), (T3), (T6)).
+LIT_REGIONS = ("patches", "tiles", "cells")
 #: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
 #: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit`).
 RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
@@ -58,6 +58,11 @@ class TraceSettings:
     scatterer_spacing : float, m
         Cell size of the surface-attached clutter scatterer lattice; 0 = automatic
         (:func:`sarmitsuba.scene.planning.scatterer_spacing`). Independent of ``ray_spacing``.
+    patch_size : float, m
+        Side of the patches fixed on every face, the integration elements of
+        ``lit_regions = patches`` (docs/physics.md (M1)); 0 = automatic
+        (:func:`sarmitsuba.scene.planning.patch_size`). Rounded to a whole number of scatterer
+        cells.
     tubes_per_object : int
         Objects (Mitsuba shapes) smaller than 8 default ray tubes are traced with tubes
         ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
@@ -97,12 +102,13 @@ class TraceSettings:
     pulses_per_trace: int = 0
     cancel_interior: bool = True
     polarimetry: str = "jones"
-    lit_regions: str = "tiles"
+    lit_regions: str = "patches"
+    patch_size: float = 0.0
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
             raise ParameterError(f"max_depth = {self.max_depth} must be a whole number in [1, 64]")
-        for name in ("ray_spacing", "scatterer_spacing"):
+        for name in ("ray_spacing", "scatterer_spacing", "patch_size"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ParameterError(f"{name} = {value} m must be >= 0 (0 = automatic)")
@@ -247,6 +253,9 @@ class RayFootprint:
         Cell size of the surface-attached clutter scatterer lattice (docs/physics.md (C)).
     refinements : tuple of Refinement
         Finer tubes around objects smaller than ``planning.SMALL_OBJECT_TUBES`` tubes.
+    patch_size : float, m
+        Side of the patches fixed on every face (docs/physics.md (M1)), a whole number of
+        scatterer cells.
     """
 
     origin: np.ndarray
@@ -261,6 +270,7 @@ class RayFootprint:
     along_limits: np.ndarray
     scatterer_spacing: float
     refinements: tuple = ()
+    patch_size: float = 0.0
 
     @property
     def rays_per_pulse(self) -> int:

@@ -41,6 +41,8 @@ from ..core.constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from ..scene.effects import EffectSet, rough_materials
 from .facets import triangle_table
+from .mesh_trace import MeshTracer
+from .patches import surfaces_of
 from .launches import Blocks, Launch
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
@@ -370,6 +372,12 @@ class Kernel:
         if settings.lit_regions == "cells":
             self.tables.parts = PartTable.of(scene)
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
+        self.mesh = None
+        if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M7)
+            bbox = scene.bbox()
+            self.mesh = MeshTracer(scene, surfaces_of(scene, material_table), self.returns, params, settings,
+                                   footprint.patch_size, not (effects.spotlight or effects.curved_track),
+                                   (np.array(bbox.min, float), np.array(bbox.max, float)))
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None
@@ -380,6 +388,13 @@ class Kernel:
         (gridded kernels) or ``paths`` (dict of arrays, ``exact``), and the counters."""
         st = self.settings
         ctx = self.returns.context(launch, capacity)
+        if self.mesh is not None:
+            ctx["mesh"] = self.mesh(ctx, launch)
+            out = self.returns.collect(ctx)
+            if out is None:                     # exact kernel: too many scatterers for the buffer
+                return self(launch, capacity=ctx["needed"])
+            out["mesh"] = ctx["mesh"]
+            return out
         tube, n_lanes = self.launch(launch)
         if st.lit_regions == "cells":
             self.returns.open_lanes(ctx, self._traced, n_lanes)

@@ -1,0 +1,188 @@
+"""What a bounce order's chains light: their regions cut into the patches' pieces, and which of
+those the antenna sees, by rays aimed at the pieces' own points (docs/physics.md (M2)-(M4)).
+
+For a batch of chains (:class:`sarmitsuba.tracing.chains.Chains`, each seen from its
+sub-aperture's reference position ``A``), :func:`lit_pieces`:
+
+1. clips each chain's last part to the half-planes of the points the antenna reaches through its
+   mirrors (its *region*, exact: :func:`sarmitsuba.tracing.chains.region_lines`);
+2. cuts the regions into pieces of the part's patches (:func:`sarmitsuba.tracing.patches.pieces_of`),
+   within the reach of the beam;
+3. aims rays at every piece's corners (pulled a hair inside the piece), along each leg of the path
+   through the chain (the reflection points of :func:`sarmitsuba.tracing.chains.path_points`) and
+   back to the antenna;
+4. keeps a piece whose corners all see the antenna both ways (*lit*), or only on the way out
+   (*transmit-lit*: where the next bounce order's chains start). A piece whose corners disagree is
+   *mixed*: its exact lit part is cut by :mod:`sarmitsuba.tracing.occlusion`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .chains import Chains, path_points, region_lines, unfolded_lines
+from .patches import UNIT_SQUARE, Pieces, Surfaces, pieces_of
+from .polygons import clip, corner_slots, moments
+from .visibility import NO_HIT, PathVisibility, Rays, lift
+
+__all__ = ["LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples"]
+
+#: A piece's visibility samples sit this fraction of the patch size inside it, toward its
+#: centroid: a corner on a part's edge (a wall's foot on the ground; a grid anchored at a shape's
+#: vertex runs along that shape's edges) would otherwise start its ray on the neighbouring surface.
+SAMPLE_INSET = 1e-3
+
+
+@dataclass(frozen=True)
+class LitPieces:
+    """A bounce order's pieces and what the antenna sees of them.
+
+    Attributes
+    ----------
+    chains : Chains
+        The chains the regions belong to (row ``r`` of a region is chain ``r``).
+    pieces : Pieces
+        Every piece of every non-empty region (``pieces.region`` is a chain row).
+    lit, transmit : bool [n]
+        All corners see the antenna on every leg (lit), or on every leg but the return
+        (transmit-lit: lit pieces are transmit-lit).
+    mixed : bool [n]
+        The corners disagree on some leg: the piece is partly shadowed.
+    blockers : int64 [n, c]
+        For mixed pieces, the parts that hid some corner on some leg, as ``leg * n_parts + part``
+        (-1 beyond; ``leg`` 0 .. d the transmit legs, d + 1 the return).
+    """
+
+    chains: Chains
+    pieces: Pieces
+    lit: np.ndarray
+    transmit: np.ndarray
+    mixed: np.ndarray
+    blockers: np.ndarray
+
+
+def corner_samples(pieces: Pieces) -> tuple[np.ndarray, np.ndarray]:
+    """The visibility samples of pieces: each piece's corners pulled :data:`SAMPLE_INSET` patch
+    sizes toward its centroid (off the parts' edges, which a mesh-aligned grid may follow, and
+    off the neighbouring piece), piece by piece. Returns face coordinates float64 [s, 2] and the
+    piece of each sample int64 [s] (ascending)."""
+    p = pieces.patch
+    whole = np.flatnonzero(pieces.whole)
+    w_points = ((pieces.cell[whole][:, None, :] + 0.5 + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)) * p)
+    border = np.flatnonzero(~pieces.whole)
+    poly, count = pieces.polygon[pieces.border[border]], pieces.count[pieces.border[border]]
+    slots = corner_slots(count, poly.shape[1])
+    centroid = (poly * slots[..., None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+    toward = centroid[:, None, :] - poly
+    distance = np.linalg.norm(toward, axis=2)
+    step = np.minimum(SAMPLE_INSET * p, 0.5 * distance) / np.where(distance > 0, distance, 1.0)
+    b_points = (poly + toward * step[..., None])[slots]
+    b_owner = np.broadcast_to(border[:, None], slots.shape)[slots]
+    owner = np.concatenate([np.repeat(whole, 4), b_owner])
+    order = np.argsort(owner, kind="stable")
+    return np.concatenate([w_points.reshape(-1, 2), b_points])[order], owner[order]
+
+
+def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray):
+    """The legs of the paths to ``points`` [s, 3] through chains ``chain`` [s]: start and end
+    float64 [s, D + 1, 3], lifted off their surfaces, and which legs exist bool [s, D + 1]
+    (legs ``0 .. d`` on the way out, leg ``D`` the return)."""
+    depth = chains.parts.shape[1]
+    order = chains.order[chain]
+    q = path_points(surfaces, chains, chain, points, antenna)
+    start = np.zeros((len(chain), depth + 1, 3))
+    end = np.zeros_like(start)
+    exists = np.zeros((len(chain), depth + 1), bool)
+    for leg in range(depth):
+        live = order >= leg
+        rows = np.flatnonzero(live)
+        a = antenna[rows] if leg == 0 else q[rows, leg - 1]
+        b = q[rows, leg]
+        part_b = chains.parts[chain[rows], leg]
+        b = lift(b, surfaces.normal[part_b], a)
+        if leg > 0:
+            a = lift(a, surfaces.normal[chains.parts[chain[rows], leg - 1]], b)
+        # every ray starts on the mesh (the first leg from its far end): its float32 origin sits
+        # near the scene, where Embree's precision is the scene's, not the antenna's range's
+        start[rows, leg], end[rows, leg], exists[rows, leg] = b if leg == 0 else a, a if leg == 0 else b, True
+    last = chains.last[chain]
+    first_bounce = order == 0
+    start[:, depth] = lift(points, surfaces.normal[last], antenna)
+    end[:, depth] = antenna
+    exists[:, depth] = ~first_bounce            # at the first bounce the return is the way out
+    return start, end, exists
+
+
+def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Rays, visibility: PathVisibility,
+               patch: float, span: tuple | None = None) -> LitPieces:
+    """The pieces of ``chains`` [n] seen from ``antenna`` [n, 3] (each chain's reference position)
+    and what the antenna sees of them, eqs. (M2)-(M4).
+
+    Parameters
+    ----------
+    surfaces, chains : Surfaces, Chains
+    antenna : float64 [n, 3]
+    rays : Rays
+        Casts for the occluders of mixed pieces.
+    visibility : PathVisibility
+        Casts for the legs.
+    patch : float
+        Patch size [m].
+    span : (g float64 [n, 3], lo [n], hi [n]), optional
+        The beam's reach: pieces are cut only where ``lo <= g . U_d(x) <= hi`` (the unfolded
+        path's end along the track, for a straight stripmap track).
+    """
+    lines, valid = region_lines(surfaces, chains, antenna)
+    last = chains.last
+    region, count = clip(surfaces.polygon[last], np.where(valid, surfaces.n_corners[last], 0), lines)
+    reach = None
+    if span is not None:
+        g, lo, hi = span
+        reach = unfolded_lines(surfaces, chains, np.concatenate([g, -g]).reshape(2, -1, 3).transpose(1, 0, 2),
+                               np.stack([-lo, hi], axis=1))
+    pieces = pieces_of(region, count, patch, reach)
+    return classify(surfaces, chains, pieces, antenna, rays, visibility)
+
+
+def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.ndarray, rays: Rays,
+             visibility: PathVisibility) -> LitPieces:
+    """What the antenna sees of ``pieces`` (their region ``r`` is chain ``r``): rays along every leg
+    of the paths to their corners (:class:`sarmitsuba.tracing.visibility.PathVisibility`), eq. (M4)."""
+    order = int(chains.order.max(initial=0))
+    coords, owner = corner_samples(pieces)
+    chain = pieces.region[owner]
+    bits = visibility.legs_clear(chains, chain, coords, antenna, order)
+    out_mask = (1 << (order + 1)) - 1
+    out_clear = (bits & out_mask) == out_mask
+    both = out_clear if order == 0 else out_clear & ((bits >> (order + 1)) & 1).astype(bool)
+    n = len(pieces)
+    total = np.bincount(owner, minlength=n)
+    lit_count = np.bincount(owner, weights=both, minlength=n)
+    sent_count = np.bincount(owner, weights=out_clear, minlength=n)
+    lit, transmit = (lit_count == total) & (total > 0), (sent_count == total) & (total > 0)
+    mixed = ((lit_count > 0) & ~lit) | ((sent_count > 0) & ~transmit)
+    blockers = _blockers(rays, surfaces, chains, coords, owner, chain, antenna, mixed)
+    return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers)
+
+
+def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed) -> np.ndarray:
+    """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, int64
+    [n, c], -1 padded, unique per piece; ``-2`` for an occluder that is not a mesh), by the NumPy
+    legs of :func:`legs` cast again with :meth:`Rays.first_hit`."""
+    n = len(mixed)
+    rows = np.flatnonzero(mixed[owner])
+    if len(rows) == 0:
+        return np.full((n, 0), -1, np.int64)
+    points = surfaces.to_world(chains.last[chain[rows]], coords[rows])
+    start, end, exists = legs(surfaces, chains, chain[rows], points, antenna[chain[rows]])
+    sample, leg = np.nonzero(exists)
+    part, _ = rays.first_hit(start[sample, leg], end[sample, leg])
+    found = part != NO_HIT
+    key = np.where(part >= 0, leg * surfaces.n_parts + part, -2)[found]
+    pairs = np.unique(np.stack([owner[rows][sample[found]], key], axis=1), axis=0)
+    per = np.bincount(pairs[:, 0], minlength=n)
+    table = np.full((n, int(per.max(initial=0))), -1, np.int64)
+    slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
+    table[pairs[:, 0], slot] = pairs[:, 1]
+    return table

@@ -1,0 +1,454 @@
+"""Scattering anchored to the mesh: one launch of sub-apertures, bounce order by bounce order
+(docs/physics.md (M1)-(M7)).
+
+For each sub-aperture of a :class:`sarmitsuba.tracing.launches.Launch`, seen from its reference
+position ``A``:
+
+1. the first bounce's chains are the parts in the beam's reach (every part, in spotlight or on a
+   curved track) that face ``A``;
+2. :func:`sarmitsuba.tracing.lit_pieces.lit_pieces` cuts each chain's exact region into the
+   patches' pieces and aims rays at their corners: lit, transmit-lit, mixed;
+3. mixed pieces are cut exactly against the occluders their rays met
+   (:func:`sarmitsuba.tracing.occlusion.lit_boundaries`);
+4. every lit piece's boundary becomes term lanes (:mod:`sarmitsuba.tracing.integration`), with the
+   segments that two stable whole neighbours share left out (their terms cancel), and every pulse
+   of the sub-aperture evaluates and deposits them; rough parts add their scatterers;
+5. *discovery*: rays reflected specularly from points of the transmit-lit pieces name the parts
+   they meet next; each new (chain, part) pair is a chain of the next bounce order.
+
+Nothing here depends on the ray lattice: the pieces are fixed on the mesh, the chains' regions
+exact, and the discovery rays start on the pieces.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .chains import Chains, unfold
+from .integration import (AREA, NEAR_SPECULAR, OPEN_END, OPEN_MID, OPEN_START, SINC, SPLIT_END, SPLIT_START,
+                          PatchTerms, PieceTable, TermLanes)
+from .lit_pieces import LitPieces, classify, lit_pieces
+from .occlusion import clip_mixed
+from .patches import Pieces, Surfaces, cell_key, pieces_of
+from .physical_optics import SINC_REGIME, split_threshold
+from .visibility import PathVisibility, Rays, lift
+
+__all__ = ["MeshTracer", "STABLE_MARGIN", "REACH_MARGIN"]
+
+#: A whole piece is *stable* (never near the specular direction within its sub-aperture) where all
+#: three views (first, reference and last pulse) see ``k |u_t| D`` at least this many times
+#: :data:`~sarmitsuba.tracing.integration.NEAR_SPECULAR`: the margin covers the pulses between them.
+STABLE_MARGIN = 1.5
+#: Extra reach [m] of the beam's along-track span beyond its first nulls, for rounding.
+REACH_MARGIN = 1.0
+#: Discovery rays start on a grid fixed in each face's frame, at least this many points across
+#: the shape's bounding box (and at least one per patch): a corner reflector a patch wide still
+#: sends rays from every face into every other (docs/physics.md (M6)).
+DISCOVERY_POINTS = 16
+#: At most this many discovery points per patch edge.
+MAX_DISCOVERY_SUBDIVISION = 32
+
+
+class MeshTracer:
+    """The mesh-anchored tracer of one acquisition (configuration fixed at construction).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+    surfaces : Surfaces
+    returns : sarmitsuba.tracing.returns.Returns
+        Per-pulse helpers and the accumulator (shared with the tube kernel).
+    params : RadarParameters
+    settings : TraceSettings
+    patch : float
+        Patch size [m] (:attr:`sarmitsuba.scene.trace_inputs.RayFootprint.patch_size`).
+    straight : bool
+        A straight stripmap track: pieces are cut only within the beam's along-track span.
+    bbox : (float64 [3], float64 [3])
+        The scene's bounding box (for the beam's reach).
+    """
+
+    def __init__(self, scene, surfaces: Surfaces, returns, params, settings, patch: float, straight: bool, bbox):
+        self.surfaces, self.returns = surfaces, returns
+        self.rays = Rays(scene, surfaces)
+        self.visibility = PathVisibility(scene, surfaces)
+        self.alpha_s = split_threshold(params.bandwidth, params.frequency)
+        self.terms = PatchTerms(returns, self.alpha_s)
+        self.k = returns.k
+        self.depth = settings.max_depth
+        self.patch = patch
+        self.straight = straight
+        self.track = np.asarray(returns.fp.track, float)
+        self.subdivision = _discovery_subdivision(surfaces, patch)
+        self._static = None
+        self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
+
+    # ------------------------------------------------------------------ one launch
+    def __call__(self, ctx: dict, launch) -> dict:
+        """Trace ``launch``'s sub-apertures, depositing every pulse's returns into ``ctx``; returns
+        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int}``."""
+        reference = launch.reference
+        views = self._views(launch)
+        stats = {"pieces": [], "lanes": [], "chains": []}
+        lit = self._first_bounce(launch)
+        for depth in range(self.depth):
+            if depth > 0:
+                chains = self._discover(lit, reference)
+                if len(chains) == 0:
+                    break
+                lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility, self.patch,
+                                 self._span(launch, chains) if self.straight else None)
+            stats["chains"].append(len(lit.chains))
+            lanes, table = self._lanes(lit, views, depth, reference)
+            stats["pieces"].append(int(lit.lit.sum()))
+            stats["lanes"].append(len(lanes))
+            self.terms(ctx, lanes, table, depth)
+        stats["casts"] = self.rays.casts + self.visibility.casts
+        return stats
+
+    def _views(self, launch) -> np.ndarray:
+        """float64 [n_s, 3, 3]: each sub-aperture's first pulse, reference position and last pulse."""
+        first = launch.antenna[launch.first]
+        last = launch.antenna[launch.first + launch.count - 1]
+        return np.stack([first, launch.reference, last], axis=1)
+
+    # ------------------------------------------------------------------ the first bounce
+    def _first_pieces(self) -> tuple[Pieces, np.ndarray]:
+        """Every part cut into its pieces once per acquisition (a part is its own first-bounce
+        region), sorted by their centroids' coordinate along the track (with those coordinates)."""
+        if self._static is None:
+            s = self.surfaces
+            pieces = pieces_of(s.polygon, s.n_corners, self.patch)
+            _, centroid, _, _ = pieces.geometry()
+            along = s.to_world(pieces.region, centroid) @ self.track
+            order = np.argsort(along, kind="stable")
+            self._static = (pieces.select(order), along[order])
+        return self._static
+
+    def _first_bounce(self, launch) -> LitPieces:
+        """The first bounce: per sub-aperture the pieces of every part within the beam's
+        along-track reach (every part, in spotlight or on a curved track), one chain per part
+        that does not hold the reference position in its plane, and what the antenna sees."""
+        s = self.surfaces
+        pieces, along = self._first_pieces()
+        n_sub = launch.n_subapertures
+        if self.straight:
+            lo, hi = self._reach(launch, 0)
+            first = np.searchsorted(along, lo - self.patch)
+            last = np.searchsorted(along, hi + self.patch)
+        else:
+            first, last = np.zeros(n_sub, np.int64), np.full(n_sub, len(along))
+        size = last - first
+        sub = np.repeat(np.arange(n_sub), size)
+        rows = np.repeat(first, size) + np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
+        part = pieces.region[rows]
+        held = np.abs(np.einsum("ni,ni->n", s.normal[part], launch.reference[sub]) - s.offset[part]) > 0
+        rows, sub, part = rows[held], sub[held], part[held]
+        keys, chain = np.unique(sub * s.n_parts + part, return_inverse=True)
+        parts = np.full((len(keys), self.depth), -1, np.int64)
+        parts[:, 0] = keys % s.n_parts
+        chains = unfold(s, parts, np.zeros(len(keys), np.int64), keys // s.n_parts)
+        selected = pieces.select(rows)
+        selected = Pieces(chain.reshape(-1), selected.cell, selected.whole, selected.border, selected.polygon,
+                          selected.count, selected.patch)
+        return classify(s, chains, selected, launch.reference[chains.sub], self.rays, self.visibility)
+
+    def _reach(self, launch, depth: int) -> tuple[np.ndarray, np.ndarray]:
+        """Along-track interval ``[lo, hi]`` [m] of ``track . y`` that the beam of each
+        sub-aperture's pulses reaches, for unfolded points ``y`` at most the scene's far corner plus
+        ``depth`` box diagonals away (a multi-bounce path's unfolded length)."""
+        lo_b, hi_b = self.returns.beam_sines
+        corners = np.array(np.meshgrid(*zip(*self.bbox), indexing="ij")).reshape(3, -1).T
+        far = np.linalg.norm(corners[None] - launch.antenna[:, None], axis=2).max()
+        far += depth * float(np.linalg.norm(self.bbox[1] - self.bbox[0]))
+        along = launch.antenna @ self.track
+        first = along[launch.first]
+        last = along[launch.first + launch.count - 1]
+        return (np.minimum(first, last) + lo_b * far - REACH_MARGIN,
+                np.maximum(first, last) + hi_b * far + REACH_MARGIN)
+
+    def _span(self, launch, chains: Chains):
+        lo, hi = self._reach(launch, int(chains.order.max(initial=0)))
+        return np.broadcast_to(self.track, (len(chains), 3)), lo[chains.sub], hi[chains.sub]
+
+    # ------------------------------------------------------------------ discovery
+    def _discover(self, lit: LitPieces, reference: np.ndarray) -> Chains:
+        """The next bounce order's chains: from each transmit-lit piece's centroid, the specular
+        reflection of the wave from its reference position, cast to the part it meets first; one
+        chain per distinct (chain, part), eq. (M6)."""
+        s, chains, pieces = self.surfaces, lit.chains, lit.pieces
+        keep = np.flatnonzero(lit.transmit | lit.mixed)
+        owner, points2 = _grid_points(pieces.select(keep), self.subdivision[chains.last[pieces.region[keep]]], self.patch)
+        chain = pieces.region[keep][owner]
+        part = chains.last[chain]
+        points = s.to_world(part, points2)
+        antenna = reference[chains.sub[chain]]
+        d = _arriving(chains, chain, points, antenna)
+        normal = s.normal[part]
+        reflected = d - 2.0 * np.einsum("mi,mi->m", d, normal)[:, None] * normal
+        origin = lift(points, normal, points - d)
+        hit, _ = self.rays.first_hit(origin, direction=reflected)
+        found = (hit >= 0) & (hit != part)
+        pairs = np.unique(np.stack([chain[found], hit[found]], axis=1), axis=0)
+        if len(pairs) == 0:
+            return unfold(s, np.zeros((0, self.depth), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
+        parent, new = pairs[:, 0], pairs[:, 1]
+        parts = chains.parts[parent].copy()
+        order = chains.order[parent] + 1
+        parts[np.arange(len(parent)), order] = new
+        return unfold(s, parts, order, chains.sub[parent])
+
+    # ------------------------------------------------------------------ term lanes
+    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray):
+        """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
+        from mixed ones (:func:`sarmitsuba.tracing.occlusion.clip_mixed`), eq. (M5)."""
+        s, chains = self.surfaces, lit.chains
+        pieces = lit.pieces.select(lit.lit)
+        clipped = clip_mixed(s, lit, reference[chains.sub])
+        cut = lit.pieces.select(clipped.piece)
+        region = np.concatenate([pieces.region, cut.region])
+        part = chains.last[region]
+        area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
+            pieces.geometry(), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
+        centroid = s.to_world(part, centroid2)
+        stable = self._never_specular(chains, region, centroid, diagonal, views[chains.sub[region]])
+        n = len(pieces)
+        seg_piece, p2, q2 = _segments(pieces, stable[:n])
+        seg_piece = np.concatenate([seg_piece, n + clipped.owner])
+        p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
+        kind = self._split_kinds(chains, region[seg_piece], part[seg_piece], p2, q2, views[chains.sub[region[seg_piece]]])
+        # every boundary segment of the pieces that may need their area term
+        rows = np.flatnonzero(~stable[:n])
+        t_piece, t_start, t_end, _ = pieces.edges(rows)
+        unstable_cut = ~stable[n:][clipped.owner]
+        table_segments = (np.concatenate([t_piece, n + clipped.owner[unstable_cut]]),
+                          np.concatenate([t_start, clipped.start[unstable_cut]]),
+                          np.concatenate([t_end, clipped.end[unstable_cut]]))
+        geometry = (region, part, centroid, centroid2, area, second, diagonal)
+        return _build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth)
+
+    def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
+        """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN
+        NEAR_SPECULAR / (k D)`` off the specular direction. ``u_t`` moves almost linearly with the
+        antenna along its track, so its smallest size over the sub-aperture is the distance from 0
+        to the path it draws through the three views (first, reference and last pulse)."""
+        normal = self.surfaces.normal[chains.last[chain]]
+        u_t = []
+        for v in range(3):
+            d = _arriving(chains, chain, points, views[:, v])
+            b = views[:, v] - points
+            b /= np.linalg.norm(b, axis=1, keepdims=True)
+            u = d - b
+            u_t.append(u - normal * np.einsum("mi,mi->m", u, normal)[:, None])
+        smallest = np.minimum(_distance_to_segment(u_t[0], u_t[1]), _distance_to_segment(u_t[1], u_t[2]))
+        return self.k * smallest * diagonal >= STABLE_MARGIN * NEAR_SPECULAR
+
+    def _split_kinds(self, chains, chain, part, p2, q2, views) -> np.ndarray:
+        """Each segment's kind over its sub-aperture (docs/physics.md (PO2), (T3)): split when all
+        three views see ``|alpha| >= SINC_REGIME`` with one sign and some see ``>= alpha_s``; its
+        sinc when none reaches ``alpha_s``; decided per pulse otherwise."""
+        s = self.surfaces
+        mid = s.to_world(part, 0.5 * (p2 + q2))
+        edge = s.to_world(part, q2) - s.to_world(part, p2)
+        alphas = []
+        for v in range(3):
+            d = _arriving(chains, chain, mid, views[:, v])
+            b = views[:, v] - mid
+            b /= np.linalg.norm(b, axis=1, keepdims=True)
+            alphas.append(0.5 * self.k * np.einsum("mi,mi->m", d - b, edge))
+        alpha = np.stack(alphas, axis=1)
+        size = np.abs(alpha)
+        same = np.all(np.sign(alpha) == np.sign(alpha[:, :1]), axis=1)
+        split = same & (size.min(axis=1) >= SINC_REGIME) & (size.max(axis=1) >= self.alpha_s)
+        sinc = size.max(axis=1) < self.alpha_s
+        return np.where(split, SPLIT_START, np.where(sinc, SINC, OPEN_START))
+
+
+def _discovery_subdivision(surfaces: Surfaces, patch: float) -> np.ndarray:
+    """int64 [n_parts]: discovery points per patch edge on each part, ``ceil(P / (D /
+    DISCOVERY_POINTS))`` for its shape's bounding-box diagonal ``D`` (1 to
+    :data:`MAX_DISCOVERY_SUBDIVISION`)."""
+    corners = surfaces.to_world(np.arange(surfaces.n_parts), surfaces.polygon)
+    shape = np.unique(surfaces.shape_id, return_inverse=True)[1]
+    n = int(shape.max(initial=-1)) + 1
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, shape, corners.min(axis=1))
+    np.maximum.at(hi, shape, corners.max(axis=1))
+    size = np.linalg.norm(hi - lo, axis=1)[shape]
+    return np.clip(np.ceil(patch * DISCOVERY_POINTS / np.maximum(size, 1e-9)), 1, MAX_DISCOVERY_SUBDIVISION).astype(np.int64)
+
+
+def _grid_points(pieces, subdivision: np.ndarray, patch: float):
+    """Points of the faces' discovery grids inside each piece: the centres of the ``m x m``
+    sub-cells of its patch (``m = subdivision``, per piece) that the piece holds; a piece that
+    holds none gives its centroid. Returns (piece index int64 [p], face coordinates [p, 2])."""
+    from .polygons import edge_lines, inside
+    count = subdivision ** 2
+    owner = np.repeat(np.arange(len(pieces)), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    m = subdivision[owner]
+    offset = np.stack([(local // m + 0.5) / m, (local % m + 0.5) / m], axis=1)
+    points = (pieces.cell[owner] + offset) * patch
+    held = pieces.whole[owner].copy()
+    test = np.flatnonzero(~held)
+    if len(test):
+        lines = edge_lines(pieces.polygon, pieces.count)
+        held[test] = inside(points[test][:, None, :], lines[pieces.border[owner[test]]])[:, 0]
+    owner, points = owner[held], points[held]
+    empty = np.flatnonzero(np.bincount(owner, minlength=len(pieces)) == 0)
+    if len(empty):
+        _, centroid, _, _ = pieces.select(empty).geometry()
+        owner, points = np.concatenate([owner, empty]), np.concatenate([points, centroid])
+    return owner, points
+
+
+def _distance_to_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from the origin to each segment ``a -> b`` (float64 [m, 3] each)."""
+    ab = b - a
+    t = np.clip(-np.einsum("mi,mi->m", a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(a + t[:, None] * ab, axis=1)
+
+
+def _arriving(chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray) -> np.ndarray:
+    """The direction the wave from ``antenna`` arrives in at ``points`` on the chains' last parts:
+    the unfolded path's direction folded back, ``lin_d^T (U_d(x) - A) / |U_d(x) - A|``."""
+    y = chains.unfolded(points, chain)
+    first = y - antenna
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    lin = chains.lin[chain, chains.order[chain]]
+    return np.einsum("mji,mj->mi", lin, first)
+
+
+def _segments(pieces, stable: np.ndarray):
+    """The boundary segments of lit pieces that need terms: ``(piece, start, end)``, face
+    coordinates. A stable piece leaves out each segment it shares with a stable neighbour of its
+    region across a patch line (their terms there are equal and opposite, docs/physics.md (M5))."""
+    piece, start, end, side = pieces.edges()
+    keep = np.ones(len(piece), bool)
+    if np.any(stable):
+        keys = np.sort(cell_key(pieces.region[stable], pieces.cell[stable]))
+        # patch lines bottom, right, top, left: the neighbour across is (0,-1), (1,0), (0,1), (-1,0)
+        step = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]])
+        rows = np.flatnonzero((side >= 0) & stable[piece])
+        other = cell_key(pieces.region[piece[rows]], pieces.cell[piece[rows]] + step[side[rows]])
+        at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
+        keep[rows[keys[at] == other]] = False
+    return piece[keep], start[keep], end[keep]
+
+
+def _cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:
+    """bool: the split lanes that meet another of the opposite sign at the same point, along the
+    same direction, in the same region, both of stable pieces: consecutive segments of one
+    straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped."""
+    candidate = np.flatnonzero(((lane_kind == SPLIT_START) | (lane_kind == SPLIT_END)) & stable[lane_piece])
+    drop = np.zeros(len(lane_kind), bool)
+    if len(candidate) == 0:
+        return drop
+    direction = edge2[candidate] / np.linalg.norm(edge2[candidate], axis=1, keepdims=True)
+    q = np.round(point2[candidate] * 1e6).astype(np.int64)
+    angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
+    columns = (angle, q[:, 1], q[:, 0], region[lane_piece[candidate]])
+    order = np.lexsort(columns)
+    same = np.ones(len(order), bool)                      # row equals the previous one (sorted)
+    same[0] = False
+    for c in columns:
+        sorted_c = c[order]
+        same[1:] &= sorted_c[1:] == sorted_c[:-1]
+    group = np.cumsum(~same) - 1
+    size = np.bincount(group)
+    starts = np.bincount(group, weights=lane_kind[candidate][order] == SPLIT_START)
+    pair = (size == 2) & (starts == 1)
+    drop[candidate[order[pair[group]]]] = True
+    return drop
+
+
+def _build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int):
+    """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
+    centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
+    1 (sinc) or 3 (open) point lanes; per unstable piece an area lane."""
+    region, part, centroid, centroid2, area, second, diagonal = geometry
+    seg_piece, p2, q2 = segments
+    copies = np.where(kind == SPLIT_START, 2, np.where(kind == SINC, 1, 3))
+    lane_seg = np.repeat(np.arange(len(seg_piece)), copies)
+    role = np.arange(len(lane_seg)) - np.repeat(np.cumsum(copies) - copies, copies)
+    base_kind = kind[lane_seg]
+    lane_kind = np.where(base_kind == SPLIT_START, SPLIT_START + role,
+                         np.where(base_kind == SINC, SINC, OPEN_START + role))
+    at_start = (lane_kind == SPLIT_START) | (lane_kind == OPEN_START)
+    at_end = (lane_kind == SPLIT_END) | (lane_kind == OPEN_END)
+    p, q = p2[lane_seg], q2[lane_seg]
+    point2 = np.where(at_start[:, None], p, np.where(at_end[:, None], q, 0.5 * (p + q)))
+    lane_piece = seg_piece[lane_seg]
+    unstable = np.flatnonzero(~stable)
+    lane_piece = np.concatenate([lane_piece, unstable])
+    lane_kind = np.concatenate([lane_kind, np.full(len(unstable), AREA)])
+    point2 = np.concatenate([point2, centroid2[unstable]])
+    mid2 = np.concatenate([0.5 * (p + q), centroid2[unstable]])
+    edge2 = np.concatenate([q - p, np.zeros((len(unstable), 2))])
+    drop = _cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable)
+    lane_piece, lane_kind, point2, mid2, edge2 = (a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2))
+    chain = region[lane_piece]
+    lane_part = part[lane_piece]
+    point = s.to_world(lane_part, point2)
+    middle = s.to_world(lane_part, mid2)
+    edge = edge2[:, :1] * s.axis_u[lane_part] + edge2[:, 1:] * s.axis_v[lane_part]
+    lin = chains.lin[chain, chains.order[chain]]
+    windows = _windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
+    lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
+                      middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
+                      normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
+                      sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
+                      piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **windows)
+    table = _piece_table(s, chains, geometry, table_segments)
+    return lanes, table
+
+
+def _windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> dict:
+    """The earlier bounces of each lane's path seen from its reference position: the unfolded
+    direction, and per bounce the part's row, the incidence cosine, the arriving direction and
+    the normal facing it (:class:`TermLanes`)."""
+    if depth == 0:
+        return {}
+    y = chains.unfolded(point, chain)
+    first = y - antenna
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    rows, cos, direction, normal = [], [], [], []
+    for i in range(depth):
+        window = chains.parts[chain, i]
+        d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
+        n = s.normal[window]
+        dot = np.einsum("mi,mi->m", n, d)
+        rows.append(s.row[window])
+        cos.append(np.abs(dot))
+        direction.append(d)
+        normal.append(n * np.where(dot > 0, -1.0, 1.0)[:, None])
+    return dict(first=first.astype(np.float32), window_row=np.stack(rows, 1).astype(np.uint32),
+                window_cos=np.stack(cos, 1).astype(np.float32), window_direction=np.stack(direction, 1).astype(np.float32),
+                window_normal=np.stack(normal, 1).astype(np.float32))
+
+
+def _piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceTable:
+    """The :class:`PieceTable` of lit pieces; the boundary segments (``table_segments``: piece,
+    start, end) only of those that may be near the specular direction (their area terms
+    integrate them)."""
+    region, part, centroid, centroid2, area, second, diagonal = geometry
+    piece, start2, end2 = table_segments
+    order = np.argsort(piece, kind="stable")            # each piece's segments in one run
+    piece, start2, end2 = piece[order], start2[order], end2[order]
+    owner = part[piece]
+    rel = 0.5 * (start2 + end2) - centroid2[piece]
+    mid = rel[:, :1] * s.axis_u[owner] + rel[:, 1:] * s.axis_v[owner]
+    edge2 = end2 - start2
+    edge = edge2[:, :1] * s.axis_u[owner] + edge2[:, 1:] * s.axis_v[owner]
+    count = np.bincount(piece, minlength=len(region))
+    return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
+                      diagonal=diagonal.astype(np.float32), area=area.astype(np.float32),
+                      moments=second.astype(np.float32), axis_u=s.axis_u[part].astype(np.float32),
+                      axis_v=s.axis_v[part].astype(np.float32),
+                      segment_start=(np.cumsum(count) - count).astype(np.uint32), segment_count=count.astype(np.uint32),
+                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32))
+
+
+_unused = (OPEN_END, OPEN_MID, math)

@@ -1,0 +1,330 @@
+"""Mixed pieces cut exactly: a piece less the union of its occluders' shadows, as the oriented
+boundary that Gordon's edge form integrates (docs/physics.md (M4)).
+
+A piece whose corners disagree on some leg of its path is *mixed*. The rays that were hidden
+name their occluders (:func:`sarmitsuba.tracing.lit_pieces.classify`). Each occluder ``O`` on leg
+``l`` of a chain hides the points whose path crosses it on that leg: on the unfolded path (eq.
+(M3)) the segment from the antenna ``A`` to ``y = U_d(x)`` meets the unfolded ``U_l(O)`` between
+the chain's windows ``l - 1`` and ``l``; on the return leg the segment from ``x`` to ``A`` meets
+``O`` itself. Both are intersections of half-spaces linear in ``y`` (or ``x``): the planes through
+``A`` and ``O``'s edges, ``O``'s plane crossed beyond ``A``, and the order of the crossings
+(:func:`shadow_lines`). Cut to the piece they are convex *cut-outs* ``C_i``.
+
+The lit part ``B - (C_1 u ... u C_n)`` of a piece ``B`` has for boundary (:func:`boundary`) the
+edges of ``B`` outside every ``C_j``, and, reversed, the edges of each ``C_i`` inside ``B`` and
+outside every other ``C_j``. A segment meets a convex polygon in one interval (Cyrus and Beck,
+1978), so trimming it by ``n`` cut-outs leaves at most ``n + 1`` segments: ``O(n^2)`` edges for any
+number of overlapping occluders, exact (inclusion and exclusion would need ``2^n`` polygons).
+Edges on one line count once: two with their polygons on the same side are one boundary (the
+piece's, or the earlier cut-out's), two with their polygons on opposite sides none (two shadows
+that meet). shapely computes the same differences polygon by polygon; the tests check against
+it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .chains import Chains, _to_face, _unfolded_frame
+from .patches import Surfaces
+from .polygons import EVERYTHING, clip, corner_slots, edge_lines
+
+__all__ = ["shadow_lines", "boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "segment_moments"]
+
+#: Two edges on one line to this fraction of the segment's length (and parallel to as many
+#: radians) are one line (a wall's foot seen through two parts).
+COINCIDENT = 1e-9
+
+
+def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
+                 antenna: np.ndarray) -> np.ndarray:
+    """The half-planes (face coordinates of each chain's last part) of the points whose path
+    through chain ``chain`` [k] the part ``occluder`` [k] hides on leg ``leg`` [k] (``0 .. d`` on
+    the way out from ``antenna`` [k, 3], ``D`` the return), eq. (M4): float64 [k, H, 3]."""
+    depth = chains.parts.shape[1]
+    k = len(chain)
+    width = surfaces.polygon.shape[1] + 3
+    lines = np.tile(np.asarray(EVERYTHING), (k, width, 1))
+    order = chains.order[chain]
+    back = (leg == depth) | ((order == 0) & (leg == 0))       # the return leg: the real frame
+    level = np.where(back, 0, leg)
+    lin, shift = chains.lin[chain, level], chains.shift[chain, level]
+    lin = np.where(back[:, None, None], np.eye(3), lin)
+    shift = np.where(back[:, None], 0.0, shift)
+    corners = surfaces.to_world(occluder, surfaces.polygon[occluder])
+    corners = np.einsum("kij,kvj->kvi", lin, corners) + shift[:, None, :]
+    normal = np.einsum("kij,kj->ki", lin, surfaces.normal[occluder])
+    offset = surfaces.offset[occluder] + np.einsum("ki,ki->k", normal, shift)
+    a = offset - np.einsum("ki,ki->k", normal, antenna)
+    sign = np.where(a >= 0, 1.0, -1.0)[:, None]
+    # the frame the half-spaces act on: the unfolded point y (way out), the point x (return)
+    origin, u, v = _unfolded_frame(surfaces, chains.select(chain))
+    real_origin = surfaces.plane_point(chains.last[chain])
+    real_u, real_v = surfaces.axis_u[chains.last[chain]], surfaces.axis_v[chains.last[chain]]
+    origin = np.where(back[:, None], real_origin, origin)
+    u = np.where(back[:, None], real_u, u)
+    v = np.where(back[:, None], real_v, v)
+
+    def put(slot, g, h):
+        lines[:, slot] = _to_face(g, h, origin, u, v)
+
+    # O's plane crossed beyond A (t_O > 0), and before the point (t_O < 1) or the next window
+    put(0, sign * normal, -np.einsum("ki,ki->k", sign * normal, antenna))
+    windows = _window_planes(surfaces, chains, chain)
+    last_leg = back | (leg == order)
+    g_far = np.where(last_leg[:, None], sign * normal, 0.0)
+    h_far = np.where(last_leg, -(sign[:, 0] * offset), 0.0)
+    g_next, h_next = _crossing_before(normal, a, windows, np.minimum(leg, depth - 1), antenna)
+    g_far = np.where(last_leg[:, None], g_far, g_next)
+    h_far = np.where(last_leg, h_far, h_next)
+    put(1, g_far, h_far)
+    g_prev, h_prev = _crossing_after(normal, a, windows, leg - 1, antenna)
+    after = ~back & (leg > 0)
+    lines[:, 2] = np.where(after[:, None], _to_face(g_prev, h_prev, origin, u, v), EVERYTHING)
+    count = surfaces.n_corners[occluder]
+    slots = corner_slots(count, corners.shape[1])
+    centre = (corners * slots[..., None]).sum(axis=1) / count[:, None]
+    for e in range(corners.shape[1]):
+        p = corners[:, e] - antenna
+        q = np.roll(corners, -1, axis=1)[:, e] - antenna
+        g = np.cross(p, q)
+        g *= np.where(np.einsum("ki,ki->k", g, centre - antenna) >= 0, 1.0, -1.0)[:, None]
+        line = _to_face(g, -np.einsum("ki,ki->k", g, antenna), origin, u, v)
+        lines[:, 3 + e] = np.where(slots[:, e, None], line, EVERYTHING)
+    return lines
+
+
+def _window_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray):
+    """Each chain's unfolded window planes: normals [k, D, 3] and offsets [k, D] (zero beyond)."""
+    depth = chains.parts.shape[1]
+    normal = np.zeros((len(chain), depth, 3))
+    offset = np.zeros((len(chain), depth))
+    for i in range(depth):
+        part = np.maximum(chains.parts[chain, i], 0)
+        n_u = np.einsum("kij,kj->ki", chains.lin[chain, i], surfaces.normal[part])
+        normal[:, i] = n_u
+        offset[:, i] = surfaces.offset[part] + np.einsum("ki,ki->k", n_u, chains.shift[chain, i])
+    return normal, offset
+
+
+def _crossing_before(normal, a, windows, i, antenna):
+    """``t_O < t_i`` (the occluder's plane crossed before window ``i``'s): ``(n_O / a_O - n_i / a_i)
+    . (y - A) > 0`` as ``g . y + h >= 0``."""
+    n_i = windows[0][np.arange(len(i)), i]
+    a_i = windows[1][np.arange(len(i)), i] - np.einsum("ki,ki->k", n_i, antenna)
+    g = normal / np.where(a != 0, a, 1.0)[:, None] - n_i / np.where(a_i != 0, a_i, 1.0)[:, None]
+    return g, -np.einsum("ki,ki->k", g, antenna)
+
+
+def _crossing_after(normal, a, windows, i, antenna):
+    """``t_O > t_i`` (crossed after window ``i``'s): ``(n_i / a_i - n_O / a_O) . (y - A) > 0``."""
+    g, h = _crossing_before(normal, a, windows, np.maximum(i, 0), antenna)
+    return -g, -h
+
+
+def _interval(start, delta, lines, on_line_inside):
+    """The parameter interval ``[s, e]`` of segments ``start + t delta``, ``t`` in [0, 1], inside
+    convex polygons given by their half-planes ``lines`` [..., H, 3] (Cyrus-Beck). Where a segment
+    lies on one of the lines, ``on_line_inside(same)`` (``same``: the polygon lies on the segment's
+    left, its own inside) says whether it counts as inside there. ``e <= s``: empty."""
+    num = lines[..., 0] * start[..., None, 0] + lines[..., 1] * start[..., None, 1] + lines[..., 2]
+    den = lines[..., 0] * delta[..., None, 0] + lines[..., 1] * delta[..., None, 1]
+    length = np.linalg.norm(delta, axis=-1)[..., None]
+    normal_len = np.hypot(lines[..., 0], lines[..., 1])
+    parallel = np.abs(den) <= COINCIDENT * length * np.maximum(normal_len, 1e-300)
+    on = parallel & (np.abs(num) <= COINCIDENT * np.maximum(length, 1.0)) & (normal_len > 0)
+    # the polygon lies on the segment's left where its inward normal points left: (-dy, dx)
+    same = (lines[..., 0] * -delta[..., None, 1] + lines[..., 1] * delta[..., None, 0]) > 0
+    outside = (parallel & ~on & (num < 0)) | (on & ~on_line_inside(same))
+    bound = -num / np.where(parallel, 1.0, den)
+    lower = np.where(~parallel & (den > 0), bound, -np.inf).max(axis=-1)
+    upper = np.where(~parallel & (den < 0), bound, np.inf).min(axis=-1)
+    s, e = np.maximum(lower, 0.0), np.minimum(upper, 1.0)
+    return s, np.where(np.any(outside, axis=-1), -1.0, e)
+
+
+def _trim(s_list, e_list):
+    """``[0, 1]`` less the intervals ``(s_j, e_j)`` (arrays [m, n], empty where ``e <= s``): up to
+    ``n + 1`` pieces ``(a, b, live)`` [m, n + 1], starting at 0 and at each interval's end that
+    lies in no other interval (each start once), ending at the next interval's start or at 1."""
+    m, n = s_list.shape
+    real = e_list > s_list
+    starts = np.concatenate([np.zeros((m, 1)), np.where(real, e_list, 2.0)], axis=1)
+    ok = np.concatenate([np.ones((m, 1), bool), real], axis=1)
+    live = ok & (starts < 1.0)
+    live &= ~np.any(real[:, None, :] & (s_list[:, None, :] <= starts[:, :, None])
+                    & (starts[:, :, None] < e_list[:, None, :]), axis=2)
+    earlier = np.tril(np.ones((n + 1, n + 1), bool), -1)
+    earlier[:, 0] = False                         # the start at 0 does not hide an equal interval end
+    live &= ~np.any(earlier[None] & ok[:, None, :] & (starts[:, None, :] == starts[:, :, None]), axis=2)
+    ends = np.where(real[:, None, :] & (s_list[:, None, :] > starts[:, :, None]), s_list[:, None, :], 1.0).min(axis=2, initial=1.0)
+    return starts, ends, live & (ends > starts)
+
+
+def boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_count: np.ndarray):
+    """The oriented boundary of ``base`` less the union of its cut-outs (all convex,
+    counter-clockwise, padded with their first corner).
+
+    Parameters
+    ----------
+    base : float64 [g, V, 2]
+    base_count : int64 [g]
+    cut : float64 [g, n, W, 2]
+        The cut-outs of each base (inside it; empty ones have count 0).
+    cut_count : int64 [g, n]
+
+    Returns
+    -------
+    (owner int64 [s], start float64 [s, 2], end float64 [s, 2]): each segment's base and ends,
+    counter-clockwise about the lit region (around holes clockwise).
+    """
+    g, n = cut_count.shape
+    width = cut.shape[2]
+    cut_lines = edge_lines(cut.reshape(g * n, width, 2), cut_count.reshape(-1)).reshape(g, n, width, 3)
+    cut_lines = np.where((cut_count > 0)[..., None, None], cut_lines, np.array([0.0, 0.0, -1.0]))   # empty: nowhere
+    base_lines = edge_lines(base, base_count)
+    owners = np.broadcast_to(np.arange(g)[:, None], (g, base.shape[1]))
+    # the base's own edges, less what lies in a cut-out (an edge along a cut-out's edge with the
+    # cut-out on its inside is covered)
+    delta = np.roll(base, -1, axis=1) - base
+    live = corner_slots(base_count, base.shape[1]) & (np.linalg.norm(delta, axis=2) > 0)
+    s, e = _interval(base[:, :, None, :], delta[:, :, None, :], cut_lines[:, None], lambda same: same)
+    out = [_pieces(base, delta, s, e, live, owners, False)]
+    for i in range(n):
+        c = cut[:, i]
+        delta_c = np.roll(c, -1, axis=1) - c
+        live_c = corner_slots(cut_count[:, i], width) & (np.linalg.norm(delta_c, axis=2) > 0)
+        # the part inside the base (an edge along the base's edge is the base's, which it covers)
+        s0, e0 = _interval(c, delta_c, base_lines[:, None], lambda same: ~same)
+        others = [j for j in range(n) if j != i]
+        earlier = np.array([j < i for j in others], bool)
+        s, e = _interval(c[:, :, None, :], delta_c[:, :, None, :], cut_lines[:, others][:, None],
+                         lambda same: ~same | earlier[None, None, :, None])
+        # the segment restricted to the base's interval [s0, e0], its other intervals rescaled to it
+        span = np.where(e0 > s0, e0 - s0, 1.0)
+        start_in = c + s0[..., None] * delta_c
+        delta_in = delta_c * span[..., None]
+        s, e = (s - s0[..., None]) / span[..., None], (e - s0[..., None]) / span[..., None]
+        out.append(_pieces(start_in, delta_in, s, e, live_c & (e0 > s0), owners[:, :1].repeat(width, 1), True))
+    return tuple(np.concatenate([o[k] for o in out]) for k in range(3))
+
+
+def _pieces(start, delta, s, e, live, owner, reverse: bool):
+    """Segments ``start + [a, b] delta`` of ``[0, 1]`` less the intervals ``(s, e)`` [..., n]."""
+    rows_n = int(np.prod(live.shape))
+    a, b, ok = _trim(s.reshape(rows_n, s.shape[-1]), e.reshape(rows_n, e.shape[-1]))
+    ok &= live.reshape(-1, 1) & ((b - a) * np.linalg.norm(delta.reshape(-1, 2), axis=1)[:, None] > 1e-12)
+    rows, k = np.nonzero(ok)
+    p = start.reshape(-1, 2)[rows] + a[rows, k, None] * delta.reshape(-1, 2)[rows]
+    q = start.reshape(-1, 2)[rows] + b[rows, k, None] * delta.reshape(-1, 2)[rows]
+    if reverse:
+        p, q = q, p
+    return owner.reshape(-1)[rows], p, q
+
+
+@dataclass(frozen=True)
+class ClippedPieces:
+    """Mixed pieces cut to what the antenna sees of them (face coordinates).
+
+    Attributes
+    ----------
+    piece : int64 [m]
+        Their rows in the bounce order's pieces.
+    owner : int64 [s]
+        For each boundary segment, its piece (an index into ``piece``).
+    start, end : float64 [s, 2]
+        The segments, counter-clockwise about the lit region.
+    area : float64 [m]
+    centroid : float64 [m, 2]
+    second : float64 [m, 3]
+        Second moments about the centroid (``Ixx, Ixy, Iyy``).
+    diagonal : float64 [m]
+        Their lit regions' bounding-box diagonals.
+    """
+
+    piece: np.ndarray
+    owner: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+    area: np.ndarray
+    centroid: np.ndarray
+    second: np.ndarray
+    diagonal: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.piece)
+
+
+def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray) -> ClippedPieces:
+    """Every mixed piece of ``lit`` (:class:`sarmitsuba.tracing.lit_pieces.LitPieces`) whose
+    occluders are all mesh parts, cut to its lit region: the piece less the shadows of the
+    occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3]."""
+    blockers = lit.blockers
+    usable = lit.mixed & np.all(blockers != -2, axis=1) & np.any(blockers >= 0, axis=1)
+    rows = np.flatnonzero(usable)
+    pieces = lit.pieces.select(rows)
+    poly, count = pieces.polygons()
+    pair_piece, slot = np.nonzero(blockers[rows] >= 0)
+    key = blockers[rows][pair_piece, slot]
+    leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
+    chain = pieces.region[pair_piece]
+    lines = shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna[chain])
+    cut, cut_count = clip(poly[pair_piece], count[pair_piece], lines)
+    per = np.bincount(pair_piece, minlength=len(rows))
+    owners, starts, ends = [], [], []
+    size = 1
+    while size <= max(int(per.max(initial=0)), 1):
+        group = np.flatnonzero((per > size // 2) & (per <= size)) if size > 1 else np.flatnonzero(per == 1)
+        if len(group):
+            o, p, q = _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size)
+            owners.append(o), starts.append(p), ends.append(q)
+        size *= 2
+    owner = np.concatenate(owners) if owners else np.zeros(0, np.int64)
+    start = np.concatenate(starts) if starts else np.zeros((0, 2))
+    end = np.concatenate(ends) if ends else np.zeros((0, 2))
+    area, centroid, second, diagonal = segment_moments(owner, start, end, len(rows))
+    keep = area > 1e-12 * pieces.patch ** 2
+    new = np.cumsum(keep) - 1
+    seg_keep = keep[owner]
+    return ClippedPieces(piece=rows[keep], owner=new[owner[seg_keep]], start=start[seg_keep], end=end[seg_keep],
+                         area=area[keep], centroid=centroid[keep], second=second[keep], diagonal=diagonal[keep])
+
+
+def _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size: int):
+    """:func:`boundary` of the pieces ``group``, each with at most ``size`` cut-outs."""
+    first = np.concatenate([[0], np.cumsum(per)])[:-1]
+    g = len(group)
+    width = cut.shape[1]
+    cuts = np.zeros((g, size, width, 2))
+    counts = np.zeros((g, size), np.int64)
+    for k in range(size):
+        has = per[group] > k
+        idx = first[group[has]] + k
+        cuts[has, k] = cut[idx]
+        counts[has, k] = cut_count[idx]
+    owner, p, q = boundary(poly[group], count[group], cuts, counts)
+    return group[owner], p, q
+
+
+def segment_moments(owner: np.ndarray, start: np.ndarray, end: np.ndarray, n: int):
+    """Area, centroid, second moments about the centroid (``Ixx, Ixy, Iyy``) and bounding-box
+    diagonal of regions given by closed oriented boundaries (Green's theorem over each region's
+    segments ``owner`` [s]); ``n`` regions."""
+    x0, y0, x1, y1 = start[:, 0], start[:, 1], end[:, 0], end[:, 1]
+    cross = x0 * y1 - x1 * y0
+    area = 0.5 * np.bincount(owner, weights=cross, minlength=n)
+    safe = np.where(area != 0, area, 1.0)
+    cx = np.bincount(owner, weights=(x0 + x1) * cross, minlength=n) / (6 * safe)
+    cy = np.bincount(owner, weights=(y0 + y1) * cross, minlength=n) / (6 * safe)
+    ixx = np.bincount(owner, weights=(x0 * x0 + x0 * x1 + x1 * x1) * cross, minlength=n) / 12 - area * cx * cx
+    iyy = np.bincount(owner, weights=(y0 * y0 + y0 * y1 + y1 * y1) * cross, minlength=n) / 12 - area * cy * cy
+    ixy = np.bincount(owner, weights=(x0 * y1 + 2 * x0 * y0 + 2 * x1 * y1 + x1 * y0) * cross, minlength=n) / 24 \
+        - area * cx * cy
+    lo = np.full((n, 2), np.inf)
+    hi = np.full((n, 2), -np.inf)
+    for point in (start, end):
+        np.minimum.at(lo, owner, point)
+        np.maximum.at(hi, owner, point)
+    diagonal = np.where(np.isfinite(lo[:, 0]), np.linalg.norm(hi - lo, axis=1), 0.0)
+    return area, np.stack([cx, cy], axis=1), np.stack([ixx, ixy, iyy], axis=1), diagonal

@@ -1,0 +1,414 @@
+"""Integration elements fixed on the mesh: every planar face covered by square patches in its own
+frame, and the pieces of a lit region they cut (docs/physics.md (M1), (M2)).
+
+:func:`surfaces_of` turns a loaded scene's meshes into :class:`Surfaces`: the convex planar parts
+of :mod:`sarmitsuba.tracing.facets`, each with its face's frame. The frame is the shape's own
+(:func:`sarmitsuba.scene.loader.shape_frame`: the shape's anchor vertex and axes, projected into
+the face's plane), the frame of the clutter scatterers' lattice (docs/physics.md (C)); it moves
+and turns with the shape and does not depend on the ray lattice, the pulse or the track.
+
+A patch is the square ``[i P, (i + 1) P) x [j P, (j + 1) P)`` of a face's frame, ``P`` the patch
+size (:func:`sarmitsuba.scene.planning.patch_size`, a whole number of scatterer cells). A *region*
+is a convex polygon on one part: the part itself at the first bounce, or the part of it that a
+chain of mirrors lets the antenna reach (:mod:`sarmitsuba.tracing.chains`). :func:`pieces_of` cuts
+a batch of regions into *pieces*, one per patch they meet: *whole* where the patch lies inside
+the region, else the patch clipped to it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .facets import MAX_PART_VERTICES, Parts, scene_parts
+from .polygons import clip, moments, pad
+
+__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "Pieces", "pieces_of", "cell_key", "ALONG_FIRST_AXIS",
+           "UNIT_SQUARE"]
+
+#: A face whose normal lies within 0.81 deg of its shape's first axis takes its frame's ``u`` from
+#: the shape's second axis (as the clutter lattice does, docs/physics.md (C)).
+ALONG_FIRST_AXIS = 0.9999
+#: Cells of one region at most per dimension (a guard against a patch size far below the region).
+MAX_CELLS_PER_SIDE = 1 << 20
+
+
+@dataclass(frozen=True)
+class Surfaces:
+    """The scene's convex planar parts with their faces' frames (float64, m).
+
+    Attributes
+    ----------
+    normal : float64 [n, 3]
+        Unit normal of the part (the mesh's orientation).
+    offset : float64 [n]
+        ``normal . x`` on the part's plane.
+    origin : float64 [n, 3]
+        The frame's origin: the shape's anchor vertex (not in general on the plane).
+    axis_u, axis_v : float64 [n, 3]
+        The frame's axes in the plane, ``axis_v = normal x axis_u``.
+    polygon : float64 [n, V, 2]
+        The part's corners in face coordinates ``((x - origin) . axis_u, (x - origin) . axis_v)``,
+        counter-clockwise (about ``normal``), padded with the first corner
+        (:mod:`sarmitsuba.tracing.polygons`).
+    n_corners : int64 [n]
+    shape_id : uint32 [n]
+        Mitsuba id of the part's shape (the material table's index).
+    row : int64 [n]
+        The part's material row.
+    closed : bool [n]
+        The part's shape is closed: its back side is never seen.
+    face : int64 [n]
+        The part's face (coplanar edge-connected triangles of one shape).
+    triangle_part : int64 [n_triangles]
+        The part of every triangle (-1: degenerate), at ``triangle_base[shape id] + primitive``.
+    triangle_base : int64 [max shape id + 1]
+        Each mesh's first row of ``triangle_part``; -1 for shapes that are not meshes.
+    """
+
+    normal: np.ndarray
+    offset: np.ndarray
+    origin: np.ndarray
+    axis_u: np.ndarray
+    axis_v: np.ndarray
+    polygon: np.ndarray
+    n_corners: np.ndarray
+    shape_id: np.ndarray
+    row: np.ndarray
+    closed: np.ndarray
+    face: np.ndarray
+    triangle_part: np.ndarray
+    triangle_base: np.ndarray
+
+    @property
+    def n_parts(self) -> int:
+        return len(self.offset)
+
+    def to_world(self, part: np.ndarray, coords: np.ndarray) -> np.ndarray:
+        """World points float64 [..., 3] of face coordinates ``coords`` [..., 2] on ``part``
+        (whose shape is a leading part of ``coords``' own)."""
+        o, u, v = (_expand(a, coords.ndim) for a in (self.plane_point(part), self.axis_u[part], self.axis_v[part]))
+        return o + coords[..., 0, None] * u + coords[..., 1, None] * v
+
+    def to_face(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Face coordinates float64 [..., 2] of world points [..., 3] on (or projected onto) ``part``."""
+        o, u, v = (_expand(a[part], points.ndim) for a in (self.origin, self.axis_u, self.axis_v))
+        rel = points - o
+        return np.stack([np.sum(rel * u, axis=-1), np.sum(rel * v, axis=-1)], axis=-1)
+
+    def plane_point(self, part: np.ndarray) -> np.ndarray:
+        """A point of each part's plane, float64 [..., 3]: the frame's origin projected on it."""
+        origin, normal = self.origin[part], self.normal[part]
+        return origin + normal * (self.offset[part] - np.einsum("...i,...i->...", origin, normal))[..., None]
+
+
+def _expand(values: np.ndarray, ndim: int) -> np.ndarray:
+    """``values`` [..., 3] with axes inserted before the last until it has ``ndim`` dimensions."""
+    while values.ndim < ndim:
+        values = values[..., None, :]
+    return values
+
+
+def face_axes(normal: np.ndarray, shape_axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The face frame's axes ``(u, v)`` float64 [n, 3] in planes of unit ``normal`` [n, 3]: the
+    shape's first axis projected on the plane and normalised (its second axis' where the normal
+    lies along the first), ``v = normal x u`` (docs/physics.md (C), (M1)); ``shape_axes`` [n, 3, 3]
+    holds each shape's axes as rows."""
+    first, second = shape_axes[:, 0], shape_axes[:, 1]
+    along = np.abs(np.einsum("ij,ij->i", normal, first)) > ALONG_FIRST_AXIS
+    axis = np.where(along[:, None], second, first)
+    u = axis - normal * np.einsum("ij,ij->i", normal, axis)[:, None]
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return u, np.cross(normal, u)
+
+
+def surfaces_of(scene, table, parts: Parts | None = None) -> Surfaces:
+    """The :class:`Surfaces` of a loaded Mitsuba scene whose material table is ``table``
+    (:class:`sarmitsuba.scene.trace_inputs.MaterialTable`: rows, shape frames)."""
+    parts = scene_parts(scene) if parts is None else parts
+    shapes = list(scene.shapes())
+    ids = np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes], np.int64)
+    mesh = np.array([s.is_mesh() for s in shapes], bool)
+    return surfaces_from(parts, ids, mesh, table.shape_origin, table.shape_axes, table.row_of_shape)
+
+
+def surfaces_from(parts: Parts, shape_ids: np.ndarray, is_mesh: np.ndarray, shape_origin: np.ndarray,
+                  shape_axes: np.ndarray, row_of_shape: np.ndarray) -> Surfaces:
+    """The :class:`Surfaces` of ``parts``, whose input shape ``k`` has the Mitsuba id
+    ``shape_ids[k]`` and is a mesh where ``is_mesh[k]``; ``shape_origin`` [ids, 3], ``shape_axes``
+    [ids, 3, 3] and ``row_of_shape`` [ids] are indexed by id (as the material table's)."""
+    shape_ids = np.asarray(shape_ids, np.int64)
+    shape_id = shape_ids[parts.shape] if len(shape_ids) else np.zeros(0, np.int64)
+    origin = shape_origin[shape_id]
+    u, v = face_axes(parts.normal, shape_axes[shape_id])
+    rel = parts.vertices - origin[:, None, :]
+    polygon = np.stack([np.einsum("pvi,pi->pv", rel, u), np.einsum("pvi,pi->pv", rel, v)], axis=2)
+    base = np.full(int(shape_ids.max(initial=-1)) + 1, -1, np.int64)
+    base[shape_ids[is_mesh]] = parts.triangle_base[np.flatnonzero(is_mesh)]
+    closed = parts.closed if parts.closed is not None else np.zeros(parts.n_parts, bool)
+    return Surfaces(normal=parts.normal, offset=parts.offset, origin=origin, axis_u=u, axis_v=v,
+                    polygon=pad(polygon, parts.n_vertices.astype(np.int64)),
+                    n_corners=parts.n_vertices.astype(np.int64), shape_id=shape_id.astype(np.uint32),
+                    row=np.asarray(row_of_shape)[shape_id].astype(np.int64), closed=np.asarray(closed, bool),
+                    face=parts.face.astype(np.int64), triangle_part=parts.triangle_part.astype(np.int64),
+                    triangle_base=base)
+
+
+@dataclass(frozen=True)
+class Pieces:
+    """The pieces a batch of regions cuts from the patches (float64, face coordinates).
+
+    A *whole* piece is its patch (no polygon stored); a *border* piece is the patch clipped to
+    its region, stored in ``polygon`` / ``count`` at row ``border[k]``.
+
+    Attributes
+    ----------
+    region : int64 [n]
+        The region each piece belongs to (its row in the batch of regions).
+    cell : int64 [n, 2]
+        The patch ``(i, j)``.
+    whole : bool [n]
+        The patch lies wholly inside the region (the piece is the patch).
+    border : int64 [n]
+        Row of a border piece's polygon, -1 for whole pieces.
+    polygon : float64 [b, V, 2]
+        The border pieces, counter-clockwise, padded with their last corner.
+    count : int64 [b]
+        Their corners.
+    patch : float
+        The patch size [m].
+    """
+
+    region: np.ndarray
+    cell: np.ndarray
+    whole: np.ndarray
+    border: np.ndarray
+    polygon: np.ndarray
+    count: np.ndarray
+    patch: float
+
+    def __len__(self) -> int:
+        return len(self.region)
+
+    def select(self, keep) -> "Pieces":
+        """The pieces ``keep`` (an index array or a boolean mask), their border polygons compacted."""
+        keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, np.int64)
+        border = self.border[keep]
+        rows = border[border >= 0]
+        new = np.full(len(keep), -1, np.int64)
+        new[border >= 0] = np.arange(len(rows))
+        return Pieces(self.region[keep], self.cell[keep], self.whole[keep], new, self.polygon[rows],
+                      self.count[rows], self.patch)
+
+    def polygons(self, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Every piece's polygon: float64 [n, V, 2] and corner counts int64 [n] (whole pieces:
+        their patch, corners bottom-left, bottom-right, top-right, top-left)."""
+        width = max(self.polygon.shape[1] if len(self.count) else 4, 4) if width is None else width
+        poly = np.zeros((len(self), width, 2))
+        count = np.full(len(self), 4, np.int64)
+        poly[:, :4] = (self.cell[:, None, :] + UNIT_SQUARE[None]) * self.patch
+        b = np.flatnonzero(~self.whole)
+        if len(b):
+            take = min(width, self.polygon.shape[1])
+            poly[b, :take] = self.polygon[self.border[b], :take]
+            count[b] = self.count[self.border[b]]
+        return pad(poly, count), count
+
+    def geometry(self):
+        """Area [m^2], centroid (face coordinates, m) float64 [n, 2], second moments about the
+        centroid float64 [n, 3] (``Ixx, Ixy, Iyy``, m^4) and bounding-box diagonal [m] of every
+        piece (whole pieces in closed form)."""
+        n, p = len(self), self.patch
+        area = np.full(n, p * p)
+        centroid = (self.cell + 0.5) * p
+        second = np.tile([p ** 4 / 12.0, 0.0, p ** 4 / 12.0], (n, 1))
+        diagonal = np.full(n, p * math.sqrt(2.0))
+        b = np.flatnonzero(~self.whole)
+        if len(b):
+            rows = self.border[b]
+            area[b], centroid[b], second[b], diagonal[b] = moments(self.polygon[rows], self.count[rows])
+        return area, centroid, second, diagonal
+
+    def edges(self, rows: np.ndarray | None = None):
+        """The boundary segments of pieces ``rows`` (all by default), counter-clockwise:
+        ``(piece int64 [s], start float64 [s, 2], end float64 [s, 2], side int64 [s])`` with
+        ``side`` 0..3 where the segment runs along its patch's bottom, right, top or left line
+        (shared with the neighbouring patch's piece of the same region) and -1 elsewhere."""
+        rows = np.arange(len(self)) if rows is None else np.asarray(rows, np.int64)
+        whole = rows[self.whole[rows]]
+        square = (self.cell[whole][:, None, :] + UNIT_SQUARE[None]) * self.patch
+        w_piece = np.repeat(whole, 4)
+        w_start = square.reshape(-1, 2)
+        w_end = np.roll(square, -1, axis=1).reshape(-1, 2)
+        w_side = np.tile(np.arange(4), len(whole))
+        border = rows[~self.whole[rows]]
+        poly, count = self.polygon[self.border[border]], self.count[self.border[border]]
+        slots = np.arange(poly.shape[1])[None, :] < count[:, None]
+        end = np.roll(poly, -1, axis=1)
+        keep = slots & (np.linalg.norm(end - poly, axis=2) > 0)
+        b_rows, b_cols = np.nonzero(keep)
+        b_start, b_end = poly[b_rows, b_cols], end[b_rows, b_cols]
+        b_side = _grid_side(self.cell[border[b_rows]], b_start, b_end, self.patch)
+        return (np.concatenate([w_piece, border[b_rows]]), np.concatenate([w_start, b_start]),
+                np.concatenate([w_end, b_end]), np.concatenate([w_side, b_side]))
+
+
+#: A segment's ends within this fraction of the patch size of one of its patch's lines lie on it.
+ON_GRID_LINE = 1e-9
+
+
+def _grid_side(cell: np.ndarray, start: np.ndarray, end: np.ndarray, patch: float) -> np.ndarray:
+    """Which line of its patch (0 bottom, 1 right, 2 top, 3 left) each segment runs along, -1 none."""
+    lo, hi = cell * patch, (cell + 1) * patch
+    tol = ON_GRID_LINE * patch
+    on = [(np.abs(start[:, 1] - lo[:, 1]) <= tol) & (np.abs(end[:, 1] - lo[:, 1]) <= tol),
+          (np.abs(start[:, 0] - hi[:, 0]) <= tol) & (np.abs(end[:, 0] - hi[:, 0]) <= tol),
+          (np.abs(start[:, 1] - hi[:, 1]) <= tol) & (np.abs(end[:, 1] - hi[:, 1]) <= tol),
+          (np.abs(start[:, 0] - lo[:, 0]) <= tol) & (np.abs(end[:, 0] - lo[:, 0]) <= tol)]
+    side = np.full(len(cell), -1, np.int64)
+    for k in (3, 2, 1, 0):
+        side = np.where(on[k], k, side)
+    return side
+
+
+#: The unit square's corners in the order of a whole piece's polygon.
+UNIT_SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def cell_key(region: np.ndarray, cell: np.ndarray) -> np.ndarray:
+    """An int64 key of ``(region, i, j)``, unique for |i|, |j| < 2^20 and regions < 2^22."""
+    return ((region.astype(np.int64) << 42) + ((cell[..., 0].astype(np.int64) + (1 << 20)) << 21)
+            + (cell[..., 1].astype(np.int64) + (1 << 20)))
+
+
+def _row_extents(polygon: np.ndarray, count: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The x-extent ``[lo, hi]`` of convex polygons (rows of ``polygon``) on the horizontal lines
+    ``y`` [n] (``lo > hi`` where the line misses the polygon)."""
+    width = polygon.shape[1]
+    p, q = polygon, np.roll(polygon, -1, axis=1)
+    valid = np.arange(width)[None, :] < count[:, None]
+    dy = q[..., 1] - p[..., 1]
+    t = (y[:, None] - p[..., 1]) / np.where(dy != 0, dy, 1.0)
+    meets = valid & (dy != 0) & (t >= 0) & (t <= 1)
+    x = p[..., 0] + t * (q[..., 0] - p[..., 0])
+    on = valid & (p[..., 1] == y[:, None])            # a corner on the line (horizontal edges too)
+    lo = np.minimum(np.where(meets, x, np.inf).min(axis=1), np.where(on, p[..., 0], np.inf).min(axis=1))
+    hi = np.maximum(np.where(meets, x, -np.inf).max(axis=1), np.where(on, p[..., 0], -np.inf).max(axis=1))
+    return lo, hi
+
+
+def _row_spans(polygon: np.ndarray, count: np.ndarray, patch: float, region: np.ndarray, row: np.ndarray):
+    """For rows ``row`` [k] of regions ``region`` [k]: the x-extent of the polygon within the
+    row's slab ``[row P, (row + 1) P]`` (outer: its corners in the slab and its extents on both
+    lines) and on both of its lines (inner: where every point of the slab's height lies inside)."""
+    y0, y1 = row * patch, (row + 1) * patch
+    poly, cnt = polygon[region], count[region]
+    lo0, hi0 = _row_extents(poly, cnt, y0)
+    lo1, hi1 = _row_extents(poly, cnt, y1)
+    slots = np.arange(poly.shape[1])[None, :] < cnt[:, None]
+    held = slots & (poly[..., 1] >= y0[:, None]) & (poly[..., 1] <= y1[:, None])
+    outer_lo = np.minimum(np.minimum(lo0, lo1), np.where(held, poly[..., 0], np.inf).min(axis=1))
+    outer_hi = np.maximum(np.maximum(hi0, hi1), np.where(held, poly[..., 0], -np.inf).max(axis=1))
+    return (outer_lo, outer_hi), (np.maximum(lo0, lo1), np.minimum(hi0, hi1))
+
+
+def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.ndarray | None = None) -> Pieces:
+    """Cut convex regions into pieces of the patch grid, eq. (M2).
+
+    Each region is swept row by row of the grid: in a row, the patches between the region's
+    extents on both of the row's lines lie wholly inside it (a convex region's extent over the
+    row is widest at one of its lines and narrowest at one of them), the rest of the patches
+    that meet it are clipped to it.
+
+    Parameters
+    ----------
+    polygon : float64 [r, V, 2]
+        The regions (convex, counter-clockwise, face coordinates, m).
+    count : int64 [r]
+        Their corners (regions with fewer than 3 are skipped).
+    patch : float
+        Patch size ``P`` [m].
+    span : float64 [r, H, 3], optional
+        Half-planes that bound where pieces are wanted (the beam's reach): patches wholly outside
+        them are left out, but the pieces are the region's own (a span does not cut a patch).
+
+    Returns
+    -------
+    Pieces
+    """
+    count = np.asarray(count, np.int64)
+    reach, reach_count = (polygon, count) if span is None else clip(polygon, count, span)
+    extent = polygon.max(axis=1) - polygon.min(axis=1)
+    small = np.all(extent <= patch, axis=1) & (reach_count >= 3) & (count >= 3)
+    live = np.flatnonzero((reach_count >= 3) & ~small)
+    cut = _sweep(polygon, count, reach, reach_count, live, patch)
+    return _with_small(cut, polygon, count, np.flatnonzero(small), patch)
+
+
+def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.ndarray, patch: float) -> Pieces:
+    """``cut`` and one border piece per region of ``small`` (a region no wider than a patch is its
+    own piece, whatever patches it straddles: its cell is its centroid's)."""
+    if len(small) == 0:
+        return cut
+    _, centroid, _, _ = moments(polygon[small], count[small])
+    width = max(cut.polygon.shape[1], polygon.shape[1])
+    poly = np.zeros((len(cut.count) + len(small), width, 2))
+    poly[:len(cut.count), :cut.polygon.shape[1]] = cut.polygon
+    poly[len(cut.count):, :polygon.shape[1]] = polygon[small]
+    counts = np.concatenate([cut.count, count[small]])
+    pad(poly, counts)
+    border = np.concatenate([cut.border, len(cut.count) + np.arange(len(small))])
+    return Pieces(np.concatenate([cut.region, small]), np.concatenate([cut.cell, np.floor(centroid / patch).astype(np.int64)]),
+                  np.concatenate([cut.whole, np.zeros(len(small), bool)]), border, poly, counts, patch)
+
+
+def _sweep(polygon, count, reach, reach_count, live, patch: float) -> Pieces:
+    """The pieces of regions ``live``, swept row by row (:func:`pieces_of`)."""
+    y_lo = np.floor(reach[live, :, 1].min(axis=1) / patch).astype(np.int64)
+    y_hi = np.floor(reach[live, :, 1].max(axis=1) / patch).astype(np.int64)
+    rows = y_hi - y_lo + 1
+    if np.any(rows > MAX_CELLS_PER_SIDE):
+        raise ValueError(f"a region spans more than {MAX_CELLS_PER_SIDE} patches of {patch:g} m")
+    region = np.repeat(live, rows)
+    row = np.repeat(y_lo, rows) + np.arange(int(rows.sum())) - np.repeat(np.cumsum(rows) - rows, rows)
+    (o_lo, o_hi), _ = _row_spans(reach, reach_count, patch, region, row)
+    _, (i_lo, i_hi) = _row_spans(polygon, count, patch, region, row)
+    meets, full = o_hi >= o_lo, i_hi >= i_lo             # (infinite extents where a line misses)
+    first = np.floor(np.where(meets, o_lo, 0.0) / patch).astype(np.int64)
+    last = np.where(meets, np.maximum(np.ceil(np.where(meets, o_hi, 0.0) / patch).astype(np.int64) - 1, first),
+                    first - 1)
+    whole_first = np.maximum(np.ceil(np.where(full, i_lo, 0.0) / patch).astype(np.int64), first)
+    whole_last = np.where(full, np.minimum(np.floor(np.where(full, i_hi, 0.0) / patch).astype(np.int64) - 1, last),
+                          whole_first - 1)
+    n_cells = np.maximum(last - first + 1, 0)
+    cell_row = np.repeat(np.arange(len(row)), n_cells)
+    i = np.repeat(first, n_cells) + np.arange(int(n_cells.sum())) - np.repeat(np.cumsum(n_cells) - n_cells, n_cells)
+    whole = (i >= whole_first[cell_row]) & (i <= whole_last[cell_row])
+    cell = np.stack([i, row[cell_row]], axis=1)
+    region = region[cell_row]
+    b = np.flatnonzero(~whole)
+    cut, cut_count = clip(polygon[region[b]], count[region[b]], _cell_lines(cell[b], patch))
+    kept = cut_count >= 3
+    keep = np.ones(len(region), bool)
+    keep[b[~kept]] = False
+    border = np.full(len(region), -1, np.int64)
+    border[b[kept]] = np.arange(int(kept.sum()))
+    poly = cut[kept]
+    rows_kept = np.flatnonzero(keep)
+    border = border[rows_kept]
+    return Pieces(region[rows_kept], cell[rows_kept], whole[rows_kept], border, poly, cut_count[kept], patch)
+
+
+def _cell_lines(cell: np.ndarray, patch: float) -> np.ndarray:
+    """The four half-planes of each patch ``cell`` [n, 2]: float64 [n, 4, 3]."""
+    x0, y0 = cell[:, 0] * patch, cell[:, 1] * patch
+    one, zero = np.ones_like(x0), np.zeros_like(x0)
+    return np.stack([np.stack([one, zero, -x0], 1), np.stack([-one, zero, x0 + patch], 1),
+                     np.stack([zero, one, -y0], 1), np.stack([zero, -one, y0 + patch], 1)], axis=1)
+
+
+#: Most corners a piece carries: a part's, plus one per clipping line of a chain and of its patch.
+PIECE_CORNERS = MAX_PART_VERTICES + 4
