@@ -605,16 +605,22 @@ def test_fresnel_is_continuous_near_vacuum_and_toward_pec():
                 assert step_fine < step_coarse / 3 or step_coarse < 1e-9, (eta, model, step_coarse, step_fine)
 
 
-def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch):
-    """Dr.Jit wraps an exception raised while it traces the bounce loop's body in a RuntimeError;
-    a Ctrl-C landing there must still reach the CLI as KeyboardInterrupt (exit 130), not as a
-    crash with exit code 1."""
+@pytest.mark.parametrize("lit_regions", ["patches", "tiles"])
+def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch, lit_regions):
+    """Dr.Jit wraps an exception raised while it traces a loop's body (the patches' pulse loop,
+    the tubes' bounce) in a RuntimeError; a Ctrl-C landing there must still reach the CLI as
+    KeyboardInterrupt (exit 130), not as a crash with exit code 1."""
+    from sarmitsuba.tracing import integration
     from sarmitsuba.tracing import kernel as kernel_module
     from sarmitsuba.pipeline import simulate
 
     def interrupted(self, *args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(kernel_module.Kernel, "_bounce", interrupted)
+    if lit_regions == "tiles":
+        monkeypatch.setattr(kernel_module.Kernel, "_bounce", interrupted)
+    else:
+        monkeypatch.setattr(integration.PatchTerms, "_pulse", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        simulate("trihedral", sensor_overrides={"n_pulses": 4}, integrator_overrides={"max_depth": 3})
+        simulate("trihedral", sensor_overrides={"n_pulses": 4},
+                 integrator_overrides={"max_depth": 3, "lit_regions": lit_regions})

@@ -1,4 +1,6 @@
-"""The Dr.Jit kernel against a second, NumPy implementation of the same model (docs/physics.md (T1), (PO1)-(PO3), (R1)).
+"""The ray tubes' Dr.Jit kernel (``lit_regions = tiles``, the fast preview) against a second, NumPy
+implementation of the same model (docs/physics.md (T1), (PO1)-(PO3), (R1)); the patches' kernel has
+its own in tests/test_patch_kernel.py.
 
 Scene: a PEC ground mirror and a PEC plate above it, tilted by 15 deg, one broadside pulse,
 two bounce orders. The reference traces each tube of the planner's lattice through the two
@@ -55,6 +57,7 @@ SCENE = """<scene version="3.0.0">
         <integer name="tubes_per_object" value="0"/>
         <string name="range_kernel" value="exact"/>
         <boolean name="cancel_interior" value="false"/>
+        <string name="lit_regions" value="tiles"/>
         <integer name="pulses_per_trace" value="{pulses}"/>
     </integrator>
     <bsdf type="radar" id="metal"><string name="model" value="pec"/></bsdf>

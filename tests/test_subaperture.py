@@ -41,20 +41,22 @@ ROUGH = str(Path(__file__).parent / "scenes" / "rough_ground.xml")
 
 
 def _nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
-    return 10.0 * math.log10(np.sum(np.abs(a - b) ** 2) / np.sum(np.abs(b) ** 2))
+    error = float(np.sum(np.abs(a - b) ** 2))
+    return 10.0 * math.log10(error / np.sum(np.abs(b) ** 2)) if error > 0 else float("-inf")
 
 
 @pytest.mark.parametrize("scene,sensor,limit", [
     ("dihedral", {}, -60.0), ("dihedral", {"incidence_angle": 30.0}, -60.0),
     ("trihedral", {}, -50.0), ("trihedral", {"incidence_angle": 55.0}, -50.0),
-    (ROUGH, {}, -80.0), (ROUGH, {"incidence_angle": 30.0}, -80.0),
+    (ROUGH, {}, -60.0), (ROUGH, {"incidence_angle": 30.0}, -60.0),
 ], ids=["dihedral 45", "dihedral 30", "trihedral 45", "trihedral 55", "rough 45", "rough 30"])
 def test_sub_apertures_image_like_per_pulse_tracing_with_a_sixteenth_of_the_casts(scene, sensor, limit):
-    """Measured: dihedral -63 / -67 dB (its wall's tiles stay where the reference position puts
-    them, while each pulse's own trace slides them along the wall), trihedral -55 / -52 dB (its internal bounces' tiles at the
-    faces' edges belong to the reference position's facets), rough ground -97 / -89 dB. A
-    sub-aperture evaluated at its reference position instead of each pulse's antenna, or its
-    mirror chain left out, defocuses these images (0 dB or worse)."""
+    """Its lit regions and shadows are the reference position's for all its pulses (docs/physics.md
+    (M3), (M4)); what carries phase is each pulse's own. The rough ground's scatterers are the
+    same either way; its edge terms near the zero-Doppler line are split by each pulse or by the
+    sub-aperture where both forms hold ((M5), measured -68 / -62 dB). A sub-aperture evaluated at
+    its reference position instead of each pulse's antenna, or its mirror chain left out,
+    defocuses these images (0 dB or worse)."""
     one = simulate(scene, sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 1})
     many = simulate(scene, sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 16})
     assert many.trace.pulses_per_trace == 16 and one.trace.pulses_per_trace == 1
@@ -67,14 +69,19 @@ def test_sub_apertures_image_like_per_pulse_tracing_with_a_sixteenth_of_the_cast
     assert many.trace.shadow_rays < one.trace.shadow_rays / 10
 
 
-def test_oblique_dihedral_changes_less_with_sub_apertures_than_with_the_lattice(monkeypatch):
-    """A wall-ground dihedral at 20 deg to the track returns mainly its tubes' staircase edges.
-    Moving the ray lattice by (0.37, 0.41) of a cell changes its image by +2 dB NRMSE (it is all
-    lattice); sub-apertures of 16 pulses by -15 dB (measured): well below what the lattice leaves
-    open."""
+@pytest.mark.parametrize("lit_regions", ["patches", "tiles"])
+def test_oblique_dihedral_changes_less_with_sub_apertures_than_with_the_lattice(monkeypatch, lit_regions):
+    """A wall-ground dihedral at 20 deg to the track. With tiles it returns mainly its tubes'
+    staircase edges: moving the ray lattice by (0.37, 0.41) of a cell changes its image by +2 dB
+    NRMSE (it is all lattice); sub-apertures of 16 pulses by -15 dB (measured), well below what
+    the lattice leaves open. With patches (the default, docs/physics.md (M1)-(M7)) the lattice
+    changes nothing (measured -146 dB: only the rays of the sphere-free scene's lattice move,
+    which nothing here uses), and sub-apertures change it by -41 dB (measured: its lit regions
+    fixed at the reference position, (M3))."""
     sensor = {"incidence_angle": 30.0, "heading": 20.0}
-    one = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 1})
-    many = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 16})
+    settings = {"lit_regions": lit_regions}
+    one = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 1, **settings})
+    many = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 16, **settings})
     real = planning.ray_footprint
 
     def shifted(*args, **kwargs):
@@ -83,9 +90,12 @@ def test_oblique_dihedral_changes_less_with_sub_apertures_than_with_the_lattice(
                                    + 0.41 * fp.spacing_range * fp.look)
 
     monkeypatch.setattr(planning, "ray_footprint", shifted)
-    moved = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 1})
+    moved = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={"pulses_per_trace": 1, **settings})
     lattice, sub = _nrmse_db(moved.image.data, one.image.data), _nrmse_db(many.image.data, one.image.data)
-    assert sub < lattice - 8.0, (sub, lattice)
+    if lit_regions == "tiles":
+        assert sub < lattice - 8.0, (sub, lattice)
+    else:
+        assert lattice < -100.0 and sub < -35.0, (sub, lattice)
 
 
 @pytest.mark.parametrize("target,depth", [("trihedral", 3), ("dihedral", 2), ("plate", 1)])
@@ -103,10 +113,12 @@ def test_canonical_rcs_does_not_depend_on_the_sub_aperture(tmp_path, target, dep
 @pytest.mark.parametrize("pulses", [1, 16])
 def test_cancelled_interior_terms_change_nothing_and_are_not_evaluated(tmp_path, pulses):
     """A smooth 40 m concrete plate at 45 deg with a 6 m wall on it, the trihedral and a gable
-    roof (one mesh, two slopes at 20 deg to the track): skipping the terms neighbouring tubes
-    cancel (PO5) changes the images by less than -45 dB and evaluates at most half the returns.
-    A neighbour looked up on the wrong side, or a term skipped whose neighbour is on the other
-    slope of the same shape, leaves uncancelled terms or removes the ridge's."""
+    roof (one mesh, two slopes at 20 deg to the track): skipping the terms that cancel (the
+    patches' shared patch lines and junctions, docs/physics.md (M5); the tubes' neighbours, (PO5))
+    changes the images by less than -45 dB and evaluates at most half the returns (the
+    trihedral's faces are a patch each, pieces with little inside to cancel: at most three
+    quarters). A neighbour looked up on the wrong side, or a term skipped whose neighbour is on
+    the other slope of the same shape, leaves uncancelled terms or removes the ridge's."""
     body = ('<bsdf type="radar" id="c"><string name="material" value="concrete"/></bsdf>'
             '<shape type="rectangle"><transform name="to_world"><scale x="20" y="20"/></transform><ref id="c"/></shape>'
             '<shape type="rectangle"><transform name="to_world"><scale x="3" y="2"/><rotate x="1" angle="-90"/>'
@@ -126,8 +138,9 @@ def test_cancelled_interior_terms_change_nothing_and_are_not_evaluated(tmp_path,
         assert np.abs(runs[0].image.data).max() > 0
         error = _nrmse_db(runs[1].image.data, runs[0].image.data)
         assert error < -45.0, (scene, error)
-        assert runs[1].trace.pulse_paths < 0.5 * runs[0].trace.pulse_paths, (scene, runs[1].trace.pulse_paths,
-                                                                             runs[0].trace.pulse_paths)
+        share = 0.75 if scene == "trihedral" else 0.5
+        assert runs[1].trace.pulse_paths < share * runs[0].trace.pulse_paths, (scene, runs[1].trace.pulse_paths,
+                                                                               runs[0].trace.pulse_paths)
 
 
 def test_automatic_sub_aperture_and_bad_values():

@@ -58,14 +58,20 @@ def test_smooth_plane_interior_is_dark():
     assert 20 * math.log10(dense) < -40.0
 
 
-def test_energy_per_order_and_rays_are_consistent():
-    """Energy per order is finite and non-negative; with max_depth 3 there are exactly 3 orders;
-    closest-hit casts never increase with the order (rays only leave the scene)."""
-    sim = simulate("dihedral", integrator_overrides={"max_depth": 3})
+@pytest.mark.parametrize("lit_regions", ["patches", "tiles"])
+def test_energy_per_order_and_rays_are_consistent(lit_regions):
+    """Energy per order is finite and non-negative; with max_depth 3 there are exactly 3 orders.
+    Tubes: closest-hit casts never increase with the order (rays only leave the scene). Patches:
+    every order's rays are counted (its pieces' samples and the discovery rays that found its
+    chains, docs/physics.md (M4), (M6)), each sample checked once on its way back."""
+    sim = simulate("dihedral", integrator_overrides={"max_depth": 3, "lit_regions": lit_regions})
     t = sim.trace
     assert t.energy_per_order.shape == (3,) and np.all(np.isfinite(t.energy_per_order))
     assert np.all(t.energy_per_order >= 0)
-    assert np.all(np.diff(t.rays_per_order) <= 0)
+    if lit_regions == "tiles":
+        assert np.all(np.diff(t.rays_per_order) <= 0)
+    else:
+        assert np.all(t.rays_per_order > 0)
     assert t.shadow_rays <= t.rays_per_order.sum()
     assert t.energy_outside_window == 0.0
 
@@ -128,12 +134,14 @@ def test_info_estimates_bound_what_the_tracer_does():
     assert c.raw_bytes == sim.raw.data.nbytes and c.image_bytes == sim.image.data.nbytes
 
 
-def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monkeypatch):
-    """A small ``max_batch_rays`` splits the sub-apertures into batches, a sub-aperture's lattice
-    into row chunks and a small object's refined cells into several launches: every launch stays
-    within the ceiling (or one refined cell's m^2 tubes, which are not split) and the raw data
-    equal the default's, on a track whose heading (37 deg) is along no axis (a launch placed at
-    the wrong pulse, a chunk dropped or traced twice would show)."""
+@pytest.mark.parametrize("lit_regions", ["patches", "tiles"])
+def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monkeypatch, lit_regions):
+    """A small ``max_batch_rays`` splits the sub-apertures into batches (and, with tiles, a
+    sub-aperture's lattice into row chunks and a small object's refined cells into several
+    launches: every launch stays within the ceiling, or one refined cell's m^2 tubes, which are
+    not split); the raw data equal the default's, on a track whose heading (37 deg) is along no
+    axis (a launch placed at the wrong pulse, a chunk dropped or traced twice would show). The
+    patches trace each sub-aperture on its own (docs/physics.md (M6)): batches change nothing."""
     from sarmitsuba.scene import canonical as C
     from sarmitsuba.tracing import trace as trace_module
 
@@ -141,21 +149,25 @@ def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monk
         '<shape type="rectangle"><transform name="to_world"><scale x="6" y="6"/></transform>'
         '<bsdf type="radar"><string name="material" value="concrete"/></bsdf></shape>'))
     sensor = {"heading": 37.0, "n_pulses": 24}
-    integrator = {"pulses_per_trace": 4}                 # six sub-apertures
+    integrator = {"pulses_per_trace": 4, "lit_regions": lit_regions}           # six sub-apertures
     reference = simulate(str(xml), sensor_overrides=sensor, integrator_overrides=integrator)
     launches = []
 
     class Recording(trace_module.Kernel):
         def __call__(self, launch, **kwargs):
             blocks = launch.blocks
-            launches.append((launch.n_lanes, int((blocks.m.astype(np.int64) ** 2 * (blocks.m > 1)).max())))
+            refined = int((blocks.m.astype(np.int64) ** 2 * (blocks.m > 1)).max(initial=0))
+            launches.append((launch.n_lanes, refined, launch.n_subapertures))
             return super().__call__(launch, **kwargs)
 
     monkeypatch.setattr(trace_module, "Kernel", Recording)
     ceiling = 4096
     small = simulate(str(xml), sensor_overrides=sensor, integrator_overrides={**integrator, "max_batch_rays": ceiling})
-    assert len(launches) > 8 and any(tubes for _, tubes in launches)       # chunked, refinement included
-    assert all(lanes <= max(ceiling, tubes) for lanes, tubes in launches), launches
+    if lit_regions == "tiles":
+        assert len(launches) > 8 and any(tubes for _, tubes, _ in launches)       # chunked, refinement included
+        assert all(lanes <= max(ceiling, tubes) for lanes, tubes, _ in launches), launches
+    else:
+        assert len(launches) > 1 and max(subs for _, _, subs in launches) < 6, launches     # batched
     a, b = reference.raw.data, small.raw.data
     assert np.abs(a - b).max() <= 1e-4 * np.abs(a).max()
 

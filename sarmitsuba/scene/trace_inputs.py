@@ -27,8 +27,8 @@ __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "Mat
 
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
-#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M7), (T3), (T6)).
-LIT_REGIONS = ("patches", "tiles", "cells")
+#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M7), (T3)).
+LIT_REGIONS = ("patches", "tiles")
 #: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
 #: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit`).
 RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
@@ -80,14 +80,13 @@ class TraceSettings:
         path contains H (an accuracy knob, ``benchmarks/polarimetry.py``). Cross-polarised
         channels always need ``jones``.
     lit_regions : str
-        ``tiles`` (default): a first-bounce tube integrates its whole tile, so a facet's lit region
-        is bounded by the tubes' staircase (T3). ``cells``: at every bounce order, a cell whose
-        neighbours' rays followed other chains of facets or were hidden integrates, per pulse,
-        each chain's exact piece of it (the parts mirrored and projected from the pulse's
-        antenna, less the parts in front and the shadows), so facet borders, shadows and the
-        footprints of multi-bounce chains return as straight edges, and a rough part's
-        scatterers are counted by the pieces that hold them (T6). 2 to 25 times the trace time,
-        and minutes of kernel compilation at depth 2 and 3 on a cold LLVM cache (T6).
+        ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M7)): every
+        face's patches, fixed in its own frame, integrate physical optics exactly over what the
+        antenna sees of them, through chains of mirrors found by rays, so the image depends on
+        the scene alone. ``tiles``: the fast preview; each ray tube integrates its whole tile on
+        the ray lattice, so a facet's lit region is bounded by the tubes' staircase, which moves
+        with the lattice (T3). Shapes that are not triangle meshes (spheres) are always traced
+        with tubes.
     """
 
     max_depth: int = 3
@@ -129,8 +128,8 @@ class TraceSettings:
                                  "ray tube; scalar: one co-polarised channel with scalar coefficients)")
         if self.lit_regions not in LIT_REGIONS:
             raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
-                                 f"{', '.join(repr(m) for m in LIT_REGIONS)} (tiles: whole tubes' tiles; cells: "
-                                 "cells at facet borders and shadows cut to the geometry, docs/physics.md (T6))")
+                                 f"{', '.join(repr(m) for m in LIT_REGIONS)} (patches: scattering anchored to the mesh, "
+                                 "docs/physics.md (M1)-(M7); tiles: the ray tubes' tiles, a fast preview)")
         if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")

@@ -20,7 +20,8 @@ import numpy as np
 from .patches import Surfaces
 from .polygons import EVERYTHING
 
-__all__ = ["Chains", "unfold", "region_lines", "unfolded_lines", "path_points", "image_source", "facing_sign"]
+__all__ = ["Chains", "unfold", "region_lines", "unfolded_lines", "unfolded_frame", "to_face_lines", "path_points",
+           "image_source", "facing_sign"]
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def _windows(surfaces: Surfaces, chains: Chains, i: int, rows: np.ndarray):
     return normal, offset, corners, surfaces.n_corners[part]
 
 
-def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The half-planes, in the face coordinates of each chain's last part, of the points the
     antenna reaches through the chain, eq. (M3), and whether the chain returns at all.
 
@@ -125,20 +126,24 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         inside it (one plane through ``A`` and each window edge); consecutive windows crossed in
         order.
     valid : bool [n]
-        The chain can return: the antenna sees the last part from the side the wave arrives on
-        (its image source's) and no plane of the chain holds its image source. (Which side of a
-        closed shape can be seen is left to the visibility rays: meshes' normals are not always
-        consistent.)
+        The chain exists: no plane of the chain holds the antenna or its image in the earlier
+        mirrors.
+    returns : bool [n]
+        It can also return physical optics: the antenna sees the last part from the side the wave
+        arrives on (its image source's). A chain that does not return may still light its region
+        for the next bounce order. (Which side of a closed shape can be seen is left to the
+        visibility rays: meshes' normals are not always consistent.)
     """
     n, depth = chains.parts.shape
     last = chains.last
     source = image_source(chains, antenna)
     arriving = facing_sign(surfaces, last, source)
-    valid = (arriving != 0) & (arriving == facing_sign(surfaces, last, antenna))
+    valid = arriving != 0
+    returns = valid & (arriving == facing_sign(surfaces, last, antenna))
     width = max(depth - 1, 0) * (1 + surfaces.polygon.shape[1]) + max(depth - 2, 0)
     lines = np.tile(np.asarray(EVERYTHING), (n, max(width, 1), 1))
     k = chains.order
-    frame_o, frame_u, frame_v = _unfolded_frame(surfaces, chains)
+    frame_o, frame_u, frame_v = unfolded_frame(surfaces, chains)
     slot = 0
     previous = None
     for i in range(depth - 1):
@@ -149,7 +154,7 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         valid[rows] &= facing_sign(surfaces, chains.parts[rows, i], _source_of(chains, rows, i, antenna[rows])) != 0
         # A and y on opposite sides of the window's plane: sign(a) n . (y - A) > 0
         g = np.sign(a)[:, None] * normal
-        lines[rows, slot] = _to_face(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
+        lines[rows, slot] = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
         slot += 1
         slots = np.arange(corners.shape[1])[None, :] < n_corners[:, None]
         centre = (corners * slots[..., None]).sum(axis=1) / n_corners[:, None]
@@ -159,21 +164,21 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
             g = np.cross(p, q)
             g *= np.sign(np.einsum("mi,mi->m", g, centre - antenna[rows]))[:, None]
             live = e < n_corners
-            line = _to_face(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
+            line = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
             lines[rows, slot] = np.where(live[:, None], line, EVERYTHING)
             slot += 1
         if previous is not None:           # t_{i-1} < t_i: (n_{i-1} / a_{i-1} - n_i / a_i) . (y - A) > 0
             prev_rows, prev_normal, prev_a = previous
             g = prev_normal[np.searchsorted(prev_rows, rows)] / prev_a[np.searchsorted(prev_rows, rows), None] \
                 - normal / np.where(a != 0, a, 1.0)[:, None]
-            lines[rows, slot] = _to_face(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows],
+            lines[rows, slot] = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows],
                                          frame_v[rows])
             slot += 1
         previous = (rows, normal, np.where(a != 0, a, 1.0))
-    return lines, valid
+    return lines, valid, returns & valid
 
 
-def _unfolded_frame(surfaces: Surfaces, chains: Chains):
+def unfolded_frame(surfaces: Surfaces, chains: Chains):
     """The last part's face frame carried by ``U_d``: origin (on the plane), ``u``, ``v`` [n, 3]."""
     rows, k, last = np.arange(len(chains)), chains.order, chains.last
     lin = chains.lin[rows, k]
@@ -184,8 +189,8 @@ def _unfolded_frame(surfaces: Surfaces, chains: Chains):
 def unfolded_lines(surfaces: Surfaces, chains: Chains, g: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Half-spaces ``g . y + h >= 0`` of the unfolded point ``y = U_d(x)`` (``g`` [n, k, 3], ``h``
     [n, k]) as half-planes of ``x``'s face coordinates on each chain's last part: [n, k, 3]."""
-    origin, u, v = _unfolded_frame(surfaces, chains)
-    return np.stack([_to_face(g[:, j], h[:, j], origin, u, v) for j in range(g.shape[1])], axis=1)
+    origin, u, v = unfolded_frame(surfaces, chains)
+    return np.stack([to_face_lines(g[:, j], h[:, j], origin, u, v) for j in range(g.shape[1])], axis=1)
 
 
 def _source_of(chains: Chains, rows: np.ndarray, i: int, antenna: np.ndarray) -> np.ndarray:
@@ -193,7 +198,7 @@ def _source_of(chains: Chains, rows: np.ndarray, i: int, antenna: np.ndarray) ->
     return np.einsum("mji,mj->mi", chains.lin[rows, i], antenna - chains.shift[rows, i])
 
 
-def _to_face(g: np.ndarray, h: np.ndarray, origin: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def to_face_lines(g: np.ndarray, h: np.ndarray, origin: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The 3-D half-space ``g . y + h >= 0`` on the plane ``origin + x u + y v`` as a normalised
     face half-plane ``(a, b, c)`` float64 [m, 3]; a plane parallel to the face becomes ``(0, 0,
     +-1)``."""

@@ -216,10 +216,10 @@ class PatchTerms:
             data["segment_count"] = device_array(mi.UInt32, pieces.segment_count)
             data["segment_mid"] = device_array(v3, pieces.segment_mid.T)
             data["segment_edge"] = device_array(v3, pieces.segment_edge.T)
-        data["gamma"], data["jones"] = self._arrival(lanes, depth)
+        data["gamma"], data["jones"] = self.arrival(lanes, depth)
         return data
 
-    def _arrival(self, lanes: TermLanes, depth: int):
+    def arrival(self, lanes, depth: int):
         """Each lane's product of the earlier bounces' reflection coefficients (of their specular
         factors only with Jones matrices) and the Jones matrix arriving at its point, from the
         reference position (docs/physics.md (R), (P3')); ``(1, None)`` at the first bounce."""
@@ -296,7 +296,7 @@ class PatchTerms:
             power = dr.squared_norm(values[0])
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
-            dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), live & inside)
+            dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), live)
             dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), live & ~inside)
 
     def _coefficients(self, data, u, ut, ut2, split, antenna, view, s, dist, d, b, depth: int):

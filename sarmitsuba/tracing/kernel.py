@@ -36,7 +36,6 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .cell_terms import PartTable
 from ..core.constants import SPEED_OF_LIGHT
 from .deposit import SPECTRAL_ORDERS
 from ..scene.effects import EffectSet, rough_materials
@@ -69,7 +68,7 @@ class Flags:
     SPLIT_1, SPLIT_2 = 32, 64   # footprint edge split into its two end terms (PO2) for every pulse
     BACK = 128             # the ray met the surface from its back (against its own normal)
     UNDECIDED_1, UNDECIDED_2 = 256, 512   # split for some pulses of the sub-aperture only (T3)
-    PIECED = 1024          # a mixed cell: its pieces (T6) replace its tile
+    MESH_ONLY = 1024       # every hit so far on a triangle mesh: the patches return it (M1)-(M7)
 
 
 @dataclass
@@ -130,7 +129,7 @@ class Hit:
     s: mi.Float64           # unfolded length reference -> hit, m
     shape: mi.UInt32        # Mitsuba shape id
     plane: mi.UInt32        # hash of the facet's plane (quantised normal and offset)
-    part: mi.UInt32         # convex part of the mesh (:mod:`.facets`), INVALID when not tabled
+    mesh: mi.Bool           # the hit lies on a triangle mesh
 
 
 @dataclass
@@ -167,7 +166,6 @@ class Record:
     sub: mi.UInt32
     flags: mi.UInt32
     key: mi.UInt32
-    part: mi.UInt32
 
 
 # ============================================================================ the steps
@@ -207,15 +205,12 @@ def intersect(scene, tables: "_Tables", tube: Tube, reference: mi.Array3f64) -> 
     to_ref = reference - p64
     dist = dr.norm(to_ref)
     b = mi.Vector3f(to_ref / dist)
-    part = mi.UInt32(INVALID)
-    if tables.parts is not None:           # cell pieces (T6): the hit's convex part
-        part = dr.select(mesh_hit, dr.gather(mi.UInt32, tables.parts.triangle_part, triangle, mesh_hit), INVALID)
     plane = (mi.UInt32(mi.Int32(dr.round(offset * 100.0)))                   # the facet's plane: offset [cm],
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.x * 16384.0))) * 0x01000193)   # normal to 6e-5
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.y * 16384.0))) * 0x00010001)
              ^ (mi.UInt32(mi.Int32(dr.round(normal64.z * 16384.0))) * 0x00000101))
     return Hit(valid=valid, p=mi.Point3f(p64), p64=p64, n64=n64, n=n, back=back, cos_i=cos_i, b=b,
-               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape, plane=plane, part=part)
+               cos_b=dr.dot(n, b), dist=dist, s=tube.s + dr.norm(p64 - tube.origin), shape=shape, plane=plane, mesh=mesh_hit)
 
 
 def shadow_ray(hit: Hit) -> mi.Ray3f:
@@ -231,30 +226,19 @@ def visible(scene, hit: Hit, active: mi.Bool) -> mi.Bool:
     return active & ~scene.ray_test(shadow_ray(hit), active)
 
 
-def blocker(scene, tables: "_Tables", hit: Hit, active: mi.Bool) -> mi.UInt32:
-    """The convex part that hides the hit from the reference position (the first hit of its
-    :func:`shadow_ray`; INVALID where none or not a mesh part)."""
-    pi = scene.ray_intersect_preliminary(shadow_ray(hit), coherent=False, active=active)
-    found = active & pi.is_valid()
-    shape = dr.reinterpret_array(mi.UInt32, pi.shape)
-    mesh = found & (dr.gather(mi.UInt32, tables.is_mesh, shape, found) > 0)
-    triangle = dr.gather(mi.UInt32, tables.triangle_base, shape, mesh) + pi.prim_index
-    return dr.select(mesh, dr.gather(mi.UInt32, tables.parts.triangle_part, triangle, mesh), INVALID)
-
-
 def record(tube: Tube, hit: Hit, unfolded: mi.Array3f64, row: mi.UInt32, edges: tuple, first: bool) -> Record:
     """The visible hit's record: the footprint from the reference position, the hit's place
     ``unfolded`` on the unfolded path and the mirror chain, the reflections so far and the
     lattice bookkeeping, eq. (T3) (the edges' splits are added by
     :meth:`sarmitsuba.tracing.returns.Returns.splits`). ``first``: this is the first bounce (the hit is
     the tube's first hit)."""
-    flags = tube.flags | dr.select(hit.back, Flags.BACK, 0)
+    flags = (tube.flags | dr.select(hit.back, Flags.BACK, 0)) & dr.select(hit.mesh, mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF ^ Flags.MESH_ONLY))
     n_unfolded = mi.Vector3f(dr.dot(tube.m1, hit.n), dr.dot(tube.m2, hit.n), dr.dot(tube.m3, hit.n))
     return Record(p64=hit.p64, n=hit.n, e1=edges[0], e2=edges[1], unfolded=unfolded, n_unfolded=n_unfolded,
                   m1=tube.m1, m2=tube.m2, m3=tube.m3, first_hit=hit.p64 if first else tube.first_hit,
                   gamma=tube.gamma, jones=tube.jones, aim=tube.aim, row=row, shape=hit.shape, lattice=tube.lattice, block=tube.block,
                   sub=tube.sub,
-                  flags=mi.UInt32(flags), key=_facet_key(tube, hit), part=hit.part)
+                  flags=mi.UInt32(flags), key=_facet_key(tube, hit))
 
 
 def _facet_key(tube: Tube, hit: Hit) -> mi.UInt32:
@@ -279,7 +263,8 @@ def reflect(tube: Tube, hit: Hit, r: mi.Complex2f, first: bool, jones=None) -> T
     return Tube(ray=_spawn(hit.p, n, mi.Vector3f(direction)), t1=mirror(tube.t1), t2=mirror(tube.t2), s=hit.s,
                 origin=hit.p64, direction=direction, m1=mirror(tube.m1), m2=mirror(tube.m2),
                 m3=mirror(tube.m3), first_hit=hit.p64 if first else tube.first_hit, gamma=tube.gamma * r,
-                jones=tube.jones if jones is None else jones, aim=tube.aim, lattice=tube.lattice, block=tube.block, sub=tube.sub, flags=tube.flags,
+                jones=tube.jones if jones is None else jones, aim=tube.aim, lattice=tube.lattice, block=tube.block, sub=tube.sub,
+                flags=tube.flags & dr.select(hit.mesh, mi.UInt32(0xFFFFFFFF), mi.UInt32(0xFFFFFFFF ^ Flags.MESH_ONLY)),
                 key=_facet_key(tube, hit), active=hit.valid)
 
 
@@ -315,7 +300,6 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
-    parts: "PartTable | None" = None          # cell pieces (T6): the meshes' convex parts
 
 
 # ============================================================================ the kernel
@@ -369,15 +353,16 @@ class Kernel:
             self.tables.shape_origin = mi.Array3f64(*(table.shape_origin[:, c].astype(np.float64) for c in range(3)))
             self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
                                            for a in range(3))
-        if settings.lit_regions == "cells":
-            self.tables.parts = PartTable.of(scene)
         self.returns = Returns(params, window, footprint, settings, self.tables, effects, self.beam_sines)
         self.mesh = None
+        #: Whether the tubes are traced: ``tiles``, or patches with shapes that are not meshes (spheres).
+        self.tubes = settings.lit_regions != "patches" or self.tables.other_shapes
         if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M7)
             bbox = scene.bbox()
             self.mesh = MeshTracer(scene, surfaces_of(scene, material_table), self.returns, params, settings,
                                    footprint.patch_size, not (effects.spotlight or effects.curved_track),
-                                   (np.array(bbox.min, float), np.array(bbox.max, float)))
+                                   (np.array(bbox.min, float), np.array(bbox.max, float)), material_table,
+                                   footprint.scatterer_spacing)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None
@@ -388,16 +373,20 @@ class Kernel:
         (gridded kernels) or ``paths`` (dict of arrays, ``exact``), and the counters."""
         st = self.settings
         ctx = self.returns.context(launch, capacity)
-        if self.mesh is not None:
+        if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M7)
             ctx["mesh"] = self.mesh(ctx, launch)
             out = self.returns.collect(ctx)
             if out is None:                     # exact kernel: too many scatterers for the buffer
                 return self(launch, capacity=ctx["needed"])
-            out["mesh"] = ctx["mesh"]
+            out["mesh"] = stats = ctx["mesh"]
+            for depth, (samples, carried) in enumerate(zip(stats["samples"], stats["carried"])):
+                out["rays"][depth] += samples          # the points rays were aimed at, per bounce order
+                out["carried"][depth] += carried
+            for depth, casts in enumerate(stats["discovery"]):
+                out["rays"][depth + 1] += casts        # and the rays that looked for its chains
+            out["shadow"] += int(sum(stats["samples"]))   # each checked on its way back
             return out
         tube, n_lanes = self.launch(launch)
-        if st.lit_regions == "cells":
-            self.returns.open_lanes(ctx, self._traced, n_lanes)
         for depth in range(st.max_depth):
             if tube is None or dr.width(tube.active) == 0:
                 break
@@ -439,10 +428,6 @@ class Kernel:
         rec.flags |= dr.select(split[0], Flags.SPLIT_1, 0) | dr.select(split[1], Flags.SPLIT_2, 0) \
             | dr.select(undecided[0], Flags.UNDECIDED_1, 0) | dr.select(undecided[1], Flags.UNDECIDED_2, 0)
         vis = visible(self.scene, hit, hit.valid & (hit.cos_b > 0))
-        if st.lit_regions == "cells":          # what each lane met, for the cell plan (T6)
-            hidden = hit.valid & (hit.cos_b > 0) & ~vis
-            ret.note_lanes(ctx, tube.lattice, hit.part, _facet_key(tube, hit), hit.valid, vis,
-                           blocker(self.scene, self.tables, hit, hidden))
         dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0))
         ret.tally(ctx, rec, hit, d, alpha, specular, r, count, depth, vis)
         last = depth + 1 == st.max_depth          # the last bounce order: no reflection compiled
@@ -522,6 +507,8 @@ class Kernel:
             flags |= dr.select((lo_s >= lo_b) & (hi_s <= hi_b), Flags.INTERIOR, 0)
         else:
             flags |= Flags.INTERIOR
+        if self.mesh is not None:            # patches return the chains of mesh parts; tubes only the rest
+            flags |= Flags.MESH_ONLY
         to_p = aim - reference
         r = dr.norm(to_p)
         d64 = to_p / r

@@ -52,6 +52,10 @@ class LitPieces:
     blockers : int64 [n, c]
         For mixed pieces, the parts that hid some corner on some leg, as ``leg * n_parts + part``
         (-1 beyond; ``leg`` 0 .. d the transmit legs, d + 1 the return).
+    samples : int
+        The points the rays were aimed at (each along every leg of its path).
+    sent : float64 [n]
+        The fraction of each piece's samples the wave reaches (every leg but the return clear).
     """
 
     chains: Chains
@@ -60,6 +64,8 @@ class LitPieces:
     transmit: np.ndarray
     mixed: np.ndarray
     blockers: np.ndarray
+    samples: int = 0
+    sent: np.ndarray | None = None
 
 
 def corner_samples(pieces: Pieces) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +139,7 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
         The beam's reach: pieces are cut only where ``lo <= g . U_d(x) <= hi`` (the unfolded
         path's end along the track, for a straight stripmap track).
     """
-    lines, valid = region_lines(surfaces, chains, antenna)
+    lines, valid, returns = region_lines(surfaces, chains, antenna)
     last = chains.last
     region, count = clip(surfaces.polygon[last], np.where(valid, surfaces.n_corners[last], 0), lines)
     reach = None
@@ -142,13 +148,14 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
         reach = unfolded_lines(surfaces, chains, np.concatenate([g, -g]).reshape(2, -1, 3).transpose(1, 0, 2),
                                np.stack([-lo, hi], axis=1))
     pieces = pieces_of(region, count, patch, reach)
-    return classify(surfaces, chains, pieces, antenna, rays, visibility)
+    return classify(surfaces, chains, pieces, antenna, rays, visibility, returns)
 
 
 def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.ndarray, rays: Rays,
-             visibility: PathVisibility) -> LitPieces:
+             visibility: PathVisibility, returns: np.ndarray | None = None) -> LitPieces:
     """What the antenna sees of ``pieces`` (their region ``r`` is chain ``r``): rays along every leg
-    of the paths to their corners (:class:`sarmitsuba.tracing.visibility.PathVisibility`), eq. (M4)."""
+    of the paths to their corners (:class:`sarmitsuba.tracing.visibility.PathVisibility`), eq. (M4).
+    ``returns`` bool [n_chains]: which chains can return at all (default all)."""
     order = int(chains.order.max(initial=0))
     coords, owner = corner_samples(pieces)
     chain = pieces.region[owner]
@@ -156,6 +163,8 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     out_mask = (1 << (order + 1)) - 1
     out_clear = (bits & out_mask) == out_mask
     both = out_clear if order == 0 else out_clear & ((bits >> (order + 1)) & 1).astype(bool)
+    if returns is not None:
+        both &= returns[chain]
     n = len(pieces)
     total = np.bincount(owner, minlength=n)
     lit_count = np.bincount(owner, weights=both, minlength=n)
@@ -163,7 +172,8 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     lit, transmit = (lit_count == total) & (total > 0), (sent_count == total) & (total > 0)
     mixed = ((lit_count > 0) & ~lit) | ((sent_count > 0) & ~transmit)
     blockers = _blockers(rays, surfaces, chains, coords, owner, chain, antenna, mixed)
-    return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers)
+    return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers,
+                     samples=len(owner), sent=sent_count / np.maximum(total, 1))
 
 
 def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed) -> np.ndarray:

@@ -25,12 +25,13 @@ import math
 
 import numpy as np
 
-from .chains import Chains, unfold
-from .integration import (AREA, NEAR_SPECULAR, OPEN_END, OPEN_MID, OPEN_START, SINC, SPLIT_END, SPLIT_START,
-                          PatchTerms, PieceTable, TermLanes)
+from .chains import Chains, image_source, unfold
+from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from .lit_pieces import LitPieces, classify, lit_pieces
 from .occlusion import clip_mixed
-from .patches import Pieces, Surfaces, cell_key, pieces_of
+from .surface_clutter import ClutterKernel
+from .term_lanes import build_lanes, scatterer_lanes, segments
+from .patches import Pieces, Surfaces, pieces_of
 from .physical_optics import SINC_REGIME, split_threshold
 from .visibility import PathVisibility, Rays, lift
 
@@ -69,14 +70,19 @@ class MeshTracer:
         The scene's bounding box (for the beam's reach).
     """
 
-    def __init__(self, scene, surfaces: Surfaces, returns, params, settings, patch: float, straight: bool, bbox):
+    def __init__(self, scene, surfaces: Surfaces, returns, params, settings, patch: float, straight: bool, bbox,
+                 table=None, cell: float = 0.0):
         self.surfaces, self.returns = surfaces, returns
         self.rays = Rays(scene, surfaces)
         self.visibility = PathVisibility(scene, surfaces)
         self.alpha_s = split_threshold(params.bandwidth, params.frequency)
         self.terms = PatchTerms(returns, self.alpha_s)
+        self.table, self.cell, self.seed = table, cell, settings.seed
+        self.clutter = ClutterKernel(returns, cell, self.terms.arrival) if returns.clutter_on else None
+        self.rough_row = (table.clutter[:, 0] > 0) if table is not None and table.clutter is not None else None
         self.k = returns.k
         self.depth = settings.max_depth
+        self.cancel = settings.cancel_interior
         self.patch = patch
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)
@@ -90,22 +96,66 @@ class MeshTracer:
         counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int}``."""
         reference = launch.reference
         views = self._views(launch)
-        stats = {"pieces": [], "lanes": [], "chains": []}
+        stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
         lit = self._first_bounce(launch)
         for depth in range(self.depth):
             if depth > 0:
+                casts = self.rays.casts
                 chains = self._discover(lit, reference)
+                stats["discovery"].append(self.rays.casts - casts)
                 if len(chains) == 0:
                     break
                 lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility, self.patch,
                                  self._span(launch, chains) if self.straight else None)
             stats["chains"].append(len(lit.chains))
-            lanes, table = self._lanes(lit, views, depth, reference)
+            stats["samples"].append(lit.samples)
+            stats["carried"].append(self._carried(lit, reference, launch.count))
+            lanes, table, clipped = self._lanes(lit, views, depth, reference)
             stats["pieces"].append(int(lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             self.terms(ctx, lanes, table, depth)
+            if self.clutter is not None:
+                scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(lit.lit), clipped, lit.pieces,
+                                             self.rough_row, self.table, self.cell, self.seed, reference, depth)
+                self.clutter(ctx, scatterers, depth)
         stats["casts"] = self.rays.casts + self.visibility.casts
         return stats
+
+    def _carried(self, lit: LitPieces, reference: np.ndarray, count: np.ndarray) -> float:
+        """The power the transmitted wave carries into a bounce order's transmit-lit pieces, times
+        their pulses: ``sum Omega |r_1 .. r_d|^2`` (solid angle from the image source, the earlier
+        bounces' reflection coefficients at the reference position): the energy check of the
+        chains (as the tubes' ``carried_power_per_order``)."""
+        s, chains = self.surfaces, lit.chains
+        reached = np.flatnonzero(lit.sent > 0)              # mixed pieces by the share of their samples
+        pieces = lit.pieces.select(reached)
+        if len(pieces) == 0 or self.table is None:
+            return 0.0
+        chain = pieces.region
+        area, centroid2, _, _ = pieces.geometry()
+        point = s.to_world(chains.last[chain], centroid2)
+        source = image_source(chains, reference[chains.sub])[chain]
+        leg = point - source
+        distance = np.linalg.norm(leg, axis=1)
+        omega = lit.sent[reached] * area * np.abs(np.einsum("mi,mi->m", leg, s.normal[chains.last[chain]])) / distance ** 3
+        first = chains.unfolded(point, chain) - reference[chains.sub[chain]]
+        first /= np.linalg.norm(first, axis=1, keepdims=True)
+        # with Jones matrices, the mean over the transmit channels of TE and TM carried through
+        # (as the tubes' |J|^2 / 2 where the planes of incidence agree); else the channel's own r
+        tables = (self.table.table_te, self.table.table_tm) if self.returns.polarimetric else (self.table.table,)
+        powers = [np.ones(len(chain)) for _ in tables]
+        for i in range(int(chains.order.max(initial=0))):
+            live = chains.order[chain] > i
+            window = np.maximum(chains.parts[chain, i], 0)
+            d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
+            cos = np.abs(np.einsum("mi,mi->m", s.normal[window], d))
+            for power, table in zip(powers, tables):
+                index = np.clip(np.round(cos * (table.shape[1] - 1)).astype(np.int64), 0, table.shape[1] - 1)
+                factor = np.abs(table[s.row[window], index]) ** 2 * self.table.specular[s.row[window]] ** 2
+                power *= np.where(live, factor, 1.0)
+        carried = float(np.sum(omega * (sum(powers) / len(powers)) * count[chains.sub[chain]]))
+        # a power the float32 kernels could not hold is 0 there (flush to zero), and 0 here
+        return carried if carried >= np.finfo(np.float32).tiny else 0.0
 
     def _views(self, launch) -> np.ndarray:
         """float64 [n_s, 3, 3]: each sub-aperture's first pulse, reference position and last pulse."""
@@ -214,7 +264,7 @@ class MeshTracer:
         centroid = s.to_world(part, centroid2)
         stable = self._never_specular(chains, region, centroid, diagonal, views[chains.sub[region]])
         n = len(pieces)
-        seg_piece, p2, q2 = _segments(pieces, stable[:n])
+        seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
         kind = self._split_kinds(chains, region[seg_piece], part[seg_piece], p2, q2, views[chains.sub[region[seg_piece]]])
@@ -226,7 +276,9 @@ class MeshTracer:
                           np.concatenate([t_start, clipped.start[unstable_cut]]),
                           np.concatenate([t_end, clipped.end[unstable_cut]]))
         geometry = (region, part, centroid, centroid2, area, second, diagonal)
-        return _build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth)
+        lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
+                                   self.cancel)
+        return lanes, table, clipped
 
     def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
         """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN
@@ -267,10 +319,11 @@ class MeshTracer:
 
 def _discovery_subdivision(surfaces: Surfaces, patch: float) -> np.ndarray:
     """int64 [n_parts]: discovery points per patch edge on each part, ``ceil(P / (D /
-    DISCOVERY_POINTS))`` for its shape's bounding-box diagonal ``D`` (1 to
-    :data:`MAX_DISCOVERY_SUBDIVISION`)."""
+    DISCOVERY_POINTS))`` for the bounding-box diagonal ``D`` of its object (its connected body in
+    its shape), 1 to :data:`MAX_DISCOVERY_SUBDIVISION`."""
     corners = surfaces.to_world(np.arange(surfaces.n_parts), surfaces.polygon)
-    shape = np.unique(surfaces.shape_id, return_inverse=True)[1]
+    groups = surfaces.body if surfaces.body is not None else surfaces.shape_id
+    shape = np.unique(groups, return_inverse=True)[1]
     n = int(shape.max(initial=-1)) + 1
     lo = np.full((n, 3), np.inf)
     hi = np.full((n, 3), -np.inf)
@@ -321,134 +374,3 @@ def _arriving(chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np
     return np.einsum("mji,mj->mi", lin, first)
 
 
-def _segments(pieces, stable: np.ndarray):
-    """The boundary segments of lit pieces that need terms: ``(piece, start, end)``, face
-    coordinates. A stable piece leaves out each segment it shares with a stable neighbour of its
-    region across a patch line (their terms there are equal and opposite, docs/physics.md (M5))."""
-    piece, start, end, side = pieces.edges()
-    keep = np.ones(len(piece), bool)
-    if np.any(stable):
-        keys = np.sort(cell_key(pieces.region[stable], pieces.cell[stable]))
-        # patch lines bottom, right, top, left: the neighbour across is (0,-1), (1,0), (0,1), (-1,0)
-        step = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]])
-        rows = np.flatnonzero((side >= 0) & stable[piece])
-        other = cell_key(pieces.region[piece[rows]], pieces.cell[piece[rows]] + step[side[rows]])
-        at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
-        keep[rows[keys[at] == other]] = False
-    return piece[keep], start[keep], end[keep]
-
-
-def _cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:
-    """bool: the split lanes that meet another of the opposite sign at the same point, along the
-    same direction, in the same region, both of stable pieces: consecutive segments of one
-    straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped."""
-    candidate = np.flatnonzero(((lane_kind == SPLIT_START) | (lane_kind == SPLIT_END)) & stable[lane_piece])
-    drop = np.zeros(len(lane_kind), bool)
-    if len(candidate) == 0:
-        return drop
-    direction = edge2[candidate] / np.linalg.norm(edge2[candidate], axis=1, keepdims=True)
-    q = np.round(point2[candidate] * 1e6).astype(np.int64)
-    angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
-    columns = (angle, q[:, 1], q[:, 0], region[lane_piece[candidate]])
-    order = np.lexsort(columns)
-    same = np.ones(len(order), bool)                      # row equals the previous one (sorted)
-    same[0] = False
-    for c in columns:
-        sorted_c = c[order]
-        same[1:] &= sorted_c[1:] == sorted_c[:-1]
-    group = np.cumsum(~same) - 1
-    size = np.bincount(group)
-    starts = np.bincount(group, weights=lane_kind[candidate][order] == SPLIT_START)
-    pair = (size == 2) & (starts == 1)
-    drop[candidate[order[pair[group]]]] = True
-    return drop
-
-
-def _build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int):
-    """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
-    centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
-    1 (sinc) or 3 (open) point lanes; per unstable piece an area lane."""
-    region, part, centroid, centroid2, area, second, diagonal = geometry
-    seg_piece, p2, q2 = segments
-    copies = np.where(kind == SPLIT_START, 2, np.where(kind == SINC, 1, 3))
-    lane_seg = np.repeat(np.arange(len(seg_piece)), copies)
-    role = np.arange(len(lane_seg)) - np.repeat(np.cumsum(copies) - copies, copies)
-    base_kind = kind[lane_seg]
-    lane_kind = np.where(base_kind == SPLIT_START, SPLIT_START + role,
-                         np.where(base_kind == SINC, SINC, OPEN_START + role))
-    at_start = (lane_kind == SPLIT_START) | (lane_kind == OPEN_START)
-    at_end = (lane_kind == SPLIT_END) | (lane_kind == OPEN_END)
-    p, q = p2[lane_seg], q2[lane_seg]
-    point2 = np.where(at_start[:, None], p, np.where(at_end[:, None], q, 0.5 * (p + q)))
-    lane_piece = seg_piece[lane_seg]
-    unstable = np.flatnonzero(~stable)
-    lane_piece = np.concatenate([lane_piece, unstable])
-    lane_kind = np.concatenate([lane_kind, np.full(len(unstable), AREA)])
-    point2 = np.concatenate([point2, centroid2[unstable]])
-    mid2 = np.concatenate([0.5 * (p + q), centroid2[unstable]])
-    edge2 = np.concatenate([q - p, np.zeros((len(unstable), 2))])
-    drop = _cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable)
-    lane_piece, lane_kind, point2, mid2, edge2 = (a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2))
-    chain = region[lane_piece]
-    lane_part = part[lane_piece]
-    point = s.to_world(lane_part, point2)
-    middle = s.to_world(lane_part, mid2)
-    edge = edge2[:, :1] * s.axis_u[lane_part] + edge2[:, 1:] * s.axis_v[lane_part]
-    lin = chains.lin[chain, chains.order[chain]]
-    windows = _windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
-    lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
-                      middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
-                      normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
-                      sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
-                      piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **windows)
-    table = _piece_table(s, chains, geometry, table_segments)
-    return lanes, table
-
-
-def _windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> dict:
-    """The earlier bounces of each lane's path seen from its reference position: the unfolded
-    direction, and per bounce the part's row, the incidence cosine, the arriving direction and
-    the normal facing it (:class:`TermLanes`)."""
-    if depth == 0:
-        return {}
-    y = chains.unfolded(point, chain)
-    first = y - antenna
-    first /= np.linalg.norm(first, axis=1, keepdims=True)
-    rows, cos, direction, normal = [], [], [], []
-    for i in range(depth):
-        window = chains.parts[chain, i]
-        d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
-        n = s.normal[window]
-        dot = np.einsum("mi,mi->m", n, d)
-        rows.append(s.row[window])
-        cos.append(np.abs(dot))
-        direction.append(d)
-        normal.append(n * np.where(dot > 0, -1.0, 1.0)[:, None])
-    return dict(first=first.astype(np.float32), window_row=np.stack(rows, 1).astype(np.uint32),
-                window_cos=np.stack(cos, 1).astype(np.float32), window_direction=np.stack(direction, 1).astype(np.float32),
-                window_normal=np.stack(normal, 1).astype(np.float32))
-
-
-def _piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceTable:
-    """The :class:`PieceTable` of lit pieces; the boundary segments (``table_segments``: piece,
-    start, end) only of those that may be near the specular direction (their area terms
-    integrate them)."""
-    region, part, centroid, centroid2, area, second, diagonal = geometry
-    piece, start2, end2 = table_segments
-    order = np.argsort(piece, kind="stable")            # each piece's segments in one run
-    piece, start2, end2 = piece[order], start2[order], end2[order]
-    owner = part[piece]
-    rel = 0.5 * (start2 + end2) - centroid2[piece]
-    mid = rel[:, :1] * s.axis_u[owner] + rel[:, 1:] * s.axis_v[owner]
-    edge2 = end2 - start2
-    edge = edge2[:, :1] * s.axis_u[owner] + edge2[:, 1:] * s.axis_v[owner]
-    count = np.bincount(piece, minlength=len(region))
-    return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
-                      diagonal=diagonal.astype(np.float32), area=area.astype(np.float32),
-                      moments=second.astype(np.float32), axis_u=s.axis_u[part].astype(np.float32),
-                      axis_v=s.axis_v[part].astype(np.float32),
-                      segment_start=(np.cumsum(count) - count).astype(np.uint32), segment_count=count.astype(np.uint32),
-                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32))
-
-
-_unused = (OPEN_END, OPEN_MID, math)

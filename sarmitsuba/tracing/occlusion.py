@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .chains import Chains, _to_face, _unfolded_frame
+from .chains import Chains, to_face_lines, unfolded_frame
 from .patches import Surfaces
 from .polygons import EVERYTHING, clip, corner_slots, edge_lines
 
@@ -59,7 +59,7 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     a = offset - np.einsum("ki,ki->k", normal, antenna)
     sign = np.where(a >= 0, 1.0, -1.0)[:, None]
     # the frame the half-spaces act on: the unfolded point y (way out), the point x (return)
-    origin, u, v = _unfolded_frame(surfaces, chains.select(chain))
+    origin, u, v = unfolded_frame(surfaces, chains.select(chain))
     real_origin = surfaces.plane_point(chains.last[chain])
     real_u, real_v = surfaces.axis_u[chains.last[chain]], surfaces.axis_v[chains.last[chain]]
     origin = np.where(back[:, None], real_origin, origin)
@@ -67,7 +67,7 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     v = np.where(back[:, None], real_v, v)
 
     def put(slot, g, h):
-        lines[:, slot] = _to_face(g, h, origin, u, v)
+        lines[:, slot] = to_face_lines(g, h, origin, u, v)
 
     # O's plane crossed beyond A (t_O > 0), and before the point (t_O < 1) or the next window
     put(0, sign * normal, -np.einsum("ki,ki->k", sign * normal, antenna))
@@ -81,7 +81,7 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     put(1, g_far, h_far)
     g_prev, h_prev = _crossing_after(normal, a, windows, leg - 1, antenna)
     after = ~back & (leg > 0)
-    lines[:, 2] = np.where(after[:, None], _to_face(g_prev, h_prev, origin, u, v), EVERYTHING)
+    lines[:, 2] = np.where(after[:, None], to_face_lines(g_prev, h_prev, origin, u, v), EVERYTHING)
     count = surfaces.n_corners[occluder]
     slots = corner_slots(count, corners.shape[1])
     centre = (corners * slots[..., None]).sum(axis=1) / count[:, None]
@@ -90,7 +90,7 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
         q = np.roll(corners, -1, axis=1)[:, e] - antenna
         g = np.cross(p, q)
         g *= np.where(np.einsum("ki,ki->k", g, centre - antenna) >= 0, 1.0, -1.0)[:, None]
-        line = _to_face(g, -np.einsum("ki,ki->k", g, antenna), origin, u, v)
+        line = to_face_lines(g, -np.einsum("ki,ki->k", g, antenna), origin, u, v)
         lines[:, 3 + e] = np.where(slots[:, e, None], line, EVERYTHING)
     return lines
 

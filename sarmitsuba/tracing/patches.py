@@ -23,6 +23,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .covers import covered_parts, split_covered
 from .facets import MAX_PART_VERTICES, Parts, scene_parts
 from .polygons import clip, moments, pad
 
@@ -67,6 +68,15 @@ class Surfaces:
         The part of every triangle (-1: degenerate), at ``triangle_base[shape id] + primitive``.
     triangle_base : int64 [max shape id + 1]
         Each mesh's first row of ``triangle_part``; -1 for shapes that are not meshes.
+    split_start, split_count : int64 [n]
+        A part covered by another shape's coplanar face (:mod:`sarmitsuba.tracing.covers`) has no
+        corners of its own: a ray that meets its triangles meets the part among
+        ``split_parts[split_start : split_start + split_count]`` (its uncovered pieces and its
+        covers) that holds the hit point. 0 for every other part.
+    split_parts : int64 [k]
+    body : int64 [n] or None
+        The connected object each part belongs to: parts of one shape that share a vertex
+        (a mesh that holds several objects, three corner reflectors say, holds several bodies).
     """
 
     normal: np.ndarray
@@ -82,6 +92,10 @@ class Surfaces:
     face: np.ndarray
     triangle_part: np.ndarray
     triangle_base: np.ndarray
+    split_start: np.ndarray | None = None
+    split_count: np.ndarray | None = None
+    split_parts: np.ndarray | None = None
+    body: np.ndarray | None = None
 
     @property
     def n_parts(self) -> int:
@@ -149,12 +163,67 @@ def surfaces_from(parts: Parts, shape_ids: np.ndarray, is_mesh: np.ndarray, shap
     base = np.full(int(shape_ids.max(initial=-1)) + 1, -1, np.int64)
     base[shape_ids[is_mesh]] = parts.triangle_base[np.flatnonzero(is_mesh)]
     closed = parts.closed if parts.closed is not None else np.zeros(parts.n_parts, bool)
-    return Surfaces(normal=parts.normal, offset=parts.offset, origin=origin, axis_u=u, axis_v=v,
-                    polygon=pad(polygon, parts.n_vertices.astype(np.int64)),
-                    n_corners=parts.n_vertices.astype(np.int64), shape_id=shape_id.astype(np.uint32),
-                    row=np.asarray(row_of_shape)[shape_id].astype(np.int64), closed=np.asarray(closed, bool),
-                    face=parts.face.astype(np.int64), triangle_part=parts.triangle_part.astype(np.int64),
-                    triangle_base=base)
+    surfaces = Surfaces(normal=parts.normal, offset=parts.offset, origin=origin, axis_u=u, axis_v=v,
+                        polygon=pad(polygon, parts.n_vertices.astype(np.int64)),
+                        n_corners=parts.n_vertices.astype(np.int64), shape_id=shape_id.astype(np.uint32),
+                        row=np.asarray(row_of_shape)[shape_id].astype(np.int64), closed=np.asarray(closed, bool),
+                        face=parts.face.astype(np.int64), triangle_part=parts.triangle_part.astype(np.int64),
+                        triangle_base=base, body=_bodies(parts))
+    return _uncover(surfaces)
+
+
+def _bodies(parts: Parts) -> np.ndarray:
+    """The connected objects of the parts: components of the graph of parts of one shape that
+    share a vertex position."""
+    from scipy import sparse
+    from scipy.sparse.csgraph import connected_components
+    n = parts.n_parts
+    owner = np.repeat(np.arange(n), np.diff(parts.adjacency_start))
+    other = parts.adjacency.astype(np.int64)
+    same = parts.shape[owner] == parts.shape[other]
+    graph = sparse.coo_matrix((np.ones(int(same.sum())), (owner[same], other[same])), shape=(n, n))
+    return connected_components(graph, directed=False)[1].astype(np.int64)
+
+
+def _uncover(s: Surfaces) -> Surfaces:
+    """``s`` with every part that another shape's coplanar, same-facing face covers replaced by the
+    triangles of what the covers leave of it (:mod:`sarmitsuba.tracing.covers`)."""
+    n = s.n_parts
+    corners = [s.to_world(np.array(k), s.polygon[k, :s.n_corners[k]]) for k in range(n)]
+    area = np.array([0.5 * np.linalg.norm(np.cross(c[1:-1] - c[0], c[2:] - c[0]).sum(axis=0)) if len(c) >= 3 else 0.0
+                     for c in corners])
+    pairs = covered_parts(s.normal, s.offset, corners, s.shape_id, area)
+    if len(pairs) == 0:
+        return s
+    rows, polygons, candidates = [], [], {}
+    for covered in np.unique(pairs[:, 0]):
+        covers = pairs[pairs[:, 0] == covered, 1]
+        covers2 = [s.to_face(np.array(covered), corners[c]) for c in covers]
+        pieces = split_covered(s.polygon[covered], s.n_corners[covered], covers2)
+        first = n + len(rows)
+        rows.extend([covered] * len(pieces))
+        polygons.extend(pieces)
+        candidates[int(covered)] = np.concatenate([np.arange(first, first + len(pieces)), covers])
+    extra = np.array(rows, np.int64)
+    grow = lambda a: np.concatenate([a, a[extra]])          # noqa: E731  (the pieces keep their part's plane and frame)
+    polygon = np.zeros((n + len(extra), s.polygon.shape[1], 2))
+    polygon[:n] = s.polygon
+    if len(extra):
+        polygon[n:, :3] = np.array(polygons).reshape(-1, 3, 2)
+    n_corners = np.concatenate([s.n_corners, np.full(len(extra), 3)])
+    n_corners[list(candidates)] = 0
+    pad(polygon, n_corners)
+    start = np.zeros(n + len(extra), np.int64)
+    count = np.zeros(n + len(extra), np.int64)
+    flat = []
+    for covered, options in candidates.items():
+        start[covered], count[covered] = len(flat), len(options)
+        flat.extend(options.tolist())
+    return Surfaces(normal=grow(s.normal), offset=grow(s.offset), origin=grow(s.origin), axis_u=grow(s.axis_u),
+                    axis_v=grow(s.axis_v), polygon=polygon, n_corners=n_corners, shape_id=grow(s.shape_id),
+                    row=grow(s.row), closed=grow(s.closed), face=grow(s.face), triangle_part=s.triangle_part,
+                    triangle_base=s.triangle_base, split_start=start, split_count=count,
+                    split_parts=np.array(flat, np.int64), body=None if s.body is None else grow(s.body))
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ as 1, 2 or 4 point terms (PO2), less those that neighbouring tubes cancel exactl
 :meth:`Returns.po`, per pulse, each term at its own point with that pulse's antenna position
 (exact float64 legs, phase gradient and amplitude there, (PO4)), deposited on the fast-time grid;
 :meth:`Returns.clutter`, per pulse, the rough surface's scatterers in the footprint, eq. (C)
-(:mod:`.clutter_terms`); and, with ``lit_regions = cells``, the pieces of (T6) (:mod:`.cell_terms`).
+(:mod:`.clutter_terms`). With ``lit_regions = patches`` the tubes return only the chains that meet a
+shape that is not a mesh (a sphere); the patches return the rest (:mod:`.mesh_trace`).
 The footprints and the visibility are the sub-aperture's; everything that carries phase is the
 pulse's own.
 """
@@ -26,7 +27,6 @@ from .deposit import SPECTRAL_ORDERS
 from . import jones as pol
 from ..core.radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
-from .cell_terms import CellTerms
 from .clutter_terms import ClutterTerms
 from .device import device_array
 from .pulse_view import PulseView, receive_leg
@@ -42,9 +42,9 @@ SINC_SMALL_ARGUMENT = 1e-4
 _INVALID = 0xFFFFFFFF
 # flags of kernel.Flags (repeated here: the kernel imports this module)
 _HAS_I_LO, _HAS_I_HI, _HAS_J_LO, _HAS_J_HI, _INTERIOR, _SPLIT_1, _SPLIT_2, _BACK = 1, 2, 4, 8, 16, 32, 64, 128
-_UNDECIDED_1, _UNDECIDED_2, _PIECED = 256, 512, 1024
+_UNDECIDED_1, _UNDECIDED_2, _MESH_ONLY = 256, 512, 1024
 #: Flags two tubes must share for their PO terms at a common point to cancel (PO5).
-_MATCH = _INTERIOR | _SPLIT_1 | _SPLIT_2 | _BACK | _UNDECIDED_1 | _UNDECIDED_2 | _PIECED
+_MATCH = _INTERIOR | _SPLIT_1 | _SPLIT_2 | _BACK | _UNDECIDED_1 | _UNDECIDED_2 | _MESH_ONLY
 
 
 def footprint_edges(t1, t2, n: mi.Vector3f, d: mi.Vector3f, s, cos_i) -> tuple:
@@ -62,7 +62,7 @@ def _sinc(x):
     return dr.select(dr.abs(x) < SINC_SMALL_ARGUMENT, 1.0, dr.sin(x) / x)
 
 
-class Returns(CellTerms, ClutterTerms):
+class Returns(ClutterTerms):
     """Per-pulse returns of recorded hits: configuration fixed per acquisition.
 
     Parameters
@@ -345,7 +345,6 @@ class Returns(CellTerms, ClutterTerms):
     # ------------------------------------------------------------------ the returns of one order
     def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:
         """Deposit the returns of one bounce order's records for every pulse of their sub-apertures."""
-        cells = self.cells(ctx, rec, depth) if self.settings.lit_regions == "cells" else None
         index, code = self.terms(ctx, rec, n_lanes)
         if dr.width(index):
             ctx["evaluated"] += int(dr.sum(dr.gather(mi.UInt32, ctx["count"], dr.gather(mi.UInt32, rec.sub, index)))[0])
@@ -356,11 +355,9 @@ class Returns(CellTerms, ClutterTerms):
                     terms, codes = dr.gather(type(rec), rec, dr.gather(mi.UInt32, index, part)), dr.gather(mi.UInt32, code, part)
                     dr.eval(terms, codes)
                     self.po(ctx, terms, codes, depth, per_pulse)
-        for launch in cells or ():
-            self.cell_returns(ctx, *launch, depth)
         if self.clutter_on:
             kind = dr.gather(mi.UInt32, self.tables.clutter_kind, rec.row)
-            rough = dr.compress((kind > 0) & ((rec.flags & _PIECED) == 0))     # mixed cells: their pieces' (T6)
+            rough = dr.compress((kind > 0) & ((rec.flags & _MESH_ONLY) == 0))     # the patches' own (M7)
             if dr.width(rough):
                 hits = dr.gather(type(rec), rec, rough)
                 dr.eval(hits)
@@ -388,7 +385,7 @@ class Returns(CellTerms, ClutterTerms):
         split1, split2 = (flags & _SPLIT_1) != 0, (flags & _SPLIT_2) != 0
         open1, open2 = (flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0
         survive = (open1 | dr.select(split1, sig1 != 0, sig1 == 0)) & (open2 | dr.select(split2, sig2 != 0, sig2 == 0))
-        survive &= (flags & _PIECED) == 0          # a mixed cell's pieces replace its tile (T6)
+        survive &= (flags & _MESH_ONLY) == 0       # chains of mesh parts: the patches return them (M5)
         if self.cancel_interior:
             where = dr.full(mi.UInt32, _INVALID, n_lanes)
             dr.scatter(where, dr.arange(mi.UInt32, n_rec), rec.lattice)
@@ -411,7 +408,7 @@ class Returns(CellTerms, ClutterTerms):
             cancelled &= ~(split1 & split2) | compatible(sig1, sig2, has_i & has_j)
             survive &= ~cancelled
         dr.eval(survive)
-        index = dr.compress(survive)      # (empty where every term is cancelled or pieced)
+        index = dr.compress(survive)      # (empty where every term is cancelled or the patches')
         return (index // 9, index - 9 * (index // 9)) if dr.width(index) else (index, index)
 
     def _cell(self, ctx, block):

@@ -302,7 +302,9 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     totals, paths = {}, None
     motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
         if geometry.continuous else {}
-    groups = [Blocks.of([])] if settings.lit_regions == "patches" else _blocks(subs, g, footprint, settings.max_batch_rays)
+    groups = [Blocks.of([])] if settings.lit_regions == "patches" else []
+    if kernel.tubes:
+        groups = [*groups, *_blocks(subs, g, footprint, settings.max_batch_rays)]
     for blocks in groups:
         launch = Launch(antenna=geometry.positions[p0:p1], lref=plan.lref[p0:p1], first=subs.first[g] - p0,
                         count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],

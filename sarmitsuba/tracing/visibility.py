@@ -12,6 +12,7 @@ import mitsuba as mi
 import numpy as np
 
 from .device import device_array
+from .covers import locate
 from .patches import Surfaces
 
 __all__ = ["Rays", "lift", "NO_HIT", "NOT_A_MESH", "SURFACE_LIFT", "SURFACE_LIFT_RELATIVE"]
@@ -49,6 +50,7 @@ class Rays:
 
     def __init__(self, scene, surfaces: Surfaces):
         self.scene = scene
+        self.surfaces = surfaces
         size = max(len(surfaces.triangle_base), 1)
         base = np.zeros(size, np.int64)
         base[:len(surfaces.triangle_base)] = surfaces.triangle_base
@@ -97,7 +99,29 @@ class Rays:
         part = dr.select(mesh, dr.gather(mi.Int32, self.part, triangle, mesh), NOT_A_MESH)
         part = dr.select(found, part, NO_HIT)
         dr.eval(part, pi.t)
-        return part.numpy().astype(np.int64), np.where(found.numpy(), pi.t.numpy().astype(np.float64), np.inf)
+        part, t = part.numpy().astype(np.int64), np.where(found.numpy(), pi.t.numpy().astype(np.float64), np.inf)
+        return self._resolve(part, t, start, end, direction), t
+
+    def _resolve(self, part, t, start, end, direction) -> np.ndarray:
+        """Hits on a covered part's triangles given to the part at the hit point
+        (:mod:`sarmitsuba.tracing.covers`)."""
+        s = self.surfaces
+        if s.split_count is None:
+            return part
+        rows = np.flatnonzero((part >= 0) & (s.split_count[np.maximum(part, 0)] > 0))
+        if len(rows) == 0:
+            return part
+        if direction is None:
+            span = end[rows] - start[rows]
+            unit = span / np.linalg.norm(span, axis=1, keepdims=True)
+        else:
+            unit = direction[rows]
+        points = start[rows] + unit * t[rows, None]
+        hit = part[rows]
+        candidates = [s.split_parts[s.split_start[p]:s.split_start[p] + s.split_count[p]] for p in hit]
+        part = part.copy()
+        part[rows] = locate(s.to_face(hit, points), candidates, s.polygon, s.n_corners)
+        return part
 
 
 class PathVisibility:

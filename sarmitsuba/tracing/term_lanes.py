@@ -1,0 +1,231 @@
+"""A bounce order's lit pieces as lanes for the per-pulse kernels: boundary segments to point and
+area terms (:mod:`sarmitsuba.tracing.integration`), rough pieces to scatterers
+(:mod:`sarmitsuba.tracing.surface_clutter`), docs/physics.md (M5), (M7).
+
+* :func:`segments` -- the segments that need terms: two stable pieces of one region leave out the
+  patch line they share (their terms there are equal and opposite);
+* :func:`build_lanes` -- one lane per point term (a split segment's two ends, a sinc segment's
+  midpoint, the three candidates of an open one), one area lane per piece that may be near the
+  specular direction; consecutive segments of one straight boundary drop the split ends they
+  share (:func:`cancel_junctions`);
+* :func:`scatterer_lanes` -- every scatterer of a rough part's lattice inside its lit pieces.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .chains import Chains, facing_sign, image_source
+from .integration import AREA, OPEN_START, OPEN_END, SINC, SPLIT_END, SPLIT_START, PieceTable, TermLanes
+from .patches import Surfaces, cell_key
+from .polygons import edge_lines, inside
+from .surface_clutter import (ScattererLanes, cell_hash, points_inside_boundary, scatterer_offsets, scatterer_phases,
+                              surface_keys)
+
+__all__ = ["segments", "cancel_junctions", "build_lanes", "windows", "piece_table", "scatterer_lanes"]
+
+
+def segments(pieces, stable: np.ndarray, cancel: bool = True):
+    """The boundary segments of lit pieces that need terms: ``(piece, start, end)``, face
+    coordinates. A stable piece leaves out each segment it shares with a stable neighbour of its
+    region across a patch line (their terms there are equal and opposite, docs/physics.md (M5));
+    ``cancel`` false keeps them all (the ``sbr`` ``cancel_interior = false`` reference)."""
+    piece, start, end, side = pieces.edges()
+    keep = np.ones(len(piece), bool)
+    if cancel and np.any(stable):
+        keys = np.sort(cell_key(pieces.region[stable], pieces.cell[stable]))
+        # patch lines bottom, right, top, left: the neighbour across is (0,-1), (1,0), (0,1), (-1,0)
+        step = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]])
+        rows = np.flatnonzero((side >= 0) & stable[piece])
+        other = cell_key(pieces.region[piece[rows]], pieces.cell[piece[rows]] + step[side[rows]])
+        at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
+        keep[rows[keys[at] == other]] = False
+    return piece[keep], start[keep], end[keep]
+
+
+def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:
+    """bool: the split lanes that meet another of the opposite sign at the same point, along the
+    same direction, in the same region, both of stable pieces: consecutive segments of one
+    straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped."""
+    candidate = np.flatnonzero(((lane_kind == SPLIT_START) | (lane_kind == SPLIT_END)) & stable[lane_piece])
+    drop = np.zeros(len(lane_kind), bool)
+    if len(candidate) == 0:
+        return drop
+    direction = edge2[candidate] / np.linalg.norm(edge2[candidate], axis=1, keepdims=True)
+    q = np.round(point2[candidate] * 1e6).astype(np.int64)
+    angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
+    columns = (angle, q[:, 1], q[:, 0], region[lane_piece[candidate]])
+    order = np.lexsort(columns)
+    same = np.ones(len(order), bool)                      # row equals the previous one (sorted)
+    same[0] = False
+    for c in columns:
+        sorted_c = c[order]
+        same[1:] &= sorted_c[1:] == sorted_c[:-1]
+    group = np.cumsum(~same) - 1
+    size = np.bincount(group)
+    starts = np.bincount(group, weights=lane_kind[candidate][order] == SPLIT_START)
+    pair = (size == 2) & (starts == 1)
+    drop[candidate[order[pair[group]]]] = True
+    return drop
+
+
+def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int,
+                cancel: bool = True):
+    """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
+    centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
+    1 (sinc) or 3 (open) point lanes; per unstable piece an area lane. ``cancel`` false keeps the
+    split ends that consecutive segments share."""
+    region, part, centroid, centroid2, area, second, diagonal = geometry
+    seg_piece, p2, q2 = segments
+    copies = np.where(kind == SPLIT_START, 2, np.where(kind == SINC, 1, 3))
+    lane_seg = np.repeat(np.arange(len(seg_piece)), copies)
+    role = np.arange(len(lane_seg)) - np.repeat(np.cumsum(copies) - copies, copies)
+    base_kind = kind[lane_seg]
+    lane_kind = np.where(base_kind == SPLIT_START, SPLIT_START + role,
+                         np.where(base_kind == SINC, SINC, OPEN_START + role))
+    at_start = (lane_kind == SPLIT_START) | (lane_kind == OPEN_START)
+    at_end = (lane_kind == SPLIT_END) | (lane_kind == OPEN_END)
+    p, q = p2[lane_seg], q2[lane_seg]
+    point2 = np.where(at_start[:, None], p, np.where(at_end[:, None], q, 0.5 * (p + q)))
+    lane_piece = seg_piece[lane_seg]
+    unstable = np.flatnonzero(~stable)
+    lane_piece = np.concatenate([lane_piece, unstable])
+    lane_kind = np.concatenate([lane_kind, np.full(len(unstable), AREA)])
+    point2 = np.concatenate([point2, centroid2[unstable]])
+    mid2 = np.concatenate([0.5 * (p + q), centroid2[unstable]])
+    edge2 = np.concatenate([q - p, np.zeros((len(unstable), 2))])
+    drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) if cancel \
+        else np.zeros(len(lane_kind), bool)
+    lane_piece, lane_kind, point2, mid2, edge2 = (a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2))
+    chain = region[lane_piece]
+    lane_part = part[lane_piece]
+    point = s.to_world(lane_part, point2)
+    middle = s.to_world(lane_part, mid2)
+    edge = edge2[:, :1] * s.axis_u[lane_part] + edge2[:, 1:] * s.axis_v[lane_part]
+    lin = chains.lin[chain, chains.order[chain]]
+    window_data = windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
+    lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
+                      middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
+                      normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
+                      sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
+                      piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **window_data)
+    table = piece_table(s, chains, geometry, table_segments)
+    return lanes, table
+
+
+def windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> dict:
+    """The earlier bounces of each lane's path seen from its reference position: the unfolded
+    direction, and per bounce the part's row, the incidence cosine, the arriving direction and
+    the normal facing it (:class:`TermLanes`)."""
+    if depth == 0:
+        return {}
+    y = chains.unfolded(point, chain)
+    first = y - antenna
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    rows, cos, direction, normal = [], [], [], []
+    for i in range(depth):
+        window = chains.parts[chain, i]
+        d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
+        n = s.normal[window]
+        dot = np.einsum("mi,mi->m", n, d)
+        rows.append(s.row[window])
+        cos.append(np.abs(dot))
+        direction.append(d)
+        normal.append(n * np.where(dot > 0, -1.0, 1.0)[:, None])
+    return dict(first=first.astype(np.float32), window_row=np.stack(rows, 1).astype(np.uint32),
+                window_cos=np.stack(cos, 1).astype(np.float32), window_direction=np.stack(direction, 1).astype(np.float32),
+                window_normal=np.stack(normal, 1).astype(np.float32))
+
+
+def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceTable:
+    """The :class:`PieceTable` of lit pieces; the boundary segments (``table_segments``: piece,
+    start, end) only of those that may be near the specular direction (their area terms
+    integrate them)."""
+    region, part, centroid, centroid2, area, second, diagonal = geometry
+    piece, start2, end2 = table_segments
+    order = np.argsort(piece, kind="stable")            # each piece's segments in one run
+    piece, start2, end2 = piece[order], start2[order], end2[order]
+    owner = part[piece]
+    rel = 0.5 * (start2 + end2) - centroid2[piece]
+    mid = rel[:, :1] * s.axis_u[owner] + rel[:, 1:] * s.axis_v[owner]
+    edge2 = end2 - start2
+    edge = edge2[:, :1] * s.axis_u[owner] + edge2[:, 1:] * s.axis_v[owner]
+    count = np.bincount(piece, minlength=len(region))
+    return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
+                      diagonal=diagonal.astype(np.float32), area=area.astype(np.float32),
+                      moments=second.astype(np.float32), axis_u=s.axis_u[part].astype(np.float32),
+                      axis_v=s.axis_v[part].astype(np.float32),
+                      segment_start=(np.cumsum(count) - count).astype(np.uint32), segment_count=count.astype(np.uint32),
+                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32))
+
+
+def scatterer_lanes(s: Surfaces, chains: Chains, pieces, clipped, lit_pieces, rough_row: np.ndarray, table,
+                    cell: float, seed: int, reference: np.ndarray, depth: int) -> ScattererLanes:
+    """Every scatterer of the rough parts' lattices inside a bounce order's lit pieces, eq. (C),
+    (M7): a whole piece's patch holds ``m x m`` cells whole, a border piece the cells whose
+    scatterer lies in its polygon, a mixed piece those in its lit region (``clipped``, cut from
+    ``lit_pieces.pieces``). ``rough_row`` bool [rows]: which material rows have a clutter model;
+    ``table`` the material table (shape keys and axes)."""
+    m = max(1, int(round(pieces.patch / cell)))
+    part_of = chains.last
+    rough = rough_row[s.row[part_of[pieces.region]]]
+    rows = np.flatnonzero(rough)
+    owner, iu, iv = _candidate_cells(pieces, rows, m, cell)
+    region = pieces.region[owner]
+    held = pieces.whole[owner].copy()
+    border = np.flatnonzero(~held)
+    cut = lit_pieces.select(clipped.piece)
+    c_rows = np.flatnonzero(rough_row[s.row[part_of[cut.region]]])
+    c_owner, c_iu, c_iv = _candidate_cells(cut, c_rows, m, cell)
+    region = np.concatenate([region, cut.region[c_owner]])
+    iu, iv = np.concatenate([iu, c_iu]), np.concatenate([iv, c_iv])
+    key = _chain_keys(s, chains, table, cell, seed, reference)[region]
+    h0 = cell_hash(iu, iv, key)
+    point2 = (np.stack([iu, iv], axis=1) + scatterer_offsets(h0)) * cell
+    n_regular = len(owner)
+    if len(border):
+        poly_rows = pieces.border[owner[border]]
+        lines = edge_lines(pieces.polygon, pieces.count)[poly_rows]
+        held[border] = inside(point2[border][:, None, :], lines)[:, 0]
+    if len(c_owner):
+        keep_cut = points_inside_boundary(point2[n_regular:], c_owner, clipped.owner, clipped.start, clipped.end,
+                                          len(clipped.piece))
+    else:
+        keep_cut = np.zeros(0, bool)
+    keep = np.concatenate([held, keep_cut])
+    region, point2, h0 = region[keep], point2[keep], h0[keep]
+    part = part_of[region]
+    point = s.to_world(part, point2)
+    phase, cross = scatterer_phases(h0)
+    lin = chains.lin[region, chains.order[region]]
+    return ScattererLanes(point=point, unfolded=chains.unfolded(point, region), normal=s.normal[part].astype(np.float32),
+                          fold=np.transpose(lin, (0, 2, 1)).astype(np.float32), sub=chains.sub[region].astype(np.uint32),
+                          row=s.row[part].astype(np.uint32), phase=phase.astype(np.float32),
+                          phase_cross=cross.astype(np.float32),
+                          **windows(s, chains, region, point, reference[chains.sub[region]], depth))
+
+
+def _candidate_cells(pieces, rows: np.ndarray, m: int, cell: float):
+    """The lattice cells that may hold scatterers of pieces ``rows``: a whole piece's ``m x m``, a
+    border piece's those its bounding box meets. Returns (piece, iu, iv) int64 arrays."""
+    poly, count = pieces.polygons()
+    lo = np.floor(poly[rows].min(axis=1) / cell).astype(np.int64)
+    hi = np.floor(poly[rows].max(axis=1) / cell).astype(np.int64)
+    whole = pieces.whole[rows]
+    lo = np.where(whole[:, None], pieces.cell[rows] * m, lo)
+    hi = np.where(whole[:, None], pieces.cell[rows] * m + m - 1, hi)
+    nu, nv = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+    size = nu * nv
+    owner = np.repeat(rows, size)
+    local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
+    k = np.repeat(np.arange(len(rows)), size)
+    return owner, lo[k, 0] + local % nu[k], lo[k, 1] + local // nu[k]
+
+
+def _chain_keys(s: Surfaces, chains: Chains, table, cell: float, seed: int, reference: np.ndarray) -> np.ndarray:
+    """The clutter lattice key of each chain's last part on the side its wave arrives on."""
+    last = chains.last
+    back = facing_sign(s, last, image_source(chains, reference[chains.sub])) < 0
+    shape = s.shape_id
+    plane_offset = s.offset[last] - np.einsum("ni,ni->n", s.normal[last], s.origin[last])
+    return surface_keys(table.shape_key[shape[last]], back, s.normal[last], plane_offset,
+                        table.shape_axes[shape[last]], cell, seed)
