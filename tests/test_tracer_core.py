@@ -196,10 +196,11 @@ def test_canonical_targets_at_the_default_ray_spacing(tmp_path, name):
 
 
 def test_refinement_around_a_small_object_is_what_makes_it_right(tmp_path):
-    """Positive control: without the planned refinement (``tubes_per_object = 0``) a 0.3 m
-    trihedral at the default spacing (0.7 m tubes) is far off or missed."""
+    """Positive control for the tube preview (``lit_regions = tiles``): without the planned
+    refinement (``tubes_per_object = 0``) a 0.3 m trihedral at the default spacing (0.7 m tubes)
+    is far off or missed. (The default patches need no refinement: test_patches.)"""
     xml = str(C.scene_xml(tmp_path, C.trihedral(0.3), C.PEC, 3))
-    coarse = simulate(xml, integrator_overrides={"tubes_per_object": 0})
+    coarse = simulate(xml, integrator_overrides={"tubes_per_object": 0, "lit_regions": "tiles"})
     expected = C.rcs_trihedral(0.3, WAVELENGTH)
     rcs = analysis.integrated_rcs(coarse.image)
     assert rcs <= 0 or abs(_db(rcs / expected)) > 2.0

@@ -124,23 +124,24 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         (``(a, b)`` unit, or zero for a condition that holds everywhere or nowhere). For each
         window: the segment from ``A`` crosses its plane (``A`` and ``y`` on opposite sides), and
         inside it (one plane through ``A`` and each window edge); consecutive windows crossed in
-        order.
+        order, the last one before ``y``.
     valid : bool [n]
         The chain exists: no plane of the chain holds the antenna or its image in the earlier
         mirrors.
     returns : bool [n]
         It can also return physical optics: the antenna sees the last part from the side the wave
         arrives on (its image source's). A chain that does not return may still light its region
-        for the next bounce order. (Which side of a closed shape can be seen is left to the
-        visibility rays: meshes' normals are not always consistent.)
+        for the next bounce order. A wave arriving on the inner side of a closed body's part
+        (:attr:`~sarmitsuba.tracing.patches.Surfaces.seen_side`) is no chain: it would have
+        crossed the body. (Where the winding is unknown, the visibility rays decide.)
     """
     n, depth = chains.parts.shape
     last = chains.last
     source = image_source(chains, antenna)
     arriving = facing_sign(surfaces, last, source)
-    valid = arriving != 0
+    valid = (arriving != 0) & (surfaces.seen_side[last] * arriving >= 0)
     returns = valid & (arriving == facing_sign(surfaces, last, antenna))
-    width = max(depth - 1, 0) * (1 + surfaces.polygon.shape[1]) + max(depth - 2, 0)
+    width = max(depth - 1, 0) * (2 + surfaces.polygon.shape[1]) + max(depth - 2, 0)
     lines = np.tile(np.asarray(EVERYTHING), (n, max(width, 1), 1))
     k = chains.order
     frame_o, frame_u, frame_v = unfolded_frame(surfaces, chains)
@@ -151,10 +152,17 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         normal, offset, corners, n_corners = _windows(surfaces, chains, i, rows)
         a = offset - np.einsum("mi,mi->m", normal, antenna[rows])              # n . (p - A)
         valid[rows] &= a != 0
-        valid[rows] &= facing_sign(surfaces, chains.parts[rows, i], _source_of(chains, rows, i, antenna[rows])) != 0
+        window_side = facing_sign(surfaces, chains.parts[rows, i], _source_of(chains, rows, i, antenna[rows]))
+        valid[rows] &= (window_side != 0) & (surfaces.seen_side[chains.parts[rows, i]] * window_side >= 0)
         # A and y on opposite sides of the window's plane: sign(a) n . (y - A) > 0
         g = np.sign(a)[:, None] * normal
         lines[rows, slot] = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
+        slot += 1
+        # the last window crossed before y itself (t < 1): sign(a) n . (y - A) > |a|
+        last_window = k[rows] == i + 1
+        before = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]) - np.abs(a), frame_o[rows], frame_u[rows],
+                               frame_v[rows])
+        lines[rows, slot] = np.where(last_window[:, None], before, EVERYTHING)
         slot += 1
         slots = np.arange(corners.shape[1])[None, :] < n_corners[:, None]
         centre = (corners * slots[..., None]).sum(axis=1) / n_corners[:, None]

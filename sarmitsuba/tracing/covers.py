@@ -60,9 +60,11 @@ def split_covered(polygon2: np.ndarray, count: int, covers2: list) -> list:
         vertices, faces = trimesh.creation.triangulate_polygon(poly, engine="earcut")
         for f in faces:
             tri = vertices[f]
-            if np.cross(tri[1] - tri[0], tri[2] - tri[0]) < 0:
+            (ax, ay), (bx, by) = tri[1] - tri[0], tri[2] - tri[0]
+            twice_area = ax * by - ay * bx
+            if twice_area < 0:
                 tri = tri[::-1]
-            if abs(np.cross(tri[1] - tri[0], tri[2] - tri[0])) > 1e-12:
+            if abs(twice_area) > 1e-12:
                 triangles.append(tri)
     return triangles
 

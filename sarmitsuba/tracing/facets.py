@@ -83,8 +83,8 @@ class Parts:
         are those of its triangles: its corners and any collinear vertex dropped from them.
     closed : ndarray
         bool [n_parts]: the part's shape is a closed surface (every edge of its non-degenerate
-        triangles, after merging vertices, belongs to exactly two of them), so the part's back
-        side faces the shape's inside and is never seen.
+        triangles, after merging vertices, belongs to exactly two of them, wound in opposite
+        directions), so one side of every part faces the shape's inside.
     """
 
     normal: np.ndarray
@@ -189,7 +189,8 @@ def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_toleran
 
 def _closed_shapes(tri: np.ndarray, shape: np.ndarray, n_shapes: int) -> np.ndarray:
     """bool [n_shapes]: every edge of the shape's triangles ``tri`` (merged vertex indices) is shared
-    by exactly two of them (a closed, manifold surface)."""
+    by exactly two of them, which run along it in opposite directions (a closed, manifold,
+    consistently wound surface)."""
     closed = np.zeros(n_shapes, bool)
     if not len(tri):
         return closed
@@ -198,6 +199,9 @@ def _closed_shapes(tri: np.ndarray, shape: np.ndarray, n_shapes: int) -> np.ndar
     keys, counts = np.unique(np.column_stack([owner, edges]), axis=0, return_counts=True)
     bad = np.zeros(n_shapes, bool)
     bad[keys[counts != 2, 0]] = True
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    keys, counts = np.unique(np.column_stack([owner, directed]), axis=0, return_counts=True)
+    bad[keys[counts != 1, 0]] = True                  # an edge run twice one way: inconsistent winding
     closed[np.unique(shape)] = True
     return closed & ~bad
 

@@ -88,6 +88,7 @@ class MeshTracer:
         self.track = np.asarray(returns.fp.track, float)
         self.subdivision = _discovery_subdivision(surfaces, patch)
         self._static = None
+        self._body_box = None
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
 
     # ------------------------------------------------------------------ one launch
@@ -193,7 +194,10 @@ class MeshTracer:
         sub = np.repeat(np.arange(n_sub), size)
         rows = np.repeat(first, size) + np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
         part = pieces.region[rows]
-        held = np.abs(np.einsum("ni,ni->n", s.normal[part], launch.reference[sub]) - s.offset[part]) > 0
+        height = np.einsum("ni,ni->n", s.normal[part], launch.reference[sub]) - s.offset[part]
+        # the inside of a closed body: dark whatever the rays would say (docs/physics.md (M4))
+        inside = (s.seen_side[part] * height < 0) & ~self._in_body_box(part, launch.reference[sub])
+        held = (np.abs(height) > 0) & ~inside
         rows, sub, part = rows[held], sub[held], part[held]
         keys, chain = np.unique(sub * s.n_parts + part, return_inverse=True)
         parts = np.full((len(keys), self.depth), -1, np.int64)
@@ -203,6 +207,22 @@ class MeshTracer:
         selected = Pieces(chain.reshape(-1), selected.cell, selected.whole, selected.border, selected.polygon,
                           selected.count, selected.patch)
         return classify(s, chains, selected, launch.reference[chains.sub], self.rays, self.visibility)
+
+    def _in_body_box(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """bool: ``points`` [m, 3] lie in the bounding box of ``part``'s body (where its inside
+        is not known to be hidden)."""
+        if self._body_box is None:
+            s = self.surfaces
+            body = np.unique(s.body if s.body is not None else s.shape_id, return_inverse=True)[1]
+            corners = s.to_world(np.arange(s.n_parts), s.polygon)
+            lo = np.full((int(body.max(initial=-1)) + 1, 3), np.inf)
+            hi = np.full_like(lo, -np.inf)
+            np.minimum.at(lo, body, corners.min(axis=1))
+            np.maximum.at(hi, body, corners.max(axis=1))
+            self._body_box = (body, lo, hi)
+        body, lo, hi = self._body_box
+        b = body[part]
+        return np.all((points >= lo[b]) & (points <= hi[b]), axis=1)
 
     def _reach(self, launch, depth: int) -> tuple[np.ndarray, np.ndarray]:
         """Along-track interval ``[lo, hi]`` [m] of ``track . y`` that the beam of each

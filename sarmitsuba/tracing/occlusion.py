@@ -28,13 +28,16 @@ import numpy as np
 
 from .chains import Chains, to_face_lines, unfolded_frame
 from .patches import Surfaces
-from .polygons import EVERYTHING, clip, corner_slots, edge_lines
+from .polygons import EVERYTHING, clip, corner_slots, edge_lines, moments
 
 __all__ = ["shadow_lines", "boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "segment_moments"]
 
 #: Two edges on one line to this fraction of the segment's length (and parallel to as many
 #: radians) are one line (a wall's foot seen through two parts).
 COINCIDENT = 1e-9
+#: Mixed pieces with up to this many cut-outs are grouped by their exact count; beyond, by powers
+#: of two (the padding cut-outs cost as much as real ones).
+EXACT_GROUPS = 4
 
 
 def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
@@ -271,11 +274,23 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray) -> ClippedPieces:
     chain = pieces.region[pair_piece]
     lines = shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna[chain])
     cut, cut_count = clip(poly[pair_piece], count[pair_piece], lines)
+    # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
+    cut_area = moments(cut, cut_count)[0]
+    piece_area = moments(poly, count)[0]
+    dark = np.zeros(len(rows), bool)
+    dark[pair_piece[cut_area >= (1.0 - 1e-12) * piece_area[pair_piece]]] = True
+    real = (cut_count >= 3) & ~dark[pair_piece]
+    cut, cut_count, pair_piece = cut[real], cut_count[real], pair_piece[real]
     per = np.bincount(pair_piece, minlength=len(rows))
+    per[dark] = -1                                      # no boundary at all
     owners, starts, ends = [], [], []
-    size = 1
-    while size <= max(int(per.max(initial=0)), 1):
-        group = np.flatnonzero((per > size // 2) & (per <= size)) if size > 1 else np.flatnonzero(per == 1)
+    sizes = np.unique(per[per >= 0])
+    for size in sizes[sizes <= EXACT_GROUPS]:
+        o, p, q = _group_boundary(np.flatnonzero(per == size), poly, count, cut, cut_count, pair_piece, per, int(size))
+        owners.append(o), starts.append(p), ends.append(q)
+    size = 2 * EXACT_GROUPS
+    while size // 2 < int(per.max(initial=0)):
+        group = np.flatnonzero((per > size // 2) & (per <= size))
         if len(group):
             o, p, q = _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size)
             owners.append(o), starts.append(p), ends.append(q)
@@ -293,18 +308,32 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray) -> ClippedPieces:
 
 def _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size: int):
     """:func:`boundary` of the pieces ``group``, each with at most ``size`` cut-outs."""
-    first = np.concatenate([[0], np.cumsum(per)])[:-1]
+    first = np.concatenate([[0], np.cumsum(np.maximum(per, 0))])[:-1]
     g = len(group)
-    width = cut.shape[1]
+    if size == 0:                                       # no cut-out left: the piece's own edges
+        return _own_boundary(group, poly, count)
+    taken = np.concatenate([first[group][per[group] > k] + k for k in range(size)])
+    width = max(int(cut_count[taken].max(initial=3)), 3)
     cuts = np.zeros((g, size, width, 2))
     counts = np.zeros((g, size), np.int64)
     for k in range(size):
         has = per[group] > k
         idx = first[group[has]] + k
-        cuts[has, k] = cut[idx]
+        cuts[has, k] = cut[idx, :width]
         counts[has, k] = cut_count[idx]
     owner, p, q = boundary(poly[group], count[group], cuts, counts)
     return group[owner], p, q
+
+
+def _own_boundary(group, poly, count):
+    """The edges of pieces ``group`` themselves (no cut-out), counter-clockwise."""
+    width = poly.shape[1]
+    live = corner_slots(count[group], width)
+    p = poly[group]
+    q = np.roll(p, -1, axis=1)
+    live &= np.linalg.norm(q - p, axis=2) > 0
+    rows, k = np.nonzero(live)
+    return group[rows], p[rows, k], q[rows, k]
 
 
 def segment_moments(owner: np.ndarray, start: np.ndarray, end: np.ndarray, n: int):

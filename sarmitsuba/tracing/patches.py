@@ -16,6 +16,7 @@ the region, else the patch clipped to it.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -60,8 +61,11 @@ class Surfaces:
         Mitsuba id of the part's shape (the material table's index).
     row : int64 [n]
         The part's material row.
-    closed : bool [n]
-        The part's shape is closed: its back side is never seen.
+    seen_side : int8 [n]
+        The side of the part that faces out of its body where the body is closed and consistently
+        wound (:attr:`sarmitsuba.tracing.facets.Parts.closed`): +1 its front (the body's
+        divergence-theorem volume ``sum area offset / 3`` is positive), -1 its back; 0 where the
+        body is open or its winding inconsistent (either side may be seen).
     face : int64 [n]
         The part's face (coplanar edge-connected triangles of one shape).
     triangle_part : int64 [n_triangles]
@@ -88,7 +92,7 @@ class Surfaces:
     n_corners: np.ndarray
     shape_id: np.ndarray
     row: np.ndarray
-    closed: np.ndarray
+    seen_side: np.ndarray
     face: np.ndarray
     triangle_part: np.ndarray
     triangle_base: np.ndarray
@@ -162,14 +166,30 @@ def surfaces_from(parts: Parts, shape_ids: np.ndarray, is_mesh: np.ndarray, shap
     polygon = np.stack([np.einsum("pvi,pi->pv", rel, u), np.einsum("pvi,pi->pv", rel, v)], axis=2)
     base = np.full(int(shape_ids.max(initial=-1)) + 1, -1, np.int64)
     base[shape_ids[is_mesh]] = parts.triangle_base[np.flatnonzero(is_mesh)]
-    closed = parts.closed if parts.closed is not None else np.zeros(parts.n_parts, bool)
     surfaces = Surfaces(normal=parts.normal, offset=parts.offset, origin=origin, axis_u=u, axis_v=v,
                         polygon=pad(polygon, parts.n_vertices.astype(np.int64)),
                         n_corners=parts.n_vertices.astype(np.int64), shape_id=shape_id.astype(np.uint32),
-                        row=np.asarray(row_of_shape)[shape_id].astype(np.int64), closed=np.asarray(closed, bool),
+                        row=np.asarray(row_of_shape)[shape_id].astype(np.int64),
+                        seen_side=np.zeros(parts.n_parts, np.int8),
                         face=parts.face.astype(np.int64), triangle_part=parts.triangle_part.astype(np.int64),
                         triangle_base=base, body=_bodies(parts))
+    surfaces = dataclasses.replace(surfaces, seen_side=_seen_side(surfaces, parts.closed))
     return _uncover(surfaces)
+
+
+def _seen_side(s: Surfaces, closed: np.ndarray | None) -> np.ndarray:
+    """int8 [n]: :attr:`Surfaces.seen_side` from the closed, consistently wound shapes ``closed``
+    [n] (per part): the sign of each body's volume ``sum area offset / 3`` (divergence theorem)."""
+    side = np.zeros(s.n_parts, np.int8)
+    if closed is None or not np.any(closed):
+        return side
+    area = moments(s.polygon, s.n_corners)[0]
+    body = np.unique(s.body, return_inverse=True)[1]
+    volume = np.bincount(body, weights=area * s.offset, minlength=int(body.max(initial=-1)) + 1) / 3.0
+    shut = np.ones(len(volume), bool)
+    np.logical_and.at(shut, body, np.asarray(closed, bool))
+    sign = np.where(shut, np.sign(volume), 0.0)[body]
+    return sign.astype(np.int8)
 
 
 def _bodies(parts: Parts) -> np.ndarray:
@@ -221,7 +241,7 @@ def _uncover(s: Surfaces) -> Surfaces:
         flat.extend(options.tolist())
     return Surfaces(normal=grow(s.normal), offset=grow(s.offset), origin=grow(s.origin), axis_u=grow(s.axis_u),
                     axis_v=grow(s.axis_v), polygon=polygon, n_corners=n_corners, shape_id=grow(s.shape_id),
-                    row=grow(s.row), closed=grow(s.closed), face=grow(s.face), triangle_part=s.triangle_part,
+                    row=grow(s.row), seen_side=grow(s.seen_side), face=grow(s.face), triangle_part=s.triangle_part,
                     triangle_base=s.triangle_base, split_start=start, split_count=count,
                     split_parts=np.array(flat, np.int64), body=None if s.body is None else grow(s.body))
 

@@ -66,32 +66,41 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     n = poly.shape[0]
     if n == 0:
         return np.zeros((0, 3, 2)), count
-    rows_all = np.arange(n)[:, None]
     for h in range(lines.shape[1]):
         line = lines[:, h]
-        if np.all((line[:, 0] == 0) & (line[:, 1] == 0) & (line[:, 2] > 0)):
-            continue                                   # holds everything everywhere
+        # only the polygons this half-plane can cut: not the padding rows, not empty polygons
+        act = np.flatnonzero(~((line[:, 0] == 0) & (line[:, 1] == 0) & (line[:, 2] > 0)) & (count > 0))
+        if len(act) == 0:
+            continue
         width = poly.shape[1]
-        value = line[:, 0, None] * poly[..., 0] + line[:, 1, None] * poly[..., 1] + line[:, 2, None]
-        value_next = np.roll(value, -1, axis=1)
-        valid = corner_slots(count, width)
+        sub, line, c = poly[act], line[act], count[act]
+        value = line[:, 0, None] * sub[..., 0] + line[:, 1, None] * sub[..., 1] + line[:, 2, None]
+        nxt = np.concatenate([sub[:, 1:], sub[:, :1]], axis=1)
+        value_next = np.concatenate([value[:, 1:], value[:, :1]], axis=1)
+        valid = corner_slots(c, width)
         keep = valid & (value >= 0)
         cross = valid & ((value >= 0) != (value_next >= 0))
         t = value / np.where(cross, value - value_next, 1.0)
-        point = poly + t[..., None] * (np.roll(poly, -1, axis=1) - poly)
+        point = sub + t[..., None] * (nxt - sub)
         emitted = keep.astype(np.int64) + cross
         start = np.cumsum(emitted, axis=1) - emitted
-        out = np.zeros((n, width + 1, 2))
-        rows = np.broadcast_to(rows_all, (n, width))
+        new_count = np.minimum(emitted[:, -1] + start[:, -1], width + 1)
         # a convex polygon gains at most one corner; rounding that makes it slightly non-convex
         # could ask for more, which are dropped (the last slot is overwritten)
-        out[rows[keep], np.minimum(start, width)[keep]] = poly[keep]
-        out[rows[cross], np.minimum(start + keep, width)[cross]] = point[cross]
-        count = np.minimum(emitted.sum(axis=1), width + 1)
+        grown = int(new_count.max(initial=0)) > width
+        out_width = width + 1 if grown else width
+        out = np.zeros((len(act), out_width, 2))
+        rows = np.broadcast_to(np.arange(len(act))[:, None], (len(act), width))
+        out[rows[keep], np.minimum(start, out_width - 1)[keep]] = sub[keep]
+        out[rows[cross], np.minimum(start + keep, out_width - 1)[cross]] = point[cross]
+        new_count = np.minimum(new_count, out_width)
         # the slot after the last corner holds the first one: every corner's next is then the next slot
-        room = np.flatnonzero(count <= width)
-        out[room, count[room]] = out[room, 0]
-        poly = out
+        room = np.flatnonzero(new_count < out_width)
+        if out_width > width:
+            poly = np.concatenate([poly, np.repeat(poly[:, :1], out_width - width, axis=1)], axis=1)
+        out[room, new_count[room]] = out[room, 0]
+        poly[act] = out
+        count[act] = new_count
     poly, count = drop_repeats(poly, count)
     count = np.where(count >= 3, count, 0)
     width = max(int(count.max(initial=0)), 3)

@@ -1,0 +1,338 @@
+"""The geometry of the mesh-anchored patches against independent references (docs/physics.md
+(M1)-(M4)): shapely for polygon clipping, pieces and boolean differences, the image method traced
+point by point for the chains' regions, and segment-plane intersections for the occluders'
+shadows. Every check runs on faces oblique to every axis, from antennas at two look angles and
+off the track's zero heading.
+
+Deliberate bugs these tests were run against (each fails at least one of them):
+  * :func:`clip` keeping the entering crossing point but dropping the leaving one;
+  * :func:`moments` with the ``Ixy`` weights of ``Ixx`` (``x0 y1 + 2 x0 y0 ...`` swapped);
+  * :func:`pieces_of` marking patches whole from the region's extent on one of the row's lines
+    instead of both;
+  * :func:`region_lines` without the "last window crossed before the point" half-plane (a bug
+    these tests found: chains seen from behind their last window lit regions for discovery);
+  * :func:`shadow_lines` on the return leg in the unfolded frame (not the real one);
+  * :func:`boundary` keeping two coincident cut-out edges with the cut-outs on opposite sides
+    (they cancel: two shadows that meet).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+
+from sarmitsuba.scene.loader import shape_frame
+from sarmitsuba.tracing.chains import region_lines, unfold
+from sarmitsuba.tracing.facets import mesh_parts
+from sarmitsuba.tracing.occlusion import boundary, shadow_lines
+from sarmitsuba.tracing.patches import pieces_of, surfaces_from
+from sarmitsuba.tracing.polygons import clip, edge_lines, inside, moments, pad
+
+
+# --------------------------------------------------------------------------- helpers
+def convex(rng, centre=(0.0, 0.0), scale=1.0, k=8) -> np.ndarray:
+    """A random convex polygon (counter-clockwise corners [m, 2]): the hull of ``k`` points."""
+    hull = shapely.convex_hull(shapely.MultiPoint(rng.normal(size=(k, 2)) * scale + np.asarray(centre)))
+    corners = np.array(hull.exterior.coords)[:-1]
+    return corners if shapely.LinearRing(corners).is_ccw else corners[::-1]
+
+
+def batch(polygons: list, width: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    poly = np.zeros((len(polygons), width, 2))
+    count = np.array([len(p) for p in polygons], np.int64)
+    for i, p in enumerate(polygons):
+        poly[i, :len(p)] = p
+    return pad(poly, count), count
+
+
+def half_plane(a: float, b: float, c: float, big: float = 1e4) -> shapely.Polygon:
+    """``a x + b y + c >= 0`` as a large shapely polygon."""
+    n = np.array([a, b]) / math.hypot(a, b)
+    p0 = -c / math.hypot(a, b) * n
+    t = np.array([-n[1], n[0]])
+    return shapely.Polygon([p0 - big * t, p0 + big * t, p0 + big * t + big * n, p0 - big * t + big * n])
+
+
+def quad(centre, e1, e2):
+    c, e1, e2 = (np.asarray(x, float) for x in (centre, e1, e2))
+    return np.array([c - e1 - e2, c + e1 - e2, c + e1 + e2, c - e1 + e2]), np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def surfaces(meshes):
+    parts = mesh_parts(meshes)
+    frames = [shape_frame(np.asarray(v, float)) for v, _ in meshes]
+    return surfaces_from(parts, np.arange(len(meshes)), np.ones(len(meshes), bool), np.array([f[0] for f in frames]),
+                         np.array([f[1] for f in frames]), np.zeros(len(meshes), np.int64))
+
+
+def reflect(p, n, c):
+    return p - 2.0 * (n @ p - c) * n
+
+
+def scene(rng):
+    """Ground, a wall, and two small plates tilted off every axis (with a random offset)."""
+    return surfaces([quad((0, 0, 0), (10, 0, 0), (0, 10, 0)),
+                     quad((0, -2, 3), (6, 0, 0), (0, 0, 3)),
+                     quad(np.array([1, 3, 4.0]) + rng.normal(size=3) * 0.5, (1.5, 0.5, 0.3), (0.0, 1.0, 1.0)),
+                     quad(np.array([-2, 1, 2.0]) + rng.normal(size=3) * 0.5, (1.0, 0.2, 0.3), (0.3, 0.8, 0.9))])
+
+
+def corner(rng):
+    """A trihedral corner of three 2 m squares turned off the axes: its chains of three mirrors
+    cross the windows in an order that matters."""
+    turn = np.linalg.qr(rng.normal(size=(3, 3)))[0] * 0.15 + np.eye(3)
+    turn = np.linalg.qr(turn)[0]
+    turn *= np.sign(np.diag(turn))
+    axes = [turn[:, 0], turn[:, 1], turn[:, 2]]
+    return surfaces([quad(axes[a] + axes[b], axes[a], axes[b]) for a, b in ((0, 1), (1, 2), (2, 0))])
+
+
+def antennas(rng):
+    """Antennas at 30 and 60 deg look, 1 km away, on headings off the axes (x offset random)."""
+    out = []
+    for look, heading in ((30.0, 20.0), (60.0, -35.0)):
+        h = math.radians(heading)
+        ground = np.array([math.sin(h), math.cos(h), 0.0]) * 1000 * math.sin(math.radians(look))
+        out.append(ground + np.array([rng.uniform(-20, 20), 0.0, 1000 * math.cos(math.radians(look))]))
+    return out
+
+
+def all_chains(s, depth: int = 3):
+    n = s.n_parts
+    seqs = [(a,) for a in range(n)] + [(a, b) for a in range(n) for b in range(n) if a != b]
+    seqs += [(a, b, c) for a in range(n) for b in range(n) for c in range(n) if a != b and b != c]
+    parts = np.full((len(seqs), depth), -1)
+    for i, q in enumerate(seqs):
+        parts[i, :len(q)] = q
+    order = np.array([len(q) - 1 for q in seqs])
+    return seqs, unfold(s, parts, order, np.zeros(len(seqs), np.int64))
+
+
+def path_by_images(s, seq, x, antenna):
+    """The path antenna -> seq[0] -> ... -> x by the image method (images of the antenna in
+    each mirror, then back from ``x`` toward each image): its points, or None where a leg misses
+    its window, and whether the antenna sees ``x``'s side from which the wave arrives."""
+    images = [antenna]
+    for part in seq[:-1]:
+        images.append(reflect(images[-1], s.normal[part], s.offset[part]))
+    points, cur = [x], x
+    for i in range(len(seq) - 2, -1, -1):
+        n, c = s.normal[seq[i]], s.offset[seq[i]]
+        src = images[i + 1]
+        den = n @ (src - cur)
+        if abs(den) < 1e-15:
+            return None, False
+        t = (c - n @ cur) / den
+        if not 1e-9 < t < 1 - 1e-9:
+            return None, False
+        cur = cur + t * (src - cur)
+        window = shapely.Polygon(s.polygon[seq[i]][:s.n_corners[seq[i]]])
+        if not window.buffer(1e-9).contains(shapely.Point(s.to_face(np.array(seq[i]), cur))):
+            return None, False
+        points.insert(0, cur)
+    n, c = s.normal[seq[-1]], s.offset[seq[-1]]
+    returns = np.sign(n @ antenna - c) == np.sign(n @ images[-1] - c)
+    return [antenna] + points, returns
+
+
+def crosses(s, a, b, part) -> bool:
+    """The open segment a-b crosses the part (plane crossing inside its polygon)."""
+    n, c = s.normal[part], s.offset[part]
+    da, db = n @ a - c, n @ b - c
+    if da * db >= 0:
+        return False
+    x = a + da / (da - db) * (b - a)
+    return shapely.Polygon(s.polygon[part][:s.n_corners[part]]).contains(shapely.Point(s.to_face(np.array(part), x)))
+
+
+# --------------------------------------------------------------------------- polygons
+def test_clip_and_moments_match_shapely():
+    """Random convex polygons cut by three random half-planes: area, centroid and second moments
+    of :func:`clip` then :func:`moments` against shapely's intersection (and its coordinates)."""
+    rng = np.random.default_rng(0)
+    polygons = [convex(rng, scale=rng.uniform(0.1, 3)) for _ in range(400)]
+    poly, count = batch(polygons)
+    lines = rng.normal(size=(len(polygons), 3, 3))
+    lines[:, :, 2] *= 0.5
+    cut, cut_count = clip(poly, count, lines)
+    area, centroid, second, _ = moments(cut, cut_count)
+    nonempty = 0
+    for i, p in enumerate(polygons):
+        ref = shapely.Polygon(p)
+        for a, b, c in lines[i]:
+            ref = ref.intersection(half_plane(a, b, c))
+        assert area[i] == pytest.approx(ref.area, abs=1e-9)
+        if ref.area > 1e-6:
+            nonempty += 1
+            assert np.allclose(centroid[i], ref.centroid.coords[0], atol=1e-8)
+            xy = np.array(shapely.geometry.polygon.orient(ref, 1.0).exterior.coords)
+            x0, y0, x1, y1 = xy[:-1, 0], xy[:-1, 1], xy[1:, 0], xy[1:, 1]
+            cross = x0 * y1 - x1 * y0
+            ixy = np.sum((x0 * y1 + 2 * x0 * y0 + 2 * x1 * y1 + x1 * y0) * cross) / 24 - ref.area * ref.centroid.x * ref.centroid.y
+            ixx = np.sum((x0 * x0 + x0 * x1 + x1 * x1) * cross) / 12 - ref.area * ref.centroid.x ** 2
+            assert second[i, 0] == pytest.approx(ixx, abs=1e-7) and second[i, 1] == pytest.approx(ixy, abs=1e-7)
+    assert nonempty > 100                                 # the cuts leave something to compare
+
+
+def test_pieces_are_the_patches_of_the_region():
+    """:func:`pieces_of` against shapely: every piece is its patch intersected with its region
+    (whole pieces exactly the patch), no patch that meets a region is missing, and the pieces of a
+    region add up to its area. Regions of every size against the patch, far from the frame's
+    origin too."""
+    rng = np.random.default_rng(1)
+    polygons = [convex(rng, centre=rng.normal(size=2) * 10 + (200.0 if i % 5 == 0 else 0.0),
+                       scale=rng.uniform(0.3, 6)) for i in range(150)]
+    poly, count = batch(polygons)
+    patch = 1.3
+    pieces = pieces_of(poly, count, patch)
+    area, _, _, _ = pieces.geometry()
+    for r, p in enumerate(polygons):
+        region = shapely.Polygon(p)
+        rows = np.flatnonzero(pieces.region == r)
+        assert area[rows].sum() == pytest.approx(region.area, rel=1e-9)
+        small = np.all(p.max(axis=0) - p.min(axis=0) <= patch)
+        if small:                                          # a region within a patch's size is one piece
+            assert len(rows) == 1
+            continue
+        seen = set()
+        for k in rows:
+            i, j = pieces.cell[k]
+            seen.add((i, j))
+            ref = shapely.box(i * patch, j * patch, (i + 1) * patch, (j + 1) * patch).intersection(region)
+            assert area[k] == pytest.approx(ref.area, abs=1e-9)
+            assert not pieces.whole[k] or ref.area == pytest.approx(patch * patch, rel=1e-9)
+        lo, hi = np.floor(p.min(axis=0) / patch).astype(int), np.floor(p.max(axis=0) / patch).astype(int)
+        for i in range(lo[0], hi[0] + 1):
+            for j in range(lo[1], hi[1] + 1):
+                meets = shapely.box(i * patch, j * patch, (i + 1) * patch, (j + 1) * patch).intersection(region).area
+                assert meets < 1e-9 or (i, j) in seen
+
+
+# --------------------------------------------------------------------------- chains
+@pytest.mark.parametrize("seed, layout", [(3, scene), (4, scene), (5, corner)])
+def test_chain_regions_are_the_image_method(seed, layout):
+    """For every chain of up to three parts of an oblique scene and a turned trihedral corner,
+    the region :func:`region_lines` cuts on its last part holds exactly the points the image
+    method reaches through the chain's windows (points within 1e-6 m of the region's edge
+    skipped)."""
+    rng = np.random.default_rng(seed)
+    s = layout(rng)
+    seqs, chains = all_chains(s)
+    tested = reached = 0
+    for antenna in antennas(rng):
+        lines, valid, returns = region_lines(s, chains, np.repeat(antenna[None], len(seqs), 0))
+        region, region_count = clip(s.polygon[chains.last], s.n_corners[chains.last], lines)
+        for i, seq in enumerate(seqs):
+            face = s.polygon[seq[-1]][:s.n_corners[seq[-1]]]
+            cut = shapely.Polygon(region[i][:region_count[i]]) if region_count[i] >= 3 and valid[i] else None
+            for p2 in rng.uniform(face.min(0), face.max(0), size=(60, 2)):
+                point = shapely.Point(p2)
+                if not shapely.Polygon(face).contains(point) or (cut is not None and cut.exterior.distance(point) < 1e-6):
+                    continue
+                path, back = path_by_images(s, seq, s.to_world(np.array(seq[-1]), p2), antenna)
+                inside_region = cut is not None and cut.contains(point)
+                assert (path is not None) == inside_region, (seq, p2)
+                if inside_region:
+                    assert bool(returns[i]) == bool(back)
+                tested += 1
+                reached += path is not None
+    assert tested > 1000 and reached > 100
+
+
+def test_shadow_lines_are_the_occluders_on_each_leg():
+    """The half-planes of :func:`shadow_lines` hold exactly the points whose path (by the image
+    method) through a chain crosses the occluder on the named leg, the return leg included."""
+    rng = np.random.default_rng(11)
+    s = scene(rng)
+    seqs, chains = all_chains(s)
+    depth = chains.parts.shape[1]
+    tested = hidden = 0
+    for antenna in antennas(rng):
+        region, valid, _ = region_lines(s, chains, np.repeat(antenna[None], len(seqs), 0))
+        for i, seq in enumerate(seqs):
+            if len(seq) == 3 and rng.random() < 0.5:            # a sample of the third order (the test's time)
+                continue
+            d = len(seq) - 1
+            face = s.polygon[seq[-1]][:s.n_corners[seq[-1]]]
+            points = rng.uniform(face.min(0) - 1, face.max(0) + 1, size=(40, 2))
+            held = (inside(points[None], region[i:i + 1])[0] & valid[i]
+                    & inside(points[None], edge_lines(s.polygon[seq[-1]][None], s.n_corners[seq[-1]][None]))[0])
+            for occluder in set(range(s.n_parts)) - set(seq):
+                for leg in list(range(d + 1)) + ([depth] if d > 0 else []):
+                    lines = shadow_lines(s, chains, np.array([i]), np.array([occluder]), np.array([leg]), antenna[None])
+                    shadowed = inside(points[None], lines)[0]
+                    for k in np.flatnonzero(held):
+                        path, _ = path_by_images(s, seq, s.to_world(np.array(seq[-1]), points[k]), antenna)
+                        if path is None:
+                            continue
+                        a, b = (path[-1], antenna) if leg == depth or (d == 0 and leg == 0) else (path[leg], path[leg + 1])
+                        truth = crosses(s, a, b, occluder)
+                        assert truth == shadowed[k], (seq, occluder, leg)
+                        tested += 1
+                        hidden += truth
+    assert tested > 1000 and hidden > 20
+
+
+# --------------------------------------------------------------------------- exact clipping
+def test_lit_boundary_is_the_piece_less_its_cut_outs():
+    """:func:`boundary` of a piece less overlapping, adjacent and edge-sharing cut-outs: the area,
+    first and second moments its segments give by Green's theorem against shapely's difference."""
+    rng = np.random.default_rng(7)
+    groups, n_cut = 300, 4
+    bases, cuts = [], []
+    for g in range(groups):
+        base = np.array([[0, 0], [1.7, 0], [1.7, 1.7], [0, 1.7]]) if g % 3 == 0 else convex(rng, k=7)
+        b_all, bc_all = batch([base])
+        b, bc = b_all[0], int(bc_all[0])
+        mine = []
+        for i in range(int(rng.integers(1, n_cut + 1))):
+            kind = rng.integers(0, 3)
+            if kind == 0:                                  # a shadow's half-plane: shares the piece's edges
+                angle = rng.uniform(0, 2 * np.pi)
+                line = np.array([[[math.cos(angle), math.sin(angle), rng.normal() * 0.3]]])
+            elif kind == 1 and mine:                       # adjacent to the last cut-out: a shared edge
+                p0, p1 = mine[-1][0], mine[-1][1]
+                out = np.array([p1[1] - p0[1], -(p1[0] - p0[0])])
+                c = np.array([p1, p0, p0 + out * 0.5, p1 + out * 0.5])
+                line = None
+            else:
+                c, line = convex(rng, centre=rng.normal(size=2) * 0.6, scale=0.4), None
+            if line is None:
+                poly_c, count_c = batch([c], 16)
+                poly_c, count_c = clip(poly_c, count_c, edge_lines(b[None], np.array([bc])))
+            else:
+                poly_c, count_c = clip(b[None], np.array([bc]), line)
+            if count_c[0] >= 3:
+                mine.append(poly_c[0][:count_c[0]])
+        bases.append(base)
+        cuts.append(mine)
+    base_poly, base_count = batch(bases)
+    cut = np.zeros((groups, n_cut, 16, 2))
+    cut_count = np.zeros((groups, n_cut), np.int64)
+    for g, mine in enumerate(cuts):
+        for i, c in enumerate(mine):
+            cut[g, i, :len(c)] = c
+            cut_count[g, i] = len(c)
+            pad(cut[g, i:i + 1], cut_count[g, i:i + 1])
+    owner, p, q = boundary(base_poly, base_count, cut, cut_count)
+    for g in range(groups):
+        lit = shapely.Polygon(bases[g]).difference(shapely.unary_union([shapely.Polygon(c) for c in cuts[g]]
+                                                                       or [shapely.Polygon()]))
+        m = owner == g
+        cross = p[m, 0] * q[m, 1] - q[m, 0] * p[m, 1]
+        area = 0.5 * cross.sum()
+        assert area == pytest.approx(lit.area, abs=1e-9)
+        if lit.area > 1e-6:
+            cx = np.sum((p[m, 0] + q[m, 0]) * cross) / (6 * area)
+            assert cx == pytest.approx(lit.centroid.x, abs=1e-7)
+        ixx = np.sum((p[m, 0] ** 2 + p[m, 0] * q[m, 0] + q[m, 0] ** 2) * cross) / 12
+        ref = 0.0
+        for poly in getattr(lit, "geoms", [lit]):
+            poly = shapely.geometry.polygon.orient(poly, 1.0)
+            for ring in [poly.exterior, *poly.interiors]:
+                xy = np.array(ring.coords)
+                x0, y0, x1, y1 = xy[:-1, 0], xy[:-1, 1], xy[1:, 0], xy[1:, 1]
+                ref += np.sum((x0 * x0 + x0 * x1 + x1 * x1) * (x0 * y1 - x1 * y0)) / 12
+        assert ixx == pytest.approx(ref, abs=1e-8)
