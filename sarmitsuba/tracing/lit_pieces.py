@@ -17,6 +17,7 @@ sub-aperture's reference position ``A``), :func:`lit_pieces`:
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,12 +27,16 @@ from .patches import UNIT_SQUARE, Pieces, Surfaces, pieces_of
 from .polygons import clip, corner_slots, moments
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
-__all__ = ["LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples"]
+__all__ = ["LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck", "RECHECKS"]
 
 #: A piece's visibility samples sit this fraction of the patch size inside it, toward its
 #: centroid: a corner on a part's edge (a wall's foot on the ground; a grid anchored at a shape's
 #: vertex runs along that shape's edges) would otherwise start its ray on the neighbouring surface.
 SAMPLE_INSET = 1e-3
+#: Rounds of :func:`recheck`: a mixed piece's cut lit region is sampled again at its own corners
+#: and centroid; occluders met there (that the piece's corners missed: another face of the same
+#: building, whose shadow joins the first's) join its cut-outs and it is cut again.
+RECHECKS = 2
 
 
 @dataclass(frozen=True)
@@ -171,15 +176,18 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     sent_count = np.bincount(owner, weights=out_clear, minlength=n)
     lit, transmit = (lit_count == total) & (total > 0), (sent_count == total) & (total > 0)
     mixed = ((lit_count > 0) & ~lit) | ((sent_count > 0) & ~transmit)
-    blockers = _blockers(rays, surfaces, chains, coords, owner, chain, antenna, mixed)
+    blockers = _blockers(rays, surfaces, chains, coords, owner, chain, antenna, mixed, math.sqrt(2.0) * pieces.patch)
     return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers,
                      samples=len(owner), sent=sent_count / np.maximum(total, 1))
 
 
-def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed) -> np.ndarray:
+def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed,
+              reach: float) -> np.ndarray:
     """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, int64
     [n, c], -1 padded, unique per piece; ``-2`` for an occluder that is not a mesh), by the NumPy
-    legs of :func:`legs` cast again with :meth:`Rays.first_hit`."""
+    legs of :func:`legs` cast again with :meth:`Rays.first_hit`. An occluder stands for its whole
+    face: the face's other parts join where their bounding spheres come within ``reach`` [m] (the
+    piece's size) of the leg that met it."""
     n = len(mixed)
     rows = np.flatnonzero(mixed[owner])
     if len(rows) == 0:
@@ -188,11 +196,80 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     start, end, exists = legs(surfaces, chains, chain[rows], points, antenna[chain[rows]])
     sample, leg = np.nonzero(exists)
     part, _ = rays.first_hit(start[sample, leg], end[sample, leg])
-    found = part != NO_HIT
+    found = np.flatnonzero(part != NO_HIT)
     key = np.where(part >= 0, leg * surfaces.n_parts + part, -2)[found]
-    pairs = np.unique(np.stack([owner[rows][sample[found]], key], axis=1), axis=0)
+    piece = owner[rows][sample[found]]
+    # an occluder is the whole face it belongs to: the face's other convex parts cast the rest of
+    # its shadow, whichever of them the samples met (a wall meshed as many triangles)
+    via = np.flatnonzero(key >= 0)
+    hit_part = key[via] % surfaces.n_parts
+    partner_start, partner_parts = rays.face_partners
+    size = partner_start[hit_part + 1] - partner_start[hit_part]
+    rep = np.repeat(via, size)
+    local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
+    extra = partner_parts[np.repeat(partner_start[hit_part], size) + local]
+    a = start[sample[found[rep]], leg[found[rep]]]
+    b = end[sample[found[rep]], leg[found[rep]]]
+    centre, radius = rays.part_sphere
+    ab = b - a
+    t = np.clip(np.einsum("mi,mi->m", centre[extra] - a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0, 1)
+    near = np.linalg.norm(a + t[:, None] * ab - centre[extra], axis=1) <= radius[extra] + reach
+    piece = np.concatenate([piece, piece[rep[near]]])
+    key = np.concatenate([key, (key[rep[near]] // surfaces.n_parts) * surfaces.n_parts + extra[near]])
+    pairs = np.unique(np.stack([piece, key], axis=1), axis=0)
     per = np.bincount(pairs[:, 0], minlength=n)
     table = np.full((n, int(per.max(initial=0))), -1, np.int64)
     slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
     table[pairs[:, 0], slot] = pairs[:, 1]
     return table
+
+
+def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, rays: Rays,
+            visibility: PathVisibility) -> np.ndarray:
+    """The mixed pieces' blockers with the occluders met from points of their cut lit regions
+    (``clipped``, :class:`sarmitsuba.tracing.occlusion.ClippedPieces`): each region's corners and
+    edge midpoints pulled :data:`SAMPLE_INSET` patch sizes toward its centroid, and the centroid
+    (``antenna`` [n_chains,
+    3]). Returns the new blocker table (int64 [n, c], as :attr:`LitPieces.blockers`) and the rows
+    of ``lit.pieces`` that gained an occluder."""
+    n = len(lit.mixed)
+    if len(clipped) == 0:
+        return lit.blockers, np.zeros(0, np.int64)
+    centre = np.concatenate([clipped.centroid[clipped.owner]] * 2)
+    points = np.concatenate([clipped.start, 0.5 * (clipped.start + clipped.end)])
+    toward = centre - points
+    distance = np.linalg.norm(toward, axis=1)
+    step = np.minimum(SAMPLE_INSET * lit.pieces.patch, 0.5 * distance) / np.where(distance > 0, distance, 1.0)
+    coords = np.concatenate([points + toward * step[:, None], clipped.centroid])
+    piece = clipped.piece[np.concatenate([clipped.owner, clipped.owner, np.arange(len(clipped))])]
+    order = np.argsort(piece, kind="stable")
+    coords, piece = coords[order], piece[order]
+    chain = lit.pieces.region[piece]
+    # the Dr.Jit legs first: only the samples some leg hides are cast again for their occluders
+    order = int(lit.chains.order.max(initial=0))
+    bits = visibility.legs_clear(lit.chains, chain, coords, antenna, order)
+    out_mask = (1 << (order + 1)) - 1
+    clear = (bits & out_mask) == out_mask
+    if order > 0:
+        clear &= ((bits >> (order + 1)) & 1).astype(bool)
+    hidden = ~clear
+    if not np.any(hidden):
+        return lit.blockers, np.zeros(0, np.int64)
+    coords, piece, chain = coords[hidden], piece[hidden], chain[hidden]
+    mixed = np.zeros(n, bool)
+    mixed[clipped.piece] = True
+    found = _blockers(rays, surfaces, lit.chains, coords, piece, chain, antenna, mixed, math.sqrt(2.0) * lit.pieces.patch)
+    old = lit.blockers
+    rows = np.repeat(np.arange(n), found.shape[1])[found.reshape(-1) >= 0]
+    keys = found.reshape(-1)[found.reshape(-1) >= 0]
+    old_rows = np.repeat(np.arange(n), old.shape[1])[old.reshape(-1) != -1]
+    old_keys = old.reshape(-1)[old.reshape(-1) != -1]
+    known = np.isin(rows * (1 << 40) + keys, old_rows * (1 << 40) + old_keys)
+    if np.all(known):
+        return old, np.zeros(0, np.int64)
+    pairs = np.unique(np.stack([np.concatenate([old_rows, rows]), np.concatenate([old_keys, keys])], axis=1), axis=0)
+    per = np.bincount(pairs[:, 0], minlength=n)
+    table = np.full((n, int(per.max(initial=0))), -1, np.int64)
+    slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
+    table[pairs[:, 0], slot] = pairs[:, 1]
+    return table, np.unique(rows[~known])

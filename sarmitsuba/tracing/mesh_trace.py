@@ -21,16 +21,17 @@ exact, and the discovery rays start on the pieces.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .chains import Chains, image_source, unfold
 from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
-from .lit_pieces import LitPieces, classify, lit_pieces
-from .occlusion import clip_mixed
+from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck
+from .occlusion import clip_mixed, replace_pieces
 from .surface_clutter import ClutterKernel
-from .term_lanes import build_lanes, scatterer_lanes, segments
+from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
 from .patches import Pieces, Surfaces, pieces_of
 from .physical_optics import SINC_REGIME, split_threshold
 from .visibility import PathVisibility, Rays, lift
@@ -244,9 +245,10 @@ class MeshTracer:
 
     # ------------------------------------------------------------------ discovery
     def _discover(self, lit: LitPieces, reference: np.ndarray) -> Chains:
-        """The next bounce order's chains: from each transmit-lit piece's centroid, the specular
-        reflection of the wave from its reference position, cast to the part it meets first; one
-        chain per distinct (chain, part), eq. (M6)."""
+        """The next bounce order's chains: from the discovery grid's points on each transmit-lit
+        piece, the specular reflection of the wave from its reference position, cast to the part
+        it meets first; one chain per distinct (chain, part) and per other part of that part's
+        face, eq. (M6)."""
         s, chains, pieces = self.surfaces, lit.chains, lit.pieces
         keep = np.flatnonzero(lit.transmit | lit.mixed)
         owner, points2 = _grid_points(pieces.select(keep), self.subdivision[chains.last[pieces.region[keep]]], self.patch)
@@ -261,6 +263,13 @@ class MeshTracer:
         hit, _ = self.rays.first_hit(origin, direction=reflected)
         found = (hit >= 0) & (hit != part)
         pairs = np.unique(np.stack([chain[found], hit[found]], axis=1), axis=0)
+        # a face met is met whole: its other convex parts join (their regions decide what they get)
+        start, partners = self.rays.face_partners
+        size = start[pairs[:, 1] + 1] - start[pairs[:, 1]]
+        local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
+        extra = np.stack([np.repeat(pairs[:, 0], size), partners[np.repeat(start[pairs[:, 1]], size) + local]], axis=1)
+        pairs = np.unique(np.concatenate([pairs, extra]), axis=0)
+        pairs = pairs[pairs[:, 1] != chains.last[pairs[:, 0]]]
         if len(pairs) == 0:
             return unfold(s, np.zeros((0, self.depth), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
         parent, new = pairs[:, 0], pairs[:, 1]
@@ -275,7 +284,14 @@ class MeshTracer:
         from mixed ones (:func:`sarmitsuba.tracing.occlusion.clip_mixed`), eq. (M5)."""
         s, chains = self.surfaces, lit.chains
         pieces = lit.pieces.select(lit.lit)
-        clipped = clip_mixed(s, lit, reference[chains.sub])
+        antenna = reference[chains.sub]
+        clipped = clip_mixed(s, lit, antenna)
+        for _ in range(RECHECKS):
+            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility)
+            if len(changed) == 0:
+                break
+            lit = dataclasses.replace(lit, blockers=blockers)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed), changed)
         cut = lit.pieces.select(clipped.piece)
         region = np.concatenate([pieces.region, cut.region])
         part = chains.last[region]
@@ -287,6 +303,9 @@ class MeshTracer:
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
+        if self.cancel:
+            shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece])
+            seg_piece, p2, q2 = seg_piece[~shared], p2[~shared], q2[~shared]
         kind = self._split_kinds(chains, region[seg_piece], part[seg_piece], p2, q2, views[chains.sub[region[seg_piece]]])
         # every boundary segment of the pieces that may need their area term
         rows = np.flatnonzero(~stable[:n])

@@ -30,7 +30,8 @@ from .chains import Chains, to_face_lines, unfolded_frame
 from .patches import Surfaces
 from .polygons import EVERYTHING, clip, corner_slots, edge_lines, moments
 
-__all__ = ["shadow_lines", "boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "segment_moments"]
+__all__ = ["shadow_lines", "boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "replace_pieces",
+           "segment_moments"]
 
 #: Two edges on one line to this fraction of the segment's length (and parallel to as many
 #: radians) are one line (a wall's foot seen through two parts).
@@ -259,12 +260,15 @@ class ClippedPieces:
         return len(self.piece)
 
 
-def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray) -> ClippedPieces:
+def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | None = None) -> ClippedPieces:
     """Every mixed piece of ``lit`` (:class:`sarmitsuba.tracing.lit_pieces.LitPieces`) whose
     occluders are all mesh parts, cut to its lit region: the piece less the shadows of the
-    occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3]."""
+    occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3];
+    ``only``: just these rows of ``lit.pieces``."""
     blockers = lit.blockers
     usable = lit.mixed & np.all(blockers != -2, axis=1) & np.any(blockers >= 0, axis=1)
+    if only is not None:
+        usable &= np.isin(np.arange(len(usable)), only)
     rows = np.flatnonzero(usable)
     pieces = lit.pieces.select(rows)
     poly, count = pieces.polygons()
@@ -304,6 +308,20 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray) -> ClippedPieces:
     seg_keep = keep[owner]
     return ClippedPieces(piece=rows[keep], owner=new[owner[seg_keep]], start=start[seg_keep], end=end[seg_keep],
                          area=area[keep], centroid=centroid[keep], second=second[keep], diagonal=diagonal[keep])
+
+
+def replace_pieces(old: ClippedPieces, new: ClippedPieces, rows: np.ndarray) -> ClippedPieces:
+    """``old`` with the pieces ``rows`` (rows of the bounce order's pieces) taken from ``new``."""
+    keep = ~np.isin(old.piece, rows)
+    index = np.cumsum(keep) - 1
+    seg = keep[old.owner]
+    return ClippedPieces(piece=np.concatenate([old.piece[keep], new.piece]),
+                         owner=np.concatenate([index[old.owner[seg]], int(keep.sum()) + new.owner]),
+                         start=np.concatenate([old.start[seg], new.start]), end=np.concatenate([old.end[seg], new.end]),
+                         area=np.concatenate([old.area[keep], new.area]),
+                         centroid=np.concatenate([old.centroid[keep], new.centroid]),
+                         second=np.concatenate([old.second[keep], new.second]),
+                         diagonal=np.concatenate([old.diagonal[keep], new.diagonal]))
 
 
 def _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size: int):

@@ -28,7 +28,7 @@ from .covers import covered_parts, split_covered
 from .facets import MAX_PART_VERTICES, Parts, scene_parts
 from .polygons import clip, moments, pad
 
-__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "Pieces", "pieces_of", "cell_key", "ALONG_FIRST_AXIS",
+__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "Pieces", "pieces_of", "cell_key", "ALONG_FIRST_AXIS",
            "UNIT_SQUARE"]
 
 #: A face whose normal lies within 0.81 deg of its shape's first axis takes its frame's ``u`` from
@@ -175,6 +175,24 @@ def surfaces_from(parts: Parts, shape_ids: np.ndarray, is_mesh: np.ndarray, shap
                         triangle_base=base, body=_bodies(parts))
     surfaces = dataclasses.replace(surfaces, seen_side=_seen_side(surfaces, parts.closed))
     return _uncover(surfaces)
+
+
+def face_partners(surfaces: Surfaces) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(start int64 [n_parts + 1], parts int64 [k])``: for each part, the other parts of its
+    face (:attr:`Surfaces.face`) that have corners of their own."""
+    n = surfaces.n_parts
+    real = np.flatnonzero(surfaces.n_corners > 0)
+    order = real[np.argsort(surfaces.face[real], kind="stable")]
+    faces, first, count = np.unique(surfaces.face[order], return_index=True, return_counts=True)
+    group = np.minimum(np.searchsorted(faces, surfaces.face), max(len(faces) - 1, 0))
+    has = (len(faces) > 0) & (faces[group] == surfaces.face) if len(faces) else np.zeros(n, bool)
+    size = np.where(has, count[group] if len(faces) else 0, 0)
+    rows = np.repeat(np.arange(n), size)
+    local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
+    parts = order[np.repeat(first[group] if len(faces) else np.zeros(n, np.int64), size) + local]
+    keep = parts != rows
+    size = np.bincount(rows[keep], minlength=n)
+    return np.concatenate([[0], np.cumsum(size)]).astype(np.int64), parts[keep].astype(np.int64)
 
 
 def _seen_side(s: Surfaces, closed: np.ndarray | None) -> np.ndarray:

@@ -3,7 +3,8 @@ area terms (:mod:`sarmitsuba.tracing.integration`), rough pieces to scatterers
 (:mod:`sarmitsuba.tracing.surface_clutter`), docs/physics.md (M5), (M7).
 
 * :func:`segments` -- the segments that need terms: two stable pieces of one region leave out the
-  patch line they share (their terms there are equal and opposite);
+  patch line they share (their terms there are equal and opposite), and :func:`cancel_shared` the
+  edges two convex parts of one face share;
 * :func:`build_lanes` -- one lane per point term (a split segment's two ends, a sinc segment's
   midpoint, the three candidates of an open one), one area lane per piece that may be near the
   specular direction; consecutive segments of one straight boundary drop the split ends they
@@ -21,7 +22,7 @@ from .polygons import edge_lines, inside
 from .surface_clutter import (ScattererLanes, cell_hash, points_inside_boundary, scatterer_offsets, scatterer_phases,
                               surface_keys)
 
-__all__ = ["segments", "cancel_junctions", "build_lanes", "windows", "piece_table", "scatterer_lanes"]
+__all__ = ["segments", "cancel_shared", "cancel_junctions", "build_lanes", "windows", "piece_table", "scatterer_lanes"]
 
 
 def segments(pieces, stable: np.ndarray, cancel: bool = True):
@@ -40,6 +41,38 @@ def segments(pieces, stable: np.ndarray, cancel: bool = True):
         at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
         keep[rows[keys[at] == other]] = False
     return piece[keep], start[keep], end[keep]
+
+
+def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndarray, end: np.ndarray,
+                  stable: np.ndarray) -> np.ndarray:
+    """bool: the segments of stable pieces that another stable piece's segment runs along the other
+    way, both reached through mirrors on the same planes (the faces of the earlier windows) and
+    lying on the same face: an edge two convex parts of one face share, whose terms are equal and
+    opposite (eq. (M5)). Both of a pair are dropped. ``chain`` [s] each segment's chain, ``start``,
+    ``end`` [s, 2] face coordinates (one frame per face), ``stable`` [s]."""
+    drop = np.zeros(len(chain), bool)
+    rows = np.flatnonzero(stable)
+    if len(rows) < 2:
+        return drop
+    c = chain[rows]
+    faces = np.where(chains.parts[c] >= 0, s.face[np.maximum(chains.parts[c], 0)], -1)
+    p = np.round(start[rows] * 1e6).astype(np.int64)
+    q = np.round(end[rows] * 1e6).astype(np.int64)
+    forward = (p[:, 0] < q[:, 0]) | ((p[:, 0] == q[:, 0]) & (p[:, 1] < q[:, 1]))
+    lo, hi = np.where(forward[:, None], p, q), np.where(forward[:, None], q, p)
+    columns = (lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1], chains.sub[c], *faces.T)
+    order = np.lexsort(columns)
+    same = np.ones(len(order), bool)
+    same[0] = False
+    for column in columns:
+        ordered = column[order]
+        same[1:] &= ordered[1:] == ordered[:-1]
+    group = np.cumsum(~same) - 1
+    size = np.bincount(group)
+    forwards = np.bincount(group, weights=forward[order])
+    pair = (size == 2) & (forwards == 1)
+    drop[rows[order[pair[group]]]] = True
+    return drop
 
 
 def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 
 from .device import device_array
 from .covers import locate
-from .patches import Surfaces
+from .patches import Surfaces, face_partners
 
 __all__ = ["Rays", "lift", "NO_HIT", "NOT_A_MESH", "SURFACE_LIFT", "SURFACE_LIFT_RELATIVE"]
 
@@ -51,6 +51,12 @@ class Rays:
     def __init__(self, scene, surfaces: Surfaces):
         self.scene = scene
         self.surfaces = surfaces
+        #: The other parts of each part's face (an occluder casts its whole face's shadow).
+        self.face_partners = face_partners(surfaces)
+        #: Each part's bounding sphere: centre float64 [n, 3] and radius [n] (m).
+        corners = surfaces.to_world(np.arange(surfaces.n_parts), surfaces.polygon)
+        centre = 0.5 * (corners.min(axis=1) + corners.max(axis=1))
+        self.part_sphere = (centre, np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1, initial=0.0))
         size = max(len(surfaces.triangle_base), 1)
         base = np.zeros(size, np.int64)
         base[:len(surfaces.triangle_base)] = surfaces.triangle_base
