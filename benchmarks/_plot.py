@@ -56,11 +56,12 @@ def report_per_scene(name: str, rows: list[dict], scenes, metric: str, *, ylabel
                      label=lambda setting: setting) -> None:
     """Print ``rows``, write them to ``NAME.csv`` and plot ``NAME.png``: per scene, ``metric``
     [dB] against ``trace_s`` [s], one point per ``setting`` (named by ``label``); rows whose
-    metric is not finite are left off the plot."""
+    metric is not a finite number are left off the plot."""
     from _table import write_csv
     for row in rows:
         print("  ".join(f"{k}={v}" for k, v in row.items()))
     write_csv(f"{name}.csv", rows)
     plot_cost(f"{name}.png", {scene: [(r["trace_s"], r[metric], label(r["setting"])) for r in rows
-                                      if r["scene"] == scene and math.isfinite(r[metric])] for scene in scenes},
+                                      if r["scene"] == scene and isinstance(r[metric], (int, float))
+                                      and math.isfinite(r[metric])] for scene in scenes},
               xlabel="trace time [s]", ylabel=ylabel, title=title)

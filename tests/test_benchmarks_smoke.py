@@ -1,7 +1,7 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
 Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``,
-``scaling.py``, ``tracing/polarimetry.py``, ``invariance.py``, ``trajectory.py`` and
+``scaling.py``, ``tracing/polarimetry.py``, ``invariance.py``, ``patches.py``, ``trajectory.py`` and
 ``footprints.py`` (a 200 m crop of Sionna's Munich; skipped without Sionna RT's scenes) runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and
@@ -79,10 +79,13 @@ EXPECTED = {
          "peak_true", "pslr_nominal_db", "irw_nominal_m", "peak_nominal", "pslr_pga_db", "irw_pga_m",
          "peak_pga", "pga_iterations", "pga_rms_phase_rad",)),
     "invariance": (
-        {"scene", "setting", "trace_s", "closest_hit_casts", "pulses", "nrmse_complex_db", "nrmse_magnitude_db",
-         "trace_ratio", "meets"},
-        ("trace_s", "closest_hit_casts", "pulses", "trace_ratio"),
-        ("nrmse_complex_db", "nrmse_magnitude_db")),
+        {"scene", "mode", "setting", "trace_s", "pulses", "nrmse_db", "compared", "meets"},
+        ("trace_s", "pulses"),
+        ("nrmse_db",)),
+    "patches": (
+        {"table", "scene", "setting", "trace_s", "total_s", "peak_mib", "value", "unit"},
+        ("trace_s",),
+        ("total_s", "peak_mib", "value")),
     "footprints": (
         {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
          "height_below_top_mean_m", "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s",

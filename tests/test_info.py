@@ -187,7 +187,12 @@ def test_cost_counts_the_planned_sub_apertures():
     assert c.rays_per_pulse == footprint.n_azimuth * footprint.n_range
     assert c.pulses_per_trace == sarmitsuba.tracing.trace.pulses_per_trace(loaded.params, loaded.settings, n) > 1
     assert c.subapertures == math.ceil(n / c.pulses_per_trace)
-    assert c.closest_hit_casts == c.shadow_casts == 2 * c.primary_rays
+    # patches (the default): every sample casts at most one ray per leg of its path (two legs at
+    # the second bounce), and the later order has fewer pieces than the first
+    assert c.closest_hit_casts == c.shadow_casts
+    assert c.primary_rays < c.closest_hit_casts <= 3 * c.primary_rays
+    tiles = scene_info("dihedral", integrator_overrides={**overrides, "lit_regions": "tiles"}).cost
+    assert tiles.closest_hit_casts == tiles.shadow_casts == 2 * tiles.primary_rays       # every tube to max_depth
     assert c.trace_time_low_s <= c.trace_time_s <= c.trace_time_high_s
     hit, shadow = info_mod.cast_rates(4)                                # dihedral: 2 rectangles
     assert (hit, shadow) == (50e6, 150e6)                               # below the small anchor: its rates
