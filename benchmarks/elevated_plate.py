@@ -47,8 +47,8 @@ def main() -> None:
     parser.add_argument("--rough", action="store_true", help="a rough plate (gamma -8 dB)")
     parser.add_argument("--no-ground", action="store_true", help="the plate alone (aim plane at its height)")
     parser.add_argument("--pulses-per-trace", default="1,4,0", help="comma-separated settings (0 = default)")
-    parser.add_argument("--lit-regions", default="tiles", choices=("tiles", "cells"),
-                        help="the integrator's lit_regions (docs/physics.md (T3), (T6); default tiles)")
+    parser.add_argument("--lit-regions", default="patches", choices=("patches", "tiles"),
+                        help="the integrator's lit_regions (docs/physics.md (M1)-(M7), (T3); default patches)")
     args = parser.parse_args()
     scene = plate_scene(args.height, args.rough, not args.no_ground)
     for n in (int(x) for x in args.pulses_per_trace.split(",")):

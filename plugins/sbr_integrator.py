@@ -64,18 +64,28 @@
      measured in ``benchmarks/polarimetry.py``.
  * - lit_regions
    - string
-   - ``tiles`` (default): a first-bounce ray tube integrates its whole tile, so a facet's lit
-     region ends in the tubes' staircase, which moves with the lattice (docs/physics.md (T3)).
-     ``cells``: at every bounce order, the cells where the neighbouring rays followed other
-     chains of facets or were hidden integrate each chain's exact piece of the cell, as each
-     pulse sees it, so facet borders, shadows and multi-bounce footprints return as the
-     straight edges they are (docs/physics.md (T6)); the beam's edge and the borders between
-     tube sizes keep the tubes' staircase. 2 to 25 times the trace time, and minutes of kernel compilation on the first render at depth 2 and 3 (docs/physics.md (T6)).
+   - ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M7)). Every
+     planar face carries patches fixed in its own frame; rays aimed at the patches' corners
+     decide what is lit, pieces that disagree are cut exactly against their occluders'
+     shadows, chains of mirrors found by rays are evaluated by the image method, and every lit
+     region's boundary returns Gordon's edge terms, evaluated by every pulse. Nothing depends
+     on a ray lattice: a moved scene gives the moved image, the triangulation does not matter.
+     ``tiles``: the fast preview (ray tubes on a world-fixed lattice, each integrating its whole
+     tile, docs/physics.md (T1)-(T3)): a few times faster on large cities, but a facet's lit
+     region ends in the tubes' staircase, which moves with the lattice. Shapes that are not
+     meshes (a sphere) are always traced with tubes.
+ * - patch_size
+   - float
+   - Side of the patches [m] (``lit_regions = patches``; docs/physics.md (M1)); 0 (default) =
+     automatic: the slant-range resolution, kept below the size whose phase departs from linear
+     by pi/8, rounded to whole scatterer cells. An accuracy knob, measured in
+     ``benchmarks/patches.py`` (error and time).
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;
      docs/physics.md (PO5)). False evaluates them all (three to four times the returns;
-     up to 1.2x the render time): the reference the cancellation is checked against.
+     up to 1.2x the render time): the reference the cancellation is checked against. With
+     patches: false keeps every patch line and every shared split end.
 
 The tracing itself is :func:`sarmitsuba.tracing.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.
