@@ -336,3 +336,31 @@ def test_lit_boundary_is_the_piece_less_its_cut_outs():
                 x0, y0, x1, y1 = xy[:-1, 0], xy[:-1, 1], xy[1:, 0], xy[1:, 1]
                 ref += np.sum((x0 * x0 + x0 * x1 + x1 * x1) * (x0 * y1 - x1 * y0)) / 12
         assert ixx == pytest.approx(ref, abs=1e-8)
+
+
+def test_occluder_partners_are_the_faces_a_part_meets():
+    """A box turned 25 deg and a separate plate with a corner on one of the box's: each face of
+    the box has for partners the four faces it shares an edge with, never the opposite face nor
+    the plate (corners of one shape only); the plate has only its own parts. The graph of a box's
+    faces is the octahedron's."""
+    import trimesh
+    from sarmitsuba.tracing.patches import occluder_partners
+    box = trimesh.creation.box((4.0, 3.0, 2.0))
+    box.apply_transform(trimesh.transformations.rotation_matrix(math.radians(25), (0, 0, 1)))
+    corner = box.vertices[np.argmax(box.vertices.sum(axis=1))]
+    plate = quad(corner + (0.5, 0.5, 0.0), (0.5, 0.0, 0.0), (0.0, 0.5, 0.0))     # one corner on the box's
+    s = surfaces([(box.vertices, box.faces), plate])
+    start, partners = occluder_partners(s)
+    plate_parts = np.flatnonzero(s.shape_id == 1)
+    box_parts = np.flatnonzero((s.shape_id == 0) & (s.n_corners > 0))
+    faces = np.unique(s.face[box_parts])
+    assert len(faces) == 6
+    for part in plate_parts:
+        assert not set(partners[start[part]:start[part + 1]].tolist()) - set(plate_parts.tolist())
+    for face in faces:
+        mine = np.concatenate([partners[start[p]:start[p + 1]] for p in box_parts[s.face[box_parts] == face]])
+        assert set(mine.tolist()) <= set(box_parts.tolist())
+        met = set(s.face[mine].tolist()) - {face}
+        normal = s.normal[box_parts[s.face[box_parts] == face][0]]
+        opposite = {f for f in faces if np.dot(s.normal[box_parts[s.face[box_parts] == f][0]], normal) < -0.99}
+        assert len(met) == 4 and not met & opposite

@@ -210,6 +210,24 @@ def test_speckle_moves_with_its_surface():
 
 
 # --------------------------------------------------------------------------- visibility
+@pytest.mark.parametrize("heading", [20.0, -35.0])
+def test_a_shadow_on_the_ground_agrees_with_one_pulse_per_trace(heading):
+    """A box on a smooth ground at one bounce: everything the ground returns near the box is the
+    edges of its shadow. Sub-apertures of 8 pulses, their shadows cut once at the reference
+    position, agree with tracing every pulse on its own (a second method) within -30 dB
+    (measured -42.2 dB at 20 deg, -44.0 dB at -35 deg). Deliberate bugs: a mixed piece's
+    occluders not spread to its neighbours (lit_pieces.spread_occluders; a shadow's tip between a
+    piece's samples is missed): -22.4 / -10.5 dB; an occluder standing for its own face only, not
+    the faces it meets at a corner (the box's roof and wall form the shadow's tip): -36.7 /
+    -14.6 dB."""
+    rows = block()
+    scene = [rows[0], rows[3]]
+    one = render(scene, heading, depth=1, pulses_per_trace=1).raw.data
+    eight = render(scene, heading, depth=1, pulses_per_trace=8).raw.data
+    assert np.abs(one).max() > 0
+    assert nrmse_db(eight, one) < -30.0
+
+
 @pytest.mark.parametrize("heading", [0.0, 35.0])
 def test_shadow_of_a_floating_box_is_cut_exactly(monkeypatch, heading):
     """A ground plate under a box floating 6 m above it, turned 25 deg: the first bounce's lit
@@ -224,7 +242,7 @@ def test_shadow_of_a_floating_box_is_cut_exactly(monkeypatch, heading):
     def keep(self, lit, views, depth, reference):
         out = real(self, lit, views, depth, reference)
         if depth == 0:
-            captured.append((self.surfaces, lit, out[2], reference))
+            captured.append((self.surfaces, out[3], out[2], reference))      # after the spread
         return out
 
     monkeypatch.setattr(mesh_trace.MeshTracer, "_lanes", keep)

@@ -17,13 +17,15 @@ sub-aperture's reference position ``A``), :func:`lit_pieces`:
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .chains import Chains, path_points, region_lines, unfolded_lines
-from .patches import UNIT_SQUARE, Pieces, Surfaces, pieces_of
+from .patches import UNIT_SQUARE, Pieces, Surfaces, cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
@@ -186,8 +188,9 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, int64
     [n, c], -1 padded, unique per piece; ``-2`` for an occluder that is not a mesh), by the NumPy
     legs of :func:`legs` cast again with :meth:`Rays.first_hit`. An occluder stands for its whole
-    face: the face's other parts join where their bounding spheres come within ``reach`` [m] (the
-    piece's size) of the leg that met it."""
+    face and the parts of its shape it meets at a corner (:attr:`Rays.occluder_partners`): they
+    join where their bounding spheres come within ``reach`` [m] (the piece's size) of the leg that
+    met it."""
     n = len(mixed)
     rows = np.flatnonzero(mixed[owner])
     if len(rows) == 0:
@@ -199,11 +202,12 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     found = np.flatnonzero(part != NO_HIT)
     key = np.where(part >= 0, leg * surfaces.n_parts + part, -2)[found]
     piece = owner[rows][sample[found]]
-    # an occluder is the whole face it belongs to: the face's other convex parts cast the rest of
-    # its shadow, whichever of them the samples met (a wall meshed as many triangles)
+    # an occluder is the whole face it belongs to and the faces next to it: they cast the rest of
+    # the shadow, whichever of them the samples met (a wall meshed as many triangles; a box's roof
+    # and the wall that form the tip of its shadow)
     via = np.flatnonzero(key >= 0)
     hit_part = key[via] % surfaces.n_parts
-    partner_start, partner_parts = rays.face_partners
+    partner_start, partner_parts = rays.occluder_partners
     size = partner_start[hit_part + 1] - partner_start[hit_part]
     rep = np.repeat(via, size)
     local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
@@ -273,3 +277,63 @@ def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, ra
     slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
     table[pairs[:, 0], slot] = pairs[:, 1]
     return table, np.unique(rows[~known])
+
+
+def spread_occluders(lit: LitPieces, clipped) -> tuple[LitPieces, np.ndarray]:
+    """``lit`` with the wholly lit or wholly dark pieces that a cut piece's shadow edges run into
+    made mixed, with that piece's occluders: a shadow's edge or tip that crosses a patch line (or
+    corner) into the next piece between its samples is cut there too, eq. (M4).
+
+    ``clipped`` (:class:`sarmitsuba.tracing.occlusion.ClippedPieces`) holds the cut pieces; a
+    segment of a cut boundary that ends on its patch's side line without running along it crosses
+    into the patch across that line (both, and the diagonal one, at a corner). Returns the new
+    ``lit`` and the rows made mixed (int64): the caller returns those that no occluder cuts to
+    what they were."""
+    pieces = lit.pieces
+    none = (lit, np.zeros(0, np.int64))
+    if len(clipped) == 0:
+        return none
+    row = clipped.piece[clipped.owner]
+    low = pieces.cell[row] * pieces.patch
+    tol = 1e-9 * pieces.patch
+    def sides(point):
+        return [np.where(np.abs(point[:, axis] - low[:, axis]) < tol, -1,
+                         np.where(np.abs(point[:, axis] - low[:, axis] - pieces.patch) < tol, 1, 0)) for axis in (0, 1)]
+
+    start_side, end_side = sides(clipped.start), sides(clipped.end)
+    # a segment along the patch's own side line is the piece's edge, not a shadow's
+    inner = ~np.any([(a != 0) & (a == b) for a, b in zip(start_side, end_side)], axis=0)
+    sources, steps = [], []
+    for side in (start_side, end_side):
+        side = [np.where(inner, v, 0) for v in side]
+        for dx, dy in ((1, 0), (0, 1), (1, 1)):
+            step = np.stack([side[0] * dx, side[1] * dy], axis=1)
+            live = np.any(step != 0, axis=1) & ((dx == 0) | (side[0] != 0)) & ((dy == 0) | (side[1] != 0))
+            sources.append(row[live])
+            steps.append(step[live])
+    source, step = np.concatenate(sources), np.concatenate(steps)
+    if len(source) == 0:
+        return none
+    keys = cell_key(pieces.region, pieces.cell)
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    wanted = cell_key(pieces.region[source], pieces.cell[source] + step)
+    at = np.minimum(np.searchsorted(sorted_keys, wanted), len(keys) - 1)
+    found = sorted_keys[at] == wanted
+    source, target = source[found], order[at[found]]
+    keep = ~lit.mixed[target]
+    source, target = source[keep], target[keep]
+    if len(target) == 0:
+        return lit, np.zeros(0, np.int64)
+    width = lit.blockers.shape[1]
+    pairs = np.stack([np.repeat(target, width), lit.blockers[source].reshape(-1)], axis=1)
+    pairs = np.unique(pairs[pairs[:, 1] >= 0], axis=0)
+    rows, start, count = np.unique(pairs[:, 0], return_index=True, return_counts=True)
+    blockers = np.full((len(lit.lit), max(width, int(count.max()))), -1, np.int64)
+    blockers[:, :width] = lit.blockers
+    slot = np.arange(len(pairs)) - np.repeat(start, count)
+    blockers[rows] = -1
+    blockers[pairs[:, 0], slot] = pairs[:, 1]
+    lit_now, mixed_now = lit.lit.copy(), lit.mixed.copy()
+    lit_now[rows], mixed_now[rows] = False, True
+    return dataclasses.replace(lit, lit=lit_now, mixed=mixed_now, blockers=blockers), rows

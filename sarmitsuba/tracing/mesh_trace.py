@@ -28,8 +28,8 @@ import numpy as np
 
 from .chains import Chains, image_source, unfold
 from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
-from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck
-from .occlusion import clip_mixed, replace_pieces
+from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
+from .occlusion import ClippedPieces, clip_mixed, replace_pieces
 from .surface_clutter import ClutterKernel
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
 from .patches import Pieces, Surfaces, pieces_of
@@ -112,12 +112,12 @@ class MeshTracer:
             stats["chains"].append(len(lit.chains))
             stats["samples"].append(lit.samples)
             stats["carried"].append(self._carried(lit, reference, launch.count))
-            lanes, table, clipped = self._lanes(lit, views, depth, reference)
-            stats["pieces"].append(int(lit.lit.sum()))
+            lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference)
+            stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             self.terms(ctx, lanes, table, depth)
             if self.clutter is not None:
-                scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(lit.lit), clipped, lit.pieces,
+                scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(cut_lit.lit), clipped, lit.pieces,
                                              self.rough_row, self.table, self.cell, self.seed, reference, depth)
                 self.clutter(ctx, scatterers, depth)
         stats["casts"] = self.rays.casts + self.visibility.casts
@@ -283,15 +283,29 @@ class MeshTracer:
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
         from mixed ones (:func:`sarmitsuba.tracing.occlusion.clip_mixed`), eq. (M5)."""
         s, chains = self.surfaces, lit.chains
-        pieces = lit.pieces.select(lit.lit)
         antenna = reference[chains.sub]
         clipped = clip_mixed(s, lit, antenna)
+        was_lit = lit.lit
+        lit, spread = spread_occluders(lit, clipped)
+        if len(spread):
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread), spread)
         for _ in range(RECHECKS):
             blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility)
             if len(changed) == 0:
                 break
             lit = dataclasses.replace(lit, blockers=blockers)
             clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed), changed)
+        if len(spread):
+            # the neighbours that no occluder cuts stay what they were: wholly lit (their shared
+            # edges cancel) or dark (wholly in the occluders' shadows: no piece left)
+            full = lit.pieces.select(clipped.piece).geometry()[0]
+            uncut = clipped.piece[np.isin(clipped.piece, spread) & (clipped.area >= (1.0 - 1e-12) * full)]
+            back = np.concatenate([uncut, np.setdiff1d(spread, clipped.piece)])
+            clipped = replace_pieces(clipped, ClippedPieces.empty(), uncut)
+            lit_now, mixed_now = lit.lit.copy(), lit.mixed.copy()
+            lit_now[back], mixed_now[back] = was_lit[back], False
+            lit = dataclasses.replace(lit, lit=lit_now, mixed=mixed_now)
+        pieces = lit.pieces.select(lit.lit)
         cut = lit.pieces.select(clipped.piece)
         region = np.concatenate([pieces.region, cut.region])
         part = chains.last[region]
@@ -317,7 +331,7 @@ class MeshTracer:
         geometry = (region, part, centroid, centroid2, area, second, diagonal)
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
                                    self.cancel)
-        return lanes, table, clipped
+        return lanes, table, clipped, lit
 
     def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
         """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN

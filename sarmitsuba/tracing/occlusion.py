@@ -259,6 +259,12 @@ class ClippedPieces:
     def __len__(self) -> int:
         return len(self.piece)
 
+    @classmethod
+    def empty(cls) -> "ClippedPieces":
+        """No pieces."""
+        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0),
+                   np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0))
+
 
 def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | None = None) -> ClippedPieces:
     """Every mixed piece of ``lit`` (:class:`sarmitsuba.tracing.lit_pieces.LitPieces`) whose

@@ -28,7 +28,7 @@ from .covers import covered_parts, split_covered
 from .facets import MAX_PART_VERTICES, Parts, scene_parts
 from .polygons import clip, moments, pad
 
-__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "Pieces", "pieces_of", "cell_key", "ALONG_FIRST_AXIS",
+__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "pieces_of", "cell_key", "ALONG_FIRST_AXIS",
            "UNIT_SQUARE"]
 
 #: A face whose normal lies within 0.81 deg of its shape's first axis takes its frame's ``u`` from
@@ -193,6 +193,36 @@ def face_partners(surfaces: Surfaces) -> tuple[np.ndarray, np.ndarray]:
     keep = parts != rows
     size = np.bincount(rows[keep], minlength=n)
     return np.concatenate([[0], np.cumsum(size)]).astype(np.int64), parts[keep].astype(np.int64)
+
+
+def occluder_partners(surfaces: Surfaces) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(start int64 [n_parts + 1], parts int64 [k])``: for each part, the other parts of its
+    face and the parts of its shape that share a corner with it (to ``1e-6`` m). Where a ray met a
+    part, these cast the rest of the shadow there: the silhouette of a body runs along edges two
+    such parts share (a box's roof and wall meet at the tip of its shadow)."""
+    n = surfaces.n_parts
+    start, partners = face_partners(surfaces)
+    rows = [np.repeat(np.arange(n), np.diff(start)), partners]
+    slots = np.arange(surfaces.polygon.shape[1])[None, :] < surfaces.n_corners[:, None]
+    part, slot = np.nonzero(slots)
+    if len(part):
+        corners = surfaces.to_world(part, surfaces.polygon[part, slot])
+        key = np.round(corners * 1e6).astype(np.int64)
+        shape = np.asarray(surfaces.shape_id, np.int64)[part]
+        _, group = np.unique(np.column_stack([shape, key]), axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        order = np.argsort(group, kind="stable")
+        g, p = group[order], part[order]
+        first = np.searchsorted(g, g, side="left")
+        last = np.searchsorted(g, g, side="right")
+        size = last - first
+        a = np.repeat(p, size)
+        b = p[np.repeat(first, size) + np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)]
+        rows.append(np.stack([a, b]))
+    pairs = np.concatenate([np.stack(rows[:2])] + rows[2:], axis=1).T
+    pairs = np.unique(pairs[pairs[:, 0] != pairs[:, 1]], axis=0)
+    size = np.bincount(pairs[:, 0], minlength=n)
+    return np.concatenate([[0], np.cumsum(size)]).astype(np.int64), pairs[:, 1].astype(np.int64)
 
 
 def _seen_side(s: Surfaces, closed: np.ndarray | None) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 
 from .device import device_array
 from .covers import locate
-from .patches import Surfaces, face_partners
+from .patches import Surfaces, face_partners, occluder_partners
 
 __all__ = ["Rays", "lift", "NO_HIT", "NOT_A_MESH", "SURFACE_LIFT", "SURFACE_LIFT_RELATIVE"]
 
@@ -53,6 +53,9 @@ class Rays:
         self.surfaces = surfaces
         #: The other parts of each part's face (an occluder casts its whole face's shadow).
         self.face_partners = face_partners(surfaces)
+        #: The parts that cast the rest of a met occluder's shadow: its face's other parts and the
+        #: parts of its shape it shares a corner with (eq. (M4)).
+        self.occluder_partners = occluder_partners(surfaces)
         #: Each part's bounding sphere: centre float64 [n, 3] and radius [n] (m).
         corners = surfaces.to_world(np.arange(surfaces.n_parts), surfaces.polygon)
         centre = 0.5 * (corners.min(axis=1) + corners.max(axis=1))
