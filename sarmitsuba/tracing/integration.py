@@ -26,6 +26,7 @@ of the terms is :func:`sarmitsuba.tracing.physical_optics.piece_terms`; tests co
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -86,6 +87,8 @@ class PieceTable:
     segment_count: np.ndarray
     segment_mid: np.ndarray
     segment_edge: np.ndarray
+    segment_mid_rate: np.ndarray | None = None
+    segment_edge_rate: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,15 @@ class TermLanes:
         Cosine of the incidence angle there, from the reference position.
     window_direction, window_normal : float32 [m, d, 3]
         The wave's direction arriving there and the part's normal facing it (Jones matrices).
+    origin : float64 [m, 3], optional
+        The reference position of the lane's sub-aperture, m (lanes that move).
+    axis : float32 [m, 3], optional
+        The unit direction of travel their rates are per metre of.
+    motion : float32 [m, 5, 3], optional
+        Rates of ``point``, ``unfolded``, ``middle``, ``middle_unfolded`` and ``edge`` per metre
+        of the antenna's travel along ``axis`` from ``origin``
+        (:mod:`sarmitsuba.tracing.motion`, eq. (M8)): a pulse ``t`` metres along evaluates the
+        lane at ``point + t rate``. None: nothing moves.
     """
 
     kind: np.ndarray
@@ -140,9 +152,23 @@ class TermLanes:
     window_cos: np.ndarray | None = None
     window_direction: np.ndarray | None = None
     window_normal: np.ndarray | None = None
+    origin: np.ndarray | None = None
+    axis: np.ndarray | None = None
+    motion: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    def moved(self, antenna: np.ndarray) -> "TermLanes":
+        """The lanes as a pulse at ``antenna`` [3] (float64, m) evaluates them, eq. (M8): every
+        moving point ``t`` metres of travel along (NumPy; the kernel does the same per pulse)."""
+        if self.motion is None:
+            return self
+        t = np.einsum("mi,mi->m", np.asarray(antenna, float)[None] - self.origin, self.axis.astype(float))[:, None]
+        rate = self.motion.astype(float)
+        return dataclasses.replace(self, point=self.point + t * rate[:, 0], unfolded=self.unfolded + t * rate[:, 1],
+                                   middle=self.middle + t * rate[:, 2], middle_unfolded=self.middle_unfolded + t * rate[:, 3],
+                                   edge=(self.edge + t * rate[:, 4]).astype(np.float32), motion=None)
 
 
 class _Record:
@@ -202,6 +228,11 @@ class PatchTerms:
         if data["open"]:
             data["middle"] = device_array(a64, lanes.middle.T)
             data["middle_unfolded"] = device_array(a64, lanes.middle_unfolded.T)
+        data["moving"] = lanes.motion is not None and bool(np.any(lanes.motion != 0))
+        if data["moving"]:
+            data["origin"] = device_array(a64, lanes.origin.T)
+            data["axis"] = device_array(v3, lanes.axis.T)
+            data["motion"] = [device_array(v3, lanes.motion[:, c].T) for c in range(5)]
         data["gated"] = bool(np.any(~lanes.stable))
         if data["gated"]:
             data["centroid"] = device_array(a64, pieces.centroid.T)
@@ -216,6 +247,10 @@ class PatchTerms:
             data["segment_count"] = device_array(mi.UInt32, pieces.segment_count)
             data["segment_mid"] = device_array(v3, pieces.segment_mid.T)
             data["segment_edge"] = device_array(v3, pieces.segment_edge.T)
+            data["segment_moving"] = data["moving"] and pieces.segment_mid_rate is not None
+            if data["segment_moving"]:
+                data["segment_mid_rate"] = device_array(v3, pieces.segment_mid_rate.T)
+                data["segment_edge_rate"] = device_array(v3, pieces.segment_edge_rate.T)
         data["gamma"], data["jones"] = self.arrival(lanes, depth)
         return data
 
@@ -264,6 +299,8 @@ class PatchTerms:
         r, k = self.r, self.k
         kind, n = data["kind"], data["normal"]
         pulse, antenna, lref, view = r._pulse(ctx, data["sub"], q)
+        if data["moving"]:
+            data = self._moved(data, antenna)
         s, dist, first, d, b = self._at(data, antenna, view, data["point"], data["unfolded"], depth)
         u, ut, ut2 = self._tangential(n, d, b)
         facing = dr.select(dr.dot(n, d) < 0, 1.0, -1.0)            # +1: the wave meets the normal's side
@@ -298,6 +335,19 @@ class PatchTerms:
                                     (lane * ctx["max_count"] + q) * 2 + which)
             dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), live)
             dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), live & ~inside)
+
+    @staticmethod
+    def _moved(data, antenna):
+        """``data`` with the lanes' points, midpoints and edges where the pulse at ``antenna``
+        sees them: ``x + t rate``, ``t`` the antenna's travel along the lane's axis, eq. (M8)."""
+        t = mi.Float(dr.dot(mi.Vector3f(antenna - data["origin"]), data["axis"]))
+        rate = data["motion"]
+        moved = dict(data, travel=t, point=data["point"] + mi.Array3f64(rate[0] * t),
+                     unfolded=data["unfolded"] + mi.Array3f64(rate[1] * t), edge=data["edge"] + rate[4] * t)
+        if data["open"]:
+            moved["middle"] = data["middle"] + mi.Array3f64(rate[2] * t)
+            moved["middle_unfolded"] = data["middle_unfolded"] + mi.Array3f64(rate[3] * t)
+        return moved
 
     def _coefficients(self, data, u, ut, ut2, split, antenna, view, s, dist, d, b, depth: int):
         """A lane's term before the density and the carrier phase, eq. (M5): ``(value, order,
@@ -363,22 +413,35 @@ class PatchTerms:
         diag = dr.gather(mi.Float, data["diagonal"], piece)
         gordon = (self.k * dr.sqrt(ut2) * diag >= TAYLOR_BELOW) & (data["kind"] == AREA)
         start = dr.gather(mi.UInt32, data["segment_start"], piece)
-        stop = start + dr.select(gordon, dr.gather(mi.UInt32, data["segment_count"], piece), 0)
+        moving = bool(data.get("segment_moving"))
+        # moving boundaries (eq. (M8)): the Taylor form takes the area of the moved segments too
+        walk = (gordon | (data["kind"] == AREA)) if moving else gordon
+        stop = start + dr.select(walk, dr.gather(mi.UInt32, data["segment_count"], piece), 0)
         ut = u - n * dr.dot(u, n)
         inv = 1.0 / (k * dr.maximum(ut2, 1e-30))
 
-        def step(e, f, kdf):
+        def step(e, f, kdf, shoelace):
             mid = dr.gather(mi.Vector3f, data["segment_mid"], e)
             edge = dr.gather(mi.Vector3f, data["segment_edge"], e)
+            if moving:
+                mid += dr.gather(mi.Vector3f, data["segment_mid_rate"], e) * data["travel"]
+                edge += dr.gather(mi.Vector3f, data["segment_edge_rate"], e) * data["travel"]
+                shoelace += 0.5 * dr.dot(n, dr.cross(mid, edge))
             alpha = 0.5 * k * dr.dot(u, edge)
             sn, cs = dr.sincos(-k * dr.dot(u, mid))
             common = mi.Complex2f(cs, sn) * mi.Complex2f(0.0, inv * dr.dot(n, dr.cross(ut, edge)))
             sinc = _sinc(alpha)
             # k d/dk of (1 / k) sinc(alpha) exp(-j k u . m): -1, the sinc's own change, -j k u . m
             derivative = common * mi.Complex2f(_x_dsinc(alpha) - sinc, -k * dr.dot(u, mid) * sinc)
-            return e + 1, f + common * sinc, kdf + derivative
+            return e + 1, f + common * sinc, kdf + derivative, shoelace
 
-        _, f, kdf = dr.while_loop((start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0)),
-                                  lambda e, *_: e < stop, step, label="area segments")
+        _, f, kdf, shoelace = dr.while_loop((start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0), mi.Float(0.0)),
+                                            lambda e, *_: e < stop, step, label="area segments")
+        if moving:
+            # the moved piece's own area and size decide between the Taylor and Gordon forms
+            taylor = taylor + mi.Complex2f(shoelace - area, 0.0)
+            size = dr.maximum(diag, dr.sqrt(dr.abs(shoelace)))
+            gordon = (self.k * dr.sqrt(ut2) * size >= TAYLOR_BELOW) & (data["kind"] == AREA)
+            f, kdf = dr.select(gordon, f, 0.0), dr.select(gordon, kdf, 0.0)
         correction = mi.Complex2f(0.0, -k * quad)
         return dr.select(gordon, f + correction, taylor), dr.select(gordon, kdf + correction, taylor_k)

@@ -26,10 +26,12 @@ import math
 
 import numpy as np
 
-from .chains import Chains, image_source, unfold
+from .chains import Chains, image_source, region_lines, unfold
 from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
-from .occlusion import ClippedPieces, clip_mixed, replace_pieces
+from .motion import endpoint_rates, line_rates
+from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shadow_lines
+from .polygons import edge_lines
 from .surface_clutter import ClutterKernel
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
 from .patches import Pieces, Surfaces, pieces_of
@@ -44,6 +46,8 @@ __all__ = ["MeshTracer", "STABLE_MARGIN", "REACH_MARGIN"]
 STABLE_MARGIN = 1.5
 #: Extra reach [m] of the beam's along-track span beyond its first nulls, for rounding.
 REACH_MARGIN = 1.0
+#: Boundaries move with the antenna within a sub-aperture (eq. (M8)).
+MOVING = True
 #: Discovery rays start on a grid fixed in each face's frame, at least this many points across
 #: the shape's bounding box (and at least one per patch): a corner reflector a patch wide still
 #: sends rays from every face into every other (docs/physics.md (M6)).
@@ -88,6 +92,7 @@ class MeshTracer:
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)
         self.subdivision = _discovery_subdivision(surfaces, patch)
+        self.moving = MOVING
         self._static = None
         self._body_box = None
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
@@ -329,9 +334,62 @@ class MeshTracer:
                           np.concatenate([t_start, clipped.start[unstable_cut]]),
                           np.concatenate([t_end, clipped.end[unstable_cut]]))
         geometry = (region, part, centroid, centroid2, area, second, diagonal)
+        motion = None
+        if self.moving:
+            all_rows = np.concatenate([np.flatnonzero(lit.lit), clipped.piece])
+            motion = self._motion(lit, all_rows[seg_piece], seg_piece >= n, p2, q2, views)
+            t_rate = self._motion(lit, all_rows[table_segments[0]], table_segments[0] >= n, table_segments[1],
+                                  table_segments[2], views)
+            table_segments = table_segments + (t_rate[0], t_rate[1])
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
-                                   self.cancel)
+                                   self.cancel, motion)
         return lanes, table, clipped, lit
+
+    def _motion(self, lit: LitPieces, rows, cut, p2, q2, views):
+        """The rates of boundary segments' ends [m per m of travel] toward each sub-aperture's last
+        pulse, eq. (M8): ``(p_rate, q_rate, last)`` for :func:`build_lanes` (``rows`` the segments'
+        rows of ``lit.pieces``, ``cut`` whether a segment bounds a piece cut against occluders)."""
+        s, chains, pieces = self.surfaces, lit.chains, lit.pieces
+        a, b = views[chains.sub, 1], views[chains.sub, 2]
+        step = np.linalg.norm(b - a, axis=1)
+        chain = pieces.region[rows]
+        p_rate, q_rate = np.zeros_like(p2), np.zeros_like(q2)
+        # segments that can move: on a chain's mirrored windows (order >= 2) or an occluder's shadow
+        need = np.flatnonzero((step[chain] > 0) & (cut | (chains.order[chain] > 0)))
+        if len(need) == 0:
+            return p_rate, q_rate, b
+        held, owner = np.unique(rows[need], return_inverse=True)          # the pieces, and each segment's
+        owners, table, rates = [], [], []
+
+        def add(piece, lines, line_rates_):
+            real = np.abs(np.linalg.norm(lines[..., :2], axis=-1) - 1.0) < 1e-6
+            k, j = np.nonzero(real)
+            owners.append(piece[k])
+            table.append(lines[k, j])
+            rates.append(line_rates_[k, j] if line_rates_ is not None else np.zeros((len(k), 3)))
+
+        poly, count = pieces.select(held).polygons()
+        add(np.arange(len(held)), edge_lines(poly, count), None)            # the piece's own edges
+        region = pieces.region[held]
+        windowed = np.flatnonzero(chains.order[region] > 0)
+        if len(windowed):
+            used, at = np.unique(region[windowed], return_inverse=True)
+            lines_a = region_lines(s, chains.select(used), a[used])[0]
+            lines_b = region_lines(s, chains.select(used), b[used])[0]
+            add(windowed, lines_a[at], line_rates(lines_a, lines_b, step[used])[at])
+        shaded = np.unique(owner[cut[need]])
+        if len(shaded):
+            blockers = lit.blockers[held[shaded]]
+            pair, slot = np.nonzero(blockers >= 0)
+            key = blockers[pair, slot]
+            leg, occluder = key // s.n_parts, key % s.n_parts
+            c = region[shaded[pair]]
+            lines_a = shadow_lines(s, chains, c, occluder, leg, a[c])
+            lines_b = shadow_lines(s, chains, c, occluder, leg, b[c])
+            add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
+        p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
+                                                    np.concatenate(table), np.concatenate(rates))
+        return p_rate, q_rate, b
 
     def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
         """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN

@@ -65,6 +65,10 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
     list of (lane, length L [m], value complex, spectral order) for every deposited term.
     """
     out = []
+    travel = np.zeros(len(lanes))                # boundaries that move with the antenna, eq. (M8)
+    if lanes.motion is not None:
+        travel = np.einsum("mi,mi->m", np.asarray(antenna, float)[None] - lanes.origin, lanes.axis.astype(float))
+    lanes = lanes.moved(antenna)
     for m in range(len(lanes)):
         def at(point, unfolded):
             first = unfolded - antenna
@@ -102,8 +106,12 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
         length = s + r
         if kind == AREA:
             start, count = int(pieces.segment_start[piece]), int(pieces.segment_count[piece])
-            f, kdf = polygon_linear_integral(pieces.segment_mid[start:start + count].astype(float),
-                                             pieces.segment_edge[start:start + count].astype(float), n, u, k)
+            mid = pieces.segment_mid[start:start + count].astype(float)
+            edge = pieces.segment_edge[start:start + count].astype(float)
+            if pieces.segment_mid_rate is not None:
+                mid = mid + travel[m] * pieces.segment_mid_rate[start:start + count]
+                edge = edge + travel[m] * pieces.segment_edge_rate[start:start + count]
+            f, kdf = polygon_linear_integral(mid, edge, n, u, k)
             quad = _quadratic(pieces, piece, d, b, s, r)
             f, kdf = f - 1j * k * quad, kdf - 1j * k * quad
             out += [(m, length, base * (f + kdf), 1), (m, length, base * -kdf, 0)]

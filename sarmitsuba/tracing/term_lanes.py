@@ -102,11 +102,13 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
 
 
 def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int,
-                cancel: bool = True):
+                cancel: bool = True, motion=None):
     """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
     centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
     1 (sinc) or 3 (open) point lanes; per unstable piece an area lane. ``cancel`` false keeps the
-    split ends that consecutive segments share."""
+    split ends that consecutive segments share. ``motion``: ``(p_rate, q_rate, moved_to)``, the
+    segments' ends' rates (face coordinates, per metre of travel, float64 [s, 2]) and each
+    chain's second antenna position [n_chains, 3] (:mod:`sarmitsuba.tracing.motion`, eq. (M8))."""
     region, part, centroid, centroid2, area, second, diagonal = geometry
     seg_piece, p2, q2 = segments
     copies = np.where(kind == SPLIT_START, 2, np.where(kind == SINC, 1, 3))
@@ -126,9 +128,19 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     point2 = np.concatenate([point2, centroid2[unstable]])
     mid2 = np.concatenate([0.5 * (p + q), centroid2[unstable]])
     edge2 = np.concatenate([q - p, np.zeros((len(unstable), 2))])
+    if motion is not None:
+        p_rate, q_rate = motion[0][lane_seg], motion[1][lane_seg]
+        zero = np.zeros((len(unstable), 2))
+        point_rate2 = np.concatenate([np.where(at_start[:, None], p_rate, np.where(at_end[:, None], q_rate,
+                                                                                  0.5 * (p_rate + q_rate))), zero])
+        mid_rate2 = np.concatenate([0.5 * (p_rate + q_rate), zero])
+        edge_rate2 = np.concatenate([q_rate - p_rate, zero])
+    else:
+        point_rate2 = mid_rate2 = edge_rate2 = np.zeros((len(lane_kind), 2))
     drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) if cancel \
         else np.zeros(len(lane_kind), bool)
-    lane_piece, lane_kind, point2, mid2, edge2 = (a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2))
+    lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2 = (
+        a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2))
     chain = region[lane_piece]
     lane_part = part[lane_piece]
     point = s.to_world(lane_part, point2)
@@ -136,6 +148,19 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     edge = edge2[:, :1] * s.axis_u[lane_part] + edge2[:, 1:] * s.axis_v[lane_part]
     lin = chains.lin[chain, chains.order[chain]]
     window_data = windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
+    moving = np.any(point_rate2 != 0, axis=1) | np.any(edge_rate2 != 0, axis=1)
+    if motion is not None and np.any(moving):
+        def world(rate2):
+            return rate2[:, :1] * s.axis_u[lane_part] + rate2[:, 1:] * s.axis_v[lane_part]
+        point_rate, mid_rate = world(point_rate2), world(mid_rate2)
+        # U_d is affine: a rate is carried by its linear part
+        rates = [point_rate, np.einsum("mij,mj->mi", lin, point_rate), mid_rate,
+                 np.einsum("mij,mj->mi", lin, mid_rate), world(edge_rate2)]
+        origin = reference[chains.sub[chain]]
+        travel = motion[2][chain] - origin
+        step = np.linalg.norm(travel, axis=1, keepdims=True)
+        window_data.update(origin=origin, axis=(travel / np.where(step > 0, step, 1.0)).astype(np.float32),
+                           motion=np.stack(rates, axis=1).astype(np.float32))
     lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
                       middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
                       normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
@@ -174,9 +199,16 @@ def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceT
     start, end) only of those that may be near the specular direction (their area terms
     integrate them)."""
     region, part, centroid, centroid2, area, second, diagonal = geometry
-    piece, start2, end2 = table_segments
+    piece, start2, end2 = table_segments[:3]
     order = np.argsort(piece, kind="stable")            # each piece's segments in one run
     piece, start2, end2 = piece[order], start2[order], end2[order]
+    rates = {}
+    if len(table_segments) > 3:                         # the segments' ends' rates, eq. (M8)
+        p_rate, q_rate = table_segments[3][order], table_segments[4][order]
+        owner = part[piece]
+        def world(r2):
+            return (r2[:, :1] * s.axis_u[owner] + r2[:, 1:] * s.axis_v[owner]).astype(np.float32)
+        rates = dict(segment_mid_rate=world(0.5 * (p_rate + q_rate)), segment_edge_rate=world(q_rate - p_rate))
     owner = part[piece]
     rel = 0.5 * (start2 + end2) - centroid2[piece]
     mid = rel[:, :1] * s.axis_u[owner] + rel[:, 1:] * s.axis_v[owner]
@@ -188,7 +220,7 @@ def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceT
                       moments=second.astype(np.float32), axis_u=s.axis_u[part].astype(np.float32),
                       axis_v=s.axis_v[part].astype(np.float32),
                       segment_start=(np.cumsum(count) - count).astype(np.uint32), segment_count=count.astype(np.uint32),
-                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32))
+                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32), **rates)
 
 
 def scatterer_lanes(s: Surfaces, chains: Chains, pieces, clipped, lit_pieces, rough_row: np.ndarray, table,

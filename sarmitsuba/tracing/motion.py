@@ -1,0 +1,136 @@
+"""Lit-region boundaries that move with the antenna across a sub-aperture (docs/physics.md (M8)).
+
+A sub-aperture's lit pieces are cut once, from its reference position ``A``. Their edges on the
+face's own lines (patch lines, the face's border, the beam's reach) stay where they are for every
+pulse; their edges on the lines the antenna defines (a chain's mirrored windows, eq. (M3), an
+occluder's shadow, eq. (M4)) move as the antenna moves along its track. Every such line is a
+smooth function of the antenna position, so each boundary point moves, to first order, at a rate
+the lines through it fix: a point ``p`` on the lines ``l_1`` and ``l_2`` (rows ``(g_i, h_i)``, the
+line ``g_i . p + h_i = 0``) with rates ``(g_i', h_i')`` per metre of travel moves at
+
+    ``[g_1; g_2] p' = -[g_1' . p + h_1'; g_2' . p + h_2']``.
+
+The rates come from the lines cut again at a second antenna position ``A_2`` (the sub-aperture's
+last pulse): ``l' = (l(A_2) - l(A)) / |A_2 - A|``. A point on a line that does not move and on
+one that does slides along the fixed one. Each pulse then evaluates its terms at
+``p + t p'``, ``t`` its travel from ``A`` along ``(A_2 - A) / |A_2 - A|`` (float64 on the host,
+applied in :mod:`sarmitsuba.tracing.integration`).
+
+:func:`endpoint_rates` finds, for every boundary segment, the line it lies on and, at each end,
+the line that ends it among the candidate lines of its piece, and solves the 2 x 2 system above.
+A segment none of whose candidate lines holds both its ends, or an end where no second line is
+found, does not move (rate 0): the frozen boundary of the sub-aperture, as before this module.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["ON_LINE", "line_rates", "endpoint_rates"]
+
+#: A point lies on a line within this distance [m] (the clipped polygons' own rounding is about
+#: 1e-12 of their coordinates).
+ON_LINE = 1e-7
+#: Two lines closer to parallel than this sine meet nowhere useful.
+_PARALLEL = 1e-6
+#: Segments handled per block (memory: ``block x lines x 3`` float64 arrays).
+_BLOCK = 32768
+
+
+def line_rates(at_a: np.ndarray, at_b: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Rates of half-plane rows ``(a, b, c)`` [..., H, 3] cut at two antenna positions ``step``
+    [...] metres apart (the first axis): ``(at_b - at_a) / step``, 0 where ``step`` is 0 or a row
+    is a padding or degenerate condition (``(a, b)`` not unit) at either position."""
+    at_a, at_b = np.asarray(at_a, float), np.asarray(at_b, float)
+    step = np.asarray(step, float).reshape((-1,) + (1,) * (at_a.ndim - 1))
+    real = (np.abs(np.linalg.norm(at_a[..., :2], axis=-1) - 1.0) < 1e-6) \
+        & (np.abs(np.linalg.norm(at_b[..., :2], axis=-1) - 1.0) < 1e-6)
+    rate = np.where(step > 0, (at_b - at_a) / np.where(step > 0, step, 1.0), 0.0)
+    return np.where(real[..., None], rate, 0.0)
+
+
+def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_owner: np.ndarray, lines: np.ndarray,
+                   rates: np.ndarray):
+    """The rates [m per m of antenna travel] of the ends of boundary segments.
+
+    Parameters
+    ----------
+    start, end : float64 [s, 2]
+        The segments (face coordinates, m).
+    owner : int64 [s]
+        Each segment's piece (any index shared with ``line_owner``).
+    line_owner : int64 [L]
+        The piece of each candidate line: the piece's own edges and the lines of its chain and
+        occluders.
+    lines : float64 [L, 3]
+        Rows ``(a, b, c)``, ``a x + b y + c = 0``, ``(a, b)`` unit.
+    rates : float64 [L, 3]
+        Their rates (:func:`line_rates`; 0 for the face's own lines).
+
+    Returns
+    -------
+    (float64 [s, 2], float64 [s, 2])
+        The rates of ``start`` and ``end``; 0 for a segment on no candidate line, or whose ends no
+        second line crosses, or on no moving line and at no moving line's end.
+    """
+    n = len(start)
+    out_s, out_e = np.zeros((n, 2)), np.zeros((n, 2))
+    if n == 0 or len(lines) == 0:
+        return out_s, out_e
+    order = np.argsort(line_owner, kind="stable")
+    owners = line_owner[order]
+    for lo in range(0, n, _BLOCK):
+        hi = min(n, lo + _BLOCK)
+        first = np.searchsorted(owners, owner[lo:hi], side="left")
+        count = np.searchsorted(owners, owner[lo:hi], side="right") - first
+        seg = np.repeat(np.arange(lo, hi), count)
+        line = order[np.repeat(first, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)]
+        out_s[lo:hi], out_e[lo:hi] = _solve(start, end, seg, line, lines, rates, lo, hi)
+    return out_s, out_e
+
+
+def _first(seg: np.ndarray, score: np.ndarray, n: int, offset: int) -> np.ndarray:
+    """Per segment ``offset .. offset + n``, the row of the highest ``score`` (-1 where none)."""
+    best = np.full(n, -1, np.int64)
+    if len(seg):
+        order = np.lexsort((-score, seg))
+        first = np.ones(len(order), bool)
+        first[1:] = seg[order][1:] != seg[order][:-1]
+        best[seg[order][first] - offset] = order[first]
+    return best
+
+
+def _solve(start, end, seg, line, lines, rates, lo, hi):
+    n = hi - lo
+    g, h = lines[line, :2], lines[line, 2]
+    ds = np.abs(np.einsum("mi,mi->m", g, start[seg]) + h) < ON_LINE
+    de = np.abs(np.einsum("mi,mi->m", g, end[seg]) + h) < ON_LINE
+    keep = ds | de
+    seg, line, g, ds, de = seg[keep], line[keep], g[keep], ds[keep], de[keep]
+    moving = np.any(rates[line] != 0.0, axis=1)
+    own_rows = np.flatnonzero(ds & de)
+    own = _first(seg[own_rows], moving[own_rows].astype(float), n, lo)
+    has_own = own >= 0
+    own_row = own_rows[np.maximum(own, 0)] if len(own_rows) else np.zeros(n, np.int64)
+    own_line = line[own_row] if len(line) else np.zeros(n, np.int64)
+    g_own = np.where(has_own[:, None], lines[own_line, :2], 0.0)
+    r_own = np.where(has_own[:, None], rates[own_line], 0.0)
+    moving_own = has_own & np.any(r_own != 0.0, axis=1)
+    local = seg - lo
+    cross = np.abs(g[:, 0] * g_own[local, 1] - g[:, 1] * g_own[local, 0])
+    results = []
+    for point, on in ((start[lo:hi], ds), (end[lo:hi], de)):
+        rows = np.flatnonzero(on & (cross > _PARALLEL))
+        other = _first(seg[rows], moving[rows].astype(float), n, lo)
+        has = other >= 0
+        other_line = line[rows[np.maximum(other, 0)]] if len(rows) else np.zeros(n, np.int64)
+        g_other = lines[other_line, :2]
+        r_other = np.where(has[:, None], rates[other_line], 0.0)
+        ok = has_own & has & (moving_own | np.any(r_other != 0.0, axis=1))
+        rhs0 = -(np.einsum("si,si->s", r_own[:, :2], point) + r_own[:, 2])
+        rhs1 = -(np.einsum("si,si->s", r_other[:, :2], point) + r_other[:, 2])
+        det = g_own[:, 0] * g_other[:, 1] - g_own[:, 1] * g_other[:, 0]
+        safe = np.where(ok & (det != 0), det, 1.0)
+        x = (rhs0 * g_other[:, 1] - rhs1 * g_own[:, 1]) / safe
+        y = (g_own[:, 0] * rhs1 - g_other[:, 0] * rhs0) / safe
+        results.append(np.where(ok[:, None], np.stack([x, y], axis=1), 0.0))
+    return results[0], results[1]
