@@ -18,6 +18,7 @@ the unfolded length off by a millimetre.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -36,12 +37,17 @@ SCENE_PATCHES = (SCENE.replace('<string name="lit_regions" value="tiles"/>', '<s
                           '<string name="beam" value="uniform"/><boolean name="stop_and_hop" value="true"/>'))
 
 
-@pytest.mark.parametrize("pulses, tilt", [(1, TILT), (6, TILT), (6, math.radians(45.0))],
-                         ids=["one pulse", "a sub-aperture of six pulses", "plate facing the antenna"])
-def test_patch_kernel_equals_the_numpy_reference(tmp_path, monkeypatch, pulses, tilt):
+@pytest.mark.parametrize("pulses, tilt, moving", [(1, TILT, False), (6, TILT, False), (6, math.radians(45.0), False),
+                                                  (6, TILT, True), (6, math.radians(45.0), True)],
+                         ids=["one pulse", "a sub-aperture of six pulses", "plate facing the antenna",
+                              "six pulses, boundaries moving", "facing the antenna, boundaries moving"])
+def test_patch_kernel_equals_the_numpy_reference(tmp_path, monkeypatch, pulses, tilt, moving):
     """The plate tilted 15 deg (edge terms, split and sinc), and tilted 45 deg, facing the
     antenna at 45 deg incidence: its pieces near the specular direction for some pulses are
-    gated per pulse between their area term and their edges."""
+    gated per pulse between their area term and their edges. ``moving``: every lane's points,
+    midpoints and edges, and every area term's segments, given rates of up to 0.2 m per metre of
+    travel (eq. (M8); random, the same for both): each pulse must move them by its own travel
+    (deliberate bugs: the travel's sign flipped; the area term's segments left where they were)."""
     a, b, c = PLATE_SIZE[0] / 2, PLATE_SIZE[1] / 2, PLATE_CENTRE
     xml = tmp_path / "mirror_plate.xml"
     xml.write_text(SCENE_PATCHES.format(radar="", gx=GROUND_HALF[0], gy=GROUND_HALF[1], px=a, py=b,
@@ -50,8 +56,18 @@ def test_patch_kernel_equals_the_numpy_reference(tmp_path, monkeypatch, pulses, 
     captured = []
     real = integration.PatchTerms.__call__
 
+    rng = np.random.default_rng(7)
+
     def keep(self, ctx, lanes, pieces, depth):
         launch = ctx["launch"]
+        if moving:
+            m = len(lanes)
+            lanes = dataclasses.replace(lanes, origin=launch.reference[lanes.sub],
+                                        axis=np.tile(np.float32([0.6, 0.8, 0.0]), (m, 1)),
+                                        motion=rng.uniform(-0.2, 0.2, (m, 5, 3)).astype(np.float32))
+            s = len(pieces.segment_mid)
+            pieces = dataclasses.replace(pieces, segment_mid_rate=rng.uniform(-0.2, 0.2, (s, 3)).astype(np.float32),
+                                         segment_edge_rate=rng.uniform(-0.2, 0.2, (s, 3)).astype(np.float32))
         captured.append((lanes, pieces, depth, launch.antenna.copy(), launch.lref.copy(), launch.first.copy(),
                          launch.count.copy(), self.alpha_s))
         return real(self, ctx, lanes, pieces, depth)

@@ -61,7 +61,7 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
         (count 0).
     count : int64 [n]
     """
-    poly = np.asarray(poly, np.float64)
+    poly = np.array(poly, np.float64)              # a copy: the corners are rewritten in place
     count = np.asarray(count, np.int64).copy()
     n = poly.shape[0]
     if n == 0:
