@@ -64,7 +64,7 @@
      measured in ``benchmarks/polarimetry.py``.
  * - lit_regions
    - string
-   - ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M7)). Every
+   - ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M8)). Every
      planar face carries patches fixed in its own frame; rays aimed at the patches' corners
      decide what is lit, pieces that disagree are cut exactly against their occluders'
      shadows, chains of mirrors found by rays are evaluated by the image method, and every lit

@@ -59,7 +59,7 @@ FFT_SECONDS = 5.6e-9
 #: PO returns evaluated per ray tube and pulse (the terms that do not cancel, (PO5)), for the
 #: estimate: 0.97 measured in Munich (a city; 0.2 on the urban block's open ground).
 RETURNS_PER_TUBE = 1.0
-#: Mesh-anchored patches (``lit_regions = "patches"``, docs/physics.md (M1)-(M7)): pieces of the
+#: Mesh-anchored patches (``lit_regions = "patches"``, docs/physics.md (M1)-(M8)): pieces of the
 #: second and later bounce orders per first-order piece, measured on sionna:munich (512 pulses,
 #: 215k, 128k and 55k pieces per launch) and used as the estimate's decay per order.
 PIECES_PER_ORDER = (1.0, 0.6, 0.26, 0.1, 0.05)

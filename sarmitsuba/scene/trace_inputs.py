@@ -27,7 +27,7 @@ __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "Mat
 
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
-#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M7), (T3)).
+#: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M8), (T3)).
 LIT_REGIONS = ("patches", "tiles")
 #: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
 #: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit`).
@@ -80,7 +80,7 @@ class TraceSettings:
         path contains H (an accuracy knob, ``benchmarks/polarimetry.py``). Cross-polarised
         channels always need ``jones``.
     lit_regions : str
-        ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M7)): every
+        ``patches`` (default): scattering anchored to the mesh (docs/physics.md (M1)-(M8)): every
         face's patches, fixed in its own frame, integrate physical optics exactly over what the
         antenna sees of them, through chains of mirrors found by rays, so the image depends on
         the scene alone. ``tiles``: the fast preview; each ray tube integrates its whole tile on
@@ -129,7 +129,7 @@ class TraceSettings:
         if self.lit_regions not in LIT_REGIONS:
             raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
                                  f"{', '.join(repr(m) for m in LIT_REGIONS)} (patches: scattering anchored to the mesh, "
-                                 "docs/physics.md (M1)-(M7); tiles: the ray tubes' tiles, a fast preview)")
+                                 "docs/physics.md (M1)-(M8); tiles: the ray tubes' tiles, a fast preview)")
         if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")

@@ -8,7 +8,7 @@ Takes: a loaded scene and its plan from :mod:`sarmitsuba.scene` (``RadarParamete
 Gives: ``TraceResult`` (:func:`.trace.trace`): per pulse the band-limited fast-time spectra of
 every path, split by bounce order and polarisation, with the trace's statistics.
 
-Rays find the paths; the mesh decides what they integrate (docs/physics.md (M1)-(M7)). The parts,
+Rays find the paths; the mesh decides what they integrate (docs/physics.md (M1)-(M8)). The parts,
 in the order a trace runs them:
 
 ==========================  ===============================================================
@@ -23,6 +23,7 @@ in the order a trace runs them:
 :mod:`.visibility`          rays aimed at mesh points (Embree through Mitsuba, Dr.Jit)
 :mod:`.lit_pieces`          lit, transmit-lit and mixed pieces; occluders met
 :mod:`.occlusion`           mixed pieces cut exactly against their occluders' shadows
+:mod:`.motion`              how their boundaries move with the antenna across a sub-aperture
 **integration**
 :mod:`.term_lanes`          lit boundaries as per-pulse term lanes, rough pieces as scatterers
 :mod:`.integration`         the patch terms in Dr.Jit; :mod:`.patch_reference` its NumPy reference
@@ -41,7 +42,7 @@ in the order a trace runs them:
                             the Mitsuba variant (used by ``import sarmitsuba``)
 ==========================  ===============================================================
 
-Physics: (M1)-(M7) the mesh-anchored patches; (T1)-(T3) ray tubes and sub-apertures; (PO1)-(PO5)
+Physics: (M1)-(M8) the mesh-anchored patches; (T1)-(T3) ray tubes and sub-apertures; (PO1)-(PO5)
 physical optics; (C) clutter; (A) antenna pattern; (P1)-(P8) polarimetry; (D1)-(D5) the fast-time
 deposit.
 """

@@ -68,7 +68,7 @@ class Flags:
     SPLIT_1, SPLIT_2 = 32, 64   # footprint edge split into its two end terms (PO2) for every pulse
     BACK = 128             # the ray met the surface from its back (against its own normal)
     UNDECIDED_1, UNDECIDED_2 = 256, 512   # split for some pulses of the sub-aperture only (T3)
-    MESH_ONLY = 1024       # every hit so far on a triangle mesh: the patches return it (M1)-(M7)
+    MESH_ONLY = 1024       # every hit so far on a triangle mesh: the patches return it (M1)-(M8)
 
 
 @dataclass
@@ -357,7 +357,7 @@ class Kernel:
         self.mesh = None
         #: Whether the tubes are traced: ``tiles``, or patches with shapes that are not meshes (spheres).
         self.tubes = settings.lit_regions != "patches" or self.tables.other_shapes
-        if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M7)
+        if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M8)
             bbox = scene.bbox()
             self.mesh = MeshTracer(scene, surfaces_of(scene, material_table), self.returns, params, settings,
                                    footprint.patch_size, not (effects.spotlight or effects.curved_track),
@@ -373,7 +373,7 @@ class Kernel:
         (gridded kernels) or ``paths`` (dict of arrays, ``exact``), and the counters."""
         st = self.settings
         ctx = self.returns.context(launch, capacity)
-        if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M7)
+        if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M8)
             ctx["mesh"] = self.mesh(ctx, launch)
             out = self.returns.collect(ctx)
             if out is None:                     # exact kernel: too many scatterers for the buffer

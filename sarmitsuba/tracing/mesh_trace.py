@@ -1,5 +1,5 @@
 """Scattering anchored to the mesh: one launch of sub-apertures, bounce order by bounce order
-(docs/physics.md (M1)-(M7)).
+(docs/physics.md (M1)-(M8)).
 
 For each sub-aperture of a :class:`sarmitsuba.tracing.launches.Launch`, seen from its reference
 position ``A``:
