@@ -206,8 +206,11 @@ def test_random_scene_is_finite_and_conserves_energy(scene, sensor, integrator):
     assert math.isfinite(t.energy_outside_window) and t.energy_outside_window >= 0
     # something is under the beam: the ground at the scene centre is hit and returns energy
     assert rays[0] > 0 and carried[0] > 0 and energy.sum() > 0, (rays, carried, energy)
-    # rays only leave the scene: closest-hit casts never increase; shadow rays <= hits
-    assert np.all(np.diff(rays) <= 0), rays
+    # tubes only leave the scene: their closest-hit casts never increase (the patches' discovery
+    # rays start afresh from each order's lit pieces, docs/physics.md (M6): a small mirror that
+    # lights a large face sends more at the next order); shadow rays <= hits
+    if sim.loaded.settings.lit_regions == "tiles":
+        assert np.all(np.diff(rays) <= 0), rays
     assert t.shadow_rays <= rays.sum()
     # no hit at an order, no return from it
     assert np.all(energy[carried == 0] == 0), (carried, energy)

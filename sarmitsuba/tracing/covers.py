@@ -77,6 +77,8 @@ def locate(points2: np.ndarray, candidates: list, polygons: np.ndarray, counts: 
     for k, (point, options) in enumerate(zip(points2, candidates)):
         best, best_distance = options[0], np.inf
         for part in options:
+            if counts[part] < 3:                # a part wholly covered: no polygon of its own
+                continue
             corner = polygons[part, :counts[part]]
             edge = np.roll(corner, -1, axis=0) - corner
             side = edge[:, 0] * (point[1] - corner[:, 1]) - edge[:, 1] * (point[0] - corner[:, 0])
