@@ -336,11 +336,15 @@ class MeshTracer:
         geometry = (region, part, centroid, centroid2, area, second, diagonal)
         motion = None
         if self.moving:
+            # the term lanes' segments and the area terms' segments in one pass (their pieces overlap)
             all_rows = np.concatenate([np.flatnonzero(lit.lit), clipped.piece])
-            motion = self._motion(lit, all_rows[seg_piece], seg_piece >= n, p2, q2, views)
-            t_rate = self._motion(lit, all_rows[table_segments[0]], table_segments[0] >= n, table_segments[1],
-                                  table_segments[2], views)
-            table_segments = table_segments + (t_rate[0], t_rate[1])
+            piece_of = np.concatenate([seg_piece, table_segments[0]])
+            p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
+                                                np.concatenate([p2, table_segments[1]]),
+                                                np.concatenate([q2, table_segments[2]]), views)
+            m = len(seg_piece)
+            motion = (p_rate[:m], q_rate[:m], last)
+            table_segments = table_segments + (p_rate[m:], q_rate[m:])
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
                                    self.cancel, motion)
         return lanes, table, clipped, lit

@@ -111,6 +111,11 @@ class Surfaces:
         o, u, v = (_expand(a, coords.ndim) for a in (self.plane_point(part), self.axis_u[part], self.axis_v[part]))
         return o + coords[..., 0, None] * u + coords[..., 1, None] * v
 
+    def vector_to_world(self, part: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+        """World vectors float64 [m, 3] of face-coordinate vectors ``vectors`` [m, 2] on ``part`` [m]
+        (edges, offsets, rates: no origin)."""
+        return vectors[:, :1] * self.axis_u[part] + vectors[:, 1:] * self.axis_v[part]
+
     def to_face(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Face coordinates float64 [..., 2] of world points [..., 3] on (or projected onto) ``part``."""
         o, u, v = (_expand(a[part], points.ndim) for a in (self.origin, self.axis_u, self.axis_v))

@@ -43,6 +43,18 @@ def segments(pieces, stable: np.ndarray, cancel: bool = True):
     return piece[keep], start[keep], end[keep]
 
 
+def _equal_rows(columns) -> tuple[np.ndarray, np.ndarray]:
+    """Rows grouped by equal values in every one of ``columns`` (int64 arrays of one length):
+    ``(order, group)``, the rows sorted and each sorted row's group number (0, 1, ...)."""
+    order = np.lexsort(columns)
+    same = np.ones(len(order), bool)                      # a sorted row equals the one before it
+    same[0] = False
+    for column in columns:
+        ordered = column[order]
+        same[1:] &= ordered[1:] == ordered[:-1]
+    return order, np.cumsum(~same) - 1
+
+
 def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndarray, end: np.ndarray,
                   stable: np.ndarray) -> np.ndarray:
     """bool: the segments of stable pieces that another stable piece's segment runs along the other
@@ -60,14 +72,7 @@ def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndar
     q = np.round(end[rows] * 1e6).astype(np.int64)
     forward = (p[:, 0] < q[:, 0]) | ((p[:, 0] == q[:, 0]) & (p[:, 1] < q[:, 1]))
     lo, hi = np.where(forward[:, None], p, q), np.where(forward[:, None], q, p)
-    columns = (lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1], chains.sub[c], *faces.T)
-    order = np.lexsort(columns)
-    same = np.ones(len(order), bool)
-    same[0] = False
-    for column in columns:
-        ordered = column[order]
-        same[1:] &= ordered[1:] == ordered[:-1]
-    group = np.cumsum(~same) - 1
+    order, group = _equal_rows((lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1], chains.sub[c], *faces.T))
     size = np.bincount(group)
     forwards = np.bincount(group, weights=forward[order])
     pair = (size == 2) & (forwards == 1)
@@ -86,14 +91,7 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
     direction = edge2[candidate] / np.linalg.norm(edge2[candidate], axis=1, keepdims=True)
     q = np.round(point2[candidate] * 1e6).astype(np.int64)
     angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
-    columns = (angle, q[:, 1], q[:, 0], region[lane_piece[candidate]])
-    order = np.lexsort(columns)
-    same = np.ones(len(order), bool)                      # row equals the previous one (sorted)
-    same[0] = False
-    for c in columns:
-        sorted_c = c[order]
-        same[1:] &= sorted_c[1:] == sorted_c[:-1]
-    group = np.cumsum(~same) - 1
+    order, group = _equal_rows((angle, q[:, 1], q[:, 0], region[lane_piece[candidate]]))
     size = np.bincount(group)
     starts = np.bincount(group, weights=lane_kind[candidate][order] == SPLIT_START)
     pair = (size == 2) & (starts == 1)
@@ -145,17 +143,15 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     lane_part = part[lane_piece]
     point = s.to_world(lane_part, point2)
     middle = s.to_world(lane_part, mid2)
-    edge = edge2[:, :1] * s.axis_u[lane_part] + edge2[:, 1:] * s.axis_v[lane_part]
+    edge = s.vector_to_world(lane_part, edge2)
     lin = chains.lin[chain, chains.order[chain]]
     window_data = windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
     moving = np.any(point_rate2 != 0, axis=1) | np.any(edge_rate2 != 0, axis=1)
     if motion is not None and np.any(moving):
-        def world(rate2):
-            return rate2[:, :1] * s.axis_u[lane_part] + rate2[:, 1:] * s.axis_v[lane_part]
-        point_rate, mid_rate = world(point_rate2), world(mid_rate2)
+        point_rate, mid_rate = s.vector_to_world(lane_part, point_rate2), s.vector_to_world(lane_part, mid_rate2)
         # U_d is affine: a rate is carried by its linear part
         rates = [point_rate, np.einsum("mij,mj->mi", lin, point_rate), mid_rate,
-                 np.einsum("mij,mj->mi", lin, mid_rate), world(edge_rate2)]
+                 np.einsum("mij,mj->mi", lin, mid_rate), s.vector_to_world(lane_part, edge_rate2)]
         origin = reference[chains.sub[chain]]
         travel = motion[2][chain] - origin
         step = np.linalg.norm(travel, axis=1, keepdims=True)
@@ -202,18 +198,14 @@ def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceT
     piece, start2, end2 = table_segments[:3]
     order = np.argsort(piece, kind="stable")            # each piece's segments in one run
     piece, start2, end2 = piece[order], start2[order], end2[order]
+    owner = part[piece]
     rates = {}
     if len(table_segments) > 3:                         # the segments' ends' rates, eq. (M8)
         p_rate, q_rate = table_segments[3][order], table_segments[4][order]
-        owner = part[piece]
-        def world(r2):
-            return (r2[:, :1] * s.axis_u[owner] + r2[:, 1:] * s.axis_v[owner]).astype(np.float32)
-        rates = dict(segment_mid_rate=world(0.5 * (p_rate + q_rate)), segment_edge_rate=world(q_rate - p_rate))
-    owner = part[piece]
-    rel = 0.5 * (start2 + end2) - centroid2[piece]
-    mid = rel[:, :1] * s.axis_u[owner] + rel[:, 1:] * s.axis_v[owner]
-    edge2 = end2 - start2
-    edge = edge2[:, :1] * s.axis_u[owner] + edge2[:, 1:] * s.axis_v[owner]
+        rates = dict(segment_mid_rate=s.vector_to_world(owner, 0.5 * (p_rate + q_rate)).astype(np.float32),
+                     segment_edge_rate=s.vector_to_world(owner, q_rate - p_rate).astype(np.float32))
+    mid = s.vector_to_world(owner, 0.5 * (start2 + end2) - centroid2[piece])
+    edge = s.vector_to_world(owner, end2 - start2)
     count = np.bincount(piece, minlength=len(region))
     return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
                       diagonal=diagonal.astype(np.float32), area=area.astype(np.float32),
