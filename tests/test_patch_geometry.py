@@ -26,7 +26,7 @@ import shapely
 from sarmitsuba.scene.loader import shape_frame
 from sarmitsuba.tracing.chains import region_lines, unfold
 from sarmitsuba.tracing.facets import mesh_parts
-from sarmitsuba.tracing.occlusion import boundary, shadow_lines
+from sarmitsuba.tracing.occlusion import boundary, lit_boundary, shadow_lines
 from sarmitsuba.tracing.patches import pieces_of, surfaces_from
 from sarmitsuba.tracing.polygons import clip, edge_lines, inside, moments, pad
 
@@ -276,9 +276,11 @@ def test_shadow_lines_are_the_occluders_on_each_leg():
 
 
 # --------------------------------------------------------------------------- exact clipping
-def test_lit_boundary_is_the_piece_less_its_cut_outs():
-    """:func:`boundary` of a piece less overlapping, adjacent and edge-sharing cut-outs: the area,
-    first and second moments its segments give by Green's theorem against shapely's difference."""
+@pytest.mark.parametrize("flat", [False, True], ids=["padded", "flat"])
+def test_lit_boundary_is_the_piece_less_its_cut_outs(flat):
+    """:func:`boundary` (cut-outs padded per piece) and :func:`lit_boundary` (one flat list, the
+    fast kernel) of a piece less overlapping, adjacent and edge-sharing cut-outs: the area, first
+    and second moments their segments give by Green's theorem against shapely's difference."""
     rng = np.random.default_rng(7)
     groups, n_cut = 300, 4
     bases, cuts = [], []
@@ -316,7 +318,11 @@ def test_lit_boundary_is_the_piece_less_its_cut_outs():
             cut[g, i, :len(c)] = c
             cut_count[g, i] = len(c)
             pad(cut[g, i:i + 1], cut_count[g, i:i + 1])
-    owner, p, q = boundary(base_poly, base_count, cut, cut_count)
+    if flat:
+        has = cut_count > 0
+        owner, p, q = lit_boundary(base_poly, base_count, cut[has], cut_count[has], np.nonzero(has)[0])
+    else:
+        owner, p, q = boundary(base_poly, base_count, cut, cut_count)
     for g in range(groups):
         lit = shapely.Polygon(bases[g]).difference(shapely.unary_union([shapely.Polygon(c) for c in cuts[g]]
                                                                        or [shapely.Polygon()]))
@@ -417,3 +423,19 @@ def test_boundary_rates_are_the_regions_cut_again():
                 on_moving = np.abs(np.einsum("hi,vi->vh", cuts[0][0][:, :2], corners) + cuts[0][0][:, 2]) < 1e-7
                 both_moving += int(np.sum(on_moving.sum(axis=1) >= 2))
     assert tested > 30 and both_moving > 5, (tested, both_moving)
+
+
+def test_unique_pairs_are_numpys_unique_rows():
+    """:func:`unique_pairs` against ``np.unique(..., axis=0)`` on pairs with repeats, negative
+    second members (the -2 of a non-mesh occluder) and a wide range; a negative first raises."""
+    from sarmitsuba.core.arrays import unique_pairs
+    rng = np.random.default_rng(3)
+    first = rng.integers(0, 50, 4000)
+    second = np.where(rng.random(4000) < 0.1, -2, rng.integers(0, 10 ** 6, 4000))
+    first = np.concatenate([first, first[:500]])
+    second = np.concatenate([second, second[:500]])
+    expected = np.unique(np.stack([first, second], axis=1), axis=0)
+    np.testing.assert_array_equal(unique_pairs(first, second), expected)
+    assert unique_pairs(np.zeros(0, np.int64), np.zeros(0, np.int64)).shape == (0, 2)
+    with pytest.raises(ValueError, match="first"):
+        unique_pairs(np.array([-1]), np.array([0]))

@@ -3,6 +3,7 @@
 =====================  ==============================================================
 :func:`vector3`        a finite 3-vector (float64, shape ``(3,)``) or a clear ValueError
 :func:`readonly`       a float64 copy whose ``writeable`` flag is off
+:func:`unique_pairs`   the distinct rows of two int64 columns, by one sorted int64 key
 =====================  ==============================================================
 
 Frozen dataclasses between stages hold their arrays read-only, so no stage can change another
@@ -14,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["readonly", "vector3"]
+__all__ = ["readonly", "unique_pairs", "vector3"]
 
 
 def vector3(name: str, value: Any) -> np.ndarray:
@@ -36,3 +37,21 @@ def readonly(arr: Any) -> np.ndarray:
     out = np.array(arr, dtype=np.float64, copy=True)
     out.flags.writeable = False
     return out
+
+
+def unique_pairs(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``(first, second)`` (int64 [n] each, ``second >= -2**31``), sorted
+    as ``np.unique(np.stack([first, second], 1), axis=0)`` sorts them: int64 [m, 2]. One sort of
+    one int64 key per row, not a sort of structured rows (several times faster).
+
+    Raises ValueError where ``first`` is negative or the key would not fit in int64."""
+    first = np.asarray(first, np.int64)
+    second = np.asarray(second, np.int64)
+    if len(first) == 0:
+        return np.zeros((0, 2), np.int64)
+    low = int(second.min())
+    span = int(second.max()) - low + 1
+    if int(first.min()) < 0 or (int(first.max()) + 1) * span >= 2 ** 62:
+        raise ValueError("unique_pairs: first must be >= 0 and first * span(second) below 2**62")
+    key = np.unique(first * span + (second - low))
+    return np.stack([key // span, key % span + low], axis=1)

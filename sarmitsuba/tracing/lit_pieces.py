@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.arrays import unique_pairs
 from .chains import Chains, path_points, region_lines, unfolded_lines
 from .patches import UNIT_SQUARE, Pieces, Surfaces, cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
@@ -220,7 +221,7 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     near = np.linalg.norm(a + t[:, None] * ab - centre[extra], axis=1) <= radius[extra] + reach
     piece = np.concatenate([piece, piece[rep[near]]])
     key = np.concatenate([key, (key[rep[near]] // surfaces.n_parts) * surfaces.n_parts + extra[near]])
-    pairs = np.unique(np.stack([piece, key], axis=1), axis=0)
+    pairs = unique_pairs(piece, key)
     per = np.bincount(pairs[:, 0], minlength=n)
     table = np.full((n, int(per.max(initial=0))), -1, np.int64)
     slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
@@ -264,14 +265,14 @@ def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, ra
     mixed[clipped.piece] = True
     found = _blockers(rays, surfaces, lit.chains, coords, piece, chain, antenna, mixed, math.sqrt(2.0) * lit.pieces.patch)
     old = lit.blockers
-    rows = np.repeat(np.arange(n), found.shape[1])[found.reshape(-1) >= 0]
-    keys = found.reshape(-1)[found.reshape(-1) >= 0]
-    old_rows = np.repeat(np.arange(n), old.shape[1])[old.reshape(-1) != -1]
-    old_keys = old.reshape(-1)[old.reshape(-1) != -1]
+    rows, col = np.nonzero(found >= 0)
+    keys = found[rows, col]
+    old_rows, col = np.nonzero(old != -1)
+    old_keys = old[old_rows, col]
     known = np.isin(rows * (1 << 40) + keys, old_rows * (1 << 40) + old_keys)
     if np.all(known):
         return old, np.zeros(0, np.int64)
-    pairs = np.unique(np.stack([np.concatenate([old_rows, rows]), np.concatenate([old_keys, keys])], axis=1), axis=0)
+    pairs = unique_pairs(np.concatenate([old_rows, rows]), np.concatenate([old_keys, keys]))
     per = np.bincount(pairs[:, 0], minlength=n)
     table = np.full((n, int(per.max(initial=0))), -1, np.int64)
     slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
@@ -327,7 +328,8 @@ def spread_occluders(lit: LitPieces, clipped) -> tuple[LitPieces, np.ndarray]:
         return lit, np.zeros(0, np.int64)
     width = lit.blockers.shape[1]
     pairs = np.stack([np.repeat(target, width), lit.blockers[source].reshape(-1)], axis=1)
-    pairs = np.unique(pairs[pairs[:, 1] >= 0], axis=0)
+    pairs = pairs[pairs[:, 1] >= 0]
+    pairs = unique_pairs(pairs[:, 0], pairs[:, 1])
     rows, start, count = np.unique(pairs[:, 0], return_index=True, return_counts=True)
     blockers = np.full((len(lit.lit), max(width, int(count.max()))), -1, np.int64)
     blockers[:, :width] = lit.blockers

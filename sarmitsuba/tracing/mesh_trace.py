@@ -26,11 +26,12 @@ import math
 
 import numpy as np
 
+from ..core.arrays import unique_pairs
 from .chains import Chains, image_source, region_lines, unfold
 from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
 from .motion import endpoint_rates, line_rates
-from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shadow_lines
+from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
 from .polygons import edge_lines
 from .surface_clutter import ClutterKernel
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
@@ -267,13 +268,14 @@ class MeshTracer:
         origin = lift(points, normal, points - d)
         hit, _ = self.rays.first_hit(origin, direction=reflected)
         found = (hit >= 0) & (hit != part)
-        pairs = np.unique(np.stack([chain[found], hit[found]], axis=1), axis=0)
+        pairs = unique_pairs(chain[found], hit[found])
         # a face met is met whole: its other convex parts join (their regions decide what they get)
         start, partners = self.rays.face_partners
         size = start[pairs[:, 1] + 1] - start[pairs[:, 1]]
         local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
         extra = np.stack([np.repeat(pairs[:, 0], size), partners[np.repeat(start[pairs[:, 1]], size) + local]], axis=1)
-        pairs = np.unique(np.concatenate([pairs, extra]), axis=0)
+        pairs = np.concatenate([pairs, extra])
+        pairs = unique_pairs(pairs[:, 0], pairs[:, 1])
         pairs = pairs[pairs[:, 1] != chains.last[pairs[:, 0]]]
         if len(pairs) == 0:
             return unfold(s, np.zeros((0, self.depth), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
@@ -388,8 +390,8 @@ class MeshTracer:
             key = blockers[pair, slot]
             leg, occluder = key // s.n_parts, key % s.n_parts
             c = region[shaded[pair]]
-            lines_a = shadow_lines(s, chains, c, occluder, leg, a[c])
-            lines_b = shadow_lines(s, chains, c, occluder, leg, b[c])
+            lines_a = shared_shadow_lines(s, chains, c, occluder, leg, a)
+            lines_b = shared_shadow_lines(s, chains, c, occluder, leg, b)
             add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
         p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
                                                     np.concatenate(table), np.concatenate(rates))

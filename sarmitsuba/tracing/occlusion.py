@@ -30,15 +30,12 @@ from .chains import Chains, to_face_lines, unfolded_frame
 from .patches import Surfaces
 from .polygons import EVERYTHING, clip, corner_slots, edge_lines, moments
 
-__all__ = ["shadow_lines", "boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "replace_pieces",
+__all__ = ["shadow_lines", "shared_shadow_lines", "boundary", "lit_boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "replace_pieces",
            "segment_moments"]
 
 #: Two edges on one line to this fraction of the segment's length (and parallel to as many
 #: radians) are one line (a wall's foot seen through two parts).
 COINCIDENT = 1e-9
-#: Mixed pieces with up to this many cut-outs are grouped by their exact count; beyond, by powers
-#: of two (the padding cut-outs cost as much as real ones).
-EXACT_GROUPS = 4
 
 
 def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
@@ -97,6 +94,16 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
         line = to_face_lines(g, -np.einsum("ki,ki->k", g, antenna), origin, u, v)
         lines[:, 3 + e] = np.where(slots[:, e, None], line, EVERYTHING)
     return lines
+
+
+def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
+                        antenna: np.ndarray) -> np.ndarray:
+    """:func:`shadow_lines` of each distinct (chain, occluder, leg) once (the pieces of one chain
+    share their occluders' shadows); ``antenna`` [n_chains, 3]: float64 [k, H, 3]."""
+    key = (chain * (int(occluder.max(initial=0)) + 1) + occluder) * (int(leg.max(initial=0)) + 1) + leg
+    _, first, back = np.unique(key, return_index=True, return_inverse=True)
+    c = chain[first]
+    return shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c])[back.reshape(-1)]
 
 
 def _window_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray):
@@ -214,6 +221,92 @@ def boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_coun
     return tuple(np.concatenate([o[k] for o in out]) for k in range(3))
 
 
+#: Slack [m] of the bounding-box test that pairs a boundary edge with the cut-outs that may hold
+#: part of it (face coordinates are at most kilometres: float64 rounds them to picometres).
+BOX_SLACK = 1e-6
+
+
+def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_count: np.ndarray,
+                 cut_owner: np.ndarray):
+    """:func:`boundary` with the cut-outs as one flat list: each edge is trimmed only by the
+    cut-outs whose bounding boxes meet its own, and the parts left are the gaps in the union of
+    its intervals (sorted, a running maximum), so the cost follows the overlaps, not the square of
+    the most cut-outs a piece has.
+
+    Parameters
+    ----------
+    base : float64 [g, V, 2]
+    base_count : int64 [g]
+        0 for a base that returns nothing.
+    cut : float64 [c, W, 2]
+        Cut-outs (convex, counter-clockwise, padded, at least 3 corners), inside their bases.
+    cut_count : int64 [c]
+    cut_owner : int64 [c]
+        Each cut-out's base. Of two cut-outs of one base along one line, with their insides on the
+        same side, the one listed first keeps the edge.
+
+    Returns
+    -------
+    As :func:`boundary`: ``(owner int64 [s], start float64 [s, 2], end float64 [s, 2])``.
+    """
+    g, c = len(base), len(cut)
+    width = cut.shape[1] if c else 3
+    cut_lines = edge_lines(cut, cut_count)
+    base_lines = edge_lines(base, base_count)
+    lo = np.where(corner_slots(cut_count, width)[..., None], cut, np.inf).min(axis=1)
+    hi = np.where(corner_slots(cut_count, width)[..., None], cut, -np.inf).max(axis=1)
+    # the edges: the bases' (index -1) and the cut-outs' restricted to their bases' insides
+    delta_b = np.roll(base, -1, axis=1) - base
+    live_b = corner_slots(base_count, base.shape[1]) & (np.linalg.norm(delta_b, axis=2) > 0)
+    rb, kb = np.nonzero(live_b)
+    delta_c = np.roll(cut, -1, axis=1) - cut
+    live_c = corner_slots(cut_count, width) & (np.linalg.norm(delta_c, axis=2) > 0)
+    rc, kc = np.nonzero(live_c)
+    s0, e0 = _interval(cut[rc, kc], delta_c[rc, kc], base_lines[cut_owner[rc]], lambda same: ~same)
+    inner = e0 > s0
+    rc, kc, s0, e0 = rc[inner], kc[inner], s0[inner], e0[inner]
+    start = np.concatenate([base[rb, kb], cut[rc, kc] + s0[:, None] * delta_c[rc, kc]])
+    delta = np.concatenate([delta_b[rb, kb], delta_c[rc, kc] * (e0 - s0)[:, None]])
+    owner = np.concatenate([rb, cut_owner[rc]])
+    own = np.concatenate([np.full(len(rb), -1), rc])
+    # each edge against the other cut-outs of its base whose boxes meet its own
+    order = np.argsort(cut_owner, kind="stable")
+    first = np.searchsorted(cut_owner[order], np.arange(g))
+    per = np.bincount(cut_owner, minlength=g)[owner]
+    edge = np.repeat(np.arange(len(owner)), per)
+    other = order[np.repeat(first[owner], per) + np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)]
+    e_lo = np.minimum(start, start + delta)[edge]
+    e_hi = np.maximum(start, start + delta)[edge]
+    meet = (other != own[edge]) & np.all((e_lo <= hi[other] + BOX_SLACK) & (e_hi >= lo[other] - BOX_SLACK), axis=1)
+    edge, other = edge[meet], other[meet]
+    earlier = (other < own[edge])[:, None]
+    is_base = (own[edge] < 0)[:, None]
+    s, e = _interval(start[edge], delta[edge], cut_lines[other],
+                     lambda same: np.where(is_base, same, ~same | earlier))
+    real = e > s
+    edge, s, e = edge[real], s[real], e[real]
+    # the gaps in the union of each edge's intervals: sorted by start, after the running end
+    rank = np.lexsort((s, edge))
+    edge, s, e = edge[rank], s[rank], e[rank]
+    reach = np.maximum.accumulate(e + 2.0 * edge) - 2.0 * edge
+    head = np.ones(len(edge), bool)
+    head[1:] = edge[1:] != edge[:-1]
+    before = np.where(head, 0.0, np.roll(reach, 1))
+    tail = np.ones(len(edge), bool)
+    tail[:-1] = edge[1:] != edge[:-1]
+    untouched = np.setdiff1d(np.arange(len(owner)), edge)
+    row = np.concatenate([edge, edge[tail], untouched])
+    a = np.concatenate([before, reach[tail], np.zeros(len(untouched))])
+    b = np.concatenate([s, np.ones(int(tail.sum())), np.ones(len(untouched))])
+    keep = (b > a) & ((b - a) * np.linalg.norm(delta[row], axis=1) > 1e-12)
+    row, a, b = row[keep], a[keep], b[keep]
+    p = start[row] + a[:, None] * delta[row]
+    q = start[row] + b[:, None] * delta[row]
+    flip = own[row] >= 0
+    p, q = np.where(flip[:, None], q, p), np.where(flip[:, None], p, q)
+    return owner[row], p, q
+
+
 def _pieces(start, delta, s, e, live, owner, reverse: bool):
     """Segments ``start + [a, b] delta`` of ``[0, 1]`` less the intervals ``(s, e)`` [..., n]."""
     rows_n = int(np.prod(live.shape))
@@ -282,7 +375,7 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     key = blockers[rows][pair_piece, slot]
     leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
     chain = pieces.region[pair_piece]
-    lines = shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna[chain])
+    lines = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna)
     cut, cut_count = clip(poly[pair_piece], count[pair_piece], lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
     cut_area = moments(cut, cut_count)[0]
@@ -291,23 +384,7 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     dark[pair_piece[cut_area >= (1.0 - 1e-12) * piece_area[pair_piece]]] = True
     real = (cut_count >= 3) & ~dark[pair_piece]
     cut, cut_count, pair_piece = cut[real], cut_count[real], pair_piece[real]
-    per = np.bincount(pair_piece, minlength=len(rows))
-    per[dark] = -1                                      # no boundary at all
-    owners, starts, ends = [], [], []
-    sizes = np.unique(per[per >= 0])
-    for size in sizes[sizes <= EXACT_GROUPS]:
-        o, p, q = _group_boundary(np.flatnonzero(per == size), poly, count, cut, cut_count, pair_piece, per, int(size))
-        owners.append(o), starts.append(p), ends.append(q)
-    size = 2 * EXACT_GROUPS
-    while size // 2 < int(per.max(initial=0)):
-        group = np.flatnonzero((per > size // 2) & (per <= size))
-        if len(group):
-            o, p, q = _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size)
-            owners.append(o), starts.append(p), ends.append(q)
-        size *= 2
-    owner = np.concatenate(owners) if owners else np.zeros(0, np.int64)
-    start = np.concatenate(starts) if starts else np.zeros((0, 2))
-    end = np.concatenate(ends) if ends else np.zeros((0, 2))
+    owner, start, end = lit_boundary(poly, np.where(dark, 0, count), cut, cut_count, pair_piece)
     area, centroid, second, diagonal = segment_moments(owner, start, end, len(rows))
     keep = area > 1e-12 * pieces.patch ** 2
     new = np.cumsum(keep) - 1
@@ -328,36 +405,6 @@ def replace_pieces(old: ClippedPieces, new: ClippedPieces, rows: np.ndarray) -> 
                          centroid=np.concatenate([old.centroid[keep], new.centroid]),
                          second=np.concatenate([old.second[keep], new.second]),
                          diagonal=np.concatenate([old.diagonal[keep], new.diagonal]))
-
-
-def _group_boundary(group, poly, count, cut, cut_count, pair_piece, per, size: int):
-    """:func:`boundary` of the pieces ``group``, each with at most ``size`` cut-outs."""
-    first = np.concatenate([[0], np.cumsum(np.maximum(per, 0))])[:-1]
-    g = len(group)
-    if size == 0:                                       # no cut-out left: the piece's own edges
-        return _own_boundary(group, poly, count)
-    taken = np.concatenate([first[group][per[group] > k] + k for k in range(size)])
-    width = max(int(cut_count[taken].max(initial=3)), 3)
-    cuts = np.zeros((g, size, width, 2))
-    counts = np.zeros((g, size), np.int64)
-    for k in range(size):
-        has = per[group] > k
-        idx = first[group[has]] + k
-        cuts[has, k] = cut[idx, :width]
-        counts[has, k] = cut_count[idx]
-    owner, p, q = boundary(poly[group], count[group], cuts, counts)
-    return group[owner], p, q
-
-
-def _own_boundary(group, poly, count):
-    """The edges of pieces ``group`` themselves (no cut-out), counter-clockwise."""
-    width = poly.shape[1]
-    live = corner_slots(count[group], width)
-    p = poly[group]
-    q = np.roll(p, -1, axis=1)
-    live &= np.linalg.norm(q - p, axis=2) > 0
-    rows, k = np.nonzero(live)
-    return group[rows], p[rows, k], q[rows, k]
 
 
 def segment_moments(owner: np.ndarray, start: np.ndarray, end: np.ndarray, n: int):
