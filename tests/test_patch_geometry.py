@@ -321,6 +321,10 @@ def test_lit_boundary_is_the_piece_less_its_cut_outs(flat):
     if flat:
         has = cut_count > 0
         owner, p, q = lit_boundary(base_poly, base_count, cut[has], cut_count[has], np.nonzero(has)[0])
+        # no cut-out at all: each piece's own edges
+        o0, p0, q0 = lit_boundary(base_poly, base_count, cut[has][:0], cut_count[has][:0], np.zeros(0, np.int64))
+        assert np.bincount(o0, weights=p0[:, 0] * q0[:, 1] - q0[:, 0] * p0[:, 1], minlength=groups) / 2 == \
+            pytest.approx(moments(base_poly, base_count)[0], abs=1e-12)
     else:
         owner, p, q = boundary(base_poly, base_count, cut, cut_count)
     for g in range(groups):

@@ -249,8 +249,7 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     -------
     As :func:`boundary`: ``(owner int64 [s], start float64 [s, 2], end float64 [s, 2])``.
     """
-    g, c = len(base), len(cut)
-    width = cut.shape[1] if c else 3
+    g, width = len(base), cut.shape[1]
     cut_lines = edge_lines(cut, cut_count)
     base_lines = edge_lines(base, base_count)
     lo = np.where(corner_slots(cut_count, width)[..., None], cut, np.inf).min(axis=1)
