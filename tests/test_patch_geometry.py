@@ -443,3 +443,36 @@ def test_unique_pairs_are_numpys_unique_rows():
     assert unique_pairs(np.zeros(0, np.int64), np.zeros(0, np.int64)).shape == (0, 2)
     with pytest.raises(ValueError, match="first"):
         unique_pairs(np.array([-1]), np.array([0]))
+
+
+def test_occluders_in_a_legs_own_planes_hide_nothing():
+    """:func:`in_leg_planes` against the geometry: ground (two coplanar halves, separate shapes),
+    a wall standing on it and a roof above. For the double bounce wall -> ground (legs 0: antenna
+    -> wall, 1: wall -> ground, 2 = D: ground -> antenna) the parts lying in the plane a leg starts
+    or ends on are exactly: the wall on legs 0 and 1, both ground halves on legs 1 and 2; the roof
+    never, the wall never on the return. The first bounce on the wall: the wall on leg 0 only. A
+    part 1 cm off the wall's plane (parallel) is not in it."""
+    from sarmitsuba.tracing.lit_pieces import in_leg_planes
+    s = surfaces([quad((-5, 0, 0), (5, 0, 0), (0, 10, 0)), quad((5, 0, 0), (5, 0, 0), (0, 10, 0)),
+                  quad((0, -2, 3), (6, 0, 0), (0, 0, 3)), quad((0, -1, 6), (6, 0, 0), (0, 1, 0)),
+                  quad((0, -2.01, 3), (1, 0, 0), (0, 0, 1))])
+    part = {k: int(np.flatnonzero((s.shape_id == k) & (s.n_corners > 0))[0]) for k in range(5)}
+    ground_a, ground_b, wall, roof, near = (part[k] for k in range(5))
+    depth = 3
+    parts = np.full((2, depth), -1)
+    parts[0, :2] = (wall, ground_a)
+    parts[1, 0] = wall
+    chains = unfold(s, parts, np.array([1, 0]), np.zeros(2, np.int64))
+    cases, expected = [], []
+    for leg in (0, 1, depth):
+        for occ, truth in ((wall, leg in (0, 1)), (ground_a, leg in (1, depth)), (ground_b, leg in (1, depth)),
+                           (roof, False), (near, False)):
+            cases.append((0, leg * s.n_parts + occ))
+            expected.append(truth)
+    for leg, occ, truth in ((0, wall, True), (0, ground_a, False), (0, roof, False), (depth, wall, True)):
+        cases.append((1, leg * s.n_parts + occ))
+        expected.append(truth if leg == 0 else True)         # first bounce: its return leg starts on the wall
+    cases.append((0, -1))
+    expected.append(False)
+    chain, key = np.array(cases).T
+    np.testing.assert_array_equal(in_leg_planes(s, chains, chain, key), np.array(expected))

@@ -30,7 +30,7 @@ from .patches import UNIT_SQUARE, Pieces, Surfaces, cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
-__all__ = ["LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck", "RECHECKS"]
+__all__ = ["in_leg_planes", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck", "RECHECKS"]
 
 #: A piece's visibility samples sit this fraction of the patch size inside it, toward its
 #: centroid: a corner on a part's edge (a wall's foot on the ground; a grid anchored at a shape's
@@ -40,6 +40,10 @@ SAMPLE_INSET = 1e-3
 #: and centroid; occluders met there (that the piece's corners missed: another face of the same
 #: building, whose shadow joins the first's) join its cut-outs and it is cut again.
 RECHECKS = 2
+#: An occluder whose corners all lie within this distance [m] of the plane a leg starts or ends on
+#: hides nothing on that leg (:func:`in_leg_planes`): the legs start lifted by at least
+#: ``visibility.SURFACE_LIFT`` (1e-4 m) off their planes.
+IN_PLANE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -221,12 +225,42 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     near = np.linalg.norm(a + t[:, None] * ab - centre[extra], axis=1) <= radius[extra] + reach
     piece = np.concatenate([piece, piece[rep[near]]])
     key = np.concatenate([key, (key[rep[near]] // surfaces.n_parts) * surfaces.n_parts + extra[near]])
-    pairs = unique_pairs(piece, key)
+    piece_chain = np.zeros(n, np.int64)
+    piece_chain[owner] = chain
+    keep = ~in_leg_planes(surfaces, chains, piece_chain[piece], key)
+    pairs = unique_pairs(piece[keep], key[keep])
     per = np.bincount(pairs[:, 0], minlength=n)
     table = np.full((n, int(per.max(initial=0))), -1, np.int64)
     slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
     table[pairs[:, 0], slot] = pairs[:, 1]
     return table
+
+
+def in_leg_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray, key: np.ndarray) -> np.ndarray:
+    """bool [k]: whether occluder ``key`` [k] (``leg * n_parts + part``, as in
+    :attr:`LitPieces.blockers`; negative: never) of a path through chain ``chain`` [k] lies in the
+    plane of a part its leg starts or ends on, to :data:`IN_PLANE` m: a leg leaves or meets that
+    plane at its end and crosses it nowhere else, so such a part hides nothing on it, and its
+    shadow there is degenerate (crossed at the point itself), which rounding turns into all or
+    nothing. A partner of an occluder is often such a part: the face itself, or a window the leg
+    starts from (docs/physics.md (M4))."""
+    depth = chains.parts.shape[1]
+    real = key >= 0
+    leg = np.where(real, key // surfaces.n_parts, 0)
+    part = np.where(real, key % surfaces.n_parts, 0)
+    order = chains.order[chain]
+    back = leg == depth
+    end = np.where(back, -1, chains.parts[chain, np.minimum(leg, depth - 1)])
+    start = np.where(back, chains.last[chain], np.where(leg >= 1, chains.parts[chain, np.maximum(leg - 1, 0)], -1))
+    end = np.where(~back & (leg > order), -1, end)
+    corners = surfaces.to_world(part, surfaces.polygon[part])
+    slots = np.arange(corners.shape[1])[None, :] < surfaces.n_corners[part][:, None]
+    out = np.zeros(len(chain), bool)
+    for plane in (start, end):
+        p = np.maximum(plane, 0)
+        distance = np.abs(np.einsum("kvi,ki->kv", corners, surfaces.normal[p]) - surfaces.offset[p][:, None])
+        out |= (plane >= 0) & np.all(np.where(slots, distance, 0.0) <= IN_PLANE, axis=1)
+    return out & real
 
 
 def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, rays: Rays,
