@@ -231,7 +231,7 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     """:func:`boundary` with the cut-outs as one flat list: each edge is trimmed only by the
     cut-outs whose bounding boxes meet its own, and the parts left are the gaps in the union of
     its intervals (sorted, a running maximum), so the cost follows the overlaps, not the square of
-    the most cut-outs a piece has.
+    the most cut-outs a piece has (docs/physics.md (M4)).
 
     Parameters
     ----------
