@@ -135,3 +135,17 @@ def test_benchmark_runs_tiny(module_name, tmp_path, monkeypatch):
     for check in module.checks(rows):
         name, ok, detail = check
         assert isinstance(name, str) and isinstance(ok, bool) and isinstance(detail, str)
+
+
+def test_invariance_sweeps_the_beam_in_the_images_frame():
+    """``benchmarks/invariance.py`` keeps, for moves along the track, the points the whole beam
+    sweeps: the antenna's span must be measured from the scene centre in the world frame, as the
+    image's azimuth is. A block 3.6 km from the origin (the loader then traces in a frame shifted
+    by whole metres) on a straight track centred on it: the span is symmetric about 0 (with the
+    tracing frame's centre it was 3 km off)."""
+    invariance = importlib.import_module("invariance")
+    shift = (3000.0, 2000.0, 0.0)
+    render = invariance._render(invariance.block(64, shift=shift), {"scene_center": shift}, {})
+    first, last = render["full_aperture"]["span"]
+    assert first < 0.0 < last
+    assert first == pytest.approx(-last, abs=1e-6)
