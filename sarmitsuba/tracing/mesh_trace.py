@@ -49,6 +49,9 @@ STABLE_MARGIN = 1.5
 REACH_MARGIN = 1.0
 #: Boundaries move with the antenna within a sub-aperture (eq. (M8)).
 MOVING = True
+#: A boundary segment whose end would move farther than this many patch sizes across its
+#: sub-aperture (two nearly parallel lines meeting there) stays frozen (docs/physics.md (M8)).
+MOVE_LIMIT = 1.0
 #: Discovery rays start on a grid fixed in each face's frame, at least this many points across
 #: the shape's bounding box (and at least one per patch): a corner reflector a patch wide still
 #: sends rays from every face into every other (docs/physics.md (M6)).
@@ -395,6 +398,13 @@ class MeshTracer:
             add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
         p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
                                                     np.concatenate(table), np.concatenate(rates))
+        # an end that would move farther than a patch within the sub-aperture sits where two lines
+        # are nearly parallel: its first-order motion spans changes of the piece's shape that it
+        # cannot describe (the end runs past the piece's corners), so the segment stays frozen
+        travel = np.maximum(np.linalg.norm(views[:, 0] - views[:, 1], axis=1), np.linalg.norm(views[:, 2] - views[:, 1], axis=1))
+        reach = travel[chains.sub[chain]]
+        wild = np.maximum(np.linalg.norm(p_rate, axis=1), np.linalg.norm(q_rate, axis=1)) * reach > MOVE_LIMIT * pieces.patch
+        p_rate[wild], q_rate[wild] = 0.0, 0.0
         return p_rate, q_rate, b
 
     def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
