@@ -51,7 +51,7 @@ REACH_MARGIN = 1.0
 MOVING = True
 #: A boundary segment whose end would move farther than this many patch sizes across its
 #: sub-aperture (two nearly parallel lines meeting there) stays frozen (docs/physics.md (M8)).
-MOVE_LIMIT = 1.0
+MOVE_LIMIT = 4.0
 #: Discovery rays start on a grid fixed in each face's frame, at least this many points across
 #: the shape's bounding box (and at least one per patch): a corner reflector a patch wide still
 #: sends rays from every face into every other (docs/physics.md (M6)).
