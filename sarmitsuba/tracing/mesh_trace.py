@@ -393,12 +393,11 @@ class MeshTracer:
             key = blockers[pair, slot]
             leg, occluder = key // s.n_parts, key % s.n_parts
             c = region[shaded[pair]]
-            lines_a = shared_shadow_lines(s, chains, c, occluder, leg, a)
-            lines_b = shared_shadow_lines(s, chains, c, occluder, leg, b)
+            lines_a, lines_b = shared_shadow_lines(s, chains, c, occluder, leg, a, b)
             add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
         p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
                                                     np.concatenate(table), np.concatenate(rates))
-        # an end that would move farther than a patch within the sub-aperture sits where two lines
+        # an end that would move farther than MOVE_LIMIT patches within the sub-aperture sits where two lines
         # are nearly parallel: its first-order motion spans changes of the piece's shape that it
         # cannot describe (the end runs past the piece's corners), so the segment stays frozen
         travel = np.maximum(np.linalg.norm(views[:, 0] - views[:, 1], axis=1), np.linalg.norm(views[:, 2] - views[:, 1], axis=1))

@@ -97,13 +97,15 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
 
 
 def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
-                        antenna: np.ndarray) -> np.ndarray:
+                        *antennas: np.ndarray) -> list[np.ndarray]:
     """:func:`shadow_lines` of each distinct (chain, occluder, leg) once (the pieces of one chain
-    share their occluders' shadows); ``antenna`` [n_chains, 3]: float64 [k, H, 3]."""
+    share their occluders' shadows), from each of ``antennas`` (each [n_chains, 3]): one float64
+    [k, H, 3] per antenna."""
     key = (chain * (int(occluder.max(initial=0)) + 1) + occluder) * (int(leg.max(initial=0)) + 1) + leg
     _, first, back = np.unique(key, return_index=True, return_inverse=True)
     c = chain[first]
-    return shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c])[back.reshape(-1)]
+    return [shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c])[back.reshape(-1)]
+            for antenna in antennas]
 
 
 def _window_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray):
@@ -374,7 +376,7 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     key = blockers[rows][pair_piece, slot]
     leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
     chain = pieces.region[pair_piece]
-    lines = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna)
+    lines, = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna)
     cut, cut_count = clip(poly[pair_piece], count[pair_piece], lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
     cut_area = moments(cut, cut_count)[0]
