@@ -86,6 +86,11 @@
      docs/physics.md (PO5)). False evaluates them all (three to four times the returns;
      up to 1.2x the render time): the reference the cancellation is checked against. With
      patches: false keeps every patch line and every shared split end.
+* - diffraction
+  - boolean
+  - Fringe waves of the mesh's edges (default true): equivalent edge currents on every wedge and
+    free edge of the lit regions, the PTD correction to physical optics (docs/physics.md
+    (E1)-(E5)). ``lit_regions = patches`` only. False is physical optics alone.
 
 The tracing itself is :func:`sarmitsuba.tracing.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.

@@ -50,9 +50,9 @@ def _peak(sim) -> dict[str, complex]:
     return {name: complex(a[index]) for name, a in images.items()}
 
 
-def _quad(tmp_path: Path, mesh, material: str, depth: int, name: str, **sensor) -> dict[str, complex]:
+def _quad(tmp_path: Path, mesh, material: str, depth: int, name: str, integrator=None, **sensor) -> dict[str, complex]:
     xml = C.scene_xml(tmp_path, mesh, material, depth, name=name)
-    return _peak(simulate(str(xml), sensor_overrides={"polarization": "quad", **sensor}))
+    return _peak(simulate(str(xml), sensor_overrides={"polarization": "quad", **sensor}, integrator_overrides=integrator))
 
 
 def _db(ratio: complex) -> float:
@@ -116,11 +116,14 @@ def test_dihedral_turned_by_45_deg_is_purely_cross_polarised(tmp_path):
 
 @pytest.mark.parametrize("incidence", [30.0, 45.0, 60.0])
 def test_half_space_single_bounce_ratio_is_fresnel(tmp_path, incidence):
-    """A 3 m square of the dielectric on the ground: every return is a single bounce at the
-    incidence angle, so HH / VV = r_TE / r_TM in magnitude (0.2 dB) and phase (5 deg)."""
+    """A 3 m square of the dielectric on the ground, physical optics alone: every return is a
+    single bounce at the incidence angle, so HH / VV = r_TE / r_TM in magnitude (0.2 dB) and phase
+    (5 deg). (Seen 30 to 60 deg off its normal, the square returns only from its rim, where the
+    edge currents (E4) set the ratio instead: ``diffraction`` is off for this PO check.)"""
     plate = trimesh.Trimesh([[-1.5, -1.5, 0], [1.5, -1.5, 0], [1.5, 1.5, 0], [-1.5, 1.5, 0]],
                             [[0, 1, 2], [0, 2, 3]], process=False)
-    s = _quad(tmp_path, plate, DIELECTRIC, 1, f"half_space_{incidence:g}", incidence_angle=incidence)
+    s = _quad(tmp_path, plate, DIELECTRIC, 1, f"half_space_{incidence:g}", {"diffraction": False},
+              incidence_angle=incidence)
     r_te, r_tm = _fresnel(math.cos(math.radians(incidence)))
     ratio = s["HH"] / s["VV"]
     assert abs(_db(ratio) - _db(r_te / r_tm)) < 0.2, (_db(ratio), _db(r_te / r_tm))

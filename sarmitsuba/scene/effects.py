@@ -97,6 +97,9 @@ class EffectSet:
         (J2)): per-pulse axes compiled into the beam and pattern.
     motion_error : bool
         The true track deviates from the nominal one (sensor ``motion_error``, (J4)).
+    diffraction : bool
+        Equivalent edge currents on the mesh's wedges and free edges (``sbr`` ``diffraction``,
+        the default, with ``lit_regions = patches``; docs/physics.md (E1)-(E6)).
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -119,6 +122,7 @@ class EffectSet:
     continuous_motion: bool = False
     curved_track: bool = False
     motion_error: bool = False
+    diffraction: bool = False
 
     @property
     def cross_polarised(self) -> bool:
@@ -170,7 +174,9 @@ class EffectSet:
                       listed=(), channels=params.channels,
                       jones=getattr(settings, "polarimetry", "jones") == "jones" or params.polarimetric,
                       continuous_motion=not params.stop_and_hop, curved_track=not params.straight_track,
-                      motion_error=params.motion_error is not None)
+                      motion_error=params.motion_error is not None,
+                      diffraction=bool(getattr(settings, "diffraction", False))
+                      and getattr(settings, "lit_regions", "patches") == "patches")
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -202,7 +208,7 @@ def list_effects(loaded) -> tuple[Effect, ...]:
     tuple of Effect
         In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
-        spotlight, squint, per-bounce-order products, polarimetry, then the trajectory's: curved track,
+        spotlight, squint, per-bounce-order products, polarimetry, edge diffraction, then the trajectory's: curved track,
         the stop-and-hop approximation (on request only), motion errors (:attr:`EffectSet.listed`).
     """
     return active_effects(loaded).listed
@@ -212,8 +218,16 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     """The docs/design.md section 7 table for the decided effects ``e``: each on or off with its reason."""
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
-            _split(e.split_bounces), _polarimetry(e), _curved(e.curved_track, p), _continuous(e.continuous_motion, p),
-            _motion_error(e.motion_error, p))
+            _split(e.split_bounces), _polarimetry(e), _diffraction(e.diffraction), _curved(e.curved_track, p),
+            _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p))
+
+
+def _diffraction(on: bool) -> Effect:
+    if on:
+        return Effect("edge diffraction", True, "sbr diffraction = true: equivalent edge currents (fringe waves) on "
+                      "every lit wedge and free edge, and double diffraction across faces (docs/physics.md (E1)-(E6))")
+    return Effect("edge diffraction", False, "sbr diffraction = false, or lit_regions = tiles: physical optics alone, "
+                  "edges as PO ends them (diffraction = true with lit_regions = patches switches it on)")
 
 
 def _bounces(depth: int) -> Effect:

@@ -73,6 +73,11 @@ class TraceSettings:
     cancel_interior : bool
         Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
         evaluates every term (slower; the reference the cancellation is checked against).
+    diffraction : bool
+        Add the fringe waves of the mesh's edges to physical optics: equivalent edge currents on
+        every wedge and free edge of the lit regions, at every bounce order (docs/physics.md
+        (E1)-(E5), :mod:`sarmitsuba.tracing.edges`). ``lit_regions = patches`` only; false is
+        physical optics alone.
     polarimetry : str
         ``jones`` (default): every ray tube carries a Jones matrix (docs/physics.md (P1)-(P8)),
         for any ``polarization``; ``scalar``: a single co-polarised channel (``HH`` or ``VV``)
@@ -100,6 +105,7 @@ class TraceSettings:
     tubes_per_object: int = 48
     pulses_per_trace: int = 0
     cancel_interior: bool = True
+    diffraction: bool = True
     polarimetry: str = "jones"
     lit_regions: str = "patches"
     patch_size: float = 0.0

@@ -26,7 +26,7 @@ _BACK = 128
 class ClutterTerms:
     """The clutter methods of :class:`sarmitsuba.tracing.returns.Returns` (which provides the tables,
     the footprint, ``_pulse``, ``_folded``, ``_in_beam``, ``_d_first``, ``_arriving``,
-    ``_reciprocal``, ``weight``, ``anchor``, ``carrier_phase``, the reflection tables and the
+    ``reciprocal``, ``weight``, ``anchor``, ``carrier_phase``, the reflection tables and the
     accumulator)."""
 
     def clutter(self, ctx, rec, depth: int, lattice: dict | None = None) -> None:
@@ -134,7 +134,7 @@ class ClutterTerms:
                       (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
         track = mi.Vector3f(*self.track)
         arriving = self._arriving(rec, d, depth)
-        parts = [self._reciprocal(pol.receive(pol.scatter(arriving, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
+        parts = [self.reciprocal(pol.receive(pol.scatter(arriving, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
                                   depth) for a_te, a_tm, a_x in amplitudes]
         level = 0.5 * (s_te + s_tm) * (1.0 + q)
         return parts[0], parts[1], level

@@ -35,6 +35,7 @@ import mitsuba as mi
 import numpy as np
 
 from .deposit import SPECTRAL_ORDERS
+from .edge_terms import EdgeTerms, sinc, x_dsinc
 from .device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
@@ -54,16 +55,7 @@ NEAR_SPECULAR = 3.0
 #: Below this ``k |u_t| D`` the area term takes the Taylor series of its linear phase (to second
 #: order) instead of Gordon's sum, whose terms cancel to ``1 / (k |u_t| D)^2`` of float32 there.
 TAYLOR_BELOW = 0.03
-_SMALL = 1e-4
-
-
-def _sinc(x):
-    return dr.select(dr.abs(x) < _SMALL, 1.0 - x * x * (1.0 / 6.0), dr.sin(x) / x)
-
-
-def _x_dsinc(x):
-    """``x d sinc(x) / dx = cos(x) - sinc(x)``."""
-    return dr.select(dr.abs(x) < _SMALL, -x * x * (1.0 / 3.0), dr.cos(x) - dr.sin(x) / x)
+_SQRT_4PI = math.sqrt(4.0 * math.pi)
 
 
 @dataclass(frozen=True)
@@ -133,6 +125,24 @@ class TermLanes:
         of the antenna's travel along ``axis`` from ``origin``
         (:mod:`sarmitsuba.tracing.motion`, eq. (M8)): a pulse ``t`` metres along evaluates the
         lane at ``point + t rate``. None: nothing moves.
+    diffracting : bool [m], optional
+        The lane's segment lies on a diffracting edge and carries its fringe term
+        (:mod:`sarmitsuba.tracing.edges`, eq. (E4)). None: diffraction off.
+    wedge_x0, wedge_xn : float32 [m, 3], optional
+        Unit vectors normal to the edge, into the lane's part (face 0) and into the wedge's other
+        face (zero on a free edge).
+    wedge_row : uint32 [m], optional
+        Material row of the other face (the part's own on a free edge).
+    wedge_defer : bool [m], optional
+        The other face is a part of lower index: where it is lit and seen too, it carries the
+        edge's fringe term and this lane does not (each edge counted once).
+    double : bool [m], optional
+        The lane carries the doubly diffracted term of eq. (E6) instead: its ``unfolded`` (and
+        ``middle_unfolded``) is the point across its face on the opposite edge, where the
+        incident leg ends.
+    across, across_xn : float32 [m, 3], optional
+        The vector from the lane's segment to the diffracting edge across its face (zero: none),
+        and the unit vector into that edge's other face (zero on a free edge).
     """
 
     kind: np.ndarray
@@ -155,6 +165,14 @@ class TermLanes:
     origin: np.ndarray | None = None
     axis: np.ndarray | None = None
     motion: np.ndarray | None = None
+    diffracting: np.ndarray | None = None
+    wedge_x0: np.ndarray | None = None
+    wedge_xn: np.ndarray | None = None
+    wedge_row: np.ndarray | None = None
+    wedge_defer: np.ndarray | None = None
+    double: np.ndarray | None = None
+    across: np.ndarray | None = None
+    across_xn: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -195,6 +213,7 @@ class PatchTerms:
         self.r = returns
         self.k = returns.k
         self.alpha_s = alpha_s
+        self.edges = EdgeTerms(returns, self.k)
 
     def __call__(self, ctx: dict, lanes: TermLanes, pieces: PieceTable, depth: int) -> None:
         """Deposit the lanes' terms for every pulse of their sub-apertures (bounce order ``depth + 1``)."""
@@ -252,6 +271,20 @@ class PatchTerms:
                 data["segment_mid_rate"] = device_array(v3, pieces.segment_mid_rate.T)
                 data["segment_edge_rate"] = device_array(v3, pieces.segment_edge_rate.T)
         data["gamma"], data["jones"] = self.arrival(lanes, depth)
+        data["diffraction"] = lanes.diffracting is not None and bool(np.any(lanes.diffracting))
+        if data["diffraction"]:
+            data["diffracting"] = device_array(mi.Bool, lanes.diffracting)
+            data["wedge_x0"] = device_array(v3, lanes.wedge_x0.T)
+            data["wedge_xn"] = device_array(v3, lanes.wedge_xn.T)
+            data["wedge_row"] = device_array(mi.UInt32, lanes.wedge_row)
+            data["wedge_defer"] = device_array(mi.Bool, lanes.wedge_defer)
+            data["double"] = bool(np.any(lanes.double))
+            if data["double"]:
+                data["is_double"] = device_array(mi.Bool, lanes.double)
+                data["across"] = device_array(v3, lanes.across.T)
+                data["across_xn"] = device_array(v3, lanes.across_xn.T)
+            if depth > 0 and data["jones"] is None:
+                data["edge_jones"] = self.edges.mirrored(lanes, depth)
         return data
 
     def arrival(self, lanes, depth: int):
@@ -308,15 +341,16 @@ class PatchTerms:
         active = (cos_i > 1e-6) & (cos_b > 1e-6)
         if r.aim_mask:
             active &= r._in_beam(data["unfolded"], antenna, view)
-        if data["gated"]:
-            near = self._near(data, antenna, view, depth)
-            active &= data["stable"] | dr.select(kind == AREA, near, ~near)
         split = (kind == SPLIT_START) | (kind == SPLIT_END)
         if data["open"]:
             decide = self._open_split(data, antenna, view, depth)
             opened = (kind >= OPEN_START) & (kind <= OPEN_MID)
             split |= opened & (kind != OPEN_MID) & decide
             active &= ~opened | dr.select(kind == OPEN_MID, ~decide, decide)
+        edge_live = mi.Bool(active)              # a copy (&= works in place): the fringe term is never gated
+        if data["gated"]:
+            near = self._near(data, antenna, view, depth)
+            active &= data["stable"] | dr.select(kind == AREA, near, ~near)
         specular = dr.gather(mi.Float, r.tables.specular, data["row"])
         weight = r.weight(first, b, s, dist, lref, view)
         density = (math.sqrt(math.pi) / r.lam) * (cos_i + cos_b) * specular * weight
@@ -327,9 +361,29 @@ class PatchTerms:
         anchor = r.anchor(rel, lref)
         value, order, second, second_order = self._coefficients(data, u, ut, ut2, split, antenna, view, s, dist,
                                                                 d, b, depth)
+        fringe = None
+        if data["diffraction"]:
+            fringe, carry, sin_i = self.edges.fringe(data, d, b, facing * n, cos_i, depth)
+            edge_live = edge_live & data["diffracting"] & carry
+            if data["double"]:
+                double = data["is_double"]
+                twice = self.edges.double(data, d, b, facing * n, sin_i, depth)
+                fringe = [dr.select(double, g, f) for f, g in zip(fringe, twice)]
+                # the grazing leg across the face, eq. (E6)
+                rel = rel + dr.select(double, dr.norm(data["across"]) * sin_i, 0.0)
+                phase, anchor = r.carrier_phase(rel), r.anchor(rel, lref)
+                active = active & ~double
+            scale = data["gamma"] * specular * weight * _SQRT_4PI
+            fringe = [f * scale for f in fringe]
+            line, line_second = self.edges.line(data, (kind == SPLIT_START) | (kind == OPEN_START), u, split)
         for which, (term, index) in enumerate(((value, order), (second, second_order))):
             live = active if which == 0 else active & ~split
             values = [base * term * phase * c for c in channels]
+            if fringe is not None:
+                f_live = edge_live if which == 0 else edge_live & ~split
+                factor = (line if which == 0 else line_second) * phase
+                values = [dr.select(live, v, 0.0) + dr.select(f_live, f * factor, 0.0) for v, f in zip(values, fringe)]
+                live = live | f_live
             power = dr.squared_norm(values[0])
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
@@ -364,8 +418,8 @@ class PatchTerms:
         split_value = mi.Complex2f(sign * cross / (k * k * safe_ut2 * dr.select(dr.abs(ua) > 1e-30, ua, 1e-30)), 0.0)
         alpha = 0.5 * k * ua * a_len
         sinc_base = mi.Complex2f(0.0, cross * a_len / (k * safe_ut2))
-        s1 = _x_dsinc(alpha)
-        value = dr.select(split, split_value, sinc_base * (_sinc(alpha) - s1))
+        s1 = x_dsinc(alpha)
+        value = dr.select(split, split_value, sinc_base * (sinc(alpha) - s1))
         second = sinc_base * s1
         minus, zero, plus = (mi.UInt32(SPECTRAL_ORDERS.index(m)) for m in (-1, 0, 1))
         order = dr.select(split, minus, zero)
@@ -430,10 +484,10 @@ class PatchTerms:
             alpha = 0.5 * k * dr.dot(u, edge)
             sn, cs = dr.sincos(-k * dr.dot(u, mid))
             common = mi.Complex2f(cs, sn) * mi.Complex2f(0.0, inv * dr.dot(n, dr.cross(ut, edge)))
-            sinc = _sinc(alpha)
+            value = sinc(alpha)
             # k d/dk of (1 / k) sinc(alpha) exp(-j k u . m): -1, the sinc's own change, -j k u . m
-            derivative = common * mi.Complex2f(_x_dsinc(alpha) - sinc, -k * dr.dot(u, mid) * sinc)
-            return e + 1, f + common * sinc, kdf + derivative, shoelace
+            derivative = common * mi.Complex2f(x_dsinc(alpha) - value, -k * dr.dot(u, mid) * value)
+            return e + 1, f + common * value, kdf + derivative, shoelace
 
         _, f, kdf, shoelace = dr.while_loop((start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0), mi.Float(0.0)),
                                             lambda e, *_: e < stop, step, label="area segments")

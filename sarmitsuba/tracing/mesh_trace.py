@@ -34,6 +34,7 @@ from .motion import endpoint_rates, line_rates
 from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
 from .polygons import edge_lines
 from .surface_clutter import ClutterKernel
+from .edges import find_wedges, segment_wedges
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
 from .patches import Pieces, Surfaces, pieces_of
 from .physical_optics import SINC_REGIME, split_threshold
@@ -92,6 +93,7 @@ class MeshTracer:
         self.k = returns.k
         self.depth = settings.max_depth
         self.cancel = settings.cancel_interior
+        self.wedges = find_wedges(surfaces) if settings.diffraction else None
         self.patch = patch
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)
@@ -350,8 +352,9 @@ class MeshTracer:
             m = len(seg_piece)
             motion = (p_rate[:m], q_rate[:m], last)
             table_segments = table_segments + (p_rate[m:], q_rate[m:])
+        edges = segment_wedges(s, self.wedges, part[seg_piece], p2, q2) if self.wedges is not None else None
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
-                                   self.cancel, motion)
+                                   self.cancel, motion, edges)
         return lanes, table, clipped, lit
 
     def _motion(self, lit: LitPieces, rows, cut, p2, q2, views):

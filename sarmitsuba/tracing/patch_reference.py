@@ -42,7 +42,8 @@ def polygon_linear_integral(mid: np.ndarray, edge: np.ndarray, normal: np.ndarra
     return complex(f), complex(derivative)
 
 
-def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s: float, depth: int, density):
+def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s: float, depth: int, density,
+               edge_field=None):
     """The terms of every lane for one antenna position (stop and hop), float64.
 
     Parameters
@@ -59,6 +60,12 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
     density : callable
         ``(lane, d, b, s, R, cos_i, cos_b) -> complex``: the PO density at the lane's point
         (``j (sqrt(pi) / lambda) (cos_i + cos_b)`` times coefficients, pattern and spreading).
+    edge_field : callable, optional
+        ``(lanes, lane, d, b) -> complex``: the channel's edge field per metre at a diffracting lane
+        of ``lanes`` (as the pulse moved them, eq. (M8))
+        (``sqrt(4 pi) b_rx . F`` of docs/physics.md (E4), or of (E6) for a ``double`` lane, times
+        the pattern and the earlier bounces' factors; 0 where the lane does not carry it). None:
+        no edge terms (and no doubly diffracted lanes).
 
     Returns
     -------
@@ -86,12 +93,6 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
         if not (cos_i > 1e-6 and cos_b > 1e-6):
             continue
         piece = int(lanes.piece[m])
-        if not lanes.stable[m]:
-            _, _, dc, bc = at(pieces.centroid[piece], pieces.centroid_unfolded[piece])
-            uc = dc - bc
-            near = k * np.linalg.norm(uc - n * (uc @ n)) * float(pieces.diagonal[piece]) < NEAR_SPECULAR
-            if near != (kind == AREA):
-                continue
         split = kind in (SPLIT_START, SPLIT_END)
         if kind in (OPEN_START, OPEN_END, OPEN_MID):
             _, _, dm, bm = at(lanes.middle[m], lanes.middle_unfolded[m])
@@ -99,6 +100,17 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
             if decide == (kind == OPEN_MID):
                 continue
             split = decide
+        diffracting = edge_field is not None and lanes.diffracting is not None and bool(lanes.diffracting[m])
+        if diffracting:                            # never gated to the area form, eq. (E4)
+            out += _edge_terms(lanes, m, edge_field(lanes, m, d, b), s + r, d, b, k, kind, split)
+            if lanes.double[m]:
+                continue
+        if not lanes.stable[m]:
+            _, _, dc, bc = at(pieces.centroid[piece], pieces.centroid_unfolded[piece])
+            uc = dc - bc
+            near = k * np.linalg.norm(uc - n * (uc @ n)) * float(pieces.diagonal[piece]) < NEAR_SPECULAR
+            if near != (kind == AREA):
+                continue
         u = d - b
         u_t = u - n * (u @ n)
         ut2 = float(u_t @ u_t)
@@ -130,6 +142,24 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
         out += [(m, length, base * sinc_base * (float(_sinc(alpha)) - change), 0),
                 (m, length, base * sinc_base * change, 1)]
     return out
+
+
+def _edge_terms(lanes, m: int, field: complex, length: float, d, b, k: float, kind: int, split: bool) -> list:
+    """A diffracting lane's terms: its field per metre times the line integral of
+    ``exp(-j k L)`` along its segment, split at its ends or as a sinc at its midpoint (E4); a
+    doubly diffracted lane's path runs across the face as well, ``+ w sin(beta')`` (E6)."""
+    a = lanes.edge[m].astype(float)
+    a_len = float(np.linalg.norm(a))
+    a_hat = a / a_len
+    if lanes.double[m]:
+        length += float(np.linalg.norm(lanes.across[m])) * float(np.linalg.norm(d - (d @ a_hat) * a_hat))
+    ua = (d - b) @ a_hat
+    if split:
+        sign = 1.0 if kind in (SPLIT_START, OPEN_START) else -1.0
+        return [(m, length, field * -sign * 1j / (k * ua), -1)]
+    alpha = 0.5 * k * ua * a_len
+    change = math.cos(alpha) - float(_sinc(alpha))
+    return [(m, length, field * a_len * (float(_sinc(alpha)) - change), 0), (m, length, field * a_len * change, 1)]
 
 
 def _quadratic(pieces, piece: int, d, b, s: float, r: float) -> float:

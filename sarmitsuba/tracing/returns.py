@@ -214,7 +214,7 @@ class Returns(ClutterTerms):
             return [-r if self.vv_sign and depth % 2 else r]
         r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
         field = pol.scatter(self._arriving(rec, d, depth), d, b, n, r_te, r_tm)
-        return self._reciprocal(pol.receive(field, -b, mi.Vector3f(*self.track), CHANNELS), depth)
+        return self.reciprocal(pol.receive(field, -b, mi.Vector3f(*self.track), CHANNELS), depth)
 
     def _arriving(self, rec, d, depth: int):
         """The Jones matrix arriving at a term's point for the pulse: at the first bounce the
@@ -222,7 +222,7 @@ class Returns(ClutterTerms):
         sub-aperture's reference position, as its reflection coefficients, eq. (T3))."""
         return pol.launch(d, mi.Vector3f(*self.track)) if depth == 0 else rec.jones
 
-    def _reciprocal(self, entries: list, depth: int) -> list:
+    def reciprocal(self, entries: list, depth: int) -> list:
         """The requested channels of ``S`` (entries in :data:`CHANNELS` order), made reciprocal
         after more than one bounce: ``(S + S^T) / 2``, docs/physics.md (P8). Only the entries the
         channels need are compiled."""

@@ -13,6 +13,8 @@ area terms (:mod:`sarmitsuba.tracing.integration`), rough pieces to scatterers
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .chains import Chains, facing_sign, image_source
@@ -100,7 +102,7 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
 
 
 def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int,
-                cancel: bool = True, motion=None):
+                cancel: bool = True, motion=None, edges=None):
     """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
     centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
     1 (sinc) or 3 (open) point lanes; per unstable piece an area lane. ``cancel`` false keeps the
@@ -135,10 +137,11 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
         edge_rate2 = np.concatenate([q_rate - p_rate, zero])
     else:
         point_rate2 = mid_rate2 = edge_rate2 = np.zeros((len(lane_kind), 2))
+    lane_seg = np.concatenate([lane_seg, np.full(len(unstable), -1)])
     drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) if cancel \
         else np.zeros(len(lane_kind), bool)
-    lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2 = (
-        a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2))
+    lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2, lane_seg = (
+        a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2, lane_seg))
     chain = region[lane_piece]
     lane_part = part[lane_piece]
     point = s.to_world(lane_part, point2)
@@ -157,13 +160,48 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
         step = np.linalg.norm(travel, axis=1, keepdims=True)
         window_data.update(origin=origin, axis=(travel / np.where(step > 0, step, 1.0)).astype(np.float32),
                            motion=np.stack(rates, axis=1).astype(np.float32))
+    if edges is not None and np.any(edges["on"]):
+        seg = np.maximum(lane_seg, 0)
+        on = (lane_seg >= 0) & edges["on"][seg]
+        other = np.where(on, edges["other"][seg], -1)
+        window_data.update(diffracting=on, wedge_x0=edges["x0"][seg].astype(np.float32),
+                           wedge_xn=edges["xn"][seg].astype(np.float32),
+                           wedge_row=s.row[np.where(other >= 0, other, lane_part)].astype(np.uint32),
+                           wedge_defer=(other >= 0) & (other < lane_part), double=np.zeros(len(on), bool),
+                           across=edges["across"][seg].astype(np.float32),
+                           across_xn=edges["xn_across"][seg].astype(np.float32))
     lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
                       middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
                       normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
                       sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
                       piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **window_data)
+    if lanes.diffracting is not None:
+        lanes = with_double(lanes, chains, chain)
     table = piece_table(s, chains, geometry, table_segments)
     return lanes, table
+
+
+def with_double(lanes: TermLanes, chains: Chains, chain: np.ndarray) -> TermLanes:
+    """``lanes`` followed by a copy of every diffracting point lane that has a diffracting edge
+    across its face (eq. (E6)): the copy's incident leg ends at the point across
+    (``point + across``, unfolded through the lane's chain), its return leg leaves from its own
+    point, and it carries only the doubly diffracted term."""
+    rows = np.flatnonzero(lanes.diffracting & np.any(lanes.across != 0, axis=1) & (lanes.kind != AREA))
+    if len(rows) == 0:
+        return lanes
+    offset = lanes.across[rows].astype(float)
+    copy = {f.name: (None if getattr(lanes, f.name) is None else getattr(lanes, f.name)[rows])
+            for f in dataclasses.fields(lanes)}
+    copy.update(unfolded=chains.unfolded(lanes.point[rows] + offset, chain[rows]),
+                middle_unfolded=chains.unfolded(lanes.middle[rows] + offset, chain[rows]),
+                double=np.ones(len(rows), bool))
+    if lanes.motion is not None:
+        copy["origin"], copy["axis"] = lanes.origin[rows], lanes.axis[rows]
+    merged = {}
+    for f in dataclasses.fields(lanes):
+        a, b = getattr(lanes, f.name), copy[f.name]
+        merged[f.name] = None if a is None else np.concatenate([a, b])
+    return TermLanes(**merged)
 
 
 def windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> dict:

@@ -1,0 +1,208 @@
+"""Every pulse's fringe and doubly diffracted terms of the mesh's edges, in Dr.Jit
+(docs/physics.md (E1)-(E6)): the kernel side of :mod:`sarmitsuba.tracing.edges`, whose
+:func:`~sarmitsuba.tracing.edges.edge_field` and :func:`~sarmitsuba.tracing.edges.double_field`
+are its NumPy reference (tests/test_patch_kernel.py compares the two through
+:func:`sarmitsuba.tracing.patch_reference.lane_terms`).
+
+:class:`PatchTerms <sarmitsuba.tracing.integration.PatchTerms>` calls :class:`EdgeTerms` for the
+lanes whose segment lies on a diffracting edge: their far field per metre of edge, per channel,
+and the line integral of the phase along the segment, split or sinc as (M5) splits PO's edges.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+
+from . import jones as pol
+from .device import device_array
+from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW
+
+__all__ = ["EdgeTerms", "sinc", "x_dsinc"]
+
+_SMALL = 1e-4
+
+
+def sinc(x):
+    """``sin(x) / x`` in Dr.Jit (its series below 1e-4)."""
+    return dr.select(dr.abs(x) < _SMALL, 1.0 - x * x * (1.0 / 6.0), dr.sin(x) / x)
+
+
+def x_dsinc(x):
+    """``x d sinc(x) / dx = cos(x) - sinc(x)``."""
+    return dr.select(dr.abs(x) < _SMALL, -x * x * (1.0 / 3.0), dr.cos(x) - dr.sin(x) / x)
+
+
+class EdgeTerms:
+    """Fringe (E4) and doubly diffracted (E6) terms of a bounce order's edge lanes.
+
+    Parameters
+    ----------
+    returns : sarmitsuba.tracing.returns.Returns
+        The acquisition's per-pulse helpers (reflection tables, channels, track).
+    k : float
+        Carrier wavenumber [rad/m].
+    """
+
+    def __init__(self, returns, k: float):
+        self.r, self.k = returns, k
+
+    def mirrored(self, lanes, depth: int):
+        """The scalar model's field arriving at an edge after ``depth`` mirrors (its reflection
+        coefficients are in ``gamma``): the launch basis reflected by each window's plane (P3')
+        with ``r_te = r_tm = 1``."""
+        r = self.r
+        jones = pol.launch(device_array(mi.Vector3f, lanes.first.T), mi.Vector3f(*r.track))
+        one = mi.Complex2f(1.0, 0.0)
+        for i in range(depth):
+            jones = pol.reflect(jones, device_array(mi.Vector3f, lanes.window_direction[:, i].T),
+                                device_array(mi.Vector3f, lanes.window_normal[:, i].T), one, one)
+        dr.eval(jones)
+        return jones
+
+
+    def line(self, data, start, u, split):
+        """The line integral of ``exp(-j k L)`` along a lane's segment relative to its point, eq. (E4):
+        ``-+ j / (k u . a^)`` at a split segment's start and end (spectral order -1), and
+        ``|a| sinc(alpha)`` at a midpoint with its first-order change across the band (orders 0
+        and 1), as (M5) splits its edges."""
+        k = self.k
+        a_len = dr.norm(data["edge"])
+        ua = dr.dot(u, data["edge"] / dr.maximum(a_len, 1e-30))
+        sign = dr.select(start, 1.0, -1.0)
+        split_value = mi.Complex2f(0.0, -sign / (k * dr.select(dr.abs(ua) > 1e-30, ua, 1e-30)))
+        alpha = 0.5 * k * ua * a_len
+        s1 = x_dsinc(alpha)
+        value = dr.select(split, split_value, mi.Complex2f(a_len * (sinc(alpha) - s1), 0.0))
+        return value, mi.Complex2f(a_len * s1, 0.0)
+
+    def fringe(self, data, d, b, n0, cos_i, depth: int):
+        """The fringe far field per unit length of each lane's edge, per channel, eq. (E4), with
+        whether the lane carries it (not deferred to the wedge's other face): the Dr.Jit form of
+        :func:`sarmitsuba.tracing.edges.edge_field` (its NumPy reference)."""
+        r = self.r
+        t = dr.normalize(data["edge"])
+        x0, xn = data["wedge_x0"], data["wedge_xn"]
+        two_pi = 2.0 * math.pi
+
+        def angle(v):
+            perp = v - t * dr.dot(v, t)
+            phi = dr.atan2(dr.dot(perp, n0), dr.dot(perp, x0))
+            return dr.select(phi < 0.0, phi + two_pi, phi), dr.norm(perp)
+
+        phi_i, sin_i = angle(-d)
+        phi, sin_s = angle(b)
+        psi = dr.atan2(dr.dot(xn, n0), dr.dot(xn, x0))
+        wedge_n = dr.select(dr.squared_norm(xn) > 0.0, dr.select(psi >= 0.0, psi, psi + two_pi) / math.pi, 2.0)
+        convex = wedge_n > 1.0 + 1e-3
+        nn = dr.select(convex, wedge_n, 2.0)
+        # the shadow and reflection boundaries of either face, where Keller's and PO's terms are
+        # both infinite and their difference finite: evaluated SINGULAR_STEP off (E3)
+        singular = mi.Bool(False)
+        for x in (phi - phi_i, phi + phi_i, 2.0 * nn * math.pi - phi - phi_i):
+            for centre in (-math.pi, math.pi):
+                singular |= dr.abs(x - centre) < SINGULAR_WINDOW
+        phi_i = dr.select(singular, phi_i + SINGULAR_STEP, phi_i)
+        normal_n = dr.sin(nn * math.pi) * x0 - dr.cos(nn * math.pi) * n0    # face N's normal, exterior side
+        if r.polarimetric:
+            r_te0, r_tm0 = r.reflection_pair(data["row"], cos_i, True)
+            r_ten, r_tmn = r.reflection_pair(data["wedge_row"], -dr.dot(d, normal_n), True)
+        else:
+            r_te0 = r_tm0 = r.reflection_at(data["row"], cos_i, True)
+            r_ten = r_tmn = r.reflection_at(data["wedge_row"], -dr.dot(d, normal_n), True)
+
+        def cot(x):
+            sn, cs = dr.sincos(x)
+            return cs / sn
+
+        m, p = phi - phi_i, phi + phi_i
+        c1, c2 = cot((math.pi + m) / (2.0 * nn)), cot((math.pi - m) / (2.0 * nn))
+        c3, c4 = cot((math.pi - p) / (2.0 * nn)), cot((math.pi + p) / (2.0 * nn))
+        inv = -1.0 / (2.0 * nn)
+        x_s = (r_te0 * c3 + r_ten * c4 + (c1 + c2)) * inv
+        x_h = ((c1 + c2) - r_tm0 * c3 - r_tmn * c4) * inv
+        lit0 = (phi_i > 0.0) & (phi_i < math.pi) & (phi > 0.0) & (phi < math.pi)
+        pn, pin = nn * math.pi - phi, nn * math.pi - phi_i
+        lit_n = (pin > 0.0) & (pin < math.pi) & (pn > 0.0) & (pn < math.pi)
+        for lit, a, a_i, r_te, r_tm in ((lit0, phi, phi_i, r_te0, r_tm0), (lit_n, pn, pin, r_ten, r_tmn)):
+            den = dr.cos(a) + dr.cos(a_i)
+            x_s = dr.select(lit, x_s + r_te * (dr.sin(a_i) / den), x_s)
+            x_h = dr.select(lit, x_h - r_tm * (dr.sin(a) / den), x_h)
+        ok = convex & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE)
+        c_e = dr.select(ok, x_s * (1.0 / (two_pi * sin_i * sin_i)), mi.Complex2f(0.0))
+        c_m = dr.select(ok, x_h * (-1.0 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
+        along = t - b * dr.dot(b, t)
+        across = dr.cross(b, t)
+        normal_t = dr.cross(t, d)
+        if depth == 0:
+            jones = pol.launch(d, mi.Vector3f(*r.track))
+        else:
+            jones = data["jones"] if data["jones"] is not None else data["edge_jones"]
+
+        def column(e_re, e_im):
+            e_t = mi.Complex2f(dr.dot(e_re, t), dr.dot(e_im, t))
+            e_m = mi.Complex2f(dr.dot(e_re, normal_t), dr.dot(e_im, normal_t))
+            f_e, f_m = c_e * e_t, c_m * e_m
+            return (along * dr.real(f_e) + across * dr.real(f_m), along * dr.imag(f_e) + across * dr.imag(f_m))
+
+        h_re, h_im = column(jones.h_re, jones.h_im)
+        v_re, v_im = column(jones.v_re, jones.v_im)
+        field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
+        entries = pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS)
+        carry = ~(data["wedge_defer"] & lit_n)
+        return r.reciprocal(entries, depth), carry, sin_i
+
+    def double(self, data, d, b, n0, sin_i, depth: int):
+        """The doubly diffracted far field per unit length of each lane's edge (edge 2), per
+        channel, eq. (E6): the wave the edge across the face (edge 1) diffracts along the face,
+        grazing, diffracted again toward the receiver. Hard polarisation only (a soft wave
+        vanishes on the face at grazing). NumPy reference: :func:`sarmitsuba.tracing.edges.double_field`."""
+        r, k = self.r, self.k
+        t = dr.normalize(data["edge"])
+        x0, across = data["wedge_x0"], data["across"]
+        two_pi = 2.0 * math.pi
+
+        def angle(v, x):
+            perp = v - t * dr.dot(v, t)
+            phi = dr.atan2(dr.dot(perp, n0), dr.dot(perp, x))
+            return dr.select(phi < 0.0, phi + two_pi, phi), dr.norm(perp)
+
+        def wedge(x, xn):
+            psi = dr.atan2(dr.dot(xn, n0), dr.dot(xn, x))
+            nn = dr.select(dr.squared_norm(xn) > 0.0, dr.select(psi >= 0.0, psi, psi + two_pi) / math.pi, 2.0)
+            return nn
+
+        def cot(x):
+            sn, cs = dr.sincos(x)
+            return cs / sn
+
+        phi, sin_s = angle(b, x0)
+        phi_1, _ = angle(-d, -x0)                        # incidence at edge 1, from its face (-x0)
+        n1, n2 = wedge(-x0, data["across_xn"]), wedge(x0, data["wedge_xn"])
+        # edge 1 toward the grazing direction phi = 0 (hard, PEC), edge 2 from grazing incidence,
+        # half of its coefficient (the grazing incident and reflected waves are one), eq. (E6)
+        x_1 = -(2.0 * cot((math.pi - phi_1) / (2.0 * n1)) + 2.0 * cot((math.pi + phi_1) / (2.0 * n1))) / (2.0 * n1)
+        x_2 = -(cot((math.pi + phi) / (2.0 * n2)) + cot((math.pi - phi) / (2.0 * n2))) / (2.0 * n2)
+        w = dr.norm(across)
+        spread = dr.rsqrt(dr.maximum(two_pi * k * w * sin_i, 1e-30))
+        c = math.sqrt(0.5)
+        g = mi.Complex2f(c, -c) * (x_1 * spread)              # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
+        ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
+        c_m = dr.select(ok, g * (-x_2 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
+        across_b = dr.cross(b, t)
+        normal_t = dr.cross(t, d)
+        if depth == 0:
+            jones = pol.launch(d, mi.Vector3f(*r.track))
+        else:
+            jones = data["jones"] if data["jones"] is not None else data["edge_jones"]
+
+        def column(e_re, e_im):
+            f = c_m * mi.Complex2f(dr.dot(e_re, normal_t), dr.dot(e_im, normal_t))
+            return across_b * dr.real(f), across_b * dr.imag(f)
+
+        h_re, h_im = column(jones.h_re, jones.h_im)
+        v_re, v_im = column(jones.v_re, jones.v_im)
+        field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
+        return r.reciprocal(pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS), depth)
+
