@@ -187,7 +187,10 @@ class EdgeTerms:
         w = dr.norm(across)
         spread = dr.rsqrt(dr.maximum(two_pi * k * w * sin_i, 1e-30))
         c = math.sqrt(0.5)
-        g = mi.Complex2f(c, -c) * (x_1 * spread)              # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
+        # a sheet (both edges free, N = 2) carries the grazing wave on both its faces: twice, eq. (E6)
+        sheet = dr.select((dr.squared_norm(data["across_xn"]) == 0.0) & (dr.squared_norm(data["wedge_xn"]) == 0.0),
+                          2.0, 1.0)
+        g = mi.Complex2f(c, -c) * (x_1 * spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         c_m = dr.select(ok, g * (-x_2 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
         across_b = dr.cross(b, t)

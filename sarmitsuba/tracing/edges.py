@@ -404,7 +404,10 @@ def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k):
     x_1 = keller(0.0, phi_1, n1, 1.0, 1.0)                 # hard: Keller's toward the face, grazing
     x_2 = 0.5 * keller(phi, 0.0, n2, 1.0, 1.0)             # half: grazing incidence
     w = np.linalg.norm(across, axis=1)
-    g = np.exp(-0.25j * np.pi) * x_1 / np.sqrt(2 * np.pi * k * w * sin_i)
+    # a sheet (both edges free) carries the grazing wave on its front and its back face: the two
+    # arrive at edge 2 with opposite signs and leave with opposite coefficients, so they add
+    sheet = np.where(~np.any(xn1 != 0, axis=1) & ~np.any(xn2 != 0, axis=1), 2.0, 1.0)
+    g = sheet * np.exp(-0.25j * np.pi) * x_1 / np.sqrt(2 * np.pi * k * w * sin_i)
     ok = (n1 > 1) & (n2 > 1) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.pi)
     c_m = np.where(ok, -g * x_2 / (2 * np.pi * np.maximum(sin_i * sin_s, GRAZING_EDGE**2)), 0)
     e_m = np.einsum("mi,mi->m", field, np.cross(t, d))
