@@ -129,7 +129,8 @@ def _basis(look: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _edge_field_vv(depth: int, k: float):
     """The VV edge field per metre of a diffracting lane, PEC, from the NumPy reference
     (:func:`edges.edge_field`, :func:`edges.double_field`): the V field launched along the lane's
-    first leg, mirrored by each PEC window (``E -> -(E - 2 (n.E) n)``), received on V."""
+    first leg, mirrored by each PEC window (``E -> -(E - 2 (n.E) n)``), received on V; after a
+    mirror with the fringe of the untraced reverse path."""
     def field(lanes, m, d, b):
         t = lanes.edge[m].astype(float)
         t /= np.linalg.norm(t)
@@ -143,9 +144,10 @@ def _edge_field_vv(depth: int, k: float):
         x0, xn = lanes.wedge_x0[m].astype(float), lanes.wedge_xn[m].astype(float)
         if lanes.double[m]:
             f = edges.double_field(one(t), one(x0), one(n0), one(lanes.across[m]), one(lanes.across_xn[m]), one(xn),
-                                   one(d), one(b), e.astype(complex)[None], k)[0]
+                                   one(d), one(b), e.astype(complex)[None], k, reverse=depth > 0)[0]
         else:
-            f = edges.edge_field(one(t), one(x0), one(n0), one(xn), one(d), one(b), e.astype(complex)[None])[0]
+            f = edges.edge_field(one(t), one(x0), one(n0), one(xn), one(d), one(b), e.astype(complex)[None],
+                                 reverse=depth > 0)[0]
             assert not lanes.wedge_defer[m]                       # free rims: no face N to defer to
         return math.sqrt(4 * math.pi) * (_basis(-b)[1] @ f)
     return field

@@ -34,6 +34,32 @@ def x_dsinc(x):
     return dr.select(dr.abs(x) < _SMALL, -x * x * (1.0 / 3.0), dr.cos(x) - dr.sin(x) / x)
 
 
+def _cot(x):
+    sn, cs = dr.sincos(x)
+    return cs / sn
+
+
+def _fringe(phi, phi_i, nn, face_0, face_n):
+    """The fringe coefficients ``(X_s, X_h)`` of eqs. (E2), (E3) in Dr.Jit: Keller's minus the PO
+    edge terms of the faces lit and seen; ``face_0``, ``face_n`` the faces' ``(r_te, r_tm)``.
+    NumPy reference: :func:`sarmitsuba.tracing.edges.fringe`."""
+    (r_te0, r_tm0), (r_ten, r_tmn) = face_0, face_n
+    m, p = phi - phi_i, phi + phi_i
+    c1, c2 = _cot((math.pi + m) / (2.0 * nn)), _cot((math.pi - m) / (2.0 * nn))
+    c3, c4 = _cot((math.pi - p) / (2.0 * nn)), _cot((math.pi + p) / (2.0 * nn))
+    inv = -1.0 / (2.0 * nn)
+    x_s = (r_te0 * c3 + r_ten * c4 + (c1 + c2)) * inv
+    x_h = ((c1 + c2) - r_tm0 * c3 - r_tmn * c4) * inv
+    lit0 = (phi_i > 0.0) & (phi_i < math.pi) & (phi > 0.0) & (phi < math.pi)
+    pn, pin = nn * math.pi - phi, nn * math.pi - phi_i
+    lit_n = (pin > 0.0) & (pin < math.pi) & (pn > 0.0) & (pn < math.pi)
+    for lit, a, a_i, r_te, r_tm in ((lit0, phi, phi_i, r_te0, r_tm0), (lit_n, pn, pin, r_ten, r_tmn)):
+        den = dr.cos(a) + dr.cos(a_i)
+        x_s = dr.select(lit, x_s + r_te * (dr.sin(a_i) / den), x_s)
+        x_h = dr.select(lit, x_h - r_tm * (dr.sin(a) / den), x_h)
+    return x_s, x_h
+
+
 class EdgeTerms:
     """Fringe (E4) and doubly diffracted (E6) terms of a bounce order's edge lanes.
 
@@ -103,33 +129,27 @@ class EdgeTerms:
         for x in (phi - phi_i, phi + phi_i, 2.0 * nn * math.pi - phi - phi_i):
             for centre in (-math.pi, math.pi):
                 singular |= dr.abs(x - centre) < SINGULAR_WINDOW
-        phi_i = dr.select(singular, phi_i + SINGULAR_STEP, phi_i)
         normal_n = dr.sin(nn * math.pi) * x0 - dr.cos(nn * math.pi) * n0    # face N's normal, exterior side
-        if r.polarimetric:
-            r_te0, r_tm0 = r.reflection_pair(data["row"], cos_i, True)
-            r_ten, r_tmn = r.reflection_pair(data["wedge_row"], -dr.dot(d, normal_n), True)
-        else:
-            r_te0 = r_tm0 = r.reflection_at(data["row"], cos_i, True)
-            r_ten = r_tmn = r.reflection_at(data["wedge_row"], -dr.dot(d, normal_n), True)
 
-        def cot(x):
-            sn, cs = dr.sincos(x)
-            return cs / sn
+        def reflection(row, cos):
+            if r.polarimetric:
+                return r.reflection_pair(row, cos, True)
+            coefficient = r.reflection_at(row, cos, True)
+            return coefficient, coefficient
 
-        m, p = phi - phi_i, phi + phi_i
-        c1, c2 = cot((math.pi + m) / (2.0 * nn)), cot((math.pi - m) / (2.0 * nn))
-        c3, c4 = cot((math.pi - p) / (2.0 * nn)), cot((math.pi + p) / (2.0 * nn))
-        inv = -1.0 / (2.0 * nn)
-        x_s = (r_te0 * c3 + r_ten * c4 + (c1 + c2)) * inv
-        x_h = ((c1 + c2) - r_tm0 * c3 - r_tmn * c4) * inv
-        lit0 = (phi_i > 0.0) & (phi_i < math.pi) & (phi > 0.0) & (phi < math.pi)
-        pn, pin = nn * math.pi - phi, nn * math.pi - phi_i
-        lit_n = (pin > 0.0) & (pin < math.pi) & (pn > 0.0) & (pn < math.pi)
-        for lit, a, a_i, r_te, r_tm in ((lit0, phi, phi_i, r_te0, r_tm0), (lit_n, pn, pin, r_ten, r_tmn)):
-            den = dr.cos(a) + dr.cos(a_i)
-            x_s = dr.select(lit, x_s + r_te * (dr.sin(a_i) / den), x_s)
-            x_h = dr.select(lit, x_h - r_tm * (dr.sin(a) / den), x_h)
-        ok = convex & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE)
+        # the traced path: the wave arrives along d, leaves along b
+        x_s, x_h = _fringe(phi, dr.select(singular, phi_i + SINGULAR_STEP, phi_i), nn,
+                           reflection(data["row"], cos_i), reflection(data["wedge_row"], -dr.dot(d, normal_n)))
+        if depth > 0:
+            # and its reverse, not traced (the edge first, the mirrors after it: it arrives along
+            # -b and leaves along -d): the same length, the same Keller term, its own PO subtracted
+            # (the fringe is not reciprocal where PO is not), eq. (E4)
+            back_s, back_h = _fringe(phi_i, dr.select(singular, phi + SINGULAR_STEP, phi), nn,
+                                     reflection(data["row"], dr.abs(dr.dot(b, n0))),
+                                     reflection(data["wedge_row"], dr.abs(dr.dot(b, normal_n))))
+            x_s, x_h = x_s + back_s, x_h + back_h
+        # the receiver outside the wedge (face N at phi = N pi; a free edge is seen from every side)
+        ok = convex & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < nn * math.pi)
         c_e = dr.select(ok, x_s * (1.0 / (two_pi * sin_i * sin_i)), mi.Complex2f(0.0))
         c_m = dr.select(ok, x_h * (-1.0 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
         along = t - b * dr.dot(b, t)
@@ -150,6 +170,8 @@ class EdgeTerms:
         v_re, v_im = column(jones.v_re, jones.v_im)
         field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
         entries = pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS)
+        # face N lit and seen too: the part of lower index carries the edge's term
+        lit_n = (phi_i > (nn - 1.0) * math.pi) & (phi > (nn - 1.0) * math.pi)
         carry = ~(data["wedge_defer"] & lit_n)
         return r.reciprocal(entries, depth), carry, sin_i
 
@@ -173,10 +195,7 @@ class EdgeTerms:
             nn = dr.select(dr.squared_norm(xn) > 0.0, dr.select(psi >= 0.0, psi, psi + two_pi) / math.pi, 2.0)
             return nn
 
-        def cot(x):
-            sn, cs = dr.sincos(x)
-            return cs / sn
-
+        cot = _cot
         phi, sin_s = angle(b, x0)
         phi_1, _ = angle(-d, -x0)                        # incidence at edge 1, from its face (-x0)
         n1, n2 = wedge(-x0, data["across_xn"]), wedge(x0, data["wedge_xn"])
@@ -192,7 +211,10 @@ class EdgeTerms:
                           2.0, 1.0)
         g = mi.Complex2f(c, -c) * (x_1 * spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
-        c_m = dr.select(ok, g * (-x_2 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
+        # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
+        # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)
+        reverse = 2.0 if depth > 0 else 1.0
+        c_m = dr.select(ok, g * (-reverse * x_2 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
         across_b = dr.cross(b, t)
         normal_t = dr.cross(t, d)
         if depth == 0:

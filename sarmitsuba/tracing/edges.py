@@ -368,20 +368,25 @@ def _angle(v, t, x0, n0):
     return np.where(phi < 0, phi + 2 * np.pi, phi), np.linalg.norm(perp, axis=1)
 
 
-def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0)):
+def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0), reverse: bool = False):
     """The fringe far field per unit length of edge, eq. (E4) (complex [m, 3]): scattered toward
     ``b`` (unit, toward the receiver) for the incident ``field`` [m, 3] (complex, normal to ``d``)
     arriving along ``d`` (unit); ``E_s = F exp(-j k R) / R`` per metre of edge, phase referred to
     the edge point. ``t`` [m, 3] the edge's unit tangent (either sense), ``x0`` into face 0 (the lit
     face), ``n0`` its normal on the lit side, ``xn`` into face N (zero: a free edge). ``r0``,
-    ``rn``: ``(r_te, r_tm)`` of faces 0 and N at their own incidence (PEC by default)."""
+    ``rn``: ``(r_te, r_tm)`` of faces 0 and N at their own incidence (PEC by default).
+    ``reverse``: add the fringe of the reverse path (arriving along ``-b``, leaving along ``-d``)
+    in the same frame: for an edge after mirrors, whose reverse path is not traced (E4)."""
     t, x0, n0, xn, d, b = (np.asarray(a, float) for a in (t, x0, n0, xn, d, b))
     phi_i, sin_i = _angle(-d, t, x0, n0)
     phi, sin_s = _angle(b, t, x0, n0)
     n = exterior_angle(x0, n0, xn)
-    phi_i = phi_i + np.where(_singular(phi, phi_i, np.where(n > 1, n, 2.0)), SINGULAR_STEP, 0.0)
-    xs, xh = fringe(phi, phi_i, n, *r0, *rn)
-    ok = (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE)
+    step = np.where(_singular(phi, phi_i, np.where(n > 1, n, 2.0)), SINGULAR_STEP, 0.0)
+    xs, xh = fringe(phi, phi_i + step, n, *r0, *rn)
+    if reverse:
+        back_s, back_h = fringe(phi_i, phi + step, n, *r0, *rn)
+        xs, xh = xs + back_s, xh + back_h
+    ok = (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.where(n > 1, n, 2.0) * np.pi)
     c_e = np.where(ok, xs / (2 * np.pi * np.maximum(sin_i, GRAZING_EDGE)**2), 0)
     c_m = np.where(ok, -xh / (2 * np.pi * np.maximum(sin_i * sin_s, GRAZING_EDGE**2)), 0)
     e_t = np.einsum("mi,mi->m", field, t)
@@ -390,13 +395,14 @@ def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0)):
     return (c_e * e_t)[:, None] * along + (c_m * e_m)[:, None] * np.cross(b, t)
 
 
-def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k):
+def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = False):
     """The doubly diffracted far field per unit length of edge 2, eq. (E6) (complex [m, 3]): the
     wave of wavenumber ``k`` [rad/m] that edge 1 (at ``across`` [m, 3] from the point, running the
     other way; ``xn1`` into its other face) diffracts along the face, grazing, diffracted by edge 2
     (``t``, ``x0``, ``n0``, ``xn2`` as in :func:`edge_field`) toward ``b``. Phase referred to the
     incident wave at the point across plus the grazing leg ``|across| sin(beta')``, which the
-    caller adds to the path. Hard polarisation only; PEC faces."""
+    caller adds to the path. Hard polarisation only; PEC faces. ``reverse``: with the reverse path
+    (edge 2 first), its transpose by reciprocity: twice the field (E6)."""
     t, x0, n0, across, xn1, xn2, d, b = (np.asarray(a, float) for a in (t, x0, n0, across, xn1, xn2, d, b))
     phi, sin_s = _angle(b, t, x0, n0)
     phi_1, sin_i = _angle(-d, t, -x0, n0)
@@ -411,4 +417,4 @@ def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k):
     ok = (n1 > 1) & (n2 > 1) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.pi)
     c_m = np.where(ok, -g * x_2 / (2 * np.pi * np.maximum(sin_i * sin_s, GRAZING_EDGE**2)), 0)
     e_m = np.einsum("mi,mi->m", field, np.cross(t, d))
-    return (c_m * e_m)[:, None] * np.cross(b, t)
+    return (2.0 if reverse else 1.0) * (c_m * e_m)[:, None] * np.cross(b, t)

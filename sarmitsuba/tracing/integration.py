@@ -338,16 +338,18 @@ class PatchTerms:
         u, ut, ut2 = self._tangential(n, d, b)
         facing = dr.select(dr.dot(n, d) < 0, 1.0, -1.0)            # +1: the wave meets the normal's side
         cos_i, cos_b = -facing * dr.dot(n, d), facing * dr.dot(n, b)
-        active = (cos_i > 1e-6) & (cos_b > 1e-6)
+        # lit: the wave meets the face; PO also needs the receiver on the face's side, the fringe
+        # term only the receiver outside the wedge (eq. (E4), in EdgeTerms.fringe)
+        edge_live = cos_i > 1e-6
         if r.aim_mask:
-            active &= r._in_beam(data["unfolded"], antenna, view)
+            edge_live &= r._in_beam(data["unfolded"], antenna, view)
         split = (kind == SPLIT_START) | (kind == SPLIT_END)
         if data["open"]:
             decide = self._open_split(data, antenna, view, depth)
             opened = (kind >= OPEN_START) & (kind <= OPEN_MID)
             split |= opened & (kind != OPEN_MID) & decide
-            active &= ~opened | dr.select(kind == OPEN_MID, ~decide, decide)
-        edge_live = mi.Bool(active)              # a copy (&= works in place): the fringe term is never gated
+            edge_live &= ~opened | dr.select(kind == OPEN_MID, ~decide, decide)
+        active = edge_live & (cos_b > 1e-6)                      # a new mask: the fringe term is never gated
         if data["gated"]:
             near = self._near(data, antenna, view, depth)
             active &= data["stable"] | dr.select(kind == AREA, near, ~near)

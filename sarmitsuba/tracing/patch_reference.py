@@ -64,8 +64,10 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
         ``(lanes, lane, d, b) -> complex``: the channel's edge field per metre at a diffracting lane
         of ``lanes`` (as the pulse moved them, eq. (M8))
         (``sqrt(4 pi) b_rx . F`` of docs/physics.md (E4), or of (E6) for a ``double`` lane, times
-        the pattern and the earlier bounces' factors; 0 where the lane does not carry it). None:
-        no edge terms (and no doubly diffracted lanes).
+        the pattern and the earlier bounces' factors; 0 where the lane does not carry it), after
+        mirrors with the untraced reverse path's fringe added (``reverse`` of
+        :func:`~sarmitsuba.tracing.edges.edge_field`). None: no edge terms (and no doubly
+        diffracted lanes).
 
     Returns
     -------
@@ -90,7 +92,7 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
         s, r, d, b = at(lanes.point[m], lanes.unfolded[m])
         facing = 1.0 if n @ d < 0 else -1.0
         cos_i, cos_b = -facing * (n @ d), facing * (n @ b)
-        if not (cos_i > 1e-6 and cos_b > 1e-6):
+        if not cos_i > 1e-6:
             continue
         piece = int(lanes.piece[m])
         split = kind in (SPLIT_START, SPLIT_END)
@@ -105,6 +107,8 @@ def lane_terms(lanes: TermLanes, pieces, antenna: np.ndarray, k: float, alpha_s:
             out += _edge_terms(lanes, m, edge_field(lanes, m, d, b), s + r, d, b, k, kind, split)
             if lanes.double[m]:
                 continue
+        if not cos_b > 1e-6:                       # PO: the receiver on the face's side
+            continue
         if not lanes.stable[m]:
             _, _, dc, bc = at(pieces.centroid[piece], pieces.centroid_unfolded[piece])
             uc = dc - bc
