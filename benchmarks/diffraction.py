@@ -1,43 +1,186 @@
-"""Benchmark: what edge diffraction costs and what it changes (issue 54), in one run.
+"""Benchmark: edge diffraction (issue 54): what the edge currents buy against full wave, and what they cost.
 
-For the built-in ``urban`` scene and Sionna's Munich (512 central pulses; skipped without
-Sionna RT or with ``--quick``), each rendered warm with ``sbr`` ``diffraction`` true and false,
-alternately, best of two each:
+Three parts, in one run:
 
-* **seconds**: the trace and the whole render, and their ratio (the issue's bound for switching
-  it on by default: at most 1.2 times the render time without it);
-* **what it changes**: the image NRMSE of PO alone against PO plus edge currents,
-  ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB], and the share of the diffraction's power
-  (the image difference) that the bounce orders after the first carry: edges lit through a
-  mirror (a roof edge in the ground's mirror), per order, from ``split_bounces``.
+* **plates**: PEC plates, alone, horizontal, across incidence angles 2.5 to 60 deg, HH and VV: the
+  RCS integrated from the focused image (``analyze``) with physical optics alone and with PO plus
+  the edge currents (``sbr`` ``diffraction`` false / true), against the full-wave tables of
+  ``tests/data/fullwave/`` (bempp-cl, ``benchmarks/fullwave.py``) averaged as the image weighs the
+  pulses and the band. Four sweeps: the 4-wavelength square with the plane of incidence along
+  an edge and turned 30 deg from it, the 4 x 2 rectangle along either side. Writes
+  ``diffraction_plates.csv`` and ``diffraction_plates.png`` (the curves);
+* **corners**: the full-wave dihedral (3 x 2 wavelengths) and cube (2 wavelengths) tables
+  against the simulator's default depth, at a few angles (``diffraction_corners.csv``);
+* **cost**: the built-in ``urban`` scene and Sionna's Munich (512 central pulses; skipped without
+  Sionna RT or with ``--quick``), each rendered warm with diffraction true and false, alternately,
+  best of two each: the trace and render seconds and their ratio (the issue's bound for
+  switching it on by default: 1.2); the image NRMSE of PO alone against PO plus edge currents,
+  ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB]; and the share of the diffraction's power (the
+  image difference) in each bounce order: the edges lit through a mirror (a roof edge in the
+  ground's mirror), from ``split_bounces`` (``diffraction.csv``).
 
-Writes ``diffraction.csv`` in the output folder (``_table.output_dir``).
-Usage: ``python benchmarks/diffraction.py [--quick]``
+Usage: ``python benchmarks/diffraction.py [--quick]`` (``--quick``: every 10 deg, urban only).
 """
 from __future__ import annotations
 
 import gc
 import importlib.util
+import json
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-import sarmitsuba  # noqa: F401
-from _table import bench_main, machine, write_csv
+import sarmitsuba
+from _table import bench_main, machine, output_dir, write_csv
 from sarmitsuba.pipeline import simulate
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from test_fullwave_plate import TABLES, fullwave_rcs_db  # noqa: E402
+from test_patches import WAVELENGTH, rectangle, sensor  # noqa: E402
+
 NAME = "diffraction"
+#: (table, observation plane phi [deg], plate side along the table's x and y [wavelengths]).
+PLATES = [("square", 0.0, 4.0, 4.0), ("square_az30", 30.0, 4.0, 4.0), ("rect", 0.0, 4.0, 2.0), ("rect", 90.0, 4.0, 2.0)]
+#: Where the issue's acceptance looks: full wave within this of the sweep's peak, up to 60 deg.
+WINDOW_DB = 25.0
+BOUND_DB = 1.5
 
 
 def _nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
     return 10.0 * math.log10(float(np.sum(np.abs(a - b) ** 2)) / max(float(np.sum(np.abs(b) ** 2)), 1e-300))
 
 
+def _sweep(case: str, phi: float) -> dict:
+    table = json.loads((TABLES / f"{case}.json").read_text())
+    return next(s for s in table["sweeps"] if abs(s["phi_deg"] - phi) < 1e-6)
+
+
+def _plate(phi: float, ax: float, by: float):
+    """The table's plate in the world: heading 0 looks from +y (world azimuth 90 deg), so the
+    table's frame turns by ``90 - phi`` about z."""
+    turn = math.radians(90.0 - phi)
+    c, s = math.cos(turn), math.sin(turn)
+    half_x, half_y = ax * WAVELENGTH / 2, by * WAVELENGTH / 2
+    return rectangle((0, 0, 0), (half_x * c, half_x * s, 0.0), (-half_y * s, half_y * c, 0.0))
+
+
+def plates(quick: bool) -> list[dict]:
+    """Image RCS of each plate sweep against the table, PO alone and with the edge currents."""
+    angles = np.arange(5.0, 56.0, 10.0) if quick else np.arange(2.5, 60.1, 2.5)
+    rows = []
+    for case, phi, ax, by in PLATES:
+        sweep = _sweep(case, phi)
+        plate = _plate(phi, ax, by)
+        for pol in ("HH", "VV"):
+            for incidence in angles:
+                got = {}
+                for on in (True, False):
+                    start = time.perf_counter()
+                    sim = simulate(sarmitsuba.Scene([(plate, "pec", "plate")],
+                                                    sensor=sensor(0.0, incidence_angle=float(incidence), polarization=pol),
+                                                    integrator={"max_depth": 1, "diffraction": on}))
+                    got[on] = (sarmitsuba.analyze(sim.image, (0, 0, 0), raw=sim.raw).rcs_db, time.perf_counter() - start)
+                reference = fullwave_rcs_db(sim, sweep, pol)
+                rows.append(dict(case=case, phi_deg=phi, polarization=pol, incidence_deg=float(incidence),
+                                 fullwave_dbsm=round(reference, 2), po_edges_dbsm=round(got[True][0], 2),
+                                 po_dbsm=round(got[False][0], 2), po_edges_error_db=round(got[True][0] - reference, 2),
+                                 po_error_db=round(got[False][0] - reference, 2), seconds_on=round(got[True][1], 2),
+                                 seconds_off=round(got[False][1], 2)))
+                print(rows[-1], flush=True)
+            gc.collect()
+    write_csv(f"{NAME}_plates.csv", rows)
+    _figure(rows)
+    return rows
+
+
+def _in_window(rows: list[dict], case: str, phi: float) -> np.ndarray:
+    sweep = [r for r in rows if r["case"] == case and r["phi_deg"] == phi]
+    peak = max(r["fullwave_dbsm"] for r in sweep)
+    return np.array([r["fullwave_dbsm"] >= peak - WINDOW_DB for r in sweep])
+
+
+def _figure(rows: list[dict]) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(2, len(PLATES), figsize=(4.2 * len(PLATES), 7.0), dpi=110, sharex=True)
+    to_dbsm = 20 * math.log10(WAVELENGTH)
+    for column, (case, phi, ax_, by) in enumerate(PLATES):
+        sweep = _sweep(case, phi)
+        for line, pol in enumerate(("HH", "VV")):
+            ax = axes[line, column]
+            theta = np.asarray(sweep["theta_deg"])
+            ax.plot(theta, np.asarray(sweep[f"sigma_{pol.lower()}_db"]) + to_dbsm, color="0.75", lw=1,
+                    label="full wave, carrier")
+            sel = [r for r in rows if r["case"] == case and r["phi_deg"] == phi and r["polarization"] == pol]
+            x = [r["incidence_deg"] for r in sel]
+            ax.plot(x, [r["fullwave_dbsm"] for r in sel], "k-", lw=1.5, label="full wave, as the image weighs it")
+            ax.plot(x, [r["po_edges_dbsm"] for r in sel], "o-", color="tab:red", ms=3, label="PO + edge currents")
+            ax.plot(x, [r["po_dbsm"] for r in sel], "s--", color="tab:blue", ms=3, label="PO alone")
+            peak = max(r["fullwave_dbsm"] for r in rows if r["case"] == case and r["phi_deg"] == phi)
+            ax.axhline(peak - WINDOW_DB, color="0.5", ls=":", lw=1)
+            ax.set_xlim(0, 62)
+            ax.set_ylim(peak - 45, peak + 3)
+            ax.set_title(f"{case} {ax_:g}x{by:g} wavelengths, phi {phi:g} deg, {pol}", fontsize=9)
+            ax.grid(True, alpha=0.3)
+            if line == 1:
+                ax.set_xlabel("incidence [deg]")
+            if column == 0:
+                ax.set_ylabel("RCS [dBsm]")
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    fig.suptitle("PEC plates at 9.6 GHz: image RCS against the method-of-moments tables "
+                 "(dotted: 25 dB below the peak)", fontsize=10)
+    fig.tight_layout()
+    path = output_dir() / f"{NAME}_plates.png"
+    fig.savefig(path)
+    plt.close(fig)
+    print(f"wrote {path}")
+    return path
+
+
+def corners(quick: bool) -> list[dict]:
+    """The dihedral and the cube against their tables, at the default depth (3), at the carrier
+    (their patterns do not scale with the band as a plate's does: the table's value at the
+    incidence angle)."""
+    lam = WAVELENGTH
+    floor = rectangle((0, lam, 0), (1.5 * lam, 0, 0), (0, lam, 0))
+    wall = rectangle((0, 0, lam), (1.5 * lam, 0, 0), (0, 0, lam))
+    import trimesh
+    cube = trimesh.creation.box((2 * lam, 2 * lam, 2 * lam))
+    cube.apply_translation((0, 0, 0))
+    # the dihedral's table looks in the plane phi = 90 (the fold along x): heading 0 looks from +y;
+    # the cube's in phi = 0 (any face plane: the cube is symmetric)
+    scenes = {"dihedral": ([(floor, "pec", "floor"), (wall, "pec", "wall")], 90.0),
+              "box": ([(cube, "pec", "cube")], 0.0)}
+    angles = (30.0, 45.0) if quick else (15.0, 30.0, 45.0, 60.0)
+    rows = []
+    for case, (meshes, phi) in scenes.items():
+        sweep = _sweep(case, phi)
+        for pol in ("HH", "VV"):
+            for incidence in angles:
+                got = {}
+                for on in (True, False):
+                    sim = simulate(sarmitsuba.Scene(meshes, sensor=sensor(0.0, incidence_angle=incidence,
+                                                                          polarization=pol),
+                                                    integrator={"diffraction": on}))
+                    got[on] = sarmitsuba.analyze(sim.image, (0, 0, 0), raw=sim.raw).rcs_db
+                reference = float(np.interp(incidence, sweep["theta_deg"], sweep[f"sigma_{pol.lower()}_db"])) \
+                    + 20 * math.log10(lam)
+                rows.append(dict(case=case, polarization=pol, incidence_deg=incidence, fullwave_dbsm=round(reference, 2),
+                                 po_edges_error_db=round(got[True] - reference, 2),
+                                 po_error_db=round(got[False] - reference, 2)))
+                print(rows[-1], flush=True)
+    write_csv(f"{NAME}_corners.csv", rows)
+    return rows
+
+
 def _render(source: str, diffraction: bool, pulses: int | None):
-    sensor = {"n_pulses": pulses} if pulses else None
+    sensor_overrides = {"n_pulses": pulses} if pulses else None
     start = time.perf_counter()
-    sim = simulate(source, sensor_overrides=sensor,
+    sim = simulate(source, sensor_overrides=sensor_overrides,
                    integrator_overrides={"diffraction": diffraction, "split_bounces": True})
     total = time.perf_counter() - start
     return sim, total, float(sim.timings.get("trace", float("nan")))
@@ -66,9 +209,7 @@ def measure(source: str, pulses: int | None = None) -> dict:
     return row
 
 
-def run(quick: bool = False) -> list[dict]:
-    """Measure, print and write the rows."""
-    print(machine())
+def cost(quick: bool) -> list[dict]:
     rows = [measure("urban")]
     if not quick and importlib.util.find_spec("sionna") is not None:
         rows.append(measure("sionna:munich", pulses=512))
@@ -78,12 +219,33 @@ def run(quick: bool = False) -> list[dict]:
     return rows
 
 
+def run(quick: bool = False) -> list[dict]:
+    """All three parts; each row carries its part's name."""
+    print(machine())
+    rows = [dict(part="plates", **r) for r in plates(quick)]
+    rows += [dict(part="corners", **r) for r in corners(quick)]
+    rows += [dict(part="cost", **r) for r in cost(quick)]
+    return rows
+
+
 def checks(rows):
-    """The issue's bound for switching diffraction on by default."""
-    for row in rows:
+    """The issue's bounds: the plates within 1.5 dB of full wave wherever it lies within 25 dB of
+    its peak (per sweep and polarisation), and diffraction's render time at most 1.2 x without."""
+    plate_rows = [r for r in rows if r["part"] == "plates"]
+    for case, phi, _, _ in PLATES:
+        window = _in_window(plate_rows, case, phi)
+        sweep = [r for r in plate_rows if r["case"] == case and r["phi_deg"] == phi]
+        for pol in ("HH", "VV"):
+            errors = [abs(r["po_edges_error_db"]) for r, w in zip(sweep, window) if w and r["polarization"] == pol]
+            po = [abs(r["po_error_db"]) for r, w in zip(sweep, window) if w and r["polarization"] == pol]
+            worst = max(errors, default=0.0)
+            yield (f"{case} phi {phi:g} {pol}: PO + edges within {BOUND_DB} dB of full wave (within {WINDOW_DB:g} dB "
+                   f"of its peak, to 60 deg)", worst <= BOUND_DB,
+                   f"max {worst:.2f} dB over {len(errors)} angles (PO alone: {max(po, default=0.0):.2f} dB)")
+    for row in (r for r in rows if r["part"] == "cost"):
         yield (f"{row['scene']}: render with diffraction <= 1.2 x without", row["render_ratio"] <= 1.2,
                f"{row['render_on_s']} s / {row['render_off_s']} s = {row['render_ratio']}")
 
 
 if __name__ == "__main__":
-    bench_main(__doc__, run, checks, "urban only (no Munich)")
+    bench_main(__doc__, run, checks, "every 10 deg, urban only (no Munich)")

@@ -181,9 +181,11 @@ def _classify(s):
 
 def test_a_box_has_twelve_right_angle_wedges_and_a_plate_four_free_edges():
     """A closed box: every border edge of its six faces is a convex right-angle wedge (each of its
-    12 edges seen from both faces); a plate: its four rims are free edges; a box standing on a
-    ground plate: the foot of its walls is a junction and does not diffract, the ground's rim
-    does."""
+    12 edges seen from both faces); a plate: its four rims are free edges; an open box (no floor)
+    standing on a ground plate: the foot of its walls is a junction and does not diffract, the
+    ground's rim does; a closed box standing there: its wall-floor wedges (a convex corner of the
+    box alone) lie on the ground, a concave corner on either side: no diffraction, its roof's
+    edges diffract."""
     box = trimesh.creation.box((2.0, 3.0, 4.0))
     s = _surfaces([box])
     w, seg = _classify(s)
@@ -201,6 +203,13 @@ def test_a_box_has_twelve_right_angle_wedges_and_a_plate_four_free_edges():
     assert foot.sum() == 4 and not seg["on"][foot].any()
     rim = np.abs(w.start[:, 0]) > 5 - 1e-9
     assert seg["on"][rim].all()
+    closed = trimesh.Trimesh(box.vertices + [0, 0, 2.0], box.faces)            # its floor on the ground
+    s = _surfaces([closed, ground])
+    w, seg = _classify(s)
+    on_ground = (np.abs(w.start[:, 2]) < 1e-9) & (np.abs(w.end[:, 2]) < 1e-9) & (np.abs(w.start[:, 0]) < 5)
+    roof = (np.abs(w.start[:, 2] - 4) < 1e-9) & (np.abs(w.end[:, 2] - 4) < 1e-9)
+    assert on_ground.sum() == 8 and not seg["on"][on_ground].any()     # walls' feet and the floor's rim
+    assert roof.sum() == 8 and seg["on"][roof].all()
 
 
 def test_a_finely_tessellated_curve_has_no_wedges():

@@ -101,11 +101,14 @@ def test_rect_plate_normal_incidence_is_4pi_area_squared():
             assert abs(value_at(sweep, f"sigma_{c}_db", 0.0) - expected) < 0.6
 
 
-@pytest.mark.parametrize("case", ["square", "square_az30", "rect"])
+@pytest.mark.parametrize("case", ["square", "square_az30"])
 def test_plate_hh_equals_vv_at_normal_incidence(case):
-    """At normal incidence a plate cannot tell h from v up to a rotation of the basis; in the backscatter
-    alignment both co-polar returns are the same complex number. Catches a forward-scatter-alignment
-    receive basis (S_hh = -S_vv), a conjugate on one channel, or co-polar columns from different angles."""
+    """At normal incidence a square plate (unchanged by a quarter turn) cannot tell h from v in any
+    basis: a reciprocal scattering matrix that a quarter turn leaves alone is a multiple of the
+    identity, so in the backscatter alignment both co-polar returns are the same complex number.
+    (The 4 x 2 rectangle can: its HH and VV differ by 0.5 dB there.) Catches a forward-scatter-
+    alignment receive basis (S_hh = -S_vv), a conjugate on one channel, or co-polar columns from
+    different angles."""
     for sweep in load(case)["sweeps"]:
         hh, vv = complex_s(sweep, "hh")[0], complex_s(sweep, "vv")[0]
         assert abs(hh - vv) < 0.01 * abs(hh)
@@ -149,30 +152,57 @@ def test_oblique_plane_has_cross_pol():
     assert sweep["phi_deg"] == 30.0
     hv = np.asarray(sweep["sigma_hv_db"])
     theta = np.asarray(sweep["theta_deg"])
-    assert np.max(hv[(theta > 10) & (theta < 60)]) > 0.0
+    in_plane = np.asarray(load("square")["sweeps"][0]["sigma_hv_db"])      # rounding only: about -125 dB
+    assert np.max(hv[(theta > 10) & (theta < 60)]) > np.max(in_plane) + 100.0
 
 
-def test_dihedral_boresight_is_8pi_a2b2():
-    """90 deg dihedral at boresight (theta = 45 in the plane phi = 90, normal to the fold):
-    sigma = 8 pi a^2 b^2 / lambda^2, a = 3 (fold length), b = 2 (face width): 29.57 dB, within 1 dB
-    for both co-polar channels. Catches the wrong observation plane (phi = 0 looks along the fold),
-    theta indexing off by the step, or the faces' widths swapped with the fold length."""
+def test_dihedral_boresight_is_near_8pi_a2b2():
+    """90 deg dihedral at boresight (theta = 45 in the plane phi = 90, normal to the fold): physical
+    optics' sigma = 8 pi a^2 b^2 / lambda^2, a = 3 (fold length), b = 2 (face width), 29.57 dB, is
+    the large-dihedral limit: faces of 2 wavelengths lose to their edges, full wave lies 1.0 dB
+    (HH) and 3.2 dB (VV, E across the rims) below it. Both within 4 dB below and 0.5 dB above, and
+    HH's sweep peaks at boresight. Catches the wrong observation plane (phi = 0 looks along the
+    fold: no double bounce), theta indexing off by the step, or the faces' widths swapped with the
+    fold length (a 2 x 3 dihedral seen along its 3-wavelength faces)."""
     sweep = sweep_at(load("dihedral"), 90.0)
     expected = db(8 * math.pi * 3.0**2 * 2.0**2)
     for c in ("hh", "vv"):
-        assert abs(value_at(sweep, f"sigma_{c}_db", 45.0) - expected) < 1.0
+        assert -4.0 < value_at(sweep, f"sigma_{c}_db", 45.0) - expected < 0.5
+    assert sweep["theta_deg"][int(np.argmax(sweep["sigma_hh_db"]))] == 45.0
+
+
+def test_dihedral_is_symmetric_about_its_bisector():
+    """Mirroring through the bisector plane (y = z) swaps the two faces: sigma(theta) =
+    sigma(90 - theta) in both co-polar channels, to the mesh's rounding. Catches a sweep written
+    with a theta offset or faces of unequal size."""
+    sweep = sweep_at(load("dihedral"), 90.0)
+    for c in ("hh", "vv"):
+        values = np.asarray(sweep[f"sigma_{c}_db"])
+        assert np.max(np.abs(values - values[::-1])) < 0.05
+
+
+def test_cube_face_on_is_4pi_area_squared():
+    """The 2-wavelength cube seen along a face normal: a square plate's 4 pi A^2 / lambda^2 =
+    23.03 dB, within 0.5 dB, and the same at 90 deg (the next face), both channels. Catches a cube
+    of the wrong size or sweeps of another plane."""
+    sweep = load("box")["sweeps"][0]
+    expected = db(4 * math.pi * 4.0**2)
+    for c in ("hh", "vv"):
+        for theta in (0.0, 90.0):
+            assert abs(value_at(sweep, f"sigma_{c}_db", theta) - expected) < 0.5
 
 
 def test_dihedral_boresight_flips_one_polarisation():
     """Two reflections in a 90 deg dihedral, plane of incidence normal to the fold: a PEC face reverses the
     tangential field and keeps the normal one, so the field along the fold (h = x here) is reversed
     twice (+1, against -1 for a plate's single reflection) while the one in the plane of incidence
-    comes back as from a plate: S_hh = -S_vv at boresight (a plate gives S_hh = S_vv). Catches a receive
+    comes back as from a plate: S_hh = -S_vv at boresight in phase (a plate gives S_hh = S_vv); the
+    magnitudes differ by the rims' effects (1.1 dB here), less than a factor 2. Catches a receive
     basis with a flipped v (or h) between transmit and receive, which turns this ratio into +1."""
     sweep = sweep_at(load("dihedral"), 90.0)
     hh, vv = (complex_s(sweep, c)[int(np.argmin(np.abs(np.asarray(sweep["theta_deg"]) - 45)))] for c in ("hh", "vv"))
     ratio = hh / vv
-    assert abs(abs(ratio) - 1) < 0.25 and abs(np.angle(ratio, deg=True)) > 150
+    assert 0.5 < abs(ratio) < 2.0 and abs(np.angle(ratio, deg=True)) > 150
 
 
 def test_plate_near_grazing_vv_exceeds_hh():
@@ -188,7 +218,7 @@ def test_plate_near_grazing_vv_exceeds_hh():
     assert vv > hh + 3.0
 
 
-@pytest.mark.parametrize("case", ["square", "square_az30", "rect", "dihedral"])
+@pytest.mark.parametrize("case", CASES)
 def test_convergence_recorded_and_small(case):
     """The table's mesh-convergence figure (max dB difference between two densities where sigma is within
     25 dB of the peak) is recorded and small. Catches a table written from an unconverged (too coarse)

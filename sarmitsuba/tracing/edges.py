@@ -42,8 +42,8 @@ ON_EDGE = 1e-6
 #: Rounding of the line keys that group collinear border edges: directions to 1e-5, the line's
 #: closest point to the frame origin to 0.1 mm.
 _DIRECTION_KEY, _OFFSET_KEY = 1e5, 1e4
-#: A free edge that lies within this [m] of another part's plane and inside its polygon is a
-#: junction (a wall's foot on the ground): it does not diffract, (E5).
+#: An edge that lies within this [m] of another part's plane and inside its polygon is a junction
+#: (a wall's foot on the ground): it does not diffract, (E1).
 JUNCTION = 1e-3
 #: At a shadow or reflection boundary (within ``SINGULAR_WINDOW`` rad) the fringe coefficients are
 #: evaluated ``SINGULAR_STEP`` rad off it: both terms of (E3) grow as one over the distance and
@@ -76,7 +76,11 @@ class Wedges:
         The edge's extent ``[lo, hi]`` along its group's direction, m.
     free : bool [e]
         No other face's edge runs along it, and it lies on no other part: it diffracts as a
-        half-plane (E5).
+        half-plane (E1).
+    junction : bool [e]
+        Another face's edge runs along it (a wedge), and it lies inside another part's polygon
+        (a closed building's wall foot on the ground): that part's plane splits the outside into
+        two concave corners, and it does not diffract (E1).
     """
 
     start: np.ndarray
@@ -87,6 +91,7 @@ class Wedges:
     along: np.ndarray
     direction: np.ndarray
     free: np.ndarray
+    junction: np.ndarray
 
 
 def _line_keys(start: np.ndarray, end: np.ndarray):
@@ -123,13 +128,17 @@ def find_wedges(s: Surfaces) -> Wedges:
     t0, t1 = np.einsum("ei,ei->e", start, gdir), np.einsum("ei,ei->e", end, gdir)
     along = np.stack([np.minimum(t0, t1), np.maximum(t0, t1)], axis=1)
     wedges = Wedges(start=start, end=end, part=part, base=base, group=group, along=along, direction=gdir,
-                    free=np.zeros(len(part), bool))
+                    free=np.zeros(len(part), bool), junction=np.zeros(len(part), bool))
     mid = 0.5 * (start + end)
     shared = _partners_at(s, wedges, np.arange(len(part)), np.einsum("ei,ei->e", mid, gdir), any_face=True) >= -1
-    candidate = np.flatnonzero(~shared)
     free = np.zeros(len(part), bool)
+    candidate = np.flatnonzero(~shared)
     free[candidate] = ~_on_other_part(s, part[candidate], mid[candidate])
-    return Wedges(start=start, end=end, part=part, base=base, group=group, along=along, direction=gdir, free=free)
+    junction = np.zeros(len(part), bool)
+    candidate = np.flatnonzero(shared)
+    junction[candidate] = _on_other_part(s, part[candidate], mid[candidate], strict=True)
+    return Wedges(start=start, end=end, part=part, base=base, group=group, along=along, direction=gdir, free=free,
+                  junction=junction)
 
 
 def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_face: bool = False) -> np.ndarray:
@@ -165,37 +174,41 @@ def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_fa
     return out
 
 
-def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, chunk: int = 256) -> np.ndarray:
+def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False) -> np.ndarray:
     """bool [q]: ``point`` [q, 3] lies within :data:`JUNCTION` of another part's plane and inside
-    its polygon (a wall's foot on the ground, eq. (E5))."""
+    its polygon or on its border (a wall's foot on the ground, eq. (E1)); ``strict``: inside, at
+    least :data:`JUNCTION` from its border (which leaves out the faces an edge runs along). The
+    candidates are the parts whose bounding sphere holds the point (a k-d tree of the points)."""
+    from scipy.spatial import cKDTree
     out = np.zeros(len(part), bool)
     real = np.flatnonzero(s.n_corners > 0)
     if len(point) == 0 or len(real) == 0:
         return out
     corners = s.to_world(real, s.polygon[real])
-    lo, hi = corners.min(axis=1) - JUNCTION, corners.max(axis=1) + JUNCTION
-    for start in range(0, len(point), chunk):
-        p = point[start:start + chunk]
-        inside_box = np.all((p[:, None, :] >= lo[None]) & (p[:, None, :] <= hi[None]), axis=2)
-        inside_box &= real[None, :] != part[start:start + chunk, None]
-        qi, ci = np.nonzero(inside_box)
-        if len(qi) == 0:
-            continue
-        cand = real[ci]
-        near = np.abs(np.einsum("ei,ei->e", s.normal[cand], p[qi]) - s.offset[cand]) < JUNCTION
-        qi, cand = qi[near], cand[near]
-        if len(qi) == 0:
-            continue
-        xy = s.to_face(cand, p[qi])
-        poly = s.polygon[cand]
-        nxt = np.roll(poly, -1, axis=1)
-        cross = (nxt[..., 0] - poly[..., 0]) * (xy[:, None, 1] - poly[..., 1]) \
-            - (nxt[..., 1] - poly[..., 1]) * (xy[:, None, 0] - poly[..., 0])
-        length = np.linalg.norm(nxt - poly, axis=2)
-        valid = np.arange(poly.shape[1])[None, :] < s.n_corners[cand][:, None]
-        # strictly inside, or on the polygon's border (a wall on the ground's rim)
-        hit = np.all(~valid | (cross >= -JUNCTION * np.maximum(length, 1e-30)), axis=1)
-        out[start + qi[hit]] = True
+    slots = np.arange(corners.shape[1])[None, :] < s.n_corners[real][:, None]
+    centre = np.sum(corners * slots[..., None], axis=1) / s.n_corners[real][:, None]
+    radius = np.max(np.where(slots, np.linalg.norm(corners - centre[:, None], axis=2), 0.0), axis=1) + JUNCTION
+    found = cKDTree(point).query_ball_point(centre, radius)
+    size = np.fromiter((len(f) for f in found), np.int64, len(found))
+    if size.sum() == 0:
+        return out
+    qi = np.fromiter((i for f in found for i in f), np.int64, int(size.sum()))
+    cand = np.repeat(real, size)
+    keep = (cand != part[qi]) & (np.abs(np.einsum("ei,ei->e", s.normal[cand], point[qi]) - s.offset[cand]) < JUNCTION)
+    qi, cand = qi[keep], cand[keep]
+    if len(qi) == 0:
+        return out
+    xy = s.to_face(cand, point[qi])
+    poly = s.polygon[cand]
+    nxt = np.roll(poly, -1, axis=1)
+    cross = (nxt[..., 0] - poly[..., 0]) * (xy[:, None, 1] - poly[..., 1]) \
+        - (nxt[..., 1] - poly[..., 1]) * (xy[:, None, 0] - poly[..., 0])
+    length = np.linalg.norm(nxt - poly, axis=2)
+    valid = np.arange(poly.shape[1])[None, :] < s.n_corners[cand][:, None]
+    # inside, or on the polygon's border (a wall on the ground's rim) unless strict
+    margin = (JUNCTION if strict else -JUNCTION) * np.maximum(length, 1e-30)
+    hit = np.all(~valid | (cross >= margin), axis=1)
+    out[qi[hit]] = True
     return out
 
 
@@ -231,7 +244,7 @@ def segment_wedges(s: Surfaces, w: Wedges, part: np.ndarray, p2: np.ndarray, q2:
     mid = s.to_world(part[rows], 0.5 * (p2[rows] + q2[rows]))
     t = np.einsum("ei,ei->e", mid, w.direction[e])
     other = _partners_at(s, w, e, t)
-    wedge = other >= 0
+    wedge = (other >= 0) & ~w.junction[e]
     free = (other == -2) & w.free[e]
     on = wedge | free
     rows, e, other, corner, mid = rows[on], e[on], other[on], corner[on], mid[on]
