@@ -17,7 +17,7 @@ import mitsuba as mi
 
 from . import jones as pol
 from .device import device_array
-from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW
+from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW, TRANSITION_SERIES
 
 __all__ = ["EdgeTerms", "sinc", "x_dsinc"]
 
@@ -58,6 +58,37 @@ def _fringe(phi, phi_i, nn, face_0, face_n):
         x_s = dr.select(lit, x_s + r_te * (dr.sin(a_i) / den), x_s)
         x_h = dr.select(lit, x_h - r_tm * (dr.sin(a) / den), x_h)
     return x_s, x_h
+
+
+def _transition(x):
+    """Kouyoumjian and Pathak's transition function, the approximation of
+    :func:`sarmitsuba.tracing.edges.transition` (its NumPy reference) in Dr.Jit."""
+    z = dr.sqrt(x * (2.0 / math.pi))
+    f = (1.0 + 0.926 * z) / (2.0 + z * (1.792 + 3.104 * z))
+    g = 1.0 / (2.0 + z * (4.142 + z * (3.492 + 6.670 * z)))
+    root = dr.sqrt(2.0 * math.pi * x)
+    inv = 1.0 / dr.maximum(x, TRANSITION_SERIES)
+    inv2 = inv * inv
+    near = x < TRANSITION_SERIES
+    return mi.Complex2f(dr.select(near, root * f, 1.0 - 0.75 * inv2 + (75.0 / 16.0) * inv2 * inv2),
+                        dr.select(near, root * g, inv * (0.5 - (15.0 / 8.0) * inv2)))
+
+
+def _keller_uniform(phi, phi_i, nn, kl):
+    """The hard PEC wedge's uniform coefficient (``R_0 = R_N = +1``) in Dr.Jit: NumPy reference
+    :func:`sarmitsuba.tracing.edges.keller_uniform`."""
+    def a(beta, sign):
+        whole = dr.round((beta + sign * math.pi) / (2.0 * math.pi * nn))
+        c = dr.cos((2.0 * math.pi * nn * whole - beta) * 0.5)
+        return 2.0 * c * c
+
+    m, p = phi - phi_i, phi + phi_i
+    inv = -1.0 / (2.0 * nn)
+    total = _transition(kl * a(m, 1.0)) * (_cot((math.pi + m) / (2.0 * nn)) * inv)
+    total += _transition(kl * a(m, -1.0)) * (_cot((math.pi - m) / (2.0 * nn)) * inv)
+    total += _transition(kl * a(p, -1.0)) * (_cot((math.pi - p) / (2.0 * nn)) * inv)
+    total += _transition(kl * a(p, 1.0)) * (_cot((math.pi + p) / (2.0 * nn)) * inv)
+    return total
 
 
 class EdgeTerms:
@@ -195,21 +226,29 @@ class EdgeTerms:
             nn = dr.select(dr.squared_norm(xn) > 0.0, dr.select(psi >= 0.0, psi, psi + two_pi) / math.pi, 2.0)
             return nn
 
-        cot = _cot
         phi, sin_s = angle(b, x0)
         phi_1, _ = angle(-d, -x0)                        # incidence at edge 1, from its face (-x0)
         n1, n2 = wedge(-x0, data["across_xn"]), wedge(x0, data["wedge_xn"])
-        # edge 1 toward the grazing direction phi = 0 (hard, PEC), edge 2 from grazing incidence,
-        # half of its coefficient (the grazing incident and reflected waves are one), eq. (E6)
-        x_1 = -(2.0 * cot((math.pi - phi_1) / (2.0 * n1)) + 2.0 * cot((math.pi + phi_1) / (2.0 * n1))) / (2.0 * n1)
-        x_2 = -(cot((math.pi + phi) / (2.0 * n2)) + cot((math.pi - phi) / (2.0 * n2))) / (2.0 * n2)
         w = dr.norm(across)
+        # edge 1 toward the grazing direction phi = 0 (hard, PEC), edge 2 from grazing incidence,
+        # half of its coefficient (the grazing incident and reflected waves are one); both uniform
+        # over the distance across, L = w sin(beta'), eq. (E6)
+        kl = k * w * sin_i
+        x_1 = _keller_uniform(0.0, phi_1, n1, kl)
+        x_2 = _keller_uniform(phi, 0.0, n2, kl) * 0.5
         spread = dr.rsqrt(dr.maximum(two_pi * k * w * sin_i, 1e-30))
         c = math.sqrt(0.5)
         # a sheet (both edges free, N = 2) carries the grazing wave on both its faces: twice, eq. (E6)
         sheet = dr.select((dr.squared_norm(data["across_xn"]) == 0.0) & (dr.squared_norm(data["wedge_xn"]) == 0.0),
                           2.0, 1.0)
-        g = mi.Complex2f(c, -c) * (x_1 * spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
+        g = mi.Complex2f(c, -c) * x_1 * (spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
+        # the grazing wave exists on a conductor: (1 - r_TM(grazing)) / 2 is 1 there, 0 on a
+        # dielectric (whose r_TM is +1 at grazing: the total field vanishes on it), eq. (E6)
+        if r.polarimetric:
+            _, r_grazing = r.reflection_pair(data["row"], mi.Float(0.0), True)
+        else:
+            r_grazing = r.reflection_at(data["row"], mi.Float(0.0), True)
+        g = g * ((1.0 - r_grazing) * 0.5)
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)

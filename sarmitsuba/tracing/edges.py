@@ -32,7 +32,7 @@ from .patches import Surfaces
 
 __all__ = ["WEDGE_ANGLE", "ON_EDGE", "JUNCTION", "SINGULAR_WINDOW", "SINGULAR_STEP", "GRAZING_EDGE", "Wedges", "find_wedges",
            "segment_wedges", "keller", "po_edge", "fringe", "edge_field", "double_field", "exterior_angle",
-           "plate_scattering"]
+           "plate_scattering", "transition", "keller_uniform"]
 
 #: Two faces meeting at an edge diffract there when their normals differ by more than this
 #: [rad] (10 deg); below it the edge is a facet of a tessellated smooth surface.
@@ -53,6 +53,8 @@ JUNCTION = 1e-3
 #: about 1/4 per rad at a half plane's normal incidence).
 SINGULAR_WINDOW = 1e-2
 SINGULAR_STEP = 2e-2
+#: Above this argument the transition function takes its asymptotic series (:func:`transition`).
+TRANSITION_SERIES = 6.0
 #: An edge within this sine of the line of sight (0.06 deg) returns no fringe term: the currents
 #: of (E4) grow as ``1 / sin(beta)^2`` toward the edge's own direction, where the equivalent
 #: currents stop describing it (the Ufimtsev singularity).
@@ -339,6 +341,41 @@ def keller(phi, phi_i, n, r0, rn):
              + rn * cot((np.pi + p) / (2 * n))) / (2 * n)
 
 
+def transition(x):
+    """Kouyoumjian and Pathak's transition function ``F(X) = 2 j sqrt(X) exp(j X) int_sqrt(X)^inf
+    exp(-j t^2) dt`` (Proc. IEEE 62(11), 1974; time dependence ``exp(+j omega t)``), eq. (E6): below
+    ``X = 6`` as ``sqrt(2 pi X) (f(z) + j g(z))`` with ``z = sqrt(2 X / pi)`` and the auxiliary
+    Fresnel functions ``f``, ``g`` by Abramowitz and Stegun's rational approximations 7.3.32 and
+    7.3.33; above, its asymptotic series ``1 + j / (2 X) - 3 / (4 X^2) - 15 j / (8 X^3) + 75 /
+    (16 X^4)``. Within 0.013 of the exact value everywhere (tests/test_edges.py, against SciPy's
+    Fresnel integrals): 1 far from a shadow boundary, ``sqrt(pi X) exp(j pi / 4)`` at it. The
+    kernel (:mod:`sarmitsuba.tracing.edge_terms`) uses the same approximation."""
+    x = np.asarray(x, float)
+    z = np.sqrt(2.0 * x / np.pi)
+    f = (1.0 + 0.926 * z) / (2.0 + 1.792 * z + 3.104 * z * z)
+    g = 1.0 / (2.0 + 4.142 * z + 3.492 * z * z + 6.670 * z ** 3)
+    inv = 1.0 / np.maximum(x, TRANSITION_SERIES)
+    series = 1.0 - 0.75 * inv ** 2 + 75.0 / 16.0 * inv ** 4 + 1j * (0.5 * inv - 15.0 / 8.0 * inv ** 3)
+    return np.where(x < TRANSITION_SERIES, np.sqrt(2.0 * np.pi * x) * (f + 1j * g), series)
+
+
+def keller_uniform(phi, phi_i, n, r0, rn, kl):
+    """:func:`keller` with each of its four terms times :func:`transition` of ``kl a``: the uniform
+    coefficient (Kouyoumjian and Pathak 1974), finite across the shadow and reflection boundaries
+    where Keller's is not; ``kl = k L`` with ``L`` the distance parameter [rad], ``a^+-(beta) =
+    2 cos^2((2 pi N n^+- - beta) / 2)``, ``n^+-`` the integers nearest ``(beta +- pi) / (2 pi N)``."""
+    def cot(x):
+        return np.cos(x) / np.sin(x)
+
+    def a(beta, sign):
+        whole = np.round((beta + sign * np.pi) / (2 * np.pi * n))
+        return 2.0 * np.cos((2 * np.pi * n * whole - beta) / 2) ** 2
+    m, p = phi - phi_i, phi + phi_i
+    return -(cot((np.pi + m) / (2 * n)) * transition(kl * a(m, 1)) + cot((np.pi - m) / (2 * n)) * transition(kl * a(m, -1))
+             + r0 * cot((np.pi - p) / (2 * n)) * transition(kl * a(p, -1))
+             + rn * cot((np.pi + p) / (2 * n)) * transition(kl * a(p, 1))) / (2 * n)
+
+
 def po_edge(phi, phi_i, r_te, r_tm):
     """Physical optics' edge coefficient of face 0 (lit, the edge at its end), over the same
     factor, eq. (E3): ``(soft, hard) = (-r_te sin phi_i, r_tm sin phi) / (cos phi + cos phi_i)``
@@ -409,24 +446,31 @@ def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0), rev
     return (c_e * e_t)[:, None] * along + (c_m * e_m)[:, None] * np.cross(b, t)
 
 
-def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = False):
+def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = False, grazing_tm=-1.0):
     """The doubly diffracted far field per unit length of edge 2, eq. (E6) (complex [m, 3]): the
     wave of wavenumber ``k`` [rad/m] that edge 1 (at ``across`` [m, 3] from the point, running the
     other way; ``xn1`` into its other face) diffracts along the face, grazing, diffracted by edge 2
     (``t``, ``x0``, ``n0``, ``xn2`` as in :func:`edge_field`) toward ``b``. Phase referred to the
     incident wave at the point across plus the grazing leg ``|across| sin(beta')``, which the
-    caller adds to the path. Hard polarisation only; PEC faces. ``reverse``: with the reverse path
-    (edge 2 first), its transpose by reciprocity: twice the field (E6)."""
+    caller adds to the path. Hard polarisation only. ``reverse``: with the reverse path (edge 2
+    first), its transpose by reciprocity: twice the field (E6). ``grazing_tm``: the face's
+    ``r_TM`` at grazing incidence: -1 on a conductor (the default); the grazing wave carries
+    ``(1 - r_TM) / 2`` of it, none on a dielectric (+1)."""
     t, x0, n0, across, xn1, xn2, d, b = (np.asarray(a, float) for a in (t, x0, n0, across, xn1, xn2, d, b))
     phi, sin_s = _angle(b, t, x0, n0)
     phi_1, sin_i = _angle(-d, t, -x0, n0)
     n1, n2 = exterior_angle(-x0, n0, xn1), exterior_angle(x0, n0, xn2)
-    x_1 = keller(0.0, phi_1, n1, 1.0, 1.0)                 # hard: Keller's toward the face, grazing
-    x_2 = 0.5 * keller(phi, 0.0, n2, 1.0, 1.0)             # half: grazing incidence
     w = np.linalg.norm(across, axis=1)
+    # the uniform coefficients over the distance across (L = w sin(beta')): the grazing wave runs
+    # along a boundary of edge 1 where the incidence grazes the face, and edge 2 sees the receiver
+    # near its own as the receiver nears the face's plane
+    kl = k * w * sin_i
+    x_1 = keller_uniform(0.0, phi_1, n1, 1.0, 1.0, kl)     # hard: toward the face, grazing
+    x_2 = 0.5 * keller_uniform(phi, 0.0, n2, 1.0, 1.0, kl)  # half: grazing incidence
     # a sheet (both edges free) carries the grazing wave on its front and its back face: the two
     # arrive at edge 2 with opposite signs and leave with opposite coefficients, so they add
     sheet = np.where(~np.any(xn1 != 0, axis=1) & ~np.any(xn2 != 0, axis=1), 2.0, 1.0)
+    sheet = sheet * (1.0 - np.asarray(grazing_tm)) / 2
     g = sheet * np.exp(-0.25j * np.pi) * x_1 / np.sqrt(2 * np.pi * k * w * sin_i)
     ok = (n1 > 1) & (n2 > 1) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.pi)
     c_m = np.where(ok, -g * x_2 / (2 * np.pi * np.maximum(sin_i * sin_s, GRAZING_EDGE**2)), 0)
