@@ -153,7 +153,7 @@ def _figure(rows: list[dict], pattern_rows: list[dict] = ()) -> Path:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(2, len(PLATES), figsize=(4.2 * len(PLATES), 7.0), dpi=110, sharex=True)
+    fig, axes = plt.subplots(2, len(PLATES), figsize=(4.2 * len(PLATES), 7.0), dpi=90, sharex=True)
     to_dbsm = 20 * math.log10(WAVELENGTH)
     for column, (case, phi, ax_, by) in enumerate(PLATES):
         sweep = _sweep(case, phi)

@@ -32,6 +32,8 @@ trajectory     what no stop-and-hop costs (trace, focus) and the error it remove
 footprints     Munich's meshes back to GeoJSON footprints and rebuilt: double-bounce and
                single-bounce overlap with the original, heights against the mesh tops,
                seconds of deriving, building, writing and rendering
+diffraction    edge currents against the full-wave tables (plates' patterns and image RCS,
+               a dihedral, a cube), and their cost and effect on urban and Munich
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -60,7 +62,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
-         "footprints": "footprints"}
+         "footprints": "footprints", "diffraction": "diffraction"}
 
 
 def main(argv: list[str] | None = None) -> int:
