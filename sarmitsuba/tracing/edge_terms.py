@@ -243,12 +243,10 @@ class EdgeTerms:
                           2.0, 1.0)
         g = mi.Complex2f(c, -c) * x_1 * (spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
         # the grazing wave exists on a conductor: (1 - r_TM(grazing)) / 2 is 1 there, 0 on a
-        # dielectric (whose r_TM is +1 at grazing: the total field vanishes on it), eq. (E6)
-        if r.polarimetric:
-            _, r_grazing = r.reflection_pair(data["row"], mi.Float(0.0), True)
-        else:
-            r_grazing = r.reflection_at(data["row"], mi.Float(0.0), True)
-        g = g * ((1.0 - r_grazing) * 0.5)
+        # dielectric (whose r_TM is +1 at grazing: the total field vanishes on it), eq. (E6); the
+        # TM table's, whatever the channel (the scalar model's HH table is TE)
+        if r.tables.grazing_tm is not None:
+            g = g * ((1.0 - dr.gather(mi.Float, r.tables.grazing_tm, data["row"])) * 0.5)
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)

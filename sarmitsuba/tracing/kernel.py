@@ -300,6 +300,7 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
+    grazing_tm: mi.Float | None = None        # edge diffraction: each row's Re r_tm at grazing, (E6)
 
 
 # ============================================================================ the kernel
@@ -346,6 +347,8 @@ class Kernel:
             self.tables.re_tm = mi.Float(table.table_tm.real.ravel().astype(np.float32))
             self.tables.im_tm = mi.Float(table.table_tm.imag.ravel().astype(np.float32))
             self.tables.cross_pol = mi.Float(table.cross_pol.astype(np.float32))
+        if effects.diffraction and table.table_tm is not None:
+            self.tables.grazing_tm = mi.Float(table.table_tm[:, 0].real.astype(np.float32))
         if effects.clutter:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
