@@ -30,7 +30,7 @@ from sarmitsuba.tracing import edges
 from sarmitsuba.tracing.facets import mesh_parts
 from sarmitsuba.tracing.patches import surfaces_from
 
-from test_patches import WAVELENGTH, rectangle, sensor
+from test_patches import WAVELENGTH, image_weights, rectangle, sensor
 
 
 # --------------------------------------------------------------------------- 2-D coefficients
@@ -280,28 +280,14 @@ def test_a_finely_tessellated_curve_has_no_wedges():
 def _plate_response(sim, half, polarization):
     """The NumPy reference's image RCS of the horizontal PEC plate ``+-half`` (edges along x, y)
     [dBsm]: physical optics' closed form plus every edge's fringe (:func:`edges.edge_field`) and
-    double diffraction (:func:`edges.double_field`) integrated by 200-point quadrature along the
+    double diffraction (:func:`edges.double_field`) integrated by 100-point quadrature along the
     edge, per pulse and frequency, weighted as the focused image weighs them."""
-    from test_patches import rectangle_rcs_db  # noqa: F401 (the weighting below is the same)
-    from sarmitsuba.core.geometry import acquisition_geometry
-    from sarmitsuba.focus import windows
-    p = sim.loaded.params
-    tx = sim.raw.tx_position
-    track = acquisition_geometry(p).track_direction
-    distance = np.linalg.norm(tx, axis=1)
-    rhat = tx / distance[:, None]
-    sine = (-tx @ track) / distance
-    lo, hi = p.beam_sines
-    u = (sine - lo) / (hi - lo)
-    taper = np.interp(u, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
-    weight = np.where((u >= 0) & (u <= 1), taper * np.sinc(p.pattern_length * sine / p.wavelength) ** 2, 0.0)
-    fraction = np.linspace(-0.5, 0.5, 21)
-    band = np.interp(fraction + 0.5, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
-    g = (np.arange(200) + 0.5) / 200 * 2 - 1
-    rims = []                                           # (point [200, 3], tangent, into the plate)
+    rhat, weight, frequencies, band = image_weights(sim, band_points=11)
+    g = (np.arange(100) + 0.5) / 100 * 2 - 1
+    rims = []                                           # (point [100, 3], tangent, into the plate)
     for axis in (0, 1):
         for side in (-1, 1):
-            pts = np.zeros((200, 3))
+            pts = np.zeros((100, 3))
             pts[:, axis] = side * half
             pts[:, 1 - axis] = g * half
             t = np.zeros(3)
@@ -317,7 +303,7 @@ def _plate_response(sim, half, polarization):
         v = np.cross(look, h)
         q = {"H": h, "V": v}[polarization[1]]
         rx = {"H": h, "V": v}[polarization[0]]
-        for f, wband in zip(p.frequency + fraction * p.bandwidth, band):
+        for f, wband in zip(frequencies, band):
             kk = 2 * math.pi * f / SPEED_OF_LIGHT
             po = -1j * 2 * math.sqrt(math.pi) * f / SPEED_OF_LIGHT * abs(rhat[k][2]) * (2 * half) ** 2 \
                 * np.sinc(2 * kk * rhat[k][0] * half / math.pi) * np.sinc(2 * kk * rhat[k][1] * half / math.pi)
@@ -363,23 +349,11 @@ def _mirrored_edges_rcs_db(sim, corners: np.ndarray, polarization: str) -> float
     whose reflection carries it back (DR); each with its own fringe of :func:`edges.edge_field`,
     integrated along the rim by quadrature per pulse and frequency and weighted as the image
     weighs them (as :func:`_plate_response`)."""
-    from sarmitsuba.core.geometry import acquisition_geometry
-    from sarmitsuba.focus import windows
     mirror = np.array([1.0, 1.0, -1.0])
-    p = sim.loaded.params
-    tx = sim.raw.tx_position
-    distance = np.linalg.norm(tx, axis=1)
-    rhat = tx / distance[:, None]
-    sine = (-tx @ acquisition_geometry(p).track_direction) / distance
-    lo, hi = p.beam_sines
-    u = (sine - lo) / (hi - lo)
-    taper = np.interp(u, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
-    weight = np.where((u >= 0) & (u <= 1), taper * np.sinc(p.pattern_length * sine / p.wavelength) ** 2, 0.0)
-    fraction = np.linspace(-0.5, 0.5, 21)
-    band = np.interp(fraction + 0.5, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
+    rhat, weight, frequencies, band = image_weights(sim, band_points=11)
     normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
     normal /= np.linalg.norm(normal)
-    g = (np.arange(200) + 0.5) / 200
+    g = (np.arange(100) + 0.5) / 100
     rims = []
     for i in range(3):
         a, c = corners[i], corners[(i + 1) % 3]
@@ -395,7 +369,7 @@ def _mirrored_edges_rcs_db(sim, corners: np.ndarray, polarization: str) -> float
         h /= np.linalg.norm(h)
         q = {"H": h, "V": np.cross(d, h)}[polarization[1]]
         rx = {"H": h, "V": np.cross(d, h)}[polarization[0]]
-        for f, w_band in zip(p.frequency + fraction * p.bandwidth, band):
+        for f, w_band in zip(frequencies, band):
             kk = 2 * math.pi * f / SPEED_OF_LIGHT
             total = 0j
             for points, t, x0, dl in rims:

@@ -23,10 +23,9 @@ import pytest
 
 import sarmitsuba
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
-from sarmitsuba.focus import windows
 from sarmitsuba.pipeline import simulate
 
-from test_patches import WAVELENGTH, rectangle, sensor
+from test_patches import WAVELENGTH, image_weights, rectangle, sensor
 
 TABLES = Path(__file__).parent / "data" / "fullwave"
 
@@ -40,24 +39,13 @@ def fullwave_rcs_db(sim, sweep: dict, polarization: str) -> float:
     """The table's RCS [dBsm at this wavelength] averaged as the image weighs pulses and band:
     Taylor windows across the processed beam and the band, two-way azimuth pattern."""
     p = sim.loaded.params
-    tx = sim.raw.tx_position
-    from sarmitsuba.core.geometry import acquisition_geometry
-    track = acquisition_geometry(p).track_direction
-    distance = np.linalg.norm(tx, axis=1)
-    rhat = tx / distance[:, None]
-    sine = (-tx @ track) / distance
-    lo, hi = p.beam_sines
-    u = (sine - lo) / (hi - lo)
-    taper = np.interp(u, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
-    weight = np.where((u >= 0) & (u <= 1), taper * np.sinc(p.pattern_length * sine / p.wavelength) ** 2, 0.0)
-    fraction = np.linspace(-0.5, 0.5, 41)
-    band = np.interp(fraction + 0.5, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
+    rhat, weight, frequencies, band = image_weights(sim)
     theta = np.asarray(sweep["theta_deg"], float)
     sigma = 10 ** (np.asarray(sweep[f"sigma_{polarization.lower()}_db"], float) / 10)    # sigma / lambda^2
     num = den = 0.0
     for k in np.flatnonzero(weight > 0):
         sin_t = math.hypot(rhat[k][0], rhat[k][1])
-        for f, v in zip(p.frequency + fraction * p.bandwidth, band):
+        for f, v in zip(frequencies, band):
             t = math.degrees(math.asin(min(sin_t * f / p.frequency, 1.0)))
             s = float(np.interp(t, theta, sigma)) * (SPEED_OF_LIGHT / f) ** 2
             w = (weight[k] * v) ** 2

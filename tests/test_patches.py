@@ -78,32 +78,41 @@ def look_and_track(heading: float) -> tuple[np.ndarray, np.ndarray]:
     return look / np.linalg.norm(look), np.asarray(g.track_direction)
 
 
+def image_weights(sim, centre=(0.0, 0.0, 0.0), band_points: int = 41):
+    """How the focused image weighs the pulses and the band at ``centre``: ``(rhat, weight,
+    frequencies, band)`` -- the unit vectors from ``centre`` toward each pulse's antenna [n, 3], each
+    pulse's weight (the processing window across the processed beam times the two-way azimuth
+    pattern, zero outside the beam) [n], and ``band_points`` frequencies across the band [Hz] with
+    the range window's weights. A target whose RCS at pulse ``k`` and frequency ``f`` is
+    ``sigma(k, f)`` reads ``sum (weight_k band_f)^2 sigma / sum (weight_k band_f)^2`` in the
+    image."""
+    from sarmitsuba.core.geometry import acquisition_geometry
+    p = sim.loaded.params
+    tx = sim.raw.tx_position
+    los = tx - np.asarray(centre, float)
+    distance = np.linalg.norm(los, axis=1)
+    sine = ((np.asarray(centre, float) - tx) @ acquisition_geometry(p).track_direction) / distance
+    lo, hi = p.beam_sines
+    u = (sine - lo) / (hi - lo)
+    taper = np.interp(u, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
+    weight = np.where((u >= 0) & (u <= 1), taper * np.sinc(p.pattern_length * sine / p.wavelength) ** 2, 0.0)
+    fraction = np.linspace(-0.5, 0.5, band_points)
+    band = np.interp(fraction + 0.5, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
+    return los / distance[:, None], weight, p.frequency + fraction * p.bandwidth, band
+
+
 def rectangle_rcs_db(sim, centre, e1, e2, normal) -> float:
     """Physical optics' RCS of the PEC rectangle ``centre +- e1 +- e2`` averaged over the pulses
     and the band as the focused image weighs them (processing windows across the beam and the
     band, two-way azimuth pattern), from the rectangle's closed form ``|int exp(j q . r) dA| =
     A |sinc(q . e1) sinc(q . e2)|`` (Knott, Shaeffer and Tuley, *Radar Cross Section*, 2nd ed.,
     eq. 5.39): ``sigma = 4 pi |cos_i int ... dA|^2 / lambda^2``."""
-    p = sim.loaded.params
     centre, e1, e2, normal = (np.asarray(x, float) for x in (centre, e1, e2, normal))
     area = 4.0 * np.linalg.norm(e1) * np.linalg.norm(e2)
-    tx = sim.raw.tx_position
-    from sarmitsuba.core.geometry import acquisition_geometry
-    track = acquisition_geometry(p).track_direction
-    los = tx - centre
-    distance = np.linalg.norm(los, axis=1)
-    rhat = los / distance[:, None]
-    sine = ((centre - tx) @ track) / distance
-    lo, hi = p.beam_sines
-    u = (sine - lo) / (hi - lo)
-    taper = np.interp(u, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
-    pattern = np.sinc(p.pattern_length * sine / p.wavelength) ** 2
-    weight = np.where((u >= 0) & (u <= 1), taper * pattern, 0.0)
-    fraction = np.linspace(-0.5, 0.5, 41)
-    band = np.interp(fraction + 0.5, np.linspace(0, 1, 1001), windows.window("taylor", 1001))
+    rhat, weight, frequencies, band = image_weights(sim, centre)
     num = den = 0.0
     for k in np.flatnonzero(weight > 0):
-        for f, v in zip(p.frequency + fraction * p.bandwidth, band):
+        for f, v in zip(frequencies, band):
             q = 2.0 * (2.0 * math.pi * f / SPEED_OF_LIGHT) * rhat[k]
             integral = area * np.sinc(q @ e1 / math.pi) * np.sinc(q @ e2 / math.pi)
             sigma = 4.0 * math.pi * (abs(rhat[k] @ normal) * integral) ** 2 / (SPEED_OF_LIGHT / f) ** 2

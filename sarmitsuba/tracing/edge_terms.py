@@ -184,27 +184,36 @@ class EdgeTerms:
         c_e = dr.select(ok, x_s * (1.0 / (two_pi * sin_i * sin_i)), mi.Complex2f(0.0))
         c_m = dr.select(ok, x_h * (-1.0 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
         along = t - b * dr.dot(b, t)
-        across = dr.cross(b, t)
-        normal_t = dr.cross(t, d)
+        # face N lit and seen too: the part of lower index carries the edge's term
+        lit_n = (phi_i > (nn - 1.0) * math.pi) & (phi > (nn - 1.0) * math.pi)
+        carry = ~(data["wedge_defer"] & lit_n)
+        return self._channels(data, d, b, t, depth, c_m, (c_e, along)), carry, sin_i
+
+    def _channels(self, data, d, b, t, depth: int, c_m, electric=None) -> list:
+        """Per channel, the edge far field of (E4) for the Jones matrix arriving at the lane's edge
+        (launched at the first bounce, through the mirrors after it, (P1), (P3')): the magnetic
+        current's ``c_m (E . (t x d)) (b x t)``, plus with ``electric = (c_e, along)`` the electric
+        current's ``c_e (E . t) along``; received along ``-b`` (P4), reciprocal after a mirror (P8)."""
+        r = self.r
+        across, normal_t = dr.cross(b, t), dr.cross(t, d)
         if depth == 0:
             jones = pol.launch(d, mi.Vector3f(*r.track))
         else:
             jones = data["jones"] if data["jones"] is not None else data["edge_jones"]
 
         def column(e_re, e_im):
-            e_t = mi.Complex2f(dr.dot(e_re, t), dr.dot(e_im, t))
-            e_m = mi.Complex2f(dr.dot(e_re, normal_t), dr.dot(e_im, normal_t))
-            f_e, f_m = c_e * e_t, c_m * e_m
-            return (along * dr.real(f_e) + across * dr.real(f_m), along * dr.imag(f_e) + across * dr.imag(f_m))
+            f_m = c_m * mi.Complex2f(dr.dot(e_re, normal_t), dr.dot(e_im, normal_t))
+            re, im = across * dr.real(f_m), across * dr.imag(f_m)
+            if electric is not None:
+                c_e, along = electric
+                f_e = c_e * mi.Complex2f(dr.dot(e_re, t), dr.dot(e_im, t))
+                re, im = re + along * dr.real(f_e), im + along * dr.imag(f_e)
+            return re, im
 
         h_re, h_im = column(jones.h_re, jones.h_im)
         v_re, v_im = column(jones.v_re, jones.v_im)
         field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
-        entries = pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS)
-        # face N lit and seen too: the part of lower index carries the edge's term
-        lit_n = (phi_i > (nn - 1.0) * math.pi) & (phi > (nn - 1.0) * math.pi)
-        carry = ~(data["wedge_defer"] & lit_n)
-        return r.reciprocal(entries, depth), carry, sin_i
+        return r.reciprocal(pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS), depth)
 
     def double(self, data, d, b, n0, sin_i, depth: int):
         """The doubly diffracted far field per unit length of each lane's edge (edge 2), per
@@ -252,19 +261,5 @@ class EdgeTerms:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)
         reverse = 2.0 if depth > 0 else 1.0
         c_m = dr.select(ok, g * (-reverse * x_2 / (two_pi * sin_i * sin_s)), mi.Complex2f(0.0))
-        across_b = dr.cross(b, t)
-        normal_t = dr.cross(t, d)
-        if depth == 0:
-            jones = pol.launch(d, mi.Vector3f(*r.track))
-        else:
-            jones = data["jones"] if data["jones"] is not None else data["edge_jones"]
-
-        def column(e_re, e_im):
-            f = c_m * mi.Complex2f(dr.dot(e_re, normal_t), dr.dot(e_im, normal_t))
-            return across_b * dr.real(f), across_b * dr.imag(f)
-
-        h_re, h_im = column(jones.h_re, jones.h_im)
-        v_re, v_im = column(jones.v_re, jones.v_im)
-        field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
-        return r.reciprocal(pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS), depth)
+        return self._channels(data, d, b, t, depth, c_m)
 
