@@ -162,7 +162,10 @@ class TraceSettings:
             try:
                 kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
             except (TypeError, ValueError):
-                raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}") from None
+                expected = {"int": "a whole number", "float": "a number", "str": "a string",
+                            "bool": "true or false"}[types[name]]
+                raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}; give {expected}") \
+                    from None
         return cls(**kwargs)
 
 
