@@ -315,7 +315,8 @@ def test_raw_output_computes_the_chirp_spectrum(monkeypatch):
 def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
     """``active_effects`` decides; the tracer and the radar equation obey the set they are given
     instead of re-deriving it from the parameters or the material table. Fails if the kernel
-    re-reads ``material_table.has_clutter`` or radar_equation re-reads ``transmit_power``."""
+    re-reads ``material_table.has_clutter``, the mesh tracer re-reads ``settings.diffraction``, or
+    radar_equation re-reads ``transmit_power``."""
     from sarmitsuba.scene.effects import active_effects
     from sarmitsuba.scene.loader import load_scene, material_table
     from sarmitsuba.tracing.trace import trace
@@ -331,6 +332,15 @@ def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
     smooth = trace(loaded.scene, p, geometry, window, footprint, loaded.settings, table,
                    effects=dataclasses.replace(effects, rough_materials=()))
     assert rough.scatterers_per_order.sum() > 0 and smooth.scatterers_per_order.sum() == 0
+    # the settings say diffraction = true; the set handed over decides: physical optics alone, as
+    # with the settings' diffraction off
+    no_edges = dataclasses.replace(effects, diffraction=False)
+    po_alone = trace(loaded.scene, p, geometry, window, footprint, loaded.settings, table, effects=no_edges)
+    settings_off = dataclasses.replace(loaded.settings, diffraction=False)
+    reference = trace(loaded.scene, p, geometry, window, footprint, settings_off, table, effects=no_edges)
+    assert loaded.settings.diffraction
+    _assert_close(reference.spectrum, po_alone.spectrum, "effects without diffraction")
+    assert np.abs(po_alone.spectrum - rough.spectrum).max() > 1e-3 * np.abs(rough.spectrum).max()
     loud = dataclasses.replace(p, **RADIOMETRY)
     assert radar_equation(loud) is not None
     assert radar_equation(loud, dataclasses.replace(effects, radiometry=False)) is None

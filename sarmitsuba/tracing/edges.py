@@ -80,6 +80,8 @@ class Wedges:
     free : bool [e]
         No other face's edge runs along it, and it lies on no other part: it diffracts as a
         half-plane (E1).
+    direction : float64 [e, 3]
+        Unit direction of each edge's group (its line), canonical sign.
     junction : bool [e]
         Another face's edge runs along it (a wedge), and it lies inside another part's polygon
         (a closed building's wall foot on the ground): that part's plane splits the outside into
@@ -526,25 +528,23 @@ def plate_scattering(corners: np.ndarray, k: float, toward: np.ndarray, points: 
         basis = {"h": h, "v": np.cross(d, h)}
         n0 = normal if normal @ d < 0 else -normal
         po = -1j * k / (2 * np.pi) * abs(n0 @ b) * polygon_integral(corners, normal, 2 * k * b)
-        for rx in "hv":
-            for tx in "hv":
-                total = po * (basis[rx] @ basis[tx])
-                field = basis[tx].astype(complex)
-                for i, (p, t, x0, dl) in enumerate(rims):
-                    def tile(v):
-                        return np.tile(v, (len(p), 1))
-                    free = tile(np.zeros(3))
-                    single = edge_field(tile(t), tile(x0), tile(n0), free, tile(d), tile(b), tile(field))
-                    total += dl * np.sum((single @ basis[rx]) * np.exp(2j * k * p @ b))
-                    for q, s, y0, _ in rims:                      # the rim across, running the other way
-                        if s @ t > -np.cos(np.radians(1.0)):
-                            continue
-                        width = (q[0] - p[0]) @ x0
-                        across = tile(width * x0)
-                        double = double_field(tile(t), tile(x0), tile(n0), across, free, free,
-                                                                  tile(d), tile(b), tile(field), k)
-                        sin_i = np.linalg.norm(d - (d @ t) * t)
-                        phase = np.exp(1j * k * ((p + width * x0) @ b + p @ b - width * sin_i))
-                        total += dl * np.sum((double @ basis[rx]) * phase)
-                out[rx + tx][m] = total
+        for tx in "hv":
+            field = basis[tx].astype(complex)
+            scattered = po * basis[tx]                      # the far field [3]: PO, then every rim's terms
+            for p, t, x0, dl in rims:
+                def tile(v):
+                    return np.tile(v, (len(p), 1))
+                free = tile(np.zeros(3))
+                single = edge_field(tile(t), tile(x0), tile(n0), free, tile(d), tile(b), tile(field))
+                scattered = scattered + dl * np.exp(2j * k * p @ b) @ single
+                for q, s, _, _ in rims:                       # the rim across, running the other way
+                    if s @ t > -np.cos(np.radians(1.0)):
+                        continue
+                    width = (q[0] - p[0]) @ x0
+                    double = double_field(tile(t), tile(x0), tile(n0), tile(width * x0), free, free, tile(d), tile(b),
+                                          tile(field), k)
+                    sin_i = np.linalg.norm(d - (d @ t) * t)
+                    scattered = scattered + dl * np.exp(1j * k * ((p + width * x0) @ b + p @ b - width * sin_i)) @ double
+            for rx in "hv":
+                out[rx + tx][m] = basis[rx] @ scattered
     return out

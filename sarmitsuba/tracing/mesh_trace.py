@@ -93,7 +93,7 @@ class MeshTracer:
         self.k = returns.k
         self.depth = settings.max_depth
         self.cancel = settings.cancel_interior
-        self.wedges = find_wedges(surfaces) if settings.diffraction else None
+        self.wedges = find_wedges(surfaces) if returns.diffraction else None
         self.patch = patch
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)

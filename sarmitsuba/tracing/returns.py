@@ -93,6 +93,7 @@ class Returns(ClutterTerms):
         self.exact = settings.range_kernel == "exact"
         self.groups = effects.groups
         self.clutter_on = effects.clutter
+        self.diffraction = effects.diffraction           # edge currents on the mesh's wedges (E1)-(E6)
         self.cancel_interior = settings.cancel_interior
         # polarimetry, docs/physics.md (P1)-(P7): the channels deposited, and whether the records
         # carry Jones matrices (a single co-polarised channel: the scalar model (R), (P6))
