@@ -62,7 +62,25 @@ Modules that sat at the top level before the stage packages (``sarmitsuba.raw``,
 (:data:`MOVED_MODULES`), with a DeprecationWarning that names it.
 """
 import importlib as _importlib
+import os as _os
+import signal as _signal
 import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame) -> None:
+    """SIGINT handler of the command line until it runs a command: Ctrl-C while the package and
+    Mitsuba import exits at once with the command line's one line and code 130. Raising
+    KeyboardInterrupt there instead printed tracebacks, or surfaced as an ImportError or
+    SystemError from the extension being loaded (read as "needs an NVIDIA GPU"); nothing has been
+    written yet, so there is nothing to clean up. :func:`sarmitsuba.cli.main` takes over for the
+    command itself."""
+    _os.write(2, b"interrupted: no output file was left half-written\n")
+    _os._exit(130)
+
+
+if ((_sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py")))
+        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 from .core.moved import MOVED_MODULES
 from .core.moved import install as _install_moved_modules

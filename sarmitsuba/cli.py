@@ -497,18 +497,54 @@ def _main(argv: list[str] | None) -> int:
     except (RuntimeError, ImportError) as exc:          # LibLLVMError and variant problems (VariantError)
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    interrupts = _Interrupts()
     try:
-        return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
-                "info": _info, "bench": _bench, "interferogram": _interferogram, "scene": _scene}[args.command](args)
-    except (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError) as exc:
+        with interrupts:
+            return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
+                    "info": _info, "bench": _bench, "interferogram": _interferogram,
+                    "scene": _scene}[args.command](args)
+    except BaseException as exc:
+        if interrupts.caught or isinstance(exc, KeyboardInterrupt) or _dr_jit_interrupt(exc):
+            print("interrupted: no output file was left half-written", file=sys.stderr)
+            return 130
+        if not isinstance(exc, (SceneError, ParameterError, MaterialError, RawDataError, SarImageError, OSError)):
+            raise
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("interrupted: no output file was left half-written", file=sys.stderr)
-        return 130
-    except RuntimeError as exc:          # a Ctrl-C that Dr.Jit wrapped while tracing a loop
-        from .tracing.trace import caused_by_interrupt
-        if not caused_by_interrupt(exc):
-            raise
-        print("interrupted: no output file was left half-written", file=sys.stderr)
-        return 130
+
+
+def _dr_jit_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` is a Ctrl-C that Dr.Jit wrapped in a RuntimeError while tracing a loop."""
+    if not isinstance(exc, RuntimeError):
+        return False
+    from .tracing.trace import caused_by_interrupt
+    return caused_by_interrupt(exc)
+
+
+class _Interrupts:
+    """While a command runs: SIGINT raises KeyboardInterrupt (outputs are written under temporary
+    names and cleaned up) and is remembered in :attr:`caught`, so that a Ctrl-C which an extension
+    module turns into another exception while it is being imported (an AttributeError of a half
+    initialised module, a SystemError) still ends in the one ``interrupted`` line and code 130.
+    Only in the main thread (where Python delivers signals); elsewhere it changes nothing."""
+
+    def __init__(self) -> None:
+        self.caught = False
+        self._previous = None
+
+    def __enter__(self) -> "_Interrupts":
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame) -> None:
+        self.caught = True
+        raise KeyboardInterrupt
+
+    def __exit__(self, *exc) -> bool:
+        if self._previous is not None:
+            import signal
+            signal.signal(signal.SIGINT, self._previous)
+        return False
