@@ -77,6 +77,11 @@ def focus_setup(raw: RawData, geometry: Any, scene_centre: Any, squint: Any, ref
     assume a beam fixed to the platform, so they name ``bp`` and ``ffbp`` instead.
     """
     radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
+    if isinstance(radar, dict) and radar.get("trajectory") == "circular":
+        raise ValueError("omega-K and range-Doppler focus stripmap data from a straight track (a beam fixed to the "
+                         "platform); these raw data are from a circular track (trajectory = circular: the antenna "
+                         "flies a circle about the scene centre, its beam on it). Focus them with backprojection: "
+                         "--algorithm bp or ffbp")
     if isinstance(radar, dict) and radar.get("mode") == "spotlight":
         raise ValueError("omega-K and range-Doppler focus stripmap data (a beam fixed to the platform); these raw "
                          "data are spotlight (mode = spotlight: the beam steered at the scene centre). Focus them "
