@@ -186,6 +186,17 @@ def test_simulated_image_corners_and_trihedral_on_the_map(tmp_path, trihedral):
     assert np.hypot((lat - 48.1) * 111_200.0, (lon - 11.6) * 111_320.0 * np.cos(np.radians(48.1))) < pixel
 
 
+def test_no_dataset_units_tag_contradicts_the_bands(tmp_path, trihedral):
+    """Issue 55: the dataset tag ``UNITS=sqrt(m^2)`` (the amplitudes') contradicted the bands' dBsm and
+    m^2 in every reader that shows dataset metadata (gdalinfo, rio info --tags). Catches a dataset
+    ``UNITS`` tag: the amplitude unit travels as ``AMPLITUDE_UNITS``, each band keeps its own."""
+    path = write_geotiff(trihedral, tmp_path / "image.tif")
+    with rasterio.open(path) as src:
+        assert "UNITS" not in src.tags()
+        assert [src.tags(band)["UNITS"] for band in (1, 2)] == list(src.units) == ["dBsm", "m^2"]
+        assert src.tags()["AMPLITUDE_UNITS"] == "sqrt(m^2)"
+
+
 def test_tags_name_the_scene_and_the_conventions(tmp_path, trihedral):
     """Scene, polarization, carrier, origin and units travel as tags; pixel-is-area; NaN nodata; deflate."""
     path = write_geotiff(trihedral, tmp_path / "image.tif")
@@ -194,7 +205,7 @@ def test_tags_name_the_scene_and_the_conventions(tmp_path, trihedral):
         assert tags["SCENE"] == "trihedral" and tags["POLARIZATION"] == "VV"
         assert float(tags["FREQUENCY_HZ"]) == 9.6e9
         assert json.loads(tags["GEO_ORIGIN"]) == [48.1, 11.6, 520.0]
-        assert tags["AREA_OR_POINT"] == "Area" and tags["UNITS"] == "sqrt(m^2)"
+        assert tags["AREA_OR_POINT"] == "Area" and tags["AMPLITUDE_UNITS"] == "sqrt(m^2)"
         assert src.tags(1)["UNITS"] == "dBsm" and src.tags(2)["UNITS"] == "m^2"
         assert np.isnan(src.nodata) and src.dtypes == ("float32", "float32")
         assert src.compression.value.lower() == "deflate"

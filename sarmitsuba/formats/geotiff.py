@@ -28,8 +28,9 @@ display is never mirrored. Band 1 ``intensity_db`` = ``10 log10 |s|^2`` (NaN whe
 band 2 ``intensity`` = ``|s|^2``, both float32, in the image's units squared: the image has unit
 peak gain for a point target, so with amplitudes in sqrt(m^2) band 2 is the radar cross-section
 per sample in m^2 (not sigma nought) and band 1 is in dBsm. The bands carry these units as
-GDAL unit types (``rio info`` shows ``"units"``) and as ``UNITS`` tags; dataset tags name the
-scene, polarization, carrier, ``geo_origin`` and the amplitude units.
+GDAL unit types (``rio info`` shows ``"units"``) and as band ``UNITS`` tags; dataset tags name the
+scene, polarization, carrier, ``geo_origin`` and, as ``AMPLITUDE_UNITS`` (not ``UNITS``, which
+would contradict the bands' units), the units of the focused image's amplitudes that the bands square.
 
 An image whose smaller raster side is :data:`TILE` pixels or more is written as a Cloud-Optimized
 GeoTIFF (GDAL's COG driver): 256 x 256 tiles, deflate, and overviews by factors 2, 4, 8, ...
@@ -281,7 +282,7 @@ def write_raster(path: Path, db: np.ndarray, intensity: np.ndarray, crs: str, tr
         profile.update(driver="GTiff", predictor=3)
         if min(db.shape) >= TILE:                     # GDAL without COG: tiles and overviews in a GTiff
             profile.update(tiled=True, blockxsize=TILE, blockysize=TILE)
-    units = band_units(str(tags["UNITS"]))
+    units = band_units(str(tags["AMPLITUDE_UNITS"]))
     with rasterio.open(path, "w", **profile) as dst:
         dst.write(db, 1)
         dst.write(intensity, 2)
@@ -296,7 +297,8 @@ def write_raster(path: Path, db: np.ndarray, intensity: np.ndarray, crs: str, tr
 
 
 def geotiff_tags(image: SarImage, ref: georef.GeoReference, layout: Layout) -> dict[str, str]:
-    """Dataset tags: scene, polarization, carrier, geographic origin, units, layout, the collection's
+    """Dataset tags: scene, polarization, carrier, geographic origin, the amplitudes' units
+    (``AMPLITUDE_UNITS``; the bands carry their own ``UNITS``), layout, the collection's
     start (``ACQUISITION_START_TIME``, ISO 8601 UTC, :func:`provenance.collection_start`) and the
     file's making (``TIFFTAG_DATETIME``, the TIFF DateTime tag). Raises GeoTiffError for a
     ``collection_start`` that is no ISO 8601 time with a UTC offset."""
@@ -310,6 +312,6 @@ def geotiff_tags(image: SarImage, ref: georef.GeoReference, layout: Layout) -> d
             "ACQUISITION_START_TIME": start.isoformat(),
             "TIFFTAG_DATETIME": provenance.utc_now().strftime("%Y:%m:%d %H:%M:%S"),
             "FREQUENCY_HZ": repr(radar.get("frequency", "")), "GEO_ORIGIN": json.dumps(ref.as_tuple()),
-            "UNITS": str(meta.get("units", "sqrt(m^2)")).split(" (")[0],
+            "AMPLITUDE_UNITS": str(meta.get("units", "sqrt(m^2)")).split(" (")[0],
             "LAYOUT": layout.describe(),
             "SOFTWARE": "sarmitsuba"}
