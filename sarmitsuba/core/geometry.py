@@ -40,10 +40,11 @@ class AcquisitionGeometry:
         clock for a trajectory file.
     scene_center : float64 [3], m
     track_direction : float64 [3]
-        Unit vector along the track (at mid-aperture for a curved track).
+        Unit vector along the track; for a curved track the horizontal direction of the
+        least-squares line through the whole aperture (:func:`aperture_axis`).
     look_direction : float64 [3]
-        Horizontal unit vector from the track toward the scene (away from the sensor), at
-        mid-aperture for a curved track.
+        Horizontal unit vector from the track toward the scene (away from the sensor),
+        perpendicular to ``track_direction``.
     rx_positions : float64 [n_pulses, 3], m
         The antenna when the scene centre's echo arrives (docs/physics.md (J3)); ``positions``
         under stop-and-hop.
@@ -104,6 +105,27 @@ def track_frame(params: RadarParameters) -> tuple[np.ndarray, np.ndarray]:
     track = np.array([math.cos(h), math.sin(h), 0.0])
     right = np.array([math.sin(h), -math.cos(h), 0.0])      # track x z_hat
     return track, (right if params.look_side == "right" else -right)
+
+
+def aperture_axis(positions: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Horizontal unit direction of the least-squares straight line through an aperture,
+    float64 [3]: the antenna ``positions`` [n, 3] (m) fitted as ``P_0 + V (t - mean(t))`` over
+    their ``times`` [n] (s), ``V = sum (t - t_m)(P - P_m) / sum (t - t_m)^2``, its z dropped.
+
+    The image frame of a curved track (docs/physics.md (J2)): the fit weighs the whole aperture,
+    where the velocity at mid-aperture follows any sway there (5.7 deg against the track's 2.4 deg
+    in ``scenes/drone_track.csv``); it is the line the FFT focusers fit to the same positions
+    (:mod:`sarmitsuba.focus.stripmap`), and for an arc symmetric about mid-aperture (circular SAR)
+    the tangent there. Raises ParameterError when the fit has no horizontal motion."""
+    positions, times = np.asarray(positions, np.float64), np.asarray(times, np.float64)
+    dt = times - times.mean()
+    velocity = dt @ (positions - positions.mean(axis=0)) / (dt @ dt) if dt @ dt > 0 else np.zeros(3)
+    horizontal = velocity * np.array([1.0, 1.0, 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    if not norm > 1e-9 * max(float(np.linalg.norm(velocity)), 1e-300):
+        raise ParameterError("trajectory: the antenna's positions over the aperture have no horizontal trend (it ends "
+                             "where it began, or moves vertically); a SAR image needs an aperture along a track")
+    return horizontal / norm
 
 
 def trajectory_of(params: RadarParameters) -> tj.Trajectory:
@@ -195,7 +217,7 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
             raise ParameterError(f"trajectory: at pulse {i} (t = {t[i]:.6g} s) the antenna moves vertically or not at "
                                  "all; a SAR needs horizontal motion along its track")
         beam_axes = horizontal / norm[:, None]
-        mid = beam_axes[len(t) // 2]
+        mid = aperture_axis(nominal.position(t), t) if len(t) > 1 else beam_axes[0]
         sign = 1.0 if params.look_side == "right" else -1.0
         track, look = mid, sign * np.array([mid[1], -mid[0], 0.0])
     nominal_fields = {}
