@@ -95,6 +95,29 @@ def test_a_squinted_stripmap_from_a_trajectory_file_images_the_trihedral(tmp_pat
     assert 20 * math.log10(got.peak_magnitude / want.peak_magnitude) == pytest.approx(0.0, abs=0.1)
 
 
+
+@pytest.mark.xfail(strict=True, reason="scene/planning.py state_vector_parameters takes the incidence from the "
+                   "horizontal distance of the mid-aperture antenna to the scene centre, which a squint lengthens "
+                   "by its along-track offset (46.92 deg for 45 deg at 15 deg squint); ground_range is the distance "
+                   "from the nadir track. Left to the engineer editing planning.py now (issue 55)")
+def test_a_squinted_trajectory_file_keeps_the_closest_approach_incidence(tmp_path):
+    """State vectors of the straight track of a 15 deg squinted stripmap, worked out by hand
+    (altitude 1000 m, 1000 m beside the scene centre, the mid-aperture antenna R0 tan(15 deg) =
+    378.9 m behind it, R0 = 1414.2 m): the platform they set has 45 deg incidence and R0, and the
+    loader warns of no replaced value. Catches the along-track offset counted into the ground
+    range (46.92 deg, R0 1464.1 m, and a warning that the given 45 deg is not used)."""
+    from sarmitsuba.scene.loader import load_scene
+    r0 = 1000.0 * math.sqrt(2.0)
+    times = np.linspace(-2.0, 2.0, 9)
+    mid = np.array([-r0 * math.tan(math.radians(15.0)), 1000.0, 1000.0])
+    _write_track(tmp_path / "track.csv", times, mid + np.outer(times, [100.0, 0.0, 0.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AcquisitionWarning)
+        params = load_scene("trihedral", {"squint": 15.0, "trajectory": str(tmp_path / "track.csv"),
+                                          "n_pulses": 101}).params
+    assert params.incidence_angle == pytest.approx(45.0, abs=1e-6)
+    assert params.slant_range == pytest.approx(r0, rel=1e-9)
+
 # --- backprojection's receive leg far from the scene centre (spaceborne, continuous motion) --------
 
 FC, BANDWIDTH, FS = 9.6e9, 100e6, 120e6
