@@ -117,7 +117,7 @@ def test_time_coa_of_a_squinted_stripmap_is_the_beam_centre_crossing(tmp_path, s
     """CollectStart + TimeCOAPoly(x, y) is, within 5 ms, when the antenna sees the pixel at the squint
     angle, for the SCP and pixels 20 m away in range and azimuth (the writer takes the processed
     beam's centre in sines, sin(squint) cos(beta / 2): 0.7 ms and 1.6 ms from the squint's crossing
-    here, of a 0.72 s aperture). Catches the squint's sign flipped
+    here, of apertures of 0.72 s and 0.80 s). Catches the squint's sign flipped
     in the centre-of-aperture time (off by 2 R0 tan(squint) / v: 5.0 s at 10 deg, 10.3 s at -20 deg)
     and a broadside time (R0 tan(squint) / v: 2.5 s, 5.1 s)."""
     sim = pipeline.simulate("trihedral", sensor_overrides={"squint": squint}, image_size=(48, 48))
