@@ -37,12 +37,13 @@ def enu_closed_form(lat_deg, lon_deg):
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
-    """(Simulation of the trihedral flying 30 deg north of east on 1 m pixels, path of its image.nitf)."""
+    """(Simulation of the trihedral flying 30 deg north of east on 1 m pixels, path of its image.nitf on
+    the image's own ground plane, ``plane="image"``; the default slant-plane grid: test_sicd_slant.py)."""
     sim = pipeline.simulate("trihedral", sensor_overrides={"n_pulses": 32, "geo_origin": f"{LAT}, {LON}, {H}",
                                                            "heading": HEADING},
                             image_size=(40, 40), image_spacing=SPACING)
     path = tmp_path_factory.mktemp("sicd") / "image.nitf"
-    write_sicd(sim.image, path, raw=sim.raw)
+    write_sicd(sim.image, path, raw=sim.raw, plane="image")
     return sim, path
 
 
@@ -71,7 +72,7 @@ def test_declared_resolution_is_the_measured_one(written):
 def test_without_raw_data_the_radar_parameters_give_the_track(written, tmp_path):
     """ARPPoly of a file written from the image alone passes through the traced antenna positions."""
     sim, _ = written
-    path = write_sicd(sim.image, tmp_path / "image.nitf")
+    path = write_sicd(sim.image, tmp_path / "image.nitf", plane="image")
     assert check_sicd(path) == []
     xml, _ = xml_of(path)
     times = sim.raw.pulse_time - sim.raw.pulse_time[0]
@@ -140,7 +141,7 @@ def test_round_trip_gives_the_image_back(written, tmp_path):
     assert after.peak_magnitude == pytest.approx(before.peak_magnitude, rel=1e-3)
     assert abs(after.peak_phase_deg - before.peak_phase_deg) < 0.5
     assert abs(after.azimuth - before.azimuth) < 0.01 and abs(after.range - before.range) < 0.01
-    again = read_sicd(write_sicd(back, tmp_path / "again.nitf", raw=sim.raw))
+    again = read_sicd(write_sicd(back, tmp_path / "again.nitf", raw=sim.raw, plane="image"))
     np.testing.assert_array_equal(again.data, back.data)
     np.testing.assert_allclose(again.positions(), back.positions(), atol=1e-6)
 
@@ -168,8 +169,10 @@ def test_render_and_focus_write_sicd_and_analyze_reads_it(tmp_path, capsys):
         assert main(["analyze", str(out / name), "--target", "0,0,0", "--raw", str(out / "raw.npz"),
                      "--chip", chip]) == 0
         reports.append(json.loads(capsys.readouterr().out))
-    for key in ("rcs", "irw_azimuth", "irw_range", "peak_magnitude"):
+    for key in ("rcs", "irw_azimuth", "peak_magnitude"):
         assert reports[1][key] == pytest.approx(reports[0][key], rel=0.01), key
+    # the SICD is on the slant plane: its range width is the ground one times sin(45 deg incidence)
+    assert reports[1]["irw_range"] == pytest.approx(reports[0]["irw_range"] * math.sqrt(0.5), rel=0.01)
     for key in ("pslr_range_db", "pslr_azimuth_db"):
         assert reports[1][key] == pytest.approx(reports[0][key], abs=0.5), key
 

@@ -139,11 +139,11 @@ def test_the_version_is_1_3_0(renders):
 # -- grid: bandwidths, sampling, times ---------------------------------------------------------------
 
 def simulated(tmp_path, incidence=45.0, n_pulses=32):
-    """(raw, image, path) of a small trihedral at ``incidence`` written as SICD; the image on the
-    default grid (half the finer nominal resolution, 0.33 m: 3 to 6 times the bandwidths here)."""
+    """(raw, image, path) of a small trihedral at ``incidence`` written as a ground-plane SICD
+    (``plane="image"``); the image on the default grid (half the finer nominal resolution, 0.33 m: 3 to 6 times the bandwidths here)."""
     sim = pipeline.simulate("trihedral", sensor_overrides={"n_pulses": n_pulses, "incidence_angle": incidence},
                             image_size=(48, 48))
-    return sim.raw, sim.image, write_sicd(sim.image, tmp_path / f"i{incidence:g}.nitf", raw=sim.raw)
+    return sim.raw, sim.image, write_sicd(sim.image, tmp_path / f"i{incidence:g}.nitf", raw=sim.raw, plane="image")
 
 
 def zero_doppler(raw: RawData, point: np.ndarray) -> tuple[float, np.ndarray]:
@@ -269,14 +269,16 @@ def test_the_pixels_spectrum_is_centred_where_deltakcoapoly_says(renders, name, 
 
 
 def test_the_trihedral_analyses_from_the_nitf_as_from_the_npz(renders):
-    """Default chip and options: the SICD grid keeps the RCS, the resolutions, the sidelobes and the
-    position of the trihedral."""
+    """Default chip and options: the slant-plane SICD grid keeps the RCS, the azimuth resolution, the
+    sidelobes and the position of the trihedral; its range resolution is the slant one."""
     from sarmitsuba.analysis.point_target import analyze_point_target
     reports = [analyze_point_target(load_image(renders / "trihedral" / name), (0.0, 0.0, 0.0)).to_dict()
                for name in ("image.npz", "image.nitf")]
     assert reports[1]["rcs_db"] == pytest.approx(reports[0]["rcs_db"], abs=0.02)
-    for key in ("irw_azimuth", "irw_range", "peak_magnitude"):
+    for key in ("irw_azimuth", "peak_magnitude"):
         assert reports[1][key] == pytest.approx(reports[0][key], rel=0.005), key
+    # slant-plane SICD: the range width is the ground one times sin(45 deg incidence)
+    assert reports[1]["irw_range"] == pytest.approx(reports[0]["irw_range"] * math.sqrt(0.5), rel=0.005)
     assert reports[1]["pslr_range_db"] == pytest.approx(reports[0]["pslr_range_db"], abs=0.5)
     assert reports[1]["pslr_azimuth_db"] == pytest.approx(reports[0]["pslr_azimuth_db"], abs=1.5)
     for key in ("azimuth", "range"):
@@ -298,7 +300,7 @@ def test_weighting_functions_and_widths_are_those_of_the_impulse_response(render
     pattern, whose width is the azimuth IRW measured on the image (0.60 m, not the window's 0.39)."""
     from sarmitsuba.analysis.point_target import analyze_point_target
     xml, _, _ = parts(renders / "trihedral" / "image.nitf")
-    report = analyze_point_target(SarImage.load(renders / "trihedral" / "image.npz"), (0.0, 0.0, 0.0))
+    report = analyze_point_target(read_sicd(renders / "trihedral" / "image.nitf"), (0.0, 0.0, 0.0))
     for direction, measured in (("Row", report.irw_range), ("Col", report.irw_azimuth)):
         weights = grid_value(xml, direction, "WgtFunct")
         assert weights is not None and weights.size == 512
@@ -310,8 +312,9 @@ def test_weighting_functions_and_widths_are_those_of_the_impulse_response(render
 
 def test_radiometric_scale_factors_follow_from_the_unit_peak_gain(renders):
     """RCSSF: the trihedral's peak power is its RCS; BetaZeroSF = RCSSF / (slant-plane energy area
-    of a cell, W_row W_col / (BW_row BW_col) times |n_image . n_slant|); SigmaZeroSF = Beta cos(slope),
-    GammaZeroSF = Sigma / cos(incidence), the angles from the geometry by hand."""
+    of a cell, W_row W_col / (BW_row BW_col) times |n_image . n_slant|, 1 on the slant-plane grid);
+    SigmaZeroSF = Beta cos(slope), GammaZeroSF = Sigma / cos(incidence), the slope angle between
+    the slant plane and the ground (45 deg here) and the incidence from the geometry by hand."""
     from sarmitsuba.analysis.point_target import analyze_point_target
     path = renders / "trihedral" / "image.nitf"
     xml, _, _ = parts(path)
@@ -324,12 +327,14 @@ def test_radiometric_scale_factors_follow_from_the_unit_peak_gain(renders):
     for direction in ("Row", "Col"):
         w = grid_value(xml, direction, "WgtFunct")
         area *= np.mean(w ** 2) / np.mean(w) ** 2 / grid_value(xml, direction, "ImpRespBW")
-    cos_slope = slant_plane_cosine(xml, raw, ref)
-    assert cos_slope == pytest.approx(math.sin(math.radians(45.0)), abs=2e-3)        # ground plane, 45 deg
+    assert slant_plane_cosine(xml, raw, ref) == pytest.approx(1.0, abs=1e-6)          # slant-plane grid
     beta = xml.load("{*}Radiometric/{*}BetaZeroSFPoly")[0, 0]
-    assert beta == pytest.approx(rcs_sf / (area * cos_slope), rel=1e-3)
+    assert beta == pytest.approx(rcs_sf / area, rel=1e-3)
     scp = georef.ecef_to_enu(xml.load("{*}GeoData/{*}SCP/{*}ECF"), ref)
     _, antenna = zero_doppler(raw, scp)
+    slant_normal = np.cross(scp - antenna, raw.velocity[0])
+    cos_slope = abs(slant_normal[2]) / np.linalg.norm(slant_normal)                   # against the local up
+    assert cos_slope == pytest.approx(math.sin(math.radians(45.0)), abs=2e-3)
     cos_incidence = (antenna - scp)[2] / np.linalg.norm(antenna - scp)
     sigma = xml.load("{*}Radiometric/{*}SigmaZeroSFPoly")[0, 0]
     assert sigma == pytest.approx(beta * cos_slope, rel=1e-3)

@@ -51,11 +51,15 @@ from .provenance import collection_start as provenance_start
 from .provenance import portable_metadata, utc_now
 
 __all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE", "PARAMETERS",
-           "collection_start"]
+           "collection_start", "toa_fixed", "TOA_FIXED_TOLERANCE"]
 
 #: XML namespace of the CPHD version written.
 CPHD_NAMESPACE = "http://api.nsgreg.nga.mil/schema/cphd/1.1.0"
 _CHANNEL = "1"
+#: Spread [s] of the vectors' TOA1 and TOA2 up to which the channel is TOAFixed: sarpy wants TOAFixed
+#: whenever every value lies within 1e-11 s of their mean, which a larger spread rules out (2e-11 s
+#: is 3 mm of range, far below a sample).
+TOA_FIXED_TOLERANCE = 2e-11
 _KVP_METADATA = "SARMITSUBA_METADATA"
 _KVP_TIME0 = "SARMITSUBA_PULSE_TIME0"
 _KVP_PRF = "SARMITSUBA_PRF"
@@ -109,8 +113,20 @@ def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.nd
     pvp["SCSS"] = 1.0 / raw.fs
     pvp["TOA1"] = pvp["SC0"]
     pvp["TOA2"] = pvp["SC0"] + (raw.n_samples - 1) * pvp["SCSS"]
+    if toa_fixed(pvp):                # a window that follows the SRP (circular track): one saved interval
+        pvp["TOA1"], pvp["TOA2"] = pvp["TOA1"].max(), pvp["TOA2"].min()
     pvp["SIGNAL"] = 1
     return pvp
+
+
+def toa_fixed(pvp: np.ndarray) -> bool:
+    """Whether the vectors' sampled TOA intervals ``[SC0, SC0 + (n - 1) SCSS]`` (relative to the SRP)
+    agree within :data:`TOA_FIXED_TOLERANCE` (a circular track about the SRP, whose fast-time window
+    follows the SRP's range): then ``TOA1``/``TOA2`` are written as the one interval every vector
+    samples, the latest start and the earliest end, and the channel is ``TOAFixed`` (CPHD 1.1.0 sec. 6:
+    ``TOAFixed`` true when TOA1 and TOA2 are the same for every vector; sarkit's check wants them
+    exactly equal, sarpy's wants ``TOAFixed`` true when they lie within 10 ps of their mean)."""
+    return bool(np.ptp(pvp["TOA1"]) <= TOA_FIXED_TOLERANCE and np.ptp(pvp["TOA2"]) <= TOA_FIXED_TOLERANCE)
 
 
 def sample_rate(tree: Any, pvp: np.ndarray) -> float:
@@ -163,9 +179,9 @@ def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray, start: da
                  "Channel": ({"Identifier": _CHANNEL, "NumVectors": raw.n_pulses, "NumSamples": raw.n_samples,
                               "SignalArrayByteOffset": 0, "PVPArrayByteOffset": 0},),
                  "NumSupportArrays": 0},
-        "Channel": {"RefChId": _CHANNEL, "FXFixedCPHD": True, "TOAFixedCPHD": False, "SRPFixedCPHD": True,
+        "Channel": {"RefChId": _CHANNEL, "FXFixedCPHD": True, "TOAFixedCPHD": toa_fixed(pvp), "SRPFixedCPHD": True,
                     "Parameters": ({"Identifier": _CHANNEL, "RefVectorIndex": raw.n_pulses // 2,
-                                    "FXFixed": True, "TOAFixed": False, "SRPFixed": True, "SignalNormal": True,
+                                    "FXFixed": True, "TOAFixed": toa_fixed(pvp), "SRPFixed": True, "SignalNormal": True,
                                     "Polarization": {"TxPol": tx_pol, "RcvPol": rcv_pol},
                                     "FxC": float(raw.fc), "FxBW": float(raw.bandwidth),
                                     "TOASaved": float(pvp["TOA2"].max() - pvp["TOA1"].min()),

@@ -60,12 +60,13 @@ from .provenance import collection_start as provenance_start
 from .provenance import portable_metadata, utc_now
 from .sicd_polygons import PolygonError, set_polygons
 from .sicd_radiometry import radiometric
+from .sicd_slant import SlantError, resample_to_slant, slant_frame
 from .sicd_resample import (Carrier, ResampleError, centred_axis, data_carrier, deltak_limits, fit_carrier,
                             poly2d_gradient, resample, sicd_spacing)
 from .sicd_support import Aperture, SupportError, Track, Weighting, grid_direction, track_of, window_of, \
     window_weighting
 
-__all__ = ["SicdError", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
+__all__ = ["SicdError", "PLANES", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
            "sicd_layout", "build_xml", "image_from_parts", "collection_start"]
 
 #: XML namespace of the SICD version written.
@@ -289,8 +290,13 @@ def build_xml(image: SarImage, track: Track, ref: georef.GeoReference, layout: L
     return tree
 
 
+#: SICD grid planes :func:`write_sicd` writes: ``"slant"`` the slant plane at the SCP (the default,
+#: as commercial SICDs of backprojected images), ``"image"`` the image's own plane.
+PLANES = ("slant", "image")
+
+
 def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = None,
-               ref: georef.GeoReference | None = None) -> Path:
+               ref: georef.GeoReference | None = None, plane: str = "slant") -> Path:
     """Write ``image`` as a SICD 1.3.0 NITF at ``path`` (atomically), resampled onto its SICD grid.
 
     Parameters
@@ -305,6 +311,10 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         (a sarmitsuba render's images record them) stands in.
     ref : GeoReference, optional
         WGS84 origin of the local frame (default: ``geo_origin`` in ``image.metadata["radar"]``).
+    plane : {"slant", "image"}, default "slant"
+        ``"slant"``: a ground-plane image is resampled onto the slant plane at the SCP
+        (:mod:`sarmitsuba.formats.sicd_slant`; a slant-plane image keeps its plane);
+        ``"image"``: the image's own plane (``ImagePlane = GROUND`` for a ground image).
 
     Raises SicdError naming ``path``: no raw data and no radar parameters, a non-uniform grid, an
     image too small for its SICD grid, a ``collection_start`` that is no ISO 8601 time with an
@@ -312,17 +322,29 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
     when the file cannot be written, leaving nothing behind.
     """
     import sarkit.sicd as sksicd
+    if plane not in PLANES:
+        raise SicdError(f"cannot write SICD file {path}: plane = {plane!r}; valid planes are "
+                        f"{', '.join(PLANES)} (\"slant\" for the slant plane at the scene centre)")
     try:
         start = collection_start(image, path)
         for axis in (image.range, image.azimuth):
             _check_uniform(axis)
         track = track_of(image, raw)
-        layout = sicd_layout(image, track)
-        tree = build_xml(image, track, _reference(image, ref), layout, start=start)
-    except (SicdError, SupportError, PolygonError) as exc:
+        own = sicd_layout(image, track)
+        target = image
+        if plane == "slant" and image.plane != "slant":
+            target = slant_frame(image, track, own.scp_point, _mode(image) == "spotlight")
+        layout = own if target is image else sicd_layout(target, track)
+        reference = _reference(image, ref)
+        tree = build_xml(target, track, reference, layout, start=start)
+    except (SicdError, SupportError, PolygonError, SlantError) as exc:
         message = str(exc)
         raise SicdError(message if str(path) in message else f"cannot write SICD file {path}: {message}") from None
-    array = resample(image, layout.carrier, layout.scp, layout.rows, layout.cols, layout.removed)
+    if target is image:
+        array = resample(image, layout.carrier, layout.scp, layout.rows, layout.cols, layout.removed)
+    else:
+        array = resample_to_slant(image, own.carrier, own.scp, tree, layout.rows, layout.cols, layout.scp,
+                                  layout.removed, reference)
     security = sksicd.NitfSecurityFields(clas="U")
     metadata = sksicd.NitfMetadata(
         xmltree=tree, file_header_part=sksicd.NitfFileHeaderPart(ostaid="sarmitsuba", security=security),

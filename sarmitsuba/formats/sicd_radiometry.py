@@ -18,9 +18,20 @@ quantity), constant over the image and computed at the SCP:
   ``GammaZeroSF = BetaZeroSF cos(SlopeAng) / sin(GrazeAng)`` (per unit area normal to the line of
   sight), with the SCPCOA angles.
 
-NGA's sarpy (``GridType.get_slant_plane_area``) and MATLAB SAR toolbox take ``A_spn = A`` for any
-image plane; for a GROUND grid their consistency check therefore reports ``BetaZeroSFPoly`` and
-``RCSSFPoly`` as inconsistent by exactly ``cos(SlopeAng)``.
+NGA's sarpy (``GridType.get_slant_plane_area``) and MATLAB SAR toolbox take the same energy area,
+weighting factors included (from ``WgtFunct``, or from ``WgtType`` when it names a window they
+know), but ``A_spn = A`` for any image plane: the slant-plane grid that :func:`write_sicd` writes
+by default is consistent under their checks; a GROUND grid (``plane="image"``) is reported
+with ``BetaZeroSFPoly`` and ``RCSSFPoly`` inconsistent by exactly ``cos(SlopeAng)``.
+
+A point target's integrated RCS (the integral method, (K3)) is ``BetaZeroSF sum |p|^2 SS_row
+SS_col`` over its response on a slant-plane grid. sarpy's RCS tool (``sarpy.annotation.rcs``,
+``TotalRCS``) computes ``RCSSF sum |p|^2 / (OSR_row OSR_col)`` instead, with ``OSR = 1 / (SS
+ImpRespBW)``: that is ``W_row W_col`` times the integrated RCS (3.7 dB for sarmitsuba's Taylor
+windows) under sarpy's own ``BetaZeroSF = RCSSF / A`` relation. No ``RCSSF`` satisfies both on a
+weighted image; the one written here is the one sarpy's consistency check and the standard's
+``Radiometric`` relations agree with. Read the integrated RCS from sarpy's ``TotalRCS`` as
+``TotalRCS / (W_row W_col)``.
 """
 from __future__ import annotations
 
