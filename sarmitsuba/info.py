@@ -38,7 +38,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .core import georef
+from .core import georef, orbit
+from .core.trajectory import StateVectors
 from .scene import planning
 from .scene.baseline import baseline
 from .core.constants import SPEED_OF_LIGHT
@@ -196,6 +197,10 @@ class RadarSummary:
     geo_origin: tuple = (0.0, 0.0, 0.0)
     geo_origin_default: bool = True
     utm_epsg: int = 32631
+    #: An orbit (ECEF state vectors, :mod:`sarmitsuba.core.orbit`) at its closest approach to the
+    #: scene centre: time (UTC), slant range, look angle, incidence against the ellipsoid normal,
+    #: squint, height above the ellipsoid and speed (docs/physics.md (J6)); None for other tracks.
+    orbit_pass: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -253,6 +258,7 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
     effects = active_effects(loaded)                                      # decided once, handed on
     radar = _radar_summary(params, geometry, window, lo, hi)
+    radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory = memory_problem(cost, params)
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
@@ -345,6 +351,14 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         height_of_ambiguity_m=b.height_of_ambiguity if math.isfinite(b.height_of_ambiguity) else None,
         geo_origin=georef.of(p).as_tuple(), geo_origin_default=p.geo_origin is None,
         utm_epsg=int(georef.utm_crs(georef.of(p)).to_epsg()))
+
+
+def _orbit_pass(p: RadarParameters, offset: np.ndarray) -> dict | None:
+    """:func:`sarmitsuba.core.orbit.pass_geometry` of an orbit's state vectors as a dict; None otherwise."""
+    states = p.trajectory
+    if not (isinstance(states, StateVectors) and states.closest_approach):
+        return None
+    return dataclasses.asdict(orbit.pass_geometry(states, georef.of(p), p.scene_center, offset))
 
 
 def _azimuth_formula(p: RadarParameters) -> str:
@@ -449,7 +463,17 @@ def _radar_lines(r: RadarSummary) -> list[str]:
            f"height of ambiguity {r.height_of_ambiguity_m:.4g} m = lambda R sin(theta) / (2 B_perp)"),
         f"geographic origin: {georef.GeoReference(*r.geo_origin).describe()} (WGS84; world x east, y north, z up), "
         f"UTM EPSG:{r.utm_epsg}" + (" - the default placeholder: set sar geo_origin = \"lat, lon, h\" to place "
-                                    "the scene" if r.geo_origin_default else "")]
+                                    "the scene" if r.geo_origin_default else "")] + _orbit_lines(r.orbit_pass)
+
+
+def _orbit_lines(o: dict | None) -> list[str]:
+    """The orbit's pass at closest approach (docs/physics.md (J6)); nothing for other tracks."""
+    if o is None:
+        return []
+    when = o["utc"] or f"t = {o['time']:.6f} s"
+    return [f"orbit at closest approach ({when}): slant range {o['slant_range'] / 1e3:.3f} km, look angle "
+            f"{o['look_angle']:.3f} deg, incidence {o['incidence']:.3f} deg (WGS84 ellipsoid normals), squint "
+            f"{o['squint']:.4f} deg; {o['height'] / 1e3:.3f} km above the ellipsoid at {o['speed']:.1f} m/s (ECEF)"]
 
 
 def _radiometry_lines(r: RadiometrySummary | None) -> list[str]:

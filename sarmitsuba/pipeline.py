@@ -455,12 +455,15 @@ def _write_summary(path: Path, summary: RenderSummary, metadata: dict) -> None:
 
 
 def _world_params(loaded: LoadedScene):
-    """Radar parameters with the scene centre in the world frame, ``collection_start`` the
-    moment of the render (UTC) when the sensor does not give it, and state vectors named by
+    """Radar parameters with the scene centre in the world frame, ``collection_start`` the first
+    pulse's UTC time from an absolute-time trajectory (docs/physics.md (J5)), else the moment of the
+    render (UTC) when the sensor does not give it, and state vectors named by
     their source (a file name, or ``"python"``)."""
     import datetime
+
+    from .core.geometry import collection_start
     center = np.asarray(loaded.params.scene_center) + loaded.offset
-    start = loaded.params.collection_start or datetime.datetime.now(datetime.timezone.utc).isoformat()
+    start = collection_start(loaded.params) or datetime.datetime.now(datetime.timezone.utc).isoformat()
     trajectory = loaded.params.trajectory                 # state vectors: their file's name (the raw data hold
     trajectory = getattr(trajectory, "source", trajectory)    # the positions)
     return dataclasses.replace(loaded.params, scene_center=tuple(center.tolist()), collection_start=start,

@@ -19,10 +19,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .radar import ParameterError, RadarParameters
+from . import georef, orbit
 from . import trajectory as tj
 
 __all__ = ["AcquisitionGeometry", "acquisition_geometry", "ground_layover", "track_frame", "trajectory_of",
-           "pulse_times"]
+           "pulse_times", "collection_start"]
 
 
 @dataclass(frozen=True)
@@ -137,8 +138,9 @@ def trajectory_of(params: RadarParameters) -> tj.Trajectory:
       ``ground_range`` at ``altitude``, passing at ``t = 0`` where the straight track's mid-aperture
       antenna would (broadside), flown at ``velocity`` along ``heading`` there, clockwise seen from
       above when looking right (the scene centre on the right) and counter-clockwise when looking left;
-    - state vectors (:class:`~.trajectory.StateVectors`, or a CSV path read from the working
-      directory): their interpolant.
+    - state vectors (:class:`~.trajectory.StateVectors`, or a CSV or orbit file read from the
+      working directory): their interpolant; ECEF states are carried into the scene's ENU frame
+      at ``geo_origin`` first (:func:`~.orbit.in_scene_frame`, (J6)).
 
     ``track_offset`` shifts every kind. Raises ParameterError (TrajectoryError) for an unreadable
     trajectory file."""
@@ -158,6 +160,7 @@ def trajectory_of(params: RadarParameters) -> tj.Trajectory:
         return tj.circular(axis, params.ground_range, math.atan2(start[1], start[0]),
                            sign * params.velocity / params.ground_range)
     states = kind if isinstance(kind, tj.StateVectors) else tj.read_state_vectors(kind)
+    states = orbit.in_scene_frame(states, georef.of(params))
     if np.any(offset):
         states = states.shifted(-offset)
     return tj.from_state_vectors(states)
@@ -166,7 +169,11 @@ def trajectory_of(params: RadarParameters) -> tj.Trajectory:
 def pulse_times(params: RadarParameters, nominal: tj.Trajectory) -> np.ndarray:
     """Transmit times [s] of the ``n_pulses`` pulses, float64 [n_pulses]: at the PRF, centred on
     ``t = 0`` for the built-in tracks and on the middle of the state vectors' span for a trajectory
-    file (docs/physics.md (J2)). Raises ParameterError when they do not fit into that span."""
+    file (docs/physics.md (J2)); for an orbit (:attr:`~.trajectory.StateVectors.closest_approach`)
+    on its closest approach to ``scene_center``, moved inwards as far as the pulses need to fit
+    into the span (J6). With an absolute clock (:attr:`~.trajectory.StateVectors.epoch`) the
+    train moves by under 0.5 us so that the first pulse falls on a whole microsecond of UTC (J5).
+    Raises ParameterError when they do not fit into that span."""
     n = params.n_pulses
     offsets = (np.arange(n, dtype=np.float64) - (n - 1) / 2.0) / params.prf
     lo, hi = nominal.span
@@ -177,7 +184,30 @@ def pulse_times(params: RadarParameters, nominal: tj.Trajectory) -> np.ndarray:
         raise ParameterError(f"n_pulses = {n} at prf = {params.prf:g} Hz last {(n - 1) / params.prf:.6g} s, longer "
                              f"than the trajectory's {hi - lo:.6g} s of state vectors ({lo:.6g} .. {hi:.6g} s): use at "
                              f"most {fit} pulses, or n_pulses = 0 for all of them")
-    return 0.5 * (lo + hi) + offsets
+    middle = 0.5 * (lo + hi)
+    states = nominal.states
+    if states is not None and states.closest_approach:
+        half = 0.5 * (n - 1) / params.prf
+        nearest = orbit.closest_approach(nominal.evaluate, lo, hi, np.asarray(params.scene_center, np.float64))
+        middle = min(max(nearest, lo + half), hi - half)
+    times = middle + offsets
+    if states is not None and states.epoch is not None:
+        # an absolute clock: the first pulse on a whole microsecond of UTC (its epoch is a whole second),
+        # the resolution of CollectionStart / CollectStart, so that TxTime needs no rounding (J5)
+        times += round(times[0] * 1e6) * 1e-6 - times[0]
+    return times
+
+
+def collection_start(params: RadarParameters) -> str | None:
+    """The UTC time of the first pulse (ISO 8601, microseconds) that the sensor's trajectory fixes:
+    ``epoch + t_0`` for state vectors with an absolute clock (docs/physics.md (J5)), else the
+    ``collection_start`` parameter (None when not given). Requires resolved ``scene_center`` and
+    ``n_pulses`` for state vectors."""
+    kind = params.trajectory
+    if not (isinstance(kind, tj.StateVectors) and kind.epoch is not None):
+        return params.collection_start
+    nominal = tj.from_state_vectors(orbit.in_scene_frame(kind, georef.of(params)))
+    return kind.utc(float(pulse_times(params, nominal)[0])).isoformat()
 
 
 def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:

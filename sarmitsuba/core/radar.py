@@ -281,12 +281,21 @@ class RadarParameters:
         if not (isinstance(self.arc_deg, (int, float)) and 0.0 < self.arc_deg <= 360.0):
             raise ParameterError(f"arc_deg = {self.arc_deg!r} deg is outside the valid range (0, 360] deg (the arc "
                                  "of a circular trajectory; 360 = a full circle)")
+        if self.arc_deg != 360.0 and self.trajectory != "circular":
+            kind = self.trajectory.source if isinstance(self.trajectory, StateVectors) else repr(self.trajectory)
+            raise ParameterError(f"arc_deg = {self.arc_deg:g} deg is used only by trajectory = 'circular' (the arc it "
+                                 f"flies), but trajectory = {kind}: add trajectory=circular, or remove arc_deg")
         if self.trajectory == "circular":
             if self.squint != 0:
                 raise ParameterError(f"squint = {self.squint:g} deg with trajectory = 'circular': the beam follows the "
                                      "scene centre around the circle; remove squint")
             if self.mode != "spotlight":           # the beam follows the scene centre
                 object.__setattr__(self, "mode", "spotlight")
+        if isinstance(self.trajectory, StateVectors) and self.trajectory.epoch is not None and \
+                self.collection_start is not None:
+            raise ParameterError(f"collection_start = {self.collection_start!r} and the absolute times of trajectory "
+                                 f"{self.trajectory.source} both set the first pulse's UTC time: remove "
+                                 "collection_start (it follows from the trajectory's clock)")
         error = MotionError.parse(self.motion_error)        # TrajectoryError: a ParameterError
         object.__setattr__(self, "motion_error", None if error is None else str(error))
         if not isinstance(self.stop_and_hop, bool):

@@ -21,179 +21,24 @@ This module knows nothing of :class:`~sarmitsuba.core.radar.RadarParameters`;
 """
 from __future__ import annotations
 
-import csv
 import math
-import os
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from .constants import SPEED_OF_LIGHT
-from .valid_ranges import ParameterError
+from .state_vectors import (CSV_COLUMNS, FRAMES, HERMITE_WINDOW, MAX_GAP_RATIO, StateVectors, TrajectoryError,
+                            read_state_vectors, utc_instant)
 
 __all__ = ["StateVectors", "TrajectoryError", "read_state_vectors", "Trajectory", "straight", "circular",
            "from_state_vectors", "MotionError", "with_motion_error", "receive_time", "echo_length",
-           "CSV_COLUMNS", "MAX_GAP_RATIO", "RECEIVE_ITERATIONS"]
+           "CSV_COLUMNS", "MAX_GAP_RATIO", "RECEIVE_ITERATIONS", "FRAMES", "utc_instant", "hermite_window",
+           "HERMITE_WINDOW"]
 
-
-class TrajectoryError(ParameterError):
-    """State vectors or a trajectory setting that cannot describe a flight (names the row and column)."""
-
-
-#: Header of a state-vector CSV: time and position, then optionally velocity (docs/physics.md (J2)).
-CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps")
-#: A gap between consecutive state vectors longer than this many times their median spacing is refused:
-#: the spline would invent the motion in between.
-MAX_GAP_RATIO = 5.0
 #: Fixed-point iterations of the receive time (J3): each multiplies the error by about ``v / c``
 #: (2.5e-5 at 7.6 km/s), so three take a 32 m receive offset below a picometre.
 RECEIVE_ITERATIONS = 3
-
-
-# ============================================================================ state vectors
-@dataclass(frozen=True)
-class StateVectors:
-    """Sampled antenna states: the navigation data of a flight (docs/physics.md (J2)).
-
-    Attributes
-    ----------
-    time : float64 [n], s
-        Strictly increasing sample times.
-    position : float64 [n, 3], m
-        Antenna phase centre in the scene frame (z up).
-    velocity : float64 [n, 3], m/s, or None
-        Velocity at each sample; with it the interpolant is a cubic Hermite spline.
-    source : str
-        Where they came from, for messages and metadata: a CSV file's name, or ``"python"``.
-
-    Raises
-    ------
-    TrajectoryError
-        Fewer rows than the interpolant needs (2 with velocities, 4 without), a non-finite
-        value, times that do not increase, or a gap longer than :data:`MAX_GAP_RATIO` median
-        spacings; each names the row (line of the file) and column.
-    """
-
-    time: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray | None = None
-    source: str = "python"
-    first_line: int = 0
-
-    def __post_init__(self) -> None:
-        for name in ("time", "position", "velocity"):
-            value = getattr(self, name)
-            if value is not None:
-                object.__setattr__(self, name, np.array(value, dtype=np.float64))
-        _check_states(self)
-
-    def row(self, i: int) -> str:
-        """How messages name sample ``i``: ``FILE, line N`` for a file, else ``SOURCE, row i``."""
-        if self.first_line:
-            return f"{self.source}, line {self.first_line + i}"
-        return f"{self.source}, row {i}"
-
-    def shifted(self, offset: np.ndarray) -> "StateVectors":
-        """The same states with ``offset`` [m] subtracted from every position (a local frame)."""
-        return StateVectors(self.time, self.position - np.asarray(offset, float), self.velocity, self.source,
-                            self.first_line)
-
-    def __str__(self) -> str:
-        return f"{self.source} ({self.time.size} state vectors)"
-
-
-def _check_states(sv: StateVectors) -> None:
-    """The checks of :class:`StateVectors` (see its Raises)."""
-    t, p, v = sv.time, sv.position, sv.velocity
-    if t.ndim != 1 or p.shape != (t.size, 3) or (v is not None and v.shape != (t.size, 3)):
-        raise TrajectoryError(f"state vectors {sv.source}: time must be [n], position and velocity [n, 3]; got "
-                              f"{list(t.shape)}, {list(p.shape)}, {None if v is None else list(v.shape)}")
-    need = 2 if v is not None else 4
-    if t.size < need:
-        kind = "a cubic Hermite spline (with velocities)" if v is not None else "a cubic spline (no velocities)"
-        raise TrajectoryError(f"state vectors {sv.source}: {t.size} row{'s' if t.size != 1 else ''}, but {kind} "
-                              f"needs at least {need}: give more samples of the flight"
-                              + ("" if v is not None else ", or velocities (vx_mps, vy_mps, vz_mps)"))
-    columns = [("time_s", t[:, None])] + [(n, p[:, i:i + 1]) for i, n in enumerate(CSV_COLUMNS[1:4])]
-    if v is not None:
-        columns += [(n, v[:, i:i + 1]) for i, n in enumerate(CSV_COLUMNS[4:])]
-    for name, values in columns:
-        bad = ~np.isfinite(values[:, 0])
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise TrajectoryError(f"state vectors {sv.row(i)}, column {name}: {float(values[i, 0])!r} is not a finite "
-                                  "number; every time, position and velocity must be finite")
-    step = np.diff(t)
-    if np.any(step <= 0):
-        i = int(np.argmax(step <= 0)) + 1
-        raise TrajectoryError(f"state vectors {sv.row(i)}, column time_s: {float(t[i])!r} s is not after the previous "
-                              f"row's {float(t[i - 1])!r} s; times must increase strictly (sort the rows, drop duplicates)")
-    median = float(np.median(step))
-    if np.any(step > MAX_GAP_RATIO * median):
-        i = int(np.argmax(step > MAX_GAP_RATIO * median)) + 1
-        raise TrajectoryError(f"state vectors {sv.row(i)}, column time_s: a gap of {step[i - 1]:.6g} s after "
-                              f"{float(t[i - 1])!r} s, more than {MAX_GAP_RATIO:g} times the median spacing {median:.6g} s: "
-                              "the interpolant cannot bridge it (it would invent the motion in between); fill the "
-                              "gap from the navigation data, or split the flight into two files")
-
-
-def read_state_vectors(path: str | os.PathLike) -> StateVectors:
-    """State vectors from a CSV file with the header ``time_s,x_m,y_m,z_m`` and optionally
-    ``vx_mps,vy_mps,vz_mps`` (any column order; :data:`CSV_COLUMNS`), one row per sample.
-
-    Raises
-    ------
-    TrajectoryError
-        A missing or unreadable file, a header with unknown or missing columns, a row with the
-        wrong number of fields or a field that is not a number, and the checks of
-        :class:`StateVectors`; each names the file, the line and the column.
-    """
-    path = Path(path)
-    name = path.name
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TrajectoryError(f"trajectory = {str(path)!r}: cannot read the state vectors "
-                              f"({getattr(exc, 'strerror', None) or exc}); give a CSV file with the header "
-                              f"{','.join(CSV_COLUMNS[:4])}[,{','.join(CSV_COLUMNS[4:])}], or 'straight' or "
-                              "'circular'") from None
-    if not rows:
-        raise TrajectoryError(f"state vectors {name}: the file is empty; line 1 must be the header "
-                              f"{','.join(CSV_COLUMNS[:4])}[,{','.join(CSV_COLUMNS[4:])}]")
-    header = [h.strip() for h in rows[0]]
-    unknown = [h for h in header if h not in CSV_COLUMNS]
-    missing = [c for c in CSV_COLUMNS[:4] if c not in header]
-    some_velocity = [c for c in CSV_COLUMNS[4:] if c in header]
-    if unknown or missing or len(set(header)) != len(header) or 0 < len(some_velocity) < 3:
-        problem = (f"unknown column {unknown[0]!r}" if unknown else f"missing column {missing[0]!r}" if missing
-                   else "a column named twice" if len(set(header)) != len(header) else
-                   "velocity needs all of vx_mps, vy_mps, vz_mps")
-        raise TrajectoryError(f"state vectors {name}, line 1 (header): {problem}; the header is "
-                              f"{','.join(CSV_COLUMNS[:4])} and optionally {','.join(CSV_COLUMNS[4:])} (metres, "
-                              "seconds, the scene frame)")
-    values = np.empty((len(rows) - 1, len(header)))
-    body = [(k, r) for k, r in enumerate(rows[1:], start=2) if any(field.strip() for field in r)]
-    values = values[:len(body)]
-    for i, (line, row) in enumerate(body):
-        if len(row) != len(header):
-            raise TrajectoryError(f"state vectors {name}, line {line}: {len(row)} fields, the header has "
-                                  f"{len(header)}")
-        for j, field in enumerate(row):
-            try:
-                values[i, j] = float(field)
-            except ValueError:
-                raise TrajectoryError(f"state vectors {name}, line {line}, column {header[j]}: {field.strip()!r} "
-                                      "is not a number") from None
-    col = {h: values[:, j] for j, h in enumerate(header)}
-    velocity = np.stack([col[c] for c in CSV_COLUMNS[4:]], axis=1) if some_velocity else None
-    lines = [line for line, _ in body]
-    first = lines[0] if lines else 2
-    if lines and lines != list(range(first, first + len(lines))):       # blank lines inside: name rows by index
-        first = 0
-    return StateVectors(col["time_s"], np.stack([col[c] for c in CSV_COLUMNS[1:4]], axis=1), velocity, name, first)
 
 
 # ============================================================================ trajectories
@@ -212,12 +57,16 @@ class Trajectory:
         Times the path is known for (state vectors: first and last sample; else unbounded).
     nominal : Trajectory or None
         The path without motion errors, when they were added (:func:`with_motion_error`).
+    states : StateVectors or None
+        The state vectors it interpolates (their clock's :attr:`~StateVectors.epoch`, and whether
+        the pulses centre on the closest approach).
     """
 
     kind: str
     evaluate: Callable[[np.ndarray, int], np.ndarray]
     span: tuple[float, float] = (-math.inf, math.inf)
     nominal: "Trajectory | None" = None
+    states: "StateVectors | None" = None
 
     def position(self, t: Any) -> np.ndarray:
         """float64 [..., 3], m."""
@@ -270,12 +119,53 @@ def circular(center: np.ndarray, radius: float, angle0: float, rate: float) -> T
     return Trajectory("circular", evaluate)
 
 
+def hermite_window(states: StateVectors) -> Callable[[np.ndarray, int], np.ndarray]:
+    """``evaluate(t, k)``: the ``k``-th derivative (0..2) at times ``t`` [s] (float64 [...]) as
+    float64 [..., 3], of the local Hermite interpolant of ``states`` (eq. (J6)): for ``t`` in
+    ``[t_i, t_i+1]``, the polynomial of degree ``2 m - 1`` matching position and velocity at the
+    ``m = states.window`` samples ``i - m/2 + 1 .. i + m/2`` (shifted inwards at the ends; the end
+    polynomials extrapolate). Position and velocity are continuous at every sample (both
+    neighbouring polynomials match them there); the acceleration may step by micro-g."""
+    from scipy.interpolate import KroghInterpolator
+    t_all, p_all, v_all = states.time, states.position, states.velocity
+    n = t_all.size
+    m = min(int(states.window or HERMITE_WINDOW), n)
+    cache: dict[int, tuple[Any, float, np.ndarray]] = {}
+
+    def polynomial(start: int) -> tuple[Any, float, np.ndarray]:
+        if start not in cache:
+            t = t_all[start:start + m]
+            t0, p0 = float(t.mean()), p_all[start:start + m].mean(axis=0)
+            y = np.empty((2 * m, 3))
+            y[0::2], y[1::2] = p_all[start:start + m] - p0, v_all[start:start + m]
+            cache[start] = (KroghInterpolator(np.repeat(t - t0, 2), y), t0, p0)
+        return cache[start]
+
+    def evaluate(t: np.ndarray, k: int) -> np.ndarray:
+        t = np.asarray(t, np.float64)
+        flat = t.reshape(-1)
+        interval = np.clip(np.searchsorted(t_all, flat, side="right") - 1, 0, n - 2)
+        start = np.clip(interval - (m // 2 - 1), 0, n - m)
+        out = np.empty((flat.size, 3))
+        for s in np.unique(start):
+            pick = start == s
+            poly, t0, p0 = polynomial(int(s))
+            value = poly.derivative(flat[pick] - t0, der=k) if k else poly(flat[pick] - t0)
+            out[pick] = value + p0 if k == 0 else value
+        return out.reshape(t.shape + (3,))
+    return evaluate
+
+
 def from_state_vectors(states: StateVectors) -> Trajectory:
     """The smooth interpolant of ``states``, eq. (J2): ``scipy.interpolate.CubicHermiteSpline``
-    through positions and velocities, or ``CubicSpline`` (not-a-knot) through positions alone.
-    Outside the samples it extrapolates its end polynomials (the echoes of the last pulses arrive
-    a few milliseconds after it)."""
+    through positions and velocities, or ``CubicSpline`` (not-a-knot) through positions alone;
+    with a :attr:`~StateVectors.window` the local Hermite interpolation of precise orbits (J6,
+    :func:`hermite_window`). Outside the samples it extrapolates its end
+    polynomials (the echoes of the last pulses arrive a few milliseconds after it)."""
     from scipy.interpolate import CubicHermiteSpline, CubicSpline
+    if states.window:
+        return Trajectory("state vectors", hermite_window(states), (float(states.time[0]), float(states.time[-1])),
+                          states=states)
     if states.velocity is not None:
         spline = CubicHermiteSpline(states.time, states.position, states.velocity, axis=0)
     else:
@@ -283,7 +173,7 @@ def from_state_vectors(states: StateVectors) -> Trajectory:
 
     def evaluate(t: np.ndarray, k: int) -> np.ndarray:
         return np.asarray(spline(t, k), np.float64)
-    return Trajectory("state vectors", evaluate, (float(states.time[0]), float(states.time[-1])))
+    return Trajectory("state vectors", evaluate, (float(states.time[0]), float(states.time[-1])), states=states)
 
 
 # ============================================================================ motion errors
@@ -396,7 +286,7 @@ def with_motion_error(nominal: Trajectory, error: MotionError, t_lo: float, t_hi
                                   "horizontal direction normal to it exists")
         normal = horizontal / speed[..., None]
         return base + (e(distance(t), k) * speed ** k)[..., None] * normal
-    return Trajectory(nominal.kind + " + motion error", evaluate, nominal.span, nominal)
+    return Trajectory(nominal.kind + " + motion error", evaluate, nominal.span, nominal, nominal.states)
 
 
 # ============================================================================ echo timing

@@ -30,6 +30,7 @@ from .geometry_checks import check_geometry
 from .planning import AcquisitionWarning, resolve_parameters
 from .radar_equation import radar_equation
 from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
+from ..core.orbit import in_scene_frame
 from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from .trace_inputs import MaterialTable, TraceSettings
@@ -231,13 +232,14 @@ def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: n
     (the latter moved by ``offset``)."""
     kind = params.trajectory
     if isinstance(kind, StateVectors):
-        return dataclasses.replace(params, trajectory=kind.shifted(offset)) if np.any(offset) else params
+        kind = in_scene_frame(kind, georef.of(params))       # ECEF states: into the ENU frame at geo_origin
+        return dataclasses.replace(params, trajectory=kind.shifted(offset) if np.any(offset) else kind)
     if kind in TRAJECTORIES:
         return params
     file = Path(kind).expanduser()
     if not file.is_absolute() and scene_file is not None:
         file = scene_file.parent / file
-    states = read_state_vectors(file)
+    states = in_scene_frame(read_state_vectors(file), georef.of(params))
     return dataclasses.replace(params, trajectory=states.shifted(offset) if np.any(offset) else states)
 
 

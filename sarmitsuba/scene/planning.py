@@ -15,7 +15,7 @@ from scipy import fft as sp_fft
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
-from ..core.geometry import AcquisitionGeometry, track_frame
+from ..core.geometry import AcquisitionGeometry, pulse_times, track_frame
 from ..core.trajectory import StateVectors, from_state_vectors
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 
@@ -99,6 +99,9 @@ def state_vector_parameters(params: RadarParameters) -> RadarParameters:
     t_lo, t_hi = path.span
     n = params.n_pulses or int(math.floor((t_hi - t_lo) * params.prf + 1e-9)) + 1
     mid = 0.5 * (t_lo + t_hi)
+    if states.closest_approach:          # an orbit: the aperture about the closest approach (J6)
+        n = params.n_pulses
+        mid = float(pulse_times(replace(params, n_pulses=max(n, 1)), path)[max(n, 1) // 2])
     antenna, v = path.position(mid), path.velocity(mid)
     rel = np.asarray(params.scene_center, float) - antenna
     height, ground = -float(rel[2]), float(math.hypot(rel[0], rel[1]))
