@@ -11,9 +11,13 @@ sarmitsuba wrote before, still read.
   transposed image); a file read back is transposed again. Signs: rows increase away from the
   sensor, columns along the flight direction, so ``Row x Col`` points up (away from the Earth)
   for a right-looking image and down for a left-looking one.
-- **Grid** (``Type = PLANE``, ``ImagePlane = GROUND`` or ``SLANT``; SICD volume 1, Grid):
-  ``Row/UVectECF`` is the image's range direction, ``Col/UVectECF`` its azimuth direction, both
-  in ECEF through the geographic reference (docs/physics.md (G1), (G3)); the SCP is the image's
+- **Grid** (``Type = PLANE``; SICD volume 1, Grid): by default ``ImagePlane = SLANT``, the slant
+  plane at the SCP (``Row/UVectECF`` the line of sight from the antenna at the SCP's centre of
+  aperture, ``Col/UVectECF`` the velocity across it), onto which a ground-plane image is
+  resampled along SICD's range / range-rate projection (:mod:`sarmitsuba.formats.sicd_slant`,
+  docs/physics.md (G4)); with ``plane="image"`` the image's own plane (``GROUND`` for a ground
+  image: ``Row/UVectECF`` its range direction, ``Col/UVectECF`` its azimuth direction), in
+  ECEF through the geographic reference (docs/physics.md (G1), (G3)). The SCP is the image's
   centre pixel. ``KCtr``, ``ImpRespBW``, the weighting (``WgtType``, ``WgtFunct``) and
   ``ImpRespWid`` are those of the aperture that formed the SCP
   (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. The image is resampled for the SICD onto

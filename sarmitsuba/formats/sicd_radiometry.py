@@ -1,6 +1,6 @@
 """SICD ``Radiometric`` scale factors of a sarmitsuba image (NGA.STND.0024-1, SICD Volume 1,
 section "Radiometric": ``RCSSFPoly``, ``BetaZeroSFPoly``, ``SigmaZeroSFPoly``, ``GammaZeroSFPoly``;
-docs/physics.md (K), (K2)).
+docs/physics.md (K), (K2), (K3)).
 
 sarmitsuba's images are calibrated to unit peak gain (K): a point target of RCS ``sigma`` peaks
 at ``sqrt(sigma)`` and carries ``int |I|^2 dA = sigma rho_row rho_col`` over the image plane, the
