@@ -21,8 +21,11 @@ def test_prf_too_high_for_the_scene_depth_warns_of_range_ambiguities():
         simulate("dihedral", sensor_overrides={"prf": 2e6, "n_pulses": 8})
 
 
-def test_scene_outside_the_beam_warns():
-    with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):
+def test_scene_outside_the_beam_is_refused():
+    """A track whose beam never reaches the scene is refused before tracing (issue 55: it rendered
+    an all-zero image with a warning); tests/test_track_refusals.py tests the criterion."""
+    from sarmitsuba.core.radar import ParameterError
+    with pytest.raises(ParameterError, match="no pulse's beam reaches the scene"):
         simulate("trihedral", sensor_overrides={"scene_center": "500, 500, 0", "n_pulses": 4})
 
 

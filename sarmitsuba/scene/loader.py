@@ -27,7 +27,7 @@ from ..core import georef
 from . import materials
 from .meshcheck import check_meshes, shape_points, silent_scene, warn_mesh_defects
 from .geometry_checks import check_geometry
-from .planning import AcquisitionWarning, resolve_parameters
+from .planning import AcquisitionWarning, check_beam_reach, resolve_parameters
 from .radar_equation import radar_equation
 from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
 from ..core.orbit import in_scene_frame
@@ -214,8 +214,10 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
     automatic_track = params.n_pulses == 0
     params = resolve_parameters(params, lo, hi)
-    _note_replaced(given, params)
+    # a trajectory given on its own replaces the scene's platform silently: only values given with it count
+    _note_replaced(given if "trajectory" not in (sensor_overrides or {}) else sensor_overrides, params)
     check_geometry(params, lo, hi, shape_points(scene), automatic_track, offset)   # before any cost estimate
+    check_beam_reach(params, lo, hi)                  # some pulse's beam must reach the scene, any trajectory
     radar_equation(params)                   # radiometry parameters checked before any tracing
     n_tri = sum(int(s.face_count()) for s in scene.shapes() if hasattr(s, "face_count"))
     name = label if path is None else str(source if source is not None else "urban")
@@ -248,7 +250,9 @@ _FROM_STATES = ("altitude", "incidence_angle", "velocity", "heading", "look_side
 
 
 def _note_replaced(given: Mapping[str, Any], params: RadarParameters) -> None:
-    """Warn once when state vectors replace platform parameters the scene or the user gave."""
+    """Warn once when state vectors replace platform parameters given with them (``given``: the
+    overrides when the trajectory is one, else the scene's values and the overrides); the scene's
+    own defaults, replaced by a trajectory the user gives, are not named."""
     if not isinstance(params.trajectory, StateVectors):
         return
     replaced = []
