@@ -48,7 +48,7 @@ from .figures_point import point_target_figure
 from .figures_raw import MIN_LIT_FRACTION, POINT_PHASE_RMS, raw_figure
 from ..core.image import SarImage
 from ..core.outputs import OutputDirectory, atomic_write, json_default
-from .plotting import (REFERENCE_PERCENTILE, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
+from .plotting import (REFERENCE_PERCENTILE, RELATIVE_DB, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
                        image_extent, multilook, reference_intensity, save_png, show_db_image, window_label)
 from ..core.raw import RawData
 
@@ -140,7 +140,7 @@ def image_figure(image: SarImage, path: str | os.PathLike, *, dynamic_range_db: 
     fig = agg_figure(figsize, dpi)
     ax = fig.add_subplot()
     shown = _show_image(ax, image, power, looks, reference_intensity(power), dynamic_range_db)
-    colorbar(fig, ax, shown, f"dB re the {REFERENCE_PERCENTILE:g}th percentile")
+    colorbar(fig, ax, shown, RELATIVE_DB)
     ax.set_title(f"{title or image.metadata.get('scene', 'SAR image')}\n{_describe(image, looks)}", fontsize="small")
     return save_png(fig, path, dpi)
 
@@ -245,12 +245,15 @@ def comparison_figure(images: Mapping[str, SarImage], path: str | os.PathLike, *
     looks = [display_looks(im.data.shape, max_pixels) for _, im in labelled]
     powers = [multilook(im.data, lk) for (_, im), lk in zip(labelled, looks)]
     common = reference_intensity(*powers)
-    fig = agg_figure((panel_size[0] * len(labelled), panel_size[1]), dpi, layout="compressed")
+    # constrained, not compressed: each panel keeps its cell's width, so that a title wider than a
+    # narrow (slant, spaceborne) image stays over its own panel
+    fig = agg_figure((panel_size[0] * len(labelled), panel_size[1]), dpi)
     axes = np.atleast_1d(fig.subplots(1, len(labelled)))
     for ax, (label, im), power, lk in zip(axes, labelled, powers, looks):
         shown = _show_image(ax, im, power, lk, common if common_scale else reference_intensity(power), dynamic_range_db)
         ax.set_title(f"{label}\n" + _describe(im, lk), fontsize="x-small")
-    fig.colorbar(shown, ax=list(axes), label="dB" + (" re common reference" if common_scale else ""))
+    fig.colorbar(shown, ax=list(axes), shrink=0.8,
+                 label=f"dB re the common {REFERENCE_PERCENTILE:g}th percentile" if common_scale else RELATIVE_DB)
     return save_png(fig, path, dpi)
 
 
@@ -300,7 +303,7 @@ def overlay_figure(image: SarImage, loaded: Any, path: str | os.PathLike, *, tru
     fig = agg_figure(figsize, dpi)
     ax, ax_labels = fig.subplots(1, 2, sharex=True, sharey=True)
     shown = _show_image(ax, image, power, looks, reference_intensity(power), dynamic_range_db)
-    colorbar(fig, ax, shown, "dB")
+    colorbar(fig, ax, shown, RELATIVE_DB)
     extent = image_extent(image, power.shape, looks)
     layers = (("layover", "half", (1.0, 0.55, 0.0, 0.40)), ("shadow", "half", (0.1, 0.55, 1.0, 0.45)),
               ("double_bounce", "any", (1.0, 0.0, 0.0, 0.95)))

@@ -110,9 +110,10 @@ def point_target_figure(image: SarImage, report: Any, path: str | os.PathLike, *
     extra = [f"{k.replace('_', ' ').replace(' db', '')} {float(_report_value(report, k)):.3g} {unit}"
              for k, unit in (("azimuth_error", "m"), ("range_error", "m"), ("rcs_db", "dBsm"))
              if _report_value(report, k) is not None]
+    # three short lines, not one: the window's name alone is 62 characters (taylor twice)
     fig.suptitle(f"point target at azimuth {float(image.azimuth[0]) + row * steps[0]:.2f} m, range "
-                 f"{float(image.range[0]) + col * steps[1]:.2f} m ({window_label(image)} window)"
-                 + (f"; {', '.join(extra)}" if extra else ""), fontsize="medium")
+                 f"{float(image.range[0]) + col * steps[1]:.2f} m\n{window_label(image)} window"
+                 + (f"\n{', '.join(extra)}" if extra else ""), fontsize="medium")
     return save_png(fig, path, dpi)
 
 

@@ -28,7 +28,8 @@ import numpy as np
 from ..core.image import SarImage
 from ..core.outputs import WriteError, atomic_write, json_default
 from .plotting import (REFERENCE_PERCENTILE, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
-                       has_signal, intensity, multilook, reference_intensity, save_png, show_db_image)
+                       has_signal, intensity, multilook, reference_intensity, save_png, show_db_image,
+                       RELATIVE_DB)
 
 __all__ = ["write_exr", "write_quicklook", "WriteError"]
 
@@ -152,7 +153,10 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     per ``image.plane``), the y axis azimuth, both in metres with pixel centres at the axis
     values (``origin="lower"``: azimuth, the flight direction, increases upward; an arrow
     marks it). Near range (the sensor side) is on the left, marked under the axis label with
-    far range on the right. The colour bar is as tall as the image. An all-zero or non-finite
+    far range on the right. The colour bar is as tall as the image; its dB are relative to
+    ``I_ref``, not to 1 m^2, and for a calibrated image (``metadata["units"]`` sqrt(m^2)) it gives
+    ``I_ref`` in dBsm (a point target's peak intensity is its RCS). Absolute values are in the
+    GeoTIFF and from ``analyze``. An all-zero or non-finite
     image is drawn uniformly at ``-dynamic_range_db`` and says so in the title; no NaN or
     divide-by-zero warning is raised.
     Rendered with matplotlib's Agg canvas and no pyplot state.
@@ -170,11 +174,13 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     looks = display_looks(image.data.shape, max_pixels)
     power = multilook(image.data, looks)
     empty = not has_signal(power)
-    db = np.full(power.shape, -dynamic_range_db) if empty else \
-        decibels(power, reference_intensity(power), dynamic_range_db)
+    reference = 1.0 if empty else reference_intensity(power)
+    db = np.full(power.shape, -dynamic_range_db) if empty else decibels(power, reference, dynamic_range_db)
     ax = fig.add_subplot()
     shown = show_db_image(ax, image, db, looks, dynamic_range_db, aspect=aspect)
-    colorbar(fig, ax, shown, "dB")
+    # relative (a lone target's sidelobes sit near 0 dB); a calibrated image also says what 0 dB is
+    calibrated = str(image.metadata.get("units", "")).startswith("sqrt(m^2)") and not empty
+    colorbar(fig, ax, shown, RELATIVE_DB + (f"\n(0 dB = {10.0 * np.log10(reference):.1f} dBsm)" if calibrated else ""))
     ax.set_title(_title(image, title, dynamic_range_db, empty, looks), fontsize="small")
     return save_png(fig, path, dpi, "quicklook")
 

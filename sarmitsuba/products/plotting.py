@@ -32,7 +32,7 @@ import numpy as np
 from ..core.image import SarImage
 from ..core.outputs import atomic_write
 
-__all__ = ["REFERENCE_PERCENTILE", "intensity", "multilook", "display_looks", "has_signal", "reference_intensity", "decibels",
+__all__ = ["REFERENCE_PERCENTILE", "MAX_BOX_ASPECT", "RELATIVE_DB", "intensity", "multilook", "display_looks", "has_signal", "reference_intensity", "decibels",
            "check_dynamic_range", "edges", "image_extent", "show_db_image", "axis_labels", "label_image_axes",
            "colorbar", "window_label", "agg_figure", "save_png"]
 
@@ -40,6 +40,12 @@ __all__ = ["REFERENCE_PERCENTILE", "intensity", "multilook", "display_looks", "h
 REFERENCE_PERCENTILE = 99.5
 #: Rows of an image turned into intensity at once (bounds the float64 temporaries).
 ROWS_PER_BAND = 256
+#: Largest height-to-width ratio (and its inverse) of an image's box drawn to scale: a longer image
+#: (a spaceborne slant image is 25 times longer in azimuth than in range) is drawn in a box of this
+#: ratio and says how much it is compressed, instead of as a sliver its labels cannot fit beside.
+MAX_BOX_ASPECT = 2.5
+#: Colour-bar label of a dB scale relative to :data:`REFERENCE_PERCENTILE`.
+RELATIVE_DB = f"dB re the {REFERENCE_PERCENTILE:g}th percentile"
 
 
 # ============================================================================ numbers
@@ -139,10 +145,33 @@ def show_db_image(ax: Any, image: SarImage, db: np.ndarray, looks: tuple[int, in
                   aspect: str | float = "equal") -> Any:
     """Draw ``db`` [n_az, n_rg] (dB, multilooked by ``looks``) of ``image`` on ``ax`` in grey over
     ``[-dynamic_range_db, 0]``, range on x and azimuth upward in metres, axes labelled
-    (:func:`label_image_axes`); returns the AxesImage."""
+    (:func:`label_image_axes`); returns the AxesImage.
+
+    With ``aspect="equal"`` an image longer than :data:`MAX_BOX_ASPECT` times its width (or wider
+    than that times its length) is drawn in a box of that ratio, not to scale, and says so in its
+    lower right corner. Tick labels are plain metres, without an offset; range ticks of six
+    digits or more (slant ranges from orbit) are at most three."""
+    extent = image_extent(image, db.shape, looks)
+    stretch = 1.0
+    if isinstance(aspect, str) and aspect == "equal":
+        ratio = abs(extent[3] - extent[2]) / max(abs(extent[1] - extent[0]), 1e-300)
+        box = min(max(ratio, 1.0 / MAX_BOX_ASPECT), MAX_BOX_ASPECT)
+        if box != ratio:
+            aspect, stretch = "auto", ratio / box
+            ax.set_box_aspect(box)
     shown = ax.imshow(db, cmap="gray", vmin=-dynamic_range_db, vmax=0.0, origin="lower",
-                      extent=image_extent(image, db.shape, looks), aspect=aspect, interpolation="nearest")
+                      extent=extent, aspect=aspect, interpolation="nearest")
+    ax.ticklabel_format(axis="both", style="plain", useOffset=False)
+    if max(abs(extent[0]), abs(extent[1])) >= 1e5:
+        from matplotlib.ticker import MaxNLocator
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=3, steps=[1, 2, 2.5, 5, 10]))
     label_image_axes(ax, image)
+    if stretch != 1.0:
+        from matplotlib import patheffects
+        which, factor = ("azimuth", stretch) if stretch > 1.0 else ("range", 1.0 / stretch)
+        ax.annotate(f"not to scale:\n{which} {factor:.3g}x shorter", xy=(0.97, 0.03), xycoords="axes fraction",
+                    ha="right", va="bottom", fontsize="x-small", color="yellow",
+                    path_effects=[patheffects.withStroke(linewidth=2.0, foreground="black")])
     return shown
 
 
@@ -170,7 +199,7 @@ def label_image_axes(ax: Any, image: SarImage) -> None:
     ax.set_ylabel(y_label)
     below = {"xycoords": (ax.transAxes, ax.xaxis.label), "xytext": (0, -2), "textcoords": "offset points",
              "va": "top", "fontsize": "x-small", "color": "0.2"}
-    ax.annotate("\u2190 near range (sensor side)", xy=(0.0, 0.0), ha="left", **below)
+    ax.annotate("\u2190 near range\n(sensor side)", xy=(0.0, 0.0), ha="left", multialignment="left", **below)
     ax.annotate("far range \u2192", xy=(1.0, 0.0), ha="right", **below)
     from matplotlib import patheffects
     outline = [patheffects.withStroke(linewidth=2.0, foreground="black")]
