@@ -3,7 +3,8 @@ alike, with the trihedral away from the scene reference point (issue 55, items 3
 
 The trihedral sits 2.6 m along track and 1.8 m across it from the SRP / SCP (a few resolution
 cells both ways), where a wrong position or sign no longer focuses by accident, at 35 deg
-incidence (straight track) and 55 deg (a 3 deg circular arc): sin and cos of the angles differ.
+incidence (straight track), 55 deg (a 3 deg circular arc) and 50 deg looking left: sin and cos
+of the angles differ.
 
 - sarpy's SICD validity and consistency checks and its CPHD consistency check log no ERROR and no
   "want"; sarkit's ``sicdcheck`` and ``cphdcheck`` find nothing.
@@ -51,18 +52,22 @@ APEX = np.array([2.6, -1.8, 0.0])          # along track, toward the sensor's si
 EDGE = 1.5
 FREQUENCY = 9.6e9
 CASES = {"straight": {"incidence_angle": 35.0},
-         "circular": {"incidence_angle": 55.0, "trajectory": "circular", "arc_deg": 3.0}}
+         "circular": {"incidence_angle": 55.0, "trajectory": "circular", "arc_deg": 3.0},
+         "left": {"incidence_angle": 50.0, "look_side": "left"}}
 SARPY_GROUND_AREA = "RadiometricType: The BetaZeroSFPoly and RCSSFPoly are not consistent."
 
 
-def trihedral(apex: np.ndarray, incidence: float):
+def trihedral(apex: np.ndarray, incidence: float, left: bool = False):
     """The built-in 1.5 m trihedral (scenes/meshes/trihedral.obj), its boresight tilted up to the
-    sensor at ``incidence`` deg (the mesh's axis rises 35.26 deg), apex at ``apex``."""
+    sensor at ``incidence`` deg (the mesh's axis rises 35.26 deg), turned to the -y side for a
+    left-looking sensor, apex at ``apex``."""
     import trimesh
     mesh = trimesh.load(MESH, force="mesh")
     mesh.apply_scale(EDGE)
     tilt = 90.0 - incidence - math.degrees(math.atan(1.0 / math.sqrt(2.0)))
     mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(tilt), [1, 0, 0]))
+    if left:
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(math.pi, [0, 0, 1]))
     mesh.apply_translation(apex)
     return mesh
 
@@ -81,7 +86,8 @@ def products(tmp_path_factory):
         sensor = {"frequency": FREQUENCY, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250.0,
                   "velocity": 100.0, "altitude": 1000.0, "azimuth_beamwidth": 1.2,
                   "scene_center": (0.0, 0.0, 0.0), "geo_origin": "48.1, 11.5, 520", **overrides}
-        scene = Scene(meshes=[(trihedral(APEX, overrides["incidence_angle"]), "pec", "tri")], sensor=sensor,
+        mesh = trihedral(APEX, overrides["incidence_angle"], overrides.get("look_side") == "left")
+        scene = Scene(meshes=[(mesh, "pec", "tri")], sensor=sensor,
                       integrator={"max_depth": 3})
         sim = simulate(scene, image_size=(96, 96), focuser="bp")
         folder = tmp_path_factory.mktemp(name)
@@ -176,8 +182,10 @@ def coa_state(sim, xml):
 @pytest.mark.parametrize("case", list(CASES))
 def test_row_is_the_line_of_sight_and_col_the_velocity_across_it(products, case):
     """Row = the unit line of sight from the antenna at the SCP's COA (raw positions, by hand), Col =
-    the velocity there less its part along the row. Catches the ground-plane grid of today's code
-    (horizontal rows) and a column vector that is not orthogonal to the row."""
+    the velocity there less its part along the row, along the flight looking right and against it
+    looking left (Row x Col away from the Earth, which sicdcheck requires). Catches the
+    ground-plane grid of today's code (horizontal rows) and a column vector that is not orthogonal
+    to the row."""
     sim, path, _ = products[case]
     xml, _, _ = parts(path)
     ref = georef.of(sim.raw.metadata["radar"])
@@ -187,8 +195,9 @@ def test_row_is_the_line_of_sight_and_col_the_velocity_across_it(products, case)
     across = velocity - (velocity @ los) * los
     axes = georef.enu_axes(ref)
     np.testing.assert_allclose(xml.load("{*}Grid/{*}Row/{*}UVectECF"), los @ axes, atol=2e-4)
-    np.testing.assert_allclose(xml.load("{*}Grid/{*}Col/{*}UVectECF"), across / np.linalg.norm(across) @ axes,
-                               atol=2e-4)
+    sense = -1.0 if CASES[case].get("look_side") == "left" else 1.0
+    np.testing.assert_allclose(xml.load("{*}Grid/{*}Col/{*}UVectECF"),
+                               sense * across / np.linalg.norm(across) @ axes, atol=2e-4)
     incidence = math.radians(CASES[case]["incidence_angle"])
     assert -los[2] == pytest.approx(math.cos(incidence), abs=0.01)       # looks down at the set incidence
 
@@ -207,9 +216,11 @@ def test_sarkit_projects_the_apex_onto_the_sicd_peak(products, case):
     params = skproj.MetadataParams.from_xml(tree)
     locations, _, _ = skproj.scene_to_image(params, georef.enu_to_ecef(APEX, ref))
     x_row, y_col = (float(v) for v in locations)
-    report = analyze_point_target(read_sicd(path), (y_col, x_row), chip=16)
+    image = read_sicd(path)                       # its azimuth along the flight: against Col looking left
+    sense = float(np.sign(image.azimuth_direction @ (xml.load("{*}Grid/{*}Col/{*}UVectECF") @ georef.enu_axes(ref).T)))
+    report = analyze_point_target(image, (sense * y_col, x_row), chip=16)
     assert report.range == pytest.approx(x_row, abs=0.1 * xml.load("{*}Grid/{*}Row/{*}ImpRespWid"))
-    assert report.azimuth == pytest.approx(y_col, abs=0.1 * xml.load("{*}Grid/{*}Col/{*}ImpRespWid"))
+    assert report.azimuth == pytest.approx(sense * y_col, abs=0.1 * xml.load("{*}Grid/{*}Col/{*}ImpRespWid"))
     assert math.hypot(x_row, y_col) > 2.0 * xml.load("{*}Grid/{*}Row/{*}ImpRespWid")      # off the SCP
 
 

@@ -383,7 +383,9 @@ def check_sicd(path: str | os.PathLike, advisory: bool = True) -> list[str]:
 def read_sicd(path: str | os.PathLike) -> SarImage:
     """Read a SICD NITF with a PLANE grid into a SarImage in a local east-north-up frame.
 
-    Files written by :func:`write_sicd` come back in their own frame on the SICD grid (positions
+    The image's azimuth runs along the flight: the columns of a SICD whose ``Col/UVectECF`` points
+    against the antenna's velocity (left-looking) are reversed. Files written by
+    :func:`write_sicd` come back in their own frame on the SICD grid (positions
     within micrometres, the pixels with the carrier the writer took out restored, metadata
     included; writing that image again changes no pixel); files of the former SICD 1.4.0 layout
     as they were written (the focused image's own grid); other tools' files in the frame of
@@ -467,6 +469,11 @@ def image_from_parts(path: Any, tree: Any, array: np.ndarray) -> SarImage:
     azi = (scp - origin) @ u_az + (cols - scp_col) * ss_az
     metadata = json.loads(params[_PARAM_METADATA]) if _PARAM_METADATA in params else {"source": str(path)}
     data = _with_carrier(array, grid.get("carrier_removed"), (rows - scp_row) * ss_rg, (cols - scp_col) * ss_az)
+    velocity = xml.load("{*}SCPCOA/{*}ARPVel")
+    if velocity is not None and float(xml.load("{*}Grid/{*}Col/{*}UVectECF") @ velocity) < 0:
+        # columns against the flight (a left-looking SICD, Row x Col away from the Earth): the
+        # SarImage's azimuth runs along the flight, as a focused image's does; the positions stay
+        data, azi, u_az = data[:, ::-1], -azi[::-1], -u_az
     return SarImage(data=np.ascontiguousarray(data.T).astype(np.complex64), azimuth=azi, range=rng, origin=origin,
                     azimuth_direction=u_az, range_direction=u_rg,
                     plane="ground" if xml.load("{*}Grid/{*}ImagePlane") == "GROUND" else "slant",

@@ -7,7 +7,8 @@ Commercial SICDs of backprojected images are slant-plane grids. sarmitsuba focus
 - ``Row/UVectECF`` is the unit line of sight from the antenna at the SCP's centre of aperture
   (COA) to the SCP (slant range, increasing away from the sensor), ``Col/UVectECF`` the
   antenna's velocity there less its part along the line of sight (the plane SICD's
-  ``SCPCOA`` slant plane is: spanned by the line of sight and the velocity);
+  ``SCPCOA`` slant plane is: spanned by the line of sight and the velocity), signed so that
+  ``Row x Col`` points away from the Earth (along the flight looking right, against it looking left);
 - each slant-plane pixel shows the ground point that SICD's projection (constant range and range
   rate from the COA antenna position, sarkit's ``r_rdot_to_ground_plane_mono``) gives for it on
   the ground image's plane, so that any SICD reader that projects the pixel to the ground lands
@@ -82,8 +83,8 @@ def slant_frame(image: SarImage, track: Track, scp: np.ndarray, spotlight: bool)
     if not np.linalg.norm(across) > 1e-9 * max(np.linalg.norm(varp), 1e-300):
         raise SlantError("the antenna moves along its line of sight to the scene centre: no slant plane")
     col = _unit(across)
-    if col @ np.asarray(image.azimuth_direction, float) < 0:       # columns keep the image's azimuth sense
-        col = -col
+    if np.cross(row, col)[2] < 0:               # Row x Col points away from the Earth (SICD volume 1, Grid):
+        col = -col                              # columns along the flight looking right, against it looking left
     d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
     e_rg, e_az = np.asarray(image.range_direction, float), np.asarray(image.azimuth_direction, float)
     origin = np.asarray(image.origin, float)
