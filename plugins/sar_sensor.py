@@ -93,6 +93,16 @@
      the path of a CSV of state vectors ``time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps]`` in the
      scene frame (relative to the scene file's folder), interpolated smoothly; pulses at the PRF
      over its span, the platform parameters from its mid-aperture state (docs/physics.md (J1), (J2)).
+     ``# frame = ecef`` makes the rows WGS84 ECEF, a ``utc`` column or ``# epoch = ISO 8601``
+     line (or ``# time_scale = gps``) makes the times absolute (J5); a Sentinel-1 orbit file (EOF
+     XML) is read too (J6). ``orbit``: a circular orbit ``altitude`` above the WGS84 ellipsoid that
+     sees the scene at ``geo_origin`` at ``incidence_angle`` (J7).
+ * - orbit_inclination
+   - float, deg
+   - ``trajectory = orbit``: the orbit's inclination, (0, 180), default 98.18 (Sentinel-1).
+ * - orbit_direction
+   - string
+   - ``trajectory = orbit``: ``descending`` (default) or ``ascending``.
  * - arc_deg
    - float, deg
    - Arc of a circular trajectory, (0, 360], default 360 (the full circle).

@@ -138,6 +138,7 @@ def trajectory_of(params: RadarParameters) -> tj.Trajectory:
       ``ground_range`` at ``altitude``, passing at ``t = 0`` where the straight track's mid-aperture
       antenna would (broadside), flown at ``velocity`` along ``heading`` there, clockwise seen from
       above when looking right (the scene centre on the right) and counter-clockwise when looking left;
+    - ``"orbit"``: the circular orbit of :func:`~.orbit.orbit_of` (J7), then as state vectors;
     - state vectors (:class:`~.trajectory.StateVectors`, or a CSV or orbit file read from the
       working directory): their interpolant; ECEF states are carried into the scene's ENU frame
       at ``geo_origin`` first (:func:`~.orbit.in_scene_frame`, (J6)).
@@ -159,7 +160,8 @@ def trajectory_of(params: RadarParameters) -> tj.Trajectory:
         sign = -1.0 if params.look_side == "right" else 1.0
         return tj.circular(axis, params.ground_range, math.atan2(start[1], start[0]),
                            sign * params.velocity / params.ground_range)
-    states = kind if isinstance(kind, tj.StateVectors) else tj.read_state_vectors(kind)
+    states = (kind if isinstance(kind, tj.StateVectors) else orbit.orbit_of(params) if kind == "orbit"
+              else tj.read_state_vectors(kind))
     states = orbit.in_scene_frame(states, georef.of(params))
     if np.any(offset):
         states = states.shifted(-offset)

@@ -9,6 +9,9 @@ geometry of an orbit's pass (docs/physics.md (J5), (J6)).
   velocities rotated by :func:`~.georef.enu_axes`. ECEF and the ENU frame both turn with the
   Earth, so the map is one fixed rigid motion: ECEF state vectors already hold the Earth's
   rotation, and no flat-earth step is taken;
+- :func:`builtin_orbit` is ``trajectory = orbit``: a circular Keplerian orbit in an inertial
+  frame turned into ECEF by the Earth's rotation, placed so that the scene is seen at
+  ``incidence_angle`` on ``look_side`` at closest approach;
 - :func:`closest_approach` is the time an orbit comes closest to a point (its pulses centre
   there), and :func:`pass_geometry` what ``info`` reports of the pass.
 """
@@ -21,9 +24,10 @@ from typing import Any
 import numpy as np
 
 from . import georef
-from .state_vectors import StateVectors, read_eof
+from .state_vectors import HERMITE_WINDOW, StateVectors, TrajectoryError, read_eof
 
-__all__ = ["read_eof", "in_scene_frame", "pass_geometry", "PassGeometry", "closest_approach"]
+__all__ = ["read_eof", "in_scene_frame", "pass_geometry", "PassGeometry", "closest_approach", "builtin_orbit", "orbit_of",
+           "EARTH_ROTATION", "GM_EARTH", "ORBIT_STEP"]
 
 
 # ============================================================================ frames
@@ -38,6 +42,107 @@ def in_scene_frame(states: StateVectors, ref: georef.GeoReference) -> StateVecto
     axes = georef.enu_axes(ref)
     velocity = None if states.velocity is None else states.velocity @ axes.T
     return replace(states, position=georef.ecef_to_enu(states.position, ref), velocity=velocity, frame="scene")
+
+
+# ============================================================================ built-in orbit
+#: The Earth's rotation rate [rad/s] (WGS84, NIMA TR8350.2 table 3.1).
+EARTH_ROTATION = 7.292115e-5
+#: The Earth's gravitational constant GM [m^3/s^2] (WGS84, NIMA TR8350.2 table 3.1).
+GM_EARTH = 3.986004418e14
+#: Spacing [s] of the state vectors of :func:`builtin_orbit` (that of Sentinel-1 orbit files).
+ORBIT_STEP = 10.0
+
+
+def builtin_orbit(ref: georef.GeoReference, altitude: float, incidence_deg: float, look_side: str,
+                  inclination_deg: float, ascending: bool, duration: float = 600.0) -> StateVectors:
+    """``trajectory = orbit``: ECEF state vectors (every :data:`ORBIT_STEP` s over ``duration`` s,
+    closest approach to the scene at the middle, ``t = duration / 2``, relative clock) of a circular
+    Keplerian orbit, eq. (J7), placed so that at closest approach
+
+    - the satellite is ``altitude`` [m] above the WGS84 ellipsoid (pyproj),
+    - the scene at ``ref`` sees it at ``incidence_deg`` from the ellipsoid normal, on ``look_side``
+      of the track (zero Doppler in the Earth-fixed frame),
+    - the orbit's plane has ``inclination_deg`` and the satellite moves north (``ascending``) or south.
+
+    The orbit is ``r(t) = a (cos(n t) r0 + sin(n t) w)``, ``n = sqrt(GM / a^3)``, in the inertial
+    frame that coincides with ECEF at closest approach, and ECEF is that frame turned by the
+    Earth's rotation: ``r_ecef = Rz(-W t) r``, ``v_ecef = Rz(-W t) (v - W x r)``. The zero-Doppler
+    condition and the inclination fix the along- and across-track place together: a fixed-point
+    iteration turns the line of sight normal to the Earth-fixed velocity (it converges to 1e-9 rad
+    in a few steps).
+
+    Raises TrajectoryError when the inclination cannot reach the satellite's latitude (``|lat| >
+    inclination`` and ``> 180 deg - inclination``)."""
+    from scipy.optimize import brentq
+    scene = georef.enu_to_ecef(np.zeros(3), ref)
+    axes = georef.enu_axes(ref)
+    east, north, up = axes
+    inc = math.radians(incidence_deg)
+    i = math.radians(inclination_deg)
+    omega = np.array([0.0, 0.0, EARTH_ROTATION])
+    heading = _track_azimuth(math.radians(ref.latitude_deg), i, ascending, inclination_deg)
+    velocity = math.sin(heading) * east + math.cos(heading) * north            # first guess: the ground track
+    sign = -1.0 if look_side == "right" else 1.0                               # the satellite left of its track
+    for _ in range(50):
+        # the line of sight from the scene: cos(incidence) on the normal, normal to the Earth-fixed velocity
+        e1 = velocity / np.linalg.norm(velocity)
+        e2 = up - (up @ e1) * e1
+        e2 /= np.linalg.norm(e2)
+        x = math.cos(inc) / float(up @ e2)
+        los = x * e2 + sign * math.sqrt(max(1.0 - x * x, 0.0)) * np.cross(e1, e2)
+        los_enu = axes @ los                                                 # the same direction in ENU
+
+        def height(rho: float) -> float:
+            return float(georef.enu_to_geodetic(rho * los_enu, ref)[2]) - altitude
+        rho = brentq(height, 0.0, 10.0 * altitude + 1e5, xtol=1e-6)
+        p = scene + rho * los
+        radius = float(np.linalg.norm(p))
+        r_hat = p / radius
+        e_hat = np.cross([0.0, 0.0, 1.0], r_hat)
+        e_hat /= np.linalg.norm(e_hat)
+        n_hat = np.cross(r_hat, e_hat)
+        az = _track_azimuth(math.asin(r_hat[2]), i, ascending, inclination_deg)
+        v_inertial = math.sqrt(GM_EARTH / radius) * (math.sin(az) * e_hat + math.cos(az) * n_hat)
+        new = v_inertial - np.cross(omega, p)
+        done = np.linalg.norm(new / np.linalg.norm(new) - e1) < 1e-12
+        velocity = new
+        if done:
+            break
+    mean_motion = math.sqrt(GM_EARTH / radius ** 3)
+    w_hat = np.cross(np.cross(p, v_inertial), p)
+    w_hat /= np.linalg.norm(w_hat)
+    half = int(math.ceil(0.5 * duration / ORBIT_STEP))
+    t = ORBIT_STEP * np.arange(-half, half + 1, dtype=np.float64)
+    c, s = np.cos(mean_motion * t)[:, None], np.sin(mean_motion * t)[:, None]
+    r = radius * (c * r_hat + s * w_hat)
+    v = radius * mean_motion * (-s * r_hat + c * w_hat)
+    v = v - np.cross(omega, r)
+    cw, sw = np.cos(-EARTH_ROTATION * t), np.sin(-EARTH_ROTATION * t)
+
+    def rotate(x: np.ndarray) -> np.ndarray:
+        return np.stack([cw * x[:, 0] - sw * x[:, 1], sw * x[:, 0] + cw * x[:, 1], x[:, 2]], axis=1)
+    return StateVectors(t + half * ORBIT_STEP, rotate(r), rotate(v), "orbit", 0, frame="ecef",
+                        window=HERMITE_WINDOW, closest_approach=True)
+
+
+def orbit_of(params: Any) -> StateVectors:
+    """:func:`builtin_orbit` of radar parameters (``trajectory = "orbit"``): their ``geo_origin``,
+    ``altitude``, ``incidence_angle``, ``look_side``, ``orbit_inclination`` and ``orbit_direction``."""
+    return builtin_orbit(georef.of(params), float(params.altitude), float(params.incidence_angle), params.look_side,
+                         float(params.orbit_inclination), params.orbit_direction == "ascending")
+
+
+def _track_azimuth(latitude: float, inclination: float, ascending: bool, inclination_deg: float) -> float:
+    """Azimuth [rad, from north toward east] of an inertial orbit of ``inclination`` crossing the
+    geocentric ``latitude`` [rad] northbound (``ascending``) or southbound: ``sin(az) = cos(i) / cos(lat)``."""
+    s = math.cos(inclination) / max(math.cos(latitude), 1e-12)
+    if abs(s) > 1.0:
+        raise TrajectoryError(f"orbit_inclination = {inclination_deg:g} deg never reaches latitude "
+                              f"{math.degrees(latitude):.3f} deg, where the satellite would pass the scene: give an "
+                              f"inclination between {abs(math.degrees(latitude)):.1f} and "
+                              f"{180 - abs(math.degrees(latitude)):.1f} deg")
+    az = math.asin(s)
+    return az if ascending else math.pi - az
 
 
 # ============================================================================ what info reports

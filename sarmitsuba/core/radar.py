@@ -24,7 +24,7 @@ from .trajectory import MotionError, StateVectors
 from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
 
 __all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "ParameterError", "HALF_POWER_SINC", "ValidRange",
-           "VALID_RANGES", "utc_time", "TRAJECTORIES"]
+           "VALID_RANGES", "utc_time", "TRAJECTORIES", "ORBIT_DIRECTIONS"]
 
 #: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
 #: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
@@ -37,7 +37,9 @@ CHANNELS = ("HH", "HV", "VH", "VV")
 #: Valid values of the sensor parameter ``polarization``.
 POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
 #: Named values of the sensor parameter ``trajectory`` (anything else names a CSV of state vectors).
-TRAJECTORIES = ("straight", "circular")
+TRAJECTORIES = ("straight", "circular", "orbit")
+#: Valid values of the sensor parameter ``orbit_direction`` (``trajectory = "orbit"``).
+ORBIT_DIRECTIONS = ("descending", "ascending")
 
 
 @dataclass(frozen=True)
@@ -144,9 +146,14 @@ class RadarParameters:
         The antenna's path (docs/physics.md (J1), (J2)): ``"straight"`` (default: uniform, level,
         along ``heading``); ``"circular"``: a level circle about the scene centre at ``altitude``
         and ``incidence_angle`` (radius ``ground_range``), flown at ``velocity`` over ``arc_deg``,
-        the beam following the scene centre (``mode`` becomes ``spotlight``); or the path of a CSV
-        file of state vectors (``time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps]``, scene frame;
-        :func:`sarmitsuba.core.trajectory.read_state_vectors`), or :class:`StateVectors` from
+        the beam following the scene centre (``mode`` becomes ``spotlight``); ``"orbit"``: a
+        circular Keplerian orbit on the real Earth (:func:`sarmitsuba.core.orbit.builtin_orbit`,
+        docs/physics.md (J7)) ``altitude`` above the WGS84 ellipsoid, of ``orbit_inclination`` and
+        ``orbit_direction``, seeing the scene at ``geo_origin`` at ``incidence_angle`` (against the
+        ellipsoid normal) on ``look_side`` at closest approach; or the path of a CSV
+        file of state vectors (``time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps]``, scene frame unless
+        ``# frame = ecef``, absolute times with ``utc`` or ``# epoch``; or a Sentinel-1 orbit file;
+        :func:`sarmitsuba.core.trajectory.read_state_vectors`, docs/physics.md (J5), (J6)), or :class:`StateVectors` from
         Python, interpolated smoothly, pulses at the PRF over their span; the scene loader then
         sets ``altitude``, ``incidence_angle``, ``velocity``, ``heading`` and ``look_side`` from the
         mid-aperture state.
@@ -162,6 +169,12 @@ class RadarParameters:
         False (default): each echo is received where the antenna has moved to by its arrival
         (docs/physics.md (J3)); True: the antenna stands still during each echo (the classical
         approximation, for comparison).
+    orbit_inclination : float, deg
+        ``trajectory = "orbit"``: the inclination of the circular orbit's plane, (0, 180) deg;
+        default 98.18 (Sentinel-1's sun-synchronous orbit).
+    orbit_direction : str
+        ``trajectory = "orbit"``: ``"descending"`` (default) or ``"ascending"``: the satellite moves
+        south or north as it passes the scene.
 
     Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
     frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
@@ -209,6 +222,8 @@ class RadarParameters:
     arc_deg: float = 360.0
     motion_error: str | None = None
     stop_and_hop: bool = False
+    orbit_inclination: float = 98.18
+    orbit_direction: str = "descending"
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -276,7 +291,7 @@ class RadarParameters:
     def _check_trajectory(self) -> None:
         """``trajectory``, ``arc_deg``, ``motion_error``, ``stop_and_hop`` (no file is read here)."""
         if not (isinstance(self.trajectory, StateVectors) or (isinstance(self.trajectory, str) and self.trajectory)):
-            raise ParameterError(f"trajectory = {self.trajectory!r}: give 'straight', 'circular' or the path of a CSV "
+            raise ParameterError(f"trajectory = {self.trajectory!r}: give 'straight', 'circular', 'orbit' or the path of a CSV "
                                  "file of state vectors (time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps])")
         if not (isinstance(self.arc_deg, (int, float)) and 0.0 < self.arc_deg <= 360.0):
             raise ParameterError(f"arc_deg = {self.arc_deg!r} deg is outside the valid range (0, 360] deg (the arc "
@@ -291,6 +306,12 @@ class RadarParameters:
                                      "scene centre around the circle; remove squint")
             if self.mode != "spotlight":           # the beam follows the scene centre
                 object.__setattr__(self, "mode", "spotlight")
+        if not (isinstance(self.orbit_inclination, (int, float)) and 0.0 < self.orbit_inclination < 180.0):
+            raise ParameterError(f"orbit_inclination = {self.orbit_inclination!r} deg is outside the valid range "
+                                 "(0, 180) deg (98.18 for Sentinel-1's sun-synchronous orbit)")
+        if self.orbit_direction not in ORBIT_DIRECTIONS:
+            raise ParameterError(f"orbit_direction = {self.orbit_direction!r}; valid values are 'descending' and "
+                                 "'ascending'")
         if isinstance(self.trajectory, StateVectors) and self.trajectory.epoch is not None and \
                 self.collection_start is not None:
             raise ParameterError(f"collection_start = {self.collection_start!r} and the absolute times of trajectory "
@@ -485,7 +506,7 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start"):
+            elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start", "orbit_direction"):
                 out[name] = str(value)
             elif name == "trajectory":
                 out[name] = value if isinstance(value, StateVectors) else str(value).strip()

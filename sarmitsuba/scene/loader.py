@@ -30,7 +30,7 @@ from .geometry_checks import check_geometry
 from .planning import AcquisitionWarning, check_beam_reach, resolve_parameters
 from .radar_equation import radar_equation
 from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
-from ..core.orbit import in_scene_frame
+from ..core.orbit import in_scene_frame, orbit_of
 from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from .trace_inputs import MaterialTable, TraceSettings
@@ -236,6 +236,9 @@ def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: n
     if isinstance(kind, StateVectors):
         kind = in_scene_frame(kind, georef.of(params))       # ECEF states: into the ENU frame at geo_origin
         return dataclasses.replace(params, trajectory=kind.shifted(offset) if np.any(offset) else kind)
+    if kind == "orbit":                                  # the built-in orbit on the real Earth (J7)
+        states = in_scene_frame(orbit_of(params), georef.of(params))
+        return dataclasses.replace(params, trajectory=states.shifted(offset) if np.any(offset) else states)
     if kind in TRAJECTORIES:
         return params
     file = Path(kind).expanduser()
@@ -256,8 +259,9 @@ def _note_replaced(given: Mapping[str, Any], params: RadarParameters) -> None:
     if not isinstance(params.trajectory, StateVectors):
         return
     replaced = []
+    used = ("altitude", "incidence_angle", "look_side") if params.trajectory.source == "orbit" else ()  # placed it
     for name in _FROM_STATES:
-        if name not in given or given[name] is None:
+        if name not in given or given[name] is None or name in used:
             continue
         old, new = given[name], getattr(params, name)
         same = str(old) == new if name == "look_side" else math.isclose(float(old), new, rel_tol=1e-3, abs_tol=1e-3)
