@@ -57,17 +57,16 @@ CASES = {"straight": {"incidence_angle": 35.0},
 SARPY_GROUND_AREA = "RadiometricType: The BetaZeroSFPoly and RCSSFPoly are not consistent."
 
 
-def trihedral(apex: np.ndarray, incidence: float, left: bool = False):
+def trihedral(apex: np.ndarray, incidence: float, turn: float = 0.0):
     """The built-in 1.5 m trihedral (scenes/meshes/trihedral.obj), its boresight tilted up to the
-    sensor at ``incidence`` deg (the mesh's axis rises 35.26 deg), turned to the -y side for a
-    left-looking sensor, apex at ``apex``."""
+    sensor at ``incidence`` deg (the mesh's axis rises 35.26 deg), turned by ``turn`` rad about the
+    vertical from the +y side, apex at ``apex``."""
     import trimesh
     mesh = trimesh.load(MESH, force="mesh")
     mesh.apply_scale(EDGE)
     tilt = 90.0 - incidence - math.degrees(math.atan(1.0 / math.sqrt(2.0)))
     mesh.apply_transform(trimesh.transformations.rotation_matrix(math.radians(tilt), [1, 0, 0]))
-    if left:
-        mesh.apply_transform(trimesh.transformations.rotation_matrix(math.pi, [0, 0, 1]))
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(turn, [0, 0, 1]))
     mesh.apply_translation(apex)
     return mesh
 
@@ -75,6 +74,16 @@ def trihedral(apex: np.ndarray, incidence: float, left: bool = False):
 def closed_form_db() -> float:
     wavelength = SPEED_OF_LIGHT / FREQUENCY
     return 10 * math.log10(4 * math.pi * EDGE ** 4 / (3 * wavelength ** 2))
+
+
+def facing(sensor: dict) -> float:
+    """The turn [rad] about the vertical from +y to the mid-aperture antenna seen from the scene
+    centre (only orients the trihedral; every expected value comes from elsewhere)."""
+    from sarmitsuba.core.geometry import acquisition_geometry
+    from sarmitsuba.core.radar import RadarParameters
+    positions = acquisition_geometry(RadarParameters.from_mapping({**sensor, "n_pulses": 3})).positions
+    east, north = positions[len(positions) // 2][:2]
+    return math.atan2(north, east) - math.pi / 2
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +95,7 @@ def products(tmp_path_factory):
         sensor = {"frequency": FREQUENCY, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250.0,
                   "velocity": 100.0, "altitude": 1000.0, "azimuth_beamwidth": 1.2,
                   "scene_center": (0.0, 0.0, 0.0), "geo_origin": "48.1, 11.5, 520", **overrides}
-        mesh = trihedral(APEX, overrides["incidence_angle"], overrides.get("look_side") == "left")
+        mesh = trihedral(APEX, overrides["incidence_angle"], facing(sensor))
         scene = Scene(meshes=[(mesh, "pec", "tri")], sensor=sensor,
                       integrator={"max_depth": 3})
         sim = simulate(scene, image_size=(96, 96), focuser="bp")
@@ -221,7 +230,7 @@ def test_sarkit_projects_the_apex_onto_the_sicd_peak(products, case):
     report = analyze_point_target(image, (sense * y_col, x_row), chip=16)
     assert report.range == pytest.approx(x_row, abs=0.1 * xml.load("{*}Grid/{*}Row/{*}ImpRespWid"))
     assert report.azimuth == pytest.approx(sense * y_col, abs=0.1 * xml.load("{*}Grid/{*}Col/{*}ImpRespWid"))
-    assert math.hypot(x_row, y_col) > 2.0 * xml.load("{*}Grid/{*}Row/{*}ImpRespWid")      # off the SCP
+    assert math.hypot(x_row, y_col) > 1.5 * xml.load("{*}Grid/{*}Row/{*}ImpRespWid")      # off the SCP
 
 
 # -- radiometry: every reader, one RCS ---------------------------------------------------------------
