@@ -500,9 +500,12 @@ def _main(argv: list[str] | None) -> int:
     interrupts = _Interrupts()
     try:
         with interrupts:
-            return {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
+            code = {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
                     "info": _info, "bench": _bench, "interferogram": _interferogram,
                     "scene": _scene}[args.command](args)
+        if not interrupts.caught:
+            return code
+        raise KeyboardInterrupt              # one that an optional import swallowed: Ctrl-C still ends in 130
     except BaseException as exc:
         if interrupts.caught or isinstance(exc, KeyboardInterrupt) or _dr_jit_interrupt(exc):
             print("interrupted: no output file was left half-written", file=sys.stderr)
@@ -525,7 +528,8 @@ class _Interrupts:
     """While a command runs: SIGINT raises KeyboardInterrupt (outputs are written under temporary
     names and cleaned up) and is remembered in :attr:`caught`, so that a Ctrl-C which an extension
     module turns into another exception while it is being imported (an AttributeError of a half
-    initialised module, a SystemError) still ends in the one ``interrupted`` line and code 130.
+    initialised module, a SystemError), or that an optional import swallows, still ends in the one
+    ``interrupted`` line and code 130.
     Only in the main thread (where Python delivers signals); elsewhere it changes nothing."""
 
     def __init__(self) -> None:
