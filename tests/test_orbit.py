@@ -321,3 +321,18 @@ def test_orbit_products_pass_sarpy_and_sarkit(orbit_run, tmp_path, caplog):
         check_file(str(sicd))
     found = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR or "want" in r.getMessage().lower()]
     assert found == []
+
+
+def test_python_ecef_state_vectors_are_carried_like_the_files():
+    """Catches ECEF ``StateVectors`` given from Python (``frame="ecef"``) used as scene coordinates:
+    loaded, they are the orbit file's track in the scene frame, to a micrometre."""
+    from sarmitsuba.core.trajectory import StateVectors
+    from sarmitsuba.scene.loader import load_scene
+    first, t, pos, vel = eof_oracle()
+    python = StateVectors(t, pos, vel, "python", epoch=first.isoformat(), frame="ecef", window=4,
+                          closest_approach=True)
+    given = {"geo_origin": ", ".join(map(str, SCENE)), **RADAR}
+    a = load_scene("trihedral", sensor_overrides={**given, "trajectory": python}).params.trajectory
+    b = load_scene("trihedral", sensor_overrides={**given, "trajectory": str(EOF_FILE)}).params.trajectory
+    assert a.frame == b.frame == "scene"
+    assert np.max(np.abs(a.position - b.position)) < 1e-6 and np.max(np.abs(a.velocity - b.velocity)) < 1e-6
