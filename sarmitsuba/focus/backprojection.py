@@ -43,7 +43,7 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.raw import RawData
-from .beam import BeamWeighting, beam_weighting, illumination_count, normalise_columns, unit_rows
+from .beam import BeamWeighting, beam_axes, beam_weighting, illumination_count, normalise_columns
 from ..core.trajectory import echo_length
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
 from .grid import ImageGrid
@@ -237,6 +237,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
 
     bar = progress_bar(progress, n_pulses, desc=desc)
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
+    axes = beam_axes(raw) if beam.sines is not None else None      # the beam's, not the sway's (J4)
     try:
         for p0 in range(0, n_pulses, pulse_block):
             p1 = min(p0 + pulse_block, n_pulses)
@@ -247,7 +248,7 @@ def backproject(raw: RawData, grid: ImageGrid, *, oversample: int = 8, pulse_blo
             block = _Block(lines, modulation, [leg[p0:p1] for leg in legs], monostatic, unit,
                            t0, fine_rate, grid, weights)
             if beam.sines is not None:
-                block.beam = (beam, unit_rows(raw.velocity[p0:p1]))
+                block.beam = (beam, axes[p0:p1])
             if receive is not None:
                 block.receive = (receive[0][p0:p1], receive[1][p0:p1])
             jobs = [(tile, block) for tile in tiles]
@@ -302,6 +303,7 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
     image = np.zeros(x.shape[0], np.complex128)
     gain = np.zeros(x.shape[0])
     receive = receiver_motion(raw)
+    axes = beam_axes(raw)
     for p in range(n_pulses):
         line = np.zeros(n_up + 2, np.complex128)
         line[1:-1] = fft_upsample(raw.data[p].astype(np.complex128), oversample)
@@ -315,7 +317,7 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
         else:
             sin_lo, sin_hi = beam.sines
             los = x - raw.tx_position[p]
-            s = los @ raw.velocity[p] / (np.linalg.norm(los, axis=1) * np.linalg.norm(raw.velocity[p]))
+            s = los @ axes[p] / np.linalg.norm(los, axis=1)          # along the beam's axis (J4)
             u = (s - sin_lo) / (sin_hi - sin_lo)       # in [0, 1] inside the beam
             u = np.where((s >= sin_lo) & (s <= sin_hi), u, -1.0)
             phi = np.arcsin(np.clip(s, -1.0, 1.0))

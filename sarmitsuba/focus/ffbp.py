@@ -35,7 +35,7 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.raw import RawData
-from .beam import BeamWeighting, beam_weighting, column_gain, unit_rows
+from .beam import BeamWeighting, beam_axes, beam_weighting, column_gain, unit_rows
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
 from .grid import ImageGrid
 from .polar import (CHUNK, GeometryNotSupported, RSTEP, PolarAxes, PolarFrame, PolarImage, beam_table, carrier_bits, premodulated_rows,
@@ -252,7 +252,7 @@ def _plan(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: slice, ang
     spread = float(np.max(np.linalg.norm(antennas - centre, axis=1)))
     s_lo, s_hi = float(s_edge.min()), float(s_edge.max())
     if beam.sines is not None:
-        turn = float(np.max(np.linalg.norm(velocity - direction, axis=1)))
+        turn = float(np.max(np.linalg.norm(beam_axes(raw)[pulses] - direction, axis=1)))   # beam sines vs frame
         margin = 1.05 * spread / max(float(r_edge.min()), 1e-9) + turn + 1e-9
         s_lo, s_hi = max(s_lo, beam.sines[0] - margin), min(s_hi, beam.sines[1] + margin)
     inside = (s_edge >= s_lo) & (s_edge <= s_hi)
@@ -290,7 +290,7 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
     weights = None if beam.sines is not None or beam.is_rect else beam.pulse_weights(raw.n_pulses)
     table = None if beam.sines is None else (beam_table(beam.u, beam.table), *beam.sines)
     edges = _grid_edge_points(grid)
-    velocity = unit_rows(raw.velocity)
+    velocity = beam_axes(raw)                  # the beam table's sines (docs/physics.md (J4))
     receive = receiver_motion(raw)
 
     def one(span: tuple[int, int]) -> PolarImage | None:
