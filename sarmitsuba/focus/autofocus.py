@@ -134,7 +134,8 @@ class AutofocusReport:
         """The record kept in ``image.metadata["autofocus"]`` (JSON types)."""
         return {"method": "pga", "iterations": self.iterations, "rms_phase_error_rad": self.rms_phase_error,
                 "converged": self.converged, "lines": self.lines, "window_samples": self.window,
-                "deramp": self.deramp, "dominance_db": round(float(self.dominance_db), 2) if np.isfinite(self.dominance_db) else None, "applied": self.applied,
+                "deramp": self.deramp, "applied": self.applied,
+                "dominance_db": round(float(self.dominance_db), 2) if np.isfinite(self.dominance_db) else None,
                 "phase_error_rad": [round(float(v), 6) for v in self.phase_error]}
 
 
@@ -196,7 +197,8 @@ def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: flo
     dominance = _dominance_db(data)
     if not dominance >= DOMINANCE_DB:
         warnings.warn(f"PGA not applied: no dominant scatterer, the brightest pixel is {dominance:.1f} dB above the "
-                      f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about 14 dB): "
+                      f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about "
+                      f"14 dB): "
                       f"the image is returned unchanged. PGA estimates the phase error from point-like targets "
                       f"(corner reflectors, isolated strong scatterers)", AutofocusWarning, stacklevel=2)
         report = AutofocusReport(phase_error=np.zeros(data.shape[0]), support=np.zeros(data.shape[0], bool),

@@ -48,8 +48,8 @@ from .figures_point import point_target_figure
 from .figures_raw import MIN_LIT_FRACTION, POINT_PHASE_RMS, raw_figure
 from ..core.image import SarImage
 from ..core.outputs import OutputDirectory, atomic_write, json_default
-from .plotting import (REFERENCE_PERCENTILE, RELATIVE_DB, agg_figure, check_dynamic_range, colorbar, decibels, display_looks,
-                       image_extent, multilook, reference_intensity, save_png, show_db_image, window_label)
+from .plotting import (REFERENCE_PERCENTILE, RELATIVE_DB, agg_figure, check_dynamic_range, colorbar, decibels,
+                       display_looks, image_extent, multilook, reference_intensity, save_png, show_db_image, window_label)
 from ..core.raw import RawData
 
 __all__ = ["raw_figure", "image_figure", "bounce_orders_figure", "overlay_figure", "comparison_figure",

@@ -32,7 +32,8 @@ import numpy as np
 from ..core.image import SarImage
 from ..core.outputs import atomic_write
 
-__all__ = ["REFERENCE_PERCENTILE", "MAX_BOX_ASPECT", "RELATIVE_DB", "intensity", "multilook", "display_looks", "has_signal", "reference_intensity", "decibels",
+__all__ = ["REFERENCE_PERCENTILE", "MAX_BOX_ASPECT", "RELATIVE_DB",
+           "intensity", "multilook", "display_looks", "has_signal", "reference_intensity", "decibels",
            "check_dynamic_range", "edges", "image_extent", "show_db_image", "axis_labels", "label_image_axes",
            "colorbar", "window_label", "agg_figure", "save_png"]
 
