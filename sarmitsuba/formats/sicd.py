@@ -213,6 +213,18 @@ def _grid(image: SarImage, layout: Layout, axes: np.ndarray) -> dict[str, Any]:
             "TimeCOAPoly": layout.coa, **directions}
 
 
+def _normal_up(image: SarImage) -> SarImage:
+    """``image``, its azimuth axis reversed (pixels, axis and direction; every position kept) when
+    ``range_direction x azimuth_direction`` points down (a left-looking image): SICD's ``Row x Col``
+    points away from the Earth (sarkit's ``check_grid_normal_away_from_earth``)."""
+    if np.cross(np.asarray(image.range_direction, float), np.asarray(image.azimuth_direction, float))[2] >= 0:
+        return image
+    import dataclasses
+    return dataclasses.replace(image, data=np.ascontiguousarray(image.data[::-1]),
+                               azimuth=np.ascontiguousarray(-image.azimuth[::-1]),
+                               azimuth_direction=-np.asarray(image.azimuth_direction, float))
+
+
 def _check_uniform(axis: np.ndarray) -> None:
     """SicdError unless ``axis`` is uniform and increasing with at least two samples (a PLANE grid)."""
     steps = np.diff(np.asarray(axis, dtype=np.float64))
@@ -333,6 +345,7 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         start = collection_start(image, path)
         for axis in (image.range, image.azimuth):
             _check_uniform(axis)
+        image = _normal_up(image)
         track = track_of(image, raw)
         own = sicd_layout(image, track)
         target = image
