@@ -321,6 +321,8 @@ def _focus(args: argparse.Namespace) -> int:
     autofocus = image.metadata.get("autofocus")
     note = "" if autofocus is None else (f", PGA {autofocus['iterations']} iterations, phase error "
                                          f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
+    if autofocus is not None and autofocus.get("applied") is False:       # no dominant scatterer, (PGA3)
+        note = ", PGA not applied (no dominant scatterer; image unchanged)"
     print(f"focused {args.raw} with {args.algorithm}{' on the nominal track' if args.track == 'nominal' else ''}: "
           f"{time.perf_counter() - start:.1f} s, {raw.n_pulses} pulses, image {image.data.shape[0]}x"
           f"{image.data.shape[1]}{note} -> {paths['png'].parent}")

@@ -25,7 +25,7 @@ GROUND = trimesh.Trimesh([[-40, -40, 0], [40, -40, 0], [40, 40, 0], [-40, 40, 0]
 
 def _render(gamma_db: float, trihedral: bool) -> tuple:
     """True-track and nominal-track ffbp images (0.1 m x 0.2 m pixels, 256 x 64) of rough ground,
-    optionally with the built-in trihedral at the scene centre."""
+    optionally with the built-in trihedral at the scene centre, and the raw data."""
     meshes = [(GROUND, {"material": "medium_dry_ground", "gamma_db": gamma_db}, "ground")]
     if trihedral:
         meshes.append((trimesh.load("scenes/meshes/trihedral.obj"), "pec", "trihedral"))
@@ -37,7 +37,7 @@ def _render(gamma_db: float, trihedral: bool) -> tuple:
     grid = ImageGrid(origin=frame.origin, azimuth_direction=frame.azimuth_direction,
                      range_direction=frame.range_direction, azimuth=(np.arange(256) - 128) * 0.1,
                      range=(np.arange(64) - 32) * 0.2, plane="ground")
-    return ffbp(sim.raw, grid), ffbp(sim.raw.on_track("nominal"), grid)
+    return ffbp(sim.raw, grid), ffbp(sim.raw.on_track("nominal"), grid), sim.raw
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,7 @@ def test_pga_still_restores_a_trihedral_in_clutter():
     """Catches a dominance threshold so strict that it refuses a real target: the trihedral stands
     29.8 dB above the median of rough ground at gamma 0 dB on the nominal track, and PGA restores
     its peak (measured: 16.1 dB on the nominal track, 21.3 dB after PGA and on the true track)."""
-    true, nominal = _render(0.0, trihedral=True)
+    true, nominal, _ = _render(0.0, trihedral=True)
     with warnings.catch_warnings():
         warnings.simplefilter("error", AutofocusWarning)   # no refusal, and it converges
         out, report = pga(nominal)
@@ -78,3 +78,14 @@ def test_pga_still_restores_a_trihedral_in_clutter():
     assert report.dominance_db > 27.0
     assert _peak_db(nominal) < _peak_db(true) - 3.0                    # visibly defocused before
     assert abs(_peak_db(out) - _peak_db(true)) < 0.5                   # restored after
+
+
+def test_the_cli_says_pga_was_not_applied(clutter, tmp_path, capsys):
+    """Catches the CLI reporting "PGA 0 iterations, phase error 0 rad rms" as if PGA had run."""
+    from sarmitsuba.cli import main
+    raw = clutter[2].save(tmp_path / "raw.npz")
+    assert main(["focus", str(raw), "--algorithm", "ffbp", "--autofocus", "pga", "--out", str(tmp_path / "out"),
+                 "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    assert "PGA not applied" in captured.out, captured.out
+    assert "no dominant scatterer" in captured.err and "Traceback" not in captured.err
