@@ -41,8 +41,6 @@ from sarmitsuba import Scene, simulate  # noqa: E402
 from sarmitsuba.analysis.point_target import analyze_point_target  # noqa: E402
 from sarmitsuba.core import georef  # noqa: E402
 from sarmitsuba.core.constants import SPEED_OF_LIGHT  # noqa: E402
-from sarmitsuba.formats import cphd as cphd_module  # noqa: E402
-from sarmitsuba.formats import sicd_radiometry  # noqa: E402
 from sarmitsuba.formats.cphd import check_cphd, write_cphd  # noqa: E402
 from sarmitsuba.formats.sicd import check_sicd, read_sicd, write_sicd  # noqa: E402
 

@@ -39,7 +39,7 @@ from ..core.image import SarImage
 from ..signal.bandlimited import dft_rows
 
 __all__ = ["OVERSAMPLING", "PHI_DEGREE", "sicd_spacing", "centred_axis", "Carrier", "fit_carrier",
-           "data_carrier", "resample", "deltak_limits", "poly2d_gradient", "ResampleError"]
+           "data_carrier", "resample", "linear_cycles", "deltak_limits", "poly2d_gradient", "ResampleError"]
 
 #: Oversampling ratio ``1 / (SS ImpRespBW)`` aimed at (SICD advises 1.1 to 2.2).
 OVERSAMPLING = 2.0
@@ -162,7 +162,7 @@ def resample(image: SarImage, carrier: Carrier, scp: tuple[float, float], rows: 
     x_new, y_new = rows - scp[0], cols - scp[1]
     if same and removed == (0.0, 0.0):
         return np.ascontiguousarray(image.data.T.astype(np.complex64))
-    old_phase = _linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)       # [n_rg, n_az]
+    old_phase = linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)       # [n_rg, n_az]
     base = image.data.T.astype(np.complex128) * np.exp(-2j * np.pi * old_phase)
     if not same:
         d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
@@ -170,11 +170,11 @@ def resample(image: SarImage, carrier: Carrier, scp: tuple[float, float], rows: 
         base = _interpolate(base, 0, d_rg, rows - image.range[0], 0.5 / d_rows)
         base = _interpolate(base, 1, d_az, cols - image.azimuth[0], 0.5 / d_cols)
     kept = (carrier.kctr[0] - removed[0], carrier.kctr[1] - removed[1])
-    new_phase = _linear_cycles(kept, x_new, y_new) + carrier.cycles(x_new, y_new)
+    new_phase = linear_cycles(kept, x_new, y_new) + carrier.cycles(x_new, y_new)
     return np.ascontiguousarray((base * np.exp(2j * np.pi * new_phase)).astype(np.complex64))
 
 
-def _linear_cycles(k: tuple[float, float], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def linear_cycles(k: tuple[float, float], x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``k . (x, y)`` [cycles] on the grid ``x`` [n] x ``y`` [m], less its whole cycles (float64 [n, m])."""
     gx, gy = np.mod(k[0] * x, 1.0), np.mod(k[1] * y, 1.0)
     return np.mod(gx[:, None] + gy[None, :], 1.0)

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..core import georef
 from ..core.image import SarImage
-from .sicd_resample import Carrier, _linear_cycles
+from .sicd_resample import Carrier, linear_cycles
 from .sicd_support import Aperture, SupportError, Track
 
 __all__ = ["slant_frame", "resample_to_slant", "UPSAMPLE", "SlantError"]
@@ -138,7 +138,7 @@ def resample_to_slant(image: SarImage, carrier: Carrier, ground_scp: tuple[float
     local = georef.ecef_to_enu(ground, ref) - np.asarray(image.origin, float)
     rg, az = local @ e_rg, local @ e_az                                   # [rows, cols] on the image's axes
     x_old, y_old = image.range - ground_scp[0], image.azimuth - ground_scp[1]
-    phase = _linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)
+    phase = linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)
     base = image.data.T.astype(np.complex128) * np.exp(-2j * np.pi * phase)      # [n_range, n_azimuth]
     factor = UPSAMPLE if base.size * UPSAMPLE ** 2 <= _UPSAMPLE_MAX else 1
     fine = _upsampled(base, factor)
