@@ -14,6 +14,7 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.sicd`             ``write_sicd`` / ``read_sicd`` (NGA.STND.0024, via sarkit)
 :mod:`.sicd_support`     SICD spatial-frequency support, weighting, centre-of-aperture times
 :mod:`.sicd_resample`    SICD grid spacings, carrier, resampling, ``DeltaKCOAPoly``
+:mod:`.sicd_slant`       SICD slant-plane grid at the SCP, ground image resampled onto it
 :mod:`.sicd_radiometry`  SICD radiometric scale factors (RCS, beta, sigma, gamma nought)
 :mod:`.sicd_polygons`    SICD image corners, ``ValidData``, ``RadarCollection/Area``
 :mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
@@ -21,5 +22,6 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 =======================  ===============================================================
 
 Physics: (G1) local frame to ECEF, (G2) CPHD compensation to the scene reference point,
-(G3) GeoTIFF and SICD grids (section "Geographic reference and standard formats").
+(G3) GeoTIFF and SICD grids, (G4) the slant-plane SICD (section "Geographic reference and
+standard formats"), (K3) SICD radiometric scale factors.
 """
