@@ -96,10 +96,6 @@ def test_a_squinted_stripmap_from_a_trajectory_file_images_the_trihedral(tmp_pat
 
 
 
-@pytest.mark.xfail(strict=True, reason="scene/planning.py state_vector_parameters takes the incidence from the "
-                   "horizontal distance of the mid-aperture antenna to the scene centre, which a squint lengthens "
-                   "by its along-track offset (46.92 deg for 45 deg at 15 deg squint); ground_range is the distance "
-                   "from the nadir track. Left to the engineer editing planning.py now (issue 55)")
 def test_a_squinted_trajectory_file_keeps_the_closest_approach_incidence(tmp_path):
     """State vectors of the straight track of a 15 deg squinted stripmap, worked out by hand
     (altitude 1000 m, 1000 m beside the scene centre, the mid-aperture antenna R0 tan(15 deg) =
