@@ -246,3 +246,37 @@ def test_a_two_row_track_too_short_for_its_aperture_is_warned_about(tmp_path, ca
     assert main(["info", "trihedral", "--set", f"trajectory={_shifted_track_path()}", "--set", "mode=spotlight",
                  "--pulses", "10"]) == 0
     assert "set n_pulses to at least" in capsys.readouterr().out.split("Warnings", 1)[1]
+
+
+def test_spotlight_pulses_steered_beyond_60_deg_are_warned_about():
+    """A level straight pass from x = -1000 m to 1000 m, 500 m from the scene centre's vertical
+    line through the track (a 45 deg look): the beam steers past 60 deg where ``|x| > 500 tan(60
+    deg) = 866 m``, 13.4 % of the pulses; the warning names that fraction and the largest steering,
+    ``atan(1000 / 500)`` = 63.4 deg. The same pass from -800 to 800 m stays within 60 deg and does
+    not warn. Catches a warning that never fires (pulses beyond the model's domain rendered
+    without a word) or counts the angle from the track."""
+    import math
+    import re
+
+    import numpy as np
+
+    from sarmitsuba.core.geometry import acquisition_geometry
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.trajectory import StateVectors
+    from sarmitsuba.scene.planning import steering_note
+    height = 500.0 / math.sqrt(2.0)
+    for end, fraction in ((1000.0, (1000.0 - 500.0 * math.tan(math.radians(60.0))) / 1000.0), (800.0, None)):
+        time = np.linspace(0.0, 2.0 * end / 100.0, 41)
+        position = np.stack([-end + 100.0 * time, np.full_like(time, height), np.full_like(time, height)], axis=1)
+        states = StateVectors(time, position, np.tile([100.0, 0.0, 0.0], (41, 1)))
+        params = RadarParameters(scene_center=(0.0, 0.0, 0.0), prf=50.0, trajectory=states, mode="spotlight",
+                                 n_pulses=int(round(2.0 * end / 100.0 * 50.0)) + 1)
+        note = steering_note(params, acquisition_geometry(params))
+        if fraction is None:
+            assert note is None, note
+            continue
+        match = re.search(r"pulses \(([0-9.]+) %\) steer the beam more than 60 deg from broadside \(up to ([0-9.]+) deg",
+                          note)
+        assert match, note
+        assert float(match.group(1)) == pytest.approx(100.0 * fraction, abs=0.3)
+        assert float(match.group(2)) == pytest.approx(math.degrees(math.atan(2.0)), abs=0.05)

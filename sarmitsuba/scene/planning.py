@@ -408,11 +408,13 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
       overlap (Curlander and McDonough 1991, sec. 6.5);
     - a scene outside the beam footprint: no ray can hit it;
     - a motion error too large to be focused without the true track (:func:`motion_error_note`);
-    - a trajectory file too short for the synthetic aperture (:func:`aperture_note`).
+    - a trajectory file too short for the synthetic aperture (:func:`aperture_note`);
+    - spotlight pulses steered beyond :data:`MAX_STEERING_DEG` (:func:`steering_note`).
 
     Returns the messages (also issued as warnings).
     """
-    messages = [note for note in (motion_error_note(params), aperture_note(params, geometry)) if note]
+    messages = [note for note in (motion_error_note(params), aperture_note(params, geometry),
+                                  steering_note(params, geometry)) if note]
     if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
         messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
                         f"(azimuth_beamwidth {params.azimuth_beamwidth:.3g} deg, velocity {params.velocity:g} m/s): "
@@ -502,6 +504,31 @@ def check_beam_reach(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) ->
     if np.any((gap <= 0.0) & steerable):
         return
     raise ParameterError(_unseen_message(params, geometry, lo, hi, along, distance, alpha, gap, steer, steerable))
+
+
+def steering_note(params: RadarParameters, geometry: AcquisitionGeometry) -> str | None:
+    """A warning when some spotlight pulses steer the beam more than :data:`MAX_STEERING_DEG` from
+    broadside (those that all do are refused, :func:`check_beam_reach`), else None. The tracer
+    steers the pattern in sine space (docs/physics.md (A), (G5)), so its beam widens as
+    ``1 / cos(steer)`` (twice a gimbal's at 60 deg) and loses no gain: those pulses' echoes are
+    brighter and wider than any real antenna's."""
+    if params.mode != "spotlight":
+        return None
+    antenna = geometry.positions
+    axes = geometry.beam_axes if geometry.beam_axes is not None else np.broadcast_to(geometry.track_direction,
+                                                                                     antenna.shape)
+    to_centre = np.asarray(geometry.scene_center, float) - antenna
+    steer = np.degrees(np.arcsin(np.clip(np.einsum("pk,pk->p", to_centre, axes)
+                                         / np.linalg.norm(to_centre, axis=1), -1.0, 1.0)))
+    beyond = np.abs(steer) > MAX_STEERING_DEG
+    if not np.any(beyond) or np.all(beyond):
+        return None
+    t = geometry.pulse_time[~beyond]
+    return (f"spotlight: {int(beyond.sum())} of {len(steer)} pulses ({100.0 * beyond.mean():.3g} %) steer the beam "
+            f"more than {MAX_STEERING_DEG:g} deg from broadside (up to {float(np.abs(steer).max()):.1f} deg), where the "
+            "steered pattern (no scan loss, widening as 1 / cos(steer)) describes no real antenna; the pulses from "
+            f"t = {float(t.min()):.6g} to {float(t.max()):.6g} s stay within it: trim the trajectory to them, or set "
+            f"n_pulses to at most {int((~beyond).sum())}")
 
 
 def _unseen_message(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray,
