@@ -106,7 +106,7 @@ EFFECTS = {
                                   {"integrator": {"split_bounces": True}}),
     "cross-polarised channels": ({"sensor": {"polarization": "VV"}}, {"sensor": {"polarization": "HV"}}),
     "motion errors": ({"sensor": {"motion_error": "none"}}, {"sensor": {"motion_error": "0.05, 2"}}),
-    "curved track": ({"sensor": {"trajectory": "straight"}}, {"sensor": {"trajectory": "circular", "arc_deg": 0.5}}),
+    "curved track": ({"sensor": {"trajectory": "straight"}}, {"sensor": {"trajectory": "circular"}}),   # n_pulses sets the arc
     "stop-and-hop approximation": ({"sensor": {"stop_and_hop": False}}, {"sensor": {"stop_and_hop": True}}),
     "edge diffraction": ({"integrator": {"diffraction": False}}, {"integrator": {"diffraction": True}}),
 }

@@ -280,3 +280,15 @@ def test_spotlight_pulses_steered_beyond_60_deg_are_warned_about():
         assert match, note
         assert float(match.group(1)) == pytest.approx(100.0 * fraction, abs=0.3)
         assert float(match.group(2)) == pytest.approx(math.degrees(math.atan(2.0)), abs=0.05)
+
+
+def test_arc_deg_that_n_pulses_would_override_is_refused(capsys):
+    """trajectory = circular with both arc_deg = 20 and n_pulses = 10: n_pulses sets the arc
+    (10 pulses at 100 m/s and 250 Hz over a 1000 m radius fly 0.2063 deg, worked by hand:
+    9 x 0.4 m / 1000 m), so arc_deg would do nothing; exit 2 naming both. With n_pulses alone, or
+    arc_deg alone, it loads. The bug: the 20 deg were silently ignored."""
+    assert main(["info", "trihedral", "--set", "trajectory=circular", "--set", "arc_deg=20", "--pulses", "10"]) == 2
+    err = capsys.readouterr().err
+    assert "n_pulses = 10 and arc_deg = 20 deg both set the arc" in err and "flies 0.2063 deg" in err, err
+    assert main(["info", "trihedral", "--set", "trajectory=circular", "--pulses", "10"]) == 0
+    assert main(["info", "trihedral", "--set", "trajectory=circular", "--set", "arc_deg=20"]) == 0

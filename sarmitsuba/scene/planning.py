@@ -71,12 +71,19 @@ def resolve_parameters(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) 
 
 def _circular_pulses(params: RadarParameters) -> RadarParameters:
     """``n_pulses`` of a circular trajectory (J1): ``round(2 pi G prf / v)`` for the full circle,
-    ``floor(arc G prf / v) + 1`` for an arc; a given ``n_pulses`` must not exceed the full circle."""
+    ``floor(arc G prf / v) + 1`` for an arc; a given ``n_pulses`` must not exceed the full circle,
+    nor come with an ``arc_deg`` below 360 (which it would override)."""
     full = max(1, round(2.0 * math.pi * params.ground_range * params.prf / params.velocity))
     if params.n_pulses > full:
         raise ParameterError(f"n_pulses = {params.n_pulses} with trajectory = 'circular' flies more than the full circle "
                              f"of {full} pulses (radius {params.ground_range:.1f} m at {params.velocity:g} m/s, prf "
                              f"{params.prf:g} Hz): use at most {full}, or n_pulses = 0 and arc_deg")
+    if params.n_pulses > 0 and params.arc_deg < 360.0:     # the arc would be ignored: n_pulses sets it
+        flown = math.degrees((params.n_pulses - 1) * params.velocity / (params.prf * params.ground_range))
+        raise ParameterError(f"n_pulses = {params.n_pulses} and arc_deg = {params.arc_deg:g} deg both set the arc of "
+                             f"trajectory = 'circular' (n_pulses flies {flown:.4g} deg at {params.velocity:g} m/s, prf "
+                             f"{params.prf:g} Hz, radius {params.ground_range:.1f} m): give one of them (n_pulses = 0 "
+                             "flies arc_deg)")
     if params.n_pulses > 0:
         return params
     if params.arc_deg >= 360.0:
