@@ -41,7 +41,7 @@ NOISE = {"noise_figure_db": 3.0, "noise_temperature": 290.0}
 
 def test_noise_power_per_sample_is_k_t_b_f(monkeypatch):
     """An empty beam with noise: raw samples have power k T B F within 2 %. (Loading refuses a beam
-    that never reaches the scene, planning.check_beam_reach; this test wants noise alone, so it
+    that never reaches the scene, track_checks.check_beam_reach; this test wants noise alone, so it
     switches that check off.)"""
     from sarmitsuba.scene.planning import AcquisitionWarning
     monkeypatch.setattr("sarmitsuba.scene.loader.check_beam_reach", lambda *args: None)

@@ -79,7 +79,7 @@ def test_energy_per_order_and_rays_are_consistent(lit_regions):
 def test_beam_hitting_nothing_gives_zero_data(monkeypatch):
     """Empty beam: a beam pointed 500 m away from all geometry yields exactly zero raw data
     and a zero image (not NaN), and casts no ray. (Loading refuses such a beam,
-    planning.check_beam_reach; the tracer's own empty-beam path is tested with that check off.)"""
+    track_checks.check_beam_reach; the tracer's own empty-beam path is tested with that check off.)"""
     from sarmitsuba.scene.planning import AcquisitionWarning
     monkeypatch.setattr("sarmitsuba.scene.loader.check_beam_reach", lambda *args: None)
     with pytest.warns(AcquisitionWarning, match="outside the beam footprint"):

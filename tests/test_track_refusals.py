@@ -102,7 +102,7 @@ def test_the_stripmap_beam_reaches_to_its_first_nulls_and_no_farther(incidence, 
     import numpy as np
 
     from sarmitsuba.core.radar import ParameterError
-    from sarmitsuba.scene.planning import check_beam_reach
+    from sarmitsuba.scene.track_checks import check_beam_reach
     params, antenna = _one_pulse(incidence, squint)
     h = math.asin(math.sin(math.radians(0.6)) / 0.4429)
     broadside = np.array([0.0, -antenna[1], -antenna[2]]) / math.hypot(antenna[1], antenna[2])
@@ -130,7 +130,7 @@ def test_a_spotlight_beam_is_steered_no_farther_than_60_deg(side):
 
     from sarmitsuba.core.radar import ParameterError, RadarParameters
     from sarmitsuba.core.trajectory import StateVectors
-    from sarmitsuba.scene.planning import check_beam_reach
+    from sarmitsuba.scene.track_checks import check_beam_reach
     for angle, seen in ((58.0, True), (62.0, False)):
         perpendicular = 500.0                                  # the antenna's distance from the track's line
         x = -side * perpendicular * math.tan(math.radians(angle))
@@ -171,7 +171,7 @@ def test_a_motion_error_beyond_a_range_cell_is_warned_about(incidence):
 
     from sarmitsuba.core.constants import SPEED_OF_LIGHT
     from sarmitsuba.core.radar import RadarParameters
-    from sarmitsuba.scene.planning import motion_error_note
+    from sarmitsuba.scene.track_checks import motion_error_note
     limit = SPEED_OF_LIGHT / (2.0 * 150e6 * math.sin(math.radians(incidence)))
     for error, warns in ((f"{0.98 * limit}, 40", False), (f"{1.02 * limit}, 40", True), ("50, 40", True),
                          (f"random, {0.98 * limit / 3}, 50", False), (f"random, {1.02 * limit / 3}, 50", True)):
@@ -263,7 +263,7 @@ def test_spotlight_pulses_steered_beyond_60_deg_are_warned_about():
     from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.core.radar import RadarParameters
     from sarmitsuba.core.trajectory import StateVectors
-    from sarmitsuba.scene.planning import steering_note
+    from sarmitsuba.scene.track_checks import steering_note
     height = 500.0 / math.sqrt(2.0)
     for end, fraction in ((1000.0, (1000.0 - 500.0 * math.tan(math.radians(60.0))) / 1000.0), (800.0, None)):
         time = np.linspace(0.0, 2.0 * end / 100.0, 41)

@@ -27,7 +27,8 @@ from ..core import georef
 from . import materials
 from .meshcheck import check_meshes, shape_points, silent_scene, warn_mesh_defects
 from .geometry_checks import check_geometry
-from .planning import AcquisitionWarning, check_beam_reach, resolve_parameters
+from .planning import AcquisitionWarning, resolve_parameters
+from .track_checks import check_beam_reach
 from .radar_equation import radar_equation
 from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
 from ..core.orbit import in_scene_frame, orbit_of
