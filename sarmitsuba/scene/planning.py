@@ -15,7 +15,7 @@ from scipy import fft as sp_fft
 
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
-from ..core.geometry import AcquisitionGeometry, pulse_times, track_frame
+from ..core.geometry import AcquisitionGeometry, aperture_axis, pulse_times, track_frame
 from ..core.trajectory import StateVectors, from_state_vectors
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
 from .track_checks import aperture_note, motion_error_note, steering_note
@@ -99,8 +99,9 @@ def state_vector_parameters(params: RadarParameters) -> RadarParameters:
     ``incidence_angle`` the closest-approach incidence ``atan(G / H)``, ``G`` the horizontal distance
     of the scene centre from the line through the antenna along its horizontal velocity (an
     along-track offset, a squint's ``R0 tan(squint)``, does not count),
-    ``velocity`` its speed, ``heading`` the direction of its horizontal velocity, ``look_side``
-    the side the scene centre lies on; ``n_pulses`` (when automatic) every pulse the span holds.
+    ``velocity`` its speed, ``heading`` the direction of the aperture's least-squares line
+    (:func:`~sarmitsuba.core.geometry.aperture_axis`, the image frame's azimuth axis; the velocity
+    at mid-aperture follows any sway there), ``look_side`` the side the scene centre lies on; ``n_pulses`` (when automatic) every pulse the span holds.
 
     Raises ParameterError when the mid-aperture antenna is not above the scene centre, stands
     over it (no incidence) or moves vertically."""
@@ -113,6 +114,9 @@ def state_vector_parameters(params: RadarParameters) -> RadarParameters:
         n = params.n_pulses
         mid = float(pulse_times(replace(params, n_pulses=max(n, 1)), path)[max(n, 1) // 2])
     antenna, v = path.position(mid), path.velocity(mid)
+    if math.hypot(v[0], v[1]) > 0 and n >= 2:       # the image frame's axis: the aperture's line fit (J2)
+        times = pulse_times(replace(params, n_pulses=n), path)
+        v = float(np.linalg.norm(v)) * aperture_axis(path.position(times), times)
     rel = np.asarray(params.scene_center, float) - antenna
     horizontal = math.hypot(v[0], v[1])
     along = (rel[0] * v[0] + rel[1] * v[1]) / horizontal if horizontal > 0 else 0.0
