@@ -400,7 +400,6 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     llh = xml.load("{*}SceneCoordinates/{*}IARP/{*}LLH")
     ref = georef.GeoReference(float(llh[0]), float(llh[1]), float(llh[2]))
     rot = georef.enu_axes(ref)
-    srp = georef.ecef_to_enu(pvp["SRPPos"], ref)
     tx, rx = georef.ecef_to_enu(pvp["TxPos"], ref), georef.ecef_to_enu(pvp["RcvPos"], ref)
     tau = srp_delay(pvp["TxPos"], pvp["RcvPos"], pvp["SRPPos"]) + pvp["TDTropoSRP"]
     start = pvp["SC0"] + tau

@@ -18,9 +18,11 @@ sarmitsuba wrote before, still read.
   docs/physics.md (G4)); with ``plane="image"`` the image's own plane (``GROUND`` for a ground
   image: ``Row/UVectECF`` its range direction, ``Col/UVectECF`` its azimuth direction), in
   ECEF through the geographic reference (docs/physics.md (G1), (G3)). The SCP is the image's
-  centre pixel. ``KCtr``, ``ImpRespBW``, the weighting (``WgtType``, ``WgtFunct``) and
-  ``ImpRespWid`` are those of the aperture that formed the SCP
-  (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. The image is resampled for the SICD onto
+  centre pixel. ``KCtr`` and ``ImpRespBW`` are those of the aperture that formed the SCP
+  (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. The weighting is the image's own
+  (``WgtFunct``: the windows, the antenna pattern and the pulses' density); ``weighting="uniform"``
+  takes it out of the spectrum while the image is resampled (``WgtType = UNIFORM``, no
+  ``WgtFunct``, ``ImpRespWid = 0.8859 / ImpRespBW``, docs/physics.md (K3)). The image is resampled for the SICD onto
   a grid that samples the impulse response about twice in both directions, inside SICD's
   advised 1.1 to 2.2, carrier included, with ``DeltaKCOAPoly`` and ``DeltaK1``/``DeltaK2`` the
   local spectral centre (:mod:`sarmitsuba.formats.sicd_resample`); the ``.npz`` image keeps its own grid.
@@ -47,6 +49,7 @@ sarmitsuba wrote before, still read.
 """
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import json
 import os
@@ -67,10 +70,10 @@ from .sicd_radiometry import radiometric
 from .sicd_slant import SlantError, resample_to_slant, slant_frame
 from .sicd_resample import (Carrier, ResampleError, centred_axis, data_carrier, deltak_limits, fit_carrier,
                             poly2d_gradient, resample, sicd_spacing)
-from .sicd_support import Aperture, SupportError, Track, Weighting, grid_direction, track_of, window_of, \
-    window_weighting
+from .sicd_support import Aperture, SupportError, Track, Weighting, flattened, flattening_gain, grid_direction, \
+    kept_fraction, track_of, uniform_metadata, uniform_weighting, window_of, window_weighting
 
-__all__ = ["SicdError", "PLANES", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
+__all__ = ["SicdError", "PLANES", "WEIGHTINGS", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
            "sicd_layout", "build_xml", "image_from_parts", "collection_start"]
 
 #: XML namespace of the SICD version written.
@@ -116,9 +119,12 @@ class Layout:
     """The SICD grid of an image: ``rows`` / ``cols`` the range / azimuth positions [m] of the SICD
     rows and columns on the image's axes (float64, odd lengths, the SCP in the middle), ``scp`` the
     SCP's (range, azimuth) [m] and local position ``scp_point`` [3] m, ``kctr`` and ``bandwidth``
-    (row, col) [cycles/m], the two :class:`~sarmitsuba.formats.sicd_support.Weighting` s, the
-    image's ``carrier``, the carrier ``removed`` from the pixels (row, col) [cycles/m],
-    ``deltakcoa`` (row, col) Poly2D [cycles/m] and ``coa`` (TimeCOAPoly, s)."""
+    (row, col) [cycles/m], the two :class:`~sarmitsuba.formats.sicd_support.Weighting` s the SICD
+    declares, the image's ``carrier``, the carrier ``removed`` from the pixels (row, col)
+    [cycles/m], ``deltakcoa`` (row, col) Poly2D [cycles/m], ``coa`` (TimeCOAPoly, s), the image's
+    own weightings ``source`` over its whole support ``support`` (row, col) [cycles/m], and the
+    share ``kept`` (row, col) of that support a uniform SICD keeps (1, 1 when the SICD declares
+    the image's own weighting)."""
 
     rows: np.ndarray
     cols: np.ndarray
@@ -131,6 +137,17 @@ class Layout:
     removed: tuple[float, float]
     deltakcoa: tuple[np.ndarray, np.ndarray]
     coa: np.ndarray
+    source: tuple[Weighting, Weighting]
+    support: tuple[float, float]
+    kept: tuple[float, float]
+
+    def gains(self) -> tuple:
+        """The spectral gains (row, col) that take the image's own weighting out for the declared
+        uniform one (:func:`~sarmitsuba.formats.sicd_support.flattening_gain`); (None, None) when
+        the SICD declares the image's own weighting or it is uniform already."""
+        if self.weighting[0].name != "UNIFORM" or self.weighting[1].name != "UNIFORM":
+            return None, None
+        return tuple(flattening_gain(w, b, k) for w, b, k in zip(self.source, self.support, self.kept))
 
 
 def _lattice(image: SarImage, scp: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -168,25 +185,39 @@ def _folded(poly: np.ndarray, spacing: float) -> np.ndarray:
     return out
 
 
-def sicd_layout(image: SarImage, track: Track) -> Layout:
+def sicd_layout(image: SarImage, track: Track, weighting: str = "image",
+                kept: tuple[float, float] | None = None) -> Layout:
     """The :class:`Layout` of ``image`` focused from ``track``: the support at the SCP, spacings
     (:func:`~sarmitsuba.formats.sicd_resample.sicd_spacing`), the grid centred on the SCP within the
     image, the carrier (the aperture's local support centres for a backprojected image, the data's
-    spectral centre otherwise). Raises SicdError when the image admits no SICD grid."""
+    spectral centre otherwise). ``weighting`` ``"image"`` declares the image's own weighting,
+    ``"uniform"`` a uniform one over the share ``kept`` of the support (default
+    :func:`~sarmitsuba.formats.sicd_support.kept_fraction` of the image's weighting; the
+    declared ``ImpRespBW`` is that share of the support). An image read from a uniform SICD is
+    uniform already (:func:`flattened`). Raises SicdError when the image admits no SICD grid."""
     (j, i), scp_point = scene_centre_point(image)
     scp = (float(image.range[j]), float(image.azimuth[i]))
     try:
         aperture = Aperture(image, track)
         at_scp = {k: float(v[0]) for k, v in aperture.support(scp_point).items()}
-        kctr, bandwidth = (at_scp["kctr_row"], at_scp["kctr_col"]), (at_scp["bw_row"], at_scp["bw_col"])
+        kctr, support = (at_scp["kctr_row"], at_scp["kctr_col"]), (at_scp["bw_row"], at_scp["bw_col"])
+        source = (window_weighting(window_of(image, "window_range")), aperture.azimuth_weighting(scp_point))
+        done = flattened(image)
+        if done is not None:                    # read from a uniform SICD: its support is the share kept
+            source, support = (uniform_weighting(), uniform_weighting()), (support[0] * done[0], support[1] * done[1])
+        if weighting == "uniform":
+            kept = (kept_fraction(source[0]), kept_fraction(source[1])) if kept is None else kept
+            declared = (uniform_weighting(), uniform_weighting())
+        else:
+            kept, declared = (1.0, 1.0), source
+        bandwidth = (support[0] * kept[0], support[1] * kept[1])
         spacing = (sicd_spacing(bandwidth[0], kctr[0]), sicd_spacing(bandwidth[1], kctr[1]))
         rows, cols = centred_axis(image.range, scp[0], spacing[0]), centred_axis(image.azimuth, scp[1], spacing[1])
-        weighting = (window_weighting(window_of(image, "window_range")), aperture.azimuth_weighting(scp_point))
         if image.algorithm == "backprojection":
             x, y, points = _lattice(image, scp)
-            support = aperture.support(points)
-            lit = support["bw_col"] > 1e-3 * bandwidth[1]               # pixels some pulse imaged
-            carrier = fit_carrier(kctr, x[lit], y[lit], support["kctr_row"][lit], support["kctr_col"][lit])
+            local = aperture.support(points)
+            lit = local["bw_col"] > 1e-3 * bandwidth[1]                 # pixels some pulse imaged
+            carrier = fit_carrier(kctr, x[lit], y[lit], local["kctr_row"][lit], local["kctr_col"][lit])
         else:
             carrier = data_carrier(image, kctr)
         coa = _coa_poly(aperture, image, scp, scp_point)
@@ -196,7 +227,8 @@ def sicd_layout(image: SarImage, track: Track) -> Layout:
                     for k, s in zip(kctr, spacing))                # KCtr SS whole: nothing removed
     gradient = poly2d_gradient(carrier.phi)
     deltakcoa = (_folded(gradient[0], spacing[0]), _folded(gradient[1], spacing[1]))
-    return Layout(rows, cols, scp, scp_point, kctr, bandwidth, weighting, carrier, removed, deltakcoa, coa)
+    return Layout(rows, cols, scp, scp_point, kctr, bandwidth, declared, carrier, removed, deltakcoa, coa, source,
+                  support, kept)
 
 
 def _grid(image: SarImage, layout: Layout, axes: np.ndarray) -> dict[str, Any]:
@@ -219,7 +251,6 @@ def _normal_up(image: SarImage) -> SarImage:
     points away from the Earth (sarkit's ``check_grid_normal_away_from_earth``)."""
     if np.cross(np.asarray(image.range_direction, float), np.asarray(image.azimuth_direction, float))[2] >= 0:
         return image
-    import dataclasses
     return dataclasses.replace(image, data=np.ascontiguousarray(image.data[::-1]),
                                azimuth=np.ascontiguousarray(-image.azimuth[::-1]),
                                azimuth_direction=-np.asarray(image.azimuth_direction, float))
@@ -309,10 +340,13 @@ def build_xml(image: SarImage, track: Track, ref: georef.GeoReference, layout: L
 #: SICD grid planes :func:`write_sicd` writes: ``"slant"`` the slant plane at the SCP (the default,
 #: as commercial SICDs of backprojected images), ``"image"`` the image's own plane.
 PLANES = ("slant", "image")
+#: Spectral weightings :func:`write_sicd` writes: ``"uniform"`` the image's own weighting taken out
+#: (every reader's RCS agrees, docs/physics.md (K3)), ``"image"`` the image's own (the default).
+WEIGHTINGS = ("uniform", "image")
 
 
 def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = None,
-               ref: georef.GeoReference | None = None, plane: str = "slant") -> Path:
+               ref: georef.GeoReference | None = None, plane: str = "slant", weighting: str = "image") -> Path:
     """Write ``image`` as a SICD 1.3.0 NITF at ``path`` (atomically), resampled onto its SICD grid.
 
     Parameters
@@ -331,6 +365,20 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         ``"slant"``: a ground-plane image is resampled onto the slant plane at the SCP
         (:mod:`sarmitsuba.formats.sicd_slant`; a slant-plane image keeps its plane);
         ``"image"``: the image's own plane (``ImagePlane = GROUND`` for a ground image).
+    weighting : {"uniform", "image"}, default "image"
+        ``"uniform"``: the image's range and azimuth weighting (focusing windows, antenna
+        pattern, pulse density: the ``WgtFunct`` of ``"image"``) is divided out of its spectrum
+        while it is resampled, over the central part of the support where it is at least
+        :data:`~sarmitsuba.formats.sicd_support.FLOOR` (-20 dB) of its peak; the rest of the
+        support, where the division would gain more, is dropped and ``ImpRespBW`` is the part
+        kept (all of it for the Taylor windows alone; about 63 % in azimuth where a stripmap's
+        two-way pattern falls to its nulls). ``WgtType = UNIFORM``, no ``WgtFunct``,
+        ``ImpRespWid = 0.8859 / ImpRespBW``; ``RCSSFPoly`` 1 at unit peak gain, and sarpy's RCS
+        tool, the standard's ``BetaZeroSFPoly`` and the peak all read a point target's RCS
+        (docs/physics.md (K3)). Apply a taper afterwards for low sidelobes (sarpy's
+        ``apply_spectral_taper`` keeps the peak and ``BetaZeroSFPoly`` readings).
+        ``"image"``: the image's own weighting as it is (``WgtFunct``), ``RCSSFPoly`` 1 at the
+        peak; sarpy's ``TotalRCS`` then reads a point target ``W_row W_col`` high (K3).
 
     Raises SicdError naming ``path``: no raw data and no radar parameters, a non-uniform grid, an
     image too small for its SICD grid, a ``collection_start`` that is no ISO 8601 time with an
@@ -341,27 +389,33 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
     if plane not in PLANES:
         raise SicdError(f"cannot write SICD file {path}: plane = {plane!r}; valid planes are "
                         f"{', '.join(PLANES)} (\"slant\" for the slant plane at the scene centre)")
+    if weighting not in WEIGHTINGS:
+        raise SicdError(f"cannot write SICD file {path}: weighting = {weighting!r}; valid weightings are "
+                        f"{', '.join(WEIGHTINGS)} (\"uniform\" takes the image's weighting out)")
     try:
         start = collection_start(image, path)
         for axis in (image.range, image.azimuth):
             _check_uniform(axis)
         image = _normal_up(image)
         track = track_of(image, raw)
-        own = sicd_layout(image, track)
+        own = sicd_layout(image, track, weighting)
         target = image
         if plane == "slant" and image.plane != "slant":
             target = slant_frame(image, track, own.scp_point, _mode(image) == "spotlight")
-        layout = own if target is image else sicd_layout(target, track)
+        layout = own if target is image else sicd_layout(target, track, weighting, own.kept)
         reference = _reference(image, ref)
-        tree = build_xml(target, track, reference, layout, start=start)
+        described = target
+        if own.gains() != (None, None):
+            described = dataclasses.replace(target, window="rect", metadata=uniform_metadata(target.metadata, own.kept))
+        tree = build_xml(described, track, reference, layout, start=start)
     except (SicdError, SupportError, PolygonError, SlantError) as exc:
         message = str(exc)
         raise SicdError(message if str(path) in message else f"cannot write SICD file {path}: {message}") from None
     if target is image:
-        array = resample(image, layout.carrier, layout.scp, layout.rows, layout.cols, layout.removed)
+        array = resample(image, layout.carrier, layout.scp, layout.rows, layout.cols, layout.removed, own.gains())
     else:
         array = resample_to_slant(image, own.carrier, own.scp, tree, layout.rows, layout.cols, layout.scp,
-                                  layout.removed, reference)
+                                  layout.removed, reference, own.gains())
     security = sksicd.NitfSecurityFields(clas="U")
     metadata = sksicd.NitfMetadata(
         xmltree=tree, file_header_part=sksicd.NitfFileHeaderPart(ostaid="sarmitsuba", security=security),

@@ -39,7 +39,7 @@ from ..core.image import SarImage
 from ..signal.bandlimited import dft_rows
 
 __all__ = ["OVERSAMPLING", "PHI_DEGREE", "sicd_spacing", "centred_axis", "Carrier", "fit_carrier",
-           "data_carrier", "resample", "linear_cycles", "deltak_limits", "poly2d_gradient", "ResampleError"]
+           "data_carrier", "resample", "flatten", "linear_cycles", "deltak_limits", "poly2d_gradient", "ResampleError"]
 
 #: Oversampling ratio ``1 / (SS ImpRespBW)`` aimed at (SICD advises 1.1 to 2.2).
 OVERSAMPLING = 2.0
@@ -146,11 +146,30 @@ def _interpolate(samples: np.ndarray, axis: int, step: float, positions: np.ndar
     return np.moveaxis(out, 0, axis)
 
 
+def flatten(base: np.ndarray, steps: tuple[float, float], gains: tuple) -> np.ndarray:
+    """``base`` (complex [n_range, n_azimuth], an image demodulated by its carrier, sample spacings
+    ``steps`` [m]) with its spectrum along each axis multiplied by ``gains`` (functions of the
+    frequency [cycles/m], :func:`~sarmitsuba.formats.sicd_support.flattening_gain`; None leaves the
+    axis alone): the weighting taken out for a uniform SICD (docs/physics.md (K3)). Each axis is
+    zero-padded by half its length first, so the flattened responses' longer tails do not wrap."""
+    from scipy.fft import fft, ifft, next_fast_len
+    for axis, (step, gain) in enumerate(zip(steps, gains)):
+        if gain is None:
+            continue
+        n = base.shape[axis]
+        size = next_fast_len(n + n // 2)
+        g = gain(np.fft.fftfreq(size, step))
+        spectrum = fft(base, size, axis=axis) * (g[:, None] if axis == 0 else g[None, :])
+        base = ifft(spectrum, axis=axis)[:n] if axis == 0 else ifft(spectrum, axis=axis)[:, :n]
+    return base
+
+
 def resample(image: SarImage, carrier: Carrier, scp: tuple[float, float], rows: np.ndarray,
-             cols: np.ndarray, removed: tuple[float, float]) -> np.ndarray:
+             cols: np.ndarray, removed: tuple[float, float], gains: tuple = (None, None)) -> np.ndarray:
     """The SICD pixels (complex64 [len(rows), len(cols)], rows = range): ``image`` interpolated at the
     range positions ``rows`` and azimuth positions ``cols`` [m, image axes] with its carrier (module
-    docstring), times ``exp(-j 2 pi removed . (x, y))``; ``scp`` = (range, azimuth) of the SCP [m].
+    docstring), times ``exp(-j 2 pi removed . (x, y))``; ``scp`` = (range, azimuth) of the SCP [m];
+    the baseband's spectrum first multiplied by ``gains`` (:func:`flatten`).
 
     Cost: two FFTs of the image and products with ``[len(rows), n_range]`` and
     ``[len(cols), n_azimuth]`` interpolation matrices (in blocks of 1024 positions).
@@ -160,12 +179,13 @@ def resample(image: SarImage, carrier: Carrier, scp: tuple[float, float], rows: 
             and np.allclose(cols, image.azimuth, rtol=0, atol=1e-9 * abs(cols[1] - cols[0])))
     x_old, y_old = image.range - scp[0], image.azimuth - scp[1]
     x_new, y_new = rows - scp[0], cols - scp[1]
-    if same and removed == (0.0, 0.0):
+    if same and removed == (0.0, 0.0) and gains == (None, None):
         return np.ascontiguousarray(image.data.T.astype(np.complex64))
     old_phase = linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)       # [n_rg, n_az]
     base = image.data.T.astype(np.complex128) * np.exp(-2j * np.pi * old_phase)
+    d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
+    base = flatten(base, (d_rg, d_az), gains)
     if not same:
-        d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
         d_rows, d_cols = float(rows[1] - rows[0]), float(cols[1] - cols[0])
         base = _interpolate(base, 0, d_rg, rows - image.range[0], 0.5 / d_rows)
         base = _interpolate(base, 1, d_az, cols - image.azimuth[0], 0.5 / d_cols)

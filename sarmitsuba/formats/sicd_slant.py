@@ -39,7 +39,7 @@ import numpy as np
 
 from ..core import georef
 from ..core.image import SarImage
-from .sicd_resample import Carrier, linear_cycles
+from .sicd_resample import Carrier, flatten, linear_cycles
 from .sicd_support import Aperture, SupportError, Track
 
 __all__ = ["slant_frame", "resample_to_slant", "UPSAMPLE", "SlantError"]
@@ -116,12 +116,16 @@ def _upsampled(base: np.ndarray, factor: int) -> np.ndarray:
 
 def resample_to_slant(image: SarImage, carrier: Carrier, ground_scp: tuple[float, float], tree: Any,
                       rows: np.ndarray, cols: np.ndarray, slant_scp: tuple[float, float],
-                      removed: tuple[float, float], ref: georef.GeoReference) -> np.ndarray:
+                      removed: tuple[float, float], ref: georef.GeoReference,
+                      gains: tuple = (None, None)) -> np.ndarray:
     """The slant-plane SICD pixels (complex64 [len(rows), len(cols)]) of the ground image ``image``
     (module docstring): ``carrier`` the image's carrier about ``ground_scp`` (range, azimuth) [m],
     ``tree`` the SICD XML (Grid, Position, SCPCOA set) whose grid positions ``rows``, ``cols`` [m]
     about ``slant_scp`` are projected to the ground, ``removed`` the carrier [cycles/m] taken out of
-    the SICD pixels (as :func:`~sarmitsuba.formats.sicd_resample.resample`)."""
+    the SICD pixels (as :func:`~sarmitsuba.formats.sicd_resample.resample`); the demodulated ground
+    image's spectrum is first multiplied by ``gains`` (functions of the ground image's range and
+    azimuth frequencies, :func:`~sarmitsuba.formats.sicd_resample.flatten`): the weighting taken
+    out on the ground, where the image's support and its ``WgtFunct`` are known."""
     import sarkit.sicd.projection as skproj
     from scipy.ndimage import map_coordinates
     params = skproj.MetadataParams.from_xml(tree)
@@ -140,9 +144,10 @@ def resample_to_slant(image: SarImage, carrier: Carrier, ground_scp: tuple[float
     x_old, y_old = image.range - ground_scp[0], image.azimuth - ground_scp[1]
     phase = linear_cycles(carrier.kctr, x_old, y_old) + carrier.cycles(x_old, y_old)
     base = image.data.T.astype(np.complex128) * np.exp(-2j * np.pi * phase)      # [n_range, n_azimuth]
+    d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
+    base = flatten(base, (d_rg, d_az), gains)
     factor = UPSAMPLE if base.size * UPSAMPLE ** 2 <= _UPSAMPLE_MAX else 1
     fine = _upsampled(base, factor)
-    d_rg, d_az = float(np.diff(image.range).mean()), float(np.diff(image.azimuth).mean())
     where = [factor * (rg - image.range[0]) / d_rg, factor * (az - image.azimuth[0]) / d_az]
     envelope = (map_coordinates(fine.real, where, order=3, mode="constant", cval=0.0)
                 + 1j * map_coordinates(fine.imag, where, order=3, mode="constant", cval=0.0))

@@ -34,7 +34,8 @@ from ..core.image import SarImage
 from ..core.raw import RawData
 
 __all__ = ["Track", "track_of", "Aperture", "Weighting", "grid_direction", "weighting_irw", "WINDOW_NAMES",
-           "WEIGHT_SAMPLES", "SupportError"]
+           "WEIGHT_SAMPLES", "SupportError", "FLOOR", "uniform_weighting", "kept_fraction", "flattening_gain",
+           "flattened", "uniform_metadata"]
 
 #: sarmitsuba window name -> SICD WgtType/WindowName.
 WINDOW_NAMES = {"rect": "UNIFORM", "taylor": "TAYLOR", "hamming": "HAMMING", "hann": "HANNING", "kaiser": "KAISER"}
@@ -42,6 +43,9 @@ WINDOW_NAMES = {"rect": "UNIFORM", "taylor": "TAYLOR", "hamming": "HAMMING", "ha
 WEIGHT_SAMPLES = 512
 #: Antenna positions sampled along the aperture when its weighting is evaluated.
 _FINE = 8193
+#: Weighting (amplitude, relative to its peak) below which a uniform SICD drops the support
+#: rather than divide by it: -20 dB, so no part of the spectrum gains more than 20 dB.
+FLOOR = 0.1
 
 
 class SupportError(ValueError):
@@ -130,6 +134,89 @@ def window_weighting(window: tuple[str, dict]) -> Weighting:
     samples = None if name == "rect" else spectral_window(name, u - 0.5, 1.0, **params)
     return Weighting(WINDOW_NAMES.get(name, name.upper()), [(k.upper(), str(v)) for k, v in params.items()],
                      samples, impulse_response_width(name, **params))
+
+
+def uniform_weighting() -> Weighting:
+    """The :class:`Weighting` of a uniform support (``WgtType`` ``UNIFORM``, no ``WgtFunct``, SICD's
+    0.8859 / ImpRespBW impulse-response width)."""
+    return window_weighting(("rect", {}))
+
+
+def kept_fraction(weighting: Weighting) -> float:
+    """The share (0, 1] of the support a uniform SICD keeps of an image of this weighting: the
+    central, symmetric run of ``WgtFunct`` cells at or above :data:`FLOOR` times its peak (1 when
+    every cell is: sarmitsuba's Taylor windows, whose edges are 0.17). Raises SupportError when
+    the central cells lie below it."""
+    if weighting.samples is None:
+        return 1.0
+    s = np.asarray(weighting.samples, dtype=np.float64)
+    s = s / s.max()
+    n = s.size
+    inner = s[(n - 1) // 2::-1] >= FLOOR                    # centre outward, each half
+    outer = s[n // 2:] >= FLOOR
+    both = inner[:min(inner.size, outer.size)] & outer[:min(inner.size, outer.size)]
+    pairs = both.size if both.all() else int(np.argmin(both))
+    if pairs == 0:
+        raise SupportError(f"the {weighting.name} weighting lies below {FLOOR} of its peak at the support's "
+                           "centre: no uniform SICD; write the image's own weighting (weighting='image')")
+    return 1.0 if pairs == both.size else 2.0 * pairs / n
+
+
+def flattening_gain(weighting: Weighting, bandwidth: float, kept: float):
+    """The spectral gain that makes an image of ``weighting`` over a support of ``bandwidth``
+    [cycles/m] uniform over the central ``kept`` of it (docs/physics.md (K3)): a function of the
+    baseband frequency ``f`` [cycles/m] (float array; the support centred on 0, ``WgtFunct``'s
+    first cell at ``-bandwidth / 2``), ``mean(w) / (kept w(f / bandwidth))`` (unit peak gain
+    kept), ``w`` the cells linearly interpolated and held beyond the outer cells; 0 beyond
+    ``+-kept bandwidth / 2`` when ``kept < 1``. None for a uniform weighting (nothing to do)."""
+    if weighting.samples is None:
+        return None
+    samples = np.asarray(weighting.samples, dtype=np.float64)
+    cells = (np.arange(samples.size) + 0.5) / samples.size - 0.5
+    scale = float(samples.mean()) / kept
+
+    def gain(f: np.ndarray) -> np.ndarray:
+        u = np.asarray(f, dtype=np.float64) / bandwidth
+        out = scale / np.interp(u, cells, samples)
+        if kept < 1.0:
+            out[np.abs(u) > 0.5 * kept * (1.0 + 1e-9)] = 0.0
+        return out
+    return gain
+
+
+def flattened(image: SarImage) -> tuple[float, float] | None:
+    """(row, col) shares of the aperture's support that a uniform SICD kept, when ``image`` was read
+    from one (``metadata["focus"]["spectral_weighting"]``, written by :func:`~sarmitsuba.formats.sicd.write_sicd`); None else."""
+    focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
+    flat = focus.get("spectral_weighting") if isinstance(focus, dict) else None
+    if not isinstance(flat, dict) or flat.get("name") != "uniform":
+        return None
+    kept = flat.get("kept", (1.0, 1.0))
+    return float(kept[0]), float(kept[1])
+
+
+def uniform_metadata(metadata: Any, kept: tuple[float, float]) -> Any:
+    """The image metadata a uniform SICD carries: ``metadata["focus"]`` with rect windows, no
+    antenna pattern, the processed beam's sines (else the track's length) narrowed to the share
+    ``kept[1]`` of the azimuth support and the band to ``kept[0]`` of the range support (so the
+    point-target analysis of the file models its uniform response), and ``spectral_weighting``
+    (what :func:`flattened` reads back; the azimuth share left in it is 1 where the beam says it)."""
+    if not isinstance(metadata, dict) or not isinstance(metadata.get("focus"), dict):
+        return metadata
+    focus = dict(metadata["focus"], window_range={"name": "rect"}, window_azimuth={"name": "rect"},
+                 azimuth_pattern=None)
+    left = [kept[0], kept[1]]
+    if kept[0] < 1.0 and focus.get("bandwidth"):
+        focus["bandwidth"] = float(focus["bandwidth"]) * kept[0]
+    if kept[1] < 1.0 and focus.get("beam_sines") is not None:
+        lo, hi = (float(v) for v in focus["beam_sines"])
+        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * kept[1]
+        focus["beam_sines"], left[1] = [centre - half, centre + half], 1.0
+    elif kept[1] < 1.0 and isinstance(focus.get("track"), dict) and focus["track"].get("length"):
+        focus["track"] = dict(focus["track"], length=float(focus["track"]["length"]) * kept[1])
+    focus["spectral_weighting"] = {"name": "uniform", "kept": left,
+                                   "note": "the focusing weighting was taken out by write_sicd (docs/physics.md (K3))"}
+    return {**metadata, "focus": focus}
 
 
 def grid_direction(unit_ecef: np.ndarray, spacing: float, bandwidth: float, kctr: float, weighting: Weighting,
@@ -253,6 +340,8 @@ class Aperture:
         cells = s.min() + (np.arange(WEIGHT_SAMPLES) + 0.5) / WEIGHT_SAMPLES * np.ptp(s)
         samples = np.interp(cells, s[::-1], weight[::-1])
         samples = samples / samples.max()
+        if float(self.heading @ self.e_az) < 0:      # cells along the column frequency (k_col ~ s heading . e_az)
+            samples = samples[::-1]
         bare = window_weighting(self.window)
         reference = np.ones(WEIGHT_SAMPLES) if bare.samples is None else bare.samples
         if np.max(np.abs(samples - reference)) < 1e-3:
