@@ -40,7 +40,9 @@ def energy_widths(image: SarImage, position: Sequence[float] | None = None) -> t
       weighting ``W`` (the azimuth window ``w(u)``, ``u = (s - sin_lo) / (sin_hi - sin_lo)``,
       times the two-way pattern ``sinc^2(L / lambda * sin(phi - squint))`` when the data carry
       one) times the pulses' density ``rho ~ cos(phi)^-3`` in ``s`` (a straight track, pulses
-      evenly spaced). ``cos(phi)`` is the Jacobian of the 2-D wavenumber support (range and
+      evenly spaced); on a curved track the target sees the sines sweep ``kappa`` times as fast
+      (``metadata["focus"]["sine_scale"]``, :func:`sarmitsuba.focus.beam.sine_scale`; 1.09 on an
+      orbit at 500 km), which divides ``rho_E,az`` by ``kappa``. ``cos(phi)`` is the Jacobian of the 2-D wavenumber support (range and
       azimuth frequencies are not orthogonal under squint). For a narrow beam at broadside
       this is ``(lambda / 2) int W^2 ds / (int W ds)^2``: ``lambda / (4 sin(beta / 2))`` for a
       uniform beam of width ``beta``, ``energy_width(w)`` times that with a window. Without a
@@ -130,10 +132,16 @@ class ImpulseModel:
         u = np.linspace(0.0, 1.0, _QUADRATURE)
         w = spectral_window(w_az[0], u - 0.5, 1.0, **w_az[1])
         sines = focus.get("beam_sines")
+        scale = 1.0
         if sines is not None:
             sin_lo, sin_hi = (float(v) for v in sines)
+            # the target's sines per beam sine on a curved track (1 on a straight one; an orbit's
+            # 1.09 at 500 km, focus.beam.sine_scale): the support is that much wider (K2), (J7)
+            scale = float(focus.get("sine_scale") or 1.0)
+            if not (np.isfinite(scale) and scale > 0):
+                raise ValueError(f"image.metadata['focus']['sine_scale'] = {scale!r} must be a finite number > 0")
             sine = sin_lo + u * (sin_hi - sin_lo)
-            slope = np.full_like(u, sin_hi - sin_lo)                      # ds / du
+            slope = np.full_like(u, (sin_hi - sin_lo) * scale)            # d(target's sine) / du
             amplitude = w / (1.0 - sine ** 2) ** 1.5                      # W rho per du
             pattern = focus.get("azimuth_pattern")
             if pattern is not None:
@@ -148,7 +156,7 @@ class ImpulseModel:
             slope = length * (1.0 - sine ** 2) ** 1.5 / r0                 # |ds / du|
             amplitude = w
         self.wavelength = SPEED_OF_LIGHT / fc
-        self.u, self.sine, self.slope, self.amplitude = u, sine, slope, amplitude
+        self.u, self.sine, self.slope, self.amplitude = u, scale * sine, slope, amplitude
         cos_phi = np.sqrt(1.0 - sine ** 2)
         self.rho_az = float(0.5 * self.wavelength * _simpson(amplitude ** 2 * cos_phi / slope, u)
                             / _simpson(amplitude, u) ** 2)

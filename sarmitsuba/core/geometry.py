@@ -54,9 +54,10 @@ class AcquisitionGeometry:
     acceleration : float64 [n_pulses, 3], m/s^2
         At transmission (the tracer's receive positions are ``A + v tau + a tau^2 / 2``).
     beam_axes : float64 [n_pulses, 3] or None
-        Curved tracks: each pulse's unit along-track axis of the antenna (the horizontal direction
-        of the nominal velocity), which its beam and pattern follow; None for a straight track
-        (``track_direction`` throughout).
+        Curved tracks: each pulse's unit along-track axis of the antenna (the direction of the
+        nominal velocity, the axis :func:`sarmitsuba.focus.beam.beam_axes` processes; on an orbit the
+        Earth-fixed velocity: zero-Doppler steering, docs/physics.md (J7)), which its beam and
+        pattern follow; None for a straight track (``track_direction`` throughout).
     nominal_positions, nominal_rx_positions, nominal_velocity : float64 [n_pulses, 3] or None
         The track without its motion errors (sensor ``motion_error``, (J4)); None without them.
     """
@@ -248,8 +249,11 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
             i = int(np.argmax(norm <= 1e-9 * np.maximum(np.linalg.norm(v, axis=1), 1e-300)))
             raise ParameterError(f"trajectory: at pulse {i} (t = {t[i]:.6g} s) the antenna moves vertically or not at "
                                  "all; a SAR needs horizontal motion along its track")
-        beam_axes = horizontal / norm[:, None]
-        mid = aperture_axis(nominal.position(t), t) if len(t) > 1 else beam_axes[0]
+        # the antenna's along-track axis is the nominal velocity itself, as the focusers' beam
+        # (focus.beam.beam_axes): on an orbit its ENU velocity dips 0.19 deg, and its horizontal part
+        # put the beam 0.14 deg off zero Doppler, beside the processed beam (J7)
+        beam_axes = v / np.linalg.norm(v, axis=1, keepdims=True)
+        mid = aperture_axis(nominal.position(t), t) if len(t) > 1 else horizontal[0] / norm[0]
         sign = 1.0 if params.look_side == "right" else -1.0
         track, look = mid, sign * np.array([mid[1], -mid[0], 0.0])
     nominal_fields = {}

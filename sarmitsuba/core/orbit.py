@@ -27,7 +27,7 @@ from . import georef
 from .state_vectors import HERMITE_WINDOW, StateVectors, TrajectoryError, read_eof
 
 __all__ = ["read_eof", "in_scene_frame", "pass_geometry", "PassGeometry", "closest_approach", "builtin_orbit", "orbit_of",
-           "EARTH_ROTATION", "GM_EARTH", "ORBIT_STEP"]
+           "footprint_speed", "EARTH_ROTATION", "GM_EARTH", "ORBIT_STEP"]
 
 
 # ============================================================================ frames
@@ -217,6 +217,32 @@ def closest_approach(evaluate: Any, lo: float, hi: float, point: np.ndarray) -> 
     res = minimize_scalar(lambda x: float(np.linalg.norm(evaluate(np.array(x), 0) - point)), bounds=(a, b),
                           method="bounded", options={"xatol": 1e-7})
     return float(res.x)
+
+
+def footprint_speed(params: Any) -> float:
+    """The speed [m/s] at which the beam sweeps the scene: ``params.velocity`` on a straight track;
+    for an orbit (state vectors centred on the closest approach, already in the scene frame) the
+    beam footprint's ground speed at closest approach to ``scene_center`` ``C``, eq. (J7):
+
+        v_g = (|V|^2 - (C - P) . A) / |V|,
+
+    ``P``, ``V``, ``A`` the antenna's position, velocity and acceleration there. At zero Doppler the
+    along-track sine of ``C`` seen from the antenna changes at ``(|V|^2 - (C - P) . A) / (|V| R)``
+    (the velocity turns with the orbit's curvature), so a beam of width ``beta`` holds ``C`` for
+    ``beta R / v_g`` s, where a straight track would need ``beta R / |V|``: 7.4 % less speed at
+    500 km and 40 deg incidence (about ``|V| R_E / (R_E + h)``). The automatic aperture
+    (:func:`sarmitsuba.scene.planning.resolve_parameters`) counts pulses with it. Needs resolved
+    ``scene_center``; raises what :func:`~sarmitsuba.core.trajectory.from_state_vectors` raises."""
+    states = params.trajectory
+    if not (isinstance(states, StateVectors) and states.closest_approach):
+        return float(params.velocity)
+    from .trajectory import from_state_vectors
+    path = from_state_vectors(states)
+    center = np.asarray(params.scene_center, np.float64)
+    t = closest_approach(path.evaluate, *path.span, center)
+    v, a = path.velocity(t), path.acceleration(t)
+    speed = float(np.linalg.norm(v))
+    return (speed * speed - float((center - path.position(t)) @ a)) / speed
 
 
 def _normal_in_enu(llh: np.ndarray, ref: georef.GeoReference) -> np.ndarray:

@@ -29,7 +29,7 @@ from .grid import ImageGrid
 from .windows import spectral_window, window_spec
 
 __all__ = ["WINDOW_TABLE", "BeamWeighting", "beam_weighting", "beam_sines", "beam_axes", "unit_rows",
-           "illumination_count",
+           "illumination_count", "sine_scale",
            "expected_gain", "column_gain", "normalise_columns"]
 
 #: Samples of the beam-weight tables over u in [0, 1] (linear interpolation between them:
@@ -175,6 +175,29 @@ def beam_axes(raw: RawData) -> np.ndarray:
     the tracer illuminates, docs/physics.md (J4)), else ``raw.velocity``. Weighting by the swaying
     velocity instead cost a trihedral 1.17 dB of peak and RCS on the true track (2 cm, 40 m sway)."""
     return unit_rows(raw.nominal_velocity if raw.has_nominal_track else raw.velocity)
+
+
+def sine_scale(raw: RawData, point: np.ndarray, sines: tuple[float, float] | None) -> float:
+    """How fast the along-track sine seen from ``point`` [m] sweeps against the beam's, over the
+    processed beam: the least-squares slope ``kappa`` of ``(x - A_p) . t / |x - A_p|`` (``t`` the
+    unit mid-aperture velocity, the straight reference track of ``metadata["focus"]["track"]``) on
+    the beam's sines ``(x - A_p) . v_p / |x - A_p|`` (``v_p`` of :func:`beam_axes`) of the pulses
+    whose beam holds ``point``. 1 on a straight track. On an orbit the velocity turns with the
+    Earth's curvature, and the target sees the antenna sweep ``kappa = v^2 / (v^2 - (x - A) . a)``
+    times the beam (``a`` the acceleration; 1.087 at 500 km and 40 deg): the azimuth bandwidth is
+    ``kappa`` times the beam's, the energy width ``1 / kappa`` times (docs/physics.md (J7), (K2)).
+    1.0 without a beam (``sines`` None) or with fewer than 3 pulses in it. Returns a float."""
+    if sines is None:
+        return 1.0
+    e = np.asarray(point, np.float64) - raw.tx_position
+    dist = np.linalg.norm(e, axis=1)
+    beam = np.einsum("pk,pk->p", e, beam_axes(raw)) / dist
+    mid = np.asarray(raw.velocity[raw.n_pulses // 2], np.float64)
+    seen = e @ (mid / np.linalg.norm(mid)) / dist
+    inside = (beam >= sines[0]) & (beam <= sines[1])
+    if np.count_nonzero(inside) < 3 or np.ptp(beam[inside]) <= 0:
+        return 1.0
+    return float(np.polyfit(beam[inside], seen[inside], 1)[0])
 
 
 def illumination_count(raw: RawData, grid: ImageGrid, azimuth_beamwidth: float, step: int = 16,

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..core.image import SarImage
 from ..core.raw import RawData
-from .beam import BeamWeighting
+from .beam import BeamWeighting, sine_scale
 from .grid import ImageGrid
 from .range_lines import MAX_OVERSAMPLE
 from .windows import check_window, window_label
@@ -104,7 +104,8 @@ def focus_metadata(raw: RawData, grid: ImageGrid, seconds: float, beam: BeamWeig
                    **params: Any) -> dict[str, Any]:
     """``image.metadata["focus"]`` of a backprojected image: ``params`` (the focuser's options),
     the windows, pattern, beam sines, straight-track reference ``track`` (mid-aperture transmitter,
-    unit velocity, first-to-last length), normalisation, radar figures, ``seconds`` and
+    unit velocity, first-to-last length), ``sine_scale`` (:func:`~.beam.sine_scale` at the grid's
+    centre: the target-side sines per beam sine, 1 on a straight track), normalisation, radar figures, ``seconds`` and
     ``pixel_pulses_per_second`` (grid pixels x pulses / seconds: the rate of a direct
     backprojection of every pulse onto every pixel)."""
     pixel_pulses = grid.shape[0] * grid.shape[1] * raw.n_pulses
@@ -123,6 +124,8 @@ def focus_metadata(raw: RawData, grid: ImageGrid, seconds: float, beam: BeamWeig
             "window_range": {"name": w_rg[0], **w_rg[1]}, "window_azimuth": {"name": w_az[0], **w_az[1]},
             "azimuth_pattern": beam.pattern,
             "beam_sines": None if beam.sines is None else list(beam.sines), "track": track,
+            "sine_scale": sine_scale(raw, grid.origin + grid.azimuth[grid.shape[0] // 2] * grid.azimuth_direction
+                                     + grid.range[grid.shape[1] // 2] * grid.range_direction, beam.sines),
             "interpolation": "fft-upsample + linear", "normalisation": normalisation,
             "n_pulses": raw.n_pulses, "grid_shape": list(grid.shape), "plane": grid.plane,
             "fc": raw.fc, "bandwidth": raw.bandwidth, "fs": raw.fs, "prf": raw.prf,

@@ -27,8 +27,8 @@ class PulseView:
     steer : mi.Float or None
         Spotlight: the along-track sine of the scene centre, which the beam is steered at.
     axis : mi.Array3f64 or None
-        Curved track: the antenna's along-track axis (the horizontal direction of the nominal
-        velocity); None: the track direction of the footprint.
+        Curved track: the antenna's along-track axis (the direction of the nominal velocity,
+        docs/physics.md (J7)); None: the track direction of the footprint.
     aperture, elevation : mi.Vector3f or None
         Curved track: the axes of the antenna pattern (A) for this pulse.
     velocity, acceleration : mi.Array3f64 or None
