@@ -430,17 +430,23 @@ def _scene_lines(s: SceneSize) -> list[str]:
 
 def _radar_lines(r: RadarSummary) -> list[str]:
     prf_state = "inside" if r.prf_ok else "OUTSIDE (ambiguities: see warnings)"
+    # an orbit's altitude and look angle on the real Earth are the orbit line's; these are the tangent plane's
+    orbit = r.orbit_pass is not None
     return [
         f"carrier {_eng(r.frequency_hz, 'Hz')}, wavelength {_eng(r.wavelength_m, 'm')}, "
         f"polarisation {r.polarization}, output {r.output}",
         f"bandwidth {_eng(r.bandwidth_hz, 'Hz')}, pulse {_eng(r.pulse_length_s, 's')}, "
         f"sampling {_eng(r.sampling_rate_hz, 'Hz')}, prf {_eng(r.prf_hz, 'Hz')}",
-        f"{r.mode}, looking {r.look_side}, altitude {r.altitude_m:g} m, velocity {r.velocity_m_s:g} m/s, "
+        f"{r.mode}, looking {r.look_side}, "
+        + ("height above the scene's tangent plane" if orbit else "altitude") + f" {r.altitude_m:g} m, velocity "
+        f"{r.velocity_m_s:g} m/s, "
         f"azimuth beam {r.azimuth_beamwidth_deg:.3g} deg ("
         + (f"tapered: two-way sinc^2 pattern traced to its first nulls, {r.traced_beamwidth_deg:.3g} deg)"
            if r.beam == "tapered" else "uniform and hard-edged, on request: extended targets streak in azimuth)"),
         f"incidence {r.incidence_angle_deg:g} deg at the centre ({r.incidence_near_deg:.1f} .. "
-        f"{r.incidence_far_deg:.1f} deg across the scene), look angle {r.look_angle_deg:g} deg (flat earth)",
+        f"{r.incidence_far_deg:.1f} deg across the scene), "
+        + ("in the scene's tangent plane (the look angle and height on the curved Earth: the orbit line)" if orbit
+           else f"look angle {r.look_angle_deg:g} deg (flat earth)"),
         f"slant range to the centre {r.slant_range_m:.1f} m, ground range {r.ground_range_m:.1f} m",
         f"resolution: slant range {r.slant_range_resolution_m:.3g} m = c/(2B); ground range "
         f"{r.ground_range_resolution_m:.3g} m = c/(2B sin theta); azimuth {r.azimuth_resolution_m:.3g} m = "

@@ -269,8 +269,11 @@ def _note_replaced(given: Mapping[str, Any], params: RadarParameters) -> None:
         if not same:
             replaced.append(f"{name} {float(old):g} -> {new:.6g}" if name != "look_side" else f"{name} {old} -> {new}")
     if replaced:
+        # the built-in orbit (J7): Kepler fixes its speed, the orbit's plane its heading
+        fix = ("; the orbit's speed follows from altitude, its heading from orbit_inclination and orbit_direction"
+               if params.trajectory.source == "orbit" else "")
         warnings.warn(f"trajectory {params.trajectory.source} sets the platform from its mid-aperture state: "
-                      f"{', '.join(replaced)} (the values given are not used)", AcquisitionWarning, stacklevel=3)
+                      f"{', '.join(replaced)} (the values given are not used{fix})", AcquisitionWarning, stacklevel=3)
 
 
 def _built_in_python(source: Any) -> bool:
