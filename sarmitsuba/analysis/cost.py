@@ -240,12 +240,15 @@ def synthetic_aperture(p: RadarParameters) -> tuple[float, int]:
     """Synthetic aperture length [m, float] integrated per point, and the pulses in it (int).
 
     Stripmap: the traced beam's footprint ``2 R tan(h)`` at the scene centre (each point is
-    lit while the platform flies that far; capped by the track). Spotlight: the whole
+    lit while the platform flies that far; capped by the track); an orbit flies ``|V| / v_g``
+    times the footprint, ``v_g`` the footprint's ground speed
+    (:func:`~sarmitsuba.core.orbit.footprint_speed`, docs/physics.md (J7)). Spotlight: the whole
     track, ``N v / prf`` (the length behind :attr:`RadarParameters.integration_angle`).
     """
     if p.mode == "spotlight":
         return p.n_pulses * p.velocity / p.prf, p.n_pulses
-    length = p.footprint_length
+    from ..core.orbit import footprint_speed
+    length = p.footprint_length * p.velocity / footprint_speed(p)
     return length, int(min(p.n_pulses, max(1, round(length * p.prf / p.velocity))))
 
 
