@@ -334,7 +334,7 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         incidence_far_deg=math.degrees(math.atan2(p.ground_range + float(across.max()), p.altitude)),
         slant_range_m=p.slant_range, ground_range_m=p.ground_range,
         slant_range_resolution_m=p.slant_range_resolution, ground_range_resolution_m=p.ground_range_resolution,
-        azimuth_resolution_m=p.azimuth_resolution, azimuth_resolution_formula=_azimuth_formula(p),
+        azimuth_resolution_m=p.azimuth_resolution / _sweep(p), azimuth_resolution_formula=_azimuth_formula(p),
         doppler_bandwidth_hz=p.doppler_bandwidth,
         illuminated_doppler_bandwidth_hz=2.0 * p.velocity * (sin_hi - sin_lo) / p.wavelength,
         squint_deg=p.squint, doppler_centroid_hz=p.doppler_centroid,
@@ -361,7 +361,16 @@ def _orbit_pass(p: RadarParameters, offset: np.ndarray) -> dict | None:
     return dataclasses.asdict(orbit.pass_geometry(states, georef.of(p), p.scene_center, offset))
 
 
+def _sweep(p: RadarParameters) -> float:
+    """``|V| / v_g`` of a stripmap orbit (its ground resolution is the beam's over it, (J7)); else 1."""
+    return p.velocity / orbit.footprint_speed(p) if p.mode == "stripmap" else 1.0
+
+
 def _azimuth_formula(p: RadarParameters) -> str:
+    if _sweep(p) != 1.0:
+        straight = _azimuth_formula(dataclasses.replace(p, trajectory="straight"))
+        return (f"(that of a straight track) x v_g / |V| = {1.0 / _sweep(p):.4g}, the footprint's ground speed over "
+                f"the orbit's (docs/physics.md (J7)); straight: {straight}")
     if p.trajectory == "circular":
         arc = max(p.n_pulses - 1, 1) * p.velocity / (p.prf * p.ground_range)
         return (f"lambda / (4 sin(theta) sin(min(a, pi) / 2)), arc a = (N - 1) v / (prf G) = {math.degrees(arc):.4g} deg "
