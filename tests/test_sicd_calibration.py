@@ -1,5 +1,5 @@
-"""A uniform SICD (``write_sicd(..., weighting="uniform")``) reads one RCS in every client (issue 55,
-item 4; docs/physics.md (K3)).
+"""The default, uniform SICD (``write_sicd(..., weighting="uniform")``) reads one RCS in every client
+(issue 55, item 4; docs/physics.md (K3), (K3')).
 
 With the image's weighting taken out of its spectrum, a point target's peak and its integrated
 power agree (``W = mean(w^2) / mean(w)^2 = 1``), so sarpy's RCS tool (``sarpy.annotation.rcs``:
@@ -143,6 +143,28 @@ def test_sarpy_taper_on_the_uniform_sicd_keeps_peak_and_beta(uniform, tmp_path, 
     w = np.asarray(meta.Grid.Row.WgtFunct)
     factor = (np.mean(w ** 2) / np.mean(w) ** 2) ** 2
     assert sarpy_total_rcs_db(tapered) == pytest.approx(reference + 10 * math.log10(factor), abs=0.25)
+
+
+def test_the_pixels_spectrum_is_flat_over_the_declared_band(uniform):
+    """Power spectrum along the columns of the 16 rows through the trihedral (straight stripmap,
+    whose weighting holds the two-way pattern down to -20 dB): within 1 dB peak to peak over the
+    central 80 % of ImpRespBW about DeltaKCOAPoly, and 15 dB down a tenth of the band beyond it.
+    Catches the weighting left in (Taylor times pattern: 20 dB across), a division centred off the
+    data's spectral centre (a 1.5 % offset tilts it by 5 dB near the pattern's nulls), and the
+    support beyond the kept band not dropped."""
+    _, path = uniform["straight"]
+    xml, _, pixels = parts(path)
+    i, _ = np.unravel_index(int(np.argmax(np.abs(pixels))), pixels.shape)
+    spacing = xml.load("{*}Grid/{*}Col/{*}SS")
+    power = (np.abs(np.fft.fft(pixels[i - 8:i + 8].astype(np.complex128), axis=1)) ** 2).sum(axis=0)
+    f = np.fft.fftfreq(pixels.shape[1], spacing)
+    bandwidth = xml.load("{*}Grid/{*}Col/{*}ImpRespBW")
+    centre = xml.load("{*}Grid/{*}Col/{*}DeltaKCOAPoly")[0, 0]
+    offset = (f - centre + 0.5 / spacing) % (1 / spacing) - 0.5 / spacing
+    inside = power[np.abs(offset) <= 0.4 * bandwidth]
+    assert 10 * math.log10(inside.max() / inside.min()) < 1.0
+    outside = power[np.abs(offset) >= 0.6 * bandwidth]
+    assert 10 * math.log10(outside.max() / inside.mean()) < -15.0
 
 
 def test_a_uniform_sicd_read_and_written_again_is_not_flattened_twice(uniform, tmp_path):

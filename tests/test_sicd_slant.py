@@ -16,8 +16,10 @@ of the angles differ.
   ``BetaZeroSFPoly`` (sum of pixel power times the pixel area), and sarpy's RCS tool read the
   same RCS as ``analyze`` on the focused image, within 0.2 dB, and the closed form 4 pi a^4 /
   (3 lambda^2) within 0.3 dB. sarpy's RCS tool divides the pixel power by the oversampling
-  ratios only: with sarpy's own ``BetaZeroSF = RCSSF / A`` (A with the weighting factors
-  mean(w^2)/mean(w)^2) it reads the RCS times those factors, exactly.
+  ratios only: on a SICD with the image's own weighting (``weighting="image"``) and sarpy's own
+  ``BetaZeroSF = RCSSF / A`` (A with the weighting factors mean(w^2)/mean(w)^2) it reads the RCS
+  times those factors, exactly; on the default uniform SICD it reads the RCS
+  (tests/test_sicd_calibration.py).
 - A circular CPHD whose fast-time window follows the SRP says ``TOAFixed``.
 - ``DeltaKCOAPoly`` is the local spectral centre of the pixels around the off-SCP trihedral
   (the power spectrum's centroid over a 16 x 48 chip).
@@ -240,10 +242,12 @@ def box(pixels, half=10):
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 @pytest.mark.parametrize("case", list(CASES))
-def test_every_reader_reads_the_trihedral_rcs_alike(products, case):
-    """The trihedral's RCS as ``analyze`` reads it on the focused image, against: ``analyze`` on the
-    SICD (0.2 dB), the integral method BetaZeroSF sum |p|^2 SS_row SS_col (0.2 dB), sarpy's RCS
-    tool's TotalRCS over its own weighting factors (0.2 dB) and the closed form (0.3 dB).
+def test_every_reader_reads_the_trihedral_rcs_alike(products, case, tmp_path):
+    """The trihedral's RCS as ``analyze`` reads it on the focused image, against, on a SICD with the
+    image's own weighting (``weighting="image"``; the default uniform one:
+    tests/test_sicd_calibration.py): ``analyze`` on the SICD (0.2 dB), the integral method
+    BetaZeroSF sum |p|^2 SS_row SS_col (0.2 dB), sarpy's RCS tool's TotalRCS over its own
+    weighting factors (0.2 dB) and the closed form (0.3 dB).
     Catches the weighting factor applied twice in BetaZeroSF (3.7 dB), a plane cosine in a
     slant-plane grid's BetaZeroSF (2.4 and 0.9 dB at 55 and 35 deg), the ground-plane grid of
     today's code (0.9 and 2.4 dB), and the response sampled at the wrong ground points (a
@@ -251,7 +255,8 @@ def test_every_reader_reads_the_trihedral_rcs_alike(products, case):
     from sarpy.annotation.rcs import create_rcs_value_collection_for_reader
     from sarpy.geometry.geometry_elements import Polygon
     from sarpy.io.complex.converter import open_complex
-    sim, path, _ = products[case]
+    sim, _, _ = products[case]
+    path = write_sicd(sim.image, tmp_path / "weighted.nitf", raw=sim.raw, weighting="image")
     xml, _, pixels = parts(path)
     reference = analyze_point_target(sim.image, APEX, chip=32).rcs_db
     assert reference == pytest.approx(closed_form_db(), abs=0.3)
@@ -275,8 +280,8 @@ def test_every_reader_reads_the_trihedral_rcs_alike(products, case):
 def test_rcssf_reads_the_peak_and_beta_the_pixel_area(products):
     """RCSSF |peak|^2 is the RCS (unit peak gain, docs/physics.md (K)); BetaZeroSF = RCSSF / A with A
     the slant-plane energy area of a cell, W_row W_col / (BW_row BW_col), the weighting factors
-    of the declared WgtFunct; SigmaZeroSF = Beta cos(slope) with the slope from the geometry by
-    hand (55 deg: sin and cos differ)."""
+    of the declared WgtFunct (1 without one: the default uniform SICD); SigmaZeroSF = Beta
+    cos(slope) with the slope from the geometry by hand (55 deg: sin and cos differ)."""
     sim, path, _ = products["circular"]
     xml, _, _ = parts(path)
     report = analyze_point_target(read_sicd(path), APEX, chip=16)
@@ -285,7 +290,8 @@ def test_rcssf_reads_the_peak_and_beta_the_pixel_area(products):
     area = 1.0
     for direction in ("Row", "Col"):
         w = xml.load(f"{{*}}Grid/{{*}}{direction}/{{*}}WgtFunct")
-        area *= np.mean(w ** 2) / np.mean(w) ** 2 / xml.load(f"{{*}}Grid/{{*}}{direction}/{{*}}ImpRespBW")
+        factor = 1.0 if w is None else np.mean(w ** 2) / np.mean(w) ** 2
+        area *= factor / xml.load(f"{{*}}Grid/{{*}}{direction}/{{*}}ImpRespBW")
     beta = xml.load("{*}Radiometric/{*}BetaZeroSFPoly")[0, 0]
     assert beta == pytest.approx(rcs_sf / area, rel=1e-3)
     ref = georef.of(sim.raw.metadata["radar"])

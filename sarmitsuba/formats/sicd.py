@@ -19,10 +19,10 @@ sarmitsuba wrote before, still read.
   image: ``Row/UVectECF`` its range direction, ``Col/UVectECF`` its azimuth direction), in
   ECEF through the geographic reference (docs/physics.md (G1), (G3)). The SCP is the image's
   centre pixel. ``KCtr`` and ``ImpRespBW`` are those of the aperture that formed the SCP
-  (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. The weighting is the image's own
-  (``WgtFunct``: the windows, the antenna pattern and the pulses' density); ``weighting="uniform"``
-  takes it out of the spectrum while the image is resampled (``WgtType = UNIFORM``, no
-  ``WgtFunct``, ``ImpRespWid = 0.8859 / ImpRespBW``, docs/physics.md (K3)). The image is resampled for the SICD onto
+  (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. By default the image's weighting is
+  taken out of its spectrum while it is resampled (``WgtType = UNIFORM``, no ``WgtFunct``,
+  ``ImpRespWid = 0.8859 / ImpRespBW``, docs/physics.md (K3)); ``weighting="image"`` keeps it
+  (``WgtFunct``: the windows, the antenna pattern and the pulses' density). The image is resampled for the SICD onto
   a grid that samples the impulse response about twice in both directions, inside SICD's
   advised 1.1 to 2.2, carrier included, with ``DeltaKCOAPoly`` and ``DeltaK1``/``DeltaK2`` the
   local spectral centre (:mod:`sarmitsuba.formats.sicd_resample`); the ``.npz`` image keeps its own grid.
@@ -73,8 +73,8 @@ from .sicd_resample import (Carrier, ResampleError, centred_axis, data_carrier, 
 from .sicd_support import Aperture, SupportError, Track, Weighting, flattened, flattening_gain, grid_direction, \
     kept_fraction, track_of, uniform_metadata, uniform_weighting, window_of, window_weighting
 
-__all__ = ["SicdError", "PLANES", "WEIGHTINGS", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE", "Layout",
-           "sicd_layout", "build_xml", "image_from_parts", "collection_start"]
+__all__ = ["SicdError", "PLANES", "WEIGHTINGS", "write_sicd", "read_sicd", "check_sicd", "load_image", "SICD_NAMESPACE",
+           "Layout", "sicd_layout", "build_xml", "image_from_parts", "collection_start"]
 
 #: XML namespace of the SICD version written.
 SICD_NAMESPACE = "urn:SICD:1.3.0"
@@ -341,12 +341,12 @@ def build_xml(image: SarImage, track: Track, ref: georef.GeoReference, layout: L
 #: as commercial SICDs of backprojected images), ``"image"`` the image's own plane.
 PLANES = ("slant", "image")
 #: Spectral weightings :func:`write_sicd` writes: ``"uniform"`` the image's own weighting taken out
-#: (every reader's RCS agrees, docs/physics.md (K3)), ``"image"`` the image's own (the default).
+#: (the default: every reader's RCS agrees, docs/physics.md (K3)), ``"image"`` the image's own.
 WEIGHTINGS = ("uniform", "image")
 
 
 def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = None,
-               ref: georef.GeoReference | None = None, plane: str = "slant", weighting: str = "image") -> Path:
+               ref: georef.GeoReference | None = None, plane: str = "slant", weighting: str = "uniform") -> Path:
     """Write ``image`` as a SICD 1.3.0 NITF at ``path`` (atomically), resampled onto its SICD grid.
 
     Parameters
@@ -365,7 +365,7 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         ``"slant"``: a ground-plane image is resampled onto the slant plane at the SCP
         (:mod:`sarmitsuba.formats.sicd_slant`; a slant-plane image keeps its plane);
         ``"image"``: the image's own plane (``ImagePlane = GROUND`` for a ground image).
-    weighting : {"uniform", "image"}, default "image"
+    weighting : {"uniform", "image"}, default "uniform"
         ``"uniform"``: the image's range and azimuth weighting (focusing windows, antenna
         pattern, pulse density: the ``WgtFunct`` of ``"image"``) is divided out of its spectrum
         while it is resampled, over the central part of the support where it is at least
@@ -406,7 +406,9 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         reference = _reference(image, ref)
         described = target
         if own.gains() != (None, None):
-            described = dataclasses.replace(target, window="rect", metadata=uniform_metadata(target.metadata, own.kept))
+            sines = tuple(float(v[0]) for v in Aperture(image, track).sines(own.scp_point))
+            described = dataclasses.replace(target, window="rect",
+                                            metadata=uniform_metadata(target.metadata, own.kept, sines))
         tree = build_xml(described, track, reference, layout, start=start)
     except (SicdError, SupportError, PolygonError, SlantError) as exc:
         message = str(exc)

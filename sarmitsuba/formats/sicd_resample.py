@@ -149,16 +149,23 @@ def _interpolate(samples: np.ndarray, axis: int, step: float, positions: np.ndar
 def flatten(base: np.ndarray, steps: tuple[float, float], gains: tuple) -> np.ndarray:
     """``base`` (complex [n_range, n_azimuth], an image demodulated by its carrier, sample spacings
     ``steps`` [m]) with its spectrum along each axis multiplied by ``gains`` (functions of the
-    frequency [cycles/m], :func:`~sarmitsuba.formats.sicd_support.flattening_gain`; None leaves the
-    axis alone): the weighting taken out for a uniform SICD (docs/physics.md (K3)). Each axis is
-    zero-padded by half its length first, so the flattened responses' longer tails do not wrap."""
+    frequency [cycles/m] from the support's centre, :func:`~sarmitsuba.formats.sicd_support.flattening_gain`;
+    None leaves the axis alone): the weighting taken out for a uniform SICD (docs/physics.md (K3)).
+
+    The gain is centred on the data's own spectral centre along the axis (the lag-one correlation's
+    phase, which a symmetric weighting leaves at the support's centre): the carrier model can be a
+    percent of the band off, and near a stripmap pattern's nulls, where the weighting falls by 18
+    nepers per band, that would tilt the flattened spectrum by dB. Each axis is zero-padded by half
+    its length first, so the flattened responses' longer tails do not wrap."""
     from scipy.fft import fft, ifft, next_fast_len
     for axis, (step, gain) in enumerate(zip(steps, gains)):
         if gain is None:
             continue
         n = base.shape[axis]
         size = next_fast_len(n + n // 2)
-        g = gain(np.fft.fftfreq(size, step))
+        lag = np.sum(base[1:] * np.conj(base[:-1])) if axis == 0 else np.sum(base[:, 1:] * np.conj(base[:, :-1]))
+        centre = float(np.angle(lag)) / (2.0 * np.pi * step) if abs(lag) > 0 else 0.0
+        g = gain(np.fft.fftfreq(size, step) - centre)
         spectrum = fft(base, size, axis=axis) * (g[:, None] if axis == 0 else g[None, :])
         base = ifft(spectrum, axis=axis)[:n] if axis == 0 else ifft(spectrum, axis=axis)[:, :n]
     return base

@@ -186,7 +186,8 @@ def flattening_gain(weighting: Weighting, bandwidth: float, kept: float):
 
 def flattened(image: SarImage) -> tuple[float, float] | None:
     """(row, col) shares of the aperture's support that a uniform SICD kept, when ``image`` was read
-    from one (``metadata["focus"]["spectral_weighting"]``, written by :func:`~sarmitsuba.formats.sicd.write_sicd`); None else."""
+    from one (``metadata["focus"]["spectral_weighting"]``, written by
+    :func:`~sarmitsuba.formats.sicd.write_sicd`); None else."""
     focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
     flat = focus.get("spectral_weighting") if isinstance(focus, dict) else None
     if not isinstance(flat, dict) or flat.get("name") != "uniform":
@@ -195,12 +196,14 @@ def flattened(image: SarImage) -> tuple[float, float] | None:
     return float(kept[0]), float(kept[1])
 
 
-def uniform_metadata(metadata: Any, kept: tuple[float, float]) -> Any:
+def uniform_metadata(metadata: Any, kept: tuple[float, float], sines: tuple[float, float] | None = None) -> Any:
     """The image metadata a uniform SICD carries: ``metadata["focus"]`` with rect windows, no
-    antenna pattern, the processed beam's sines (else the track's length) narrowed to the share
-    ``kept[1]`` of the azimuth support and the band to ``kept[0]`` of the range support (so the
-    point-target analysis of the file models its uniform response), and ``spectral_weighting``
-    (what :func:`flattened` reads back; the azimuth share left in it is 1 where the beam says it)."""
+    antenna pattern, the processed beam's sines (``beam_sines``; replaced by ``sines``, the
+    along-track sines that bound the aperture seen from the SCP, when given: a track shorter than
+    the beam bounds it) narrowed to the share ``kept[1]`` of the azimuth support (else the track's
+    length), the band to ``kept[0]`` of the range support (so the point-target analysis of the
+    file models its uniform response), and ``spectral_weighting`` (what :func:`flattened` reads
+    back; the azimuth share left in it is 1 where the beam's sines say it)."""
     if not isinstance(metadata, dict) or not isinstance(metadata.get("focus"), dict):
         return metadata
     focus = dict(metadata["focus"], window_range={"name": "rect"}, window_azimuth={"name": "rect"},
@@ -208,8 +211,8 @@ def uniform_metadata(metadata: Any, kept: tuple[float, float]) -> Any:
     left = [kept[0], kept[1]]
     if kept[0] < 1.0 and focus.get("bandwidth"):
         focus["bandwidth"] = float(focus["bandwidth"]) * kept[0]
-    if kept[1] < 1.0 and focus.get("beam_sines") is not None:
-        lo, hi = (float(v) for v in focus["beam_sines"])
+    if focus.get("beam_sines") is not None:
+        lo, hi = (float(v) for v in (focus["beam_sines"] if sines is None else sines))
         centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * kept[1]
         focus["beam_sines"], left[1] = [centre - half, centre + half], 1.0
     elif kept[1] < 1.0 and isinstance(focus.get("track"), dict) and focus["track"].get("length"):
