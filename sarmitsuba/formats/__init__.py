@@ -23,5 +23,5 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 
 Physics: (G1) local frame to ECEF, (G2) CPHD compensation to the scene reference point,
 (G3) GeoTIFF and SICD grids, (G4) the slant-plane SICD (section "Geographic reference and
-standard formats"), (K3) SICD radiometric scale factors.
+standard formats"), (K3) SICD radiometric scale factors, (K3') the uniform SICD's weighting taken out.
 """

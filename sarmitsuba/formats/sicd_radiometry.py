@@ -30,8 +30,9 @@ SS_col`` over its response on a slant-plane grid. sarpy's RCS tool (``sarpy.anno
 ImpRespBW)``: that is ``W_row W_col`` times the integrated RCS (3.7 dB for sarmitsuba's Taylor
 windows) under sarpy's own ``BetaZeroSF = RCSSF / A`` relation. No ``RCSSF`` satisfies both on a
 weighted image; the one written here is the one sarpy's consistency check and the standard's
-``Radiometric`` relations agree with. Read the integrated RCS from sarpy's ``TotalRCS`` as
-``TotalRCS / (W_row W_col)``.
+``Radiometric`` relations agree with. On such a SICD (``weighting="image"``) read the integrated
+RCS from sarpy's ``TotalRCS`` as ``TotalRCS / (W_row W_col)``; the default SICD is uniform
+(``W = 1``, no ``WgtFunct``: docs/physics.md (K3')), and every reading coincides.
 """
 from __future__ import annotations
 
