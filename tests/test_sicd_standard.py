@@ -255,14 +255,16 @@ def folded(value, spacing):
 
 @pytest.mark.parametrize("name, offsets, directions", [("trihedral/image.nitf", [0.0], ("Row", "Col")),
                                                        ("trihedral/weighted.nitf", [0.0], ("Row", "Col")),
+                                                       ("urban/image.nitf", [-75.0, 0.0, 75.0], ("Row",)),
                                                        ("urban/weighted.nitf", [-75.0, 0.0, 75.0], ("Row",))])
 def test_the_pixels_spectrum_is_centred_where_deltakcoapoly_says(renders, name, offsets, directions):
     """The local spectral centre of the SICD pixels (a chip's lag-one phase) is DeltaKCOAPoly there,
     within 5 % of the bandwidth: at the trihedral, and in range across the urban swath, where the
     incidence angle moves the carrier by over a bandwidth (its clutter's azimuth spectrum is too
-    uneven over a chip for the same test). The urban clutter is tested with its own weighting: with
-    it taken out (the default), the range centroid 75 m from the SCP moves by 6 to 9 % of the band
-    (the division lifts the band's edges, where clutter above the ground plane leans; docs/physics.md (K3))."""
+    uneven over a chip for the same test), on the default uniform files and with the image's own
+    weighting. Catches, on the uniform urban file, the weighting divided about one spectral centre
+    for the whole image (6 to 9 % of the band off 75 m from the SCP: the division lifts the band
+    edge toward which clutter above the ground plane leans; docs/physics.md (K3'))."""
     xml, _, pixels = parts(renders / name)
     spacing = (grid_value(xml, "Row", "SS"), grid_value(xml, "Col", "SS"))
     scp_row, scp_col = xml.load("{*}ImageData/{*}SCPPixel")

@@ -49,6 +49,8 @@ _OSR_RANGE = (1.15, 2.15)
 PHI_DEGREE = 3
 #: Output positions interpolated at once (bounds the interpolation matrices' memory).
 _BLOCK = 1024
+#: Blocks along an axis whose spectral centres :func:`flatten` fits a line through.
+_CENTRE_BLOCKS = 8
 
 
 class ResampleError(ValueError):
@@ -146,28 +148,57 @@ def _interpolate(samples: np.ndarray, axis: int, step: float, positions: np.ndar
     return np.moveaxis(out, 0, axis)
 
 
+def _centre_cycles(base: np.ndarray, axis: int, step: float) -> np.ndarray:
+    """The data's own spectral centre along ``axis`` of ``base`` (complex [n_range, n_azimuth]), as
+    the phase [cycles, float64 [n]] of a carrier integrated from the first sample: the lag-one
+    correlation's phase over the whole image (a constant frequency) or, where at least three of
+    :data:`_CENTRE_BLOCKS` blocks along the axis hold a tenth of the strongest block's
+    correlation (distributed clutter, not a lone target whose empty blocks would set a slope), a
+    line through those blocks' own centres, weighted by their correlations."""
+    n = base.shape[axis]
+    edges = np.linspace(0, n, _CENTRE_BLOCKS + 1).astype(int)
+    where, lags = [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        z = base[a:b] if axis == 0 else base[:, a:b]
+        if b - a >= 2:
+            where.append(0.5 * (a + b - 1))
+            lags.append(np.sum(z[1:] * np.conj(z[:-1])) if axis == 0 else np.sum(z[:, 1:] * np.conj(z[:, :-1])))
+    lags = np.asarray(lags)
+    weight = np.abs(lags)
+    if not weight.size or not weight.sum() > 0:
+        return np.zeros(n)
+    centre = np.angle(lags) / (2.0 * np.pi * step)
+    strong = weight >= 0.1 * weight.max()
+    if np.count_nonzero(strong) >= 3:
+        line = np.polyfit(np.asarray(where)[strong], centre[strong], 1, w=weight[strong])
+    else:
+        line = np.array([0.0, float(np.angle(lags.sum())) / (2.0 * np.pi * step)])
+    return np.polyval(np.polyint(line), np.arange(n, dtype=np.float64)) * step
+
+
 def flatten(base: np.ndarray, steps: tuple[float, float], gains: tuple) -> np.ndarray:
     """``base`` (complex [n_range, n_azimuth], an image demodulated by its carrier, sample spacings
     ``steps`` [m]) with its spectrum along each axis multiplied by ``gains`` (functions of the
     frequency [cycles/m] from the support's centre, :func:`~sarmitsuba.formats.sicd_support.flattening_gain`;
-    None leaves the axis alone): the weighting taken out for a uniform SICD (docs/physics.md (K3)).
+    None leaves the axis alone): the weighting taken out for a uniform SICD (docs/physics.md (K3')).
 
-    The gain is centred on the data's own spectral centre along the axis (the lag-one correlation's
-    phase, which a symmetric weighting leaves at the support's centre): the carrier model can be a
-    percent of the band off, and near a stripmap pattern's nulls, where the weighting falls by 18
-    nepers per band, that would tilt the flattened spectrum by dB. Each axis is zero-padded by half
-    its length first, so the flattened responses' longer tails do not wrap."""
+    The gain is centred on the data's own spectral centre along the axis (:func:`_centre_cycles`:
+    the residual carrier is taken out before and put back after): the carrier model can be a few
+    percent of the band off (clutter above the image plane leans its spectrum), and where the
+    weighting is steep (18 nepers per band near a stripmap pattern's nulls) that would tilt the
+    flattened spectrum by dB. Each axis is zero-padded by half its length first, so the flattened
+    responses' longer tails do not wrap."""
     from scipy.fft import fft, ifft, next_fast_len
     for axis, (step, gain) in enumerate(zip(steps, gains)):
         if gain is None:
             continue
         n = base.shape[axis]
         size = next_fast_len(n + n // 2)
-        lag = np.sum(base[1:] * np.conj(base[:-1])) if axis == 0 else np.sum(base[:, 1:] * np.conj(base[:, :-1]))
-        centre = float(np.angle(lag)) / (2.0 * np.pi * step) if abs(lag) > 0 else 0.0
-        g = gain(np.fft.fftfreq(size, step) - centre)
-        spectrum = fft(base, size, axis=axis) * (g[:, None] if axis == 0 else g[None, :])
-        base = ifft(spectrum, axis=axis)[:n] if axis == 0 else ifft(spectrum, axis=axis)[:, :n]
+        ramp = np.exp(-2j * np.pi * _centre_cycles(base, axis, step))
+        ramp = ramp[:, None] if axis == 0 else ramp[None, :]
+        g = gain(np.fft.fftfreq(size, step))
+        spectrum = fft(base * ramp, size, axis=axis) * (g[:, None] if axis == 0 else g[None, :])
+        base = (ifft(spectrum, axis=axis)[:n] if axis == 0 else ifft(spectrum, axis=axis)[:, :n]) * np.conj(ramp)
     return base
 
 
