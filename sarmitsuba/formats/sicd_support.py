@@ -202,8 +202,9 @@ def uniform_metadata(metadata: Any, kept: tuple[float, float], sines: tuple[floa
     along-track sines that bound the aperture seen from the SCP, when given: a track shorter than
     the beam bounds it) narrowed to the share ``kept[1]`` of the azimuth support (else the track's
     length), the band to ``kept[0]`` of the range support (so the point-target analysis of the
-    file models its uniform response), and ``spectral_weighting`` (what :func:`flattened` reads
-    back; the azimuth share left in it is 1 where the beam's sines say it)."""
+    file models its uniform response; ``sine_scale`` then 1, those sines being the ones seen), and
+    ``spectral_weighting`` (what :func:`flattened` reads back; the azimuth share left in it is 1
+    where the beam's sines say it)."""
     if not isinstance(metadata, dict) or not isinstance(metadata.get("focus"), dict):
         return metadata
     focus = dict(metadata["focus"], window_range={"name": "rect"}, window_azimuth={"name": "rect"},
@@ -215,6 +216,8 @@ def uniform_metadata(metadata: Any, kept: tuple[float, float], sines: tuple[floa
         lo, hi = (float(v) for v in (focus["beam_sines"] if sines is None else sines))
         centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * kept[1]
         focus["beam_sines"], left[1] = [centre - half, centre + half], 1.0
+        if sines is not None:        # the sines seen from the SCP already hold the orbit's sweep kappa
+            focus["sine_scale"] = 1.0
     elif kept[1] < 1.0 and isinstance(focus.get("track"), dict) and focus["track"].get("length"):
         focus["track"] = dict(focus["track"], length=float(focus["track"]["length"]) * kept[1])
     focus["spectral_weighting"] = {"name": "uniform", "kept": left,
@@ -260,7 +263,10 @@ class Aperture:
         times = np.asarray(track.pulse_time, dtype=np.float64) - float(track.pulse_time[0])
         self.time_fit = np.polyfit(along, times, 1) if np.ptp(along) > 0 else np.array([0.0, 0.0])
         beam = focus.get("beam_sines")
-        self.beam = (float(beam[0]), float(beam[1])) if beam is not None else None
+        # the sines the points see sweep kappa times the beam's on a curved (orbit) track: 1 on a
+        # straight one (focus.beam.sine_scale, docs/physics.md (J7)); the beam in seen sines
+        self.kappa = float(focus.get("sine_scale") or 1.0)
+        self.beam = (self.kappa * float(beam[0]), self.kappa * float(beam[1])) if beam is not None else None
         pattern, squint = focus.get("azimuth_pattern"), focus.get("squint")
         self.pattern = float(pattern) if pattern else None
         self.squint = float(np.radians(float(squint or 0.0)))
@@ -338,7 +344,7 @@ class Aperture:
         name, params = self.window
         weight = spectral_window(name, np.clip(u, 0.0, 1.0) - 0.5, 1.0, **params)
         if self.pattern is not None:
-            weight = weight * np.sinc(self.pattern * np.sin(np.arcsin(s) - self.squint)) ** 2
+            weight = weight * np.sinc(self.pattern * np.sin(np.arcsin(s / self.kappa) - self.squint)) ** 2
         weight = weight * (delta ** 2 + r0[0] ** 2) ** 1.5 / r0[0] ** 2            # 1 / |ds / dp|
         cells = s.min() + (np.arange(WEIGHT_SAMPLES) + 0.5) / WEIGHT_SAMPLES * np.ptp(s)
         samples = np.interp(cells, s[::-1], weight[::-1])
