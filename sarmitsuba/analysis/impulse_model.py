@@ -140,6 +140,8 @@ class ImpulseModel:
             scale = float(focus.get("sine_scale") or 1.0)
             if not (np.isfinite(scale) and scale > 0):
                 raise ValueError(f"image.metadata['focus']['sine_scale'] = {scale!r} must be a finite number > 0")
+            u = _track_cut(u, focus, float((q - a_point) @ t), r0, sin_lo, sin_hi, scale)
+            w = spectral_window(w_az[0], u - 0.5, 1.0, **w_az[1])
             sine = sin_lo + u * (sin_hi - sin_lo)
             slope = np.full_like(u, (sin_hi - sin_lo) * scale)            # d(target's sine) / du
             amplitude = w / (1.0 - sine ** 2) ** 1.5                      # W rho per du
@@ -188,6 +190,29 @@ class ImpulseModel:
             cut[k:k + 256] = np.abs(scipy.integrate.simpson(phase * self.amplitude, x=self.u, axis=1)) ** 2
         f_az = _simpson(cut, x) / total
         return float(min(f_az, 1.0) * min(f_rg, 1.0))
+
+
+def _track_cut(u: np.ndarray, focus: dict, along: float, r0: float, sin_lo: float, sin_hi: float,
+               scale: float) -> np.ndarray:
+    """The beam's abscissae ``u`` (its sines ``sin_lo + u (sin_hi - sin_lo)``) that the track
+    fills as seen from a point ``along`` [m] from the track's centre and ``r0`` [m] from it: a
+    track shorter than the beam (a few pulses) puts the point in only part of the processed beam,
+    and the window there is cut (the focusers weight each pulse by where the point sits in its
+    beam). ``u`` resampled over that part, float [n]; unchanged when the track covers the beam or
+    its length is unknown. The point's sine ``(x - A) . t / |x - A|`` runs over
+    ``(along -+ L / 2) / hypot(along -+ L / 2, r0)`` and is ``scale`` times the beam's ((J7))."""
+    track = focus.get("track")
+    length = float(track.get("length") or 0.0) if isinstance(track, dict) else 0.0
+    if not length > 0 or not sin_hi > sin_lo:
+        return u
+    ends = np.array([along - 0.5 * length, along + 0.5 * length])
+    seen = ends / np.hypot(ends, r0) / scale
+    u0, u1 = np.clip((seen - sin_lo) / (sin_hi - sin_lo), 0.0, 1.0)
+    if u0 <= 0.0 and u1 >= 1.0:
+        return u
+    if not u1 > u0:
+        raise ValueError("the point lies outside every pulse's processed beam: no azimuth response to model")
+    return np.linspace(u0, u1, u.size)
 
 
 def _simpson(y: np.ndarray, x: np.ndarray) -> float:
