@@ -28,7 +28,7 @@ def test_collection_start_is_stored_in_utc(given, stored):
 @pytest.mark.parametrize("given, problem", [("2026-11-24T10:00:00", "no UTC offset"),
                                             ("yesterday", "not an ISO 8601 time")])
 def test_collection_start_without_offset_or_unreadable_is_refused(given, problem):
-    with pytest.raises(ParameterError, match=f"collection_start = .*{problem}.*2026-11-24T10:00:00Z"):
+    with pytest.raises(ParameterError, match=f"collection_start: .*{problem}.*2026-11-24T10:00:00Z"):
         RadarParameters(collection_start=given)
 
 

@@ -547,15 +547,8 @@ def utc_time(text: Any) -> str:
     ISO 8601 time with an offset (``Z`` or ``+hh:mm``; ``datetime.fromisoformat``). Raises
     ParameterError naming ``collection_start`` for anything else, a time without an offset
     included (it would be read in the machine's own zone)."""
-    import datetime
-    try:
-        when = datetime.datetime.fromisoformat(str(text).strip())
-    except ValueError:
-        when = None
-    if when is None or when.tzinfo is None:
-        problem = "has no UTC offset" if when is not None else "is not an ISO 8601 time"
-        raise ParameterError(f"collection_start = {text!r} {problem}: give the UTC time of the first pulse as ISO "
-                             "8601 with an offset, e.g. --set collection_start=2026-11-24T10:00:00Z (or leave it "
-                             "out for the moment of the render)")
-    return when.astimezone(datetime.timezone.utc).isoformat()
+    from .state_vectors import utc_instant
+    return utc_instant(text, "collection_start", "give the UTC time of the first pulse as ISO 8601 with an offset, "
+                       "e.g. --set collection_start=2026-11-24T10:00:00Z (or leave it out for the moment of the "
+                       "render)").isoformat()
 

@@ -182,9 +182,11 @@ _CSV_FORM = (f"the header {','.join(CSV_COLUMNS[:4])}[,{','.join(CSV_COLUMNS[4:]
              "after optional lines '# frame = scene|ecef', '# epoch = ISO 8601 UTC', '# time_scale = gps'")
 
 
-def utc_instant(text: Any, where: str) -> datetime.datetime:
+def utc_instant(text: Any, where: str, advice: str = "give a UTC time as ISO 8601 with an offset, e.g. "
+                "2026-11-24T10:00:00.250Z") -> datetime.datetime:
     """An ISO 8601 time with a UTC offset (``Z`` or ``+hh:mm``) as an aware UTC datetime (microseconds).
-    Raises TrajectoryError naming ``where`` for anything else, a time without an offset included."""
+    Raises TrajectoryError naming ``where``, followed by ``advice``, for anything else, a time
+    without an offset included (it would be read in the machine's own zone)."""
     if isinstance(text, datetime.datetime):
         when = text
     else:
@@ -194,8 +196,7 @@ def utc_instant(text: Any, where: str) -> datetime.datetime:
             when = None
     if when is None or when.tzinfo is None:
         problem = "has no UTC offset" if when is not None else "is not an ISO 8601 time"
-        raise TrajectoryError(f"{where}: {str(text).strip()!r} {problem}; give a UTC time as ISO 8601 with an "
-                              "offset, e.g. 2026-11-24T10:00:00.250Z")
+        raise TrajectoryError(f"{where}: {str(text).strip()!r} {problem}; {advice}")
     return when.astimezone(datetime.timezone.utc)
 
 
