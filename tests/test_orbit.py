@@ -231,6 +231,17 @@ def test_info_reports_the_pass_and_render_refuses_a_broken_orbit_file(tmp_path, 
     assert "broken.EOF, line 31" in err and "Traceback" not in err, err
 
 
+def test_an_orbit_file_far_from_geo_origin_is_refused_naming_geo_origin(capsys):
+    """An orbit file with the placeholder geo_origin (0 N 0 E, 5000 km from this orbit's pass):
+    exit 2 with a message that names geo_origin as the fix. Catches the refusal that told a
+    user to check the scene frame or scene_center, which an ECEF orbit does not use."""
+    from sarmitsuba.cli import main
+    assert main(["info", "trihedral", "--set", f"trajectory={EOF_FILE}"]) == 2
+    err = capsys.readouterr().err
+    assert "set geo_origin" in err and "Traceback" not in err, err
+    assert len(err.strip().splitlines()) == 1, err
+
+
 GM, OMEGA = 3.986004418e14, 7.292115e-5      # WGS84 (NIMA TR8350.2 table 3.1)
 
 

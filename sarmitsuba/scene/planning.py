@@ -131,9 +131,12 @@ def state_vector_parameters(params: RadarParameters) -> RadarParameters:
                    "over the scene centre or on its ground track, ahead or behind (no incidence angle)"
                    if ground <= 1e-6 * height else
                    "moving vertically")
+        fix = ("check the frame (metres, z up, the scene's own) or scene_center" if not states.closest_approach else
+               f"an orbit is carried into the frame at geo_origin = {params.geo_origin or 'the placeholder 0, 0, 0'}, "
+               "so set geo_origin to the scene's latitude, longitude and height, beside the orbit's ground track "
+               "and in its view")
         raise ParameterError(f"{where}, {problem} {np.round(params.scene_center, 2).tolist()} m: a side-looking SAR "
-                             "flies above the scene and to its side, moving horizontally; check the frame (metres, z up, "
-                             "the scene's own) or scene_center")
+                             f"flies above the scene and to its side, moving horizontally; {fix}")
     left = v[0] * rel[1] - v[1] * rel[0] > 0
     return replace(params, n_pulses=n, altitude=height, incidence_angle=math.degrees(math.atan2(ground, height)),
                    velocity=float(np.linalg.norm(v)), heading=math.degrees(math.atan2(v[1], v[0])),
