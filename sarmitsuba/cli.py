@@ -109,6 +109,13 @@ def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
                             help="also write the raw data as CPHD 1.1 (raw.cphd; NGA standard, through sarkit)")
     parser.add_argument("--sicd", action="store_true",
                         help="also write the complex image as SICD in NITF (image.nitf; NGA standard, through sarkit)")
+    parser.add_argument("--sicd-plane", default="slant", choices=("slant", "image"),
+                        help="with --sicd: the slant plane at the scene centre (default, as producers write SICDs) or "
+                             "the image's own ground plane")
+    parser.add_argument("--sicd-weighting", default="uniform", choices=("uniform", "image"),
+                        help="with --sicd: the focusing weighting divided out (default; every reader, sarpy's RCS "
+                             "tool included, reads one RCS) or kept (then sarpy's TotalRCS reads the weighting "
+                             "factors high)")
     parser.add_argument("--geotiff", action="store_true",
                         help="also write the ground-plane intensity as a GeoTIFF in UTM (image.tif: dB and "
                              "linear bands), placed by the sensor's geo_origin")
@@ -317,7 +324,8 @@ def _focus(args: argparse.Namespace) -> int:
     title = f"{raw.metadata.get('scene', args.raw.name)}  {args.algorithm}{extra}  {window_title(image)}"
     with OutputDirectory(args.out, products="add") as out:      # joins a render folder's products
         paths = write_image_products(out, image, title)
-        paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated))
+        paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated,
+                                   sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting))
     autofocus = image.metadata.get("autofocus")
     note = "" if autofocus is None else (f", PGA {autofocus['iterations']} iterations, phase error "
                                          f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
@@ -356,7 +364,8 @@ def _render(args: argparse.Namespace) -> int:
     summary = render(args.scene, args.out or _default_out(args.scene), sensor_overrides=sensor,
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
                      progress=not args.no_progress, **_windows(args), focuser=args.focuser,
-                     formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated)
+                     formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated,
+                     sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting)
     print(summary.line())
     if args.figures:
         from .products.figures import redraw

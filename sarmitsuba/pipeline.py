@@ -235,7 +235,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
            material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
            window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
            scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None,
-           geotiff_north_up: bool = True) -> RenderSummary:
+           geotiff_north_up: bool = True, sicd_plane: str = "slant", sicd_weighting: str = "uniform") -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -278,6 +278,12 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     geotiff_north_up : bool, default True
         GeoTIFF resampled onto a north-up UTM grid; False: the image's own grid with a rotated
         geotransform (:func:`sarmitsuba.formats.geotiff.write_geotiff`).
+    sicd_plane : {"slant", "image"}, default "slant"
+        The SICD's grid: the slant plane at the SCP, as producers write it, or the image's own
+        (ground) plane (``plane`` of :func:`sarmitsuba.formats.sicd.write_sicd`).
+    sicd_weighting : {"uniform", "image"}, default "uniform"
+        The SICD's spectral weighting: the focusing weighting divided out, so that every reader's
+        RCS agrees (docs/physics.md (K3')), or the image's own (``weighting`` of ``write_sicd``).
     scheduler : str, optional
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
         Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.distributed`).
@@ -297,7 +303,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     focus_windows(window, window_range, window_azimuth)
     _focuser(focuser)
-    check_formats(formats)
+    check_formats(formats, sicd_plane, sicd_weighting)
     if scheduler is not None:
         from .tracing.distributed import check_scheduler
         check_scheduler(scheduler)
@@ -312,7 +318,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
             label = f"_{name}" if name else ""
             paths.update(_write_products(out, channel.raw, channel.image, sim.loaded.params, suffix=label))
             paths.update(write_exports(out, channel.raw, channel.image, formats, suffix=label,
-                                       geotiff_north_up=geotiff_north_up))
+                                       geotiff_north_up=geotiff_north_up, sicd_plane=sicd_plane,
+                                       sicd_weighting=sicd_weighting))
             for k, (raw_k, image_k) in enumerate(zip(channel.raw_per_order, channel.images_per_order), start=1):
                 paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
         if sim.channels:
@@ -322,20 +329,31 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     return summary
 
 
-def check_formats(formats: Sequence[str]) -> None:
-    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`."""
+#: Values of ``render``'s ``sicd_plane`` and ``sicd_weighting`` (the default first).
+SICD_CHOICES = {"sicd_plane": ("slant", "image"), "sicd_weighting": ("uniform", "image")}
+
+
+def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform") -> None:
+    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`,
+    or naming ``sicd_plane`` / ``sicd_weighting`` unless it is one of its two values."""
     from .core.radar import ParameterError
     unknown = [f for f in formats if f not in EXPORT_FILES]
     if unknown:
         raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
+    for name, value in (("sicd_plane", sicd_plane), ("sicd_weighting", sicd_weighting)):
+        if value not in SICD_CHOICES[name]:
+            raise ParameterError(f"{name} = {value!r}: valid values are {' and '.join(SICD_CHOICES[name])} (the "
+                                 "first is the default, the SICD as producers write it)")
 
 
 def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | None, formats: Sequence[str],
-                  suffix: str = "", geotiff_north_up: bool = True) -> dict:
+                  suffix: str = "", geotiff_north_up: bool = True, sicd_plane: str = "slant",
+                  sicd_weighting: str = "uniform") -> dict:
     """Write the standard-format files of ``formats`` (:data:`EXPORT_FILES`) into the open output
     directory ``out``: CPHD from ``raw``, SICD from ``image`` (with ``raw``'s geometry when given),
     GeoTIFF from ``image`` (resampled onto a north-up UTM grid, or with ``geotiff_north_up``
-    False on the image's own grid with a rotated geotransform). ``suffix`` (``_HV``) goes
+    False on the image's own grid with a rotated geotransform); the SICD on ``sicd_plane`` with
+    ``sicd_weighting`` (:func:`render`). ``suffix`` (``_HV``) goes
     before the extension. Returns paths by format."""
     writers = {}
     if "cphd" in formats:
@@ -343,7 +361,7 @@ def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | N
         writers["cphd"] = lambda path: write_cphd(raw, path)
     if "sicd" in formats:
         from .formats.sicd import write_sicd
-        writers["sicd"] = lambda path: write_sicd(image, path, raw=raw)
+        writers["sicd"] = lambda path: write_sicd(image, path, raw=raw, plane=sicd_plane, weighting=sicd_weighting)
     if "geotiff" in formats:
         from .formats.geotiff import write_geotiff
         writers["geotiff"] = lambda path: write_geotiff(image, path, north_up=geotiff_north_up)
