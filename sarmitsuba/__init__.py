@@ -78,8 +78,17 @@ def _interrupted_while_starting(signum, frame) -> None:
     _os._exit(130)
 
 
-if ((_sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py")))
-        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
+def _run_as_command() -> bool:
+    """Whether this process is sarmitsuba's command line (``python [options] -m sarmitsuba`` or the
+    ``sarmitsuba`` script), not another program importing the package: ``sys.argv[0]`` is ``-m``
+    while any ``-m`` package imports, so the interpreter's own arguments decide."""
+    original = list(getattr(_sys, "orig_argv", []))
+    if "-m" in original[:-1] and original[original.index("-m") + 1] == "sarmitsuba":
+        return True
+    return _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py"))
+
+
+if _run_as_command() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
     _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 from .core.moved import MOVED_MODULES
@@ -96,7 +105,7 @@ STARTUP_ERROR: Exception | None = None
 try:
     VARIANT = _activate()
 except (_VariantError, RuntimeError) as _error:
-    if not (_sys.argv[:1] == ["-m"] or _sys.argv[0].endswith(("/sarmitsuba", "sarmitsuba/__main__.py"))):
+    if not _run_as_command():
         raise                                              # a library import: the caller sees the exception
     VARIANT, STARTUP_ERROR = None, _error
 

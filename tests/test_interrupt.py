@@ -47,7 +47,8 @@ def test_ctrl_c_while_starting_exits_130_with_one_line(delay, tmp_path):
     env.pop("SARMITSUBA_VARIANT", None)
     process = subprocess.Popen([sys.executable, "-X", "importtime", "-m", "sarmitsuba", "render", "trihedral",
                                 "--pulses", "10000", "--out", str(out), "--no-progress"], cwd=tmp_path, env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))   # as a terminal's
     lines, started = [], threading.Event()
 
     def read() -> None:
@@ -68,3 +69,19 @@ def test_ctrl_c_while_starting_exits_130_with_one_line(delay, tmp_path):
     assert err == ["interrupted: no output file was left half-written"], text
     assert "Traceback" not in text and "GPU" not in text
     assert not (out / "image.npz").exists()
+
+
+def test_another_programs_python_m_keeps_its_own_ctrl_c(tmp_path):
+    """A program run as ``python -m myapp`` that imports sarmitsuba keeps Python's own SIGINT
+    handler (its ``except KeyboardInterrupt`` and ``finally`` blocks run). Catches the command-line
+    test ``sys.argv[0] == "-m"``, which is true while any ``-m`` package imports: the package then
+    installed its exit-130 handler in the other program."""
+    app = tmp_path / "myapp"
+    app.mkdir()
+    (app / "__init__.py").write_text("import sarmitsuba\n")
+    (app / "__main__.py").write_text("import signal\nprint(signal.getsignal(signal.SIGINT) is signal.default_int_handler)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    result = subprocess.run([sys.executable, "-m", "myapp"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                            timeout=120, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "True", (result.stdout, result.stderr)
