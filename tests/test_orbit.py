@@ -511,3 +511,114 @@ def test_info_gives_an_orbit_the_azimuth_resolution_its_image_has():
                              integrator={"max_depth": 3}), image_size=(96, 96), focuser="bp")
         irw.append(analyze_point_target(sim.image, (0.0, 0.0, 0.0), chip=32).irw_azimuth)
     assert resolution[0] / resolution[1] == pytest.approx(irw[0] / irw[1], rel=0.02), (resolution, irw)
+
+
+# -- a day's orbit file: which pass is imaged (docs/physics.md (J6)) -----------------------------------
+
+DAY_ORIGIN = (48.1, 11.6, 500.0)
+DAY_EPOCH = datetime.datetime(2026, 6, 15, tzinfo=datetime.timezone.utc)
+
+
+@pytest.fixture(scope="module")
+def day_files(tmp_path_factory):
+    """26 h (a Sentinel-1 POEORB's span, 16 orbits) of the built-in orbit, 693 km, descending,
+    designed to see DAY_ORIGIN at its middle (t = 13 h) at 35 or 45 deg looking right, or at 30 deg
+    looking left, written as ECEF CSVs with an epoch (every 10 s, millimetre digits)."""
+    from sarmitsuba.core import georef, orbit
+    files = {}
+    for incidence, side in [(35.0, "right"), (45.0, "right"), (30.0, "left")]:
+        sv = orbit.builtin_orbit(georef.GeoReference(*DAY_ORIGIN), 693e3, incidence, side, 98.18, False,
+                                 duration=93600.0)
+        path = tmp_path_factory.mktemp("day") / f"day_{incidence:g}_{side}.csv"
+        rows = np.column_stack([sv.time, sv.position, sv.velocity])
+        np.savetxt(path, rows, fmt=["%.1f"] + ["%.3f"] * 3 + ["%.6f"] * 3, delimiter=",",
+                   header="# frame = ecef\n# epoch = 2026-06-15T00:00:00Z\ntime_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps",
+                   comments="")
+        files[(incidence, side)] = path
+    return files
+
+
+def day_passes(path) -> list[tuple[float, float, str]]:
+    """The oracle: every closest approach of the CSV's samples to DAY_ORIGIN (interior local minima
+    of range, to the 10 s sample), its incidence against the ellipsoid normal (closed form in
+    latitude and longitude) and the side it looks to (sign of (V x LOS) . up), from numpy and
+    pyproj alone."""
+    rows = np.loadtxt(path, delimiter=",", skiprows=3)
+    t, p, v = rows[:, 0], rows[:, 1:4], rows[:, 4:7]
+    c = np.array(Transformer.from_crs(4979, 4978, always_xy=True).transform(DAY_ORIGIN[1], DAY_ORIGIN[0],
+                                                                             DAY_ORIGIN[2]))
+    lat, lon = np.radians(DAY_ORIGIN[:2])
+    up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+    d = np.linalg.norm(p - c, axis=1)
+    out = []
+    for k in np.flatnonzero((d[1:-1] < d[:-2]) & (d[1:-1] <= d[2:])) + 1:
+        los = (c - p[k]) / d[k]
+        side = "left" if np.cross(v[k], los) @ (p[k] / np.linalg.norm(p[k])) > 0 else "right"
+        out.append((float(t[k]), math.degrees(math.acos(-los @ up)), side))
+    return out
+
+
+def imaged(path, **sensor):
+    """(the oracle pass at whose closest approach the pulses are centred, the loaded parameters,
+    the warnings naming passes)."""
+    import warnings
+    from sarmitsuba.core.geometry import pulse_times
+    from sarmitsuba.core.trajectory import from_state_vectors
+    from sarmitsuba.scene.loader import load_scene
+    given = {"trajectory": str(path), "geo_origin": ", ".join(map(str, DAY_ORIGIN)), "prf": 2000.0, "n_pulses": 101,
+             **sensor}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        params = load_scene("trihedral", sensor_overrides=given).params
+    times = pulse_times(params, from_state_vectors(params.trajectory))
+    middle = 0.5 * (times[0] + times[-1])
+    nearest = min(day_passes(path), key=lambda x: abs(x[0] - middle))
+    assert abs(nearest[0] - middle) <= 10.0, (middle, nearest)     # centred on a closest approach
+    return nearest, params, [str(w.message) for w in caught if "passes geo_origin" in str(w.message)]
+
+
+@pytest.mark.parametrize("incidence, n_qualifying", [(35.0, 1), (45.0, 3)])
+def test_a_days_orbit_file_images_the_designed_pass(day_files, incidence, n_qualifying):
+    """A 26 h orbit file designed to see the scene at 35 (or 45) deg right at 13:00 UTC also passes
+    it 10 h later nearly overhead (3.9 or 18.5 deg, 694 km, looking left): the pass imaged is the
+    designed one. Catches the nearest sample of the whole file taken as the closest approach (the
+    near-nadir pass, today's code), and the warning naming the qualifying passes missing (45 deg:
+    56.6 deg right, 45 deg right, 18.5 deg left qualify; right is the default look_side)."""
+    (t, oracle_incidence, side), params, notes = imaged(day_files[(incidence, "right")])
+    assert abs(t - 46800.0) <= 10.0 and side == "right" == params.look_side
+    assert abs(params.incidence_angle - oracle_incidence) < 0.1 and abs(oracle_incidence - incidence) < 0.1
+    assert len(notes) == (n_qualifying > 1), notes
+    if n_qualifying > 1:
+        assert f"{n_qualifying} times" in notes[0] and "2026-06-15T13:00:00Z" in notes[0], notes[0]
+
+
+@pytest.mark.parametrize("design, sensor, hour, side", [
+    ((30.0, "left"), {"look_side": "left"}, 13.0, "left"),           # the designed 30 deg left pass
+    ((30.0, "left"), {"look_side": "right"}, 24.1, "right"),         # the 52 deg right pass at 00:05:52 next day
+    ((45.0, "right"), {"orbit_pass_time": "2026-06-15T01:10:00Z"}, 1.13, "right"),   # 56.6 deg, not the 45
+])
+def test_a_days_orbit_file_images_the_pass_asked_for(day_files, design, sensor, hour, side):
+    """A 26 h file designed to see the scene at 30 deg looking left at 13:00 UTC passes it at 52 deg
+    looking right 11 h later: ``look_side`` picks the pass; in the 45 deg file ``orbit_pass_time``
+    picks the 56.6 deg pass at 01:07:56 over the designed one, with no warning. Catches the
+    sensor's look_side ignored (the nearest pass, looking left, imaged whatever was asked, and
+    look_side silently replaced by the file's) and orbit_pass_time not read."""
+    (t, oracle_incidence, oracle_side), params, notes = imaged(day_files[design], **sensor)
+    assert abs(t - hour * 3600.0) < 360.0 and oracle_side == side == params.look_side, (t, oracle_side)
+    assert abs(params.incidence_angle - oracle_incidence) < 0.1
+    assert not notes or "orbit_pass_time" not in sensor, notes
+
+
+def test_a_days_orbit_file_without_a_pass_on_the_side_asked_is_refused(day_files, capsys):
+    """The 35 deg right-looking file with look_side = left: its left passes are at 69, 89, 77 and
+    3.9 deg (the near-nadir one), none a side-looking SAR's view. Catches the near-nadir pass
+    imaged at 3.9 deg with exit 0 and no warning (today): exit 2 naming look_side, geo_origin and
+    the passes (the designed one at 13:00:00Z, 35 deg right), one line, no traceback."""
+    from sarmitsuba.cli import main
+    args = ["info", "trihedral", "--set", f"trajectory={day_files[(35.0, 'right')]}", "--set",
+            "geo_origin=" + ", ".join(map(str, DAY_ORIGIN)), "--set", "look_side=left"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "look_side = left" in err and "geo_origin" in err and "Traceback" not in err, err
+    assert "2026-06-15T13:00:00Z (incidence 35.0 deg, looking right" in err and "incidence 3.9 deg" in err, err
+    assert len(err.strip().splitlines()) == 1, err

@@ -27,7 +27,7 @@ from . import georef
 from .state_vectors import HERMITE_WINDOW, StateVectors, TrajectoryError, read_eof
 
 __all__ = ["read_eof", "in_scene_frame", "pass_geometry", "PassGeometry", "closest_approach", "builtin_orbit", "orbit_of",
-           "footprint_speed", "EARTH_ROTATION", "GM_EARTH", "ORBIT_STEP"]
+           "orbit_passes", "choose_pass", "PASS_INCIDENCE", "footprint_speed", "EARTH_ROTATION", "GM_EARTH", "ORBIT_STEP"]
 
 
 # ============================================================================ frames
@@ -178,6 +178,7 @@ class PassGeometry:
     squint: float
     height: float
     speed: float
+    look_side: str = ""
 
 
 def pass_geometry(states: StateVectors, ref: georef.GeoReference, scene_center: Any,
@@ -190,7 +191,12 @@ def pass_geometry(states: StateVectors, ref: georef.GeoReference, scene_center: 
     path = from_state_vectors(in_scene_frame(states, ref))
     center = np.asarray(scene_center, np.float64)
     shift = np.asarray(offset, np.float64)
-    t = closest_approach(path.evaluate, *path.span, center)
+    return _geometry_at(states, ref, path, closest_approach(path.evaluate, *path.span, center), center, shift)
+
+
+def _geometry_at(states: StateVectors, ref: georef.GeoReference, path: Any, t: float, center: np.ndarray,
+                 shift: np.ndarray) -> PassGeometry:
+    """:class:`PassGeometry` of the scene-frame ``path`` at time ``t`` [s] seen from ``center`` [m]."""
     p, v = path.position(t), path.velocity(t)
     los = center - p
     rng = float(np.linalg.norm(los))
@@ -201,7 +207,8 @@ def pass_geometry(states: StateVectors, ref: georef.GeoReference, scene_center: 
     look = math.degrees(math.acos(float(np.clip(u @ -_normal_in_enu(sat_llh, ref), -1, 1))))
     squint = math.degrees(math.asin(float(np.clip(v @ u / np.linalg.norm(v), -1, 1))))
     utc = None if states.epoch is None else states.utc(t).isoformat()
-    return PassGeometry(t, utc, rng, look, incidence, squint, float(sat_llh[2]), float(np.linalg.norm(v)))
+    side = "left" if v[0] * los[1] - v[1] * los[0] > 0 else "right"
+    return PassGeometry(t, utc, rng, look, incidence, squint, float(sat_llh[2]), float(np.linalg.norm(v)), side)
 
 
 def closest_approach(evaluate: Any, lo: float, hi: float, point: np.ndarray) -> float:
@@ -217,6 +224,104 @@ def closest_approach(evaluate: Any, lo: float, hi: float, point: np.ndarray) -> 
     res = minimize_scalar(lambda x: float(np.linalg.norm(evaluate(np.array(x), 0) - point)), bounds=(a, b),
                           method="bounded", options={"xatol": 1e-7})
     return float(res.x)
+
+
+#: Incidence band [deg] in which a pass of an orbit file sees the scene as a side-looking SAR does
+#: (RADARSAT-2's beams span 10-60 deg, Sentinel-1's 19-47 deg): a pass outside it is not chosen (J6).
+PASS_INCIDENCE = (10.0, 60.0)
+
+
+def orbit_passes(states: StateVectors, ref: georef.GeoReference) -> list[PassGeometry]:
+    """Every pass of ``states`` (ECEF or the scene frame at ``ref``) by ``geo_origin`` ``ref``: each
+    local minimum of the range ``|P(t_j)|`` over the samples inside the span (not at its ends),
+    refined by :func:`closest_approach` between its neighbours; as :class:`PassGeometry` (slant
+    range, incidence, ``look_side``), in time order, eq. (J6). Empty for a file that holds no whole
+    closest approach."""
+    from .trajectory import from_state_vectors
+    scene = in_scene_frame(states, ref)
+    path = from_state_vectors(scene)
+    d = np.linalg.norm(scene.position, axis=1)
+    inner = np.flatnonzero((d[1:-1] < d[:-2]) & (d[1:-1] <= d[2:])) + 1
+    zero = np.zeros(3)
+    return [_geometry_at(states, ref, path, closest_approach(path.evaluate, scene.time[k - 1], scene.time[k + 1], zero),
+                         zero, zero) for k in inner]
+
+
+def _describe(p: PassGeometry) -> str:
+    import datetime
+    when = f"t = {p.time:.1f} s"
+    if p.utc is not None:                 # ISO 8601 UTC, rounded to the second
+        when = (datetime.datetime.fromisoformat(p.utc) + datetime.timedelta(seconds=0.5)).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return f"{when} (incidence {p.incidence:.1f} deg, looking {p.look_side}, slant range {p.slant_range / 1e3:.0f} km)"
+
+
+def choose_pass(states: StateVectors, ref: georef.GeoReference, look_side: str = "right", side_given: bool = False,
+                incidence: float | None = None, pass_time: str | None = None) -> tuple[StateVectors, str | None]:
+    """The pass of an orbit file (``states``, ECEF or the scene frame at ``ref``) that the sensor
+    images, docs/physics.md (J6): of :func:`orbit_passes`, those seen at an incidence inside
+    :data:`PASS_INCIDENCE` (and on ``look_side`` when ``side_given``) qualify; ``pass_time`` (ISO
+    8601 UTC, the ``orbit_pass_time`` parameter) picks the pass nearest to it; else, those on
+    ``look_side`` first (the default side when not given), the qualifying pass nearest in incidence
+    to ``incidence`` [deg] (when given), else the one of least slant range. Returns the states cut
+    to that pass (from the range maximum before it to the one after, plus the interpolation window)
+    and a warning naming the qualifying passes when several qualify and ``pass_time`` is None
+    (else None). A file without a whole pass, or with one
+    pass only and nothing asked of it, is returned unchanged. Raises ParameterError (naming the
+    passes found) when no pass qualifies, when the pass nearest ``pass_time`` does not, or when
+    ``pass_time`` is given for states without an absolute clock."""
+    from .state_vectors import utc_instant
+    from .valid_ranges import ParameterError
+    found = orbit_passes(states, ref)
+    if not found:
+        if pass_time is not None:
+            raise ParameterError(f"orbit_pass_time = {pass_time}: trajectory {states.source} holds no whole closest "
+                                 "approach to geo_origin; remove orbit_pass_time")
+        return states, None
+    listed = "; ".join(_describe(p) for p in found if p.incidence < 90.0) or "none above the horizon"
+    lo, hi = PASS_INCIDENCE
+    ok = [p for p in found if lo <= p.incidence <= hi and (not side_given or p.look_side == look_side)]
+    wanted = (f"incidence {lo:g} .. {hi:g} deg" + (f", look_side = {look_side}" if side_given else ""))
+    if pass_time is not None:
+        if states.epoch is None:
+            raise ParameterError(f"orbit_pass_time = {pass_time}: trajectory {states.source} has no absolute clock "
+                                 "(no epoch); remove orbit_pass_time")
+        when = utc_instant(pass_time, "orbit_pass_time")
+        near = min(found, key=lambda p: abs((states.utc(p.time) - when).total_seconds()))
+        if near not in ok:
+            raise ParameterError(f"orbit_pass_time = {pass_time}: the nearest pass of trajectory {states.source}, "
+                                 f"{_describe(near)}, is not seen as a side-looking SAR sees ({wanted}); its passes: "
+                                 f"{listed}: give the time of one of these, or change look_side")
+        chosen = near
+    elif not ok:
+        raise ParameterError(f"trajectory {states.source} has no pass by geo_origin = {ref.as_tuple()} that a "
+                             f"side-looking SAR images ({wanted}); its passes: {listed}: set geo_origin to the "
+                             "scene's place beside the orbit's ground track, change look_side, or use another orbit file")
+    else:
+        chosen = min(ok, key=lambda p: (p.look_side != look_side,
+                                        abs(p.incidence - incidence) if incidence is not None else p.slant_range))
+    if len(found) == 1 and pass_time is None and chosen is found[0]:
+        return states, None
+    note = None
+    if len(ok) > 1 and pass_time is None:
+        note = (f"trajectory {states.source} passes geo_origin {len(ok)} times as a side-looking SAR would see it: "
+                + "; ".join(_describe(p) for p in ok) + f"; imaging the pass at {_describe(chosen)} ("
+                + ("looking " + look_side + ", " if any(p.look_side != look_side for p in ok) else "")
+                + ("nearest to incidence_angle" if incidence is not None else "the least slant range")
+                + "): set orbit_pass_time to the UTC time of another")
+    return _cut(states, ref, chosen.time), note
+
+
+def _cut(states: StateVectors, ref: georef.GeoReference, t: float) -> StateVectors:
+    """``states`` from the last range maximum (to ``ref``) before time ``t`` [s] to the first after
+    it, plus the Hermite window's samples beyond each."""
+    d = np.linalg.norm(in_scene_frame(states, ref).position, axis=1)
+    peak = np.flatnonzero((d[1:-1] > d[:-2]) & (d[1:-1] >= d[2:])) + 1
+    before, after = peak[states.time[peak] < t], peak[states.time[peak] > t]
+    a = max(int(before[-1]) - HERMITE_WINDOW, 0) if before.size else 0
+    b = min(int(after[0]) + HERMITE_WINDOW + 1, states.time.size) if after.size else states.time.size
+    velocity = None if states.velocity is None else states.velocity[a:b]
+    return replace(states, time=states.time[a:b], position=states.position[a:b], velocity=velocity,
+                   first_line=states.first_line + a if states.first_line else 0)
 
 
 def footprint_speed(params: Any) -> float:

@@ -156,7 +156,8 @@ class RadarParameters:
         :func:`sarmitsuba.core.trajectory.read_state_vectors`, docs/physics.md (J5), (J6)), or :class:`StateVectors` from
         Python, interpolated smoothly, pulses at the PRF over their span; the scene loader then
         sets ``altitude``, ``incidence_angle``, ``velocity``, ``heading`` and ``look_side`` from the
-        mid-aperture state.
+        mid-aperture state. An ECEF orbit file passing the scene several times (a day's orbit
+        file) images one pass (:func:`sarmitsuba.core.orbit.choose_pass`, docs/physics.md (J6)).
     arc_deg : float, deg
         ``trajectory = "circular"``: the arc flown, centred on the broadside position; (0, 360],
         default 360 (a full circle). Sets ``n_pulses`` when that is automatic.
@@ -175,6 +176,10 @@ class RadarParameters:
     orbit_direction : str
         ``trajectory = "orbit"``: ``"descending"`` (default) or ``"ascending"``: the satellite moves
         south or north as it passes the scene.
+    orbit_pass_time : str, optional
+        An ECEF orbit file with an absolute clock: the UTC time (ISO 8601 with an offset) near the
+        closest approach of the pass to image, when the file passes the scene several times
+        (docs/physics.md (J6)); None (default): the rule of :func:`sarmitsuba.core.orbit.choose_pass`.
 
     Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
     frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
@@ -224,6 +229,7 @@ class RadarParameters:
     stop_and_hop: bool = False
     orbit_inclination: float = 98.18
     orbit_direction: str = "descending"
+    orbit_pass_time: str | None = None
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -231,6 +237,11 @@ class RadarParameters:
         check_ranges(self)                   # units and ranges first: the checks below divide by them
         if self.collection_start is not None:
             object.__setattr__(self, "collection_start", utc_time(self.collection_start))
+        if self.orbit_pass_time is not None:
+            from .state_vectors import utc_instant
+            object.__setattr__(self, "orbit_pass_time", utc_instant(
+                self.orbit_pass_time, "orbit_pass_time", "give the UTC time of the wanted pass's closest approach as "
+                "ISO 8601 with an offset, e.g. --set orbit_pass_time=2026-06-15T12:00:00Z").isoformat())
         try:
             georef.parse(self.geo_origin)
         except georef.GeoReferenceError as exc:
@@ -506,7 +517,8 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
                 out[name] = int(value)
             elif value is None:
                 out[name] = None
-            elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start", "orbit_direction"):
+            elif name in ("look_side", "polarization", "output", "mode", "beam", "collection_start", "orbit_direction",
+                          "orbit_pass_time"):
                 out[name] = str(value)
             elif name == "trajectory":
                 out[name] = value if isinstance(value, StateVectors) else str(value).strip()

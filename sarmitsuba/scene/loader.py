@@ -31,7 +31,7 @@ from .planning import AcquisitionWarning, resolve_parameters
 from .track_checks import check_beam_reach
 from .radar_equation import radar_equation
 from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
-from ..core.orbit import in_scene_frame, orbit_of
+from ..core.orbit import choose_pass, in_scene_frame, orbit_of
 from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from .trace_inputs import MaterialTable, TraceSettings
@@ -192,7 +192,9 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     given = dict(sensor.given) if sensor is not None else {}
     given.update(sensor_overrides or {})
     params = RadarParameters.from_mapping(given)
-    params = _read_trajectory(params, path if "trajectory" not in (sensor_overrides or {}) else None, offset)
+    # a trajectory given on its own: only the values given with it pick its pass (as _note_replaced counts them)
+    params = _read_trajectory(params, path if "trajectory" not in (sensor_overrides or {}) else None, offset,
+                              given if "trajectory" not in (sensor_overrides or {}) else sensor_overrides)
     if params.geo_origin is None and isinstance(source, str) and source.startswith("sionna:"):
         known = georef.SCENE_ORIGINS.get(source.split(":", 1)[1])
         params = params if known is None else dataclasses.replace(params, geo_origin=known.as_tuple())
@@ -228,14 +230,19 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
                        offset=offset, shape_boxes=_shape_boxes(scene))
 
 
-def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: np.ndarray) -> RadarParameters:
+def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: np.ndarray,
+                     given: Mapping[str, Any] | None = None) -> RadarParameters:
     """A trajectory file read into state vectors in the tracing frame (``offset`` subtracted): a
     relative path from the scene file's folder when the scene names it, else from the working
     directory (docs/physics.md (J2)). Named trajectories and Python state vectors pass through
-    (the latter moved by ``offset``)."""
+    (the latter moved by ``offset``). An ECEF orbit is cut to the pass it images (J6,
+    :func:`_one_pass`; ``given``: the sensor values the user gave)."""
     kind = params.trajectory
+    if params.orbit_pass_time is not None and isinstance(kind, str) and kind in TRAJECTORIES:
+        raise ParameterError(f"orbit_pass_time = {params.orbit_pass_time} picks a pass of an ECEF orbit file, but "
+                             f"trajectory = {getattr(kind, 'source', kind)!r}: remove orbit_pass_time")
     if isinstance(kind, StateVectors):
-        kind = in_scene_frame(kind, georef.of(params))       # ECEF states: into the ENU frame at geo_origin
+        kind = _one_pass(in_scene_frame(kind, georef.of(params)), params, given or {})   # ECEF: ENU at geo_origin
         return dataclasses.replace(params, trajectory=kind.shifted(offset) if np.any(offset) else kind)
     if kind == "orbit":                                  # the built-in orbit on the real Earth (J7)
         states = in_scene_frame(orbit_of(params), georef.of(params))
@@ -245,8 +252,26 @@ def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: n
     file = Path(kind).expanduser()
     if not file.is_absolute() and scene_file is not None:
         file = scene_file.parent / file
-    states = in_scene_frame(read_state_vectors(file), georef.of(params))
+    states = _one_pass(in_scene_frame(read_state_vectors(file), georef.of(params)), params, given or {})
     return dataclasses.replace(params, trajectory=states.shifted(offset) if np.any(offset) else states)
+
+
+def _one_pass(states: StateVectors, params: RadarParameters, given: Mapping[str, Any]) -> StateVectors:
+    """An orbit file's states (the ENU frame at ``geo_origin``) cut to the pass the sensor images,
+    :func:`sarmitsuba.core.orbit.choose_pass` (``look_side`` and ``incidence_angle`` count when the
+    user gave them), warning (AcquisitionWarning) when several passes qualify and none was chosen;
+    other states pass unchanged. Raises ParameterError when no pass qualifies."""
+    if not states.closest_approach:
+        if params.orbit_pass_time is not None:
+            raise ParameterError(f"orbit_pass_time = {params.orbit_pass_time} picks a pass of an ECEF orbit file, "
+                                 f"but trajectory {states.source} is in the scene frame: remove orbit_pass_time")
+        return states
+    incidence = params.incidence_angle if given.get("incidence_angle") is not None else None
+    states, note = choose_pass(states, georef.of(params), params.look_side, given.get("look_side") is not None,
+                               incidence, params.orbit_pass_time)
+    if note is not None:
+        warnings.warn(note, AcquisitionWarning, stacklevel=4)
+    return states
 
 
 #: Platform parameters that state vectors set (docs/physics.md (J2)).
