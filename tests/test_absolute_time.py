@@ -175,3 +175,65 @@ def test_collection_start_and_an_absolute_track_may_not_both_set_the_time():
                              epoch="2026-11-24T10:00:00Z")
     with pytest.raises(ParameterError, match="remove collection_start"):
         RadarParameters(trajectory=states, collection_start="2026-11-24T10:00:00Z")
+
+
+def test_gps_seconds_of_2026_are_read_with_a_warning_and_18_leap_seconds(tmp_path):
+    """GPS seconds past the leap-second table's last bulletin (end of 2025) but within its year of
+    grace: converted with GPS - UTC = 18 s and a LeapSecondWarning. The oracle is the calendar:
+    2026-06-01T00:00:00 UTC is the days since 1980-01-06 plus 18 s in GPS seconds. Catches GPS
+    files of the current year refused (they were), and a warning-free conversion."""
+    utc = datetime.datetime(2026, 6, 1, tzinfo=datetime.timezone.utc)
+    gps = (utc - datetime.datetime(1980, 1, 6, tzinfo=datetime.timezone.utc)).total_seconds() + 18.0
+    path = tmp_path / "t.csv"
+    path.write_text("# time_scale = gps\ntime_s,x_m,y_m,z_m\n" + "".join(f"{gps + k},{k},0,1000\n" for k in range(4)))
+    from sarmitsuba.core.state_vectors import LeapSecondWarning
+    with pytest.warns(LeapSecondWarning, match="18 s"):
+        states = read_state_vectors(path)
+    assert states.utc(states.time[0]) == utc
+
+
+@pytest.mark.parametrize("stamp", ["nan", "inf", "1e999999999", "1e20", "-1e12"])
+def test_times_that_name_no_date_are_refused_by_line(tmp_path, stamp):
+    """A first time of NaN, infinity or 1e20 s from the epoch (and negative GPS seconds): refused as
+    a TrajectoryError naming the line. Catches the tracebacks (ValueError, OverflowError) and the
+    hang (int() of a billion-digit Decimal) these gave."""
+    for header in ("# epoch = 2026-11-24T10:00:00Z", "# time_scale = gps"):
+        path = tmp_path / "t.csv"
+        path.write_text(f"{header}\ntime_s,x_m,y_m,z_m\n{stamp},0,0,1000\n" +
+                        "".join(f"{1.0e9 + k},{k},0,1000\n" for k in range(1, 4)))
+        with pytest.raises(TrajectoryError, match="line 3, column time_s"):
+            read_state_vectors(path)
+
+
+def test_utc_times_across_a_leap_second_are_refused(tmp_path):
+    """UTC rows spanning 2016-12-31T23:59:60, and a row at 23:59:60 itself: refused naming the leap
+    second. Catches UTC differences taken as elapsed seconds across it (one physical second missing
+    between two rows: the interpolant 7.6 km off for an orbit) and '23:59:60' called 'not ISO 8601'."""
+    path = tmp_path / "t.csv"
+    rows = ["2016-12-31T23:59:58Z", "2016-12-31T23:59:59Z", "2017-01-01T00:00:00Z", "2017-01-01T00:00:01Z"]
+    path.write_text("utc,x_m,y_m,z_m\n" + "".join(f"{t},{k},0,1000\n" for k, t in enumerate(rows)))
+    with pytest.raises(TrajectoryError, match="span the leap second before 2017-01-01"):
+        read_state_vectors(path)
+    rows[2] = "2016-12-31T23:59:60Z"
+    path.write_text("utc,x_m,y_m,z_m\n" + "".join(f"{t},{k},0,1000\n" for k, t in enumerate(rows)))
+    with pytest.raises(TrajectoryError, match="line 4, column utc.*is a leap second"):
+        read_state_vectors(path)
+
+
+def test_nanosecond_utc_digits_round_to_the_microsecond(tmp_path):
+    """``...07.1234567Z`` is 07.123457 (rounded), ``...07.9999996Z`` is 08.000000. Catches the digits
+    beyond the microsecond cut, as ``datetime.fromisoformat`` cuts them (a bias of up to 1 us, 7.6 mm
+    at orbital speed)."""
+    from sarmitsuba.core.state_vectors import utc_instant
+    assert utc_instant("2026-11-24T10:00:07.1234567Z", "t").microsecond == 123457
+    assert utc_instant("2026-11-24T10:00:07.9999996Z", "t") == datetime.datetime(2026, 11, 24, 10, 0, 8,
+                                                                                   tzinfo=datetime.timezone.utc)
+
+
+def test_a_spreadsheets_byte_order_mark_is_read(tmp_path):
+    """A CSV saved with a UTF-8 byte-order mark (Excel's 'CSV UTF-8'): read as the same states.
+    Catches the header refused as the unknown column '\\ufefftime_s'."""
+    path = tmp_path / "t.csv"
+    text = "time_s,x_m,y_m,z_m\n" + "".join(f"{k},{10 * k},0,1000\n" for k in range(4))
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert np.array_equal(read_state_vectors(path).position[:, 0], [0.0, 10.0, 20.0, 30.0])

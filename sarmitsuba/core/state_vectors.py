@@ -16,6 +16,8 @@ import csv
 import datetime
 import math
 import os
+import re
+from decimal import Decimal
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -26,11 +28,15 @@ from .valid_ranges import ParameterError
 
 __all__ = ["StateVectors", "TrajectoryError", "read_state_vectors", "read_eof", "utc_instant", "gps_minus_utc",
            "CSV_COLUMNS", "CSV_KEYS", "FRAMES", "MAX_GAP_RATIO", "HERMITE_WINDOW", "GPS_EPOCH", "LEAP_SECONDS",
-           "GPS_TABLE_VALID_UNTIL"]
+           "GPS_TABLE_VALID_UNTIL", "GPS_TABLE_GRACE", "MAX_ABS_SECONDS", "LeapSecondWarning", "check_no_leap_second"]
 
 
 class TrajectoryError(ParameterError):
     """State vectors or a trajectory setting that cannot describe a flight (names the row and column)."""
+
+
+class LeapSecondWarning(UserWarning):
+    """GPS times past the leap-second table's last bulletin, converted with its last value."""
 
 
 #: Header of a state-vector CSV: time and position, then optionally velocity (docs/physics.md (J2)).
@@ -173,9 +179,16 @@ GPS_EPOCH = datetime.datetime(1980, 1, 6, tzinfo=datetime.timezone.utc)
 LEAP_SECONDS = tuple(datetime.datetime(y, m, 1, tzinfo=datetime.timezone.utc) for y, m in (
     (1981, 7), (1982, 7), (1983, 7), (1985, 7), (1988, 1), (1990, 1), (1991, 1), (1992, 7), (1993, 7), (1994, 7),
     (1996, 1), (1997, 7), (1999, 1), (2006, 1), (2009, 1), (2012, 7), (2015, 7), (2017, 1)))
-#: GPS times after this UTC instant are refused: IERS Bulletin C 70 (July 2025) announced no leap
-#: second at the end of December 2025, and no later bulletin is in :data:`LEAP_SECONDS`.
+#: The table is known up to this UTC instant: IERS Bulletin C 70 (July 2025) announced no leap
+#: second at the end of December 2025, and no later bulletin is in :data:`LEAP_SECONDS`. Later GPS
+#: times are converted with the table's last value and a :class:`LeapSecondWarning` says so.
 GPS_TABLE_VALID_UNTIL = datetime.datetime(2026, 1, 1, tzinfo=datetime.timezone.utc)
+#: GPS times up to this long past :data:`GPS_TABLE_VALID_UNTIL` are converted with a warning (a leap
+#: second is announced six months ahead, and none has been since 2017); later ones are refused.
+GPS_TABLE_GRACE = datetime.timedelta(days=366)
+#: Absolute times (seconds from an epoch, GPS seconds) must lie within this many seconds (317 years):
+#: beyond it no date is meant, and Python's datetime overflows.
+MAX_ABS_SECONDS = 1e10
 #: Header keys of a state-vector CSV (``# key = value`` lines before the column header).
 CSV_KEYS = ("frame", "epoch", "time_scale")
 _CSV_FORM = (f"the header {','.join(CSV_COLUMNS[:4])}[,{','.join(CSV_COLUMNS[4:])}] (or utc in place of time_s), "
@@ -188,16 +201,38 @@ def utc_instant(text: Any, where: str, advice: str = "give a UTC time as ISO 860
     Raises TrajectoryError naming ``where``, followed by ``advice``, for anything else, a time
     without an offset included (it would be read in the machine's own zone)."""
     if isinstance(text, datetime.datetime):
-        when = text
+        when, extra = text, 0
     else:
+        # digits beyond the microsecond (GNSS logs give nanoseconds) are rounded, not cut as
+        # datetime.fromisoformat cuts them
+        given = str(text).strip()
+        match = re.search(r"T\d\d:?\d\d:?\d\d[.,](\d{7,})", given)
+        extra = 0
+        if match:
+            micro = int((Decimal("0." + match.group(1)) * 10 ** 6).to_integral_value(rounding="ROUND_HALF_EVEN"))
+            extra = micro - int(match.group(1)[:6])
+            given = given[:match.start(1)] + match.group(1)[:6] + given[match.end(1):]
         try:
-            when = datetime.datetime.fromisoformat(str(text).strip())
+            when = datetime.datetime.fromisoformat(given)
         except ValueError:
             when = None
     if when is None or when.tzinfo is None:
-        problem = "has no UTC offset" if when is not None else "is not an ISO 8601 time"
+        leap = re.search(r"T\d\d:?\d\d:?60", str(text))
+        problem = ("is a leap second (hh:mm:60), which no interpolant over UTC can hold" if leap and when is None else
+                   "has no UTC offset" if when is not None else "is not an ISO 8601 time")
         raise TrajectoryError(f"{where}: {str(text).strip()!r} {problem}; {advice}")
-    return when.astimezone(datetime.timezone.utc)
+    return when.astimezone(datetime.timezone.utc) + datetime.timedelta(microseconds=extra)
+
+
+def check_no_leap_second(first: datetime.datetime, last: datetime.datetime, where: str) -> None:
+    """Refuse UTC times ``first`` .. ``last`` that span a leap second (:data:`LEAP_SECONDS`): UTC
+    differences there count one physical second too few, and an interpolant over them would put
+    the platform kilometres off. Raises TrajectoryError naming ``where`` and the leap second."""
+    for day in LEAP_SECONDS:
+        if first < day <= last:
+            raise TrajectoryError(f"{where}: the times {first.isoformat()} .. {last.isoformat()} span the leap second "
+                                  f"before {day.isoformat()}, where UTC differences miss one second; split the file "
+                                  "there (one part on each side)")
 
 
 def gps_minus_utc(utc: datetime.datetime) -> int:
@@ -213,12 +248,23 @@ def _gps_epoch(first: float, last: float, where: str) -> tuple[datetime.datetime
         guess = GPS_EPOCH + datetime.timedelta(seconds=t)
         leap = gps_minus_utc(guess - datetime.timedelta(seconds=gps_minus_utc(guess)))
         return guess - datetime.timedelta(seconds=leap), leap
+    if first < 0:
+        raise TrajectoryError(f"{where}: GPS seconds {first:.6f} .. {last:.6f} begin before the GPS epoch "
+                              "1980-01-06T00:00:00Z; give GPS seconds since it, or the times as UTC (a utc column, "
+                              "or '# epoch = ...' with time_s)")
     lo, leap = utc_of(first)
     hi, leap_hi = utc_of(last)
-    if first < 0 or hi >= GPS_TABLE_VALID_UNTIL:
-        raise TrajectoryError(f"{where}: GPS seconds {first:.6f} .. {last:.6f} fall outside the leap-second table "
-                              f"(1980-01-06 .. {GPS_TABLE_VALID_UNTIL.date()}, GPS - UTC = 18 s since 2017-01-01); "
-                              "give the times as UTC instead (a utc column, or '# epoch = ...' with time_s)")
+    if hi >= GPS_TABLE_VALID_UNTIL + GPS_TABLE_GRACE:
+        raise TrajectoryError(f"{where}: GPS seconds {first:.6f} .. {last:.6f} reach {hi.date()}, more than a year "
+                              f"past the leap-second table's last bulletin ({GPS_TABLE_VALID_UNTIL.date()}, GPS - UTC "
+                              "= 18 s since 2017-01-01); give the times as UTC instead (a utc column, or "
+                              "'# epoch = ...' with time_s)")
+    if hi >= GPS_TABLE_VALID_UNTIL:
+        import warnings
+        warnings.warn(f"{where}: GPS times up to {hi.isoformat()} lie past the leap-second table's last bulletin "
+                      f"({GPS_TABLE_VALID_UNTIL.date()}); converted with GPS - UTC = {leap_hi} s, which holds unless "
+                      "IERS Bulletin C has announced a leap second since: check it, or give UTC times",
+                      LeapSecondWarning, stacklevel=2)
     if leap_hi != leap:
         raise TrajectoryError(f"{where}: the GPS times cross a leap second ({lo.isoformat()} .. {hi.isoformat()}), "
                               "where UTC repeats a second; split the file at the leap second, or give UTC times")
@@ -274,6 +320,7 @@ def _absolute_times(stamps: list[Any], clock: str, scale: str, epoch: datetime.d
     """(float64 seconds from the epoch, the epoch) of a file's absolute times, re-based exactly: the
     whole seconds move into the epoch, the rest stays in float64 seconds (docs/physics.md (J5))."""
     if clock == "utc":
+        check_no_leap_second(min(stamps), max(stamps), f"state vectors {name}, column utc")
         epoch = stamps[0].replace(microsecond=0)
         return np.array([(s - epoch) / datetime.timedelta(microseconds=1) * 1e-6 for s in stamps]), epoch
     if scale == "gps":
@@ -307,11 +354,11 @@ def read_state_vectors(path: str | os.PathLike) -> StateVectors:
         (or no ISO 8601 UTC time), and the checks of :class:`StateVectors`; each names the file,
         the line and the column.
     """
-    from decimal import Decimal, InvalidOperation
+    from decimal import InvalidOperation
     path = Path(path)
     name = path.name
     try:
-        with open(path, newline="") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:       # -sig: a spreadsheet's byte-order mark
             text = fh.read()
     except (OSError, UnicodeDecodeError) as exc:
         raise TrajectoryError(f"trajectory = {str(path)!r}: cannot read the state vectors "
@@ -351,9 +398,17 @@ def read_state_vectors(path: str | os.PathLike) -> StateVectors:
                     values[i, j] = 0.0
                     continue
                 try:
-                    stamps.append(Decimal(field.strip()))
+                    stamp = Decimal(field.strip())
                 except InvalidOperation:
                     raise TrajectoryError(f"{where}: {field.strip()!r} is not a number") from None
+                try:
+                    bounded = stamp.is_finite() and stamp.copy_abs() < Decimal(MAX_ABS_SECONDS)
+                except ArithmeticError:                 # decimal.Overflow of an exponent like 1e999999999
+                    bounded = False
+                if not bounded:
+                    raise TrajectoryError(f"{where}: {field.strip()!r} is not a finite time within +-{MAX_ABS_SECONDS:g} "
+                                          "s of the epoch; give seconds from the '# epoch' (or GPS seconds)")
+                stamps.append(stamp)
             try:
                 values[i, j] = float(field)
             except ValueError:
@@ -439,6 +494,7 @@ def read_eof(path: Any) -> StateVectors:
                 values[i, j] = math.nan
             if not math.isfinite(values[i, j]):
                 raise TrajectoryError(f"{where}: {element.text!r} is not a finite number")
+    check_no_leap_second(min(stamps), max(stamps), f"orbit file {name}")
     epoch = stamps[0].replace(microsecond=0)
     time = np.array([(s - epoch) / datetime.timedelta(microseconds=1) * 1e-6 for s in stamps])
     return StateVectors(time, values[:, :3], values[:, 3:], name, 0, epoch=epoch.isoformat(), frame="ecef",
