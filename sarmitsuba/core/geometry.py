@@ -195,7 +195,7 @@ def pulse_times(params: RadarParameters, nominal: tj.Trajectory) -> np.ndarray:
         middle = min(max(nearest, lo + half), hi - half)
     times = middle + offsets
     if states is not None and states.epoch is not None:
-        # an absolute clock: the first pulse on a whole microsecond of UTC (its epoch is a whole second),
+        # an absolute clock: the first pulse on a whole microsecond of UTC (its epoch is on a whole microsecond),
         # the resolution of CollectionStart / CollectStart, so that TxTime needs no rounding (J5)
         times += round(times[0] * 1e6) * 1e-6 - times[0]
     return times

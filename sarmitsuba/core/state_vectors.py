@@ -60,7 +60,7 @@ class StateVectors:
     time : float64 [n], s
         Strictly increasing sample times.
     position : float64 [n, 3], m
-        Antenna phase centre in the scene frame (z up).
+        Antenna phase centre in the scene frame (z up), or WGS84 ECEF when ``frame`` is ``"ecef"``.
     velocity : float64 [n, 3], m/s, or None
         Velocity at each sample; with it the interpolant is a cubic Hermite spline.
     source : str
@@ -337,14 +337,16 @@ def read_state_vectors(path: str | os.PathLike) -> StateVectors:
     Lines before the column header that start with ``#`` may say (``# key = value``, :data:`CSV_KEYS`):
 
     - ``# frame = ecef``: positions and velocities are WGS84 ECEF (EPSG:4978), not the scene's
-      frame (default ``scene``); they are then interpolated as precise orbits are (J6);
+      frame (default ``scene``); with velocities they are interpolated as precise orbits are (J6),
+      without them by the cubic spline of (J2);
     - ``# epoch = 2026-11-24T10:00:00Z``: ``time_s`` counts seconds from this UTC instant (J5);
     - ``# time_scale = gps``: ``time_s`` counts GPS seconds since 1980-01-06T00:00:00Z, turned into
       UTC with the leap seconds of :data:`LEAP_SECONDS` (J5).
 
     A column ``utc`` of ISO 8601 times with an offset may replace ``time_s`` (absolute times). With
-    absolute times the clock is re-based to a whole second at or before the first row (the
-    :attr:`StateVectors.epoch` records the instant of time 0, to the microsecond).
+    absolute times the clock is re-based to a whole second of the given clock at or before the first
+    row (with ``# epoch``, whole seconds from that epoch, which may have a fraction; the
+    :attr:`StateVectors.epoch` records the instant of time 0, to the microsecond; (J5)).
 
     Raises
     ------
