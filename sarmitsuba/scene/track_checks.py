@@ -26,6 +26,20 @@ __all__ = ["MAX_STEERING_DEG", "check_beam_reach", "steering_note", "motion_erro
 MAX_STEERING_DEG = 60.0
 
 
+def _axes(geometry: AcquisitionGeometry) -> np.ndarray:
+    """Each pulse's along-track beam axis, float64 [n_pulses, 3]: the geometry's beam axes, else its track."""
+    if geometry.beam_axes is not None:
+        return geometry.beam_axes
+    return np.broadcast_to(geometry.track_direction, geometry.positions.shape)
+
+
+def _steering_sines(geometry: AcquisitionGeometry, centre) -> np.ndarray:
+    """Sine of the angle from broadside [n_pulses] at which each pulse sees ``centre`` [m]: where a
+    spotlight beam is steered to."""
+    to_centre = np.asarray(centre, float) - geometry.positions
+    return np.einsum("pk,pk->p", to_centre, _axes(geometry)) / np.linalg.norm(to_centre, axis=1)
+
+
 def check_beam_reach(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) -> None:
     """Refuse an acquisition whose beam never reaches the scene (docs/physics.md (G5)).
 
@@ -57,8 +71,7 @@ def check_beam_reach(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) ->
     from ..core.geometry import acquisition_geometry
     geometry = acquisition_geometry(replace(params, motion_error=None, stop_and_hop=True))
     antenna = geometry.positions
-    axes = geometry.beam_axes if geometry.beam_axes is not None else np.broadcast_to(geometry.track_direction,
-                                                                                     antenna.shape)
+    axes = _axes(geometry)
     centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
     to_box = centre - antenna
     distance = np.linalg.norm(to_box, axis=1)
@@ -68,8 +81,7 @@ def check_beam_reach(params: RadarParameters, lo: np.ndarray, hi: np.ndarray) ->
     half = params.traced_half_angle
     steer = np.full(len(antenna), math.radians(params.squint))
     if params.mode == "spotlight":
-        to_centre = np.asarray(params.scene_center, float) - antenna
-        sine = np.einsum("pk,pk->p", to_centre, axes) / np.linalg.norm(to_centre, axis=1)
+        sine = _steering_sines(geometry, params.scene_center)
         steer = np.arcsin(np.clip(sine, -1.0, 1.0))
         b_lo = np.arcsin(np.clip(sine - math.sin(half), -1.0, 1.0))
         b_hi = np.arcsin(np.clip(sine + math.sin(half), -1.0, 1.0))
@@ -90,12 +102,7 @@ def steering_note(params: RadarParameters, geometry: AcquisitionGeometry) -> str
     brighter and wider than any real antenna's."""
     if params.mode != "spotlight":
         return None
-    antenna = geometry.positions
-    axes = geometry.beam_axes if geometry.beam_axes is not None else np.broadcast_to(geometry.track_direction,
-                                                                                     antenna.shape)
-    to_centre = np.asarray(geometry.scene_center, float) - antenna
-    steer = np.degrees(np.arcsin(np.clip(np.einsum("pk,pk->p", to_centre, axes)
-                                         / np.linalg.norm(to_centre, axis=1), -1.0, 1.0)))
+    steer = np.degrees(np.arcsin(np.clip(_steering_sines(geometry, geometry.scene_center), -1.0, 1.0)))
     beyond = np.abs(steer) > MAX_STEERING_DEG
     if not np.any(beyond) or np.all(beyond):
         return None
