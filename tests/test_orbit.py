@@ -380,22 +380,6 @@ def facing_trihedral(sensor: dict, incidence: float) -> trimesh.Trimesh:
     return mesh
 
 
-def sarpy_total_rcs(path) -> float:
-    """sarpy's RCS tool (``sarpy.annotation.rcs``) on a SICD, over the largest rectangle about the
-    brightest pixel that the file holds: ``TotalRCS`` [dBsm]."""
-    from sarpy.annotation.rcs import create_rcs_value_collection_for_reader
-    from sarpy.geometry.geometry_elements import Polygon
-    from sarpy.io.complex.converter import open_complex
-    reader = open_complex(str(path))
-    pixels = reader[:, :]
-    i, j = np.unravel_index(int(np.argmax(np.abs(pixels))), pixels.shape)
-    a = min(i, pixels.shape[0] - 1 - i)
-    b = min(j, pixels.shape[1] - 1 - j)
-    ring = [[i - a, j - b], [i - a, j + b + 1], [i + a + 1, j + b + 1], [i + a + 1, j - b], [i - a, j - b]]
-    values = create_rcs_value_collection_for_reader(reader, Polygon(coordinates=[ring]))
-    return 10 * math.log10([e for e in values.elements if e.units == "TotalRCS"][0].value.mean)
-
-
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 @pytest.mark.parametrize("case", list(ORBITS))
 def test_an_orbit_images_the_trihedral_rcs_of_the_closed_form(case, tmp_path):
@@ -414,6 +398,7 @@ def test_an_orbit_images_the_trihedral_rcs_of_the_closed_form(case, tmp_path):
     from sarmitsuba import Scene, simulate
     from sarmitsuba.analysis.point_target import analyze_point_target
     from sarmitsuba.formats.sicd import read_sicd, write_sicd
+    from test_sicd_calibration import sarpy_total_rcs_db
     sensor = {**X_BAND, **ORBITS[case]}
     incidence = sensor.get("incidence_angle", 35.0)
     sim = simulate(Scene(meshes=[(facing_trihedral(sensor, incidence), "pec", "tri")], sensor=sensor,
@@ -424,7 +409,7 @@ def test_an_orbit_images_the_trihedral_rcs_of_the_closed_form(case, tmp_path):
     assert report.rcs_db == pytest.approx(closed_form, abs=0.3), (report.rcs_db, closed_form)
     path = write_sicd(sim.image, tmp_path / "image.nitf", raw=sim.raw)
     read_back = analyze_point_target(read_sicd(path), (0.0, 0.0, 0.0), chip=16).rcs_db
-    sarpy_rcs = sarpy_total_rcs(path)
+    sarpy_rcs = sarpy_total_rcs_db(path, fit=True)
     assert read_back == pytest.approx(closed_form, abs=0.3), (read_back, closed_form)
     assert sarpy_rcs == pytest.approx(closed_form, abs=0.3), (sarpy_rcs, closed_form)
     assert sarpy_rcs == pytest.approx(report.rcs_db, abs=0.2), (sarpy_rcs, report.rcs_db)

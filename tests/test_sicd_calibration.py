@@ -30,18 +30,20 @@ from test_sicd_slant import APEX, CASES, FREQUENCY, closed_form_db, facing, part
 HALF = 24          # polygon half-width [SICD pixels]: +-12 uniform cells, the sinc's tails beyond hold < 2 %
 
 
-def sarpy_total_rcs_db(path) -> float:
+def sarpy_total_rcs_db(path, fit: bool = False) -> float:
     """sarpy's RCS tool (``create_rcs_value_collection_for_reader``) over a square polygon of
-    +-:data:`HALF` pixels around the brightest pixel: ``TotalRCS`` [dBsm]."""
+    +-:data:`HALF` pixels around the brightest pixel (``fit``: the largest rectangle about it that
+    the file holds, up to that): ``TotalRCS`` [dBsm]."""
     from sarpy.annotation.rcs import create_rcs_value_collection_for_reader
     from sarpy.geometry.geometry_elements import Polygon
     from sarpy.io.complex.converter import open_complex
     reader = open_complex(str(path))
     pixels = reader[:, :]
     i, j = np.unravel_index(int(np.argmax(np.abs(pixels))), pixels.shape)
-    assert HALF <= i < pixels.shape[0] - HALF and HALF <= j < pixels.shape[1] - HALF
-    ring = [[i - HALF, j - HALF], [i - HALF, j + HALF + 1], [i + HALF + 1, j + HALF + 1], [i + HALF + 1, j - HALF],
-            [i - HALF, j - HALF]]
+    a = min(HALF, i, pixels.shape[0] - 1 - i) if fit else HALF
+    b = min(HALF, j, pixels.shape[1] - 1 - j) if fit else HALF
+    assert a <= i < pixels.shape[0] - a and b <= j < pixels.shape[1] - b
+    ring = [[i - a, j - b], [i - a, j + b + 1], [i + a + 1, j + b + 1], [i + a + 1, j - b], [i - a, j - b]]
     values = create_rcs_value_collection_for_reader(reader, Polygon(coordinates=[ring]))
     return 10 * math.log10([e for e in values.elements if e.units == "TotalRCS"][0].value.mean)
 
