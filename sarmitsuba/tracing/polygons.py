@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["EVERYTHING", "clip", "edge_lines", "moments", "inside", "pad", "corner_slots", "drop_repeats",
+__all__ = ["EVERYTHING", "clip", "clip_reference", "edge_lines", "moments", "inside", "pad", "corner_slots", "drop_repeats",
            "following"]
 
 #: The half-plane that holds every point: the padding row of a half-plane list.
@@ -32,13 +32,24 @@ def corner_slots(count: np.ndarray, width: int) -> np.ndarray:
 
 def pad(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
     """The batch with every slot from ``count`` on set to the first corner (in place; returned)."""
-    poly[:] = np.where(corner_slots(count, poly.shape[1])[..., None], poly, poly[:, :1])
+    if poly.shape[0] and poly.shape[1] > 1:
+        np.copyto(poly, poly[:, :1].copy(), where=~corner_slots(count, poly.shape[1])[..., None])
     return poly
 
 
 def following(poly: np.ndarray) -> np.ndarray:
     """The next corner of every slot of a padded batch (cyclically)."""
     return np.roll(poly, -1, axis=1)
+
+
+def _next_slot(a: np.ndarray) -> np.ndarray:
+    """``np.roll(a, -1, axis=1)`` (the next slot's value, cyclically), without the generic roll."""
+    if a.shape[1] == 0:
+        return a.copy()
+    out = np.empty_like(a)
+    out[:, :-1] = a[:, 1:]
+    out[:, -1] = a[:, 0]
+    return out
 
 
 def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -60,7 +71,155 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
         their largest corner count (at least 3); a polygon with fewer than 3 corners is empty
         (count 0).
     count : int64 [n]
+
+    The corners live in flat arrays (one row's corners after the other) while the half-planes are
+    applied, and only the polygons that still have a half-plane to come are carried from one
+    half-plane to the next; the arithmetic and the corner order are :func:`clip_reference`'s (the
+    tests compare the two bit for bit).
     """
+    poly = np.asarray(poly, np.float64)
+    count = np.asarray(count, np.int64)
+    lines = np.asarray(lines, np.float64)
+    n, width = poly.shape[0], poly.shape[1]
+    if n == 0:
+        return np.zeros((0, 3, 2)), count.copy()
+    if not _clip_fast_applies(poly, count):
+        return clip_reference(poly, count, lines)
+    # the last half-plane of each polygon that can cut it; rows in decreasing order of it, so that
+    # the polygons still to clip at half-plane h are a leading block
+    cuts = ~((lines[..., 0] == 0) & (lines[..., 1] == 0) & (lines[..., 2] > 0)) & (count > 0)[:, None]
+    n_lines = lines.shape[1]
+    last = np.where(cuts.any(axis=1), n_lines - np.argmax(cuts[:, ::-1], axis=1), 0) if n_lines else \
+        np.zeros(n, np.int64)
+    order = np.argsort(-last, kind="stable")
+    last_sorted = last[order]
+    cnt = count[order]
+    slots = corner_slots(cnt, width)
+    x, y = poly[order, :, 0][slots], poly[order, :, 1][slots]
+    off = np.zeros(n + 1, np.int64)
+    np.cumsum(cnt, out=off[1:])
+    lines_sorted = lines[order]
+    live = n                                   # rows [0, live) of the sorted order still clip
+    done = []                                  # finished tails: (x, y, counts), last first
+    for h in range(n_lines):
+        m = int(np.count_nonzero(last_sorted > h))
+        if m < live:
+            done.append((x[off[m]:], y[off[m]:], cnt[m:]))
+            x, y, cnt, off, live = x[:off[m]], y[:off[m]], cnt[:m], off[:m + 1], m
+        if m == 0:
+            break
+        a, b, c = (np.repeat(lines_sorted[:m, h, k], cnt) for k in range(3))
+        value = a * x + b * y + c
+        keep = value >= 0
+        keep_next = np.empty_like(keep)
+        keep_next[:-1] = keep[1:]
+        some = cnt > 0
+        first, final = off[:-1][some], off[1:][some] - 1
+        keep_next[final] = keep[first]
+        cross = keep != keep_next
+        if not cross.any() and keep.all():
+            continue                           # nothing cut by this half-plane
+        emitted = keep.astype(np.int64) + cross
+        end = np.empty(len(emitted) + 1, np.int64)
+        end[0] = 0
+        np.cumsum(emitted, out=end[1:])
+        new_off = end[off]
+        new_cnt = np.diff(new_off)
+        # where an edge leaves (or enters) the half-plane: the crossing point, after the corner
+        ci = np.flatnonzero(cross)
+        row = np.searchsorted(off, ci, side="right") - 1
+        nxt = np.where(ci + 1 == off[row + 1], off[row], ci + 1)
+        t = value[ci] / (value[ci] - value[nxt])
+        px = x[ci] + t * (x[nxt] - x[ci])
+        py = y[ci] + t * (y[nxt] - y[ci])
+        x, y = np.repeat(x, emitted), np.repeat(y, emitted)
+        x[end[ci + 1] - 1] = px
+        y[end[ci + 1] - 1] = py
+        # a convex polygon gains at most one corner, the batch's width with it; rounding that
+        # makes one slightly non-convex could ask for more (as clip_reference: the last slot keeps
+        # the last crossing point, else the last corner, that fell on or past it)
+        if new_cnt.max(initial=0) > width:
+            width += 1
+            over = np.flatnonzero(new_cnt > width)
+            if len(over):
+                is_cross = np.zeros(len(x), bool)
+                is_cross[end[ci + 1] - 1] = True
+                x, y, new_cnt, new_off = _truncate(x, y, is_cross, new_cnt, new_off, over, width)
+        cnt, off = new_cnt, new_off
+    done.append((x, y, cnt))
+    # back to the original rows: the finished blocks were split off the end of the sorted order
+    x = np.concatenate([d[0] for d in done[::-1]])
+    y = np.concatenate([d[1] for d in done[::-1]])
+    cnt = np.concatenate([d[2] for d in done[::-1]])
+    x, y, cnt, off = _drop_repeats_flat(x, y, cnt, REPEAT_DISTANCE)
+    start = np.empty(n, np.int64)
+    start[order] = off[:-1]
+    kept = np.empty(n, np.int64)
+    kept[order] = cnt
+    start[kept == 0] = len(x)                  # an empty polygon is zeros (a zero appended below)
+    final = np.where(kept >= 3, kept, 0)
+    out_width = min(max(int(final.max(initial=0)), 3), width)
+    slot = np.arange(out_width)[None, :]
+    index = start[:, None] + np.where(slot < final[:, None], slot, 0)
+    out = np.empty((n, out_width, 2))
+    out[..., 0] = np.append(x, 0.0)[index]
+    out[..., 1] = np.append(y, 0.0)[index]
+    return out, final
+
+
+def _clip_fast_applies(poly: np.ndarray, count: np.ndarray) -> bool:
+    """Whether :func:`clip`'s flat path gives :func:`clip_reference`'s result: finite corners (a
+    padding half-plane then keeps every corner) and padded rows (the slot after the last corner
+    holding the first, the next corner the reference reads)."""
+    width = poly.shape[1]
+    if not np.isfinite(poly).all() or np.any(count < 0) or np.any(count > width):
+        return False
+    part = np.flatnonzero((count > 0) & (count < width))
+    return bool(np.all(poly[part, count[part]] == poly[part, 0]))
+
+
+def _truncate(x, y, is_cross, cnt, off, over, width):
+    """The rows ``over`` cut to ``width`` corners as :func:`clip_reference` does when a row asks
+    for more slots than it has: every corner meant for slot ``width - 1`` or beyond lands there, the
+    corners first, then the crossing points, the last one written staying."""
+    drop = np.zeros(len(x), bool)
+    for r in over:
+        s, e = off[r], off[r + 1]
+        tail = np.arange(s + width - 1, e)
+        crossing = tail[is_cross[tail]]
+        pick = crossing[-1] if len(crossing) else tail[-1]
+        x[s + width - 1], y[s + width - 1] = x[pick], y[pick]
+        drop[s + width:e] = True
+    cnt = cnt.copy()
+    cnt[over] = width
+    off = np.zeros(len(cnt) + 1, np.int64)
+    np.cumsum(cnt, out=off[1:])
+    return x[~drop], y[~drop], cnt, off
+
+
+def _drop_repeats_flat(x, y, cnt, distance):
+    """:func:`drop_repeats` on flat corners (each row's after the previous row's): ``(x, y, count,
+    offsets)``."""
+    off = np.zeros(len(cnt) + 1, np.int64)
+    np.cumsum(cnt, out=off[1:])
+    some = cnt > 0
+    first, final = off[:-1][some], off[1:][some] - 1
+    x_next, y_next = np.empty_like(x), np.empty_like(y)
+    x_next[:-1], y_next[:-1] = x[1:], y[1:]
+    x_next[final], y_next[final] = x[first], y[first]
+    dx, dy = x_next - x, y_next - y
+    gap = np.sqrt(dx * dx + dy * dy)
+    keep = (gap > distance) | np.repeat(cnt == 1, cnt)
+    end = np.zeros(len(keep) + 1, np.int64)
+    np.cumsum(keep, out=end[1:])
+    off = end[off]
+    return x[keep], y[keep], np.diff(off), off
+
+
+def clip_reference(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`clip` one half-plane at a time over the padded batch: the small readable version
+    that :func:`clip` is tested against (and falls back on for corners that are not finite or
+    batches that are not padded)."""
     poly = np.array(poly, np.float64)              # a copy: the corners are rewritten in place
     count = np.asarray(count, np.int64).copy()
     n = poly.shape[0]
@@ -112,22 +271,22 @@ def drop_repeats(poly: np.ndarray, count: np.ndarray, distance: float = REPEAT_D
     padded."""
     poly = pad(poly, count)
     width = poly.shape[1]
-    gap = np.linalg.norm(np.roll(poly, -1, axis=1) - poly, axis=2)
+    count = np.asarray(count)
+    diff = _next_slot(poly) - poly
+    gap = np.sqrt(diff[..., 0] * diff[..., 0] + diff[..., 1] * diff[..., 1])
     keep = corner_slots(count, width) & ((gap > distance) | (count[:, None] == 1))
-    start = np.cumsum(keep, axis=1) - keep
+    new_count = keep.sum(axis=1).astype(np.int64)
     out = np.zeros_like(poly)
-    rows = np.broadcast_to(np.arange(poly.shape[0])[:, None], keep.shape)
-    out[rows[keep], start[keep]] = poly[keep]
-    count = keep.sum(axis=1).astype(np.int64)
-    return pad(out, count), count
+    out[corner_slots(new_count, width)] = poly[keep]
+    return pad(out, new_count), new_count
 
 
 def edge_lines(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
     """The half-planes of convex counter-clockwise polygons: float64 [n, V, 3], one per edge
     (``a x + b y + c >= 0`` inside, ``(a, b)`` the unit inward normal), :data:`EVERYTHING` for
     slots beyond ``count``."""
-    edge = np.roll(poly, -1, axis=1) - poly
-    length = np.linalg.norm(edge, axis=2)
+    edge = _next_slot(poly) - poly
+    length = np.sqrt(edge[..., 0] * edge[..., 0] + edge[..., 1] * edge[..., 1])
     valid = corner_slots(count, poly.shape[1]) & (length > 0)
     safe = np.where(valid, length, 1.0)
     a = np.where(valid, -edge[..., 1] / safe, 0.0)
@@ -151,7 +310,7 @@ def moments(poly: np.ndarray, count: np.ndarray):
     edges have no length)."""
     x0, y0 = poly[:, :1, 0], poly[:, :1, 1]            # about the first corner, for conditioning
     x, y = poly[..., 0] - x0, poly[..., 1] - y0
-    x1, y1 = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    x1, y1 = _next_slot(x), _next_slot(y)
     cross = x * y1 - x1 * y
     area = 0.5 * cross.sum(axis=1)
     safe = np.where(area != 0, area, 1.0)
@@ -161,8 +320,21 @@ def moments(poly: np.ndarray, count: np.ndarray):
     iyy = ((y * y + y * y1 + y1 * y1) * cross).sum(axis=1) / 12 - area * cy * cy
     ixy = ((x * y1 + 2 * x * y + 2 * x1 * y1 + x1 * y) * cross).sum(axis=1) / 24 - area * cx * cy
     # padded slots repeat the first corner, so they do not widen the box
-    diagonal = np.linalg.norm(poly.max(axis=1) - poly.min(axis=1), axis=1) if poly.shape[0] else np.zeros(0)
+    diagonal = _diagonal(poly)
     centroid = np.stack([cx + x0[:, 0], cy + y0[:, 0]], axis=1)
     empty = count < 3
     return (np.where(empty, 0.0, area), np.where(empty[:, None], 0.0, centroid),
             np.where(empty[:, None], 0.0, np.stack([ixx, ixy, iyy], axis=1)), np.where(empty, 0.0, diagonal))
+
+
+def _diagonal(poly: np.ndarray) -> np.ndarray:
+    """float64 [n]: the length of each row's bounding-box diagonal over all its slots (a min and
+    max over the slots one slot at a time: a reduction over the middle axis of [n, V, 2] is slow)."""
+    if poly.shape[0] == 0:
+        return np.zeros(0)
+    low, high = poly[:, 0].copy(), poly[:, 0].copy()
+    for j in range(1, poly.shape[1]):
+        np.minimum(low, poly[:, j], out=low)
+        np.maximum(high, poly[:, j], out=high)
+    size = high - low
+    return np.sqrt(size[:, 0] * size[:, 0] + size[:, 1] * size[:, 1])
