@@ -45,54 +45,64 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     the way out from ``antenna`` [k, 3], ``D`` the return), eq. (M4): float64 [k, H, 3]."""
     depth = chains.parts.shape[1]
     k = len(chain)
-    width = surfaces.polygon.shape[1] + 3
-    lines = np.tile(np.asarray(EVERYTHING), (k, width, 1))
+    n_slot = surfaces.polygon.shape[1]
     order = chains.order[chain]
     back = (leg == depth) | ((order == 0) & (leg == 0))       # the return leg: the real frame
     level = np.where(back, 0, leg)
     lin, shift = chains.lin[chain, level], chains.shift[chain, level]
     lin = np.where(back[:, None, None], np.eye(3), lin)
     shift = np.where(back[:, None], 0.0, shift)
-    corners = surfaces.to_world(occluder, surfaces.polygon[occluder])
-    corners = np.einsum("kij,kvj->kvi", lin, corners) + shift[:, None, :]
+    # each occluder's corners (the live slots only, row by row), carried into the leg's frame
+    count = surfaces.n_corners[occluder]
+    slots = corner_slots(count, n_slot)
+    kk, ee = np.nonzero(slots)
+    parts, of_part = np.unique(occluder, return_inverse=True)
+    world = surfaces.to_world(parts, surfaces.polygon[parts])[np.take(of_part.reshape(-1), kk), ee]
+    corners = np.einsum("nij,nj->ni", np.take(lin, kk, axis=0), world) + np.take(shift, kk, axis=0)
     normal = np.einsum("kij,kj->ki", lin, surfaces.normal[occluder])
     offset = surfaces.offset[occluder] + np.einsum("ki,ki->k", normal, shift)
     a = offset - np.einsum("ki,ki->k", normal, antenna)
     sign = np.where(a >= 0, 1.0, -1.0)[:, None]
-    # the frame the half-spaces act on: the unfolded point y (way out), the point x (return)
-    origin, u, v = unfolded_frame(surfaces, chains.select(chain))
-    real_origin = surfaces.plane_point(chains.last[chain])
-    real_u, real_v = surfaces.axis_u[chains.last[chain]], surfaces.axis_v[chains.last[chain]]
-    origin = np.where(back[:, None], real_origin, origin)
-    u = np.where(back[:, None], real_u, u)
-    v = np.where(back[:, None], real_v, v)
-
-    def put(slot, g, h):
-        lines[:, slot] = to_face_lines(g, h, origin, u, v)
-
+    # the frame the half-spaces act on: the unfolded point y (way out), the point x (return),
+    # per distinct chain once
+    chain_set, of_chain = np.unique(chain, return_inverse=True)
+    of_chain = of_chain.reshape(-1)
+    frames = unfolded_frame(surfaces, chains.select(chain_set))
+    last = chains.last[chain_set]
+    reals = (surfaces.plane_point(last), surfaces.axis_u[last], surfaces.axis_v[last])
+    origin, u, v = (np.where(back[:, None], np.take(r, of_chain, axis=0), np.take(f, of_chain, axis=0))
+                    for f, r in zip(frames, reals))
+    # the half-spaces g . y + h >= 0: rows 0, 1, 2 of each, then one per edge of its occluder
+    g_all = np.empty((3 * k + len(kk), 3))
+    h_all = np.empty(3 * k + len(kk))
     # O's plane crossed beyond A (t_O > 0), and before the point (t_O < 1) or the next window
-    put(0, sign * normal, -np.einsum("ki,ki->k", sign * normal, antenna))
-    windows = _window_planes(surfaces, chains, chain)
+    g_all[:k] = sign * normal
+    h_all[:k] = -np.einsum("ki,ki->k", g_all[:k], antenna)
+    windows = tuple(np.take(w, of_chain, axis=0) for w in _window_planes(surfaces, chains, chain_set))
     last_leg = back | (leg == order)
-    g_far = np.where(last_leg[:, None], sign * normal, 0.0)
-    h_far = np.where(last_leg, -(sign[:, 0] * offset), 0.0)
     g_next, h_next = _crossing_before(normal, a, windows, np.minimum(leg, depth - 1), antenna)
-    g_far = np.where(last_leg[:, None], g_far, g_next)
-    h_far = np.where(last_leg, h_far, h_next)
-    put(1, g_far, h_far)
-    g_prev, h_prev = _crossing_after(normal, a, windows, leg - 1, antenna)
+    g_all[k:2 * k] = np.where(last_leg[:, None], sign * normal, g_next)
+    h_all[k:2 * k] = np.where(last_leg, -(sign[:, 0] * offset), h_next)
+    g_all[2 * k:3 * k], h_all[2 * k:3 * k] = _crossing_after(normal, a, windows, leg - 1, antenna)
+    # the planes through A and each edge, facing the occluder's centre
+    first = np.cumsum(count) - count
+    with np.errstate(divide="ignore", invalid="ignore"):
+        centre = np.stack([np.bincount(kk, weights=corners[:, i], minlength=k) for i in range(3)], axis=1) \
+            / count[:, None]
+    p = corners - np.take(antenna, kk, axis=0)
+    q = np.take(p, np.take(first, kk) + (ee + 1) % np.take(count, kk), axis=0)
+    g = np.stack([p[:, 1] * q[:, 2] - p[:, 2] * q[:, 1], p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2],
+                  p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]], axis=1)
+    g *= np.where(np.einsum("ni,ni->n", g, np.take(centre - antenna, kk, axis=0)) >= 0, 1.0, -1.0)[:, None]
+    g_all[3 * k:] = g
+    h_all[3 * k:] = -np.einsum("ni,ni->n", g, np.take(antenna, kk, axis=0))
+    at = np.concatenate([np.tile(np.arange(k), 3), kk])
+    found = to_face_lines(g_all, h_all, *(np.take(x, at, axis=0) for x in (origin, u, v)))
+    lines = np.tile(np.asarray(EVERYTHING), (k, n_slot + 3, 1))
+    lines[:, 0], lines[:, 1] = found[:k], found[k:2 * k]
     after = ~back & (leg > 0)
-    lines[:, 2] = np.where(after[:, None], to_face_lines(g_prev, h_prev, origin, u, v), EVERYTHING)
-    count = surfaces.n_corners[occluder]
-    slots = corner_slots(count, corners.shape[1])
-    centre = (corners * slots[..., None]).sum(axis=1) / count[:, None]
-    for e in range(corners.shape[1]):
-        p = corners[:, e] - antenna
-        q = np.roll(corners, -1, axis=1)[:, e] - antenna
-        g = np.cross(p, q)
-        g *= np.where(np.einsum("ki,ki->k", g, centre - antenna) >= 0, 1.0, -1.0)[:, None]
-        line = to_face_lines(g, -np.einsum("ki,ki->k", g, antenna), origin, u, v)
-        lines[:, 3 + e] = np.where(slots[:, e, None], line, EVERYTHING)
+    lines[:, 2] = np.where(after[:, None], found[2 * k:3 * k], EVERYTHING)
+    lines[kk, 3 + ee] = found[3 * k:]
     return lines
 
 
@@ -104,7 +114,7 @@ def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, o
     key = (chain * (int(occluder.max(initial=0)) + 1) + occluder) * (int(leg.max(initial=0)) + 1) + leg
     _, first, back = np.unique(key, return_index=True, return_inverse=True)
     c = chain[first]
-    return [shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c])[back.reshape(-1)]
+    return [np.take(shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c]), back.reshape(-1), axis=0)
             for antenna in antennas]
 
 
@@ -155,6 +165,49 @@ def _interval(start, delta, lines, on_line_inside):
     upper = np.where(~parallel & (den < 0), bound, np.inf).min(axis=-1)
     s, e = np.maximum(lower, 0.0), np.minimum(upper, 1.0)
     return s, np.where(np.any(outside, axis=-1), -1.0, e)
+
+
+def _length(vectors: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of 2-vectors [..., 2] (``np.linalg.norm(vectors, axis=-1)``, to the bit)."""
+    x, y = vectors[..., 0], vectors[..., 1]
+    return np.sqrt(x * x + y * y)
+
+
+def _interval_rows(start, delta, table, line_row, inside_same, inside_other):
+    """:func:`_interval` (to the bit) of segments ``start + t delta`` [m, 2] in the convex
+    polygons ``table[line_row]`` (half-planes [T, H, 3], ``line_row`` int64 [m]), each table row's
+    normal lengths computed once; on a polygon's line a segment counts as inside where
+    ``inside_same`` [m] (the polygon on its left) or ``inside_other`` [m] (on its right) holds
+    (bool arrays or scalars). Only the few pairs on or parallel to a line (with the segment on or
+    outside it) are tested one by one."""
+    m = len(start)
+    if m == 0:
+        return np.zeros(0), np.zeros(0)
+    # line-major [H, m]: the reductions over a polygon's lines are then elementwise
+    line_a, line_b, line_c = (np.ascontiguousarray(table[..., i].T) for i in range(3))
+    normal_len = np.hypot(line_a, line_b)
+    a, b, c = (np.take(x, line_row, axis=1) for x in (line_a, line_b, line_c))
+    sx, sy, dx, dy = start[:, 0], start[:, 1], delta[:, 0], delta[:, 1]
+    num = a * sx + b * sy + c
+    den = a * dx + b * dy
+    length = _length(delta)
+    tol = (COINCIDENT * length) * np.take(np.maximum(normal_len, 1e-300), line_row, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = -num / den
+    lower = np.where(den > tol, bound, -np.inf).max(axis=0)       # den > tol: not parallel, entering
+    upper = np.where(den < -tol, bound, np.inf).min(axis=0)       # leaving
+    # outside: parallel and below the line, or on it with the segment not counted inside
+    on_tol = COINCIDENT * np.maximum(length, 1.0)
+    cols, rows = np.nonzero((np.abs(den) <= tol) & (num <= on_tol))
+    if len(rows):
+        n_r = num[cols, rows]
+        on = (np.abs(n_r) <= on_tol[rows]) & (normal_len[cols, line_row[rows]] > 0)
+        same = (a[cols, rows] * -dy[rows] + b[cols, rows] * dx[rows]) > 0
+        inside = np.where(same, np.broadcast_to(inside_same, (m,))[rows], np.broadcast_to(inside_other, (m,))[rows])
+        bad = (~on & (n_r < 0)) | (on & ~inside)
+        upper[rows[bad]] = -1.0
+    s, e = np.maximum(lower, 0.0), np.minimum(upper, 1.0)
+    return s, e
 
 
 def _trim(s_list, e_list):
@@ -254,20 +307,23 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     g, width = len(base), cut.shape[1]
     cut_lines = edge_lines(cut, cut_count)
     base_lines = edge_lines(base, base_count)
-    lo = np.where(corner_slots(cut_count, width)[..., None], cut, np.inf).min(axis=1)
-    hi = np.where(corner_slots(cut_count, width)[..., None], cut, -np.inf).max(axis=1)
+    lo, hi = cut[:, 0].copy(), cut[:, 0].copy()      # padded with the first corner: the corners' box
+    for k in range(1, width):
+        np.minimum(lo, cut[:, k], out=lo)
+        np.maximum(hi, cut[:, k], out=hi)
     # the edges: the bases' (index -1) and the cut-outs' restricted to their bases' insides
     delta_b = np.roll(base, -1, axis=1) - base
-    live_b = corner_slots(base_count, base.shape[1]) & (np.linalg.norm(delta_b, axis=2) > 0)
+    live_b = corner_slots(base_count, base.shape[1]) & (_length(delta_b) > 0)
     rb, kb = np.nonzero(live_b)
     delta_c = np.roll(cut, -1, axis=1) - cut
-    live_c = corner_slots(cut_count, width) & (np.linalg.norm(delta_c, axis=2) > 0)
+    live_c = corner_slots(cut_count, width) & (_length(delta_c) > 0)
     rc, kc = np.nonzero(live_c)
-    s0, e0 = _interval(cut[rc, kc], delta_c[rc, kc], base_lines[cut_owner[rc]], lambda same: ~same)
+    dc = delta_c[rc, kc]
+    s0, e0 = _interval_rows(cut[rc, kc], dc, base_lines, cut_owner[rc], False, True)
     inner = e0 > s0
-    rc, kc, s0, e0 = rc[inner], kc[inner], s0[inner], e0[inner]
-    start = np.concatenate([base[rb, kb], cut[rc, kc] + s0[:, None] * delta_c[rc, kc]])
-    delta = np.concatenate([delta_b[rb, kb], delta_c[rc, kc] * (e0 - s0)[:, None]])
+    rc, kc, s0, e0, dc = rc[inner], kc[inner], s0[inner], e0[inner], dc[inner]
+    start = np.concatenate([base[rb, kb], cut[rc, kc] + s0[:, None] * dc])
+    delta = np.concatenate([delta_b[rb, kb], dc * (e0 - s0)[:, None]])
     owner = np.concatenate([rb, cut_owner[rc]])
     own = np.concatenate([np.full(len(rb), -1), rc])
     # each edge against the other cut-outs of its base whose boxes meet its own
@@ -275,15 +331,16 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     first = np.searchsorted(cut_owner[order], np.arange(g))
     per = np.bincount(cut_owner, minlength=g)[owner]
     edge = np.repeat(np.arange(len(owner)), per)
-    other = order[np.repeat(first[owner], per) + np.arange(int(per.sum())) - np.repeat(np.cumsum(per) - per, per)]
-    e_lo = np.minimum(start, start + delta)[edge]
-    e_hi = np.maximum(start, start + delta)[edge]
-    meet = (other != own[edge]) & np.all((e_lo <= hi[other] + BOX_SLACK) & (e_hi >= lo[other] - BOX_SLACK), axis=1)
+    other = order[np.repeat(first[owner] - (np.cumsum(per) - per), per) + np.arange(int(per.sum()))]
+    end = start + delta
+    e_lo, e_hi = np.minimum(start, end), np.maximum(start, end)
+    hi_s, lo_s = hi + BOX_SLACK, lo - BOX_SLACK
+    meet = ((other != own[edge]) & (e_lo[edge, 0] <= hi_s[other, 0]) & (e_lo[edge, 1] <= hi_s[other, 1])
+            & (e_hi[edge, 0] >= lo_s[other, 0]) & (e_hi[edge, 1] >= lo_s[other, 1]))
     edge, other = edge[meet], other[meet]
-    earlier = (other < own[edge])[:, None]
-    is_base = (own[edge] < 0)[:, None]
-    s, e = _interval(start[edge], delta[edge], cut_lines[other],
-                     lambda same: np.where(is_base, same, ~same | earlier))
+    own_e = own[edge]
+    is_base = own_e < 0
+    s, e = _interval_rows(start[edge], delta[edge], cut_lines, other, is_base | (other < own_e), ~is_base)
     real = e > s
     edge, s, e = edge[real], s[real], e[real]
     # the gaps in the union of each edge's intervals: sorted by start, after the running end
@@ -295,17 +352,19 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     before = np.where(head, 0.0, np.roll(reach, 1))
     tail = np.ones(len(edge), bool)
     tail[:-1] = edge[1:] != edge[:-1]
-    untouched = np.setdiff1d(np.arange(len(owner)), edge)
+    touched = np.zeros(len(owner), bool)
+    touched[edge] = True
+    untouched = np.flatnonzero(~touched)
     row = np.concatenate([edge, edge[tail], untouched])
     a = np.concatenate([before, reach[tail], np.zeros(len(untouched))])
     b = np.concatenate([s, np.ones(int(tail.sum())), np.ones(len(untouched))])
-    keep = (b > a) & ((b - a) * np.linalg.norm(delta[row], axis=1) > 1e-12)
+    keep = (b > a) & ((b - a) * _length(delta)[row] > 1e-12)
     row, a, b = row[keep], a[keep], b[keep]
-    p = start[row] + a[:, None] * delta[row]
-    q = start[row] + b[:, None] * delta[row]
-    flip = own[row] >= 0
-    p, q = np.where(flip[:, None], q, p), np.where(flip[:, None], p, q)
-    return owner[row], p, q
+    d = delta[row]
+    p = start[row] + a[:, None] * d
+    q = start[row] + b[:, None] * d
+    flip = (own[row] >= 0)[:, None]
+    return owner[row], np.where(flip, q, p), np.where(flip, p, q)
 
 
 def _pieces(start, delta, s, e, live, owner, reverse: bool):
@@ -366,32 +425,42 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3];
     ``only``: just these rows of ``lit.pieces``."""
     blockers = lit.blockers
-    usable = lit.mixed & np.all(blockers != -2, axis=1) & np.any(blockers >= 0, axis=1)
+    usable = lit.mixed & blockers.mesh_only(len(lit.mixed))
     if only is not None:
-        usable &= np.isin(np.arange(len(usable)), only)
+        chosen = np.zeros(len(usable), bool)
+        chosen[only] = True
+        usable &= chosen
     rows = np.flatnonzero(usable)
     pieces = lit.pieces.select(rows)
     poly, count = pieces.polygons()
-    pair_piece, slot = np.nonzero(blockers[rows] >= 0)
-    key = blockers[rows][pair_piece, slot]
+    pair_piece, key = blockers.rows(rows, mesh=True)
     leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
     chain = pieces.region[pair_piece]
     lines, = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna)
-    cut, cut_count = clip(poly[pair_piece], count[pair_piece], lines)
+    cut, cut_count = clip(np.take(poly, pair_piece, axis=0), np.take(count, pair_piece), lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
-    cut_area = moments(cut, cut_count)[0]
-    piece_area = moments(poly, count)[0]
+    cut_area = _areas(cut, cut_count)
+    piece_area = _areas(poly, count)
     dark = np.zeros(len(rows), bool)
-    dark[pair_piece[cut_area >= (1.0 - 1e-12) * piece_area[pair_piece]]] = True
-    real = (cut_count >= 3) & ~dark[pair_piece]
+    dark[pair_piece[cut_area >= (1.0 - 1e-12) * np.take(piece_area, pair_piece)]] = True
+    real = (cut_count >= 3) & ~np.take(dark, pair_piece)
     cut, cut_count, pair_piece = cut[real], cut_count[real], pair_piece[real]
     owner, start, end = lit_boundary(poly, np.where(dark, 0, count), cut, cut_count, pair_piece)
     area, centroid, second, diagonal = segment_moments(owner, start, end, len(rows))
     keep = area > 1e-12 * pieces.patch ** 2
     new = np.cumsum(keep) - 1
-    seg_keep = keep[owner]
-    return ClippedPieces(piece=rows[keep], owner=new[owner[seg_keep]], start=start[seg_keep], end=end[seg_keep],
-                         area=area[keep], centroid=centroid[keep], second=second[keep], diagonal=diagonal[keep])
+    seg_keep = np.take(keep, owner)
+    return ClippedPieces(piece=rows[keep], owner=np.take(new, owner[seg_keep]), start=start[seg_keep],
+                         end=end[seg_keep], area=area[keep], centroid=centroid[keep], second=second[keep],
+                         diagonal=diagonal[keep])
+
+
+def _areas(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """The areas float64 [n] of :func:`sarmitsuba.tracing.polygons.moments` (its arithmetic, to the
+    bit), without the other moments."""
+    x, y = poly[..., 0] - poly[:, :1, 0], poly[..., 1] - poly[:, :1, 1]   # about the first corner
+    cross = x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y
+    return np.where(count < 3, 0.0, 0.5 * cross.sum(axis=1))
 
 
 def replace_pieces(old: ClippedPieces, new: ClippedPieces, rows: np.ndarray) -> ClippedPieces:
@@ -422,10 +491,15 @@ def segment_moments(owner: np.ndarray, start: np.ndarray, end: np.ndarray, n: in
     iyy = np.bincount(owner, weights=(y0 * y0 + y0 * y1 + y1 * y1) * cross, minlength=n) / 12 - area * cy * cy
     ixy = np.bincount(owner, weights=(x0 * y1 + 2 * x0 * y0 + 2 * x1 * y1 + x1 * y0) * cross, minlength=n) / 24 \
         - area * cx * cy
+    # the box: each segment's, then per region over its segments sorted by region
     lo = np.full((n, 2), np.inf)
     hi = np.full((n, 2), -np.inf)
-    for point in (start, end):
-        np.minimum.at(lo, owner, point)
-        np.maximum.at(hi, owner, point)
-    diagonal = np.where(np.isfinite(lo[:, 0]), np.linalg.norm(hi - lo, axis=1), 0.0)
+    if len(owner):
+        rank = np.argsort(owner, kind="stable")
+        ranked = np.take(owner, rank)
+        head = np.flatnonzero(np.concatenate([[True], ranked[1:] != ranked[:-1]]))
+        first, last = np.take(start, rank, axis=0), np.take(end, rank, axis=0)
+        lo[ranked[head]] = np.minimum.reduceat(np.minimum(first, last), head, axis=0)
+        hi[ranked[head]] = np.maximum.reduceat(np.maximum(first, last), head, axis=0)
+    diagonal = np.where(np.isfinite(lo[:, 0]), _length(hi - lo), 0.0)
     return area, np.stack([cx, cy], axis=1), np.stack([ixx, ixy, iyy], axis=1), diagonal
