@@ -14,6 +14,7 @@ points are where the segment crosses the windows, mapped back (:func:`path_point
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -49,18 +50,36 @@ class Chains:
     def __len__(self) -> int:
         return len(self.order)
 
-    @property
+    @cached_property
     def last(self) -> np.ndarray:
-        """int64 [n]: ``X_d`` of each chain."""
-        return self.parts[np.arange(len(self.order)), self.order]
+        """int64 [n]: ``X_d`` of each chain (computed once: the arrays are not changed in place)."""
+        return _frozen(self.parts[np.arange(len(self.order)), self.order])
+
+    @cached_property
+    def lin_last(self) -> np.ndarray:
+        """float64 [n, 3, 3]: ``lin_d`` of each chain (``U_d``'s linear part)."""
+        return _frozen(self.lin[np.arange(len(self.order)), self.order])
+
+    @cached_property
+    def shift_last(self) -> np.ndarray:
+        """float64 [n, 3]: ``shift_d`` of each chain."""
+        return _frozen(self.shift[np.arange(len(self.order)), self.order])
 
     def select(self, keep) -> "Chains":
         return Chains(self.sub[keep], self.parts[keep], self.order[keep], self.lin[keep], self.shift[keep])
 
     def unfolded(self, points: np.ndarray, chain: np.ndarray) -> np.ndarray:
         """``U_d(x)`` float64 [m, 3] of points ``x`` [m, 3] on the last parts of chains ``chain`` [m]."""
-        k = self.order[chain]
-        return np.einsum("mij,mj->mi", self.lin[chain, k], points) + self.shift[chain, k]
+        lin = self.lin_last[chain]
+        # np.einsum("mij,mj->mi", lin, points) summed as einsum sums three terms (bitwise equal)
+        y = (lin[:, :, 0] * points[:, 0, None] + lin[:, :, 2] * points[:, 2, None]) + lin[:, :, 1] * points[:, 1, None]
+        return y + self.shift_last[chain]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` made read-only (a cached property's value is shared by every caller)."""
+    a.flags.writeable = False
+    return a
 
 
 def unfold(surfaces: Surfaces, parts: np.ndarray, order: np.ndarray, sub: np.ndarray) -> Chains:

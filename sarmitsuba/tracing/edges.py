@@ -155,8 +155,7 @@ def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_fa
     out = np.full(len(edge), -2, np.int64)
     if len(edge) == 0:
         return out
-    order = np.argsort(w.group, kind="stable")
-    sorted_group = w.group[order]
+    order, sorted_group = _cached(w, "group_order", lambda: _group_order(w))
     lo = np.searchsorted(sorted_group, w.group[edge], "left")
     hi = np.searchsorted(sorted_group, w.group[edge], "right")
     size = hi - lo
@@ -177,6 +176,36 @@ def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_fa
     has = best < np.iinfo(np.int64).max
     out[has] = best[has]
     return out
+
+
+def _cached(w: Wedges, name: str, make):
+    """A value computed once per :class:`Wedges` (kept in its ``__dict__``: it is frozen)."""
+    if name not in w.__dict__:
+        object.__setattr__(w, name, make())
+    return w.__dict__[name]
+
+
+def _group_order(w: Wedges):
+    """The edges sorted by group (stable), and their groups in that order."""
+    order = np.argsort(w.group, kind="stable")
+    return order, w.group[order]
+
+
+def _part_edges(s: Surfaces):
+    """Every part's polygon edges (corner ``i`` to ``i + 1`` over all slots): length float64
+    [n_parts, V] and unit direction [n_parts, V, 2] (face coordinates)."""
+    edge = np.roll(s.polygon, -1, axis=1) - s.polygon
+    length = np.linalg.norm(edge, axis=2)
+    return length, edge / np.maximum(length, 1e-30)[..., None]
+
+
+def _part_centres(s: Surfaces) -> np.ndarray:
+    """float64 [n_parts, 3]: the mean of each part's corners (world), as :func:`_into` takes it."""
+    part = np.arange(s.n_parts)
+    corners = s.to_world(part, s.polygon)
+    valid = np.arange(corners.shape[1])[None, :] < s.n_corners[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sum(corners * valid[..., None], axis=1) / s.n_corners[:, None]
 
 
 def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False) -> np.ndarray:
@@ -229,10 +258,8 @@ def segment_wedges(s: Surfaces, w: Wedges, part: np.ndarray, p2: np.ndarray, q2:
     if m == 0 or len(w.part) == 0:
         return out
     poly = s.polygon[part]
-    nxt = np.roll(poly, -1, axis=1)
-    edge = nxt - poly
-    length = np.linalg.norm(edge, axis=2)
-    unit = edge / np.maximum(length, 1e-30)[..., None]
+    length_all, unit_all = _cached(w, "part_edges", lambda: _part_edges(s))
+    length, unit = length_all[part], unit_all[part]
 
     def distance(x):
         rel = x[:, None, :] - poly
@@ -256,17 +283,18 @@ def segment_wedges(s: Surfaces, w: Wedges, part: np.ndarray, p2: np.ndarray, q2:
     tangent = w.direction[e]
     a = part[rows]
     out["on"][rows] = True
-    x0 = _into(s, a, tangent, mid)
+    centres = _cached(w, "part_centres", lambda: _part_centres(s))
+    x0 = _into(s, a, tangent, mid, centres)
     out["x0"][rows] = x0
     b = other >= 0
     if np.any(b):
-        out["xn"][rows[b]] = _into(s, other[b], tangent[b], mid[b])
+        out["xn"][rows[b]] = _into(s, other[b], tangent[b], mid[b], centres)
         out["other"][rows[b]] = other[b]
-    _opposite(s, w, out, rows, a, corner, unit, mid, x0)
+    _opposite(s, w, out, rows, a, corner, unit, mid, x0, centres)
     return out
 
 
-def _opposite(s: Surfaces, w: Wedges, out: dict, rows, part, corner, unit, mid, x0) -> None:
+def _opposite(s: Surfaces, w: Wedges, out: dict, rows, part, corner, unit, mid, x0, centres=None) -> None:
     """The diffracting edge across the part from each segment's midpoint, eq. (E6): an edge of the
     same part running the other way (within 1 deg), which the line from the midpoint along ``x0``
     (into the part) meets within its extent, and which diffracts there. Sets ``out["across"]``
@@ -307,17 +335,21 @@ def _opposite(s: Surfaces, w: Wedges, out: dict, rows, part, corner, unit, mid, 
     out["across"][rows[r]] = hit - mid[r]
     b = other >= 0
     if np.any(b):
-        out["xn_across"][rows[r[b]]] = _into(s, other[b], w.direction[e[b]], hit[b])
+        out["xn_across"][rows[r[b]]] = _into(s, other[b], w.direction[e[b]], hit[b], centres)
 
 
-def _into(s: Surfaces, part: np.ndarray, tangent: np.ndarray, point: np.ndarray) -> np.ndarray:
+def _into(s: Surfaces, part: np.ndarray, tangent: np.ndarray, point: np.ndarray, centres=None) -> np.ndarray:
     """Unit vector in ``part``'s plane, normal to ``tangent``, from ``point`` (on its border)
-    toward the part's interior (its corners' mean)."""
+    toward the part's interior (its corners' mean; ``centres`` [n_parts, 3] those of every part,
+    :func:`_part_centres`, else computed here)."""
     x = np.cross(s.normal[part], tangent)
     x /= np.linalg.norm(x, axis=1, keepdims=True)
-    corners = s.to_world(part, s.polygon[part])
-    valid = np.arange(corners.shape[1])[None, :] < s.n_corners[part][:, None]
-    centre = np.sum(corners * valid[..., None], axis=1) / s.n_corners[part][:, None]
+    if centres is not None:
+        centre = centres[part]
+    else:
+        corners = s.to_world(part, s.polygon[part])
+        valid = np.arange(corners.shape[1])[None, :] < s.n_corners[part][:, None]
+        centre = np.sum(corners * valid[..., None], axis=1) / s.n_corners[part][:, None]
     return x * np.where(np.einsum("ei,ei->e", centre - point, x) >= 0, 1.0, -1.0)[:, None]
 
 

@@ -211,7 +211,7 @@ class MeshTracer:
         inside = (s.seen_side[part] * height < 0) & ~self._in_body_box(part, launch.reference[sub])
         held = (np.abs(height) > 0) & ~inside
         rows, sub, part = rows[held], sub[held], part[held]
-        keys, chain = np.unique(sub * s.n_parts + part, return_inverse=True)
+        keys, chain = _unique_keys(sub * s.n_parts + part, n_sub * s.n_parts)
         parts = np.full((len(keys), self.depth), -1, np.int64)
         parts[:, 0] = keys % s.n_parts
         chains = unfold(s, parts, np.zeros(len(keys), np.int64), keys // s.n_parts)
@@ -416,10 +416,11 @@ class MeshTracer:
         to the path it draws through the three views (first, reference and last pulse)."""
         normal = self.surfaces.normal[chains.last[chain]]
         u_t = []
+        arriving = _arriving_views(chains, chain, points, views)
         for v in range(3):
-            d = _arriving(chains, chain, points, views[:, v])
+            d = arriving[v]
             b = views[:, v] - points
-            b /= np.linalg.norm(b, axis=1, keepdims=True)
+            b /= _norm(b)[:, None]
             u = d - b
             u_t.append(u - normal * np.einsum("mi,mi->m", u, normal)[:, None])
         smallest = np.minimum(_distance_to_segment(u_t[0], u_t[1]), _distance_to_segment(u_t[1], u_t[2]))
@@ -430,13 +431,16 @@ class MeshTracer:
         three views see ``|alpha| >= SINC_REGIME`` with one sign and some see ``>= alpha_s``; its
         sinc when none reaches ``alpha_s``; decided per pulse otherwise."""
         s = self.surfaces
-        mid = s.to_world(part, 0.5 * (p2 + q2))
-        edge = s.to_world(part, q2) - s.to_world(part, p2)
+        m = len(part)
+        world = s.to_world(np.concatenate([part, part, part]), np.concatenate([0.5 * (p2 + q2), q2, p2]))
+        mid = world[:m]
+        edge = world[m:2 * m] - world[2 * m:]
         alphas = []
+        arriving = _arriving_views(chains, chain, mid, views)
         for v in range(3):
-            d = _arriving(chains, chain, mid, views[:, v])
+            d = arriving[v]
             b = views[:, v] - mid
-            b /= np.linalg.norm(b, axis=1, keepdims=True)
+            b /= _norm(b)[:, None]
             alphas.append(0.5 * self.k * np.einsum("mi,mi->m", d - b, edge))
         alpha = np.stack(alphas, axis=1)
         size = np.abs(alpha)
@@ -486,20 +490,46 @@ def _grid_points(pieces, subdivision: np.ndarray, patch: float):
     return owner, points
 
 
+def _unique_keys(keys: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_inverse=True)`` of int64 ``keys`` in ``[0, size)``: by a table of
+    ``size`` flags where that is not much larger than the keys (no sort), else by ``np.unique``."""
+    if size > max(8 * len(keys), 1 << 20):
+        return np.unique(keys, return_inverse=True)
+    present = np.zeros(size, bool)
+    present[keys] = True
+    rank = np.cumsum(present) - 1
+    return np.flatnonzero(present), rank[keys]
+
+
 def _distance_to_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance from the origin to each segment ``a -> b`` (float64 [m, 3] each)."""
     ab = b - a
     t = np.clip(-np.einsum("mi,mi->m", a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(a + t[:, None] * ab, axis=1)
+    return _norm(a + t[:, None] * ab)
 
 
 def _arriving(chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray) -> np.ndarray:
     """The direction the wave from ``antenna`` arrives in at ``points`` on the chains' last parts:
     the unfolded path's direction folded back, ``lin_d^T (U_d(x) - A) / |U_d(x) - A|``."""
-    y = chains.unfolded(points, chain)
-    first = y - antenna
-    first /= np.linalg.norm(first, axis=1, keepdims=True)
-    lin = chains.lin[chain, chains.order[chain]]
-    return np.einsum("mji,mj->mi", lin, first)
+    return _arriving_views(chains, chain, points, antenna[:, None, :])[0]
+
+
+def _arriving_views(chains: Chains, chain: np.ndarray, points: np.ndarray, views: np.ndarray) -> list:
+    """:func:`_arriving` from each of the antenna positions ``views`` [m, v, 3] (one list entry per
+    view): the unfolded points and the maps gathered once for all views."""
+    lin = chains.lin_last[chain]
+    y = np.einsum("mij,mj->mi", lin, points) + chains.shift_last[chain]
+    out = []
+    for v in range(views.shape[1]):
+        first = y - views[:, v]
+        first /= _norm(first)[:, None]
+        out.append(np.einsum("mji,mj->mi", lin, first))
+    return out
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(x, axis=1)`` of float64 [m, 3] rows, summed in the same order (bitwise
+    equal), without its temporaries."""
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
 
 

@@ -47,7 +47,36 @@ def segments(pieces, stable: np.ndarray, cancel: bool = True):
 
 def _equal_rows(columns) -> tuple[np.ndarray, np.ndarray]:
     """Rows grouped by equal values in every one of ``columns`` (int64 arrays of one length):
-    ``(order, group)``, the rows sorted and each sorted row's group number (0, 1, ...)."""
+    ``(order, group)``, the rows in an order that puts equal rows next to each other and each
+    ordered row's group number (0, 1, ...). One sort of a 64-bit hash of the rows; where two
+    different rows share a hash, :func:`_equal_rows_reference` (a lexicographic sort)."""
+    n = len(columns[0])
+    if n < 2:
+        return _equal_rows_reference(columns)
+    h = _row_hash(columns)
+    order = np.argsort(h)
+    same = np.ones(n, bool)                               # an ordered row equals the one before it
+    same[0] = False
+    for column in columns:
+        ordered = column[order]
+        same[1:] &= ordered[1:] == ordered[:-1]
+    hashed = h[order]
+    if np.any((hashed[1:] == hashed[:-1]) & ~same[1:]):   # a collision: different rows, one hash
+        return _equal_rows_reference(columns)
+    return order, np.cumsum(~same) - 1
+
+
+def _row_hash(columns) -> np.ndarray:
+    """uint64 [n]: a hash of each row of ``columns`` (multiply-xor, wrapping)."""
+    h = np.zeros(len(columns[0]), np.uint64)
+    for column in columns:
+        h = (h ^ np.asarray(column, np.int64).view(np.uint64)) * np.uint64(0x9E3779B97F4A7C15)
+        h ^= h >> np.uint64(29)
+    return h
+
+
+def _equal_rows_reference(columns) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_equal_rows` by a lexicographic sort (the rows sorted)."""
     order = np.lexsort(columns)
     same = np.ones(len(order), bool)                      # a sorted row equals the one before it
     same[0] = False
