@@ -30,7 +30,8 @@ from .patches import UNIT_SQUARE, Pieces, Surfaces, cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
-__all__ = ["in_leg_planes", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck", "RECHECKS"]
+__all__ = ["in_leg_planes", "Blockers", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck",
+           "RECHECKS"]
 
 #: A piece's visibility samples sit this fraction of the patch size inside it, toward its
 #: centroid: a corner on a part's edge (a wall's foot on the ground; a grid anchored at a shape's
@@ -44,6 +45,74 @@ RECHECKS = 2
 #: hides nothing on that leg (:func:`in_leg_planes`): the legs start lifted by at least
 #: ``visibility.SURFACE_LIFT`` (1e-4 m) off their planes.
 IN_PLANE = 1e-4
+
+
+@dataclass(frozen=True)
+class Blockers:
+    """The occluders of a bounce order's mixed pieces, sparse: the distinct pairs
+    ``(piece, key)`` sorted by piece, then key (as :func:`sarmitsuba.core.arrays.unique_pairs`
+    sorts them). A key is ``leg * n_parts + part`` (``leg`` 0 .. d the transmit legs, d + 1 the
+    return), or ``-2`` for an occluder that is not a mesh.
+
+    Attributes
+    ----------
+    piece : int64 [m]
+        Rows of the bounce order's pieces, ascending.
+    key : int64 [m]
+        Each pair's occluder key (ascending within a piece, unique per piece).
+    """
+
+    piece: np.ndarray
+    key: np.ndarray
+
+    @classmethod
+    def empty(cls) -> "Blockers":
+        """No occluders."""
+        return cls(np.zeros(0, np.int64), np.zeros(0, np.int64))
+
+    @classmethod
+    def of(cls, piece: np.ndarray, key: np.ndarray) -> "Blockers":
+        """The distinct pairs of ``piece`` [k] (>= 0) and ``key`` [k] (int64, any order, repeats allowed)."""
+        pairs = unique_pairs(piece, key)
+        return cls(pairs[:, 0], pairs[:, 1])
+
+    def __len__(self) -> int:
+        return len(self.piece)
+
+    def union(self, other: "Blockers") -> "Blockers":
+        """The pairs of both."""
+        return Blockers.of(np.concatenate([self.piece, other.piece]), np.concatenate([self.key, other.key]))
+
+    def rows(self, ids: np.ndarray, mesh: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs of pieces ``ids`` [r] (any order): the position in ``ids`` int64 [k]
+        (ascending) and the key int64 [k] of each (a piece's keys ascending); ``mesh``: only
+        the mesh parts' keys (``>= 0``)."""
+        ids = np.asarray(ids, np.int64)
+        lo = np.searchsorted(self.piece, ids, side="left")
+        size = np.searchsorted(self.piece, ids, side="right") - lo
+        at = np.repeat(np.arange(len(ids)), size)
+        index = np.arange(len(at)) + np.repeat(lo - (np.cumsum(size) - size), size)
+        key = self.key[index]
+        if mesh:
+            real = key >= 0
+            at, key = at[real], key[real]
+        return at, key
+
+    def mesh_only(self, n: int) -> np.ndarray:
+        """bool [n]: which of ``n`` pieces have a mesh occluder and no other."""
+        out = np.zeros(n, bool)
+        out[self.piece[self.key >= 0]] = True
+        out[self.piece[self.key == -2]] = False
+        return out
+
+    def dense(self, n: int) -> np.ndarray:
+        """The pairs as a table int64 [n, c] (row ``p``: piece ``p``'s keys ascending, -1 beyond),
+        the form they had before: for tests and inspection."""
+        per = np.bincount(self.piece, minlength=n)
+        table = np.full((n, int(per.max(initial=0))), -1, np.int64)
+        slot = np.arange(len(self.piece)) - np.repeat(np.cumsum(per) - per, per)
+        table[self.piece, slot] = self.key
+        return table
 
 
 @dataclass(frozen=True)
@@ -61,9 +130,9 @@ class LitPieces:
         (transmit-lit: lit pieces are transmit-lit).
     mixed : bool [n]
         The corners disagree on some leg: the piece is partly shadowed.
-    blockers : int64 [n, c]
+    blockers : Blockers
         For mixed pieces, the parts that hid some corner on some leg, as ``leg * n_parts + part``
-        (-1 beyond; ``leg`` 0 .. d the transmit legs, d + 1 the return).
+        (``leg`` 0 .. d the transmit legs, d + 1 the return; -2 an occluder that is not a mesh).
     samples : int
         The points the rays were aimed at (each along every leg of its path).
     sent : float64 [n]
@@ -75,7 +144,7 @@ class LitPieces:
     lit: np.ndarray
     transmit: np.ndarray
     mixed: np.ndarray
-    blockers: np.ndarray
+    blockers: Blockers
     samples: int = 0
     sent: np.ndarray | None = None
 
@@ -87,19 +156,22 @@ def corner_samples(pieces: Pieces) -> tuple[np.ndarray, np.ndarray]:
     piece of each sample int64 [s] (ascending)."""
     p = pieces.patch
     whole = np.flatnonzero(pieces.whole)
-    w_points = ((pieces.cell[whole][:, None, :] + 0.5 + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)) * p)
     border = np.flatnonzero(~pieces.whole)
     poly, count = pieces.polygon[pieces.border[border]], pieces.count[pieces.border[border]]
+    # each piece's samples in one run, pieces in order: a whole patch's 4, a border piece's corners
+    size = np.full(len(pieces.whole), 4, np.int64)
+    size[border] = count
+    first = np.cumsum(size) - size
+    out = np.empty((int(size.sum()), 2))
+    out[(first[whole][:, None] + np.arange(4)).reshape(-1)] = \
+        ((pieces.cell[whole][:, None, :] + 0.5 + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)) * p).reshape(-1, 2)
     slots = corner_slots(count, poly.shape[1])
     centroid = (poly * slots[..., None]).sum(axis=1) / np.maximum(count, 1)[:, None]
     toward = centroid[:, None, :] - poly
-    distance = np.linalg.norm(toward, axis=2)
+    distance = np.sqrt(toward[..., 0] * toward[..., 0] + toward[..., 1] * toward[..., 1])
     step = np.minimum(SAMPLE_INSET * p, 0.5 * distance) / np.where(distance > 0, distance, 1.0)
-    b_points = (poly + toward * step[..., None])[slots]
-    b_owner = np.broadcast_to(border[:, None], slots.shape)[slots]
-    owner = np.concatenate([np.repeat(whole, 4), b_owner])
-    order = np.argsort(owner, kind="stable")
-    return np.concatenate([w_points.reshape(-1, 2), b_points])[order], owner[order]
+    out[(first[border][:, None] + np.arange(poly.shape[1]))[slots]] = (poly + toward * step[..., None])[slots]
+    return out, np.repeat(np.arange(len(size)), size)
 
 
 def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray):
@@ -189,9 +261,9 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
 
 
 def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed,
-              reach: float) -> np.ndarray:
-    """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, int64
-    [n, c], -1 padded, unique per piece; ``-2`` for an occluder that is not a mesh), by the NumPy
+              reach: float) -> Blockers:
+    """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, unique per
+    piece; ``-2`` for an occluder that is not a mesh; :class:`Blockers`), by the NumPy
     legs of :func:`legs` cast again with :meth:`Rays.first_hit`. An occluder stands for its whole
     face and the parts of its shape it meets at a corner (:attr:`Rays.occluder_partners`): they
     join where their bounding spheres come within ``reach`` [m] (the piece's size) of the leg that
@@ -199,7 +271,7 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     n = len(mixed)
     rows = np.flatnonzero(mixed[owner])
     if len(rows) == 0:
-        return np.full((n, 0), -1, np.int64)
+        return Blockers.empty()
     points = surfaces.to_world(chains.last[chain[rows]], coords[rows])
     start, end, exists = legs(surfaces, chains, chain[rows], points, antenna[chain[rows]])
     sample, leg = np.nonzero(exists)
@@ -227,13 +299,10 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     key = np.concatenate([key, (key[rep[near]] // surfaces.n_parts) * surfaces.n_parts + extra[near]])
     piece_chain = np.zeros(n, np.int64)
     piece_chain[owner] = chain
-    keep = ~in_leg_planes(surfaces, chains, piece_chain[piece], key)
-    pairs = unique_pairs(piece[keep], key[keep])
-    per = np.bincount(pairs[:, 0], minlength=n)
-    table = np.full((n, int(per.max(initial=0))), -1, np.int64)
-    slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
-    table[pairs[:, 0], slot] = pairs[:, 1]
-    return table
+    # whether an occluder lies in a leg's own planes depends on the pair alone: asked once a pair
+    pairs = unique_pairs(piece, key)
+    keep = ~in_leg_planes(surfaces, chains, piece_chain[pairs[:, 0]], pairs[:, 1])
+    return Blockers(pairs[keep, 0], pairs[keep, 1])
 
 
 def in_leg_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray, key: np.ndarray) -> np.ndarray:
@@ -253,24 +322,32 @@ def in_leg_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray, key: np
     end = np.where(back, -1, chains.parts[chain, np.minimum(leg, depth - 1)])
     start = np.where(back, chains.last[chain], np.where(leg >= 1, chains.parts[chain, np.maximum(leg - 1, 0)], -1))
     end = np.where(~back & (leg > order), -1, end)
-    corners = surfaces.to_world(part, surfaces.polygon[part])
-    slots = np.arange(corners.shape[1])[None, :] < surfaces.n_corners[part][:, None]
     out = np.zeros(len(chain), bool)
     for plane in (start, end):
-        p = np.maximum(plane, 0)
-        distance = np.abs(np.einsum("kvi,ki->kv", corners, surfaces.normal[p]) - surfaces.offset[p][:, None])
-        out |= (plane >= 0) & np.all(np.where(slots, distance, 0.0) <= IN_PLANE, axis=1)
-    return out & real
+        # the answer depends on the (plane, part) pair alone: asked once a pair
+        rows = np.flatnonzero(real & (plane >= 0))
+        pairs, at = np.unique(plane[rows] * surfaces.n_parts + part[rows], return_inverse=True)
+        out[rows] |= _part_in_plane(surfaces, pairs % surfaces.n_parts, pairs // surfaces.n_parts)[at.reshape(-1)]
+    return out
+
+
+def _part_in_plane(surfaces: Surfaces, part: np.ndarray, plane: np.ndarray) -> np.ndarray:
+    """bool [k]: every corner of part ``part`` [k] lies within :data:`IN_PLANE` of part ``plane``'s
+    plane [k]."""
+    corners = surfaces.to_world(part, surfaces.polygon[part])
+    slots = np.arange(corners.shape[1])[None, :] < surfaces.n_corners[part][:, None]
+    distance = np.abs(np.einsum("kvi,ki->kv", corners, surfaces.normal[plane]) - surfaces.offset[plane][:, None])
+    return np.all(np.where(slots, distance, 0.0) <= IN_PLANE, axis=1)
 
 
 def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, rays: Rays,
-            visibility: PathVisibility) -> np.ndarray:
+            visibility: PathVisibility) -> tuple[Blockers, np.ndarray]:
     """The mixed pieces' blockers with the occluders met from points of their cut lit regions
     (``clipped``, :class:`sarmitsuba.tracing.occlusion.ClippedPieces`): each region's corners and
     edge midpoints pulled :data:`SAMPLE_INSET` patch sizes toward its centroid, and the centroid
     (``antenna`` [n_chains,
-    3]). Returns the new blocker table (int64 [n, c], as :attr:`LitPieces.blockers`) and the rows
-    of ``lit.pieces`` that gained an occluder."""
+    3]). Returns the new blockers (:class:`Blockers`, as :attr:`LitPieces.blockers`) and the rows
+    of ``lit.pieces`` that gained an occluder (int64, ascending)."""
     n = len(lit.mixed)
     if len(clipped) == 0:
         return lit.blockers, np.zeros(0, np.int64)
@@ -299,19 +376,12 @@ def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, ra
     mixed[clipped.piece] = True
     found = _blockers(rays, surfaces, lit.chains, coords, piece, chain, antenna, mixed, math.sqrt(2.0) * lit.pieces.patch)
     old = lit.blockers
-    rows, col = np.nonzero(found >= 0)
-    keys = found[rows, col]
-    old_rows, col = np.nonzero(old != -1)
-    old_keys = old[old_rows, col]
-    known = np.isin(rows * (1 << 40) + keys, old_rows * (1 << 40) + old_keys)
+    real = found.key >= 0                   # a non-mesh occluder met here leaves the piece as it is
+    rows, keys = found.piece[real], found.key[real]
+    known = np.isin(rows * (1 << 40) + keys, old.piece * (1 << 40) + old.key)
     if np.all(known):
         return old, np.zeros(0, np.int64)
-    pairs = unique_pairs(np.concatenate([old_rows, rows]), np.concatenate([old_keys, keys]))
-    per = np.bincount(pairs[:, 0], minlength=n)
-    table = np.full((n, int(per.max(initial=0))), -1, np.int64)
-    slot = np.arange(len(pairs)) - np.repeat(np.cumsum(per) - per, per)
-    table[pairs[:, 0], slot] = pairs[:, 1]
-    return table, np.unique(rows[~known])
+    return old.union(Blockers(rows, keys)), np.unique(rows[~known])
 
 
 def spread_occluders(lit: LitPieces, clipped) -> tuple[LitPieces, np.ndarray]:
@@ -360,16 +430,14 @@ def spread_occluders(lit: LitPieces, clipped) -> tuple[LitPieces, np.ndarray]:
     source, target = source[keep], target[keep]
     if len(target) == 0:
         return lit, np.zeros(0, np.int64)
-    width = lit.blockers.shape[1]
-    pairs = np.stack([np.repeat(target, width), lit.blockers[source].reshape(-1)], axis=1)
-    pairs = pairs[pairs[:, 1] >= 0]
-    pairs = unique_pairs(pairs[:, 0], pairs[:, 1])
-    rows, start, count = np.unique(pairs[:, 0], return_index=True, return_counts=True)
-    blockers = np.full((len(lit.lit), max(width, int(count.max()))), -1, np.int64)
-    blockers[:, :width] = lit.blockers
-    slot = np.arange(len(pairs)) - np.repeat(start, count)
-    blockers[rows] = -1
-    blockers[pairs[:, 0], slot] = pairs[:, 1]
+    at, key = lit.blockers.rows(source, mesh=True)
+    new = Blockers.of(target[at], key)
+    rows = np.unique(new.piece)
+    if len(rows) == 0:
+        return lit, np.zeros(0, np.int64)
+    old = lit.blockers
+    stay = ~np.isin(old.piece, rows)                # the targets' occluders are their sources'
+    blockers = Blockers(old.piece[stay], old.key[stay]).union(new)
     lit_now, mixed_now = lit.lit.copy(), lit.mixed.copy()
     lit_now[rows], mixed_now[rows] = False, True
     return dataclasses.replace(lit, lit=lit_now, mixed=mixed_now, blockers=blockers), rows

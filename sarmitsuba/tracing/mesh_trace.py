@@ -391,9 +391,7 @@ class MeshTracer:
             add(windowed, lines_a[at], line_rates(lines_a, lines_b, step[used])[at])
         shaded = np.unique(owner[cut[need]])
         if len(shaded):
-            blockers = lit.blockers[held[shaded]]
-            pair, slot = np.nonzero(blockers >= 0)
-            key = blockers[pair, slot]
+            pair, key = lit.blockers.rows(held[shaded], mesh=True)
             leg, occluder = key // s.n_parts, key % s.n_parts
             c = region[shaded[pair]]
             lines_a, lines_b = shared_shadow_lines(s, chains, c, occluder, leg, a, b)
