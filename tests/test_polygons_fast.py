@@ -8,16 +8,19 @@ padding half-planes between the real ones, and a polygon made non-convex (more t
 crossings, more corners than the batch has slots).
 
 Deliberate bugs these tests were run against (each fails at least one of them):
-  * :func:`clip` writing the crossing point before the corner it follows;
+  * :func:`clip` writing a crossing point over the corner it follows;
   * :func:`clip` taking the next corner of a row's last corner from the following row;
   * :func:`clip` keeping the first (not the last) crossing point in an overflowing row's last slot;
-  * :func:`moments`' bounding box from the first ``V - 1`` slots only.
+  * :func:`moments`' bounding box from the first ``V - 1`` slots only;
+  * :func:`moments` in blocks with the last block's rows replaced by one row;
+  * :func:`pad` copying the second corner (not the first) into the padding slots.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from sarmitsuba.tracing import polygons
 from sarmitsuba.tracing.polygons import (EVERYTHING, REPEAT_DISTANCE, clip, clip_reference, corner_slots,
                                          drop_repeats, edge_lines, moments, pad)
 
@@ -216,6 +219,17 @@ def test_moments_edges_repeats_and_padding_are_the_references(seed):
         a, b = junk.copy(), junk.copy()
         assert pad(a, c) is a
         np.testing.assert_array_equal(a, pad_reference(b, c))
+        a, b = np.asfortranarray(junk), junk.copy()                    # not one corner per element
+        assert pad(a, c) is a
+        np.testing.assert_array_equal(a, pad_reference(b, c))
+
+
+def test_moments_in_blocks_are_the_reference(monkeypatch):
+    rng = np.random.default_rng(3)
+    poly, count, lines = batch(rng, n=100)
+    poly, count = clip(poly, count, lines)
+    monkeypatch.setattr(polygons, "MOMENT_ROWS", 7)                  # 15 blocks, the last short
+    assert_identical(moments(poly, count), moments_reference(poly, count))
 
 
 def test_repeated_corners_are_dropped_whatever_the_distance():

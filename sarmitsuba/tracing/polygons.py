@@ -23,6 +23,8 @@ EVERYTHING = (0.0, 0.0, 1.0)
 #: Corners closer than this [m] to the next corner are one corner (clipping a polygon at a corner
 #: that lies on the clipping line repeats it).
 REPEAT_DISTANCE = 1e-9
+#: Rows of a batch that :func:`moments` takes at a time (its temporaries then fit in the cache).
+MOMENT_ROWS = 16384
 
 
 def corner_slots(count: np.ndarray, width: int) -> np.ndarray:
@@ -33,7 +35,12 @@ def corner_slots(count: np.ndarray, width: int) -> np.ndarray:
 def pad(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
     """The batch with every slot from ``count`` on set to the first corner (in place; returned)."""
     if poly.shape[0] and poly.shape[1] > 1:
-        np.copyto(poly, poly[:, :1].copy(), where=~corner_slots(count, poly.shape[1])[..., None])
+        padding = ~corner_slots(count, poly.shape[1])
+        if poly.dtype == np.float64 and poly.shape[2:] == (2,) and poly.flags.c_contiguous:
+            corner = poly.view(np.complex128)[..., 0]          # a corner as one element: faster
+            np.copyto(corner, corner[:, :1].copy(), where=padding)
+        else:
+            np.copyto(poly, poly[:, :1].copy(), where=padding[..., None])
     return poly
 
 
@@ -72,18 +79,19 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
         (count 0).
     count : int64 [n]
 
-    The corners live in flat arrays (one row's corners after the other) while the half-planes are
-    applied, and only the polygons that still have a half-plane to come are carried from one
-    half-plane to the next; the arithmetic and the corner order are :func:`clip_reference`'s (the
-    tests compare the two bit for bit).
+    The corners live in one flat array (each row's after the previous row's, a corner ``x + i y``
+    complex128 so that it moves as one element) while the half-planes are applied, and only the
+    polygons that still have a half-plane to come are carried from one half-plane to the next; the
+    arithmetic and the corner order are :func:`clip_reference`'s (the tests compare the two bit for
+    bit).
     """
-    poly = np.asarray(poly, np.float64)
+    poly = np.ascontiguousarray(poly, np.float64)
     count = np.asarray(count, np.int64)
     lines = np.asarray(lines, np.float64)
     n, width = poly.shape[0], poly.shape[1]
     if n == 0:
         return np.zeros((0, 3, 2)), count.copy()
-    if not _clip_fast_applies(poly, count):
+    if width == 0 or not _clip_fast_applies(poly, count):
         return clip_reference(poly, count, lines)
     # the last half-plane of each polygon that can cut it; rows in decreasing order of it, so that
     # the polygons still to clip at half-plane h are a leading block
@@ -94,22 +102,22 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     order = np.argsort(-last, kind="stable")
     last_sorted = last[order]
     cnt = count[order]
-    slots = corner_slots(cnt, width)
-    x, y = poly[order, :, 0][slots], poly[order, :, 1][slots]
+    z = np.take(poly.view(np.complex128)[..., 0], order, axis=0)[corner_slots(cnt, width)]
+    if not np.isfinite(z).all():
+        return clip_reference(poly, count, lines)
     off = np.zeros(n + 1, np.int64)
     np.cumsum(cnt, out=off[1:])
-    lines_sorted = lines[order]
     live = n                                   # rows [0, live) of the sorted order still clip
-    done = []                                  # finished tails: (x, y, counts), last first
+    done = []                                  # finished tails: (corners, counts), last first
     for h in range(n_lines):
         m = int(np.count_nonzero(last_sorted > h))
         if m < live:
-            done.append((x[off[m]:], y[off[m]:], cnt[m:]))
-            x, y, cnt, off, live = x[:off[m]], y[:off[m]], cnt[:m], off[:m + 1], m
+            done.append((z[off[m]:], cnt[m:]))
+            z, cnt, off, live = z[:off[m]], cnt[:m], off[:m + 1], m
         if m == 0:
             break
-        a, b, c = (np.repeat(lines_sorted[:m, h, k], cnt) for k in range(3))
-        value = a * x + b * y + c
+        a, b, c = (np.repeat(lines[:, h, k].take(order[:m]), cnt) for k in range(3))
+        value = a * z.real + b * z.imag + c
         keep = value >= 0
         keep_next = np.empty_like(keep)
         keep_next[:-1] = keep[1:]
@@ -127,14 +135,16 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
         new_cnt = np.diff(new_off)
         # where an edge leaves (or enters) the half-plane: the crossing point, after the corner
         ci = np.flatnonzero(cross)
-        row = np.searchsorted(off, ci, side="right") - 1
-        nxt = np.where(ci + 1 == off[row + 1], off[row], ci + 1)
+        jump = np.zeros(len(z) + 1, np.int64)  # from a row's last corner back to its first
+        jump[final] = first - final - 1
+        nxt = ci + 1 + jump[ci]
         t = value[ci] / (value[ci] - value[nxt])
-        px = x[ci] + t * (x[nxt] - x[ci])
-        py = y[ci] + t * (y[nxt] - y[ci])
-        x, y = np.repeat(x, emitted), np.repeat(y, emitted)
-        x[end[ci + 1] - 1] = px
-        y[end[ci + 1] - 1] = py
+        here, there = z[ci], z[nxt]
+        point = np.empty_like(here)
+        point.real = here.real + t * (there.real - here.real)
+        point.imag = here.imag + t * (there.imag - here.imag)
+        z = np.repeat(z, emitted)
+        z[end[ci + 1] - 1] = point
         # a convex polygon gains at most one corner, the batch's width with it; rounding that
         # makes one slightly non-convex could ask for more (as clip_reference: the last slot keeps
         # the last crossing point, else the last corner, that fell on or past it)
@@ -142,78 +152,75 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
             width += 1
             over = np.flatnonzero(new_cnt > width)
             if len(over):
-                is_cross = np.zeros(len(x), bool)
+                is_cross = np.zeros(len(z), bool)
                 is_cross[end[ci + 1] - 1] = True
-                x, y, new_cnt, new_off = _truncate(x, y, is_cross, new_cnt, new_off, over, width)
+                z, new_cnt, new_off = _truncate(z, is_cross, new_cnt, new_off, over, width)
         cnt, off = new_cnt, new_off
-    done.append((x, y, cnt))
+    done.append((z, cnt))
     # back to the original rows: the finished blocks were split off the end of the sorted order
-    x = np.concatenate([d[0] for d in done[::-1]])
-    y = np.concatenate([d[1] for d in done[::-1]])
-    cnt = np.concatenate([d[2] for d in done[::-1]])
-    x, y, cnt, off = _drop_repeats_flat(x, y, cnt, REPEAT_DISTANCE)
+    z = np.concatenate([d[0] for d in done[::-1]] + [np.zeros(1, np.complex128)])   # a zero last:
+    cnt = np.concatenate([d[1] for d in done[::-1]])                                # for the empty
+    z, cnt, off = _drop_repeats_flat(z, cnt, REPEAT_DISTANCE)
     start = np.empty(n, np.int64)
     start[order] = off[:-1]
     kept = np.empty(n, np.int64)
     kept[order] = cnt
-    start[kept == 0] = len(x)                  # an empty polygon is zeros (a zero appended below)
+    start[kept == 0] = len(z) - 1
     final = np.where(kept >= 3, kept, 0)
     out_width = min(max(int(final.max(initial=0)), 3), width)
     slot = np.arange(out_width)[None, :]
-    index = start[:, None] + np.where(slot < final[:, None], slot, 0)
-    out = np.empty((n, out_width, 2))
-    out[..., 0] = np.append(x, 0.0)[index]
-    out[..., 1] = np.append(y, 0.0)[index]
-    return out, final
+    out = z[start[:, None] + np.where(slot < final[:, None], slot, 0)]
+    return out.view(np.float64).reshape(n, out_width, 2), final
 
 
 def _clip_fast_applies(poly: np.ndarray, count: np.ndarray) -> bool:
-    """Whether :func:`clip`'s flat path gives :func:`clip_reference`'s result: finite corners (a
-    padding half-plane then keeps every corner) and padded rows (the slot after the last corner
-    holding the first, the next corner the reference reads)."""
+    """Whether :func:`clip`'s flat path gives :func:`clip_reference`'s result (with finite corners,
+    checked in :func:`clip`: a padding half-plane then keeps every corner): padded rows (the slot
+    after the last corner holding the first, the next corner the reference reads)."""
     width = poly.shape[1]
-    if not np.isfinite(poly).all() or np.any(count < 0) or np.any(count > width):
+    if np.any(count < 0) or np.any(count > width):
         return False
     part = np.flatnonzero((count > 0) & (count < width))
     return bool(np.all(poly[part, count[part]] == poly[part, 0]))
 
 
-def _truncate(x, y, is_cross, cnt, off, over, width):
+def _truncate(z, is_cross, cnt, off, over, width):
     """The rows ``over`` cut to ``width`` corners as :func:`clip_reference` does when a row asks
     for more slots than it has: every corner meant for slot ``width - 1`` or beyond lands there, the
     corners first, then the crossing points, the last one written staying."""
-    drop = np.zeros(len(x), bool)
+    drop = np.zeros(len(z), bool)
     for r in over:
         s, e = off[r], off[r + 1]
         tail = np.arange(s + width - 1, e)
         crossing = tail[is_cross[tail]]
-        pick = crossing[-1] if len(crossing) else tail[-1]
-        x[s + width - 1], y[s + width - 1] = x[pick], y[pick]
+        z[s + width - 1] = z[crossing[-1] if len(crossing) else tail[-1]]
         drop[s + width:e] = True
     cnt = cnt.copy()
     cnt[over] = width
     off = np.zeros(len(cnt) + 1, np.int64)
     np.cumsum(cnt, out=off[1:])
-    return x[~drop], y[~drop], cnt, off
+    return z[~drop], cnt, off
 
 
-def _drop_repeats_flat(x, y, cnt, distance):
-    """:func:`drop_repeats` on flat corners (each row's after the previous row's): ``(x, y, count,
-    offsets)``."""
+def _drop_repeats_flat(z, cnt, distance):
+    """:func:`drop_repeats` on flat corners ``x + i y`` complex128 [N] (each row's after the
+    previous row's; whatever follows the last row is kept as it is): ``(z, count, offsets)``."""
     off = np.zeros(len(cnt) + 1, np.int64)
     np.cumsum(cnt, out=off[1:])
     some = cnt > 0
     first, final = off[:-1][some], off[1:][some] - 1
-    x_next, y_next = np.empty_like(x), np.empty_like(y)
-    x_next[:-1], y_next[:-1] = x[1:], y[1:]
-    x_next[final], y_next[final] = x[first], y[first]
-    dx, dy = x_next - x, y_next - y
-    gap = np.sqrt(dx * dx + dy * dy)
-    keep = (gap > distance) | np.repeat(cnt == 1, cnt)
+    step = np.empty_like(z)                    # to the next corner
+    np.subtract(z[1:], z[:-1], out=step[:-1])
+    step[final] = z[first] - z[final]
+    dx, dy = step.real, step.imag
+    gap = np.sqrt(dx * dx + dy * dy)           # not abs(): hypot rounds differently
+    keep = gap > distance
+    keep[off[:-1][cnt == 1]] = True
+    keep[off[-1]:] = True
     end = np.zeros(len(keep) + 1, np.int64)
     np.cumsum(keep, out=end[1:])
     off = end[off]
-    return x[keep], y[keep], np.diff(off), off
+    return z[keep], np.diff(off), off
 
 
 def clip_reference(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -307,7 +314,21 @@ def moments(poly: np.ndarray, count: np.ndarray):
     """Area [m^2], centroid [m] float64 [n, 2], second moments about the centroid float64 [n, 3]
     (``Ixx = int x^2``, ``Ixy = int x y``, ``Iyy = int y^2``, m^4) and bounding-box diagonal [m]
     of each polygon (Green's theorem; empty polygons: zeros). Padding slots add nothing (their
-    edges have no length)."""
+    edges have no length).
+
+    Computed a block of rows at a time (:data:`MOMENT_ROWS`): the dozens of temporaries of a large
+    batch then stay in the processor's cache; every row's arithmetic is the same."""
+    poly = np.asarray(poly)
+    count = np.asarray(count)
+    if poly.shape[0] <= MOMENT_ROWS:
+        return _moments(poly, count)
+    parts = [_moments(poly[s:s + MOMENT_ROWS], count[s:s + MOMENT_ROWS])
+             for s in range(0, poly.shape[0], MOMENT_ROWS)]
+    return tuple(np.concatenate([part[k] for part in parts]) for k in range(4))
+
+
+def _moments(poly: np.ndarray, count: np.ndarray):
+    """:func:`moments` of one block of rows."""
     x0, y0 = poly[:, :1, 0], poly[:, :1, 1]            # about the first corner, for conditioning
     x, y = poly[..., 0] - x0, poly[..., 1] - y0
     x1, y1 = _next_slot(x), _next_slot(y)
