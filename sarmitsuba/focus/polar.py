@@ -30,6 +30,7 @@ References
 """
 from __future__ import annotations
 
+import functools
 import threading
 from dataclasses import dataclass
 
@@ -271,7 +272,57 @@ def _coarse_geometry(frame: PolarFrame, axes: PolarAxes, coarse: np.ndarray, ant
     """float64 [P, n_s, n_c] residuals ``|x - A_p| - r`` (with ``receivers``: ``(|x - t_p| +
     |x - r_p'|) / 2 - r``, ``r_p'`` the receiver at the echo's arrival, eq. (J3)) and (with a beam)
     beam-table positions ``(s_p - sin_lo) / (sin_hi - sin_lo) BEAM_TABLE + 1.5`` at the coarse
-    ranges, and the validity [n_s, n_c] of the points."""
+    ranges, and the validity [n_s, n_c] of the points.
+
+    Every distance comes from dot products with the points' directions ``u`` from the centre (the
+    point is ``x = c + r u``): ``|x - a|^2 - r^2 = q = r^2 (|u|^2 - 1) + |a - c|^2 - 2 r u.(a - c)``
+    and ``|x - a| - r = q / (|x - a| + r)`` (no cancellation); the receiver's leg at the arrival,
+    ``|x - b - tau v|^2 = |x - b|^2 - 2 tau (x - b).v + tau^2 |v|^2``, the same way. Equal to
+    :func:`_coarse_geometry_reference` to float64 rounding (it differs by ``r eps`` there)."""
+    u, valid = frame.units(axes.s[:, None], coarse[None, :])                         # [n_s, n_c, 3]
+    u = np.ascontiguousarray(np.moveaxis(u, -1, 0))                                  # [3, n_s, n_c]
+    r = coarse[None, None, :]
+    lift = r * r * (np.einsum("kij,kij->ij", u, u) - 1.0)                            # r^2 (|u|^2 - 1)
+
+    def dot(vectors: np.ndarray) -> np.ndarray:                                      # [P, 3] -> [P, n_s, n_c]
+        return np.einsum("pk,kij->pij", vectors, u)
+
+    def leg(offset: np.ndarray) -> tuple[np.ndarray, np.ndarray]:                  # (|x - a|, |x - a|^2 - r^2)
+        q = dot(offset)
+        q *= -2.0 * r
+        q += lift
+        q += np.einsum("pk,pk->p", offset, offset)[:, None, None]
+        return np.sqrt(q + r * r), q
+
+    rel = antennas - frame.centre
+    dist, q = leg(rel)
+    excess = q / (dist + r)                                                          # |x - A_p| - r
+    if receivers is not None:
+        rx, velocity, delay = receivers
+        back_rel = rx - frame.centre
+        back, q_back = leg(back_rel)
+        shift = (dist + back) / SPEED_OF_LIGHT - delay[:, None, None]
+        # |x - b - shift v|^2 - r^2, with (x - b).v = r u.v - b.v
+        along = dot(velocity) * r - np.einsum("pk,pk->p", back_rel, velocity)[:, None, None]
+        q_rx = q_back - 2.0 * shift * along + shift * shift * np.einsum("pk,pk->p", velocity, velocity)[:, None, None]
+        excess = 0.5 * (excess + q_rx / (np.sqrt(q_rx + r * r) + r))
+    position = None
+    if beam is not None:
+        _, sin_lo, sin_hi = beam
+        sine = (dot(velocities) * r - np.einsum("pk,pk->p", rel, velocities)[:, None, None]) / dist
+        position = ((sine - sin_lo) * (BEAM_TABLE / (sin_hi - sin_lo)) + 1.5).astype(np.float32)
+    return excess, position, valid
+
+
+def _coarse_geometry_reference(frame: PolarFrame, axes: PolarAxes, coarse: np.ndarray, antennas: np.ndarray,
+                     velocities: np.ndarray, beam: tuple[np.ndarray, float, float] | None,
+                     receivers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """float64 [P, n_s, n_c] residuals ``|x - A_p| - r`` (with ``receivers``: ``(|x - t_p| +
+    |x - r_p'|) / 2 - r``, ``r_p'`` the receiver at the echo's arrival, eq. (J3)) and (with a beam)
+    beam-table positions ``(s_p - sin_lo) / (sin_hi - sin_lo) BEAM_TABLE + 1.5`` at the coarse
+    ranges, and the validity [n_s, n_c] of the points: the readable reference of
+    :func:`_coarse_geometry` (vectors to every point, tests/test_ffbp_speed_paths.py)."""
     u, valid = frame.units(axes.s[:, None], coarse[None, :])                         # [n_s, n_c, 3]
     points = coarse[None, None, :, None] * u[None]                                   # relative to the centre
     rel = points - (antennas - frame.centre)[:, None, None, :]
@@ -427,19 +478,22 @@ def _cubic_bspline(x: np.ndarray) -> np.ndarray:
     return np.where(a < 1.0, 2.0 / 3.0 - a * a + 0.5 * a ** 3, np.where(a < 2.0, (2.0 - a) ** 3 / 6.0, 0.0))
 
 
+@functools.lru_cache(maxsize=8)
 def spline_tables(bits: int, phase_per_sample: float = 0.0) -> tuple[np.ndarray, np.ndarray, int]:
     """Weights of the four taps ``k - 1 .. k + 2`` at the fraction ``f`` of position ``k + f``:
     ``beta3(f - b) exp(j phase_per_sample (f - b))``, ``b = -1 .. 2``, at the bin centres
     ``(n + 0.5) / 2**bits``. Returns two complex128 [2**bits] tables packing the complex64 pairs
     (taps -1, 0) and (1, 2), and ``2**bits``. With ``phase_per_sample = kappa dr`` the weights carry
-    the carrier from each tap to the point (:func:`r_pass`)."""
+    the carrier from each tap to the point (:func:`r_pass`). Cached: the tables are read-only."""
     m = 1 << bits
     f = (np.arange(m) + 0.5) / m
     b = np.arange(-1, 3)
     x = f[:, None] - b[None, :]
     w = (_cubic_bspline(x) * np.exp(1j * phase_per_sample * x)).astype(np.complex64)
-    return (np.ascontiguousarray(w[:, :2]).reshape(-1).view(np.complex128),
-            np.ascontiguousarray(w[:, 2:]).reshape(-1).view(np.complex128), m)
+    lo = np.ascontiguousarray(w[:, :2]).reshape(-1).view(np.complex128)
+    hi = np.ascontiguousarray(w[:, 2:]).reshape(-1).view(np.complex128)
+    lo.flags.writeable = hi.flags.writeable = False
+    return lo, hi, m
 
 
 def carrier_bits(phase_per_sample: float) -> int:
