@@ -228,7 +228,7 @@ def test_interval_rows_is_interval():
     polys = [convex(rng, k=rng.integers(3, 9)) for _ in range(40)] + [np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])]
     poly, count = batch(polys)
     table = edge_lines(poly, count)
-    table[3] = np.array([0.0, 0.0, -1.0])                     # a nowhere polygon (an empty cut-out)
+    table[3, :count[3]] = np.array([0.0, 0.0, -1.0])          # a nowhere polygon (an empty cut-out)
     starts, deltas, rows = [], [], []
     for r in range(len(polys)):
         for _ in range(30):
@@ -250,9 +250,10 @@ def test_interval_rows_is_interval():
         ref = _interval(start, delta, table[row],
                         lambda same: np.where(same, np.broadcast_to(inside_same, row.shape)[:, None],
                                               np.broadcast_to(inside_other, row.shape)[:, None]))
-        new = _interval_rows(start, delta, table, row, inside_same, inside_other)
-        for x, y in zip(new, ref):
-            assert np.array_equal(x, y)
+        for used in (None, count):                            # all slots, or only each polygon's lines
+            new = _interval_rows(start, delta, table, row, inside_same, inside_other, used)
+            for x, y in zip(new, ref):
+                assert np.array_equal(x, y)
     assert all(len(x) == 0 for x in _interval_rows(start[:0], delta[:0], table, row[:0], False, True))
 
 
@@ -312,14 +313,16 @@ def test_lit_boundary_is_the_reference(seed):
 
 # --------------------------------------------------------------------------- moments
 def test_segment_moments_are_the_reference():
-    """Closed boundaries of random polygons in shuffled order, regions with no segments, none at all."""
+    """Closed boundaries of random polygons in shuffled order, regions with no segments, none at all,
+    and loose segments (each end counts in the box)."""
     rng = np.random.default_rng(9)
     polys = [convex(rng, centre=rng.normal(size=2) * 50, k=rng.integers(3, 9)) for _ in range(60)]
     owner = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)]) * 2    # odd regions empty
     start = np.concatenate(polys)
     end = np.concatenate([np.roll(p, -1, axis=0) for p in polys])
     order = rng.permutation(len(owner))
-    for args in ((owner[order], start[order], end[order], 2 * len(polys) + 3), (owner[:0], start[:0], end[:0], 4)):
+    loose = (rng.integers(0, 30, 200), rng.normal(size=(200, 2)), rng.normal(size=(200, 2)), 31)   # not closed: the box
+    for args in ((owner[order], start[order], end[order], 2 * len(polys) + 3), (owner[:0], start[:0], end[:0], 4), loose):
         for x, y in zip(segment_moments(*args), segment_moments_reference(*args)):
             close(x, y)
 

@@ -173,40 +173,60 @@ def _length(vectors: np.ndarray) -> np.ndarray:
     return np.sqrt(x * x + y * y)
 
 
-def _interval_rows(start, delta, table, line_row, inside_same, inside_other):
+def _interval_rows(start, delta, table, line_row, inside_same, inside_other, used=None):
     """:func:`_interval` (to the bit) of segments ``start + t delta`` [m, 2] in the convex
-    polygons ``table[line_row]`` (half-planes [T, H, 3], ``line_row`` int64 [m]), each table row's
-    normal lengths computed once; on a polygon's line a segment counts as inside where
-    ``inside_same`` [m] (the polygon on its left) or ``inside_other`` [m] (on its right) holds
-    (bool arrays or scalars). Only the few pairs on or parallel to a line (with the segment on or
-    outside it) are tested one by one."""
-    m = len(start)
+    polygons ``table[line_row]`` (half-planes [T, H, 3], ``line_row`` int64 [m]); on a polygon's
+    line a segment counts as inside where ``inside_same`` [m] (the polygon on its left) or
+    ``inside_other`` [m] (on its right) holds (bool arrays or scalars). ``used`` int64 [T]: the
+    leading slots of each table row that may hold lines (the rest :data:`EVERYTHING`, which
+    bound nothing; default all).
+
+    One line slot at a time over the segments whose polygons have a line there (segments sorted
+    by their polygons' line counts, so a prefix), the table rows' normal lengths computed once;
+    only the few pairs parallel to a line, with the segment on or below it, are tested one by
+    one for being outside."""
+    m, n_lines = len(start), table.shape[1]
     if m == 0:
         return np.zeros(0), np.zeros(0)
-    # line-major [H, m]: the reductions over a polygon's lines are then elementwise
-    line_a, line_b, line_c = (np.ascontiguousarray(table[..., i].T) for i in range(3))
-    normal_len = np.hypot(line_a, line_b)
-    a, b, c = (np.take(x, line_row, axis=1) for x in (line_a, line_b, line_c))
-    sx, sy, dx, dy = start[:, 0], start[:, 1], delta[:, 0], delta[:, 1]
-    num = a * sx + b * sy + c
-    den = a * dx + b * dy
-    length = _length(delta)
-    tol = (COINCIDENT * length) * np.take(np.maximum(normal_len, 1e-300), line_row, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        bound = -num / den
-    lower = np.where(den > tol, bound, -np.inf).max(axis=0)       # den > tol: not parallel, entering
-    upper = np.where(den < -tol, bound, np.inf).min(axis=0)       # leaving
-    # outside: parallel and below the line, or on it with the segment not counted inside
+    per = np.full(m, n_lines) if used is None else np.minimum(np.take(used, line_row), n_lines)
+    rank = np.argsort(-per, kind="stable")                         # the most lines first
+    live = m - np.cumsum(np.bincount(per, minlength=n_lines + 1))[:n_lines]   # segments with a line h
+    row = np.take(line_row, rank)
+    sx, sy, dx, dy = (np.take(x, rank) for x in (start[:, 0], start[:, 1], delta[:, 0], delta[:, 1]))
+    length = np.take(_length(delta), rank)
+    scaled = COINCIDENT * length
     on_tol = COINCIDENT * np.maximum(length, 1.0)
-    cols, rows = np.nonzero((np.abs(den) <= tol) & (num <= on_tol))
-    if len(rows):
-        n_r = num[cols, rows]
-        on = (np.abs(n_r) <= on_tol[rows]) & (normal_len[cols, line_row[rows]] > 0)
-        same = (a[cols, rows] * -dy[rows] + b[cols, rows] * dx[rows]) > 0
-        inside = np.where(same, np.broadcast_to(inside_same, (m,))[rows], np.broadcast_to(inside_other, (m,))[rows])
-        bad = (~on & (n_r < 0)) | (on & ~inside)
-        upper[rows[bad]] = -1.0
-    s, e = np.maximum(lower, 0.0), np.minimum(upper, 1.0)
+    same_in = np.take(np.broadcast_to(inside_same, (m,)), rank)
+    other_in = np.take(np.broadcast_to(inside_other, (m,)), rank)
+    line_a, line_b, line_c = (np.ascontiguousarray(table[..., i].T) for i in range(3))   # [H, T]
+    normal_len = np.hypot(line_a, line_b)
+    floor_len = np.maximum(normal_len, 1e-300)
+    lower, upper = np.full(m, -np.inf), np.full(m, np.inf)
+    outside = np.zeros(m, bool)
+    for h in range(n_lines):
+        n = int(live[h])
+        if n == 0:
+            break
+        r = row[:n]
+        a, b, c = np.take(line_a[h], r), np.take(line_b[h], r), np.take(line_c[h], r)
+        num = a * sx[:n] + b * sy[:n] + c
+        den = a * dx[:n] + b * dy[:n]
+        tol = scaled[:n] * np.take(floor_len[h], r)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            bound = -num / den
+        np.maximum(lower[:n], np.where(den > tol, bound, -np.inf), out=lower[:n])     # not parallel, entering
+        np.minimum(upper[:n], np.where(den < -tol, bound, np.inf), out=upper[:n])     # leaving
+        # outside: parallel and below the line, or on it with the segment not counted inside
+        near = np.flatnonzero((np.abs(den) <= tol) & (num <= on_tol[:n]))
+        if len(near):
+            n_r = num[near]
+            on = (np.abs(n_r) <= on_tol[near]) & (np.take(normal_len[h], r[near]) > 0)
+            same = (a[near] * -dy[near] + b[near] * dx[near]) > 0
+            inside = np.where(same, same_in[near], other_in[near])
+            outside[near[(~on & (n_r < 0)) | (on & ~inside)]] = True
+    upper[outside] = -1.0
+    s, e = np.empty(m), np.empty(m)
+    s[rank], e[rank] = np.maximum(lower, 0.0), np.minimum(upper, 1.0)
     return s, e
 
 
@@ -319,7 +339,7 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     live_c = corner_slots(cut_count, width) & (_length(delta_c) > 0)
     rc, kc = np.nonzero(live_c)
     dc = delta_c[rc, kc]
-    s0, e0 = _interval_rows(cut[rc, kc], dc, base_lines, cut_owner[rc], False, True)
+    s0, e0 = _interval_rows(cut[rc, kc], dc, base_lines, cut_owner[rc], False, True, base_count)
     inner = e0 > s0
     rc, kc, s0, e0, dc = rc[inner], kc[inner], s0[inner], e0[inner], dc[inner]
     start = np.concatenate([base[rb, kb], cut[rc, kc] + s0[:, None] * dc])
@@ -340,7 +360,8 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     edge, other = edge[meet], other[meet]
     own_e = own[edge]
     is_base = own_e < 0
-    s, e = _interval_rows(start[edge], delta[edge], cut_lines, other, is_base | (other < own_e), ~is_base)
+    s, e = _interval_rows(np.take(start, edge, axis=0), np.take(delta, edge, axis=0), cut_lines, other,
+                          is_base | (other < own_e), ~is_base, cut_count)
     real = e > s
     edge, s, e = edge[real], s[real], e[real]
     # the gaps in the union of each edge's intervals: sorted by start, after the running end
