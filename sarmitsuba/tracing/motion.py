@@ -76,58 +76,69 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     out_s, out_e = np.zeros((n, 2)), np.zeros((n, 2))
     if n == 0 or len(lines) == 0:
         return out_s, out_e
+    # the candidate lines sorted by piece (stably: a piece's lines keep their order, which breaks
+    # ties below), as contiguous columns; a segment's candidates are then one run of them
     order = np.argsort(line_owner, kind="stable")
     owners = line_owner[order]
+    lines, rates = np.asarray(lines, float)[order], np.asarray(rates, float)[order]
+    moving = (rates[:, 0] != 0.0) | (rates[:, 1] != 0.0) | (rates[:, 2] != 0.0)
+    start, end = np.asarray(start, float), np.asarray(end, float)
     for lo in range(0, n, _BLOCK):
         hi = min(n, lo + _BLOCK)
         first = np.searchsorted(owners, owner[lo:hi], side="left")
         count = np.searchsorted(owners, owner[lo:hi], side="right") - first
-        seg = np.repeat(np.arange(lo, hi), count)
-        line = order[np.repeat(first, count) + np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)]
-        out_s[lo:hi], out_e[lo:hi] = _solve(start, end, seg, line, lines, rates, lo, hi)
+        out_s[lo:hi], out_e[lo:hi] = _solve(start[lo:hi], end[lo:hi], first, count, lines, rates, moving)
     return out_s, out_e
 
 
-def _first(seg: np.ndarray, score: np.ndarray, n: int, offset: int) -> np.ndarray:
-    """Per segment ``offset .. offset + n``, the row of the highest ``score`` (-1 where none)."""
+def _first(seg: np.ndarray, score: np.ndarray, n: int) -> np.ndarray:
+    """Per segment ``0 .. n``, the row of the first ``score`` True among its rows, else its first
+    row (-1 where it has none); ``seg`` [k] non-decreasing."""
     best = np.full(n, -1, np.int64)
     if len(seg):
-        order = np.lexsort((-score, seg))
-        first = np.ones(len(order), bool)
-        first[1:] = seg[order][1:] != seg[order][:-1]
-        best[seg[order][first] - offset] = order[first]
+        head = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
+        best[seg[head]] = head
+        hit = np.flatnonzero(score)
+        if len(hit):
+            head = hit[np.concatenate([[True], seg[hit[1:]] != seg[hit[:-1]]])]
+            best[seg[head]] = head
     return best
 
 
-def _solve(start, end, seg, line, lines, rates, lo, hi):
-    n = hi - lo
-    g, h = lines[line, :2], lines[line, 2]
-    ds = np.abs(np.einsum("mi,mi->m", g, start[seg]) + h) < ON_LINE
-    de = np.abs(np.einsum("mi,mi->m", g, end[seg]) + h) < ON_LINE
-    keep = ds | de
-    seg, line, g, ds, de = seg[keep], line[keep], g[keep], ds[keep], de[keep]
-    moving = np.any(rates[line] != 0.0, axis=1)
+def _solve(start, end, first, count, lines, rates, moving):
+    """:func:`endpoint_rates` of segments ``start``, ``end`` [n, 2] whose candidates are the
+    rows ``first[k] .. first[k] + count[k]`` of ``lines``, ``rates`` and ``moving``."""
+    n = len(start)
+    seg = np.repeat(np.arange(n), count)
+    line = np.arange(len(seg)) + np.repeat(first - (np.cumsum(count) - count), count)
+    a, b, c = np.take(lines, line, axis=0).T           # (one gather of whole rows: the cheapest)
+    # ``g . p + h`` as ``g_x p_x + g_y p_y + h`` (the sum's order of the reference's einsum)
+    ds = np.abs(a * np.repeat(start[:, 0], count) + b * np.repeat(start[:, 1], count) + c) < ON_LINE
+    de = np.abs(a * np.repeat(end[:, 0], count) + b * np.repeat(end[:, 1], count) + c) < ON_LINE
+    keep = np.flatnonzero(ds | de)
+    seg, line, ds, de = seg[keep], line[keep], ds[keep], de[keep]
+    g = lines[line, :2]
+    line_moving = moving[line]
     own_rows = np.flatnonzero(ds & de)
-    own = _first(seg[own_rows], moving[own_rows].astype(float), n, lo)
+    own = _first(seg[own_rows], line_moving[own_rows], n)
     has_own = own >= 0
-    own_row = own_rows[np.maximum(own, 0)] if len(own_rows) else np.zeros(n, np.int64)
-    own_line = line[own_row] if len(line) else np.zeros(n, np.int64)
+    own_line = line[own_rows[np.maximum(own, 0)]] if len(own_rows) else np.zeros(n, np.int64)
     g_own = np.where(has_own[:, None], lines[own_line, :2], 0.0)
     r_own = np.where(has_own[:, None], rates[own_line], 0.0)
-    moving_own = has_own & np.any(r_own != 0.0, axis=1)
-    local = seg - lo
-    cross = np.abs(g[:, 0] * g_own[local, 1] - g[:, 1] * g_own[local, 0])
+    moving_own = has_own & moving[own_line]
+    cross = np.abs(g[:, 0] * g_own[seg, 1] - g[:, 1] * g_own[seg, 0])
+    rhs_own = (-(r_own[:, 0] * start[:, 0] + r_own[:, 1] * start[:, 1] + r_own[:, 2]),
+               -(r_own[:, 0] * end[:, 0] + r_own[:, 1] * end[:, 1] + r_own[:, 2]))
     results = []
-    for point, on in ((start[lo:hi], ds), (end[lo:hi], de)):
+    for point, on, rhs0 in ((start, ds, rhs_own[0]), (end, de, rhs_own[1])):
         rows = np.flatnonzero(on & (cross > _PARALLEL))
-        other = _first(seg[rows], moving[rows].astype(float), n, lo)
+        other = _first(seg[rows], line_moving[rows], n)
         has = other >= 0
         other_line = line[rows[np.maximum(other, 0)]] if len(rows) else np.zeros(n, np.int64)
         g_other = lines[other_line, :2]
         r_other = np.where(has[:, None], rates[other_line], 0.0)
-        ok = has_own & has & (moving_own | np.any(r_other != 0.0, axis=1))
-        rhs0 = -(np.einsum("si,si->s", r_own[:, :2], point) + r_own[:, 2])
-        rhs1 = -(np.einsum("si,si->s", r_other[:, :2], point) + r_other[:, 2])
+        ok = has_own & has & (moving_own | moving[other_line])
+        rhs1 = -(r_other[:, 0] * point[:, 0] + r_other[:, 1] * point[:, 1] + r_other[:, 2])
         det = g_own[:, 0] * g_other[:, 1] - g_own[:, 1] * g_other[:, 0]
         safe = np.where(ok & (det != 0), det, 1.0)
         x = (rhs0 * g_other[:, 1] - rhs1 * g_own[:, 1]) / safe

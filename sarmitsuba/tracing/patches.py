@@ -17,6 +17,7 @@ the region, else the patch clipped to it.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -108,8 +109,22 @@ class Surfaces:
     def to_world(self, part: np.ndarray, coords: np.ndarray) -> np.ndarray:
         """World points float64 [..., 3] of face coordinates ``coords`` [..., 2] on ``part``
         (whose shape is a leading part of ``coords``' own)."""
-        o, u, v = (_expand(a, coords.ndim) for a in (self.plane_point(part), self.axis_u[part], self.axis_v[part]))
-        return o + coords[..., 0, None] * u + coords[..., 1, None] * v
+        # ``o + x u + y v`` in that order (bit for bit :func:`_to_world_reference`), from the
+        # cached frames (one gather); big batches one world axis at a time (NumPy's broadcast
+        # loops over a last axis of 3 are slow)
+        frame = self._frames[part]                                    # [..., 3 (o, u, v), 3]
+        frame = frame.reshape(frame.shape[:-2] + (1,) * (coords.ndim + 1 - frame.ndim) + (3, 3))
+        x, y = coords[..., 0], coords[..., 1]
+        if coords.size < 4096:
+            return frame[..., 0, :] + x[..., None] * frame[..., 1, :] + y[..., None] * frame[..., 2, :]
+        out = np.empty(np.broadcast_shapes(x.shape, frame.shape[:-2]) + (3,), np.result_type(coords, frame))
+        term = np.empty(out.shape[:-1], out.dtype)
+        for k in range(3):
+            axis = out[..., k]
+            np.multiply(x, frame[..., 1, k], out=axis)
+            axis += frame[..., 0, k]
+            axis += np.multiply(y, frame[..., 2, k], out=term)
+        return out
 
     def vector_to_world(self, part: np.ndarray, vectors: np.ndarray) -> np.ndarray:
         """World vectors float64 [m, 3] of face-coordinate vectors ``vectors`` [m, 2] on ``part`` [m]
@@ -124,8 +139,25 @@ class Surfaces:
 
     def plane_point(self, part: np.ndarray) -> np.ndarray:
         """A point of each part's plane, float64 [..., 3]: the frame's origin projected on it."""
-        origin, normal = self.origin[part], self.normal[part]
-        return origin + normal * (self.offset[part] - np.einsum("...i,...i->...", origin, normal))[..., None]
+        return self._frames[part, 0]
+
+    @functools.cached_property
+    def _frames(self) -> np.ndarray:
+        """float64 [n, 3, 3]: every part's plane point (:meth:`plane_point`), ``axis_u`` and
+        ``axis_v`` as rows (computed once; the surfaces are immutable)."""
+        return np.stack([_plane_point_reference(self, np.arange(self.n_parts)), self.axis_u, self.axis_v], axis=1)
+
+
+def _plane_point_reference(s: Surfaces, part: np.ndarray) -> np.ndarray:
+    """:meth:`Surfaces.plane_point` computed directly (its cache's source, and the tests' reference)."""
+    origin, normal = s.origin[part], s.normal[part]
+    return origin + normal * (s.offset[part] - np.einsum("...i,...i->...", origin, normal))[..., None]
+
+
+def _to_world_reference(s: Surfaces, part: np.ndarray, coords: np.ndarray) -> np.ndarray:
+    """:meth:`Surfaces.to_world` without the cache (the tests' reference)."""
+    o, u, v = (_expand(a, coords.ndim) for a in (_plane_point_reference(s, part), s.axis_u[part], s.axis_v[part]))
+    return o + coords[..., 0, None] * u + coords[..., 1, None] * v
 
 
 def _expand(values: np.ndarray, ndim: int) -> np.ndarray:
@@ -442,19 +474,33 @@ def _row_extents(polygon: np.ndarray, count: np.ndarray, y: np.ndarray) -> tuple
     return lo, hi
 
 
-def _row_spans(polygon: np.ndarray, count: np.ndarray, patch: float, region: np.ndarray, row: np.ndarray):
+def _line_extents(polygon, count, patch, line_region, line_y, bottom):
+    """The extents (:func:`_row_extents`) of regions ``line_region`` [l] on the grid lines
+    ``line_y P`` [l], at the rows' bottom lines ``bottom`` [k] and the top lines that follow them:
+    ``(lo0, hi0, lo1, hi1)`` [k]."""
+    lo, hi = _row_extents(polygon[line_region], count[line_region], line_y * patch)
+    return lo[bottom], hi[bottom], lo[bottom + 1], hi[bottom + 1]
+
+
+def _inner_spans(lo0, hi0, lo1, hi1):
+    """The inner span of :func:`_row_spans`: where both of a row's lines lie inside."""
+    return np.maximum(lo0, lo1), np.minimum(hi0, hi1)
+
+
+def _row_spans(polygon: np.ndarray, count: np.ndarray, patch: float, region: np.ndarray, row: np.ndarray,
+               on_lines=None):
     """For rows ``row`` [k] of regions ``region`` [k]: the x-extent of the polygon within the
     row's slab ``[row P, (row + 1) P]`` (outer: its corners in the slab and its extents on both
-    lines) and on both of its lines (inner: where every point of the slab's height lies inside)."""
+    lines) and on both of its lines (inner: where every point of the slab's height lies inside).
+    ``on_lines``: the extents on the rows' lines if known (:func:`_line_extents`)."""
     y0, y1 = row * patch, (row + 1) * patch
     poly, cnt = polygon[region], count[region]
-    lo0, hi0 = _row_extents(poly, cnt, y0)
-    lo1, hi1 = _row_extents(poly, cnt, y1)
+    lo0, hi0, lo1, hi1 = on_lines if on_lines is not None else (*_row_extents(poly, cnt, y0), *_row_extents(poly, cnt, y1))
     slots = np.arange(poly.shape[1])[None, :] < cnt[:, None]
     held = slots & (poly[..., 1] >= y0[:, None]) & (poly[..., 1] <= y1[:, None])
     outer_lo = np.minimum(np.minimum(lo0, lo1), np.where(held, poly[..., 0], np.inf).min(axis=1))
     outer_hi = np.maximum(np.maximum(hi0, hi1), np.where(held, poly[..., 0], -np.inf).max(axis=1))
-    return (outer_lo, outer_hi), (np.maximum(lo0, lo1), np.minimum(hi0, hi1))
+    return (outer_lo, outer_hi), _inner_spans(lo0, hi0, lo1, hi1)
 
 
 def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.ndarray | None = None) -> Pieces:
@@ -516,8 +562,16 @@ def _sweep(polygon, count, reach, reach_count, live, patch: float) -> Pieces:
         raise ValueError(f"a region spans more than {MAX_CELLS_PER_SIDE} patches of {patch:g} m")
     region = np.repeat(live, rows)
     row = np.repeat(y_lo, rows) + np.arange(int(rows.sum())) - np.repeat(np.cumsum(rows) - rows, rows)
-    (o_lo, o_hi), _ = _row_spans(reach, reach_count, patch, region, row)
-    _, (i_lo, i_hi) = _row_spans(polygon, count, patch, region, row)
+    # the extents on every grid line once (a row's top line is the next row's bottom line)
+    lines = rows + 1
+    line_region = np.repeat(live, lines)
+    line_y = np.repeat(y_lo, lines) + np.arange(int(lines.sum())) - np.repeat(np.cumsum(lines) - lines, lines)
+    bottom = np.arange(len(row)) + np.repeat(np.arange(len(live)), rows)      # each row's bottom line
+    on_lines = _line_extents(polygon, count, patch, line_region, line_y, bottom)
+    reach_on_lines = on_lines if reach is polygon and reach_count is count else \
+        _line_extents(reach, reach_count, patch, line_region, line_y, bottom)
+    (o_lo, o_hi), _ = _row_spans(reach, reach_count, patch, region, row, reach_on_lines)
+    i_lo, i_hi = _inner_spans(*on_lines)
     meets, full = o_hi >= o_lo, i_hi >= i_lo             # (infinite extents where a line misses)
     first = np.floor(np.where(meets, o_lo, 0.0) / patch).astype(np.int64)
     last = np.where(meets, np.maximum(np.ceil(np.where(meets, o_hi, 0.0) / patch).astype(np.int64) - 1, first),
