@@ -5,6 +5,7 @@ import dataclasses
 import json
 import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -452,16 +453,25 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
     """Write raw, image, EXR and PNG into the open output directory ``out``; ``suffix`` (e.g.
     ``_order2``) goes before the extension. Returns the final paths by role."""
     names = {f"{role}{suffix}": OUTPUT_FILES[role].replace(".", f"{suffix}.") for role in ("raw", "image", "exr", "png")}
-    paths = {f"raw{suffix}": out.write(names[f"raw{suffix}"], raw.save),
-             f"image{suffix}": out.write(names[f"image{suffix}"], image.save),
-             f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: image_files.write_exr(image, path))}
     order = f"  bounce order {raw.metadata['bounce_order']}" if "bounce_order" in raw.metadata else ""
     title = (f"{raw.metadata['scene']}  {params.frequency / 1e9:.2f} GHz  B={params.bandwidth / 1e6:.0f} MHz  "
              f"inc={params.incidence_angle:g} deg  {raw.metadata.get('polarization', params.polarization)}  "
              f"depth={raw.metadata['settings']['max_depth']}  "
              f"window {window_title(image)}{order}")
-    paths[f"png{suffix}"] = out.write(names[f"png{suffix}"], lambda path: image_files.write_quicklook(
-        image, path, title=title, figsize=(10.0, 8.0), dpi=110))
+
+    def files() -> dict:
+        return {f"raw{suffix}": out.write(names[f"raw{suffix}"], raw.save),
+                f"image{suffix}": out.write(names[f"image{suffix}"], image.save),
+                f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: image_files.write_exr(image, path))}
+
+    # the arrays stream to disk on a thread while matplotlib draws the quick-look here (a city's
+    # products are 0.3 GB, mostly waiting on the disk; issue 56); both finish before this returns
+    with ThreadPoolExecutor(1) as pool:
+        written = pool.submit(files)
+        png = out.write(names[f"png{suffix}"], lambda path: image_files.write_quicklook(
+            image, path, title=title, figsize=(10.0, 8.0), dpi=110))
+        paths = written.result()
+    paths[f"png{suffix}"] = png
     return paths
 
 
