@@ -116,7 +116,8 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
             z, cnt, off, live = z[:off[m]], cnt[:m], off[:m + 1], m
         if m == 0:
             break
-        a, b, c = (np.repeat(lines[:, h, k].take(order[:m]), cnt) for k in range(3))
+        rows = np.repeat(order[:m], cnt)      # each corner's polygon
+        a, b, c = (lines[:, h, k].take(rows) for k in range(3))
         value = a * z.real + b * z.imag + c
         keep = value >= 0
         keep_next = np.empty_like(keep)
@@ -212,6 +213,7 @@ def _drop_repeats_flat(z, cnt, distance):
     step = np.empty_like(z)                    # to the next corner
     np.subtract(z[1:], z[:-1], out=step[:-1])
     step[final] = z[first] - z[final]
+    step[off[-1]:] = 0.0                       # (kept below whatever it is)
     dx, dy = step.real, step.imag
     gap = np.sqrt(dx * dx + dy * dy)           # not abs(): hypot rounds differently
     keep = gap > distance
