@@ -110,7 +110,8 @@ def batch(rng, n=300, width=8, n_lines=7):
         elif kind == 5:                                # a unit square on the integer grid (corners on lines)
             corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]) + rng.integers(-2, 2, size=2)
         else:
-            corners = regular(rng.integers(3, width + 1), rng.normal(size=2) * 0.5, 0.5 + rng.random(), rng.random())
+            corners = regular(rng.integers(3, width + 1), rng.normal(size=2) * 0.5, 0.5 + rng.random(),
+                              rng.random())
         row = np.zeros((width, 2))
         row[:len(corners)] = corners
         rows.append(row)
@@ -194,7 +195,7 @@ def test_clip_falls_back_for_corners_that_are_not_finite_or_not_padded():
     nan[4, 0] = np.nan                                                # row 4 holds the largest count
     stray = poly.copy()
     row = int(np.flatnonzero((count >= 3) & (count < poly.shape[1]))[0])
-    stray[row, count[row]] += 1.0                                     # the padding slot is not the first corner
+    stray[row, count[row]] += 1.0                                     # padding not the first corner
     for p in (nan, stray):
         out, out_count = clip(p, count, lines)
         ref, ref_count = clip_reference(p, count, lines)

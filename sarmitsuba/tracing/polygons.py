@@ -9,14 +9,18 @@ row ``(a, b, c)``: the points with ``a x + b y + c >= 0``; a row ``(0, 0, 1)`` h
 :func:`clip` is Sutherland and Hodgman's polygon clipping (Comm. ACM 17(1), 1974), one
 half-plane at a time over the whole batch; :func:`moments` are the polygon's area, centroid and
 second moments by Green's theorem (the shoelace formula and its moments). Shapely does the same
-for one polygon at a time; the tests check these against it.
+for one polygon at a time; the tests check these against it. :func:`clip` works on flat corner
+arrays for speed; :func:`clip_reference` is the same clipping on the padded batch, small and
+readable, that it is tested against bit for bit (tests/test_polygons_fast.py, which also keeps
+the plain NumPy versions of :func:`moments`, :func:`pad`, :func:`drop_repeats` and
+:func:`edge_lines` that those are tested against).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["EVERYTHING", "clip", "clip_reference", "edge_lines", "moments", "inside", "pad", "corner_slots", "drop_repeats",
-           "following"]
+__all__ = ["EVERYTHING", "clip", "clip_reference", "edge_lines", "moments", "inside", "pad", "corner_slots",
+           "drop_repeats", "following"]
 
 #: The half-plane that holds every point: the padding row of a half-plane list.
 EVERYTHING = (0.0, 0.0, 1.0)
