@@ -334,39 +334,45 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     # the edges: the bases' (index -1) and the cut-outs' restricted to their bases' insides
     delta_b = np.roll(base, -1, axis=1) - base
     live_b = corner_slots(base_count, base.shape[1]) & (_length(delta_b) > 0)
-    rb, kb = np.nonzero(live_b)
+    at_b = np.flatnonzero(live_b)                               # flat (base, corner) slots
+    rb = at_b // base.shape[1]
     delta_c = np.roll(cut, -1, axis=1) - cut
     live_c = corner_slots(cut_count, width) & (_length(delta_c) > 0)
-    rc, kc = np.nonzero(live_c)
-    dc = delta_c[rc, kc]
-    s0, e0 = _interval_rows(cut[rc, kc], dc, base_lines, cut_owner[rc], False, True, base_count)
-    inner = e0 > s0
-    rc, kc, s0, e0, dc = rc[inner], kc[inner], s0[inner], e0[inner], dc[inner]
-    start = np.concatenate([base[rb, kb], cut[rc, kc] + s0[:, None] * dc])
-    delta = np.concatenate([delta_b[rb, kb], dc * (e0 - s0)[:, None]])
-    owner = np.concatenate([rb, cut_owner[rc]])
+    at_c = np.flatnonzero(live_c)
+    rc = at_c // width
+    dc, pc = np.take(delta_c.reshape(-1, 2), at_c, axis=0), np.take(cut.reshape(-1, 2), at_c, axis=0)
+    owner_c = np.take(cut_owner, rc)
+    s0, e0 = _interval_rows(pc, dc, base_lines, owner_c, False, True, base_count)
+    inner = np.flatnonzero(e0 > s0)
+    rc, s0, e0, dc, pc, owner_c = (np.take(x, inner, axis=0) for x in (rc, s0, e0, dc, pc, owner_c))
+    start = np.concatenate([np.take(base.reshape(-1, 2), at_b, axis=0), pc + s0[:, None] * dc])
+    delta = np.concatenate([np.take(delta_b.reshape(-1, 2), at_b, axis=0), dc * (e0 - s0)[:, None]])
+    owner = np.concatenate([rb, owner_c])
     own = np.concatenate([np.full(len(rb), -1), rc])
     # each edge against the other cut-outs of its base whose boxes meet its own
     order = np.argsort(cut_owner, kind="stable")
     first = np.searchsorted(cut_owner[order], np.arange(g))
-    per = np.bincount(cut_owner, minlength=g)[owner]
+    per = np.take(np.bincount(cut_owner, minlength=g), owner)
     edge = np.repeat(np.arange(len(owner)), per)
-    other = order[np.repeat(first[owner] - (np.cumsum(per) - per), per) + np.arange(int(per.sum()))]
+    other = np.take(order, np.repeat(np.take(first, owner) - (np.cumsum(per) - per), per) + np.arange(int(per.sum())))
     end = start + delta
     e_lo, e_hi = np.minimum(start, end), np.maximum(start, end)
     hi_s, lo_s = hi + BOX_SLACK, lo - BOX_SLACK
-    meet = ((other != own[edge]) & (e_lo[edge, 0] <= hi_s[other, 0]) & (e_lo[edge, 1] <= hi_s[other, 1])
-            & (e_hi[edge, 0] >= lo_s[other, 0]) & (e_hi[edge, 1] >= lo_s[other, 1]))
-    edge, other = edge[meet], other[meet]
-    own_e = own[edge]
+    meet = np.take(own, edge) != other
+    for i in range(2):
+        meet &= np.take(e_lo[:, i], edge) <= np.take(hi_s[:, i], other)
+        meet &= np.take(e_hi[:, i], edge) >= np.take(lo_s[:, i], other)
+    meet = np.flatnonzero(meet)
+    edge, other = np.take(edge, meet), np.take(other, meet)
+    own_e = np.take(own, edge)
     is_base = own_e < 0
     s, e = _interval_rows(np.take(start, edge, axis=0), np.take(delta, edge, axis=0), cut_lines, other,
                           is_base | (other < own_e), ~is_base, cut_count)
-    real = e > s
-    edge, s, e = edge[real], s[real], e[real]
+    real = np.flatnonzero(e > s)
+    edge, s, e = np.take(edge, real), np.take(s, real), np.take(e, real)
     # the gaps in the union of each edge's intervals: sorted by start, after the running end
     rank = np.lexsort((s, edge))
-    edge, s, e = edge[rank], s[rank], e[rank]
+    edge, s, e = np.take(edge, rank), np.take(s, rank), np.take(e, rank)
     reach = np.maximum.accumulate(e + 2.0 * edge) - 2.0 * edge
     head = np.ones(len(edge), bool)
     head[1:] = edge[1:] != edge[:-1]
@@ -379,13 +385,13 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     row = np.concatenate([edge, edge[tail], untouched])
     a = np.concatenate([before, reach[tail], np.zeros(len(untouched))])
     b = np.concatenate([s, np.ones(int(tail.sum())), np.ones(len(untouched))])
-    keep = (b > a) & ((b - a) * _length(delta)[row] > 1e-12)
-    row, a, b = row[keep], a[keep], b[keep]
-    d = delta[row]
-    p = start[row] + a[:, None] * d
-    q = start[row] + b[:, None] * d
-    flip = (own[row] >= 0)[:, None]
-    return owner[row], np.where(flip, q, p), np.where(flip, p, q)
+    keep = np.flatnonzero((b > a) & ((b - a) * np.take(_length(delta), row) > 1e-12))
+    row, a, b = np.take(row, keep), np.take(a, keep), np.take(b, keep)
+    d, o = np.take(delta, row, axis=0), np.take(start, row, axis=0)
+    p = o + a[:, None] * d
+    q = o + b[:, None] * d
+    flip = (np.take(own, row) >= 0)[:, None]
+    return np.take(owner, row), np.where(flip, q, p), np.where(flip, p, q)
 
 
 def _pieces(start, delta, s, e, live, owner, reverse: bool):
