@@ -265,3 +265,105 @@ def test_pieces_tile_the_regions(seed):
         inside = np.floor(centroid[border] / patch).astype(np.int64) == p.cell[border]
         small = np.isin(p.region[border], np.flatnonzero(np.ptp(poly, axis=1).max(axis=1) <= patch))
         assert np.all(inside.all(axis=1) | small)
+
+
+# ---------------------------------------------------------------- motion.line_rates
+
+def _line_rates_reference(at_a, at_b, step):
+    at_a, at_b = np.asarray(at_a, float), np.asarray(at_b, float)
+    step = np.asarray(step, float).reshape((-1,) + (1,) * (at_a.ndim - 1))
+    real = (np.abs(np.linalg.norm(at_a[..., :2], axis=-1) - 1.0) < 1e-6) \
+        & (np.abs(np.linalg.norm(at_b[..., :2], axis=-1) - 1.0) < 1e-6)
+    rate = np.where(step > 0, (at_b - at_a) / np.where(step > 0, step, 1.0), 0.0)
+    return np.where(real[..., None], rate, 0.0)
+
+
+def test_line_rates_are_the_reference():
+    rng = np.random.default_rng(5)
+    theta = rng.uniform(0, 2 * np.pi, (40, 6))
+    at_a = np.stack([np.cos(theta), np.sin(theta), rng.normal(size=(40, 6))], -1)
+    at_b = np.stack([np.cos(theta + 1e-3), np.sin(theta + 1e-3), at_a[..., 2] + 1e-3], -1)
+    at_a[:, 5], at_b[3:9, 4] = (0.0, 0.0, 1.0), (0.0, 0.0, 1.0)     # padding rows
+    at_b[10:12, 2, :2] *= 0.5                                        # not unit at the second position
+    step = rng.uniform(0.0, 2.0, 40)
+    step[[1, 7]] = 0.0
+    for a, b, st in [(at_a, at_b, step), (at_a[:0], at_b[:0], step[:0]), (at_a[:, 0], at_b[:, 0], step)]:
+        got, want = motion.line_rates(a, b, st), _line_rates_reference(a, b, st)
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+
+
+# ---------------------------------------------------------------- Pieces.select / geometry / edges
+
+def _select_reference(p, keep):
+    keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, np.int64)
+    border = p.border[keep]
+    rows = border[border >= 0]
+    new = np.full(len(keep), -1, np.int64)
+    new[border >= 0] = np.arange(len(rows))
+    return patches.Pieces(p.region[keep], p.cell[keep], p.whole[keep], new, p.polygon[rows], p.count[rows], p.patch)
+
+
+def _geometry_reference(p):
+    import math
+    from sarmitsuba.tracing.polygons import moments
+    n, size = len(p), p.patch
+    area = np.full(n, size * size)
+    centroid = (p.cell + 0.5) * size
+    second = np.tile([size ** 4 / 12.0, 0.0, size ** 4 / 12.0], (n, 1))
+    diagonal = np.full(n, size * math.sqrt(2.0))
+    b = np.flatnonzero(~p.whole)
+    if len(b):
+        rows = p.border[b]
+        area[b], centroid[b], second[b], diagonal[b] = moments(p.polygon[rows], p.count[rows])
+    return area, centroid, second, diagonal
+
+
+def _edges_reference(p, rows=None):
+    rows = np.arange(len(p)) if rows is None else np.asarray(rows, np.int64)
+    whole = rows[p.whole[rows]]
+    square = (p.cell[whole][:, None, :] + patches.UNIT_SQUARE[None]) * p.patch
+    border = rows[~p.whole[rows]]
+    poly, count = p.polygon[p.border[border]], p.count[p.border[border]]
+    slots = np.arange(poly.shape[1])[None, :] < count[:, None]
+    end = np.roll(poly, -1, axis=1)
+    keep = slots & (np.linalg.norm(end - poly, axis=2) > 0)
+    b_rows, b_cols = np.nonzero(keep)
+    b_start, b_end = poly[b_rows, b_cols], end[b_rows, b_cols]
+    b_side = patches._grid_side(p.cell[border[b_rows]], b_start, b_end, p.patch)
+    return (np.concatenate([np.repeat(whole, 4), border[b_rows]]), np.concatenate([square.reshape(-1, 2), b_start]),
+            np.concatenate([np.roll(square, -1, axis=1).reshape(-1, 2), b_end]),
+            np.concatenate([np.tile(np.arange(4), len(whole)), b_side]))
+
+
+def _assert_pieces_equal(a, b):
+    for field in a.__dataclass_fields__:
+        x, y = getattr(a, field), getattr(b, field)
+        if isinstance(y, np.ndarray):
+            assert x.shape == y.shape and x.dtype == y.dtype, field
+        np.testing.assert_array_equal(x, y, err_msg=field)
+
+
+def test_pieces_methods_are_the_references():
+    rng = np.random.default_rng(6)
+    patch = 1.7439
+    poly, count = _regions(rng, 30, patch)
+    p = pieces_of(poly, count, patch)
+    assert p.whole.any() and (~p.whole).any()
+    for keep in [rng.random(len(p)) > 0.5, np.zeros(len(p), bool), np.ones(len(p), bool),
+                 rng.permutation(len(p))[:40], np.array([], np.int64)]:
+        q, want = p.select(keep), _select_reference(p, keep)
+        _assert_pieces_equal(q, want)
+        for g, w in zip(q.geometry(), _geometry_reference(want)):
+            np.testing.assert_array_equal(g, w)
+        for g, w in zip(q.edges(), _edges_reference(want)):
+            np.testing.assert_array_equal(g, w)
+    # border rows not in order (the gathered path of geometry); a repeated corner (edges drops it)
+    shuffled = patches.Pieces(p.region, p.cell, p.whole, np.where(p.border >= 0, len(p.count) - 1 - p.border, -1),
+                              p.polygon[::-1].copy(), p.count[::-1].copy(), p.patch)
+    shuffled.polygon[0, 1] = shuffled.polygon[0, 0]
+    for g, w in zip(shuffled.geometry(), _geometry_reference(shuffled)):
+        np.testing.assert_array_equal(g, w)
+    rows = rng.permutation(len(p))[:25]
+    for g, w in zip(shuffled.edges(rows), _edges_reference(shuffled, rows)):
+        np.testing.assert_array_equal(g, w)

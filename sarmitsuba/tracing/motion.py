@@ -42,10 +42,12 @@ def line_rates(at_a: np.ndarray, at_b: np.ndarray, step: np.ndarray) -> np.ndarr
     is a padding or degenerate condition (``(a, b)`` not unit) at either position."""
     at_a, at_b = np.asarray(at_a, float), np.asarray(at_b, float)
     step = np.asarray(step, float).reshape((-1,) + (1,) * (at_a.ndim - 1))
-    real = (np.abs(np.linalg.norm(at_a[..., :2], axis=-1) - 1.0) < 1e-6) \
-        & (np.abs(np.linalg.norm(at_b[..., :2], axis=-1) - 1.0) < 1e-6)
-    rate = np.where(step > 0, (at_b - at_a) / np.where(step > 0, step, 1.0), 0.0)
-    return np.where(real[..., None], rate, 0.0)
+    def unit(rows):                                  # |(a, b)| as np.linalg.norm sums it
+        return np.abs(np.sqrt(rows[..., 0] * rows[..., 0] + rows[..., 1] * rows[..., 1]) - 1.0) < 1e-6
+    ahead = step > 0
+    rate = np.subtract(at_b, at_a)
+    rate /= np.where(ahead, step, 1.0)
+    return np.where((unit(at_a) & unit(at_b))[..., None] & ahead, rate, 0.0)
 
 
 def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_owner: np.ndarray, lines: np.ndarray,

@@ -371,11 +371,12 @@ class Pieces:
         """The pieces ``keep`` (an index array or a boolean mask), their border polygons compacted."""
         keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, np.int64)
         border = self.border[keep]
-        rows = border[border >= 0]
-        new = np.full(len(keep), -1, np.int64)
-        new[border >= 0] = np.arange(len(rows))
-        return Pieces(self.region[keep], self.cell[keep], self.whole[keep], new, self.polygon[rows],
-                      self.count[rows], self.patch)
+        is_border = border >= 0
+        rows = border[is_border]
+        new = np.cumsum(is_border) - 1
+        new[~is_border] = -1
+        return Pieces(self.region[keep], np.take(self.cell, keep, axis=0), self.whole[keep], new,
+                      np.take(self.polygon, rows, axis=0), self.count[rows], self.patch)
 
     def polygons(self, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Every piece's polygon: float64 [n, V, 2] and corner counts int64 [n] (whole pieces:
@@ -403,7 +404,11 @@ class Pieces:
         b = np.flatnonzero(~self.whole)
         if len(b):
             rows = self.border[b]
-            area[b], centroid[b], second[b], diagonal[b] = moments(self.polygon[rows], self.count[rows])
+            if len(rows) == len(self.count) and np.array_equal(rows, np.arange(len(rows))):
+                poly, count = self.polygon, self.count       # (as :meth:`select` and pieces_of leave them)
+            else:
+                poly, count = np.take(self.polygon, rows, axis=0), self.count[rows]
+            area[b], centroid[b], second[b], diagonal[b] = moments(poly, count)
         return area, centroid, second, diagonal
 
     def edges(self, rows: np.ndarray | None = None):
@@ -422,7 +427,8 @@ class Pieces:
         poly, count = self.polygon[self.border[border]], self.count[self.border[border]]
         slots = np.arange(poly.shape[1])[None, :] < count[:, None]
         end = np.roll(poly, -1, axis=1)
-        keep = slots & (np.linalg.norm(end - poly, axis=2) > 0)
+        step = end - poly
+        keep = slots & (step[..., 0] * step[..., 0] + step[..., 1] * step[..., 1] > 0)   # (a length > 0)
         b_rows, b_cols = np.nonzero(keep)
         b_start, b_end = poly[b_rows, b_cols], end[b_rows, b_cols]
         b_side = _grid_side(self.cell[border[b_rows]], b_start, b_end, self.patch)
