@@ -185,15 +185,19 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         slot += 1
         slots = np.arange(corners.shape[1])[None, :] < n_corners[:, None]
         centre = (corners * slots[..., None]).sum(axis=1) / n_corners[:, None]
-        for e in range(corners.shape[1]):
-            nxt = np.where(e + 1 < n_corners, e + 1, 0)
-            p, q = corners[:, e] - antenna[rows], corners[np.arange(len(rows)), nxt] - antenna[rows]
-            g = np.cross(p, q)
-            g *= np.sign(np.einsum("mi,mi->m", g, centre - antenna[rows]))[:, None]
-            live = e < n_corners
-            line = to_face_lines(g, -np.einsum("mi,mi->m", g, antenna[rows]), frame_o[rows], frame_u[rows], frame_v[rows])
-            lines[rows, slot] = np.where(live[:, None], line, EVERYTHING)
-            slot += 1
+        # every corner's edge plane through A at once (tests/test_tracing_fast.py keeps the edge-at-a-time loop)
+        m, v = corners.shape[:2]
+        nxt = np.where(np.arange(v)[None, :] + 1 < n_corners[:, None], np.arange(v)[None, :] + 1, 0)
+        a_rows = antenna[rows]
+        p = corners - a_rows[:, None, :]
+        q = np.take_along_axis(corners, nxt[..., None], axis=1) - a_rows[:, None, :]
+        g = np.cross(p, q)
+        g *= np.sign(_dot3(g, (centre - a_rows)[:, None, :]))[..., None]
+        g = g.reshape(m * v, 3)
+        line = to_face_lines(g, -_dot3(g, np.repeat(a_rows, v, axis=0)), np.repeat(frame_o[rows], v, axis=0),
+                             np.repeat(frame_u[rows], v, axis=0), np.repeat(frame_v[rows], v, axis=0))
+        lines[rows, slot:slot + v] = np.where(slots[..., None], line.reshape(m, v, 3), EVERYTHING)
+        slot += v
         if previous is not None:           # t_{i-1} < t_i: (n_{i-1} / a_{i-1} - n_i / a_i) . (y - A) > 0
             prev_rows, prev_normal, prev_a = previous
             g = prev_normal[np.searchsorted(prev_rows, rows)] / prev_a[np.searchsorted(prev_rows, rows), None] \
@@ -225,6 +229,12 @@ def _source_of(chains: Chains, rows: np.ndarray, i: int, antenna: np.ndarray) ->
     return np.einsum("mji,mj->mi", chains.lin[rows, i], antenna - chains.shift[rows, i])
 
 
+def _dot3(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``x . y`` over the last axis (3) of broadcast float64 arrays, summed as ``np.einsum("mi,mi->m")``
+    sums three terms: ``(x0 y0 + x2 y2) + x1 y1``."""
+    return (x[..., 0] * y[..., 0] + x[..., 2] * y[..., 2]) + x[..., 1] * y[..., 1]
+
+
 def to_face_lines(g: np.ndarray, h: np.ndarray, origin: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The 3-D half-space ``g . y + h >= 0`` on the plane ``origin + x u + y v`` as a normalised
     face half-plane ``(a, b, c)`` float64 [m, 3]; a plane parallel to the face becomes ``(0, 0,
@@ -232,7 +242,8 @@ def to_face_lines(g: np.ndarray, h: np.ndarray, origin: np.ndarray, u: np.ndarra
     a, b = np.einsum("mi,mi->m", g, u), np.einsum("mi,mi->m", g, v)
     c = np.einsum("mi,mi->m", g, origin) + h
     norm = np.hypot(a, b)
-    scale = np.linalg.norm(g, axis=1) * 1e-12
+    # np.linalg.norm(g, axis=1), summed in its order
+    scale = np.sqrt(g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + g[:, 2] * g[:, 2]) * 1e-12
     flat = norm <= scale
     safe = np.where(flat, 1.0, norm)
     return np.stack([np.where(flat, 0.0, a / safe), np.where(flat, 0.0, b / safe),

@@ -374,7 +374,7 @@ class MeshTracer:
         owners, table, rates = [], [], []
 
         def add(piece, lines, line_rates_):
-            real = np.abs(np.linalg.norm(lines[..., :2], axis=-1) - 1.0) < 1e-6
+            real = np.abs(np.sqrt(lines[..., 0] * lines[..., 0] + lines[..., 1] * lines[..., 1]) - 1.0) < 1e-6
             k, j = np.nonzero(real)
             owners.append(piece[k])
             table.append(lines[k, j])
