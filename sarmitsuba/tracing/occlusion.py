@@ -43,6 +43,16 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     """The half-planes (face coordinates of each chain's last part) of the points whose path
     through chain ``chain`` [k] the part ``occluder`` [k] hides on leg ``leg`` [k] (``0 .. d`` on
     the way out from ``antenna`` [k, 3], ``D`` the return), eq. (M4): float64 [k, H, 3]."""
+    (found, ), slot = _shadow_rows(surfaces, chains, chain, occluder, leg, [antenna])
+    return np.take(found, slot, axis=0)
+
+
+def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
+                 antennas: list[np.ndarray]):
+    """:func:`shadow_lines` from each of ``antennas`` (each [k, 3]) as the distinct half-planes
+    (one float64 [r + 1, 3] per antenna, the last :data:`EVERYTHING`) and the rows that fill
+    each slot, int64 [k, H] (the same for every antenna): the geometry that does not depend on
+    the antenna (corners, frames, windows) is found once."""
     depth = chains.parts.shape[1]
     k = len(chain)
     n_slot = surfaces.polygon.shape[1]
@@ -61,8 +71,11 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     corners = np.einsum("nij,nj->ni", np.take(lin, kk, axis=0), world) + np.take(shift, kk, axis=0)
     normal = np.einsum("kij,kj->ki", lin, surfaces.normal[occluder])
     offset = surfaces.offset[occluder] + np.einsum("ki,ki->k", normal, shift)
-    a = offset - np.einsum("ki,ki->k", normal, antenna)
-    sign = np.where(a >= 0, 1.0, -1.0)[:, None]
+    first = np.cumsum(count) - count
+    with np.errstate(divide="ignore", invalid="ignore"):
+        centre = np.stack([np.bincount(kk, weights=corners[:, i], minlength=k) for i in range(3)], axis=1) \
+            / count[:, None]
+    following = np.take(first, kk) + (ee + 1) % np.take(count, kk)
     # the frame the half-spaces act on: the unfolded point y (way out), the point x (return),
     # per distinct chain once
     chain_set, of_chain = np.unique(chain, return_inverse=True)
@@ -72,38 +85,41 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     reals = (surfaces.plane_point(last), surfaces.axis_u[last], surfaces.axis_v[last])
     origin, u, v = (np.where(back[:, None], np.take(r, of_chain, axis=0), np.take(f, of_chain, axis=0))
                     for f, r in zip(frames, reals))
-    # the half-spaces g . y + h >= 0: rows 0, 1, 2 of each, then one per edge of its occluder
-    g_all = np.empty((3 * k + len(kk), 3))
-    h_all = np.empty(3 * k + len(kk))
-    # O's plane crossed beyond A (t_O > 0), and before the point (t_O < 1) or the next window
-    g_all[:k] = sign * normal
-    h_all[:k] = -np.einsum("ki,ki->k", g_all[:k], antenna)
+    at = np.concatenate([np.tile(np.arange(k), 3), kk])
+    frame = [np.take(x, at, axis=0) for x in (origin, u, v)]
     windows = tuple(np.take(w, of_chain, axis=0) for w in _window_planes(surfaces, chains, chain_set))
     last_leg = back | (leg == order)
-    g_next, h_next = _crossing_before(normal, a, windows, np.minimum(leg, depth - 1), antenna)
-    g_all[k:2 * k] = np.where(last_leg[:, None], sign * normal, g_next)
-    h_all[k:2 * k] = np.where(last_leg, -(sign[:, 0] * offset), h_next)
-    g_all[2 * k:3 * k], h_all[2 * k:3 * k] = _crossing_after(normal, a, windows, leg - 1, antenna)
-    # the planes through A and each edge, facing the occluder's centre
-    first = np.cumsum(count) - count
-    with np.errstate(divide="ignore", invalid="ignore"):
-        centre = np.stack([np.bincount(kk, weights=corners[:, i], minlength=k) for i in range(3)], axis=1) \
-            / count[:, None]
-    p = corners - np.take(antenna, kk, axis=0)
-    q = np.take(p, np.take(first, kk) + (ee + 1) % np.take(count, kk), axis=0)
-    g = np.stack([p[:, 1] * q[:, 2] - p[:, 2] * q[:, 1], p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2],
-                  p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]], axis=1)
-    g *= np.where(np.einsum("ni,ni->n", g, np.take(centre - antenna, kk, axis=0)) >= 0, 1.0, -1.0)[:, None]
-    g_all[3 * k:] = g
-    h_all[3 * k:] = -np.einsum("ni,ni->n", g, np.take(antenna, kk, axis=0))
-    at = np.concatenate([np.tile(np.arange(k), 3), kk])
-    found = to_face_lines(g_all, h_all, *(np.take(x, at, axis=0) for x in (origin, u, v)))
-    lines = np.tile(np.asarray(EVERYTHING), (k, n_slot + 3, 1))
-    lines[:, 0], lines[:, 1] = found[:k], found[k:2 * k]
-    after = ~back & (leg > 0)
-    lines[:, 2] = np.where(after[:, None], found[2 * k:3 * k], EVERYTHING)
-    lines[kk, 3 + ee] = found[3 * k:]
-    return lines
+    # the rows of each slot: 0, 1, 2 (the third only after a window), then one per live corner
+    nowhere = 3 * k + len(kk)
+    slot = np.full((k, n_slot + 3), nowhere)
+    slot[:, 0], slot[:, 1] = np.arange(k), np.arange(k, 2 * k)
+    slot[:, 2] = np.where(~back & (leg > 0), np.arange(2 * k, 3 * k), nowhere)
+    slot.reshape(-1)[kk * (n_slot + 3) + 3 + ee] = np.arange(3 * k, nowhere)
+    out = []
+    for antenna in antennas:
+        a = offset - np.einsum("ki,ki->k", normal, antenna)
+        sign = np.where(a >= 0, 1.0, -1.0)[:, None]
+        # the half-spaces g . y + h >= 0
+        g_all = np.empty((nowhere, 3))
+        h_all = np.empty(nowhere)
+        # O's plane crossed beyond A (t_O > 0), and before the point (t_O < 1) or the next window
+        g_all[:k] = sign * normal
+        h_all[:k] = -np.einsum("ki,ki->k", g_all[:k], antenna)
+        g_next, h_next = _crossing_before(normal, a, windows, np.minimum(leg, depth - 1), antenna)
+        g_all[k:2 * k] = np.where(last_leg[:, None], sign * normal, g_next)
+        h_all[k:2 * k] = np.where(last_leg, -(sign[:, 0] * offset), h_next)
+        g_all[2 * k:3 * k], h_all[2 * k:3 * k] = _crossing_after(normal, a, windows, leg - 1, antenna)
+        # the planes through A and each edge, facing the occluder's centre
+        seen = np.take(antenna, kk, axis=0)
+        p = corners - seen
+        q = np.take(p, following, axis=0)
+        g = np.stack([p[:, 1] * q[:, 2] - p[:, 2] * q[:, 1], p[:, 2] * q[:, 0] - p[:, 0] * q[:, 2],
+                      p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0]], axis=1)
+        g *= np.where(np.einsum("ni,ni->n", g, np.take(centre - antenna, kk, axis=0)) >= 0, 1.0, -1.0)[:, None]
+        g_all[3 * k:] = g
+        h_all[3 * k:] = -np.einsum("ni,ni->n", g, seen)
+        out.append(np.concatenate([to_face_lines(g_all, h_all, *frame), [EVERYTHING]]))
+    return out, slot
 
 
 def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
@@ -114,8 +130,9 @@ def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, o
     key = (chain * (int(occluder.max(initial=0)) + 1) + occluder) * (int(leg.max(initial=0)) + 1) + leg
     _, first, back = np.unique(key, return_index=True, return_inverse=True)
     c = chain[first]
-    return [np.take(shadow_lines(surfaces, chains, c, occluder[first], leg[first], antenna[c]), back.reshape(-1), axis=0)
-            for antenna in antennas]
+    found, slot = _shadow_rows(surfaces, chains, c, occluder[first], leg[first], [antenna[c] for antenna in antennas])
+    slot = np.take(slot, back.reshape(-1), axis=0)
+    return [np.take(f, slot, axis=0) for f in found]
 
 
 def _window_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray):
