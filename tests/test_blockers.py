@@ -142,3 +142,60 @@ def test_spread_occluders_is_its_dense_form(seed):
     assert np.all(table[:, new.blockers.dense(n).shape[1]:] == -1)
     np.testing.assert_array_equal(new.mixed, mixed | np.isin(np.arange(n), rows))
     np.testing.assert_array_equal(new.lit, lit & ~np.isin(np.arange(n), rows))
+
+
+def test_blockers_out_of_range_are_refused():
+    """A pair code holds a piece below 2^22 and a key in [-2, 2^40 - 2): anything else is an error,
+    not a wrong pair."""
+    Blockers.of(np.array([(1 << 22) - 1]), np.array([(1 << 40) - 3]))
+    for piece, key in (([-1], [0]), ([1 << 22], [0]), ([0], [-3]), ([0], [(1 << 40) - 2])):
+        with pytest.raises(ValueError):
+            Blockers.of(np.array(piece), np.array(key))
+
+
+def _corner_samples_reference(pieces):
+    """:func:`corner_samples` as it was: whole and border pieces' samples apart, then sorted by piece."""
+    from sarmitsuba.tracing.lit_pieces import SAMPLE_INSET
+    from sarmitsuba.tracing.patches import UNIT_SQUARE
+    from sarmitsuba.tracing.polygons import corner_slots
+    p = pieces.patch
+    whole = np.flatnonzero(pieces.whole)
+    w_points = ((pieces.cell[whole][:, None, :] + 0.5 + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)) * p)
+    border = np.flatnonzero(~pieces.whole)
+    poly, count = pieces.polygon[pieces.border[border]], pieces.count[pieces.border[border]]
+    slots = corner_slots(count, poly.shape[1])
+    centroid = (poly * slots[..., None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+    toward = centroid[:, None, :] - poly
+    distance = np.linalg.norm(toward, axis=2)
+    step = np.minimum(SAMPLE_INSET * p, 0.5 * distance) / np.where(distance > 0, distance, 1.0)
+    b_points = (poly + toward * step[..., None])[slots]
+    b_owner = np.broadcast_to(border[:, None], slots.shape)[slots]
+    owner = np.concatenate([np.repeat(whole, 4), b_owner])
+    order = np.argsort(owner, kind="stable")
+    return np.concatenate([w_points.reshape(-1, 2), b_points])[order], owner[order]
+
+
+@pytest.mark.parametrize("patch", [0.7, 2.0])
+def test_corner_samples_are_the_reference(patch):
+    """Regions cut into whole and border pieces (a triangle, a thin sliver, a polygon of the most
+    corners, an empty region, a region inside one patch): the same samples, bit for bit, in the
+    same order."""
+    from sarmitsuba.tracing.lit_pieces import corner_samples
+    from sarmitsuba.tracing.patches import pieces_of
+    width = 8
+    angle = np.linspace(0, 2 * np.pi, width, endpoint=False)
+    regions = [np.stack([5 + 4 * np.cos(angle), -3 + 3 * np.sin(angle)], 1),
+               np.array([[0.0, 0.0], [6.0, 0.0], [1.0, 5.0]]),
+               np.array([[0.0, 0.0], [9.0, 0.0], [9.0, 1e-3]]),
+               np.array([[0.1, 0.1], [0.3, 0.1], [0.2, 0.3]]),
+               np.zeros((0, 2))]
+    polygon = np.zeros((len(regions), width, 2))
+    count = np.array([len(r) for r in regions])
+    for k, r in enumerate(regions):
+        polygon[k, :len(r)] = r
+        polygon[k, len(r):] = r[-1] if len(r) else 0.0
+    pieces = pieces_of(polygon, count, patch)
+    assert pieces.whole.any() and (~pieces.whole).any()
+    got, want = corner_samples(pieces), _corner_samples_reference(pieces)
+    np.testing.assert_array_equal(got[1], want[1])
+    assert np.array_equal(got[0], want[0])
