@@ -142,6 +142,15 @@ class Surfaces:
         return self._frames[part, 0]
 
     @functools.cached_property
+    def world_polygon(self) -> np.ndarray:
+        """float64 [n, V, 3]: every part's :attr:`polygon` in world coordinates (computed once):
+        ``world_polygon[part]`` is ``to_world(part, polygon[part])`` bit for bit, without the
+        arithmetic. Read only (shared by every caller)."""
+        corners = self.to_world(np.arange(self.n_parts), self.polygon)
+        corners.flags.writeable = False
+        return corners
+
+    @functools.cached_property
     def _frames(self) -> np.ndarray:
         """float64 [n, 3, 3]: every part's plane point (:meth:`plane_point`), ``axis_u`` and
         ``axis_v`` as rows (computed once; the surfaces are immutable)."""
@@ -290,13 +299,32 @@ def _bodies(parts: Parts) -> np.ndarray:
     return connected_components(graph, directed=False)[1].astype(np.int64)
 
 
+def _part_areas(world: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """float64 [n]: the areas of polygons ``world`` [n, V, 3] (``count`` [n] corners; 0 below 3):
+    half the norm of the sum of their fans' cross products, summed in fan order and normed by a dot
+    product per part as :func:`_part_areas_reference` (bit for bit: the areas order covers,
+    :func:`sarmitsuba.tracing.covers.covered_parts`)."""
+    first = world[:, :1]
+    cross = np.cross(world[:, 1:-1] - first, world[:, 2:] - first)
+    cross[np.arange(cross.shape[1])[None, :] >= (count - 2)[:, None]] = 0.0
+    total = cross.sum(axis=1)
+    return np.array([0.5 * math.sqrt(t.dot(t)) if k >= 3 else 0.0 for t, k in zip(total, count.tolist())])
+
+
+def _part_areas_reference(world: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """:func:`_part_areas` one part at a time."""
+    corners = [world[k, :count[k]] for k in range(len(count))]
+    return np.array([0.5 * np.linalg.norm(np.cross(c[1:-1] - c[0], c[2:] - c[0]).sum(axis=0)) if len(c) >= 3 else 0.0
+                     for c in corners])
+
+
 def _uncover(s: Surfaces) -> Surfaces:
     """``s`` with every part that another shape's coplanar, same-facing face covers replaced by the
     triangles of what the covers leave of it (:mod:`sarmitsuba.tracing.covers`)."""
     n = s.n_parts
-    corners = [s.to_world(np.array(k), s.polygon[k, :s.n_corners[k]]) for k in range(n)]
-    area = np.array([0.5 * np.linalg.norm(np.cross(c[1:-1] - c[0], c[2:] - c[0]).sum(axis=0)) if len(c) >= 3 else 0.0
-                     for c in corners])
+    world = s.to_world(np.arange(n), s.polygon)
+    corners = [c[:k] for c, k in zip(world, s.n_corners.tolist())]
+    area = _part_areas(world, s.n_corners)
     pairs = covered_parts(s.normal, s.offset, corners, s.shape_id, area)
     if len(pairs) == 0:
         return s
