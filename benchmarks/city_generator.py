@@ -183,7 +183,7 @@ def write_dem(plan: CityPlan, path: Path) -> Path:
     """The plan's hills as a float32 GeoTIFF in the origin's UTM zone, :data:`DEM_PIXEL` m pixels,
     heights ``ORIGIN[2] + hill_height`` [m]."""
     import rasterio
-    from rasterio.transform import from_origin
+    from affine import Affine
     ref = georef.GeoReference(*ORIGIN)
     crs = georef.utm_crs(ref)
     half = plan.side / 2 + MARGIN + DEM_PAD
@@ -196,7 +196,7 @@ def write_dem(plan: CityPlan, path: Path) -> Path:
     heights = ORIGIN[2] + hill_height(plan, east - e0, northing - n0)
     with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
                        crs=crs.to_wkt() if hasattr(crs, "to_wkt") else crs,
-                       transform=from_origin(west, north, DEM_PIXEL, DEM_PIXEL)) as dst:
+                       transform=Affine.translation(west, north) @ Affine.scale(DEM_PIXEL, -DEM_PIXEL)) as dst:
         dst.write(heights.astype(np.float32), 1)
     return path
 

@@ -521,6 +521,9 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         f"{_duration(c.trace_time_high_s)}: primary rays only .. upper-bound casts, at "
         f"{c.closest_hit_rate_per_s / 1e6:.0f} M closest-hit and {c.shadow_rate_per_s / 1e6:.0f} M shadow casts/s "
         f"and {RETURN_SECONDS * 1e9:g} ns per return on 2 cores)",
+        *([f"mesh tracer: ~{c.reach_pieces_mean:,.0f} first-order pieces per sub-aperture's reach (at most "
+           f"{c.reach_pieces_max:,.0f}), {c.subapertures_per_launch} sub-apertures per launch: host time "
+           f"~ {_duration(c.mesh_host_time_s)} of the trace"] if c.reach_pieces_max else []),
         f"memory: runtime and scene {format_bytes(c.runtime_bytes)}, tracer's working set "
         f"{format_bytes(c.trace_working_bytes)} ({c.lanes_per_launch:,} tubes per launch, a histogram of "
         f"{c.histogram_entries:,} entries on {c.threads} threads), {memory}, raw data {format_bytes(c.raw_bytes)} "

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import city_generator as cg  # noqa: E402

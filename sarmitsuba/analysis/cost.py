@@ -63,10 +63,39 @@ RETURNS_PER_TUBE = 1.0
 #: second and later bounce orders per first-order piece, measured on sionna:munich (512 pulses,
 #: 215k, 128k and 55k pieces per launch) and used as the estimate's decay per order.
 PIECES_PER_ORDER = (1.0, 0.6, 0.26, 0.1, 0.05)
-#: Host seconds per piece of one sub-aperture (cutting, classifying, clipping the mixed ones,
-#: building the term lanes, in NumPy): 7.7 us measured on sionna:munich (512 pulses, 5.6 M
-#: pieces, 43 s) on the 2-core machine.
-PIECE_SECONDS = 7.5e-6
+#: Mesh-anchored trace time per sub-aperture (issue 56): host seconds per first-order piece and
+#: per triangle in the sub-aperture's along-track reach (:func:`reach_work`, the tracer's own reach,
+#: ``MeshTracer._reach``), for all its bounce orders together (classifying, clipping the mixed
+#: ones, motion rates, term lanes), and seconds per clutter scatterer-pulse of the rough area
+#: facing the sensor in that reach (``area / scatterer_spacing^2`` times its pulses), plus
+#: seconds per triangle of the tracer's set-up (surfaces, wedges, the pieces of every part).
+#: Measured as process CPU seconds (the machine was shared; CPU time is what an idle 2-core
+#: machine's wall time approaches for this single-threaded NumPy work) with
+#: ``python benchmarks/scaling.py --calibrate`` (renders the generated city of
+#: ``benchmarks/city_generator.py`` at 10 k triangles with 19 and 76 pulses, rough and smooth,
+#: and at 100 k triangles with 19 pulses, and fits these three constants); re-run it and paste
+#: its output here when the tracer changes.
+#: Fitted (non-negative relative least squares on 8 renders, every one within 13 %) on 2026-11-26
+#: at commit d9f61c8 plus the tracing speed-ups then in progress, trace CPU seconds less the
+#: casts' share: 10 k city 19 pulses 2.66 s (smooth 2.31 s), 38 pulses 3.57 s, 76 pulses 7.08 s;
+#: 100 k city 19 pulses 15.0 s, 38 pulses 19.5 s; urban (779 pulses, 30 sub-apertures) 2.16 s;
+#: sionna:munich 120 pulses 12.3 s. The time goes mostly with the parts (triangles) in reach, each
+#: at least one piece with its own chain, lanes and clipping, and little with how many whole
+#: patches a large face holds (urban); the clutter term fitted to 0 (its deposit is cheap beside them).
+SETUP_TRIANGLE_SECONDS = 9.9e-5
+SUB_PIECE_SECONDS = 5.4e-6
+SUB_TRIANGLE_SECONDS = 1.8e-4
+CLUTTER_SCATTERER_PULSE_SECONDS = 0.0
+#: Mesh tracer memory [bytes]: :data:`MESH_TRIANGLE_BYTES` per triangle of the whole scene (its
+#: surfaces, wedges and the pieces of every part, cut once per acquisition and held: this part
+#: grows with the scene, not with the beam), and :data:`REACH_TRIANGLE_BYTES` per triangle in the
+#: largest reach, for each sub-aperture of a launch (its pieces, chains, lanes, term tables of
+#: every order and Dr.Jit's cached buffers). Fitted to the peak RSS of the same renders (10 k city:
+#: 347, 447, 602 MiB at 19, 38, 76 pulses, 1, 2 and 4 sub-apertures in one launch; 100 k: 907,
+#: 1030 MiB at 19, 38) by hand
+#: (``python benchmarks/scaling.py --calibrate`` prints measured and modelled peaks).
+MESH_TRIANGLE_BYTES = 3300
+REACH_TRIANGLE_BYTES = 14_000
 #: Visibility samples per piece (its corners, :func:`sarmitsuba.tracing.lit_pieces.corner_samples`:
 #: four for a whole piece, three to eight for a border piece): the estimate is 1.2 times the
 #: first order's samples on urban and 0.75 times on sionna:munich (many small facets) with 5.
@@ -153,9 +182,9 @@ class CostEstimate:
 
     With mesh-anchored patches (``lit_regions = "patches"``, the default) the rays are the
     visibility samples of the pieces: ``primary_rays`` are :data:`SAMPLES_PER_PIECE` per
-    first-order piece in each sub-aperture's reach (:func:`_first_order_pieces`), the later
+    first-order piece in each sub-aperture's reach (:func:`reach_work`), the later
     orders' pieces fall off as :data:`PIECES_PER_ORDER` and each of their samples casts one ray
-    per leg; the trace time adds :data:`PIECE_SECONDS` of host work per piece. The tube fields
+    per leg; the trace time adds the host work ``mesh_host_time_s`` (below). The tube fields
     below then describe the preview mode (``tiles``) and non-mesh shapes.
 
     Rays (``tiles``): ``rays_per_pulse`` is the coarse ray grid a pulse aims at the scene (rays outside the
@@ -192,6 +221,16 @@ class CostEstimate:
     ``focus_working_bytes`` (:data:`FOCUS_PIXEL_BYTES` per pixel and :data:`WRITE_BYTES`).
     ``pulse_memory_bytes`` is the part of the peak that grows with the pulse count (spectra, path
     list, raw data). :func:`check_memory` compares ``peak_memory_bytes`` with the memory available.
+
+    Mesh-anchored trace (issue 56): ``reach_pieces_mean`` and ``reach_pieces_max`` are the
+    first-order pieces in a sub-aperture's along-track reach (:func:`reach_work`);
+    ``mesh_host_time_s`` the tracer's host time, :data:`SETUP_TRIANGLE_SECONDS` per triangle,
+    :data:`SUB_PIECE_SECONDS` per piece and :data:`SUB_TRIANGLE_SECONDS` per triangle in each
+    sub-aperture's reach and
+    :data:`CLUTTER_SCATTERER_PULSE_SECONDS` per clutter scatterer-pulse of the area facing the
+    sensor there (included in ``trace_time_s``); the working set holds :data:`REACH_TRIANGLE_BYTES`
+    per triangle of the largest reach for each of the ``subapertures_per_launch`` sub-apertures of a
+    launch, and the runtime :data:`MESH_TRIANGLE_BYTES` per triangle of the scene.
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
     footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
@@ -234,6 +273,12 @@ class CostEstimate:
     focus_working_bytes: int
     pulse_memory_bytes: int
     peak_memory_bytes: int
+    reach_pieces_mean: float = 0.0
+    reach_pieces_max: float = 0.0
+    subapertures_per_launch: int = 1
+    mesh_host_time_s: float = 0.0
+    reach_triangles_total: float = 0.0
+    clutter_scatterer_pulses: float = 0.0
 
 
 def synthetic_aperture(p: RadarParameters) -> tuple[float, int]:
@@ -300,14 +345,21 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
             + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
 
-    host = 0.0
+    host, piece_bytes, clutter_pulses = 0.0, 0, 0.0
+    reach_pieces = reach_triangles = reach_area = np.zeros(0)
     if st.lit_regions == "patches":
-        # the pieces' corners are the rays: every part in the beam's reach, cut into patches
-        pieces = _first_order_pieces(loaded, footprint.patch_size, _reach_share(loaded, p, size))
+        # the pieces' corners are the rays: every part in each sub-aperture's reach, cut into patches
+        reach_pieces, reach_triangles, reach_area = reach_work(loaded, geometry, footprint.patch_size, size,
+                                              not (effects.spotlight or effects.curved_track))
         orders = [PIECES_PER_ORDER[min(d, len(PIECES_PER_ORDER) - 1)] for d in range(st.max_depth)]
-        primary = int(SAMPLES_PER_PIECE * pieces * n_subs)
+        primary = int(SAMPLES_PER_PIECE * reach_pieces.sum())
         casts = int(primary * sum(w * (d + 1) for d, w in enumerate(orders)))
-        host = PIECE_SECONDS * pieces * n_subs * sum(orders)
+        counts = np.minimum(size, n_pulses - size * np.arange(n_subs))          # pulses per sub-aperture
+        clutter_pulses = (float(np.sum(reach_area * counts)) / footprint.scatterer_spacing ** 2
+                          if effects.clutter else 0.0)
+        host = (SETUP_TRIANGLE_SECONDS * loaded.n_triangles + SUB_PIECE_SECONDS * float(reach_pieces.sum())
+                + SUB_TRIANGLE_SECONDS * float(reach_triangles.sum()) + CLUTTER_SCATTERER_PULSE_SECONDS * clutter_pulses)
+        piece_bytes = int(REACH_TRIANGLE_BYTES * reach_triangles.max(initial=0.0))
 
     def trace_time(closest: float) -> float:
         return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work) + host
@@ -322,7 +374,8 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
     arrays = dict(deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
                   pixels=grid.shape[0] * grid.shape[1])
-    memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays)
+    memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays,
+                     piece_bytes)
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
         pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
@@ -333,45 +386,100 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
         deposit_bytes=deposit, path_list_bytes=path_list, raw_bytes=raw_bytes,
         image_shape=grid.shape, image_bytes=image_bytes, n_products=n_products,
         backprojection_pixel_pulses=n_products * pixel_pulses, focus_time_s=n_products * fast,
-        direct_backprojection_time_s=n_products * direct, **memory)
+        direct_backprojection_time_s=n_products * direct,
+        reach_pieces_mean=float(reach_pieces.mean()) if reach_pieces.size else 0.0,
+        reach_pieces_max=float(reach_pieces.max(initial=0.0)), mesh_host_time_s=host,
+        reach_triangles_total=float(reach_triangles.sum()), clutter_scatterer_pulses=clutter_pulses, **memory)
 
 
-def _first_order_pieces(loaded: LoadedScene, patch: float, share: float) -> float:
-    """Pieces of the first bounce order in one sub-aperture's reach: every triangle cut into
-    patches of ``patch`` metres, ``(sqrt(a) / P + 1)^2`` for a triangle of area ``a`` (its
-    patches, plus a row and a column of border pieces), times the ``share`` of the scene the beam
-    reaches. Shapes that are not meshes count by their surface area."""
-    total = 0.0
+def _mesh_triangles(loaded: LoadedScene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every mesh triangle of ``loaded``: centroids float64 [n, 3] m, areas float64 [n] m^2, unit
+    normals float64 [n, 3] (zero for a degenerate triangle)."""
+    centroids, areas, normals = [np.zeros((0, 3))], [np.zeros(0)], [np.zeros((0, 3))]
     for shape in loaded.scene.shapes():
         if shape.is_mesh():
             v = np.asarray(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3)
-            f = np.asarray(shape.faces_buffer(), np.int64).reshape(-1, 3)
-            a = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-            total += float(np.sum((np.sqrt(a) / patch + 1.0) ** 2))
-        else:
-            total += float(shape.surface_area()[0]) / patch ** 2
-    return total * share
+            t = v[np.asarray(shape.faces_buffer(), np.int64).reshape(-1, 3)]
+            n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            twice = np.sqrt(np.einsum("ij,ij->i", n, n))
+            centroids.append(t.mean(axis=1))
+            areas.append(0.5 * twice)
+            normals.append(n / np.where(twice > 0, twice, 1.0)[:, None])
+    return np.concatenate(centroids), np.concatenate(areas), np.concatenate(normals)
 
 
-def _reach_share(loaded: LoadedScene, p: RadarParameters, size: int) -> float:
-    """The share of the scene's along-track extent one sub-aperture's beam reaches (its
-    footprint plus the antenna's travel over ``size`` pulses; 1 in spotlight mode)."""
-    if p.mode == "spotlight":
-        return 1.0
-    extent = float(np.max(np.abs(np.asarray(loaded.bbox_hi) - np.asarray(loaded.bbox_lo))[:2]))
-    reach = p.footprint_length + size * p.velocity / p.prf
-    return min(1.0, reach / max(extent, 1e-9))
+def reach_work(loaded: LoadedScene, geometry: AcquisitionGeometry, patch: float, size: int,
+               straight: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First-order pieces, triangles and the area facing the sensor in each sub-aperture's reach.
+
+    The reach is the mesh tracer's (``MeshTracer._reach`` at the first order, straight track):
+    along the track, from the sub-aperture's first to its last antenna position, widened by the
+    beam's sines (``params.beam_sines``) times the distance to the scene's farthest corner and by
+    ``REACH_MARGIN`` and one patch; every part whose centroid lies in it is cut into pieces. A
+    triangle of area ``a`` counts ``(sqrt(a) / P + 1)^2`` pieces (its patches, plus a row and a
+    column of border pieces), one when it is no wider than the patch ``P``. Not ``straight`` (spotlight mode or a curved
+    track) every sub-aperture reaches the whole scene.
+
+    Parameters
+    ----------
+    loaded : LoadedScene
+    geometry : AcquisitionGeometry
+        The pulses' antenna positions [m] and track direction.
+    patch : float, m
+        Patch size (``RayFootprint.patch_size``).
+    size : int
+        Pulses per sub-aperture.
+    straight : bool, default True
+        The tracer limits each sub-aperture to its reach (False: spotlight or a curved track).
+
+    Returns
+    -------
+    pieces, triangles, area : float64 [n_subapertures]
+        Estimated first-order pieces, triangles, and m^2 of triangles whose normal faces the
+        antenna (the rough area clutter scatterers are drawn on), in each sub-aperture's reach.
+    """
+    from ..tracing.mesh_trace import REACH_MARGIN
+    p = loaded.params
+    n_pulses = len(geometry.positions)
+    n_subs = math.ceil(n_pulses / size)
+    centroid, area, normal = _mesh_triangles(loaded)
+    weight = (np.sqrt(area) / patch + 1.0) ** 2
+    if len(area):
+        # a triangle no wider than a patch is one piece (patches.pieces_of's small regions)
+        weight = np.where(np.sqrt(area * 2.0) <= patch, 1.0, weight)
+    to_sensor = geometry.positions[min(n_pulses - 1, n_pulses // 2)] - centroid
+    facing = np.einsum("ij,ij->i", normal, to_sensor) > 0
+    track = np.asarray(geometry.track_direction, np.float64)
+    along = centroid @ track
+    order = np.argsort(along, kind="stable")
+    along = along[order]
+    pieces_cum = np.concatenate([[0.0], np.cumsum(weight[order])])
+    area_cum = np.concatenate([[0.0], np.cumsum(np.where(facing, area, 0.0)[order])])
+    if not straight or not len(area):
+        return np.full(n_subs, pieces_cum[-1]), np.full(n_subs, float(len(area))), np.full(n_subs, area_cum[-1])
+    lo_b, hi_b = p.beam_sines
+    corners = np.array(np.meshgrid(*zip(loaded.bbox_lo, loaded.bbox_hi), indexing="ij")).reshape(3, -1).T
+    far = float(np.max(np.linalg.norm(corners[None] - geometry.positions[:, None], axis=2)))
+    antenna = geometry.positions @ track
+    first = antenna[np.arange(n_subs) * size]
+    last = antenna[np.minimum(np.arange(n_subs) * size + size, n_pulses) - 1]
+    lo = np.minimum(first, last) + lo_b * far - REACH_MARGIN - patch
+    hi = np.maximum(first, last) + hi_b * far + REACH_MARGIN + patch
+    i0, i1 = np.searchsorted(along, lo), np.searchsorted(along, hi)
+    return pieces_cum[i1] - pieces_cum[i0], (i1 - i0).astype(np.float64), area_cum[i1] - area_cum[i0]
 
 
 def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: bool, per_sub: int,
-            subs: tuple[int, int], arrays: dict) -> dict:
+            subs: tuple[int, int], arrays: dict, piece_bytes: int = 0) -> dict:
     """The peak-memory fields of :class:`CostEstimate` (its model; constants at :data:`RUNTIME_BYTES`).
 
     ``groups``: spectra deposited per pulse (channels x bounce groups); ``exact``: the ``exact``
     kernel, which keeps no histogram; ``per_sub``: tubes of one sub-aperture (its lattice and refined
     cells); ``subs``: pulses per sub-aperture and sub-apertures; ``arrays``: the bytes of
     the spectra (``deposit``), ``path_list``, one ``raw`` data set and one ``image``, ``n_products`` and the
-    image's ``pixels``.
+    image's ``pixels``; ``piece_bytes``: the mesh tracer's working set of the sub-aperture with the
+    most triangles in its reach (:data:`REACH_TRIANGLE_BYTES` each), held for every sub-aperture of a launch
+    (non-zero: the mesh tracer, which also holds :data:`MESH_TRIANGLE_BYTES` per scene triangle).
     Batches follow :func:`sarmitsuba.tracing.trace.plan_trace`: as many sub-apertures as fit in
     ``max_batch_rays`` tubes and :data:`HISTOGRAM_ENTRIES` histogram entries.
     """
@@ -382,15 +490,16 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     lanes = min(st.max_batch_rays, per_batch * per_sub)
     entries = 0 if exact else per_pulse_entries * min(n_pulses, per_batch * size)
     threads = max(1, dr.thread_count())
-    runtime = RUNTIME_BYTES + SCENE_TRIANGLE_BYTES * loaded.n_triangles + SCENE_SHAPE_BYTES * loaded.n_shapes
-    working = (TRACE_FIXED_BYTES + LANE_BYTES * lanes
+    runtime = (RUNTIME_BYTES + (SCENE_TRIANGLE_BYTES + (MESH_TRIANGLE_BYTES if piece_bytes else 0)) * loaded.n_triangles
+               + SCENE_SHAPE_BYTES * loaded.n_shapes)
+    working = (TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
                + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * threads) * entries)
     focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
     n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
     tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)
     products = (n * arrays["image"] + focusing, 2 * deposit + path_list + 2 * n * arrays["raw"])
     phase = max(tracing, products, key=sum)
-    return dict(threads=threads, lanes_per_launch=int(lanes), histogram_entries=int(entries),
+    return dict(threads=threads, lanes_per_launch=int(lanes), subapertures_per_launch=int(per_batch), histogram_entries=int(entries),
                 runtime_bytes=int(runtime), trace_working_bytes=int(working), focus_working_bytes=int(focusing),
                 pulse_memory_bytes=int(phase[1]), peak_memory_bytes=int(runtime + sum(phase)))
 
