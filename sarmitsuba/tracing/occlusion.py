@@ -206,7 +206,7 @@ def _interval_rows(start, delta, table, line_row, inside_same, inside_other, use
     if m == 0:
         return np.zeros(0), np.zeros(0)
     per = np.full(m, n_lines) if used is None else np.minimum(np.take(used, line_row), n_lines)
-    rank = np.argsort(-per, kind="stable")                         # the most lines first
+    rank = np.argsort((n_lines - per).astype(np.min_scalar_type(n_lines)), kind="stable")   # most lines first (radix)
     live = m - np.cumsum(np.bincount(per, minlength=n_lines + 1))[:n_lines]   # segments with a line h
     row = np.take(line_row, rank)
     sx, sy, dx, dy = (np.take(x, rank) for x in (start[:, 0], start[:, 1], delta[:, 0], delta[:, 1]))
@@ -231,8 +231,8 @@ def _interval_rows(start, delta, table, line_row, inside_same, inside_other, use
         tol = scaled[:n] * np.take(floor_len[h], r)
         with np.errstate(divide="ignore", invalid="ignore"):
             bound = -num / den
-        np.maximum(lower[:n], np.where(den > tol, bound, -np.inf), out=lower[:n])     # not parallel, entering
-        np.minimum(upper[:n], np.where(den < -tol, bound, np.inf), out=upper[:n])     # leaving
+        np.maximum(lower[:n], bound, out=lower[:n], where=den > tol)      # not parallel, entering
+        np.minimum(upper[:n], bound, out=upper[:n], where=den < -tol)     # leaving
         # outside: parallel and below the line, or on it with the segment not counted inside
         near = np.flatnonzero((np.abs(den) <= tol) & (num <= on_tol[:n]))
         if len(near):
