@@ -158,6 +158,8 @@ def test_clip_is_the_reference_bit_for_bit(seed):
 def test_clip_degenerate_batches_match_the_reference():
     rng = np.random.default_rng(5)
     poly, count, lines = batch(rng, n=40)
+    dense = batch(rng, n=40)[2][count > 0]
+    dense[(dense[..., 0] == 0) & (dense[..., 1] == 0) & (dense[..., 2] > 0)] = (1.0, 1.0, 1.0)
     cases = [
         (np.zeros((0, 8, 2)), np.zeros(0, np.int64), np.zeros((0, 4, 3))),          # nothing
         (poly, count, lines[:, :0]),                                                 # no half-planes
@@ -166,6 +168,7 @@ def test_clip_degenerate_batches_match_the_reference():
         (poly, count, np.broadcast_to(np.array([0.0, 0.0, -1.0]), lines.shape).copy()),  # holds nothing
         (poly[:, :3], np.minimum(count, 3), lines),                                  # three slots
         (poly[:, :1], np.minimum(count, 1), lines),                                  # one slot
+        (poly[count > 0], count[count > 0], dense),                                  # rows in order
         zigzag(),
         (np.concatenate([zigzag()[0], np.repeat(zigzag()[0][:, :1], 2, axis=1)], axis=1), zigzag()[1],
          zigzag()[2]),                                                               # room to grow

@@ -103,10 +103,15 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     n_lines = lines.shape[1]
     last = np.where(cuts.any(axis=1), n_lines - np.argmax(cuts[:, ::-1], axis=1), 0) if n_lines else \
         np.zeros(n, np.int64)
-    order = np.argsort(-last, kind="stable")
-    last_sorted = last[order]
-    cnt = count[order]
-    z = np.take(poly.view(np.complex128)[..., 0], order, axis=0)[corner_slots(cnt, width)]
+    corners = poly.view(np.complex128)[..., 0]    # a corner x + i y as one element
+    if np.all(last[1:] <= last[:-1]):
+        order, last_sorted, cnt = np.arange(n), last, count
+        z = corners[corner_slots(count, width)]
+    else:
+        order = np.argsort(-last, kind="stable")
+        last_sorted = last[order]
+        cnt = count[order]
+        z = corners.reshape(-1)[np.repeat(order * width, cnt) + _ranks(cnt)]
     if not np.isfinite(z).all():
         return clip_reference(poly, count, lines)
     off = np.zeros(n + 1, np.int64)
@@ -122,7 +127,9 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
             break
         rows = np.repeat(order[:m], cnt)      # each corner's polygon
         a, b, c = (lines[:, h, k].take(rows) for k in range(3))
-        value = a * z.real + b * z.imag + c
+        value = np.multiply(a, z.real, out=a)  # a x + b y + c, in place
+        value += np.multiply(b, z.imag, out=b)
+        value += c
         keep = value >= 0
         keep_next = np.empty_like(keep)
         keep_next[:-1] = keep[1:]
@@ -176,6 +183,14 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     slot = np.arange(out_width)[None, :]
     out = z[start[:, None] + np.where(slot < final[:, None], slot, 0)]
     return out.view(np.float64).reshape(n, out_width, 2), final
+
+
+def _ranks(count: np.ndarray) -> np.ndarray:
+    """int64 [sum(count)]: 0, 1, ..., count - 1 for each row in turn (the slots of flat corners)."""
+    total = int(count.sum())
+    start = np.zeros(len(count), np.int64)
+    np.cumsum(count[:-1], out=start[1:])
+    return np.arange(total) - np.repeat(start, count)
 
 
 def _clip_fast_applies(poly: np.ndarray, count: np.ndarray) -> bool:
