@@ -145,10 +145,10 @@ def test_spread_occluders_is_its_dense_form(seed):
 
 
 def test_blockers_out_of_range_are_refused():
-    """A pair code holds a piece below 2^22 and a key in [-2, 2^40 - 2): anything else is an error,
+    """A pair code holds a piece below 2^32 and a key in [-2, 2^31 - 2): anything else is an error,
     not a wrong pair."""
-    Blockers.of(np.array([(1 << 22) - 1]), np.array([(1 << 40) - 3]))
-    for piece, key in (([-1], [0]), ([1 << 22], [0]), ([0], [-3]), ([0], [(1 << 40) - 2])):
+    Blockers.of(np.array([(1 << 32) - 1]), np.array([(1 << 31) - 3]))
+    for piece, key in (([-1], [0]), ([1 << 32], [0]), ([0], [-3]), ([0], [(1 << 31) - 2])):
         with pytest.raises(ValueError):
             Blockers.of(np.array(piece), np.array(key))
 

@@ -46,12 +46,13 @@ RECHECKS = 2
 IN_PLANE = 1e-4
 
 
-#: Bits of a :class:`Blockers` pair code below its piece: ``piece << 40 | (key + 2)``.
-_KEY_BITS = 40
+#: Bits of a :class:`Blockers` pair code below its piece: ``piece << 31 | (key + 2)`` (keys
+#: ``leg * n_parts + part`` stay far below 2^31; pieces may reach 2^32).
+_KEY_BITS = 31
 
 
 def _pair_codes(piece: np.ndarray, key: np.ndarray) -> np.ndarray:
-    """int64 [k]: ``piece * 2^40 + key + 2`` of pairs (piece >= 0, -2 <= key < 2^40 - 2): ordered as
+    """int64 [k]: ``piece * 2^31 + key + 2`` of pairs (0 <= piece < 2^32, -2 <= key < 2^31 - 2): ordered as
     the pairs (by piece, then key)."""
     return (piece << _KEY_BITS) + (key + 2)
 
@@ -81,14 +82,14 @@ class Blockers:
 
     @classmethod
     def of(cls, piece: np.ndarray, key: np.ndarray) -> "Blockers":
-        """The distinct pairs of ``piece`` [k] (0 .. 2^22 - 1) and ``key`` [k] (-2 .. 2^40 - 3;
+        """The distinct pairs of ``piece`` [k] (0 .. 2^32 - 1) and ``key`` [k] (-2 .. 2^31 - 3;
         int64, any order, repeats allowed).
 
         Raises ValueError for a piece or key out of that range."""
         piece, key = np.asarray(piece, np.int64), np.asarray(key, np.int64)
-        if len(piece) and (int(piece.min()) < 0 or int(piece.max()) >= 1 << 22 or int(key.min()) < -2
+        if len(piece) and (int(piece.min()) < 0 or int(piece.max()) >= 1 << 32 or int(key.min()) < -2
                            or int(key.max()) >= (1 << _KEY_BITS) - 2):
-            raise ValueError("Blockers: pieces must lie in [0, 2^22) and keys in [-2, 2^40 - 2)")
+            raise ValueError("Blockers: pieces must lie in [0, 2^32) and keys in [-2, 2^31 - 2)")
         return cls._of_codes(np.sort(_pair_codes(piece, key)))
 
     @classmethod
