@@ -4,6 +4,7 @@
 :func:`vector3`        a finite 3-vector (float64, shape ``(3,)``) or a clear ValueError
 :func:`readonly`       a float64 copy whose ``writeable`` flag is off
 :func:`unique_pairs`   the distinct rows of two int64 columns, by one sorted int64 key
+:func:`sorted_unique`  ``np.unique`` of a 1-D array, by a sort and a mask of repeats
 =====================  ==============================================================
 
 Frozen dataclasses between stages hold their arrays read-only, so no stage can change another
@@ -15,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["readonly", "unique_pairs", "vector3"]
+__all__ = ["readonly", "sorted_unique", "unique_pairs", "vector3"]
 
 
 def vector3(name: str, value: Any) -> np.ndarray:
@@ -53,5 +54,19 @@ def unique_pairs(first: np.ndarray, second: np.ndarray) -> np.ndarray:
     span = int(second.max()) - low + 1
     if int(first.min()) < 0 or (int(first.max()) + 1) * span >= 2 ** 62:
         raise ValueError("unique_pairs: first must be >= 0 and first * span(second) below 2**62")
-    key = np.unique(first * span + (second - low))
+    key = sorted_unique(first * span + (second - low))
     return np.stack([key // span, key % span + low], axis=1)
+
+
+def sorted_unique(values: np.ndarray) -> np.ndarray:
+    """The distinct values of the 1-D array ``values``, ascending: ``np.unique(values)`` (same
+    dtype), by one sort and a mask of repeats. NumPy 2.4's ``np.unique`` takes a hash path for
+    integers that is about 8 times slower on the tracer's keys (500k int64: 0.46 s against
+    0.05 s). Floats must not hold NaN (``np.unique`` keeps one NaN; a mask keeps every one)."""
+    values = np.sort(np.asarray(values).reshape(-1))
+    if len(values) < 2:
+        return values
+    keep = np.empty(len(values), bool)
+    keep[0] = True
+    np.not_equal(values[1:], values[:-1], out=keep[1:])
+    return values[keep]
