@@ -38,6 +38,20 @@ reports our time for the same counts and image size and the ratio ``reference / 
 
 Writes ``scaling.csv`` (in the output folder, ``_table.output_dir``) and ``scaling.png`` (seconds against N, log-log).
 Usage: ``python benchmarks/scaling.py [--quick]``
+
+The generated city (issue 56): ``python benchmarks/scaling.py --city [--triangles 1e6]
+[--pulses N] [--no-dask]`` generates the footprint city of ``benchmarks/city_generator.py``
+(1e6: 5,776 buildings with gabled and flat roofs on a 2 m DEM, 1.05 M triangles), takes the
+cost model's prediction of ``info`` (trace seconds, peak memory) before tracing, renders it at
+depth 3 with the default pulse count for its size (each render in a fresh process, for its own
+peak RSS), then on a local Dask cluster (``scheduler="local"``) and compares the raw data. It
+states wall seconds per stage, the trace's process CPU seconds (on a shared machine the wall
+time is not the work: CPU seconds are what an idle 2-core machine's wall time approaches for the
+single-threaded host work), peak RSS and the prediction, writes ``scaling_city.csv``, and checks
+the prediction within 1.5x (trace CPU seconds and peak RSS), 24 GiB, and the Dask image within
+-100 dB NRMSE. ``--calibrate`` renders the small and medium cities of :data:`CALIBRATION` and
+fits the mesh tracer's constants of :mod:`sarmitsuba.analysis.cost` (paste them there after a
+tracer change); ``--measure SCENE PULSES MATERIAL SCHEDULER SAVE`` is one render (``-``: none).
 """
 from __future__ import annotations
 
