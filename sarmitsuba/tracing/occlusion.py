@@ -59,18 +59,21 @@ def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     order = chains.order[chain]
     back = (leg == depth) | ((order == 0) & (leg == 0))       # the return leg: the real frame
     level = np.where(back, 0, leg)
-    lin, shift = chains.lin[chain, level], chains.shift[chain, level]
+    map_at = chain * depth + level                            # row gathers by np.take: ~10x faster on [n, 3]
+    lin = np.take(chains.lin.reshape(-1, 3, 3), map_at, axis=0)
+    shift = np.take(chains.shift.reshape(-1, 3), map_at, axis=0)
     lin = np.where(back[:, None, None], np.eye(3), lin)
     shift = np.where(back[:, None], 0.0, shift)
     # each occluder's corners (the live slots only, row by row), carried into the leg's frame
-    count = surfaces.n_corners[occluder]
+    count = np.take(surfaces.n_corners, occluder)
     slots = corner_slots(count, n_slot)
     kk, ee = np.nonzero(slots)
     parts, of_part = np.unique(occluder, return_inverse=True)
-    world = surfaces.to_world(parts, surfaces.polygon[parts])[np.take(of_part.reshape(-1), kk), ee]
+    world = np.take(surfaces.to_world(parts, surfaces.polygon[parts]).reshape(-1, 3),
+                    np.take(of_part.reshape(-1), kk) * n_slot + ee, axis=0)
     corners = np.einsum("nij,nj->ni", np.take(lin, kk, axis=0), world) + np.take(shift, kk, axis=0)
-    normal = np.einsum("kij,kj->ki", lin, surfaces.normal[occluder])
-    offset = surfaces.offset[occluder] + np.einsum("ki,ki->k", normal, shift)
+    normal = np.einsum("kij,kj->ki", lin, np.take(surfaces.normal, occluder, axis=0))
+    offset = np.take(surfaces.offset, occluder) + np.einsum("ki,ki->k", normal, shift)
     first = np.cumsum(count) - count
     with np.errstate(divide="ignore", invalid="ignore"):
         centre = np.stack([np.bincount(kk, weights=corners[:, i], minlength=k) for i in range(3)], axis=1) \
