@@ -390,3 +390,16 @@ def test_part_areas_are_the_reference():
     np.testing.assert_array_equal(patches._part_areas(world, count), want)
     assert want[0] == 0.0 and want[2] < 1e-12
     assert patches._part_areas(world[:0], count[:0]).shape == (0,)
+
+
+def test_cell_lines_are_the_reference():
+    cell = np.array([[0, 0], [-3, 7], [12, -1], [-1, 0]], np.int64)
+    patch = 1.7439
+    x0, y0 = cell[:, 0] * patch, cell[:, 1] * patch
+    one, zero = np.ones_like(x0), np.zeros_like(x0)
+    want = np.stack([np.stack([one, zero, -x0], 1), np.stack([-one, zero, x0 + patch], 1),
+                     np.stack([zero, one, -y0], 1), np.stack([zero, -one, y0 + patch], 1)], axis=1)
+    got = patches._cell_lines(cell, patch)
+    np.testing.assert_array_equal(got, want)
+    assert np.array_equal(np.signbit(got), np.signbit(want))
+    assert patches._cell_lines(cell[:0], patch).shape == (0, 4, 3)

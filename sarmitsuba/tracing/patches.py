@@ -620,7 +620,7 @@ def _sweep(polygon, count, reach, reach_count, live, patch: float) -> Pieces:
     cell = np.stack([i, row[cell_row]], axis=1)
     region = region[cell_row]
     b = np.flatnonzero(~whole)
-    cut, cut_count = clip(polygon[region[b]], count[region[b]], _cell_lines(cell[b], patch))
+    cut, cut_count = clip(np.take(polygon, region[b], axis=0), count[region[b]], _cell_lines(cell[b], patch))
     area, _, _, diagonal = moments(cut, cut_count)
     # a sliver a patch line cuts off a corner that the face's float32 vertices put a rounding
     # error across it is no piece: it would make the real piece's border look like a shared
@@ -644,9 +644,13 @@ SLIVER = 1e-6
 def _cell_lines(cell: np.ndarray, patch: float) -> np.ndarray:
     """The four half-planes of each patch ``cell`` [n, 2]: float64 [n, 4, 3]."""
     x0, y0 = cell[:, 0] * patch, cell[:, 1] * patch
-    one, zero = np.ones_like(x0), np.zeros_like(x0)
-    return np.stack([np.stack([one, zero, -x0], 1), np.stack([-one, zero, x0 + patch], 1),
-                     np.stack([zero, one, -y0], 1), np.stack([zero, -one, y0 + patch], 1)], axis=1)
+    lines = np.zeros((len(cell), 4, 3))
+    lines[:, 0, 0], lines[:, 1, 0], lines[:, 2, 1], lines[:, 3, 1] = 1.0, -1.0, 1.0, -1.0
+    np.negative(x0, out=lines[:, 0, 2])
+    np.add(x0, patch, out=lines[:, 1, 2])
+    np.negative(y0, out=lines[:, 2, 2])
+    np.add(y0, patch, out=lines[:, 3, 2])
+    return lines
 
 
 #: Most corners a piece carries: a part's, plus one per clipping line of a chain and of its patch.
