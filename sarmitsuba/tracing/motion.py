@@ -79,7 +79,7 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     if n == 0 or len(lines) == 0:
         return out_s, out_e
     # the candidate lines sorted by piece (stably: a piece's lines keep their order, which breaks
-    # ties below), as contiguous columns; a segment's candidates are then one run of them
+    # ties below); a segment's candidates are then one run of rows
     order = np.argsort(line_owner, kind="stable")
     owners = line_owner[order]
     lines, rates = np.asarray(lines, float)[order], np.asarray(rates, float)[order]
@@ -107,26 +107,38 @@ def _first(seg: np.ndarray, score: np.ndarray, n: int) -> np.ndarray:
     return best
 
 
+def _on_line(a, b, c, point, count):
+    """bool [m]: whether each segment's ``point`` [n, 2] (repeated ``count`` [n] times) lies on its
+    candidate line ``(a, b, c)`` [m]: ``|a x + b y + c| < ON_LINE``, summed in that order (the
+    einsum ``g . p`` and then ``+ h`` of the former kernel), in place."""
+    value = np.repeat(point[:, 0], count)
+    value *= a
+    term = np.repeat(point[:, 1], count)
+    term *= b
+    value += term
+    value += c
+    return np.abs(value, out=value) < ON_LINE
+
+
 def _solve(start, end, first, count, lines, rates, moving):
     """:func:`endpoint_rates` of segments ``start``, ``end`` [n, 2] whose candidates are the
     rows ``first[k] .. first[k] + count[k]`` of ``lines``, ``rates`` and ``moving``."""
     n = len(start)
     seg = np.repeat(np.arange(n), count)
     line = np.arange(len(seg)) + np.repeat(first - (np.cumsum(count) - count), count)
-    a, b, c = np.take(lines, line, axis=0).T           # (one gather of whole rows: the cheapest)
-    # ``g . p + h`` as ``g_x p_x + g_y p_y + h`` (the sum's order of the reference's einsum)
-    ds = np.abs(a * np.repeat(start[:, 0], count) + b * np.repeat(start[:, 1], count) + c) < ON_LINE
-    de = np.abs(a * np.repeat(end[:, 0], count) + b * np.repeat(end[:, 1], count) + c) < ON_LINE
+    candidate = np.take(lines, line, axis=0)            # (np.take: the cheapest gather of whole rows)
+    a, b, c = candidate.T
+    ds, de = _on_line(a, b, c, start, count), _on_line(a, b, c, end, count)
     keep = np.flatnonzero(ds | de)
     seg, line, ds, de = seg[keep], line[keep], ds[keep], de[keep]
-    g = lines[line, :2]
+    g = np.take(candidate, keep, axis=0)[:, :2]
     line_moving = moving[line]
     own_rows = np.flatnonzero(ds & de)
     own = _first(seg[own_rows], line_moving[own_rows], n)
     has_own = own >= 0
     own_line = line[own_rows[np.maximum(own, 0)]] if len(own_rows) else np.zeros(n, np.int64)
-    g_own = np.where(has_own[:, None], lines[own_line, :2], 0.0)
-    r_own = np.where(has_own[:, None], rates[own_line], 0.0)
+    g_own = np.where(has_own[:, None], np.take(lines, own_line, axis=0)[:, :2], 0.0)
+    r_own = np.where(has_own[:, None], np.take(rates, own_line, axis=0), 0.0)
     moving_own = has_own & moving[own_line]
     cross = np.abs(g[:, 0] * g_own[seg, 1] - g[:, 1] * g_own[seg, 0])
     rhs_own = (-(r_own[:, 0] * start[:, 0] + r_own[:, 1] * start[:, 1] + r_own[:, 2]),
@@ -137,8 +149,8 @@ def _solve(start, end, first, count, lines, rates, moving):
         other = _first(seg[rows], line_moving[rows], n)
         has = other >= 0
         other_line = line[rows[np.maximum(other, 0)]] if len(rows) else np.zeros(n, np.int64)
-        g_other = lines[other_line, :2]
-        r_other = np.where(has[:, None], rates[other_line], 0.0)
+        g_other = np.take(lines, other_line, axis=0)[:, :2]
+        r_other = np.where(has[:, None], np.take(rates, other_line, axis=0), 0.0)
         ok = has_own & has & (moving_own | moving[other_line])
         rhs1 = -(r_other[:, 0] * point[:, 0] + r_other[:, 1] * point[:, 1] + r_other[:, 2])
         det = g_own[:, 0] * g_other[:, 1] - g_own[:, 1] * g_other[:, 0]
