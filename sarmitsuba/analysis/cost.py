@@ -88,14 +88,17 @@ SUB_TRIANGLE_SECONDS = 1.8e-4
 CLUTTER_SCATTERER_PULSE_SECONDS = 0.0
 #: Mesh tracer memory [bytes]: :data:`MESH_TRIANGLE_BYTES` per triangle of the whole scene (its
 #: surfaces, wedges and the pieces of every part, cut once per acquisition and held: this part
-#: grows with the scene, not with the beam), and :data:`REACH_TRIANGLE_BYTES` per triangle in the
-#: largest reach, for each sub-aperture of a launch (its pieces, chains, lanes, term tables of
-#: every order and Dr.Jit's cached buffers). Fitted to the peak RSS of the same renders (10 k city:
-#: 347, 447, 602 MiB at 19, 38, 76 pulses, 1, 2 and 4 sub-apertures in one launch; 100 k: 907,
-#: 1030 MiB at 19, 38) by hand
-#: (``python benchmarks/scaling.py --calibrate`` prints measured and modelled peaks).
-MESH_TRIANGLE_BYTES = 3300
-REACH_TRIANGLE_BYTES = 14_000
+#: grows with the scene, not with the beam), and :data:`SUBAPERTURE_BYTES` for each sub-aperture
+#: of a launch, or :data:`REACH_TRIANGLE_BYTES` per triangle of the largest reach when that is less
+#: (urban's 77 triangles: a few large faces). Fitted by hand to the peak RSS of the generated city with one sub-aperture (19
+#: pulses: 12.7 k triangles 347 MiB, 107 k 907 MiB, 1.05 M 5,893 MiB: 5.3 kB per triangle in all,
+#: the Mitsuba scene's 800 B included) and with several per launch (10 k city: 447, 602 and 1,103
+#: MiB with 2, 4 and 19; 1.05 M city: 5,990 MiB with 3): a sub-aperture more in a launch adds 35-55
+#: MiB whatever its reach holds (76 k triangles on the 1 M city, 6.4 k on the 10 k one).
+#: ``python benchmarks/scaling.py --calibrate`` prints measured and modelled peaks.
+MESH_TRIANGLE_BYTES = 4500
+SUBAPERTURE_BYTES = 35 * 2**20
+REACH_TRIANGLE_BYTES = 6000
 #: Visibility samples per piece (its corners, :func:`sarmitsuba.tracing.lit_pieces.corner_samples`:
 #: four for a whole piece, three to eight for a border piece): the estimate is 1.2 times the
 #: first order's samples on urban and 0.75 times on sionna:munich (many small facets) with 5.
@@ -228,9 +231,9 @@ class CostEstimate:
     :data:`SUB_PIECE_SECONDS` per piece and :data:`SUB_TRIANGLE_SECONDS` per triangle in each
     sub-aperture's reach and
     :data:`CLUTTER_SCATTERER_PULSE_SECONDS` per clutter scatterer-pulse of the area facing the
-    sensor there (included in ``trace_time_s``); the working set holds :data:`REACH_TRIANGLE_BYTES`
-    per triangle of the largest reach for each of the ``subapertures_per_launch`` sub-apertures of a
-    launch, and the runtime :data:`MESH_TRIANGLE_BYTES` per triangle of the scene.
+    sensor there (included in ``trace_time_s``); the working set holds :data:`SUBAPERTURE_BYTES`
+    (or :data:`REACH_TRIANGLE_BYTES` per triangle of the largest reach, when less) for each of the ``subapertures_per_launch`` sub-apertures of a launch, and the runtime
+    :data:`MESH_TRIANGLE_BYTES` per triangle of the scene.
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
     footprint's rows plus one tile; spotlight: every pixel and pulse) and the pixels some pulse
@@ -359,7 +362,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
                           if effects.clutter else 0.0)
         host = (SETUP_TRIANGLE_SECONDS * loaded.n_triangles + SUB_PIECE_SECONDS * float(reach_pieces.sum())
                 + SUB_TRIANGLE_SECONDS * float(reach_triangles.sum()) + CLUTTER_SCATTERER_PULSE_SECONDS * clutter_pulses)
-        piece_bytes = int(REACH_TRIANGLE_BYTES * reach_triangles.max(initial=0.0))
+        piece_bytes = int(min(SUBAPERTURE_BYTES, REACH_TRIANGLE_BYTES * reach_triangles.max(initial=0.0)))
 
     def trace_time(closest: float) -> float:
         return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work) + host
@@ -478,8 +481,8 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     cells); ``subs``: pulses per sub-aperture and sub-apertures; ``arrays``: the bytes of
     the spectra (``deposit``), ``path_list``, one ``raw`` data set and one ``image``, ``n_products`` and the
     image's ``pixels``; ``piece_bytes``: the mesh tracer's working set of the sub-aperture with the
-    most triangles in its reach (:data:`REACH_TRIANGLE_BYTES` each), held for every sub-aperture of a launch
-    (non-zero: the mesh tracer, which also holds :data:`MESH_TRIANGLE_BYTES` per scene triangle).
+    sub-apertures of a launch (at most :data:`SUBAPERTURE_BYTES` each; non-zero: the mesh tracer, which also
+    holds :data:`MESH_TRIANGLE_BYTES` per scene triangle).
     Batches follow :func:`sarmitsuba.tracing.trace.plan_trace`: as many sub-apertures as fit in
     ``max_batch_rays`` tubes and :data:`HISTOGRAM_ENTRIES` histogram entries.
     """
