@@ -120,7 +120,7 @@ def _windows(surfaces: Surfaces, chains: Chains, i: int, rows: np.ndarray):
     lin, shift = chains.lin[rows, i], chains.shift[rows, i]
     normal = np.einsum("mij,mj->mi", lin, surfaces.normal[part])
     offset = surfaces.offset[part] + np.einsum("mi,mi->m", normal, shift)
-    corners = surfaces.to_world(part, surfaces.polygon[part])
+    corners = np.take(surfaces.world_polygon, part, axis=0)
     corners = np.einsum("mij,mvj->mvi", lin, corners) + shift[:, None, :]
     return normal, offset, corners, surfaces.n_corners[part]
 

@@ -218,7 +218,7 @@ def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: boo
     real = np.flatnonzero(s.n_corners > 0)
     if len(point) == 0 or len(real) == 0:
         return out
-    corners = s.to_world(real, s.polygon[real])
+    corners = np.take(s.world_polygon, real, axis=0)
     slots = np.arange(corners.shape[1])[None, :] < s.n_corners[real][:, None]
     centre = np.sum(corners * slots[..., None], axis=1) / s.n_corners[real][:, None]
     radius = np.max(np.where(slots, np.linalg.norm(corners - centre[:, None], axis=2), 0.0), axis=1) + JUNCTION
@@ -347,7 +347,7 @@ def _into(s: Surfaces, part: np.ndarray, tangent: np.ndarray, point: np.ndarray,
     if centres is not None:
         centre = centres[part]
     else:
-        corners = s.to_world(part, s.polygon[part])
+        corners = np.take(s.world_polygon, part, axis=0)
         valid = np.arange(corners.shape[1])[None, :] < s.n_corners[part][:, None]
         centre = np.sum(corners * valid[..., None], axis=1) / s.n_corners[part][:, None]
     return x * np.where(np.einsum("ei,ei->e", centre - point, x) >= 0, 1.0, -1.0)[:, None]

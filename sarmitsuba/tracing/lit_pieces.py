@@ -365,7 +365,7 @@ def in_leg_planes(surfaces: Surfaces, chains: Chains, chain: np.ndarray, key: np
 def _part_in_plane(surfaces: Surfaces, part: np.ndarray, plane: np.ndarray) -> np.ndarray:
     """bool [k]: every corner of part ``part`` [k] lies within :data:`IN_PLANE` of part ``plane``'s
     plane [k]."""
-    corners = surfaces.to_world(part, surfaces.polygon[part])
+    corners = np.take(surfaces.world_polygon, part, axis=0)
     slots = np.arange(corners.shape[1])[None, :] < surfaces.n_corners[part][:, None]
     distance = np.abs(np.einsum("kvi,ki->kv", corners, surfaces.normal[plane]) - surfaces.offset[plane][:, None])
     return np.all(np.where(slots, distance, 0.0) <= IN_PLANE, axis=1)

@@ -69,7 +69,7 @@ def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     slots = corner_slots(count, n_slot)
     kk, ee = np.nonzero(slots)
     parts, of_part = np.unique(occluder, return_inverse=True)
-    world = np.take(surfaces.to_world(parts, surfaces.polygon[parts]).reshape(-1, 3),
+    world = np.take(np.take(surfaces.world_polygon, parts, axis=0).reshape(-1, 3),
                     np.take(of_part.reshape(-1), kk) * n_slot + ee, axis=0)
     corners = np.einsum("nij,nj->ni", np.take(lin, kk, axis=0), world) + np.take(shift, kk, axis=0)
     normal = np.einsum("kij,kj->ki", lin, np.take(surfaces.normal, occluder, axis=0))
