@@ -15,7 +15,7 @@ import numpy as np
 
 from .deposit import SPECTRAL_ORDERS, taps
 
-__all__ = ["Accumulator", "PATH_HEADROOM", "PATH_FIELDS"]
+__all__ = ["Accumulator", "HISTOGRAM_MIN_FLOATS", "PATH_HEADROOM", "PATH_FIELDS", "histogram_floats"]
 
 #: The ``exact`` kernel's clutter path buffer holds at least this many scatterers, and a launch
 #: that overflowed it asks for this many more than it found (slack, so a retry rarely overflows).
@@ -23,6 +23,18 @@ PATH_HEADROOM = 1024
 #: The exact kernel's path fields and their NumPy dtypes.
 PATH_FIELDS = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, path_order=np.uint32,
                    path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
+
+
+#: The fine-grid histogram's device array holds at least this many floats (8 MiB), and otherwise
+#: the next power of two: ``scatter_add(mode=Expand)`` writes the array's size into its kernel,
+#: so sizes rounded to a few buckets let launches and acquisitions of other pulse counts or
+#: windows reuse the kernels (compiled or from Dr.Jit's disk cache) at most twice the memory.
+HISTOGRAM_MIN_FLOATS = 1 << 21
+
+
+def histogram_floats(n: int) -> int:
+    """Floats allocated for a histogram of ``n`` floats: ``max(HISTOGRAM_MIN_FLOATS, 2^ceil(log2 n))``."""
+    return max(HISTOGRAM_MIN_FLOATS, 1 << max(int(n) - 1, 0).bit_length())
 
 
 class Accumulator:
@@ -45,10 +57,19 @@ class Accumulator:
         self.exact = settings.range_kernel == "exact"
 
     def open(self, ctx: dict) -> None:
-        """Add the launch's zeroed histogram to its context ``ctx`` (nothing for ``exact``)."""
+        """Add the launch's zeroed histogram to its context ``ctx`` (nothing for ``exact``) and the
+        fine grid's scale."""
+        # fine bins per metre of two-way length, as a value (each scene's window has its own step)
+        ctx["fine_per_length"] = {cls: dr.opaque(cls, 1.0 / self.window.fine_step_length)
+                                  for cls in (mi.Float, mi.Float64)}
         if not self.exact:
             size = len(SPECTRAL_ORDERS) * self.n_channels * self.groups * ctx["n_b"] * self.window.n_fine
-            ctx["hist"] = dr.zeros(mi.Float, 2 * size)          # (re, im) packets
+            ctx["hist_floats"] = 2 * size                       # (re, im) packets
+            ctx["hist"] = dr.zeros(mi.Float, histogram_floats(2 * size))
+            # the layout's sizes enter the kernels as values, not literals, so that launches and
+            # acquisitions of other pulse counts or windows (same structure) share the kernels
+            ctx["hist_n_b"] = dr.opaque(mi.UInt32, ctx["n_b"])
+            ctx["hist_n_fine"] = dr.opaque(mi.UInt32, self.window.n_fine)
 
     def collect(self, ctx: dict) -> dict:
         """``{"paths": {field: array}}`` (``exact``) or ``{"hist": complex64 [orders, channels x
@@ -56,7 +77,7 @@ class Accumulator:
         if self.exact:
             return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                               for name, dtype in PATH_FIELDS.items()}}
-        hist = ctx["hist"].numpy().view(np.complex64)
+        hist = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64)
         return {"hist": hist.reshape(len(SPECTRAL_ORDERS), self.n_channels * self.groups, ctx["n_b"],
                                      self.window.n_fine)}
 
@@ -66,7 +87,8 @@ class Accumulator:
         term in the exact kernel's path list (None: a clutter scatterer, appended). Returns whether
         the term lies inside the fast-time window."""
         st, win = self.settings, self.window
-        position = anchor[1] + offset * (1.0 / win.fine_step_length)       # fine bins after anchor[0]
+        per_length = ctx["fine_per_length"].get(type(offset), 1.0 / win.fine_step_length)
+        position = anchor[1] + offset * per_length                          # fine bins after anchor[0]
         if self.exact:
             coarse = (mi.Float64(anchor[0]) + mi.Float64(position)) * (1.0 / win.oversample)
             if slot is None:
@@ -87,11 +109,12 @@ class Accumulator:
             return (coarse >= 0) & (coarse <= win.n_samples - 1)
         k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
         k0 = k0 + anchor[0]
-        inside = (k0 >= lo) & (k0 < win.n_fine - hi)
+        n_fine = ctx["hist_n_fine"]
+        inside = (k0 >= lo) & (k0 < mi.Int32(n_fine) - hi)
         group = depth if self.groups > 1 else 0
         n_groups = len(values) * self.groups               # channel-major: group c * groups + order
         for c, value in enumerate(values):
-            base = ((order_index * n_groups + c * self.groups + group) * ctx["n_b"] + pulse) * win.n_fine
+            base = ((order_index * n_groups + c * self.groups + group) * ctx["hist_n_b"] + pulse) * n_fine
             for offset_, w in tap_list:            # one (re, im) packet per tap
                 dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
                                mask & inside, mode=dr.ReduceMode.Expand)

@@ -15,6 +15,7 @@ pulse's own.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import drjit as dr
@@ -28,7 +29,7 @@ from . import jones as pol
 from ..core.radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
 from .clutter_terms import ClutterTerms
-from .device import device_array
+from .device import device_array, gather_table
 from .pulse_view import PulseView, receive_leg
 
 __all__ = ["Returns", "footprint_edges"]
@@ -83,6 +84,10 @@ class Returns(ClutterTerms):
     sinc = staticmethod(_sinc)
 
     def __init__(self, params, window, footprint, settings, tables, effects, beam_sines):
+        # tables in aligned memory, two entries at least: one kernel for every scene's tables
+        if dataclasses.is_dataclass(tables):
+            tables = dataclasses.replace(tables, **{f.name: gather_table(getattr(tables, f.name))
+                                                   for f in dataclasses.fields(tables)})
         self.settings, self.window, self.fp, self.tables = settings, window, footprint, tables
         self.k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
         self.lam = params.wavelength
@@ -130,17 +135,18 @@ class Returns(ClutterTerms):
         a64, f64 = mi.Array3f64, mi.Float64
         ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
                    carried=dr.zeros(mi.Float, st.max_depth), scatterers=dr.zeros(mi.UInt32, st.max_depth),
-                   antenna=a64(*(launch.antenna[:, c].copy() for c in range(3))), lref=f64(launch.lref.copy()),
-                   first=mi.UInt32(launch.first.astype(np.uint32)), count=mi.UInt32(launch.count.astype(np.uint32)),
-                   reference=a64(*(launch.reference[:, c].copy() for c in range(3))),
-                   middle=f64(launch.lref[launch.first + launch.count // 2].copy()),
-                   block_nj=mi.UInt32(launch.blocks.n_j), block_m=mi.UInt32(launch.blocks.m),
+                   antenna=device_array(a64, launch.antenna.T), lref=device_array(f64, launch.lref),
+                   first=device_array(mi.UInt32, launch.first), count=device_array(mi.UInt32, launch.count),
+                   reference=device_array(a64, launch.reference.T),
+                   middle=device_array(f64, launch.lref[launch.first + launch.count // 2]),
+                   block_nj=device_array(mi.UInt32, launch.blocks.n_j),
+                   block_m=device_array(mi.UInt32, launch.blocks.m),
                    launch=launch,
                    max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
         axis = np.broadcast_to(self.fp.track, launch.antenna.shape) if launch.axes is None else launch.axes[:, 0]
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
-            ctx["steer"] = mi.Float((np.sum(to_c * axis, axis=1) / np.linalg.norm(to_c, axis=1)).astype(np.float32))
+            ctx["steer"] = device_array(mi.Float, np.sum(to_c * axis, axis=1) / np.linalg.norm(to_c, axis=1))
         if self.curved:
             ctx["axis"] = device_array(mi.Array3f64, launch.axes[:, 0].T)
             ctx["aperture"], ctx["elevation"] = (device_array(mi.Vector3f, launch.axes[:, k].T) for k in (1, 2))
@@ -274,7 +280,11 @@ class Returns(ClutterTerms):
     def anchor(self, rel, lref) -> tuple[mi.Int32, mi.Float]:
         """A delay on the fine grid, from ``L - L_ref`` (float64): ``(bin, frac)``, ``bin + frac`` fine
         bins after ``t0``, ``frac`` in [0, 1). Offsets from it are added in float32."""
-        position = (rel + (lref - SPEED_OF_LIGHT * self.window.t0)) * (1.0 / self.window.fine_step_length)
+        if not hasattr(self, "_fine_grid"):   # the window's start and step as values, not literals (one kernel for any window)
+            self._fine_grid = (dr.opaque(mi.Float64, SPEED_OF_LIGHT * self.window.t0),
+                               dr.opaque(mi.Float64, 1.0 / self.window.fine_step_length))
+        start, per_length = self._fine_grid
+        position = (rel + (lref - start)) * per_length
         first = dr.floor(position)
         return mi.Int32(first), mi.Float(position - first)
 
