@@ -315,8 +315,10 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
 #: (benchmarks/city_generator.py), chosen to separate the cost model's terms: set-up (10 k vs
 #: 100 k at one sub-aperture), per sub-aperture (19, 38, 76 pulses: 1, 2, 4 sub-apertures),
 #: clutter (rough vs smooth).
+#: urban (few large faces, many whole patches) and Munich (many small facets) separate the cost of a
+#: piece from that of a part (triangle), which the cities alone cannot (one piece per terrain triangle).
 CALIBRATION = ((1e4, 19, ""), (1e4, 19, "scattering_coefficient=0"), (1e4, 38, ""), (1e4, 76, ""),
-               (1e5, 19, ""), (1e5, 38, ""))
+               (1e5, 19, ""), (1e5, 38, ""), ("urban", 0, ""), ("sionna:munich", 120, ""))
 #: The prediction must hold within this factor (issue 56's acceptance).
 PREDICTION_FACTOR = 1.5
 
@@ -399,7 +401,12 @@ def calibrate(folder: Path | None = None) -> dict:
     folder = Path(folder or tempfile.mkdtemp(prefix="city-calibration-"))
     scenes = {}
     rows = []
+    from sarmitsuba.scene.loader import sionna_scenes
     for triangles, pulses, material in CALIBRATION:
+        if isinstance(triangles, str):                                  # a named scene
+            if triangles.startswith("sionna:") and triangles[7:] not in sionna_scenes():
+                continue
+            scenes[triangles] = triangles
         if triangles not in scenes:
             scenes[triangles] = str(city_generator.generate(folder / f"city{int(triangles)}", triangles)[0])
         row = _measure_in_process(scenes[triangles], pulses, material)
@@ -416,7 +423,7 @@ def calibrate(folder: Path | None = None) -> dict:
     for name, value in fitted.items():
         print(f"{name} = {value:.3g}    # was {getattr(cost_model, name):.3g}")
     for r, t, y in zip(rows, terms, seconds):
-        print(f"  {Path(r['scene']).parent.name} {r['pulses']} pulses {r['material'] or 'rough'}: trace CPU "
+        print(f"  {Path(r['scene']).parent.name or r['scene']} {r['pulses']} pulses {r['material'] or 'rough'}: trace CPU "
               f"{r['trace_cpu_s']:.2f} s, refitted model {t @ coef + r['model_terms'][4]:.2f} s; peak RSS "
               f"{r['peak_rss_mib']} MiB, model {r['predicted_peak_mib']} MiB")
     return fitted

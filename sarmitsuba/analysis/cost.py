@@ -75,20 +75,17 @@ PIECES_PER_ORDER = (1.0, 0.6, 0.26, 0.1, 0.05)
 #: ``benchmarks/city_generator.py`` at 10 k triangles with 19 and 76 pulses, rough and smooth,
 #: and at 100 k triangles with 19 pulses, and fits these three constants); re-run it and paste
 #: its output here when the tracer changes.
-#: Fitted (non-negative relative least squares on 8 renders, every one within 13 %) on 2026-11-26
-#: at commit d9f61c8 plus the tracing speed-ups then in progress, trace CPU seconds less the
-#: casts' share: 10 k city 19 pulses 2.66 s (smooth 2.31 s), 38 pulses 3.57 s, 76 pulses 7.08 s;
-#: 100 k city 19 pulses 15.0 s, 38 pulses 19.5 s; urban (779 pulses, 30 sub-apertures) 2.16 s;
-#: sionna:munich 120 pulses 12.3 s. The time goes mostly with the parts (triangles) in reach, each
-#: at least one piece with its own chain, lanes and clipping, and little with how many whole
-#: patches a large face holds (urban); the clutter term fitted to 0 (its deposit is cheap beside them).
-#: Checked on the 1.05 M-triangle city (not in the fit): 19 pulses, 1 sub-aperture, 102.5 s of trace
-#: CPU against 121 s predicted; 76 pulses, 4 sub-apertures, 147.9 s against 174 s. Sub-apertures
-#: batched many to a launch share NumPy calls: the 10 k city's 344 pulses (19 in one launch)
-#: took 12.6 s against 17.9 s predicted.
-SETUP_TRIANGLE_SECONDS = 9.9e-5
-SUB_PIECE_SECONDS = 5.4e-6
-SUB_TRIANGLE_SECONDS = 1.8e-4
+#: Fitted (non-negative relative least squares on 8 renders, every one within 15 %) by
+#: ``python benchmarks/scaling.py --calibrate`` on 2026-11-26 at commit 7e86c81 (the tracing
+#: speed-ups of issue 56 landed so far), trace CPU seconds less the casts' share: 10 k city 19
+#: pulses 1.85 s (smooth 1.73 s), 38 pulses 2.89 s, 76 pulses 5.01 s; 100 k city 19 pulses 10.75 s,
+#: 38 pulses 14.19 s; urban (779 pulses, 30 sub-apertures) 4.34 s; sionna:munich 120 pulses 12.7 s.
+#: The time goes mostly with the parts (triangles) in reach, each at least one piece with its own
+#: chain, lanes and clipping, and little with how many whole patches a large face holds (urban,
+#: Munich separate the two); the clutter term fits to 0 (its deposit is cheap beside them).
+SETUP_TRIANGLE_SECONDS = 6.9e-5
+SUB_PIECE_SECONDS = 6.4e-6
+SUB_TRIANGLE_SECONDS = 1.18e-4
 CLUTTER_SCATTERER_PULSE_SECONDS = 0.0
 #: Mesh tracer memory [bytes]: :data:`MESH_TRIANGLE_BYTES` per triangle of the whole scene (its
 #: surfaces, wedges and the pieces of every part, cut once per acquisition and held: this part
