@@ -17,7 +17,7 @@ import sarmitsuba  # noqa: F401  (sets the variant before Dr.Jit loads)
 import drjit as dr
 import mitsuba as mi
 from sarmitsuba.tracing.accumulate import HISTOGRAM_MIN_FLOATS, histogram_floats
-from sarmitsuba.tracing.device import ALIGNMENT, aligned_copy, device_array, gather_table
+from sarmitsuba.tracing.device import ALIGNMENT, aligned_copy, device_array, gather_table, table_array
 
 llvm_only = pytest.mark.skipif(not mi.variant().startswith("llvm"), reason="the alignment is LLVM's IR")
 
@@ -96,6 +96,20 @@ def test_a_one_entry_table_gathers_like_a_wider_one():
                                        np.array([3.0], np.float32)),))
     assert dr.width(nested[0]) == 2 and nested[0].numpy().tolist() == [[1, 1], [2, 2], [3, 3]]
     assert gather_table(None) is None and gather_table(5) == 5
+
+
+@llvm_only
+def test_a_launch_of_one_sub_aperture_gathers_like_a_wider_one():
+    """Per-launch tables (one row per pulse or sub-aperture) of one entry are padded too, so a
+    launch of a single sub-aperture runs the kernel of any other launch."""
+    index = dr.arange(mi.UInt32, 9) % 1
+    one = table_array(mi.Array3f64, np.array([[1.5], [2.5], [3.5]]))
+    three = table_array(mi.Array3f64, np.array([[1.5, 0, 0], [2.5, 0, 0], [3.5, 0, 0]]))
+    assert dr.width(one) == 2 and dr.width(table_array(mi.UInt32, np.array([7, 8]))) == 2
+    got = dr.gather(mi.Array3f64, one, index)
+    np.testing.assert_array_equal(got.numpy(), np.tile([[1.5], [2.5], [3.5]], 9))
+    assert (_kernel(lambda: dr.gather(mi.Array3f64, one, index) * 2)["hash"]
+            == _kernel(lambda: dr.gather(mi.Array3f64, three, index) * 2)["hash"])
 
 
 def test_histogram_sizes_fall_into_few_buckets():

@@ -14,7 +14,7 @@ from __future__ import annotations
 import drjit as dr
 import numpy as np
 
-__all__ = ["ALIGNMENT", "device_array"]
+__all__ = ["ALIGNMENT", "aligned_copy", "device_array", "gather_table", "table_array"]
 
 #: Bytes a mapped buffer's start is aligned to: at least a full vector of the widest lanes (16 x 8).
 ALIGNMENT = 256
@@ -78,7 +78,14 @@ def gather_table(table):
     cls = type(table)
     if dr.depth_v(cls) > 1:
         return cls(*(gather_table(c) for c in table))
-    values = table.numpy()
-    if values.size == 1:
-        values = np.repeat(values, 2)
+    return table_array(cls, table.numpy())
+
+
+def table_array(cls, values) -> object:
+    """:func:`device_array` of a table that kernels gather from, at least two entries wide (a
+    one-entry table is read as a scalar, a different kernel: see :func:`gather_table`); the
+    padding repeats the last entry and is never gathered."""
+    values = np.asarray(values)
+    if values.shape[-1] == 1:
+        values = np.repeat(values, 2, axis=-1)
     return device_array(cls, values)

@@ -29,7 +29,7 @@ from . import jones as pol
 from ..core.radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
 from .clutter_terms import ClutterTerms
-from .device import device_array, gather_table
+from .device import gather_table, table_array
 from .pulse_view import PulseView, receive_leg
 
 __all__ = ["Returns", "footprint_edges"]
@@ -84,7 +84,8 @@ class Returns(ClutterTerms):
     sinc = staticmethod(_sinc)
 
     def __init__(self, params, window, footprint, settings, tables, effects, beam_sines):
-        # tables in aligned memory, two entries at least: one kernel for every scene's tables
+        # tables in aligned memory, two entries at least: one kernel for every scene's tables (the
+        # launch's per-pulse and per-sub-aperture tables likewise, in context)
         if dataclasses.is_dataclass(tables):
             tables = dataclasses.replace(tables, **{f.name: gather_table(getattr(tables, f.name))
                                                    for f in dataclasses.fields(tables)})
@@ -135,24 +136,24 @@ class Returns(ClutterTerms):
         a64, f64 = mi.Array3f64, mi.Float64
         ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
                    carried=dr.zeros(mi.Float, st.max_depth), scatterers=dr.zeros(mi.UInt32, st.max_depth),
-                   antenna=device_array(a64, launch.antenna.T), lref=device_array(f64, launch.lref),
-                   first=device_array(mi.UInt32, launch.first), count=device_array(mi.UInt32, launch.count),
-                   reference=device_array(a64, launch.reference.T),
-                   middle=device_array(f64, launch.lref[launch.first + launch.count // 2]),
-                   block_nj=device_array(mi.UInt32, launch.blocks.n_j),
-                   block_m=device_array(mi.UInt32, launch.blocks.m),
+                   antenna=table_array(a64, launch.antenna.T), lref=table_array(f64, launch.lref),
+                   first=table_array(mi.UInt32, launch.first), count=table_array(mi.UInt32, launch.count),
+                   reference=table_array(a64, launch.reference.T),
+                   middle=table_array(f64, launch.lref[launch.first + launch.count // 2]),
+                   block_nj=table_array(mi.UInt32, launch.blocks.n_j),
+                   block_m=table_array(mi.UInt32, launch.blocks.m),
                    launch=launch,
                    max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
         axis = np.broadcast_to(self.fp.track, launch.antenna.shape) if launch.axes is None else launch.axes[:, 0]
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
-            ctx["steer"] = device_array(mi.Float, np.sum(to_c * axis, axis=1) / np.linalg.norm(to_c, axis=1))
+            ctx["steer"] = table_array(mi.Float, np.sum(to_c * axis, axis=1) / np.linalg.norm(to_c, axis=1))
         if self.curved:
-            ctx["axis"] = device_array(mi.Array3f64, launch.axes[:, 0].T)
-            ctx["aperture"], ctx["elevation"] = (device_array(mi.Vector3f, launch.axes[:, k].T) for k in (1, 2))
+            ctx["axis"] = table_array(mi.Array3f64, launch.axes[:, 0].T)
+            ctx["aperture"], ctx["elevation"] = (table_array(mi.Vector3f, launch.axes[:, k].T) for k in (1, 2))
         if self.continuous:
-            ctx["velocity"] = device_array(mi.Array3f64, launch.velocity.T)
-            ctx["acceleration"] = device_array(mi.Array3f64, launch.acceleration.T)
+            ctx["velocity"] = table_array(mi.Array3f64, launch.velocity.T)
+            ctx["acceleration"] = table_array(mi.Array3f64, launch.acceleration.T)
         self.sums.open(ctx)
         return ctx
 
