@@ -141,11 +141,10 @@ class MeshTracer:
         chains (as the tubes' ``carried_power_per_order``)."""
         s, chains = self.surfaces, lit.chains
         reached = np.flatnonzero(lit.sent > 0)              # mixed pieces by the share of their samples
-        pieces = lit.pieces.select(reached)
-        if len(pieces) == 0 or self.table is None:
+        if len(reached) == 0 or self.table is None:
             return 0.0
-        chain = pieces.region
-        area, centroid2, _, _ = pieces.geometry()
+        chain = lit.pieces.region[reached]
+        area, centroid2, _, _ = lit.pieces.geometry_of(reached)     # (kept for _lanes' lit pieces)
         point = s.to_world(chains.last[chain], centroid2)
         source = image_source(chains, reference[chains.sub])[chain]
         leg = point - source
@@ -310,19 +309,20 @@ class MeshTracer:
         if len(spread):
             # the neighbours that no occluder cuts stay what they were: wholly lit (their shared
             # edges cancel) or dark (wholly in the occluders' shadows: no piece left)
-            full = lit.pieces.select(clipped.piece).geometry()[0]
+            full = lit.pieces.geometry_of(clipped.piece)[0]
             uncut = clipped.piece[np.isin(clipped.piece, spread) & (clipped.area >= (1.0 - 1e-12) * full)]
             back = np.concatenate([uncut, np.setdiff1d(spread, clipped.piece)])
             clipped = replace_pieces(clipped, ClippedPieces.empty(), uncut)
             lit_now, mixed_now = lit.lit.copy(), lit.mixed.copy()
             lit_now[back], mixed_now[back] = was_lit[back], False
             lit = dataclasses.replace(lit, lit=lit_now, mixed=mixed_now)
-        pieces = lit.pieces.select(lit.lit)
+        pieces_rows = np.flatnonzero(lit.lit)
+        pieces = lit.pieces.select(pieces_rows)
         cut = lit.pieces.select(clipped.piece)
         region = np.concatenate([pieces.region, cut.region])
         part = chains.last[region]
         area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
-            pieces.geometry(), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
+            lit.pieces.geometry_of(pieces_rows), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
         stable = self._never_specular(chains, region, centroid, diagonal, views[chains.sub[region]])
         n = len(pieces)
@@ -344,7 +344,7 @@ class MeshTracer:
         motion = None
         if self.moving:
             # the term lanes' segments and the area terms' segments in one pass (their pieces overlap)
-            all_rows = np.concatenate([np.flatnonzero(lit.lit), clipped.piece])
+            all_rows = np.concatenate([pieces_rows, clipped.piece])
             piece_of = np.concatenate([seg_piece, table_segments[0]])
             p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
                                                 np.concatenate([p2, table_segments[1]]),
@@ -374,11 +374,8 @@ class MeshTracer:
         owners, table, rates = [], [], []
 
         def add(piece, lines, line_rates_):
-            real = np.abs(np.sqrt(lines[..., 0] * lines[..., 0] + lines[..., 1] * lines[..., 1]) - 1.0) < 1e-6
-            k, j = np.nonzero(real)
-            owners.append(piece[k])
-            table.append(lines[k, j])
-            rates.append(line_rates_[k, j] if line_rates_ is not None else np.zeros((len(k), 3)))
+            for out, value in zip((owners, table, rates), _unit_rows(piece, lines, line_rates_)):
+                out.append(value)
 
         poly, count = pieces.select(held).polygons()
         add(np.arange(len(held)), edge_lines(poly, count), None)            # the piece's own edges
@@ -497,6 +494,18 @@ def _unique_keys(keys: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     present[keys] = True
     rank = np.cumsum(present) - 1
     return np.flatnonzero(present), rank[keys]
+
+
+def _unit_rows(piece: np.ndarray, lines: np.ndarray, rates: np.ndarray | None):
+    """The half-plane rows of ``lines`` float64 [k, H, 3] whose ``(a, b)`` is unit (not padding):
+    ``(piece[k] int64 [r], lines float64 [r, 3], rates float64 [r, 3])`` in row-major order,
+    ``rates`` [k, H, 3] gathered alike (0 when None). Gathered by flat index with np.take (a
+    ``[k, j]`` fancy gather is several times slower on this NumPy)."""
+    flat_lines = lines.reshape(-1, 3)
+    real = np.abs(np.sqrt(flat_lines[:, 0] * flat_lines[:, 0] + flat_lines[:, 1] * flat_lines[:, 1]) - 1.0) < 1e-6
+    flat = np.flatnonzero(real)
+    return (np.take(piece, flat // max(lines.shape[1], 1)), np.take(flat_lines, flat, axis=0),
+            np.take(rates.reshape(-1, 3), flat, axis=0) if rates is not None else np.zeros((len(flat), 3)))
 
 
 def _distance_to_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -439,6 +439,25 @@ class Pieces:
             area[b], centroid[b], second[b], diagonal[b] = moments(poly, count)
         return area, centroid, second, diagonal
 
+    def geometry_of(self, keep):
+        """:meth:`geometry` of the pieces ``keep`` (an index array or a boolean mask): the values
+        of ``self.select(keep).geometry()``, each piece's computed once per :class:`Pieces` object
+        (callers ask for overlapping sets of the same pieces: the carried power, the lanes)."""
+        keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, np.int64)
+        cache = self.__dict__.get("_geometry_cache")
+        if cache is None:
+            n = len(self)
+            cache = (np.zeros(n, bool), np.zeros(n), np.zeros((n, 2)), np.zeros((n, 3)), np.zeros(n))
+            object.__setattr__(self, "_geometry_cache", cache)
+        done, values = cache[0], cache[1:]
+        missing = keep[~done[keep]]
+        if len(missing):
+            missing = np.flatnonzero(np.bincount(missing, minlength=len(self)))     # distinct, ascending
+            for table, value in zip(values, self.select(missing).geometry()):
+                table[missing] = value
+            done[missing] = True
+        return tuple(np.take(table, keep, axis=0) for table in values)
+
     def edges(self, rows: np.ndarray | None = None):
         """The boundary segments of pieces ``rows`` (all by default), counter-clockwise:
         ``(piece int64 [s], start float64 [s, 2], end float64 [s, 2], side int64 [s])`` with
