@@ -84,12 +84,13 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     owners = line_owner[order]
     lines, rates = np.asarray(lines, float)[order], np.asarray(rates, float)[order]
     moving = (rates[:, 0] != 0.0) | (rates[:, 1] != 0.0) | (rates[:, 2] != 0.0)
+    columns = tuple(np.ascontiguousarray(lines[:, i]) for i in range(3))     # (1-D takes are the cheapest)
     start, end = np.asarray(start, float), np.asarray(end, float)
     for lo in range(0, n, _BLOCK):
         hi = min(n, lo + _BLOCK)
         first = np.searchsorted(owners, owner[lo:hi], side="left")
         count = np.searchsorted(owners, owner[lo:hi], side="right") - first
-        out_s[lo:hi], out_e[lo:hi] = _solve(start[lo:hi], end[lo:hi], first, count, lines, rates, moving)
+        out_s[lo:hi], out_e[lo:hi] = _solve(start[lo:hi], end[lo:hi], first, count, lines, rates, moving, columns)
     return out_s, out_e
 
 
@@ -107,31 +108,32 @@ def _first(seg: np.ndarray, score: np.ndarray, n: int) -> np.ndarray:
     return best
 
 
-def _on_line(a, b, c, point, count):
-    """bool [m]: whether each segment's ``point`` [n, 2] (repeated ``count`` [n] times) lies on its
-    candidate line ``(a, b, c)`` [m]: ``|a x + b y + c| < ON_LINE``, summed in that order (the
-    einsum ``g . p`` and then ``+ h`` of the former kernel), in place."""
-    value = np.repeat(point[:, 0], count)
+def _on_line(a, b, c, point, seg):
+    """bool [m]: whether each segment's ``point`` [n, 2] (at the pairs' segments ``seg`` [m])
+    lies on its candidate line ``(a, b, c)`` [m]: ``|a x + b y + c| < ON_LINE``, summed in that
+    order (the einsum ``g . p`` and then ``+ h`` of the former kernel), in place."""
+    value = np.take(np.ascontiguousarray(point[:, 0]), seg)
     value *= a
-    term = np.repeat(point[:, 1], count)
+    term = np.take(np.ascontiguousarray(point[:, 1]), seg)
     term *= b
     value += term
     value += c
     return np.abs(value, out=value) < ON_LINE
 
 
-def _solve(start, end, first, count, lines, rates, moving):
+def _solve(start, end, first, count, lines, rates, moving, columns):
     """:func:`endpoint_rates` of segments ``start``, ``end`` [n, 2] whose candidates are the
-    rows ``first[k] .. first[k] + count[k]`` of ``lines``, ``rates`` and ``moving``."""
+    rows ``first[k] .. first[k] + count[k]`` of ``lines`` (``columns`` its three columns,
+    contiguous), ``rates`` and ``moving``."""
     n = len(start)
     seg = np.repeat(np.arange(n), count)
-    line = np.arange(len(seg)) + np.repeat(first - (np.cumsum(count) - count), count)
-    candidate = np.take(lines, line, axis=0)            # (np.take: the cheapest gather of whole rows)
-    a, b, c = candidate.T
-    ds, de = _on_line(a, b, c, start, count), _on_line(a, b, c, end, count)
+    line = np.arange(len(seg))
+    line += np.take(first - (np.cumsum(count) - count), seg)
+    a, b, c = (np.take(column, line) for column in columns)   # (1-D np.take: the cheapest gathers)
+    ds, de = _on_line(a, b, c, start, seg), _on_line(a, b, c, end, seg)
     keep = np.flatnonzero(ds | de)
     seg, line, ds, de = seg[keep], line[keep], ds[keep], de[keep]
-    g = np.take(candidate, keep, axis=0)[:, :2]
+    g = np.take(lines, line, axis=0)[:, :2]
     line_moving = moving[line]
     own_rows = np.flatnonzero(ds & de)
     own = _first(seg[own_rows], line_moving[own_rows], n)
