@@ -54,3 +54,18 @@ def test_motion_line_gather_is_the_reference():
             for g, w in zip(_unit_rows(piece, lines, r), _add_reference(piece, lines, r)):
                 assert g.shape == w.shape and g.dtype == w.dtype
                 np.testing.assert_array_equal(g, w)
+
+
+def test_edges_degenerate_batches_are_the_reference():
+    from test_patches_fast import _edges_reference
+    rng = np.random.default_rng(5)
+    patch = 0.9173
+    poly, count = _regions(rng, 25, patch)
+    p = pieces_of(poly, count, patch)
+    whole_only = p.select(p.whole)
+    border_only = p.select(~p.whole)
+    for q, rows in [(p, None), (p, np.array([], np.int64)), (whole_only, None), (border_only, None),
+                    (border_only, rng.permutation(len(border_only))[:9]), (p.select(np.array([], np.int64)), None)]:
+        for g, w in zip(q.edges(rows), _edges_reference(q, rows)):
+            assert g.shape == w.shape and g.dtype == w.dtype
+            np.testing.assert_array_equal(g, w)

@@ -464,22 +464,33 @@ class Pieces:
         ``side`` 0..3 where the segment runs along its patch's bottom, right, top or left line
         (shared with the neighbouring patch's piece of the same region) and -1 elsewhere."""
         rows = np.arange(len(self)) if rows is None else np.asarray(rows, np.int64)
-        whole = rows[self.whole[rows]]
-        square = (self.cell[whole][:, None, :] + UNIT_SQUARE[None]) * self.patch
+        is_whole = np.take(self.whole, rows)
+        whole = rows[is_whole]
+        square = (np.take(self.cell, whole, axis=0)[:, None, :] + UNIT_SQUARE[None]) * self.patch
         w_piece = np.repeat(whole, 4)
         w_start = square.reshape(-1, 2)
-        w_end = np.roll(square, -1, axis=1).reshape(-1, 2)
+        w_end = np.take(square, [1, 2, 3, 0], axis=1).reshape(-1, 2)
         w_side = np.tile(np.arange(4), len(whole))
-        border = rows[~self.whole[rows]]
-        poly, count = self.polygon[self.border[border]], self.count[self.border[border]]
-        slots = np.arange(poly.shape[1])[None, :] < count[:, None]
-        end = np.roll(poly, -1, axis=1)
-        step = end - poly
-        keep = slots & (step[..., 0] * step[..., 0] + step[..., 1] * step[..., 1] > 0)   # (a length > 0)
-        b_rows, b_cols = np.nonzero(keep)
-        b_start, b_end = poly[b_rows, b_cols], end[b_rows, b_cols]
-        b_side = _grid_side(self.cell[border[b_rows]], b_start, b_end, self.patch)
-        return (np.concatenate([w_piece, border[b_rows]]), np.concatenate([w_start, b_start]),
+        border = rows[~is_whole]
+        at = np.take(self.border, border)
+        poly, count = np.take(self.polygon, at, axis=0), np.take(self.count, at)
+        width = poly.shape[1]
+        # each corner's step to the next (cyclically over the padded slots, as np.roll), by row-wise
+        # flat gathers with np.take (fancy [rows, cols] gathers are several times slower)
+        step = np.empty_like(poly)
+        if width:
+            np.subtract(poly[:, 1:], poly[:, :-1], out=step[:, :-1])
+            np.subtract(poly[:, 0], poly[:, -1], out=step[:, -1])
+        keep = np.arange(width)[None, :] < count[:, None]
+        keep &= step[..., 0] * step[..., 0] + step[..., 1] * step[..., 1] > 0      # (a length > 0)
+        flat = np.flatnonzero(keep)
+        b_rows, b_cols = np.divmod(flat, max(width, 1))
+        corners = poly.reshape(-1, 2)
+        b_start = np.take(corners, flat, axis=0)
+        b_end = np.take(corners, flat - b_cols + (b_cols + 1) % max(width, 1), axis=0)
+        b_border = np.take(border, b_rows)
+        b_side = _grid_side(np.take(self.cell, b_border, axis=0), b_start, b_end, self.patch)
+        return (np.concatenate([w_piece, b_border]), np.concatenate([w_start, b_start]),
                 np.concatenate([w_end, b_end]), np.concatenate([w_side, b_side]))
 
 
