@@ -38,11 +38,14 @@ def segments(pieces, stable: np.ndarray, cancel: bool = True):
         keys = np.sort(cell_key(pieces.region[stable], pieces.cell[stable]))
         # patch lines bottom, right, top, left: the neighbour across is (0,-1), (1,0), (0,1), (-1,0)
         step = np.array([[0, -1], [1, 0], [0, 1], [-1, 0]])
-        rows = np.flatnonzero((side >= 0) & stable[piece])
-        other = cell_key(pieces.region[piece[rows]], pieces.cell[piece[rows]] + step[side[rows]])
+        rows = np.flatnonzero((side >= 0) & np.take(stable, piece))
+        row_piece = np.take(piece, rows)
+        other = cell_key(np.take(pieces.region, row_piece),
+                         np.take(pieces.cell, row_piece, axis=0) + np.take(step, np.take(side, rows), axis=0))
         at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
-        keep[rows[keys[at] == other]] = False
-    return piece[keep], start[keep], end[keep]
+        keep[rows[np.take(keys, at) == other]] = False
+    keep = np.flatnonzero(keep)                       # (np.take: row gathers of [s, 2] are slow by mask)
+    return np.take(piece, keep), np.take(start, keep, axis=0), np.take(end, keep, axis=0)
 
 
 def _equal_rows(columns) -> tuple[np.ndarray, np.ndarray]:
@@ -119,8 +122,9 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
     drop = np.zeros(len(lane_kind), bool)
     if len(candidate) == 0:
         return drop
-    direction = edge2[candidate] / np.linalg.norm(edge2[candidate], axis=1, keepdims=True)
-    q = np.round(point2[candidate] * 1e6).astype(np.int64)
+    edge_c = np.take(edge2, candidate, axis=0)
+    direction = edge_c / np.linalg.norm(edge_c, axis=1, keepdims=True)
+    q = np.round(np.take(point2, candidate, axis=0) * 1e6).astype(np.int64)
     angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
     order, group = _equal_rows((angle, q[:, 1], q[:, 0], region[lane_piece[candidate]]))
     size = np.bincount(group)
@@ -148,7 +152,7 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
                          np.where(base_kind == SINC, SINC, OPEN_START + role))
     at_start = (lane_kind == SPLIT_START) | (lane_kind == OPEN_START)
     at_end = (lane_kind == SPLIT_END) | (lane_kind == OPEN_END)
-    p, q = p2[lane_seg], q2[lane_seg]
+    p, q = np.take(p2, lane_seg, axis=0), np.take(q2, lane_seg, axis=0)
     point2 = np.where(at_start[:, None], p, np.where(at_end[:, None], q, 0.5 * (p + q)))
     lane_piece = seg_piece[lane_seg]
     unstable = np.flatnonzero(~stable)
@@ -158,7 +162,7 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     mid2 = np.concatenate([0.5 * (p + q), centroid2[unstable]])
     edge2 = np.concatenate([q - p, np.zeros((len(unstable), 2))])
     if motion is not None:
-        p_rate, q_rate = motion[0][lane_seg], motion[1][lane_seg]
+        p_rate, q_rate = np.take(motion[0], lane_seg, axis=0), np.take(motion[1], lane_seg, axis=0)
         zero = np.zeros((len(unstable), 2))
         point_rate2 = np.concatenate([np.where(at_start[:, None], p_rate, np.where(at_end[:, None], q_rate,
                                                                                   0.5 * (p_rate + q_rate))), zero])
@@ -169,14 +173,17 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     lane_seg = np.concatenate([lane_seg, np.full(len(unstable), -1)])
     drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) if cancel \
         else np.zeros(len(lane_kind), bool)
+    kept = np.flatnonzero(~drop)
     lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2, lane_seg = (
-        a[~drop] for a in (lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2, lane_seg))
+        np.take(a, kept, axis=0) for a in (lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2,
+                                           edge_rate2, lane_seg))
     chain = region[lane_piece]
     lane_part = part[lane_piece]
     point = s.to_world(lane_part, point2)
     middle = s.to_world(lane_part, mid2)
     edge = s.vector_to_world(lane_part, edge2)
-    lin = chains.lin[chain, chains.order[chain]]
+    lin = np.take(np.ascontiguousarray(chains.lin).reshape((-1,) + chains.lin.shape[2:]),
+                  chain * chains.lin.shape[1] + np.take(chains.order, chain), axis=0)
     window_data = windows(s, chains, chain, point, reference[chains.sub[chain]], depth)
     moving = np.any(point_rate2 != 0, axis=1) | np.any(edge_rate2 != 0, axis=1)
     if motion is not None and np.any(moving):
@@ -201,7 +208,7 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
                            across_xn=edges["xn_across"][seg].astype(np.float32))
     lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
                       middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
-                      normal=s.normal[lane_part].astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
+                      normal=np.take(s.normal, lane_part, axis=0).astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
                       sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
                       piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **window_data)
     if lanes.diffracting is not None:
@@ -244,9 +251,9 @@ def windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> d
     first /= np.linalg.norm(first, axis=1, keepdims=True)
     rows, cos, direction, normal = [], [], [], []
     for i in range(depth):
-        window = chains.parts[chain, i]
-        d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
-        n = s.normal[window]
+        window = np.take(chains.parts[:, i], chain)
+        d = np.einsum("mji,mj->mi", np.take(chains.lin[:, i], chain, axis=0), first)
+        n = np.take(s.normal, window, axis=0)
         dot = np.einsum("mi,mi->m", n, d)
         rows.append(s.row[window])
         cos.append(np.abs(dot))
@@ -264,14 +271,14 @@ def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceT
     region, part, centroid, centroid2, area, second, diagonal = geometry
     piece, start2, end2 = table_segments[:3]
     order = np.argsort(piece, kind="stable")            # each piece's segments in one run
-    piece, start2, end2 = piece[order], start2[order], end2[order]
+    piece, start2, end2 = np.take(piece, order), np.take(start2, order, axis=0), np.take(end2, order, axis=0)
     owner = part[piece]
     rates = {}
     if len(table_segments) > 3:                         # the segments' ends' rates, eq. (M8)
-        p_rate, q_rate = table_segments[3][order], table_segments[4][order]
+        p_rate, q_rate = np.take(table_segments[3], order, axis=0), np.take(table_segments[4], order, axis=0)
         rates = dict(segment_mid_rate=s.vector_to_world(owner, 0.5 * (p_rate + q_rate)).astype(np.float32),
                      segment_edge_rate=s.vector_to_world(owner, q_rate - p_rate).astype(np.float32))
-    mid = s.vector_to_world(owner, 0.5 * (start2 + end2) - centroid2[piece])
+    mid = s.vector_to_world(owner, 0.5 * (start2 + end2) - np.take(centroid2, piece, axis=0))
     edge = s.vector_to_world(owner, end2 - start2)
     count = np.bincount(piece, minlength=len(region))
     return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
