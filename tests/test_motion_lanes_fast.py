@@ -69,3 +69,12 @@ def test_edges_degenerate_batches_are_the_reference():
         for g, w in zip(q.edges(rows), _edges_reference(q, rows)):
             assert g.shape == w.shape and g.dtype == w.dtype
             np.testing.assert_array_equal(g, w)
+
+
+def test_norm2_is_linalg_norm():
+    from sarmitsuba.tracing.mesh_trace import _norm2
+    rng = np.random.default_rng(8)
+    x = np.concatenate([rng.normal(size=(200, 2)) * 10.0 ** rng.integers(-8, 8, (200, 1)), np.zeros((3, 2)),
+                        [[1e-300, 1e-300], [1e150, -1e150]]])
+    np.testing.assert_array_equal(_norm2(x), np.linalg.norm(x, axis=1))
+    assert _norm2(np.zeros((0, 2))).shape == (0,)

@@ -257,16 +257,16 @@ def segment_wedges(s: Surfaces, w: Wedges, part: np.ndarray, p2: np.ndarray, q2:
     out = dict(on=np.zeros(m, bool), x0=np.zeros((m, 3)), xn=np.zeros((m, 3)), other=np.full(m, -1, np.int64))
     if m == 0 or len(w.part) == 0:
         return out
-    poly = s.polygon[part]
+    poly = np.take(s.polygon, part, axis=0)            # (np.take: row gathers ~10x faster than x[idx])
     length_all, unit_all = _cached(w, "part_edges", lambda: _part_edges(s))
-    length, unit = length_all[part], unit_all[part]
+    length, unit = np.take(length_all, part, axis=0), np.take(unit_all, part, axis=0)
 
     def distance(x):
         rel = x[:, None, :] - poly
         return np.abs(unit[..., 0] * rel[..., 1] - unit[..., 1] * rel[..., 0])
 
     scale = ON_EDGE * (1.0 + length)
-    valid = (np.arange(poly.shape[1])[None, :] < s.n_corners[part][:, None]) & (length > 0)
+    valid = (np.arange(poly.shape[1])[None, :] < np.take(s.n_corners, part)[:, None]) & (length > 0)
     fits = valid & (distance(p2) <= scale) & (distance(q2) <= scale)
     rows = np.flatnonzero(np.any(fits, axis=1))
     if len(rows) == 0:

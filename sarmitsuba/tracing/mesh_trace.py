@@ -262,12 +262,12 @@ class MeshTracer:
         s, chains, pieces = self.surfaces, lit.chains, lit.pieces
         keep = np.flatnonzero(lit.transmit | lit.mixed)
         owner, points2 = _grid_points(pieces.select(keep), self.subdivision[chains.last[pieces.region[keep]]], self.patch)
-        chain = pieces.region[keep][owner]
-        part = chains.last[chain]
+        chain = np.take(pieces.region[keep], owner)
+        part = np.take(chains.last, chain)
         points = s.to_world(part, points2)
-        antenna = reference[chains.sub[chain]]
+        antenna = np.take(reference, np.take(chains.sub, chain), axis=0)
         d = _arriving(chains, chain, points, antenna)
-        normal = s.normal[part]
+        normal = np.take(s.normal, part, axis=0)
         reflected = d - 2.0 * np.einsum("mi,mi->m", d, normal)[:, None] * normal
         origin = lift(points, normal, points - d)
         hit, _ = self.rays.first_hit(origin, direction=reflected)
@@ -324,15 +324,19 @@ class MeshTracer:
         area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
             lit.pieces.geometry_of(pieces_rows), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
-        stable = self._never_specular(chains, region, centroid, diagonal, views[chains.sub[region]])
+        stable = self._never_specular(chains, region, centroid, diagonal,
+                                      np.take(views, np.take(chains.sub, region), axis=0))
         n = len(pieces)
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
         if self.cancel:
             shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece])
-            seg_piece, p2, q2 = seg_piece[~shared], p2[~shared], q2[~shared]
-        kind = self._split_kinds(chains, region[seg_piece], part[seg_piece], p2, q2, views[chains.sub[region[seg_piece]]])
+            kept = np.flatnonzero(~shared)              # (np.take: row gathers, not boolean masks)
+            seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
+        seg_region = np.take(region, seg_piece)
+        kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2,
+                                 np.take(views, np.take(chains.sub, seg_region), axis=0))
         # every boundary segment of the pieces that may need their area term
         rows = np.flatnonzero(~stable[:n])
         t_piece, t_start, t_end, _ = pieces.edges(rows)
@@ -400,7 +404,7 @@ class MeshTracer:
         # cannot describe (the end runs past the piece's corners), so the segment stays frozen
         travel = np.maximum(np.linalg.norm(views[:, 0] - views[:, 1], axis=1), np.linalg.norm(views[:, 2] - views[:, 1], axis=1))
         reach = travel[chains.sub[chain]]
-        wild = np.maximum(np.linalg.norm(p_rate, axis=1), np.linalg.norm(q_rate, axis=1)) * reach > MOVE_LIMIT * pieces.patch
+        wild = np.maximum(_norm2(p_rate), _norm2(q_rate)) * reach > MOVE_LIMIT * pieces.patch
         p_rate[wild], q_rate[wild] = 0.0, 0.0
         return p_rate, q_rate, b
 
@@ -409,7 +413,7 @@ class MeshTracer:
         NEAR_SPECULAR / (k D)`` off the specular direction. ``u_t`` moves almost linearly with the
         antenna along its track, so its smallest size over the sub-aperture is the distance from 0
         to the path it draws through the three views (first, reference and last pulse)."""
-        normal = self.surfaces.normal[chains.last[chain]]
+        normal = np.take(self.surfaces.normal, np.take(chains.last, chain), axis=0)
         u_t = []
         arriving = _arriving_views(chains, chain, points, views)
         for v in range(3):
@@ -471,13 +475,15 @@ def _grid_points(pieces, subdivision: np.ndarray, patch: float):
     local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
     m = subdivision[owner]
     offset = np.stack([(local // m + 0.5) / m, (local % m + 0.5) / m], axis=1)
-    points = (pieces.cell[owner] + offset) * patch
-    held = pieces.whole[owner].copy()
+    points = (np.take(pieces.cell, owner, axis=0) + offset) * patch       # row gathers by np.take
+    held = np.take(pieces.whole, owner)
     test = np.flatnonzero(~held)
     if len(test):
         lines = edge_lines(pieces.polygon, pieces.count)
-        held[test] = inside(points[test][:, None, :], lines[pieces.border[owner[test]]])[:, 0]
-    owner, points = owner[held], points[held]
+        border = np.take(pieces.border, np.take(owner, test))
+        held[test] = inside(np.take(points, test, axis=0)[:, None, :], np.take(lines, border, axis=0))[:, 0]
+    kept = np.flatnonzero(held)
+    owner, points = np.take(owner, kept), np.take(points, kept, axis=0)
     empty = np.flatnonzero(np.bincount(owner, minlength=len(pieces)) == 0)
     if len(empty):
         _, centroid, _, _ = pieces.select(empty).geometry()
@@ -524,14 +530,19 @@ def _arriving(chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np
 def _arriving_views(chains: Chains, chain: np.ndarray, points: np.ndarray, views: np.ndarray) -> list:
     """:func:`_arriving` from each of the antenna positions ``views`` [m, v, 3] (one list entry per
     view): the unfolded points and the maps gathered once for all views."""
-    lin = chains.lin_last[chain]
-    y = np.einsum("mij,mj->mi", lin, points) + chains.shift_last[chain]
+    lin = np.take(chains.lin_last, chain, axis=0)
+    y = np.einsum("mij,mj->mi", lin, points) + np.take(chains.shift_last, chain, axis=0)
     out = []
     for v in range(views.shape[1]):
         first = y - views[:, v]
         first /= _norm(first)[:, None]
         out.append(np.einsum("mji,mj->mi", lin, first))
     return out
+
+
+def _norm2(x: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(x, axis=1)`` of float64 [m, 2] rows (the same sum, bitwise equal)."""
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1])
 
 
 def _norm(x: np.ndarray) -> np.ndarray:
