@@ -125,49 +125,7 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
             z, cnt, off, live = z[:off[m]], cnt[:m], off[:m + 1], m
         if m == 0:
             break
-        rows = np.repeat(order[:m], cnt)      # each corner's polygon
-        a, b, c = (lines[:, h, k].take(rows) for k in range(3))
-        value = np.multiply(a, z.real, out=a)  # a x + b y + c, in place
-        value += np.multiply(b, z.imag, out=b)
-        value += c
-        keep = value >= 0
-        keep_next = np.empty_like(keep)
-        keep_next[:-1] = keep[1:]
-        some = cnt > 0
-        first, final = off[:-1][some], off[1:][some] - 1
-        keep_next[final] = keep[first]
-        cross = keep != keep_next
-        if not cross.any() and keep.all():
-            continue                           # nothing cut by this half-plane
-        emitted = keep.astype(np.int64) + cross
-        end = np.empty(len(emitted) + 1, np.int64)
-        end[0] = 0
-        np.cumsum(emitted, out=end[1:])
-        new_off = end[off]
-        new_cnt = np.diff(new_off)
-        # where an edge leaves (or enters) the half-plane: the crossing point, after the corner
-        ci = np.flatnonzero(cross)
-        jump = np.zeros(len(z) + 1, np.int64)  # from a row's last corner back to its first
-        jump[final] = first - final - 1
-        nxt = ci + 1 + jump[ci]
-        t = value[ci] / (value[ci] - value[nxt])
-        here, there = z[ci], z[nxt]
-        point = np.empty_like(here)
-        point.real = here.real + t * (there.real - here.real)
-        point.imag = here.imag + t * (there.imag - here.imag)
-        z = np.repeat(z, emitted)
-        z[end[ci + 1] - 1] = point
-        # a convex polygon gains at most one corner, the batch's width with it; rounding that
-        # makes one slightly non-convex could ask for more (as clip_reference: the last slot keeps
-        # the last crossing point, else the last corner, that fell on or past it)
-        if new_cnt.max(initial=0) > width:
-            width += 1
-            over = np.flatnonzero(new_cnt > width)
-            if len(over):
-                is_cross = np.zeros(len(z), bool)
-                is_cross[end[ci + 1] - 1] = True
-                z, new_cnt, new_off = _truncate(z, is_cross, new_cnt, new_off, over, width)
-        cnt, off = new_cnt, new_off
+        z, cnt, off, width = _clip_half_plane(z, cnt, off, order[:m], lines[:, h], width)
     done.append((z, cnt))
     # back to the original rows: the finished blocks were split off the end of the sorted order
     z = np.concatenate([d[0] for d in done[::-1]] + [np.zeros(1, np.complex128)])   # a zero last:
@@ -183,6 +141,57 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     slot = np.arange(out_width)[None, :]
     out = z[start[:, None] + np.where(slot < final[:, None], slot, 0)]
     return out.view(np.float64).reshape(n, out_width, 2), final
+
+
+def _clip_half_plane(z, cnt, off, order, line, width):
+    """One half-plane of :func:`clip` on its flat corners: ``z`` complex128 (the live polygons'
+    corners, one row after another), ``cnt`` int64 [m] and ``off`` int64 [m + 1] (each row's
+    count and start), ``order`` int64 [m] (each live row's polygon), ``line`` float64 [n, 3]
+    (this half-plane of every polygon), ``width`` the batch's corner slots. Returns the new
+    ``(z, cnt, off, width)``."""
+    rows = np.repeat(order, cnt)          # each corner's polygon
+    a, b, c = (line[:, k].take(rows) for k in range(3))
+    value = np.multiply(a, z.real, out=a)  # a x + b y + c, in place
+    value += np.multiply(b, z.imag, out=b)
+    value += c
+    keep = value >= 0
+    keep_next = np.empty_like(keep)
+    keep_next[:-1] = keep[1:]
+    some = cnt > 0
+    first, final = off[:-1][some], off[1:][some] - 1
+    keep_next[final] = keep[first]
+    cross = keep != keep_next
+    if not cross.any() and keep.all():
+        return z, cnt, off, width              # nothing cut by this half-plane
+    emitted = keep.astype(np.int64) + cross
+    end = np.empty(len(emitted) + 1, np.int64)
+    end[0] = 0
+    np.cumsum(emitted, out=end[1:])
+    new_off = end[off]
+    new_cnt = np.diff(new_off)
+    # where an edge leaves (or enters) the half-plane: the crossing point, after the corner
+    ci = np.flatnonzero(cross)
+    jump = np.zeros(len(z) + 1, np.int64)  # from a row's last corner back to its first
+    jump[final] = first - final - 1
+    nxt = ci + 1 + jump[ci]
+    t = value[ci] / (value[ci] - value[nxt])
+    here, there = z[ci], z[nxt]
+    point = np.empty_like(here)
+    point.real = here.real + t * (there.real - here.real)
+    point.imag = here.imag + t * (there.imag - here.imag)
+    z = np.repeat(z, emitted)
+    z[end[ci + 1] - 1] = point
+    # a convex polygon gains at most one corner, the batch's width with it; rounding that
+    # makes one slightly non-convex could ask for more (as clip_reference: the last slot keeps
+    # the last crossing point, else the last corner, that fell on or past it)
+    if new_cnt.max(initial=0) > width:
+        width += 1
+        over = np.flatnonzero(new_cnt > width)
+        if len(over):
+            is_cross = np.zeros(len(z), bool)
+            is_cross[end[ci + 1] - 1] = True
+            z, new_cnt, new_off = _truncate(z, is_cross, new_cnt, new_off, over, width)
+    return z, new_cnt, new_off, width
 
 
 def _ranks(count: np.ndarray) -> np.ndarray:
