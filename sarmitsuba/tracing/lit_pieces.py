@@ -184,24 +184,31 @@ def corner_samples(pieces: Pieces) -> tuple[np.ndarray, np.ndarray]:
     p = pieces.patch
     whole = np.flatnonzero(pieces.whole)
     border = np.flatnonzero(~pieces.whole)
-    poly, count = pieces.polygon[pieces.border[border]], pieces.count[pieces.border[border]]
+    rows = np.take(pieces.border, border)
+    poly, count = np.take(pieces.polygon, rows, axis=0), np.take(pieces.count, rows)
     # each piece's samples in one run, pieces in order: a whole patch's 4, a border piece's corners
     size = np.full(len(pieces.whole), 4, np.int64)
     size[border] = count
     first = np.cumsum(size) - size
     out = np.empty((int(size.sum()), 2))
     points = out.view(np.complex128).reshape(-1)            # a point as one 16-byte item: faster scatters
-    corners = (pieces.cell[whole] + 0.5)[:, None, :] + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)
+    corners = (np.take(pieces.cell, whole, axis=0) + 0.5)[:, None, :] + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)
     corners *= p
-    points[(first[whole][:, None] + np.arange(4)).reshape(-1)] = corners.view(np.complex128).reshape(-1)
-    slots = corner_slots(count, poly.shape[1])
-    centroid = (poly * slots[..., None]).sum(axis=1) / np.maximum(count, 1)[:, None]
+    np.put(points, (np.take(first, whole)[:, None] + np.arange(4)).reshape(-1), corners.view(np.complex128).reshape(-1))
+    k = poly.shape[1]
+    slots = corner_slots(count, k)
+    # the live corners summed in corner order (the masked sum over the middle axis, same bits)
+    centroid = poly[:, 0] * slots[:, 0, None]
+    for j in range(1, k):
+        centroid += poly[:, j] * slots[:, j, None]
+    centroid /= np.maximum(count, 1)[:, None]
     toward = centroid[:, None, :] - poly
     distance = np.sqrt(toward[..., 0] * toward[..., 0] + toward[..., 1] * toward[..., 1])
     step = np.minimum(SAMPLE_INSET * p, 0.5 * distance) / np.where(distance > 0, distance, 1.0)
     toward *= step[..., None]
     toward += poly                                          # poly + toward * step
-    points[(first[border][:, None] + np.arange(poly.shape[1]))[slots]] = toward.view(np.complex128)[..., 0][slots]
+    live = np.flatnonzero(slots)
+    np.put(points, np.take(first, border)[live // k] + live % k, np.take(toward.view(np.complex128).reshape(-1), live))
     return out, np.repeat(np.arange(len(size)), size)
 
 
@@ -218,18 +225,19 @@ def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarr
     for leg in range(depth):
         live = order >= leg
         rows = np.flatnonzero(live)
-        a = antenna[rows] if leg == 0 else q[rows, leg - 1]
-        b = q[rows, leg]
-        part_b = chains.parts[chain[rows], leg]
-        b = lift(b, surfaces.normal[part_b], a)
+        chain_rows = np.take(chain, rows)
+        a = np.take(antenna if leg == 0 else q[:, leg - 1], rows, axis=0)
+        b = np.take(q[:, leg], rows, axis=0)
+        part_b = np.take(chains.parts[:, leg], chain_rows)
+        b = lift(b, np.take(surfaces.normal, part_b, axis=0), a)
         if leg > 0:
-            a = lift(a, surfaces.normal[chains.parts[chain[rows], leg - 1]], b)
+            a = lift(a, np.take(surfaces.normal, np.take(chains.parts[:, leg - 1], chain_rows), axis=0), b)
         # every ray starts on the mesh (the first leg from its far end): its float32 origin sits
         # near the scene, where Embree's precision is the scene's, not the antenna's range's
         start[rows, leg], end[rows, leg], exists[rows, leg] = b if leg == 0 else a, a if leg == 0 else b, True
     last = chains.last[chain]
     first_bounce = order == 0
-    start[:, depth] = lift(points, surfaces.normal[last], antenna)
+    start[:, depth] = lift(points, np.take(surfaces.normal, last, axis=0), antenna)
     end[:, depth] = antenna
     exists[:, depth] = ~first_bounce            # at the first bounce the return is the way out
     return start, end, exists
@@ -303,13 +311,17 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     rows = np.flatnonzero(mixed[owner])
     if len(rows) == 0:
         return Blockers.empty()
-    points = surfaces.to_world(chains.last[chain[rows]], coords[rows])
-    start, end, exists = legs(surfaces, chains, chain[rows], points, antenna[chain[rows]])
-    sample, leg = np.nonzero(exists)
-    part, _ = rays.first_hit(start[sample, leg], end[sample, leg])
+    chain_rows = np.take(chain, rows)
+    points = surfaces.to_world(np.take(chains.last, chain_rows), np.take(coords, rows, axis=0))
+    start, end, exists = legs(surfaces, chains, chain_rows, points, np.take(antenna, chain_rows, axis=0))
+    # the legs that exist, as rows of the flat [s * (D + 1), 3] tables (row gathers by np.take)
+    slot = np.flatnonzero(exists)
+    sample, leg = np.divmod(slot, exists.shape[1])
+    start, end = np.take(start.reshape(-1, 3), slot, axis=0), np.take(end.reshape(-1, 3), slot, axis=0)
+    part, _ = rays.first_hit(start, end)
     found = np.flatnonzero(part != NO_HIT)
     key = np.where(part >= 0, leg * surfaces.n_parts + part, -2)[found]
-    piece = owner[rows][sample[found]]
+    piece = np.take(owner, np.take(rows, np.take(sample, found)))
     # an occluder is the whole face it belongs to and the faces next to it: they cast the rest of
     # the shadow, whichever of them the samples met (a wall meshed as many triangles; a box's roof
     # and the wall that form the tip of its shadow)
@@ -320,12 +332,14 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
     rep = np.repeat(via, size)
     local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
     extra = partner_parts[np.repeat(partner_start[hit_part], size) + local]
-    a = start[sample[found[rep]], leg[found[rep]]]
-    b = end[sample[found[rep]], leg[found[rep]]]
+    met = np.take(found, rep)
+    a, b = np.take(start, met, axis=0), np.take(end, met, axis=0)
     centre, radius = rays.part_sphere
+    centre = np.take(centre, extra, axis=0)
     ab = b - a
-    t = np.clip(np.einsum("mi,mi->m", centre[extra] - a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0, 1)
-    near = np.linalg.norm(a + t[:, None] * ab - centre[extra], axis=1) <= radius[extra] + reach
+    t = np.clip(np.einsum("mi,mi->m", centre - a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0, 1)
+    gap = a + t[:, None] * ab - centre
+    near = np.sqrt(np.add.reduce(gap * gap, axis=1)) <= np.take(radius, extra) + reach    # as linalg.norm
     piece = np.concatenate([piece, piece[rep[near]]])
     key = np.concatenate([key, (key[rep[near]] // surfaces.n_parts) * surfaces.n_parts + extra[near]])
     piece_chain = np.zeros(n, np.int64)

@@ -34,7 +34,7 @@ def lift(points: np.ndarray, normal: np.ndarray, toward: np.ndarray) -> np.ndarr
     """``points`` [m, 3] moved off their planes (unit ``normal`` [m, 3]) to the side of ``toward``
     [m, 3], by ``SURFACE_LIFT + SURFACE_LIFT_RELATIVE |p|``; rows with a zero normal stay."""
     side = np.sign(np.einsum("mi,mi->m", normal, toward - points))
-    size = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * np.linalg.norm(points, axis=1)
+    size = SURFACE_LIFT + SURFACE_LIFT_RELATIVE * np.sqrt(np.add.reduce(points * points, axis=1))  # linalg.norm
     return points + normal * (side * size)[:, None]
 
 
@@ -128,8 +128,11 @@ class Rays:
         triangle = dr.gather(mi.UInt32, self.base, shape, mesh) + pi.prim_index
         part = dr.select(mesh, dr.gather(mi.Int32, self.part, triangle, mesh), NOT_A_MESH)
         part = dr.select(found, part, NO_HIT)
-        dr.eval(part, pi.t)
-        part, t = part.numpy().astype(np.int64), np.where(found.numpy(), pi.t.numpy().astype(np.float64), np.inf)
+        # the distance masked in the cast's own kernel (reading ``found`` after it launched one
+        # more kernel per call, and np.where another pass); inf float32 widens to inf float64
+        t = dr.select(found, pi.t, dr.inf)
+        dr.eval(part, t)
+        part, t = part.numpy().astype(np.int64), t.numpy().astype(np.float64)
         return self._resolve(part, t, start, end, direction), t
 
     def _resolve(self, part, t, start, end, direction) -> np.ndarray:
