@@ -148,19 +148,20 @@ class MeshTracer:
         point = s.to_world(chains.last[chain], centroid2)
         source = image_source(chains, reference[chains.sub])[chain]
         leg = point - source
-        distance = np.linalg.norm(leg, axis=1)
-        omega = lit.sent[reached] * area * np.abs(np.einsum("mi,mi->m", leg, s.normal[chains.last[chain]])) / distance ** 3
-        first = chains.unfolded(point, chain) - reference[chains.sub[chain]]
-        first /= np.linalg.norm(first, axis=1, keepdims=True)
+        distance = _norm(leg)                                 # (np.linalg.norm's sum, bitwise)
+        omega = lit.sent[reached] * area * np.abs(np.einsum("mi,mi->m", leg, np.take(s.normal, np.take(chains.last, chain),
+                                                                                    axis=0))) / distance ** 3
+        first = chains.unfolded(point, chain) - np.take(reference, np.take(chains.sub, chain), axis=0)
+        first /= _norm(first)[:, None]
         # with Jones matrices, the mean over the transmit channels of TE and TM carried through
         # (as the tubes' |J|^2 / 2 where the planes of incidence agree); else the channel's own r
         tables = (self.table.table_te, self.table.table_tm) if self.returns.polarimetric else (self.table.table,)
         powers = [np.ones(len(chain)) for _ in tables]
         for i in range(int(chains.order.max(initial=0))):
             live = chains.order[chain] > i
-            window = np.maximum(chains.parts[chain, i], 0)
-            d = np.einsum("mji,mj->mi", chains.lin[chain, i], first)
-            cos = np.abs(np.einsum("mi,mi->m", s.normal[window], d))
+            window = np.maximum(np.take(chains.parts[:, i], chain), 0)
+            d = np.einsum("mji,mj->mi", np.take(chains.lin[:, i], chain, axis=0), first)
+            cos = np.abs(np.einsum("mi,mi->m", np.take(s.normal, window, axis=0), d))
             for power, table in zip(powers, tables):
                 index = np.clip(np.round(cos * (table.shape[1] - 1)).astype(np.int64), 0, table.shape[1] - 1)
                 factor = np.abs(table[s.row[window], index]) ** 2 * self.table.specular[s.row[window]] ** 2

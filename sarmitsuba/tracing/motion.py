@@ -81,8 +81,8 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     # the candidate lines sorted by piece (stably: a piece's lines keep their order, which breaks
     # ties below); a segment's candidates are then one run of rows
     order = np.argsort(line_owner, kind="stable")
-    owners = line_owner[order]
-    lines, rates = np.asarray(lines, float)[order], np.asarray(rates, float)[order]
+    owners = np.take(line_owner, order)
+    lines, rates = np.take(np.asarray(lines, float), order, axis=0), np.take(np.asarray(rates, float), order, axis=0)
     moving = (rates[:, 0] != 0.0) | (rates[:, 1] != 0.0) | (rates[:, 2] != 0.0)
     columns = tuple(np.ascontiguousarray(lines[:, i]) for i in range(3))     # (1-D takes are the cheapest)
     start, end = np.asarray(start, float), np.asarray(end, float)
