@@ -12,7 +12,7 @@ import pytest
 
 from sarmitsuba.core.arrays import unique_pairs
 from sarmitsuba.tracing.lit_pieces import Blockers, LitPieces, spread_occluders
-from sarmitsuba.tracing.patches import cell_key
+from sarmitsuba.tracing.piece_cuts import cell_key
 
 
 def _random_blockers(rng, n, m, non_mesh=0.05):
@@ -181,7 +181,7 @@ def test_corner_samples_are_the_reference(patch):
     corners, an empty region, a region inside one patch): the same samples, bit for bit, in the
     same order."""
     from sarmitsuba.tracing.lit_pieces import corner_samples
-    from sarmitsuba.tracing.patches import pieces_of
+    from sarmitsuba.tracing.piece_cuts import pieces_of
     width = 8
     angle = np.linspace(0, 2 * np.pi, width, endpoint=False)
     regions = [np.stack([5 + 4 * np.cos(angle), -3 + 3 * np.sin(angle)], 1),

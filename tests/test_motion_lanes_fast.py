@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sarmitsuba.tracing.patches import pieces_of
+from sarmitsuba.tracing.piece_cuts import pieces_of
 from sarmitsuba.tracing.motion import line_rates
 from sarmitsuba.tracing.mesh_trace import _unit_rows
 from test_patches_fast import _regions

@@ -27,7 +27,8 @@ from sarmitsuba.scene.loader import shape_frame
 from sarmitsuba.tracing.chains import region_lines, unfold
 from sarmitsuba.tracing.facets import mesh_parts
 from sarmitsuba.tracing.occlusion import boundary, lit_boundary, shadow_lines
-from sarmitsuba.tracing.patches import pieces_of, surfaces_from
+from sarmitsuba.tracing.patches import surfaces_from
+from sarmitsuba.tracing.piece_cuts import pieces_of
 from sarmitsuba.tracing.polygons import clip, edge_lines, inside, moments, pad
 
 

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from sarmitsuba.tracing import motion, patches
-from sarmitsuba.tracing.patches import Surfaces, _to_world_reference, pieces_of
+from sarmitsuba.tracing import piece_cuts
+from sarmitsuba.tracing.patches import Surfaces, _to_world_reference
+from sarmitsuba.tracing.piece_cuts import pieces_of
 from sarmitsuba.tracing.polygons import pad
 
 
@@ -226,8 +228,8 @@ def _regions(rng, n: int, patch: float):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_row_spans_from_shared_lines(seed):
-    """The extents on each grid line computed once (:func:`patches._line_extents`) give each row
-    what :func:`patches._row_spans` computes on its own two lines."""
+    """The extents on each grid line computed once (:func:`piece_cuts._line_extents`) give each row
+    what :func:`piece_cuts._row_spans` computes on its own two lines."""
     rng = np.random.default_rng(seed)
     patch = 1.7439
     poly, count = _regions(rng, 40, patch)
@@ -240,9 +242,9 @@ def test_row_spans_from_shared_lines(seed):
     line_region = np.repeat(live, lines)
     line_y = np.repeat(y_lo, lines) + np.arange(int(lines.sum())) - np.repeat(np.cumsum(lines) - lines, lines)
     bottom = np.arange(len(row)) + np.repeat(np.arange(len(live)), rows)
-    on_lines = patches._line_extents(poly, count, patch, line_region, line_y, bottom)
-    got = patches._row_spans(poly, count, patch, region, row, on_lines)
-    want = patches._row_spans(poly, count, patch, region, row)
+    on_lines = piece_cuts._line_extents(poly, count, patch, line_region, line_y, bottom)
+    got = piece_cuts._row_spans(poly, count, patch, region, row, on_lines)
+    want = piece_cuts._row_spans(poly, count, patch, region, row)
     for g, w in zip(got, want):
         for a, b in zip(g, w):
             np.testing.assert_array_equal(a, b)
@@ -399,7 +401,7 @@ def test_cell_lines_are_the_reference():
     one, zero = np.ones_like(x0), np.zeros_like(x0)
     want = np.stack([np.stack([one, zero, -x0], 1), np.stack([-one, zero, x0 + patch], 1),
                      np.stack([zero, one, -y0], 1), np.stack([zero, -one, y0 + patch], 1)], axis=1)
-    got = patches._cell_lines(cell, patch)
+    got = piece_cuts._cell_lines(cell, patch)
     np.testing.assert_array_equal(got, want)
     assert np.array_equal(np.signbit(got), np.signbit(want))
-    assert patches._cell_lines(cell[:0], patch).shape == (0, 4, 3)
+    assert piece_cuts._cell_lines(cell[:0], patch).shape == (0, 4, 3)

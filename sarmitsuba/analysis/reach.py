@@ -106,7 +106,7 @@ def reach_work(loaded: LoadedScene, geometry: AcquisitionGeometry, patch: float,
     centroid, area, normal = _mesh_triangles(loaded)
     weight = (np.sqrt(area) / patch + 1.0) ** 2
     if len(area):
-        # a triangle no wider than a patch is one piece (patches.pieces_of's small regions)
+        # a triangle no wider than a patch is one piece (piece_cuts.pieces_of's small regions)
         weight = np.where(np.sqrt(area * 2.0) <= patch, 1.0, weight)
     to_sensor = geometry.positions[min(n_pulses - 1, n_pulses // 2)] - centroid
     facing = np.einsum("ij,ij->i", normal, to_sensor) > 0

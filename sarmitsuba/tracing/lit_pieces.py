@@ -6,7 +6,7 @@ sub-aperture's reference position ``A``), :func:`lit_pieces`:
 
 1. clips each chain's last part to the half-planes of the points the antenna reaches through its
    mirrors (its *region*, exact: :func:`sarmitsuba.tracing.chains.region_lines`);
-2. cuts the regions into pieces of the part's patches (:func:`sarmitsuba.tracing.patches.pieces_of`),
+2. cuts the regions into pieces of the part's patches (:func:`sarmitsuba.tracing.piece_cuts.pieces_of`),
    within the reach of the beam;
 3. aims rays at every piece's corners (pulled a hair inside the piece), along each leg of the path
    through the chain (the reflection points of :func:`sarmitsuba.tracing.chains.path_points`) and
@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .chains import Chains, path_points, region_lines, unfolded_lines
-from .patches import UNIT_SQUARE, Pieces, Surfaces, cell_key, pieces_of
+from .patches import UNIT_SQUARE, Pieces, Surfaces
+from .piece_cuts import cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 

@@ -36,7 +36,8 @@ from .polygons import edge_lines
 from .surface_clutter import ClutterKernel
 from .edges import find_wedges, segment_wedges
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
-from .patches import Pieces, Surfaces, pieces_of
+from .patches import Pieces, Surfaces
+from .piece_cuts import pieces_of
 from .physical_optics import SINC_REGIME, split_threshold
 from .visibility import PathVisibility, Rays, lift
 

@@ -19,7 +19,8 @@ import numpy as np
 
 from .chains import Chains, facing_sign, image_source
 from .integration import AREA, OPEN_START, OPEN_END, SINC, SPLIT_END, SPLIT_START, PieceTable, TermLanes
-from .patches import Surfaces, cell_key
+from .patches import Surfaces
+from .piece_cuts import cell_key
 from .polygons import edge_lines, inside
 from .surface_clutter import (ScattererLanes, cell_hash, points_inside_boundary, scatterer_offsets, scatterer_phases,
                               surface_keys)
