@@ -73,13 +73,7 @@ class Rays:
     def _ray(self, start: np.ndarray, end: np.ndarray | None, direction: np.ndarray | None) -> tuple:
         """Float32 rays from ``start`` toward ``end`` (stopping just short of it) or along
         ``direction`` (unbounded)."""
-        if end is not None:
-            span = end - start
-            length = np.linalg.norm(span, axis=1)
-            direction = span / np.where(length > 0, length, 1.0)[:, None]
-            tmax = length * (1.0 - 1e-6)
-        else:
-            tmax = np.full(len(start), np.inf)
+        direction, tmax = _direction_and_reach(start, end, direction)
         # one float32 upload (NumPy rounds float64 to float32 as Dr.Jit would, and much faster
         # than Dr.Jit's nested constructors); the cast's kernel gathers the columns
         n = len(start)
@@ -95,13 +89,7 @@ class Rays:
 
     def _ray_reference(self, start: np.ndarray, end: np.ndarray | None, direction: np.ndarray | None) -> tuple:
         """:meth:`_ray` as three uploads of the nested types (the reference of its packing)."""
-        if end is not None:
-            span = end - start
-            length = np.linalg.norm(span, axis=1)
-            direction = span / np.where(length > 0, length, 1.0)[:, None]
-            tmax = length * (1.0 - 1e-6)
-        else:
-            tmax = np.full(len(start), np.inf)
+        direction, tmax = _direction_and_reach(start, end, direction)
         ray = mi.Ray3f(device_array(mi.Point3f, start.T), device_array(mi.Vector3f, direction.T))
         ray.maxt = device_array(mi.Float, np.minimum(tmax, 3.4e38))
         return ray
@@ -251,3 +239,13 @@ def _lifted(point, normal, toward):
     ``normal``) to the side of ``toward`` (float64, Dr.Jit), as :func:`lift`."""
     side = dr.select(dr.dot(normal, toward - point) >= 0, 1.0, -1.0)
     return point + normal * (side * (SURFACE_LIFT + SURFACE_LIFT_RELATIVE * dr.norm(point)))
+
+
+def _direction_and_reach(start: np.ndarray, end: np.ndarray | None, direction: np.ndarray | None):
+    """Unit directions float64 [n, 3] from ``start`` toward ``end`` (or ``direction`` as given) and
+    each ray's ``maxt`` [n]: just short of ``end``, else unbounded."""
+    if end is None:
+        return direction, np.full(len(start), np.inf)
+    span = end - start
+    length = np.linalg.norm(span, axis=1)
+    return span / np.where(length > 0, length, 1.0)[:, None], length * (1.0 - 1e-6)
