@@ -19,7 +19,7 @@ from . import jones as pol
 from .device import device_array
 from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW, TRANSITION_SERIES
 
-__all__ = ["EdgeTerms", "sinc", "x_dsinc"]
+__all__ = ["EdgeTerms", "boundary_clearance", "boundary_step", "fringe_coefficients", "sinc", "x_dsinc"]
 
 _SMALL = 1e-4
 
@@ -58,6 +58,34 @@ def _fringe(phi, phi_i, nn, face_0, face_n):
         x_s = dr.select(lit, x_s + r_te * (dr.sin(a_i) / den), x_s)
         x_h = dr.select(lit, x_h - r_tm * (dr.sin(a) / den), x_h)
     return x_s, x_h
+
+
+def boundary_clearance(phi, phi_i, nn):
+    """The distance [rad] of ``(phi, phi_i)`` from the nearest shadow or reflection boundary, in
+    Dr.Jit: NumPy reference :func:`sarmitsuba.tracing.edges.boundary_clearance`."""
+    out = None
+    for x in (phi - phi_i, phi + phi_i, 2.0 * math.pi * nn - phi - phi_i):
+        near = dr.minimum(dr.abs(x - math.pi), dr.abs(x + math.pi))
+        out = near if out is None else dr.minimum(out, near)
+    return out
+
+
+def boundary_step(phi, phi_i, nn):
+    """The step [rad] added to ``phi_i`` before the fringe coefficients are evaluated, eq. (E3):
+    0 off every boundary, else up, or down where up lands within the window of another boundary
+    (grazing incidence). NumPy reference :func:`sarmitsuba.tracing.edges.boundary_step`."""
+    up = boundary_clearance(phi, phi_i + SINGULAR_STEP, nn)
+    down = boundary_clearance(phi, phi_i - SINGULAR_STEP, nn)
+    step = dr.select((up >= SINGULAR_WINDOW) | (up >= down), SINGULAR_STEP, -SINGULAR_STEP)
+    return dr.select(boundary_clearance(phi, phi_i, nn) < SINGULAR_WINDOW, step, 0.0)
+
+
+def fringe_coefficients(phi, phi_i, nn, face_0, face_n):
+    """The fringe coefficients ``(X_s, X_h)`` of eq. (E3) at ``(phi, phi_i)`` (float32, [rad]) of a
+    convex wedge of exterior angle ``nn pi``, with ``phi_i`` stepped off the shadow and reflection
+    boundaries (:func:`boundary_step`); ``face_0``, ``face_n`` the faces' ``(r_te, r_tm)``
+    (mi.Complex2f). Finite wherever the inputs are (tests/test_edges.py)."""
+    return _fringe(phi, phi_i + boundary_step(phi, phi_i, nn), nn, face_0, face_n)
 
 
 def _transition(x):
@@ -155,11 +183,7 @@ class EdgeTerms:
         convex = wedge_n > 1.0 + 1e-3
         nn = dr.select(convex, wedge_n, 2.0)
         # the shadow and reflection boundaries of either face, where Keller's and PO's terms are
-        # both infinite and their difference finite: evaluated SINGULAR_STEP off (E3)
-        singular = mi.Bool(False)
-        for x in (phi - phi_i, phi + phi_i, 2.0 * nn * math.pi - phi - phi_i):
-            for centre in (-math.pi, math.pi):
-                singular |= dr.abs(x - centre) < SINGULAR_WINDOW
+        # both infinite and their difference finite: evaluated a step off them (E3)
         normal_n = dr.sin(nn * math.pi) * x0 - dr.cos(nn * math.pi) * n0    # face N's normal, exterior side
 
         def reflection(row, cos):
@@ -169,15 +193,14 @@ class EdgeTerms:
             return coefficient, coefficient
 
         # the traced path: the wave arrives along d, leaves along b
-        x_s, x_h = _fringe(phi, dr.select(singular, phi_i + SINGULAR_STEP, phi_i), nn,
-                           reflection(data["row"], cos_i), reflection(data["wedge_row"], -dr.dot(d, normal_n)))
+        x_s, x_h = fringe_coefficients(phi, phi_i, nn, reflection(data["row"], cos_i),
+                                       reflection(data["wedge_row"], -dr.dot(d, normal_n)))
         if depth > 0:
             # and its reverse, not traced (the edge first, the mirrors after it: it arrives along
             # -b and leaves along -d): the same length, the same Keller term, its own PO subtracted
             # (the fringe is not reciprocal where PO is not), eq. (E4)
-            back_s, back_h = _fringe(phi_i, dr.select(singular, phi + SINGULAR_STEP, phi), nn,
-                                     reflection(data["row"], dr.abs(dr.dot(b, n0))),
-                                     reflection(data["wedge_row"], dr.abs(dr.dot(b, normal_n))))
+            back_s, back_h = fringe_coefficients(phi_i, phi, nn, reflection(data["row"], dr.abs(dr.dot(b, n0))),
+                                                 reflection(data["wedge_row"], dr.abs(dr.dot(b, normal_n))))
             x_s, x_h = x_s + back_s, x_h + back_h
         # the receiver outside the wedge (face N at phi = N pi; a free edge is seen from every side)
         ok = convex & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < nn * math.pi)

@@ -31,6 +31,7 @@ import numpy as np
 from .patches import Surfaces
 
 __all__ = ["WEDGE_ANGLE", "ON_EDGE", "JUNCTION", "SINGULAR_WINDOW", "SINGULAR_STEP", "GRAZING_EDGE", "Wedges", "find_wedges",
+           "boundary_clearance", "boundary_step",
            "segment_wedges", "keller", "po_edge", "fringe", "edge_field", "double_field", "exterior_angle",
            "plate_scattering", "transition", "keller_uniform"]
 
@@ -437,13 +438,28 @@ def fringe(phi, phi_i, n, r_te0, r_tm0, r_ten, r_tmn):
     return np.where(convex, xs, 0), np.where(convex, xh, 0)
 
 
-def _singular(phi, phi_i, n):
-    """Where a shadow or reflection boundary of either face makes Keller's and PO's terms both
-    infinite (their difference is finite), within :data:`SINGULAR_WINDOW`, eq. (E3)."""
-    out = np.zeros(np.shape(phi), bool)
+def boundary_clearance(phi, phi_i, n):
+    """The distance [rad] of ``(phi, phi_i)`` from the nearest shadow or reflection boundary of
+    either face, where Keller's and PO's terms of (E3) are both infinite: ``phi -+ phi_i = +-pi``
+    and ``2 n pi - phi - phi_i = +-pi`` (``n`` of a convex wedge)."""
+    out = np.full(np.shape(phi), np.inf)
     for x in (phi - phi_i, phi + phi_i, 2 * n * np.pi - phi - phi_i):
-        out |= (np.abs(x - np.pi) < SINGULAR_WINDOW) | (np.abs(x + np.pi) < SINGULAR_WINDOW)
+        out = np.minimum(out, np.minimum(np.abs(x - np.pi), np.abs(x + np.pi)))
     return out
+
+
+def boundary_step(phi, phi_i, n):
+    """The step [rad] added to ``phi_i`` before the fringe coefficients are evaluated at
+    ``(phi, phi_i)``, eq. (E3): 0 at least :data:`SINGULAR_WINDOW` off every boundary, else
+    ``+SINGULAR_STEP``, or ``-SINGULAR_STEP`` where the step up lands within the window of another
+    boundary and the step down lands farther. Two boundaries cross where the incidence grazes a
+    face (``phi_i -> 0``: the shadow and reflection boundaries lie ``2 phi_i`` apart), and no three
+    cross for a convex wedge, so one of the two steps always clears both by the window."""
+    phi, phi_i, n = np.broadcast_arrays(*(np.asarray(a, float) for a in (phi, phi_i, n)))
+    up = boundary_clearance(phi, phi_i + SINGULAR_STEP, n)
+    down = boundary_clearance(phi, phi_i - SINGULAR_STEP, n)
+    step = np.where((up >= SINGULAR_WINDOW) | (up >= down), SINGULAR_STEP, -SINGULAR_STEP)
+    return np.where(boundary_clearance(phi, phi_i, n) < SINGULAR_WINDOW, step, 0.0)
 
 
 def _angle(v, t, x0, n0):
@@ -466,10 +482,10 @@ def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0), rev
     phi_i, sin_i = _angle(-d, t, x0, n0)
     phi, sin_s = _angle(b, t, x0, n0)
     n = exterior_angle(x0, n0, xn)
-    step = np.where(_singular(phi, phi_i, np.where(n > 1, n, 2.0)), SINGULAR_STEP, 0.0)
-    xs, xh = fringe(phi, phi_i + step, n, *r0, *rn)
+    nn = np.where(n > 1, n, 2.0)
+    xs, xh = fringe(phi, phi_i + boundary_step(phi, phi_i, nn), n, *r0, *rn)
     if reverse:
-        back_s, back_h = fringe(phi_i, phi + step, n, *r0, *rn)
+        back_s, back_h = fringe(phi_i, phi + boundary_step(phi_i, phi, nn), n, *r0, *rn)
         xs, xh = xs + back_s, xh + back_h
     ok = (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.where(n > 1, n, 2.0) * np.pi)
     c_e = np.where(ok, xs / (2 * np.pi * np.maximum(sin_i, GRAZING_EDGE)**2), 0)
