@@ -381,13 +381,14 @@ def _model_terms(cost, triangles: int, cost_model) -> list[float]:
 
 def _measure_in_process(scene: str, pulses: int = 0, material: str = "", scheduler: str | None = None,
                         save: str | None = None) -> dict:
-    """:func:`measure` in a fresh Python process (its own peak RSS)."""
+    """:func:`measure` in a fresh Python process (its own peak RSS); its warnings and errors go to
+    this process's stderr (captured, a failed render's message was lost)."""
     import json
     import subprocess
     import sys
     command = [sys.executable, str(Path(__file__).resolve()), "--measure", scene, str(pulses), material or "-",
                scheduler or "-", save or "-"]
-    out = subprocess.run(command, capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(command, stdout=subprocess.PIPE, text=True, check=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
