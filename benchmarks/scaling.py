@@ -330,7 +330,8 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
     (what an idle 2-core machine's wall time approaches for the single-threaded host work; the
     shared machine's wall time is not), the process's peak RSS [MiB] and the counts the model
     is fitted to. Run it in a fresh process (``--measure``) for a peak RSS of this render alone.
-    ``save``: an ``.npy`` path for the raw data (complex64 [pulses, samples])."""
+    ``save``: an ``.npy`` path for the raw data (complex64 [pulses, samples]); the image's
+    quicklook goes beside it (``.png``)."""
     import resource
     import sarmitsuba.pipeline as pipeline
     from sarmitsuba import info as scene_info_module
@@ -358,6 +359,8 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
         pipeline.trace = original
     if save:
         np.save(save, sim.raw.data)
+        from sarmitsuba.products.image_files import write_quicklook
+        write_quicklook(sim.image, str(Path(save).with_suffix(".png")))
     from sarmitsuba.analysis import cost as cost_model
     return {"scene": scene, "pulses": sim.raw.n_pulses, "material": material, "triangles": sim.loaded.n_triangles,
             "subapertures": cost.subapertures, "subapertures_per_launch": cost.subapertures_per_launch,
