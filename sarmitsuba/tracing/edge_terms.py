@@ -84,7 +84,7 @@ def fringe_coefficients(phi, phi_i, nn, face_0, face_n):
     """The fringe coefficients ``(X_s, X_h)`` of eq. (E3) at ``(phi, phi_i)`` (float32, [rad]) of a
     convex wedge of exterior angle ``nn pi``, with ``phi_i`` stepped off the shadow and reflection
     boundaries (:func:`boundary_step`); ``face_0``, ``face_n`` the faces' ``(r_te, r_tm)``
-    (mi.Complex2f). Finite wherever the inputs are (tests/test_edges.py)."""
+    (mi.Complex2f). Finite wherever the inputs are (tests/test_edge_boundaries.py)."""
     return _fringe(phi, phi_i + boundary_step(phi, phi_i, nn), nn, face_0, face_n)
 
 
