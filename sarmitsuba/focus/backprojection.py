@@ -43,12 +43,11 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.raw import RawData
-from .beam import BeamWeighting, beam_axes, beam_weighting, illumination_count, normalise_columns
+from .beam import BeamWeighting, beam_axes, beam_weighting, illumination_count, normalise_columns, pixel_weights
 from ..core.trajectory import echo_length
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
 from .grid import ImageGrid
 from .range_lines import PAD, carrier_table, fft_upsample, premodulated_pairs, residual_carrier_table
-from .windows import spectral_window
 
 __all__ = ["backproject", "backproject_reference", "illumination_count"]
 
@@ -294,7 +293,6 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
     t_start = time.perf_counter()
     t0, oversample, _, _ = check_inputs(raw, grid, oversample, 1, 1)
     beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
-    w_name, w_params = beam.window
     n_pulses, n_samples = raw.data.shape
     dt = 1.0 / (raw.fs * oversample)
     n_up = (n_samples - 1) * oversample + 1
@@ -311,21 +309,9 @@ def backproject_reference(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
                              None if receive is None else receive[1][p], x)
         echo = np.interp(length / SPEED_OF_LIGHT, tau_line, line, left=0.0, right=0.0)
         cycles = np.mod(raw.fc * length / SPEED_OF_LIGHT, 1.0)
-        if beam.sines is None:
-            u = np.full(x.shape[0], p / (n_pulses - 1) if n_pulses > 1 else 0.5)
-            pattern = np.ones(x.shape[0])
-        else:
-            sin_lo, sin_hi = beam.sines
-            los = x - raw.tx_position[p]
-            s = los @ axes[p] / np.linalg.norm(los, axis=1)          # along the beam's axis (J4)
-            u = (s - sin_lo) / (sin_hi - sin_lo)       # in [0, 1] inside the beam
-            u = np.where((s >= sin_lo) & (s <= sin_hi), u, -1.0)
-            phi = np.arcsin(np.clip(s, -1.0, 1.0))
-            pattern = (np.sinc(beam.pattern * np.sin(phi - beam.squint)) ** 2 if beam.pattern is not None
-                       else np.ones(x.shape[0]))
-        weight = spectral_window(w_name, u - 0.5, 1.0, **w_params)   # zero for u outside [0, 1]
+        weight, expected = pixel_weights(raw, beam, axes, p, x)
         image += weight * echo * np.exp(2j * np.pi * cycles)
-        gain += weight * pattern
+        gain += expected
     if beam.sines is None:
         total = gain[0] if gain.size else 0.0
         data = (image / total if total > 0 else 0.0 * image).reshape(grid.shape).astype(np.complex64)

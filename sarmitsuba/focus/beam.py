@@ -30,7 +30,7 @@ from .windows import spectral_window, window_spec
 
 __all__ = ["WINDOW_TABLE", "BeamWeighting", "beam_weighting", "beam_sines", "beam_axes", "unit_rows",
            "illumination_count", "sine_scale",
-           "expected_gain", "column_gain", "normalise_columns"]
+           "expected_gain", "column_gain", "normalise_columns", "pixel_weights", "column_scale"]
 
 #: Samples of the beam-weight tables over u in [0, 1] (linear interpolation between them:
 #: relative error below 1e-6 for every window of the windows module and patterns of up to two
@@ -268,6 +268,39 @@ def expected_gain(raw: RawData, grid: ImageGrid, beam: BeamWeighting, step: int 
     rows, cols, pts = _coarse_points(grid, step)
     gain = _coarse_gain(raw, beam, pts, pulse_block)
     return _bilinear(gain.reshape(rows.size, cols.size), rows, cols, grid.shape)
+
+
+def pixel_weights(raw: RawData, beam: BeamWeighting, axes: np.ndarray, p: int,
+                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The exact (untabulated) weight ``w(u)`` and expected gain ``w(u) g^2`` of pulse ``p`` at
+    pixels ``x`` float64 [m, 3], float64 [m] each: the per-pixel form of the module's rules
+    that the float64 references use (:func:`~sarmitsuba.focus.backproject_reference`,
+    :class:`~sarmitsuba.focus.linear.BackprojectionOperator`). ``axes``: :func:`beam_axes`."""
+    w_name, w_params = beam.window
+    n_pulses = raw.data.shape[0]
+    if beam.sines is None:
+        u = np.full(x.shape[0], p / (n_pulses - 1) if n_pulses > 1 else 0.5)
+        pattern = np.ones(x.shape[0])
+    else:
+        sin_lo, sin_hi = beam.sines
+        los = x - raw.tx_position[p]
+        sine = los @ axes[p] / np.linalg.norm(los, axis=1)          # along the beam's axis (J4)
+        u = np.where((sine >= sin_lo) & (sine <= sin_hi), (sine - sin_lo) / (sin_hi - sin_lo), -1.0)
+        phi = np.arcsin(np.clip(sine, -1.0, 1.0))
+        pattern = (np.sinc(beam.pattern * np.sin(phi - beam.squint)) ** 2 if beam.pattern is not None
+                   else np.ones(x.shape[0]))
+    weight = spectral_window(w_name, u - 0.5, 1.0, **w_params)     # zero for u outside [0, 1]
+    return weight, weight * pattern
+
+
+def column_scale(gain: np.ndarray) -> tuple[np.ndarray, float]:
+    """The factor :func:`normalise_columns` multiplies each range column by: float64 [1, n_rg],
+    ``1 / max(full, floor)`` where the column's full-aperture gain ``full`` exceeds ``floor =
+    1e-6`` of the largest, else 0; and the largest gain."""
+    full = gain.max(axis=0, keepdims=True)
+    norm = float(full.max()) if full.size else 0.0
+    floor = 1e-6 * norm if norm > 0 else 1.0
+    return np.where(full > floor, 1.0 / np.maximum(full, floor), 0.0), norm
 
 
 def normalise_columns(image: np.ndarray, gain: np.ndarray) -> tuple[np.ndarray, float]:

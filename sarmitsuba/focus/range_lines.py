@@ -17,7 +17,7 @@ import numpy as np
 import scipy.fft
 
 __all__ = ["PAD", "FFT_GUARD", "MAX_OVERSAMPLE", "MAX_QUANTUM_PHASE", "MAX_WEIGHT_BITS", "fft_upsample",
-           "carrier_table", "residual_carrier_table", "premodulated_pairs"]
+           "fft_upsample_adjoint", "carrier_table", "residual_carrier_table", "premodulated_pairs"]
 
 #: Zero samples added before and after every upsampled range line. Linear interpolation
 #: between the first (last) sample and these zeros is the "masked" edge of the window.
@@ -63,6 +63,36 @@ def fft_upsample(lines: np.ndarray, factor: int, *, workers: int | None = None) 
     out = out[..., :(n - 1) * factor + 1]
     out *= factor
     return out
+
+
+def fft_upsample_adjoint(fine: np.ndarray, n: int, factor: int) -> np.ndarray:
+    """The adjoint of :func:`fft_upsample` (its conjugate transpose): float64 lines ``fine``
+    [..., (n - 1) * factor + 1] back to [..., n], complex128, so that
+    ``<fft_upsample(x), y> = <x, fft_upsample_adjoint(y)>`` for every ``x`` [..., n].
+
+    Each step of :func:`fft_upsample` transposed in reverse order: the truncation becomes
+    zero-padding to ``n_fft * factor``; ``ifft`` (``W^H / N``) becomes ``fft / N``; the spectrum's
+    zero-padding becomes its truncation (the split Nyquist bin summed half and half); the
+    zero-padded ``fft`` (``W[:, :n]``) becomes ``n_fft * ifft`` truncated to ``n``.
+    """
+    fine = np.asarray(fine, np.complex128)
+    if factor == 1:
+        return np.array(fine, copy=True)
+    n_fft = scipy.fft.next_fast_len(n + FFT_GUARD)
+    n_big = n_fft * factor
+    big = np.zeros(fine.shape[:-1] + (n_big,), np.complex128)
+    big[..., :fine.shape[-1]] = fine
+    big = scipy.fft.fft(big, axis=-1) * (factor / n_big)
+    spec = np.zeros(fine.shape[:-1] + (n_fft,), np.complex128)
+    half = (n_fft + 1) // 2
+    spec[..., :half] = big[..., :half]
+    n_neg = n_fft - half
+    if n_fft % 2 == 0:
+        n_neg -= 1
+        spec[..., n_fft // 2] = 0.5 * (big[..., n_fft // 2] + big[..., n_big - n_fft // 2])
+    if n_neg:
+        spec[..., n_fft - n_neg:] = big[..., n_big - n_neg:]
+    return (scipy.fft.ifft(spec, axis=-1) * n_fft)[..., :n]
 
 
 def carrier_table(fc: float, t0: float, cycles_per_sample: float, n_tab: int) -> np.ndarray:

@@ -1,0 +1,152 @@
+"""The focusers as linear maps: float64 forward and adjoint pairs (issue 57).
+
+Every focuser is linear in the raw data: an image ``I = F d`` with ``F`` fixed by the geometry,
+the grid and the options. Gradients of a loss on the image flow back to the raw data through the
+adjoint (conjugate transpose) ``F^H``, and a perturbation of the raw data focuses to
+``F (delta d)``. The pairs here are float64 throughout, so that the dot-product test
+
+.. math::
+
+    \\langle F x, y \\rangle = \\langle x, F^H y \\rangle, \\qquad
+    \\langle a, b \\rangle = \\sum_k \\overline{a_k} b_k
+
+holds to rounding (tests/test_focus_adjoints.py; docs/physics.md (AD1)).
+
+:class:`BackprojectionOperator` is direct backprojection, eq. (S3), with the options of
+:func:`~sarmitsuba.focus.backproject`: FFT upsampling in fast time, linear interpolation at each
+pixel's two-way delay (zero outside the window), the carrier phase ``exp(+j 2 pi fc L / c)``, the
+azimuth weight, and the normalisation (by the summed weight, or per range column by the largest
+expected gain). The adjoint transposes each step in reverse: the normalisation (a real diagonal),
+the phase (its conjugate), the interpolation (each pixel's value split back onto its two fine
+samples with the same weights) and the upsampling (:func:`.range_lines.fft_upsample_adjoint`).
+Its forward image equals :func:`~sarmitsuba.focus.backproject_reference` (which uses
+:func:`numpy.interp`) to rounding.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.raw import RawData
+from ..core.trajectory import echo_length
+from .beam import BeamWeighting, beam_axes, beam_weighting, column_scale, pixel_weights
+from .bp_contract import check_inputs, receiver_motion
+from .grid import ImageGrid
+from .range_lines import fft_upsample, fft_upsample_adjoint
+
+__all__ = ["BackprojectionOperator", "backprojection_operator", "inner"]
+
+
+def inner(a: np.ndarray, b: np.ndarray) -> complex:
+    """``<a, b> = sum conj(a) b`` over all elements (complex128)."""
+    return complex(np.vdot(np.asarray(a, np.complex128).ravel(), np.asarray(b, np.complex128).ravel()))
+
+
+@dataclasses.dataclass(frozen=True)
+class BackprojectionOperator:
+    """Direct backprojection of one acquisition onto one grid, as a linear map and its adjoint.
+
+    Build with :func:`backprojection_operator`. ``forward`` maps range-compressed data complex
+    [n_pulses, n_samples] to an image complex128 [n_az, n_rg]; ``adjoint`` maps an image back to
+    complex128 [n_pulses, n_samples]. Both loop over pulses (float64, one pulse's pixels at a
+    time): use small grids.
+    """
+
+    raw: RawData
+    grid: ImageGrid
+    oversample: int
+    beam: BeamWeighting
+    #: float64 [n_az, n_rg]: the normalisation each pixel's sum is multiplied by.
+    scale: np.ndarray
+    #: The fast-time axis's first sample [s] and the beam axes (:func:`.beam.beam_axes`).
+    t0: float
+    axes: np.ndarray
+
+    @property
+    def data_shape(self) -> tuple[int, int]:
+        return tuple(self.raw.data.shape)
+
+    def _pulse(self, p: int, x: np.ndarray, receive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pulse ``p`` at pixels ``x``: the fine sample below each delay (index into the padded
+        line, int64), the interpolation fraction (float64) and the complex coefficient
+        ``scale w exp(+j 2 pi fc L / c)`` (complex128); a delay outside the padded line gets
+        coefficient 0."""
+        raw = self.raw
+        n_samples = raw.data.shape[1]
+        dt = 1.0 / (raw.fs * self.oversample)
+        n_up = (n_samples - 1) * self.oversample + 1
+        length = echo_length(raw.tx_position[p], raw.rx_position[p], raw.velocity[p],
+                             None if receive is None else receive[1][p], x)
+        # padded fine line: sample k at t0 + (k - 1) dt, k = 0 .. n_up + 1 (zeros at both ends)
+        position = (length / SPEED_OF_LIGHT - self.t0) / dt + 1.0
+        inside = (position >= 0.0) & (position <= n_up + 1)
+        index = np.clip(np.floor(position), 0, n_up).astype(np.int64)
+        fraction = np.where(inside, position - index, 0.0)
+        weight, _ = pixel_weights(raw, self.beam, self.axes, p, x)
+        cycles = np.mod(raw.fc * length / SPEED_OF_LIGHT, 1.0)
+        coefficient = np.where(inside, weight * self.scale.reshape(-1) * np.exp(2j * np.pi * cycles), 0.0)
+        return index, fraction, coefficient
+
+    def forward(self, data: np.ndarray) -> np.ndarray:
+        """The image of ``data`` complex [n_pulses, n_samples]: complex128 [n_az, n_rg]."""
+        data = np.asarray(data, np.complex128)
+        if data.shape != self.data_shape:
+            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        x = self.grid.positions().reshape(-1, 3)
+        receive = receiver_motion(self.raw)
+        image = np.zeros(x.shape[0], np.complex128)
+        for p in range(data.shape[0]):
+            line = np.zeros((data.shape[1] - 1) * self.oversample + 3, np.complex128)
+            line[1:-1] = fft_upsample(data[p], self.oversample)
+            index, fraction, coefficient = self._pulse(p, x, receive)
+            image += coefficient * ((1.0 - fraction) * line[index] + fraction * line[index + 1])
+        return image.reshape(self.grid.shape)
+
+    def adjoint(self, image: np.ndarray) -> np.ndarray:
+        """``F^H image`` for ``image`` complex [n_az, n_rg]: complex128 [n_pulses, n_samples]."""
+        image = np.asarray(image, np.complex128)
+        if image.shape != tuple(self.grid.shape):
+            raise ValueError(f"image shape {image.shape} must be the grid's {tuple(self.grid.shape)}")
+        x = self.grid.positions().reshape(-1, 3)
+        receive = receiver_motion(self.raw)
+        n_pulses, n_samples = self.data_shape
+        n_line = (n_samples - 1) * self.oversample + 3
+        out = np.zeros((n_pulses, n_samples), np.complex128)
+        y = image.reshape(-1)
+        for p in range(n_pulses):
+            index, fraction, coefficient = self._pulse(p, x, receive)
+            back = np.conj(coefficient) * y
+            line = _scatter(index, (1.0 - fraction) * back, n_line) + _scatter(index + 1, fraction * back, n_line)
+            out[p] = fft_upsample_adjoint(line[1:-1], n_samples, self.oversample)
+        return out
+
+
+def _scatter(index: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:
+    """complex128 [size]: ``values`` summed into the bins ``index`` (the transpose of a gather)."""
+    return (np.bincount(index, values.real, minlength=size)[:size]
+            + 1j * np.bincount(index, values.imag, minlength=size)[:size])
+
+
+def backprojection_operator(raw: RawData, grid: ImageGrid, *, oversample: int = 8,
+                            azimuth_beamwidth: float | None = None, squint: float = 0.0,
+                            azimuth_pattern: float | None = None, window_azimuth: Any = "rect") -> BackprojectionOperator:
+    """Direct backprojection of ``raw``'s geometry onto ``grid`` as a :class:`BackprojectionOperator`
+    (the options and errors of :func:`~sarmitsuba.focus.backproject`). The normalisation depends
+    on the geometry only, so it is computed here once, as
+    :func:`~sarmitsuba.focus.backproject_reference` computes it."""
+    t0, oversample, _, _ = check_inputs(raw, grid, oversample, 1, 1)
+    beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
+    x = grid.positions().reshape(-1, 3)
+    axes = beam_axes(raw)
+    gain = np.zeros(x.shape[0])
+    for p in range(raw.data.shape[0]):
+        gain += pixel_weights(raw, beam, axes, p, x)[1]
+    if beam.sines is None:
+        total = gain[0] if gain.size else 0.0
+        scale = np.full(grid.shape, 1.0 / total if total > 0 else 0.0)
+    else:
+        scale = np.broadcast_to(column_scale(gain.reshape(grid.shape))[0], grid.shape).copy()
+    return BackprojectionOperator(raw, grid, oversample, beam, scale, t0, axes)

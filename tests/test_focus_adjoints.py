@@ -1,0 +1,153 @@
+"""The focusers' adjoints (issue 57): dot-product tests, a dense second method, and the forward
+map against the independent float64 reference (``numpy.interp``).
+
+Each test names the plausible bug it catches.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sarmitsuba.core.constants import SPEED_OF_LIGHT as C
+from sarmitsuba.core.raw import RawData
+from sarmitsuba.focus import ImageGrid, backproject_reference
+from sarmitsuba.focus.linear import backprojection_operator, inner
+from sarmitsuba.focus.range_lines import fft_upsample, fft_upsample_adjoint
+
+FC, B = 9.6e9, 150e6
+#: The dot-product test's tolerance (the issue asks 1e-6 in float64; the pairs hold to rounding).
+DOT_TOL = 1e-9
+
+
+def _random(shape, seed):
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+
+
+def _acquisition(*, n_pulses=25, spacing=0.6, bistatic=False, continuous=False, fs_factor=1.2,
+                 altitude=3000.0, offset=4000.0) -> RawData:
+    """A straight track along +x looking toward -y at a scene at the origin; random data (the
+    geometry is what the operator depends on)."""
+    xs = (np.arange(n_pulses) - (n_pulses - 1) / 2) * spacing
+    tx = np.stack([xs, np.full_like(xs, offset), np.full_like(xs, altitude)], axis=1)
+    rx = tx + (np.array([0.0, 40.0, -15.0]) if bistatic else 0.0)
+    near = np.linalg.norm(tx[0]) + np.linalg.norm(rx[0]) - 30.0
+    fs = fs_factor * B
+    n_samples = int(60.0 / C * fs) + 1
+    speed = 100.0
+    pulse_time = xs / speed
+    raw = RawData(data=_random((n_pulses, n_samples), 1).astype(np.complex64),
+                  fast_time=near / C + np.arange(n_samples) / fs, pulse_time=pulse_time,
+                  tx_position=tx, rx_position=rx, velocity=np.tile([speed, 0.0, 0.0], (n_pulses, 1)),
+                  fc=FC, bandwidth=B, chirp_rate=B / 10e-6, pulse_length=10e-6, fs=fs, prf=speed / spacing,
+                  range_compressed=True, metadata={"scene": "adjoint test"})
+    if continuous:
+        raw = dataclasses.replace(raw, rx_time=pulse_time + 2.0 * np.linalg.norm(tx[0]) / C)
+    return raw
+
+
+def _grid(half=3.0, spacing=0.3) -> ImageGrid:
+    return ImageGrid.ground((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, -1.0, -1.0), 2 * half, 2 * half, spacing)
+
+
+CASES = {
+    "spotlight": dict(),
+    "spotlight-hamming": dict(window_azimuth="hamming"),
+    "beam-taylor-pattern": dict(azimuth_beamwidth=0.4, window_azimuth="taylor",
+                                azimuth_pattern=1 / np.sin(np.radians(0.2))),
+    "squint-kaiser": dict(azimuth_beamwidth=0.4, squint=0.1, window_azimuth=("kaiser", {"beta": 3.0})),
+}
+
+
+@pytest.mark.parametrize("n", [7, 40, 57])
+@pytest.mark.parametrize("factor", [1, 3, 8])
+def test_fft_upsample_adjoint_passes_the_dot_product_test(n, factor):
+    """Catches: the split Nyquist bin taken from one end only, a missing 1/N of the inverse FFT,
+    the zero-padded forward FFT transposed as an FFT (a conjugate lost)."""
+    x, y = _random(n, 2), _random((n - 1) * factor + 1, 3)
+    left, right = inner(fft_upsample(x, factor), y), inner(x, fft_upsample_adjoint(y, n, factor))
+    assert abs(left - right) <= DOT_TOL * abs(left)
+
+
+def test_fft_upsample_adjoint_is_the_dense_matrix_transpose():
+    """A second method: the upsampler's matrix built column by column, conjugate-transposed."""
+    n, factor = 12, 4
+    matrix = np.stack([fft_upsample(np.eye(n, dtype=np.complex128)[k], factor) for k in range(n)], axis=1)
+    y = _random(matrix.shape[0], 4)
+    np.testing.assert_allclose(fft_upsample_adjoint(y, n, factor), matrix.conj().T @ y, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_forward_is_the_reference_backprojection(case):
+    """The operator's own interpolation against ``backproject_reference``'s ``numpy.interp``.
+    Catches: the padded line's first sample off by one (a delay of one fine sample), the carrier's
+    sign, the normalisation left out or per pixel instead of per column."""
+    raw, grid = _acquisition(), _grid()
+    operator = backprojection_operator(raw, grid, oversample=4, **CASES[case])
+    image = operator.forward(raw.data)
+    reference = backproject_reference(raw, grid, oversample=4, **CASES[case]).data
+    assert np.max(np.abs(image - reference)) <= 2e-6 * np.max(np.abs(reference))
+
+
+@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("motion", ["stop-and-hop", "bistatic", "continuous"])
+def test_backprojection_adjoint_passes_the_dot_product_test(case, motion):
+    """``<F x, y> = <x, F^H y>`` in float64 to 1e-9. Catches: the carrier's conjugate missing in
+    the adjoint (``exp(+j ..)`` instead of ``exp(-j ..)``), the interpolation weights swapped
+    between the two fine samples, the normalisation applied twice or not at all, the upsampler's
+    adjoint replaced by a decimation."""
+    raw = _acquisition(bistatic=motion == "bistatic", continuous=motion == "continuous")
+    operator = backprojection_operator(raw, _grid(), oversample=4, **CASES[case])
+    x, y = _random(raw.data.shape, 5), _random(operator.grid.shape, 6)
+    left, right = inner(operator.forward(x), y), inner(x, operator.adjoint(y))
+    assert abs(left) > 0
+    assert abs(left - right) <= DOT_TOL * abs(left)
+
+
+def test_backprojection_adjoint_is_the_dense_matrix_transpose():
+    """A second method: the operator's matrix from the forward map on unit vectors. Catches the
+    same bugs as the dot-product test, entry by entry."""
+    raw = _acquisition(n_pulses=4, spacing=2.0)
+    raw = dataclasses.replace(raw, data=raw.data[:, :24], fast_time=raw.fast_time[:24])
+    grid = _grid(half=1.0, spacing=0.5)
+    operator = backprojection_operator(raw, grid, oversample=2)
+    n = raw.data.size
+    columns = [operator.forward(np.eye(n, dtype=np.complex128)[k].reshape(raw.data.shape)).reshape(-1)
+               for k in range(n)]
+    matrix = np.stack(columns, axis=1)
+    assert np.count_nonzero(np.abs(matrix) > 0) > 0.05 * matrix.size          # the pixels see the echoes
+    y = _random(grid.shape, 7)
+    np.testing.assert_allclose(operator.adjoint(y).reshape(-1), matrix.conj().T @ y.reshape(-1),
+                               rtol=0, atol=1e-12 * np.abs(matrix).max() * np.abs(y).max() * matrix.shape[0])
+
+
+def test_a_point_target_backprojects_to_its_amplitude_and_back():
+    """Closed form: the echo of a point of amplitude ``a`` focuses to ``a`` at the point (eq. (S3)),
+    and the adjoint of a delta at the point is the conjugate-phase echo pattern: its inner product
+    with the data is ``conj`` of the image value there. Catches a forward map scaled by the pulse
+    count twice, or an adjoint that returns the echo itself instead of its matched filter."""
+    raw = _acquisition(n_pulses=41, spacing=0.5, fs_factor=2.0)
+    grid = _grid(half=1.0, spacing=0.25)
+    point = grid.positions()[4, 4]
+    amplitude = 0.8 * np.exp(0.4j)
+    lengths = np.linalg.norm(raw.tx_position - point, axis=1) + np.linalg.norm(raw.rx_position - point, axis=1)
+    echo = amplitude * np.sinc(B * (raw.fast_time[None, :] - lengths[:, None] / C)) \
+        * np.exp(-2j * np.pi * np.mod(FC * lengths / C, 1.0))[:, None]
+    operator = backprojection_operator(raw, grid, oversample=8)
+    image = operator.forward(echo)
+    assert abs(image[4, 4]) == pytest.approx(abs(amplitude), rel=0.02)
+    assert abs(np.angle(image[4, 4] / amplitude)) < np.radians(2.0)
+    delta = np.zeros(grid.shape, np.complex128)
+    delta[4, 4] = 1.0
+    assert inner(operator.adjoint(delta), echo) == pytest.approx(image[4, 4], rel=1e-9)
+
+
+def test_wrong_shapes_are_named():
+    raw, grid = _acquisition(n_pulses=5), _grid(half=1.0, spacing=0.5)
+    operator = backprojection_operator(raw, grid, oversample=2)
+    with pytest.raises(ValueError, match="data shape"):
+        operator.forward(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="image shape"):
+        operator.adjoint(np.zeros((3, 3)))
