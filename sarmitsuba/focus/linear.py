@@ -21,6 +21,14 @@ the phase (its conjugate), the interpolation (each pixel's value split back onto
 samples with the same weights) and the upsampling (:func:`.range_lines.fft_upsample_adjoint`).
 Its forward image equals :func:`~sarmitsuba.focus.backproject_reference` (which uses
 :func:`numpy.interp`) to rounding.
+
+:class:`OmegaKOperator` is :func:`~sarmitsuba.focus.omega_k` (steps 1-4 of its module) in float64
+with the exact Kaiser-Bessel kernel (the fast path rounds the kernel's positions to a table,
+-66 dB): the centred, deconvolved, zero-padded buffer, the 2-D FFT, the Stolt interpolation, the
+analytic factors, the scatter to output bins, the range IFFT with its crop and amplitude, the
+azimuth IFFT. Its adjoint runs them backward: FFTs become ``N`` times inverse FFTs and inverse
+FFTs ``1 / N`` times FFTs, the interpolation a scatter with the same kernel weights, the
+factors their conjugates, the crops zero-padding and the scatters gathers.
 """
 from __future__ import annotations
 
@@ -32,12 +40,18 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.raw import RawData
 from ..core.trajectory import echo_length
+import scipy.fft
+import scipy.special
+
+from .fft_contract import focus_setup, unit_mean_window
+from .omegak import StoltPlan, omega_k_plan
+from .stolt import kernel_transform
 from .beam import BeamWeighting, beam_axes, beam_weighting, column_scale, pixel_weights
 from .bp_contract import check_inputs, receiver_motion
 from .grid import ImageGrid
 from .range_lines import fft_upsample, fft_upsample_adjoint
 
-__all__ = ["BackprojectionOperator", "backprojection_operator", "inner"]
+__all__ = ["BackprojectionOperator", "backprojection_operator", "OmegaKOperator", "omega_k_operator", "inner"]
 
 
 def inner(a: np.ndarray, b: np.ndarray) -> complex:
@@ -150,3 +164,101 @@ def backprojection_operator(raw: RawData, grid: ImageGrid, *, oversample: int = 
     else:
         scale = np.broadcast_to(column_scale(gain.reshape(grid.shape))[0], grid.shape).copy()
     return BackprojectionOperator(raw, grid, oversample, beam, scale, t0, axes)
+
+
+@dataclasses.dataclass(frozen=True)
+class OmegaKOperator:
+    """:func:`~sarmitsuba.focus.omega_k` of one acquisition as a float64 linear map and its adjoint.
+
+    Build with :func:`omega_k_operator`. ``forward`` maps range-compressed data complex
+    [n_pulses, n_samples] to the slant image complex128 [n_pulses, n_samples] on ``grid``;
+    ``adjoint`` maps such an image back.
+    """
+
+    plan: StoltPlan
+    grid: Any
+    data_shape: tuple
+    #: Per output sample of the Stolt grid [n_pulses, M]: the first kernel tap's bin (int64, not
+    #: yet wrapped), the kernel weights float64 [taps, n_pulses, M] (0 beyond a row's band), the
+    #: analytic factors complex128, and the output bin ``(k0 + m) mod n_out`` (int64).
+    first: np.ndarray
+    weights: np.ndarray
+    factors: np.ndarray
+    bins: np.ndarray
+    #: Step 1's factor ``(-1)^n / Phi`` per data sample and its buffer column.
+    prefactor: np.ndarray
+    columns: np.ndarray
+
+    def forward(self, data: np.ndarray) -> np.ndarray:
+        """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
+        data = np.asarray(data, np.complex128)
+        if data.shape != self.data_shape:
+            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        plan, (n_a, n_r) = self.plan, self.data_shape
+        buffer = np.zeros((n_a, plan.n_pad), np.complex128)
+        buffer[:, self.columns] = data * self.prefactor
+        spec = scipy.fft.fft(scipy.fft.fft(buffer, axis=1), axis=0)
+        rows = np.arange(n_a)[:, None]
+        values = sum(w * spec[rows, (self.first + t) % plan.n_pad] for t, w in enumerate(self.weights))
+        values = values * self.factors
+        out = np.zeros((n_a, plan.n_out), np.complex128)
+        out[rows, self.bins] = values                     # distinct bins per row (width <= n_out)
+        image = scipy.fft.ifft(out, axis=1)[:, :n_r] * plan.amplitude.astype(np.float64)
+        return scipy.fft.ifft(image, axis=0)
+
+    def adjoint(self, image: np.ndarray) -> np.ndarray:
+        """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
+        image = np.asarray(image, np.complex128)
+        if image.shape != self.data_shape:
+            raise ValueError(f"image shape {image.shape} must be the slant grid's {self.data_shape}")
+        plan, (n_a, n_r) = self.plan, self.data_shape
+        image = scipy.fft.fft(image, axis=0) / n_a                          # ifft^H = fft / N
+        out = np.zeros((n_a, plan.n_out), np.complex128)
+        out[:, :n_r] = image * plan.amplitude.astype(np.float64)
+        out = scipy.fft.fft(out, axis=1) / plan.n_out
+        rows = np.arange(n_a)[:, None]
+        values = out[rows, self.bins] * np.conj(self.factors)
+        spec = np.zeros(n_a * plan.n_pad, np.complex128)
+        offset = rows * plan.n_pad
+        for t, w in enumerate(self.weights):
+            spec += _scatter((offset + (self.first + t) % plan.n_pad).reshape(-1), (w * values).reshape(-1), spec.size)
+        spec = spec.reshape(n_a, plan.n_pad)
+        buffer = scipy.fft.ifft(scipy.fft.ifft(spec, axis=0), axis=1) * (n_a * plan.n_pad)   # fft^H = N ifft
+        return buffer[:, self.columns] * self.prefactor
+
+
+def omega_k_operator(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "rect",
+                     reference_range: float | None = None, doppler_bandwidth: float | None = None,
+                     geometry: Any = None, scene_centre: Any = None, squint: float | None = None, taps: int = 12,
+                     oversample: float = 1.5, azimuth_pattern: float | None = None) -> OmegaKOperator:
+    """:func:`~sarmitsuba.focus.omega_k` of ``raw``'s geometry as an :class:`OmegaKOperator` (its
+    options and errors; ``raw`` must be range compressed, ValueError otherwise)."""
+    if not raw.range_compressed:
+        raise ValueError("the omega-K operator maps range-compressed data; range-compress the raw chirps first")
+    geo, w_r, w_a, _, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range, window_range,
+                                           window_azimuth, doppler_bandwidth, 1)
+    grid, plan = omega_k_plan(raw, geo, w_r, w_a, band_a, taps, oversample, azimuth_pattern)
+    n_a, n_r = raw.data.shape
+    width = int(plan.n_valid.max())
+    k = plan.k0f[:, None] + np.arange(width)
+    kept = np.arange(width)[None, :] < plan.n_valid[:, None]
+    # the Stolt change of variable (C&W eq. 8.5): output bin q = k df_out, input f_tau = sqrt(q^2 + alpha^2) - f0
+    q = np.minimum(k * plan.df_out, plan.q_hi[:, None])
+    f_total = np.sqrt(q * q + plan.alpha2[:, None])
+    f_tau = f_total - plan.f0
+    position = f_tau / plan.df + plan.n_pad / 2
+    whole = np.floor(position)
+    taps_n, half = plan.interp.taps, plan.interp.taps // 2
+    distance = (position - whole)[None] + (half - 1) - np.arange(taps_n)[:, None, None]
+    scale = float(kernel_transform(0.0, taps_n, plan.interp.beta))
+    weights = scipy.special.i0(plan.interp.beta * np.sqrt(np.clip(1.0 - (2.0 * distance / taps_n) ** 2, 0.0, None)))
+    weights = weights / scale * kept[None]
+    gain = q / f_total * plan.row_gain.astype(np.float64)[:, None]
+    if plan.w_r[0] != "rect":
+        gain = gain * unit_mean_window(plan.w_r, f_tau, plan.bw)
+    cycles = k * plan.range_cycles_per_bin - f_tau * plan.tau_ref + plan.row_cycles[:, None]
+    factors = gain * np.exp(2j * np.pi * (cycles - np.round(cycles)))
+    n = np.arange(n_r) - n_r // 2
+    prefactor = np.where(n % 2 == 0, 1.0, -1.0) * plan.prefilter
+    return OmegaKOperator(plan, grid, (n_a, n_r), whole.astype(np.int64) - (half - 1), weights, factors,
+                          ((plan.k0[:, None] + np.arange(width)) % plan.n_out).astype(np.int64), prefactor, n % plan.n_pad)

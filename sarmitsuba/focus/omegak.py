@@ -97,7 +97,7 @@ from .fft_contract import (azimuth_weights, doppler_rows, focus_setup, range_com
 from .stolt import Scratch, StoltInterpolator, centred_buffer
 from .stripmap import StripmapGeometry, slant_output_grid
 
-__all__ = ["omega_k"]
+__all__ = ["omega_k", "omega_k_plan", "StoltPlan"]
 
 C = SPEED_OF_LIGHT
 #: Doppler rows per vectorised block (per-thread working set ~ 60 bytes x rows x n_out).
@@ -192,13 +192,8 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     raw = range_compressed(raw)
     geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
                                                  window_range, window_azimuth, doppler_bandwidth, workers)
+    grid, plan = omega_k_plan(raw, geo, w_r, w_a, band_a, taps, oversample, azimuth_pattern)
     oversample = float(oversample)
-    if not (np.isfinite(oversample) and 1.1 <= oversample <= 4.0):
-        raise ValueError(f"oversample must be in [1.1, 4], got {oversample!r}")
-    if raw.bandwidth > raw.fs:
-        raise ValueError(f"bandwidth {raw.bandwidth:g} Hz exceeds fs = {raw.fs:g} Hz: the range spectrum is aliased")
-    grid = slant_output_grid(geo, raw)
-    plan = _stolt_plan(raw, geo, grid, taps, oversample, w_r, w_a, band_a, azimuth_pattern)
     image = _range_focus(raw, plan, workers)                                      # steps 1-4 in range
     image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True)     # step 4: azimuth IFFT
 
@@ -213,9 +208,28 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
 
 
 # ============================================================================ plan: sizes, bands, per-row factors
+def omega_k_plan(raw: RawData, geo: StripmapGeometry, w_r: Any, w_a: Any, band_a: float, taps: int, oversample: Any,
+                 azimuth_pattern: float | None) -> tuple[Any, "StoltPlan"]:
+    """The output grid (:func:`~sarmitsuba.focus.stripmap.slant_output_grid`) and the
+    :class:`StoltPlan` of :func:`omega_k` for range-compressed ``raw`` and the options
+    :func:`~sarmitsuba.focus.fft_contract.focus_setup` checked; shared with its float64 linear
+    map (:mod:`sarmitsuba.focus.linear`).
+
+    Raises ValueError for ``oversample`` outside [1.1, 4], a bandwidth above ``fs`` or a Stolt
+    band wider than ``fs``."""
+    oversample = float(oversample)
+    if not (np.isfinite(oversample) and 1.1 <= oversample <= 4.0):
+        raise ValueError(f"oversample must be in [1.1, 4], got {oversample!r}")
+    if raw.bandwidth > raw.fs:
+        raise ValueError(f"bandwidth {raw.bandwidth:g} Hz exceeds fs = {raw.fs:g} Hz: the range spectrum is aliased")
+    grid = slant_output_grid(geo, raw)
+    return grid, _stolt_plan(raw, geo, grid, taps, oversample, w_r, w_a, band_a, azimuth_pattern)
+
+
 @dataclass(frozen=True, eq=False)
-class _StoltPlan:
-    """Layout and factors of steps 1-4; arrays are per Doppler row (float64 unless stated)."""
+class StoltPlan:
+    """Layout and factors of :func:`omega_k`'s steps 1-4; arrays are per Doppler row (float64
+    unless stated)."""
 
     n_r: int                      # range samples of the data and the image
     n_pad: int                    # zero-padded range FFT length of step 1
@@ -240,7 +254,7 @@ class _StoltPlan:
 
 
 def _stolt_plan(raw: RawData, geo: StripmapGeometry, grid: Any, taps: int, oversample: float, w_r: Any, w_a: Any,
-                band_a: float, pattern: float | None) -> _StoltPlan:
+                band_a: float, pattern: float | None) -> StoltPlan:
     """Sizes, Stolt bands, output bins and the per-row factors of steps 1-4."""
     n_r = raw.data.shape[1]
     fs = raw.fs
@@ -257,7 +271,7 @@ def _stolt_plan(raw: RawData, geo: StripmapGeometry, grid: Any, taps: int, overs
     # azimuth: FFT origin at the first pulse, output origin at grid.azimuth[0]
     # (+1/8 cycle: the -pi/4 of the stationary-phase azimuth spectrum, concave range history)
     row_cycles = f_eta * (grid.azimuth[0] - geo.pulse_azimuth[0]) / geo.velocity + 0.125
-    return _StoltPlan(
+    return StoltPlan(
         n_r=n_r, n_pad=n_pad, n_out=n_out, f0=raw.fc, bw=raw.bandwidth, df=fs / n_pad, df_out=df_out,
         tau_ref=raw.fast_time[0] + (n_r // 2) / fs, interp=interp, prefilter=prefilter, w_r=w_r,
         alpha2=alpha**2, q_hi=q_hi, k0=k0, k0f=k0.astype(np.float64), n_valid=n_valid,
@@ -291,7 +305,7 @@ def _row_gain(raw: RawData, geo: StripmapGeometry, f_eta: np.ndarray, alpha: np.
 
 
 # ============================================================================ steps 1-4 per block of rows
-def _range_focus(raw: RawData, plan: _StoltPlan, workers: int) -> np.ndarray:
+def _range_focus(raw: RawData, plan: StoltPlan, workers: int) -> np.ndarray:
     """Steps 1-4 up to the azimuth IFFT: 2-D spectrum, then per block of Doppler rows the Stolt
     interpolation, factors and range IFFT; complex64 ``[n_pulses, n_samples]``."""
     n_a = raw.data.shape[0]
@@ -306,14 +320,14 @@ def _range_focus(raw: RawData, plan: _StoltPlan, workers: int) -> np.ndarray:
     return image
 
 
-def _range_fft(raw: RawData, plan: _StoltPlan, spec: np.ndarray, rows: slice) -> None:
+def _range_fft(raw: RawData, plan: StoltPlan, spec: np.ndarray, rows: slice) -> None:
     """Step 1 on a block of rows: centred, deconvolved, zero-padded copy and range FFT, in place;
     ``(-1)^n`` puts ``f_tau = (j - n/2) df`` at column ``j``."""
     block = centred_buffer(raw.data[rows], plan.n_pad, plan.prefilter, out=spec[rows])
     _store(block, scipy.fft.fft(block, axis=1, overwrite_x=True, workers=1))
 
 
-def _stolt_block(plan: _StoltPlan, spec: np.ndarray, rows: slice, scratch: Scratch, image: np.ndarray) -> None:
+def _stolt_block(plan: StoltPlan, spec: np.ndarray, rows: slice, scratch: Scratch, image: np.ndarray) -> None:
     """Steps 2-4 on a block of Doppler rows: Stolt interpolation, analytic factors, range IFFT
     into ``image[rows]``."""
     shape = (rows.stop - rows.start, int(plan.n_valid[rows].max()))
@@ -325,7 +339,7 @@ def _stolt_block(plan: _StoltPlan, spec: np.ndarray, rows: slice, scratch: Scrat
     np.multiply(out[:, :plan.n_r], plan.amplitude, out=image[rows])
 
 
-def _stolt_mapping(plan: _StoltPlan, rows: slice, shape: tuple[int, int],
+def _stolt_mapping(plan: StoltPlan, rows: slice, shape: tuple[int, int],
                    scratch: Scratch) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Step 2, the Stolt change of variable (C&W eq. 8.5): for output bin ``k`` (``q = k df_out``)
     the input frequency ``f_tau = sqrt(q^2 + alpha^2) - f0``. Returns ``(k, f_tau, position in the
@@ -345,7 +359,7 @@ def _stolt_mapping(plan: _StoltPlan, rows: slice, shape: tuple[int, int],
     return kq, f_tau, pos, gain
 
 
-def _apply_factors(plan: _StoltPlan, rows: slice, values: np.ndarray, kq: np.ndarray, f_tau: np.ndarray,
+def _apply_factors(plan: StoltPlan, rows: slice, values: np.ndarray, kq: np.ndarray, f_tau: np.ndarray,
                    gain: np.ndarray, scratch: Scratch) -> None:
     """Step 3: reference function and output-range origin ``exp(+j 4 pi R_start q / c)`` (C&W
     eq. 8.3), fast-time origin, range window, Jacobian, azimuth factors; ``kq``, ``f_tau`` and
@@ -360,7 +374,7 @@ def _apply_factors(plan: _StoltPlan, rows: slice, values: np.ndarray, kq: np.nda
     _multiply_cis(values, kq, gain, scratch)
 
 
-def _scatter_bins(plan: _StoltPlan, rows: slice, values: np.ndarray, out: np.ndarray) -> np.ndarray:
+def _scatter_bins(plan: StoltPlan, rows: slice, values: np.ndarray, out: np.ndarray) -> np.ndarray:
     """Step 4 (first half): row ``r``'s output bin ``k`` to FFT column ``k mod n_out`` of ``out``."""
     out[...] = 0
     for i, r in enumerate(range(rows.start, rows.stop)):
