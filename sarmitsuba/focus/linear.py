@@ -29,6 +29,10 @@ analytic factors, the scatter to output bins, the range IFFT with its crop and a
 azimuth IFFT. Its adjoint runs them backward: FFTs become ``N`` times inverse FFTs and inverse
 FFTs ``1 / N`` times FFTs, the interpolation a scatter with the same kernel weights, the
 factors their conjugates, the crops zero-padding and the scatters gathers.
+
+:class:`RangeDopplerOperator` is :func:`~sarmitsuba.focus.range_doppler` (C&W ch. 6) in float64
+with the exact RCMC kernel: range FFT, range filter, azimuth FFT, SRC, upsampling range IFFT,
+RCMC interpolation, azimuth matched filter, azimuth IFFT; its adjoint transposes them likewise.
 """
 from __future__ import annotations
 
@@ -45,13 +49,15 @@ import scipy.special
 
 from .fft_contract import focus_setup, unit_mean_window
 from .omegak import StoltPlan, omega_k_plan
+from .rda import RangeDopplerPlan, range_doppler_plan
 from .stolt import kernel_transform
 from .beam import BeamWeighting, beam_axes, beam_weighting, column_scale, pixel_weights
 from .bp_contract import check_inputs, receiver_motion
 from .grid import ImageGrid
 from .range_lines import fft_upsample, fft_upsample_adjoint
 
-__all__ = ["BackprojectionOperator", "backprojection_operator", "OmegaKOperator", "omega_k_operator", "inner"]
+__all__ = ["BackprojectionOperator", "backprojection_operator", "OmegaKOperator", "omega_k_operator",
+           "RangeDopplerOperator", "range_doppler_operator", "inner"]
 
 
 def inner(a: np.ndarray, b: np.ndarray) -> complex:
@@ -262,3 +268,93 @@ def omega_k_operator(raw: RawData, *, window_range: Any = "rect", window_azimuth
     prefactor = np.where(n % 2 == 0, 1.0, -1.0) * plan.prefilter
     return OmegaKOperator(plan, grid, (n_a, n_r), whole.astype(np.int64) - (half - 1), weights, factors,
                           ((plan.k0[:, None] + np.arange(width)) % plan.n_out).astype(np.int64), prefactor, n % plan.n_pad)
+
+
+@dataclasses.dataclass(frozen=True)
+class RangeDopplerOperator:
+    """:func:`~sarmitsuba.focus.range_doppler` of one acquisition as a float64 linear map and its
+    adjoint (build with :func:`range_doppler_operator`; shapes as :class:`OmegaKOperator`)."""
+
+    plan: RangeDopplerPlan
+    data_shape: tuple
+    #: complex128 [n_pulses, n1] or None: SRC option 2's factor.
+    src: np.ndarray | None
+    #: RCMC per output sample [n_pulses, n_samples]: the sample of tap 0 (int64, unclipped) and
+    #: the weights float64 [taps, n_pulses, n_samples]; step 5's factors complex128.
+    first: np.ndarray
+    weights: np.ndarray
+    factors: np.ndarray
+
+    def _taps(self, n2: int):
+        """Per tap: its samples (clipped into the upsampled row) and weights (0 outside it)."""
+        for t, w in enumerate(self.weights):
+            index = self.first + t
+            inside = (index >= 0) & (index < n2)
+            yield np.clip(index, 0, n2 - 1), np.where(inside, w, 0.0)
+
+    def forward(self, data: np.ndarray) -> np.ndarray:
+        """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
+        data = np.asarray(data, np.complex128)
+        if data.shape != self.data_shape:
+            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        plan, (n_a, _) = self.plan, self.data_shape
+        n1, n2 = plan.n1, plan.n1 * plan.upsample
+        spec = scipy.fft.fft(scipy.fft.fft(data, n=n1, axis=1) * plan.range_filter, axis=0)
+        if self.src is not None:
+            spec = spec * self.src
+        big = np.zeros((n_a, n2), np.complex128)
+        half = (n1 + 1) // 2
+        big[:, :half], big[:, n2 - (n1 - half):] = spec[:, :half], spec[:, half:]
+        rd = scipy.fft.ifft(big, axis=1) * plan.upsample
+        rows = np.arange(n_a)[:, None]
+        values = sum(w * rd[rows, index] for index, w in self._taps(n2))
+        return scipy.fft.ifft(values * self.factors, axis=0)
+
+    def adjoint(self, image: np.ndarray) -> np.ndarray:
+        """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
+        image = np.asarray(image, np.complex128)
+        if image.shape != self.data_shape:
+            raise ValueError(f"image shape {image.shape} must be the slant grid's {self.data_shape}")
+        plan, (n_a, n_r) = self.plan, self.data_shape
+        n1, n2 = plan.n1, plan.n1 * plan.upsample
+        values = scipy.fft.fft(image, axis=0) / n_a * np.conj(self.factors)
+        offset = np.arange(n_a)[:, None] * n2
+        rd = np.zeros(n_a * n2, np.complex128)
+        for index, w in self._taps(n2):
+            rd += _scatter((offset + index).reshape(-1), (w * values).reshape(-1), rd.size)
+        big = scipy.fft.fft(rd.reshape(n_a, n2), axis=1) * (plan.upsample / n2)
+        half = (n1 + 1) // 2
+        spec = np.concatenate([big[:, :half], big[:, n2 - (n1 - half):]], axis=1)
+        if self.src is not None:
+            spec = spec * np.conj(self.src)
+        spec = scipy.fft.ifft(spec, axis=0) * n_a * np.conj(plan.range_filter)
+        return (scipy.fft.ifft(spec, axis=1) * n1)[:, :n_r]
+
+
+def range_doppler_operator(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "rect",
+                           src: Any = False, reference_range: float | None = None,
+                           doppler_bandwidth: float | None = None, geometry: Any = None, scene_centre: Any = None,
+                           squint: float | None = None, taps: int = 8, upsample: int = 2,
+                           azimuth_pattern: float | None = None) -> RangeDopplerOperator:
+    """:func:`~sarmitsuba.focus.range_doppler` of ``raw``'s geometry as a
+    :class:`RangeDopplerOperator` (its options and errors; ``raw`` range compressed)."""
+    if not raw.range_compressed:
+        raise ValueError("the range-Doppler operator maps range-compressed data; range-compress the raw chirps first")
+    geo, w_r, w_a, _, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range, window_range,
+                                           window_azimuth, doppler_bandwidth, 1)
+    plan = range_doppler_plan(raw, geo, w_r, w_a, band_a, src, taps, upsample, azimuth_pattern)
+    n_a, n_r = raw.data.shape
+    filt, grid = plan.filter, plan.grid
+    source = None
+    if plan.src_mode == "2d":
+        source = np.exp(2j * np.pi * plan.src_phase(slice(0, n_a), raw.fc))
+    # RCMC (C&W eq. 6.23): output gate R reads R / D(f_eta), in upsampled samples
+    position = (2.0 * grid.range[None, :] / (SPEED_OF_LIGHT * filt.d_eta[:, None]) - float(raw.fast_time[0])) \
+        * raw.fs * plan.upsample
+    whole = np.floor(position)
+    cycles = (filt.row_cycles[:, None] + filt.col_cycles[None, :]
+              + 2.0 * filt.d_r[None, :] * (filt.q0[:, None] - raw.fc + filt.residual[:, None]) / SPEED_OF_LIGHT)
+    factors = np.exp(2j * np.pi * (cycles - np.round(cycles))) * filt.row_gain[:, None] \
+        * filt.col_gain.astype(np.float64)[None, :]
+    return RangeDopplerOperator(plan, (n_a, n_r), source, whole.astype(np.int64) - (plan.interp.taps // 2 - 1),
+                                plan.interp.weights(position - whole), factors)

@@ -57,6 +57,7 @@ from __future__ import annotations
 import time
 from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
+from dataclasses import dataclass
 from typing import Any, NamedTuple, Sequence
 
 import numpy as np
@@ -71,7 +72,7 @@ from .fft_contract import (azimuth_weights, cis, doppler_rows, focus_setup, rang
                            unit_mean_window, windows_label)
 from .stripmap import StripmapGeometry, slant_output_grid
 
-__all__ = ["range_doppler"]
+__all__ = ["range_doppler", "range_doppler_plan", "RangeDopplerPlan", "AzimuthFilter", "Interpolator"]
 
 C = SPEED_OF_LIGHT
 _BLOCK_ROWS = 64
@@ -134,16 +135,11 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
     """
     t_start = time.perf_counter()
     raw = range_compressed(raw)
-    src_mode = _src_mode(src)
     geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
                                                  window_range, window_azimuth, doppler_bandwidth, workers)
-    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 8:
-        raise ValueError(f"upsample must be an integer in [1, 8], got {upsample!r}")
-    grid = slant_output_grid(geo, raw)
-    f_eta, alpha = doppler_rows(raw, geo)
-    rd = _range_doppler_domain(raw, geo, w_r, src_mode, alpha, upsample, workers)          # steps 1-3
-    interp = _Interpolator(taps, passband=min(0.95, raw.bandwidth / (raw.fs * upsample)))
-    filt = _azimuth_filter(raw, geo, grid, f_eta, alpha, w_r, w_a, band_a, src_mode, azimuth_pattern)
+    plan = range_doppler_plan(raw, geo, w_r, w_a, band_a, src, taps, upsample, azimuth_pattern)
+    src_mode, grid, filt, interp = plan.src_mode, plan.grid, plan.filter, plan.interp
+    rd = _range_doppler_domain(raw, plan, workers)                                          # steps 1-3
     image = _rcmc_and_azimuth_compression(rd, raw, grid, filt, interp, upsample, workers)   # steps 4-5
     del rd
     image = scipy.fft.ifft(image, axis=0, workers=workers, overwrite_x=True).astype(np.complex64, copy=False)  # 6.
@@ -165,24 +161,61 @@ def _src_mode(src: bool | str) -> str | None:
     return _SRC_MODES[src]
 
 
+# ============================================================================ the plan
+@dataclass(frozen=True, eq=False)
+class RangeDopplerPlan:
+    """What :func:`range_doppler` computes before touching the data (shared with its float64
+    linear map, :mod:`sarmitsuba.focus.linear`)."""
+
+    src_mode: str | None          # None, "2d" or "range"
+    grid: Any                     # the slant output grid
+    reference_range: float        # R_src [m]
+    alpha: np.ndarray             # [n_pulses] c f_eta / 2Vr [Hz]
+    n1: int                       # range FFT length (data plus _GUARD, fast length)
+    upsample: int
+    f_tau: np.ndarray             # [n1] range frequency of each FFT bin [Hz]
+    range_filter: np.ndarray      # complex128 [n1]: step 1's window and SRC option 3
+    filter: "AzimuthFilter"       # step 5's factors
+    interp: "Interpolator"        # step 4's RCMC kernel
+
+    def src_phase(self, rows: slice, f0: float) -> np.ndarray:
+        """SRC option 2's phase [cycles] of Doppler ``rows`` over the range frequencies, float64."""
+        return _src_cycles(self.reference_range, self.f_tau[None, :], f0, self.alpha[rows, None])
+
+
+def range_doppler_plan(raw: RawData, geo: StripmapGeometry, w_r: Any, w_a: Any, band_a: float, src: Any, taps: Any,
+                       upsample: Any, azimuth_pattern: float | None) -> RangeDopplerPlan:
+    """The :class:`RangeDopplerPlan` of range-compressed ``raw`` with the options
+    :func:`~sarmitsuba.focus.fft_contract.focus_setup` checked. Raises ValueError for an unknown
+    ``src``, ``upsample`` outside 1..8 or ``taps`` not even in 4..32."""
+    src_mode = _src_mode(src)
+    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 8:
+        raise ValueError(f"upsample must be an integer in [1, 8], got {upsample!r}")
+    grid = slant_output_grid(geo, raw)
+    f_eta, alpha = doppler_rows(raw, geo)
+    n1 = int(scipy.fft.next_fast_len(raw.data.shape[1] + _GUARD))
+    f_tau = np.fft.fftfreq(n1, 1.0 / raw.fs)
+    interp = Interpolator(taps, passband=min(0.95, raw.bandwidth / (raw.fs * upsample)))
+    filt = _azimuth_filter(raw, geo, grid, f_eta, alpha, w_r, w_a, band_a, src_mode, azimuth_pattern)
+    return RangeDopplerPlan(src_mode, grid, geo.reference_range, alpha, n1, int(upsample), f_tau,
+                            _range_filter(raw, geo, w_r, src_mode, f_tau), filt, interp)
+
+
 # ============================================================================ steps 1-3: to the range-Doppler domain
-def _range_doppler_domain(raw: RawData, geo: StripmapGeometry, w_r: Any, src_mode: str | None, alpha: np.ndarray,
-                          upsample: int, workers: int) -> np.ndarray:
+def _range_doppler_domain(raw: RawData, plan: RangeDopplerPlan, workers: int) -> np.ndarray:
     """Steps 1-3: range FFT, range window and SRC option 3; azimuth FFT and SRC option 2;
     range IFFT upsampled by zero-padding the spectrum. complex64 ``[n_pulses, n1 * upsample]``,
     columns ``fast_time[0] + m / (fs upsample)``."""
-    n_a, n_r = raw.data.shape
-    f0, r_src = raw.fc, geo.reference_range
+    n_a = raw.data.shape[0]
+    n1, upsample = plan.n1, plan.upsample
     # ---- 1. range FFT, window, SRC option 3
-    n1 = int(scipy.fft.next_fast_len(n_r + _GUARD))
     spec = scipy.fft.fft(raw.data, n=n1, axis=1, workers=workers)
-    f_tau = np.fft.fftfreq(n1, 1.0 / raw.fs)
-    spec *= _range_filter(raw, geo, w_r, src_mode, f_tau)
+    spec *= plan.range_filter.astype(np.complex64)
     # ---- 2. azimuth FFT, SRC option 2
     spec = scipy.fft.fft(spec, axis=0, workers=workers, overwrite_x=True)
-    if src_mode == "2d":
+    if plan.src_mode == "2d":
         for rows in _blocks(n_a):
-            spec[rows] *= cis(_src_cycles(r_src, f_tau[None, :], f0, alpha[rows, None]))
+            spec[rows] *= cis(plan.src_phase(rows, raw.fc))
     # ---- 3. range IFFT upsampled by zero-padding the spectrum
     n2 = n1 * upsample
     if upsample > 1:
@@ -198,17 +231,17 @@ def _range_doppler_domain(raw: RawData, geo: StripmapGeometry, w_r: Any, src_mod
 
 def _range_filter(raw: RawData, geo: StripmapGeometry, w_r: Any, src_mode: str | None,
                   f_tau: np.ndarray) -> np.ndarray:
-    """Step 1's range-frequency filter (complex64 like ``f_tau`` [Hz]): the range window at unit
+    """Step 1's range-frequency filter (complex128 like ``f_tau`` [Hz]): the range window at unit
     mean, times the SRC filter at the Doppler centroid for option 3 (C&W section 6.2.3)."""
     range_filter = unit_mean_window(w_r, f_tau, raw.bandwidth).astype(np.complex128)
     if src_mode == "range":
         a_c = C * geo.doppler_centroid / (2.0 * geo.velocity)
         range_filter *= cis(_src_cycles(geo.reference_range, f_tau, raw.fc, a_c))
-    return range_filter.astype(np.complex64)
+    return range_filter
 
 
 # ============================================================================ steps 4-5: RCMC and azimuth compression
-class _AzimuthFilter(NamedTuple):
+class AzimuthFilter(NamedTuple):
     """Factors of step 5 (float64 per Doppler row or per output range gate unless stated)."""
 
     q0: np.ndarray          # [n_pulses] Q(0, f_eta) = f0 D(f_eta) [Hz]
@@ -222,7 +255,7 @@ class _AzimuthFilter(NamedTuple):
 
 
 def _azimuth_filter(raw: RawData, geo: StripmapGeometry, grid: Any, f_eta: np.ndarray, alpha: np.ndarray, w_r: Any,
-                    w_a: Any, band_a: float, src_mode: str | None, pattern: float | None) -> _AzimuthFilter:
+                    w_a: Any, band_a: float, src_mode: str | None, pattern: float | None) -> AzimuthFilter:
     """Step 5's azimuth matched filter ``exp(+j 4 pi R f0 D(f_eta) / c)`` (C&W eq. 6.26), split into
     row and column factors, with the azimuth window, normalisation and SRC residual."""
     f0, bw, vel, r_src = raw.fc, raw.bandwidth, geo.velocity, geo.reference_range
@@ -236,7 +269,7 @@ def _azimuth_filter(raw: RawData, geo: StripmapGeometry, grid: Any, f_eta: np.nd
     row_gain = (azimuth_weights(w_a, f_eta, geo.doppler_centroid, band_a, pattern, C / f0, vel, geo.squint)
                 * d_eta**1.5 * np.sqrt(2.0 * f0 * vel**2 / C) / band_a)
     col_gain = (1.0 / np.sqrt(grid.range)).astype(np.float32)
-    return _AzimuthFilter(q0, d_eta, residual, row_cycles, row_gain, d_r, col_cycles, col_gain)
+    return AzimuthFilter(q0, d_eta, residual, row_cycles, row_gain, d_r, col_cycles, col_gain)
 
 
 def _src_residual(w_r: Any, bw: float, f0: float, alpha: np.ndarray, src_mode: str | None,
@@ -252,8 +285,8 @@ def _src_residual(w_r: Any, bw: float, f0: float, alpha: np.ndarray, src_mode: s
     return residual, residual
 
 
-def _rcmc_and_azimuth_compression(rd: np.ndarray, raw: RawData, grid: Any, filt: _AzimuthFilter,
-                                  interp: "_Interpolator", upsample: int, workers: int) -> np.ndarray:
+def _rcmc_and_azimuth_compression(rd: np.ndarray, raw: RawData, grid: Any, filt: AzimuthFilter,
+                                  interp: "Interpolator", upsample: int, workers: int) -> np.ndarray:
     """Steps 4-5 per block of Doppler rows: RCMC (output gate ``R`` reads ``R / D(f_eta)``, C&W
     eq. 6.23) and the azimuth matched filter; complex64 ``[n_pulses, n_samples]`` (range-Doppler)."""
     n_a, n_r = raw.data.shape
@@ -330,7 +363,7 @@ def _sinc_table(taps: int, beta: float, bins: int) -> tuple[np.ndarray, np.ndarr
     return h / h.sum(axis=1, keepdims=True), d
 
 
-class _Interpolator:
+class Interpolator:
     """Windowed-sinc interpolation of complex rows at fractional positions, vectorised.
 
     ``taps`` (even, 4..32) Kaiser-windowed sinc weights, Kaiser beta chosen for the
@@ -349,6 +382,15 @@ class _Interpolator:
         self.beta = _kaiser_beta(self.taps, round(self.passband, 3))
         h, _ = _sinc_table(self.taps, self.beta, _TABLE_BINS)
         self.table = np.ascontiguousarray(h.T.astype(np.float32))  # [taps, bins + 1]
+
+    def weights(self, frac: np.ndarray) -> np.ndarray:
+        """The kernel's exact weights (untabulated) at fractional positions ``frac`` float64
+        [...] in [0, 1): float64 [taps, ...], tap ``t`` at sample ``floor(pos) - (taps/2 - 1) + t``,
+        each position's weights summing to 1 (as the table's rows)."""
+        half = self.taps // 2
+        d = frac[None] + (half - 1) - np.arange(self.taps).reshape((-1,) + (1,) * np.ndim(frac))
+        w = np.sinc(d) * scipy.special.i0(self.beta * np.sqrt(np.clip(1.0 - (d / half) ** 2, 0.0, None)))
+        return w / w.sum(axis=0, keepdims=True)
 
     def __call__(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """Interpolate ``rows`` (complex64 [R, N]) at ``pos`` (float [R, M], sample units)."""
