@@ -16,6 +16,7 @@ from .clutter_lattice import (footprint_cells, lattice_frame, length_expansion, 
 from .deposit import SPECTRAL_ORDERS
 from . import jones as pol
 from .pulse_view import receive_leg
+from .loops import loop_mode
 
 __all__ = ["ClutterTerms"]
 
@@ -49,7 +50,7 @@ class ClutterTerms:
             self._clutter_pulse(ctx, rec, depth, lattice, q, paths)
             return (q + 1,)
 
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, label="pulses")
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, mode=loop_mode(), label="pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)
 
@@ -113,7 +114,7 @@ class ClutterTerms:
             return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
 
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
-                                          lambda i, *_: i < n_cells, step, label="scatterers")
+                                          lambda i, *_: i < n_cells, step, mode=loop_mode(), label="scatterers")
         power = dr.squared_norm(amplitude) * level
         dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
         dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)

@@ -39,6 +39,7 @@ from .edge_terms import EdgeTerms, sinc, x_dsinc
 from .device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
+from .loops import loop_mode
 
 __all__ = ["TermLanes", "PieceTable", "PatchTerms", "SPLIT_START", "SPLIT_END", "SINC", "OPEN_START", "OPEN_END",
            "OPEN_MID", "AREA", "NEAR_SPECULAR", "TAYLOR_BELOW"]
@@ -229,7 +230,7 @@ class PatchTerms:
             self._pulse(ctx, data, q, depth, paths, lane)
             return (q + 1,)
 
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="patch terms")
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="patch terms")
         if paths is not None:
             self.r.sums.keep_paths(ctx, paths)
 
@@ -492,7 +493,7 @@ class PatchTerms:
             return e + 1, f + common * value, kdf + derivative, shoelace
 
         _, f, kdf, shoelace = dr.while_loop((start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0), mi.Float(0.0)),
-                                            lambda e, *_: e < stop, step, label="area segments")
+                                            lambda e, *_: e < stop, step, mode=loop_mode(), label="area segments")
         if moving:
             # the moved piece's own area and size decide between the Taylor and Gordon forms
             taylor = taylor + mi.Complex2f(shoelace - area, 0.0)

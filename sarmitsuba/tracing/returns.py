@@ -31,6 +31,7 @@ from .physical_optics import SINC_REGIME, split_threshold
 from .clutter_terms import ClutterTerms
 from .device import gather_table, table_array
 from .pulse_view import PulseView, receive_leg
+from .loops import loop_mode
 
 __all__ = ["Returns", "footprint_edges"]
 
@@ -540,6 +541,6 @@ class Returns(ClutterTerms):
                           order_index, active, paths, term * ctx["max_count"] + q)
             return (q + 1,)
 
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="pulses")
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="pulses")
         if paths is not None:
             self.sums.keep_paths(ctx, paths)

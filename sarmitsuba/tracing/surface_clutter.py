@@ -25,6 +25,7 @@ from .deposit import SPECTRAL_ORDERS
 from .device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
+from .loops import loop_mode
 
 __all__ = ["hash32", "surface_keys", "cell_hash", "ScattererLanes", "ClutterKernel", "points_inside_boundary"]
 
@@ -177,7 +178,7 @@ class ClutterKernel:
             self._pulse(ctx, data, q, depth, paths, lane)
             return (q + 1,)
 
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label="scatterers")
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="scatterers")
         dr.scatter_add(ctx["scatterers"], mi.UInt32(int(found)), mi.UInt32(depth))
         if paths is not None:
             r.sums.keep_paths(ctx, paths)

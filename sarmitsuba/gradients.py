@@ -1,0 +1,111 @@
+"""Derivatives of the raw data and the image with respect to scene parameters (issue 57).
+
+Forward mode, one parameter at a time: :func:`raw_derivative` traces the scene once with the
+parameter's tangent carried through the tracing kernels by Dr.Jit's automatic differentiation
+(:mod:`sarmitsuba.tracing.tangents`) and bins it as the raw data are binned, giving
+``d raw / d p`` (complex, per range sample and pulse, in the raw data's units per unit of ``p``).
+The focusers are linear in the raw data (docs/physics.md (AD1)), so the image's derivative is the
+derivative focused as the raw data are (:func:`sarmitsuba.refocus` with the render's options).
+
+So far: a material's relative permittivity or conductivity, for ``half_space`` materials, on
+single-channel traces with the gridded range kernels (``linear``, ``sinc``). Reverse mode, pose
+and vertices follow (issue 57).
+
+Example::
+
+    d = raw_derivative("scene.xml", MaterialParameter("wall", "relative_permittivity"))
+    d.data            # complex64 [n_pulses, n_samples]: d raw / d eps_r
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from .core.radar import ParameterError
+from .core.raw import RawData
+from .scene.loader import TABLE_SIZE, load_scene
+from .signal import binning
+from .tracing.loops import evaluated_loops
+from .tracing.tangents import MATERIAL_PARAMETERS, TangentKernel, half_space_tangent
+from .tracing.trace import prepare_trace, trace, trace_batch
+
+__all__ = ["MaterialParameter", "raw_derivative"]
+
+
+@dataclass(frozen=True)
+class MaterialParameter:
+    """A material's parameter: ``material`` its id in the scene (the BSDF's ``id``), ``name``
+    ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1) or ``"conductivity"``
+    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``)."""
+
+    material: str
+    name: str
+
+    def __post_init__(self):
+        if self.name not in MATERIAL_PARAMETERS:
+            raise ParameterError(f"MaterialParameter name = {self.name!r}; valid: {', '.join(MATERIAL_PARAMETERS)}")
+
+
+def _material(scene, table, name: str, frequency: float):
+    """The table row and the electromagnetic model of the material ``name``; ParameterError
+    naming the scene's materials when there is none of that name."""
+    if name not in table.names:
+        raise ParameterError(f"material {name!r} is not in the scene; its materials: {', '.join(sorted(set(table.names)))}")
+    for shape in scene.shapes():
+        bsdf = shape.bsdf()
+        if getattr(bsdf, "name", None) == name:
+            return table.names.index(name), bsdf.material_at(frequency)
+    raise ParameterError(f"material {name!r} is not used by any shape")
+
+
+def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_overrides: Mapping[str, Any] | None = None,
+                   integrator_overrides: Mapping[str, Any] | None = None) -> RawData:
+    """``d raw / d p``: the derivative of the scene's raw data with respect to ``parameter``.
+
+    Parameters
+    ----------
+    source : str or Path or Scene
+        As :func:`sarmitsuba.simulate` (XML path, built-in name, ``sionna:NAME``).
+    parameter : MaterialParameter
+    sensor_overrides, integrator_overrides : mapping, optional
+        As :func:`sarmitsuba.simulate`.
+
+    Returns
+    -------
+    RawData
+        The raw data's geometry and axes, ``data`` complex64 [n_pulses, n_samples] the derivative
+        per unit of the parameter (no thermal noise: it does not depend on ``p``);
+        ``metadata["derivative"]`` names the parameter.
+
+    Raises
+    ------
+    ParameterError
+        An unknown material or parameter, a material that is not a half-space, a polarimetric
+        trace, or ``range_kernel = exact``.
+    """
+    if not isinstance(parameter, MaterialParameter):
+        raise ParameterError(f"parameter must be a MaterialParameter, got {type(parameter).__name__}")
+    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    params, settings = loaded.params, loaded.settings
+    if len(params.channels) != 1:
+        raise ParameterError("derivatives of polarimetric traces are not supported yet; set polarization HH or VV")
+    setup = prepare_trace(loaded)
+    row, material = _material(loaded.scene, setup.table, parameter.material, params.frequency)
+    tangents = [half_space_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV")]
+    geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
+    kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, *tangents)
+
+    def run_batches(plan, batches):
+        for g0 in batches:
+            yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+
+    with evaluated_loops():
+        result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
+                       run_batches=run_batches)
+    del kernel
+    world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
+    meta = {"scene": str(source), "derivative": {"material": parameter.material, "parameter": parameter.name,
+                                                 "unit": f"raw data units per {MATERIAL_PARAMETERS[parameter.name]}"}}
+    return binning.to_raw_data(result.contributions(), result, window, params, world, meta)

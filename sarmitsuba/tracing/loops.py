@@ -1,0 +1,35 @@
+"""How the kernels run their loops over pulses, terms and scatterers: Dr.Jit's symbolic loops (one
+kernel, the default), or evaluated loops while derivatives are taken (issue 57).
+
+The loops deposit into the launch's histogram from inside their bodies (a scatter, a side effect).
+Dr.Jit propagates derivatives through such a body only when the loop is *evaluated* (every
+iteration its own kernel launch, the derivative graph explicit); a symbolic loop records the
+scatter with symbolic indices that forward or reverse propagation cannot replay afterwards. So
+:func:`sarmitsuba.gradients` runs its traces inside :func:`evaluated_loops`, and every
+``dr.while_loop`` of the kernels passes ``mode=loop_mode()``.
+"""
+from __future__ import annotations
+
+import contextlib
+import threading
+
+__all__ = ["loop_mode", "evaluated_loops"]
+
+_STATE = threading.local()
+
+
+def loop_mode() -> str | None:
+    """The ``mode`` for ``dr.while_loop``: None (Dr.Jit's default, symbolic) or ``"evaluated"``
+    inside :func:`evaluated_loops` (this thread only)."""
+    return getattr(_STATE, "mode", None)
+
+
+@contextlib.contextmanager
+def evaluated_loops():
+    """Within the block, the kernels' loops run evaluated (differentiable through their deposits)."""
+    previous = loop_mode()
+    _STATE.mode = "evaluated"
+    try:
+        yield
+    finally:
+        _STATE.mode = previous

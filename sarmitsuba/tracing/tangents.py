@@ -1,0 +1,115 @@
+"""Forward-mode derivatives of a trace with respect to a material's reflection table (issue 57).
+
+The kernels read each material's reflection coefficient ``r(cos_i)`` from a table (eq. (R)),
+in Dr.Jit. :class:`TangentKernel` is the tracing kernel with that table made a differentiable
+leaf: Dr.Jit records how every deposited term depends on it while the launch runs (its loops
+evaluated, :mod:`.loops`), and :class:`TangentSums` then propagates a tangent of the table,
+``dT = dT/dp`` for one parameter ``p``, forward to the launch's histogram (``dr.forward_to``).
+The histogram a launch hands back is that derivative, ``d hist / dp``; everything after the
+histogram (range compression, radiometry) is linear, so the same binning turns it into
+``d raw / dp``.
+
+:func:`half_space_tangent` gives ``dT/dp`` of a half-space's table by Dr.Jit's own AD through
+the Fresnel coefficients (docs/physics.md (R), (AD2)); its values equal
+:func:`sarmitsuba.scene.fresnel.fresnel_half_space`, the readable NumPy reference
+(tests/test_gradients.py).
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..core.constants import VACUUM_PERMITTIVITY
+from ..core.radar import ParameterError
+from .accumulate import Accumulator
+from .kernel import Kernel
+
+__all__ = ["MATERIAL_PARAMETERS", "half_space_table", "half_space_tangent", "TangentKernel", "TangentSums"]
+
+#: The material parameters a derivative can be taken with respect to, and their units.
+MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m"}
+
+
+def half_space_table(eta_re, eta_im, n_cos: int, polarization: str) -> mi.Complex2f64:
+    """``r(cos_i)`` of a half-space of relative permittivity ``eta = eta_re + j eta_im``
+    (``mi.Float64``, differentiable) at ``cos_i = i / (n_cos - 1)``: ``r_te`` for HH, ``r_tm`` for
+    VV, in :mod:`sarmitsuba.scene.fresnel`'s conventions (``s = sqrt(eta - sin^2)``,
+    ``r_te = (c - s) / (c + s)``, ``r_tm = (s / eta - c) / (s / eta + c)``). Complex2f64 [n_cos]."""
+    c = mi.Complex2f64(dr.linspace(mi.Float64, 0.0, 1.0, n_cos), 0.0)
+    eta = mi.Complex2f64(eta_re, eta_im)
+    s = dr.sqrt(eta - 1.0 + c * c)        # principal root: Im s <= 0 where Im eta <= 0
+    p = s if polarization == "HH" else s / eta
+    r = (c - p) / (c + p)
+    return r if polarization == "HH" else -r
+
+
+def half_space_tangent(material, parameter: str, frequency: float, polarization: str,
+                       n_cos: int) -> np.ndarray:
+    """``dT/dp`` complex128 [n_cos] of a half-space material's table for ``parameter``
+    (``relative_permittivity``: ``d/d Re eta``; ``conductivity``: ``d/d sigma`` [per S/m], with
+    ``eta = eps_r - j sigma / (omega eps_0)``, ITU-R P.2040 eq. (9b)), by forward-mode AD.
+
+    Raises ParameterError for another parameter or a material that is not a half-space."""
+    if parameter not in MATERIAL_PARAMETERS:
+        raise ParameterError(f"parameter = {parameter!r}; valid: {', '.join(MATERIAL_PARAMETERS)}")
+    if material.model != "half_space":
+        raise ParameterError(f"material {material.name!r} is a {material.model!r}: derivatives are taken for "
+                             "half_space materials so far (pec has no parameter; slab is not yet differentiable)")
+    eta = complex(material.relative_permittivity)
+    eps_r, sigma = mi.Float64(eta.real), mi.Float64(-eta.imag * 2.0 * math.pi * frequency * VACUUM_PERMITTIVITY)
+    dr.enable_grad(eps_r, sigma)
+    r = half_space_table(eps_r, -sigma / (2.0 * math.pi * frequency * VACUUM_PERMITTIVITY), n_cos, polarization)
+    leaf = eps_r if parameter == "relative_permittivity" else sigma
+    dr.forward_from(leaf)
+    grad = dr.grad(r)
+    return np.asarray(grad.real, np.float64) + 1j * np.asarray(grad.imag, np.float64)
+
+
+class TangentSums(Accumulator):
+    """The histogram of a launch replaced by its derivative: before collecting, the table's tangent
+    is set on the kernel's differentiable table and propagated forward to the histogram."""
+
+    def __init__(self, base: Accumulator, leaves: tuple, tangent: tuple):
+        super().__init__(base.settings, base.window, base.groups, base.n_channels)
+        if self.exact:
+            raise ParameterError("range_kernel = 'exact' keeps path lists, which derivatives do not flow through; "
+                                 "use range_kernel linear or sinc")
+        self.leaves, self.tangent = leaves, tangent
+
+    def collect(self, ctx: dict) -> dict:
+        for leaf, tangent in zip(self.leaves, self.tangent):
+            dr.set_grad(leaf, tangent)
+        dr.forward_to(ctx["hist"], flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        ctx["hist"] = dr.grad(ctx["hist"])
+        dr.eval(ctx["hist"])
+        return super().collect(ctx)
+
+
+class TangentKernel(Kernel):
+    """:class:`~sarmitsuba.tracing.kernel.Kernel` whose launches return ``d hist / dp``: the
+    reflection tables' row ``row`` moves by ``tangent_te`` and ``tangent_tm`` (complex [n_cos],
+    ``dr_te/dp`` and ``dr_tm/dp``) per unit of ``p``; every other row stays. The scalar model's
+    one table is the channel's (``r_tm`` for VV, else ``r_te``), the Jones model's both (P3')."""
+
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, row: int,
+                 tangent_te: np.ndarray, tangent_tm: np.ndarray):
+        super().__init__(scene, params, window, footprint, settings, material_table, effects)
+        t = self.returns.tables
+        if self.effects.polarimetric:
+            pairs = (("re", "im", tangent_te), ("re_tm", "im_tm", tangent_tm))
+        else:
+            pairs = (("re", "im", tangent_tm if params.polarization == "VV" else tangent_te),)
+        leaves, tangents = [], []
+        for re_name, im_name, tangent in pairs:
+            full = np.zeros(dr.width(getattr(t, re_name)), np.complex128)
+            full[row * t.n_cos:(row + 1) * t.n_cos] = tangent
+            for name, part in ((re_name, full.real), (im_name, full.imag)):
+                leaf = mi.Float(dr.detach(getattr(t, name)))
+                dr.enable_grad(leaf)
+                setattr(t, name, leaf)
+                leaves.append(leaf)
+                tangents.append(mi.Float(part.astype(np.float32)))
+        self.returns.sums = TangentSums(self.returns.sums, tuple(leaves), tuple(tangents))
