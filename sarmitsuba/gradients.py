@@ -7,9 +7,15 @@ parameter's tangent carried through the tracing kernels by Dr.Jit's automatic di
 The focusers are linear in the raw data (docs/physics.md (AD1)), so the image's derivative is the
 derivative focused as the raw data are (:func:`sarmitsuba.refocus` with the render's options).
 
-So far: a material's relative permittivity or conductivity, for ``half_space`` materials, on
-single-channel traces with the gridded range kernels (``linear``, ``sinc``). Reverse mode, pose
-and vertices follow (issue 57).
+Reverse mode, for many parameters at once: :func:`raw_gradient` takes the gradient of a real loss
+with respect to the raw data, carries it back through the binning's adjoint
+(:func:`sarmitsuba.signal.binning.raw_data_adjoint`,
+:func:`sarmitsuba.tracing.deposit.reduce_deposit_adjoint`) to each launch's histogram, and through
+the tracing kernels to the reflection tables (Dr.Jit's reverse mode), then to each parameter.
+
+So far: a material's relative permittivity or conductivity, for ``half_space`` materials, with
+the gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. Pose and vertices
+follow (issue 57).
 
 Example::
 
@@ -21,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+import drjit as dr
 import numpy as np
 
 from .core.radar import ParameterError
@@ -28,10 +35,11 @@ from .core.raw import RawData
 from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
 from .tracing.loops import evaluated_loops
-from .tracing.tangents import MATERIAL_PARAMETERS, TangentKernel, half_space_tangent
+from .tracing.deposit import reduce_deposit_adjoint
+from .tracing.tangents import MATERIAL_PARAMETERS, TABLES, AdjointKernel, TangentKernel, half_space_tangent
 from .tracing.trace import prepare_trace, trace, trace_batch
 
-__all__ = ["MaterialParameter", "raw_derivative"]
+__all__ = ["MaterialParameter", "raw_derivative", "raw_gradient"]
 
 
 @dataclass(frozen=True)
@@ -82,16 +90,13 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     Raises
     ------
     ParameterError
-        An unknown material or parameter, a material that is not a half-space, a polarimetric
-        trace, or ``range_kernel = exact``.
+        An unknown material or parameter, a material that is not a half-space, a quad-pol trace,
+        ``split_bounces``, or ``range_kernel = exact``.
     """
     if not isinstance(parameter, MaterialParameter):
         raise ParameterError(f"parameter must be a MaterialParameter, got {type(parameter).__name__}")
-    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
     params, settings = loaded.params, loaded.settings
-    if len(params.channels) != 1:
-        raise ParameterError("derivatives of polarimetric traces are not supported yet; set polarization HH or VV")
-    setup = prepare_trace(loaded)
     row, material = _material(loaded.scene, setup.table, parameter.material, params.frequency)
     tangents = [half_space_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV")]
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
@@ -104,8 +109,81 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     with evaluated_loops():
         result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
                        run_batches=run_batches)
-    del kernel
     world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
     meta = {"scene": str(source), "derivative": {"material": parameter.material, "parameter": parameter.name,
                                                  "unit": f"raw data units per {MATERIAL_PARAMETERS[parameter.name]}"}}
     return binning.to_raw_data(result.contributions(), result, window, params, world, meta)
+
+
+def _setup(source, sensor_overrides, integrator_overrides):
+    """The loaded scene and its trace set-up, checked for what derivatives support."""
+    loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    if len(loaded.params.channels) != 1:
+        raise ParameterError("derivatives of quad-pol traces are not supported yet; set polarization HH, VV, HV or VH")
+    if loaded.settings.split_bounces:
+        raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
+    return loaded, prepare_trace(loaded)
+
+
+def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overrides: Mapping[str, Any] | None = None,
+                 integrator_overrides: Mapping[str, Any] | None = None) -> dict:
+    """``dL/dp`` of a real loss ``L`` of the scene's raw data, for every parameter at once.
+
+    Parameters
+    ----------
+    source : str or Path or Scene
+    gradient : complex [n_pulses, n_samples]
+        ``dL/d Re(raw) + j dL/d Im(raw)`` at the scene's raw data (for ``L = sum |raw - target|^2``:
+        ``2 (raw - target)``).
+    parameters : iterable of MaterialParameter
+    sensor_overrides, integrator_overrides : mapping, optional
+
+    Returns
+    -------
+    dict
+        MaterialParameter -> float, ``dL/dp`` per unit of the parameter.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`raw_derivative`; a ``gradient`` whose shape is not the raw data's.
+    """
+    parameters = list(parameters)
+    for parameter in parameters:
+        if not isinstance(parameter, MaterialParameter):
+            raise ParameterError(f"parameters must be MaterialParameter, got {type(parameter).__name__}")
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
+    params, settings = loaded.params, loaded.settings
+    geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
+    gradient = np.asarray(gradient)
+    shape = (geometry.positions.shape[0], window.n_samples)
+    if gradient.shape != shape:
+        raise ParameterError(f"gradient shape {gradient.shape} must be the raw data's {shape} (pulses, samples)")
+    rows = {p: _material(loaded.scene, setup.table, p.material, params.frequency) for p in parameters}
+    kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects)
+
+    def run_batches(plan, batches):
+        spectra = binning.raw_data_adjoint(gradient, plan.lref, plan.n_pad, window, params)
+        for g0 in batches:
+            p0, p1 = plan.pulses(g0)
+            kernel.returns.sums.seed = reduce_deposit_adjoint(spectra[p0:p1], window.n_fine, window.fs, window.oversample,
+                                                              params.frequency, settings.range_kernel)[:, None]
+            yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+
+    with evaluated_loops():
+        trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
+              run_batches=run_batches)
+    grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}
+    n_cos = kernel.returns.tables.n_cos
+    out = {}
+    for parameter, (row, material) in rows.items():
+        te, tm = (half_space_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV"))
+        first = tm if "re_tm" not in grads and params.polarization == "VV" else te
+        total = 0.0
+        for (re_name, im_name), tangent in zip(TABLES, (first, tm)):
+            if re_name in grads:
+                cut = slice(row * n_cos, (row + 1) * n_cos)
+                total += float(grads[re_name][cut] @ tangent.real + grads[im_name][cut] @ tangent.imag)
+        out[parameter] = total
+    return out
+

@@ -31,7 +31,8 @@ from .signal_model import received_chirp_spectrum
 from ..tracing.trace import PathList, TraceResult
 from ..scene.trace_inputs import FastTimeWindow
 
-__all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "reference_carrier_phase", "to_raw_data"]
+__all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "range_compress_adjoint", "raw_data_adjoint",
+           "reference_carrier_phase", "to_raw_data"]
 
 #: Pulses filtered per block in :func:`range_compress`. Its temporaries are a few
 #: [block, n_pad] arrays (the complex128 filter-times-phase the largest: 128 MB at
@@ -185,6 +186,39 @@ def _sinc_sum(pulse: np.ndarray, position: np.ndarray, values: np.ndarray, n_pul
                                           label="exact_range_kernel")
         out[p0:p1] = (acc_re.numpy() + 1j * acc_im.numpy()).reshape(p1 - p0, n)
     return out
+
+
+def range_compress_adjoint(samples: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
+                           frequency: float, bandwidth: float, n_pad: int,
+                           chirp: tuple[float, float] | None = None) -> np.ndarray:
+    """The adjoint of :func:`range_compress` (issue 57): samples complex [n_pulses, n_samples]
+    back to padded spectra complex128 [n_pulses, n_pad], ``<range_compress(S), y> = <S,
+    range_compress_adjoint(y)>``: zero-padded to ``n_pad``, ``fft / n_pad`` (the inverse FFT's
+    adjoint), times the conjugate of each pulse's filter and carrier phase."""
+    phase = reference_carrier_phase(reference_length, frequency)
+    if chirp is None:
+        filt = compressed_pulse_spectrum(n_pad, window.fs, bandwidth)
+    else:
+        filt = received_chirp_spectrum(sp_fft.fftfreq(n_pad, d=1.0 / window.fs), window.fs, bandwidth, *chirp)
+    padded = np.zeros((samples.shape[0], n_pad), np.complex128)
+    padded[:, :samples.shape[1]] = samples
+    factor = (filt[None, :] * np.exp(1j * phase)[:, None]).astype(np.complex64).astype(np.complex128)
+    return sp_fft.fft(padded, axis=1) / n_pad * np.conj(factor)
+
+
+def raw_data_adjoint(samples_gradient: np.ndarray, reference_length: np.ndarray, n_pad: int,
+                     window: FastTimeWindow, params: RadarParameters) -> np.ndarray:
+    """The adjoint of :func:`to_raw_data`'s map from the trace's spectra (``n_pad`` long, FFT
+    order) to the samples, noise aside: the gradient of a real loss with respect to the samples,
+    ``dL/dRe + j dL/dIm`` complex [n_pulses, n_samples], to the spectra's, complex128
+    [n_pulses, n_pad] (the radar equation's real scale, then :func:`range_compress_adjoint`)."""
+    from ..scene.radar_equation import radar_equation
+    gradient = np.asarray(samples_gradient, np.complex128)
+    equation = radar_equation(params)
+    if equation is not None:
+        gradient = gradient * equation.amplitude_scale(0.5 * np.asarray(reference_length, float))[:, None]
+    chirp = (params.pulse_length, params.chirp_rate) if params.output == "raw" else None
+    return range_compress_adjoint(gradient, reference_length, window, params.frequency, params.bandwidth, n_pad, chirp)
 
 
 def to_raw_data(contributions: "np.ndarray | PathList", result: TraceResult, window: FastTimeWindow,

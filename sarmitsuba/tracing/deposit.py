@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import fft as sp_fft
 
-__all__ = ["LANCZOS_A", "SPECTRAL_ORDERS", "droop", "order_factor", "reduce_deposit",
+__all__ = ["LANCZOS_A", "SPECTRAL_ORDERS", "droop", "order_factor", "reduce_deposit", "reduce_deposit_adjoint",
            "padded_length", "deposit_reference", "taps"]
 
 #: Half-width (lobes) of the Lanczos window of the ``sinc`` kernel: ``2 * LANCZOS_A`` taps.
@@ -116,6 +116,28 @@ def reduce_deposit(hist: np.ndarray, fs: float, oversample: int, frequency: floa
                 continue
             spectrum = sp_fft.fft(hist[k, rows], n=n_fft, axis=1, workers=-1)
             out[rows] += spectrum[:, keep] * filt[None, :]
+    return out
+
+
+def reduce_deposit_adjoint(spectrum: np.ndarray, n_fine: int, fs: float, oversample: int, frequency: float,
+                           range_kernel: str) -> np.ndarray:
+    """The adjoint of :func:`reduce_deposit` (its conjugate transpose, issue 57): spectra complex
+    [n_pulses, n_pad] back to fine histograms complex128 [n_orders, n_pulses, n_fine], so that
+    ``<reduce_deposit(h), y> = <h, reduce_deposit_adjoint(y)>``. Each order's filter conjugated,
+    the kept bins put back into the zero-padded transform, and the zero-padded FFT transposed:
+    ``n_fft ifft`` truncated to ``n_fine``."""
+    spectrum = np.asarray(spectrum, np.complex128)
+    n_pulses, n_pad = spectrum.shape
+    n_fft = n_pad * oversample
+    keep = np.concatenate([np.arange(0, (n_pad + 1) // 2), np.arange(n_fft - n_pad // 2, n_fft)])
+    f = sp_fft.fftfreq(n_pad, d=1.0 / fs)
+    inverse_droop = 1.0 / droop(f / (fs * oversample), range_kernel)
+    out = np.zeros((len(SPECTRAL_ORDERS), n_pulses, n_fine), np.complex128)
+    for k, m in enumerate(SPECTRAL_ORDERS):
+        filt = (inverse_droop * order_factor(f, frequency, m)).astype(np.complex64).astype(np.complex128)
+        full = np.zeros((n_pulses, n_fft), np.complex128)
+        full[:, keep] = spectrum * np.conj(filt)[None, :]
+        out[k] = (sp_fft.ifft(full, axis=1, workers=-1) * n_fft)[:, :n_fine]
     return out
 
 

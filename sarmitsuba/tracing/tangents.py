@@ -27,7 +27,11 @@ from ..core.radar import ParameterError
 from .accumulate import Accumulator
 from .kernel import Kernel
 
-__all__ = ["MATERIAL_PARAMETERS", "half_space_table", "half_space_tangent", "TangentKernel", "TangentSums"]
+__all__ = ["MATERIAL_PARAMETERS", "half_space_table", "half_space_tangent", "TangentKernel", "TangentSums",
+           "AdjointKernel", "AdjointSums", "TABLES"]
+
+#: The kernel's reflection tables: (real, imaginary) of r_te or the channel's r, and of r_tm (Jones model).
+TABLES = (("re", "im"), ("re_tm", "im_tm"))
 
 #: The material parameters a derivative can be taken with respect to, and their units.
 MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m"}
@@ -113,3 +117,45 @@ class TangentKernel(Kernel):
                 leaves.append(leaf)
                 tangents.append(mi.Float(part.astype(np.float32)))
         self.returns.sums = TangentSums(self.returns.sums, tuple(leaves), tuple(tangents))
+
+
+class AdjointSums(Accumulator):
+    """Reverse mode: each launch's histogram gets the loss's gradient with respect to it
+    (:attr:`seed`, complex [orders, groups, n_b, n_fine], set per batch by the caller), which
+    Dr.Jit carries back to the reflection tables' leaves, where it adds up over the launches.
+    The launch's own histogram (the values) is returned as usual."""
+
+    def __init__(self, base: Accumulator):
+        super().__init__(base.settings, base.window, base.groups, base.n_channels)
+        if self.exact:
+            raise ParameterError("range_kernel = 'exact' keeps path lists, which gradients do not flow through; "
+                                 "use range_kernel linear or sinc")
+        self.seed = None
+
+    def collect(self, ctx: dict) -> dict:
+        floats = np.zeros(dr.width(ctx["hist"]), np.float32)
+        flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
+        floats[:flat.size] = flat
+        dr.set_grad(ctx["hist"], mi.Float(floats))
+        dr.enqueue(dr.ADMode.Backward, ctx["hist"])
+        dr.traverse(dr.ADMode.Backward, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        return super().collect(ctx)
+
+
+class AdjointKernel(Kernel):
+    """:class:`~sarmitsuba.tracing.kernel.Kernel` for reverse mode: every reflection table a
+    differentiable leaf (:attr:`leaves`, name -> mi.Float), its launches' histograms seeded by
+    :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the loss's gradient with
+    respect to that table (float32 [n_rows * n_cos])."""
+
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects):
+        super().__init__(scene, params, window, footprint, settings, material_table, effects)
+        t = self.returns.tables
+        self.leaves = {}
+        for pair in TABLES[:2 if self.effects.polarimetric else 1]:
+            for name in pair:
+                leaf = mi.Float(dr.detach(getattr(t, name)))
+                dr.enable_grad(leaf)
+                setattr(t, name, leaf)
+                self.leaves[name] = leaf
+        self.returns.sums = AdjointSums(self.returns.sums)
