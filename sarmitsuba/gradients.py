@@ -13,7 +13,8 @@ with respect to the raw data, carries it back through the binning's adjoint
 :func:`sarmitsuba.tracing.deposit.reduce_deposit_adjoint`) to each launch's histogram, and through
 the tracing kernels to the reflection tables (Dr.Jit's reverse mode), then to each parameter.
 
-So far: a material's relative permittivity or conductivity, for ``half_space`` materials, with
+So far: a material's relative permittivity, conductivity or (slabs) thickness, for ``half_space``
+and ``slab`` materials (``radar`` and ITU-named), with
 the gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. Pose and vertices
 follow (issue 57).
 
@@ -36,7 +37,7 @@ from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
 from .tracing.loops import evaluated_loops
 from .tracing.deposit import reduce_deposit_adjoint
-from .tracing.tangents import MATERIAL_PARAMETERS, TABLES, AdjointKernel, TangentKernel, half_space_tangent
+from .tracing.tangents import MATERIAL_PARAMETERS, TABLES, AdjointKernel, TangentKernel, material_tangent
 from .tracing.trace import prepare_trace, trace, trace_batch
 
 __all__ = ["MaterialParameter", "raw_derivative", "raw_gradient"]
@@ -45,8 +46,9 @@ __all__ = ["MaterialParameter", "raw_derivative", "raw_gradient"]
 @dataclass(frozen=True)
 class MaterialParameter:
     """A material's parameter: ``material`` its id in the scene (the BSDF's ``id``), ``name``
-    ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1) or ``"conductivity"``
-    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``)."""
+    ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1), ``"conductivity"``
+    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``) or ``"thickness"`` (a slab's, m).
+    For ITU-named materials these are the values at the carrier."""
 
     material: str
     name: str
@@ -90,7 +92,7 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     Raises
     ------
     ParameterError
-        An unknown material or parameter, a material that is not a half-space, a quad-pol trace,
+        An unknown material or parameter, a ``pec`` material (or a half-space's thickness), a quad-pol trace,
         ``split_bounces``, or ``range_kernel = exact``.
     """
     if not isinstance(parameter, MaterialParameter):
@@ -98,7 +100,7 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
     params, settings = loaded.params, loaded.settings
     row, material = _material(loaded.scene, setup.table, parameter.material, params.frequency)
-    tangents = [half_space_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV")]
+    tangents = [material_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV")]
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, *tangents)
 
@@ -177,7 +179,7 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     n_cos = kernel.returns.tables.n_cos
     out = {}
     for parameter, (row, material) in rows.items():
-        te, tm = (half_space_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV"))
+        te, tm = (material_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV"))
         first = tm if "re_tm" not in grads and params.polarization == "VV" else te
         total = 0.0
         for (re_name, im_name), tangent in zip(TABLES, (first, tm)):

@@ -9,9 +9,10 @@ The histogram a launch hands back is that derivative, ``d hist / dp``; everythin
 histogram (range compression, radiometry) is linear, so the same binning turns it into
 ``d raw / dp``.
 
-:func:`half_space_tangent` gives ``dT/dp`` of a half-space's table by Dr.Jit's own AD through
-the Fresnel coefficients (docs/physics.md (R), (AD2)); its values equal
-:func:`sarmitsuba.scene.fresnel.fresnel_half_space`, the readable NumPy reference
+:func:`material_tangent` gives ``dT/dp`` of a half-space's or a slab's table by Dr.Jit's own AD
+through the Fresnel and slab coefficients (docs/physics.md (R), (AD2)); :func:`reflection_table_ad`'s
+values equal :func:`sarmitsuba.scene.fresnel.fresnel_half_space` and
+:func:`~sarmitsuba.scene.fresnel.slab_reflection`, the readable NumPy references
 (tests/test_gradients.py).
 """
 from __future__ import annotations
@@ -22,52 +23,65 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..core.constants import VACUUM_PERMITTIVITY
+from ..core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
 from ..core.radar import ParameterError
 from .accumulate import Accumulator
 from .kernel import Kernel
 
-__all__ = ["MATERIAL_PARAMETERS", "half_space_table", "half_space_tangent", "TangentKernel", "TangentSums",
+__all__ = ["MATERIAL_PARAMETERS", "reflection_table_ad", "material_tangent", "TangentKernel", "TangentSums",
            "AdjointKernel", "AdjointSums", "TABLES"]
 
 #: The kernel's reflection tables: (real, imaginary) of r_te or the channel's r, and of r_tm (Jones model).
 TABLES = (("re", "im"), ("re_tm", "im_tm"))
 
 #: The material parameters a derivative can be taken with respect to, and their units.
-MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m"}
+MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m"}
 
 
-def half_space_table(eta_re, eta_im, n_cos: int, polarization: str) -> mi.Complex2f64:
-    """``r(cos_i)`` of a half-space of relative permittivity ``eta = eta_re + j eta_im``
-    (``mi.Float64``, differentiable) at ``cos_i = i / (n_cos - 1)``: ``r_te`` for HH, ``r_tm`` for
-    VV, in :mod:`sarmitsuba.scene.fresnel`'s conventions (``s = sqrt(eta - sin^2)``,
-    ``r_te = (c - s) / (c + s)``, ``r_tm = (s / eta - c) / (s / eta + c)``). Complex2f64 [n_cos]."""
+def reflection_table_ad(eta_re, eta_im, n_cos: int, polarization: str, thickness=None,
+                        frequency: float = 0.0) -> mi.Complex2f64:
+    """``r(cos_i)`` at ``cos_i = i / (n_cos - 1)`` of a half-space (``thickness`` None) or a slab of
+    ``thickness`` [m] at ``frequency`` [Hz], of relative permittivity ``eta = eta_re + j eta_im``
+    (``mi.Float64``, differentiable, as ``thickness``): ``r_te`` for HH, ``r_tm`` for VV, in
+    :mod:`sarmitsuba.scene.fresnel`'s conventions. Half-space: ``s = sqrt(eta - sin^2)``,
+    ``r_te = (c - s) / (c + s)``, ``r_tm = (s / eta - c) / (s / eta + c)``. Slab (ITU-R P.2040
+    eqs. (43a), (44)): ``R = R' D / (D + (1 - R'^2) E)``, ``E = exp(-2 j q)``, ``D = 1 - E``,
+    ``q = 2 pi f d s / c``. Complex2f64 [n_cos]."""
     c = mi.Complex2f64(dr.linspace(mi.Float64, 0.0, 1.0, n_cos), 0.0)
     eta = mi.Complex2f64(eta_re, eta_im)
     s = dr.sqrt(eta - 1.0 + c * c)        # principal root: Im s <= 0 where Im eta <= 0
     p = s if polarization == "HH" else s / eta
     r = (c - p) / (c + p)
-    return r if polarization == "HH" else -r
+    r = r if polarization == "HH" else -r
+    if thickness is None:
+        return r
+    q = (2.0 * math.pi * frequency / SPEED_OF_LIGHT) * thickness * s
+    e = dr.exp(mi.Complex2f64(0.0, -2.0) * q)
+    d = 1.0 - e
+    return r * d / (d + (1.0 - r) * (1.0 + r) * e)
 
 
-def half_space_tangent(material, parameter: str, frequency: float, polarization: str,
-                       n_cos: int) -> np.ndarray:
-    """``dT/dp`` complex128 [n_cos] of a half-space material's table for ``parameter``
-    (``relative_permittivity``: ``d/d Re eta``; ``conductivity``: ``d/d sigma`` [per S/m], with
-    ``eta = eps_r - j sigma / (omega eps_0)``, ITU-R P.2040 eq. (9b)), by forward-mode AD.
-
-    Raises ParameterError for another parameter or a material that is not a half-space."""
+def material_tangent(material, parameter: str, frequency: float, polarization: str, n_cos: int) -> np.ndarray:
+    """``dT/dp`` complex128 [n_cos] of a material's table for ``parameter`` by forward-mode AD:
+    ``relative_permittivity`` (``d/d Re eta``), ``conductivity`` (``d/d sigma`` per S/m, with
+    ``eta = eps_r - j sigma / (omega eps_0)``, ITU-R P.2040 eq. (9b)) or ``thickness`` (slabs,
+    per m). Raises ParameterError for another parameter, a ``pec`` material, or the thickness
+    of a half-space."""
     if parameter not in MATERIAL_PARAMETERS:
         raise ParameterError(f"parameter = {parameter!r}; valid: {', '.join(MATERIAL_PARAMETERS)}")
-    if material.model != "half_space":
-        raise ParameterError(f"material {material.name!r} is a {material.model!r}: derivatives are taken for "
-                             "half_space materials so far (pec has no parameter; slab is not yet differentiable)")
+    if material.model not in ("half_space", "slab"):
+        raise ParameterError(f"material {material.name!r} is a {material.model!r}: it has no {parameter} "
+                             "(derivatives are taken for half_space and slab materials)")
+    if parameter == "thickness" and material.model != "slab":
+        raise ParameterError(f"material {material.name!r} is a half_space: it has no thickness (model slab has)")
+    omega_eps0 = 2.0 * math.pi * frequency * VACUUM_PERMITTIVITY
     eta = complex(material.relative_permittivity)
-    eps_r, sigma = mi.Float64(eta.real), mi.Float64(-eta.imag * 2.0 * math.pi * frequency * VACUUM_PERMITTIVITY)
-    dr.enable_grad(eps_r, sigma)
-    r = half_space_table(eps_r, -sigma / (2.0 * math.pi * frequency * VACUUM_PERMITTIVITY), n_cos, polarization)
-    leaf = eps_r if parameter == "relative_permittivity" else sigma
-    dr.forward_from(leaf)
+    leaves = {"relative_permittivity": mi.Float64(eta.real), "conductivity": mi.Float64(-eta.imag * omega_eps0),
+              "thickness": mi.Float64(material.thickness or 0.0)}
+    dr.enable_grad(leaves[parameter])
+    r = reflection_table_ad(leaves["relative_permittivity"], -leaves["conductivity"] / omega_eps0, n_cos, polarization,
+                            leaves["thickness"] if material.model == "slab" else None, frequency)
+    dr.forward_from(leaves[parameter])
     grad = dr.grad(r)
     return np.asarray(grad.real, np.float64) + 1j * np.asarray(grad.imag, np.float64)
 
