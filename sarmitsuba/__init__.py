@@ -29,6 +29,8 @@ name                              what it is
                                   ISLR, RCS) of a SarImage or image.npz (the ``analyze`` command)
 ``Scene(meshes, sensor, ...)``    :class:`sarmitsuba.scene.builder.Scene`: a scene built in Python from
                                   trimesh meshes and materials, accepted wherever a scene path is
+``gradients(scene, loss, params)`` :func:`sarmitsuba.derivatives.gradients`: a loss on the image and its
+                                  gradient with respect to material parameters (reverse mode)
 ================================  ====================================================================
 
 ``scene`` is an XML path, a built-in name (``urban``, ``dihedral``, ``trihedral``),
@@ -112,9 +114,9 @@ except (_VariantError, RuntimeError) as _error:
 #: Top-level names imported on first use: name -> (module, attribute; None for the module itself).
 _LAZY = {"simulate": ("pipeline", "simulate"), "render": ("pipeline", "render"),
          "refocus": ("pipeline", "refocus"), "analyze": ("api", "analyze"), "Scene": ("scene.builder", "Scene"),
-         "focus": ("focus", None)}
+         "focus": ("focus", None), "gradients": ("derivatives", "gradients")}
 
-__all__ = ["VARIANT", "__version__", "simulate", "render", "refocus", "focus", "analyze", "Scene"]
+__all__ = ["VARIANT", "__version__", "simulate", "render", "refocus", "focus", "analyze", "Scene", "gradients"]
 
 
 _install_moved_modules()

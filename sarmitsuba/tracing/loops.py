@@ -5,7 +5,7 @@ The loops deposit into the launch's histogram from inside their bodies (a scatte
 Dr.Jit propagates derivatives through such a body only when the loop is *evaluated* (every
 iteration its own kernel launch, the derivative graph explicit); a symbolic loop records the
 scatter with symbolic indices that forward or reverse propagation cannot replay afterwards. So
-:func:`sarmitsuba.gradients` runs its traces inside :func:`evaluated_loops`, and every
+:mod:`sarmitsuba.derivatives` runs its traces inside :func:`evaluated_loops`, and every
 ``dr.while_loop`` of the kernels passes ``mode=loop_mode()``.
 """
 from __future__ import annotations

@@ -18,10 +18,17 @@ and ``slab`` materials (``radar`` and ITU-named), with
 the gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. Pose and vertices
 follow (issue 57).
 
+A loss on the image: :func:`gradients` (``sarmitsuba.gradients``) focuses the raw data by direct
+backprojection as a float64 linear map (:class:`sarmitsuba.focus.linear.BackprojectionOperator`),
+evaluates the loss and its gradient there, carries it to the raw data by the map's adjoint (AD1)
+and from there by :func:`raw_gradient`.
+
 Example::
 
     d = raw_derivative("scene.xml", MaterialParameter("wall", "relative_permittivity"))
     d.data            # complex64 [n_pulses, n_samples]: d raw / d eps_r
+    g = sarmitsuba.gradients("scene.xml", AmplitudeLoss(target), [MaterialParameter("wall", "conductivity")])
+    g.loss, g.gradient    # L and {parameter: dL/dp}
 """
 from __future__ import annotations
 
@@ -40,7 +47,7 @@ from .tracing.deposit import reduce_deposit_adjoint
 from .tracing.tangents import MATERIAL_PARAMETERS, TABLES, AdjointKernel, TangentKernel, material_tangent
 from .tracing.trace import prepare_trace, trace, trace_batch
 
-__all__ = ["MaterialParameter", "raw_derivative", "raw_gradient"]
+__all__ = ["MaterialParameter", "raw_derivative", "raw_gradient", "AmplitudeLoss", "Gradients", "gradients"]
 
 
 @dataclass(frozen=True)
@@ -154,6 +161,8 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     for parameter in parameters:
         if not isinstance(parameter, MaterialParameter):
             raise ParameterError(f"parameters must be MaterialParameter, got {type(parameter).__name__}")
+    if not parameters:
+        return {}                                            # nothing asked: nothing traced
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
     params, settings = loaded.params, loaded.settings
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
@@ -189,3 +198,81 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
         out[parameter] = total
     return out
 
+
+
+@dataclass(frozen=True)
+class AmplitudeLoss:
+    """``L = sum (|I| - |T|)^2`` over the pixels of the image ``I`` and a target ``T`` (complex or
+    magnitudes, [n_az, n_rg], on the same grid). Called on an image, returns ``(L, G)`` with
+    ``G = dL/d Re I + j dL/d Im I = 2 (|I| - |T|) I / |I|`` (0 where ``|I| = 0``)."""
+
+    target: np.ndarray
+
+    def __call__(self, image: np.ndarray) -> tuple[float, np.ndarray]:
+        image = np.asarray(image, np.complex128)
+        target = np.abs(np.asarray(self.target))
+        if target.shape != image.shape:
+            raise ParameterError(f"AmplitudeLoss target shape {target.shape} must be the image's {image.shape}")
+        magnitude = np.abs(image)
+        residual = magnitude - target
+        unit = np.divide(image, magnitude, out=np.zeros_like(image), where=magnitude > 0)
+        return float(np.sum(residual * residual)), 2.0 * residual * unit
+
+
+@dataclass(frozen=True)
+class Gradients:
+    """What :func:`gradients` returns: the loss ``L``, ``gradient`` (MaterialParameter -> ``dL/dp``
+    per unit of the parameter), the image the loss saw (complex128 [n_az, n_rg], float64 direct
+    backprojection, no window) and the raw data."""
+
+    loss: float
+    gradient: dict
+    image: np.ndarray
+    raw: RawData
+
+
+def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (64, 64),
+              image_spacing: float | None = None, sensor_overrides: Mapping[str, Any] | None = None,
+              integrator_overrides: Mapping[str, Any] | None = None, oversample: int = 8) -> Gradients:
+    """``dL/dp`` of a loss on the scene's image, for every parameter at once (reverse mode).
+
+    Parameters
+    ----------
+    source : str or Path or Scene
+    loss : callable
+        ``loss(image) -> (L, G)``: a real loss of the complex image [n_az, n_rg] and
+        ``G = dL/d Re I + j dL/d Im I`` (e.g. :class:`AmplitudeLoss`).
+    parameters : iterable of MaterialParameter
+    image_size, image_spacing
+        The ground grid about the scene centre (``simulate``'s), small: the image is formed by the
+        float64 backprojection operator, pulse by pulse.
+    sensor_overrides, integrator_overrides : mapping, optional
+    oversample : int
+        Range upsampling of the backprojection.
+
+    Returns
+    -------
+    Gradients
+
+    Raises
+    ------
+    ParameterError
+        As :func:`raw_gradient`.
+    """
+    from .pipeline import simulate                           # (the top level's entry point)
+    from .focus.dispatch import azimuth_pattern
+    from .focus.grid import ImageGrid
+    from .focus.linear import backprojection_operator
+    sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
+                   window="rect", focuser="bp", image_size=image_size, image_spacing=image_spacing)
+    params, shown = sim.loaded.params, sim.image
+    grid = ImageGrid(shown.origin, shown.azimuth_direction, shown.range_direction, shown.azimuth, shown.range)
+    operator = backprojection_operator(sim.raw, grid, oversample=oversample,
+                                       azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
+                                       squint=params.squint, azimuth_pattern=azimuth_pattern(params))
+    image = operator.forward(sim.raw.data)
+    value, image_gradient = loss(image)
+    raw_gradient_ = operator.adjoint(image_gradient)
+    grads = raw_gradient(source, raw_gradient_, parameters, sensor_overrides=sensor_overrides,
+                         integrator_overrides=integrator_overrides)
+    return Gradients(float(value), grads, image, sim.raw)
