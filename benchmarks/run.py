@@ -34,6 +34,8 @@ footprints     Munich's meshes back to GeoJSON footprints and rebuilt: double-bo
                seconds of deriving, building, writing and rendering
 diffraction    edge currents against the full-wave tables (plates' patterns and image RCS,
                a dihedral, a cube), and their cost and effect on urban and Munich
+gradients      forward- and reverse-mode derivatives of urban against its forward render:
+               seconds and peak memory
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -62,7 +64,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
-         "footprints": "footprints", "diffraction": "diffraction"}
+         "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients"}
 
 
 def main(argv: list[str] | None = None) -> int:

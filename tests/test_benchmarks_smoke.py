@@ -86,6 +86,10 @@ EXPECTED = {
         {"table", "scene", "setting", "trace_s", "total_s", "peak_mib", "value", "unit"},
         ("trace_s",),
         ("total_s", "peak_mib", "value")),
+    "gradients": (
+        {"scene", "kind", "pulses", "parameters", "seconds", "peak_mib", "over_forward"},
+        ("pulses", "parameters", "seconds", "peak_mib", "over_forward"),
+        ()),
     "footprints": (
         {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
          "height_below_top_mean_m", "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s",

@@ -1,0 +1,112 @@
+"""Benchmark: what derivatives cost against the render they differentiate (issue 57).
+
+For the built-in ``urban`` scene (``--quick``/``--tiny``: fewer pulses), each in a fresh process
+run twice back to back (the second, warm, is measured: Dr.Jit's kernel cache on disk is then
+filled), wall seconds and peak memory (the process's VmHWM) of:
+
+* ``forward``: the render the loss sees, ``simulate`` with direct backprojection onto a 64 x 64
+  ground grid (``focuser = bp``, no window);
+* ``derivative``: forward mode, ``d raw / d eps_r`` of the ground (``sarmitsuba.derivatives.raw_derivative``);
+* ``gradient``: reverse mode, ``sarmitsuba.gradients`` of an amplitude loss on that image with
+  respect to four parameters at once (the ground's permittivity and conductivity, the brick
+  walls' conductivity and thickness): its own forward render, the backprojection operator's
+  image and adjoint, and the trace carrying the gradient back.
+
+The check is the issue's: the reverse-mode gradient of one loss at most 4 times the forward
+render. Writes ``gradients.csv`` and ``gradients.png`` (seconds and peak memory per kind).
+
+Usage: ``python benchmarks/gradients.py [--quick] [--tiny]``
+"""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+
+from _table import bench_main, machine, output_dir, write_csv
+
+NAME = "gradients"
+#: Pulses of the measured renders (full run, --quick, --tiny).
+PULSES = {"full": 128, "quick": 64, "tiny": 16}
+IMAGE = (64, 64)
+PARAMETERS = (("soil", "relative_permittivity"), ("soil", "conductivity"), ("brick", "conductivity"),
+              ("brick", "thickness"))
+
+
+def _measure(kind: str, pulses: int) -> dict:
+    """One measurement in this process: seconds of ``kind`` (after its scene's loading)."""
+    import time
+
+    import sarmitsuba
+    from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, raw_derivative
+    sensor = {"n_pulses": pulses}
+    start = time.perf_counter()
+    if kind == "forward":
+        sarmitsuba.simulate("urban", sensor_overrides=sensor, focuser="bp", window="rect", image_size=IMAGE)
+    elif kind == "derivative":
+        raw_derivative("urban", MaterialParameter("soil", "relative_permittivity"), sensor_overrides=sensor)
+    else:
+        loss = AmplitudeLoss(np.zeros(IMAGE))
+        sarmitsuba.gradients("urban", loss, [MaterialParameter(*p) for p in PARAMETERS], image_size=IMAGE,
+                             sensor_overrides=sensor)
+    seconds = time.perf_counter() - start
+    peak = int(re.search(r"VmHWM:\s+(\d+)", open("/proc/self/status").read()).group(1)) / 1024
+    return {"seconds": seconds, "peak_mib": peak}
+
+
+def measured(kind: str, pulses: int) -> dict:
+    """``kind`` in a fresh process, twice; the second (warm) run's numbers. Its stderr passes through."""
+    out = None
+    for _ in range(2):
+        done = subprocess.run([sys.executable, __file__, "--measure", kind, str(pulses)], stdout=subprocess.PIPE,
+                              text=True, check=True)
+        out = json.loads(done.stdout.strip().splitlines()[-1])
+    return out
+
+
+def run(quick: bool = False, tiny: bool = False) -> list[dict]:
+    """Measure the three kinds, print and write the table and plot; returns the rows."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    print(machine())
+    pulses = PULSES["tiny" if tiny else "quick" if quick else "full"]
+    rows = []
+    for kind in ("forward", "derivative", "gradient"):
+        numbers = measured(kind, pulses)
+        rows.append({"scene": "urban", "kind": kind, "pulses": pulses, "parameters": {"forward": 0, "derivative": 1,
+                                                                                      "gradient": len(PARAMETERS)}[kind],
+                     "seconds": round(numbers["seconds"], 3), "peak_mib": round(numbers["peak_mib"])})
+    for row in rows:
+        row["over_forward"] = round(row["seconds"] / rows[0]["seconds"], 2)
+        print("  ".join(f"{k}={v}" for k, v in row.items()))
+    suffix = "_tiny" if tiny else ""
+    write_csv(f"{NAME}{suffix}.csv", rows)
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.4), dpi=120)
+    for ax, key, label in zip(axes, ("seconds", "peak_mib"), ("wall seconds (warm)", "peak memory [MiB]")):
+        ax.bar([r["kind"] for r in rows], [r[key] for r in rows], color=["0.6", "tab:blue", "tab:orange"])
+        ax.set_ylabel(label)
+    fig.suptitle(f"urban, {pulses} pulses: derivatives against the forward render", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(output_dir() / f"{NAME}{suffix}.png")
+    plt.close(fig)
+    return rows
+
+
+def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    """The issue's bound, as a ratio of this run."""
+    gradient = next(r for r in rows if r["kind"] == "gradient")
+    return [(f"reverse-mode gradient ({gradient['parameters']} parameters) <= 4x the forward render",
+             bool(gradient["over_forward"] <= 4.0),
+             f"{gradient['seconds']} s = {gradient['over_forward']} x the forward render; peak {gradient['peak_mib']} MiB "
+             f"against {rows[0]['peak_mib']} MiB")]
+
+
+if __name__ == "__main__":
+    if len(sys.argv) == 4 and sys.argv[1] == "--measure":
+        print(json.dumps(_measure(sys.argv[2], int(sys.argv[3]))))
+    else:
+        bench_main(__doc__, run, checks, "64 pulses", "16 pulses (smoke test)")
