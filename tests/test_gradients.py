@@ -236,3 +236,38 @@ def test_gradients_of_an_image_loss_match_central_differences(tmp_path):
         fd = (plus - minus) / (2 * h)
         assert abs(fd) > 0
         assert result.gradient[parameter] == pytest.approx(fd, rel=1e-2), parameter
+
+
+def _dihedral_with_wall(folder: Path, eps_r: float) -> str:
+    """The built-in dihedral (metal ground) with its wall made of a half-space of ``eps_r``."""
+    xml = (REPO / "scenes" / "dihedral.xml").read_text()
+    wall = (f'<bsdf type="radar" id="wall_material"><string name="model" value="half_space"/>'
+            f'<float name="relative_permittivity" value="{eps_r!r}"/><float name="conductivity" value="0.05"/></bsdf>')
+    xml = xml.replace("</bsdf>", "</bsdf>" + wall, 1)
+    xml = re.sub(r'(<shape type="rectangle" id="wall">.*?)<ref id="metal"/>', r'\1<ref id="wall_material"/>', xml,
+                 flags=re.S)
+    path = folder / f"dihedral_{eps_r!r}.xml"
+    path.write_text(xml)
+    return str(path)
+
+
+def test_gradient_descent_recovers_a_walls_permittivity_from_30_percent_off(tmp_path):
+    """The inverse problem end to end: a dihedral whose wall has ``eps_r`` 5 is imaged; starting
+    from 6.5, L-BFGS-B (scipy) on the amplitude loss and ``sarmitsuba.gradients`` finds the wall's
+    permittivity within 2 % (measured: 5.0000 after 9 iterations). Catches any gradient whose
+    sign or size is wrong enough to stall the descent."""
+    import scipy.optimize
+    import sarmitsuba
+    from sarmitsuba.derivatives import AmplitudeLoss
+    size = {"image_size": (32, 32), "image_spacing": 0.5, "sensor_overrides": {"n_pulses": 32}}
+    target = sarmitsuba.gradients(_dihedral_with_wall(tmp_path, 5.0), AmplitudeLoss(np.zeros((32, 32))), [],
+                                  **size).image
+    loss, parameter = AmplitudeLoss(target), MaterialParameter("wall_material", "relative_permittivity")
+
+    def value_and_gradient(x):
+        result = sarmitsuba.gradients(_dihedral_with_wall(tmp_path, float(x[0])), loss, [parameter], **size)
+        return result.loss, np.array([result.gradient[parameter]])
+
+    found = scipy.optimize.minimize(value_and_gradient, [6.5], jac=True, method="L-BFGS-B", bounds=[(1.5, 20.0)],
+                                    options={"maxiter": 20})
+    assert abs(found.x[0] - 5.0) <= 0.02 * 5.0
