@@ -44,7 +44,7 @@ from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
 from .tracing.loops import evaluated_loops
 from .tracing.deposit import reduce_deposit_adjoint
-from .tracing.tangents import MATERIAL_PARAMETERS, TABLES, AdjointKernel, TangentKernel, material_tangent
+from .tracing.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, row_tangent
 from .tracing.trace import prepare_trace, trace, trace_batch
 
 __all__ = ["MaterialParameter", "raw_derivative", "raw_gradient", "AmplitudeLoss", "Gradients", "gradients"]
@@ -54,8 +54,9 @@ __all__ = ["MaterialParameter", "raw_derivative", "raw_gradient", "AmplitudeLoss
 class MaterialParameter:
     """A material's parameter: ``material`` its id in the scene (the BSDF's ``id``), ``name``
     ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1), ``"conductivity"``
-    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``) or ``"thickness"`` (a slab's, m).
-    For ITU-named materials these are the values at the carrier."""
+    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``), ``"thickness"`` (a slab's, m) or
+    ``"scattering_coefficient"`` (``S`` of an itu-radio-material's Lambertian clutter, 1). For
+    ITU-named materials these are the values at the carrier."""
 
     material: str
     name: str
@@ -66,14 +67,14 @@ class MaterialParameter:
 
 
 def _material(scene, table, name: str, frequency: float):
-    """The table row and the electromagnetic model of the material ``name``; ParameterError
+    """The table row, the electromagnetic model and the BSDF of the material ``name``; ParameterError
     naming the scene's materials when there is none of that name."""
     if name not in table.names:
         raise ParameterError(f"material {name!r} is not in the scene; its materials: {', '.join(sorted(set(table.names)))}")
     for shape in scene.shapes():
         bsdf = shape.bsdf()
         if getattr(bsdf, "name", None) == name:
-            return table.names.index(name), bsdf.material_at(frequency)
+            return table.names.index(name), bsdf.material_at(frequency), bsdf
     raise ParameterError(f"material {name!r} is not used by any shape")
 
 
@@ -106,10 +107,10 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
         raise ParameterError(f"parameter must be a MaterialParameter, got {type(parameter).__name__}")
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
     params, settings = loaded.params, loaded.settings
-    row, material = _material(loaded.scene, setup.table, parameter.material, params.frequency)
-    tangents = [material_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV")]
+    row, material, bsdf = _material(loaded.scene, setup.table, parameter.material, params.frequency)
+    tangent = row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE)
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
-    kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, *tangents)
+    kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, tangent)
 
     def run_batches(plan, batches):
         for g0 in batches:
@@ -185,17 +186,11 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
         trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
               run_batches=run_batches)
     grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}
-    n_cos = kernel.returns.tables.n_cos
     out = {}
-    for parameter, (row, material) in rows.items():
-        te, tm = (material_tangent(material, parameter.name, params.frequency, pol, TABLE_SIZE) for pol in ("HH", "VV"))
-        first = tm if "re_tm" not in grads and params.polarization == "VV" else te
-        total = 0.0
-        for (re_name, im_name), tangent in zip(TABLES, (first, tm)):
-            if re_name in grads:
-                cut = slice(row * n_cos, (row + 1) * n_cos)
-                total += float(grads[re_name][cut] @ tangent.real + grads[im_name][cut] @ tangent.imag)
-        out[parameter] = total
+    for parameter, (row, material, bsdf) in rows.items():
+        flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row,
+                             row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE))
+        out[parameter] = float(sum(grads[name] @ values for name, values in flat.items()))
     return out
 
 

@@ -17,6 +17,7 @@ values equal :func:`sarmitsuba.scene.fresnel.fresnel_half_space` and
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import drjit as dr
@@ -28,14 +29,14 @@ from ..core.radar import ParameterError
 from .accumulate import Accumulator
 from .kernel import Kernel
 
-__all__ = ["MATERIAL_PARAMETERS", "reflection_table_ad", "material_tangent", "TangentKernel", "TangentSums",
-           "AdjointKernel", "AdjointSums", "TABLES"]
-
-#: The kernel's reflection tables: (real, imaginary) of r_te or the channel's r, and of r_tm (Jones model).
-TABLES = (("re", "im"), ("re_tm", "im_tm"))
+__all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "material_tangent", "RowTangent",
+           "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums"]
 
 #: The material parameters a derivative can be taken with respect to, and their units.
-MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m"}
+MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
+                       "scattering_coefficient": "1"}
+#: The kernel's per-material tables a derivative can flow from (attributes of its ``tables``).
+DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value")
 
 
 def reflection_table_ad(eta_re, eta_im, n_cos: int, polarization: str, thickness=None,
@@ -86,6 +87,67 @@ def material_tangent(material, parameter: str, frequency: float, polarization: s
     return np.asarray(grad.real, np.float64) + 1j * np.asarray(grad.imag, np.float64)
 
 
+@dataclasses.dataclass(frozen=True)
+class RowTangent:
+    """``dT/dp`` of one material's row of the kernel's tables: ``te`` and ``tm`` complex [n_cos]
+    (None: unchanged), the specular factor's and the clutter value's (floats)."""
+
+    te: np.ndarray | None = None
+    tm: np.ndarray | None = None
+    specular: float = 0.0
+    clutter_value: float = 0.0
+
+
+def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) -> RowTangent:
+    """The :class:`RowTangent` of ``parameter`` of ``material`` (its BSDF ``bsdf``). For
+    ``scattering_coefficient`` ``S`` (Sionna's Lambertian clutter, docs/physics.md (C)): the
+    specular factor ``sqrt(1 - S^2)`` moves by ``-S / sqrt(1 - S^2)`` and the clutter value
+    ``4 S^2`` by ``8 S``. Raises ParameterError where the material has no such parameter."""
+    if parameter == "scattering_coefficient":
+        kind, value = bsdf.clutter
+        if kind != 2:
+            raise ParameterError(f"material {material.name!r} has no scattering_coefficient (an itu-radio-material with "
+                                 "scattering_coefficient > 0 has)")
+        s = math.sqrt(value / 4.0)
+        if s >= 1.0:
+            raise ParameterError(f"material {material.name!r}: scattering_coefficient 1 has no derivative (the "
+                                 "specular factor sqrt(1 - S^2) is not differentiable there)")
+        return RowTangent(specular=-s / math.sqrt(1.0 - s * s), clutter_value=8.0 * s)
+    return RowTangent(*(material_tangent(material, parameter, frequency, pol, n_cos) for pol in ("HH", "VV")))
+
+
+def flat_tangents(tables, polarimetric: bool, polarization: str, row: int, tangent: RowTangent) -> dict:
+    """The kernel tables' tangents, float64 arrays of their widths by attribute name, zero outside
+    ``row``. The scalar model's one reflection table is the channel's (``r_tm`` for VV, else
+    ``r_te``), the Jones model's both (P3')."""
+    out, n_cos = {}, tables.n_cos
+    pairs = ((("re", "im"), tangent.te), (("re_tm", "im_tm"), tangent.tm)) if polarimetric else \
+        ((("re", "im"), tangent.tm if polarization == "VV" else tangent.te),)
+    for (re_name, im_name), values in pairs:
+        if values is not None:
+            full = np.zeros(dr.width(getattr(tables, re_name)), np.complex128)
+            full[row * n_cos:(row + 1) * n_cos] = values
+            out[re_name], out[im_name] = full.real, full.imag
+    for name in ("specular", "clutter_value"):
+        if getattr(tangent, name) and getattr(tables, name) is not None:
+            full = np.zeros(dr.width(getattr(tables, name)))
+            full[row] = getattr(tangent, name)
+            out[name] = full
+    return out
+
+
+def _leaves(tables, names) -> dict:
+    """Each table of ``names`` replaced by a differentiable copy (a leaf); name -> leaf."""
+    leaves = {}
+    for name in names:
+        if getattr(tables, name, None) is not None:
+            leaf = mi.Float(dr.detach(getattr(tables, name)))
+            dr.enable_grad(leaf)
+            setattr(tables, name, leaf)
+            leaves[name] = leaf
+    return leaves
+
+
 class TangentSums(Accumulator):
     """The histogram of a launch replaced by its derivative: before collecting, the table's tangent
     is set on the kernel's differentiable table and propagated forward to the histogram."""
@@ -108,29 +170,16 @@ class TangentSums(Accumulator):
 
 class TangentKernel(Kernel):
     """:class:`~sarmitsuba.tracing.kernel.Kernel` whose launches return ``d hist / dp``: the
-    reflection tables' row ``row`` moves by ``tangent_te`` and ``tangent_tm`` (complex [n_cos],
-    ``dr_te/dp`` and ``dr_tm/dp``) per unit of ``p``; every other row stays. The scalar model's
-    one table is the channel's (``r_tm`` for VV, else ``r_te``), the Jones model's both (P3')."""
+    material tables' row ``row`` moves by ``tangent`` (a :class:`RowTangent`) per unit of ``p``;
+    every other row stays."""
 
     def __init__(self, scene, params, window, footprint, settings, material_table, effects, row: int,
-                 tangent_te: np.ndarray, tangent_tm: np.ndarray):
+                 tangent: RowTangent):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
-        t = self.returns.tables
-        if self.effects.polarimetric:
-            pairs = (("re", "im", tangent_te), ("re_tm", "im_tm", tangent_tm))
-        else:
-            pairs = (("re", "im", tangent_tm if params.polarization == "VV" else tangent_te),)
-        leaves, tangents = [], []
-        for re_name, im_name, tangent in pairs:
-            full = np.zeros(dr.width(getattr(t, re_name)), np.complex128)
-            full[row * t.n_cos:(row + 1) * t.n_cos] = tangent
-            for name, part in ((re_name, full.real), (im_name, full.imag)):
-                leaf = mi.Float(dr.detach(getattr(t, name)))
-                dr.enable_grad(leaf)
-                setattr(t, name, leaf)
-                leaves.append(leaf)
-                tangents.append(mi.Float(part.astype(np.float32)))
-        self.returns.sums = TangentSums(self.returns.sums, tuple(leaves), tuple(tangents))
+        flat = flat_tangents(self.returns.tables, self.effects.polarimetric, params.polarization, row, tangent)
+        leaves = _leaves(self.returns.tables, flat)
+        self.returns.sums = TangentSums(self.returns.sums, tuple(leaves.values()),
+                                        tuple(mi.Float(flat[name].astype(np.float32)) for name in leaves))
 
 
 class AdjointSums(Accumulator):
@@ -157,19 +206,12 @@ class AdjointSums(Accumulator):
 
 
 class AdjointKernel(Kernel):
-    """:class:`~sarmitsuba.tracing.kernel.Kernel` for reverse mode: every reflection table a
-    differentiable leaf (:attr:`leaves`, name -> mi.Float), its launches' histograms seeded by
-    :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the loss's gradient with
-    respect to that table (float32 [n_rows * n_cos])."""
+    """:class:`~sarmitsuba.tracing.kernel.Kernel` for reverse mode: every material table of
+    :data:`DIFFERENTIABLE` a differentiable leaf (:attr:`leaves`, name -> mi.Float), its launches'
+    histograms seeded by :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the
+    loss's gradient with respect to that table."""
 
     def __init__(self, scene, params, window, footprint, settings, material_table, effects):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
-        t = self.returns.tables
-        self.leaves = {}
-        for pair in TABLES[:2 if self.effects.polarimetric else 1]:
-            for name in pair:
-                leaf = mi.Float(dr.detach(getattr(t, name)))
-                dr.enable_grad(leaf)
-                setattr(t, name, leaf)
-                self.leaves[name] = leaf
+        self.leaves = _leaves(self.returns.tables, DIFFERENTIABLE)
         self.returns.sums = AdjointSums(self.returns.sums)
