@@ -90,6 +90,10 @@ EXPECTED = {
         {"scene", "kind", "pulses", "parameters", "seconds", "peak_mib", "over_forward"},
         ("pulses", "parameters", "seconds", "peak_mib", "over_forward"),
         ()),
+    "inverse": (
+        {"evaluation", "relative_permittivity", "loss", "gradient", "seconds", "relative_error"},
+        ("evaluation", "relative_permittivity", "loss", "gradient", "seconds", "relative_error"),
+        ()),
     "footprints": (
         {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
          "height_below_top_mean_m", "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s",
