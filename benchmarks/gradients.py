@@ -15,7 +15,7 @@ filled), wall seconds and peak memory (the process's VmHWM) of:
 The check is the issue's: the reverse-mode gradient of one loss at most 4 times the forward
 render. Writes ``gradients.csv`` and ``gradients.png`` (seconds and peak memory per kind).
 
-Usage: ``python benchmarks/gradients.py [--quick] [--tiny]``
+Usage: ``python benchmarks/gradients.py [--quick] [--tiny]`` (``--tiny``: 16 pulses, one bounce order)
 """
 from __future__ import annotations
 
@@ -37,21 +37,25 @@ PARAMETERS = (("soil", "relative_permittivity"), ("soil", "conductivity"), ("bri
 
 
 def _measure(kind: str, pulses: int) -> dict:
-    """One measurement in this process: seconds of ``kind`` (after its scene's loading)."""
+    """One measurement in this process: seconds of ``kind``; the smoke test's pulse count
+    (:data:`PULSES` ``tiny``) traces one bounce order (fewer kernels to compile)."""
     import time
 
     import sarmitsuba
     from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, raw_derivative
     sensor = {"n_pulses": pulses}
+    settings = {"max_depth": 1} if pulses == PULSES["tiny"] else None
     start = time.perf_counter()
     if kind == "forward":
-        sarmitsuba.simulate("urban", sensor_overrides=sensor, focuser="bp", window="rect", image_size=IMAGE)
+        sarmitsuba.simulate("urban", sensor_overrides=sensor, integrator_overrides=settings, focuser="bp", window="rect",
+                            image_size=IMAGE)
     elif kind == "derivative":
-        raw_derivative("urban", MaterialParameter("soil", "relative_permittivity"), sensor_overrides=sensor)
+        raw_derivative("urban", MaterialParameter("soil", "relative_permittivity"), sensor_overrides=sensor,
+                       integrator_overrides=settings)
     else:
         loss = AmplitudeLoss(np.zeros(IMAGE))
         sarmitsuba.gradients("urban", loss, [MaterialParameter(*p) for p in PARAMETERS], image_size=IMAGE,
-                             sensor_overrides=sensor)
+                             sensor_overrides=sensor, integrator_overrides=settings)
     seconds = time.perf_counter() - start
     peak = int(re.search(r"VmHWM:\s+(\d+)", open("/proc/self/status").read()).group(1)) / 1024
     return {"seconds": seconds, "peak_mib": peak}

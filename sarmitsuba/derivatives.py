@@ -92,7 +92,7 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
 
     Returns
     -------
-    RawData
+    RawData, or dict of them (quad-pol: channel name -> RawData)
         The raw data's geometry and axes, ``data`` complex64 [n_pulses, n_samples] the derivative
         per unit of the parameter (no thermal noise: it does not depend on ``p``);
         ``metadata["derivative"]`` names the parameter.
@@ -100,7 +100,7 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     Raises
     ------
     ParameterError
-        An unknown material or parameter, a ``pec`` material (or a half-space's thickness), a quad-pol trace,
+        An unknown material or parameter, a ``pec`` material (or a half-space's thickness),
         ``split_bounces``, or ``range_kernel = exact``.
     """
     if not isinstance(parameter, MaterialParameter):
@@ -122,17 +122,36 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
     world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
     meta = {"scene": str(source), "derivative": {"material": parameter.material, "parameter": parameter.name,
                                                  "unit": f"raw data units per {MATERIAL_PARAMETERS[parameter.name]}"}}
-    return binning.to_raw_data(result.contributions(), result, window, params, world, meta)
+    if len(params.channels) == 1:
+        return binning.to_raw_data(result.contributions(), result, window, params, world, meta)
+    return {name: binning.to_raw_data(result.channel(name).contributions(), result.channel(name), window, params, world,
+                                      {**meta, "polarization": name}) for name in params.channels}
 
 
 def _setup(source, sensor_overrides, integrator_overrides):
     """The loaded scene and its trace set-up, checked for what derivatives support."""
     loaded = load_scene(source, sensor_overrides, integrator_overrides)
-    if len(loaded.params.channels) != 1:
-        raise ParameterError("derivatives of quad-pol traces are not supported yet; set polarization HH, VV, HV or VH")
     if loaded.settings.split_bounces:
         raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
     return loaded, prepare_trace(loaded)
+
+
+def _channel_gradients(gradient, channels, shape) -> dict:
+    """Channel name -> complex128 gradient [n_pulses, n_samples] (zeros for channels left out);
+    ParameterError for a wrong shape or an unknown channel."""
+    given = gradient if isinstance(gradient, dict) else {channels[0]: gradient} if len(channels) == 1 else None
+    if given is None:
+        raise ParameterError(f"a quad-pol trace needs the gradient per channel: a dict over {', '.join(channels)}")
+    out = {}
+    for name in channels:
+        values = np.asarray(given.get(name, np.zeros(shape)), np.complex128)
+        if values.shape != shape:
+            raise ParameterError(f"gradient shape {values.shape} must be the raw data's {shape} (pulses, samples)")
+        out[name] = values
+    unknown = set(given) - set(channels)
+    if unknown:
+        raise ParameterError(f"gradient for channel(s) {', '.join(sorted(unknown))}: the trace holds {', '.join(channels)}")
+    return out
 
 
 def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -142,9 +161,9 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     Parameters
     ----------
     source : str or Path or Scene
-    gradient : complex [n_pulses, n_samples]
+    gradient : complex [n_pulses, n_samples], or dict of them (quad-pol)
         ``dL/d Re(raw) + j dL/d Im(raw)`` at the scene's raw data (for ``L = sum |raw - target|^2``:
-        ``2 (raw - target)``).
+        ``2 (raw - target)``); quad-pol: channel name -> that channel's (channels left out: 0).
     parameters : iterable of MaterialParameter
     sensor_overrides, integrator_overrides : mapping, optional
 
@@ -167,19 +186,18 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
     params, settings = loaded.params, loaded.settings
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
-    gradient = np.asarray(gradient)
-    shape = (geometry.positions.shape[0], window.n_samples)
-    if gradient.shape != shape:
-        raise ParameterError(f"gradient shape {gradient.shape} must be the raw data's {shape} (pulses, samples)")
+    gradients_ = _channel_gradients(gradient, params.channels, (geometry.positions.shape[0], window.n_samples))
     rows = {p: _material(loaded.scene, setup.table, p.material, params.frequency) for p in parameters}
     kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects)
 
     def run_batches(plan, batches):
-        spectra = binning.raw_data_adjoint(gradient, plan.lref, plan.n_pad, window, params)
+        spectra = [binning.raw_data_adjoint(gradients_[name], plan.lref, plan.n_pad, window, params)
+                   for name in kernel.returns.channels]          # in the histogram's channel order
         for g0 in batches:
             p0, p1 = plan.pulses(g0)
-            kernel.returns.sums.seed = reduce_deposit_adjoint(spectra[p0:p1], window.n_fine, window.fs, window.oversample,
-                                                              params.frequency, settings.range_kernel)[:, None]
+            kernel.returns.sums.seed = np.stack(
+                [reduce_deposit_adjoint(spectrum[p0:p1], window.n_fine, window.fs, window.oversample, params.frequency,
+                                        settings.range_kernel) for spectrum in spectra], axis=1)
             yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
 
     with evaluated_loops():
@@ -261,6 +279,9 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                    window="rect", focuser="bp", image_size=image_size, image_spacing=image_spacing)
     params, shown = sim.loaded.params, sim.image
+    if len(params.channels) != 1:
+        raise ParameterError("sarmitsuba.gradients takes a loss on one channel's image; for quad-pol, set "
+                             "polarization to one channel, or use raw_gradient with a gradient per channel")
     grid = ImageGrid(shown.origin, shown.azimuth_direction, shown.range_direction, shown.azimuth, shown.range)
     operator = backprojection_operator(sim.raw, grid, oversample=oversample,
                                        azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
