@@ -161,80 +161,56 @@ def _stripmap(name: str, n_pulses: int = 128, n_samples: int = 96) -> RawData:
     return simulate_case(case)
 
 
-OMEGA_K = {
-    "airborne-rect": ("airborne", dict()),
-    "airborne-taylor-6taps": ("airborne", dict(window_range="taylor", window_azimuth="taylor", taps=6)),
-    "squinted-kaiser-band": ("squinted", dict(window_azimuth=("kaiser", {"beta": 2.5}), doppler_bandwidth=80.0,
-                                              oversample=1.25)),
+#: FFT focuser set-ups: name -> (operator builder, fast focuser, data, options), by import path.
+FFT_CASES = {
+    "omegak-airborne-rect": ("omega_k", "airborne", dict()),
+    "omegak-airborne-taylor-6taps": ("omega_k", "airborne", dict(window_range="taylor", window_azimuth="taylor", taps=6)),
+    "omegak-squinted-kaiser-band": ("omega_k", "squinted", dict(window_azimuth=("kaiser", {"beta": 2.5}),
+                                                               doppler_bandwidth=80.0, oversample=1.25)),
+    "rda-airborne-rect": ("range_doppler", "airborne", dict()),
+    "rda-airborne-taylor-src2d": ("range_doppler", "airborne", dict(window_range="taylor", window_azimuth="taylor",
+                                                                   src="2d")),
+    "rda-squinted-src-range-band": ("range_doppler", "squinted", dict(src="range", doppler_bandwidth=80.0, upsample=3,
+                                                                     taps=6)),
 }
 
 
-@pytest.mark.parametrize("case", list(OMEGA_K))
-def test_omega_k_adjoint_passes_the_dot_product_test(case):
-    """``<F x, y> = <x, F^H y>`` in float64 to 1e-9. Catches: a forward FFT's adjoint taken as an
-    FFT (not ``N`` times the inverse), the Stolt kernel's scatter on the wrong wrapped bin, the
-    factors' conjugate missing, the crop to the data's range samples not undone by zero-padding."""
-    from sarmitsuba.focus.linear import omega_k_operator
-    name, options = OMEGA_K[case]
+def _fft_case(case: str):
+    """(raw data, float64 operator, fast focuser's image) of an FFT focuser set-up."""
+    from sarmitsuba.focus import linear
+    from sarmitsuba.focus.omegak import omega_k
+    from sarmitsuba.focus.rda import range_doppler
+    focuser, name, options = FFT_CASES[case]
     raw = _stripmap(name)
-    operator = omega_k_operator(raw, **options)
+    operator = getattr(linear, f"{focuser}_operator")(raw, **options)
+    fast = {"omega_k": omega_k, "range_doppler": range_doppler}[focuser]
+    return raw, operator, lambda: fast(raw, workers=1, **options).data
+
+
+@pytest.mark.parametrize("case", list(FFT_CASES))
+def test_fft_focuser_adjoint_passes_the_dot_product_test(case):
+    """``<F x, y> = <x, F^H y>`` in float64 to 1e-9, omega-K and range-Doppler. Catches: a forward
+    FFT's adjoint taken as an FFT (not ``N`` times the inverse), an inverse FFT's adjoint without
+    its 1 / N, the Stolt kernel's scatter on the wrong wrapped bin, the factors', range filter's or
+    SRC's conjugate missing, the upsampling's spectrum halves swapped, the crop to the data's range
+    samples not undone by zero-padding."""
+    raw, operator, _ = _fft_case(case)
     x, y = _random(raw.data.shape, 8), _random(raw.data.shape, 9)
     left, right = inner(operator.forward(x), y), inner(x, operator.adjoint(y))
     assert abs(left) > 0
     assert abs(left - right) <= DOT_TOL * abs(left)
 
 
-@pytest.mark.parametrize("case", list(OMEGA_K))
-def test_omega_k_operator_is_the_fast_focuser(case):
-    """The float64 map (exact kernel) against ``omega_k`` itself (complex64, tabulated kernel) on
-    point targets: a second implementation of the same steps. Catches a missing step (the
-    deconvolution, the Jacobian, the fast-time origin) or a sign of a phase."""
-    from sarmitsuba.focus.linear import omega_k_operator
-    from sarmitsuba.focus.omegak import omega_k
-    name, options = OMEGA_K[case]
-    raw = _stripmap(name)
-    image = omega_k_operator(raw, **options).forward(raw.data)
-    fast = omega_k(raw, workers=1, **options).data
-    assert np.max(np.abs(image - fast)) <= 1e-3 * np.max(np.abs(fast))
-    assert np.max(np.abs(fast)) > 0.1 * np.max(np.abs(raw.data))
-
-
-# ============================================================================ range-Doppler
-RDA = {
-    "airborne-rect": ("airborne", dict()),
-    "airborne-taylor-src2d": ("airborne", dict(window_range="taylor", window_azimuth="taylor", src="2d")),
-    "squinted-src-range-band": ("squinted", dict(src="range", doppler_bandwidth=80.0, upsample=3, taps=6)),
-}
-
-
-@pytest.mark.parametrize("case", list(RDA))
-def test_range_doppler_adjoint_passes_the_dot_product_test(case):
-    """``<F x, y> = <x, F^H y>`` in float64 to 1e-9. Catches: the upsampling's spectrum halves
-    swapped in the adjoint, the SRC or range filter not conjugated, an inverse FFT's adjoint
-    without its 1 / N."""
-    from sarmitsuba.focus.linear import range_doppler_operator
-    name, options = RDA[case]
-    raw = _stripmap(name)
-    operator = range_doppler_operator(raw, **options)
-    x, y = _random(raw.data.shape, 10), _random(raw.data.shape, 11)
-    left, right = inner(operator.forward(x), y), inner(x, operator.adjoint(y))
-    assert abs(left) > 0
-    assert abs(left - right) <= DOT_TOL * abs(left)
-
-
-@pytest.mark.parametrize("case", list(RDA))
-def test_range_doppler_operator_is_the_fast_focuser(case):
-    """The float64 map (exact RCMC kernel) against ``range_doppler`` (complex64, tabulated): a
-    second implementation of the same steps. Catches RCMC taps beyond the row's ends read as
-    its edge samples instead of zeros, and a missing step or phase sign."""
-    from sarmitsuba.focus.linear import range_doppler_operator
-    from sarmitsuba.focus.rda import range_doppler
-    name, options = RDA[case]
-    raw = _stripmap(name)
-    image = range_doppler_operator(raw, **options).forward(raw.data)
-    fast = range_doppler(raw, workers=1, **options).data
-    assert np.max(np.abs(image - fast)) <= 1e-3 * np.max(np.abs(fast))
-    assert np.max(np.abs(fast)) > 0.1 * np.max(np.abs(raw.data))
+@pytest.mark.parametrize("case", list(FFT_CASES))
+def test_fft_operator_is_the_fast_focuser(case):
+    """The float64 map (exact Stolt or RCMC kernel) against ``omega_k`` or ``range_doppler`` itself
+    (complex64, tabulated kernels) on point targets: a second implementation of the same steps.
+    Catches a missing step (the deconvolution, the Jacobian, the fast-time origin), a phase's
+    sign, RCMC taps beyond a row's ends read as its edge samples instead of zeros."""
+    raw, operator, fast = _fft_case(case)
+    image, reference = operator.forward(raw.data), fast()
+    assert np.max(np.abs(image - reference)) <= 1e-3 * np.max(np.abs(reference))
+    assert np.max(np.abs(reference)) > 0.1 * np.max(np.abs(raw.data))
 
 
 # ============================================================================ the binning's adjoints

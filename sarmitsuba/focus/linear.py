@@ -60,6 +60,15 @@ __all__ = ["BackprojectionOperator", "backprojection_operator", "OmegaKOperator"
            "RangeDopplerOperator", "range_doppler_operator", "inner"]
 
 
+def _checked(values: np.ndarray, shape: tuple, what: str) -> np.ndarray:
+    """``values`` as complex128; ValueError naming ``what`` (``"data"``, ``"image"``) and the
+    expected shape when it has another."""
+    values = np.asarray(values, np.complex128)
+    if values.shape != tuple(shape):
+        raise ValueError(f"{what} shape {values.shape} must be {tuple(shape)} (the operator's)")
+    return values
+
+
 def inner(a: np.ndarray, b: np.ndarray) -> complex:
     """``<a, b> = sum conj(a) b`` over all elements (complex128)."""
     return complex(np.vdot(np.asarray(a, np.complex128).ravel(), np.asarray(b, np.complex128).ravel()))
@@ -112,9 +121,7 @@ class BackprojectionOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The image of ``data`` complex [n_pulses, n_samples]: complex128 [n_az, n_rg]."""
-        data = np.asarray(data, np.complex128)
-        if data.shape != self.data_shape:
-            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        data = _checked(data, self.data_shape, "data")
         x = self.grid.positions().reshape(-1, 3)
         receive = receiver_motion(self.raw)
         image = np.zeros(x.shape[0], np.complex128)
@@ -127,9 +134,7 @@ class BackprojectionOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for ``image`` complex [n_az, n_rg]: complex128 [n_pulses, n_samples]."""
-        image = np.asarray(image, np.complex128)
-        if image.shape != tuple(self.grid.shape):
-            raise ValueError(f"image shape {image.shape} must be the grid's {tuple(self.grid.shape)}")
+        image = _checked(image, self.grid.shape, "image")
         x = self.grid.positions().reshape(-1, 3)
         receive = receiver_motion(self.raw)
         n_pulses, n_samples = self.data_shape
@@ -197,9 +202,7 @@ class OmegaKOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
-        data = np.asarray(data, np.complex128)
-        if data.shape != self.data_shape:
-            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        data = _checked(data, self.data_shape, "data")
         plan, (n_a, n_r) = self.plan, self.data_shape
         buffer = np.zeros((n_a, plan.n_pad), np.complex128)
         buffer[:, self.columns] = data * self.prefactor
@@ -214,9 +217,7 @@ class OmegaKOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
-        image = np.asarray(image, np.complex128)
-        if image.shape != self.data_shape:
-            raise ValueError(f"image shape {image.shape} must be the slant grid's {self.data_shape}")
+        image = _checked(image, self.data_shape, "image")
         plan, (n_a, n_r) = self.plan, self.data_shape
         image = scipy.fft.fft(image, axis=0) / n_a                          # ifft^H = fft / N
         out = np.zeros((n_a, plan.n_out), np.complex128)
@@ -294,9 +295,7 @@ class RangeDopplerOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
-        data = np.asarray(data, np.complex128)
-        if data.shape != self.data_shape:
-            raise ValueError(f"data shape {data.shape} must be the acquisition's {self.data_shape}")
+        data = _checked(data, self.data_shape, "data")
         plan, (n_a, _) = self.plan, self.data_shape
         n1, n2 = plan.n1, plan.n1 * plan.upsample
         spec = scipy.fft.fft(scipy.fft.fft(data, n=n1, axis=1) * plan.range_filter, axis=0)
@@ -312,9 +311,7 @@ class RangeDopplerOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
-        image = np.asarray(image, np.complex128)
-        if image.shape != self.data_shape:
-            raise ValueError(f"image shape {image.shape} must be the slant grid's {self.data_shape}")
+        image = _checked(image, self.data_shape, "image")
         plan, (n_a, n_r) = self.plan, self.data_shape
         n1, n2 = plan.n1, plan.n1 * plan.upsample
         values = scipy.fft.fft(image, axis=0) / n_a * np.conj(self.factors)
