@@ -79,7 +79,7 @@ def _material(scene, table, name: str, frequency: float):
 
 
 def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_overrides: Mapping[str, Any] | None = None,
-                   integrator_overrides: Mapping[str, Any] | None = None) -> RawData:
+                   integrator_overrides: Mapping[str, Any] | None = None) -> "RawData | dict":
     """``d raw / d p``: the derivative of the scene's raw data with respect to ``parameter``.
 
     Parameters
