@@ -13,10 +13,14 @@ with respect to the raw data, carries it back through the binning's adjoint
 :func:`sarmitsuba.tracing.deposit.reduce_deposit_adjoint`) to each launch's histogram, and through
 the tracing kernels to the reflection tables (Dr.Jit's reverse mode), then to each parameter.
 
-So far: a material's relative permittivity, conductivity or (slabs) thickness, for ``half_space``
-and ``slab`` materials (``radar`` and ITU-named), with
-the gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. Pose and vertices
-follow (issue 57).
+Parameters: a material's relative permittivity, conductivity or (slabs) thickness, for
+``half_space`` and ``slab`` materials (``radar`` and ITU-named), and a rough material's
+scattering coefficient (:class:`MaterialParameter`); a mesh's translation, rotation, height or
+vertices (:class:`ShapeParameter`, docs/physics.md (AD4): the host geometry differenced in
+float64 with the lit regions' topology held, the kernels by Dr.Jit; the interior term only,
+:class:`~sarmitsuba.tracing.lane_pairs.GeometryChange` where the topology changes). With the
+gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. ``at=`` moves shapes
+before the trace (:func:`moved_raw` gives those raw data).
 
 A loss on the image: :func:`gradients` (``sarmitsuba.gradients``) focuses the raw data by direct
 backprojection as a float64 linear map (:class:`sarmitsuba.focus.linear.BackprojectionOperator`),
@@ -32,6 +36,8 @@ Example::
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -42,12 +48,15 @@ from .core.radar import ParameterError
 from .core.raw import RawData
 from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
+from .tracing.facets import scene_meshes
+from .tracing.geometry_tangents import GeometryMove, move_scene
 from .tracing.loops import evaluated_loops
 from .tracing.deposit import reduce_deposit_adjoint
-from .tracing.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, row_tangent
+from .tracing.kernel import Kernel
+from .tracing.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, moved_tracer, row_tangent
 from .tracing.trace import prepare_trace, trace, trace_batch
 
-__all__ = ["MaterialParameter", "raw_derivative", "raw_gradient", "AmplitudeLoss", "Gradients", "gradients"]
+__all__ = ["MaterialParameter", "ShapeParameter", "raw_derivative", "moved_raw", "raw_gradient", "AmplitudeLoss", "Gradients", "gradients"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +75,117 @@ class MaterialParameter:
             raise ParameterError(f"MaterialParameter name = {self.name!r}; valid: {', '.join(MATERIAL_PARAMETERS)}")
 
 
+#: The geometric parameters' kinds and units (:class:`ShapeParameter`).
+SHAPE_PARAMETERS = {"translation": "m", "rotation": "rad", "vertices": "m", "height": "m"}
+#: The host geometry's central-difference step (docs/physics.md (AD4)), m of displacement.
+GEOMETRY_STEP = 1e-6
+
+
+@dataclass(frozen=True)
+class ShapeParameter:
+    """A shape's geometry (docs/physics.md (AD4)): ``shape`` its id in the scene, ``kind``
+
+    * ``"translation"``: the shape moves along ``axis`` (m);
+    * ``"rotation"``: it turns about ``axis`` (right-handed) through ``center`` (world, m; default
+      the centre of its bounding box), rad;
+    * ``"vertices"``: its vertices of index ``vertices`` (in the mesh's vertex buffer) move along
+      ``axis`` (m); one vertex and one axis is one coordinate of the vertex gradient;
+    * ``"height"``: every vertex rises in proportion to its height above the shape's lowest one,
+      so that its top rises by one (m): a building's height, its base kept.
+
+    ``axis`` is any non-zero vector (made unit)."""
+
+    shape: str
+    kind: str
+    axis: tuple = (0.0, 0.0, 1.0)
+    vertices: tuple | None = None
+    center: tuple | None = None
+
+    def __post_init__(self):
+        for name in ("axis", "vertices", "center"):           # hashable: a gradient's dict key
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, tuple(np.asarray(getattr(self, name)).ravel().tolist()))
+        if self.kind not in SHAPE_PARAMETERS:
+            raise ParameterError(f"ShapeParameter kind = {self.kind!r}; valid: {', '.join(SHAPE_PARAMETERS)}")
+        axis = np.asarray(self.axis, float)
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or not np.any(axis):
+            raise ParameterError(f"ShapeParameter axis = {self.axis!r}: give three finite numbers, not all zero")
+        if self.kind == "vertices" and not self.vertices:
+            raise ParameterError("ShapeParameter kind 'vertices' needs vertices = (indices of the mesh's vertices)")
+
+    def index(self, loaded) -> int:
+        """The shape's index in ``loaded.scene.shapes()``; ParameterError naming the scene's shapes
+        where it has none of that id, or where it is not a mesh."""
+        shapes = list(loaded.scene.shapes())
+        index = [k for k, shape in enumerate(shapes) if shape.id() == self.shape]
+        if not index:
+            raise ParameterError(f"shape {self.shape!r} is not in the scene; its shapes: "
+                                 f"{', '.join(sorted(s.id() for s in shapes))}")
+        if not shapes[index[0]].is_mesh():
+            raise ParameterError(f"shape {self.shape!r} is not a mesh: geometric derivatives are taken of meshes")
+        return index[0]
+
+    def displaced(self, loaded, vertices: np.ndarray, amount: float) -> np.ndarray:
+        """``vertices`` (float64 [n_v, 3], the shape's, tracing frame) with the parameter moved by
+        ``amount`` (its unit): a rotation turns them exactly (Rodrigues), every other kind adds
+        ``amount`` times its displacement field."""
+        if self.kind != "rotation":
+            return vertices + float(amount) * self._field(loaded, vertices)
+        axis = np.asarray(self.axis, float) / np.linalg.norm(self.axis)
+        c = self._center(loaded, vertices)
+        r = vertices - c
+        cos, sin = math.cos(amount), math.sin(amount)
+        return c + r * cos + np.cross(axis, r) * sin + np.outer(r @ axis, axis) * (1.0 - cos)
+
+    def _center(self, loaded, v):
+        return 0.5 * (v.min(axis=0) + v.max(axis=0)) if self.center is None else \
+            np.asarray(self.center, float) - loaded.offset
+
+    def move(self, loaded) -> GeometryMove:
+        """The :class:`~sarmitsuba.tracing.geometry_tangents.GeometryMove` of this parameter in
+        ``loaded`` (a LoadedScene): each vertex's displacement per unit, in its tracing frame."""
+        k = self.index(loaded)
+        v = scene_meshes(loaded.scene)[k][0]
+        field = self._field(loaded, v)
+        step = GEOMETRY_STEP
+        if self.kind == "rotation":
+            step = GEOMETRY_STEP / max(float(np.linalg.norm(v - self._center(loaded, v), axis=1).max()), 1e-9)
+        return GeometryMove(k, field, step)
+
+    def _field(self, loaded, v):
+        """Each vertex's displacement per unit of the parameter, float64 [n_v, 3]."""
+        axis = np.asarray(self.axis, float) / np.linalg.norm(self.axis)
+        field = np.zeros_like(v)
+        if self.kind == "translation":
+            field[:] = axis
+        elif self.kind == "rotation":
+            field = np.cross(axis, v - self._center(loaded, v))
+        elif self.kind == "vertices":
+            rows = np.asarray(self.vertices, np.int64)
+            if rows.min() < 0 or rows.max() >= len(v):
+                raise ParameterError(f"ShapeParameter vertices {self.vertices!r}: shape {self.shape!r} has vertices "
+                                     f"0 .. {len(v) - 1}")
+            field[rows] = axis
+        else:
+            low, high = v[:, 2].min(), v[:, 2].max()
+            if high - low <= 0:
+                raise ParameterError(f"shape {self.shape!r} is flat: it has no height")
+            field[:, 2] = (v[:, 2] - low) / (high - low)
+        return field
+
+
+def _unit(parameter) -> str:
+    if isinstance(parameter, ShapeParameter):
+        return SHAPE_PARAMETERS[parameter.kind]
+    return MATERIAL_PARAMETERS[parameter.name]
+
+
+def _checked(parameter):
+    if not isinstance(parameter, (MaterialParameter, ShapeParameter)):
+        raise ParameterError(f"parameters must be MaterialParameter or ShapeParameter, got {type(parameter).__name__}")
+    return parameter
+
+
 def _material(scene, table, name: str, frequency: float):
     """The table row, the electromagnetic model and the BSDF of the material ``name``; ParameterError
     naming the scene's materials when there is none of that name."""
@@ -78,17 +198,20 @@ def _material(scene, table, name: str, frequency: float):
     raise ParameterError(f"material {name!r} is not used by any shape")
 
 
-def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_overrides: Mapping[str, Any] | None = None,
-                   integrator_overrides: Mapping[str, Any] | None = None) -> "RawData | dict":
+def raw_derivative(source: Any, parameter, *, sensor_overrides: Mapping[str, Any] | None = None,
+                   integrator_overrides: Mapping[str, Any] | None = None, at: Mapping | None = None) -> "RawData | dict":
     """``d raw / d p``: the derivative of the scene's raw data with respect to ``parameter``.
 
     Parameters
     ----------
     source : str or Path or Scene
         As :func:`sarmitsuba.simulate` (XML path, built-in name, ``sionna:NAME``).
-    parameter : MaterialParameter
+    parameter : MaterialParameter or ShapeParameter
     sensor_overrides, integrator_overrides : mapping, optional
         As :func:`sarmitsuba.simulate`.
+    at : mapping, optional
+        ShapeParameter -> amount (its unit): the shapes moved that far first (the derivative is
+        taken there; the scene file is not touched).
 
     Returns
     -------
@@ -103,14 +226,17 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
         An unknown material or parameter, a ``pec`` material (or a half-space's thickness),
         ``split_bounces``, or ``range_kernel = exact``.
     """
-    if not isinstance(parameter, MaterialParameter):
-        raise ParameterError(f"parameter must be a MaterialParameter, got {type(parameter).__name__}")
-    loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
+    _checked(parameter)
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
     params, settings = loaded.params, loaded.settings
-    row, material, bsdf = _material(loaded.scene, setup.table, parameter.material, params.frequency)
-    tangent = row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE)
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
-    kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, tangent)
+    if isinstance(parameter, ShapeParameter):
+        kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, None, None,
+                               parameter.move(loaded))
+    else:
+        row, material, bsdf = _material(loaded.scene, setup.table, parameter.material, params.frequency)
+        tangent = row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE)
+        kernel = TangentKernel(loaded.scene, params, window, footprint, settings, setup.table, effects, row, tangent)
 
     def run_batches(plan, batches):
         for g0 in batches:
@@ -120,19 +246,31 @@ def raw_derivative(source: Any, parameter: MaterialParameter, *, sensor_override
         result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
                        run_batches=run_batches)
     world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
-    meta = {"scene": str(source), "derivative": {"material": parameter.material, "parameter": parameter.name,
-                                                 "unit": f"raw data units per {MATERIAL_PARAMETERS[parameter.name]}"}}
+    named = ({"material": parameter.material, "parameter": parameter.name} if isinstance(parameter, MaterialParameter)
+             else {"shape": parameter.shape, "parameter": parameter.kind, **dataclasses.asdict(parameter)})
+    meta = {"scene": str(source), "derivative": {**named, "unit": f"raw data units per {_unit(parameter)}"}}
     if len(params.channels) == 1:
         return binning.to_raw_data(result.contributions(), result, window, params, world, meta)
     return {name: binning.to_raw_data(result.channel(name).contributions(), result.channel(name), window, params, world,
                                       {**meta, "polarization": name}) for name in params.channels}
 
 
-def _setup(source, sensor_overrides, integrator_overrides):
-    """The loaded scene and its trace set-up, checked for what derivatives support."""
+def _setup(source, sensor_overrides, integrator_overrides, at=None):
+    """The loaded scene, its shapes moved by ``at`` (ShapeParameter -> amount), and its trace
+    set-up, checked for what derivatives support."""
     loaded = load_scene(source, sensor_overrides, integrator_overrides)
     if loaded.settings.split_bounces:
         raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
+    moved = {}
+    for parameter, amount in dict(at or {}).items():
+        if not isinstance(parameter, ShapeParameter) or not np.isfinite(amount):
+            raise ParameterError(f"at: {parameter!r}: {amount!r}; give ShapeParameter -> finite amount (its unit)")
+        k = parameter.index(loaded)
+        start = moved.get(k, scene_meshes(loaded.scene)[k][0])
+        moved[k] = parameter.displaced(loaded, start, amount)
+    # the fast-time window and the footprint stay the unmoved scene's (the acquisition's
+    # sampling does not move with the scene: the derivative is taken on one time grid)
+    move_scene(loaded.scene, moved)
     return loaded, prepare_trace(loaded)
 
 
@@ -155,7 +293,7 @@ def _channel_gradients(gradient, channels, shape) -> dict:
 
 
 def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overrides: Mapping[str, Any] | None = None,
-                 integrator_overrides: Mapping[str, Any] | None = None) -> dict:
+                 integrator_overrides: Mapping[str, Any] | None = None, at: Mapping | None = None) -> dict:
     """``dL/dp`` of a real loss ``L`` of the scene's raw data, for every parameter at once.
 
     Parameters
@@ -164,31 +302,32 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     gradient : complex [n_pulses, n_samples], or dict of them (quad-pol)
         ``dL/d Re(raw) + j dL/d Im(raw)`` at the scene's raw data (for ``L = sum |raw - target|^2``:
         ``2 (raw - target)``); quad-pol: channel name -> that channel's (channels left out: 0).
-    parameters : iterable of MaterialParameter
-    sensor_overrides, integrator_overrides : mapping, optional
+    parameters : iterable of MaterialParameter and ShapeParameter
+    sensor_overrides, integrator_overrides, at : mapping, optional
+        As :func:`raw_derivative`.
 
     Returns
     -------
     dict
-        MaterialParameter -> float, ``dL/dp`` per unit of the parameter.
+        parameter -> float, ``dL/dp`` per unit of the parameter.
 
     Raises
     ------
     ParameterError
         As :func:`raw_derivative`; a ``gradient`` whose shape is not the raw data's.
     """
-    parameters = list(parameters)
-    for parameter in parameters:
-        if not isinstance(parameter, MaterialParameter):
-            raise ParameterError(f"parameters must be MaterialParameter, got {type(parameter).__name__}")
+    parameters = [_checked(p) for p in parameters]
     if not parameters:
         return {}                                            # nothing asked: nothing traced
-    loaded, setup = _setup(source, sensor_overrides, integrator_overrides)
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
     params, settings = loaded.params, loaded.settings
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     gradients_ = _channel_gradients(gradient, params.channels, (geometry.positions.shape[0], window.n_samples))
-    rows = {p: _material(loaded.scene, setup.table, p.material, params.frequency) for p in parameters}
-    kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects)
+    rows = {p: _material(loaded.scene, setup.table, p.material, params.frequency) for p in parameters
+            if isinstance(p, MaterialParameter)}
+    shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
+    kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects,
+                           [p.move(loaded) for p in shapes])
 
     def run_batches(plan, batches):
         spectra = [binning.raw_data_adjoint(gradients_[name], plan.lref, plan.n_pad, window, params)
@@ -209,7 +348,9 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
         flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row,
                              row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE))
         out[parameter] = float(sum(grads[name] @ values for name, values in flat.items()))
-    return out
+    for parameter, total in zip(shapes, kernel.moved.totals if shapes else ()):
+        out[parameter] = float(total)
+    return {p: out[p] for p in parameters}
 
 
 
@@ -246,7 +387,8 @@ class Gradients:
 
 def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (64, 64),
               image_spacing: float | None = None, sensor_overrides: Mapping[str, Any] | None = None,
-              integrator_overrides: Mapping[str, Any] | None = None, oversample: int = 8) -> Gradients:
+              integrator_overrides: Mapping[str, Any] | None = None, oversample: int = 8,
+              at: Mapping | None = None) -> Gradients:
     """``dL/dp`` of a loss on the scene's image, for every parameter at once (reverse mode).
 
     Parameters
@@ -255,11 +397,12 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     loss : callable
         ``loss(image) -> (L, G)``: a real loss of the complex image [n_az, n_rg] and
         ``G = dL/d Re I + j dL/d Im I`` (e.g. :class:`AmplitudeLoss`).
-    parameters : iterable of MaterialParameter
+    parameters : iterable of MaterialParameter and ShapeParameter
     image_size, image_spacing
         The ground grid about the scene centre (``simulate``'s), small: the image is formed by the
         float64 backprojection operator, pulse by pulse.
-    sensor_overrides, integrator_overrides : mapping, optional
+    sensor_overrides, integrator_overrides, at : mapping, optional
+        As :func:`raw_derivative` (``at`` moves shapes first: the loss and gradient there).
     oversample : int
         Range upsampling of the backprojection.
 
@@ -272,23 +415,56 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     ParameterError
         As :func:`raw_gradient`.
     """
-    from .pipeline import simulate                           # (the top level's entry point)
     from .focus.dispatch import azimuth_pattern
-    from .focus.grid import ImageGrid
     from .focus.linear import backprojection_operator
-    sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
-                   window="rect", focuser="bp", image_size=image_size, image_spacing=image_spacing)
-    params, shown = sim.loaded.params, sim.image
+    from .focus.scene_grid import sized_grid
+    parameters = [_checked(p) for p in parameters]
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
+    params = loaded.params
     if len(params.channels) != 1:
         raise ParameterError("sarmitsuba.gradients takes a loss on one channel's image; for quad-pol, set "
                              "polarization to one channel, or use raw_gradient with a gradient per channel")
-    grid = ImageGrid(shown.origin, shown.azimuth_direction, shown.range_direction, shown.azimuth, shown.range)
-    operator = backprojection_operator(sim.raw, grid, oversample=oversample,
+    shapes = bool(at) or any(isinstance(p, ShapeParameter) for p in parameters)
+    raw = _values(source, loaded, setup, shapes)
+    grid = sized_grid(params, setup.geometry, image_size, image_spacing)
+    grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
+    operator = backprojection_operator(raw, grid, oversample=oversample,
                                        azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
                                        squint=params.squint, azimuth_pattern=azimuth_pattern(params))
-    image = operator.forward(sim.raw.data)
+    image = operator.forward(raw.data)
     value, image_gradient = loss(image)
     raw_gradient_ = operator.adjoint(image_gradient)
     grads = raw_gradient(source, raw_gradient_, parameters, sensor_overrides=sensor_overrides,
-                         integrator_overrides=integrator_overrides)
-    return Gradients(float(value), grads, image, sim.raw)
+                         integrator_overrides=integrator_overrides, at=at)
+    return Gradients(float(value), grads, image, raw)
+
+
+def moved_raw(source: Any, at: Mapping | None = None, *, sensor_overrides: Mapping[str, Any] | None = None,
+              integrator_overrides: Mapping[str, Any] | None = None) -> RawData:
+    """The raw data of the scene with its shapes moved by ``at`` (ShapeParameter -> amount),
+    traced with the outlines the geometric derivatives use (docs/physics.md (AD4)): the values
+    :func:`raw_derivative` and :func:`raw_gradient` differentiate, for an optimisation's loss
+    or a finite difference. One channel (ParameterError for quad-pol); no thermal noise."""
+    loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
+    if len(loaded.params.channels) != 1:
+        raise ParameterError("moved_raw traces one channel; set polarization to one channel")
+    return _values(source, loaded, setup, True)
+
+
+def _values(source, loaded, setup, outlines: bool) -> RawData:
+    """The raw data of a loaded scene (one channel), with the geometric derivatives' outlines
+    where ``outlines``."""
+    params, settings = loaded.params, loaded.settings
+    geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
+    kernel = Kernel(loaded.scene, params, window, footprint, settings, setup.table, effects)
+    if outlines:
+        moved_tracer(kernel, [], always=True)
+
+    def run_batches(plan, batches):
+        for g0 in batches:
+            yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+
+    result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
+                   run_batches=run_batches)
+    world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
+    return binning.to_raw_data(result.contributions(), result, window, params, world, {"scene": str(source)})

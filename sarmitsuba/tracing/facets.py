@@ -34,7 +34,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "triangle_table"]
+__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "scene_meshes", "triangle_table"]
 
 #: Most corners a part may have (vertex slots of :attr:`Parts.vertices`).
 MAX_PART_VERTICES = 8
@@ -120,6 +120,12 @@ def scene_parts(scene) -> Parts:
     meshes in Mitsuba 3.9) contribute no triangles, and their ``triangle_base`` is where the next
     shape's rows start. Vertex positions are the float32 buffers widened to float64.
     """
+    return mesh_parts(scene_meshes(scene))
+
+
+def scene_meshes(scene) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per shape of ``scene.shapes()``: its vertex positions float64 [n_v, 3] (m, the float32
+    buffer widened) and triangles int64 [n_f, 3]; empty arrays for a shape that is not a mesh."""
     meshes = []
     for shape in scene.shapes():
         if shape.is_mesh():
@@ -128,11 +134,11 @@ def scene_parts(scene) -> Parts:
         else:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         meshes.append((vertices, faces))
-    return mesh_parts(meshes)
+    return meshes
 
 
 def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_tolerance: float = 1e-5,
-               angle_tolerance: float = 1e-5) -> Parts:
+               angle_tolerance: float = 1e-5, separate: Sequence[int] = ()) -> Parts:
     """Decompose triangle meshes into convex planar parts.
 
     Parameters
@@ -147,6 +153,9 @@ def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_toleran
         Edge-adjacent triangles whose normals differ by less than this [rad] are coplanar (one
         face); a part's outline may turn inwards by up to this much at a corner (convex within
         the tolerance of the mesh's own rounding).
+    separate : sequence of int
+        Shapes whose triangles are faces of their own, coplanar or not (a mesh whose vertices
+        move off their faces' planes, docs/physics.md (AD4)).
 
     Returns
     -------
@@ -163,7 +172,7 @@ def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_toleran
     valid = (np.isfinite(norm) & (0.5 * norm >= DEGENERATE_AREA) & (tri[:, 0] != tri[:, 1])
              & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0]))
     unit = np.where(valid[:, None], cross / np.where(valid, norm, 1.0)[:, None], 0.0)
-    face, pairs = _faces(tri, unit, valid, math.cos(angle_tolerance))
+    face, pairs = _faces(tri, unit, valid, math.cos(angle_tolerance), np.isin(triangle_shape, list(separate)))
     n_faces = int(face.max(initial=-1)) + 1
     inside = face >= 0
     face_normal = np.zeros((n_faces, 3))
@@ -245,9 +254,10 @@ def _merge_vertices(points, shape_of, tolerance):
     return lowest[label], cluster
 
 
-def _faces(tri, unit, valid, cos_tolerance):
+def _faces(tri, unit, valid, cos_tolerance, alone):
     """Face of each triangle int64 [T] (-1 when degenerate), numbered in order of their lowest
-    triangle, and the coplanar edge-adjacent triangle pairs int64 [P, 2] that join them."""
+    triangle, and the coplanar edge-adjacent triangle pairs int64 [P, 2] that join them (none
+    with a triangle where ``alone`` [T])."""
     t = len(tri)
     ids = np.nonzero(valid)[0]
     edges = np.sort(tri[ids][:, [[0, 1], [1, 2], [2, 0]]], axis=2).reshape(-1, 2)
@@ -262,7 +272,7 @@ def _faces(tri, unit, valid, cos_tolerance):
             break
         found.append(np.stack([owner[same], owner[same + d]], axis=1))
     pairs = np.concatenate(found) if found else np.zeros((0, 2), np.int64)
-    pairs = pairs[(pairs[:, 0] != pairs[:, 1])
+    pairs = pairs[(pairs[:, 0] != pairs[:, 1]) & ~alone[pairs[:, 0]] & ~alone[pairs[:, 1]]
                   & (np.einsum("ij,ij->i", unit[pairs[:, 0]], unit[pairs[:, 1]]) > cos_tolerance)]
     pairs = np.unique(np.sort(pairs, axis=1), axis=0)
     _, label = connected_components(sparse.coo_matrix(

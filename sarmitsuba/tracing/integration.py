@@ -220,7 +220,10 @@ class PatchTerms:
         """Deposit the lanes' terms for every pulse of their sub-apertures (bounce order ``depth + 1``)."""
         if len(lanes) == 0:
             return
-        data = self._upload(lanes, pieces, depth)
+        self.deposit(ctx, self.upload(lanes, pieces, depth), lanes, depth)
+
+    def deposit(self, ctx: dict, data: dict, lanes: TermLanes, depth: int) -> None:
+        """Deposit the terms of lanes already on the device (``data``, :meth:`upload`)."""
         count = dr.gather(mi.UInt32, ctx["count"], data["sub"])
         paths = self.r.sums.path_buffers(len(lanes) * ctx["max_count"] * 2) if self.r.exact else None
         lane = dr.arange(mi.UInt32, len(lanes))
@@ -235,8 +238,9 @@ class PatchTerms:
             self.r.sums.keep_paths(ctx, paths)
 
     # ------------------------------------------------------------------ upload
-    def _upload(self, lanes: TermLanes, pieces: PieceTable, depth: int) -> dict:
-        """The lanes and pieces on the device, with each lane's ``gamma`` and Jones matrix."""
+    def upload(self, lanes: TermLanes, pieces: PieceTable, depth: int) -> dict:
+        """The lanes and pieces on the device, with each lane's ``gamma`` and Jones matrix: a dict
+        of Dr.Jit arrays (and lists of them) by name, and flags (bool) saying which are there."""
         a64, v3 = mi.Array3f64, mi.Vector3f
         data = dict(kind=device_array(mi.UInt32, lanes.kind), point=device_array(a64, lanes.point.T),
                     unfolded=device_array(a64, lanes.unfolded.T), edge=device_array(v3, lanes.edge.T),

@@ -360,15 +360,21 @@ class Kernel:
         self.mesh = None
         #: Whether the tubes are traced: ``tiles``, or patches with shapes that are not meshes (spheres).
         self.tubes = settings.lit_regions != "patches" or self.tables.other_shapes
+        self.params, self.material_table = params, material_table
         if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M8)
             bbox = scene.bbox()
-            self.mesh = MeshTracer(scene, surfaces_of(scene, material_table), self.returns, params, settings,
-                                   footprint.patch_size, not (effects.spotlight or effects.curved_track),
-                                   (np.array(bbox.min, float), np.array(bbox.max, float)), material_table,
-                                   footprint.scatterer_spacing)
+            self.bbox = (np.array(bbox.min, float), np.array(bbox.max, float))
+            self.mesh = self.mesh_tracer(surfaces_of(scene, material_table), material_table)
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None
+
+    def mesh_tracer(self, surfaces, material_table) -> MeshTracer:
+        """A :class:`~sarmitsuba.tracing.mesh_trace.MeshTracer` of ``surfaces`` with this kernel's
+        acquisition, returns and scene box (the geometric derivatives' moved copies, (AD4))."""
+        fx = self.effects
+        return MeshTracer(self.scene, surfaces, self.returns, self.params, self.settings, self.fp.patch_size,
+                          not (fx.spotlight or fx.curved_track), self.bbox, material_table, self.fp.scatterer_spacing)
 
     # ------------------------------------------------------------------ one launch
     def __call__(self, launch: Launch, capacity: int = 0) -> dict:

@@ -13,7 +13,9 @@ from __future__ import annotations
 import contextlib
 import threading
 
-__all__ = ["loop_mode", "evaluated_loops"]
+import numpy as np
+
+__all__ = ["loop_mode", "evaluated_loops", "lane_float", "float64_lanes"]
 
 _STATE = threading.local()
 
@@ -33,3 +35,22 @@ def evaluated_loops():
         yield
     finally:
         _STATE.mode = previous
+
+
+def lane_float() -> type:
+    """The floating-point type of the host's lane arrays that the kernels read in float32
+    (:mod:`sarmitsuba.tracing.term_lanes`): ``np.float32``, or ``np.float64`` inside
+    :func:`float64_lanes` (this thread only), where the geometric derivatives difference them
+    (docs/physics.md (AD4)); the upload rounds them to float32 either way."""
+    return getattr(_STATE, "lane_float", np.float32)
+
+
+@contextlib.contextmanager
+def float64_lanes():
+    """Within the block, the host keeps its lane arrays in float64 (:func:`lane_float`)."""
+    previous = lane_float()
+    _STATE.lane_float = np.float64
+    try:
+        yield
+    finally:
+        _STATE.lane_float = previous

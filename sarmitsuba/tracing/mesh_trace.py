@@ -32,7 +32,7 @@ from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerm
 from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
 from .motion import endpoint_rates, line_rates
 from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
-from .polygons import edge_lines
+from .polygons import REPEAT_DISTANCE, edge_lines
 from .surface_clutter import ClutterKernel
 from .edges import find_wedges, segment_wedges
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
@@ -100,6 +100,8 @@ class MeshTracer:
         self.track = np.asarray(returns.fp.track, float)
         self.subdivision = _discovery_subdivision(surfaces, patch)
         self.moving = MOVING
+        #: Pieces without collinear corners (the geometric derivatives' tracers, docs/physics.md (AD4)).
+        self.simplify = False
         self._static = None
         self._body_box = None
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
@@ -296,6 +298,8 @@ class MeshTracer:
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
         from mixed ones (:func:`sarmitsuba.tracing.occlusion.clip_mixed`), eq. (M5)."""
         s, chains = self.surfaces, lit.chains
+        if self.simplify:                   # (AD4): outlines whose corners do not hang on rounding
+            lit = dataclasses.replace(lit, pieces=lit.pieces.simplified())
         antenna = reference[chains.sub]
         clipped = clip_mixed(s, lit, antenna)
         was_lit = lit.lit
@@ -318,6 +322,8 @@ class MeshTracer:
             lit_now, mixed_now = lit.lit.copy(), lit.mixed.copy()
             lit_now[back], mixed_now[back] = was_lit[back], False
             lit = dataclasses.replace(lit, lit=lit_now, mixed=mixed_now)
+        if self.simplify:
+            clipped = clipped.merged(REPEAT_DISTANCE * max(self.patch, 1.0))
         pieces_rows = np.flatnonzero(lit.lit)
         pieces = lit.pieces.select(pieces_rows)
         cut = lit.pieces.select(clipped.piece)

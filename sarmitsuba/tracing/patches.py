@@ -27,7 +27,7 @@ import numpy as np
 
 from .covers import covered_parts, split_covered
 from .facets import Parts, scene_parts
-from .polygons import moments, pad
+from .polygons import REPEAT_DISTANCE, drop_collinear, moments, pad
 
 __all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "ALONG_FIRST_AXIS",
            "UNIT_SQUARE"]
@@ -403,6 +403,14 @@ class Pieces:
         new[~is_border] = -1
         return Pieces(self.region[keep], np.take(self.cell, keep, axis=0), self.whole[keep], new,
                       np.take(self.polygon, rows, axis=0), self.count[rows], self.patch)
+
+    def simplified(self) -> "Pieces":
+        """The same pieces, each border polygon without its collinear and repeated corners
+        (:func:`~sarmitsuba.tracing.polygons.drop_collinear`)."""
+        if len(self.count) == 0:
+            return self
+        poly, count = drop_collinear(self.polygon, self.count, REPEAT_DISTANCE * max(self.patch, 1.0))
+        return dataclasses.replace(self, polygon=poly, count=count)
 
     def polygons(self, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Every piece's polygon: float64 [n, V, 2] and corner counts int64 [n] (whole pieces:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["EVERYTHING", "clip", "clip_reference", "edge_lines", "moments", "inside", "pad", "corner_slots",
-           "drop_repeats", "following"]
+           "drop_repeats", "drop_collinear", "following"]
 
 #: The half-plane that holds every point: the padding row of a half-plane list.
 EVERYTHING = (0.0, 0.0, 1.0)
@@ -313,6 +313,35 @@ def drop_repeats(poly: np.ndarray, count: np.ndarray, distance: float = REPEAT_D
     gap = np.sqrt(diff[..., 0] * diff[..., 0] + diff[..., 1] * diff[..., 1])
     keep = corner_slots(count, width) & ((gap > distance) | (count[:, None] == 1))
     new_count = keep.sum(axis=1).astype(np.int64)
+    out = np.zeros_like(poly)
+    out[corner_slots(new_count, width)] = poly[keep]
+    return pad(out, new_count), new_count
+
+
+def drop_collinear(poly: np.ndarray, count: np.ndarray, distance: float = REPEAT_DISTANCE):
+    """The batch of convex polygons without the corners that lie within ``distance`` [m] of the
+    line through their neighbours (a straight edge split in two) or of their previous corner:
+    ``(poly, count)``, padded, each polygon its simplest outline (at least 3 corners). A corner
+    where a clipping line touched the outline is such a corner; whether the clipper makes one
+    hangs on rounding, so the geometric derivatives (docs/physics.md (AD4)) compare outlines
+    without them."""
+    poly, count = drop_repeats(np.asarray(poly, float), np.asarray(count, np.int64), distance)
+    n, width = poly.shape[:2]
+    slot = np.arange(width)[None, :]
+    rows = np.arange(n)[:, None]
+    safe = np.maximum(count, 1)[:, None]
+    a, c = poly[rows, (slot - 1) % safe], poly[rows, (slot + 1) % safe]
+    ab, ac = poly - a, c - a
+    chord = np.sqrt(ac[..., 0] ** 2 + ac[..., 1] ** 2)
+    off = np.abs(ab[..., 0] * ac[..., 1] - ab[..., 1] * ac[..., 0]) / np.maximum(chord, 1e-300)
+    along = ab[..., 0] * ac[..., 0] + ab[..., 1] * ac[..., 1]
+    drop = corner_slots(count, width) & (off <= distance) & (along >= 0) & (along <= chord * chord)
+    drop &= (count[:, None] > 3)
+    keep = corner_slots(count, width) & ~drop
+    new_count = keep.sum(axis=1).astype(np.int64)
+    short = new_count < 3                                # (never fewer than a triangle's corners)
+    keep[short] = corner_slots(count[short], width)
+    new_count[short] = count[short]
     out = np.zeros_like(poly)
     out[corner_slots(new_count, width)] = poly[keep]
     return pad(out, new_count), new_count

@@ -159,6 +159,10 @@ class ClutterKernel:
     def __call__(self, ctx: dict, lanes: ScattererLanes, depth: int) -> None:
         if len(lanes) == 0:
             return
+        self.deposit(ctx, self.upload(lanes, depth), lanes, depth)
+
+    def upload(self, lanes: ScattererLanes, depth: int) -> dict:
+        """The scatterer lanes on the device (Dr.Jit arrays by name), with ``gamma`` and the Jones matrix."""
         r = self.r
         a64, v3 = mi.Array3f64, mi.Vector3f
         data = dict(point=device_array(a64, lanes.point.T), unfolded=device_array(a64, lanes.unfolded.T),
@@ -168,6 +172,11 @@ class ClutterKernel:
         if r.polarimetric:
             data["phase_cross"] = device_array(mi.Float, lanes.phase_cross)
         data["gamma"], data["jones"] = self.arrival(lanes, depth)
+        return data
+
+    def deposit(self, ctx: dict, data: dict, lanes: ScattererLanes, depth: int) -> None:
+        """Every pulse's return from scatterer lanes already on the device (:meth:`upload`)."""
+        r = self.r
         count = dr.gather(mi.UInt32, ctx["count"], data["sub"])
         paths = r.sums.path_buffers(len(lanes) * ctx["max_count"]) if r.exact else None
         lane = dr.arange(mi.UInt32, len(lanes))

@@ -27,10 +27,12 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
 from ..core.radar import ParameterError
 from .accumulate import Accumulator
+from .geometry_tangents import MovedTracer
 from .kernel import Kernel
 
 __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "material_tangent", "RowTangent",
-           "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums"]
+           "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums",
+           "moved_tracer"]
 
 #: The material parameters a derivative can be taken with respect to, and their units.
 MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
@@ -149,8 +151,9 @@ def _leaves(tables, names) -> dict:
 
 
 class TangentSums(Accumulator):
-    """The histogram of a launch replaced by its derivative: before collecting, the table's tangent
-    is set on the kernel's differentiable table and propagated forward to the histogram."""
+    """The histogram of a launch replaced by its derivative: before collecting, the tables'
+    tangents are set on the kernel's differentiable tables (the geometric leaves carry theirs
+    from when they were made) and propagated forward to the histogram."""
 
     def __init__(self, base: Accumulator, leaves: tuple, tangent: tuple):
         super().__init__(base.settings, base.window, base.groups, base.n_channels)
@@ -173,20 +176,24 @@ class TangentKernel(Kernel):
     material tables' row ``row`` moves by ``tangent`` (a :class:`RowTangent`) per unit of ``p``;
     every other row stays."""
 
-    def __init__(self, scene, params, window, footprint, settings, material_table, effects, row: int,
-                 tangent: RowTangent):
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, row: int | None,
+                 tangent: RowTangent | None, move=None):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
-        flat = flat_tangents(self.returns.tables, self.effects.polarimetric, params.polarization, row, tangent)
+        flat = {} if row is None else flat_tangents(self.returns.tables, self.effects.polarimetric,
+                                                    params.polarization, row, tangent)
         leaves = _leaves(self.returns.tables, flat)
+        self.moved = moved_tracer(self, [] if move is None else [move])
         self.returns.sums = TangentSums(self.returns.sums, tuple(leaves.values()),
                                         tuple(mi.Float(flat[name].astype(np.float32)) for name in leaves))
+        if self.moved is not None:
+            self.moved.forward = True
 
 
 class AdjointSums(Accumulator):
     """Reverse mode: each launch's histogram gets the loss's gradient with respect to it
     (:attr:`seed`, complex [orders, groups, n_b, n_fine], set per batch by the caller), which
-    Dr.Jit carries back to the reflection tables' leaves, where it adds up over the launches.
-    The launch's own histogram (the values) is returned as usual."""
+    Dr.Jit carries back through the launch's evaluated loops to the differentiable leaves, where
+    it adds up over the launches. The launch's own histogram (the values) is returned as usual."""
 
     def __init__(self, base: Accumulator):
         super().__init__(base.settings, base.window, base.groups, base.n_channels)
@@ -211,7 +218,28 @@ class AdjointKernel(Kernel):
     histograms seeded by :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the
     loss's gradient with respect to that table."""
 
-    def __init__(self, scene, params, window, footprint, settings, material_table, effects):
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, moves=()):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
         self.leaves = _leaves(self.returns.tables, DIFFERENTIABLE)
         self.returns.sums = AdjointSums(self.returns.sums)
+        self.moved = moved_tracer(self, list(moves))
+
+    def __call__(self, launch, capacity: int = 0) -> dict:
+        out = super().__call__(launch, capacity)
+        if self.moved is not None:
+            self.moved.accumulate()
+        return out
+
+
+def moved_tracer(kernel: Kernel, moves: list, always: bool = False):
+    """The kernel's mesh tracer made a :class:`~.geometry_tangents.MovedTracer` of ``moves``
+    (without moves: None and unchanged, unless ``always``: the geometric derivatives' own
+    outlines, docs/physics.md (AD4), for the values they are taken at); ParameterError where
+    the kernel has no mesh tracer."""
+    if not moves and not always:
+        return None
+    if kernel.mesh is None or kernel.tubes:
+        raise ParameterError("geometric derivatives are taken with lit_regions = patches (the default) on scenes of "
+                             "meshes only (no spheres or other analytic shapes)")
+    kernel.mesh = MovedTracer(kernel, moves)
+    return kernel.mesh

@@ -18,6 +18,7 @@ import dataclasses
 import numpy as np
 
 from .chains import Chains, facing_sign, image_source
+from .loops import lane_float
 from .integration import AREA, OPEN_START, OPEN_END, SINC, SPLIT_END, SPLIT_START, PieceTable, TermLanes
 from .patches import Surfaces
 from .piece_cuts import cell_key
@@ -196,21 +197,21 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
         origin = reference[chains.sub[chain]]
         travel = motion[2][chain] - origin
         step = np.linalg.norm(travel, axis=1, keepdims=True)
-        window_data.update(origin=origin, axis=(travel / np.where(step > 0, step, 1.0)).astype(np.float32),
-                           motion=np.stack(rates, axis=1).astype(np.float32))
+        window_data.update(origin=origin, axis=(travel / np.where(step > 0, step, 1.0)).astype(lane_float()),
+                           motion=np.stack(rates, axis=1).astype(lane_float()))
     if edges is not None and np.any(edges["on"]):
         seg = np.maximum(lane_seg, 0)
         on = (lane_seg >= 0) & edges["on"][seg]
         other = np.where(on, edges["other"][seg], -1)
-        window_data.update(diffracting=on, wedge_x0=edges["x0"][seg].astype(np.float32),
-                           wedge_xn=edges["xn"][seg].astype(np.float32),
+        window_data.update(diffracting=on, wedge_x0=edges["x0"][seg].astype(lane_float()),
+                           wedge_xn=edges["xn"][seg].astype(lane_float()),
                            wedge_row=s.row[np.where(other >= 0, other, lane_part)].astype(np.uint32),
                            wedge_defer=(other >= 0) & (other < lane_part), double=np.zeros(len(on), bool),
-                           across=edges["across"][seg].astype(np.float32),
-                           across_xn=edges["xn_across"][seg].astype(np.float32))
+                           across=edges["across"][seg].astype(lane_float()),
+                           across_xn=edges["xn_across"][seg].astype(lane_float()))
     lanes = TermLanes(kind=lane_kind.astype(np.uint32), point=point, unfolded=chains.unfolded(point, chain),
-                      middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(np.float32),
-                      normal=np.take(s.normal, lane_part, axis=0).astype(np.float32), fold=np.transpose(lin, (0, 2, 1)).astype(np.float32),
+                      middle=middle, middle_unfolded=chains.unfolded(middle, chain), edge=edge.astype(lane_float()),
+                      normal=np.take(s.normal, lane_part, axis=0).astype(lane_float()), fold=np.transpose(lin, (0, 2, 1)).astype(lane_float()),
                       sub=chains.sub[chain].astype(np.uint32), row=s.row[lane_part].astype(np.uint32),
                       piece=lane_piece.astype(np.uint32), stable=stable[lane_piece], **window_data)
     if lanes.diffracting is not None:
@@ -261,9 +262,9 @@ def windows(s: Surfaces, chains: Chains, chain, point, antenna, depth: int) -> d
         cos.append(np.abs(dot))
         direction.append(d)
         normal.append(n * np.where(dot > 0, -1.0, 1.0)[:, None])
-    return dict(first=first.astype(np.float32), window_row=np.stack(rows, 1).astype(np.uint32),
-                window_cos=np.stack(cos, 1).astype(np.float32), window_direction=np.stack(direction, 1).astype(np.float32),
-                window_normal=np.stack(normal, 1).astype(np.float32))
+    return dict(first=first.astype(lane_float()), window_row=np.stack(rows, 1).astype(np.uint32),
+                window_cos=np.stack(cos, 1).astype(lane_float()), window_direction=np.stack(direction, 1).astype(lane_float()),
+                window_normal=np.stack(normal, 1).astype(lane_float()))
 
 
 def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceTable:
@@ -278,17 +279,17 @@ def piece_table(s: Surfaces, chains: Chains, geometry, table_segments) -> PieceT
     rates = {}
     if len(table_segments) > 3:                         # the segments' ends' rates, eq. (M8)
         p_rate, q_rate = np.take(table_segments[3], order, axis=0), np.take(table_segments[4], order, axis=0)
-        rates = dict(segment_mid_rate=s.vector_to_world(owner, 0.5 * (p_rate + q_rate)).astype(np.float32),
-                     segment_edge_rate=s.vector_to_world(owner, q_rate - p_rate).astype(np.float32))
+        rates = dict(segment_mid_rate=s.vector_to_world(owner, 0.5 * (p_rate + q_rate)).astype(lane_float()),
+                     segment_edge_rate=s.vector_to_world(owner, q_rate - p_rate).astype(lane_float()))
     mid = s.vector_to_world(owner, 0.5 * (start2 + end2) - np.take(centroid2, piece, axis=0))
     edge = s.vector_to_world(owner, end2 - start2)
     count = np.bincount(piece, minlength=len(region))
     return PieceTable(centroid=centroid, centroid_unfolded=chains.unfolded(centroid, region),
-                      diagonal=diagonal.astype(np.float32), area=area.astype(np.float32),
-                      moments=second.astype(np.float32), axis_u=s.axis_u[part].astype(np.float32),
-                      axis_v=s.axis_v[part].astype(np.float32),
+                      diagonal=diagonal.astype(lane_float()), area=area.astype(lane_float()),
+                      moments=second.astype(lane_float()), axis_u=s.axis_u[part].astype(lane_float()),
+                      axis_v=s.axis_v[part].astype(lane_float()),
                       segment_start=(np.cumsum(count) - count).astype(np.uint32), segment_count=count.astype(np.uint32),
-                      segment_mid=mid.astype(np.float32), segment_edge=edge.astype(np.float32), **rates)
+                      segment_mid=mid.astype(lane_float()), segment_edge=edge.astype(lane_float()), **rates)
 
 
 def scatterer_lanes(s: Surfaces, chains: Chains, pieces, clipped, lit_pieces, rough_row: np.ndarray, table,
@@ -330,10 +331,10 @@ def scatterer_lanes(s: Surfaces, chains: Chains, pieces, clipped, lit_pieces, ro
     point = s.to_world(part, point2)
     phase, cross = scatterer_phases(h0)
     lin = chains.lin[region, chains.order[region]]
-    return ScattererLanes(point=point, unfolded=chains.unfolded(point, region), normal=s.normal[part].astype(np.float32),
-                          fold=np.transpose(lin, (0, 2, 1)).astype(np.float32), sub=chains.sub[region].astype(np.uint32),
-                          row=s.row[part].astype(np.uint32), phase=phase.astype(np.float32),
-                          phase_cross=cross.astype(np.float32),
+    return ScattererLanes(point=point, unfolded=chains.unfolded(point, region), normal=s.normal[part].astype(lane_float()),
+                          fold=np.transpose(lin, (0, 2, 1)).astype(lane_float()), sub=chains.sub[region].astype(np.uint32),
+                          row=s.row[part].astype(np.uint32), phase=phase.astype(lane_float()),
+                          phase_cross=cross.astype(lane_float()),
                           **windows(s, chains, region, point, reference[chains.sub[region]], depth))
 
 
