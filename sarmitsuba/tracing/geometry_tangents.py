@@ -8,12 +8,13 @@ the same visibility), every lane input is a smooth function of the vertices, and
 term a smooth function of the lane inputs. :class:`MovedTracer` takes the two factors apart:
 
 * the lane inputs' tangent ``d data / dp``: the host geometry run again with the shape's vertices
-  moved by ``+-h`` along the parameter's displacement field (float64, the Mitsuba scene's copy
-  moved too, so that visibility rays see what the host cuts), the uploaded lanes compared entry
-  by entry, ``(data(+h) - data(-h)) / 2h``. The lanes are piecewise rational in the vertices, so
-  the difference is exact to ``O(h^2)``: 1e-8 relative at ``h`` = 1 mm on metre-sized faces.
-  Every discrete entry (lane kinds, pieces, rows, flags) must agree across the three runs;
-  otherwise the parameter moves a boundary of visibility and :class:`GeometryChange` says so;
+  moved by ``+-h`` (1 um) along the parameter's displacement field, in float64 (the Mitsuba
+  scene stays: its visibility rays decide nothing differently at a micrometre), each moved
+  lane paired with its own (:mod:`.lane_pairs`) and differenced, ``(x(+h) - x(-h)) / 2h``, in
+  float64 before the upload rounds it. The lanes are piecewise rational in the vertices, so the
+  difference is exact to ``O(h^2)``. Every discrete entry (lane kinds, pieces, rows) must agree
+  across the three runs; otherwise the parameter moves a boundary of visibility and
+  :class:`GeometryChange` says so;
 * the terms' dependence on the lane inputs: Dr.Jit's automatic differentiation through the
   kernels, exactly, forward (:class:`~sarmitsuba.tracing.tangents.TangentSums`) or reverse
   (:class:`~sarmitsuba.tracing.tangents.AdjointSums`).
@@ -190,8 +191,8 @@ class MovedTracer:
     """The kernel's mesh tracer with the lane inputs made differentiable leaves carrying their
     tangents along each of ``moves`` (a list of :class:`GeometryMove`).
 
-    Per launch: each move's two moved tracers run the host geometry (and its visibility rays, the
-    scene's mesh moved to match) and record their uploads; the tracer itself then runs, and each
+    Per launch: each move's two moved tracers run the host geometry (and its visibility rays) and
+    record the lanes they would deposit; the tracer itself then runs, and each
     upload of its term and scatterer kernels becomes leaves (``dr.enable_grad``) whose tangents
     are the recorded central differences (:attr:`tangents`: leaf -> one tangent per move).
     Forward mode (:attr:`forward`) sets each leaf's tangent on it; reverse mode calls

@@ -1,4 +1,5 @@
-"""Forward-mode derivatives of a trace with respect to a material's reflection table (issue 57).
+"""Derivatives of a trace with respect to a material's reflection table (issue 57), and the
+kernels that carry a shape's geometric tangents too (:func:`moved_tracer`, docs/physics.md (AD4)).
 
 The kernels read each material's reflection coefficient ``r(cos_i)`` from a table (eq. (R)),
 in Dr.Jit. :class:`TangentKernel` is the tracing kernel with that table made a differentiable
