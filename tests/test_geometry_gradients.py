@@ -70,8 +70,8 @@ def test_trihedral_translation_matches_central_differences_of_renders(tmp_path):
     (``sarmitsuba.gradients``) and forward mode (``raw_derivative`` focused by the same
     operator) against central differences of the loss of two renders of the moved scene file
     (5 mm apart), within 1 % (measured 0.08 % and 0.45 %). Catches a tangent taken as
-    ``(minus - plus)``, lanes paired with the wrong lanes, the unfolded points' tangents left
-    out (the triple bounce's path), and the two modes disagreeing."""
+    ``(minus - plus)`` and the unfolded points' tangents left out (the bounces' paths), both
+    tried, and the two modes disagreeing."""
     pulses = {"n_pulses": 8}
     target = sarmitsuba.gradients(_trihedral(tmp_path, '<translate x="0.15" z="0.05"/>'),
                                   AmplitudeLoss(np.zeros(SIZE["image_size"])), [], sensor_overrides=pulses, **SIZE)

@@ -53,41 +53,21 @@ def _match(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, other
     # the key as a coordinate far beyond every feature's range: a nearest row has the same key
     a = np.column_stack([features, group[:len(keys)] * 10.0 * spread])
     b = np.column_stack([other_features, group[len(keys):] * 10.0 * spread])
-    k = min(8, len(b))
-    distance, index = cKDTree(b).query(a, k=k)
-    distance, index = distance.reshape(len(a), k), index.reshape(len(a), k)
-    chosen = index[:, 0].copy()
-    taken = np.zeros(len(b), bool)
-    first = np.unique(chosen, return_index=True)[1]
-    taken[chosen[first]] = True
-    # rows whose nearest another row took first (identical lanes: two split ends at one corner)
-    for row in np.setdiff1d(np.arange(len(a)), first):
-        free = [j for j in range(k) if not taken[index[row, j]]]
-        if not free:
-            raise topology_change("lanes")
-        chosen[row] = index[row, free[0]]
-        distance[row, 0] = distance[row, free[0]]
-        taken[chosen[row]] = True
-    if np.any(distance[:, 0] > tolerance):
+    chosen = _nearest(a, b, tolerance)
+    if np.any(chosen < 0):
         raise topology_change("lanes")
     return chosen
-
-
-def _take(lanes, order: np.ndarray, n: int):
-    """A lanes dataclass with every per-row array reordered by ``order``."""
-    return dataclasses.replace(lanes, **{f.name: np.take(getattr(lanes, f.name), order, axis=0)
-                                        for f in dataclasses.fields(lanes)
-                                        if isinstance(getattr(lanes, f.name), np.ndarray)
-                                        and getattr(lanes, f.name).ndim and len(getattr(lanes, f.name)) == n})
 
 
 def _owners(table, label: np.ndarray) -> np.ndarray:
     """int64 [s]: ``label`` of the piece each boundary segment of a piece table belongs to (-1:
     none)."""
     owner = np.full(len(table.segment_mid), -1, np.int64)
-    for piece in np.flatnonzero(table.segment_count):
-        start = int(table.segment_start[piece])
-        owner[start:start + int(table.segment_count[piece])] = label[piece]
+    count = np.asarray(table.segment_count, np.int64)
+    piece = np.repeat(np.arange(len(count)), count)
+    rows = np.repeat(np.asarray(table.segment_start, np.int64), count) + np.arange(len(piece)) \
+        - np.repeat(np.cumsum(count) - count, count)
+    owner[rows] = label[piece]
     return owner
 
 
@@ -111,16 +91,23 @@ def _pair_rows(key, feature, tiny, other_key, other_feature, other_tiny, toleran
 
 
 def _nearest(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
-    """For each row of ``a`` a distinct row of ``b`` within ``tolerance`` (nearest first), -1
-    where none is left."""
-    distance, index = cKDTree(b).query(a, k=min(4, len(b)))
-    distance, index = distance.reshape(len(a), -1), index.reshape(len(a), -1)
-    out, taken = np.full(len(a), -1, np.int64), np.zeros(len(b), bool)
-    for row in np.argsort(distance[:, 0]):
-        for d, j in zip(distance[row], index[row]):
-            if d <= tolerance and not taken[j]:
-                out[row], taken[j] = j, True
-                break
+    """For each row of ``a`` a distinct row of ``b`` within ``tolerance``: its nearest, or where
+    another row took that first (identical lanes: two split ends at one corner) the nearest one
+    left among its eight nearest; -1 where none is left."""
+    if len(a) == 0 or len(b) == 0:
+        return np.full(len(a), -1, np.int64)
+    k = min(8, len(b))
+    distance, index = cKDTree(b).query(a, k=k)
+    distance, index = distance.reshape(len(a), k), index.reshape(len(a), k)
+    out = np.where(distance[:, 0] <= tolerance, index[:, 0], -1)
+    first = np.unique(out, return_index=True)[1]
+    taken = np.zeros(len(b), bool)
+    taken[out[first][out[first] >= 0]] = True
+    for row in np.setdiff1d(np.flatnonzero(out >= 0), first):
+        free = [j for j in range(k) if distance[row, j] <= tolerance and not taken[index[row, j]]]
+        out[row] = index[row, free[0]] if free else -1
+        if free:
+            taken[out[row]] = True
     return out
 
 
@@ -206,7 +193,7 @@ def align_scatterers(main, lanes, tolerance: float):
     keys = ("sub", "row", "window_row")
     names = ("point", "unfolded")
     order = _match(_key(main, keys), _features(main, names), _key(lanes, keys), _features(lanes, names), tolerance)
-    return _take(lanes, order, len(main))
+    return _take_or_keep(lanes, main, order)
 
 
 def tangent_lanes(main, plus, minus, step: float):
