@@ -293,11 +293,14 @@ class MovedTracer:
         return tangent
 
     def _leaves(self, data: dict, tangents: list) -> None:
-        """Every floating-point entry of ``data`` whose tangent along some move is not zero becomes
-        a leaf (``dr.enable_grad``), kept with its tangents in :attr:`tangents`."""
+        """Every floating-point entry of ``data`` that has a tangent along some move becomes a leaf
+        (``dr.enable_grad``), kept with its tangents in :attr:`tangents`. Which entries are leaves
+        is decided by the kind of upload, never by the tangents' values: a tangent that happens to
+        be zero (a normal that a height change keeps, to rounding) would otherwise change the
+        backward pass's graph, and Dr.Jit would compile its kernels again at every new geometry."""
         for path, leaf in _float_leaves(data):
             along = [_at(t, path) for t in tangents]
-            if all(_zero(t) for t in along):
+            if all(t is None for t in along):
                 continue
             dr.enable_grad(leaf)
             along = [type(leaf)(0) if t is None else t for t in along]
