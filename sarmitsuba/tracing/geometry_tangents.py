@@ -183,10 +183,6 @@ def _difference(up, down, step: float):
     return (up - down) * (0.5 / step)
 
 
-def _zero(x) -> bool:
-    return x is None or all(bool(dr.all(c == 0)) for c in _components(x))
-
-
 class MovedTracer:
     """The kernel's mesh tracer with the lane inputs made differentiable leaves carrying their
     tangents along each of ``moves`` (a list of :class:`GeometryMove`).
