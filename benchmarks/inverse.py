@@ -1,21 +1,26 @@
 """Benchmark: an inverse problem solved with the simulator's gradients (issue 57).
 
-A dihedral (the built-in one, its metal ground kept) whose wall is a half-space of relative
-permittivity 5 (0.05 S/m) is imaged: 32 pulses, direct backprojection onto a 32 x 32 ground grid
-of 0.5 m. Starting 30 % off (6.5), scipy's L-BFGS-B minimises the amplitude loss
-``sum (|I| - |T|)^2`` against that image with ``sarmitsuba.gradients`` giving ``L`` and
-``dL/d eps_r`` (reverse mode through backprojection's adjoint, the binning's and the tracer's).
-Per evaluation: the permittivity, the loss, the gradient and the wall seconds; the result's
-relative error. Writes ``inverse.csv`` and ``inverse.png`` (the loss and the permittivity
-against evaluations).
+A brick building on a metal ground: a box 6 x 4 m, 5 m high, turned 20 deg about z, a half-space
+of relative permittivity 4.5 (0.02 S/m), on a 30 x 30 m metal plate; X band, 45 deg incidence,
+20 km altitude, 16 pulses, two bounces, direct backprojection onto a 48 x 48 ground grid of
+0.5 m. Its image is the target. Starting 30 % off in both (permittivity 5.85, height 6.5 m),
+scipy's L-BFGS-B minimises the amplitude loss ``sum (|I| - |T|)^2`` with
+``sarmitsuba.gradients`` giving ``L``, ``dL/d eps_r`` and ``dL/d height`` (reverse mode through
+backprojection's adjoint, the binning's and the tracer's; the height moves the box's vertices by
+``at=``, its base kept). Per evaluation: both parameters, the loss, the gradient, its wall
+seconds and those since the start (the target's image included); each parameter's error. Writes ``inverse.csv`` and ``inverse.png`` (the loss and both
+parameters against evaluations).
 
-Usage: ``python benchmarks/inverse.py [--quick] [--tiny]`` (the same small problem; ``--tiny``
-stops after 4 evaluations).
+Why 20 km: from 1 km (the built-in dihedral's altitude) a 5 m wall is about one Fresnel zone
+``sqrt(lambda R / 2)`` (4.7 m at 1.4 km slant range) tall, its double bounce's amplitude no
+longer grows with its height, and the amplitude loss has a second minimum near 6.3 m, where
+L-BFGS-B stops. From 20 km the zone is 21 m and the loss is a bowl in the height.
+
+Usage: ``python benchmarks/inverse.py [--quick] [--tiny]`` (the same problem; ``--tiny`` stops
+after the first evaluation).
 """
 from __future__ import annotations
 
-import re
-import tempfile
 import time
 from pathlib import Path
 
@@ -24,83 +29,103 @@ import numpy as np
 from _table import bench_main, machine, output_dir, write_csv
 
 NAME = "inverse"
-TRUE, START = 5.0, 6.5
-SIZE = {"image_size": (32, 32), "image_spacing": 0.5, "sensor_overrides": {"n_pulses": 32}}
-REPO = Path(__file__).resolve().parents[1]
+TRUE = {"relative_permittivity": 4.5, "height_m": 5.0}
+START = {"relative_permittivity": 5.85, "height_m": 6.5}
+SIZE = {"image_size": (48, 48), "image_spacing": 0.5, "sensor_overrides": {"n_pulses": 16}}
+SENSOR = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250.0, "velocity": 100.0,
+          "altitude": 20e3, "incidence_angle": 45.0, "azimuth_beamwidth": 1.2, "scene_center": (0, 0, 0)}
 
 
-def dihedral(folder: Path, eps_r: float) -> str:
-    """The built-in dihedral with its wall a half-space of ``eps_r`` (0.05 S/m)."""
-    xml = (REPO / "scenes" / "dihedral.xml").read_text()
-    wall = (f'<bsdf type="radar" id="wall_material"><string name="model" value="half_space"/>'
-            f'<float name="relative_permittivity" value="{eps_r!r}"/><float name="conductivity" value="0.05"/></bsdf>')
-    xml = re.sub(r'(<shape type="rectangle" id="wall">.*?)<ref id="metal"/>', r'\1<ref id="wall_material"/>',
-                 xml.replace("</bsdf>", "</bsdf>" + wall, 1), flags=re.S)
-    path = folder / f"dihedral_{eps_r!r}.xml"
-    path.write_text(xml)
-    return str(path)
+def building(eps_r: float):
+    """The scene (a :class:`sarmitsuba.Scene`): the brick box (``eps_r``, 0.02 S/m; ``box`` is its
+    id, ``brick`` its material's) on a 30 x 30 m metal plate."""
+    import trimesh
+
+    import sarmitsuba
+    ground = trimesh.Trimesh([[-15, -15, 0], [15, -15, 0], [15, 15, 0], [-15, 15, 0]], [[0, 1, 2], [0, 2, 3]])
+    box = trimesh.creation.box((6, 4, 5)).apply_translation((0, 0, 2.5))
+    box.apply_transform(trimesh.transformations.rotation_matrix(np.radians(20), (0, 0, 1)))
+    brick = {"model": "half_space", "relative_permittivity": eps_r, "conductivity": 0.02, "id": "brick"}
+    return sarmitsuba.Scene([(ground, "pec", "ground"), (box, brick, "box")], sensor=SENSOR,
+                            integrator={"max_depth": 2})
 
 
 def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     """Solve the problem, print and write the table and plot; returns one row per evaluation."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import scipy.optimize
 
     import sarmitsuba
-    from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter
+    from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, ShapeParameter
     print(machine())
+    permittivity, height = MaterialParameter("brick", "relative_permittivity"), ShapeParameter("box", "height")
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        target = sarmitsuba.gradients(dihedral(folder, TRUE), AmplitudeLoss(np.zeros(SIZE["image_size"])), [],
-                                      **SIZE).image
-        loss, parameter = AmplitudeLoss(target), MaterialParameter("wall_material", "relative_permittivity")
+    started = time.perf_counter()
+    target = sarmitsuba.gradients(building(TRUE["relative_permittivity"]),
+                                  AmplitudeLoss(np.zeros(SIZE["image_size"])), [], **SIZE).image
+    loss = AmplitudeLoss(target)
+    print(f"target image: {time.perf_counter() - started:.1f} s")
 
-        def value_and_gradient(x):
-            start = time.perf_counter()
-            result = sarmitsuba.gradients(dihedral(folder, float(x[0])), loss, [parameter], **SIZE)
-            rows.append({"evaluation": len(rows) + 1, "relative_permittivity": float(x[0]), "loss": result.loss,
-                         "gradient": result.gradient[parameter], "seconds": round(time.perf_counter() - start, 3)})
-            return result.loss, np.array([result.gradient[parameter]])
+    def value_and_gradient(x):
+        start = time.perf_counter()
+        result = sarmitsuba.gradients(building(float(x[0])), loss, [permittivity, height],
+                                      at={height: float(x[1]) - TRUE["height_m"]}, **SIZE)
+        rows.append({"evaluation": len(rows) + 1, "relative_permittivity": float(x[0]), "height_m": float(x[1]),
+                     "loss": result.loss, "gradient_permittivity": result.gradient[permittivity],
+                     "gradient_height": result.gradient[height],
+                     "seconds": round(time.perf_counter() - start, 3),
+                     "elapsed_s": round(time.perf_counter() - started, 3)})
+        print(f"  evaluation {len(rows)}: eps_r {x[0]:.5f}, height {x[1]:.4f} m, loss {result.loss:.4g}, "
+              f"{rows[-1]['seconds']:.1f} s", flush=True)
+        return result.loss, np.array([result.gradient[permittivity], result.gradient[height]])
 
-        found = scipy.optimize.minimize(value_and_gradient, [START], jac=True, method="L-BFGS-B",
-                                        bounds=[(1.5, 20.0)], options={"maxiter": 2 if tiny else 20})
+    found = scipy.optimize.minimize(value_and_gradient, [START["relative_permittivity"], START["height_m"]],
+                                    jac=True, method="L-BFGS-B", bounds=[(1.5, 20.0), (1.0, 10.0)],
+                                    options={"maxfun": 1} if tiny else {"maxiter": 40, "ftol": 1e-4})
     for row in rows:
-        row["relative_error"] = abs(row["relative_permittivity"] - TRUE) / TRUE
-        print("  ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()))
-    print(f"found eps_r = {found.x[0]:.6f} (true {TRUE}) after {found.nit} iterations, {len(rows)} evaluations, "
-          f"{sum(r['seconds'] for r in rows):.1f} s")
+        row["permittivity_error"] = abs(row["relative_permittivity"] / TRUE["relative_permittivity"] - 1.0)
+        row["height_error_m"] = abs(row["height_m"] - TRUE["height_m"])
+    print(f"found eps_r = {found.x[0]:.5f} (true {TRUE['relative_permittivity']}), height = {found.x[1]:.4f} m "
+          f"(true {TRUE['height_m']}) after {found.nit} iterations, {len(rows)} evaluations, "
+          f"{rows[-1]['elapsed_s']:.1f} s in all")
     suffix = "_tiny" if tiny else ""
     write_csv(f"{NAME}{suffix}.csv", rows)
-    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2), dpi=120)
-    evaluations = [r["evaluation"] for r in rows]
-    axes[0].semilogy(evaluations, [max(r["loss"], 1e-30) for r in rows], "o-")
-    axes[0].set_ylabel("amplitude loss")
-    axes[1].plot(evaluations, [r["relative_permittivity"] for r in rows], "o-", label="estimate")
-    axes[1].axhline(TRUE, color="0.5", ls="--", label="truth")
-    axes[1].set_ylabel("wall's relative permittivity")
-    axes[1].legend(fontsize=8)
-    for ax in axes:
-        ax.set_xlabel("evaluation (loss and gradient)")
-        ax.grid(True, alpha=0.3)
-    fig.suptitle("recovering a dihedral wall's permittivity from 30 % off (L-BFGS-B)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(output_dir() / f"{NAME}{suffix}.png")
-    plt.close(fig)
+    _plot(rows, output_dir() / f"{NAME}{suffix}.png")
     return rows
 
 
+def _plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.2), dpi=120)
+    evaluations = [r["evaluation"] for r in rows]
+    axes[0].semilogy(evaluations, [max(r["loss"], 1e-30) for r in rows], "o-")
+    axes[0].set_ylabel("amplitude loss")
+    for ax, key, label in ((axes[1], "relative_permittivity", "brick's relative permittivity"),
+                           (axes[2], "height_m", "building's height (m)")):
+        ax.plot(evaluations, [r[key] for r in rows], "o-", label="estimate")
+        ax.axhline(TRUE[key], color="0.5", ls="--", label="truth")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    for ax in axes:
+        ax.set_xlabel("evaluation (loss and gradient)")
+        ax.grid(True, alpha=0.3)
+    fig.suptitle("recovering a wall's permittivity and a building's height from 30 % off (L-BFGS-B)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
-    """The issue's bounds for the permittivity: within 2 % of the truth in under 5 minutes."""
-    last, seconds = rows[-1], sum(r["seconds"] for r in rows)
-    best = min(rows, key=lambda r: r["loss"])
-    return [("permittivity recovered within 2 % from 30 % off", bool(best["relative_error"] <= 0.02),
-             f"eps_r = {best['relative_permittivity']:.5f}, error {best['relative_error']:.2e} after {last['evaluation']} "
+    """The issue's bounds: permittivity within 2 %, height within 0.1 m, in under 5 minutes."""
+    last, seconds = rows[-1], rows[-1]["elapsed_s"]
+    return [("permittivity recovered within 2 % from 30 % off", bool(last["permittivity_error"] <= 0.02),
+             f"eps_r = {last['relative_permittivity']:.5f}, error {last['permittivity_error']:.2e}"),
+            ("height recovered within 0.1 m from 30 % off", bool(last["height_error_m"] <= 0.1),
+             f"height = {last['height_m']:.4f} m, error {last['height_error_m']:.2e} m after {last['evaluation']} "
              "evaluations"),
-            ("in under 5 minutes", bool(seconds < 300.0), f"{seconds:.1f} s")]
+            ("in under 5 minutes", bool(seconds < 300.0), f"{seconds:.1f} s, the target's image included")]
 
 
 if __name__ == "__main__":
-    bench_main(__doc__, run, checks, "the same problem", "two iterations (smoke test)")
+    bench_main(__doc__, run, checks, "the same problem", "the first evaluation only (smoke test)")

@@ -91,8 +91,10 @@ EXPECTED = {
         ("pulses", "parameters", "seconds", "peak_mib", "over_forward"),
         ()),
     "inverse": (
-        {"evaluation", "relative_permittivity", "loss", "gradient", "seconds", "relative_error"},
-        ("evaluation", "relative_permittivity", "loss", "gradient", "seconds", "relative_error"),
+        {"evaluation", "relative_permittivity", "height_m", "loss", "gradient_permittivity", "gradient_height",
+         "seconds", "elapsed_s", "permittivity_error", "height_error_m"},
+        ("evaluation", "relative_permittivity", "height_m", "loss", "gradient_permittivity", "gradient_height",
+         "seconds", "elapsed_s", "permittivity_error", "height_error_m"),
         ()),
     "footprints": (
         {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
