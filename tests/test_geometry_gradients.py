@@ -207,3 +207,36 @@ def test_bad_shape_parameters_are_named(tmp_path):
     with pytest.raises(ParameterError, match="vertices 0 .. 7"):
         raw_derivative(_box(tmp_path), ShapeParameter("box", "vertices", vertices=(8,)),
                        sensor_overrides={"n_pulses": 8})
+
+
+def test_lane_pairing_against_numpy_and_shuffles():
+    """The pairing of moved lanes (``tracing/lane_pairs.py``):
+
+    * ``row_groups`` against ``np.unique(axis=0)`` (the reference it replaces for speed): the
+      same partition of random integer rows; catches a column combination that collides
+      (``group * max + rank`` without the ``+ 1``);
+    * ``nearest_distinct`` on rows of 19 columns with repeats, shuffled and moved by 1e-9:
+      each row gets a distinct row equal to it; catches a row of ``b`` taken twice and repeats
+      left unpaired;
+    * ``match_rows`` where the rows at equal index have equal features but different keys: it
+      pairs by key, not by index; catches the in-order fast path ignoring the keys."""
+    from sarmitsuba.tracing.lane_pairs import match_rows, nearest_distinct, row_groups
+    rng = np.random.default_rng(7)
+    keys = rng.integers(-3, 4, (5000, 4))
+    _, reference = np.unique(keys, axis=0, return_inverse=True)
+    both = np.unique(np.column_stack([row_groups(keys), reference.ravel()]), axis=0)
+    assert len(both) == len(np.unique(reference)) == len(np.unique(both[:, 0]))
+    a = rng.normal(size=(600, 19))
+    a[:, :3] = np.round(a[:, :3], 1)
+    a = np.concatenate([a, a[:40]])
+    shuffle = rng.permutation(len(a))
+    b = a[shuffle] + 1e-9
+    order = nearest_distinct(a, b, 1e-6)
+    assert np.all(order >= 0) and len(np.unique(order)) == len(a)
+    assert np.allclose(b[order], a, atol=1e-6)
+    features = np.zeros((4, 3))
+    features[:, 0] = [0.0, 0.0, 5.0, 5.0]
+    kind = np.array([[1], [2], [1], [2]])
+    swapped = np.array([[2], [1], [2], [1]])
+    assert match_rows(kind, features, swapped, features, 1e-6).tolist() == [1, 0, 3, 2]
+    assert match_rows(kind, features, kind, features + 1e-9, 1e-6).tolist() == [0, 1, 2, 3]

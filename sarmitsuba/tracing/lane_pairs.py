@@ -18,7 +18,8 @@ from scipy.spatial import cKDTree
 from ..core.radar import ParameterError
 from .integration import AREA
 
-__all__ = ["GeometryChange", "topology_change", "align_terms", "align_scatterers", "tangent_lanes", "ARRIVAL_FIELDS"]
+__all__ = ["GeometryChange", "topology_change", "align_terms", "align_scatterers", "tangent_lanes", "ARRIVAL_FIELDS",
+           "match_rows", "row_groups", "nearest_distinct"]
 
 #: The lane fields only the earlier bounces' factors are formed from (``gamma`` and the Jones
 #: matrices, :meth:`sarmitsuba.tracing.integration.PatchTerms.arrival`): their tangents are taken
@@ -38,7 +39,7 @@ def topology_change(what: str) -> GeometryChange:
                           "(AD4)); evaluate it at another value of the parameter")
 
 
-def _match(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, other_features: np.ndarray,
+def match_rows(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, other_features: np.ndarray,
            tolerance: float) -> np.ndarray:
     """For each row of ``features`` (float64 [n, f]) the row of ``other_features`` with equal
     ``keys`` (int64 [n, k]) nearest to it: int64 [n], one to one, each within ``tolerance``;
@@ -55,20 +56,20 @@ def _match(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, other
     if np.any(same):
         rest = np.flatnonzero(~same)
         chosen = np.arange(len(keys))
-        chosen[rest] = rest[_match(keys[rest], features[rest], other_keys[rest], other_features[rest], tolerance)]
+        chosen[rest] = rest[match_rows(keys[rest], features[rest], other_keys[rest], other_features[rest], tolerance)]
         return chosen
-    group = _groups(np.concatenate([keys, other_keys])).astype(float)
+    group = row_groups(np.concatenate([keys, other_keys])).astype(float)
     spread = float(np.ptp(np.concatenate([features, other_features]), axis=0).max()) + 1.0
     # the key as a coordinate far beyond every feature's range: a nearest row has the same key
     a = np.column_stack([features, group[:len(keys)] * 10.0 * spread])
     b = np.column_stack([other_features, group[len(keys):] * 10.0 * spread])
-    chosen = _nearest(a, b, tolerance)
+    chosen = nearest_distinct(a, b, tolerance)
     if np.any(chosen < 0):
         raise topology_change("lanes")
     return chosen
 
 
-def _groups(keys: np.ndarray) -> np.ndarray:
+def row_groups(keys: np.ndarray) -> np.ndarray:
     """int64 [n]: equal for equal rows of ``keys`` (int64 [n, k]), distinct otherwise; as
     ``np.unique(keys, axis=0, return_inverse=True)`` but column by column on flat integers (many
     times faster than sorting rows)."""
@@ -101,16 +102,16 @@ def _pair_rows(key, feature, tiny, other_key, other_feature, other_tiny, toleran
     ``tiny`` one to one (:func:`_match`), the tiny ones where a tiny one lies near."""
     order = np.full(len(key), -1, np.int64)
     big, big_other = np.flatnonzero(~tiny), np.flatnonzero(~other_tiny)
-    order[big] = big_other[_match(key[big], feature[big], other_key[big_other], other_feature[big_other], tolerance)]
+    order[big] = big_other[match_rows(key[big], feature[big], other_key[big_other], other_feature[big_other], tolerance)]
     small, small_other = np.flatnonzero(tiny), np.flatnonzero(other_tiny)
     if len(small) and len(small_other):
-        found = _nearest(np.column_stack([feature[small], key[small]]),
+        found = nearest_distinct(np.column_stack([feature[small], key[small]]),
                          np.column_stack([other_feature[small_other], other_key[small_other]]), tolerance)
         order[small[found >= 0]] = small_other[found[found >= 0]]
     return order
 
 
-def _nearest(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
+def nearest_distinct(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
     """For each row of ``a`` a distinct row of ``b`` within ``tolerance``: its nearest, or where
     another row took that first (identical lanes: two split ends at one corner) the nearest one
     left among its eight nearest; -1 where none is left. In passes over the neighbours' ranks
@@ -183,7 +184,7 @@ def align_terms(main, main_pieces, lanes, pieces, tolerance: float):
     rest = np.flatnonzero(piece_order < 0)
     if len(rest):
         free = np.setdiff1d(np.arange(len(pieces.area)), piece_order)
-        near = _nearest(main_pieces.centroid[rest], pieces.centroid[free], tolerance)
+        near = nearest_distinct(main_pieces.centroid[rest], pieces.centroid[free], tolerance)
         if np.any(near < 0):
             raise topology_change("pieces")
         piece_order[rest] = free[near]
@@ -215,7 +216,7 @@ def align_scatterers(main, lanes, tolerance: float):
     group and material)."""
     keys = ("sub", "row", "window_row")
     names = ("point", "unfolded")
-    order = _match(_key(main, keys), _features(main, names), _key(lanes, keys), _features(lanes, names), tolerance)
+    order = match_rows(_key(main, keys), _features(main, names), _key(lanes, keys), _features(lanes, names), tolerance)
     return _take_or_keep(lanes, main, order)
 
 
