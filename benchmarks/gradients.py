@@ -17,7 +17,8 @@ filled), wall seconds and peak memory (the process's VmHWM) of:
   Not in ``--tiny`` (its kernels would add a minute of compiling to the smoke test).
 
 The check is the issue's: the reverse-mode gradient of one loss at most 4 times the forward
-render, for materials and for geometry. Writes ``gradients.csv`` and ``gradients.png`` (seconds and peak memory per kind).
+render, for materials and for geometry. Writes ``gradients.csv`` and ``gradients.png`` (seconds
+and peak memory per kind).
 
 Usage: ``python benchmarks/gradients.py [--quick] [--tiny]`` (``--tiny``: 16 pulses, one bounce order)
 """
@@ -98,7 +99,8 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     write_csv(f"{NAME}{suffix}.csv", rows)
     fig, axes = plt.subplots(1, 2, figsize=(8, 3.4), dpi=120)
     for ax, key, label in zip(axes, ("seconds", "peak_mib"), ("wall seconds (warm)", "peak memory [MiB]")):
-        ax.bar([r["kind"] for r in rows], [r[key] for r in rows], color=["0.6", "tab:blue", "tab:orange", "tab:green"][:len(rows)])
+        colours = ["0.6", "tab:blue", "tab:orange", "tab:green"][:len(rows)]
+        ax.bar([r["kind"] for r in rows], [r[key] for r in rows], color=colours)
         ax.set_ylabel(label)
     fig.suptitle(f"urban, {pulses} pulses: derivatives against the forward render", fontsize=10)
     fig.tight_layout()
@@ -112,7 +114,8 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
     out = []
     for gradient in (r for r in rows if r["kind"] in ("gradient", "geometry")):
         what = "materials'" if gradient["kind"] == "gradient" else "geometry's"
-        out.append((f"reverse-mode gradient, {what} ({gradient['parameters']} parameters) <= 4x the forward render", bool(gradient["over_forward"] <= 4.0),
+        out.append((f"reverse-mode gradient, {what} ({gradient['parameters']} parameters) <= 4x the forward render",
+                    bool(gradient["over_forward"] <= 4.0),
                     f"{gradient['seconds']} s = {gradient['over_forward']} x the forward render; peak "
                     f"{gradient['peak_mib']} MiB against {rows[0]['peak_mib']} MiB"))
     return out

@@ -40,7 +40,7 @@ def topology_change(what: str) -> GeometryChange:
 
 
 def match_rows(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, other_features: np.ndarray,
-           tolerance: float) -> np.ndarray:
+               tolerance: float) -> np.ndarray:
     """For each row of ``features`` (float64 [n, f]) the row of ``other_features`` with equal
     ``keys`` (int64 [n, k]) nearest to it: int64 [n], one to one, each within ``tolerance``;
     GeometryChange otherwise (the moved geometry's lanes are not the same lanes)."""
@@ -99,14 +99,15 @@ def _short(edge, tolerance: float) -> np.ndarray:
 
 def _pair_rows(key, feature, tiny, other_key, other_feature, other_tiny, tolerance: float) -> np.ndarray:
     """Rows of the other set paired with each row (int64, -1: none): the rows that are not
-    ``tiny`` one to one (:func:`_match`), the tiny ones where a tiny one lies near."""
+    ``tiny`` one to one (:func:`match_rows`), the tiny ones where a tiny one lies near."""
     order = np.full(len(key), -1, np.int64)
     big, big_other = np.flatnonzero(~tiny), np.flatnonzero(~other_tiny)
-    order[big] = big_other[match_rows(key[big], feature[big], other_key[big_other], other_feature[big_other], tolerance)]
+    order[big] = big_other[match_rows(key[big], feature[big], other_key[big_other], other_feature[big_other],
+                                      tolerance)]
     small, small_other = np.flatnonzero(tiny), np.flatnonzero(other_tiny)
     if len(small) and len(small_other):
         found = nearest_distinct(np.column_stack([feature[small], key[small]]),
-                         np.column_stack([other_feature[small_other], other_key[small_other]]), tolerance)
+                                 np.column_stack([other_feature[small_other], other_key[small_other]]), tolerance)
         order[small[found >= 0]] = small_other[found[found >= 0]]
     return order
 
