@@ -9,8 +9,7 @@ scipy's L-BFGS-B minimises the amplitude loss ``sum (|I| - |T|)^2`` with
 backprojection's adjoint, the binning's and the tracer's; the height moves the box's vertices by
 ``at=``, its base kept). Per evaluation: both parameters, the loss, the gradient, its wall
 seconds and those since the start (the target's image included); each parameter's error.
-Writes ``inverse.csv`` and ``inverse.png`` (the loss and both
-parameters against evaluations).
+Writes ``inverse.csv`` and ``inverse.png`` (the loss and both parameters against evaluations).
 
 Why 20 km: from 1 km (the built-in dihedral's altitude) a 5 m wall is about one Fresnel zone
 ``sqrt(lambda R / 2)`` (4.7 m at 1.4 km slant range) tall, its double bounce's amplitude no
