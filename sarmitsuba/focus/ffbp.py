@@ -35,32 +35,19 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.raw import RawData
-from .beam import BeamWeighting, beam_axes, beam_weighting, column_gain, unit_rows
+from .beam import BeamWeighting, beam_axes, beam_weighting
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
+from .ffbp_plan import (BLOCK_COLUMNS, SUBAPERTURE, check_knobs, grid_edge_points, n_blocks, normalisation,
+                        phase_centres, plan_polar, row_geometry, rows_reached, subaperture_spans)
 from .grid import ImageGrid
-from .polar import (CHUNK, GeometryNotSupported, RSTEP, PolarAxes, PolarFrame, PolarImage, beam_table, carrier_bits, premodulated_rows,
+from .polar import (CHUNK, GeometryNotSupported, PolarAxes, PolarImage, beam_table, carrier_bits, premodulated_rows,
                     prepare, pulses_to_polar, r_pass, s_pass, spline_tables, workspace)
 from .range_lines import PAD, carrier_table, fft_upsample, premodulated_pairs, residual_carrier_table
 
 __all__ = ["ffbp", "GeometryNotSupported"]
 
-#: Default pulses per sub-aperture (docs/physics.md (F1); measured in benchmarks/ffbp.py).
-SUBAPERTURE = 16
-#: Extra polar samples beyond the needed sines (cubic spline support and prefilter start-up).
-S_MARGIN = 6
-#: Extra range samples beyond the needed ranges (more than polar.TAPER + the spline support).
-R_MARGIN = 16
-#: Cycles per beam width of the beam weighting ``w(u)`` (and of the pattern in the data) that the
-#: polar images resolve on top of the sub-aperture's own angular band (Taylor nbar 4: 3).
-WEIGHT_CYCLES = 4.0
 #: Range samples kept beyond the delays a first-stage polar image needs, and of them tapered.
 LINE_GUARD, LINE_TAPER = 48, 16
-#: Largest number of sines of one polar image.
-MAX_SINES = 1 << 16
-#: Rows and columns between the exact evaluations of the expected gain (the normalisation).
-GAIN_STEP = 32
-#: Grid columns per range block of the last step (the unit of work of one thread).
-BLOCK_COLUMNS = 512
 #: Sub-apertures whose polar images are held at once (each is added to the grid, then dropped).
 CHUNK_SUBAPERTURES = 24
 
@@ -139,13 +126,13 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     """
     t_start = time.perf_counter()
     t0, oversample, _, workers = check_inputs(raw, grid, oversample, 1, workers)
-    knobs = _check_knobs(raw, min(SUBAPERTURE, raw.n_pulses) if subaperture is None else subaperture,
+    knobs = check_knobs(raw, min(SUBAPERTURE, raw.n_pulses) if subaperture is None else subaperture,
                          angle_oversample, range_oversample)
     beam = beam_weighting(raw, azimuth_beamwidth, squint, azimuth_pattern, window_azimuth)
     pool = ThreadPoolExecutor(workers) if workers > 1 else None
     run = (lambda f, jobs: list(pool.map(f, jobs))) if pool else (lambda f, jobs: [f(j) for j in jobs])
-    spans = _subaperture_spans(raw.n_pulses, knobs["subaperture"])
-    bar = progress_bar(progress, len(spans) + _n_blocks(grid), desc=desc, unit="step")
+    spans = subaperture_spans(raw.n_pulses, knobs["subaperture"])
+    bar = progress_bar(progress, len(spans) + n_blocks(grid), desc=desc, unit="step")
     clock = {"start": time.perf_counter()}
     summed = np.zeros(grid.shape, np.complex64)
     counts = {"subapertures": 0, "polar_samples": 0, "first": 0.0, "last": 0.0}
@@ -162,14 +149,16 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
             counts["subapertures"] += len(images)
             counts["polar_samples"] += sum(i.axes.n_s * i.axes.n_r for i in images)
             del images
-        bar.update(_n_blocks(grid))
+        bar.update(n_blocks(grid))
         clock["subaperture_images"] = clock["start"] + counts["first"]
         clock["grid"] = clock["subaperture_images"] + counts["last"]
     finally:
         if pool is not None:
             pool.shutdown()
         bar.close()
-    data, norm = _normalise(raw, grid, beam, summed)
+    scale, norm = normalisation(raw, grid, beam)
+    summed *= scale.astype(np.float32)[None, :]
+    data = summed
     clock["normalisation"] = time.perf_counter()
     seconds = clock["normalisation"] - t_start
     steps = list(clock)
@@ -184,102 +173,6 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     return make_image(raw, grid, data, focus)
 
 
-def _check_knobs(raw: RawData, subaperture: Any, angle_oversample: Any, range_oversample: Any) -> dict[str, Any]:
-    if raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
-        raise GeometryNotSupported("ffbp needs monostatic or continuous-motion data (raw.tx_position == "
-                                   "raw.rx_position, or raw.rx_time given); use backproject for bistatic data")
-    out: dict[str, Any] = {}
-    for name, value, low, high in (("subaperture", subaperture, 1, raw.n_pulses),
-                                   ("range_oversample", range_oversample, 1, 8)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-            raise ValueError(f"{name} must be an integer in {low} .. {high}, got {value!r}")
-        out[name] = int(value)
-    try:
-        angle = float(angle_oversample)
-    except (TypeError, ValueError):
-        angle = float("nan")
-    if not 1.25 <= angle <= 8.0:
-        raise ValueError(f"angle_oversample must be a number in [1.25, 8], got {angle_oversample!r}")
-    out["angle_oversample"] = angle
-    return out
-
-
-def _subaperture_spans(n_pulses: int, length: int) -> list[tuple[int, int]]:
-    return [(p0, min(p0 + length, n_pulses)) for p0 in range(0, n_pulses, length)]
-
-
-def _n_blocks(grid: ImageGrid) -> int:
-    return -(-grid.shape[1] // BLOCK_COLUMNS)
-
-
-# ============================================================================ planning
-def _grid_edge_points(grid: ImageGrid) -> np.ndarray:
-    """World points of every pixel on the four edges of the grid, float64 [n, 3]."""
-    a, r = grid.azimuth, grid.range
-    aa = np.r_[a, a, np.full(r.size, a[0]), np.full(r.size, a[-1])]
-    rr = np.r_[np.full(a.size, r[0]), np.full(a.size, r[-1]), r, r]
-    return grid.origin + aa[:, None] * grid.azimuth_direction + rr[:, None] * grid.range_direction
-
-
-def _phase_centres(raw: RawData, pulses: slice) -> np.ndarray:
-    """The antenna positions that bound a sub-aperture's delays, float64 [P or 2P, 3]: the
-    transmitters, and with continuous motion the receivers too (their mean is the midpoint track,
-    the sub-aperture's effective monostatic phase centre)."""
-    if raw.rx_time is None:
-        return raw.tx_position[pulses]
-    return np.concatenate([raw.tx_position[pulses], raw.rx_position[pulses]])
-
-
-def _plan(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: slice, angle_oversample: float,
-          edges: np.ndarray) -> tuple[PolarFrame, PolarAxes, tuple[float, float], tuple[float, float]] | None:
-    """Frame, axes and nonzero sines of the polar image of the pulses ``pulses``; None when it
-    sees no pixel.
-
-    Sines: the grid's, cut to the beam widened by the sub-aperture's extent (``|A_p - c| / r``
-    and the turn of the velocity). Ranges: those of the grid's edge pixels within these sines
-    (the extremes of the distance over a region of the plane lie on its boundary), cut to the
-    fast-time window. The sine step resolves ``2 (fc + B/2) / c x max |A_p - c| x |du/ds|``
-    cycles per unit sine plus :data:`WEIGHT_CYCLES` per beam width, ``angle_oversample`` times;
-    the range step is ``c / (2 fs)``. Both axes get margins (:data:`S_MARGIN`, :data:`R_MARGIN`).
-    """
-    antennas = _phase_centres(raw, pulses)
-    centre = antennas.mean(axis=0)
-    velocity = unit_rows(raw.velocity[pulses])
-    direction = velocity.mean(axis=0)
-    direction /= np.linalg.norm(direction)
-    frame = PolarFrame(centre, direction, grid)
-    s_edge, r_edge = frame.coordinates(edges)
-    spread = float(np.max(np.linalg.norm(antennas - centre, axis=1)))
-    s_lo, s_hi = float(s_edge.min()), float(s_edge.max())
-    if beam.sines is not None:
-        turn = float(np.max(np.linalg.norm(beam_axes(raw)[pulses] - direction, axis=1)))   # beam sines vs frame
-        margin = 1.05 * spread / max(float(r_edge.min()), 1e-9) + turn + 1e-9
-        s_lo, s_hi = max(s_lo, beam.sines[0] - margin), min(s_hi, beam.sines[1] + margin)
-    inside = (s_edge >= s_lo) & (s_edge <= s_hi)
-    if s_lo > s_hi or not inside.any():
-        return None
-    window = SPEED_OF_LIGHT * raw.fast_time[[0, -1]] / 2.0
-    step = max([float(np.max(np.diff(axis))) for axis in (grid.azimuth, grid.range) if axis.size > 1] + [0.0])
-    r_lo = max(float(r_edge[inside].min()) - step, window[0] - spread)
-    r_hi = min(float(r_edge[inside].max()) + step, window[1] + spread)
-    if r_lo > r_hi:
-        return None
-    rate = frame.s_rate(np.array([s_lo, s_lo, s_hi, s_hi]), np.array([r_lo, r_hi, r_lo, r_hi]))
-    f_max = 2.0 * (raw.fc + raw.bandwidth / 2.0) / SPEED_OF_LIGHT * spread * float(np.max(rate))
-    if not np.isfinite(f_max):
-        raise GeometryNotSupported("ffbp: the grid reaches the track's vertical plane (a point of it lies under "
-                         "the antenna path); use backproject")
-    if beam.sines is not None:       # the beam weight varies across the beam: resolve a few cycles of it
-        f_max += WEIGHT_CYCLES / (beam.sines[1] - beam.sines[0])
-    ds = 1.0 / (2.0 * max(f_max, 1e-12) * angle_oversample)
-    n_s = min(int(np.ceil((s_hi - s_lo) / ds)) + 1, MAX_SINES)
-    ds = max(ds, (s_hi - s_lo) / max(n_s - 1, 1))
-    dr = SPEED_OF_LIGHT / (2.0 * raw.fs)
-    n_r = int(np.ceil((r_hi - r_lo) / dr)) + 1 + 2 * R_MARGIN
-    axes = PolarAxes(s_lo - S_MARGIN * ds, ds, n_s + 2 * S_MARGIN, r_lo - R_MARGIN * dr, dr,
-                     -(-n_r // RSTEP) * RSTEP)
-    return frame, axes, (s_lo, s_hi), (float(window[0]), float(window[1]))
-
 
 # ============================================================================ stages
 def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list[tuple[int, int]], t0: float,
@@ -289,13 +182,13 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
     carrier = residual_carrier_table(2.0 * np.pi * raw.fc / fine_rate)
     weights = None if beam.sines is not None or beam.is_rect else beam.pulse_weights(raw.n_pulses)
     table = None if beam.sines is None else (beam_table(beam.u, beam.table), *beam.sines)
-    edges = _grid_edge_points(grid)
+    edges = grid_edge_points(grid)
     velocity = beam_axes(raw)                  # the beam table's sines (docs/physics.md (J4))
     receive = receiver_motion(raw)
 
     def one(span: tuple[int, int]) -> PolarImage | None:
         pulses = slice(*span)
-        planned = _plan(raw, grid, beam, pulses, knobs["angle_oversample"], edges)
+        planned = plan_polar(raw, grid, beam, pulses, knobs["angle_oversample"], edges)
         if planned is not None:
             frame, axes, s_span, window = planned
             start, data = _cropped_lines(raw, pulses, axes)
@@ -323,7 +216,7 @@ def _cropped_lines(raw: RawData, pulses: slice, axes: PolarAxes) -> tuple[int, n
     (``2 (r -+ |A_p - c|) / c``) plus :data:`LINE_GUARD` samples, whose outer :data:`LINE_TAPER`
     samples are tapered to zero where the crop cuts the line (so that the FFT upsampling does not
     ring into the needed delays)."""
-    antennas = _phase_centres(raw, pulses)
+    antennas = phase_centres(raw, pulses)
     spread = float(np.max(np.linalg.norm(antennas - antennas.mean(axis=0), axis=1)))
     r_first, r_last = axes.r0 - spread, axes.r0 + (axes.n_r - 1) * axes.dr + spread
     t0 = float(raw.fast_time[0])
@@ -349,8 +242,8 @@ def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, out: n
     s_tables = spline_tables(12)
     fine_dr = images[0].fine.dr
     r_tables = spline_tables(carrier_bits(kappa * fine_dr), kappa * fine_dr)
-    blocks = [slice(b * BLOCK_COLUMNS, min((b + 1) * BLOCK_COLUMNS, grid.shape[1])) for b in range(_n_blocks(grid))]
-    reach = run(lambda image: _rows_reached(grid, image, blocks), images)
+    blocks = [slice(b * BLOCK_COLUMNS, min((b + 1) * BLOCK_COLUMNS, grid.shape[1])) for b in range(n_blocks(grid))]
+    reach = run(lambda image: rows_reached(grid, image, blocks), images)
 
     def block(b: int) -> None:
         for image, rows in zip(images, reach):
@@ -360,35 +253,6 @@ def _last_step(grid: ImageGrid, images: list[PolarImage], fc: float, run, out: n
     run(block, range(len(blocks)))
 
 
-def _row_geometry(grid: ImageGrid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(p, q)`` float64 [n_az]: on row ``i``, ``|x - c|^2 = rho^2 + 2 rho p_i + q_i`` for the pixel at
-    range coordinate ``rho``."""
-    rel = grid.origin - centre
-    e_a, e_r = grid.azimuth_direction, grid.range_direction
-    p = rel @ e_r + grid.azimuth * (e_a @ e_r)
-    q = rel @ rel + 2.0 * grid.azimuth * (rel @ e_a) + grid.azimuth ** 2
-    return p, q
-
-
-def _rows_reached(grid: ImageGrid, image: PolarImage, blocks: list[slice]) -> list[slice | None]:
-    """Per range block, the rows with a pixel whose sine lies in the image's nonzero sines (probed at
-    the block's first, middle and last columns), or None."""
-    frame = image.frame
-    p, q = _row_geometry(grid, frame.centre)
-    v = frame.direction
-    rel = grid.origin - frame.centre
-    probe = np.array([[grid.range[b.start], grid.range[(b.start + b.stop - 1) // 2], grid.range[b.stop - 1]]
-                      for b in blocks])                                                       # [n_b, 3]
-    r = np.sqrt(q[:, None, None] + probe[None] * (2.0 * p[:, None, None] + probe[None]))
-    s = (rel @ v + grid.azimuth[:, None, None] * (grid.azimuth_direction @ v)
-         + probe[None] * (grid.range_direction @ v)) / r
-    hit = (s.max(axis=2) >= image.s_span[0]) & (s.min(axis=2) <= image.s_span[1])          # [n_az, n_b]
-    out: list[slice | None] = []
-    for b in range(len(blocks)):
-        rows = np.flatnonzero(hit[:, b])
-        out.append(slice(int(rows[0]), int(rows[-1]) + 1) if rows.size else None)
-    return out
-
 
 def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice, kappa: float, s_tables,
                     r_tables, out: np.ndarray) -> None:
@@ -396,7 +260,7 @@ def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice
     onto the rows at the image's fine range samples, then the r-pass onto the pixels."""
     frame, fine = image.frame, image.fine
     rho = grid.range[cols]
-    p, q = _row_geometry(grid, frame.centre)
+    p, q = row_geometry(grid, frame.centre)
     p, h2 = p[rows], q[rows] - p[rows] ** 2                # |x - c|^2 = (rho + p)^2 + h2 on each row
     ends = rho[[0, -1]][None, :] + p[:, None]
     side = 1.0 if ends[0, 0] > 0 else -1.0
@@ -445,18 +309,3 @@ def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice
         target += r_pass(premodulated_rows(coeffs, carrier, ws), r_k.size, position, r_tables,
                          ws.c64[0, :position.size].reshape(position.shape))
 
-
-# ============================================================================ normalisation
-def _normalise(raw: RawData, grid: ImageGrid, beam: BeamWeighting, image: np.ndarray) -> tuple[np.ndarray, float]:
-    """Divide (in place) as ``backproject`` does: by the summed pulse weights, or per range column by
-    the largest expected gain of its pixels (:func:`~.beam.column_gain` from every
-    :data:`GAIN_STEP`-th row and column)."""
-    if beam.sines is None:
-        norm = float(beam.pulse_weights(raw.n_pulses).sum())
-        image *= np.float32(1.0 / norm) if norm > 0 else np.float32(0.0)
-        return image, norm
-    full = column_gain(raw, grid, beam, step=GAIN_STEP)
-    norm = float(full.max()) if full.size else 0.0
-    floor = 1e-6 * norm if norm > 0 else 1.0
-    image *= np.where(full > floor, 1.0 / np.maximum(full, floor), 0.0).astype(np.float32)[None, :]
-    return image, norm

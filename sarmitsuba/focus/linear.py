@@ -33,6 +33,9 @@ factors their conjugates, the crops zero-padding and the scatters gathers.
 :class:`RangeDopplerOperator` is :func:`~sarmitsuba.focus.range_doppler` (C&W ch. 6) in float64
 with the exact RCMC kernel: range FFT, range filter, azimuth FFT, SRC, upsampling range IFFT,
 RCMC interpolation, azimuth matched filter, azimuth IFFT; its adjoint transposes them likewise.
+
+Fast factorised backprojection's pair, :class:`~.ffbp_linear.FFBPOperator`, lives in
+:mod:`.ffbp_linear` (it builds on :func:`pulse_taps`).
 """
 from __future__ import annotations
 
@@ -56,7 +59,7 @@ from .bp_contract import check_inputs, receiver_motion
 from .grid import ImageGrid
 from .range_lines import fft_upsample, fft_upsample_adjoint
 
-__all__ = ["BackprojectionOperator", "backprojection_operator", "OmegaKOperator", "omega_k_operator",
+__all__ = ["BackprojectionOperator", "backprojection_operator", "pulse_taps", "OmegaKOperator", "omega_k_operator",
            "RangeDopplerOperator", "range_doppler_operator", "inner"]
 
 
@@ -99,25 +102,10 @@ class BackprojectionOperator:
         return tuple(self.raw.data.shape)
 
     def _pulse(self, p: int, x: np.ndarray, receive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pulse ``p`` at pixels ``x``: the fine sample below each delay (index into the padded
-        line, int64), the interpolation fraction (float64) and the complex coefficient
-        ``scale w exp(+j 2 pi fc L / c)`` (complex128); a delay outside the padded line gets
-        coefficient 0."""
-        raw = self.raw
-        n_samples = raw.data.shape[1]
-        dt = 1.0 / (raw.fs * self.oversample)
-        n_up = (n_samples - 1) * self.oversample + 1
-        length = echo_length(raw.tx_position[p], raw.rx_position[p], raw.velocity[p],
-                             None if receive is None else receive[1][p], x)
-        # padded fine line: sample k at t0 + (k - 1) dt, k = 0 .. n_up + 1 (zeros at both ends)
-        position = (length / SPEED_OF_LIGHT - self.t0) / dt + 1.0
-        inside = (position >= 0.0) & (position <= n_up + 1)
-        index = np.clip(np.floor(position), 0, n_up).astype(np.int64)
-        fraction = np.where(inside, position - index, 0.0)
-        weight, _ = pixel_weights(raw, self.beam, self.axes, p, x)
-        cycles = np.mod(raw.fc * length / SPEED_OF_LIGHT, 1.0)
-        coefficient = np.where(inside, weight * self.scale.reshape(-1) * np.exp(2j * np.pi * cycles), 0.0)
-        return index, fraction, coefficient
+        """:func:`pulse_taps` of pulse ``p`` at pixels ``x``, the coefficient times the normalisation."""
+        index, fraction, coefficient = pulse_taps(self.raw, self.t0, self.oversample, self.beam, self.axes, p, x,
+                                                  receive)
+        return index, fraction, coefficient * self.scale.reshape(-1)
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The image of ``data`` complex [n_pulses, n_samples]: complex128 [n_az, n_rg]."""
@@ -147,6 +135,27 @@ class BackprojectionOperator:
             line = _scatter(index, (1.0 - fraction) * back, n_line) + _scatter(index + 1, fraction * back, n_line)
             out[p] = fft_upsample_adjoint(line[1:-1], n_samples, self.oversample)
         return out
+
+
+def pulse_taps(raw: RawData, t0: float, oversample: int, beam: BeamWeighting, axes: np.ndarray, p: int,
+               x: np.ndarray, receive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pulse ``p``'s two taps at points ``x`` float64 [m, 3] in its padded fine line (sample ``k`` at
+    fast time ``t0 + (k - 1) dt``, ``dt = 1 / (fs oversample)``, zeros at both ends): the fine sample
+    below each delay (int64 [m]), the linear interpolation fraction (float64 [m]) and the coefficient
+    ``w exp(+j 2 pi fc L / c)`` (complex128 [m]; eq. (S3)); a delay outside the padded line gets
+    coefficient 0. ``axes``: :func:`.beam.beam_axes`; ``receive``: :func:`.bp_contract.receiver_motion`."""
+    n_samples = raw.data.shape[1]
+    dt = 1.0 / (raw.fs * oversample)
+    n_up = (n_samples - 1) * oversample + 1
+    length = echo_length(raw.tx_position[p], raw.rx_position[p], raw.velocity[p],
+                         None if receive is None else receive[1][p], x)
+    position = (length / SPEED_OF_LIGHT - t0) / dt + 1.0
+    inside = (position >= 0.0) & (position <= n_up + 1)
+    index = np.clip(np.floor(position), 0, n_up).astype(np.int64)
+    fraction = np.where(inside, position - index, 0.0)
+    weight, _ = pixel_weights(raw, beam, axes, p, x)
+    cycles = np.mod(raw.fc * length / SPEED_OF_LIGHT, 1.0)
+    return index, fraction, np.where(inside, weight * np.exp(2j * np.pi * cycles), 0.0)
 
 
 def _scatter(index: np.ndarray, values: np.ndarray, size: int) -> np.ndarray:

@@ -48,8 +48,8 @@ class GeometryNotSupported(ValueError):
     backprojection (:func:`~sarmitsuba.focus.backproject`) focuses it."""
 
 __all__ = ["PolarFrame", "PolarAxes", "PolarImage", "pulses_to_polar", "prepare", "s_pass", "r_pass",
-           "premodulated_rows", "spline_tables", "carrier_bits", "beam_table", "spline_prefilter", "Workspace",
-           "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER", "CHUNK", "RSTEP"]
+           "premodulated_rows", "range_coefficients", "range_taper", "spline_tables", "carrier_bits", "beam_table",
+           "spline_prefilter", "Workspace", "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER", "CHUNK", "RSTEP"]
 
 #: Pole of the cubic B-spline prefilter, ``sqrt(3) - 2`` (Unser 1999).
 SPLINE_POLE = float(np.sqrt(3.0) - 2.0)
@@ -428,11 +428,26 @@ def prepare(image: PolarImage, factor: int, workers: int = 1) -> PolarImage:
     axes = image.axes
     # along s first (it commutes with the range FFT); in complex128: the recursion decays into
     # float32 subnormals over the empty parts of the image, which are 100x slower
-    lines = spline_prefilter(image.data * _taper(axes.n_r).astype(np.float64)[None, :], axis=0)
-    n_fft = scipy.fft.next_fast_len(axes.n_r + FFT_GUARD)
+    lines = spline_prefilter(image.data * range_taper(axes.n_r).astype(np.float64)[None, :], axis=0)
+    coeffs = range_coefficients(lines, factor, workers)
+    n_up = coeffs.shape[1]
+    padded = np.zeros((n_up, axes.n_s + 2 * _EDGE), np.complex64)
+    padded[:, _EDGE:_EDGE + axes.n_s] = coeffs.T
+    image.table = _pairs(padded)
+    image.fine = PolarAxes(axes.s0, axes.ds, axes.n_s, axes.r0, axes.dr / factor, n_up)
+    return image
+
+
+def range_coefficients(lines: np.ndarray, factor: int, workers: int = 1, dtype: type = np.complex64) -> np.ndarray:
+    """Cubic B-spline coefficients of range lines complex [rows, n] on a grid ``factor`` times finer:
+    ``dtype`` [rows, (n - 1) factor + 1]. FFT upsampling (zero padding to a fast length, the Nyquist
+    bin split) with the prefilter ``3 / (2 + cos(2 pi f))`` of the fine grid applied in the spectrum;
+    linear in ``lines``."""
+    n_r = lines.shape[1]
+    n_fft = scipy.fft.next_fast_len(n_r + FFT_GUARD)
     spec = scipy.fft.fft(lines, n=n_fft, axis=1, workers=workers)
     n_big = n_fft * factor
-    big = np.zeros((axes.n_s, n_big), np.complex64)
+    big = np.zeros((lines.shape[0], n_big), dtype)
     half = (n_fft + 1) // 2
     big[:, :half] = spec[:, :half]
     n_neg = n_fft - half
@@ -442,17 +457,11 @@ def prepare(image: PolarImage, factor: int, workers: int = 1) -> PolarImage:
     if n_neg:
         big[:, n_big - n_neg:] = spec[:, n_fft - n_neg:]
     f = np.fft.fftfreq(n_big)
-    big *= (factor * 3.0 / (2.0 + np.cos(2.0 * np.pi * f))).astype(np.float32)[None, :]
-    n_up = (axes.n_r - 1) * factor + 1
-    coeffs = scipy.fft.ifft(big, axis=1, workers=workers, overwrite_x=True)[:, :n_up]
-    padded = np.zeros((n_up, axes.n_s + 2 * _EDGE), np.complex64)
-    padded[:, _EDGE:_EDGE + axes.n_s] = coeffs.T
-    image.table = _pairs(padded)
-    image.fine = PolarAxes(axes.s0, axes.ds, axes.n_s, axes.r0, axes.dr / factor, n_up)
-    return image
+    big *= (factor * 3.0 / (2.0 + np.cos(2.0 * np.pi * f))).astype(big.real.dtype)[None, :]
+    return scipy.fft.ifft(big, axis=1, workers=workers, overwrite_x=True)[:, :(n_r - 1) * factor + 1]
 
 
-def _taper(n: int) -> np.ndarray:
+def range_taper(n: int) -> np.ndarray:
     """float32 [n]: 1 inside, a raised cosine over the outer :data:`TAPER` samples of each end."""
     w = np.ones(n, np.float32)
     k = min(TAPER, n // 2)
