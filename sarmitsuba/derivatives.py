@@ -23,7 +23,9 @@ gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. ``at
 before the trace (:func:`moved_raw` gives those raw data).
 
 A loss on the image: :func:`gradients` (``sarmitsuba.gradients``) focuses the raw data by direct
-backprojection as a float64 linear map (:class:`sarmitsuba.focus.linear.BackprojectionOperator`),
+or fast factorised backprojection as a float64 linear map
+(:class:`sarmitsuba.focus.linear.BackprojectionOperator`,
+:class:`sarmitsuba.focus.ffbp_linear.FFBPOperator`),
 evaluates the loss and its gradient there, carries it to the raw data by the map's adjoint (AD1)
 and from there by :func:`raw_gradient`.
 
@@ -388,7 +390,7 @@ class Gradients:
 def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (64, 64),
               image_spacing: float | None = None, sensor_overrides: Mapping[str, Any] | None = None,
               integrator_overrides: Mapping[str, Any] | None = None, oversample: int = 8,
-              at: Mapping | None = None) -> Gradients:
+              at: Mapping | None = None, focuser: str = "bp") -> Gradients:
     """``dL/dp`` of a loss on the scene's image, for every parameter at once (reverse mode).
 
     Parameters
@@ -405,6 +407,11 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
         As :func:`raw_derivative` (``at`` moves shapes first: the loss and gradient there).
     oversample : int
         Range upsampling of the backprojection.
+    focuser : {"bp", "ffbp"}
+        The image's focuser as a float64 linear map: direct backprojection
+        (:class:`~sarmitsuba.focus.linear.BackprojectionOperator`), or fast factorised
+        backprojection with its default knobs (:class:`~sarmitsuba.focus.ffbp_linear.FFBPOperator`,
+        the render's default focuser; docs/physics.md (AD1)).
 
     Returns
     -------
@@ -413,11 +420,17 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     Raises
     ------
     ParameterError
-        As :func:`raw_gradient`.
+        As :func:`raw_gradient`; or ``focuser`` not ``"bp"`` or ``"ffbp"``.
     """
     from .focus.dispatch import azimuth_pattern
+    from .focus.ffbp_linear import ffbp_operator
     from .focus.linear import backprojection_operator
     from .focus.scene_grid import sized_grid
+    operators = {"bp": backprojection_operator, "ffbp": ffbp_operator}
+    if focuser not in operators:
+        raise ParameterError(f"focuser = {focuser!r}: sarmitsuba.gradients focuses with 'bp' or 'ffbp' (the "
+                             "backprojections as float64 linear maps); for omega-K or range-Doppler, use "
+                             "sarmitsuba.focus.linear's operators with raw_gradient")
     parameters = [_checked(p) for p in parameters]
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
     params = loaded.params
@@ -428,7 +441,7 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     raw = _values(source, loaded, setup, shapes)
     grid = sized_grid(params, setup.geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
-    operator = backprojection_operator(raw, grid, oversample=oversample,
+    operator = operators[focuser](raw, grid, oversample=oversample,
                                        azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
                                        squint=params.squint, azimuth_pattern=azimuth_pattern(params))
     image = operator.forward(raw.data)

@@ -116,6 +116,9 @@ def test_bad_parameters_are_named(tmp_path):
         raw_derivative(path, MaterialParameter("metal", "thickness"), sensor_overrides=PULSES)
     with pytest.raises(ParameterError, match="is a 'pec'"):
         raw_derivative("trihedral", MaterialParameter("metal", "relative_permittivity"), sensor_overrides=PULSES)
+    import sarmitsuba
+    with pytest.raises(ParameterError, match="focuser = 'omegak'.*'bp' or 'ffbp'"):
+        sarmitsuba.gradients(path, None, [], focuser="omegak")
 
 
 def test_reverse_mode_is_the_forward_mode_transposed(tmp_path):
@@ -215,20 +218,25 @@ def test_urban_ground_permittivity_derivative_matches_central_differences(tmp_pa
     assert np.linalg.norm(derivative.data - fd) <= 1e-2 * np.linalg.norm(fd)
 
 
-def test_gradients_of_an_image_loss_match_central_differences(tmp_path):
+@pytest.mark.parametrize("focuser", ["bp", "ffbp"])
+def test_gradients_of_an_image_loss_match_central_differences(tmp_path, focuser):
     """``sarmitsuba.gradients``: an amplitude loss between the trihedral's image at ``eps_r`` 5 and
-    a target imaged at 6, differentiated in reverse mode through backprojection's adjoint, the
-    binning's and the kernels', against central differences of the loss itself (renders 0.01
-    apart), for permittivity and conductivity at once. Catches the image gradient carried to the
-    raw data by the forward map instead of its adjoint, and a loss gradient with the wrong sign."""
+    a target imaged at 6, differentiated in reverse mode through the adjoint of direct or fast
+    factorised backprojection, the binning's and the kernels', against central differences of the
+    loss itself (renders 0.01 apart), for permittivity and conductivity at once. Catches the image
+    gradient carried to the raw data by the forward map instead of its adjoint, a loss gradient
+    with the wrong sign, and ``focuser`` ignored (the target is focused with the other one)."""
     import sarmitsuba
     from sarmitsuba.derivatives import AmplitudeLoss
-    size = {"image_size": (24, 24), "image_spacing": 0.3, "sensor_overrides": PULSES}
+    size = {"image_size": (24, 24), "image_spacing": 0.3, "sensor_overrides": PULSES, "focuser": focuser}
     target = sarmitsuba.gradients(_trihedral(tmp_path, 6.0, SIGMA), AmplitudeLoss(np.zeros((24, 24))), [], **size).image
     loss = AmplitudeLoss(target)
     parameters = [MaterialParameter("metal", "relative_permittivity"), MaterialParameter("metal", "conductivity")]
     result = sarmitsuba.gradients(_trihedral(tmp_path, EPS_R, SIGMA), loss, parameters, **size)
     assert result.loss > 0 and result.image.shape == (24, 24)
+    if focuser == "ffbp":          # the factorised image: close to the direct one, not equal to it
+        direct = sarmitsuba.gradients(_trihedral(tmp_path, EPS_R, SIGMA), loss, [], **{**size, "focuser": "bp"}).image
+        assert 1e-6 < np.linalg.norm(result.image - direct) / np.linalg.norm(direct) < 0.05
     for parameter, h in zip(parameters, (1e-2, 1e-3)):
         shift = (h, 0.0) if parameter.name == "relative_permittivity" else (0.0, h)
         plus = sarmitsuba.gradients(_trihedral(tmp_path, EPS_R + shift[0], SIGMA + shift[1]), loss, [], **size).loss
