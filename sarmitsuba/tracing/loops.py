@@ -11,6 +11,7 @@ scatter with symbolic indices that forward or reverse propagation cannot replay 
 from __future__ import annotations
 
 import contextlib
+import gc
 import threading
 
 import numpy as np
@@ -28,13 +29,28 @@ def loop_mode() -> str | None:
 
 @contextlib.contextmanager
 def evaluated_loops():
-    """Within the block, the kernels' loops run evaluated (differentiable through their deposits)."""
+    """Within the block, the kernels' loops run evaluated (differentiable through their deposits),
+    and Python's cyclic garbage collector is paused (collected once on entry).
+
+    Why the collector: at each evaluated loop's boundary, Dr.Jit's reverse traversal evaluates the
+    gradients pending there in the iteration order of a hash set of their AD variable indices
+    (``ad_traverse`` in Dr.Jit 1.5), and a new AD variable takes the lowest free index. Variables
+    freed by the cyclic collector, at moments that depend on the process's history, therefore
+    changed the indices, the order of the backward kernels' instructions and so their cache key:
+    the same gradient compiled again for 20-60 s at random evaluations. With only reference
+    counts freeing variables inside the block, the indices, and the kernels, repeat."""
     previous = loop_mode()
+    collecting = gc.isenabled()
+    if collecting:
+        gc.collect()
+        gc.disable()
     _STATE.mode = "evaluated"
     try:
         yield
     finally:
         _STATE.mode = previous
+        if collecting:
+            gc.enable()
 
 
 def lane_float() -> type:
