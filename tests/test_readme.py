@@ -215,26 +215,24 @@ def test_readme_python_example_runs(folder, monkeypatch):
     assert np.isfinite(namespace["report"].rcs_db) and (folder / "out" / "house" / "image.npz").is_file()
 
 
-def test_readme_inverse_example_runs(folder, monkeypatch):
-    """The worked inverse example (a wall's permittivity and a building's height), with
-    ``scipy.optimize.minimize`` replaced by one evaluation at the starting point (from an empty
-    kernel cache that one evaluation compiles for about 100 s; the whole descent is
-    ``benchmarks/inverse.py``). At the start (5.85, 6.5 m; truth 4.5, 5 m) the loss is positive and
-    both derivatives are positive: the truth lies below in both. Catches a gradient of the wrong
-    sign and a detached parameter (its derivative 0)."""
+def test_readme_inverse_example_converges(folder, monkeypatch):
+    """The worked inverse example (a wall's permittivity and a building's height), run as written:
+    the issue's acceptance, ``eps_r`` within 2 % and the height within 0.1 m of the truth (4.5,
+    5 m) from 30 % off (5.85, 6.5 m). At the start both derivatives are positive (the truth lies
+    below in both). Catches a gradient of the wrong sign, a detached parameter (its derivative 0,
+    the parameter left at its start), a derivative scaled wrongly enough to stall the descent.
+    From an empty kernel cache about 2 minutes (the first evaluation compiles for about 100 s),
+    warm about 15 s."""
     blocks = [text for _, text in code_blocks("python")]
     assert len(blocks) == 2, "README: the API example and the inverse example"
     block = blocks[1]
     assert "scipy.optimize.minimize(" in block
     monkeypatch.chdir(folder)
-
-    def first_evaluation(fun, x0, jac, **options):
-        value, gradient = fun(np.asarray(x0, float))
-        return types.SimpleNamespace(x=np.asarray(x0, float), fun=value, jac=gradient)
-
-    namespace: dict = {"first_evaluation": first_evaluation}
-    exec(compile(block.replace("scipy.optimize.minimize(", "first_evaluation("), "README.md (inverse example)", "exec"),
-         namespace)
-    (loss, eps_r, height), = namespace["history"]
-    assert loss > 0 and (eps_r, height) == (5.85, 6.5)
-    assert np.all(namespace["found"].jac > 0), namespace["found"].jac
+    namespace: dict = {}
+    exec(compile(block, "README.md (inverse example)", "exec"), namespace)
+    history, found = namespace["history"], namespace["found"]
+    assert history[0][1:] == (5.85, 6.5) and history[0][0] > 0
+    eps_r, height = found.x
+    assert abs(eps_r - 4.5) <= 0.02 * 4.5, found
+    assert abs(height - 5.0) <= 0.1, found
+    assert found.fun < 1e-3 * history[0][0]
