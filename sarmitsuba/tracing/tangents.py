@@ -28,6 +28,7 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
 from ..core.radar import ParameterError
 from .accumulate import Accumulator
+from .device import device_array
 from .geometry_tangents import MovedTracer
 from .kernel import Kernel
 
@@ -185,7 +186,7 @@ class TangentKernel(Kernel):
         leaves = _leaves(self.returns.tables, flat)
         self.moved = moved_tracer(self, [] if move is None else [move])
         self.returns.sums = TangentSums(self.returns.sums, tuple(leaves.values()),
-                                        tuple(mi.Float(flat[name].astype(np.float32)) for name in leaves))
+                                        tuple(device_array(mi.Float, flat[name]) for name in leaves))
         if self.moved is not None:
             self.moved.forward = True
 
@@ -207,7 +208,8 @@ class AdjointSums(Accumulator):
         floats = np.zeros(dr.width(ctx["hist"]), np.float32)
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat
-        dr.set_grad(ctx["hist"], mi.Float(floats))
+        dr.set_grad(ctx["hist"], device_array(mi.Float, floats))    # aligned: the backward kernels' code
+                                                                     # (packet gathers) would follow NumPy's
         dr.enqueue(dr.ADMode.Backward, ctx["hist"])
         dr.traverse(dr.ADMode.Backward, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
         return super().collect(ctx)
