@@ -321,3 +321,40 @@ def test_quad_pol_reverse_mode_is_the_forward_mode_transposed(tmp_path):
     assert reverse == pytest.approx(expected, rel=1e-3)
     with pytest.raises(ParameterError, match="needs the gradient per channel"):
         raw_gradient(path, w["HH"], [parameter], sensor_overrides=sensor, integrator_overrides=first)
+
+
+def test_evaluated_loops_collect_once_then_pause_the_collector():
+    """The derivative traces' kernels repeat only if nothing but reference counts frees AD
+    variables inside them (Dr.Jit schedules the gradients pending at a loop boundary in the order
+    of their AD indices, which reuse the lowest free slot; docs/design.md section 10). Measured
+    on urban, two heights, 64 pulses, eight evaluations at one point from an empty kernel cache:
+    with the collector running, five of the last six compiled again for about 55 s each; paused,
+    none did. Catches the pause or the collection on entry removed, and the collector left off
+    after the block (or after an error in it)."""
+    import gc
+    import weakref
+    from sarmitsuba.tracing.loops import evaluated_loops, loop_mode
+
+    class Cyclic:
+        pass
+
+    gc.enable()
+    garbage = Cyclic()
+    garbage.me = garbage                        # freed only by the cyclic collector
+    alive = weakref.ref(garbage)
+    del garbage
+    with evaluated_loops():
+        assert alive() is None                  # collected on entry
+        assert not gc.isenabled() and loop_mode() == "evaluated"
+    assert gc.isenabled() and loop_mode() is None
+    with pytest.raises(RuntimeError):
+        with evaluated_loops():
+            raise RuntimeError("a failed trace")
+    assert gc.isenabled()
+    gc.disable()                                # a caller that paused it keeps it paused
+    try:
+        with evaluated_loops():
+            pass
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
