@@ -175,8 +175,8 @@ def _subaperture(raw: RawData, grid: ImageGrid, beam: BeamWeighting, pulses: sli
             rows.append(np.arange(points.shape[0]))
             cols.append(k * n_line + tap)
             values.append(coefficient * weight)
-        residual = np.linalg.norm(points - raw.tx_position[p], axis=1) - r
-        near, far = min(near, residual[valid.reshape(-1)].min(initial=np.inf)), max(far, residual.max())
+        residual = (np.linalg.norm(points - raw.tx_position[p], axis=1) - r)[valid.reshape(-1)]
+        near, far = min(near, residual.min(initial=np.inf)), max(far, residual.max(initial=-np.inf))
     first = scipy.sparse.csr_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
                                     shape=(points.shape[0], (pulses.stop - pulses.start) * n_line))
     along = spline_prefilter(np.eye(axes.n_s), axis=0)
