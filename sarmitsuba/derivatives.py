@@ -442,8 +442,8 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     grid = sized_grid(params, setup.geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     operator = operators[focuser](raw, grid, oversample=oversample,
-                                       azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
-                                       squint=params.squint, azimuth_pattern=azimuth_pattern(params))
+                                  azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,
+                                  squint=params.squint, azimuth_pattern=azimuth_pattern(params))
     image = operator.forward(raw.data)
     value, image_gradient = loss(image)
     raw_gradient_ = operator.adjoint(image_gradient)

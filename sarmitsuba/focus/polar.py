@@ -49,7 +49,8 @@ class GeometryNotSupported(ValueError):
 
 __all__ = ["PolarFrame", "PolarAxes", "PolarImage", "pulses_to_polar", "prepare", "s_pass", "r_pass",
            "premodulated_rows", "range_coefficients", "range_taper", "spline_tables", "carrier_bits", "beam_table",
-           "spline_prefilter", "Workspace", "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER", "CHUNK", "RSTEP"]
+           "spline_prefilter", "Workspace", "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER",
+           "CHUNK", "RSTEP"]
 
 #: Pole of the cubic B-spline prefilter, ``sqrt(3) - 2`` (Unser 1999).
 SPLINE_POLE = float(np.sqrt(3.0) - 2.0)
