@@ -42,19 +42,12 @@ from .bp_contract import check_inputs, receiver_motion
 from .ffbp_plan import (BLOCK_COLUMNS, SUBAPERTURE, check_knobs, grid_edge_points, normalisation, plan_polar,
                         row_geometry, rows_reached, subaperture_spans)
 from .grid import ImageGrid
-from .linear import pulse_taps
-from .polar import GeometryNotSupported, PolarAxes, PolarImage, range_coefficients, range_taper, \
+from .linear import checked_shape, pulse_taps
+from .polar import GeometryNotSupported, PolarAxes, PolarImage, cubic_bspline, range_coefficients, range_taper, \
     spline_prefilter
 from .range_lines import fft_upsample, fft_upsample_adjoint
 
-__all__ = ["FFBPOperator", "SubapertureMaps", "ffbp_operator", "cubic_bspline"]
-
-
-def cubic_bspline(x: np.ndarray) -> np.ndarray:
-    """The centred cubic B-spline ``beta3(x)`` (float64; Unser 1999, eq. (8)): ``2/3 - |x|^2 +
-    |x|^3 / 2`` for ``|x| < 1``, ``(2 - |x|)^3 / 6`` for ``|x| < 2``, else 0."""
-    a = np.abs(x)
-    return np.where(a < 1.0, 2.0 / 3.0 - a * a + 0.5 * a ** 3, np.where(a < 2.0, (2.0 - a) ** 3 / 6.0, 0.0))
+__all__ = ["FFBPOperator", "SubapertureMaps", "ffbp_operator"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,7 +90,7 @@ class FFBPOperator:
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The image of ``data`` complex [n_pulses, n_samples]: complex128 [n_az, n_rg]. ValueError
         naming the shape when ``data`` has another."""
-        data = _checked(data, self.data_shape, "data")
+        data = checked_shape(data, self.data_shape, "data")
         lines = np.zeros((data.shape[0], self._n_line()), np.complex128)
         lines[:, 1:-1] = fft_upsample(data, self.oversample)
         image = np.zeros(self.grid.shape[0] * self.grid.shape[1], np.complex128)
@@ -109,7 +102,7 @@ class FFBPOperator:
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for ``image`` complex [n_az, n_rg]: complex128 [n_pulses, n_samples].
         ValueError naming the shape when ``image`` has another."""
-        image = _checked(image, self.grid.shape, "image")
+        image = checked_shape(image, self.grid.shape, "image")
         y = (image * self.scale[None, :]).reshape(-1)
         lines = np.zeros((self.data_shape[0], self._n_line()), np.complex128)
         for m in self.maps:
@@ -117,13 +110,6 @@ class FFBPOperator:
             polar = m.along.T @ coeffs @ m.across.conj().T
             lines[m.pulses] += (m.first.conj().T @ polar.reshape(-1)).reshape(-1, lines.shape[1])
         return fft_upsample_adjoint(lines[:, 1:-1], self.data_shape[1], self.oversample)
-
-
-def _checked(values: np.ndarray, shape: tuple, what: str) -> np.ndarray:
-    values = np.asarray(values, np.complex128)
-    if values.shape != tuple(shape):
-        raise ValueError(f"{what} shape {values.shape} must be {tuple(shape)} (the operator's)")
-    return values
 
 
 def ffbp_operator(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle_oversample: float = 2.0,

@@ -59,11 +59,11 @@ from .bp_contract import check_inputs, receiver_motion
 from .grid import ImageGrid
 from .range_lines import fft_upsample, fft_upsample_adjoint
 
-__all__ = ["BackprojectionOperator", "backprojection_operator", "pulse_taps", "OmegaKOperator", "omega_k_operator",
+__all__ = ["BackprojectionOperator", "backprojection_operator", "pulse_taps", "checked_shape", "OmegaKOperator", "omega_k_operator",
            "RangeDopplerOperator", "range_doppler_operator", "inner"]
 
 
-def _checked(values: np.ndarray, shape: tuple, what: str) -> np.ndarray:
+def checked_shape(values: np.ndarray, shape: tuple, what: str) -> np.ndarray:
     """``values`` as complex128; ValueError naming ``what`` (``"data"``, ``"image"``) and the
     expected shape when it has another."""
     values = np.asarray(values, np.complex128)
@@ -109,7 +109,7 @@ class BackprojectionOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The image of ``data`` complex [n_pulses, n_samples]: complex128 [n_az, n_rg]."""
-        data = _checked(data, self.data_shape, "data")
+        data = checked_shape(data, self.data_shape, "data")
         x = self.grid.positions().reshape(-1, 3)
         receive = receiver_motion(self.raw)
         image = np.zeros(x.shape[0], np.complex128)
@@ -122,7 +122,7 @@ class BackprojectionOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for ``image`` complex [n_az, n_rg]: complex128 [n_pulses, n_samples]."""
-        image = _checked(image, self.grid.shape, "image")
+        image = checked_shape(image, self.grid.shape, "image")
         x = self.grid.positions().reshape(-1, 3)
         receive = receiver_motion(self.raw)
         n_pulses, n_samples = self.data_shape
@@ -211,7 +211,7 @@ class OmegaKOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
-        data = _checked(data, self.data_shape, "data")
+        data = checked_shape(data, self.data_shape, "data")
         plan, (n_a, n_r) = self.plan, self.data_shape
         buffer = np.zeros((n_a, plan.n_pad), np.complex128)
         buffer[:, self.columns] = data * self.prefactor
@@ -226,7 +226,7 @@ class OmegaKOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
-        image = _checked(image, self.data_shape, "image")
+        image = checked_shape(image, self.data_shape, "image")
         plan, (n_a, n_r) = self.plan, self.data_shape
         image = scipy.fft.fft(image, axis=0) / n_a                          # ifft^H = fft / N
         out = np.zeros((n_a, plan.n_out), np.complex128)
@@ -304,7 +304,7 @@ class RangeDopplerOperator:
 
     def forward(self, data: np.ndarray) -> np.ndarray:
         """The slant image of ``data`` complex [n_pulses, n_samples]: complex128, same shape."""
-        data = _checked(data, self.data_shape, "data")
+        data = checked_shape(data, self.data_shape, "data")
         plan, (n_a, _) = self.plan, self.data_shape
         n1, n2 = plan.n1, plan.n1 * plan.upsample
         spec = scipy.fft.fft(scipy.fft.fft(data, n=n1, axis=1) * plan.range_filter, axis=0)
@@ -320,7 +320,7 @@ class RangeDopplerOperator:
 
     def adjoint(self, image: np.ndarray) -> np.ndarray:
         """``F^H image`` for a slant image complex [n_pulses, n_samples]: complex128, same shape."""
-        image = _checked(image, self.data_shape, "image")
+        image = checked_shape(image, self.data_shape, "image")
         plan, (n_a, n_r) = self.plan, self.data_shape
         n1, n2 = plan.n1, plan.n1 * plan.upsample
         values = scipy.fft.fft(image, axis=0) / n_a * np.conj(self.factors)

@@ -50,7 +50,7 @@ class GeometryNotSupported(ValueError):
 __all__ = ["PolarFrame", "PolarAxes", "PolarImage", "pulses_to_polar", "prepare", "s_pass", "r_pass",
            "premodulated_rows", "range_coefficients", "range_taper", "spline_tables", "carrier_bits", "beam_table",
            "spline_prefilter", "Workspace", "workspace", "SPLINE_POLE", "BEAM_TABLE", "CARRIER_PHASE", "TAPER",
-           "CHUNK", "RSTEP"]
+           "CHUNK", "RSTEP", "cubic_bspline"]
 
 #: Pole of the cubic B-spline prefilter, ``sqrt(3) - 2`` (Unser 1999).
 SPLINE_POLE = float(np.sqrt(3.0) - 2.0)
@@ -482,8 +482,8 @@ def _pairs(rows: np.ndarray) -> np.ndarray:
 
 
 # ============================================================================ the two passes
-def _cubic_bspline(x: np.ndarray) -> np.ndarray:
-    """The centred cubic B-spline ``beta3(x)`` (float64)."""
+def cubic_bspline(x: np.ndarray) -> np.ndarray:
+    """The centred cubic B-spline ``beta3(x)`` (float64; Unser 1999, eq. (8))."""
     a = np.abs(x)
     return np.where(a < 1.0, 2.0 / 3.0 - a * a + 0.5 * a ** 3, np.where(a < 2.0, (2.0 - a) ** 3 / 6.0, 0.0))
 
@@ -499,7 +499,7 @@ def spline_tables(bits: int, phase_per_sample: float = 0.0) -> tuple[np.ndarray,
     f = (np.arange(m) + 0.5) / m
     b = np.arange(-1, 3)
     x = f[:, None] - b[None, :]
-    w = (_cubic_bspline(x) * np.exp(1j * phase_per_sample * x)).astype(np.complex64)
+    w = (cubic_bspline(x) * np.exp(1j * phase_per_sample * x)).astype(np.complex64)
     lo = np.ascontiguousarray(w[:, :2]).reshape(-1).view(np.complex128)
     hi = np.ascontiguousarray(w[:, 2:]).reshape(-1).view(np.complex128)
     lo.flags.writeable = hi.flags.writeable = False
