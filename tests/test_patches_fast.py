@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from sarmitsuba.tracing import motion, patches
+from sarmitsuba.tracing.motion_reference import endpoint_rates_reference
 from sarmitsuba.tracing import piece_cuts
 from sarmitsuba.tracing.patches import Surfaces, _to_world_reference
 from sarmitsuba.tracing.piece_cuts import pieces_of
@@ -28,8 +29,8 @@ def _endpoint_rates_reference(start, end, owner, line_owner, lines, rates):
         return out_s, out_e
     order = np.argsort(line_owner, kind="stable")
     owners = line_owner[order]
-    for lo in range(0, n, motion._BLOCK):
-        hi = min(n, lo + motion._BLOCK)
+    for lo in range(0, n, 32768):
+        hi = min(n, lo + 32768)
         first = np.searchsorted(owners, owner[lo:hi], side="left")
         count = np.searchsorted(owners, owner[lo:hi], side="right") - first
         seg = np.repeat(np.arange(lo, hi), count)
@@ -134,16 +135,21 @@ def _boundary_case(rng, n_pieces: int, extra: int):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_endpoint_rates_are_the_reference(seed, monkeypatch):
+def test_endpoint_rates_are_the_reference(seed):
+    """The Dr.Jit kernel against the former NumPy kernel (above) and the readable per-segment
+    reference (:mod:`sarmitsuba.tracing.motion_reference`), which share none of its code.
+    Deliberate bugs in the kernel it caught: ``moving_own | moving_other`` as ``&``; the own line
+    without its preference for a moving one; the other line without it; the parallel test dropped;
+    the sign of ``h'`` in the other line's right-hand side; a sign in Cramer's rule."""
     rng = np.random.default_rng(seed)
     case = _boundary_case(rng, n_pieces=60, extra=4)
-    if seed == 3:
-        monkeypatch.setattr(motion, "_BLOCK", 37)       # several blocks
     got = motion.endpoint_rates(*case)
     want = _endpoint_rates_reference(*case)
+    readable = endpoint_rates_reference(*case)
     assert np.count_nonzero(want[0].any(axis=1)) > 20  # the case moves ends
-    for g, w in zip(got, want):
+    for g, w, r in zip(got, want, readable):
         _assert_same(g, w)
+        np.testing.assert_allclose(g, r, rtol=1e-9, atol=1e-9 * max(float(np.abs(r).max(initial=0.0)), 1.0))
 
 
 def test_endpoint_rates_degenerate():

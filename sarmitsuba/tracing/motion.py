@@ -23,7 +23,12 @@ found, does not move (rate 0): the frozen boundary of the sub-aperture, as befor
 """
 from __future__ import annotations
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
+
+from .device import device_array, table_array
+from .loops import loop_mode
 
 __all__ = ["ON_LINE", "line_rates", "endpoint_rates"]
 
@@ -32,8 +37,6 @@ __all__ = ["ON_LINE", "line_rates", "endpoint_rates"]
 ON_LINE = 1e-7
 #: Two lines closer to parallel than this sine meet nowhere useful.
 _PARALLEL = 1e-6
-#: Segments handled per block (memory: ``block x lines x 3`` float64 arrays).
-_BLOCK = 32768
 
 
 def line_rates(at_a: np.ndarray, at_b: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -52,7 +55,10 @@ def line_rates(at_a: np.ndarray, at_b: np.ndarray, step: np.ndarray) -> np.ndarr
 
 def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_owner: np.ndarray, lines: np.ndarray,
                    rates: np.ndarray):
-    """The rates [m per m of antenna travel] of the ends of boundary segments.
+    """The rates [m per m of antenna travel] of the ends of boundary segments, eq. (M8): one Dr.Jit
+    kernel, one lane per segment, looping over its piece's candidate lines (float64; the same code
+    on the ``cuda`` variants). :func:`sarmitsuba.tracing.motion_reference.endpoint_rates_reference`
+    is its readable NumPy reference.
 
     Parameters
     ----------
@@ -73,91 +79,88 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     (float64 [s, 2], float64 [s, 2])
         The rates of ``start`` and ``end``; 0 for a segment on no candidate line, or whose ends no
         second line crosses, or on no moving line and at no moving line's end.
+
+    Notes
+    -----
+    A segment's *own* line is the first of its candidates (in their order within the piece) that
+    holds both ends, a moving one preferred; at each end the *other* line is the first candidate
+    through that end and at least :data:`_PARALLEL` (sine) off the own line, a moving one
+    preferred. The rate solves ``[g_own; g_other] p' = -[g_own' . p + h_own'; g_other' . p +
+    h_other']`` by Cramer's rule.
     """
     n = len(start)
-    out_s, out_e = np.zeros((n, 2)), np.zeros((n, 2))
     if n == 0 or len(lines) == 0:
-        return out_s, out_e
+        return np.zeros((n, 2)), np.zeros((n, 2))
     # the candidate lines sorted by piece (stably: a piece's lines keep their order, which breaks
-    # ties below); a segment's candidates are then one run of rows
+    # ties); a segment's candidates are then one run of rows
     order = np.argsort(line_owner, kind="stable")
     owners = np.take(line_owner, order)
+    first = np.searchsorted(owners, owner, side="left")
+    count = np.searchsorted(owners, owner, side="right") - first
     lines, rates = np.take(np.asarray(lines, float), order, axis=0), np.take(np.asarray(rates, float), order, axis=0)
     moving = (rates[:, 0] != 0.0) | (rates[:, 1] != 0.0) | (rates[:, 2] != 0.0)
-    columns = tuple(np.ascontiguousarray(lines[:, i]) for i in range(3))     # (1-D takes are the cheapest)
     start, end = np.asarray(start, float), np.asarray(end, float)
-    for lo in range(0, n, _BLOCK):
-        hi = min(n, lo + _BLOCK)
-        first = np.searchsorted(owners, owner[lo:hi], side="left")
-        count = np.searchsorted(owners, owner[lo:hi], side="right") - first
-        out_s[lo:hi], out_e[lo:hi] = _solve(start[lo:hi], end[lo:hi], first, count, lines, rates, moving, columns)
-    return out_s, out_e
+    f64, u32 = mi.Float64, mi.UInt32
+    table = tuple(table_array(f64, column) for column in (*lines.T, *rates.T)) + (table_array(u32, moving),)
+    lanes = tuple(device_array(f64, column) for column in (*start.T, *end.T))
+    s_rate, e_rate = _rates_kernel(lanes, device_array(u32, first), device_array(u32, first + count), table)
+    dr.eval(s_rate, e_rate)
+    return np.stack([r.numpy() for r in s_rate], axis=1), np.stack([r.numpy() for r in e_rate], axis=1)
 
 
-def _first(seg: np.ndarray, score: np.ndarray, n: int) -> np.ndarray:
-    """Per segment ``0 .. n``, the row of the first ``score`` True among its rows, else its first
-    row (-1 where it has none); ``seg`` [k] non-decreasing."""
-    best = np.full(n, -1, np.int64)
-    if len(seg):
-        head = np.flatnonzero(np.concatenate([[True], seg[1:] != seg[:-1]]))
-        best[seg[head]] = head
-        hit = np.flatnonzero(score)
-        if len(hit):
-            head = hit[np.concatenate([[True], seg[hit[1:]] != seg[hit[:-1]]])]
-            best[seg[head]] = head
-    return best
+#: No candidate line found (a lane's index sentinel).
+_NONE = 0xFFFFFFFF
 
 
-def _on_line(a, b, c, point, seg):
-    """bool [m]: whether each segment's ``point`` [n, 2] (at the pairs' segments ``seg`` [m])
-    lies on its candidate line ``(a, b, c)`` [m]: ``|a x + b y + c| < ON_LINE``, summed in that
-    order (the einsum ``g . p`` and then ``+ h`` of the former kernel), in place."""
-    value = np.take(np.ascontiguousarray(point[:, 0]), seg)
-    value *= a
-    term = np.take(np.ascontiguousarray(point[:, 1]), seg)
-    term *= b
-    value += term
-    value += c
-    return np.abs(value, out=value) < ON_LINE
+def _rates_kernel(lanes, first, stop, table):
+    """The Dr.Jit body of :func:`endpoint_rates`: ``lanes`` the segments' ``(sx, sy, ex, ey)``,
+    candidates ``first .. stop - 1`` of the sorted ``table`` ``(a, b, c, a', b', c', moving)``."""
+    sx, sy, ex, ey = lanes
+    a_t, b_t, c_t, ra_t, rb_t, rc_t, moving_t = table
+    f64, u32 = mi.Float64, mi.UInt32
+    width = dr.width(first)
+    none = dr.full(u32, _NONE, width)
 
+    def line(k, active=True):
+        return (dr.gather(f64, a_t, k, active), dr.gather(f64, b_t, k, active), dr.gather(f64, c_t, k, active),
+                dr.gather(u32, moving_t, k, active) > 0)
 
-def _solve(start, end, first, count, lines, rates, moving, columns):
-    """:func:`endpoint_rates` of segments ``start``, ``end`` [n, 2] whose candidates are the
-    rows ``first[k] .. first[k] + count[k]`` of ``lines`` (``columns`` its three columns,
-    contiguous), ``rates`` and ``moving``."""
-    n = len(start)
-    seg = np.repeat(np.arange(n), count)
-    line = np.arange(len(seg))
-    line += np.take(first - (np.cumsum(count) - count), seg)
-    a, b, c = (np.take(column, line) for column in columns)   # (1-D np.take: the cheapest gathers)
-    ds, de = _on_line(a, b, c, start, seg), _on_line(a, b, c, end, seg)
-    keep = np.flatnonzero(ds | de)
-    seg, line, ds, de = seg[keep], line[keep], ds[keep], de[keep]
-    g = np.take(lines, line, axis=0)[:, :2]
-    line_moving = moving[line]
-    own_rows = np.flatnonzero(ds & de)
-    own = _first(seg[own_rows], line_moving[own_rows], n)
-    has_own = own >= 0
-    own_line = line[own_rows[np.maximum(own, 0)]] if len(own_rows) else np.zeros(n, np.int64)
-    g_own = np.where(has_own[:, None], np.take(lines, own_line, axis=0)[:, :2], 0.0)
-    r_own = np.where(has_own[:, None], np.take(rates, own_line, axis=0), 0.0)
-    moving_own = has_own & moving[own_line]
-    cross = np.abs(g[:, 0] * g_own[seg, 1] - g[:, 1] * g_own[seg, 0])
-    rhs_own = (-(r_own[:, 0] * start[:, 0] + r_own[:, 1] * start[:, 1] + r_own[:, 2]),
-               -(r_own[:, 0] * end[:, 0] + r_own[:, 1] * end[:, 1] + r_own[:, 2]))
-    results = []
-    for point, on, rhs0 in ((start, ds, rhs_own[0]), (end, de, rhs_own[1])):
-        rows = np.flatnonzero(on & (cross > _PARALLEL))
-        other = _first(seg[rows], line_moving[rows], n)
-        has = other >= 0
-        other_line = line[rows[np.maximum(other, 0)]] if len(rows) else np.zeros(n, np.int64)
-        g_other = np.take(lines, other_line, axis=0)[:, :2]
-        r_other = np.where(has[:, None], np.take(rates, other_line, axis=0), 0.0)
-        ok = has_own & has & (moving_own | moving[other_line])
-        rhs1 = -(r_other[:, 0] * point[:, 0] + r_other[:, 1] * point[:, 1] + r_other[:, 2])
-        det = g_own[:, 0] * g_other[:, 1] - g_own[:, 1] * g_other[:, 0]
-        safe = np.where(ok & (det != 0), det, 1.0)
-        x = (rhs0 * g_other[:, 1] - rhs1 * g_own[:, 1]) / safe
-        y = (g_own[:, 0] * rhs1 - g_other[:, 0] * rhs0) / safe
-        results.append(np.where(ok[:, None], np.stack([x, y], axis=1), 0.0))
-    return results[0], results[1]
+    def on(a, b, c, x, y):
+        return dr.abs(x * a + y * b + c) < ON_LINE
+
+    def first_own(k, any_, moving_):
+        a, b, c, m = line(k)
+        both = on(a, b, c, sx, sy) & on(a, b, c, ex, ey)
+        return (k + 1, dr.select(both & (any_ == _NONE), k, any_),
+                dr.select(both & m & (moving_ == _NONE), k, moving_))
+
+    _, own_any, own_moving = dr.while_loop((u32(first), u32(none), u32(none)), lambda k, *_: k < stop, first_own,
+                                           mode=loop_mode(), label="own lines")
+    own = dr.select(own_moving != _NONE, own_moving, own_any)
+    has_own = own != _NONE
+    ga, gb, _, moving_own = line(own, has_own)
+    r_own = (dr.gather(f64, ra_t, own, has_own), dr.gather(f64, rb_t, own, has_own), dr.gather(f64, rc_t, own, has_own))
+
+    def first_other(k, s_any, s_moving, e_any, e_moving):
+        a, b, c, m = line(k)
+        across = dr.abs(a * gb - b * ga) > _PARALLEL
+        at_s, at_e = on(a, b, c, sx, sy) & across, on(a, b, c, ex, ey) & across
+        return (k + 1, dr.select(at_s & (s_any == _NONE), k, s_any), dr.select(at_s & m & (s_moving == _NONE), k, s_moving),
+                dr.select(at_e & (e_any == _NONE), k, e_any), dr.select(at_e & m & (e_moving == _NONE), k, e_moving))
+
+    _, s_any, s_moving, e_any, e_moving = dr.while_loop(
+        (u32(first), u32(none), u32(none), u32(none), u32(none)), lambda k, *_: k < stop, first_other,
+        mode=loop_mode(), label="crossing lines")
+    out = []
+    for x, y, any_, moving_ in ((sx, sy, s_any, s_moving), (ex, ey, e_any, e_moving)):
+        other = dr.select(moving_ != _NONE, moving_, any_)
+        has = other != _NONE
+        oa, ob, _, moving_other = line(other, has)
+        r_other = (dr.gather(f64, ra_t, other, has), dr.gather(f64, rb_t, other, has), dr.gather(f64, rc_t, other, has))
+        ok = has_own & has & (moving_own | moving_other)
+        rhs0 = -(r_own[0] * x + r_own[1] * y + r_own[2])
+        rhs1 = -(r_other[0] * x + r_other[1] * y + r_other[2])
+        det = ga * ob - gb * oa
+        safe = dr.select(ok & (det != 0.0), det, 1.0)
+        out.append((dr.select(ok, (rhs0 * ob - rhs1 * gb) / safe, 0.0), dr.select(ok, (ga * rhs1 - oa * rhs0) / safe, 0.0)))
+    return out[0], out[1]
