@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from sarmitsuba.tracing import polygons
+from sarmitsuba.tracing.polygon_kernels import clip_kernel
 from sarmitsuba.tracing.polygons import (EVERYTHING, REPEAT_DISTANCE, clip, clip_reference, corner_slots,
                                          drop_repeats, edge_lines, moments, pad)
 
@@ -178,6 +179,45 @@ def test_clip_degenerate_batches_match_the_reference():
         ref, ref_count = clip_reference(poly_, count_, lines_)
         assert_identical(out, ref)
         assert_identical(out_count, ref_count)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_clip_kernel_is_the_reference_bit_for_bit(seed):
+    """The Dr.Jit kernel against :func:`clip_reference` on the random and degenerate batches (its
+    own arithmetic, corner order, repeated corners and padding); a non-convex row makes it decline
+    (None), whatever else the batch holds. Deliberate bugs it caught: the next corner of a row's
+    last corner read from the slot after it instead of the first; a crossing point written before
+    the corner it follows; the repeated corners compared with the previous corner; a one-corner
+    row's corner dropped as its own repeat; the padding taken from the second slot; a lane that
+    gained two corners at a half-plane not declined."""
+    rng = np.random.default_rng(seed)
+    poly, count, lines = batch(rng, n=400 if seed < 3 else 40, n_lines=5 if seed < 3 else 30)
+    count[6::10] = 1                                   # one-corner rows (kept by the repeat rule)
+    lines[6::20] = EVERYTHING                          # half of them not cut at all
+    poly = pad(poly, count)
+    got = clip_kernel(poly, count, lines, REPEAT_DISTANCE)
+    ref = clip_reference(poly, count, lines)
+    assert got is not None
+    assert_identical(got[0], ref[0])
+    assert_identical(got[1], ref[1])
+    assert np.any(got[1] == 0) and np.any(got[1] >= 5)
+    zig_poly, zig_count, zig_lines = zigzag()
+    assert clip_kernel(zig_poly, zig_count, zig_lines[:, :1], REPEAT_DISTANCE) is None
+
+
+def test_large_batches_go_through_the_kernel(monkeypatch):
+    """:func:`clip` hands a batch of :data:`polygons.KERNEL_ROWS` rows or more to the kernel, and
+    its result is still the reference's."""
+    rng = np.random.default_rng(11)
+    poly, count, lines = batch(rng, n=200)
+    calls = []
+    monkeypatch.setattr(polygons, "clip_kernel", lambda *a: calls.append(len(a[0])) or clip_kernel(*a))
+    monkeypatch.setattr(polygons, "KERNEL_ROWS", 100)
+    out, out_count = clip(poly, count, lines)
+    assert calls == [200]
+    ref, ref_count = clip_reference(poly, count, lines)
+    assert_identical(out, ref)
+    assert_identical(out_count, ref_count)
 
 
 def test_an_overflowing_row_keeps_the_last_crossing_point():
