@@ -22,16 +22,19 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from .chains import Chains, path_points, region_lines, unfolded_lines
 from .patches import UNIT_SQUARE, Pieces, Surfaces
 from .piece_cuts import cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
+from .device import device_array, table_array
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
-__all__ = ["in_leg_planes", "Blockers", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "recheck",
-           "RECHECKS"]
+__all__ = ["in_leg_planes", "Blockers", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "device_samples",
+           "recheck", "RECHECKS"]
 
 #: A piece's visibility samples sit this fraction of the patch size inside it, toward its
 #: centroid: a corner on a part's edge (a wall's foot on the ground; a grid anchored at a shape's
@@ -213,6 +216,55 @@ def corner_samples(pieces: Pieces) -> tuple[np.ndarray, np.ndarray]:
     return out, np.repeat(np.arange(len(size)), size)
 
 
+def device_samples(pieces: Pieces):
+    """:func:`corner_samples` computed on the Dr.Jit device, one lane per sample (the same
+    arithmetic in the same order: bit for bit). Returns the face coordinates as two Float64
+    arrays [s] and the piece of each sample int64 [s] (ascending)."""
+    f64, u32 = mi.Float64, mi.UInt32
+    n = len(pieces.whole)
+    size = np.full(n, 4, np.int64)
+    border = np.flatnonzero(~pieces.whole)
+    rows = np.take(pieces.border, border)
+    size[border] = np.take(pieces.count, rows)
+    owner = np.repeat(np.arange(n), size)
+    if len(owner) == 0:
+        return (f64(), f64()), owner
+    first = np.cumsum(size) - size
+    slot = device_array(u32, (np.arange(len(owner)) - np.repeat(first, size)).astype(np.uint32))
+    lane = device_array(u32, owner.astype(np.uint32))
+    p = pieces.patch
+    # whole pieces: the patch's corners pulled in by SAMPLE_INSET (corner_samples' constant)
+    square = (UNIT_SQUARE - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)
+    cell = np.ascontiguousarray(pieces.cell, np.float64).reshape(-1)
+    cell = table_array(f64, cell)
+    cx = dr.gather(f64, cell, lane * 2) + 0.5
+    cy = dr.gather(f64, cell, lane * 2 + 1) + 0.5
+    sx, sy = (dr.select(slot == 0, float(square[0, a]), dr.select(slot == 1, float(square[1, a]), dr.select(
+        slot == 2, float(square[2, a]), f64(float(square[3, a]))))) for a in (0, 1))
+    whole_x, whole_y = (cx + sx) * p, (cy + sy) * p
+    if len(rows) == 0:
+        return (whole_x, whole_y), owner
+    # border pieces: each corner pulled toward the mean of the live corners
+    width = pieces.polygon.shape[1]
+    poly = table_array(f64, np.ascontiguousarray(pieces.polygon, np.float64).reshape(-1))
+    row = dr.gather(u32, table_array(u32, np.maximum(pieces.border, 0).astype(np.uint32)), lane)
+    count = dr.gather(u32, table_array(u32, pieces.count.astype(np.uint32)), row)
+    mean_x, mean_y = f64(0.0), f64(0.0)
+    for j in range(width):
+        live = dr.select(u32(j) < count, 1.0, 0.0)
+        mean_x += dr.gather(f64, poly, (row * width + j) * 2) * live
+        mean_y += dr.gather(f64, poly, (row * width + j) * 2 + 1) * live
+    mean_x /= dr.maximum(f64(count), 1.0)
+    mean_y /= dr.maximum(f64(count), 1.0)
+    px = dr.gather(f64, poly, (row * width + slot) * 2)
+    py = dr.gather(f64, poly, (row * width + slot) * 2 + 1)
+    tx, ty = mean_x - px, mean_y - py
+    distance = dr.sqrt(tx * tx + ty * ty)
+    step = dr.minimum(SAMPLE_INSET * p, 0.5 * distance) / dr.select(distance > 0, distance, 1.0)
+    is_whole = dr.gather(mi.Bool, table_array(mi.Bool, pieces.whole), lane)
+    return (dr.select(is_whole, whole_x, tx * step + px), dr.select(is_whole, whole_y, ty * step + py)), owner
+
+
 def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray):
     """The legs of the paths to ``points`` [s, 3] through chains ``chain`` [s]: start and end
     float64 [s, D + 1, 3], lifted off their surfaces, and which legs exist bool [s, D + 1]
@@ -281,7 +333,7 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     of the paths to their corners (:class:`sarmitsuba.tracing.visibility.PathVisibility`), eq. (M4).
     ``returns`` bool [n_chains]: which chains can return at all (default all)."""
     order = int(chains.order.max(initial=0))
-    coords, owner = corner_samples(pieces)
+    coords, owner = device_samples(pieces)
     chain = pieces.region[owner]
     bits = visibility.legs_clear(chains, chain, coords, antenna, order)
     out_mask = (1 << (order + 1)) - 1
@@ -295,9 +347,15 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     sent_count = np.bincount(owner, weights=out_clear, minlength=n)
     lit, transmit = (lit_count == total) & (total > 0), (sent_count == total) & (total > 0)
     mixed = ((lit_count > 0) & ~lit) | ((sent_count > 0) & ~transmit)
-    blockers = _blockers(rays, surfaces, chains, coords, owner, chain, antenna, mixed, math.sqrt(2.0) * pieces.patch)
+    # the mixed pieces' samples again on the host (the same points), for their occluders
+    samples = len(owner)
+    rows = np.flatnonzero(mixed)
+    coords, local = corner_samples(pieces.select(rows))
+    owner = np.take(rows, local)
+    blockers = _blockers(rays, surfaces, chains, coords, owner, np.take(pieces.region, owner), antenna, mixed,
+                         math.sqrt(2.0) * pieces.patch)
     return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers,
-                     samples=len(owner), sent=sent_count / np.maximum(total, 1))
+                     samples=samples, sent=sent_count / np.maximum(total, 1))
 
 
 def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed,

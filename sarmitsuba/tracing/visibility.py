@@ -172,18 +172,21 @@ class PathVisibility:
     def legs_clear(self, chains, chain: np.ndarray, coords: np.ndarray, antenna: np.ndarray, order: int) -> np.ndarray:
         """uint32 [m]: bit ``k`` set where leg ``k`` of the path to each point is free (legs ``0 ..
         order`` on the way out, from the antenna, bit ``order + 1`` the return; at the first bounce
-        the one leg is both), for points ``coords`` [m, 2] (face coordinates) on the last parts of
-        chains ``chain`` [m], all of bounce order ``order + 1``, seen from ``antenna`` [n_chains, 3]."""
+        the one leg is both), for points ``coords`` [m, 2] (face coordinates; or their two columns
+        as Dr.Jit Float64 arrays, computed on the device) on the last parts of chains ``chain``
+        [m], all of bounce order ``order + 1``, seen from ``antenna`` [n_chains, 3]."""
         if len(chain) == 0:
             return np.zeros(0, np.uint32)
+        if isinstance(coords, np.ndarray):
+            coords = (device_array(mi.Float64, coords[:, 0]), device_array(mi.Float64, coords[:, 1]))
         a64, f64 = mi.Array3f64, mi.Float64
         ch = device_array(mi.UInt32, chain.astype(np.uint32))
         s = self.surfaces
         last = chains.last
         part = dr.gather(mi.UInt32, device_array(mi.UInt32, last.astype(np.uint32)), ch)
         ant = dr.gather(a64, device_array(a64, antenna.T), ch)
-        x = (dr.gather(a64, self.origin, part) + dr.gather(a64, self.axis_u, part) * device_array(f64, coords[:, 0])
-             + dr.gather(a64, self.axis_v, part) * device_array(f64, coords[:, 1]))
+        x = (dr.gather(a64, self.origin, part) + dr.gather(a64, self.axis_u, part) * coords[0]
+             + dr.gather(a64, self.axis_v, part) * coords[1])
         n_last = dr.gather(a64, self.normal, part)
         points, normals = [], []
         if order > 0:
