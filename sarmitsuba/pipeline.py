@@ -57,6 +57,8 @@ class RenderSummary:
     outputs: dict
     pulses_per_trace: int = 1
     pulse_paths: int = 0
+    #: The trace's seconds by stage of the mesh tracer (:data:`sarmitsuba.tracing.stages.STAGES`).
+    trace_stages: dict = dataclasses.field(default_factory=dict)
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -389,7 +391,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         energy_per_order=result.energy_per_order.tolist(), energy_outside_window=result.energy_outside_window,
         raw_shape=sim.raw.data.shape, image_shape=sim.image.data.shape,
         outputs={k: str(v) for k, v in paths.items()}, pulses_per_trace=result.pulses_per_trace,
-        pulse_paths=result.pulse_paths)
+        pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds))
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

@@ -384,10 +384,12 @@ class Kernel:
         ctx = self.returns.context(launch, capacity)
         if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M8)
             ctx["mesh"] = self.mesh(ctx, launch)
-            out = self.returns.collect(ctx)
+            with self.mesh.clock("deposit"):
+                out = self.returns.collect(ctx)
             if out is None:                     # exact kernel: too many scatterers for the buffer
                 return self(launch, capacity=ctx["needed"])
             out["mesh"] = stats = ctx["mesh"]
+            out["stages"] = self.mesh.clock.seconds
             for depth, (samples, carried) in enumerate(zip(stats["samples"], stats["carried"])):
                 out["rays"][depth] += samples          # the points rays were aimed at, per bounce order
                 out["carried"][depth] += carried

@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import drjit as dr
 import numpy as np
 
 from ..core.arrays import unique_pairs
@@ -33,6 +34,7 @@ from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spre
 from .motion import endpoint_rates, line_rates
 from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
 from .polygons import REPEAT_DISTANCE, edge_lines
+from .stages import StageClock
 from .surface_clutter import ClutterKernel
 from .edges import find_wedges, segment_wedges
 from .term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
@@ -104,6 +106,8 @@ class MeshTracer:
         self.simplify = False
         self._static = None
         self._body_box = None
+        #: The stage clock of the launch being traced (:mod:`sarmitsuba.tracing.stages`).
+        self.clock = StageClock()
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
 
     # ------------------------------------------------------------------ one launch
@@ -113,28 +117,41 @@ class MeshTracer:
         reference = launch.reference
         views = self._views(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
-        lit = self._first_bounce(launch)
+        clock = self.clock = StageClock()
+        with clock("first bounce"):
+            lit = self._first_bounce(launch)
         for depth in range(self.depth):
             if depth > 0:
                 casts = self.rays.casts
-                chains = self._discover(lit, reference)
+                with clock("discovery"):
+                    chains = self._discover(lit, reference)
                 stats["discovery"].append(self.rays.casts - casts)
                 if len(chains) == 0:
                     break
-                lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility, self.patch,
-                                 self._span(launch, chains) if self.straight else None)
+                with clock("visibility"):
+                    lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility,
+                                     self.patch, self._span(launch, chains) if self.straight else None)
             stats["chains"].append(len(lit.chains))
             stats["samples"].append(lit.samples)
-            stats["carried"].append(self._carried(lit, reference, launch.count))
-            lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference)
+            with clock("energy"):
+                stats["carried"].append(self._carried(lit, reference, launch.count))
+            with clock("lanes"):
+                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
-            self.terms(ctx, lanes, table, depth)
-            if self.clutter is not None:
-                scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(cut_lit.lit), clipped, lit.pieces,
-                                             self.rough_row, self.table, self.cell, self.seed, reference, depth)
-                self.clutter(ctx, scatterers, depth)
+            with clock("terms"):
+                self.terms(ctx, lanes, table, depth)
+                if self.clutter is not None:
+                    scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(cut_lit.lit), clipped,
+                                                 lit.pieces, self.rough_row, self.table, self.cell, self.seed,
+                                                 reference, depth)
+                    self.clutter(ctx, scatterers, depth)
+                # the terms' deposits are side effects that the next kernel launch would run:
+                # evaluated here, so that their time is this stage's
+                dr.eval()
+                dr.sync_thread()
         stats["casts"] = self.rays.casts + self.visibility.casts
+        stats["seconds"] = clock.seconds
         return stats
 
     def _carried(self, lit: LitPieces, reference: np.ndarray, count: np.ndarray) -> float:
@@ -301,17 +318,9 @@ class MeshTracer:
         if self.simplify:                   # (AD4): outlines whose corners do not hang on rounding
             lit = dataclasses.replace(lit, pieces=lit.pieces.simplified())
         antenna = reference[chains.sub]
-        clipped = clip_mixed(s, lit, antenna)
-        was_lit = lit.lit
-        lit, spread = spread_occluders(lit, clipped)
-        if len(spread):
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread), spread)
-        for _ in range(RECHECKS):
-            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility)
-            if len(changed) == 0:
-                break
-            lit = dataclasses.replace(lit, blockers=blockers)
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed), changed)
+        with self.clock("clipping"):
+            was_lit = lit.lit
+            lit, clipped, spread = self._clip(lit, antenna)
         if len(spread):
             # the neighbours that no occluder cuts stay what they were: wholly lit (their shared
             # edges cancel) or dark (wholly in the occluders' shadows: no piece left)
@@ -358,9 +367,10 @@ class MeshTracer:
             # the term lanes' segments and the area terms' segments in one pass (their pieces overlap)
             all_rows = np.concatenate([pieces_rows, clipped.piece])
             piece_of = np.concatenate([seg_piece, table_segments[0]])
-            p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
-                                                np.concatenate([p2, table_segments[1]]),
-                                                np.concatenate([q2, table_segments[2]]), views)
+            with self.clock("rates"):
+                p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
+                                                    np.concatenate([p2, table_segments[1]]),
+                                                    np.concatenate([q2, table_segments[2]]), views)
             m = len(seg_piece)
             motion = (p_rate[:m], q_rate[:m], last)
             table_segments = table_segments + (p_rate[m:], q_rate[m:])
@@ -368,6 +378,23 @@ class MeshTracer:
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
                                    self.cancel, motion, edges)
         return lanes, table, clipped, lit
+
+    def _clip(self, lit: LitPieces, antenna: np.ndarray):
+        """The mixed pieces of ``lit`` cut against their occluders, the occluders spread to the
+        neighbours their shadows run into and rechecked from the cut regions (eq. (M4)): the new
+        ``lit``, the :class:`ClippedPieces` and the rows made mixed by the spread."""
+        s = self.surfaces
+        clipped = clip_mixed(s, lit, antenna)
+        lit, spread = spread_occluders(lit, clipped)
+        if len(spread):
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread), spread)
+        for _ in range(RECHECKS):
+            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility)
+            if len(changed) == 0:
+                break
+            lit = dataclasses.replace(lit, blockers=blockers)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed), changed)
+        return lit, clipped, spread
 
     def _motion(self, lit: LitPieces, rows, cut, p2, q2, views):
         """The rates of boundary segments' ends [m per m of travel] toward each sub-aperture's last

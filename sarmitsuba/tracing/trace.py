@@ -40,6 +40,7 @@ from ..scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
 from .pulse_view import antenna_axes
+from .stages import STAGES
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..scene.loader import LoadedScene, material_table
@@ -175,6 +176,9 @@ class TraceResult:
         all; ``spectrum`` and ``spectrum_per_order`` then have a leading channel axis and
         :meth:`channel` gives each as a one-channel result. Empty for one channel. The energy
         tallies are the channels' mean (docs/physics.md (P4)).
+    stage_seconds : dict
+        The mesh tracer's wall seconds per stage (:data:`sarmitsuba.tracing.stages.STAGES`,
+        summed over its launches; empty for the tube preview).
     """
 
     spectrum: np.ndarray
@@ -193,6 +197,7 @@ class TraceResult:
     pulses_per_trace: int = 1
     pulse_paths: int = 0
     channels: tuple = ()
+    stage_seconds: dict = dataclasses.field(default_factory=dict)
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -322,15 +327,16 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
         else:
             hist += out["hist"]
         for name in TOTALS:
-            totals[name] = totals.get(name, 0) + out[name]
+            totals[name] = totals.get(name, 0) + out.get(name, 0)
     spectrum = None if plan.exact else np.stack(
         [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
          for k in range(n_groups)])
     return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
 
 
-#: Counters every kernel launch returns and :func:`trace` sums.
-TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated")
+#: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
+#: seconds per stage, :data:`sarmitsuba.tracing.stages.STAGES`; absent from a tube launch).
+TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages")
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -374,7 +380,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     paths = {}
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
-                  outside=0.0, shadow=0, evaluated=0)
+                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros(len(STAGES)))
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
@@ -419,7 +425,8 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
                        carried_power_per_order=totals["carried"],
                        paths=merged, split=effects.split_bounces,
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
-                       pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]))
+                       pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
+                       stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"]) if t > 0})
 
 
 @dataclass(frozen=True)

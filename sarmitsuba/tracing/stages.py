@@ -1,0 +1,48 @@
+"""Where a trace's time goes: the mesh tracer's stages, timed per launch and summed over the
+render (``summary.json``'s ``trace_stages``; docs/design.md section 10).
+
+A section's time is exclusive: a section opened inside another pauses the outer one, so the
+stages add up to the time the launches took.
+"""
+from __future__ import annotations
+
+import contextlib
+import time
+
+import numpy as np
+
+__all__ = ["STAGES", "StageClock"]
+
+#: The stages, in the order a launch runs them:
+#: ``first bounce`` the first bounce's pieces and their visibility (M2)-(M4); ``visibility`` the
+#: later orders' regions, pieces and visibility; ``clipping`` mixed pieces cut against their
+#: occluders, with the recheck (M4); ``rates`` the boundaries' motion (M8); ``lanes`` the term lanes
+#: and the rest of the piece geometry (M5); ``terms`` recording the per-pulse terms and scatterers;
+#: ``energy`` the energy check; ``discovery`` the next order's chains (M6); ``deposit`` the device
+#: evaluating every pulse's terms and the host reading the histogram back.
+STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "energy", "discovery", "deposit")
+
+
+class StageClock:
+    """Exclusive wall time per stage of :data:`STAGES`: ``with clock("rates"): ...``;
+    :attr:`seconds` float64 [len(STAGES)]."""
+
+    def __init__(self):
+        self.seconds = np.zeros(len(STAGES))
+        self._open: list[int] = []
+        self._since = 0.0
+
+    @contextlib.contextmanager
+    def __call__(self, stage: str):
+        index = STAGES.index(stage)
+        now = time.perf_counter()
+        if self._open:
+            self.seconds[self._open[-1]] += now - self._since
+        self._open.append(index)
+        self._since = now
+        try:
+            yield
+        finally:
+            now = time.perf_counter()
+            self.seconds[self._open.pop()] += now - self._since
+            self._since = now
