@@ -165,15 +165,6 @@ def test_endpoint_rates_degenerate():
     assert not motion.endpoint_rates(start, end, owner, line_owner, lines, np.zeros_like(rates))[0].any()
 
 
-def test_first_is_the_first_best_row():
-    rng = np.random.default_rng(2)
-    seg = np.sort(rng.integers(0, 30, 200))
-    score = rng.random(200) > 0.7
-    want = _first_reference(seg, score.astype(float), 32, 0)
-    np.testing.assert_array_equal(motion._first(seg, score, 32), want)
-    np.testing.assert_array_equal(motion._first(seg[:0], score[:0], 4), np.full(4, -1))
-
-
 # ---------------------------------------------------------------- Surfaces.to_world
 
 def _surfaces(rng, n: int) -> Surfaces:

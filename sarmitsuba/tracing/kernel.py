@@ -30,6 +30,7 @@ against closed forms.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import drjit as dr
@@ -45,6 +46,7 @@ from .patches import surfaces_of
 from .launches import Blocks, Launch
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
+from .stages import STAGES
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
            "footprint_edges", "COS_GRAZING", "INVALID", "Flags", "SPECTRAL_ORDERS"]
@@ -384,12 +386,13 @@ class Kernel:
         ctx = self.returns.context(launch, capacity)
         if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M8)
             ctx["mesh"] = self.mesh(ctx, launch)
-            with self.mesh.clock("deposit"):
-                out = self.returns.collect(ctx)
+            start = time.perf_counter()
+            out = self.returns.collect(ctx)
             if out is None:                     # exact kernel: too many scatterers for the buffer
                 return self(launch, capacity=ctx["needed"])
             out["mesh"] = stats = ctx["mesh"]
-            out["stages"] = self.mesh.clock.seconds
+            out["stages"] = np.array(stats.get("seconds", np.zeros(len(STAGES))), float)
+            out["stages"][STAGES.index("deposit")] += time.perf_counter() - start
             for depth, (samples, carried) in enumerate(zip(stats["samples"], stats["carried"])):
                 out["rays"][depth] += samples          # the points rays were aimed at, per bounce order
                 out["carried"][depth] += carried

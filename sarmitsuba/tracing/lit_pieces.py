@@ -31,6 +31,7 @@ from .patches import UNIT_SQUARE, Pieces, Surfaces
 from .piece_cuts import cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .device import device_array, table_array
+from .loops import loop_mode
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
 __all__ = ["in_leg_planes", "Blockers", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "device_samples",
@@ -242,18 +243,23 @@ def device_samples(pieces: Pieces):
     sx, sy = (dr.select(slot == 0, float(square[0, a]), dr.select(slot == 1, float(square[1, a]), dr.select(
         slot == 2, float(square[2, a]), f64(float(square[3, a]))))) for a in (0, 1))
     whole_x, whole_y = (cx + sx) * p, (cy + sy) * p
+    is_whole = dr.gather(mi.Bool, table_array(mi.Bool, pieces.whole), lane)
     if len(rows) == 0:
         return (whole_x, whole_y), owner
-    # border pieces: each corner pulled toward the mean of the live corners
-    width = pieces.polygon.shape[1]
+    # border pieces: each corner pulled toward the mean of the live corners (the width a runtime
+    # value and the corners a loop: one kernel whatever the batch's width)
+    width = dr.opaque(u32, pieces.polygon.shape[1])
     poly = table_array(f64, np.ascontiguousarray(pieces.polygon, np.float64).reshape(-1))
     row = dr.gather(u32, table_array(u32, np.maximum(pieces.border, 0).astype(np.uint32)), lane)
     count = dr.gather(u32, table_array(u32, pieces.count.astype(np.uint32)), row)
-    mean_x, mean_y = f64(0.0), f64(0.0)
-    for j in range(width):
-        live = dr.select(u32(j) < count, 1.0, 0.0)
-        mean_x += dr.gather(f64, poly, (row * width + j) * 2) * live
-        mean_y += dr.gather(f64, poly, (row * width + j) * 2 + 1) * live
+
+    def add(j, mean_x, mean_y):
+        return (j + 1, mean_x + dr.gather(f64, poly, (row * width + j) * 2),
+                mean_y + dr.gather(f64, poly, (row * width + j) * 2 + 1))
+
+    _, mean_x, mean_y = dr.while_loop((u32(0), dr.zeros(f64, len(owner)), dr.zeros(f64, len(owner))),
+                                      lambda j, *_: j < dr.select(is_whole, 0, count), add, mode=loop_mode(),
+                                      label="sample centroids")
     mean_x /= dr.maximum(f64(count), 1.0)
     mean_y /= dr.maximum(f64(count), 1.0)
     px = dr.gather(f64, poly, (row * width + slot) * 2)
@@ -261,7 +267,6 @@ def device_samples(pieces: Pieces):
     tx, ty = mean_x - px, mean_y - py
     distance = dr.sqrt(tx * tx + ty * ty)
     step = dr.minimum(SAMPLE_INSET * p, 0.5 * distance) / dr.select(distance > 0, distance, 1.0)
-    is_whole = dr.gather(mi.Bool, table_array(mi.Bool, pieces.whole), lane)
     return (dr.select(is_whole, whole_x, tx * step + px), dr.select(is_whole, whole_y, ty * step + py)), owner
 
 

@@ -106,8 +106,6 @@ class MeshTracer:
         self.simplify = False
         self._static = None
         self._body_box = None
-        #: The stage clock of the launch being traced (:mod:`sarmitsuba.tracing.stages`).
-        self.clock = StageClock()
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
 
     # ------------------------------------------------------------------ one launch
@@ -117,7 +115,7 @@ class MeshTracer:
         reference = launch.reference
         views = self._views(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
-        clock = self.clock = StageClock()
+        clock = StageClock()
         with clock("first bounce"):
             lit = self._first_bounce(launch)
         for depth in range(self.depth):
@@ -136,7 +134,7 @@ class MeshTracer:
             with clock("energy"):
                 stats["carried"].append(self._carried(lit, reference, launch.count))
             with clock("lanes"):
-                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference)
+                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             with clock("terms"):
@@ -311,14 +309,15 @@ class MeshTracer:
         return unfold(s, parts, order, chains.sub[parent])
 
     # ------------------------------------------------------------------ term lanes
-    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray):
+    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None):
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
         from mixed ones (:func:`sarmitsuba.tracing.occlusion.clip_mixed`), eq. (M5)."""
         s, chains = self.surfaces, lit.chains
         if self.simplify:                   # (AD4): outlines whose corners do not hang on rounding
             lit = dataclasses.replace(lit, pieces=lit.pieces.simplified())
         antenna = reference[chains.sub]
-        with self.clock("clipping"):
+        clock = clock or StageClock()
+        with clock("clipping"):
             was_lit = lit.lit
             lit, clipped, spread = self._clip(lit, antenna)
         if len(spread):
@@ -367,7 +366,7 @@ class MeshTracer:
             # the term lanes' segments and the area terms' segments in one pass (their pieces overlap)
             all_rows = np.concatenate([pieces_rows, clipped.piece])
             piece_of = np.concatenate([seg_piece, table_segments[0]])
-            with self.clock("rates"):
+            with clock("rates"):
                 p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
                                                     np.concatenate([p2, table_segments[1]]),
                                                     np.concatenate([q2, table_segments[2]]), views)

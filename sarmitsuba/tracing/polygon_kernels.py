@@ -92,9 +92,19 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
     scratch = 2 * cap                          # the slot that masked writes go to
     xs = dr.alloc_local(f64, 2 * cap + 1, dr.zeros(f64, n))
     ys = dr.alloc_local(f64, 2 * cap + 1, dr.zeros(f64, n))
-    for k in range(width):
-        xs[k] = dr.gather(f64, corners, row * (2 * width) + 2 * k)
-        ys[k] = dr.gather(f64, corners, row * (2 * width) + 2 * k + 1)
+    # the batch's sizes are runtime values, not constants: one kernel per capacity
+    width, n_lines = dr.opaque(u32, width), dr.opaque(u32, n_lines)
+
+    def load(k, total):
+        x = dr.gather(f64, corners, (row * width + k) * 2)
+        y = dr.gather(f64, corners, (row * width + k) * 2 + 1)
+        xs[k], ys[k] = x, y
+        return k + 1, total + x + y
+
+    # (the corners' sum is an output of the loop, whose only other effect is on local memory, so
+    # that Dr.Jit keeps it; a lane whose corners are not finite fails)
+    _, total = dr.while_loop((u32(0), dr.zeros(f64, n)), lambda k, _: k < width, load, mode=loop_mode(),
+                             label="corners in")
 
     def half_plane(h, count, base, failed):
         at = (row * n_lines + h) * 3
@@ -125,7 +135,7 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
         failed |= act & ((m > count + 1) | (m > cap))
         return (h + 1, dr.select(act, dr.minimum(m, cap), count), dr.select(act, dst, base), failed)
 
-    _, count, base, failed = dr.while_loop((u32(0), u32(count), dr.zeros(u32, n), dr.zeros(boolean, n)),
+    _, count, base, failed = dr.while_loop((u32(0), u32(count), dr.zeros(u32, n), ~dr.isfinite(total)),
                                            lambda h, *_: h < n_lines, half_plane, mode=loop_mode(),
                                            label="half-planes")
     # the repeated corners dropped (each compared with the next, cyclically), into the other half
