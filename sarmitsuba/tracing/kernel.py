@@ -46,6 +46,7 @@ from .patches import surfaces_of
 from .launches import Blocks, Launch
 from . import jones as pol
 from .returns import COS_GRAZING, Returns, footprint_edges
+from .loops import RECORDING
 from .stages import STAGES
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
@@ -387,7 +388,8 @@ class Kernel:
         if self.mesh is not None and launch.n_lanes == 0:      # the mesh's own launch (M1)-(M8)
             ctx["mesh"] = self.mesh(ctx, launch)
             start = time.perf_counter()
-            out = self.returns.collect(ctx)
+            with RECORDING:
+                out = self.returns.collect(ctx)
             if out is None:                     # exact kernel: too many scatterers for the buffer
                 return self(launch, capacity=ctx["needed"])
             out["mesh"] = stats = ctx["mesh"]

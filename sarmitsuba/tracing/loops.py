@@ -16,9 +16,16 @@ import threading
 
 import numpy as np
 
-__all__ = ["loop_mode", "evaluated_loops", "lane_float", "float64_lanes"]
+__all__ = ["loop_mode", "evaluated_loops", "lane_float", "float64_lanes", "RECORDING"]
 
 _STATE = threading.local()
+
+#: Held while a launch records its per-pulse term and scatterer kernels and while they run and are
+#: read back. Launches traced on several host threads (:func:`sarmitsuba.tracing.trace.trace`)
+#: interleave their host geometry freely, but Dr.Jit recording the deposits' kernels (their
+#: scatters are side effects) on two threads at once made a render differ from itself at -53 to
+#: -70 dB (Munich, two runs); with the recording one thread at a time, two runs agree to -112 dB.
+RECORDING = threading.RLock()
 
 
 def loop_mode() -> str | None:

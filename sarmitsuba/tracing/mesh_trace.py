@@ -30,6 +30,7 @@ import numpy as np
 from ..core.arrays import unique_pairs
 from .chains import Chains, image_source, region_lines, unfold
 from .integration import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
+from .loops import RECORDING
 from .lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
 from .motion import endpoint_rates, line_rates
 from .occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
@@ -111,11 +112,13 @@ class MeshTracer:
     # ------------------------------------------------------------------ one launch
     def __call__(self, ctx: dict, launch) -> dict:
         """Trace ``launch``'s sub-apertures, depositing every pulse's returns into ``ctx``; returns
-        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int}``."""
+        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int}`` (this
+        launch's). Launches may run on several host threads at once (:func:`~sarmitsuba.tracing.trace.trace`)."""
         reference = launch.reference
         views = self._views(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
         clock = StageClock()
+        casts_before = self.rays.casts + self.visibility.casts
         with clock("first bounce"):
             lit = self._first_bounce(launch)
         for depth in range(self.depth):
@@ -137,7 +140,7 @@ class MeshTracer:
                 lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
-            with clock("terms"):
+            with clock("terms"), RECORDING:
                 self.terms(ctx, lanes, table, depth)
                 if self.clutter is not None:
                     scatterers = scatterer_lanes(self.surfaces, lit.chains, lit.pieces.select(cut_lit.lit), clipped,
@@ -148,7 +151,7 @@ class MeshTracer:
                 # evaluated here, so that their time is this stage's
                 dr.eval()
                 dr.sync_thread()
-        stats["casts"] = self.rays.casts + self.visibility.casts
+        stats["casts"] = self.rays.casts + self.visibility.casts - casts_before
         stats["seconds"] = clock.seconds
         return stats
 
@@ -257,10 +260,13 @@ class MeshTracer:
     def _reach(self, launch, depth: int) -> tuple[np.ndarray, np.ndarray]:
         """Along-track interval ``[lo, hi]`` [m] of ``track . y`` that the beam of each
         sub-aperture's pulses reaches, for unfolded points ``y`` at most the scene's far corner plus
-        ``depth`` box diagonals away (a multi-bounce path's unfolded length)."""
+        ``depth`` box diagonals away (a multi-bounce path's unfolded length), from that
+        sub-aperture's own pulses (not the launch's: the reach, and so the image, does not depend
+        on how sub-apertures are grouped into launches)."""
         lo_b, hi_b = self.returns.beam_sines
         corners = np.array(np.meshgrid(*zip(*self.bbox), indexing="ij")).reshape(3, -1).T
-        far = np.linalg.norm(corners[None] - launch.antenna[:, None], axis=2).max()
+        far = np.linalg.norm(corners[None] - launch.antenna[:, None], axis=2).max(axis=1)
+        far = np.maximum.reduceat(far, launch.first) if len(launch.first) else far[:0]
         far += depth * float(np.linalg.norm(self.bbox[1] - self.bbox[0]))
         along = launch.antenna @ self.track
         first = along[launch.first]

@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 
 import drjit as dr
@@ -40,6 +42,7 @@ from ..scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
 from .pulse_view import antenna_axes
+from .loops import lane_float, loop_mode
 from .stages import STAGES
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, acquisition_geometry
@@ -334,6 +337,37 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
 
 
+#: The environment variable that sets how many launches the mesh tracer traces at once, each on
+#: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
+HOST_THREADS_VARIABLE = "SARMITSUBA_HOST_THREADS"
+#: Launches traced at once by default: their host geometry is NumPy, which releases the GIL in its
+#: array operations, so two launches keep both cores of a 2-core machine busy (Munich, 400 pulses:
+#: 21.3 s -> 15.5 s, benchmarks/munich.py; docs/design.md section 10). Each launch then holds half
+#: the sub-apertures, so the peak memory stays that of one.
+HOST_THREADS = 2
+
+
+def host_threads(kernel) -> int:
+    """Launches :func:`trace` runs at once on host threads: 1 for the tube preview, inside the
+    derivatives' traces (their loop mode and lane precision are per thread) and on one core; else
+    :data:`HOST_THREADS_VARIABLE` or :data:`HOST_THREADS`, at most the cores. Raises ParameterError
+    for a variable that is not an integer >= 1."""
+    if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32:
+        return 1
+    text = os.environ.get(HOST_THREADS_VARIABLE, "")
+    if text:
+        try:
+            wanted = int(text)
+        except ValueError:
+            wanted = 0
+        if wanted < 1:
+            raise ParameterError(f"{HOST_THREADS_VARIABLE}={text!r}: expected an integer >= 1 (launches traced at "
+                                 f"once); unset it for the default, {HOST_THREADS}")
+    else:
+        wanted = HOST_THREADS
+    return max(1, min(wanted, os.cpu_count() or 1))
+
+
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
 #: seconds per stage, :data:`sarmitsuba.tracing.stages.STAGES`; absent from a tube launch).
 TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages")
@@ -384,12 +418,19 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
+    threads = host_threads(kernel)
+    if threads > 1:                      # launches of 1 / threads the size, as many at once: no more memory
+        plan = dataclasses.replace(plan, per_batch=max(1, plan.per_batch // threads))
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
     batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
+    pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
     try:
-        results = run_batches(plan, plan.batches) if run_batches is not None else (
-            trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
-            for g0 in plan.batches)
+        if run_batches is not None:
+            results = run_batches(plan, plan.batches)
+        else:
+            def one(g0):
+                return trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+            results = pool.map(one, plan.batches) if pool is not None else (one(g0) for g0 in plan.batches)
         for out in results:
             p0, p1 = out["pulses"]
             if plan.exact:
@@ -399,6 +440,8 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
             batch_totals[p0] = out["totals"]
             bar.update(p1 - p0)
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
         bar.close()
         del kernel
         dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing

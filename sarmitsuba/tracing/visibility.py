@@ -7,6 +7,8 @@ maps what they hit to the convex parts of :class:`sarmitsuba.tracing.patches.Sur
 """
 from __future__ import annotations
 
+import threading
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -15,7 +17,7 @@ from .device import device_array
 from .covers import locate
 from .patches import Surfaces, face_partners, occluder_partners
 
-__all__ = ["Rays", "lift", "NO_HIT", "NOT_A_MESH", "SURFACE_LIFT", "SURFACE_LIFT_RELATIVE"]
+__all__ = ["Rays", "lift", "NO_HIT", "NOT_A_MESH", "SURFACE_LIFT", "SURFACE_LIFT_RELATIVE", "CastCounter"]
 
 #: A ray that met nothing.
 NO_HIT = -1
@@ -28,6 +30,21 @@ NOT_A_MESH = -2
 #: on where the scene sits (as the tube kernel's shadow rays, docs/physics.md (PO1)).
 SURFACE_LIFT = 1e-4
 SURFACE_LIFT_RELATIVE = 1e-6
+
+
+class CastCounter:
+    """A count of casts kept per thread (launches traced on several host threads count their own
+    casts): ``counter.value`` reads and ``counter.add(n)`` adds to the calling thread's count."""
+
+    def __init__(self):
+        self._local = threading.local()
+
+    @property
+    def value(self) -> int:
+        return getattr(self._local, "count", 0)
+
+    def add(self, n: int) -> None:
+        self._local.count = self.value + int(n)
 
 
 def lift(points: np.ndarray, normal: np.ndarray, toward: np.ndarray) -> np.ndarray:
@@ -68,7 +85,12 @@ class Rays:
         # a degenerate triangle belongs to no part (Embree should never report it)
         part = np.where(surfaces.triangle_part >= 0, surfaces.triangle_part, NOT_A_MESH)
         self.part = device_array(mi.Int32, np.append(part, NOT_A_MESH).astype(np.int32))
-        self.casts = 0
+        self.counter = CastCounter()
+
+    @property
+    def casts(self) -> int:
+        """Rays cast so far by the calling thread."""
+        return self.counter.value
 
     def _ray(self, start: np.ndarray, end: np.ndarray | None, direction: np.ndarray | None) -> tuple:
         """Float32 rays from ``start`` toward ``end`` (stopping just short of it) or along
@@ -84,7 +106,7 @@ class Rays:
         column = [dr.gather(mi.Float, buffer, row + c) for c in range(7)]
         ray = mi.Ray3f(mi.Point3f(*column[:3]), mi.Vector3f(*column[3:6]))
         ray.maxt = column[6]
-        self.casts += len(start)
+        self.counter.add(len(start))
         return ray
 
     def _ray_reference(self, start: np.ndarray, end: np.ndarray | None, direction: np.ndarray | None) -> tuple:
@@ -167,7 +189,12 @@ class PathVisibility:
         self.axis_v = device_array(a64, surfaces.axis_v.T) if surfaces.n_parts else None
         self.normal = device_array(a64, surfaces.normal.T) if surfaces.n_parts else None
         self.surfaces = surfaces
-        self.casts = 0
+        self.counter = CastCounter()
+
+    @property
+    def casts(self) -> int:
+        """Rays cast so far by the calling thread."""
+        return self.counter.value
 
     def legs_clear(self, chains, chain: np.ndarray, coords: np.ndarray, antenna: np.ndarray, order: int) -> np.ndarray:
         """uint32 [m]: bit ``k`` set where leg ``k`` of the path to each point is free (legs ``0 ..
@@ -217,7 +244,7 @@ class PathVisibility:
         if order > 0:
             bits |= dr.select(self._free(_lifted(x, n_last, ant), ant), mi.UInt32(1 << (order + 1)), 0)
         dr.eval(bits)
-        self.casts += len(chain) * (order + 1 + (order > 0))
+        self.counter.add(len(chain) * (order + 1 + (order > 0)))
         return bits.numpy()
 
     def _free(self, origin, target):

@@ -1,0 +1,81 @@
+"""Launches traced on several host threads at once (:func:`sarmitsuba.tracing.trace.host_threads`):
+the same result as one after the other, the variable that sets the count, and one thread where
+threads cannot help or would be wrong (the tube preview, the derivatives' traces).
+
+Deliberate bugs these tests were run against: the variable's value 0 accepted and threads used
+inside ``evaluated_loops`` (each fails every run); the cast counters shared between threads instead
+of per thread (a race: failed one run of two). The pool's results taken in the order they finish
+is no bug (each result carries its pulses), and a race between the threads' deposits (which
+:data:`sarmitsuba.tracing.loops.RECORDING` serialises) showed on Munich (-53 to -70 dB between two
+runs) but not reliably on a scene this small.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.scene.loader import load_scene
+from sarmitsuba.tracing import trace as tracing
+from sarmitsuba.tracing.loops import evaluated_loops, float64_lanes
+
+
+def _trace(loaded, threads: int, monkeypatch, per_batch: int = 2):
+    """The urban scene's trace with ``threads`` launches at once, every launch ``per_batch``
+    sub-apertures (the same grouping whatever the threads)."""
+    setup = tracing.prepare_trace(loaded)
+    monkeypatch.setattr(tracing, "host_threads", lambda kernel: threads)
+    plan = tracing.plan_trace
+    monkeypatch.setattr(tracing, "plan_trace",
+                        lambda *a: dataclasses.replace(plan(*a), per_batch=per_batch * max(threads, 1)))
+    return tracing.trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint, loaded.settings,
+                         setup.table, effects=setup.effects)
+
+
+def test_two_threads_give_the_sequential_result(monkeypatch):
+    """The same sub-apertures in the same launches, traced two at a time and one after the other:
+    the spectra agree to float32 summation order (the deposits' atomic adds), every pulse in its
+    place; the counters are equal."""
+    loaded = load_scene("urban", sensor_overrides={"n_pulses": 160})
+    one = _trace(loaded, 1, monkeypatch)
+    two = _trace(loaded, 2, monkeypatch)
+    assert one.spectrum.shape == two.spectrum.shape
+    power = np.abs(one.spectrum) ** 2
+    per_pulse = power.sum(axis=1)
+    assert np.count_nonzero(per_pulse) > 100                                # the premise: pulses see the scene
+    error = np.sum(np.abs(two.spectrum - one.spectrum) ** 2, axis=1)
+    assert np.all(error <= 1e-8 * per_pulse + 1e-30)                         # each pulse, not just the sum
+    np.testing.assert_array_equal(one.rays_per_order, two.rays_per_order)
+    assert one.shadow_rays == two.shadow_rays and one.pulse_paths == two.pulse_paths
+    assert set(two.stage_seconds) >= {"first bounce", "lanes", "terms"}
+
+
+def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
+    kernel = type("K", (), {"mesh": object()})()
+    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 8)
+    monkeypatch.delenv(tracing.HOST_THREADS_VARIABLE, raising=False)
+    assert tracing.host_threads(kernel) == tracing.HOST_THREADS
+    monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, "3")
+    assert tracing.host_threads(kernel) == 3
+    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 2)
+    assert tracing.host_threads(kernel) == 2                                # at most the cores
+    for bad in ("0", "-1", "two", "1.5"):
+        monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, bad)
+        with pytest.raises(ParameterError, match=tracing.HOST_THREADS_VARIABLE):
+            tracing.host_threads(kernel)
+
+
+def test_one_thread_for_the_preview_and_inside_the_derivatives(monkeypatch):
+    monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, "2")
+    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 4)
+    mesh = type("K", (), {"mesh": object()})()
+    assert tracing.host_threads(mesh) == 2
+    assert tracing.host_threads(type("K", (), {"mesh": None})()) == 1       # the tube preview
+    assert tracing.host_threads(None) == 1                                  # batches traced elsewhere (Dask)
+    with evaluated_loops():                                                 # loop mode is per thread
+        assert tracing.host_threads(mesh) == 1
+    with float64_lanes():                                                   # so is the lanes' precision
+        assert tracing.host_threads(mesh) == 1
