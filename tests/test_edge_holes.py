@@ -32,20 +32,12 @@ import sarmitsuba
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.tracing import edges, integration
-from sarmitsuba.tracing.facets import mesh_parts
-from sarmitsuba.tracing.patches import surfaces_from
 
+from test_edges import _surfaces
 from test_patches import image_weights, look_and_track, rectangle, sensor
 
 
 # --------------------------------------------------------------------------- hole 6: junctions
-def _surfaces(meshes):
-    parts = mesh_parts([(np.asarray(m.vertices, float), np.asarray(m.faces)) for m in meshes])
-    n = len(meshes)
-    return surfaces_from(parts, np.arange(n), np.ones(n, bool), np.zeros((n, 3)), np.tile(np.eye(3), (n, 1, 1)),
-                         np.zeros(n, np.int64))
-
-
 def _classify(s):
     """Every border edge of every part (as :func:`edges.find_wedges` lists them) and the
     diffracting edge under it when the whole edge is taken as a lit segment."""
@@ -163,17 +155,11 @@ def _order2_edges(rows):
     return on, on.images_per_order[1].data - off.images_per_order[1].data
 
 
-def _image_theory_db(sim, rims) -> float:
-    """The image RCS [dBsm] of edges lit through a PEC ground ``z = 0``, by explicit path
-    enumeration (image theory, as tests/test_edges.py's triangle): each rim ``(points [m, 3],
-    tangent, x0 into the lit face, the face's normal, xn into the wedge's other face or zero,
-    length per point, sign)`` is lit by the ground's reflection of the incident wave (``d -> M
-    d``, ``E -> -M E``) and diffracts straight back (RD), and is lit directly and diffracts toward
-    the ground, whose reflection carries it back (DR), each with its own fringe of
-    :func:`edges.edge_field` (face N's PO subtracted where it is lit and seen on that leg), summed
-    with ``sign``, integrated by quadrature, weighted per pulse and frequency as the focused
-    image weighs them. VV."""
-    mirror = np.array([1.0, 1.0, -1.0])
+def _image_rcs_db(sim, rims, rim_term) -> float:
+    """The image RCS [dBsm] of edge rims: ``rim_term(rim, tile, d, b, v, kk)`` each rim's summed term
+    for the incident direction ``d``, the direction back ``b``, VV's ``v`` and wavenumber ``kk``
+    (``tile`` repeats a vector for the rim's points), summed over the rims, weighted per pulse and
+    frequency as the focused image weighs them (as tests/test_edges.py's plate)."""
     rhat, weight, frequencies, band = image_weights(sim, band_points=11)
     num = den = 0.0
     for k in np.flatnonzero(weight > 0):
@@ -185,20 +171,39 @@ def _image_theory_db(sim, rims) -> float:
         for f, w_band in zip(frequencies, band):
             kk = 2 * math.pi * f / SPEED_OF_LIGHT
             total = 0j
-            for points, t, x0, normal, xn, dl, sign in rims:
-                def tile(x):
-                    return np.tile(x, (len(points), 1))
-                lit_up = normal if normal @ (mirror * d) < 0 else -normal
-                rd = edges.edge_field(tile(t), tile(x0), tile(lit_up), tile(xn), tile(mirror * d), tile(b),
-                                      tile(-(mirror * v)).astype(complex)) @ v
-                lit_down = normal if normal @ d < 0 else -normal
-                dr_ = edges.edge_field(tile(t), tile(x0), tile(lit_down), tile(xn), tile(d), tile(mirror * b),
-                                       tile(v).astype(complex)) @ -(mirror * v)
-                phase = np.exp(1j * kk * points @ (b + mirror * b))
-                total += sign * math.sqrt(4 * math.pi) * dl * np.sum((rd + dr_) * phase)
+            for rim in rims:
+                def tile(x, m=len(rim[0])):
+                    return np.tile(x, (m, 1))
+                total += rim_term(rim, tile, d, b, v, kk)
             w = (weight[k] * w_band) ** 2
             num, den = num + w * abs(total) ** 2, den + w
     return 10 * math.log10(num / den)
+
+
+def _image_theory_db(sim, rims) -> float:
+    """The image RCS [dBsm] of edges lit through a PEC ground ``z = 0``, by explicit path
+    enumeration (image theory, as tests/test_edges.py's triangle): each rim ``(points [m, 3],
+    tangent, x0 into the lit face, the face's normal, xn into the wedge's other face or zero,
+    length per point, sign)`` is lit by the ground's reflection of the incident wave (``d -> M
+    d``, ``E -> -M E``) and diffracts straight back (RD), and is lit directly and diffracts toward
+    the ground, whose reflection carries it back (DR), each with its own fringe of
+    :func:`edges.edge_field` (face N's PO subtracted where it is lit and seen on that leg), summed
+    with ``sign``, integrated by quadrature, weighted per pulse and frequency as the focused
+    image weighs them. VV."""
+    mirror = np.array([1.0, 1.0, -1.0])
+
+    def rim_term(rim, tile, d, b, v, kk):
+        points, t, x0, normal, xn, dl, sign = rim
+        lit_up = normal if normal @ (mirror * d) < 0 else -normal
+        rd = edges.edge_field(tile(t), tile(x0), tile(lit_up), tile(xn), tile(mirror * d), tile(b),
+                              tile(-(mirror * v)).astype(complex)) @ v
+        lit_down = normal if normal @ d < 0 else -normal
+        dr_ = edges.edge_field(tile(t), tile(x0), tile(lit_down), tile(xn), tile(d), tile(mirror * b),
+                               tile(v).astype(complex)) @ -(mirror * v)
+        phase = np.exp(1j * kk * points @ (b + mirror * b))
+        return sign * math.sqrt(4 * math.pi) * dl * np.sum((rd + dr_) * phase)
+
+    return _image_rcs_db(sim, rims, rim_term)
 
 
 def test_a_wedge_lit_through_a_mirror_with_its_other_face_unseen_is_carried_once(monkeypatch):
@@ -258,26 +263,13 @@ def _monostatic_db(sim, rims) -> float:
     point, sign)`` with its fringe of :func:`edges.edge_field`, summed with ``sign``, integrated by
     quadrature, weighted per pulse and frequency as the focused image weighs them (as
     tests/test_edges.py's plate)."""
-    rhat, weight, frequencies, band = image_weights(sim, band_points=11)
-    num = den = 0.0
-    for k in np.flatnonzero(weight > 0):
-        b = rhat[k]
-        d = -b
-        h = np.cross([0, 0, 1.0], d)
-        h /= np.linalg.norm(h)
-        v = np.cross(d, h)
-        for f, w_band in zip(frequencies, band):
-            kk = 2 * math.pi * f / SPEED_OF_LIGHT
-            total = 0j
-            for points, t, x0, n0, xn, dl, sign in rims:
-                def tile(x):
-                    return np.tile(x, (len(points), 1))
-                single = edges.edge_field(tile(t), tile(x0), tile(n0), tile(xn), tile(d), tile(b),
-                                          tile(v).astype(complex)) @ v
-                total += sign * math.sqrt(4 * math.pi) * dl * np.sum(single * np.exp(2j * kk * points @ b))
-            w = (weight[k] * w_band) ** 2
-            num, den = num + w * abs(total) ** 2, den + w
-    return 10 * math.log10(num / den)
+    def rim_term(rim, tile, d, b, v, kk):
+        points, t, x0, n0, xn, dl, sign = rim
+        single = edges.edge_field(tile(t), tile(x0), tile(n0), tile(xn), tile(d), tile(b),
+                                  tile(v).astype(complex)) @ v
+        return sign * math.sqrt(4 * math.pi) * dl * np.sum(single * np.exp(2j * kk * points @ b))
+
+    return _image_rcs_db(sim, rims, rim_term)
 
 
 def test_a_wedge_lit_and_seen_on_both_faces_is_carried_once():
