@@ -1,4 +1,4 @@
-"""Launches traced on several host threads at once (:func:`sarmitsuba.tracing.trace.host_threads`):
+"""Launches traced on several host threads at once (:func:`sarmitsuba.tracing.threads.host_threads`):
 the same result as one after the other, the variable that sets the count, and one thread where
 threads cannot help or would be wrong (the tube preview, the derivatives' traces).
 
@@ -19,6 +19,7 @@ import pytest
 import sarmitsuba  # noqa: F401
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.scene.loader import load_scene
+from sarmitsuba.tracing import threads
 from sarmitsuba.tracing import trace as tracing
 from sarmitsuba.tracing.loops import evaluated_loops, float64_lanes
 
@@ -55,27 +56,27 @@ def test_two_threads_give_the_sequential_result(monkeypatch):
 
 def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
     kernel = type("K", (), {"mesh": object()})()
-    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 8)
-    monkeypatch.delenv(tracing.HOST_THREADS_VARIABLE, raising=False)
-    assert tracing.host_threads(kernel) == tracing.HOST_THREADS
-    monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, "3")
-    assert tracing.host_threads(kernel) == 3
-    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 2)
-    assert tracing.host_threads(kernel) == 2                                # at most the cores
+    monkeypatch.setattr(threads.os, "cpu_count", lambda: 8)
+    monkeypatch.delenv(threads.HOST_THREADS_VARIABLE, raising=False)
+    assert threads.host_threads(kernel) == threads.HOST_THREADS == 1          # off by default
+    monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "3")
+    assert threads.host_threads(kernel) == 3
+    monkeypatch.setattr(threads.os, "cpu_count", lambda: 2)
+    assert threads.host_threads(kernel) == 2                                # at most the cores
     for bad in ("0", "-1", "two", "1.5"):
-        monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, bad)
-        with pytest.raises(ParameterError, match=tracing.HOST_THREADS_VARIABLE):
-            tracing.host_threads(kernel)
+        monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, bad)
+        with pytest.raises(ParameterError, match=threads.HOST_THREADS_VARIABLE):
+            threads.host_threads(kernel)
 
 
 def test_one_thread_for_the_preview_and_inside_the_derivatives(monkeypatch):
-    monkeypatch.setenv(tracing.HOST_THREADS_VARIABLE, "2")
-    monkeypatch.setattr(tracing.os, "cpu_count", lambda: 4)
+    monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "2")
+    monkeypatch.setattr(threads.os, "cpu_count", lambda: 4)
     mesh = type("K", (), {"mesh": object()})()
-    assert tracing.host_threads(mesh) == 2
-    assert tracing.host_threads(type("K", (), {"mesh": None})()) == 1       # the tube preview
-    assert tracing.host_threads(None) == 1                                  # batches traced elsewhere (Dask)
+    assert threads.host_threads(mesh) == 2
+    assert threads.host_threads(type("K", (), {"mesh": None})()) == 1       # the tube preview
+    assert threads.host_threads(None) == 1                                  # batches traced elsewhere (Dask)
     with evaluated_loops():                                                 # loop mode is per thread
-        assert tracing.host_threads(mesh) == 1
+        assert threads.host_threads(mesh) == 1
     with float64_lanes():                                                   # so is the lanes' precision
-        assert tracing.host_threads(mesh) == 1
+        assert threads.host_threads(mesh) == 1

@@ -129,9 +129,9 @@ def test_packed_rays_are_the_reference_upload():
     """Bounded rays (one of zero length), unbounded rays: the packed float32 upload gives the
     reference's origins, directions and ``maxt`` exactly."""
     import mitsuba as mi
-    from sarmitsuba.tracing.visibility import Rays
+    from sarmitsuba.tracing.visibility import CastCounter, Rays
     rays = Rays.__new__(Rays)
-    rays.casts = 0
+    rays.counter = CastCounter()
     rng = np.random.default_rng(4)
     start = rng.normal(size=(257, 3)) * 1000
     end = start + rng.normal(size=(257, 3)) * 10

@@ -86,7 +86,7 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
     """The Dr.Jit body of :func:`clip_kernel`: ``corners`` the input ``poly`` flat [n * width * 2],
     ``table`` the half-planes flat [n * n_lines * 3]. Returns the output corners flat [n * cap *
     2] and the kept counts (:data:`_FAILED` for a lane that failed)."""
-    f64, u32, boolean = mi.Float64, mi.UInt32, mi.Bool
+    f64, u32 = mi.Float64, mi.UInt32
     n = dr.width(count)
     row = dr.arange(u32, n)
     scratch = 2 * cap                          # the slot that masked writes go to
@@ -130,14 +130,25 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
             return i + 1, m
 
         stop = dr.select(act, count, 0)
-        _, m = dr.while_loop((u32(0), u32(0)), lambda i, *_: i < stop, corner,
-                                mode=loop_mode(), label="clip corners")
+        _, m = dr.while_loop((u32(0), u32(0)), lambda i, *_: i < stop, corner, mode=loop_mode(), label="clip corners")
         failed |= act & ((m > count + 1) | (m > cap))
         return (h + 1, dr.select(act, dr.minimum(m, cap), count), dr.select(act, dst, base), failed)
 
     _, count, base, failed = dr.while_loop((u32(0), u32(count), dr.zeros(u32, n), ~dr.isfinite(total)),
                                            lambda h, *_: h < n_lines, half_plane, mode=loop_mode(),
                                            label="half-planes")
+    out, final = _finish(xs, ys, count, base, cap, repeat)
+    return out, dr.select(failed, _FAILED, final)
+
+
+def _finish(xs, ys, count, base, cap: int, repeat: float):
+    """The end of :func:`_kernel`: each lane's corners (``count`` from slot ``base`` of its local
+    memory ``xs``, ``ys``) without the repeated ones, then every slot written out (flat [n * cap *
+    2]); returns that and the kept counts (0 below 3)."""
+    f64, u32 = mi.Float64, mi.UInt32
+    n = dr.width(count)
+    row = dr.arange(u32, n)
+    scratch = 2 * cap
     # the repeated corners dropped (each compared with the next, cyclically), into the other half
     dst = cap - base
 
@@ -166,4 +177,4 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
         return (k + 1,)
 
     dr.while_loop((u32(0),), lambda k: k < cap, write, mode=loop_mode(), label="corners out")
-    return out, dr.select(failed, _FAILED, final)
+    return out, final

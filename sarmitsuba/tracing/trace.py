@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
@@ -42,8 +41,8 @@ from ..scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
 from .pulse_view import antenna_axes
-from .loops import lane_float, loop_mode
 from .stages import STAGES
+from .threads import host_threads
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..scene.loader import LoadedScene, material_table
@@ -335,37 +334,6 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
         [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
          for k in range(n_groups)])
     return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
-
-
-#: The environment variable that sets how many launches the mesh tracer traces at once, each on
-#: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
-HOST_THREADS_VARIABLE = "SARMITSUBA_HOST_THREADS"
-#: Launches traced at once by default: their host geometry is NumPy, which releases the GIL in its
-#: array operations, so two launches keep both cores of a 2-core machine busy (Munich, 400 pulses:
-#: 21.3 s -> 15.5 s, benchmarks/munich.py; docs/design.md section 10). Each launch then holds half
-#: the sub-apertures, so the peak memory stays that of one.
-HOST_THREADS = 2
-
-
-def host_threads(kernel) -> int:
-    """Launches :func:`trace` runs at once on host threads: 1 for the tube preview, inside the
-    derivatives' traces (their loop mode and lane precision are per thread) and on one core; else
-    :data:`HOST_THREADS_VARIABLE` or :data:`HOST_THREADS`, at most the cores. Raises ParameterError
-    for a variable that is not an integer >= 1."""
-    if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32:
-        return 1
-    text = os.environ.get(HOST_THREADS_VARIABLE, "")
-    if text:
-        try:
-            wanted = int(text)
-        except ValueError:
-            wanted = 0
-        if wanted < 1:
-            raise ParameterError(f"{HOST_THREADS_VARIABLE}={text!r}: expected an integer >= 1 (launches traced at "
-                                 f"once); unset it for the default, {HOST_THREADS}")
-    else:
-        wanted = HOST_THREADS
-    return max(1, min(wanted, os.cpu_count() or 1))
 
 
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's

@@ -1,0 +1,52 @@
+"""Launches traced at once on host threads (:func:`sarmitsuba.tracing.trace.trace`).
+
+The mesh tracer's host geometry is NumPy, which releases the GIL in its array operations, so
+launches traced on two threads keep both cores of a 2-core machine busy; each then holds half the
+sub-apertures, so the peak memory stays that of one launch. Measured on Munich's default render
+(2 cores): trace 89.0 s on one thread, 75.7 s on two (1.07 GB peak against 1.18 GB), 67.1 s with
+launches of two sub-apertures each (1.36 GB).
+
+It is off by default (one thread): the recording of the per-pulse deposits is serialised
+(:data:`sarmitsuba.tracing.loops.RECORDING`), which made two threaded renders of Munich agree to
+-112 dB, but under load (the test suite on two workers) a threaded render of the trihedral still
+differed from another kernel's in its energy tally by 1 %, and the cause is not found. Set
+:data:`HOST_THREADS_VARIABLE` to try it.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..core.radar import ParameterError
+from .loops import lane_float, loop_mode
+
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads"]
+
+#: The environment variable that sets how many launches the mesh tracer traces at once, each on
+#: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
+HOST_THREADS_VARIABLE = "SARMITSUBA_HOST_THREADS"
+#: Launches traced at once by default.
+HOST_THREADS = 1
+
+
+def host_threads(kernel) -> int:
+    """Launches :func:`~sarmitsuba.tracing.trace.trace` runs at once on host threads: 1 for the tube
+    preview, for batches traced elsewhere (``kernel`` None), inside the derivatives' traces (their
+    loop mode and lane precision are per thread) and on one core; else :data:`HOST_THREADS_VARIABLE`
+    or :data:`HOST_THREADS`, at most the cores. Raises ParameterError for a variable that is not
+    an integer >= 1."""
+    if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32:
+        return 1
+    text = os.environ.get(HOST_THREADS_VARIABLE, "")
+    if text:
+        try:
+            wanted = int(text)
+        except ValueError:
+            wanted = 0
+        if wanted < 1:
+            raise ParameterError(f"{HOST_THREADS_VARIABLE}={text!r}: expected an integer >= 1 (launches traced at "
+                                 f"once); unset it for the default, {HOST_THREADS}")
+    else:
+        wanted = HOST_THREADS
+    return max(1, min(wanted, os.cpu_count() or 1))
