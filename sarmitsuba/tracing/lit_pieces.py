@@ -31,7 +31,7 @@ from .patches import UNIT_SQUARE, Pieces, Surfaces
 from .piece_cuts import cell_key, pieces_of
 from .polygons import clip, corner_slots, moments
 from .device import device_array, table_array
-from .loops import loop_mode
+from .loops import RECORDING, loop_mode
 from .visibility import NO_HIT, PathVisibility, Rays, lift
 
 __all__ = ["in_leg_planes", "Blockers", "LitPieces", "lit_pieces", "SAMPLE_INSET", "corner_samples", "device_samples",
@@ -257,9 +257,10 @@ def device_samples(pieces: Pieces):
         return (j + 1, mean_x + dr.gather(f64, poly, (row * width + j) * 2),
                 mean_y + dr.gather(f64, poly, (row * width + j) * 2 + 1))
 
-    _, mean_x, mean_y = dr.while_loop((u32(0), dr.zeros(f64, len(owner)), dr.zeros(f64, len(owner))),
-                                      lambda j, *_: j < dr.select(is_whole, 0, count), add, mode=loop_mode(),
-                                      label="sample centroids")
+    with RECORDING:                     # a symbolic loop: recorded one thread at a time
+        _, mean_x, mean_y = dr.while_loop((u32(0), dr.zeros(f64, len(owner)), dr.zeros(f64, len(owner))),
+                                          lambda j, *_: j < dr.select(is_whole, 0, count), add, mode=loop_mode(),
+                                          label="sample centroids")
     mean_x /= dr.maximum(f64(count), 1.0)
     mean_y /= dr.maximum(f64(count), 1.0)
     px = dr.gather(f64, poly, (row * width + slot) * 2)

@@ -20,11 +20,13 @@ __all__ = ["loop_mode", "evaluated_loops", "lane_float", "float64_lanes", "RECOR
 
 _STATE = threading.local()
 
-#: Held while a launch records its per-pulse term and scatterer kernels and while they run and are
-#: read back. Launches traced on several host threads (:func:`sarmitsuba.tracing.trace.trace`)
-#: interleave their host geometry freely, but Dr.Jit recording the deposits' kernels (their
-#: scatters are side effects) on two threads at once made a render differ from itself at -53 to
-#: -70 dB (Munich, two runs); with the recording one thread at a time, two runs agree to -112 dB.
+#: Held while a symbolic loop (``dr.while_loop``) is recorded, and by the kernels that hold one while
+#: they run: the per-pulse terms and scatterers with their deposits, the geometry kernels. Launches
+#: traced on several host threads (:mod:`sarmitsuba.tracing.threads`) interleave their NumPy and
+#: their ray casts freely, but Dr.Jit 1.5 recording symbolic loops on two threads at once gave
+#: wrong kernels: a threaded render differed from itself at -53 to -70 dB (Munich), and with only
+#: the terms serialised a few pulses of ``urban`` still differed from the sequential trace, until
+#: the visibility samples' loop was serialised too (``tests/test_host_threads.py``).
 RECORDING = threading.RLock()
 
 

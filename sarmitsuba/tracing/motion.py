@@ -28,7 +28,7 @@ import mitsuba as mi
 import numpy as np
 
 from .device import device_array, table_array
-from .loops import loop_mode
+from .loops import RECORDING, loop_mode
 
 __all__ = ["ON_LINE", "line_rates", "endpoint_rates"]
 
@@ -103,8 +103,9 @@ def endpoint_rates(start: np.ndarray, end: np.ndarray, owner: np.ndarray, line_o
     f64, u32 = mi.Float64, mi.UInt32
     table = tuple(table_array(f64, column) for column in (*lines.T, *rates.T)) + (table_array(u32, moving),)
     lanes = tuple(device_array(f64, column) for column in (*start.T, *end.T))
-    s_rate, e_rate = _rates_kernel(lanes, device_array(u32, first), device_array(u32, first + count), table)
-    dr.eval(s_rate, e_rate)
+    with RECORDING:                     # symbolic loops: recorded and run one thread at a time
+        s_rate, e_rate = _rates_kernel(lanes, device_array(u32, first), device_array(u32, first + count), table)
+        dr.eval(s_rate, e_rate)
     return np.stack([r.numpy() for r in s_rate], axis=1), np.stack([r.numpy() for r in e_rate], axis=1)
 
 

@@ -20,7 +20,7 @@ import mitsuba as mi
 import numpy as np
 
 from .device import device_array, table_array
-from .loops import loop_mode
+from .loops import RECORDING, loop_mode
 
 __all__ = ["clip_kernel", "MAX_CORNERS"]
 
@@ -62,8 +62,9 @@ def clip_kernel(poly: np.ndarray, count: np.ndarray, lines: np.ndarray, repeat: 
     # gathered tables, mapped from NumPy's buffers (a gather's code does not depend on alignment)
     corners = _table(f64, np.ascontiguousarray(poly, np.float64).reshape(-1))
     table = _table(f64, np.ascontiguousarray(lines, np.float64).reshape(-1))
-    out, kept = _kernel(corners, width, device_array(u32, count.astype(np.uint32)), table, n_lines, cap, repeat)
-    dr.eval(out, kept)
+    with RECORDING:                     # symbolic loops: recorded and run one thread at a time
+        out, kept = _kernel(corners, width, device_array(u32, count.astype(np.uint32)), table, n_lines, cap, repeat)
+        dr.eval(out, kept)
     kept = kept.numpy()
     if np.any(kept == _FAILED):
         return None

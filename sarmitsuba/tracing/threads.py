@@ -6,13 +6,12 @@ sub-apertures, so the peak memory stays that of one launch. Measured on Munich's
 (2 cores): trace 89.0 s on one thread, 75.7 s on two (1.07 GB peak against 1.18 GB), 67.1 s with
 launches of two sub-apertures each (1.36 GB).
 
-It is off by default (one thread), and experimental. The recording of the per-pulse deposits is
-serialised (:data:`sarmitsuba.tracing.loops.RECORDING`), which made two threaded renders of Munich
-agree to -112 dB (they differed at -53 to -70 dB without it). But a threaded trace of ``urban``
-(160 pulses, the same launches) still differs from the sequential one in a few pulses, by up to
-4e-5 of their power, in one run of three, where two sequential traces agree to 2e-13; the cause
-is not found (``tests/test_host_threads.py`` marks it as an expected failure). Set
-:data:`HOST_THREADS_VARIABLE` to try it.
+It is off by default (one thread). Dr.Jit 1.5 recording symbolic loops on two threads at once gave
+wrong kernels, so every symbolic loop the mesh tracer records holds
+:data:`sarmitsuba.tracing.loops.RECORDING` (the per-pulse terms, the geometry kernels). Before
+that, a threaded trace of ``urban`` differed from the sequential one in a few pulses, by up to
+4e-5 of their power, in half the runs; since, in none of 36 (``tests/test_host_threads.py``). The
+full suite has not yet run with threads on; set :data:`HOST_THREADS_VARIABLE` to use them.
 """
 from __future__ import annotations
 
