@@ -58,7 +58,7 @@ def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
     kernel = type("K", (), {"mesh": object()})()
     monkeypatch.setattr(threads.os, "cpu_count", lambda: 8)
     monkeypatch.delenv(threads.HOST_THREADS_VARIABLE, raising=False)
-    assert threads.host_threads(kernel) == threads.HOST_THREADS == 1          # off by default
+    assert threads.host_threads(kernel) == threads.HOST_THREADS == 2          # two by default
     monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "3")
     assert threads.host_threads(kernel) == 3
     monkeypatch.setattr(threads.os, "cpu_count", lambda: 2)

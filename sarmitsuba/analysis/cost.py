@@ -28,6 +28,7 @@ from ..focus.scene_grid import image_grid
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry
 from ..scene.loader import LoadedScene
+from ..tracing.threads import launches_at_once
 from ..tracing.trace import HISTOGRAM_ENTRIES, pulses_per_trace
 from ..scene.trace_inputs import FastTimeWindow, RayFootprint
 from .reach import (CLUTTER_SCATTERER_PULSE_SECONDS, MESH_TRIANGLE_BYTES, REACH_TRIANGLE_BYTES, SETUP_TRIANGLE_SECONDS,
@@ -198,7 +199,9 @@ class CostEstimate:
     sub-aperture's reach and
     :data:`CLUTTER_SCATTERER_PULSE_SECONDS` per clutter scatterer-pulse of the area facing the
     sensor there (included in ``trace_time_s``); the working set holds :data:`SUBAPERTURE_BYTES`
-    (or :data:`REACH_TRIANGLE_BYTES` per triangle of the largest reach, when less) for each of the ``subapertures_per_launch`` sub-apertures of a launch, and the runtime
+    (or :data:`REACH_TRIANGLE_BYTES` per triangle of the largest reach, when less) for each of the
+    ``subapertures_per_launch`` sub-apertures of a launch, times the launches traced at once
+    (:func:`sarmitsuba.tracing.threads.launches_at_once`), and the runtime
     :data:`MESH_TRIANGLE_BYTES` per triangle of the scene.
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
@@ -379,13 +382,16 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     per_pulse_entries = len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
     budget = max(size, HISTOGRAM_ENTRIES // per_pulse_entries)
     per_batch = max(1, min(n_subs, st.max_batch_rays // max(per_sub, 1), budget // size))
+    # the mesh tracer's launches at once, each with that share of the sub-apertures (tracing.threads)
+    at_once = launches_at_once() if piece_bytes else 1
+    per_batch = max(1, per_batch // at_once)
     lanes = min(st.max_batch_rays, per_batch * per_sub)
     entries = 0 if exact else per_pulse_entries * min(n_pulses, per_batch * size)
     threads = max(1, dr.thread_count())
     runtime = (RUNTIME_BYTES + (SCENE_TRIANGLE_BYTES + (MESH_TRIANGLE_BYTES if piece_bytes else 0)) * loaded.n_triangles
                + SCENE_SHAPE_BYTES * loaded.n_shapes)
-    working = (TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
-               + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * threads) * entries)
+    working = at_once * (TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
+                         + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * threads) * entries)
     focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
     n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
     tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)

@@ -6,12 +6,11 @@ sub-apertures, so the peak memory stays that of one launch. Measured on Munich's
 (2 cores): trace 89.0 s on one thread, 75.7 s on two (1.07 GB peak against 1.18 GB), 67.1 s with
 launches of two sub-apertures each (1.36 GB).
 
-It is off by default (one thread). Dr.Jit 1.5 recording symbolic loops on two threads at once gave
-wrong kernels, so every symbolic loop the mesh tracer records holds
-:data:`sarmitsuba.tracing.loops.RECORDING` (the per-pulse terms, the geometry kernels). Before
-that, a threaded trace of ``urban`` differed from the sequential one in a few pulses, by up to
-4e-5 of their power, in half the runs; since, in none of 36 (``tests/test_host_threads.py``). The
-full suite has not yet run with threads on; set :data:`HOST_THREADS_VARIABLE` to use them.
+Dr.Jit 1.5 recording symbolic loops on two threads at once gave wrong kernels, so every symbolic
+loop the mesh tracer records holds :data:`sarmitsuba.tracing.loops.RECORDING` (the per-pulse
+terms, the geometry kernels). Before that, a threaded trace of ``urban`` differed from the
+sequential one in a few pulses, by up to 4e-5 of their power, in half the runs; since, in none of
+36 (``tests/test_host_threads.py``), and the whole test suite passes with two threads.
 """
 from __future__ import annotations
 
@@ -22,13 +21,13 @@ import numpy as np
 from ..core.radar import ParameterError
 from .loops import lane_float, loop_mode
 
-__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads"]
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once"]
 
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
 #: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
 HOST_THREADS_VARIABLE = "SARMITSUBA_HOST_THREADS"
 #: Launches traced at once by default.
-HOST_THREADS = 1
+HOST_THREADS = 2
 
 
 def host_threads(kernel) -> int:
@@ -39,6 +38,13 @@ def host_threads(kernel) -> int:
     an integer >= 1."""
     if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32:
         return 1
+    return launches_at_once()
+
+
+def launches_at_once() -> int:
+    """The mesh tracer's launches at once (:data:`HOST_THREADS_VARIABLE`, or :data:`HOST_THREADS`; at
+    most the cores), as :func:`host_threads` gives them to a render and the cost model counts them.
+    Raises ParameterError for a variable that is not an integer >= 1."""
     text = os.environ.get(HOST_THREADS_VARIABLE, "")
     if text:
         try:
