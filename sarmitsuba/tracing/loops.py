@@ -22,11 +22,10 @@ _STATE = threading.local()
 
 #: Held while a symbolic loop (``dr.while_loop``) is recorded, and by the kernels that hold one while
 #: they run: the per-pulse terms and scatterers with their deposits, the geometry kernels. Launches
-#: traced on several host threads (:mod:`sarmitsuba.tracing.threads`) interleave their NumPy and
-#: their ray casts freely, but Dr.Jit 1.5 recording symbolic loops on two threads at once gave
-#: wrong kernels: a threaded render differed from itself at -53 to -70 dB (Munich), and with only
-#: the terms serialised a few pulses of ``urban`` still differed from the sequential trace, until
-#: the visibility samples' loop was serialised too (``tests/test_host_threads.py``).
+#: traced on several host threads (:mod:`sarmitsuba.tracing.threads`, off by default) interleave
+#: their NumPy and their ray casts freely. Without this lock a threaded render of Munich differed
+#: from itself at -53 to -70 dB; with it, a race remains that the lock narrows but does not close
+#: (:mod:`sarmitsuba.tracing.threads`).
 RECORDING = threading.RLock()
 
 
