@@ -29,7 +29,7 @@ import numpy as np
 
 import sarmitsuba  # noqa: F401
 from _table import bench_main, machine, write_csv
-from sarmitsuba.tracing import distributed
+from sarmitsuba.tracing.driver import distributed
 from sarmitsuba.pipeline import simulate
 
 NAME = "dask_scaling"

@@ -112,10 +112,10 @@ def plates(quick: bool) -> list[dict]:
 
 def patterns() -> list[dict]:
     """The plates' monostatic patterns at the carrier, every table angle to 60 deg: full wave
-    against the edge currents' NumPy reference (:func:`sarmitsuba.tracing.edges.plate_scattering`,
+    against the edge currents' NumPy reference (:func:`sarmitsuba.tracing.integration.edges.plate_scattering`,
     which the tracer's terms equal, tests/test_edges.py) and against PO alone [dB over lambda^2]."""
-    from sarmitsuba.tracing.edges import plate_scattering
-    from sarmitsuba.tracing.physical_optics import polygon_integral
+    from sarmitsuba.tracing.integration.edges import plate_scattering
+    from sarmitsuba.tracing.integration.physical_optics import polygon_integral
     rows = []
     for case, phi, ax, by in PLATES:
         sweep = _sweep(case, phi)

@@ -79,7 +79,10 @@ def render_rows(scenes) -> list[dict]:
 def stage_rows(scene: str, sensor: dict) -> list[dict]:
     """The patches' trace time by stage (wall seconds, Dr.Jit synchronised around each)."""
     import drjit as dr
-    from sarmitsuba.tracing import integration, lit_pieces, mesh_trace, surface_clutter
+    from sarmitsuba.tracing.integration import patch_terms as integration
+    from sarmitsuba.tracing.visibility import lit_pieces
+    from sarmitsuba.tracing.driver import mesh_trace
+    from sarmitsuba.tracing.integration import surface_clutter
     spent = collections.defaultdict(float)
     originals = []
 

@@ -550,7 +550,7 @@ def _dr_jit_interrupt(exc: BaseException) -> bool:
     """Whether ``exc`` is a Ctrl-C that Dr.Jit wrapped in a RuntimeError while tracing a loop."""
     if not isinstance(exc, RuntimeError):
         return False
-    from .tracing.trace import caused_by_interrupt
+    from .tracing.driver.trace import caused_by_interrupt
     return caused_by_interrupt(exc)
 
 

@@ -2,7 +2,7 @@
 
 Forward mode, one parameter at a time: :func:`raw_derivative` traces the scene once with the
 parameter's tangent carried through the tracing kernels by Dr.Jit's automatic differentiation
-(:mod:`sarmitsuba.tracing.tangents`) and bins it as the raw data are binned, giving
+(:mod:`sarmitsuba.tracing.derivatives.tangents`) and bins it as the raw data are binned, giving
 ``d raw / d p`` (complex, per range sample and pulse, in the raw data's units per unit of ``p``).
 The focusers are linear in the raw data (docs/physics.md (AD1)), so the image's derivative is the
 derivative focused as the raw data are (:func:`sarmitsuba.refocus` with the render's options).
@@ -10,7 +10,7 @@ derivative focused as the raw data are (:func:`sarmitsuba.refocus` with the rend
 Reverse mode, for many parameters at once: :func:`raw_gradient` takes the gradient of a real loss
 with respect to the raw data, carries it back through the binning's adjoint
 (:func:`sarmitsuba.signal.binning.raw_data_adjoint`,
-:func:`sarmitsuba.tracing.deposit.reduce_deposit_adjoint`) to each launch's histogram, and through
+:func:`sarmitsuba.tracing.deposit.fast_time.reduce_deposit_adjoint`) to each launch's histogram, and through
 the tracing kernels to the reflection tables (Dr.Jit's reverse mode), then to each parameter.
 
 Parameters: a material's relative permittivity, conductivity or (slabs) thickness, for
@@ -18,7 +18,7 @@ Parameters: a material's relative permittivity, conductivity or (slabs) thicknes
 scattering coefficient (:class:`MaterialParameter`); a mesh's translation, rotation, height or
 vertices (:class:`ShapeParameter`, docs/physics.md (AD4): the host geometry differenced in
 float64 with the lit regions' topology held, the kernels by Dr.Jit; the interior term only,
-:class:`~sarmitsuba.tracing.lane_pairs.GeometryChange` where the topology changes). With the
+:class:`~sarmitsuba.tracing.derivatives.lane_pairs.GeometryChange` where the topology changes). With the
 gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. ``at=`` moves shapes
 before the trace (:func:`moved_raw` gives those raw data).
 
@@ -50,13 +50,13 @@ from .core.radar import ParameterError
 from .core.raw import RawData
 from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
-from .tracing.facets import scene_meshes
-from .tracing.geometry_tangents import GeometryMove, move_scene
+from .tracing.mesh.facets import scene_meshes
+from .tracing.derivatives.geometry_tangents import GeometryMove, move_scene
 from .tracing.loops import evaluated_loops
-from .tracing.deposit import reduce_deposit_adjoint
-from .tracing.kernel import Kernel
-from .tracing.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, moved_tracer, row_tangent
-from .tracing.trace import prepare_trace, trace, trace_batch
+from .tracing.deposit.fast_time import reduce_deposit_adjoint
+from .tracing.driver.kernel import Kernel
+from .tracing.derivatives.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, moved_tracer, row_tangent
+from .tracing.driver.trace import prepare_trace, trace, trace_batch
 
 __all__ = ["MaterialParameter", "ShapeParameter", "raw_derivative", "moved_raw", "raw_gradient", "AmplitudeLoss", "Gradients", "gradients"]
 
@@ -144,7 +144,7 @@ class ShapeParameter:
             np.asarray(self.center, float) - loaded.offset
 
     def move(self, loaded) -> GeometryMove:
-        """The :class:`~sarmitsuba.tracing.geometry_tangents.GeometryMove` of this parameter in
+        """The :class:`~sarmitsuba.tracing.derivatives.geometry_tangents.GeometryMove` of this parameter in
         ``loaded`` (a LoadedScene): each vertex's displacement per unit, in its tracing frame."""
         k = self.index(loaded)
         v = scene_meshes(loaded.scene)[k][0]

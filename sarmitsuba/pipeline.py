@@ -26,7 +26,7 @@ from .core.radar import POLARIZATIONS
 from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
-from .tracing.trace import TraceResult, prepare_trace, trace
+from .tracing.driver.trace import TraceResult, prepare_trace, trace
 
 __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES",
            "EXPORT_FILES", "write_exports"]
@@ -57,7 +57,7 @@ class RenderSummary:
     outputs: dict
     pulses_per_trace: int = 1
     pulse_paths: int = 0
-    #: The trace's seconds by stage of the mesh tracer (:data:`sarmitsuba.tracing.stages.STAGES`).
+    #: The trace's seconds by stage of the mesh tracer (:data:`sarmitsuba.tracing.driver.stages.STAGES`).
     trace_stages: dict = dataclasses.field(default_factory=dict)
 
     @property
@@ -108,7 +108,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     ``image_size = (n_azimuth, n_range)`` pixels and ``image_spacing`` [m] for a ground grid of
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
-    traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.distributed.trace_on_cluster`).
+    traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.driver.distributed.trace_on_cluster`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
@@ -126,7 +126,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
         result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, progress=progress,
                        effects=effects)
     else:
-        from .tracing.distributed import trace_on_cluster
+        from .tracing.driver.distributed import trace_on_cluster
         result = trace_on_cluster(scheduler, (source, sensor_overrides, integrator_overrides, material_overrides),
                                   loaded, setup, progress=progress)
     t["trace"] = time.perf_counter()
@@ -289,7 +289,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         RCS agrees (docs/physics.md (K3')), or the image's own (``weighting`` of ``write_sicd``).
     scheduler : str, optional
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
-        Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.distributed`).
+        Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.driver.distributed`).
         None: in this process.
 
     Returns
@@ -308,7 +308,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     _focuser(focuser)
     check_formats(formats, sicd_plane, sicd_weighting)
     if scheduler is not None:
-        from .tracing.distributed import check_scheduler
+        from .tracing.driver.distributed import check_scheduler
         check_scheduler(scheduler)
     with OutputDirectory(out_dir, products="replace") as out:     # all files appear at the end, or none;
         # an earlier render's files that this one does not write go then (core/outputs.py, "Products")

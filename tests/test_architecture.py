@@ -23,7 +23,7 @@ STAGES = ("core", "scene", "tracing", "signal", "focus", "products", "formats", 
 #: The top level: the public entry points over every stage.
 TOP = {"__init__", "__main__", "api", "cli", "pipeline", "info", "derivatives"}
 #: Only the tracer kernel's banner-sectioned loop may be longer (docs/design.md section 5).
-LONG_FUNCTION_EXEMPT = {("tracing.kernel", "launch")}
+LONG_FUNCTION_EXEMPT = {("tracing.driver.kernel", "launch")}
 MAX_FUNCTION_LINES = 80
 MAX_FILE_LINES = 600
 

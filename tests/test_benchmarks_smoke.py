@@ -1,7 +1,7 @@
 """Smoke test of the benchmark modules (not a timed test: no assertion on seconds or ratios).
 
 Each of ``benchmarks/ray_density.py``, ``focus_algorithms.py``, ``subaperture.py``, ``ffbp.py``,
-``scaling.py``, ``tracing/polarimetry.py``, ``invariance.py``, ``patches.py``, ``trajectory.py`` and
+``scaling.py``, ``tracing/integration/polarimetry.py``, ``invariance.py``, ``patches.py``, ``trajectory.py`` and
 ``footprints.py`` (a 200 m crop of Sionna's Munich; skipped without Sionna RT's scenes) runs with
 ``tiny=True`` (a few settings, small scenes; about 25 s for all three, most of it tracing and
 kernel compilation) and must return rows with the expected columns and finite numbers, and

@@ -1,7 +1,7 @@
-"""The mixed pieces' occluders held sparse (:class:`sarmitsuba.tracing.lit_pieces.Blockers`: sorted
+"""The mixed pieces' occluders held sparse (:class:`sarmitsuba.tracing.visibility.lit_pieces.Blockers`: sorted
 ``(piece, key)`` pairs) against the dense ``(n_pieces, max per piece)`` tables they replaced: the
 same keys for the same pieces in the same order, the same pieces usable for cutting, and
-:func:`sarmitsuba.tracing.lit_pieces.spread_occluders` the same as its dense form (kept here as
+:func:`sarmitsuba.tracing.visibility.lit_pieces.spread_occluders` the same as its dense form (kept here as
 the reference)."""
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from sarmitsuba.core.arrays import unique_pairs
-from sarmitsuba.tracing.lit_pieces import Blockers, LitPieces, spread_occluders
-from sarmitsuba.tracing.piece_cuts import cell_key
+from sarmitsuba.tracing.visibility.lit_pieces import Blockers, LitPieces, spread_occluders
+from sarmitsuba.tracing.mesh.piece_cuts import cell_key
 
 
 def _random_blockers(rng, n, m, non_mesh=0.05):
@@ -155,9 +155,9 @@ def test_blockers_out_of_range_are_refused():
 
 def _corner_samples_reference(pieces):
     """:func:`corner_samples` as it was: whole and border pieces' samples apart, then sorted by piece."""
-    from sarmitsuba.tracing.lit_pieces import SAMPLE_INSET
-    from sarmitsuba.tracing.patches import UNIT_SQUARE
-    from sarmitsuba.tracing.polygons import corner_slots
+    from sarmitsuba.tracing.visibility.lit_pieces import SAMPLE_INSET
+    from sarmitsuba.tracing.mesh.patches import UNIT_SQUARE
+    from sarmitsuba.tracing.mesh.polygons import corner_slots
     p = pieces.patch
     whole = np.flatnonzero(pieces.whole)
     w_points = ((pieces.cell[whole][:, None, :] + 0.5 + (UNIT_SQUARE[None] - 0.5) * (1.0 - 2.0 * SAMPLE_INSET)) * p)
@@ -180,8 +180,8 @@ def test_corner_samples_are_the_reference(patch):
     """Regions cut into whole and border pieces (a triangle, a thin sliver, a polygon of the most
     corners, an empty region, a region inside one patch): the same samples, bit for bit, in the
     same order."""
-    from sarmitsuba.tracing.lit_pieces import corner_samples
-    from sarmitsuba.tracing.piece_cuts import pieces_of
+    from sarmitsuba.tracing.visibility.lit_pieces import corner_samples
+    from sarmitsuba.tracing.mesh.piece_cuts import pieces_of
     width = 8
     angle = np.linspace(0, 2 * np.pi, width, endpoint=False)
     regions = [np.stack([5 + 4 * np.cos(angle), -3 + 3 * np.sin(angle)], 1),

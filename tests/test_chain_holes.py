@@ -25,12 +25,12 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing.chains import image_source, path_points, region_lines, unfold
-from sarmitsuba.tracing.facets import mesh_parts, scene_parts
-from sarmitsuba.tracing.lit_pieces import lit_pieces, recheck
-from sarmitsuba.tracing.occlusion import clip_mixed, shadow_lines
-from sarmitsuba.tracing.patches import surfaces_from
-from sarmitsuba.tracing.visibility import PathVisibility, Rays
+from sarmitsuba.tracing.discovery.chains import image_source, path_points, region_lines, unfold
+from sarmitsuba.tracing.mesh.facets import mesh_parts, scene_parts
+from sarmitsuba.tracing.visibility.lit_pieces import lit_pieces, recheck
+from sarmitsuba.tracing.visibility.occlusion import clip_mixed, shadow_lines
+from sarmitsuba.tracing.mesh.patches import surfaces_from
+from sarmitsuba.tracing.visibility.rays import PathVisibility, Rays
 
 import drjit as dr                                  # after sarmitsuba, which picks the variant
 import mitsuba as mi

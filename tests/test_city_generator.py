@@ -100,7 +100,7 @@ def test_terrain_is_the_dem_grid_and_the_total_is_the_closed_form(small):
 def test_the_dask_path_gives_the_one_process_raw_data(small):
     pytest.importorskip("distributed", reason="dask[distributed] is not installed")
     from sarmitsuba import pipeline
-    from sarmitsuba.tracing import distributed
+    from sarmitsuba.tracing.driver import distributed
     xml = small[0]
     spec = dict(sensor_overrides={"n_pulses": 4},
                 integrator_overrides={"max_depth": 2, "pulses_per_trace": 2, "max_batch_rays": 1024})

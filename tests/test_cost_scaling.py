@@ -26,7 +26,7 @@ from sarmitsuba.analysis import cost  # noqa: E402
 from sarmitsuba.core.geometry import acquisition_geometry  # noqa: E402
 from sarmitsuba.scene import planning  # noqa: E402
 from sarmitsuba.scene.loader import load_scene  # noqa: E402
-from sarmitsuba.tracing.mesh_trace import REACH_MARGIN  # noqa: E402
+from sarmitsuba.tracing.driver.mesh_trace import REACH_MARGIN  # noqa: E402
 
 PATCH = 1.5
 SIZE = 19

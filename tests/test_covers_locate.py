@@ -1,4 +1,4 @@
-""":func:`sarmitsuba.tracing.covers.locate` (all points at once) against its point-by-point
+""":func:`sarmitsuba.tracing.mesh.covers.locate` (all points at once) against its point-by-point
 reference: the same part for points inside one candidate, inside several, on shared edges and
 corners, outside all (the nearest), with wholly covered candidates (fewer than 3 corners) first,
 between and alone, and polygons padded to the widest."""
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing.covers import locate, locate_reference
+from sarmitsuba.tracing.mesh.covers import locate, locate_reference
 
 
 def _polygons(rng, n, width):

@@ -12,13 +12,13 @@ import pytest
 
 pytest.importorskip("distributed", reason="dask[distributed] is not installed")
 
-from sarmitsuba.tracing import distributed
+from sarmitsuba.tracing.driver import distributed
 from sarmitsuba import pipeline  # noqa: E402
 from sarmitsuba.cli import main  # noqa: E402
 from sarmitsuba.core.radar import ParameterError  # noqa: E402
 from sarmitsuba.core.raw import RawData  # noqa: E402
 from sarmitsuba.scene.loader import load_scene  # noqa: E402
-from sarmitsuba.tracing.trace import plan_trace  # noqa: E402
+from sarmitsuba.tracing.driver.trace import plan_trace  # noqa: E402
 
 #: A rough dihedral (clutter and speckle) cut into several small batches; a seed other than the
 #: default 0, so a worker that dropped the seed override would give other speckle.

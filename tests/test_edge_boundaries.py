@@ -27,7 +27,8 @@ import sarmitsuba  # noqa: F401  (the Mitsuba variant)
 import drjit as dr
 import mitsuba as mi
 
-from sarmitsuba.tracing import edge_terms, edges
+from sarmitsuba.tracing.integration import edge_terms
+from sarmitsuba.tracing.integration import edges
 
 #: The captured grazing case (module docstring): the angles of the incidence and of the receiver
 #: about the eave [rad], and the right-angle wedge's exterior angle over pi.

@@ -7,7 +7,7 @@ The geometry is oblique throughout (heading 20 deg, incidence 35 deg, faces turn
 look, a ground sloping 12 deg), so that no sine equals its cosine.
 
 Deliberate bugs these tests were run against (each fails at least one):
-  * the deferral rule of a wedge's fringe (``EdgeTerms.fringe``, sarmitsuba/tracing/edge_terms.py:
+  * the deferral rule of a wedge's fringe (``EdgeTerms.fringe``, sarmitsuba/tracing/integration/edge_terms.py:
     face N "lit and seen" taken as "lit or seen"): an edge lit through a mirror whose other face
     is lit but not seen is carried by neither face (the mirrored wedge's image theory: 10 dB
     off; the parts' order: -4 dB against bit-identical);
@@ -31,7 +31,8 @@ import trimesh
 import sarmitsuba
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.tracing import edges, integration
+from sarmitsuba.tracing.integration import edges
+from sarmitsuba.tracing.integration import patch_terms as integration
 
 from test_edges import _surfaces
 from test_patches import image_weights, look_and_track, rectangle, sensor

@@ -26,9 +26,9 @@ from scipy.special import fresnel
 import sarmitsuba
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.tracing import edges
-from sarmitsuba.tracing.facets import mesh_parts
-from sarmitsuba.tracing.patches import surfaces_from
+from sarmitsuba.tracing.integration import edges
+from sarmitsuba.tracing.mesh.facets import mesh_parts
+from sarmitsuba.tracing.mesh.patches import surfaces_from
 
 from test_patches import WAVELENGTH, image_weights, rectangle, sensor
 

@@ -181,7 +181,7 @@ def _trace_in_window(source, window_from, integrator):
     """Trace ``source`` with ``integrator`` overrides into the fast-time window and ray lattice
     planned for ``window_from`` (another max_depth): the same samples for both."""
     from sarmitsuba.scene.loader import load_scene, material_table
-    from sarmitsuba.tracing.trace import trace
+    from sarmitsuba.tracing.driver.trace import trace
     settings = {**FINER, **integrator}
     loaded = load_scene(source, EIGHT, settings)
     planned = load_scene(source, EIGHT, {**FINER, **window_from})
@@ -319,7 +319,7 @@ def test_tracer_and_radar_equation_follow_the_effect_set_they_are_handed():
     radar_equation re-reads ``transmit_power``."""
     from sarmitsuba.scene.effects import active_effects
     from sarmitsuba.scene.loader import load_scene, material_table
-    from sarmitsuba.tracing.trace import trace
+    from sarmitsuba.tracing.driver.trace import trace
     loaded = load_scene(ROUGH, SMALL, COARSE)
     p = loaded.params
     geometry = acquisition_geometry(p)

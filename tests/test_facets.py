@@ -1,4 +1,4 @@
-"""Convex planar parts of triangle meshes (sarmitsuba.tracing.facets): parts checked against areas, normals
+"""Convex planar parts of triangle meshes (sarmitsuba.tracing.mesh.facets): parts checked against areas, normals
 and vertex sharing computed here from the input triangles, on hand-made meshes and real scenes."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 import trimesh
 
 import sarmitsuba  # noqa: F401  (sets the Mitsuba variant)
-from sarmitsuba.tracing.facets import MAX_PART_VERTICES, mesh_parts, scene_parts
+from sarmitsuba.tracing.mesh.facets import MAX_PART_VERTICES, mesh_parts, scene_parts
 from sarmitsuba.scene.loader import load_scene, sionna_scenes
 
 

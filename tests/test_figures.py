@@ -150,8 +150,8 @@ def test_write_figures_and_redraw_without_tracing(tmp_path, monkeypatch):
         raise AssertionError("redraw must not trace")
 
     import sarmitsuba.pipeline
-    import sarmitsuba.tracing.trace
-    monkeypatch.setattr(sarmitsuba.tracing.trace, "trace", no_tracing)
+    import sarmitsuba.tracing.driver.trace
+    monkeypatch.setattr(sarmitsuba.tracing.driver.trace, "trace", no_tracing)
     monkeypatch.setattr(sarmitsuba.pipeline, "trace", no_tracing)
     monkeypatch.setattr(sarmitsuba.pipeline, "simulate", no_tracing)
     paths = figures.redraw(out)

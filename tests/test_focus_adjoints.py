@@ -297,7 +297,7 @@ def test_reduce_deposit_adjoint_passes_the_dot_product_test(kernel):
     """``<R h, y> = <h, R^H y>`` for the fine histogram's reduction to spectra (float32 inside:
     to 1e-5). Catches the kept bins' negative half put back at the wrong end of the transform,
     the zero-padded FFT transposed as an FFT."""
-    from sarmitsuba.tracing.deposit import SPECTRAL_ORDERS, reduce_deposit, reduce_deposit_adjoint
+    from sarmitsuba.tracing.deposit.fast_time import SPECTRAL_ORDERS, reduce_deposit, reduce_deposit_adjoint
     n_pulses, n_fine, oversample, n_pad, fs = 5, 96, 4, 40, 180e6
     h = _random((len(SPECTRAL_ORDERS), n_pulses, n_fine), 20).astype(np.complex64)
     y = _random((n_pulses, n_pad), 21)

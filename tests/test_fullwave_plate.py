@@ -84,7 +84,7 @@ def test_plate_patterns_follow_full_wave(case, phi, ax, by, bounds):
     share that edge currents on straight edges do not carry (docs/physics.md (E5)). Catches the
     double diffraction dropped or taken on one face (VV, 3 to 5 dB at 40-60 deg), the fringe's
     sign, swapped polarisations."""
-    from sarmitsuba.tracing.edges import plate_scattering
+    from sarmitsuba.tracing.integration.edges import plate_scattering
     sweep = _sweep(case, phi)
     theta = np.asarray(sweep["theta_deg"])
     keep = theta <= 60.0

@@ -21,9 +21,9 @@ from sarmitsuba.focus.grid import ImageGrid
 from sarmitsuba.focus.linear import backprojection_operator
 from sarmitsuba.focus.scene_grid import sized_grid
 from sarmitsuba.scene.loader import load_scene
-from sarmitsuba.tracing.occlusion import ClippedPieces
-from sarmitsuba.tracing.polygons import drop_collinear
-from sarmitsuba.tracing.trace import prepare_trace
+from sarmitsuba.tracing.visibility.occlusion import ClippedPieces
+from sarmitsuba.tracing.mesh.polygons import drop_collinear
+from sarmitsuba.tracing.driver.trace import prepare_trace
 
 REPO = Path(__file__).resolve().parents[1]
 SIZE = {"image_size": (64, 64)}
@@ -210,7 +210,7 @@ def test_bad_shape_parameters_are_named(tmp_path):
 
 
 def test_lane_pairing_against_numpy_and_shuffles():
-    """The pairing of moved lanes (``tracing/lane_pairs.py``):
+    """The pairing of moved lanes (``tracing/derivatives/lane_pairs.py``):
 
     * ``row_groups`` against ``np.unique(axis=0)`` (the reference it replaces for speed): the
       same partition of random integer rows; catches a column combination that collides
@@ -220,7 +220,7 @@ def test_lane_pairing_against_numpy_and_shuffles():
       left unpaired;
     * ``match_rows`` where the rows at equal index have equal features but different keys: it
       pairs by key, not by index; catches the in-order fast path ignoring the keys."""
-    from sarmitsuba.tracing.lane_pairs import match_rows, nearest_distinct, row_groups
+    from sarmitsuba.tracing.derivatives.lane_pairs import match_rows, nearest_distinct, row_groups
     rng = np.random.default_rng(7)
     keys = rng.integers(-3, 4, (5000, 4))
     _, reference = np.unique(keys, axis=0, return_inverse=True)

@@ -1,6 +1,6 @@
 """The mesh tracer's geometry kernels in Dr.Jit against their NumPy references and against the
 geometry they stand for (docs/physics.md (M4)): the visibility samples of pieces computed on the
-device (:func:`sarmitsuba.tracing.lit_pieces.device_samples`).
+device (:func:`sarmitsuba.tracing.visibility.lit_pieces.device_samples`).
 
 Deliberate bugs these tests were run against (each fails at least one of them):
   * a border piece's sample pulled toward the first corner instead of the centroid;
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing.lit_pieces import SAMPLE_INSET, corner_samples, device_samples
-from sarmitsuba.tracing.piece_cuts import pieces_of
+from sarmitsuba.tracing.visibility.lit_pieces import SAMPLE_INSET, corner_samples, device_samples
+from sarmitsuba.tracing.mesh.piece_cuts import pieces_of
 
 
 def _regions(rng, n: int, corners: int = 6):

@@ -18,7 +18,7 @@ from sarmitsuba.derivatives import MaterialParameter, raw_derivative
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene import materials
 from sarmitsuba.scene.fresnel import fresnel_half_space
-from sarmitsuba.tracing.tangents import material_tangent, reflection_table_ad
+from sarmitsuba.tracing.derivatives.tangents import material_tangent, reflection_table_ad
 
 REPO = Path(__file__).resolve().parents[1]
 EPS_R, SIGMA = 5.0, 0.05            # a dielectric trihedral (S/m)

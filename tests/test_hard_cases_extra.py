@@ -30,7 +30,7 @@ from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.pipeline import image_grid, simulate
 from sarmitsuba.core.geometry import acquisition_geometry
 from sarmitsuba.scene.loader import builtin_scenes, load_scene, material_table
-from sarmitsuba.tracing.trace import trace
+from sarmitsuba.tracing.driver.trace import trace
 from sarmitsuba.scene.trace_inputs import FastTimeWindow
 
 SCENES = Path(__file__).parent / "scenes"
@@ -610,8 +610,8 @@ def test_ctrl_c_inside_the_traced_loop_body_is_an_interrupt(monkeypatch, lit_reg
     """Dr.Jit wraps an exception raised while it traces a loop's body (the patches' pulse loop,
     the tubes' bounce) in a RuntimeError; a Ctrl-C landing there must still reach the CLI as
     KeyboardInterrupt (exit 130), not as a crash with exit code 1."""
-    from sarmitsuba.tracing import integration
-    from sarmitsuba.tracing import kernel as kernel_module
+    from sarmitsuba.tracing.integration import patch_terms as integration
+    from sarmitsuba.tracing.driver import kernel as kernel_module
     from sarmitsuba.pipeline import simulate
 
     def interrupted(self, *args):

@@ -1,4 +1,4 @@
-"""Launches traced on several host threads at once (:func:`sarmitsuba.tracing.threads.host_threads`):
+"""Launches traced on several host threads at once (:func:`sarmitsuba.tracing.driver.threads.host_threads`):
 the same result as one after the other, the variable that sets the count, and one thread where
 threads cannot help or would be wrong (the tube preview, the derivatives' traces).
 
@@ -21,8 +21,8 @@ import pytest
 import sarmitsuba  # noqa: F401
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.scene.loader import load_scene
-from sarmitsuba.tracing import threads
-from sarmitsuba.tracing import trace as tracing
+from sarmitsuba.tracing.driver import threads
+from sarmitsuba.tracing.driver import trace as tracing
 from sarmitsuba.tracing.loops import evaluated_loops, float64_lanes
 
 

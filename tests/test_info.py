@@ -14,7 +14,7 @@ import pytest
 
 
 import sarmitsuba.pipeline
-import sarmitsuba.tracing.trace
+import sarmitsuba.tracing.driver.trace
 from sarmitsuba import info as info_mod
 from sarmitsuba.scene import planning
 from sarmitsuba.cli import main
@@ -33,7 +33,7 @@ def no_tracing(monkeypatch):
     """Every test here fails if anything traces."""
     def refuse(*args, **kwargs):
         raise AssertionError("info must not trace")
-    monkeypatch.setattr(sarmitsuba.tracing.trace, "trace", refuse)
+    monkeypatch.setattr(sarmitsuba.tracing.driver.trace, "trace", refuse)
     monkeypatch.setattr(sarmitsuba.pipeline, "trace", refuse)
 
 
@@ -185,7 +185,7 @@ def test_cost_counts_the_planned_sub_apertures():
     c = scene_info("dihedral", integrator_overrides=overrides).cost
     n = loaded.params.n_pulses
     assert c.rays_per_pulse == footprint.n_azimuth * footprint.n_range
-    assert c.pulses_per_trace == sarmitsuba.tracing.trace.pulses_per_trace(loaded.params, loaded.settings, n) > 1
+    assert c.pulses_per_trace == sarmitsuba.tracing.driver.trace.pulses_per_trace(loaded.params, loaded.settings, n) > 1
     assert c.subapertures == math.ceil(n / c.pulses_per_trace)
     # patches (the default): every sample casts at most one ray per leg of its path (two legs at
     # the second bounce), and the later order has fewer pieces than the first

@@ -1,5 +1,5 @@
-"""The Dr.Jit (P3') reflection of sarmitsuba.tracing.jones against the NumPy reference
-sarmitsuba.tracing.polarimetry.reflect_jones (docs/physics.md (P2), (P3), (P3')) and image theory.
+"""The Dr.Jit (P3') reflection of sarmitsuba.tracing.integration.jones against the NumPy reference
+sarmitsuba.tracing.integration.polarimetry.reflect_jones (docs/physics.md (P2), (P3), (P3')) and image theory.
 
 Inputs are rounded to float32 once and the same values fed to both, so the comparison measures
 the kernel's float32 arithmetic only. Errors are relative to ``max(|r_te|, |r_tm|) |E|`` per lane.
@@ -18,8 +18,8 @@ import pytest
 import sarmitsuba  # noqa: F401  (first: picks libLLVM and sets the variant before drjit loads)
 import drjit as dr  # noqa: I001
 import mitsuba as mi
-from sarmitsuba.tracing import polarimetry
-from sarmitsuba.tracing.jones import reflect_jones
+from sarmitsuba.tracing.integration import polarimetry
+from sarmitsuba.tracing.integration.jones import reflect_jones
 
 RTOL = 1e-5
 N = 1000
@@ -145,7 +145,7 @@ def test_single_lane_and_dtypes():
 # ---- the tube's Jones matrix: launch, scatter, receive ----------------------------------------------
 def _jones_of(h, v):
     """A Jones matrix with real columns h, v (float64 [n, 3])."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     zero = _vec(np.zeros_like(h))
     return jones.Jones(h_re=_vec(h), h_im=zero, v_re=_vec(v), v_im=zero)
 
@@ -153,7 +153,7 @@ def _jones_of(h, v):
 def test_scatter_in_the_specular_direction_is_the_reflection():
     """(P4') with b = d' equals (P3'): the NumPy reference's reflection of both columns. Fails if
     s_b or p_b is built with the wrong sign (p_b = b x s_b instead of (-b) x s_b gives -p')."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     rng = np.random.default_rng(5)
     d = _f32(_unit(rng.normal(size=(N, 3))))
     n = _f32(_unit(rng.normal(size=(N, 3))))
@@ -175,7 +175,7 @@ def test_backscatter_from_level_ground_is_diagonal_in_h_and_v(incidence):
     """Ground (n = z) seen at ``incidence`` and scattering straight back (b = -d): S = [[a_te,
     a_x], [a_x, a_tm]] in the antenna's h, v (P7), so HH carries a_te, VV a_tm (the Kirchhoff
     backscatter); fails if TE and TM are swapped or the cross term is not symmetric."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     t = math.radians(incidence)
     d = np.array([[0.0, -math.sin(t), -math.cos(t)]])
     h, v = polarimetry.bsa_basis(d)
@@ -192,7 +192,7 @@ def test_launch_basis_is_h_horizontal_and_v_up():
     """(P1): h = unit(z x d) horizontal and normal to d, v = d x h with v . z > 0, at 30 and 60
     deg incidence and with the track turned (heading): fails if v points down (the sign
     convention of texts using theta-hat) or h is not horizontal."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     for incidence, heading in ((30.0, 0.0), (60.0, 37.0)):
         t, a = math.radians(incidence), math.radians(heading)
         d = np.array([[math.sin(t) * math.sin(a), -math.sin(t) * math.cos(a), -math.cos(t)]])
@@ -208,7 +208,7 @@ def test_receive_reads_rows_by_receive_and_columns_by_transmit(incidence, headin
     S = [[0, 0.5j], [2, 0]] (rows receive H, V; columns transmit H, V): HV (receive H, transmit V)
     is 0.5j and VH is 2. Truth: the BSA basis built by hand (h = unit(z x look), v = look x h).
     Swapping the bases (S instead of S^T) gives HV = 2; images symmetrised later would hide it."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     t, a = math.radians(incidence), math.radians(heading)
     look = np.array([math.sin(t) * math.sin(a), -math.sin(t) * math.cos(a), -math.cos(t)])
     h = np.cross([0.0, 0.0, 1.0], look)
@@ -227,7 +227,7 @@ def test_power_is_one_at_launch_and_scales_with_the_reflection(incidence):
     unit vector), still 1 after a PEC reflection (r_te = r_tm = -1) and 0.36 after one with
     |r_te| = |r_tm| = 0.6 (|r|^2). Without its 1/2 it reads 2 at launch, doubling every order's
     energy."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     t = math.radians(incidence)
     d = np.array([[0.0, -math.sin(t), -math.cos(t)]])
     j = jones.launch(_vec(d), _vec(np.array([[1.0, 0.0, 0.0]])))

@@ -8,7 +8,7 @@ rectangles with plain vector algebra (plane intersections, the law of reflection
 segments), finds each aim cell's tile by tracing the rays through the cell's corners along the
 same mirrors and differentiating them by finite differences, writes the tile's PO integral with
 the textbook scalar obliquity ``(cos_i + cos_b) / 2`` per unit area (Knott, Shaeffer and Tuley,
-*Radar Cross Section*, ch. 5) and :func:`sarmitsuba.tracing.physical_optics.cell_terms`, and the bistatic
+*Radar Cross Section*, ch. 5) and :func:`sarmitsuba.tracing.integration.physical_optics.cell_terms`, and the bistatic
 radar equation's spreading ``1 / (s R_rx)`` with ``s`` the unfolded length from the antenna
 (image theory). Every term is kept (``cancel_interior`` off), so the two lists match one to one. The mirror
 makes the plate's paths non-retro-reflecting (cos_i = 0.5, cos_b = 0.87 on the plate), so an
@@ -29,7 +29,7 @@ import pytest
 import sarmitsuba  # noqa: F401
 from sarmitsuba.scene import planning
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
-from sarmitsuba.tracing.physical_optics import SINC_REGIME, cell_alphas, cell_terms, split_threshold
+from sarmitsuba.tracing.integration.physical_optics import SINC_REGIME, cell_alphas, cell_terms, split_threshold
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.planning import AcquisitionWarning
 from sarmitsuba.core.geometry import acquisition_geometry, trajectory_of

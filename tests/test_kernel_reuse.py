@@ -16,7 +16,7 @@ import pytest
 import sarmitsuba  # noqa: F401  (sets the variant before Dr.Jit loads)
 import drjit as dr
 import mitsuba as mi
-from sarmitsuba.tracing.accumulate import HISTOGRAM_MIN_FLOATS, histogram_floats
+from sarmitsuba.tracing.deposit.accumulate import HISTOGRAM_MIN_FLOATS, histogram_floats
 from sarmitsuba.tracing.device import ALIGNMENT, aligned_copy, device_array, gather_table, table_array
 
 llvm_only = pytest.mark.skipif(not mi.variant().startswith("llvm"), reason="the alignment is LLVM's IR")

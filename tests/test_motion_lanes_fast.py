@@ -1,5 +1,5 @@
 """Round-2 speed-ups of the mesh tracer's motion and lanes against the forms they replaced:
-:meth:`sarmitsuba.tracing.patches.Pieces.geometry_of` (each piece's geometry computed once per
+:meth:`sarmitsuba.tracing.mesh.patches.Pieces.geometry_of` (each piece's geometry computed once per
 :class:`Pieces` object and gathered) against ``select(keep).geometry()``, and the flat
 row gather of ``MeshTracer._motion``'s candidate lines against the former ``[k, j]`` gather.
 Both bit for bit (the same float operations; only the gathers differ).
@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sarmitsuba.tracing.piece_cuts import pieces_of
-from sarmitsuba.tracing.motion import line_rates
-from sarmitsuba.tracing.mesh_trace import _unit_rows
+from sarmitsuba.tracing.mesh.piece_cuts import pieces_of
+from sarmitsuba.tracing.visibility.motion import line_rates
+from sarmitsuba.tracing.driver.mesh_trace import _unit_rows
 from test_patches_fast import _regions
 
 
@@ -72,7 +72,7 @@ def test_edges_degenerate_batches_are_the_reference():
 
 
 def test_norm2_is_linalg_norm():
-    from sarmitsuba.tracing.mesh_trace import _norm2
+    from sarmitsuba.tracing.driver.mesh_trace import _norm2
     rng = np.random.default_rng(8)
     x = np.concatenate([rng.normal(size=(200, 2)) * 10.0 ** rng.integers(-8, 8, (200, 1)), np.zeros((3, 2)),
                         [[1e-300, 1e-300], [1e150, -1e150]]])
@@ -82,7 +82,7 @@ def test_norm2_is_linalg_norm():
 
 def test_norm_is_linalg_norm():
     """``_norm`` (used by ``_carried`` in place of np.linalg.norm) is the same sum, bit for bit."""
-    from sarmitsuba.tracing.mesh_trace import _norm
+    from sarmitsuba.tracing.driver.mesh_trace import _norm
     rng = np.random.default_rng(9)
     x = np.concatenate([rng.normal(size=(300, 3)) * 10.0 ** rng.integers(-8, 8, (300, 1)), np.zeros((2, 3))])
     np.testing.assert_array_equal(_norm(x), np.linalg.norm(x, axis=1))

@@ -1,4 +1,4 @@
-"""The fast kernels of :mod:`sarmitsuba.tracing.occlusion` against readable references written out
+"""The fast kernels of :mod:`sarmitsuba.tracing.visibility.occlusion` against readable references written out
 here (issue 56): :func:`shadow_lines` (per live corner, per distinct chain and occluder),
 :func:`lit_boundary` (line-major Cyrus-Beck intervals, only the parallel pairs tested one by
 one), :func:`segment_moments` (boxes by sorted ``reduceat``) and the areas of :func:`clip_mixed`'s
@@ -6,8 +6,8 @@ dark test. The references share no helper with the code they check: the geometry
 (the unfolded windows' planes, the crossings' order, a 3-D half-space restricted to a face,
 the half-planes of a polygon's edges, Cyrus-Beck clipping, the union of an edge's intervals,
 the shoelace area) is written out below from docs/physics.md (M3), (M4), so a bug in a helper
-of :mod:`sarmitsuba.tracing.occlusion`, :mod:`~sarmitsuba.tracing.chains` or
-:mod:`~sarmitsuba.tracing.polygons` that the fast kernel uses shows as a difference. The
+of :mod:`sarmitsuba.tracing.visibility.occlusion`, :mod:`~sarmitsuba.tracing.discovery.chains` or
+:mod:`~sarmitsuba.tracing.mesh.polygons` that the fast kernel uses shows as a difference. The
 comparisons are to the bit where the arithmetic is the same and to 1e-12 where only the order
 of a sum changed. Inputs include the degenerate cases: no cut-outs, empty bases, zero-length
 edges, cut-outs along the base's edges and along each other's (both sides), a cut-out that is
@@ -30,9 +30,9 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing.occlusion import _areas, _interval, _interval_rows, lit_boundary, segment_moments, \
+from sarmitsuba.tracing.visibility.occlusion import _areas, _interval, _interval_rows, lit_boundary, segment_moments, \
     shadow_lines, shared_shadow_lines
-from sarmitsuba.tracing.polygons import clip, moments
+from sarmitsuba.tracing.mesh.polygons import clip, moments
 from test_patch_geometry import all_chains, antennas, batch, convex, quad, surfaces
 
 #: The half-plane ``0 x + 0 y + 1 >= 0``, which holds everywhere: the padding slots of a table of

@@ -24,12 +24,12 @@ import pytest
 import shapely
 
 from sarmitsuba.scene.loader import shape_frame
-from sarmitsuba.tracing.chains import region_lines, unfold
-from sarmitsuba.tracing.facets import mesh_parts
-from sarmitsuba.tracing.occlusion import boundary, lit_boundary, shadow_lines
-from sarmitsuba.tracing.patches import surfaces_from
-from sarmitsuba.tracing.piece_cuts import pieces_of
-from sarmitsuba.tracing.polygons import clip, edge_lines, inside, moments, pad
+from sarmitsuba.tracing.discovery.chains import region_lines, unfold
+from sarmitsuba.tracing.mesh.facets import mesh_parts
+from sarmitsuba.tracing.visibility.occlusion import boundary, lit_boundary, shadow_lines
+from sarmitsuba.tracing.mesh.patches import surfaces_from
+from sarmitsuba.tracing.mesh.piece_cuts import pieces_of
+from sarmitsuba.tracing.mesh.polygons import clip, edge_lines, inside, moments, pad
 
 
 # --------------------------------------------------------------------------- helpers
@@ -355,7 +355,7 @@ def test_occluder_partners_are_the_faces_a_part_meets():
     the plate (corners of one shape only); the plate has only its own parts. The graph of a box's
     faces is the octahedron's."""
     import trimesh
-    from sarmitsuba.tracing.patches import occluder_partners
+    from sarmitsuba.tracing.mesh.patches import occluder_partners
     box = trimesh.creation.box((4.0, 3.0, 2.0))
     box.apply_transform(trimesh.transformations.rotation_matrix(math.radians(25), (0, 0, 1)))
     corner = box.vertices[np.argmax(box.vertices.sum(axis=1))]
@@ -388,7 +388,7 @@ def test_boundary_rates_are_the_regions_cut_again():
     Deliberate bugs: the right-hand side's sign flipped; a corner on a fixed line taken as fixed.
     (polygons.clip must not rewrite its input's corners: the second cut would start from the
     first's polygon.)"""
-    from sarmitsuba.tracing.motion import endpoint_rates, line_rates
+    from sarmitsuba.tracing.visibility.motion import endpoint_rates, line_rates
     rng = np.random.default_rng(5)
     s = scene(rng)
     seqs, chains = all_chains(s)
@@ -453,7 +453,7 @@ def test_occluders_in_a_legs_own_planes_hide_nothing():
     or ends on are exactly: the wall on legs 0 and 1, both ground halves on legs 1 and 2; the roof
     never, the wall never on the return. The first bounce on the wall: the wall on leg 0 only. A
     part 1 cm off the wall's plane (parallel) is not in it."""
-    from sarmitsuba.tracing.lit_pieces import in_leg_planes
+    from sarmitsuba.tracing.visibility.lit_pieces import in_leg_planes
     s = surfaces([quad((-5, 0, 0), (5, 0, 0), (0, 10, 0)), quad((5, 0, 0), (5, 0, 0), (0, 10, 0)),
                   quad((0, -2, 3), (6, 0, 0), (0, 0, 3)), quad((0, -1, 6), (6, 0, 0), (0, 1, 0)),
                   quad((0, -2.01, 3), (1, 0, 0), (0, 0, 1))])

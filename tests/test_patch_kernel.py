@@ -1,5 +1,5 @@
-"""The patches' Dr.Jit kernel (:class:`sarmitsuba.tracing.integration.PatchTerms`) against its
-readable NumPy reference (:func:`sarmitsuba.tracing.patch_reference.lane_terms`), term lane by
+"""The patches' Dr.Jit kernel (:class:`sarmitsuba.tracing.integration.patch_terms.PatchTerms`) against its
+readable NumPy reference (:func:`sarmitsuba.tracing.integration.patch_reference.lane_terms`), term lane by
 term lane, pulse by pulse (docs/physics.md (M5)).
 
 Scene: the PEC ground mirror and the tilted plate of tests/test_kernel_reference.py (paths of one
@@ -30,8 +30,9 @@ import pytest
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.planning import AcquisitionWarning
-from sarmitsuba.tracing import edges, integration
-from sarmitsuba.tracing.patch_reference import lane_terms
+from sarmitsuba.tracing.integration import edges
+from sarmitsuba.tracing.integration import patch_terms as integration
+from sarmitsuba.tracing.integration.patch_reference import lane_terms
 from test_kernel_reference import GROUND_HALF, PLATE_CENTRE, PLATE_SIZE, SCENE, TILT, _spectrum
 
 SCENE_PATCHES = (SCENE.replace('<string name="lit_regions" value="tiles"/>', '<string name="lit_regions" value="patches"/>')

@@ -249,7 +249,7 @@ def test_shadow_of_a_floating_box_is_cut_exactly(monkeypatch, heading):
     ones cut against their occluders) equals the plate less the box's shadow, the convex hull of
     its corners projected from the sub-aperture's reference position (shapely), within 0.05 m^2
     of a 60 m^2 shadow."""
-    from sarmitsuba.tracing import mesh_trace
+    from sarmitsuba.tracing.driver import mesh_trace
     captured = []
     real = mesh_trace.MeshTracer._lanes
 

@@ -1,4 +1,4 @@
-"""The fast kernels of :mod:`sarmitsuba.tracing.patches` and :mod:`sarmitsuba.tracing.motion`
+"""The fast kernels of :mod:`sarmitsuba.tracing.mesh.patches` and :mod:`sarmitsuba.tracing.visibility.motion`
 against the readable versions they replaced (kept here, or beside them as ``_reference``
 functions), on random batches with their degenerate cases: empty batches, pieces with no candidate
 line, parallel lines, lines through a segment's end that do not move, regions on patch lines.
@@ -10,18 +10,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing import motion, patches
-from sarmitsuba.tracing.motion_reference import endpoint_rates_reference
-from sarmitsuba.tracing import piece_cuts
-from sarmitsuba.tracing.patches import Surfaces, _to_world_reference
-from sarmitsuba.tracing.piece_cuts import pieces_of
-from sarmitsuba.tracing.polygons import pad
+from sarmitsuba.tracing.visibility import motion
+from sarmitsuba.tracing.mesh import patches
+from sarmitsuba.tracing.visibility.motion_reference import endpoint_rates_reference
+from sarmitsuba.tracing.mesh import piece_cuts
+from sarmitsuba.tracing.mesh.patches import Surfaces, _to_world_reference
+from sarmitsuba.tracing.mesh.piece_cuts import pieces_of
+from sarmitsuba.tracing.mesh.polygons import pad
 
 
 # ---------------------------------------------------------------- references (the former kernels)
 
 def _endpoint_rates_reference(start, end, owner, line_owner, lines, rates):
-    """:func:`sarmitsuba.tracing.motion.endpoint_rates` as it was: every (segment, candidate line)
+    """:func:`sarmitsuba.tracing.visibility.motion.endpoint_rates` as it was: every (segment, candidate line)
     pair by fancy indexing, the best line per segment by a lexsort."""
     n = len(start)
     out_s, out_e = np.zeros((n, 2)), np.zeros((n, 2))
@@ -137,7 +138,7 @@ def _boundary_case(rng, n_pieces: int, extra: int):
 @pytest.mark.parametrize("seed", range(4))
 def test_endpoint_rates_are_the_reference(seed):
     """The Dr.Jit kernel against the former NumPy kernel (above) and the readable per-segment
-    reference (:mod:`sarmitsuba.tracing.motion_reference`), which share none of its code.
+    reference (:mod:`sarmitsuba.tracing.visibility.motion_reference`), which share none of its code.
     Deliberate bugs in the kernel it caught: ``moving_own | moving_other`` as ``&``; the own line
     without its preference for a moving one; the other line without it; the parallel test dropped;
     the sign of ``h'`` in the other line's right-hand side; a sign in Cramer's rule."""
@@ -254,7 +255,7 @@ def test_pieces_tile_the_regions(seed):
     rng = np.random.default_rng(seed)
     patch = 1.7439
     poly, count = _regions(rng, 30, patch)
-    from sarmitsuba.tracing.polygons import moments
+    from sarmitsuba.tracing.mesh.polygons import moments
     area = moments(poly, count)[0]
     for span in (None, np.tile(np.array([[[0.0, 0.0, 1.0]]]), (30, 1, 1))):
         p = pieces_of(poly, count, patch, span)
@@ -305,7 +306,7 @@ def _select_reference(p, keep):
 
 def _geometry_reference(p):
     import math
-    from sarmitsuba.tracing.polygons import moments
+    from sarmitsuba.tracing.mesh.polygons import moments
     n, size = len(p), p.patch
     area = np.full(n, size * size)
     centroid = (p.cell + 0.5) * size

@@ -1,10 +1,10 @@
 """Wideband-exact ray-tube physical optics (docs/physics.md (PO1)-(PO3)) against Gordon's closed form.
 
 Ray tubes whose footprints tile a flat plate, each returning its footprint's PO integral as the
-point terms of :func:`sarmitsuba.tracing.physical_optics.tube_terms`, must sum to the plate's PO
+point terms of :func:`sarmitsuba.tracing.integration.physical_optics.tube_terms`, must sum to the plate's PO
 integral ``int exp(-j k(f) (d - b) . x) dA`` at EVERY frequency, in and beyond the band (not only
 at the carrier): then neighbouring tubes cancel and only the plate's boundary returns. The
-oracle is :func:`sarmitsuba.tracing.physical_optics.polygon_integral` (Gordon, IEEE TAP 23(4), 1975),
+oracle is :func:`sarmitsuba.tracing.integration.physical_optics.polygon_integral` (Gordon, IEEE TAP 23(4), 1975),
 itself checked against brute-force quadrature. Geometries at 30 and 60 deg incidence, not 45.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
-from sarmitsuba.tracing.physical_optics import SINC_REGIME, plane_wave, polygon_integral, terms_spectrum, tube_terms
+from sarmitsuba.tracing.integration.physical_optics import SINC_REGIME, plane_wave, polygon_integral, terms_spectrum, tube_terms
 
 FC = 9.6e9
 K = 2 * math.pi * FC / SPEED_OF_LIGHT

@@ -1,4 +1,4 @@
-"""The polarimetric ray-optics reference (sarmitsuba.tracing.polarimetry; docs/physics.md (P1)-(P6))
+"""The polarimetric ray-optics reference (sarmitsuba.tracing.integration.polarimetry; docs/physics.md (P1)-(P6))
 against closed forms: image theory, PEC plate, trihedral and dihedral (level and turned about
 the line of sight), reciprocity, and dielectric half-space bounces (ITU-R P.2040 Fresnel
 coefficients of sarmitsuba.scene.fresnel, mirror-image convention: r_tm = -R_TM of P.2040).
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from sarmitsuba.scene.fresnel import fresnel_half_space
-from sarmitsuba.tracing.polarimetry import (PEC, antenna_jones, bsa_basis, facet_basis, project_bsa, reflect_jones,
+from sarmitsuba.tracing.integration.polarimetry import (PEC, antenna_jones, bsa_basis, facet_basis, project_bsa, reflect_jones,
                                             scattering_matrix)
 
 ETA = 5.0 - 0.5j           # the ground of the dielectric tests

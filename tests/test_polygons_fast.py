@@ -1,4 +1,4 @@
-"""The fast polygon kernels (:mod:`sarmitsuba.tracing.polygons`) against their readable references,
+"""The fast polygon kernels (:mod:`sarmitsuba.tracing.mesh.polygons`) against their readable references,
 bit for bit: :func:`clip` against :func:`clip_reference` (the padded batch clipped one half-plane
 at a time), and :func:`moments`, :func:`drop_repeats`, :func:`pad` and :func:`edge_lines` against
 the NumPy expressions they replaced (kept below). The batches mix random convex polygons with the
@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing import polygons
-from sarmitsuba.tracing.polygon_kernels import clip_kernel
-from sarmitsuba.tracing.polygons import (EVERYTHING, REPEAT_DISTANCE, clip, clip_reference, corner_slots,
+from sarmitsuba.tracing.mesh import polygons
+from sarmitsuba.tracing.mesh.polygon_kernels import clip_kernel
+from sarmitsuba.tracing.mesh.polygons import (EVERYTHING, REPEAT_DISTANCE, clip, clip_reference, corner_slots,
                                          drop_repeats, edge_lines, moments, pad)
 
 

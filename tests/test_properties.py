@@ -402,7 +402,7 @@ def test_ray_aim_points_avoid_the_scene_edges(incidence, spacing, half, altitude
     from sarmitsuba.scene import planning
     from sarmitsuba.core.radar import RadarParameters
     from sarmitsuba.core.geometry import acquisition_geometry
-    from sarmitsuba.tracing.trace import TraceSettings
+    from sarmitsuba.tracing.driver.trace import TraceSettings
     lo, hi = np.array([-half, -half, 0.0]), np.array([half, half, 0.0])
     params = planning.resolve_parameters(
         RadarParameters(incidence_angle=incidence, altitude=altitude, n_pulses=4), lo, hi)

@@ -199,13 +199,13 @@ def test_scalar_model_carries_no_jones_matrix():
     """With ``polarimetry = scalar`` HH and VV launch tubes without a Jones matrix (nothing
     compiled); by default, and for HV and quad, with one, whose columns at launch are the BSA h
     and v of the tube's direction (P1): h horizontal and normal to it, v = d x h up-ish."""
-    from sarmitsuba.tracing import jones
+    from sarmitsuba.tracing.integration import jones
     from sarmitsuba.scene import planning
     from sarmitsuba.scene.effects import active_effects
-    from sarmitsuba.tracing.kernel import Blocks, Kernel, Launch
+    from sarmitsuba.tracing.driver.kernel import Blocks, Kernel, Launch
     from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.scene.loader import load_scene, material_table
-    from sarmitsuba.tracing.trace import subapertures
+    from sarmitsuba.tracing.driver.trace import subapertures
     cases = (("HH", "scalar", False), ("VV", "scalar", False), ("VV", "jones", True), ("HV", "jones", True),
              ("quad", "jones", True))
     for polarization, model, carried in cases:
@@ -400,14 +400,14 @@ def test_concrete_trihedral_against_the_chain_reference(tmp_path):
     """A concrete (half-space) trihedral at boresight: by its three-fold and mirror symmetry the
     six facet orders of the triple bounce light equal areas, so the triple bounce's S / S_PEC is
     the mean of the six chains' matrices, each computed by the NumPy reference
-    (sarmitsuba.tracing.polarimetry, (P5)) with Fresnel coefficients written out here: HH and VV
+    (sarmitsuba.tracing.integration.polarimetry, (P5)) with Fresnel coefficients written out here: HH and VV
     within 0.5 dB and 10 deg, HV 25 dB below. (The whole image's peak also holds the faces' own
     single-bounce edge terms, a quarter of the concrete triple bounce there: |r| once against
     |r|^3.) The scalar model, |r_te(1/sqrt 3)|^3, is 16 dB brighter: the field turns from TE to TM
     between the facets."""
     import itertools
     from sarmitsuba.scene import materials
-    from sarmitsuba.tracing import polarimetry
+    from sarmitsuba.tracing.integration import polarimetry
     mesh = C.trihedral(0.5)
     eta = materials.itu_permittivity("concrete", FREQ)
 

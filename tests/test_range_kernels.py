@@ -12,11 +12,11 @@ import pytest
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.signal import binning
-from sarmitsuba.tracing import deposit
+from sarmitsuba.tracing.deposit import fast_time as deposit
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.scene.loader import load_scene
-from sarmitsuba.tracing.trace import PathList
+from sarmitsuba.tracing.driver.trace import PathList
 from sarmitsuba.scene.trace_inputs import FastTimeWindow
 
 

@@ -57,7 +57,7 @@ def test_concrete_trihedral_scales_with_fresnel_products(tmp_path, model):
     |S_HH|^2 with S the mean of the six facet orders' chain matrices of the NumPy reference
     (docs/physics.md (P5)), 16 dB less."""
     import itertools
-    from sarmitsuba.tracing import polarimetry
+    from sarmitsuba.tracing.integration import polarimetry
     material = '<string name="material" value="concrete"/>'
     mesh = C.trihedral(0.5)
     xml = C.scene_xml(tmp_path, mesh, material, 3)

@@ -170,7 +170,7 @@ def test_tile_corners_seen_edge_on_return_nothing_not_nan():
     and image were NaN everywhere."""
     from sarmitsuba.scene.loader import load_scene, material_table
     from sarmitsuba.core.geometry import acquisition_geometry
-    from sarmitsuba.tracing.trace import trace
+    from sarmitsuba.tracing.driver.trace import trace
     loaded = load_scene("urban", None, {"range_kernel": "exact", "pulses_per_trace": 26})
     p, st = loaded.params, loaded.settings
     g = acquisition_geometry(p)

@@ -7,8 +7,8 @@ Near the specular direction a piece returns one area term at its centroid ``c``,
 
 ``T`` the (image) source the last leg starts from, ``s = |c - T|`` away along the arriving direction
 ``d``, and ``B`` the receiver, ``R = |B - c|`` away along ``b``; with ``k dF / dk`` beside it. Below
-``k |u_t| D = 0.03`` (:data:`~sarmitsuba.tracing.integration.TAYLOR_BELOW`) the kernel
-(:meth:`PatchTerms._area_integral <sarmitsuba.tracing.integration.PatchTerms._area_integral>`)
+``k |u_t| D = 0.03`` (:data:`~sarmitsuba.tracing.integration.patch_terms.TAYLOR_BELOW`) the kernel
+(:meth:`PatchTerms._area_integral <sarmitsuba.tracing.integration.patch_terms.PatchTerms._area_integral>`)
 takes its Taylor form
 
     F = A - (k^2 / 2) <(u . r)^2> - j k tr(Q M_2),    k dF / dk = -k^2 <(u . r)^2> - j k tr(Q M_2),
@@ -58,7 +58,7 @@ import sarmitsuba  # noqa: F401  (the Mitsuba variant)
 import drjit as dr
 import mitsuba as mi
 
-from sarmitsuba.tracing.integration import AREA, PatchTerms, PieceTable, TermLanes
+from sarmitsuba.tracing.integration.patch_terms import AREA, PatchTerms, PieceTable, TermLanes
 
 #: X band carrier [Hz] and the speed of light [m/s], written out.
 FREQUENCY = 9.65e9

@@ -145,7 +145,7 @@ def test_max_batch_rays_is_a_ceiling_and_batching_changes_nothing(tmp_path, monk
     axis (a launch placed at the wrong pulse, a chunk dropped or traced twice would show). The
     patches trace each sub-aperture on its own (docs/physics.md (M6)): batches change nothing."""
     from sarmitsuba.scene import canonical as C
-    from sarmitsuba.tracing import trace as trace_module
+    from sarmitsuba.tracing.driver import trace as trace_module
 
     xml = C.scene_xml(tmp_path, C.trihedral(0.3), C.PEC, 3, extra_shapes=(
         '<shape type="rectangle"><transform name="to_world"><scale x="6" y="6"/></transform>'
@@ -185,7 +185,7 @@ def test_ray_footprint_covers_the_beam_at_the_far_range_edge():
     from sarmitsuba.scene import planning
     from sarmitsuba.core.radar import RadarParameters
     from sarmitsuba.core.geometry import acquisition_geometry
-    from sarmitsuba.tracing.trace import TraceSettings
+    from sarmitsuba.tracing.driver.trace import TraceSettings
     lo, hi = np.array([-2000.0, -400.0, 0.0]), np.array([2000.0, 400.0, 0.0])
     params = planning.resolve_parameters(RadarParameters(incidence_angle=45.0, altitude=1000.0, n_pulses=4), lo, hi)
     geometry = acquisition_geometry(params)

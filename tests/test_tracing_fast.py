@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from sarmitsuba.tracing import edges, term_lanes
-from sarmitsuba.tracing.chains import Chains
-from sarmitsuba.tracing.mesh_trace import _arriving, _arriving_views, _norm, _unique_keys
-from sarmitsuba.tracing.term_lanes import _equal_rows, _equal_rows_reference
+from sarmitsuba.tracing.integration import edges
+from sarmitsuba.tracing.integration import term_lanes
+from sarmitsuba.tracing.discovery.chains import Chains
+from sarmitsuba.tracing.driver.mesh_trace import _arriving, _arriving_views, _norm, _unique_keys
+from sarmitsuba.tracing.integration.term_lanes import _equal_rows, _equal_rows_reference
 
 from test_edges import _classify, _surfaces
 from test_patches import rectangle
@@ -129,7 +130,7 @@ def test_packed_rays_are_the_reference_upload():
     """Bounded rays (one of zero length), unbounded rays: the packed float32 upload gives the
     reference's origins, directions and ``maxt`` exactly."""
     import mitsuba as mi
-    from sarmitsuba.tracing.visibility import CastCounter, Rays
+    from sarmitsuba.tracing.visibility.rays import CastCounter, Rays
     rays = Rays.__new__(Rays)
     rays.counter = CastCounter()
     rng = np.random.default_rng(4)
@@ -145,9 +146,9 @@ def test_packed_rays_are_the_reference_upload():
 
 
 def _region_lines_reference(surfaces, chains, antenna):
-    """:func:`sarmitsuba.tracing.chains.region_lines` one window edge at a time (its form before
+    """:func:`sarmitsuba.tracing.discovery.chains.region_lines` one window edge at a time (its form before
     the edges were batched)."""
-    import sarmitsuba.tracing.chains as chains_mod
+    import sarmitsuba.tracing.discovery.chains as chains_mod
     EVERYTHING = chains_mod.EVERYTHING
     n, depth = chains.parts.shape
     last = chains.last
@@ -203,7 +204,7 @@ def _region_lines_reference(surfaces, chains, antenna):
 def test_region_lines_batched_edges_are_the_edge_at_a_time_reference():
     """Chains of orders 1 to 3 through a box's faces and a ground plate (quads and triangles,
     padded corner slots), seen from antennas all around: the same half-planes, bit for bit."""
-    from sarmitsuba.tracing.chains import region_lines, unfold
+    from sarmitsuba.tracing.discovery.chains import region_lines, unfold
     box = trimesh.creation.box((2.0, 3.0, 4.0))
     ground = rectangle((0, 0, 0), (10.0, 0, 0), (0, 10.0, 0))
     tri = trimesh.Trimesh([[0, 0, 1.0], [1.0, 0, 1.5], [0, 1.0, 2.0]], [[0, 1, 2]])

@@ -25,9 +25,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing import lit_pieces as lp
-from sarmitsuba.tracing import mesh_trace
-from sarmitsuba.tracing.visibility import Rays, lift
+from sarmitsuba.tracing.visibility import lit_pieces as lp
+from sarmitsuba.tracing.driver import mesh_trace
+from sarmitsuba.tracing.visibility.rays import Rays, lift
 
 import drjit as dr                                  # after sarmitsuba, which picks the variant
 import mitsuba as mi

@@ -22,14 +22,14 @@ from dataclasses import dataclass
 import drjit as dr
 import numpy as np
 
-from ..tracing.deposit import SPECTRAL_ORDERS, padded_length
+from ..tracing.deposit.fast_time import SPECTRAL_ORDERS, padded_length
 from ..scene.effects import EffectSet, active_effects
 from ..focus.scene_grid import image_grid
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry
 from ..scene.loader import LoadedScene
-from ..tracing.threads import launches_at_once
-from ..tracing.trace import HISTOGRAM_ENTRIES, pulses_per_trace
+from ..tracing.driver.threads import launches_at_once
+from ..tracing.driver.trace import HISTOGRAM_ENTRIES, pulses_per_trace
 from ..scene.trace_inputs import FastTimeWindow, RayFootprint
 from .reach import (CLUTTER_SCATTERER_PULSE_SECONDS, MESH_TRIANGLE_BYTES, REACH_TRIANGLE_BYTES, SETUP_TRIANGLE_SECONDS,
                     SUB_PIECE_SECONDS, SUB_TRIANGLE_SECONDS, SUBAPERTURE_BYTES, reach_work)
@@ -66,7 +66,7 @@ RETURNS_PER_TUBE = 1.0
 #: second and later bounce orders per first-order piece, measured on sionna:munich (512 pulses,
 #: 215k, 128k and 55k pieces per launch) and used as the estimate's decay per order.
 PIECES_PER_ORDER = (1.0, 0.6, 0.26, 0.1, 0.05)
-#: Visibility samples per piece (its corners, :func:`sarmitsuba.tracing.lit_pieces.corner_samples`:
+#: Visibility samples per piece (its corners, :func:`sarmitsuba.tracing.visibility.lit_pieces.corner_samples`:
 #: four for a whole piece, three to eight for a border piece): the estimate is 1.2 times the
 #: first order's samples on urban and 0.75 times on sionna:munich (many small facets) with 5.
 SAMPLES_PER_PIECE = 5
@@ -74,7 +74,7 @@ SAMPLES_PER_PIECE = 5
 #: estimate assumes every hit is rough when any material is (Munich rough: 2.2 per tube).
 
 #: Bytes per path of the ``exact`` range kernel's path list (int32 pulse, uint8 order,
-#: float64 position, complex64 value: :class:`sarmitsuba.tracing.trace.PathList`).
+#: float64 position, complex64 value: :class:`sarmitsuba.tracing.driver.trace.PathList`).
 PATH_BYTES = 4 + 1 + 8 + 8
 
 #: Fast factorised backprojection (:func:`sarmitsuba.focus.ffbp`): seconds per in-beam
@@ -122,7 +122,7 @@ SCENE_TRIANGLE_BYTES = 800
 SCENE_SHAPE_BYTES = 12_000
 #: Working set of the trace that does not grow with its launches [bytes]: the compiled kernels,
 #: the JIT's buffers and the FFT block of the reduction to the band (256 pulses of the zero-padded
-#: fine grid, :func:`sarmitsuba.tracing.deposit.reduce_deposit`); fitted: 52 MiB.
+#: fine grid, :func:`sarmitsuba.tracing.deposit.fast_time.reduce_deposit`); fitted: 52 MiB.
 TRACE_FIXED_BYTES = 52 * 2**20
 #: Dr.Jit memory per lane of one launch [bytes]: its tubes, hits and records, the returns' term
 #: lists of every bounce order and the allocator's cache of their freed arrays (Dr.Jit keeps them
@@ -172,7 +172,7 @@ class CostEstimate:
 
     Arrays: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
     = ``max_depth`` with ``split_bounces``, else 1, times the channels: 4 for ``quad``;
-    :func:`sarmitsuba.tracing.deposit.padded_length`), or with the ``exact`` range kernel its term list
+    :func:`sarmitsuba.tracing.deposit.fast_time.padded_length`), or with the ``exact`` range kernel its term list
     instead, at most one path per return and channel of :data:`PATH_BYTES` each; one raw data
     set, complex64 ``[n_pulses, fast_time_samples]``; one image, complex64 ``image_shape``.
     ``n_products`` raw/image pairs are made (``1 + max_depth`` with ``split_bounces``, times the
@@ -201,7 +201,7 @@ class CostEstimate:
     sensor there (included in ``trace_time_s``); the working set holds :data:`SUBAPERTURE_BYTES`
     (or :data:`REACH_TRIANGLE_BYTES` per triangle of the largest reach, when less) for each of the
     ``subapertures_per_launch`` sub-apertures of a launch, times the launches traced at once
-    (:func:`sarmitsuba.tracing.threads.launches_at_once`), and the runtime
+    (:func:`sarmitsuba.tracing.driver.threads.launches_at_once`), and the runtime
     :data:`MESH_TRIANGLE_BYTES` per triangle of the scene.
 
     Focusing, per image: the pixel-pulses inside the beam (stripmap: each pulse reaches the beam
@@ -375,14 +375,14 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     image's ``pixels``; ``piece_bytes``: the mesh tracer's working set of the sub-aperture with the
     sub-apertures of a launch (at most :data:`SUBAPERTURE_BYTES` each; non-zero: the mesh tracer, which also
     holds :data:`MESH_TRIANGLE_BYTES` per scene triangle).
-    Batches follow :func:`sarmitsuba.tracing.trace.plan_trace`: as many sub-apertures as fit in
+    Batches follow :func:`sarmitsuba.tracing.driver.trace.plan_trace`: as many sub-apertures as fit in
     ``max_batch_rays`` tubes and :data:`HISTOGRAM_ENTRIES` histogram entries.
     """
     st, n_pulses, (size, n_subs) = loaded.settings, loaded.params.n_pulses, subs
     per_pulse_entries = len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
     budget = max(size, HISTOGRAM_ENTRIES // per_pulse_entries)
     per_batch = max(1, min(n_subs, st.max_batch_rays // max(per_sub, 1), budget // size))
-    # the mesh tracer's launches at once, each with that share of the sub-apertures (tracing.threads)
+    # the mesh tracer's launches at once, each with that share of the sub-apertures (tracing.driver.threads)
     at_once = launches_at_once() if piece_bytes else 1
     per_batch = max(1, per_batch // at_once)
     lanes = min(st.max_batch_rays, per_batch * per_sub)

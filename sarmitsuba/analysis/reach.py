@@ -99,7 +99,7 @@ def reach_work(loaded: LoadedScene, geometry: AcquisitionGeometry, patch: float,
         Estimated first-order pieces, triangles, and m^2 of triangles whose normal faces the
         antenna (the rough area clutter scatterers are drawn on), in each sub-aperture's reach.
     """
-    from ..tracing.mesh_trace import REACH_MARGIN
+    from ..tracing.driver.mesh_trace import REACH_MARGIN
     p = loaded.params
     n_pulses = len(geometry.positions)
     n_subs = math.ceil(n_pulses / size)

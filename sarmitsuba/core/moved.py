@@ -21,9 +21,25 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["MOVED_MODULES", "MovedModuleFinder", "install", "former_module_attributes"]
+__all__ = ["MOVED_MODULES", "TRACING", "MovedModuleFinder", "install", "former_module_attributes"]
 
 PACKAGE = __name__.split(".")[0]
+
+#: The tracing package's former flat modules -> their module in its parts (docs/design.md section 0).
+#: Three took a part's name and cannot point anywhere else: ``tracing.visibility`` (now
+#: ``tracing.visibility.rays``), ``tracing.integration`` (``tracing.integration.patch_terms``) and
+#: ``tracing.deposit`` (``tracing.deposit.fast_time``).
+TRACING: dict[str, str] = {
+    f"tracing.{m}": f"tracing.{part}.{m}" for part, modules in (
+        ("mesh", ("facets", "covers", "polygons", "polygon_kernels", "patches", "piece_cuts")),
+        ("discovery", ("chains",)),
+        ("visibility", ("lit_pieces", "occlusion", "motion", "motion_reference")),
+        ("integration", ("term_lanes", "patch_reference", "edges", "edge_terms", "surface_clutter", "jones",
+                         "polarimetry", "pulse_view", "physical_optics", "returns", "clutter_lattice", "clutter_terms")),
+        ("deposit", ("accumulate",)),
+        ("derivatives", ("tangents", "geometry_tangents", "lane_pairs")),
+        ("driver", ("trace", "mesh_trace", "kernel", "launches", "stages", "threads", "distributed")))
+    for m in modules}
 
 #: Former top-level modules -> their module in the stage packages.
 MOVED_MODULES: dict[str, str] = {
@@ -31,9 +47,11 @@ MOVED_MODULES: dict[str, str] = {
     **{m: f"scene.{m}" for m in ("materials", "fresnel", "meshcheck", "canonical", "effects", "baseline",
                                  "planning", "trace_inputs")},
     "pyscene": "scene.builder",
-    **{m: f"tracing.{m}" for m in ("_llvm", "_variant", "device", "deposit", "accumulate", "physical_optics", "jones",
-                                   "polarimetry", "facets", "clutter_lattice", "returns", "kernel", "trace",
-                                   "distributed")},
+    **{m: f"tracing.{m}" for m in ("_llvm", "_variant", "device")},
+    "deposit": "tracing.deposit.fast_time",
+    **{m: TRACING[f"tracing.{m}"] for m in ("accumulate", "physical_optics", "jones", "polarimetry", "facets",
+                                            "clutter_lattice", "returns", "kernel", "trace", "distributed")},
+    **TRACING,
     **{m: f"signal.{m}" for m in ("binning", "signal_model", "radiometry", "bandlimited")},
     **{m: f"products.{m}" for m in ("figures", "figures_point", "figures_pol", "figures_raw", "plotting", "preview",
                                     "groundtruth")},

@@ -8,8 +8,8 @@ replaced by; ``python -m sarmitsuba info`` prints that list, and rendered data c
 active ones in their metadata (``metadata["effects"]``, one string each).
 
 The decision is made once, here: :func:`active_effects` turns a loaded scene into an
-:class:`EffectSet` that the pipeline hands to the tracer (:func:`sarmitsuba.tracing.trace.trace`,
-:class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
+:class:`EffectSet` that the pipeline hands to the tracer (:func:`sarmitsuba.tracing.driver.trace.trace`,
+:class:`sarmitsuba.tracing.driver.kernel.Kernel`), the radar equation
 (:func:`sarmitsuba.scene.radar_equation.radar_equation`) and the cost model (:mod:`sarmitsuba.analysis.cost`).
 """
 from __future__ import annotations
@@ -55,7 +55,7 @@ class Effect:
 @dataclass(frozen=True)
 class EffectSet:
     """Which optional effects a simulation runs: decided once, here, from the loaded scene, and
-    handed to the tracer (:class:`sarmitsuba.tracing.kernel.Kernel`), the radar equation
+    handed to the tracer (:class:`sarmitsuba.tracing.driver.kernel.Kernel`), the radar equation
     (:func:`sarmitsuba.scene.radar_equation.radar_equation`) and ``sarmitsuba info``, so that none of them
     re-derives it from the parameters.
 

@@ -30,7 +30,7 @@ POLARIMETRY_MODELS = ("jones", "scalar")
 #: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M8), (T3)).
 LIT_REGIONS = ("patches", "tiles")
 #: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
-#: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit`).
+#: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit.fast_time`).
 RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
 
 
@@ -69,14 +69,14 @@ class TraceSettings:
     pulses_per_trace : int
         Pulses of a sub-aperture, which share one trace of the ray tubes (docs/physics.md (T3)),
         [0, 65536]; 1 = every pulse traced on its own (the reference); 0 = automatic
-        (:func:`sarmitsuba.tracing.trace.pulses_per_trace`).
+        (:func:`sarmitsuba.tracing.driver.trace.pulses_per_trace`).
     cancel_interior : bool
         Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
         evaluates every term (slower; the reference the cancellation is checked against).
     diffraction : bool
         Add the fringe waves of the mesh's edges to physical optics: equivalent edge currents on
         every wedge and free edge of the lit regions, at every bounce order (docs/physics.md
-        (E1)-(E5), :mod:`sarmitsuba.tracing.edges`). ``lit_regions = patches`` only; false is
+        (E1)-(E5), :mod:`sarmitsuba.tracing.integration.edges`). ``lit_regions = patches`` only; false is
         physical optics alone.
     polarimetry : str
         ``jones`` (default): every ray tube carries a Jones matrix (docs/physics.md (P1)-(P8)),

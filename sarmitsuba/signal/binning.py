@@ -2,7 +2,7 @@
 
 Per pulse ``p`` the tracer returns the spectrum of the term sum
 ``sum_i a_i (1 + f / fc)^m_i exp(-j 2 pi f (tau_i - t0)) exp(-j k (L_i - L_ref,p))`` over the coarse
-sampling band, on a padded grid (:func:`sarmitsuba.tracing.deposit.reduce_deposit`). This stage
+sampling band, on a padded grid (:func:`sarmitsuba.tracing.deposit.fast_time.reduce_deposit`). This stage
 
 1. restores the reference carrier phase ``exp(-j k L_ref,p)``, formed in float64 and reduced
    mod 2 pi before the cast (eq. (S1));
@@ -23,12 +23,12 @@ import numpy as np
 from scipy import fft as sp_fft
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..tracing.deposit import SPECTRAL_ORDERS, order_factor
+from ..tracing.deposit.fast_time import SPECTRAL_ORDERS, order_factor
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry
 from ..core.raw import RawData
 from .signal_model import received_chirp_spectrum
-from ..tracing.trace import PathList, TraceResult
+from ..tracing.driver.trace import PathList, TraceResult
 from ..scene.trace_inputs import FastTimeWindow
 
 __all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "range_compress_adjoint", "raw_data_adjoint",

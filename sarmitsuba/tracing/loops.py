@@ -22,10 +22,10 @@ _STATE = threading.local()
 
 #: Held while a symbolic loop (``dr.while_loop``) is recorded, and by the kernels that hold one while
 #: they run: the per-pulse terms and scatterers with their deposits, the geometry kernels. Launches
-#: traced on several host threads (:mod:`sarmitsuba.tracing.threads`, off by default) interleave
+#: traced on several host threads (:mod:`sarmitsuba.tracing.driver.threads`, off by default) interleave
 #: their NumPy and their ray casts freely. Without this lock a threaded render of Munich differed
 #: from itself at -53 to -70 dB; with it, a race remains that the lock narrows but does not close
-#: (:mod:`sarmitsuba.tracing.threads`).
+#: (:mod:`sarmitsuba.tracing.driver.threads`).
 RECORDING = threading.RLock()
 
 
@@ -63,7 +63,7 @@ def evaluated_loops():
 
 def lane_float() -> type:
     """The floating-point type of the host's lane arrays that the kernels read in float32
-    (:mod:`sarmitsuba.tracing.term_lanes`): ``np.float32``, or ``np.float64`` inside
+    (:mod:`sarmitsuba.tracing.integration.term_lanes`): ``np.float32``, or ``np.float64`` inside
     :func:`float64_lanes` (this thread only), where the geometric derivatives difference them
     (docs/physics.md (AD4)); the upload rounds them to float32 either way."""
     return getattr(_STATE, "lane_float", np.float32)

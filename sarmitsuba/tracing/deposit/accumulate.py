@@ -1,0 +1,141 @@
+"""Where a launch's returns are summed: the fine-grid histogram, or the ``exact`` kernel's path
+list, one per polarimetric channel (docs/physics.md (D1)-(D4), (P4)).
+
+:class:`sarmitsuba.tracing.integration.returns.Returns` computes every pulse's returns; an :class:`Accumulator`
+holds what they are summed into for one launch (in the launch's context dict): ``hist``, float32
+``(re, im)`` packets of ``[spectral orders, channels x groups, pulses, fine samples]`` (channel-
+major: group ``c * groups + order``), or, with ``range_kernel = exact``, path buffers of one
+entry per term and channel.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from .fast_time import SPECTRAL_ORDERS, taps
+
+__all__ = ["Accumulator", "HISTOGRAM_MIN_FLOATS", "PATH_HEADROOM", "PATH_FIELDS", "histogram_floats"]
+
+#: The ``exact`` kernel's clutter path buffer holds at least this many scatterers, and a launch
+#: that overflowed it asks for this many more than it found (slack, so a retry rarely overflows).
+PATH_HEADROOM = 1024
+#: The exact kernel's path fields and their NumPy dtypes.
+PATH_FIELDS = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, path_order=np.uint32,
+                   path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
+
+
+#: The fine-grid histogram's device array holds at least this many floats (8 MiB), and otherwise
+#: the next power of two: ``scatter_add(mode=Expand)`` writes the array's size into its kernel,
+#: so sizes rounded to a few buckets let launches and acquisitions of other pulse counts or
+#: windows reuse the kernels (compiled or from Dr.Jit's disk cache) at most twice the memory.
+HISTOGRAM_MIN_FLOATS = 1 << 21
+
+
+def histogram_floats(n: int) -> int:
+    """Floats allocated for a histogram of ``n`` floats: ``max(HISTOGRAM_MIN_FLOATS, 2^ceil(log2 n))``."""
+    return max(HISTOGRAM_MIN_FLOATS, 1 << max(int(n) - 1, 0).bit_length())
+
+
+class Accumulator:
+    """The sums of one acquisition's launches (configuration fixed per acquisition).
+
+    Parameters
+    ----------
+    settings : TraceSettings
+        ``range_kernel`` (``exact`` keeps path lists), ``max_depth``.
+    window : FastTimeWindow
+        The fine grid's length, step and oversampling.
+    groups : int
+        Spectra per pulse and channel (bounce orders with ``split_bounces``, else 1).
+    n_channels : int
+        Polarimetric channels deposited (4 for ``quad``).
+    """
+
+    def __init__(self, settings, window, groups: int, n_channels: int):
+        self.settings, self.window, self.groups, self.n_channels = settings, window, groups, n_channels
+        self.exact = settings.range_kernel == "exact"
+
+    def open(self, ctx: dict) -> None:
+        """Add the launch's zeroed histogram to its context ``ctx`` (nothing for ``exact``) and the
+        fine grid's scale."""
+        # fine bins per metre of two-way length, as a value (each scene's window has its own step)
+        ctx["fine_per_length"] = {cls: dr.opaque(cls, 1.0 / self.window.fine_step_length)
+                                  for cls in (mi.Float, mi.Float64)}
+        if not self.exact:
+            size = len(SPECTRAL_ORDERS) * self.n_channels * self.groups * ctx["n_b"] * self.window.n_fine
+            ctx["hist_floats"] = 2 * size                       # (re, im) packets
+            ctx["hist"] = dr.zeros(mi.Float, histogram_floats(2 * size))
+            # the layout's sizes enter the kernels as values, not literals, so that launches and
+            # acquisitions of other pulse counts or windows (same structure) share the kernels
+            ctx["hist_n_b"] = dr.opaque(mi.UInt32, ctx["n_b"])
+            ctx["hist_n_fine"] = dr.opaque(mi.UInt32, self.window.n_fine)
+
+    def collect(self, ctx: dict) -> dict:
+        """``{"paths": {field: array}}`` (``exact``) or ``{"hist": complex64 [orders, channels x
+        groups, n_b, n_fine]}``, in NumPy (the histogram already evaluated)."""
+        if self.exact:
+            return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
+                              for name, dtype in PATH_FIELDS.items()}}
+        hist = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64)
+        return {"hist": hist.reshape(len(SPECTRAL_ORDERS), self.n_channels * self.groups, ctx["n_b"],
+                                     self.window.n_fine)}
+
+    def deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
+        """Deposit ``values`` (one mi.Complex2f per channel) at the two-way length ``offset`` [m]
+        (float32) beyond ``anchor`` for batch pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO
+        term in the exact kernel's path list (None: a clutter scatterer, appended). Returns whether
+        the term lies inside the fast-time window."""
+        st, win = self.settings, self.window
+        per_length = ctx["fine_per_length"].get(type(offset), 1.0 / win.fine_step_length)
+        position = anchor[1] + offset * per_length                          # fine bins after anchor[0]
+        if self.exact:
+            coarse = (mi.Float64(anchor[0]) + mi.Float64(position)) * (1.0 / win.oversample)
+            if slot is None:
+                slot = dr.scatter_inc(paths["count"], mi.UInt32(0), mask)
+                keep = mask & (slot < paths["capacity"])
+            else:
+                keep = mask
+            n_ch = len(values)
+            for c, value in enumerate(values):
+                index = slot * n_ch + c
+                dr.scatter(paths["path_pos"], coarse, index, keep)
+                dr.scatter(paths["path_re"], value.real, index, keep)
+                dr.scatter(paths["path_im"], value.imag, index, keep)
+                dr.scatter(paths["path_order"], mi.UInt32(depth + 1), index, keep)
+                dr.scatter(paths["path_pulse"], pulse, index, keep)
+                dr.scatter(paths["path_spectral"], order_index, index, keep)
+                dr.scatter(paths["path_channel"], mi.UInt32(c), index, keep)
+            return (coarse >= 0) & (coarse <= win.n_samples - 1)
+        k0, tap_list, (lo, hi) = taps(position, st.range_kernel)
+        k0 = k0 + anchor[0]
+        n_fine = ctx["hist_n_fine"]
+        inside = (k0 >= lo) & (k0 < mi.Int32(n_fine) - hi)
+        group = depth if self.groups > 1 else 0
+        n_groups = len(values) * self.groups               # channel-major: group c * groups + order
+        for c, value in enumerate(values):
+            base = ((order_index * n_groups + c * self.groups + group) * ctx["hist_n_b"] + pulse) * n_fine
+            for offset_, w in tap_list:            # one (re, im) packet per tap
+                dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
+                               mask & inside, mode=dr.ReduceMode.Expand)
+        return inside
+
+    def path_buffers(self, size: int) -> dict:
+        """The exact kernel's path list: ``size`` slots of one entry per channel."""
+        n = size * self.n_channels
+        return dict(count=dr.zeros(mi.UInt32, 1), capacity=size, path_pos=dr.zeros(mi.Float64, n),
+                    path_re=dr.zeros(mi.Float, n), path_im=dr.zeros(mi.Float, n),
+                    path_order=dr.zeros(mi.UInt32, n), path_pulse=dr.zeros(mi.UInt32, n),
+                    path_spectral=dr.zeros(mi.UInt32, n), path_channel=dr.zeros(mi.UInt32, n))
+
+    @staticmethod
+    def keep_paths(ctx, paths: dict) -> None:
+        """Move a path buffer to NumPy (filled slots only); note an overflow of the appended part."""
+        names = tuple(PATH_FIELDS)
+        dr.eval(paths["count"], *(paths[name] for name in names))
+        count = int(paths["count"].numpy()[0])
+        if count > paths["capacity"]:
+            ctx["needed"] = max(ctx["needed"], count + PATH_HEADROOM)
+            return
+        filled = np.flatnonzero(paths["path_order"].numpy())
+        ctx["paths"].append({name: paths[name].numpy()[filled] for name in names})

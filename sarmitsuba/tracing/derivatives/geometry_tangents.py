@@ -1,0 +1,318 @@
+"""Derivatives of a trace with respect to a shape's geometry: its pose or its vertices (issue 57,
+docs/physics.md (AD4)).
+
+The mesh tracer (M1)-(M8) turns the geometry into lanes on the host (NumPy, float64: lit pieces,
+their boundary segments, chains, rates) and the kernels evaluate every lane's terms for every
+pulse in Dr.Jit. With the lit regions' topology held (the same pieces, cut by the same lines,
+the same visibility), every lane input is a smooth function of the vertices, and every deposited
+term a smooth function of the lane inputs. :class:`MovedTracer` takes the two factors apart:
+
+* the lane inputs' tangent ``d data / dp``: the host geometry run again with the shape's vertices
+  moved by ``+-h`` (1 um) along the parameter's displacement field, in float64 (the Mitsuba
+  scene stays: its visibility rays decide nothing differently at a micrometre), each moved
+  lane paired with its own (:mod:`.lane_pairs`) and differenced, ``(x(+h) - x(-h)) / 2h``, in
+  float64 before the upload rounds it. The lanes are piecewise rational in the vertices, so the
+  difference is exact to ``O(h^2)``. Every discrete entry (lane kinds, pieces, rows) must agree
+  across the three runs; otherwise the parameter moves a boundary of visibility and
+  :class:`GeometryChange` says so;
+* the terms' dependence on the lane inputs: Dr.Jit's automatic differentiation through the
+  kernels, exactly, forward (:class:`~sarmitsuba.tracing.derivatives.tangents.TangentSums`) or reverse
+  (:class:`~sarmitsuba.tracing.derivatives.tangents.AdjointSums`).
+
+So the phase, ``k`` times the path length's change, which a finite difference of whole renders
+resolves only with steps far below a wavelength, is differentiated exactly; only the geometry,
+whose scale is metres, is differenced. What this leaves out is the boundary term of a
+visibility change (AD4).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ...core.radar import ParameterError
+from ...scene.loader import shape_frame
+from ..mesh.facets import mesh_parts, scene_meshes
+from .lane_pairs import GeometryChange, align_scatterers, align_terms, tangent_lanes, topology_change
+from ..loops import float64_lanes
+from ..mesh.patches import surfaces_of
+
+#: How far a moved lane may lie from the lane it is paired with, in steps ``h`` times the largest
+#: vertex displacement: a lane's point moves with the vertices' (a shadow's tip more, by the
+#: ratio of the occluder's distances).
+ALIGN_TOLERANCE = 50.0
+
+#: The smooth shapes' patch grids are shifted by this many patches along their frame's axes while
+#: geometric derivatives are taken: a mesh's own lines through its frame's origin (a trihedral's
+#: mirrored edges through its apex) then miss the grid's corners, where the pieces' topology
+#: would hang on rounding.
+GRID_OFFSET = np.array([0.3819660, 0.2763932, 0.2360680])
+
+__all__ = ["GeometryMove", "GeometryChange", "moved_surfaces", "move_scene", "MovedTracer"]
+
+
+@dataclasses.dataclass(frozen=True)
+class GeometryMove:
+    """A geometric parameter as the tracer sees it: ``shape`` the shape's index in
+    ``scene.shapes()``, ``field`` float64 [n_v, 3] each vertex's displacement per unit of the
+    parameter (m per unit, in the loaded scene's frame), ``step`` the host's central-difference
+    step ``h`` (units of the parameter)."""
+
+    shape: int
+    field: np.ndarray
+    step: float
+
+
+def moved_surfaces(scene, table, vertices: dict, separate=(), grid_offset=None):
+    """The :class:`~sarmitsuba.tracing.mesh.patches.Surfaces` of ``scene`` with shape ``k``'s vertices
+    replaced by ``vertices[k]`` (float64 [n_v, 3], m), its frame (C), (M1) moved with them, and the
+    material table with that frame: ``(surfaces, table)``. The triangles of the shapes
+    ``separate`` are faces of their own (:func:`~sarmitsuba.tracing.mesh.facets.mesh_parts`); the
+    patch grid of every smooth shape is shifted by ``grid_offset`` [3] (m, in the shape's frame),
+    its rough shapes' grid staying on their scatterer lattice."""
+    meshes = scene_meshes(scene)
+    origin, axes = table.shape_origin.copy(), table.shape_axes.copy()
+    shapes = list(scene.shapes())
+    for k, v in vertices.items():
+        meshes[k] = (np.asarray(v, np.float64), meshes[k][1])
+        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shapes[k]))[0])
+        origin[shape_id], axes[shape_id] = shape_frame(v)
+    table = dataclasses.replace(table, shape_origin=origin, shape_axes=axes)
+    grid = origin
+    if grid_offset is not None:
+        smooth = table.clutter[table.row_of_shape, 0] == 0 if table.clutter is not None else \
+            np.ones(len(origin), bool)
+        grid = origin + np.where(smooth[:, None], np.einsum("sij,i->sj", axes, np.asarray(grid_offset, float)), 0.0)
+    parts = mesh_parts(meshes, separate=separate)
+    return surfaces_of(scene, dataclasses.replace(table, shape_origin=grid), parts), table
+
+
+def move_scene(scene, vertices: dict) -> None:
+    """Move the Mitsuba scene's meshes: shape ``k`` (its index in ``scene.shapes()``) to the
+    vertices ``vertices[k]`` (float [n_v, 3], m; the buffer rewritten in float32 and the scene's
+    acceleration structure rebuilt)."""
+    if not vertices:
+        return
+    params = mi.traverse(scene)
+    shapes = list(scene.shapes())
+    for k, v in vertices.items():
+        key = next(key for key in params.keys()
+                   if key.endswith(".vertex_positions") and params.properties[key][2] == shapes[k])
+        params[key] = mi.Float(np.asarray(v, np.float32).ravel())
+    params.update()
+
+
+def _bent(meshes: list, shape: int, field: np.ndarray) -> bool:
+    """Whether the displacement ``field`` [n_v, 3] of ``shape``'s vertices bends a face (moves a
+    vertex off its face's plane): tried with a move of a thousandth of the shape's size, far
+    beyond the coplanarity tolerance of :func:`~sarmitsuba.tracing.mesh.facets.mesh_parts`."""
+    v = meshes[shape][0]
+    size = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
+    largest = float(np.abs(field).max(initial=0.0))
+    if size == 0.0 or largest == 0.0:
+        return False
+    moved = v + (1e-3 * size / largest) * field
+    a = mesh_parts(meshes)
+    b = mesh_parts([(moved, m[1]) if k == shape else m for k, m in enumerate(meshes)])
+    return not (np.array_equal(a.triangle_part, b.triangle_part) and np.array_equal(a.n_vertices, b.n_vertices))
+
+
+class _Recording:
+    """Stands in for a moved tracer's term and scatterer kernels: keeps the lanes they are given
+    (and the piece table), in call order, without depositing."""
+
+    def __init__(self):
+        self.uploads = []
+
+    def terms(self, ctx, lanes, pieces, depth: int) -> None:
+        self.uploads.append((lanes, pieces) if len(lanes) else None)
+
+    def clutter(self, ctx, lanes, depth: int) -> None:
+        self.uploads.append((lanes,) if len(lanes) else None)
+
+
+def _components(x):
+    """The flat Dr.Jit arrays of a (nested) Dr.Jit array."""
+    if dr.depth_v(x) > 1:
+        for i in range(len(x)):
+            yield from _components(x[i])
+    else:
+        yield x
+
+
+def _float_leaves(x, path=()):
+    """``(path, array)`` of every floating-point Dr.Jit array in ``x`` (a dict, list, tuple,
+    dataclass or Dr.Jit array): the entries an upload's kernels read that can carry a tangent."""
+    if isinstance(x, dict):
+        for key, value in x.items():
+            yield from _float_leaves(value, path + (key,))
+    elif isinstance(x, (list, tuple)):
+        for i, value in enumerate(x):
+            yield from _float_leaves(value, path + (i,))
+    elif dataclasses.is_dataclass(x) and not isinstance(x, type):
+        for field in dataclasses.fields(x):
+            yield from _float_leaves(getattr(x, field.name), path + (field.name,))
+    elif dr.is_array_v(x) and dr.is_float_v(x):
+        yield path, x
+
+
+def _at(x, path):
+    """The entry of ``x`` at ``path`` (:func:`_float_leaves`), None where there is none."""
+    for key in path:
+        if isinstance(x, dict):
+            x = x.get(key)
+        elif isinstance(x, (list, tuple)):
+            x = x[key] if key < len(x) else None
+        else:
+            x = getattr(x, key, None)
+        if x is None:
+            return None
+    return x
+
+
+def _difference(up, down, step: float):
+    """``(up - down) / 2 step`` of a Dr.Jit array, or of every such array of a dataclass (the
+    Jones matrix); None stays None."""
+    if up is None:
+        return None
+    if dataclasses.is_dataclass(up) and not isinstance(up, type):
+        return dataclasses.replace(up, **{f.name: _difference(getattr(up, f.name), getattr(down, f.name), step)
+                                          for f in dataclasses.fields(up)})
+    return (up - down) * (0.5 / step)
+
+
+class MovedTracer:
+    """The kernel's mesh tracer with the lane inputs made differentiable leaves carrying their
+    tangents along each of ``moves`` (a list of :class:`GeometryMove`).
+
+    Per launch: each move's two moved tracers run the host geometry (and its visibility rays) and
+    record the lanes they would deposit; the tracer itself then runs, and each
+    upload of its term and scatterer kernels becomes leaves (``dr.enable_grad``) whose tangents
+    are the recorded central differences (:attr:`tangents`: leaf -> one tangent per move).
+    Forward mode (:attr:`forward`) sets each leaf's tangent on it; reverse mode calls
+    :meth:`accumulate` after the launch, which adds ``<dL/d leaf, tangent>`` to :attr:`totals`.
+    """
+
+    def __init__(self, kernel, moves):
+        self.kernel, self.moves, self.main = kernel, list(moves), kernel.mesh
+        base = scene_meshes(kernel.scene)
+        for move in self.moves:
+            if move.field.shape != base[move.shape][0].shape:
+                raise ParameterError(f"displacement field shape {move.field.shape}: the shape has "
+                                     f"{base[move.shape][0].shape[0]} vertices")
+        moved = [[base[m.shape][0] + sign * m.step * m.field for sign in (1.0, -1.0)] for m in self.moves]
+        # a move that bends a face splits its shape's faces into triangles, in all three geometries
+        separate = sorted({m.shape for m in self.moves if _bent(base, m.shape, m.field)})
+        offset = GRID_OFFSET * kernel.fp.patch_size
+        kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {},
+                                                                      separate, offset))
+        self.tracers = [[(kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {m.shape: v},
+                                                             separate, offset)), v) for v in pm]
+                        for m, pm in zip(self.moves, moved)]
+        # every boundary segment kept: a segment that cancels its neighbour's exactly at the
+        # parameter (a symmetric corner) may not cancel it a step away, where the sum is the same
+        for tracer in [self.main] + [t for pair in self.tracers for t, _ in pair]:
+            tracer.cancel, tracer.simplify = False, True
+        self.tangents: list = []
+        self.totals = np.zeros(len(self.moves))
+        #: Forward mode: each leaf's tangent (one move) is set on it when it is made.
+        self.forward = False
+        self.surfaces = self.main.surfaces
+
+    def __call__(self, ctx: dict, launch) -> dict:
+        recorded = []
+        with float64_lanes():
+            for pair in self.tracers:
+                uploads = []
+                for tracer, _ in pair:
+                    recording = _Recording()
+                    terms, clutter = tracer.terms, tracer.clutter
+                    tracer.terms = recording.terms
+                    tracer.clutter = recording.clutter if clutter is not None else None
+                    try:
+                        tracer(ctx, launch)
+                    finally:
+                        tracer.terms, tracer.clutter = terms, clutter
+                    uploads.append(recording.uploads)
+                recorded.append(uploads)
+            return self._run(ctx, launch, recorded)
+
+    def _run(self, ctx, launch, recorded) -> dict:
+        """The tracer itself, its lanes paired with the moved tracers' recorded ones."""
+        main, used = self.main, [0]
+        terms, clutter = main.terms, main.clutter
+
+        def differentiated(kernel, args, depth):
+            i = used[0]
+            used[0] += 1
+            if any(i >= len(plus) or i >= len(minus) for plus, minus in recorded):
+                raise topology_change("bounce orders reached")
+            others = [(plus[i], minus[i]) for plus, minus in recorded]
+            if len(args[0]) == 0:
+                if any(p is not None or m is not None for p, m in others):
+                    raise topology_change("lit pieces")
+                return
+            if any(p is None or m is None for p, m in others):
+                raise topology_change("lit pieces")
+            data = kernel.upload(*args, depth)
+            self._leaves(data, [self._tangent(kernel, args, pm, move, depth) for move, pm in zip(self.moves, others)])
+            kernel.deposit(ctx, data, args[0], depth)
+
+        main.terms = lambda c, lanes, pieces, depth: differentiated(terms, (lanes, pieces), depth)
+        if clutter is not None:
+            main.clutter = lambda c, lanes, depth: differentiated(clutter, (lanes,), depth)
+        try:
+            stats = main(ctx, launch)
+        finally:
+            main.terms, main.clutter = terms, clutter
+        if any(len(plus) != used[0] or len(minus) != used[0] for plus, minus in recorded):
+            raise topology_change("bounce orders reached")
+        return stats
+
+    @staticmethod
+    def _tangent(kernel, args, moved, move: GeometryMove, depth: int) -> dict:
+        """The upload's tangent along ``move``: the paired lanes' central difference (float64 on
+        the host, :func:`~.lane_pairs.tangent_lanes`) uploaded as the lanes are, and the earlier
+        bounces' factors (``gamma``, the Jones matrices) differenced on the device."""
+        tolerance = ALIGN_TOLERANCE * move.step * float(np.abs(move.field).max(initial=0.0)) + 1e-9
+        if len(args) == 2:
+            plus, minus = (align_terms(*args, *m, tolerance) for m in moved)
+        else:
+            plus, minus = ((align_scatterers(args[0], m[0], tolerance),) for m in moved)
+        tangent = kernel.upload(*(tangent_lanes(a, p, m, move.step) for a, p, m in zip(args, plus, minus)), depth)
+        up, down = kernel.upload(*plus, depth), kernel.upload(*minus, depth)
+        for key in ("gamma", "jones", "edge_jones"):
+            if key in tangent:
+                tangent[key] = _difference(up[key], down[key], move.step)
+        return tangent
+
+    def _leaves(self, data: dict, tangents: list) -> None:
+        """Every floating-point entry of ``data`` that has a tangent along some move becomes a leaf
+        (``dr.enable_grad``), kept with its tangents in :attr:`tangents`. Which entries are leaves
+        is decided by the kind of upload, never by the tangents' values: a tangent that happens to
+        be zero (a normal that a height change keeps, to rounding) would otherwise change the
+        backward pass's graph, and Dr.Jit would compile its kernels again at every new geometry."""
+        for path, leaf in _float_leaves(data):
+            along = [_at(t, path) for t in tangents]
+            if all(t is None for t in along):
+                continue
+            dr.enable_grad(leaf)
+            along = [type(leaf)(0) if t is None else t for t in along]
+            if self.forward:                     # forward mode (one move): the tangent, set once
+                dr.set_grad(leaf, along[0])
+            self.tangents.append((leaf, along))
+
+    def accumulate(self) -> None:
+        """Reverse mode, after the launch's backward pass: ``dL/dp_j += <dL/d leaf, tangent_j>``
+        over the launch's leaves; then forget them. The leaves' gradients are evaluated together
+        (one kernel: evaluated one by one, each would compile the whole backward pass again)."""
+        grads = [dr.grad(leaf) for leaf, _ in self.tangents]
+        dr.eval(*grads, *(t for _, tangents in self.tangents for t in tangents))
+        for grad, (_, tangents) in zip(grads, self.tangents):
+            flat = [np.asarray(g, np.float64) for g in _components(grad)]
+            for j, tangent in enumerate(tangents):
+                self.totals[j] += sum(float(np.sum(g * np.asarray(t, np.float64)))
+                                      for g, t in zip(flat, _components(tangent)))
+        self.tangents = []

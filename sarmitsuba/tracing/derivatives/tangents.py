@@ -1,0 +1,248 @@
+"""Derivatives of a trace with respect to a material's reflection table (issue 57), and the
+kernels that carry a shape's geometric tangents too (:func:`moved_tracer`, docs/physics.md (AD4)).
+
+The kernels read each material's reflection coefficient ``r(cos_i)`` from a table (eq. (R)),
+in Dr.Jit. :class:`TangentKernel` is the tracing kernel with that table made a differentiable
+leaf: Dr.Jit records how every deposited term depends on it while the launch runs (its loops
+evaluated, :mod:`..loops`), and :class:`TangentSums` then propagates a tangent of the table,
+``dT = dT/dp`` for one parameter ``p``, forward to the launch's histogram (``dr.forward_to``).
+The histogram a launch hands back is that derivative, ``d hist / dp``; everything after the
+histogram (range compression, radiometry) is linear, so the same binning turns it into
+``d raw / dp``.
+
+:func:`material_tangent` gives ``dT/dp`` of a half-space's or a slab's table by Dr.Jit's own AD
+through the Fresnel and slab coefficients (docs/physics.md (R), (AD2)); :func:`reflection_table_ad`'s
+values equal :func:`sarmitsuba.scene.fresnel.fresnel_half_space` and
+:func:`~sarmitsuba.scene.fresnel.slab_reflection`, the readable NumPy references
+(tests/test_gradients.py).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ...core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
+from ...core.radar import ParameterError
+from ..deposit.accumulate import Accumulator
+from ..device import device_array
+from .geometry_tangents import MovedTracer
+from ..driver.kernel import Kernel
+
+__all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "material_tangent", "RowTangent",
+           "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums",
+           "moved_tracer"]
+
+#: The material parameters a derivative can be taken with respect to, and their units.
+MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
+                       "scattering_coefficient": "1"}
+#: The kernel's per-material tables a derivative can flow from (attributes of its ``tables``).
+DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value")
+
+
+def reflection_table_ad(eta_re, eta_im, n_cos: int, polarization: str, thickness=None,
+                        frequency: float = 0.0) -> mi.Complex2f64:
+    """``r(cos_i)`` at ``cos_i = i / (n_cos - 1)`` of a half-space (``thickness`` None) or a slab of
+    ``thickness`` [m] at ``frequency`` [Hz], of relative permittivity ``eta = eta_re + j eta_im``
+    (``mi.Float64``, differentiable, as ``thickness``): ``r_te`` for HH, ``r_tm`` for VV, in
+    :mod:`sarmitsuba.scene.fresnel`'s conventions. Half-space: ``s = sqrt(eta - sin^2)``,
+    ``r_te = (c - s) / (c + s)``, ``r_tm = (s / eta - c) / (s / eta + c)``. Slab (ITU-R P.2040
+    eqs. (43a), (44)): ``R = R' D / (D + (1 - R'^2) E)``, ``E = exp(-2 j q)``, ``D = 1 - E``,
+    ``q = 2 pi f d s / c``. Complex2f64 [n_cos]."""
+    c = mi.Complex2f64(dr.linspace(mi.Float64, 0.0, 1.0, n_cos), 0.0)
+    eta = mi.Complex2f64(eta_re, eta_im)
+    s = dr.sqrt(eta - 1.0 + c * c)        # principal root: Im s <= 0 where Im eta <= 0
+    p = s if polarization == "HH" else s / eta
+    r = (c - p) / (c + p)
+    r = r if polarization == "HH" else -r
+    if thickness is None:
+        return r
+    q = (2.0 * math.pi * frequency / SPEED_OF_LIGHT) * thickness * s
+    e = dr.exp(mi.Complex2f64(0.0, -2.0) * q)
+    d = 1.0 - e
+    return r * d / (d + (1.0 - r) * (1.0 + r) * e)
+
+
+def material_tangent(material, parameter: str, frequency: float, polarization: str, n_cos: int) -> np.ndarray:
+    """``dT/dp`` complex128 [n_cos] of a material's table for ``parameter`` by forward-mode AD:
+    ``relative_permittivity`` (``d/d Re eta``), ``conductivity`` (``d/d sigma`` per S/m, with
+    ``eta = eps_r - j sigma / (omega eps_0)``, ITU-R P.2040 eq. (9b)) or ``thickness`` (slabs,
+    per m). Raises ParameterError for another parameter, a ``pec`` material, or the thickness
+    of a half-space."""
+    if parameter not in MATERIAL_PARAMETERS:
+        raise ParameterError(f"parameter = {parameter!r}; valid: {', '.join(MATERIAL_PARAMETERS)}")
+    if material.model not in ("half_space", "slab"):
+        raise ParameterError(f"material {material.name!r} is a {material.model!r}: it has no {parameter} "
+                             "(derivatives are taken for half_space and slab materials)")
+    if parameter == "thickness" and material.model != "slab":
+        raise ParameterError(f"material {material.name!r} is a half_space: it has no thickness (model slab has)")
+    omega_eps0 = 2.0 * math.pi * frequency * VACUUM_PERMITTIVITY
+    eta = complex(material.relative_permittivity)
+    leaves = {"relative_permittivity": mi.Float64(eta.real), "conductivity": mi.Float64(-eta.imag * omega_eps0),
+              "thickness": mi.Float64(material.thickness or 0.0)}
+    dr.enable_grad(leaves[parameter])
+    r = reflection_table_ad(leaves["relative_permittivity"], -leaves["conductivity"] / omega_eps0, n_cos, polarization,
+                            leaves["thickness"] if material.model == "slab" else None, frequency)
+    dr.forward_from(leaves[parameter])
+    grad = dr.grad(r)
+    return np.asarray(grad.real, np.float64) + 1j * np.asarray(grad.imag, np.float64)
+
+
+@dataclasses.dataclass(frozen=True)
+class RowTangent:
+    """``dT/dp`` of one material's row of the kernel's tables: ``te`` and ``tm`` complex [n_cos]
+    (None: unchanged), the specular factor's and the clutter value's (floats)."""
+
+    te: np.ndarray | None = None
+    tm: np.ndarray | None = None
+    specular: float = 0.0
+    clutter_value: float = 0.0
+
+
+def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) -> RowTangent:
+    """The :class:`RowTangent` of ``parameter`` of ``material`` (its BSDF ``bsdf``). For
+    ``scattering_coefficient`` ``S`` (Sionna's Lambertian clutter, docs/physics.md (C)): the
+    specular factor ``sqrt(1 - S^2)`` moves by ``-S / sqrt(1 - S^2)`` and the clutter value
+    ``4 S^2`` by ``8 S``. Raises ParameterError where the material has no such parameter."""
+    if parameter == "scattering_coefficient":
+        kind, value = bsdf.clutter
+        if kind != 2:
+            raise ParameterError(f"material {material.name!r} has no scattering_coefficient (an itu-radio-material with "
+                                 "scattering_coefficient > 0 has)")
+        s = math.sqrt(value / 4.0)
+        if s >= 1.0:
+            raise ParameterError(f"material {material.name!r}: scattering_coefficient 1 has no derivative (the "
+                                 "specular factor sqrt(1 - S^2) is not differentiable there)")
+        return RowTangent(specular=-s / math.sqrt(1.0 - s * s), clutter_value=8.0 * s)
+    return RowTangent(*(material_tangent(material, parameter, frequency, pol, n_cos) for pol in ("HH", "VV")))
+
+
+def flat_tangents(tables, polarimetric: bool, polarization: str, row: int, tangent: RowTangent) -> dict:
+    """The kernel tables' tangents, float64 arrays of their widths by attribute name, zero outside
+    ``row``. The scalar model's one reflection table is the channel's (``r_tm`` for VV, else
+    ``r_te``), the Jones model's both (P3')."""
+    out, n_cos = {}, tables.n_cos
+    pairs = ((("re", "im"), tangent.te), (("re_tm", "im_tm"), tangent.tm)) if polarimetric else \
+        ((("re", "im"), tangent.tm if polarization == "VV" else tangent.te),)
+    for (re_name, im_name), values in pairs:
+        if values is not None:
+            full = np.zeros(dr.width(getattr(tables, re_name)), np.complex128)
+            full[row * n_cos:(row + 1) * n_cos] = values
+            out[re_name], out[im_name] = full.real, full.imag
+    for name in ("specular", "clutter_value"):
+        if getattr(tangent, name) and getattr(tables, name) is not None:
+            full = np.zeros(dr.width(getattr(tables, name)))
+            full[row] = getattr(tangent, name)
+            out[name] = full
+    return out
+
+
+def _leaves(tables, names) -> dict:
+    """Each table of ``names`` replaced by a differentiable copy (a leaf); name -> leaf."""
+    leaves = {}
+    for name in names:
+        if getattr(tables, name, None) is not None:
+            leaf = mi.Float(dr.detach(getattr(tables, name)))
+            dr.enable_grad(leaf)
+            setattr(tables, name, leaf)
+            leaves[name] = leaf
+    return leaves
+
+
+class TangentSums(Accumulator):
+    """The histogram of a launch replaced by its derivative: before collecting, the tables'
+    tangents are set on the kernel's differentiable tables (the geometric leaves carry theirs
+    from when they were made) and propagated forward to the histogram."""
+
+    def __init__(self, base: Accumulator, leaves: tuple, tangent: tuple):
+        super().__init__(base.settings, base.window, base.groups, base.n_channels)
+        if self.exact:
+            raise ParameterError("range_kernel = 'exact' keeps path lists, which derivatives do not flow through; "
+                                 "use range_kernel linear or sinc")
+        self.leaves, self.tangent = leaves, tangent
+
+    def collect(self, ctx: dict) -> dict:
+        for leaf, tangent in zip(self.leaves, self.tangent):
+            dr.set_grad(leaf, tangent)
+        dr.forward_to(ctx["hist"], flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        ctx["hist"] = dr.grad(ctx["hist"])
+        dr.eval(ctx["hist"])
+        return super().collect(ctx)
+
+
+class TangentKernel(Kernel):
+    """:class:`~sarmitsuba.tracing.driver.kernel.Kernel` whose launches return ``d hist / dp``: the
+    material tables' row ``row`` moves by ``tangent`` (a :class:`RowTangent`) per unit of ``p``;
+    every other row stays."""
+
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, row: int | None,
+                 tangent: RowTangent | None, move=None):
+        super().__init__(scene, params, window, footprint, settings, material_table, effects)
+        flat = {} if row is None else flat_tangents(self.returns.tables, self.effects.polarimetric,
+                                                    params.polarization, row, tangent)
+        leaves = _leaves(self.returns.tables, flat)
+        self.moved = moved_tracer(self, [] if move is None else [move])
+        self.returns.sums = TangentSums(self.returns.sums, tuple(leaves.values()),
+                                        tuple(device_array(mi.Float, flat[name]) for name in leaves))
+        if self.moved is not None:
+            self.moved.forward = True
+
+
+class AdjointSums(Accumulator):
+    """Reverse mode: each launch's histogram gets the loss's gradient with respect to it
+    (:attr:`seed`, complex [orders, groups, n_b, n_fine], set per batch by the caller), which
+    Dr.Jit carries back through the launch's evaluated loops to the differentiable leaves, where
+    it adds up over the launches. The launch's own histogram (the values) is returned as usual."""
+
+    def __init__(self, base: Accumulator):
+        super().__init__(base.settings, base.window, base.groups, base.n_channels)
+        if self.exact:
+            raise ParameterError("range_kernel = 'exact' keeps path lists, which gradients do not flow through; "
+                                 "use range_kernel linear or sinc")
+        self.seed = None
+
+    def collect(self, ctx: dict) -> dict:
+        floats = np.zeros(dr.width(ctx["hist"]), np.float32)
+        flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
+        floats[:flat.size] = flat
+        dr.set_grad(ctx["hist"], device_array(mi.Float, floats))    # aligned: the backward kernels' code
+                                                                     # (packet gathers) would follow NumPy's
+        dr.enqueue(dr.ADMode.Backward, ctx["hist"])
+        dr.traverse(dr.ADMode.Backward, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        return super().collect(ctx)
+
+
+class AdjointKernel(Kernel):
+    """:class:`~sarmitsuba.tracing.driver.kernel.Kernel` for reverse mode: every material table of
+    :data:`DIFFERENTIABLE` a differentiable leaf (:attr:`leaves`, name -> mi.Float), its launches'
+    histograms seeded by :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the
+    loss's gradient with respect to that table."""
+
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, moves=()):
+        super().__init__(scene, params, window, footprint, settings, material_table, effects)
+        self.leaves = _leaves(self.returns.tables, DIFFERENTIABLE)
+        self.returns.sums = AdjointSums(self.returns.sums)
+        self.moved = moved_tracer(self, list(moves))
+
+    def __call__(self, launch, capacity: int = 0) -> dict:
+        out = super().__call__(launch, capacity)
+        if self.moved is not None:
+            self.moved.accumulate()
+        return out
+
+
+def moved_tracer(kernel: Kernel, moves: list, always: bool = False):
+    """The kernel's mesh tracer made a :class:`~.geometry_tangents.MovedTracer` of ``moves``
+    (without moves: None and unchanged, unless ``always``: the geometric derivatives' own
+    outlines, docs/physics.md (AD4), for the values they are taken at); ParameterError where
+    the kernel has no mesh tracer."""
+    if not moves and not always:
+        return None
+    if kernel.mesh is None or kernel.tubes:
+        raise ParameterError("geometric derivatives are taken with lit_regions = patches (the default) on scenes of "
+                             "meshes only (no spheres or other analytic shapes)")
+    kernel.mesh = MovedTracer(kernel, moves)
+    return kernel.mesh

@@ -1,0 +1,573 @@
+"""Tracing an acquisition: pulses in batches through the shoot-and-bounce-rays kernel
+(:mod:`sarmitsuba.tracing.driver.kernel`), each batch's deposit reduced to a band-limited spectrum
+(:mod:`sarmitsuba.tracing.deposit.fast_time`), docs/design.md sections 5 and 6.
+
+For every pulse, ray tubes leave the antenna toward a world-fixed lattice of aim points on a
+horizontal plane through the scene centre, finer around small objects
+(:func:`sarmitsuba.scene.planning.ray_footprint`). Each tube follows specular bounces up to
+``max_depth``; at every hit a shadow ray tests whether the antenna sees the hit point, and the
+tube's footprint returns its physical-optics integral, exact at every frequency of the band,
+as one, two or four point terms (docs/physics.md (PO1)-(PO3)); rough surfaces add the
+scatterers of their own lattice that lie inside the footprint ((C)). The coherent sum over
+tubes gives physical optics: canonical targets' radar cross-sections, and nothing from the
+interior of a smooth plane.
+
+Precision (docs/design.md section 5): rays start near the scene (float64 offset carried
+separately); the first and return legs are float64 norms from the exact hit point; a per-pulse
+float64 reference length is subtracted before anything becomes float32.
+
+Output (:class:`TraceResult`): per pulse, the spectrum of the path sum
+``sum_i a_i exp(-j k (L_i - L_ref))`` over the coarse sampling band, on a padded grid; or, for
+the ``exact`` range kernel, every term (:class:`PathList`). :mod:`sarmitsuba.signal.binning` restores
+the reference phase in float64, band-limits (range compression) or chirps it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, fields
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+from tqdm import tqdm
+
+from ..deposit.fast_time import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
+from ...scene.effects import EffectSet, rough_materials
+from ...scene import planning
+from ...scene.effects import active_effects
+from .kernel import Kernel
+from .launches import Blocks, Launch
+from ..integration.pulse_view import antenna_axes
+from .stages import STAGES
+from .threads import host_threads
+from ...core.radar import ParameterError, RadarParameters
+from ...core.geometry import AcquisitionGeometry, acquisition_geometry
+from ...scene.loader import LoadedScene, material_table
+from ...scene.trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, TraceSettings
+
+__all__ = ["TraceSetup", "prepare_trace", "TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
+           "caused_by_interrupt", "LANCZOS_A", "SubApertures",
+           "subapertures", "pulses_per_trace", "SUBAPERTURE_CELLS"]
+
+
+@dataclass(frozen=True)
+class TraceSetup:
+    """What :func:`trace` needs besides the scene, derived from a loaded scene alone (so any
+    process that loads the same scene with the same overrides derives the same setup)."""
+
+    geometry: AcquisitionGeometry
+    window: FastTimeWindow
+    footprint: RayFootprint
+    effects: EffectSet
+    table: MaterialTable
+
+
+def prepare_trace(loaded: LoadedScene) -> TraceSetup:
+    """Acquisition geometry, fast-time window, ray footprint, active effects and material table of
+    ``loaded``; checks the acquisition (ParameterError) before any tracing."""
+    params, settings = loaded.params, loaded.settings
+    geometry = acquisition_geometry(params)
+    window = planning.fast_time_window(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings)
+    footprint = planning.ray_footprint(params, geometry, loaded.bbox_lo, loaded.bbox_hi, settings,
+                                       shape_boxes=loaded.shape_boxes)
+    planning.check_acquisition(params, geometry, window, loaded.bbox_lo, loaded.bbox_hi)
+    effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
+    table = material_table(loaded.scene, params.frequency, params.polarization)
+    return TraceSetup(geometry, window, footprint, effects, table)
+
+
+
+@dataclass(frozen=True)
+class PathList:
+    """Every visible term of an acquisition, kept for the ``exact`` range kernel.
+
+    Attributes
+    ----------
+    pulse : int32 [n_paths]
+        Pulse index.
+    order : uint8 [n_paths]
+        Bounce order (1 = single bounce).
+    position : float64 [n_paths]
+        Two-way delay in coarse samples from the window's first sample,
+        ``(L - c t0) fs / c``.
+    value : complex64 [n_paths]
+        ``a exp(-j k (L - L_ref))`` at the carrier: the term's amplitude relative to the pulse's
+        reference phase (the same quantity the gridded kernels deposit).
+    spectral : int8 [n_paths]
+        Spectral order ``m``: the term's amplitude scales as ``(f / fc)^m`` (docs/physics.md (PO3)).
+    channel : uint8 [n_paths] or None
+        Polarimetric channel, an index into :attr:`TraceResult.channels` (``quad`` only; None
+        for one channel).
+    """
+
+    pulse: np.ndarray
+    order: np.ndarray
+    position: np.ndarray
+    value: np.ndarray
+    spectral: np.ndarray
+    channel: np.ndarray | None = None
+
+    def select(self, keep: np.ndarray) -> "PathList":
+        """The terms where the bool array ``keep`` is true."""
+        return PathList(*(None if getattr(self, f.name) is None else getattr(self, f.name)[keep]
+                          for f in fields(PathList)))
+
+    def of_order(self, order: int) -> "PathList":
+        """The terms of one bounce order."""
+        return self.select(self.order == order)
+
+    @staticmethod
+    def concatenate(parts: list["PathList"]) -> "PathList":
+        """One list from per-batch lists."""
+        if not parts:
+            return PathList(np.zeros(0, np.int32), np.zeros(0, np.uint8), np.zeros(0), np.zeros(0, np.complex64),
+                            np.zeros(0, np.int8))
+        return PathList(*(None if getattr(parts[0], f.name) is None else
+                          np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(PathList)))
+
+
+@dataclass(frozen=True)
+class TraceResult:
+    """What the tracer returns for the whole acquisition.
+
+    Attributes
+    ----------
+    spectrum : complex64 [n_pulses, n_pad]
+        Per pulse, the spectrum (FFT order, ``scipy.fft.fftfreq(n_pad, 1 / fs)``) of the term sum
+        ``sum_i a_i (1 + f / fc)^m_i exp(-j 2 pi f (tau_i - t0)) exp(-j k (L_i - L_ref))`` over the
+        coarse sampling band (docs/physics.md (D5)); shape [n_pulses, 0] for the ``exact`` kernel,
+        which keeps ``paths`` instead.
+    reference_length : float64 [n_pulses], m
+        Per-pulse reference two-way length ``L_ref = 2 |A - scene_center|``.
+    energy_per_order : float64 [max_depth], m^2
+        Incoherent sum, per bounce order (1, 2, ...), of the visible returns' ``|a|^2`` at the
+        carrier: each tube's whole PO value and each clutter scatterer.
+    energy_outside_window : float, m^2
+        Energy of visible returns whose delay fell outside the fast-time window.
+    rays_per_order : int64 [max_depth]
+        Closest-hit casts per bounce order (order 1 = primary rays).
+    shadow_rays : int
+        Shadow (visibility) casts.
+    seconds : float
+        Wall time of tracing, s.
+    spectrum_per_order : complex64 [max_depth, n_pulses, n_pad] or None
+        The same split by bounce order (order k at index k - 1) when ``split_bounces`` is on;
+        ``spectrum`` is then their sum.
+    carried_power_per_order : float64 [max_depth], sr
+        Power carried into each bounce order by the tubes that hit there, ``sum Omega |r_1 ... r_{k-1}|^2``
+        (solid angle times the reflection losses so far): non-increasing with the order for
+        passive materials, the energy-conservation check of the bounce loop.
+    paths : PathList or None
+        Every visible term (``exact`` range kernel only).
+    split : bool
+        Whether the result was traced with ``split_bounces``.
+    scatterers_per_order : int64 [max_depth]
+        Clutter scatterers deposited per bounce order.
+    n_pad : int
+        Coarse samples of the padded grid of ``spectrum`` (0 for ``exact``).
+    pulses_per_trace : int
+        Pulses per sub-aperture: each sub-aperture's tubes were traced once (docs/physics.md (T3)).
+    pulse_paths : int
+        Returns evaluated: PO terms times the pulses they were evaluated for, plus clutter
+        scatterers deposited (the tracer's unit of work after the casts).
+    channels : tuple of str
+        ``quad``: the polarimetric channels (:data:`sarmitsuba.core.radar.CHANNELS`), one trace for
+        all; ``spectrum`` and ``spectrum_per_order`` then have a leading channel axis and
+        :meth:`channel` gives each as a one-channel result. Empty for one channel. The energy
+        tallies are the channels' mean (docs/physics.md (P4)).
+    stage_seconds : dict
+        The mesh tracer's wall seconds per stage (:data:`sarmitsuba.tracing.driver.stages.STAGES`,
+        summed over its launches; empty for the tube preview).
+    """
+
+    spectrum: np.ndarray
+    reference_length: np.ndarray
+    energy_per_order: np.ndarray
+    energy_outside_window: float
+    rays_per_order: np.ndarray
+    shadow_rays: int
+    seconds: float
+    spectrum_per_order: np.ndarray | None = None
+    carried_power_per_order: np.ndarray | None = None
+    paths: PathList | None = None
+    split: bool = False
+    scatterers_per_order: np.ndarray | None = None
+    n_pad: int = 0
+    pulses_per_trace: int = 1
+    pulse_paths: int = 0
+    channels: tuple = ()
+    stage_seconds: dict = dataclasses.field(default_factory=dict)
+
+    def channel(self, name: str) -> "TraceResult":
+        """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
+        result itself for a one-channel trace of that channel. Raises ParameterError otherwise."""
+        if not self.channels:
+            return self
+        if name not in self.channels:
+            raise ParameterError(f"channel {name!r}: the trace holds {', '.join(self.channels)}")
+        c = self.channels.index(name)
+        return dataclasses.replace(
+            self, spectrum=self.spectrum[c], channels=(),
+            spectrum_per_order=None if self.spectrum_per_order is None else self.spectrum_per_order[c],
+            paths=None if self.paths is None else dataclasses.replace(self.paths.select(self.paths.channel == c),
+                                                                      channel=None))
+
+    @property
+    def n_orders(self) -> int:
+        """Bounce orders available separately (``split_bounces``), 0 when not split."""
+        if self.spectrum_per_order is not None:
+            return self.spectrum_per_order.shape[0]
+        return len(self.energy_per_order) if self.split else 0
+
+    def contributions(self, order: int | None = None) -> "np.ndarray | PathList":
+        """What :func:`sarmitsuba.signal.binning.to_raw_data` turns into samples: the spectrum
+        (complex64 [n_pulses, n_pad]) or, for the ``exact`` kernel, the :class:`PathList`; of all
+        bounce orders, or of bounce order ``order`` (1, 2, ...; needs ``split_bounces``)."""
+        if order is None:
+            return self.paths if self.paths is not None else self.spectrum
+        if not 1 <= order <= self.n_orders:
+            raise ParameterError(f"bounce order {order}: the result holds orders 1..{self.n_orders} "
+                                 "(trace with split_bounces = true)")
+        return self.paths.of_order(order) if self.paths is not None else self.spectrum_per_order[order - 1]
+
+
+#: Complex entries of a batch's fine-grid histogram (orders x pulses x fine samples; each thread keeps
+#: its own copy for non-atomic scatter-adds): 32 MiB per copy.
+HISTOGRAM_ENTRIES = 1 << 22
+
+
+@dataclass(frozen=True)
+class TracePlan:
+    """How :func:`trace` splits an acquisition into batches of sub-apertures; the same inputs
+    give the same plan in any process, so a batch can be traced anywhere (docs/design.md section 11).
+
+    Attributes
+    ----------
+    subs : SubApertures
+    per_batch : int
+        Sub-apertures per batch; batch ``b`` covers sub-apertures ``[b per_batch, (b + 1) per_batch)``.
+    lref : float64 [n_pulses], m
+        Per-pulse reference length ``2 |P - scene_center|``.
+    n_channels, groups, n_pad : int
+        Channels, deposit groups (bounce orders when split), padded spectrum length.
+    exact : bool
+        ``range_kernel = exact``: batches return path lists instead of spectra.
+    axes : float64 [n_pulses, 3, 3] or None
+        A curved track's per-pulse antenna axes (:func:`~sarmitsuba.tracing.integration.pulse_view.antenna_axes`).
+    """
+
+    subs: SubApertures
+    per_batch: int
+    lref: np.ndarray
+    n_channels: int
+    groups: int
+    n_pad: int
+    exact: bool
+    axes: np.ndarray | None = None
+
+    @property
+    def batches(self) -> list[int]:
+        """First sub-aperture of each batch."""
+        return list(range(0, len(self.subs.first), self.per_batch))
+
+    def pulses(self, g0: int) -> tuple[int, int]:
+        """Pulse range ``[p0, p1)`` of the batch starting at sub-aperture ``g0``."""
+        g = slice(g0, min(len(self.subs.first), g0 + self.per_batch))
+        return int(self.subs.first[g][0]), int(self.subs.first[g][-1] + self.subs.count[g][-1])
+
+
+def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
+               footprint: RayFootprint, settings: TraceSettings, effects: EffectSet) -> TracePlan:
+    """The :class:`TracePlan` of an acquisition: sub-apertures and the batch size that keeps a
+    launch within ``max_batch_rays`` tubes and the histogram within :data:`HISTOGRAM_ENTRIES`."""
+    n_pulses = geometry.positions.shape[0]
+    n_channels, groups = len(effects.channels), effects.groups
+    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
+    per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
+    pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
+                                                        * n_channels))
+    per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
+    return TracePlan(subs=subs, per_batch=per_batch,
+                     lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
+                     n_channels=n_channels, groups=groups, n_pad=padded_length(window.n_samples),
+                     exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry))
+
+
+def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionGeometry, window: FastTimeWindow,
+                footprint: RayFootprint, settings: TraceSettings, frequency: float) -> dict:
+    """Trace the batch of sub-apertures starting at ``g0``: ``{"pulses": (p0, p1), "spectrum":
+    complex64 [n_channels groups, p1 - p0, n_pad] (None for exact), "paths": PathList or None,
+    "totals": {counter: value}}``."""
+    subs = plan.subs
+    g = slice(g0, min(len(subs.first), g0 + plan.per_batch))
+    p0, p1 = plan.pulses(g0)
+    n_groups = plan.n_channels * plan.groups
+    hist = None if plan.exact else np.zeros((len(SPECTRAL_ORDERS), n_groups, p1 - p0, window.n_fine), np.complex64)
+    totals, paths = {}, None
+    motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
+        if geometry.continuous else {}
+    groups = [Blocks.of([])] if settings.lit_regions == "patches" else []
+    if kernel.tubes:
+        groups = [*groups, *_blocks(subs, g, footprint, settings.max_batch_rays)]
+    for blocks in groups:
+        launch = Launch(antenna=geometry.positions[p0:p1], lref=plan.lref[p0:p1], first=subs.first[g] - p0,
+                        count=subs.count[g], reference=subs.reference[g], r_near=subs.r_near[g],
+                        along_limits=subs.along_limits[g], blocks=blocks,
+                        axes=None if plan.axes is None else plan.axes[p0:p1], **motion)
+        try:
+            out = kernel(launch)
+        except RuntimeError as exc:        # Dr.Jit wraps a Ctrl-C that lands while it traces a loop body
+            if caused_by_interrupt(exc):
+                raise KeyboardInterrupt from exc
+            raise
+        if plan.exact:
+            part = _path_list(out["paths"], p0, plan.n_channels > 1)
+            paths = part if paths is None else PathList.concatenate([paths, part])
+        else:
+            hist += out["hist"]
+        for name in TOTALS:
+            totals[name] = totals.get(name, 0) + out.get(name, 0)
+    spectrum = None if plan.exact else np.stack(
+        [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
+         for k in range(n_groups)])
+    return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
+
+
+#: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
+#: seconds per stage, :data:`sarmitsuba.tracing.driver.stages.STAGES`; absent from a tube launch).
+TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages")
+
+
+def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
+          window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
+          material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None,
+          run_batches=None) -> TraceResult:
+    """Trace all pulses of an acquisition (see module docstring for the model).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        Loaded scene (any ``*_mono`` variant).
+    params : RadarParameters
+    geometry : AcquisitionGeometry
+        float64 antenna positions [n_pulses, 3].
+    window : FastTimeWindow
+    footprint : RayFootprint
+    settings : TraceSettings
+        ``pulses_per_trace`` sets the sub-aperture: its pulses share one trace (docs/physics.md (T3)).
+    material_table : MaterialTable
+        Reflection coefficient against cos(incidence) and clutter model per shape.
+    progress : bool
+        Show a tqdm bar over pulses.
+    effects : EffectSet, optional
+        The effects to trace (:func:`sarmitsuba.scene.effects.active_effects` of the loaded scene);
+        default: those of ``params``, ``settings`` and the rough materials of ``material_table``.
+    run_batches : callable, optional
+        ``run_batches(plan, batches)`` yields the :func:`trace_batch` results of the batches
+        (first sub-aperture indices) in any order, traced elsewhere (for instance on Dask
+        workers, :mod:`sarmitsuba.tracing.driver.distributed`). Default: traced here, in order.
+
+    Returns
+    -------
+    TraceResult
+    """
+    n_pulses = geometry.positions.shape[0]
+    if effects is None:
+        effects = EffectSet.of(params, settings, rough_materials(material_table))
+    plan = plan_trace(scene, params, geometry, window, footprint, settings, effects)
+    spectrum = np.zeros((plan.n_channels * plan.groups, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
+    paths = {}
+    totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
+                  rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
+                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros(len(STAGES)))
+    start = time.perf_counter()
+    kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
+                                                         material_table, effects)
+    threads = host_threads(kernel)
+    if threads > 1:                      # launches of 1 / threads the size, as many at once: no more memory
+        plan = dataclasses.replace(plan, per_batch=max(1, plan.per_batch // threads))
+    bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
+    batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
+    pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
+    try:
+        if run_batches is not None:
+            results = run_batches(plan, plan.batches)
+        else:
+            def one(g0):
+                return trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+            results = pool.map(one, plan.batches) if pool is not None else (one(g0) for g0 in plan.batches)
+        for out in results:
+            p0, p1 = out["pulses"]
+            if plan.exact:
+                paths[p0] = out["paths"]
+            else:
+                spectrum[:, p0:p1] = out["spectrum"]
+            batch_totals[p0] = out["totals"]
+            bar.update(p1 - p0)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        bar.close()
+        del kernel
+        dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
+    for p0 in sorted(batch_totals):
+        for name in totals:
+            totals[name] = totals[name] + batch_totals[p0].get(name, 0)
+    seconds = time.perf_counter() - start
+    return _result(plan, spectrum, paths, totals, seconds, effects)
+
+
+def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, seconds: float,
+            effects: EffectSet) -> TraceResult:
+    """The TraceResult of the merged batches (paths keyed by their batch's first pulse)."""
+    n_pulses = spectrum.shape[1]
+    spectrum = spectrum.reshape(plan.n_channels, plan.groups, n_pulses, -1)
+    quad = plan.n_channels > 1
+    exact = plan.exact
+    merged = PathList.concatenate([paths[k] for k in sorted(paths) if paths[k] is not None]) if exact else None
+    return TraceResult(spectrum=spectrum.sum(axis=1) if quad else spectrum[0].sum(axis=0), reference_length=plan.lref,
+                       energy_per_order=totals["energy"], energy_outside_window=float(totals["outside"]),
+                       rays_per_order=totals["rays"], shadow_rays=int(totals["shadow"]), seconds=seconds,
+                       spectrum_per_order=(spectrum if quad else spectrum[0]) if effects.split_bounces and not exact
+                       else None, channels=effects.channels if quad else (),
+                       carried_power_per_order=totals["carried"],
+                       paths=merged, split=effects.split_bounces,
+                       scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
+                       pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
+                       stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"]) if t > 0})
+
+
+@dataclass(frozen=True)
+class SubApertures:
+    """The sub-apertures of an acquisition: runs of consecutive pulses that share one trace
+    (docs/physics.md (T3)).
+
+    Attributes
+    ----------
+    size : int
+        Pulses per sub-aperture (the last may have fewer).
+    first, count : int64 [n_s]
+        First pulse and number of pulses of each.
+    reference : float64 [n_s, 3], m
+        Reference position: the midpoint of the first and last antenna positions, the source of
+        the sub-aperture's ray tubes.
+    r_near : float64 [n_s], m
+        Distance from the reference position at which rays start (just short of the scene).
+    k0 : int64 [n_s]
+        First along-track lattice cell of the union of the pulses' cells.
+    n_i : int
+        Along-track cells per sub-aperture (the pulses' ``n_azimuth`` plus the widest spread of
+        their first cells).
+    along_limits : float64 [n_s, 2], m
+        Union of the pulses' along-track aim limits.
+    """
+
+    size: int
+    first: np.ndarray
+    count: np.ndarray
+    reference: np.ndarray
+    r_near: np.ndarray
+    k0: np.ndarray
+    n_i: int
+    along_limits: np.ndarray
+
+
+def pulses_per_trace(params: RadarParameters, settings: TraceSettings, n_pulses: int) -> int:
+    """Pulses per sub-aperture: the ``pulses_per_trace`` setting, or automatically
+    :data:`SUBAPERTURE_CELLS` along-track resolution cells of antenna travel (at least 1, at most
+    every pulse), docs/physics.md (T3)."""
+    if settings.pulses_per_trace > 0:
+        return min(settings.pulses_per_trace, max(n_pulses, 1))
+    spacing = params.velocity / params.prf
+    return int(max(1, min(max(n_pulses, 1), math.floor(SUBAPERTURE_CELLS * params.azimuth_resolution / spacing))))
+
+
+#: Automatic sub-aperture: the antenna travels this many azimuth resolution cells between traces
+#: (``pulses_per_trace = 0``); chosen from ``benchmarks/subaperture.py`` (image NRMSE against
+#: per-pulse tracing, urban and Munich).
+SUBAPERTURE_CELLS = 16.0
+
+
+#: Rays start this far [m] short of the scene's bounding sphere (``r_near``), not at the antenna.
+#: The origin is placed in float64 and rounded to float32 (``mi.Point3f``); starting next to the
+#: scene keeps the float32 ray parameter at scene scale instead of at the antenna's range (the
+#: float32 step at 800 km is 0.06 m). The margin only has to keep the rounded origin outside the
+#: sphere, so that no geometry lies behind it: 1 m is far above that rounding (about 1e-3 m for
+#: coordinates of 10 km) and costs nothing. Path lengths are counted in float64 from the
+#: reference position, so the margin does not enter any length.
+RAY_START_MARGIN = 1.0
+
+
+def subapertures(geometry: AcquisitionGeometry, footprint: RayFootprint, scene, size: int) -> SubApertures:
+    """Split the acquisition's pulses into sub-apertures of ``size`` consecutive pulses."""
+    n_pulses = geometry.positions.shape[0]
+    first = np.arange(0, n_pulses, size, dtype=np.int64)
+    last = np.minimum(first + size, n_pulses) - 1
+    positions = geometry.positions
+    reference = 0.5 * (positions[first] + positions[last])     # midpoint of first and last antenna
+    radius, center = _bounding_sphere(scene)
+    r_near = np.maximum(np.linalg.norm(reference - center, axis=1) - radius - RAY_START_MARGIN, 0.0)
+    k0_lo = np.minimum.reduceat(footprint.k0, first)
+    k0_hi = np.maximum.reduceat(footprint.k0, first)
+    limits = np.stack([np.minimum.reduceat(footprint.along_limits[:, 0], first),
+                       np.maximum.reduceat(footprint.along_limits[:, 1], first)], axis=1)
+    return SubApertures(size=size, first=first, count=last - first + 1, reference=reference, r_near=r_near,
+                        k0=k0_lo, n_i=footprint.n_azimuth + int((k0_hi - k0_lo).max()), along_limits=limits)
+
+
+def _blocks(subs: SubApertures, batch: slice, footprint: RayFootprint, max_rays: int):
+    """The lattice blocks of a batch of sub-apertures (sub-aperture indices relative to the batch),
+    in launches of at most ``max_rays`` tubes: each sub-aperture's coarse lattice (in chunks of
+    rows when it alone exceeds the ceiling), and the refined cells near its beam, one block each
+    (a refined cell's ``m^2`` tubes are never split). Yields :class:`Blocks`."""
+    rows_per_block = footprint.n_range if subs.n_i * footprint.n_range <= max_rays else max(1, max_rays // subs.n_i)
+    rows = []
+    for q, g in enumerate(range(batch.start, batch.stop)):
+        k0 = int(subs.k0[g])
+        for j0 in range(0, footprint.n_range, rows_per_block):
+            rows.append((q, k0, j0, subs.n_i, min(rows_per_block, footprint.n_range - j0), 1))
+        for group in footprint.refinements:
+            near = group.cells[(group.cells[:, 0] >= k0 - 1) & (group.cells[:, 0] <= k0 + subs.n_i + 1)]
+            rows.extend((q, int(ci), int(cj), group.factor, group.factor, group.factor) for ci, cj in near)
+    part, lanes = [], 0
+    for row in rows:
+        size = row[3] * row[4]
+        if part and lanes + size > max_rays:
+            yield Blocks.of(part)
+            part, lanes = [], 0
+        part.append(row)
+        lanes += size
+    if part:
+        yield Blocks.of(part)
+
+
+def _path_list(found: dict, p0: int, channels: bool) -> "PathList":
+    """The exact kernel's terms as a PathList with acquisition pulse indices."""
+    return PathList(pulse=found["path_pulse"].astype(np.int32) + np.int32(p0),
+                    order=found["path_order"].astype(np.uint8), position=found["path_pos"],
+                    value=(found["path_re"] + 1j * found["path_im"]).astype(np.complex64),
+                    spectral=(np.asarray(SPECTRAL_ORDERS)[found["path_spectral"]]).astype(np.int8),
+                    channel=found["path_channel"].astype(np.uint8) if channels else None)
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the exception's cause/context chain."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:
+    """Radius [m] (half the box diagonal) and centre [3] of the sphere around the scene's box."""
+    bbox = scene.bbox()
+    lo, hi = np.array(bbox.min, float), np.array(bbox.max, float)
+    return 0.5 * float(np.linalg.norm(hi - lo)), 0.5 * (lo + hi)
+
+

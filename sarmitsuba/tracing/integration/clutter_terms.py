@@ -1,0 +1,140 @@
+"""Clutter scatterers in the kernel: per pulse, every scatterer of a rough surface's own lattice
+inside a recorded hit's footprint, its amplitude, second-order two-way length and hashed phase,
+deposited on the fast-time grid (docs/physics.md (C), with the polarimetric channels of (P7),
+(P8)); a part of :class:`sarmitsuba.tracing.integration.returns.Returns`. The lattice's steps are
+:mod:`sarmitsuba.tracing.integration.clutter_lattice`'s.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+
+from ...core.radar import CHANNELS
+from ..deposit.accumulate import PATH_HEADROOM
+from .clutter_lattice import footprint_cells, lattice_frame, length_expansion, scatterer, shortened_footprint, surface_key
+from ..deposit.fast_time import SPECTRAL_ORDERS
+from . import jones as pol
+from .pulse_view import receive_leg
+from ..loops import loop_mode
+
+__all__ = ["ClutterTerms"]
+
+# flag of kernel.Flags (repeated here: the kernel imports this module through returns)
+_BACK = 128
+
+
+class ClutterTerms:
+    """The clutter methods of :class:`sarmitsuba.tracing.integration.returns.Returns` (which provides the tables,
+    the footprint, ``_pulse``, ``_folded``, ``_in_beam``, ``_d_first``, ``_arriving``,
+    ``reciprocal``, ``weight``, ``anchor``, ``carrier_phase``, the reflection tables and the
+    accumulator)."""
+
+    def clutter(self, ctx, rec, depth: int, lattice: dict | None = None) -> None:
+        """Per pulse, every scatterer of the surface's own lattice inside the footprint, eq. (C).
+
+        The lattice lies in the plane of the hit (frame ``u, v`` from the surface normal, origin
+        at a point fixed to the shape), cells ``c`` wide; cell ``(iu, iv)`` of a shape holds one
+        scatterer at a hashed position inside it with a hashed phase (an integer hash of the shape,
+        the plane, the cell and the seed). Its amplitude is ``sqrt(sigma0) c prod(r_1 .. r_{k-1})``;
+        its two-way length is the pulse's length to the tube's hit point expanded to second order in
+        the offset. The footprints (the reference position's) tile a plane, so every scatterer is
+        counted once per pulse: the same scatterers, with the same phases and positions, for every
+        pulse, bounce order and pass. The lattice's steps are :mod:`sarmitsuba.tracing.integration.clutter_lattice`'s.
+        """
+        lattice = lattice or self._clutter_lattice(ctx, rec, depth)
+        count = dr.gather(mi.UInt32, ctx["count"], rec.sub)
+        paths = self.sums.path_buffers(max(ctx["capacity"], PATH_HEADROOM)) if self.exact else None
+
+        def pulse_body(q):
+            self._clutter_pulse(ctx, rec, depth, lattice, q, paths)
+            return (q + 1,)
+
+        dr.while_loop((mi.UInt32(0),), lambda q: q < count, pulse_body, mode=loop_mode(), label="pulses")
+        if paths is not None:
+            self.sums.keep_paths(ctx, paths)
+
+    def _clutter_lattice(self, ctx, rec, depth: int) -> dict:
+        """The pulse-independent part of eq. (C) per hit: the (shortened) footprint's cells on the
+        surface's lattice, the lattice's frame and hash key, the clutter model and sigma0's raise."""
+        t, c = self.tables, self.fp.scatterer_spacing
+        back = (rec.flags & _BACK) != 0
+        n_geo = dr.select(back, -rec.n, rec.n)                          # the surface's own normal
+        d_ref = self._folded(rec, dr.normalize(rec.unfolded - dr.gather(mi.Array3f64, ctx["reference"], rec.sub)),
+                             depth)
+        e1, e2, raise_by = shortened_footprint(rec.e1, rec.e2, rec.n, n_geo, d_ref)
+        axes = tuple(dr.gather(mi.Vector3f, a, rec.shape) for a in t.shape_axes)   # the shape's own frame
+        u_axis, v_axis = lattice_frame(n_geo, axes)
+        # the hit from the shape's origin (float64 difference, then float32)
+        local = mi.Vector3f(rec.p64 - dr.gather(mi.Array3f64, t.shape_origin, rec.shape))
+        return dict(kind=dr.gather(mi.UInt32, t.clutter_kind, rec.row),
+                    value=dr.gather(mi.Float, t.clutter_value, rec.row), raise_by=raise_by, axes=(u_axis, v_axis), cells=footprint_cells(local, e1, e2, u_axis, v_axis, c),
+                    key0=surface_key(dr.gather(mi.UInt32, t.shape_key, rec.shape), back, n_geo, local, axes, c,
+                                     self.settings.seed))
+
+    def _clutter_pulse(self, ctx, rec, depth: int, lattice: dict, q, paths) -> None:
+        """Pulse ``q`` of the hits' sub-apertures: sigma0 and the amplitude ``a_c`` at the hit, then
+        each scatterer of the footprint at its second-order length ``L_c``, deposited, eq. (C)."""
+        c, n, kind, value = self.fp.scatterer_spacing, rec.n, lattice["kind"], lattice["value"]
+        pulse, antenna, lref, view = self._pulse(ctx, rec.sub, q)
+        incoming = rec.unfolded - antenna                                    # unfolded first leg
+        s = dr.norm(incoming)
+        outgoing, dist = receive_leg(view, antenna, rec.p64, s)             # to the antenna at reception (J3)
+        d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
+        cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
+        def sigma0(r):
+            return dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
+                             dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * lattice["raise_by"]
+
+        if self.polarimetric:       # co- and cross-polarised parts of S per scatterer, eq. (P7)
+            co, cross, level = self._rough_channels(rec, d, b, n, sigma0, cos_i, depth)
+        else:
+            level = sigma0(self.reflection_at(rec.row, cos_i, True))
+            co, cross = [dr.sqrt(level)], None
+        rough = (level > 0) & (self._in_beam(rec.aim, antenna, view) if self.aim_mask else True)
+        weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, view)
+        rel = s + dist - lref
+        anchor = self.anchor(rel, lref)
+        amplitude = rec.gamma * self.carrier_phase(rel) * (c * weight)
+        expansion = length_expansion(d, b, s, dist, *lattice["axes"], c)
+        n_cells = dr.select(rough, lattice["cells"].cells, 0)
+        mid = mi.UInt32(SPECTRAL_ORDERS.index(0))
+
+        def step(i, found, outside):
+            own, dl, phase, phase_x = scatterer(i, lattice["cells"], lattice["key0"], expansion, n_cells, self.k,
+                                                cross=cross is not None, inside=lattice.get("inside"))
+            sn, cs = dr.sincos(phase)
+            here = amplitude * mi.Complex2f(cs, sn)
+            values = [here * a for a in co]
+            if cross is not None:
+                sn, cs = dr.sincos(phase_x)
+                there = amplitude * mi.Complex2f(cs, sn)
+                values = [v + there * a for v, a in zip(values, cross)]
+            inside = self.sums.deposit(ctx, pulse, depth, anchor, dl, values, mid, own, paths, None)
+            return i + 1, found + mi.UInt32(own), outside + mi.UInt32(own & ~inside)
+
+        _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
+                                          lambda i, *_: i < n_cells, step, mode=loop_mode(), label="scatterers")
+        power = dr.squared_norm(amplitude) * level
+        dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
+        dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
+        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
+
+    def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
+        """Per channel, the co-polarised and the cross-polarised factor of a rough surface's
+        scatterer (its own phase aside), eq. (P7): ``S = B^T C J`` with ``C`` of
+        :func:`sarmitsuba.tracing.integration.jones.scatter`, ``a_te = sqrt(sigma0(r_te))``,
+        ``a_tm = sqrt(sigma0(r_tm))`` and ``a_x = sqrt(q (a_te^2 + a_tm^2) / 2)``. After earlier
+        bounces (whose reverse path is not traced) both are made symmetric, (P8).
+        Returns ``(co, cross, level)``, ``level`` the mean co-polarised sigma0 (the energy tally)."""
+        r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
+        s_te, s_tm = sigma0(r_te), sigma0(r_tm)
+        q = dr.gather(mi.Float, self.tables.cross_pol, rec.row)
+        zero = mi.Complex2f(0.0, 0.0)
+        amplitudes = ((mi.Complex2f(dr.sqrt(s_te), 0.0), mi.Complex2f(dr.sqrt(s_tm), 0.0), zero),
+                      (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
+        track = mi.Vector3f(*self.track)
+        arriving = self._arriving(rec, d, depth)
+        parts = [self.reciprocal(pol.receive(pol.scatter(arriving, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
+                                  depth) for a_te, a_tm, a_x in amplitudes]
+        level = 0.5 * (s_te + s_tm) * (1.0 + q)
+        return parts[0], parts[1], level
