@@ -127,7 +127,7 @@ docs/design.md section 4: frequency [1e6, 1e12] Hz, bandwidth [1e5, 1e11] Hz, ve
 [0.01, 1.2e4] m/s, altitude [1, 4e7] m, ...); a value outside raises ParameterError naming the
 unit and, when it looks like another unit (9.6 for 9.6 GHz), the value meant.
 
-The sensor holds parameters only: the tracer (:mod:`sarmitsuba.tracing.trace`) shoots the rays.
+The sensor holds parameters only: the tracer (:mod:`sarmitsuba.tracing.driver.trace`) shoots the rays.
 Its ``sample_ray`` gives the optical view from the mid-aperture antenna toward the
 scene centre, so ``mi.render`` can draw what the radar sees.
 """

@@ -92,7 +92,7 @@
     free edge of the lit regions, the PTD correction to physical optics (docs/physics.md
     (E1)-(E5)). ``lit_regions = patches`` only. False is physical optics alone.
 
-The tracing itself is :func:`sarmitsuba.tracing.trace.trace` (Dr.Jit kernels, one per bounce order);
+The tracing itself is :func:`sarmitsuba.tracing.driver.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.
 """
 from __future__ import annotations
@@ -106,7 +106,7 @@ from sarmitsuba.scene.trace_inputs import TraceSettings
 
 
 class SbrIntegrator(mi.SamplingIntegrator):
-    """Mitsuba integrator holding a :class:`sarmitsuba.tracing.trace.TraceSettings` (see module docstring)."""
+    """Mitsuba integrator holding a :class:`sarmitsuba.tracing.driver.trace.TraceSettings` (see module docstring)."""
 
     def __init__(self, props: mi.Properties) -> None:
         super().__init__(props)
