@@ -103,7 +103,7 @@ def stage_rows(scene: str, sensor: dict) -> list[dict]:
     timed(mesh_trace, "lit_pieces", "later orders' regions, pieces, visibility")
     timed(mesh_trace, "clip_mixed", "mixed pieces cut (occlusion)")
     timed(mesh_trace, "recheck", "cut regions sampled again")
-    timed(mesh_trace.MeshTracer, "_discover", "discovery")
+    timed(mesh_trace, "discover", "discovery")
     timed(mesh_trace, "build_lanes", "term lanes")
     timed(mesh_trace.MeshTracer, "_carried", "carried power (energy check)")
     timed(integration.PatchTerms, "__call__", "patch terms (Dr.Jit, every pulse)")

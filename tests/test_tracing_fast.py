@@ -11,7 +11,9 @@ import trimesh
 from sarmitsuba.tracing.integration import edges
 from sarmitsuba.tracing.integration import term_lanes
 from sarmitsuba.tracing.discovery.chains import Chains
-from sarmitsuba.tracing.driver.mesh_trace import _arriving, _arriving_views, _norm, _unique_keys
+from sarmitsuba.core.arrays import row_norm
+from sarmitsuba.tracing.discovery.specular import arriving, arriving_views
+from sarmitsuba.tracing.driver.mesh_trace import _unique_keys
 from sarmitsuba.tracing.integration.term_lanes import _equal_rows, _equal_rows_reference
 
 from test_edges import _classify, _surfaces
@@ -81,17 +83,17 @@ def test_arriving_from_several_views_is_each_view_alone():
     chain = rng.integers(0, 30, 500)
     points = rng.normal(size=(500, 3)) * 50
     views = rng.normal(size=(500, 3, 3)) * 5000
-    together = _arriving_views(chains, chain, points, views)
+    together = arriving_views(chains, chain, points, views)
     for v in range(3):
         first = chains.unfolded(points, chain) - views[:, v]
         first /= np.linalg.norm(first, axis=1, keepdims=True)
         lin = chains.lin[chain, chains.order[chain]]
         reference = np.einsum("mji,mj->mi", lin, first)
-        assert np.array_equal(together[v], _arriving(chains, chain, points, views[:, v]))
+        assert np.array_equal(together[v], arriving(chains, chain, points, views[:, v]))
         assert np.allclose(together[v], reference, rtol=1e-14, atol=1e-15)
     x = rng.normal(size=(100, 3))
     x[0] = 0.0
-    assert np.array_equal(_norm(x), np.linalg.norm(x, axis=1))
+    assert np.array_equal(row_norm(x), np.linalg.norm(x, axis=1))
 
 
 @pytest.mark.parametrize("n,size", [(0, 10), (1, 1), (3000, 20000), (50, 10**13)])

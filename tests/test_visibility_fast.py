@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from sarmitsuba.tracing.visibility import lit_pieces as lp
-from sarmitsuba.tracing.driver import mesh_trace
+from sarmitsuba.tracing.discovery import specular
 from sarmitsuba.tracing.visibility.rays import Rays, lift
 
 import drjit as dr                                  # after sarmitsuba, which picks the variant
@@ -258,9 +258,9 @@ def _grid_points_reference(pieces, subdivision, patch):
 @pytest.fixture(scope="module")
 def recorded():
     """The calls of a depth-3 render of the subdivided block: first_hit's, _blockers' and
-    _grid_points' arguments and results."""
+    grid_points' arguments and results."""
     calls = {"first_hit": [], "blockers": [], "grid": []}
-    first_hit, blockers, grid = Rays.first_hit, lp._blockers, mesh_trace._grid_points
+    first_hit, blockers, grid = Rays.first_hit, lp._blockers, specular.grid_points
 
     def first_hit_rec(self, start, end=None, direction=None):
         out = first_hit(self, start, end, direction)
@@ -280,7 +280,7 @@ def recorded():
     mp = pytest.MonkeyPatch()
     mp.setattr(Rays, "first_hit", first_hit_rec)
     mp.setattr(lp, "_blockers", blockers_rec)
-    mp.setattr(mesh_trace, "_grid_points", grid_rec)
+    mp.setattr(specular, "grid_points", grid_rec)
     try:
         render(block(subdivide=True), depth=3)
     finally:
@@ -360,5 +360,5 @@ def test_grid_points_are_the_reference(recorded):
         centroids += empty
     pieces, subdivision, patch = recorded["grid"][0][0]
     none = pieces.select(np.zeros(0, np.int64))
-    got, want = mesh_trace._grid_points(none, subdivision[:0], patch), _grid_points_reference(none, subdivision[:0], patch)
+    got, want = specular.grid_points(none, subdivision[:0], patch), _grid_points_reference(none, subdivision[:0], patch)
     assert _same(got[0], want[0]) and _same(got[1], want[1])

@@ -5,6 +5,7 @@
 :func:`readonly`       a float64 copy whose ``writeable`` flag is off
 :func:`unique_pairs`   the distinct rows of two int64 columns, by one sorted int64 key
 :func:`sorted_unique`  ``np.unique`` of a 1-D array, by a sort and a mask of repeats
+:func:`row_norm`       ``np.linalg.norm(x, axis=1)`` of 3-vectors, bitwise, without temporaries
 =====================  ==============================================================
 
 Frozen dataclasses between stages hold their arrays read-only, so no stage can change another
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["readonly", "sorted_unique", "unique_pairs", "vector3"]
+__all__ = ["readonly", "row_norm", "sorted_unique", "unique_pairs", "vector3"]
 
 
 def vector3(name: str, value: Any) -> np.ndarray:
@@ -70,3 +71,9 @@ def sorted_unique(values: np.ndarray) -> np.ndarray:
     keep[0] = True
     np.not_equal(values[1:], values[:-1], out=keep[1:])
     return values[keep]
+
+
+def row_norm(x: np.ndarray) -> np.ndarray:
+    """float64 [m]: ``np.linalg.norm(x, axis=1)`` of float64 [m, 3] rows, summed in the same order
+    (bitwise equal), without its temporaries."""
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])

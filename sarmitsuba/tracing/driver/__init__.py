@@ -12,7 +12,7 @@ How one launch runs (:class:`~.mesh_trace.MeshTracer`), for each bounce order::
              -> mixed pieces clipped         (visibility: occluders' shadows, exact)
              -> boundary rates (M8)          (visibility.motion)
              -> term lanes, every pulse      (integration -> deposit)
-             -> next order's chains          (discovery: specular rays from lit pieces)
+             -> next order's chains          (discovery.specular: rays from lit pieces)
 
 ==========================  ===============================================================
 :mod:`.trace`               ``trace``: sub-apertures in launches, launches on host threads

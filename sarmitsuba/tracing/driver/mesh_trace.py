@@ -22,13 +22,13 @@ exact, and the discovery rays start on the pieces.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import drjit as dr
 import numpy as np
 
-from ...core.arrays import unique_pairs
+from ...core.arrays import row_norm
 from ..discovery.chains import Chains, image_source, region_lines, unfold
+from ..discovery.specular import arriving_views, discover, discovery_subdivision
 from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
 from ..visibility.lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
@@ -42,7 +42,7 @@ from ..integration.term_lanes import build_lanes, cancel_shared, scatterer_lanes
 from ..mesh.patches import Pieces, Surfaces
 from ..mesh.piece_cuts import pieces_of
 from ..integration.physical_optics import SINC_REGIME, split_threshold
-from ..visibility.rays import PathVisibility, Rays, lift
+from ..visibility.rays import PathVisibility, Rays
 
 __all__ = ["MeshTracer", "STABLE_MARGIN", "REACH_MARGIN"]
 
@@ -57,12 +57,6 @@ MOVING = True
 #: A boundary segment whose end would move farther than this many patch sizes across its
 #: sub-aperture (two nearly parallel lines meeting there) stays frozen (docs/physics.md (M8)).
 MOVE_LIMIT = 4.0
-#: Discovery rays start on a grid fixed in each face's frame, at least this many points across
-#: the shape's bounding box (and at least one per patch): a corner reflector a patch wide still
-#: sends rays from every face into every other (docs/physics.md (M6)).
-DISCOVERY_POINTS = 16
-#: At most this many discovery points per patch edge.
-MAX_DISCOVERY_SUBDIVISION = 32
 
 
 class MeshTracer:
@@ -101,7 +95,7 @@ class MeshTracer:
         self.patch = patch
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)
-        self.subdivision = _discovery_subdivision(surfaces, patch)
+        self.subdivision = discovery_subdivision(surfaces, patch)
         self.moving = MOVING
         #: Pieces without collinear corners (the geometric derivatives' tracers, docs/physics.md (AD4)).
         self.simplify = False
@@ -125,7 +119,8 @@ class MeshTracer:
             if depth > 0:
                 casts = self.rays.casts
                 with clock("discovery"):
-                    chains = self._discover(lit, reference)
+                    chains = discover(self.surfaces, lit, reference, self.rays, self.subdivision, self.patch,
+                                          self.depth)
                 stats["discovery"].append(self.rays.casts - casts)
                 if len(chains) == 0:
                     break
@@ -169,11 +164,11 @@ class MeshTracer:
         point = s.to_world(chains.last[chain], centroid2)
         source = image_source(chains, reference[chains.sub])[chain]
         leg = point - source
-        distance = _norm(leg)                                 # (np.linalg.norm's sum, bitwise)
+        distance = row_norm(leg)                              # (np.linalg.norm's sum, bitwise)
         omega = lit.sent[reached] * area * np.abs(np.einsum("mi,mi->m", leg, np.take(s.normal, np.take(chains.last, chain),
                                                                                     axis=0))) / distance ** 3
         first = chains.unfolded(point, chain) - np.take(reference, np.take(chains.sub, chain), axis=0)
-        first /= _norm(first)[:, None]
+        first /= row_norm(first)[:, None]
         # with Jones matrices, the mean over the transmit channels of TE and TM carried through
         # (as the tubes' |J|^2 / 2 where the planes of incidence agree); else the channel's own r
         tables = (self.table.table_te, self.table.table_tm) if self.returns.polarimetric else (self.table.table,)
@@ -279,41 +274,6 @@ class MeshTracer:
         return np.broadcast_to(self.track, (len(chains), 3)), lo[chains.sub], hi[chains.sub]
 
     # ------------------------------------------------------------------ discovery
-    def _discover(self, lit: LitPieces, reference: np.ndarray) -> Chains:
-        """The next bounce order's chains: from the discovery grid's points on each transmit-lit
-        piece, the specular reflection of the wave from its reference position, cast to the part
-        it meets first; one chain per distinct (chain, part) and per other part of that part's
-        face, eq. (M6)."""
-        s, chains, pieces = self.surfaces, lit.chains, lit.pieces
-        keep = np.flatnonzero(lit.transmit | lit.mixed)
-        owner, points2 = _grid_points(pieces.select(keep), self.subdivision[chains.last[pieces.region[keep]]], self.patch)
-        chain = np.take(pieces.region[keep], owner)
-        part = np.take(chains.last, chain)
-        points = s.to_world(part, points2)
-        antenna = np.take(reference, np.take(chains.sub, chain), axis=0)
-        d = _arriving(chains, chain, points, antenna)
-        normal = np.take(s.normal, part, axis=0)
-        reflected = d - 2.0 * np.einsum("mi,mi->m", d, normal)[:, None] * normal
-        origin = lift(points, normal, points - d)
-        hit, _ = self.rays.first_hit(origin, direction=reflected)
-        found = (hit >= 0) & (hit != part)
-        pairs = unique_pairs(chain[found], hit[found])
-        # a face met is met whole: its other convex parts join (their regions decide what they get)
-        start, partners = self.rays.face_partners
-        size = start[pairs[:, 1] + 1] - start[pairs[:, 1]]
-        local = np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)
-        extra = np.stack([np.repeat(pairs[:, 0], size), partners[np.repeat(start[pairs[:, 1]], size) + local]], axis=1)
-        pairs = np.concatenate([pairs, extra])
-        pairs = unique_pairs(pairs[:, 0], pairs[:, 1])
-        pairs = pairs[pairs[:, 1] != chains.last[pairs[:, 0]]]
-        if len(pairs) == 0:
-            return unfold(s, np.zeros((0, self.depth), np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64))
-        parent, new = pairs[:, 0], pairs[:, 1]
-        parts = chains.parts[parent].copy()
-        order = chains.order[parent] + 1
-        parts[np.arange(len(parent)), order] = new
-        return unfold(s, parts, order, chains.sub[parent])
-
     # ------------------------------------------------------------------ term lanes
     def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None):
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
@@ -455,11 +415,11 @@ class MeshTracer:
         to the path it draws through the three views (first, reference and last pulse)."""
         normal = np.take(self.surfaces.normal, np.take(chains.last, chain), axis=0)
         u_t = []
-        arriving = _arriving_views(chains, chain, points, views)
+        arriving = arriving_views(chains, chain, points, views)
         for v in range(3):
             d = arriving[v]
             b = views[:, v] - points
-            b /= _norm(b)[:, None]
+            b /= row_norm(b)[:, None]
             u = d - b
             u_t.append(u - normal * np.einsum("mi,mi->m", u, normal)[:, None])
         smallest = np.minimum(_distance_to_segment(u_t[0], u_t[1]), _distance_to_segment(u_t[1], u_t[2]))
@@ -475,11 +435,11 @@ class MeshTracer:
         mid = world[:m]
         edge = world[m:2 * m] - world[2 * m:]
         alphas = []
-        arriving = _arriving_views(chains, chain, mid, views)
+        arriving = arriving_views(chains, chain, mid, views)
         for v in range(3):
             d = arriving[v]
             b = views[:, v] - mid
-            b /= _norm(b)[:, None]
+            b /= row_norm(b)[:, None]
             alphas.append(0.5 * self.k * np.einsum("mi,mi->m", d - b, edge))
         alpha = np.stack(alphas, axis=1)
         size = np.abs(alpha)
@@ -487,48 +447,6 @@ class MeshTracer:
         split = same & (size.min(axis=1) >= SINC_REGIME) & (size.max(axis=1) >= self.alpha_s)
         sinc = size.max(axis=1) < self.alpha_s
         return np.where(split, SPLIT_START, np.where(sinc, SINC, OPEN_START))
-
-
-def _discovery_subdivision(surfaces: Surfaces, patch: float) -> np.ndarray:
-    """int64 [n_parts]: discovery points per patch edge on each part, ``ceil(P / (D /
-    DISCOVERY_POINTS))`` for the bounding-box diagonal ``D`` of its object (its connected body in
-    its shape), 1 to :data:`MAX_DISCOVERY_SUBDIVISION`."""
-    corners = surfaces.to_world(np.arange(surfaces.n_parts), surfaces.polygon)
-    groups = surfaces.body if surfaces.body is not None else surfaces.shape_id
-    shape = np.unique(groups, return_inverse=True)[1]
-    n = int(shape.max(initial=-1)) + 1
-    lo = np.full((n, 3), np.inf)
-    hi = np.full((n, 3), -np.inf)
-    np.minimum.at(lo, shape, corners.min(axis=1))
-    np.maximum.at(hi, shape, corners.max(axis=1))
-    size = np.linalg.norm(hi - lo, axis=1)[shape]
-    return np.clip(np.ceil(patch * DISCOVERY_POINTS / np.maximum(size, 1e-9)), 1, MAX_DISCOVERY_SUBDIVISION).astype(np.int64)
-
-
-def _grid_points(pieces, subdivision: np.ndarray, patch: float):
-    """Points of the faces' discovery grids inside each piece: the centres of the ``m x m``
-    sub-cells of its patch (``m = subdivision``, per piece) that the piece holds; a piece that
-    holds none gives its centroid. Returns (piece index int64 [p], face coordinates [p, 2])."""
-    from ..mesh.polygons import edge_lines, inside
-    count = subdivision ** 2
-    owner = np.repeat(np.arange(len(pieces)), count)
-    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-    m = subdivision[owner]
-    offset = np.stack([(local // m + 0.5) / m, (local % m + 0.5) / m], axis=1)
-    points = (np.take(pieces.cell, owner, axis=0) + offset) * patch       # row gathers by np.take
-    held = np.take(pieces.whole, owner)
-    test = np.flatnonzero(~held)
-    if len(test):
-        lines = edge_lines(pieces.polygon, pieces.count)
-        border = np.take(pieces.border, np.take(owner, test))
-        held[test] = inside(np.take(points, test, axis=0)[:, None, :], np.take(lines, border, axis=0))[:, 0]
-    kept = np.flatnonzero(held)
-    owner, points = np.take(owner, kept), np.take(points, kept, axis=0)
-    empty = np.flatnonzero(np.bincount(owner, minlength=len(pieces)) == 0)
-    if len(empty):
-        _, centroid, _, _ = pieces.select(empty).geometry()
-        owner, points = np.concatenate([owner, empty]), np.concatenate([points, centroid])
-    return owner, points
 
 
 def _unique_keys(keys: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -558,36 +476,12 @@ def _distance_to_segment(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance from the origin to each segment ``a -> b`` (float64 [m, 3] each)."""
     ab = b - a
     t = np.clip(-np.einsum("mi,mi->m", a, ab) / np.maximum(np.einsum("mi,mi->m", ab, ab), 1e-300), 0.0, 1.0)
-    return _norm(a + t[:, None] * ab)
-
-
-def _arriving(chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray) -> np.ndarray:
-    """The direction the wave from ``antenna`` arrives in at ``points`` on the chains' last parts:
-    the unfolded path's direction folded back, ``lin_d^T (U_d(x) - A) / |U_d(x) - A|``."""
-    return _arriving_views(chains, chain, points, antenna[:, None, :])[0]
-
-
-def _arriving_views(chains: Chains, chain: np.ndarray, points: np.ndarray, views: np.ndarray) -> list:
-    """:func:`_arriving` from each of the antenna positions ``views`` [m, v, 3] (one list entry per
-    view): the unfolded points and the maps gathered once for all views."""
-    lin = np.take(chains.lin_last, chain, axis=0)
-    y = np.einsum("mij,mj->mi", lin, points) + np.take(chains.shift_last, chain, axis=0)
-    out = []
-    for v in range(views.shape[1]):
-        first = y - views[:, v]
-        first /= _norm(first)[:, None]
-        out.append(np.einsum("mji,mj->mi", lin, first))
-    return out
+    return row_norm(a + t[:, None] * ab)
 
 
 def _norm2(x: np.ndarray) -> np.ndarray:
     """``np.linalg.norm(x, axis=1)`` of float64 [m, 2] rows (the same sum, bitwise equal)."""
     return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1])
 
-
-def _norm(x: np.ndarray) -> np.ndarray:
-    """``np.linalg.norm(x, axis=1)`` of float64 [m, 3] rows, summed in the same order (bitwise
-    equal), without its temporaries."""
-    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
 
 
