@@ -4,11 +4,11 @@ threads cannot help or would be wrong (the tube preview, the derivatives' traces
 
 Deliberate bugs these tests were run against: the variable's value 0 accepted and threads used
 inside ``evaluated_loops`` (each fails every run); the cast counters shared between threads instead
-of per thread (a race: failed one run of two); the visibility samples' symbolic loop recorded
-outside :data:`sarmitsuba.tracing.loops.RECORDING` (a race: a few pulses differed by up to 4e-5 of
-their power in 5 of 10 runs; serialised, none in 36 runs, 16 of them with two traces at once; but
-the rough surfaces' scatterer lanes, NumPy, moved out of the lock brought it back in 8 of 10, so
-the equality test is an expected failure until the race is understood).
+of per thread (a race: failed one run of two); the histogram's deposit left in
+``ReduceMode.Expand`` with two threads (``Accumulator.shared_by`` a no-op: two host threads that
+wait on Dr.Jit both run deposit blocks as pool worker 0 and add into one copy without atomics; a
+few pulses lost up to 4e-5 of their power in 10 of 31 runs, and in 6 of 6 with
+:data:`sarmitsuba.tracing.loops.RECORDING` a no-op; with the fix none in 60 runs).
 The pool's results taken in the order they finish is no bug (each result carries its pulses).
 """
 from __future__ import annotations
@@ -38,10 +38,6 @@ def _trace(loaded, threads: int, monkeypatch, per_batch: int = 2):
                          setup.table, effects=setup.effects)
 
 
-@pytest.mark.xfail(strict=False, reason="known defect, why host threads are off by default: a threaded trace can "
-                   "differ from the sequential one in a few pulses (up to 4e-5 of their power); serialising "
-                   "Dr.Jit's symbolic loops narrowed it (0 of 36 runs) but moving NumPy out of the lock brought it "
-                   "back (8 of 10): the race is not understood")
 def test_two_threads_give_the_sequential_result(monkeypatch):
     """The same sub-apertures in the same launches, traced two at a time and one after the other:
     the spectra agree to float32 summation order (the deposits' atomic adds), every pulse in its
@@ -64,11 +60,14 @@ def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
     kernel = type("K", (), {"mesh": object()})()
     monkeypatch.setattr(threads.os, "cpu_count", lambda: 8)
     monkeypatch.delenv(threads.HOST_THREADS_VARIABLE, raising=False)
-    assert threads.host_threads(kernel) == threads.HOST_THREADS == 1          # off by default
+    assert threads.host_threads(kernel) == threads.HOST_THREADS == 2          # two by default
     monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "3")
     assert threads.host_threads(kernel) == 3
     monkeypatch.setattr(threads.os, "cpu_count", lambda: 2)
     assert threads.host_threads(kernel) == 2                                # at most the cores
+    monkeypatch.delenv(threads.HOST_THREADS_VARIABLE)
+    monkeypatch.setattr(threads.os, "cpu_count", lambda: 1)
+    assert threads.host_threads(kernel) == 1                                # the default too
     for bad in ("0", "-1", "two", "1.5"):
         monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, bad)
         with pytest.raises(ParameterError, match=threads.HOST_THREADS_VARIABLE):

@@ -81,8 +81,8 @@ def test_norm2_is_linalg_norm():
 
 
 def test_norm_is_linalg_norm():
-    """``_norm`` (used by ``_carried`` in place of np.linalg.norm) is the same sum, bit for bit."""
-    from sarmitsuba.tracing.driver.mesh_trace import _norm
+    """``row_norm`` (used by ``_carried`` in place of np.linalg.norm) is the same sum, bit for bit."""
+    from sarmitsuba.core.arrays import row_norm as _norm
     rng = np.random.default_rng(9)
     x = np.concatenate([rng.normal(size=(300, 3)) * 10.0 ** rng.integers(-8, 8, (300, 1)), np.zeros((2, 3))])
     np.testing.assert_array_equal(_norm(x), np.linalg.norm(x, axis=1))

@@ -136,8 +136,16 @@ LANE_BYTES = 1400
 #: grows N-fold on N cores; about 2.5 copies with the allocator's cache). Measured with 1, 2 and 8
 #: threads (``dr.set_thread_count``) on dihedral with 4,000 pulses (4.0 M entries: +62 MiB per
 #: thread) and urban (2.5 M entries: +65 MiB per thread).
+#: Launches traced at once on host threads deposit with atomic adds (``ReduceMode.Local``,
+#: :meth:`sarmitsuba.tracing.deposit.accumulate.Accumulator.shared_by`): one copy each.
 HISTOGRAM_ENTRY_BYTES = 8
 HISTOGRAM_THREAD_BYTES = 20
+#: What each further launch traced at once on host threads adds to one launch's working set: the
+#: launches share Dr.Jit's allocator cache (the arrays one frees, the other reuses) and their peaks
+#: do not coincide. Measured on urban (two launches of 4 sub-apertures at once): the render peaked
+#: at 483 MiB against 630 MiB with one launch of 9, a working set about 1.07x that of one launch
+#: of 4 as modelled; 0.25 leaves a margin for scenes whose launches peak together.
+CONCURRENT_LAUNCH_SHARE = 0.25
 #: Focusing and writing one image, per pixel [bytes]: fast factorised backprojection's sum grid,
 #: polar images and workspaces and the calibrated copy; fitted to urban (0.97 M pixels: +43 MiB),
 #: urban at 600 MHz (3.1 M: +121 MiB) and sionna:munich (12.2 M: +193 MiB).
@@ -390,8 +398,11 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     threads = max(1, dr.thread_count())
     runtime = (RUNTIME_BYTES + (SCENE_TRIANGLE_BYTES + (MESH_TRIANGLE_BYTES if piece_bytes else 0)) * loaded.n_triangles
                + SCENE_SHAPE_BYTES * loaded.n_shapes)
-    working = at_once * (TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
-                         + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * threads) * entries)
+    # one histogram copy per Dr.Jit thread (ReduceMode.Expand), or one (atomic adds, several launches at once)
+    copies = threads if at_once == 1 else 1
+    working = (1 + CONCURRENT_LAUNCH_SHARE * (at_once - 1)) * (
+        TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
+        + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * copies) * entries)
     focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
     n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
     tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)

@@ -119,8 +119,19 @@ def _worker_state(spec: tuple, key: str) -> tuple:
                           loaded.settings, setup.effects)
         kernel = Kernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings, setup.table,
                         setup.effects)
+        # a worker with several threads runs several tasks at once on this kernel: atomic deposits
+        kernel.returns.sums.shared_by(_worker_threads())
         _WORKER_CACHE[key] = (loaded, setup, plan, kernel)
     return _WORKER_CACHE[key]
+
+
+def _worker_threads() -> int:
+    """The threads of the Dask worker running this task (1 outside a worker)."""
+    try:
+        from distributed import get_worker
+        return int(get_worker().state.nthreads)
+    except (ImportError, ValueError, AttributeError):
+        return 1
 
 
 #: Fault injection for the tests: a worker whose environment names a file here that does not

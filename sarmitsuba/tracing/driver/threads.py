@@ -3,18 +3,16 @@
 The mesh tracer's host geometry is NumPy, which releases the GIL in its array operations, so
 launches traced on two threads keep both cores of a 2-core machine busy; each then holds half the
 sub-apertures, so the peak memory stays that of one launch. Measured on Munich's default render
-(2 cores): trace 89.0 s on one thread, 75.7 s on two (1.07 GB peak against 1.18 GB), 67.1 s with
-launches of two sub-apertures each (1.36 GB).
+(2 cores, one run each): trace 110.3 s on one thread, 85.1 s on two (peak RSS 1.14 GB against
+1.08 GB), the images within -53.6 dB (what launches of other sizes give on one thread); ``urban``
+within its run-to-run noise.
 
-It is off by default (one launch at a time): a race between the threads is not understood.
-Without serialising Dr.Jit's symbolic loops, a threaded render of Munich differed from itself at
--53 to -70 dB. With every symbolic loop the mesh tracer records holding
-:data:`sarmitsuba.tracing.loops.RECORDING` (the per-pulse terms with the rough surfaces'
-scatterers, the geometry kernels), a threaded trace of ``urban`` matched the sequential one in 36
-runs of 36 and the whole test suite passed with two threads; but with the scatterers' NumPy moved
-out of the lock, a few pulses again differed (by up to 4e-5 of their power) in 8 runs of 10. So
-the lock narrows a window rather than closing a known race. Set :data:`HOST_THREADS_VARIABLE` to 2
-to try it (``tests/test_host_threads.py`` marks the comparison as an expected failure).
+With several threads the histogram's deposit adds atomically
+(:meth:`sarmitsuba.tracing.deposit.accumulate.Accumulator.shared_by`): with Dr.Jit's
+``ReduceMode.Expand`` two host threads that wait on Dr.Jit at once both run deposit blocks as
+pool worker 0 and add into the same copy without atomics (before that was found, a few pulses of
+a threaded trace lost up to 4e-5 of their power). Set :data:`HOST_THREADS_VARIABLE` to 1 to
+trace one launch at a time.
 """
 from __future__ import annotations
 
@@ -30,8 +28,8 @@ __all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
 #: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
 HOST_THREADS_VARIABLE = "SARMITSUBA_HOST_THREADS"
-#: Launches traced at once by default.
-HOST_THREADS = 1
+#: Launches traced at once by default (at most the machine's cores).
+HOST_THREADS = 2
 
 
 def host_threads(kernel) -> int:

@@ -389,6 +389,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     threads = host_threads(kernel)
     if threads > 1:                      # launches of 1 / threads the size, as many at once: no more memory
         plan = dataclasses.replace(plan, per_batch=max(1, plan.per_batch // threads))
+        kernel.returns.sums.shared_by(threads)
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
     batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
     pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
