@@ -20,24 +20,25 @@ __all__ = ["reach_work", "SETUP_TRIANGLE_SECONDS", "SUB_PIECE_SECONDS", "SUB_TRI
 #: ones, motion rates, term lanes), and seconds per clutter scatterer-pulse of the rough area
 #: facing the sensor in that reach (``area / scatterer_spacing^2`` times its pulses), plus
 #: seconds per triangle of the tracer's set-up (surfaces, wedges, the pieces of every part).
-#: Measured as process CPU seconds (the machine was shared; CPU time is what an idle 2-core
-#: machine's wall time approaches for this single-threaded NumPy work) with
-#: ``python benchmarks/scaling.py --calibrate`` (renders the generated city of
-#: ``benchmarks/city_generator.py`` at 10 k triangles with 19 and 76 pulses, rough and smooth,
-#: and at 100 k triangles with 19 pulses, and fits these three constants); re-run it and paste
-#: its output here when the tracer changes.
-#: Fitted (non-negative relative least squares on 8 renders, every one within 15 %) by
-#: ``python benchmarks/scaling.py --calibrate`` on 2026-11-26 at commit 7e86c81 (the tracing
-#: speed-ups of issue 56 landed so far), trace CPU seconds less the casts' share: 10 k city 19
-#: pulses 1.85 s (smooth 1.73 s), 38 pulses 2.89 s, 76 pulses 5.01 s; 100 k city 19 pulses 10.75 s,
-#: 38 pulses 14.19 s; urban (779 pulses, 30 sub-apertures) 4.34 s; sionna:munich 120 pulses 12.7 s.
+#: Measured as the trace's wall seconds on an otherwise idle 2-core machine (what ``info``'s user
+#: compares the prediction with; the kernels use both cores, so CPU seconds run 1.1-1.9x higher)
+#: with ``python benchmarks/scaling.py --calibrate`` (renders the generated city of
+#: ``benchmarks/city_generator.py`` at 10 k triangles with 19, 38 and 76 pulses, rough and smooth,
+#: at 100 k triangles with 19 and 38 pulses, urban and Munich, and fits these four constants);
+#: re-run it and paste its output here when the tracer changes.
+#: Fitted (non-negative relative least squares on 8 renders, every one within 7 %) on 2026-11-26
+#: at commit 7c018e1 (two launches at once on host threads), trace wall seconds less the casts'
+#: share: 10 k city 19 pulses 1.50 s (smooth 1.45 s), 38 pulses 1.99 s, 76 pulses 3.04 s; 100 k
+#: city 19 pulses 9.07 s, 38 pulses 10.23 s; urban (779 pulses, 30 sub-apertures) 3.03 s;
+#: sionna:munich, its whole default acquisition (2,326 pulses, 123 sub-apertures: a short run's
+#: fixed costs had made the per-sub-aperture terms too large), 83.3 s.
 #: The time goes mostly with the parts (triangles) in reach, each at least one piece with its own
 #: chain, lanes and clipping, and little with how many whole patches a large face holds (urban,
-#: Munich separate the two); the clutter term fits to 0 (its deposit is cheap beside them).
-SETUP_TRIANGLE_SECONDS = 6.9e-5
-SUB_PIECE_SECONDS = 6.4e-6
-SUB_TRIANGLE_SECONDS = 1.18e-4
-CLUTTER_SCATTERER_PULSE_SECONDS = 0.0
+#: Munich separate the two).
+SETUP_TRIANGLE_SECONDS = 6.74e-5
+SUB_PIECE_SECONDS = 1.75e-6
+SUB_TRIANGLE_SECONDS = 6.85e-5
+CLUTTER_SCATTERER_PULSE_SECONDS = 1.22e-8
 #: Mesh tracer memory [bytes]: :data:`MESH_TRIANGLE_BYTES` per triangle of the whole scene (its
 #: surfaces, wedges and the pieces of every part, cut once per acquisition and held: this part
 #: grows with the scene, not with the beam), and :data:`SUBAPERTURE_BYTES` for each sub-aperture
