@@ -59,6 +59,8 @@ class RenderSummary:
     pulse_paths: int = 0
     #: The trace's seconds by stage of the mesh tracer (:data:`sarmitsuba.tracing.driver.stages.STAGES`).
     trace_stages: dict = dataclasses.field(default_factory=dict)
+    #: The same by bounce order, ``{order: {stage: seconds}}`` (orders from 1; ``deposit`` only above).
+    trace_stages_by_order: dict = dataclasses.field(default_factory=dict)
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -391,7 +393,8 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         energy_per_order=result.energy_per_order.tolist(), energy_outside_window=result.energy_outside_window,
         raw_shape=sim.raw.data.shape, image_shape=sim.image.data.shape,
         outputs={k: str(v) for k, v in paths.items()}, pulses_per_trace=result.pulses_per_trace,
-        pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds))
+        pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
+        trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()})
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

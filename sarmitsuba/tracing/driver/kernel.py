@@ -393,8 +393,8 @@ class Kernel:
             if out is None:                     # exact kernel: too many scatterers for the buffer
                 return self(launch, capacity=ctx["needed"])
             out["mesh"] = stats = ctx["mesh"]
-            out["stages"] = np.array(stats.get("seconds", np.zeros(len(STAGES))), float)
-            out["stages"][STAGES.index("deposit")] += time.perf_counter() - start
+            out["stages"] = np.array(stats["seconds"], float)           # [max_depth + 1, stages]
+            out["stages"][-1, STAGES.index("deposit")] += time.perf_counter() - start
             for depth, (samples, carried) in enumerate(zip(stats["samples"], stats["carried"])):
                 out["rays"][depth] += samples          # the points rays were aimed at, per bounce order
                 out["carried"][depth] += carried

@@ -111,11 +111,12 @@ class MeshTracer:
         reference = launch.reference
         views = self._views(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
-        clock = StageClock()
+        clock = StageClock(self.depth + 1)           # (the last row: the deposit, kernel.Kernel)
         casts_before = self.rays.casts + self.visibility.casts
         with clock("first bounce"):
             lit = self._first_bounce(launch)
         for depth in range(self.depth):
+            clock.order = depth
             if depth > 0:
                 casts = self.rays.casts
                 with clock("discovery"):

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-__all__ = ["STAGES", "StageClock"]
+__all__ = ["STAGES", "StageClock", "by_order"]
 
 #: The stages, in the order a launch runs them:
 #: ``first bounce`` the first bounce's pieces and their visibility (M2)-(M4); ``visibility`` the
@@ -24,12 +24,25 @@ STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "
 
 
 class StageClock:
-    """Exclusive wall time per stage of :data:`STAGES`: ``with clock("rates"): ...``;
-    :attr:`seconds` float64 [len(STAGES)]."""
+    """Exclusive wall time per stage of :data:`STAGES` and per bounce order: ``clock.order = d``
+    (0-based; 0 by default), then ``with clock("rates"): ...``.
 
-    def __init__(self):
-        self.seconds = np.zeros(len(STAGES))
-        self._open: list[int] = []
+    Parameters
+    ----------
+    orders : int
+        Rows of :attr:`seconds`: the bounce orders traced, and one more for what belongs to no
+        single order (the launch's ``deposit``).
+
+    Attributes
+    ----------
+    seconds : float64 [orders, len(STAGES)]
+        Row ``d``: the stages' seconds while :attr:`order` was ``d``.
+    """
+
+    def __init__(self, orders: int = 1):
+        self.seconds = np.zeros((orders, len(STAGES)))
+        self.order = 0
+        self._open: list[tuple[int, int]] = []
         self._since = 0.0
 
     @contextlib.contextmanager
@@ -38,7 +51,7 @@ class StageClock:
         now = time.perf_counter()
         if self._open:
             self.seconds[self._open[-1]] += now - self._since
-        self._open.append(index)
+        self._open.append((self.order, index))
         self._since = now
         try:
             yield
@@ -46,3 +59,10 @@ class StageClock:
             now = time.perf_counter()
             self.seconds[self._open.pop()] += now - self._since
             self._since = now
+
+
+def by_order(seconds: np.ndarray) -> dict:
+    """``{order: {stage: seconds}}`` (orders from 1) of the rows of ``seconds`` float64
+    [n_rows, len(STAGES)] but the last (what belongs to no single order), stages above 0 only."""
+    return {d + 1: {name: float(t) for name, t in zip(STAGES, row) if t > 0}
+            for d, row in enumerate(np.asarray(seconds)[:-1]) if np.any(row > 0)}

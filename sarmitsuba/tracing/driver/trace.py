@@ -41,7 +41,7 @@ from ...scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
 from ..integration.pulse_view import antenna_axes
-from .stages import STAGES
+from .stages import STAGES, by_order
 from .threads import host_threads
 from ...core.radar import ParameterError, RadarParameters
 from ...core.geometry import AcquisitionGeometry, acquisition_geometry
@@ -181,6 +181,9 @@ class TraceResult:
     stage_seconds : dict
         The mesh tracer's wall seconds per stage (:data:`sarmitsuba.tracing.driver.stages.STAGES`,
         summed over its launches; empty for the tube preview).
+    stage_seconds_by_order : dict
+        The same by bounce order, ``{order: {stage: seconds}}`` (orders from 1; the ``deposit``
+        stage, shared by the orders, only in :attr:`stage_seconds`).
     """
 
     spectrum: np.ndarray
@@ -200,6 +203,7 @@ class TraceResult:
     pulse_paths: int = 0
     channels: tuple = ()
     stage_seconds: dict = dataclasses.field(default_factory=dict)
+    stage_seconds_by_order: dict = dataclasses.field(default_factory=dict)
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -382,7 +386,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     paths = {}
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
-                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros(len(STAGES)))
+                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))))
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
@@ -438,7 +442,8 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
                        paths=merged, split=effects.split_bounces,
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
                        pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
-                       stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"]) if t > 0})
+                       stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"].sum(axis=0)) if t > 0},
+                       stage_seconds_by_order=by_order(totals["stages"]))
 
 
 @dataclass(frozen=True)
