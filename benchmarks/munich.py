@@ -49,6 +49,7 @@ import numpy as np
 
 import sarmitsuba  # noqa: F401
 from _table import bench_main, machine, write_csv
+from ffbp import OMEGA_K_BOUND
 
 NAME = "munich"
 #: Closest-hit casts of the unit of work (the primary rays of per-pulse tracing before issue 12).
@@ -216,6 +217,12 @@ def floor_rows(scene: str = "sionna:munich") -> list[dict]:
     return [row]
 
 
+#: The default render's targets, in units of the bare cast timed in the same run: the mesh
+#: tracer's (its default render was 4.9 units warm when they were set; the ray tubes' targets
+#: were 0.5 and 0.7).
+WARM_UNITS, FIRST_UNITS = 1.0, 1.5
+
+
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
     """Issues 12's and 56's acceptance, as ratios of this run."""
     out = []
@@ -227,21 +234,21 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
             out.append((f"{scene}: image NRMSE against per-pulse tracing and direct backprojection <= -30 dB",
                         bool(row["nrmse_vs_reference_db"] <= -30.0), f"{row['nrmse_vs_reference_db']} dB"))
         if "render_units" in row and "first_render_units" in row:
-            out.append((f"{scene}: default render, first run (empty kernel cache) <= 0.7 units",
-                        bool(row["first_render_units"] <= 0.7),
+            out.append((f"{scene}: default render, first run (empty kernel cache) <= {FIRST_UNITS:g} units",
+                        bool(row["first_render_units"] <= FIRST_UNITS),
                         f"{row['first_render_s']} s = {row['first_render_units']} units of {row['unit_s']} s, "
                         f"{row['kernels_compiled']} kernels compiled"))
         if "render_units" in row:
-            out.append((f"{scene}: default render, warm <= 0.5 units", bool(row["render_units"] <= 0.5),
+            out.append((f"{scene}: default render, warm <= {WARM_UNITS:g} units", bool(row["render_units"] <= WARM_UNITS),
                         f"{row['render_s']} s = {row['render_units']} units of {row['unit_s']} s "
                         f"({row['render_embree_units']} Embree-only units of {row['embree_unit_s']} s)"
                         if "render_embree_units" in row else f"{row['render_s']} s = {row['render_units']} units"))
-            out.append((f"{scene}: its casts at the bare rates plus the stages outside the trace <= 0.5 units",
-                        bool(row["floor_units"] <= 0.5),
+            out.append((f"{scene}: its casts at the bare rates plus the stages outside the trace <= {WARM_UNITS:g} units",
+                        bool(row["floor_units"] <= WARM_UNITS),
                         f"{row['floor_units']} units = casts {row['casts_units']} + outside the trace "
                         f"{row['outside_trace_units']}"))
         if "ffbp_over_omegak" in row and "render_units" in row:
-            out.append((f"{scene}: backprojection <= 3x omega-K", bool(row["ffbp_over_omegak"] <= 3.0),
+            out.append((f"{scene}: backprojection <= {OMEGA_K_BOUND:g}x omega-K", bool(row["ffbp_over_omegak"] <= OMEGA_K_BOUND),
                         f"ffbp {row['ffbp_s']} s, omega-K {row['omegak_s']} s, direct {row['bp_s']} s"))
             out.append((f"{scene}: peak memory <= before issue 12 ({MEMORY_BEFORE_MB:.0f} MB)",
                         bool(row["peak_mb"] <= MEMORY_BEFORE_MB), f"{row['peak_mb']} MB"))

@@ -425,10 +425,16 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
                     max(means) - min(means) < 8.0, f"{min(means):.1f} .. {max(means):.1f} dB"))
         coarse, fine = max(plane, key=lambda r: r["tube_m"]), min(plane, key=lambda r: r["tube_m"])
         if fine is not coarse:
+            # the mesh tracer (the default) casts at the pieces' corners, not on the tube lattice:
+            # its rays do not follow the spacing (the ray tubes' did, and their time with them).
+            # The spacing still sizes its launches (sub-apertures per launch from the tube count),
+            # which costs up to 1.5x at 0.1 m (README, "Ray density")
             rays = fine["rays_per_pulse"] / coarse["rays_per_pulse"]
             ratio = fine["seconds"] / coarse["seconds"]
-            out.append(("smooth plane: the densest setting costs more than the coarsest, at most in proportion to rays",
-                        1.0 < ratio <= 1.5 * rays, f"time ratio {ratio:.2f} for {rays:.1f}x rays"))
+            out.append(("smooth plane: the mesh tracer's rays do not follow the ray spacing (within 10 %)",
+                        abs(rays - 1.0) <= 0.1, f"{rays:.2f}x rays from {coarse['setting']} to {fine['setting']}"))
+            out.append(("smooth plane: the densest spacing costs at most 2x the coarsest (launch sizes only)",
+                        ratio <= 2.0, f"time ratio {ratio:.2f}"))
     ground = [r for r in rows if r["speckle_contrast"] != ""]
     if ground:
         worst = max(ground, key=lambda r: abs(r["error_db"]))

@@ -74,9 +74,19 @@ def sweep(scene: str, sensor: dict, sweep: tuple) -> list[dict]:
     return rows
 
 
+#: A lattice move below this [dB] changes nothing but rounding (the mesh tracer's images
+#: measured -134 dB apart on urban).
+LATTICE_FREE_DB = -100.0
+#: The automatic sub-aperture's image NRMSE against per-pulse tracing [dB]: -30 dB for every
+#: scene (the invariance table's target), -50 dB on urban (measured -57.1 dB, README "Pulses per
+#: trace").
+AUTO_BOUND_DB = {"urban": -50.0}
+
+
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
     """Ratios measured in one run: casts fall as 1 / N, the automatic sub-aperture is faster than
-    per-pulse tracing, its error is below -30 dB on urban and well below the lattice's own."""
+    per-pulse tracing, its error against per-pulse tracing is below :data:`AUTO_BOUND_DB`, and the image does not move
+    with the ray lattice (:data:`LATTICE_FREE_DB`)."""
     out = []
     for scene in dict.fromkeys(r["scene"] for r in rows):
         mine = {r["setting"].split(" (")[0] if "automatic" not in r["setting"] else "auto": r for r in rows
@@ -88,12 +98,14 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
                     f"casts ratio {ratio:.1f}"))
         out.append((f"{scene}: automatic sub-aperture traces at least 3x faster", bool(auto["trace_ratio"] <= 1 / 3),
                     f"trace time ratio {auto['trace_ratio']}"))
-        out.append((f"{scene}: automatic sub-aperture error 10 dB below the lattice's own",
-                    bool(auto["nrmse_db"] <= lattice["nrmse_db"] - 10.0),
-                    f"{auto['nrmse_db']} dB against {lattice['nrmse_db']} dB"))
-        if scene == "urban":
-            out.append(("urban: automatic sub-aperture image NRMSE <= -30 dB", bool(auto["nrmse_db"] <= -30.0),
-                        f"{auto['nrmse_db']} dB"))
+        # the default mesh tracer: the ray lattice only seeds discovery, and moving it changes
+        # nothing beyond rounding, so it is no yardstick for the sub-apertures' error (it was for
+        # the ray tubes, whose staircase edges move with it); per-pulse tracing is
+        out.append((f"{scene}: the ray lattice moved changes the image below {LATTICE_FREE_DB:g} dB (mesh tracer)",
+                    bool(lattice["nrmse_db"] <= LATTICE_FREE_DB), f"{lattice['nrmse_db']} dB"))
+        bound = AUTO_BOUND_DB.get(scene, -30.0)
+        out.append((f"{scene}: automatic sub-aperture image NRMSE <= {bound:g} dB against per-pulse tracing",
+                    bool(auto["nrmse_db"] <= bound), f"{auto['nrmse_db']} dB"))
     return out
 
 
