@@ -85,3 +85,37 @@ def test_one_thread_for_the_preview_and_inside_the_derivatives(monkeypatch):
         assert threads.host_threads(mesh) == 1
     with float64_lanes():                                                   # so is the lanes' precision
         assert threads.host_threads(mesh) == 1
+
+
+def test_launches_at_once_build_the_shared_pieces_once(monkeypatch):
+    """Two host threads that start their launches together wait for one build of the mesh's
+    pieces (a 1 M-triangle city's are 0.6 GB): ``pieces_of`` runs once, slowed here so that both
+    threads ask while it runs, and both get the same arrays. Without the lock it ran twice."""
+    import threading
+    import time as _time
+
+    from sarmitsuba.tracing.driver import kernel as kernel_module
+    from sarmitsuba.tracing.driver import mesh_trace
+
+    loaded = load_scene("urban", sensor_overrides={"n_pulses": 64})
+    setup = tracing.prepare_trace(loaded)
+    kernel = kernel_module.Kernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings,
+                                  setup.table, setup.effects)
+    tracer = kernel.mesh
+    calls = []
+    build = mesh_trace.pieces_of
+
+    def slow(*args, **kwargs):
+        calls.append(threading.get_ident())
+        _time.sleep(0.3)
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(mesh_trace, "pieces_of", slow)
+    got = []
+    workers = [threading.Thread(target=lambda: got.append(tracer._first_pieces())) for _ in range(2)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    assert len(calls) == 1
+    assert got[0] is got[1]

@@ -22,6 +22,7 @@ exact, and the discovery rays start on the pieces.
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import drjit as dr
 import numpy as np
@@ -101,6 +102,9 @@ class MeshTracer:
         self.simplify = False
         self._static = None
         self._body_box = None
+        # launches on several host threads share these caches: the first to need one builds it
+        # while the others wait (a 1 M-triangle mesh's pieces are 0.6 GB, built once)
+        self._cache_lock = threading.Lock()
         self.bbox = (np.asarray(bbox[0], float), np.asarray(bbox[1], float))
 
     # ------------------------------------------------------------------ one launch
@@ -197,14 +201,19 @@ class MeshTracer:
     def _first_pieces(self) -> tuple[Pieces, np.ndarray]:
         """Every part cut into its pieces once per acquisition (a part is its own first-bounce
         region), sorted by their centroids' coordinate along the track (with those coordinates)."""
-        if self._static is None:
-            s = self.surfaces
-            pieces = pieces_of(s.polygon, s.n_corners, self.patch)
-            _, centroid, _, _ = pieces.geometry()
-            along = s.to_world(pieces.region, centroid) @ self.track
-            order = np.argsort(along, kind="stable")
-            self._static = (pieces.select(order), along[order])
+        with self._cache_lock:
+            if self._static is None:
+                self._static = self._sorted_pieces()
         return self._static
+
+    def _sorted_pieces(self) -> tuple[Pieces, np.ndarray]:
+        """:meth:`_first_pieces`, built."""
+        s = self.surfaces
+        pieces = pieces_of(s.polygon, s.n_corners, self.patch)
+        _, centroid, _, _ = pieces.geometry()
+        along = s.to_world(pieces.region, centroid) @ self.track
+        order = np.argsort(along, kind="stable")
+        return pieces.select(order), along[order]
 
     def _first_bounce(self, launch) -> LitPieces:
         """The first bounce: per sub-aperture the pieces of every part within the beam's
@@ -240,18 +249,23 @@ class MeshTracer:
     def _in_body_box(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
         """bool: ``points`` [m, 3] lie in the bounding box of ``part``'s body (where its inside
         is not known to be hidden)."""
-        if self._body_box is None:
-            s = self.surfaces
-            body = np.unique(s.body if s.body is not None else s.shape_id, return_inverse=True)[1]
-            corners = s.to_world(np.arange(s.n_parts), s.polygon)
-            lo = np.full((int(body.max(initial=-1)) + 1, 3), np.inf)
-            hi = np.full_like(lo, -np.inf)
-            np.minimum.at(lo, body, corners.min(axis=1))
-            np.maximum.at(hi, body, corners.max(axis=1))
-            self._body_box = (body, lo, hi)
+        with self._cache_lock:
+            if self._body_box is None:
+                self._body_box = self._body_boxes()
         body, lo, hi = self._body_box
         b = body[part]
         return np.all((points >= lo[b]) & (points <= hi[b]), axis=1)
+
+    def _body_boxes(self):
+        """``(body of each part, lo, hi)``: each body's bounding box (:meth:`_in_body_box`)."""
+        s = self.surfaces
+        body = np.unique(s.body if s.body is not None else s.shape_id, return_inverse=True)[1]
+        corners = s.to_world(np.arange(s.n_parts), s.polygon)
+        lo = np.full((int(body.max(initial=-1)) + 1, 3), np.inf)
+        hi = np.full_like(lo, -np.inf)
+        np.minimum.at(lo, body, corners.min(axis=1))
+        np.maximum.at(hi, body, corners.max(axis=1))
+        return body, lo, hi
 
     def _reach(self, launch, depth: int) -> tuple[np.ndarray, np.ndarray]:
         """Along-track interval ``[lo, hi]`` [m] of ``track . y`` that the beam of each
