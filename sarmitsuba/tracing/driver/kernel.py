@@ -419,7 +419,7 @@ class Kernel:
         scene or ended are dropped."""
         st, ret = self.settings, self.returns
         reference = dr.gather(mi.Array3f64, ctx["reference"], tube.sub)
-        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(depth), tube.active)
+        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(depth), tube.active, mode=ctx["tally"])
         hit = intersect(self.scene, self.tables, tube, reference)
         row = dr.gather(mi.UInt32, self.tables.row_of_shape, hit.shape, hit.valid)
         specular = dr.gather(mi.Float, self.tables.specular, row, hit.valid)
@@ -433,7 +433,7 @@ class Kernel:
             carried = dr.squared_norm(tube.gamma)
         count = mi.Float(dr.gather(mi.UInt32, ctx["count"], tube.sub))
         dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * carried * count,
-                       mi.UInt32(depth), hit.valid)
+                       mi.UInt32(depth), hit.valid, mode=ctx["tally"])
         # ---- the footprint seen from the reference position, and which of its edges split (PO2):
         #      for every pulse of the sub-aperture (its first and last pulse agree), or per pulse ----
         d = tube.ray.d
@@ -444,7 +444,7 @@ class Kernel:
         rec.flags |= dr.select(split[0], Flags.SPLIT_1, 0) | dr.select(split[1], Flags.SPLIT_2, 0) \
             | dr.select(undecided[0], Flags.UNDECIDED_1, 0) | dr.select(undecided[1], Flags.UNDECIDED_2, 0)
         vis = visible(self.scene, hit, hit.valid & (hit.cos_b > 0))
-        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0))
+        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0), mode=ctx["tally"])
         ret.tally(ctx, rec, hit, d, alpha, specular, r, count, depth, vis)
         last = depth + 1 == st.max_depth          # the last bounce order: no reflection compiled
         if last:

@@ -115,9 +115,9 @@ class ClutterTerms:
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
                                           lambda i, *_: i < n_cells, step, mode=loop_mode(), label="scatterers")
         power = dr.squared_norm(amplitude) * level
-        dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough)
-        dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough)
-        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough)
+        dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough, mode=ctx["tally"])
+        dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough, mode=ctx["tally"])
+        dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough, mode=ctx["tally"])
 
     def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
         """Per channel, the co-polarised and the cross-polarised factor of a rough surface's

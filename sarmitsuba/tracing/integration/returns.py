@@ -144,7 +144,11 @@ class Returns(ClutterTerms):
                    block_nj=table_array(mi.UInt32, launch.blocks.n_j),
                    block_m=table_array(mi.UInt32, launch.blocks.m),
                    launch=launch,
-                   max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0)
+                   max_count=int(launch.count.max()), n_b=n_b, capacity=capacity, paths=[], needed=0, evaluated=0,
+                   # the counters above, added to as the histogram is (Accumulator.shared_by): small
+                   # arrays that ReduceMode.Auto would expand per pool worker, and lose updates to
+                   # launches on several host threads
+                   tally=self.sums.reduce)
         axis = np.broadcast_to(self.fp.track, launch.antenna.shape) if launch.axes is None else launch.axes[:, 0]
         if self.spotlight:
             to_c = np.asarray(self.fp.origin, float) - launch.antenna
@@ -349,11 +353,11 @@ class Returns(ClutterTerms):
         area = dr.norm(dr.cross(rec.e1, rec.e2))
         carrier = rec.gamma * r * (scale * area * _sinc(alpha[0]) * _sinc(alpha[1]))
         power = dr.squared_norm(carrier) * count
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), vis)
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), vis, mode=ctx["tally"])
         rel = hit.s + hit.dist - lref
         bin_, frac = self.anchor(rel, lref)
         outside = (bin_ < 0) | (bin_ >= self.window.n_fine - 1)
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & outside)
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & outside, mode=ctx["tally"])
 
     # ------------------------------------------------------------------ the returns of one order
     def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:

@@ -188,7 +188,7 @@ class ClutterKernel:
             return (q + 1,)
 
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="scatterers")
-        dr.scatter_add(ctx["scatterers"], mi.UInt32(int(found)), mi.UInt32(depth))
+        dr.scatter_add(ctx["scatterers"], mi.UInt32(int(found)), mi.UInt32(depth), mode=ctx["tally"])
         if paths is not None:
             r.sums.keep_paths(ctx, paths)
 
@@ -233,8 +233,8 @@ class ClutterKernel:
         inside = r.sums.deposit(ctx, pulse, depth, r.anchor(rel, lref), 0.0, values,
                                 mi.UInt32(SPECTRAL_ORDERS.index(0)), active, paths, lane * ctx["max_count"] + q)
         power = dr.squared_norm(amplitude) * level
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), active)
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), active & ~inside)
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), active, mode=ctx["tally"])
+        dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), active & ~inside, mode=ctx["tally"])
 
 
 _unused = (math, pol)
