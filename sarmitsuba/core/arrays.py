@@ -4,6 +4,7 @@
 :func:`vector3`        a finite 3-vector (float64, shape ``(3,)``) or a clear ValueError
 :func:`readonly`       a float64 copy whose ``writeable`` flag is off
 :func:`unique_pairs`   the distinct rows of two int64 columns, by one sorted int64 key
+:func:`unique_rows`    ``np.unique(keys, axis=0)`` of integer rows, by one ``lexsort``
 :func:`sorted_unique`  ``np.unique`` of a 1-D array, by a sort and a mask of repeats
 :func:`row_norm`       ``np.linalg.norm(x, axis=1)`` of 3-vectors, bitwise, without temporaries
 =====================  ==============================================================
@@ -17,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["readonly", "row_norm", "sorted_unique", "unique_pairs", "vector3"]
+__all__ = ["readonly", "row_norm", "sorted_unique", "unique_pairs", "unique_rows", "vector3"]
 
 
 def vector3(name: str, value: Any) -> np.ndarray:
@@ -57,6 +58,31 @@ def unique_pairs(first: np.ndarray, second: np.ndarray) -> np.ndarray:
         raise ValueError("unique_pairs: first must be >= 0 and first * span(second) below 2**62")
     key = sorted_unique(first * span + (second - low))
     return np.stack([key // span, key % span + low], axis=1)
+
+
+def unique_rows(keys: np.ndarray, return_inverse: bool = False, return_counts: bool = False):
+    """The distinct rows of the integer array ``keys`` [n, k], in lexicographic order, as
+    ``np.unique(keys, axis=0, return_inverse=..., return_counts=...)`` gives them: the rows
+    (``keys``' dtype) [m, k], then, where asked, each row's index among them (int64 [n]) and each
+    distinct row's count (int64 [m]). One ``np.lexsort`` of the columns instead of a sort of
+    structured rows: on a city's 3 M corner keys (4 int64 columns) about 10 times faster."""
+    keys = np.asarray(keys)
+    keys = keys.reshape(len(keys), -1) if keys.ndim != 2 else keys
+    n = len(keys)
+    order = np.lexsort(keys.T[::-1]) if n else np.zeros(0, np.int64)
+    ranked = keys[order]
+    first = np.empty(n, bool)
+    if n:
+        first[0] = True
+        np.any(ranked[1:] != ranked[:-1], axis=1, out=first[1:])
+    out = [ranked[first]]
+    if return_inverse:
+        inverse = np.empty(n, np.int64)
+        inverse[order] = np.cumsum(first) - 1
+        out.append(inverse)
+    if return_counts:
+        out.append(np.diff(np.append(np.flatnonzero(first), n)).astype(np.int64))
+    return out[0] if len(out) == 1 else tuple(out)
 
 
 def sorted_unique(values: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from ..core.arrays import unique_rows
 __all__ = ["MeshReport", "check_meshes", "check_all", "check_mesh", "warn_mesh_defects", "MeshDefectWarning",
            "shape_label", "shape_points", "silent_scene"]
 
@@ -129,8 +130,7 @@ def check_all(meshes: list) -> list[MeshReport]:
     # ---- merge coincident vertices within each mesh (key: mesh, rounded coordinates) ----
     vertex_mesh = np.repeat(np.arange(n), n_v)
     keys = np.column_stack([vertex_mesh, np.round(vertices * 1e8).astype(np.int64)])
-    _, merged = np.unique(keys, axis=0, return_inverse=True)
-    merged = merged.reshape(-1)
+    _, merged = unique_rows(keys, return_inverse=True)
     faces = merged[faces]
     position = np.zeros((merged.max() + 1 if merged.size else 0, 3))
     position[merged] = vertices
@@ -138,15 +138,14 @@ def check_all(meshes: list) -> list[MeshReport]:
     a, b, c = position[faces[:, 0]], position[faces[:, 1]], position[faces[:, 2]]
     keep = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1) >= DEGENERATE_AREA
     kept, kept_mesh = faces[keep], face_mesh[keep]
-    unique_faces = np.unique(np.sort(kept, axis=1), axis=0)
+    unique_faces = unique_rows(np.sort(kept, axis=1))
     duplicates = np.bincount(kept_mesh, minlength=n) - np.bincount(_mesh_of(unique_faces[:, 0], merged, vertex_mesh),
                                                                    minlength=n)
     # ---- edges: counts per undirected edge, and the direction of each twice-used edge ----
     directed = np.concatenate([kept[:, [0, 1]], kept[:, [1, 2]], kept[:, [2, 0]]])
     edge_mesh = np.tile(kept_mesh, 3)
     undirected = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(undirected, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
+    _, inverse, counts = unique_rows(undirected, return_inverse=True, return_counts=True)
     per_edge = counts[inverse]
     edge_of = np.zeros(counts.size, np.int64)
     edge_of[inverse] = edge_mesh

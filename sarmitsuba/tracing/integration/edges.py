@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.arrays import unique_rows
 from ..mesh.patches import Surfaces
 
 __all__ = ["WEDGE_ANGLE", "ON_EDGE", "JUNCTION", "SINGULAR_WINDOW", "SINGULAR_STEP", "GRAZING_EDGE", "Wedges", "find_wedges",
@@ -123,8 +124,7 @@ def find_wedges(s: Surfaces) -> Wedges:
     end = s.to_world(part, s.polygon[part, nxt])
     direction, keys = _line_keys(start, end)
     if len(part):
-        _, group = np.unique(keys, axis=0, return_inverse=True)
-        group = group.ravel()
+        _, group = unique_rows(keys, return_inverse=True)
     else:
         group = np.zeros(0, np.int64)
     # the group's direction is its first edge's (the keys' rounding lets members differ slightly)
@@ -139,10 +139,11 @@ def find_wedges(s: Surfaces) -> Wedges:
     shared = _partners_at(s, wedges, np.arange(len(part)), np.einsum("ei,ei->e", mid, gdir), any_face=True) >= -1
     free = np.zeros(len(part), bool)
     candidate = np.flatnonzero(~shared)
-    free[candidate] = ~_on_other_part(s, part[candidate], mid[candidate])
+    spheres = _part_spheres(s)
+    free[candidate] = ~_on_other_part(s, part[candidate], mid[candidate], spheres=spheres)
     junction = np.zeros(len(part), bool)
     candidate = np.flatnonzero(shared)
-    junction[candidate] = _on_other_part(s, part[candidate], mid[candidate], strict=True)
+    junction[candidate] = _on_other_part(s, part[candidate], mid[candidate], strict=True, spheres=spheres)
     return Wedges(start=start, end=end, part=part, base=base, group=group, along=along, direction=gdir, free=free,
                   junction=junction)
 
@@ -156,10 +157,9 @@ def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_fa
     out = np.full(len(edge), -2, np.int64)
     if len(edge) == 0:
         return out
-    order, sorted_group = _cached(w, "group_order", lambda: _group_order(w))
-    lo = np.searchsorted(sorted_group, w.group[edge], "left")
-    hi = np.searchsorted(sorted_group, w.group[edge], "right")
-    size = hi - lo
+    order, group_start = _cached(w, "group_order", lambda: _group_order(w))
+    lo = group_start[w.group[edge]]
+    size = group_start[w.group[edge] + 1] - lo
     q = np.repeat(np.arange(len(edge)), size)
     other = order[np.repeat(lo, size) + (np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size))]
     a, b = w.part[edge[q]], w.part[other]
@@ -167,11 +167,11 @@ def _partners_at(s: Surfaces, w: Wedges, edge: np.ndarray, t: np.ndarray, any_fa
     keep = (s.face[a] != s.face[b]) & (w.along[other, 0] - tol <= t[q]) & (t[q] <= w.along[other, 1] + tol)
     q, b = q[keep], b[keep]
     if any_face:
-        out[np.unique(q)] = -1
+        out[q] = -1
         return out
     cos = np.abs(np.einsum("ei,ei->e", s.normal[w.part[edge[q]]], s.normal[b]))
     sharp = cos < math.cos(WEDGE_ANGLE)
-    out[np.unique(q[~sharp])] = -1
+    out[q[~sharp]] = -1
     best = np.full(len(edge), np.iinfo(np.int64).max)
     np.minimum.at(best, q[sharp], b[sharp])
     has = best < np.iinfo(np.int64).max
@@ -187,9 +187,11 @@ def _cached(w: Wedges, name: str, make):
 
 
 def _group_order(w: Wedges):
-    """The edges sorted by group (stable), and their groups in that order."""
+    """The edges sorted by group (stable), and where each group starts in that order (int64
+    [n_groups + 1]: group ``g`` is ``order[start[g]:start[g + 1]]``)."""
     order = np.argsort(w.group, kind="stable")
-    return order, w.group[order]
+    start = np.concatenate([[0], np.cumsum(np.bincount(w.group, minlength=int(w.group.max(initial=-1)) + 1))])
+    return order, start.astype(np.int64)
 
 
 def _part_edges(s: Surfaces):
@@ -209,37 +211,61 @@ def _part_centres(s: Surfaces) -> np.ndarray:
         return np.sum(corners * valid[..., None], axis=1) / s.n_corners[:, None]
 
 
-def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False) -> np.ndarray:
-    """bool [q]: ``point`` [q, 3] lies within :data:`JUNCTION` of another part's plane and inside
-    its polygon or on its border (a wall's foot on the ground, eq. (E1)); ``strict``: inside, at
-    least :data:`JUNCTION` from its border (which leaves out the faces an edge runs along). The
-    candidates are the parts whose bounding sphere holds the point (a k-d tree of the points)."""
-    from scipy.spatial import cKDTree
-    out = np.zeros(len(part), bool)
+def _part_spheres(s: Surfaces):
+    """The parts with corners (int64 [r]), and a sphere about each holding its polygon and
+    :data:`JUNCTION` more: centres float64 [r, 3] (the mean corner) and radii float64 [r]."""
     real = np.flatnonzero(s.n_corners > 0)
-    if len(point) == 0 or len(real) == 0:
-        return out
     corners = np.take(s.world_polygon, real, axis=0)
     slots = np.arange(corners.shape[1])[None, :] < s.n_corners[real][:, None]
     centre = np.sum(corners * slots[..., None], axis=1) / s.n_corners[real][:, None]
     radius = np.max(np.where(slots, np.linalg.norm(corners - centre[:, None], axis=2), 0.0), axis=1) + JUNCTION
-    found = cKDTree(point).query_ball_point(centre, radius)
-    size = np.fromiter((len(f) for f in found), np.int64, len(found))
-    if size.sum() == 0:
+    return real, centre, radius
+
+
+def _in_spheres(centre: np.ndarray, radius: np.ndarray, point: np.ndarray):
+    """Pairs ``(sphere, point)`` int64 [k] each, of the spheres ``centre`` [r, 3], ``radius`` [r]
+    and the points [q, 3] inside them (distance <= radius), in no particular order. The spheres go
+    in classes of radius within a factor 2, each class one ``sparse_distance_matrix`` of two k-d
+    trees at its largest radius (the pairs come back as arrays, not as a Python list per sphere)."""
+    from scipy.spatial import cKDTree
+    points = cKDTree(point)
+    size = np.ceil(np.log2(np.maximum(radius, 1e-6))).astype(np.int64)
+    spheres, inside = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for k in np.unique(size):
+        rows = np.flatnonzero(size == k)
+        near = cKDTree(centre[rows]).sparse_distance_matrix(points, float(np.max(radius[rows])), output_type="ndarray")
+        within = near["v"] <= radius[rows[near["i"]]]
+        spheres.append(rows[near["i"][within]])
+        inside.append(near["j"][within].astype(np.int64))
+    return np.concatenate(spheres), np.concatenate(inside)
+
+
+def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False,
+                   spheres=None) -> np.ndarray:
+    """bool [q]: ``point`` [q, 3] lies within :data:`JUNCTION` of another part's plane and inside
+    its polygon or on its border (a wall's foot on the ground, eq. (E1)); ``strict``: inside, at
+    least :data:`JUNCTION` from its border (which leaves out the faces an edge runs along). The
+    candidates are the parts whose bounding sphere holds the point (``spheres``:
+    :func:`_part_spheres` of ``s``, computed here if not given)."""
+    out = np.zeros(len(part), bool)
+    real, centre, radius = _part_spheres(s) if spheres is None else spheres
+    if len(point) == 0 or len(real) == 0:
         return out
-    qi = np.fromiter((i for f in found for i in f), np.int64, int(size.sum()))
-    cand = np.repeat(real, size)
+    sphere, qi = _in_spheres(centre, radius, point)
+    cand = np.take(real, sphere)
     keep = (cand != part[qi]) & (np.abs(np.einsum("ei,ei->e", s.normal[cand], point[qi]) - s.offset[cand]) < JUNCTION)
     qi, cand = qi[keep], cand[keep]
     if len(qi) == 0:
         return out
     xy = s.to_face(cand, point[qi])
-    poly = s.polygon[cand]
-    nxt = np.roll(poly, -1, axis=1)
+    corners = s.n_corners[cand]
+    poly = s.polygon[cand, :int(corners.max())]          # the slots some candidate uses
+    valid = np.arange(poly.shape[1])[None, :] < corners[:, None]
+    nxt = np.where((np.arange(poly.shape[1])[None, :] + 1 < corners[:, None])[..., None],
+                   np.roll(poly, -1, axis=1), poly[:, :1])          # corner i + 1, the first after the last
     cross = (nxt[..., 0] - poly[..., 0]) * (xy[:, None, 1] - poly[..., 1]) \
         - (nxt[..., 1] - poly[..., 1]) * (xy[:, None, 0] - poly[..., 0])
     length = np.linalg.norm(nxt - poly, axis=2)
-    valid = np.arange(poly.shape[1])[None, :] < s.n_corners[cand][:, None]
     # inside, or on the polygon's border (a wall on the ground's rim) unless strict
     margin = (JUNCTION if strict else -JUNCTION) * np.maximum(length, 1e-30)
     hit = np.all(~valid | (cross >= margin), axis=1)

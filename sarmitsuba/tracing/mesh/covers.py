@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...core.arrays import unique_rows
 __all__ = ["covered_parts", "split_covered", "locate", "COPLANAR_ANGLE", "COPLANAR_DISTANCE"]
 
 #: Two parts lie in one plane where their normals are within this [rad] and their planes this far
@@ -27,8 +28,7 @@ def covered_parts(normal: np.ndarray, offset: np.ndarray, corners: list, shape: 
     whose polygons overlap (``corners``: each part's world corners [v, 3])."""
     import shapely
     key = np.round(np.column_stack([normal / COPLANAR_ANGLE, offset / COPLANAR_DISTANCE])).astype(np.int64)
-    _, group = np.unique(key, axis=0, return_inverse=True)
-    group = group.reshape(-1)
+    _, group = unique_rows(key, return_inverse=True)
     pairs = []
     for g in np.flatnonzero(np.bincount(group) > 1):
         members = np.flatnonzero(group == g)

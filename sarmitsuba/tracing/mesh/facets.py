@@ -34,6 +34,7 @@ from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from ...core.arrays import unique_rows
 __all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "scene_meshes", "triangle_table"]
 
 #: Most corners a part may have (vertex slots of :attr:`Parts.vertices`).
@@ -205,11 +206,11 @@ def _closed_shapes(tri: np.ndarray, shape: np.ndarray, n_shapes: int) -> np.ndar
         return closed
     edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     owner = np.tile(shape, 3)
-    keys, counts = np.unique(np.column_stack([owner, edges]), axis=0, return_counts=True)
+    keys, counts = unique_rows(np.column_stack([owner, edges]), return_counts=True)
     bad = np.zeros(n_shapes, bool)
     bad[keys[counts != 2, 0]] = True
     directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-    keys, counts = np.unique(np.column_stack([owner, directed]), axis=0, return_counts=True)
+    keys, counts = unique_rows(np.column_stack([owner, directed]), return_counts=True)
     bad[keys[counts != 1, 0]] = True                  # an edge run twice one way: inconsistent winding
     closed[np.unique(shape)] = True
     return closed & ~bad
@@ -274,7 +275,7 @@ def _faces(tri, unit, valid, cos_tolerance, alone):
     pairs = np.concatenate(found) if found else np.zeros((0, 2), np.int64)
     pairs = pairs[(pairs[:, 0] != pairs[:, 1]) & ~alone[pairs[:, 0]] & ~alone[pairs[:, 1]]
                   & (np.einsum("ij,ij->i", unit[pairs[:, 0]], unit[pairs[:, 1]]) > cos_tolerance)]
-    pairs = np.unique(np.sort(pairs, axis=1), axis=0)
+    pairs = unique_rows(np.sort(pairs, axis=1))
     _, label = connected_components(sparse.coo_matrix(
         (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(t, t)), directed=False)
     face = np.full(t, -1, np.int64)

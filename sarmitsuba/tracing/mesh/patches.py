@@ -25,6 +25,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from ...core.arrays import unique_pairs, unique_rows
 from .covers import covered_parts, split_covered
 from .facets import Parts, scene_parts
 from .polygons import REPEAT_DISTANCE, drop_collinear, moments, pad
@@ -253,8 +254,7 @@ def occluder_partners(surfaces: Surfaces) -> tuple[np.ndarray, np.ndarray]:
         corners = surfaces.to_world(part, surfaces.polygon[part, slot])
         key = np.round(corners * 1e6).astype(np.int64)
         shape = np.asarray(surfaces.shape_id, np.int64)[part]
-        _, group = np.unique(np.column_stack([shape, key]), axis=0, return_inverse=True)
-        group = group.reshape(-1)
+        _, group = unique_rows(np.column_stack([shape, key]), return_inverse=True)
         order = np.argsort(group, kind="stable")
         g, p = group[order], part[order]
         first = np.searchsorted(g, g, side="left")
@@ -264,7 +264,7 @@ def occluder_partners(surfaces: Surfaces) -> tuple[np.ndarray, np.ndarray]:
         b = p[np.repeat(first, size) + np.arange(int(size.sum())) - np.repeat(np.cumsum(size) - size, size)]
         rows.append(np.stack([a, b]))
     pairs = np.concatenate([np.stack(rows[:2])] + rows[2:], axis=1).T
-    pairs = np.unique(pairs[pairs[:, 0] != pairs[:, 1]], axis=0)
+    pairs = unique_pairs(*pairs[pairs[:, 0] != pairs[:, 1]].T)
     size = np.bincount(pairs[:, 0], minlength=n)
     return np.concatenate([[0], np.cumsum(size)]).astype(np.int64), pairs[:, 1].astype(np.int64)
 
