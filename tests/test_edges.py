@@ -265,6 +265,38 @@ def test_a_box_has_twelve_right_angle_wedges_and_a_plate_four_free_edges():
     assert roof.sum() == 8 and seg["on"][roof].all()
 
 
+@pytest.mark.parametrize("block", [1, 3, 1 << 17])
+def test_points_in_spheres_are_every_pair_within_the_radius(monkeypatch, block):
+    """The junction test's candidate pairs (spheres of radii over four classes, split in blocks of
+    ``block`` spheres) are exactly the brute-force pairs of distance <= radius: a class or block
+    left out, a class searched at its smallest radius instead of its largest, or a strict
+    inequality, loses pairs; rows not mapped back to the class's spheres gives wrong ones."""
+    rng = np.random.default_rng(7)
+    centre = rng.uniform(-10, 10, (40, 3))
+    radius = rng.choice([0.3, 1.1, 2.9, 7.5], 40) * rng.uniform(0.6, 1.0, 40)
+    point = rng.uniform(-12, 12, (500, 3))
+    point[0] = centre[3] + [radius[3], 0.0, 0.0]                       # on a sphere: inside
+    monkeypatch.setattr(edges, "SPHERE_BLOCK", block)
+    got = sorted((int(a), int(b)) for pairs in edges._in_spheres(centre, radius, point) for a, b in zip(*pairs))
+    distance = np.linalg.norm(centre[:, None] - point[None], axis=2)
+    assert got == sorted(zip(*map(lambda v: v.tolist(), np.nonzero(distance <= radius[:, None]))))
+    assert (3, 0) in got
+
+
+def test_junctions_do_not_depend_on_the_sphere_blocks(monkeypatch):
+    """The open box on the ground classified with the spheres searched a few at a time: the same
+    free edges and junctions as all at once (a block's pairs dropped or counted twice changes them)."""
+    box = trimesh.creation.box((2.0, 3.0, 4.0))
+    open_box = trimesh.Trimesh(box.vertices + [0, 0, 2.0], box.faces[np.abs(box.face_normals[:, 2] + 1) > 1e-9])
+    s = _surfaces([open_box, rectangle((0, 0, 0), (10.0, 0, 0), (0, 10.0, 0)), box])
+    whole = edges.find_wedges(s)
+    monkeypatch.setattr(edges, "SPHERE_BLOCK", 2)
+    split = edges.find_wedges(s)
+    assert whole.junction.any() and whole.free.any()
+    np.testing.assert_array_equal(whole.junction, split.junction)
+    np.testing.assert_array_equal(whole.free, split.free)
+
+
 def test_a_finely_tessellated_curve_has_no_wedges():
     """A cylinder of 72 facets (5 deg between neighbours, below the 10 deg threshold): its side's
     vertical edges do not diffract; its rims against the caps do."""

@@ -222,22 +222,27 @@ def _part_spheres(s: Surfaces):
     return real, centre, radius
 
 
+#: Spheres per k-d tree query of :func:`_in_spheres` (bounds the pairs held at once: a city's
+#: ground triangles meet about 16 edge midpoints each).
+SPHERE_BLOCK = 1 << 17
+
+
 def _in_spheres(centre: np.ndarray, radius: np.ndarray, point: np.ndarray):
     """Pairs ``(sphere, point)`` int64 [k] each, of the spheres ``centre`` [r, 3], ``radius`` [r]
-    and the points [q, 3] inside them (distance <= radius), in no particular order. The spheres go
-    in classes of radius within a factor 2, each class one ``sparse_distance_matrix`` of two k-d
-    trees at its largest radius (the pairs come back as arrays, not as a Python list per sphere)."""
+    and the points [q, 3] inside them (distance <= radius), block by block (a generator). The
+    spheres go in classes of radius within a factor 2, each class in blocks of
+    :data:`SPHERE_BLOCK`, each block one ``sparse_distance_matrix`` of two k-d trees at its largest
+    radius (the pairs come back as arrays, not as a Python list per sphere)."""
     from scipy.spatial import cKDTree
     points = cKDTree(point)
     size = np.ceil(np.log2(np.maximum(radius, 1e-6))).astype(np.int64)
-    spheres, inside = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     for k in np.unique(size):
-        rows = np.flatnonzero(size == k)
-        near = cKDTree(centre[rows]).sparse_distance_matrix(points, float(np.max(radius[rows])), output_type="ndarray")
-        within = near["v"] <= radius[rows[near["i"]]]
-        spheres.append(rows[near["i"][within]])
-        inside.append(near["j"][within].astype(np.int64))
-    return np.concatenate(spheres), np.concatenate(inside)
+        members = np.flatnonzero(size == k)
+        for rows in np.array_split(members, -(-len(members) // SPHERE_BLOCK)):
+            near = cKDTree(centre[rows]).sparse_distance_matrix(points, float(np.max(radius[rows])),
+                                                                output_type="ndarray")
+            within = near["v"] <= radius[rows[near["i"]]]
+            yield rows[near["i"][within]], near["j"][within].astype(np.int64)
 
 
 def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False,
@@ -251,10 +256,13 @@ def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: boo
     real, centre, radius = _part_spheres(s) if spheres is None else spheres
     if len(point) == 0 or len(real) == 0:
         return out
-    sphere, qi = _in_spheres(centre, radius, point)
-    cand = np.take(real, sphere)
-    keep = (cand != part[qi]) & (np.abs(np.einsum("ei,ei->e", s.normal[cand], point[qi]) - s.offset[cand]) < JUNCTION)
-    qi, cand = qi[keep], cand[keep]
+    found = [(np.zeros(0, np.int64), np.zeros(0, np.int64))]
+    for sphere, qi in _in_spheres(centre, radius, point):     # the pairs near the part's plane
+        cand = np.take(real, sphere)
+        keep = (cand != part[qi]) & (np.abs(np.einsum("ei,ei->e", s.normal[cand], point[qi]) - s.offset[cand])
+                                     < JUNCTION)
+        found.append((qi[keep], cand[keep]))
+    qi, cand = (np.concatenate(column) for column in zip(*found))
     if len(qi) == 0:
         return out
     xy = s.to_face(cand, point[qi])
