@@ -16,7 +16,7 @@ Deliberate bugs these tests were run against (each fails at least one):
   * the lanes' deferral flag ``wedge_defer = (other >= 0) & (other < lane_part)`` with ``|``
     (term_lanes.py: every wedge lane defers, so a wedge lit and seen on both faces is carried by
     neither: the ridge, 3.4 dB high);
-  * the junction tolerance ``edges.JUNCTION`` 100 times looser (1e-1 m for 1e-3 m): edges 2 and
+  * the junction tolerance ``junctions.JUNCTION`` 100 times looser (1e-1 m for 1e-3 m): edges 2 and
     5 cm off another face stop diffracting (the topology counts).
 """
 from __future__ import annotations
@@ -87,7 +87,7 @@ def test_edges_a_few_centimetres_off_another_face_still_diffract(gap):
     floor included); a plate leaning with its lower rim ``gap`` above the ground has four free rims
     (half-planes, no partner); the ground's four rims are free. The edges near the ground are
     found as the ones within ``gap`` + 1 mm of its plane (8 box entries, 1 plate rim), to check
-    that the case is the one meant. Caught: ``edges.JUNCTION`` 1e-1 m for 1e-3 m (the floor's 8
+    that the case is the one meant. Caught: ``junctions.JUNCTION`` 1e-1 m for 1e-3 m (the floor's 8
     wedge entries taken for junctions, the plate's rim taken as lying on the ground)."""
     meshes, normal = _sloping_scene(gap)
     s = _surfaces(meshes)

@@ -26,7 +26,7 @@ from scipy.special import fresnel
 import sarmitsuba
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.tracing.integration import edges
+from sarmitsuba.tracing.integration import edges, junctions
 from sarmitsuba.tracing.mesh.facets import mesh_parts
 from sarmitsuba.tracing.mesh.patches import surfaces_from
 
@@ -276,8 +276,8 @@ def test_points_in_spheres_are_every_pair_within_the_radius(monkeypatch, block):
     radius = rng.choice([0.3, 1.1, 2.9, 7.5], 40) * rng.uniform(0.6, 1.0, 40)
     point = rng.uniform(-12, 12, (500, 3))
     point[0] = centre[3] + [radius[3], 0.0, 0.0]                       # on a sphere: inside
-    monkeypatch.setattr(edges, "SPHERE_BLOCK", block)
-    got = sorted((int(a), int(b)) for pairs in edges._in_spheres(centre, radius, point) for a, b in zip(*pairs))
+    monkeypatch.setattr(junctions, "SPHERE_BLOCK", block)
+    got = sorted((int(a), int(b)) for pairs in junctions.points_in_spheres(centre, radius, point) for a, b in zip(*pairs))
     distance = np.linalg.norm(centre[:, None] - point[None], axis=2)
     assert got == sorted(zip(*map(lambda v: v.tolist(), np.nonzero(distance <= radius[:, None]))))
     assert (3, 0) in got
@@ -290,7 +290,7 @@ def test_junctions_do_not_depend_on_the_sphere_blocks(monkeypatch):
     open_box = trimesh.Trimesh(box.vertices + [0, 0, 2.0], box.faces[np.abs(box.face_normals[:, 2] + 1) > 1e-9])
     s = _surfaces([open_box, rectangle((0, 0, 0), (10.0, 0, 0), (0, 10.0, 0)), box])
     whole = edges.find_wedges(s)
-    monkeypatch.setattr(edges, "SPHERE_BLOCK", 2)
+    monkeypatch.setattr(junctions, "SPHERE_BLOCK", 2)
     split = edges.find_wedges(s)
     assert whole.junction.any() and whole.free.any()
     np.testing.assert_array_equal(whole.junction, split.junction)

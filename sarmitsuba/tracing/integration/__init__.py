@@ -11,6 +11,7 @@ of a sub-aperture and hand each term's two-way length and complex amplitude to t
 :mod:`.term_lanes`          lit boundaries as point and area term lanes; rough pieces as scatterers
 :mod:`.patch_terms`         the patch terms in Dr.Jit; :mod:`.patch_reference` their NumPy reference
 :mod:`.edges`               the diffracting edges and their currents, NumPy (:mod:`.edge_terms`: Dr.Jit)
+:mod:`.junctions`           which border edges lie on another part (free edges, junctions)
 :mod:`.surface_clutter`     the rough surfaces' scatterers, fixed in each face's frame
 :mod:`.returns`             per-pulse density, reflection, pattern; the tube preview's returns
 :mod:`.physical_optics`     ray-tube PO in NumPy, the closed forms it is tested against

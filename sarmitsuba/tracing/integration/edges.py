@@ -30,6 +30,7 @@ import numpy as np
 
 from ...core.arrays import unique_rows
 from ..mesh.patches import Surfaces
+from .junctions import JUNCTION, on_other_part, part_spheres
 
 __all__ = ["WEDGE_ANGLE", "ON_EDGE", "JUNCTION", "SINGULAR_WINDOW", "SINGULAR_STEP", "GRAZING_EDGE", "Wedges", "find_wedges",
            "boundary_clearance", "boundary_step",
@@ -45,9 +46,6 @@ ON_EDGE = 1e-6
 #: Rounding of the line keys that group collinear border edges: directions to 1e-5, the line's
 #: closest point to the frame origin to 0.1 mm.
 _DIRECTION_KEY, _OFFSET_KEY = 1e5, 1e4
-#: An edge that lies within this [m] of another part's plane and inside its polygon is a junction
-#: (a wall's foot on the ground): it does not diffract, (E1).
-JUNCTION = 1e-3
 #: At a shadow or reflection boundary (within ``SINGULAR_WINDOW`` rad) the fringe coefficients are
 #: evaluated ``SINGULAR_STEP`` rad off it: both terms of (E3) grow as one over the distance and
 #: their difference is smooth, and in float32 the kernel loses ``eps / window`` of the fringe to
@@ -139,11 +137,11 @@ def find_wedges(s: Surfaces) -> Wedges:
     shared = _partners_at(s, wedges, np.arange(len(part)), np.einsum("ei,ei->e", mid, gdir), any_face=True) >= -1
     free = np.zeros(len(part), bool)
     candidate = np.flatnonzero(~shared)
-    spheres = _part_spheres(s)
-    free[candidate] = ~_on_other_part(s, part[candidate], mid[candidate], spheres=spheres)
+    spheres = part_spheres(s)
+    free[candidate] = ~on_other_part(s, part[candidate], mid[candidate], spheres=spheres)
     junction = np.zeros(len(part), bool)
     candidate = np.flatnonzero(shared)
-    junction[candidate] = _on_other_part(s, part[candidate], mid[candidate], strict=True, spheres=spheres)
+    junction[candidate] = on_other_part(s, part[candidate], mid[candidate], strict=True, spheres=spheres)
     return Wedges(start=start, end=end, part=part, base=base, group=group, along=along, direction=gdir, free=free,
                   junction=junction)
 
@@ -209,76 +207,6 @@ def _part_centres(s: Surfaces) -> np.ndarray:
     valid = np.arange(corners.shape[1])[None, :] < s.n_corners[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.sum(corners * valid[..., None], axis=1) / s.n_corners[:, None]
-
-
-def _part_spheres(s: Surfaces):
-    """The parts with corners (int64 [r]), and a sphere about each holding its polygon and
-    :data:`JUNCTION` more: centres float64 [r, 3] (the mean corner) and radii float64 [r]."""
-    real = np.flatnonzero(s.n_corners > 0)
-    corners = np.take(s.world_polygon, real, axis=0)
-    slots = np.arange(corners.shape[1])[None, :] < s.n_corners[real][:, None]
-    centre = np.sum(corners * slots[..., None], axis=1) / s.n_corners[real][:, None]
-    radius = np.max(np.where(slots, np.linalg.norm(corners - centre[:, None], axis=2), 0.0), axis=1) + JUNCTION
-    return real, centre, radius
-
-
-#: Spheres per k-d tree query of :func:`_in_spheres` (bounds the pairs held at once: a city's
-#: ground triangles meet about 16 edge midpoints each).
-SPHERE_BLOCK = 1 << 17
-
-
-def _in_spheres(centre: np.ndarray, radius: np.ndarray, point: np.ndarray):
-    """Pairs ``(sphere, point)`` int64 [k] each, of the spheres ``centre`` [r, 3], ``radius`` [r]
-    and the points [q, 3] inside them (distance <= radius), block by block (a generator). The
-    spheres go in classes of radius within a factor 2, each class in blocks of
-    :data:`SPHERE_BLOCK`, each block one ``sparse_distance_matrix`` of two k-d trees at its largest
-    radius (the pairs come back as arrays, not as a Python list per sphere)."""
-    from scipy.spatial import cKDTree
-    points = cKDTree(point)
-    size = np.ceil(np.log2(np.maximum(radius, 1e-6))).astype(np.int64)
-    for k in np.unique(size):
-        members = np.flatnonzero(size == k)
-        for rows in np.array_split(members, -(-len(members) // SPHERE_BLOCK)):
-            near = cKDTree(centre[rows]).sparse_distance_matrix(points, float(np.max(radius[rows])),
-                                                                output_type="ndarray")
-            within = near["v"] <= radius[rows[near["i"]]]
-            yield rows[near["i"][within]], near["j"][within].astype(np.int64)
-
-
-def _on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool = False,
-                   spheres=None) -> np.ndarray:
-    """bool [q]: ``point`` [q, 3] lies within :data:`JUNCTION` of another part's plane and inside
-    its polygon or on its border (a wall's foot on the ground, eq. (E1)); ``strict``: inside, at
-    least :data:`JUNCTION` from its border (which leaves out the faces an edge runs along). The
-    candidates are the parts whose bounding sphere holds the point (``spheres``:
-    :func:`_part_spheres` of ``s``, computed here if not given)."""
-    out = np.zeros(len(part), bool)
-    real, centre, radius = _part_spheres(s) if spheres is None else spheres
-    if len(point) == 0 or len(real) == 0:
-        return out
-    found = [(np.zeros(0, np.int64), np.zeros(0, np.int64))]
-    for sphere, qi in _in_spheres(centre, radius, point):     # the pairs near the part's plane
-        cand = np.take(real, sphere)
-        keep = (cand != part[qi]) & (np.abs(np.einsum("ei,ei->e", s.normal[cand], point[qi]) - s.offset[cand])
-                                     < JUNCTION)
-        found.append((qi[keep], cand[keep]))
-    qi, cand = (np.concatenate(column) for column in zip(*found))
-    if len(qi) == 0:
-        return out
-    xy = s.to_face(cand, point[qi])
-    corners = s.n_corners[cand]
-    poly = s.polygon[cand, :int(corners.max())]          # the slots some candidate uses
-    valid = np.arange(poly.shape[1])[None, :] < corners[:, None]
-    nxt = np.where((np.arange(poly.shape[1])[None, :] + 1 < corners[:, None])[..., None],
-                   np.roll(poly, -1, axis=1), poly[:, :1])          # corner i + 1, the first after the last
-    cross = (nxt[..., 0] - poly[..., 0]) * (xy[:, None, 1] - poly[..., 1]) \
-        - (nxt[..., 1] - poly[..., 1]) * (xy[:, None, 0] - poly[..., 0])
-    length = np.linalg.norm(nxt - poly, axis=2)
-    # inside, or on the polygon's border (a wall on the ground's rim) unless strict
-    margin = (JUNCTION if strict else -JUNCTION) * np.maximum(length, 1e-30)
-    hit = np.all(~valid | (cross >= margin), axis=1)
-    out[qi[hit]] = True
-    return out
 
 
 def segment_wedges(s: Surfaces, w: Wedges, part: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> dict:
