@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 
 from ..core.arrays import unique_rows
+
 __all__ = ["MeshReport", "check_meshes", "check_all", "check_mesh", "warn_mesh_defects", "MeshDefectWarning",
            "shape_label", "shape_points", "silent_scene"]
 

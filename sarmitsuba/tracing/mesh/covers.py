@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...core.arrays import unique_rows
+
 __all__ = ["covered_parts", "split_covered", "locate", "COPLANAR_ANGLE", "COPLANAR_DISTANCE"]
 
 #: Two parts lie in one plane where their normals are within this [rad] and their planes this far

@@ -35,6 +35,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ...core.arrays import unique_rows
+
 __all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "scene_meshes", "triangle_table"]
 
 #: Most corners a part may have (vertex slots of :attr:`Parts.vertices`).
