@@ -15,6 +15,7 @@ import dataclasses
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ...core.arrays import unique_rows
 from ...core.radar import ParameterError
 from ..integration.patch_terms import AREA
 
@@ -70,14 +71,9 @@ def match_rows(keys: np.ndarray, features: np.ndarray, other_keys: np.ndarray, o
 
 
 def row_groups(keys: np.ndarray) -> np.ndarray:
-    """int64 [n]: equal for equal rows of ``keys`` (int64 [n, k]), distinct otherwise; as
-    ``np.unique(keys, axis=0, return_inverse=True)`` but column by column on flat integers (many
-    times faster than sorting rows)."""
-    group = np.zeros(len(keys), np.int64)
-    for column in np.asarray(keys, np.int64).reshape(len(keys), -1).T:
-        rank = np.unique(column, return_inverse=True)[1].ravel()
-        group = np.unique(group * (int(rank.max(initial=0)) + 1) + rank, return_inverse=True)[1].ravel()
-    return group
+    """int64 [n]: equal for equal rows of ``keys`` (int64 [n, k]), distinct otherwise; the inverse
+    of ``np.unique(keys, axis=0, return_inverse=True)`` (:func:`sarmitsuba.core.arrays.unique_rows`)."""
+    return unique_rows(np.asarray(keys, np.int64).reshape(len(keys), -1), return_inverse=True)[1]
 
 
 def _owners(table, label: np.ndarray) -> np.ndarray:
