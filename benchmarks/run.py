@@ -15,6 +15,9 @@ scaling        time against buildings (1..1000), pulses and image size; the 16-b
                512 x 512 case against Franceschetti et al. (2003)
 subaperture    pulses per trace 1..64 on urban and Munich: image NRMSE against per-pulse
                tracing (and the ray lattice's own), trace time, casts, returns
+subaperture_orders
+               the mesh tracer's automatic sub-aperture against per-pulse tracing on
+               Munich: raw-data NRMSE by bounce order, each order's power share
 ffbp           fast factorised backprojection's knobs: NRMSE against direct
                backprojection and seconds, omega-K's time in the same run
 munich         the Munich acceptance of issue 12: default render in units of bare
@@ -62,7 +65,8 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
-         "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture", "ffbp": "ffbp",
+         "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture",
+         "subaperture_orders": "subaperture_orders", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
