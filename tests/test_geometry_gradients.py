@@ -202,7 +202,7 @@ def test_bad_shape_parameters_are_named(tmp_path):
         ShapeParameter("box", "translation", (0, 0, 0))
     with pytest.raises(ParameterError, match="needs vertices"):
         ShapeParameter("box", "vertices")
-    with pytest.raises(ParameterError, match="'tower' is not in the scene; its shapes: box, ground"):
+    with pytest.raises(ParameterError, match="'tower' is not in the scene; its shapes: box, floor"):
         moved_raw(_box(tmp_path), {ShapeParameter("tower", "height"): 1.0}, sensor_overrides={"n_pulses": 8})
     with pytest.raises(ParameterError, match="vertices 0 .. 7"):
         raw_derivative(_box(tmp_path), ShapeParameter("box", "vertices", vertices=(8,)),

@@ -34,6 +34,7 @@ from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
 from ..core.orbit import choose_pass, in_scene_frame, orbit_of
 from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
+from .ground import ground_shapes
 from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "shape_frame", "mitsuba_message",
@@ -204,6 +205,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     settings_given = dict(getattr(integrator, "given", {}))
     settings_given.update(integrator_overrides or {})
     settings = TraceSettings.from_mapping(settings_given)
+    ground_shapes(settings.ground_shapes, [shape.id() for shape in scene.shapes()])     # names checked before tracing
     if settings.range_kernel == "exact" and params.output == "raw":
         raise ParameterError("sbr range_kernel = 'exact' evaluates range-compressed samples and cannot make chirped "
                              "echoes: use sar output = 'compressed', or range_kernel 'linear' or 'sinc' with output = 'raw'")

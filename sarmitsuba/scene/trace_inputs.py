@@ -92,6 +92,11 @@ class TraceSettings:
         the ray lattice, so a facet's lit region is bounded by the tubes' staircase, which moves
         with the lattice (T3). Shapes that are not triangle meshes (spheres) are always traced
         with tubes.
+    ground_shapes : str
+        The shapes that stand for ground continuing beyond the scene, whose free rims are
+        truncations (no physical-optics rim terms, no edge currents, docs/physics.md (M10)):
+        ``auto`` (ids ``ground``, ``*-ground``, ``*_ground``), ``none``, or a comma-separated list
+        of shape ids (:func:`sarmitsuba.scene.ground.ground_shapes`). ``lit_regions = patches`` only.
     """
 
     max_depth: int = 3
@@ -109,6 +114,7 @@ class TraceSettings:
     polarimetry: str = "jones"
     lit_regions: str = "patches"
     patch_size: float = 0.0
+    ground_shapes: str = "auto"
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:

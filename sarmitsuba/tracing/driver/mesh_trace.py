@@ -39,6 +39,7 @@ from ..mesh.polygons import REPEAT_DISTANCE, edge_lines
 from .stages import StageClock
 from ..integration.surface_clutter import ClutterKernel
 from ..integration.edges import find_wedges, segment_wedges
+from ..integration.truncation import ground_parts, on_rim, rim_edges, without_rims
 from ..integration.term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
 from ..mesh.patches import Pieces, Surfaces
 from ..mesh.piece_cuts import pieces_of
@@ -92,7 +93,11 @@ class MeshTracer:
         self.k = returns.k
         self.depth = settings.max_depth
         self.cancel = settings.cancel_interior
-        self.wedges = find_wedges(surfaces) if returns.diffraction else None
+        # a ground shape's free rims are truncations: no PO rim terms, no edge currents (M10)
+        ground = ground_parts(scene, surfaces, settings.ground_shapes)
+        wedges = find_wedges(surfaces) if returns.diffraction or np.any(ground) else None
+        self.rim = rim_edges(surfaces, wedges, ground) if np.any(ground) else None
+        self.wedges = (wedges if self.rim is None else without_rims(wedges, self.rim)) if returns.diffraction else None
         self.patch = patch
         self.straight = straight
         self.track = np.asarray(returns.fp.track, float)
@@ -330,6 +335,10 @@ class MeshTracer:
         if self.cancel:
             shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece])
             kept = np.flatnonzero(~shared)              # (np.take: row gathers, not boolean masks)
+            seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
+        if self.rim is not None:
+            # a stable piece's segments on a truncation rim: the continuing plane cancels them (M10)
+            kept = np.flatnonzero(~(np.take(stable, seg_piece) & on_rim(s, self.rim, np.take(part, seg_piece), p2, q2)))
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         seg_region = np.take(region, seg_piece)
         kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2,
