@@ -15,6 +15,8 @@ scaling        time against buildings (1..1000), pulses and image size; the 16-b
                512 x 512 case against Franceschetti et al. (2003)
 subaperture    pulses per trace 1..64 on urban and Munich: image NRMSE against per-pulse
                tracing (and the ray lattice's own), trace time, casts, returns
+rims           where the ground merely stops: each free rim's intensity above the
+               ground beside it, rims as truncations (default) and as edges
 subaperture_orders
                the mesh tracer's automatic sub-aperture against per-pulse tracing on
                Munich: raw-data NRMSE by bounce order, each order's power share
@@ -66,7 +68,7 @@ from _table import machine, output_dir, write_csv  # noqa: E402
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
          "focus": "focus_algorithms", "scaling": "scaling", "subaperture": "subaperture",
-         "subaperture_orders": "subaperture_orders", "ffbp": "ffbp",
+         "subaperture_orders": "subaperture_orders", "rims": "rims", "ffbp": "ffbp",
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
