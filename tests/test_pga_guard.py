@@ -59,6 +59,31 @@ def test_pga_hands_clutter_back_unchanged(clutter, track):
     assert out.metadata["autofocus"]["dominance_db"] == pytest.approx(report.dominance_db, abs=0.01)
 
 
+def test_pga_judges_clutter_where_there_is_signal():
+    """Rough ground 20 m across in an image three times as wide in range (the rest empty, lit only
+    by sidelobes about 23 dB below the clutter): the dominance is the clutter's (below 16 dB, as
+    for clutter filling the image; measured 14.8 dB), PGA warns and hands the image back
+    unchanged. Catches the median taken over every non-zero pixel, which the empty part drags
+    down (measured 27.5 dB there, and PGA ran)."""
+    plate = trimesh.Trimesh([[-10, -10, 0], [10, -10, 0], [10, 10, 0], [-10, 10, 0]], [[0, 1, 2], [0, 2, 3]])
+    scene = sarmitsuba.Scene(meshes=[(plate, {"material": "medium_dry_ground", "gamma_db": -14.0}, "ground")],
+                             integrator={"max_depth": 1},
+                             sensor={"frequency": 9.6e9, "bandwidth": 150e6, "incidence_angle": 45,
+                                     "scene_center": (0, 0, 0), "motion_error": MOTION})
+    sim = simulate(scene, focuser="ffbp", image_size=(32, 32))
+    frame = sim.image
+    grid = ImageGrid(origin=frame.origin, azimuth_direction=frame.azimuth_direction,
+                     range_direction=frame.range_direction, azimuth=(np.arange(160) - 80) * 0.1,
+                     range=(np.arange(120) - 60) * 0.5, plane="ground")
+    image = ffbp(sim.raw.on_track("nominal"), grid)
+    inside = np.abs(image.range) < 9.0
+    assert 0.2 < inside.mean() < 0.4                                   # a third of the image holds the ground
+    with pytest.warns(AutofocusWarning, match="no dominant scatterer"):
+        out, report = pga(image)
+    assert np.array_equal(out.data, image.data)
+    assert report.dominance_db < 16.0
+
+
 def _peak_db(image, half_m: float = 2.0) -> float:
     """Largest magnitude [dB] within ``half_m`` of the scene centre (PGA leaves a shift of about 1 m)."""
     rows = np.abs(image.azimuth) <= half_m
