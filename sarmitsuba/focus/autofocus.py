@@ -76,9 +76,10 @@ MIN_LINES = 3
 #: PGA needs dominant scatterers (Wahl et al. 1994, section II): it runs only when the image's
 #: brightest pixel stands this many dB above the median intensity of the pixels that hold signal
 #: (:func:`signal_pixels`: the clutter background, not the empty parts of the image), measured
-#: on the image PGA works on (deramped, eq. (PGA2)). Speckle alone reaches about ``10 log10((ln N + 0.58) / ln 2)``: 13.9 dB for ``N = 4096^2`` pixels; measured on
-#: rendered clutter 12.2 to 13.3 dB, where PGA ran 17 to 20 iterations to 6 to 7 rad rms and
-#: smeared the image. A trihedral in that clutter, on the nominal track of a 2 cm sway: PGA
+#: on the image PGA works on (deramped, eq. (PGA2)). Speckle alone reaches about
+#: ``10 log10((ln N + 0.58) / ln 2)``: 13.9 dB for ``N = 4096^2`` pixels; measured on rendered
+#: clutter 12.2 to 13.3 dB, where PGA ran 17 to 20 iterations to 6 to 7 rad rms and smeared the
+#: image. A trihedral in that clutter, on the nominal track of a 2 cm sway: PGA
 #: restores it at 29.8 dB and above, fails at 21.0 dB (docs/physics.md (PGA3)).
 DOMINANCE_DB = 25.0
 
