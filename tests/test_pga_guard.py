@@ -23,10 +23,11 @@ MOTION = "0.02, 40"          # 2 cm sinusoidal sway of period 40 m (the issue-30
 GROUND = trimesh.Trimesh([[-40, -40, 0], [40, -40, 0], [40, 40, 0], [-40, 40, 0]], [[0, 1, 2], [0, 2, 3]])
 
 
-def _render(gamma_db: float, trihedral: bool) -> tuple:
-    """True-track and nominal-track ffbp images (0.1 m x 0.2 m pixels, 256 x 64) of rough ground,
-    optionally with the built-in trihedral at the scene centre, and the raw data."""
-    meshes = [(GROUND, {"material": "medium_dry_ground", "gamma_db": gamma_db}, "ground")]
+def _render(gamma_db: float, trihedral: bool, ground: trimesh.Trimesh = GROUND, pixels=((256, 0.1), (64, 0.2))) -> tuple:
+    """True-track and nominal-track ffbp images (``pixels``: count and spacing [m] along track and in
+    range; default 0.1 m x 0.2 m, 256 x 64) of rough ``ground``, optionally with the built-in
+    trihedral at the scene centre, and the raw data."""
+    meshes = [(ground, {"material": "medium_dry_ground", "gamma_db": gamma_db}, "ground")]
     if trihedral:
         meshes.append((trimesh.load("scenes/meshes/trihedral.obj"), "pec", "trihedral"))
     scene = sarmitsuba.Scene(meshes=meshes, integrator={"max_depth": 3 if trihedral else 1},
@@ -34,9 +35,10 @@ def _render(gamma_db: float, trihedral: bool) -> tuple:
                                      "scene_center": (0, 0, 0), "motion_error": MOTION})
     sim = simulate(scene, focuser="ffbp", image_size=(32, 32))
     frame = sim.image
+    (n_az, d_az), (n_rg, d_rg) = pixels
     grid = ImageGrid(origin=frame.origin, azimuth_direction=frame.azimuth_direction,
-                     range_direction=frame.range_direction, azimuth=(np.arange(256) - 128) * 0.1,
-                     range=(np.arange(64) - 32) * 0.2, plane="ground")
+                     range_direction=frame.range_direction, azimuth=(np.arange(n_az) - n_az // 2) * d_az,
+                     range=(np.arange(n_rg) - n_rg // 2) * d_rg, plane="ground")
     return ffbp(sim.raw, grid), ffbp(sim.raw.on_track("nominal"), grid), sim.raw
 
 
@@ -66,16 +68,7 @@ def test_pga_judges_clutter_where_there_is_signal():
     unchanged. Catches the median taken over every non-zero pixel, which the empty part drags
     down (measured 27.5 dB there, and PGA ran)."""
     plate = trimesh.Trimesh([[-10, -10, 0], [10, -10, 0], [10, 10, 0], [-10, 10, 0]], [[0, 1, 2], [0, 2, 3]])
-    scene = sarmitsuba.Scene(meshes=[(plate, {"material": "medium_dry_ground", "gamma_db": -14.0}, "ground")],
-                             integrator={"max_depth": 1},
-                             sensor={"frequency": 9.6e9, "bandwidth": 150e6, "incidence_angle": 45,
-                                     "scene_center": (0, 0, 0), "motion_error": MOTION})
-    sim = simulate(scene, focuser="ffbp", image_size=(32, 32))
-    frame = sim.image
-    grid = ImageGrid(origin=frame.origin, azimuth_direction=frame.azimuth_direction,
-                     range_direction=frame.range_direction, azimuth=(np.arange(160) - 80) * 0.1,
-                     range=(np.arange(120) - 60) * 0.5, plane="ground")
-    image = ffbp(sim.raw.on_track("nominal"), grid)
+    image = _render(-14.0, trihedral=False, ground=plate, pixels=((160, 0.1), (120, 0.5)))[1]
     inside = np.abs(image.range) < 9.0
     assert 0.2 < inside.mean() < 0.4                                   # a third of the image holds the ground
     with pytest.warns(AutofocusWarning, match="no dominant scatterer"):
