@@ -51,3 +51,11 @@ def bench_main(doc: str, run, checks, quick_help: str, tiny_help: str | None = N
     rows = run(args.quick, tiny=True) if getattr(args, "tiny", False) else run(args.quick)
     for check, ok, detail in checks(rows):
         print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+
+
+def report_rows(name: str, rows: list[dict]) -> list[dict]:
+    """Print every row, write them to ``output_dir() / name``; returns ``rows``."""
+    for row in rows:
+        print(row)
+    write_csv(name, rows)
+    return rows

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 import sarmitsuba
-from _table import bench_main, machine, output_dir, write_csv
+from _table import bench_main, machine, output_dir, report_rows, write_csv
 from sarmitsuba.pipeline import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
@@ -272,10 +272,7 @@ def cost(quick: bool) -> list[dict]:
     rows = [measure("urban")]
     if not quick and importlib.util.find_spec("sionna") is not None:
         rows.append(measure("sionna:munich", pulses=512))
-    for row in rows:
-        print(row)
-    write_csv(f"{NAME}.csv", rows)
-    return rows
+    return report_rows(f"{NAME}.csv", rows)
 
 
 def run(quick: bool = False) -> list[dict]:

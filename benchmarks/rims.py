@@ -20,7 +20,7 @@ import gc
 import importlib.util
 
 import numpy as np
-from _table import bench_main, machine, write_csv
+from _table import bench_main, machine, report_rows
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
@@ -114,10 +114,7 @@ def run(quick: bool = False) -> list[dict]:
     for scene, sensor in scenes.items():
         for ground in ("auto", "none"):
             rows += measure(scene, sensor, ground)
-    for row in rows:
-        print(row)
-    write_csv(f"{NAME}.csv", rows)
-    return rows
+    return report_rows(f"{NAME}.csv", rows)
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ import importlib.util
 
 import numpy as np
 from _lattice import nrmse_db
-from _table import bench_main, machine, write_csv
+from _table import bench_main, machine, report_rows
 
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
@@ -111,10 +111,7 @@ def run(quick: bool = False) -> list[dict]:
     rows = []
     for scene, sensor in scenes.items():
         rows += sweep(scene, sensor)
-    for row in rows:
-        print(row)
-    write_csv(f"{NAME}.csv", rows)
-    return rows
+    return report_rows(f"{NAME}.csv", rows)
 
 
 if __name__ == "__main__":

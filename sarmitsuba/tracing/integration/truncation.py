@@ -20,12 +20,10 @@ from __future__ import annotations
 
 import dataclasses
 
-import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from ...scene.ground import ground_shapes
-from ..mesh.patches import Surfaces
+from ..mesh.patches import Surfaces, shape_indices
 from .edges import ON_EDGE, Wedges
 
 __all__ = ["ground_parts", "rim_edges", "without_rims", "on_rim"]
@@ -38,8 +36,7 @@ def ground_parts(scene, surfaces: Surfaces, setting: str) -> np.ndarray:
     flags = ground_shapes(setting, [shape.id() for shape in shapes])
     if not np.any(flags) or surfaces.n_parts == 0:
         return np.zeros(surfaces.n_parts, bool)
-    # Surfaces.shape_id holds each shape's registry index (as patches.surfaces_of reads it)
-    index = np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0]) for shape in shapes], np.int64)
+    index = shape_indices(shapes)                       # what Surfaces.shape_id holds
     lookup = np.zeros(max(int(index.max()), int(np.max(surfaces.shape_id))) + 1, bool)
     lookup[index[flags]] = True
     return lookup[np.asarray(surfaces.shape_id, np.int64)]

@@ -30,7 +30,7 @@ from .covers import covered_parts, split_covered
 from .facets import Parts, scene_parts
 from .polygons import REPEAT_DISTANCE, drop_collinear, moments, pad
 
-__all__ = ["Surfaces", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "ALONG_FIRST_AXIS",
+__all__ = ["Surfaces", "shape_indices", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "ALONG_FIRST_AXIS",
            "UNIT_SQUARE"]
 
 #: A face whose normal lies within 0.81 deg of its shape's first axis takes its frame's ``u`` from
@@ -188,12 +188,18 @@ def face_axes(normal: np.ndarray, shape_axes: np.ndarray) -> tuple[np.ndarray, n
     return u, np.cross(normal, u)
 
 
+def shape_indices(shapes) -> np.ndarray:
+    """int64 [len(shapes)]: each Mitsuba shape's registry index, the value rays report as their
+    shape and :attr:`Surfaces.shape_id` holds."""
+    return np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes], np.int64)
+
+
 def surfaces_of(scene, table, parts: Parts | None = None) -> Surfaces:
     """The :class:`Surfaces` of a loaded Mitsuba scene whose material table is ``table``
     (:class:`sarmitsuba.scene.trace_inputs.MaterialTable`: rows, shape frames)."""
     parts = scene_parts(scene) if parts is None else parts
     shapes = list(scene.shapes())
-    ids = np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes], np.int64)
+    ids = shape_indices(shapes)
     mesh = np.array([s.is_mesh() for s in shapes], bool)
     return surfaces_from(parts, ids, mesh, table.shape_origin, table.shape_axes, table.row_of_shape)
 
