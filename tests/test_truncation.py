@@ -9,7 +9,9 @@ ending inside the beam around a building must leave no line where it ends.
 Deliberate bugs these tests were run against (each fails one):
   * the rule switched off in the tracer (``self.rim = None``): every test but the names';
   * every border segment of a ground part dropped, not only those on free edges: the plinth;
-  * ``ground_shapes = auto`` matching any id containing ``ground`` (``playground``).
+  * ``ground_shapes = auto`` matching any id containing ``ground`` (``playground``);
+  * ``on_rim``'s tolerance made a million times looser, one end tested instead of both (the
+    shapely comparison).
 """
 from __future__ import annotations
 
@@ -103,6 +105,50 @@ def test_a_rim_that_a_face_meets_is_an_edge():
     none = render([(slab, "pec", "ground")], 20.0, ground_shapes="none")
     assert power(none) > 0
     assert np.array_equal(auto.raw.data, none.raw.data)
+
+
+def test_on_rim_against_shapely():
+    """``truncation.on_rim`` against shapely's distances: a segment is on a truncation edge when
+    both its ends lie on that flagged edge (within 1e-9 m), on a square turned 20 deg and a
+    triangle: pieces of flagged edges, of unflagged ones, parallels 1 cm inside, segments that
+    leave a flagged edge, chords. Catches a tolerance made loose, one end tested instead of
+    both, and the flags read one corner off."""
+    import types
+
+    import shapely
+
+    from sarmitsuba.tracing.integration.truncation import on_rim
+    t = math.radians(20.0)
+    square = np.array([(-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0)]) @ np.array([[math.cos(t), math.sin(t)],
+                                                                                      [-math.sin(t), math.cos(t)]])
+    triangle = np.array([(0.0, 0.0), (8.0, 1.0), (3.0, 6.0), (0.0, 0.0)])
+    polygon = np.stack([square, triangle])
+    s = types.SimpleNamespace(polygon=polygon, n_corners=np.array([4, 3]))
+    rim = np.array([[True, False, True, False], [False, True, False, False]])   # edges from corner i to i + 1
+    rng = np.random.default_rng(7)
+    part, start, end = [], [], []
+    for k in range(2):
+        n = s.n_corners[k]
+        for i in range(n):
+            a, b = polygon[k, i], polygon[k, (i + 1) % n]
+            inward = np.array([-(b - a)[1], (b - a)[0]]) / np.linalg.norm(b - a)     # counter-clockwise: left
+            for _ in range(4):
+                u, v = np.sort(rng.uniform(0.0, 1.0, 2))
+                p, q = a + u * (b - a), a + v * (b - a)
+                for shift in (p, q), (p + 0.01 * inward, q + 0.01 * inward), (p, p + 0.5 * inward):
+                    part.append(k), start.append(shift[0]), end.append(shift[1])
+        centre = polygon[k, :n].mean(axis=0)
+        for _ in range(4):                                                          # chords through the middle
+            part.append(k), start.append(polygon[k, rng.integers(n)]), end.append(centre)
+    part, start, end = np.array(part), np.array(start), np.array(end)
+    expected = np.zeros(len(part), bool)
+    for m, (k, p, q) in enumerate(zip(part, start, end)):
+        n = s.n_corners[k]
+        for i in np.flatnonzero(rim[k, :n]):
+            edge = shapely.LineString([polygon[k, i], polygon[k, (i + 1) % n]])
+            expected[m] |= edge.distance(shapely.Point(p)) < 1e-9 and edge.distance(shapely.Point(q)) < 1e-9
+    assert 10 < expected.sum() < len(part) - 10
+    assert np.array_equal(on_rim(s, rim, part, start, end), expected)
 
 
 def test_ground_shapes_names():
