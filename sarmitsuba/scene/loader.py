@@ -518,6 +518,7 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     rows: dict[int, int] = {}
     tables, clutter, specular, ids, names = [], [], [], [], []
     tables_te, tables_tm, cross_pol = [], [], []           # for the Jones model, docs/physics.md (P3')
+    grazing = []                                            # the grazing wave's Delta, (E6)
     for index, shape in enumerate(scene.shapes()):
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -533,6 +534,7 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
             tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
             tables.append(tables_tm[-1] if polarization == "VV" else tables_te[-1])
             cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
+            grazing.append(materials.grazing_impedance(material, frequency))
             clutter.append(bsdf.clutter)
             specular.append(bsdf.specular_factor)
         shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
@@ -557,4 +559,5 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                          specular=np.array(specular, np.float32),
                          table_te=np.stack(tables_te).astype(np.complex64),
                          table_tm=np.stack(tables_tm).astype(np.complex64),
-                         cross_pol=np.array(cross_pol, np.float32))
+                         cross_pol=np.array(cross_pol, np.float32),
+                         grazing_delta=np.array(grazing, np.complex128))

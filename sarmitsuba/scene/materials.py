@@ -25,6 +25,9 @@ reflection_coefficient
     VV -> TM).
 reflection_table, interpolate_table, table_error_bound
     Lookup table for the tracer, its interpolation and its error.
+grazing_impedance
+    The normalised surface impedance a wave grazing the surface sees (the ground wave's
+    numerical distance, docs/physics.md (E6)).
 
 Conventions
 -----------
@@ -57,6 +60,7 @@ __all__ = [
     "fresnel_half_space",
     "slab_reflection",
     "reflection_coefficient",
+    "grazing_impedance",
     "reflection_table",
     "interpolate_table",
     "table_error_bound",
@@ -346,6 +350,32 @@ def reflection_coefficient(material: Material, cos_theta, frequency_hz: float,
         r_te, r_tm = slab_reflection(c, material.relative_permittivity,
                                      material.thickness, f)
     return r_te if pol == "te" else r_tm
+
+
+def grazing_impedance(material: Material, frequency_hz: float) -> complex:
+    """The normalised surface impedance ``Delta = sqrt(eta - 1) / eta`` (dimensionless,
+    ``Re >= 0``) that a TM wave grazing the material sees: the impedance boundary whose TM
+    coefficient ``(Delta - cos) / (Delta + cos)`` (mirror-image convention) is the half space's
+    as ``cos_theta -> 0`` (Norton, Proc. IRE 25(9), 1937; Wait, IEEE Antennas Propag. Mag. 40(5),
+    1998). A slab's grazing wave is taken as over a half space of its material; 0 for ``pec``.
+    It sets the numerical distance of the grazing wave across a face, docs/physics.md (E6').
+
+    Parameters
+    ----------
+    material : Material
+    frequency_hz : float
+        Frequency [Hz], > 0 (checked; the permittivity is the material's own).
+
+    Returns
+    -------
+    complex
+        ``Delta`` (principal root); ``0j`` for a perfect conductor.
+    """
+    check_frequency(frequency_hz)
+    if material.model == "pec":
+        return 0j
+    eta = complex(material.relative_permittivity)
+    return complex(np.sqrt(eta - 1.0) / eta)
 
 
 # --------------------------------------------------------------------------

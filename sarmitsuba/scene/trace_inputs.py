@@ -345,6 +345,10 @@ class MaterialTable:
     cross_pol : float32 [n_rows] or None
         The clutter's ``sigma0_HV`` relative to the mean co-polarised sigma0 of each row
         (docs/physics.md (P7)).
+    grazing_delta : complex128 [n_rows] or None
+        Each row's normalised surface impedance at grazing
+        (:func:`sarmitsuba.scene.materials.grazing_impedance`; 0 for ``pec``): the grazing wave's
+        numerical distance across a face (docs/physics.md (E6)).
     """
 
     row_of_shape: np.ndarray
@@ -358,6 +362,7 @@ class MaterialTable:
     table_te: np.ndarray | None = None
     table_tm: np.ndarray | None = None
     cross_pol: np.ndarray | None = None
+    grazing_delta: np.ndarray | None = None
 
     @property
     def has_clutter(self) -> bool:

@@ -45,6 +45,7 @@ from .mesh_trace import MeshTracer
 from ..mesh.patches import surfaces_of
 from .launches import Blocks, Launch
 from ..integration import jones as pol
+from ..integration.ground_wave import grazing_table
 from ..integration.returns import COS_GRAZING, Returns, footprint_edges
 from ..loops import RECORDING
 from .stages import STAGES
@@ -303,7 +304,7 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
-    grazing_tm: mi.Float | None = None        # edge diffraction: each row's Re r_tm at grazing, (E6)
+    grazing: tuple | None = None              # edge diffraction: each row's grazing-wave table, (E6)
 
 
 # ============================================================================ the kernel
@@ -350,8 +351,9 @@ class Kernel:
             self.tables.re_tm = mi.Float(table.table_tm.real.ravel().astype(np.float32))
             self.tables.im_tm = mi.Float(table.table_tm.imag.ravel().astype(np.float32))
             self.tables.cross_pol = mi.Float(table.cross_pol.astype(np.float32))
-        if effects.diffraction and table.table_tm is not None:
-            self.tables.grazing_tm = mi.Float(table.table_tm[:, 0].real.astype(np.float32))
+        if effects.diffraction and table.grazing_delta is not None:
+            offset, weights = grazing_table(table.grazing_delta)
+            self.tables.grazing = (mi.Float(offset), mi.Float(weights.real.ravel()), mi.Float(weights.imag.ravel()))
         if effects.clutter:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))

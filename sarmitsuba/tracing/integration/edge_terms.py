@@ -15,6 +15,7 @@ import math
 import drjit as dr
 import mitsuba as mi
 
+from . import ground_wave
 from . import jones as pol
 from ..device import device_array
 from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW, TRANSITION_SERIES
@@ -192,15 +193,25 @@ class EdgeTerms:
             coefficient = r.reflection_at(row, cos, True)
             return coefficient, coefficient
 
+        unlit_tm = self.unlit_tm(data, sin_i)
+
+        def face_n(cos):
+            # face N where the wave does not reach it (cos <= 0) has no incidence of its own: its TM
+            # coefficient is the grazing one a wave across the face sees, 1 - 2 F(w), eq. (E2)
+            pair = reflection(data["wedge_row"], cos)
+            if unlit_tm is None:
+                return pair
+            hard = dr.select(cos > 0.0, pair[1], unlit_tm)
+            return (pair[0], hard) if r.polarimetric else (hard, hard)
+
         # the traced path: the wave arrives along d, leaves along b
-        x_s, x_h = fringe_coefficients(phi, phi_i, nn, reflection(data["row"], cos_i),
-                                       reflection(data["wedge_row"], -dr.dot(d, normal_n)))
+        x_s, x_h = fringe_coefficients(phi, phi_i, nn, reflection(data["row"], cos_i), face_n(-dr.dot(d, normal_n)))
         if depth > 0:
             # and its reverse, not traced (the edge first, the mirrors after it: it arrives along
             # -b and leaves along -d): the same length, the same Keller term, its own PO subtracted
             # (the fringe is not reciprocal where PO is not), eq. (E4)
             back_s, back_h = fringe_coefficients(phi_i, phi, nn, reflection(data["row"], dr.abs(dr.dot(b, n0))),
-                                                 reflection(data["wedge_row"], dr.abs(dr.dot(b, normal_n))))
+                                                 face_n(dr.dot(b, normal_n)))
             x_s, x_h = x_s + back_s, x_h + back_h
         # the receiver outside the wedge (face N at phi = N pi; a free edge is seen from every side)
         ok = convex & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < nn * math.pi)
@@ -238,6 +249,22 @@ class EdgeTerms:
         field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
         return r.reciprocal(pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS), depth)
 
+    def unlit_tm(self, data, sin_i):
+        """The TM reflection coefficient at grazing of each lane's face N as a wave grazing it across
+        the face sees it, ``1 - 2 F(w)`` (Norton's ``F`` over the distance across, or the lit edge's
+        length where no edge lies across, along the Keller cone), eq. (E2): -1 on a conductor as on
+        a PEC, toward +1 (the exact-grazing limit) on a dielectric face many wavelengths wide.
+        ``None`` where no channel uses a TM coefficient (the scalar HH model) or without tables.
+        NumPy reference: :func:`sarmitsuba.tracing.integration.ground_wave.unlit_tm`."""
+        r = self.r
+        if r.tables.grazing is None or not (r.polarimetric or r.vv_sign):
+            return None
+        across = dr.norm(data["across"])
+        extent = dr.select(across > 0.0, across, dr.norm(data["edge"]))
+        weight = ground_wave.lookup(*r.tables.grazing, data["wedge_row"],
+                                    self.k * extent / dr.maximum(sin_i, GRAZING_EDGE))
+        return 1.0 - 2.0 * weight
+
     def double(self, data, d, b, n0, sin_i, depth: int):
         """The doubly diffracted far field per unit length of each lane's edge (edge 2), per
         channel, eq. (E6): the wave the edge across the face (edge 1) diffracts along the face,
@@ -274,11 +301,11 @@ class EdgeTerms:
         sheet = dr.select((dr.squared_norm(data["across_xn"]) == 0.0) & (dr.squared_norm(data["wedge_xn"]) == 0.0),
                           2.0, 1.0)
         g = mi.Complex2f(c, -c) * x_1 * (spread * sheet)               # exp(-j pi / 4) X_1 / sqrt(2 pi k w sin)
-        # the grazing wave exists on a conductor: (1 - r_TM(grazing)) / 2 is 1 there, 0 on a
-        # dielectric (whose r_TM is +1 at grazing: the total field vanishes on it), eq. (E6); the
-        # TM table's, whatever the channel (the scalar model's HH table is TE)
-        if r.tables.grazing_tm is not None:
-            g = g * ((1.0 - dr.gather(mi.Float, r.tables.grazing_tm, data["row"])) * 0.5)
+        # the grazing wave arrives whole on a perfect conductor and as Norton's ground wave F(w)
+        # on a face of finite conductivity, over its path w / sin(beta'), eq. (E6): whatever the
+        # channel (the wave grazing the face is TM to it)
+        if r.tables.grazing is not None:
+            g = g * ground_wave.lookup(*r.tables.grazing, data["row"], k * w / dr.maximum(sin_i, GRAZING_EDGE))
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)

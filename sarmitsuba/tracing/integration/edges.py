@@ -30,6 +30,7 @@ import numpy as np
 
 from ...core.arrays import unique_rows
 from ..mesh.patches import Surfaces
+from .ground_wave import grazing_weight
 from .junctions import JUNCTION, on_other_part, part_spheres
 
 __all__ = ["WEDGE_ANGLE", "ON_EDGE", "JUNCTION", "SINGULAR_WINDOW", "SINGULAR_STEP", "GRAZING_EDGE", "Wedges", "find_wedges",
@@ -458,16 +459,17 @@ def edge_field(t, x0, n0, xn, d, b, field, r0=(-1.0, -1.0), rn=(-1.0, -1.0), rev
     return (c_e * e_t)[:, None] * along + (c_m * e_m)[:, None] * np.cross(b, t)
 
 
-def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = False, grazing_tm=-1.0):
+def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = False, delta=0.0):
     """The doubly diffracted far field per unit length of edge 2, eq. (E6) (complex [m, 3]): the
     wave of wavenumber ``k`` [rad/m] that edge 1 (at ``across`` [m, 3] from the point, running the
     other way; ``xn1`` into its other face) diffracts along the face, grazing, diffracted by edge 2
     (``t``, ``x0``, ``n0``, ``xn2`` as in :func:`edge_field`) toward ``b``. Phase referred to the
     incident wave at the point across plus the grazing leg ``|across| sin(beta')``, which the
     caller adds to the path. Hard polarisation only. ``reverse``: with the reverse path (edge 2
-    first), its transpose by reciprocity: twice the field (E6). ``grazing_tm``: the face's
-    ``r_TM`` at grazing incidence: -1 on a conductor (the default); the grazing wave carries
-    ``(1 - r_TM) / 2`` of it, none on a dielectric (+1)."""
+    first), its transpose by reciprocity: twice the field (E6). ``delta``: the face's normalised
+    surface impedance at grazing (:func:`sarmitsuba.scene.materials.grazing_impedance`; 0, the
+    default, for a perfect conductor): the grazing wave arrives as Norton's ground wave over its
+    path ``|across| / sin(beta')`` (:func:`sarmitsuba.tracing.integration.ground_wave.grazing_weight`)."""
     t, x0, n0, across, xn1, xn2, d, b = (np.asarray(a, float) for a in (t, x0, n0, across, xn1, xn2, d, b))
     phi, sin_s = _angle(b, t, x0, n0)
     phi_1, sin_i = _angle(-d, t, -x0, n0)
@@ -482,7 +484,7 @@ def double_field(t, x0, n0, across, xn1, xn2, d, b, field, k, reverse: bool = Fa
     # a sheet (both edges free) carries the grazing wave on its front and its back face: the two
     # arrive at edge 2 with opposite signs and leave with opposite coefficients, so they add
     sheet = np.where(~np.any(xn1 != 0, axis=1) & ~np.any(xn2 != 0, axis=1), 2.0, 1.0)
-    sheet = sheet * (1.0 - np.asarray(grazing_tm)) / 2
+    sheet = sheet * grazing_weight(delta, k * w / np.maximum(sin_i, GRAZING_EDGE))
     g = sheet * np.exp(-0.25j * np.pi) * x_1 / np.sqrt(2 * np.pi * k * w * sin_i)
     ok = (n1 > 1) & (n2 > 1) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < np.pi)
     c_m = np.where(ok, -g * x_2 / (2 * np.pi * np.maximum(sin_i * sin_s, GRAZING_EDGE**2)), 0)

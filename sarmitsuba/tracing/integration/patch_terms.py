@@ -284,9 +284,9 @@ class PatchTerms:
             data["wedge_row"] = device_array(mi.UInt32, lanes.wedge_row)
             data["wedge_defer"] = device_array(mi.Bool, lanes.wedge_defer)
             data["double"] = bool(np.any(lanes.double))
+            data["across"] = device_array(v3, lanes.across.T)       # also face N's width, (E2)
             if data["double"]:
                 data["is_double"] = device_array(mi.Bool, lanes.double)
-                data["across"] = device_array(v3, lanes.across.T)
                 data["across_xn"] = device_array(v3, lanes.across_xn.T)
             if depth > 0 and data["jones"] is None:
                 data["edge_jones"] = self.edges.mirrored(lanes, depth)
