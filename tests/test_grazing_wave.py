@@ -2,11 +2,11 @@
 wave sees, Norton's attenuation function, the kernel's table of it, and what a lone plate of ITU
 metal or concrete returns.
 
-Deliberate bugs these were run against: the grazing weight read from ``r_TM`` at exactly grazing
-(the old rule: metal 3.6 dB below pec in VV); the unlit face's TM coefficient read at exactly
-grazing (metal 2.3 dB low at 45 deg VV); ``exp(-w) erfc(j sqrt w)`` taken as ``wofz(+sqrt w)`` (F off
-its asymptote); the numerical distance without its ``-j`` (a lossless dielectric's |F| wrong);
-the kernel table's offset without the factor 1/2 (the lookup 15 % off on concrete).
+Deliberate bugs these were run against, each failing a test here: the grazing wave's weight read
+from ``r_TM`` at exactly grazing (1 on pec, 0 on any other material: three plate cases fail); the
+unlit face's TM coefficient read at exactly grazing (metal 2.3 dB low at 45 deg VV); ``exp(-w)
+erfc(j sqrt w)`` taken as ``wofz(+sqrt w)``; the numerical distance without its ``-j``; the kernel
+table's offset without the factor 1/2.
 """
 from __future__ import annotations
 
