@@ -131,3 +131,21 @@ def test_wide_dielectric_plate_keeps_no_grazing_wave(monkeypatch):
     monkeypatch.setattr(ground_wave, "lookup", lambda *args: mi.Complex2f(0.0, 0.0))
     assert concrete == pytest.approx(rcs("concrete", wide), abs=0.3)
     assert metal - rcs(metal_type, small) > 2.0
+
+
+@pytest.mark.parametrize("name", ["concrete", "glass"])
+def test_table_tangent_matches_central_differences(name):
+    """The grazing table's derivative for material gradients (the offset and every sample)
+    against central differences of the table itself over ``Re eta`` and ``Im eta``."""
+    eta = materials.itu_permittivity(name, FREQUENCY)
+
+    def delta(e):
+        return cmath.sqrt(e - 1) / e
+
+    for d_eta in (1.0, -1j):
+        h = 1e-4 * abs(eta)
+        d_offset, d_table = ground_wave.table_tangent(delta(eta), (0.5 / (eta - 1) - 1 / eta) * d_eta)
+        (o_plus, t_plus), (o_minus, t_minus) = (ground_wave.grazing_table(delta(eta + s * h * d_eta)) for s in (1, -1))
+        assert d_offset == pytest.approx((o_plus[0] - o_minus[0]) / (2 * h), rel=2e-2, abs=1e-4)
+        fd = (t_plus[0].astype(complex) - t_minus[0].astype(complex)) / (2 * h)
+        assert np.max(np.abs(d_table - fd)) < 2e-2 * np.max(np.abs(d_table)) + 1e-3

@@ -27,10 +27,12 @@ import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
 from ...core.radar import ParameterError
+from ...scene.materials import grazing_impedance
 from ..deposit.accumulate import Accumulator
 from ..device import device_array
 from .geometry_tangents import MovedTracer
 from ..driver.kernel import Kernel
+from ..integration import ground_wave
 
 __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "material_tangent", "RowTangent",
            "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums",
@@ -40,7 +42,8 @@ __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "mate
 MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
                        "scattering_coefficient": "1"}
 #: The kernel's per-material tables a derivative can flow from (attributes of its ``tables``).
-DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value")
+DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value", "grazing_offset", "grazing_re",
+                  "grazing_im")
 
 
 def reflection_table_ad(eta_re, eta_im, n_cos: int, polarization: str, thickness=None,
@@ -100,6 +103,7 @@ class RowTangent:
     tm: np.ndarray | None = None
     specular: float = 0.0
     clutter_value: float = 0.0
+    grazing: tuple | None = None      # (d offset, d table) of the grazing wave's row, (E6')
 
 
 def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) -> RowTangent:
@@ -117,7 +121,21 @@ def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) ->
             raise ParameterError(f"material {material.name!r}: scattering_coefficient 1 has no derivative (the "
                                  "specular factor sqrt(1 - S^2) is not differentiable there)")
         return RowTangent(specular=-s / math.sqrt(1.0 - s * s), clutter_value=8.0 * s)
-    return RowTangent(*(material_tangent(material, parameter, frequency, pol, n_cos) for pol in ("HH", "VV")))
+    te, tm = (material_tangent(material, parameter, frequency, pol, n_cos) for pol in ("HH", "VV"))
+    return RowTangent(te, tm, grazing=grazing_row_tangent(material, parameter, frequency))
+
+
+def grazing_row_tangent(material, parameter: str, frequency: float) -> tuple | None:
+    """The grazing-wave table's tangent (:func:`ground_wave.table_tangent`) for ``parameter``:
+    ``Delta = sqrt(eta - 1) / eta`` (E6') moves as ``d ln Delta = (1 / (2 (eta - 1)) - 1 / eta)
+    d eta``, ``d eta = 1`` per unit of ``relative_permittivity`` and ``-j / (omega eps_0)`` per S/m
+    of ``conductivity``; None for ``thickness`` (a slab's grazing wave is its half space's)."""
+    if parameter == "thickness":
+        return None
+    eta = complex(material.relative_permittivity)
+    d_eta = 1.0 if parameter == "relative_permittivity" else -1j / (2.0 * math.pi * frequency * VACUUM_PERMITTIVITY)
+    return ground_wave.table_tangent(grazing_impedance(material, frequency),
+                                     (0.5 / (eta - 1.0) - 1.0 / eta) * d_eta)
 
 
 def flat_tangents(tables, polarimetric: bool, polarization: str, row: int, tangent: RowTangent) -> dict:
@@ -137,6 +155,13 @@ def flat_tangents(tables, polarimetric: bool, polarization: str, row: int, tange
             full = np.zeros(dr.width(getattr(tables, name)))
             full[row] = getattr(tangent, name)
             out[name] = full
+    if tangent.grazing is not None and getattr(tables, "grazing_offset", None) is not None:
+        d_offset, d_table = tangent.grazing
+        out["grazing_offset"] = np.zeros(dr.width(tables.grazing_offset))
+        out["grazing_offset"][row] = d_offset
+        full = np.zeros(dr.width(tables.grazing_re), np.complex128)
+        full[row * d_table.size:(row + 1) * d_table.size] = d_table
+        out["grazing_re"], out["grazing_im"] = full.real, full.imag
     return out
 
 

@@ -304,7 +304,9 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
-    grazing: tuple | None = None              # edge diffraction: each row's grazing-wave table, (E6)
+    grazing_offset: mi.Float | None = None    # edge diffraction: each row's grazing-wave table, (E6')
+    grazing_re: mi.Float | None = None
+    grazing_im: mi.Float | None = None
 
 
 # ============================================================================ the kernel
@@ -353,7 +355,9 @@ class Kernel:
             self.tables.cross_pol = mi.Float(table.cross_pol.astype(np.float32))
         if effects.diffraction and table.grazing_delta is not None:
             offset, weights = grazing_table(table.grazing_delta)
-            self.tables.grazing = (mi.Float(offset), mi.Float(weights.real.ravel()), mi.Float(weights.imag.ravel()))
+            self.tables.grazing_offset = mi.Float(offset)
+            self.tables.grazing_re = mi.Float(weights.real.ravel())
+            self.tables.grazing_im = mi.Float(weights.imag.ravel())
         if effects.clutter:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))

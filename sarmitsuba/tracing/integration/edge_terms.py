@@ -249,6 +249,11 @@ class EdgeTerms:
         field = pol.Jones(h_re=h_re, h_im=h_im, v_re=v_re, v_im=v_im)
         return r.reciprocal(pol.receive(field, -b, mi.Vector3f(*r.track), pol.CHANNELS), depth)
 
+    def grazing_tables(self) -> tuple:
+        """The grazing wave's tables (offset, real, imaginary part) for :func:`ground_wave.lookup`."""
+        t = self.r.tables
+        return t.grazing_offset, t.grazing_re, t.grazing_im
+
     def unlit_tm(self, data, sin_i):
         """The TM reflection coefficient at grazing of each lane's face N as a wave grazing it across
         the face sees it, ``1 - 2 F(w)`` (Norton's ``F`` over the distance across, or the lit edge's
@@ -257,11 +262,11 @@ class EdgeTerms:
         ``None`` where no channel uses a TM coefficient (the scalar HH model) or without tables.
         NumPy reference: :func:`sarmitsuba.tracing.integration.ground_wave.unlit_tm`."""
         r = self.r
-        if r.tables.grazing is None or not (r.polarimetric or r.vv_sign):
+        if r.tables.grazing_offset is None or not (r.polarimetric or r.vv_sign):
             return None
         across = dr.norm(data["across"])
         extent = dr.select(across > 0.0, across, dr.norm(data["edge"]))
-        weight = ground_wave.lookup(*r.tables.grazing, data["wedge_row"],
+        weight = ground_wave.lookup(*self.grazing_tables(), data["wedge_row"],
                                     self.k * extent / dr.maximum(sin_i, GRAZING_EDGE))
         return 1.0 - 2.0 * weight
 
@@ -304,8 +309,8 @@ class EdgeTerms:
         # the grazing wave arrives whole on a perfect conductor and as Norton's ground wave F(w)
         # on a face of finite conductivity, over its path w / sin(beta'), eq. (E6): whatever the
         # channel (the wave grazing the face is TM to it)
-        if r.tables.grazing is not None:
-            g = g * ground_wave.lookup(*r.tables.grazing, data["row"], k * w / dr.maximum(sin_i, GRAZING_EDGE))
+        if r.tables.grazing_offset is not None:
+            g = g * ground_wave.lookup(*self.grazing_tables(), data["row"], k * w / dr.maximum(sin_i, GRAZING_EDGE))
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)

@@ -27,7 +27,7 @@ import numpy as np
 from scipy.special import wofz
 
 __all__ = ["LOG_RANGE", "PER_DECADE", "norton_attenuation", "numerical_distance", "grazing_weight",
-           "unlit_tm", "grazing_table", "lookup"]
+           "unlit_tm", "grazing_table", "table_tangent", "lookup"]
 
 #: The table's span in ``log10 |w|``: below 1e-8, ``1 - F`` is under 2e-4; above 1e6, ``|F|`` is
 #: under 1e-6 (the last sample is used beyond either end).
@@ -97,6 +97,25 @@ def grazing_table(deltas) -> tuple[np.ndarray, np.ndarray]:
         offset[row] = math.log10(abs(scale[row]))
         table[row] = norton_attenuation(-1j * scale[row] / abs(scale[row]) * magnitude)
     return offset.astype(np.float32), table.astype(np.complex64)
+
+
+def table_tangent(delta, d_ln_delta) -> tuple[float, np.ndarray]:
+    """The derivative of one row of :func:`grazing_table` when ``ln Delta`` moves by
+    ``d_ln_delta`` (complex): ``(d offset, d table)`` (float, complex128 [n]). ``w = c |w| / |c|``
+    with ``c = -j Delta^2 / 2``: the offset moves by ``Re(d ln c) / ln 10`` and each sample, at its
+    fixed ``|w|``, by ``F'(w) w j Im(d ln c)``, with ``F'(w) = (F - 1)(1 / (2 w) - 1) - 1`` (from
+    ``d/dw exp(-w) erfc(j sqrt w) = -exp(-w) erfc(j sqrt w) - j / sqrt(pi w)``). Zero for a perfect
+    conductor, whose row is all ones."""
+    delta = complex(delta)
+    n = int(round((LOG_RANGE[1] - LOG_RANGE[0]) * PER_DECADE)) + 1
+    if delta == 0:
+        return 0.0, np.zeros(n, np.complex128)
+    d_ln_c = 2.0 * complex(d_ln_delta)
+    c = -0.5j * delta * delta
+    w = c / abs(c) * 10.0 ** (LOG_RANGE[0] + np.arange(n) / PER_DECADE)
+    f = norton_attenuation(w)
+    slope = (f - 1.0) * (0.5 / w - 1.0) - 1.0
+    return d_ln_c.real / math.log(10.0), slope * w * 1j * d_ln_c.imag
 
 
 def lookup(offset, table_re, table_im, row, k_distance):
