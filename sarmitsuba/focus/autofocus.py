@@ -19,9 +19,17 @@ Backprojected images are first deramped (docs/physics.md (PGA2)): multiplied by
 along the track, where the error of a motion is one function for every target.
 
 PGA runs only where the image holds a dominant scatterer (docs/physics.md (PGA3)): its brightest
-pixel at least :data:`DOMINANCE_DB` above the median intensity. On clutter alone it would fit a
-phase error to speckle and smear an image that may have been focused; it warns instead and
-returns the image unchanged.
+pixel at least :data:`DOMINANCE_DB` above the median intensity of its signal. It learns only from
+the point-like range lines (docs/physics.md (PGA4), :func:`~sarmitsuba.focus.pga_lines.point_lines`):
+a peak well above the clutter holding most of the line's lit energy near it; clutter, rims and the
+double bounce of walls spread along the line and are left out. With fewer than :data:`MIN_LINES`
+such lines, or no dominant scatterer, it would fit a phase error to speckle and smear an image
+that may have been focused; it warns instead and returns the image unchanged.
+
+A linear phase error only shifts the image and PGA cannot see it. Given the world position of a
+known point (``reference``), PGA measures where that point appears and removes the shift
+(docs/physics.md (PGA5)); without one, ``metadata["autofocus"]["linear_part"]`` says that it was
+not estimated and, where the metadata record the motion error, bounds the shift.
 
 No Python SAR library ships a maintained PGA (sarpy, ISCE3 and sarkit do not), so it is written
 here, following the paper step by step.
