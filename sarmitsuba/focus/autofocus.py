@@ -235,7 +235,7 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
     (eq. (PGA4)): clutter, rims and walls spread along a line are left out. A constant phase is
     not estimated, nor, without ``reference``, a linear one (a shift, eq. (PGA5)). Measured
     (benchmarks/trajectory.py, table ``pga``): a 2 cm, 40 m sinusoidal motion error on a 69 m
-    airborne X-band aperture, PSLR -39.8 dB after PGA against -39.7 dB on the true track.
+    airborne X-band aperture, PSLR -39.6 dB after PGA against -39.4 dB on the true track.
     """
     data, options = _check(image, max_iterations, tolerance)
     frame = _fresnel_frame(image)
