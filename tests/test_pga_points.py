@@ -23,7 +23,7 @@ from sarmitsuba.focus import ImageGrid, ffbp
 from sarmitsuba.focus.autofocus import DOMINANCE_DB, AutofocusWarning, pga
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.focus.pga_lines import POINT_EXTENT, point_likeness
-from test_autofocus import BANDS, ERRORS, N_AZ, _image, _no_trend, _targets, _with_error
+from test_autofocus import BANDS, ERRORS, N_AZ, TARGETS, U, _image, _no_trend, _targets, _with_error
 
 MOTION = "0.02, 40"                   # 2 cm sinusoidal cross-track sway of period 40 m
 
@@ -83,6 +83,26 @@ def test_too_few_point_lines_refuses():
     with pytest.warns(AutofocusWarning, match="not applied: only 1 range line"):
         out, report = pga(_image(blurred))
     assert not report.applied and np.array_equal(out.data, _image(blurred).data)
+
+
+def test_a_reference_puts_the_targets_back():
+    """An image without a track record (no deramp): an even defocusing error (no linear part of its
+    own) plus a linear phase that moves every target by 9 / (2 pi) * 2 / 255 * 256 = 2.87 samples. With the first target's true
+    position as the reference, PGA removes both and every target peaks where it was put, within a
+    twentieth of a sample (sub-sample peak of the 16-times upsampled magnitude). Catches the
+    linear phase removed with the wrong sign (5.7 samples off); a shift measured on the
+    uncorrected image passes here and fails the rendered tests below."""
+    support = BANDS["centred"]
+    error = np.where(support, 6.0 * U ** 2 + 1.2 * np.cos(2 * np.pi * 5.1 * U) + 9.0 * U, 0.0)
+    blurred = _image(_with_error(_targets(support), error))
+    a0, r0, _ = TARGETS[0]
+    out, report = pga(blurred, reference=(a0 * 0.5, r0 * 0.5, 0.0))   # 0.5 m samples, the axes along x and y
+    assert report.linear_shift_m == pytest.approx(-9.0 / (2 * np.pi) * 2 / (N_AZ - 1) * N_AZ * 0.5, abs=0.1)
+    for a, r, _ in TARGETS:
+        spectrum = np.fft.fftshift(np.fft.fft(out.data[:, r]))
+        peak = np.argmax(np.abs(np.fft.ifft(np.fft.ifftshift(np.pad(spectrum, 15 * N_AZ // 2))))) / 16.0
+        assert abs(peak - a) < 0.05, (a, peak)
+    assert out.metadata["autofocus"]["linear_part"]["shift_m"] == pytest.approx(report.linear_shift_m, abs=1e-4)
 
 
 def _scene(incidence: float, *, trihedral=None, wall: bool = False, plate: float = 40.0, gamma_db: float = -20.0,
