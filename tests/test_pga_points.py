@@ -83,6 +83,7 @@ def test_too_few_point_lines_refuses():
     with pytest.warns(AutofocusWarning, match="not applied: only 1 range line"):
         out, report = pga(_image(blurred))
     assert not report.applied and np.array_equal(out.data, _image(blurred).data)
+    assert out.metadata["autofocus"]["refusal"] == "1 point-like range line(s)"      # for the CLI's note
 
 
 def test_a_reference_puts_the_targets_back():

@@ -142,6 +142,9 @@ class AutofocusReport:
         Without a reference: the largest shift the linear part can leave, ``ground range x
         max |de/ds|`` (eq. (PGA5)), where the image's metadata record a sinusoidal motion error;
         None otherwise.
+    refusal : str
+        Why the image was returned unchanged (``"no dominant scatterer"`` or ``"N point-like range
+        line(s)"``, fewer than :data:`MIN_LINES`); ``""`` when PGA ran.
     """
 
     phase_error: np.ndarray
@@ -157,12 +160,13 @@ class AutofocusReport:
     linear_shift_m: float | None = None
     reference: tuple[float, float, float] | None = None
     linear_bound_m: float | None = None
+    refusal: str = ""
 
     def as_metadata(self) -> dict[str, Any]:
         """The record kept in ``image.metadata["autofocus"]`` (JSON types)."""
         return {"method": "pga", "iterations": self.iterations, "rms_phase_error_rad": self.rms_phase_error,
                 "converged": self.converged, "lines": self.lines, "window_samples": self.window,
-                "deramp": self.deramp, "applied": self.applied,
+                "deramp": self.deramp, "applied": self.applied, "refusal": self.refusal,
                 "dominance_db": round(float(self.dominance_db), 2) if np.isfinite(self.dominance_db) else None,
                 "phase_error_rad": [round(float(v), 6) for v in self.phase_error],
                 "linear_part": self._linear_record()}
@@ -246,12 +250,13 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
     signal = signal_pixels(intensity)
     dominance = _dominance_db(intensity, signal)
     lines = point_lines(intensity, signal)
-    refusal = _refusal(dominance, lines.size)
+    reason, refusal = _refusal(dominance, lines.size)
     if refusal:
         warnings.warn(refusal, AutofocusWarning, stacklevel=2)
         report = AutofocusReport(phase_error=np.zeros(data.shape[0]), support=np.zeros(data.shape[0], bool),
                                  iterations=0, rms_phase_error=0.0, converged=False, lines=int(lines.size), window=[],
                                  deramp=frame is not None, dominance_db=dominance, applied=False,
+                                 refusal=reason,
                                  linear_bound_m=_linear_bound(image))
         return _with_report(image, image.data, report)
     spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)   # centred order
@@ -275,19 +280,21 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
     return _with_report(image, out.astype(np.complex64), report)
 
 
-def _refusal(dominance: float, lines: int) -> str:
-    """The warning of a refusal (docs/physics.md (PGA3), (PGA4)), or '' when PGA may run."""
+def _refusal(dominance: float, lines: int) -> tuple[str, str]:
+    """Why PGA may not run and its warning (docs/physics.md (PGA3), (PGA4)), or ('', '')."""
     if not dominance >= DOMINANCE_DB:
-        return (f"PGA not applied: no dominant scatterer, the brightest pixel is {dominance:.1f} dB above the "
-                f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about 14 dB): "
-                f"the image is returned unchanged. PGA estimates the phase error from point-like targets "
-                f"(corner reflectors, isolated strong scatterers)")
+        return "no dominant scatterer", (
+            f"PGA not applied: no dominant scatterer, the brightest pixel is {dominance:.1f} dB above the "
+            f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about 14 dB): "
+            f"the image is returned unchanged. PGA estimates the phase error from point-like targets "
+            f"(corner reflectors, isolated strong scatterers)")
     if lines < MIN_LINES:
-        return (f"PGA not applied: only {lines} range line(s) hold a point-like scatterer (PGA needs >= {MIN_LINES}: "
-                f"a peak >= {POINT_DB:g} dB above the clutter with >= {POINT_SHARE:g} of the line's energy near it; "
-                f"rims, walls and clutter spread it along the line): the image is returned unchanged. Add a corner "
-                f"reflector, or focus on the true track")
-    return ""
+        return f"{lines} point-like range line(s)", (
+            f"PGA not applied: only {lines} range line(s) hold a point-like scatterer (PGA needs >= {MIN_LINES}: "
+            f"a peak >= {POINT_DB:g} dB above the clutter with >= {POINT_SHARE:g} of the line's energy near it; "
+            f"rims, walls and clutter spread it along the line): the image is returned unchanged. Add a corner "
+            f"reflector, or focus on the true track")
+    return "", ""
 
 
 def _with_report(image: SarImage, data: np.ndarray, report: AutofocusReport) -> tuple[SarImage, AutofocusReport]:
