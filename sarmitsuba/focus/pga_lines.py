@@ -27,9 +27,9 @@ SIGNAL_PERCENTILE = 90.0
 #: (PGA4): a range line is point-like when its brightest sample stands at least :data:`POINT_DB`
 #: above the median intensity of the image's signal pixels and at least :data:`POINT_SHARE` of its
 #: energy over its lit samples lies within :data:`POINT_EXTENT` of its lit extent about that
-#: sample. Measured on the nominal-track images of docs/physics.md (PGA4)'s table: lines of a
-#: defocused trihedral 0.52 to 0.78 and 20 to 34 dB; clutter, plate rims and a wall's double
-#: bounce at most 0.54 where they reach 20 dB (0.73 on lines below it).
+#: sample. Measured on the nominal-track images of docs/physics.md (PGA4)'s table: the lines of a
+#: defocused trihedral that reach 20 dB hold 0.65 to 0.91; those of walls on ground 0.29 to 0.46;
+#: lines below 20 dB reach 0.78 (speckle, rims), which is why both tests are needed.
 POINT_DB = 20.0
 POINT_SHARE = 0.5
 POINT_EXTENT = 0.25
