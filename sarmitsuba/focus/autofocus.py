@@ -256,8 +256,7 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
         report = AutofocusReport(phase_error=np.zeros(data.shape[0]), support=np.zeros(data.shape[0], bool),
                                  iterations=0, rms_phase_error=0.0, converged=False, lines=int(lines.size), window=[],
                                  deramp=frame is not None, dominance_db=dominance, applied=False,
-                                 refusal=reason,
-                                 linear_bound_m=_linear_bound(image))
+                                 refusal=reason, linear_bound_m=_linear_bound(image))
         return _with_report(image, image.data, report)
     spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)   # centred order
     total, support, centred, widths, converged = _iterate(spectrum, lines, options, progress)
