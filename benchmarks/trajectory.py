@@ -1,6 +1,6 @@
 """Benchmark: what no stop-and-hop costs and removes, and phase gradient autofocus against motion errors (issue 30).
 
-Three tables, measured in one run (docs/physics.md (J3), (J4), (PGA)):
+Six tables, measured in one run (docs/physics.md (J3), (J4), (PGA), (PGA4), (PGA5)):
 
 * ``cost``: trace and focus seconds of the default render (continuous motion: every echo
   received where the antenna has moved to) against ``stop_and_hop = true``, on the built-in
@@ -14,12 +14,22 @@ Three tables, measured in one run (docs/physics.md (J3), (J4), (PGA)):
 * ``pga``: a sinusoidal cross-track motion error of growing amplitude (40 m period, a 69 m
   aperture) on the default airborne trihedral: azimuth PSLR, IRW and peak of the image focused
   (FFBP, 0.1 m pixels) on the true track, on the nominal one, and on the nominal one after PGA,
-  with PGA's iterations, its rms phase estimate and seconds.
+  with PGA's iterations, its rms phase estimate and seconds;
+* ``pga_lines``: PGA's dominance and point-like range lines (docs/physics.md (PGA4)) on the
+  nominal-track images of a trihedral in clutter, clutter alone and a wall, rectangular and
+  Taylor azimuth windows, and whether PGA ran;
+* ``pga_support``: PGA's azimuth PSLR against its spectral support (40, 50, 60 dB), on a
+  trihedral without clutter (Taylor) beside the exact phase correction, and one in clutter;
+* ``pga_points``: the scenes of tests/test_pga_points.py (docs/physics.md (PGA4), (PGA5)): a
+  trihedral off the scene centre in clutter (40 and 55 deg, Taylor azimuth window, a 2 cm, 40 m
+  sway), its azimuth PSLR and IRW on the true track, the nominal one and after PGA given its
+  position (``reference``), the shift removed and its bound; walls on ground without a point,
+  PGA's dominance, point-like lines and the NRMSE by which it changed the image (-inf: unchanged).
 
 Writes ``trajectory.csv`` (all rows, a ``table`` column) and ``trajectory.png`` (PSLR against
 motion-error amplitude) into the output folder.
 
-Usage: ``python benchmarks/trajectory.py [--quick] [--tiny]``
+Usage: ``python benchmarks/trajectory.py [--quick] [--tiny]`` (``--tiny``: the first three tables only)
 """
 from __future__ import annotations
 
@@ -137,6 +147,109 @@ def pga_sweep(amplitudes: tuple) -> list[dict]:
     return rows
 
 
+#: docs/physics.md (PGA4)'s table: scenes of tests/test_pga_points.py._scene (the radar looks toward -y).
+LINE_SCENES = {
+    "trihedral on ground, gamma -14 dB, 45 deg": dict(incidence=45.0, trihedral=(0.0, 0.0), gamma_db=-14.0),
+    "trihedral on ground, gamma 0 dB, 45 deg": dict(incidence=45.0, trihedral=(0.0, 0.0), gamma_db=0.0),
+    "trihedral at (4, -2) m on ground, gamma -20 dB, 40 deg": dict(incidence=40.0, trihedral=(4.0, -2.0)),
+    "rough ground alone, gamma -14 dB, 45 deg": dict(incidence=45.0, gamma_db=-14.0),
+    "20 m of it, a third of a 16 x 60 m image": dict(incidence=45.0, gamma_db=-14.0, plate=10.0,
+                                                     pixels=((160, 0.1), (120, 0.5))),
+    "PEC wall 20 m x 6 m on ground, gamma -14 dB, 45 deg": dict(incidence=45.0, wall=True, gamma_db=-14.0),
+}
+
+
+def pga_lines() -> list[dict]:
+    """PGA's dominance (PGA3) and point-like lines (PGA4) on nominal-track images, both windows."""
+    import sys
+    import warnings
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_pga_points import _scene
+    rows = []
+    for name, options in LINE_SCENES.items():
+        for window in ("rect", "taylor"):
+            _, nominal = _scene(**options, window=window)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out, report = pga(nominal)
+            change = float(np.linalg.norm(out.data - nominal.data) / np.linalg.norm(nominal.data))
+            rows.append({"table": "pga_lines", "scene": name, "window": window, "applied": report.applied,
+                         "dominance_db": round(report.dominance_db, 2), "point_lines": report.lines,
+                         "nrmse_db": round(20 * math.log10(change), 2) if change > 0 else "-inf"})
+    return rows
+
+
+def pga_points() -> list[dict]:
+    """PGA with a reference point against the true track, and PGA on walls without a point."""
+    import sys
+    import warnings
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_pga_points import CLUTTER, POINTS, _scene
+    rows = []
+    for name, (incidence, (x, y)) in POINTS.items():
+        true, nominal = _scene(incidence, trihedral=(x, y))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            images = {"true": true, "nominal": nominal}
+            images["pga_ref"], report = pga(nominal, reference=(x, y, 0.0))
+            bound = pga(nominal)[0].metadata["autofocus"]["linear_part"]["bound_m"]
+        row = {"table": "pga_points", "scene": f"trihedral {name}", "dominance_db": round(report.dominance_db, 2),
+               "point_lines": report.lines, "shift_m": round(report.linear_shift_m, 4), "shift_bound_m": bound}
+        for track, image in images.items():
+            measured = analyze_point_target(image, (x, y, 0.0), chip=32, search_radius=4)
+            row[f"pslr_{track}_db"] = round(measured.pslr_azimuth_db, 2)
+            row[f"irw_{track}_m"] = round(measured.irw_azimuth, 4)
+            row[f"azimuth_{track}_m"] = round(measured.azimuth, 4)
+        rows.append(row)
+    rows += pga_support()
+    for name, options in CLUTTER.items():
+        for track, image in zip(("true", "nominal"), _scene(**options)):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out, report = pga(image)
+            change = float(np.linalg.norm(out.data - image.data) / np.linalg.norm(image.data))
+            rows.append({"table": "pga_points", "scene": f"{name}, {track} track", "applied": report.applied,
+                         "dominance_db": round(report.dominance_db, 2), "point_lines": report.lines,
+                         "nrmse_db": round(20 * math.log10(change), 2) if change > 0 else "-inf"})
+    return rows
+
+
+def pga_support() -> list[dict]:
+    """Azimuth PSLR after PGA (with the reference) against its spectral support (SUPPORT_DB): the
+    built-in trihedral without clutter (Taylor window; with the exact phase correction of every
+    pulse from the recorded tracks) and the trihedral at (4, -2) m in clutter (rectangular window)."""
+    import sys
+    import warnings
+    from pathlib import Path
+
+    import sarmitsuba.focus.autofocus as autofocus
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_pga_points import _scene, trihedral_alone
+    cases = {"trihedral alone, 45 deg, taylor": (trihedral_alone("taylor"), (0.0, 0.0)),
+             "trihedral at (4, -2) m, 40 deg, rect": (_scene(40.0, trihedral=(4.0, -2.0), window="rect"), (4.0, -2.0))}
+    rows, default = [], autofocus.SUPPORT_DB
+    for name, (images, (x, y)) in cases.items():
+        row = {"table": "pga_support", "scene": name}
+        for track, image in zip(("true", "nominal", "exact"), images):
+            if track != "nominal":
+                row[f"pslr_{track}_db"] = round(analyze_point_target(image, (x, y, 0.0), chip=32,
+                                                                    search_radius=4).pslr_azimuth_db, 2)
+        for support in (40.0, 50.0, 60.0):
+            autofocus.SUPPORT_DB = support
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    fixed, _ = pga(images[1], reference=(x, y, 0.0))
+            finally:
+                autofocus.SUPPORT_DB = default
+            row[f"pslr_pga_support{support:g}_db"] = round(analyze_point_target(
+                fixed, (x, y, 0.0), chip=32, search_radius=4).pslr_azimuth_db, 2)
+        rows.append(row)
+    return rows
+
+
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
     """Continuous motion costs at most 1.25x the approximation's trace; the stop-and-hop shift is
     v R / c within 2 %; with a 2 cm error PGA restores the azimuth PSLR within 2 dB and the IRW
@@ -155,16 +268,26 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
             out.append(("2 cm motion error: PGA within 2 dB PSLR and 10 % IRW of the true track", restored,
                         f"PSLR {r['pslr_pga_db']} vs {r['pslr_true_db']} dB (nominal {r['pslr_nominal_db']}), IRW "
                         f"{r['irw_pga_m']} vs {r['irw_true_m']} m"))
+        elif r["table"] == "pga_points" and "pslr_pga_ref_db" in r and r["pslr_pga_ref_db"] != "":
+            reached = abs(r["pslr_pga_ref_db"] - r["pslr_true_db"]) <= 3.0 and \
+                abs(r["irw_pga_ref_m"] / r["irw_true_m"] - 1.0) <= 0.05
+            out.append((f"{r['scene']}: PGA with a reference within 3 dB PSLR and 5 % IRW of the true track", reached,
+                        f"PSLR {r['pslr_pga_ref_db']} vs {r['pslr_true_db']} dB, IRW {r['irw_pga_ref_m']} vs "
+                        f"{r['irw_true_m']} m"))
+        elif r["table"] == "pga_points" and r.get("applied", "") is False:
+            out.append((f"{r['scene']}: no point, PGA hands the image back", r["nrmse_db"] == "-inf", "unchanged"))
     return out
 
 
 def run(quick: bool = False, tiny: bool = False) -> list[dict]:
-    """All three tables: print, write CSV and PNG; returns the rows."""
+    """All six tables: print, write CSV and PNG; returns the rows."""
     print(machine())
     scenes = {"trihedral": {"n_pulses": 101}} if tiny else \
         {"urban": {}, "trihedral@spaceborne": SPACEBORNE} if not quick else {"trihedral@spaceborne": SPACEBORNE}
     geometries = {"airborne": {"n_pulses": 101}} if tiny else {"airborne": {}, "spaceborne": SPACEBORNE}
     rows = cost(scenes) + error(geometries) + pga_sweep((0.02,) if tiny or quick else AMPLITUDES)
+    if not tiny:                                    # the point-like lines and the reference: about a minute
+        rows += pga_lines() + pga_points()
     for row in rows:
         print("  ".join(f"{k}={v}" for k, v in row.items()))
     name = f"{NAME}{'_tiny' if tiny else ''}"

@@ -19,9 +19,17 @@ Backprojected images are first deramped (docs/physics.md (PGA2)): multiplied by
 along the track, where the error of a motion is one function for every target.
 
 PGA runs only where the image holds a dominant scatterer (docs/physics.md (PGA3)): its brightest
-pixel at least :data:`DOMINANCE_DB` above the median intensity. On clutter alone it would fit a
-phase error to speckle and smear an image that may have been focused; it warns instead and
-returns the image unchanged.
+pixel at least :data:`DOMINANCE_DB` above the median intensity of its signal. It learns only from
+the point-like range lines (docs/physics.md (PGA4), :func:`~sarmitsuba.focus.pga_lines.point_lines`):
+a peak well above the clutter holding most of the line's lit energy near it; clutter, rims and the
+double bounce of walls spread along the line and are left out. With fewer than :data:`MIN_LINES`
+such lines, or no dominant scatterer, it would fit a phase error to speckle and smear an image
+that may have been focused; it warns instead and returns the image unchanged.
+
+A linear phase error only shifts the image and PGA cannot see it. Given the world position of a
+known point (``reference``), PGA measures where that point appears and removes the shift
+(docs/physics.md (PGA5)); without one, ``metadata["autofocus"]["linear_part"]`` says that it was
+not estimated and, where the metadata record the motion error, bounds the shift.
 
 No Python SAR library ships a maintained PGA (sarpy, ISCE3 and sarkit do not), so it is written
 here, following the paper step by step.
@@ -44,9 +52,12 @@ from typing import Any
 import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..core.image import SarImage
+from ..core.image import SarImage, image_coordinates
+from ..core.trajectory import MotionError
+from ..core.valid_ranges import ParameterError
+from .pga_lines import POINT_DB, POINT_SHARE, linear_shift_bound, point_lines, signal_pixels
 
-__all__ = ["signal_pixels", "pga", "AutofocusReport", "AutofocusWarning"]
+__all__ = ["signal_pixels", "point_lines", "pga", "AutofocusReport", "AutofocusWarning"]
 
 #: Largest number of iterations.
 MAX_ITERATIONS = 20
@@ -64,14 +75,15 @@ WIDEN = 1.5
 SHRINK = 0.8
 MIN_WINDOW = 5
 FLOOR = 4
-#: Range lines used: those whose brightest sample lies within this many dB of the image's brightest.
-LINE_DB = 30.0
 #: Spectral samples whose summed power lies below this many dB of its peak carry no estimate (their
 #: correction is held at the nearest estimate's); the rms that decides convergence and is reported
-#: is taken over the samples within :data:`RMS_DB`.
+#: is taken over the samples within :data:`RMS_DB`. It is what keeps PGA short of the true track on a
+#: clean Taylor-weighted point (-54.2 dB against -57.8); a wider support takes in samples where
+#: clutter outweighs the point (docs/physics.md (PGA5)).
 SUPPORT_DB = 40.0
 RMS_DB = 20.0
-#: Fewer bright range lines than this: the estimate rests on too few targets (a warning).
+#: Fewer point-like range lines than this (docs/physics.md (PGA4)): too few targets for an
+#: estimate, PGA warns and returns the image unchanged.
 MIN_LINES = 3
 #: PGA needs dominant scatterers (Wahl et al. 1994, section II): it runs only when the image's
 #: brightest pixel stands this many dB above the median intensity of the pixels that hold signal
@@ -107,7 +119,7 @@ class AutofocusReport:
     converged : bool
         Whether the last correction fell below :data:`TOLERANCE` within :data:`MAX_ITERATIONS`.
     lines : int
-        Range lines used (bright enough, :data:`LINE_DB`).
+        Point-like range lines used (:func:`point_lines`, docs/physics.md (PGA4)).
     window : list of int
         The window width [azimuth samples] of every iteration (of the upsampled image with ``deramp``).
     deramp : bool
@@ -117,8 +129,22 @@ class AutofocusReport:
         The brightest pixel over the median intensity of the pixels that hold signal
         (:func:`signal_pixels`, docs/physics.md (PGA3)).
     applied : bool
-        False when ``dominance_db`` < :data:`DOMINANCE_DB`: no dominant scatterer, the image was
-        returned unchanged (``iterations`` 0, ``phase_error`` zero).
+        False when ``dominance_db`` < :data:`DOMINANCE_DB` (no dominant scatterer) or fewer than
+        :data:`MIN_LINES` range lines are point-like: the image was returned unchanged
+        (``iterations`` 0, ``phase_error`` zero).
+    linear_shift_m : float or None, m
+        The along-track shift removed with the linear part of the phase error, measured at the
+        ``reference`` point (docs/physics.md (PGA5)); None when no reference was given (the
+        linear part is then not estimated and the image may be shifted along track).
+    reference : tuple of 3 floats or None, m
+        The world position of the known point the linear part was estimated from.
+    linear_bound_m : float or None, m
+        Without a reference: the largest shift the linear part can leave, ``ground range x
+        max |de/ds|`` (eq. (PGA5)), where the image's metadata record a sinusoidal motion error;
+        None otherwise.
+    refusal : str
+        Why the image was returned unchanged (``"no dominant scatterer"`` or ``"N point-like range
+        line(s)"``, fewer than :data:`MIN_LINES`); ``""`` when PGA ran.
     """
 
     phase_error: np.ndarray
@@ -131,18 +157,34 @@ class AutofocusReport:
     deramp: bool = False
     dominance_db: float = float("inf")
     applied: bool = True
+    linear_shift_m: float | None = None
+    reference: tuple[float, float, float] | None = None
+    linear_bound_m: float | None = None
+    refusal: str = ""
 
     def as_metadata(self) -> dict[str, Any]:
         """The record kept in ``image.metadata["autofocus"]`` (JSON types)."""
         return {"method": "pga", "iterations": self.iterations, "rms_phase_error_rad": self.rms_phase_error,
                 "converged": self.converged, "lines": self.lines, "window_samples": self.window,
-                "deramp": self.deramp, "applied": self.applied,
+                "deramp": self.deramp, "applied": self.applied, "refusal": self.refusal,
                 "dominance_db": round(float(self.dominance_db), 2) if np.isfinite(self.dominance_db) else None,
-                "phase_error_rad": [round(float(v), 6) for v in self.phase_error]}
+                "phase_error_rad": [round(float(v), 6) for v in self.phase_error],
+                "linear_part": self._linear_record()}
+
+    def _linear_record(self) -> dict[str, Any]:
+        """What became of the linear part of the phase error (docs/physics.md (PGA5))."""
+        if self.linear_shift_m is not None:
+            return {"estimated": True, "shift_m": round(float(self.linear_shift_m), 4),
+                    "reference": [float(v) for v in self.reference]}
+        bound = None if self.linear_bound_m is None else round(float(self.linear_bound_m), 3)
+        return {"estimated": False, "bound_m": bound,
+                "note": "not estimated (PGA cannot see a linear phase): the image may be shifted along track by "
+                        "up to ground range x max |de/ds| of the motion error (bound_m where the metadata record "
+                        "it); give pga a reference point to remove it"}
 
 
-def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: float = TOLERANCE,
-        progress: bool = False) -> tuple[SarImage, AutofocusReport]:
+def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITERATIONS,
+        tolerance: float = TOLERANCE, progress: bool = False) -> tuple[SarImage, AutofocusReport]:
     """Phase gradient autofocus of ``image`` along its azimuth axis (docs/physics.md (PGA)).
 
     Parameters
@@ -150,6 +192,11 @@ def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: flo
     image : SarImage
         Focused complex image ``[n_azimuth, n_range]`` of a straight (nominal) track, its azimuth
         axis along the track (any focuser: backprojection, FFBP, omega-K, RDA).
+    reference : 3 floats, m, optional
+        World position of a known point-like scatterer in the image (a surveyed corner
+        reflector): the linear part of the phase error, which PGA cannot see, is then estimated
+        from where that point appears and removed (docs/physics.md (PGA5)). Without it the image
+        may be shifted along track, and ``metadata["autofocus"]["linear_part"]`` says so.
     max_iterations : int, default 20
         1 .. 100.
     tolerance : float, rad, default 0.05
@@ -169,14 +216,17 @@ def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: flo
         The image comes from a circular track (``metadata["radar"]["trajectory"] == "circular"``:
         its azimuth axis is not an aperture, use backprojection on the true track), has fewer
         than 8 azimuth samples, or an option is out of range.
+    ParameterError
+        ``reference`` is not 3 finite numbers or appears outside the image (a ValueError).
 
     Warns
     -----
     AutofocusWarning
-        No dominant scatterer: the brightest pixel lies less than :data:`DOMINANCE_DB` above the
-        median intensity (docs/physics.md (PGA3)); the image is then returned unchanged (its
-        ``metadata["autofocus"]["applied"]`` false). Fewer than :data:`MIN_LINES` bright range
-        lines (too few targets for a reliable estimate), or no convergence within ``max_iterations``.
+        The image is returned unchanged (``metadata["autofocus"]["applied"]`` false) when it holds
+        no dominant scatterer (its brightest pixel less than :data:`DOMINANCE_DB` above the
+        median intensity of its signal, docs/physics.md (PGA3)) or fewer than :data:`MIN_LINES`
+        point-like range lines (docs/physics.md (PGA4)). A warning too when PGA does not
+        converge within ``max_iterations``.
 
     Notes
     -----
@@ -185,43 +235,86 @@ def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: flo
     that is a function of the antenna's position along the track is common to every target, and
     defocus spread over metres is still a Fourier pair of the aperture; other images (omega-K,
     RDA) are processed as they are, which holds for a spotlight image or for targets within a
-    small part of one synthetic aperture. A linear phase error only shifts the image and is not
-    estimated (nor is a constant). Measured (tests/test_motion_autofocus.py): a 2 cm, 40 m
-    sinusoidal motion error on a 69 m airborne X-band aperture, PSLR -39.8 dB after PGA against
-    -39.7 dB on the true track (+3.4 dB on the nominal one).
+    small part of one synthetic aperture. The estimate uses only the point-like range lines
+    (eq. (PGA4)): clutter, rims and walls spread along a line are left out. A constant phase is
+    not estimated, nor, without ``reference``, a linear one (a shift, eq. (PGA5)). Measured
+    (benchmarks/trajectory.py, table ``pga``): a 2 cm, 40 m sinusoidal motion error on a 69 m
+    airborne X-band aperture, PSLR -39.6 dB after PGA against -39.4 dB on the true track.
     """
     data, options = _check(image, max_iterations, tolerance)
-    from tqdm.auto import tqdm
     frame = _fresnel_frame(image)
     if frame is not None:
         data = _upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
-    lines = _bright_lines(data)
-    dominance = _dominance_db(data)
-    if not dominance >= DOMINANCE_DB:
-        warnings.warn(f"PGA not applied: no dominant scatterer, the brightest pixel is {dominance:.1f} dB above the "
-                      f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about "
-                      f"14 dB): "
-                      f"the image is returned unchanged. PGA estimates the phase error from point-like targets "
-                      f"(corner reflectors, isolated strong scatterers)", AutofocusWarning, stacklevel=2)
+    target = _reference_azimuth(image, reference)
+    intensity = np.abs(data).astype(np.float64) ** 2
+    signal = signal_pixels(intensity)
+    dominance = _dominance_db(intensity, signal)
+    lines = point_lines(intensity, signal)
+    reason, refusal = _refusal(dominance, lines.size)
+    if refusal:
+        warnings.warn(refusal, AutofocusWarning, stacklevel=2)
         report = AutofocusReport(phase_error=np.zeros(data.shape[0]), support=np.zeros(data.shape[0], bool),
                                  iterations=0, rms_phase_error=0.0, converged=False, lines=int(lines.size), window=[],
-                                 deramp=frame is not None, dominance_db=dominance, applied=False)
-        metadata = copy.deepcopy(image.metadata)
-        metadata["autofocus"] = report.as_metadata()
-        return dataclasses.replace(image, metadata=metadata), report
-    if lines.size < MIN_LINES:
-        warnings.warn(f"PGA: only {lines.size} range line(s) hold a bright target (within {LINE_DB:g} dB of the "
-                      f"brightest); the phase error estimate rests on them alone", AutofocusWarning, stacklevel=2)
+                                 deramp=frame is not None, dominance_db=dominance, applied=False,
+                                 refusal=reason, linear_bound_m=_linear_bound(image))
+        return _with_report(image, image.data, report)
     spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)   # centred order
-    total = np.zeros(data.shape[0])
+    total, support, centred, widths, converged = _iterate(spectrum, lines, options, progress)
+    if not converged:
+        warnings.warn(f"PGA did not converge in {len(widths)} iterations (last correction above "
+                      f"{options['tolerance']:g} rad rms): the error may vary across the image",
+                      AutofocusWarning, stacklevel=2)
+    total = _extend(_detrend(total, support, _power(centred)), support)
+    step = _row_step(image, frame)
+    shift = None if target is None else _reference_shift(_apply(spectrum, total), image, step, target)
+    linear = 0.0 if shift is None else _shift_phase(total.size, step, shift)
+    out = _apply(spectrum, total + linear)
+    if frame is not None:
+        out = (out * np.exp(1j * frame.phase))[::frame.factor]
+    report = AutofocusReport(phase_error=total, support=support, iterations=len(widths),
+                             rms_phase_error=_rms(total, support, centred), converged=converged,
+                             lines=int(lines.size), window=widths, deramp=frame is not None, dominance_db=dominance,
+                             linear_shift_m=shift, reference=None if shift is None else tuple(target[1]),
+                             linear_bound_m=None if shift is not None else _linear_bound(image))
+    return _with_report(image, out.astype(np.complex64), report)
+
+
+def _refusal(dominance: float, lines: int) -> tuple[str, str]:
+    """Why PGA may not run and its warning (docs/physics.md (PGA3), (PGA4)), or ('', '')."""
+    if not dominance >= DOMINANCE_DB:
+        return "no dominant scatterer", (
+            f"PGA not applied: no dominant scatterer, the brightest pixel is {dominance:.1f} dB above the "
+            f"image's median intensity (PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about 14 dB): "
+            f"the image is returned unchanged. PGA estimates the phase error from point-like targets "
+            f"(corner reflectors, isolated strong scatterers)")
+    if lines < MIN_LINES:
+        return f"{lines} point-like range line(s)", (
+            f"PGA not applied: only {lines} range line(s) hold a point-like scatterer (PGA needs >= {MIN_LINES}: "
+            f"a peak >= {POINT_DB:g} dB above the clutter with >= {POINT_SHARE:g} of the line's energy near it; "
+            f"rims, walls and clutter spread it along the line): the image is returned unchanged. Add a corner "
+            f"reflector, or focus on the true track")
+    return "", ""
+
+
+def _with_report(image: SarImage, data: np.ndarray, report: AutofocusReport) -> tuple[SarImage, AutofocusReport]:
+    metadata = copy.deepcopy(image.metadata)
+    metadata["autofocus"] = report.as_metadata()
+    return dataclasses.replace(image, data=data, metadata=metadata), report
+
+
+def _iterate(spectrum: np.ndarray, lines: np.ndarray, options: dict[str, Any],
+             progress: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int], bool]:
+    """Steps 1-4 of (PGA), iterated on the point-like ``lines``: the summed correction, its support,
+    the last centred lines, the window widths and whether it converged."""
+    from tqdm.auto import tqdm
+    total = np.zeros(spectrum.shape[0])
     widths: list[int] = []
     converged = False
     width = first = None
     bar = tqdm(total=options["max_iterations"], desc="PGA", unit="iteration", disable=not progress)
     try:
         for _ in range(options["max_iterations"]):
-            corrected = _apply(spectrum, total)
-            centred = _centre(corrected[:, lines])
+            centred = _centre(_apply(spectrum, total)[:, lines])
             if width is None:
                 width = first = _window_width(centred)
             else:
@@ -235,20 +328,7 @@ def pga(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: flo
                 break
     finally:
         bar.close()
-    if not converged:
-        warnings.warn(f"PGA did not converge in {len(widths)} iterations (last correction above "
-                      f"{options['tolerance']:g} rad rms): the error may vary across the image",
-                      AutofocusWarning, stacklevel=2)
-    total = _extend(_detrend(total, support, _power(centred)), support)
-    out = _apply(spectrum, total)
-    if frame is not None:
-        out = (out * np.exp(1j * frame.phase))[::frame.factor]
-    report = AutofocusReport(phase_error=total, support=support, iterations=len(widths),
-                             rms_phase_error=_rms(total, support, centred), converged=converged,
-                             lines=int(lines.size), window=widths, deramp=frame is not None, dominance_db=dominance)
-    metadata = copy.deepcopy(image.metadata)
-    metadata["autofocus"] = report.as_metadata()
-    return dataclasses.replace(image, data=out.astype(np.complex64), metadata=metadata), report
+    return total, support, centred, widths, converged
 
 
 def _check(image: SarImage, max_iterations: Any, tolerance: Any) -> tuple[np.ndarray, dict[str, Any]]:
@@ -328,48 +408,14 @@ def _apply(spectrum: np.ndarray, phase: np.ndarray) -> np.ndarray:
     return np.fft.ifft(np.fft.ifftshift(spectrum * np.exp(-1j * phase)[:, None], axes=0), axis=0)
 
 
-def _bright_lines(data: np.ndarray) -> np.ndarray:
-    """Indices of the range lines whose brightest sample lies within :data:`LINE_DB` of the image's."""
-    peak = np.max(np.abs(data), axis=0)
-    top = float(peak.max()) if peak.size else 0.0
-    if not top > 0:
-        return np.zeros(0, int)
-    return np.flatnonzero(peak >= top * 10.0 ** (-LINE_DB / 20.0))
-
-
-def _dominance_db(data: np.ndarray) -> float:
+def _dominance_db(intensity: np.ndarray, signal: np.ndarray) -> float:
     """The brightest pixel's intensity over the median intensity of the pixels that hold signal
-    [dB] (eq. (PGA3)); -inf for an image without signal. A pixel holds signal where its local mean
-    intensity (a :data:`SIGNAL_BOX` square boxcar) lies within :data:`SIGNAL_DB` of the
-    :data:`SIGNAL_PERCENTILE` th percentile of the local means: empty parts of the image (beyond
-    the scene, in shadow, outside every beam), which only sidelobes reach, are not clutter and do
-    not pull the median down."""
-    intensity = np.abs(data).astype(np.float64) ** 2
-    if not np.any(intensity > 0):
+    (:func:`signal_pixels`) [dB] (eq. (PGA3)); -inf for an image without signal. Empty parts of
+    the image (beyond the scene, in shadow, outside every beam), which only sidelobes reach, are
+    not clutter and do not pull the median down."""
+    if not signal.any():
         return float("-inf")
-    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal_pixels(intensity)])))
-
-
-#: (PGA3)'s background: pixels whose local mean intensity over this many pixels square lies within
-#: :data:`SIGNAL_DB` of the :data:`SIGNAL_PERCENTILE` th percentile of the local means. 9 x 9
-#: pixels average 81 speckle samples (the local mean of clutter within about 0.5 dB); empty parts
-#: of a rendered image lie 20 to 40 dB below its clutter (their sidelobes). 10 dB refused a
-#: defocused group of trihedrals without clutter (18.7 dB, tests/test_pga_phase.py), 25 dB kept
-#: too much of the empty part (23.3 dB on the clutter of tests/test_pga_guard.py).
-SIGNAL_BOX = 9
-SIGNAL_DB = 20.0
-SIGNAL_PERCENTILE = 90.0
-
-
-def signal_pixels(intensity: np.ndarray) -> np.ndarray:
-    """bool, the shape of ``intensity`` (float64 [n_az, n_rg], |I|^2): the pixels that hold signal
-    (eq. (PGA3)): local mean intensity (a :data:`SIGNAL_BOX` boxcar, scipy.ndimage.uniform_filter)
-    within :data:`SIGNAL_DB` of the :data:`SIGNAL_PERCENTILE` th percentile of the local means,
-    and non-zero. An image of clutter everywhere keeps every pixel."""
-    from scipy.ndimage import uniform_filter
-    local = uniform_filter(intensity, size=SIGNAL_BOX, mode="nearest")
-    level = np.percentile(local, SIGNAL_PERCENTILE)
-    return (local >= level * 10.0 ** (-SIGNAL_DB / 10.0)) & (intensity > 0)
+    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal])))
 
 
 def _centre(lines: np.ndarray) -> np.ndarray:
@@ -438,3 +484,85 @@ def _rms(phase: np.ndarray, support: np.ndarray, centred: np.ndarray) -> float:
     power = _power(centred)
     w = np.where(support & (power >= power.max() * 10.0 ** (-RMS_DB / 10.0)), power, 0.0)
     return float(np.sqrt(np.sum(w * phase ** 2) / w.sum())) if w.sum() > 0 else 0.0
+
+
+#: The reference point is looked for within this fraction of the image's azimuth extent of where
+#: it should appear (the linear part's shift, eq. (PGA5), is a few metres on airborne tracks).
+REFERENCE_SEARCH = 0.25
+#: Upsampling of the column through the reference point that locates its peak (then a parabola).
+REFERENCE_UPSAMPLE = 16
+
+
+def _reference_azimuth(image: SarImage, reference: Any) -> tuple[float, tuple[float, ...], float] | None:
+    """``(azimuth, world point, range)`` [m] where the ``reference`` point should appear
+    (:func:`~sarmitsuba.core.image.image_coordinates`), or None without one; checked first."""
+    if reference is None:
+        return None
+    point = np.asarray(reference, dtype=np.float64).reshape(-1) if np.ndim(reference) else np.zeros(0)
+    if point.size != 3 or not np.all(np.isfinite(point)):
+        raise ParameterError(f"reference must be the world position (x, y, z) in metres of a known point-like "
+                             f"scatterer in the image, 3 finite numbers; got {reference!r}")
+    azimuth, ground = image_coordinates(image, point)
+    a_lo, a_hi = float(np.min(image.azimuth)), float(np.max(image.azimuth))
+    r_lo, r_hi = float(np.min(image.range)), float(np.max(image.range))
+    if not (a_lo <= azimuth <= a_hi and r_lo <= ground <= r_hi):
+        raise ParameterError(f"reference {tuple(point)} appears at azimuth {azimuth:.2f} m, range {ground:.2f} m, "
+                             f"outside the image (azimuth {a_lo:.2f} .. {a_hi:.2f} m, range {r_lo:.2f} .. "
+                             f"{r_hi:.2f} m): give a point inside the image, or leave reference out")
+    return azimuth, tuple(float(v) for v in point), ground
+
+
+def _row_step(image: SarImage, frame: _Fresnel | None) -> float:
+    """Azimuth spacing [m, signed] of the rows PGA works on (upsampled by the deramp's factor)."""
+    step = float(np.median(np.diff(image.azimuth))) if image.azimuth.size > 1 else 1.0
+    return step / (frame.factor if frame is not None else 1)
+
+
+def _reference_shift(data: np.ndarray, image: SarImage, step: float, target: tuple) -> float:
+    """Along-track distance [m] from where the reference point should appear to its peak in the
+    corrected image ``data`` [n_rows, n_rg] (rows ``step`` apart from ``image.azimuth[0]``): the
+    brightest pixel within :data:`REFERENCE_SEARCH` of the image's extent and one column of the
+    point, refined on the column upsampled :data:`REFERENCE_UPSAMPLE` times and a parabola
+    through the log intensity of the three samples about its peak (eq. (PGA5))."""
+    azimuth, _, ground = target
+    rows = image.azimuth[0] + step * np.arange(data.shape[0])
+    col = int(np.argmin(np.abs(image.range - ground)))
+    cols = np.arange(max(col - 1, 0), min(col + 2, data.shape[1]))
+    near = np.abs(rows - azimuth) <= REFERENCE_SEARCH * abs(step) * data.shape[0]
+    patch = np.where(near[:, None], np.abs(data[:, cols]), -1.0)
+    row, c = np.unravel_index(int(np.argmax(patch)), patch.shape)
+    fine = np.abs(_upsample(data[:, cols[c]:cols[c] + 1], REFERENCE_UPSAMPLE)[:, 0]) ** 2
+    n = fine.size
+    around = (REFERENCE_UPSAMPLE * row + np.arange(-REFERENCE_UPSAMPLE, REFERENCE_UPSAMPLE + 1)) % n
+    peak = int(around[np.argmax(fine[around])])
+    left, mid, right = np.log(np.maximum(fine[[(peak - 1) % n, peak, (peak + 1) % n]], 1e-300))
+    curvature = left - 2.0 * mid + right
+    offset = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+    found = image.azimuth[0] + step / REFERENCE_UPSAMPLE * (peak + offset)
+    return float(found - azimuth)
+
+
+def _shift_phase(n: int, step: float, shift: float) -> np.ndarray:
+    """The linear phase [rad, centred order] whose removal (:func:`_apply`) moves the image by
+    ``-shift`` metres along its rows (``step`` [m] apart): ``-2 pi f shift``, ``f`` in cycles per metre."""
+    return -2.0 * np.pi * np.fft.fftshift(np.fft.fftfreq(n, d=step)) * shift
+
+
+def _linear_bound(image: SarImage) -> float | None:
+    """The largest shift [m] the unestimated linear part can leave (eq. (PGA5)) where the metadata
+    record a sinusoidal motion error (``radar["motion_error"]``) and the track; else None."""
+    radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
+    focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
+    track = focus.get("track") if isinstance(focus, dict) else None
+    if not (isinstance(radar, dict) and isinstance(track, dict) and track.get("direction") is not None):
+        return None
+    try:
+        error = MotionError.parse(radar.get("motion_error"))
+    except ValueError:
+        return None
+    if error is None or error.kind != "sinusoid":
+        return None
+    direction = np.asarray(track["direction"], float)
+    offset = np.asarray(image.origin, float) - np.asarray(track["position"], float)
+    across = offset - (offset @ direction) * direction
+    return linear_shift_bound(float(np.hypot(across[0], across[1])), 2.0 * np.pi * error.amplitude / error.length)
