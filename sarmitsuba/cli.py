@@ -11,6 +11,7 @@ truncated is left looking complete).
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import sys
@@ -201,6 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
     focus.add_argument("--autofocus", choices=("none", "pga"), default="none",
                        help="phase gradient autofocus of the focused image (straight tracks; it warns where its "
                             "assumptions do not fit)")
+    focus.add_argument("--pga-reference", type=_point, default=None, metavar="X,Y,Z",
+                       help="with --autofocus pga: world position [m] of a surveyed point-like scatterer (a corner "
+                            "reflector), from which PGA also removes the along-track shift it cannot see")
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
     _add_format_arguments(focus, cphd=False)
@@ -302,6 +306,17 @@ def _bench(args: argparse.Namespace) -> int:
     return module.main(args.bench_args)
 
 
+def _point(text: str) -> tuple[float, float, float]:
+    """``X,Y,Z`` [m] as three floats, for argparse (its error names the option)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z in metres, got {text!r}")
+    return values
+
+
 #: Windows of ``--window``, ``--window-range`` and ``--window-azimuth`` (render and focus): every window
 #: of :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
 FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
@@ -317,7 +332,8 @@ def _focus(args: argparse.Namespace) -> int:
     raw = load_raw(args.raw)
     try:
         image = refocus(raw, args.algorithm, **_windows(args), progress=not args.no_progress, track=args.track,
-                        autofocus=None if args.autofocus == "none" else args.autofocus)
+                        autofocus=None if args.autofocus == "none" else args.autofocus,
+                        autofocus_reference=args.pga_reference)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -330,8 +346,8 @@ def _focus(args: argparse.Namespace) -> int:
     autofocus = image.metadata.get("autofocus")
     note = "" if autofocus is None else (f", PGA {autofocus['iterations']} iterations, phase error "
                                          f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
-    if autofocus is not None and autofocus.get("applied") is False:       # no dominant scatterer, (PGA3)
-        note = ", PGA not applied (no dominant scatterer; image unchanged)"
+    if autofocus is not None and autofocus.get("applied") is False:       # (PGA3), (PGA4)
+        note = f", PGA not applied ({autofocus.get('refusal') or 'no dominant scatterer'}; image unchanged)"
     print(f"focused {args.raw} with {args.algorithm}{' on the nominal track' if args.track == 'nominal' else ''}: "
           f"{time.perf_counter() - start:.1f} s, {raw.n_pulses} pulses, image {image.data.shape[0]}x"
           f"{image.data.shape[1]}{note} -> {paths['png'].parent}")

@@ -399,7 +399,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,
             window_azimuth: Any = None, progress: bool = False, track: str = "true",
-            autofocus: str | None = None) -> SarImage:
+            autofocus: str | None = None, autofocus_reference: Any = None) -> SarImage:
     """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
 
     ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
@@ -416,7 +416,8 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     ``track = "nominal"`` focuses data simulated with motion errors on their nominal track
     (:meth:`RawData.on_track`, docs/physics.md (J4)); ``autofocus = "pga"`` then runs phase
     gradient autofocus on the image (:func:`sarmitsuba.focus.autofocus.pga`, (PGA)), which records
-    its estimate in ``metadata["autofocus"]``.
+    its estimate in ``metadata["autofocus"]``; ``autofocus_reference`` (3 floats, m), a surveyed
+    point-like scatterer, lets it remove the linear part too ((PGA5)).
 
     Raises
     ------
@@ -431,7 +432,7 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
                           window_azimuth=window_azimuth, progress=progress)
     if autofocus == "pga":
         from .focus.autofocus import pga
-        image, _ = pga(image, progress=progress)
+        image, _ = pga(image, reference=autofocus_reference, progress=progress)
     return image
 
 

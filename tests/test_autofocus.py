@@ -99,12 +99,16 @@ def test_an_image_of_noise_warns():
         pga(_image(noise), max_iterations=3)
 
 
-def test_one_target_warns_that_the_estimate_rests_on_it():
+def test_one_target_is_refused_and_the_image_left_unchanged():
+    """One point-like range line is too few to separate the phase error from the target (PGA4):
+    PGA warns and returns the image as it came."""
     support = BANDS["centred"]
     one = np.zeros((N_AZ, N_RG), complex)
     one[:, 5] = _targets(support)[:, 5]
+    image = _image(_with_error(one, np.where(support, ERRORS["quadratic + sinusoid"], 0.0)))
     with pytest.warns(AutofocusWarning, match="only 1 range line"):
-        pga(_image(_with_error(one, np.where(support, ERRORS["quadratic + sinusoid"], 0.0))))
+        out, report = pga(image)
+    assert not report.applied and np.array_equal(out.data, image.data)
 
 
 def test_refusals():

@@ -70,8 +70,15 @@ def test_the_cli_focuses_on_the_nominal_track_with_pga(images, tmp_path):
     raw_path = images["raw"].save(tmp_path / "raw.npz")
     out = tmp_path / "focused"
     result = subprocess.run([sys.executable, "-m", "sarmitsuba", "focus", str(raw_path), "--algorithm", "ffbp",
-                             "--track", "nominal", "--autofocus", "pga", "--out", str(out), "--no-progress"],
-                            capture_output=True, text=True, timeout=300)
+                             "--track", "nominal", "--autofocus", "pga", "--pga-reference", "0,0,0", "--out", str(out),
+                             "--no-progress"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert "nominal track" in result.stdout and "PGA" in result.stdout, result.stdout
-    assert (out / "image.npz").exists()
+    from sarmitsuba.core.image import SarImage
+    linear = SarImage.load(out / "image.npz").metadata["autofocus"]["linear_part"]
+    assert linear["estimated"] and linear["reference"] == [0.0, 0.0, 0.0], linear
+    bad = subprocess.run([sys.executable, "-m", "sarmitsuba", "focus", str(raw_path), "--autofocus", "pga",
+                          "--pga-reference", "0,0", "--out", str(tmp_path / "bad"), "--no-progress"],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "--pga-reference" in bad.stderr and "X,Y,Z" in bad.stderr, bad.stderr
+    assert "Traceback" not in bad.stderr

@@ -8,7 +8,8 @@ docs/design.md section 3), and optionally the scene for its ground grid (:mod:`.
 Gives: a ``SarImage`` on a ground or slant grid, weighted and normalised as the render's own.
 
 Physics: (S1)-(S3) signal model and backprojection; (A) antenna pattern; (K), (K2)
-calibration and energy widths; (F1)-(F9) fast factorised backprojection. docs/design.md
+calibration and energy widths; (F1)-(F9) fast factorised backprojection; (PGA)-(PGA5) phase
+gradient autofocus on point-like range lines. docs/design.md
 section 8; conventions and precision in docs/design.md section 5, validation targets in
 section 9.
 
