@@ -175,7 +175,8 @@ class CostEstimate:
     clutter scatterers of its tubes' footprints (``tube area / scatterer_spacing^2`` each):
     ``pulse_paths``. Trace time: :data:`TRACE_OVERHEAD` times the casts at the rates of
     :func:`cast_rates`, the returns at :data:`RETURN_SECONDS` and :data:`SCATTERER_SECONDS` and
-    the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
+    the reduction to the band at :data:`FFT_SECONDS` (once per bounce order: each order's energy is
+    measured, docs/physics.md (D6)); ``trace_time_s`` takes the casts halfway
     between low and high.
 
     Arrays: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
@@ -321,9 +322,10 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
                   if effects.clutter else 0.0)
     paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)      # per channel in the exact kernel's list
     groups = effects.groups * len(effects.channels)      # quad: four channels' spectra from one trace
+    deposited = effects.deposit_groups * len(effects.channels)     # each order reduced apart (D6)
     n_pad = padded_length(window.n_samples)
     work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
-            + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
+            + 3 * deposited * n_pulses * n_pad * window.oversample * FFT_SECONDS)
 
     host, piece_bytes, clutter_pulses = 0.0, 0, 0.0
     reach_pieces = reach_triangles = reach_area = np.zeros(0)
@@ -354,7 +356,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
     arrays = dict(deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
                   pixels=grid.shape[0] * grid.shape[1])
-    memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays,
+    memory = _memory(loaded, window, deposited, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays,
                      piece_bytes)
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,

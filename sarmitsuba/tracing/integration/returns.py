@@ -98,7 +98,7 @@ class Returns(ClutterTerms):
         self.continuous = effects.continuous_motion      # the receive leg from the moving antenna (J3)
         self.curved = effects.curved_track               # per-pulse antenna axes (A)
         self.exact = settings.range_kernel == "exact"
-        self.groups = effects.groups
+        self.groups = effects.deposit_groups              # one histogram per bounce order: its energy
         self.clutter_on = effects.clutter
         self.diffraction = effects.diffraction           # edge currents on the mesh's wedges (E1)-(E6)
         self.cancel_interior = settings.cancel_interior
