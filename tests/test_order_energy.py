@@ -53,6 +53,21 @@ def test_second_order_is_what_a_second_bounce_adds(incidence):
     assert e2 > 1e4 * e1            # the dihedral's double bounce dominates
 
 
+@pytest.mark.parametrize("lit_regions", ["patches", "tiles"])
+def test_orders_read_apart_agree_with_orders_deposited_apart(lit_regions):
+    """One histogram read after each order (the default) against one histogram per order
+    (``split_bounces``), for the mesh tracer and the ray tubes; and each kept order's energy
+    against its own raw data."""
+    overrides = {"max_depth": 2, "lit_regions": lit_regions}
+    sensor = {"n_pulses": 48, "incidence_angle": 40.0}
+    read = simulate("dihedral", sensor_overrides=sensor, integrator_overrides=overrides, progress=False)
+    kept = simulate("dihedral", sensor_overrides=sensor, integrator_overrides={**overrides, "split_bounces": True},
+                    progress=False)
+    np.testing.assert_allclose(read.trace.raw_energy_per_order, kept.trace.raw_energy_per_order, rtol=1e-4)
+    for energy, raw in zip(kept.trace.raw_energy_per_order, kept.raw_per_order):
+        assert energy == pytest.approx(float(np.sum(np.abs(raw.data.astype(np.complex128)) ** 2)), rel=TAILS)
+
+
 @pytest.mark.parametrize("incidence", [30.0, 50.0])
 def test_lone_plate_holds_everything_in_order_one(incidence):
     """A flat plate has no second bounce: order 2 holds nothing, order 1 the raw data's energy."""

@@ -156,9 +156,9 @@ class EffectSet:
 
     @property
     def deposit_groups(self) -> int:
-        """Histograms the tracer deposits per pulse: one per bounce order with ``split_bounces``
-        or :attr:`order_energy` (each order's energy is measured, then the orders summed unless
-        kept), else 1."""
+        """Spectra the tracer forms per pulse and channel: one per bounce order with ``split_bounces``
+        or :attr:`order_energy` (each order's energy is measured, docs/physics.md (D6), then the
+        orders summed unless kept), else 1."""
         return self.max_depth if self.split_bounces or self.order_energy else 1
 
     @property

@@ -1,7 +1,8 @@
 """The energy each bounce order holds, from its band-limited spectrum (docs/physics.md (D6)).
 
-The tracer deposits every bounce order into its own histograms (``EffectSet.deposit_groups``)
-and reduces each to its spectrum (D5); :func:`band_energy` measures a spectrum's energy as
+The tracer reads its histogram back after each bounce order's deposits
+(:meth:`sarmitsuba.tracing.deposit.accumulate.Accumulator.order_done`), so every order has its own
+histogram (``EffectSet.deposit_groups``), and reduces each to its spectrum (D5); :func:`band_energy` measures a spectrum's energy as
 range-compressed samples, from the spectrum alone (Parseval), so no raw data of any single
 order is ever formed unless ``split_bounces`` asks for it.
 """

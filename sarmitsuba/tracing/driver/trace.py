@@ -261,8 +261,8 @@ class TracePlan:
     lref : float64 [n_pulses], m
         Per-pulse reference length ``2 |P - scene_center|``.
     n_channels, groups, n_pad : int
-        Channels, deposit groups (one per bounce order, ``EffectSet.deposit_groups``), padded
-        spectrum length.
+        Channels, spectra per channel of a batch (one per bounce order, ``EffectSet.deposit_groups``),
+        padded spectrum length.
     kept, bandwidth : int, float [Hz]
         Spectra kept per channel (``groups`` with ``split_bounces``, else 1); the band of (D6).
     exact : bool
@@ -298,7 +298,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     """The :class:`TracePlan` of an acquisition: sub-apertures and the batch size that keeps a
     launch within ``max_batch_rays`` tubes and the histogram within :data:`HISTOGRAM_ENTRIES`."""
     n_pulses = geometry.positions.shape[0]
-    n_channels, groups = len(effects.channels), effects.deposit_groups
+    n_channels, groups = len(effects.channels), effects.groups      # the device's histogram: (D5)
     subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
     pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
@@ -306,7 +306,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
     return TracePlan(subs=subs, per_batch=per_batch,
                      lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
-                     n_channels=n_channels, groups=groups, n_pad=padded_length(window.n_samples),
+                     n_channels=n_channels, groups=effects.deposit_groups, n_pad=padded_length(window.n_samples),
                      exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry),
                      kept=effects.groups, bandwidth=params.bandwidth)
 
