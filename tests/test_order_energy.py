@@ -87,6 +87,7 @@ def test_threshold_and_shares():
     message = depth_warning(np.array([0.5, 0.4, 0.1]))           # exactly 10 %
     assert "bounce order 3" in message and "--max-depth 4" in message and "10.0 %" in message
     assert depth_warning(np.zeros(3)) is None and depth_warning(None) is None
+    assert depth_warning(np.array([5.0])) is None          # one order: single bounce asked for
     shares = energy_by_order(np.array([3.0, 1.0]))
     assert shares["share"] == {"1": 0.75, "2": 0.25} and shares["unit"] == "m^2"
     assert energy_by_order(None) is None

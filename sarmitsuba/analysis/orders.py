@@ -47,8 +47,9 @@ def energy_by_order(energy: "np.ndarray | None") -> dict | None:
 def depth_warning(energy: "np.ndarray | None") -> str | None:
     """The warning for the per-order energies ``energy`` float64 [max_depth]: the deepest traced
     order holds at least :data:`DEEPEST_SHARE` of their sum, so the orders not traced may matter;
-    None otherwise (or when not measured)."""
-    if energy is None or not np.sum(energy) > 0:
+    None otherwise, when not measured, and for one order (``max_depth = 1`` asks for single
+    bounce alone, and its one order holds everything whatever the scene)."""
+    if energy is None or len(energy) < 2 or not np.sum(energy) > 0:
         return None
     energy = np.asarray(energy, np.float64)
     depth, share = len(energy), float(energy[-1] / energy.sum())
