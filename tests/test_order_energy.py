@@ -113,3 +113,11 @@ def test_render_writes_and_info_reads_the_orders(tmp_path, capsys):
     with pytest.raises(ParameterError, match="not a render's summary.json"):
         render_summary(tmp_path / "other.json")
     assert "not in this summary.json" in format_render({"scene": "x", "n_pulses": 1, "rays_per_order": [1]})
+
+
+def test_exact_kernel_does_not_measure_the_orders():
+    """The exact range kernel keeps terms, not spectra: no per-order energy, and none reported."""
+    sim = simulate("dihedral", sensor_overrides={"n_pulses": 16}, integrator_overrides={"range_kernel": "exact"},
+                   progress=False)
+    assert sim.trace.raw_energy_per_order is None
+    assert energy_by_order(sim.trace.raw_energy_per_order) is None and depth_warning(None) is None
