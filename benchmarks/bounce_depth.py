@@ -3,7 +3,8 @@
 For ``max_depth`` 1..N on the built-in urban scene and on a Sionna RT city (Munich, fewer
 pulses so that the sweep stays minutes long), measured in one run, each setting after a warm-up run
 (kernel compilation not counted): trace and focus seconds, closest-hit and shadow casts, the energy
-captured per bounce order, and the image difference from the deepest setting,
+captured per bounce order (the terms' incoherent sum, and the deepest order's share of the raw
+data's, docs/physics.md (D6)), and the image difference from the deepest setting,
 ``NRMSE = ||I_d - I_N|| / ||I_N||`` in dB.
 
 Floor: two images of identical paths differ by about -30 dB NRMSE when only the fast-time
@@ -52,6 +53,10 @@ def bounce_depth(scene: str, depths: list[int], sensor: dict | None = None) -> l
             "closest_hit_casts": int(sim.trace.rays_per_order.sum()), "shadow_casts": int(sim.trace.shadow_rays),
             "energy_per_order": " ".join(f"{e:.4g}" for e in energy),
             "energy_deepest_order_fraction": round(float(energy[-1] / max(energy.sum(), 1e-300)), 6),
+            # the deepest order's share of the orders' raw-data energy (docs/physics.md (D6)), which
+            # summary.json's depth_warning reads
+            "raw_energy_deepest_order_share": round(float(sim.trace.raw_energy_per_order[-1]
+                                                          / max(sim.trace.raw_energy_per_order.sum(), 1e-300)), 6),
         })
         del sim
         gc.collect()

@@ -11,6 +11,7 @@ truncated is left looking complete).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import re
@@ -188,7 +189,8 @@ def build_parser() -> argparse.ArgumentParser:
     preview.add_argument("--resolution", type=_resolution, default=(960, 720), metavar="WxH",
                          help="PNG size in pixels (default 960x720)")
     info = _add_tracer_arguments(_add_scene_arguments(sub.add_parser(
-        "info", help="radar summary, scene size, active effects and estimated cost, without tracing")))
+        "info", help="radar summary, scene size, active effects and estimated cost, without tracing; "
+                     "of a render folder (or its summary.json): the energy each bounce order holds")))
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     focus = sub.add_parser("focus", help="focus raw data (raw.npz, any RawData, or a CPHD file) into image.npz/.exr/.png")
     focus.add_argument("raw", type=Path, help="RawData file (.npz) or one-channel CPHD file (.cphd)")
@@ -384,6 +386,8 @@ def _render(args: argparse.Namespace) -> int:
                      formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated,
                      sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting)
     print(summary.line())
+    if summary.depth_warning:
+        print(f"warning: {summary.depth_warning}", file=sys.stderr)
     if args.figures:
         from .products.figures import redraw
         paths = redraw(args.out or _default_out(args.scene), scene=args.scene or "urban")
@@ -418,8 +422,14 @@ def _interferogram(args: argparse.Namespace) -> int:
 
 
 def _info(args: argparse.Namespace) -> int:
-    """Print the radar summary, scene size, effects and estimated cost, without tracing."""
+    """Print the radar summary, scene size, effects and estimated cost, without tracing; of a
+    render's folder (or its summary.json), the energy each bounce order holds."""
+    from .analysis.orders import format_render, render_summary
     from .info import format_text, scene_info, to_json
+    done = render_summary(args.scene)
+    if done is not None:
+        print(json.dumps(done, indent=2) if args.json else format_render(done), end="\n" if args.json else "")
+        return 0
     info = scene_info(args.scene, sensor_overrides=_sensor_overrides(args),
                       integrator_overrides=_integrator_overrides(args), material_overrides=dict(args.material_set))
     print(to_json(info) if args.json else format_text(info), end="\n" if args.json else "")

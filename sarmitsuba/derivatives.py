@@ -273,7 +273,8 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     # the fast-time window and the footprint stay the unmoved scene's (the acquisition's
     # sampling does not move with the scene: the derivative is taken on one time grid)
     move_scene(loaded.scene, moved)
-    return loaded, prepare_trace(loaded)
+    setup = prepare_trace(loaded)       # the raw data of all orders at once: no per-order deposits
+    return loaded, dataclasses.replace(setup, effects=dataclasses.replace(setup.effects, order_energy=False))
 
 
 def _channel_gradients(gradient, channels, shape) -> dict:

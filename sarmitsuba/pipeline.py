@@ -61,6 +61,10 @@ class RenderSummary:
     trace_stages: dict = dataclasses.field(default_factory=dict)
     #: The same by bounce order, ``{order: {stage: seconds}}`` (orders from 1; ``deposit`` only above).
     trace_stages_by_order: dict = dataclasses.field(default_factory=dict)
+    #: Each bounce order's energy and share (:func:`sarmitsuba.analysis.orders.energy_by_order`; None:
+    #: not measured) and the warning when the deepest one holds much (:func:`~sarmitsuba.analysis.orders.depth_warning`).
+    energy_by_order: dict | None = None
+    depth_warning: str | None = None
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -385,6 +389,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
     """The RenderSummary of a finished simulation whose products went to ``paths``."""
     timings = {**sim.timings, "products": time.perf_counter() - t_products}
     timings["total"] = time.perf_counter() - start
+    from .analysis.orders import depth_warning, energy_by_order
     result = sim.trace
     return RenderSummary(
         scene=Path(sim.loaded.source).name, timings=timings, n_pulses=sim.raw.n_pulses,
@@ -394,7 +399,9 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         raw_shape=sim.raw.data.shape, image_shape=sim.image.data.shape,
         outputs={k: str(v) for k, v in paths.items()}, pulses_per_trace=result.pulses_per_trace,
         pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
-        trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()})
+        trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()},
+        energy_by_order=energy_by_order(result.raw_energy_per_order),
+        depth_warning=depth_warning(result.raw_energy_per_order))
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

@@ -175,7 +175,8 @@ class CostEstimate:
     clutter scatterers of its tubes' footprints (``tube area / scatterer_spacing^2`` each):
     ``pulse_paths``. Trace time: :data:`TRACE_OVERHEAD` times the casts at the rates of
     :func:`cast_rates`, the returns at :data:`RETURN_SECONDS` and :data:`SCATTERER_SECONDS` and
-    the reduction to the band at :data:`FFT_SECONDS`; ``trace_time_s`` takes the casts halfway
+    the reduction to the band at :data:`FFT_SECONDS` (once per bounce order: each order's energy is
+    measured, docs/physics.md (D6)); ``trace_time_s`` takes the casts halfway
     between low and high.
 
     Arrays: the tracer's spectra, complex64 ``[groups, n_pulses, padded samples]`` (groups
@@ -321,9 +322,11 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
                   if effects.clutter else 0.0)
     paths = int(RETURNS_PER_TUBE * tube_pulses + scatterers)      # per channel in the exact kernel's list
     groups = effects.groups * len(effects.channels)      # quad: four channels' spectra from one trace
+    deposited = effects.deposit_groups * len(effects.channels)     # each order reduced apart (D6)
+    arrays_apart = effects.deposit_groups // effects.groups       # host histograms per device one
     n_pad = padded_length(window.n_samples)
     work = (RETURNS_PER_TUBE * tube_pulses * RETURN_SECONDS + scatterers * SCATTERER_SECONDS
-            + 3 * groups * n_pulses * n_pad * window.oversample * FFT_SECONDS)
+            + 3 * deposited * n_pulses * n_pad * window.oversample * FFT_SECONDS)
 
     host, piece_bytes, clutter_pulses = 0.0, 0, 0.0
     reach_pieces = reach_triangles = reach_area = np.zeros(0)
@@ -352,7 +355,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     deposit = 0 if exact else groups * n_pulses * n_pad * 8
     path_list = paths * PATH_BYTES * len(effects.channels) if exact else 0
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
-    arrays = dict(deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
+    arrays = dict(apart=arrays_apart, deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
                   pixels=grid.shape[0] * grid.shape[1])
     memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays,
                      piece_bytes)
@@ -378,7 +381,8 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
 
     ``groups``: spectra deposited per pulse (channels x bounce groups); ``exact``: the ``exact``
     kernel, which keeps no histogram; ``per_sub``: tubes of one sub-aperture (its lattice and refined
-    cells); ``subs``: pulses per sub-aperture and sub-apertures; ``arrays``: the bytes of
+    cells); ``subs``: pulses per sub-aperture and sub-apertures; ``arrays``: the host's histograms per
+    device histogram (``apart``: each bounce order's, read apart for its energy, (D6)), the bytes of
     the spectra (``deposit``), ``path_list``, one ``raw`` data set and one ``image``, ``n_products`` and the
     image's ``pixels``; ``piece_bytes``: the mesh tracer's working set of the sub-aperture with the
     sub-apertures of a launch (at most :data:`SUBAPERTURE_BYTES` each; non-zero: the mesh tracer, which also
@@ -402,7 +406,7 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     copies = threads if at_once == 1 else 1
     working = (1 + CONCURRENT_LAUNCH_SHARE * (at_once - 1)) * (
         TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
-        + (HISTOGRAM_ENTRY_BYTES + HISTOGRAM_THREAD_BYTES * copies) * entries)
+        + (HISTOGRAM_ENTRY_BYTES * arrays.get("apart", 1) + HISTOGRAM_THREAD_BYTES * copies) * entries)
     focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
     n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
     tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)

@@ -100,6 +100,10 @@ class EffectSet:
     diffraction : bool
         Equivalent edge currents on the mesh's wedges and free edges (``sbr`` ``diffraction``,
         the default, with ``lit_regions = patches``; docs/physics.md (E1)-(E6)).
+    order_energy : bool
+        Each bounce order deposited apart, for the energy it holds (``summary.json``'s
+        ``energy_by_order``, :attr:`deposit_groups`); on by default, off for the derivatives,
+        which take the raw data of all orders at once.
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -123,6 +127,7 @@ class EffectSet:
     curved_track: bool = False
     motion_error: bool = False
     diffraction: bool = False
+    order_energy: bool = True
 
     @property
     def cross_polarised(self) -> bool:
@@ -148,6 +153,13 @@ class EffectSet:
     def groups(self) -> int:
         """Spectra the tracer keeps per pulse: one per bounce order with ``split_bounces``, else 1."""
         return self.max_depth if self.split_bounces else 1
+
+    @property
+    def deposit_groups(self) -> int:
+        """Spectra the tracer forms per pulse and channel: one per bounce order with ``split_bounces``
+        or :attr:`order_energy` (each order's energy is measured, docs/physics.md (D6), then the
+        orders summed unless kept), else 1."""
+        return self.max_depth if self.split_bounces or self.order_energy else 1
 
     @property
     def active(self) -> tuple[Effect, ...]:

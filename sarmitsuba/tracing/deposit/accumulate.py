@@ -50,10 +50,16 @@ class Accumulator:
         Spectra per pulse and channel (bounce orders with ``split_bounces``, else 1).
     n_channels : int
         Polarimetric channels deposited (4 for ``quad``).
+    apart : int
+        Bounce orders :meth:`collect` returns apart (``EffectSet.deposit_groups``): when above
+        ``groups``, the one histogram is read after each order's deposits (:meth:`order_done`) and
+        the orders told apart by difference, so that each order's energy is measured (docs/physics.md
+        (D6)) at no extra device memory.
     """
 
-    def __init__(self, settings, window, groups: int, n_channels: int):
+    def __init__(self, settings, window, groups: int, n_channels: int, apart: int = 1):
         self.settings, self.window, self.groups, self.n_channels = settings, window, groups, n_channels
+        self.apart = max(apart, groups)
         self.exact = settings.range_kernel == "exact"
         #: The histogram's scatter-add: ``ReduceMode.Expand`` (no atomics) unless several host threads
         #: deposit at once (:meth:`shared_by`).
@@ -84,16 +90,46 @@ class Accumulator:
             # acquisitions of other pulse counts or windows (same structure) share the kernels
             ctx["hist_n_b"] = dr.opaque(mi.UInt32, ctx["n_b"])
             ctx["hist_n_fine"] = dr.opaque(mi.UInt32, self.window.n_fine)
+            ctx["orders_read"] = {}                             # order -> its histogram (order_done)
+
+    @property
+    def snapshots(self) -> bool:
+        """Whether the orders are told apart by reading the histogram after each (:meth:`order_done`)."""
+        return not self.exact and self.apart > self.groups
+
+    def order_done(self, ctx: dict, depth: int) -> None:
+        """After the deposits of bounce order ``depth + 1`` (0-based ``depth``; the orders deposit one
+        after the other): keep what the histogram gained since the previous order's reading, that
+        order's histogram (the deposit is a sum). Nothing unless :attr:`snapshots`."""
+        if not self.snapshots:
+            return
+        now = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64).copy()
+        before = ctx.get("orders_total")
+        ctx["orders_read"][depth] = now if before is None else now - before
+        ctx["orders_total"] = now
 
     def collect(self, ctx: dict) -> dict:
         """``{"paths": {field: array}}`` (``exact``) or ``{"hist": complex64 [orders, channels x
-        groups, n_b, n_fine]}``, in NumPy (the histogram already evaluated)."""
+        apart, n_b, n_fine]}`` (spectral orders; channel-major), in NumPy (the histogram already
+        evaluated). With :attr:`snapshots`, bounce order ``d``'s histogram is the one
+        :meth:`order_done` kept, and what was deposited after the last reading goes to the order
+        after it."""
         if self.exact:
             return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                               for name, dtype in PATH_FIELDS.items()}}
         hist = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64)
-        return {"hist": hist.reshape(len(SPECTRAL_ORDERS), self.n_channels * self.groups, ctx["n_b"],
-                                     self.window.n_fine)}
+        shape = (len(SPECTRAL_ORDERS), self.n_channels, ctx["n_b"], self.window.n_fine)
+        if not self.snapshots:
+            return {"hist": hist.reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
+        read = ctx["orders_read"]
+        rest = hist - ctx["orders_total"] if read else hist
+        if np.any(rest):
+            last = len(read) if len(read) < self.apart else self.apart - 1
+            read[last] = read[last] + rest if last in read else rest
+        apart = np.zeros((shape[0], self.n_channels, self.apart, *shape[2:]), np.complex64)
+        for depth, part in read.items():
+            apart[:, :, depth] = part.reshape(shape)
+        return {"hist": apart.reshape(shape[0], self.n_channels * self.apart, *shape[2:])}
 
     def deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
         """Deposit ``values`` (one mi.Complex2f per channel) at the two-way length ``offset`` [m]

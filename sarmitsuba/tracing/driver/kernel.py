@@ -413,6 +413,7 @@ class Kernel:
             if tube is None or dr.width(tube.active) == 0:
                 break
             tube = self._bounce(ctx, launch, tube, depth, n_lanes)
+            self.returns.sums.order_done(ctx, depth)          # this order's histogram: its energy (D6)
         out = self.returns.collect(ctx)
         if out is None:                     # exact kernel: too many scatterers for the buffer
             return self(launch, capacity=ctx["needed"])

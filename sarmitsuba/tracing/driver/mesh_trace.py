@@ -156,6 +156,8 @@ class MeshTracer:
                 # evaluated here, so that their time is this stage's
                 dr.eval()
                 dr.sync_thread()
+            with clock("terms"):                     # this order's histogram, for its energy (D6)
+                self.returns.sums.order_done(ctx, depth)
         stats["casts"] = self.rays.casts + self.visibility.casts - casts_before
         stats["seconds"] = clock.seconds
         return stats

@@ -17,7 +17,8 @@ __all__ = ["STAGES", "StageClock", "by_order"]
 #: ``first bounce`` the first bounce's pieces and their visibility (M2)-(M4); ``visibility`` the
 #: later orders' regions, pieces and visibility; ``clipping`` mixed pieces cut against their
 #: occluders, with the recheck (M4); ``rates`` the boundaries' motion (M8); ``lanes`` the term lanes
-#: and the rest of the piece geometry (M5); ``terms`` recording the per-pulse terms and scatterers;
+#: and the rest of the piece geometry (M5); ``terms`` recording the per-pulse terms and scatterers
+#: and reading the order's histogram back (its energy, docs/physics.md (D6));
 #: ``energy`` the energy check; ``discovery`` the next order's chains (M6); ``deposit`` the device
 #: evaluating every pulse's terms and the host reading the histogram back.
 STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "energy", "discovery", "deposit")

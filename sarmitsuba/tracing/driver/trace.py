@@ -35,6 +35,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..deposit.fast_time import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
+from ..deposit.order_energy import band_energy
 from ...scene.effects import EffectSet, rough_materials
 from ...scene import planning
 from ...scene.effects import active_effects
@@ -145,6 +146,9 @@ class TraceResult:
     energy_per_order : float64 [max_depth], m^2
         Incoherent sum, per bounce order (1, 2, ...), of the visible returns' ``|a|^2`` at the
         carrier: each tube's whole PO value and each clutter scatterer.
+    raw_energy_per_order : float64 [max_depth] or None, m^2
+        Energy of each bounce order's range-compressed raw data (docs/physics.md (D6); quad: the
+        channels' mean); None for the ``exact`` kernel and the derivatives' traces.
     energy_outside_window : float, m^2
         Energy of visible returns whose delay fell outside the fast-time window.
     rays_per_order : int64 [max_depth]
@@ -204,6 +208,7 @@ class TraceResult:
     channels: tuple = ()
     stage_seconds: dict = dataclasses.field(default_factory=dict)
     stage_seconds_by_order: dict = dataclasses.field(default_factory=dict)
+    raw_energy_per_order: np.ndarray | None = None
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -256,7 +261,10 @@ class TracePlan:
     lref : float64 [n_pulses], m
         Per-pulse reference length ``2 |P - scene_center|``.
     n_channels, groups, n_pad : int
-        Channels, deposit groups (bounce orders when split), padded spectrum length.
+        Channels, spectra per channel of a batch (one per bounce order, ``EffectSet.deposit_groups``),
+        padded spectrum length.
+    kept, bandwidth : int, float [Hz]
+        Spectra kept per channel (``groups`` with ``split_bounces``, else 1); the band of (D6).
     exact : bool
         ``range_kernel = exact``: batches return path lists instead of spectra.
     axes : float64 [n_pulses, 3, 3] or None
@@ -271,6 +279,8 @@ class TracePlan:
     n_pad: int
     exact: bool
     axes: np.ndarray | None = None
+    kept: int = 1
+    bandwidth: float = 0.0
 
     @property
     def batches(self) -> list[int]:
@@ -288,7 +298,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     """The :class:`TracePlan` of an acquisition: sub-apertures and the batch size that keeps a
     launch within ``max_batch_rays`` tubes and the histogram within :data:`HISTOGRAM_ENTRIES`."""
     n_pulses = geometry.positions.shape[0]
-    n_channels, groups = len(effects.channels), effects.groups
+    n_channels, groups = len(effects.channels), effects.groups      # the device's histogram: (D5)
     subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
     pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
@@ -296,15 +306,17 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
     return TracePlan(subs=subs, per_batch=per_batch,
                      lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
-                     n_channels=n_channels, groups=groups, n_pad=padded_length(window.n_samples),
-                     exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry))
+                     n_channels=n_channels, groups=effects.deposit_groups, n_pad=padded_length(window.n_samples),
+                     exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry),
+                     kept=effects.groups, bandwidth=params.bandwidth)
 
 
 def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionGeometry, window: FastTimeWindow,
                 footprint: RayFootprint, settings: TraceSettings, frequency: float) -> dict:
     """Trace the batch of sub-apertures starting at ``g0``: ``{"pulses": (p0, p1), "spectrum":
-    complex64 [n_channels groups, p1 - p0, n_pad] (None for exact), "paths": PathList or None,
-    "totals": {counter: value}}``."""
+    complex64 [n_channels kept, p1 - p0, n_pad] (None for exact), "paths": PathList or None,
+    "totals": {counter: value}}``; ``totals["order_energy"]``: each bounce order's energy (D6),
+    when every order has its own deposit group."""
     subs = plan.subs
     g = slice(g0, min(len(subs.first), g0 + plan.per_batch))
     p0, p1 = plan.pulses(g0)
@@ -337,12 +349,16 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     spectrum = None if plan.exact else np.stack(
         [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
          for k in range(n_groups)])
+    if spectrum is not None and plan.groups == settings.max_depth:     # one group per order: (D6)
+        spectrum = spectrum.reshape(plan.n_channels, plan.groups, p1 - p0, -1)
+        totals["order_energy"] = band_energy(spectrum, window.fs, plan.bandwidth).mean(axis=0)
+        spectrum = (spectrum if plan.kept > 1 else spectrum.sum(axis=1, keepdims=True)).reshape(-1, p1 - p0, plan.n_pad)
     return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
 
 
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
 #: seconds per stage, :data:`sarmitsuba.tracing.driver.stages.STAGES`; absent from a tube launch).
-TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages")
+TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages", "order_energy")
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -382,11 +398,12 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     if effects is None:
         effects = EffectSet.of(params, settings, rough_materials(material_table))
     plan = plan_trace(scene, params, geometry, window, footprint, settings, effects)
-    spectrum = np.zeros((plan.n_channels * plan.groups, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
+    spectrum = np.zeros((plan.n_channels * plan.kept, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
     paths = {}
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
-                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))))
+                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))),
+                  order_energy=np.zeros(settings.max_depth))
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
@@ -429,7 +446,7 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
             effects: EffectSet) -> TraceResult:
     """The TraceResult of the merged batches (paths keyed by their batch's first pulse)."""
     n_pulses = spectrum.shape[1]
-    spectrum = spectrum.reshape(plan.n_channels, plan.groups, n_pulses, -1)
+    spectrum = spectrum.reshape(plan.n_channels, plan.kept, n_pulses, -1)
     quad = plan.n_channels > 1
     exact = plan.exact
     merged = PathList.concatenate([paths[k] for k in sorted(paths) if paths[k] is not None]) if exact else None
@@ -443,7 +460,9 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
                        pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
                        stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"].sum(axis=0)) if t > 0},
-                       stage_seconds_by_order=by_order(totals["stages"]))
+                       stage_seconds_by_order=by_order(totals["stages"]),
+                       raw_energy_per_order=None if exact or plan.groups != len(totals["energy"])
+                       else np.asarray(totals["order_energy"], np.float64))
 
 
 @dataclass(frozen=True)

@@ -109,7 +109,7 @@ class Returns(ClutterTerms):
         self.track = footprint.track.tolist()             # H where z x look vanishes (never, for a SAR)
         # the scalar VV channel takes the sign (-1)^(k+1) of a k-bounce chain in the plane of the look (P6)
         self.vv_sign = self.channels == ("VV",)
-        self.sums = Accumulator(settings, window, self.groups, len(self.channels))
+        self.sums = Accumulator(settings, window, self.groups, len(self.channels), apart=effects.deposit_groups)
         self.split_at = split_threshold(params.bandwidth, params.frequency)
         # absolute radiometry: spreading R_ref^2 / (s R_rx) relative to the pulse's R_ref^2, eq. (R1)
         self.radiometry = effects.radiometry
