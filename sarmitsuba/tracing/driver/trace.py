@@ -35,7 +35,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..deposit.fast_time import LANCZOS_A, SPECTRAL_ORDERS, padded_length, reduce_deposit
-from ..deposit.order_energy import band_energy
+from ..deposit.order_energy import spectra_by_order
 from ...scene.effects import EffectSet, rough_materials
 from ...scene import planning
 from ...scene.effects import active_effects
@@ -346,13 +346,14 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
             hist += out["hist"]
         for name in TOTALS:
             totals[name] = totals.get(name, 0) + out.get(name, 0)
-    spectrum = None if plan.exact else np.stack(
-        [reduce_deposit(hist[:, k], window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
-         for k in range(n_groups)])
-    if spectrum is not None and plan.groups == settings.max_depth:     # one group per order: (D6)
-        spectrum = spectrum.reshape(plan.n_channels, plan.groups, p1 - p0, -1)
-        totals["order_energy"] = band_energy(spectrum, window.fs, plan.bandwidth).mean(axis=0)
-        spectrum = (spectrum if plan.kept > 1 else spectrum.sum(axis=1, keepdims=True)).reshape(-1, p1 - p0, plan.n_pad)
+    def reduce(h):
+        return reduce_deposit(h, window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
+    spectrum = None
+    if not plan.exact and plan.groups == settings.max_depth:            # one group per order: (D6)
+        spectrum, totals["order_energy"] = spectra_by_order(hist, plan.n_channels, plan.kept > 1, reduce, window.fs,
+                                                            plan.bandwidth)
+    elif not plan.exact:
+        spectrum = np.stack([reduce(hist[:, k]) for k in range(n_groups)])
     return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
 
 
