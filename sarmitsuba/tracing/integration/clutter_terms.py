@@ -161,7 +161,8 @@ class ClutterTerms:
         reverse = amplitudes(cos_b, cos_i, pair_out, pair_in) if both else None
         one, zero = mi.Complex2f(1.0, 0.0), mi.Complex2f(0.0, 0.0)
         track, arriving = mi.Vector3f(*self.track), self._arriving(rec, d, depth)
-        unit = [dict(zip(CHANNELS, pol.receive(pol.scatter_rough(arriving, d, b, n, *a), -b, track, CHANNELS)))
+        needed = tuple(c for c in CHANNELS if c in self.channels or (both and c[::-1] in self.channels))
+        unit = [dict(zip(needed, pol.receive(pol.scatter_rough(arriving, d, b, n, *a), -b, track, needed)))
                 for a in ((one, zero, None), (zero, one, None), (zero, zero, one))]
 
         def channels(parts):                  # sum over the parts of a S(M) (+ a_rev S(M)^T)
