@@ -2,9 +2,9 @@
 surface's scatterer and the two orderings of a path that meets it after a mirror.
 
 - (C2) is reciprocal: swapping the incidence and scattering directions gives the same sigma0, and
-  the scatterer's matrix in the radar's h, v bases transposed (the reciprocity theorem, Tsang,
-  Kong and Shin, *Theory of Microwave Remote Sensing*, 1985, ch. 2), at several pairs of
-  directions, in and out of the plane of incidence;
+  the scatterer's matrix in the radar's h, v bases transposed (the reciprocity of the bistatic
+  scattering matrix in the backscatter alignment; Tsang, Kong and Shin, *Theory of Microwave
+  Remote Sensing*, 1985), at several pairs of directions, in and out of the plane of incidence;
 - where the directions coincide (monostatic) it is (C): gamma cos(theta) (Ulaby and Long, ch. 11)
   and 4 S^2 |r|^2 cos^2(theta) (Degli-Esposti et al. 2007) with ``r`` the Fresnel coefficient;
 - a rough ground in front of a PEC wall: the double-bounce clutter's integrated RCS in the image
