@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 
 import sarmitsuba as sm
-import drjit as dr
 import mitsuba as mi
 from sarmitsuba.analysis.point_target import energy_widths
 from sarmitsuba.pipeline import simulate
