@@ -1,7 +1,7 @@
 """Clutter scatterers in the kernel: per pulse, every scatterer of a rough surface's own lattice
 inside a recorded hit's footprint, its amplitude, second-order two-way length and hashed phase,
-deposited on the fast-time grid (docs/physics.md (C), with the polarimetric channels of (P7),
-(P8)); a part of :class:`sarmitsuba.tracing.integration.returns.Returns`. The lattice's steps are
+deposited on the fast-time grid (docs/physics.md (C), the bistatic sigma nought (C2), the
+polarimetric channels of (P7) and, after mirrors, both orderings of the path (P9)); a part of :class:`sarmitsuba.tracing.integration.returns.Returns`. The lattice's steps are
 :mod:`sarmitsuba.tracing.integration.clutter_lattice`'s.
 """
 from __future__ import annotations
@@ -17,10 +17,25 @@ from . import jones as pol
 from .pulse_view import receive_leg
 from ..loops import loop_mode
 
-__all__ = ["ClutterTerms"]
+__all__ = ["ClutterTerms", "bistatic_sigma0"]
 
 # flag of kernel.Flags (repeated here: the kernel imports this module through returns)
 _BACK = 128
+
+
+def bistatic_sigma0(kind, value, cos_i, cos_b, r_in, r_out):
+    """Sigma nought of a rough surface's scatterer met at ``cos_i`` (the incidence cosine, from
+    the facet's normal) and leaving at ``cos_b`` (the scattering cosine), docs/physics.md (C2):
+    the geometric mean of the two monostatic (C) values, ``sqrt(sigma0_mono(theta_i)
+    sigma0_mono(theta_b))`` (Willis, *Bistatic Radar*, 2005, ch. 9: the bistatic constant-gamma
+    model). ``kind`` 1 (constant gamma, ``value = gamma``): ``gamma sqrt(cos_i cos_b)``; ``kind``
+    2 (Lambertian, ``value = 4 S^2``): ``4 S^2 |r(cos_i)| |r(cos_b)| cos_i cos_b`` with ``r_in``,
+    ``r_out`` the facet's reflection coefficient at the two angles; 0 for any other kind.
+    Symmetric in the two directions (swap ``cos_i, r_in`` with ``cos_b, r_out``); equal to (C)
+    where they coincide. Drjit arrays of one width (``kind`` mi.UInt32, the rest mi.Float,
+    ``r_*`` mi.Complex2f), cosines in [0, 1]; returns mi.Float, dimensionless (m^2 / m^2)."""
+    lambert = value * dr.sqrt(dr.squared_norm(r_in) * dr.squared_norm(r_out)) * cos_i * cos_b
+    return dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b), dr.select(kind == 2, lambert, 0.0))
 
 
 class ClutterTerms:
@@ -81,15 +96,7 @@ class ClutterTerms:
         outgoing, dist = receive_leg(view, antenna, rec.p64, s)             # to the antenna at reception (J3)
         d, b = self._folded(rec, incoming / s, depth), mi.Vector3f(outgoing / dist)
         cos_i, cos_b = dr.maximum(-dr.dot(n, d), 0.0), dr.maximum(dr.dot(n, b), 0.0)
-        def sigma0(r):
-            return dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
-                             dr.select(kind == 2, value * dr.squared_norm(r) * cos_i * cos_b, 0.0)) * lattice["raise_by"]
-
-        if self.polarimetric:       # co- and cross-polarised parts of S per scatterer, eq. (P7)
-            co, cross, level = self._rough_channels(rec, d, b, n, sigma0, cos_i, depth)
-        else:
-            level = sigma0(self.reflection_at(rec.row, cos_i, True))
-            co, cross = [dr.sqrt(level)], None
+        co, cross, level = self.rough_returns(rec, d, b, n, (cos_i, cos_b), (kind, value * lattice["raise_by"]), depth)
         rough = (level > 0) & (self._in_beam(rec.aim, antenna, view) if self.aim_mask else True)
         weight = self.weight(self._d_first(depth, d, rec.first_hit, antenna), b, s, dist, lref, view)
         rel = s + dist - lref
@@ -119,22 +126,54 @@ class ClutterTerms:
         dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough, mode=ctx["tally"])
         dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough, mode=ctx["tally"])
 
-    def _rough_channels(self, rec, d, b, n, sigma0, cos_i, depth: int):
+    def rough_returns(self, rec, d, b, n, cosines: tuple, model: tuple, depth: int):
         """Per channel, the co-polarised and the cross-polarised factor of a rough surface's
-        scatterer (its own phase aside), eq. (P7): ``S = B^T C J`` with ``C`` of
-        :func:`sarmitsuba.tracing.integration.jones.scatter`, ``a_te = sqrt(sigma0(r_te))``,
-        ``a_tm = sqrt(sigma0(r_tm))`` and ``a_x = sqrt(q (a_te^2 + a_tm^2) / 2)``. After earlier
-        bounces (whose reverse path is not traced) both are made symmetric, (P8).
-        Returns ``(co, cross, level)``, ``level`` the mean co-polarised sigma0 (the energy tally)."""
-        r_te, r_tm = self.reflection_pair(rec.row, cos_i, True)
-        s_te, s_tm = sigma0(r_te), sigma0(r_tm)
+        scatterer (its own phases aside), for the pulse's incidence ``d`` and return ``b`` (unit
+        mi.Vector3f), the facet normal ``n`` on the side met, ``cosines = (cos_i, cos_b)`` and
+        ``model = (kind, value)`` of :func:`bistatic_sigma0`; ``rec`` gives the material ``row``
+        and, after bounces, the tube's ``jones``.
+
+        A single bounce returns the one path traced: ``sqrt(sigma0)`` of (C2) (scalar), or
+        ``S = B^T C J`` of (P7) with ``C`` of :func:`sarmitsuba.tracing.integration.jones.scatter_rough`,
+        ``a_te = sqrt(sigma0(r_te))``, ``a_tm = sqrt(sigma0(r_tm))``, ``a_x = sqrt(q (a_te^2 +
+        a_tm^2) / 2)``. After mirrors (``depth > 0``) the reverse ordering of the path (scatterer
+        first, mirrors after; not traced, of the same length) is added, eq. (P9):
+        ``S_direct + S_reverse^T`` with the reverse's amplitudes (C2) at the swapped directions.
+        Returns ``(co, cross, level)``: lists of mi.Complex2f (or mi.Float, scalar) in the order
+        of the requested channels, ``cross`` None unless polarimetric, and ``level`` (mi.Float)
+        the mean co-polarised power factor times ``1 + q`` (the energy tally)."""
+        cos_i, cos_b = cosines
+        both = depth > 0
+        if not self.polarimetric:
+            r_in, r_out = self.reflection_at(rec.row, cos_i, True), self.reflection_at(rec.row, cos_b, True)
+            a = dr.sqrt(bistatic_sigma0(*model, cos_i, cos_b, r_in, r_out))
+            if both:                 # the reverse ordering: met along -b, leaving along -d
+                a = a + dr.sqrt(bistatic_sigma0(*model, cos_b, cos_i, r_out, r_in))
+            return [a], None, a * a
+        pair_in, pair_out = self.reflection_pair(rec.row, cos_i, True), self.reflection_pair(rec.row, cos_b, True)
         q = dr.gather(mi.Float, self.tables.cross_pol, rec.row)
-        zero = mi.Complex2f(0.0, 0.0)
-        amplitudes = ((mi.Complex2f(dr.sqrt(s_te), 0.0), mi.Complex2f(dr.sqrt(s_tm), 0.0), zero),
-                      (zero, zero, mi.Complex2f(dr.sqrt(q * 0.5 * (s_te + s_tm)), 0.0)))
-        track = mi.Vector3f(*self.track)
-        arriving = self._arriving(rec, d, depth)
-        parts = [self.reciprocal(pol.receive(pol.scatter(arriving, d, b, n, a_te, a_tm, a_x), -b, track, CHANNELS),
-                                  depth) for a_te, a_tm, a_x in amplitudes]
-        level = 0.5 * (s_te + s_tm) * (1.0 + q)
-        return parts[0], parts[1], level
+
+        def amplitudes(c_1, c_2, into, out):     # (a_te, a_tm, a_x) of one ordering, eq. (P7)
+            s_te, s_tm = (bistatic_sigma0(*model, c_1, c_2, into[j], out[j]) for j in (0, 1))
+            return dr.sqrt(s_te), dr.sqrt(s_tm), dr.sqrt(q * 0.5 * (s_te + s_tm))
+
+        direct = amplitudes(cos_i, cos_b, pair_in, pair_out)
+        reverse = amplitudes(cos_b, cos_i, pair_out, pair_in) if both else None
+        one, zero = mi.Complex2f(1.0, 0.0), mi.Complex2f(0.0, 0.0)
+        track, arriving = mi.Vector3f(*self.track), self._arriving(rec, d, depth)
+        needed = tuple(c for c in CHANNELS if c in self.channels or (both and c[::-1] in self.channels))
+        unit = [dict(zip(needed, pol.receive(pol.scatter_rough(arriving, d, b, n, *a), -b, track, needed)))
+                for a in ((one, zero, None), (zero, one, None), (zero, zero, one))]
+
+        def channels(parts):                  # sum over the parts of a S(M) (+ a_rev S(M)^T)
+            out = []
+            for name in self.channels:
+                swap = name[::-1]
+                value = sum((m[name] * direct[j] for j, m in parts), zero)
+                if reverse is not None:
+                    value = value + sum((m[swap] * reverse[j] for j, m in parts), zero)
+                out.append(value)
+            return out
+        co, cross = channels([(0, unit[0]), (1, unit[1])]), channels([(2, unit[2])])
+        a_te, a_tm = (direct[j] + (reverse[j] if both else 0.0) for j in (0, 1))
+        return co, cross, 0.5 * (a_te * a_te + a_tm * a_tm) * (1.0 + q)

@@ -5,7 +5,8 @@
 :func:`launch`           the matrix a tube leaves the antenna with, ``[h v]`` (P1)
 :func:`reflect`          one specular reflection of both columns (P3') (:func:`reflect_jones`)
 :func:`scatter`          the field a facet sends back toward the antenna: the last bounce's
-                         PO field (P4') and a rough surface's scatterer (P7)
+                         PO field (P4')
+:func:`scatter_rough`    a rough surface's scatterer in reciprocal bases (P7), (C2)
 :func:`receive`          ``S[rx, tx]`` in the BSA basis of the receiving line of sight (P4)
 =======================  ===================================================================
 
@@ -24,7 +25,7 @@ import mitsuba as mi
 from ...core.radar import CHANNELS
 
 __all__ = ["NORMAL_TOLERANCE", "CHANNELS", "Jones", "NoJones", "bsa_vectors", "launch", "reflect", "receive", "power",
-           "scatter", "reflect_jones"]
+           "scatter", "scatter_rough", "reflect_jones"]
 
 #: Below this ``|n x d|`` (sine of the incidence angle) the incidence counts as normal and
 #: ``s = unit(a x d)``, ``a`` the coordinate axis least aligned with ``d`` (P2). In float32,
@@ -171,7 +172,28 @@ def scatter(jones: Jones, d: mi.Vector3f, b: mi.Vector3f, n: mi.Vector3f,
     back = -b
     s_b = s_i - dr.dot(s_i, back) * back
     s_b = dr.normalize(dr.select(dr.squared_norm(s_b) < 1e-12, _te_vector(back, n), s_b))
-    p_b = dr.cross(back, s_b)
+    return _send(jones, (s_i, p_i), (s_b, dr.cross(back, s_b)), a_te, a_tm, a_x)
+
+
+def scatter_rough(jones: Jones, d: mi.Vector3f, b: mi.Vector3f, n: mi.Vector3f,
+                  a_te: mi.Complex2f, a_tm: mi.Complex2f, a_x: mi.Complex2f | None = None) -> Jones:
+    """The field a rough surface's scatterer sends along ``b`` (unit, float32) for the incoming
+    columns of ``jones`` (along ``d``), docs/physics.md (P7), (C2): the form of :func:`scatter`
+    with the outgoing basis that of a wave arriving along ``-b``, ``s_b = unit(n x (-b))``,
+    ``p_b = (-b) x s_b``, as the incoming one is ``s = unit(n x d)``, ``p = d x s`` (P2). The
+    scatterer's dyadic ``a_te s_b s^T + a_tm p_b p^T + a_x (s_b p^T + p_b s^T)`` is therefore
+    transposed by swapping ``d -> -b``, ``b -> -d`` (the reverse ordering of its path; reciprocal
+    by construction where the amplitudes are symmetric in the two directions, as (C2)'s are), and
+    equals :func:`scatter`'s for backscatter ``b = -d``. Returns the scattered :class:`Jones`."""
+    s_i = _te_vector(d, n)
+    s_b = _te_vector(-b, n)
+    return _send(jones, (s_i, dr.cross(d, s_i)), (s_b, dr.cross(-b, s_b)), a_te, a_tm, a_x)
+
+
+def _send(jones: Jones, incoming: tuple, outgoing: tuple, a_te, a_tm, a_x) -> Jones:
+    """``E' = (a_te (s.E) + a_x (p.E)) s_b + (a_x (s.E) + a_tm (p.E)) p_b`` for both columns of
+    ``jones``, ``incoming = (s, p)``, ``outgoing = (s_b, p_b)`` (P4'), (P7)."""
+    (s_i, p_i), (s_b, p_b) = incoming, outgoing
 
     def column(e_re, e_im):
         e_s = mi.Complex2f(dr.dot(s_i, e_re), dr.dot(s_i, e_im))

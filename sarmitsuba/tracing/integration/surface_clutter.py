@@ -206,17 +206,8 @@ class ClutterKernel:
         cos_i, cos_b = dr.maximum(-facing * dr.dot(n, d), 0.0), dr.maximum(facing * dr.dot(n, b), 0.0)
         kind = dr.gather(mi.UInt32, r.tables.clutter_kind, data["row"])
         value = dr.gather(mi.Float, r.tables.clutter_value, data["row"])
-
-        def sigma0(refl):
-            return dr.select(kind == 1, value * dr.sqrt(cos_i * cos_b),
-                             dr.select(kind == 2, value * dr.squared_norm(refl) * cos_i * cos_b, 0.0))
-
         rec = _Record(data["row"], data["jones"])
-        if r.polarimetric:
-            co, cross, level = r._rough_channels(rec, d, b, facing * n, sigma0, cos_i, depth)
-        else:
-            level = sigma0(r.reflection_at(data["row"], cos_i, True))
-            co, cross = [dr.sqrt(level)], None
+        co, cross, level = r.rough_returns(rec, d, b, facing * n, (cos_i, cos_b), (kind, value), depth)   # (C2), (P7), (P9)
         active = level > 0
         if r.aim_mask:
             active &= r._in_beam(data["unfolded"], antenna, view)
