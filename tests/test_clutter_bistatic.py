@@ -149,7 +149,7 @@ def _both_orderings_rcs(antenna: np.ndarray, along: float) -> float:
     through the wall (the line A'-g crosses it between 0 and 8 m) returns along two orderings of
     one length: wall first (met from A', leaving toward A) and ground first (met from A, leaving
     toward A'), amplitudes ``sqrt(sigma0)`` of the bistatic constant-gamma law gamma sqrt(cos_1
-    cos_2) (Willis ch. 9) with each ordering's own cosines, and |r_wall| = 1. Integrated over
+    cos_2) (Willis 2005) with each ordering's own cosines, and |r_wall| = 1. Integrated over
     ``along`` metres of wall [m^2]."""
     image = antenna * np.array([1.0, -1.0, 1.0])
     step = 0.005

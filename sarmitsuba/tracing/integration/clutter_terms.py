@@ -27,7 +27,7 @@ def bistatic_sigma0(kind, value, cos_i, cos_b, r_in, r_out):
     """Sigma nought of a rough surface's scatterer met at ``cos_i`` (the incidence cosine, from
     the facet's normal) and leaving at ``cos_b`` (the scattering cosine), docs/physics.md (C2):
     the geometric mean of the two monostatic (C) values, ``sqrt(sigma0_mono(theta_i)
-    sigma0_mono(theta_b))`` (Willis, *Bistatic Radar*, 2005, ch. 9: the bistatic constant-gamma
+    sigma0_mono(theta_b))`` (Willis, *Bistatic Radar*, 2nd ed., 2005: the bistatic constant-gamma
     model). ``kind`` 1 (constant gamma, ``value = gamma``): ``gamma sqrt(cos_i cos_b)``; ``kind``
     2 (Lambertian, ``value = 4 S^2``): ``4 S^2 |r(cos_i)| |r(cos_b)| cos_i cos_b`` with ``r_in``,
     ``r_out`` the facet's reflection coefficient at the two angles; 0 for any other kind.
