@@ -12,44 +12,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import sys
 import warnings
 from pathlib import Path
 
+from . import cli_types
+
 __all__ = ["main", "build_parser"]
-
-
-def _assignment(text: str) -> tuple[str, str]:
-    name, sep, value = text.partition("=")
-    if not sep or not name:
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
-    return name.strip(), value.strip()
-
-
-def _resolution(text: str) -> tuple[int, int]:
-    from .products.preview import MIN_RESOLUTION
-    width, sep, height = text.lower().partition("x")
-    try:
-        size = (int(width), int(height))
-    except ValueError:
-        size = (0, 0)
-    if not sep or size[0] < MIN_RESOLUTION[0] or size[1] < MIN_RESOLUTION[1]:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, at least {MIN_RESOLUTION[0]}x"
-                                         f"{MIN_RESOLUTION[1]} (two panels and a header), e.g. 960x720, got {text!r}")
-    return size
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
 
 
 def _add_scene_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -58,7 +29,7 @@ def _add_scene_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPa
                         help="XML path (or a folder holding scene.xml), built-in name (urban, dihedral, "
                              "trihedral) or sionna:NAME; default: urban")
     parser.add_argument("--pulses", type=int, default=None, help="number of pulses (sar n_pulses)")
-    parser.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
+    parser.add_argument("--set", dest="sensor_set", type=cli_types.assignment, action="append", default=[],
                         metavar="NAME=VALUE", help="override a sar sensor parameter (repeatable)")
     return parser
 
@@ -70,9 +41,9 @@ def _add_tracer_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentP
     parser.add_argument("--range-kernel", choices=("nearest", "linear", "sinc", "exact"), default=None,
                         help="fast-time deposit kernel")
     parser.add_argument("--seed", type=int, default=None, help="speckle seed (sbr seed)")
-    parser.add_argument("--integrator-set", type=_assignment, action="append", default=[],
+    parser.add_argument("--integrator-set", type=cli_types.assignment, action="append", default=[],
                         metavar="NAME=VALUE", help="override an sbr integrator parameter (repeatable)")
-    parser.add_argument("--material-set", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
+    parser.add_argument("--material-set", type=cli_types.assignment, action="append", default=[], metavar="NAME=VALUE",
                         help="make every material rough: gamma_db=DB (constant gamma) or scattering_coefficient=S")
     return parser
 
@@ -92,17 +63,6 @@ def _integrator_overrides(args: argparse.Namespace) -> dict:
         if getattr(args, key) is not None:
             integrator[key] = getattr(args, key)
     return integrator
-
-
-def _looks(text: str) -> tuple[int, int]:
-    parts = text.split(",")
-    try:
-        looks = tuple(int(p) for p in parts)
-    except ValueError:
-        looks = ()
-    if len(looks) != 2 or min(looks) < 1:
-        raise argparse.ArgumentTypeError(f"expected AZ,RG: two whole numbers >= 1, e.g. 4,4, got {text!r}")
-    return looks
 
 
 def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
@@ -125,6 +85,11 @@ def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
     parser.add_argument("--geotiff-rotated", action="store_true",
                         help="with --geotiff: keep the image's own grid, unresampled, with a rotated geotransform "
                              "(default: resampled onto a north-up UTM grid, which every GIS and web map reads)")
+
+
+#: Windows of ``--window``, ``--window-range`` and ``--window-azimuth`` (render and focus): every window
+#: of :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
+FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
 
 
 def _add_window_arguments(parser: argparse.ArgumentParser) -> None:
@@ -185,31 +150,14 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_parser("preview", help="optical preview of the scene and the acquisition geometry (no tracing)"))
     preview.add_argument("--out", type=Path, default=None,
                          help="output directory (default: out/<scene name>); receives preview.png")
-    preview.add_argument("--spp", type=_positive_int, default=16, help="samples per pixel (default 16)")
-    preview.add_argument("--resolution", type=_resolution, default=(960, 720), metavar="WxH",
+    preview.add_argument("--spp", type=cli_types.positive_int, default=16, help="samples per pixel (default 16)")
+    preview.add_argument("--resolution", type=cli_types.resolution, default=(960, 720), metavar="WxH",
                          help="PNG size in pixels (default 960x720)")
     info = _add_tracer_arguments(_add_scene_arguments(sub.add_parser(
         "info", help="radar summary, scene size, active effects and estimated cost, without tracing; "
                      "of a render folder (or its summary.json): the energy each bounce order holds")))
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    focus = sub.add_parser("focus", help="focus raw data (raw.npz, any RawData, or a CPHD file) into image.npz/.exr/.png")
-    focus.add_argument("raw", type=Path, help="RawData file (.npz) or one-channel CPHD file (.cphd)")
-    focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
-                       help="fast factorised backprojection (default) or direct backprojection (any track), "
-                            "omega-K or range-Doppler (straight track)")
-    _add_window_arguments(focus)
-    focus.add_argument("--track", choices=("true", "nominal"), default="true",
-                       help="antenna positions to focus with: the true track (default) or the nominal one of data "
-                            "simulated with motion_error (what a processor without precise navigation has)")
-    focus.add_argument("--autofocus", choices=("none", "pga"), default="none",
-                       help="phase gradient autofocus of the focused image (straight tracks; it warns where its "
-                            "assumptions do not fit)")
-    focus.add_argument("--pga-reference", type=_point, default=None, metavar="X,Y,Z",
-                       help="with --autofocus pga: world position [m] of a surveyed point-like scatterer (a corner "
-                            "reflector), from which PGA also removes the along-track shift it cannot see")
-    focus.add_argument("--out", type=Path, required=True, help="output directory")
-    focus.add_argument("--no-progress", action="store_true", help="no progress bars")
-    _add_format_arguments(focus, cphd=False)
+    _add_focus_command(sub)
     from .analysis.point_target import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
     analyze.add_argument("--figure", type=Path, default=None, metavar="PNG",
@@ -222,7 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     ifg.add_argument("primary", type=Path, help="render directory of the primary pass (image.npz, raw.npz)")
     ifg.add_argument("secondary", type=Path, help="render directory of the secondary pass (same ground grid)")
     ifg.add_argument("--out", type=Path, required=True, help="output directory")
-    ifg.add_argument("--looks", type=_looks, default=(4, 4), metavar="AZ,RG",
+    ifg.add_argument("--looks", type=cli_types.looks, default=(4, 4), metavar="AZ,RG",
                      help="boxcar window for coherence and height, azimuth,range pixels (default 4,4)")
     ifg.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_scene_command(sub)
@@ -231,6 +179,28 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("bench_args", nargs="*", metavar="...",
                        help="arguments of benchmarks/run.py (--quick, --only NAME ...; --help for all)")
     return parser
+
+
+def _add_focus_command(sub) -> None:
+    """The ``focus`` subcommand's arguments."""
+    focus = sub.add_parser("focus", help="focus raw data (raw.npz, any RawData, or a CPHD file) into image.npz/.exr/.png")
+    focus.add_argument("raw", type=Path, help="RawData file (.npz) or one-channel CPHD file (.cphd)")
+    focus.add_argument("--algorithm", choices=("bp", "ffbp", "omegak", "rda"), default="ffbp",
+                       help="fast factorised backprojection (default) or direct backprojection (any track), "
+                            "omega-K or range-Doppler (straight track)")
+    _add_window_arguments(focus)
+    focus.add_argument("--track", choices=("true", "nominal"), default="true",
+                       help="antenna positions to focus with: the true track (default) or the nominal one of data "
+                            "simulated with motion_error (what a processor without precise navigation has)")
+    focus.add_argument("--autofocus", choices=("none", "pga"), default="none",
+                       help="phase gradient autofocus of the focused image (straight tracks; it warns where its "
+                            "assumptions do not fit)")
+    focus.add_argument("--pga-reference", type=cli_types.point, default=None, metavar="X,Y,Z",
+                       help="with --autofocus pga: world position [m] of a surveyed point-like scatterer (a corner "
+                            "reflector), from which PGA also removes the along-track shift it cannot see")
+    focus.add_argument("--out", type=Path, required=True, help="output directory")
+    focus.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _add_format_arguments(focus, cphd=False)
 
 
 def _add_scene_command(sub) -> None:
@@ -260,7 +230,7 @@ def _add_scene_command(sub) -> None:
                     help="roughness of the ground (default 0.2)")
     fp.add_argument("--repair", action="store_true", help="mend invalid outlines with shapely's make_valid "
                                                           "and report each (default: refuse them)")
-    fp.add_argument("--set", dest="sensor_set", type=_assignment, action="append", default=[],
+    fp.add_argument("--set", dest="sensor_set", type=cli_types.assignment, action="append", default=[],
                     metavar="NAME=VALUE", help="a sar sensor parameter written into scene.xml (repeatable)")
 
 
@@ -306,22 +276,6 @@ def _bench(args: argparse.Namespace) -> int:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module.main(args.bench_args)
-
-
-def _point(text: str) -> tuple[float, float, float]:
-    """``X,Y,Z`` [m] as three floats, for argparse (its error names the option)."""
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z in metres, got {text!r}")
-    return values
-
-
-#: Windows of ``--window``, ``--window-range`` and ``--window-azimuth`` (render and focus): every window
-#: of :mod:`sarmitsuba.focus.windows` with its default parameters (Taylor nbar 4 / -35 dB, Kaiser beta 2.5).
-FOCUS_WINDOWS = ("rect", "taylor", "hamming", "hann", "kaiser")
 
 
 def _focus(args: argparse.Namespace) -> int:

@@ -1,0 +1,66 @@
+"""The command line's argument types: each parses one option's text for argparse, whose error
+names the option (exit code 2, no traceback)."""
+from __future__ import annotations
+
+import argparse
+import math
+
+__all__ = ["assignment", "resolution", "positive_int", "looks", "point"]
+
+
+def assignment(text: str) -> tuple[str, str]:
+    """``NAME=VALUE`` (``--set``, ``--integrator-set``, ``--material-set``): the stripped (name,
+    value) pair."""
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name.strip(), value.strip()
+
+
+def resolution(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` in pixels (``preview --resolution``), at least the preview's minimum."""
+    from .products.preview import MIN_RESOLUTION
+    width, sep, height = text.lower().partition("x")
+    try:
+        size = (int(width), int(height))
+    except ValueError:
+        size = (0, 0)
+    if not sep or size[0] < MIN_RESOLUTION[0] or size[1] < MIN_RESOLUTION[1]:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, at least {MIN_RESOLUTION[0]}x"
+                                         f"{MIN_RESOLUTION[1]} (two panels and a header), e.g. 960x720, got {text!r}")
+    return size
+
+
+def positive_int(text: str) -> int:
+    """A whole number >= 1 (``preview --spp``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def looks(text: str) -> tuple[int, int]:
+    """``AZ,RG``: two whole numbers >= 1 (``interferogram --looks``)."""
+    parts = text.split(",")
+    try:
+        looks = tuple(int(p) for p in parts)
+    except ValueError:
+        looks = ()
+    if len(looks) != 2 or min(looks) < 1:
+        raise argparse.ArgumentTypeError(f"expected AZ,RG: two whole numbers >= 1, e.g. 4,4, got {text!r}")
+    return looks
+
+
+def point(text: str) -> tuple[float, float, float]:
+    """``X,Y,Z`` [m] as three floats, for argparse (its error names the option)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z in metres, got {text!r}")
+    return values
+
