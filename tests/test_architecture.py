@@ -4,8 +4,9 @@ import cycles, no private reach-ins, short functions and files.
 Each module belongs to the stage package it sits in; the top level holds only the entry points
 (``api``, ``cli`` and its argument types ``cli_types``, ``pipeline``, ``info``). A module may
 import its own package's modules and those of earlier stages (``core``, the contracts, comes
-first); imports inside functions count too. A deliberate back-reference, for instance the signal stage importing the test oracle in
-``analysis``, or a cycle between two modules of one package, fails here.
+first); imports inside functions count too. A deliberate back-reference, for instance the
+signal stage importing the test oracle in ``analysis``, or a cycle between two modules of one
+package, fails here.
 """
 from __future__ import annotations
 
