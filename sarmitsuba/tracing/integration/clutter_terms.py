@@ -1,7 +1,8 @@
 """Clutter scatterers in the kernel: per pulse, every scatterer of a rough surface's own lattice
 inside a recorded hit's footprint, its amplitude, second-order two-way length and hashed phase,
 deposited on the fast-time grid (docs/physics.md (C), the bistatic sigma nought (C2), the
-polarimetric channels of (P7) and, after mirrors, both orderings of the path (P9)); a part of :class:`sarmitsuba.tracing.integration.returns.Returns`. The lattice's steps are
+polarimetric channels of (P7) and, after mirrors, both orderings of the path (P9)); a part of
+:class:`sarmitsuba.tracing.integration.returns.Returns`. The lattice's steps are
 :mod:`sarmitsuba.tracing.integration.clutter_lattice`'s.
 """
 from __future__ import annotations
