@@ -26,7 +26,7 @@ import math
 import numpy as np
 from scipy.special import wofz
 
-__all__ = ["LOG_RANGE", "PER_DECADE", "norton_attenuation", "numerical_distance", "grazing_weight",
+__all__ = ["LOG_RANGE", "PER_DECADE", "N_SAMPLES", "norton_attenuation", "numerical_distance", "grazing_weight",
            "unlit_tm", "grazing_table", "table_tangent", "lookup"]
 
 #: The table's span in ``log10 |w|``: below 1e-8, ``1 - F`` is under 2e-4; above 1e6, ``|F|`` is
@@ -34,6 +34,8 @@ __all__ = ["LOG_RANGE", "PER_DECADE", "norton_attenuation", "numerical_distance"
 LOG_RANGE = (-8.0, 6.0)
 #: Samples per decade of ``|w|``: linear interpolation of ``F`` in ``log |w|`` within 1e-3.
 PER_DECADE = 16
+#: Samples per material row of :func:`grazing_table`.
+N_SAMPLES = int(round((LOG_RANGE[1] - LOG_RANGE[0]) * PER_DECADE)) + 1
 
 
 def norton_attenuation(w) -> np.ndarray:
@@ -89,7 +91,7 @@ def grazing_table(deltas) -> tuple[np.ndarray, np.ndarray]:
     """
     deltas = np.atleast_1d(np.asarray(deltas, np.complex128))
     scale = 0.5 * deltas * deltas
-    n = int(round((LOG_RANGE[1] - LOG_RANGE[0]) * PER_DECADE)) + 1
+    n = N_SAMPLES
     magnitude = 10.0 ** (LOG_RANGE[0] + np.arange(n) / PER_DECADE)
     table = np.ones((deltas.size, n), np.complex128)
     offset = np.zeros(deltas.size)
@@ -107,7 +109,7 @@ def table_tangent(delta, d_ln_delta) -> tuple[float, np.ndarray]:
     ``d/dw exp(-w) erfc(j sqrt w) = -exp(-w) erfc(j sqrt w) - j / sqrt(pi w)``). Zero for a perfect
     conductor, whose row is all ones."""
     delta = complex(delta)
-    n = int(round((LOG_RANGE[1] - LOG_RANGE[0]) * PER_DECADE)) + 1
+    n = N_SAMPLES
     if delta == 0:
         return 0.0, np.zeros(n, np.complex128)
     d_ln_c = 2.0 * complex(d_ln_delta)
@@ -125,7 +127,7 @@ def lookup(offset, table_re, table_im, row, k_distance):
     ``mi.Complex2f``."""
     import drjit as dr
     import mitsuba as mi
-    n = int(round((LOG_RANGE[1] - LOG_RANGE[0]) * PER_DECADE)) + 1
+    n = N_SAMPLES
     u = (dr.log2(dr.maximum(k_distance, 1e-30)) * math.log10(2.0) + dr.gather(mi.Float, offset, row)
          - LOG_RANGE[0]) * PER_DECADE
     u = dr.clip(u, 0.0, n - 1.0)
