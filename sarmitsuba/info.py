@@ -45,6 +45,7 @@ from .scene.baseline import baseline
 from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates,
                             check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture)
+from .analysis.ambiguities import Ambiguities, ambiguities
 from .scene.effects import Effect, EffectSet, active_effects
 from .core.radar import RadarParameters
 from .core.geometry import AcquisitionGeometry, acquisition_geometry
@@ -233,6 +234,8 @@ class SceneInfo:
     cost: CostEstimate
     #: What render would warn about (ambiguities, a scene outside the beam).
     warnings: tuple[str, ...]
+    #: AASR and RASR at the PRF (:mod:`sarmitsuba.analysis.ambiguities`); None in spotlight or on a curved track.
+    ambiguities: Ambiguities | None = None
 
 
 def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -260,10 +263,11 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     radar = _radar_summary(params, geometry, window, lo, hi)
     radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
-    memory = memory_problem(cost, params)
+    memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
-                     cost=cost, warnings=tuple(messages) + ((memory,) if memory else ()))
+                     cost=cost, warnings=tuple(messages) + tuple(m for m in (memory, ambiguous and ambiguous.warning) if m),
+                     ambiguities=ambiguous)
 
 
 # ============================================================================ scene
@@ -419,7 +423,8 @@ def format_text(info: SceneInfo) -> str:
     """A human-readable report of ``info`` (what ``sarmitsuba info`` prints)."""
     lines = [f"scene {info.scene.source} ({info.scene.path}): planned, not traced; costs are estimates", ""]
     for title, body in (("Scene", _scene_lines(info.scene)), ("Radar", _radar_lines(info.radar)),
-                        ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
+                        ("Ambiguities", [info.ambiguities.line() if info.ambiguities else "not modelled (spotlight or a "
+                                         "curved track)"]), ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
                         ("Estimated cost", _cost_lines(info.cost)), ("Warnings", list(info.warnings) or ["none"])):
         lines += [title] + [f"  {line}" for line in body] + [""]
     return "\n".join(lines).rstrip() + "\n"
