@@ -15,6 +15,7 @@ import numpy as np
 from .signal import binning
 from .scene import planning
 from .products import image_files
+from .analysis.ambiguities import ambiguities
 from .analysis.cost import check_memory
 from .focus import backproject, ffbp
 from .focus.dispatch import azimuth_pattern, backprojector
@@ -99,6 +100,22 @@ class Simulation:
     images_per_order: tuple = ()
     #: ``quad``: one Simulation per channel (:data:`sarmitsuba.core.radar.CHANNELS`); else empty.
     channels: Mapping[str, "Simulation"] = dataclasses.field(default_factory=dict)
+
+    def summary(self) -> str:
+        """One line: scene, pulses, raw and image sizes, trace and focus seconds, and the azimuth
+        ambiguity-to-signal ratio at the PRF for the image's azimuth window (docs/physics.md (AMB1))."""
+        p = self.loaded.params
+        window = dict(self.image.metadata.get("focus", {}).get("window_azimuth") or {"name": "taylor"})
+        amb = ambiguities(p, (window.pop("name"), window))
+        ghosts = ""
+        if amb is not None:
+            advice = f"; raise the PRF above {amb.prf_min_aasr_hz:.0f} Hz" if amb.warning else ""
+            ghosts = (" AASR none;" if amb.aasr_db is None else f" AASR {amb.aasr_db:.1f} dB (ghosts at "
+                      f"+-{p.prf * p.wavelength * p.slant_range / (2 * p.velocity):.1f} m along track at the centre"
+                      f"{advice});")
+        return (f"simulated {self.loaded.source}: {p.n_pulses} pulses at prf {p.prf:g} Hz, raw {self.raw.data.shape[0]}x"
+                f"{self.raw.data.shape[1]}, image {self.image.data.shape[0]}x{self.image.data.shape[1]};{ghosts} trace "
+                f"{self.timings['trace']:.1f} s, focus {self.timings['focus']:.1f} s")
 
 
 def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,

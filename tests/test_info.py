@@ -221,14 +221,14 @@ def test_scene_size_and_materials():
 def test_cli_text_and_json(capsys):
     assert main(["info", "dihedral", "--pulses", "11", "--max-depth", "1"]) == 0
     text = capsys.readouterr().out
-    for heading in ("Scene", "Radar", "Radiometry", "Effects", "Estimated cost", "Warnings"):
+    for heading in ("Scene", "Radar", "Ambiguities", "Radiometry", "Effects", "Estimated cost", "Warnings"):
         assert f"\n{heading}\n" in text
     assert "[off] bounce orders > 1" in text and "c/(2B)" in text
 
     assert main(["info", "dihedral", "--json", "--set", "prf=300", "--integrator-set", "max_depth=1",
                  "--material-set", "gamma_db=-10"]) == 0
     body = json.loads(capsys.readouterr().out)
-    assert set(body) == {"scene", "radar", "radiometry", "effects", "cost", "warnings"}
+    assert set(body) == {"scene", "radar", "radiometry", "effects", "cost", "warnings", "ambiguities"}
     assert body["radar"]["prf_hz"] == 300.0
     assert body["radar"]["slant_range_resolution_m"] == pytest.approx(C / (2 * 150e6))
     assert {"name", "active", "reason"} == set(body["effects"][0])

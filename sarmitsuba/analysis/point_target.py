@@ -202,6 +202,14 @@ class PointTargetReport:
     energy_width_range: float | None = None
     energy_fraction: float | None = None
 
+    def summary(self) -> str:
+        """One line: peak position and error, IRW, PSLR, ISLR (azimuth / range) and RCS."""
+        rcs = "n/a" if self.rcs_db is None else f"{self.rcs_db:.1f} dBsm"
+        return (f"peak at azimuth {self.azimuth:.2f} m, range {self.range:.2f} m (off by {self.azimuth_error:+.2f}, "
+                f"{self.range_error:+.2f} m); IRW {self.irw_azimuth:.2f} / {self.irw_range:.2f} m, PSLR "
+                f"{self.pslr_azimuth_db:.1f} / {self.pslr_range_db:.1f} dB, ISLR {self.islr_azimuth_nullbounded_db:.1f}"
+                f" / {self.islr_range_nullbounded_db:.1f} dB (azimuth / range); RCS {rcs}")
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable dict of all fields (floats, ints, strings, lists, None)."""
         out: dict[str, Any] = {}
