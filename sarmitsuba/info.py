@@ -8,6 +8,8 @@ acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`Scen
   :class:`sarmitsuba.core.radar.RadarParameters`;
 - the point-target SNR and NESZ of the radar equation when ``transmit_power`` is given
   (:func:`sarmitsuba.scene.radar_equation.radar_equation`, ``docs/physics.md`` (R1)-(R4));
+- the azimuth and range ambiguity-to-signal ratios at the PRF (:mod:`sarmitsuba.analysis.ambiguities`,
+  ``docs/physics.md`` (AMB1), (AMB2)), with a warning above -20 dB;
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
@@ -266,8 +268,8 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
-                     cost=cost, warnings=tuple(messages) + tuple(m for m in (memory, ambiguous and ambiguous.warning) if m),
-                     ambiguities=ambiguous)
+                     cost=cost, ambiguities=ambiguous,
+                     warnings=tuple(messages) + tuple(m for m in (memory, ambiguous and ambiguous.warning) if m))
 
 
 # ============================================================================ scene

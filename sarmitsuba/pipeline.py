@@ -113,8 +113,8 @@ class Simulation:
             ghosts = (" AASR none;" if amb.aasr_db is None else f" AASR {amb.aasr_db:.1f} dB (ghosts at "
                       f"+-{p.prf * p.wavelength * p.slant_range / (2 * p.velocity):.1f} m along track at the centre"
                       f"{advice});")
-        return (f"simulated {self.loaded.source}: {p.n_pulses} pulses at prf {p.prf:g} Hz, raw {self.raw.data.shape[0]}x"
-                f"{self.raw.data.shape[1]}, image {self.image.data.shape[0]}x{self.image.data.shape[1]};{ghosts} trace "
+        return (f"simulated {self.loaded.source}: {p.n_pulses} pulses at prf {p.prf:g} Hz, "
+                f"raw {self.raw.data.shape[0]}x{self.raw.data.shape[1]}, image {self.image.data.shape[0]}x{self.image.data.shape[1]};{ghosts} trace "
                 f"{self.timings['trace']:.1f} s, focus {self.timings['focus']:.1f} s")
 
 

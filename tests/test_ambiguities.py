@@ -41,7 +41,8 @@ def test_gaussian_pattern_and_weight_match_the_erf_closed_form(window_width):
         d = m * prf
         return gaussian_integral(inv_a2 + 1 / (2 * s * s), d / (s * s), d * d / (2 * s * s), -band / 2, band / 2)
     truth = sum(term(m) for m in range(-40, 41) if m) / term(0)
-    weight = (lambda f: np.ones_like(f)) if window_width is None else (lambda f: np.exp(-f ** 2 / (2 * window_width ** 2)))
+    weight = ((lambda f: np.ones_like(f)) if window_width is None else
+              (lambda f: np.exp(-f ** 2 / (2 * window_width ** 2))))
     got = ambiguity_ratio(lambda f: np.exp(-f ** 2 / (2 * s * s)), weight, (-band / 2, band / 2), prf, max_order=40)
     assert got == pytest.approx(truth, rel=1e-6)
     assert 0.05 < truth < 1.0                                     # a ratio that matters, not a vanishing one

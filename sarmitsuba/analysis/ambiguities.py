@@ -60,7 +60,8 @@ class Ambiguities:
         high = "none below 10 MHz" if self.prf_max_rasr_hz is None else f"{self.prf_max_rasr_hz:.4g} Hz"
         return (f"AASR {db(self.aasr_db)} (traced beam over {self.processed_doppler_bandwidth_hz:.1f} Hz of Doppler, "
                 f"{self.azimuth_window} window; -20 dB from prf {self.prf_min_aasr_hz:.0f} Hz up), RASR "
-                f"{db(self.rasr_db)} (flat ground, constant gamma; -20 dB up to prf {high}); docs/physics.md (AMB1), (AMB2)")
+                f"{db(self.rasr_db)} (flat ground, constant gamma; -20 dB up to prf {high}); "
+                "docs/physics.md (AMB1), (AMB2)")
 
 
 def ambiguity_ratio(power: Callable[[np.ndarray], np.ndarray], weight: Callable[[np.ndarray], np.ndarray],
