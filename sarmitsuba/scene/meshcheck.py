@@ -1,8 +1,10 @@
 """Geometry checks on loaded meshes: defects are reported; a scene that cannot scatter is refused.
 
 The tracer is robust to all of these (a zero-area triangle's undefined normal is treated as
-a miss; open and non-manifold meshes simply reflect what they have). They usually mean a
-modelling error, so :func:`warn_mesh_defects` says which shapes have which defects. A shape
+a miss; open and non-manifold meshes simply reflect what they have); duplicate triangles and
+the winding are repaired at load (:mod:`sarmitsuba.scene.meshrepair`, docs/physics.md (M0)).
+They usually mean a modelling error, so :func:`warn_mesh_defects` says which shapes have which
+defects and what was done. A shape
 whose every triangle has zero area (collinear vertices, a flattened export) can neither scatter
 nor shadow: it is missing from the image, which the warning says; when no shape of the scene can
 scatter, the products would be all zero, and :func:`silent_scene` gives the loader's refusal.
@@ -224,7 +226,7 @@ def _defects(r: MeshReport, fix) -> str:
         clauses.append(f"{fix.dropped} duplicate triangles in {r.shape}: traced once")
     if fix is not None and fix.inconsistent:
         clauses.append(f"inconsistent normals in {r.shape}: " + (
-            "it is open, so which side is outside cannot be decided: wound consistently, either side may be seen"
+            "made consistent, but it is open, so its outside cannot be decided (either side may be seen)"
             if fix.undecided else "closed: wound consistently, outward"))
     rest = ", ".join(part for part in (
         f"{r.degenerate_faces} zero-area triangles" if r.degenerate_faces else "",
