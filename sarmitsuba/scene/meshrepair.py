@@ -99,11 +99,13 @@ def repaired_faces(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray,
 def repair_meshes(scene, reports: list[MeshReport]) -> list[MeshRepair]:
     """Repair (:func:`repaired_faces`) every mesh of the Mitsuba ``scene`` that needs it: its
     report (:func:`~sarmitsuba.scene.meshcheck.check_meshes`, same order) has duplicates or an
-    inconsistent winding, or it is closed with a negative volume (wound inward). The faces are
-    written back in place (the scene's acceleration structure is rebuilt). Returns one
+    inconsistent winding, or it is closed with a negative volume (wound inward; a consistently
+    wound mesh of several closed bodies is judged by their total volume, which keeps the check
+    linear and cheap: one inside-out body among outward ones is missed). The faces are written
+    back in place (the scene's acceleration structure is rebuilt). Returns one
     :class:`MeshRepair` per mesh changed or undecided."""
     meshes = [(index, shape) for index, shape in enumerate(scene.shapes()) if shape.is_mesh()]
-    repairs, changed = [], []
+    changed = []
     for (index, shape), report in zip(meshes, reports):
         vertices = np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3)
         faces = np.array(shape.faces_buffer(), np.int64).reshape(-1, 3)
@@ -111,17 +113,20 @@ def repair_meshes(scene, reports: list[MeshReport]) -> list[MeshRepair]:
         if not (report.duplicate_faces or report.inconsistent_winding or inward):
             continue
         fixed, dropped, rewound, undecided = repaired_faces(vertices, faces)
-        if dropped or rewound:
-            changed.append((shape, fixed))
         if dropped or rewound or undecided:
-            repairs.append(MeshRepair(shape_label(shape, index), dropped, rewound, report.inconsistent_winding,
-                                      undecided))
-    if changed:
-        params = mi.traverse(scene)
-        for key in [k for k in params.keys() if k.endswith(".faces")]:
-            node = params.properties[key][2]
-            for shape, fixed in changed:
-                if node is shape:
-                    params[key] = mi.UInt32(fixed.astype(np.uint32).ravel())
-        params.update()
-    return repairs
+            changed.append((shape, fixed, MeshRepair(shape_label(shape, index), dropped, rewound,
+                                                     report.inconsistent_winding, undecided)))
+    if not changed:
+        return []
+    params = mi.traverse(scene)
+    written = set()
+    for key in [k for k in params.keys() if k.endswith(".faces")]:
+        node = params.properties[key][2]
+        for shape, fixed, repair in changed:
+            if node is shape and (repair.dropped or repair.rewound):
+                params[key] = mi.UInt32(fixed.astype(np.uint32).ravel())
+                written.add(id(shape))
+    params.update()
+    # a mesh whose faces Mitsuba does not expose is traced as it is, and not said to be repaired
+    return [repair for shape, _, repair in changed
+            if id(shape) in written or not (repair.dropped or repair.rewound)]
