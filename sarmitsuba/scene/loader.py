@@ -26,6 +26,7 @@ import numpy as np
 from ..core import georef
 from . import materials
 from .meshcheck import check_meshes, shape_points, silent_scene, warn_mesh_defects
+from .meshrepair import repair_meshes
 from .geometry_checks import check_geometry
 from .planning import AcquisitionWarning, resolve_parameters
 from .track_checks import check_beam_reach
@@ -187,7 +188,10 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     silent = silent_scene(reports, len(scene.shapes()), label)
     if silent is not None:
         raise SceneError(silent)
-    warn_mesh_defects(reports, label)
+    repairs = repair_meshes(scene, reports)          # duplicates traced once, closed bodies wound outward
+    if any(fix.dropped or fix.rewound for fix in repairs):
+        reports = check_meshes(scene)
+    warn_mesh_defects(reports, label, repairs)
     _override_materials(scene, material_overrides or {})
     sensor = next((s for s in scene.sensors() if hasattr(s, "parameters") and hasattr(s, "given")), None)
     given = dict(sensor.given) if sensor is not None else {}

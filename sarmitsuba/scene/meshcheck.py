@@ -1,8 +1,10 @@
 """Geometry checks on loaded meshes: defects are reported; a scene that cannot scatter is refused.
 
 The tracer is robust to all of these (a zero-area triangle's undefined normal is treated as
-a miss; open and non-manifold meshes simply reflect what they have). They usually mean a
-modelling error, so :func:`warn_mesh_defects` says which shapes have which defects. A shape
+a miss; open and non-manifold meshes simply reflect what they have); duplicate triangles and
+the winding are repaired at load (:mod:`sarmitsuba.scene.meshrepair`, docs/physics.md (M0)).
+They usually mean a modelling error, so :func:`warn_mesh_defects` says which shapes have which
+defects and what was done. A shape
 whose every triangle has zero area (collinear vertices, a flattened export) can neither scatter
 nor shadow: it is missing from the image, which the warning says; when no shape of the scene can
 scatter, the products would be all zero, and :func:`silent_scene` gives the loader's refusal.
@@ -199,21 +201,38 @@ def silent_scene(reports: list[MeshReport], n_shapes: int, source: str) -> str |
             "zero; check the mesh export (a flattened axis, units) and the shape's to_world transform (a scale of 0)")
 
 
-def warn_mesh_defects(reports: list[MeshReport], source: str) -> None:
-    """One :class:`MeshDefectWarning` summarising the defective meshes of a scene, if any; a
-    mesh whose every triangle has zero area is said to be missing from the image."""
-    bad = [r for r in reports if r.defective]
+def warn_mesh_defects(reports: list[MeshReport], source: str, repairs: tuple | list = ()) -> None:
+    """One :class:`MeshDefectWarning` summarising the defective meshes of a scene, if any, with
+    what the loader did: ``repairs`` are the :class:`~sarmitsuba.scene.meshrepair.MeshRepair` of
+    the meshes it repaired (duplicates traced once, winding made consistent) and ``reports``
+    the checks after repair. A mesh whose every triangle has zero area is said to be missing
+    from the image."""
+    done = {fix.shape: fix for fix in repairs if fix.dropped or fix.inconsistent}
+    bad = [r for r in reports if r.defective or r.shape in done]
     if not bad:
         return
-    listed = "; ".join(
-        f"{r.shape}: " + (f"all {r.faces} triangles have zero area" if r.faces else "no triangles")
-        + ": it cannot scatter and is missing from the image" if r.cannot_scatter else
-        f"{r.shape}: " + ", ".join(part for part in (
-            f"{r.degenerate_faces} zero-area triangles" if r.degenerate_faces else "",
-            f"{r.duplicate_faces} duplicate triangles" if r.duplicate_faces else "",
-            f"{r.non_manifold_edges} non-manifold edges" if r.non_manifold_edges else "",
-            "inconsistent normals" if r.inconsistent_winding else "") if part)
-        for r in bad[:10])
+    listed = "; ".join(_defects(r, done.get(r.shape)) for r in bad[:10])
     more = f" (and {len(bad) - 10} more meshes)" if len(bad) > 10 else ""
-    warnings.warn(f"{source}: {len(bad)} mesh(es) with defects, traced anyway: {listed}{more}",
-                  MeshDefectWarning, stacklevel=3)
+    warnings.warn(f"{source}: {len(bad)} mesh(es) with defects: {listed}{more}", MeshDefectWarning, stacklevel=3)
+
+
+def _defects(r: MeshReport, fix) -> str:
+    """One mesh's clauses of :func:`warn_mesh_defects`."""
+    if r.cannot_scatter:
+        return (f"{r.shape}: " + (f"all {r.faces} triangles have zero area" if r.faces else "no triangles")
+                + ": it cannot scatter and is missing from the image")
+    clauses = []
+    if fix is not None and fix.dropped:
+        clauses.append(f"{fix.dropped} duplicate triangles in {r.shape}: traced once")
+    if fix is not None and fix.inconsistent:
+        clauses.append(f"inconsistent normals in {r.shape}: " + (
+            "made consistent, but it is open, so its outside cannot be decided (either side may be seen)"
+            if fix.undecided else "closed: wound consistently, outward"))
+    rest = ", ".join(part for part in (
+        f"{r.degenerate_faces} zero-area triangles" if r.degenerate_faces else "",
+        f"{r.duplicate_faces} duplicate triangles" if r.duplicate_faces else "",
+        f"{r.non_manifold_edges} non-manifold edges" if r.non_manifold_edges else "",
+        "inconsistent normals" if r.inconsistent_winding else "") if part)
+    if rest:
+        clauses.append(f"{r.shape}: {rest}: traced anyway")
+    return "; ".join(clauses)
