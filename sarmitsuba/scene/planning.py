@@ -264,7 +264,7 @@ def scatterer_spacing(params: RadarParameters, settings: TraceSettings) -> float
 #: nearest antenna position: ``k P^2 / (2 R) <= PATCH_PHASE`` (docs/physics.md (M1)).
 PATCH_PHASE = math.pi / 8
 #: The largest quadratic phase [rad] at the corners of a patch whose ``patch_size`` the user sets
-#: (docs/physics.md (M1)): ``pi / 4``, twice the automatic patch's. A split edge end
+#: (docs/physics.md (M1')): ``pi / 4``, twice the automatic patch's. A split edge end
 #: (docs/physics.md (M5)) is evaluated with the phase gradient at its own point while its regime
 #: was decided at the edge's midpoint; the two differ by up to ``2 k P^2 / (2 R)`` in ``alpha``, so
 #: at ``pi / 4`` an end whose midpoint was split (``|alpha| >= 2``) keeps ``|alpha| >= 2 - pi / 2``
@@ -303,7 +303,7 @@ def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.nd
     of scatterer cells ``cell``, so that each patch holds whole cells of the clutter lattice.
 
     Raises ParameterError for a ``patch_size`` setting whose rounded patch exceeds both the
-    automatic one and :data:`PATCH_PHASE_MAX`'s size, naming the largest valid value."""
+    automatic one and :data:`PATCH_PHASE_MAX`'s size, naming the largest valid value (docs/physics.md (M1'))."""
     near = nearest_range(geometry, lo, hi)
     automatic = cell * max(1, round(min(params.slant_range_resolution,
                                         phase_limited_size(params, near, PATCH_PHASE)) / cell))
@@ -317,7 +317,7 @@ def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.nd
             f"patch_size = {settings.patch_size:g} m gives patches {size:g} m wide, whose phase departs from linear "
             f"by {k * size ** 2 / (2.0 * near):.3g} rad at their corners (k P^2 / (2 R_near), R_near = {near:.1f} m, "
             f"{params.frequency / 1e9:g} GHz): more than {PATCH_PHASE_MAX:.3g} rad, where the edge terms break down "
-            f"(docs/physics.md (M1)); valid values for this scene are 0 < patch_size <= {largest:.4g} m; "
+            f"(docs/physics.md (M1')); valid values for this scene are 0 < patch_size <= {largest:.4g} m; "
             "use patch_size = 0 (automatic) or a value in that range")
     return size
 
