@@ -12,7 +12,9 @@
      ``s / cos(theta)`` in ground range on the aim plane. 0 (default) = one tube per
      resolution cell, ``(rho_az, rho_gr)``: each tube's physical-optics return is exact
      across the band, so denser rays only place large geometry's boundaries more finely
-     (docs/physics.md (T1), (PO2)).
+     (docs/physics.md (T1), (PO2)). At most one resolution cell or the width whose quadratic
+     phase reaches pi/2 at the nearest range, ``sqrt(2 R_near (pi/2) / k)``, whichever is larger
+     (4.7 m at X band and 1.4 km); wider tubes are refused before tracing.
  * - tubes_per_object
    - integer
    - Shapes smaller than 8 default tubes (bounding-box diagonal) are traced with tubes
@@ -79,7 +81,11 @@
    - Side of the patches [m] (``lit_regions = patches``; docs/physics.md (M1)); 0 (default) =
      automatic: the slant-range resolution, kept below the size whose phase departs from linear
      by pi/8, rounded to whole scatterer cells. An accuracy knob, measured in
-     ``benchmarks/patches.py`` (error and time).
+     ``benchmarks/patches.py`` (error and time). Bounded by the same phase: a patch whose
+     corners depart from linear by more than pi/4 at the scene's nearest range,
+     ``k P^2 / (2 R_near)``, is refused before tracing with the largest valid value for the
+     scene (docs/physics.md (M1'); about 3.3 m at X band and 1.4 km): beyond it the edge terms'
+     ends lose their bound.
  * - cancel_interior
    - boolean
    - Skip the physical-optics terms that neighbouring tubes cancel exactly (default true;

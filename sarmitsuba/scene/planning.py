@@ -22,7 +22,8 @@ from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSetting
 from .track_checks import aperture_note, motion_error_note, steering_note
 
 __all__ = ["resolve_parameters", "state_vector_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
-           "project_to_aim_plane", "box_corners", "echo_lengths", "check_acquisition", "AcquisitionWarning",
+           "project_to_aim_plane", "box_corners", "check_ray_spacing", "nearest_range",
+           "phase_limited_size", "PATCH_PHASE", "PATCH_PHASE_MAX", "TUBE_PHASE_MAX", "echo_lengths", "check_acquisition", "AcquisitionWarning",
            "beam_offsets"]
 
 
@@ -262,6 +263,35 @@ def scatterer_spacing(params: RadarParameters, settings: TraceSettings) -> float
 #: The largest phase [rad] a patch's quadratic part may reach at its corners, seen from the
 #: nearest antenna position: ``k P^2 / (2 R) <= PATCH_PHASE`` (docs/physics.md (M1)).
 PATCH_PHASE = math.pi / 8
+#: The largest quadratic phase [rad] at the corners of a patch whose ``patch_size`` the user sets
+#: (docs/physics.md (M1')): ``pi / 4``, twice the automatic patch's. A split edge end
+#: (docs/physics.md (M5)) is evaluated with the phase gradient at its own point while its regime
+#: was decided at the edge's midpoint; the two differ by up to ``2 k P^2 / (2 R)`` in ``alpha``, so
+#: at ``pi / 4`` an end whose midpoint was split (``|alpha| >= 2``) keeps ``|alpha| >= 2 - pi / 2``
+#: and its ``1 / (u . a)`` stays bounded. Larger patches let it cross zero: the dihedral at
+#: ``P = 7 m`` (3.5 rad) gave raw data 440 times too strong, a plate with a 10 m box at
+#: ``P = 10 m`` 1e27 times.
+PATCH_PHASE_MAX = math.pi / 4
+#: The largest quadratic phase [rad] across a ray tube whose ``ray_spacing`` the user sets, at its
+#: corners (docs/physics.md (T1)): ``pi / 2``. A tube's tile is integrated with a linear phase
+#: (PO2); measured on the dihedral's tiles (``lit_regions = tiles``), tubes up to ``pi / 2`` keep
+#: the raw energy within 1.4 dB of the automatic spacing's, 5.5 m (2.1 rad) loses 3.9 dB, 6.6 m
+#: (pi) gives non-finite samples and 100 m none at all.
+TUBE_PHASE_MAX = math.pi / 2
+
+
+def nearest_range(geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray) -> float:
+    """The antenna's closest distance [m] to the scene's box over all pulses (at least 1 m)."""
+    near = float(np.min(np.linalg.norm(np.clip(geometry.positions[:, None], lo, hi) - geometry.positions[:, None],
+                                       axis=2)))
+    return max(near, 1.0)
+
+
+def phase_limited_size(params: RadarParameters, near: float, phase: float) -> float:
+    """The width [m] whose quadratic phase at its corners reaches ``phase`` [rad] at range
+    ``near`` [m]: ``sqrt(2 R phase / k)``, ``k = 2 pi f / c`` (docs/physics.md (M1))."""
+    k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+    return math.sqrt(2.0 * near * phase / k)
 
 
 def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray,
@@ -270,15 +300,48 @@ def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.nd
     slant-range resolution, kept below the size whose phase departs from linear by
     :data:`PATCH_PHASE` at its corners, ``sqrt(2 R_near PATCH_PHASE / k)`` (``R_near`` the
     antenna's closest distance to the scene's box), and rounded to a whole number (at least one)
-    of scatterer cells ``cell``, so that each patch holds whole cells of the clutter lattice."""
-    target = settings.patch_size
-    if target <= 0:
+    of scatterer cells ``cell``, so that each patch holds whole cells of the clutter lattice.
+
+    Raises ParameterError for a ``patch_size`` setting whose rounded patch exceeds both the
+    automatic one and :data:`PATCH_PHASE_MAX`'s size, naming the largest valid value (docs/physics.md (M1'))."""
+    near = nearest_range(geometry, lo, hi)
+    automatic = cell * max(1, round(min(params.slant_range_resolution,
+                                        phase_limited_size(params, near, PATCH_PHASE)) / cell))
+    if settings.patch_size <= 0:
+        return automatic
+    size = cell * max(1, round(settings.patch_size / cell))
+    largest = max(automatic, cell * math.floor(phase_limited_size(params, near, PATCH_PHASE_MAX) / cell))
+    if size > largest * (1.0 + 1e-9):
         k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
-        near = float(np.min(np.linalg.norm(np.clip(geometry.positions[:, None], lo, hi) - geometry.positions[:, None],
-                                           axis=2)))
-        near = max(near, 1.0)
-        target = min(params.slant_range_resolution, math.sqrt(2.0 * near * PATCH_PHASE / k))
-    return cell * max(1, round(target / cell))
+        raise ParameterError(
+            f"patch_size = {settings.patch_size:g} m gives patches {size:g} m wide, whose phase departs from linear "
+            f"by {k * size ** 2 / (2.0 * near):.3g} rad at their corners (k P^2 / (2 R_near), R_near = {near:.1f} m, "
+            f"{params.frequency / 1e9:g} GHz): more than {PATCH_PHASE_MAX:.3g} rad, where the edge terms break down "
+            f"(docs/physics.md (M1')); valid values for this scene are 0 < patch_size <= {largest:.4g} m; "
+            "use patch_size = 0 (automatic) or a value in that range")
+    return size
+
+
+def check_ray_spacing(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray,
+                      settings: TraceSettings) -> None:
+    """Raise ParameterError for a ``ray_spacing`` setting wider than both the automatic tube (one
+    resolution cell normal to the line of sight, ``max(rho_az, rho_gr cos(theta))``) and the
+    width whose quadratic phase reaches :data:`TUBE_PHASE_MAX` at the nearest range (docs/physics.md (T1))."""
+    if settings.ray_spacing <= 0:
+        return
+    near = nearest_range(geometry, lo, hi)
+    cell = max(params.azimuth_resolution,
+               params.ground_range_resolution * math.cos(math.radians(params.incidence_angle)))
+    largest = max(cell, phase_limited_size(params, near, TUBE_PHASE_MAX))
+    if settings.ray_spacing > largest * (1.0 + 1e-9):
+        k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+        raise ParameterError(
+            f"ray_spacing = {settings.ray_spacing:g} m gives ray tubes whose phase departs from linear by "
+            f"{k * settings.ray_spacing ** 2 / (2.0 * near):.3g} rad at their corners (k s^2 / (2 R_near), "
+            f"R_near = {near:.1f} m, {params.frequency / 1e9:g} GHz): more than {TUBE_PHASE_MAX:.3g} rad, beyond which "
+            f"a tube's linear-phase integral is wrong in amplitude (docs/physics.md (T1)); valid values for this scene "
+            f"are 0 < ray_spacing <= {largest:.4g} m; use ray_spacing = 0 (automatic, one tube per resolution cell) "
+            "or a value in that range")
 
 
 def project_to_aim_plane(points: np.ndarray, antenna: np.ndarray, z0: float) -> np.ndarray:
@@ -328,6 +391,7 @@ def ray_footprint(params: RadarParameters, geometry: AcquisitionGeometry, lo: np
     ``D / tubes_per_object`` wide (at least a quarter wavelength; none when the lattice is that
     fine already), over the cells its box and its mirror image below the aim plane project onto.
     """
+    check_ray_spacing(params, geometry, lo, hi, settings)
     s, spacing_range = ray_spacing(params, settings)
     origin = np.asarray(params.scene_center, float)
     track, look = geometry.track_direction, geometry.look_direction

@@ -44,6 +44,8 @@ class TraceSettings:
         Bounce orders traced, [1, 64].
     ray_spacing : float, m
         Ray-tube width at the scene centre; 0 = automatic (:func:`sarmitsuba.scene.planning.ray_spacing`).
+        At most one resolution cell or ``sqrt(2 R_near (pi/2) / k)``, whichever is larger
+        (:func:`sarmitsuba.scene.planning.check_ray_spacing`, docs/physics.md (T1)).
     range_kernel : str
         ``nearest``, ``linear``, ``sinc`` or ``exact`` (docs/physics.md (D1)-(D4)).
     oversample : int
@@ -62,7 +64,9 @@ class TraceSettings:
         Side of the patches fixed on every face, the integration elements of
         ``lit_regions = patches`` (docs/physics.md (M1)); 0 = automatic
         (:func:`sarmitsuba.scene.planning.patch_size`). Rounded to a whole number of scatterer
-        cells.
+        cells; a patch whose corners' quadratic phase ``k P^2 / (2 R_near)`` exceeds pi/4 (and that
+        is larger than the automatic one) is refused when the scene is planned, with the largest
+        valid value (docs/physics.md (M1')).
     tubes_per_object : int
         Objects (Mitsuba shapes) smaller than 8 default ray tubes are traced with tubes
         ``size / tubes_per_object`` wide (docs/physics.md (T2)); 0 = no refinement.
@@ -70,6 +74,8 @@ class TraceSettings:
         Pulses of a sub-aperture, which share one trace of the ray tubes (docs/physics.md (T3)),
         [0, 65536]; 1 = every pulse traced on its own (the reference); 0 = automatic
         (:func:`sarmitsuba.tracing.driver.trace.pulses_per_trace`).
+        Its range is its bound: the boundaries' motion (M8) keeps even one trace of the whole
+        aperture close to per-pulse tracing (docs/physics.md (T3)).
     cancel_interior : bool
         Skip the PO terms that neighbouring tubes cancel exactly (docs/physics.md (PO5)); false
         evaluates every term (slower; the reference the cancellation is checked against).

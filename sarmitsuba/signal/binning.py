@@ -26,12 +26,12 @@ from ..core.constants import SPEED_OF_LIGHT
 from ..tracing.deposit.fast_time import SPECTRAL_ORDERS, order_factor
 from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry
-from ..core.raw import RawData
+from ..core.raw import RawData, RawDataError
 from .signal_model import received_chirp_spectrum
 from ..tracing.driver.trace import PathList, TraceResult
 from ..scene.trace_inputs import FastTimeWindow
 
-__all__ = ["compressed_pulse_spectrum", "exact_compress", "range_compress", "range_compress_adjoint", "raw_data_adjoint",
+__all__ = ["check_samples", "MAX_SAMPLE", "compressed_pulse_spectrum", "exact_compress", "range_compress", "range_compress_adjoint", "raw_data_adjoint",
            "reference_carrier_phase", "to_raw_data"]
 
 #: Pulses filtered per block in :func:`range_compress`. Its temporaries are a few
@@ -221,6 +221,31 @@ def raw_data_adjoint(samples_gradient: np.ndarray, reference_length: np.ndarray,
     return range_compress_adjoint(gradient, reference_length, window, params.frequency, params.bandwidth, n_pad, chirp)
 
 
+#: The largest sample magnitude the raw data may hold: ``sqrt`` of float32's largest value
+#: (1.8e19), so that a sample's power ``|x|^2``, which images and energies take in float32, is
+#: finite. A physical render stays many decades below (unit-free amplitudes are RCS-like, sqrt(m^2);
+#: absolute radiometry gives sqrt(W)).
+MAX_SAMPLE = float(np.sqrt(np.finfo(np.float32).max))
+
+
+def check_samples(data: np.ndarray, metadata: dict) -> None:
+    """Raise RawDataError when the traced samples are not finite or exceed :data:`MAX_SAMPLE`
+    (a setting outside its approximation's validity, or a tracer fault), before anything is written."""
+    magnitude = np.abs(data)
+    bad = ~(magnitude <= MAX_SAMPLE)                 # NaN, Inf and overflow alike
+    if not bad.any():
+        return
+    pulse, sample = np.unravel_index(int(np.argmax(bad)), data.shape)
+    settings = metadata.get("settings", {}) if isinstance(metadata, dict) else {}
+    given = ", ".join(f"{k} = {settings[k]}" for k in ("patch_size", "ray_spacing", "oversample", "pulses_per_trace",
+                                                       "max_depth") if k in settings)
+    raise RawDataError(
+        f"the traced raw data have {int(bad.sum())} samples that are not finite or exceed {MAX_SAMPLE:.3g} "
+        f"(their power would overflow float32), the first at (pulse {pulse}, sample {sample}): the render is refused "
+        f"and nothing is written (integrator settings: {given or 'none recorded'}); set patch_size, ray_spacing and "
+        "pulses_per_trace to 0 (automatic, within their approximations' validity) and report the scene if it persists")
+
+
 def to_raw_data(contributions: "np.ndarray | PathList", result: TraceResult, window: FastTimeWindow,
                 params: RadarParameters, geometry: AcquisitionGeometry, metadata: dict,
                 noise_seed: int | None = None) -> RawData:
@@ -233,25 +258,27 @@ def to_raw_data(contributions: "np.ndarray | PathList", result: TraceResult, win
     """
     from ..scene.radar_equation import radar_equation
     from .radiometry import thermal_noise
-    chirped = params.output == "raw"
-    if isinstance(contributions, PathList):
-        if chirped:
-            raise ParameterError("range_kernel = 'exact' evaluates range-compressed samples; "
-                                 "use it with sensor output = 'compressed' (or range_kernel linear|sinc for raw)")
-        data = exact_compress(contributions, len(result.reference_length), result.reference_length, window,
-                              params.frequency, params.bandwidth)
-    else:
-        data = range_compress(contributions, result.reference_length, window, params.frequency, params.bandwidth,
-                              chirp=(params.pulse_length, params.chirp_rate) if chirped else None)
-    equation = radar_equation(params)
-    if equation is not None:
-        scale = equation.amplitude_scale(0.5 * result.reference_length)        # float64 [n_pulses]
-        data = (data * scale[:, None]).astype(np.complex64)
-        metadata = {**metadata, "units": "sqrt(W) at the receiver, unit-energy matched filter"}
-        if equation.noise_power > 0 and noise_seed is not None:
-            data += thermal_noise(data.shape, equation.noise_power, params.sampling_rate, params.bandwidth,
-                                  noise_seed)
-            metadata = {**metadata, "noise_power_w": equation.noise_power}
+    with np.errstate(over="ignore", invalid="ignore"):        # refused below, with the reason
+        chirped = params.output == "raw"
+        if isinstance(contributions, PathList):
+            if chirped:
+                raise ParameterError("range_kernel = 'exact' evaluates range-compressed samples; "
+                                     "use it with sensor output = 'compressed' (or range_kernel linear|sinc for raw)")
+            data = exact_compress(contributions, len(result.reference_length), result.reference_length, window,
+                                  params.frequency, params.bandwidth)
+        else:
+            data = range_compress(contributions, result.reference_length, window, params.frequency, params.bandwidth,
+                                  chirp=(params.pulse_length, params.chirp_rate) if chirped else None)
+        equation = radar_equation(params)
+        if equation is not None:
+            scale = equation.amplitude_scale(0.5 * result.reference_length)        # float64 [n_pulses]
+            data = (data * scale[:, None]).astype(np.complex64)
+            metadata = {**metadata, "units": "sqrt(W) at the receiver, unit-energy matched filter"}
+            if equation.noise_power > 0 and noise_seed is not None:
+                data += thermal_noise(data.shape, equation.noise_power, params.sampling_rate, params.bandwidth,
+                                      noise_seed)
+                metadata = {**metadata, "noise_power_w": equation.noise_power}
+    check_samples(data, metadata)
     return RawData(
         data=data, fast_time=window.fast_time, pulse_time=geometry.pulse_time.copy(),
         tx_position=geometry.positions.copy(), rx_position=geometry.rx_positions.copy(),

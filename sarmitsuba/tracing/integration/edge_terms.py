@@ -20,9 +20,26 @@ from . import jones as pol
 from ..device import device_array
 from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW, TRANSITION_SERIES
 
-__all__ = ["EdgeTerms", "boundary_clearance", "boundary_step", "fringe_coefficients", "sinc", "x_dsinc"]
+__all__ = ["EdgeTerms", "boundary_clearance", "boundary_step", "fringe_coefficients", "sinc", "x_dsinc",
+           "end_slope", "MIN_END_ALPHA"]
 
 _SMALL = 1e-4
+
+#: The least ``|alpha| = |k u . a| / 2`` a split segment's end is evaluated with, in its
+#: ``1 / (u . a)`` (docs/physics.md (M5), (E4)). The split is decided at the segment's midpoint (or
+#: its three views); the end's own ``alpha`` differs from the midpoint's by up to twice the patch's
+#: quadratic phase (M1), at most ``pi / 2`` for a valid ``patch_size``, so the end of a split
+#: segment (``|alpha| >= 2``) keeps ``|alpha| >= 0.43`` and this floor never acts on a valid render.
+#: Beyond that bound ``u . a`` crossed zero at the end and the term reached ``1 / (k 1e-30)``: raw
+#: data 1e27 times too strong.
+MIN_END_ALPHA = 0.25
+
+
+def end_slope(ua, a_len, k):
+    """``u . a^`` at a split segment's end, its magnitude kept at least ``2 MIN_END_ALPHA / (k |a|)``
+    (its sign kept; zero counts as positive)."""
+    floor = 2.0 * MIN_END_ALPHA / (k * dr.maximum(a_len, 1e-30))
+    return dr.select(ua >= 0.0, dr.maximum(ua, floor), dr.minimum(ua, -floor))
 
 
 def sinc(x):
@@ -157,7 +174,7 @@ class EdgeTerms:
         a_len = dr.norm(data["edge"])
         ua = dr.dot(u, data["edge"] / dr.maximum(a_len, 1e-30))
         sign = dr.select(start, 1.0, -1.0)
-        split_value = mi.Complex2f(0.0, -sign / (k * dr.select(dr.abs(ua) > 1e-30, ua, 1e-30)))
+        split_value = mi.Complex2f(0.0, -sign / (k * end_slope(ua, a_len, k)))
         alpha = 0.5 * k * ua * a_len
         s1 = x_dsinc(alpha)
         value = dr.select(split, split_value, mi.Complex2f(a_len * (sinc(alpha) - s1), 0.0))

@@ -35,7 +35,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..deposit.fast_time import SPECTRAL_ORDERS
-from .edge_terms import EdgeTerms, sinc, x_dsinc
+from .edge_terms import EdgeTerms, end_slope, sinc, x_dsinc
 from ..device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
@@ -422,7 +422,7 @@ class PatchTerms:
         cross = dr.dot(n, dr.cross(ut, a_hat))
         safe_ut2 = dr.maximum(ut2, 1e-30)
         sign = dr.select((kind == SPLIT_START) | (kind == OPEN_START), 1.0, -1.0)
-        split_value = mi.Complex2f(sign * cross / (k * k * safe_ut2 * dr.select(dr.abs(ua) > 1e-30, ua, 1e-30)), 0.0)
+        split_value = mi.Complex2f(sign * cross / (k * k * safe_ut2 * end_slope(ua, a_len, k)), 0.0)
         alpha = 0.5 * k * ua * a_len
         sinc_base = mi.Complex2f(0.0, cross * a_len / (k * safe_ut2))
         s1 = x_dsinc(alpha)
