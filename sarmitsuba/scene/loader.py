@@ -330,9 +330,9 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
     saved = [str(resolver[i]) for i in range(len(resolver))]
     try:
         if offset is None:
-            return mi.load_file(str(path), optimize=False)
+            return _check_ids(mi.load_file(str(path), optimize=False), path)
         resolver.prepend(str(path.parent.resolve()))
-        return mi.load_string(_shifted_xml(path, offset), optimize=False)
+        return _check_ids(mi.load_string(_shifted_xml(path, offset), optimize=False), path)
     except (RuntimeError, ET.ParseError) as exc:
         file, line, message = _located(exc)
         where = "" if line is None else (f", line {line}" if file is None or Path(file) == path
@@ -501,6 +501,23 @@ def _shape_frame_of(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     if shape.is_mesh() and shape.vertex_count() > 0:
         return shape_frame(np.array(shape.vertex_positions_buffer(), np.float64))
     return np.array(shape.bbox().min, np.float64), np.eye(3)
+
+
+def _check_ids(scene: Any, path: Path) -> Any:
+    """``scene``, once every shape's and BSDF's id can be read. Mitsuba reads an XML file without
+    an encoding declaration as UTF-8 and keeps any other byte as it is (a Latin-1 ``0xE9``), so
+    such an id cannot reach Python: refused, naming the file and the fix."""
+    for index, shape in enumerate(scene.shapes()):
+        for what, obj in (("shape", shape), ("BSDF of shape", shape.bsdf())):
+            try:
+                obj.id()
+            except UnicodeDecodeError as exc:
+                raise SceneError(
+                    f"scene {str(path)!r}: the id of {what} #{index} ({exc.object.decode('latin-1')!r} read as "
+                    "Latin-1) is not UTF-8, the encoding of an XML file without a declaration: declare it "
+                    "(<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?> as the first line) or save the file "
+                    "as UTF-8") from None
+    return scene
 
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:

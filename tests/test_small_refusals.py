@@ -1,0 +1,60 @@
+"""Small faults that reached the user as a traceback, a misleading line or silence.
+
+Each must give one clear line naming the parameter or file and the fix (exit 2 where it is an
+error): a Latin-1 byte in a shape id, a raw/image file given to ``info``, a derivative with
+respect to a PEC material, a UTM-sized scene with ``scene_center`` at the origin, ``info``'s
+time estimates (for which machine), and a ``scene_center`` far from every shape.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sarmitsuba.cli import main
+from sarmitsuba.scene.loader import builtin_scenes
+
+DIHEDRAL = builtin_scenes()["dihedral"]
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err and 'File "' not in err, err
+    assert err.startswith("error: ") and "\n" not in err, err
+    return err
+
+
+# ---- a Latin-1 byte in a shape id -----------------------------------------------------------------
+
+def _dihedral_bytes() -> bytes:
+    return Path(DIHEDRAL).read_bytes()
+
+
+def test_latin1_shape_id_without_declaration_names_the_file_and_the_fix(tmp_path, capsys):
+    """0xE9 in an id, no encoding declared: Mitsuba reads the file as UTF-8 and keeps the byte,
+    which Python cannot decode; one line naming the file, the id and both fixes."""
+    scene = tmp_path / "latin.xml"
+    scene.write_bytes(_dihedral_bytes().replace(b'id="wall"', b'id="mur_\xe9t\xe9"'))
+    assert main(["info", str(scene)]) == 2
+    err = _one_line_error(capsys)
+    assert str(scene) in err and "mur_été" in err
+    assert 'encoding="ISO-8859-1"' in err and "UTF-8" in err
+
+
+@pytest.mark.parametrize("variant", ["declared", "utf16", "comment"])
+def test_latin1_that_is_declared_or_in_a_comment_works(tmp_path, capsys, variant):
+    """The same id with encoding="ISO-8859-1" declared, the file in UTF-16, and a Latin-1 byte
+    in a comment only: all load, and the id arrives as written."""
+    text = _dihedral_bytes().replace(b'id="wall"', b'id="mur_\xe9t\xe9"').decode("latin-1")
+    scene = tmp_path / f"{variant}.xml"
+    if variant == "declared":
+        scene.write_bytes(('<?xml version="1.0" encoding="ISO-8859-1"?>\n' + text).encode("latin-1"))
+    elif variant == "utf16":
+        scene.write_bytes(('<?xml version="1.0" encoding="UTF-16"?>\n' + text).encode("utf-16"))
+    else:
+        scene.write_bytes(_dihedral_bytes().replace(b"Dihedral:", b"Di\xe8dre:"))
+    from sarmitsuba.scene.loader import load_scene
+    from sarmitsuba.scene.meshcheck import shape_label
+    loaded = load_scene(str(scene))
+    labels = {shape_label(shape, k) for k, shape in enumerate(loaded.scene.shapes())}
+    assert labels == ({"floor", "wall"} if variant == "comment" else {"floor", "mur_été"})
