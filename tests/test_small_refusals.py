@@ -58,3 +58,24 @@ def test_latin1_that_is_declared_or_in_a_comment_works(tmp_path, capsys, variant
     loaded = load_scene(str(scene))
     labels = {shape_label(shape, k) for k, shape in enumerate(loaded.scene.shapes())}
     assert labels == ({"floor", "wall"} if variant == "comment" else {"floor", "mur_été"})
+
+
+# ---- info of a product file -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("name, head", [("raw.npz", None), ("raw.cphd", b"CPHD/1.1.0\n"),
+                                        ("image.nitf", b"NITF02.10"), ("renamed.xml", None)])
+def test_info_of_raw_or_image_file_says_it_takes_a_scene(tmp_path, capsys, name, head):
+    """info of raw.npz (a zip; also under an .xml name), a CPHD or a NITF file: not Mitsuba's
+    "No document element found" but one line saying it is not a scene, and where it goes."""
+    import numpy as np
+    path = tmp_path / name
+    if head is None:
+        with open(path, "wb") as f:
+            np.savez(f, data=np.zeros(4))
+    else:
+        path.write_bytes(head + b"\0" * 64)
+    assert main(["info", str(path)]) == 2
+    err = _one_line_error(capsys)
+    assert str(path) in err and "not a scene" in err and "info" in err
+    assert "focus" in err and "analyze" in err
+    assert "No document element" not in err

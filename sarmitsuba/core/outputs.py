@@ -46,7 +46,7 @@ import numpy as np
 from .folder_lock import STAGING_PREFIX, hold_folder
 
 __all__ = ["OutputDirectory", "WriteError", "atomic_savez", "atomic_write", "check_output_dir", "json_default",
-           "read_manifest", "MANIFEST_FILE", "MANIFEST_KEY"]
+           "product_kind", "read_manifest", "MANIFEST_FILE", "MANIFEST_KEY"]
 
 #: The file that lists a render's products, and its key (a list of file names).
 MANIFEST_FILE = "summary.json"
@@ -229,6 +229,30 @@ def _read_json(path: Path) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+#: Leading bytes and file-name endings of the files a run writes, by what they hold.
+_PRODUCT_MAGIC = ((b"PK\x03\x04", (".npz",), "a NumPy archive (raw data or an image)"),
+                  (b"CPHD/", (".cphd",), "CPHD phase history (raw data)"),
+                  (b"NITF", (".nitf", ".ntf"), "a NITF file (a SICD image)"),
+                  (b"II*\x00", (".tif", ".tiff"), "a GeoTIFF image"), (b"MM\x00*", (), "a GeoTIFF image"),
+                  (b"\x89PNG", (".png",), "a PNG picture"), (b"v/1\x01", (".exr",), "an OpenEXR image"))
+
+
+def product_kind(path: str | os.PathLike) -> str | None:
+    """What the file ``path`` holds when it is a product a run writes (raw data, an image, a
+    picture), by its first bytes or, when it cannot be read, its name; None for anything else
+    (a scene XML). Raises nothing."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError:
+        head = None
+    suffix = Path(path).suffix.lower()
+    for magic, suffixes, kind in _PRODUCT_MAGIC:
+        if (head.startswith(magic) if head is not None else suffix in suffixes):
+            return kind
+    return None
 
 
 def check_output_dir(out_dir: str | os.PathLike) -> Path:
