@@ -79,3 +79,28 @@ def test_info_of_raw_or_image_file_says_it_takes_a_scene(tmp_path, capsys, name,
     assert str(path) in err and "not a scene" in err and "info" in err
     assert "focus" in err and "analyze" in err
     assert "No document element" not in err
+
+
+# ---- a derivative with respect to a PEC material --------------------------------------------------
+
+@pytest.mark.parametrize("api", ["gradients", "raw_gradient"])
+def test_pec_material_parameter_is_refused_before_any_tracing(monkeypatch, api):
+    """dihedral's "metal" is pec: it has no permittivity or conductivity to move. The refusal
+    must come before the forward render (gradients) or the adjoint trace (raw_gradient): both
+    are replaced by a failure here, so a late refusal fails the test."""
+    import numpy as np
+    from sarmitsuba import derivatives
+    from sarmitsuba.core.radar import ParameterError
+
+    def traced(*args, **kwargs):
+        raise AssertionError("traced before the parameters were checked")
+    monkeypatch.setattr(derivatives, "_values", traced)
+    monkeypatch.setattr(derivatives, "trace", traced)
+    parameter = derivatives.MaterialParameter("metal", "conductivity")
+    with pytest.raises(ParameterError, match="(?i)pec") as caught:
+        if api == "gradients":
+            derivatives.gradients("dihedral", derivatives.AmplitudeLoss(np.zeros((8, 8))), [parameter],
+                                  image_size=(8, 8), sensor_overrides={"n_pulses": 8})
+        else:
+            derivatives.raw_gradient("dihedral", np.zeros((8, 8)), [parameter], sensor_overrides={"n_pulses": 8})
+    assert "metal" in str(caught.value)
