@@ -104,3 +104,56 @@ def test_pec_material_parameter_is_refused_before_any_tracing(monkeypatch, api):
         else:
             derivatives.raw_gradient("dihedral", np.zeros((8, 8)), [parameter], sensor_overrides={"n_pulses": 8})
     assert "metal" in str(caught.value)
+
+
+# ---- scene_center far from the shapes -------------------------------------------------------------
+# The dihedral's shapes span x -10..10, y 0..10, z 0..5 m (scenes/dihedral.xml): middle (0, 5, 2.5).
+
+def _dihedral_moved(tmp_path, x: float = 0.0, y: float = 0.0, center: str = "0, 0, 0") -> Path:
+    text = Path(DIHEDRAL).read_text()
+    if x or y:
+        text = text.replace("</transform>", f'    <translate x="{x}" y="{y}"/>\n        </transform>')
+    path = tmp_path / "moved.xml"
+    path.write_text(text.replace('name="scene_center" value="0, 0, 0"', f'name="scene_center" value="{center}"'))
+    return path
+
+
+def test_utm_scene_with_scene_center_at_the_origin_leads_with_scene_center(tmp_path, capsys):
+    """Shapes at UTM coordinates (691 km, 5334 km), scene_center left at 0: the fix named first
+    is scene_center = the shapes' middle, as numbers; raising the altitude (to 5334 km) second."""
+    path = _dihedral_moved(tmp_path, 691000.0, 5334000.0)
+    assert main(["info", str(path)]) == 2
+    err = _one_line_error(capsys)
+    fix = "set scene_center = 691000.0, 5334005.0, 2.5"
+    assert fix in err and "raise altitude" in err
+    assert err.index(fix) < err.index("raise altitude")
+
+
+def _acquisition_warnings(path: Path) -> list[str]:
+    import warnings
+    from sarmitsuba.scene.loader import load_scene
+    from sarmitsuba.scene.planning import AcquisitionWarning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_scene(str(path))
+    return [str(w.message) for w in caught if issubclass(w.category, AcquisitionWarning)]
+
+
+def test_scene_center_400_m_from_every_shape_warns_with_the_middle(tmp_path):
+    """scene_center 400 m off (390 m from the box's nearest face y = 10): one warning naming
+    scene_center, the distance and the shapes' middle as the fix."""
+    found = [m for m in _acquisition_warnings(_dihedral_moved(tmp_path, center="0, 400, 0")) if "scene_center" in m]
+    assert len(found) == 1, found
+    assert "390.0 m" in found[0] and "set scene_center = 0.0, 5.0, 2.5" in found[0]
+
+
+@pytest.mark.parametrize("center", ["0, 5, 2.5", "0, 12, 0", "0, 30, 0", "25, 0, 0"])
+def test_scene_center_near_the_shapes_does_not_warn(tmp_path, center):
+    """Inside the box, or outside by less than 16 ground-range cells (16 x 1.41 m = 22.6 m at
+    150 MHz and 45 deg; the box's half diagonal is 11.5 m): no warning."""
+    assert not [m for m in _acquisition_warnings(_dihedral_moved(tmp_path, center=center)) if "scene_center" in m]
+
+
+def test_scene_center_just_beyond_the_margin_warns(tmp_path):
+    """40 m beyond the box's face (y = 50): past the 22.6 m margin."""
+    assert [m for m in _acquisition_warnings(_dihedral_moved(tmp_path, center="0, 50, 0")) if "scene_center" in m]
