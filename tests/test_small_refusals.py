@@ -157,3 +157,22 @@ def test_scene_center_near_the_shapes_does_not_warn(tmp_path, center):
 def test_scene_center_just_beyond_the_margin_warns(tmp_path):
     """40 m beyond the box's face (y = 50): past the 22.6 m margin."""
     assert [m for m in _acquisition_warnings(_dihedral_moved(tmp_path, center="0, 50, 0")) if "scene_center" in m]
+
+
+# ---- info's time estimates: for which machine -----------------------------------------------------
+
+def test_info_says_its_times_are_for_an_idle_two_core_machine(capsys, monkeypatch):
+    """The rates are calibrated on 2 threads of a 2-core VM (analysis/cost.py, CAST_RATE_ANCHORS)
+    and not scaled: info says so in text and JSON, with this machine's cores and load."""
+    import json
+    import os
+    monkeypatch.setattr(os, "cpu_count", lambda: 7)
+    monkeypatch.setattr(os, "getloadavg", lambda: (5.25, 0.0, 0.0))
+    assert main(["info", "dihedral"]) == 0
+    text = capsys.readouterr().out
+    cost = text.split("Estimated cost", 1)[1].split("Warnings", 1)[0]
+    line = next(line for line in cost.splitlines() if "idle" in line)
+    assert "idle 2-core" in line and "this machine: 7 cores, load average 5.2" in line
+    assert main(["info", "dihedral", "--json"]) == 0
+    basis = json.loads(capsys.readouterr().out)["cost"]["time_basis"]
+    assert "idle 2-core" in basis and "7 cores" in basis
