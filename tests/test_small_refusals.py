@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sarmitsuba.cli import main
@@ -41,23 +42,35 @@ def test_latin1_shape_id_without_declaration_names_the_file_and_the_fix(tmp_path
     assert 'encoding="ISO-8859-1"' in err and "UTF-8" in err
 
 
-@pytest.mark.parametrize("variant", ["declared", "utf16", "comment"])
-def test_latin1_that_is_declared_or_in_a_comment_works(tmp_path, capsys, variant):
+def _utm(data: bytes) -> bytes:
+    """The scene moved to UTM-sized coordinates (traced in a shifted local frame, whose XML the
+    loader rewrites), scene_center with it."""
+    return (data.replace(b"</transform>", b'    <translate x="691000" y="5334000"/>\n        </transform>')
+            .replace(b'name="scene_center" value="0, 0, 0"', b'name="scene_center" value="691000, 5334000, 0"'))
+
+
+@pytest.mark.parametrize("utm", [False, True])
+@pytest.mark.parametrize("variant", ["declared", "utf16", "comment", "comment_version_only"])
+def test_latin1_that_is_declared_or_in_a_comment_works(tmp_path, capsys, variant, utm):
     """The same id with encoding="ISO-8859-1" declared, the file in UTF-16, and a Latin-1 byte
-    in a comment only: all load, and the id arrives as written."""
-    text = _dihedral_bytes().replace(b'id="wall"', b'id="mur_\xe9t\xe9"').decode("latin-1")
+    in a comment only (with or without a declaration naming no encoding), as Mitsuba takes them:
+    all load, also far from the origin, and the id arrives as written."""
+    data = _utm(_dihedral_bytes()) if utm else _dihedral_bytes()
+    text = data.replace(b'id="wall"', b'id="mur_\xe9t\xe9"').decode("latin-1")
     scene = tmp_path / f"{variant}.xml"
     if variant == "declared":
         scene.write_bytes(('<?xml version="1.0" encoding="ISO-8859-1"?>\n' + text).encode("latin-1"))
     elif variant == "utf16":
         scene.write_bytes(('<?xml version="1.0" encoding="UTF-16"?>\n' + text).encode("utf-16"))
     else:
-        scene.write_bytes(_dihedral_bytes().replace(b"Dihedral:", b"Di\xe8dre:"))
+        head = b'<?xml version="1.0"?>\n' if variant == "comment_version_only" else b""
+        scene.write_bytes(head + data.replace(b"Dihedral:", b"Di\xe8dre:"))
     from sarmitsuba.scene.loader import load_scene
     from sarmitsuba.scene.meshcheck import shape_label
     loaded = load_scene(str(scene))
     labels = {shape_label(shape, k) for k, shape in enumerate(loaded.scene.shapes())}
-    assert labels == ({"floor", "wall"} if variant == "comment" else {"floor", "mur_été"})
+    assert labels == ({"floor", "wall"} if variant.startswith("comment") else {"floor", "mur_été"})
+    assert bool(np.any(loaded.offset)) == utm
 
 
 # ---- info of a product file -----------------------------------------------------------------------

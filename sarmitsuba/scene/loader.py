@@ -351,7 +351,13 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
 
 
 def _shifted_xml(path: Path, offset: np.ndarray) -> str:
-    root = ET.parse(path).getroot()
+    data = path.read_bytes()
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError:      # as Mitsuba, accept a non-UTF-8 byte (a Latin-1 comment) where none is declared
+        if data.startswith((b"\xef\xbb\xbf", b"\xff\xfe", b"\xfe\xff")) or re.match(rb"<\?xml[^>]*encoding", data):
+            raise
+        root = ET.fromstring(data.decode("latin-1"))     # (ids were checked by the first load)
     for shape in root.findall("shape"):
         transform = shape.find("transform[@name='to_world']")
         if transform is None:
