@@ -158,6 +158,22 @@ def test_scene_center_400_m_from_every_shape_warns_with_the_middle(tmp_path):
     found = [m for m in _acquisition_warnings(_dihedral_moved(tmp_path, center="0, 400, 0")) if "scene_center" in m]
     assert len(found) == 1, found
     assert "390.0 m" in found[0] and "set scene_center = 0.0, 5.0, 2.5" in found[0]
+    assert "track" not in found[0]          # across track: the automatic track barely grows (219 -> 255 pulses)
+
+
+def test_scene_center_400_m_along_track_also_names_the_longer_track(tmp_path):
+    """Along track (x, heading 0) the automatic track grows tenfold (219 -> 2219 pulses, info):
+    the warning says so; with n_pulses given, the track is the user's and is not mentioned."""
+    path = _dihedral_moved(tmp_path, center="400, 0, 0")
+    found = [m for m in _acquisition_warnings(path) if "scene_center" in m]
+    assert len(found) == 1 and "390.0 m" in found[0] and "automatic track longer" in found[0]
+    from sarmitsuba.scene.loader import load_scene
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_scene(str(path), sensor_overrides={"n_pulses": 2400})
+    given = [str(w.message) for w in caught if "scene_center" in str(w.message)]
+    assert len(given) == 1 and "track" not in given[0]
 
 
 @pytest.mark.parametrize("center", ["0, 5, 2.5", "0, 12, 0", "0, 30, 0", "25, 0, 0"])

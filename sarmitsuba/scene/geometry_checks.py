@@ -84,10 +84,14 @@ def check_geometry(params: RadarParameters, lo: np.ndarray, hi: np.ndarray, shap
         _check_track(params, lo, hi, points, starts, names, shown)
     if outside is not None:
         distance, middle = outside
+        track, _ = track_frame(params)
+        lo_p, hi_p = points.min(axis=0), points.max(axis=0)
+        along = abs(float((0.5 * (lo_p + hi_p) - np.asarray(params.scene_center, float)) @ track))
+        longer = automatic_track and params.mode == "stripmap" and along > 0.5 * float(np.abs(track) @ (hi_p - lo_p))
         warnings.warn(f"scene_center = {_xyz(shown)} lies {_distance(distance)} from the nearest point of the shapes' "
-                      f"box: the image grid (centred on it) is mostly empty and the track longer than the scene "
-                      f"needs; set scene_center = {_xyz(middle)}, the middle of the shapes' box", AcquisitionWarning,
-                      stacklevel=3)
+                      f"box: the image grid (centred on it) is mostly empty"
+                      f"{' and the automatic track longer than the shapes need' if longer else ''}; set scene_center = "
+                      f"{_xyz(middle)}, the middle of the shapes' box", AcquisitionWarning, stacklevel=3)
 
 
 def center_outside(params: RadarParameters, lo: np.ndarray, hi: np.ndarray,
