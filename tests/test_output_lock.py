@@ -167,3 +167,30 @@ def test_an_existing_file_as_the_folder_is_refused(tmp_path):
     with pytest.raises(OSError, match="existing file"):
         with hold_folder(target):
             pass
+
+
+def test_scene_from_footprints_holds_its_folder_and_clears_a_killed_runs_staging(tmp_path):
+    """write_city (``scene from-footprints --out``) stages in the same way: a leftover staging
+    folder goes, and the folder is refused while another process holds it."""
+    from sarmitsuba.scene.city import build_city, write_city
+    from sarmitsuba.scene.footprints import parse_footprints
+    ring = [[[-10.0, -5.0], [10.0, -5.0], [10.0, 5.0], [-10.0, 5.0], [-10.0, -5.0]]]
+    metres = 1.0 / 111_000.0                       # a 20 x 10 m block near (48 N, 11 E), in degrees
+    ring = [[[11.0 + x * metres, 48.0 + y * metres] for x, y in ring[0]]]
+    data = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"height": 10}, "geometry": {"type": "Polygon", "coordinates": ring}}]}
+    out = tmp_path / "city"
+    (out / ".staging-old").mkdir(parents=True)
+    (out / ".staging-old" / "scene.xml").write_text("<scene/>")
+    assert write_city(build_city(parse_footprints(data)), out) == out / "scene.xml"
+    assert not list(out.glob(".staging-*")) and (out / "meshes").is_dir()
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from sarmitsuba.core.folder_lock import "
+                               "hold_folder\nwith hold_folder(sys.argv[1]):\n    print('held', flush=True); "
+                               "time.sleep(60)", str(out)], env=_env(), stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(OSError, match=f"in use by another run \\(pid {holder.pid}\\)"):
+            write_city(build_city(parse_footprints(data)), out)
+    finally:
+        holder.kill()
+        holder.wait(timeout=30)
