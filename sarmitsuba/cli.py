@@ -509,7 +509,7 @@ def _main(argv: list[str] | None) -> int:
         return 2
     interrupts = _Interrupts()
     try:
-        with interrupts:
+        with interrupts, _output_folder(args):
             code = {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
                     "info": _info, "bench": _bench, "interferogram": _interferogram,
                     "scene": _scene}[args.command](args)
@@ -524,6 +524,17 @@ def _main(argv: list[str] | None) -> int:
             raise
         print(f"error: {exc}", file=sys.stderr)
         return 2
+
+
+def _output_folder(args: argparse.Namespace):
+    """Refuse inputs inside a killed run's staging folder; hold the lock of the folder the command
+    writes into for the whole command (a render and its figures), before anything is traced."""
+    from contextlib import nullcontext
+    from .core.folder_lock import hold_folder, refuse_staging
+    refuse_staging(*(getattr(args, name, None) for name in ("scene", "raw", "image", "primary", "secondary")))
+    if args.command in ("render", "preview"):
+        return hold_folder(args.out or _default_out(args.scene))
+    return hold_folder(args.out) if args.command in ("focus", "interferogram") else nullcontext()
 
 
 def _dr_jit_interrupt(exc: BaseException) -> bool:

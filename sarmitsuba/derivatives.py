@@ -200,6 +200,21 @@ def _material(scene, table, name: str, frequency: float):
     raise ParameterError(f"material {name!r} is not used by any shape")
 
 
+def _material_tangents(loaded, setup, parameters) -> dict:
+    """MaterialParameter -> (table row, its tangent), after checking every parameter against the
+    scene (a material that is not there, a ``pec`` one, a shape that is not a mesh), so that a
+    refusal comes before any tracing."""
+    for parameter in parameters:
+        if isinstance(parameter, ShapeParameter):
+            parameter.index(loaded)
+    rows = {}
+    for parameter in parameters:
+        if isinstance(parameter, MaterialParameter):
+            row, material, bsdf = _material(loaded.scene, setup.table, parameter.material, loaded.params.frequency)
+            rows[parameter] = row, row_tangent(material, bsdf, parameter.name, loaded.params.frequency, TABLE_SIZE)
+    return rows
+
+
 def raw_derivative(source: Any, parameter, *, sensor_overrides: Mapping[str, Any] | None = None,
                    integrator_overrides: Mapping[str, Any] | None = None, at: Mapping | None = None) -> "RawData | dict":
     """``d raw / d p``: the derivative of the scene's raw data with respect to ``parameter``.
@@ -325,9 +340,8 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
     params, settings = loaded.params, loaded.settings
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
+    rows = _material_tangents(loaded, setup, parameters)          # refused before tracing
     gradients_ = _channel_gradients(gradient, params.channels, (geometry.positions.shape[0], window.n_samples))
-    rows = {p: _material(loaded.scene, setup.table, p.material, params.frequency) for p in parameters
-            if isinstance(p, MaterialParameter)}
     shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
     kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects,
                            [p.move(loaded) for p in shapes])
@@ -347,9 +361,8 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
               run_batches=run_batches)
     grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}
     out = {}
-    for parameter, (row, material, bsdf) in rows.items():
-        flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row,
-                             row_tangent(material, bsdf, parameter.name, params.frequency, TABLE_SIZE))
+    for parameter, (row, tangent) in rows.items():
+        flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row, tangent)
         out[parameter] = float(sum(grads[name] @ values for name, values in flat.items()))
     for parameter, total in zip(shapes, kernel.moved.totals if shapes else ()):
         out[parameter] = float(total)
@@ -438,6 +451,7 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     if len(params.channels) != 1:
         raise ParameterError("sarmitsuba.gradients takes a loss on one channel's image; for quad-pol, set "
                              "polarization to one channel, or use raw_gradient with a gradient per channel")
+    _material_tangents(loaded, setup, parameters)      # a pec material refused before the forward render
     shapes = bool(at) or any(isinstance(p, ShapeParameter) for p in parameters)
     raw = _values(source, loaded, setup, shapes)
     grid = sized_grid(params, setup.geometry, image_size, image_spacing)

@@ -541,7 +541,8 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
         f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "
-        f"pixel-pulses in the beam; direct backprojection ~ {_duration(c.direct_backprojection_time_s)})"]
+        f"pixel-pulses in the beam; direct backprojection ~ {_duration(c.direct_backprojection_time_s)})",
+        c.time_basis]
 
 
 def _db(x: float) -> float:

@@ -260,6 +260,27 @@ class CostEstimate:
     mesh_host_time_s: float = 0.0
     reach_triangles_total: float = 0.0
     clutter_scatterer_pulses: float = 0.0
+    time_basis: str = ""
+
+    def __post_init__(self):
+        if not self.time_basis:
+            object.__setattr__(self, "time_basis", time_basis())
+
+
+#: What every time of :class:`CostEstimate` assumes: the calibration of the rates above.
+TIME_BASIS = ("times are for an idle 2-core x86-64 machine (2 Dr.Jit threads) at the rates calibrated on one "
+              "(docs/design.md section 10), within a factor of 2: other processes running (a second render) "
+              "lengthen them, and they are not scaled to this machine's cores")
+
+
+def time_basis() -> str:
+    """:data:`TIME_BASIS`, and this machine's cores and load average (where the system gives one)."""
+    cores = os.cpu_count() or 1
+    try:
+        load = f", load average {os.getloadavg()[0]:.1f}"
+    except (AttributeError, OSError):
+        load = ""
+    return f"{TIME_BASIS}; this machine: {cores} cores{load}"
 
 
 def synthetic_aperture(p: RadarParameters) -> tuple[float, int]:

@@ -6,7 +6,9 @@ fails (bad input found late, a full disk, Ctrl-C) removes its staging folder and
 it created, so it leaves neither half-written files nor empty directories behind, and a disk
 error names the file the user asked for, not an internal temporary name. A failure between
 two of the final moves takes the moved files back out (earlier files of the same names that
-they replaced are lost).
+they replaced are lost). The run holds the folder's lock (:mod:`sarmitsuba.core.folder_lock`)
+while it is in the with-block, so a second run into the folder stops at once, and staging
+folders a killed run left there are removed on entry.
 
 Products (issue 28, stale products). A render owns the products it writes: its
 ``summary.json`` (:data:`MANIFEST_FILE`) lists every file it wrote under ``"files"``
@@ -41,8 +43,10 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .folder_lock import STAGING_PREFIX, hold_folder
+
 __all__ = ["OutputDirectory", "WriteError", "atomic_savez", "atomic_write", "check_output_dir", "json_default",
-           "read_manifest", "MANIFEST_FILE", "MANIFEST_KEY"]
+           "product_kind", "read_manifest", "MANIFEST_FILE", "MANIFEST_KEY"]
 
 #: The file that lists a render's products, and its key (a list of file names).
 MANIFEST_FILE = "summary.json"
@@ -70,7 +74,8 @@ class OutputDirectory:
     ValueError
         ``products`` is none of these.
     OSError
-        On entry, naming ``path``: it is an existing file, or it cannot be created or written.
+        On entry, naming ``path``: it is an existing file, or it cannot be created or written;
+        :class:`~sarmitsuba.core.folder_lock.FolderInUseError` when another run holds it.
         From :meth:`write`, naming the final file: the writer failed (for instance ``[Errno 28]``
         no space left on device).
     """
@@ -80,23 +85,20 @@ class OutputDirectory:
             raise ValueError(f"products = {products!r}; valid: None, 'replace' (a render), 'add'")
         self.path = Path(path)
         self.products = products
-        self._created: list[Path] = []
+        self._hold: Any = None
         self._staging: Path | None = None
         self._written: list[str] = []
 
     def __enter__(self) -> "OutputDirectory":
-        if self.path.exists() and not self.path.is_dir():
-            raise OSError(f"output directory {str(self.path)!r} is an existing file, not a directory: "
-                          "give --out a directory path (new or existing)")
-        missing = [p for p in (self.path, *self.path.parents) if not p.exists()]
+        hold = hold_folder(self.path)          # one run per folder (core/folder_lock.py): creates it,
+        hold.__enter__()                       # removes a killed run's staging folders
         try:
-            self.path.mkdir(parents=True, exist_ok=True)
-            self._created = missing                         # deepest first
-            self._staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=self.path))
+            self._staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=self.path))
         except OSError as exc:
-            self._remove_created()
+            hold.__exit__(None, None, None)
             raise OSError(f"output directory {str(self.path)!r} is not writable: {exc.strerror or exc}; "
                           "choose another --out") from None
+        self._hold = hold
         return self
 
     def write(self, name: str, writer: Callable[[Path], Any]) -> Path:
@@ -144,6 +146,7 @@ class OutputDirectory:
             raise
         shutil.rmtree(self._staging, ignore_errors=True)
         self._staging = None
+        self._let_go()
         for note in notes:
             warnings.warn(note, stacklevel=2)
 
@@ -190,18 +193,17 @@ class OutputDirectory:
         return kept
 
     def abandon(self) -> None:
-        """Remove the staged files, and the directories this run created if they are empty."""
+        """Remove the staged files, let go of the folder and remove the directories this run
+        created if they are empty."""
         if self._staging is not None:
             shutil.rmtree(self._staging, ignore_errors=True)
             self._staging = None
-        self._remove_created()
+        self._let_go()
 
-    def _remove_created(self) -> None:
-        for folder in self._created:                      # deepest first; only if still empty
-            try:
-                folder.rmdir()
-            except OSError:
-                break
+    def _let_go(self) -> None:
+        hold, self._hold = self._hold, None
+        if hold is not None:
+            hold.__exit__(None, None, None)
 
 
 def read_manifest(folder: str | os.PathLike) -> tuple[str, ...] | None:
@@ -227,6 +229,30 @@ def _read_json(path: Path) -> Any:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+#: Leading bytes and file-name endings of the files a run writes, by what they hold.
+_PRODUCT_MAGIC = ((b"PK\x03\x04", (".npz",), "a NumPy archive (raw data or an image)"),
+                  (b"CPHD/", (".cphd",), "CPHD phase history (raw data)"),
+                  (b"NITF", (".nitf", ".ntf"), "a NITF file (a SICD image)"),
+                  (b"II*\x00", (".tif", ".tiff"), "a GeoTIFF image"), (b"MM\x00*", (), "a GeoTIFF image"),
+                  (b"\x89PNG", (".png",), "a PNG picture"), (b"v/1\x01", (".exr",), "an OpenEXR image"))
+
+
+def product_kind(path: str | os.PathLike) -> str | None:
+    """What the file ``path`` holds when it is a product a run writes (raw data, an image, a
+    picture), by its first bytes or, when it cannot be read, its name; None for anything else
+    (a scene XML). Raises nothing."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError:
+        head = None
+    suffix = Path(path).suffix.lower()
+    for magic, suffixes, kind in _PRODUCT_MAGIC:
+        if (head.startswith(magic) if head is not None else suffix in suffixes):
+            return kind
+    return None
 
 
 def check_output_dir(out_dir: str | os.PathLike) -> Path:

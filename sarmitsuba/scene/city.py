@@ -35,6 +35,7 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from ..core import georef
+from ..core.folder_lock import STAGING_PREFIX, hold_folder
 from ..core.radar import RadarParameters
 from .buildings import building_mesh
 from .footprints import ROOF_PITCH_DEG, FootprintError, FootprintSet, building_material, read_footprints
@@ -252,26 +253,20 @@ def write_city(city: City, out: str | Path) -> Path:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OSError(f"--out {out}: an existing file, not a directory; give a folder for scene.xml and meshes/")
-    created = [p for p in (out, *out.parents) if not p.exists()]
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-    except OSError as exc:
-        raise OSError(f"--out {out}: cannot create it ({exc.strerror or exc}); choose another folder") from None
-    try:
-        (staging / "meshes").mkdir()
-        for name, mesh in [(f.slug, m) for f, m in city.buildings] + [("ground", city.ground)]:
-            lean = trimesh.Trimesh(np.asarray(mesh.vertices, np.float32), mesh.faces, process=False)
-            (staging / "meshes" / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(lean, encoding="binary"))
-        (staging / "scene.xml").write_text(_xml(city), encoding="utf-8")
-        _swap_in(staging, out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        for folder in created:
-            if folder.is_dir() and not any(folder.iterdir()):
-                folder.rmdir()
-        raise
-    shutil.rmtree(staging, ignore_errors=True)
+    with hold_folder(out):            # one run per folder: creates it (removed again if left empty), and
+        try:                          # removes the staging folders of a killed run
+            staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
+        except OSError as exc:
+            raise OSError(f"--out {out}: cannot create it ({exc.strerror or exc}); choose another folder") from None
+        try:
+            (staging / "meshes").mkdir()
+            for name, mesh in [(f.slug, m) for f, m in city.buildings] + [("ground", city.ground)]:
+                lean = trimesh.Trimesh(np.asarray(mesh.vertices, np.float32), mesh.faces, process=False)
+                (staging / "meshes" / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(lean, encoding="binary"))
+            (staging / "scene.xml").write_text(_xml(city), encoding="utf-8")
+            _swap_in(staging, out)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
     return out / "scene.xml"
 
 

@@ -2,20 +2,22 @@
 is estimated or any ray traced (docs/physics.md (G4)).
 
 :func:`check_geometry` refuses a scene beyond the radar horizon, geometry on the side the radar
-does not look (imaged as mirrored ghosts), and an automatic track that mostly sees nothing.
+does not look (imaged as mirrored ghosts), and an automatic track that mostly sees nothing; it
+warns when ``scene_center`` lies far outside the shapes' box (:func:`center_outside`).
 """
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import replace
 
 import numpy as np
 
 from ..core.geometry import acquisition_geometry, track_frame
 from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
-from .planning import beam_offsets, box_corners
+from .planning import AcquisitionWarning, beam_offsets, box_corners
 
-__all__ = ["check_geometry", "HORIZON_EARTH_RADIUS", "EMPTY_TRACK_FRACTION", "EMPTY_TRACK_PULSES"]
+__all__ = ["check_geometry", "center_outside", "CENTER_MARGIN_CELLS", "HORIZON_EARTH_RADIUS", "EMPTY_TRACK_FRACTION", "EMPTY_TRACK_PULSES"]
 
 
 # ============================================================================ geometry checks
@@ -27,6 +29,12 @@ EMPTY_TRACK_FRACTION = 0.5
 #: ... and more than this many see no geometry (below it the waste costs seconds, above it the
 #: empty track dominates the render's memory and time).
 EMPTY_TRACK_PULSES = 5000
+#: ``scene_center`` is "outside" the shapes' box (:func:`center_outside`) beyond the larger of
+#: the box's half diagonal and this many resolution cells. The image grid is centred on
+#: ``scene_center`` and reaches the box, 16 cells beyond it (focus/scene_grid.py): a centre
+#: farther from the box than its half diagonal leaves over two thirds of the grid's width
+#: empty, and below 16 cells the grid grows by less than its own margin.
+CENTER_MARGIN_CELLS = 16
 
 
 def check_geometry(params: RadarParameters, lo: np.ndarray, hi: np.ndarray, shapes: list,
@@ -70,9 +78,37 @@ def check_geometry(params: RadarParameters, lo: np.ndarray, hi: np.ndarray, shap
     if not params.straight_track:
         _check_side_curved(params, points, starts, names)
         return
-    _check_side(params, points, starts, names)
+    outside = center_outside(params, points.min(axis=0), points.max(axis=0), offset)
+    _check_side(params, points, starts, names, outside)
     if automatic_track and params.mode == "stripmap":
         _check_track(params, lo, hi, points, starts, names, shown)
+    if outside is not None:
+        distance, middle = outside
+        track, _ = track_frame(params)
+        lo_p, hi_p = points.min(axis=0), points.max(axis=0)
+        along = abs(float((0.5 * (lo_p + hi_p) - np.asarray(params.scene_center, float)) @ track))
+        longer = automatic_track and params.mode == "stripmap" and along > 0.5 * float(np.abs(track) @ (hi_p - lo_p))
+        warnings.warn(f"scene_center = {_xyz(shown)} lies {_distance(distance)} from the nearest point of the shapes' "
+                      f"box: the image grid (centred on it) is mostly empty"
+                      f"{' and the automatic track longer than the shapes need' if longer else ''}; set scene_center = "
+                      f"{_xyz(middle)}, the middle of the shapes' box", AcquisitionWarning, stacklevel=3)
+
+
+def center_outside(params: RadarParameters, lo: np.ndarray, hi: np.ndarray,
+                   offset: np.ndarray | None = None) -> tuple[float, np.ndarray] | None:
+    """``(distance [m] from scene_center to the box lo..hi, the box's middle in world coordinates)``
+    when ``scene_center`` lies outside the box by more than the larger of its half diagonal and
+    :data:`CENTER_MARGIN_CELLS` resolution cells; None otherwise."""
+    center = np.asarray(params.scene_center, float)
+    distance = float(np.linalg.norm(np.maximum(np.maximum(lo - center, center - hi), 0.0)))
+    cell = max(params.ground_range_resolution, params.azimuth_resolution)
+    if distance <= max(0.5 * float(np.linalg.norm(hi - lo)), CENTER_MARGIN_CELLS * cell):
+        return None
+    return distance, 0.5 * (lo + hi) + (np.zeros(3) if offset is None else np.asarray(offset, float))
+
+
+def _xyz(point: np.ndarray) -> str:
+    return ", ".join(f"{float(v):.1f}" for v in point)
 
 
 def _horizon(height: float) -> float:
@@ -109,7 +145,8 @@ def _distance(metres: float) -> str:
     return f"{metres / 1000:,.1f} km" if abs(metres) >= 1000 else f"{metres:.1f} m"
 
 
-def _check_side(params: RadarParameters, points: np.ndarray, starts: np.ndarray, names: list) -> None:
+def _check_side(params: RadarParameters, points: np.ndarray, starts: np.ndarray, names: list,
+                outside: tuple[float, np.ndarray] | None = None) -> None:
     """Every point on the side the radar looks, at cross-track ground range ``g > 0`` from the nadir (G4)."""
     _, look = track_frame(params)
     center = np.asarray(params.scene_center, float)
@@ -122,13 +159,15 @@ def _check_side(params: RadarParameters, points: np.ndarray, starts: np.ndarray,
     needed = ground - float(g[i])                  # the nadir's distance from scene_center that clears it
     theta = math.radians(params.incidence_angle)
     away = np.round(look * float(g[i]), 1) + 0.0         # against the look direction
+    first = "" if outside is None else (f"set scene_center = {_xyz(outside[1])}, the middle of the shapes' box "
+                                        f"({_distance(outside[0])} from scene_center), or ")
     raise ParameterError(
         f"the track passes over the scene: altitude = {params.altitude:g} m and incidence_angle = "
         f"{params.incidence_angle:g} deg put the nadir track {ground:.1f} m from scene_center (altitude "
         f"tan(incidence_angle)), but the geometry spans {float(g.min()):.1f} .. {float(g.max()):.1f} m in ground range "
         f"from the nadir (look_side = {params.look_side!r}: positive on the side the radar looks) and shape "
         f"{shape!r} reaches {-float(g[i]):.1f} m beyond it; echoes from both sides of the track arrive at the same "
-        f"ranges, so that geometry would image as mirrored ghosts (docs/physics.md (G4)): raise altitude above "
+        f"ranges, so that geometry would image as mirrored ghosts (docs/physics.md (G4)): {first}raise altitude above "
         f"{needed / math.tan(theta):.1f} m or incidence_angle above "
         f"{math.degrees(math.atan2(needed, params.altitude)):.2f} deg, or shift the track by more than "
         f"({away[0]:.1f}, {away[1]:.1f}, 0) m with track_offset (or scene_center)")

@@ -35,6 +35,7 @@ from ..core.radar import TRAJECTORIES, ParameterError, RadarParameters
 from ..core.orbit import choose_pass, in_scene_frame, orbit_of
 from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
+from ..core.outputs import product_kind
 from .ground import ground_shapes
 from .trace_inputs import MaterialTable, TraceSettings
 
@@ -147,6 +148,10 @@ def resolve_source(source: Any) -> Path | None:
         if builtins and path.suffix == "" and len(path.parts) == 1:         # a misspelt built-in name
             hint = "; " + unknown_name("built-in scene", source, builtins).split("; ", 1)[1]
         raise SceneError(f"scene file {str(path)!r} does not exist{hint}")
+    if product_kind(path) is not None:                  # before Mitsuba's "No document element found"
+        raise SceneError(f"{str(path)!r} is {product_kind(path)}, not a scene: render, info and preview take a "
+                         "scene (XML, a folder holding scene.xml, or a built-in name); focus takes raw data "
+                         "(raw.npz, .cphd), analyze an image (image.npz, .nitf), info also a render folder")
     return path
 
 
@@ -334,9 +339,9 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
     saved = [str(resolver[i]) for i in range(len(resolver))]
     try:
         if offset is None:
-            return mi.load_file(str(path), optimize=False)
+            return _check_ids(mi.load_file(str(path), optimize=False), path)
         resolver.prepend(str(path.parent.resolve()))
-        return mi.load_string(_shifted_xml(path, offset), optimize=False)
+        return _check_ids(mi.load_string(_shifted_xml(path, offset), optimize=False), path)
     except (RuntimeError, ET.ParseError) as exc:
         file, line, message = _located(exc)
         where = "" if line is None else (f", line {line}" if file is None or Path(file) == path
@@ -350,7 +355,13 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
 
 
 def _shifted_xml(path: Path, offset: np.ndarray) -> str:
-    root = ET.parse(path).getroot()
+    data = path.read_bytes()
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError:      # as Mitsuba, accept a non-UTF-8 byte (a Latin-1 comment) where none is declared
+        if data.startswith((b"\xef\xbb\xbf", b"\xff\xfe", b"\xfe\xff")) or re.match(rb"<\?xml[^>]*encoding", data):
+            raise
+        root = ET.fromstring(data.decode("latin-1"))     # (ids were checked by the first load)
     for shape in root.findall("shape"):
         transform = shape.find("transform[@name='to_world']")
         if transform is None:
@@ -505,6 +516,23 @@ def _shape_frame_of(shape: Any) -> tuple[np.ndarray, np.ndarray]:
     if shape.is_mesh() and shape.vertex_count() > 0:
         return shape_frame(np.array(shape.vertex_positions_buffer(), np.float64))
     return np.array(shape.bbox().min, np.float64), np.eye(3)
+
+
+def _check_ids(scene: Any, path: Path) -> Any:
+    """``scene``, once every shape's and BSDF's id can be read. Mitsuba reads an XML file without
+    an encoding declaration as UTF-8 and keeps any other byte as it is (a Latin-1 ``0xE9``), so
+    such an id cannot reach Python: refused, naming the file and the fix."""
+    for index, shape in enumerate(scene.shapes()):
+        for what, obj in (("shape", shape), ("BSDF of shape", shape.bsdf())):
+            try:
+                obj.id()
+            except UnicodeDecodeError as exc:
+                raise SceneError(
+                    f"scene {str(path)!r}: the id of {what} #{index} ({exc.object.decode('latin-1')!r} read as "
+                    "Latin-1) is not UTF-8, the encoding of an XML file without a declaration: declare it "
+                    "(<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?> as the first line) or save the file "
+                    "as UTF-8") from None
+    return scene
 
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
