@@ -30,6 +30,23 @@ def gaussian_integral(a: float, b: float, c: float, lo: float, hi: float) -> flo
     return scale * (math.erf(math.sqrt(a) * (hi - centre)) - math.erf(math.sqrt(a) * (lo - centre)))
 
 
+@pytest.mark.parametrize("prf", [30.0, 70.0])
+def test_a_one_sided_pattern_takes_both_orders_separately(prf):
+    """A ramp P(f) = f / B on the band [0, B], unweighted: the order +m aliases ``int_0^{B-m prf} (f + m prf) / B``
+    and the order -m ``int_{m prf}^B (f - m prf) / B``, together ``B - m prf``, so AASR =
+    sum_{m prf < B} (B - m prf) / (B / 2) in closed form. A pattern
+    symmetric about the band's centre gives the two orders equal shares; this one does not, so it catches
+    an order counted twice in place of its mirror (``2 P(f + m prf)``)."""
+    band = 100.0
+
+    def ramp(f):
+        return np.where((f >= 0) & (f <= band), f / band, 0.0)
+
+    got = ambiguity_ratio(ramp, np.ones_like, (0.0, band), prf)
+    expected = sum(band - m * prf for m in range(1, 10) if m * prf < band) / (band / 2)
+    assert got == pytest.approx(expected, rel=1e-4)
+
+
 @pytest.mark.parametrize("window_width", [None, 40.0])
 def test_gaussian_pattern_and_weight_match_the_erf_closed_form(window_width):
     """P(f) = exp(-f^2 / (2 s^2)), w(f) = exp(-f^2 / (2 a^2)) (or 1) over |f| <= B/2: every term is an
