@@ -20,7 +20,7 @@ from sarmitsuba.scene.loader import SceneError, builtin_scenes, load_scene
 DIHEDRAL = builtin_scenes()["dihedral"]
 
 
-def _one_line_error(capsys) -> str:
+def one_line_error(capsys) -> str:
     """stderr of a failed command: exactly one line, 'error: ...', no traceback."""
     err = capsys.readouterr().err.strip()
     assert "Traceback" not in err and 'File "' not in err, err
@@ -84,7 +84,7 @@ def test_real_systems_are_accepted(values):
 def test_cli_wrong_unit_exits_2_with_one_line(tmp_path, capsys, setting, meant):
     out = tmp_path / "out"
     assert main(["render", "dihedral", "--set", setting, "--out", str(out), "--no-progress"]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     assert f"error: {setting.split('=')[0]} = " in err and f"did you mean {meant}" in err
     assert not out.exists() or not any(out.iterdir())
 
@@ -112,7 +112,7 @@ def test_scene_file_error_names_file_line_and_message_only(tmp_path, capsys, old
     """File, line of the element, the message: no traceback frames, no Mitsuba source prefix."""
     path, line = _edited(tmp_path, old, new)
     assert main(["info", str(path)]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     assert err.startswith(f"error: cannot load scene {str(path)!r}, line {line}: ")
     assert fragment in err
     assert ".cpp" not in err and "failed to instantiate" not in err and "ParameterError" not in err
@@ -159,7 +159,7 @@ def test_render_too_large_for_memory_stops_before_tracing(tmp_path, capsys, monk
     monkeypatch.setenv("SARMITSUBA_MEMORY_LIMIT", str(LIMIT))
     out = tmp_path / "out"
     assert main(["render", "urban", "--pulses", "200000", "--out", str(out), "--no-progress"]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     assert "memory" in err and "16.0 GiB is available" in err and "--pulses" in err
     needed = float(re.search(r"need about ([\d.]+) GiB", err).group(1))
     # raw data alone: 200000 pulses x at least the urban scene's slant depth (> 100 m, 120 samples at 180 MHz)
@@ -191,4 +191,4 @@ def test_memory_estimate_matches_a_real_render(monkeypatch):
 def test_bad_memory_limit_is_named(capsys, monkeypatch):
     monkeypatch.setenv("SARMITSUBA_MEMORY_LIMIT", "lots")
     assert main(["info", "dihedral"]) == 2
-    assert "SARMITSUBA_MEMORY_LIMIT = 'lots'" in _one_line_error(capsys)
+    assert "SARMITSUBA_MEMORY_LIMIT = 'lots'" in one_line_error(capsys)

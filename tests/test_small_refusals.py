@@ -14,15 +14,9 @@ import pytest
 
 from sarmitsuba.cli import main
 from sarmitsuba.scene.loader import builtin_scenes
+from test_input_errors import one_line_error          # tests/ is on sys.path (conftest.py)
 
 DIHEDRAL = builtin_scenes()["dihedral"]
-
-
-def _one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip()
-    assert "Traceback" not in err and 'File "' not in err, err
-    assert err.startswith("error: ") and "\n" not in err, err
-    return err
 
 
 # ---- a Latin-1 byte in a shape id -----------------------------------------------------------------
@@ -37,7 +31,7 @@ def test_latin1_shape_id_without_declaration_names_the_file_and_the_fix(tmp_path
     scene = tmp_path / "latin.xml"
     scene.write_bytes(_dihedral_bytes().replace(b'id="wall"', b'id="mur_\xe9t\xe9"'))
     assert main(["info", str(scene)]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     assert str(scene) in err and "mur_été" in err
     assert 'encoding="ISO-8859-1"' in err and "UTF-8" in err
 
@@ -88,7 +82,7 @@ def test_info_of_raw_or_image_file_says_it_takes_a_scene(tmp_path, capsys, name,
     else:
         path.write_bytes(head + b"\0" * 64)
     assert main(["info", str(path)]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     assert str(path) in err and "not a scene" in err and "info" in err
     assert "focus" in err and "analyze" in err
     assert "No document element" not in err
@@ -136,7 +130,7 @@ def test_utm_scene_with_scene_center_at_the_origin_leads_with_scene_center(tmp_p
     is scene_center = the shapes' middle, as numbers; raising the altitude (to 5334 km) second."""
     path = _dihedral_moved(tmp_path, 691000.0, 5334000.0)
     assert main(["info", str(path)]) == 2
-    err = _one_line_error(capsys)
+    err = one_line_error(capsys)
     fix = "set scene_center = 691000.0, 5334005.0, 2.5"
     assert fix in err and "raise altitude" in err
     assert err.index(fix) < err.index("raise altitude")

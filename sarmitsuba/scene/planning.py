@@ -312,14 +312,21 @@ def patch_size(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.nd
     size = cell * max(1, round(settings.patch_size / cell))
     largest = max(automatic, cell * math.floor(phase_limited_size(params, near, PATCH_PHASE_MAX) / cell))
     if size > largest * (1.0 + 1e-9):
-        k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
-        raise ParameterError(
-            f"patch_size = {settings.patch_size:g} m gives patches {size:g} m wide, whose phase departs from linear "
-            f"by {k * size ** 2 / (2.0 * near):.3g} rad at their corners (k P^2 / (2 R_near), R_near = {near:.1f} m, "
-            f"{params.frequency / 1e9:g} GHz): more than {PATCH_PHASE_MAX:.3g} rad, where the edge terms break down "
-            f"(docs/physics.md (M1')); valid values for this scene are 0 < patch_size <= {largest:.4g} m; "
-            "use patch_size = 0 (automatic) or a value in that range")
+        raise ParameterError(_phase_refusal(params, near, f"patch_size = {settings.patch_size:g} m gives patches "
+                                            f"{size:g} m wide", size, "P", PATCH_PHASE_MAX,
+                                            "where the edge terms break down (docs/physics.md (M1'))",
+                                            "patch_size", largest, "automatic"))
     return size
+
+
+def _phase_refusal(params: RadarParameters, near: float, what: str, width: float, symbol: str, limit: float,
+                   why: str, name: str, largest: float, automatic: str) -> str:
+    """The one-line refusal of a width whose quadratic phase ``k w^2 / (2 R_near)`` exceeds ``limit``."""
+    k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
+    return (f"{what}, whose phase departs from linear by {k * width ** 2 / (2.0 * near):.3g} rad at their corners "
+            f"(k {symbol}^2 / (2 R_near), R_near = {near:.1f} m, {params.frequency / 1e9:g} GHz): more than "
+            f"{limit:.3g} rad, {why}; valid values for this scene are 0 < {name} <= {largest:.4g} m; use {name} = 0 "
+            f"({automatic}) or a value in that range")
 
 
 def check_ray_spacing(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray, hi: np.ndarray,
@@ -334,14 +341,10 @@ def check_ray_spacing(params: RadarParameters, geometry: AcquisitionGeometry, lo
                params.ground_range_resolution * math.cos(math.radians(params.incidence_angle)))
     largest = max(cell, phase_limited_size(params, near, TUBE_PHASE_MAX))
     if settings.ray_spacing > largest * (1.0 + 1e-9):
-        k = 2.0 * math.pi * params.frequency / SPEED_OF_LIGHT
-        raise ParameterError(
-            f"ray_spacing = {settings.ray_spacing:g} m gives ray tubes whose phase departs from linear by "
-            f"{k * settings.ray_spacing ** 2 / (2.0 * near):.3g} rad at their corners (k s^2 / (2 R_near), "
-            f"R_near = {near:.1f} m, {params.frequency / 1e9:g} GHz): more than {TUBE_PHASE_MAX:.3g} rad, beyond which "
-            f"a tube's linear-phase integral is wrong in amplitude (docs/physics.md (T1)); valid values for this scene "
-            f"are 0 < ray_spacing <= {largest:.4g} m; use ray_spacing = 0 (automatic, one tube per resolution cell) "
-            "or a value in that range")
+        raise ParameterError(_phase_refusal(params, near, f"ray_spacing = {settings.ray_spacing:g} m gives ray tubes",
+                                            settings.ray_spacing, "s", TUBE_PHASE_MAX, "beyond which a tube's "
+                                            "linear-phase integral is wrong in amplitude (docs/physics.md (T1))",
+                                            "ray_spacing", largest, "automatic, one tube per resolution cell"))
 
 
 def project_to_aim_plane(points: np.ndarray, antenna: np.ndarray, z0: float) -> np.ndarray:
