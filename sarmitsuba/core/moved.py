@@ -65,15 +65,20 @@ class MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     """Imports ``sarmitsuba.<old>`` as ``sarmitsuba.<MOVED_MODULES[old]>``, warning once per import."""
 
     def find_spec(self, fullname: str, path: Any = None, target: Any = None):
+        """A spec for ``fullname`` when it names a moved module (``sarmitsuba.<old name>``), else
+        None (the other finders then look for it)."""
         package, _, name = fullname.partition(".")
         if package != PACKAGE or name not in MOVED_MODULES:
             return None
         return importlib.util.spec_from_loader(fullname, self)
 
     def create_module(self, spec):
+        """None: the default module creation."""
         return None
 
     def exec_module(self, module) -> None:
+        """Warn (DeprecationWarning) that the module moved, and put the new module in its place in
+        ``sys.modules`` (the import returns the new module)."""
         new = f"{PACKAGE}.{MOVED_MODULES[module.__name__.partition('.')[2]]}"
         warnings.warn(f"{module.__name__} moved to {new} (docs/design.md section 0); import it from there",
                       DeprecationWarning, stacklevel=2)

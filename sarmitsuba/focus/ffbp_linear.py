@@ -82,6 +82,7 @@ class FFBPOperator:
 
     @property
     def data_shape(self) -> tuple[int, int]:
+        """``(n_pulses, n_samples)`` of the raw data the operator maps from."""
         return tuple(self.raw.data.shape)
 
     def _n_line(self) -> int:

@@ -34,6 +34,10 @@ GAIN_STEP = 32
 BLOCK_COLUMNS = 512
 
 def check_knobs(raw: RawData, subaperture: Any, angle_oversample: Any, range_oversample: Any) -> dict[str, Any]:
+    """The ffbp knobs checked and normalised: ``{"subaperture": int, "range_oversample": int,
+    "angle_oversample": float}``. Raises GeometryNotSupported for bistatic data without
+    ``rx_time``, ValueError naming a knob outside its range (``subaperture`` 1 .. n_pulses,
+    ``range_oversample`` 1 .. 8, ``angle_oversample`` [1.25, 8])."""
     if raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
         raise GeometryNotSupported("ffbp needs monostatic or continuous-motion data (raw.tx_position == "
                                    "raw.rx_position, or raw.rx_time given); use backproject for bistatic data")
@@ -54,10 +58,14 @@ def check_knobs(raw: RawData, subaperture: Any, angle_oversample: Any, range_ove
 
 
 def subaperture_spans(n_pulses: int, length: int) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]``: consecutive pulse ranges of ``length`` pulses covering
+    ``n_pulses`` (the last one shorter when ``length`` does not divide it)."""
     return [(p0, min(p0 + length, n_pulses)) for p0 in range(0, n_pulses, length)]
 
 
 def n_blocks(grid: ImageGrid) -> int:
+    """Column blocks of :data:`BLOCK_COLUMNS` ground-range columns that cover ``grid`` (the
+    last one partial)."""
     return -(-grid.shape[1] // BLOCK_COLUMNS)
 
 

@@ -99,6 +99,7 @@ class BackprojectionOperator:
 
     @property
     def data_shape(self) -> tuple[int, int]:
+        """``(n_pulses, n_samples)`` of the raw data the operator maps from."""
         return tuple(self.raw.data.shape)
 
     def _pulse(self, p: int, x: np.ndarray, receive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

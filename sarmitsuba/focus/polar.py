@@ -142,10 +142,12 @@ class PolarAxes:
 
     @property
     def s(self) -> np.ndarray:
+        """The angular axis ``s0 + m ds``, float64 [n_s]."""
         return self.s0 + self.ds * np.arange(self.n_s)
 
     @property
     def r(self) -> np.ndarray:
+        """The range axis ``r0 + k dr`` [m], float64 [n_r]."""
         return self.r0 + self.dr * np.arange(self.n_r)
 
 
@@ -244,7 +246,7 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
         iota = _lerp(fixed[:, sl], t, ws.f32[0, :n].reshape(shape))                   # fixed point [P, M, n_r]
         if clip:
             np.clip(iota, low, high, out=iota)
-        index = ws.index(index_dtype)[:n].reshape(shape)
+        index = (ws.index32 if index_dtype == np.int32 else ws.i64)[:n].reshape(shape)
         np.copyto(index, iota, casting="unsafe")
         bins = ws.i32[:n]
         np.bitwise_and(index.reshape(-1), m - 1, out=bins, casting="unsafe")
@@ -363,6 +365,7 @@ class Workspace:
         self.size = 0
 
     def ensure(self, size: int) -> "Workspace":
+        """The workspace with buffers of at least ``size`` elements (reallocated only to grow)."""
         if size > self.size:
             self.size = size
             self.f32 = np.empty((2, size), np.float32)
@@ -373,9 +376,6 @@ class Workspace:
             self.c64 = np.empty((3, size), np.complex64)
             self.c128 = np.empty((3, size), np.complex128)
         return self
-
-    def index(self, dtype: type) -> np.ndarray:
-        return self.index32 if dtype == np.int32 else self.i64
 
 
 _LOCAL = threading.local()

@@ -259,6 +259,8 @@ class Scratch(threading.local):
     C-contiguous array of that shape (contents undefined), growing the buffer when needed."""
 
     def get(self, name: str, shape: tuple[int, ...], dtype: Any) -> np.ndarray:
+        """A C-contiguous ``dtype`` array of ``shape`` (contents undefined) from the buffer
+        ``name`` of the calling thread, grown when too small."""
         size = int(np.prod(shape))
         buf = self.__dict__.get(name)
         if buf is None or buf.size < size or buf.dtype != np.dtype(dtype):

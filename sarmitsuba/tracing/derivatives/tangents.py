@@ -190,6 +190,8 @@ class TangentSums(Accumulator):
         self.leaves, self.tangent = leaves, tangent
 
     def collect(self, ctx: dict) -> dict:
+        """Set the leaves' tangents, propagate them forward to the launch's histogram and
+        collect that derivative as the base accumulator collects values."""
         for leaf, tangent in zip(self.leaves, self.tangent):
             dr.set_grad(leaf, tangent)
         dr.forward_to(ctx["hist"], flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
@@ -230,6 +232,8 @@ class AdjointSums(Accumulator):
         self.seed = None
 
     def collect(self, ctx: dict) -> dict:
+        """Seed the launch's histogram with :attr:`seed` (the raw data's gradient, complex64)
+        and propagate it backward to the kernel's leaves, then collect as the base accumulator."""
         floats = np.zeros(dr.width(ctx["hist"]), np.float32)
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat

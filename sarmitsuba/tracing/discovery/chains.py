@@ -66,6 +66,7 @@ class Chains:
         return _frozen(self.shift[np.arange(len(self.order)), self.order])
 
     def select(self, keep) -> "Chains":
+        """The chains where ``keep`` (a boolean mask or an index array) selects them."""
         return Chains(self.sub[keep], self.parts[keep], self.order[keep], self.lin[keep], self.shift[keep])
 
     def unfolded(self, points: np.ndarray, chain: np.ndarray) -> np.ndarray:

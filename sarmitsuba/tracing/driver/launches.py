@@ -53,6 +53,7 @@ class Blocks:
 
     @property
     def n_lanes(self) -> int:
+        """Tubes (lanes) of all blocks, ``sum n_a n_j``."""
         return int((self.n_a.astype(np.int64) * self.n_j).sum())
 
 
@@ -98,14 +99,17 @@ class Launch:
 
     @property
     def n_pulses(self) -> int:
+        """Pulses of the launch."""
         return self.antenna.shape[0]
 
     @property
     def n_subapertures(self) -> int:
+        """Sub-apertures of the launch (one reference position each)."""
         return self.reference.shape[0]
 
     @property
     def n_lanes(self) -> int:
+        """Tubes (lanes) of the launch: its blocks' lanes."""
         return self.blocks.n_lanes
 
     def lane_block(self) -> mi.UInt32:

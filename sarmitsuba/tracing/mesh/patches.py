@@ -103,6 +103,7 @@ class Surfaces:
 
     @property
     def n_parts(self) -> int:
+        """Parts (convex planar polygons of the mesh, docs/physics.md (M1))."""
         return len(self.offset)
 
     def to_world(self, part: np.ndarray, coords: np.ndarray) -> np.ndarray:

@@ -41,9 +41,11 @@ class CastCounter:
 
     @property
     def value(self) -> int:
+        """The calling thread's count of casts."""
         return getattr(self._local, "count", 0)
 
     def add(self, n: int) -> None:
+        """Add ``n`` casts to the calling thread's count."""
         self._local.count = self.value + int(n)
 
 
