@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?=
 OUT    ?= out/urban
 
-.PHONY: setup llvm render test bench clean
+.PHONY: setup llvm render test bench docs clean
 
 setup: llvm $(STAMP)
 
@@ -42,5 +42,13 @@ test: setup
 bench: setup
 	$(PY) benchmarks/run.py
 
+# The manual (Sphinx, MyST pages, numpydoc API reference) into docs/_build/html; any warning fails
+# the build (-W), and every warning is shown first (--keep-going).
+docs: setup
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[docs]'
+	rm -rf docs/_build docs/api/generated
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "manual: docs/_build/html/index.html"
+
 clean:
-	rm -rf out .pytest_cache
+	rm -rf out .pytest_cache docs/_build docs/api/generated
