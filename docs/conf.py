@@ -21,17 +21,25 @@ extensions = [
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build", "figures", "api/generated/*.md"]
 
 # MyST: $...$ and $$...$$ math, heading anchors for the equation paragraphs' links
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
 
+# the module pages (docs/_templates/autosummary/module.rst) list each module's ``__all__`` through
+# autodoc and recurse into its public submodules
+templates_path = ["_templates"]
 autosummary_generate = True
-autodoc_default_options = {"members": False}
+# modules whose package attribute of the same name is a function (``sarmitsuba.focus.ffbp``):
+# autosummary would import the function, so their package's page documents them instead
+autosummary_context = {"shadowed": ["sarmitsuba.focus.ffbp"]}
+exclude_patterns = ["_build", "figures", "api/generated/sarmitsuba.focus.ffbp.rst"]   # the stub of the function
 autodoc_typehints = "none"
 numpydoc_show_class_members = False
 numpydoc_validation_checks = set()
+# numpydoc renames a References section's labels per object; those a docstring does not cite in
+# its text would each warn
+suppress_warnings = ["ref.citation"]
 
 html_theme = "pydata_sphinx_theme"
 html_title = "sarmitsuba"

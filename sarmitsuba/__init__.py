@@ -13,25 +13,25 @@ sarmitsuba`` stays as cheap as the variant set-up)::
     image = sarmitsuba.refocus(sim.raw, "omegak")                  # any RawData
     report = sarmitsuba.analyze(sim.image, (0.0, 0.0, 0.0))        # point target at the apex
 
-================================  ====================================================================
-name                              what it is
-================================  ====================================================================
-``simulate(scene, ...)``          :func:`sarmitsuba.pipeline.simulate`: load, trace, bin and focus in
-                                  memory; returns a ``Simulation`` (``.raw``, ``.image``, ...)
-``render(scene, out_dir, ...)``   :func:`sarmitsuba.pipeline.render`: the same, writing raw.npz,
-                                  image.npz/.exr/.png and summary.json
-``refocus(raw, algorithm)``       :func:`sarmitsuba.pipeline.refocus`: focus any RawData with ``bp``,
-                                  ``ffbp``, ``omegak`` or ``rda`` (the ``focus`` command)
-``focus``                         the focusing subpackage (:mod:`sarmitsuba.focus`: ``backproject``,
-                                  ``ffbp``, ``omega_k``, ...); ``sarmitsuba.focus.focus(raw, ...)`` is
-                                  ``refocus``
-``analyze(image, target)``        :func:`sarmitsuba.api.analyze`: point-target report (IRW, PSLR,
-                                  ISLR, RCS) of a SarImage or image.npz (the ``analyze`` command)
-``Scene(meshes, sensor, ...)``    :class:`sarmitsuba.scene.builder.Scene`: a scene built in Python from
-                                  trimesh meshes and materials, accepted wherever a scene path is
-``gradients(scene, loss, params)`` :func:`sarmitsuba.derivatives.gradients`: a loss on the image and its
-                                  gradient with respect to material parameters (reverse mode)
-================================  ====================================================================
+===============================  =====================================================================
+name                             what it is
+===============================  =====================================================================
+``simulate(scene, ...)``         :func:`sarmitsuba.pipeline.simulate`: load, trace, bin and focus in
+                                 memory; returns a ``Simulation`` (``.raw``, ``.image``, ...)
+``render(scene, out_dir, ...)``  :func:`sarmitsuba.pipeline.render`: the same, writing raw.npz,
+                                 image.npz/.exr/.png and summary.json
+``refocus(raw, algorithm)``      :func:`sarmitsuba.pipeline.refocus`: focus any RawData with ``bp``,
+                                 ``ffbp``, ``omegak`` or ``rda`` (the ``focus`` command)
+``focus``                        the focusing subpackage (:mod:`sarmitsuba.focus`: ``backproject``,
+                                 ``ffbp``, ``omega_k``, ...); ``sarmitsuba.focus.focus(raw, ...)`` is
+                                 ``refocus``
+``analyze(image, target)``       :func:`sarmitsuba.api.analyze`: point-target report (IRW, PSLR,
+                                 ISLR, RCS) of a SarImage or image.npz (the ``analyze`` command)
+``Scene(meshes, sensor, ...)``   :class:`sarmitsuba.scene.builder.Scene`: a scene built in Python from
+                                 trimesh meshes and materials, accepted wherever a scene path is
+``gradients(scene, loss, [p])``  :func:`sarmitsuba.derivatives.gradients`: a loss on the image and its
+                                 gradient with respect to material parameters (reverse mode)
+===============================  =====================================================================
 
 ``scene`` is an XML path, a built-in name (``urban``, ``dihedral``, ``trihedral``),
 ``sionna:NAME`` or a :class:`Scene`. Why ``refocus`` and not ``focus``: ``sarmitsuba.focus``
@@ -43,9 +43,9 @@ as ``sarmitsuba.focus.focus``, and the top level as ``refocus``.
 Pipeline (docs/design.md section 0): one package per stage, each importing only the ones
 before it (``tests/test_architecture.py``):
 
-=====================  ====================================================================
+=====================  =====================================================================
 package                stage: main entry points
-=====================  ====================================================================
+=====================  =====================================================================
 :mod:`~.core`          the contracts every stage sees: ``RadarParameters``, ``RawData``,
                        ``SarImage``, ``GeoReference``; constants, all-or-nothing files
 :mod:`~.scene`         1 scene: ``load_scene``, ``Scene``, materials, effects, planning
@@ -57,7 +57,7 @@ package                stage: main entry points
 :mod:`~.analysis`      7 analysis: point targets, oracles, interferometry, cost model
 ``pipeline``, ``api``  entry points: ``simulate``, ``render``, ``refocus``, ``analyze``;
 ``info``, ``cli``      ``sarmitsuba info`` and the command line
-=====================  ====================================================================
+=====================  =====================================================================
 
 Modules that sat at the top level before the stage packages (``sarmitsuba.raw``,
 ``sarmitsuba.image``, ``sarmitsuba.radar``, ...) still import, from their new place

@@ -3,4 +3,5 @@ import sys
 
 from .cli import run
 
-sys.exit(run())
+if __name__ == "__main__":          # importing the module (autodoc) runs nothing
+    sys.exit(run())

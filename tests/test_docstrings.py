@@ -34,6 +34,18 @@ def _members(cls):
             yield name, function
 
 
+def public_objects() -> dict[str, object]:
+    """``{"module.name": object}`` of every public function and class, under the module that
+    defines it (a name re-exported by a package is listed once, where it is defined)."""
+    found = {}
+    for module in _public_modules():
+        for name in getattr(module, "__all__", ()):
+            obj = getattr(module, name, None)
+            if (inspect.isfunction(obj) or inspect.isclass(obj)) and obj.__module__ == module.__name__:
+                found[f"{module.__name__}.{name}"] = obj
+    return found
+
+
 def undocumented_names() -> list[str]:
     """``module.name`` (or ``module.Class.member``) of every public function, class, method and
     property without a docstring of its own."""

@@ -24,7 +24,7 @@ __all__ = ["DEEPEST_SHARE", "ENERGY_UNIT", "energy_by_order", "depth_warning", "
 #: (-11.8 dB against depth 6, README "Bounce depth") and far above the -30 dB at which two images
 #: of identical paths differ (``benchmarks/bounce_depth.py``).
 DEEPEST_SHARE = 0.10
-#: Unit of the absolute energies (normalised radiometry: the sum over pulses and samples of |s|^2).
+#: Unit of the absolute energies (normalised radiometry: the sum over pulses and samples of ``|s|^2``).
 ENERGY_UNIT = "m^2"
 
 

@@ -327,7 +327,7 @@ def _cut(states: StateVectors, ref: georef.GeoReference, t: float) -> StateVecto
 def footprint_speed(params: Any) -> float:
     """The speed [m/s] at which the beam sweeps the scene: ``params.velocity`` on a straight track;
     for an orbit (state vectors centred on the closest approach, already in the scene frame) the
-    beam footprint's ground speed at closest approach to ``scene_center`` ``C``, eq. (J7):
+    beam footprint's ground speed at closest approach to ``scene_center`` ``C``, eq. (J7)::
 
         v_g = (|V|^2 - (C - P) . A) / |V|,
 

@@ -38,7 +38,7 @@ MIN_LIT = 10
 
 
 def signal_pixels(intensity: np.ndarray) -> np.ndarray:
-    """bool, the shape of ``intensity`` (float64 [n_az, n_rg], |I|^2): the pixels that hold signal
+    """bool, the shape of ``intensity`` (float64 [n_az, n_rg], ``|I|^2``): the pixels that hold signal
     (eq. (PGA3)): local mean intensity (a :data:`SIGNAL_BOX` boxcar, scipy.ndimage.uniform_filter)
     within :data:`SIGNAL_DB` of the :data:`SIGNAL_PERCENTILE` th percentile of the local means,
     and non-zero. An image of clutter everywhere keeps every pixel."""

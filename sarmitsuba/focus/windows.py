@@ -4,15 +4,15 @@ A window weights the processed band of a SAR dimension (range or azimuth) to tra
 resolution for sidelobe level. Every window here is defined on the normalised frequency
 ``x = f / B`` over ``|x| <= 1/2`` (zero outside) and has unit value at band centre:
 
-==========  ===================================================  =====================
-name        w(x), |x| <= 1/2                                      parameters (default)
-==========  ===================================================  =====================
-``rect``    1                                                     --
-``hamming`` alpha + (1 - alpha) cos(2 pi x)                       ``alpha`` (0.54)
-``hann``    0.5 + 0.5 cos(2 pi x)                                 --
-``taylor``  (1 + 2 sum_m F_m cos(2 pi m x)) / (same at x = 0)     ``nbar`` (4), ``sll`` (-35 dB)
-``kaiser``  I0(beta sqrt(1 - (2x)^2)) / I0(beta)                  ``beta`` (2.5)
-==========  ===================================================  =====================
+===========  =================================================  ==============================
+name         w(x), ``|x| <= 1/2``                               parameters (default)
+===========  =================================================  ==============================
+``rect``     1                                                  --
+``hamming``  alpha + (1 - alpha) cos(2 pi x)                    ``alpha`` (0.54)
+``hann``     0.5 + 0.5 cos(2 pi x)                              --
+``taylor``   (1 + 2 sum_m F_m cos(2 pi m x)) / (same at x = 0)  ``nbar`` (4), ``sll`` (-35 dB)
+``kaiser``   I0(beta sqrt(1 - (2x)^2)) / I0(beta)               ``beta`` (2.5)
+===========  =================================================  ==============================
 
 The compressed pulse (unit-peak impulse response) of a window over a band ``B`` is
 

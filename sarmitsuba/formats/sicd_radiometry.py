@@ -52,7 +52,7 @@ def weight_factor(weights: np.ndarray | None) -> float:
 
 
 def slant_plane_area(tree: Any) -> tuple[float, float]:
-    """(A_spn [m^2], |n_image . n_slant|) of a SICD XML tree whose ``SCPCOA`` is set: the energy area
+    """``(A_spn [m^2], |n_image . n_slant|)`` of a SICD XML tree whose ``SCPCOA`` is set: the energy area
     of a resolution cell in the slant plane (module docstring), the slant plane spanned by the
     line of sight and the velocity at the SCP's centre of aperture."""
     import sarkit.sicd as sksicd

@@ -4,7 +4,7 @@ pyramidal) and floor.
 :func:`building_mesh` is the extruder of :mod:`sarmitsuba.scene.city`. A pitched roof is built on
 the outline's minimum rotated rectangle (shapely): its ridge runs along the rectangle's longer side
 (``across``: the shorter) at ``roof_height`` above the eaves, and the roof is the lowest of its
-planes (docs/physics.md (F2)):
+planes (docs/physics.md (F2))::
 
     gabled     z = e + h (1 - |v| / W)
     hipped     z = e + h min(1 - |v| / W, (A - |u|) / W)

@@ -2,7 +2,7 @@
 
 ``render --scheduler local`` starts a ``LocalCluster`` of worker processes (one thread each);
 ``--scheduler tcp://HOST:PORT`` uses a running cluster (``dask scheduler`` and its
-``dask worker``s, docs/design.md section 11). The driver loads the scene as usual (it needs
+``dask worker`` processes, docs/design.md section 11). The driver loads the scene as usual (it needs
 the scene's box for the plan and the image grid) and sends each worker only the scene's
 source and overrides; a worker loads the scene once, derives the same plan
 (:func:`sarmitsuba.tracing.driver.trace.prepare_trace`, :func:`sarmitsuba.tracing.driver.trace.plan_trace`: the same

@@ -9,19 +9,19 @@ consecutive pulses and the ray tubes each of them casts. A launch runs bounce by
 (a wavefront: one kernel per bounce order, the tubes that left the scene dropped between
 them):
 
-======================  ====================================================  ==============
-step                    what                                                  equation
-======================  ====================================================  ==============
-:meth:`Kernel.launch`   tubes from the sub-aperture's reference position      (T1), (T3)
-                        toward the world-fixed aim lattice
-:func:`intersect`       closest hit, the facet's float64 plane and hit point  (T1), (S1)
-:func:`visible`         shadow ray toward the reference position              (PO1), (T3)
-:func:`record`          what every pulse's return needs from the hit          (T3)
-:func:`reflect`         specular reflection of the tube, its edges and its    (T1), (T3)
-                        image source
-:mod:`..integration.returns`      interior terms cancelled, then per pulse: PO terms    (PO2)-(PO5), (C)
-                        and clutter scatterers deposited on the fast-time grid
-======================  ====================================================  ==============
+============================  ======================================================  ================
+step                          what                                                    equation
+============================  ======================================================  ================
+:meth:`Kernel.launch`         tubes from the sub-aperture's reference position        (T1), (T3)
+                              toward the world-fixed aim lattice
+:func:`intersect`             closest hit, the facet's float64 plane and hit point    (T1), (S1)
+:func:`visible`               shadow ray toward the reference position                (PO1), (T3)
+:func:`record`                what every pulse's return needs from the hit            (T3)
+:func:`reflect`               specular reflection of the tube, its edges and its      (T1), (T3)
+                              image source
+:mod:`..integration.returns`  interior terms cancelled, then per pulse: PO terms      (PO2)-(PO5), (C)
+                              and clutter scatterers deposited on the fast-time grid
+============================  ======================================================  ================
 
 The readable NumPy counterpart of the per-pulse PO terms is
 :func:`sarmitsuba.tracing.integration.physical_optics.tube_terms`; tests check one against the other and both

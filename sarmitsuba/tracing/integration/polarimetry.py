@@ -4,14 +4,14 @@ docs/physics.md, section "Polarimetry", equations (P1)-(P6). Plain NumPy (float6
 complex128) on the host: readable, not fast. The Dr.Jit tracer's quad-pol kernel is tested
 against it.
 
-=======================  ===========================================================
-:func:`bsa_basis`        the antenna's H and V unit vectors for a line of sight (P1)
-:func:`antenna_jones`    the Jones matrix a ray leaves the antenna with, ``[H V]`` (P1)
-:func:`facet_basis`      a facet's s (TE) and p, p' (TM) vectors and the mirror ray (P2)
-:func:`reflect_jones`    one specular reflection of a Jones matrix (P3)
-:func:`project_bsa`      the 2x2 matrix received at the antenna (P4)
+=========================  ===============================================================
+:func:`bsa_basis`          the antenna's H and V unit vectors for a line of sight (P1)
+:func:`antenna_jones`      the Jones matrix a ray leaves the antenna with, ``[H V]`` (P1)
+:func:`facet_basis`        a facet's s (TE) and p, p' (TM) vectors and the mirror ray (P2)
+:func:`reflect_jones`      one specular reflection of a Jones matrix (P3)
+:func:`project_bsa`        the 2x2 matrix received at the antenna (P4)
 :func:`scattering_matrix`  S of a retro-reflecting mirror chain (P5)
-=======================  ===========================================================
+=========================  ===============================================================
 
 Conventions
 -----------

@@ -18,7 +18,7 @@ MAX_CELLS_PER_SIDE = 1 << 20
 
 
 def cell_key(region: np.ndarray, cell: np.ndarray) -> np.ndarray:
-    """An int64 key of ``(region, i, j)``, unique for |i|, |j| < 2^20 and regions < 2^22."""
+    """An int64 key of ``(region, i, j)``, unique for ``|i|, |j| < 2^20`` and regions < 2^22."""
     return ((region.astype(np.int64) << 42) + ((cell[..., 0].astype(np.int64) + (1 << 20)) << 21)
             + (cell[..., 1].astype(np.int64) + (1 << 20)))
 

@@ -25,7 +25,7 @@ NO_HIT = -1
 NOT_A_MESH = -2
 #: Rays leave (and stop short of) a surface this far off it, along its normal:
 #: ``SURFACE_LIFT + SURFACE_LIFT_RELATIVE |p|`` [m]. 1e-4 m clears Embree's own intersection
-#: error and 1e-6 |p| the float32 rounding of ``p`` (6e-8 relative) with a factor ~16 to spare,
+#: error and ``1e-6 |p|`` the float32 rounding of ``p`` (6e-8 relative) with a factor ~16 to spare,
 #: far below a wavelength, so no path length changes and visibility near edges does not depend
 #: on where the scene sits (as the tube kernel's shadow rays, docs/physics.md (PO1)).
 SURFACE_LIFT = 1e-4
