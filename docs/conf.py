@@ -8,6 +8,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
+
+import sarmitsuba  # noqa: E402,F401  (finds libLLVM before the plugins' pages import drjit)
 
 project = "sarmitsuba"
 author = "the sarmitsuba developers"
@@ -18,6 +21,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "numpydoc",
+    "pluginparameters",          # docs/_ext: the plugins' parameter tables
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"

@@ -16,7 +16,7 @@
  * - model
    - string
    - ``half_space`` (default), ``slab`` (single layer in vacuum, P.2040 eqs. 43/44, needs
-     ``thickness``) or ``pec`` (perfect conductor, |r| = 1).
+     ``thickness``) or ``pec`` (perfect conductor, ``|r| = 1``).
  * - thickness
    - float, m
    - Slab thickness (only with ``model = slab``).
@@ -38,7 +38,7 @@
 ``thickness`` (default 0.1 m, as in Sionna), so the model is the single-layer **slab**, as
 Sionna computes it. A non-zero ``scattering_coefficient`` S switches distributed clutter on,
 with Sionna's energy split: the specular reflection is scaled by sqrt(1 - S^2) and a
-Lambertian backscatter sigma0 = 4 S^2 |r|^2 cos^2(theta) is added (docs/physics.md (C)).
+Lambertian backscatter ``sigma0 = 4 S^2 |r|^2 cos^2(theta)`` is added (docs/physics.md (C)).
 ``xpd_coefficient`` K (default 0, as in Sionna), the fraction of the diffusely scattered power
 that is cross-polarised, sets the clutter's cross-polarised level of polarimetric runs:
 ``q = K / (1 - K)`` (docs/physics.md (P7); K < 1). The scattering-pattern attributes are read

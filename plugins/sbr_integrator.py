@@ -92,18 +92,18 @@
      docs/physics.md (PO5)). False evaluates them all (three to four times the returns;
      up to 1.2x the render time): the reference the cancellation is checked against. With
      patches: false keeps every patch line and every shared split end.
-* - diffraction
-  - boolean
-  - Fringe waves of the mesh's edges (default true): equivalent edge currents on every wedge and
-    free edge of the lit regions, the PTD correction to physical optics (docs/physics.md
-    (E1)-(E5)). ``lit_regions = patches`` only. False is physical optics alone.
-* - ground_shapes
-  - string
-  - The shapes that stand for ground continuing beyond the scene (default ``auto``: ids
-    ``ground``, ``*-ground`` and ``*_ground``, as in the built-in scenes, generated cities and
-    Sionna RT's scenes; ``none``; or a comma-separated list of shape ids). Their free rims are
-    where the model was cut, not edges of the world: they return no physical-optics rim terms
-    and no edge currents (docs/physics.md (M10)). ``lit_regions = patches`` only.
+ * - diffraction
+   - boolean
+   - Fringe waves of the mesh's edges (default true): equivalent edge currents on every wedge and
+     free edge of the lit regions, the PTD correction to physical optics (docs/physics.md
+     (E1)-(E5)). ``lit_regions = patches`` only. False is physical optics alone.
+ * - ground_shapes
+   - string
+   - The shapes that stand for ground continuing beyond the scene (default ``auto``: ids
+     ``ground``, ``*-ground`` and ``*_ground``, as in the built-in scenes, generated cities and
+     Sionna RT's scenes; ``none``; or a comma-separated list of shape ids). Their free rims are
+     where the model was cut, not edges of the world: they return no physical-optics rim terms
+     and no edge currents (docs/physics.md (M10)). ``lit_regions = patches`` only.
 
 The tracing itself is :func:`sarmitsuba.tracing.driver.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.
