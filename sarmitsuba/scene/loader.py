@@ -148,8 +148,9 @@ def resolve_source(source: Any) -> Path | None:
         if builtins and path.suffix == "" and len(path.parts) == 1:         # a misspelt built-in name
             hint = "; " + unknown_name("built-in scene", source, builtins).split("; ", 1)[1]
         raise SceneError(f"scene file {str(path)!r} does not exist{hint}")
-    if product_kind(path) is not None:                  # before Mitsuba's "No document element found"
-        raise SceneError(f"{str(path)!r} is {product_kind(path)}, not a scene: render, info and preview take a "
+    kind = product_kind(path)
+    if kind is not None:                                # before Mitsuba's "No document element found"
+        raise SceneError(f"{str(path)!r} is {kind}, not a scene: render, info and preview take a "
                          "scene (XML, a folder holding scene.xml, or a built-in name); focus takes raw data "
                          "(raw.npz, .cphd), analyze an image (image.npz, .nitf), info also a render folder")
     return path
