@@ -1,4 +1,4 @@
-"""Derivatives of the raw data and the image with respect to scene parameters (issue 57).
+"""Derivatives of the raw data and the image with respect to scene parameters.
 
 Forward mode, one parameter at a time: :func:`raw_derivative` traces the scene once with the
 parameter's tangent carried through the tracing kernels by Dr.Jit's automatic differentiation

@@ -495,7 +495,7 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
                 f"exr{suffix}": out.write(names[f"exr{suffix}"], lambda path: image_files.write_exr(image, path))}
 
     # the arrays stream to disk on a thread while matplotlib draws the quick-look here (a city's
-    # products are 0.3 GB, mostly waiting on the disk; issue 56); both finish before this returns
+    # products are 0.3 GB, mostly waiting on the disk); both finish before this returns
     with ThreadPoolExecutor(1) as pool:
         written = pool.submit(files)
         png = out.write(names[f"png{suffix}"], lambda path: image_files.write_quicklook(

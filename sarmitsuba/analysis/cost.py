@@ -10,7 +10,7 @@ its peak memory exceeds what is available (:func:`available_memory`, :func:`memo
 Every time is an estimate from the measured rates below, for the 2-core reference machine
 (docs/design.md section 10): expect a factor of 2 either way. The peak memory is the whole
 render process's peak resident set (Python, Mitsuba and Dr.Jit with its LLVM JIT, the tracer's
-working set, the arrays), from the measured constants below (issue 28): within a factor of 2 of
+working set, the arrays), from the measured constants below: within a factor of 2 of
 the measured peak RSS on the scenes and settings listed at :data:`RUNTIME_BYTES`.
 """
 from __future__ import annotations
@@ -47,7 +47,7 @@ CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
 
 #: Factor on the sum of the tracer's parts (casts, returns, spectra) for what is not in them:
 #: kernel launches and their Python tracing, compaction between bounce orders. Measured on the
-#: 2-core machine (issue 12): 1.2-1.6 for urban and sionna:munich, smooth and rough.
+#: 2-core machine: 1.2-1.6 for urban and sionna:munich, smooth and rough.
 TRACE_OVERHEAD = 1.3
 
 #: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
@@ -102,7 +102,7 @@ BACKPROJECTION_TILE = (16, 128)
 BACKPROJECTION_PULSE_BLOCK = 128
 
 # ---------------------------------------------------------------------------- peak memory
-# Measured (issue 28) as the peak resident set of `sarmitsuba render` (GNU time's "Maximum resident
+# Measured as the peak resident set of `sarmitsuba render` (GNU time's "Maximum resident
 # set size", and /proc/self/statm sampled every millisecond per phase) on the 2-core machine,
 # variant llvm_ad_mono, Mitsuba 3.9.1, Dr.Jit 1.5.0, libLLVM 19, NumPy 2.4, SciPy 1.17. Fitted on
 # trihedral, dihedral (219 and 4,000 pulses), urban (default; 2,000 pulses; ray spacing 0.4 m;
@@ -201,7 +201,7 @@ class CostEstimate:
     ``pulse_memory_bytes`` is the part of the peak that grows with the pulse count (spectra, path
     list, raw data). :func:`check_memory` compares ``peak_memory_bytes`` with the memory available.
 
-    Mesh-anchored trace (issue 56): ``reach_pieces_mean`` and ``reach_pieces_max`` are the
+    Mesh-anchored trace: ``reach_pieces_mean`` and ``reach_pieces_max`` are the
     first-order pieces in a sub-aperture's along-track reach (:func:`reach_work`);
     ``mesh_host_time_s`` the tracer's host time, :data:`SETUP_TRIANGLE_SECONDS` per triangle,
     :data:`SUB_PIECE_SECONDS` per piece and :data:`SUB_TRIANGLE_SECONDS` per triangle in each

@@ -1,5 +1,5 @@
-"""The mesh tracer's work in each sub-aperture's reach, and its measured rates (issue 56;
-docs/physics.md (M9)): what :mod:`sarmitsuba.analysis.cost` turns into ``info``'s trace time and
+"""The mesh tracer's work in each sub-aperture's reach, and its measured rates
+(docs/physics.md (M9)): what :mod:`sarmitsuba.analysis.cost` turns into ``info``'s trace time and
 peak memory for ``lit_regions = "patches"``.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from ..scene.loader import LoadedScene
 __all__ = ["reach_work", "SETUP_TRIANGLE_SECONDS", "SUB_PIECE_SECONDS", "SUB_TRIANGLE_SECONDS",
            "CLUTTER_SCATTERER_PULSE_SECONDS", "MESH_TRIANGLE_BYTES", "SUBAPERTURE_BYTES", "REACH_TRIANGLE_BYTES"]
 
-#: Mesh-anchored trace time per sub-aperture (issue 56): host seconds per first-order piece and
+#: Mesh-anchored trace time per sub-aperture: host seconds per first-order piece and
 #: per triangle in the sub-aperture's along-track reach (:func:`reach_work`, the tracer's own reach,
 #: ``MeshTracer._reach``), for all its bounce orders together (classifying, clipping the mixed
 #: ones, motion rates, term lanes), and seconds per clutter scatterer-pulse of the rough area

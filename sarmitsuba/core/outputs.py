@@ -10,7 +10,7 @@ they replaced are lost). The run holds the folder's lock (:mod:`sarmitsuba.core.
 while it is in the with-block, so a second run into the folder stops at once, and staging
 folders a killed run left there are removed on entry.
 
-Products (issue 28, stale products). A render owns the products it writes: its
+Products and stale products. A render owns the products it writes: its
 ``summary.json`` (:data:`MANIFEST_FILE`) lists every file it wrote under ``"files"``
 (:data:`MANIFEST_KEY`; plain names, ``summary.json`` included), and the next render into the
 folder (``products="replace"``) removes the files on that earlier list that it does not write

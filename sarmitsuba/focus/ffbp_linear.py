@@ -1,4 +1,4 @@
-"""Fast factorised backprojection as a float64 linear map and its adjoint (issue 57).
+"""Fast factorised backprojection as a float64 linear map and its adjoint.
 
 :func:`~sarmitsuba.focus.ffbp` is linear in the raw data: per sub-aperture ``j`` a chain of fixed
 linear steps, summed over the sub-apertures and normalised per range column,

@@ -1,4 +1,4 @@
-"""The focusers as linear maps: float64 forward and adjoint pairs (issue 57).
+"""The focusers as linear maps: float64 forward and adjoint pairs.
 
 Every focuser is linear in the raw data: an image ``I = F d`` with ``F`` fixed by the geometry,
 the grid and the options. Gradients of a loss on the image flow back to the raw data through the

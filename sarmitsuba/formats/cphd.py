@@ -28,7 +28,7 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
   elements (:data:`PARAMETERS`): sarmitsuba's metadata (JSON, with any ``scene_path`` cut to its
   file name: no path of the user's machine leaves it), the first pulse time in RawData's clock,
   the PRF and whether the samples are range compressed, so that a file read back focuses exactly
-  like the RawData it came from. Files written before (sarmitsuba 0.1 up to issue 29) carried the
+  like the RawData it came from. Files written by sarmitsuba 0.1 carried the
   same four entries as non-standard file-header keys, which other readers (sarpy) refuse;
   :func:`read_cphd` still reads them.
 """

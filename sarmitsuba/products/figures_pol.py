@@ -1,4 +1,4 @@
-"""The Pauli RGB picture of a quad-pol image set (issue 15).
+"""The Pauli RGB picture of a quad-pol image set.
 
 The Pauli scattering vector of a backscatter matrix ``S`` (Lee and Pottier, *Polarimetric
 Radar Imaging*, 2009, ch. 3, the Pauli basis) has the components

@@ -191,7 +191,7 @@ def _sinc_sum(pulse: np.ndarray, position: np.ndarray, values: np.ndarray, n_pul
 def range_compress_adjoint(samples: np.ndarray, reference_length: np.ndarray, window: FastTimeWindow,
                            frequency: float, bandwidth: float, n_pad: int,
                            chirp: tuple[float, float] | None = None) -> np.ndarray:
-    """The adjoint of :func:`range_compress` (issue 57): samples complex [n_pulses, n_samples]
+    """The adjoint of :func:`range_compress` : samples complex [n_pulses, n_samples]
     back to padded spectra complex128 [n_pulses, n_pad], ``<range_compress(S), y> = <S,
     range_compress_adjoint(y)>``: zero-padded to ``n_pad``, ``fft / n_pad`` (the inverse FFT's
     adjoint), times the conjugate of each pulse's filter and carrier phase."""

@@ -1,5 +1,5 @@
 """How the kernels run their loops over pulses, terms and scatterers: Dr.Jit's symbolic loops (one
-kernel, the default), or evaluated loops while derivatives are taken (issue 57).
+kernel, the default), or evaluated loops while derivatives are taken.
 
 The loops deposit into the launch's histogram from inside their bodies (a scatter, a side effect).
 Dr.Jit propagates derivatives through such a body only when the loop is *evaluated* (every

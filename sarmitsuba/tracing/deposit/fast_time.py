@@ -121,7 +121,7 @@ def reduce_deposit(hist: np.ndarray, fs: float, oversample: int, frequency: floa
 
 def reduce_deposit_adjoint(spectrum: np.ndarray, n_fine: int, fs: float, oversample: int, frequency: float,
                            range_kernel: str) -> np.ndarray:
-    """The adjoint of :func:`reduce_deposit` (its conjugate transpose, issue 57): spectra complex
+    """The adjoint of :func:`reduce_deposit` (its conjugate transpose): spectra complex
     [n_pulses, n_pad] back to fine histograms complex128 [n_orders, n_pulses, n_fine], so that
     ``<reduce_deposit(h), y> = <h, reduce_deposit_adjoint(y)>``. Each order's filter conjugated,
     the kept bins put back into the zero-padded transform, and the zero-padded FFT transposed:

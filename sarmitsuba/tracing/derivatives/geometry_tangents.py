@@ -1,5 +1,5 @@
-"""Derivatives of a trace with respect to a shape's geometry: its pose or its vertices (issue 57,
-docs/physics.md (AD4)).
+"""Derivatives of a trace with respect to a shape's geometry: its pose or its vertices (docs/physics.md
+(AD4)).
 
 The mesh tracer (M1)-(M8) turns the geometry into lanes on the host (NumPy, float64: lit pieces,
 their boundary segments, chains, rates) and the kernels evaluate every lane's terms for every

@@ -1,5 +1,5 @@
 """Pairing the lanes of a geometry moved by ``+-h`` with the lanes of the geometry itself, and
-their central differences (issue 57, docs/physics.md (AD4)).
+their central differences (docs/physics.md (AD4)).
 
 The host's sorts and hashes may order the rows of a moved geometry's lanes differently, so each
 moved lane is paired with the lane of equal discrete attributes (kind, pulse group, material,

@@ -1,4 +1,4 @@
-"""Derivatives of a trace with respect to a material's reflection table (issue 57), and the
+"""Derivatives of a trace with respect to a material's reflection table, and the
 kernels that carry a shape's geometric tangents too (:func:`moved_tracer`, docs/physics.md (AD4)).
 
 The kernels read each material's reflection coefficient ``r(cos_i)`` from a table (eq. (R)),
