@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 SCENE  ?=
 OUT    ?= out/urban
 
-.PHONY: setup llvm render test bench docs clean
+.PHONY: setup llvm render test bench docs docs-browser clean
 
 setup: llvm $(STAMP)
 
@@ -42,13 +42,24 @@ test: setup
 bench: setup
 	$(PY) benchmarks/run.py
 
-# The manual (Sphinx, MyST pages, numpydoc API reference) into docs/_build/html; any warning fails
-# the build (-W), and every warning is shown first (--keep-going).
+# The manual (Sphinx, MyST pages, numpydoc API reference, the gallery's examples executed) into
+# docs/_build/html; any warning fails the build (-W), and every warning is shown first
+# (--keep-going). Then every internal link, anchor and image of the result is checked.
 docs: setup
 	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[docs]'
-	rm -rf docs/_build docs/api/generated
+	rm -rf docs/_build docs/api/generated docs/gallery
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	$(PY) docs/tools/check_links.py docs/_build/html
 	@echo "manual: docs/_build/html/index.html"
 
+# The built manual in headless Chromium (Debian's chromium and chromium-driver, installed when
+# missing): console errors, images, equations, search; screenshots into docs/_build/browser.
+docs-browser:
+	@if ! command -v chromedriver >/dev/null; then \
+	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium chromium-driver; \
+	fi
+	$(PY) docs/tools/browser_check.py docs/_build/html --out docs/_build/browser
+
 clean:
-	rm -rf out .pytest_cache docs/_build docs/api/generated
+	rm -rf out .pytest_cache docs/_build docs/api/generated docs/gallery
