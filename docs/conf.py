@@ -22,6 +22,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "numpydoc",
     "pluginparameters",          # docs/_ext: the plugins' parameter tables
+    "docstringcheck",            # docs/_ext: a public callable without a docstring is a warning
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
@@ -40,7 +41,9 @@ autosummary_context = {"shadowed": ["sarmitsuba.focus.ffbp"]}
 exclude_patterns = ["_build", "figures", "api/generated/sarmitsuba.focus.ffbp.rst"]   # the stub of the function
 autodoc_typehints = "none"
 numpydoc_show_class_members = False
-numpydoc_validation_checks = set()
+# a numpydoc section of an unknown name or out of order is a warning (GL06, GL07); docs/_ext/docstringcheck
+# makes a public callable without a docstring one
+numpydoc_validation_checks = {"GL06", "GL07"}
 # numpydoc renames a References section's labels per object; those a docstring does not cite in
 # its text would each warn
 suppress_warnings = ["ref.citation"]

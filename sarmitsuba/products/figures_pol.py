@@ -196,12 +196,6 @@ def write_pauli(images: Mapping[str, SarImage], path: str | os.PathLike, dynamic
     Path
         The path written.
 
-    Notes
-    -----
-    Axes as the quicklook: range on x (near range, the sensor side, on the left), azimuth
-    upward, both in metres at the pixel centres; a legend beside the image names the colours.
-    All-zero (or non-finite) images are drawn black, say so in the title and raise no warning.
-
     Raises
     ------
     ValueError
@@ -209,6 +203,12 @@ def write_pauli(images: Mapping[str, SarImage], path: str | os.PathLike, dynamic
         ``figsize`` or ``dpi`` is invalid.
     sarmitsuba.core.outputs.WriteError
         An OSError naming ``path`` when it cannot be written (no temporary file is left).
+
+    Notes
+    -----
+    Axes as the quicklook: range on x (near range, the sensor side, on the left), azimuth
+    upward, both in metres at the pixel centres; a legend beside the image names the colours.
+    All-zero (or non-finite) images are drawn black, say so in the title and raise no warning.
     """
     dynamic_range_db = check_dynamic_range(dynamic_range_db)
     powers, looks = pauli_powers(images, max_pixels)

@@ -51,6 +51,11 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
     Path
         The path written.
 
+    Raises
+    ------
+    WriteError
+        An OSError naming ``path`` when it cannot be written (no temporary file is left).
+
     Notes
     -----
     Channels (each float32 ``[n_az, n_rg]``; EXR width = ``n_rg``, height = ``n_az``,
@@ -68,11 +73,6 @@ def write_exr(image: SarImage, path: str | os.PathLike) -> Path:
     attribute ``sarmitsuba`` holds JSON: plane, algorithm, window, origin, directions,
     both axes in metres and the image metadata (replaced by a note when longer than
     256 Ki characters).
-
-    Raises
-    ------
-    WriteError
-        An OSError naming ``path`` when it cannot be written (no temporary file is left).
     """
     import OpenEXR
 
@@ -147,6 +147,14 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     Path
         The path written.
 
+    Raises
+    ------
+    ValueError
+        When ``dynamic_range_db`` is not a finite positive number, or ``figsize``/``dpi``
+        are not positive.
+    WriteError
+        An OSError naming ``path`` when it cannot be written (no temporary file is left).
+
     Notes
     -----
     The x axis is range (ground range from the scene centre, or closest-approach slant range,
@@ -160,14 +168,6 @@ def write_quicklook(image: SarImage, path: str | os.PathLike, dynamic_range_db: 
     image is drawn uniformly at ``-dynamic_range_db`` and says so in the title; no NaN or
     divide-by-zero warning is raised.
     Rendered with matplotlib's Agg canvas and no pyplot state.
-
-    Raises
-    ------
-    ValueError
-        When ``dynamic_range_db`` is not a finite positive number, or ``figsize``/``dpi``
-        are not positive.
-    WriteError
-        An OSError naming ``path`` when it cannot be written (no temporary file is left).
     """
     dynamic_range_db = check_dynamic_range(dynamic_range_db)
     fig = agg_figure(figsize, dpi)
