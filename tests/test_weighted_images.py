@@ -1,4 +1,4 @@
-"""Weighted images by default (issue item 6) and RCS independent of the window (item 7), end to end.
+"""Weighted images by default and RCS independent of the window, end to end.
 
 ``simulate`` / ``render`` focus with a Taylor window (nbar 4, -35 dB) in range and azimuth and
 divide out the sensor's azimuth pattern; ``window="rect"`` gives the unweighted sinc response.
@@ -89,3 +89,17 @@ def test_render_window_option(tmp_path, capsys, monkeypatch):
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "--window" in err and "triangle" in err
+
+
+@pytest.mark.parametrize("beta", [2.0, 6.0])
+def test_refocus_takes_a_window_with_parameters_in_range(trihedral, beta):
+    """``refocus(raw, window=("kaiser", {"beta": b}))`` weights range too. Truth: Kaiser's design
+    relation between beta and the sidelobe level A (Kaiser and Schafer, IEEE TASSP 28(1), 1980,
+    eq. for 13.26 < A < 60 dB), beta = 0.76609 (A - 13.26)^0.4 + 0.09834 (A - 13.26), solved for A."""
+    from scipy.optimize import brentq
+    level = brentq(lambda a: 0.76609 * (a - 13.26) ** 0.4 + 0.09834 * (a - 13.26) - beta, 13.27, 60.0)
+    raw = trihedral["rect"].raw
+    image = pipeline.refocus(raw, "bp", window=("kaiser", {"beta": beta}))
+    assert image.metadata["focus"]["window_range"] == {"name": "kaiser", "beta": beta}
+    report = sarmitsuba.analyze(image, (0.0, 0.0, 0.0), raw=raw)
+    assert report.pslr_range_db == pytest.approx(-level, abs=1.0)

@@ -25,6 +25,7 @@ from .range_compression import apply_range_window, range_compress
 from .rda import range_doppler
 from .scene_grid import ground_grid
 from .stripmap import slant_output_grid, stripmap_geometry
+from .windows import window_spec
 
 __all__ = ["ALGORITHMS", "focus", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
            "recorded_geometry"]
@@ -144,8 +145,9 @@ def focus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window
     if algorithm == "rda":
         return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
                              doppler_bandwidth=doppler, azimuth_pattern=pattern)
-    compressed = range_compress(raw, window_range) if not raw.range_compressed else (
-        apply_range_window(raw, window_range) if window_range != "rect" else raw)
+    range_name, range_params = window_spec(window_range)      # a name, or (name, {params})
+    compressed = range_compress(raw, range_name, **range_params) if not raw.range_compressed else (
+        apply_range_window(raw, range_name, **range_params) if range_name != "rect" else raw)
     if grid is None:
         grid = slant_output_grid(stripmap_geometry(raw), raw)
     return backprojector(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
