@@ -97,11 +97,56 @@ def heads(text: str) -> list[dict]:
     return found
 
 
+TAG = re.compile(r"\\tag\{(" + LABEL + r")\}")
+
+
+def equations(text: str) -> list[dict]:
+    """The page's display equations (``$$`` blocks), in order: ``line`` (0-based, of the opening
+    ``$$``), ``tags`` (the labels of its ``\\tag{..}``), ``head`` (the label of the paragraph it
+    belongs to: the last head before it) and ``section``."""
+    found, open_line, tags, fenced = [], None, [], False
+    head, section = None, ""
+    head_lines = {h["line"]: h["label"] for h in heads(text)}
+    for i, line in enumerate(text.splitlines()):
+        if line.startswith("```"):
+            fenced = not fenced
+        if fenced:
+            continue
+        if line.startswith("## "):
+            section, head = line[3:].strip(), None
+        if i in head_lines:
+            head = head_lines[i]
+        if line.strip() == "$$":
+            if open_line is None:
+                open_line, tags = i, []
+            else:
+                found.append({"line": open_line, "tags": tags, "head": head, "section": section})
+                open_line = None
+        elif open_line is not None:
+            tags.extend(TAG.findall(line))
+    return found
+
+
+def targets(text: str) -> list[dict]:
+    """Every anchor of the page: the paragraph heads' (``kind`` "head") and those of equation tags
+    that head no paragraph (``kind`` "equation": ``(M1')`` in the paragraph of ``(M1)``), each
+    with ``label``, ``line`` (where its target goes), ``item``, ``key`` and ``anchor``."""
+    found = [dict(h, kind="head") for h in heads(text)]
+    labels = {h["label"] for h in found}
+    for eq in equations(text):
+        for tag in eq["tags"]:
+            if tag not in labels:
+                labels.add(tag)
+                found.append({"label": tag, "line": eq["line"], "item": "", "section": eq["section"],
+                              "key": None, "anchor": anchor(tag), "kind": "equation"})
+    return sorted(found, key=lambda t: t["line"])
+
+
 def with_targets(text: str) -> str:
     """The page with a MyST target ``(anchor)=`` before each labelled paragraph (inside the list
-    item for a list item's head)."""
+    item for a list item's head) and before each equation whose tag heads no paragraph."""
     lines = text.splitlines(keepends=True)
-    for h in reversed(heads(text)):
+    for h in reversed(targets(text)):
         i, item = h["line"], h["item"]
         if item:
             indent = " " * len(item)
@@ -114,7 +159,7 @@ def with_targets(text: str) -> str:
 def label_table(text: str) -> dict[str, dict[str | None, str]]:
     """label -> {section key (None where the label is unique): anchor}."""
     table: dict[str, dict[str | None, str]] = {}
-    for h in heads(text):
+    for h in targets(text):
         table.setdefault(h["label"], {})[h["key"]] = h["anchor"]
     return table
 
@@ -141,7 +186,7 @@ def _doctree_read(app, doctree):
     if env.docname != PAGE:
         return
     std = env.domains.standard_domain
-    for h in heads(Path(env.doc2path(PAGE)).read_text(encoding="utf-8")):
+    for h in targets(Path(env.doc2path(PAGE)).read_text(encoding="utf-8")):
         name = h["anchor"]
         labelid = doctree.nameids.get(name)
         if labelid:
@@ -245,5 +290,5 @@ def setup(app):
 
 
 if __name__ == "__main__":
-    for h in heads(PHYSICS_MD.read_text(encoding="utf-8")):
-        print(f"{h['line'] + 1:5d}  ({h['label']})  #{h['anchor']}")
+    for h in targets(PHYSICS_MD.read_text(encoding="utf-8")):
+        print(f"{h['line'] + 1:5d}  ({h['label']})  #{h['anchor']}  {h['kind']}")
