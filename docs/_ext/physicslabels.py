@@ -196,7 +196,8 @@ def _doctree_read(app, doctree):
 
 # -- Sphinx: links from the docstrings ------------------------------------------------------------
 
-#: ``(LABEL)``, optionally after ``Eq.``/``Eqs.``/``eq.`` (the role then covers the label only).
+#: ``(LABEL)``: the role covers the parenthesised label only (``Eq.`` or ``docs/physics.md`` before
+#: it stay text).
 CITE = re.compile(r"\((" + LABEL + r")\)")
 #: A role may start after these (or a line's start) and end before these (or a line's end).
 BEFORE = set(" \t([{<-/:'\"")
