@@ -52,3 +52,11 @@ html_theme = "pydata_sphinx_theme"
 html_title = "sarmitsuba"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
 html_static_path: list[str] = []
+
+# Math: MathJax 3 served from the built manual itself (sphinx-mathjax-offline bundles MathJax 3.2
+# and copies it to _static/mathjax), so equations display without network access; MyST's
+# $$...$$ blocks with \tag{..} carry docs/physics.md's labels. docs/_ext/physicslabels.py gives
+# each labelled paragraph of physics.md an anchor (physics.html#eq-m5, {ref}`eq-m5`) and links
+# the labels that docstrings cite to it.
+extensions += ["sphinx.ext.mathjax", "sphinx-mathjax-offline", "physicslabels"]
+mathjax3_config = {"tex": {"tags": "none"}}
