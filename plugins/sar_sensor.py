@@ -38,7 +38,7 @@
  * - geo_origin
    - string "latitude, longitude, height", deg, deg, m
    - WGS84 position of the scene's origin; x, y, z are east, north, up there
-     (docs/physics.md (G1)). Places the CPHD, SICD and GeoTIFF products on Earth. Default:
+     (docs/physics.md (GEO1)). Places the CPHD, SICD and GeoTIFF products on Earth. Default:
      the scene's known origin (``sionna:munich``), else 0 N 0 E 0 m, a placeholder.
  * - look_side
    - string

@@ -28,7 +28,7 @@ SPACING = 1.0
 
 
 def enu_closed_form(lat_deg, lon_deg):
-    """East, north, up unit vectors in ECEF (docs/physics.md (G1), by hand)."""
+    """East, north, up unit vectors in ECEF (docs/physics.md (GEO1), by hand)."""
     phi, lam = math.radians(lat_deg), math.radians(lon_deg)
     return (np.array([-math.sin(lam), math.cos(lam), 0.0]),
             np.array([-math.sin(phi) * math.cos(lam), -math.sin(phi) * math.sin(lam), math.cos(phi)]),

@@ -337,7 +337,7 @@ def test_deltakcoapoly_is_the_spectral_centre_around_the_off_scp_trihedral(produ
 # -- the CPHD read as the standard says, off the SRP -------------------------------------------------
 
 def enu_to_ecef_by_hand(points: np.ndarray, lat: float, lon: float, h: float) -> np.ndarray:
-    """docs/physics.md (G1) written out: the origin through pyproj's geodetic-to-ECEF, the axes by formula."""
+    """docs/physics.md (GEO1) written out: the origin through pyproj's geodetic-to-ECEF, the axes by formula."""
     import pyproj
     x0 = np.array(pyproj.Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True).transform(lon, lat, h))
     p, l = math.radians(lat), math.radians(lon)

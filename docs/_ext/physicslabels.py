@@ -4,17 +4,13 @@ docs/physics.md heads each paragraph of the model with its label in bold, ``**(M
 ...**`` (or a list item ``* **(D1) nearest**: ...``). While Sphinx reads the page, a MyST target
 is put before each such paragraph, so that ``physics.html#eq-m5`` and ``{ref}`eq-m5``` reach it
 from any page (the reference's text is the label, ``(M5)``). The anchor is ``eq-`` and the label in
-lower case, a prime written ``p`` (``(M1')`` -> ``eq-m1p``). A label that heads paragraphs in two
-sections (``(G1)``: the image's geometry and the geographic reference; ``(F1)``: fast factorised
-backprojection and the footprint scenes) takes its section's key as well (``eq-g1-image``,
-``eq-g1-geo``).
+lower case, a prime written ``p`` (``(M1')`` -> ``eq-m1p``). Labels are unique on the page
+(tests/test_physics_page.py).
 
 In the API reference, a docstring's citations of the page's labels, ``(M5)``, ``Eq. (M5)``,
 ``docs/physics.md (M5)`` or ``(F1)-(F9)``, become links to the anchors: only labels that the page
 has, never inside literals, literal blocks, directives or doctests, and only where the reference
-role stands between whitespace or punctuation (so it parses as inline markup). A label the page
-has twice is linked only from the modules :data:`AMBIGUOUS_MODULES` assigns to one of its
-sections.
+role stands between whitespace or punctuation (so it parses as inline markup).
 
 ``python docs/_ext/physicslabels.py`` prints the page's labels and their anchors.
 """
@@ -32,45 +28,9 @@ HEAD = re.compile(r"^(?P<item>[*-] )?\*\*\((?P<label>[A-Z][A-Za-z]*[0-9]*'?)\)")
 #: The shape of a label (letters, then digits, then an optional prime).
 LABEL = r"[A-Z][A-Za-z]*[0-9]*'?"
 
-#: Section keys of labels that head paragraphs in more than one section (by the section
-#: heading's start).
-SECTION_KEYS = {
-    "Geometry of the image": "image",
-    "Geographic reference": "geo",
-    "Fast factorised backprojection": "ffbp",
-    "Scenes from building footprints": "footprints",
-}
-
-#: Modules whose docstrings cite the labels that two sections share, and the section they mean
-#: (the longest matching prefix of the module's name wins). Other modules' citations of those
-#: labels stay plain text.
-AMBIGUOUS_MODULES = {
-    "sarmitsuba.focus": "ffbp",
-    "sarmitsuba.scene": "footprints",
-    "sarmitsuba.scene.track_checks": "image",
-    "sarmitsuba.scene.geometry_checks": "image",
-    "sarmitsuba.formats": "geo",
-    "sarmitsuba.core.georef": "geo",
-    "sarmitsuba.core.radar": "geo",
-    "sarmitsuba.core.orbit": "geo",
-    "sarmitsuba.core.image": "image",
-    "sarmitsuba.core.geometry": "image",
-    "sarmitsuba.products": "image",
-    "sarmitsuba.analysis.point_target": "image",
-}
-
-
-def anchor(label: str, section_key: str | None = None) -> str:
-    """The HTML anchor of a label: ``M1'`` -> ``eq-m1p``; with a section key, ``eq-g1-geo``."""
-    name = "eq-" + label.lower().replace("'", "p")
-    return f"{name}-{section_key}" if section_key else name
-
-
-def _section_key(heading: str) -> str:
-    for start, key in SECTION_KEYS.items():
-        if heading.startswith(start):
-            return key
-    return re.sub(r"[^a-z0-9]+", "-", heading.lower()).strip("-")
+def anchor(label: str) -> str:
+    """The HTML anchor of a label: ``M1'`` -> ``eq-m1p``."""
+    return "eq-" + label.lower().replace("'", "p")
 
 
 def heads(text: str) -> list[dict]:
@@ -87,13 +47,9 @@ def heads(text: str) -> list[dict]:
         m = HEAD.match(line)
         if m:
             found.append({"label": m["label"], "line": i, "item": m["item"] or "", "section": section})
-    counts: dict[str, int] = {}
     for h in found:
-        counts[h["label"]] = counts.get(h["label"], 0) + 1
-    for h in found:
-        shared = counts[h["label"]] > 1
-        h["key"] = _section_key(h["section"]) if shared else None
-        h["anchor"] = anchor(h["label"], h["key"])
+        h["key"] = None
+        h["anchor"] = anchor(h["label"])
     return found
 
 
@@ -204,14 +160,6 @@ BEFORE = set(" \t([{<-/:'\"")
 AFTER = set(" \t)]}>-/:;,.!?'\"\\")
 
 
-def _section_for(module: str) -> str | None:
-    best = None
-    for prefix, key in AMBIGUOUS_MODULES.items():
-        if (module == prefix or module.startswith(prefix + ".")) and (best is None or len(prefix) > len(best[0])):
-            best = (prefix, key)
-    return best[1] if best else None
-
-
 def _link_plain(text: str, table, module: str) -> str:
     """Turn the citations in a stretch of plain rST text (no literals) into references."""
     out, pos = [], 0
@@ -220,7 +168,7 @@ def _link_plain(text: str, table, module: str) -> str:
         anchors = table.get(label)
         if not anchors:
             continue
-        target = anchors.get(None) or anchors.get(_section_for(module))
+        target = anchors.get(None)
         if target is None:
             continue
         before = text[m.start() - 1] if m.start() > 0 else " "

@@ -20,5 +20,5 @@ section 3), and the primitives they are built from:
 :mod:`.constants`        physical constants with their sources
 =======================  ===============================================================
 
-Physics: (S1) (the carrier phase RawData's samples carry), (G1) (local frame to ECEF).
+Physics: (S1) (the carrier phase RawData's samples carry), (GEO1) (local frame to ECEF).
 """

@@ -3,7 +3,7 @@
 A scene's world frame (the frame of its XML, metres) is taken as a local east-north-up (ENU,
 topocentric) frame whose origin sits at the sensor parameter ``geo_origin`` = latitude [deg],
 longitude [deg], height [m] above the WGS84 ellipsoid: x east, y north, z up along the
-ellipsoid normal (docs/physics.md (G1)). The maps to Earth-centred Earth-fixed (ECEF, EPSG:4978),
+ellipsoid normal (docs/physics.md (GEO1)). The maps to Earth-centred Earth-fixed (ECEF, EPSG:4978),
 geodetic (EPSG:4979) and UTM coordinates are PROJ's, through pyproj (the ``cart`` and
 ``topocentric`` operations; Snyder 1987 for UTM); this module only assembles them.
 

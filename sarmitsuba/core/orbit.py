@@ -32,7 +32,7 @@ __all__ = ["read_eof", "in_scene_frame", "pass_geometry", "PassGeometry", "close
 
 # ============================================================================ frames
 def in_scene_frame(states: StateVectors, ref: georef.GeoReference) -> StateVectors:
-    """``states`` in the scene's east-north-up frame at ``ref`` (docs/physics.md (G1), (J6)):
+    """``states`` in the scene's east-north-up frame at ``ref`` (docs/physics.md (GEO1), (J6)):
     ECEF positions through PROJ's topocentric conversion (:func:`~.georef.ecef_to_enu`),
     velocities rotated by :func:`~.georef.enu_axes` (``v_enu = v_ecef @ axes.T``). States already
     in the scene frame pass unchanged. The map is rigid and affine, so the Hermite interpolant of

@@ -74,7 +74,7 @@ class RadarParameters:
         (docs/physics.md (I1)). Default ``(0, 0, 0)``.
     geo_origin : tuple (latitude deg, longitude deg, height m) or None
         WGS84 position of the world frame's origin, whose x, y, z axes are taken as east,
-        north, up (docs/physics.md (G1)); written into CPHD, SICD and GeoTIFF products. ``None``
+        north, up (docs/physics.md (GEO1)); written into CPHD, SICD and GeoTIFF products. ``None``
         = the scene's known origin (``sionna:munich``) or :data:`sarmitsuba.core.georef.DEFAULT`.
         Given as ``"48.138, 11.576, 566"``; latitude in [-90, 90], longitude in [-180, 180].
     look_side : str

@@ -21,7 +21,7 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.provenance`       collection start, creation time, metadata without the user's paths
 =======================  ===============================================================
 
-Physics: (G1) local frame to ECEF, (G2) CPHD compensation to the scene reference point,
-(G3) GeoTIFF and SICD grids, (G4) the slant-plane SICD (section "Geographic reference and
+Physics: (GEO1) local frame to ECEF, (GEO2) CPHD compensation to the scene reference point,
+(GEO3) GeoTIFF and SICD grids, (GEO4) the slant-plane SICD (section "Geographic reference and
 standard formats"), (K3) SICD radiometric scale factors, (K3') the uniform SICD's weighting taken out.
 """

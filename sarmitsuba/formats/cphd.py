@@ -11,7 +11,7 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
   (with the channel's ``ImageArea`` and the ``ImageGrid``) bounds what the data can show: the
   scene's bounding box with its layover and a margin, else the fast-time window projected to the
   ground (:mod:`sarmitsuba.formats.cphd_geometry`);
-- the samples are compensated to the SRP as CPHD requires (docs/physics.md (G2)): sample ``s`` of vector ``v`` sits
+- the samples are compensated to the SRP as CPHD requires (docs/physics.md (GEO2)): sample ``s`` of vector ``v`` sits
   at ``dTOA = SC0[v] + s SCSS`` relative to the SRP delay ``tau_srp[v]`` and carries the phase
   factor ``exp(+j 2 pi fc tau_srp[v])`` (a point at the SRP reads zero phase at ``dTOA = 0``).
   :func:`read_cphd` undoes both, so the samples come back within float32 rounding;

@@ -2,9 +2,9 @@
 
 The file is written by rasterio (GDAL); this module only places the image. A ground-plane
 :class:`~sarmitsuba.core.image.SarImage` is a rotated rectangle of the local east-north-up frame at
-the sensor's ``geo_origin`` (docs/physics.md (G1)). Its pixel centres are mapped to UTM
+the sensor's ``geo_origin`` (docs/physics.md (GEO1)). Its pixel centres are mapped to UTM
 through PROJ (:func:`sarmitsuba.core.georef.enu_to_utm`), and the grid is fitted with one affine
-geotransform to three outer pixel corners (physics.md (G3): over a scene a few kilometres
+geotransform to three outer pixel corners (physics.md (GEO3): over a scene a few kilometres
 across, UTM is affine in the local frame to well under a pixel).
 
 Grids (``north_up`` of :func:`write_geotiff`):

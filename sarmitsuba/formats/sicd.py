@@ -15,9 +15,9 @@ sarmitsuba wrote before, still read.
   plane at the SCP (``Row/UVectECF`` the line of sight from the antenna at the SCP's centre of
   aperture, ``Col/UVectECF`` the velocity across it), onto which a ground-plane image is
   resampled along SICD's range / range-rate projection (:mod:`sarmitsuba.formats.sicd_slant`,
-  docs/physics.md (G4)); with ``plane="image"`` the image's own plane (``GROUND`` for a ground
+  docs/physics.md (GEO4)); with ``plane="image"`` the image's own plane (``GROUND`` for a ground
   image: ``Row/UVectECF`` its range direction, ``Col/UVectECF`` its azimuth direction), in
-  ECEF through the geographic reference (docs/physics.md (G1), (G3)). The SCP is the image's
+  ECEF through the geographic reference (docs/physics.md (GEO1), (GEO3)). The SCP is the image's
   centre pixel. ``KCtr`` and ``ImpRespBW`` are those of the aperture that formed the SCP
   (:mod:`sarmitsuba.formats.sicd_support`); ``Sgn = -1``. By default the image's weighting is
   taken out of its spectrum while it is resampled (``WgtType = UNIFORM``, no ``WgtFunct``,

@@ -1,5 +1,5 @@
 """The slant-plane SICD grid of a ground-plane image (NGA.STND.0024-1, SICD Volume 1, section "Grid",
-``ImagePlane = SLANT``, ``Type = PLANE``; Volume 3, image-to-scene projection; docs/physics.md (G4)).
+``ImagePlane = SLANT``, ``Type = PLANE``; Volume 3, image-to-scene projection; docs/physics.md (GEO4)).
 
 Commercial SICDs of backprojected images are slant-plane grids. sarmitsuba focuses on the ground
 (the GeoTIFF keeps that grid); the SICD takes the slant plane at the scene centre point (SCP):

@@ -31,7 +31,7 @@ it switches on (``EffectSet``):
 =======================  ===============================================================
 
 Physics: (R) reflection coefficients, (R1)-(R3) radar equation, (T1)-(T2) ray footprint and
-refinement, (I1)-(I3) baselines, (F1)-(F3) scenes from footprints.
+refinement, (I1)-(I3) baselines, (FP1)-(FP3) scenes from footprints.
 
 ``from sarmitsuba.scene import load_scene`` (the module ``sarmitsuba.scene`` before the stage
 packages) still works: names not found here are looked up in :mod:`.loader`.

@@ -4,11 +4,11 @@ pyramidal) and floor.
 :func:`building_mesh` is the extruder of :mod:`sarmitsuba.scene.city`. A pitched roof is built on
 the outline's minimum rotated rectangle (shapely): its ridge runs along the rectangle's longer side
 (``across``: the shorter) at ``roof_height`` above the eaves, and the roof is the lowest of its
-planes (docs/physics.md (F2))::
+planes (docs/physics.md (FP2))::
 
     gabled     z = e + h (1 - |v| / W)
     hipped     z = e + h min(1 - |v| / W, (A - |u|) / W)
-    pyramidal  z = e + h min(1 - |v| / W, 1 - |u| / A)                                          (F2)
+    pyramidal  z = e + h min(1 - |v| / W, 1 - |u| / A)                                          (FP2)
 
 with ``u``, ``v`` the offsets along and across the ridge from the rectangle's centre, ``A``, ``W``
 its half-length and half-width, ``e`` the eaves' height. Each plane's part of the outline is cut out
@@ -31,7 +31,7 @@ _MERGE_DIGITS = 6
 
 
 def roof_planes(polygon, shape: str, roof_height: float, across: bool = False) -> np.ndarray:
-    """float64 [k, 3]: planes ``z - e = a x + b y + c`` of a roof over ``polygon`` (F2); the roof is
+    """float64 [k, 3]: planes ``z - e = a x + b y + c`` of a roof over ``polygon`` (FP2); the roof is
     their minimum. ``[[0, 0, 0]]`` for a flat roof or ``roof_height`` 0.
 
     Parameters
@@ -67,7 +67,7 @@ def roof_planes(polygon, shape: str, roof_height: float, across: bool = False) -
 
 
 def roof_height_at(planes: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Roof height above the eaves [m] at points ``xy`` float64 [n, 2]: the lowest plane (F2)."""
+    """Roof height above the eaves [m] at points ``xy`` float64 [n, 2]: the lowest plane (FP2)."""
     xy = np.atleast_2d(xy)
     return np.min(xy @ planes[:, :2].T + planes[:, 2], axis=1)
 

@@ -8,7 +8,7 @@ ground; :meth:`sarmitsuba.Scene.from_city` makes a City an in-memory scene) and,
 ``itu-radio-material`` BSDFs), so that ``render``, ``info`` and ``preview`` take the folder or its
 ``scene.xml`` as they are.
 
-The frame (docs/physics.md (F1)): a local east-north-up frame (x east, y north, z up, metres)
+The frame (docs/physics.md (FP1)): a local east-north-up frame (x east, y north, z up, metres)
 whose origin is the centre of the footprints' longitude-latitude bounding box on the ground,
 written as the sensor's ``geo_origin`` (height: ``elevation``, or the DEM's height there), so
 GeoTIFF, SICD and CPHD products land on the map. Outlines are projected with PROJ's
@@ -215,7 +215,7 @@ def _margin_box(fs: FootprintSet, margin: float) -> tuple[float, float, float, f
 
 
 def _project(polygon, ref: georef.GeoReference):
-    """The lon/lat outline as local (x east, y north) metres at ``ref`` (F1)."""
+    """The lon/lat outline as local (x east, y north) metres at ``ref`` (FP1)."""
     import shapely
 
     def to_local(lonlat: np.ndarray) -> np.ndarray:

@@ -156,7 +156,7 @@ def length_expansion(d, b, s, dist, u_axis, v_axis, c: float):
 def scatterer(i, cells: FootprintCells, key0, expansion, n_cells, k: float, cross: bool = False, inside=None):
     """The scatterer of the footprint's ``i``-th cell (UInt32), eq. (C): whether the footprint
     holds it (and ``i < n_cells``, and ``inside(du, dv)`` of its offset from the hit in cells when
-    given: a cell piece's own test, (T6)), its two-way length offset ``dl`` (m,
+    given: a cell piece's own test, (M7)), its two-way length offset ``dl`` (m,
     :func:`length_expansion`) and its phase ``phi - k dl`` (rad). Returns ``(own, dl, phase,
     phase_x)``: ``phase_x`` is the phase of its cross-polarised return, ``phi_x - k dl`` with
     ``phi_x`` hashed independently of ``phi`` (eq. (P7)), when ``cross``; else None (nothing
