@@ -1,4 +1,5 @@
-"""Every command in the README's code blocks runs, in README order, in one working folder.
+"""Every command in the README's code blocks runs, in README order, in one working folder, and so
+does every command of the manual's getting-started and user-guide pages (:data:`MANUAL_PAGES`).
 
 Commands run as written, with only these changes, each listed in :data:`SMALL` and
 :data:`SUBSTITUTES`:
@@ -48,8 +49,16 @@ SMALL = {"render": ["--pulses", "16", "--max-depth", "1", "--no-progress"],
          "info": ["--pulses", "16"], "focus": ["--no-progress"], "interferogram": ["--no-progress"]}
 #: README text -> what the test runs instead (see the module docstring).
 SUBSTITUTES = {"render sionna:munich": "render sionna:simple_street_canyon"}
-#: The fresh-clone commands, run by CI on a clean clone rather than inside the suite.
+#: The fresh-clone commands, run by CI on a clean clone rather than inside the suite; the manual's
+#: pages also name the setup, the manual's own build and its browser check (run by tests/test_manual.py
+#: in its quick form, and by hand).
 FRESH_CLONE = {"make render", "make test"}
+MAKE_LINES = FRESH_CLONE | {"make setup", "make docs", "make docs-browser", "make bench"}
+#: The manual's pages whose commands run here, in this order in one folder (a later page may focus
+#: what an earlier one rendered): getting started, then the user guide.
+MANUAL_PAGES = ["getting-started.md"] + [f"guide/{name}.md" for name in (
+    "scenes", "sensor", "rendering", "focusing", "polarimetry", "interferometry", "formats", "gradients", "dask",
+    "gpu", "choosing-settings", "limits")]
 #: The benchmark suite's command lines (``make bench`` runs the first): whole, quick, a choice into a folder.
 BENCH_COMMANDS = [f"{PYTHON} -m sarmitsuba bench", f"{PYTHON} -m sarmitsuba bench --quick",
                   f"{PYTHON} -m sarmitsuba bench --only range_kernel focus --out /tmp/bench"]
@@ -188,6 +197,55 @@ def test_every_command_line_is_of_a_known_kind():
                and not re.match(rf"([A-Z_]+=\S+ )*({re.escape(PYTHON)} -m sarmitsuba|{re.escape(DASK)}) ", line)]
     assert unknown == []
     assert FRESH_CLONE <= set(lines) and len(lines) > len(FRESH_CLONE)
+
+
+def manual_pages() -> list[Path]:
+    """The pages of :data:`MANUAL_PAGES` that exist, in order."""
+    return [page for page in (REPO / "docs" / name for name in MANUAL_PAGES) if page.is_file()]
+
+
+def test_every_manual_command_line_is_of_a_known_kind():
+    lines = [line for page in manual_pages() for _, block in code_blocks("bash", page) for line in commands(block)]
+    unknown = [line for line in lines if line not in MAKE_LINES
+               and not re.match(rf"([A-Z_]+=\S+ )*({re.escape(PYTHON)} -m sarmitsuba|{re.escape(DASK)}) ", line)]
+    assert unknown == [] and len(lines) > 20
+
+
+def test_manual_bash_blocks_run_in_order(tmp_path, capsys, monkeypatch):
+    """Every command of the manual's task pages, with the README's small settings, in page order in
+    one folder (``my_scene.xml`` the dihedral, ``scenes/`` the repository's)."""
+    (tmp_path / "scenes").symlink_to(REPO / "scenes", target_is_directory=True)
+    shutil.copy(REPO / "scenes" / "dihedral.xml", tmp_path / "my_scene.xml")
+    monkeypatch.chdir(tmp_path)
+    runner = Runner(tmp_path, capsys, monkeypatch)
+    ran = []
+    try:
+        for page in manual_pages():
+            for start, block in code_blocks("bash", page):
+                for line in commands(block):
+                    if line not in MAKE_LINES:
+                        runner.run(line)
+                        ran.append((page.name, start, line))
+    finally:
+        runner.close()
+    assert len(ran) > 20
+
+
+@pytest.mark.parametrize("name", MANUAL_PAGES)
+def test_manual_python_blocks_run(name, tmp_path, monkeypatch):
+    """A page's Python blocks run as written, in order, in one namespace (a later block may use an
+    earlier one's names), in a folder with ``scenes/`` and ``my_scene.xml``; a page's block that only
+    shows a signature or an excerpt is marked by its first line, ``# not run: <why>``."""
+    page = REPO / "docs" / name
+    if not page.is_file():
+        pytest.skip(f"{name} is not written")
+    (tmp_path / "scenes").symlink_to(REPO / "scenes", target_is_directory=True)
+    shutil.copy(REPO / "scenes" / "dihedral.xml", tmp_path / "my_scene.xml")
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {"__name__": "__manual__"}
+    for start, block in code_blocks("python", page):
+        if not block.lstrip().startswith("# not run:"):
+            exec(compile(block, f"{name}:{start}", "exec"), namespace)
 
 
 def test_readme_bash_blocks_run_in_order(folder, capsys, monkeypatch):
