@@ -411,7 +411,9 @@ def coherence(primary: SarImage | np.ndarray, secondary: SarImage | np.ndarray,
     a, b = _pair_data(primary, secondary)
     looks = check_looks(looks, a.shape)
     numerator = np.abs(_boxcar(a * np.conj(b), looks))
-    denominator = np.sqrt(_boxcar(np.abs(a) ** 2, looks) * _boxcar(np.abs(b) ** 2, looks))
+    # a running-sum mean of powers rounds to about -1e-16 of the window's peak beside bright pixels
+    power_a, power_b = (np.maximum(_boxcar(np.abs(x) ** 2, looks), 0.0) for x in (a, b))
+    denominator = np.sqrt(power_a * power_b)
     ok = denominator > 0
     out = np.zeros(a.shape, np.float64)
     out[ok] = numerator[ok] / denominator[ok]
