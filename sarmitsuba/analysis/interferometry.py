@@ -401,7 +401,8 @@ def coherence(primary: SarImage | np.ndarray, secondary: SarImage | np.ndarray,
     Returns
     -------
     float32 [n_az, n_rg] in [0, 1]
-        0 where either image is zero over the whole window (no NaN); rounding above 1 is cut to 1.
+        0 where either image is zero over the whole window (its mean power below 1e-12 of the
+        image's largest window mean; no NaN); rounding above 1 is cut to 1.
 
     Raises
     ------
@@ -411,8 +412,10 @@ def coherence(primary: SarImage | np.ndarray, secondary: SarImage | np.ndarray,
     a, b = _pair_data(primary, secondary)
     looks = check_looks(looks, a.shape)
     numerator = np.abs(_boxcar(a * np.conj(b), looks))
-    # a running-sum mean of powers rounds to about -1e-16 of the window's peak beside bright pixels
-    power_a, power_b = (np.maximum(_boxcar(np.abs(x) ** 2, looks), 0.0) for x in (a, b))
+    # a running-sum mean of powers rounds to about +-1e-16 of the image's peak beside bright pixels:
+    # a window whose mean power is below 1e-12 of the peak's holds nothing
+    power_a, power_b = (_boxcar(np.abs(x) ** 2, looks) for x in (a, b))
+    power_a, power_b = (np.where(p > 1e-12 * max(float(p.max()), 0.0), p, 0.0) for p in (power_a, power_b))
     denominator = np.sqrt(power_a * power_b)
     ok = denominator > 0
     out = np.zeros(a.shape, np.float64)
