@@ -1,5 +1,4 @@
-"""Every command in the README's code blocks runs, in README order, in one working folder, and so
-does every command of the manual's getting-started and user-guide pages (:data:`MANUAL_PAGES`).
+"""Every command in the README's code blocks runs, in README order, in one working folder.
 
 Commands run as written, with only these changes, each listed in :data:`SMALL` and
 :data:`SUBSTITUTES`:
@@ -18,8 +17,8 @@ Commands run as written, with only these changes, each listed in :data:`SMALL` a
 
 ``make render`` and ``make test`` are the fresh-clone commands: CI runs ``make test`` on a clean
 clone, which is this suite. A line of another kind fails the test, so a new README command
-cannot go untested. The README's Python example runs as written, and so does the worked inverse
-example, :data:`INVERSE_EXAMPLE`.
+cannot go untested. The README's Python example runs as written; tests/test_manual_pages.py runs
+the manual's pages the same way.
 """
 from __future__ import annotations
 
@@ -49,16 +48,8 @@ SMALL = {"render": ["--pulses", "16", "--max-depth", "1", "--no-progress"],
          "info": ["--pulses", "16"], "focus": ["--no-progress"], "interferogram": ["--no-progress"]}
 #: README text -> what the test runs instead (see the module docstring).
 SUBSTITUTES = {"render sionna:munich": "render sionna:simple_street_canyon"}
-#: The fresh-clone commands, run by CI on a clean clone rather than inside the suite; the manual's
-#: pages also name the setup, the manual's own build and its browser check (run by tests/test_manual.py
-#: in its quick form, and by hand).
+#: The fresh-clone commands, run by CI on a clean clone rather than inside the suite.
 FRESH_CLONE = {"make render", "make test"}
-MAKE_LINES = FRESH_CLONE | {"make setup", "make docs", "make docs-browser", "make bench"}
-#: The manual's pages whose commands run here, in this order in one folder (a later page may focus
-#: what an earlier one rendered): getting started, then the user guide.
-MANUAL_PAGES = ["getting-started.md"] + [f"guide/{name}.md" for name in (
-    "scenes", "sensor", "rendering", "focusing", "polarimetry", "interferometry", "formats", "gradients", "dask",
-    "gpu", "choosing-settings", "limits")]
 #: The benchmark suite's command lines (``make bench`` runs the first): whole, quick, a choice into a folder.
 BENCH_COMMANDS = [f"{PYTHON} -m sarmitsuba bench", f"{PYTHON} -m sarmitsuba bench --quick",
                   f"{PYTHON} -m sarmitsuba bench --only range_kernel focus --out /tmp/bench"]
@@ -124,10 +115,11 @@ class Runner:
         line = self.text(line)
         line, _, grep = line.partition(" | grep ")
         words = shlex.split(line)
-        if words[0] == DASK:
+        if words[0] in (DASK, "dask"):
             return self.start_dask(words, line)
         env = dict(w.split("=", 1) for w in words if re.fullmatch(r"[A-Z_]+=\S+", w))
         words = words[len(env):]
+        words[:1] = [PYTHON] if words[:1] == ["python"] else words[:1]      # the manual's pages: a venv activated
         assert words[:3] == [PYTHON, "-m", "sarmitsuba"], f"a README command of an unknown kind: {line}"
         argv = with_small_settings(words[3:])
         if env:
@@ -199,55 +191,6 @@ def test_every_command_line_is_of_a_known_kind():
     assert FRESH_CLONE <= set(lines) and len(lines) > len(FRESH_CLONE)
 
 
-def manual_pages() -> list[Path]:
-    """The pages of :data:`MANUAL_PAGES` that exist, in order."""
-    return [page for page in (REPO / "docs" / name for name in MANUAL_PAGES) if page.is_file()]
-
-
-def test_every_manual_command_line_is_of_a_known_kind():
-    lines = [line for page in manual_pages() for _, block in code_blocks("bash", page) for line in commands(block)]
-    unknown = [line for line in lines if line not in MAKE_LINES
-               and not re.match(rf"([A-Z_]+=\S+ )*({re.escape(PYTHON)} -m sarmitsuba|{re.escape(DASK)}) ", line)]
-    assert unknown == [] and len(lines) > 20
-
-
-def test_manual_bash_blocks_run_in_order(tmp_path, capsys, monkeypatch):
-    """Every command of the manual's task pages, with the README's small settings, in page order in
-    one folder (``my_scene.xml`` the dihedral, ``scenes/`` the repository's)."""
-    (tmp_path / "scenes").symlink_to(REPO / "scenes", target_is_directory=True)
-    shutil.copy(REPO / "scenes" / "dihedral.xml", tmp_path / "my_scene.xml")
-    monkeypatch.chdir(tmp_path)
-    runner = Runner(tmp_path, capsys, monkeypatch)
-    ran = []
-    try:
-        for page in manual_pages():
-            for start, block in code_blocks("bash", page):
-                for line in commands(block):
-                    if line not in MAKE_LINES:
-                        runner.run(line)
-                        ran.append((page.name, start, line))
-    finally:
-        runner.close()
-    assert len(ran) > 20
-
-
-@pytest.mark.parametrize("name", MANUAL_PAGES)
-def test_manual_python_blocks_run(name, tmp_path, monkeypatch):
-    """A page's Python blocks run as written, in order, in one namespace (a later block may use an
-    earlier one's names), in a folder with ``scenes/`` and ``my_scene.xml``; a page's block that only
-    shows a signature or an excerpt is marked by its first line, ``# not run: <why>``."""
-    page = REPO / "docs" / name
-    if not page.is_file():
-        pytest.skip(f"{name} is not written")
-    (tmp_path / "scenes").symlink_to(REPO / "scenes", target_is_directory=True)
-    shutil.copy(REPO / "scenes" / "dihedral.xml", tmp_path / "my_scene.xml")
-    monkeypatch.chdir(tmp_path)
-    namespace: dict = {"__name__": "__manual__"}
-    for start, block in code_blocks("python", page):
-        if not block.lstrip().startswith("# not run:"):
-            exec(compile(block, f"{name}:{start}", "exec"), namespace)
-
-
 def test_readme_bash_blocks_run_in_order(folder, capsys, monkeypatch):
     """One test for all blocks: later blocks use earlier ones' outputs (``focus out/urban/raw.npz``),
     so they run in README order in one process whatever the test scheduler does."""
@@ -305,53 +248,3 @@ def test_readme_python_example_runs(folder, monkeypatch, capsys):
     assert abs(measured - aasr) <= 1.0, (measured, aasr)
     assert f"RCS {report.rcs_db:.1f} dBsm" in printed[1] and f"IRW {report.irw_azimuth:.2f}" in printed[1]
     assert "range -30.0" in printed[1]                                  # the reflector at y = 30 m
-
-
-#: The worked inverse example: a wall's permittivity and a building's height from their image.
-INVERSE_EXAMPLE = """\
-import numpy as np, scipy.optimize, trimesh, sarmitsuba
-from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, ShapeParameter
-
-def building(eps_r):                                # a brick box on a metal plate, seen from 20 km
-    ground = trimesh.Trimesh([[-15, -15, 0], [15, -15, 0], [15, 15, 0], [-15, 15, 0]], [[0, 1, 2], [0, 2, 3]])
-    box = trimesh.creation.box((6, 4, 5)).apply_translation((0, 0, 2.5))
-    box.apply_transform(trimesh.transformations.rotation_matrix(np.radians(20), (0, 0, 1)))
-    brick = {"model": "half_space", "relative_permittivity": eps_r, "conductivity": 0.02, "id": "brick"}
-    sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
-              "altitude": 20e3, "incidence_angle": 45, "azimuth_beamwidth": 1.2, "scene_center": (0, 0, 0)}
-    return sarmitsuba.Scene([(ground, "pec", "ground"), (box, brick, "box")], sensor=sensor, integrator={"max_depth": 2})
-
-grid = {"image_size": (48, 48), "image_spacing": 0.5, "sensor_overrides": {"n_pulses": 16}}
-eps_r, height = MaterialParameter("brick", "relative_permittivity"), ShapeParameter("box", "height")
-loss = AmplitudeLoss(sarmitsuba.gradients(building(4.5), AmplitudeLoss(np.zeros((48, 48))), [], **grid).image)
-history = []
-
-def loss_and_gradient(x):                           # x = (eps_r, height in m); the box is 5 m high
-    result = sarmitsuba.gradients(building(x[0]), loss, [eps_r, height], at={height: x[1] - 5.0}, **grid)
-    history.append((result.loss, *x))
-    return result.loss, np.array([result.gradient[eps_r], result.gradient[height]])
-
-found = scipy.optimize.minimize(loss_and_gradient, [5.85, 6.5], jac=True, method="L-BFGS-B",
-                                bounds=[(1.5, 20), (1, 10)], options={"maxiter": 40, "ftol": 1e-4})
-print(found.x)                                      # [4.5 5.0]; history: the loss and both parameters
-"""
-
-
-def test_inverse_example_converges(folder, monkeypatch):
-    """The worked inverse example (a wall's permittivity and a building's height), run as written:
-    the issue's acceptance, ``eps_r`` within 2 % and the height within 0.1 m of the truth (4.5,
-    5 m) from 30 % off (5.85, 6.5 m). At the start both derivatives are positive (the truth lies
-    below in both). Catches a gradient of the wrong sign, a detached parameter (its derivative 0,
-    the parameter left at its start), a derivative scaled wrongly enough to stall the descent.
-    From an empty kernel cache about 2 minutes (the first evaluation compiles for about 100 s),
-    warm about 15 s."""
-    block = INVERSE_EXAMPLE
-    monkeypatch.chdir(folder)
-    namespace: dict = {}
-    exec(compile(block, "inverse example", "exec"), namespace)
-    history, found = namespace["history"], namespace["found"]
-    assert history[0][1:] == (5.85, 6.5) and history[0][0] > 0
-    eps_r, height = found.x
-    assert abs(eps_r - 4.5) <= 0.02 * 4.5, found
-    assert abs(height - 5.0) <= 0.1, found
-    assert found.fun < 1e-3 * history[0][0]
