@@ -49,3 +49,20 @@ html_theme = "pydata_sphinx_theme"
 html_title = "sarmitsuba"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
 html_static_path: list[str] = []
+
+# sphinx-gallery: docs/examples/plot_*.py are run during the build and become docs/gallery/ (not
+# committed), one page per example with its figures and its run time; ``-D plot_gallery=0`` builds
+# the pages without running them
+extensions.append("sphinx_gallery.gen_gallery")
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "gallery",
+    "filename_pattern": r"/plot_",
+    "within_subsection_order": "FileNameSortKey",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "matplotlib_animations": False,
+    "image_scrapers": ("matplotlib",),
+    "show_memory": False,
+}
+exclude_patterns.append("gallery/sg_execution_times.rst")   # the timing table is not in a toctree
