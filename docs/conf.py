@@ -65,4 +65,4 @@ sphinx_gallery_conf = {
     "image_scrapers": ("matplotlib",),
     "show_memory": False,
 }
-exclude_patterns.append("gallery/sg_execution_times.rst")   # the timing table is not in a toctree
+exclude_patterns.append("examples")        # the scripts' folder: its header becomes gallery/index

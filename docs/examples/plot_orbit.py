@@ -10,7 +10,7 @@ echo is received where the satellite has moved to while the pulse travelled.
 
 Here the ``trihedral`` scene is placed at 48.1 N, 11.6 E and imaged from 693 km at 35 deg
 incidence; the PRF is 4 kHz and the beam 0.3 deg wide in azimuth. The trihedral opens toward
-the north, so the orbit is one of 53 deg inclination, whose ascending pass flies east-north-east
+the north, so the orbit is one of 53 deg inclination, whose ascending pass flies east, a little north,
 north-north-west of the scene and looks south-south-east into the reflector.
 A state-vector file or a Sentinel-1 orbit file (``trajectory=FILE.EOF``) works the same way.
 """

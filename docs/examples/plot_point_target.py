@@ -38,7 +38,7 @@ print(f"ISLR {report.islr_range_nullbounded_db:.1f} dB (range), "
 # contour, then the range and azimuth cuts with the IRW, the first nulls and the PSLR marked.
 
 with tempfile.TemporaryDirectory() as folder:
-    path = point_target_figure(sim.image, report, Path(folder) / "point_target.png")
+    path = point_target_figure(sim.image, report, Path(folder) / "point_target.png", dynamic_range_db=70)
     picture = plt.imread(path)
 fig = plt.figure(figsize=(picture.shape[1] / 100, picture.shape[0] / 100), dpi=100)
 fig.figimage(picture)
