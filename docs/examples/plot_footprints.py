@@ -37,7 +37,8 @@ plt.show()
 
 # %%
 # On the map: the image turned into east and north (azimuth is east, ground range south here)
-# with the footprints' outlines, carried from longitude and latitude into the local frame.
+# with the footprints' outlines, carried from longitude and latitude into the local frame, and
+# their heights as read (to the roof's top from ``height``, to the eaves from ``building:levels``).
 # Each wall facing the sensor (north walls) images its double bounce at its foot.
 
 image = sim.image

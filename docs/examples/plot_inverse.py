@@ -5,14 +5,16 @@ An inverse problem: a wall's permittivity from its image
 The simulator is differentiable with respect to material and shape parameters:
 :func:`sarmitsuba.gradients` focuses by backprojection as a linear map, carries the gradient of a
 loss on the image back through its adjoint and the tracer (reverse mode), and returns the loss,
-its gradient and the image (complex, on the ground grid about the scene centre). With scipy's L-BFGS-B that solves inverse problems.
+its gradient and the image (complex, on the ground grid about the scene centre). With scipy's
+L-BFGS-B that solves inverse problems.
 
 The scene: a brick box (6 x 4 m, 5 m high, turned 20 deg, relative permittivity 4.5, 0.02 S/m)
 on a metal plate, imaged from 20 km altitude with 16 pulses onto a 48 x 48 grid of 0.5 m. Its
 image is the target (16 pulses give a coarse azimuth resolution, so the image is in effect a
-range profile: the box's walls, roof and double bounce); the descent starts 30 % off, at a permittivity of 5.85, and minimises the
-amplitude loss ``sum (|I| - |T|)^2``. The first evaluations compile the derivative kernels
-(minutes with an empty Dr.Jit kernel cache; seconds once cached).
+range profile: the box's walls, roof and double bounce). The descent starts 30 % off, at a
+permittivity of 5.85, and minimises the amplitude loss ``sum (|I| - |T|)^2``. The first
+evaluations compile the derivative kernels (minutes with an empty Dr.Jit kernel cache, seconds
+once they are cached).
 """
 import matplotlib.pyplot as plt
 import numpy as np

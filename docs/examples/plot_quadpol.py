@@ -15,22 +15,23 @@ The scene, built in Python: the three canonical targets, in metal, on rough grou
 import math
 
 import matplotlib.pyplot as plt
-import numpy as np
 import trimesh
 
 import sarmitsuba
 from sarmitsuba.products.figures_pol import pauli_rgb
-from sarmitsuba.products.plotting import RELATIVE_DB, colorbar, decibels, edges, intensity, reference_intensity, show_db_image
+from sarmitsuba.products.plotting import (RELATIVE_DB, colorbar, decibels, edges, intensity, reference_intensity,
+                                          show_db_image)
 from sarmitsuba.scene import canonical
 
-look = -canonical.TOWARD_SENSOR                           # line of sight: the sensor is on the +y side at 45 deg
-turned = canonical.dihedral(2.0, 2.0).apply_transform(trimesh.transformations.rotation_matrix(math.radians(45), look))
+look = -canonical.TOWARD_SENSOR                 # line of sight: the sensor is on the +y side at 45 deg
+turned = canonical.dihedral(2.0, 2.0)
+turned.apply_transform(trimesh.transformations.rotation_matrix(math.radians(45), look))
 ground = trimesh.Trimesh([[-30, -30, 0], [30, -30, 0], [30, 30, 0], [-30, 30, 0]], [[0, 1, 2], [0, 2, 3]])
 scene = sarmitsuba.Scene(
     meshes=[(ground, {"material": "medium_dry_ground", "gamma_db": -14}, "ground"),
             (canonical.trihedral(1.5).apply_translation((-12, 0, 0.1)), "pec", "trihedral"),
             (canonical.dihedral(2.0, 2.0).apply_translation((0, 0, 0.1)), "pec", "dihedral"),
-            (turned.apply_translation((12, 0, 1.0)), "pec", "turned_dihedral")],
+            (turned.apply_translation((12, 0, 1.0)), "pec", "turned_dihedral")],   # lifted clear of the ground
     sensor={"frequency": 9.6e9, "bandwidth": 150e6, "prf": 300, "incidence_angle": 45,
             "scene_center": (0, 0, 0), "polarization": "quad"},
     integrator={"max_depth": 3})

@@ -3,9 +3,11 @@ The built-in urban scene
 ========================
 
 Render the built-in ``urban`` scene (rough ground, four buildings, a 50 m tower with a corner
-reflector on its roof, a 120 m brick wall) and show its focused image in dB. :func:`sarmitsuba.simulate` loads the scene, traces it, bins the
-returns into range-compressed raw data and focuses them by fast factorised backprojection onto a
-ground grid that covers the scene and its layover, all in memory.
+reflector on its roof, a 120 m brick wall) and show its focused image in dB.
+:func:`sarmitsuba.simulate` loads the scene, traces it, bins the returns into range-compressed
+raw data and focuses them by fast factorised backprojection onto a ground grid that covers the
+scene and its layover, all in memory.
+
 The sensor flies along +x and looks toward -y, so near range is on the left. The walls facing
 it give the bright double-bounce lines at their feet; roofs and facades are laid over toward
 the sensor (the tower's reflector 50 m closer in ground range than its base), and behind each
