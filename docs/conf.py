@@ -60,3 +60,20 @@ html_static_path: list[str] = []
 # the labels that docstrings cite to it.
 extensions += ["sphinx.ext.mathjax", "sphinx-mathjax-offline", "physicslabels"]
 mathjax3_config = {"tex": {"tags": "none"}}
+
+# sphinx-gallery: docs/examples/plot_*.py are run during the build and become docs/gallery/ (not
+# committed), one page per example with its figures and its run time; ``-D plot_gallery=0`` builds
+# the pages without running them
+extensions.append("sphinx_gallery.gen_gallery")
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "gallery",
+    "filename_pattern": r"/plot_",
+    "within_subsection_order": "FileNameSortKey",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "matplotlib_animations": False,
+    "image_scrapers": ("matplotlib",),
+    "show_memory": False,
+}
+exclude_patterns.append("examples")        # the scripts' folder: its header becomes gallery/index
