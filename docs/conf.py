@@ -50,7 +50,10 @@ suppress_warnings = ["ref.citation"]
 
 html_theme = "pydata_sphinx_theme"
 html_title = "sarmitsuba"
-html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
+html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2, "header_links_before_dropdown": 6}
+# the front page shows the whole table of contents in its sidebar (the theme gives a section's
+# pages their own navigation there, and the front page none)
+html_sidebars = {"index": ["globaltoc.html"]}
 html_static_path: list[str] = []
 
 # Math: MathJax 3 served from the built manual itself (sphinx-mathjax-offline bundles MathJax 3.2
@@ -75,5 +78,7 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "image_scrapers": ("matplotlib",),
     "show_memory": False,
+    # each example page gives its own run time; the summary pages would load DataTables from a CDN
+    "write_computation_times": False,
 }
 exclude_patterns.append("examples")        # the scripts' folder: its header becomes gallery/index
