@@ -10,6 +10,7 @@ tests/test_manual.py builds the manual.
 """
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from pathlib import Path
@@ -72,9 +73,14 @@ def test_python_blocks_run(name, tmp_path, monkeypatch):
     earlier one's names); the inverse problem is left to its own test."""
     monkeypatch.chdir(working_folder(tmp_path))
     namespace: dict = {"__name__": "__manual__"}
-    for start, block in code_blocks("python", page(name)):
-        if (name, True) != (INVERSE[0], INVERSE[1] in block):
-            exec(compile(block, f"{name}:{start}", "exec"), namespace)
+    environment = dict(os.environ)             # the GPU page sets SARMITSUBA_VARIANT for its process
+    try:
+        for start, block in code_blocks("python", page(name)):
+            if (name, True) != (INVERSE[0], INVERSE[1] in block):
+                exec(compile(block, f"{name}:{start}", "exec"), namespace)
+    finally:
+        os.environ.clear()
+        os.environ.update(environment)
 
 
 def test_inverse_example_converges(tmp_path, monkeypatch):
