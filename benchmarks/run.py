@@ -22,8 +22,8 @@ subaperture_orders
                Munich: raw-data NRMSE by bounce order, each order's power share
 ffbp           fast factorised backprojection's knobs: NRMSE against direct
                backprojection and seconds, omega-K's time in the same run
-munich         the Munich acceptance of issue 12: default render in units of bare
-               Mitsuba casting, memory, NRMSE against the per-pulse/direct reference,
+munich         Munich in seconds: default render in units of bare Mitsuba casting,
+               memory, NRMSE against the per-pulse/direct reference,
                backprojection against omega-K, info's estimate against the render
 polarimetry    VV, HH, HV and quad on urban and Munich: seconds, casts, quad's cost
                over single-channel renders, quad's HH and VV against the single ones
@@ -47,7 +47,7 @@ inverse        a dihedral wall's permittivity recovered by gradient descent from
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
 ``out/bench`` under the current directory) (accuracy against seconds, one
 point per setting). The suite prints the machine, every table, and PASS/FAIL for the ratio
-checks, writes ``checks.csv`` there, and exits 1 if a check fails. It also writes
+checks, writes ``checks.csv`` there (after each benchmark), and exits 1 if a check fails. It also writes
 ``machine.json`` there: the machine, the package versions, the UTC start and end of the run, the
 command line, ``--quick`` or not, each benchmark's seconds and the git commit of the checkout. Absolute times
 depend on the machine (and on what else runs on it); ratios measured in one run do not.
@@ -138,10 +138,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: {time.perf_counter() - t0:.1f} s")
         run_info["seconds"][name] = round(time.perf_counter() - t0, 1)
         _write_run_info(run_info)
+        if results:                      # after each benchmark: an interrupted run keeps its checks
+            write_csv("checks.csv", results)
     run_info["finished_utc"] = _utc_now()
     _write_run_info(run_info)
-    if results:
-        write_csv("checks.csv", results)
     failed = [r for r in results if not r["ok"]]
     print(f"\nsuite: {time.perf_counter() - start:.1f} s, {len(results)} checks, {len(failed)} failed; "
           f"outputs in {output_dir()}")
