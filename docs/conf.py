@@ -22,6 +22,7 @@ extensions = [
     "sphinx.ext.autosummary",
     "numpydoc",
     "pluginparameters",          # docs/_ext: the plugins' parameter tables
+    "benchtables",               # docs/_ext: the benchmark pages' tables, read from docs/benchmarks/data
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
