@@ -9,7 +9,9 @@ directives, so a rerun of the suite updates the pages:
     Options: ``:columns:`` the columns shown, in order, each ``name`` or ``name=Header``
     (default: all); ``:where:`` rows kept, ``column=value``, ``column!=value``, ``column~=text``
     (contains) or ``column!~=text``, several separated by ``;`` (all must hold);
-    ``:digits:`` significant digits of the floating-point cells (default 3); plus ``:widths:``,
+    ``:digits:`` significant digits of long floating-point cells (default 4; cells of at most
+    one digit more are shown as written); ``:ninf:`` the text of ``-inf`` (an NRMSE against
+    itself; default ``reference``); plus ``:widths:``,
     ``:class:`` and the title argument of ``csv-table``.
 ``bench-run``
     The run that wrote a data folder: machine, packages, date, command, commit, and the seconds
@@ -41,8 +43,9 @@ from sphinx.util.docutils import SphinxDirective
 RERUN = "python -m sarmitsuba bench --out docs/benchmarks/data"
 
 
-def _format(cell: str, digits: int) -> str:
-    """A CSV cell for display: floats to ``digits`` significant digits, ``inf`` as the sign of infinity."""
+def _format(cell: str, digits: int, ninf: str = "reference") -> str:
+    """A CSV cell for display: long floats to ``digits`` significant digits (short ones as
+    written), integers of five digits or more with thousands separators, ``-inf`` as ``ninf``."""
     text = cell.strip()
     if text == "":
         return ""
@@ -51,17 +54,15 @@ def _format(cell: str, digits: int) -> str:
     except ValueError:
         return {"True": "yes", "False": "no"}.get(text, text)
     if math.isinf(value):
-        return "reference" if value < 0 else "∞"
+        return ninf if value < 0 else "∞"
     if math.isnan(value):
         return ""
     if text.lstrip("+-").isdigit():
         return f"{int(text):,}" if abs(int(text)) >= 10000 else text
-    if value == 0:
-        return "0"
-    decimals = max(0, digits - 1 - math.floor(math.log10(abs(value))))
-    if abs(value) >= 1e6 or abs(value) < 1e-4:
-        return f"{value:.{digits - 1}e}"
-    return f"{value:,.{decimals}f}" if abs(value) >= 10000 else f"{value:.{decimals}f}"
+    mantissa = text.lower().split("e")[0].lstrip("+-").replace(".", "").lstrip("0")
+    if len(mantissa) <= digits + 1 and "e" not in text.lower():
+        return text
+    return f"{value:.{digits}g}"
 
 
 def _missing(directive: SphinxDirective, path: Path) -> list[nodes.Node]:
@@ -84,7 +85,7 @@ class BenchTable(CSVTable):
     optional_arguments = 0
     final_argument_whitespace = False
     option_spec = {"columns": directives.unchanged, "where": directives.unchanged,
-                   "digits": directives.nonnegative_int, "widths": directives.value_or(("auto",),
+                   "digits": directives.nonnegative_int, "ninf": directives.unchanged, "widths": directives.value_or(("auto",),
                                                                                       directives.positive_int_list),
                    "class": directives.class_option, "name": directives.unchanged, "title": directives.unchanged}
 
@@ -129,8 +130,8 @@ class BenchTable(CSVTable):
             indices = [header.index(n) for n in names]
             header = [p.partition("=")[2].strip() or p.partition("=")[0].strip() for p in picks]
             body = [[row[i] if i < len(row) else "" for i in indices] for row in body]
-        digits = self.options.get("digits", 3)
-        body = [[_format(cell, digits) for cell in row] for row in body]
+        digits, ninf = self.options.get("digits", 4), self.options.get("ninf", "reference")
+        body = [[_format(cell, digits, ninf) for cell in row] for row in body]
         text = io.StringIO()
         csv.writer(text).writerows([header, *body])
         return text.getvalue().splitlines(), str(self.csv_path)
@@ -170,14 +171,14 @@ class BenchRun(SphinxDirective):
             ("Software", f"Python {info.get('python')}, {packages}"),
             ("Date", f"{info.get('started_utc')} to {info.get('finished_utc') or '(unfinished)'}"),
             ("Command", info.get("command", "")),
-            ("Settings", "--quick (small settings)" if info.get("quick") else "full settings"),
+            ("Settings", "--quick" if info.get("quick") else "full"),
             ("Commit", info.get("commit") or "unknown"),
             ("Wall seconds", seconds or "not recorded"),
         ]
         field_list = nodes.field_list()
         for name, value in fields:
             body = nodes.paragraph()
-            body += nodes.literal(text=value) if name == "Command" else nodes.Text(value)
+            body += nodes.literal(text=value) if name in ("Command", "Settings") else nodes.Text(value)
             field_list += nodes.field("", nodes.field_name(text=name), nodes.field_body("", body))
         return [field_list]
 
