@@ -169,7 +169,8 @@ class BenchRun(SphinxDirective):
         fields = [
             ("Machine", f"{info.get('cpu')}, {info.get('cpus')} CPUs{memory}; {info.get('system')}"),
             ("Software", f"Python {info.get('python')}, {packages}"),
-            ("Date", f"{info.get('started_utc')} to {info.get('finished_utc') or '(unfinished)'}"),
+            ("Date", f"{info.get('started_utc')} to {info['finished_utc']}" if info.get("finished_utc") else
+             f"started {info.get('started_utc')}; stopped before the end, after the benchmarks timed below"),
             ("Command", info.get("command", "")),
             ("Settings", "--quick" if info.get("quick") else "full"),
             ("Commit", info.get("commit") or "unknown"),
