@@ -59,10 +59,17 @@ def _format(cell: str, digits: int, ninf: str = "reference") -> str:
         return ""
     if text.lstrip("+-").isdigit():
         return f"{int(text):,}" if abs(int(text)) >= 10000 else text
+    if value == int(value) and abs(value) >= 100:
+        return f"{int(value):,}" if abs(value) >= 10000 else str(int(value))
     mantissa = text.lower().split("e")[0].lstrip("+-").replace(".", "").lstrip("0")
     if len(mantissa) <= digits + 1 and "e" not in text.lower():
         return text
-    return f"{value:.{digits}g}"
+    if abs(value) >= 10 ** digits:
+        return f"{value:,.0f}"
+    if abs(value) < 1e-4:
+        return f"{value:.{digits}g}"
+    decimals = max(0, digits - 1 - math.floor(math.log10(abs(value))))
+    return f"{value:.{decimals}f}".rstrip("0").rstrip(".") if "." in f"{value:.{decimals}f}" else f"{value:.{decimals}f}"
 
 
 def _missing(directive: SphinxDirective, path: Path) -> list[nodes.Node]:
