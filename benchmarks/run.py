@@ -41,7 +41,8 @@ diffraction    edge currents against the full-wave tables (plates' patterns and 
                a dihedral, a cube), and their cost and effect on urban and Munich
 gradients      forward- and reverse-mode derivatives of urban against its forward render:
                seconds and peak memory
-inverse        a dihedral wall's permittivity recovered by gradient descent from 30 % off
+inverse        a brick building's permittivity and height recovered from its image by
+               L-BFGS-B with the simulator's gradients, from 30 % off
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
