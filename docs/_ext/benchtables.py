@@ -40,7 +40,6 @@ from docutils.parsers.rst.directives.images import Figure
 from docutils.parsers.rst.directives.tables import CSVTable
 from sphinx.util.docutils import SphinxDirective
 
-RERUN = "python -m sarmitsuba bench --out docs/benchmarks/data"
 
 
 def _format(cell: str, digits: int, ninf: str = "reference") -> str:
@@ -72,10 +71,18 @@ def _format(cell: str, digits: int, ninf: str = "reference") -> str:
     return f"{value:.{decimals}f}".rstrip("0").rstrip(".") if "." in f"{value:.{decimals}f}" else f"{value:.{decimals}f}"
 
 
-def _missing(directive: SphinxDirective, path: Path) -> list[nodes.Node]:
+def _note(what: str, path: Path) -> list[nodes.Node]:
+    """A note in place of data not yet written: the file and the command that writes it."""
+    folder = path.parent.name
+    command = f"python -m sarmitsuba bench{' --quick' if folder.startswith('quick') else ''} --out docs/benchmarks/data/{folder}"
+    para = nodes.paragraph()
+    para += nodes.Text(f"No {what} yet: {path.name} is written by ")
+    para += nodes.literal(text=command)
+    para += nodes.Text(" (add ")
+    para += nodes.literal(text="--only NAME")
+    para += nodes.Text(" to run one benchmark).")
     note = nodes.note()
-    note += nodes.paragraph(text=f"No data yet: {path.name} is written by `{RERUN}` "
-                                 f"(or `python benchmarks/run.py --out docs/benchmarks/data`).")
+    note += para
     return [note]
 
 
@@ -102,9 +109,7 @@ class BenchTable(CSVTable):
         env.note_dependency(rel)
         self.csv_path = Path(absolute)
         if not self.csv_path.is_file():
-            note = nodes.note()
-            note += nodes.paragraph(text=f"No data yet: {self.csv_path.name} is written by `{RERUN}`.")
-            return [note]
+            return _note("data", self.csv_path)
         self.options["header-rows"] = 1
         self.arguments = [self.options["title"]] if "title" in self.options else []
         return super().run()
@@ -152,9 +157,7 @@ class BenchFigure(Figure):
         rel, absolute = env.relfn2path(self.arguments[0], env.docname)
         if not Path(absolute).is_file():
             env.note_dependency(rel)
-            note = nodes.note()
-            note += nodes.paragraph(text=f"No plot yet: {Path(absolute).name} is written by `{RERUN}`.")
-            return [note]
+            return _note("plot", Path(absolute))
         return super().run()
 
 
@@ -167,7 +170,7 @@ class BenchRun(SphinxDirective):
     def run(self) -> list[nodes.Node]:
         path = _resolve(self, str(Path(self.arguments[0]) / "machine.json"))
         if not path.is_file():
-            return _missing(self, path)
+            return _note("data", path)
         info = json.loads(path.read_text())
         wanted = self.options.get("benchmarks", "").split() or list(info.get("seconds", {}))
         packages = ", ".join(f"{p} {info[p]}" for p in ("mitsuba", "drjit", "numpy") if info.get(p))
@@ -200,7 +203,7 @@ class BenchChecks(SphinxDirective):
     def run(self) -> list[nodes.Node]:
         path = _resolve(self, str(Path(self.arguments[0]) / "checks.csv"))
         if not path.is_file():
-            return _missing(self, path)
+            return _note("data", path)
         wanted = self.options.get("benchmarks", "").split()
         with open(path, newline="") as f:
             rows = [r for r in csv.DictReader(f) if not wanted or r["benchmark"] in wanted]
