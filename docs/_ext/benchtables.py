@@ -211,10 +211,12 @@ class BenchChecks(SphinxDirective):
             para = nodes.paragraph(text="This run recorded no checks for "
                                         f"{', '.join(wanted) or 'any benchmark'}.")
             return [para]
+        columns = (["benchmark"] if not wanted else []) + ["result", "check", "measured"]
+        widths = ([14] if not wanted else []) + [8, 40, 50]
         table = nodes.table()
-        group = nodes.tgroup(cols=3)
+        group = nodes.tgroup(cols=len(columns))
         table += group
-        for width in (8, 40, 52):
+        for width in widths:
             group += nodes.colspec(colwidth=width)
         head, body = nodes.thead(), nodes.tbody()
         group += head
@@ -228,9 +230,10 @@ class BenchChecks(SphinxDirective):
                 r += entry
             return r
 
-        head += row(["result", "check", "measured"])
+        head += row(columns)
         for r in rows:
-            body += row(["PASS" if r["ok"] == "True" else "FAIL", r["check"], r["detail"]])
+            cells = ["PASS" if r["ok"] == "True" else "FAIL", r["check"], r["detail"]]
+            body += row(([r["benchmark"]] if not wanted else []) + cells)
         return [table]
 
 
