@@ -22,6 +22,29 @@ def machine() -> str:
     return f"machine: {cpu}, {os.cpu_count()} cpus, Python {platform.python_version()}, {platform.system()}"
 
 
+def machine_info() -> dict:
+    """The machine and software of a run, for ``machine.json`` beside the CSV tables.
+
+    Keys: ``machine`` (the line of :func:`machine`), ``cpu``, ``cpus``, ``memory_gib``, ``python``,
+    ``system``, ``mitsuba``, ``drjit``, ``numpy`` (``None`` where not installed).
+    """
+    import importlib.metadata
+    info = {"machine": machine(), "cpu": machine().split(": ", 1)[1].split(",")[0], "cpus": os.cpu_count(),
+            "memory_gib": None, "python": platform.python_version(), "system": platform.platform()}
+    try:
+        with open("/proc/meminfo") as f:
+            kib = next(int(line.split()[1]) for line in f if line.startswith("MemTotal"))
+        info["memory_gib"] = round(kib / 2 ** 20, 1)
+    except (OSError, StopIteration, ValueError):
+        pass
+    for package in ("mitsuba", "drjit", "numpy"):
+        try:
+            info[package] = importlib.metadata.version(package)
+        except importlib.metadata.PackageNotFoundError:
+            info[package] = None
+    return info
+
+
 def output_dir() -> Path:
     """The folder the benchmarks write to (created): ``$SARMITSUBA_BENCH_OUT``, else ``./out/bench``."""
     out = Path(os.environ.get("SARMITSUBA_BENCH_OUT") or Path("out") / "bench")

@@ -22,8 +22,8 @@ subaperture_orders
                Munich: raw-data NRMSE by bounce order, each order's power share
 ffbp           fast factorised backprojection's knobs: NRMSE against direct
                backprojection and seconds, omega-K's time in the same run
-munich         the Munich acceptance of issue 12: default render in units of bare
-               Mitsuba casting, memory, NRMSE against the per-pulse/direct reference,
+munich         Munich in seconds: default render in units of bare Mitsuba casting,
+               memory, NRMSE against the per-pulse/direct reference,
                backprojection against omega-K, info's estimate against the render
 polarimetry    VV, HH, HV and quad on urban and Munich: seconds, casts, quad's cost
                over single-channel renders, quad's HH and VV against the single ones
@@ -41,13 +41,16 @@ diffraction    edge currents against the full-wave tables (plates' patterns and 
                a dihedral, a cube), and their cost and effect on urban and Munich
 gradients      forward- and reverse-mode derivatives of urban against its forward render:
                seconds and peak memory
-inverse        a dihedral wall's permittivity recovered by gradient descent from 30 % off
+inverse        a brick building's permittivity and height recovered from its image by
+               L-BFGS-B with the simulator's gradients, from 30 % off
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
 ``out/bench`` under the current directory) (accuracy against seconds, one
 point per setting). The suite prints the machine, every table, and PASS/FAIL for the ratio
-checks, writes ``checks.csv`` there, and exits 1 if a check fails. Absolute times
+checks, writes ``checks.csv`` there (after each benchmark), and exits 1 if a check fails. It also writes
+``machine.json`` there: the machine, the package versions, the UTC start and end of the run, the
+command line, ``--quick`` or not, each benchmark's seconds and the git commit of the checkout. Absolute times
 depend on the machine (and on what else runs on it); ratios measured in one run do not.
 
 Usage: ``python benchmarks/run.py [--quick] [--only NAME ...] [--out DIR]`` or ``python -m sarmitsuba bench ...``.
@@ -55,15 +58,18 @@ Usage: ``python benchmarks/run.py [--quick] [--only NAME ...] [--out DIR]`` or `
 from __future__ import annotations
 
 import argparse
+import datetime
 import importlib
+import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _table import machine, output_dir, write_csv  # noqa: E402
+from _table import machine, machine_info, output_dir, write_csv  # noqa: E402
 
 #: Suite name -> module of this folder.
 SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_density": "ray_density",
@@ -73,6 +79,33 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
          "inverse": "inverse"}
+
+
+def _utc_now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def _command_line(argv: list[str] | None) -> str:
+    """The command as typed: ``python -m sarmitsuba bench ...`` or ``python benchmarks/run.py ...``."""
+    args = sys.argv[1:] if argv is None else argv
+    head = "python -m sarmitsuba bench" if Path(sys.argv[0]).name == "__main__.py" else "python benchmarks/run.py"
+    return " ".join([head, *args])
+
+
+def _git_commit() -> str | None:
+    """The checkout's commit (with ``-dirty`` for uncommitted changes), ``None`` outside git."""
+    try:
+        return subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=12"], capture_output=True,
+                              text=True, check=True, cwd=Path(__file__).resolve().parent).stdout.strip() or None
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def _write_run_info(info: dict) -> None:
+    """Write ``machine.json`` (the machine, the command, the dates, each benchmark's seconds) into the output."""
+    with open(output_dir() / "machine.json", "w") as f:
+        json.dump(info, f, indent=1)
+        f.write("\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,9 +121,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--out {args.out} is an existing file, not a directory: give a folder path")
     os.environ["SARMITSUBA_BENCH_OUT"] = str(args.out)
     print(machine())
+    names = args.only or list(SUITE)
+    run_info = {**machine_info(), "started_utc": _utc_now(), "finished_utc": None,
+                "command": _command_line(argv), "quick": args.quick, "benchmarks": names,
+                "seconds": {}, "commit": _git_commit()}
+    _write_run_info(run_info)
     results = []
     start = time.perf_counter()
-    for name in args.only or list(SUITE):
+    for name in names:
         print(f"\n=== {name} ===")
         module = importlib.import_module(SUITE[name])
         t0 = time.perf_counter()
@@ -99,8 +137,12 @@ def main(argv: list[str] | None = None) -> int:
             results.append({"benchmark": name, "check": check, "ok": ok, "detail": detail})
             print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
         print(f"{name}: {time.perf_counter() - t0:.1f} s")
-    if results:
-        write_csv("checks.csv", results)
+        run_info["seconds"][name] = round(time.perf_counter() - t0, 1)
+        _write_run_info(run_info)
+        if results:                      # after each benchmark: an interrupted run keeps its checks
+            write_csv("checks.csv", results)
+    run_info["finished_utc"] = _utc_now()
+    _write_run_info(run_info)
     failed = [r for r in results if not r["ok"]]
     print(f"\nsuite: {time.perf_counter() - start:.1f} s, {len(results)} checks, {len(failed)} failed; "
           f"outputs in {output_dir()}")

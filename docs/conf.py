@@ -23,6 +23,7 @@ extensions = [
     "numpydoc",
     "pluginparameters",          # docs/_ext: the plugins' parameter tables
     "docstringcheck",            # docs/_ext: a public callable without a docstring is a warning
+    "benchtables",               # docs/_ext: the benchmark pages' tables, read from docs/benchmarks/data
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 root_doc = "index"
