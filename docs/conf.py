@@ -54,7 +54,12 @@ html_title = "sarmitsuba"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2, "header_links_before_dropdown": 6}
 # the front page shows the whole table of contents in its sidebar (the theme gives a section's
 # pages their own navigation there, and the front page none)
-html_sidebars = {"index": ["globaltoc.html"]}
+html_sidebars = {"index": ["globaltoc.html"], "getting-started": [], "reading-sar-images": [], "physics": [],
+                 "plugins": [], "design": []}        # single pages: no section navigation to show
+# light mode unless the reader chooses (the theme's first page load otherwise logs an empty mode as
+# an error), and an icon of the urban image, so that browsers do not ask the server for favicon.ico
+html_context = {"default_mode": "light"}
+html_favicon = "img/favicon.png"
 html_static_path: list[str] = []
 
 # Math: MathJax 3 served from the built manual itself (sphinx-mathjax-offline bundles MathJax 3.2

@@ -10,7 +10,7 @@ Serves BUILD_DIR on a local port and drives Debian's Chromium through ChromeDriv
   scrolled into view, so lazy images load);
 - the physics page's equations are typeset (MathJax's ``mjx-container`` elements, no error nodes);
 - the search page finds TERM;
-- screenshots of the front page, the physics page and one gallery example go to ``--out``.
+- screenshots of the front page, the physics page at (M5) and one gallery example go to ``--out``.
 
 Needs ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (``apt-get install chromium
 chromium-driver``) and the ``selenium`` package (the ``docs`` extra). Prints one line per problem
@@ -119,10 +119,10 @@ def check_search(driver, base: str, term: str) -> tuple[list[str], int]:
 
 
 def screenshots(driver, base: str, build: Path, out: Path) -> list[Path]:
-    """Screenshots of the front page, the physics page and the first gallery example."""
+    """Screenshots of the front page, the physics page at (M5) and the first gallery example."""
     out.mkdir(parents=True, exist_ok=True)
     gallery = sorted(p.relative_to(build).as_posix() for p in (build / "gallery").glob("plot_*.html"))
-    shots = [("front_page.png", "index.html"), ("physics.png", "physics.html")]
+    shots = [("front_page.png", "index.html"), ("physics.png", "physics.html#eq-m5")]
     if gallery:
         shots.append(("gallery_example.png", gallery[0]))
     written = []
