@@ -197,8 +197,12 @@ def test_bench_out_receives_tables_and_checks(tmp_path, monkeypatch):
     monkeypatch.setenv("SARMITSUBA_BENCH_OUT", "restored after the test")   # main() sets it from --out
     out = tmp_path / "bench"
     assert suite.main(["--only", "fake", "--out", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["checks.csv", "fake.csv"]
+    assert sorted(p.name for p in out.iterdir()) == ["checks.csv", "fake.csv", "machine.json"]
     assert not (REPO / "benchmarks" / "out" / "fake.csv").exists()
+    import json
+    run = json.loads((out / "machine.json").read_text())          # what the benchmark pages show of the run
+    assert run["benchmarks"] == ["fake"] and run["quick"] is False and set(run["seconds"]) == {"fake"}
+    assert "--only fake" in run["command"] and run["cpus"] >= 1 and run["started_utc"] <= run["finished_utc"]
 
 
 # ---- every focuser takes every window the docs list ----------------------------------------------
