@@ -44,12 +44,13 @@ bench: setup
 
 # The manual (Sphinx, MyST pages, numpydoc API reference, the gallery's examples executed) into
 # docs/_build/html; any warning fails the build (-W), and every warning is shown first
-# (--keep-going). Then every internal link, anchor and image of the result is checked.
+# (--keep-going). Then every internal link, anchor and image of the result is checked, and that
+# every example left a figure.
 docs: setup
 	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[docs]'
 	rm -rf docs/_build docs/api/generated docs/gallery
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
-	$(PY) docs/tools/check_links.py docs/_build/html
+	$(PY) docs/tools/check_links.py docs/_build/html --gallery-figures
 	@echo "manual: docs/_build/html/index.html"
 
 # The built manual in headless Chromium (Debian's chromium and chromium-driver, installed when

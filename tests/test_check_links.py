@@ -50,3 +50,12 @@ def test_each_kind_of_problem_is_found_once(tmp_path):
 def test_the_command_line_exits_2_without_a_manual(tmp_path, capsys):
     assert _checker().main([str(tmp_path)]) == 2
     assert "make docs" in capsys.readouterr().err
+
+
+def test_an_example_page_without_its_figure_is_found(tmp_path):
+    checker = _checker()
+    site = _site(tmp_path, "")
+    (site / "gallery").mkdir()
+    (site / "gallery" / "plot_a.html").write_text('<img src="../ok.png"><img src="../sphx_glr_plot_a_001.png">')
+    (site / "gallery" / "plot_b.html").write_text('<img src="../sphx_glr_plot_a_001.png">')    # another's figure
+    assert checker.gallery_problems(site) == ["gallery/plot_b.html: the example left no figure"]

@@ -1,6 +1,7 @@
 """Check a built HTML manual's internal links and images (``make docs`` runs it after Sphinx).
 
-Usage: ``python docs/tools/check_links.py [BUILD_DIR]`` (default ``docs/_build/html``).
+Usage: ``python docs/tools/check_links.py [BUILD_DIR] [--gallery-figures]`` (default
+``docs/_build/html``).
 
 Every ``<a href>``, ``<img src>``, ``<link href>``, ``<script src>`` and ``<source srcset>`` of
 every page is resolved against the page:
@@ -9,7 +10,9 @@ every page is resolved against the page:
   ``id`` (or ``name``) on the target page;
 - an image must be a non-empty file that Pillow can open (SVG: non-empty XML);
 - no page may load a script, style sheet, font or image from the network (the manual is read
-  offline); plain ``<a>`` links to other sites are allowed and not fetched.
+  offline); plain ``<a>`` links to other sites are allowed and not fetched;
+- with ``--gallery-figures`` (a build that ran the gallery, ``make docs``): every example page
+  ``gallery/plot_*.html`` shows at least one figure its script drew (``sphx_glr_plot_*``).
 
 Prints one line per problem and a summary; exits 1 if there is any problem, 2 if BUILD_DIR
 holds no manual.
@@ -104,12 +107,27 @@ def check(build: Path) -> list[str]:
     return problems
 
 
+def gallery_problems(build: Path) -> list[str]:
+    """Example pages of the gallery that show no figure of their own script."""
+    problems = []
+    for page_path in sorted((build / "gallery").glob("plot_*.html")):
+        figures = [url for tag, url, _ in _parse(page_path, {}).references
+                   if tag == "img" and f"sphx_glr_{page_path.stem}_" in url]
+        if not figures:
+            problems.append(f"{page_path.relative_to(build)}: the example left no figure")
+    if not problems and not list((build / "gallery").glob("plot_*.html")):
+        problems.append("gallery: no example pages")
+    return problems
+
+
 def main(argv: list[str]) -> int:
+    figures = "--gallery-figures" in argv
+    argv = [a for a in argv if a != "--gallery-figures"]
     build = Path(argv[0] if argv else "docs/_build/html")
     if not (build / "index.html").is_file():
         print(f"check_links: {build} holds no built manual (index.html); run `make docs` first", file=sys.stderr)
         return 2
-    problems = check(build)
+    problems = check(build) + (gallery_problems(build) if figures else [])
     for problem in problems:
         print(problem)
     pages = sum(1 for p in build.rglob("*.html") if not SKIPPED_FOLDERS.intersection(p.relative_to(build).parts[:-1]))
