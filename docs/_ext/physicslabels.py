@@ -33,10 +33,10 @@ def anchor(label: str) -> str:
     return "eq-" + label.lower().replace("'", "p")
 
 
-def heads(text: str) -> list[dict]:
-    """The labelled paragraph heads of the page, in order: ``label``, ``line`` (0-based),
-    ``item`` (a list item's marker or ''), ``section`` (its ``##`` heading) and ``anchor``."""
-    found, section, fenced = [], "", False
+def _outside_code(text: str):
+    """``(line number, line, section)`` of each line of the page outside fenced code blocks, with
+    the ``##`` heading it stands under."""
+    section, fenced = "", False
     for i, line in enumerate(text.splitlines()):
         if line.startswith("```"):
             fenced = not fenced
@@ -44,13 +44,14 @@ def heads(text: str) -> list[dict]:
             continue
         if line.startswith("## "):
             section = line[3:].strip()
-        m = HEAD.match(line)
-        if m:
-            found.append({"label": m["label"], "line": i, "item": m["item"] or "", "section": section})
-    for h in found:
-        h["key"] = None
-        h["anchor"] = anchor(h["label"])
-    return found
+        yield i, line, section
+
+
+def heads(text: str) -> list[dict]:
+    """The labelled paragraph heads of the page, in order: ``label``, ``line`` (0-based),
+    ``item`` (a list item's marker or ''), ``section`` (its ``##`` heading) and ``anchor``."""
+    return [{"label": m["label"], "line": i, "item": m["item"] or "", "section": section, "anchor": anchor(m["label"])}
+            for i, line, section in _outside_code(text) if (m := HEAD.match(line))]
 
 
 TAG = re.compile(r"\\tag\{(" + LABEL + r")\}")
@@ -60,16 +61,11 @@ def equations(text: str) -> list[dict]:
     """The page's display equations (``$$`` blocks), in order: ``line`` (0-based, of the opening
     ``$$``), ``tags`` (the labels of its ``\\tag{..}``), ``head`` (the label of the paragraph it
     belongs to: the last head before it) and ``section``."""
-    found, open_line, tags, fenced = [], None, [], False
-    head, section = None, ""
+    found, open_line, tags, head = [], None, [], None
     head_lines = {h["line"]: h["label"] for h in heads(text)}
-    for i, line in enumerate(text.splitlines()):
-        if line.startswith("```"):
-            fenced = not fenced
-        if fenced:
-            continue
+    for i, line, section in _outside_code(text):
         if line.startswith("## "):
-            section, head = line[3:].strip(), None
+            head = None
         if i in head_lines:
             head = head_lines[i]
         if line.strip() == "$$":
@@ -86,7 +82,7 @@ def equations(text: str) -> list[dict]:
 def targets(text: str) -> list[dict]:
     """Every anchor of the page: the paragraph heads' (``kind`` "head") and those of equation tags
     that head no paragraph (``kind`` "equation": ``(M1')`` in the paragraph of ``(M1)``), each
-    with ``label``, ``line`` (where its target goes), ``item``, ``key`` and ``anchor``."""
+    with ``label``, ``line`` (where its target goes), ``item`` and ``anchor``."""
     found = [dict(h, kind="head") for h in heads(text)]
     labels = {h["label"] for h in found}
     for eq in equations(text):
@@ -94,7 +90,7 @@ def targets(text: str) -> list[dict]:
             if tag not in labels:
                 labels.add(tag)
                 found.append({"label": tag, "line": eq["line"], "item": "", "section": eq["section"],
-                              "key": None, "anchor": anchor(tag), "kind": "equation"})
+                              "anchor": anchor(tag), "kind": "equation"})
     return sorted(found, key=lambda t: t["line"])
 
 
@@ -112,12 +108,9 @@ def with_targets(text: str) -> str:
     return "".join(lines)
 
 
-def label_table(text: str) -> dict[str, dict[str | None, str]]:
-    """label -> {section key (None where the label is unique): anchor}."""
-    table: dict[str, dict[str | None, str]] = {}
-    for h in targets(text):
-        table.setdefault(h["label"], {})[h["key"]] = h["anchor"]
-    return table
+def label_table(text: str) -> dict[str, str]:
+    """label -> its anchor."""
+    return {h["label"]: h["anchor"] for h in targets(text)}
 
 
 # -- Sphinx: targets in the page ----------------------------------------------------------------
@@ -165,10 +158,7 @@ def _link_plain(text: str, table, module: str) -> str:
     out, pos = [], 0
     for m in CITE.finditer(text):
         label = m[1]
-        anchors = table.get(label)
-        if not anchors:
-            continue
-        target = anchors.get(None)
+        target = table.get(label)
         if target is None:
             continue
         before = text[m.start() - 1] if m.start() > 0 else " "
