@@ -24,7 +24,8 @@ directives, so a rerun of the suite updates the pages:
     The suite's PASS/FAIL checks of the benchmarks named by ``:benchmarks:`` (default: all), from
     ``checks.csv`` in the folder given as the argument.
 
-A file that does not exist renders as a note naming it and the command that writes it.
+A file that does not exist renders as a note naming it and the command that writes it, and is a
+warning (an error in ``make docs``).
 """
 from __future__ import annotations
 
@@ -38,7 +39,10 @@ from docutils import nodes
 from docutils.parsers.rst import directives
 from docutils.parsers.rst.directives.images import Figure
 from docutils.parsers.rst.directives.tables import CSVTable
+from sphinx.util import logging
 from sphinx.util.docutils import SphinxDirective
+
+logger = logging.getLogger(__name__)
 
 
 
@@ -72,8 +76,10 @@ def _format(cell: str, digits: int, ninf: str = "reference") -> str:
 
 
 def _note(what: str, path: Path) -> list[nodes.Node]:
-    """A note in place of data not yet written: the file and the command that writes it."""
+    """A note in place of data not yet written: the file and the command that writes it. Also a
+    warning, so that a manual built with warnings as errors has every page's data."""
     folder = path.parent.name
+    logger.warning("benchmark %s %s does not exist", what, path, type="sarmitsuba", subtype="benchdata")
     command = f"python -m sarmitsuba bench{' --quick' if folder.startswith('quick') else ''} --out docs/benchmarks/data/{folder}"
     para = nodes.paragraph()
     para += nodes.Text(f"No {what} yet: {path.name} is written by ")
