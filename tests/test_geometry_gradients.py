@@ -216,8 +216,9 @@ def test_lane_pairing_against_numpy_and_shuffles():
       same partition of random integer rows; catches a column combination that collides
       (``group * max + rank`` without the ``+ 1``);
     * ``nearest_distinct`` on rows of 19 columns with repeats, shuffled and moved by 1e-9:
-      each row gets a distinct row equal to it; catches a row of ``b`` taken twice and repeats
-      left unpaired;
+      each row gets a distinct row equal to it; catches repeats left unpaired; and on three rows
+      where a row's second nearest is already taken (``[0, 0, 3e-7]`` against ``[0, 3e-7, 5e-7]``):
+      catches a row of ``b`` taken twice (the ``~taken`` mask dropped pairs them ``[0, 1, 1]``);
     * ``match_rows`` where the rows at equal index have equal features but different keys: it
       pairs by key, not by index; catches the in-order fast path ignoring the keys."""
     from sarmitsuba.tracing.derivatives.lane_pairs import match_rows, nearest_distinct, row_groups
@@ -234,6 +235,10 @@ def test_lane_pairing_against_numpy_and_shuffles():
     order = nearest_distinct(a, b, 1e-6)
     assert np.all(order >= 0) and len(np.unique(order)) == len(a)
     assert np.allclose(b[order], a, atol=1e-6)
+    # two identical rows whose nearest is the same row of b, the second's next nearest already
+    # taken by a third row: it must go on to the one left, never share a partner
+    order = nearest_distinct(np.array([[0.0], [0.0], [3e-7]]), np.array([[0.0], [3e-7], [5e-7]]), 1e-6)
+    assert order.tolist() == [0, 2, 1]
     features = np.zeros((4, 3))
     features[:, 0] = [0.0, 0.0, 5.0, 5.0]
     kind = np.array([[1], [2], [1], [2]])
