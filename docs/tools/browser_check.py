@@ -27,8 +27,6 @@ import threading
 import time
 from pathlib import Path
 
-#: folders of the build that are not pages (same as docs/tools/check_links.py)
-SKIPPED_FOLDERS = {"_sources", "_static", "_images", "_downloads", "_modules"}
 #: JavaScript: the images of the page that are not displayed, after scrolling each into view
 _UNDISPLAYED_IMAGES = """
 const done = arguments[arguments.length - 1];
@@ -71,8 +69,10 @@ def _driver(width: int = 1400, height: int = 1000):
 
 
 def _pages(build: Path) -> list[str]:
-    return [p.relative_to(build).as_posix() for p in sorted(build.rglob("*.html"))
-            if not SKIPPED_FOLDERS.intersection(p.relative_to(build).parts[:-1])]
+    """The manual's pages (docs/tools/check_links.py's list), as paths relative to ``build``."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from check_links import pages
+    return [p.relative_to(build).as_posix() for p in pages(build)]
 
 
 def _wait_for(driver, script: str, seconds: float = 20.0):

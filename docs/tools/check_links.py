@@ -52,6 +52,11 @@ class _Page(HTMLParser):
                 self.references.append((tag, url, loaded and "canonical" not in rel and "alternate" not in rel))
 
 
+def pages(build: Path) -> list[Path]:
+    """The manual's pages in ``build``: every HTML file outside :data:`SKIPPED_FOLDERS`, sorted."""
+    return [p for p in sorted(build.rglob("*.html")) if not SKIPPED_FOLDERS.intersection(p.relative_to(build).parts[:-1])]
+
+
 def _parse(path: Path, cache: dict[Path, _Page]) -> _Page:
     if path not in cache:
         page = _Page()
@@ -78,9 +83,7 @@ def check(build: Path) -> list[str]:
     """Problems of the manual built in ``build``: one ``"page: message"`` string each."""
     cache: dict[Path, _Page] = {}
     problems: list[str] = []
-    pages = [p for p in sorted(build.rglob("*.html"))
-             if not SKIPPED_FOLDERS.intersection(p.relative_to(build).parts[:-1])]
-    for page_path in pages:
+    for page_path in pages(build):
         page = _parse(page_path, cache)
         where = page_path.relative_to(build)
         for tag, url, loaded in page.references:
@@ -130,8 +133,7 @@ def main(argv: list[str]) -> int:
     problems = check(build) + (gallery_problems(build) if figures else [])
     for problem in problems:
         print(problem)
-    pages = sum(1 for p in build.rglob("*.html") if not SKIPPED_FOLDERS.intersection(p.relative_to(build).parts[:-1]))
-    print(f"check_links: {pages} pages, {len(problems)} problems ({build})")
+    print(f"check_links: {len(pages(build))} pages, {len(problems)} problems ({build})")
     return 1 if problems else 0
 
 
