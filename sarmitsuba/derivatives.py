@@ -17,8 +17,9 @@ Parameters: a material's relative permittivity, conductivity or (slabs) thicknes
 ``half_space`` and ``slab`` materials (``radar`` and ITU-named), and a rough material's
 scattering coefficient (:class:`MaterialParameter`); a mesh's translation, rotation, height or
 vertices (:class:`ShapeParameter`, docs/physics.md (AD4): the host geometry differenced in
-float64 with the lit regions' topology held, the kernels by Dr.Jit; the interior term only,
-:class:`~sarmitsuba.tracing.derivatives.lane_pairs.GeometryChange` where the topology changes). With the
+float64 with the lit regions' topology held, the kernels by Dr.Jit; shadow edges and mirrored
+windows move with the shapes, :class:`~sarmitsuba.tracing.derivatives.lane_pairs.GeometryChange`
+where the topology changes). With the
 gridded range kernels (``linear``, ``sinc``) and without ``split_bounces``. ``at=`` moves shapes
 before the trace (:func:`moved_raw` gives those raw data).
 

@@ -21,8 +21,9 @@ term a smooth function of the lane inputs. :class:`MovedTracer` takes the two fa
 
 So the phase, ``k`` times the path length's change, which a finite difference of whole renders
 resolves only with steps far below a wavelength, is differentiated exactly; only the geometry,
-whose scale is metres, is differenced. What this leaves out is the boundary term of a
-visibility change (AD4).
+whose scale is metres, is differenced. The moved runs move the shadow edges and mirrored windows
+too, so the boundaries' motion is in the tangent; what this leaves out is a change of the
+topology, which :class:`GeometryChange` reports (AD4).
 """
 from __future__ import annotations
 
