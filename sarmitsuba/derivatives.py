@@ -91,8 +91,10 @@ class ShapeParameter:
     * ``"translation"``: the shape moves along ``axis`` (m);
     * ``"rotation"``: it turns about ``axis`` (right-handed) through ``center`` (world, m; default
       the centre of its bounding box), rad;
-    * ``"vertices"``: its vertices of index ``vertices`` (in the mesh's vertex buffer) move along
-      ``axis`` (m); one vertex and one axis is one coordinate of the vertex gradient;
+    * ``"vertices"``: its vertices of index ``vertices`` (in the loaded mesh's vertex buffer,
+      ``shape.vertex_positions_buffer()``: an OBJ's vertices in the order its faces first use
+      them, not the file's order) move along ``axis`` (m); one vertex and one axis is one
+      coordinate of the vertex gradient;
     * ``"height"``: every vertex rises in proportion to its height above the shape's lowest one,
       so that its top rises by one (m): a building's height, its base kept.
 
