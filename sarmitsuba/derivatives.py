@@ -359,7 +359,7 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
                                         settings.range_kernel) for spectrum in spectra], axis=1)
             yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
 
-    with evaluated_loops():
+    with evaluated_loops(evaluated=False):          # replayed: symbolic loops, differentiated inside
         trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
               run_batches=run_batches)
     grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}

@@ -38,9 +38,11 @@ def loop_mode() -> str | None:
 
 
 @contextlib.contextmanager
-def evaluated_loops():
-    """Within the block, the kernels' loops run evaluated (differentiable through their deposits),
-    and Python's cyclic garbage collector is paused (collected once on entry).
+def evaluated_loops(evaluated: bool = True):
+    """Within the block, the kernels' loops run evaluated (differentiable through their deposits;
+    with ``evaluated`` false they stay as they are: a replayed reverse pass,
+    :mod:`sarmitsuba.tracing.deposit.replay`, differentiates inside its symbolic loops), and
+    Python's cyclic garbage collector is paused (collected once on entry).
 
     Why the collector: at each evaluated loop's boundary, Dr.Jit's reverse traversal evaluates the
     gradients pending there in the iteration order of a hash set of their AD variable indices
@@ -54,7 +56,7 @@ def evaluated_loops():
     if collecting:
         gc.collect()
         gc.disable()
-    _STATE.mode = "evaluated"
+    _STATE.mode = "evaluated" if evaluated else previous
     try:
         yield
     finally:

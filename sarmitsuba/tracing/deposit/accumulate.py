@@ -135,7 +135,10 @@ class Accumulator:
         """Deposit ``values`` (one mi.Complex2f per channel) at the two-way length ``offset`` [m]
         (float32) beyond ``anchor`` for batch pulse ``pulse``, eqs. (D1)-(D4); ``slot`` places a PO
         term in the exact kernel's path list (None: a clutter scatterer, appended). Returns whether
-        the term lies inside the fast-time window."""
+        the term lies inside the fast-time window. While the launch is replayed (``ctx["seed"]``,
+        the histogram's gradient as (re, im) floats, :mod:`.replay`), nothing is deposited: the
+        term's share of the loss's change, ``sum_taps w (g_re Re v + g_im Im v)``, is added to
+        ``ctx["adjoint"]``."""
         st, win = self.settings, self.window
         per_length = ctx["fine_per_length"].get(type(offset), 1.0 / win.fine_step_length)
         position = anchor[1] + offset * per_length                          # fine bins after anchor[0]
@@ -163,9 +166,14 @@ class Accumulator:
         inside = (k0 >= lo) & (k0 < mi.Int32(n_fine) - hi)
         group = depth if self.groups > 1 else 0
         n_groups = len(values) * self.groups               # channel-major: group c * groups + order
+        seed = ctx.get("seed")
         for c, value in enumerate(values):
             base = ((order_index * n_groups + c * self.groups + group) * ctx["hist_n_b"] + pulse) * n_fine
             for offset_, w in tap_list:            # one (re, im) packet per tap
+                if seed is not None:               # replayed: this term's share of dL (replay.py)
+                    g = dr.gather(mi.Array2f, seed, base + mi.UInt32(k0 + offset_), mask & inside)
+                    ctx["adjoint"] += w * (g[0] * value.real + g[1] * value.imag)
+                    continue
                 dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
                                mask & inside, mode=self.reduce)
         return inside

@@ -37,6 +37,7 @@ from ...core.radar import ParameterError
 from ...scene.loader import shape_frame
 from ..mesh.facets import mesh_parts, scene_meshes
 from .lane_pairs import GeometryChange, align_scatterers, align_terms, tangent_lanes, topology_change
+from ..deposit.replay import carry
 from ..loops import float64_lanes
 from ..mesh.patches import surfaces_of
 
@@ -173,6 +174,16 @@ def _at(x, path):
     return x
 
 
+def _put(x, path, value) -> None:
+    """Set the entry of ``x`` at ``path`` (:func:`_float_leaves`) to ``value``."""
+    for key in path[:-1]:
+        x = x[key] if isinstance(x, (dict, list, tuple)) else getattr(x, key)
+    if isinstance(x, (dict, list)):
+        x[path[-1]] = value
+    else:
+        setattr(x, path[-1], value)
+
+
 def _difference(up, down, step: float):
     """``(up - down) / 2 step`` of a Dr.Jit array, or of every such array of a dataclass (the
     Jones matrix); None stays None."""
@@ -217,6 +228,8 @@ class MovedTracer:
         for tracer in [self.main] + [t for pair in self.tracers for t, _ in pair]:
             tracer.cancel, tracer.simplify = False, True
         self.tangents: list = []
+        #: ``(leaf, entry)`` of the uploads' entries that carried derivatives of their own (:meth:`_leaves`).
+        self.links: list = []
         self.totals = np.zeros(len(self.moves))
         #: Forward mode: each leaf's tangent (one move) is set on it when it is made.
         self.forward = False
@@ -290,30 +303,45 @@ class MovedTracer:
         return tangent
 
     def _leaves(self, data: dict, tangents: list) -> None:
-        """Every floating-point entry of ``data`` that has a tangent along some move becomes a leaf
-        (``dr.enable_grad``), kept with its tangents in :attr:`tangents`. Which entries are leaves
-        is decided by the kind of upload, never by the tangents' values: a tangent that happens to
-        be zero (a normal that a height change keeps, to rounding) would otherwise change the
-        backward pass's graph, and Dr.Jit would compile its kernels again at every new geometry."""
-        for path, leaf in _float_leaves(data):
+        """Every floating-point entry of ``data`` that has a tangent along some move is replaced by
+        a leaf of its value (detached, ``dr.enable_grad``), kept with its tangents in
+        :attr:`tangents`; an entry that carried derivatives of its own (an earlier bounce's
+        reflection factor, read from the material tables) is kept beside its leaf in
+        :attr:`links`, so that what the leaf receives reaches the tables too. Which entries are
+        leaves is decided by the kind of upload, never by the tangents' values: a tangent that
+        happens to be zero (a normal that a height change keeps, to rounding) would otherwise
+        change the backward pass's graph, and Dr.Jit would compile its kernels again at every
+        new geometry."""
+        for path, entry in list(_float_leaves(data)):
             along = [_at(t, path) for t in tangents]
             if all(t is None for t in along):
                 continue
+            leaf = dr.detach(entry)
             dr.enable_grad(leaf)
+            _put(data, path, leaf)
+            if dr.grad_enabled(entry) and not self.forward:
+                self.links.append((leaf, entry))
             along = [type(leaf)(0) if t is None else t for t in along]
             if self.forward:                     # forward mode (one move): the tangent, set once
                 dr.set_grad(leaf, along[0])
             self.tangents.append((leaf, along))
 
     def accumulate(self) -> None:
-        """Reverse mode, after the launch's backward pass: ``dL/dp_j += <dL/d leaf, tangent_j>``
-        over the launch's leaves; then forget them. The leaves' gradients are evaluated together
-        (one kernel: evaluated one by one, each would compile the whole backward pass again)."""
-        grads = [dr.grad(leaf) for leaf, _ in self.tangents]
-        dr.eval(*grads, *(t for _, tangents in self.tangents for t in tangents))
-        for grad, (_, tangents) in zip(grads, self.tangents):
-            flat = [np.asarray(g, np.float64) for g in _components(grad)]
+        """Reverse mode, after the launch's replay: what the linked leaves received is carried to
+        the material tables (:func:`~sarmitsuba.tracing.deposit.replay.carry`), and
+        ``dL/dp_j += <dL/d leaf, tangent_j>`` over the launch's leaves, summed on the device and
+        read once; then forget them."""
+        carry(self.links)
+        sums = [None] * len(self.moves)
+        for leaf, tangents in self.tangents:
+            grads = list(_components(dr.grad(leaf)))
             for j, tangent in enumerate(tangents):
-                self.totals[j] += sum(float(np.sum(g * np.asarray(t, np.float64)))
-                                      for g, t in zip(flat, _components(tangent)))
-        self.tangents = []
+                for g, t in zip(grads, _components(tangent)):
+                    term = mi.Float64(dr.sum(g * t))
+                    sums[j] = term if sums[j] is None else sums[j] + term
+        kept = [x for x in sums if x is not None]
+        dr.eval(*kept)
+        for j, total in enumerate(sums):
+            if total is not None:
+                self.totals[j] += float(total.numpy()[0])
+        self.tangents, self.links = [], []

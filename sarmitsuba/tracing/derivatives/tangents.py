@@ -219,10 +219,13 @@ class TangentKernel(Kernel):
 
 
 class AdjointSums(Accumulator):
-    """Reverse mode: each launch's histogram gets the loss's gradient with respect to it
-    (:attr:`seed`, complex [orders, groups, n_b, n_fine], set per batch by the caller), which
-    Dr.Jit carries back through the launch's evaluated loops to the differentiable leaves, where
-    it adds up over the launches. The launch's own histogram (the values) is returned as usual."""
+    """Reverse mode: each launch's histogram's gradient (:attr:`seed`, the loss's gradient with
+    respect to it, complex [orders, groups, n_b, n_fine], set per batch by the caller) is put in
+    the launch's context, and the term kernels replay the launch against it
+    (:mod:`sarmitsuba.tracing.deposit.replay`): each pulse's terms are differentiated where they
+    are evaluated and their share of ``dL`` carried back to the differentiable leaves (the
+    material tables, the geometric lanes), where it adds up over the launches. Nothing is
+    deposited: the histogram a replayed launch hands back is zero."""
 
     def __init__(self, base: Accumulator):
         super().__init__(base.settings, base.window, base.groups, base.n_channels)
@@ -231,17 +234,13 @@ class AdjointSums(Accumulator):
                                  "use range_kernel linear or sinc")
         self.seed = None
 
-    def collect(self, ctx: dict) -> dict:
-        """Seed the launch's histogram with :attr:`seed` (the raw data's gradient, complex64)
-        and propagate it backward to the kernel's leaves, then collect as the base accumulator."""
+    def open(self, ctx: dict) -> None:
+        """Open the launch's histogram, and put :attr:`seed` beside it as its (re, im) floats."""
+        super().open(ctx)
         floats = np.zeros(dr.width(ctx["hist"]), np.float32)
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat
-        dr.set_grad(ctx["hist"], device_array(mi.Float, floats))    # aligned: the backward kernels' code
-                                                                     # (packet gathers) would follow NumPy's
-        dr.enqueue(dr.ADMode.Backward, ctx["hist"])
-        dr.traverse(dr.ADMode.Backward, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
-        return super().collect(ctx)
+        ctx["seed"] = device_array(mi.Float, floats)     # aligned: the kernels' packet gathers
 
 
 class AdjointKernel(Kernel):

@@ -39,6 +39,7 @@ from .edge_terms import EdgeTerms, end_slope, sinc, x_dsinc
 from ..device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
+from ..deposit.replay import run_pulses
 from ..loops import loop_mode
 
 __all__ = ["TermLanes", "PieceTable", "PatchTerms", "SPLIT_START", "SPLIT_END", "SINC", "OPEN_START", "OPEN_END",
@@ -198,6 +199,12 @@ class _Record:
         self.row, self.jones = row, jones
 
 
+#: The entries of an upload that are per piece or per boundary segment (read by gathers), not per lane.
+PER_PIECE = frozenset({"centroid", "centroid_unfolded", "diagonal", "piece_area", "moments", "axis_u", "axis_v",
+                       "segment_start", "segment_count", "segment_most", "segment_mid", "segment_edge", "segment_mid_rate",
+                       "segment_edge_rate"})
+
+
 class PatchTerms:
     """Per-pulse PO terms of lit pieces (configuration fixed per acquisition).
 
@@ -229,11 +236,8 @@ class PatchTerms:
         lane = dr.arange(mi.UInt32, len(lanes))
         ctx["evaluated"] += int(np.sum(ctx["launch"].count[lanes.sub]))
 
-        def body(q):
-            self._pulse(ctx, data, q, depth, paths, lane)
-            return (q + 1,)
-
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="patch terms")
+        run_pulses(ctx, data, count, lambda d, q: self._pulse(ctx, d, q, depth, paths, lane), "patch terms",
+                   shared=PER_PIECE)
         if paths is not None:
             self.r.sums.keep_paths(ctx, paths)
 
@@ -269,6 +273,7 @@ class PatchTerms:
             data["axis_u"], data["axis_v"] = device_array(v3, pieces.axis_u.T), device_array(v3, pieces.axis_v.T)
             data["segment_start"] = device_array(mi.UInt32, pieces.segment_start)
             data["segment_count"] = device_array(mi.UInt32, pieces.segment_count)
+            data["segment_most"] = int(pieces.segment_count.max(initial=0))
             data["segment_mid"] = device_array(v3, pieces.segment_mid.T)
             data["segment_edge"] = device_array(v3, pieces.segment_edge.T)
             data["segment_moving"] = data["moving"] and pieces.segment_mid_rate is not None
@@ -391,7 +396,7 @@ class PatchTerms:
                 factor = (line if which == 0 else line_second) * phase
                 values = [dr.select(live, v, 0.0) + dr.select(f_live, f * factor, 0.0) for v, f in zip(values, fringe)]
                 live = live | f_live
-            power = dr.squared_norm(values[0])
+            power = dr.detach(dr.squared_norm(values[0]))
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
             dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), live, mode=ctx["tally"])
@@ -496,8 +501,20 @@ class PatchTerms:
             derivative = common * mi.Complex2f(x_dsinc(alpha) - value, -k * dr.dot(u, mid) * value)
             return e + 1, f + common * value, kdf + derivative, shoelace
 
-        _, f, kdf, shoelace = dr.while_loop((start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0), mi.Float(0.0)),
-                                            lambda e, *_: e < stop, step, mode=loop_mode(), label="area segments")
+        state = (start, mi.Complex2f(0.0, 0.0), mi.Complex2f(0.0, 0.0), mi.Float(0.0))
+        if data.get("replayed"):
+            # unrolled to the upload's longest boundary: Dr.Jit 1.5 does not reverse a loop nested
+            # in the replay's pulse loop on the LLVM backend (invalid code, or zero gradients)
+            last = mi.UInt32(max(dr.width(data["segment_mid"]), 1) - 1)
+            for _ in range(data["segment_most"]):
+                e, f, kdf, shoelace = state
+                _, f1, kdf1, shoelace1 = step(dr.minimum(e, last), f, kdf, shoelace)
+                on = e < stop
+                state = (e + 1, dr.select(on, f1, f), dr.select(on, kdf1, kdf), dr.select(on, shoelace1, shoelace))
+            _, f, kdf, shoelace = state
+        else:
+            _, f, kdf, shoelace = dr.while_loop(state, lambda e, *_: e < stop, step, mode=loop_mode(),
+                                                label="area segments")
         if moving:
             # the moved piece's own area and size decide between the Taylor and Gordon forms
             taylor = taylor + mi.Complex2f(shoelace - area, 0.0)

@@ -25,7 +25,7 @@ from ..deposit.fast_time import SPECTRAL_ORDERS
 from ..device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
-from ..loops import loop_mode
+from ..deposit.replay import run_pulses
 
 __all__ = ["hash32", "surface_keys", "cell_hash", "ScattererLanes", "ClutterKernel", "points_inside_boundary"]
 
@@ -183,11 +183,7 @@ class ClutterKernel:
         found = np.sum(ctx["launch"].count[lanes.sub])
         ctx["evaluated"] += int(found)
 
-        def body(q):
-            self._pulse(ctx, data, q, depth, paths, lane)
-            return (q + 1,)
-
-        dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, mode=loop_mode(), label="scatterers")
+        run_pulses(ctx, data, count, lambda d, q: self._pulse(ctx, d, q, depth, paths, lane), "scatterers")
         dr.scatter_add(ctx["scatterers"], mi.UInt32(int(found)), mi.UInt32(depth), mode=ctx["tally"])
         if paths is not None:
             r.sums.keep_paths(ctx, paths)
@@ -223,7 +219,7 @@ class ClutterKernel:
             values = [v + there * a for v, a in zip(values, cross)]
         inside = r.sums.deposit(ctx, pulse, depth, r.anchor(rel, lref), 0.0, values,
                                 mi.UInt32(SPECTRAL_ORDERS.index(0)), active, paths, lane * ctx["max_count"] + q)
-        power = dr.squared_norm(amplitude) * level
+        power = dr.detach(dr.squared_norm(amplitude) * level)
         dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), active, mode=ctx["tally"])
         dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), active & ~inside, mode=ctx["tally"])
 
