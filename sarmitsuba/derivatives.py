@@ -341,36 +341,61 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     if not parameters:
         return {}                                            # nothing asked: nothing traced
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
-    params, settings = loaded.params, loaded.settings
-    geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     rows = _material_tangents(loaded, setup, parameters)          # refused before tracing
-    gradients_ = _channel_gradients(gradient, params.channels, (geometry.positions.shape[0], window.n_samples))
+    kernel = _adjoint_kernel(loaded, setup, parameters, False)
+    return _reverse(loaded, setup, kernel, gradient, parameters, rows)
+
+
+def _adjoint_kernel(loaded, setup, parameters, outlines: bool) -> AdjointKernel:
+    """The reverse-mode kernel of ``parameters``: their shapes' moves, the derivatives' outlines
+    where ``outlines`` or a shape moves."""
     shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
-    kernel = AdjointKernel(loaded.scene, params, window, footprint, settings, setup.table, effects,
-                           [p.move(loaded) for p in shapes])
+    return AdjointKernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings, setup.table,
+                         setup.effects, [p.move(loaded) for p in shapes], outlines=outlines)
+
+
+def _batches(kernel, loaded, setup, seeds=None):
+    """Trace ``kernel`` over the acquisition, its launches seeded batch by batch with ``seeds``
+    (channel name -> the raw data's gradient) or, without seeds, depositing values; the trace's
+    result."""
+    params, settings = loaded.params, loaded.settings
+    geometry, window, footprint = setup.geometry, setup.window, setup.footprint
 
     def run_batches(plan, batches):
-        spectra = [binning.raw_data_adjoint(gradients_[name], plan.lref, plan.n_pad, window, params)
-                   for name in kernel.returns.channels]          # in the histogram's channel order
+        spectra = None if seeds is None else [
+            binning.raw_data_adjoint(seeds[name], plan.lref, plan.n_pad, window, params)
+            for name in kernel.returns.channels]          # in the histogram's channel order
         for g0 in batches:
-            p0, p1 = plan.pulses(g0)
-            kernel.returns.sums.seed = np.stack(
-                [reduce_deposit_adjoint(spectrum[p0:p1], window.n_fine, window.fs, window.oversample, params.frequency,
-                                        settings.range_kernel) for spectrum in spectra], axis=1)
+            if spectra is not None:
+                p0, p1 = plan.pulses(g0)
+                kernel.returns.sums.seed = np.stack(
+                    [reduce_deposit_adjoint(spectrum[p0:p1], window.n_fine, window.fs, window.oversample,
+                                            params.frequency, settings.range_kernel) for spectrum in spectra], axis=1)
             yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
 
     with evaluated_loops(evaluated=False):          # replayed: symbolic loops, differentiated inside
-        trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
-              run_batches=run_batches)
+        if seeds is not None:
+            return trace(loaded.scene, params, geometry, window, footprint, settings, setup.table,
+                         effects=setup.effects, run_batches=run_batches)
+        with dr.suspend_grad():                     # the values: no graph of the tables kept
+            return trace(loaded.scene, params, geometry, window, footprint, settings, setup.table,
+                         effects=setup.effects, run_batches=run_batches)
+
+
+def _reverse(loaded, setup, kernel, gradient, parameters, rows) -> dict:
+    """The reverse pass of ``kernel`` seeded with the raw data's ``gradient``: parameter -> dL/dp."""
+    params = loaded.params
+    seeds = _channel_gradients(gradient, params.channels, (setup.geometry.positions.shape[0], setup.window.n_samples))
+    _batches(kernel, loaded, setup, seeds)
     grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}
     out = {}
     for parameter, (row, tangent) in rows.items():
         flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row, tangent)
         out[parameter] = float(sum(grads[name] @ values for name, values in flat.items()))
+    shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
     for parameter, total in zip(shapes, kernel.moved.totals if shapes else ()):
         out[parameter] = float(total)
     return {p: out[p] for p in parameters}
-
 
 
 @dataclass(frozen=True)
@@ -454,9 +479,14 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     if len(params.channels) != 1:
         raise ParameterError("sarmitsuba.gradients takes a loss on one channel's image; for quad-pol, set "
                              "polarization to one channel, or use raw_gradient with a gradient per channel")
-    _material_tangents(loaded, setup, parameters)      # a pec material refused before the forward render
+    rows = _material_tangents(loaded, setup, parameters)      # a pec material refused before the forward render
     shapes = bool(at) or any(isinstance(p, ShapeParameter) for p in parameters)
-    raw = _values(source, loaded, setup, shapes)
+    # one trace of the geometry: the values pass keeps each launch's lanes and tangents, and the
+    # reverse pass replays them (docs/physics.md (AD4))
+    kernel = _adjoint_kernel(loaded, setup, parameters, shapes)
+    if kernel.moved is not None:
+        kernel.moved.kept = {}
+    raw = _raw(source, loaded, setup, _batches(kernel, loaded, setup))
     grid = sized_grid(params, setup.geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     operator = operators[focuser](raw, grid, oversample=oversample,
@@ -464,9 +494,11 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
                                   squint=params.squint, azimuth_pattern=azimuth_pattern(params))
     image = operator.forward(raw.data)
     value, image_gradient = loss(image)
-    raw_gradient_ = operator.adjoint(image_gradient)
-    grads = raw_gradient(source, raw_gradient_, parameters, sensor_overrides=sensor_overrides,
-                         integrator_overrides=integrator_overrides, at=at)
+    if not parameters:
+        return Gradients(float(value), {}, image, raw)
+    if kernel.moved is not None:
+        kernel.moved.replay, kernel.moved.kept = kernel.moved.kept, None
+    grads = _reverse(loaded, setup, kernel, operator.adjoint(image_gradient), parameters, rows)
     return Gradients(float(value), grads, image, raw)
 
 
@@ -495,7 +527,13 @@ def _values(source, loaded, setup, outlines: bool) -> RawData:
         for g0 in batches:
             yield trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
 
-    result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
-                   run_batches=run_batches)
+    return _raw(source, loaded, setup, trace(loaded.scene, params, geometry, window, footprint, settings, setup.table,
+                                             effects=effects, run_batches=run_batches))
+
+
+def _raw(source, loaded, setup, result) -> RawData:
+    """The raw data of a trace's ``result`` (one channel), in the world frame."""
+    geometry = setup.geometry
     world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
-    return binning.to_raw_data(result.contributions(), result, window, params, world, {"scene": str(source)})
+    return binning.to_raw_data(result.contributions(), result, setup.window, loaded.params, world,
+                               {"scene": str(source)})

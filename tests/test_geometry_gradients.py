@@ -279,8 +279,8 @@ def _held_on_rows(monkeypatch, row: int) -> None:
             if isinstance(getattr(x, f.name), np.ndarray) and getattr(x, f.name).dtype.kind == "f"
             and len(getattr(x, f.name)) == n})
 
-    def tangent_lanes(main, plus, minus, step):
-        out = differenced(main, plus, minus, step)
+    def tangent_lanes(main, plus, step):
+        out = differenced(main, plus, step)
         if hasattr(main, "segment_start"):                  # the piece table, after its lanes
             pieces = held.get("pieces", np.zeros(0, np.int64))
             segments = np.concatenate([np.arange(main.segment_start[p], main.segment_start[p] + main.segment_count[p])

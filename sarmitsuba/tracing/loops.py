@@ -4,9 +4,10 @@ kernel, the default), or evaluated loops while derivatives are taken.
 The loops deposit into the launch's histogram from inside their bodies (a scatter, a side effect).
 Dr.Jit propagates derivatives through such a body only when the loop is *evaluated* (every
 iteration its own kernel launch, the derivative graph explicit); a symbolic loop records the
-scatter with symbolic indices that forward or reverse propagation cannot replay afterwards. So
-:mod:`sarmitsuba.derivatives` runs its traces inside :func:`evaluated_loops`, and every
-``dr.while_loop`` of the kernels passes ``mode=loop_mode()``.
+scatter with symbolic indices that forward propagation cannot replay afterwards. So
+:mod:`sarmitsuba.derivatives` runs its forward-mode traces inside :func:`evaluated_loops`, and every
+``dr.while_loop`` of the kernels passes ``mode=loop_mode()``. Reverse mode keeps the symbolic
+loops and differentiates inside them (:mod:`sarmitsuba.tracing.deposit.replay`).
 """
 from __future__ import annotations
 

@@ -38,7 +38,7 @@ from ...scene.loader import shape_frame
 from ..mesh.facets import mesh_parts, scene_meshes
 from .lane_pairs import GeometryChange, align_scatterers, align_terms, tangent_lanes, topology_change
 from ..deposit.replay import carry
-from ..loops import float64_lanes
+from ..loops import RECORDING, float64_lanes
 from ..mesh.patches import surfaces_of
 
 #: How far a moved lane may lie from the lane it is paired with, in steps ``h`` times the largest
@@ -126,13 +126,26 @@ class _Recording:
     (and the piece table), in call order, without depositing."""
 
     def __init__(self):
-        self.uploads = []
+        self.uploads, self.depths = [], []
 
     def terms(self, ctx, lanes, pieces, depth: int) -> None:
         self.uploads.append((lanes, pieces) if len(lanes) else None)
+        self.depths.append(depth)
 
     def clutter(self, ctx, lanes, depth: int) -> None:
         self.uploads.append((lanes,) if len(lanes) else None)
+        self.depths.append(depth)
+
+    def run(self, tracer, ctx, launch):
+        """Run ``tracer`` on ``launch`` with its term and scatterer kernels replaced by this
+        recording's; its counters."""
+        terms, clutter = tracer.terms, tracer.clutter
+        tracer.terms = self.terms
+        tracer.clutter = self.clutter if clutter is not None else None
+        try:
+            return tracer(ctx, launch)
+        finally:
+            tracer.terms, tracer.clutter = terms, clutter
 
 
 def _components(x):
@@ -184,27 +197,38 @@ def _put(x, path, value) -> None:
         setattr(x, path[-1], value)
 
 
-def _difference(up, down, step: float):
-    """``(up - down) / 2 step`` of a Dr.Jit array, or of every such array of a dataclass (the
-    Jones matrix); None stays None."""
+def _difference(up, here, step: float):
+    """``(up - here) / step`` of a Dr.Jit array, or of every such array of a dataclass (the
+    Jones matrix), detached; None stays None."""
     if up is None:
         return None
     if dataclasses.is_dataclass(up) and not isinstance(up, type):
-        return dataclasses.replace(up, **{f.name: _difference(getattr(up, f.name), getattr(down, f.name), step)
+        return dataclasses.replace(up, **{f.name: _difference(getattr(up, f.name), getattr(here, f.name), step)
                                           for f in dataclasses.fields(up)})
-    return (up - down) * (0.5 / step)
+    return dr.detach(up - here) * (1.0 / step)
+
+
+def _launch_key(launch) -> tuple:
+    """What tells a launch apart from the trace's others: its sub-apertures' pulses and references."""
+    return launch.first.tobytes(), launch.count.tobytes(), np.asarray(launch.reference).tobytes()
 
 
 class MovedTracer:
     """The kernel's mesh tracer with the lane inputs made differentiable leaves carrying their
     tangents along each of ``moves`` (a list of :class:`GeometryMove`).
 
-    Per launch: each move's two moved tracers run the host geometry (and its visibility rays) and
-    record the lanes they would deposit; the tracer itself then runs, and each
-    upload of its term and scatterer kernels becomes leaves (``dr.enable_grad``) whose tangents
-    are the recorded central differences (:attr:`tangents`: leaf -> one tangent per move).
-    Forward mode (:attr:`forward`) sets each leaf's tangent on it; reverse mode calls
-    :meth:`accumulate` after the launch, which adds ``<dL/d leaf, tangent>`` to :attr:`totals`.
+    Per launch: the tracer itself runs the host geometry and records the lanes it would deposit;
+    then, one move at a time, a moved tracer runs the geometry with the shape's vertices moved by
+    ``h`` along the move, and each of its uploads is paired with the tracer's own
+    (:func:`~.lane_pairs.align_terms`) and differenced, ``(x(p + h) - x(p)) / h``, the tangent
+    (:meth:`_tangent`). The recorded uploads are then deposited: as leaves (``dr.enable_grad``)
+    whose tangents are kept in :attr:`tangents` (leaf -> one tangent per move), or, while
+    :attr:`kept` is a dict (the values pass of :func:`sarmitsuba.gradients`), as plain values,
+    each launch's uploads and tangents kept there. :attr:`replay` set to those makes the next
+    launches deposit the kept uploads as leaves without running any geometry: one trace of the
+    geometry for the values and the gradient. Forward mode (:attr:`forward`) sets each leaf's
+    tangent on it; reverse mode calls :meth:`accumulate` after the launch, which adds
+    ``<dL/d leaf, tangent>`` to :attr:`totals`.
     """
 
     def __init__(self, kernel, moves):
@@ -214,18 +238,17 @@ class MovedTracer:
             if move.field.shape != base[move.shape][0].shape:
                 raise ParameterError(f"displacement field shape {move.field.shape}: the shape has "
                                      f"{base[move.shape][0].shape[0]} vertices")
-        moved = [[base[m.shape][0] + sign * m.step * m.field for sign in (1.0, -1.0)] for m in self.moves]
-        # a move that bends a face splits its shape's faces into triangles, in all three geometries
+        # a move that bends a face splits its shape's faces into triangles, in both geometries
         separate = sorted({m.shape for m in self.moves if _bent(base, m.shape, m.field)})
         offset = GRID_OFFSET * kernel.fp.patch_size
         kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {},
                                                                       separate, offset))
-        self.tracers = [[(kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {m.shape: v},
-                                                             separate, offset)), v) for v in pm]
-                        for m, pm in zip(self.moves, moved)]
+        self.tracers = [kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
+                                                           {m.shape: base[m.shape][0] + m.step * m.field},
+                                                           separate, offset)) for m in self.moves]
         # every boundary segment kept: a segment that cancels its neighbour's exactly at the
         # parameter (a symmetric corner) may not cancel it a step away, where the sum is the same
-        for tracer in [self.main] + [t for pair in self.tracers for t, _ in pair]:
+        for tracer in [self.main] + self.tracers:
             tracer.cancel, tracer.simplify = False, True
         self.tangents: list = []
         #: ``(leaf, entry)`` of the uploads' entries that carried derivatives of their own (:meth:`_leaves`).
@@ -233,73 +256,71 @@ class MovedTracer:
         self.totals = np.zeros(len(self.moves))
         #: Forward mode: each leaf's tangent (one move) is set on it when it is made.
         self.forward = False
+        #: A dict while the values are traced: each launch's ``(uploads, counters)``, by launch.
+        self.kept: dict | None = None
+        #: What :attr:`kept` held, to deposit as leaves launch by launch instead of tracing.
+        self.replay: dict | None = None
         self.surfaces = self.main.surfaces
 
     def __call__(self, ctx: dict, launch) -> dict:
-        recorded = []
+        if self.replay is not None:
+            uploads, stats = self.replay.pop(_launch_key(launch))
+            self._deposit(ctx, uploads, True)
+            return stats
         with float64_lanes():
-            for pair in self.tracers:
-                uploads = []
-                for tracer, _ in pair:
-                    recording = _Recording()
-                    terms, clutter = tracer.terms, tracer.clutter
-                    tracer.terms = recording.terms
-                    tracer.clutter = recording.clutter if clutter is not None else None
-                    try:
-                        tracer(ctx, launch)
-                    finally:
-                        tracer.terms, tracer.clutter = terms, clutter
-                    uploads.append(recording.uploads)
-                recorded.append(uploads)
-            return self._run(ctx, launch, recorded)
-
-    def _run(self, ctx, launch, recorded) -> dict:
-        """The tracer itself, its lanes paired with the moved tracers' recorded ones."""
-        main, used = self.main, [0]
-        terms, clutter = main.terms, main.clutter
-
-        def differentiated(kernel, args, depth):
-            i = used[0]
-            used[0] += 1
-            if any(i >= len(plus) or i >= len(minus) for plus, minus in recorded):
-                raise topology_change("bounce orders reached")
-            others = [(plus[i], minus[i]) for plus, minus in recorded]
-            if len(args[0]) == 0:
-                if any(p is not None or m is not None for p, m in others):
-                    raise topology_change("lit pieces")
-                return
-            if any(p is None or m is None for p, m in others):
-                raise topology_change("lit pieces")
-            data = kernel.upload(*args, depth)
-            self._leaves(data, [self._tangent(kernel, args, pm, move, depth) for move, pm in zip(self.moves, others)])
-            kernel.deposit(ctx, data, args[0], depth)
-
-        main.terms = lambda c, lanes, pieces, depth: differentiated(terms, (lanes, pieces), depth)
-        if clutter is not None:
-            main.clutter = lambda c, lanes, depth: differentiated(clutter, (lanes,), depth)
-        try:
-            stats = main(ctx, launch)
-        finally:
-            main.terms, main.clutter = terms, clutter
-        if any(len(plus) != used[0] or len(minus) != used[0] for plus, minus in recorded):
-            raise topology_change("bounce orders reached")
+            own = _Recording()
+            stats = own.run(self.main, ctx, launch)
+            kinds = {"terms": self.main.terms, "clutter": self.main.clutter}
+            uploads = [(kinds["terms" if x is None or len(x) == 2 else "clutter"], x, depth, [])
+                       for x, depth in zip(own.uploads, own.depths)]
+            for move, tracer in zip(self.moves, self.tracers):
+                moved = _Recording()
+                moved.run(tracer, ctx, launch)
+                if len(moved.uploads) != len(uploads):
+                    raise topology_change("bounce orders reached")
+                for (kernel, args, depth, tangents), other in zip(uploads, moved.uploads):
+                    if (args is None) != (other is None):
+                        raise topology_change("lit pieces")
+                    if args is not None:
+                        tangents.append(self._tangent(kernel, args, other, move, depth))
+        if self.kept is not None:
+            self.kept[_launch_key(launch)] = (uploads, stats)
+        self._deposit(ctx, uploads, self.kept is None)
         return stats
+
+    def _deposit(self, ctx: dict, uploads: list, leaves: bool) -> None:
+        """Deposit the recorded uploads, their entries made leaves with their tangents (or plain values)."""
+        for kernel, args, depth, tangents in uploads:
+            if args is None:
+                continue
+            data = kernel.upload(*args, depth)
+            if leaves:
+                self._leaves(data, tangents)
+            with RECORDING:
+                kernel.deposit(ctx, data, args[0], depth)
+        dr.eval()
+        dr.sync_thread()
 
     @staticmethod
     def _tangent(kernel, args, moved, move: GeometryMove, depth: int) -> dict:
-        """The upload's tangent along ``move``: the paired lanes' central difference (float64 on
+        """The upload's tangent along ``move``: the paired lanes' forward difference (float64 on
         the host, :func:`~.lane_pairs.tangent_lanes`) uploaded as the lanes are, and the earlier
         bounces' factors (``gamma``, the Jones matrices) differenced on the device."""
         tolerance = ALIGN_TOLERANCE * move.step * float(np.abs(move.field).max(initial=0.0)) + 1e-9
         if len(args) == 2:
-            plus, minus = (align_terms(*args, *m, tolerance) for m in moved)
+            plus = align_terms(*args, *moved, tolerance)
         else:
-            plus, minus = ((align_scatterers(args[0], m[0], tolerance),) for m in moved)
-        tangent = kernel.upload(*(tangent_lanes(a, p, m, move.step) for a, p, m in zip(args, plus, minus)), depth)
-        up, down = kernel.upload(*plus, depth), kernel.upload(*minus, depth)
+            plus = (align_scatterers(args[0], moved[0], tolerance),)
+        tangent = kernel.upload(*(tangent_lanes(a, p, move.step) for a, p in zip(args, plus)), depth)
+        if depth == 0:                       # no earlier bounce: its factors are constants
+            for key in ("gamma", "jones", "edge_jones"):
+                if tangent.get(key) is not None:
+                    tangent[key] = None
+            return tangent
+        up, here = kernel.upload(*plus, depth), kernel.upload(*args, depth)
         for key in ("gamma", "jones", "edge_jones"):
             if key in tangent:
-                tangent[key] = _difference(up[key], down[key], move.step)
+                tangent[key] = _difference(up[key], here[key], move.step)
         return tangent
 
     def _leaves(self, data: dict, tangents: list) -> None:

@@ -6,7 +6,7 @@ moved lane is paired with the lane of equal discrete attributes (kind, pulse gro
 chain) nearest to it: a lane moves by about ``h`` times the vertices' displacement, far less
 than lanes lie apart. Where the lanes cannot be paired one to one (a piece, a segment or a lane
 more or fewer) the move changes the lit regions' topology: :class:`GeometryChange`.
-:func:`tangent_lanes` then forms ``(lanes(+h) - lanes(-h)) / 2h`` field by field, in float64.
+:func:`tangent_lanes` then forms ``(lanes(p + h) - lanes(p)) / h`` field by field, in float64.
 """
 from __future__ import annotations
 
@@ -217,20 +217,20 @@ def align_scatterers(main, lanes, tolerance: float):
     return _take_or_keep(lanes, main, order)
 
 
-def tangent_lanes(main, plus, minus, step: float):
-    """``(plus - minus) / 2 step`` of every floating-point field of a lanes dataclass (term lanes,
+def tangent_lanes(main, plus, step: float):
+    """``(plus - main) / step`` of every floating-point field of a lanes dataclass (term lanes,
     piece table or scatterer lanes, float64), the fields of :data:`ARRIVAL_FIELDS` and every
-    discrete field left as ``main``'s; GeometryChange where a discrete field of ``plus`` or
-    ``minus`` differs from ``main``'s."""
+    discrete field left as ``main``'s; GeometryChange where a discrete field of ``plus`` differs
+    from ``main``'s."""
     out = {}
     for field in dataclasses.fields(main):
-        a, p, m = (getattr(x, field.name) for x in (main, plus, minus))
+        a, p = (getattr(x, field.name) for x in (main, plus))
         if not isinstance(a, np.ndarray):
             continue
-        if p is None or m is None or p.shape != a.shape or m.shape != a.shape:
+        if p is None or p.shape != a.shape:
             raise topology_change(field.name)
         if a.dtype.kind == "f" and field.name not in ARRIVAL_FIELDS:
-            out[field.name] = (p.astype(np.float64) - m.astype(np.float64)) / (2.0 * step)
-        elif a.dtype.kind != "f" and not (np.array_equal(a, p) and np.array_equal(a, m)):
+            out[field.name] = (p.astype(np.float64) - a.astype(np.float64)) / step
+        elif a.dtype.kind != "f" and not np.array_equal(a, p):
             raise topology_change(field.name)
     return dataclasses.replace(main, **out)

@@ -235,8 +235,11 @@ class AdjointSums(Accumulator):
         self.seed = None
 
     def open(self, ctx: dict) -> None:
-        """Open the launch's histogram, and put :attr:`seed` beside it as its (re, im) floats."""
+        """Open the launch's histogram, and put :attr:`seed` beside it as its (re, im) floats
+        (without a seed, the launch deposits its values as any other)."""
         super().open(ctx)
+        if self.seed is None:
+            return
         floats = np.zeros(dr.width(ctx["hist"]), np.float32)
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat
@@ -247,13 +250,17 @@ class AdjointKernel(Kernel):
     """:class:`~sarmitsuba.tracing.driver.kernel.Kernel` for reverse mode: every material table of
     :data:`DIFFERENTIABLE` a differentiable leaf (:attr:`leaves`, name -> mi.Float), its launches'
     histograms seeded by :class:`AdjointSums`; after the trace, ``dr.grad`` of a leaf is the
-    loss's gradient with respect to that table."""
+    loss's gradient with respect to that table. With ``moves`` (or ``outlines``), the mesh
+    tracer is a :class:`~.geometry_tangents.MovedTracer`: the geometric derivatives' outlines
+    (docs/physics.md (AD4)) and the moves' tangents."""
 
-    def __init__(self, scene, params, window, footprint, settings, material_table, effects, moves=()):
+    def __init__(self, scene, params, window, footprint, settings, material_table, effects, moves=(),
+                 outlines: bool = False):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
         self.leaves = _leaves(self.returns.tables, DIFFERENTIABLE)
         self.returns.sums = AdjointSums(self.returns.sums)
-        self.moved = moved_tracer(self, list(moves))
+        self.serial = True                  # one launch at a time: Dr.Jit's reverse passes from one thread
+        self.moved = moved_tracer(self, list(moves), always=outlines)
 
     def __call__(self, launch, capacity: int = 0) -> dict:
         out = super().__call__(launch, capacity)
@@ -273,4 +280,5 @@ def moved_tracer(kernel: Kernel, moves: list, always: bool = False):
         raise ParameterError("geometric derivatives are taken with lit_regions = patches (the default) on scenes of "
                              "meshes only (no spheres or other analytic shapes)")
     kernel.mesh = MovedTracer(kernel, moves)
+    kernel.serial = True                    # one launch at a time: the tracer keeps each launch's leaves
     return kernel.mesh

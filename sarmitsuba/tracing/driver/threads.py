@@ -35,10 +35,12 @@ HOST_THREADS = 2
 def host_threads(kernel) -> int:
     """Launches :func:`~sarmitsuba.tracing.driver.trace.trace` runs at once on host threads: 1 for the tube
     preview, for batches traced elsewhere (``kernel`` None), inside the derivatives' traces (their
-    loop mode and lane precision are per thread) and on one core; else :data:`HOST_THREADS_VARIABLE`
+    loop mode and lane precision are per thread, and a kernel with ``serial`` set, the geometric
+    derivatives', keeps per-launch state) and on one core; else :data:`HOST_THREADS_VARIABLE`
     or :data:`HOST_THREADS`, at most the cores. Raises ParameterError for a variable that is not
     an integer >= 1."""
-    if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32:
+    if kernel is None or kernel.mesh is None or loop_mode() is not None or lane_float() is not np.float32 \
+            or getattr(kernel, "serial", False):
         return 1
     return launches_at_once()
 
