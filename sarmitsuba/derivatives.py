@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -53,6 +54,7 @@ from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
 from .tracing.mesh.facets import scene_meshes
 from .tracing.derivatives.geometry_tangents import GeometryMove, move_scene
+from .tracing.derivatives.lane_pairs import GeometryChange, GeometryChangeWarning
 from .tracing.loops import evaluated_loops
 from .tracing.deposit.fast_time import reduce_deposit_adjoint
 from .tracing.driver.kernel import Kernel
@@ -245,6 +247,9 @@ def raw_derivative(source: Any, parameter, *, sensor_overrides: Mapping[str, Any
     ParameterError
         An unknown material or parameter, a ``pec`` material (or a half-space's thickness),
         ``split_bounces``, or ``range_kernel = exact``.
+    GeometryChange
+        A ShapeParameter whose steps to both sides change the lit regions' topology (a
+        :class:`GeometryChangeWarning` where one side does: the one-sided derivative from the other).
     """
     _checked(parameter)
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
@@ -265,6 +270,10 @@ def raw_derivative(source: Any, parameter, *, sensor_overrides: Mapping[str, Any
     with evaluated_loops():
         result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, effects=effects,
                        run_batches=run_batches)
+    if isinstance(parameter, ShapeParameter):
+        if kernel.moved.undefined[0]:
+            raise GeometryChange(f"{parameter}: {kernel.moved.changes[0]}")
+        _warn({parameter: kernel.moved.changes[0]} if kernel.moved.changes[0] else {})
     world = geometry.shifted(loaded.offset) if np.any(loaded.offset) else geometry
     named = ({"material": parameter.material, "parameter": parameter.name} if isinstance(parameter, MaterialParameter)
              else {"shape": parameter.shape, "parameter": parameter.kind, **dataclasses.asdict(parameter)})
@@ -330,7 +339,10 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     Returns
     -------
     dict
-        parameter -> float, ``dL/dp`` per unit of the parameter.
+        parameter -> float, ``dL/dp`` per unit of the parameter: for a ShapeParameter whose step
+        changes the lit regions' topology on one side, the one-sided derivative from the other,
+        NaN where both sides change it; each with a :class:`GeometryChangeWarning` saying what
+        changed (docs/physics.md (AD4)).
 
     Raises
     ------
@@ -343,7 +355,9 @@ def raw_gradient(source: Any, gradient: np.ndarray, parameters, *, sensor_overri
     loaded, setup = _setup(source, sensor_overrides, integrator_overrides, at)
     rows = _material_tangents(loaded, setup, parameters)          # refused before tracing
     kernel = _adjoint_kernel(loaded, setup, parameters, False)
-    return _reverse(loaded, setup, kernel, gradient, parameters, rows)
+    out, changes = _reverse(loaded, setup, kernel, gradient, parameters, rows)
+    _warn(changes)
+    return out
 
 
 def _adjoint_kernel(loaded, setup, parameters, outlines: bool) -> AdjointKernel:
@@ -393,9 +407,19 @@ def _reverse(loaded, setup, kernel, gradient, parameters, rows) -> dict:
         flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row, tangent)
         out[parameter] = float(sum(grads[name] @ values for name, values in flat.items()))
     shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
-    for parameter, total in zip(shapes, kernel.moved.totals if shapes else ()):
-        out[parameter] = float(total)
-    return {p: out[p] for p in parameters}
+    changes = {}
+    for j, parameter in enumerate(shapes):
+        moved = kernel.moved
+        out[parameter] = math.nan if moved.undefined[j] else float(moved.totals[j])
+        if moved.changes[j] is not None:
+            changes[parameter] = moved.changes[j]
+    return {p: out[p] for p in parameters}, changes
+
+
+def _warn(changes: dict) -> None:
+    """One warning per geometric parameter whose step changed the lit regions' topology."""
+    for parameter, change in changes.items():
+        warnings.warn(f"{parameter}: {change}", GeometryChangeWarning, stacklevel=3)
 
 
 @dataclass(frozen=True)
@@ -419,14 +443,17 @@ class AmplitudeLoss:
 
 @dataclass(frozen=True)
 class Gradients:
-    """What :func:`gradients` returns: the loss ``L``, ``gradient`` (MaterialParameter -> ``dL/dp``
-    per unit of the parameter), the image the loss saw (complex128 [n_az, n_rg], float64 direct
-    backprojection, no window) and the raw data."""
+    """What :func:`gradients` returns: the loss ``L``, ``gradient`` (parameter -> ``dL/dp`` per unit
+    of the parameter), the image the loss saw (complex128 [n_az, n_rg], float64 direct
+    backprojection, no window), the raw data, and ``changes``: ShapeParameter -> what changed the
+    lit regions' topology within its step (docs/physics.md (AD4)): its gradient is then the
+    one-sided derivative from the other side, or NaN where both sides change it."""
 
     loss: float
     gradient: dict
     image: np.ndarray
     raw: RawData
+    changes: dict = dataclasses.field(default_factory=dict)
 
 
 def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (64, 64),
@@ -498,8 +525,8 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
         return Gradients(float(value), {}, image, raw)
     if kernel.moved is not None:
         kernel.moved.replay, kernel.moved.kept = kernel.moved.kept, None
-    grads = _reverse(loaded, setup, kernel, operator.adjoint(image_gradient), parameters, rows)
-    return Gradients(float(value), grads, image, raw)
+    grads, changes = _reverse(loaded, setup, kernel, operator.adjoint(image_gradient), parameters, rows)
+    return Gradients(float(value), grads, image, raw, changes)
 
 
 def moved_raw(source: Any, at: Mapping | None = None, *, sensor_overrides: Mapping[str, Any] | None = None,

@@ -21,6 +21,7 @@ from sarmitsuba.focus.grid import ImageGrid
 from sarmitsuba.focus.linear import backprojection_operator
 from sarmitsuba.focus.scene_grid import sized_grid
 from sarmitsuba.scene.loader import load_scene
+from sarmitsuba.tracing.derivatives.lane_pairs import GeometryChange, GeometryChangeWarning
 from sarmitsuba.tracing.visibility.occlusion import ClippedPieces
 from sarmitsuba.tracing.mesh.polygons import drop_collinear
 from sarmitsuba.tracing.driver.trace import prepare_trace
@@ -374,3 +375,36 @@ def test_box_height_and_vertex_match_renders_of_box_files_built_with_trimesh(tmp
         fd = (losses[0] - losses[1]) / (2 * h)
         assert abs(fd) > 0.5
         assert gradient[parameter] == pytest.approx(fd, rel=1e-2), parameter
+
+
+def test_a_step_that_changes_the_topology_is_reported_per_parameter(tmp_path, monkeypatch):
+    """The shadow scene at 55 deg with the floor ending 3 mm beyond the tip of the wall's
+    shadow (5 m / 995 m of the antenna's 1,424 m ground offset behind the wall, 1000 m up), and
+    the difference step made 5 mm: raising the wall that far darkens the whole floor (a lit
+    piece fewer), lowering it does not. The height's gradient is then the one-sided one from
+    below, finite, and ``changes`` names the height alone (a translation along x keeps the
+    topology); with a 0.5 m step both sides cross the floor's patch lines and the gradient is
+    NaN, and ``raw_derivative`` refuses. Catches a change raised for every parameter, a change
+    swallowed silently, and a one-sided derivative taken where both sides change."""
+    import sarmitsuba.derivatives as derivatives
+    path = Path(_shadow_scene(tmp_path, 55.0))
+    antenna_y = -4.0 + 1000.0 * np.tan(np.radians(55.0))
+    tip = -5.0 * antenna_y / 995.0
+    end = tip - 3e-3
+    (tmp_path / "floor.obj").write_text(f"v -10 {end} 0\nv 10 {end} 0\nv 10 0 0\nv -10 0 0\nf 1 2 3\nf 1 3 4\n")
+    path.write_text(path.read_text().replace('value="0, -8, 0"', 'value="0, -4, 0"'))
+    pulses = {"sensor_overrides": {"n_pulses": 16}}
+    height, along = ShapeParameter("wall", "height"), ShapeParameter("wall", "translation", (1, 0, 0))
+    loss = AmplitudeLoss(np.zeros(SIZE["image_size"]))
+    monkeypatch.setattr(derivatives, "GEOMETRY_STEP", 5e-3)
+    result = sarmitsuba.gradients(str(path), loss, [height, along], **pulses, **SIZE)
+    assert set(result.changes) == {height}, result.changes
+    assert "one-sided one from -0.005" in result.changes[height]
+    assert np.isfinite(result.gradient[height]) and np.isfinite(result.gradient[along])
+    with pytest.warns(GeometryChangeWarning, match="one-sided"):
+        derivatives.raw_gradient(str(path), np.ones_like(result.raw.data), [height], **pulses)
+    monkeypatch.setattr(derivatives, "GEOMETRY_STEP", 0.5)
+    result = sarmitsuba.gradients(str(path), loss, [height], **pulses, **SIZE)
+    assert np.isnan(result.gradient[height]) and "both change" in result.changes[height]
+    with pytest.raises(GeometryChange):
+        raw_derivative(str(path), height, **pulses)

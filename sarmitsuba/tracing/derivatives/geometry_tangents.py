@@ -243,13 +243,16 @@ class MovedTracer:
         offset = GRID_OFFSET * kernel.fp.patch_size
         kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {},
                                                                       separate, offset))
-        self.tracers = [kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
-                                                           {m.shape: base[m.shape][0] + m.step * m.field},
-                                                           separate, offset)) for m in self.moves]
+        self._geometry = base, separate, offset
         # every boundary segment kept: a segment that cancels its neighbour's exactly at the
         # parameter (a symmetric corner) may not cancel it a step away, where the sum is the same
-        for tracer in [self.main] + self.tracers:
-            tracer.cancel, tracer.simplify = False, True
+        self.main.cancel, self.main.simplify = False, True
+        #: Each move's moved tracers by step (``+h``, and ``-h`` once a ``+h`` step has changed the topology).
+        self.tracers = [{} for _ in self.moves]
+        #: Per move: None, or what changed the topology within a step (:meth:`_differenced`).
+        self.changes: list = [None] * len(self.moves)
+        #: Per move: whether neither step kept the topology in some launch (its derivative undefined).
+        self.undefined = np.zeros(len(self.moves), bool)
         self.tangents: list = []
         #: ``(leaf, entry)`` of the uploads' entries that carried derivatives of their own (:meth:`_leaves`).
         self.links: list = []
@@ -273,20 +276,52 @@ class MovedTracer:
             kinds = {"terms": self.main.terms, "clutter": self.main.clutter}
             uploads = [(kinds["terms" if x is None or len(x) == 2 else "clutter"], x, depth, [])
                        for x, depth in zip(own.uploads, own.depths)]
-            for move, tracer in zip(self.moves, self.tracers):
-                moved = _Recording()
-                moved.run(tracer, ctx, launch)
-                if len(moved.uploads) != len(uploads):
-                    raise topology_change("bounce orders reached")
-                for (kernel, args, depth, tangents), other in zip(uploads, moved.uploads):
-                    if (args is None) != (other is None):
-                        raise topology_change("lit pieces")
-                    if args is not None:
-                        tangents.append(self._tangent(kernel, args, other, move, depth))
+            for j in range(len(self.moves)):
+                for tangents, tangent in zip((u[3] for u in uploads), self._differenced(j, ctx, launch, uploads)):
+                    tangents.append(tangent)
         if self.kept is not None:
             self.kept[_launch_key(launch)] = (uploads, stats)
         self._deposit(ctx, uploads, self.kept is None)
         return stats
+
+    def _moved_tracer(self, j: int, step: float):
+        """Move ``j``'s tracer with the shape's vertices moved by ``step`` along it (built once)."""
+        if step not in self.tracers[j]:
+            base, separate, offset = self._geometry
+            move, kernel = self.moves[j], self.kernel
+            tracer = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
+                                                        {move.shape: base[move.shape][0] + step * move.field},
+                                                        separate, offset))
+            tracer.cancel, tracer.simplify = False, True
+            self.tracers[j][step] = tracer
+        return self.tracers[j][step]
+
+    def _differenced(self, j: int, ctx: dict, launch, uploads: list) -> list:
+        """Move ``j``'s tangent of each upload (None for an empty one): the forward difference, or,
+        where the step ``+h`` changes the lit regions' topology, the backward one from ``-h``
+        (:attr:`changes` says so); where both do, zero tangents and :attr:`undefined` set."""
+        move, problems = self.moves[j], []
+        for step in (move.step, -move.step):
+            moved = _Recording()
+            moved.run(self._moved_tracer(j, step), ctx, launch)
+            try:
+                if len(moved.uploads) != len(uploads):
+                    raise topology_change("bounce orders reached")
+                out = []
+                for (kernel, args, depth, _), other in zip(uploads, moved.uploads):
+                    if (args is None) != (other is None):
+                        raise topology_change("lit pieces")
+                    out.append(None if args is None else self._tangent(kernel, args, other, move, depth, step))
+            except GeometryChange as change:
+                problems.append(str(change))
+                continue
+            if problems and self.changes[j] is None:
+                self.changes[j] = (f"a step of +{move.step:g} changes the topology ({problems[0]}); the derivative "
+                                   f"is the one-sided one from -{move.step:g}")
+            return out
+        self.undefined[j] = True
+        self.changes[j] = f"steps of +-{move.step:g} both change the topology ({problems[0]}): no derivative"
+        return [None if args is None else {} for _, args, _, _ in uploads]
 
     def _deposit(self, ctx: dict, uploads: list, leaves: bool) -> None:
         """Deposit the recorded uploads, their entries made leaves with their tangents (or plain values)."""
@@ -302,16 +337,16 @@ class MovedTracer:
         dr.sync_thread()
 
     @staticmethod
-    def _tangent(kernel, args, moved, move: GeometryMove, depth: int) -> dict:
-        """The upload's tangent along ``move``: the paired lanes' forward difference (float64 on
-        the host, :func:`~.lane_pairs.tangent_lanes`) uploaded as the lanes are, and the earlier
-        bounces' factors (``gamma``, the Jones matrices) differenced on the device."""
+    def _tangent(kernel, args, moved, move: GeometryMove, depth: int, step: float) -> dict:
+        """The upload's tangent along ``move``: the paired lanes' difference over ``step`` (float64
+        on the host, :func:`~.lane_pairs.tangent_lanes`) uploaded as the lanes are, and the
+        earlier bounces' factors (``gamma``, the Jones matrices) differenced on the device."""
         tolerance = ALIGN_TOLERANCE * move.step * float(np.abs(move.field).max(initial=0.0)) + 1e-9
         if len(args) == 2:
             plus = align_terms(*args, *moved, tolerance)
         else:
             plus = (align_scatterers(args[0], moved[0], tolerance),)
-        tangent = kernel.upload(*(tangent_lanes(a, p, move.step) for a, p in zip(args, plus)), depth)
+        tangent = kernel.upload(*(tangent_lanes(a, p, step) for a, p in zip(args, plus)), depth)
         if depth == 0:                       # no earlier bounce: its factors are constants
             for key in ("gamma", "jones", "edge_jones"):
                 if tangent.get(key) is not None:
@@ -320,7 +355,7 @@ class MovedTracer:
         up, here = kernel.upload(*plus, depth), kernel.upload(*args, depth)
         for key in ("gamma", "jones", "edge_jones"):
             if key in tangent:
-                tangent[key] = _difference(up[key], here[key], move.step)
+                tangent[key] = _difference(up[key], here[key], step)
         return tangent
 
     def _leaves(self, data: dict, tangents: list) -> None:

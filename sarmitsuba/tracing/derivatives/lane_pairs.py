@@ -19,7 +19,7 @@ from ...core.arrays import unique_rows
 from ...core.radar import ParameterError
 from ..integration.patch_terms import AREA
 
-__all__ = ["GeometryChange", "topology_change", "align_terms", "align_scatterers", "tangent_lanes", "ARRIVAL_FIELDS",
+__all__ = ["GeometryChange", "GeometryChangeWarning", "topology_change", "align_terms", "align_scatterers", "tangent_lanes", "ARRIVAL_FIELDS",
            "match_rows", "row_groups", "nearest_distinct"]
 
 #: The lane fields only the earlier bounces' factors are formed from (``gamma`` and the Jones
@@ -30,12 +30,18 @@ ARRIVAL_FIELDS = ("first", "window_cos", "window_direction", "window_normal")
 
 class GeometryChange(ParameterError):
     """The parameter moves a boundary of visibility (a lit region's topology changes within
-    ``+-h``): its derivative is not defined there (docs/physics.md (AD4))."""
+    its step): its derivative is not defined there (docs/physics.md (AD4))."""
+
+
+class GeometryChangeWarning(UserWarning):
+    """A geometric parameter's step changed the lit regions' topology on one side: its gradient
+    is the one-sided derivative from the other side, or NaN where both sides change it
+    (docs/physics.md (AD4))."""
 
 
 def topology_change(what: str) -> GeometryChange:
     """The :class:`GeometryChange` that says what changed (``what``: lanes, pieces, ...)."""
-    return GeometryChange(f"the geometric parameter changes the lit regions' {what} within +-h of its value: it "
+    return GeometryChange(f"the geometric parameter changes the lit regions' {what} within its step: it "
                           "moves a boundary of visibility, where the derivative is not defined (docs/physics.md "
                           "(AD4)); evaluate it at another value of the parameter")
 
