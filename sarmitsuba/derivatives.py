@@ -68,9 +68,10 @@ __all__ = ["MaterialParameter", "ShapeParameter", "raw_derivative", "moved_raw",
 class MaterialParameter:
     """A material's parameter: ``material`` its id in the scene (the BSDF's ``id``), ``name``
     ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1), ``"conductivity"``
-    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``), ``"thickness"`` (a slab's, m) or
-    ``"scattering_coefficient"`` (``S`` of an itu-radio-material's Lambertian clutter, 1). For
-    ITU-named materials these are the values at the carrier."""
+    (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``), ``"thickness"`` (a slab's, m),
+    ``"scattering_coefficient"`` (``S`` of an itu-radio-material's Lambertian clutter, 1) or
+    ``"gamma"`` (a radar material's constant-gamma clutter, linear: ``10^(gamma_db / 10)``, 1).
+    For ITU-named materials these are the values at the carrier."""
 
     material: str
     name: str

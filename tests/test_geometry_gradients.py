@@ -15,7 +15,7 @@ import pytest
 
 import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
-from sarmitsuba.derivatives import AmplitudeLoss, ShapeParameter, moved_raw, raw_derivative
+from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, ShapeParameter, moved_raw, raw_derivative
 from sarmitsuba.focus.dispatch import azimuth_pattern
 from sarmitsuba.focus.grid import ImageGrid
 from sarmitsuba.focus.linear import backprojection_operator
@@ -408,3 +408,47 @@ def test_a_step_that_changes_the_topology_is_reported_per_parameter(tmp_path, mo
     assert np.isnan(result.gradient[height]) and "both change" in result.changes[height]
     with pytest.raises(GeometryChange):
         raw_derivative(str(path), height, **pulses)
+
+
+def test_urban_block_height_and_ground_gamma_match_central_differences(tmp_path):
+    """Urban, its three bounces and rough (constant-gamma) surfaces, the acquisition aimed at
+    block_a: the image loss against block_a 2 m taller, its gradient with respect to the
+    block's height against central differences of ``at`` (0.2 mm: 1 mm is 2.4 % away, 0.3 and
+    0.1 mm agree within 0.7 %), and the loss against the ground's gamma 20 % lower, its
+    gradient with respect to that gamma against renders of scene files whose ``gamma_db``
+    moves by 0.1 %; each within 1 % (measured 0.007 % and 0.06 %). The block is rough too: its
+    scatterers, fixed in its frame, move with its roof. Catches the scatterers' tangents left
+    out (a roof's clutter), the gamma tangent's scale (1 per unit of linear gamma), and the
+    clutter value's tangent read from another row."""
+    sensor = {"n_pulses": 16, "scene_center": (-50.0, -5.0, 0.0)}
+    size = {"image_size": (64, 64), "image_spacing": 1.0}
+    height, gamma = ShapeParameter("block_a", "height"), MaterialParameter("soil", "gamma")
+    blank = AmplitudeLoss(np.zeros(size["image_size"]))
+    taller = sarmitsuba.gradients("urban", blank, [], at={height: 2.0}, sensor_overrides=sensor, **size)
+    loss = AmplitudeLoss(np.abs(taller.image))
+    gradient = sarmitsuba.gradients("urban", loss, [height], sensor_overrides=sensor, **size).gradient[height]
+    h = 2e-4
+    plus, minus = (sarmitsuba.gradients("urban", loss, [], at={height: s * h}, sensor_overrides=sensor, **size).loss
+                   for s in (1, -1))
+    fd = (plus - minus) / (2 * h)
+    assert abs(fd) > 1e3
+    assert gradient == pytest.approx(fd, rel=1e-2)
+
+    xml = (REPO / "scenes" / "urban.xml").read_text().replace('value="meshes/', f'value="{REPO / "scenes"}/meshes/')
+    g0 = 10.0 ** -1.4                                       # the soil's gamma_db = -14
+
+    def with_gamma(g, name):
+        path = tmp_path / f"urban_{name}.xml"
+        path.write_text(xml.replace('<float name="gamma_db" value="-14"/>',
+                                    f'<float name="gamma_db" value="{float(10.0 * np.log10(g))!r}"/>', 1))
+        return str(path)
+    lower = sarmitsuba.gradients(with_gamma(0.8 * g0, "lower"), blank, [], at={height: 0.0}, sensor_overrides=sensor,
+                                 **size)
+    loss = AmplitudeLoss(np.abs(lower.image))
+    gradient = sarmitsuba.gradients("urban", loss, [gamma, height], sensor_overrides=sensor, **size).gradient[gamma]
+    rel = 1e-3
+    plus, minus = (sarmitsuba.gradients(with_gamma(g0 * (1 + s * rel), str(s)), loss, [], at={height: 0.0},
+                                        sensor_overrides=sensor, **size).loss for s in (1, -1))
+    fd = (plus - minus) / (2 * rel * g0)
+    assert abs(fd) > 1.0
+    assert gradient == pytest.approx(fd, rel=1e-2)

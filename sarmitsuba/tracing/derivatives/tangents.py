@@ -40,7 +40,7 @@ __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "mate
 
 #: The material parameters a derivative can be taken with respect to, and their units.
 MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
-                       "scattering_coefficient": "1"}
+                       "scattering_coefficient": "1", "gamma": "1"}
 #: The kernel's per-material tables a derivative can flow from (attributes of its ``tables``).
 DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value", "grazing_offset", "grazing_re",
                   "grazing_im")
@@ -110,7 +110,13 @@ def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) ->
     """The :class:`RowTangent` of ``parameter`` of ``material`` (its BSDF ``bsdf``). For
     ``scattering_coefficient`` ``S`` (Sionna's Lambertian clutter, docs/physics.md (C)): the
     specular factor ``sqrt(1 - S^2)`` moves by ``-S / sqrt(1 - S^2)`` and the clutter value
-    ``4 S^2`` by ``8 S``. Raises ParameterError where the material has no such parameter."""
+    ``4 S^2`` by ``8 S``. For ``gamma`` (a ``radar`` material's constant-gamma clutter, linear,
+    docs/physics.md (C)): the clutter value is ``gamma`` itself, its tangent 1. Raises
+    ParameterError where the material has no such parameter."""
+    if parameter == "gamma":
+        if bsdf.clutter[0] != 1:
+            raise ParameterError(f"material {material.name!r} has no gamma (a radar material with gamma_db has)")
+        return RowTangent(clutter_value=1.0)
     if parameter == "scattering_coefficient":
         kind, value = bsdf.clutter
         if kind != 2:
