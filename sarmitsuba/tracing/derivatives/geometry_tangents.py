@@ -52,7 +52,7 @@ ALIGN_TOLERANCE = 50.0
 #: would hang on rounding.
 GRID_OFFSET = np.array([0.3819660, 0.2763932, 0.2360680])
 
-__all__ = ["GeometryMove", "GeometryChange", "moved_surfaces", "move_scene", "MovedTracer"]
+__all__ = ["GeometryMove", "GeometryChange", "moved_surfaces", "move_scene", "exact_meshes", "MovedTracer"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,10 +91,18 @@ def moved_surfaces(scene, table, vertices: dict, separate=(), grid_offset=None):
     return surfaces_of(scene, dataclasses.replace(table, shape_origin=grid), parts), table
 
 
+#: The float64 vertices :func:`move_scene` gave each scene (by ``id``): the host geometry of the
+#: derivatives' tracers starts from them, not from the float32 buffer the rays see.
+_EXACT: dict = {}
+
+
 def move_scene(scene, vertices: dict) -> None:
     """Move the Mitsuba scene's meshes: shape ``k`` (its index in ``scene.shapes()``) to the
     vertices ``vertices[k]`` (float [n_v, 3], m; the buffer rewritten in float32 and the scene's
-    acceleration structure rebuilt)."""
+    acceleration structure rebuilt). The float64 vertices are kept for the geometric
+    derivatives' host geometry (:func:`exact_meshes`): a move of a micro-radian would otherwise
+    be rounded to the float32 buffer's metre-scale steps of 6e-8 m."""
+    _EXACT[id(scene)] = {k: np.asarray(v, np.float64) for k, v in vertices.items()}
     if not vertices:
         return
     params = mi.traverse(scene)
@@ -104,6 +112,15 @@ def move_scene(scene, vertices: dict) -> None:
                    if key.endswith(".vertex_positions") and params.properties[key][2] == shapes[k])
         params[key] = mi.Float(np.asarray(v, np.float32).ravel())
     params.update()
+
+
+def exact_meshes(scene) -> list:
+    """:func:`~sarmitsuba.tracing.mesh.facets.scene_meshes` of ``scene`` with the float64 vertices
+    of the shapes :func:`move_scene` moved."""
+    meshes = scene_meshes(scene)
+    for k, v in _EXACT.get(id(scene), {}).items():
+        meshes[k] = (v, meshes[k][1])
+    return meshes
 
 
 def _bent(meshes: list, shape: int, field: np.ndarray) -> bool:
@@ -233,7 +250,7 @@ class MovedTracer:
 
     def __init__(self, kernel, moves):
         self.kernel, self.moves, self.main = kernel, list(moves), kernel.mesh
-        base = scene_meshes(kernel.scene)
+        base = exact_meshes(kernel.scene)
         for move in self.moves:
             if move.field.shape != base[move.shape][0].shape:
                 raise ParameterError(f"displacement field shape {move.field.shape}: the shape has "
@@ -241,9 +258,10 @@ class MovedTracer:
         # a move that bends a face splits its shape's faces into triangles, in both geometries
         separate = sorted({m.shape for m in self.moves if _bent(base, m.shape, m.field)})
         offset = GRID_OFFSET * kernel.fp.patch_size
-        kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, {},
+        exact = {k: v for k, v in _EXACT.get(id(kernel.scene), {}).items()}
+        kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, exact,
                                                                       separate, offset))
-        self._geometry = base, separate, offset
+        self._geometry = base, separate, offset, exact
         # every boundary segment kept: a segment that cancels its neighbour's exactly at the
         # parameter (a symmetric corner) may not cancel it a step away, where the sum is the same
         self.main.cancel, self.main.simplify = False, True
@@ -287,10 +305,10 @@ class MovedTracer:
     def _moved_tracer(self, j: int, step: float):
         """Move ``j``'s tracer with the shape's vertices moved by ``step`` along it (built once)."""
         if step not in self.tracers[j]:
-            base, separate, offset = self._geometry
+            base, separate, offset, exact = self._geometry
             move, kernel = self.moves[j], self.kernel
             tracer = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
-                                                        {move.shape: base[move.shape][0] + step * move.field},
+                                                        {**exact, move.shape: base[move.shape][0] + step * move.field},
                                                         separate, offset))
             tracer.cancel, tracer.simplify = False, True
             self.tracers[j][step] = tracer
