@@ -452,3 +452,28 @@ def test_urban_block_height_and_ground_gamma_match_central_differences(tmp_path)
     fd = (plus - minus) / (2 * rel * g0)
     assert abs(fd) > 1.0
     assert gradient == pytest.approx(fd, rel=1e-2)
+
+
+def test_trihedral_rotation_gradient_integrates_to_the_loss_change(tmp_path):
+    """The trihedral turned about a vertical axis through (0.5, -0.3, 0) (``at``), the image loss against it
+    turned 0.05 rad: the loss's change over +-1 mrad against the integral of the reverse-mode
+    gradient over that interval (trapezoid, 21 points), within 2 % (measured 0.8 %). Central
+    differences do not converge for this rotation at any step from 1 mrad to 0.05 mrad: the
+    loss ripples by about 0.2 % as edge terms cross the split threshold of (M5) pulse by pulse,
+    and the gradient, exact for the branch each term is on, scatters by 6 % from point to point
+    (docs/physics.md (AD4)); its integral is what the loss follows. Catches the rotation's
+    tangent field about the wrong centre, or its sense reversed, and a rotation's leaves
+    detached (zero gradient)."""
+    pulses = {"n_pulses": 8}
+    rotation = ShapeParameter("trihedral", "rotation", (0, 0, 1), center=(0.5, -0.3, 0.0))
+    base = _trihedral(tmp_path)
+    target = sarmitsuba.gradients(base, AmplitudeLoss(np.zeros(SIZE["image_size"])), [], at={rotation: 0.05},
+                                  sensor_overrides=pulses, **SIZE)
+    loss = AmplitudeLoss(np.abs(target.image))
+    turns = np.linspace(-1e-3, 1e-3, 21)
+    results = [sarmitsuba.gradients(base, loss, [rotation], at={rotation: float(t)}, sensor_overrides=pulses, **SIZE)
+               for t in turns]
+    change = results[-1].loss - results[0].loss
+    integral = np.trapezoid([r.gradient[rotation] for r in results], turns)
+    assert abs(change) > 1e-2 * results[0].loss
+    assert integral == pytest.approx(change, rel=2e-2)
