@@ -1,4 +1,4 @@
-"""Benchmark: what derivatives cost against the render they differentiate (issue 57).
+"""Benchmark: what derivatives cost against the render they differentiate.
 
 For the built-in ``urban`` scene (``--quick``/``--tiny``: fewer pulses), each in a fresh process
 run twice back to back (the second, warm, is measured: Dr.Jit's kernel cache on disk is then
@@ -11,10 +11,11 @@ filled), wall seconds and peak memory (the process's VmHWM) of:
   respect to four parameters at once (the ground's permittivity and conductivity, the brick
   walls' conductivity and thickness): its own forward render, the backprojection operator's
   image and adjoint, and the trace carrying the gradient back;
-* ``geometry``: reverse mode as ``gradient``, with respect to two buildings' heights and one's
-  translation along x (``ShapeParameter``, docs/physics.md (AD4)): its forward render with the
-  derivatives' outlines, and per launch the host geometry run again at +-1 um for each parameter.
-  Not in ``--tiny`` (its kernels would add a minute of compiling to the smoke test).
+* ``geometry``: reverse mode as ``gradient``, with respect to two buildings' heights
+  (``ShapeParameter``, docs/physics.md (AD4)): one trace of the geometry, the values pass running
+  the host geometry with the derivatives' outlines and once more per parameter at +1 um, keeping
+  the lanes and their tangents, and the reverse pass replaying them. Not in ``--tiny`` (its
+  kernels would add a minute of compiling to the smoke test).
 
 The check is the issue's: the reverse-mode gradient of one loss at most 4 times the forward
 render, for materials and for geometry. Writes ``gradients.csv`` and ``gradients.png`` (seconds
