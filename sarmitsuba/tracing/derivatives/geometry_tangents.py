@@ -365,6 +365,9 @@ class MovedTracer:
         else:
             plus = (align_scatterers(args[0], moved[0], tolerance),)
         tangent = kernel.upload(*(tangent_lanes(a, p, step) for a, p in zip(args, plus)), depth)
+        # kept until the reverse pass: its floating-point entries only (the lanes' kinds, rows and
+        # flags are the tracer's own)
+        tangent = {key: value for key, value in tangent.items() if any(True for _ in _float_leaves(value))}
         if depth == 0:                       # no earlier bounce: its factors are constants
             for key in ("gamma", "jones", "edge_jones"):
                 if tangent.get(key) is not None:
