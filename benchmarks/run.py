@@ -43,6 +43,8 @@ gradients      forward- and reverse-mode derivatives of urban against its forwar
                seconds and peak memory
 inverse        a brick building's permittivity and height recovered from its image by
                L-BFGS-B with the simulator's gradients, from 30 % off
+inverse_city   the heights of ten buildings of a footprint city recovered from its image
+               by L-BFGS-B with the simulator's geometric gradients, from 20 % off
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -78,7 +80,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
-         "inverse": "inverse"}
+         "inverse": "inverse", "inverse_city": "inverse_city"}
 
 
 def _utc_now() -> str:

@@ -96,6 +96,12 @@ EXPECTED = {
         ("evaluation", "relative_permittivity", "height_m", "loss", "gradient_permittivity", "gradient_height",
          "seconds", "elapsed_s", "permittivity_error", "height_error_m"),
         ()),
+    "inverse_city": (
+        {"evaluation", *(f"height_{i}_m" for i in range(1, 11)), "loss", "gradient_norm", "max_height_error_m",
+         "geometry_changes", *(f"height_{i}_error_m" for i in range(1, 11)), "seconds", "elapsed_s"},
+        ("evaluation", *(f"height_{i}_m" for i in range(1, 11)), "loss", "gradient_norm", "max_height_error_m",
+         "geometry_changes", *(f"height_{i}_error_m" for i in range(1, 11)), "seconds", "elapsed_s"),
+        ()),
     "footprints": (
         {"scene", "case", "footprints", "buildings_in_scene", "height_mean_m", "height_top_mean_m",
          "height_below_top_mean_m", "height_below_top_p95_m", "flat_roof_fraction", "derive_s", "build_s", "write_s",
