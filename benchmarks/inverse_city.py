@@ -62,8 +62,9 @@ BOUNDS = (3.0, 20.0)
 #: whole metres: module docstring).
 FOOTPRINT, COLUMN_STEP, ROWS = (7.93, 24.11), 14.07, (9.139, -50.861)
 #: L-BFGS-B's stop: an iteration lowering the scaled loss (about half the squared height errors' sum,
-#: m^2, :func:`evaluator`) by less than this, relative where it exceeds 1.
-FTOL = 1e-3
+#: m^2, :func:`evaluator`) by less than this, relative where it exceeds 1 (1e-3 stopped at a worst error of
+#: 0.079 m after 9 evaluations, 1e-4 at 0.042 m after 22).
+FTOL = 1e-4
 #: m: how far a point whose step changes the lit regions' topology is moved to be evaluated again.
 NUDGE = 1e-3
 SIZE = {"image_size": (140, 176), "image_spacing": 0.6, "integrator_overrides": {"max_depth": 2}}
@@ -210,7 +211,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     else:
         found = scipy.optimize.minimize(value_and_gradient, np.array(START), jac=True, method="L-BFGS-B",
                                         bounds=[BOUNDS] * len(START),
-                                        options={"maxiter": 30, "maxfun": 30, "ftol": FTOL, "gtol": 1e-3})
+                                        options={"maxiter": 26, "maxfun": 26, "ftol": FTOL, "gtol": 1e-3})
     print(f"after {found.nit} iterations, {len(rows)} evaluations, {rows[-1]['elapsed_s']:.1f} s ({found.message}):")
     for i, (height, truth) in enumerate(zip(found.x, TRUE)):
         print(f"  building {i + 1}: {height:.4f} m (true {truth:.1f} m, started at {START[i]:.2f} m)")
