@@ -119,7 +119,7 @@ def run_pulses(ctx: dict, data: dict, count, pulse, label: str, shared=()) -> No
     def body(q):
         with dr.resume_grad():
             local = {key: value if key in shared else _rebuilt(value, per_lane) for key, value in leaves.items()}
-            local["replayed"] = True          # an inner loop of the terms gives Dr.Jit its sum-loop hint
+            local["replayed"] = True          # an inner loop of the terms is then unrolled
             ctx["adjoint"] = mi.Float(0.0)
             pulse(local, q)
             dr.backward_from(ctx.pop("adjoint"), flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)

@@ -258,7 +258,7 @@ class MovedTracer:
         # a move that bends a face splits its shape's faces into triangles, in both geometries
         separate = sorted({m.shape for m in self.moves if _bent(base, m.shape, m.field)})
         offset = GRID_OFFSET * kernel.fp.patch_size
-        exact = {k: v for k, v in _EXACT.get(id(kernel.scene), {}).items()}
+        exact = dict(_EXACT.get(id(kernel.scene), {}))
         kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, exact,
                                                                       separate, offset))
         self._geometry = base, separate, offset, exact
