@@ -148,7 +148,11 @@ def test_reverse_mode_is_the_forward_mode_transposed(tmp_path):
     back through the binning's adjoint and the kernels) equals ``Re <w, d raw / dp>`` from forward
     mode, for both parameters and two materials at once. Catches a conjugate missing in the binning's
     adjoint, the seed laid into the histogram in the wrong pulse order, and gradients of one
-    material's row credited to another."""
+    material's row credited to another. Its expected value comes from the same kernels' forward
+    mode: it checks the two modes against each other (since reverse mode replays the kernels in
+    symbolic loops and forward mode runs them evaluated, two different passes), not against
+    truth; the central differences of renders above and in tests/test_geometry_gradients.py do
+    that."""
     from sarmitsuba.derivatives import raw_gradient
     plate = ('<bsdf type="radar" id="ground"><string name="model" value="half_space"/>'
              '<float name="relative_permittivity" value="8.0"/><float name="conductivity" value="0.2"/></bsdf>'
