@@ -248,6 +248,35 @@ def test_lane_pairing_against_numpy_and_shuffles():
     assert match_rows(kind, features, kind, features + 1e-9, 1e-6).tolist() == [0, 1, 2, 3]
 
 
+def test_pieces_no_lane_names_pair_in_their_order_across_sub_apertures():
+    """A lit piece whose boundary segments its stable neighbours all cancel is named by no lane;
+    one launch holds it once per sub-aperture, at one centroid (urban at 400 pulses: 66,109 such
+    rows, 13,594 distinct). Twelve such copies beside one named piece, the moved table the same
+    moved by 1e-9 m: each copy pairs with the moved copy of its own row. Catches the pairing by
+    nearest centroid alone (it offers eight neighbours, so the ninth copy finds none left: a
+    GeometryChange, and the gradient at urban's default pulse count was NaN)."""
+    from sarmitsuba.tracing.derivatives.lane_pairs import align_terms
+    from sarmitsuba.tracing.integration.patch_terms import SINC, PieceTable, TermLanes
+    n = 13
+    rng = np.random.default_rng(3)
+    centroid = np.repeat(rng.normal(size=(1, 3)), n, axis=0)
+    centroid[0] += 5.0                                       # the named piece lies elsewhere
+    three = lambda x: np.asarray(x, np.float64).reshape(1, 3)
+    lanes = TermLanes(kind=np.array([SINC], np.int32), point=three(centroid[0]), unfolded=three(centroid[0]),
+                      middle=three(centroid[0]), middle_unfolded=three(centroid[0]), edge=three([1.0, 0, 0]),
+                      normal=three([0, 0, 1.0]), fold=np.eye(3)[None], sub=np.array([0]), row=np.array([0]),
+                      piece=np.array([0]), stable=np.array([True]))
+    table = PieceTable(centroid=centroid, centroid_unfolded=centroid + [0.0, 0.0, 40.0], diagonal=np.ones(n),
+                       area=np.arange(1.0, n + 1.0), moments=np.ones((n, 3)), axis_u=np.tile([1.0, 0, 0], (n, 1)),
+                       axis_v=np.tile([0, 1.0, 0], (n, 1)), segment_start=np.zeros(n, np.uint32),
+                       segment_count=np.zeros(n, np.uint32), segment_mid=np.zeros((0, 3)), segment_edge=np.zeros((0, 3)))
+    moved = dataclasses.replace(table, centroid=table.centroid + 1e-9, centroid_unfolded=table.centroid_unfolded + 1e-9,
+                                area=table.area + 1e-9)
+    moved_lanes = dataclasses.replace(lanes, point=lanes.point + 1e-9)
+    _, paired = align_terms(lanes, table, moved_lanes, moved, 1e-6)
+    assert np.allclose(paired.area, table.area + 1e-9, rtol=0, atol=1e-12)
+
+
 def _shadow_scene(folder: Path, incidence: float) -> str:
     """A metal wall 12 m wide and 5 m high at y = 0 facing the sensor (+y), and behind it a metal
     floor (its own material) from y = 0 to -20 m, one bounce: the floor is lit beyond the wall's

@@ -153,6 +153,12 @@ class _Recording:
         self.uploads.append((lanes,) if len(lanes) else None)
         self.depths.append(depth)
 
+    @classmethod
+    def of(cls, tracer, ctx, launch):
+        """A recording of ``tracer`` on ``launch`` and its counters."""
+        record = cls()
+        return record, record.run(tracer, ctx, launch)
+
     def run(self, tracer, ctx, launch):
         """Run ``tracer`` on ``launch`` with its term and scatterer kernels replaced by this
         recording's; its counters."""
@@ -225,6 +231,25 @@ def _difference(up, here, step: float):
     return dr.detach(up - here) * (1.0 / step)
 
 
+#: Stands for a tangent entry that is zero throughout (kept until the reverse pass without its array).
+ZERO = "zero"
+
+
+def _zeros_dropped(tangent: dict) -> dict:
+    """``tangent`` with each entry that is a Dr.Jit array of zeros replaced by :data:`ZERO`: most
+    of a height's tangents are (the normals, a ground's points), and they would be held, per
+    launch and parameter, until the reverse pass. One evaluation for all entries."""
+    keys = [key for key, value in tangent.items() if dr.is_array_v(value) and dr.is_float_v(value)]
+    largest = [dr.max(dr.abs(mi.Float64(c)) if dr.width(c) else mi.Float64(0.0)) for key in keys
+               for c in _components(tangent[key])]
+    dr.eval(*largest)
+    values = iter([float(x.numpy().ravel()[0]) for x in largest])
+    for key in keys:
+        if not any([next(values) for _ in _components(tangent[key])]):
+            tangent[key] = ZERO
+    return tangent
+
+
 def _launch_key(launch) -> tuple:
     """What tells a launch apart from the trace's others: its sub-apertures' pulses and references."""
     return launch.first.tobytes(), launch.count.tobytes(), np.asarray(launch.reference).tobytes()
@@ -262,9 +287,11 @@ class MovedTracer:
         kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, exact,
                                                                       separate, offset))
         self._geometry = base, separate, offset, exact
-        # every boundary segment kept: a segment that cancels its neighbour's exactly at the
-        # parameter (a symmetric corner) may not cancel it a step away, where the sum is the same
-        self.main.cancel, self.main.simplify = False, True
+        # the segments two stable neighbours share across a patch line cancel, as in a render: a
+        # decision by cells, the same a step away. Those matched by their rounded coordinates
+        # (:attr:`~sarmitsuba.tracing.driver.mesh_trace.MeshTracer.matched`) are kept: a segment that
+        # cancels its neighbour's at the parameter (a symmetric corner) may not a step away
+        self.main.cancel, self.main.matched, self.main.simplify = True, False, True
         #: Each move's moved tracers by step (``+h``, and ``-h`` once a ``+h`` step has changed the topology).
         self.tracers = [{} for _ in self.moves]
         #: Per move: None, or what changed the topology within a step (:meth:`_differenced`).
@@ -289,18 +316,30 @@ class MovedTracer:
             self._deposit(ctx, uploads, True)
             return stats
         with float64_lanes():
-            own = _Recording()
-            stats = own.run(self.main, ctx, launch)
-            kinds = {"terms": self.main.terms, "clutter": self.main.clutter}
-            uploads = [(kinds["terms" if x is None or len(x) == 2 else "clutter"], x, depth, [])
-                       for x, depth in zip(own.uploads, own.depths)]
-            for j in range(len(self.moves)):
-                for tangents, tangent in zip((u[3] for u in uploads), self._differenced(j, ctx, launch, uploads)):
-                    tangents.append(tangent)
+            uploads, stats = self._traced(ctx, launch)
         if self.kept is not None:
             self.kept[_launch_key(launch)] = (uploads, stats)
         self._deposit(ctx, uploads, self.kept is None)
         return stats
+
+    def _traced(self, ctx: dict, launch):
+        """The launch's geometry, the tracer's and then each move's at ``+h``, each move's paired
+        and differenced before the next is run (one moved geometry held at a time): the tracer's
+        uploads ``[(kernel, args, depth, [tangent per move])]`` and its counters. On one thread:
+        run on two, the moved geometries made the gradient at urban's default pulse count 10 %
+        faster and its peak memory 45 % larger (3.9 times the render's)."""
+        uploads, stats = self._uploads(*_Recording.of(self.main, ctx, launch))
+        for j, move in enumerate(self.moves):
+            moved, _ = _Recording.of(self._moved_tracer(j, move.step), ctx, launch)
+            for upload, tangent in zip(uploads, self._differenced(j, ctx, launch, uploads, moved)):
+                upload[3].append(tangent)
+        return uploads, stats
+
+    def _uploads(self, own, stats):
+        """The tracer's recorded uploads as ``(kernel, args, depth, [])`` and its counters."""
+        kinds = {"terms": self.main.terms, "clutter": self.main.clutter}
+        return [(kinds["terms" if x is None or len(x) == 2 else "clutter"], x, depth, [])
+                for x, depth in zip(own.uploads, own.depths)], stats
 
     def _moved_tracer(self, j: int, step: float):
         """Move ``j``'s tracer with the shape's vertices moved by ``step`` along it (built once)."""
@@ -310,18 +349,19 @@ class MovedTracer:
             tracer = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
                                                         {**exact, move.shape: base[move.shape][0] + step * move.field},
                                                         separate, offset))
-            tracer.cancel, tracer.simplify = False, True
+            tracer.cancel, tracer.matched, tracer.simplify = True, False, True
             self.tracers[j][step] = tracer
         return self.tracers[j][step]
 
-    def _differenced(self, j: int, ctx: dict, launch, uploads: list) -> list:
-        """Move ``j``'s tangent of each upload (None for an empty one): the forward difference, or,
-        where the step ``+h`` changes the lit regions' topology, the backward one from ``-h``
-        (:attr:`changes` says so); where both do, zero tangents and :attr:`undefined` set."""
+    def _differenced(self, j: int, ctx: dict, launch, uploads: list, moved) -> list:
+        """Move ``j``'s tangent of each upload (None for an empty one): the forward difference
+        from ``moved`` (the recording at ``+h``), or, where the step ``+h`` changes the lit regions'
+        topology, the backward one from ``-h`` (:attr:`changes` says so); where both do, zero
+        tangents and :attr:`undefined` set."""
         move, problems = self.moves[j], []
         for step in (move.step, -move.step):
-            moved = _Recording()
-            moved.run(self._moved_tracer(j, step), ctx, launch)
+            if step < 0:
+                moved, _ = _Recording.of(self._moved_tracer(j, step), ctx, launch)
             try:
                 if len(moved.uploads) != len(uploads):
                     raise topology_change("bounce orders reached")
@@ -372,12 +412,12 @@ class MovedTracer:
             for key in ("gamma", "jones", "edge_jones"):
                 if tangent.get(key) is not None:
                     tangent[key] = None
-            return tangent
+            return _zeros_dropped(tangent)
         up, here = kernel.upload(*plus, depth), kernel.upload(*args, depth)
         for key in ("gamma", "jones", "edge_jones"):
             if key in tangent:
                 tangent[key] = _difference(up[key], here[key], step)
-        return tangent
+        return _zeros_dropped(tangent)
 
     def _leaves(self, data: dict, tangents: list) -> None:
         """Every floating-point entry of ``data`` that has a tangent along some move is replaced by
@@ -393,14 +433,14 @@ class MovedTracer:
             along = [_at(t, path) for t in tangents]
             if all(t is None for t in along):
                 continue
+            along = [None if isinstance(t, str) else t for t in along]       # ZERO: nothing to add
             leaf = dr.detach(entry)
             dr.enable_grad(leaf)
             _put(data, path, leaf)
             if dr.grad_enabled(entry) and not self.forward:
                 self.links.append((leaf, entry))
-            along = [type(leaf)(0) if t is None else t for t in along]
             if self.forward:                     # forward mode (one move): the tangent, set once
-                dr.set_grad(leaf, along[0])
+                dr.set_grad(leaf, type(leaf)(0) if along[0] is None else along[0])
             self.tangents.append((leaf, along))
 
     def accumulate(self) -> None:
@@ -413,6 +453,8 @@ class MovedTracer:
         for leaf, tangents in self.tangents:
             grads = list(_components(dr.grad(leaf)))
             for j, tangent in enumerate(tangents):
+                if tangent is None:
+                    continue
                 for g, t in zip(grads, _components(tangent)):
                     term = mi.Float64(dr.sum(g * t))
                     sums[j] = term if sums[j] is None else sums[j] + term

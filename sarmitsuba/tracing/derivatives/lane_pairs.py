@@ -141,12 +141,15 @@ def nearest_distinct(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarr
 def _take_or_keep(lanes, main, order: np.ndarray):
     """``lanes`` reordered by ``order``, each row where ``order`` is -1 taken from ``main``."""
     n = len(main)
-    rows = np.where(order >= 0, order, len(lanes) + np.arange(n))
+    if len(lanes) == n and np.array_equal(order, np.arange(n)):
+        return lanes                                    # (the host's order kept: most uploads)
+    whole = bool(np.all(order >= 0))
+    rows = order if whole else np.where(order >= 0, order, len(lanes) + np.arange(n))
     out = {}
     for field in dataclasses.fields(lanes):
         a, b = getattr(lanes, field.name), getattr(main, field.name)
         if isinstance(a, np.ndarray) and a.ndim and len(a) == len(lanes) and isinstance(b, np.ndarray):
-            out[field.name] = np.take(np.concatenate([a, b.astype(a.dtype)]), rows, axis=0)
+            out[field.name] = np.take(a if whole else np.concatenate([a, b.astype(a.dtype)]), rows, axis=0)
     return dataclasses.replace(lanes, **out)
 
 
@@ -178,16 +181,25 @@ def align_terms(main, main_pieces, lanes, pieces, tolerance: float):
     moved_piece = lanes.piece[order[paired]]
     lanes = _take_or_keep(lanes, main, order)
     n = len(main_pieces.area)
-    # each piece is the piece its lanes were paired with; a piece no lane names, the nearest (a
-    # sliver of the moved geometry that no lane of the geometry itself names is left out)
+    # each piece is the piece its lanes were paired with; a piece no lane names (a sliver, or a
+    # whole piece whose segments its neighbours cancel): the moved piece of its own row where that
+    # lies within the tolerance (the host's order of whole pieces is the same at the moved
+    # geometry; one face's piece is there once per sub-aperture, at one centroid), else the
+    # nearest; a sliver of the moved geometry that no lane of the geometry itself names is left out
     piece_order = np.full(n, -1, np.int64)
     piece_order[main.piece[paired]] = moved_piece
     if not np.array_equal(piece_order[main.piece[paired]], moved_piece):
         raise topology_change("pieces")
+    where = lambda t, rows: np.column_stack([np.take(t.centroid, rows, axis=0), np.take(t.centroid_unfolded, rows, axis=0)])
+    rest = np.flatnonzero(piece_order < 0)
+    own = rest[rest < len(pieces.area)]
+    own = own[np.linalg.norm(where(main_pieces, own) - where(pieces, own), axis=1) <= tolerance]
+    own = own[~np.isin(own, piece_order)]
+    piece_order[own] = own
     rest = np.flatnonzero(piece_order < 0)
     if len(rest):
         free = np.setdiff1d(np.arange(len(pieces.area)), piece_order)
-        near = nearest_distinct(main_pieces.centroid[rest], pieces.centroid[free], tolerance)
+        near = nearest_distinct(where(main_pieces, rest), where(pieces, free), tolerance)
         if np.any(near < 0):
             raise topology_change("pieces")
         piece_order[rest] = free[near]
