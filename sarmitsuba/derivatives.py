@@ -365,8 +365,11 @@ def _adjoint_kernel(loaded, setup, parameters, outlines: bool) -> AdjointKernel:
     """The reverse-mode kernel of ``parameters``: their shapes' moves, the derivatives' outlines
     where ``outlines`` or a shape moves."""
     shapes = [p for p in parameters if isinstance(p, ShapeParameter)]
-    return AdjointKernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings, setup.table,
-                         setup.effects, [p.move(loaded) for p in shapes], outlines=outlines)
+    kernel = AdjointKernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings, setup.table,
+                           setup.effects, [p.move(loaded) for p in shapes], outlines=outlines)
+    if kernel.moved is not None:
+        kernel.moved.materials = len(shapes) < len(parameters)
+    return kernel
 
 
 def _batches(kernel, loaded, setup, seeds=None):

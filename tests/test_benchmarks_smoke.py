@@ -87,8 +87,8 @@ EXPECTED = {
         ("trace_s",),
         ("total_s", "peak_mib", "value")),
     "gradients": (
-        {"scene", "kind", "pulses", "parameters", "seconds", "peak_mib", "over_forward"},
-        ("pulses", "parameters", "seconds", "peak_mib", "over_forward"),
+        {"scene", "kind", "pulses", "parameters", "seconds", "peak_mib", "over_forward", "memory_over_forward"},
+        ("pulses", "parameters", "seconds", "peak_mib", "over_forward", "memory_over_forward"),
         ()),
     "inverse": (
         {"evaluation", "relative_permittivity", "height_m", "loss", "gradient_permittivity", "gradient_height",

@@ -447,8 +447,10 @@ def test_urban_block_height_and_ground_gamma_match_central_differences(tmp_path)
     gradient with respect to that gamma against renders of scene files whose ``gamma_db``
     moves by 0.1 %; each within 1 % (measured 0.007 % and 0.06 %). The block is rough too: its
     scatterers, fixed in its frame, move with its roof. Catches the scatterers' tangents left
-    out (a roof's clutter), the gamma tangent's scale (1 per unit of linear gamma), and the
-    clutter value's tangent read from another row."""
+    out (a roof's clutter), the gamma tangent's scale (1 per unit of linear gamma), the
+    clutter value's tangent read from another row, and the reverse pass's scatterers cut to
+    those a move moves where it must not be: the roof's left out (no row marked moving), or
+    the ground's with a material parameter beside the height (each tried)."""
     sensor = {"n_pulses": 16, "scene_center": (-50.0, -5.0, 0.0)}
     size = {"image_size": (64, 64), "image_spacing": 1.0}
     height, gamma = ShapeParameter("block_a", "height"), MaterialParameter("soil", "gamma")

@@ -54,6 +54,39 @@ def test_equal_rows_after_a_hash_collision_is_the_reference(monkeypatch):
     assert np.array_equal(_groups(order, group, 5), _groups(*_equal_rows_reference(columns), 5))
 
 
+def test_junctions_and_shared_edges_cancel_by_tolerance_not_by_rounding():
+    """Two split ends of one straight boundary meet at a point each piece computed on its own,
+    here 2e-13 m apart across a micrometre grid line (x = 0.5 um): they cancel; a third end at
+    that point, another region, or two ends of one sign do not. Two segments of one face that
+    run along each other the other way (their ends 2e-13 m apart across that line) cancel; the
+    same way round, they do not. Catches the pairing by coordinates rounded to a grid, which a
+    geometric derivative's moved geometry decides differently (docs/physics.md (AD4)): the
+    pair is kept there."""
+    from types import SimpleNamespace
+    from sarmitsuba.tracing.integration.patch_terms import SPLIT_END, SPLIT_START
+    x, d = 0.5e-6, 1e-13
+    point = np.array([[x - d, 2.0], [x + d, 2.0], [x, 2.0]])
+    edge = np.array([[1.0, 0.0], [3.0, 0.0], [2.0, 0.0]])
+    kind = np.array([SPLIT_END, SPLIT_START, SPLIT_START])
+    stable = np.ones(3, bool)
+
+    def junctions(n, region, kinds=kind):
+        return term_lanes.cancel_junctions(kinds[:n], np.arange(n), point[:n], edge[:n], np.asarray(region), stable[:n])
+    assert junctions(2, [7, 7]).tolist() == [True, True]
+    assert junctions(3, [7, 7, 7]).tolist() == [False, False, False]
+    assert junctions(2, [7, 8]).tolist() == [False, False]
+    assert junctions(2, [7, 7], np.array([SPLIT_START, SPLIT_START])).tolist() == [False, False]
+    surfaces = SimpleNamespace(face=np.array([0]))
+    chains = SimpleNamespace(parts=np.array([[0, -1]]), sub=np.array([0]))
+    start = np.array([[0.0, 0.0], [1.0, x - d]])
+    end = np.array([[1.0, x + d], [0.0, 0.0]])
+    shared = term_lanes.cancel_shared(surfaces, chains, np.zeros(2, np.int64), start, end, np.ones(2, bool))
+    assert shared.tolist() == [True, True]
+    same_way = term_lanes.cancel_shared(surfaces, chains, np.zeros(2, np.int64), np.zeros((2, 2)),
+                                        np.array([[1.0, x + d], [1.0, x - d]]), np.ones(2, bool))
+    assert same_way.tolist() == [False, False]
+
+
 def _chains(n, depth=3, seed=0):
     rng = np.random.default_rng(seed)
     order = rng.integers(0, depth, n)

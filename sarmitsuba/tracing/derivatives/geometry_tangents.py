@@ -250,6 +250,45 @@ def _zeros_dropped(tangent: dict) -> dict:
     return tangent
 
 
+#: The key of a scatterer upload's tangent that holds which of its rows the move moves (bool [n], NumPy).
+ROWS = "moved rows"
+
+
+def _moving_rows(main, plus) -> np.ndarray:
+    """bool [n]: the rows of a lanes dataclass (float64 NumPy fields) where any floating-point
+    field of ``plus`` (its moved and paired copy) differs from ``main``'s: the rows whose tangent
+    is not zero (their points, normals or earlier bounces' windows move)."""
+    moving = np.zeros(len(main), bool)
+    for field in dataclasses.fields(main):
+        a, p = getattr(main, field.name), getattr(plus, field.name)
+        if isinstance(a, np.ndarray) and a.dtype.kind == "f" and a.ndim and len(a) == len(main):
+            moving |= np.any((p != a).reshape(len(a), -1), axis=1)
+    return moving
+
+
+def _rows_of(lanes, rows: np.ndarray):
+    """The lanes dataclass with only ``rows`` (int [m]) of its per-lane fields."""
+    n = len(lanes)
+    return dataclasses.replace(lanes, **{f.name: np.take(getattr(lanes, f.name), rows, axis=0)
+                                         for f in dataclasses.fields(lanes)
+                                         if isinstance(getattr(lanes, f.name), np.ndarray)
+                                         and getattr(lanes, f.name).ndim and len(getattr(lanes, f.name)) == n})
+
+
+def _gathered(x, rows: np.ndarray, n: int):
+    """A tangent (dict, list, dataclass or Dr.Jit array) with only ``rows`` of its per-lane
+    (width ``n``) arrays; other entries (:data:`ZERO`, None, width 1) as they are."""
+    if isinstance(x, dict):
+        return {key: _gathered(value, rows, n) for key, value in x.items() if key != ROWS}
+    if isinstance(x, list):
+        return [_gathered(value, rows, n) for value in x]
+    if dataclasses.is_dataclass(x) and not isinstance(x, type):
+        return dataclasses.replace(x, **{f.name: _gathered(getattr(x, f.name), rows, n) for f in dataclasses.fields(x)})
+    if dr.is_array_v(x) and dr.width(x) == n and n > 1:
+        return dr.gather(type(x), x, mi.UInt32(np.asarray(rows, np.uint32)))
+    return x
+
+
 def _launch_key(launch) -> tuple:
     """What tells a launch apart from the trace's others: its sub-apertures' pulses and references."""
     return launch.first.tobytes(), launch.count.tobytes(), np.asarray(launch.reference).tobytes()
@@ -287,11 +326,9 @@ class MovedTracer:
         kernel.mesh = self.main = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table, exact,
                                                                       separate, offset))
         self._geometry = base, separate, offset, exact
-        # the segments two stable neighbours share across a patch line cancel, as in a render: a
-        # decision by cells, the same a step away. Those matched by their rounded coordinates
-        # (:attr:`~sarmitsuba.tracing.driver.mesh_trace.MeshTracer.matched`) are kept: a segment that
-        # cancels its neighbour's at the parameter (a symmetric corner) may not a step away
-        self.main.cancel, self.main.matched, self.main.simplify = True, False, True
+        # interior segments cancel as in a render (stable neighbours across a patch line, by
+        # cells; shared edges and junctions, within a tolerance): the same decisions a step away
+        self.main.simplify = True
         #: Each move's moved tracers by step (``+h``, and ``-h`` once a ``+h`` step has changed the topology).
         self.tracers = [{} for _ in self.moves]
         #: Per move: None, or what changed the topology within a step (:meth:`_differenced`).
@@ -304,6 +341,9 @@ class MovedTracer:
         self.totals = np.zeros(len(self.moves))
         #: Forward mode: each leaf's tangent (one move) is set on it when it is made.
         self.forward = False
+        #: Whether material parameters are differentiated too: the reverse pass then replays every
+        #: lane (each carries their gradient), not only the scatterers some move moves.
+        self.materials = True
         #: A dict while the values are traced: each launch's ``(uploads, counters)``, by launch.
         self.kept: dict | None = None
         #: What :attr:`kept` held, to deposit as leaves launch by launch instead of tracing.
@@ -313,7 +353,7 @@ class MovedTracer:
     def __call__(self, ctx: dict, launch) -> dict:
         if self.replay is not None:
             uploads, stats = self.replay.pop(_launch_key(launch))
-            self._deposit(ctx, uploads, True)
+            self._deposit(ctx, uploads, True, replayed=True)
             return stats
         with float64_lanes():
             uploads, stats = self._traced(ctx, launch)
@@ -349,7 +389,7 @@ class MovedTracer:
             tracer = kernel.mesh_tracer(*moved_surfaces(kernel.scene, kernel.material_table,
                                                         {**exact, move.shape: base[move.shape][0] + step * move.field},
                                                         separate, offset))
-            tracer.cancel, tracer.matched, tracer.simplify = True, False, True
+            tracer.simplify = True
             self.tracers[j][step] = tracer
         return self.tracers[j][step]
 
@@ -381,11 +421,20 @@ class MovedTracer:
         self.changes[j] = f"steps of +-{move.step:g} both change the topology ({problems[0]}): no derivative"
         return [None if args is None else {} for _, args, _, _ in uploads]
 
-    def _deposit(self, ctx: dict, uploads: list, leaves: bool) -> None:
-        """Deposit the recorded uploads, their entries made leaves with their tangents (or plain values)."""
+    def _deposit(self, ctx: dict, uploads: list, leaves: bool, replayed: bool = False) -> None:
+        """Deposit the recorded uploads, their entries made leaves with their tangents (or plain
+        values). ``replayed`` (the reverse pass, whose values nobody reads) without
+        :attr:`materials`: of the scatterer uploads only the rows some move moves."""
         for kernel, args, depth, tangents in uploads:
             if args is None:
                 continue
+            if replayed and not self.materials and len(args) == 1:
+                masks = [t.get(ROWS) for t in tangents]
+                if masks and all(m is not None for m in masks):
+                    rows = np.flatnonzero(np.logical_or.reduce(masks))
+                    if len(rows) == 0:
+                        continue
+                    args, tangents = (_rows_of(args[0], rows),), [_gathered(t, rows, len(args[0])) for t in tangents]
             data = kernel.upload(*args, depth)
             if leaves:
                 self._leaves(data, tangents)
@@ -406,8 +455,10 @@ class MovedTracer:
             plus = (align_scatterers(args[0], moved[0], tolerance),)
         tangent = kernel.upload(*(tangent_lanes(a, p, step) for a, p in zip(args, plus)), depth)
         # kept until the reverse pass: its floating-point entries only (the lanes' kinds, rows and
-        # flags are the tracer's own)
+        # flags are the tracer's own), and which scatterers the move moves
         tangent = {key: value for key, value in tangent.items() if any(True for _ in _float_leaves(value))}
+        if len(args) == 1:
+            tangent[ROWS] = _moving_rows(args[0], plus[0])
         if depth == 0:                       # no earlier bounce: its factors are constants
             for key in ("gamma", "jones", "edge_jones"):
                 if tangent.get(key) is not None:

@@ -93,10 +93,6 @@ class MeshTracer:
         self.k = returns.k
         self.depth = settings.max_depth
         self.cancel = settings.cancel_interior
-        #: With :attr:`cancel`: the pairs matched by their coordinates (rounded to a micrometre)
-        #: cancel too, not only those across patch lines. Off in the geometric derivatives'
-        #: tracers, whose moved geometries must make the same decisions (docs/physics.md (AD4)).
-        self.matched = True
         # a ground shape's free rims are truncations: no PO rim terms, no edge currents (M10)
         ground = ground_parts(scene, surfaces, settings.ground_shapes)
         wedges = find_wedges(surfaces) if returns.diffraction or np.any(ground) else None
@@ -338,7 +334,7 @@ class MeshTracer:
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
-        if self.cancel and self.matched:
+        if self.cancel:
             shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece])
             kept = np.flatnonzero(~shared)              # (np.take: row gathers, not boolean masks)
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
@@ -371,7 +367,7 @@ class MeshTracer:
             table_segments = table_segments + (p_rate[m:], q_rate[m:])
         edges = segment_wedges(s, self.wedges, part[seg_piece], p2, q2) if self.wedges is not None else None
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
-                                   self.cancel and self.matched, motion, edges)
+                                   self.cancel, motion, edges)
         return lanes, table, clipped, lit
 
     def _clip(self, lit: LitPieces, antenna: np.ndarray):

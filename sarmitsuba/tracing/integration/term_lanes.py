@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..discovery.chains import Chains, facing_sign, image_source
 from ..loops import lane_float
@@ -90,13 +91,44 @@ def _equal_rows_reference(columns) -> tuple[np.ndarray, np.ndarray]:
     return order, np.cumsum(~same) - 1
 
 
+#: Two boundary segments (or two split ends) are one where their coordinates agree to this [m]:
+#: far above float64's rounding of face coordinates kilometres from the origin (1e-13 m), far below
+#: any segment a piece keeps (:data:`~sarmitsuba.tracing.mesh.polygons.REPEAT_DISTANCE` joins
+#: closer corners). A tolerance, not a rounding to a grid: the two copies of one point, computed
+#: from two pieces, may fall on two sides of a grid line, and a geometric derivative's moved
+#: geometry would then cancel a pair its own geometry keeps (docs/physics.md (AD4)).
+MATCH_TOLERANCE = 1e-8
+
+
+def _lone_pairs(features: np.ndarray, tolerance: float) -> np.ndarray:
+    """int64 [p, 2]: the pairs of rows of ``features`` (float64 [n, f]) within ``tolerance`` of
+    each other and of no third row (scipy's k-d tree)."""
+    if len(features) < 2:
+        return np.zeros((0, 2), np.int64)
+    pairs = cKDTree(features).query_pairs(tolerance, output_type="ndarray")
+    near = np.bincount(pairs.ravel(), minlength=len(features))
+    return pairs[(near[pairs[:, 0]] == 1) & (near[pairs[:, 1]] == 1)]
+
+
+def _grouped(features: np.ndarray, keys) -> np.ndarray:
+    """``features`` with one more column that puts rows of different ``keys`` (int64 columns) far
+    apart: their group number times a gap beyond every feature's range."""
+    order, group = _equal_rows(keys)
+    label = np.empty(len(group), np.float64)
+    label[order] = group
+    gap = 10.0 * (float(np.ptp(features, axis=0).max(initial=0.0)) + 1.0)
+    return np.column_stack([features, label * gap])
+
+
 def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndarray, end: np.ndarray,
                   stable: np.ndarray) -> np.ndarray:
     """bool: the segments of stable pieces that another stable piece's segment runs along the other
     way, both reached through mirrors on the same planes (the faces of the earlier windows) and
     lying on the same face: an edge two convex parts of one face share, whose terms are equal and
-    opposite (eq. (M5)). Both of a pair are dropped. ``chain`` [s] each segment's chain, ``start``,
-    ``end`` [s, 2] face coordinates (one frame per face), ``stable`` [s]."""
+    opposite (eq. (M5)). Both of a pair are dropped; a segment is one with another where their
+    midpoints and their edges (up to sign: ``e e^T``) agree to :data:`MATCH_TOLERANCE` and no
+    third segment's do. ``chain`` [s] each segment's chain, ``start``, ``end`` [s, 2] face
+    coordinates (one frame per face), ``stable`` [s]."""
     drop = np.zeros(len(chain), bool)
     rows = np.flatnonzero(stable)
     if len(rows) < 2:
@@ -104,35 +136,31 @@ def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndar
     c = np.take(chain, rows)
     parts = np.take(chains.parts, c, axis=0)            # (np.take: row gathers ~10x faster than x[idx])
     faces = np.where(parts >= 0, np.take(s.face, np.maximum(parts, 0)), -1)
-    p = np.round(np.take(start, rows, axis=0) * 1e6).astype(np.int64)
-    q = np.round(np.take(end, rows, axis=0) * 1e6).astype(np.int64)
-    forward = (p[:, 0] < q[:, 0]) | ((p[:, 0] == q[:, 0]) & (p[:, 1] < q[:, 1]))
-    lo, hi = np.where(forward[:, None], p, q), np.where(forward[:, None], q, p)
-    order, group = _equal_rows((lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1], chains.sub[c], *faces.T))
-    size = np.bincount(group)
-    forwards = np.bincount(group, weights=forward[order])
-    pair = (size == 2) & (forwards == 1)
-    drop[rows[order[pair[group]]]] = True
+    p = np.take(start, rows, axis=0).astype(np.float64)
+    e = np.take(end, rows, axis=0).astype(np.float64) - p
+    features = np.column_stack([p + 0.5 * e, e[:, 0] ** 2, e[:, 1] ** 2, e[:, 0] * e[:, 1]])
+    pairs = _lone_pairs(_grouped(features, (chains.sub[c], *faces.T)), MATCH_TOLERANCE)
+    pairs = pairs[np.einsum("mi,mi->m", e[pairs[:, 0]], e[pairs[:, 1]]) < 0]      # the other way
+    drop[rows[pairs.ravel()]] = True
     return drop
 
 
 def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:
     """bool: the split lanes that meet another of the opposite sign at the same point, along the
     same direction, in the same region, both of stable pieces: consecutive segments of one
-    straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped."""
+    straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped. The
+    same: points and unit directions within :data:`MATCH_TOLERANCE`, no third lane's."""
     candidate = np.flatnonzero(((lane_kind == SPLIT_START) | (lane_kind == SPLIT_END)) & stable[lane_piece])
     drop = np.zeros(len(lane_kind), bool)
-    if len(candidate) == 0:
+    if len(candidate) < 2:
         return drop
-    edge_c = np.take(edge2, candidate, axis=0)
+    edge_c = np.take(edge2, candidate, axis=0).astype(np.float64)
     direction = edge_c / np.linalg.norm(edge_c, axis=1, keepdims=True)
-    q = np.round(np.take(point2, candidate, axis=0) * 1e6).astype(np.int64)
-    angle = np.round(np.arctan2(direction[:, 1], direction[:, 0]) * 1e6).astype(np.int64)
-    order, group = _equal_rows((angle, q[:, 1], q[:, 0], region[lane_piece[candidate]]))
-    size = np.bincount(group)
-    starts = np.bincount(group, weights=lane_kind[candidate][order] == SPLIT_START)
-    pair = (size == 2) & (starts == 1)
-    drop[candidate[order[pair[group]]]] = True
+    features = np.column_stack([np.take(point2, candidate, axis=0).astype(np.float64), direction])
+    pairs = _lone_pairs(_grouped(features, (region[lane_piece[candidate]].astype(np.int64),)), MATCH_TOLERANCE)
+    kinds = lane_kind[candidate]
+    pairs = pairs[kinds[pairs[:, 0]] != kinds[pairs[:, 1]]]
+    drop[candidate[pairs.ravel()]] = True
     return drop
 
 
