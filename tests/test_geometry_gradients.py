@@ -296,6 +296,58 @@ def _shadow_scene(folder: Path, incidence: float) -> str:
     return str(path)
 
 
+def test_the_rates_tangent_is_the_shadow_edges_closed_form(tmp_path, monkeypatch):
+    """Eq. (M8)'s rates and their tangent. The wall of the shadow scene turned 25 deg about z
+    (so that its top edge is not parallel to the track) and 5 m high: where the shadow of its
+    top edge ends on the floor (at a patch line, a floor edge, or the shadow of a vertical
+    edge, none of which moves with the height), the end is ``S = A (1 - k) + k E`` in the
+    floor's plane, ``k = H / (H - h)`` with ``H`` the antenna's height above the floor, so its
+    rate per metre of travel is ``(1 - k) v`` with ``v`` fixed by the lines it ends on, and
+    ``d rate / dh = rate H / (h (H - h))``. Every such lane's tangent of its rate against that,
+    from the lanes and rates themselves (not from the tangent's difference). Catches the
+    rates' tangent with its sign reversed, and rates left without a tangent: a change of the
+    loss too small for central differences to see (docs/physics.md (AD4))."""
+    from sarmitsuba.tracing.derivatives import geometry_tangents
+    from sarmitsuba.tracing.integration.patch_terms import TermLanes
+    path = Path(_shadow_scene(tmp_path, 40.0))
+    yaw = np.radians(25.0)
+    c, s = np.cos(yaw), np.sin(yaw)
+    wall = [(float(c * x), float(s * x), float(z)) for x, z in ((-6, 0), (6, 0), (6, 5), (-6, 5))]
+    (tmp_path / "wall.obj").write_text("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in wall) + "f 1 2 3\nf 1 3 4\n")
+    (tmp_path / "floor.obj").write_text("v -10 -20 0\nv 10 -20 0\nv 10 5 0\nv -10 5 0\nf 1 2 3\nf 1 3 4\n")
+    seen = []
+    differenced = geometry_tangents.tangent_lanes
+
+    def tangent_lanes(main, plus, step):
+        out = differenced(main, plus, step)
+        if isinstance(main, TermLanes) and main.motion is not None:
+            seen.append((main, out))
+        return out
+    monkeypatch.setattr(geometry_tangents, "tangent_lanes", tangent_lanes)
+    height = ShapeParameter("wall", "height")
+    sarmitsuba.gradients(str(path), AmplitudeLoss(np.zeros(SIZE["image_size"])), [height],
+                         sensor_overrides={"n_pulses": 16}, **SIZE)
+    checked = 0
+    for main, tangent in seen:
+        floor = np.abs(main.normal[:, 2]) > 0.99
+        ground = float(np.median(main.point[floor, 2]))
+        top = ground + 5.0
+        antenna = main.origin.astype(np.float64)
+        big_h = antenna[:, 2] - ground
+        k = big_h / (big_h - 5.0)
+        # the ends on the top edge's shadow: S - A (1 - k) lies k times along the top edge's line
+        edge_point = (main.point - antenna * (1.0 - k)[:, None]) / k[:, None]
+        along = edge_point[:, 0] * s - edge_point[:, 1] * c              # 0 on the edge's vertical plane
+        behind = edge_point[:, 0] * c + edge_point[:, 1] * s
+        rate = main.motion[:, 0].astype(np.float64)
+        on = floor & (np.abs(along) < 1e-6) & (np.abs(behind) < 6.0) & (np.abs(edge_point[:, 2] - top) < 1e-6) \
+            & (np.linalg.norm(rate, axis=1) > 1e-4)
+        expected = rate[on] * (big_h[on] / (5.0 * (big_h[on] - 5.0)))[:, None]
+        np.testing.assert_allclose(tangent.motion[on, 0], expected, rtol=1e-3, atol=1e-3 * np.abs(expected).max(initial=0))
+        checked += int(on.sum())
+    assert checked >= 4
+
+
 def _held_on_rows(monkeypatch, row: int) -> None:
     """Make the geometric tangents of every lane of material ``row`` zero (and of its pieces and
     their boundary segments): the lit outline on those faces held where it is, the *interior term*

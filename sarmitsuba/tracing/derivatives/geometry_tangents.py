@@ -8,13 +8,14 @@ the same visibility), every lane input is a smooth function of the vertices, and
 term a smooth function of the lane inputs. :class:`MovedTracer` takes the two factors apart:
 
 * the lane inputs' tangent ``d data / dp``: the host geometry run again with the shape's vertices
-  moved by ``+-h`` (1 um) along the parameter's displacement field, in float64 (the Mitsuba
+  moved by ``h`` (1 um) along the parameter's displacement field, in float64 (the Mitsuba
   scene stays: its visibility rays decide nothing differently at a micrometre), each moved
-  lane paired with its own (:mod:`.lane_pairs`) and differenced, ``(x(+h) - x(-h)) / 2h``, in
+  lane paired with its own (:mod:`.lane_pairs`) and differenced, ``(x(p + h) - x(p)) / h``, in
   float64 before the upload rounds it. The lanes are piecewise rational in the vertices, so the
-  difference is exact to ``O(h^2)``. Every discrete entry (lane kinds, pieces, rows) must agree
-  across the three runs; otherwise the parameter moves a boundary of visibility and
-  :class:`GeometryChange` says so;
+  difference is exact to ``O(h)`` relative to the faces' size. Every discrete entry (lane
+  kinds, pieces, rows) must agree between the two runs; otherwise the parameter moves a
+  boundary of visibility, the step is taken to ``-h``, and :class:`GeometryChange` says so
+  where that changes it too;
 * the terms' dependence on the lane inputs: Dr.Jit's automatic differentiation through the
   kernels, exactly, forward (:class:`~sarmitsuba.tracing.derivatives.tangents.TangentSums`) or reverse
   (:class:`~sarmitsuba.tracing.derivatives.tangents.AdjointSums`).
@@ -59,8 +60,8 @@ __all__ = ["GeometryMove", "GeometryChange", "moved_surfaces", "move_scene", "ex
 class GeometryMove:
     """A geometric parameter as the tracer sees it: ``shape`` the shape's index in
     ``scene.shapes()``, ``field`` float64 [n_v, 3] each vertex's displacement per unit of the
-    parameter (m per unit, in the loaded scene's frame), ``step`` the host's central-difference
-    step ``h`` (units of the parameter)."""
+    parameter (m per unit, in the loaded scene's frame), ``step`` the host's difference step
+    ``h`` (units of the parameter)."""
 
     shape: int
     field: np.ndarray
