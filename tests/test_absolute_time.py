@@ -220,6 +220,23 @@ def test_utc_times_across_a_leap_second_are_refused(tmp_path):
         read_state_vectors(path)
 
 
+def test_utc_times_ending_or_starting_at_a_leap_seconds_midnight(tmp_path):
+    """Rows ending exactly at 2017-01-01T00:00:00Z: their last interval holds the leap second
+    23:59:60 (two physical seconds for one of UTC), refused; rows starting there: no leap second
+    between them, accepted, and their times are UTC's own. Catches the span test made strict
+    (``first < day < last``), which accepts the first file and puts its last state 1 s, 7.6 km of
+    an orbit, off."""
+    path = tmp_path / "t.csv"
+    ending = ["2016-12-31T23:59:57Z", "2016-12-31T23:59:58Z", "2016-12-31T23:59:59Z", "2017-01-01T00:00:00Z"]
+    path.write_text("utc,x_m,y_m,z_m\n" + "".join(f"{t},{k},0,1000\n" for k, t in enumerate(ending)))
+    with pytest.raises(TrajectoryError, match="span the leap second before 2017-01-01"):
+        read_state_vectors(path)
+    starting = ["2017-01-01T00:00:00Z", "2017-01-01T00:00:01Z", "2017-01-01T00:00:02Z", "2017-01-01T00:00:03Z"]
+    path.write_text("utc,x_m,y_m,z_m\n" + "".join(f"{t},{k},0,1000\n" for k, t in enumerate(starting)))
+    states = read_state_vectors(path)
+    assert np.allclose(np.diff(states.time), 1.0, rtol=0, atol=1e-9)
+
+
 def test_nanosecond_utc_digits_round_to_the_microsecond(tmp_path):
     """``...07.1234567Z`` is 07.123457 (rounded), ``...07.9999996Z`` is 08.000000. Catches the digits
     beyond the microsecond cut, as ``datetime.fromisoformat`` cuts them (a bias of up to 1 us, 7.6 mm

@@ -118,6 +118,34 @@ def test_the_stripmap_beam_reaches_to_its_first_nulls_and_no_farther(incidence, 
                     check_beam_reach(params, lo, hi)
 
 
+@pytest.mark.parametrize("incidence, squint", [(30.0, 0.0), (60.0, 20.0)])
+def test_a_long_scene_whose_end_reaches_into_the_beam_is_seen(incidence, squint):
+    """A box 120 m long along track, 1,500 m from the one pulse, on either side: its centre
+    1.5 deg beyond the beam's first null ``h``, its near end (half its length, 2.3 deg, nearer)
+    0.8 deg inside the beam: accepted; its centre 4.5 deg beyond, its near end 2.2 deg beyond:
+    refused. Catches the scene taken as a point (its extent dropped: the first box is refused),
+    which a test with a target of 2 cm cannot tell apart."""
+    import math
+
+    import numpy as np
+
+    from sarmitsuba.core.radar import ParameterError
+    from sarmitsuba.scene.track_checks import check_beam_reach
+    params, antenna = _one_pulse(incidence, squint)
+    h = math.asin(math.sin(math.radians(0.6)) / 0.4429)
+    broadside = np.array([0.0, -antenna[1], -antenna[2]]) / math.hypot(antenna[1], antenna[2])
+    half = np.array([60.0, 1.0, 1.0])
+    for side in (-1.0, 1.0):
+        for beyond, seen in ((1.5, True), (4.5, False)):
+            phi = math.radians(squint) + side * (h + math.radians(beyond))
+            centre = antenna + 1500.0 * (math.cos(phi) * broadside + math.sin(phi) * np.array([1.0, 0.0, 0.0]))
+            if seen:
+                check_beam_reach(params, centre - half, centre + half)
+            else:
+                with pytest.raises(ParameterError, match="outside the beam"):
+                    check_beam_reach(params, centre - half, centre + half)
+
+
 @pytest.mark.parametrize("side", [-1.0, 1.0])
 def test_a_spotlight_beam_is_steered_no_farther_than_60_deg(side):
     """State vectors of a short level track, the scene centre 58 deg (accepted) and 62 deg
