@@ -63,6 +63,30 @@ def write_csv(name: str, rows: list[dict]) -> Path:
     return path
 
 
+def descent_figure(name: str, rows: list[dict], panels, title: str, size=(10, 3.6)) -> Path:
+    """The figure of an inverse problem's descent, written to ``output_dir() / NAME``: the loss
+    against evaluations (``rows``: ``evaluation``, ``loss``), then one panel per entry of
+    ``panels`` (callables drawing on an axis, given the evaluations); returns the path."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 1 + len(panels), figsize=size, dpi=120)
+    evaluations = [r["evaluation"] for r in rows]
+    axes[0].semilogy(evaluations, [max(r["loss"], 1e-30) for r in rows], "o-")
+    axes[0].set_ylabel("amplitude loss")
+    for ax, panel in zip(axes[1:], panels):
+        panel(ax, evaluations)
+    for ax in axes:
+        ax.set_xlabel("evaluation (loss and gradient)")
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = output_dir() / name
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def bench_main(doc: str, run, checks, quick_help: str, tiny_help: str | None = None) -> None:
     """Command line of one benchmark script: ``--quick`` (and ``--tiny``), run, print the ratio checks."""
     import argparse

@@ -22,11 +22,10 @@ after the first evaluation).
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
-from _table import bench_main, machine, output_dir, write_csv
+from _table import bench_main, descent_figure, machine, write_csv
 
 NAME = "inverse"
 TRUE = {"relative_permittivity": 4.5, "height_m": 5.0}
@@ -93,31 +92,21 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
           f"{rows[-1]['elapsed_s']:.1f} s in all")
     suffix = "_tiny" if tiny else ""
     write_csv(f"{NAME}{suffix}.csv", rows)
-    _plot(rows, output_dir() / f"{NAME}{suffix}.png")
+    _plot(rows, f"{NAME}{suffix}.png")
     return rows
 
 
-def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 3, figsize=(11, 3.2), dpi=120)
-    evaluations = [r["evaluation"] for r in rows]
-    axes[0].semilogy(evaluations, [max(r["loss"], 1e-30) for r in rows], "o-")
-    axes[0].set_ylabel("amplitude loss")
-    for ax, key, label in ((axes[1], "relative_permittivity", "brick's relative permittivity"),
-                           (axes[2], "height_m", "building's height (m)")):
-        ax.plot(evaluations, [r[key] for r in rows], "o-", label="estimate")
-        ax.axhline(TRUE[key], color="0.5", ls="--", label="truth")
-        ax.set_ylabel(label)
-        ax.legend(fontsize=8)
-    for ax in axes:
-        ax.set_xlabel("evaluation (loss and gradient)")
-        ax.grid(True, alpha=0.3)
-    fig.suptitle("recovering a wall's permittivity and a building's height from 30 % off (L-BFGS-B)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+def _plot(rows: list[dict], name: str) -> None:
+    def estimate(key, label):
+        def panel(ax, evaluations):
+            ax.plot(evaluations, [r[key] for r in rows], "o-", label="estimate")
+            ax.axhline(TRUE[key], color="0.5", ls="--", label="truth")
+            ax.set_ylabel(label)
+            ax.legend(fontsize=8)
+        return panel
+    descent_figure(name, rows, [estimate("relative_permittivity", "brick's relative permittivity"),
+                                estimate("height_m", "building's height (m)")],
+                   "recovering a wall's permittivity and a building's height from 30 % off (L-BFGS-B)", size=(11, 3.2))
 
 
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:

@@ -46,11 +46,10 @@ stops after the first evaluation).
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
-from _table import bench_main, machine, output_dir, write_csv
+from _table import bench_main, descent_figure, machine, write_csv
 
 NAME = "inverse_city"
 #: m: the true heights of the ten buildings (west to east, north row then south row).
@@ -217,31 +216,19 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
         print(f"  building {i + 1}: {height:.4f} m (true {truth:.1f} m, started at {START[i]:.2f} m)")
     suffix = "_tiny" if tiny else ""
     write_csv(f"{NAME}{suffix}.csv", rows)
-    _plot(rows, output_dir() / f"{NAME}{suffix}.png")
+    _plot(rows, f"{NAME}{suffix}.png")
     return rows
 
 
-def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), dpi=120)
-    evaluations = [r["evaluation"] for r in rows]
-    axes[0].semilogy(evaluations, [max(r["loss"], 1e-30) for r in rows], "o-")
-    axes[0].set_ylabel("amplitude loss")
-    for i in range(len(TRUE)):
-        axes[1].semilogy(evaluations, [max(r[f"height_{i + 1}_error_m"], 1e-6) for r in rows], ".-", lw=1,
-                         label=f"{TRUE[i]:g} m")
-    axes[1].axhline(0.1, color="0.5", ls="--")
-    axes[1].set_ylabel("height error (m)")
-    axes[1].legend(fontsize=6, ncol=2, title="true height", title_fontsize=6)
-    for ax in axes:
-        ax.set_xlabel("evaluation (loss and gradient)")
-        ax.grid(True, alpha=0.3)
-    fig.suptitle("recovering ten buildings' heights from 20 % off (L-BFGS-B)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+def _plot(rows: list[dict], name: str) -> None:
+    def errors(ax, evaluations):
+        for i in range(len(TRUE)):
+            ax.semilogy(evaluations, [max(r[f"height_{i + 1}_error_m"], 1e-6) for r in rows], ".-", lw=1,
+                        label=f"{TRUE[i]:g} m")
+        ax.axhline(0.1, color="0.5", ls="--")
+        ax.set_ylabel("height error (m)")
+        ax.legend(fontsize=6, ncol=2, title="true height", title_fontsize=6)
+    descent_figure(name, rows, [errors], "recovering ten buildings' heights from 20 % off (L-BFGS-B)")
 
 
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
