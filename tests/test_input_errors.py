@@ -135,7 +135,7 @@ def test_line_of_the_element_in_a_hand_written_scene(tmp_path):
 def test_parameter_the_plugin_does_not_set_points_at_the_plugin(tmp_path):
     """A name the failing element does not write (a default) gives the element's own line, never a
     same-named parameter of a later plugin."""
-    from sarmitsuba.scene.loader import _parameter_line
+    from sarmitsuba.scene.mitsuba_errors import parameter_line
     path = tmp_path / "scene.xml"
     path.write_text("<scene version='3.0.0'>\n"
                     "  <sensor type='sar'>\n"
@@ -145,9 +145,9 @@ def test_parameter_the_plugin_does_not_set_points_at_the_plugin(tmp_path):
                     "    <float name='sampling_rate' value='180e6'/>\n"
                     "  </sensor>\n"
                     "</scene>\n")
-    assert _parameter_line(str(path), 2, "sensor", "prf") == 3
-    assert _parameter_line(str(path), 2, "sensor", "sampling_rate") == 2
-    assert _parameter_line(str(path / "missing"), 2, "sensor", "prf") == 2
+    assert parameter_line(str(path), 2, "sensor", "prf") == 3
+    assert parameter_line(str(path), 2, "sensor", "sampling_rate") == 2
+    assert parameter_line(str(path / "missing"), 2, "sensor", "prf") == 2
 
 
 # ------------------------------------------------------------------------------------- memory

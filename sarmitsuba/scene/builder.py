@@ -73,6 +73,10 @@ class Scene:
         ``sbr`` integrator parameters (:class:`sarmitsuba.scene.trace_inputs.TraceSettings`).
     name : str, default "scene"
         Reported as the scene ``python:<name>`` (``LoadedScene.source``, metadata, titles).
+    velocities : mapping, optional
+        Shape id -> velocity (3 floats, m/s, scene frame), as Sionna RT's ``SceneObject.velocity``:
+        the shape moves at it, standing where ``meshes`` puts it at the middle of the aperture
+        (:mod:`sarmitsuba.scene.motion`; checked when the scene is loaded).
 
     Raises
     ------
@@ -86,7 +90,8 @@ class Scene:
     """
 
     def __init__(self, meshes: Sequence[Any], sensor: Mapping[str, Any] | None = None,
-                 integrator: Mapping[str, Any] | None = None, name: str = "scene") -> None:
+                 integrator: Mapping[str, Any] | None = None, name: str = "scene",
+                 velocities: Mapping[str, Any] | None = None) -> None:
         if isinstance(meshes, (str, bytes)) or not isinstance(meshes, Sequence) or len(meshes) == 0:
             raise SceneError("Scene(meshes=...): give a non-empty list of (mesh, material) pairs")
         self.name = str(name)
@@ -99,6 +104,7 @@ class Scene:
         self._materials = _material_specs(self._shapes)
         self.sensor = _sensor_values(sensor)
         self.integrator = _integrator_values(integrator)
+        self.velocities = dict(velocities or {})
 
     @classmethod
     def from_footprints(cls, footprints: Any, out: Any = None, **options: Any) -> "Scene":

@@ -23,6 +23,7 @@ from ..core.constants import SPEED_OF_LIGHT
 
 if TYPE_CHECKING:                      # only for annotations: no import cycle with scene/loader.py
     from ..core.radar import RadarParameters
+    from .motion import ShapeMotion
     from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["Effect", "EffectSet", "list_effects", "active_effects", "rough_materials"]
@@ -100,6 +101,10 @@ class EffectSet:
     diffraction : bool
         Equivalent edge currents on the mesh's wedges and free edges (``sbr`` ``diffraction``,
         the default, with ``lit_regions = patches``; docs/physics.md (E1)-(E6)).
+    moving_shapes : ShapeMotion or None
+        The shapes that move during the acquisition (a ``velocity``, :mod:`sarmitsuba.scene.motion`):
+        each sub-aperture traces them where they are, and their lanes move per pulse
+        (docs/physics.md (V1)-(V3)). None: the scene holds still and pays nothing.
     order_energy : bool
         Each bounce order deposited apart, for the energy it holds (``summary.json``'s
         ``energy_by_order``, :attr:`deposit_groups`); on by default, off for the derivatives,
@@ -128,6 +133,7 @@ class EffectSet:
     motion_error: bool = False
     diffraction: bool = False
     order_energy: bool = True
+    moving_shapes: "ShapeMotion | None" = None
 
     @property
     def cross_polarised(self) -> bool:
@@ -171,7 +177,7 @@ class EffectSet:
 
     @classmethod
     def of(cls, params: "RadarParameters", settings: "TraceSettings | None" = None,
-           rough_materials: Iterable[str] = ()) -> "EffectSet":
+           rough_materials: Iterable[str] = (), moving_shapes: "ShapeMotion | None" = None) -> "EffectSet":
         """The effects of radar parameters, trace settings and the names of the rough materials
         some shape uses. Without ``settings``, the sensor's effects only (one bounce order, no
         per-order products): what :func:`sarmitsuba.scene.radar_equation.radar_equation` needs."""
@@ -188,7 +194,7 @@ class EffectSet:
                       continuous_motion=not params.stop_and_hop, curved_track=not params.straight_track,
                       motion_error=params.motion_error is not None,
                       diffraction=bool(getattr(settings, "diffraction", False))
-                      and getattr(settings, "lit_regions", "patches") == "patches")
+                      and getattr(settings, "lit_regions", "patches") == "patches", moving_shapes=moving_shapes)
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -196,7 +202,8 @@ def active_effects(loaded) -> EffectSet:
     """The :class:`EffectSet` of a loaded scene (overrides applied, parameters resolved): compute it
     once and hand it on. Rough materials are those of the BSDFs the scene's shapes use."""
     return EffectSet.of(loaded.params, loaded.settings,
-                        (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0))
+                        (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0),
+                        getattr(loaded, "motion", None))
 
 
 def rough_materials(table: "MaterialTable") -> tuple[str, ...]:
@@ -221,7 +228,7 @@ def list_effects(loaded) -> tuple[Effect, ...]:
         In the order of the docs/design.md section 7 table: bounce orders > 1, distributed clutter and
         speckle, antenna pattern, thermal noise, chirped raw echoes, absolute radiometry,
         spotlight, squint, per-bounce-order products, polarimetry, edge diffraction, then the trajectory's: curved track,
-        the stop-and-hop approximation (on request only), motion errors (:attr:`EffectSet.listed`).
+        the stop-and-hop approximation (on request only), motion errors; and moving shapes (:attr:`EffectSet.listed`).
     """
     return active_effects(loaded).listed
 
@@ -231,7 +238,14 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
             _split(e.split_bounces), _polarimetry(e), _diffraction(e.diffraction), _curved(e.curved_track, p),
-            _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p))
+            _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p), _moving(e.moving_shapes))
+
+
+def _moving(motion) -> Effect:
+    if motion is not None:
+        shapes = ", ".join(f"{i} at {tuple(round(c, 3) for c in v)} m/s" for i, v in zip(motion.ids, motion.velocity))
+        return Effect("moving shapes", True, f"{shapes}: traced where each pulse sees them (docs/physics.md (V1)-(V3))")
+    return Effect("moving shapes", False, "no shape has a velocity: the scene holds still")
 
 
 def _diffraction(on: bool) -> Effect:

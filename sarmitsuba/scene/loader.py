@@ -37,6 +37,8 @@ from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from ..core.outputs import product_kind
 from .ground import ground_shapes
+from .mitsuba_errors import located, mitsuba_message
+from .motion import ShapeMotion, file_velocities, moving_shapes, swept_box, xml_velocities
 from .trace_inputs import MaterialTable, TraceSettings
 
 __all__ = ["SceneError", "LoadedScene", "resolve_source", "load_scene", "material_table", "shape_frame", "mitsuba_message",
@@ -77,6 +79,9 @@ class LoadedScene:
     shape_boxes : float64 [n_shapes, 2, 3], m
         Each shape's bounding box ``(lo, hi)`` (local frame), for the ray planner's refinement
         around small objects.
+    motion : ShapeMotion or None
+        The shapes that move (:mod:`sarmitsuba.scene.motion`); ``bbox_lo``, ``bbox_hi`` then hold
+        their paths across the aperture. None: the scene holds still.
     """
 
     scene: Any
@@ -91,6 +96,7 @@ class LoadedScene:
     n_triangles: int
     offset: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
     shape_boxes: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2, 3)))
+    motion: ShapeMotion | None = None
 
 
 def _package_dir(name: str) -> Path | None:
@@ -229,6 +235,13 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
         raise SceneError(f"scene {label!r} has no geometry (empty bounding box)")
     automatic_track = params.n_pulses == 0
     params = resolve_parameters(params, lo, hi)
+    boxes = _shape_boxes(scene)
+    motion = moving_shapes(scene, source.velocities if path is None else file_velocities(path), params, label)
+    if motion is not None:
+        if settings.lit_regions != "patches":
+            raise ParameterError("moving shapes are traced by the mesh's lit regions only: set sbr lit_regions = "
+                                 f"'patches' (the default), not {settings.lit_regions!r}, or give no velocity")
+        lo, hi = swept_box(motion, boxes, label)
     # a trajectory given on its own replaces the scene's platform silently: only values given with it count
     _note_replaced(given if "trajectory" not in (sensor_overrides or {}) else sensor_overrides, params)
     check_geometry(params, lo, hi, shape_points(scene), automatic_track, offset)   # before any cost estimate
@@ -239,7 +252,7 @@ def load_scene(source: str | Path | None = None, sensor_overrides: Mapping[str, 
     return LoadedScene(scene=scene, path=path, source=name,
                        params=params, settings=settings, bbox_lo=lo, bbox_hi=hi,
                        has_sensor=sensor is not None, n_shapes=len(scene.shapes()), n_triangles=n_tri,
-                       offset=offset, shape_boxes=_shape_boxes(scene))
+                       offset=offset, shape_boxes=boxes, motion=motion)
 
 
 def _read_trajectory(params: RadarParameters, scene_file: Path | None, offset: np.ndarray,
@@ -339,12 +352,12 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
     resolver = mi.file_resolver()
     saved = [str(resolver[i]) for i in range(len(resolver))]
     try:
-        if offset is None:
+        if offset is None and not file_velocities(path):
             return _check_ids(mi.load_file(str(path), optimize=False), path)
         resolver.prepend(str(path.parent.resolve()))
-        return _check_ids(mi.load_string(_shifted_xml(path, offset), optimize=False), path)
+        return _check_ids(mi.load_string(_edited_xml(path, offset), optimize=False), path)
     except (RuntimeError, ET.ParseError) as exc:
-        file, line, message = _located(exc)
+        file, line, message = located(exc)
         where = "" if line is None else (f", line {line}" if file is None or Path(file) == path
                                          else f" ({file!r}, line {line})")
         raise SceneError(f"cannot load scene {str(path)!r}{where}: {message}") from None
@@ -355,7 +368,9 @@ def _load_mitsuba(path: Path, offset: np.ndarray | None = None) -> Any:
             resolver.append(entry)
 
 
-def _shifted_xml(path: Path, offset: np.ndarray) -> str:
+def _edited_xml(path: Path, offset: np.ndarray | None) -> str:
+    """The scene file's XML with every top-level shape translated by ``-offset`` (None: not) and
+    its ``velocity`` taken out (:func:`~sarmitsuba.scene.motion.xml_velocities`)."""
     data = path.read_bytes()
     try:
         root = ET.fromstring(data)
@@ -363,7 +378,8 @@ def _shifted_xml(path: Path, offset: np.ndarray) -> str:
         if data.startswith((b"\xef\xbb\xbf", b"\xff\xfe", b"\xfe\xff")) or re.match(rb"<\?xml[^>]*encoding", data):
             raise
         root = ET.fromstring(data.decode("latin-1"))     # (ids were checked by the first load)
-    for shape in root.findall("shape"):
+    xml_velocities(root, str(path))
+    for shape in root.findall("shape") if offset is not None else ():
         transform = shape.find("transform[@name='to_world']")
         if transform is None:
             transform = ET.SubElement(shape, "transform", name="to_world")
@@ -384,78 +400,6 @@ def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
     for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():
         if hasattr(bsdf, "set_roughness"):
             bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
-
-
-def mitsuba_message(exc: Exception) -> str:
-    """The message of a Mitsuba loading error without its source prefix and Python traceback frames,
-    led by ``FILE, line N:`` when it names a place in a file (see :func:`_located`)."""
-    file, line, message = _located(exc)
-    return message if file is None else f"{file}, line {line}: {message}"
-
-
-#: Where Mitsuba's scene parser says an error happened: ``At FILE (line N, col M): ...`` (a plugin's
-#: constructor failed) or ``Error while loading FILE (line N, col M): ...`` (a malformed value).
-_MITSUBA_AT = re.compile(r"^(?:At|Error while loading) (?P<file>.+?) \(line (?P<line>\d+), col \d+\): (?P<rest>.*)$",
-                         re.S)
-#: ``Parsing of XML file "FILE" failed: MESSAGE (line N, col M)``: malformed XML.
-_MITSUBA_XML = re.compile(r'^Parsing of XML file "(?P<file>.*?)" failed: (?P<rest>.*) \(line (?P<line>\d+), col \d+\)$',
-                          re.S)
-#: The plugin that failed: ``failed to instantiate sensor plugin of type "sar": ...``.
-_MITSUBA_PLUGIN = re.compile(r'^failed to instantiate (?P<tag>\w+) plugin of type "[^"]*": (?P<rest>.*)$', re.S)
-#: The parameter an error message names: ``name = value ...``, ``unknown parameter 'name'``, ``parameter name:``.
-_NAMED_PARAMETER = re.compile(r"^(?P<a>\w+) = |unknown parameter '(?P<b>\w+)'|parameter (?P<c>\w+):")
-
-
-def _located(exc: Exception) -> tuple[str | None, int | None, str]:
-    """``(file, line, message)`` of a Mitsuba loading error (file and line None when it names none).
-
-    The message drops Mitsuba's ``[parser.cpp:1718]`` prefix, its ``At FILE (line, col)`` and
-    "failed to instantiate" framing, and the traceback of a Python plugin (frames and the
-    exception's class name). The line is that of the offending parameter's element when the
-    message names one that the failing plugin's element sets (``<float name="frequency" .../>``),
-    else the plugin's element."""
-    text = re.sub(r"^\[[\w.]+:\d+\]\s*", "", str(exc).strip())
-    file = line = tag = None
-    while (match := _MITSUBA_AT.match(text) or _MITSUBA_XML.match(text)) is not None:
-        file, line, text = match["file"], int(match["line"]), match["rest"].strip()
-        plugin = _MITSUBA_PLUGIN.match(text)
-        if plugin is not None:
-            tag, text = plugin["tag"], plugin["rest"].strip()
-    message = _without_traceback(text)
-    named = _NAMED_PARAMETER.search(message)
-    if file is not None and line is not None and tag is not None and named is not None:
-        line = _parameter_line(file, line, tag, named["a"] or named["b"] or named["c"])
-    return file, line, message
-
-
-def _without_traceback(text: str) -> str:
-    """The exception message at the end of a Python traceback (frames and, for sarmitsuba's own
-    errors, the class name dropped); ``text`` itself when it holds no traceback."""
-    if "Traceback (most recent call last)" not in text:
-        return text
-    lines = text.splitlines()
-    frames = [i for i, line in enumerate(lines) if line.startswith("  File ")]
-    i = frames[-1] + 1 if frames else 1
-    while i < len(lines) - 1 and lines[i].startswith("    "):       # source lines and carets of the last frame
-        i += 1
-    message = "\n".join(lines[i:]).strip()
-    return re.sub(r"^(?:\w+\.)*(?:ParameterError|SceneError|MaterialError|ValueError): ", "", message)
-
-
-def _parameter_line(file: str, line: int, tag: str, name: str) -> int:
-    """Line of the first element ``name="NAME"`` from the plugin element ``<TAG`` on ``line`` to its
-    closing tag; ``line`` when there is none (a default or derived value) or the file is unreadable."""
-    try:
-        lines = Path(file).read_text(errors="replace").splitlines()
-    except OSError:
-        return line
-    pattern = re.compile(rf"""name\s*=\s*["']{re.escape(name)}["']""")
-    for number in range(line, len(lines) + 1):
-        if pattern.search(lines[number - 1]):
-            return number
-        if f"</{tag}" in lines[number - 1] or (number > line and re.search(rf"<{tag}\b", lines[number - 1])):
-            break
-    return line
 
 
 #: A vertex counts as distinct from the frame's origin, and from the line of its first axis,

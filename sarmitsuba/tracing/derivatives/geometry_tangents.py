@@ -35,12 +35,11 @@ import mitsuba as mi
 import numpy as np
 
 from ...core.radar import ParameterError
-from ...scene.loader import shape_frame
-from ..mesh.facets import mesh_parts, scene_meshes
+from ..mesh.facets import mesh_parts, scene_meshes, set_vertices
 from .lane_pairs import GeometryChange, align_scatterers, align_terms, tangent_lanes, topology_change
 from ..deposit.replay import carry
 from ..loops import RECORDING, float64_lanes
-from ..mesh.patches import surfaces_of
+from ..mesh.patches import moved_surfaces
 
 #: How far a moved lane may lie from the lane it is paired with, in steps ``h`` times the largest
 #: vertex displacement: a lane's point moves with the vertices' (a shadow's tip more, by the
@@ -68,30 +67,6 @@ class GeometryMove:
     step: float
 
 
-def moved_surfaces(scene, table, vertices: dict, separate=(), grid_offset=None):
-    """The :class:`~sarmitsuba.tracing.mesh.patches.Surfaces` of ``scene`` with shape ``k``'s vertices
-    replaced by ``vertices[k]`` (float64 [n_v, 3], m), its frame (C), (M1) moved with them, and the
-    material table with that frame: ``(surfaces, table)``. The triangles of the shapes
-    ``separate`` are faces of their own (:func:`~sarmitsuba.tracing.mesh.facets.mesh_parts`); the
-    patch grid of every smooth shape is shifted by ``grid_offset`` [3] (m, in the shape's frame),
-    its rough shapes' grid staying on their scatterer lattice."""
-    meshes = scene_meshes(scene)
-    origin, axes = table.shape_origin.copy(), table.shape_axes.copy()
-    shapes = list(scene.shapes())
-    for k, v in vertices.items():
-        meshes[k] = (np.asarray(v, np.float64), meshes[k][1])
-        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shapes[k]))[0])
-        origin[shape_id], axes[shape_id] = shape_frame(v)
-    table = dataclasses.replace(table, shape_origin=origin, shape_axes=axes)
-    grid = origin
-    if grid_offset is not None:
-        smooth = table.clutter[table.row_of_shape, 0] == 0 if table.clutter is not None else \
-            np.ones(len(origin), bool)
-        grid = origin + np.where(smooth[:, None], np.einsum("sij,i->sj", axes, np.asarray(grid_offset, float)), 0.0)
-    parts = mesh_parts(meshes, separate=separate)
-    return surfaces_of(scene, dataclasses.replace(table, shape_origin=grid), parts), table
-
-
 #: The float64 vertices :func:`move_scene` gave each scene (by ``id``): the host geometry of the
 #: derivatives' tracers starts from them, not from the float32 buffer the rays see.
 _EXACT: dict = {}
@@ -104,15 +79,7 @@ def move_scene(scene, vertices: dict) -> None:
     derivatives' host geometry (:func:`exact_meshes`): a move of a micro-radian would otherwise
     be rounded to the float32 buffer's metre-scale steps of 6e-8 m."""
     _EXACT[id(scene)] = {k: np.asarray(v, np.float64) for k, v in vertices.items()}
-    if not vertices:
-        return
-    params = mi.traverse(scene)
-    shapes = list(scene.shapes())
-    for k, v in vertices.items():
-        key = next(key for key in params.keys()
-                   if key.endswith(".vertex_positions") and params.properties[key][2] == shapes[k])
-        params[key] = mi.Float(np.asarray(v, np.float32).ravel())
-    params.update()
+    set_vertices(scene, vertices)
 
 
 def exact_meshes(scene) -> list:

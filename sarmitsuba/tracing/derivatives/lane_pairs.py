@@ -217,7 +217,7 @@ def align_terms(main, main_pieces, lanes, pieces, tolerance: float):
                       tolerance)
     per_piece = {f.name: np.take(getattr(pieces, f.name), piece_order, axis=0) for f in dataclasses.fields(pieces)
                  if getattr(pieces, f.name) is not None and len(getattr(pieces, f.name)) == n
-                 and f.name not in ("segment_start", "segment_count")}
+                 and not f.name.startswith("segment_")}      # (a table with as many segments as pieces)
     kept = np.where(rows >= 0, rows, len(pieces.segment_mid) + np.arange(len(rows)))
     per_segment = {name: np.take(np.concatenate([getattr(pieces, name), getattr(main_pieces, name)]), kept, axis=0)
                    for name in ("segment_mid", "segment_edge", "segment_mid_rate", "segment_edge_rate")

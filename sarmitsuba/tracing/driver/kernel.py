@@ -43,6 +43,7 @@ from ...scene.effects import EffectSet, rough_materials
 from ..mesh.facets import triangle_table
 from .mesh_trace import MeshTracer
 from ..mesh.patches import surfaces_of
+from .moving import MovingShapes
 from .launches import Blocks, Launch
 from ..integration import jones as pol
 from ..integration.ground_wave import grazing_table
@@ -374,6 +375,8 @@ class Kernel:
             bbox = scene.bbox()
             self.bbox = (np.array(bbox.min, float), np.array(bbox.max, float))
             self.mesh = self.mesh_tracer(surfaces_of(scene, material_table), material_table)
+            if effects.moving_shapes is not None:        # (V1)-(V3): one launch at a time, each its own geometry
+                self.mesh, self.serial = MovingShapes(self, effects.moving_shapes), True
         i0, mask = footprint.refined_mask()
         self.refined_i0, self.refined_rows = i0, mask.shape[0]
         self.refined = mi.UInt32(mask.ravel().astype(np.uint32)) if footprint.refinements else None

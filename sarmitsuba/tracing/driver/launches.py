@@ -83,6 +83,9 @@ class Launch:
     axes : float64 [n_b, 3, 3] or None
         Curved tracks: each pulse's along-track, aperture and elevation axes
         (:func:`sarmitsuba.tracing.integration.pulse_view.antenna_axes`); None on a straight track.
+    pulse_time : float64 [n_b] or None, s
+        The pulses' transmit times from mid-aperture, for moving shapes
+        (:mod:`sarmitsuba.tracing.driver.moving`); None when the scene holds still.
     """
 
     antenna: np.ndarray
@@ -96,6 +99,7 @@ class Launch:
     velocity: np.ndarray | None = None
     acceleration: np.ndarray | None = None
     axes: np.ndarray | None = None
+    pulse_time: np.ndarray | None = None
 
     @property
     def n_pulses(self) -> int:

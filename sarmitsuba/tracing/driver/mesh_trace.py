@@ -105,6 +105,9 @@ class MeshTracer:
         self.moving = MOVING
         #: Pieces without collinear corners (the geometric derivatives' tracers, docs/physics.md (AD4)).
         self.simplify = False
+        #: Moving shapes: a :class:`~sarmitsuba.tracing.visibility.moving_shapes.TargetMotion` that moves
+        #: their lanes per pulse (docs/physics.md (V2)); None: the scene holds still.
+        self.target = None
         self._static = None
         self._body_box = None
         # launches on several host threads share these caches: the first to need one builds it
@@ -368,6 +371,8 @@ class MeshTracer:
         edges = segment_wedges(s, self.wedges, part[seg_piece], p2, q2) if self.wedges is not None else None
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
                                    self.cancel, motion, edges)
+        if self.target is not None:
+            lanes = self.target.moved(lanes, s, chains, np.take(region, lanes.piece.astype(np.int64)), reference)
         return lanes, table, clipped, lit
 
     def _clip(self, lit: LitPieces, antenna: np.ndarray):

@@ -49,9 +49,9 @@ from ...core.geometry import AcquisitionGeometry, acquisition_geometry
 from ...scene.loader import LoadedScene, material_table
 from ...scene.trace_inputs import FastTimeWindow, MaterialTable, RayFootprint, TraceSettings
 
-__all__ = ["TraceSetup", "prepare_trace", "TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList", "TraceResult", "trace",
-           "caused_by_interrupt", "LANCZOS_A", "SubApertures",
-           "subapertures", "pulses_per_trace", "SUBAPERTURE_CELLS"]
+__all__ = ["TraceSetup", "prepare_trace", "TraceSettings", "FastTimeWindow", "RayFootprint", "MaterialTable", "PathList",
+           "TraceResult", "trace", "caused_by_interrupt", "LANCZOS_A", "SubApertures", "subapertures", "pulses_per_trace",
+           "SUBAPERTURE_CELLS"]
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,6 @@ def prepare_trace(loaded: LoadedScene) -> TraceSetup:
     effects = active_effects(loaded)                     # docs/design.md section 7: decided once, handed on
     table = material_table(loaded.scene, params.frequency, params.polarization)
     return TraceSetup(geometry, window, footprint, effects, table)
-
 
 
 @dataclass(frozen=True)
@@ -303,7 +302,8 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
     pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
                                                         * n_channels))
-    per_batch = max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
+    per_batch = 1 if effects.moving_shapes is not None else \
+        max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
     return TracePlan(subs=subs, per_batch=per_batch,
                      lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
                      n_channels=n_channels, groups=effects.deposit_groups, n_pad=padded_length(window.n_samples),
@@ -325,6 +325,8 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     totals, paths = {}, None
     motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
         if geometry.continuous else {}
+    if kernel.effects.moving_shapes is not None:        # (V1): the shapes' times, from mid-aperture
+        motion["pulse_time"] = geometry.pulse_time[p0:p1] - geometry.pulse_time[[0, -1]].mean()
     groups = [Blocks.of([])] if settings.lit_regions == "patches" else []
     if kernel.tubes:
         groups = [*groups, *_blocks(subs, g, footprint, settings.max_batch_rays)]
@@ -582,12 +584,10 @@ def _path_list(found: dict, p0: int, channels: bool) -> "PathList":
 def caused_by_interrupt(exc: BaseException) -> bool:
     """Whether a KeyboardInterrupt is in the exception's cause/context chain."""
     seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
+    while exc is not None and id(exc) not in seen and not isinstance(exc, KeyboardInterrupt):
         seen.add(id(exc))
         exc = exc.__cause__ or exc.__context__
-    return False
+    return isinstance(exc, KeyboardInterrupt)
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:

@@ -29,6 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Sequence
 
+import mitsuba as mi
 import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
@@ -36,7 +37,7 @@ from scipy.spatial import cKDTree
 
 from ...core.arrays import unique_rows
 
-__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "scene_meshes", "triangle_table"]
+__all__ = ["MAX_PART_VERTICES", "Parts", "mesh_parts", "scene_parts", "scene_meshes", "set_vertices", "triangle_table"]
 
 #: Most corners a part may have (vertex slots of :attr:`Parts.vertices`).
 MAX_PART_VERTICES = 8
@@ -137,6 +138,21 @@ def scene_meshes(scene) -> list[tuple[np.ndarray, np.ndarray]]:
             vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
         meshes.append((vertices, faces))
     return meshes
+
+
+def set_vertices(scene, vertices: dict) -> None:
+    """Move the Mitsuba scene's meshes: shape ``k`` (its index in ``scene.shapes()``) to the
+    vertices ``vertices[k]`` (float [n_v, 3], m), the buffer rewritten in float32 and the scene's
+    acceleration structure rebuilt (the rays then meet the moved shapes)."""
+    if not vertices:
+        return
+    params = mi.traverse(scene)
+    shapes = list(scene.shapes())
+    for k, v in vertices.items():
+        key = next(key for key in params.keys()
+                   if key.endswith(".vertex_positions") and params.properties[key][2] == shapes[k])
+        params[key] = mi.Float(np.asarray(v, np.float32).ravel())
+    params.update()
 
 
 def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_tolerance: float = 1e-5,

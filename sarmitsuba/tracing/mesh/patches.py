@@ -27,10 +27,11 @@ import numpy as np
 
 from ...core.arrays import unique_pairs, unique_rows
 from .covers import covered_parts, split_covered
-from .facets import Parts, scene_parts
+from ...scene.loader import shape_frame
+from .facets import Parts, mesh_parts, scene_meshes, scene_parts
 from .polygons import REPEAT_DISTANCE, drop_collinear, moments, pad
 
-__all__ = ["Surfaces", "shape_indices", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "ALONG_FIRST_AXIS",
+__all__ = ["Surfaces", "moved_surfaces", "shape_indices", "surfaces_of", "surfaces_from", "face_axes", "face_partners", "occluder_partners", "Pieces", "ALONG_FIRST_AXIS",
            "UNIT_SQUARE"]
 
 #: A face whose normal lies within 0.81 deg of its shape's first axis takes its frame's ``u`` from
@@ -527,3 +528,27 @@ def _grid_side(cell: np.ndarray, start: np.ndarray, end: np.ndarray, patch: floa
 
 #: The unit square's corners in the order of a whole piece's polygon.
 UNIT_SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def moved_surfaces(scene, table, vertices: dict, separate=(), grid_offset=None):
+    """The :class:`~sarmitsuba.tracing.mesh.patches.Surfaces` of ``scene`` with shape ``k``'s vertices
+    replaced by ``vertices[k]`` (float64 [n_v, 3], m), its frame (C), (M1) moved with them, and the
+    material table with that frame: ``(surfaces, table)``. The triangles of the shapes
+    ``separate`` are faces of their own (:func:`~sarmitsuba.tracing.mesh.facets.mesh_parts`); the
+    patch grid of every smooth shape is shifted by ``grid_offset`` [3] (m, in the shape's frame),
+    its rough shapes' grid staying on their scatterer lattice."""
+    meshes = scene_meshes(scene)
+    origin, axes = table.shape_origin.copy(), table.shape_axes.copy()
+    shapes = list(scene.shapes())
+    for k, v in vertices.items():
+        meshes[k] = (np.asarray(v, np.float64), meshes[k][1])
+        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shapes[k]))[0])
+        origin[shape_id], axes[shape_id] = shape_frame(v)
+    table = dataclasses.replace(table, shape_origin=origin, shape_axes=axes)
+    grid = origin
+    if grid_offset is not None:
+        smooth = table.clutter[table.row_of_shape, 0] == 0 if table.clutter is not None else \
+            np.ones(len(origin), bool)
+        grid = origin + np.where(smooth[:, None], np.einsum("sij,i->sj", axes, np.asarray(grid_offset, float)), 0.0)
+    parts = mesh_parts(meshes, separate=separate)
+    return surfaces_of(scene, dataclasses.replace(table, shape_origin=grid), parts), table

@@ -1,0 +1,162 @@
+"""Shapes that move during the acquisition (docs/physics.md (V1)-(V3)).
+
+A shape may carry a constant velocity [m/s] in the scene frame, as Sionna RT's scene objects
+do (``SceneObject.velocity``): in XML a ``<vector name="velocity" value="vx, vy, vz"/>`` inside
+the ``<shape>`` (read here and removed before Mitsuba sees the file), in Python the
+``velocities`` mapping of :class:`sarmitsuba.scene.builder.Scene`. The shape's geometry as given
+is where it stands at the middle of the aperture (the mean of the first and last pulses'
+transmit times); at any other time ``t`` each vertex is at ``x + v (t - t_mid)``.
+
+:func:`moving_shapes` checks the velocities and gives the :class:`ShapeMotion` that the tracer
+follows (:mod:`sarmitsuba.tracing.driver.moving`); :func:`swept_box` is the scene's box with
+every moving shape's path across the aperture, for the fast-time window and the beam checks.
+"""
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..core.valid_ranges import ParameterError
+
+__all__ = ["ShapeMotion", "VELOCITY", "xml_velocities", "file_velocities", "moving_shapes", "swept_box"]
+
+#: The XML parameter (a ``vector`` child of a ``<shape>``) and the ``Scene`` argument's name.
+VELOCITY = "velocity"
+
+
+@dataclass(frozen=True)
+class ShapeMotion:
+    """The shapes that move, each at a constant velocity (hashable: tuples only).
+
+    Attributes
+    ----------
+    ids : tuple of str
+        The moving shapes' ids.
+    shapes : tuple of int
+        Their indices in ``mitsuba.Scene.shapes()``.
+    velocity : tuple of (float, float, float)
+        Each one's velocity in the scene frame, m/s.
+    duration : float
+        The aperture's length in time, ``(n_pulses - 1) / PRF``, s: every shape stands where the
+        scene puts it at the middle of it.
+    """
+
+    ids: tuple[str, ...]
+    shapes: tuple[int, ...]
+    velocity: tuple[tuple[float, float, float], ...]
+    duration: float
+
+    def velocities(self) -> np.ndarray:
+        """float64 [n, 3]: :attr:`velocity` as an array, m/s."""
+        return np.asarray(self.velocity, np.float64).reshape(-1, 3)
+
+
+def _vector(element: ET.Element, where: str) -> tuple[float, float, float]:
+    """A Mitsuba ``vector`` element's value (``value="x, y, z"`` or ``x= y= z=``), checked finite."""
+    try:
+        if element.get("value") is not None:
+            parts = [float(p) for p in element.get("value").replace(",", " ").split()]
+        else:
+            parts = [float(element.get(c, "0")) for c in "xyz"]
+        if len(parts) != 3:
+            raise ValueError
+    except ValueError:
+        raise ParameterError(f"{where}: velocity must be three numbers in m/s, as <vector name=\"velocity\" "
+                             f"value=\"10, 0, 0\"/>") from None
+    return tuple(parts)
+
+
+def xml_velocities(root: ET.Element, label: str) -> dict[str, tuple[float, float, float]]:
+    """The velocities of the top-level ``<shape>`` elements of a scene's XML tree ``root``, by
+    shape id, each ``<vector name="velocity">`` removed from the tree (Mitsuba's plugins do not
+    know it). Raises ParameterError for a moving shape without an id, or a value that is not
+    three numbers."""
+    found = {}
+    for index, shape in enumerate(root.findall("shape")):
+        for element in shape.findall(f"vector[@name='{VELOCITY}']"):
+            where = f"scene {label!r}, shape #{index} ({shape.get('id', 'no id')})"
+            if not shape.get("id"):
+                raise ParameterError(f"{where}: a shape with a velocity needs an id (<shape type=... id=\"car1\">), "
+                                     "by which the tracer follows it")
+            found[shape.get("id")] = _vector(element, where)
+            shape.remove(element)
+    return found
+
+
+def file_velocities(path: Path) -> dict[str, tuple[float, float, float]]:
+    """:func:`xml_velocities` of the XML file ``path`` ({} when it cannot be parsed: Mitsuba's load
+    then says why)."""
+    try:
+        return xml_velocities(ET.parse(path).getroot(), str(path))
+    except (ET.ParseError, OSError):
+        return {}
+
+
+def moving_shapes(scene: Any, velocities: Mapping[str, Any], params: Any, label: str) -> ShapeMotion | None:
+    """The :class:`ShapeMotion` of a loaded ``scene`` (``mitsuba.Scene``) from ``velocities``
+    (shape id -> 3 floats, m/s); None when none is given or every one is zero (a still scene
+    pays nothing).
+
+    Raises
+    ------
+    ParameterError
+        A velocity that is not finite; an id no shape has; a moving shape whose material is
+        rough (its scatterers would have to move with it: not simulated); ``sbr lit_regions``
+        other than ``patches`` (the ray tubes do not follow moving shapes).
+    """
+    ids = [shape.id() for shape in scene.shapes()]
+    rows = []
+    for shape_id, value in velocities.items():
+        v = np.asarray(value, np.float64).reshape(-1)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ParameterError(f"scene {label!r}, shape {shape_id!r}: velocity {value!r} must be three finite "
+                                 "numbers in m/s")
+        if shape_id not in ids:
+            raise ParameterError(f"scene {label!r}: velocity given for shape {shape_id!r}, which the scene does not "
+                                 f"have (its shapes: {', '.join(ids[:8])}{', ...' if len(ids) > 8 else ''})")
+        if np.any(v != 0):
+            rows.append((ids.index(shape_id), shape_id, tuple(float(c) for c in v)))
+    if not rows:
+        return None
+    for index, shape_id, _ in rows:
+        clutter = getattr(scene.shapes()[index].bsdf(), "clutter", (0, 0))
+        if clutter[0] > 0:
+            raise ParameterError(f"scene {label!r}, shape {shape_id!r}: a moving shape's material must be smooth "
+                                 "(its rough clutter's scatterers do not move with it): set its gamma_db / "
+                                 "scattering_coefficient to 0, or give it no velocity")
+    rows.sort()
+    duration = max(params.n_pulses - 1, 0) / params.prf
+    return ShapeMotion(ids=tuple(r[1] for r in rows), shapes=tuple(r[0] for r in rows),
+                       velocity=tuple(r[2] for r in rows), duration=duration)
+
+
+def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's bounding box ``(lo, hi)`` (float64 [3] each, m) with each moving shape's path
+    across the aperture, ``box +- v duration / 2`` (docs/physics.md (V1)); ``boxes`` float64
+    [n_shapes, 2, 3] are the shapes' own boxes.
+
+    Raises ParameterError when a moving shape leaves the box of the still shapes (horizontally)
+    during the aperture: its echo would come from beyond the scene that was planned.
+    """
+    still = np.setdiff1d(np.arange(len(boxes)), motion.shapes)
+    half = 0.5 * motion.duration * motion.velocities()
+    lo = [boxes[k, 0] - np.abs(h) for k, h in zip(motion.shapes, half)]
+    hi = [boxes[k, 1] + np.abs(h) for k, h in zip(motion.shapes, half)]
+    if len(still):
+        s_lo, s_hi = boxes[still, 0].min(axis=0), boxes[still, 1].max(axis=0)
+        for shape_id, a, b, v in zip(motion.ids, lo, hi, motion.velocities()):
+            outside = max(float(np.max(s_lo[:2] - a[:2])), float(np.max(b[:2] - s_hi[:2])))
+            if outside > 1e-6:
+                speed = float(np.linalg.norm(v[:2]))
+                allowed = max(speed - 2.0 * outside / max(motion.duration, 1e-300), 0.0)
+                raise ParameterError(
+                    f"scene {label!r}, shape {shape_id!r}: velocity {list(v)} m/s takes it {outside:.3g} m beyond the "
+                    f"still scene during the aperture ({motion.duration:.4g} s): give a speed below about "
+                    f"{allowed:.3g} m/s, fewer pulses, or a larger ground")
+        lo.append(s_lo)
+        hi.append(s_hi)
+    return np.min(lo, axis=0), np.max(hi, axis=0)

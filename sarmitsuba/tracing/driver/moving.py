@@ -1,0 +1,150 @@
+"""The mesh tracer of a scene with moving shapes (docs/physics.md (V1)-(V3)).
+
+:class:`MovingShapes` stands in for :attr:`sarmitsuba.tracing.driver.kernel.Kernel.mesh`. Each launch
+holds one sub-aperture; before tracing it, every moving shape is put where the wave meets it
+(V1): at the sub-aperture's reference time (the mean of its first and last pulses' transmit
+times) plus the transmit leg's delay ``|A_ref - c_shape| / c`` from the reference position to
+the shape's centre, not at the transmit time (no stop-and-hop for the target). The Mitsuba
+scene's vertices are rewritten (the rays meet the moved shapes), the host geometry is rebuilt
+from the float64 positions, and a :class:`~sarmitsuba.tracing.visibility.moving_shapes.TargetMotion`
+moves every lane with its shape from pulse to pulse (V2). The shapes are put back after each
+launch.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ...core.constants import SPEED_OF_LIGHT
+from ...scene.motion import ShapeMotion
+from ..mesh.facets import scene_meshes, set_vertices
+from ..mesh.patches import moved_surfaces
+from ..derivatives.lane_pairs import GeometryChange, align_terms, tangent_lanes, topology_change
+from ..visibility.moving_shapes import TargetMotion
+
+__all__ = ["MovingShapes", "shape_positions"]
+
+
+def shape_positions(base: np.ndarray, velocity: np.ndarray, time: float, reference: np.ndarray) -> np.ndarray:
+    """Vertices float64 [n_v, 3] (m) of a shape given at ``base`` [n_v, 3] at mid-aperture and moving
+    at ``velocity`` [3] (m/s), as the wave transmitted at ``time`` [s, from mid-aperture] from
+    ``reference`` [3] meets it: ``base + v (time + |reference - centre| / c)`` (V1)."""
+    centre = 0.5 * (base.min(axis=0) + base.max(axis=0))
+    delay = float(np.linalg.norm(np.asarray(reference, float) - centre)) / SPEED_OF_LIGHT
+    return base + np.asarray(velocity, float) * (time + delay)
+
+
+#: The moving shapes' largest displacement [m] between the two geometries whose lanes are
+#: differenced for their rates (V2): far below a patch, far above float32 rounding of the lanes.
+RATE_DISPLACEMENT = 1e-3
+#: Pairing tolerance of those lanes, in units of that displacement.
+ALIGN_TOLERANCE = 50.0
+
+
+def _recorded(tracer, ctx: dict, launch) -> tuple[list, dict]:
+    """Run ``tracer`` on ``launch`` without depositing: the ``(kind, lanes, pieces, depth)`` it
+    would deposit, in order (``kind`` ``"terms"`` or ``"clutter"``), and its counters."""
+    calls = []
+    terms, clutter = tracer.terms, tracer.clutter
+    tracer.terms = lambda ctx, lanes, pieces, depth: calls.append(("terms", lanes, pieces, depth))
+    if clutter is not None:
+        tracer.clutter = lambda ctx, lanes, depth: calls.append(("clutter", lanes, None, depth))
+    try:
+        return calls, tracer(ctx, launch)
+    finally:
+        tracer.terms, tracer.clutter = terms, clutter
+
+
+def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, reference: np.ndarray) -> list:
+    """``calls`` (:func:`_recorded`) with every term lane's and piece's rate of the shapes' motion
+    added: the difference of its pair in ``moved`` (the geometry ``step`` seconds later) over
+    ``step``, per metre of the antenna's travel (V2). GeometryChange where the two do not pair."""
+    if len(calls) != len(moved):
+        raise topology_change("bounce orders reached")
+    out = []
+    for (kind, lanes, pieces, depth), (kind_m, lanes_m, pieces_m, _) in zip(calls, moved):
+        if kind != kind_m or (len(lanes) == 0) != (len(lanes_m) == 0):
+            raise topology_change("lit pieces")
+        if kind == "terms" and len(lanes):
+            tolerance = ALIGN_TOLERANCE * RATE_DISPLACEMENT + 1e-9
+            plus, plus_pieces = align_terms(lanes, pieces, lanes_m, pieces_m, tolerance)
+            lanes, pieces = target.with_rates(lanes, pieces, tangent_lanes(lanes, plus, step),
+                                              tangent_lanes(pieces, plus_pieces, step), reference)
+        out.append((kind, lanes, pieces, depth))
+    return out
+
+
+class MovingShapes:
+    """The kernel's mesh tracer, rebuilt for every launch with the moving shapes moved.
+
+    Parameters
+    ----------
+    kernel : sarmitsuba.tracing.driver.kernel.Kernel
+        Its scene, material table and :meth:`~sarmitsuba.tracing.driver.kernel.Kernel.mesh_tracer`.
+    motion : ShapeMotion
+    """
+
+    def __init__(self, kernel, motion: ShapeMotion):
+        self.kernel, self.motion = kernel, motion
+        meshes = scene_meshes(kernel.scene)
+        self.base = {k: meshes[k][0].copy() for k in motion.shapes}
+        self.velocity = dict(zip(motion.shapes, motion.velocities()))
+        shapes = list(kernel.scene.shapes())
+        self.mitsuba_ids = {k: int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shapes[k]))[0]) for k in motion.shapes}
+        self.surfaces = kernel.mesh.surfaces if kernel.mesh is not None else None
+        #: Launches whose two geometries did not pair, traced with the rigid rates (V3) instead.
+        self.fallbacks = 0
+
+    def __call__(self, ctx: dict, launch) -> dict:
+        """Trace ``launch`` (one sub-aperture; ``launch.pulse_time`` from mid-aperture) with the
+        shapes where its pulses meet them; returns the tracer's counters."""
+        if launch.n_subapertures != 1 or launch.pulse_time is None:
+            raise RuntimeError("moving shapes: a launch must hold one sub-aperture and its pulse times")
+        first, last = int(launch.first[0]), int(launch.first[0] + launch.count[0] - 1)
+        time = 0.5 * (launch.pulse_time[first] + launch.pulse_time[last])
+        reference = launch.reference[0]
+        vertices = {k: shape_positions(self.base[k], self.velocity[k], time, reference) for k in self.base}
+        span = launch.pulse_time[last] - launch.pulse_time[first]
+        antenna = (launch.antenna[last] - launch.antenna[first]) / span if span > 0 else np.zeros(3)
+        target = None
+        if launch.count[0] == 1:           # one pulse: nothing moves within the sub-aperture
+            try:
+                return self._tracer(vertices)(ctx, launch)
+            finally:
+                set_vertices(self.kernel.scene, self.base)
+        try:
+            tracer = self._tracer(vertices)
+            target = TargetMotion(self._part_velocity(tracer.surfaces), antenna[None])
+            self.surfaces = tracer.surfaces
+            step = RATE_DISPLACEMENT / max(float(np.abs(self.motion.velocities()).max()), 1e-300)
+            calls, stats = _recorded(tracer, ctx, launch)
+            later = self._tracer({k: v + step * self.velocity[k] for k, v in vertices.items()})
+            moved, _ = _recorded(later, ctx, launch)
+            lanes = _with_rates(calls, moved, step, target, launch.reference)
+        except GeometryChange:             # (V2) falls back to the rigid rates (V3) for this launch
+            self.fallbacks += 1
+            tracer = self._tracer(vertices)
+            tracer.target = target
+            return tracer(ctx, launch)
+        finally:                           # the scene as given, whatever happens
+            set_vertices(self.kernel.scene, self.base)
+        for kind, data, pieces, depth in lanes:
+            if kind == "terms":
+                tracer.terms(ctx, data, pieces, depth)
+            else:
+                tracer.clutter(ctx, data, depth)
+        return stats
+
+    def _tracer(self, vertices: dict):
+        """A mesh tracer of the scene with the moving shapes at ``vertices`` (the Mitsuba scene's
+        buffers rewritten: its rays meet them there)."""
+        set_vertices(self.kernel.scene, vertices)
+        return self.kernel.mesh_tracer(*moved_surfaces(self.kernel.scene, self.kernel.material_table, vertices))
+
+    def _part_velocity(self, surfaces) -> np.ndarray:
+        """float64 [n_parts, 3]: each part's velocity (its shape's; zero for still shapes)."""
+        out = np.zeros((len(surfaces.normal), 3))
+        for k, shape_id in self.mitsuba_ids.items():
+            out[surfaces.shape_id == shape_id] = self.velocity[k]
+        return out
