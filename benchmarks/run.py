@@ -45,6 +45,8 @@ inverse        a brick building's permittivity and height recovered from its ima
                L-BFGS-B with the simulator's gradients, from 30 % off
 inverse_city   the heights of ten buildings of a footprint city recovered from its image
                by L-BFGS-B with the simulator's geometric gradients, from 20 % off
+moving         three moving cars on urban: the sub-apertures' rates (differenced, rigid)
+               against one pulse per trace, and what motion costs over the still scene
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -80,7 +82,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
-         "inverse": "inverse", "inverse_city": "inverse_city"}
+         "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving"}
 
 
 def _utc_now() -> str:

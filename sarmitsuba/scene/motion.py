@@ -154,7 +154,7 @@ def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.nd
                 speed = float(np.linalg.norm(v[:2]))
                 allowed = max(speed - 2.0 * outside / max(motion.duration, 1e-300), 0.0)
                 raise ParameterError(
-                    f"scene {label!r}, shape {shape_id!r}: velocity {list(v)} m/s takes it {outside:.3g} m beyond the "
+                    f"scene {label!r}, shape {shape_id!r}: velocity {v.tolist()} m/s takes it {outside:.3g} m beyond the "
                     f"still scene during the aperture ({motion.duration:.4g} s): give a speed below about "
                     f"{allowed:.3g} m/s, fewer pulses, or a larger ground")
         lo.append(s_lo)

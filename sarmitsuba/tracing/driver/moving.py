@@ -40,6 +40,10 @@ def shape_positions(base: np.ndarray, velocity: np.ndarray, time: float, referen
 RATE_DISPLACEMENT = 1e-3
 #: Pairing tolerance of those lanes, in units of that displacement.
 ALIGN_TOLERANCE = 50.0
+#: The lanes' rates from the lit geometry differenced (V2); False: the rigid rates alone (V3),
+#: which leave still the boundaries that a moving shape draws on still parts (its shadow, its
+#: double bounce's footprint on the road). ``benchmarks/moving.py`` measures both.
+DIFFERENCED = True
 
 
 def _recorded(tracer, ctx: dict, launch) -> tuple[list, dict]:
@@ -107,12 +111,8 @@ class MovingShapes:
         vertices = {k: shape_positions(self.base[k], self.velocity[k], time, reference) for k in self.base}
         span = launch.pulse_time[last] - launch.pulse_time[first]
         antenna = (launch.antenna[last] - launch.antenna[first]) / span if span > 0 else np.zeros(3)
-        target = None
-        if launch.count[0] == 1:           # one pulse: nothing moves within the sub-aperture
-            try:
-                return self._tracer(vertices)(ctx, launch)
-            finally:
-                set_vertices(self.kernel.scene, self.base)
+        if launch.count[0] == 1 or not DIFFERENCED:     # (one pulse: no travel, no rates)
+            return self._rigid(ctx, launch, vertices, antenna)
         try:
             tracer = self._tracer(vertices)
             target = TargetMotion(self._part_velocity(tracer.surfaces), antenna[None])
@@ -124,9 +124,7 @@ class MovingShapes:
             lanes = _with_rates(calls, moved, step, target, launch.reference)
         except GeometryChange:             # (V2) falls back to the rigid rates (V3) for this launch
             self.fallbacks += 1
-            tracer = self._tracer(vertices)
-            tracer.target = target
-            return tracer(ctx, launch)
+            return self._rigid(ctx, launch, vertices, antenna)
         finally:                           # the scene as given, whatever happens
             set_vertices(self.kernel.scene, self.base)
         for kind, data, pieces, depth in lanes:
@@ -135,6 +133,15 @@ class MovingShapes:
             else:
                 tracer.clutter(ctx, data, depth)
         return stats
+
+    def _rigid(self, ctx: dict, launch, vertices: dict, antenna: np.ndarray) -> dict:
+        """Trace ``launch`` with the shapes at ``vertices`` and their lanes at the rigid rates (V3)."""
+        try:
+            tracer = self._tracer(vertices)
+            tracer.target = TargetMotion(self._part_velocity(tracer.surfaces), antenna[None])
+            return tracer(ctx, launch)
+        finally:
+            set_vertices(self.kernel.scene, self.base)
 
     def _tracer(self, vertices: dict):
         """A mesh tracer of the scene with the moving shapes at ``vertices`` (the Mitsuba scene's

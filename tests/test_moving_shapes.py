@@ -1,0 +1,131 @@
+"""Moving shapes: their rates against a second method, still scenes unchanged, and bad input
+(docs/physics.md (V1)-(V3))."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from sarmitsuba.core.valid_ranges import ParameterError
+from sarmitsuba.pipeline import simulate
+from sarmitsuba.scene.builder import Scene
+from sarmitsuba.scene.effects import active_effects
+from sarmitsuba.scene.loader import load_scene, material_table
+from sarmitsuba.tracing.discovery.chains import unfold
+from sarmitsuba.tracing.mesh.patches import surfaces_of
+from sarmitsuba.tracing.visibility.moving_shapes import TargetMotion, target_rates
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_rigid_rates_of_mirror_chains_against_reflecting_the_moved_points():
+    """(V3): the unfolded point's rate ``lin_d v_d + d shift_d / dt`` of chains of one to three
+    parts of traffic (cars, walls, ground; each part at its own velocity, some still), against
+    the point moved for 1 s and reflected afresh through every moved mirror. Catches the
+    factor 2 of a mirror's offset rate dropped, the mirrors' order reversed and a still last part
+    given its mirror's velocity."""
+    loaded = load_scene("traffic")
+    table = material_table(loaded.scene, loaded.params.frequency, loaded.params.polarization)
+    surfaces = surfaces_of(loaded.scene, table)
+    rng = np.random.default_rng(7)
+    n_parts = len(surfaces.normal)
+    velocity = rng.normal(0.0, 8.0, (n_parts, 3)) * (rng.random(n_parts) < 0.6)[:, None]
+    parts = np.full((40, 3), -1, np.int64)
+    order = rng.integers(0, 3, 40)
+    for row, d in enumerate(order):
+        chosen = rng.choice(n_parts, d + 1, replace=False)
+        while np.any(np.abs(np.einsum("ij,ij->i", surfaces.normal[chosen[:-1]], surfaces.normal[chosen[1:]])) > 0.999):
+            chosen = rng.choice(n_parts, d + 1, replace=False)          # no two parallel mirrors in a row
+        parts[row, :d + 1] = chosen
+    chains = unfold(surfaces, parts, order, np.zeros(40, np.int64))
+    point_rate, unfolded_rate = TargetMotion(velocity, np.zeros((1, 3))).rates(surfaces, chains)
+    points = surfaces.origin[chains.last] + rng.normal(0.0, 2.0, (40, 3))
+    assert np.count_nonzero(order == 2) >= 5 and np.any(np.all(velocity[chains.last] == 0, axis=1))
+    for row in range(40):
+        expected_point, expected_unfolded = target_rates(surfaces, list(parts[row, :order[row] + 1]), points[row],
+                                                         velocity)
+        assert np.allclose(point_rate[row], expected_point, atol=1e-9)
+        assert np.allclose(unfolded_rate[row], expected_unfolded, atol=1e-7), row
+
+
+def test_zero_velocities_render_exactly_as_a_still_scene(tmp_path):
+    """A velocity of zero is no motion: no moving shapes in the effects, and the raw data those of
+    the scene without it, to the rounding of the host threads' order of addition (below -100 dB):
+    the still scene pays nothing and changes nothing."""
+    text = (REPO / "scenes" / "dihedral.xml").read_text().replace('value="meshes/', f'value="{REPO / "scenes"}/meshes/')
+    shape = text.index("<shape", text.index("</bsdf>"))
+    end = text.index(">", shape) + 1
+    path = tmp_path / "zero.xml"
+    path.write_text(text[:end] + '\n<vector name="velocity" value="0, 0, 0"/>' + text[end:])
+    overrides = {"n_pulses": 24}
+    loaded = load_scene(str(path), overrides)
+    assert loaded.motion is None and active_effects(loaded).moving_shapes is None
+    a = simulate(str(path), sensor_overrides=overrides)
+    b = simulate("dihedral", sensor_overrides=overrides)
+    error = np.sum(np.abs(a.raw.data - b.raw.data) ** 2) / np.sum(np.abs(b.raw.data) ** 2)
+    assert error == 0 or 10 * np.log10(error) < -100.0          # (two host threads add in either order)
+    assert "moving shapes" not in [e.name for e in active_effects(loaded)]
+
+
+def test_the_traffic_scene_lists_its_moving_shapes():
+    loaded = load_scene("traffic")
+    assert loaded.motion.ids == ("car_a", "car_b", "car_c")
+    assert np.allclose(loaded.motion.velocities(), [[0, 8, 0], [15, 0, 0], [7, -7, 0]])
+    effect = next(e for e in active_effects(loaded) if e.name == "moving shapes")
+    assert "car_b at (15.0, 0.0, 0.0) m/s" in effect.reason
+
+
+def _car_scene(velocity, ground_gamma=None, car_gamma=None, integrator=None):
+    """A 60 m smooth (or rough) ground with one 4 m car on it, built in Python."""
+    ground = trimesh.creation.box((60.0, 60.0, 0.2))
+    ground.apply_translation((0.0, 0.0, -0.1))
+    car = trimesh.creation.box((4.4, 1.8, 1.4))
+    car.apply_translation((0.0, 0.0, 0.9))
+    ground_material = {"material": "concrete"} if ground_gamma is None else {"material": "concrete", "gamma_db": ground_gamma}
+    car_material = "pec" if car_gamma is None else {"material": "metal", "gamma_db": car_gamma}
+    return Scene([(ground, ground_material, "ground"), (car, car_material, "car")],
+                 sensor={"n_pulses": 64, "altitude": 500.0}, integrator=integrator, velocities={"car": velocity})
+
+
+@pytest.mark.parametrize("scene, message", [
+    (lambda: _car_scene((0.0, 200.0, 0.0)), r"shape 'car': velocity \[0.0, 200.0, 0.0\] m/s takes it .* beyond the still "
+                                            r"scene during the aperture"),
+    (lambda: Scene([(trimesh.creation.box((2, 2, 2)), "pec", "car")], velocities={"truck": (1, 0, 0)}),
+     "velocity given for shape 'truck', which the scene does not have"),
+    (lambda: _car_scene((1.0, 0.0, 0.0), car_gamma=-10.0), "a moving shape's material must be smooth"),
+    (lambda: _car_scene((1.0, 0.0, 0.0), integrator={"lit_regions": "tiles"}), "lit_regions = 'patches'"),
+    (lambda: _car_scene((1.0, float("nan"), 0.0)), "must be three finite numbers"),
+])
+def test_bad_velocities_are_refused_before_tracing(scene, message):
+    with pytest.raises(ParameterError, match=message):
+        load_scene(scene())
+
+
+def test_a_car_leaving_the_scene_on_the_command_line_exits_with_2_and_one_message(tmp_path):
+    """``sarmitsuba info`` on urban with a car driving 311 m along a 240 m ground: exit code 2,
+    one line naming the shape, its velocity and the fix, no traceback."""
+    text = (REPO / "scenes" / "urban.xml").read_text().replace('value="meshes/', f'value="{REPO / "scenes"}/meshes/')
+    car = ('<shape type="cube" id="car_b"><transform name="to_world"><scale x="2.2" y="0.9" z="0.7"/>'
+           '<translate x="40" y="20" z="0.9"/></transform><ref id="metal"/>'
+           '<vector name="velocity" value="100, 0, 0"/></shape>')
+    path = tmp_path / "fast_car.xml"
+    path.write_text(text.replace("</scene>", car + "</scene>"))
+    out = subprocess.run([sys.executable, "-m", "sarmitsuba", "info", str(path)], capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "car_b" in out.stderr and "velocity" in out.stderr and "give a speed below" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+@pytest.mark.parametrize("xml, message", [
+    ('<shape type="cube"><vector name="velocity" value="1, 0, 0"/></shape>', "a shape with a velocity needs an id"),
+    ('<shape type="cube" id="car"><vector name="velocity" value="1, 0"/></shape>', "velocity must be three numbers"),
+])
+def test_malformed_velocities_in_xml_name_the_shape(tmp_path, xml, message):
+    path = tmp_path / "bad.xml"
+    path.write_text(f'<scene version="3.0.0">{xml}</scene>')
+    with pytest.raises(ParameterError, match=message):
+        load_scene(str(path))
