@@ -38,11 +38,17 @@ CARS = ("car_a", "car_b", "car_c")
 
 
 def _still_traffic(path) -> str:
-    """traffic.xml with every velocity set to zero (as text, written beside it by the caller)."""
-    text = path.read_text()
-    for line in [ln for ln in text.splitlines() if 'name="velocity"' in ln]:
-        text = text.replace(line, line.split("value=")[0] + 'value="0, 0, 0"/>')
-    return text
+    """traffic.xml as one file: the urban scene it includes (mesh paths made absolute) and its
+    cars without their velocities."""
+    import xml.etree.ElementTree as ET
+    folder = path.parent
+    urban = ET.fromstring((folder / "urban.xml").read_text().replace('value="meshes/', f'value="{folder}/meshes/'))
+    for element in ET.fromstring(path.read_text()):
+        if element.tag in ("bsdf", "shape"):
+            for velocity in element.findall("vector[@name='velocity']"):
+                element.remove(velocity)
+            urban.append(element)
+    return ET.tostring(urban, encoding="unicode")
 
 
 def _run(scene: str, sensor: dict, integrator: dict, differenced: bool = True) -> tuple[dict, np.ndarray]:
@@ -74,7 +80,7 @@ def run(quick: bool = False) -> list[dict]:
     traffic = builtin_scenes()["traffic"]
     with tempfile.TemporaryDirectory() as folder:
         still = Path(folder) / "traffic_still.xml"
-        still.write_text(_still_traffic(traffic).replace('filename="urban.xml"', f'filename="{traffic.parent}/urban.xml"'))
+        still.write_text(_still_traffic(traffic))
         reference, image = _run(str(traffic), sensor, {"pulses_per_trace": 1})
         rows = [{"scene": "traffic", "setting": "N=1 (reference)", **reference, "nrmse_db": float("-inf")}]
         for setting, scene, differenced in (("automatic, differenced rates (default)", str(traffic), True),

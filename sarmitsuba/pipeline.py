@@ -34,7 +34,8 @@ __all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "c
 
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
-                "summary": "summary.json", "pauli": "pauli.png"}
+                "summary": "summary.json", "pauli": "pauli.png", "ati": "ati.npz", "dpca": "dpca.npz",
+                "ati_png": "ati.png"}
 #: Standard-format files of ``render(formats=...)`` and ``focus --sicd``, by format: CPHD 1.1
 #: phase history (:mod:`sarmitsuba.formats.cphd`), SICD 1.x complex image in NITF (:mod:`sarmitsuba.formats.sicd`),
 #: GeoTIFF ground-plane intensity in UTM (:mod:`sarmitsuba.formats.geotiff`).
@@ -100,6 +101,9 @@ class Simulation:
     images_per_order: tuple = ()
     #: ``quad``: one Simulation per channel (:data:`sarmitsuba.core.radar.CHANNELS`); else empty.
     channels: Mapping[str, "Simulation"] = dataclasses.field(default_factory=dict)
+    #: Sensor ``ati_baseline`` > 0: the trailing channel's Simulation (its raw data and image on
+    #: this one's grid, docs/physics.md (V6)); else None.
+    aft: "Simulation | None" = None
 
     def summary(self) -> str:
         """One line: scene, pulses, raw and image sizes, trace and focus seconds, and the azimuth
@@ -181,7 +185,16 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     timings = {"load": t["load"] - t["start"], "trace": t["trace"] - t["load"], **spent}
     if not result.channels:
         raw, image, _, per_order, images = products[params.polarization]
-        return Simulation(loaded, raw, image, result, timings, per_order, images)
+        aft = None
+        if params.ati_baseline > 0:        # (V6): the trailing phase centre, traced and focused alike
+            trailing = geometry.trailing(params.ati_baseline)
+            aft_result = trace(loaded.scene, params, trailing, window, footprint, settings, setup.table,
+                               progress=progress, effects=effects)
+            aft_raw = binning.to_raw_data(aft_result.contributions(), aft_result, window, params,
+                                          _shifted(trailing, loaded.offset), {**metadata, "ati_channel": "aft"},
+                                          noise_seed=settings.seed + (1 << 40))
+            aft = Simulation(loaded, aft_raw, focus(aft_raw, "focus aft"), aft_result, timings)
+        return Simulation(loaded, raw, image, result, timings, per_order, images, aft=aft)
     channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images)
                 for name, (raw, image, channel, per_order, images) in products.items()}
     return dataclasses.replace(channels["HH"], trace=result, channels=channels)
@@ -350,6 +363,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
                 paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
         if sim.channels:
             paths["pauli"] = _write_pauli(out, sim)
+        if sim.aft is not None:                     # (V6), (V7): the trailing channel, ATI and DPCA
+            paths.update(_write_products(out, sim.aft.raw, sim.aft.image, sim.loaded.params, suffix="_aft"))
+            paths.update(_write_along_track(out, sim))
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
     return summary
@@ -502,6 +518,22 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
             image, path, title=title, figsize=(10.0, 8.0), dpi=110))
         paths = written.result()
     paths[f"png{suffix}"] = png
+    return paths
+
+
+def _write_along_track(out: OutputDirectory, sim: Simulation) -> dict:
+    """``ati.npz`` (the interferogram ``I_fore I_aft*``), ``dpca.npz`` (``I_fore - I_aft``) and
+    ``ati.png``, on the fore image's grid (docs/physics.md (V6), (V7))."""
+    from .analysis.along_track import ati_interferogram, dpca_image
+    from .products.figures_ati import write_ati_figure
+    meta = {**sim.image.metadata, "ati_baseline": sim.loaded.params.ati_baseline}
+    ati, dpca = ati_interferogram(sim.image, sim.aft.image), dpca_image(sim.image, sim.aft.image)
+    products = {name: dataclasses.replace(sim.image, data=data.astype(np.complex64), metadata={**meta, "product": name})
+                for name, data in (("ati", ati), ("dpca", dpca))}
+    paths = {name: out.write(OUTPUT_FILES[name], image.save) for name, image in products.items()}
+    title = f"{sim.raw.metadata['scene']}  along-track baseline {sim.loaded.params.ati_baseline:g} m"
+    paths["ati_png"] = out.write(OUTPUT_FILES["ati_png"], lambda path: write_ati_figure(sim.image, ati, dpca, path,
+                                                                                         title))
     return paths
 
 

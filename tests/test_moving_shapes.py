@@ -74,7 +74,7 @@ def test_zero_velocities_render_exactly_as_a_still_scene(tmp_path):
 def test_the_traffic_scene_lists_its_moving_shapes():
     loaded = load_scene("traffic")
     assert loaded.motion.ids == ("car_a", "car_b", "car_c")
-    assert np.allclose(loaded.motion.velocities(), [[0, 8, 0], [15, 0, 0], [7, -7, 0]])
+    assert np.allclose(loaded.motion.velocities(), [[0, 2, 0], [15, 0, 0], [3, -1.5, 0]])
     effect = next(e for e in active_effects(loaded) if e.name == "moving shapes")
     assert "car_b at (15.0, 0.0, 0.0) m/s" in effect.reason
 

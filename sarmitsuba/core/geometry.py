@@ -92,6 +92,17 @@ class AcquisitionGeometry:
         """Whether the antenna's along-track axis turns with the pulses (:attr:`beam_axes`)."""
         return self.beam_axes is not None
 
+    def trailing(self, baseline: float) -> "AcquisitionGeometry":
+        """The geometry of a phase centre ``baseline`` [m] behind this one along each pulse's
+        direction of flight (along-track interferometry, docs/physics.md (V6)): every position
+        moved by ``-baseline v / |v|``, the pulse times kept."""
+        unit = self.velocity / np.maximum(np.linalg.norm(self.velocity, axis=1, keepdims=True), 1e-300)
+        back = -float(baseline) * unit
+        moved = {name: getattr(self, name) + back for name in
+                 ("positions", "rx_positions", "nominal_positions", "nominal_rx_positions")
+                 if getattr(self, name) is not None}
+        return replace(self, **moved)
+
     def shifted(self, offset: np.ndarray) -> "AcquisitionGeometry":
         """The geometry with every position and the scene centre moved by ``offset`` [m]."""
         offset = np.asarray(offset, np.float64)

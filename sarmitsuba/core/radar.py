@@ -176,6 +176,12 @@ class RadarParameters:
     orbit_direction : str
         ``trajectory = "orbit"``: ``"descending"`` (default) or ``"ascending"``: the satellite moves
         south or north as it passes the scene.
+    ati_baseline : float, m
+        Along-track interferometry: 0 (default) for one channel; ``d`` > 0 adds a second
+        channel whose phase centre trails the first by ``d`` along the flight direction (the
+        two-way, monostatic-equivalent separation: receivers ``2 d`` apart behind one
+        transmitter, or ping-pong antennas ``d`` apart), rendered in the same call
+        (docs/physics.md (V6)).
     orbit_pass_time : str, optional
         An ECEF orbit file with an absolute clock: the UTC time (ISO 8601 with an offset) near the
         closest approach of the pass to image, when the file passes the scene several times
@@ -230,6 +236,7 @@ class RadarParameters:
     orbit_inclination: float = 98.18
     orbit_direction: str = "descending"
     orbit_pass_time: str | None = None
+    ati_baseline: float = 0.0
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -332,6 +339,12 @@ class RadarParameters:
         object.__setattr__(self, "motion_error", None if error is None else str(error))
         if not isinstance(self.stop_and_hop, bool):
             raise ParameterError(f"stop_and_hop = {self.stop_and_hop!r}: give true or false")
+        if not (isinstance(self.ati_baseline, (int, float)) and 0.0 <= self.ati_baseline <= 1e3):
+            raise ParameterError(f"ati_baseline = {self.ati_baseline!r} m is outside the valid range [0, 1000] m (the "
+                                 "along-track separation of the second channel's phase centre; 0 = one channel)")
+        if self.ati_baseline > 0 and self.polarization == "quad":
+            raise ParameterError("ati_baseline > 0 with polarization = 'quad': along-track interferometry renders one "
+                                 "polarisation; choose HH, VV, HV or VH")
 
     @property
     def straight_track(self) -> bool:
