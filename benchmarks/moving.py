@@ -1,6 +1,6 @@
 """Benchmark: what moving shapes cost, and what the sub-apertures' rates leave (docs/physics.md (V1)-(V3)).
 
-On ``traffic`` (urban with three metal cars at 8, 15 and 9.9 m/s), in one run, each setting
+On ``traffic`` (urban with three metal cars at 2, 15 and 3.4 m/s), in one run, each setting
 after a warm-up:
 
 * one pulse per trace (every pulse's geometry traced where the wave meets the cars): the
