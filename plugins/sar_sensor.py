@@ -115,6 +115,13 @@
    - boolean
    - ``false`` (default): each echo is received where the antenna has moved to during it
      (docs/physics.md (J3)); ``true``: the stop-and-hop approximation, for comparison.
+ * - ati_baseline
+   - float, m
+   - Along-track interferometry: 0 (default) for one channel; ``d`` > 0 adds a second channel
+     whose phase centre trails the first by ``d`` along the flight direction (the two-way,
+     monostatic-equivalent separation), rendered in the same call and written as
+     ``raw_aft.npz`` / ``image_aft.npz`` with ``ati.npz``, ``dpca.npz`` and ``ati.png``
+     (docs/physics.md (V6), (V7)). [0, 1000]; not with ``polarization = quad``.
  * - polarization
    - string
    - ``VV`` (default) or ``HH``: one co-polarised channel; ``HV`` or ``VH`` (receive,

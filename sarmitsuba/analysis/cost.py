@@ -328,7 +328,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     effects = active_effects(loaded) if effects is None else effects
     st, p = loaded.settings, loaded.params
     n_pulses = p.n_pulses
-    size = pulses_per_trace(p, st, n_pulses)
+    size = pulses_per_trace(p, st, n_pulses, effects.moving_shapes)
     n_subs = math.ceil(n_pulses / size)
     # a sub-aperture's union of its pulses' lattices: the cells its antenna travel adds along track
     spread = math.ceil(min(size - 1, n_pulses - 1) * p.velocity / p.prf / footprint.spacing_azimuth)

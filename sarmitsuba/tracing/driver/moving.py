@@ -12,6 +12,8 @@ launch.
 """
 from __future__ import annotations
 
+import math
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -46,6 +48,21 @@ ALIGN_TOLERANCE = 50.0
 DIFFERENCED = True
 
 
+#: The farthest [m] a moving shape travels within one automatic sub-aperture (V2): the lanes'
+#: rates are first-order and a boundary that a moving shape drags across a patch line changes the
+#: pieces it cuts. Chosen from ``benchmarks/moving.py``.
+MOVING_TRAVEL = 0.5
+
+
+def moving_pulses(motion: ShapeMotion | None, prf: float) -> int | float:
+    """The most pulses [count] an automatic sub-aperture may hold while the fastest moving shape
+    travels at most :data:`MOVING_TRAVEL`; ``inf`` when nothing moves."""
+    speed = 0.0 if motion is None else float(np.linalg.norm(motion.velocities(), axis=1).max())
+    if speed == 0 or not math.isfinite(MOVING_TRAVEL):
+        return math.inf
+    return max(1, math.floor(MOVING_TRAVEL * prf / speed))
+
+
 def _recorded(tracer, ctx: dict, launch) -> tuple[list, dict]:
     """Run ``tracer`` on ``launch`` without depositing: the ``(kind, lanes, pieces, depth)`` it
     would deposit, in order (``kind`` ``"terms"`` or ``"clutter"``), and its counters."""
@@ -60,10 +77,13 @@ def _recorded(tracer, ctx: dict, launch) -> tuple[list, dict]:
         tracer.terms, tracer.clutter = terms, clutter
 
 
-def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, reference: np.ndarray) -> list:
-    """``calls`` (:func:`_recorded`) with every term lane's and piece's rate of the shapes' motion
-    added: the difference of its pair in ``moved`` (the geometry ``step`` seconds later) over
-    ``step``, per metre of the antenna's travel (V2). GeometryChange where the two do not pair."""
+def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, reference: np.ndarray,
+                shift: float = 0.0) -> list:
+    """``calls`` (:func:`_recorded`, the geometry ``shift`` seconds after the reference time) with
+    every term lane's and piece's rate of the shapes' motion added: the difference of its pair in
+    ``moved`` (the geometry ``step`` seconds later) over ``step``, per metre of the antenna's
+    travel, and its positions carried back by ``shift`` at those rates (V2). GeometryChange where
+    the two do not pair."""
     if len(calls) != len(moved):
         raise topology_change("bounce orders reached")
     out = []
@@ -74,7 +94,7 @@ def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, ref
             tolerance = ALIGN_TOLERANCE * RATE_DISPLACEMENT + 1e-9
             plus, plus_pieces = align_terms(lanes, pieces, lanes_m, pieces_m, tolerance)
             lanes, pieces = target.with_rates(lanes, pieces, tangent_lanes(lanes, plus, step),
-                                              tangent_lanes(pieces, plus_pieces, step), reference)
+                                              tangent_lanes(pieces, plus_pieces, step), reference, shift)
         out.append((kind, lanes, pieces, depth))
     return out
 
@@ -119,9 +139,7 @@ class MovingShapes:
             self.surfaces = tracer.surfaces
             step = RATE_DISPLACEMENT / max(float(np.abs(self.motion.velocities()).max()), 1e-300)
             calls, stats = _recorded(tracer, ctx, launch)
-            later = self._tracer({k: v + step * self.velocity[k] for k, v in vertices.items()})
-            moved, _ = _recorded(later, ctx, launch)
-            lanes = _with_rates(calls, moved, step, target, launch.reference)
+            lanes = self._differenced(calls, ctx, launch, vertices, step, target)
         except GeometryChange:             # (V2) falls back to the rigid rates (V3) for this launch
             self.fallbacks += 1
             return self._rigid(ctx, launch, vertices, antenna)
@@ -133,6 +151,27 @@ class MovingShapes:
             else:
                 tracer.clutter(ctx, data, depth)
         return stats
+
+    def _differenced(self, calls: list, ctx: dict, launch, vertices: dict, step: float, target) -> list:
+        """``calls`` with the rates of the geometry ``step`` seconds later, or earlier (V2). Where
+        neither pairs with the sub-aperture's own (a boundary on a corner at the reference time,
+        slivers there and nowhere else), the lanes of the geometry ``+-step`` later, paired with
+        the one ``+-2 step`` later and carried back to the reference time. GeometryChange where
+        none pairs."""
+        recorded = {0.0: calls}
+
+        def at(t: float) -> list:
+            if t not in recorded:
+                moved = {k: v + t * self.velocity[k] for k, v in vertices.items()}
+                recorded[t] = _recorded(self._tracer(moved), ctx, launch)[0]
+            return recorded[t]
+
+        for base, h in ((0.0, step), (0.0, -step), (step, step), (-step, -step)):
+            try:
+                return _with_rates(at(base), at(base + h), h, target, launch.reference, base)
+            except GeometryChange:
+                continue
+        raise topology_change("lanes")
 
     def _rigid(self, ctx: dict, launch, vertices: dict, antenna: np.ndarray) -> dict:
         """Trace ``launch`` with the shapes at ``vertices`` and their lanes at the rigid rates (V3)."""
@@ -147,7 +186,9 @@ class MovingShapes:
         """A mesh tracer of the scene with the moving shapes at ``vertices`` (the Mitsuba scene's
         buffers rewritten: its rays meet them there)."""
         set_vertices(self.kernel.scene, vertices)
-        return self.kernel.mesh_tracer(*moved_surfaces(self.kernel.scene, self.kernel.material_table, vertices))
+        tracer = self.kernel.mesh_tracer(*moved_surfaces(self.kernel.scene, self.kernel.material_table, vertices))
+        tracer.simplify = DIFFERENCED      # outlines whose corners do not hang on rounding, as (AD4)'s: they pair
+        return tracer
 
     def _part_velocity(self, surfaces) -> np.ndarray:
         """float64 [n_parts, 3]: each part's velocity (its shape's; zero for still shapes)."""

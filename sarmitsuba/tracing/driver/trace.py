@@ -41,6 +41,7 @@ from ...scene import planning
 from ...scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch
+from .moving import moving_pulses
 from ..integration.pulse_view import antenna_axes
 from .stages import STAGES, by_order
 from .threads import host_threads
@@ -298,7 +299,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     launch within ``max_batch_rays`` tubes and the histogram within :data:`HISTOGRAM_ENTRIES`."""
     n_pulses = geometry.positions.shape[0]
     n_channels, groups = len(effects.channels), effects.groups      # the device's histogram: (D5)
-    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses))
+    subs = subapertures(geometry, footprint, scene, pulses_per_trace(params, settings, n_pulses, effects.moving_shapes))
     per_sub = subs.n_i * footprint.n_range + footprint.refined_rays // max(1, len(subs.first))
     pulse_budget = max(subs.size, HISTOGRAM_ENTRIES // (len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
                                                         * n_channels))
@@ -503,19 +504,19 @@ class SubApertures:
     along_limits: np.ndarray
 
 
-def pulses_per_trace(params: RadarParameters, settings: TraceSettings, n_pulses: int) -> int:
+def pulses_per_trace(params: RadarParameters, settings: TraceSettings, n_pulses: int, moving=None) -> int:
     """Pulses per sub-aperture: the ``pulses_per_trace`` setting, or automatically
     :data:`SUBAPERTURE_CELLS` along-track resolution cells of antenna travel (at least 1, at most
-    every pulse), docs/physics.md (T3)."""
+    every pulse), docs/physics.md (T3), and with moving shapes (a ShapeMotion) no more than
+    :func:`~sarmitsuba.tracing.driver.moving.moving_pulses` (V2)."""
     if settings.pulses_per_trace > 0:
         return min(settings.pulses_per_trace, max(n_pulses, 1))
-    spacing = params.velocity / params.prf
-    return int(max(1, min(max(n_pulses, 1), math.floor(SUBAPERTURE_CELLS * params.azimuth_resolution / spacing))))
+    cells = math.floor(SUBAPERTURE_CELLS * params.azimuth_resolution / (params.velocity / params.prf))
+    return int(max(1, min(max(n_pulses, 1), cells, moving_pulses(moving, params.prf))))
 
 
-#: Automatic sub-aperture: the antenna travels this many azimuth resolution cells between traces
-#: (``pulses_per_trace = 0``); chosen from ``benchmarks/subaperture.py`` (image NRMSE against
-#: per-pulse tracing, urban and Munich).
+#: Automatic sub-aperture: the antenna travels this many azimuth resolution cells between traces (``pulses_per_trace
+#: = 0``); chosen from ``benchmarks/subaperture.py`` (image NRMSE against per-pulse tracing, urban and Munich).
 SUBAPERTURE_CELLS = 16.0
 
 

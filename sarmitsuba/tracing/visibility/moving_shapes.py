@@ -75,13 +75,23 @@ class TargetMotion:
         added = np.stack([point_rate, unfolded_rate, point_rate, unfolded_rate, np.zeros_like(point_rate)], axis=1)
         return self._added(lanes, added, reference)
 
-    def with_rates(self, lanes: TermLanes, pieces, d_lanes: TermLanes, d_pieces, reference: np.ndarray):
+    def with_rates(self, lanes: TermLanes, pieces, d_lanes: TermLanes, d_pieces, reference: np.ndarray,
+                   shift: float = 0.0):
         """``(lanes, pieces)`` with the rates ``d_lanes``, ``d_pieces`` (their fields' derivatives in
-        time, m/s: the lit geometry differenced, (V2)) added to their own per metre of travel."""
+        time, m/s: the lit geometry differenced, (V2)) added to their own per metre of travel;
+        lanes of the geometry ``shift`` seconds after the reference time are carried back to it
+        (``x - shift dx/dt``)."""
         added = np.stack([d_lanes.point, d_lanes.unfolded, d_lanes.middle, d_lanes.middle_unfolded,
                           d_lanes.edge.astype(np.float64)], axis=1)
+        # an end where a moving line meets a still one at a grazing angle slides along it: frozen,
+        # as (M8) freezes the antenna's (its first-order motion spans changes of the piece's shape)
+        limit = SLIDE_LIMIT * float(np.linalg.norm(self.part_velocity, axis=1).max(initial=0.0))
+        sliding = np.linalg.norm(added, axis=2).max(axis=1) > limit
+        added[sliding] = 0.0
         if not np.any(added):
             return lanes, pieces
+        if shift:
+            lanes, pieces = _carried(lanes, d_lanes, shift), _carried(pieces, d_pieces, shift)
         lanes = self._added(lanes, added, reference)
         speed = float(np.linalg.norm(self.antenna_velocity[0]))
         if speed > 0 and len(pieces.segment_mid):
@@ -109,6 +119,26 @@ class TargetMotion:
         per_metre = np.where(np.abs(along) > 0, 1.0 / np.where(along != 0, along, 1.0), 0.0)
         motion = motion + added * per_metre[:, :, None]
         return dataclasses.replace(lanes, origin=origin, axis=axis, motion=motion.astype(lane_float()))
+
+
+#: A lane whose point, image or edge moves faster than this many times the fastest shape (an end
+#: sliding along a line that a moving line meets at a grazing angle) keeps still (V2).
+SLIDE_LIMIT = 8.0
+
+#: The positional fields a lane or piece moves by (:func:`_carried`).
+_POSITIONS = ("point", "unfolded", "middle", "middle_unfolded", "edge", "centroid", "centroid_unfolded",
+              "segment_mid", "segment_edge")
+
+
+def _carried(table, rates, shift: float):
+    """``table`` (term lanes or piece table) with its positional fields moved by ``-shift`` times
+    their ``rates`` (the same dataclass, m/s), in their own dtypes."""
+    moved = {}
+    for name in _POSITIONS:
+        value = getattr(table, name, None)
+        if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+            moved[name] = (value.astype(np.float64) - shift * getattr(rates, name).astype(np.float64)).astype(value.dtype)
+    return dataclasses.replace(table, **moved)
 
 
 def target_rates(surfaces, parts: list[int], point: np.ndarray, velocity: np.ndarray,
