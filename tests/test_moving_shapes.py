@@ -99,6 +99,8 @@ def _car_scene(velocity, ground_gamma=None, car_gamma=None, integrator=None):
     (lambda: _car_scene((1.0, 0.0, 0.0), car_gamma=-10.0), "a moving shape's material must be smooth"),
     (lambda: _car_scene((1.0, 0.0, 0.0), integrator={"lit_regions": "tiles"}), "lit_regions = 'patches'"),
     (lambda: _car_scene((1.0, float("nan"), 0.0)), "must be three finite numbers"),
+    (lambda: _car_scene({"spin": (0.0, 0.0, 10.0)}), "unknown motion 'spin'; give 'velocity'"),
+    (lambda: _car_scene({"angular_velocity": (0.0, 10.0)}), "angular_velocity .* must be three finite numbers in deg/s"),
 ])
 def test_bad_velocities_are_refused_before_tracing(scene, message):
     with pytest.raises(ParameterError, match=message):

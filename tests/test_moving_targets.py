@@ -210,3 +210,27 @@ def test_a_radial_velocity_walks_the_echo_through_range_cells(tmp_path):
     cell = SPEED_OF_LIGHT / (2 * SENSOR["bandwidth"])
     assert np.ptp(expected) / 2 > 5 * cell                                  # the walk spans cells (one way)
     assert np.max(np.abs(walked - expected)) < 0.05 * 2 * cell, np.max(np.abs(walked - expected))
+
+
+@pytest.mark.parametrize("w", [60.0, -90.0])
+def test_a_turning_trihedral_is_displaced_by_its_apex_radial_velocity(tmp_path, w):
+    """The trihedral turning at ``w`` deg/s about the x axis through the middle of its box
+    (``angular_velocity``): its apex, the triple bounce's phase centre, moves at ``w x (apex -
+    centre)``, whose range rate (-0.25 and +0.38 m/s) displaces the image by ``-R v_r / V``
+    (+0.63 and -0.94 m) within 0.1 of an azimuth cell. The rotation left out, or taken about the
+    apex, leaves the image in place."""
+    text = TRIHEDRAL.read_text().replace('value="meshes/', f'value="{REPO / "scenes"}/meshes/')
+    path = tmp_path / "turning.xml"
+    path.write_text(text.replace('<ref id="metal"/>',
+                                 f'<ref id="metal"/>\n        <vector name="angular_velocity" value="{w}, 0, 0"/>'))
+    from sarmitsuba.scene.loader import load_scene
+    loaded = load_scene(str(path), SENSOR)
+    box = loaded.shape_boxes[loaded.motion.shapes[0]]
+    centre = 0.5 * (box[0] + box[1])                       # the trihedral's apex is at the origin
+    v_apex = np.cross(np.radians([w, 0.0, 0.0]), -centre)
+    shift = -R0 * float(v_apex @ LOOK) / SENSOR["velocity"]
+    assert abs(shift) > 0.5 * AZIMUTH_CELL
+    sim = simulate(str(path), sensor_overrides=SENSOR, focuser="bp", image_size=(int(2 * abs(shift) / 0.25) + 96, 32),
+                   image_spacing=0.25, window="rect")
+    _, _, azimuth = _peak(sim.image)
+    assert abs(azimuth - shift) < 0.1 * AZIMUTH_CELL, (azimuth, shift)

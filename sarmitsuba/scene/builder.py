@@ -75,8 +75,9 @@ class Scene:
         Reported as the scene ``python:<name>`` (``LoadedScene.source``, metadata, titles).
     velocities : mapping, optional
         Shape id -> velocity (3 floats, m/s, scene frame), as Sionna RT's ``SceneObject.velocity``:
-        the shape moves at it, standing where ``meshes`` puts it at the middle of the aperture
-        (:mod:`sarmitsuba.scene.motion`; checked when the scene is loaded).
+        the shape moves at it, standing where ``meshes`` puts it at the middle of the aperture;
+        or ``{"velocity": v, "angular_velocity": w}``, ``w`` in deg/s about the middle of the
+        shape's box (:mod:`sarmitsuba.scene.motion`; checked when the scene is loaded).
 
     Raises
     ------

@@ -243,7 +243,10 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
 
 def _moving(motion) -> Effect:
     if motion is not None:
-        shapes = ", ".join(f"{i} at {tuple(round(c, 3) for c in v)} m/s" for i, v in zip(motion.ids, motion.velocity))
+        turns = motion.angular_velocity or ((0.0, 0.0, 0.0),) * len(motion.ids)
+        shapes = ", ".join(f"{i} at {tuple(round(c, 3) for c in v)} m/s" + (
+            f" turning at {tuple(round(c, 3) for c in w)} deg/s" if any(w) else "")
+            for i, v, w in zip(motion.ids, motion.velocity, turns))
         return Effect("moving shapes", True, f"{shapes}: traced where each pulse sees them (docs/physics.md (V1)-(V3))")
     return Effect("moving shapes", False, "no shape has a velocity: the scene holds still")
 

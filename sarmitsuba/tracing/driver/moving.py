@@ -18,6 +18,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from scipy.spatial.transform import Rotation
+
 from ...core.constants import SPEED_OF_LIGHT
 from ...scene.motion import ShapeMotion
 from ..mesh.facets import scene_meshes, set_vertices
@@ -28,13 +30,20 @@ from ..visibility.moving_shapes import TargetMotion
 __all__ = ["MovingShapes", "shape_positions"]
 
 
-def shape_positions(base: np.ndarray, velocity: np.ndarray, time: float, reference: np.ndarray) -> np.ndarray:
-    """Vertices float64 [n_v, 3] (m) of a shape given at ``base`` [n_v, 3] at mid-aperture and moving
-    at ``velocity`` [3] (m/s), as the wave transmitted at ``time`` [s, from mid-aperture] from
-    ``reference`` [3] meets it: ``base + v (time + |reference - centre| / c)`` (V1)."""
-    centre = 0.5 * (base.min(axis=0) + base.max(axis=0))
-    delay = float(np.linalg.norm(np.asarray(reference, float) - centre)) / SPEED_OF_LIGHT
-    return base + np.asarray(velocity, float) * (time + delay)
+def shape_positions(base: np.ndarray, velocity: np.ndarray, time: float, reference: np.ndarray,
+                    angular: np.ndarray | None = None, centre: np.ndarray | None = None) -> np.ndarray:
+    """Vertices float64 [n_v, 3] (m) of a shape given at ``base`` [n_v, 3] at mid-aperture, moving
+    at ``velocity`` [3] (m/s) and turning at ``angular`` [3] (rad/s) about ``centre`` [3] (m; the
+    middle of ``base``'s box by default), as the wave transmitted at ``time`` [s, from
+    mid-aperture] from ``reference`` [3] meets it, ``tau = time + |reference - centre| / c`` later:
+    ``centre + v tau + R(w tau) (base - centre)`` (V1), ``R`` the rotation by the angle vector
+    ``w tau`` (``scipy.spatial.transform.Rotation.from_rotvec``)."""
+    centre = 0.5 * (base.min(axis=0) + base.max(axis=0)) if centre is None else np.asarray(centre, float)
+    tau = time + float(np.linalg.norm(np.asarray(reference, float) - centre)) / SPEED_OF_LIGHT
+    moved = base - centre
+    if angular is not None and np.any(angular):
+        moved = Rotation.from_rotvec(np.asarray(angular, float) * tau).apply(moved)
+    return centre + moved + np.asarray(velocity, float) * tau
 
 
 #: The moving shapes' largest displacement [m] between the two geometries whose lanes are
@@ -57,7 +66,7 @@ MOVING_TRAVEL = 0.5
 def moving_pulses(motion: ShapeMotion | None, prf: float) -> int | float:
     """The most pulses [count] an automatic sub-aperture may hold while the fastest moving shape
     travels at most :data:`MOVING_TRAVEL`; ``inf`` when nothing moves."""
-    speed = 0.0 if motion is None else float(np.linalg.norm(motion.velocities(), axis=1).max())
+    speed = 0.0 if motion is None else float(motion.speeds().max())
     if speed == 0 or not math.isfinite(MOVING_TRAVEL):
         return math.inf
     return max(1, math.floor(MOVING_TRAVEL * prf / speed))
@@ -114,6 +123,9 @@ class MovingShapes:
         meshes = scene_meshes(kernel.scene)
         self.base = {k: meshes[k][0].copy() for k in motion.shapes}
         self.velocity = dict(zip(motion.shapes, motion.velocities()))
+        self.angular = dict(zip(motion.shapes, motion.angular_velocities()))
+        self.centre = dict(zip(motion.shapes, np.asarray(motion.centre, float).reshape(-1, 3))) if motion.centre \
+            else {k: None for k in motion.shapes}
         shapes = list(kernel.scene.shapes())
         self.mitsuba_ids = {k: int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shapes[k]))[0]) for k in motion.shapes}
         self.surfaces = kernel.mesh.surfaces if kernel.mesh is not None else None
@@ -128,7 +140,7 @@ class MovingShapes:
         first, last = int(launch.first[0]), int(launch.first[0] + launch.count[0] - 1)
         time = 0.5 * (launch.pulse_time[first] + launch.pulse_time[last])
         reference = launch.reference[0]
-        vertices = {k: shape_positions(self.base[k], self.velocity[k], time, reference) for k in self.base}
+        vertices = self._vertices(time, reference)
         span = launch.pulse_time[last] - launch.pulse_time[first]
         antenna = (launch.antenna[last] - launch.antenna[first]) / span if span > 0 else np.zeros(3)
         if launch.count[0] == 1 or not DIFFERENCED:     # (one pulse: no travel, no rates)
@@ -137,9 +149,9 @@ class MovingShapes:
             tracer = self._tracer(vertices)
             target = TargetMotion(self._part_velocity(tracer.surfaces), antenna[None])
             self.surfaces = tracer.surfaces
-            step = RATE_DISPLACEMENT / max(float(np.abs(self.motion.velocities()).max()), 1e-300)
+            step = RATE_DISPLACEMENT / max(float(self.motion.speeds().max()), 1e-300)
             calls, stats = _recorded(tracer, ctx, launch)
-            lanes = self._differenced(calls, ctx, launch, vertices, step, target)
+            lanes = self._differenced(calls, ctx, launch, time, step, target)
         except GeometryChange:             # (V2) falls back to the rigid rates (V3) for this launch
             self.fallbacks += 1
             return self._rigid(ctx, launch, vertices, antenna)
@@ -152,7 +164,13 @@ class MovingShapes:
                 tracer.clutter(ctx, data, depth)
         return stats
 
-    def _differenced(self, calls: list, ctx: dict, launch, vertices: dict, step: float, target) -> list:
+    def _vertices(self, time: float, reference: np.ndarray) -> dict:
+        """Every moving shape's vertices where the wave sent at ``time`` [s, from mid-aperture] from
+        ``reference`` meets it (V1)."""
+        return {k: shape_positions(self.base[k], self.velocity[k], time, reference, self.angular[k], self.centre[k])
+                for k in self.base}
+
+    def _differenced(self, calls: list, ctx: dict, launch, time: float, step: float, target) -> list:
         """``calls`` with the rates of the geometry ``step`` seconds later, or earlier (V2). Where
         neither pairs with the sub-aperture's own (a boundary on a corner at the reference time,
         slivers there and nowhere else), the lanes of the geometry ``+-step`` later, paired with
@@ -162,8 +180,7 @@ class MovingShapes:
 
         def at(t: float) -> list:
             if t not in recorded:
-                moved = {k: v + t * self.velocity[k] for k, v in vertices.items()}
-                recorded[t] = _recorded(self._tracer(moved), ctx, launch)[0]
+                recorded[t] = _recorded(self._tracer(self._vertices(time + t, launch.reference[0])), ctx, launch)[0]
             return recorded[t]
 
         for base, h in ((0.0, step), (0.0, -step), (step, step), (-step, -step)):
