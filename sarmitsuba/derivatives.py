@@ -291,6 +291,9 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     loaded = load_scene(source, sensor_overrides, integrator_overrides)
     if loaded.settings.split_bounces:
         raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
+    if loaded.motion is not None:
+        raise ParameterError(f"derivatives of a scene with moving shapes ({', '.join(loaded.motion.ids)}) are not "
+                             "taken: give the shapes no velocity, or derive at one instant of their motion")
     moved = {}
     for parameter, amount in dict(at or {}).items():
         if not isinstance(parameter, ShapeParameter) or not np.isfinite(amount):

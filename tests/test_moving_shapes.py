@@ -156,3 +156,11 @@ def test_sub_apertures_follow_a_moving_car_as_one_pulse_per_trace_does():
         assert nrmse(image(0), reference) > -35.0
     finally:
         moving.DIFFERENCED = saved
+
+
+def test_derivatives_of_a_scene_with_moving_shapes_are_refused():
+    """The geometric derivatives' tracers would replace the one that follows the cars: refused,
+    naming the moving shapes, rather than derived as if they stood still."""
+    from sarmitsuba.derivatives import MaterialParameter, raw_derivative
+    with pytest.raises(ParameterError, match=r"moving shapes \(car\)"):
+        raw_derivative(_car_scene((1.0, 0.0, 0.0)), MaterialParameter("ground", "relative_permittivity"))
