@@ -365,6 +365,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
             paths["pauli"] = _write_pauli(out, sim)
         if sim.aft is not None:                     # (V6), (V7): the trailing channel, ATI and DPCA
             paths.update(_write_products(out, sim.aft.raw, sim.aft.image, sim.loaded.params, suffix="_aft"))
+            paths.update(write_exports(out, sim.aft.raw, sim.aft.image, formats, suffix="_aft",
+                                       geotiff_north_up=geotiff_north_up, sicd_plane=sicd_plane,
+                                       sicd_weighting=sicd_weighting))
             paths.update(_write_along_track(out, sim))
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))

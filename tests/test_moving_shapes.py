@@ -164,3 +164,21 @@ def test_derivatives_of_a_scene_with_moving_shapes_are_refused():
     from sarmitsuba.derivatives import MaterialParameter, raw_derivative
     with pytest.raises(ParameterError, match=r"moving shapes \(car\)"):
         raw_derivative(_car_scene((1.0, 0.0, 0.0)), MaterialParameter("ground", "relative_permittivity"))
+
+
+@pytest.mark.filterwarnings("ignore:Call to deprecated class CPHDReader:DeprecationWarning")
+def test_render_writes_the_aft_channel_and_its_cphd_trailing_by_the_baseline(tmp_path):
+    """``render --set ati_baseline=0.4 --cphd``: the aft channel's npz and CPHD beside the fore
+    ones, ``ati.npz`` and ``dpca.npz``; read by sarpy, every pulse's TxPos and RcvPos of the aft
+    CPHD lie 0.4 m from the fore one's (in ECEF, whatever the frame's orientation)."""
+    pytest.importorskip("sarpy")
+    import sarpy.io.phase_history
+    from sarmitsuba.pipeline import render
+    render("trihedral", tmp_path, sensor_overrides={"ati_baseline": 0.4, "n_pulses": 24}, formats=("cphd",),
+           progress=False)
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"raw_aft.npz", "image_aft.npz", "raw_aft.cphd", "ati.npz", "dpca.npz", "ati.png"} <= names
+    fore, aft = (sarpy.io.phase_history.open(str(tmp_path / name)).read_pvp_array(0) for name in ("raw.cphd",
+                                                                                                 "raw_aft.cphd"))
+    for field in ("TxPos", "RcvPos"):
+        assert np.allclose(np.linalg.norm(fore[field] - aft[field], axis=1), 0.4, atol=1e-6)
