@@ -49,6 +49,12 @@ CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
 #: kernel launches and their Python tracing, compaction between bounce orders. Measured on the
 #: 2-core machine: 1.2-1.6 for urban and sionna:munich, smooth and rough.
 TRACE_OVERHEAD = 1.3
+#: Moving shapes (docs/physics.md (V1), (V2)): the lit geometries a sub-aperture builds (where the
+#: shapes are, and differenced), and the seconds per piece in its reach that each costs with the
+#: tracer built anew; calibrated on ``traffic`` (``benchmarks/moving.py --quick``: 21.5 s for the 33
+#: sub-apertures of its 260 middle pulses, 26,000 pieces each, 2.7 geometries each).
+MOVING_GEOMETRIES = 2.7
+MOVING_PIECE_SECONDS = 9.4e-6
 
 #: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
 #: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
@@ -363,6 +369,8 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
                           if effects.clutter else 0.0)
         host = (SETUP_TRIANGLE_SECONDS * loaded.n_triangles + SUB_PIECE_SECONDS * float(reach_pieces.sum())
                 + SUB_TRIANGLE_SECONDS * float(reach_triangles.sum()) + CLUTTER_SCATTERER_PULSE_SECONDS * clutter_pulses)
+        if effects.moving_shapes is not None:      # (V1), (V2): the tracer built anew, twice or more per sub-aperture
+            host += MOVING_GEOMETRIES * MOVING_PIECE_SECONDS * float(reach_pieces.sum())
         piece_bytes = int(min(SUBAPERTURE_BYTES, REACH_TRIANGLE_BYTES * reach_triangles.max(initial=0.0)))
 
     def trace_time(closest: float) -> float:
@@ -379,7 +387,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     arrays = dict(apart=arrays_apart, deposit=deposit, path_list=path_list, raw=raw_bytes, image=image_bytes, n_products=n_products,
                   pixels=grid.shape[0] * grid.shape[1])
     memory = _memory(loaded, window, groups, exact, per_sub + footprint.refined_rays // n_subs, (size, n_subs), arrays,
-                     piece_bytes)
+                     piece_bytes, effects.moving_shapes is not None)
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
         pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
@@ -397,7 +405,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
 
 
 def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: bool, per_sub: int,
-            subs: tuple[int, int], arrays: dict, piece_bytes: int = 0) -> dict:
+            subs: tuple[int, int], arrays: dict, piece_bytes: int = 0, moving: bool = False) -> dict:
     """The peak-memory fields of :class:`CostEstimate` (its model; constants at :data:`RUNTIME_BYTES`).
 
     ``groups``: spectra deposited per pulse (channels x bounce groups); ``exact``: the ``exact``
@@ -415,9 +423,10 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     per_pulse_entries = len(SPECTRAL_ORDERS) * max(window.n_fine, 1) * groups
     budget = max(size, HISTOGRAM_ENTRIES // per_pulse_entries)
     per_batch = max(1, min(n_subs, st.max_batch_rays // max(per_sub, 1), budget // size))
-    # the mesh tracer's launches at once, each with that share of the sub-apertures (tracing.driver.threads)
-    at_once = launches_at_once() if piece_bytes else 1
-    per_batch = max(1, per_batch // at_once)
+    # the mesh tracer's launches at once, each with that share of the sub-apertures (tracing.driver.threads);
+    # moving shapes: one sub-aperture per launch, one launch at once (tracing.driver.moving)
+    at_once = launches_at_once() if piece_bytes and not moving else 1
+    per_batch = 1 if moving else max(1, per_batch // at_once)
     lanes = min(st.max_batch_rays, per_batch * per_sub)
     entries = 0 if exact else per_pulse_entries * min(n_pulses, per_batch * size)
     threads = max(1, dr.thread_count())

@@ -72,18 +72,19 @@ def moving_pulses(motion: ShapeMotion | None, prf: float) -> int | float:
     return max(1, math.floor(MOVING_TRAVEL * prf / speed))
 
 
-def _recorded(tracer, ctx: dict, launch) -> tuple[list, dict]:
+def _recorded(tracer, ctx: dict, launch, clutter: bool = True) -> tuple[list, dict]:
     """Run ``tracer`` on ``launch`` without depositing: the ``(kind, lanes, pieces, depth)`` it
-    would deposit, in order (``kind`` ``"terms"`` or ``"clutter"``), and its counters."""
+    would deposit, in order (``kind`` ``"terms"`` or ``"clutter"``; with ``clutter`` false no
+    scatterers are formed: a geometry only differenced needs none), and its counters."""
     calls = []
-    terms, clutter = tracer.terms, tracer.clutter
+    terms, kernel = tracer.terms, tracer.clutter
     tracer.terms = lambda ctx, lanes, pieces, depth: calls.append(("terms", lanes, pieces, depth))
-    if clutter is not None:
-        tracer.clutter = lambda ctx, lanes, depth: calls.append(("clutter", lanes, None, depth))
+    if kernel is not None:
+        tracer.clutter = (lambda ctx, lanes, depth: calls.append(("clutter", lanes, None, depth))) if clutter else None
     try:
         return calls, tracer(ctx, launch)
     finally:
-        tracer.terms, tracer.clutter = terms, clutter
+        tracer.terms, tracer.clutter = terms, kernel
 
 
 def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, reference: np.ndarray,
@@ -93,18 +94,23 @@ def _with_rates(calls: list, moved: list, step: float, target: TargetMotion, ref
     ``moved`` (the geometry ``step`` seconds later) over ``step``, per metre of the antenna's
     travel, and its positions carried back by ``shift`` at those rates (V2). GeometryChange where
     the two do not pair."""
-    if len(calls) != len(moved):
-        raise topology_change("bounce orders reached")
+    moved = iter([call for call in moved if call[0] == "terms"])
     out = []
-    for (kind, lanes, pieces, depth), (kind_m, lanes_m, pieces_m, _) in zip(calls, moved):
-        if kind != kind_m or (len(lanes) == 0) != (len(lanes_m) == 0):
+    for kind, lanes, pieces, depth in calls:
+        if kind != "terms":                         # scatterers: on still shapes only (V1), no rates
+            out.append((kind, lanes, pieces, depth))
+            continue
+        _, lanes_m, pieces_m, _ = next(moved, (None, None, None, None))
+        if lanes_m is None or (len(lanes) == 0) != (len(lanes_m) == 0):
             raise topology_change("lit pieces")
-        if kind == "terms" and len(lanes):
+        if len(lanes):
             tolerance = ALIGN_TOLERANCE * RATE_DISPLACEMENT + 1e-9
             plus, plus_pieces = align_terms(lanes, pieces, lanes_m, pieces_m, tolerance)
             lanes, pieces = target.with_rates(lanes, pieces, tangent_lanes(lanes, plus, step),
                                               tangent_lanes(pieces, plus_pieces, step), reference, shift)
         out.append((kind, lanes, pieces, depth))
+    if next(moved, None) is not None:
+        raise topology_change("bounce orders reached")
     return out
 
 
@@ -180,14 +186,17 @@ class MovingShapes:
 
         def at(t: float) -> list:
             if t not in recorded:
-                recorded[t] = _recorded(self._tracer(self._vertices(time + t, launch.reference[0])), ctx, launch)[0]
+                tracer = self._tracer(self._vertices(time + t, launch.reference[0]))
+                recorded[t] = _recorded(tracer, ctx, launch, clutter=t == 0.0)[0]
             return recorded[t]
 
         for base, h in ((0.0, step), (0.0, -step), (step, step), (-step, -step)):
             try:
-                return _with_rates(at(base), at(base + h), h, target, launch.reference, base)
+                lanes = _with_rates(at(base), at(base + h), h, target, launch.reference, base)
             except GeometryChange:
                 continue
+            # a shifted geometry's recording holds no scatterers: the reference's (on still shapes)
+            return lanes if base == 0.0 else lanes + [call for call in calls if call[0] != "terms"]
         raise topology_change("lanes")
 
     def _rigid(self, ctx: dict, launch, vertices: dict, antenna: np.ndarray) -> dict:
