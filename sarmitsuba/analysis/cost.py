@@ -51,8 +51,9 @@ CAST_RATE_ANCHORS = ((14, 50e6, 150e6), (38_936, 10e6, 20e6))
 TRACE_OVERHEAD = 1.3
 #: Moving shapes (docs/physics.md (V1), (V2)): the lit geometries a sub-aperture builds (where the
 #: shapes are, and differenced), and the seconds per piece in its reach that each costs with the
-#: tracer built anew; calibrated on ``traffic`` (``benchmarks/moving.py --quick``: 21.5 s for the 33
-#: sub-apertures of its 260 middle pulses, 26,000 pieces each, 2.7 geometries each).
+#: tracer built anew; calibrated on ``traffic`` (``benchmarks/moving.py --quick``: 19-21 s for the 33
+#: sub-apertures of its 260 middle pulses, 26,000 pieces each, 2.7 geometries each; the 779-pulse
+#: render: 36 s estimated, 39.6 s measured).
 MOVING_GEOMETRIES = 2.7
 MOVING_PIECE_SECONDS = 9.4e-6
 
