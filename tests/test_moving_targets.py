@@ -234,3 +234,17 @@ def test_a_turning_trihedral_is_displaced_by_its_apex_radial_velocity(tmp_path, 
                    image_spacing=0.25, window="rect")
     _, _, azimuth = _peak(sim.image)
     assert abs(azimuth - shift) < 0.1 * AZIMUTH_CELL, (azimuth, shift)
+
+
+def test_ati_products_refuse_images_on_different_grids():
+    """The interferogram and the DPCA image of two images whose grids differ by a metre: refused,
+    naming the grid (a pixel-by-pixel product of different places would look like motion)."""
+    import dataclasses
+    from sarmitsuba.analysis.along_track import ati_interferogram, dpca_image
+    from sarmitsuba.analysis.interferometry import InterferometryError
+    image = simulate("trihedral", sensor_overrides={"n_pulses": 16}, image_size=(16, 16)).image
+    moved = dataclasses.replace(image, origin=image.origin + np.array([1.0, 0.0, 0.0]))
+    for product in (ati_interferogram, dpca_image):
+        assert np.allclose(np.angle(product(image, image)[np.abs(image.data) > 0]), 0.0) or product is dpca_image
+        with pytest.raises(InterferometryError, match="origin"):
+            product(image, moved)

@@ -21,18 +21,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.image import SarImage
-from .interferometry import InterferometryError
+from .interferometry import check_pair
 
 __all__ = ["ati_interferogram", "dpca_image", "radial_velocity", "ati_phase"]
 
 
 def _pair(fore: SarImage, aft: SarImage) -> tuple[np.ndarray, np.ndarray]:
-    """The two channels' pixels (complex128), checked to lie on one grid."""
-    if fore.data.shape != aft.data.shape or not (np.allclose(fore.origin, aft.origin) and
-                                                 np.allclose(fore.azimuth, aft.azimuth) and
-                                                 np.allclose(fore.range, aft.range)):
-        raise InterferometryError("the fore and aft images lie on different grids: focus both channels on one grid "
-                                  "(as simulate does with ati_baseline > 0)")
+    """The two channels' pixels (complex128), checked to lie on one ground grid
+    (:func:`~sarmitsuba.analysis.interferometry.check_pair`)."""
+    check_pair(fore, aft)
     return fore.data.astype(np.complex128), aft.data.astype(np.complex128)
 
 
