@@ -147,6 +147,7 @@ import drjit as dr
 import mitsuba as mi
 
 from sarmitsuba.core.radar import ParameterError, RadarParameters
+from sarmitsuba.core.receiver import RECEIVER_FIELDS, RECEIVER_PREFIX
 
 #: Parameters that the sensor accepts besides the fields of RadarParameters.
 EXTRA_PARAMETERS = ("aperture_length",)
@@ -158,7 +159,7 @@ class SarSensor(mi.Sensor):
     def __init__(self, props: mi.Properties) -> None:
         super().__init__(props)
         values = {}
-        valid = set(RadarParameters.names()) | set(EXTRA_PARAMETERS)
+        valid = set(RadarParameters.names()) | set(EXTRA_PARAMETERS) | {RECEIVER_PREFIX + f for f in RECEIVER_FIELDS}
         for key in props.keys():
             if key not in valid:
                 close = difflib.get_close_matches(key, valid, n=1)

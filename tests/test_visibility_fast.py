@@ -32,7 +32,10 @@ from sarmitsuba.tracing.visibility.rays import Rays, lift
 import drjit as dr                                  # after sarmitsuba, which picks the variant
 import mitsuba as mi
 
+import sarmitsuba
+from sarmitsuba.pipeline import simulate
 from test_patches import block, render
+from test_patches import sensor as patches_sensor
 
 #: ``visibility.NO_HIT`` and ``NOT_A_MESH``: a ray that met nothing, a shape that is not a mesh.
 NO_HIT, NOT_A_MESH = -1, -2
@@ -117,10 +120,11 @@ def _first_hit_reference(rays, start, end=None, direction=None):
     return part.astype(np.int64), t
 
 
-def _legs_reference(surfaces, chains, chain, points, antenna):
+def _legs_reference(surfaces, chains, chain, points, antenna, receiver=None):
     """docs/physics.md (M4): the legs ``A -> q_0 -> ... -> q_{d-1} -> x`` (each ray starting on the
     mesh: the first from ``q_0`` toward the antenna) and ``x -> A``, their ends on surfaces
-    lifted off them toward the other end; the return leg exists beyond the first bounce."""
+    lifted off them toward the other end; the return leg exists beyond the first bounce.
+    Bistatic (B2): the return is ``x -> R``, the receiver, and exists at every bounce."""
     depth = chains.parts.shape[1]
     order = chains.order[chain]
     q = _reflection_points(surfaces, chains, chain, points, antenna)
@@ -135,9 +139,10 @@ def _legs_reference(surfaces, chains, chain, points, antenna):
         if leg > 0:
             a = _lift_reference(a, surfaces.normal[chains.parts[chain[rows], leg - 1]], b)
         start[rows, leg], end[rows, leg], exists[rows, leg] = b if leg == 0 else a, a if leg == 0 else b, True
-    start[:, depth] = _lift_reference(points, surfaces.normal[chains.parts[chain, order]], antenna)
-    end[:, depth] = antenna
-    exists[:, depth] = order != 0
+    back = antenna if receiver is None else receiver
+    start[:, depth] = _lift_reference(points, surfaces.normal[chains.parts[chain, order]], back)
+    end[:, depth] = back
+    exists[:, depth] = (order != 0) | (receiver is not None)
     return start, end, exists
 
 
@@ -183,7 +188,7 @@ def _in_leg_planes(surfaces, chains, chain, key):
     return out
 
 
-def _blockers_reference(rays, surfaces, chains, coords, owner, chain, antenna, mixed, reach):
+def _blockers_reference(rays, surfaces, chains, coords, owner, chain, antenna, mixed, reach, receiver=None):
     """docs/physics.md (M4): each mixed piece's samples traced along every leg of their paths; the
     part a leg meets first is an occluder of that leg (``leg * n_parts + part``; ``-2`` not a
     mesh), and with it its partners whose bounding spheres come within ``reach`` of that leg;
@@ -192,7 +197,8 @@ def _blockers_reference(rays, surfaces, chains, coords, owner, chain, antenna, m
     if len(rows) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     points = _to_world(surfaces, chains.parts[chain[rows], chains.order[chain[rows]]], coords[rows])
-    start, end, exists = _legs_reference(surfaces, chains, chain[rows], points, antenna[chain[rows]])
+    start, end, exists = _legs_reference(surfaces, chains, chain[rows], points, antenna[chain[rows]],
+                                         None if receiver is None else receiver[chain[rows]])
     sample, leg = np.nonzero(exists)
     part, _ = _first_hit_reference(rays, start[sample, leg], end[sample, leg])
     found = np.flatnonzero(part != NO_HIT)
@@ -283,6 +289,11 @@ def recorded():
     mp.setattr(specular, "grid_points", grid_rec)
     try:
         render(block(subdivide=True), depth=3)
+        # and bistatic, the return legs ending at a receiver across the track (docs/physics.md (B2))
+        sensor = {**patches_sensor(20.0, prf=200.0, velocity=100.0, n_pulses=24, antenna_length=2.0),
+                  "receiver_altitude": 400.0, "receiver_heading": 110.0, "receiver_velocity": 20.0}
+        simulate(sarmitsuba.Scene(block(subdivide=True), sensor=sensor, integrator={"max_depth": 2}),
+                 image_size=(32, 32))
     finally:
         mp.undo()
     assert all(calls[k] for k in calls)
@@ -339,11 +350,12 @@ def test_blockers_are_the_reference(recorded):
 
 def test_legs_are_the_reference(recorded):
     """The legs of the samples of the recorded mixed pieces (every bounce order of the render)."""
-    for (rays, surfaces, chains, coords, owner, chain, antenna, mixed, reach), _ in recorded["blockers"]:
+    for (rays, surfaces, chains, coords, owner, chain, antenna, mixed, reach, *receiver), _ in recorded["blockers"]:
         rows = np.flatnonzero(mixed[owner])
         points = surfaces.to_world(chains.last[chain[rows]], coords[rows])
-        got = lp.legs(surfaces, chains, chain[rows], points, antenna[chain[rows]])
-        want = _legs_reference(surfaces, chains, chain[rows], points, antenna[chain[rows]])
+        receiver = receiver[0][chain[rows]] if receiver and receiver[0] is not None else None
+        got = lp.legs(surfaces, chains, chain[rows], points, antenna[chain[rows]], receiver)
+        want = _legs_reference(surfaces, chains, chain[rows], points, antenna[chain[rows]], receiver)
         assert all(_same(g, w) for g, w in zip(got, want))
 
 

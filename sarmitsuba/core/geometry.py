@@ -23,7 +23,7 @@ from . import georef, orbit
 from . import trajectory as tj
 
 __all__ = ["AcquisitionGeometry", "acquisition_geometry", "ground_layover", "track_frame", "trajectory_of",
-           "pulse_times", "collection_start"]
+           "pulse_times", "collection_start", "with_receiver"]
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,11 @@ class AcquisitionGeometry:
         pattern follow; None for a straight track (``track_direction`` throughout).
     nominal_positions, nominal_rx_positions, nominal_velocity : float64 [n_pulses, 3] or None
         The track without its motion errors (sensor ``motion_error``, (J4)); None without them.
+    receiver_positions, receiver_velocity, receiver_acceleration : float64 [n_pulses, 3] or None
+        Bistatic (sensor ``receiver_*``, docs/physics.md (B1)): the receiver's platform at each
+        pulse's transmission [m, m/s, m/s^2]; ``rx_positions`` is then the receiver when the scene
+        centre's echo arrives (at transmission with stop-and-hop) and ``rx_time`` None. None:
+        the transmitter receives.
     """
 
     positions: np.ndarray
@@ -75,6 +80,9 @@ class AcquisitionGeometry:
     nominal_positions: np.ndarray | None = None
     nominal_rx_positions: np.ndarray | None = None
     nominal_velocity: np.ndarray | None = None
+    receiver_positions: np.ndarray | None = None
+    receiver_velocity: np.ndarray | None = None
+    receiver_acceleration: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.rx_positions is None:
@@ -86,6 +94,20 @@ class AcquisitionGeometry:
     def continuous(self) -> bool:
         """Whether echoes are received where the antenna has moved to (no stop-and-hop, (J3))."""
         return self.rx_time is not None
+
+    @property
+    def bistatic(self) -> bool:
+        """Whether a receiver on its own platform receives (:attr:`receiver_positions`)."""
+        return self.receiver_positions is not None
+
+    @property
+    def reference_length(self) -> np.ndarray:
+        """float64 [n_pulses], m: each pulse's two-way length to the scene centre, ``2 |A - c|``,
+        or bistatic ``|A - c| + |R_rx - c|`` (docs/physics.md (B2))."""
+        out = np.linalg.norm(self.positions - self.scene_center, axis=1)
+        if not self.bistatic:
+            return 2.0 * out
+        return out + np.linalg.norm(self.rx_positions - self.scene_center, axis=1)
 
     @property
     def curved(self) -> bool:
@@ -107,7 +129,8 @@ class AcquisitionGeometry:
         """The geometry with every position and the scene centre moved by ``offset`` [m]."""
         offset = np.asarray(offset, np.float64)
         moved = {name: getattr(self, name) + offset for name in
-                 ("positions", "rx_positions", "nominal_positions", "nominal_rx_positions", "scene_center")
+                 ("positions", "rx_positions", "nominal_positions", "nominal_rx_positions", "scene_center",
+                  "receiver_positions")
                  if getattr(self, name) is not None}
         return replace(self, **moved)
 
@@ -272,8 +295,39 @@ def acquisition_geometry(params: RadarParameters) -> AcquisitionGeometry:
         nominal_fields = dict(nominal_positions=nominal.position(t), nominal_velocity=nominal.velocity(t),
                               nominal_rx_positions=nominal.position(rx_time) if rx_time is not None
                               else nominal.position(t))
-    return AcquisitionGeometry(positions, velocity, t, center, track, look, rx_positions=rx, rx_time=rx_time,
-                               acceleration=true.acceleration(t), beam_axes=beam_axes, **nominal_fields)
+    geometry = AcquisitionGeometry(positions, velocity, t, center, track, look, rx_positions=rx, rx_time=rx_time,
+                                   acceleration=true.acceleration(t), beam_axes=beam_axes, **nominal_fields)
+    return geometry if not params.bistatic else with_receiver(params, geometry)
+
+
+def with_receiver(params: RadarParameters, geometry: AcquisitionGeometry) -> AcquisitionGeometry:
+    """``geometry`` with the receiver of ``params.receiver`` (docs/physics.md (B1)): its platform
+    (:func:`~sarmitsuba.core.receiver.receiver_parameters`) flown over the same pulse times, and
+    each echo received where the receiver is when the scene centre's echo arrives (the
+    transmit leg to the centre, then the receive leg solved as (J3)), or at transmission with
+    stop-and-hop. Raises ParameterError (naming ``receiver_*``) for a receiver whose trajectory
+    does not cover the pulses, that is below the scene's horizon, or whose bistatic angle at
+    the scene centre exceeds :data:`~sarmitsuba.core.receiver.MAX_BISTATIC_ANGLE`."""
+    from .receiver import check_bistatic_angle, horizon_check, receiver_parameters
+    rp = receiver_parameters(params)
+    t = geometry.pulse_time
+    try:
+        path = trajectory_of(rp)
+        lo, hi = path.span
+        if t[0] < lo - 1e-9 or t[-1] > hi + 1e-9:
+            raise ParameterError(f"its state vectors span {lo:.6g} .. {hi:.6g} s, the pulses {t[0]:.6g} .. {t[-1]:.6g} s")
+    except ParameterError as exc:
+        raise ParameterError(f"receiver_trajectory: {exc}") from None
+    at_tx = path.position(t)
+    rx = at_tx
+    if not params.stop_and_hop:
+        first = np.linalg.norm(geometry.positions - geometry.scene_center, axis=1)
+        rx = tj.receive_time(path, t, geometry.scene_center, first_leg=first)[1]
+    horizon_check(rx, geometry.scene_center)
+    check_bistatic_angle(geometry.positions, rx, geometry.scene_center)
+    nominal = {} if geometry.nominal_positions is None else {"nominal_rx_positions": rx}    # no error of its own
+    return replace(geometry, **nominal, rx_positions=rx, rx_time=None, receiver_positions=at_tx,
+                   receiver_velocity=path.velocity(t), receiver_acceleration=path.acceleration(t))
 
 
 def ground_layover(geometry: AcquisitionGeometry, points: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 
 from . import georef
 from .constants import SPEED_OF_LIGHT
+from .receiver import check_receiver, receiver_values
 from .trajectory import MotionError, StateVectors
 from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
 
@@ -186,6 +187,11 @@ class RadarParameters:
         An ECEF orbit file with an absolute clock: the UTC time (ISO 8601 with an offset) near the
         closest approach of the pass to image, when the file passes the scene several times
         (docs/physics.md (J6)); None (default): the rule of :func:`sarmitsuba.core.orbit.choose_pass`.
+    receiver : tuple of (name, value) pairs
+        A receiver on a platform of its own (bistatic, docs/physics.md (B1)-(B4)), given as the
+        sensor parameters ``receiver_NAME`` (``receiver_altitude``, ``receiver_trajectory``, ...;
+        :data:`sarmitsuba.core.receiver.RECEIVER_FIELDS`) or from Python as a mapping
+        ``{"altitude": 300, ...}``; empty (default): the transmitter receives (monostatic).
 
     Valid ranges (:data:`VALID_RANGES`; VHF to sub-THz radars, drones to LEO/MEO platforms):
     frequency [1e6, 1e12] Hz; bandwidth [1e5, 1e11] Hz; sampling_rate [1e5, 1e12] Hz; prf
@@ -237,6 +243,7 @@ class RadarParameters:
     orbit_direction: str = "descending"
     orbit_pass_time: str | None = None
     ati_baseline: float = 0.0
+    receiver: tuple = ()
 
     def __post_init__(self) -> None:
         if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
@@ -342,9 +349,16 @@ class RadarParameters:
         if not (isinstance(self.ati_baseline, (int, float)) and 0.0 <= self.ati_baseline <= 1e3):
             raise ParameterError(f"ati_baseline = {self.ati_baseline!r} m is outside the valid range [0, 1000] m (the "
                                  "along-track separation of the second channel's phase centre; 0 = one channel)")
+        if self.receiver:
+            check_receiver(self, coerce_parameters)
         if self.ati_baseline > 0 and self.polarization == "quad":
             raise ParameterError("ati_baseline > 0 with polarization = 'quad': along-track interferometry renders one "
                                  "polarisation; choose HH, VV, HV or VH")
+
+    @property
+    def bistatic(self) -> bool:
+        """Whether a receiver on its own platform receives (``receiver_*`` parameters given)."""
+        return bool(self.receiver)
 
     @property
     def straight_track(self) -> bool:
@@ -516,7 +530,11 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
     """
     types = {f.name: f.type for f in fields(RadarParameters)}
     out: dict[str, Any] = {}
+    receiver = {}
     for name, value in values.items():
+        if name.startswith("receiver"):             # the receiver's platform, (B1)
+            receiver.update({name[9:]: value} if name != "receiver" else {})
+            continue
         if name not in types:
             raise ParameterError(unknown_name("sar sensor parameter", name, sorted(types)))
         try:
@@ -545,6 +563,8 @@ def coerce_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
             raise ParameterError(str(exc)) from None
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"sar sensor parameter {name}: cannot use value {value!r} ({exc})") from None
+    if receiver or "receiver" in values:
+        out["receiver"] = receiver_values({**dict(values.get("receiver") or {}), **receiver}, coerce_parameters)
     return out
 
 

@@ -105,6 +105,9 @@ class EffectSet:
         The shapes that move during the acquisition (a ``velocity``, :mod:`sarmitsuba.scene.motion`):
         each sub-aperture traces them where they are, and their lanes move per pulse
         (docs/physics.md (V1)-(V3)). None: the scene holds still and pays nothing.
+    bistatic : bool
+        A receiver on its own platform (sensor ``receiver_*``, docs/physics.md (B1)-(B4)): the
+        return legs, their visibility, the receiver's pattern and the range sum ``R_t + R_r``.
     order_energy : bool
         Each bounce order deposited apart, for the energy it holds (``summary.json``'s
         ``energy_by_order``, :attr:`deposit_groups`); on by default, off for the derivatives,
@@ -133,6 +136,7 @@ class EffectSet:
     motion_error: bool = False
     diffraction: bool = False
     order_energy: bool = True
+    bistatic: bool = False
     moving_shapes: "ShapeMotion | None" = None
 
     @property
@@ -194,7 +198,8 @@ class EffectSet:
                       continuous_motion=not params.stop_and_hop, curved_track=not params.straight_track,
                       motion_error=params.motion_error is not None,
                       diffraction=bool(getattr(settings, "diffraction", False))
-                      and getattr(settings, "lit_regions", "patches") == "patches", moving_shapes=moving_shapes)
+                      and getattr(settings, "lit_regions", "patches") == "patches", moving_shapes=moving_shapes,
+                      bistatic=params.bistatic)
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -238,7 +243,16 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
             _split(e.split_bounces), _polarimetry(e), _diffraction(e.diffraction), _curved(e.curved_track, p),
-            _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p), _moving(e.moving_shapes))
+            _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p), _moving(e.moving_shapes),
+            _bistatic(e.bistatic, p))
+
+
+def _bistatic(on: bool, p: "RadarParameters") -> Effect:
+    if on:
+        given = ", ".join(f"receiver_{k} = {v}" for k, v in p.receiver)
+        return Effect("bistatic receiver", True, f"{given}: every echo returns to the receiver's platform, whose "
+                      "visibility, pattern and range sum R_t + R_r the tracer follows (docs/physics.md (B1)-(B4))")
+    return Effect("bistatic receiver", False, "no receiver_* parameter: the transmitter receives (monostatic)")
 
 
 def _moving(motion) -> Effect:

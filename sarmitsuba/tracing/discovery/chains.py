@@ -126,7 +126,8 @@ def _windows(surfaces: Surfaces, chains: Chains, i: int, rows: np.ndarray):
     return normal, offset, corners, surfaces.n_corners[part]
 
 
-def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray,
+                 receiver: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The half-planes, in the face coordinates of each chain's last part, of the points the
     antenna reaches through the chain, eq. (M3), and whether the chain returns at all.
 
@@ -136,6 +137,9 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
     chains : Chains
     antenna : float64 [n, 3]
         The antenna position each chain is seen from (its sub-aperture's reference position).
+    receiver : float64 [n, 3], optional
+        Bistatic: the receiver's reference position, which the return leg ends at (docs/physics.md
+        (B2)); default the antenna.
 
     Returns
     -------
@@ -149,8 +153,8 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
         The chain exists: no plane of the chain holds the antenna or its image in the earlier
         mirrors.
     returns : bool [n]
-        It can also return physical optics: the antenna sees the last part from the side the wave
-        arrives on (its image source's). A chain that does not return may still light its region
+        It can also return physical optics: the antenna (the receiver) sees the last part from the
+        side the wave arrives on (its image source's). A chain that does not return may still light its region
         for the next bounce order. A wave arriving on the inner side of a closed body's part
         (:attr:`~sarmitsuba.tracing.mesh.patches.Surfaces.seen_side`) is no chain: it would have
         crossed the body. (Where the winding is unknown, the visibility rays decide.)
@@ -160,7 +164,7 @@ def region_lines(surfaces: Surfaces, chains: Chains, antenna: np.ndarray) -> tup
     source = image_source(chains, antenna)
     arriving = facing_sign(surfaces, last, source)
     valid = (arriving != 0) & (surfaces.seen_side[last] * arriving >= 0)
-    returns = valid & (arriving == facing_sign(surfaces, last, antenna))
+    returns = valid & (arriving == facing_sign(surfaces, last, antenna if receiver is None else receiver))
     width = max(depth - 1, 0) * (2 + surfaces.polygon.shape[1]) + max(depth - 2, 0)
     lines = np.tile(np.asarray(EVERYTHING), (n, max(width, 1), 1))
     k = chains.order

@@ -49,6 +49,7 @@ from ..integration import jones as pol
 from ..integration.ground_wave import grazing_table
 from ..integration.returns import COS_GRAZING, Returns, footprint_edges
 from ..loops import RECORDING
+from ...core.valid_ranges import ParameterError
 from .stages import STAGES
 
 __all__ = ["Blocks", "Launch", "Kernel", "Tube", "Hit", "Record", "intersect", "visible", "reflect", "record",
@@ -371,6 +372,8 @@ class Kernel:
         #: Whether the tubes are traced: ``tiles``, or patches with shapes that are not meshes (spheres).
         self.tubes = settings.lit_regions != "patches" or self.tables.other_shapes
         self.params, self.material_table = params, material_table
+        if effects.bistatic:
+            _check_bistatic(self.tubes, settings, effects)
         if settings.lit_regions == "patches":        # scattering anchored to the mesh (M1)-(M8)
             bbox = scene.bbox()
             self.bbox = (np.array(bbox.min, float), np.array(bbox.max, float))
@@ -559,3 +562,15 @@ class Kernel:
         out = dr.gather(Tube, tube, alive)
         dr.eval(out)
         return out, launch.n_lanes
+
+
+def _check_bistatic(tubes: bool, settings, effects) -> None:
+    """What a bistatic acquisition (docs/physics.md (B1)-(B4)) refuses: ray tubes (``lit_regions =
+    tiles``, or shapes that are not triangle meshes) and moving shapes. Raises ParameterError."""
+    if tubes:
+        raise ParameterError("receiver_*: a bistatic acquisition traces triangle meshes with lit_regions = patches "
+                             f"(lit_regions = {settings.lit_regions!r}, or a shape that is not a mesh, e.g. a sphere): "
+                             "use lit_regions = patches and mesh shapes, or remove the receiver_* parameters")
+    if effects.moving_shapes is not None:
+        raise ParameterError("receiver_*: a bistatic acquisition traces a still scene; remove the shapes' velocity "
+                             "or the receiver_* parameters")

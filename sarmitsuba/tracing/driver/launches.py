@@ -13,7 +13,7 @@ import numpy as np
 
 from ..device import device_array
 
-__all__ = ["Blocks", "Launch"]
+__all__ = ["Blocks", "Launch", "receiver_launch"]
 
 
 @dataclass(frozen=True)
@@ -86,6 +86,16 @@ class Launch:
     pulse_time : float64 [n_b] or None, s
         The pulses' transmit times from mid-aperture, for moving shapes
         (:mod:`sarmitsuba.tracing.driver.moving`); None when the scene holds still.
+    receiver, received : float64 [n_b, 3] or None, m
+        Bistatic (docs/physics.md (B1)): the receiver's platform at each pulse's transmission
+        (the kernels' receive leg starts there and moves with ``velocity``, ``acceleration``,
+        which are then the receiver's), and where it is when the scene centre's echo arrives
+        (what the host's visibility and rates see). None: the transmitter receives.
+    receiver_reference : float64 [n_s, 3] or None, m
+        Bistatic: each sub-aperture's receiver reference position, the midpoint of ``received``
+        at its first and last pulse (the return legs' end for visibility, (B2)).
+    receiver_axis : float64 [n_b, 3] or None
+        Bistatic: the receiver's along-track unit axis at each pulse (its pattern, (B3)).
     """
 
     antenna: np.ndarray
@@ -100,6 +110,10 @@ class Launch:
     acceleration: np.ndarray | None = None
     axes: np.ndarray | None = None
     pulse_time: np.ndarray | None = None
+    receiver: np.ndarray | None = None
+    received: np.ndarray | None = None
+    receiver_reference: np.ndarray | None = None
+    receiver_axis: np.ndarray | None = None
 
     @property
     def n_pulses(self) -> int:
@@ -119,3 +133,23 @@ class Launch:
     def lane_block(self) -> mi.UInt32:
         """[n_lanes]: the block of every lane, on the device."""
         return device_array(mi.UInt32, np.repeat(np.arange(self.blocks.n_a.size), self.blocks.n_a.astype(np.int64) * self.blocks.n_j))
+
+
+def receiver_launch(geometry, p0: int, p1: int, subs, g: slice, continuous: bool) -> dict:
+    """The :class:`Launch` fields of a bistatic receiver (docs/physics.md (B1), (B2)) for pulses
+    ``[p0, p1)`` and sub-apertures ``subs`` rows ``g``: ``receiver``, ``received``,
+    ``receiver_reference``, ``receiver_axis`` and, without stop-and-hop (``continuous``), the
+    receiver's ``velocity`` and ``acceleration``; ``{}`` for a monostatic ``geometry``."""
+    if not geometry.bistatic:
+        return {}
+    received = geometry.rx_positions
+    first, last = subs.first[g], subs.first[g] + subs.count[g] - 1
+    velocity = geometry.receiver_velocity[p0:p1]
+    horizontal = velocity * np.array([1.0, 1.0, 0.0])
+    norm = np.linalg.norm(horizontal, axis=1, keepdims=True)
+    axis = np.where(norm > 0, horizontal / np.where(norm > 0, norm, 1.0), geometry.track_direction)
+    out = dict(receiver=geometry.receiver_positions[p0:p1], received=received[p0:p1],
+               receiver_reference=0.5 * (received[first] + received[last]), receiver_axis=axis)
+    if continuous:
+        out.update(velocity=velocity, acceleration=geometry.receiver_acceleration[p0:p1])
+    return out

@@ -122,6 +122,7 @@ class MeshTracer:
         launch's). Launches may run on several host threads at once (:func:`~sarmitsuba.tracing.driver.trace.trace`)."""
         reference = launch.reference
         views = self._views(launch)
+        rx = self._receiver(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
         clock = StageClock(self.depth + 1)           # (the last row: the deposit, kernel.Kernel)
         casts_before = self.rays.casts + self.visibility.casts
@@ -139,13 +140,14 @@ class MeshTracer:
                     break
                 with clock("visibility"):
                     lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility,
-                                     self.patch, self._span(launch, chains) if self.straight else None)
+                                     self.patch, self._span(launch, chains) if self.straight else None,
+                                     None if rx is None else rx[0][chains.sub])
             stats["chains"].append(len(lit.chains))
             stats["samples"].append(lit.samples)
             with clock("energy"):
                 stats["carried"].append(self._carried(lit, reference, launch.count))
             with clock("lanes"):
-                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock)
+                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock, rx)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             with clock("terms"), RECORDING:
@@ -201,11 +203,21 @@ class MeshTracer:
         # a power the float32 kernels could not hold is 0 there (flush to zero), and 0 here
         return carried if carried >= np.finfo(np.float32).tiny else 0.0
 
-    def _views(self, launch) -> np.ndarray:
-        """float64 [n_s, 3, 3]: each sub-aperture's first pulse, reference position and last pulse."""
-        first = launch.antenna[launch.first]
-        last = launch.antenna[launch.first + launch.count - 1]
-        return np.stack([first, launch.reference, last], axis=1)
+    def _views(self, launch, antenna: np.ndarray | None = None, reference: np.ndarray | None = None) -> np.ndarray:
+        """float64 [n_s, 3, 3]: each sub-aperture's first pulse, reference position and last pulse
+        (of the transmitter, or of ``antenna`` [n_b, 3] with its ``reference`` [n_s, 3])."""
+        antenna = launch.antenna if antenna is None else antenna
+        first = antenna[launch.first]
+        last = antenna[launch.first + launch.count - 1]
+        return np.stack([first, launch.reference if reference is None else reference, last], axis=1)
+
+    def _receiver(self, launch):
+        """Bistatic (docs/physics.md (B2)): ``(receiver reference [n_s, 3], receiver views [n_s, 3,
+        3])``, where each sub-aperture's return legs end and its receiver's first, reference and
+        last positions; None when the transmitter receives."""
+        if launch.receiver_reference is None:
+            return None
+        return launch.receiver_reference, self._views(launch, launch.received, launch.receiver_reference)
 
     # ------------------------------------------------------------------ the first bounce
     def _first_pieces(self) -> tuple[Pieces, np.ndarray]:
@@ -254,7 +266,8 @@ class MeshTracer:
         selected = pieces.select(rows)
         selected = Pieces(chain.reshape(-1), selected.cell, selected.whole, selected.border, selected.polygon,
                           selected.count, selected.patch)
-        return classify(s, chains, selected, launch.reference[chains.sub], self.rays, self.visibility)
+        rx = None if launch.receiver_reference is None else launch.receiver_reference[chains.sub]
+        return classify(s, chains, selected, launch.reference[chains.sub], self.rays, self.visibility, receiver=rx)
 
     def _in_body_box(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
         """bool: ``points`` [m, 3] lie in the bounding box of ``part``'s body (where its inside
@@ -300,17 +313,19 @@ class MeshTracer:
 
     # ------------------------------------------------------------------ discovery
     # ------------------------------------------------------------------ term lanes
-    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None):
+    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None, rx=None):
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
-        from mixed ones (:func:`sarmitsuba.tracing.visibility.occlusion.clip_mixed`), eq. (M5)."""
+        from mixed ones (:func:`sarmitsuba.tracing.visibility.occlusion.clip_mixed`), eq. (M5);
+        ``rx``: bistatic, :meth:`_receiver`'s receiver reference and views (B2)."""
         s, chains = self.surfaces, lit.chains
         if self.simplify:                   # (AD4): outlines whose corners do not hang on rounding
             lit = dataclasses.replace(lit, pieces=lit.pieces.simplified())
         antenna = reference[chains.sub]
+        receiver, rx_views = (None, views) if rx is None else (rx[0][chains.sub], rx[1])
         clock = clock or StageClock()
         with clock("clipping"):
             was_lit = lit.lit
-            lit, clipped, spread = self._clip(lit, antenna)
+            lit, clipped, spread = self._clip(lit, antenna, receiver)
         if len(spread):
             # the neighbours that no occluder cuts stay what they were: wholly lit (their shared
             # edges cancel) or dark (wholly in the occluders' shadows: no piece left)
@@ -331,8 +346,9 @@ class MeshTracer:
         area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
             lit.pieces.geometry_of(pieces_rows), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
-        stable = self._never_specular(chains, region, centroid, diagonal,
-                                      np.take(views, np.take(chains.sub, region), axis=0))
+        at = np.take(chains.sub, region)
+        stable = self._never_specular(chains, region, centroid, diagonal, np.take(views, at, axis=0),
+                                      np.take(rx_views, at, axis=0))
         n = len(pieces)
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
@@ -346,8 +362,9 @@ class MeshTracer:
             kept = np.flatnonzero(~(np.take(stable, seg_piece) & on_rim(s, self.rim, np.take(part, seg_piece), p2, q2)))
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         seg_region = np.take(region, seg_piece)
-        kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2,
-                                 np.take(views, np.take(chains.sub, seg_region), axis=0))
+        at = np.take(chains.sub, seg_region)
+        kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2, np.take(views, at, axis=0),
+                                 np.take(rx_views, at, axis=0))
         # every boundary segment of the pieces that may need their area term
         rows = np.flatnonzero(~stable[:n])
         t_piece, t_start, t_end, _ = pieces.edges(rows)
@@ -364,7 +381,8 @@ class MeshTracer:
             with clock("rates"):
                 p_rate, q_rate, last = self._motion(lit, all_rows[piece_of], piece_of >= n,
                                                     np.concatenate([p2, table_segments[1]]),
-                                                    np.concatenate([q2, table_segments[2]]), views)
+                                                    np.concatenate([q2, table_segments[2]]), views,
+                                                    None if rx is None else rx[1])
             m = len(seg_piece)
             motion = (p_rate[:m], q_rate[:m], last)
             table_segments = table_segments + (p_rate[m:], q_rate[m:])
@@ -375,27 +393,30 @@ class MeshTracer:
             lanes = self.target.moved(lanes, s, chains, np.take(region, lanes.piece.astype(np.int64)), reference)
         return lanes, table, clipped, lit
 
-    def _clip(self, lit: LitPieces, antenna: np.ndarray):
+    def _clip(self, lit: LitPieces, antenna: np.ndarray, receiver: np.ndarray | None = None):
         """The mixed pieces of ``lit`` cut against their occluders, the occluders spread to the
         neighbours their shadows run into and rechecked from the cut regions (eq. (M4)): the new
-        ``lit``, the :class:`ClippedPieces` and the rows made mixed by the spread."""
+        ``lit``, the :class:`ClippedPieces` and the rows made mixed by the spread (``receiver``:
+        bistatic, where the return legs end, (B2))."""
         s = self.surfaces
-        clipped = clip_mixed(s, lit, antenna)
+        clipped = clip_mixed(s, lit, antenna, receiver=receiver)
         lit, spread = spread_occluders(lit, clipped)
         if len(spread):
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread), spread)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver), spread)
         for _ in range(RECHECKS):
-            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility)
+            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility, receiver)
             if len(changed) == 0:
                 break
             lit = dataclasses.replace(lit, blockers=blockers)
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed), changed)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver), changed)
         return lit, clipped, spread
 
-    def _motion(self, lit: LitPieces, rows, cut, p2, q2, views):
+    def _motion(self, lit: LitPieces, rows, cut, p2, q2, views, rx_views=None):
         """The rates of boundary segments' ends [m per m of travel] toward each sub-aperture's last
         pulse, eq. (M8): ``(p_rate, q_rate, last)`` for :func:`build_lanes` (``rows`` the segments'
-        rows of ``lit.pieces``, ``cut`` whether a segment bounds a piece cut against occluders)."""
+        rows of ``lit.pieces``, ``cut`` whether a segment bounds a piece cut against occluders).
+        Bistatic (``rx_views``, (B2)): the return legs' shadows move with the receiver, which
+        flies its own line in the same time."""
         s, chains, pieces = self.surfaces, lit.chains, lit.pieces
         a, b = views[chains.sub, 1], views[chains.sub, 2]
         step = np.linalg.norm(b - a, axis=1)
@@ -426,7 +447,8 @@ class MeshTracer:
             pair, key = lit.blockers.rows(held[shaded], mesh=True)
             leg, occluder = key // s.n_parts, key % s.n_parts
             c = region[shaded[pair]]
-            lines_a, lines_b = shared_shadow_lines(s, chains, c, occluder, leg, a, b)
+            receivers = None if rx_views is None else (rx_views[chains.sub, 1], rx_views[chains.sub, 2])
+            lines_a, lines_b = shared_shadow_lines(s, chains, c, occluder, leg, a, b, receivers=receivers)
             add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
         p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
                                                     np.concatenate(table), np.concatenate(rates))
@@ -439,24 +461,25 @@ class MeshTracer:
         p_rate[wild], q_rate[wild] = 0.0, 0.0
         return p_rate, q_rate, b
 
-    def _never_specular(self, chains, chain, points, diagonal, views) -> np.ndarray:
+    def _never_specular(self, chains, chain, points, diagonal, views, rx_views) -> np.ndarray:
         """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN
         NEAR_SPECULAR / (k D)`` off the specular direction. ``u_t`` moves almost linearly with the
         antenna along its track, so its smallest size over the sub-aperture is the distance from 0
-        to the path it draws through the three views (first, reference and last pulse)."""
+        to the path it draws through the three views (first, reference and last pulse; the
+        return toward ``rx_views``, the receiver's, (B2))."""
         normal = np.take(self.surfaces.normal, np.take(chains.last, chain), axis=0)
         u_t = []
         arriving = arriving_views(chains, chain, points, views)
         for v in range(3):
             d = arriving[v]
-            b = views[:, v] - points
+            b = rx_views[:, v] - points
             b /= row_norm(b)[:, None]
             u = d - b
             u_t.append(u - normal * np.einsum("mi,mi->m", u, normal)[:, None])
         smallest = np.minimum(_distance_to_segment(u_t[0], u_t[1]), _distance_to_segment(u_t[1], u_t[2]))
         return self.k * smallest * diagonal >= STABLE_MARGIN * NEAR_SPECULAR
 
-    def _split_kinds(self, chains, chain, part, p2, q2, views) -> np.ndarray:
+    def _split_kinds(self, chains, chain, part, p2, q2, views, rx_views) -> np.ndarray:
         """Each segment's kind over its sub-aperture (docs/physics.md (PO2), (T3)): split when all
         three views see ``|alpha| >= SINC_REGIME`` with one sign and some see ``>= alpha_s``; its
         sinc when none reaches ``alpha_s``; decided per pulse otherwise."""
@@ -469,7 +492,7 @@ class MeshTracer:
         arriving = arriving_views(chains, chain, mid, views)
         for v in range(3):
             d = arriving[v]
-            b = views[:, v] - mid
+            b = rx_views[:, v] - mid
             b /= row_norm(b)[:, None]
             alphas.append(0.5 * self.k * np.einsum("mi,mi->m", d - b, edge))
         alpha = np.stack(alphas, axis=1)

@@ -40,7 +40,7 @@ from ...scene.effects import EffectSet, rough_materials
 from ...scene import planning
 from ...scene.effects import active_effects
 from .kernel import Kernel
-from .launches import Blocks, Launch
+from .launches import Blocks, Launch, receiver_launch
 from .moving import moving_pulses
 from ..integration.pulse_view import antenna_axes
 from .stages import STAGES, by_order
@@ -306,7 +306,7 @@ def plan_trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGe
     per_batch = 1 if effects.moving_shapes is not None else \
         max(1, min(len(subs.first), settings.max_batch_rays // max(per_sub, 1), pulse_budget // subs.size))
     return TracePlan(subs=subs, per_batch=per_batch,
-                     lref=2.0 * np.linalg.norm(geometry.positions - geometry.scene_center, axis=1),
+                     lref=geometry.reference_length,
                      n_channels=n_channels, groups=effects.deposit_groups, n_pad=padded_length(window.n_samples),
                      exact=settings.range_kernel == "exact", axes=antenna_axes(params, geometry),
                      kept=effects.groups, bandwidth=params.bandwidth)
@@ -325,7 +325,7 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     hist = None if plan.exact else np.zeros((len(SPECTRAL_ORDERS), n_groups, p1 - p0, window.n_fine), np.complex64)
     totals, paths = {}, None
     motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
-        if geometry.continuous else {}
+        if geometry.continuous else receiver_launch(geometry, p0, p1, subs, g, kernel.effects.continuous_motion)
     if kernel.effects.moving_shapes is not None:        # (V1): the shapes' times, from mid-aperture
         motion["pulse_time"] = geometry.pulse_time[p0:p1] - geometry.pulse_time[[0, -1]].mean()
     groups = [Blocks.of([])] if settings.lit_regions == "patches" else []

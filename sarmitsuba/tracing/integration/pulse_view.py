@@ -16,7 +16,7 @@ import numpy as np
 from ...core.constants import SPEED_OF_LIGHT
 from ...core.trajectory import RECEIVE_ITERATIONS
 
-__all__ = ["PulseView", "receive_leg", "antenna_axes"]
+__all__ = ["PulseView", "receive_leg", "antenna_axes", "receiver_axes"]
 
 
 class PulseView:
@@ -32,30 +32,42 @@ class PulseView:
     aperture, elevation : mi.Vector3f or None
         Curved track: the axes of the antenna pattern (A) for this pulse.
     velocity, acceleration : mi.Array3f64 or None
-        No stop-and-hop: the antenna's motion at transmission, for the receive leg (J3).
+        No stop-and-hop: the receiving antenna's motion at transmission, for the receive leg (J3).
+    receiver : mi.Array3f64 or None
+        Bistatic: the receiver's platform at transmission (docs/physics.md (B1)); None: the
+        transmitter receives.
+    rx_steer : mi.Float or None
+        Bistatic with a receive pattern: the along-track sine of the scene centre seen from the
+        receiver, which its beam stares at (B3).
+    rx_axes : (mi.Vector3f, mi.Vector3f) or None
+        The receive pattern's along-track and elevation axes for this pulse (B3).
     """
 
-    __slots__ = ("steer", "axis", "aperture", "elevation", "velocity", "acceleration")
+    __slots__ = ("steer", "axis", "aperture", "elevation", "velocity", "acceleration", "receiver", "rx_steer", "rx_axes")
 
-    def __init__(self, steer=None, axis=None, aperture=None, elevation=None, velocity=None, acceleration=None):
+    def __init__(self, steer=None, axis=None, aperture=None, elevation=None, velocity=None, acceleration=None,
+                 receiver=None, rx_steer=None):
         self.steer, self.axis, self.aperture, self.elevation = steer, axis, aperture, elevation
         self.velocity, self.acceleration = velocity, acceleration
+        self.receiver, self.rx_steer, self.rx_axes = receiver, rx_steer, None
 
 
 def receive_leg(view: PulseView, antenna, point, s):
     """The receive leg of a return at ``point`` (float64) whose first part (the transmit leg and
-    the bounces, unfolded) is ``s`` [m] long: the vector from the point to the antenna when the
-    echo arrives, and its length (float64), eq. (J3). The antenna moves ``v tau + a tau^2 / 2``
-    during the echo, ``c tau = s + |A(tau) - point|``, solved by
+    the bounces, unfolded) is ``s`` [m] long: the vector from the point to the receiving antenna
+    when the echo arrives, and its length (float64), eq. (J3). The receiving antenna (the
+    transmitter ``antenna``, or bistatic the receiver's platform ``view.receiver``, (B1)) moves
+    ``v tau + a tau^2 / 2`` during the echo, ``c tau = s + |R(tau) - point|``, solved by
     :data:`~sarmitsuba.core.trajectory.RECEIVE_ITERATIONS` fixed-point steps (each multiplies the
-    error by ``v / c``); with stop-and-hop (no velocity in ``view``) the transmit position."""
-    outgoing = antenna - point
+    error by ``v / c``); with stop-and-hop (no velocity in ``view``) where it is at transmission."""
+    origin = antenna if view.receiver is None else view.receiver
+    outgoing = origin - point
     dist = dr.norm(outgoing)
     if view.velocity is None:
         return outgoing, dist
     for _ in range(RECEIVE_ITERATIONS):
         tau = (s + dist) * (1.0 / SPEED_OF_LIGHT)
-        outgoing = antenna + view.velocity * tau + view.acceleration * (0.5 * tau * tau) - point
+        outgoing = origin + view.velocity * tau + view.acceleration * (0.5 * tau * tau) - point
         dist = dr.norm(outgoing)
     return outgoing, dist
 
@@ -80,3 +92,18 @@ def antenna_axes(params, geometry) -> np.ndarray | None:
     aperture = math.cos(squint) * axis - math.sin(squint) * bore
     return np.stack([axis, aperture, np.cross(axis, bore)], axis=1)
 
+
+
+def receiver_axes(receiver: np.ndarray, axis: np.ndarray, centre) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A bistatic receiver's pattern axes per pulse (docs/physics.md (B3)): from its positions
+    ``receiver`` and along-track unit ``axis`` (float64 [n, 3] each) and the scene ``centre`` [3],
+    ``(axis, elevation, steer)``: the along-track axis, the elevation axis ``axis x boresight``
+    (boresight the unit direction to the centre, its along-track part removed), float64 [n, 3],
+    and the along-track sine of the centre, float64 [n], which the staring beam is steered at."""
+    to_c = np.asarray(centre, np.float64) - np.asarray(receiver, np.float64)
+    to_c /= np.linalg.norm(to_c, axis=1, keepdims=True)
+    steer = np.sum(to_c * axis, axis=1)
+    bore = to_c - steer[:, None] * axis
+    elevation = np.cross(axis, bore)
+    elevation /= np.linalg.norm(elevation, axis=1, keepdims=True)
+    return np.asarray(axis, np.float64), elevation, steer

@@ -30,7 +30,7 @@ from ...core.radar import CHANNELS
 from .physical_optics import SINC_REGIME, split_threshold
 from .clutter_terms import ClutterTerms
 from ..device import gather_table, table_array
-from .pulse_view import PulseView, receive_leg
+from .pulse_view import PulseView, receive_leg, receiver_axes
 from ..loops import loop_mode
 
 __all__ = ["Returns", "footprint_edges"]
@@ -127,6 +127,13 @@ class Returns(ClutterTerms):
         # its first nulls, where the traced beam ends): no tube needs cutting per pulse. A uniform
         # (hard-edged) beam is cut per pulse at the aim points, as each pulse's own lattice would be.
         self.aim_mask = not (self.pattern and self.length_in_wavelengths > 0)
+        # bistatic (B1)-(B3): the receiver's platform and, when it has an antenna, its pattern
+        self.bistatic = effects.bistatic
+        self.rx_length = self.rx_height = 0.0
+        if self.bistatic:
+            from ...core.receiver import receiver_parameters
+            rp = receiver_parameters(params)
+            self.rx_length, self.rx_height = rp.antenna_length / params.wavelength, rp.antenna_height / params.wavelength
 
     # ------------------------------------------------------------------ per launch
     def context(self, launch, capacity: int = 0) -> dict:
@@ -159,6 +166,12 @@ class Returns(ClutterTerms):
         if self.continuous:
             ctx["velocity"] = table_array(mi.Array3f64, launch.velocity.T)
             ctx["acceleration"] = table_array(mi.Array3f64, launch.acceleration.T)
+        if self.bistatic:
+            ctx["receiver"] = table_array(mi.Array3f64, launch.receiver.T)
+            if self.rx_length > 0 or self.rx_height > 0:
+                axis, elevation, steer = receiver_axes(launch.receiver, launch.receiver_axis, self.fp.origin)
+                ctx["rx_axis"], ctx["rx_elevation"] = (table_array(mi.Vector3f, a.T) for a in (axis, elevation))
+                ctx["rx_steer"] = table_array(mi.Float, steer)
         self.sums.open(ctx)
         return ctx
 
@@ -263,6 +276,21 @@ class Returns(ClutterTerms):
             gain *= _sinc(math.pi * self.height_in_wavelengths * dr.dot(across, elevation))
         return gain
 
+    def rx_gain(self, v, view: PulseView):
+        """Bistatic: the receiver's one-way field pattern toward unit direction ``v`` (receiver ->
+        scene), eq. (B3): its uniform aperture ``receiver_antenna_length`` x ``receiver_antenna_height``
+        staring at the scene centre, ``sinc(L_r (sin(phi_az) - sin(phi_c)) / lambda) sinc(H_r
+        sin(phi_el) / lambda)`` about its along-track and elevation axes."""
+        axis, elevation = view.rx_axes
+        along = dr.dot(v, axis)
+        gain = mi.Float(1.0)
+        if self.rx_length > 0:
+            x = self.rx_length * (along - view.rx_steer)
+            gain *= dr.select(dr.abs(x) < 1.0, _sinc(math.pi * x), 0.0)
+        if self.rx_height > 0:
+            gain *= _sinc(math.pi * self.rx_height * dr.dot(dr.normalize(v - axis * along), elevation))
+        return gain
+
     def weight(self, d_first, b, s, dist, lref, view: PulseView):
         """Antenna pattern (A) and radiometric spreading (R1) of a return reached along ``d_first`` on
         its first leg and leaving toward the antenna along ``b``, ``dist`` away, at unfolded length
@@ -270,7 +298,9 @@ class Returns(ClutterTerms):
         1 when neither effect is on."""
         weight = mi.Float(1.0)
         if self.pattern:
-            weight *= self.gain(d_first, view) * self.gain(-b, view)
+            weight *= self.gain(d_first, view) * (self.gain(-b, view) if not self.bistatic else 1.0)
+        if view.rx_steer is not None:                 # the receiver's own pattern, eq. (B3)
+            weight *= self.rx_gain(-b, view)
         if self.radiometry:
             rref = mi.Float(0.5 * lref)
             weight *= rref * rref / (mi.Float(s) * mi.Float(dist))
@@ -312,6 +342,12 @@ class Returns(ClutterTerms):
         if self.continuous:
             view.velocity = dr.gather(mi.Array3f64, ctx["velocity"], pulse)
             view.acceleration = dr.gather(mi.Array3f64, ctx["acceleration"], pulse)
+        if self.bistatic:
+            view.receiver = dr.gather(mi.Array3f64, ctx["receiver"], pulse)
+            if "rx_steer" in ctx:
+                view.rx_steer = dr.gather(mi.Float, ctx["rx_steer"], pulse)
+                view.rx_axes = (dr.gather(mi.Vector3f, ctx["rx_axis"], pulse),
+                                dr.gather(mi.Vector3f, ctx["rx_elevation"], pulse))
         return view
 
     @staticmethod

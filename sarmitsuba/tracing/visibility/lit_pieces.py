@@ -271,10 +271,12 @@ def device_samples(pieces: Pieces):
     return (dr.select(is_whole, whole_x, tx * step + px), dr.select(is_whole, whole_y, ty * step + py)), owner
 
 
-def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray):
+def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarray, antenna: np.ndarray,
+         receiver: np.ndarray | None = None):
     """The legs of the paths to ``points`` [s, 3] through chains ``chain`` [s]: start and end
     float64 [s, D + 1, 3], lifted off their surfaces, and which legs exist bool [s, D + 1]
-    (legs ``0 .. d`` on the way out, leg ``D`` the return)."""
+    (legs ``0 .. d`` on the way out, leg ``D`` the return: to ``antenna`` [s, 3], or bistatic to
+    ``receiver`` [s, 3], docs/physics.md (B2), where it exists at the first bounce too)."""
     depth = chains.parts.shape[1]
     order = chains.order[chain]
     q = path_points(surfaces, chains, chain, points, antenna)
@@ -296,14 +298,16 @@ def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarr
         start[rows, leg], end[rows, leg], exists[rows, leg] = b if leg == 0 else a, a if leg == 0 else b, True
     last = chains.last[chain]
     first_bounce = order == 0
-    start[:, depth] = lift(points, np.take(surfaces.normal, last, axis=0), antenna)
-    end[:, depth] = antenna
-    exists[:, depth] = ~first_bounce            # at the first bounce the return is the way out
+    back = antenna if receiver is None else receiver
+    start[:, depth] = lift(points, np.take(surfaces.normal, last, axis=0), back)
+    end[:, depth] = back
+    # monostatic, at the first bounce the return is the way out
+    exists[:, depth] = ~first_bounce if receiver is None else True
     return start, end, exists
 
 
 def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Rays, visibility: PathVisibility,
-               patch: float, span: tuple | None = None) -> LitPieces:
+               patch: float, span: tuple | None = None, receiver: np.ndarray | None = None) -> LitPieces:
     """The pieces of ``chains`` [n] seen from ``antenna`` [n, 3] (each chain's reference position)
     and what the antenna sees of them, eqs. (M2)-(M4).
 
@@ -320,8 +324,11 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
     span : (g float64 [n, 3], lo [n], hi [n]), optional
         The beam's reach: pieces are cut only where ``lo <= g . U_d(x) <= hi`` (the unfolded
         path's end along the track, for a straight stripmap track).
+    receiver : float64 [n, 3], optional
+        Bistatic: each chain's receiver reference position, the return legs' end (docs/physics.md
+        (B2)); default the antenna.
     """
-    lines, valid, returns = region_lines(surfaces, chains, antenna)
+    lines, valid, returns = region_lines(surfaces, chains, antenna, receiver)
     last = chains.last
     region, count = clip(surfaces.polygon[last], np.where(valid, surfaces.n_corners[last], 0), lines)
     reach = None
@@ -330,21 +337,23 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
         reach = unfolded_lines(surfaces, chains, np.concatenate([g, -g]).reshape(2, -1, 3).transpose(1, 0, 2),
                                np.stack([-lo, hi], axis=1))
     pieces = pieces_of(region, count, patch, reach)
-    return classify(surfaces, chains, pieces, antenna, rays, visibility, returns)
+    return classify(surfaces, chains, pieces, antenna, rays, visibility, returns, receiver)
 
 
 def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.ndarray, rays: Rays,
-             visibility: PathVisibility, returns: np.ndarray | None = None) -> LitPieces:
+             visibility: PathVisibility, returns: np.ndarray | None = None,
+             receiver: np.ndarray | None = None) -> LitPieces:
     """What the antenna sees of ``pieces`` (their region ``r`` is chain ``r``): rays along every leg
     of the paths to their corners (:class:`sarmitsuba.tracing.visibility.rays.PathVisibility`), eq. (M4).
-    ``returns`` bool [n_chains]: which chains can return at all (default all)."""
+    ``returns`` bool [n_chains]: which chains can return at all (default all); ``receiver``
+    [n_chains, 3]: bistatic, where the return legs end (B2)."""
     order = int(chains.order.max(initial=0))
     coords, owner = device_samples(pieces)
     chain = pieces.region[owner]
-    bits = visibility.legs_clear(chains, chain, coords, antenna, order)
+    bits = visibility.legs_clear(chains, chain, coords, antenna, order, receiver)
     out_mask = (1 << (order + 1)) - 1
     out_clear = (bits & out_mask) == out_mask
-    both = out_clear if order == 0 else out_clear & ((bits >> (order + 1)) & 1).astype(bool)
+    both = out_clear if order == 0 and receiver is None else out_clear & ((bits >> (order + 1)) & 1).astype(bool)
     if returns is not None:
         both &= returns[chain]
     n = len(pieces)
@@ -359,13 +368,13 @@ def classify(surfaces: Surfaces, chains: Chains, pieces: Pieces, antenna: np.nda
     coords, local = corner_samples(pieces.select(rows))
     owner = np.take(rows, local)
     blockers = _blockers(rays, surfaces, chains, coords, owner, np.take(pieces.region, owner), antenna, mixed,
-                         math.sqrt(2.0) * pieces.patch)
+                         math.sqrt(2.0) * pieces.patch, receiver)
     return LitPieces(chains=chains, pieces=pieces, lit=lit, transmit=transmit, mixed=mixed, blockers=blockers,
                      samples=samples, sent=sent_count / np.maximum(total, 1))
 
 
 def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, chain, antenna, mixed,
-              reach: float) -> Blockers:
+              reach: float, receiver=None) -> Blockers:
     """For each mixed piece, the parts that hid its samples (``leg * n_parts + part``, unique per
     piece; ``-2`` for an occluder that is not a mesh; :class:`Blockers`), by the NumPy
     legs of :func:`legs` cast again with :meth:`Rays.first_hit`. An occluder stands for its whole
@@ -378,7 +387,8 @@ def _blockers(rays: Rays, surfaces: Surfaces, chains: Chains, coords, owner, cha
         return Blockers.empty()
     chain_rows = np.take(chain, rows)
     points = surfaces.to_world(np.take(chains.last, chain_rows), np.take(coords, rows, axis=0))
-    start, end, exists = legs(surfaces, chains, chain_rows, points, np.take(antenna, chain_rows, axis=0))
+    start, end, exists = legs(surfaces, chains, chain_rows, points, np.take(antenna, chain_rows, axis=0),
+                              None if receiver is None else np.take(receiver, chain_rows, axis=0))
     # the legs that exist, as rows of the flat [s * (D + 1), 3] tables (row gathers by np.take)
     slot = np.flatnonzero(exists)
     sample, leg = np.divmod(slot, exists.shape[1])
@@ -451,12 +461,11 @@ def _part_in_plane(surfaces: Surfaces, part: np.ndarray, plane: np.ndarray) -> n
 
 
 def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, rays: Rays,
-            visibility: PathVisibility) -> tuple[Blockers, np.ndarray]:
+            visibility: PathVisibility, receiver: np.ndarray | None = None) -> tuple[Blockers, np.ndarray]:
     """The mixed pieces' blockers with the occluders met from points of their cut lit regions
     (``clipped``, :class:`sarmitsuba.tracing.visibility.occlusion.ClippedPieces`): each region's corners and
     edge midpoints pulled :data:`SAMPLE_INSET` patch sizes toward its centroid, and the centroid
-    (``antenna`` [n_chains,
-    3]). Returns the new blockers (:class:`Blockers`, as :attr:`LitPieces.blockers`) and the rows
+    (``antenna`` [n_chains, 3]; bistatic, ``receiver`` [n_chains, 3] where the return legs end). Returns the new blockers (:class:`Blockers`, as :attr:`LitPieces.blockers`) and the rows
     of ``lit.pieces`` that gained an occluder (int64, ascending)."""
     n = len(lit.mixed)
     if len(clipped) == 0:
@@ -473,10 +482,10 @@ def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, ra
     chain = lit.pieces.region[piece]
     # the Dr.Jit legs first: only the samples some leg hides are cast again for their occluders
     order = int(lit.chains.order.max(initial=0))
-    bits = visibility.legs_clear(lit.chains, chain, coords, antenna, order)
+    bits = visibility.legs_clear(lit.chains, chain, coords, antenna, order, receiver)
     out_mask = (1 << (order + 1)) - 1
     clear = (bits & out_mask) == out_mask
-    if order > 0:
+    if order > 0 or receiver is not None:
         clear &= ((bits >> (order + 1)) & 1).astype(bool)
     hidden = ~clear
     if not np.any(hidden):
@@ -484,7 +493,8 @@ def recheck(surfaces: Surfaces, lit: LitPieces, clipped, antenna: np.ndarray, ra
     coords, piece, chain = coords[hidden], piece[hidden], chain[hidden]
     mixed = np.zeros(n, bool)
     mixed[clipped.piece] = True
-    found = _blockers(rays, surfaces, lit.chains, coords, piece, chain, antenna, mixed, math.sqrt(2.0) * lit.pieces.patch)
+    found = _blockers(rays, surfaces, lit.chains, coords, piece, chain, antenna, mixed, math.sqrt(2.0) * lit.pieces.patch,
+                      receiver)
     old = lit.blockers
     real = found.key >= 0                   # a non-mesh occluder met here leaves the piece as it is
     new = Blockers(found.piece[real], found.key[real])

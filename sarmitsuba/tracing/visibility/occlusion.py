@@ -51,16 +51,18 @@ def shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
 
 
 def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
-                 antennas: list[np.ndarray]):
+                 antennas: list[np.ndarray], receivers: list[np.ndarray] | None = None):
     """:func:`shadow_lines` from each of ``antennas`` (each [k, 3]) as the distinct half-planes
     (one float64 [r + 1, 3] per antenna, the last :data:`EVERYTHING`) and the rows that fill
     each slot, int64 [k, H] (the same for every antenna): the geometry that does not depend on
-    the antenna (corners, frames, windows) is found once."""
+    the antenna (corners, frames, windows) is found once. Bistatic (``receivers``, one [k, 3] per
+    antenna, docs/physics.md (B2)) the return leg's shadows are cast from the receiver, and at the
+    first bounce leg 0 is the way out only."""
     depth = chains.parts.shape[1]
     k = len(chain)
     n_slot = surfaces.polygon.shape[1]
     order = chains.order[chain]
-    back = (leg == depth) | ((order == 0) & (leg == 0))       # the return leg: the real frame
+    back = (leg == depth) | ((order == 0) & (leg == 0) & (receivers is None))      # the return leg: the real frame
     level = np.where(back, 0, leg)
     map_at = chain * depth + level                            # row gathers by np.take: ~10x faster on [n, 3]
     lin = np.take(chains.lin.reshape(-1, 3, 3), map_at, axis=0)
@@ -102,7 +104,9 @@ def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
     slot[:, 2] = np.where(~back & (leg > 0), np.arange(2 * k, 3 * k), nowhere)
     slot.reshape(-1)[kk * (n_slot + 3) + 3 + ee] = np.arange(3 * k, nowhere)
     out = []
-    for antenna in antennas:
+    for i, antenna in enumerate(antennas):
+        if receivers is not None:                 # the return leg seen from the receiver (B2)
+            antenna = np.where(back[:, None], receivers[i], antenna)
         a = offset - np.einsum("ki,ki->k", normal, antenna)
         sign = np.where(a >= 0, 1.0, -1.0)[:, None]
         # the half-spaces g . y + h >= 0
@@ -129,14 +133,16 @@ def _shadow_rows(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder
 
 
 def shared_shadow_lines(surfaces: Surfaces, chains: Chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
-                        *antennas: np.ndarray) -> list[np.ndarray]:
+                        *antennas: np.ndarray, receivers: tuple | None = None) -> list[np.ndarray]:
     """:func:`shadow_lines` of each distinct (chain, occluder, leg) once (the pieces of one chain
-    share their occluders' shadows), from each of ``antennas`` (each [n_chains, 3]): one float64
-    [k, H, 3] per antenna."""
+    share their occluders' shadows), from each of ``antennas`` (each [n_chains, 3]; bistatic with
+    the return legs' ends ``receivers``, one [n_chains, 3] per antenna): one float64 [k, H, 3] per
+    antenna."""
     key = (chain * (int(occluder.max(initial=0)) + 1) + occluder) * (int(leg.max(initial=0)) + 1) + leg
     _, first, back = np.unique(key, return_index=True, return_inverse=True)
     c = chain[first]
-    found, slot = _shadow_rows(surfaces, chains, c, occluder[first], leg[first], [antenna[c] for antenna in antennas])
+    found, slot = _shadow_rows(surfaces, chains, c, occluder[first], leg[first], [antenna[c] for antenna in antennas],
+                               None if receivers is None else [r[c] for r in receivers])
     slot = np.take(slot, back.reshape(-1), axis=0)
     return [np.take(f, slot, axis=0) for f in found]
 
@@ -495,11 +501,13 @@ class ClippedPieces:
                    np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0))
 
 
-def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | None = None) -> ClippedPieces:
+def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | None = None,
+               receiver: np.ndarray | None = None) -> ClippedPieces:
     """Every mixed piece of ``lit`` (:class:`sarmitsuba.tracing.visibility.lit_pieces.LitPieces`) whose
     occluders are all mesh parts, cut to its lit region: the piece less the shadows of the
     occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3];
-    ``only``: just these rows of ``lit.pieces``."""
+    ``only``: just these rows of ``lit.pieces``; ``receiver`` [n_chains, 3]: bistatic, where the
+    return legs end (docs/physics.md (B2))."""
     blockers = lit.blockers
     usable = lit.mixed & blockers.mesh_only(len(lit.mixed))
     if only is not None:
@@ -512,7 +520,8 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     pair_piece, key = blockers.rows(rows, mesh=True)
     leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
     chain = pieces.region[pair_piece]
-    lines, = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna)
+    lines, = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna,
+                                 receivers=None if receiver is None else (receiver,))
     cut, cut_count = clip(np.take(poly, pair_piece, axis=0), np.take(count, pair_piece), lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
     cut_area = _areas(cut, cut_count)

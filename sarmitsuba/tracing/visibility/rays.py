@@ -198,12 +198,15 @@ class PathVisibility:
         """Rays cast so far by the calling thread."""
         return self.counter.value
 
-    def legs_clear(self, chains, chain: np.ndarray, coords: np.ndarray, antenna: np.ndarray, order: int) -> np.ndarray:
+    def legs_clear(self, chains, chain: np.ndarray, coords: np.ndarray, antenna: np.ndarray, order: int,
+                   receiver: np.ndarray | None = None) -> np.ndarray:
         """uint32 [m]: bit ``k`` set where leg ``k`` of the path to each point is free (legs ``0 ..
         order`` on the way out, from the antenna, bit ``order + 1`` the return; at the first bounce
         the one leg is both), for points ``coords`` [m, 2] (face coordinates; or their two columns
         as Dr.Jit Float64 arrays, computed on the device) on the last parts of chains ``chain``
-        [m], all of bounce order ``order + 1``, seen from ``antenna`` [n_chains, 3]."""
+        [m], all of bounce order ``order + 1``, seen from ``antenna`` [n_chains, 3]. Bistatic
+        (``receiver`` [n_chains, 3], docs/physics.md (B2)) the return ends at the receiver and is
+        its own leg at the first bounce too."""
         if len(chain) == 0:
             return np.zeros(0, np.uint32)
         if isinstance(coords, np.ndarray):
@@ -243,10 +246,11 @@ class PathVisibility:
             origin = _lifted(start, normals[leg], end)
             target = end if leg == 0 else _lifted(end, normals[leg - 1], start)
             bits |= dr.select(self._free(origin, target), mi.UInt32(1 << leg), 0)
-        if order > 0:
-            bits |= dr.select(self._free(_lifted(x, n_last, ant), ant), mi.UInt32(1 << (order + 1)), 0)
+        back = ant if receiver is None else dr.gather(a64, device_array(a64, receiver.T), ch)
+        if order > 0 or receiver is not None:
+            bits |= dr.select(self._free(_lifted(x, n_last, back), back), mi.UInt32(1 << (order + 1)), 0)
         dr.eval(bits)
-        self.counter.add(len(chain) * (order + 1 + (order > 0)))
+        self.counter.add(len(chain) * (order + 1 + (order > 0 or receiver is not None)))
         return bits.numpy()
 
     def _free(self, origin, target):

@@ -1,0 +1,223 @@
+"""Bistatic acquisitions traced: a receiver on its own platform (docs/physics.md (B1)-(B4)).
+
+Truth: a plate's position (its centre is the stationary point of the range sum ``R_t + R_r``),
+physical optics' closed form of a rectangular plate at the bistatic angle, the monostatic
+tracer itself where the receiver coincides with the transmitter, and walls that hide one leg.
+
+Deliberate bugs these tests were run against (each fails one):
+  * the bistatic range sum halved as a monostatic one (the return leg to the transmitter): the
+    position test, by metres;
+  * transmit and receive legs swapped in the visibility (the return leg's rays and shadows
+    aimed at the transmitter): the wall tests;
+  * the return leg's bit skipped at the first bounce, as monostatic visibility does: the wall
+    hiding the receiver;
+  * the receiver's reference used as the transmitter's in the rates: the coincident-receiver test
+    would not see it, the moving-platform position test does.
+"""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import sarmitsuba
+from sarmitsuba.core.constants import SPEED_OF_LIGHT
+from sarmitsuba.core.geometry import acquisition_geometry
+from sarmitsuba.core.radar import ParameterError, RadarParameters
+from sarmitsuba.core.trajectory import StateVectors
+from sarmitsuba.pipeline import simulate
+
+from test_patches import frame, rectangle
+
+FREQUENCY = 9.6e9
+WAVELENGTH = SPEED_OF_LIGHT / FREQUENCY
+REPO = Path(__file__).resolve().parents[1]
+#: A uniform beam: no pattern to weigh the closed forms with.
+BASE = {"frequency": FREQUENCY, "bandwidth": 150e6, "incidence_angle": 45.0, "scene_center": (0.0, 0.0, 0.0),
+        "beam": "uniform", "azimuth_beamwidth": 1.0}
+#: Two receivers: beside the transmitter's track (14 deg) and across it, on a drone (about 60 deg).
+RECEIVERS = {
+    "beside": {"receiver_altitude": 1000.0, "receiver_incidence_angle": 45.0, "receiver_heading": 20.0,
+               "receiver_velocity": 100.0},
+    "drone": {"receiver_altitude": 300.0, "receiver_incidence_angle": 50.0, "receiver_heading": 90.0,
+              "receiver_velocity": 15.0},
+}
+
+
+def mid_geometry(receiver: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors from the scene centre toward the transmitter and the receiver, mid-aperture."""
+    g = acquisition_geometry(RadarParameters.from_mapping({**BASE, "n_pulses": 3, **receiver}))
+    t, r = g.positions[1], g.rx_positions[1]
+    return t / np.linalg.norm(t), r / np.linalg.norm(r)
+
+
+def bisector_plate(receiver: dict, side: float, turn_deg: float):
+    """A PEC plate ``side`` wavelengths square whose normal is the mid-aperture bisector turned
+    ``turn_deg`` toward +x: ``(mesh, e1, e2, normal)`` (``e1``, ``e2`` its half sides)."""
+    t, r = mid_geometry(receiver)
+    normal = (t + r) / np.linalg.norm(t + r)
+    turn = math.radians(turn_deg)
+    normal = math.cos(turn) * normal + math.sin(turn) * np.array([1.0, 0.0, 0.0])
+    normal /= np.linalg.norm(normal)
+    e1, e2 = frame(normal, 10.0)
+    half = side * WAVELENGTH / 2
+    return rectangle((0, 0, 0), e1 * half, e2 * half), e1 * half, e2 * half, normal
+
+
+def plate_sim(receiver: dict, plate, **sensor):
+    return simulate(sarmitsuba.Scene([(plate, "pec", "plate")], sensor={**BASE, **receiver, **sensor},
+                                     integrator={"max_depth": 1, "diffraction": False, "polarimetry": "scalar"}))
+
+
+def po_rcs(tx: np.ndarray, rx: np.ndarray, e1, e2, normal, frequency: float) -> float:
+    """Physical optics' bistatic RCS [m^2] of the PEC rectangle ``+-e1 +-e2`` at the origin seen from
+    ``tx`` and received at ``rx`` (m): ``sigma = 4 pi |(cos_i + cos_s) / 2 int exp(j q . r) dA|^2 /
+    lambda^2``, ``q = k (t + r)`` (unit vectors toward them), ``int = A sinc(q . e1) sinc(q . e2)``
+    (Knott, Shaeffer and Tuley, *Radar Cross Section*, 2nd ed., 2004, eqs. 5.37-5.39; Balanis,
+    *Advanced Engineering Electromagnetics*, 2nd ed., 2012, sec. 11.3.2)."""
+    t, r = tx / np.linalg.norm(tx), rx / np.linalg.norm(rx)
+    k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
+    q = k * (t + r)
+    area = 4.0 * np.linalg.norm(e1) * np.linalg.norm(e2)
+    integral = area * np.sinc(q @ e1 / math.pi) * np.sinc(q @ e2 / math.pi)
+    return 4.0 * math.pi * (0.5 * (abs(t @ normal) + abs(r @ normal)) * integral) ** 2 * (frequency / SPEED_OF_LIGHT) ** 2
+
+
+@pytest.mark.parametrize("name", sorted(RECEIVERS))
+def test_a_plate_is_imaged_at_its_position(name):
+    """The plate facing the bisector, focused by backprojection on ``R_t + R_r``: its peak within
+    0.05 m of its centre (a range sum halved as a monostatic one misplaces it by metres)."""
+    plate, *_ = bisector_plate(RECEIVERS[name], 4, 0.0)
+    sim = plate_sim(RECEIVERS[name], plate)
+    found = np.asarray(sarmitsuba.analyze(sim.image, (0, 0, 0), raw=sim.raw).world_position)
+    assert np.linalg.norm(found[:2]) < 0.05, found
+
+
+def _pulse_energy(sim, pulse: int) -> float:
+    return float(np.sum(np.abs(sim.raw.data[pulse]) ** 2))
+
+
+@pytest.mark.parametrize("name, side, turn", [("beside", 4, 20.0), ("drone", 4, 20.0), ("drone", 8, 0.0)])
+def test_bistatic_rcs_of_a_plate_is_physical_optics(name, side, turn):
+    """The mid pulse's echo energy of the plate (a fixed number of compressed samples per unit
+    RCS, whatever the geometry) over that of a monostatic plate: within 0.5 dB of the ratio of
+    their physical optics closed forms, each at its own angles, averaged over the band."""
+    receiver = RECEIVERS[name]
+    plate, e1, e2, normal = bisector_plate(receiver, side, turn)
+    bistatic = plate_sim(receiver, plate, n_pulses=5)
+    mono_plate, m1, m2, m_normal = bisector_plate({}, 4, 10.0)
+    mono = plate_sim({}, mono_plate, n_pulses=5)
+    frequencies = FREQUENCY + np.linspace(-0.5, 0.5, 41) * 150e6
+
+    def closed(sim, a, b, n):
+        # normalised radiometry (no transmit_power): the echo's energy is sigma, without spreading
+        tx, rx = sim.raw.tx_position[2], sim.raw.rx_position[2]
+        return np.mean([po_rcs(tx, rx, a, b, n, f) for f in frequencies])
+
+    got = 10 * math.log10(_pulse_energy(bistatic, 2) / _pulse_energy(mono, 2))
+    expected = 10 * math.log10(closed(bistatic, e1, e2, normal) / closed(mono, m1, m2, m_normal))
+    assert got == pytest.approx(expected, abs=0.5), (got, expected)
+
+
+def _wall(x0, x1, y0, y1, height):
+    box = trimesh.creation.box((x1 - x0, y1 - y0, height))
+    box.apply_translation((0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * height))
+    return box
+
+
+@pytest.mark.parametrize("hidden", ["receiver", "transmitter", None])
+def test_a_wall_hides_the_leg_it_stands_in(hidden):
+    """The drone receives from the -x side, the transmitter sends from +y: a wall on the -x side
+    hides the plate from the receiver only, one on the +y side from the transmitter only; either
+    darkens the plate's echo by more than 30 dB, and a wall beside neither leaves it as it was
+    (within 1 dB)."""
+    receiver = {"receiver_altitude": 300.0, "receiver_incidence_angle": 45.0, "receiver_heading": 90.0,
+                "receiver_velocity": 15.0}
+    plate, *_ = bisector_plate(receiver, 4, 0.0)
+    plate.apply_translation((0.0, 0.0, 0.3))
+    wall = {"receiver": _wall(-2.2, -2.0, -3.0, 3.0, 6.0), "transmitter": _wall(-3.0, 3.0, 2.0, 2.2, 6.0),
+            None: _wall(2.0, 2.2, -6.0, -3.0, 6.0)}[hidden]
+    rows = [(plate, "pec", "plate"), (wall, "concrete", "wall")]
+    sensor = {**BASE, **receiver, "n_pulses": 5}
+    walled = simulate(sarmitsuba.Scene(rows, sensor=sensor, integrator={"max_depth": 1, "diffraction": False, "polarimetry": "scalar"}))
+    alone = plate_sim(receiver, plate, n_pulses=5)
+    ratio = 10 * math.log10(_plate_energy(walled) / _plate_energy(alone))
+    if hidden is None:
+        assert abs(ratio) < 1.0, ratio
+    else:
+        assert ratio < -30.0, ratio
+
+
+def _plate_energy(sim) -> float:
+    """The echo energy of the plate: the compressed samples within 1 m of its range sum."""
+    raw = sim.raw
+    lengths = np.linalg.norm(raw.tx_position, axis=1) + np.linalg.norm(raw.rx_position, axis=1)
+    near = np.abs(raw.fast_time[None, :] * SPEED_OF_LIGHT - lengths[:, None]) < 1.0
+    return float(np.sum(np.abs(raw.data) ** 2 * near))
+
+
+def block_scene() -> list:
+    box = trimesh.creation.box((8.0, 6.0, 7.0))
+    box.apply_translation((1.0, -2.0, 3.5))
+    ground = rectangle((0, 0, 0), (20.0, 0.0, 0.0), (0.0, 20.0, 0.0))
+    return [(box, "concrete", "box"), (ground, "concrete", "ground")]
+
+
+def test_a_receiver_on_the_transmitters_track_renders_the_monostatic_raw_data():
+    """A receiver flying the transmitter's own track (stop-and-hop, so both receive where they
+    transmit): the bistatic path, with its own return legs, visibility, shadows and rates,
+    reproduces the monostatic raw data of a box on the ground at two bounces within -60 dB."""
+    sensor = {**BASE, "n_pulses": 64, "prf": 200.0, "heading": 20.0,
+              "stop_and_hop": True}
+    same = {"receiver_altitude": 1000.0, "receiver_incidence_angle": 45.0, "receiver_heading": 20.0,
+            "receiver_velocity": 100.0}
+    integrator = {"max_depth": 2}
+    mono = simulate(sarmitsuba.Scene(block_scene(), sensor=sensor, integrator=integrator))
+    bi = simulate(sarmitsuba.Scene(block_scene(), sensor={**sensor, **same}, integrator=integrator))
+    assert np.allclose(bi.raw.rx_position, mono.raw.rx_position, atol=1e-6)
+    error = float(np.sum(np.abs(bi.raw.data - mono.raw.data) ** 2) / np.sum(np.abs(mono.raw.data) ** 2))
+    assert error < 1e-6, 10 * math.log10(error)
+
+
+# --------------------------------------------------------------------------- bad input
+def test_a_receiver_below_the_horizon_is_refused():
+    """A receiver whose state vectors run 10 m below the scene centre never sees the scene."""
+    t = np.linspace(-5.0, 5.0, 11)
+    below = StateVectors(t, np.stack([50.0 * t, np.full_like(t, -500.0), np.full_like(t, -10.0)], axis=1))
+    params = RadarParameters.from_mapping({**BASE, "n_pulses": 16, "receiver": {"trajectory": below}})
+    with pytest.raises(ParameterError, match="receiver_trajectory.*horizon"):
+        acquisition_geometry(params)
+
+
+def test_a_bistatic_angle_beyond_150_degrees_is_refused():
+    """Transmitter and receiver facing each other across the scene at 80 deg incidence: 160 deg."""
+    params = RadarParameters.from_mapping({**BASE, "incidence_angle": 80.0, "n_pulses": 16, "receiver_look_side": "left",
+                                           "receiver_incidence_angle": 80.0})
+    with pytest.raises(ParameterError, match="bistatic angle.*150"):
+        acquisition_geometry(params)
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"receiver_bandwidth": 1e6}, "a receiver sets only"),
+    ({"receiver_altitude": -5.0}, "receiver_altitude"),
+    ({"receiver_altitude": 300.0, "ati_baseline": 2.0}, "ati_baseline"),
+])
+def test_bad_receiver_parameters_name_the_parameter(values, message):
+    with pytest.raises(ParameterError, match=message):
+        RadarParameters.from_mapping({**BASE, **values})
+
+
+def test_a_receiver_facing_the_transmitter_on_the_command_line_exits_with_2(tmp_path):
+    """``sarmitsuba info`` on urban with the receiver across the scene: exit code 2, one message
+    naming the receiver's parameters and the bistatic angle, no traceback."""
+    out = subprocess.run([sys.executable, "-m", "sarmitsuba", "info", str(REPO / "scenes" / "urban.xml"),
+                          "--set", "incidence_angle=80", "--set", "receiver_look_side=left",
+                          "--set", "receiver_incidence_angle=80"], capture_output=True, text=True)
+    assert out.returncode == 2, out.stderr
+    assert "receiver_" in out.stderr and "bistatic angle" in out.stderr
+    assert "Traceback" not in out.stderr
