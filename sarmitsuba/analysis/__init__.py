@@ -17,10 +17,13 @@ tested against, interferograms, coherence and heights, and the cost of a render 
 :mod:`.reference_cases`  the standard stripmap point-target acquisitions
 :mod:`.interferometry`   interferogram, coherence, height of two renders
 :mod:`.cost`             rays, time and memory of a render, estimated without tracing
+:mod:`.bistatic`         bistatic angle, bisector and ground-range resolution
+:mod:`.along_track`      along-track interferogram and DPCA image of two channels
 =======================  ===============================================================
 
 Physics: (K), (K2) calibration and energy widths; (S2)-(S3) the oracle's echo and
-backprojection; (I1)-(I4) interferometry; (NESZ).
+backprojection; (I1)-(I4) interferometry; (NESZ); (B4) bistatic resolution;
+(V6)-(V7) along-track interferometry.
 
 ``from sarmitsuba.analysis import analyze_point_target`` and the other names of the former module
 ``sarmitsuba.analysis`` are looked up in :mod:`.point_target`.

@@ -95,7 +95,7 @@ from ..core.raw import RawData
 from .fft_contract import (azimuth_weights, doppler_rows, focus_setup, range_compressed, slant_image,
                            unit_mean_window, windows_label)
 from .stolt import Scratch, StoltInterpolator, centred_buffer
-from .stripmap import StripmapGeometry, slant_output_grid
+from .stripmap import StripmapGeometry, check_monostatic, slant_output_grid
 
 __all__ = ["omega_k", "omega_k_plan", "StoltPlan"]
 
@@ -173,6 +173,11 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     ValueError
         Invalid geometry (not straight/uniform/monostatic, see ``stripmap_geometry``),
         a Stolt band wider than ``fs``, or a bad option.
+    GeometryNotSupported
+        (a ValueError) Bistatic data (``rx_position`` farther than the tolerance from
+        ``tx_position``, no ``rx_time``): omega-K forms the monostatic range ``2 R``, not the
+        range sum ``R_t + R_r``; the message names ``backproject``
+        (:func:`~sarmitsuba.focus.stripmap.check_monostatic`).
 
     Notes
     -----
@@ -189,6 +194,8 @@ def omega_k(raw: RawData, *, window_range: Any = "rect", window_azimuth: Any = "
     with the previous windowed-sinc gather).
     """
     t_start = time.perf_counter()
+    tolerance = geometry.tolerance if isinstance(geometry, StripmapGeometry) else C / raw.fc / 16.0
+    check_monostatic(raw, "omega-K", tolerance)          # before the work: bistatic data are refused
     raw = range_compressed(raw)
     geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
                                                  window_range, window_azimuth, doppler_bandwidth, workers)

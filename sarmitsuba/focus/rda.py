@@ -70,7 +70,7 @@ from ..core.image import SarImage
 from ..core.raw import RawData
 from .fft_contract import (azimuth_weights, cis, doppler_rows, focus_setup, range_compressed, slant_image,
                            unit_mean_window, windows_label)
-from .stripmap import StripmapGeometry, slant_output_grid
+from .stripmap import StripmapGeometry, check_monostatic, slant_output_grid
 
 __all__ = ["range_doppler", "range_doppler_plan", "RangeDopplerPlan", "AzimuthFilter", "Interpolator"]
 
@@ -132,8 +132,12 @@ def range_doppler(raw: RawData, *, window_range: Any = "rect", window_azimuth: A
     ------
     ValueError
         Invalid geometry, unknown ``src``, or a bad option.
+    GeometryNotSupported
+        (a ValueError) Bistatic data, as :func:`sarmitsuba.focus.omega_k`.
     """
     t_start = time.perf_counter()
+    tolerance = geometry.tolerance if isinstance(geometry, StripmapGeometry) else C / raw.fc / 16.0
+    check_monostatic(raw, "range-Doppler", tolerance)          # before the work: bistatic data are refused
     raw = range_compressed(raw)
     geo, w_r, w_a, workers, band_a = focus_setup(raw, geometry, scene_centre, squint, reference_range,
                                                  window_range, window_azimuth, doppler_bandwidth, workers)

@@ -69,8 +69,10 @@ from ..core.constants import SPEED_OF_LIGHT
 from ..core.raw import RawData
 from ..core.arrays import readonly
 from .grid import ImageGrid
+from .polar import GeometryNotSupported
 
-__all__ = ["StripmapGeometry", "stripmap_geometry", "estimate_doppler_centroid", "slant_output_grid"]
+__all__ = ["StripmapGeometry", "stripmap_geometry", "check_monostatic", "estimate_doppler_centroid",
+           "slant_output_grid"]
 
 C = SPEED_OF_LIGHT
 
@@ -210,7 +212,8 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
     ValueError
         When the track is not straight or not uniformly sampled within ``tolerance``
         (use :func:`sarmitsuba.focus.backproject`, which is exact for any track), the data
-        are bistatic, the pulse times disagree with ``raw.prf``, the velocity vectors
+        are bistatic (:class:`~sarmitsuba.focus.polar.GeometryNotSupported`, a ValueError, from
+        :func:`check_monostatic`), the pulse times disagree with ``raw.prf``, the velocity vectors
         disagree with the track by more than 1 %, there are fewer than 2 pulses, a stated
         angle or point is invalid, or no scene centre can be found.
 
@@ -252,6 +255,39 @@ def stripmap_geometry(raw: RawData, *, scene_centre: Sequence[float] | None = No
         max_along_track_error=track.along, tolerance=tol)
 
 
+def check_monostatic(raw: RawData, focuser: str, tolerance: float = 0.0) -> None:
+    """Refuse bistatic stop-and-hop data (a receiver on another platform) with one message.
+
+    Parameters
+    ----------
+    raw : RawData
+        Data to focus; ``raw.rx_time`` given (continuous motion: one antenna that moves during
+        the echo, docs/physics.md (J3)) is not bistatic and passes.
+    focuser : str
+        Name of the focuser that refuses, for the message (e.g. ``"ffbp"``).
+    tolerance : float, m, default 0
+        Largest distance between ``raw.tx_position`` and ``raw.rx_position`` still taken as
+        monostatic.
+
+    Raises
+    ------
+    GeometryNotSupported
+        (a ValueError) When the receiver is farther than ``tolerance`` from the transmitter at some
+        pulse: the focuser forms the monostatic two-way range ``2 R``, not the bistatic range sum
+        ``R_t + R_r``; the message names :func:`sarmitsuba.focus.backproject`, exact on the range sum.
+    """
+    if raw.rx_time is not None:
+        return
+    apart = float(np.max(np.linalg.norm(raw.tx_position - raw.rx_position, axis=1)))
+    if apart > tolerance:
+        limit = f", tolerance {tolerance:.3g} m" if tolerance > 0 else ""
+        raise GeometryNotSupported(
+            f"bistatic data: the receiver is not at the transmitter (up to {apart:.4g} m apart{limit}), and "
+            f"{focuser} cannot focus them (it forms the monostatic two-way range 2 R, not the bistatic range sum "
+            f"R_t + R_r). Use backproject (sarmitsuba.focus.backproject; on the command line --algorithm bp), "
+            f"exact on the range sum")
+
+
 class _Track(NamedTuple):
     """Least-squares uniform straight track ``mean + k * spacing * u`` (:func:`_fit_track`)."""
 
@@ -272,10 +308,7 @@ def _check_sampling(raw: RawData, wavelength: float, tolerance: float | None) ->
     tol = wavelength / 16.0 if tolerance is None else float(tolerance)
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tolerance must be a positive number of metres, got {tolerance!r}")
-    bistatic = float(np.max(np.linalg.norm(raw.tx_position - raw.rx_position, axis=1)))
-    if raw.rx_time is None and bistatic > tol:
-        raise ValueError(f"the FFT focusers need monostatic data: transmitter and receiver differ by up to "
-                         f"{bistatic:.3g} m (tolerance {tol:.3g} m); use bp or ffbp for bistatic data")
+    check_monostatic(raw, "omega-K and range-Doppler (the FFT focusers)", tol)
     dt = np.diff(raw.pulse_time)
     if not np.allclose(dt, 1.0 / raw.prf, rtol=1e-6, atol=0.0):
         raise ValueError(f"pulse_time steps span [{dt.min()!r}, {dt.max()!r}] s, not 1 / prf = {1.0 / raw.prf!r} s: "

@@ -17,8 +17,11 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
   :func:`read_cphd` undoes both, so the samples come back within float32 rounding;
 - continuous-motion data (``RawData.rx_time``, docs/physics.md (J3)) write ``RcvTime``/``RcvPos``
   at the SRP echo's arrival, ``TxTime``/``TxPos`` at transmission (``CollectType`` MONOSTATIC: one
-  antenna); stop-and-hop data write ``RcvPos = TxPos`` and ``RcvTime = TxTime + tau_srp``. Reading,
-  a receiver elsewhere with the transmitter's velocity gives ``rx_time`` back;
+  antenna); stop-and-hop data write ``RcvPos = RawData.rx_position`` and ``RcvTime = TxTime + tau_srp``:
+  the transmitter itself (MONOSTATIC), or a second platform's antenna (``CollectType`` BISTATIC,
+  ``RcvVel`` its own velocity from the receiver positions, ``aFDOP`` from both legs, and sarkit's
+  ``ReferenceGeometry/Bistatic``). Reading, a MONOSTATIC file's receiver elsewhere with the
+  transmitter's velocity gives ``rx_time`` back; a BISTATIC file gives stop-and-hop data;
 - range-compressed data are written as such; chirped data (``range_compressed`` false) are
   written uncompressed;
 - times: ``Global/Timeline/CollectionStart`` is the first pulse's UTC time,
@@ -46,7 +49,7 @@ from ..core import georef
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
-from .cphd_geometry import scene_coordinates, scene_reference_point, srp_delay, unit
+from .cphd_geometry import bistatic, receiver_velocity, scene_coordinates, scene_reference_point, srp_delay, unit
 from .provenance import collection_start as provenance_start
 from .provenance import portable_metadata, utc_now
 
@@ -102,9 +105,12 @@ def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.nd
     pvp["RcvTime"] = pvp["TxTime"] + (tau if raw.rx_time is None else raw.rx_time - raw.pulse_time)
     pvp["TxPos"] = georef.enu_to_ecef(raw.tx_position, ref)
     pvp["RcvPos"] = georef.enu_to_ecef(raw.rx_position, ref)
-    pvp["TxVel"] = pvp["RcvVel"] = raw.velocity @ rot
+    rx_velocity = receiver_velocity(raw)            # a bistatic receiver's own, else the antenna's
+    pvp["TxVel"], pvp["RcvVel"] = raw.velocity @ rot, rx_velocity @ rot
     pvp["SRPPos"] = georef.enu_to_ecef(np.broadcast_to(srp, raw.tx_position.shape), ref)
-    rdot = 0.5 * sum(np.sum(raw.velocity * unit(pos - srp), axis=1) for pos in (raw.tx_position, raw.rx_position))
+    # aFDOP = -2 Rdot_avg / c, Rdot_avg the mean of the two legs' range rates to the SRP (CPHD 1.1 sec. 6)
+    rdot = 0.5 * sum(np.sum(vel * unit(pos - srp), axis=1)
+                     for pos, vel in ((raw.tx_position, raw.velocity), (raw.rx_position, rx_velocity)))
     pvp["aFDOP"] = -2.0 * rdot / SPEED_OF_LIGHT
     pvp["aFRR2"] = 2.0 / (SPEED_OF_LIGHT * lfm_rate(raw))
     pvp["aFRR1"] = raw.fc * pvp["aFRR2"]
@@ -161,11 +167,10 @@ def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray, start: da
     tref = pvp["TxTime"] + 0.5 * (pvp["RcvTime"] - pvp["TxTime"])
     rate = lfm_rate(raw)
     scene_name = str(raw.metadata.get("scene", "scene")) if isinstance(raw.metadata, dict) else "scene"
-    # one antenna, moving during the echo or not (CPHD 1.1 sec. 2: MONOSTATIC), or two (BISTATIC)
-    monostatic = raw.rx_time is not None or np.array_equal(raw.tx_position, raw.rx_position)
     return {
         "CollectionID": {"CollectorName": "sarmitsuba", "CoreName": scene_name or "scene",
-                         "CollectType": "MONOSTATIC" if monostatic else "BISTATIC",
+                         # one antenna, moving during the echo or not (CPHD 1.1 sec. 2), or two
+                         "CollectType": "BISTATIC" if bistatic(raw) else "MONOSTATIC",
                          "RadarMode": {"ModeType": mode}, "Classification": "UNCLASSIFIED",
                          "ReleaseInfo": "UNRESTRICTED"},
         "Global": {"DomainType": "TOA", "SGN": -1,
@@ -415,8 +420,10 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     kvps = stored_parameters(tree, kvps)
     time0 = float(kvps.get(_KVP_TIME0, 0.0))
     pulse_time = pvp["TxTime"] + time0
-    # one platform that moved during the echo (same velocity, receiver elsewhere): continuous motion
-    moving = (not np.array_equal(pvp["TxPos"], pvp["RcvPos"])
+    # one platform that moved during the echo (MONOSTATIC, same velocity, receiver elsewhere): continuous
+    # motion; a BISTATIC file's receiver is a second antenna, stop-and-hop at RcvPos
+    moving = (xml.load("{*}CollectionID/{*}CollectType") != "BISTATIC"
+              and not np.array_equal(pvp["TxPos"], pvp["RcvPos"])
               and np.allclose(pvp["RcvVel"], pvp["TxVel"], rtol=0.0, atol=1e-6))
     prf = float(kvps[_KVP_PRF]) if _KVP_PRF in kvps else 1.0 / float(np.median(np.diff(pvp["TxTime"])))
     metadata = json.loads(kvps[_KVP_METADATA]) if _KVP_METADATA in kvps else {"source": str(path)}

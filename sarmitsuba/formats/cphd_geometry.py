@@ -32,8 +32,8 @@ from ..core import georef
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.raw import RawData
 
-__all__ = ["MARGIN_CELLS", "scene_reference_point", "srp_delay", "unit", "scene_box", "image_area",
-           "scene_coordinates", "image_grid"]
+__all__ = ["MARGIN_CELLS", "scene_reference_point", "srp_delay", "unit", "bistatic", "receiver_velocity",
+           "ground_at_range_sum", "scene_box", "image_area", "scene_coordinates", "image_grid"]
 
 #: Ground-range resolution cells added on every side of the scene's box (its sidelobes).
 MARGIN_CELLS = 16
@@ -47,6 +47,54 @@ def unit(vectors: np.ndarray) -> np.ndarray:
 def srp_delay(tx: np.ndarray, rx: np.ndarray, srp: np.ndarray) -> np.ndarray:
     """float64 [n]: two-way delay [s] from the Tx and Rcv positions [n, 3] to the SRP [3] or [n, 3] (m)."""
     return (np.linalg.norm(tx - srp, axis=-1) + np.linalg.norm(rx - srp, axis=-1)) / SPEED_OF_LIGHT
+
+
+def bistatic(raw: RawData) -> bool:
+    """Whether ``raw`` has a receiver on another platform (CPHD ``CollectType`` BISTATIC): the receiver
+    is away from the transmitter in stop-and-hop data (``rx_time`` None). Continuous-motion data
+    (``rx_time`` given) are one antenna that moved during the echo: MONOSTATIC (CPHD 1.1 sec. 2)."""
+    return raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position)
+
+
+def receiver_velocity(raw: RawData) -> np.ndarray:
+    """float64 [n_pulses, 3] m/s, local frame: the receiver's velocity (``RcvVel``).
+
+    RawData record one velocity, the transmitter's (``raw.velocity``), which is the receiver's too for
+    one antenna. A receiver on another platform (:func:`bistatic`) gets the derivative of
+    ``raw.rx_position`` over ``raw.pulse_time`` (second-order central differences, one-sided at the
+    ends: exact for uniform straight motion); zero for a single pulse."""
+    if not bistatic(raw):
+        return np.asarray(raw.velocity, dtype=np.float64)
+    if raw.n_pulses < 2:
+        return np.zeros_like(raw.rx_position)
+    return np.gradient(raw.rx_position, raw.pulse_time, axis=0, edge_order=2 if raw.n_pulses > 2 else 1)
+
+
+def ground_at_range_sum(tx: np.ndarray, rx: np.ndarray, start: np.ndarray, look: np.ndarray, total: np.ndarray,
+                        height: float = 0.0) -> np.ndarray:
+    """float64 [n] m: how far along the horizontal unit ``look`` [n, 2] from ``start`` [n, 2] the point
+    ``P = (start + g look, height)`` has the range sum ``|tx - P| + |rx - P| = total`` [n] (m), with
+    ``tx``, ``rx`` [n, 3] (m). The range sum is convex in ``g`` (a sum of norms of affine functions):
+    the root is the one beyond its minimum (golden-section search), found by bisection; where even the
+    minimum exceeds ``total`` (the window does not reach that plane) the minimum's ``g``."""
+    def length(g: np.ndarray) -> np.ndarray:
+        point = np.column_stack([start + g[:, None] * look, np.full(g.size, height)])
+        return np.linalg.norm(tx - point, axis=1) + np.linalg.norm(rx - point, axis=1)
+    total = np.broadcast_to(np.asarray(total, dtype=np.float64), (len(start),))
+    lo, hi = np.zeros(len(start)), np.maximum(total, 0.0)      # |tx - P| >= g: the sum exceeds total at g = total
+    golden = 0.5 * (np.sqrt(5.0) - 1.0)
+    for _ in range(90):                                        # the minimum of the convex range sum
+        a, b = hi - golden * (hi - lo), lo + golden * (hi - lo)
+        left = length(a) < length(b)
+        lo, hi = np.where(left, lo, a), np.where(left, b, hi)
+    low = 0.5 * (lo + hi)
+    reached = length(low) < total
+    lo, hi = low.copy(), np.maximum(total, low)
+    for _ in range(90):                                        # the root beyond it
+        mid = 0.5 * (lo + hi)
+        short = length(mid) < total
+        lo, hi = np.where(short, mid, lo), np.where(short, hi, mid)
+    return np.where(reached, 0.5 * (lo + hi), low)
 
 
 def radar_of(raw: RawData) -> dict[str, Any]:
@@ -64,16 +112,23 @@ def scene_reference_point(raw: RawData) -> np.ndarray:
     ``c (t_first + t_last) / 4``; the SRP is their mean. A straight level track at height ``H``
     whose window is centred on the slant range ``H / cos(theta)`` gives the point ``H tan(theta)``
     right of the track's middle. A pulse whose range does not reach the ground gives its nadir.
+    Bistatic data (:func:`bistatic`): the ground point right of the transmitter's velocity, from its
+    nadir, whose range sum ``|T - P| + |R - P|`` is the window's middle ``c (t_first + t_last) / 2``
+    (:func:`ground_at_range_sum`; the midpoint of two platforms far apart is no antenna).
     """
     radar = radar_of(raw)
     if radar.get("scene_center") is not None:
         return np.asarray(radar["scene_center"], dtype=np.float64)
     position = 0.5 * (raw.tx_position + raw.rx_position)
     slant = 0.25 * SPEED_OF_LIGHT * float(raw.fast_time[0] + raw.fast_time[-1])
-    ground = np.sqrt(np.maximum(slant ** 2 - position[:, 2] ** 2, 0.0))
     right = np.column_stack([raw.velocity[:, 1], -raw.velocity[:, 0]])
     norm = np.linalg.norm(right, axis=1, keepdims=True)
     right = np.divide(right, norm, out=np.zeros_like(right), where=norm > 0)
+    if bistatic(raw):
+        position = raw.tx_position
+        ground = ground_at_range_sum(raw.tx_position, raw.rx_position, position[:, :2], right, 2.0 * slant)
+    else:
+        ground = np.sqrt(np.maximum(slant ** 2 - position[:, 2] ** 2, 0.0))
     points = position[:, :2] + ground[:, None] * right
     return np.array([*points.mean(axis=0), 0.0])
 
@@ -109,11 +164,14 @@ def laid_over(raw: RawData, points: np.ndarray) -> np.ndarray:
 
 
 def ground_resolution(raw: RawData, srp: np.ndarray) -> float:
-    """Ground-range resolution [m] at the SRP seen from the middle pulse: ``c / (2 B sin(theta))``
-    (``sin(theta)`` at least 0.1, near the nadir)."""
-    arp = 0.5 * (raw.tx_position + raw.rx_position)[raw.n_pulses // 2]
-    sin_theta = np.linalg.norm((arp - srp)[:2]) / max(float(np.linalg.norm(arp - srp)), 1e-9)
-    return SPEED_OF_LIGHT / (2.0 * raw.bandwidth * max(float(sin_theta), 0.1))
+    """Ground-range resolution [m] at the SRP seen from the middle pulse: ``c / (B |(u_t + u_r)_h|)``,
+    ``u_t``, ``u_r`` the unit vectors from the SRP to the transmitter and the receiver and ``_h`` the
+    horizontal part (Willis, *Bistatic Radar*, 2005, sec. 8.1: ``c / (2 B cos(beta / 2))`` along the
+    bisector, over its horizontal fraction); monostatic ``c / (2 B sin(theta))``. ``|(u_t + u_r)_h|``
+    is at least 0.2 (``sin(theta)`` 0.1, near the nadir)."""
+    mid = raw.n_pulses // 2
+    legs = unit(raw.tx_position[mid] - srp) + unit(raw.rx_position[mid] - srp)
+    return SPEED_OF_LIGHT / (raw.bandwidth * max(float(np.linalg.norm(legs[:2])), 0.2))
 
 
 def swath_area(raw: RawData, srp: np.ndarray) -> np.ndarray:
@@ -121,7 +179,7 @@ def swath_area(raw: RawData, srp: np.ndarray) -> np.ndarray:
     (module docstring): the ground points at the window's first and last ranges from the middle
     pulse, on the line from its nadir through the SRP, moved along track (the mean velocity's
     horizontal direction) over the track's span plus half the swath on either side."""
-    arp = 0.5 * (raw.tx_position + raw.rx_position)
+    arp = raw.tx_position if bistatic(raw) else 0.5 * (raw.tx_position + raw.rx_position)
     mid = raw.n_pulses // 2
     look = (srp - arp[mid])[:2]
     heading = raw.velocity.mean(axis=0)[:2]
@@ -134,6 +192,10 @@ def swath_area(raw: RawData, srp: np.ndarray) -> np.ndarray:
     tau = float(srp_delay(raw.tx_position[mid], raw.rx_position[mid], srp))
     slant = np.linalg.norm(arp[mid] - srp) + 0.5 * SPEED_OF_LIGHT * (raw.fast_time[[0, -1]] - tau)
     ground = np.sqrt(np.maximum(slant ** 2 - height ** 2, 0.0)) - np.linalg.norm((srp - arp[mid])[:2])
+    if bistatic(raw):          # the window's range sums on the ground, along the look from the transmitter
+        ends = ground_at_range_sum(raw.tx_position[[mid, mid]], raw.rx_position[[mid, mid]], arp[[mid, mid], :2],
+                                   np.tile(look, (2, 1)), SPEED_OF_LIGHT * raw.fast_time[[0, -1]], float(srp[2]))
+        ground = ends - np.linalg.norm((srp - arp[mid])[:2])
     reach = (arp[:, :2] - srp[:2]) @ along
     half_swath = 0.5 * float(ground[1] - ground[0])
     shifts = (float(reach.min()) - half_swath, float(reach.max()) + half_swath)
