@@ -48,6 +48,7 @@ from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates,
                             check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture)
 from .analysis.ambiguities import Ambiguities, ambiguities
+from .analysis import bistatic
 from .scene.effects import Effect, EffectSet, active_effects
 from .core.radar import RadarParameters
 from .core.geometry import AcquisitionGeometry, acquisition_geometry
@@ -204,6 +205,11 @@ class RadarSummary:
     #: scene centre: time (UTC), slant range, look angle, incidence against the ellipsoid normal,
     #: squint, height above the ellipsoid and speed (docs/physics.md (J6)); None for other tracks.
     orbit_pass: dict | None = None
+    #: Bistatic (sensor ``receiver_*``, docs/physics.md (B4)), mid-aperture at the scene centre:
+    #: ``angle_deg``, ``slant_range_resolution_m`` ``c / (2 B cos(beta / 2))`` along the bisector,
+    #: ``ground_range_resolution_m`` over its horizontal part, ``ground_direction`` (unit, ENU) and
+    #: the receiver's ``receiver_range_m``; None when the transmitter receives.
+    bistatic: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -263,7 +269,7 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
     effects = active_effects(loaded)                                      # decided once, handed on
     radar = _radar_summary(params, geometry, window, lo, hi)
-    radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset))
+    radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset), bistatic=_bistatic(params, geometry))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
@@ -357,6 +363,20 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
         height_of_ambiguity_m=b.height_of_ambiguity if math.isfinite(b.height_of_ambiguity) else None,
         geo_origin=georef.of(p).as_tuple(), geo_origin_default=p.geo_origin is None,
         utm_epsg=int(georef.utm_crs(georef.of(p)).to_epsg()))
+
+
+def _bistatic(p: RadarParameters, geometry: AcquisitionGeometry) -> dict | None:
+    """:attr:`RadarSummary.bistatic` of a bistatic acquisition, else None (docs/physics.md (B4))."""
+    if not geometry.bistatic:
+        return None
+    mid = len(geometry.positions) // 2
+    tx, rx, c = geometry.positions[mid], geometry.rx_positions[mid], geometry.scene_center
+    beta = float(bistatic.bistatic_angle(tx, rx, c))
+    return {"angle_deg": math.degrees(beta),
+            "slant_range_resolution_m": SPEED_OF_LIGHT / (2.0 * p.bandwidth * math.cos(0.5 * beta)),
+            "ground_range_resolution_m": float(bistatic.bistatic_ground_range_resolution(p.bandwidth, tx, rx, c)),
+            "ground_direction": _floats(bistatic.ground_range_direction(tx, rx, c)),
+            "receiver_range_m": float(np.linalg.norm(rx - c))}
 
 
 def _orbit_pass(p: RadarParameters, offset: np.ndarray) -> dict | None:
@@ -483,9 +503,19 @@ def _radar_lines(r: RadarSummary) -> list[str]:
         f"parallel {r.baseline_parallel_m:.3f} m; critical {r.critical_baseline_m:.1f} m = lambda R tan(theta) B / c; "
         + ("no height of ambiguity (no perpendicular baseline)" if r.height_of_ambiguity_m is None else
            f"height of ambiguity {r.height_of_ambiguity_m:.4g} m = lambda R sin(theta) / (2 B_perp)"),
+        *_bistatic_lines(r.bistatic),
         f"geographic origin: {georef.GeoReference(*r.geo_origin).describe()} (WGS84; world x east, y north, z up), "
         f"UTM EPSG:{r.utm_epsg}" + (" - the default placeholder: set sar geo_origin = \"lat, lon, h\" to place "
                                     "the scene" if r.geo_origin_default else "")] + _orbit_lines(r.orbit_pass)
+
+
+def _bistatic_lines(b: dict | None) -> list[str]:
+    if b is None:
+        return []
+    return [f"bistatic: angle {b['angle_deg']:.1f} deg at the centre, receiver {b['receiver_range_m']:.1f} m away; "
+            f"resolution along the bisector {b['slant_range_resolution_m']:.3g} m = c/(2B cos(beta/2)), on the ground "
+            f"{b['ground_range_resolution_m']:.3g} m along {_vec(b['ground_direction'])} (the monostatic figures "
+            "above are the transmitter's)"]
 
 
 def _orbit_lines(o: dict | None) -> list[str]:

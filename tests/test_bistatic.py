@@ -184,6 +184,29 @@ def test_a_receiver_on_the_transmitters_track_renders_the_monostatic_raw_data():
     assert error < 1e-6, 10 * math.log10(error)
 
 
+TRIHEDRAL = REPO / "scenes" / "trihedral.xml"
+#: L band spotlight on the 1.5 m trihedral from 495 m (its retro lobe, about lambda / a = 9 deg
+#: wide, holds the receivers below).
+L_BAND = dict(frequency=1.25e9, bandwidth=150e6, sampling_rate=180e6, prf=1000.0, velocity=200.0, altitude=350.0,
+              incidence_angle=45.0, mode="spotlight", n_pulses=300)
+
+
+@pytest.mark.parametrize("offset", [(-30.0, 0.0, 0.0), (0.0, 0.0, 40.0)])
+def test_a_trihedral_is_imaged_at_its_apex(offset):
+    """The receiver trails the transmitter by 30 m, or flies 40 m above it (bistatic angles of 3.5
+    and 3.3 deg, inside the trihedral's retro lobe ``lambda / a``): the trihedral is imaged within
+    0.05 m of its apex. Its triple bounce leaves antiparallel to the incoming wave across its 1.5 m
+    aperture, so at such angles the receiver sees the aperture's diffraction, whose phase centre is
+    the apex (range sum ``R_t + R_r``); geometric optics' ``|T + R - 2 O|`` would need the receiver
+    inside a cone ``a / R`` wide (0.2 deg), and would put it 0.3 m away. A receive leg aimed at the
+    transmitter misplaces it by metres in the second case."""
+    sensor = {**L_BAND, "receiver_track_offset": offset}
+    sim = simulate(str(TRIHEDRAL), sensor_overrides=sensor, focuser="bp", image_size=(160, 160), image_spacing=0.1,
+                   window="rect")
+    found = np.asarray(sarmitsuba.analyze(sim.image, (0, 0, 0), raw=sim.raw).world_position)
+    assert np.linalg.norm(found[:2]) < 0.05, found
+
+
 # --------------------------------------------------------------------------- bad input
 def test_a_receiver_below_the_horizon_is_refused():
     """A receiver whose state vectors run 10 m below the scene centre never sees the scene."""
@@ -221,3 +244,33 @@ def test_a_receiver_facing_the_transmitter_on_the_command_line_exits_with_2(tmp_
     assert out.returncode == 2, out.stderr
     assert "receiver_" in out.stderr and "bistatic angle" in out.stderr
     assert "Traceback" not in out.stderr
+
+
+def test_info_gives_the_bistatic_angle_and_resolutions():
+    """urban's transmitter at 45 deg incidence on the +y side, a drone on the -x side at 45 deg:
+    unit vectors (0, 1, 1)/sqrt 2 and (-1, 0, 1)/sqrt 2, so cos(beta) = 1/2 (60 deg); their sum
+    (-1, 1, 2)/sqrt 2 has the horizontal share 1/sqrt 3, and at 150 MHz the resolution along the
+    bisector is c / (2 B cos 30 deg) = 1.154 m, on the ground c / (2 B cos 30 deg / sqrt 3) =
+    1.999 m along (-1, 1, 0)/sqrt 2 (Willis 2005, sec. 8.1)."""
+    from sarmitsuba.info import scene_info
+    info = scene_info("urban", sensor_overrides={"receiver_altitude": 300.0, "receiver_heading": 90.0,
+                                                 "receiver_velocity": 15.0, "n_pulses": 3})
+    b = info.radar.bistatic
+    c_2b = SPEED_OF_LIGHT / (2 * 150e6)
+    assert b["angle_deg"] == pytest.approx(60.0, abs=0.01)
+    assert b["slant_range_resolution_m"] == pytest.approx(c_2b / math.cos(math.radians(30)), rel=1e-4)
+    assert b["ground_range_resolution_m"] == pytest.approx(c_2b * math.sqrt(3) / math.cos(math.radians(30)), rel=1e-3)
+    assert np.allclose(b["ground_direction"], np.array([-1.0, 1.0, 0.0]) / math.sqrt(2), atol=1e-3)
+    assert scene_info("urban", sensor_overrides={"n_pulses": 3}).radar.bistatic is None
+
+
+def test_a_built_in_receiver_track_is_at_mid_aperture_at_the_pulses_mid_time():
+    """An orbiting transmitter's pulses sit about its closest approach (hundreds of seconds into its
+    state vectors); a drone's straight track is still at its own mid-aperture position then:
+    ``centre - ground_range look + altitude z``, 300 m up and 300 m across at 45 deg."""
+    params = RadarParameters.from_mapping({**BASE, "trajectory": "orbit", "altitude": 693e3, "n_pulses": 5,
+                                           "receiver_trajectory": "straight", "receiver_altitude": 300.0,
+                                           "receiver_heading": 90.0, "receiver_velocity": 15.0})
+    g = acquisition_geometry(params)
+    assert g.pulse_time[2] > 1.0
+    assert np.allclose(g.receiver_positions[2], [-300.0, 0.0, 300.0], atol=0.05)

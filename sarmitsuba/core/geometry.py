@@ -310,9 +310,13 @@ def with_receiver(params: RadarParameters, geometry: AcquisitionGeometry) -> Acq
     the scene centre exceeds :data:`~sarmitsuba.core.receiver.MAX_BISTATIC_ANGLE`."""
     from .receiver import check_bistatic_angle, horizon_check, receiver_parameters
     rp = receiver_parameters(params)
-    t = geometry.pulse_time
     try:
         path = trajectory_of(rp)
+        # a built-in track or orbit is at its own mid-aperture (or closest approach) at the pulses'
+        # mid-time; state vectors share the transmitter's clock
+        own = isinstance(rp.trajectory, str) and rp.trajectory in ("straight", "circular", "orbit")
+        mid = 0.5 * (geometry.pulse_time[0] + geometry.pulse_time[-1])
+        t = geometry.pulse_time - mid + (_middle(pulse_times(rp, path)) if own else mid)
         lo, hi = path.span
         if t[0] < lo - 1e-9 or t[-1] > hi + 1e-9:
             raise ParameterError(f"its state vectors span {lo:.6g} .. {hi:.6g} s, the pulses {t[0]:.6g} .. {t[-1]:.6g} s")
@@ -328,6 +332,10 @@ def with_receiver(params: RadarParameters, geometry: AcquisitionGeometry) -> Acq
     nominal = {} if geometry.nominal_positions is None else {"nominal_rx_positions": rx}    # no error of its own
     return replace(geometry, **nominal, rx_positions=rx, rx_time=None, receiver_positions=at_tx,
                    receiver_velocity=path.velocity(t), receiver_acceleration=path.acceleration(t))
+
+
+def _middle(times: np.ndarray) -> float:
+    return 0.5 * (float(times[0]) + float(times[-1]))
 
 
 def ground_layover(geometry: AcquisitionGeometry, points: np.ndarray) -> np.ndarray:

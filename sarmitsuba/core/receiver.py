@@ -21,8 +21,8 @@ import numpy as np
 
 from .valid_ranges import ParameterError
 
-__all__ = ["RECEIVER_FIELDS", "RECEIVER_PREFIX", "MAX_BISTATIC_ANGLE", "receiver_values", "receiver_parameters", "check_receiver",
-           "bistatic_angle", "check_bistatic_angle", "horizon_check"]
+__all__ = ["RECEIVER_FIELDS", "RECEIVER_PREFIX", "MAX_BISTATIC_ANGLE", "receiver_values", "receiver_parameters",
+           "check_receiver", "check_bistatic_angle", "horizon_check"]
 
 #: The prefix of the receiver's parameters in the sensor (``receiver_altitude``).
 RECEIVER_PREFIX = "receiver_"
@@ -82,19 +82,12 @@ def check_receiver(params, coerce) -> None:
                              "here; remove ati_baseline or the receiver_* parameters")
 
 
-def bistatic_angle(tx: np.ndarray, rx: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """The bistatic angle ``beta`` [rad] at ``point`` between the directions to the transmitter
-    ``tx`` and the receiver ``rx`` (float64 [..., 3] each, m; broadcast): ``atan2(|a x b|, a . b)``
-    (accurate at 0 and pi, where ``acos`` is not)."""
-    a = np.asarray(tx, np.float64) - np.asarray(point, np.float64)
-    b = np.asarray(rx, np.float64) - np.asarray(point, np.float64)
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
-
-
 def check_bistatic_angle(tx: np.ndarray, rx: np.ndarray, center: np.ndarray) -> None:
     """Raise ParameterError when the bistatic angle at ``center`` exceeds
     :data:`MAX_BISTATIC_ANGLE` at any pulse (``tx``, ``rx`` float64 [n, 3], m)."""
-    beta = np.degrees(bistatic_angle(tx, rx, center))
+    a, b = np.asarray(tx, np.float64) - center, np.asarray(rx, np.float64) - center
+    # the angle between the legs, atan2(|a x b|, a . b) (analysis.bistatic.bistatic_angle's, unchecked)
+    beta = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1)))
     if beta.size and float(beta.max()) > MAX_BISTATIC_ANGLE:
         i = int(np.argmax(beta))
         raise ParameterError(f"receiver_*: the bistatic angle at the scene centre reaches {beta[i]:.1f} deg (pulse {i}), "
