@@ -47,6 +47,8 @@ inverse_city   the heights of ten buildings of a footprint city recovered from i
                by L-BFGS-B with the simulator's geometric gradients, from 20 % off
 moving         three moving cars on urban: the sub-apertures' rates (differenced, rigid)
                against one pulse per trace, and what motion costs over the still scene
+bistatic       urban received on a drone and on a second aircraft: the sub-apertures
+               against one pulse per trace, and what the receiver costs
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -82,7 +84,8 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "munich": "munich", "polarimetry": "polarimetry",
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
-         "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving"}
+         "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
+         "bistatic": "bistatic"}
 
 
 def _utc_now() -> str:

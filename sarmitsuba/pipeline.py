@@ -23,7 +23,7 @@ from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
 from .core.image import SarImage
 from .core.outputs import OutputDirectory, check_output_dir, json_default
-from .core.radar import POLARIZATIONS
+from .core.radar import POLARIZATIONS, ParameterError
 from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
@@ -209,7 +209,6 @@ def _focuser(name: str):
     """The backprojection of ``focuser``; ParameterError naming it for anything else. ``ffbp``
     hands the acquisitions it does not factorise (bistatic, a grid straddling the track) to direct
     backprojection, and says so in ``metadata["focus"]["fallback"]``."""
-    from .core.radar import ParameterError
     if name not in FOCUSERS:
         raise ParameterError(f"focuser = {name!r}; valid: {', '.join(FOCUSERS)} (ffbp: fast factorised "
                              "backprojection, the default; bp: direct backprojection, its reference)")
@@ -236,7 +235,6 @@ def focus_window(window: Any) -> tuple[str, dict]:
     :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
     ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
     from .focus.windows import window_spec
-    from .core.radar import ParameterError
     try:
         return window_spec(window)
     except ValueError as exc:
@@ -381,7 +379,6 @@ SICD_CHOICES = {"sicd_plane": ("slant", "image"), "sicd_weighting": ("uniform", 
 def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform") -> None:
     """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`,
     or naming ``sicd_plane`` / ``sicd_weighting`` unless it is one of its two values."""
-    from .core.radar import ParameterError
     unknown = [f for f in formats if f not in EXPORT_FILES]
     if unknown:
         raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
@@ -399,13 +396,17 @@ def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | N
     GeoTIFF from ``image`` (resampled onto a north-up UTM grid, or with ``geotiff_north_up``
     False on the image's own grid with a rotated geotransform); the SICD on ``sicd_plane`` with
     ``sicd_weighting`` (:func:`render`). ``suffix`` (``_HV``) goes
-    before the extension. Returns paths by format."""
+    before the extension. Returns paths by format. Raises ParameterError for SICD of bistatic
+    ``raw`` (docs/physics.md (B1)), before any file is written."""
     writers = {}
     if "cphd" in formats:
         from .formats.cphd import write_cphd
         writers["cphd"] = lambda path: write_cphd(raw, path)
     if "sicd" in formats:
         from .formats.sicd import write_sicd
+        if raw is not None and raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
+            raise ParameterError("--sicd (formats = sicd): the data are bistatic, and the SICD writer describes a "
+                                 "monostatic collection; use --cphd (CollectType BISTATIC) or --geotiff instead")
         writers["sicd"] = lambda path: write_sicd(image, path, raw=raw, plane=sicd_plane, weighting=sicd_weighting)
     if "geotiff" in formats:
         from .formats.geotiff import write_geotiff

@@ -380,12 +380,18 @@ def write_sicd(image: SarImage, path: str | os.PathLike, raw: RawData | None = N
         ``"image"``: the image's own weighting as it is (``WgtFunct``), ``RCSSFPoly`` 1 at the
         peak; sarpy's ``TotalRCS`` then reads a point target ``W_row W_col`` high (K3).
 
-    Raises SicdError naming ``path``: no raw data and no radar parameters, a non-uniform grid, an
+    Raises SicdError naming ``path``: bistatic ``raw`` (a receiver on its own platform), no raw data
+    and no radar parameters, a non-uniform grid, an
     image too small for its SICD grid, a ``collection_start`` that is no ISO 8601 time with an
     offset, corners that do not project onto the Earth; :class:`outputs.WriteError` (an OSError)
     when the file cannot be written, leaving nothing behind.
     """
     import sarkit.sicd as sksicd
+    if raw is not None and raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
+        raise SicdError(f"cannot write SICD file {path}: the data are bistatic (a receiver on its own platform, "
+                        "docs/physics.md (B1)), and this writer describes a monostatic collection (its SCPCOA and "
+                        "the grid's spatial frequencies); write the phase history with --cphd (CollectType "
+                        "BISTATIC), or the image with --geotiff")
     if plane not in PLANES:
         raise SicdError(f"cannot write SICD file {path}: plane = {plane!r}; valid planes are "
                         f"{', '.join(PLANES)} (\"slant\" for the slant plane at the scene centre)")
