@@ -309,3 +309,23 @@ def test_sicd_of_bistatic_data_is_refused_and_nothing_is_written(tmp_path):
     with pytest.raises(ParameterError, match="--sicd.*bistatic"):
         render(scene, tmp_path / "out", formats=("sicd",), progress=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_bistatic_radar_equation_takes_each_antennas_gain():
+    """Absolute radiometry: a receiver on the transmitter's track with the transmitter's 30 dBi gives
+    the monostatic raw data (the spreading is R_t R_r = R^2 there); with 20 dBi, a receive gain 10 dB
+    lower, every echo is 10 dB weaker (P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R_t^2 R_r^2 L), Willis
+    2005, eq. 4.1); an isotropic receiver (no gain given, no dimensions) 30 dB weaker."""
+    sensor = {**BASE, "n_pulses": 16, "stop_and_hop": True, "transmit_power": 1000.0, "antenna_gain_db": 30.0}
+    same = {"receiver_altitude": 1000.0, "receiver_incidence_angle": 45.0, "receiver_heading": 0.0,
+            "receiver_velocity": 100.0}
+    plate, *_ = bisector_plate({}, 4, 10.0)
+
+    def energy(**extra):
+        sim = simulate(sarmitsuba.Scene([(plate, "pec", "plate")], sensor={**sensor, **extra},
+                                        integrator={"max_depth": 1, "diffraction": False}))
+        return float(np.sum(np.abs(sim.raw.data) ** 2))
+    mono = energy()
+    assert 10 * math.log10(energy(**same, receiver_antenna_gain_db=30.0) / mono) == pytest.approx(0.0, abs=1e-3)
+    assert 10 * math.log10(energy(**same, receiver_antenna_gain_db=20.0) / mono) == pytest.approx(-10.0, abs=1e-3)
+    assert 10 * math.log10(energy(**same) / mono) == pytest.approx(-30.0, abs=1e-3)

@@ -16,7 +16,7 @@ from ..core.constants import BOLTZMANN
 from ..core.radar import ParameterError, RadarParameters
 from .effects import EffectSet
 
-__all__ = ["RadarEquation", "radar_equation"]
+__all__ = ["RadarEquation", "radar_equation", "receiver_gain"]
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,8 @@ class RadarEquation:
     ----------
     transmit_power : float, W
     gain : float
-        Antenna gain (linear), transmit = receive.
+        Antenna gain (linear), transmit = receive; bistatic ``sqrt(G_t G_r)``, so that ``gain^2``
+        is the product of the two antennas' gains (docs/physics.md (B3)).
     losses : float
         System losses (linear, >= 1).
     wavelength : float, m
@@ -101,8 +102,23 @@ def radar_equation(params: RadarParameters, effects: EffectSet | None = None) ->
     else:
         raise ParameterError("transmit_power needs the antenna gain: give antenna_gain_db [dBi], or "
                              "antenna_length and antenna_height [m]")
+    if params.bistatic:            # P_t G_t G_r lambda^2 / ((4 pi)^3 R_t^2 R_r^2 L), docs/physics.md (B3)
+        gain = math.sqrt(gain * receiver_gain(params))
     temperature = params.noise_temperature if params.noise_temperature is not None else 290.0
     figure = 10.0 ** ((params.noise_figure_db or 0.0) / 10.0)
     noise = BOLTZMANN * temperature * params.bandwidth * figure if effects.noise else 0.0
     return RadarEquation(params.transmit_power, gain, 10.0 ** (params.losses_db / 10.0), params.wavelength,
                          params.bandwidth, params.pulse_length, noise)
+
+
+def receiver_gain(params: RadarParameters) -> float:
+    """A bistatic receiver's antenna gain (linear): ``receiver_antenna_gain_db``, else ``4 pi L_r H_r /
+    lambda^2`` from ``receiver_antenna_length`` and ``receiver_antenna_height``, else 1 (isotropic,
+    0 dBi, as its pattern is then; docs/physics.md (B3))."""
+    from ..core.receiver import receiver_parameters
+    rp = receiver_parameters(params)
+    if rp.antenna_gain_db is not None:
+        return 10.0 ** (rp.antenna_gain_db / 10.0)
+    if rp.antenna_length > 0 and rp.antenna_height > 0:
+        return 4.0 * math.pi * rp.antenna_length * rp.antenna_height / params.wavelength**2
+    return 1.0
