@@ -351,3 +351,53 @@ def test_sub_apertures_with_a_receiver_agree_with_one_pulse_per_trace(receiver):
     one, grouped = raw(1), raw(8)
     error = 10 * math.log10(float(np.sum(np.abs(grouped - one) ** 2) / np.sum(np.abs(one) ** 2)))
     assert error < -40.0, error
+
+
+def test_the_receivers_pattern_stares_at_the_scene_centre():
+    """A 2 m receive aperture on the drone (flying +y on the -x side, 40 m behind the scene centre),
+    its beam steered at the centre: a plate at the centre keeps its echo; the same plate 3.5 m along
+    the drone's track keeps ``sinc^2(L_r (sin(phi) - sin(phi_c)) / lambda)`` of its energy, the
+    one-way pattern of a uniform aperture (A) about the receiver's own along-track axis (the
+    transmitter's pattern is off: ``beam = uniform``). Without the steering both plates vanish."""
+    receiver = {"receiver_altitude": 300.0, "receiver_incidence_angle": 45.0, "receiver_heading": 90.0,
+                "receiver_velocity": 15.0, "receiver_track_offset": (0.0, -40.0, 0.0)}
+    ratios, expected = [], []
+    for offset in (0.0, 3.5):
+        plate, *_ = bisector_plate(receiver, 4, 0.0)
+        plate.apply_translation((0.0, offset, 0.0))
+        with_pattern = plate_sim(receiver, plate, n_pulses=5, receiver_antenna_length=2.0)
+        without = plate_sim(receiver, plate, n_pulses=5)
+        ratios.append(_pulse_energy(with_pattern, 2) / _pulse_energy(without, 2))
+        rx = without.raw.rx_position[2]
+        to_plate, to_centre = np.array([0.0, offset, 0.0]) - rx, -rx
+        sine = to_plate[1] / np.linalg.norm(to_plate) - to_centre[1] / np.linalg.norm(to_centre)
+        expected.append(np.sinc(2.0 * sine / WAVELENGTH) ** 2)
+    assert expected[1] < 0.7
+    assert ratios == pytest.approx(expected, rel=0.05), (ratios, expected)
+
+
+@pytest.mark.parametrize("kind", ["straight", "circular", "orbit", "state vectors"])
+def test_the_receiver_flies_any_trajectory_kind(kind):
+    """The receiver's mid-aperture position for each trajectory kind, against where that kind puts
+    a platform of its altitude and incidence at the scene centre (J1), (J2), (J7): straight and
+    circular 400 m up and 400 m away horizontally at 45 deg; an orbit 700 km above the ellipsoid
+    seen at 45 deg incidence, about 1.0e6 m away; state vectors (a line 2 km up, passing
+    (-1000, 500, 2000) at the pulses' mid-time) where they say."""
+    receiver = {"altitude": 400.0, "incidence_angle": 45.0, "velocity": 20.0, "heading": 90.0}
+    if kind == "circular":
+        receiver["trajectory"] = "circular"
+    if kind == "orbit":
+        receiver = {"trajectory": "orbit", "altitude": 700e3, "incidence_angle": 45.0}
+    if kind == "state vectors":
+        t = np.linspace(-10.0, 10.0, 21)
+        line = np.stack([np.full_like(t, -1000.0), 500.0 + 30.0 * t, np.full_like(t, 2000.0)], axis=1)
+        receiver = {"trajectory": StateVectors(t, line)}
+    g = acquisition_geometry(RadarParameters.from_mapping({**BASE, "n_pulses": 5, "receiver": receiver}))
+    mid = g.receiver_positions[2]
+    if kind in ("straight", "circular"):
+        assert np.allclose(mid, [-400.0, 0.0, 400.0], atol=0.05), mid
+    elif kind == "orbit":
+        incidence = math.degrees(math.acos(mid[2] / np.linalg.norm(mid)))
+        assert 1.0e6 > np.linalg.norm(mid) > 9.0e5 and abs(incidence - 45.0) < 3.0, (mid, incidence)
+    else:
+        assert np.allclose(mid, [-1000.0, 500.0 + 30.0 * g.pulse_time[2], 2000.0], atol=1e-6), mid

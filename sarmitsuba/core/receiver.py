@@ -60,7 +60,7 @@ def receiver_parameters(params) -> Any:
         return None
     own = dict(trajectory="straight", squint=0.0, antenna_length=0.0, antenna_height=0.0, azimuth_beamwidth=0.0,
                antenna_gain_db=None, arc_deg=360.0, track_offset=(0.0, 0.0, 0.0), motion_error=None,
-               ati_baseline=0.0, receiver=(), mode="spotlight")
+               ati_baseline=0.0, receiver=(), mode="spotlight", beam="tapered")
     own.update(given)
     try:
         return replace(params, **own)
