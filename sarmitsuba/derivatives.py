@@ -294,6 +294,9 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     if loaded.motion is not None:
         raise ParameterError(f"derivatives of a scene with moving shapes ({', '.join(loaded.motion.ids)}) are not "
                              "taken: give the shapes no velocity, or derive at one instant of their motion")
+    if loaded.params.bistatic:
+        raise ParameterError("derivatives of a bistatic acquisition (receiver_* parameters) are not taken: their "
+                             "tracers cut the return legs monostatic; remove the receiver_* parameters")
     moved = {}
     for parameter, amount in dict(at or {}).items():
         if not isinstance(parameter, ShapeParameter) or not np.isfinite(amount):

@@ -401,3 +401,14 @@ def test_the_receiver_flies_any_trajectory_kind(kind):
         assert 1.0e6 > np.linalg.norm(mid) > 9.0e5 and abs(incidence - 45.0) < 3.0, (mid, incidence)
     else:
         assert np.allclose(mid, [-1000.0, 500.0 + 30.0 * g.pulse_time[2], 2000.0], atol=1e-6), mid
+
+
+def test_derivatives_of_a_bistatic_acquisition_are_refused():
+    """The derivatives' tracers cut monostatic return legs: refused, naming the receiver, rather
+    than derived for the wrong acquisition."""
+    from sarmitsuba.derivatives import MaterialParameter, raw_derivative
+    plate, *_ = bisector_plate(RECEIVERS["drone"], 4, 0.0)
+    scene = sarmitsuba.Scene([(plate, "concrete", "plate")], sensor={**BASE, **RECEIVERS["drone"], "n_pulses": 5},
+                             integrator={"max_depth": 1})
+    with pytest.raises(ParameterError, match="bistatic"):
+        raw_derivative(scene, MaterialParameter("plate", "relative_permittivity"))
