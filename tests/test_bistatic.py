@@ -413,3 +413,25 @@ def test_derivatives_of_a_bistatic_acquisition_are_refused():
                              integrator={"max_depth": 1})
     with pytest.raises(ParameterError, match="bistatic"):
         raw_derivative(scene, MaterialParameter("plate", "relative_permittivity"))
+
+
+@pytest.mark.parametrize("name", sorted(RECEIVERS))
+def test_a_traced_plates_ground_range_width_is_the_bistatic_resolution(name):
+    """The traced plate's raw data (20 pulses: the azimuth response, tens of metres, does not narrow
+    the cut) backprojected every 1 cm along the horizontal bisector through it: its -3 dB width is
+    0.886 c / (2 B cos(beta / 2) |b_h|) within 5 % (Willis 2005, sec. 8.1; 0.886 for the unweighted
+    band). The monostatic ground resolution c / (2 B sin(theta)), 1.41 m, is 1.5 % from the aircraft
+    beside's 1.44 m and 36 % from the drone's 1.92 m: the drone's case tells them apart."""
+    from sarmitsuba.analysis.bistatic import bistatic_ground_range_resolution, ground_range_direction
+    from sarmitsuba.focus import ImageGrid, backproject
+    from test_bistatic_focus import RECT_IRW, minus_3db_width
+    plate, *_ = bisector_plate(RECEIVERS[name], 4, 0.0)
+    raw = plate_sim(RECEIVERS[name], plate, n_pulses=20).raw
+    tx, rx, centre = raw.tx_position.mean(axis=0), raw.rx_position.mean(axis=0), np.zeros(3)
+    direction = ground_range_direction(tx, rx, centre)
+    offsets = np.arange(-600, 601) * 0.01
+    line = ImageGrid(centre, np.cross([0.0, 0.0, 1.0], direction), direction, np.array([0.0]), offsets)
+    irw, peak = minus_3db_width(offsets, backproject(raw, line).data[0])
+    expected = RECT_IRW * bistatic_ground_range_resolution(150e6, tx, rx, centre)
+    assert irw == pytest.approx(expected, rel=0.05), (irw, expected)
+    assert abs(peak) <= 0.05
