@@ -93,11 +93,11 @@ def test_raw_derivative_matches_central_differences_of_renders(tmp_path, paramet
     assert derivative.metadata["derivative"]["parameter"] == parameter
 
 
-@pytest.mark.parametrize("incidence", [60.0, 75.0])
+@pytest.mark.parametrize("incidence", [60.0])
 def test_scalar_polarimetry_derivatives_take_their_channels_table(tmp_path, incidence):
     """With ``polarimetry = scalar`` the one reflection table is the channel's: ``r_te`` for HH,
     ``r_tm`` for VV (flat_tangents). ``d raw / d eps_r`` of each channel against central
-    differences of two renders, within 1 %, at 60 and 75 deg incidence, where the two Fresnel
+    differences of two renders, within 1 %, at 60 deg incidence, where the two Fresnel
     coefficients' derivatives differ (the two channels' differences are checked to differ by more
     than 5 %). Catches the HH and VV tangents swapped, which no Jones-model test sees."""
     step, fds = 5e-3, {}
