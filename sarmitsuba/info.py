@@ -366,17 +366,10 @@ def _radar_summary(p: RadarParameters, geometry: AcquisitionGeometry, window: Fa
 
 
 def _bistatic(p: RadarParameters, geometry: AcquisitionGeometry) -> dict | None:
-    """:attr:`RadarSummary.bistatic` of a bistatic acquisition, else None (docs/physics.md (B4))."""
-    if not geometry.bistatic:
-        return None
+    """:attr:`RadarSummary.bistatic` of a bistatic acquisition at mid-aperture, else None (B4)."""
     mid = len(geometry.positions) // 2
-    tx, rx, c = geometry.positions[mid], geometry.rx_positions[mid], geometry.scene_center
-    beta = float(bistatic.bistatic_angle(tx, rx, c))
-    return {"angle_deg": math.degrees(beta),
-            "slant_range_resolution_m": SPEED_OF_LIGHT / (2.0 * p.bandwidth * math.cos(0.5 * beta)),
-            "ground_range_resolution_m": float(bistatic.bistatic_ground_range_resolution(p.bandwidth, tx, rx, c)),
-            "ground_direction": _floats(bistatic.ground_range_direction(tx, rx, c)),
-            "receiver_range_m": float(np.linalg.norm(rx - c))}
+    return bistatic.bistatic_summary(p.bandwidth, geometry.positions[mid], geometry.rx_positions[mid],
+                                     geometry.scene_center) if geometry.bistatic else None
 
 
 def _orbit_pass(p: RadarParameters, offset: np.ndarray) -> dict | None:
@@ -447,7 +440,7 @@ def format_text(info: SceneInfo) -> str:
     for title, body in (("Scene", _scene_lines(info.scene)), ("Radar", _radar_lines(info.radar)),
                         ("Ambiguities", [info.ambiguities.line() if info.ambiguities else "not modelled (spotlight or a "
                                          "curved track)"]), ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
-                        ("Estimated cost", _cost_lines(info.cost)), ("Warnings", list(info.warnings) or ["none"])):
+                        ("Estimated cost", _cost_lines(info.cost, info.radar.bistatic is not None)), ("Warnings", list(info.warnings) or ["none"])):
         lines += [title] + [f"  {line}" for line in body] + [""]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -544,7 +537,7 @@ def _effect_lines(effects: tuple[Effect, ...]) -> list[str]:
     return [f"[{'on ' if e.active else 'off'}] {e.name}: {e.reason}" for e in effects]
 
 
-def _cost_lines(c: CostEstimate) -> list[str]:
+def _cost_lines(c: CostEstimate, bistatic: bool = False) -> list[str]:
     memory = (f"spectra {format_bytes(c.deposit_bytes)} ({c.n_pulses} pulses x "
               f"{c.deposit_bytes // (8 * max(c.n_pulses, 1))} padded samples, complex64)"
               if not c.path_list_bytes else f"path list (exact kernel) up to {format_bytes(c.path_list_bytes)}")
@@ -570,8 +563,10 @@ def _cost_lines(c: CostEstimate) -> list[str]:
         "runtime and scene plus the larger of tracing and focusing)",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
-        f"focusing ~ {_duration(c.focus_time_s)} (fast factorised backprojection, {c.backprojection_pixel_pulses:.3g} "
-        f"pixel-pulses in the beam; direct backprojection ~ {_duration(c.direct_backprojection_time_s)})",
+        f"focusing ~ {_duration(c.focus_time_s)} (" + ("direct backprojection, to which FFBP hands bistatic data, "
+                                                       if bistatic else "fast factorised backprojection, ")
+        + f"{c.backprojection_pixel_pulses:.3g} pixel-pulses in the beam; direct backprojection ~ "
+        f"{_duration(c.direct_backprojection_time_s)})",
         c.time_basis]
 
 

@@ -40,7 +40,8 @@ import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
 
-__all__ = ["bistatic_angle", "bistatic_bisector", "bistatic_ground_range_resolution", "ground_range_direction"]
+__all__ = ["bistatic_angle", "bistatic_bisector", "bistatic_ground_range_resolution", "ground_range_direction",
+           "bistatic_summary"]
 
 
 def _legs(tx: Any, rx: Any, point: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -171,3 +172,18 @@ def bistatic_ground_range_resolution(bandwidth: float, tx: Any, rx: Any, point: 
         raise ValueError("the bisector is vertical (both antennas overhead): no ground-range resolution")
     rho = SPEED_OF_LIGHT / (bandwidth * horizontal)
     return float(rho) if np.ndim(rho) == 0 else rho
+
+
+def bistatic_summary(bandwidth: float, tx: Any, rx: Any, point: Any) -> dict:
+    """The bistatic geometry at one scene point, as ``info`` reports it (docs/physics.md (B4)):
+    ``angle_deg``; ``slant_range_resolution_m`` ``c / (2 B cos(beta / 2))`` along the bisector;
+    ``ground_range_resolution_m`` (:func:`bistatic_ground_range_resolution`) along
+    ``ground_direction`` (a tuple of 3 floats, unit); ``receiver_range_m``. ``tx``, ``rx``,
+    ``point`` float64 [3], m; ``bandwidth`` Hz. Raises ValueError as :func:`bistatic_angle`."""
+    beta = float(bistatic_angle(tx, rx, point))
+    return {"angle_deg": float(np.degrees(beta)),
+            "slant_range_resolution_m": SPEED_OF_LIGHT / (2.0 * bandwidth * np.cos(0.5 * beta)),
+            "ground_range_resolution_m": float(bistatic_ground_range_resolution(bandwidth, tx, rx, point)),
+            "ground_direction": tuple(float(v) for v in ground_range_direction(tx, rx, point)),
+            "receiver_range_m": float(np.linalg.norm(np.subtract(rx, point)))}
+

@@ -56,6 +56,13 @@ TRACE_OVERHEAD = 1.3
 #: render: 36 s estimated, 39.6 s measured).
 MOVING_GEOMETRIES = 2.7
 MOVING_PIECE_SECONDS = 9.4e-6
+#: A receiver on its own platform (docs/physics.md (B2)): its return legs cast at every order and
+#: the pieces cut by two families of shadows; the automatic bistatic trace over the monostatic one
+#: on urban (``benchmarks/bistatic.py --quick``: 1.24 for a drone, 1.30 for a second aircraft).
+BISTATIC_TRACE = 1.27
+#: Direct backprojection of bistatic data over the monostatic model: both legs' lengths per
+#: pixel-pulse; measured on urban received by a drone, 5.0 s against the monostatic model's 1.8 s.
+BISTATIC_BACKPROJECTION = 2.8
 
 #: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
 #: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
@@ -375,13 +382,17 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
         piece_bytes = int(min(SUBAPERTURE_BYTES, REACH_TRIANGLE_BYTES * reach_triangles.max(initial=0.0)))
 
     def trace_time(closest: float) -> float:
-        return TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work) + host
+        seconds = TRACE_OVERHEAD * (closest / hit_rate + closest / shadow_rate + work) + host
+        return seconds * (BISTATIC_TRACE if effects.bistatic else 1.0)
 
     exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
     grid = _checked_grid(loaded, geometry)
     n_products = (1 + (st.max_depth if effects.split_bounces else 0)) * len(effects.channels)
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
+    if effects.bistatic:                 # FFBP hands bistatic data to direct backprojection, both legs per pixel
+        direct *= BISTATIC_BACKPROJECTION
+        fast = direct
     deposit = 0 if exact else groups * n_pulses * n_pad * 8
     path_list = paths * PATH_BYTES * len(effects.channels) if exact else 0
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8
