@@ -33,3 +33,15 @@ def moved_lattice(shift):
         yield
     finally:
         planning.ray_footprint = real
+
+
+def trace_numbers(sim) -> tuple[dict, np.ndarray]:
+    """A render's trace numbers (``trace_s``, ``pulses_per_trace``, ``pulses``) and its image data,
+    the simulation released (its raw data and image otherwise stay in memory until the next one)."""
+    import gc
+    numbers = {"trace_s": round(sim.timings["trace"], 3), "pulses_per_trace": sim.trace.pulses_per_trace,
+               "pulses": sim.raw.n_pulses}
+    image = sim.image.data
+    del sim
+    gc.collect()
+    return numbers, image

@@ -18,9 +18,7 @@ Usage: ``python benchmarks/bistatic.py [--quick]`` (``--quick``: 260 of the 779 
 """
 from __future__ import annotations
 
-import gc
-
-from _lattice import nrmse_db
+from _lattice import nrmse_db, trace_numbers
 from _plot import report_per_scene
 from _table import bench_main, machine
 
@@ -38,13 +36,7 @@ RECEIVERS = {
 def _run(sensor: dict, pulses_per_trace: int):
     """One render of urban (0: the automatic sub-aperture): its numbers and image."""
     integrator = {"pulses_per_trace": pulses_per_trace} if pulses_per_trace else {}
-    sim = simulate("urban", sensor_overrides=sensor, integrator_overrides=integrator)
-    numbers = {"trace_s": round(sim.timings["trace"], 3), "pulses_per_trace": sim.trace.pulses_per_trace,
-               "pulses": sim.raw.n_pulses}
-    image = sim.image.data
-    del sim
-    gc.collect()
-    return numbers, image
+    return trace_numbers(simulate("urban", sensor_overrides=sensor, integrator_overrides=integrator))
 
 
 def run(quick: bool = False) -> list[dict]:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import gc
 
 import numpy as np
-from _lattice import nrmse_db
+from _lattice import nrmse_db, trace_numbers
 from _plot import report_per_scene
 from _table import bench_main, machine
 
@@ -65,12 +65,7 @@ def _run(scene: str, sensor: dict, integrator: dict, differenced: bool = True,
         sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
     finally:
         moving.DIFFERENCED, moving.MOVING_TRAVEL = saved
-    numbers = {"trace_s": round(sim.timings["trace"], 3), "pulses_per_trace": sim.trace.pulses_per_trace,
-               "pulses": sim.raw.n_pulses}
-    image = sim.image.data
-    del sim
-    gc.collect()
-    return numbers, image
+    return trace_numbers(sim)
 
 
 def run(quick: bool = False) -> list[dict]:
