@@ -182,15 +182,10 @@ REF = georef.GeoReference(48.1, 11.6, 520.0)
 
 
 def enu_to_ecef_by_hand(points):
-    """Local ENU [m] at REF to ECEF [m]: the origin through pyproj, the axes by formula."""
-    import pyproj
-    lat, lon, h = REF.latitude_deg, REF.longitude_deg, REF.height_m
-    x0 = np.array(pyproj.Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True).transform(lon, lat, h))
-    p, q = np.radians(lat), np.radians(lon)
-    east = np.array([-np.sin(q), np.cos(q), 0.0])
-    north = np.array([-np.sin(p) * np.cos(q), -np.sin(p) * np.sin(q), np.cos(p)])
-    up = np.array([np.cos(p) * np.cos(q), np.cos(p) * np.sin(q), np.sin(p)])
-    return x0 + points[..., :1] * east + points[..., 1:2] * north + points[..., 2:] * up
+    """Local ENU [m] at REF to ECEF [m]: the origin through pyproj, the axes by formula
+    (tests/test_sicd_slant.py's oracle, docs/physics.md (GEO1))."""
+    from test_sicd_slant import enu_to_ecef_by_hand as by_hand
+    return by_hand(points, REF.latitude_deg, REF.longitude_deg, REF.height_m)
 
 
 @pytest.fixture(scope="module")
