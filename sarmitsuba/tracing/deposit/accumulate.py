@@ -1,11 +1,13 @@
 """Where a launch's returns are summed: the fine-grid histogram, or the ``exact`` kernel's path
-list, one per polarimetric channel (docs/physics.md (D1)-(D4), (P4)).
+list, one per polarimetric channel (docs/physics.md (D1)-(D4), (D7), (P4)).
 
 :class:`sarmitsuba.tracing.integration.returns.Returns` computes every pulse's returns; an :class:`Accumulator`
-holds what they are summed into for one launch (in the launch's context dict): ``hist``, float32
-``(re, im)`` packets of ``[spectral orders, channels x groups, pulses, fine samples]`` (channel-
-major: group ``c * groups + order``), or, with ``range_kernel = exact``, path buffers of one
-entry per term and channel.
+holds what they are summed into for one launch (in the launch's context dict): ``hist``, the
+fixed-point words (:data:`.fixed_point.AMPLITUDE`, int64 ``(hi, lo)`` of ``re`` then of ``im``) of
+``[spectral orders, channels x groups, pulses, fine samples]`` complex entries (channel-major:
+group ``c * groups + order``), whose sums do not depend on the order of the additions (D7); or,
+with ``range_kernel = exact``, path buffers of one entry per term and channel, read back in a
+canonical order.
 """
 from __future__ import annotations
 
@@ -14,8 +16,10 @@ import mitsuba as mi
 import numpy as np
 
 from .fast_time import SPECTRAL_ORDERS, taps
+from .fixed_point import AMPLITUDE, POWER, SOLID_ANGLE, UnrepresentableSum, decode
 
-__all__ = ["Accumulator", "HISTOGRAM_MIN_FLOATS", "PATH_HEADROOM", "PATH_FIELDS", "histogram_floats"]
+__all__ = ["Accumulator", "HISTOGRAM_MIN_FLOATS", "PATH_HEADROOM", "PATH_FIELDS", "TALLIES", "WORDS_PER_ENTRY",
+           "histogram_floats"]
 
 #: The ``exact`` kernel's clutter path buffer holds at least this many scatterers, and a launch
 #: that overflowed it asks for this many more than it found (slack, so a retry rarely overflows).
@@ -25,16 +29,30 @@ PATH_FIELDS = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, 
                    path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
 
 
-#: The fine-grid histogram's device array holds at least this many floats (8 MiB), and otherwise
-#: the next power of two: ``scatter_add(mode=Expand)`` writes the array's size into its kernel,
-#: so sizes rounded to a few buckets let launches and acquisitions of other pulse counts or
-#: windows reuse the kernels (compiled or from Dr.Jit's disk cache) at most twice the memory.
-HISTOGRAM_MIN_FLOATS = 1 << 21
+#: The fine-grid histogram's device array holds at least this many real values (two int64 words
+#: each: 8 MiB), and otherwise the next power of two: ``scatter_add(mode=Expand)`` writes the
+#: array's size into its kernel, so sizes rounded to a few buckets let launches and acquisitions
+#: of other pulse counts or windows reuse the kernels (compiled or from Dr.Jit's disk cache) at
+#: most twice the memory.
+HISTOGRAM_MIN_FLOATS = 1 << 19
+#: int64 words per complex histogram entry: ``(hi, lo)`` of the real part, then of the imaginary part.
+WORDS_PER_ENTRY = 4
+#: The launch's tallies (in its context) and their fixed-point scales, eq. (D7): ``energy``, the
+#: visible returns' ``|a|^2`` per bounce order and outside the window [m^2]; ``carried``, the tubes'
+#: solid angle times their reflection losses per bounce order [sr].
+TALLIES = {"energy": POWER, "carried": SOLID_ANGLE}
 
 
 def histogram_floats(n: int) -> int:
-    """Floats allocated for a histogram of ``n`` floats: ``max(HISTOGRAM_MIN_FLOATS, 2^ceil(log2 n))``."""
+    """Real values allocated for a histogram of ``n`` real values: ``max(HISTOGRAM_MIN_FLOATS,
+    2^ceil(log2 n))``."""
     return max(HISTOGRAM_MIN_FLOATS, 1 << max(int(n) - 1, 0).bit_length())
+
+
+def _words_type(like):
+    """The Dr.Jit type of one complex entry's words on ``like``'s backend: a packet of four int64,
+    scatter-added as one."""
+    return (dr.cuda.ad if dr.backend_v(like) == dr.JitBackend.CUDA else dr.llvm.ad).Array4i64
 
 
 class Accumulator:
@@ -62,7 +80,7 @@ class Accumulator:
         self.apart = max(apart, groups)
         self.exact = settings.range_kernel == "exact"
         #: The histogram's scatter-add: ``ReduceMode.Expand`` (no atomics) unless several host threads
-        #: deposit at once (:meth:`shared_by`).
+        #: deposit at once (:meth:`shared_by`). Either gives the same bits: the words are integers (D7).
         self.reduce = dr.ReduceMode.Expand
 
     def shared_by(self, threads: int) -> None:
@@ -82,10 +100,12 @@ class Accumulator:
         # fine bins per metre of two-way length, as a value (each scene's window has its own step)
         ctx["fine_per_length"] = {cls: dr.opaque(cls, 1.0 / self.window.fine_step_length)
                                   for cls in (mi.Float, mi.Float64)}
+        ctx["unheld"] = dr.zeros(mi.UInt32, 1)                  # terms no words hold (D7): refused
         if not self.exact:
             size = len(SPECTRAL_ORDERS) * self.n_channels * self.groups * ctx["n_b"] * self.window.n_fine
-            ctx["hist_floats"] = 2 * size                       # (re, im) packets
-            ctx["hist"] = dr.zeros(mi.Float, histogram_floats(2 * size))
+            ctx["hist_entries"] = size
+            # (re hi, re lo, im hi, im lo) packets of int64 words, eq. (D7)
+            ctx["hist"] = dr.zeros(mi.Int64, 2 * histogram_floats(2 * size))
             # the layout's sizes enter the kernels as values, not literals, so that launches and
             # acquisitions of other pulse counts or windows (same structure) share the kernels
             ctx["hist_n_b"] = dr.opaque(mi.UInt32, ctx["n_b"])
@@ -103,10 +123,45 @@ class Accumulator:
         order's histogram (the deposit is a sum). Nothing unless :attr:`snapshots`."""
         if not self.snapshots:
             return
-        now = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64).copy()
+        now = self._words(ctx).copy()
         before = ctx.get("orders_total")
-        ctx["orders_read"][depth] = now if before is None else now - before
+        ctx["orders_read"][depth] = now if before is None else now - before      # exact: integers
         ctx["orders_total"] = now
+
+    @classmethod
+    def _words(cls, ctx: dict) -> np.ndarray:
+        """The launch's histogram words, int64 ``[entries, 2, 2]`` (re / im, hi / lo); raises
+        UnrepresentableSum where a term was refused."""
+        cls.check_held(ctx)
+        return ctx["hist"].numpy()[:WORDS_PER_ENTRY * ctx["hist_entries"]].reshape(-1, 2, 2)
+
+    @staticmethod
+    def check_held(ctx: dict) -> None:
+        """Raise UnrepresentableSum where a term or tally of the launch was refused, eq. (D7)."""
+        unheld = int(ctx["unheld"].numpy()[0])
+        if unheld:
+            raise UnrepresentableSum(
+                f"{unheld} return(s) or tallies of the launch were not finite or too large for their "
+                f"fixed-point sums (amplitudes below {AMPLITUDE.largest:g} {AMPLITUDE.unit}, docs/physics.md "
+                "(D7)): a defect of the tracer; please report the scene")
+
+    def tally(self, ctx: dict, name: str, value, slot, active) -> None:
+        """Add ``value`` (mi.Float, detached) into slot ``slot`` of the launch's tally ``name``
+        (:data:`TALLIES`) where ``active``, in fixed point (D7)."""
+        refused = TALLIES[name].add(ctx[name], dr.detach(value), mi.UInt32(slot), active, mode=ctx["tally"])
+        dr.scatter_add(ctx["unheld"], mi.UInt32(1), mi.UInt32(0), refused, mode=ctx["tally"])
+
+    @staticmethod
+    def tallies(max_depth: int) -> dict:
+        """The launch's zeroed tallies (:data:`TALLIES`): ``energy`` ``max_depth + 1`` slots (the last:
+        outside the window), ``carried`` ``max_depth``."""
+        return dict(energy=POWER.zeros(max_depth + 1), carried=SOLID_ANGLE.zeros(max_depth))
+
+    @staticmethod
+    def _complex(words: np.ndarray) -> np.ndarray:
+        """complex64 ``[entries]`` of histogram words ``[entries, 2, 2]``."""
+        values = decode(words, AMPLITUDE)
+        return (values[:, 0] + 1j * values[:, 1]).astype(np.complex64)
 
     def collect(self, ctx: dict) -> dict:
         """``{"paths": {field: array}}`` (``exact``) or ``{"hist": complex64 [orders, channels x
@@ -117,18 +172,18 @@ class Accumulator:
         if self.exact:
             return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                               for name, dtype in PATH_FIELDS.items()}}
-        hist = ctx["hist"].numpy()[:ctx["hist_floats"]].view(np.complex64)
+        words = self._words(ctx)
         shape = (len(SPECTRAL_ORDERS), self.n_channels, ctx["n_b"], self.window.n_fine)
         if not self.snapshots:
-            return {"hist": hist.reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
+            return {"hist": self._complex(words).reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
         read = ctx["orders_read"]
-        rest = hist - ctx["orders_total"] if read else hist
+        rest = words - ctx["orders_total"] if read else words
         if np.any(rest):
             last = len(read) if len(read) < self.apart else self.apart - 1
             read[last] = read[last] + rest if last in read else rest
         apart = np.zeros((shape[0], self.n_channels, self.apart, *shape[2:]), np.complex64)
         for depth, part in read.items():
-            apart[:, :, depth] = part.reshape(shape)
+            apart[:, :, depth] = self._complex(part).reshape(shape)
         return {"hist": apart.reshape(shape[0], self.n_channels * self.apart, *shape[2:])}
 
     def deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
@@ -174,9 +229,17 @@ class Accumulator:
                     g = dr.gather(mi.Array2f, seed, base + mi.UInt32(k0 + offset_), mask & inside)
                     ctx["adjoint"] += w * (g[0] * value.real + g[1] * value.imag)
                     continue
-                dr.scatter_add(ctx["hist"], mi.Array2f(value.real * w, value.imag * w), base + mi.UInt32(k0 + offset_),
-                               mask & inside, mode=self.reduce)
+                self.add(ctx, value.real * w, value.imag * w, base + mi.UInt32(k0 + offset_), mask & inside)
         return inside
+
+    def add(self, ctx, re, im, index, active) -> None:
+        """Add ``re + j im`` (mi.Float) into complex entry ``index`` of the launch's histogram where
+        ``active``: its fixed-point words, eq. (D7); a value no words hold is counted, not added."""
+        re_hi, re_lo, re_ok = AMPLITUDE.words(dr.detach(re))
+        im_hi, im_lo, im_ok = AMPLITUDE.words(dr.detach(im))
+        ok = re_ok & im_ok
+        dr.scatter_add(ctx["hist"], _words_type(re)(re_hi, re_lo, im_hi, im_lo), index, active & ok, mode=self.reduce)
+        dr.scatter_add(ctx["unheld"], mi.UInt32(1), mi.UInt32(0), active & ~ok, mode=self.reduce)
 
     def path_buffers(self, size: int) -> dict:
         """The exact kernel's path list: ``size`` slots of one entry per channel."""
@@ -196,4 +259,9 @@ class Accumulator:
             ctx["needed"] = max(ctx["needed"], count + PATH_HEADROOM)
             return
         filled = np.flatnonzero(paths["path_order"].numpy())
-        ctx["paths"].append({name: paths[name].numpy()[filled] for name in names})
+        found = {name: paths[name].numpy()[filled] for name in names}
+        # a canonical order: the appended slots (clutter) follow the threads' timing, and the
+        # binning's float sums follow the list's order (D7)
+        order = np.lexsort([found[name] for name in reversed(("path_pulse", "path_pos", "path_re", "path_im",
+                                                                  "path_order", "path_spectral", "path_channel"))])
+        ctx["paths"].append({name: values[order] for name, values in found.items()})

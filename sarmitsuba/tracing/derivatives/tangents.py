@@ -184,9 +184,12 @@ def _leaves(tables, names) -> dict:
 
 
 class TangentSums(Accumulator):
-    """The histogram of a launch replaced by its derivative: before collecting, the tables'
-    tangents are set on the kernel's differentiable tables (the geometric leaves carry theirs
-    from when they were made) and propagated forward to the histogram."""
+    """The histogram of a launch replaced by its derivative: each deposit's values are kept with
+    their entries; before collecting, the tables' tangents are set on the kernel's differentiable
+    tables (the geometric leaves carry theirs from when they were made), propagated forward to
+    those values in one traversal, and the values' tangents deposited as values are, in fixed
+    point (docs/physics.md (D7)): the derivative's sums do not depend on the order of the
+    additions either."""
 
     def __init__(self, base: Accumulator, leaves: tuple, tangent: tuple):
         super().__init__(base.settings, base.window, base.groups, base.n_channels)
@@ -195,13 +198,25 @@ class TangentSums(Accumulator):
                                  "use range_kernel linear or sinc")
         self.leaves, self.tangent = leaves, tangent
 
+    def open(self, ctx: dict) -> None:
+        super().open(ctx)
+        ctx["deposits"] = []              # (re, im, entry, active) of every deposit, differentiable
+
+    def add(self, ctx, re, im, index, active) -> None:
+        """Keep the deposit: its tangent is added in :meth:`collect`."""
+        ctx["deposits"].append((re, im, index, active))
+
     def collect(self, ctx: dict) -> dict:
-        """Set the leaves' tangents, propagate them forward to the launch's histogram and
-        collect that derivative as the base accumulator collects values."""
+        """Set the leaves' tangents, propagate them forward to every kept deposit, deposit those
+        tangents and collect them as the base accumulator collects values."""
         for leaf, tangent in zip(self.leaves, self.tangent):
             dr.set_grad(leaf, tangent)
-        dr.forward_to(ctx["hist"], flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
-        ctx["hist"] = dr.grad(ctx["hist"])
+        deposits = ctx.pop("deposits")
+        values = [x for re, im, _, _ in deposits for x in (re, im) if dr.grad_enabled(x)]
+        if values:
+            dr.forward_to(*values, flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+        for re, im, index, active in deposits:
+            super().add(ctx, dr.grad(re), dr.grad(im), index, active)
         dr.eval(ctx["hist"])
         return super().collect(ctx)
 
@@ -246,7 +261,7 @@ class AdjointSums(Accumulator):
         super().open(ctx)
         if self.seed is None:
             return
-        floats = np.zeros(dr.width(ctx["hist"]), np.float32)
+        floats = np.zeros(dr.width(ctx["hist"]) // 2, np.float32)      # (hi, lo) words per real value
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat
         ctx["seed"] = device_array(mi.Float, floats)     # aligned: the kernels' packet gathers

@@ -445,8 +445,7 @@ class Kernel:
             r, reflected = ret.reflection_at(row, hit.cos_i, hit.valid), None
             carried = dr.squared_norm(tube.gamma)
         count = mi.Float(dr.gather(mi.UInt32, ctx["count"], tube.sub))
-        dr.scatter_add(ctx["carried"], dr.norm(dr.cross(tube.t1, tube.t2)) * carried * count,
-                       mi.UInt32(depth), hit.valid, mode=ctx["tally"])
+        ret.sums.tally(ctx, "carried", dr.norm(dr.cross(tube.t1, tube.t2)) * carried * count, depth, hit.valid)
         # ---- the footprint seen from the reference position, and which of its edges split (PO2):
         #      for every pulse of the sub-aperture (its first and last pulse agree), or per pulse ----
         d = tube.ray.d

@@ -123,8 +123,8 @@ class ClutterTerms:
         _, found, outside = dr.while_loop((mi.UInt32(0), mi.UInt32(0), mi.UInt32(0)),
                                           lambda i, *_: i < n_cells, step, mode=loop_mode(), label="scatterers")
         power = dr.squared_norm(amplitude) * level
-        dr.scatter_add(ctx["energy"], mi.Float(found) * power, mi.UInt32(depth), rough, mode=ctx["tally"])
-        dr.scatter_add(ctx["energy"], mi.Float(outside) * power, mi.UInt32(self.settings.max_depth), rough, mode=ctx["tally"])
+        self.sums.tally(ctx, "energy", mi.Float(found) * power, depth, rough)
+        self.sums.tally(ctx, "energy", mi.Float(outside) * power, self.settings.max_depth, rough)
         dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough, mode=ctx["tally"])
 
     def rough_returns(self, rec, d, b, n, cosines: tuple, model: tuple, depth: int):

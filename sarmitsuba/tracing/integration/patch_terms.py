@@ -399,8 +399,8 @@ class PatchTerms:
             power = dr.detach(dr.squared_norm(values[0]))
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
-            dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), live, mode=ctx["tally"])
-            dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), live & ~inside, mode=ctx["tally"])
+            r.sums.tally(ctx, "energy", power, depth, live)
+            r.sums.tally(ctx, "energy", power, r.settings.max_depth, live & ~inside)
 
     @staticmethod
     def _moved(data, antenna):

@@ -23,7 +23,7 @@ import mitsuba as mi
 import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT
-from ..deposit.accumulate import Accumulator
+from ..deposit.accumulate import TALLIES, Accumulator
 from ..deposit.fast_time import SPECTRAL_ORDERS
 from . import jones as pol
 from ...core.radar import CHANNELS
@@ -142,8 +142,8 @@ class Returns(ClutterTerms):
         st = self.settings
         n_b = launch.n_pulses
         a64, f64 = mi.Array3f64, mi.Float64
-        ctx = dict(energy=dr.zeros(mi.Float, st.max_depth + 1), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
-                   carried=dr.zeros(mi.Float, st.max_depth), scatterers=dr.zeros(mi.UInt32, st.max_depth),
+        ctx = dict(**self.sums.tallies(st.max_depth), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
+                   scatterers=dr.zeros(mi.UInt32, st.max_depth),
                    antenna=table_array(a64, launch.antenna.T), lref=table_array(f64, launch.lref),
                    first=table_array(mi.UInt32, launch.first), count=table_array(mi.UInt32, launch.count),
                    reference=table_array(a64, launch.reference.T),
@@ -180,12 +180,13 @@ class Returns(ClutterTerms):
         st = self.settings
         if self.exact and ctx["needed"]:
             return None
-        names = ["energy", "rays", "carried", "scatterers"] + ([] if self.exact else ["hist"])
+        names = ["energy", "rays", "carried", "scatterers", "unheld"] + ([] if self.exact else ["hist"])
         dr.eval(*(ctx[name] for name in names))
-        energy = ctx["energy"].numpy().astype(np.float64)
+        self.sums.check_held(ctx)
+        energy = TALLIES["energy"].read(ctx["energy"])
         rays = ctx["rays"].numpy().astype(np.int64)
         out = dict(energy=energy[:st.max_depth], outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
-                   shadow=int(rays[st.max_depth]), carried=ctx["carried"].numpy().astype(np.float64),
+                   shadow=int(rays[st.max_depth]), carried=TALLIES["carried"].read(ctx["carried"]),
                    scatterers=ctx["scatterers"].numpy().astype(np.int64))
         out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
         out.update(self.sums.collect(ctx))
@@ -389,11 +390,11 @@ class Returns(ClutterTerms):
         area = dr.norm(dr.cross(rec.e1, rec.e2))
         carrier = rec.gamma * r * (scale * area * _sinc(alpha[0]) * _sinc(alpha[1]))
         power = dr.squared_norm(carrier) * count
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), vis, mode=ctx["tally"])
+        self.sums.tally(ctx, "energy", power, depth, vis)
         rel = hit.s + hit.dist - lref
         bin_, frac = self.anchor(rel, lref)
         outside = (bin_ < 0) | (bin_ >= self.window.n_fine - 1)
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(st.max_depth), vis & outside, mode=ctx["tally"])
+        self.sums.tally(ctx, "energy", power, st.max_depth, vis & outside)
 
     # ------------------------------------------------------------------ the returns of one order
     def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:

@@ -220,8 +220,8 @@ class ClutterKernel:
         inside = r.sums.deposit(ctx, pulse, depth, r.anchor(rel, lref), 0.0, values,
                                 mi.UInt32(SPECTRAL_ORDERS.index(0)), active, paths, lane * ctx["max_count"] + q)
         power = dr.detach(dr.squared_norm(amplitude) * level)
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(depth), active, mode=ctx["tally"])
-        dr.scatter_add(ctx["energy"], power, mi.UInt32(r.settings.max_depth), active & ~inside, mode=ctx["tally"])
+        r.sums.tally(ctx, "energy", power, depth, active)
+        r.sums.tally(ctx, "energy", power, r.settings.max_depth, active & ~inside)
 
 
 _unused = (math, pol)
