@@ -56,7 +56,8 @@ from .tracing.mesh.facets import scene_meshes
 from .tracing.derivatives.geometry_tangents import GeometryMove, move_scene
 from .tracing.derivatives.lane_pairs import GeometryChange, GeometryChangeWarning
 from .tracing.loops import evaluated_loops
-from .tracing.deposit.fast_time import reduce_deposit_adjoint
+from .tracing.deposit.adjoint import seed_scale
+from .tracing.deposit.fast_time import adjoint_gain, reduce_deposit_adjoint
 from .tracing.driver.kernel import Kernel
 from .tracing.derivatives.tangents import MATERIAL_PARAMETERS, AdjointKernel, TangentKernel, flat_tangents, moved_tracer, row_tangent
 from .tracing.driver.trace import prepare_trace, trace, trace_batch
@@ -389,6 +390,13 @@ def _batches(kernel, loaded, setup, seeds=None):
         spectra = None if seeds is None else [
             binning.raw_data_adjoint(seeds[name], plan.lref, plan.n_pad, window, params)
             for name in kernel.returns.channels]          # in the histogram's channel order
+        if spectra is not None:
+            # the seeds scaled by a power of two to magnitudes of at most 1 (exact), so that the
+            # adjoints lie in their fixed-point range (docs/physics.md (D7)); scaled back in _reverse
+            gain = adjoint_gain(plan.n_pad, window.fs, window.oversample, params.frequency, settings.range_kernel)
+            bound = max((float(np.abs(s).sum(axis=1).max(initial=0.0)) for s in spectra), default=0.0) * gain
+            kernel.returns.sums.scale = seed_scale(bound)
+            spectra = [s / kernel.returns.sums.scale for s in spectra]
         for g0 in batches:
             if spectra is not None:
                 p0, p1 = plan.pulses(g0)
@@ -411,7 +419,8 @@ def _reverse(loaded, setup, kernel, gradient, parameters, rows) -> dict:
     params = loaded.params
     seeds = _channel_gradients(gradient, params.channels, (setup.geometry.positions.shape[0], setup.window.n_samples))
     _batches(kernel, loaded, setup, seeds)
-    grads = {name: np.asarray(dr.grad(leaf), np.float64) for name, leaf in kernel.leaves.items()}
+    scale = kernel.returns.sums.scale
+    grads = {name: scale * kernel.table_gradient(name) for name in kernel.leaves}
     out = {}
     for parameter, (row, tangent) in rows.items():
         flat = flat_tangents(kernel.returns.tables, kernel.effects.polarimetric, params.polarization, row, tangent)
@@ -420,7 +429,7 @@ def _reverse(loaded, setup, kernel, gradient, parameters, rows) -> dict:
     changes = {}
     for j, parameter in enumerate(shapes):
         moved = kernel.moved
-        out[parameter] = math.nan if moved.undefined[j] else float(moved.totals[j])
+        out[parameter] = math.nan if moved.undefined[j] else scale * float(moved.totals[j])
         if moved.changes[j] is not None:
             changes[parameter] = moved.changes[j]
     return {p: out[p] for p in parameters}, changes

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from scipy import fft as sp_fft
 
-__all__ = ["LANCZOS_A", "SPECTRAL_ORDERS", "droop", "order_factor", "reduce_deposit", "reduce_deposit_adjoint",
+__all__ = ["LANCZOS_A", "SPECTRAL_ORDERS", "adjoint_gain", "droop", "order_factor", "reduce_deposit", "reduce_deposit_adjoint",
            "padded_length", "deposit_reference", "taps"]
 
 #: Half-width (lobes) of the Lanczos window of the ``sinc`` kernel: ``2 * LANCZOS_A`` taps.
@@ -117,6 +117,15 @@ def reduce_deposit(hist: np.ndarray, fs: float, oversample: int, frequency: floa
             spectrum = sp_fft.fft(hist[k, rows], n=n_fft, axis=1, workers=-1)
             out[rows] += spectrum[:, keep] * filt[None, :]
     return out
+
+
+def adjoint_gain(n_pad: int, fs: float, oversample: int, frequency: float, range_kernel: str) -> float:
+    """The largest filter magnitude of :func:`reduce_deposit_adjoint` over its orders and bins:
+    each of its outputs is at most this times the sum of its pulse's ``|spectrum|`` (a bound,
+    for scaling a seed, docs/physics.md (D7))."""
+    f = sp_fft.fftfreq(n_pad, d=1.0 / fs)
+    inverse_droop = 1.0 / np.abs(droop(f / (fs * oversample), range_kernel))
+    return float(max(np.max(inverse_droop * np.abs(order_factor(f, frequency, m))) for m in SPECTRAL_ORDERS))
 
 
 def reduce_deposit_adjoint(spectrum: np.ndarray, n_fine: int, fs: float, oversample: int, frequency: float,

@@ -19,7 +19,7 @@ Each term is rounded once, by at most half a quantum, so a slot of ``N`` terms i
 term that is not finite or too large for the words is not added and is counted
 (:meth:`FixedPoint.add`'s mask), and the caller refuses the launch: nothing is clamped.
 
-The scales (:data:`AMPLITUDE`, :data:`POWER`, :data:`SOLID_ANGLE`) are fixed by the quantities'
+The scales (:data:`AMPLITUDE`, :data:`POWER`, :data:`SOLID_ANGLE`, :data:`GRADIENT`) are fixed by the quantities'
 units and physical ranges, never by a launch's own data, so the same term is the same integer
 in any launch, batch or process: renders agree bit for bit across Dr.Jit thread counts and Dask
 workers too, wherever the terms themselves do.
@@ -34,7 +34,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-__all__ = ["FixedPoint", "AMPLITUDE", "POWER", "SOLID_ANGLE", "encode", "decode", "UnrepresentableSum"]
+__all__ = ["FixedPoint", "AMPLITUDE", "POWER", "SOLID_ANGLE", "GRADIENT", "encode", "decode", "UnrepresentableSum"]
 
 
 class UnrepresentableSum(RuntimeError):
@@ -131,3 +131,7 @@ POWER = FixedPoint(fraction_bits=40, split_bits=32, unit="m^2")
 #: Power carried by ray tubes, sr (solid angle times reflection losses): quantum ``2^-80``
 #: (8.3e-25 sr), below ``2^14`` sr per launch.
 SOLID_ANGLE = FixedPoint(fraction_bits=80, split_bits=32, unit="sr")
+#: Reverse-mode adjoints (:mod:`.adjoint`), for a seed scaled to magnitudes at most 1: a term's
+#: ``dL/dx`` is its amplitude's derivative, up to ``k`` times the amplitude (sqrt(m^2) per m)
+#: for a position. Quantum ``2^-48`` (3.6e-15), below ``2^46`` (7e13).
+GRADIENT = FixedPoint(fraction_bits=48, split_bits=32, unit="sqrt(m^2) per unit of the source")

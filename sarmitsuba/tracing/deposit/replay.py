@@ -31,8 +31,9 @@ import drjit as dr
 import mitsuba as mi
 
 from ..loops import loop_mode
+from .adjoint import AdjointSink, read
 
-__all__ = ["replaying", "run_pulses", "carry"]
+__all__ = ["replaying", "run_pulses", "carry", "shared_read"]
 
 
 def replaying(ctx: dict) -> bool:
@@ -106,20 +107,29 @@ def run_pulses(ctx: dict, data: dict, count, pulse, label: str, shared=()) -> No
     leaves = _rebuilt(data, detached)
     n = dr.width(count)
     lane, first = dr.arange(mi.UInt32, n), dr.zeros(mi.UInt32, n)
+    # entries many lanes read: their adjoints are summed in fixed point (D7), in a sink each
+    sinks, constants = {key: _sinks(leaves[key]) for key in shared if key in leaves}, {}
+
+    def constant(x):
+        if dr.width(x) != n:
+            constants[id(x)] = (x, AdjointSink(x))
+        return x
+    _rebuilt({key: value for key, value in leaves.items() if key not in shared}, constant)
 
     def per_lane(x):
-        # one entry per lane, or one for all (a constant such as the first bounce's unit factor,
-        # whose adjoint adds up every lane's). Not ReduceMode.Permute for the lanes: its adjoint
-        # writes instead of adding, and each pulse of the loop would overwrite the one before
-        # (measured: gradients a sixth of the truth)
+        # one entry per lane (its own: nothing races), or one for all (a constant such as the
+        # first bounce's unit factor, whose adjoint adds up every lane's: summed in its sink).
+        # Not ReduceMode.Permute for the lanes: its adjoint writes instead of adding, and each
+        # pulse of the loop would overwrite the one before (measured: gradients a sixth of the truth)
         if dr.width(x) == n:
             return dr.gather(type(x), x, lane)
-        return dr.gather(type(x), x, first)
+        return read(x, first, True, constants[id(x)][1])
 
     def body(q):
         with dr.resume_grad():
             local = {key: value if key in shared else _rebuilt(value, per_lane) for key, value in leaves.items()}
             local["replayed"] = True          # an inner loop of the terms is then unrolled
+            local["sinks"] = sinks            # shared_read's sinks
             ctx["adjoint"] = mi.Float(0.0)
             pulse(local, q)
             dr.backward_from(ctx.pop("adjoint"), flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
@@ -127,4 +137,38 @@ def run_pulses(ctx: dict, data: dict, count, pulse, label: str, shared=()) -> No
 
     with dr.suspend_grad():
         dr.while_loop((mi.UInt32(0),), lambda q: q < count, body, label=f"{label} (replay)")
+    for leaf, sink in [*_pairs(leaves, sinks), *constants.values()]:
+        dr.accum_grad(leaf, sink.gradient())
     carry(pairs)
+
+
+def shared_read(data: dict, name: str, index, active=True):
+    """``data[name]`` (a Dr.Jit array, or a list of them) at ``index``: a gather, whose adjoint
+    goes to the entry's sink in fixed point while :func:`run_pulses` replays (D7)."""
+    value, sink = data[name], data.get("sinks", {}).get(name)
+    if isinstance(value, (list, tuple)):
+        return [read(v, index, active, None if sink is None else s) for v, s in zip(value, sink or [None] * len(value))]
+    return read(value, index, active, sink)
+
+
+def _sinks(x):
+    """An :class:`~.adjoint.AdjointSink` for each differentiable array of ``x`` (an array or a list
+    of them; None for the others), in ``x``'s structure."""
+    if isinstance(x, (list, tuple)):
+        return [_sinks(v) for v in x]
+    return AdjointSink(x) if dr.is_array_v(x) and dr.is_float_v(x) and dr.grad_enabled(x) else None
+
+
+def _pairs(leaves: dict, sinks: dict) -> list:
+    """``(leaf, sink)`` of every shared entry that has a sink."""
+    out = []
+
+    def walk(x, s):
+        if isinstance(x, (list, tuple)):
+            for v, t in zip(x, s):
+                walk(v, t)
+        elif s is not None:
+            out.append((x, s))
+    for key, sink in sinks.items():
+        walk(leaves[key], sink)
+    return out

@@ -29,6 +29,7 @@ from ...core.constants import SPEED_OF_LIGHT, VACUUM_PERMITTIVITY
 from ...core.radar import ParameterError
 from ...scene.materials import grazing_impedance
 from ..deposit.accumulate import Accumulator
+from ..deposit.adjoint import AdjointSink
 from ..device import device_array
 from .geometry_tangents import MovedTracer
 from ..driver.kernel import Kernel
@@ -254,6 +255,9 @@ class AdjointSums(Accumulator):
             raise ParameterError("range_kernel = 'exact' keeps path lists, which gradients do not flow through; "
                                  "use range_kernel linear or sinc")
         self.seed = None
+        #: The power of two the seeds were divided by (:func:`~..deposit.adjoint.seed_scale`): the
+        #: gradients are multiplied by it.
+        self.scale = 1.0
 
     def open(self, ctx: dict) -> None:
         """Open the launch's histogram, and put :attr:`seed` beside it as its (re, im) floats
@@ -279,6 +283,8 @@ class AdjointKernel(Kernel):
                  outlines: bool = False):
         super().__init__(scene, params, window, footprint, settings, material_table, effects)
         self.leaves = _leaves(self.returns.tables, DIFFERENTIABLE)
+        # every read of a table adds its adjoint in fixed point (docs/physics.md (D7))
+        self.returns.tables.adjoint = {name: AdjointSink(leaf) for name, leaf in self.leaves.items()}
         self.returns.sums = AdjointSums(self.returns.sums)
         self.serial = True                  # one launch at a time: Dr.Jit's reverse passes from one thread
         self.moved = moved_tracer(self, list(moves), always=outlines)
@@ -288,6 +294,13 @@ class AdjointKernel(Kernel):
         if self.moved is not None:
             self.moved.accumulate()
         return out
+
+    def table_gradient(self, name: str) -> np.ndarray:
+        """``dL/d table`` (float64, the table's width) of differentiable table ``name`` after the
+        reverse pass, for the seeds as scaled (:attr:`AdjointSums.scale`): its sink's fixed-point
+        sums, plus anything read without a sink."""
+        return (self.returns.tables.adjoint[name].gradient().numpy().astype(np.float64)
+                + np.asarray(dr.grad(self.leaves[name]), np.float64))
 
 
 def moved_tracer(kernel: Kernel, moves: list, always: bool = False):

@@ -29,6 +29,7 @@ against closed forms.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -38,6 +39,7 @@ import mitsuba as mi
 import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT
+from ..deposit.adjoint import read
 from ..deposit.fast_time import SPECTRAL_ORDERS
 from ...scene.effects import EffectSet, rough_materials
 from ..mesh.facets import triangle_table
@@ -309,6 +311,13 @@ class _Tables:
     grazing_offset: mi.Float | None = None    # edge diffraction: each row's grazing-wave table, (E6')
     grazing_re: mi.Float | None = None
     grazing_im: mi.Float | None = None
+    #: reverse mode: table name -> the AdjointSink its reads add their adjoints to in fixed point (D7)
+    adjoint: dict = dataclasses.field(default_factory=dict)
+
+    def read(self, name: str, index, active=True):
+        """Table ``name`` at ``index``: a gather; in reverse mode its adjoint goes to the table's
+        sink (:func:`sarmitsuba.tracing.deposit.adjoint.read`)."""
+        return read(getattr(self, name), index, active, self.adjoint.get(name))
 
 
 # ============================================================================ the kernel
@@ -435,7 +444,7 @@ class Kernel:
         dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(depth), tube.active, mode=ctx["tally"])
         hit = intersect(self.scene, self.tables, tube, reference)
         row = dr.gather(mi.UInt32, self.tables.row_of_shape, hit.shape, hit.valid)
-        specular = dr.gather(mi.Float, self.tables.specular, row, hit.valid)
+        specular = self.tables.read("specular", row, hit.valid)
         if self.effects.polarimetric:          # docs/physics.md (P3'): the Jones matrix reflected
             r_te, r_tm = ret.reflection_pair(row, hit.cos_i, hit.valid)
             reflected = pol.reflect(tube.jones, tube.ray.d, hit.n, r_te, r_tm)

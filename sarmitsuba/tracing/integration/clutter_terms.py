@@ -83,7 +83,7 @@ class ClutterTerms:
         # the hit from the shape's origin (float64 difference, then float32)
         local = mi.Vector3f(rec.p64 - dr.gather(mi.Array3f64, t.shape_origin, rec.shape))
         return dict(kind=dr.gather(mi.UInt32, t.clutter_kind, rec.row),
-                    value=dr.gather(mi.Float, t.clutter_value, rec.row), raise_by=raise_by, axes=(u_axis, v_axis), cells=footprint_cells(local, e1, e2, u_axis, v_axis, c),
+                    value=t.read("clutter_value", rec.row), raise_by=raise_by, axes=(u_axis, v_axis), cells=footprint_cells(local, e1, e2, u_axis, v_axis, c),
                     key0=surface_key(dr.gather(mi.UInt32, t.shape_key, rec.shape), back, n_geo, local, axes, c,
                                      self.settings.seed))
 

@@ -271,6 +271,10 @@ class EdgeTerms:
         t = self.r.tables
         return t.grazing_offset, t.grazing_re, t.grazing_im
 
+    def grazing_sinks(self) -> tuple:
+        """The grazing tables' reverse-mode sinks (None each outside reverse mode), docs/physics.md (D7)."""
+        return tuple(self.r.tables.adjoint.get(name) for name in ("grazing_offset", "grazing_re", "grazing_im"))
+
     def unlit_tm(self, data, sin_i):
         """The TM reflection coefficient at grazing of each lane's face N as a wave grazing it across
         the face sees it, ``1 - 2 F(w)`` (Norton's ``F`` over the distance across, or the lit edge's
@@ -284,7 +288,7 @@ class EdgeTerms:
         across = dr.norm(data["across"])
         extent = dr.select(across > 0.0, across, dr.norm(data["edge"]))
         weight = ground_wave.lookup(*self.grazing_tables(), data["wedge_row"],
-                                    self.k * extent / dr.maximum(sin_i, GRAZING_EDGE))
+                                    self.k * extent / dr.maximum(sin_i, GRAZING_EDGE), self.grazing_sinks())
         return 1.0 - 2.0 * weight
 
     def double(self, data, d, b, n0, sin_i, depth: int):
@@ -327,7 +331,8 @@ class EdgeTerms:
         # on a face of finite conductivity, over its path w / sin(beta'), eq. (E6): whatever the
         # channel (the wave grazing the face is TM to it)
         if r.tables.grazing_offset is not None:
-            g = g * ground_wave.lookup(*self.grazing_tables(), data["row"], k * w / dr.maximum(sin_i, GRAZING_EDGE))
+            g = g * ground_wave.lookup(*self.grazing_tables(), data["row"], k * w / dr.maximum(sin_i, GRAZING_EDGE),
+                                       self.grazing_sinks())
         ok = (n1 > 1.0 + 1e-3) & (n2 > 1.0 + 1e-3) & (sin_i > GRAZING_EDGE) & (sin_s > GRAZING_EDGE) & (phi < math.pi)
         # after mirrors, the untraced reverse path (edge 2, edge 1, the mirrors) is the transpose:
         # Keller's coefficients are reciprocal, so twice the reciprocal part, eq. (E6)

@@ -120,20 +120,22 @@ def table_tangent(delta, d_ln_delta) -> tuple[float, np.ndarray]:
     return d_ln_c.real / math.log(10.0), slope * w * 1j * d_ln_c.imag
 
 
-def lookup(offset, table_re, table_im, row, k_distance):
+def lookup(offset, table_re, table_im, row, k_distance, sinks=(None, None, None)):
     """The Dr.Jit evaluation of :func:`grazing_weight` from :func:`grazing_table` (flattened
     ``table_re``, ``table_im`` as ``mi.Float``): ``F`` of each lane's material ``row``
     (``mi.UInt32``) over ``k_distance`` (``mi.Float``, > 0), linear in ``log10 |w|``; a
-    ``mi.Complex2f``."""
+    ``mi.Complex2f``. ``sinks``: the three tables' reverse-mode sinks
+    (:class:`sarmitsuba.tracing.deposit.adjoint.AdjointSink`, or None), docs/physics.md (D7)."""
     import drjit as dr
     import mitsuba as mi
+    from ..deposit.adjoint import read
     n = N_SAMPLES
-    u = (dr.log2(dr.maximum(k_distance, 1e-30)) * math.log10(2.0) + dr.gather(mi.Float, offset, row)
+    u = (dr.log2(dr.maximum(k_distance, 1e-30)) * math.log10(2.0) + read(offset, row, True, sinks[0])
          - LOG_RANGE[0]) * PER_DECADE
     u = dr.clip(u, 0.0, n - 1.0)
     i = dr.minimum(mi.UInt32(dr.floor(u)), n - 2)
     t = u - mi.Float(i)
     at = row * n + i
-    re = dr.lerp(dr.gather(mi.Float, table_re, at), dr.gather(mi.Float, table_re, at + 1), t)
-    im = dr.lerp(dr.gather(mi.Float, table_im, at), dr.gather(mi.Float, table_im, at + 1), t)
+    re = dr.lerp(read(table_re, at, True, sinks[1]), read(table_re, at + 1, True, sinks[1]), t)
+    im = dr.lerp(read(table_im, at, True, sinks[2]), read(table_im, at + 1, True, sinks[2]), t)
     return mi.Complex2f(re, im)

@@ -39,7 +39,7 @@ from .edge_terms import EdgeTerms, end_slope, sinc, x_dsinc
 from ..device import device_array
 from . import jones as pol
 from .pulse_view import receive_leg
-from ..deposit.replay import run_pulses
+from ..deposit.replay import run_pulses, shared_read
 from ..loops import loop_mode
 
 __all__ = ["TermLanes", "PieceTable", "PatchTerms", "SPLIT_START", "SPLIT_END", "SINC", "OPEN_START", "OPEN_END",
@@ -309,7 +309,7 @@ class PatchTerms:
         for i in range(depth):
             row = device_array(mi.UInt32, lanes.window_row[:, i])
             cos = device_array(mi.Float, lanes.window_cos[:, i])
-            specular = dr.gather(mi.Float, r.tables.specular, row)
+            specular = r.tables.read("specular", row)
             if r.polarimetric:
                 r_te, r_tm = r.reflection_pair(row, cos, True)
                 jones = pol.reflect(jones, device_array(mi.Vector3f, lanes.window_direction[:, i].T),
@@ -363,7 +363,7 @@ class PatchTerms:
         if data["gated"]:
             near = self._near(data, antenna, view, depth)
             active &= data["stable"] | dr.select(kind == AREA, near, ~near)
-        specular = dr.gather(mi.Float, r.tables.specular, data["row"])
+        specular = r.tables.read("specular", data["row"])
         weight = r.weight(first, b, s, dist, lref, view)
         density = (math.sqrt(math.pi) / r.lam) * (cos_i + cos_b) * specular * weight
         base = mi.Complex2f(0.0, 1.0) * data["gamma"] * density
@@ -446,11 +446,11 @@ class PatchTerms:
     def _near(self, data, antenna, view, depth: int):
         """Whether the pulse sees each lane's piece within ``tau / (k D)`` of the specular direction."""
         piece = data["piece"]
-        point = dr.gather(mi.Array3f64, data["centroid"], piece)
-        unfolded = dr.gather(mi.Array3f64, data["centroid_unfolded"], piece)
+        point = shared_read(data, "centroid", piece)
+        unfolded = shared_read(data, "centroid_unfolded", piece)
         _, _, _, d, b = self._at(data, antenna, view, point, unfolded, depth)
         _, _, ut2 = self._tangential(data["normal"], d, b)
-        return self.k * dr.sqrt(ut2) * dr.gather(mi.Float, data["diagonal"], piece) < NEAR_SPECULAR
+        return self.k * dr.sqrt(ut2) * shared_read(data, "diagonal", piece) < NEAR_SPECULAR
 
     def _open_split(self, data, antenna, view, depth: int):
         """Whether the pulse splits each lane's segment: ``|k u . a| / 2 >= alpha_s`` at its midpoint."""
@@ -461,9 +461,9 @@ class PatchTerms:
         """``F = int exp(-j k (L(r) - L_c)) dA`` over the lane's piece about its centroid (the lane's
         point), with the quadratic phase to first order, and ``k dF / dk``."""
         k, piece, n = self.k, data["piece"], data["normal"]
-        area = dr.gather(mi.Float, data["piece_area"], piece)
-        ixx, ixy, iyy = (dr.gather(mi.Float, m, piece) for m in data["moments"])
-        eu, ev = dr.gather(mi.Vector3f, data["axis_u"], piece), dr.gather(mi.Vector3f, data["axis_v"], piece)
+        area = shared_read(data, "piece_area", piece)
+        ixx, ixy, iyy = shared_read(data, "moments", piece)
+        eu, ev = shared_read(data, "axis_u", piece), shared_read(data, "axis_v", piece)
         inv_s, inv_r = 1.0 / mi.Float(s), 1.0 / mi.Float(dist)
 
         def q_form(x, y):               # x^T Q y, Q = ((I - d d^T) / s + (I - b b^T) / R) / 2
@@ -476,7 +476,7 @@ class PatchTerms:
         # Taylor: F = A - (k^2 / 2) <(u . r)^2> - j k tr(Q M2); k dF/dk doubles the second-order term
         taylor = mi.Complex2f(area - 0.5 * k * k * spread, -k * quad)
         taylor_k = mi.Complex2f(-k * k * spread, -k * quad)
-        diag = dr.gather(mi.Float, data["diagonal"], piece)
+        diag = shared_read(data, "diagonal", piece)
         gordon = (self.k * dr.sqrt(ut2) * diag >= TAYLOR_BELOW) & (data["kind"] == AREA)
         start = dr.gather(mi.UInt32, data["segment_start"], piece)
         moving = bool(data.get("segment_moving"))
@@ -487,11 +487,11 @@ class PatchTerms:
         inv = 1.0 / (k * dr.maximum(ut2, 1e-30))
 
         def step(e, f, kdf, shoelace):
-            mid = dr.gather(mi.Vector3f, data["segment_mid"], e)
-            edge = dr.gather(mi.Vector3f, data["segment_edge"], e)
+            mid = shared_read(data, "segment_mid", e)
+            edge = shared_read(data, "segment_edge", e)
             if moving:
-                mid += dr.gather(mi.Vector3f, data["segment_mid_rate"], e) * data["travel"]
-                edge += dr.gather(mi.Vector3f, data["segment_edge_rate"], e) * data["travel"]
+                mid += shared_read(data, "segment_mid_rate", e) * data["travel"]
+                edge += shared_read(data, "segment_edge_rate", e) * data["travel"]
                 shoelace += 0.5 * dr.dot(n, dr.cross(mid, edge))
             alpha = 0.5 * k * dr.dot(u, edge)
             sn, cs = dr.sincos(-k * dr.dot(u, mid))

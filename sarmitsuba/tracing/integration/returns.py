@@ -212,8 +212,8 @@ class Returns(ClutterTerms):
         i0 = mi.UInt32(dr.minimum(dr.floor(x), t.n_cos - 2))
         w = x - mi.Float(i0)
         idx = row * t.n_cos + i0
-        re = dr.lerp(dr.gather(mi.Float, t.re, idx, active), dr.gather(mi.Float, t.re, idx + 1, active), w)
-        im = dr.lerp(dr.gather(mi.Float, t.im, idx, active), dr.gather(mi.Float, t.im, idx + 1, active), w)
+        re = dr.lerp(t.read("re", idx, active), t.read("re", idx + 1, active), w)
+        im = dr.lerp(t.read("im", idx, active), t.read("im", idx + 1, active), w)
         return mi.Complex2f(re, im)
 
     def reflection_pair(self, row: mi.UInt32, cos_i: mi.Float, active: mi.Bool) -> tuple:
@@ -225,9 +225,9 @@ class Returns(ClutterTerms):
         w = x - mi.Float(i0)
         idx = row * t.n_cos + i0
         out = []
-        for re_, im_ in ((t.re, t.im), (t.re_tm, t.im_tm)):
-            re = dr.lerp(dr.gather(mi.Float, re_, idx, active), dr.gather(mi.Float, re_, idx + 1, active), w)
-            im = dr.lerp(dr.gather(mi.Float, im_, idx, active), dr.gather(mi.Float, im_, idx + 1, active), w)
+        for re_, im_ in (("re", "im"), ("re_tm", "im_tm")):
+            re = dr.lerp(t.read(re_, idx, active), t.read(re_, idx + 1, active), w)
+            im = dr.lerp(t.read(im_, idx, active), t.read(im_, idx + 1, active), w)
             out.append(mi.Complex2f(re, im))
         return tuple(out)
 
@@ -546,7 +546,7 @@ class Returns(ClutterTerms):
         cell = self._cell(ctx, rec.block)
         reference = dr.gather(mi.Array3f64, ctx["reference"], rec.sub)
         corner = rec.aim + cell[0] * mi.Float64(0.5 * sigma[0]) + cell[1] * mi.Float64(0.5 * sigma[1])
-        specular = dr.gather(mi.Float, self.tables.specular, rec.row)
+        specular = self.tables.read("specular", rec.row)
         count, term = dr.gather(mi.UInt32, ctx["count"], rec.sub), dr.arange(mi.UInt32, dr.width(code))
         paths = self.sums.path_buffers(dr.width(code) * ctx["max_count"]) if self.exact else None
         open_ = [(flags & _UNDECIDED_1) != 0, (flags & _UNDECIDED_2) != 0]

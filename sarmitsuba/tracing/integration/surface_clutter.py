@@ -201,7 +201,7 @@ class ClutterKernel:
         facing = dr.select(dr.dot(n, d) < 0, 1.0, -1.0)
         cos_i, cos_b = dr.maximum(-facing * dr.dot(n, d), 0.0), dr.maximum(facing * dr.dot(n, b), 0.0)
         kind = dr.gather(mi.UInt32, r.tables.clutter_kind, data["row"])
-        value = dr.gather(mi.Float, r.tables.clutter_value, data["row"])
+        value = r.tables.read("clutter_value", data["row"])
         rec = _Record(data["row"], data["jones"])
         co, cross, level = r.rough_returns(rec, d, b, facing * n, (cos_i, cos_b), (kind, value), depth)   # (C2), (P7), (P9)
         active = level > 0
