@@ -123,15 +123,15 @@ class Accumulator:
         order's histogram (the deposit is a sum). Nothing unless :attr:`snapshots`."""
         if not self.snapshots:
             return
-        now = self._words(ctx).copy()
+        now = self.held(ctx).copy()
         before = ctx.get("orders_total")
         ctx["orders_read"][depth] = now if before is None else now - before      # exact: integers
         ctx["orders_total"] = now
 
     @classmethod
-    def _words(cls, ctx: dict) -> np.ndarray:
-        """The launch's histogram words, int64 ``[entries, 2, 2]`` (re / im, hi / lo); raises
-        UnrepresentableSum where a term was refused."""
+    def held(cls, ctx: dict) -> np.ndarray:
+        """The launch's histogram as held: int64 words ``[entries, 2, 2]`` (re / im, hi / lo), which
+        add and subtract exactly; raises UnrepresentableSum where a term was refused."""
         cls.check_held(ctx)
         return ctx["hist"].numpy()[:WORDS_PER_ENTRY * ctx["hist_entries"]].reshape(-1, 2, 2)
 
@@ -158,8 +158,13 @@ class Accumulator:
         return dict(energy=POWER.zeros(max_depth + 1), carried=SOLID_ANGLE.zeros(max_depth))
 
     @staticmethod
-    def _complex(words: np.ndarray) -> np.ndarray:
-        """complex64 ``[entries]`` of histogram words ``[entries, 2, 2]``."""
+    def read_tallies(ctx: dict) -> dict:
+        """The launch's tallies as float64 arrays (``energy``, ``carried``), evaluated."""
+        return {name: scale.read(ctx[name]) for name, scale in TALLIES.items()}
+
+    @staticmethod
+    def values(words: np.ndarray) -> np.ndarray:
+        """complex64 ``[entries]`` of a histogram as :meth:`held` gives it (or a difference of two)."""
         values = decode(words, AMPLITUDE)
         return (values[:, 0] + 1j * values[:, 1]).astype(np.complex64)
 
@@ -172,10 +177,10 @@ class Accumulator:
         if self.exact:
             return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                               for name, dtype in PATH_FIELDS.items()}}
-        words = self._words(ctx)
+        words = self.held(ctx)
         shape = (len(SPECTRAL_ORDERS), self.n_channels, ctx["n_b"], self.window.n_fine)
         if not self.snapshots:
-            return {"hist": self._complex(words).reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
+            return {"hist": self.values(words).reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
         read = ctx["orders_read"]
         rest = words - ctx["orders_total"] if read else words
         if np.any(rest):
@@ -183,7 +188,7 @@ class Accumulator:
             read[last] = read[last] + rest if last in read else rest
         apart = np.zeros((shape[0], self.n_channels, self.apart, *shape[2:]), np.complex64)
         for depth, part in read.items():
-            apart[:, :, depth] = self._complex(part).reshape(shape)
+            apart[:, :, depth] = self.values(part).reshape(shape)
         return {"hist": apart.reshape(shape[0], self.n_channels * self.apart, *shape[2:])}
 
     def deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:

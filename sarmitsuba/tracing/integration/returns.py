@@ -23,7 +23,7 @@ import mitsuba as mi
 import numpy as np
 
 from ...core.constants import SPEED_OF_LIGHT
-from ..deposit.accumulate import TALLIES, Accumulator
+from ..deposit.accumulate import Accumulator
 from ..deposit.fast_time import SPECTRAL_ORDERS
 from . import jones as pol
 from ...core.radar import CHANNELS
@@ -183,10 +183,11 @@ class Returns(ClutterTerms):
         names = ["energy", "rays", "carried", "scatterers", "unheld"] + ([] if self.exact else ["hist"])
         dr.eval(*(ctx[name] for name in names))
         self.sums.check_held(ctx)
-        energy = TALLIES["energy"].read(ctx["energy"])
+        tallies = self.sums.read_tallies(ctx)
+        energy = tallies["energy"]
         rays = ctx["rays"].numpy().astype(np.int64)
         out = dict(energy=energy[:st.max_depth], outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
-                   shadow=int(rays[st.max_depth]), carried=TALLIES["carried"].read(ctx["carried"]),
+                   shadow=int(rays[st.max_depth]), carried=tallies["carried"],
                    scatterers=ctx["scatterers"].numpy().astype(np.int64))
         out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
         out.update(self.sums.collect(ctx))

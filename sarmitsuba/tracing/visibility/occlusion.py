@@ -402,7 +402,7 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     # the gaps in the union of each edge's intervals: sorted by start, after the running end
     rank = np.lexsort((s, edge))
     edge, s, e = np.take(edge, rank), np.take(s, rank), np.take(e, rank)
-    reach = np.maximum.accumulate(e + 2.0 * edge) - 2.0 * edge
+    reach = _running_max(e, edge)
     head = np.ones(len(edge), bool)
     head[1:] = edge[1:] != edge[:-1]
     before = np.where(head, 0.0, np.roll(reach, 1))
@@ -421,6 +421,25 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     q = o + b[:, None] * d
     flip = (np.take(own, row) >= 0)[:, None]
     return np.take(owner, row), np.where(flip, q, p), np.where(flip, p, q)
+
+
+def _running_max(values: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """The running maximum of float64 ``values`` [m] within each run of equal ``group`` [m] (int64,
+    sorted): exact, each entry the largest of its run's values so far. Not ``maximum.accumulate(
+    values + 2 group) - 2 group``: that offset rounds each value by a step that grows with its
+    group's index, so an edge's segments depended on how many edges came before it in the launch
+    (which sub-apertures share it), and renders with other batches differed in their last bits.
+    Doubling steps (Hillis and Steele, 1986): after the step ``d``, each entry holds the
+    maximum of the last ``2 d`` entries of its run."""
+    out = values.copy()
+    d = 1
+    while d < len(out):
+        same = group[d:] == group[:-d]
+        if not np.any(same):
+            break
+        np.maximum(out[d:], out[:-d], out=out[d:], where=same)
+        d *= 2
+    return out
 
 
 def _pieces(start, delta, s, e, live, owner, reverse: bool):
