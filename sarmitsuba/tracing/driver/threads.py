@@ -4,8 +4,10 @@ The mesh tracer's host geometry is NumPy, which releases the GIL in its array op
 launches traced on two threads keep both cores of a 2-core machine busy; each then holds half the
 sub-apertures, so the peak memory stays that of one launch. Measured on Munich's default render
 (2 cores, one run each): trace 110.3 s on one thread, 85.1 s on two (peak RSS 1.14 GB against
-1.08 GB), the images within -53.6 dB (what launches of other sizes give on one thread); ``urban``
-within its run-to-run noise.
+1.08 GB). The raw data are the same bit for bit, on Munich and ``urban``, as with launches of any
+other size: a sub-aperture's terms depend on it alone, not on the others in its launch (once
+within -53.3 dB on Munich, when :func:`~sarmitsuba.tracing.visibility.occlusion.lit_boundary`
+offset each edge's intervals by the edge's index in the launch).
 
 With several threads the histogram's deposit adds atomically
 (:meth:`sarmitsuba.tracing.deposit.accumulate.Accumulator.shared_by`): with Dr.Jit's

@@ -424,20 +424,11 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
 
 
 def _running_max(values: np.ndarray, group: np.ndarray) -> np.ndarray:
-    """The running maximum of float64 ``values`` [m] within each run of equal ``group`` [m] (int64,
-    sorted): exact, each entry the largest of its run's values so far. Not ``maximum.accumulate(
-    values + 2 group) - 2 group``: that offset rounds each value by a step that grows with its
-    group's index, so an edge's segments depended on how many edges came before it in the launch
-    (which sub-apertures share it), and renders with other batches differed in their last bits.
-    Doubling steps (Hillis and Steele, 1986): after the step ``d``, each entry holds the
-    maximum of the last ``2 d`` entries of its run."""
-    out = values.copy()
-    d = 1
-    while d < len(out):
-        same = group[d:] == group[:-d]
-        if not np.any(same):
-            break
-        np.maximum(out[d:], out[:-d], out=out[d:], where=same)
+    """The running maximum of ``values`` in each run of equal ``group`` (sorted), exact, by doubling (not
+    ``accumulate(values + 2 group) - 2 group``: rounding by the edge's index in its launch)."""
+    out, d = values.copy(), 1
+    while d < len(out) and np.any(same := group[d:] == group[:-d]):
+        np.maximum(out[d:], out[:-d], out=out[d:], where=same)       # (inputs read before the writes)
         d *= 2
     return out
 
