@@ -49,6 +49,8 @@ moving         three moving cars on urban: the sub-apertures' rates (differenced
                against one pulse per trace, and what motion costs over the still scene
 bistatic       urban received on a drone and on a second aircraft: the sub-apertures
                against one pulse per trace, and what the receiver costs
+determinism    renders that repeat bit for bit: the fixed-point sums' cost against float32
+               atomic adds (Munich), urban repeated under load, other thread counts and Dask
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -85,7 +87,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
          "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
-         "bistatic": "bistatic"}
+         "bistatic": "bistatic", "determinism": "determinism"}
 
 
 def _utc_now() -> str:

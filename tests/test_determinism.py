@@ -20,7 +20,9 @@ import sarmitsuba  # noqa: F401  (sets the variant before Dr.Jit loads)
 import drjit as dr
 import mitsuba as mi
 from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, ShapeParameter, raw_derivative
-from sarmitsuba.tracing.deposit.fixed_point import AMPLITUDE, GRADIENT, POWER, SOLID_ANGLE, encode, decode
+from sarmitsuba.tracing.deposit.accumulate import Accumulator
+from sarmitsuba.tracing.deposit.fixed_point import (AMPLITUDE, GRADIENT, POWER, SOLID_ANGLE, UnrepresentableSum, decode,
+                                                    encode)
 
 REPO = Path(__file__).resolve().parents[1]
 SCALES = (AMPLITUDE, POWER, SOLID_ANGLE, GRADIENT)
@@ -73,9 +75,9 @@ def test_sums_are_exact_and_the_same_in_any_order():
     results, floats = [], []
     for order in (np.arange(n), np.arange(n)[::-1], rng.permutation(n)):
         words = AMPLITUDE.zeros(slots)
-        refused = AMPLITUDE.add(words, mi.Float64(values[order]), mi.UInt32(index[order].astype(np.uint32)), True)
-        assert not np.any(refused.numpy())
-        results.append(np.asarray(words.numpy(), np.int64))
+        AMPLITUDE.add(words, mi.Float64(values[order]), mi.UInt32(index[order].astype(np.uint32)), True)
+        results.append(np.asarray(words.numpy(), np.int64)[:-2])           # the refusal slot aside
+        assert AMPLITUDE.read(words).shape == (slots,)
         total = dr.zeros(mi.Float, slots)
         dr.scatter_add(total, mi.Float(values[order].astype(np.float32)), mi.UInt32(index[order].astype(np.uint32)))
         floats.append(total.numpy().copy())
@@ -99,20 +101,30 @@ def test_words_wrap_around_and_still_sum_exactly():
     values = np.array([big, big, -big, -big] * 4096 + [3.25], np.float64)
     words = AMPLITUDE.zeros(1)
     AMPLITUDE.add(words, mi.Float64(values), dr.zeros(mi.UInt32, len(values)), True)
-    assert decode(np.asarray(words.numpy(), np.int64).reshape(-1, 2), AMPLITUDE)[0] == 3.25
+    assert AMPLITUDE.read(words)[0] == 3.25
 
 
 def test_values_the_words_cannot_hold_are_refused_not_clamped():
-    """Not finite, or beyond the largest: reported in the mask and not added (the slot keeps the
-    other terms' sum), and a launch that met one raises instead of writing a clamped histogram.
-    Catches a ``select`` that clamps to the largest value and NaN converted to an integer."""
+    """Not finite, or beyond the largest: not added (the slot keeps the other terms' sum) but
+    counted, and reading the sums raises, for a tally and for a launch's histogram, instead of
+    returning clamped values. Catches a ``select`` that clamps to the largest value, NaN
+    converted to an integer, and a refusal counted into the slot itself."""
     values = [1.0, np.nan, np.inf, -np.inf, 2.0 * AMPLITUDE.largest, 2.0]
     words = AMPLITUDE.zeros(1)
-    refused = AMPLITUDE.add(words, mi.Float64(values), dr.zeros(mi.UInt32, len(values)), True)
-    assert refused.numpy().tolist() == [False, True, True, True, True, False]
-    assert decode(np.asarray(words.numpy(), np.int64).reshape(-1, 2), AMPLITUDE)[0] == 3.0
+    AMPLITUDE.add(words, mi.Float64(values), dr.zeros(mi.UInt32, len(values)), True)
+    pairs = np.asarray(words.numpy(), np.int64).reshape(-1, 2)
+    assert decode(pairs[:1], AMPLITUDE)[0] == 3.0 and pairs[1, 0] == 4
+    with pytest.raises(UnrepresentableSum, match="4 value"):
+        AMPLITUDE.read(words)
     with pytest.raises(ValueError, match="finite"):
         encode([np.nan], AMPLITUDE)
+    from sarmitsuba.scene.trace_inputs import FastTimeWindow, TraceSettings
+    window = FastTimeWindow(t0=0.0, n_samples=16, fs=1e8, oversample=2)
+    sums, ctx = Accumulator(TraceSettings(), window, 1, 1), {"n_b": 2}
+    sums.open(ctx)
+    sums.add(ctx, mi.Float([1.0, np.nan, 0.5]), mi.Float([0.0, 1.0, 0.25]), mi.UInt32([3, 4, 3]), True)
+    with pytest.raises(UnrepresentableSum, match="1 return"):
+        sums.read_histogram(ctx)
 
 
 @pytest.fixture
@@ -196,10 +208,10 @@ def test_shared_reads_add_their_adjoints_in_any_order(threads):
     """200,000 lanes read 8 entries of a differentiable array for 1 to 4 pulses each in a
     replay-like loop (``dr.backward_from`` inside a symbolic loop's body): through
     :func:`~sarmitsuba.tracing.deposit.adjoint.read` the entries' gradients are the same bits on
-    one thread and on two, and within 1e-6 of the float64 sum of the lanes' adjoints (NumPy);
-    through a plain gather (the float atomics the sinks replace) they are not order-free, so
-    the test can tell. Catches ``read`` falling back to a gather, and a sink's adjoint added
-    with the wrong index or sign."""
+    one thread and on two with the lanes shuffled, and within 1e-6 of the float64 sum of the
+    lanes' adjoints (NumPy); through a plain gather (the float atomics the sinks replace) the
+    shuffle changes them, so the test can tell. Catches ``read`` falling back to a gather, and a
+    sink's adjoint added with the wrong index or sign."""
     from sarmitsuba.tracing.deposit.adjoint import AdjointSink, read
     rng = np.random.default_rng(5)
     n = 200_000
@@ -207,11 +219,11 @@ def test_shared_reads_add_their_adjoints_in_any_order(threads):
     weight = rng.standard_normal(n).astype(np.float32)
     count = rng.integers(1, 5, n).astype(np.uint32)
 
-    def gradient(sinked: bool) -> np.ndarray:
+    def gradient(sinked: bool, order: np.ndarray) -> np.ndarray:
         source = dr.detach(mi.Float(np.linspace(1.0, 2.0, 8).astype(np.float32)))
         dr.enable_grad(source)
         sink = AdjointSink(source) if sinked else None
-        idx, w, c = mi.UInt32(index), mi.Float(weight), mi.UInt32(count)
+        idx, w, c = mi.UInt32(index[order]), mi.Float(weight[order]), mi.UInt32(count[order])
 
         def body(q):
             with dr.resume_grad():
@@ -226,9 +238,9 @@ def test_shared_reads_add_their_adjoints_in_any_order(threads):
         live = count > q
         np.add.at(reference, (index[live] + q) % 8, weight[live].astype(np.float64) * (q + 1))
     results = {}
-    for n_threads in (1, 2):
+    for n_threads, order in ((1, np.arange(n)), (2, rng.permutation(n))):
         threads(n_threads)
-        results[n_threads] = (gradient(True), gradient(False))
+        results[n_threads] = (gradient(True, order), gradient(False, order))
     assert np.array_equal(results[1][0], results[2][0])
     np.testing.assert_allclose(results[1][0], reference, rtol=1e-6)
     assert not np.array_equal(results[1][1], results[2][1])

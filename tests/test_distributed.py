@@ -28,7 +28,7 @@ SPEC = dict(sensor_overrides={"n_pulses": 48},
 
 
 def nrmse_db(a, b):
-    return 20 * np.log10(np.linalg.norm(a - b) / np.linalg.norm(b))
+    return 20 * np.log10(max(float(np.linalg.norm(a - b)), 1e-300) / float(np.linalg.norm(b)))   # equal: -6000 dB
 
 
 def n_batches(source, spec):
@@ -45,7 +45,10 @@ def reference():
 
 
 def test_local_cluster_gives_the_one_process_raw_data(reference):
-    """Several batches, traced on two worker processes and merged: the same samples and speckle."""
+    """Several batches, traced on two worker processes and merged: the same samples and speckle.
+    Not the same render of docs/physics.md (D7) (the batches' launches are grouped on the workers;
+    measured equal here, -160 dB on urban), so compared at tolerances the bugs exceed: a worker
+    with another seed is -49 dB (51 dB above -100 dB), a lost batch at least 1.6 % of the energy."""
     assert n_batches("dihedral", SPEC) >= 3              # a mis-merged or shuffled batch would show
     sim = pipeline.simulate("dihedral", scheduler="local", **SPEC)
     assert nrmse_db(sim.raw.data, reference.raw.data) <= -100.0
@@ -53,7 +56,7 @@ def test_local_cluster_gives_the_one_process_raw_data(reference):
     assert sim.trace.rays_per_order.tolist() == reference.trace.rays_per_order.tolist()
     assert (sim.trace.shadow_rays, sim.trace.pulse_paths) == (reference.trace.shadow_rays, reference.trace.pulse_paths)
     np.testing.assert_allclose(sim.trace.energy_per_order, reference.trace.energy_per_order, rtol=1e-6)
-    # the clutter is what the seed makes it: another seed moves the raw data by about -53 dB (the
+    # the clutter is what the seed makes it: another seed moves the raw data by about -49 dB (the
     # dihedral's double bounce dominates), far above the -100 dB a worker with another seed would miss
     other = pipeline.simulate("dihedral", **{**SPEC, "integrator_overrides": {**SPEC["integrator_overrides"],
                                                                                 "seed": 7}}).raw

@@ -101,7 +101,9 @@ def test_clip_keeps_what_lies_in_front():
 
 
 def test_preview_leaves_the_loaded_scene_usable(tmp_path):
-    """Rendering builds its own Mitsuba scene: ray casts on the loaded scene are unchanged."""
+    """Rendering builds its own Mitsuba scene: ray casts on the loaded scene are unchanged. Exact:
+    the masks are ray casts and integer counts, no float sums, so the same casts give the same bits
+    (no need of docs/physics.md (D7)) and any difference is the bug."""
     from test_groundtruth import grid_image
     loaded = load_scene("dihedral")
     image = grid_image(loaded)

@@ -53,7 +53,9 @@ def power(sim) -> float:
 def test_a_smooth_ground_returns_nothing_off_its_normal(heading, turn):
     """A PEC plate seen 45 deg off its normal, rims oblique to the track: marked as ground it
     returns nothing (the infinite plane's zero), PO and edge currents alike; named otherwise, or
-    with ``ground_shapes = none``, it returns its rims, the same raw data both ways."""
+    with ``ground_shapes = none``, it returns its rims, the same raw data both ways. Relies on the
+    bit-for-bit guarantee (docs/physics.md (D7)): the two renders differ only in a name and a
+    setting that drop no term here, so any difference is the bug."""
     ground = render([(plate(turn_deg=turn), "pec", "ground")], heading)
     named = render([(plate(turn_deg=turn), "pec", "slab")], heading)
     kept = render([(plate(turn_deg=turn), "pec", "ground")], heading, ground_shapes="none")
@@ -98,7 +100,9 @@ def test_a_ground_ending_inside_the_beam_leaves_no_line(heading):
 def test_a_rim_that_a_face_meets_is_an_edge():
     """A ground that is a closed plinth (a 40 m slab 5 m thick, its top the ground): every rim of
     its top is a wedge with a side face, none is free, so nothing is a truncation and the raw data
-    are the same with ``ground_shapes`` auto and none."""
+    are the same with ``ground_shapes`` auto and none. Relies on the bit-for-bit guarantee
+    (docs/physics.md (D7)): the two renders differ only in a setting that drops no term here, so any
+    difference is the bug (the plinth's top alone, its rims then free and dropped: 0 dB NRMSE)."""
     slab = trimesh.creation.box((40.0, 40.0, 5.0))
     slab.apply_translation((0.0, 0.0, -2.5))
     auto = render([(slab, "pec", "ground")], 20.0)

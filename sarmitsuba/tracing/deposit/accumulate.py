@@ -2,10 +2,11 @@
 list, one per polarimetric channel (docs/physics.md (D1)-(D4), (D7), (P4)).
 
 :class:`sarmitsuba.tracing.integration.returns.Returns` computes every pulse's returns; an :class:`Accumulator`
-holds what they are summed into for one launch (in the launch's context dict): ``hist``, the
-fixed-point words (:data:`.fixed_point.AMPLITUDE`, int64 ``(hi, lo)`` of ``re`` then of ``im``) of
-``[spectral orders, channels x groups, pulses, fine samples]`` complex entries (channel-major:
-group ``c * groups + order``), whose sums do not depend on the order of the additions (D7); or,
+holds what they are summed into for one launch (in the launch's context dict): ``hist`` and
+``hist_hi``, the low and high fixed-point words (:data:`.fixed_point.AMPLITUDE`, int64 ``(re, im)``
+pairs) of ``[spectral orders, channels x groups, pulses, fine samples]`` complex entries
+(channel-major: group ``c * groups + order``), whose sums do not depend on the order of the
+additions (D7); or,
 with ``range_kernel = exact``, path buffers of one entry per term and channel, read back in a
 canonical order.
 """
@@ -16,7 +17,7 @@ import mitsuba as mi
 import numpy as np
 
 from .fast_time import SPECTRAL_ORDERS, taps
-from .fixed_point import AMPLITUDE, POWER, SOLID_ANGLE, UnrepresentableSum, decode
+from .fixed_point import AMPLITUDE, POWER, SOLID_ANGLE, UnrepresentableSum
 
 __all__ = ["Accumulator", "HISTOGRAM_MIN_FLOATS", "PATH_HEADROOM", "PATH_FIELDS", "TALLIES", "WORDS_PER_ENTRY",
            "histogram_floats"]
@@ -35,7 +36,7 @@ PATH_FIELDS = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, 
 #: of other pulse counts or windows reuse the kernels (compiled or from Dr.Jit's disk cache) at
 #: most twice the memory.
 HISTOGRAM_MIN_FLOATS = 1 << 19
-#: int64 words per complex histogram entry: ``(hi, lo)`` of the real part, then of the imaginary part.
+#: int64 words per complex histogram entry: the low words ``(re, im)`` in ``hist``, the high ones in ``hist_hi``.
 WORDS_PER_ENTRY = 4
 #: The launch's tallies (in its context) and their fixed-point scales, eq. (D7): ``energy``, the
 #: visible returns' ``|a|^2`` per bounce order and outside the window [m^2]; ``carried``, the tubes'
@@ -49,10 +50,10 @@ def histogram_floats(n: int) -> int:
     return max(HISTOGRAM_MIN_FLOATS, 1 << max(int(n) - 1, 0).bit_length())
 
 
-def _words_type(like):
-    """The Dr.Jit type of one complex entry's words on ``like``'s backend: a packet of four int64,
-    scatter-added as one."""
-    return (dr.cuda.ad if dr.backend_v(like) == dr.JitBackend.CUDA else dr.llvm.ad).Array4i64
+def _pair_type(like):
+    """The Dr.Jit type of a complex entry's low (or high) words on ``like``'s backend: a packet of
+    two int64, scatter-added as one."""
+    return (dr.cuda.ad if dr.backend_v(like) == dr.JitBackend.CUDA else dr.llvm.ad).Array2i64
 
 
 class Accumulator:
@@ -79,13 +80,21 @@ class Accumulator:
         self.settings, self.window, self.groups, self.n_channels = settings, window, groups, n_channels
         self.apart = max(apart, groups)
         self.exact = settings.range_kernel == "exact"
-        #: The histogram's scatter-add: ``ReduceMode.Expand`` (no atomics) unless several host threads
-        #: deposit at once (:meth:`shared_by`). Either gives the same bits: the words are integers (D7).
+        #: The tallies' scatter-add (small arrays): ``ReduceMode.Expand`` (no atomics) unless several
+        #: host threads deposit at once (:meth:`shared_by`). Either gives the same bits: the words
+        #: are integers (D7).
         self.reduce = dr.ReduceMode.Expand
+        #: The histogram's: ``Auto`` (Dr.Jit expands arrays of up to ``dr.expand_threshold()``
+        #: entries per thread, and adds atomically into larger ones) unless several host threads
+        #: deposit at once, then atomic adds (``Direct``: four words at scattered places, which
+        #: ``Local``'s reduction within each packet only slows, about twice in a benchmark of random
+        #: deposits).
+        self.deposit_mode = dr.ReduceMode.Auto
 
     def shared_by(self, threads: int) -> None:
-        """Deposit from ``threads`` host threads at once: ``ReduceMode.Expand`` for one, atomic adds
-        (``ReduceMode.Local``) for several.
+        """Deposit from ``threads`` host threads at once: as :attr:`reduce` and :attr:`deposit_mode`
+        say for one, atomic adds (``ReduceMode.Local`` for the tallies, ``Direct`` for the
+        histogram) for several.
 
         Expand adds without atomics into the copy of the histogram that belongs to the Dr.Jit pool
         worker running a block (its ``pool_thread_id()``). A host thread that waits on Dr.Jit (an
@@ -93,6 +102,7 @@ class Accumulator:
         threads waiting at once add into copy 0 together and lose updates (measured: a few pulses
         of ``urban`` off by up to 4e-5 of their power, in 15 of 21 threaded traces)."""
         self.reduce = dr.ReduceMode.Expand if threads <= 1 else dr.ReduceMode.Local
+        self.deposit_mode = dr.ReduceMode.Auto if threads <= 1 else dr.ReduceMode.Direct
 
     def open(self, ctx: dict) -> None:
         """Add the launch's zeroed histogram to its context ``ctx`` (nothing for ``exact``) and the
@@ -100,12 +110,14 @@ class Accumulator:
         # fine bins per metre of two-way length, as a value (each scene's window has its own step)
         ctx["fine_per_length"] = {cls: dr.opaque(cls, 1.0 / self.window.fine_step_length)
                                   for cls in (mi.Float, mi.Float64)}
-        ctx["unheld"] = dr.zeros(mi.UInt32, 1)                  # terms no words hold (D7): refused
         if not self.exact:
             size = len(SPECTRAL_ORDERS) * self.n_channels * self.groups * ctx["n_b"] * self.window.n_fine
             ctx["hist_entries"] = size
-            # (re hi, re lo, im hi, im lo) packets of int64 words, eq. (D7)
-            ctx["hist"] = dr.zeros(mi.Int64, 2 * histogram_floats(2 * size))
+            # the low and the high words, (re, im) packets of int64 each, eq. (D7), and one entry more,
+            # whose high real word counts the terms no words hold (refused, never clamped)
+            ctx["hist"] = dr.zeros(mi.Int64, histogram_floats(2 * size + 2))
+            ctx["hist_hi"] = dr.zeros(mi.Int64, histogram_floats(2 * size + 2))
+            ctx["hist_refused"] = dr.opaque(mi.UInt32, size)
             # the layout's sizes enter the kernels as values, not literals, so that launches and
             # acquisitions of other pulse counts or windows (same structure) share the kernels
             ctx["hist_n_b"] = dr.opaque(mi.UInt32, ctx["n_b"])
@@ -119,37 +131,33 @@ class Accumulator:
 
     def order_done(self, ctx: dict, depth: int) -> None:
         """After the deposits of bounce order ``depth + 1`` (0-based ``depth``; the orders deposit one
-        after the other): keep what the histogram gained since the previous order's reading, that
-        order's histogram (the deposit is a sum). Nothing unless :attr:`snapshots`."""
+        after the other): keep the histogram, which holds that order's deposits alone, and start
+        the next order's from zero. Nothing unless :attr:`snapshots`."""
         if not self.snapshots:
             return
-        now = self.held(ctx).copy()
-        before = ctx.get("orders_total")
-        ctx["orders_read"][depth] = now if before is None else now - before      # exact: integers
-        ctx["orders_total"] = now
-
-    @classmethod
-    def held(cls, ctx: dict) -> np.ndarray:
-        """The launch's histogram as held: int64 words ``[entries, 2, 2]`` (re / im, hi / lo), which
-        add and subtract exactly; raises UnrepresentableSum where a term was refused."""
-        cls.check_held(ctx)
-        return ctx["hist"].numpy()[:WORDS_PER_ENTRY * ctx["hist_entries"]].reshape(-1, 2, 2)
+        ctx["orders_read"][depth] = self.read_histogram(ctx)
+        for name in ("hist", "hist_hi"):
+            ctx[name] = dr.zeros(mi.Int64, dr.width(ctx[name]))
 
     @staticmethod
-    def check_held(ctx: dict) -> None:
-        """Raise UnrepresentableSum where a term or tally of the launch was refused, eq. (D7)."""
-        unheld = int(ctx["unheld"].numpy()[0])
-        if unheld:
+    def read_histogram(ctx: dict) -> np.ndarray:
+        """The launch's histogram, complex64 ``[entries]``, its words decoded on the device
+        (:meth:`.fixed_point.FixedPoint.values`); raises UnrepresentableSum where a term was refused (D7)."""
+        n = ctx["hist_entries"]
+        real = dr.arange(mi.UInt32, 2 * n)
+        values = AMPLITUDE.combine(dr.gather(mi.Int64, ctx["hist_hi"], real), dr.gather(mi.Int64, ctx["hist"], real))
+        values = values.numpy().view(np.complex64)
+        count = int(dr.gather(mi.Int64, ctx["hist_hi"], mi.UInt32(2 * n)).numpy()[0])
+        if count:
             raise UnrepresentableSum(
-                f"{unheld} return(s) or tallies of the launch were not finite or too large for their "
-                f"fixed-point sums (amplitudes below {AMPLITUDE.largest:g} {AMPLITUDE.unit}, docs/physics.md "
-                "(D7)): a defect of the tracer; please report the scene")
+                f"{count} return(s) of the launch were not finite or exceeded {AMPLITUDE.largest:g} "
+                f"{AMPLITUDE.unit} (docs/physics.md (D7)): a defect of the tracer; please report the scene")
+        return values[:n]
 
     def tally(self, ctx: dict, name: str, value, slot, active) -> None:
         """Add ``value`` (mi.Float, detached) into slot ``slot`` of the launch's tally ``name``
         (:data:`TALLIES`) where ``active``, in fixed point (D7)."""
-        refused = TALLIES[name].add(ctx[name], dr.detach(value), mi.UInt32(slot), active, mode=ctx["tally"])
-        dr.scatter_add(ctx["unheld"], mi.UInt32(1), mi.UInt32(0), refused, mode=ctx["tally"])
+        TALLIES[name].add(ctx[name], dr.detach(value), mi.UInt32(slot), active, mode=ctx["tally"])
 
     @staticmethod
     def tallies(max_depth: int) -> dict:
@@ -159,14 +167,9 @@ class Accumulator:
 
     @staticmethod
     def read_tallies(ctx: dict) -> dict:
-        """The launch's tallies as float64 arrays (``energy``, ``carried``), evaluated."""
+        """The launch's tallies as float64 arrays (``energy``, ``carried``), evaluated; raises
+        UnrepresentableSum where a value was refused (D7)."""
         return {name: scale.read(ctx[name]) for name, scale in TALLIES.items()}
-
-    @staticmethod
-    def values(words: np.ndarray) -> np.ndarray:
-        """complex64 ``[entries]`` of a histogram as :meth:`held` gives it (or a difference of two)."""
-        values = decode(words, AMPLITUDE)
-        return (values[:, 0] + 1j * values[:, 1]).astype(np.complex64)
 
     def collect(self, ctx: dict) -> dict:
         """``{"paths": {field: array}}`` (``exact``) or ``{"hist": complex64 [orders, channels x
@@ -177,18 +180,17 @@ class Accumulator:
         if self.exact:
             return {"paths": {name: np.concatenate([p[name] for p in ctx["paths"]] + [np.zeros(0, dtype)])
                               for name, dtype in PATH_FIELDS.items()}}
-        words = self.held(ctx)
+        hist = self.read_histogram(ctx)
         shape = (len(SPECTRAL_ORDERS), self.n_channels, ctx["n_b"], self.window.n_fine)
         if not self.snapshots:
-            return {"hist": self.values(words).reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
+            return {"hist": hist.reshape(shape[0], self.n_channels * self.groups, *shape[2:])}
         read = ctx["orders_read"]
-        rest = words - ctx["orders_total"] if read else words
-        if np.any(rest):
+        if np.any(hist):                   # deposited after the last reading
             last = len(read) if len(read) < self.apart else self.apart - 1
-            read[last] = read[last] + rest if last in read else rest
+            read[last] = read[last] + hist if last in read else hist
         apart = np.zeros((shape[0], self.n_channels, self.apart, *shape[2:]), np.complex64)
         for depth, part in read.items():
-            apart[:, :, depth] = self.values(part).reshape(shape)
+            apart[:, :, depth] = part.reshape(shape)
         return {"hist": apart.reshape(shape[0], self.n_channels * self.apart, *shape[2:])}
 
     def deposit(self, ctx, pulse, depth: int, anchor, offset, values, order_index, mask, paths, slot) -> mi.Bool:
@@ -239,12 +241,18 @@ class Accumulator:
 
     def add(self, ctx, re, im, index, active) -> None:
         """Add ``re + j im`` (mi.Float) into complex entry ``index`` of the launch's histogram where
-        ``active``: its fixed-point words, eq. (D7); a value no words hold is counted, not added."""
+        ``active``: its low fixed-point words as one packet and, only where either is not zero
+        (``|v| >= 1/2``: rarely for clutter), its high words as another, eq. (D7). A value no words
+        hold is not added but counted in the entry after the histogram's last
+        (:meth:`read_histogram` raises)."""
         re_hi, re_lo, re_ok = AMPLITUDE.words(dr.detach(re))
         im_hi, im_lo, im_ok = AMPLITUDE.words(dr.detach(im))
         ok = re_ok & im_ok
-        dr.scatter_add(ctx["hist"], _words_type(re)(re_hi, re_lo, im_hi, im_lo), index, active & ok, mode=self.reduce)
-        dr.scatter_add(ctx["unheld"], mi.UInt32(1), mi.UInt32(0), active & ~ok, mode=self.reduce)
+        pair = _pair_type(re)
+        index = dr.select(ok, index, ctx["hist_refused"])
+        dr.scatter_add(ctx["hist"], pair(re_lo, im_lo), index, active, mode=self.deposit_mode)
+        high = active & ((re_hi != 0) | (im_hi != 0) | ~ok)
+        dr.scatter_add(ctx["hist_hi"], pair(dr.select(ok, re_hi, 1), im_hi), index, high, mode=self.deposit_mode)
 
     def path_buffers(self, size: int) -> dict:
         """The exact kernel's path list: ``size`` slots of one entry per channel."""

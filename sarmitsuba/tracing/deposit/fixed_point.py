@@ -16,8 +16,9 @@ fixed-point number with ``F`` fraction bits (quantum ``2^-F``), held in two ``in
 
 Each term is rounded once, by at most half a quantum, so a slot of ``N`` terms is within
 ``N 2^-(F + 1)`` of their exact sum, whatever the order, the thread count or the device. A
-term that is not finite or too large for the words is not added and is counted
-(:meth:`FixedPoint.add`'s mask), and the caller refuses the launch: nothing is clamped.
+term that is not finite or too large for the words is not added but counted (in an extra slot
+of the same array, so the count costs no further scatter), and reading the sums raises
+UnrepresentableSum: nothing is clamped.
 
 The scales (:data:`AMPLITUDE`, :data:`POWER`, :data:`SOLID_ANGLE`, :data:`GRADIENT`) are fixed by the quantities'
 units and physical ranges, never by a launch's own data, so the same term is the same integer
@@ -76,31 +77,55 @@ class FixedPoint:
 
     def words(self, value) -> tuple:
         """``(hi, lo, ok)`` of ``value`` (mi.Float or mi.Float64, any width): mi.Int64 words and
-        whether the value is finite and below :attr:`largest` (the words are 0 where it is not)."""
-        s = mi.Float64(value) * (2.0 ** self.fraction_bits)
+        whether the value is finite and below :attr:`largest` (the words are 0 where it is not).
+
+        Formed in the value's own precision: the scaling by ``2^F`` and ``2^-K`` is exact, ``hi 2^K``
+        and the scaled value are multiples of its last place, and their difference, below ``2^K``,
+        has no more significant bits than the value (for a float32 value whose last place is below
+        ``2^(K - 23)``, ``hi`` is 0 and the difference is the value itself); every float that is
+        rounded is integer-valued, so the conversions to int64 are exact."""
+        s = value * (2.0 ** self.fraction_bits)
         ok = dr.abs(s) < 2.0 ** (62 + self.split_bits)        # False for NaN and +-inf too
         s = dr.select(ok, s, 0.0)
         hi = dr.trunc(s * (2.0 ** -self.split_bits))
         lo = dr.round(s - hi * (2.0 ** self.split_bits))
         return mi.Int64(hi), mi.Int64(lo), ok
 
-    def add(self, target, value, index, active, mode=dr.ReduceMode.Auto):
-        """Add ``value`` into slot ``index`` of ``target`` (mi.Int64 holding slot ``i`` at
-        ``2 i, 2 i + 1``) where ``active``; returns the mask of the values that could not be held
-        (``active`` but not finite or too large), which were not added."""
-        hi, lo, ok = self.words(value)
-        add = active & ok
-        dr.scatter_add(target, hi, 2 * index, add, mode=mode)
-        dr.scatter_add(target, lo, 2 * index + 1, add, mode=mode)
-        return active & ~ok
-
     def zeros(self, slots: int):
-        """A device array of ``slots`` zero slots (mi.Int64 of width ``2 slots``)."""
-        return dr.zeros(mi.Int64, 2 * slots)
+        """A device array of ``slots`` zero slots and one more that counts refused values
+        (mi.Int64 of width ``2 (slots + 1)``: slot ``i`` at ``2 i, 2 i + 1``)."""
+        return dr.zeros(mi.Int64, 2 * (slots + 1))
+
+    def add(self, target, value, index, active, mode=dr.ReduceMode.Auto) -> None:
+        """Add ``value`` into slot ``index`` of ``target`` (:meth:`zeros`) where ``active``, as
+        one packet of its two words; a value that is not finite or too large is not added but
+        counted in the last slot (:meth:`read` raises)."""
+        hi, lo, ok = self.words(value)
+        refused = mi.UInt32(dr.width(target) // 2 - 1)
+        dr.scatter_add(target, _pair_type(hi)(dr.select(ok, hi, 1), lo), dr.select(ok, mi.UInt32(index), refused),
+                       active, mode=mode)
+
+    def combine(self, hi, lo):
+        """mi.Float values of the words' sums ``hi``, ``lo`` (mi.Int64, one per value), on the
+        device: ``(hi 2^K + lo) 2^-F`` rounded once to float64 (``hi 2^(K - F)`` is exact, or
+        rounded once where ``|hi| >= 2^53``), then to float32; the same bits for the same words."""
+        return mi.Float(mi.Float64(hi) * (2.0 ** (self.split_bits - self.fraction_bits))
+                        + mi.Float64(lo) * (2.0 ** -self.fraction_bits))
 
     def read(self, words) -> np.ndarray:
-        """The float64 values of a device array of slots (:meth:`zeros`)."""
-        return decode(np.asarray(words.numpy(), np.int64).reshape(-1, 2), self)
+        """The float64 values of a device array of slots (:meth:`zeros`), its refusal slot left
+        out; raises UnrepresentableSum where a value was refused."""
+        pairs = np.asarray(words.numpy(), np.int64).reshape(-1, 2)
+        if pairs[-1, 0]:
+            raise UnrepresentableSum(f"{int(pairs[-1, 0])} value(s) were not finite or exceeded {self.largest:g} "
+                                     f"{self.unit} (docs/physics.md (D7)): a defect of the tracer; please report "
+                                     "the scene")
+        return decode(pairs[:-1], self)
+
+
+def _pair_type(like):
+    """The Dr.Jit type of a slot's two words on ``like``'s backend: a packet scatter-added as one."""
+    return (dr.cuda.ad if dr.backend_v(like) == dr.JitBackend.CUDA else dr.llvm.ad).Array2i64
 
 
 def encode(values, scale: FixedPoint) -> np.ndarray:
@@ -123,9 +148,9 @@ def decode(words: np.ndarray, scale: FixedPoint) -> np.ndarray:
 
 
 #: Deposited amplitudes, sqrt(m^2) (normalised radiometry, docs/physics.md (R1)): quantum
-#: ``2^-60`` (8.7e-19, an RCS of 7.5e-37 m^2), terms and slots below ``2^34`` (1.7e10, an RCS of
-#: 3e20 m^2), up to ``2^31`` terms in one fast-time bin of one pulse.
-AMPLITUDE = FixedPoint(fraction_bits=60, split_bits=32, unit="sqrt(m^2)")
+#: ``2^-40`` (9.1e-13, an RCS of 8.3e-25 m^2), terms and slots below ``2^61``, up to ``2^24``
+#: terms in one fast-time bin of one pulse. A term below 1/2 has no high word.
+AMPLITUDE = FixedPoint(fraction_bits=40, split_bits=39, unit="sqrt(m^2)")
 #: Energy tallies, m^2: quantum ``2^-40`` (9.1e-13 m^2), below ``2^54`` (1.8e16 m^2) per launch.
 POWER = FixedPoint(fraction_bits=40, split_bits=32, unit="m^2")
 #: Power carried by ray tubes, sr (solid angle times reflection losses): quantum ``2^-80``

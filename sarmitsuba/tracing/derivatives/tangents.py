@@ -200,8 +200,10 @@ class TangentSums(Accumulator):
         self.leaves, self.tangent = leaves, tangent
 
     def open(self, ctx: dict) -> None:
+        """Open the launch's histogram and the list of its deposits, kept differentiable:
+        ``(re, im, entry, active)`` each."""
         super().open(ctx)
-        ctx["deposits"] = []              # (re, im, entry, active) of every deposit, differentiable
+        ctx["deposits"] = []
 
     def add(self, ctx, re, im, index, active) -> None:
         """Keep the deposit: its tangent is added in :meth:`collect`."""
@@ -265,7 +267,7 @@ class AdjointSums(Accumulator):
         super().open(ctx)
         if self.seed is None:
             return
-        floats = np.zeros(dr.width(ctx["hist"]) // 2, np.float32)      # (hi, lo) words per real value
+        floats = np.zeros(dr.width(ctx["hist"]), np.float32)           # the low words: one per real value
         flat = np.ascontiguousarray(self.seed, np.complex64).reshape(-1).view(np.float32)
         floats[:flat.size] = flat
         ctx["seed"] = device_array(mi.Float, floats)     # aligned: the kernels' packet gathers

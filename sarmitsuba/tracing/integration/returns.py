@@ -180,9 +180,8 @@ class Returns(ClutterTerms):
         st = self.settings
         if self.exact and ctx["needed"]:
             return None
-        names = ["energy", "rays", "carried", "scatterers", "unheld"] + ([] if self.exact else ["hist"])
+        names = ["energy", "rays", "carried", "scatterers"] + ([] if self.exact else ["hist"])
         dr.eval(*(ctx[name] for name in names))
-        self.sums.check_held(ctx)
         tallies = self.sums.read_tallies(ctx)
         energy = tallies["energy"]
         rays = ctx["rays"].numpy().astype(np.int64)
