@@ -556,7 +556,7 @@ def _cost_lines(c: CostEstimate, bistatic: bool = False) -> list[str]:
            f"~ {_duration(c.mesh_host_time_s)} of the trace"] if c.reach_pieces_max else []),
         f"memory: runtime and scene {format_bytes(c.runtime_bytes)}, tracer's working set "
         f"{format_bytes(c.trace_working_bytes)} ({c.lanes_per_launch:,} tubes per launch, a histogram of "
-        f"{c.histogram_entries:,} entries on {c.threads} threads), {memory}, raw data {format_bytes(c.raw_bytes)} "
+        f"{c.histogram_entries:,} entries), {memory}, raw data {format_bytes(c.raw_bytes)} "
         f"({c.n_pulses} x {c.fast_time_samples} complex64), image {format_bytes(c.image_bytes)}, focusing "
         f"{format_bytes(c.focus_working_bytes)}",
         f"peak memory ~ {format_bytes(c.peak_memory_bytes)} (the process's peak resident set, within a factor 2: "

@@ -145,15 +145,15 @@ TRACE_FIXED_BYTES = 52 * 2**20
 LANE_BYTES = 1400
 #: Bytes per complex entry of a batch's fine-grid histogram (:data:`HISTOGRAM_ENTRIES` at most):
 #: :data:`HISTOGRAM_ENTRY_BYTES` for the NumPy sum of its launches, plus
-#: :data:`HISTOGRAM_THREAD_BYTES` per Dr.Jit worker thread, because the deposit's
-#: ``ReduceMode.Expand`` keeps one copy per thread (Dr.Jit's documentation: an array's storage
-#: grows N-fold on N cores; about 2.5 copies with the allocator's cache). Measured with 1, 2 and 8
-#: threads (``dr.set_thread_count``) on dihedral with 4,000 pulses (4.0 M entries: +62 MiB per
-#: thread) and urban (2.5 M entries: +65 MiB per thread).
-#: Launches traced at once on host threads deposit with atomic adds (``ReduceMode.Local``,
-#: :meth:`sarmitsuba.tracing.deposit.accumulate.Accumulator.shared_by`): one copy each.
+#: :data:`HISTOGRAM_DEVICE_BYTES` on the device: four int64 words (docs/physics.md (D7)), once the
+#: arrays the bounce orders re-zero are counted with the allocator's cache. The deposit adds
+#: atomically into arrays larger than Dr.Jit's expand threshold (1 M words, 8 MiB), so they have
+#: no per-thread copies, and the smaller ones' copies are bounded by that threshold. Measured on
+#: urban (3.4 M entries in all): +120 MiB against the float32 deposit's peak with one launch at a
+#: time (+125 MiB with two), the same with 1 and 2 Dr.Jit threads (``dr.set_thread_count``),
+#: where the float32 deposit's per-thread copies had grown it by 65 MiB per thread.
 HISTOGRAM_ENTRY_BYTES = 8
-HISTOGRAM_THREAD_BYTES = 20
+HISTOGRAM_DEVICE_BYTES = 56
 #: What each further launch traced at once on host threads adds to one launch's working set: the
 #: launches share Dr.Jit's allocator cache (the arrays one frees, the other reuses) and their peaks
 #: do not coincide. Measured on urban (two launches of 4 sub-apertures at once): the render peaked
@@ -207,8 +207,8 @@ class CostEstimate:
     :data:`SCENE_TRIANGLE_BYTES` and :data:`SCENE_SHAPE_BYTES`), plus the larger of two phases.
     Tracing: ``trace_working_bytes`` (:data:`TRACE_FIXED_BYTES`, :data:`LANE_BYTES` per lane of the
     largest launch, ``lanes_per_launch``, and per entry of a batch's histogram,
-    ``histogram_entries``, :data:`HISTOGRAM_ENTRY_BYTES` plus :data:`HISTOGRAM_THREAD_BYTES` per
-    Dr.Jit thread, ``threads``), the spectra filled so far and the path list twice (its batches and
+    ``histogram_entries``, :data:`HISTOGRAM_ENTRY_BYTES` plus :data:`HISTOGRAM_DEVICE_BYTES`), the
+    spectra filled so far and the path list twice (its batches and
     their concatenation). Products: the spectra twice (with their sum over bounce orders), the
     path list, every raw data set twice (with its range-windowed copy) and image, and
     ``focus_working_bytes`` (:data:`FOCUS_PIXEL_BYTES` per pixel and :data:`WRITE_BYTES`).
@@ -444,11 +444,9 @@ def _memory(loaded: LoadedScene, window: FastTimeWindow, groups: int, exact: boo
     threads = max(1, dr.thread_count())
     runtime = (RUNTIME_BYTES + (SCENE_TRIANGLE_BYTES + (MESH_TRIANGLE_BYTES if piece_bytes else 0)) * loaded.n_triangles
                + SCENE_SHAPE_BYTES * loaded.n_shapes)
-    # one histogram copy per Dr.Jit thread (ReduceMode.Expand), or one (atomic adds, several launches at once)
-    copies = threads if at_once == 1 else 1
     working = (1 + CONCURRENT_LAUNCH_SHARE * (at_once - 1)) * (
         TRACE_FIXED_BYTES + LANE_BYTES * lanes + piece_bytes * per_batch
-        + (HISTOGRAM_ENTRY_BYTES * arrays.get("apart", 1) + HISTOGRAM_THREAD_BYTES * copies) * entries)
+        + (HISTOGRAM_ENTRY_BYTES * arrays.get("apart", 1) + HISTOGRAM_DEVICE_BYTES) * entries)
     focusing = FOCUS_PIXEL_BYTES * arrays["pixels"] + WRITE_BYTES
     n, deposit, path_list = arrays["n_products"], arrays["deposit"], arrays["path_list"]
     tracing = (working, deposit + 2 * path_list)                     # (fixed, grows with the pulses)
@@ -536,7 +534,7 @@ def _memory_fix(cost: CostEstimate, params: RadarParameters, available: int, lar
         lanes = (available - cost.peak_memory_bytes) // LANE_BYTES + cost.lanes_per_launch   # the lanes that fit
         return (f"the tracer's working set dominates ({cost.lanes_per_launch:,} ray tubes per launch x "
                 f"{LANE_BYTES} B, a fine-grid histogram of {cost.histogram_entries:,} entries x "
-                f"({HISTOGRAM_ENTRY_BYTES} + {HISTOGRAM_THREAD_BYTES} x {cost.threads} threads) B): launch fewer "
+                f"({HISTOGRAM_ENTRY_BYTES} + {HISTOGRAM_DEVICE_BYTES}) B): launch fewer "
                 f"tubes at once (--integrator-set max_batch_rays={max(1024, lanes)} or fewer; at least 1024)")
     fixed = cost.peak_memory_bytes - cost.pulse_memory_bytes
     per_pulse = cost.pulse_memory_bytes / max(cost.n_pulses, 1)

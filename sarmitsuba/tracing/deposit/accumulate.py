@@ -6,9 +6,8 @@ holds what they are summed into for one launch (in the launch's context dict): `
 ``hist_hi``, the low and high fixed-point words (:data:`.fixed_point.AMPLITUDE`, int64 ``(re, im)``
 pairs) of ``[spectral orders, channels x groups, pulses, fine samples]`` complex entries
 (channel-major: group ``c * groups + order``), whose sums do not depend on the order of the
-additions (D7); or,
-with ``range_kernel = exact``, path buffers of one entry per term and channel, read back in a
-canonical order.
+additions (D7); or, with ``range_kernel = exact``, path buffers of one entry per term and
+channel, read back in a canonical order.
 """
 from __future__ import annotations
 
@@ -30,8 +29,8 @@ PATH_FIELDS = dict(path_pos=np.float64, path_re=np.float32, path_im=np.float32, 
                    path_pulse=np.uint32, path_spectral=np.uint32, path_channel=np.uint32)
 
 
-#: The fine-grid histogram's device array holds at least this many real values (two int64 words
-#: each: 8 MiB), and otherwise the next power of two: ``scatter_add(mode=Expand)`` writes the
+#: The fine-grid histogram's device arrays hold at least this many real values (a low and a high
+#: int64 word each: 8 MiB), and otherwise the next power of two: ``scatter_add(mode=Expand)`` writes the
 #: array's size into its kernel, so sizes rounded to a few buckets let launches and acquisitions
 #: of other pulse counts or windows reuse the kernels (compiled or from Dr.Jit's disk cache) at
 #: most twice the memory.
@@ -86,7 +85,7 @@ class Accumulator:
         self.reduce = dr.ReduceMode.Expand
         #: The histogram's: ``Auto`` (Dr.Jit expands arrays of up to ``dr.expand_threshold()``
         #: entries per thread, and adds atomically into larger ones) unless several host threads
-        #: deposit at once, then atomic adds (``Direct``: four words at scattered places, which
+        #: deposit at once, then atomic adds (``Direct``: pairs of words at scattered places, which
         #: ``Local``'s reduction within each packet only slows, about twice in a benchmark of random
         #: deposits).
         self.deposit_mode = dr.ReduceMode.Auto
@@ -142,7 +141,7 @@ class Accumulator:
     @staticmethod
     def read_histogram(ctx: dict) -> np.ndarray:
         """The launch's histogram, complex64 ``[entries]``, its words decoded on the device
-        (:meth:`.fixed_point.FixedPoint.values`); raises UnrepresentableSum where a term was refused (D7)."""
+        (:meth:`.fixed_point.FixedPoint.combine`); raises UnrepresentableSum where a term was refused (D7)."""
         n = ctx["hist_entries"]
         real = dr.arange(mi.UInt32, 2 * n)
         values = AMPLITUDE.combine(dr.gather(mi.Int64, ctx["hist_hi"], real), dr.gather(mi.Int64, ctx["hist"], real))
