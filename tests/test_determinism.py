@@ -244,3 +244,23 @@ def test_shared_reads_add_their_adjoints_in_any_order(threads):
     assert np.array_equal(results[1][0], results[2][0])
     np.testing.assert_allclose(results[1][0], reference, rtol=1e-6)
     assert not np.array_equal(results[1][1], results[2][1])
+
+
+def test_pieces_whose_boundary_moves_are_told_apart():
+    """``piece_moves`` against a loop over each piece's segments: a piece moves where any of its
+    own segments has a rate, never for its neighbour's (the launch-wide flag it replaces made a
+    still piece's area term depend on its launch-mates). Catches the cumulative count read one
+    row off, and the edge rates left out."""
+    from sarmitsuba.tracing.integration.patch_terms import PieceTable, piece_moves
+    rng = np.random.default_rng(2)
+    count = np.array([3, 0, 2, 4, 1, 2], np.uint32)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.uint32)
+    n = int(count.sum())
+    mid_rate, edge_rate = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
+    mid_rate[[2, 5], 1] = rng.standard_normal(2)             # the first piece's last segment, the fourth's first
+    edge_rate[11, 2] = 1e-9                                   # the last piece's last segment, only its edge
+    zero = np.zeros((6, 3))
+    table = PieceTable(zero, zero, np.ones(6, np.float32), np.ones(6), zero, zero, zero, start, count,
+                       np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), mid_rate, edge_rate)
+    expected = [bool(np.any(mid_rate[s:s + c]) or np.any(edge_rate[s:s + c])) for s, c in zip(start, count)]
+    assert piece_moves(table).tolist() == expected == [True, False, False, True, False, True]

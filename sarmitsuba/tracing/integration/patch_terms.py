@@ -43,7 +43,7 @@ from ..deposit.replay import run_pulses, shared_read
 from ..loops import loop_mode
 
 __all__ = ["TermLanes", "PieceTable", "PatchTerms", "SPLIT_START", "SPLIT_END", "SINC", "OPEN_START", "OPEN_END",
-           "OPEN_MID", "AREA", "NEAR_SPECULAR", "TAYLOR_BELOW"]
+           "OPEN_MID", "AREA", "NEAR_SPECULAR", "TAYLOR_BELOW", "piece_moves"]
 
 #: Lane kinds: a split segment's start and end, a segment's sinc at its midpoint, the three
 #: candidates of a segment split for some pulses only, a piece's area term.
@@ -83,6 +83,14 @@ class PieceTable:
     segment_edge: np.ndarray
     segment_mid_rate: np.ndarray | None = None
     segment_edge_rate: np.ndarray | None = None
+
+
+def piece_moves(pieces: PieceTable) -> np.ndarray:
+    """bool [p]: whether any of each piece's boundary segments moves (a rate not zero, eq. (M8))."""
+    moving = np.any(pieces.segment_mid_rate != 0, axis=1) | np.any(pieces.segment_edge_rate != 0, axis=1)
+    counted = np.concatenate([[0], np.cumsum(moving)])
+    start = pieces.segment_start.astype(np.int64)
+    return counted[start + pieces.segment_count.astype(np.int64)] > counted[start]
 
 
 @dataclass(frozen=True)
@@ -202,7 +210,7 @@ class _Record:
 #: The entries of an upload that are per piece or per boundary segment (read by gathers), not per lane.
 PER_PIECE = frozenset({"centroid", "centroid_unfolded", "diagonal", "piece_area", "moments", "axis_u", "axis_v",
                        "segment_start", "segment_count", "segment_most", "segment_mid", "segment_edge", "segment_mid_rate",
-                       "segment_edge_rate"})
+                       "segment_edge_rate", "piece_moves"})
 
 
 class PatchTerms:
@@ -280,6 +288,7 @@ class PatchTerms:
             if data["segment_moving"]:
                 data["segment_mid_rate"] = device_array(v3, pieces.segment_mid_rate.T)
                 data["segment_edge_rate"] = device_array(v3, pieces.segment_edge_rate.T)
+                data["piece_moves"] = device_array(mi.Bool, piece_moves(pieces))
         data["gamma"], data["jones"] = self.arrival(lanes, depth)
         data["diffraction"] = lanes.diffracting is not None and bool(np.any(lanes.diffracting))
         if data["diffraction"]:
@@ -516,9 +525,12 @@ class PatchTerms:
             _, f, kdf, shoelace = dr.while_loop(state, lambda e, *_: e < stop, step, mode=loop_mode(),
                                                 label="area segments")
         if moving:
-            # the moved piece's own area and size decide between the Taylor and Gordon forms
-            taylor = taylor + mi.Complex2f(shoelace - area, 0.0)
-            size = dr.maximum(diag, dr.sqrt(dr.abs(shoelace)))
+            # the moved piece's own area and size decide between the Taylor and Gordon forms; a
+            # piece whose boundary stays keeps its own (not the shoelace's rounding of it: a
+            # sub-aperture's terms must not depend on whether a launch-mate's pieces move, (D7))
+            moves = dr.gather(mi.Bool, data["piece_moves"], piece)
+            taylor = taylor + mi.Complex2f(dr.select(moves, shoelace - area, 0.0), 0.0)
+            size = dr.select(moves, dr.maximum(diag, dr.sqrt(dr.abs(shoelace))), diag)
             gordon = (self.k * dr.sqrt(ut2) * size >= TAYLOR_BELOW) & (data["kind"] == AREA)
             f, kdf = dr.select(gordon, f, 0.0), dr.select(gordon, kdf, 0.0)
         correction = mi.Complex2f(0.0, -k * quad)
