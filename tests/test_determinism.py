@@ -19,7 +19,7 @@ import pytest
 import sarmitsuba  # noqa: F401  (sets the variant before Dr.Jit loads)
 import drjit as dr
 import mitsuba as mi
-from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, ShapeParameter, raw_derivative
+from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter, raw_derivative
 from sarmitsuba.tracing.deposit.accumulate import Accumulator
 from sarmitsuba.tracing.deposit.fixed_point import (AMPLITUDE, GRADIENT, POWER, SOLID_ANGLE, UnrepresentableSum, decode,
                                                     encode)

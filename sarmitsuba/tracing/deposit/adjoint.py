@@ -50,11 +50,14 @@ class AdjointSink:
         for words, g in zip(self.words, _components(grad)):
             GRADIENT.add(words, dr.detach(g), index, active)
 
+    def sums(self) -> list:
+        """The sums, float64 [width] per component of the source; raises UnrepresentableSum where
+        an adjoint was not finite or too large for the words."""
+        return [GRADIENT.read(words) for words in self.words]
+
     def gradient(self):
-        """The sums as the source's type (float values); raises UnrepresentableSum where an
-        adjoint was not finite or too large for the words."""
-        values = [GRADIENT.read(words) for words in self.words]
-        flat = [dr.leaf_t(self.type)(v) for v in values]
+        """The sums (:meth:`sums`) as the source's type."""
+        flat = [dr.leaf_t(self.type)(v) for v in self.sums()]
         return flat[0] if dr.depth_v(self.type) <= 1 else _assemble(self.type, flat)
 
 

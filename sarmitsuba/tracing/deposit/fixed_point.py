@@ -8,10 +8,12 @@ fixed-point number with ``F`` fraction bits (quantum ``2^-F``), held in two ``in
 ``(hi, lo)`` with ``v 2^F = hi 2^K + lo``:
 
 * ``hi = trunc(v 2^(F - K))`` and ``lo = round(v 2^F - hi 2^K)``, ``|lo| <= 2^K``, both formed
-  exactly in float64 from a float32 or float64 ``v`` (a power-of-two scaling, a truncation and a
-  subtraction of two multiples of ``v``'s last place);
-* each word is scatter-added on its own, wrapping modulo ``2^64``: only the final sums must fit,
-  ``|sum v| < 2^(62 + K - F)`` for ``hi`` and at most ``2^(63 - K)`` terms per slot for ``lo``;
+  exactly in ``v``'s own precision, float32 or float64 (a power-of-two scaling, a truncation and
+  a subtraction of two multiples of ``v``'s last place, :meth:`FixedPoint.words`);
+* the words are scatter-added as integers, wrapping modulo ``2^64`` (a slot's two as one packet
+  here; the fine histogram keeps its low and high words in two arrays,
+  :mod:`.accumulate`): only the final sums must fit, ``|sum v| < 2^(62 + K - F)`` for ``hi`` and at
+  most ``2^(63 - K)`` terms per slot for ``lo``;
 * the slot's value is ``(hi_sum 2^K + lo_sum) 2^-F``, read in float64.
 
 Each term is rounded once, by at most half a quantum, so a slot of ``N`` terms is within

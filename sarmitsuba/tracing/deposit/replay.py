@@ -147,7 +147,7 @@ def shared_read(data: dict, name: str, index, active=True):
     goes to the entry's sink in fixed point while :func:`run_pulses` replays (D7)."""
     value, sink = data[name], data.get("sinks", {}).get(name)
     if isinstance(value, (list, tuple)):
-        return [read(v, index, active, None if sink is None else s) for v, s in zip(value, sink or [None] * len(value))]
+        return [read(v, index, active, s) for v, s in zip(value, sink or [None] * len(value))]
     return read(value, index, active, sink)
 
 

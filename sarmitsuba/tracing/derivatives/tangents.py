@@ -301,8 +301,7 @@ class AdjointKernel(Kernel):
         """``dL/d table`` (float64, the table's width) of differentiable table ``name`` after the
         reverse pass, for the seeds as scaled (:attr:`AdjointSums.scale`): its sink's fixed-point
         sums, plus anything read without a sink."""
-        return (self.returns.tables.adjoint[name].gradient().numpy().astype(np.float64)
-                + np.asarray(dr.grad(self.leaves[name]), np.float64))
+        return self.returns.tables.adjoint[name].sums()[0] + np.asarray(dr.grad(self.leaves[name]), np.float64)
 
 
 def moved_tracer(kernel: Kernel, moves: list, always: bool = False):
