@@ -243,8 +243,10 @@ class TraceResult:
         return self.paths.of_order(order) if self.paths is not None else self.spectrum_per_order[order - 1]
 
 
-#: Complex entries of a batch's fine-grid histogram (orders x pulses x fine samples; each thread keeps
-#: its own copy for non-atomic scatter-adds): 32 MiB per copy.
+#: Complex entries of a batch's fine-grid histogram (orders x pulses x fine samples), at most: four
+#: int64 words each on the device, 128 MiB (docs/physics.md (D7)). A quarter of it kept the
+#: device's bytes of the float32 histogram but made urban's trace 1.5 times as long (smaller
+#: launches); the memory is in ``info``'s model (:data:`sarmitsuba.analysis.cost.HISTOGRAM_DEVICE_BYTES`).
 HISTOGRAM_ENTRIES = 1 << 22
 
 
