@@ -104,6 +104,14 @@
      Sionna RT's scenes; ``none``; or a comma-separated list of shape ids). Their free rims are
      where the model was cut, not edges of the world: they return no physical-optics rim terms
      and no edge currents (docs/physics.md (M10)). ``lit_regions = patches`` only.
+ * - geometry
+   - string
+   - How the mesh tracer's per-sub-aperture geometry runs: ``reference`` (default), its NumPy
+     stages; ``fused``, the Dr.Jit kernels of the stages that have one (today the matching of
+     the boundary segments and junctions whose terms cancel) and the NumPy stages elsewhere.
+     The two agree but for rows that rounding decides; rows a kernel cannot hold are finished by
+     the NumPy stage and counted in ``summary.json`` (``overflow_rows``).
+     ``lit_regions = patches`` only.
 
 The tracing itself is :func:`sarmitsuba.tracing.driver.trace.trace` (Dr.Jit kernels, one per bounce order);
 this plugin only carries the settings from the scene file, so ``mi.render`` is not used.

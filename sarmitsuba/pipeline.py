@@ -67,6 +67,9 @@ class RenderSummary:
     #: not measured) and the warning when the deepest one holds much (:func:`~sarmitsuba.analysis.orders.depth_warning`).
     energy_by_order: dict | None = None
     depth_warning: str | None = None
+    #: Rows a fused geometry kernel left to its NumPy reference (``geometry = fused``,
+    #: docs/design.md section 10.1).
+    overflow_rows: int = 0
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -438,7 +441,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
         trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()},
         energy_by_order=energy_by_order(result.raw_energy_per_order),
-        depth_warning=depth_warning(result.raw_energy_per_order))
+        depth_warning=depth_warning(result.raw_energy_per_order), overflow_rows=result.overflow_rows)
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

@@ -23,12 +23,15 @@ from ..core.radar import ParameterError
 from ..core.valid_ranges import unknown_name
 
 __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
-           "LIT_REGIONS", "RANGE_KERNELS"]
+           "LIT_REGIONS", "RANGE_KERNELS", "GEOMETRY_PIPELINES"]
 
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
 #: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M8), (T3)).
 LIT_REGIONS = ("patches", "tiles")
+#: Values of the ``sbr`` parameter ``geometry``: the mesh tracer's NumPy stages, or their Dr.Jit
+#: kernels where a stage has one (docs/design.md section 10.1).
+GEOMETRY_PIPELINES = ("reference", "fused")
 #: The range kernels (``sbr`` ``range_kernel``): how a traced term reaches the fast-time samples
 #: (docs/physics.md (D1)-(D5); the deposit itself is :mod:`sarmitsuba.tracing.deposit.fast_time`).
 RANGE_KERNELS = ("nearest", "linear", "sinc", "exact")
@@ -103,6 +106,11 @@ class TraceSettings:
         truncations (no physical-optics rim terms, no edge currents, docs/physics.md (M10)):
         ``auto`` (ids ``ground``, ``*-ground``, ``*_ground``), ``none``, or a comma-separated list
         of shape ids (:func:`sarmitsuba.scene.ground.ground_shapes`). ``lit_regions = patches`` only.
+    geometry : str
+        How the mesh tracer's geometry runs (docs/design.md section 10.1): ``reference`` (default)
+        the NumPy stages; ``fused`` the Dr.Jit kernels of the stages that have one
+        (:mod:`sarmitsuba.tracing.fused`), the NumPy stages elsewhere. The same physics: the two
+        agree but for rows that rounding decides. ``lit_regions = patches`` only.
     """
 
     max_depth: int = 3
@@ -121,6 +129,7 @@ class TraceSettings:
     lit_regions: str = "patches"
     patch_size: float = 0.0
     ground_shapes: str = "auto"
+    geometry: str = "reference"
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
@@ -148,6 +157,10 @@ class TraceSettings:
             raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
                                  f"{', '.join(repr(m) for m in LIT_REGIONS)} (patches: scattering anchored to the mesh, "
                                  "docs/physics.md (M1)-(M8); tiles: the ray tubes' tiles, a fast preview)")
+        if self.geometry not in GEOMETRY_PIPELINES:
+            raise ParameterError(f"geometry = {self.geometry!r}; valid values: "
+                                 f"{', '.join(repr(m) for m in GEOMETRY_PIPELINES)} (reference: the NumPy stages; "
+                                 "fused: the Dr.Jit kernels where a stage has one)")
         if int(self.pulses_per_trace) != self.pulses_per_trace or not 0 <= self.pulses_per_trace <= 65536:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")

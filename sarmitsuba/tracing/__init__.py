@@ -21,6 +21,8 @@ each a subpackage whose docstring says what it takes and gives, in the order a t
 :mod:`.deposit`             the fast-time deposit and its band-limited spectrum
 :mod:`.derivatives`         the traces that carry material and geometric tangents
 :mod:`.driver`              ``trace``: sub-apertures in launches, each launch order by order
+:mod:`.fused`               the geometry's stages as Dr.Jit kernels, each beside its NumPy
+                            reference (``TraceSettings.geometry``)
 ==========================  ===============================================================
 
 Shared by every part: :mod:`.device` (NumPy arrays in Dr.Jit memory) and :mod:`.loops` (how the

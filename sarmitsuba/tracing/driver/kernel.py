@@ -422,6 +422,7 @@ class Kernel:
             for depth, casts in enumerate(stats["discovery"]):
                 out["rays"][depth + 1] += casts        # and the rays that looked for its chains
             out["shadow"] += int(sum(stats["samples"]))   # each checked on its way back
+            out["overflow"] = stats["overflow"]          # rows the fused kernels left to the reference
             return out
         tube, n_lanes = self.launch(launch)
         for depth in range(st.max_depth):

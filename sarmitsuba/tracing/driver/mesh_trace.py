@@ -30,6 +30,7 @@ import numpy as np
 from ...core.arrays import row_norm
 from ..discovery.chains import Chains, image_source, region_lines, unfold
 from ..discovery.specular import arriving_views, discover, discovery_subdivision
+from ..fused.matching import RowMatcher
 from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
 from ..visibility.lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
@@ -93,6 +94,8 @@ class MeshTracer:
         self.k = returns.k
         self.depth = settings.max_depth
         self.cancel = settings.cancel_interior
+        #: The Dr.Jit kernels of the stages that have one (docs/design.md section 10.1).
+        self.fused = settings.geometry == "fused"
         # a ground shape's free rims are truncations: no PO rim terms, no edge currents (M10)
         ground = ground_parts(scene, surfaces, settings.ground_shapes)
         wedges = find_wedges(surfaces) if returns.diffraction or np.any(ground) else None
@@ -118,12 +121,14 @@ class MeshTracer:
     # ------------------------------------------------------------------ one launch
     def __call__(self, ctx: dict, launch) -> dict:
         """Trace ``launch``'s sub-apertures, depositing every pulse's returns into ``ctx``; returns
-        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int}`` (this
+        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int, "overflow": int}``
+        (``overflow``: rows a fused kernel left to its NumPy reference; this
         launch's). Launches may run on several host threads at once (:func:`~sarmitsuba.tracing.driver.trace.trace`)."""
         reference = launch.reference
         views = self._views(launch)
         rx = self._receiver(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
+        match = RowMatcher() if self.fused else None
         clock = StageClock(self.depth + 1)           # (the last row: the deposit, kernel.Kernel)
         casts_before = self.rays.casts + self.visibility.casts
         with clock("first bounce"):
@@ -147,7 +152,7 @@ class MeshTracer:
             with clock("energy"):
                 stats["carried"].append(self._carried(lit, reference, launch.count))
             with clock("lanes"):
-                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock, rx)
+                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock, rx, match)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             with clock("terms"), RECORDING:
@@ -163,6 +168,7 @@ class MeshTracer:
                 dr.sync_thread()
             with clock("terms"):                     # this order's histogram, for its energy (D6)
                 self.returns.sums.order_done(ctx, depth)
+        stats["overflow"] = match.overflow if match is not None else 0
         stats["casts"] = self.rays.casts + self.visibility.casts - casts_before
         stats["seconds"] = clock.seconds
         return stats
@@ -313,10 +319,12 @@ class MeshTracer:
 
     # ------------------------------------------------------------------ discovery
     # ------------------------------------------------------------------ term lanes
-    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None, rx=None):
+    def _lanes(self, lit: LitPieces, views: np.ndarray, depth: int, reference: np.ndarray, clock=None, rx=None,
+               match=None):
         """The term lanes and piece table of a bounce order's lit pieces, whole, border and cut
         from mixed ones (:func:`sarmitsuba.tracing.visibility.occlusion.clip_mixed`), eq. (M5);
-        ``rx``: bistatic, :meth:`_receiver`'s receiver reference and views (B2)."""
+        ``rx``: bistatic, :meth:`_receiver`'s receiver reference and views (B2); ``match``: the
+        device matcher of the segments and junctions that cancel (None: the k-d tree reference)."""
         s, chains = self.surfaces, lit.chains
         if self.simplify:                   # (AD4): outlines whose corners do not hang on rounding
             lit = dataclasses.replace(lit, pieces=lit.pieces.simplified())
@@ -354,7 +362,8 @@ class MeshTracer:
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
         if self.cancel:
-            shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece])
+            shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece],
+                                   **({} if match is None else {"match": match}))
             kept = np.flatnonzero(~shared)              # (np.take: row gathers, not boolean masks)
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         if self.rim is not None:
@@ -388,7 +397,7 @@ class MeshTracer:
             table_segments = table_segments + (p_rate[m:], q_rate[m:])
         edges = segment_wedges(s, self.wedges, part[seg_piece], p2, q2) if self.wedges is not None else None
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
-                                   self.cancel, motion, edges)
+                                   self.cancel, motion, edges, match)
         if self.target is not None:
             lanes = self.target.moved(lanes, s, chains, np.take(region, lanes.piece.astype(np.int64)), reference)
         return lanes, table, clipped, lit

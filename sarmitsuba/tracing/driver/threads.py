@@ -25,7 +25,7 @@ import numpy as np
 from ...core.radar import ParameterError
 from ..loops import lane_float, loop_mode
 
-__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once"]
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "caused_by_interrupt"]
 
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
 #: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
@@ -63,3 +63,12 @@ def launches_at_once() -> int:
     else:
         wanted = HOST_THREADS
     return max(1, min(wanted, os.cpu_count() or 1))
+
+
+def caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the exception's cause/context chain."""
+    seen = set()
+    while exc is not None and id(exc) not in seen and not isinstance(exc, KeyboardInterrupt):
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return isinstance(exc, KeyboardInterrupt)

@@ -44,7 +44,7 @@ from .launches import Blocks, Launch, receiver_launch
 from .moving import moving_pulses
 from ..integration.pulse_view import antenna_axes
 from .stages import STAGES, by_order
-from .threads import host_threads
+from .threads import caused_by_interrupt, host_threads
 from ...core.radar import ParameterError, RadarParameters
 from ...core.geometry import AcquisitionGeometry, acquisition_geometry
 from ...scene.loader import LoadedScene, material_table
@@ -188,6 +188,8 @@ class TraceResult:
     stage_seconds_by_order : dict
         The same by bounce order, ``{order: {stage: seconds}}`` (orders from 1; the ``deposit``
         stage, shared by the orders, only in :attr:`stage_seconds`).
+    overflow_rows : int
+        Rows the fused geometry kernels left to their NumPy references (docs/design.md section 10.1).
     """
 
     spectrum: np.ndarray
@@ -209,6 +211,7 @@ class TraceResult:
     stage_seconds: dict = dataclasses.field(default_factory=dict)
     stage_seconds_by_order: dict = dataclasses.field(default_factory=dict)
     raw_energy_per_order: np.ndarray | None = None
+    overflow_rows: int = 0
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -364,7 +367,8 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
 
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
 #: seconds per stage, :data:`sarmitsuba.tracing.driver.stages.STAGES`; absent from a tube launch).
-TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages", "order_energy")
+TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages", "order_energy",
+          "overflow")
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -409,7 +413,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
                   outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))),
-                  order_energy=np.zeros(settings.max_depth))
+                  order_energy=np.zeros(settings.max_depth), overflow=0)
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
@@ -465,6 +469,7 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
                        paths=merged, split=effects.split_bounces,
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
                        pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
+                       overflow_rows=int(totals["overflow"]),
                        stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"].sum(axis=0)) if t > 0},
                        stage_seconds_by_order=by_order(totals["stages"]),
                        raw_energy_per_order=None if exact or plan.groups != len(totals["energy"])
@@ -582,15 +587,6 @@ def _path_list(found: dict, p0: int, channels: bool) -> "PathList":
                     value=(found["path_re"] + 1j * found["path_im"]).astype(np.complex64),
                     spectral=(np.asarray(SPECTRAL_ORDERS)[found["path_spectral"]]).astype(np.int8),
                     channel=found["path_channel"].astype(np.uint8) if channels else None)
-
-
-def caused_by_interrupt(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt is in the exception's cause/context chain."""
-    seen = set()
-    while exc is not None and id(exc) not in seen and not isinstance(exc, KeyboardInterrupt):
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return isinstance(exc, KeyboardInterrupt)
 
 
 def _bounding_sphere(scene: mi.Scene) -> tuple[float, np.ndarray]:

@@ -26,7 +26,7 @@ from ..mesh.piece_cuts import cell_key
 from ..mesh.polygons import edge_lines, inside
 from .surface_clutter import ScattererLanes, cell_hash, points_inside_boundary, scatterer_offsets, scatterer_phases, surface_keys
 
-__all__ = ["segments", "cancel_shared", "cancel_junctions", "build_lanes", "windows", "piece_table", "scatterer_lanes"]
+__all__ = ["segments", "cancel_shared", "cancel_junctions", "kd_tree_pairs", "build_lanes", "windows", "piece_table", "scatterer_lanes"]
 
 
 def segments(pieces, stable: np.ndarray, cancel: bool = True):
@@ -110,25 +110,39 @@ def _lone_pairs(features: np.ndarray, tolerance: float) -> np.ndarray:
     return pairs[(near[pairs[:, 0]] == 1) & (near[pairs[:, 1]] == 1)]
 
 
-def _grouped(features: np.ndarray, keys) -> np.ndarray:
-    """``features`` with one more column that puts rows of different ``keys`` (int64 columns) far
-    apart: their group number times a gap beyond every feature's range."""
+def _labels(keys) -> np.ndarray:
+    """int64 [n]: each row's group number (0, 1, ...), rows equal in every one of ``keys`` (int64
+    columns) sharing one."""
     order, group = _equal_rows(keys)
-    label = np.empty(len(group), np.float64)
+    label = np.empty(len(group), np.int64)
     label[order] = group
+    return label
+
+
+def _grouped(features: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """``features`` with one more column that puts rows of different groups ``label`` far apart:
+    their group number times a gap beyond every feature's range."""
     gap = 10.0 * (float(np.ptp(features, axis=0).max(initial=0.0)) + 1.0)
-    return np.column_stack([features, label * gap])
+    return np.column_stack([features, label.astype(np.float64) * gap])
+
+
+def kd_tree_pairs(features: np.ndarray, label: np.ndarray, tolerance: float) -> np.ndarray:
+    """The pairs of rows of one group (``label`` int64 [n]) within ``tolerance`` of each other in
+    ``features`` (float64 [n, f]) and of no third row: int64 [p, 2], by scipy's k-d tree (the
+    reference of :func:`sarmitsuba.tracing.fused.matching.lone_pairs`)."""
+    return _lone_pairs(_grouped(features, label), tolerance)
 
 
 def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndarray, end: np.ndarray,
-                  stable: np.ndarray) -> np.ndarray:
+                  stable: np.ndarray, match=kd_tree_pairs) -> np.ndarray:
     """bool: the segments of stable pieces that another stable piece's segment runs along the other
     way, both reached through mirrors on the same planes (the faces of the earlier windows) and
     lying on the same face: an edge two convex parts of one face share, whose terms are equal and
     opposite (eq. (M5)). Both of a pair are dropped; a segment is one with another where their
     midpoints and their edges (up to sign: ``e e^T``) agree to :data:`MATCH_TOLERANCE` and no
     third segment's do. ``chain`` [s] each segment's chain, ``start``, ``end`` [s, 2] face
-    coordinates (one frame per face), ``stable`` [s]."""
+    coordinates (one frame per face), ``stable`` [s]; ``match``: how the pairs are found
+    (:func:`kd_tree_pairs`, or a device kernel with its signature)."""
     drop = np.zeros(len(chain), bool)
     rows = np.flatnonzero(stable)
     if len(rows) < 2:
@@ -139,17 +153,18 @@ def cancel_shared(s: Surfaces, chains: Chains, chain: np.ndarray, start: np.ndar
     p = np.take(start, rows, axis=0).astype(np.float64)
     e = np.take(end, rows, axis=0).astype(np.float64) - p
     features = np.column_stack([p + 0.5 * e, e[:, 0] ** 2, e[:, 1] ** 2, e[:, 0] * e[:, 1]])
-    pairs = _lone_pairs(_grouped(features, (chains.sub[c], *faces.T)), MATCH_TOLERANCE)
+    pairs = match(features, _labels((chains.sub[c], *faces.T)), MATCH_TOLERANCE)
     pairs = pairs[np.einsum("mi,mi->m", e[pairs[:, 0]], e[pairs[:, 1]]) < 0]      # the other way
     drop[rows[pairs.ravel()]] = True
     return drop
 
 
-def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np.ndarray:
+def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable, match=kd_tree_pairs) -> np.ndarray:
     """bool: the split lanes that meet another of the opposite sign at the same point, along the
     same direction, in the same region, both of stable pieces: consecutive segments of one
     straight boundary, whose terms there are equal and opposite (eq. (M5)); both are dropped. The
-    same: points and unit directions within :data:`MATCH_TOLERANCE`, no third lane's."""
+    same: points and unit directions within :data:`MATCH_TOLERANCE`, no third lane's (``match``:
+    as in :func:`cancel_shared`)."""
     candidate = np.flatnonzero(((lane_kind == SPLIT_START) | (lane_kind == SPLIT_END)) & stable[lane_piece])
     drop = np.zeros(len(lane_kind), bool)
     if len(candidate) < 2:
@@ -157,7 +172,7 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
     edge_c = np.take(edge2, candidate, axis=0).astype(np.float64)
     direction = edge_c / np.linalg.norm(edge_c, axis=1, keepdims=True)
     features = np.column_stack([np.take(point2, candidate, axis=0).astype(np.float64), direction])
-    pairs = _lone_pairs(_grouped(features, (region[lane_piece[candidate]].astype(np.int64),)), MATCH_TOLERANCE)
+    pairs = match(features, _labels((region[lane_piece[candidate]].astype(np.int64),)), MATCH_TOLERANCE)
     kinds = lane_kind[candidate]
     pairs = pairs[kinds[pairs[:, 0]] != kinds[pairs[:, 1]]]
     drop[candidate[pairs.ravel()]] = True
@@ -165,13 +180,14 @@ def cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) -> np
 
 
 def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, table_segments, reference, depth: int,
-                cancel: bool = True, motion=None, edges=None):
+                cancel: bool = True, motion=None, edges=None, match=None):
     """:class:`TermLanes` and :class:`PieceTable` of lit pieces (``geometry``: region, part,
     centroid (world and face), area, second moments, diagonal per piece): per segment 2 (split),
     1 (sinc) or 3 (open) point lanes; per unstable piece an area lane. ``cancel`` false keeps the
     split ends that consecutive segments share. ``motion``: ``(p_rate, q_rate, moved_to)``, the
     segments' ends' rates (face coordinates, per metre of travel, float64 [s, 2]) and each
-    chain's second antenna position [n_chains, 3] (:mod:`sarmitsuba.tracing.visibility.motion`, eq. (M8))."""
+    chain's second antenna position [n_chains, 3] (:mod:`sarmitsuba.tracing.visibility.motion`, eq. (M8)).
+    ``match``: how :func:`cancel_junctions` finds its pairs (default :func:`kd_tree_pairs`)."""
     region, part, centroid, centroid2, area, second, diagonal = geometry
     seg_piece, p2, q2 = segments
     copies = np.where(kind == SPLIT_START, 2, np.where(kind == SINC, 1, 3))
@@ -201,7 +217,7 @@ def build_lanes(s: Surfaces, chains: Chains, geometry, stable, segments, kind, t
     else:
         point_rate2 = mid_rate2 = edge_rate2 = np.zeros((len(lane_kind), 2))
     lane_seg = np.concatenate([lane_seg, np.full(len(unstable), -1)])
-    drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable) if cancel \
+    drop = cancel_junctions(lane_kind, lane_piece, point2, edge2, region, stable, match or kd_tree_pairs) if cancel \
         else np.zeros(len(lane_kind), bool)
     kept = np.flatnonzero(~drop)
     lane_piece, lane_kind, point2, mid2, edge2, point_rate2, mid_rate2, edge_rate2, lane_seg = (

@@ -1,0 +1,196 @@
+"""The fused geometry kernels against their NumPy references (docs/design.md section 10.1).
+
+Truth: the references, which share none of the kernels' helpers: scipy's k-d tree for the
+matching of rows that cancel (:func:`sarmitsuba.tracing.integration.term_lanes.kd_tree_pairs`),
+and the pairs planted by construction; at render level the NumPy stages
+(``geometry = reference``) on headings other than 0, faces oblique to the track, mirrors not at
+right angles, a moving car and a bistatic receiver.
+
+Deliberate bugs these tests were run against (each fails one):
+  * the group ignored in the scan (rows of two sub-apertures or faces paired): the planted
+    cross-group twins, and the render counts;
+  * the "no third row" rule dropped for a row's partner (a row paired with one that has two
+    matches): the chains of three;
+  * the window ``tolerance`` wide instead of ``tolerance sqrt(1 + PHI^2)``: the pairs along the
+    sort key's gradient;
+  * only forward matches counted (the atomic count of earlier rows left out): the triples;
+  * the sort key ``f_0`` alone (no projection): the rows of a patch line overflow the scan.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import sarmitsuba
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.pipeline import simulate
+from sarmitsuba.scene.trace_inputs import TraceSettings
+from sarmitsuba.tracing.fused import matching
+from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
+from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
+
+from test_bistatic import RECEIVERS, block_scene
+from test_patches import rectangle
+
+TOL = MATCH_TOLERANCE
+
+
+def _sorted(pairs: np.ndarray) -> np.ndarray:
+    pairs = np.sort(np.asarray(pairs, np.int64).reshape(-1, 2), axis=1)
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
+def _planted(seed: int):
+    """Rows of segment-like features (midpoint [m], then ``e_x^2, e_y^2, e_x e_y``) in 12 groups,
+    with the lone pairs known by construction: returns ``(features, group, expected pairs)``."""
+    rng = np.random.default_rng(seed)
+    rows, groups, expected = [], [], []
+
+    def add(feature, group):
+        rows.append(np.asarray(feature, float))
+        groups.append(group)
+        return len(rows) - 1
+
+    def base(scale=80.0):
+        return np.concatenate([rng.uniform(-scale, scale, 2), rng.uniform(0.0, 4.0, 3)])
+
+    for _ in range(150):                                   # lone pairs: off by up to 0.4 tol, any direction
+        g = int(rng.integers(12))
+        f = base()
+        d = rng.normal(size=5)
+        a = add(f, g)
+        b = add(f + 0.4 * TOL * d / np.linalg.norm(d), g)
+        expected.append((a, b))
+    slope = np.array([1.0, PHI, 0.0, 0.0, 0.0]) / np.hypot(1.0, PHI)
+    for _ in range(40):                                    # along the sort key's gradient: keys 1.12 tol apart
+        g = int(rng.integers(12))
+        f = base()
+        a = add(f, g)
+        b = add(f + 0.95 * TOL * slope, g)
+        expected.append((a, b))
+    for _ in range(30):                                    # chains a - b - c: b near two rows, no pair
+        g = int(rng.integers(12))
+        f = base()
+        d = rng.normal(size=5)
+        d /= np.linalg.norm(d)
+        for step in (0.0, 0.8, 1.6):
+            add(f + step * TOL * d, g)
+    for _ in range(40):                                    # near misses: 1.5 tol apart, no pair
+        g = int(rng.integers(12))
+        f = base()
+        d = rng.normal(size=5)
+        add(f, g)
+        add(f + 1.5 * TOL * d / np.linalg.norm(d), g)
+    for _ in range(30):                                    # triples: three rows within tol, none lone
+        g = int(rng.integers(12))
+        f = base()
+        for _ in range(3):
+            d = rng.normal(size=5)
+            add(f + 0.3 * TOL * d / np.linalg.norm(d), g)
+    for _ in range(30):                                    # twins in two groups: no pair
+        f = base()
+        add(f, 0)
+        add(f, 1)
+    for x in (-10.0, 0.0, 10.0):                           # rows along patch lines x = const and y = const
+        for k in range(2 * SCAN_LIMIT):
+            add([x, -60.0 + k, 0.0, 1.0, 0.0], 5)
+            add([-60.0 + k, x, 1.0, 0.0, 0.0], 6)
+        a = add([x, 0.5, 0.0, 1.0, 0.0], 5)                # one lone pair on each line
+        b = add([x, 0.5 + 0.5 * TOL, 0.0, 1.0, 0.0], 5)
+        expected.append((a, b))
+    order = rng.permutation(len(rows))                     # rows in no particular order
+    back = np.argsort(order)
+    features, group = np.array(rows)[order], np.array(groups, np.int64)[order]
+    return features, group, _sorted(back[np.array(expected)])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_lone_pairs_are_the_planted_ones_and_the_k_d_trees(seed):
+    """Planted lone pairs (distances up to 0.95 tolerance, some along the sort key's gradient,
+    whose keys lie 1.12 tolerances apart), near misses at 1.5 tolerances, triples, chains of three
+    (the middle row near both ends), twins in two groups and rows along patch lines (more on one
+    line than ``SCAN_LIMIT``): the kernel finds exactly the planted pairs, as the k-d tree does,
+    with no row overflowing."""
+    features, group, expected = _planted(seed)
+    pairs, overflow = lone_pairs(features, group, TOL)
+    assert overflow == 0
+    assert np.array_equal(_sorted(pairs), expected)
+    assert np.array_equal(_sorted(kd_tree_pairs(features, group, TOL)), expected)
+
+
+def test_a_crowded_window_goes_to_the_reference():
+    """More rows than ``SCAN_LIMIT`` on one key (one midpoint, edges of every direction) and one
+    lone pair among them: their group is left to the reference and counted, the pairs are still
+    the k-d tree's, and a second group beside it is matched on the device."""
+    rng = np.random.default_rng(4)
+    crowd = np.column_stack([np.zeros((3 * SCAN_LIMIT, 2)), rng.uniform(0.0, 4.0, (3 * SCAN_LIMIT, 3))])
+    twin = crowd[7] + [0.0, 0.0, 0.3 * TOL, 0.0, 0.0]
+    other = np.array([[5.0, 5.0, 1.0, 0.0, 0.0], [5.0, 5.0 + 0.2 * TOL, 1.0, 0.0, 0.0]])
+    features = np.vstack([crowd, twin, other])
+    group = np.array([3] * (len(crowd) + 1) + [8, 8], np.int64)
+    pairs, overflow = lone_pairs(features, group, TOL)
+    assert overflow == len(crowd) + 1
+    assert np.array_equal(_sorted(pairs), [[7, len(crowd)], [len(crowd) + 1, len(crowd) + 2]])
+    assert np.array_equal(_sorted(pairs), _sorted(kd_tree_pairs(features, group, TOL)))
+
+
+def _tilted_wall() -> list:
+    """A wall leaning 15 deg back from vertical and turned 30 deg from the track, on a ground of
+    irregular triangles: a dihedral whose mirrors are not at right angles, faces oblique to the
+    track, and faces of many triangles whose shared edges cancel."""
+    normal = np.array([np.sin(np.radians(30.0)), -np.cos(np.radians(30.0)), 0.0])
+    along = np.array([np.cos(np.radians(30.0)), np.sin(np.radians(30.0)), 0.0])
+    up = np.cos(np.radians(15.0)) * np.array([0.0, 0.0, 1.0]) + np.sin(np.radians(15.0)) * -normal
+    wall = rectangle(4.0 * up + np.array([0.0, 2.0, 0.0]), 6.0 * along, 4.0 * up, cuts=2, jitter=0.2, seed=1)
+    ground = rectangle((0.0, 0.0, 0.0), (14.0, 0.0, 0.0), (0.0, 14.0, 0.0), cuts=3, jitter=0.25, seed=2)
+    return [(wall, "metal", "wall"), (ground, "concrete", "ground")]
+
+
+def _car() -> list:
+    ground = rectangle((0.0, 0.0, 0.0), (20.0, 0.0, 0.0), (0.0, 20.0, 0.0), cuts=2, jitter=0.2, seed=3)
+    car = trimesh.creation.box((4.4, 1.8, 1.4))
+    car.apply_translation((0.0, 0.0, 0.7))
+    return [(ground, "concrete", "ground"), (car, "pec", "car")]
+
+
+BASE = {"frequency": 9.6e9, "bandwidth": 150e6, "incidence_angle": 45.0, "scene_center": (0.0, 0.0, 0.0),
+        "n_pulses": 48, "prf": 200.0}
+SCENES = {
+    "block, heading 20 deg": lambda: sarmitsuba.Scene(block_scene(), sensor={**BASE, "heading": 20.0},
+                                                      integrator={"max_depth": 2}),
+    "tilted wall, heading -35 deg": lambda: sarmitsuba.Scene(_tilted_wall(), sensor={**BASE, "heading": -35.0},
+                                                             integrator={"max_depth": 3}),
+    "moving car": lambda: sarmitsuba.Scene(_car(), sensor={**BASE, "altitude": 500.0}, integrator={"max_depth": 2},
+                                           velocities={"car": (6.0, 3.0, 0.0)}),
+    "bistatic block": lambda: sarmitsuba.Scene(block_scene(), sensor={**BASE, **RECEIVERS["beside"]},
+                                               integrator={"max_depth": 2}),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_a_fused_render_is_the_reference_render(name, monkeypatch):
+    """Each scene rendered with the fused matching and with the NumPy reference: the same pairs
+    cancel, so the raw data are bit for bit the same and so is the count of returns evaluated
+    (a pair missed or made up changes the lanes); the kernel met pairs to match, and no row
+    overflowed."""
+    found = []
+    real = matching.lone_pairs
+
+    def counted(features, group, tolerance):
+        pairs, spilled = real(features, group, tolerance)
+        found.append(len(pairs))
+        return pairs, spilled
+
+    monkeypatch.setattr(matching, "lone_pairs", counted)
+    reference = simulate(SCENES[name]())
+    fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})
+    assert sum(found) > 0
+    assert fused.trace.overflow_rows == 0 and reference.trace.overflow_rows == 0
+    assert fused.trace.pulse_paths == reference.trace.pulse_paths
+    assert np.array_equal(fused.raw.data, reference.raw.data)
+
+
+def test_an_unknown_geometry_pipeline_is_refused_with_the_valid_values():
+    with pytest.raises(ParameterError, match=r"geometry = 'gpu'; valid values: 'reference', 'fused'"):
+        TraceSettings(geometry="gpu")
