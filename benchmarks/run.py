@@ -51,6 +51,8 @@ bistatic       urban received on a drone and on a second aircraft: the sub-apert
                against one pulse per trace, and what the receiver costs
 determinism    renders that repeat bit for bit: the fixed-point sums' cost against float32
                atomic adds (Munich), urban repeated under load, other thread counts and Dask
+fused          the fused geometry kernels against the NumPy stages on Munich, urban,
+               traffic and bistatic urban: raw NRMSE, counts, seconds by stage
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -87,7 +89,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
          "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
-         "bistatic": "bistatic", "determinism": "determinism"}
+         "bistatic": "bistatic", "determinism": "determinism", "fused": "fused"}
 
 
 def _utc_now() -> str:

@@ -1,0 +1,117 @@
+"""Benchmark: the fused geometry kernels against the NumPy stages they replace (docs/design.md
+section 10.1), on the same scenes, in one process.
+
+For each scene, the render with ``geometry = reference`` and with ``geometry = fused``, each run
+once untimed (its kernels compiled), then ``REPEATS`` times alternately; reported per scene:
+
+* trace seconds (medians) and their ratio, fused over reference, and the same for every stage
+  of ``trace_stages`` (host-thread seconds);
+* the raw data's NRMSE of fused against reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB],
+  and whether the bits are the same;
+* the mesh tracer's counts per bounce order (chains, lit pieces, term lanes) of both, whether
+  they are equal, and the rows the fused kernels left to the reference (``overflow_rows``).
+
+Scenes: Sionna RT's Munich (128 central pulses; not with ``--quick``), ``urban``, ``traffic``
+(moving cars) and urban received on a drone (bistatic).
+
+Checks: the fused raw data within -50 dB of the reference's, and the counts equal, on every
+scene. Writes ``fused.csv`` (``_table.output_dir``).
+Usage: ``python benchmarks/fused.py [--quick]``
+"""
+from __future__ import annotations
+
+import importlib.util
+import os
+import statistics
+
+os.environ.setdefault("SARMITSUBA_HOST_THREADS", "1")     # stage seconds of one launch at a time
+
+import numpy as np  # noqa: E402
+from _table import bench_main, machine, report_rows  # noqa: E402
+
+import sarmitsuba  # noqa: E402,F401
+from sarmitsuba.pipeline import simulate  # noqa: E402
+from sarmitsuba.tracing.driver import mesh_trace  # noqa: E402
+
+NAME = "fused"
+#: Timed renders of each pipeline per scene (after one untimed render of each).
+REPEATS = 2
+SCENES = {
+    "munich (128 pulses)": ("sionna:munich", {"n_pulses": 128}),
+    "urban": ("urban", {}),
+    "traffic": ("traffic", {}),
+    "bistatic urban (drone)": ("urban", {"receiver_altitude": 300.0, "receiver_heading": 90.0,
+                                         "receiver_velocity": 15.0}),
+}
+#: Largest NRMSE [dB] of the fused raw data against the reference's.
+NRMSE_BOUND_DB = -50.0
+
+
+def _render(scene: str, sensor: dict, geometry: str) -> dict:
+    """One render: trace seconds, stage seconds, raw data, overflow rows and the mesh tracer's counts."""
+    counts: dict = {"chains": [], "pieces": [], "lanes": []}
+    real = mesh_trace.MeshTracer.__call__
+
+    def call(self, ctx, launch):
+        stats = real(self, ctx, launch)
+        for name in counts:
+            counts[name].append(list(stats[name]))
+        return stats
+
+    mesh_trace.MeshTracer.__call__ = call
+    try:
+        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"geometry": geometry})
+    finally:
+        mesh_trace.MeshTracer.__call__ = real
+    return {"trace_s": sim.trace.seconds, "stages": dict(sim.trace.stage_seconds), "raw": sim.raw.data,
+            "overflow": sim.trace.overflow_rows, "counts": counts}
+
+
+def _nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
+    error = float(np.sum(np.abs(a - b) ** 2)) / max(float(np.sum(np.abs(b) ** 2)), 1e-300)
+    return 10.0 * np.log10(error) if error > 0 else float("-inf")
+
+
+def run(quick: bool = False) -> list[dict]:
+    """Each scene with both pipelines (module docstring); returns one row per scene."""
+    print(machine(), flush=True)
+    scenes = dict(SCENES)
+    if quick or importlib.util.find_spec("sionna") is None:
+        scenes.pop("munich (128 pulses)")
+    rows = []
+    for name, (scene, sensor) in scenes.items():
+        runs = {"reference": [], "fused": []}
+        for geometry in runs:                                   # untimed: kernels compiled
+            _render(scene, sensor, geometry)
+        for _ in range(REPEATS):
+            for geometry in runs:
+                runs[geometry].append(_render(scene, sensor, geometry))
+        ref, fused = runs["reference"][-1], runs["fused"][-1]
+        row = {"scene": name}
+        for geometry, found in runs.items():
+            row[f"{geometry}_trace_s"] = round(statistics.median(r["trace_s"] for r in found), 3)
+        row["trace_ratio"] = round(row["fused_trace_s"] / row["reference_trace_s"], 3)
+        row["nrmse_db"] = round(_nrmse_db(fused["raw"], ref["raw"]), 1)
+        row["bit_identical"] = bool(np.array_equal(fused["raw"], ref["raw"]))
+        row["counts_equal"] = fused["counts"] == ref["counts"]
+        row["overflow_rows"] = fused["overflow"]
+        for stage in ref["stages"]:
+            r = statistics.median(x["stages"].get(stage, 0.0) for x in runs["reference"])
+            f = statistics.median(x["stages"].get(stage, 0.0) for x in runs["fused"])
+            row[f"{stage}_ratio"] = round(f / r, 3) if r > 0 else None
+        rows.append(row)
+    return report_rows(NAME + ".csv", rows)
+
+
+def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    out = []
+    for row in rows:
+        out.append((f"fused raw data of {row['scene']} within {NRMSE_BOUND_DB:g} dB of the reference's",
+                    row["nrmse_db"] <= NRMSE_BOUND_DB, f"{row['nrmse_db']} dB, bit identical: {row['bit_identical']}"))
+        out.append((f"chains, lit pieces and lanes of {row['scene']} equal to the reference's", row["counts_equal"],
+                    f"overflow rows {row['overflow_rows']}, trace {row['trace_ratio']}x the reference's"))
+    return out
+
+
+if __name__ == "__main__":
+    bench_main(__doc__, run, checks, "urban, traffic and bistatic urban only (no Munich)")
