@@ -1,4 +1,5 @@
-"""The fused geometry kernels against their NumPy references (docs/design.md section 10.1).
+"""The fused geometry kernels against their NumPy references (docs/design.md section 10.1);
+the lit-boundary kernel's own cases are in tests/test_fused_boundary.py.
 
 Truth: the references, which share none of the kernels' helpers: scipy's k-d tree for the
 matching of rows that cancel (:func:`sarmitsuba.tracing.integration.term_lanes.kd_tree_pairs`),
@@ -26,6 +27,7 @@ import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.trace_inputs import TraceSettings
+from sarmitsuba.tracing.driver import mesh_trace
 from sarmitsuba.tracing.fused import matching
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
@@ -170,10 +172,10 @@ SCENES = {
 
 @pytest.mark.parametrize("name", list(SCENES))
 def test_a_fused_render_is_the_reference_render(name, monkeypatch):
-    """Each scene rendered with the fused matching and with the NumPy reference: the same pairs
-    cancel, so the raw data are bit for bit the same and so is the count of returns evaluated
-    (a pair missed or made up changes the lanes); the kernel met pairs to match, and no row
-    overflowed."""
+    """Each scene rendered with the fused kernels (the matching, the lit boundaries) and with the
+    NumPy reference: the same pairs cancel and the same boundaries are cut, so the raw data are
+    bit for bit the same and so is the count of returns evaluated (a pair missed or made up, a
+    segment lost, changes the lanes); both kernels had rows to work on, and no row overflowed."""
     found = []
     real = matching.lone_pairs
 
@@ -182,10 +184,19 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
         found.append(len(pairs))
         return pairs, spilled
 
+    cut = []
+    real_boundary = mesh_trace.fused_boundary
+
+    def boundary(*args):
+        out = real_boundary(*args)
+        cut.append(len(out[0]))
+        return out
+
     monkeypatch.setattr(matching, "lone_pairs", counted)
+    monkeypatch.setattr(mesh_trace, "fused_boundary", boundary)
     reference = simulate(SCENES[name]())
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})
-    assert sum(found) > 0
+    assert sum(found) > 0 and sum(cut) > 0
     assert fused.trace.overflow_rows == 0 and reference.trace.overflow_rows == 0
     assert fused.trace.pulse_paths == reference.trace.pulse_paths
     assert np.array_equal(fused.raw.data, reference.raw.data)

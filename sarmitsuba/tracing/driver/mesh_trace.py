@@ -30,6 +30,7 @@ import numpy as np
 from ...core.arrays import row_norm
 from ..discovery.chains import Chains, image_source, region_lines, unfold
 from ..discovery.specular import arriving_views, discover, discovery_subdivision
+from ..fused.boundary import lit_boundary as fused_boundary
 from ..fused.matching import RowMatcher
 from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
@@ -408,16 +409,17 @@ class MeshTracer:
         ``lit``, the :class:`ClippedPieces` and the rows made mixed by the spread (``receiver``:
         bistatic, where the return legs end, (B2))."""
         s = self.surfaces
-        clipped = clip_mixed(s, lit, antenna, receiver=receiver)
+        boundary = fused_boundary if self.fused else None
+        clipped = clip_mixed(s, lit, antenna, receiver=receiver, boundary=boundary)
         lit, spread = spread_occluders(lit, clipped)
         if len(spread):
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver), spread)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver, boundary), spread)
         for _ in range(RECHECKS):
             blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility, receiver)
             if len(changed) == 0:
                 break
             lit = dataclasses.replace(lit, blockers=blockers)
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver), changed)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver, boundary), changed)
         return lit, clipped, spread
 
     def _motion(self, lit: LitPieces, rows, cut, p2, q2, views, rx_views=None):

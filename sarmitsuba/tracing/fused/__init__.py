@@ -8,5 +8,7 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
 :mod:`.matching`            the lone pairs of rows within a tolerance (shared boundary segments
                             and junctions that cancel, eq. (M5)); reference:
                             ``integration.term_lanes`` (a k-d tree)
+:mod:`.boundary`            the lit boundary of mixed pieces less their cut-outs, eq. (M4);
+                            reference: ``visibility.occlusion.lit_boundary``
 ==========================  ===============================================================
 """
