@@ -34,8 +34,9 @@ from sarmitsuba.pipeline import simulate  # noqa: E402
 from sarmitsuba.tracing.driver import mesh_trace  # noqa: E402
 
 NAME = "fused"
-#: Timed renders of each pipeline per scene (after one untimed render of each).
-REPEATS = 2
+#: Timed renders of each pipeline per scene (after one untimed render of each; 1: traffic alone takes
+#: minutes a render on 2 cores).
+REPEATS = 1
 SCENES = {
     "munich (128 pulses)": ("sionna:munich", {"n_pulses": 128}),
     "urban": ("urban", {}),
