@@ -253,8 +253,8 @@ def test_shadow_of_a_floating_box_is_cut_exactly(monkeypatch, heading):
     captured = []
     real = mesh_trace.MeshTracer._lanes
 
-    def keep(self, lit, views, depth, reference, clock=None, rx=None):
-        out = real(self, lit, views, depth, reference, clock, rx)
+    def keep(self, lit, views, depth, reference, clock=None, rx=None, match=None):
+        out = real(self, lit, views, depth, reference, clock, rx, match)
         if depth == 0:
             captured.append((self.surfaces, out[3], out[2], reference))      # after the spread
         return out
