@@ -42,7 +42,7 @@ from .stages import StageClock
 from ..integration.surface_clutter import ClutterKernel
 from ..integration.edges import find_wedges, segment_wedges
 from ..integration.truncation import ground_parts, on_rim, rim_edges, without_rims
-from ..integration.term_lanes import build_lanes, cancel_shared, scatterer_lanes, segments
+from ..integration.term_lanes import build_lanes, cancel_shared, kd_tree_pairs, scatterer_lanes, segments
 from ..mesh.patches import Pieces, Surfaces
 from ..mesh.piece_cuts import pieces_of
 from ..integration.physical_optics import SINC_REGIME, split_threshold
@@ -122,9 +122,9 @@ class MeshTracer:
     # ------------------------------------------------------------------ one launch
     def __call__(self, ctx: dict, launch) -> dict:
         """Trace ``launch``'s sub-apertures, depositing every pulse's returns into ``ctx``; returns
-        counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int, "overflow": int}``
-        (``overflow``: rows a fused kernel left to its NumPy reference; this
-        launch's). Launches may run on several host threads at once (:func:`~sarmitsuba.tracing.driver.trace.trace`)."""
+        this launch's counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int,
+        "overflow": int}`` (``overflow``: rows the fused kernels left to the NumPy stages). Launches
+        may run on several host threads at once (:func:`~sarmitsuba.tracing.driver.trace.trace`)."""
         reference = launch.reference
         views = self._views(launch)
         rx = self._receiver(launch)
@@ -363,8 +363,7 @@ class MeshTracer:
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
         p2, q2 = np.concatenate([p2, clipped.start]), np.concatenate([q2, clipped.end])
         if self.cancel:
-            shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece],
-                                   **({} if match is None else {"match": match}))
+            shared = cancel_shared(s, chains, region[seg_piece], p2, q2, stable[seg_piece], match or kd_tree_pairs)
             kept = np.flatnonzero(~shared)              # (np.take: row gathers, not boolean masks)
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         if self.rim is not None:
