@@ -78,22 +78,9 @@ def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_
     """:func:`sarmitsuba.tracing.visibility.occlusion.lit_boundary` on the device: the same
     segments in the same order, bit for bit.
 
-    Parameters
-    ----------
-    base : float64 [g, V, 2]
-    base_count : int64 [g]
-        0 for a base without edges (as in the reference, its cut-outs' edges still count).
-    cut : float64 [c, W, 2]
-        Cut-outs (convex, counter-clockwise, padded, at least 3 corners), inside their bases.
-    cut_count : int64 [c]
-    cut_owner : int64 [c]
-        Each cut-out's base. Of two cut-outs of one base along one line, with their insides on the
-        same side, the one listed first keeps the edge.
-
-    Returns
-    -------
-    (owner int64 [s], start float64 [s, 2], end float64 [s, 2]): each segment's base and ends,
-    counter-clockwise about the lit region (around holes clockwise).
+    Parameters and returns as the reference's (float64 polygons [g, V, 2] and cut-outs [c, W, 2],
+    int64 counts and owners; ``(owner int64 [s], start float64 [s, 2], end float64 [s, 2])``); a
+    base with count 0 still returns its cut-outs' edges, as there.
     """
     base = np.asarray(base, np.float64)
     cut = np.asarray(cut, np.float64)
