@@ -27,8 +27,7 @@ import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.trace_inputs import TraceSettings
-from sarmitsuba.tracing.driver import mesh_trace
-from sarmitsuba.tracing.fused import matching
+from sarmitsuba.tracing.fused import boundary, matching
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
 
@@ -170,33 +169,38 @@ SCENES = {
 }
 
 
+#: Every kernel of the fused path: (module, function), each with the reference's signature.
+KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"))
+
+
+def _rows(out) -> int:
+    """The rows a kernel gave: the length of its first output."""
+    return len(out[0]) if isinstance(out, (tuple, list)) else len(out)
+
+
 @pytest.mark.parametrize("name", list(SCENES))
 def test_a_fused_render_is_the_reference_render(name, monkeypatch):
-    """Each scene rendered with the fused kernels (the matching, the lit boundaries) and with the
-    NumPy reference: the same pairs cancel and the same boundaries are cut, so the raw data are
-    bit for bit the same and so is the count of returns evaluated (a pair missed or made up, a
-    segment lost, changes the lanes); both kernels had rows to work on, and no row overflowed."""
-    found = []
-    real = matching.lone_pairs
+    """Each scene rendered with the fused kernels and with the NumPy reference: the same pairs
+    cancel, the same boundaries are cut, so the raw data are bit for bit the same and so is the
+    count of returns evaluated (a pair missed or made up, a segment lost, changes the lanes);
+    every kernel had rows to work on, and no row overflowed."""
+    rows = {}
 
-    def counted(features, group, tolerance):
-        pairs, spilled = real(features, group, tolerance)
-        found.append(len(pairs))
-        return pairs, spilled
+    def counted(module, name):
+        real = getattr(module, name)
 
-    cut = []
-    real_boundary = mesh_trace.fused_boundary
+        def kernel(*args, **kwargs):
+            out = real(*args, **kwargs)
+            rows[name] = rows.get(name, 0) + _rows(out)
+            return out
+        return kernel
 
-    def boundary(*args):
-        out = real_boundary(*args)
-        cut.append(len(out[0]))
-        return out
-
-    monkeypatch.setattr(matching, "lone_pairs", counted)
-    monkeypatch.setattr(mesh_trace, "fused_boundary", boundary)
+    for module, function in KERNELS:
+        monkeypatch.setattr(module, function, counted(module, function))
     reference = simulate(SCENES[name]())
+    assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})
-    assert sum(found) > 0 and sum(cut) > 0
+    assert sorted(rows) == sorted(f for _, f in KERNELS) and min(rows.values()) > 0, rows
     assert fused.trace.overflow_rows == 0 and reference.trace.overflow_rows == 0
     assert fused.trace.pulse_paths == reference.trace.pulse_paths
     assert np.array_equal(fused.raw.data, reference.raw.data)

@@ -30,7 +30,7 @@ import numpy as np
 from ...core.arrays import row_norm
 from ..discovery.chains import Chains, image_source, region_lines, unfold
 from ..discovery.specular import arriving_views, discover, discovery_subdivision
-from ..fused.boundary import lit_boundary as fused_boundary
+from ..fused import geometry_kernels
 from ..fused.matching import RowMatcher
 from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
@@ -97,6 +97,7 @@ class MeshTracer:
         self.cancel = settings.cancel_interior
         #: The Dr.Jit kernels of the stages that have one (docs/design.md section 10.1).
         self.fused = settings.geometry == "fused"
+        self.kernels = geometry_kernels(settings.geometry)
         # a ground shape's free rims are truncations: no PO rim terms, no edge currents (M10)
         ground = ground_parts(scene, surfaces, settings.ground_shapes)
         wedges = find_wedges(surfaces) if returns.diffraction or np.any(ground) else None
@@ -408,17 +409,17 @@ class MeshTracer:
         ``lit``, the :class:`ClippedPieces` and the rows made mixed by the spread (``receiver``:
         bistatic, where the return legs end, (B2))."""
         s = self.surfaces
-        boundary = fused_boundary if self.fused else None
-        clipped = clip_mixed(s, lit, antenna, receiver=receiver, boundary=boundary)
+        kernels = self.kernels
+        clipped = clip_mixed(s, lit, antenna, receiver=receiver, kernels=kernels)
         lit, spread = spread_occluders(lit, clipped)
         if len(spread):
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver, boundary), spread)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver, kernels), spread)
         for _ in range(RECHECKS):
             blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility, receiver)
             if len(changed) == 0:
                 break
             lit = dataclasses.replace(lit, blockers=blockers)
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver, boundary), changed)
+            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver, kernels), changed)
         return lit, clipped, spread
 
     def _motion(self, lit: LitPieces, rows, cut, p2, q2, views, rx_views=None):

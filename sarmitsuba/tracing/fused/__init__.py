@@ -11,4 +11,38 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
 :mod:`.boundary`            the lit boundary of mixed pieces less their cut-outs, eq. (M4);
                             reference: ``visibility.occlusion.lit_boundary``
 ==========================  ===============================================================
+
+:func:`geometry_kernels` gives the functions a tracer calls for the stages that have a kernel:
+the kernels, or their references.
 """
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+__all__ = ["GeometryKernels", "geometry_kernels"]
+
+
+@dataclass(frozen=True)
+class GeometryKernels:
+    """The functions of the geometry stages that have a kernel, each with its reference's
+    signature and results (docs/design.md section 10.1).
+
+    Attributes
+    ----------
+    lit_boundary : callable
+        :func:`sarmitsuba.tracing.visibility.occlusion.lit_boundary` or its kernel.
+    """
+
+    lit_boundary: Callable
+
+
+def geometry_kernels(pipeline: str) -> GeometryKernels:
+    """The stages' functions for ``TraceSettings.geometry`` ``pipeline``: ``"fused"`` (the
+    kernels) or ``"reference"`` (the NumPy stages). Looked up when called, so that a test may
+    replace a module's function first."""
+    from ..visibility import occlusion
+    if pipeline != "fused":
+        return GeometryKernels(lit_boundary=occlusion.lit_boundary)
+    from . import boundary
+    return GeometryKernels(lit_boundary=boundary.lit_boundary)

@@ -512,12 +512,12 @@ class ClippedPieces:
 
 
 def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | None = None,
-               receiver: np.ndarray | None = None, boundary=None) -> ClippedPieces:
+               receiver: np.ndarray | None = None, kernels=None) -> ClippedPieces:
     """Every mixed piece of ``lit`` (:class:`sarmitsuba.tracing.visibility.lit_pieces.LitPieces`) whose
     occluders are all mesh parts, cut to its lit region: the piece less the shadows of the
     occluders its rays met, on the leg they met them (eq. (M4)). ``antenna`` [n_chains, 3];
     ``only``: just these rows of ``lit.pieces``; ``receiver`` [n_chains, 3]: bistatic, where the
-    return legs end (docs/physics.md (B2)); ``boundary``: in place of :func:`lit_boundary` (its kernel)."""
+    return legs end (docs/physics.md (B2)); ``kernels``: ``fused.GeometryKernels`` in place of ours."""
     blockers = lit.blockers
     usable = lit.mixed & blockers.mesh_only(len(lit.mixed))
     if only is not None:
@@ -540,7 +540,7 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     dark[pair_piece[cut_area >= (1.0 - 1e-12) * np.take(piece_area, pair_piece)]] = True
     real = (cut_count >= 3) & ~np.take(dark, pair_piece)
     cut, cut_count, pair_piece = cut[real], cut_count[real], pair_piece[real]
-    owner, start, end = (boundary or lit_boundary)(poly, np.where(dark, 0, count), cut, cut_count, pair_piece)
+    owner, start, end = (kernels.lit_boundary if kernels else lit_boundary)(poly, np.where(dark, 0, count), cut, cut_count, pair_piece)
     area, centroid, second, diagonal = segment_moments(owner, start, end, len(rows))
     keep = area > 1e-12 * pieces.patch ** 2
     new = np.cumsum(keep) - 1
