@@ -44,7 +44,6 @@ from ..integration.edges import find_wedges, segment_wedges
 from ..integration.truncation import ground_parts, on_rim, rim_edges, without_rims
 from ..integration.term_lanes import build_lanes, cancel_shared, kd_tree_pairs, scatterer_lanes, segments
 from ..mesh.patches import Pieces, Surfaces
-from ..mesh.piece_cuts import pieces_of
 from ..integration.physical_optics import SINC_REGIME, split_threshold
 from ..visibility.rays import PathVisibility, Rays
 
@@ -148,7 +147,7 @@ class MeshTracer:
                 with clock("visibility"):
                     lit = lit_pieces(self.surfaces, chains, reference[chains.sub], self.rays, self.visibility,
                                      self.patch, self._span(launch, chains) if self.straight else None,
-                                     None if rx is None else rx[0][chains.sub])
+                                     None if rx is None else rx[0][chains.sub], self.kernels.pieces_of)
             stats["chains"].append(len(lit.chains))
             stats["samples"].append(lit.samples)
             with clock("energy"):
@@ -185,7 +184,7 @@ class MeshTracer:
         if len(reached) == 0 or self.table is None:
             return 0.0
         chain = lit.pieces.region[reached]
-        area, centroid2, _, _ = lit.pieces.geometry_of(reached)     # (kept for _lanes' lit pieces)
+        area, centroid2, _, _ = lit.pieces.geometry_of(reached, self.kernels.moments)   # (kept for _lanes)
         point = s.to_world(chains.last[chain], centroid2)
         source = image_source(chains, reference[chains.sub])[chain]
         leg = point - source
@@ -239,8 +238,8 @@ class MeshTracer:
     def _sorted_pieces(self) -> tuple[Pieces, np.ndarray]:
         """:meth:`_first_pieces`, built."""
         s = self.surfaces
-        pieces = pieces_of(s.polygon, s.n_corners, self.patch)
-        _, centroid, _, _ = pieces.geometry()
+        pieces = self.kernels.pieces_of(s.polygon, s.n_corners, self.patch)
+        _, centroid, _, _ = pieces.geometry(self.kernels.moments)
         along = s.to_world(pieces.region, centroid) @ self.track
         order = np.argsort(along, kind="stable")
         return pieces.select(order), along[order]
@@ -339,7 +338,7 @@ class MeshTracer:
         if len(spread):
             # the neighbours that no occluder cuts stay what they were: wholly lit (their shared
             # edges cancel) or dark (wholly in the occluders' shadows: no piece left)
-            full = lit.pieces.geometry_of(clipped.piece)[0]
+            full = lit.pieces.geometry_of(clipped.piece, self.kernels.moments)[0]
             uncut = clipped.piece[np.isin(clipped.piece, spread) & (clipped.area >= (1.0 - 1e-12) * full)]
             back = np.concatenate([uncut, np.setdiff1d(spread, clipped.piece)])
             clipped = replace_pieces(clipped, ClippedPieces.empty(), uncut)
@@ -354,7 +353,7 @@ class MeshTracer:
         region = np.concatenate([pieces.region, cut.region])
         part = chains.last[region]
         area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
-            lit.pieces.geometry_of(pieces_rows), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
+            lit.pieces.geometry_of(pieces_rows, self.kernels.moments), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
         at = np.take(chains.sub, region)
         stable = self._never_specular(chains, region, centroid, diagonal, np.take(views, at, axis=0),

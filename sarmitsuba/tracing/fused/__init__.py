@@ -10,6 +10,8 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
                             ``integration.term_lanes`` (a k-d tree)
 :mod:`.boundary`            the lit boundary of mixed pieces less their cut-outs, eq. (M4);
                             reference: ``visibility.occlusion.lit_boundary``
+:mod:`.moments`             polygon moments (area, centroid, second moments, box diagonal);
+                            reference: ``mesh.polygons.moments``
 ==========================  ===============================================================
 
 :func:`geometry_kernels` gives the functions a tracer calls for the stages that have a kernel:
@@ -17,6 +19,7 @@ the kernels, or their references.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -32,17 +35,26 @@ class GeometryKernels:
     ----------
     lit_boundary : callable
         :func:`sarmitsuba.tracing.visibility.occlusion.lit_boundary` or its kernel.
+    moments : callable
+        :func:`sarmitsuba.tracing.mesh.polygons.moments` or its kernel.
+    pieces_of : callable
+        :func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` with these ``moments``.
     """
 
     lit_boundary: Callable
+    moments: Callable
+    pieces_of: Callable
 
 
 def geometry_kernels(pipeline: str) -> GeometryKernels:
     """The stages' functions for ``TraceSettings.geometry`` ``pipeline``: ``"fused"`` (the
     kernels) or ``"reference"`` (the NumPy stages). Looked up when called, so that a test may
     replace a module's function first."""
+    from ..mesh import piece_cuts, polygons
     from ..visibility import occlusion
     if pipeline != "fused":
-        return GeometryKernels(lit_boundary=occlusion.lit_boundary)
-    from . import boundary
-    return GeometryKernels(lit_boundary=boundary.lit_boundary)
+        return GeometryKernels(lit_boundary=occlusion.lit_boundary, moments=polygons.moments,
+                               pieces_of=piece_cuts.pieces_of)
+    from . import boundary, moments
+    return GeometryKernels(lit_boundary=boundary.lit_boundary, moments=moments.moments,
+                           pieces_of=functools.partial(piece_cuts.pieces_of, moments=moments.moments))

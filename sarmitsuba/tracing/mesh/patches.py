@@ -434,10 +434,11 @@ class Pieces:
             count[b] = self.count[self.border[b]]
         return pad(poly, count), count
 
-    def geometry(self):
+    def geometry(self, moments=moments):
         """Area [m^2], centroid (face coordinates, m) float64 [n, 2], second moments about the
         centroid float64 [n, 3] (``Ixx, Ixy, Iyy``, m^4) and bounding-box diagonal [m] of every
-        piece (whole pieces in closed form)."""
+        piece (whole pieces in closed form; the border pieces by ``moments``, with the signature of
+        :func:`~sarmitsuba.tracing.mesh.polygons.moments`, its default)."""
         n, p = len(self), self.patch
         area = np.full(n, p * p)
         centroid = (self.cell + 0.5) * p
@@ -453,10 +454,11 @@ class Pieces:
             area[b], centroid[b], second[b], diagonal[b] = moments(poly, count)
         return area, centroid, second, diagonal
 
-    def geometry_of(self, keep):
+    def geometry_of(self, keep, moments=moments):
         """:meth:`geometry` of the pieces ``keep`` (an index array or a boolean mask): the values
         of ``self.select(keep).geometry()``, each piece's computed once per :class:`Pieces` object
-        (callers ask for overlapping sets of the same pieces: the carried power, the lanes)."""
+        (callers ask for overlapping sets of the same pieces: the carried power, the lanes);
+        ``moments`` as in :meth:`geometry`."""
         keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, np.int64)
         cache = self.__dict__.get("_geometry_cache")
         if cache is None:
@@ -467,7 +469,7 @@ class Pieces:
         missing = keep[~done[keep]]
         if len(missing):
             missing = np.flatnonzero(np.bincount(missing, minlength=len(self)))     # distinct, ascending
-            for table, value in zip(values, self.select(missing).geometry()):
+            for table, value in zip(values, self.select(missing).geometry(moments)):
                 table[missing] = value
             done[missing] = True
         return tuple(np.take(table, keep, axis=0) for table in values)

@@ -68,7 +68,8 @@ def _row_spans(polygon: np.ndarray, count: np.ndarray, patch: float, region: np.
     return (outer_lo, outer_hi), _inner_spans(lo0, hi0, lo1, hi1)
 
 
-def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.ndarray | None = None) -> Pieces:
+def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.ndarray | None = None,
+              moments=moments) -> Pieces:
     """Cut convex regions into pieces of the patch grid, eq. (M2).
 
     Each region is swept row by row of the grid: in a row, the patches between the region's
@@ -87,6 +88,9 @@ def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.nda
     span : float64 [r, H, 3], optional
         Half-planes that bound where pieces are wanted (the beam's reach): patches wholly outside
         them are left out, but the pieces are the region's own (a span does not cut a patch).
+    moments : callable, optional
+        The border pieces' moments (:func:`~sarmitsuba.tracing.mesh.polygons.moments`, the
+        default, or a function with its signature and results).
 
     Returns
     -------
@@ -97,11 +101,12 @@ def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.nda
     extent = polygon.max(axis=1) - polygon.min(axis=1)
     small = np.all(extent <= patch, axis=1) & (reach_count >= 3) & (count >= 3)
     live = np.flatnonzero((reach_count >= 3) & ~small)
-    cut = _sweep(polygon, count, reach, reach_count, live, patch)
-    return _with_small(cut, polygon, count, np.flatnonzero(small), patch)
+    cut = _sweep(polygon, count, reach, reach_count, live, patch, moments)
+    return _with_small(cut, polygon, count, np.flatnonzero(small), patch, moments)
 
 
-def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.ndarray, patch: float) -> Pieces:
+def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.ndarray, patch: float,
+                moments=moments) -> Pieces:
     """``cut`` and one border piece per region of ``small`` (a region no wider than a patch is its
     own piece, whatever patches it straddles: its cell is its centroid's)."""
     if len(small) == 0:
@@ -118,7 +123,7 @@ def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.n
                   np.concatenate([cut.whole, np.zeros(len(small), bool)]), border, poly, counts, patch)
 
 
-def _sweep(polygon, count, reach, reach_count, live, patch: float) -> Pieces:
+def _sweep(polygon, count, reach, reach_count, live, patch: float, moments=moments) -> Pieces:
     """The pieces of regions ``live``, swept row by row (:func:`pieces_of`)."""
     y_lo = np.floor(reach[live, :, 1].min(axis=1) / patch).astype(np.int64)
     y_hi = np.floor(reach[live, :, 1].max(axis=1) / patch).astype(np.int64)

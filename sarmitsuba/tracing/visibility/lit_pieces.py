@@ -307,7 +307,8 @@ def legs(surfaces: Surfaces, chains: Chains, chain: np.ndarray, points: np.ndarr
 
 
 def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Rays, visibility: PathVisibility,
-               patch: float, span: tuple | None = None, receiver: np.ndarray | None = None) -> LitPieces:
+               patch: float, span: tuple | None = None, receiver: np.ndarray | None = None,
+               cut=pieces_of) -> LitPieces:
     """The pieces of ``chains`` [n] seen from ``antenna`` [n, 3] (each chain's reference position)
     and what the antenna sees of them, eqs. (M2)-(M4).
 
@@ -327,6 +328,9 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
     receiver : float64 [n, 3], optional
         Bistatic: each chain's receiver reference position, the return legs' end (docs/physics.md
         (B2)); default the antenna.
+    cut : callable, optional
+        Cuts the regions into pieces: :func:`~sarmitsuba.tracing.mesh.piece_cuts.pieces_of` (the
+        default) or a function with its signature and results.
     """
     lines, valid, returns = region_lines(surfaces, chains, antenna, receiver)
     last = chains.last
@@ -336,7 +340,7 @@ def lit_pieces(surfaces: Surfaces, chains: Chains, antenna: np.ndarray, rays: Ra
         g, lo, hi = span
         reach = unfolded_lines(surfaces, chains, np.concatenate([g, -g]).reshape(2, -1, 3).transpose(1, 0, 2),
                                np.stack([-lo, hi], axis=1))
-    pieces = pieces_of(region, count, patch, reach)
+    pieces = cut(region, count, patch, reach)
     return classify(surfaces, chains, pieces, antenna, rays, visibility, returns, receiver)
 
 
