@@ -27,7 +27,8 @@ import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.trace_inputs import TraceSettings
-from sarmitsuba.tracing.fused import boundary, matching, moments
+from sarmitsuba.tracing.fused import boundary, matching, moments, segments
+from sarmitsuba.tracing.driver import mesh_trace
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
 
@@ -170,7 +171,8 @@ SCENES = {
 
 
 #: Every kernel of the fused path: (module, function), each with the reference's signature.
-KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (moments, "moments"))
+KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (moments, "moments"),
+           (segments.SegmentKinds, "never_specular"), (segments.SegmentKinds, "split_kinds"))
 
 
 def _rows(out) -> int:
@@ -197,7 +199,8 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
 
     for module, function in KERNELS:
         monkeypatch.setattr(module, function, counted(module, function))
-    monkeypatch.setattr(moments, "DEVICE_ROWS", 0)          # the kernel even for these small scenes
+    monkeypatch.setattr(moments, "DEVICE_ROWS", 0)          # the kernels even for these small scenes
+    monkeypatch.setattr(mesh_trace, "SEGMENT_ROWS", 0)
     reference = simulate(SCENES[name]())
     assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})

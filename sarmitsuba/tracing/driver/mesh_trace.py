@@ -32,6 +32,7 @@ from ..discovery.chains import Chains, image_source, region_lines, unfold
 from ..discovery.specular import arriving_views, discover, discovery_subdivision
 from ..fused import geometry_kernels
 from ..fused.matching import RowMatcher
+from ..fused.segments import DEVICE_ROWS as SEGMENT_ROWS, SegmentKinds
 from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
 from ..visibility.lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
@@ -97,6 +98,8 @@ class MeshTracer:
         #: The Dr.Jit kernels of the stages that have one (docs/design.md section 10.1).
         self.fused = settings.geometry == "fused"
         self.kernels = geometry_kernels(settings.geometry)
+        self.segment_kinds = SegmentKinds(surfaces, self.k, self.alpha_s, STABLE_MARGIN * NEAR_SPECULAR, SINC_REGIME,
+                                          (SPLIT_START, SINC, OPEN_START)) if self.fused else None
         # a ground shape's free rims are truncations: no PO rim terms, no edge currents (M10)
         ground = ground_parts(scene, surfaces, settings.ground_shapes)
         wedges = find_wedges(surfaces) if returns.diffraction or np.any(ground) else None
@@ -356,8 +359,11 @@ class MeshTracer:
             lit.pieces.geometry_of(pieces_rows, self.kernels.moments), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
         at = np.take(chains.sub, region)
-        stable = self._never_specular(chains, region, centroid, diagonal, np.take(views, at, axis=0),
-                                      np.take(rx_views, at, axis=0))
+        if self.segment_kinds is not None and len(region) >= SEGMENT_ROWS:
+            stable = self.segment_kinds.never_specular(chains, region, centroid, diagonal, views, rx_views)
+        else:
+            stable = self._never_specular(chains, region, centroid, diagonal, np.take(views, at, axis=0),
+                                          np.take(rx_views, at, axis=0))
         n = len(pieces)
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
@@ -372,8 +378,11 @@ class MeshTracer:
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         seg_region = np.take(region, seg_piece)
         at = np.take(chains.sub, seg_region)
-        kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2, np.take(views, at, axis=0),
-                                 np.take(rx_views, at, axis=0))
+        if self.segment_kinds is not None and len(seg_region) >= SEGMENT_ROWS:
+            kind = self.segment_kinds.split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2, views, rx_views)
+        else:
+            kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2,
+                                     np.take(views, at, axis=0), np.take(rx_views, at, axis=0))
         # every boundary segment of the pieces that may need their area term
         rows = np.flatnonzero(~stable[:n])
         t_piece, t_start, t_end, _ = pieces.edges(rows)
