@@ -356,14 +356,10 @@ class MeshTracer:
         region = np.concatenate([pieces.region, cut.region])
         part = chains.last[region]
         area, centroid2, second, diagonal = (np.concatenate([a, b]) for a, b in zip(
-            lit.pieces.geometry_of(pieces_rows, self.kernels.moments), (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
+            lit.pieces.geometry_of(pieces_rows, self.kernels.moments),
+            (clipped.area, clipped.centroid, clipped.second, clipped.diagonal)))
         centroid = s.to_world(part, centroid2)
-        at = np.take(chains.sub, region)
-        if self.segment_kinds is not None and len(region) >= SEGMENT_ROWS:
-            stable = self.segment_kinds.never_specular(chains, region, centroid, diagonal, views, rx_views)
-        else:
-            stable = self._never_specular(chains, region, centroid, diagonal, np.take(views, at, axis=0),
-                                          np.take(rx_views, at, axis=0))
+        stable = self._stable(chains, region, centroid, diagonal, views, rx_views)
         n = len(pieces)
         seg_piece, p2, q2 = segments(pieces, stable[:n], self.cancel)
         seg_piece = np.concatenate([seg_piece, n + clipped.owner])
@@ -377,12 +373,7 @@ class MeshTracer:
             kept = np.flatnonzero(~(np.take(stable, seg_piece) & on_rim(s, self.rim, np.take(part, seg_piece), p2, q2)))
             seg_piece, p2, q2 = np.take(seg_piece, kept), np.take(p2, kept, axis=0), np.take(q2, kept, axis=0)
         seg_region = np.take(region, seg_piece)
-        at = np.take(chains.sub, seg_region)
-        if self.segment_kinds is not None and len(seg_region) >= SEGMENT_ROWS:
-            kind = self.segment_kinds.split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2, views, rx_views)
-        else:
-            kind = self._split_kinds(chains, seg_region, np.take(part, seg_piece), p2, q2,
-                                     np.take(views, at, axis=0), np.take(rx_views, at, axis=0))
+        kind = self._kinds(chains, seg_region, np.take(part, seg_piece), p2, q2, views, rx_views)
         # every boundary segment of the pieces that may need their area term
         rows = np.flatnonzero(~stable[:n])
         t_piece, t_start, t_end, _ = pieces.edges(rows)
@@ -479,6 +470,22 @@ class MeshTracer:
         wild = np.maximum(_norm2(p_rate), _norm2(q_rate)) * reach > MOVE_LIMIT * pieces.patch
         p_rate[wild], q_rate[wild] = 0.0, 0.0
         return p_rate, q_rate, b
+
+    def _stable(self, chains, chain, points, diagonal, views, rx_views) -> np.ndarray:
+        """:meth:`_never_specular` with ``views``, ``rx_views`` [n_sub, 3, 3] per sub-aperture: the
+        fused kernel's (:class:`~sarmitsuba.tracing.fused.segments.SegmentKinds`) or the reference's."""
+        if self.segment_kinds is not None and len(chain) >= SEGMENT_ROWS:
+            return self.segment_kinds.never_specular(chains, chain, points, diagonal, views, rx_views)
+        at = np.take(chains.sub, chain)
+        return self._never_specular(chains, chain, points, diagonal, np.take(views, at, axis=0),
+                                    np.take(rx_views, at, axis=0))
+
+    def _kinds(self, chains, chain, part, p2, q2, views, rx_views) -> np.ndarray:
+        """:meth:`_split_kinds` with ``views``, ``rx_views`` per sub-aperture, as :meth:`_stable`."""
+        if self.segment_kinds is not None and len(chain) >= SEGMENT_ROWS:
+            return self.segment_kinds.split_kinds(chains, chain, part, p2, q2, views, rx_views)
+        at = np.take(chains.sub, chain)
+        return self._split_kinds(chains, chain, part, p2, q2, np.take(views, at, axis=0), np.take(rx_views, at, axis=0))
 
     def _never_specular(self, chains, chain, points, diagonal, views, rx_views) -> np.ndarray:
         """bool: every pulse of the sub-aperture sees each piece at least ``STABLE_MARGIN
