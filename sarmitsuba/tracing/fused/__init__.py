@@ -12,6 +12,9 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
                             reference: ``visibility.occlusion.lit_boundary``
 :mod:`.moments`             polygon moments (area, centroid, second moments, box diagonal);
                             reference: ``mesh.polygons.moments``
+:mod:`.segments`            the stable flags of pieces and the split kinds of segments (step 8);
+                            reference: ``driver.mesh_trace.MeshTracer._never_specular``,
+                            ``_split_kinds``
 ==========================  ===============================================================
 
 :func:`geometry_kernels` gives the functions a tracer calls for the stages that have a kernel:
