@@ -27,7 +27,7 @@ import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.trace_inputs import TraceSettings
-from sarmitsuba.tracing.fused import boundary, matching, moments, segments
+from sarmitsuba.tracing.fused import boundary, matching, moments, pieces, segments
 from sarmitsuba.tracing.driver import mesh_trace
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
@@ -171,7 +171,7 @@ SCENES = {
 
 
 #: Every kernel of the fused path: (module, function), each with the reference's signature.
-KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (moments, "moments"),
+KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (moments, "moments"), (pieces, "pieces_of"),
            (segments.SegmentKinds, "never_specular"), (segments.SegmentKinds, "split_kinds"))
 
 
@@ -201,6 +201,7 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
         monkeypatch.setattr(module, function, counted(module, function))
     monkeypatch.setattr(moments, "DEVICE_ROWS", 0)          # the kernels even for these small scenes
     monkeypatch.setattr(mesh_trace, "SEGMENT_ROWS", 0)
+    monkeypatch.setattr(pieces, "KERNEL_REGIONS", 0)
     reference = simulate(SCENES[name]())
     assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})

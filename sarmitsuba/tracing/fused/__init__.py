@@ -12,6 +12,8 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
                             reference: ``visibility.occlusion.lit_boundary``
 :mod:`.moments`             polygon moments (area, centroid, second moments, box diagonal);
                             reference: ``mesh.polygons.moments``
+:mod:`.pieces`              regions cut into patch pieces, one lane per grid row (step 1);
+                            reference: ``mesh.piece_cuts.pieces_of``
 :mod:`.segments`            the stable flags of pieces and the split kinds of segments (step 8);
                             reference: ``driver.mesh_trace.MeshTracer._never_specular``,
                             ``_split_kinds``
@@ -41,7 +43,7 @@ class GeometryKernels:
     moments : callable
         :func:`sarmitsuba.tracing.mesh.polygons.moments` or its kernel.
     pieces_of : callable
-        :func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` with these ``moments``.
+        :func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` or its kernel, with these ``moments``.
     """
 
     lit_boundary: Callable
@@ -58,6 +60,6 @@ def geometry_kernels(pipeline: str) -> GeometryKernels:
     if pipeline != "fused":
         return GeometryKernels(lit_boundary=occlusion.lit_boundary, moments=polygons.moments,
                                pieces_of=piece_cuts.pieces_of)
-    from . import boundary, moments
+    from . import boundary, moments, pieces
     return GeometryKernels(lit_boundary=boundary.lit_boundary, moments=moments.moments,
-                           pieces_of=functools.partial(piece_cuts.pieces_of, moments=moments.moments))
+                           pieces_of=functools.partial(pieces.pieces_of, moments=moments.moments))

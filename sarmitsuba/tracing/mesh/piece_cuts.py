@@ -11,7 +11,7 @@ from .facets import MAX_PART_VERTICES
 from .patches import Pieces
 from .polygons import clip, moments, pad
 
-__all__ = ["pieces_of", "cell_key", "SLIVER", "PIECE_CORNERS", "MAX_CELLS_PER_SIDE"]
+__all__ = ["pieces_of", "sweep", "with_small", "cell_lines", "cell_key", "SLIVER", "PIECE_CORNERS", "MAX_CELLS_PER_SIDE"]
 
 #: Cells of one region at most per dimension (a guard against a patch size far below the region).
 MAX_CELLS_PER_SIDE = 1 << 20
@@ -101,11 +101,11 @@ def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.nda
     extent = polygon.max(axis=1) - polygon.min(axis=1)
     small = np.all(extent <= patch, axis=1) & (reach_count >= 3) & (count >= 3)
     live = np.flatnonzero((reach_count >= 3) & ~small)
-    cut = _sweep(polygon, count, reach, reach_count, live, patch, moments)
-    return _with_small(cut, polygon, count, np.flatnonzero(small), patch, moments)
+    cut = sweep(polygon, count, reach, reach_count, live, patch, moments)
+    return with_small(cut, polygon, count, np.flatnonzero(small), patch, moments)
 
 
-def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.ndarray, patch: float,
+def with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.ndarray, patch: float,
                 moments=moments) -> Pieces:
     """``cut`` and one border piece per region of ``small`` (a region no wider than a patch is its
     own piece, whatever patches it straddles: its cell is its centroid's)."""
@@ -123,7 +123,7 @@ def _with_small(cut: Pieces, polygon: np.ndarray, count: np.ndarray, small: np.n
                   np.concatenate([cut.whole, np.zeros(len(small), bool)]), border, poly, counts, patch)
 
 
-def _sweep(polygon, count, reach, reach_count, live, patch: float, moments=moments) -> Pieces:
+def sweep(polygon, count, reach, reach_count, live, patch: float, moments=moments) -> Pieces:
     """The pieces of regions ``live``, swept row by row (:func:`pieces_of`)."""
     y_lo = np.floor(reach[live, :, 1].min(axis=1) / patch).astype(np.int64)
     y_hi = np.floor(reach[live, :, 1].max(axis=1) / patch).astype(np.int64)
@@ -156,7 +156,7 @@ def _sweep(polygon, count, reach, reach_count, live, patch: float, moments=momen
     cell = np.stack([i, row[cell_row]], axis=1)
     region = region[cell_row]
     b = np.flatnonzero(~whole)
-    cut, cut_count = clip(np.take(polygon, region[b], axis=0), count[region[b]], _cell_lines(cell[b], patch))
+    cut, cut_count = clip(np.take(polygon, region[b], axis=0), count[region[b]], cell_lines(cell[b], patch))
     area, _, _, diagonal = moments(cut, cut_count)
     # a sliver a patch line cuts off a corner that the face's float32 vertices put a rounding
     # error across it is no piece: it would make the real piece's border look like a shared
@@ -177,7 +177,7 @@ def _sweep(polygon, count, reach, reach_count, live, patch: float, moments=momen
 SLIVER = 1e-6
 
 
-def _cell_lines(cell: np.ndarray, patch: float) -> np.ndarray:
+def cell_lines(cell: np.ndarray, patch: float) -> np.ndarray:
     """The four half-planes of each patch ``cell`` [n, 2]: float64 [n, 4, 3]."""
     x0, y0 = cell[:, 0] * patch, cell[:, 1] * patch
     lines = np.zeros((len(cell), 4, 3))
