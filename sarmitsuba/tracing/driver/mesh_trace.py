@@ -37,7 +37,7 @@ from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_STA
 from ..loops import RECORDING
 from ..visibility.lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
 from ..visibility.motion import endpoint_rates, line_rates
-from ..visibility.occlusion import ClippedPieces, clip_mixed, replace_pieces, shared_shadow_lines
+from ..visibility.occlusion import ClippedPieces, clip_mixed, replace_pieces
 from ..mesh.polygons import REPEAT_DISTANCE, edge_lines
 from .stages import StageClock
 from ..integration.surface_clutter import ClutterKernel
@@ -458,7 +458,7 @@ class MeshTracer:
             leg, occluder = key // s.n_parts, key % s.n_parts
             c = region[shaded[pair]]
             receivers = None if rx_views is None else (rx_views[chains.sub, 1], rx_views[chains.sub, 2])
-            lines_a, lines_b = shared_shadow_lines(s, chains, c, occluder, leg, a, b, receivers=receivers)
+            lines_a, lines_b = self.kernels.shadow_lines(s, chains, c, occluder, leg, a, b, receivers=receivers)
             add(shaded[pair], lines_a, line_rates(lines_a, lines_b, step[c]))
         p_rate[need], q_rate[need] = endpoint_rates(p2[need], q2[need], owner, np.concatenate(owners),
                                                     np.concatenate(table), np.concatenate(rates))

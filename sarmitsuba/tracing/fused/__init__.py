@@ -14,6 +14,9 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
                             reference: ``mesh.polygons.moments``
 :mod:`.pieces`              regions cut into patch pieces, one lane per grid row (step 1);
                             reference: ``mesh.piece_cuts.pieces_of``
+:mod:`.shadows`             the half-planes of occluders' shadows, one lane per (chain,
+                            occluder, leg) (step 4); reference:
+                            ``visibility.occlusion.shared_shadow_lines``
 :mod:`.segments`            the stable flags of pieces and the split kinds of segments (step 8);
                             reference: ``driver.mesh_trace.MeshTracer._never_specular``,
                             ``_split_kinds``
@@ -44,11 +47,14 @@ class GeometryKernels:
         :func:`sarmitsuba.tracing.mesh.polygons.moments` or its kernel.
     pieces_of : callable
         :func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` or its kernel, with these ``moments``.
+    shadow_lines : callable
+        :func:`sarmitsuba.tracing.visibility.occlusion.shared_shadow_lines` or its kernel.
     """
 
     lit_boundary: Callable
     moments: Callable
     pieces_of: Callable
+    shadow_lines: Callable
 
 
 def geometry_kernels(pipeline: str) -> GeometryKernels:
@@ -59,7 +65,8 @@ def geometry_kernels(pipeline: str) -> GeometryKernels:
     from ..visibility import occlusion
     if pipeline != "fused":
         return GeometryKernels(lit_boundary=occlusion.lit_boundary, moments=polygons.moments,
-                               pieces_of=piece_cuts.pieces_of)
-    from . import boundary, moments, pieces
+                               pieces_of=piece_cuts.pieces_of, shadow_lines=occlusion.shared_shadow_lines)
+    from . import boundary, moments, pieces, shadows
     return GeometryKernels(lit_boundary=boundary.lit_boundary, moments=moments.moments,
-                           pieces_of=functools.partial(pieces.pieces_of, moments=moments.moments))
+                           pieces_of=functools.partial(pieces.pieces_of, moments=moments.moments),
+                           shadow_lines=shadows.shared_shadow_lines)

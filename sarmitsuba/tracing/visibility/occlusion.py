@@ -530,8 +530,8 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     pair_piece, key = blockers.rows(rows, mesh=True)
     leg, occluder = key // surfaces.n_parts, key % surfaces.n_parts
     chain = pieces.region[pair_piece]
-    lines, = shared_shadow_lines(surfaces, lit.chains, chain, occluder, leg, antenna,
-                                 receivers=None if receiver is None else (receiver,))
+    lines, = (kernels.shadow_lines if kernels else shared_shadow_lines)(
+        surfaces, lit.chains, chain, occluder, leg, antenna, receivers=None if receiver is None else (receiver,))
     cut, cut_count = clip(np.take(poly, pair_piece, axis=0), np.take(count, pair_piece), lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
     cut_area = _areas(cut, cut_count)
