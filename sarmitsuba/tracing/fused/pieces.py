@@ -59,26 +59,10 @@ def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.nda
     """:func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` with its row sweep on the device: the
     same pieces, every field bit for bit, eq. (M2) of docs/physics.md.
 
-    Parameters
-    ----------
-    polygon : float64 [r, V, 2]
-        The regions (convex, counter-clockwise, face coordinates, m).
-    count : int64 [r]
-        Their corners (regions with fewer than 3 are skipped).
-    patch : float
-        Patch size ``P`` [m].
-    span : float64 [r, H, 3], optional
-        Half-planes that bound where pieces are wanted (the beam's reach), as the reference's.
-    moments : callable, optional
-        ``moments(poly float64 [n, W, 2], count int64 [n]) -> (area [n], centroid [n, 2],
-        second [n, 3], diagonal [n])``, :func:`sarmitsuba.tracing.mesh.polygons.moments` or a
-        kernel with its results.
-
-    Returns
-    -------
-    Pieces
-        As the reference's: region int64 [n], cell int64 [n, 2], whole bool [n], border int64
-        [n], polygon float64 [b, W, 2], count int64 [b], patch.
+    Parameters and result are the reference's (``polygon`` float64 [r, V, 2], ``count`` int64 [r],
+    ``patch`` [m], ``span`` float64 [r, H, 3] or None, ``moments`` a function with the signature of
+    :func:`sarmitsuba.tracing.mesh.polygons.moments`); batches of fewer than
+    :data:`KERNEL_REGIONS` regions are the reference's own.
     """
     polygon = np.asarray(polygon)
     if polygon.dtype != np.float64 or polygon.ndim != 3 or len(polygon) < KERNEL_REGIONS or polygon.shape[1] == 0:
