@@ -98,11 +98,11 @@ def test_launches_at_once_build_the_shared_pieces_once(monkeypatch):
     """Two host threads that start their launches together wait for one build of the mesh's
     pieces (a 1 M-triangle city's are 0.6 GB): ``pieces_of`` runs once, slowed here so that both
     threads ask while it runs, and both get the same arrays. Without the lock it ran twice."""
+    import dataclasses
     import threading
     import time as _time
 
     from sarmitsuba.tracing.driver import kernel as kernel_module
-    from sarmitsuba.tracing.driver import mesh_trace
 
     loaded = load_scene("urban", sensor_overrides={"n_pulses": 64})
     setup = tracing.prepare_trace(loaded)
@@ -110,14 +110,14 @@ def test_launches_at_once_build_the_shared_pieces_once(monkeypatch):
                                   setup.table, setup.effects)
     tracer = kernel.mesh
     calls = []
-    build = mesh_trace.pieces_of
+    build = tracer.kernels.pieces_of
 
     def slow(*args, **kwargs):
         calls.append(threading.get_ident())
         _time.sleep(0.3)
         return build(*args, **kwargs)
 
-    monkeypatch.setattr(mesh_trace, "pieces_of", slow)
+    monkeypatch.setattr(tracer, "kernels", dataclasses.replace(tracer.kernels, pieces_of=slow))
     got = []
     workers = [threading.Thread(target=lambda: got.append(tracer._first_pieces())) for _ in range(2)]
     for w in workers:

@@ -399,7 +399,7 @@ def test_cell_lines_are_the_reference():
     one, zero = np.ones_like(x0), np.zeros_like(x0)
     want = np.stack([np.stack([one, zero, -x0], 1), np.stack([-one, zero, x0 + patch], 1),
                      np.stack([zero, one, -y0], 1), np.stack([zero, -one, y0 + patch], 1)], axis=1)
-    got = piece_cuts._cell_lines(cell, patch)
+    got = piece_cuts.cell_lines(cell, patch)
     np.testing.assert_array_equal(got, want)
     assert np.array_equal(np.signbit(got), np.signbit(want))
-    assert piece_cuts._cell_lines(cell[:0], patch).shape == (0, 4, 3)
+    assert piece_cuts.cell_lines(cell[:0], patch).shape == (0, 4, 3)
