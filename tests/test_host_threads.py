@@ -18,6 +18,7 @@ The pool's results taken in the order they finish is no bug (each result carries
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -126,3 +127,28 @@ def test_launches_at_once_build_the_shared_pieces_once(monkeypatch):
         w.join()
     assert len(calls) == 1
     assert got[0] is got[1]
+
+
+def test_host_threads_that_fill_the_cores_leave_no_pool_and_the_pool_comes_back(monkeypatch):
+    """Two host threads on 2 cores: no pool workers (Dr.Jit's thread count 1, which counts the
+    calling thread: each host thread runs its own blocks); on 16 cores the 14 workers the threads
+    leave (count 15); one thread keeps the pool. The pool's size is restored after a threaded
+    trace and after an error inside it."""
+    import drjit as dr
+    assert threads.kernel_workers(2, cores=2) == 1
+    assert threads.kernel_workers(2, cores=16) == 15
+    assert threads.kernel_workers(3, cores=2) == 1
+    assert threads.kernel_workers(1, cores=2) is None
+    before = dr.thread_count()
+    seen = []
+    with threads.kernel_pool(2):
+        seen.append(dr.thread_count())
+    assert dr.thread_count() == before
+    assert seen == [max(os.cpu_count() or 1, 2) - 1]
+    with pytest.raises(RuntimeError):
+        with threads.kernel_pool(2):
+            raise RuntimeError("inside")
+    assert dr.thread_count() == before
+    loaded = load_scene("urban")
+    _trace(loaded, 2, monkeypatch)
+    assert dr.thread_count() == before

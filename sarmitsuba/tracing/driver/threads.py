@@ -15,17 +15,27 @@ With several threads the histogram's deposit adds atomically
 pool worker 0 and add into the same copy without atomics (before that was found, a few pulses of
 a threaded trace lost up to 4e-5 of their power). Set :data:`HOST_THREADS_VARIABLE` to 1 to
 trace one launch at a time.
+
+While several host threads trace, Dr.Jit's pool keeps workers only on the cores they leave free
+(:func:`kernel_workers`, :func:`kernel_pool`): a host thread that waits on Dr.Jit runs the blocks
+itself, and on a 2-core machine two host threads and the default pool only took the cores from one
+another (Munich, 512 pulses, fused geometry, three runs each, alternated: trace 29.4 s mean with
+the default pool, 26.9 s with no workers). The raw data do not change: blocks are the same
+whichever thread runs them.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 
+import drjit as dr
 import numpy as np
 
 from ...core.radar import ParameterError
 from ..loops import lane_float, loop_mode
 
-__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "caused_by_interrupt"]
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "kernel_workers",
+           "kernel_pool", "caused_by_interrupt"]
 
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
 #: its own host thread (an integer >= 1; default :data:`HOST_THREADS`, at most the machine's cores).
@@ -63,6 +73,32 @@ def launches_at_once() -> int:
     else:
         wanted = HOST_THREADS
     return max(1, min(wanted, os.cpu_count() or 1))
+
+
+def kernel_workers(threads: int, cores: int | None = None) -> int | None:
+    """Dr.Jit's thread count (``dr.set_thread_count``: its pool workers plus the calling thread)
+    while ``threads`` host threads trace on ``cores`` cores (default the machine's): workers on the
+    cores the host threads leave free (1: none, each host thread runs its kernels' blocks itself),
+    or None to keep the pool as it is (one host thread)."""
+    if threads <= 1:
+        return None
+    return max((os.cpu_count() or 1) if cores is None else cores, threads) - threads + 1
+
+
+@contextlib.contextmanager
+def kernel_pool(threads: int):
+    """Within it, Dr.Jit's thread count is :func:`kernel_workers` for ``threads`` host threads;
+    it is restored on leaving, also after an error."""
+    workers = kernel_workers(threads)
+    if workers is None:
+        yield
+        return
+    before = dr.thread_count()
+    dr.set_thread_count(workers)
+    try:
+        yield
+    finally:
+        dr.set_thread_count(before)
 
 
 def caused_by_interrupt(exc: BaseException) -> bool:

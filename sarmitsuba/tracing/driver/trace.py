@@ -44,7 +44,7 @@ from .launches import Blocks, Launch, receiver_launch
 from .moving import moving_pulses
 from ..integration.pulse_view import antenna_axes
 from .stages import STAGES, by_order
-from .threads import caused_by_interrupt, host_threads
+from .threads import caused_by_interrupt, host_threads, kernel_pool
 from ...core.radar import ParameterError, RadarParameters
 from ...core.geometry import AcquisitionGeometry, acquisition_geometry
 from ...scene.loader import LoadedScene, material_table
@@ -424,27 +424,28 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
     batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
     pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
-    try:
-        if run_batches is not None:
-            results = run_batches(plan, plan.batches)
-        else:
-            def one(g0):
-                return trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
-            results = pool.map(one, plan.batches) if pool is not None else (one(g0) for g0 in plan.batches)
-        for out in results:
-            p0, p1 = out["pulses"]
-            if plan.exact:
-                paths[p0] = out["paths"]
+    with kernel_pool(threads):           # host threads that fill the cores run their own blocks
+        try:
+            if run_batches is not None:
+                results = run_batches(plan, plan.batches)
             else:
-                spectrum[:, p0:p1] = out["spectrum"]
-            batch_totals[p0] = out["totals"]
-            bar.update(p1 - p0)
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
-        bar.close()
-        del kernel
-        dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
+                def one(g0):
+                    return trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
+                results = pool.map(one, plan.batches) if pool is not None else (one(g0) for g0 in plan.batches)
+            for out in results:
+                p0, p1 = out["pulses"]
+                if plan.exact:
+                    paths[p0] = out["paths"]
+                else:
+                    spectrum[:, p0:p1] = out["spectrum"]
+                batch_totals[p0] = out["totals"]
+                bar.update(p1 - p0)
+        finally:
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
+            bar.close()
+            del kernel
+            dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
     for p0 in sorted(batch_totals):
         for name in totals:
             totals[name] = totals[name] + batch_totals[p0].get(name, 0)
