@@ -22,7 +22,7 @@ import mitsuba as mi
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..device import device_array, table_array
+from ..device import device_array
 from ..loops import RECORDING, loop_mode
 
 __all__ = ["PHI", "SCAN_LIMIT", "RowMatcher", "lone_pairs", "lone_pairs_reference"]
@@ -59,23 +59,21 @@ def lone_pairs(features: np.ndarray, group: np.ndarray, tolerance: float) -> tup
     n, f = features.shape
     if n < 2:
         return np.zeros((0, 2), np.int64), 0
-    f64, u32 = mi.Float64, mi.UInt32
-    columns = [device_array(f64, features[:, k]) for k in range(f)]
-    key = columns[0] + PHI * columns[1]
-    # sorted by group, then key: a stable sort by key, then a stable sort by group
-    by_key = dr.argsort(key)
-    grp = device_array(mi.Int64, np.asarray(group, np.int64))
-    order = dr.gather(u32, by_key, dr.argsort(dr.gather(mi.Int64, grp, by_key)))
-    table = [dr.gather(f64, c, order) for c in columns]
-    sorted_key = dr.gather(f64, key, order)
-    sorted_group = dr.gather(mi.Int64, grp, order)
-    dr.eval(table, sorted_key, sorted_group, order)
+    # sorted by group, then key (stably), on the host: Dr.Jit's LLVM argsort compiles a kernel for
+    # every array length (a radix sort with the length in its code), one per call
+    key = features[:, 0] + PHI * features[:, 1]
+    group = np.asarray(group, np.int64)
+    order = np.lexsort((key, group))
+    f64 = mi.Float64
+    table = [device_array(f64, np.ascontiguousarray(features[order, k])) for k in range(f)]
+    sorted_key = device_array(f64, key[order])
+    sorted_group = device_array(mi.Int64, group[order])
+    dr.eval(table, sorted_key, sorted_group)
     with RECORDING:                     # a symbolic loop: recorded one thread at a time
         count, partner, overflow = _scan(table, sorted_key, sorted_group, tolerance)
         dr.eval(count, partner, overflow)
     count, partner, overflow = count.numpy(), partner.numpy().astype(np.int64), overflow.numpy()
-    order = order.numpy().astype(np.int64)
-    sorted_group = sorted_group.numpy()
+    sorted_group = np.take(group, order)
     lone = np.flatnonzero(count == 1)
     lone = lone[count[partner[lone]] == 1]
     lone = lone[lone < partner[lone]]
@@ -86,7 +84,7 @@ def lone_pairs(features: np.ndarray, group: np.ndarray, tolerance: float) -> tup
         rows = rows[~bad[lone]]
         members = order[bad]
         spilled = len(members)
-        extra = lone_pairs_reference(features[members], np.asarray(group, np.int64)[members], tolerance)
+        extra = lone_pairs_reference(features[members], group[members], tolerance)
         rows = np.concatenate([rows, members[extra]])
     rows = np.sort(rows, axis=1)
     return rows[np.lexsort((rows[:, 1], rows[:, 0]))], spilled
@@ -118,7 +116,10 @@ def _scan(table, key, group, tolerance: float):
             d = dr.gather(f64, column, j) - column
             d2 += d * d
         match = d2 <= limit
-        dr.scatter_add(back_count, u32(1), j, match)
+        # atomic adds: Expand (the default for small arrays) writes per-worker copies indexed with
+        # the array's length in the kernel's code (one kernel per length), and two host threads
+        # running one kernel's blocks as worker 0 would share a copy
+        dr.scatter_add(back_count, u32(1), j, match, mode=dr.ReduceMode.Direct)
         dr.scatter(back_partner, lane, j, match)
         return (j + 1, steps + 1, count + dr.select(match, 1, 0), dr.select(match, j, partner))
 
