@@ -15,7 +15,9 @@ Deliberate bugs these tests were run against (each fails one):
   * the window ``tolerance`` wide instead of ``tolerance sqrt(1 + PHI^2)``: the pairs along the
     sort key's gradient;
   * only forward matches counted (the atomic count of earlier rows left out): the triples;
-  * the sort key ``f_0`` alone (no projection): the rows of a patch line overflow the scan.
+  * the sort key ``f_0`` alone (no projection): the rows of a patch line overflow the scan;
+  * the earlier rows counted by ``scatter_add`` in Dr.Jit's default (Expand) mode: a kernel
+    compiled per array length (the compile-once test).
 """
 from __future__ import annotations
 
@@ -135,6 +137,25 @@ def test_a_crowded_window_goes_to_the_reference():
     assert overflow == len(crowd) + 1
     assert np.array_equal(_sorted(pairs), [[7, len(crowd)], [len(crowd) + 1, len(crowd) + 2]])
     assert np.array_equal(_sorted(pairs), _sorted(kd_tree_pairs(features, group, TOL)))
+
+
+def test_lone_pairs_compile_once_for_every_length():
+    """The planted rows of two seeds (different lengths) after a first call: the second call
+    launches only kernels the first compiled (the array length is a launch parameter, not part of
+    a kernel's code), and still finds the planted pairs. Dr.Jit's Expand-mode scatter_add puts the
+    length in the code: it fails this."""
+    import drjit as dr
+    kernels = []
+    for seed in (0, 1):
+        features, group, expected = _planted(seed)
+        dr.set_flag(dr.JitFlag.KernelHistory, True)
+        dr.kernel_history()                                # (clears it)
+        pairs, _ = lone_pairs(features[: len(features) - 7 * seed], group[: len(group) - 7 * seed], TOL)
+        kernels.append({k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT})
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+        if seed == 0:
+            assert np.array_equal(_sorted(pairs), expected)
+    assert kernels[0] and kernels[1] <= kernels[0], len(kernels[1] - kernels[0])
 
 
 def _tilted_wall() -> list:

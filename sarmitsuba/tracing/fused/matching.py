@@ -59,8 +59,8 @@ def lone_pairs(features: np.ndarray, group: np.ndarray, tolerance: float) -> tup
     n, f = features.shape
     if n < 2:
         return np.zeros((0, 2), np.int64), 0
-    # sorted by group, then key (stably), on the host: Dr.Jit's LLVM argsort compiles a kernel for
-    # every array length (a radix sort with the length in its code), one per call
+    # sorted by group, then key (stably), on the host, where the rows are: two Dr.Jit argsorts
+    # (LLVM: a radix sort run from Python) cost more than NumPy's lexsort
     key = features[:, 0] + PHI * features[:, 1]
     group = np.asarray(group, np.int64)
     order = np.lexsort((key, group))
