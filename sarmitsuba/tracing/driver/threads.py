@@ -18,10 +18,13 @@ trace one launch at a time.
 
 While several host threads trace, Dr.Jit's pool keeps workers only on the cores they leave free
 (:func:`kernel_workers`, :func:`kernel_pool`): a host thread that waits on Dr.Jit runs the blocks
-itself, and on a 2-core machine two host threads and the default pool only took the cores from one
-another (Munich, 512 pulses, fused geometry, three runs each, alternated: trace 29.4 s mean with
-the default pool, 26.9 s with no workers). The raw data do not change: blocks are the same
-whichever thread runs them.
+itself. Munich, 512 pulses, fused geometry, 2 cores, runs alternated: trace 29.4 s (mean of three)
+with the default pool against 26.9 s with no workers; on a quieter machine 25.3 s against 24.4 s,
+and 25.8 s on one host thread. Without workers a kernel runs inside the evaluation that launched
+it, under Dr.Jit's lock, so another host thread's Dr.Jit call waits for it, holding the GIL
+(py-spy: 3.3 s of that trace in :func:`~sarmitsuba.tracing.device.device_array`): on two cores
+two host threads gain little on the fused path, whose kernels already use both cores. The raw
+data do not change: blocks are the same whichever thread runs them.
 """
 from __future__ import annotations
 
