@@ -5,10 +5,12 @@ Deliberate bugs these tests were run against: a nested section that does not pau
 (the clock's test); and, each failing the render's test, the mesh tracer
 not setting the clock's order (every stage in order 1); the stages' total taken from the first
 order's row only (it falls short of the orders' sum); the launch's deposit charged to order 1
-(it belongs to none).
+(it belongs to none); the tracer not handing its clock to the casts (no ``casts`` stage); a cast
+charged to the clock of another thread (the threads' test).
 """
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -16,6 +18,7 @@ import numpy as np
 import sarmitsuba  # noqa: F401
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.tracing.driver.stages import STAGES, StageClock, by_order
+from sarmitsuba.tracing.timing import charged_to, section
 
 
 def test_the_clock_charges_each_section_to_the_order_then_current():
@@ -52,6 +55,7 @@ def test_a_render_reports_its_stages_by_bounce_order():
     assert set(orders) == {1, 2, 3}
     assert "first bounce" in orders[1] and all("first bounce" not in orders[d] for d in (2, 3))
     assert "discovery" not in orders[1] and all("discovery" in orders[d] for d in (2, 3))
+    assert all(orders[d].get("casts", 0.0) > 0 for d in (1, 2, 3))          # every order casts rays
     assert all("lanes" in orders[d] and "terms" in orders[d] for d in (1, 2))   # (order 3 finds no chains
     # at 96 pulses: its discovery alone)
     for stage, seconds in totals.items():
@@ -62,3 +66,31 @@ def test_a_render_reports_its_stages_by_bounce_order():
             np.testing.assert_allclose(share, seconds, rtol=1e-9)
     shallow = simulate("urban", sensor_overrides={"n_pulses": 96}, integrator_overrides={"max_depth": 1})
     assert set(shallow.trace.stage_seconds_by_order) == {1}
+
+
+def test_casts_charge_the_clock_of_their_own_thread_only():
+    """A section opened through :func:`section` pauses the stage around it on this thread's
+    clock; outside :func:`charged_to` it times nothing, and a second thread charging its own
+    clock at the same time leaves this one's untouched."""
+    casts, lanes = STAGES.index("casts"), STAGES.index("lanes")
+    with section("casts"):                                   # no clock: nothing to charge
+        time.sleep(0.005)
+    mine, theirs = StageClock(), StageClock()
+
+    def other():
+        with charged_to(theirs), theirs("lanes"), section("casts"):
+            time.sleep(0.12)
+
+    worker = threading.Thread(target=other)
+    with charged_to(mine), mine("lanes"):
+        worker.start()
+        time.sleep(0.02)
+        with section("casts"):
+            time.sleep(0.04)
+        worker.join()
+    assert 0.04 <= mine.seconds[0, casts] < 0.1            # not the other thread's 0.12 s
+    assert mine.seconds[0, lanes] >= 0.02 + 0.05            # before its cast, and waiting for the other
+    assert theirs.seconds[0, casts] >= 0.12 and theirs.seconds[0, lanes] < 0.04
+    with section("casts"):                                   # the clock is gone again
+        time.sleep(0.005)
+    assert mine.seconds[0, casts] < 0.1

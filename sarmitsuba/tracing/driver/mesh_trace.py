@@ -40,6 +40,7 @@ from ..visibility.motion import endpoint_rates, line_rates
 from ..visibility.occlusion import ClippedPieces, clip_mixed, replace_pieces
 from ..mesh.polygons import REPEAT_DISTANCE, edge_lines
 from .stages import StageClock
+from ..timing import charged_to
 from ..integration.surface_clutter import ClutterKernel
 from ..integration.edges import find_wedges, segment_wedges
 from ..integration.truncation import ground_parts, on_rim, rim_edges, without_rims
@@ -128,12 +129,17 @@ class MeshTracer:
         this launch's counters ``{"pieces": [per order], "lanes": [...], "chains": [...], "casts": int,
         "overflow": int}`` (``overflow``: rows the fused kernels left to the NumPy stages). Launches
         may run on several host threads at once (:func:`~sarmitsuba.tracing.driver.trace.trace`)."""
+        clock = StageClock(self.depth + 1)           # (the last row: the deposit, kernel.Kernel)
+        with charged_to(clock):                      # the casts below time themselves
+            return self._orders(ctx, launch, clock)
+
+    def _orders(self, ctx: dict, launch, clock: StageClock) -> dict:
+        """:meth:`__call__`'s bounce orders, timed by ``clock``."""
         reference = launch.reference
         views = self._views(launch)
         rx = self._receiver(launch)
         stats = {"pieces": [], "lanes": [], "chains": [], "samples": [], "carried": [], "discovery": []}
         match = RowMatcher() if self.fused else None
-        clock = StageClock(self.depth + 1)           # (the last row: the deposit, kernel.Kernel)
         casts_before = self.rays.casts + self.visibility.casts
         with clock("first bounce"):
             lit = self._first_bounce(launch)

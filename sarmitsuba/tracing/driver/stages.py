@@ -19,9 +19,12 @@ __all__ = ["STAGES", "StageClock", "by_order"]
 #: occluders, with the recheck (M4); ``rates`` the boundaries' motion (M8); ``lanes`` the term lanes
 #: and the rest of the piece geometry (M5); ``terms`` recording the per-pulse terms and scatterers
 #: and reading the order's histogram back (its energy, docs/physics.md (D6));
-#: ``energy`` the energy check; ``discovery`` the next order's chains (M6); ``deposit`` the device
-#: evaluating every pulse's terms and the host reading the histogram back.
-STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "energy", "discovery", "deposit")
+#: ``energy`` the energy check; ``discovery`` the next order's chains (M6); ``casts`` the ray casts
+#: of all of these (the kernels that cast and read their hits back,
+#: :func:`sarmitsuba.tracing.timing.section`), taken out of the stage they serve; ``deposit`` the
+#: device evaluating every pulse's terms and the host reading the histogram back.
+STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "energy", "discovery", "casts",
+          "deposit")
 
 
 class StageClock:

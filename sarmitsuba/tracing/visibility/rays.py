@@ -14,6 +14,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..device import device_array
+from ..timing import section
 from ..mesh.covers import locate
 from ..mesh.patches import Surfaces, face_partners, occluder_partners
 
@@ -124,7 +125,8 @@ class Rays:
         if len(start) == 0:
             return np.zeros(0, bool)
         blocked = self.scene.ray_test(self._ray(start, end, None), coherent=False)
-        return ~blocked.numpy().astype(bool)
+        with section("casts"):
+            return ~blocked.numpy().astype(bool)
 
     def first_hit(self, start: np.ndarray, end: np.ndarray | None = None,
                   direction: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -143,8 +145,9 @@ class Rays:
         # the distance masked in the cast's own kernel (reading ``found`` after it launched one
         # more kernel per call, and np.where another pass); inf float32 widens to inf float64
         t = dr.select(found, pi.t, dr.inf)
-        dr.eval(part, t)
-        part, t = part.numpy().astype(np.int64), t.numpy().astype(np.float64)
+        with section("casts"):
+            dr.eval(part, t)
+            part, t = part.numpy().astype(np.int64), t.numpy().astype(np.float64)
         return self._resolve(part, t, start, end, direction), t
 
     def _resolve(self, part, t, start, end, direction) -> np.ndarray:
@@ -249,9 +252,11 @@ class PathVisibility:
         back = ant if receiver is None else dr.gather(a64, device_array(a64, receiver.T), ch)
         if order > 0 or receiver is not None:
             bits |= dr.select(self._free(_lifted(x, n_last, back), back), mi.UInt32(1 << (order + 1)), 0)
-        dr.eval(bits)
+        with section("casts"):
+            dr.eval(bits)
+            bits = bits.numpy()
         self.counter.add(len(chain) * (order + 1 + (order > 0 or receiver is not None)))
-        return bits.numpy()
+        return bits
 
     def _free(self, origin, target):
         span = target - origin
