@@ -17,7 +17,9 @@ Deliberate bugs these tests were run against (each fails one):
   * only forward matches counted (the atomic count of earlier rows left out): the triples;
   * the sort key ``f_0`` alone (no projection): the rows of a patch line overflow the scan;
   * the earlier rows counted by ``scatter_add`` in Dr.Jit's default (Expand) mode: a kernel
-    compiled per array length (the compile-once test).
+    compiled per array length (the compile-once test);
+  * the overflow groups' pairs dropped instead of matched by the reference: the overflow render
+    differs from the reference render.
 """
 from __future__ import annotations
 
@@ -237,3 +239,25 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
 def test_an_unknown_geometry_pipeline_is_refused_with_the_valid_values():
     with pytest.raises(ParameterError, match=r"geometry = 'gpu'; valid values: 'reference', 'fused'"):
         TraceSettings(geometry="gpu")
+
+
+def test_overflow_rows_are_finished_by_the_reference_alone(monkeypatch):
+    """A scan window of one row (``SCAN_LIMIT`` 1): the tilted wall's many shared segments crowd
+    every window, so most groups overflow. Their rows go to the k-d tree reference, group by
+    group, and the render is still the reference render bit for bit; the trace counts exactly
+    the rows the reference matched. (A launch handed whole to the reference counts other rows;
+    an overflow group dropped instead of matched changes the raw data.)"""
+    spilled = []
+    real = matching.lone_pairs_reference
+
+    def reference_rows(features, group, tolerance):
+        spilled.append(len(features))
+        return real(features, group, tolerance)
+
+    monkeypatch.setattr(matching, "SCAN_LIMIT", 1)
+    monkeypatch.setattr(matching, "lone_pairs_reference", reference_rows)
+    reference = simulate(SCENES["tilted wall, heading -35 deg"]())
+    fused = simulate(SCENES["tilted wall, heading -35 deg"](), integrator_overrides={"geometry": "fused"})
+    assert fused.trace.overflow_rows == sum(spilled) > 0
+    assert fused.trace.pulse_paths == reference.trace.pulse_paths
+    assert np.array_equal(fused.raw.data, reference.raw.data)
