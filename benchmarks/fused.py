@@ -6,13 +6,16 @@ once untimed (its kernels compiled), then ``REPEATS`` times alternately; reporte
 
 * trace seconds (medians) and their ratio, fused over reference, and the same for every stage
   of ``trace_stages`` (host-thread seconds);
+* the geometry's host-thread seconds: every stage but the ray casts, the terms and the deposit
+  (the part of the trace the design moves to the device);
 * the raw data's NRMSE of fused against reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB],
   and whether the bits are the same;
 * the mesh tracer's counts per bounce order (chains, lit pieces, term lanes) of both, whether
   they are equal, and the rows the fused kernels left to the reference (``overflow_rows``).
 
 Scenes: Sionna RT's Munich (128 central pulses; not with ``--quick``), ``urban``, ``traffic``
-(moving cars) and urban received on a drone (bistatic).
+(moving cars) and urban received on a drone (bistatic), one launch at a time; and Munich again
+with the default two host threads (``SARMITSUBA_HOST_THREADS`` unset), as a render runs.
 
 Checks: the fused raw data within -50 dB of the reference's, and the counts equal, on every
 scene. Writes ``fused.csv`` (``_table.output_dir``).
@@ -25,6 +28,7 @@ import os
 import statistics
 
 os.environ.setdefault("SARMITSUBA_HOST_THREADS", "1")     # stage seconds of one launch at a time
+THREADS = os.environ["SARMITSUBA_HOST_THREADS"]
 
 import numpy as np  # noqa: E402
 from _table import bench_main, machine, report_rows  # noqa: E402
@@ -37,19 +41,28 @@ NAME = "fused"
 #: Timed renders of each pipeline per scene (after one untimed render of each; 1: traffic alone takes
 #: minutes a render on 2 cores).
 REPEATS = 1
+#: Scene, sensor overrides and host threads (``SARMITSUBA_HOST_THREADS``; None: the default).
 SCENES = {
-    "munich (128 pulses)": ("sionna:munich", {"n_pulses": 128}),
-    "urban": ("urban", {}),
-    "traffic": ("traffic", {}),
+    "munich (128 pulses)": ("sionna:munich", {"n_pulses": 128}, THREADS),
+    "urban": ("urban", {}, THREADS),
+    "traffic": ("traffic", {}, THREADS),
     "bistatic urban (drone)": ("urban", {"receiver_altitude": 300.0, "receiver_heading": 90.0,
-                                         "receiver_velocity": 15.0}),
+                                         "receiver_velocity": 15.0}, THREADS),
+    "munich (128 pulses, two host threads)": ("sionna:munich", {"n_pulses": 128}, None),
 }
+#: The stages that are not the geometry (docs/design.md section 10.1).
+NOT_GEOMETRY = ("casts", "terms", "deposit")
 #: Largest NRMSE [dB] of the fused raw data against the reference's.
 NRMSE_BOUND_DB = -50.0
 
 
-def _render(scene: str, sensor: dict, geometry: str) -> dict:
-    """One render: trace seconds, stage seconds, raw data, overflow rows and the mesh tracer's counts."""
+def _render(scene: str, sensor: dict, geometry: str, threads: str | None = THREADS) -> dict:
+    """One render on ``threads`` host threads (None: the default): trace seconds, stage seconds,
+    raw data, overflow rows and the mesh tracer's counts."""
+    if threads is None:
+        os.environ.pop("SARMITSUBA_HOST_THREADS", None)
+    else:
+        os.environ["SARMITSUBA_HOST_THREADS"] = threads
     counts: dict = {"chains": [], "pieces": [], "lanes": []}
     real = mesh_trace.MeshTracer.__call__
 
@@ -64,6 +77,7 @@ def _render(scene: str, sensor: dict, geometry: str) -> dict:
         sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"geometry": geometry})
     finally:
         mesh_trace.MeshTracer.__call__ = real
+        os.environ["SARMITSUBA_HOST_THREADS"] = THREADS
     return {"trace_s": sim.trace.seconds, "stages": dict(sim.trace.stage_seconds), "raw": sim.raw.data,
             "overflow": sim.trace.overflow_rows, "counts": counts}
 
@@ -78,20 +92,23 @@ def run(quick: bool = False) -> list[dict]:
     print(machine(), flush=True)
     scenes = dict(SCENES)
     if quick or importlib.util.find_spec("sionna") is None:
-        scenes.pop("munich (128 pulses)")
+        scenes = {name: spec for name, spec in scenes.items() if not name.startswith("munich")}
     rows = []
-    for name, (scene, sensor) in scenes.items():
+    for name, (scene, sensor, threads) in scenes.items():
         runs = {"reference": [], "fused": []}
         for geometry in runs:                                   # untimed: kernels compiled
-            _render(scene, sensor, geometry)
+            _render(scene, sensor, geometry, threads)
         for _ in range(REPEATS):
             for geometry in runs:
-                runs[geometry].append(_render(scene, sensor, geometry))
+                runs[geometry].append(_render(scene, sensor, geometry, threads))
         ref, fused = runs["reference"][-1], runs["fused"][-1]
         row = {"scene": name}
         for geometry, found in runs.items():
             row[f"{geometry}_trace_s"] = round(statistics.median(r["trace_s"] for r in found), 3)
         row["trace_ratio"] = round(row["fused_trace_s"] / row["reference_trace_s"], 3)
+        for geometry, found in runs.items():
+            row[f"{geometry}_geometry_s"] = round(statistics.median(
+                sum(t for stage, t in r["stages"].items() if stage not in NOT_GEOMETRY) for r in found), 3)
         row["nrmse_db"] = round(_nrmse_db(fused["raw"], ref["raw"]), 1)
         row["bit_identical"] = bool(np.array_equal(fused["raw"], ref["raw"]))
         row["counts_equal"] = fused["counts"] == ref["counts"]
