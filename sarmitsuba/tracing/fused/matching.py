@@ -59,21 +59,19 @@ def lone_pairs(features: np.ndarray, group: np.ndarray, tolerance: float) -> tup
     n, f = features.shape
     if n < 2:
         return np.zeros((0, 2), np.int64), 0
-    # sorted by group, then key (stably), on the host, where the rows are: two Dr.Jit argsorts
-    # (LLVM: a radix sort run from Python) cost more than NumPy's lexsort
+    # sorted by group, then key (stably), on the host, where the rows already are
     key = features[:, 0] + PHI * features[:, 1]
     group = np.asarray(group, np.int64)
     order = np.lexsort((key, group))
+    sorted_group = np.take(group, order)
     f64 = mi.Float64
     table = [device_array(f64, np.ascontiguousarray(features[order, k])) for k in range(f)]
-    sorted_key = device_array(f64, key[order])
-    sorted_group = device_array(mi.Int64, group[order])
-    dr.eval(table, sorted_key, sorted_group)
+    device_key, device_group = device_array(f64, key[order]), device_array(mi.Int64, sorted_group)
+    dr.eval(table, device_key, device_group)
     with RECORDING:                     # a symbolic loop: recorded one thread at a time
-        count, partner, overflow = _scan(table, sorted_key, sorted_group, tolerance)
+        count, partner, overflow = _scan(table, device_key, device_group, tolerance)
         dr.eval(count, partner, overflow)
     count, partner, overflow = count.numpy(), partner.numpy().astype(np.int64), overflow.numpy()
-    sorted_group = np.take(group, order)
     lone = np.flatnonzero(count == 1)
     lone = lone[count[partner[lone]] == 1]
     lone = lone[lone < partner[lone]]
