@@ -31,7 +31,7 @@ import sarmitsuba
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.trace_inputs import TraceSettings
-from sarmitsuba.tracing.fused import boundary, matching, moments, pieces, segments, shadows
+from sarmitsuba.tracing.fused import boundary, clipping, matching, moments, pieces, segments, shadows
 from sarmitsuba.tracing.driver import mesh_trace
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
@@ -194,7 +194,7 @@ SCENES = {
 
 
 #: Every kernel of the fused path: (module, function), each with the reference's signature.
-KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (moments, "moments"), (pieces, "pieces_of"),
+KERNELS = ((matching, "lone_pairs"), (boundary, "lit_boundary"), (clipping, "cut_outs"), (moments, "moments"), (pieces, "pieces_of"),
            (shadows, "shared_shadow_lines"),
            (segments.SegmentKinds, "never_specular"), (segments.SegmentKinds, "split_kinds"))
 
@@ -227,6 +227,7 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
     monkeypatch.setattr(mesh_trace, "SEGMENT_ROWS", 0)
     monkeypatch.setattr(pieces, "KERNEL_REGIONS", 0)
     monkeypatch.setattr(shadows, "DEVICE_ROWS", 0)
+    monkeypatch.setattr(clipping, "DEVICE_PAIRS", 0)
     reference = simulate(SCENES[name]())
     assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})

@@ -30,7 +30,8 @@ import math
 import numpy as np
 import pytest
 
-from sarmitsuba.tracing.visibility.occlusion import _areas, _interval, _interval_rows, lit_boundary, segment_moments, \
+from sarmitsuba.tracing.visibility.cut_outs import polygon_areas
+from sarmitsuba.tracing.visibility.occlusion import _interval, _interval_rows, lit_boundary, segment_moments, \
     shadow_lines, shared_shadow_lines
 from sarmitsuba.tracing.mesh.polygons import clip, moments
 from test_patch_geometry import all_chains, antennas, batch, convex, quad, surfaces
@@ -450,7 +451,7 @@ def test_areas_are_the_moments_areas():
     polys = [convex(rng, centre=rng.normal(size=2) * 1e3, k=rng.integers(3, 12)) for _ in range(50)] + [np.zeros((0, 2))]
     poly, count = batch([p[:8] for p in polys])
     count[::7] = 2                                             # fewer than three corners: empty
-    got = _areas(poly, count)
+    got = polygon_areas(poly, count)
     close(got, areas_reference(poly, np.minimum(count, 8)))
     assert np.all(got[count >= 3] > 0) and np.all(got[count < 3] == 0)
     assert np.array_equal(got, moments(poly, count)[0])

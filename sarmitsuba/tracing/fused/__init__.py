@@ -8,6 +8,8 @@ readable reference, selected by ``TraceSettings.geometry`` (``reference`` or ``f
 :mod:`.matching`            the lone pairs of rows within a tolerance (shared boundary segments
                             and junctions that cancel, eq. (M5)); reference:
                             ``integration.term_lanes`` (a k-d tree)
+:mod:`.clipping`            the cut-outs of mixed pieces, one lane per (piece, occluder) pair
+                            (step 4); reference: ``visibility.cut_outs``
 :mod:`.boundary`            the lit boundary of mixed pieces less their cut-outs, eq. (M4);
                             reference: ``visibility.occlusion.lit_boundary``
 :mod:`.moments`             polygon moments (area, centroid, second moments, box diagonal);

@@ -18,6 +18,8 @@ class GeometryKernels:
 
     Attributes
     ----------
+    cut_outs : callable
+        :func:`sarmitsuba.tracing.visibility.cut_outs.cut_outs` or its kernel.
     lit_boundary : callable
         :func:`sarmitsuba.tracing.visibility.occlusion.lit_boundary` or its kernel.
     moments : callable
@@ -28,6 +30,7 @@ class GeometryKernels:
         :func:`sarmitsuba.tracing.visibility.occlusion.shared_shadow_lines` or its kernel.
     """
 
+    cut_outs: Callable
     lit_boundary: Callable
     moments: Callable
     pieces_of: Callable
@@ -39,11 +42,11 @@ def geometry_kernels(pipeline: str) -> GeometryKernels:
     kernels) or ``"reference"`` (the NumPy stages). Looked up when called, so that a test may
     replace a module's function first."""
     from ..mesh import piece_cuts, polygons
-    from ..visibility import occlusion
+    from ..visibility import cut_outs, occlusion
     if pipeline != "fused":
-        return GeometryKernels(lit_boundary=occlusion.lit_boundary, moments=polygons.moments,
+        return GeometryKernels(cut_outs=cut_outs.cut_outs, lit_boundary=occlusion.lit_boundary, moments=polygons.moments,
                                pieces_of=piece_cuts.pieces_of, shadow_lines=occlusion.shared_shadow_lines)
-    from . import boundary, moments, pieces, shadows
-    return GeometryKernels(lit_boundary=boundary.lit_boundary, moments=moments.moments,
+    from . import boundary, clipping, moments, pieces, shadows
+    return GeometryKernels(cut_outs=clipping.cut_outs, lit_boundary=boundary.lit_boundary, moments=moments.moments,
                            pieces_of=functools.partial(pieces.pieces_of, moments=moments.moments),
                            shadow_lines=shadows.shared_shadow_lines)

@@ -9,7 +9,7 @@ the results agree with the reference bit for bit (tests/test_fused_moments.py):
 * every float64 operation is the reference's, in its order (Dr.Jit's LLVM backend does not
   contract products and sums into FMAs);
 * the reference's sums over the slots are NumPy's pairwise summation of a contiguous row
-  (:func:`_numpy_sum`): eight partial sums for rows of eight slots or more, combined as
+  (:func:`numpy_sum`): eight partial sums for rows of eight slots or more, combined as
   ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))``, the rest added in order, all added to
   the reduction's identity ``0.0``;
 * the box's minima and maxima are NumPy's ``np.minimum`` / ``np.maximum`` of finite values
@@ -30,13 +30,13 @@ import numpy as np
 from ..device import device_array, table_array
 from ..mesh import polygons
 
-__all__ = ["moments", "DEVICE_ROWS"]
+__all__ = ["moments", "numpy_sum", "DEVICE_ROWS"]
 
 #: Rows below which :func:`moments` calls the reference.
 DEVICE_ROWS = 512
 
 
-def _numpy_sum(terms: list):
+def numpy_sum(terms: list):
     """``np.add.reduce`` of a contiguous row of ``terms`` (one value per slot), in NumPy's order."""
     if len(terms) < 8:
         total = terms[0]
@@ -65,15 +65,15 @@ def _kernel(xs: list, ys: list, count):
     x1 = [x[(j + 1) % width] for j in range(width)]
     y1 = [y[(j + 1) % width] for j in range(width)]
     cross = [x[j] * y1[j] - x1[j] * y[j] for j in range(width)]
-    area = 0.5 * _numpy_sum(cross)
+    area = 0.5 * numpy_sum(cross)
     safe = dr.select(area != 0.0, area, 1.0)
-    cx = _numpy_sum([(x[j] + x1[j]) * cross[j] for j in range(width)]) / (6.0 * safe)
-    cy = _numpy_sum([(y[j] + y1[j]) * cross[j] for j in range(width)]) / (6.0 * safe)
-    ixx = _numpy_sum([(x[j] * x[j] + x[j] * x1[j] + x1[j] * x1[j]) * cross[j] for j in range(width)]) / twelve \
+    cx = numpy_sum([(x[j] + x1[j]) * cross[j] for j in range(width)]) / (6.0 * safe)
+    cy = numpy_sum([(y[j] + y1[j]) * cross[j] for j in range(width)]) / (6.0 * safe)
+    ixx = numpy_sum([(x[j] * x[j] + x[j] * x1[j] + x1[j] * x1[j]) * cross[j] for j in range(width)]) / twelve \
         - area * cx * cx
-    iyy = _numpy_sum([(y[j] * y[j] + y[j] * y1[j] + y1[j] * y1[j]) * cross[j] for j in range(width)]) / twelve \
+    iyy = numpy_sum([(y[j] * y[j] + y[j] * y1[j] + y1[j] * y1[j]) * cross[j] for j in range(width)]) / twelve \
         - area * cy * cy
-    ixy = _numpy_sum([(x[j] * y1[j] + 2.0 * x[j] * y[j] + 2.0 * x1[j] * y1[j] + x1[j] * y[j]) * cross[j]
+    ixy = numpy_sum([(x[j] * y1[j] + 2.0 * x[j] * y[j] + 2.0 * x1[j] * y1[j] + x1[j] * y[j]) * cross[j]
                       for j in range(width)]) / twenty_four - area * cx * cy
     lo_x, hi_x, lo_y, hi_y = xs[0], xs[0], ys[0], ys[0]
     for j in range(1, width):               # np.minimum(a, b): b only where b < a

@@ -22,7 +22,7 @@ import numpy as np
 from ..device import device_array, table_array
 from ..loops import RECORDING, loop_mode
 
-__all__ = ["clip_kernel", "MAX_CORNERS"]
+__all__ = ["clip_kernel", "clip_on_device", "MAX_CORNERS"]
 
 #: The most corners a lane holds (input corners plus one per half-plane that can cut it); a batch
 #: that could need more is clipped by the reference.
@@ -51,26 +51,52 @@ def clip_kernel(poly: np.ndarray, count: np.ndarray, lines: np.ndarray, repeat: 
         corner at some half-plane, or would need more than :data:`MAX_CORNERS` slots (the caller
         then clips the batch with the reference).
     """
-    n, width = poly.shape[0], poly.shape[1]
+    clipped = clip_on_device(poly, count, lines, repeat)
+    if clipped is None:
+        return None
+    out, final, cap = clipped
+    out_width = max(int(final.max(initial=0)), 3)
+    return np.ascontiguousarray(out.numpy().reshape(len(final), cap, 2)[:, :out_width]), final
+
+
+def clip_on_device(poly: np.ndarray, count: np.ndarray, lines: np.ndarray, repeat: float,
+                   rows: np.ndarray | None = None):
+    """:func:`clip_kernel` with its output left on the device, each lane's polygon gathered there
+    from ``poly`` (``rows``: lane ``i`` clips polygon ``rows[i]``; None: polygon ``i``).
+
+    Parameters as :func:`clip_kernel`'s, but ``lines`` is [len(rows), H, 3] where ``rows`` is
+    given (int64 [m], indices into ``poly``).
+
+    Returns
+    -------
+    (Float64 [m * cap * 2], int64 [m], int) or None
+        The corners of every lane's clipped polygon, ``cap`` slots of ``(x, y)`` a lane, the slots
+        from its count on holding its first corner (0 for an empty polygon); the counts (0 below
+        3); ``cap``. None as for :func:`clip_kernel`, and for no lanes.
+    """
+    width = poly.shape[1]
+    count = np.asarray(count)
+    n = poly.shape[0] if rows is None else len(rows)
     n_lines = lines.shape[1]
     cuts = ~((lines[..., 0] == 0) & (lines[..., 1] == 0) & (lines[..., 2] > 0))
     cap = width + int(cuts.sum(axis=1).max(initial=0))
-    if cap > MAX_CORNERS:
+    if cap > MAX_CORNERS or n == 0:
         return None
     cap = max(8, -(-cap // 8) * 8)                 # a few kernel sizes, not one per batch
     f64, u32 = mi.Float64, mi.UInt32
     # gathered tables, mapped from NumPy's buffers (a gather's code does not depend on alignment)
     corners = _table(f64, np.ascontiguousarray(poly, np.float64).reshape(-1))
     table = _table(f64, np.ascontiguousarray(lines, np.float64).reshape(-1))
+    source = None if rows is None else device_array(u32, rows)
+    lane_count = count if rows is None else np.take(count, rows)
     with RECORDING:                     # symbolic loops: recorded and run one thread at a time
-        out, kept = _kernel(corners, width, device_array(u32, count.astype(np.uint32)), table, n_lines, cap, repeat)
+        out, kept = _kernel(corners, width, device_array(u32, lane_count.astype(np.uint32)), table, n_lines, cap,
+                            repeat, source)
         dr.eval(out, kept)
     kept = kept.numpy()
     if np.any(kept == _FAILED):
         return None
-    final = kept.astype(np.int64)
-    out_width = max(int(final.max(initial=0)), 3)
-    return np.ascontiguousarray(out.numpy().reshape(n, cap, 2)[:, :out_width]), final
+    return out, kept.astype(np.int64), cap
 
 
 #: The count of a lane that gained more than one corner at a half-plane (or ran out of slots).
@@ -83,13 +109,15 @@ def _table(cls, values: np.ndarray):
     return cls(values) if len(values) > 1 else table_array(cls, values)
 
 
-def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: float):
+def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: float, source=None):
     """The Dr.Jit body of :func:`clip_kernel`: ``corners`` the input ``poly`` flat [n * width * 2],
-    ``table`` the half-planes flat [n * n_lines * 3]. Returns the output corners flat [n * cap *
-    2] and the kept counts (:data:`_FAILED` for a lane that failed)."""
+    ``table`` the half-planes flat [n * n_lines * 3], ``source`` (UInt32 [n] or None) the polygon
+    each lane clips. Returns the output corners flat [n * cap * 2] and the kept counts
+    (:data:`_FAILED` for a lane that failed)."""
     f64, u32 = mi.Float64, mi.UInt32
     n = dr.width(count)
     row = dr.arange(u32, n)
+    polygon = row if source is None else source
     scratch = 2 * cap                          # the slot that masked writes go to
     xs = dr.alloc_local(f64, 2 * cap + 1, dr.zeros(f64, n))
     ys = dr.alloc_local(f64, 2 * cap + 1, dr.zeros(f64, n))
@@ -97,8 +125,8 @@ def _kernel(corners, width: int, count, table, n_lines: int, cap: int, repeat: f
     width, n_lines = dr.opaque(u32, width), dr.opaque(u32, n_lines)
 
     def load(k, total):
-        x = dr.gather(f64, corners, (row * width + k) * 2)
-        y = dr.gather(f64, corners, (row * width + k) * 2 + 1)
+        x = dr.gather(f64, corners, (polygon * width + k) * 2)
+        y = dr.gather(f64, corners, (polygon * width + k) * 2 + 1)
         xs[k], ys[k] = x, y
         return k + 1, total + x + y
 

@@ -23,7 +23,7 @@ import numpy as np
 from .polygon_kernels import clip_kernel
 
 __all__ = ["EVERYTHING", "clip", "clip_reference", "edge_lines", "moments", "inside", "pad", "corner_slots",
-           "drop_repeats", "drop_collinear", "following"]
+           "drop_repeats", "drop_collinear", "following", "padded", "REPEAT_DISTANCE"]
 
 #: The half-plane that holds every point: the padding row of a half-plane list.
 EVERYTHING = (0.0, 0.0, 1.0)
@@ -103,7 +103,7 @@ def clip(poly: np.ndarray, count: np.ndarray, lines: np.ndarray) -> tuple[np.nda
     n, width = poly.shape[0], poly.shape[1]
     if n == 0:
         return np.zeros((0, 3, 2)), count.copy()
-    if width == 0 or not _clip_fast_applies(poly, count):
+    if width == 0 or not padded(poly, count):
         return clip_reference(poly, count, lines)
     # the last half-plane of each polygon that can cut it; rows in decreasing order of it, so that
     # the polygons still to clip at half-plane h are a leading block
@@ -214,10 +214,11 @@ def _ranks(count: np.ndarray) -> np.ndarray:
     return np.arange(total) - np.repeat(start, count)
 
 
-def _clip_fast_applies(poly: np.ndarray, count: np.ndarray) -> bool:
-    """Whether :func:`clip`'s flat path gives :func:`clip_reference`'s result (with finite corners,
-    checked in :func:`clip`: a padding half-plane then keeps every corner): padded rows (the slot
-    after the last corner holding the first, the next corner the reference reads)."""
+def padded(poly: np.ndarray, count: np.ndarray) -> bool:
+    """Whether every row of the batch is padded (the slot after its last corner holds its first,
+    the next corner :func:`clip_reference` reads) and its count fits its slots: then :func:`clip`'s
+    flat path and its kernel give :func:`clip_reference`'s result (with finite corners, checked
+    in :func:`clip`: a padding half-plane then keeps every corner)."""
     width = poly.shape[1]
     if np.any(count < 0) or np.any(count > width):
         return False

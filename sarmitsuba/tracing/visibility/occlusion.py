@@ -31,7 +31,8 @@ from scipy.spatial import cKDTree
 
 from ..discovery.chains import Chains, to_face_lines, unfolded_frame
 from ..mesh.patches import Surfaces
-from ..mesh.polygons import EVERYTHING, clip, corner_slots, edge_lines, moments
+from ..mesh.polygons import EVERYTHING, corner_slots, edge_lines, moments
+from .cut_outs import cut_outs
 
 __all__ = ["shadow_lines", "shared_shadow_lines", "boundary", "lit_boundary", "COINCIDENT", "ClippedPieces", "clip_mixed", "replace_pieces",
            "segment_moments"]
@@ -532,12 +533,8 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     chain = pieces.region[pair_piece]
     lines, = (kernels.shadow_lines if kernels else shared_shadow_lines)(
         surfaces, lit.chains, chain, occluder, leg, antenna, receivers=None if receiver is None else (receiver,))
-    cut, cut_count = clip(np.take(poly, pair_piece, axis=0), np.take(count, pair_piece), lines)
     # empty cut-outs cut nothing; a cut-out that is the whole piece leaves nothing lit
-    cut_area = _areas(cut, cut_count)
-    piece_area = _areas(poly, count)
-    dark = np.zeros(len(rows), bool)
-    dark[pair_piece[cut_area >= (1.0 - 1e-12) * np.take(piece_area, pair_piece)]] = True
+    cut, cut_count, dark = (kernels.cut_outs if kernels else cut_outs)(poly, count, pair_piece, lines)
     real = (cut_count >= 3) & ~np.take(dark, pair_piece)
     cut, cut_count, pair_piece = cut[real], cut_count[real], pair_piece[real]
     owner, start, end = (kernels.lit_boundary if kernels else lit_boundary)(poly, np.where(dark, 0, count), cut, cut_count, pair_piece)
@@ -548,14 +545,6 @@ def clip_mixed(surfaces: Surfaces, lit, antenna: np.ndarray, only: np.ndarray | 
     return ClippedPieces(piece=rows[keep], owner=np.take(new, owner[seg_keep]), start=start[seg_keep],
                          end=end[seg_keep], area=area[keep], centroid=centroid[keep], second=second[keep],
                          diagonal=diagonal[keep])
-
-
-def _areas(poly: np.ndarray, count: np.ndarray) -> np.ndarray:
-    """The areas float64 [n] of :func:`sarmitsuba.tracing.mesh.polygons.moments` (its arithmetic, to the
-    bit), without the other moments."""
-    x, y = poly[..., 0] - poly[:, :1, 0], poly[..., 1] - poly[:, :1, 1]   # about the first corner
-    cross = x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y
-    return np.where(count < 3, 0.0, 0.5 * cross.sum(axis=1))
 
 
 def replace_pieces(old: ClippedPieces, new: ClippedPieces, rows: np.ndarray) -> ClippedPieces:
