@@ -53,6 +53,8 @@ determinism    renders that repeat bit for bit: the fixed-point sums' cost again
                atomic adds (Munich), urban repeated under load, other thread counts and Dask
 fused          the fused geometry kernels against the NumPy stages on Munich, urban,
                traffic and bistatic urban: raw NRMSE, counts, seconds by stage
+fused_kernels  each fused kernel against its reference on the calls of a Munich render,
+               and the trace were every geometry stage as much faster
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -89,7 +91,8 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "dask_scaling": "dask_scaling", "invariance": "invariance", "trajectory": "trajectory",
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
          "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
-         "bistatic": "bistatic", "determinism": "determinism", "fused": "fused"}
+         "bistatic": "bistatic", "determinism": "determinism", "fused": "fused",
+         "fused_kernels": "fused_kernels"}
 
 
 def _utc_now() -> str:
