@@ -36,7 +36,9 @@ from sarmitsuba.tracing.driver import mesh_trace
 from sarmitsuba.tracing.fused.matching import PHI, SCAN_LIMIT, lone_pairs
 from sarmitsuba.tracing.integration.term_lanes import MATCH_TOLERANCE, kd_tree_pairs
 
+from sarmitsuba.derivatives import AmplitudeLoss, ShapeParameter
 from test_bistatic import RECEIVERS, block_scene
+from test_geometry_gradients import SIZE, brick_box
 from test_patches import rectangle
 
 TOL = MATCH_TOLERANCE
@@ -204,12 +206,8 @@ def _rows(out) -> int:
     return len(out[0]) if isinstance(out, (tuple, list)) else len(out)
 
 
-@pytest.mark.parametrize("name", list(SCENES))
-def test_a_fused_render_is_the_reference_render(name, monkeypatch):
-    """Each scene rendered with the fused kernels and with the NumPy reference: the same pairs
-    cancel, the same boundaries are cut, so the raw data are bit for bit the same and so is the
-    count of returns evaluated (a pair missed or made up, a segment lost, changes the lanes);
-    every kernel had rows to work on, and no row overflowed."""
+def _every_kernel(monkeypatch) -> dict:
+    """Every kernel counted (kernel name -> rows it gave) and run however small its batch."""
     rows = {}
 
     def counted(module, name):
@@ -228,6 +226,16 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
     monkeypatch.setattr(pieces, "KERNEL_REGIONS", 0)
     monkeypatch.setattr(shadows, "DEVICE_ROWS", 0)
     monkeypatch.setattr(clipping, "DEVICE_PAIRS", 0)
+    return rows
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_a_fused_render_is_the_reference_render(name, monkeypatch):
+    """Each scene rendered with the fused kernels and with the NumPy reference: the same pairs
+    cancel, the same boundaries are cut, so the raw data are bit for bit the same and so is the
+    count of returns evaluated (a pair missed or made up, a segment lost, changes the lanes);
+    every kernel had rows to work on, and no row overflowed."""
+    rows = _every_kernel(monkeypatch)
     reference = simulate(SCENES[name]())
     assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})
@@ -262,3 +270,23 @@ def test_overflow_rows_are_finished_by_the_reference_alone(monkeypatch):
     assert fused.trace.overflow_rows == sum(spilled) > 0
     assert fused.trace.pulse_paths == reference.trace.pulse_paths
     assert np.array_equal(fused.raw.data, reference.raw.data)
+
+
+def test_geometric_gradients_through_the_kernels_are_the_references(tmp_path, monkeypatch):
+    """A brick box's height, one of its vertices and its rotation (two bounces, its shadow on the
+    ground cut by the box): the loss, the image and the three gradients (each from renders of the
+    geometry moved by +-h, whose outlines the kernels cut) are the reference geometry's bit for
+    bit, with the kernels doing the work."""
+    box = brick_box(tmp_path)
+    height = ShapeParameter("box", "height")
+    parameters = [height, ShapeParameter("box", "vertices", (1, 0, 0), vertices=(7,)),
+                  ShapeParameter("box", "rotation", (0, 0, 1))]
+    target = sarmitsuba.gradients(box, AmplitudeLoss(np.zeros(SIZE["image_size"])), [], at={height: 1.5}, **SIZE)
+    loss = AmplitudeLoss(np.abs(target.image))
+    rows = _every_kernel(monkeypatch)
+    reference = sarmitsuba.gradients(box, loss, parameters, **SIZE)
+    assert rows == {}
+    fused = sarmitsuba.gradients(box, loss, parameters, integrator_overrides={"geometry": "fused"}, **SIZE)
+    assert sorted(rows) == sorted(f for _, f in KERNELS) and min(rows.values()) > 0, rows
+    assert fused.loss == reference.loss and np.array_equal(fused.image, reference.image)
+    assert all(fused.gradient[p] == reference.gradient[p] != 0.0 for p in parameters)

@@ -46,7 +46,7 @@ def _trihedral(folder: Path, extra: str = "") -> str:
     return str(path)
 
 
-def _box(folder: Path) -> str:
+def brick_box(folder: Path) -> str:
     """A brick box on the dihedral's metal ground (enlarged to 30 m), two bounces."""
     obj = folder / "box.obj"
     obj.write_text("".join(f"v {a} {b} {c}\n" for a, b, c in BOX) + "".join(f"f {a + 1} {b + 1} {c + 1}\n"
@@ -118,7 +118,7 @@ def test_box_height_vertex_and_rotation_match_central_differences(tmp_path):
     moved outlines then no longer pair) and the earlier bounce's reflection factor (``gamma``)
     left without its tangent (the double bounce); both tried."""
     pulses = {"sensor_overrides": {"n_pulses": 8}, "integrator_overrides": {"max_depth": 2}}
-    box = _box(tmp_path)
+    box = brick_box(tmp_path)
     height = ShapeParameter("box", "height")
     parameters = {height: 1e-3, ShapeParameter("box", "vertices", (1, 0, 0), vertices=(7,)): 1e-3,
                   ShapeParameter("box", "rotation", (0, 0, 1)): 1e-5}
@@ -204,9 +204,9 @@ def test_bad_shape_parameters_are_named(tmp_path):
     with pytest.raises(ParameterError, match="needs vertices"):
         ShapeParameter("box", "vertices")
     with pytest.raises(ParameterError, match="'tower' is not in the scene; its shapes: box, floor"):
-        moved_raw(_box(tmp_path), {ShapeParameter("tower", "height"): 1.0}, sensor_overrides={"n_pulses": 8})
+        moved_raw(brick_box(tmp_path), {ShapeParameter("tower", "height"): 1.0}, sensor_overrides={"n_pulses": 8})
     with pytest.raises(ParameterError, match="vertices 0 .. 7"):
-        raw_derivative(_box(tmp_path), ShapeParameter("box", "vertices", vertices=(8,)),
+        raw_derivative(brick_box(tmp_path), ShapeParameter("box", "vertices", vertices=(8,)),
                        sensor_overrides={"n_pulses": 8})
 
 
@@ -420,7 +420,7 @@ def test_box_height_and_vertex_match_renders_of_box_files_built_with_trimesh(tmp
     pulses = {"sensor_overrides": {"n_pulses": 8}, "integrator_overrides": {"max_depth": 2}}
     marker = tmp_path / "marker.obj"
     marker.write_text("v 14 -14 6\nv 14.01 -14 6\nv 14 -13.99 6\nf 1 3 2\n")
-    xml = Path(_box(tmp_path)).read_text().replace(
+    xml = Path(brick_box(tmp_path)).read_text().replace(
         "</scene>", f'<shape type="obj" id="marker"><string name="filename" value="{marker}"/><ref id="brick"/>'
         '</shape></scene>')
     box = tmp_path / "marked.xml"
