@@ -71,10 +71,10 @@ class Chains:
 
     def unfolded(self, points: np.ndarray, chain: np.ndarray) -> np.ndarray:
         """``U_d(x)`` float64 [m, 3] of points ``x`` [m, 3] on the last parts of chains ``chain`` [m]."""
-        lin = self.lin_last[chain]
+        lin = np.take(self.lin_last, chain, axis=0)         # (np.take: row gathers, not fancy indexing)
         # np.einsum("mij,mj->mi", lin, points) summed as einsum sums three terms (bitwise equal)
         y = (lin[:, :, 0] * points[:, 0, None] + lin[:, :, 2] * points[:, 2, None]) + lin[:, :, 1] * points[:, 1, None]
-        return y + self.shift_last[chain]
+        return y + np.take(self.shift_last, chain, axis=0)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -113,7 +113,7 @@ class Surfaces:
         # ``o + x u + y v`` in that order (bit for bit :func:`_to_world_reference`), from the
         # cached frames (one gather); big batches one world axis at a time (NumPy's broadcast
         # loops over a last axis of 3 are slow)
-        frame = self._frames[part]                                    # [..., 3 (o, u, v), 3]
+        frame = np.take(self._frames, part, axis=0)                   # [..., 3 (o, u, v), 3]
         frame = frame.reshape(frame.shape[:-2] + (1,) * (coords.ndim + 1 - frame.ndim) + (3, 3))
         x, y = coords[..., 0], coords[..., 1]
         if coords.size < 4096:
@@ -130,7 +130,7 @@ class Surfaces:
     def vector_to_world(self, part: np.ndarray, vectors: np.ndarray) -> np.ndarray:
         """World vectors float64 [m, 3] of face-coordinate vectors ``vectors`` [m, 2] on ``part`` [m]
         (edges, offsets, rates: no origin)."""
-        return vectors[:, :1] * self.axis_u[part] + vectors[:, 1:] * self.axis_v[part]
+        return vectors[:, :1] * np.take(self.axis_u, part, axis=0) + vectors[:, 1:] * np.take(self.axis_v, part, axis=0)
 
     def to_face(self, part: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Face coordinates float64 [..., 2] of world points [..., 3] on (or projected onto) ``part``."""
