@@ -419,12 +419,16 @@ class MeshTracer:
         lit, spread = spread_occluders(lit, clipped)
         if len(spread):
             clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, spread, receiver, kernels), spread)
+        checked = clipped
         for _ in range(RECHECKS):
-            blockers, changed = recheck(s, lit, clipped, antenna, self.rays, self.visibility, receiver)
+            blockers, changed = recheck(s, lit, checked, antenna, self.rays, self.visibility, receiver)
             if len(changed) == 0:
                 break
             lit = dataclasses.replace(lit, blockers=blockers)
-            clipped = replace_pieces(clipped, clip_mixed(s, lit, antenna, changed, receiver, kernels), changed)
+            checked = clip_mixed(s, lit, antenna, changed, receiver, kernels)
+            clipped = replace_pieces(clipped, checked, changed)
+            # the next pass samples only the pieces cut again: another's samples, region and hits
+            # are this pass's, and every occluder they met is known now
         return lit, clipped, spread
 
     def _motion(self, lit: LitPieces, rows, cut, p2, q2, views, rx_views=None):
