@@ -9,10 +9,11 @@ pulses, three bounces; ``--quick``: the built-in ``urban`` scene):
 * per-pulse tracing (``pulses_per_trace = 1``), the reference, with each order's share of the
   raw data's power and the share of that order's power in its 100 brightest samples (a single
   glint when close to 1);
-* the automatic sub-aperture and twice its length, and the automatic one with every boundary
-  frozen at its reference position (``MOVING`` off): each order's raw-data NRMSE against the
-  reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB], the whole raw data's, and trace
-  seconds.
+* the automatic sub-aperture and twice its length, the automatic one with every boundary
+  frozen at its reference position (``MOVING`` off), and sub-apertures of 4 and 8 pulses: each
+  order's raw-data NRMSE against the reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB],
+  the whole raw data's, and trace seconds (the curve of accuracy against time that the default
+  pulses per trace is chosen on).
 
 Writes ``subaperture_orders.csv`` (in the output folder, ``_table.output_dir``).
 Usage: ``python benchmarks/subaperture_orders.py [--quick]``
@@ -64,7 +65,8 @@ def sweep(scene: str, sensor: dict) -> list[dict]:
         row[f"order{k}_brightest_share"] = round(float(power[:BRIGHTEST].sum() / max(power.sum(), 1e-300)), 3)
     rows = [row]
     auto = None                      # the automatic run's numbers (it runs first)
-    for label, n, moving in (("automatic", 0, True), ("twice automatic", -2, True), ("automatic, frozen", 0, False)):
+    for label, n, moving in (("automatic", 0, True), ("twice automatic", -2, True), ("automatic, frozen", 0, False),
+                             ("fixed", 4, True), ("fixed", 8, True)):
         if n == -2:
             n = 2 * auto["pulses_per_trace"]
         numbers, orders, raw = _run(scene, sensor, n, moving)
