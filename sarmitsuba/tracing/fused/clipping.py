@@ -9,7 +9,7 @@ covers. Here the same results, bit for bit, from two kernels, one lane per pair:
    per-pair copy of the polygons on the host) and clips them to its shadow's half-planes
    (:func:`sarmitsuba.tracing.mesh.polygon_kernels.clip_on_device`, Sutherland and Hodgman);
 2. *cover*: the cut-out's area and its piece's, each the reference's shoelace sum over the
-   batch's slots in NumPy's pairwise order (:func:`sarmitsuba.tracing.fused.moments.numpy_sum`;
+   batch's slots in NumPy's pairwise order (:func:`sarmitsuba.tracing.fused.moments.lane_moments`;
    the slots unrolled, one kernel per pair of widths), compared as the reference compares them;
    a covering cut-out writes ``True`` to its piece's flag (every writer writes the same value:
    no order from thread timing).
@@ -30,7 +30,7 @@ from ..device import device_array, table_array
 from ..mesh.polygon_kernels import clip_on_device
 from ..mesh.polygons import REPEAT_DISTANCE, padded
 from ..visibility import cut_outs as reference
-from .moments import numpy_sum
+from .moments import lane_moments
 
 __all__ = ["cut_outs", "DEVICE_PAIRS"]
 
@@ -66,16 +66,6 @@ def cut_outs(poly: np.ndarray, count: np.ndarray, pair_piece: np.ndarray, lines:
     return cut, cut_count, dark
 
 
-def _area(xs: list, ys: list, count):
-    """The reference's area (``polygon_areas``) of one lane's polygon from its slots' coordinates
-    (Float64 each, the batch's width of them) and its corner count."""
-    x = [v - xs[0] for v in xs]                  # about the first corner
-    y = [v - ys[0] for v in ys]
-    width = len(xs)
-    cross = [x[j] * y[(j + 1) % width] - x[(j + 1) % width] * y[j] for j in range(width)]
-    return dr.select(count < 3, 0.0, 0.5 * numpy_sum(cross))
-
-
 def _covered(out, cap: int, width: int, cut_count: np.ndarray, poly: np.ndarray, count: np.ndarray,
              pair_piece: np.ndarray) -> np.ndarray:
     """The second kernel of :func:`cut_outs`: bool [g], the pieces that some cut-out covers
@@ -92,8 +82,8 @@ def _covered(out, cap: int, width: int, cut_count: np.ndarray, poly: np.ndarray,
     base = piece * slots
     piece_x = [dr.gather(f64, table_x, base + j) for j in range(slots)]
     piece_y = [dr.gather(f64, table_y, base + j) for j in range(slots)]
-    cut_area = _area(cut_x, cut_y, device_array(mi.Int32, np.minimum(cut_count, 3)))
-    piece_area = _area(piece_x, piece_y, dr.gather(mi.Int32, table_array(mi.Int32, np.minimum(count, 3)), piece))
+    cut_area = lane_moments(cut_x, cut_y, device_array(mi.Int32, np.minimum(cut_count, 3)))[0]
+    piece_area = lane_moments(piece_x, piece_y, dr.gather(mi.Int32, table_array(mi.Int32, np.minimum(count, 3)), piece))[0]
     dark = dr.zeros(mi.Bool, len(poly))
     dr.scatter(dark, True, piece, cut_area >= reference.COVERED * piece_area)
     dr.eval(dark)

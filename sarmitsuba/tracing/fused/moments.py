@@ -30,7 +30,7 @@ import numpy as np
 from ..device import device_array, table_array
 from ..mesh import polygons
 
-__all__ = ["moments", "numpy_sum", "DEVICE_ROWS"]
+__all__ = ["moments", "lane_moments", "numpy_sum", "DEVICE_ROWS"]
 
 #: Rows below which :func:`moments` calls the reference.
 DEVICE_ROWS = 512
@@ -54,9 +54,11 @@ def numpy_sum(terms: list):
     return 0.0 + total
 
 
-def _kernel(xs: list, ys: list, count):
+def lane_moments(xs: list, ys: list, count):
     """The moments of one lane's polygon from its slots' coordinates ``xs``, ``ys`` (Float64
-    each) and its corner count: ``(area, cx, cy, ixx, ixy, iyy, diagonal)``, as the reference."""
+    each, the batch's width of them) and its corner count (Int32; below 3: empty, all 0):
+    ``(area, cx, cy, ixx, ixy, iyy, diagonal)``, as the reference (Dr.Jit evaluates only the
+    ones a caller uses)."""
     x0, y0 = xs[0], ys[0]
     twelve, twenty_four = dr.opaque(mi.Float64, 12.0), dr.opaque(mi.Float64, 24.0)   # divided, not times 1/12
     x = [v - x0 for v in xs]
@@ -114,7 +116,7 @@ def moments(poly: np.ndarray, count: np.ndarray):
     base = dr.arange(mi.UInt32, n) * width
     xs = [dr.gather(mi.Float64, table_x, base + j) for j in range(width)]
     ys = [dr.gather(mi.Float64, table_y, base + j) for j in range(width)]
-    out = _kernel(xs, ys, device_array(mi.Int32, np.minimum(count, 3)))
+    out = lane_moments(xs, ys, device_array(mi.Int32, np.minimum(count, 3)))
     dr.eval(*out)
     area, cx, cy, ixx, ixy, iyy, diagonal = (v.numpy() for v in out)
     return area, np.stack([cx, cy], axis=1), np.stack([ixx, ixy, iyy], axis=1), diagonal
