@@ -106,10 +106,11 @@
      and no edge currents (docs/physics.md (M10)). ``lit_regions = patches`` only.
  * - geometry
    - string
-   - How the mesh tracer's per-sub-aperture geometry runs: ``reference`` (default), its NumPy
-     stages; ``fused``, the Dr.Jit kernels of the stages that have one (today the matching of
-     the boundary segments and junctions whose terms cancel) and the NumPy stages elsewhere.
-     The two agree but for rows that rounding decides; rows a kernel cannot hold are finished by
+   - How the mesh tracer's per-sub-aperture geometry runs: ``fused`` (default), the Dr.Jit
+     kernels of the stages that have one (the matching of the segments whose terms cancel, the
+     shadows, the cut-outs, the lit boundaries, the patch pieces, the moments, the segments'
+     kinds) and the NumPy stages elsewhere; ``reference``, the NumPy stages alone, the readable
+     reference. The two give the same raw data; rows a kernel cannot hold are finished by
      the NumPy stage and counted in ``summary.json`` (``overflow_rows``).
      ``lit_regions = patches`` only.
 

@@ -239,7 +239,7 @@ def test_a_fused_render_is_the_reference_render(name, monkeypatch):
     count of returns evaluated (a pair missed or made up, a segment lost, changes the lanes);
     every kernel had rows to work on, and no row overflowed."""
     rows = _every_kernel(monkeypatch)
-    reference = simulate(SCENES[name]())
+    reference = simulate(SCENES[name](), integrator_overrides={"geometry": "reference"})
     assert rows == {}
     fused = simulate(SCENES[name](), integrator_overrides={"geometry": "fused"})
     assert sorted(rows) == sorted(f for _, f in KERNELS) and min(rows.values()) > 0, rows
@@ -268,7 +268,7 @@ def test_overflow_rows_are_finished_by_the_reference_alone(monkeypatch):
 
     monkeypatch.setattr(matching, "SCAN_LIMIT", 1)
     monkeypatch.setattr(matching, "lone_pairs_reference", reference_rows)
-    reference = simulate(SCENES["tilted wall, heading -35 deg"]())
+    reference = simulate(SCENES["tilted wall, heading -35 deg"](), integrator_overrides={"geometry": "reference"})
     fused = simulate(SCENES["tilted wall, heading -35 deg"](), integrator_overrides={"geometry": "fused"})
     assert fused.trace.overflow_rows == sum(spilled) > 0
     assert fused.trace.pulse_paths == reference.trace.pulse_paths
@@ -289,7 +289,7 @@ def test_geometric_gradients_through_the_kernels_are_the_references(tmp_path, mo
     target = sarmitsuba.gradients(box, AmplitudeLoss(np.zeros(SIZE["image_size"])), [], at={height: 1.5}, **SIZE)
     loss = AmplitudeLoss(np.abs(target.image))
     rows = _every_kernel(monkeypatch)
-    reference = sarmitsuba.gradients(box, loss, parameters, **SIZE)
+    reference = sarmitsuba.gradients(box, loss, parameters, integrator_overrides={"geometry": "reference"}, **SIZE)
     assert rows == {}
     fused = sarmitsuba.gradients(box, loss, parameters, integrator_overrides={"geometry": "fused"}, **SIZE)
     assert sorted(rows) == sorted(f for _, f in KERNELS) and min(rows.values()) > 0, rows

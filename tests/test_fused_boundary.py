@@ -225,7 +225,7 @@ def test_urban_calls(monkeypatch):
         return reference(*args)
 
     monkeypatch.setattr(occlusion, "lit_boundary", record)
-    simulate("urban")
+    simulate("urban", integrator_overrides={"geometry": "reference"})
     monkeypatch.undo()
     assert len(calls) > 5 and sum(len(c[2]) for c in calls) > 1000
     assert sum(_same(*c) for c in calls) > 1000

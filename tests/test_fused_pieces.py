@@ -310,7 +310,7 @@ def test_urban_calls(monkeypatch):
     modules = [m for m in (piece_cuts, lit_pieces, mesh_trace) if hasattr(m, "pieces_of")]
     for module in modules:
         monkeypatch.setattr(module, "pieces_of", record)
-    simulate("urban")
+    simulate("urban", integrator_overrides={"geometry": "reference"})
     for module in modules:
         monkeypatch.setattr(module, "pieces_of", reference)
     assert len(calls) > 3 and any(c[3] is not None for c in calls)

@@ -99,7 +99,7 @@ def _scene_calls(name: str) -> list:
     if name not in _SCENE_CALLS:
         from sarmitsuba.pipeline import simulate
         with pytest.MonkeyPatch.context() as mp:
-            _SCENE_CALLS[name] = _recorded(mp, lambda: simulate(SCENES[name]()))
+            _SCENE_CALLS[name] = _recorded(mp, lambda: simulate(SCENES[name](), integrator_overrides={"geometry": "reference"}))
     return _SCENE_CALLS[name]
 
 
@@ -108,7 +108,7 @@ def _urban_calls() -> list:
     if "urban" not in _SCENE_CALLS:
         from sarmitsuba.pipeline import simulate
         with pytest.MonkeyPatch.context() as mp:
-            _SCENE_CALLS["urban"] = _recorded(mp, lambda: simulate("urban"))
+            _SCENE_CALLS["urban"] = _recorded(mp, lambda: simulate("urban", integrator_overrides={"geometry": "reference"}))
     return _SCENE_CALLS["urban"]
 
 

@@ -107,9 +107,9 @@ class TraceSettings:
         ``auto`` (ids ``ground``, ``*-ground``, ``*_ground``), ``none``, or a comma-separated list
         of shape ids (:func:`sarmitsuba.scene.ground.ground_shapes`). ``lit_regions = patches`` only.
     geometry : str
-        How the mesh tracer's geometry runs (docs/design.md section 10.1): ``reference`` (default)
-        the NumPy stages; ``fused`` the Dr.Jit kernels of the stages that have one
-        (:mod:`sarmitsuba.tracing.fused`), the NumPy stages elsewhere. The same physics: the two
+        How the mesh tracer's geometry runs (docs/design.md section 10.1): ``fused`` (default)
+        the Dr.Jit kernels of the stages that have one (:mod:`sarmitsuba.tracing.fused`), the
+        NumPy stages elsewhere; ``reference`` the NumPy stages alone, the readable reference. The same physics: the two
         agree but for rows that rounding decides. ``lit_regions = patches`` only.
     """
 
@@ -129,7 +129,7 @@ class TraceSettings:
     lit_regions: str = "patches"
     patch_size: float = 0.0
     ground_shapes: str = "auto"
-    geometry: str = "reference"
+    geometry: str = "fused"
 
     def __post_init__(self) -> None:
         if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
