@@ -146,6 +146,18 @@ def test_a_crowded_window_goes_to_the_reference():
     assert np.array_equal(_sorted(pairs), _sorted(kd_tree_pairs(features, group, TOL)))
 
 
+def test_overflowing_groups_give_each_of_their_pairs_once(monkeypatch):
+    """A scan window of one row: most groups of the planted rows overflow and go to the k-d tree
+    reference, which must replace (not join) what the device found in them: exactly the planted
+    pairs, each once. (Caught: the device's pairs in an overflowing group kept beside the
+    reference's, every such pair twice.)"""
+    features, group, expected = _planted(0)
+    monkeypatch.setattr(matching, "SCAN_LIMIT", 1)
+    pairs, overflow = lone_pairs(features, group, TOL)
+    assert overflow > len(features) // 2
+    assert len(pairs) == len(expected) and np.array_equal(_sorted(pairs), expected)
+
+
 def test_lone_pairs_compile_once_for_every_length():
     """The planted rows of two seeds (different lengths) after a first call: the second call
     launches only kernels the first compiled (the array length is a launch parameter, not part of

@@ -136,3 +136,20 @@ def test_second_method(scene, monkeypatch):
     monkeypatch.setattr(segments.SegmentKinds, "split_kinds", check_kinds)
     simulate(SCENES[scene](), integrator_overrides={"geometry": "fused"})
     assert seen["stable"] > 100 and seen["kinds"] > 100, seen
+
+
+def test_the_kernels_dot_and_norm_sum_in_numpys_order():
+    """The kernel's row products are NumPy's bit for bit: ``_dot`` as ``np.einsum("mi,mi->m")``
+    and ``_norm`` as ``row_norm``, over magnitudes from 1e-6 to 1e6 (a sum taken in another order
+    changes the last bit of many rows, and a row whose score lies within that bit of a threshold
+    changes its kind). (Caught: ``_dot`` summed ``(a0 b0 + a1 b1) + a2 b2``.)"""
+    import mitsuba as mi
+    from sarmitsuba.core.arrays import row_norm
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(50_000, 3)) * 10.0 ** rng.uniform(-6, 6, (50_000, 1))
+    b = rng.normal(size=(50_000, 3)) * 10.0 ** rng.uniform(-6, 6, (50_000, 1))
+    da, db = [mi.Float64(a[:, i]) for i in range(3)], [mi.Float64(b[:, i]) for i in range(3)]
+    dot = segments._dot(da, db).numpy()
+    norm = segments._norm(da).numpy()
+    assert np.array_equal(dot.view(np.uint64), np.einsum("mi,mi->m", a, b).view(np.uint64))
+    assert np.array_equal(norm.view(np.uint64), row_norm(a).view(np.uint64))

@@ -201,6 +201,23 @@ def test_hypot():
     assert np.array_equal(got.view(np.uint64), np.hypot(x, y).view(np.uint64))
 
 
+def test_hypot_where_its_two_corrections_meet():
+    """``ax`` within 64 ulps of ``sqrt(3) ay``, where ``sqrt(ax^2 + ay^2)`` is ``2 ay`` and glibc
+    switches between its two corrections (``h <= 2 ay``): bit for bit NumPy's there too.
+    (Caught: the switch taken at ``h < 2 ay``, which random inputs almost never meet.)"""
+    import mitsuba as mi
+    rng = np.random.default_rng(5)
+    ay = 10.0 ** rng.uniform(-8, 8, 4000)
+    ax = np.sqrt(3.0) * ay
+    steps = np.arange(-64, 65)
+    ax = (ax[:, None] * (1.0 + steps * 2.0 ** -52)).ravel()
+    ay = np.repeat(ay, len(steps))
+    tie = np.sqrt(ax * ax + ay * ay) == 2.0 * ay
+    assert tie.sum() > 1000
+    got = shadows._hypot(mi.Float64(ax), mi.Float64(ay)).numpy()
+    assert np.array_equal(got.view(np.uint64), np.hypot(ax, ay).view(np.uint64))
+
+
 def _crosses(s, part, start, end, margin=1e-6):
     """+1 where the segments ``start`` -> ``end`` [m, 3] cross ``part``'s polygon (clear of its
     edges and ends by ``margin``), -1 where they clearly miss it, 0 where it is too close to tell."""
