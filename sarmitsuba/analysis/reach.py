@@ -26,19 +26,19 @@ __all__ = ["reach_work", "SETUP_TRIANGLE_SECONDS", "SUB_PIECE_SECONDS", "SUB_TRI
 #: ``benchmarks/city_generator.py`` at 10 k triangles with 19, 38 and 76 pulses, rough and smooth,
 #: at 100 k triangles with 19 and 38 pulses, urban and Munich, and fits these four constants);
 #: re-run it and paste its output here when the tracer changes.
-#: Fitted (non-negative relative least squares on 8 renders, every one within 7 %) on 2026-11-26
-#: at commit 7c018e1 (two launches at once on host threads), trace wall seconds less the casts'
-#: share: 10 k city 19 pulses 1.50 s (smooth 1.45 s), 38 pulses 1.99 s, 76 pulses 3.04 s; 100 k
-#: city 19 pulses 9.07 s, 38 pulses 10.23 s; urban (779 pulses, 30 sub-apertures) 3.03 s;
-#: sionna:munich, its whole default acquisition (2,326 pulses, 123 sub-apertures: a short run's
-#: fixed costs had made the per-sub-aperture terms too large), 83.3 s.
+#: Fitted (non-negative relative least squares on 8 renders, every one within 35 %) on 2026-11-28
+#: at commit 2b4de5b (the fused geometry, the default; two launches at once on host threads),
+#: trace wall seconds less the casts' share: 10 k city 19 pulses 1.42 s (smooth 1.09 s), 38 pulses
+#: 1.65 s, 76 pulses 2.54 s; 100 k city 19 pulses 5.76 s, 38 pulses 6.76 s; urban (779 pulses, 30
+#: sub-apertures) 3.78 s; sionna:munich, its whole default acquisition (2,326 pulses, 123
+#: sub-apertures: a short run's fixed costs had made the per-sub-aperture terms too large), 77.0 s.
 #: The time goes mostly with the parts (triangles) in reach, each at least one piece with its own
 #: chain, lanes and clipping, and little with how many whole patches a large face holds (urban,
 #: Munich separate the two).
-SETUP_TRIANGLE_SECONDS = 6.74e-5
-SUB_PIECE_SECONDS = 1.75e-6
-SUB_TRIANGLE_SECONDS = 6.85e-5
-CLUTTER_SCATTERER_PULSE_SECONDS = 1.22e-8
+SETUP_TRIANGLE_SECONDS = 3.84e-5
+SUB_PIECE_SECONDS = 1.22e-6
+SUB_TRIANGLE_SECONDS = 6.74e-5
+CLUTTER_SCATTERER_PULSE_SECONDS = 2.06e-8
 #: Mesh tracer memory [bytes]: :data:`MESH_TRIANGLE_BYTES` per triangle of the whole scene (its
 #: surfaces, wedges and the pieces of every part, cut once per acquisition and held: this part
 #: grows with the scene, not with the beam), and :data:`SUBAPERTURE_BYTES` for each sub-aperture

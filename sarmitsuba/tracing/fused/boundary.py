@@ -37,7 +37,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 from ..loops import RECORDING, loop_mode
 from ..mesh.polygons import corner_slots, edge_lines
 from ..visibility.occlusion import BOX_SLACK, COINCIDENT
@@ -73,6 +73,7 @@ def _line_table(lines: np.ndarray):
             table_array(f64, np.maximum(normal_len, 1e-300)), table_array(mi.UInt32, normal_len > 0))
 
 
+@releasing
 def lit_boundary(base: np.ndarray, base_count: np.ndarray, cut: np.ndarray, cut_count: np.ndarray,
                  cut_owner: np.ndarray):
     """:func:`sarmitsuba.tracing.visibility.occlusion.lit_boundary` on the device: the same

@@ -26,7 +26,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 from ..mesh.polygon_kernels import clip_on_device
 from ..mesh.polygons import REPEAT_DISTANCE, padded
 from ..visibility import cut_outs as reference
@@ -41,6 +41,7 @@ __all__ = ["cut_outs", "DEVICE_PAIRS"]
 DEVICE_PAIRS = 2048
 
 
+@releasing
 def cut_outs(poly: np.ndarray, count: np.ndarray, pair_piece: np.ndarray, lines: np.ndarray):
     """:func:`sarmitsuba.tracing.visibility.cut_outs.cut_outs` on the device: the same cut-outs
     and dark flags, bit for bit.

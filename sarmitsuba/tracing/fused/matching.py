@@ -22,7 +22,7 @@ import mitsuba as mi
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..device import device_array
+from ..device import device_array, releasing
 from ..loops import RECORDING, loop_mode
 
 __all__ = ["PHI", "SCAN_LIMIT", "RowMatcher", "lone_pairs", "lone_pairs_reference"]
@@ -34,6 +34,7 @@ PHI = 0.6180339887498949
 SCAN_LIMIT = 64
 
 
+@releasing
 def lone_pairs(features: np.ndarray, group: np.ndarray, tolerance: float) -> tuple[np.ndarray, int]:
     """The pairs of rows of one group within ``tolerance`` of each other and of no third row.
 

@@ -27,7 +27,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 from ..mesh import polygons
 
 __all__ = ["moments", "lane_moments", "numpy_sum", "DEVICE_ROWS"]
@@ -88,6 +88,7 @@ def lane_moments(xs: list, ys: list, count):
     return tuple(dr.select(empty, zero, v) for v in (area, cx + x0, cy + y0, ixx, ixy, iyy, diagonal))
 
 
+@releasing
 def moments(poly: np.ndarray, count: np.ndarray):
     """:func:`sarmitsuba.tracing.mesh.polygons.moments` on the device, bit for bit.
 

@@ -38,7 +38,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 from ..loops import RECORDING, loop_mode
 from ..mesh import piece_cuts
 from ..mesh.patches import Pieces
@@ -54,6 +54,7 @@ __all__ = ["KERNEL_REGIONS", "pieces_of"]
 KERNEL_REGIONS = 512
 
 
+@releasing
 def pieces_of(polygon: np.ndarray, count: np.ndarray, patch: float, span: np.ndarray | None = None, *,
               moments=reference_moments) -> Pieces:
     """:func:`sarmitsuba.tracing.mesh.piece_cuts.pieces_of` with its row sweep on the device: the

@@ -22,7 +22,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 
 __all__ = ["SegmentKinds", "DEVICE_ROWS"]
 
@@ -109,6 +109,7 @@ class SegmentKinds:
             out.append([(lin[i] * first[0] + lin[3 + i] * first[1]) + lin[6 + i] * first[2] for i in range(3)])
         return out
 
+    @releasing
     def never_specular(self, chains, chain, points, diagonal, views, rx_views):
         """``MeshTracer._never_specular``: bool [m] for pieces of chains ``chain`` int [m] at
         ``points`` float64 [m, 3] (world, m) with box diagonals ``diagonal`` [m] (m); ``views``,
@@ -133,6 +134,7 @@ class SegmentKinds:
         dr.eval(stable)
         return stable.numpy().astype(bool).reshape(m)
 
+    @releasing
     def split_kinds(self, chains, chain, part, p2, q2, views, rx_views):
         """``MeshTracer._split_kinds``: the kind int64 [m] of segments ``p2 -> q2`` float64
         [m, 2] (face coordinates of ``part`` int [m], m) of chains ``chain`` int [m]; ``views``,

@@ -42,7 +42,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..device import device_array, table_array
+from ..device import device_array, releasing, table_array
 from ..loops import RECORDING, loop_mode
 from ..mesh.polygons import EVERYTHING
 from ..visibility import occlusion
@@ -92,6 +92,7 @@ def _chain_tables(chains):
     return table_array(mi.Float64, table.reshape(-1)), table_array(mi.UInt32, ints.reshape(-1))
 
 
+@releasing
 def shared_shadow_lines(surfaces, chains, chain: np.ndarray, occluder: np.ndarray, leg: np.ndarray,
                         *antennas: np.ndarray, receivers: tuple | None = None) -> list[np.ndarray]:
     """:func:`sarmitsuba.tracing.visibility.occlusion.shared_shadow_lines` on the device: the same
