@@ -93,7 +93,7 @@ def _car_scene(velocity, ground_gamma=None, car_gamma=None, integrator=None):
 
 @pytest.mark.parametrize("scene, message", [
     (lambda: _car_scene((0.0, 200.0, 0.0)), r"shape 'car': velocity \[0.0, 200.0, 0.0\] m/s takes it .* beyond the still "
-                                            r"scene during the aperture"),
+                                            r"shapes around it during the aperture"),
     (lambda: Scene([(trimesh.creation.box((2, 2, 2)), "pec", "car")], velocities={"truck": (1, 0, 0)}),
      "velocity given for shape 'truck', which the scene does not have"),
     (lambda: _car_scene((1.0, 0.0, 0.0), car_gamma=-10.0), "a moving shape's material must be smooth"),
@@ -105,6 +105,50 @@ def _car_scene(velocity, ground_gamma=None, car_gamma=None, integrator=None):
 def test_bad_velocities_are_refused_before_tracing(scene, message):
     with pytest.raises(ParameterError, match=message):
         load_scene(scene())
+
+
+def _two_boxes(motion: dict, *, ground: bool = False, at: float = 16.0):
+    """A 1 m box at the origin and another at ``x = at`` with ``motion`` (``velocities`` entry of
+    shape ``"b"``), on a 60 m ground when ``ground``; 64 pulses at 150 Hz (0.42 s)."""
+    shapes = []
+    if ground:
+        g = trimesh.creation.box((60.0, 60.0, 0.2))
+        g.apply_translation((0.0, 0.0, -0.1))
+        shapes.append((g, "concrete", "ground"))
+    for name, x in (("a", 0.0), ("b", at)):
+        box = trimesh.creation.box((1.0, 1.0, 1.0))
+        box.apply_translation((x, 0.0, 0.5))
+        shapes.append((box, "pec", name))
+    return Scene(shapes, sensor={"n_pulses": 64, "prf": 150.0, "altitude": 500.0}, velocities={"b": motion})
+
+
+def test_a_target_standing_alone_may_move_and_the_scene_box_holds_its_path():
+    """No ground: box "b" stands 16 m from box "a" and moves 1.3 m/s, 0.55 m in the aperture. No
+    still shape stands around it, so it leaves nothing (refused before: "16 m beyond the still
+    scene ... give a speed below about 0 m/s"); the planned box reaches to its far end,
+    16.5 + 1.3 x 63 / 150 / 2 m. On a 60 m ground the same box at x = 29.3 m drives 0.073 m off
+    the ground's edge at 30 m and is refused, with the speed that stays: 1.3 - 2 x 0.073 / 0.42 =
+    0.952 m/s."""
+    loaded = load_scene(_two_boxes({"velocity": (1.3, 0.0, 0.0)}))
+    assert loaded.offset[0] + loaded.bbox_hi[0] == pytest.approx(16.5 + 1.3 * 63 / 150 / 2, abs=1e-6)
+    with pytest.raises(ParameterError, match=r"shape 'b': velocity .* takes it 0.073 m beyond .* below about 0.952 m/s"):
+        load_scene(_two_boxes({"velocity": (1.3, 0.0, 0.0)}, ground=True, at=29.3))
+
+
+def test_a_turning_shape_is_named_by_its_angular_velocity_and_a_turning_ground_is_not_refused():
+    """A box turning on the ground 0.2 m from its edge sweeps the sphere through its corners (0.87 m
+    radius): refused naming ``angular_velocity``, not a velocity of zero; the ground itself turning
+    under still boxes stands beyond them, and is planned, not refused."""
+    with pytest.raises(ParameterError, match=r"shape 'b': angular_velocity \[0.0, 0.0, 5.0\] deg/s turns it"):
+        load_scene(_two_boxes({"angular_velocity": (0.0, 0.0, 5.0)}, ground=True, at=29.3))
+    ground = trimesh.creation.box((60.0, 60.0, 0.2))
+    ground.apply_translation((0.0, 0.0, -0.1))
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    box.apply_translation((0.0, 0.0, 0.5))
+    loaded = load_scene(Scene([(ground, "concrete", "ground"), (box, "pec", "a")],
+                              sensor={"n_pulses": 64, "altitude": 500.0},
+                              velocities={"ground": {"angular_velocity": (0.0, 0.0, 1.0)}}))
+    assert loaded.offset[0] + loaded.bbox_hi[0] >= 30.0
 
 
 def test_a_car_leaving_the_scene_on_the_command_line_exits_with_2_and_one_message(tmp_path):

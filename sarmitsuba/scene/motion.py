@@ -195,8 +195,11 @@ def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.nd
     centre through its farthest vertex; docs/physics.md (V1)); ``boxes`` float64 [n_shapes, 2, 3]
     are the shapes' own boxes.
 
-    Raises ParameterError when a moving shape leaves the box of the still shapes (horizontally)
-    during the aperture: its echo would come from beyond the scene that was planned.
+    Raises ParameterError when a moving shape that stands within the box of the still shapes
+    (horizontally, a car on its ground) leaves it during the aperture, naming the parameter that
+    moves it (``velocity``, with the largest speed that stays, or ``angular_velocity``). A shape
+    that stands beyond the still ones (a target alone, or the ground itself turning) is not
+    refused: the box returned holds its path.
     """
     still = np.setdiff1d(np.arange(len(boxes)), motion.shapes)
     half = 0.5 * motion.duration * motion.velocities()
@@ -208,15 +211,20 @@ def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.nd
     hi = [box[1] + np.abs(h) for box, h in zip(own, half)]
     if len(still):
         s_lo, s_hi = boxes[still, 0].min(axis=0), boxes[still, 1].max(axis=0)
-        for shape_id, a, b, v in zip(motion.ids, lo, hi, motion.velocities()):
+        for shape_id, k, a, b, v, t in zip(motion.ids, motion.shapes, lo, hi, motion.velocities(), turning):
+            if np.any(boxes[k, 0, :2] < s_lo[:2] - 1e-6) or np.any(boxes[k, 1, :2] > s_hi[:2] + 1e-6):
+                continue                     # it stands beyond the still shapes: its own path is planned below
             outside = max(float(np.max(s_lo[:2] - a[:2])), float(np.max(b[:2] - s_hi[:2])))
             if outside > 1e-6:
                 speed = float(np.linalg.norm(v[:2]))
                 allowed = max(speed - 2.0 * outside / max(motion.duration, 1e-300), 0.0)
+                w = np.degrees(motion.angular_velocities()[list(motion.ids).index(shape_id)])
+                fix = f"angular_velocity {np.round(w, 9).tolist()} deg/s turns it" if t else \
+                    f"velocity {v.tolist()} m/s takes it"
+                hint = "a slower turn" if t else f"a speed below about {allowed:.3g} m/s"
                 raise ParameterError(
-                    f"scene {label!r}, shape {shape_id!r}: velocity {v.tolist()} m/s takes it {outside:.3g} m beyond the "
-                    f"still scene during the aperture ({motion.duration:.4g} s): give a speed below about "
-                    f"{allowed:.3g} m/s, fewer pulses, or a larger ground")
+                    f"scene {label!r}, shape {shape_id!r}: {fix} {outside:.3g} m beyond the still shapes around it "
+                    f"during the aperture ({motion.duration:.4g} s): give {hint}, fewer pulses, or a larger ground")
         lo.append(s_lo)
         hi.append(s_hi)
     return np.min(lo, axis=0), np.max(hi, axis=0)
