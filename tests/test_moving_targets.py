@@ -146,10 +146,11 @@ def test_the_echo_follows_the_target_where_the_wave_meets_it(tmp_path):
 def test_along_track_interferometry_phase_and_dpca_of_a_moving_trihedral(tmp_path, v_r):
     """Two phase centres 2 m apart along track (``ati_baseline``): at the trihedral's peak the
     interferogram ``I_fore I_aft*`` has the phase ``4 pi v_r d / (lambda V)`` (30 and -90 deg here)
-    within 2 deg, and the DPCA image ``I_fore - I_aft`` keeps ``2 |sin(phi / 2)|`` of the fore
+    within 2 deg, from which ``radial_velocity`` reads the target's own ``v_r`` back within 0.1 m/s
+    (caught: its ``4 pi`` as ``2 pi``, twice the speed), and the DPCA image ``I_fore - I_aft`` keeps ``2 |sin(phi / 2)|`` of the fore
     channel's amplitude (-5.7 and +3.0 dB) within 1 dB. The aft channel placed ahead instead of
     behind flips the phase's sign."""
-    from sarmitsuba.analysis.along_track import ati_interferogram, ati_phase, dpca_image
+    from sarmitsuba.analysis.along_track import ati_interferogram, ati_phase, dpca_image, radial_velocity
     d = 2.0
     shift = -R0 * v_r / SENSOR["velocity"]
     sim = simulate(str(moving_trihedral(tmp_path, v_r * LOOK)), sensor_overrides={**SENSOR, "ati_baseline": d},
@@ -159,6 +160,7 @@ def test_along_track_interferometry_phase_and_dpca_of_a_moving_trihedral(tmp_pat
     assert ati_phase(v_r, WAVELENGTH, SENSOR["velocity"], d) == pytest.approx(expected)
     measured = np.angle(ati_interferogram(sim.image, sim.aft.image)[i, j])
     assert abs(math.degrees(measured - expected)) < 2.0, (math.degrees(measured), math.degrees(expected))
+    assert radial_velocity(measured, WAVELENGTH, SENSOR["velocity"], d) == pytest.approx(v_r, abs=0.1)  # the truth
     ratio = np.abs(dpca_image(sim.image, sim.aft.image)[i, j]) / np.abs(sim.image.data[i, j])
     assert abs(20 * math.log10(ratio / (2 * abs(math.sin(expected / 2))))) < 1.0
 
@@ -236,15 +238,36 @@ def test_a_turning_trihedral_is_displaced_by_its_apex_radial_velocity(tmp_path, 
     assert abs(azimuth - shift) < 0.1 * AZIMUTH_CELL, (azimuth, shift)
 
 
+def test_an_ati_baseline_no_shorter_than_the_track_is_refused_before_tracing():
+    """The sensor above flies (300 - 1) / 1 kHz x 200 m/s = 59.8 m: a trailing channel 60 m
+    behind shares no stretch of track with the leading one (its echoes miss the window or the
+    beam: an empty aft channel, a phase of 0 and a DPCA image equal to the fore image), so it is
+    refused before any tracing, naming the parameter and the track's length; 59 m is accepted."""
+    from sarmitsuba.core.radar import ParameterError
+    from sarmitsuba.core.geometry import acquisition_geometry
+    from sarmitsuba.scene.loader import load_scene
+    from sarmitsuba.scene.planning import check_ati_baseline
+    with pytest.raises(ParameterError, match=r"ati_baseline = 60 m .*\(59.8 m\)"):
+        simulate("trihedral", sensor_overrides={**SENSOR, "ati_baseline": 60.0})
+    params = load_scene("trihedral", {**SENSOR, "ati_baseline": 59.0}).params
+    check_ati_baseline(params, acquisition_geometry(params))
+
+
 def test_ati_products_refuse_images_on_different_grids():
-    """The interferogram and the DPCA image of two images whose grids differ by a metre: refused,
-    naming the grid (a pixel-by-pixel product of different places would look like motion)."""
+    """The interferogram and the DPCA image of an image and its copy 0.7 rad later: the phase
+    0.7 rad (not its negative: the fore channel times the aft's conjugate) and ``I (1 - e^{-0.7 j})``;
+    of two images whose grids differ by a metre: refused, naming the grid (a pixel-by-pixel
+    product of different places would look like motion)."""
     import dataclasses
     from sarmitsuba.analysis.along_track import ati_interferogram, dpca_image
     from sarmitsuba.analysis.interferometry import InterferometryError
     image = simulate("trihedral", sensor_overrides={"n_pulses": 16}, image_size=(16, 16)).image
     moved = dataclasses.replace(image, origin=image.origin + np.array([1.0, 0.0, 0.0]))
+    late = dataclasses.replace(image, data=(image.data * np.exp(-0.7j)).astype(np.complex64))   # 0.7 rad behind
+    lit = np.abs(image.data) > 0
+    assert lit.sum() > 100
+    assert np.allclose(np.angle(ati_interferogram(image, late)[lit]), 0.7, atol=1e-5)   # I_fore I_aft* = |I|^2 e^{0.7j}
+    assert np.allclose(dpca_image(image, late), image.data * (1.0 - np.exp(-0.7j)), atol=1e-5 * np.abs(image.data).max())
     for product in (ati_interferogram, dpca_image):
-        assert np.allclose(np.angle(product(image, image)[np.abs(image.data) > 0]), 0.0) or product is dpca_image
         with pytest.raises(InterferometryError, match="origin"):
             product(image, moved)

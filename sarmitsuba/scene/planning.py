@@ -23,7 +23,7 @@ from .track_checks import aperture_note, motion_error_note, steering_note
 
 __all__ = ["resolve_parameters", "state_vector_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
            "project_to_aim_plane", "box_corners", "check_ray_spacing", "nearest_range",
-           "phase_limited_size", "PATCH_PHASE", "PATCH_PHASE_MAX", "TUBE_PHASE_MAX", "echo_lengths", "check_acquisition", "AcquisitionWarning",
+           "phase_limited_size", "PATCH_PHASE", "PATCH_PHASE_MAX", "TUBE_PHASE_MAX", "echo_lengths", "check_acquisition", "check_ati_baseline", "AcquisitionWarning",
            "beam_offsets"]
 
 
@@ -482,6 +482,24 @@ def _refinements(params: RadarParameters, geometry: AcquisitionGeometry, fp: Ray
     return tuple(Refinement(m, np.array(sorted(cells), np.int64)) for m, cells in sorted(groups.items()))
 
 
+def check_ati_baseline(params: RadarParameters, geometry: AcquisitionGeometry) -> None:
+    """Refuse an along-track baseline ``d`` (``ati_baseline`` [m]) no shorter than the track the
+    pulses fly: the trailing channel's phase centres (the lead's moved back by ``d``, docs/physics.md
+    (V6)) would share no stretch of track with the lead's, so its aperture would lie wholly outside
+    the lead's and the interferogram compare two different looks (or an empty channel).
+    Raises ParameterError naming ``ati_baseline``, the track's length and the largest baseline."""
+    d = float(params.ati_baseline)
+    if d <= 0.0:
+        return
+    steps = np.diff(np.asarray(geometry.positions, np.float64), axis=0)
+    track = float(np.sum(np.sqrt(np.einsum("ij,ij->i", steps, steps))))
+    if d >= track:
+        raise ParameterError(f"ati_baseline = {d:g} m is not shorter than the track the {params.n_pulses} pulses fly "
+                             f"({track:.3g} m): the trailing channel's aperture would not overlap the leading one's; "
+                             f"give ati_baseline below {track:.3g} m (along-track baselines are typically a few "
+                             f"metres), or fly more pulses")
+
+
 def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, window: FastTimeWindow,
                       lo: np.ndarray, hi: np.ndarray) -> list[str]:
     """Warn (:class:`AcquisitionWarning`) about settings that give ambiguities or an empty image.
@@ -496,8 +514,10 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
     - a trajectory file too short for the synthetic aperture (:func:`aperture_note`);
     - spotlight pulses steered beyond :data:`~sarmitsuba.scene.track_checks.MAX_STEERING_DEG` (:func:`steering_note`).
 
-    Returns the messages (also issued as warnings).
+    Returns the messages (also issued as warnings). Raises ParameterError for an ``ati_baseline``
+    no shorter than the track (:func:`check_ati_baseline`).
     """
+    check_ati_baseline(params, geometry)
     messages = [note for note in (motion_error_note(params), aperture_note(params, geometry),
                                   steering_note(params, geometry)) if note]
     if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
