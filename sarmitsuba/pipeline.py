@@ -29,8 +29,8 @@ from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
 
-__all__ = ["Simulation", "simulate", "RenderSummary", "render", "image_grid", "check_output_dir", "OUTPUT_FILES",
-           "EXPORT_FILES", "write_exports"]
+__all__ = ["Simulation", "simulate", "RenderSummary", "render", "refocus", "image_grid", "check_output_dir",
+           "OUTPUT_FILES", "EXPORT_FILES", "check_formats", "write_exports"]
 
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
@@ -130,7 +130,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
              material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
              image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
              window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None,
-             window_range: Any = None, window_azimuth: Any = None) -> Simulation:
+             window_range: Any = None, window_azimuth: Any = None, formats: Sequence[str] = ()) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
     Parameters are those of :func:`render` (``window``, ``window_range``, ``window_azimuth`` and
@@ -139,6 +139,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
     traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.driver.distributed.trace_on_cluster`).
+    ``formats``: those :func:`render` will write, checked against the sensor (:func:`check_formats`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
@@ -146,6 +147,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
+    check_formats(formats, params=params)
     setup = prepare_trace(loaded)
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
@@ -351,7 +353,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         # an earlier render's files that this one does not write go then (core/outputs.py, "Products")
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
-                       scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth)
+                       scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth, formats=formats)
         t_products = time.perf_counter()
         paths = {}
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
@@ -379,12 +381,18 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
 SICD_CHOICES = {"sicd_plane": ("slant", "image"), "sicd_weighting": ("uniform", "image")}
 
 
-def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform") -> None:
-    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`,
-    or naming ``sicd_plane`` / ``sicd_weighting`` unless it is one of its two values."""
+def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform",
+                  params: Any = None) -> None:
+    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`
+    (and, given the scene's RadarParameters ``params``, for ``sicd`` with a receiver on its own
+    platform: the SICD writer describes a monostatic collection), or naming ``sicd_plane`` /
+    ``sicd_weighting`` unless it is one of its two values."""
     unknown = [f for f in formats if f not in EXPORT_FILES]
     if unknown:
         raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
+    if "sicd" in formats and params is not None and params.receiver:
+        raise ParameterError("formats includes 'sicd' (--sicd), but a receiver_* platform makes the data bistatic "
+                             "(docs/physics.md (B1)) and a SICD describes a monostatic collection: write --cphd instead")
     for name, value in (("sicd_plane", sicd_plane), ("sicd_weighting", sicd_weighting)):
         if value not in SICD_CHOICES[name]:
             raise ParameterError(f"{name} = {value!r}: valid values are {' and '.join(SICD_CHOICES[name])} (the "
@@ -469,12 +477,16 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     Raises
     ------
     ValueError
-        Unknown algorithm, window, track or autofocus; ``track = "nominal"`` for data without a
+        Unknown algorithm, window, track or autofocus; ``autofocus_reference`` without
+        ``autofocus = "pga"``; ``track = "nominal"`` for data without a
         nominal track; a track the FFT focusers cannot handle (they name backprojection); PGA on
         an image whose azimuth axis follows no straight track.
     """
     if autofocus not in (None, "pga"):
         raise ValueError(f"autofocus = {autofocus!r}; valid: 'pga' or None")
+    if autofocus_reference is not None and autofocus is None:
+        raise ValueError("autofocus_reference (--pga-reference) is used only by phase gradient autofocus: "
+                         "add autofocus = 'pga' (--autofocus pga), or leave the reference out")
     image = focus_by_name(raw.on_track(track), algorithm, window=window, window_range=window_range,
                           window_azimuth=window_azimuth, progress=progress)
     if autofocus == "pga":

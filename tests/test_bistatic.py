@@ -296,9 +296,11 @@ def test_polarisation_turns_toward_the_receivers_other_channel():
     assert vv < -3.0, vv
 
 
-def test_sicd_of_bistatic_data_is_refused_and_nothing_is_written(tmp_path):
+def test_sicd_of_bistatic_data_is_refused_and_nothing_is_written(tmp_path, monkeypatch):
     """SICD describes a monostatic collection here: the writer refuses bistatic data naming CPHD, and
-    a render asking for it leaves no folder behind (the CPHD path is tests/test_bistatic_focus.py's)."""
+    a render asking for it is refused before it traces (the trace is replaced by a failure) and
+    leaves no folder behind (the CPHD path is tests/test_bistatic_focus.py's)."""
+    from sarmitsuba import pipeline
     from sarmitsuba.formats.sicd import SicdError, write_sicd
     from sarmitsuba.pipeline import render
     plate, *_ = bisector_plate(RECEIVERS["drone"], 4, 0.0)
@@ -307,6 +309,9 @@ def test_sicd_of_bistatic_data_is_refused_and_nothing_is_written(tmp_path):
         write_sicd(sim.image, tmp_path / "image.nitf", raw=sim.raw)
     scene = sarmitsuba.Scene([(plate, "pec", "plate")], sensor={**BASE, **RECEIVERS["drone"], "n_pulses": 5},
                              integrator={"max_depth": 1})
+    def traced(*args, **kwargs):
+        raise AssertionError("traced before the formats were checked")
+    monkeypatch.setattr(pipeline, "trace", traced)
     with pytest.raises(ParameterError, match="--sicd.*bistatic"):
         render(scene, tmp_path / "out", formats=("sicd",), progress=False)
     assert not (tmp_path / "out").exists()

@@ -82,3 +82,7 @@ def test_the_cli_focuses_on_the_nominal_track_with_pga(images, tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "--pga-reference" in bad.stderr and "X,Y,Z" in bad.stderr, bad.stderr
     assert "Traceback" not in bad.stderr
+    alone = subprocess.run([sys.executable, "-m", "sarmitsuba", "focus", str(raw_path), "--pga-reference", "0,0,0",
+                            "--out", str(tmp_path / "alone"), "--no-progress"], capture_output=True, text=True, timeout=300)
+    assert alone.returncode == 2 and "--autofocus pga" in alone.stderr, alone.stderr      # not silently ignored
+    assert "Traceback" not in alone.stderr and not (tmp_path / "alone").exists()

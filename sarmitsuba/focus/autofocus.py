@@ -506,7 +506,7 @@ def _reference_azimuth(image: SarImage, reference: Any) -> tuple[float, tuple[fl
     a_lo, a_hi = float(np.min(image.azimuth)), float(np.max(image.azimuth))
     r_lo, r_hi = float(np.min(image.range)), float(np.max(image.range))
     if not (a_lo <= azimuth <= a_hi and r_lo <= ground <= r_hi):
-        raise ParameterError(f"reference {tuple(point)} appears at azimuth {azimuth:.2f} m, range {ground:.2f} m, "
+        raise ParameterError(f"reference ({', '.join(f'{v:g}' for v in point)}) appears at azimuth {azimuth:.2f} m, range {ground:.2f} m, "
                              f"outside the image (azimuth {a_lo:.2f} .. {a_hi:.2f} m, range {r_lo:.2f} .. "
                              f"{r_hi:.2f} m): give a point inside the image, or leave reference out")
     return azimuth, tuple(float(v) for v in point), ground
