@@ -525,6 +525,11 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     if len(params.channels) != 1:
         raise ParameterError("sarmitsuba.gradients takes a loss on one channel's image; for quad-pol, set "
                              "polarization to one channel, or use raw_gradient with a gradient per channel")
+    grid = sized_grid(params, setup.geometry, image_size, image_spacing)
+    if isinstance(loss, AmplitudeLoss) and np.shape(loss.target) != (len(grid.azimuth), len(grid.range)):
+        raise ParameterError(f"AmplitudeLoss target shape {np.shape(loss.target)} must be the image's "
+                             f"{(len(grid.azimuth), len(grid.range))} (image_size = {tuple(image_size)}, azimuth by "
+                             "range pixels): give a target of that shape, or set image_size to the target's")
     rows = _material_tangents(loaded, setup, parameters)      # a pec material refused before the forward render
     shapes = bool(at) or any(isinstance(p, ShapeParameter) for p in parameters)
     # one trace of the geometry: the values pass keeps each launch's lanes and tangents, and the
@@ -533,7 +538,6 @@ def gradients(source: Any, loss, parameters, *, image_size: tuple[int, int] = (6
     if kernel.moved is not None:
         kernel.moved.kept = {}
     raw = _raw(source, loaded, setup, _batches(kernel, loaded, setup))
-    grid = sized_grid(params, setup.geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)
     operator = operators[focuser](raw, grid, oversample=oversample,
                                   azimuth_beamwidth=params.traced_beamwidth if params.mode == "stripmap" else None,

@@ -113,6 +113,26 @@ def test_pec_material_parameter_is_refused_before_any_tracing(monkeypatch, api):
     assert "metal" in str(caught.value)
 
 
+def test_an_amplitude_loss_of_the_wrong_shape_is_refused_before_any_tracing(monkeypatch):
+    """A target of 8 x 6 pixels for an 8 x 8 image: refused before the forward render (which is
+    replaced by a failure here), naming both shapes and ``image_size``; the transposed shape too
+    (azimuth by range, not range by azimuth)."""
+    import numpy as np
+    from sarmitsuba import derivatives
+    from sarmitsuba.core.radar import ParameterError
+
+    def traced(*args, **kwargs):
+        raise AssertionError("traced before the loss was checked")
+    monkeypatch.setattr(derivatives, "_values", traced)
+    monkeypatch.setattr(derivatives, "trace", traced)
+    monkeypatch.setattr(derivatives, "_raw", traced)
+    for target, size in (((8, 6), (8, 8)), ((6, 8), (8, 6))):
+        with pytest.raises(ParameterError, match=r"image_size") as caught:
+            derivatives.gradients("dihedral", derivatives.AmplitudeLoss(np.zeros(target)), [],
+                                  image_size=size, sensor_overrides={"n_pulses": 8})
+        assert f"{target}" in str(caught.value) and f"{size}" in str(caught.value)
+
+
 # ---- scene_center far from the shapes -------------------------------------------------------------
 # The dihedral's shapes span x -10..10, y 0..10, z 0..5 m (scenes/dihedral.xml): middle (0, 5, 2.5).
 
