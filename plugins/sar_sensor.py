@@ -103,6 +103,11 @@
  * - orbit_direction
    - string
    - ``trajectory = orbit``: ``descending`` (default) or ``ascending``.
+ * - orbit_pass_time
+   - string, UTC
+   - An ECEF orbit file with an absolute clock that passes the scene several times: the time
+     (ISO 8601 with an offset) near the closest approach of the pass to image (docs/physics.md
+     (J6)); not given: the rule of :func:`sarmitsuba.core.orbit.choose_pass`.
  * - arc_deg
    - float, deg
    - Arc of a circular trajectory, (0, 360], default 360 (the full circle).
@@ -128,6 +133,18 @@
      transmit): one cross-polarised channel; ``quad``: HH, HV, VH and VV from one trace, written as ``raw_XX.npz`` /
      ``image_XX.npz`` with ``pauli.png``. Every ray tube carries a Jones matrix (sbr
      ``polarimetry``), docs/physics.md, Polarimetry (P1)-(P8).
+ * - receiver_trajectory, receiver_velocity, receiver_altitude, receiver_incidence_angle,
+     receiver_heading, receiver_look_side, receiver_track_offset, receiver_arc_deg,
+     receiver_orbit_inclination, receiver_orbit_direction, receiver_squint,
+     receiver_antenna_length, receiver_antenna_height, receiver_antenna_gain_db
+   - as the parameter without the prefix
+   - Bistatic SAR: any of these puts the receiver on a platform of its own, flying its own
+     track over the same pulse times, looking at the same scene centre; a receiver parameter
+     not given takes the transmitter's value, and its antenna is isotropic unless
+     ``receiver_antenna_length`` or ``receiver_antenna_height`` gives it a pattern. Traced and
+     focused on the bistatic range sum (docs/physics.md (B1)-(B4));
+     refused, naming the parameter, where the bistatic angle at the scene centre exceeds
+     150 deg. Not with ``ati_baseline``.
 
 Every parameter with a unit must lie in its valid range (:data:`sarmitsuba.core.valid_ranges.VALID_RANGES`,
 docs/design.md section 4: frequency [1e6, 1e12] Hz, bandwidth [1e5, 1e11] Hz, velocity

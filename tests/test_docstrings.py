@@ -36,13 +36,15 @@ def _members(cls):
 
 def public_objects() -> dict[str, object]:
     """``{"module.name": object}`` of every public function and class, under the module that
-    defines it (a name re-exported by a package is listed once, where it is defined)."""
+    defines it (a name re-exported by a package is listed once, where it is defined: a
+    function public at the top level, ``sarmitsuba.refocus``, is public where it is defined
+    even if that module's ``__all__`` forgot it)."""
     found = {}
     for module in _public_modules():
         for name in getattr(module, "__all__", ()):
             obj = getattr(module, name, None)
-            if (inspect.isfunction(obj) or inspect.isclass(obj)) and obj.__module__ == module.__name__:
-                found[f"{module.__name__}.{name}"] = obj
+            if (inspect.isfunction(obj) or inspect.isclass(obj)) and obj.__module__.startswith("sarmitsuba"):
+                found[f"{obj.__module__}.{obj.__qualname__}"] = obj
     return found
 
 

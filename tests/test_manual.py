@@ -48,3 +48,19 @@ def test_every_internal_link_and_image_resolves(built):
     check_links = _checker()
     problems = check_links.check(built)
     assert not problems, problems[:20]
+
+
+def test_every_sensor_and_integrator_parameter_is_in_the_plugin_reference(built):
+    """The plugin reference's tables name every parameter the ``sar`` sensor and the ``sbr``
+    integrator take: each field of RadarParameters and TraceSettings, and each ``receiver_*``
+    parameter. (Caught: the receiver's fourteen parameters and ``orbit_pass_time``, absent.)"""
+    import dataclasses
+    import re
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.core.receiver import RECEIVER_FIELDS, RECEIVER_PREFIX
+    from sarmitsuba.scene.trace_inputs import TraceSettings
+    text = re.sub(r"<[^>]+>", " ", (built / "plugins.html").read_text())
+    names = [n for n in RadarParameters.names() if n != "receiver"] + [RECEIVER_PREFIX + f for f in RECEIVER_FIELDS]
+    names += [f.name for f in dataclasses.fields(TraceSettings)]
+    missing = [n for n in names if not re.search(rf"(?<![\w]){n}(?![\w])", text)]
+    assert not missing, missing
