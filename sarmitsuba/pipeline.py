@@ -5,6 +5,7 @@ import dataclasses
 import json
 import os
 import time
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -149,6 +150,9 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     params, settings = loaded.params, loaded.settings
     check_formats(formats, params=params)
     setup = prepare_trace(loaded)
+    amb = ambiguities(params, azimuth_window)           # the ghosts `info` warns about, before they are traced
+    if amb is not None and amb.warning:
+        warnings.warn(amb.warning, planning.AcquisitionWarning, stacklevel=2)
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
     check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
@@ -384,9 +388,8 @@ SICD_CHOICES = {"sicd_plane": ("slant", "image"), "sicd_weighting": ("uniform", 
 def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform",
                   params: Any = None) -> None:
     """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`
-    (and, given the scene's RadarParameters ``params``, for ``sicd`` with a receiver on its own
-    platform: the SICD writer describes a monostatic collection), or naming ``sicd_plane`` /
-    ``sicd_weighting`` unless it is one of its two values."""
+    (and not ``sicd`` where the scene's RadarParameters ``params`` have a receiver_* platform), or
+    naming ``sicd_plane`` / ``sicd_weighting`` unless it is one of its two values."""
     unknown = [f for f in formats if f not in EXPORT_FILES]
     if unknown:
         raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
@@ -457,17 +460,15 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
             autofocus: str | None = None, autofocus_reference: Any = None) -> SarImage:
     """Focus any RawData honouring the contract (docs/design.md section 3) with the chosen algorithm.
 
-    ``bp``: direct backprojection, ``ffbp``: fast factorised backprojection; onto the scene's
-    ground grid when the metadata carry sarmitsuba's radar parameters and scene box (with their
-    beam gating), else onto the slant-plane grid of the straight-track geometry. ``omegak`` / ``rda``: the FFT focusers (straight track).
-    Every image measures azimuth from the scene centre's closest approach, so a target reads the
-    same azimuth in all of them; ground or slant range by plane (frames: docs/design.md section 8;
-    ``SarImage.pixel_of`` and ``analyze`` find a world point in either). Chirped input is
-    range-compressed first. Windows (rect, taylor, hamming, kaiser, hann): ``window`` in range
-    and azimuth, default Taylor as in :func:`render`, so refocusing a render's raw data with
-    ``ffbp`` gives its image; ``window_range`` / ``window_azimuth`` for one axis (default:
-    ``window``). Backprojection applies the azimuth window over the beam (or, without a beam,
-    over the aperture) and divides out the recorded antenna pattern, as :func:`simulate` does.
+    ``bp`` / ``ffbp``: direct or fast factorised backprojection onto the scene's ground grid when
+    the metadata carry sarmitsuba's radar parameters and scene box (with their beam gating), else
+    onto the straight track's slant-plane grid; ``omegak`` / ``rda``: the FFT focusers. Azimuth runs from the scene centre's closest approach in every
+    image; range is ground or slant by plane (docs/design.md section 8). Chirped input is
+    range-compressed first. Windows (rect, taylor, hamming, kaiser, hann): ``window`` in range and
+    azimuth, default Taylor as in :func:`render` (refocusing a render's raw data with ``ffbp`` gives
+    its image); ``window_range`` / ``window_azimuth`` for one axis (default: ``window``).
+    Backprojection applies the azimuth window over the beam (else over the aperture) and divides
+    out the recorded antenna pattern, as :func:`simulate` does.
     ``track = "nominal"`` focuses data simulated with motion errors on their nominal track
     (:meth:`RawData.on_track`, docs/physics.md (J4)); ``autofocus = "pga"`` then runs phase
     gradient autofocus on the image (:func:`sarmitsuba.focus.autofocus.pga`, (PGA)), which records
@@ -477,10 +478,9 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     Raises
     ------
     ValueError
-        Unknown algorithm, window, track or autofocus; ``autofocus_reference`` without
-        ``autofocus = "pga"``; ``track = "nominal"`` for data without a
-        nominal track; a track the FFT focusers cannot handle (they name backprojection); PGA on
-        an image whose azimuth axis follows no straight track.
+        Unknown algorithm, window, track or autofocus; ``autofocus_reference`` without ``autofocus
+        = "pga"``; ``track = "nominal"`` for data without a nominal track; a track the FFT focusers
+        cannot handle (they name backprojection); PGA on an image whose azimuth follows no straight track.
     """
     if autofocus not in (None, "pga"):
         raise ValueError(f"autofocus = {autofocus!r}; valid: 'pga' or None")

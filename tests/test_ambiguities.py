@@ -8,6 +8,7 @@ quadrature) and the RASR with a hand-computed single ambiguous range.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -147,3 +148,25 @@ def test_info_warns_at_the_readme_example_prf(capsys):
     assert len(warning) == 1 and "-13.9 dB" in warning[0]
     info = scene_info("trihedral")                                      # its own 250 Hz, 1.2 deg beam
     assert info.ambiguities.aasr_db < -30 and not any("AASR" in w for w in info.warnings)
+
+
+@pytest.mark.parametrize("prf, warned", [(200.0, True), (300.0, False)])
+def test_simulate_warns_of_the_ghosts_info_warns_of_before_tracing(monkeypatch, prf, warned):
+    """The trihedral in stripmap at 200 Hz: above the Doppler bandwidth (134 Hz, so no PRF
+    warning), but the Taylor-weighted beam's tails alias at an AASR above -20 dB. ``info`` lists
+    the AASR warning, and ``simulate`` (``render``) issues the same line before it traces (the
+    trace is replaced by a failure here); at 300 Hz neither warns."""
+    from sarmitsuba import pipeline
+    from sarmitsuba.scene.planning import AcquisitionWarning
+    sensor = {"mode": "stripmap", "prf": prf, "n_pulses": 64}
+    listed = [w for w in scene_info("trihedral", sensor_overrides=sensor).warnings if w.startswith("AASR")]
+    assert bool(listed) == warned
+
+    def traced(*args, **kwargs):
+        raise AssertionError("traced")
+    monkeypatch.setattr(pipeline, "trace", traced)
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(AssertionError, match="traced"):
+        warnings.simplefilter("always")
+        simulate("trihedral", sensor_overrides=sensor)
+    issued = [str(w.message) for w in caught if issubclass(w.category, AcquisitionWarning)]
+    assert [m for m in issued if m.startswith("AASR")] == listed
