@@ -19,7 +19,7 @@ from ..core.radar import VALID_RANGES, ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, aperture_axis, pulse_times, track_frame
 from ..core.trajectory import StateVectors, from_state_vectors
 from .trace_inputs import FastTimeWindow, RayFootprint, Refinement, TraceSettings
-from .track_checks import aperture_note, motion_error_note, steering_note
+from .track_checks import aperture_note, motion_error_note, receiver_doppler_note, steering_note
 
 __all__ = ["resolve_parameters", "state_vector_parameters", "fast_time_window", "ray_footprint", "ray_spacing", "scatterer_spacing",
            "project_to_aim_plane", "box_corners", "check_ray_spacing", "nearest_range",
@@ -512,14 +512,15 @@ def check_acquisition(params: RadarParameters, geometry: AcquisitionGeometry, wi
     - a scene outside the beam footprint: no ray can hit it;
     - a motion error too large to be focused without the true track (:func:`motion_error_note`);
     - a trajectory file too short for the synthetic aperture (:func:`aperture_note`);
-    - spotlight pulses steered beyond :data:`~sarmitsuba.scene.track_checks.MAX_STEERING_DEG` (:func:`steering_note`).
+    - spotlight pulses steered beyond :data:`~sarmitsuba.scene.track_checks.MAX_STEERING_DEG` (:func:`steering_note`);
+    - a receiver whose motion spreads the Doppler band beyond the PRF (:func:`receiver_doppler_note`).
 
     Returns the messages (also issued as warnings). Raises ParameterError for an ``ati_baseline``
     no shorter than the track (:func:`check_ati_baseline`).
     """
     check_ati_baseline(params, geometry)
     messages = [note for note in (motion_error_note(params), aperture_note(params, geometry),
-                                  steering_note(params, geometry)) if note]
+                                  steering_note(params, geometry), receiver_doppler_note(params, geometry, lo, hi)) if note]
     if params.mode == "stripmap" and params.prf < params.doppler_bandwidth:
         messages.append(f"prf = {params.prf:g} Hz is below the Doppler bandwidth {params.doppler_bandwidth:.1f} Hz "
                         f"(azimuth_beamwidth {params.azimuth_beamwidth:.3g} deg, velocity {params.velocity:g} m/s): "

@@ -16,7 +16,8 @@ from ..core.geometry import AcquisitionGeometry
 from ..core.radar import ParameterError, RadarParameters
 from ..core.trajectory import StateVectors
 
-__all__ = ["MAX_STEERING_DEG", "check_beam_reach", "steering_note", "motion_error_note", "aperture_note"]
+__all__ = ["MAX_STEERING_DEG", "check_beam_reach", "steering_note", "motion_error_note", "aperture_note",
+           "bistatic_doppler_band", "receiver_doppler_note"]
 
 
 #: The largest angle [deg] from broadside to which a spotlight beam is steered (a gimbal or a phased
@@ -209,3 +210,79 @@ def aperture_note(params: RadarParameters, geometry: AcquisitionGeometry) -> str
     return (f"trajectory {states.source}: {params.n_pulses} pulses over {span:.4g} s fly {flown:.3g} m, but a "
             f"{rho:.3g} m azimuth resolution at {params.slant_range:.1f} m slant range needs a synthetic aperture of "
             f"{needed:.3g} m (lambda R / (2 rho)); the image will resolve about {achieved:.3g} m in azimuth: {fix}")
+
+
+#: Points per side of the scene box's grid, at its lowest and highest z, over which
+#: :func:`bistatic_doppler_band` takes the spread.
+DOPPLER_GRID = 33
+#: Pulses (evenly spread, the first and last among them) at which it is taken.
+DOPPLER_PULSES = 9
+
+
+def bistatic_doppler_band(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                          hi: np.ndarray) -> tuple[float, float]:
+    """The Doppler band [Hz] a bistatic acquisition's echoes span at one pulse, the widest over
+    :data:`DOPPLER_PULSES` pulses, and the transmitter's part of it: ``(B, B_t)``.
+
+    A point ``p`` of the scene lit by the transmitter's beam (stripmap: its along-track sine
+    within :attr:`RadarParameters.beam_sines`; spotlight: every point) returns at the Doppler
+    ``(v_t . u_t + v_r . u_r) / lambda``, ``u`` the unit vector from each platform to ``p``
+    (docs/physics.md (B5); Willis, *Bistatic Radar*, 2005, sec. 4.5); ``B`` is the spread of that over the points of a
+    :data:`DOPPLER_GRID`-square grid of the box ``lo``..``hi`` (float64 [3], m) at its lowest and
+    highest z, ``B_t`` the spread of ``v_t . u_t / lambda`` alone. The receiver's antenna is taken as
+    isotropic. ``(0, 0)`` for a monostatic ``geometry`` (no ``receiver_positions``)."""
+    if geometry.receiver_positions is None:
+        return 0.0, 0.0
+    axes = [np.linspace(lo[k], hi[k], DOPPLER_GRID) for k in range(2)]
+    x, y, z = np.meshgrid(axes[0], axes[1], [lo[2], hi[2]], indexing="ij")
+    points = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    band = own = 0.0
+    for i in np.unique(np.linspace(0, len(geometry.positions) - 1, DOPPLER_PULSES).round().astype(int)):
+        at = points
+        if params.mode == "stripmap":             # and where each grid line crosses the beam's edges
+            at = np.concatenate([points, _beam_edges(params, geometry, i, points, lo, hi)])
+        u_t = at - geometry.positions[i]
+        u_t /= np.linalg.norm(u_t, axis=1, keepdims=True)
+        u_r = at - geometry.receiver_positions[i]
+        u_r /= np.linalg.norm(u_r, axis=1, keepdims=True)
+        lit = np.ones(len(at), bool)
+        if params.mode == "stripmap":
+            sine = u_t @ geometry.track_direction
+            lit = (sine >= params.beam_sines[0] - 1e-12) & (sine <= params.beam_sines[1] + 1e-12)
+        if not np.any(lit):
+            continue
+        f_t = u_t[lit] @ geometry.velocity[i] / params.wavelength
+        f = f_t + u_r[lit] @ geometry.receiver_velocity[i] / params.wavelength
+        band, own = max(band, float(np.ptp(f))), max(own, float(np.ptp(f_t)))
+    return band, own
+
+
+def _beam_edges(params: RadarParameters, geometry: AcquisitionGeometry, pulse: int, points: np.ndarray,
+                lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The points (float64 [m, 3]) where the lines along the track through ``points`` cross the
+    edges of pulse ``pulse``'s stripmap beam (its along-track sine at each of
+    :attr:`RadarParameters.beam_sines`: offset ``s d / sqrt(1 - s^2)`` along the track, ``d`` the
+    distance across it), within the box ``lo``..``hi``."""
+    t = geometry.track_direction
+    rel = points - geometry.positions[pulse]
+    along = rel @ t
+    across = np.linalg.norm(rel - along[:, None] * t, axis=1)
+    edges = np.concatenate([points + (s * across / math.sqrt(1.0 - s * s) - along)[:, None] * t
+                            for s in params.beam_sines])
+    return edges[np.all((edges >= lo - 1e-9) & (edges <= hi + 1e-9), axis=1)]
+
+
+def receiver_doppler_note(params: RadarParameters, geometry: AcquisitionGeometry, lo: np.ndarray,
+                          hi: np.ndarray) -> str | None:
+    """The warning when a receiver on its own platform spreads the echoes' Doppler band
+    (:func:`bistatic_doppler_band`) beyond the PRF, as the monostatic check warns of a PRF below
+    the beam's Doppler bandwidth: azimuth ghosts. None when monostatic or within the PRF."""
+    band, own = bistatic_doppler_band(params, geometry, lo, hi)
+    if band <= params.prf:
+        return None
+    speed = float(np.linalg.norm(geometry.receiver_velocity[len(geometry.positions) // 2]))
+    slower = f" or slow the receiver to about {speed * (params.prf - own) / (band - own):.2g} m/s" \
+        if own < params.prf else ""
+    return (f"the receiver's motion (receiver_velocity {speed:.3g} m/s) spreads the echoes' Doppler band over the lit "
+            f"scene to {band:.0f} Hz (the transmitter's part {own:.0f} Hz), above prf = {params.prf:g} Hz: azimuth "
+            f"ghosts will appear; raise prf above {band:.0f} Hz{slower}")
