@@ -452,7 +452,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
         trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()},
         energy_by_order=energy_by_order(result.raw_energy_per_order),
-        depth_warning=depth_warning(result.raw_energy_per_order), overflow_rows=result.overflow_rows)
+        depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond), overflow_rows=result.overflow_rows)
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

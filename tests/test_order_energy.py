@@ -121,9 +121,11 @@ def test_threshold_and_shares():
 
 def test_render_writes_and_info_reads_the_orders(tmp_path, capsys):
     """summary.json holds energy_by_order and the warning; ``info`` prints them from the folder
-    or the file, and names both kinds of input for anything else."""
+    or the file, and names both kinds of input for anything else. (The dihedral in the tube
+    preview, which does not look past its deepest order, so that its second order's 99 % warns.)"""
     out = tmp_path / "dihedral"
-    summary = render("dihedral", out, sensor_overrides={"n_pulses": 32}, progress=False)
+    summary = render("dihedral", out, sensor_overrides={"n_pulses": 32}, integrator_overrides={"lit_regions": "tiles"},
+                     progress=False)
     written = json.loads((out / "summary.json").read_text())
     assert written["energy_by_order"] == summary.energy_by_order
     assert written["energy_by_order"]["share"]["2"] > 0.99
@@ -147,3 +149,34 @@ def test_exact_kernel_does_not_measure_the_orders():
                    progress=False)
     assert sim.trace.raw_energy_per_order is None
     assert energy_by_order(sim.trace.raw_energy_per_order) is None and depth_warning(None) is None
+
+
+@pytest.mark.parametrize("scene, depth", [("dihedral", 2), ("trihedral", 3)])
+def test_a_corners_own_order_holds_everything_and_nothing_lies_beyond_it(scene, depth):
+    """The dihedral's second order and the trihedral's third hold all the energy, and their rays
+    leave toward the radar: the tracer finds no ray past them (``rays_beyond`` 0) and does not
+    warn, and tracing one order deeper confirms it, the extra order holding nothing. (Caught:
+    ``rays_beyond`` not looked for, as before: the README's trihedral warned on every render.)"""
+    sensor = {"n_pulses": 48}
+    sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"max_depth": depth})
+    energy = sim.trace.raw_energy_per_order
+    assert energy[-1] > 0.99 * energy.sum()
+    assert sim.trace.rays_beyond == 0 and depth_warning(energy, sim.trace.rays_beyond) is None
+    deeper = simulate(scene, sensor_overrides=sensor, integrator_overrides={"max_depth": depth + 1})
+    assert deeper.trace.raw_energy_per_order[-1] <= 1e-9 * deeper.trace.raw_energy_per_order.sum()
+
+
+def test_urban_at_depth_two_has_rays_beyond_and_warns(monkeypatch):
+    """urban at depth 2 (order 2 holds 99 %), every launch made to look past its deepest order:
+    some rays meet more of the scene, the warning says how many, and a third order traced holds
+    energy indeed. Without looking (a tube trace) the warning stays, with the corner caveat."""
+    from sarmitsuba.tracing.driver import mesh_trace
+    monkeypatch.setattr(mesh_trace, "BEYOND_SHARE", 0.0)
+    sim = simulate("urban", integrator_overrides={"max_depth": 2})
+    energy = sim.trace.raw_energy_per_order
+    assert sim.trace.rays_beyond > 0
+    message = depth_warning(energy, sim.trace.rays_beyond)
+    assert message and f"{sim.trace.rays_beyond:,} of its specular rays meet more of the scene" in message
+    deeper = simulate("urban", integrator_overrides={"max_depth": 3})
+    assert deeper.trace.raw_energy_per_order[-1] > 0
+    assert "with nothing beyond it" in depth_warning(energy, None)

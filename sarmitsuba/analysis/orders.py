@@ -44,20 +44,23 @@ def energy_by_order(energy: "np.ndarray | None") -> dict | None:
             "share": {str(d): float(e / total) if total > 0 else 0.0 for d, e in enumerate(energy, start=1)}}
 
 
-def depth_warning(energy: "np.ndarray | None") -> str | None:
+def depth_warning(energy: "np.ndarray | None", rays_beyond: int | None = None) -> str | None:
     """The warning for the per-order energies ``energy`` float64 [max_depth]: the deepest traced
     order holds at least :data:`DEEPEST_SHARE` of their sum, so the orders not traced may matter;
-    None otherwise, when not measured, and for one order (``max_depth = 1`` asks for single
-    bounce alone, and its one order holds everything whatever the scene)."""
-    if energy is None or len(energy) < 2 or not np.sum(energy) > 0:
+    None otherwise, when not measured, for one order (``max_depth = 1`` asks for single bounce
+    alone, and its one order holds everything whatever the scene), and when ``rays_beyond`` is 0:
+    the tracer looked, and no ray of the deepest order meets anything more (a trihedral's third
+    bounce leaves toward the radar; :attr:`~sarmitsuba.tracing.driver.trace.TraceResult.rays_beyond`)."""
+    if energy is None or len(energy) < 2 or not np.sum(energy) > 0 or rays_beyond == 0:
         return None
     energy = np.asarray(energy, np.float64)
     depth, share = len(energy), float(energy[-1] / energy.sum())
     if share < DEEPEST_SHARE:
         return None
+    why = (f"{rays_beyond:,} of its specular rays meet more of the scene" if rays_beyond else
+           "a corner's own order, a dihedral's second or a trihedral's third, may hold most with nothing beyond it")
     return (f"bounce order {depth}, the deepest traced, holds {100 * share:.1f} % of the energy: the orders "
-            f"beyond it may hold as much; render once with --max-depth {depth + 1} to see (a corner's own order, "
-            "a dihedral's second or a trihedral's third, may hold most with nothing beyond it)")
+            f"beyond it may hold as much ({why}); render once with --max-depth {depth + 1} to see")
 
 
 def render_summary(path: "str | os.PathLike | None") -> dict | None:

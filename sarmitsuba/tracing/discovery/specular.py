@@ -19,7 +19,7 @@ from ..mesh.polygons import edge_lines, inside
 from ..visibility.rays import lift
 from .chains import Chains, unfold
 
-__all__ = ["DISCOVERY_POINTS", "MAX_DISCOVERY_SUBDIVISION", "arriving", "arriving_views", "discover",
+__all__ = ["DISCOVERY_POINTS", "MAX_DISCOVERY_SUBDIVISION", "arriving", "arriving_views", "discover", "rays_beyond",
            "discovery_subdivision", "grid_points"]
 
 #: Discovery rays start on a grid fixed in each face's frame, at least this many points across
@@ -56,19 +56,8 @@ def discover(surfaces: Surfaces, lit, reference: np.ndarray, rays, subdivision: 
         One chain per distinct (chain, part met) and per other part of that part's face, one order
         higher than its parent, in the parent's sub-aperture; none when no ray meets another part.
     """
-    chains, pieces = lit.chains, lit.pieces
-    keep = np.flatnonzero(lit.transmit | lit.mixed)
-    owner, points2 = grid_points(pieces.select(keep), subdivision[chains.last[pieces.region[keep]]], patch)
-    chain = np.take(pieces.region[keep], owner)
-    part = np.take(chains.last, chain)
-    points = surfaces.to_world(part, points2)
-    antenna = np.take(reference, np.take(chains.sub, chain), axis=0)
-    d = arriving(chains, chain, points, antenna)
-    normal = np.take(surfaces.normal, part, axis=0)
-    reflected = d - 2.0 * np.einsum("mi,mi->m", d, normal)[:, None] * normal
-    origin = lift(points, normal, points - d)
-    hit, _ = rays.first_hit(origin, direction=reflected)
-    found = (hit >= 0) & (hit != part)
+    chains = lit.chains
+    chain, hit, found = _reflected(surfaces, lit, reference, rays, subdivision, patch)
     pairs = unique_pairs(chain[found], hit[found])
     # a face met is met whole: its other convex parts join (their regions decide what they get)
     start, partners = rays.face_partners
@@ -85,6 +74,35 @@ def discover(surfaces: Surfaces, lit, reference: np.ndarray, rays, subdivision: 
     order = chains.order[parent] + 1
     parts[np.arange(len(parent)), order] = new
     return unfold(surfaces, parts, order, chains.sub[parent])
+
+
+def _reflected(surfaces: Surfaces, lit, reference: np.ndarray, rays, subdivision: np.ndarray, patch: float):
+    """The specular rays of ``lit``'s transmit-lit and mixed pieces (their discovery points): each
+    ray's chain (int64 [m]), the part it first meets (int64 [m], -1 for none), and whether that is
+    another part (bool [m])."""
+    chains, pieces = lit.chains, lit.pieces
+    keep = np.flatnonzero(lit.transmit | lit.mixed)
+    owner, points2 = grid_points(pieces.select(keep), subdivision[chains.last[pieces.region[keep]]], patch)
+    chain = np.take(pieces.region[keep], owner)
+    part = np.take(chains.last, chain)
+    points = surfaces.to_world(part, points2)
+    antenna = np.take(reference, np.take(chains.sub, chain), axis=0)
+    d = arriving(chains, chain, points, antenna)
+    normal = np.take(surfaces.normal, part, axis=0)
+    reflected = d - 2.0 * np.einsum("mi,mi->m", d, normal)[:, None] * normal
+    origin = lift(points, normal, points - d)
+    hit, _ = rays.first_hit(origin, direction=reflected)
+    return chain, hit, (hit >= 0) & (hit != part)
+
+
+def rays_beyond(surfaces: Surfaces, lit, reference: np.ndarray, rays, subdivision: np.ndarray, patch: float) -> int:
+    """How many of the deepest traced order's specular rays (those :func:`discover` would cast
+    from ``lit`` for the next order) meet another part: 0 when nothing lies beyond that order, so
+    that a deep order holding most of the energy (a trihedral's third) is its corner's own, not a
+    sign of orders left out (docs/physics.md (M6))."""
+    if len(lit.chains) == 0:
+        return 0
+    return int(np.count_nonzero(_reflected(surfaces, lit, reference, rays, subdivision, patch)[2]))
 
 
 def discovery_subdivision(surfaces: Surfaces, patch: float) -> np.ndarray:

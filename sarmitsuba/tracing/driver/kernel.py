@@ -423,6 +423,8 @@ class Kernel:
                 out["rays"][depth + 1] += casts        # and the rays that looked for its chains
             out["shadow"] += int(sum(stats["samples"]))   # each checked on its way back
             out["overflow"] = stats["overflow"]          # rows the fused kernels left to the reference
+            out["beyond_rays"] = stats["beyond"] or 0    # rays past the deepest order, where looked for
+            out["beyond_unchecked"] = int(stats["beyond"] is None)
             return out
         tube, n_lanes = self.launch(launch)
         for depth in range(st.max_depth):
@@ -433,6 +435,7 @@ class Kernel:
         out = self.returns.collect(ctx)
         if out is None:                     # exact kernel: too many scatterers for the buffer
             return self(launch, capacity=ctx["needed"])
+        out["beyond_unchecked"] = 1         # tubes do not look past their deepest order
         return out
 
     # ------------------------------------------------------------------ one bounce order

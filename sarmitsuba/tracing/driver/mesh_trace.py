@@ -29,7 +29,7 @@ import numpy as np
 
 from ...core.arrays import row_norm
 from ..discovery.chains import Chains, image_source, region_lines, unfold
-from ..discovery.specular import arriving_views, discover, discovery_subdivision
+from ..discovery.specular import arriving_views, discover, discovery_subdivision, rays_beyond
 from ..fused import geometry_kernels
 from ..fused.matching import RowMatcher
 from ..fused.segments import DEVICE_ROWS as SEGMENT_ROWS, SegmentKinds
@@ -62,6 +62,10 @@ MOVING = True
 #: A boundary segment whose end would move farther than this many patch sizes across its
 #: sub-aperture (two nearly parallel lines meeting there) stays frozen (docs/physics.md (M8)).
 MOVE_LIMIT = 4.0
+#: The deepest order's share of a launch's carried power (``_carried``) from which it looks for
+#: rays beyond that order (``rays_beyond``): the share at which ``analysis.orders.depth_warning``
+#: warns of orders left out (``DEEPEST_SHARE``).
+BEYOND_SHARE = 0.10
 
 
 class MeshTracer:
@@ -179,6 +183,13 @@ class MeshTracer:
             with clock("terms"):                     # this order's histogram, for its energy (D6)
                 self.returns.sums.order_done(ctx, depth)
         stats["overflow"] = match.overflow if match is not None else 0
+        carried = stats["carried"]
+        stats["beyond"] = None                       # unknown: not checked
+        if len(carried) < self.depth:                # no chains past an order: nothing beyond
+            stats["beyond"] = 0
+        elif self.depth > 1 and carried[-1] >= BEYOND_SHARE * sum(carried):
+            with clock("discovery"):
+                stats["beyond"] = rays_beyond(self.surfaces, lit, reference, self.rays, self.subdivision, self.patch)
         stats["casts"] = self.rays.casts + self.visibility.casts - casts_before
         stats["seconds"] = clock.seconds
         return stats

@@ -2,19 +2,14 @@
 (:mod:`sarmitsuba.tracing.driver.kernel`), each batch's deposit reduced to a band-limited spectrum
 (:mod:`sarmitsuba.tracing.deposit.fast_time`), docs/design.md sections 5 and 6.
 
-For every pulse, ray tubes leave the antenna toward a world-fixed lattice of aim points on a
-horizontal plane through the scene centre, finer around small objects
-(:func:`sarmitsuba.scene.planning.ray_footprint`). Each tube follows specular bounces up to
-``max_depth``; at every hit a shadow ray tests whether the antenna sees the hit point, and the
-tube's footprint returns its physical-optics integral, exact at every frequency of the band,
-as one, two or four point terms (docs/physics.md (PO1)-(PO3)); rough surfaces add the
-scatterers of their own lattice that lie inside the footprint ((C)). The coherent sum over
-tubes gives physical optics: canonical targets' radar cross-sections, and nothing from the
-interior of a smooth plane.
+Triangle meshes are traced by the mesh tracer (:mod:`sarmitsuba.tracing.driver.mesh_trace`,
+docs/physics.md (M1)-(M10)). In the tube preview, ray tubes leave the antenna toward a world-fixed
+lattice of aim points (:func:`sarmitsuba.scene.planning.ray_footprint`), follow specular bounces
+up to ``max_depth``, and each lit footprint returns its physical-optics integral as point terms
+((PO1)-(PO3)); rough surfaces add the scatterers of their own lattice ((C)).
 
-Precision (docs/design.md section 5): rays start near the scene (float64 offset carried
-separately); the first and return legs are float64 norms from the exact hit point; a per-pulse
-float64 reference length is subtracted before anything becomes float32.
+Precision (docs/design.md section 5): float64 legs from the exact hit points, and a per-pulse
+float64 reference length subtracted before anything becomes float32.
 
 Output (:class:`TraceResult`): per pulse, the spectrum of the path sum
 ``sum_i a_i exp(-j k (L_i - L_ref))`` over the coarse sampling band, on a padded grid; or, for
@@ -190,6 +185,10 @@ class TraceResult:
         stage, shared by the orders, only in :attr:`stage_seconds`).
     overflow_rows : int
         Rows the fused geometry kernels left to their NumPy references (docs/design.md section 10.1).
+    rays_beyond : int or None
+        The mesh tracer's specular rays from the deepest order that meet another part
+        (:func:`~sarmitsuba.tracing.discovery.specular.rays_beyond`; 0: nothing lies beyond the
+        traced orders); None where not looked for (tubes, or a deepest order of little power).
     """
 
     spectrum: np.ndarray
@@ -212,6 +211,7 @@ class TraceResult:
     stage_seconds_by_order: dict = dataclasses.field(default_factory=dict)
     raw_energy_per_order: np.ndarray | None = None
     overflow_rows: int = 0
+    rays_beyond: int | None = None
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -368,7 +368,7 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
 #: seconds per stage, :data:`sarmitsuba.tracing.driver.stages.STAGES`; absent from a tube launch).
 TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evaluated", "stages", "order_energy",
-          "overflow")
+          "overflow", "beyond_rays", "beyond_unchecked")
 
 
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
@@ -413,7 +413,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
                   rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
                   outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))),
-                  order_energy=np.zeros(settings.max_depth), overflow=0)
+                  order_energy=np.zeros(settings.max_depth), overflow=0, beyond_rays=0, beyond_unchecked=0)
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
@@ -471,6 +471,7 @@ def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, se
                        scatterers_per_order=totals["scatterers"], n_pad=0 if exact else plan.n_pad,
                        pulses_per_trace=plan.subs.size, pulse_paths=int(totals["evaluated"]),
                        overflow_rows=int(totals["overflow"]),
+                       rays_beyond=None if totals["beyond_unchecked"] or plan.exact else int(totals["beyond_rays"]),
                        stage_seconds={name: float(t) for name, t in zip(STAGES, totals["stages"].sum(axis=0)) if t > 0},
                        stage_seconds_by_order=by_order(totals["stages"]),
                        raw_energy_per_order=None if exact or plan.groups != len(totals["energy"])
