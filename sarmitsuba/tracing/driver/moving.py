@@ -163,11 +163,17 @@ class MovingShapes:
             return self._rigid(ctx, launch, vertices, antenna)
         finally:                           # the scene as given, whatever happens
             set_vertices(self.kernel.scene, self.base)
+        done = None                        # each order's deposits, then its histogram read (D6), as traced
         for kind, data, pieces, depth in lanes:
+            if done is not None and depth != done:
+                tracer.returns.sums.order_done(ctx, done)
+            done = depth
             if kind == "terms":
                 tracer.terms(ctx, data, pieces, depth)
             else:
                 tracer.clutter(ctx, data, depth)
+        if done is not None:
+            tracer.returns.sums.order_done(ctx, done)
         return stats
 
     def _vertices(self, time: float, reference: np.ndarray) -> dict:
