@@ -21,10 +21,12 @@ __all__ = ["STAGES", "StageClock", "by_order"]
 #: and reading the order's histogram back (its energy, docs/physics.md (D6));
 #: ``energy`` the energy check; ``discovery`` the next order's chains (M6); ``casts`` the ray casts
 #: of all of these (the kernels that cast and read their hits back,
-#: :func:`sarmitsuba.tracing.timing.section`), taken out of the stage they serve; ``deposit`` the
-#: device evaluating every pulse's terms and the host reading the histogram back.
+#: :func:`sarmitsuba.tracing.timing.section`), taken out of the stage they serve; ``moving shapes``
+#: what moving shapes add (docs/physics.md (V1)-(V2): the shapes moved and their geometry rebuilt,
+#: traced again at the neighbouring times, the recorded lanes deposited); ``deposit`` the device
+#: evaluating every pulse's terms and the host reading the histogram back.
 STAGES = ("first bounce", "visibility", "clipping", "rates", "lanes", "terms", "energy", "discovery", "casts",
-          "deposit")
+          "moving shapes", "deposit")
 
 
 class StageClock:
