@@ -75,15 +75,24 @@ def test_pga_learns_only_from_the_points_beside_extended_lines():
     assert np.sqrt(np.mean(residual[support] ** 2)) < 0.1
 
 
-def test_too_few_point_lines_refuses():
+@pytest.mark.parametrize("kept", [1, 2, 3])
+def test_too_few_point_lines_refuses(kept):
+    """The targets' range lines 5, 17, 30 kept, the first ``kept`` of them: with 1 or 2 point-like
+    lines PGA refuses and returns the image unchanged (docs/physics.md (PGA4): it needs 3); with 3
+    it runs. (Caught: the bound taken as 2, which one line alone did not show.)"""
     support = BANDS["centred"]
-    one = np.zeros_like(_targets(support))
-    one[:, 5] = _targets(support)[:, 5]
-    blurred = _with_error(one, np.where(support, ERRORS["quadratic + sinusoid"], 0.0))
-    with pytest.warns(AutofocusWarning, match="not applied: only 1 range line"):
+    few = np.zeros_like(_targets(support))
+    for column in (5, 17, 30)[:kept]:
+        few[:, column] = _targets(support)[:, column]
+    blurred = _with_error(few, np.where(support, ERRORS["quadratic + sinusoid"], 0.0))
+    if kept == 3:
+        _, report = pga(_image(blurred))
+        assert report.applied and report.lines == 3
+        return
+    with pytest.warns(AutofocusWarning, match=f"not applied: only {kept} range line"):
         out, report = pga(_image(blurred))
     assert not report.applied and np.array_equal(out.data, _image(blurred).data)
-    assert out.metadata["autofocus"]["refusal"] == "1 point-like range line(s)"      # for the CLI's note
+    assert out.metadata["autofocus"]["refusal"] == f"{kept} point-like range line(s)"      # for the CLI's note
 
 
 def test_a_reference_puts_the_targets_back():
