@@ -62,3 +62,24 @@ def test_info_warns_of_a_receiver_fast_enough_to_alias(speed, warned):
     assert bool(notes) == warned, notes
     if warned:
         assert "above prf = 250 Hz" in notes[0] and "slow the receiver to about" in notes[0]
+
+
+def test_info_gives_the_receivers_own_range_and_the_angle_between_the_two_looks():
+    """The transmitter 1000 m up at 45 deg incidence (1414 m away), the receiver 300 m up at 60 deg
+    on a heading 90 deg off: ``info`` puts the receiver 300 / cos(60 deg) = 600 m from the scene
+    centre at mid-aperture, and the bistatic angle is the angle between the two lines of sight,
+    computed here from the looks' closed-form directions. (Caught: the receiver's range taken from
+    the transmitter, 1414 m.)"""
+    import math
+    import numpy as np
+    sensor = {"altitude": 1000.0, "incidence_angle": 45.0, "heading": 0.0, "receiver_altitude": 300.0,
+              "receiver_incidence_angle": 60.0, "receiver_heading": 90.0}
+    b = scene_info("urban", sensor_overrides=sensor).radar.bistatic
+    assert b["receiver_range_m"] == pytest.approx(600.0, rel=1e-6)
+    # unit vectors from the centre toward each antenna: right-looking, so the antenna stands on the
+    # left of its heading; heading h from +x toward +y (0: +x; 90: +y)
+    def toward(h, inc):
+        left = np.array([-math.sin(math.radians(h)), math.cos(math.radians(h)), 0.0])
+        return math.sin(math.radians(inc)) * left + math.cos(math.radians(inc)) * np.array([0.0, 0.0, 1.0])
+    angle = math.degrees(math.acos(float(toward(0.0, 45.0) @ toward(90.0, 60.0))))
+    assert b["angle_deg"] == pytest.approx(angle, abs=0.05)
