@@ -148,7 +148,8 @@ class ImpulseModel:
             pattern = focus.get("azimuth_pattern")
             if pattern is not None:
                 squint = np.radians(float(focus.get("squint") or 0.0))
-                amplitude = amplitude * np.sinc(float(pattern) * np.sin(np.arcsin(sine) - squint)) ** 2
+                power = int(focus.get("pattern_power") or 2)        # 1: one way, a receiver of its own (B3)
+                amplitude = amplitude * np.sinc(float(pattern) * np.sin(np.arcsin(sine) - squint)) ** power
         else:
             length = float(focus["track"].get("length") or 0.0) if isinstance(focus["track"], dict) else 0.0
             if not length > 0:

@@ -13,7 +13,9 @@ Shared by :func:`~sarmitsuba.focus.backproject` (direct) and :func:`~sarmitsuba.
   :mod:`.windows` at ``u - 1/2``); without a beam (spotlight) by ``w(p / (n_pulses - 1))``.
 * **Pattern.** The data carry the two-way field pattern ``g^2 = sinc^2(L / lambda sin(phi - theta))``
   (NumPy's sinc, ``phi = asin(s)``); it is not divided out per pulse but enters the expected
-  gain ``sum_p w g^2`` of a point target.
+  gain ``sum_p w g^2`` of a point target. Data received on a platform of its own (the metadata's
+  ``radar.receiver``, docs/physics.md (B3)) carry the transmitter's one-way ``g`` alone: the
+  receiver stares at the scene centre, so its own pattern is 1 there, and the gain is ``sum_p w g``.
 * **Normalisation.** Each range column is divided by the largest expected gain of its pixels
   (:func:`normalise_columns`): a point target of amplitude ``a`` peaks at ``a`` anywhere in the
   fully illuminated swath (docs/design.md section 8, docs/physics.md (K)).
@@ -72,6 +74,8 @@ class BeamWeighting:
     squint : float, rad
     pattern : float or None
         ``L / lambda`` of the two-way sinc^2 pattern in the data.
+    power : int
+        2: the data carry the pattern both ways (``g^2``); 1: one way (``g``, bistatic).
     window : (str, dict)
         The azimuth window, canonical (:func:`~.windows.check_window`).
     is_rect : bool
@@ -80,8 +84,8 @@ class BeamWeighting:
     """
 
     def __init__(self, sines: tuple[float, float] | None, squint: float, pattern: float | None,
-                 window: tuple[str, dict[str, float]]):
-        self.sines, self.squint, self.pattern, self.window = sines, squint, pattern, window
+                 window: tuple[str, dict[str, float]], power: int = 2):
+        self.sines, self.squint, self.pattern, self.window, self.power = sines, squint, pattern, window, power
         self.is_rect = window[0] == "rect"
         self.u = np.linspace(0.0, 1.0, WINDOW_TABLE)
         #: w(u) sampled on [0, 1], float64
@@ -91,7 +95,7 @@ class BeamWeighting:
             s = sines[0] + self.u * (sines[1] - sines[0])
             # sin(phi - squint) = sin(phi) cos(squint) - cos(phi) sin(squint)
             off = s * np.cos(squint) - np.sqrt(1.0 - s * s) * np.sin(squint)
-            self.gain_table = self.table * np.sinc(pattern * off) ** 2
+            self.gain_table = self.table * np.sinc(pattern * off) ** power
         self.slope, self.gain_slope = np.diff(self.table), np.diff(self.gain_table)
 
     def pulse_weights(self, n_pulses: int) -> np.ndarray:
@@ -143,7 +147,9 @@ def beam_weighting(raw: RawData, azimuth_beamwidth: float | None, squint: float,
                              "(L / lambda of the antenna pattern), or None")
         if sines is None:
             raise ValueError("azimuth_pattern needs azimuth_beamwidth (the traced beam the pattern lies in)")
-    return BeamWeighting(sines, float(np.radians(float(squint))), pattern, window)
+    radar = raw.metadata.get("radar") if isinstance(raw.metadata, dict) else None
+    one_way = isinstance(radar, dict) and bool(radar.get("receiver"))      # a receiver of its own (B3)
+    return BeamWeighting(sines, float(np.radians(float(squint))), pattern, window, power=1 if one_way else 2)
 
 
 def unit_rows(v: np.ndarray) -> np.ndarray:
@@ -287,7 +293,7 @@ def pixel_weights(raw: RawData, beam: BeamWeighting, axes: np.ndarray, p: int,
         sine = los @ axes[p] / np.linalg.norm(los, axis=1)          # along the beam's axis (J4)
         u = np.where((sine >= sin_lo) & (sine <= sin_hi), (sine - sin_lo) / (sin_hi - sin_lo), -1.0)
         phi = np.arcsin(np.clip(sine, -1.0, 1.0))
-        pattern = (np.sinc(beam.pattern * np.sin(phi - beam.squint)) ** 2 if beam.pattern is not None
+        pattern = (np.sinc(beam.pattern * np.sin(phi - beam.squint)) ** beam.power if beam.pattern is not None
                    else np.ones(x.shape[0]))
     weight = spectral_window(w_name, u - 0.5, 1.0, **w_params)     # zero for u outside [0, 1]
     return weight, weight * pattern

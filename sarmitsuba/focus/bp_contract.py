@@ -118,11 +118,11 @@ def focus_metadata(raw: RawData, grid: ImageGrid, seconds: float, beam: BeamWeig
     track = {"position": [float(v) for v in raw.tx_position[mid]],
              "direction": [float(v) for v in velocity / speed] if speed > 0 else None,
              "length": float(np.linalg.norm(raw.tx_position[-1] - raw.tx_position[0]))}
-    normalisation = ("1/n_pulses" if beam.sines is None and beam.is_rect else
-                     "1/sum(w)" if beam.sines is None else "per range column: 1/max sum(w g^2)")
+    normalisation = ("1/n_pulses" if beam.sines is None and beam.is_rect else "1/sum(w)" if beam.sines is None
+                     else f"per range column: 1/max sum(w g{'^2' if beam.power == 2 else ''})")
     return {"algorithm": "backprojection", "window": label, **params,
             "window_range": {"name": w_rg[0], **w_rg[1]}, "window_azimuth": {"name": w_az[0], **w_az[1]},
-            "azimuth_pattern": beam.pattern,
+            "azimuth_pattern": beam.pattern, "pattern_power": beam.power,
             "beam_sines": None if beam.sines is None else list(beam.sines), "track": track,
             "sine_scale": sine_scale(raw, grid.origin + grid.azimuth[grid.shape[0] // 2] * grid.azimuth_direction
                                      + grid.range[grid.shape[1] // 2] * grid.range_direction, beam.sines),
