@@ -205,7 +205,7 @@ def aperture_note(params: RadarParameters, geometry: AcquisitionGeometry) -> str
     held = float(states.time[-1] - states.time[0])
     seconds = needed / max(params.velocity, 1e-300)
     fix = (f"give state vectors spanning at least {seconds:.3g} s at {params.velocity:.3g} m/s" if held < seconds else
-           f"set n_pulses to at least {math.ceil(seconds * params.prf) + 1} (the file's {held:.4g} s hold "
+           f"set n_pulses to at least {math.ceil(seconds * params.prf) + 1} (the state vectors' {held:.4g} s hold "
            f"{math.floor(held * params.prf + 1e-9) + 1}; n_pulses = 0 takes them all)")
     return (f"trajectory {states.source}: {params.n_pulses} pulses over {span:.4g} s fly {flown:.3g} m, but a "
             f"{rho:.3g} m azimuth resolution at {params.slant_range:.1f} m slant range needs a synthetic aperture of "
