@@ -11,6 +11,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
 
 import sarmitsuba  # noqa: E402,F401  (finds libLLVM before the plugins' pages import drjit)
+import warnings  # noqa: E402
+
+# the gallery's scripts print their warnings as the command line does ("warning: ..."), without the
+# file and line of the build machine's checkout
+warnings.formatwarning = lambda message, category, *args, **kwargs: f"warning: {message}\n"
 
 project = "sarmitsuba"
 author = "the sarmitsuba developers"

@@ -19,8 +19,9 @@ What differs:
   at a wall's foot and the layover of a roof move: roofs lean toward both platforms.
 - **Sampling.** The receiver's own motion spreads the Doppler too, by about ``v_r Delta u /
   lambda`` across the scene (``Delta u`` the spread of its look directions): a drone 600 m away
-  at 15 m/s adds some 200 Hz, and at the satellite's 250 Hz PRF the city's aliased copies appear
-  280 m away. At 3 m/s it adds 40 Hz.
+  at 15 m/s spreads the echoes over about 310 Hz (the satellite's own part: 74 Hz), and at the
+  satellite's 250 Hz PRF the city's aliased copies appear 280 m away; ``info`` and ``render``
+  warn, naming ``receiver_velocity``. At 3 m/s the band is about 100 Hz.
 """
 import matplotlib.pyplot as plt
 import numpy as np
@@ -76,7 +77,8 @@ plt.show()
 # .. code-block:: bash
 #
 #    python -m sarmitsuba render urban --set trajectory=orbit --set altitude=693e3 --set mode=spotlight \
-#        --set receiver_altitude=300 --set receiver_heading=45 --set receiver_velocity=15 --cphd --out out/bistatic
+#        --set n_pulses=160 --set receiver_altitude=300 --set receiver_incidence_angle=60 --set receiver_heading=-60 \
+#        --set receiver_velocity=3 --cphd --out out/bistatic
 #
 # and ``out/bistatic/raw.cphd`` is a CPHD whose ``CollectType`` is BISTATIC, with the drone's
 # positions in ``RcvPos`` (sarpy and sarkit read it as such).

@@ -18,9 +18,10 @@ import warnings
 import matplotlib.pyplot as plt
 
 import sarmitsuba
+from sarmitsuba.scene.meshcheck import MeshDefectWarning
 from sarmitsuba.products.plotting import RELATIVE_DB, colorbar, decibels, intensity, reference_intensity, show_db_image
 
-warnings.filterwarnings("ignore", "mesh")        # Sionna's Munich has a few open meshes; the loader names them
+warnings.filterwarnings("ignore", category=MeshDefectWarning)   # Sionna's Munich has a few open meshes
 sim = sarmitsuba.simulate(
     "sionna:munich",
     sensor_overrides={"n_pulses": 270, "bandwidth": 50e6, "azimuth_beamwidth": 0.5, "prf": 90},
