@@ -59,3 +59,20 @@ def test_an_example_page_without_its_figure_is_found(tmp_path):
     (site / "gallery" / "plot_a.html").write_text('<img src="../ok.png"><img src="../sphx_glr_plot_a_001.png">')
     (site / "gallery" / "plot_b.html").write_text('<img src="../sphx_glr_plot_a_001.png">')    # another's figure
     assert checker.gallery_problems(site) == ["gallery/plot_b.html: the example left no figure"]
+
+
+def test_a_same_page_anchor_is_checked_and_the_command_line_fails_on_problems(tmp_path, capsys):
+    """``#eq-m5`` on the page that holds it passes and ``#eq-m6`` on a page without it is found;
+    the command line exits 1 on a site with problems (that ``make docs`` then fails) and 0 on a
+    clean one. (Caught: every same-page anchor skipped; problems printed with exit 0.)"""
+    checker = _checker()
+    site = _site(tmp_path, '<h2 id="here">h</h2><a href="#here">ok</a><a href="#nowhere">broken</a>')
+    problems = checker.check(site)
+    assert len(problems) == 1 and "no id 'nowhere'" in problems[0], problems
+    (site / "gallery").mkdir()
+    (site / "gallery" / "plot_a.html").write_text('<img src="../sphx_glr_plot_a_001.png">')
+    from PIL import Image
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(site / "sphx_glr_plot_a_001.png")
+    assert checker.main([str(site)]) == 1
+    (site / "index.html").write_text('<html><body><h2 id="here">h</h2><a href="#here">ok</a></body></html>')
+    assert checker.main([str(site)]) == 0
