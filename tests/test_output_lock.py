@@ -194,3 +194,28 @@ def test_scene_from_footprints_holds_its_folder_and_clears_a_killed_runs_staging
     finally:
         holder.kill()
         holder.wait(timeout=30)
+
+
+def test_a_lock_file_removed_while_it_was_being_locked_is_opened_again(tmp_path, monkeypatch):
+    """The run before lets go as this one locks: it unlinks the lock file (``_release``) right
+    after this run's ``flock`` succeeded on it. The lock then guards a file no other run can
+    see, so ``_lock`` must open the path again and lock the file that is there. (Caught: the
+    inode re-check skipped, which returned the removed file's descriptor: a second run could lock
+    the new file at the same time.)"""
+    import os
+    from sarmitsuba.core import folder_lock
+    lock = tmp_path / folder_lock.LOCK_FILE
+    real, calls = folder_lock.fcntl.flock, []
+
+    def flock(fd, operation):
+        real(fd, operation)
+        if not calls:
+            lock.unlink()
+        calls.append(fd)
+    monkeypatch.setattr(folder_lock.fcntl, "flock", flock)
+    fd = folder_lock._lock(lock)
+    try:
+        assert len(calls) == 2
+        assert os.fstat(fd).st_ino == os.stat(lock).st_ino and lock.read_text() == str(os.getpid())
+    finally:
+        os.close(fd)
