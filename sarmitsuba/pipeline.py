@@ -462,9 +462,9 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
 
     ``bp`` / ``ffbp``: direct or fast factorised backprojection onto the scene's ground grid when
     the metadata carry sarmitsuba's radar parameters and scene box (with their beam gating), else
-    onto the straight track's slant-plane grid; ``omegak`` / ``rda``: the FFT focusers. Azimuth runs from the scene centre's closest approach in every
-    image; range is ground or slant by plane (docs/design.md section 8). Chirped input is
-    range-compressed first. Windows (rect, taylor, hamming, kaiser, hann): ``window`` in range and
+    onto the straight track's slant-plane grid; ``omegak`` / ``rda``: the FFT focusers. Azimuth
+    runs from the scene centre's closest approach in every image; range is ground or slant by
+    plane (docs/design.md section 8). Chirped input is range-compressed first. Windows (rect, taylor, hamming, kaiser, hann): ``window`` in range and
     azimuth, default Taylor as in :func:`render` (refocusing a render's raw data with ``ffbp`` gives
     its image); ``window_range`` / ``window_azimuth`` for one axis (default: ``window``).
     Backprojection applies the azimuth window over the beam (else over the aperture) and divides

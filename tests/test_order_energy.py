@@ -171,6 +171,7 @@ def test_urban_at_depth_two_has_rays_beyond_and_warns(monkeypatch):
     some rays meet more of the scene, the warning says how many, and a third order traced holds
     energy indeed. Without looking (a tube trace) the warning stays, with the corner caveat."""
     from sarmitsuba.tracing.driver import mesh_trace
+    assert mesh_trace.BEYOND_SHARE == DEEPEST_SHARE          # the tracer looks where the warning would fire
     monkeypatch.setattr(mesh_trace, "BEYOND_SHARE", 0.0)
     sim = simulate("urban", integrator_overrides={"max_depth": 2})
     energy = sim.trace.raw_energy_per_order
