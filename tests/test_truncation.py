@@ -10,7 +10,8 @@ Deliberate bugs these tests were run against (each fails one):
   * the rule switched off in the tracer (``self.rim = None``): every test but the names';
   * every border segment of a ground part dropped, not only those on free edges: the plinth;
   * ``ground_shapes = auto`` matching any id containing ``ground`` (``playground``);
-  * ``on_rim``'s tolerance made a million times looser, one end tested instead of both (the
+  * ``without_rims`` made a no-op (the rims keep their edge currents): the plate facing the antenna;
+  * ``on_rim``'s tolerance made 100 times looser, one end tested instead of both (the
     shapely comparison).
 """
 from __future__ import annotations
@@ -111,12 +112,41 @@ def test_a_rim_that_a_face_meets_is_an_edge():
     assert np.array_equal(auto.raw.data, none.raw.data)
 
 
+def test_a_truncation_rim_keeps_its_segment_near_specular_but_does_not_diffract():
+    """(M10)'s second line alone: a PEC plate 4 wavelengths square facing the antenna (its normal
+    the mid-aperture line of sight), so every piece is near its specular direction and keeps its
+    rim segments for its area term. Marked as ground its free rims are truncations, which neither
+    diffract (E4) nor end a double diffraction (E6): its raw data with diffraction on are those
+    with diffraction off (within -80 dB), and its PO those of the same plate not marked (the
+    segments kept: the same energy within 1e-4). Named otherwise its rims diffract: -38 dB
+    between the two (the sensitivity). Catches ``without_rims`` made a no-op (the rims' edge
+    currents kept: -38 dB), which the plates seen off their normal miss (their rim segments,
+    and so their edge lanes, are left out by (M10)'s first line)."""
+    from test_patches import WAVELENGTH, frame, look_and_track, rectangle, sensor
+    look, _ = look_and_track(0.0)
+    e1, e2 = frame(look, 10.0)
+    half = 2 * WAVELENGTH
+
+    def raw(name, **integrator):
+        rows = [(rectangle((0, 0, 0), e1 * half, e2 * half), "pec", name)]
+        sim = simulate(sarmitsuba.Scene(rows, sensor=sensor(0.0, n_pulses=16), integrator={"max_depth": 1, **integrator}))
+        return sim.raw.data.astype(np.complex128)
+
+    nrmse = lambda a, b: 10 * math.log10(np.sum(np.abs(a - b) ** 2) / np.sum(np.abs(b) ** 2))   # noqa: E731
+    ground, ground_po = raw("ground"), raw("ground", diffraction=False)
+    named, named_po = raw("slab"), raw("slab", diffraction=False)
+    assert np.sum(np.abs(ground_po) ** 2) == pytest.approx(np.sum(np.abs(named_po) ** 2), rel=1e-4)
+    assert nrmse(named, named_po) > -45.0
+    assert np.sum(np.abs(ground - ground_po) ** 2) <= 1e-8 * np.sum(np.abs(ground_po) ** 2), nrmse(ground, ground_po)
+
+
 def test_on_rim_against_shapely():
     """``truncation.on_rim`` against shapely's distances: a segment is on a truncation edge when
     both its ends lie on that flagged edge (within 1e-9 m), on a square turned 20 deg and a
-    triangle: pieces of flagged edges, of unflagged ones, parallels 1 cm inside, segments that
-    leave a flagged edge, chords. Catches a tolerance made loose, one end tested instead of
-    both, and the flags read one corner off."""
+    triangle: pieces of flagged edges, of unflagged ones, parallels 1 cm and 0.1 mm inside,
+    segments that leave a flagged edge, chords. Catches a tolerance made 100 times looser (the
+    0.1 mm parallels, 9 times the tolerance's 1.1e-5 m on the 10 m square), one end tested
+    instead of both, and the flags read one corner off."""
     import types
 
     import shapely
@@ -139,7 +169,10 @@ def test_on_rim_against_shapely():
             for _ in range(4):
                 u, v = np.sort(rng.uniform(0.0, 1.0, 2))
                 p, q = a + u * (b - a), a + v * (b - a)
-                for shift in (p, q), (p + 0.01 * inward, q + 0.01 * inward), (p, p + 0.5 * inward):
+                # parallels 1 cm and 0.1 mm inside: the latter within 100 times on_rim's tolerance
+                # (1e-6 (1 + 10 m): 1.1e-5 m), so a tolerance 100 times looser flags them
+                for shift in ((p, q), (p + 0.01 * inward, q + 0.01 * inward), (p + 1e-4 * inward, q + 1e-4 * inward),
+                              (p, p + 0.5 * inward)):
                     part.append(k), start.append(shift[0]), end.append(shift[1])
         centre = polygon[k, :n].mean(axis=0)
         for _ in range(4):                                                          # chords through the middle
