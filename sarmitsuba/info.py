@@ -563,7 +563,7 @@ def _cost_lines(c: CostEstimate, bistatic: bool = False) -> list[str]:
         "runtime and scene plus the larger of tracing and focusing)",
         f"image grid {c.image_shape[0]} x {c.image_shape[1]} (azimuth x ground range)"
         + (f", {c.n_products} images (split_bounces)" if c.n_products > 1 else ""),
-        f"focusing ~ {_duration(c.focus_time_s)} (" + ("direct backprojection, to which FFBP hands bistatic data, "
+        f"focusing ~ {_duration(c.focus_time_s)} (" + ("fast factorised backprojection on the range sum, "
                                                        if bistatic else "fast factorised backprojection, ")
         + f"{c.backprojection_pixel_pulses:.3g} pixel-pulses in the beam; direct backprojection ~ "
         f"{_duration(c.direct_backprojection_time_s)})",

@@ -63,6 +63,9 @@ BISTATIC_TRACE = 1.27
 #: Direct backprojection of bistatic data over the monostatic model: both legs' lengths per
 #: pixel-pulse; measured on urban received by a drone, 5.0 s against the monostatic model's 1.8 s.
 BISTATIC_BACKPROJECTION = 2.8
+#: FFBP of bistatic data (docs/physics.md (F10)) over the monostatic FFBP on the same grid: urban received by a
+#: drone 300 m up at 3 m/s, 1.65x to 1.9x (``benchmarks/ffbp.py --bistatic``: 0.96 s against 0.51 s).
+BISTATIC_FFBP = 1.8
 
 #: Seconds per physical-optics return evaluated for one pulse (a term at its own point, its
 #: per-pulse geometry, pattern and deposit): 9.3 ns measured on Munich (157 M returns, 1.46 s).
@@ -390,9 +393,9 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     n_products = (1 + (st.max_depth if effects.split_bounces else 0)) * len(effects.channels)
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
-    if effects.bistatic:                 # FFBP hands bistatic data to direct backprojection, both legs per pixel
+    if effects.bistatic:                 # both legs per pixel; FFBP on the range sum's polar images (F10)
         direct *= BISTATIC_BACKPROJECTION
-        fast = direct
+        fast *= BISTATIC_FFBP
     deposit = 0 if exact else groups * n_pulses * n_pad * 8
     path_list = paths * PATH_BYTES * len(effects.channels) if exact else 0
     raw_bytes, image_bytes = n_pulses * window.n_samples * 8, grid.shape[0] * grid.shape[1] * 8

@@ -9,7 +9,9 @@ and the results are summed. The interpolation is two 1-D passes (cubic B-splines
 sines onto each grid row at the image's own range samples, then along range onto the row's
 pixels, with the carrier restored from tables in float64 phase. Nothing assumes a straight
 track: each polar image is exact in its own frame (mean position and velocity of its pulses),
-and each pulse keeps its own beam gate and window weight.
+and each pulse keeps its own beam gate and window weight. Bistatic data (a receiver on its own
+platform) get polar images on the half range sum about the two phase centres
+(:mod:`.polar_bistatic`, docs/physics.md (F10)).
 
 Cost, for pixels integrating ``N_a`` pulses each: ``subaperture x (polar samples)`` pixel-pulses
 in the first stage (the polar samples of all sub-apertures together are about the swath's range
@@ -26,6 +28,7 @@ References
 """
 from __future__ import annotations
 
+import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -37,11 +40,12 @@ from ..core.image import SarImage
 from ..core.raw import RawData
 from .beam import BeamWeighting, beam_axes, beam_weighting
 from .bp_contract import check_inputs, focus_metadata, make_image, progress_bar, receiver_motion
-from .ffbp_plan import (BLOCK_COLUMNS, SUBAPERTURE, check_knobs, grid_edge_points, n_blocks, normalisation,
-                        phase_centres, plan_polar, row_geometry, rows_reached, subaperture_spans)
+from .ffbp_plan import (BLOCK_COLUMNS, SUBAPERTURE, check_knobs, grid_edge_points, is_bistatic, n_blocks,
+                        normalisation, plan_polar, residual_spread, row_geometry, rows_reached, subaperture_spans)
 from .grid import ImageGrid
 from .polar import (CHUNK, GeometryNotSupported, PolarAxes, PolarImage, beam_table, carrier_bits, premodulated_rows,
                     prepare, pulses_to_polar, r_pass, s_pass, spline_tables, workspace)
+from .polar_bistatic import PREFILTER_REACH, BistaticFrame, prepare_samples, row_coefficients
 from .range_lines import PAD, carrier_table, fft_upsample, premodulated_pairs, residual_carrier_table
 
 __all__ = ["ffbp", "GeometryNotSupported"]
@@ -69,8 +73,10 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     ----------
     raw : RawData
         Range-compressed echoes with uniform fast time: monostatic (``tx_position ==
-        rx_position``), or continuous motion (``rx_time`` given: each echo received where the
-        antenna is at its arrival, eq. (J3) of docs/physics.md, exact as in ``backproject``).
+        rx_position``), continuous motion (``rx_time`` given: each echo received where the
+        antenna is at its arrival, eq. (J3) of docs/physics.md, exact as in ``backproject``), or
+        bistatic stop-and-hop (a receiver on its own platform: polar images on the half range sum
+        about the two phase centres, eq. (F10), :mod:`.polar_bistatic`).
     grid : ImageGrid
         Pixels to focus, all on one side of the track (no pixel under the antenna's path).
     subaperture : int, optional
@@ -111,9 +117,9 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
     ValueError
         As ``backproject``; or a knob outside its range.
     GeometryNotSupported
-        (a ValueError) Bistatic stop-and-hop data (``rx_position != tx_position`` without
-        ``rx_time``), a velocity normal to the image plane, or a grid that
-        straddles the track (a pixel under the antenna path): use ``backproject``.
+        (a ValueError) A velocity normal to the image plane, a grid that straddles the track (a
+        pixel under the antenna path) or, bistatic, a grid line that crosses its least range sum:
+        use ``backproject``.
 
     Notes
     -----
@@ -167,7 +173,7 @@ def ffbp(raw: RawData, grid: ImageGrid, *, subaperture: int | None = None, angle
                            implementation="ffbp", **knobs, subapertures=counts["subapertures"],
                            polar_samples=counts["polar_samples"], stage_seconds=stage_seconds,
                            azimuth_beamwidth=azimuth_beamwidth, squint=squint, max_pulses_per_pixel=norm,
-                           monostatic=raw.rx_time is None,
+                           monostatic=raw.rx_time is None and not is_bistatic(raw),
                            motion="stop-and-hop" if raw.rx_time is None else "continuous")
     focus["interpolation"] = "first stage: fft-upsample + linear; polar images: cubic B-spline (s, then r)"
     return make_image(raw, grid, data, focus)
@@ -185,10 +191,11 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
     edges = grid_edge_points(grid)
     velocity = beam_axes(raw)                  # the beam table's sines (docs/physics.md (J4))
     receive = receiver_motion(raw)
+    factor = math.gcd(oversample, knobs["range_oversample"])     # a bistatic image's range step c / (2 fs factor)
 
     def one(span: tuple[int, int]) -> PolarImage | None:
         pulses = slice(*span)
-        planned = plan_polar(raw, grid, beam, pulses, knobs["angle_oversample"], edges)
+        planned = plan_polar(raw, grid, beam, pulses, knobs["angle_oversample"], edges, factor)
         if planned is not None:
             frame, axes, s_span, window = planned
             start, data = _cropped_lines(raw, pulses, axes)
@@ -204,7 +211,9 @@ def _first_stage(raw: RawData, grid: ImageGrid, beam: BeamWeighting, spans: list
             # ranges where every pulse's delay lies beyond the window (plus a fine sample): zero there
             guard = SPEED_OF_LIGHT / (2.0 * raw.fs * oversample)
             r_span = (window[0] - d_hi - guard, window[1] - d_lo + guard)
-            planned = prepare(PolarImage(frame, axes, polar, s_span, r_span), knobs["range_oversample"])
+            image = PolarImage(frame, axes, polar, s_span, r_span)
+            planned = prepare_samples(image) if isinstance(frame, BistaticFrame) else \
+                prepare(image, knobs["range_oversample"])
         bar.update(1)
         return planned
 
@@ -216,8 +225,7 @@ def _cropped_lines(raw: RawData, pulses: slice, axes: PolarAxes) -> tuple[int, n
     (``2 (r -+ |A_p - c|) / c``) plus :data:`LINE_GUARD` samples, whose outer :data:`LINE_TAPER`
     samples are tapered to zero where the crop cuts the line (so that the FFT upsampling does not
     ring into the needed delays)."""
-    antennas = phase_centres(raw, pulses)
-    spread = float(np.max(np.linalg.norm(antennas - antennas.mean(axis=0), axis=1)))
+    spread = residual_spread(raw, pulses)
     r_first, r_last = axes.r0 - spread, axes.r0 + (axes.n_r - 1) * axes.dr + spread
     t0 = float(raw.fast_time[0])
     lo = int(np.floor((2.0 * r_first / SPEED_OF_LIGHT - t0) * raw.fs)) - LINE_GUARD
@@ -259,6 +267,9 @@ def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice
     """Add one prepared polar image to the pixels ``rows x cols`` of ``out`` (in place): the s-pass
     onto the rows at the image's fine range samples, then the r-pass onto the pixels."""
     frame, fine = image.frame, image.fine
+    if isinstance(frame, BistaticFrame):
+        _bistatic_to_block(grid, image, rows, cols, kappa, s_tables, r_tables, out)
+        return
     rho = grid.range[cols]
     p, q = row_geometry(grid, frame.centre)
     p, h2 = p[rows], q[rows] - p[rows] ** 2                # |x - c|^2 = (rho + p)^2 + h2 on each row
@@ -309,3 +320,61 @@ def _image_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice
         target += r_pass(premodulated_rows(coeffs, carrier, ws), r_k.size, position, r_tables,
                          ws.c64[0, :position.size].reshape(position.shape))
 
+
+def _bistatic_to_block(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice, kappa: float, s_tables,
+                       r_tables, out: np.ndarray) -> None:
+    """:func:`_image_to_block` for a bistatic polar image (F10), along the grid axis that crosses the
+    half range sum's contours more steeply over the block
+    (:meth:`~.polar_bistatic.BistaticFrame.along_azimuth`: along the grid's columns, the grid and the
+    block transposed; a receiver off to the side can turn the contours along the rows)."""
+    if image.frame.along_azimuth(grid, rows, cols):
+        swapped = ImageGrid(grid.origin, grid.range_direction, grid.azimuth_direction, grid.range, grid.azimuth,
+                            grid.plane)
+        _bistatic_lines(swapped, image, cols, rows, kappa, s_tables, r_tables, out.T)
+    else:
+        _bistatic_lines(grid, image, rows, cols, kappa, s_tables, r_tables, out)
+
+
+def _bistatic_lines(grid: ImageGrid, image: PolarImage, rows: slice, cols: slice, kappa: float, s_tables,
+                    r_tables, out: np.ndarray) -> None:
+    """The lines ``rows`` of ``grid`` at its pixels ``cols`` of ``out``, in chunks of lines: the s-pass
+    reads the image's values (:func:`~.polar_bistatic.prepare_samples`) at the lines' points at its
+    range samples ``rho_k`` around the chunk's pixels (:meth:`~.polar_bistatic.BistaticFrame.row_sines`,
+    closed form), the line prefilter (:func:`~.polar_bistatic.row_coefficients`) makes them range
+    coefficients along each line, and the r-pass reads them at the pixels' half range sums
+    (:meth:`~.polar_bistatic.BistaticFrame.pixel_ranges`)."""
+    frame, fine = image.frame, image.fine
+    rho, side = frame.pixel_ranges(grid, rows, cols)                        # [n_rows, n_cols]
+    reach = 3 + PREFILTER_REACH
+    first = max(0, int(np.floor((rho.min() - fine.r0) / fine.dr)) - reach)  # the block's range samples
+    last = min(fine.n_r, int(np.ceil((rho.max() - fine.r0) / fine.dr)) + 1 + reach)
+    if last - first < 4 + 2 * PREFILTER_REACH:
+        return
+    block_k = fine.r0 + fine.dr * np.arange(first, last)
+    table = frame.row_sine_table(grid, rows, block_k, side)                 # exact sines, every ROW_STEP-th
+    step = max(1, CHUNK // (max(rho.shape[1], last - first) + 2 * 4))
+    ws = workspace(step * (max(rho.shape[1], last - first) + 8))
+    spline = np.empty(step * (last - first), np.complex128)                # the lines' coefficients
+    for i0 in range(0, rho.shape[0], step):
+        part = slice(i0, min(i0 + step, rho.shape[0]))
+        lo, hi = float(rho[part].min()), float(rho[part].max())
+        k0 = max(first, int(np.floor((lo - fine.r0) / fine.dr)) - reach)
+        k1 = min(last, int(np.ceil((hi - fine.r0) / fine.dr)) + 1 + reach)
+        if k1 - k0 < 4 + 2 * PREFILTER_REACH:
+            continue
+        clip = k0 == 0 or k1 == fine.n_r or lo < image.r_span[0] or hi > image.r_span[1]
+        outside = ((image.r_span[0] - fine.r0) / fine.dr - k0, (image.r_span[1] - fine.r0) / fine.dr - k0)
+        r_k = fine.r0 + fine.dr * np.arange(k0, k1)
+        carrier = np.exp(1j * np.mod(kappa * r_k, 2.0 * np.pi)).astype(np.complex64)
+        sines = frame.row_sines(grid, rows, block_k, side, (part, slice(k0 - first, k1 - first)), table,
+                                (ws.f64[0], ws.f64[1]))
+        values = s_pass(image, sines, k0, s_tables, ws.c64[1, :sines.size].reshape(sines.shape))
+        coeffs = row_coefficients(values, spline)
+        position = np.subtract(rho[part], r_k[0], out=ws.f64[1, :rho[part].size].reshape(rho[part].shape))
+        position *= 1.0 / fine.dr
+        if clip:
+            position[(position < outside[0]) | (position > outside[1])] = -1e9
+            np.clip(position, -2.0, r_k.size + 1.0, out=position)
+        target = out[rows.start + part.start:rows.start + part.stop, cols]
+        target += r_pass(premodulated_rows(coeffs, carrier, ws), r_k.size, position, r_tables,
+                         ws.c64[0, :position.size].reshape(position.shape))

@@ -46,6 +46,7 @@ from .linear import checked_shape, pulse_taps
 from .polar import GeometryNotSupported, PolarAxes, PolarImage, cubic_bspline, range_coefficients, range_taper, \
     spline_prefilter
 from .range_lines import fft_upsample, fft_upsample_adjoint
+from .stripmap import check_monostatic
 
 __all__ = ["FFBPOperator", "SubapertureMaps", "ffbp_operator"]
 
@@ -125,8 +126,11 @@ def ffbp_operator(raw: RawData, grid: ImageGrid, *, subaperture: int | None = No
     ValueError
         As ``ffbp``: bad data, grid or knobs.
     GeometryNotSupported
-        As ``ffbp``: bistatic stop-and-hop data, a grid straddling the track.
+        As ``ffbp``: a grid straddling the track; and bistatic stop-and-hop data (``ffbp`` focuses
+        them on bistatic polar images, (F10), which this float64 operator does not form).
     """
+    check_monostatic(raw, "ffbp_operator (its float64 polar maps are the monostatic ones; ffbp itself "
+                          "focuses bistatic data)")
     t0, oversample, _, _ = check_inputs(raw, grid, oversample, 1, 1)
     knobs = check_knobs(raw, min(SUBAPERTURE, raw.n_pulses) if subaperture is None else subaperture,
                         angle_oversample, range_oversample)

@@ -13,12 +13,11 @@ Stenstrom 2003, section III): a point ``x`` of the plane has the coordinates
 
 so that ``S_j`` is band limited: in ``r`` to the signal band (``|f_r| <= B / c``), in ``s`` to
 ``|f_s| <= 2 |p - c|_max / lambda_min`` cycles per unit sine (the sub-aperture's angular
-resolution). :class:`PolarFrame` maps ``(s, r)`` to plane points exactly for any track (a
-3-D point on the plane, on the grid's side of the track), so nothing assumes a straight or
-level track. This module holds the frame, the pulse-to-polar backprojection of the first
-stage (:func:`pulses_to_polar`), the preparation of a polar image for interpolation
-(:func:`prepare`: range upsampling and cubic B-spline coefficients) and the two 1-D passes that
-resample a polar image onto rows of target points (:func:`s_pass`, :func:`r_pass`).
+resolution). :class:`PolarFrame` maps ``(s, r)`` to plane points exactly for any track (on the
+grid's side of the track); bistatic data use :class:`~.polar_bistatic.BistaticFrame` (eq. (F10)).
+This module holds the frame, the first stage (:func:`pulses_to_polar`), the preparation of a polar
+image (:func:`prepare`: range upsampling and cubic B-spline coefficients) and the two 1-D passes
+that resample it onto rows of target points (:func:`s_pass`, :func:`r_pass`).
 
 References
 ----------
@@ -43,9 +42,8 @@ from .range_lines import FFT_GUARD, PAD, MAX_WEIGHT_BITS
 
 
 class GeometryNotSupported(ValueError):
-    """An acquisition the factorisation does not handle (bistatic data, a grid that straddles the
-    track or reaches its vertical plane, a velocity normal to the image plane): direct
-    backprojection (:func:`~sarmitsuba.focus.backproject`) focuses it."""
+    """An acquisition the factorisation does not handle (a grid that straddles the track or reaches its vertical
+    plane, a velocity normal to the image plane): :func:`~sarmitsuba.focus.backproject` focuses it."""
 
 __all__ = ["PolarFrame", "PolarAxes", "PolarImage", "pulses_to_polar", "prepare", "s_pass", "r_pass",
            "premodulated_rows", "range_coefficients", "range_taper", "spline_tables", "carrier_bits", "beam_table",
@@ -120,6 +118,10 @@ class PolarFrame:
         r = np.sqrt(np.square(d).sum(axis=-1))
         return (d * self.direction).sum(axis=-1) / r, r
 
+    def coarse_geometry(self, *args):
+        """:func:`_coarse_geometry` about this frame (:class:`~.polar_bistatic.BistaticFrame` has its own)."""
+        return _coarse_geometry(self, *args)
+
     def s_rate(self, s: np.ndarray, r: np.ndarray) -> np.ndarray:
         """``|d u / d s|`` at fixed ``r``: ``sqrt(1 + (xi1 / xi2)^2) / |v_in|`` (the factor turning
         an antenna offset into cycles per unit sine); inf where ``xi2`` vanishes."""
@@ -182,18 +184,17 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
     Parameters
     ----------
     frame, axes : PolarFrame, PolarAxes
-        The sub-aperture's polar grid; ``axes.dr`` must be ``c / (2 fs)`` and ``axes.n_r`` a
-        multiple of :data:`RSTEP`.
+        The polar grid (a :class:`~.polar_bistatic.BistaticFrame`: ``r`` the half range sum, its receivers,
+        eq. (F10)); ``axes.dr`` must be ``c / (2 fs m)`` (``m`` dividing ``oversample``: 1, or a bistatic
+        image's own range upsampling) and ``axes.n_r`` a multiple of :data:`RSTEP`.
     antennas, velocities : float64 [P, 3]
-        Antenna positions [m] and unit velocities of the pulses (monostatic).
+        Transmitter positions [m] and unit beam axes of the pulses.
     lines : complex128 [P * n_tab]
         :func:`~.range_lines.premodulated_pairs` of the pulses' lines upsampled ``oversample`` times.
     carrier : (complex128 [m], int)
         :func:`~.range_lines.residual_carrier_table` for ``kh = 2 pi fc / (fs oversample)`` and its size.
-    t0, fs : float
-        Fast time of the first sample [s] and the sampling rate [Hz].
-    fc : float
-        Carrier [Hz].
+    t0, fs, fc : float
+        Fast time of the first sample [s], the sampling rate [Hz] and the carrier [Hz].
     beam : (float32 table, sin_lo, sin_hi) or None
         :func:`beam_table` of ``w(u)`` and the beam sines, or None (every pulse sees every point).
     receivers : (float64 [P, 3], float64 [P, 3], float64 [P]) or None
@@ -221,7 +222,7 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
     coarse = axes.r0 + axes.dr * RSTEP * np.arange(n_c + 1)
     offset = (2.0 * axes.r0 / SPEED_OF_LIGHT - t0) * fine_rate
     whole = float(np.floor(offset))
-    psi, position, valid = _coarse_geometry(frame, axes, coarse, antennas, velocities, beam, receivers)
+    psi, position, valid = frame.coarse_geometry(axes, coarse, antennas, velocities, beam, receivers)
     residuals = (float(psi.min()), float(psi.max()))
     psi = psi * (2.0 * fine_rate / SPEED_OF_LIGHT) + (offset - whole)       # fine samples past sample `whole`
     table, m = carrier
@@ -229,7 +230,7 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
     bias = float(np.ceil(max(-psi.min(), 0.0))) + 1.0                      # keeps the fixed point positive
     n_tab = lines.size // n_pulses
     index_dtype = np.int32 if lines.size < 2**31 else np.int64
-    first = whole + PAD + oversample * np.arange(n_r)                      # table index of psi = 0
+    first = whole + PAD + round(2.0 * axes.dr * fine_rate / SPEED_OF_LIGHT) * np.arange(n_r)   # index of psi = 0
     base = (first[None, :] - bias + (np.arange(n_pulses) * n_tab)[:, None]).astype(index_dtype)
     clip = (psi.min() + first[0] < 1) or (psi.max() + first[-1] > n_tab - 2)
     low = ((bias - first) * m).astype(np.float32)
@@ -262,10 +263,9 @@ def pulses_to_polar(frame: PolarFrame, axes: PolarAxes, antennas: np.ndarray, ve
             np.copyto(bins, where.reshape(-1), casting="unsafe")
             np.multiply(value, np.take(beam[0], bins, out=ws.f32[1, :n], mode="clip"), out=value)
         acc[sl] += value.reshape(shape).sum(axis=0)
-    out = acc
-    out *= np.exp(-2j * np.pi * np.mod(2.0 * fc * axes.r / SPEED_OF_LIGHT, 1.0)).astype(np.complex64)[None, :]
-    out[~np.repeat(valid[:, :-1] & valid[:, 1:], RSTEP, axis=1)] = 0.0
-    return out, residuals
+    acc *= np.exp(-2j * np.pi * np.mod(2.0 * fc * axes.r / SPEED_OF_LIGHT, 1.0)).astype(np.complex64)[None, :]
+    acc[~np.repeat(valid[:, :-1] & valid[:, 1:], RSTEP, axis=1)] = 0.0
+    return acc, residuals
 
 
 def _coarse_geometry(frame: PolarFrame, axes: PolarAxes, coarse: np.ndarray, antennas: np.ndarray,
@@ -358,8 +358,8 @@ def _lerp(coarse: np.ndarray, t: np.ndarray, out: np.ndarray) -> np.ndarray:
 
 
 class Workspace:
-    """Scratch buffers of one thread, reused across chunks (fresh arrays of this size come from
-    mmap and cost a page fault per 4 kB). Grows on demand."""
+    """Scratch buffers of one thread, reused across chunks (fresh arrays of this size come from mmap
+    and cost a page fault per 4 kB). Grows on demand."""
 
     def __init__(self) -> None:
         self.size = 0
