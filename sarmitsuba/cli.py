@@ -300,7 +300,8 @@ def _focus(args: argparse.Namespace) -> int:
         paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated,
                                    sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting))
     autofocus = image.metadata.get("autofocus")
-    note = "" if autofocus is None else (f", PGA {autofocus['iterations']} iterations, phase error "
+    rounds = "" if autofocus is None or "rounds" not in autofocus else f"{autofocus['rounds']} round(s) through the pulses, "
+    note = "" if autofocus is None else (f", PGA {rounds}{autofocus['iterations']} iterations, phase error "
                                          f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
     if autofocus is not None and autofocus.get("applied") is False:       # (PGA3), (PGA4)
         note = f", PGA not applied ({autofocus.get('refusal') or 'no dominant scatterer'}; image unchanged)"

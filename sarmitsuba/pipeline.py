@@ -215,9 +215,9 @@ FOCUSERS = {"ffbp": ffbp, "bp": backproject}
 
 
 def _focuser(name: str):
-    """The backprojection of ``focuser``; ParameterError naming it for anything else. ``ffbp``
-    hands the acquisitions it does not factorise (bistatic, a grid straddling the track) to direct
-    backprojection, and says so in ``metadata["focus"]["fallback"]``."""
+    """The backprojection of ``focuser``; ParameterError naming it for anything else. ``ffbp`` (bistatic data
+    too, (F10)) hands what it does not factorise (a grid straddling the track) to direct backprojection,
+    and says so in ``metadata["focus"]["fallback"]``."""
     if name not in FOCUSERS:
         raise ParameterError(f"focuser = {name!r}; valid: {', '.join(FOCUSERS)} (ffbp: fast factorised "
                              "backprojection, the default; bp: direct backprojection, its reference)")
@@ -470,9 +470,9 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     Backprojection applies the azimuth window over the beam (else over the aperture) and divides
     out the recorded antenna pattern, as :func:`simulate` does.
     ``track = "nominal"`` focuses data simulated with motion errors on their nominal track
-    (:meth:`RawData.on_track`, docs/physics.md (J4)); ``autofocus = "pga"`` then runs phase
-    gradient autofocus on the image (:func:`sarmitsuba.focus.autofocus.pga`, (PGA)), which records
-    its estimate in ``metadata["autofocus"]``; ``autofocus_reference`` (3 floats, m), a surveyed
+    (:meth:`RawData.on_track`, docs/physics.md (J4)); ``autofocus = "pga"`` then estimates the phase
+    error on a backprojection and removes it from the pulses (:func:`~.focus.autofocus_pulses.pga_focus`,
+    (PGA6)), recorded in ``metadata["autofocus"]``; ``autofocus_reference`` (3 floats, m), a surveyed
     point-like scatterer, lets it remove the linear part too ((PGA5)).
 
     Raises
@@ -487,12 +487,12 @@ def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", wind
     if autofocus_reference is not None and autofocus is None:
         raise ValueError("autofocus_reference (--pga-reference) is used only by phase gradient autofocus: "
                          "add autofocus = 'pga' (--autofocus pga), or leave the reference out")
-    image = focus_by_name(raw.on_track(track), algorithm, window=window, window_range=window_range,
-                          window_azimuth=window_azimuth, progress=progress)
-    if autofocus == "pga":
-        from .focus.autofocus import pga
-        image, _ = pga(image, reference=autofocus_reference, progress=progress)
-    return image
+    if autofocus == "pga":                      # through the pulses, docs/physics.md (PGA6)
+        from .focus.autofocus_pulses import pga_focus
+        return pga_focus(raw.on_track(track), algorithm, window_range=window_range or window,
+                         window_azimuth=window_azimuth or window, reference=autofocus_reference, progress=progress)
+    return focus_by_name(raw.on_track(track), algorithm, window=window, window_range=window_range,
+                         window_azimuth=window_azimuth, progress=progress)
 
 
 def window_title(image: SarImage) -> str:

@@ -52,10 +52,10 @@ from typing import Any
 import numpy as np
 
 from ..core.constants import SPEED_OF_LIGHT
-from ..core.image import SarImage, image_coordinates
+from ..core.image import SarImage
 from ..core.trajectory import MotionError
-from ..core.valid_ranges import ParameterError
-from .pga_lines import POINT_DB, POINT_SHARE, linear_shift_bound, point_lines, signal_pixels
+from .pga_lines import (POINT_DB, POINT_SHARE, linear_shift_bound, point_lines, reference_azimuth,
+                        reference_shift, shift_phase, signal_pixels, upsample)
 
 __all__ = ["signal_pixels", "point_lines", "pga", "AutofocusReport", "AutofocusWarning"]
 
@@ -145,6 +145,15 @@ class AutofocusReport:
     refusal : str
         Why the image was returned unchanged (``"no dominant scatterer"`` or ``"N point-like range
         line(s)"``, fewer than :data:`MIN_LINES`); ``""`` when PGA ran.
+    correction : float64 [n_azimuth] or None, rad
+        The whole phase removed from the azimuth spectrum (``phase_error`` plus the linear part
+        taken out at ``reference``), centred order; None when PGA was not applied.
+    aperture_position : float64 [n_azimuth] or None, m
+        With ``deramp``: the antenna's along-track position, from the track's mid-aperture position
+        along its direction, that each spectral sample stands for on the lines used,
+        ``-f lambda R0 / 2`` (eq. (PGA2); ``R0`` their power-weighted closest-approach range);
+        None otherwise. :func:`~sarmitsuba.focus.autofocus_pulses.pulse_correction` reads
+        ``correction`` at each pulse's position through it.
     """
 
     phase_error: np.ndarray
@@ -161,6 +170,8 @@ class AutofocusReport:
     reference: tuple[float, float, float] | None = None
     linear_bound_m: float | None = None
     refusal: str = ""
+    correction: np.ndarray | None = None
+    aperture_position: np.ndarray | None = None
 
     def as_metadata(self) -> dict[str, Any]:
         """The record kept in ``image.metadata["autofocus"]`` (JSON types)."""
@@ -184,7 +195,8 @@ class AutofocusReport:
 
 
 def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITERATIONS,
-        tolerance: float = TOLERANCE, progress: bool = False) -> tuple[SarImage, AutofocusReport]:
+        tolerance: float = TOLERANCE, progress: bool = False,
+        aperture_cells: int | None = None) -> tuple[SarImage, AutofocusReport]:
     """Phase gradient autofocus of ``image`` along its azimuth axis (docs/physics.md (PGA)).
 
     Parameters
@@ -203,6 +215,10 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
         Stop when an iteration's correction has a smaller rms (> 0).
     progress : bool, default False
         A :mod:`tqdm` bar over the iterations.
+    aperture_cells : int, optional
+        On a deramped image, the narrowest window: the one whose spectral cell is the track's
+        length over ``aperture_cells`` (:data:`APERTURE_CELLS` through the pulses,
+        docs/physics.md (PGA6)); default: the window shrinks as in (PGA).
 
     Returns
     -------
@@ -244,8 +260,8 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
     data, options = _check(image, max_iterations, tolerance)
     frame = _fresnel_frame(image)
     if frame is not None:
-        data = _upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
-    target = _reference_azimuth(image, reference)
+        data = upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
+    target = reference_azimuth(image, reference)
     intensity = np.abs(data).astype(np.float64) ** 2
     signal = signal_pixels(intensity)
     dominance = _dominance_db(intensity, signal)
@@ -259,15 +275,17 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
                                  refusal=reason, linear_bound_m=_linear_bound(image))
         return _with_report(image, image.data, report)
     spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)   # centred order
+    step = _row_step(image, frame)
+    aperture = _aperture(image, frame, step, lines, intensity)
+    options.update(_track_limits(image, aperture, step, aperture_cells))
     total, support, centred, widths, converged = _iterate(spectrum, lines, options, progress)
     if not converged:
         warnings.warn(f"PGA did not converge in {len(widths)} iterations (last correction above "
                       f"{options['tolerance']:g} rad rms): the error may vary across the image",
                       AutofocusWarning, stacklevel=2)
     total = _extend(_detrend(total, support, _power(centred)), support)
-    step = _row_step(image, frame)
-    shift = None if target is None else _reference_shift(_apply(spectrum, total), image, step, target)
-    linear = 0.0 if shift is None else _shift_phase(total.size, step, shift)
+    shift = None if target is None else reference_shift(_apply(spectrum, total), image, step, target)
+    linear = 0.0 if shift is None else shift_phase(total.size, step, shift)
     out = _apply(spectrum, total + linear)
     if frame is not None:
         out = (out * np.exp(1j * frame.phase))[::frame.factor]
@@ -275,7 +293,8 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
                              rms_phase_error=_rms(total, support, centred), converged=converged,
                              lines=int(lines.size), window=widths, deramp=frame is not None, dominance_db=dominance,
                              linear_shift_m=shift, reference=None if shift is None else tuple(target[1]),
-                             linear_bound_m=None if shift is not None else _linear_bound(image))
+                             linear_bound_m=None if shift is not None else _linear_bound(image), correction=total + linear,
+                             aperture_position=aperture)
     return _with_report(image, out.astype(np.complex64), report)
 
 
@@ -311,6 +330,7 @@ def _iterate(spectrum: np.ndarray, lines: np.ndarray, options: dict[str, Any],
     widths: list[int] = []
     converged = False
     width = first = None
+    floor = MIN_WINDOW
     bar = tqdm(total=options["max_iterations"], desc="PGA", unit="iteration", disable=not progress)
     try:
         for _ in range(options["max_iterations"]):
@@ -319,8 +339,11 @@ def _iterate(spectrum: np.ndarray, lines: np.ndarray, options: dict[str, Any],
                 width = first = _window_width(centred)
             else:
                 width = max(MIN_WINDOW, first // FLOOR, int(width * SHRINK))
+            width = min(max(width, floor), centred.shape[0])
             widths.append(width)
-            step, support = _estimate(centred, width)
+            step, support = _estimate(centred, width, options["band"])
+            if options["cells"]:                     # eq. (PGA6): the estimate's span over cells
+                floor = max(MIN_WINDOW, int(np.ceil(centred.shape[0] * options["cells"] / max(support.sum(), 1))))
             total += step
             bar.update(1)
             if len(widths) >= MIN_ITERATIONS and _rms(step, support, centred) < options["tolerance"]:
@@ -355,6 +378,7 @@ class _Fresnel:
 
     factor: int
     phase: np.ndarray
+    r0: np.ndarray
 
 
 #: Largest azimuth upsampling for the deramp (beyond it PGA runs on the image as it is).
@@ -384,23 +408,7 @@ def _fresnel_frame(image: SarImage) -> _Fresnel | None:
         return None
     rows = image.azimuth[0] + step / factor * np.arange(image.azimuth.size * factor)
     along = (columns @ direction)[None, :] + rows[:, None] * float(image.azimuth_direction @ direction)
-    return _Fresnel(factor, k * along ** 2 / r0[None, :])
-
-
-def _upsample(data: np.ndarray, factor: int) -> np.ndarray:
-    """``data`` [n, m] FFT-interpolated ``factor`` times along axis 0 (rows ``i * factor`` keep their
-    values): the spectrum is cut at its weakest bin, so a band about any centre stays whole."""
-    if factor == 1:
-        return data.astype(np.complex128)
-    n = data.shape[0]
-    spectrum = np.fft.fft(data.astype(np.complex128), axis=0)
-    cut = int(np.argmin(np.sum(np.abs(spectrum) ** 2, axis=1)))
-    bins = (cut + 1 + np.arange(n)) % n                          # the band, contiguous, after the cut
-    signed = cut + 1 + np.arange(n)
-    signed -= n * int(np.round((signed[0] + signed[-1]) / (2.0 * n)))
-    out = np.zeros((n * factor, data.shape[1]), complex)
-    out[signed % (n * factor)] = spectrum[bins] * factor
-    return np.fft.ifft(out, axis=0)
+    return _Fresnel(factor, k * along ** 2 / r0[None, :], r0)
 
 
 def _apply(spectrum: np.ndarray, phase: np.ndarray) -> np.ndarray:
@@ -441,14 +449,17 @@ def _window_width(centred: np.ndarray) -> int:
     return int(np.clip(width, MIN_WINDOW, centred.shape[0]))
 
 
-def _estimate(centred: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+def _estimate(centred: np.ndarray, width: int, band: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Steps 2-3: the windowed lines' spectra and the integrated maximum-likelihood gradient
-    (zero-mean, no linear trend, over the supported samples), and the support; centred order."""
+    (zero-mean, no linear trend, over the supported samples), and the support (within ``band``,
+    bool [n], where given); centred order."""
     keep = _distance(centred.shape[0]) <= width // 2
     spectra = np.fft.fft(np.where(keep[:, None], centred, 0.0), axis=0)
     spectra = np.fft.fftshift(spectra, axes=0)                       # contiguous about zero frequency
     power = np.sum(np.abs(spectra) ** 2, axis=1)
     support = power >= power.max() * 10.0 ** (-SUPPORT_DB / 10.0)
+    if band is not None:
+        support &= band
     gradient = np.angle(np.sum(spectra[1:] * np.conj(spectra[:-1]), axis=1))
     gradient = np.where(support[1:] & support[:-1], gradient, 0.0)    # no estimate across gaps
     phase = np.concatenate([[0.0], np.cumsum(gradient)])
@@ -486,66 +497,46 @@ def _rms(phase: np.ndarray, support: np.ndarray, centred: np.ndarray) -> float:
     return float(np.sqrt(np.sum(w * phase ** 2) / w.sum())) if w.sum() > 0 else 0.0
 
 
-#: The reference point is looked for within this fraction of the image's azimuth extent of where
-#: it should appear (the linear part's shift, eq. (PGA5), is a few metres on airborne tracks).
-REFERENCE_SEARCH = 0.25
-#: Upsampling of the column through the reference point that locates its peak (then a parabola).
-REFERENCE_UPSAMPLE = 16
+#: The narrowest window smooths the estimate over no more than its support (the along-track span
+#: the used targets were seen from) over this many spectral cells (docs/physics.md (PGA6)). A window cut to a focused point's few samples smooths
+#: it over metres, most at the band's ends, where the estimate then stalls: on the trihedral's
+#: 60 m sway 24 cells left -49.5 dB azimuth PSLR, 48 cells -58.3 (true track -58.1).
+APERTURE_CELLS = 48
 
 
-def _reference_azimuth(image: SarImage, reference: Any) -> tuple[float, tuple[float, ...], float] | None:
-    """``(azimuth, world point, range)`` [m] where the ``reference`` point should appear
-    (:func:`~sarmitsuba.core.image.image_coordinates`), or None without one; checked first."""
-    if reference is None:
+def _track_limits(image: SarImage, aperture: np.ndarray | None, step: float, cells: int | None) -> dict[str, Any]:
+    """``{"band": bool [n] or None, "cells": int or None}``: with a deramp, the spectral samples
+    that stand for positions on the track (``|s| <= L / 2`` and one cell) and ``cells``, which sets
+    the narrowest window (eq. (PGA6): the window whose smoothing of the spectrum is the estimate's
+    support over ``cells``); without one, no band and no floor."""
+    length = float(image.metadata["focus"]["track"].get("length", 0.0)) if aperture is not None else 0.0
+    if aperture is None or not length > 0 or aperture.size < 2:
+        return {"band": None, "cells": None}
+    cell = float(np.abs(aperture[1] - aperture[0]))        # lambda R0 / (2 n |step|)
+    return {"band": np.abs(aperture) <= length / 2.0 + cell, "cells": cells}
+
+
+def _aperture(image: SarImage, frame: _Fresnel | None, step: float, lines: np.ndarray,
+              intensity: np.ndarray) -> np.ndarray | None:
+    """The antenna's along-track position [m] of every spectral sample of a deramped image (eq.
+    (PGA2)): ``-f lambda R0 / 2`` on rows ``step`` apart (times the sign of the image's azimuth
+    axis along the track), ``R0`` the closest-approach range of the used ``lines`` weighted by their
+    intensity; None without a deramp."""
+    if frame is None:
         return None
-    point = np.asarray(reference, dtype=np.float64).reshape(-1) if np.ndim(reference) else np.zeros(0)
-    if point.size != 3 or not np.all(np.isfinite(point)):
-        raise ParameterError(f"reference must be the world position (x, y, z) in metres of a known point-like "
-                             f"scatterer in the image, 3 finite numbers; got {reference!r}")
-    azimuth, ground = image_coordinates(image, point)
-    a_lo, a_hi = float(np.min(image.azimuth)), float(np.max(image.azimuth))
-    r_lo, r_hi = float(np.min(image.range)), float(np.max(image.range))
-    if not (a_lo <= azimuth <= a_hi and r_lo <= ground <= r_hi):
-        raise ParameterError(f"reference ({', '.join(f'{v:g}' for v in point)}) appears at azimuth {azimuth:.2f} m, range {ground:.2f} m, "
-                             f"outside the image (azimuth {a_lo:.2f} .. {a_hi:.2f} m, range {r_lo:.2f} .. "
-                             f"{r_hi:.2f} m): give a point inside the image, or leave reference out")
-    return azimuth, tuple(float(v) for v in point), ground
+    focus = image.metadata["focus"]
+    wavelength = SPEED_OF_LIGHT / float(focus["fc"])
+    weight = intensity[:, lines].sum(axis=0)
+    r0 = float(np.sum(weight * frame.r0[lines]) / weight.sum())
+    sense = float(np.sign(image.azimuth_direction @ np.asarray(focus["track"]["direction"], float)) or 1.0)
+    f = np.fft.fftshift(np.fft.fftfreq(intensity.shape[0], d=step))
+    return -sense * f * wavelength * r0 / 2.0
 
 
 def _row_step(image: SarImage, frame: _Fresnel | None) -> float:
     """Azimuth spacing [m, signed] of the rows PGA works on (upsampled by the deramp's factor)."""
     step = float(np.median(np.diff(image.azimuth))) if image.azimuth.size > 1 else 1.0
     return step / (frame.factor if frame is not None else 1)
-
-
-def _reference_shift(data: np.ndarray, image: SarImage, step: float, target: tuple) -> float:
-    """Along-track distance [m] from where the reference point should appear to its peak in the
-    corrected image ``data`` [n_rows, n_rg] (rows ``step`` apart from ``image.azimuth[0]``): the
-    brightest pixel within :data:`REFERENCE_SEARCH` of the image's extent and one column of the
-    point, refined on the column upsampled :data:`REFERENCE_UPSAMPLE` times and a parabola
-    through the log intensity of the three samples about its peak (eq. (PGA5))."""
-    azimuth, _, ground = target
-    rows = image.azimuth[0] + step * np.arange(data.shape[0])
-    col = int(np.argmin(np.abs(image.range - ground)))
-    cols = np.arange(max(col - 1, 0), min(col + 2, data.shape[1]))
-    near = np.abs(rows - azimuth) <= REFERENCE_SEARCH * abs(step) * data.shape[0]
-    patch = np.where(near[:, None], np.abs(data[:, cols]), -1.0)
-    row, c = np.unravel_index(int(np.argmax(patch)), patch.shape)
-    fine = np.abs(_upsample(data[:, cols[c]:cols[c] + 1], REFERENCE_UPSAMPLE)[:, 0]) ** 2
-    n = fine.size
-    around = (REFERENCE_UPSAMPLE * row + np.arange(-REFERENCE_UPSAMPLE, REFERENCE_UPSAMPLE + 1)) % n
-    peak = int(around[np.argmax(fine[around])])
-    left, mid, right = np.log(np.maximum(fine[[(peak - 1) % n, peak, (peak + 1) % n]], 1e-300))
-    curvature = left - 2.0 * mid + right
-    offset = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
-    found = image.azimuth[0] + step / REFERENCE_UPSAMPLE * (peak + offset)
-    return float(found - azimuth)
-
-
-def _shift_phase(n: int, step: float, shift: float) -> np.ndarray:
-    """The linear phase [rad, centred order] whose removal (:func:`_apply`) moves the image by
-    ``-shift`` metres along its rows (``step`` [m] apart): ``-2 pi f shift``, ``f`` in cycles per metre."""
-    return -2.0 * np.pi * np.fft.fftshift(np.fft.fftfreq(n, d=step)) * shift
 
 
 def _linear_bound(image: SarImage) -> float | None:

@@ -27,7 +27,7 @@ from .scene_grid import ground_grid
 from .stripmap import slant_output_grid, stripmap_geometry
 from .windows import window_spec
 
-__all__ = ["ALGORITHMS", "focus", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
+__all__ = ["ALGORITHMS", "focus", "autofocus_image", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
            "recorded_geometry"]
 
 #: Algorithm names of :func:`focus`: direct and fast factorised backprojection, omega-K, range-Doppler.
@@ -54,9 +54,10 @@ def azimuth_pattern(params: RadarParameters) -> float | None:
 
 def backprojector(name: str) -> Callable[..., SarImage]:
     """The backprojection focuser ``name``: ``"bp"`` is :func:`~sarmitsuba.focus.backproject`;
-    ``"ffbp"`` is :func:`~sarmitsuba.focus.ffbp`, which hands the acquisitions it does not
-    factorise (bistatic, a grid straddling the track) to direct backprojection and says so in
-    ``metadata["focus"]["fallback"]``. Both take ``(raw, grid, **options)``.
+    ``"ffbp"`` is :func:`~sarmitsuba.focus.ffbp` (bistatic data included, on polar images of the
+    range sum, docs/physics.md (F10)), which hands the acquisitions it does not factorise (a grid
+    straddling the track or its baseline, a velocity normal to the image plane) to direct
+    backprojection and says so in ``metadata["focus"]["fallback"]``. Both take ``(raw, grid, **options)``.
 
     Raises ValueError for any other name."""
     if name == "bp":
@@ -145,10 +146,34 @@ def focus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window
     if algorithm == "rda":
         return range_doppler(raw, window_range=window_range, window_azimuth=window_azimuth, src=True,
                              doppler_bandwidth=doppler, azimuth_pattern=pattern)
+    compressed, grid = _backprojection_input(raw, window_range, grid)
+    return backprojector(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
+                                    window_azimuth=window_azimuth, progress=progress)
+
+
+def autofocus_image(raw: RawData, algorithm: str, *, window_range: Any, azimuth_margin: float,
+                    progress: bool = False) -> SarImage:
+    """The backprojection phase gradient autofocus estimates from (docs/physics.md (PGA6)):
+    ``algorithm`` (``bp`` or ``ffbp``) on :func:`focus`'s grid widened by ``azimuth_margin`` [m]
+    at either end of its azimuth axis (at its own spacing), a rectangular azimuth window over the
+    beam, and the antenna pattern left in (dividing it out lifts the sidelobes of pixels near the
+    ends of the illuminated strip by tens of dB). Raises ValueError as :func:`focus`."""
+    grid, beam, _, squint, _ = render_focusing(raw)
+    compressed, grid = _backprojection_input(raw, window_range, grid)
+    if azimuth_margin > 0 and grid.azimuth.size > 1:
+        step = float(np.median(np.diff(grid.azimuth)))
+        extra = step * np.arange(1, int(np.ceil(azimuth_margin / step)) + 1)
+        grid = dataclasses.replace(grid, azimuth=np.r_[grid.azimuth[0] - extra[::-1], grid.azimuth,
+                                                       grid.azimuth[-1] + extra])
+    return backprojector(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=None,
+                                    window_azimuth="rect", progress=progress)
+
+
+def _backprojection_input(raw: RawData, window_range: Any, grid: ImageGrid | None) -> tuple[RawData, ImageGrid]:
+    """Range-compressed (and range-windowed) data and the grid a backprojection of ``raw`` runs on."""
     range_name, range_params = window_spec(window_range)      # a name, or (name, {params})
     compressed = range_compress(raw, range_name, **range_params) if not raw.range_compressed else (
         apply_range_window(raw, range_name, **range_params) if range_name != "rect" else raw)
     if grid is None:
         grid = slant_output_grid(stripmap_geometry(raw), raw)
-    return backprojector(algorithm)(compressed, grid, azimuth_beamwidth=beam, squint=squint, azimuth_pattern=pattern,
-                                    window_azimuth=window_azimuth, progress=progress)
+    return compressed, grid

@@ -10,9 +10,15 @@ plate and the double bounce of a wall spread their energy along the line and are
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-__all__ = ["signal_pixels", "point_likeness", "point_lines", "linear_shift_bound",
+from ..core.image import SarImage, image_coordinates
+from ..core.valid_ranges import ParameterError
+
+__all__ = ["signal_pixels", "point_likeness", "point_lines", "linear_shift_bound", "upsample", "reference_azimuth",
+           "reference_shift", "shift_phase", "REFERENCE_SEARCH", "REFERENCE_UPSAMPLE",
            "SIGNAL_BOX", "SIGNAL_DB", "SIGNAL_PERCENTILE", "POINT_DB", "POINT_SHARE", "POINT_EXTENT"]
 
 #: (PGA3)'s background: pixels whose local mean intensity over this many pixels square lies within
@@ -106,3 +112,75 @@ def linear_shift_bound(ground_range: float, max_slope: float) -> float:
     if not (np.isfinite(ground_range) and np.isfinite(max_slope) and ground_range >= 0 and max_slope >= 0):
         raise ValueError(f"ground_range and max_slope must be finite and >= 0, got {ground_range!r}, {max_slope!r}")
     return float(ground_range * max_slope)
+
+
+def upsample(data: np.ndarray, factor: int) -> np.ndarray:
+    """``data`` [n, m] FFT-interpolated ``factor`` times along axis 0 (rows ``i * factor`` keep their
+    values): the spectrum is cut at its weakest bin, so a band about any centre stays whole."""
+    if factor == 1:
+        return data.astype(np.complex128)
+    n = data.shape[0]
+    spectrum = np.fft.fft(data.astype(np.complex128), axis=0)
+    cut = int(np.argmin(np.sum(np.abs(spectrum) ** 2, axis=1)))
+    bins = (cut + 1 + np.arange(n)) % n                          # the band, contiguous, after the cut
+    signed = cut + 1 + np.arange(n)
+    signed -= n * int(np.round((signed[0] + signed[-1]) / (2.0 * n)))
+    out = np.zeros((n * factor, data.shape[1]), complex)
+    out[signed % (n * factor)] = spectrum[bins] * factor
+    return np.fft.ifft(out, axis=0)
+
+
+#: The reference point is looked for within this fraction of the image's azimuth extent of where
+#: it should appear (the linear part's shift, eq. (PGA5), is a few metres on airborne tracks).
+REFERENCE_SEARCH = 0.25
+#: Upsampling of the column through the reference point that locates its peak (then a parabola).
+REFERENCE_UPSAMPLE = 16
+
+
+def reference_azimuth(image: SarImage, reference: Any) -> tuple[float, tuple[float, ...], float] | None:
+    """``(azimuth, world point, range)`` [m] where the ``reference`` point should appear
+    (:func:`~sarmitsuba.core.image.image_coordinates`), or None without one; checked first."""
+    if reference is None:
+        return None
+    point = np.asarray(reference, dtype=np.float64).reshape(-1) if np.ndim(reference) else np.zeros(0)
+    if point.size != 3 or not np.all(np.isfinite(point)):
+        raise ParameterError(f"reference must be the world position (x, y, z) in metres of a known point-like "
+                             f"scatterer in the image, 3 finite numbers; got {reference!r}")
+    azimuth, ground = image_coordinates(image, point)
+    a_lo, a_hi = float(np.min(image.azimuth)), float(np.max(image.azimuth))
+    r_lo, r_hi = float(np.min(image.range)), float(np.max(image.range))
+    if not (a_lo <= azimuth <= a_hi and r_lo <= ground <= r_hi):
+        raise ParameterError(f"reference ({', '.join(f'{v:g}' for v in point)}) appears at azimuth {azimuth:.2f} m, range {ground:.2f} m, "
+                             f"outside the image (azimuth {a_lo:.2f} .. {a_hi:.2f} m, range {r_lo:.2f} .. "
+                             f"{r_hi:.2f} m): give a point inside the image, or leave reference out")
+    return azimuth, tuple(float(v) for v in point), ground
+
+
+def reference_shift(data: np.ndarray, image: SarImage, step: float, target: tuple) -> float:
+    """Along-track distance [m] from where the reference point should appear to its peak in the
+    corrected image ``data`` [n_rows, n_rg] (rows ``step`` apart from ``image.azimuth[0]``): the
+    brightest pixel within :data:`REFERENCE_SEARCH` of the image's extent and one column of the
+    point, refined on the column upsampled :data:`REFERENCE_UPSAMPLE` times and a parabola
+    through the log intensity of the three samples about its peak (eq. (PGA5))."""
+    azimuth, _, ground = target
+    rows = image.azimuth[0] + step * np.arange(data.shape[0])
+    col = int(np.argmin(np.abs(image.range - ground)))
+    cols = np.arange(max(col - 1, 0), min(col + 2, data.shape[1]))
+    near = np.abs(rows - azimuth) <= REFERENCE_SEARCH * abs(step) * data.shape[0]
+    patch = np.where(near[:, None], np.abs(data[:, cols]), -1.0)
+    row, c = np.unravel_index(int(np.argmax(patch)), patch.shape)
+    fine = np.abs(upsample(data[:, cols[c]:cols[c] + 1], REFERENCE_UPSAMPLE)[:, 0]) ** 2
+    n = fine.size
+    around = (REFERENCE_UPSAMPLE * row + np.arange(-REFERENCE_UPSAMPLE, REFERENCE_UPSAMPLE + 1)) % n
+    peak = int(around[np.argmax(fine[around])])
+    left, mid, right = np.log(np.maximum(fine[[(peak - 1) % n, peak, (peak + 1) % n]], 1e-300))
+    curvature = left - 2.0 * mid + right
+    offset = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+    found = image.azimuth[0] + step / REFERENCE_UPSAMPLE * (peak + offset)
+    return float(found - azimuth)
+
+
+def shift_phase(n: int, step: float, shift: float) -> np.ndarray:
+    """The linear phase [rad, centred order] whose removal (:func:`_apply`) moves the image by
+    ``-shift`` metres along its rows (``step`` [m] apart): ``-2 pi f shift``, ``f`` in cycles per metre."""
+    return -2.0 * np.pi * np.fft.fftshift(np.fft.fftfreq(n, d=step)) * shift
