@@ -159,3 +159,19 @@ def test_effective_pulses_match_the_integrated_two_way_pattern(antenna_length, s
     assert mean == pytest.approx(0.45141, rel=1e-4)
     n = 4001
     assert effective_pulses(p, n) == pytest.approx(n * mean ** 2, rel=2e-3)
+
+
+def test_bistatic_effective_pulses_integrate_the_one_way_pattern():
+    """A bistatic echo carries the transmitter's one-way pattern g = sinc(u) alone (docs/physics.md
+    (B2)): N_eff = N (mean of |g| over the traced beam)^2, the mean int_0^1 sinc(u) du = Si(pi) / pi
+    = 0.58949 (scipy.special.sici), so 0.3475 N; the monostatic 0.2038 N would read 2.3 dB low."""
+    from scipy.special import sici
+
+    from sarmitsuba.core.radar import RadarParameters
+    from sarmitsuba.signal.radiometry import effective_pulses
+    base = {"frequency": 9.6e9, "antenna_length": 2.0, "n_pulses": 16}
+    p = RadarParameters.from_mapping({**base, "receiver_altitude": 300.0})
+    assert p.bistatic
+    n = 4001
+    assert effective_pulses(p, n) == pytest.approx(n * (sici(math.pi)[0] / math.pi) ** 2, rel=2e-3)
+    assert effective_pulses(RadarParameters.from_mapping(base), n) == pytest.approx(0.20377 * n, rel=2e-3)

@@ -60,12 +60,15 @@ def effective_pulses(params: RadarParameters, pulses: int) -> float:
     (docs/physics.md (A)); summed unweighted, the signal grows as ``sum g^2`` and the noise as
     ``sqrt(N)``, so the image SNR gains ``N_eff = (sum g^2)^2 / N`` (``N`` for a uniform beam,
     0.2038 N = (0.45141)^2 N for the tapered beam traced to its nulls, 0.45141 being the
-    mean of sinc^2 between its first nulls).
+    mean of sinc^2 between its first nulls). A bistatic echo (``params.bistatic``) carries the
+    transmitter's one-way pattern ``g`` (the receiver stares at the scene, (B2)): ``(sum g)^2 / N``,
+    0.3475 N = (Si(pi) / pi)^2 N for the tapered beam.
     """
     if params.pattern_length <= 0 or pulses <= 0:
         return float(pulses)
+    power = 1 if params.bistatic else 2
     lo, hi = params.beam_sines
     squint = math.radians(params.squint) if params.mode == "stripmap" else 0.0
     sines = np.linspace(lo, hi, max(int(pulses), 2))
-    g2 = np.sinc(params.pattern_length / params.wavelength * np.sin(np.arcsin(sines) - squint)) ** 2
+    g2 = np.abs(np.sinc(params.pattern_length / params.wavelength * np.sin(np.arcsin(sines) - squint))) ** power
     return float(g2.sum() ** 2 / g2.size) * pulses / g2.size
