@@ -143,14 +143,11 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         unchanged, gate = pga(nominal, reference=reference, max_iterations=1)
     if not gate.applied:                        # the real cause first: a sway beyond PGA is not point-like
         reason = _not_point_like(estimate(np.zeros(raw.n_pulses))[0], spacing, doppler, raw.prf) \
-            if gate.refusal.endswith("range line(s)") else ""
+            if gate.refusal.endswith("range line(s)") else ""       # clutter alone has no spread to speak of
         for w in caught:
-            message = f"{w.message}{reason}" if reason.startswith(" (") else reason or str(w.message)
-            warnings.warn_explicit(message, w.category, w.filename, w.lineno)
+            warnings.warn_explicit(f"{w.message}{reason}", w.category, w.filename, w.lineno)
         metadata = copy.deepcopy(unchanged.metadata)
-        refusal = gate.refusal + reason if reason.startswith(" (") else \
-            reason.removeprefix("PGA not applied: ").split("; the image")[0] or gate.refusal
-        metadata["autofocus"].update(refusal=refusal, rounds=0, applied_to="nothing")
+        metadata["autofocus"].update(refusal=gate.refusal + reason, rounds=0, applied_to="nothing")
         return dataclasses.replace(unchanged, metadata=metadata)
     total, rounds = np.zeros(raw.n_pulses), 0
     image, first, caught = estimate(total)
@@ -219,13 +216,14 @@ def response_spread(image: SarImage, spacing: float) -> float:
 
 
 def _not_point_like(first: SarImage, spacing: float | None, doppler: float | None, prf: float) -> str:
-    """What to add to PGA's point-like refusal (PGA4): the whole message where the sway is beyond
-    PGA (:func:`_beyond`), else the defocused response's spread (``" (...)"``), or ``""``."""
-    beyond = _beyond(first, spacing, doppler, prf)
-    if beyond:
-        return f"PGA not applied: {beyond}; the image is focused on the nominal track unchanged"
+    """What to add to PGA's point-like refusal (PGA4), ``" (...)"``, or ``""``: the spread of the
+    brightest line's response on the first estimation image and, where it reaches the limit of
+    :func:`_beyond`, that a defocused point that wide is beyond PGA (it may be a wall or a rim)."""
     if spacing is None:
         return ""
+    beyond = _beyond(first, spacing, doppler, prf)
+    if beyond:
+        return f" (the brightest line's response: if it is a defocused point, {beyond})"
     return (f" (the brightest line's response spreads over {response_spread(first, spacing):.1f} m of azimuth: a point "
             f"defocused that far is no longer point-like, and PGA cannot tell it from a wall or a rim)")
 
