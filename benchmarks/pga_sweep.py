@@ -136,7 +136,7 @@ def run(quick: bool = False) -> list[dict]:
     algorithms = ("ffbp", "omegak") if quick else ALGORITHMS
     rows = [row for clutter in (False, True) for a in amplitudes for p in periods
             for row in _case(clutter, a, p, algorithms)]
-    report_rows(NAME, rows)
+    report_rows(f"{NAME}.csv", rows)
     _figure(rows)
     return rows
 

@@ -109,12 +109,12 @@ def test_the_defocused_response_spans_the_sweep_of_its_instantaneous_position():
 
 
 def test_a_sway_beyond_pga_is_refused_naming_the_spread_and_the_prf():
-    """2 cm of 10 m period: a 35 m response where the 250 Hz PRF leaves 55.9 (1 - 0.72 x 134 / 250)
-    = 34.3 m. No line is point-like, and the warning says that a defocused point that wide is
+    """2 cm of 10 m period: a 35 m response where the 250 Hz PRF leaves 55.3 (1 - 0.72 x 134 / 250)
+    = 33.9 m (the ambiguities' spacing at the trihedral's 1414 m). No line is point-like, and the warning says that a defocused point that wide is
     beyond PGA; the image is the nominal track's, unchanged."""
     raw = _sway(0.02, 10.0)
     with pytest.warns(AutofocusWarning, match=r"if it is a defocused point, the sway is beyond PGA: its defocused "
-                                              r"response spreads over 3[56]\.\d m, where the PRF leaves 34\.\d m.*raise prf"):
+                                              r"response spreads over 3[56]\.\d m, where the PRF leaves 3[34]\.\d m.*raise prf"):
         image = refocus(raw, "ffbp", track="nominal", autofocus="pga")
     assert image.metadata["autofocus"]["applied"] is False and image.metadata["autofocus"]["rounds"] == 0
     assert "beyond PGA" in image.metadata["autofocus"]["refusal"]

@@ -80,18 +80,18 @@ def pulse_correction(report: AutofocusReport, raw: RawData, track: dict[str, Any
     return CubicSpline(s, phase)(np.clip(along, s[0], s[-1]))
 
 
-def ambiguity_spacing(raw: RawData, grid: ImageGrid) -> float:
+def ambiguity_spacing(raw: RawData, grid: ImageGrid, column: int | None = None) -> float:
     """The along-track spacing [m] of a point's azimuth ambiguities, ``lambda R0 PRF / (2 v)``
-    (``R0`` the farthest closest-approach range of the grid's range axis from the mid-aperture
-    track, ``v`` the mean speed): no defocused response PGA can undo spreads wider
+    (``R0`` the closest-approach range from the mid-aperture track of the grid's range ``column``,
+    default its farthest; ``v`` the mean speed): no defocused response PGA can undo spreads wider
     (docs/physics.md (PGA6))."""
     from ..core.constants import SPEED_OF_LIGHT
     velocity = np.mean(raw.velocity, axis=0)
     speed = float(np.linalg.norm(velocity))
     direction = velocity / speed
     columns = grid.origin + grid.range[:, None] * grid.range_direction - raw.tx_position[raw.n_pulses // 2]
-    r0 = float(np.max(np.linalg.norm(columns - np.outer(columns @ direction, direction), axis=1)))
-    return SPEED_OF_LIGHT / raw.fc * r0 * raw.prf / (2.0 * speed)
+    r0 = np.linalg.norm(columns - np.outer(columns @ direction, direction), axis=1)
+    return SPEED_OF_LIGHT / raw.fc * float(r0.max() if column is None else r0[column]) * raw.prf / (2.0 * speed)
 
 
 def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth: Any, reference: Any = None,
@@ -142,7 +142,7 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         warnings.simplefilter("always", AutofocusWarning)
         unchanged, gate = pga(nominal, reference=reference, max_iterations=1)
     if not gate.applied:                        # the real cause first: a sway beyond PGA is not point-like
-        reason = _not_point_like(estimate(np.zeros(raw.n_pulses))[0], spacing, doppler, raw.prf) \
+        reason = _not_point_like(estimate(np.zeros(raw.n_pulses))[0], raw, doppler) \
             if gate.refusal.endswith("range line(s)") else ""       # clutter alone has no spread to speak of
         for w in caught:
             warnings.warn_explicit(f"{w.message}{reason}", w.category, w.filename, w.lineno)
@@ -151,7 +151,7 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         return dataclasses.replace(unchanged, metadata=metadata)
     total, rounds = np.zeros(raw.n_pulses), 0
     image, first, caught = estimate(total)
-    report, limit = first, (_beyond(image, spacing, doppler, raw.prf) if first.applied else "")
+    report, limit = first, (_beyond(image, raw, doppler) if first.applied else "")
     while report.applied and report.aperture_position is not None and not limit and rounds < ROUNDS:
         step = pulse_correction(report, raw, image.metadata["focus"]["track"])
         inside = _inside(report, raw, image.metadata["focus"]["track"])
@@ -215,31 +215,37 @@ def response_spread(image: SarImage, spacing: float) -> float:
     return float(2.0 * np.sqrt(2.0) * sigma)
 
 
-def _not_point_like(first: SarImage, spacing: float | None, doppler: float | None, prf: float) -> str:
-    """What to add to PGA's point-like refusal (PGA4), ``" (...)"``, or ``""``: the spread of the
-    brightest line's response on the first estimation image and, where it reaches the limit of
+def _not_point_like(first: SarImage, raw: RawData, doppler: float | None) -> str:
+    """What to add to PGA's point-like refusal (PGA4), ``" (...)"``: the spread of the brightest
+    line's response on the first estimation image and, where it reaches the limit of
     :func:`_beyond`, that a defocused point that wide is beyond PGA (it may be a wall or a rim)."""
-    if spacing is None:
-        return ""
-    beyond = _beyond(first, spacing, doppler, prf)
+    beyond = _beyond(first, raw, doppler)
     if beyond:
         return f" (the brightest line's response: if it is a defocused point, {beyond})"
+    spacing = ambiguity_spacing(raw, first, _brightest(first))
     return (f" (the brightest line's response spreads over {response_spread(first, spacing):.1f} m of azimuth: a point "
             f"defocused that far is no longer point-like, and PGA cannot tell it from a wall or a rim)")
 
 
-def _beyond(first: SarImage, spacing: float | None, doppler: float | None, prf: float) -> str:
+def _brightest(image: SarImage) -> int:
+    """The range column of ``image``'s brightest pixel."""
+    return int(np.argmax(np.max(np.abs(image.data), axis=0)))
+
+
+def _beyond(first: SarImage, raw: RawData, doppler: float | None) -> str:
     """Why the sway is beyond PGA (docs/physics.md (PGA6)), or ``""``: the first estimate's defocused
-    response (:func:`response_spread`) ``X_d >= spacing (1 - TWO_WAY B_D / PRF)``: the phase error's
-    Doppler excursion ``2 v X_d / (lambda R0)`` and the beam's two-way band exceed the PRF, and the
+    response (:func:`response_spread`) ``X_d >= Delta x_amb (1 - TWO_WAY B_D / PRF)``, the
+    ambiguities' spacing ``Delta x_amb`` at the brightest line's range: the phase error's Doppler
+    excursion ``2 v X_d / (lambda R0)`` and the beam's two-way band exceed the PRF, and the
     defocused image folds onto its ambiguities."""
-    if spacing is None or not doppler:
+    if not doppler:
         return ""
+    spacing = ambiguity_spacing(raw, first, _brightest(first))
     spread = response_spread(first, spacing)
-    limit = spacing * (1.0 - TWO_WAY * doppler / prf)
+    limit = spacing * (1.0 - TWO_WAY * doppler / raw.prf)
     if spread < limit:
         return ""
     return (f"the sway is beyond PGA: its defocused response spreads over {spread:.1f} m, where the PRF leaves "
             f"{limit:.1f} m (the azimuth ambiguities' spacing lambda R0 PRF / (2 v) = {spacing:.1f} m less the "
-            f"beam's two-way Doppler band, {TWO_WAY * doppler:.0f} of {prf:.0f} Hz): its Doppler excursion folds; "
+            f"beam's two-way Doppler band, {TWO_WAY * doppler:.0f} of {raw.prf:.0f} Hz): its Doppler excursion folds; "
             f"raise prf, or fly slower")
