@@ -26,8 +26,8 @@ Measured, per rebuild (one row each):
 Writes ``footprints.csv`` and ``footprints.png`` (order-2 images and the masks: original red,
 rebuild green, both yellow) into the output folder. ``--quick``: a 300 m x 300 m crop about the
 Frauenkirche with a coarse short-track sensor (25 MHz, 6 m antenna, 50 Hz PRF); ``--tiny`` (the
-smoke test): the 200 m crop of ``tests/test_munich_footprints.py``. Needs Sionna RT's scenes
-(``pip install sionna-rt``; sionna itself is never imported).
+smoke test): the 200 m crop of ``tests/test_munich_footprints.py``, without the warm-up. Needs
+Sionna RT's scenes (``pip install sionna-rt``; sionna itself is never imported).
 
 Usage: ``python benchmarks/footprints.py [--quick] [--tiny]``
 """
@@ -157,12 +157,14 @@ def _prepare(xml: Path, crop, folder: Path) -> tuple:
     return fc, city, str(written), original, seconds
 
 
-def compare(label: str, crop, sensor: dict, image_size=None) -> tuple[list[dict], dict]:
-    """Derive, build, write and render one area; rows for the rebuild and the shifted rebuild."""
+def compare(label: str, crop, sensor: dict, image_size=None, warm_up: bool = True) -> tuple[list[dict], dict]:
+    """Derive, build, write and render one area; rows for the rebuild and the shifted rebuild
+    (``warm_up`` false: no warm-up render, the smoke test's untimed run)."""
     xml = sionna_scenes()["munich"]
     with tempfile.TemporaryDirectory() as tmp:
         fc, _, written, source, seconds = _prepare(xml, crop, Path(tmp))
-        _render(source, {**sensor, "n_pulses": 64}, (65, 65))           # warm-up: the kernels compiled
+        if warm_up:
+            _render(source, {**sensor, "n_pulses": 64}, (65, 65))       # warm-up: the kernels compiled
         original = _render(source, sensor, image_size)
         same = {**sensor, "n_pulses": original["n_pulses"]}
         size = original["orders"][0].shape
@@ -237,7 +239,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
         x, y, half = CROPS["tiny" if tiny else "quick"]
         sensor = {**COARSE, "scene_center": f"{x}, {y}, 0", "n_pulses": int(2 * half + 40) // 2 + 1}
         side = int(2.4 * half / 1.5) | 1                                # 1.5 m pixels (half the 3 m azimuth cell)
-        rows, images = compare(f"munich {2 * half:.0f} m crop", (x, y, half), sensor, (side, side))
+        rows, images = compare(f"munich {2 * half:.0f} m crop", (x, y, half), sensor, (side, side), warm_up=not tiny)
     else:
         rows, images = compare("munich", None, {"scene_center": "0, 0, 0"})
     for row in rows:

@@ -25,7 +25,8 @@ same pulse count, for materials and for geometry, and the geometric one's peak m
 3 times the render's. Writes ``gradients.csv`` and ``gradients.png`` (the ratios per kind and
 pulse count).
 
-Usage: ``python benchmarks/gradients.py [--quick] [--tiny]`` (``--tiny``: 16 pulses, one bounce order)
+Usage: ``python benchmarks/gradients.py [--quick] [--tiny]`` (``--tiny``: 16 pulses, one bounce order,
+each kind's process run once, not warm: a smoke test)
 """
 from __future__ import annotations
 
@@ -77,10 +78,11 @@ def _measure(kind: str, pulses: int) -> dict:
     return {"seconds": seconds, "peak_mib": peak, "pulses": pulses or load_scene("urban").params.n_pulses}
 
 
-def measured(kind: str, pulses: int) -> dict:
-    """``kind`` in a fresh process, twice; the second (warm) run's numbers. Its stderr passes through."""
+def measured(kind: str, pulses: int, runs: int = 2) -> dict:
+    """``kind`` in a fresh process, ``runs`` times (the smoke test's ``--tiny``: once, its seconds not
+    measured warm); the last (warm) run's numbers. Its stderr passes through."""
     out = None
-    for _ in range(2):
+    for _ in range(runs):
         done = subprocess.run([sys.executable, __file__, "--measure", kind, str(pulses)], stdout=subprocess.PIPE,
                               text=True, check=True)
         out = json.loads(done.stdout.strip().splitlines()[-1])
@@ -100,7 +102,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     if not tiny:                                 # and at the scene's own pulse count
         runs += [("forward", DEFAULT), ("geometry", DEFAULT)]
     for kind, count in runs:
-        numbers = measured(kind, count)
+        numbers = measured(kind, count, 1 if tiny else 2)
         rows.append({"scene": "urban", "kind": kind, "pulses": count or numbers["pulses"], "parameters": counts[kind],
                      "seconds": round(numbers["seconds"], 3), "peak_mib": round(numbers["peak_mib"])})
     for row in rows:

@@ -121,9 +121,11 @@ def test_flat_earth_fringe_rate(tmp_path):
     for remove, target in ((False, expected), (True, 0.0)):
         # the fringe rate maximising |sum I1 I2* exp(-j f y)| over the interior: the interferogram's
         # mean is gamma exp(j phi(y)) under its speckle, and its periodogram peaks at d phi / d y
+        # (the sum taken over each range column first: the pixels of a column share their y)
         ifg = ifm.interferogram(primary, secondary, raw1, raw2, remove_flat_earth=remove)[inside]
-        y = rg[inside]
-        power = [abs(np.sum(ifg * np.exp(-1j * f * y))) for f in rates]
+        y, column = np.unique(rg[inside], return_inverse=True)
+        summed = np.bincount(column, ifg.real) + 1j * np.bincount(column, ifg.imag)
+        power = np.abs(np.exp(-1j * np.outer(rates, y)) @ summed)
         step = rates[int(np.argmax(power))]
         assert abs(step - target) < 0.02 * expected, (remove, step, target)
 
