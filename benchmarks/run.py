@@ -55,6 +55,8 @@ fused          the fused geometry kernels against the NumPy stages on Munich, ur
                traffic and bistatic urban: raw NRMSE, counts, seconds by stage
 fused_kernels  each fused kernel against its reference on the calls of a Munich render,
                and the trace were every geometry stage as much faster
+pga_sweep      phase gradient autofocus over sway periods 10-200 m and amplitudes 0.5-5 cm,
+               with and without clutter, on FFBP, backprojection and omega-K
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -92,7 +94,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "footprints": "footprints", "diffraction": "diffraction", "gradients": "gradients",
          "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
          "bistatic": "bistatic", "determinism": "determinism", "fused": "fused",
-         "fused_kernels": "fused_kernels"}
+         "fused_kernels": "fused_kernels", "pga_sweep": "pga_sweep"}
 
 
 def _utc_now() -> str:
