@@ -107,26 +107,40 @@ def _case(clutter: bool, amplitude: float, period: float, algorithms) -> list[di
 
 
 def _figure(rows: list[dict]) -> None:
+    """The map: per algorithm (columns) and scene (rows), PGA's PSLR less the true track's per cell;
+    refused cells grey with the first letter of their cause (B beyond PGA, P not point-like, D no
+    dominant scatterer)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    panels = sorted({(r["algorithm"], r["clutter"]) for r in rows})
-    fig, axes = plt.subplots(1, len(panels), figsize=(3.6 * len(panels), 3.2), squeeze=False)
-    periods = sorted({r["period_m"] for r in rows})
-    amplitudes = sorted({r["amplitude_los_m"] for r in rows})
-    for ax, (algorithm, clutter) in zip(axes[0], panels):
-        cells = np.full((len(amplitudes), len(periods)), np.nan)
-        for r in rows:
-            if (r["algorithm"], r["clutter"]) == (algorithm, clutter):
-                cells[amplitudes.index(r["amplitude_los_m"]), periods.index(r["period_m"])] = \
-                    0.0 if r["refused"] else r["pslr_pga_db"] - r["pslr_true_db"]
-        im = ax.imshow(cells, vmin=-3, vmax=9, cmap="RdYlGn_r", origin="lower")
-        ax.set_xticks(range(len(periods)), [f"{p:g}" for p in periods])
-        ax.set_yticks(range(len(amplitudes)), [f"{100 * a:g}" for a in amplitudes])
-        ax.set_xlabel("sway period [m]")
-        ax.set_ylabel("line-of-sight amplitude [cm]")
-        ax.set_title(f"{algorithm}, {'clutter' if clutter else 'alone'}")
-    fig.colorbar(im, ax=axes[0].tolist(), label="PSLR after PGA - true track [dB]")
+    periods = sorted({float(r["period_m"]) for r in rows})
+    amplitudes = sorted({float(r["amplitude_los_m"]) for r in rows})
+    algorithms = [a for a in ALGORITHMS if any(r["algorithm"] == a for r in rows)]
+    fig, axes = plt.subplots(2, len(algorithms), figsize=(3.4 * len(algorithms) + 1.2, 6.0), squeeze=False,
+                             constrained_layout=True)
+    for i, clutter in enumerate((False, True)):
+        for j, algorithm in enumerate(algorithms):
+            ax = axes[i, j]
+            cells = np.full((len(amplitudes), len(periods)), np.nan)
+            for r in rows:
+                if r["algorithm"] != algorithm or str(r["clutter"]) != str(clutter):
+                    continue
+                y, x = amplitudes.index(float(r["amplitude_los_m"])), periods.index(float(r["period_m"]))
+                if r["refused"]:
+                    cause = "B" if "beyond PGA" in r["refused"] else "D" if "dominant" in r["refused"] else "P"
+                    ax.text(x, y, cause, ha="center", va="center", fontsize=8)
+                else:
+                    cells[y, x] = float(r["pslr_pga_db"]) - float(r["pslr_true_db"])
+                    ax.text(x, y, f"{cells[y, x]:+.0f}", ha="center", va="center", fontsize=7)
+            ax.set_facecolor("0.8")
+            image = ax.imshow(cells, vmin=-6, vmax=6, cmap="RdYlGn_r", origin="lower")
+            ax.set_xticks(range(len(periods)), [f"{p:g}" for p in periods])
+            ax.set_yticks(range(len(amplitudes)), [f"{100 * a:g}" for a in amplitudes])
+            ax.set_xlabel("sway period [m]")
+            if j == 0:
+                ax.set_ylabel("line-of-sight amplitude [cm]")
+            ax.set_title(f"{algorithm}, {'clutter' if clutter else 'alone'}", fontsize=10)
+    fig.colorbar(image, ax=axes.ravel().tolist(), label="PSLR after PGA - true track [dB] (bound +3)")
     fig.savefig(output_dir() / f"{NAME}.png", dpi=110)
 
 
