@@ -1,4 +1,4 @@
-"""Phase gradient autofocus of backprojected images through their raw data (docs/physics.md (PGA6)).
+"""Phase gradient autofocus through the raw data (docs/physics.md (PGA6)).
 
 Backprojection weights every pulse by the azimuth window and the antenna pattern seen from each
 pixel, ``w((x - s_p) / R0)``: a weight that follows the pixel. A motion error's phase
@@ -9,12 +9,15 @@ spreads over a good part of the beam (measured: a 2 cm, 30 m sway on the built-i
 -26.8 dB azimuth PSLR even with the true error removed from the spectrum, -58.1 dB on the true
 track). :func:`pga_focus` therefore
 
-1. focuses the data with a rectangular azimuth window, where the spectrum holds the error as a
-   product (the same correction then gives -38.1 dB against -38.8 dB on the true track);
-2. runs :func:`~sarmitsuba.focus.autofocus.pga` on that image, which says at which along-track
+1. judges whether PGA may run, (PGA3) and (PGA4), on the image asked for;
+2. focuses the data by backprojection with a rectangular azimuth window on the grid widened by
+   half the azimuth ambiguities' spacing (:func:`ambiguity_spacing`), where the spectrum holds
+   the error as a product (the same correction then gives -38.1 dB against -38.8 dB on the
+   true track), and refuses a sway whose response folds onto its ambiguities;
+3. runs :func:`~sarmitsuba.focus.autofocus.pga` on that image, which says at which along-track
    antenna position each spectral sample stands (``aperture_position``);
-3. removes the estimate from each pulse, ``d_p exp(-j phi(s_p))`` (:func:`pulse_correction`),
-   and focuses again with the requested window.
+4. removes the estimate from each pulse, ``d_p exp(-j phi(s_p))`` (:func:`pulse_correction`),
+   repeats 2-4 until a round changes little, and focuses with the focuser and windows asked for.
 """
 from __future__ import annotations
 
@@ -30,7 +33,8 @@ from ..core.raw import RawData
 from .grid import ImageGrid
 from .autofocus import APERTURE_CELLS, AutofocusReport, AutofocusWarning, pga
 
-__all__ = ["pulse_correction", "ambiguity_spacing", "pga_focus", "corrected", "ROUNDS", "ROUND_TOLERANCE", "TWO_WAY", "response_spread"]
+__all__ = ["pulse_correction", "ambiguity_spacing", "pga_focus", "corrected", "response_spread", "ROUNDS",
+           "ROUND_TOLERANCE", "TWO_WAY"]
 
 
 #: Rounds of estimate-and-correct through the pulses at most, and the rms [rad] of a round's
@@ -103,8 +107,8 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
     raw : RawData
         Data on the track to focus on (the nominal one).
     algorithm : str
-        ``bp`` / ``ffbp`` (through the pulses) or ``omegak`` / ``rda`` (their azimuth window is a
-        product in the spectrum PGA corrects: :func:`~sarmitsuba.focus.autofocus.pga` on the image).
+        The focuser of the image returned (``bp``, ``ffbp``, ``omegak``, ``rda``); the estimate is
+        made on ``bp`` for ``bp``, else on ``ffbp``.
     window_range, window_azimuth : str or (str, dict)
         The windows of the image returned (:func:`~sarmitsuba.focus.dispatch.focus`).
     reference, progress
@@ -113,16 +117,19 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
     Returns
     -------
     SarImage
-        bp / ffbp: the data, each pulse corrected by the summed :func:`pulse_correction` of up to
-        :data:`ROUNDS` rounds (each PGA on a rectangular-window image widened by half the
+        The data, each pulse corrected by the summed :func:`pulse_correction` of up to
+        :data:`ROUNDS` rounds (each PGA on a rectangular-window backprojection widened by half the
         :func:`ambiguity_spacing` at either end), focused with the windows asked for;
         ``metadata["autofocus"]`` is the first round's record with ``"applied_to": "pulses"``,
-        ``"rounds"`` and ``"pulse_phase_rad"``. Where PGA declines, the image unchanged.
+        ``"rounds"`` and ``"pulse_phase_rad"`` (float [n_pulses], rad). Where PGA declines, the
+        nominal image unchanged (``"applied": False``, ``"refusal"`` why).
 
     Warns
     -----
     AutofocusWarning
-        As :func:`~sarmitsuba.focus.autofocus.pga`.
+        As :func:`~sarmitsuba.focus.autofocus.pga`; where no range line is point-like, with the
+        brightest line's spread; a sway beyond PGA (its defocused response folds onto the azimuth
+        ambiguities, docs/physics.md (PGA6)); a first round that does not sharpen the image.
     """
     from .dispatch import autofocus_image, focus, render_focusing
     estimator = algorithm if algorithm in ("bp", "ffbp") else "ffbp"
