@@ -56,7 +56,8 @@ suppress_warnings = ["ref.citation"]
 
 html_theme = "pydata_sphinx_theme"
 html_title = "sarmitsuba"
-html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2, "header_links_before_dropdown": 6}
+html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2, "header_links_before_dropdown": 6,
+                      "collapse_navigation": True}    # the sidebar lists a section's own pages, not every page of the API
 # the front page shows the whole table of contents in its sidebar (the theme gives a section's
 # pages their own navigation there, and the front page none)
 html_sidebars = {"index": ["globaltoc.html"], "getting-started": [], "reading-sar-images": [], "physics": [],
