@@ -59,7 +59,7 @@ MAX_HEIGHT_OF_AMBIGUITY_M = 1e5
 #: Files :func:`~sarmitsuba.analysis.insar_products.write_products` writes.
 PRODUCT_FILES = {"interferogram": "interferogram.npz", "coherence": "coherence.npz", "height": "height.npz",
                  "figure": "interferogram.png"}
-#: Pulses searched either side of a point's along-track projection for its closest approach.
+#: Steps of one pulse the closest-approach descent takes at most before it searches every pulse.
 _WINDOW = 8
 #: Points handled at once by the closest-approach search (bounds the temporaries).
 _CHUNK = 8192
@@ -128,19 +128,31 @@ def _two_way(points: np.ndarray, tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
 
 
 def _nearest_pulse(points: np.ndarray, raw: RawData) -> np.ndarray:
-    """Index of the pulse of least two-way length to each point [P, 3]: searched within
-    :data:`_WINDOW` pulses of the point's along-track projection, over all pulses where that
-    window's edge holds the least (a curved track) or the track is not monotonic."""
+    """Index of the pulse of least two-way length to each point [P, 3]: a descent from the pulse
+    nearest the point's along-track projection, one pulse a step, for at most :data:`_WINDOW`
+    steps (the two-way length along a straight track has one minimum; there the projection lies
+    within a pulse of it); over all pulses for a point still descending after them (a curved
+    track) or a track that is not monotonic."""
     mid, start, t = _track_line(raw)
     tx, rx = raw.tx_position, raw.rx_position
     s = (mid - start) @ t
     n = s.size
     if np.all(np.diff(s) > 0):
-        centre = np.clip(np.searchsorted(s, (points - start) @ t), 0, n - 1)
-        idx = np.clip(centre[:, None] + np.arange(-_WINDOW, _WINDOW + 1), 0, n - 1)
-        j = np.argmin(_two_way(points[:, None, :], tx[idx], rx[idx]), axis=1)
-        best = idx[np.arange(len(points)), j]
-        redo = ((j == 0) | (j == idx.shape[1] - 1)) & (best > 0) & (best < n - 1)
+        along = (points - start) @ t
+        after = np.clip(np.searchsorted(s, along), 1, n - 1)
+        best = np.where(along - s[after - 1] < s[after] - along, after - 1, after)
+        here = _two_way(points, tx[best], rx[best])
+        redo = np.ones(len(points), bool)
+        for _ in range(_WINDOW):
+            rows = np.flatnonzero(redo)
+            if not rows.size:
+                break
+            b, p, length = best[rows], points[rows], here[rows]
+            left = np.where(b > 0, _two_way(p, tx[b - 1], rx[b - 1]), np.inf)
+            right = np.where(b < n - 1, _two_way(p, tx[np.minimum(b + 1, n - 1)], rx[np.minimum(b + 1, n - 1)]), np.inf)
+            step = np.where((left < length) & (left <= right), -1, np.where(right < length, 1, 0))
+            best[rows], here[rows] = b + step, np.minimum(length, np.minimum(left, right))
+            redo[rows] = step != 0
     else:
         best, redo = np.zeros(len(points), np.int64), np.ones(len(points), bool)
     rows, step = np.flatnonzero(redo), max(1, 500_000 // n)
