@@ -24,6 +24,13 @@
    - float, dB
    - Switches distributed clutter and speckle on: a rough surface of constant gamma,
      sigma0 = gamma cos(theta) (monostatic; docs/physics.md (C)). Absent = smooth (PO only).
+ * - rms_height, correlation_length, correlation
+   - float, m; float, m; string
+   - Switches distributed clutter and speckle on: a randomly rough surface of rms height ``s``,
+     correlation length ``l`` and autocorrelation ``exponential`` (default) or ``gaussian``,
+     whose sigma nought (HH, VV, HV; monostatic and bistatic) is the I2EM's for the material's
+     permittivity, geometric optics beyond ``k s = 3`` (docs/physics.md (RS1)-(RS6)). The
+     specular reflection is scaled by ``exp(-2 (k s cos theta)^2)``. Not with ``gamma_db``.
  * - cross_pol_db
    - float, dB
    - Polarimetric runs only (``polarization`` ``HV``, ``VH`` or ``quad``): sigma0 of the
@@ -53,12 +60,15 @@ import math
 import mitsuba as mi
 
 from sarmitsuba.scene import materials
+from sarmitsuba.scene.fresnel import MaterialError
+from sarmitsuba.scene.roughness import RoughSurface
 from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.core.valid_ranges import unknown_name
 
 _RADAR_KEYS = ("material", "relative_permittivity", "conductivity", "model", "thickness", "gamma_db", "cross_pol_db",
-               "color")
+               "rms_height", "correlation_length", "correlation", "color")
+_SURFACE_KEYS = ("rms_height", "correlation_length", "correlation")
 #: dB: default cross-polarised level of a rough ``radar`` surface (docs/physics.md (P7)).
 DEFAULT_CROSS_POL_DB = -15.0
 _ITU_KEYS = ("type", "thickness", "scattering_coefficient", "xpd_coefficient", "color", "reflectance",
@@ -87,6 +97,8 @@ class RadarMaterial(mi.BSDF):
         #: (kind, value) of the distributed-clutter model (see MaterialTable.clutter) and the factor
         #: on the specular reflection coefficient: smooth unless :meth:`set_roughness` says otherwise.
         self.clutter, self.specular_factor = (0, 0.0), 1.0
+        #: The rough surface's statistics (kind 3 clutter, docs/physics.md (RS1)-(RS6)), or None.
+        self.surface = None
         if sionna:
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
@@ -102,6 +114,12 @@ class RadarMaterial(mi.BSDF):
         else:
             self.ignored = {}
             self.set_roughness(gamma_db=values.pop("gamma_db", None))
+            surface = {k: values.pop(k) for k in _SURFACE_KEYS if k in values}
+            if surface:
+                if self.clutter[0]:
+                    raise ParameterError(f"radar '{self.name}': give gamma_db or rms_height/correlation_length, "
+                                         "not both (two models of one rough surface)")
+                self.set_surface(_surface(self.name, surface))
             cross_db = float(values.pop("cross_pol_db", DEFAULT_CROSS_POL_DB))
             if not math.isfinite(cross_db):
                 raise ParameterError(f"radar '{self.name}': cross_pol_db = {cross_db} must be finite (dB)")
@@ -137,12 +155,21 @@ class RadarMaterial(mi.BSDF):
             if not math.isfinite(float(gamma_db)):
                 raise ParameterError(f"{label}: gamma_db = {gamma_db} must be finite")
             self.clutter, self.specular_factor = (1, 10.0 ** (float(gamma_db) / 10.0)), 1.0
+            self.surface = None
         if scattering_coefficient is not None:
             s = float(scattering_coefficient)
             if not 0.0 <= s <= 1.0:
                 raise ParameterError(f"{label}: scattering_coefficient = {s} is outside the valid range [0, 1]")
             self.clutter = (2, 4.0 * s**2) if s > 0 else (0, 0.0)
             self.specular_factor = math.sqrt(1.0 - s**2)
+            self.surface = None
+
+    def set_surface(self, surface) -> None:
+        """Make the material a randomly rough surface of ``surface``'s statistics
+        (:class:`sarmitsuba.scene.roughness.RoughSurface`; None: smooth), whose sigma nought is the
+        I2EM's (docs/physics.md (RS1)-(RS6)); replaces any other clutter model."""
+        self.surface = surface
+        self.clutter, self.specular_factor = ((3, 1.0) if surface is not None else (0, 0.0)), 1.0
 
     def material_at(self, frequency: float) -> "materials.Material":
         """The electromagnetic model at ``frequency`` [Hz] (raises MaterialError outside the fit's range)."""
@@ -191,6 +218,17 @@ def _radar_spec(name: str, values: dict) -> dict:
                 relative_permittivity=float(values.get("relative_permittivity", 1.0)) if has_explicit else None,
                 conductivity=float(values.get("conductivity", 0.0)) if has_explicit else None,
                 thickness=float(values["thickness"]) if "thickness" in values else None)
+
+
+def _surface(name: str, values: dict):
+    if "rms_height" not in values or "correlation_length" not in values:
+        raise ParameterError(f"radar '{name}': a rough surface needs both rms_height and correlation_length (m); "
+                             f"got {', '.join(sorted(values))}")
+    try:
+        return RoughSurface(float(values["rms_height"]), float(values["correlation_length"]),
+                            str(values.get("correlation", "exponential")))
+    except MaterialError as error:
+        raise ParameterError(f"radar '{name}': {error}") from None
 
 
 def _check_spec(plugin: str, name: str, material, model, thickness, **_) -> None:

@@ -1,4 +1,4 @@
-"""The rough-surface model (docs/physics.md (R1)-(R5)) against closed forms and against the
+"""The rough-surface model (docs/physics.md (RS1)-(RS5)) against closed forms and against the
 stored output of Ulaby and Long's public MATLAB code (tests/data/i2em, made by its
 make_reference.sh under GNU Octave)."""
 import csv
@@ -47,7 +47,7 @@ def test_spectrum_is_the_hankel_transform_of_the_correlations_power(correlation,
 @pytest.mark.parametrize("degrees", [25, 45, 60])
 def test_slight_roughness_gives_the_small_perturbation_model(correlation, degrees):
     # ks = 0.02: the I2EM reduces to first-order SPM, sigma0 = 8 k^4 s^2 cos^4 |alpha|^2 W(2 k sin)
-    # (Ulaby and Long 2014 section 10-5; Rice 1951), with its own alpha_hh and alpha_vv
+    # (Rice, Commun. Pure Appl. Math. 4, 1951; Ulaby and Long 2014, chapter 10), with its own alpha_hh and alpha_vv
     k, eta, th = 201.0, 6.5 - 0.6j, math.radians(degrees)
     c, s = math.cos(th), math.sin(th)
     surface = RoughSurface(0.02 / k, 1.5 / k, correlation)
@@ -117,7 +117,7 @@ def test_slope_average_of_a_flat_surface_is_the_fresnel_value():
 
 @pytest.mark.parametrize("degrees", [25, 45, 60])
 def test_geometric_optics_backscatter_is_the_closed_form(degrees):
-    # |R(0)|^2 exp(-tan^2 / 2 m^2) / (2 m^2 cos^4) (Ulaby and Long 2014 eq. 10.115), for the
+    # |R(0)|^2 exp(-tan^2 / 2 m^2) / (2 m^2 cos^4) (Ulaby and Long 2014, chapter 10), for the
     # general bistatic formula evaluated at backscatter
     eta, th = 6.5 - 0.6j, math.radians(degrees)
     surface = RoughSurface(0.02, 0.12, "gaussian")

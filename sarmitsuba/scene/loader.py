@@ -37,6 +37,8 @@ from ..core.trajectory import StateVectors, read_state_vectors
 from ..core.valid_ranges import unknown_name
 from ..core.outputs import product_kind
 from .ground import ground_shapes
+from .rough_tables import coherent_factor, rough_tables
+from ..core.constants import SPEED_OF_LIGHT
 from .mitsuba_errors import located, mitsuba_message
 from .motion import ShapeMotion, file_velocities, moving_shapes, swept_box, xml_velocities
 from .trace_inputs import MaterialTable, TraceSettings
@@ -482,8 +484,9 @@ def _check_ids(scene: Any, path: Path) -> Any:
 
 def material_table(scene: Any, frequency: float, polarization: str) -> MaterialTable:
     """Reflection-coefficient tables of every shape's material at ``frequency`` [Hz]: ``r`` of the
-    ``polarization``'s channel (the scalar model (R)), ``r_te`` and ``r_tm`` (the Jones model)
-    and the clutter's cross-polarised level (docs/physics.md (P3'), (P7)).
+    ``polarization``'s channel (the scalar model (R)), ``r_te`` and ``r_tm`` (the Jones model),
+    the clutter's cross-polarised level (docs/physics.md (P3'), (P7)) and the rough surfaces'
+    sigma nought tables (RS6).
 
     Raises
     ------
@@ -496,6 +499,8 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
     tables, clutter, specular, ids, names = [], [], [], [], []
     tables_te, tables_tm, cross_pol = [], [], []           # for the Jones model, docs/physics.md (P3')
     grazing = []                                            # the grazing wave's Delta, (E6)
+    surfaces, permittivities = [], []                       # rough surfaces' statistics, (RS6)
+    wavenumber = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
     for index, shape in enumerate(scene.shapes()):
         bsdf = shape.bsdf()
         if not hasattr(bsdf, "material_at"):
@@ -507,8 +512,13 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
         if key not in rows:
             rows[key] = len(tables)
             names.append(bsdf.name)
-            tables_te.append(materials.reflection_table(material, frequency, "HH", n=TABLE_SIZE))
-            tables_tm.append(materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE))
+            surface = getattr(bsdf, "surface", None)
+            # a rough surface's specular reflection carries its coherent factor (RS6)
+            coherent = 1.0 if surface is None else coherent_factor(surface, wavenumber, np.linspace(0, 1, TABLE_SIZE))
+            tables_te.append((materials.reflection_table(material, frequency, "HH", n=TABLE_SIZE) * coherent).astype(np.complex64))
+            tables_tm.append((materials.reflection_table(material, frequency, "VV", n=TABLE_SIZE) * coherent).astype(np.complex64))
+            surfaces.append(surface)
+            permittivities.append(material.relative_permittivity)
             tables.append(tables_tm[-1] if polarization == "VV" else tables_te[-1])
             cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
             grazing.append(materials.grazing_impedance(material, frequency))
@@ -537,4 +547,5 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                          table_te=np.stack(tables_te).astype(np.complex64),
                          table_tm=np.stack(tables_tm).astype(np.complex64),
                          cross_pol=np.array(cross_pol, np.float32),
-                         grazing_delta=np.array(grazing, np.complex128))
+                         grazing_delta=np.array(grazing, np.complex128),
+                         rough=rough_tables(surfaces, permittivities, wavenumber) if any(surfaces) else None)

@@ -1,6 +1,6 @@
 """Sigma nought of a randomly rough dielectric surface: the improved integral equation model
 (I2EM) for HH and VV, monostatic and bistatic, its cross-polarised multiple-scattering term for
-HV, and geometric optics beyond the model's range (docs/physics.md (R1)-(R5)).
+HV, and geometric optics beyond the model's range (docs/physics.md (RS1)-(RS5)).
 
 Plain NumPy (float64/complex128) on the host; the tracer reads the values as tables
 (:mod:`sarmitsuba.scene.rough_tables`). Sources:
@@ -36,7 +36,7 @@ __all__ = ["RoughSurface", "KS_LIMIT", "roughness_spectrum", "spectral_terms", "
            "slope_averaged_reflection", "i2em_backscatter", "i2em_bistatic", "i2em_cross",
            "geometric_optics", "sigma0_backscatter", "sigma0_bistatic"]
 
-#: Largest ``k s`` where the I2EM is used; beyond it geometric optics, eq. (R5).
+#: Largest ``k s`` where the I2EM is used; beyond it geometric optics, eq. (RS5).
 KS_LIMIT = 3.0
 #: A spectral series stops where ``(k s)^2n (cos_i + cos_s)^2n / n!`` falls below this.
 _SERIES_TOLERANCE = 1e-8
@@ -79,12 +79,12 @@ class RoughSurface:
     @property
     def rms_slope(self) -> float:
         """The rms slope (dimensionless): ``sqrt(2) s / l`` (Gaussian), ``s / l`` (exponential,
-        whose true slope variance diverges; the value the model's shadowing uses), eq. (R4)."""
+        whose true slope variance diverges; the value the model's shadowing uses), eq. (RS4)."""
         return (math.sqrt(2.0) if self.correlation == "gaussian" else 1.0) * self.rms_height / self.correlation_length
 
 
 def roughness_spectrum(n, wavenumber, surface: RoughSurface) -> np.ndarray:
-    """The ``n``-th roughness spectrum ``W^(n)(K) = int_0^inf rho(r)^n J0(K r) r dr`` [m^2], eq. (R2).
+    """The ``n``-th roughness spectrum ``W^(n)(K) = int_0^inf rho(r)^n J0(K r) r dr`` [m^2], eq. (RS2).
 
     Parameters
     ----------
@@ -108,7 +108,7 @@ def roughness_spectrum(n, wavenumber, surface: RoughSurface) -> np.ndarray:
 
 
 def spectral_terms(ks: float, cos_sum) -> int:
-    """Number of terms of the series (R1): the least ``N >= 2`` with
+    """Number of terms of the series (RS1): the least ``N >= 2`` with
     ``(ks^2 (cos_i + cos_s)^2)^N / N! < 1e-8`` for the largest ``cos_sum`` given."""
     x = ks * ks * float(np.max(cos_sum)) ** 2
     n = 2
@@ -133,7 +133,7 @@ def _series(ks, cos_a, spectrum_n):
 
 def transition_reflection(eta, cos_i, ks, spectra):
     """The transition reflection coefficients ``(R_v^T, R_h^T)`` of Wu, Chen, Shi and Fung (2001),
-    eq. (R3): from the local-incidence Fresnel value toward the normal-incidence one as the
+    eq. (RS3): from the local-incidence Fresnel value toward the normal-incidence one as the
     roughness grows. ``spectra``: ``W^(n)(2 k sin theta) / l^2`` stacked on a first axis
     (n = 1..N); ``cos_i`` the incidence cosine (backscatter). Complex128 arrays."""
     sin_i = np.sqrt(1.0 - cos_i * cos_i)
@@ -156,7 +156,7 @@ _AVERAGE_NODES = np.polynomial.legendre.leggauss(32)
 
 def slope_averaged_reflection(eta, cos_i, slope):
     """Fresnel coefficients ``(<R_v>, <R_h>)`` averaged over the local slopes ``(Z_x, Z_y)`` of a
-    surface, eq. (R3): each slope Gaussian with standard deviation ``slope`` and the average taken
+    surface, eq. (RS3): each slope Gaussian with standard deviation ``slope`` and the average taken
     over ``|Z_x|, |Z_y| <= 3 slope`` without renormalising, as the bistatic model defines it
     (Ulaby and Long 2014, code 10.3, with ``slope = 1.1 s / l``). Gauss-Legendre, 32 x 32 nodes.
     Complex128 arrays of ``cos_i``'s shape."""
@@ -176,7 +176,7 @@ def slope_averaged_reflection(eta, cos_i, slope):
 
 def _complementary(eta, k, geometry, side: int, up: int, r_v, r_h):
     """The complementary field coefficients ``F_pp^(up/down)(incident or scattered side)`` of the
-    I2EM (Fung et al. 2002), eq. (R1): ``side`` 1 (the incident wave's spectral point) or 2 (the
+    I2EM (Fung et al. 2002), eq. (RS1): ``side`` 1 (the incident wave's spectral point) or 2 (the
     scattered), ``up`` +1 or -1. Returns ``(F_vv, F_hh)``."""
     s, c, ss, cs, cp, sp = geometry
     kz, ksz = k * c, k * cs
@@ -217,7 +217,7 @@ def _geometry(cos_i, cos_s, phi_s):
 
 
 def _i2em_sum(eta, k, surface: RoughSurface, geometry, coefficients):
-    """Eq. (R1) without shadowing: ``(sigma0_vv, sigma0_hh)`` for the Kirchhoff terms' coefficients
+    """Eq. (RS1) without shadowing: ``(sigma0_vv, sigma0_hh)`` for the Kirchhoff terms' coefficients
     ``coefficients = (R_v, R_h, R_v^i, R_h^i)`` (the first two in ``f_pp``, the last two, the
     incidence Fresnel values, in the complementary terms)."""
     s, c, ss, cs, cp, sp = geometry
@@ -260,8 +260,8 @@ def _check_cos(name, value):
 
 
 def i2em_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta):
-    """Monostatic I2EM sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (R1) with the transition
-    reflection coefficients (R3) and Smith's shadowing (R4); Fung and Chen 2010, Ulaby and Long
+    """Monostatic I2EM sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (RS1) with the transition
+    reflection coefficients (RS3) and Smith's shadowing (RS4); Fung and Chen 2010, Ulaby and Long
     2014 section 10-3.9 (its code 10.1).
 
     Parameters
@@ -301,8 +301,8 @@ AVERAGE_SLOPE = 1.1
 
 
 def i2em_bistatic(surface: RoughSurface, eta, wavenumber: float, cos_i, cos_s, phi_s):
-    """Bistatic I2EM sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (R1) with the slope-averaged
-    reflection coefficients (R3) and no shadowing (Fung et al. 2002; Ulaby and Long 2014 code 10.3).
+    """Bistatic I2EM sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (RS1) with the slope-averaged
+    reflection coefficients (RS3) and no shadowing (Fung et al. 2002; Ulaby and Long 2014 code 10.3).
 
     Parameters
     ----------
@@ -340,7 +340,7 @@ _LEGENDRE = np.polynomial.legendre.leggauss(64)
 def i2em_cross(surface: RoughSurface, eta, wavenumber: float, cos_theta):
     """Monostatic cross-polarised sigma nought ``sigma0_hv`` (= ``sigma0_vh``), the multiple
     scattering term of the IEM (Fung and Chen 2010; Ulaby and Long 2014 section 10-3.9, code 10.1's
-    IEMX), eq. (R1x), with Smith's shadowing (R4) on the single and the multiple bounce.
+    IEMX), eq. (RS1x), with Smith's shadowing (RS4) on the single and the multiple bounce.
 
     The spectral integral over the propagating directions ``u^2 + v^2 <= 1`` is a product Gauss-
     Legendre rule (64 x 64) in ``r = sin t`` and azimuth; its double series factorises into the
@@ -393,11 +393,11 @@ def i2em_cross(surface: RoughSurface, eta, wavenumber: float, cos_theta):
 
 
 def geometric_optics(surface: RoughSurface, eta, cos_i, cos_s, phi_s):
-    """Geometric-optics (Kirchhoff stationary-phase) sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (R5):
+    """Geometric-optics (Kirchhoff stationary-phase) sigma nought ``(sigma0_vv, sigma0_hh)``, eq. (RS5):
     ``pi |R(iota)|^2 |q|^4 / q_z^4 p(-q_x / q_z, -q_y / q_z)``, ``q = k (k_s - k_i)``, ``p`` the
     Gaussian slope density of rms slope ``surface.rms_slope`` per axis and ``R`` the Fresnel
     coefficient (``R_v`` for VV, ``R_h`` for HH) at the specular facet's local incidence
-    ``cos iota = |q| / 2k`` (Ulaby and Long 2014 section 10-4; Barrick, IEEE TAP 16(4), 1968).
+    ``cos iota = |q| / 2k`` (Barrick, IEEE TAP 16(4), 1968; Ulaby and Long 2014, chapter 10).
     Monostatic: ``|R(0)|^2 exp(-tan^2 theta / 2 m^2) / (2 m^2 cos^4 theta)``. Independent of ``k``.
     Arguments and return as :func:`i2em_bistatic` (without the wavenumber)."""
     eta = complex(check_eta(eta))
@@ -416,7 +416,7 @@ def sigma0_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta)
     """Monostatic sigma nought per channel, ``{"HH", "VV", "HV"}`` (linear, arrays of
     ``cos_theta``'s shape): the I2EM (:func:`i2em_backscatter`, :func:`i2em_cross`) where
     ``k s <= KS_LIMIT``, geometric optics (:func:`geometric_optics`, no cross-polarised term)
-    beyond, docs/physics.md (R5).
+    beyond, docs/physics.md (RS5).
 
     Raises
     ------
@@ -433,7 +433,7 @@ def sigma0_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta)
 
 def sigma0_bistatic(surface: RoughSurface, eta, wavenumber: float, cos_i, cos_s, phi_s) -> dict:
     """Bistatic co-polarised sigma nought ``{"HH", "VV"}`` (linear, arrays of the broadcast shape):
-    :func:`i2em_bistatic` where ``k s <= KS_LIMIT``, :func:`geometric_optics` beyond (R5).
+    :func:`i2em_bistatic` where ``k s <= KS_LIMIT``, :func:`geometric_optics` beyond (RS5).
 
     Raises
     ------

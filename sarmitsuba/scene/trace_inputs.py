@@ -21,6 +21,7 @@ import numpy as np
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.radar import ParameterError
 from ..core.valid_ranges import unknown_name
+from .rough_tables import RoughTables
 
 __all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
            "LIT_REGIONS", "RANGE_KERNELS", "GEOMETRY_PIPELINES"]
@@ -343,8 +344,8 @@ class MaterialTable:
     clutter : float32 [n_rows, 2]
         Distributed-clutter model of each row: ``(kind, value)`` with kind 0 = none,
         1 = constant gamma (``sigma0 = value * sqrt(cos_i cos_b)``, value = gamma),
-        2 = Lambertian (``sigma0 = value * |r|^2 cos_i cos_b``, value = 4 S^2). See
-        docs/physics.md (C).
+        2 = Lambertian (``sigma0 = value * |r|^2 cos_i cos_b``, value = 4 S^2), 3 = a randomly
+        rough surface (sigma0 from the ``rough`` tables, value 1). See docs/physics.md (C), (RS6).
     shape_key : uint32 [max_shape_id + 1]
         Stable identity of each shape (CRC-32 of its scene id), so that clutter scatterers do
         not change between loads of the same scene.
@@ -368,6 +369,9 @@ class MaterialTable:
         Each row's normalised surface impedance at grazing
         (:func:`sarmitsuba.scene.materials.grazing_impedance`; 0 for ``pec``): the grazing wave's
         numerical distance across a face (docs/physics.md (E6)).
+    rough : RoughTables or None
+        Sigma nought tables of the rows whose clutter kind is 3, a randomly rough surface
+        (:class:`sarmitsuba.scene.rough_tables.RoughTables`, docs/physics.md (RS6)); None without one.
     """
 
     row_of_shape: np.ndarray
@@ -382,6 +386,7 @@ class MaterialTable:
     table_tm: np.ndarray | None = None
     cross_pol: np.ndarray | None = None
     grazing_delta: np.ndarray | None = None
+    rough: RoughTables | None = None
 
     @property
     def has_clutter(self) -> bool:

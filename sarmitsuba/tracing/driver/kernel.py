@@ -308,6 +308,8 @@ class _Tables:
     re_tm: mi.Float | None = None             # Jones model: r_tm (re, im then hold r_te), (P3')
     im_tm: mi.Float | None = None
     cross_pol: mi.Float | None = None         # and the clutter's cross-polarised level, (P7)
+    rough_mono: mi.Float | None = None        # rough surfaces' sigma0 tables, (RS6)
+    rough_bi: mi.Float | None = None
     grazing_offset: mi.Float | None = None    # edge diffraction: each row's grazing-wave table, (E6')
     grazing_re: mi.Float | None = None
     grazing_im: mi.Float | None = None
@@ -373,6 +375,9 @@ class Kernel:
             self.tables.clutter_kind = mi.UInt32(table.clutter[:, 0].astype(np.uint32))
             self.tables.clutter_value = mi.Float(table.clutter[:, 1].astype(np.float32))
             self.tables.shape_key = mi.UInt32(table.shape_key.astype(np.uint32))
+            if table.rough is not None:
+                self.tables.rough_mono = mi.Float(table.rough.mono.ravel())
+                self.tables.rough_bi = mi.Float(table.rough.bistatic.ravel())
             self.tables.shape_origin = mi.Array3f64(*(table.shape_origin[:, c].astype(np.float64) for c in range(3)))
             self.tables.shape_axes = tuple(mi.Vector3f(*(table.shape_axes[:, a, c].astype(np.float32) for c in range(3)))
                                            for a in range(3))

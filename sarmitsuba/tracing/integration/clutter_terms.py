@@ -7,6 +7,8 @@ polarimetric channels of (P7) and, after mirrors, both orderings of the path (P9
 """
 from __future__ import annotations
 
+import functools
+
 import drjit as dr
 import mitsuba as mi
 
@@ -15,6 +17,7 @@ from ..deposit.accumulate import PATH_HEADROOM
 from .clutter_lattice import footprint_cells, lattice_frame, length_expansion, scatterer, shortened_footprint, surface_key
 from ..deposit.fast_time import SPECTRAL_ORDERS
 from . import jones as pol
+from .rough_sigma import azimuth_cosine, bistatic_sigma0_table, mono_sigma0
 from .pulse_view import receive_leg
 from ..loops import loop_mode
 
@@ -145,18 +148,26 @@ class ClutterTerms:
         the mean co-polarised power factor times ``1 + q`` (the energy tally)."""
         cos_i, cos_b = cosines
         both = depth > 0
+        # a rough surface's tables (RS6): monostatic for a direct return to the transmitter
+        rough = None if self.tables.rough_mono is None else \
+            (rec.row, azimuth_cosine(d, b, n), depth == 0 and not self.bistatic)
+        sigma0 = functools.partial(self._sigma0, model, rough)
         if not self.polarimetric:
             r_in, r_out = self.reflection_at(rec.row, cos_i, True), self.reflection_at(rec.row, cos_b, True)
-            a = dr.sqrt(bistatic_sigma0(*model, cos_i, cos_b, r_in, r_out))
+            channel = 1 if self.vv_sign else 0
+            a = dr.sqrt(sigma0(cos_i, cos_b, r_in, r_out, channel))
             if both:                 # the reverse ordering: met along -b, leaving along -d
-                a = a + dr.sqrt(bistatic_sigma0(*model, cos_b, cos_i, r_out, r_in))
+                a = a + dr.sqrt(sigma0(cos_b, cos_i, r_out, r_in, channel))
             return [a], None, a * a
         pair_in, pair_out = self.reflection_pair(rec.row, cos_i, True), self.reflection_pair(rec.row, cos_b, True)
         q = dr.gather(mi.Float, self.tables.cross_pol, rec.row)
 
         def amplitudes(c_1, c_2, into, out):     # (a_te, a_tm, a_x) of one ordering, eq. (P7)
-            s_te, s_tm = (bistatic_sigma0(*model, c_1, c_2, into[j], out[j]) for j in (0, 1))
-            return dr.sqrt(s_te), dr.sqrt(s_tm), dr.sqrt(q * 0.5 * (s_te + s_tm))
+            s_te, s_tm = (sigma0(c_1, c_2, into[j], out[j], j) for j in (0, 1))
+            s_x = q * 0.5 * (s_te + s_tm)
+            if rough is not None:
+                s_x = dr.select(model[0] == 3, model[1] * self._rough_cross(rough, c_1, c_2), s_x)
+            return dr.sqrt(s_te), dr.sqrt(s_tm), dr.sqrt(s_x)
 
         direct = amplitudes(cos_i, cos_b, pair_in, pair_out)
         reverse = amplitudes(cos_b, cos_i, pair_out, pair_in) if both else None
@@ -178,3 +189,27 @@ class ClutterTerms:
         co, cross = channels([(0, unit[0]), (1, unit[1])]), channels([(2, unit[2])])
         a_te, a_tm = (direct[j] + (reverse[j] if both else 0.0) for j in (0, 1))
         return co, cross, 0.5 * (a_te * a_te + a_tm * a_tm) * (1.0 + q)
+
+    def _sigma0(self, model, rough, cos_1, cos_2, r_1, r_2, channel: int):
+        """Sigma nought met at ``cos_1`` and leaving at ``cos_2``: (C2) of :func:`bistatic_sigma0`,
+        or for clutter kind 3 the rough surface's table (RS6) of ``channel`` (0 HH, 1 VV), times
+        ``model``'s value (sigma0's raise near grazing). ``rough = (row, cos_phi, monostatic)``, or
+        None when no material is a rough surface."""
+        kind, value = model
+        base = bistatic_sigma0(kind, value, cos_1, cos_2, r_1, r_2)
+        if rough is None:
+            return base
+        row, cos_phi, monostatic = rough
+        read = self.tables.read
+        table = mono_sigma0(read, row, channel, cos_1) if monostatic else \
+            bistatic_sigma0_table(read, row, channel, cos_1, cos_2, cos_phi)
+        return dr.select(kind == 3, value * table, base)
+
+    def _rough_cross(self, rough, cos_1, cos_2):
+        """A rough surface's sigma0_HV (RS6): the monostatic table's, or after a mirror the
+        geometric mean of its values at the two angles (the model has no bistatic HV)."""
+        row, _, monostatic = rough
+        read = self.tables.read
+        if monostatic:
+            return mono_sigma0(read, row, 2, cos_1)
+        return dr.sqrt(mono_sigma0(read, row, 2, cos_1) * mono_sigma0(read, row, 2, cos_2))
