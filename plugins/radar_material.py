@@ -164,6 +164,11 @@ class RadarMaterial(mi.BSDF):
             self.specular_factor = math.sqrt(1.0 - s**2)
             self.surface = None
 
+    @property
+    def itu_name(self) -> str | None:
+        """The ITU-R P.2040 class of the material (``concrete``, ...), or None (explicit or PEC)."""
+        return self._spec.get("material")
+
     def set_surface(self, surface) -> None:
         """Make the material a randomly rough surface of ``surface``'s statistics
         (:class:`sarmitsuba.scene.roughness.RoughSurface`; None: smooth), whose sigma nought is the

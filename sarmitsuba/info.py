@@ -44,6 +44,7 @@ from .core import georef, orbit
 from .core.trajectory import StateVectors
 from .scene import planning
 from .scene.baseline import baseline
+from .scene.rough_presets import describe_surface
 from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import (MEMORY_LIMIT_ENV, RETURN_SECONDS, CostEstimate, available_memory, cast_rates,
                             check_memory, cost_estimate, format_bytes, memory_problem, synthetic_aperture)
@@ -84,7 +85,8 @@ class MaterialInfo:
     rough : bool
         Whether it has a clutter model (distributed clutter and speckle).
     roughness : str
-        ``"gamma_db -14"`` or ``"scattering_coefficient 0.3"``; ``""`` when smooth.
+        ``"gamma_db -14"``, ``"scattering_coefficient 0.3"`` or a rough surface's statistics and
+        its HH and VV sigma nought at the scene's incidence; ``""`` when smooth.
     n_shapes : int
         Shapes using it.
     """
@@ -287,10 +289,10 @@ def _scene_size(loaded: LoadedScene) -> SceneSize:
                      n_shapes=loaded.n_shapes, n_triangles=loaded.n_triangles,
                      bbox_min_m=_floats(loaded.bbox_lo + offset), bbox_max_m=_floats(loaded.bbox_hi + offset),
                      frame_offset_m=_floats(offset), scene_center_m=_floats(center),
-                     materials=_materials(loaded.scene, loaded.params.frequency))
+                     materials=_materials(loaded.scene, loaded.params.frequency, loaded.params.incidence_angle))
 
 
-def _materials(scene: Any, frequency: float) -> tuple[MaterialInfo, ...]:
+def _materials(scene: Any, frequency: float, incidence_deg: float) -> tuple[MaterialInfo, ...]:
     """One :class:`MaterialInfo` per BSDF object, in order of first use."""
     bsdfs: dict[int, Any] = {}
     counts: dict[int, int] = {}
@@ -298,12 +300,12 @@ def _materials(scene: Any, frequency: float) -> tuple[MaterialInfo, ...]:
         bsdf = shape.bsdf()
         bsdfs.setdefault(bsdf.id_key, bsdf)
         counts[bsdf.id_key] = counts.get(bsdf.id_key, 0) + 1
-    return tuple(_material(bsdf, frequency, counts[key]) for key, bsdf in bsdfs.items())
+    return tuple(_material(bsdf, frequency, counts[key], incidence_deg) for key, bsdf in bsdfs.items())
 
 
-def _material(bsdf: Any, frequency: float, n_shapes: int) -> MaterialInfo:
+def _material(bsdf: Any, frequency: float, n_shapes: int, incidence_deg: float) -> MaterialInfo:
     material = bsdf.material_at(frequency)
-    itu_name = getattr(bsdf, "_spec", {}).get("material")   # the plugin keeps the ITU name here
+    itu_name = bsdf.itu_name
     slab = f", slab {material.thickness:g} m" if material.model == "slab" else ""
     eta = material.relative_permittivity
     if material.model == "pec":
@@ -316,7 +318,9 @@ def _material(bsdf: Any, frequency: float, n_shapes: int) -> MaterialInfo:
         description += f", eta = {eta.real:.3g}{eta.imag:+.3g}j"
     clutter_kind, value = bsdf.clutter
     roughness = {0: "", 1: f"gamma_db {10.0 * math.log10(value):g}" if value > 0 else "",
-                 2: f"scattering_coefficient {math.sqrt(value / 4.0):g}"}[int(clutter_kind)]
+                 2: f"scattering_coefficient {math.sqrt(value / 4.0):g}",
+                 3: describe_surface(bsdf.surface, eta, frequency, incidence_deg) if clutter_kind == 3 else ""
+                 }[int(clutter_kind)]
     return MaterialInfo(name=bsdf.name, kind=kind, description=description, model=material.model,
                         permittivity_real=None if eta is None else float(eta.real),
                         permittivity_imag=None if eta is None else float(eta.imag),

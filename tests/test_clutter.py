@@ -125,7 +125,7 @@ def test_material_override_makes_a_smooth_scene_rough():
     measured = np.mean(np.abs(values) ** 2) / np.prod(energy_widths(sim.image))
     assert abs(10 * math.log10(measured / (GAMMA * math.cos(math.radians(p.incidence_angle))))) < 0.7
     with pytest.raises(Exception, match="unknown material override"):
-        simulate(smooth, material_overrides={"roughness": 1})
+        simulate(smooth, material_overrides={"smoothness": 1})
 
 
 def test_sigma_nought_at_grazing_incidence():

@@ -220,6 +220,27 @@ def test_speckle_moves_with_its_surface():
     assert nrmse_db(b.raw.data[1:], a.raw.data[:-1]) < -30.0
 
 
+
+def test_rough_block_moves_with_its_surfaces():
+    """The block with every surface an I2EM rough surface (s = 3 mm, l = 20 mm: clutter kind 3,
+    its monostatic table at bounce 1 and its bistatic one after a mirror, docs/physics.md (RS6)),
+    moved by one sub-aperture's travel along the track: the raw data of two bounce orders come back
+    that many pulses later within -30 dB (measured -68.7 dB). Scatterers keyed to the
+    world or a table lookup that changed with position would decorrelate it."""
+    rough = {"material": "concrete", "rms_height": 0.003, "correlation_length": 0.02}
+    heading = 20.0
+    _, track = look_and_track(heading)
+    rows = lambda shift: [(mesh, rough, name) for mesh, _, name in block(shift=shift)]      # noqa: E731
+    a = render(rows((0.0, 0.0, 0.0)), heading, depth=2)
+    n = a.trace.pulses_per_trace
+    b = render(rows(tuple(VELOCITY / PRF * n * track)), heading, depth=2)
+    assert 1 < n < 48 and np.abs(a.raw.data).max() > 0
+    error = nrmse_db(b.raw.data[n:], a.raw.data[:-n])
+    assert error < -30.0, f"{error:.1f} dB"
+    # the clutter is there: another seed changes the raw data
+    other = render(rows((0.0, 0.0, 0.0)), heading, depth=2, seed=5)
+    assert nrmse_db(other.raw.data, a.raw.data) > -10.0
+
 # --------------------------------------------------------------------------- visibility
 @pytest.mark.parametrize("heading", [20.0, -35.0])
 def test_sub_apertures_agree_with_one_pulse_per_trace(heading):

@@ -212,3 +212,66 @@ def test_double_bounce_rough_ground_uses_the_bistatic_model():
     expected = _mirrored_ground_rcs(one.raw.tx_position.mean(axis=0), along)
     error_db = 10 * math.log10(measured / expected)
     assert abs(error_db) < 0.5, f"{measured:.2f} m^2 against {expected:.2f} m^2 ({error_db:+.2f} dB)"
+
+
+# ---- the city preset and info ---------------------------------------------------------------------
+def _itu_scene():
+    import trimesh
+    rows = []
+    for i, (kind, extra) in enumerate((("concrete", {"scattering_coefficient": 0.3}), ("metal", {}),
+                                       ("medium_dry_ground", {}), ("brick", {}))):
+        box = trimesh.creation.box((4.0, 4.0, 4.0))
+        box.apply_translation((8.0 * i - 12.0, 0.0, 2.0))
+        rows.append((box, {"plugin": "itu-radio-material", "type": kind, **extra}, kind))
+    box = trimesh.creation.box((4.0, 4.0, 4.0))
+    box.apply_translation((0.0, 10.0, 2.0))
+    rows.append((box, {"material": "concrete", "gamma_db": -12}, "explicit_gamma"))
+    return sm.Scene(rows, sensor={"incidence_angle": 35.0}, name="itu_classes")
+
+
+def _surfaces(loaded):
+    return {s.bsdf().name: (s.bsdf().surface, s.bsdf().clutter[0]) for s in loaded.scene.shapes()}
+
+
+def test_city_preset_gives_each_itu_class_its_row():
+    """``roughness=city``: concrete takes its row (replacing Sionna's Lambertian S), metal stays
+    smooth, the ground is the soil row, and a ``radar`` material of an ITU class takes that class's
+    row too, its gamma replaced; ``roughness=none`` makes every material smooth."""
+    from sarmitsuba.scene.rough_presets import CITY
+    got = _surfaces(load_scene(_itu_scene(), material_overrides={"roughness": "city"}))
+    assert got["concrete"] == (CITY["concrete"].surface, 3)
+    assert got["metal"] == (None, 0)
+    assert got["medium_dry_ground"] == (CITY["medium_dry_ground"].surface, 3)
+    assert got["brick"][0].rms_height == pytest.approx(0.002)
+    assert got["explicit_gamma"] == (CITY["concrete"].surface, 3)       # a radar concrete is a concrete
+    none = _surfaces(load_scene(_itu_scene(), material_overrides={"roughness": "none"}))
+    assert all(kind == 0 for _, kind in none.values())
+
+
+def test_every_preset_row_names_its_source_or_says_it_is_an_assumption():
+    from sarmitsuba.scene.materials import itu_material_names
+    from sarmitsuba.scene.rough_presets import CITY
+    assert set(CITY) == set(itu_material_names())
+    for name, row in CITY.items():
+        assert row.source and ("assumption" in row.source or any(c.isdigit() for c in row.source)), name
+
+
+def test_bad_presets_name_the_choice():
+    with pytest.raises((ParameterError, SceneError), match="roughness preset"):
+        load_scene(_itu_scene(), material_overrides={"roughness": "village"})
+    with pytest.raises((ParameterError, SceneError), match="cannot be combined with gamma_db"):
+        load_scene(_itu_scene(), material_overrides={"roughness": "city", "gamma_db": -10})
+
+
+def test_info_prints_each_rough_class_sigma0_at_the_scenes_incidence():
+    """info's line for a rough material carries HH and VV of the model at the scene's incidence
+    (35 deg here), for the material's own permittivity at the carrier."""
+    import re
+    from sarmitsuba.info import scene_info
+    info = scene_info(_itu_scene(), material_overrides={"roughness": "city"})
+    ground = next(m for m in info.scene.materials if m.name == "medium_dry_ground")
+    hh, vv = (float(x) for x in re.search(r"HH (-?[\d.]+) dB, VV (-?[\d.]+) dB at 35 deg", ground.roughness).groups())
+    eta = complex(ground.permittivity_real, ground.permittivity_imag)
+    model = sigma0_backscatter(RoughSurface(0.006, 0.06), eta, K, math.cos(math.radians(35.0)))
+    assert hh == pytest.approx(10 * math.log10(model["HH"]), abs=0.05)
+    assert vv == pytest.approx(10 * math.log10(model["VV"]), abs=0.05)

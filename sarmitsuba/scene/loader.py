@@ -38,6 +38,7 @@ from ..core.valid_ranges import unknown_name
 from ..core.outputs import product_kind
 from .ground import ground_shapes
 from .rough_tables import coherent_factor, rough_tables
+from .rough_presets import PRESETS, preset_surface
 from ..core.constants import SPEED_OF_LIGHT
 from .mitsuba_errors import located, mitsuba_message
 from .motion import ShapeMotion, file_velocities, moving_shapes, swept_box, xml_velocities
@@ -390,7 +391,7 @@ def _edited_xml(path: Path, offset: np.ndarray | None) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient")
+MATERIAL_OVERRIDES = ("gamma_db", "scattering_coefficient", "roughness")
 
 
 def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
@@ -399,8 +400,19 @@ def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
         raise ParameterError(unknown_name("material override", sorted(unknown)[0], MATERIAL_OVERRIDES))
     if not overrides:
         return
+    overrides = dict(overrides)
+    preset = overrides.pop("roughness", None)
+    if preset is not None and overrides:
+        raise ParameterError(f"--material-set roughness={preset} gives every material its preset surface; "
+                             f"it cannot be combined with {', '.join(sorted(overrides))}")
+    if preset is not None and str(preset) not in PRESETS:
+        raise ParameterError(unknown_name("roughness preset", str(preset), tuple(PRESETS)))
     for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():
-        if hasattr(bsdf, "set_roughness"):
+        if preset is not None and hasattr(bsdf, "set_surface"):
+            # an ITU class the preset names takes its surface; other materials keep theirs
+            if str(preset) == "none" or bsdf.itu_name in PRESETS[str(preset)]:
+                bsdf.set_surface(preset_surface(str(preset), bsdf.itu_name))
+        elif hasattr(bsdf, "set_roughness"):
             bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
 
 

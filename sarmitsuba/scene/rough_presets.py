@@ -1,0 +1,96 @@
+"""Roughness presets: one setting that gives every ITU-R P.2040 material class of a scene a rough
+surface (docs/physics.md (RS7)), and the one-line summary of a rough material that ``info`` prints.
+
+The ``city`` preset's rows say where their numbers come from; most are assumptions, and say so.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..core.constants import SPEED_OF_LIGHT
+from .fresnel import MaterialError
+from .roughness import KS_LIMIT, RoughSurface, sigma0_backscatter
+
+__all__ = ["PresetRow", "PRESETS", "preset_surface", "describe_surface"]
+
+
+@dataclass(frozen=True)
+class PresetRow:
+    """One ITU class's surface in a preset.
+
+    Attributes
+    ----------
+    surface : RoughSurface or None
+        None: the class stays smooth (PO only).
+    source : str
+        Where the numbers come from, or ``"assumption: ..."``.
+    """
+
+    surface: RoughSurface | None
+    source: str
+
+
+def _row(s_mm: float, l_mm: float, correlation: str, source: str) -> PresetRow:
+    return PresetRow(RoughSurface(s_mm * 1e-3, l_mm * 1e-3, correlation), source)
+
+
+_SMOOTH_INDOOR = PresetRow(None, "assumption: an indoor finish, smooth at radar wavelengths")
+
+#: ``city``: outdoor surfaces of a European city. rms height and correlation length in mm.
+CITY = {
+    "asphalt_concrete": _row(0.5, 5.0, "exponential",
+                             "road macrotexture: mean profile depth (MPD, ISO 13473-1) about 1 mm for dense asphalt; "
+                             "assumption: s = MPD / 2, l = half an 11 mm maximum aggregate"),
+    "concrete": _row(0.5, 5.0, "exponential",
+                     "as asphalt_concrete (Sionna's city scenes pave their streets with concrete); assumption: a "
+                     "brushed pavement's macrotexture, MPD about 1 mm (ISO 13473-1)"),
+    "medium_dry_ground": _row(6.0, 60.0, "exponential",
+                              "bare soil fields measured by Oh, Sarabandi and Ulaby (IEEE TGRS 30(2), 1992) span s = "
+                              "3.2 to 30 mm; assumption: a lawn as the soil below it, s = 6 mm, l = 60 mm"),
+    "very_dry_ground": _row(6.0, 60.0, "exponential", "as medium_dry_ground (assumption)"),
+    "wet_ground": _row(6.0, 60.0, "exponential", "as medium_dry_ground (assumption)"),
+    "brick": _row(2.0, 20.0, "exponential",
+                  "assumption: a brick wall's mortar joints recessed a few millimetres"),
+    "marble": _row(1.0, 10.0, "exponential",
+                   "assumption: dressed stone or rendered facades (Sionna's city scenes give most walls marble)"),
+    "wood": _row(1.0, 10.0, "exponential", "assumption: weathered, sawn boards"),
+    "metal": PresetRow(None, "assumption: rolled sheet metal, micrometre roughness, smooth; seams are geometry"),
+    "glass": PresetRow(None, "assumption: float glass is optically flat (nanometre roughness), smooth"),
+    "clear_acrylic": PresetRow(None, "assumption: cast acrylic is optically smooth"),
+    **{name: _SMOOTH_INDOOR for name in ("plasterboard", "ceiling_board", "chipboard", "floorboard", "plywood",
+                                         "carpet_tile", "vinyl_tile")},
+    "vacuum": PresetRow(None, "assumption: not a surface, smooth"),
+}
+
+#: Presets by name (``--material-set roughness=NAME``); ``none`` makes every material smooth.
+PRESETS = {"city": CITY, "none": {}}
+
+
+def preset_surface(preset: str, itu_name: str | None) -> RoughSurface | None:
+    """The surface the preset gives an ITU class (None: smooth, or not an ITU material).
+
+    Raises
+    ------
+    MaterialError
+        For an unknown preset name.
+    """
+    if preset not in PRESETS:
+        raise MaterialError(f"roughness preset {preset!r} is unknown; valid: {', '.join(PRESETS)}")
+    row = PRESETS[preset].get(itu_name) if itu_name is not None else None
+    return None if row is None else row.surface
+
+
+def describe_surface(surface: RoughSurface, eta, frequency: float, incidence_deg: float) -> str:
+    """One line: the surface's statistics, ``k s``, ``k l`` and its monostatic sigma nought at the
+    incidence ``incidence_deg`` (HH and VV, dB), e.g. ``"I2EM s 3 mm, l 20 mm, exponential (ks 0.60,
+    kl 4.0): sigma0 HH -13.7 dB, VV -10.2 dB at 45 deg"``. ``eta`` None: a conductor's limit."""
+    k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
+    eta = complex(1.0 - 1e6j) if eta is None else complex(eta)
+    ks, kl = k * surface.rms_height, k * surface.correlation_length
+    model = "I2EM" if ks <= KS_LIMIT else "geometric optics"
+    sigma = sigma0_backscatter(surface, eta, k, math.cos(math.radians(incidence_deg)))
+    db = {p: 10.0 * math.log10(max(float(sigma[p]), 1e-30)) for p in ("HH", "VV")}
+    return (f"{model} s {surface.rms_height * 1e3:g} mm, l {surface.correlation_length * 1e3:g} mm, "
+            f"{surface.correlation} (ks {ks:.2f}, kl {kl:.1f}): sigma0 HH {db['HH']:.1f} dB, "
+            f"VV {db['VV']:.1f} dB at {incidence_deg:g} deg")
