@@ -275,3 +275,11 @@ def test_info_prints_each_rough_class_sigma0_at_the_scenes_incidence():
     model = sigma0_backscatter(RoughSurface(0.006, 0.06), eta, K, math.cos(math.radians(35.0)))
     assert hh == pytest.approx(10 * math.log10(model["HH"]), abs=0.05)
     assert vv == pytest.approx(10 * math.log10(model["VV"]), abs=0.05)
+
+
+def test_derivatives_of_a_rough_surfaces_material_are_refused():
+    """Its sigma nought tables and coherent factor carry no tangents: asked for, the derivative is
+    refused with the material named, not returned without them."""
+    from sarmitsuba.derivatives import MaterialParameter, raw_derivative
+    with pytest.raises(ParameterError, match="'field' is a rough surface"):
+        raw_derivative(PLATE, MaterialParameter("field", "relative_permittivity"), sensor_overrides={"n_pulses": 8})

@@ -560,4 +560,5 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
                          table_tm=np.stack(tables_tm).astype(np.complex64),
                          cross_pol=np.array(cross_pol, np.float32),
                          grazing_delta=np.array(grazing, np.complex128),
-                         rough=rough_tables(surfaces, permittivities, wavenumber) if any(surfaces) else None)
+                         rough=rough_tables(surfaces, permittivities, wavenumber,
+                                            cross=polarization in ("HV", "VH", "quad")) if any(surfaces) else None)

@@ -6,6 +6,7 @@ scattered normally at 90 deg azimuth, stays one; a logarithm would spread it ove
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,8 +53,9 @@ def _cosines(n: int) -> np.ndarray:
     return c
 
 
-def rough_tables(surfaces: list, permittivities: list, wavenumber: float) -> RoughTables:
-    """The tables of every material row.
+def rough_tables(surfaces: list, permittivities: list, wavenumber: float, cross: bool = True) -> RoughTables:
+    """The tables of every material row. Each row's are computed once per process
+    (:func:`functools.lru_cache` on the surface, the permittivity and ``k``).
 
     Parameters
     ----------
@@ -64,6 +66,8 @@ def rough_tables(surfaces: list, permittivities: list, wavenumber: float) -> Rou
         surface is then given a permittivity of ``1 - 1e6 j``, a conductor's limit).
     wavenumber : float
         ``k`` [rad/m].
+    cross : bool
+        Whether to tabulate HV (polarimetric runs); False leaves it 0.
 
     Returns
     -------
@@ -72,17 +76,23 @@ def rough_tables(surfaces: list, permittivities: list, wavenumber: float) -> Rou
     rows = len(surfaces)
     mono = np.zeros((rows, 3, MONO_SIZE), np.float32)
     bistatic = np.zeros((rows, 2, COS_SIZE, COS_SIZE, PHI_SIZE), np.float32)
+    for row, (surface, eta) in enumerate(zip(surfaces, permittivities)):
+        if surface is not None:
+            mono[row], bistatic[row] = _row_tables(surface, complex(1.0 - 1e6j) if eta is None else complex(eta),
+                                                   float(wavenumber), bool(cross))
+    return RoughTables(mono, bistatic, np.array([s is not None for s in surfaces], bool))
+
+
+@functools.lru_cache(maxsize=64)
+def _row_tables(surface: RoughSurface, eta: complex, wavenumber: float, cross: bool):
     c_mono, c = _cosines(MONO_SIZE), _cosines(COS_SIZE)
     ci, cs, cp = c[:, None, None], c[None, :, None], np.linspace(-1.0, 1.0, PHI_SIZE)[None, None, :]
-    for row, (surface, eta) in enumerate(zip(surfaces, permittivities)):
-        if surface is None:
-            continue
-        eta = complex(1.0 - 1e6j) if eta is None else complex(eta)
-        one = sigma0_backscatter(surface, eta, wavenumber, c_mono)
-        mono[row] = [one[p] for p in ("HH", "VV", "HV")]
-        two = sigma0_bistatic(surface, eta, wavenumber, ci, cs, np.arccos(cp))
-        bistatic[row] = [two[p] for p in ("HH", "VV")]
-    return RoughTables(mono, bistatic, np.array([s is not None for s in surfaces], bool))
+    one = sigma0_backscatter(surface, eta, wavenumber, c_mono, cross=cross)
+    two = sigma0_bistatic(surface, eta, wavenumber, ci, cs, np.arccos(cp))
+    mono = np.array([one[p] for p in ("HH", "VV", "HV")], np.float32)
+    bistatic = np.array([two[p] for p in ("HH", "VV")], np.float32)
+    mono.flags.writeable = bistatic.flags.writeable = False
+    return mono, bistatic
 
 
 def coherent_factor(surface: RoughSurface, wavenumber: float, cos_theta) -> np.ndarray:

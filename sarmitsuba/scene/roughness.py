@@ -412,11 +412,12 @@ def geometric_optics(surface: RoughSurface, eta, cos_i, cos_s, phi_s):
     return np.abs(r_v) ** 2 * level, np.abs(r_h) ** 2 * level
 
 
-def sigma0_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta) -> dict:
+def sigma0_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta, cross: bool = True) -> dict:
     """Monostatic sigma nought per channel, ``{"HH", "VV", "HV"}`` (linear, arrays of
     ``cos_theta``'s shape): the I2EM (:func:`i2em_backscatter`, :func:`i2em_cross`) where
     ``k s <= KS_LIMIT``, geometric optics (:func:`geometric_optics`, no cross-polarised term)
-    beyond, docs/physics.md (RS5).
+    beyond, docs/physics.md (RS5). ``cross`` False leaves HV out (zeros): its integral is most of
+    the cost.
 
     Raises
     ------
@@ -428,7 +429,7 @@ def sigma0_backscatter(surface: RoughSurface, eta, wavenumber: float, cos_theta)
         vv, hh = geometric_optics(surface, eta, c, c, math.pi)
         return {"HH": hh, "VV": vv, "HV": np.zeros(c.shape)}
     vv, hh = i2em_backscatter(surface, eta, wavenumber, c)
-    return {"HH": hh, "VV": vv, "HV": i2em_cross(surface, eta, wavenumber, c)}
+    return {"HH": hh, "VV": vv, "HV": i2em_cross(surface, eta, wavenumber, c) if cross else np.zeros(c.shape)}
 
 
 def sigma0_bistatic(surface: RoughSurface, eta, wavenumber: float, cos_i, cos_s, phi_s) -> dict:

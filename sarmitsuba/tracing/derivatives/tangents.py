@@ -113,7 +113,13 @@ def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) ->
     specular factor ``sqrt(1 - S^2)`` moves by ``-S / sqrt(1 - S^2)`` and the clutter value
     ``4 S^2`` by ``8 S``. For ``gamma`` (a ``radar`` material's constant-gamma clutter, linear,
     docs/physics.md (C)): the clutter value is ``gamma`` itself, its tangent 1. Raises
-    ParameterError where the material has no such parameter."""
+    ParameterError where the material has no such parameter, and for a rough surface's material
+    (``rms_height``, docs/physics.md (RS6)), whose sigma nought and coherent factor have no
+    tangents here."""
+    if getattr(bsdf, "surface", None) is not None:
+        raise ParameterError(f"material {material.name!r} is a rough surface (rms_height): derivatives with respect "
+                             "to its parameters are not available; take them on a material without rms_height "
+                             "(gamma_db or scattering_coefficient), or by finite differences of two renders")
     if parameter == "gamma":
         if bsdf.clutter[0] != 1:
             raise ParameterError(f"material {material.name!r} has no gamma (a radar material with gamma_db has)")
