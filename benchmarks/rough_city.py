@@ -174,7 +174,7 @@ def run(quick: bool = False) -> list[dict]:
     if has_sionna:
         rows += ([] if quick else _timing_rows()) + _class_rows(quick)
     keys = list(dict.fromkeys(key for row in rows for key in row))        # one table: every row every column
-    return report_rows(NAME, [{key: row.get(key) for key in keys} for row in rows])
+    return report_rows(f"{NAME}.csv", [{key: row.get(key) for key in keys} for row in rows])
 
 
 def checks(rows: list[dict]):

@@ -59,7 +59,7 @@ def test_the_monostatic_table_interpolates_the_model_within_0_05_db(degrees):
 def test_kernel_interpolation_is_its_numpy_reference():
     tables = rough_tables([None, SURFACE], [None, 5 - 0.4j], K)
     arrays = {"rough_mono": mi.Float(tables.mono.ravel()), "rough_bi": mi.Float(tables.bistatic.ravel())}
-    read = lambda name, index: dr.gather(mi.Float, arrays[name], index)         # noqa: E731
+    read = lambda name, index, active=True: dr.gather(mi.Float, arrays[name], index, active)   # noqa: E731
     rng = np.random.default_rng(3)
     ci, cs, cp = rng.uniform(0, 1, 200), rng.uniform(0, 1, 200), rng.uniform(-1, 1, 200)
     ci[:2], cs[:2], cp[:2] = (0.0, 1.0), (1.0, 0.0), (-1.0, 1.0)              # the table's edges

@@ -3,6 +3,9 @@ stored output of Ulaby and Long's public MATLAB code (tests/data/i2em, made by i
 make_reference.sh under GNU Octave)."""
 import csv
 import math
+import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -21,9 +24,13 @@ def _book_k(frequency_ghz):
     return 2.0 * math.pi * float(frequency_ghz) / 30.0 * 100.0
 
 
-def _rows(name):
-    with open(DATA / name) as f:
+def _rows_of(path):
+    with open(path) as f:
         return list(csv.DictReader(f))
+
+
+def _rows(name):
+    return _rows_of(DATA / name)
 
 
 def _surface(row):
@@ -170,3 +177,21 @@ def test_bad_surfaces_name_the_parameter():
         RoughSurface(0.01, 0.1, "power")
     with pytest.raises(MaterialError, match="cos_theta"):
         i2em_backscatter(RoughSurface(0.01, 0.1), 4 - 0.1j, 200.0, 0.0)
+
+
+@pytest.mark.skipif(not (os.environ.get("I2EM_BOOK_CODE") and shutil.which("octave")),
+                    reason="optional: set I2EM_BOOK_CODE to the folder of Ulaby and Long's I2EM_Bistat_model.m and "
+                           "IEMX_model.m, with GNU Octave installed")
+def test_the_stored_reference_is_what_the_books_code_gives_now(tmp_path):
+    """Reruns tests/data/i2em/make_reference.sh on the book's code (the co-polarised cases) into a
+    copy of the folder and compares with the stored values, so the stored file is what the script
+    and the code make."""
+    copy = tmp_path / "i2em"
+    shutil.copytree(DATA, copy)
+    subprocess.run(["bash", str(copy / "make_reference.sh"), os.environ["I2EM_BOOK_CODE"], "copol"], check=True,
+                   capture_output=True, timeout=600)
+    fresh, stored = _rows_of(copy / "reference_copol.csv"), _rows("reference_copol.csv")
+    assert len(fresh) == len(stored)
+    for a, b in zip(fresh, stored):
+        assert float(a["vv_db"]) == pytest.approx(float(b["vv_db"]), abs=1e-6)
+        assert float(a["hh_db"]) == pytest.approx(float(b["hh_db"]), abs=1e-6)

@@ -200,9 +200,9 @@ class ClutterTerms:
         if rough is None:
             return base
         row, cos_phi, monostatic = rough
-        read = self.tables.read
-        table = mono_sigma0(read, row, channel, cos_1) if monostatic else \
-            bistatic_sigma0_table(read, row, channel, cos_1, cos_2, cos_phi)
+        read, active = self.tables.read, kind == 3
+        table = mono_sigma0(read, row, channel, cos_1, active) if monostatic else \
+            bistatic_sigma0_table(read, row, channel, cos_1, cos_2, cos_phi, active)
         return dr.select(kind == 3, value * table, base)
 
     def _rough_cross(self, rough, cos_1, cos_2):

@@ -34,18 +34,18 @@ def _cell(x, size: int):
     return i0, x - mi.Float(i0)
 
 
-def mono_sigma0(read, row, pol: int, cos_t):
+def mono_sigma0(read, row, pol: int, cos_t, active=True):
     """Monostatic sigma nought of channel ``pol`` (0 HH, 1 VV, 2 HV) of material ``row`` at
-    incidence cosine ``cos_t``: linear in the table ``rough_mono`` (``read(name, index)`` gathers
-    from it). mi.Float."""
+    incidence cosine ``cos_t``: linear in the table ``rough_mono`` (``read(name, index, active)``
+    gathers from it; 0 where not ``active``). mi.Float."""
     i0, w = _cell(dr.clip(cos_t, 0.0, 1.0) * (MONO_SIZE - 1), MONO_SIZE)
     idx = (row * 3 + pol) * MONO_SIZE + i0
-    return dr.lerp(read("rough_mono", idx), read("rough_mono", idx + 1), w)
+    return dr.lerp(read("rough_mono", idx, active), read("rough_mono", idx + 1, active), w)
 
 
-def bistatic_sigma0_table(read, row, pol: int, cos_i, cos_s, cos_phi):
+def bistatic_sigma0_table(read, row, pol: int, cos_i, cos_s, cos_phi, active=True):
     """Bistatic sigma nought of channel ``pol`` (0 HH, 1 VV) of material ``row``: trilinear in the
-    table ``rough_bi`` over ``(cos_i, cos_s, cos_phi)``. mi.Float."""
+    table ``rough_bi`` over ``(cos_i, cos_s, cos_phi)``; 0 where not ``active``. mi.Float."""
     i, wi = _cell(dr.clip(cos_i, 0.0, 1.0) * (COS_SIZE - 1), COS_SIZE)
     j, wj = _cell(dr.clip(cos_s, 0.0, 1.0) * (COS_SIZE - 1), COS_SIZE)
     m, wm = _cell((dr.clip(cos_phi, -1.0, 1.0) + 1.0) * (0.5 * (PHI_SIZE - 1)), PHI_SIZE)
@@ -54,7 +54,7 @@ def bistatic_sigma0_table(read, row, pol: int, cos_i, cos_s, cos_phi):
     for di, fi in ((0, 1.0 - wi), (1, wi)):
         for dj, fj in ((0, 1.0 - wj), (1, wj)):
             at = base + (di * COS_SIZE + j + dj) * PHI_SIZE + m
-            total += fi * fj * dr.lerp(read("rough_bi", at), read("rough_bi", at + 1), wm)
+            total += fi * fj * dr.lerp(read("rough_bi", at, active), read("rough_bi", at + 1, active), wm)
     return total
 
 
