@@ -290,9 +290,51 @@ def test_info_prints_each_rough_class_sigma0_at_the_scenes_incidence():
     assert vv == pytest.approx(10 * math.log10(model["VV"]), abs=0.05)
 
 
-def test_derivatives_of_a_rough_surfaces_material_are_refused():
-    """Its sigma nought tables and coherent factor carry no tangents: asked for, the derivative is
-    refused with the material named, not returned without them."""
+def test_rough_derivative_parameters_are_checked():
+    """rms_height of a smooth material, or gamma of a rough one: refused with the material named."""
     from sarmitsuba.derivatives import MaterialParameter, raw_derivative
-    with pytest.raises(ParameterError, match="'field' is a rough surface"):
-        raw_derivative(PLATE, MaterialParameter("field", "relative_permittivity"), sensor_overrides={"n_pulses": 8})
+    with pytest.raises(ParameterError, match="'field' has no gamma"):
+        raw_derivative(PLATE, MaterialParameter("field", "gamma"), sensor_overrides={"n_pulses": 8})
+    with pytest.raises(ParameterError, match="'metal' has no rms_height"):
+        raw_derivative("trihedral", MaterialParameter("metal", "rms_height"), sensor_overrides={"n_pulses": 8})
+
+
+def _rough_trihedral(folder: Path, eps_r: float, s: float, length: float) -> str:
+    """The built-in trihedral made of a rough half-space (``s``, ``l``): its PO carries the
+    coherent factor, its clutter the monostatic table at bounce 1 and the bistatic one after."""
+    import re
+    repo = Path(__file__).parent.parent
+    xml = (repo / "scenes" / "trihedral.xml").read_text()
+    material = (f'<bsdf type="radar" id="metal"><float name="relative_permittivity" value="{eps_r!r}"/>'
+                f'<float name="conductivity" value="0.05"/><float name="rms_height" value="{s!r}"/>'
+                f'<float name="correlation_length" value="{length!r}"/></bsdf>')
+    xml = re.sub(r'<bsdf type="radar" id="metal">.*?</bsdf>', material, xml, flags=re.S)
+    xml = xml.replace('value="meshes/trihedral.obj"', f'value="{repo / "scenes" / "meshes" / "trihedral.obj"}"')
+    path = folder / f"rough_trihedral_{eps_r!r}_{s!r}_{length!r}.xml"
+    path.write_text(xml)
+    return str(path)
+
+
+@pytest.mark.parametrize("parameter, index, step", [("relative_permittivity", 0, 6e-3), ("rms_height", 1, 4e-5),
+                                                    ("correlation_length", 2, 2e-4)])
+def test_raw_derivative_of_a_rough_material_matches_central_differences(tmp_path, parameter, index, step):
+    """``d raw / dp`` of a rough trihedral (eta 6 - 0.09j, s = 4 mm, l = 20 mm; forward-mode AD
+    through the reflection tables with their coherent factor and through both sigma nought tables)
+    against ``(raw(p + h) - raw(p - h)) / 2h`` of two renders, within 1 % (measured 2.4e-5, 1.8e-5
+    and 6.8e-5). Catches a tangent without the coherent factor's derivative, a sigma nought table
+    left out of the differentiable tables or its tangent placed on another row, and the infinite
+    derivative of sqrt at a smooth row's zero sigma nought (every return non-finite)."""
+    from sarmitsuba.derivatives import MaterialParameter, raw_derivative
+    pulses = {"n_pulses": 16}
+    base = [6.0, 0.004, 0.02]
+    derivative = raw_derivative(_rough_trihedral(tmp_path, *base), MaterialParameter("metal", parameter),
+                                sensor_overrides=pulses)
+    raws = []
+    for sign in (1, -1):
+        moved = list(base)
+        moved[index] += sign * step
+        raws.append(simulate(_rough_trihedral(tmp_path, *moved), sensor_overrides=pulses).raw.data.astype(np.complex128))
+    fd = (raws[0] - raws[1]) / (2 * step)
+    assert np.linalg.norm(fd) > 0
+    error = np.linalg.norm(derivative.data - fd) / np.linalg.norm(fd)
+    assert error <= 1e-2, f"relative error {error:.2e}"

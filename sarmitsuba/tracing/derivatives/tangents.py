@@ -34,6 +34,7 @@ from ..device import device_array
 from .geometry_tangents import MovedTracer
 from ..driver.kernel import Kernel
 from ..integration import ground_wave
+from .rough_tangents import ROUGH_PARAMETERS, rough_row_tangent
 
 __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "material_tangent", "RowTangent",
            "row_tangent", "flat_tangents", "TangentKernel", "TangentSums", "AdjointKernel", "AdjointSums",
@@ -41,9 +42,9 @@ __all__ = ["MATERIAL_PARAMETERS", "DIFFERENTIABLE", "reflection_table_ad", "mate
 
 #: The material parameters a derivative can be taken with respect to, and their units.
 MATERIAL_PARAMETERS = {"relative_permittivity": "1", "conductivity": "S/m", "thickness": "m",
-                       "scattering_coefficient": "1", "gamma": "1"}
+                       "scattering_coefficient": "1", "gamma": "1", **ROUGH_PARAMETERS}
 #: The kernel's per-material tables a derivative can flow from (attributes of its ``tables``).
-DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value", "grazing_offset", "grazing_re",
+DIFFERENTIABLE = ("re", "im", "re_tm", "im_tm", "specular", "clutter_value", "rough_mono", "rough_bi", "grazing_offset", "grazing_re",
                   "grazing_im")
 
 
@@ -105,6 +106,7 @@ class RowTangent:
     specular: float = 0.0
     clutter_value: float = 0.0
     grazing: tuple | None = None      # (d offset, d table) of the grazing wave's row, (E6')
+    rough: tuple | None = None        # (d mono, d bistatic) of a rough surface's sigma0 tables, (RS6)
 
 
 def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) -> RowTangent:
@@ -113,13 +115,19 @@ def row_tangent(material, bsdf, parameter: str, frequency: float, n_cos: int) ->
     specular factor ``sqrt(1 - S^2)`` moves by ``-S / sqrt(1 - S^2)`` and the clutter value
     ``4 S^2`` by ``8 S``. For ``gamma`` (a ``radar`` material's constant-gamma clutter, linear,
     docs/physics.md (C)): the clutter value is ``gamma`` itself, its tangent 1. Raises
-    ParameterError where the material has no such parameter, and for a rough surface's material
-    (``rms_height``, docs/physics.md (RS6)), whose sigma nought and coherent factor have no
-    tangents here."""
-    if getattr(bsdf, "surface", None) is not None:
-        raise ParameterError(f"material {material.name!r} is a rough surface (rms_height): derivatives with respect "
-                             "to its parameters are not available; take them on a material without rms_height "
-                             "(gamma_db or scattering_coefficient), or by finite differences of two renders")
+    ParameterError where the material has no such parameter. A rough surface's material
+    (``rms_height``, docs/physics.md (RS6)) also moves its sigma nought tables and carries its
+    coherent factor (:func:`sarmitsuba.tracing.derivatives.rough_tangents.rough_row_tangent`)."""
+    surface = getattr(bsdf, "surface", None)
+    if parameter in ROUGH_PARAMETERS or surface is not None:
+        if surface is None or parameter in ("gamma", "scattering_coefficient"):
+            raise ParameterError(f"material {material.name!r} has no {parameter} (a radar material with rms_height "
+                                 f"and correlation_length has {', '.join(ROUGH_PARAMETERS)}; one with gamma_db, gamma)")
+        smooth = (None, None) if parameter in ROUGH_PARAMETERS else \
+            tuple(material_tangent(material, parameter, frequency, pol, n_cos) for pol in ("HH", "VV"))
+        te, tm, rough = rough_row_tangent(material, surface, parameter, frequency, n_cos, smooth)
+        return RowTangent(te, tm, grazing=None if parameter in ROUGH_PARAMETERS else
+                          grazing_row_tangent(material, parameter, frequency), rough=rough)
     if parameter == "gamma":
         if bsdf.clutter[0] != 1:
             raise ParameterError(f"material {material.name!r} has no gamma (a radar material with gamma_db has)")
@@ -167,6 +175,11 @@ def flat_tangents(tables, polarimetric: bool, polarization: str, row: int, tange
         if getattr(tangent, name) and getattr(tables, name) is not None:
             full = np.zeros(dr.width(getattr(tables, name)))
             full[row] = getattr(tangent, name)
+            out[name] = full
+    if tangent.rough is not None and getattr(tables, "rough_mono", None) is not None:
+        for name, values in zip(("rough_mono", "rough_bi"), tangent.rough):
+            full = np.zeros(dr.width(getattr(tables, name)))
+            full[row * values.size:(row + 1) * values.size] = values.ravel()
             out[name] = full
     if tangent.grazing is not None and getattr(tables, "grazing_offset", None) is not None:
         d_offset, d_table = tangent.grazing

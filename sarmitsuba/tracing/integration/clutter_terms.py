@@ -155,9 +155,10 @@ class ClutterTerms:
         if not self.polarimetric:
             r_in, r_out = self.reflection_at(rec.row, cos_i, True), self.reflection_at(rec.row, cos_b, True)
             channel = 1 if self.vv_sign else 0
-            a = dr.sqrt(sigma0(cos_i, cos_b, r_in, r_out, channel))
+            # safe_sqrt: sqrt's derivative is infinite at 0 (a smooth row's sigma0); the same values
+            a = dr.safe_sqrt(sigma0(cos_i, cos_b, r_in, r_out, channel))
             if both:                 # the reverse ordering: met along -b, leaving along -d
-                a = a + dr.sqrt(sigma0(cos_b, cos_i, r_out, r_in, channel))
+                a = a + dr.safe_sqrt(sigma0(cos_b, cos_i, r_out, r_in, channel))
             return [a], None, a * a
         pair_in, pair_out = self.reflection_pair(rec.row, cos_i, True), self.reflection_pair(rec.row, cos_b, True)
         q = dr.gather(mi.Float, self.tables.cross_pol, rec.row)
@@ -167,7 +168,7 @@ class ClutterTerms:
             s_x = q * 0.5 * (s_te + s_tm)
             if rough is not None:
                 s_x = dr.select(model[0] == 3, model[1] * self._rough_cross(rough, c_1, c_2), s_x)
-            return dr.sqrt(s_te), dr.sqrt(s_tm), dr.sqrt(s_x)
+            return dr.safe_sqrt(s_te), dr.safe_sqrt(s_tm), dr.safe_sqrt(s_x)
 
         direct = amplitudes(cos_i, cos_b, pair_in, pair_out)
         reverse = amplitudes(cos_b, cos_i, pair_out, pair_in) if both else None
@@ -212,4 +213,4 @@ class ClutterTerms:
         read = self.tables.read
         if monostatic:
             return mono_sigma0(read, row, 2, cos_1)
-        return dr.sqrt(mono_sigma0(read, row, 2, cos_1) * mono_sigma0(read, row, 2, cos_2))
+        return dr.safe_sqrt(mono_sigma0(read, row, 2, cos_1) * mono_sigma0(read, row, 2, cos_2))
