@@ -301,7 +301,8 @@ def test_rough_derivative_parameters_are_checked():
 
 def _rough_trihedral(folder: Path, eps_r: float, s: float, length: float) -> str:
     """The built-in trihedral made of a rough half-space (``s``, ``l``): its PO carries the
-    coherent factor, its clutter the monostatic table at bounce 1 and the bistatic one after."""
+    coherent factor, its clutter the monostatic table at bounce 1 and the bistatic one after; a
+    smooth plate out of the beam takes table row 0."""
     import re
     repo = Path(__file__).parent.parent
     xml = (repo / "scenes" / "trihedral.xml").read_text()
@@ -310,6 +311,11 @@ def _rough_trihedral(folder: Path, eps_r: float, s: float, length: float) -> str
                 f'<float name="correlation_length" value="{length!r}"/></bsdf>')
     xml = re.sub(r'<bsdf type="radar" id="metal">.*?</bsdf>', material, xml, flags=re.S)
     xml = xml.replace('value="meshes/trihedral.obj"', f'value="{repo / "scenes" / "meshes" / "trihedral.obj"}"')
+    # a smooth plate far outside the beam, first in the file: the rough material is table row 1
+    far = ('<bsdf type="radar" id="far"><float name="relative_permittivity" value="3.0"/></bsdf>'
+           '<shape type="rectangle" id="far_plate"><transform name="to_world"><translate x="300"/></transform>'
+           '<ref id="far"/></shape>')
+    xml = re.sub(r"(<scene[^>]*>)", lambda m: m.group(1) + far, xml, count=1)
     path = folder / f"rough_trihedral_{eps_r!r}_{s!r}_{length!r}.xml"
     path.write_text(xml)
     return str(path)
