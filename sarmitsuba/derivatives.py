@@ -71,7 +71,8 @@ class MaterialParameter:
     ``"relative_permittivity"`` (the real part ``eps_r`` of ``eta``, 1), ``"conductivity"``
     (``sigma``, S/m; ``eta = eps_r - j sigma / (omega eps_0)``), ``"thickness"`` (a slab's, m),
     ``"scattering_coefficient"`` (``S`` of an itu-radio-material's Lambertian clutter, 1) or
-    ``"gamma"`` (a radar material's constant-gamma clutter, linear: ``10^(gamma_db / 10)``, 1).
+    ``"gamma"`` (a radar material's constant-gamma clutter, linear: ``10^(gamma_db / 10)``, 1),
+    ``"rms_height"`` or ``"correlation_length"`` (a rough surface's, m; docs/physics.md (RS6)).
     For ITU-named materials these are the values at the carrier."""
 
     material: str

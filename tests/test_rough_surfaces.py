@@ -344,3 +344,24 @@ def test_raw_derivative_of_a_rough_material_matches_central_differences(tmp_path
     assert np.linalg.norm(fd) > 0
     error = np.linalg.norm(derivative.data - fd) / np.linalg.norm(fd)
     assert error <= 1e-2, f"relative error {error:.2e}"
+
+
+@pytest.mark.parametrize("parameter, index, step", [("rms_height", 1, 4e-5), ("correlation_length", 2, 2e-4)])
+def test_image_gradient_of_a_rough_material_matches_central_differences(tmp_path, parameter, index, step):
+    """Reverse mode (``gradients`` of an image loss, the tables' adjoints collected by their
+    sinks) on the rough trihedral against the loss's central difference over two renders, within
+    1 % (measured 1.8e-4 and 7.8e-4)."""
+    import sarmitsuba
+    from sarmitsuba.derivatives import AmplitudeLoss, MaterialParameter
+    size = {"image_size": (32, 32), "image_spacing": 0.5, "sensor_overrides": {"n_pulses": 32}}
+    loss = AmplitudeLoss(np.zeros((32, 32)))
+    base = [6.0, 0.004, 0.02]
+    wanted = MaterialParameter("metal", parameter)
+    gradient = sarmitsuba.gradients(_rough_trihedral(tmp_path, *base), loss, [wanted], **size).gradient[wanted]
+    losses = []
+    for sign in (1, -1):
+        moved = list(base)
+        moved[index] += sign * step
+        losses.append(sarmitsuba.gradients(_rough_trihedral(tmp_path, *moved), loss, [], **size).loss)
+    fd = (losses[0] - losses[1]) / (2 * step)
+    assert fd != 0 and abs(gradient - fd) <= 1e-2 * abs(fd), (gradient, fd)
