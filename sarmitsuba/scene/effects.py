@@ -284,8 +284,8 @@ def _clutter(rough: tuple[str, ...], seed: int | None) -> Effect:
     if rough:
         return Effect("distributed clutter and speckle", True, f"rough materials: {', '.join(rough)}; seed {seed}")
     return Effect("distributed clutter and speckle", False,
-                  "no material has gamma_db or scattering_coefficient: facets return PO only "
-                  "(--material-set gamma_db=DB switches it on)")
+                  "no material has rms_height, gamma_db or scattering_coefficient: facets return PO only "
+                  "(--material-set roughness=city or gamma_db=DB switches it on)")
 
 
 def _antenna(e: EffectSet, p: "RadarParameters") -> Effect:

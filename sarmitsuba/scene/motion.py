@@ -176,8 +176,8 @@ def moving_shapes(scene: Any, velocities: Mapping[str, Any], params: Any, label:
         clutter = getattr(shapes[index].bsdf(), "clutter", (0, 0))
         if clutter[0] > 0:
             raise ParameterError(f"scene {label!r}, shape {shape_id!r}: a moving shape's material must be smooth "
-                                 "(its rough clutter's scatterers do not move with it): set its gamma_db / "
-                                 "scattering_coefficient to 0, or give it no velocity")
+                                 "(its rough clutter's scatterers do not move with it): remove its gamma_db, "
+                                 "rms_height or scattering_coefficient, or give it no velocity")
         box = shapes[index].bbox()
         lo, hi = np.array(box.min, np.float64), np.array(box.max, np.float64)
         centres.append(tuple(map(float, 0.5 * (lo + hi))))
