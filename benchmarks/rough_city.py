@@ -37,6 +37,7 @@ import numpy as np
 
 import sarmitsuba as sm
 from sarmitsuba.analysis.point_target import energy_widths
+from sarmitsuba.core.constants import VACUUM_PERMITTIVITY
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.materials import itu_permittivity
 from sarmitsuba.scene.roughness import RoughSurface, sigma0_backscatter
@@ -116,7 +117,7 @@ def _class_only(folder: Path, keep: str) -> Path:
         if name == keep:
             return match.group(0)
         eta = itu_permittivity(name, frequency)
-        sigma = -eta.imag * 2 * math.pi * frequency * 8.8541878128e-12
+        sigma = -eta.imag * 2 * math.pi * frequency * VACUUM_PERMITTIVITY
         return (f'<bsdf type="radar" id="{name}"><string name="model" value="slab"/>'
                 f'<float name="thickness" value="0.1"/><float name="relative_permittivity" value="{eta.real!r}"/>'
                 f'<float name="conductivity" value="{sigma!r}"/></bsdf>')

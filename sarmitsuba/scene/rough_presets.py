@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from ..core.constants import SPEED_OF_LIGHT
 from .fresnel import MaterialError
+from .rough_tables import CONDUCTOR_PERMITTIVITY
 from .roughness import KS_LIMIT, RoughSurface, sigma0_backscatter
 
 __all__ = ["PresetRow", "PRESETS", "preset_surface", "describe_surface"]
@@ -86,7 +87,7 @@ def describe_surface(surface: RoughSurface, eta, frequency: float, incidence_deg
     incidence ``incidence_deg`` (HH and VV, dB), e.g. ``"I2EM s 3 mm, l 20 mm, exponential (ks 0.60,
     kl 4.0): sigma0 HH -13.7 dB, VV -10.2 dB at 45 deg"``. ``eta`` None: a conductor's limit."""
     k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
-    eta = complex(1.0 - 1e6j) if eta is None else complex(eta)
+    eta = CONDUCTOR_PERMITTIVITY if eta is None else complex(eta)
     ks, kl = k * surface.rms_height, k * surface.correlation_length
     model = "I2EM" if ks <= KS_LIMIT else "geometric optics"
     sigma = sigma0_backscatter(surface, eta, k, math.cos(math.radians(incidence_deg)))

@@ -13,7 +13,7 @@ import numpy as np
 
 from .roughness import RoughSurface, sigma0_backscatter, sigma0_bistatic
 
-__all__ = ["RoughTables", "rough_tables", "MONO_SIZE", "COS_SIZE", "PHI_SIZE", "COS_FLOOR",
+__all__ = ["RoughTables", "rough_tables", "CONDUCTOR_PERMITTIVITY", "MONO_SIZE", "COS_SIZE", "PHI_SIZE", "COS_FLOOR",
            "coherent_factor"]
 
 #: Samples of the monostatic table over cos(theta) in [0, 1].
@@ -22,6 +22,8 @@ MONO_SIZE = 257
 COS_SIZE = 33
 #: Samples of the bistatic table over cos(phi_s) in [-1, 1].
 PHI_SIZE = 17
+#: The permittivity a perfect conductor's rough surface scatters with (a good conductor's limit).
+CONDUCTOR_PERMITTIVITY = 1.0 - 1e6j
 #: The node at cos = 0 (grazing) is evaluated at this cosine (89.4 deg): the model's limit there.
 COS_FLOOR = 0.01
 
@@ -63,7 +65,7 @@ def rough_tables(surfaces: list, permittivities: list, wavenumber: float, cross:
         Each row's surface (None: not rough).
     permittivities : list of complex or None
         Each row's relative permittivity (``Im <= 0``; None for a perfect conductor, whose rough
-        surface is then given a permittivity of ``1 - 1e6 j``, a conductor's limit).
+        surface is then given ``CONDUCTOR_PERMITTIVITY``).
     wavenumber : float
         ``k`` [rad/m].
     cross : bool
@@ -78,7 +80,7 @@ def rough_tables(surfaces: list, permittivities: list, wavenumber: float, cross:
     bistatic = np.zeros((rows, 2, COS_SIZE, COS_SIZE, PHI_SIZE), np.float32)
     for row, (surface, eta) in enumerate(zip(surfaces, permittivities)):
         if surface is not None:
-            mono[row], bistatic[row] = _row_tables(surface, complex(1.0 - 1e6j) if eta is None else complex(eta),
+            mono[row], bistatic[row] = _row_tables(surface, CONDUCTOR_PERMITTIVITY if eta is None else complex(eta),
                                                    float(wavenumber), bool(cross))
     return RoughTables(mono, bistatic, np.array([s is not None for s in surfaces], bool))
 
