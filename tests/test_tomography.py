@@ -1,0 +1,126 @@
+"""Tomography's closed forms without rendering: the stack's baselines (TS1), the elevation
+response (TS3), Capon's peak (TS4), peak detection, and the planning errors."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import sarmitsuba  # noqa: F401  (libLLVM, variant)
+from sarmitsuba.analysis.tomography import beamforming, capon, detect_peaks, elevation_psf
+from sarmitsuba.core.radar import ParameterError
+from sarmitsuba.scene.baseline import baseline, perpendicular_direction, stack_baselines
+from sarmitsuba.scene.loader import load_scene
+from sarmitsuba.stack import plan_stack
+
+
+@pytest.fixture(scope="module", params=[30.0, 55.0])
+def loaded(request):
+    return load_scene("trihedral", {"incidence_angle": request.param})
+
+
+def test_perpendicular_direction_is_normal_to_track_and_line_of_sight(loaded):
+    """At incidence theta, flying +x and looking right (toward -y) from y > 0: the line of sight
+    from the scene is u = (0, sin, cos) and e, where the look angle grows, is (0, cos, -sin)."""
+    theta = math.radians(loaded.params.incidence_angle)
+    e = perpendicular_direction(loaded.params)
+    assert e == pytest.approx([0.0, math.cos(theta), -math.sin(theta)], abs=1e-6)
+    b = baseline(dataclasses.replace(loaded.params, track_offset=tuple(2.5 * e)))
+    assert b.perpendicular == pytest.approx(2.5, rel=1e-6) and abs(b.parallel) < 1e-6
+
+
+def test_stack_resolution_and_ambiguity_are_the_closed_forms(loaded):
+    p = loaded.params
+    theta = math.radians(p.incidence_angle)
+    r = p.altitude / math.cos(theta)                     # flat earth: R = H / cos(theta)
+    plan = stack_baselines(p, span=12.0, count=7)
+    assert plan.perpendicular == pytest.approx(np.linspace(-6, 6, 7), abs=1e-5)
+    assert plan.reference == 3 and plan.mean_spacing == pytest.approx(2.0, rel=1e-6)
+    assert plan.elevation_resolution == pytest.approx(p.wavelength * r / 24.0, rel=1e-5)
+    assert plan.elevation_ambiguity == pytest.approx(p.wavelength * r / 4.0, rel=1e-5)
+    assert plan.height_range() == pytest.approx(p.wavelength * r / 4.0 * math.sin(theta), rel=1e-5)
+
+
+def test_random_baselines_keep_the_span_and_repeat_with_their_seed(loaded):
+    a = stack_baselines(loaded.params, span=10.0, count=9, spacing="random", seed=4)
+    b = stack_baselines(loaded.params, span=10.0, count=9, spacing="random", seed=4)
+    c = stack_baselines(loaded.params, span=10.0, count=9, spacing="random", seed=5)
+    assert np.array_equal(a.perpendicular, b.perpendicular) and not np.allclose(a.perpendicular, c.perpendicular)
+    assert a.perpendicular[0] == pytest.approx(-5.0, abs=1e-5) and a.perpendicular[-1] == pytest.approx(5.0, abs=1e-5)
+    assert np.all(np.diff(a.perpendicular) > 0)
+    assert not np.allclose(np.diff(a.perpendicular), 1.25)
+
+
+def test_baselines_and_track_offsets_describe_the_same_stack(loaded):
+    e = perpendicular_direction(loaded.params)
+    from_list = stack_baselines(loaded.params, baselines=[-3.0, 0.0, 1.0, 4.0])
+    from_offsets = stack_baselines(loaded.params, track_offsets=[b * e + np.array([5.0, 0, 0]) for b in (-3, 0, 1, 4)])
+    assert from_offsets.perpendicular == pytest.approx(from_list.perpendicular, abs=1e-5)   # along track: no baseline
+    assert from_list.reference == 1                     # nearest the middle of the span, 0.5 m
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(span=5.0, count=2), "at least 3 passes"),
+    (dict(baselines=[0.0, 1.0]), "at least 3 passes"),
+    (dict(baselines=[0.0, 1.0, 1.0]), "share a perpendicular baseline"),
+    (dict(baselines=[0.0, 1.0], span=3.0, count=3), "exactly one"),
+    (dict(span=float("nan"), count=4), "finite span"),
+    (dict(track_offsets=[[0, 0], [1, 1]]), "dx,dy,dz"),
+    (dict(span=4.0, count=4, spacing="log"), "spacing"),
+])
+def test_bad_stack_descriptions_name_the_fix(loaded, kwargs, words):
+    with pytest.raises(ParameterError, match=words):
+        stack_baselines(loaded.params, **kwargs)
+
+
+def test_baselines_that_alias_the_scene_are_refused_with_the_spacing_that_would_do(loaded):
+    p = loaded.params
+    r = p.altitude / math.cos(math.radians(p.incidence_angle))
+    height = float(loaded.bbox_hi[2] - p.scene_center[2])
+    extent = height / math.sin(math.radians(p.incidence_angle))
+    largest = p.wavelength * r / (2 * extent)
+    plan_stack(loaded, span=0.9 * largest * 4, count=5)              # spacing 0.9 of the largest: fine
+    with pytest.raises(ParameterError, match=f"at most {largest:.3f} m apart"):
+        plan_stack(loaded, span=1.1 * largest * 4, count=5)
+
+
+def test_elevation_psf_of_even_baselines_is_the_dirichlet_kernel():
+    n, d, lam, r = 9, 0.8, 0.031, 1200.0
+    s = np.linspace(-20, 20, 1001)
+    x = 2 * math.pi * d * s / (lam * r)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirichlet = np.where(np.abs(np.sin(x)) > 1e-12, np.sin(n * x) / (n * np.sin(x)), 1.0) ** 2
+    psf = elevation_psf(d * (np.arange(n) - 4), lam, r, s)
+    assert psf == pytest.approx(dirichlet, abs=1e-9)
+
+
+def _fourier_steering(b: np.ndarray, s: np.ndarray, lam: float = 0.031, r: float = 1200.0) -> np.ndarray:
+    return np.exp(-1j * 4 * math.pi * np.outer(b, s) / (lam * r))[None]
+
+
+def test_beamforming_and_capon_peak_at_a_lone_scatterers_power():
+    b = np.linspace(-5, 5, 11)
+    s = np.linspace(-10, 10, 401)
+    a = _fourier_steering(b, s)
+    gamma = 0.7 * np.exp(0.4j)
+    y = gamma * a[0][:, 200]
+    bf = beamforming(y[None], a)[0]
+    assert bf[200] == pytest.approx(abs(gamma) ** 2, rel=1e-12) and np.argmax(bf) == 200
+    cov = np.outer(y, np.conj(y))[None]
+    loading = 0.01
+    cp = capon(cov, a, loading)[0]
+    delta = loading * abs(gamma) ** 2                   # tr(R) / N = |gamma|^2
+    assert cp[200] == pytest.approx(abs(gamma) ** 2 + delta / len(b), rel=1e-9) and np.argmax(cp) == 200
+
+
+def test_detect_peaks_refines_between_samples_and_keeps_the_strongest():
+    s = np.arange(0, 20, 0.5)
+    centres, powers = (4.3, 11.1, 16.0), (1.0, 0.5, 0.05)
+    db = np.max([10 * math.log10(p) - 3 * (s - c) ** 2 for c, p in zip(centres, powers)], axis=0)
+    elev, power = detect_peaks(10 ** (db[None] / 10), s, threshold_db=-10.0, max_scatterers=3)
+    assert elev[0, :2] == pytest.approx([4.3, 11.1], abs=1e-9)          # a parabola in dB is refined exactly
+    assert np.isnan(elev[0, 2])                                         # 13 dB down: below the threshold
+    elev, _ = detect_peaks(10 ** (db[None] / 10), s, threshold_db=-20.0, max_scatterers=1)
+    assert elev[0, 0] == pytest.approx(4.3, abs=1e-9) and np.all(np.isnan(elev[0, 1:]))
