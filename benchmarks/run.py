@@ -60,6 +60,9 @@ pga_sweep      phase gradient autofocus over sway periods 10-200 m and amplitude
 rough_city     rough surfaces: a rough plate's HH, VV and HV against the I2EM at 25-60 deg;
                Munich with the city preset: seconds against the smooth render, each class's
                median sigma nought against info's
+tomography     stacks of 10 and 20 urban passes against single renders; a building's roof,
+               facade and ground separated by beamforming and SL1MMER against the geometry;
+               beamforming's and SL1MMER's two-point resolution
 ============== =========================================================================
 
 Each writes ``<name>.csv`` and ``<name>.png`` into the output folder (``--out DIR``, default
@@ -98,7 +101,7 @@ SUITE = {"bounce_depth": "bounce_depth", "range_kernel": "range_kernel", "ray_de
          "inverse": "inverse", "inverse_city": "inverse_city", "moving": "moving",
          "bistatic": "bistatic", "determinism": "determinism", "fused": "fused",
          "fused_kernels": "fused_kernels", "pga_sweep": "pga_sweep",
-         "rough_city": "rough_city"}
+         "rough_city": "rough_city", "tomography": "tomography"}
 
 
 def _utc_now() -> str:

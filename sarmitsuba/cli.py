@@ -1,8 +1,9 @@
 """Command-line interface: ``python -m sarmitsuba render [SCENE] [--out DIR] [...]``.
 
 Sub-commands: ``render``, ``preview``, ``info`` (plan only, no tracing), ``focus``, ``analyze``,
-``interferogram`` (repeat-pass InSAR of two renders), ``scene from-footprints`` (a scene folder
-from building footprints in GeoJSON).
+``interferogram`` (repeat-pass InSAR of two renders), ``stack`` and ``tomography`` (a stack of
+passes focused in elevation, :mod:`sarmitsuba.cli_stack`), ``scene from-footprints`` (a scene
+folder from building footprints in GeoJSON).
 
 Exit codes: 0 success, 2 bad input (scene, parameter, material, output directory), 130
 interrupted (Ctrl-C; outputs are written under temporary names and renamed, so nothing
@@ -18,7 +19,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from . import cli_types
+from . import cli_stack, cli_types
 
 __all__ = ["main", "build_parser"]
 
@@ -157,6 +158,8 @@ def build_parser() -> argparse.ArgumentParser:
         "info", help="radar summary, scene size, active effects and estimated cost, without tracing; "
                      "of a render folder (or its summary.json): the energy each bounce order holds")))
     info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    cli_stack.add_stack_arguments(info)
+    cli_stack.add_commands(sub, _add_scene_arguments, _add_tracer_arguments)
     _add_focus_command(sub)
     from .analysis.point_target import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
@@ -388,6 +391,10 @@ def _info(args: argparse.Namespace) -> int:
     info = scene_info(args.scene, sensor_overrides=_sensor_overrides(args),
                       integrator_overrides=_integrator_overrides(args), material_overrides=dict(args.material_set))
     print(to_json(info) if args.json else format_text(info), end="\n" if args.json else "")
+    stack = cli_stack.stack_description(args)
+    if stack is not None:                      # the stack's resolution, ambiguity and cost
+        from .scene.loader import load_scene
+        print(cli_stack.stack_lines(info, load_scene(args.scene, _sensor_overrides(args)), stack))
     return 0
 
 
@@ -512,8 +519,9 @@ def _main(argv: list[str] | None) -> int:
     try:
         with interrupts, _output_folder(args):
             code = {"render": _render, "analyze": _analyze, "focus": _focus, "preview": _preview,
-                    "info": _info, "bench": _bench, "interferogram": _interferogram,
-                    "scene": _scene}[args.command](args)
+                    "info": _info, "bench": _bench, "interferogram": _interferogram, "scene": _scene,
+                    "stack": lambda a: cli_stack.run_stack(a, _sensor_overrides(a), _integrator_overrides(a)),
+                    "tomography": cli_stack.run_tomography}[args.command](args)
         if not interrupts.caught:
             return code
         raise KeyboardInterrupt              # one that an optional import swallowed: Ctrl-C still ends in 130
@@ -535,7 +543,7 @@ def _output_folder(args: argparse.Namespace):
     refuse_staging(*(getattr(args, name, None) for name in ("scene", "raw", "image", "primary", "secondary")))
     if args.command in ("render", "preview"):
         return hold_folder(args.out or _default_out(args.scene))
-    return hold_folder(args.out) if args.command in ("focus", "interferogram") else nullcontext()
+    return hold_folder(args.out) if args.command in ("focus", "interferogram", "stack", "tomography") else nullcontext()
 
 
 def _dr_jit_interrupt(exc: BaseException) -> bool:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["assignment", "resolution", "positive_int", "looks", "point"]
+__all__ = ["assignment", "resolution", "positive_int", "looks", "point", "numbers", "vectors", "index_range"]
 
 
 def assignment(text: str) -> tuple[str, str]:
@@ -64,3 +64,37 @@ def point(text: str) -> tuple[float, float, float]:
         raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z in metres, got {text!r}")
     return values
 
+
+
+def numbers(text: str) -> tuple[float, ...]:
+    """``B1,B2,...``: finite floats (``stack --baselines``, metres)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if not values or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected finite numbers separated by commas, e.g. -6,-2,2,6, got {text!r}")
+    return values
+
+
+def vectors(text: str) -> tuple[tuple[float, float, float], ...]:
+    """``X,Y,Z;X,Y,Z;...``: three finite floats each (``stack --track-offsets``, metres)."""
+    try:
+        return tuple(point(part) for part in text.split(";"))
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z;X,Y,Z;... (three finite numbers in metres a pass, "
+                                         f"passes separated by ';'), got {text!r}") from None
+
+
+def index_range(text: str) -> slice:
+    """``A:B``: whole numbers 0 <= A < B, either left out (``tomography --rows``, ``--cols``)."""
+    first, sep, last = text.partition(":")
+    try:
+        start = int(first) if first.strip() else None
+        stop = int(last) if last.strip() else None
+    except ValueError:
+        sep = ""
+    if not sep or (start is not None and start < 0) or (start is not None and stop is not None and stop <= start):
+        raise argparse.ArgumentTypeError(f"expected A:B with whole numbers 0 <= A < B (either may be left out), "
+                                         f"got {text!r}")
+    return slice(start, stop)

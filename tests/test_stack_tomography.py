@@ -1,0 +1,293 @@
+"""A rendered tomographic stack of three trihedrals, focused in elevation (docs/physics.md (TS1)-(TS6)).
+
+Trihedrals ``near`` (apex on the ground at the origin) and ``far`` (apex ``H_FAR`` up, placed on
+the same iso-range circle, so it lays over into the same pixel) share one range-azimuth cell;
+``alone`` (apex ``H_ALONE`` up, 6 m along track) has a cell to itself. The stack is 14 passes at
+an even spacing ``D_B`` chosen so that ten spacings give ``rho_s`` equal to the near-far
+elevation distance: sub-stacks of consecutive passes then put that distance at 1.3, 1.0 and 0.5
+``rho_s``.
+
+The truths are the test's own: the trihedrals' apexes (their triple-bounce phase centres),
+each pass's straight track line from the sensor parameters and the stack's offsets, elevations as
+arc lengths on circles about that line, the Dirichlet kernel for the elevation response.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import dataclasses
+
+import numpy as np
+import pytest
+import trimesh
+
+import sarmitsuba
+from sarmitsuba.analysis.tomo_stack import focus_elevation
+from sarmitsuba.analysis.tomo_products import read_stack
+from sarmitsuba.cli import main
+from sarmitsuba.core.image import SarImage
+from sarmitsuba.scene import canonical
+from sarmitsuba.stack import render_stack
+
+ALTITUDE, GROUND_RANGE = 1000.0, 1000.0                   # the track: y = 1000, z = 1000, flying +x
+R = math.hypot(ALTITUDE, GROUND_RANGE)
+WAVELENGTH = 299_792_458.0 / 9.6e9
+H_FAR, H_ALONE, X_ALONE = 2.0, 3.0, 6.0
+N_PASSES = 14
+
+
+def _on_circle(x: float, height: float) -> np.ndarray:
+    """The apex ``height`` up on the iso-range circle of the origin about the nominal track."""
+    y = GROUND_RANGE - math.sqrt(R ** 2 - (ALTITUDE - height) ** 2)
+    return np.array([x, y, height])
+
+
+def _elevation(point: np.ndarray, offset: np.ndarray) -> float:
+    """Arc length from the ground point of ``point``'s circle about the track line shifted by
+    ``offset`` up to ``point``."""
+    centre = np.array([point[0], GROUND_RANGE, ALTITUDE]) + offset
+    radius = float(np.linalg.norm(point - centre))
+    ground = np.array([point[0], centre[1] - math.sqrt(radius ** 2 - centre[2] ** 2), 0.0])
+    cos = float((point - centre) @ (ground - centre)) / radius ** 2
+    return radius * math.acos(min(1.0, cos))
+
+
+NEAR, FAR, ALONE = np.zeros(3), _on_circle(0.0, H_FAR), _on_circle(X_ALONE, H_ALONE)
+D_S = _elevation(FAR, np.zeros(3))                       # near-far elevation distance
+D_B = WAVELENGTH * R / (2.0 * D_S * 10)                  # ten spacings: rho_s = D_S
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory):
+    meshes = []
+    for name, apex in (("near", NEAR), ("far", FAR), ("alone", ALONE)):
+        mesh = canonical.trihedral(0.4)
+        mesh.apply_translation(apex)
+        meshes.append((mesh, "pec", name))
+    sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
+              "altitude": ALTITUDE, "incidence_angle": 45, "scene_center": "0, 0, 0", "azimuth_beamwidth": 1.2,
+              "n_pulses": 64}
+    folder = tmp_path_factory.mktemp("stack")
+    scene = sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3})
+    summary = render_stack(scene, folder, span=D_B * (N_PASSES - 1), count=N_PASSES, progress=False)
+    return folder, summary, read_stack([folder])
+
+
+def _pixel(image: SarImage, point: np.ndarray) -> tuple[int, int]:
+    row, col = image.pixel_of(point)
+    return int(round(row)), int(round(col))
+
+
+def _sub(stack_input, first: int, count: int):
+    return stack_input.images[first:first + count], stack_input.raws[first:first + count]
+
+
+def _found(result, pixel):
+    at = (result.scatterers["row"] == pixel[0]) & (result.scatterers["col"] == pixel[1])
+    return np.sort(result.scatterers["elevation"][at])
+
+
+def test_stack_json_gives_rho_s_and_the_ambiguity_of_the_closed_form(stack):
+    folder, summary, _ = stack
+    body = json.loads((folder / "stack.json").read_text())
+    span = D_B * (N_PASSES - 1)
+    assert body["elevation_resolution"] == pytest.approx(WAVELENGTH * R / (2 * span), rel=1e-6)
+    assert body["elevation_ambiguity"] == pytest.approx(WAVELENGTH * R / (2 * D_B), rel=1e-6)
+    assert [p["folder"] for p in body["passes"]] == [f"pass-{n:02d}" for n in range(N_PASSES)]
+    assert np.ptp([p["perpendicular_baseline"] for p in body["passes"]]) == pytest.approx(span, rel=1e-6)
+
+
+def test_the_phase_of_a_point_at_known_height_on_every_pass(stack):
+    """angle(y_n y_ref*) = -k [(L_n(P) - L_n(x)) - (L_ref(P) - L_ref(x))], L = twice the distance
+    to each pass's track line (docs/physics.md (TS2))."""
+    folder, summary, st = stack
+    ref = st.reference
+    offsets = summary.plan.baselines.track_offsets
+    image = st.images[ref]
+    q = _pixel(image, ALONE)
+    x = image.positions()[q]
+    k = 2 * math.pi / WAVELENGTH
+
+    def two_way(point, offset):
+        foot = np.array([point[0], GROUND_RANGE, ALTITUDE]) + offset
+        return 2 * math.hypot(point[1] - foot[1], point[2] - foot[2])
+
+    expected = np.array([-k * ((two_way(ALONE, o) - two_way(x, o)) - (two_way(ALONE, offsets[ref])
+                                                                      - two_way(x, offsets[ref]))) for o in offsets])
+    observed = np.array([np.angle(im.data[q] * np.conj(image.data[q])) for im in st.images])
+    error = np.angle(np.exp(1j * (observed - expected)))
+    assert np.ptp(expected) > 2 * math.pi                # the check spans more than a cycle
+    assert np.max(np.abs(error)) < 0.05                  # rad
+
+
+def _widths(profile: np.ndarray, s: np.ndarray) -> tuple[float, float]:
+    """(-3 dB width [m], peak sidelobe ratio [dB]) of a profile, measured here."""
+    p = profile / profile.max()
+    i = int(np.argmax(p))
+    lo, hi = i, i
+    while lo > 0 and p[lo - 1] < p[lo]:
+        lo -= 1
+    while hi < p.size - 1 and p[hi + 1] < p[hi]:
+        hi += 1
+    half = np.flatnonzero(p[lo:hi + 1] >= 0.5) + lo
+    a, b = half[0], half[-1]
+    left = s[a - 1] + (0.5 - p[a - 1]) / (p[a] - p[a - 1]) * (s[a] - s[a - 1])
+    right = s[b] + (0.5 - p[b]) / (p[b + 1] - p[b]) * (s[b + 1] - s[b])
+    sidelobe = max(p[:lo].max(initial=0), p[hi + 1:].max(initial=0))
+    return right - left, 10 * math.log10(sidelobe)
+
+
+def test_the_elevation_response_of_one_point_is_the_dirichlet_kernel(stack):
+    _, _, st = stack
+    centre = _elevation(ALONE, np.zeros(3))
+    amb = WAVELENGTH * R / (2 * D_B)
+    q = _pixel(st.images[st.reference], ALONE)
+    result = focus_elevation(st.images, st.raws, (centre - 0.45 * amb, centre + 0.45 * amb), reference=st.reference,
+                             region=(slice(q[0], q[0] + 1), slice(q[1], q[1] + 1)))
+    width, pslr = _widths(result.profiles[0].astype(np.float64), result.elevation)
+    s = np.linspace(-0.45 * amb, 0.45 * amb, 40001)
+    xx = 2 * math.pi * D_B * s / (WAVELENGTH * R)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dirichlet = np.where(np.abs(np.sin(xx)) > 1e-12, np.sin(N_PASSES * xx) / (N_PASSES * np.sin(xx)), 1.0) ** 2
+    width0, pslr0 = _widths(dirichlet, s)
+    assert width == pytest.approx(width0, rel=0.05)
+    assert 10 ** (pslr / 20) == pytest.approx(10 ** (pslr0 / 20), rel=0.05)      # sidelobe amplitude
+    assert abs(result.elevation[np.argmax(result.profiles[0])] - centre) < 0.05 * WAVELENGTH * R / (2 * D_B * 13)
+
+
+@pytest.mark.parametrize("method, count, ratio", [("beamforming", 14, 1.3), ("sparse", 14, 1.3),
+                                                  ("sparse", 11, 1.0), ("sparse", 6, 0.5)])
+def test_two_trihedrals_in_one_cell_are_separated(stack, method, count, ratio):
+    """Separation ``ratio`` rho_s: each elevation within 0.1 rho_s of its apex's."""
+    _, _, st = stack
+    first = (N_PASSES - count) // 2
+    images, raws = _sub(st, first, count)
+    rho = WAVELENGTH * R / (2 * D_B * (count - 1))
+    assert D_S / rho == pytest.approx(ratio, rel=0.01)
+    q = _pixel(images[0], NEAR)
+    result = focus_elevation(images, raws, (-2.5, 7.0), method=method, region=(slice(q[0], q[0] + 1),
+                                                                               slice(q[1], q[1] + 1)))
+    found = _found(result, q)
+    truth = np.array([_elevation(NEAR, np.zeros(3)), D_S])
+    assert found.size == 2, found
+    assert np.max(np.abs(found - truth)) < 0.1 * rho, (found, truth, rho)
+
+
+def test_capon_puts_a_lone_point_at_its_elevation_sharper_than_beamforming(stack):
+    _, _, st = stack
+    centre = _elevation(ALONE, np.zeros(3))
+    q = _pixel(st.images[st.reference], ALONE)
+    rho = WAVELENGTH * R / (2 * D_B * (N_PASSES - 1))
+    profiles = {}
+    for method in ("beamforming", "capon"):
+        result = focus_elevation(st.images, st.raws, (-2.5, 10.0), method=method, reference=st.reference,
+                                 region=(slice(q[0], q[0] + 1), slice(q[1], q[1] + 1)))
+        found = _found(result, q)
+        assert found.size == 1 and abs(found[0] - centre) < 0.1 * rho, (method, found, centre)
+        profiles[method] = _widths(result.profiles[0].astype(np.float64), result.elevation)[0]
+    assert profiles["capon"] < 0.7 * profiles["beamforming"]
+
+
+def test_an_independent_two_point_fit_agrees_with_the_sparse_inversion(stack):
+    """The test's own inversion: exhaustive least squares over pairs of elevations, steering from
+    the track lines' distances (not the package's phase model), amplitudes by linear least squares."""
+    _, summary, st = stack
+    ref = st.reference
+    offsets = summary.plan.baselines.track_offsets
+    image = st.images[ref]
+    q = _pixel(image, NEAR)
+    x = image.positions()[q]
+    y = np.array([im.data[q] for im in st.images], np.complex128)
+    k = 2 * math.pi / WAVELENGTH
+    centre = np.array([x[0], GROUND_RANGE, ALTITUDE]) + offsets[ref]
+    radius = float(np.linalg.norm(x - centre))
+    grid = np.arange(-1.0, 4.5, 0.02)
+    angle = math.atan2(x[2] - centre[2], x[1] - centre[1]) - grid / radius          # up the circle: +s
+    points = np.stack([np.full(grid.size, x[0]), centre[1] + radius * np.cos(angle),
+                       centre[2] + radius * np.sin(angle)], axis=1)
+
+    def length(p, o):
+        foot = np.array([x[0], GROUND_RANGE, ALTITUDE]) + o
+        return 2 * np.hypot(p[..., 1] - foot[1], p[..., 2] - foot[2])
+
+    steer = np.stack([np.exp(-1j * k * ((length(points, o) - length(x, o))
+                                        - (length(points, offsets[ref]) - length(x, offsets[ref])))) for o in offsets])
+    best = (np.inf, None)
+    for i in range(grid.size):
+        for j in range(i + 10, grid.size):
+            a = steer[:, [i, j]]
+            r = y - a @ np.linalg.lstsq(a, y, rcond=None)[0]
+            rss = float(np.vdot(r, r).real)
+            if rss < best[0]:
+                best = (rss, grid[[i, j]])
+    result = focus_elevation(st.images, st.raws, (-2.5, 7.0), method="sparse", reference=ref,
+                             region=(slice(q[0], q[0] + 1), slice(q[1], q[1] + 1)))
+    assert np.max(np.abs(_found(result, q) - best[1])) < 0.03
+
+
+def test_a_reference_point_removes_phase_errors_of_each_pass(stack):
+    """Random per-pass phases (orbit or atmosphere) scramble the profile; calibrating on the lone
+    trihedral's apex restores the near-far pair (docs/physics.md (TS6))."""
+    _, _, st = stack
+    rng = np.random.default_rng(3)
+    screens = rng.uniform(-math.pi, math.pi, N_PASSES)
+    images = [dataclasses.replace(im, data=im.data * np.complex64(np.exp(1j * p))) for im, p in zip(st.images, screens)]
+    q = _pixel(images[0], NEAR)
+    region = (slice(q[0], q[0] + 1), slice(q[1], q[1] + 1))
+    truth = np.array([0.0, D_S])
+    rho = WAVELENGTH * R / (2 * D_B * (N_PASSES - 1))
+    raw = focus_elevation(images, st.raws, (-2.5, 7.0), method="sparse", reference=st.reference, region=region)
+    fixed = focus_elevation(images, st.raws, (-2.5, 7.0), method="sparse", reference=st.reference, region=region,
+                            calibration_point=ALONE)
+    found = _found(fixed, q)
+    assert found.size == 2 and np.max(np.abs(found - truth)) < 0.1 * rho
+    scrambled = _found(raw, q)
+    assert scrambled.size != 2 or np.max(np.abs(scrambled - truth)) > 0.3 * rho
+    wrapped = np.angle(np.exp(1j * (fixed.calibration - (screens - screens[st.reference]))))
+    assert np.max(np.abs(wrapped)) < 0.05
+
+
+def test_the_cli_writes_the_products_and_any_two_passes_make_an_interferogram(stack, tmp_path, capsys):
+    folder, _, st = stack
+    q = _pixel(st.images[st.reference], NEAR)
+    out = tmp_path / "tomo"
+    code = main(["tomography", str(folder), "--out", str(out), "--method", "sparse", "--no-progress",
+                 "--rows", f"{q[0] - 1}:{q[0] + 2}", "--cols", f"{q[1] - 1}:{q[1] + 2}", "--min-power-db", "-6"])
+    assert code == 0, capsys.readouterr().err
+    assert {p.name for p in out.iterdir()} >= {"profiles.npz", "scatterers.npz", "points.csv", "tomography.json",
+                                              "tomogram.png", "point_cloud.png"}
+    with np.load(out / "scatterers.npz") as f:
+        assert np.any(np.abs(f["z"] - H_FAR) < 0.1) and np.any(np.abs(f["z"]) < 0.1)
+        near = f["row"] == q[0]
+        near &= f["col"] == q[1]
+        assert near.sum() == 2
+        truth = f["truth_height"][near]                  # the plates the pixel's circle meets (an apex is the
+        known = np.isfinite(truth)                       # farthest point of its trihedral: the circle may miss it)
+        assert known.any() and np.all(np.abs(f["height"][near][known] - truth[known]) < 0.3)
+    assert main(["interferogram", str(folder / "pass-02"), str(folder / "pass-11"), "--out", str(tmp_path / "ifg"),
+                 "--no-progress"]) == 0
+
+
+def test_bad_stacks_end_with_one_message_and_code_2(stack, tmp_path, capsys):
+    folder, _, st = stack
+    passes = [folder / f"pass-{n:02d}" for n in range(3)]
+    cases = {
+        "at least 3 passes": ["tomography", str(passes[0]), str(passes[1]), "--out", str(tmp_path / "a")],
+        "outside the image": ["tomography", str(folder), "--out", str(tmp_path / "b"), "--reference-point", "0,300,0"],
+        "alias": ["stack", "trihedral", "--span", "300", "--passes", "3", "--out", str(tmp_path / "c")],
+        "at least 3 passes, got count": ["stack", "trihedral", "--span", "2", "--passes", "2", "--out",
+                                         str(tmp_path / "d")],
+    }
+    shifted = tmp_path / "shifted"
+    shutil.copytree(passes[2], shifted)
+    image = SarImage.load(shifted / "image.npz")
+    dataclasses.replace(image, origin=image.origin + np.array([0.0, 0.5, 0.0])).save(shifted / "image.npz")
+    cases["grids differ in origin"] = ["tomography", str(passes[0]), str(passes[1]), str(shifted), "--out",
+                                       str(tmp_path / "e")]
+    for expected, argv in cases.items():
+        capsys.readouterr()
+        assert main(argv) == 2, expected
+        err = capsys.readouterr().err
+        assert err.count("error:") == 1 and expected in err and "Traceback" not in err, err
+    assert not (tmp_path / "c" / "pass-00").exists()
