@@ -95,9 +95,8 @@ def select_pixels(images: Sequence[SarImage], region: tuple[slice, slice] = (sli
     keep = power >= power.max() * 10.0 ** (min_power_db / 10.0)
     keep &= power > 0
     r, c = np.nonzero(keep)
-    r0 = range(images[0].data.shape[0])[region[0]].start
-    c0 = range(images[0].data.shape[1])[region[1]].start
-    return r + r0, c + c0
+    n_az, n_rg = images[0].data.shape
+    return np.arange(n_az)[region[0]][r], np.arange(n_rg)[region[1]][c]
 
 
 def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: tuple[float, float], *,

@@ -69,7 +69,9 @@ def write_point_cloud(x: np.ndarray, y: np.ndarray, height: np.ndarray, ground_r
     """
     fig = agg_figure((13.0, 5.5), 100)
     axes = fig.subplots(1, 2)
-    h = np.asarray(height, np.float64)
+    order = np.argsort(np.asarray(height, np.float64), kind="stable")     # the highest drawn last, on top
+    x, y, ground_range = (np.asarray(v, np.float64)[order] for v in (x, y, ground_range))
+    h = np.asarray(height, np.float64)[order]
     limits = (float(np.nanmin(h)), float(np.nanmax(h))) if h.size else (0.0, 1.0)
     shown = axes[0].scatter(x, y, c=h, s=2, cmap="viridis", vmin=limits[0], vmax=max(limits[1], limits[0] + 1e-3))
     axes[0].set_aspect("equal")
