@@ -24,19 +24,20 @@ from sarmitsuba.scene.loader import load_scene
 ALTITUDE = 1000.0
 
 
-def _scene(incidence: float, shift: float = 0.0):
+def _scene(incidence: float, shift: float = 0.0, lift: float = 0.0):
     block = trimesh.creation.box((20.0, 20.0, 10.0))
-    block.apply_translation((shift, 0.0, 5.0))
+    block.apply_translation((shift, 0.0, 5.0 + lift))
     ground = trimesh.Trimesh(np.array([[-45, -45, 0], [45, -45, 0], [45, 45, 0], [-45, 45, 0]], float)
-                             + [shift, 0, 0], [[0, 1, 2], [0, 2, 3]])
-    sensor = {"incidence_angle": incidence, "n_pulses": 16, "altitude": ALTITUDE, "scene_center": f"{shift}, 0, 0"}
+                             + [shift, 0, lift], [[0, 1, 2], [0, 2, 3]])
+    sensor = {"incidence_angle": incidence, "n_pulses": 16, "altitude": ALTITUDE,
+              "scene_center": f"{shift}, 0, {lift}"}
     return sarmitsuba.Scene(meshes=[(block, "concrete", "block"), (ground, "concrete", "ground")], sensor=sensor)
 
 
-def _image(shift: float = 0.0) -> SarImage:
+def _image(shift: float = 0.0, lift: float = 0.0) -> SarImage:
     rg = np.arange(-40.0, 40.01, 0.5)                    # range along -y: pixel y = -range
     return SarImage(data=np.zeros((3, rg.size), np.complex64), azimuth=np.array([-1.0, 0.0, 1.0]), range=rg,
-                    origin=np.array([shift, 0.0, 0.0]), azimuth_direction=np.array([1.0, 0.0, 0.0]),
+                    origin=np.array([shift, 0.0, lift]), azimuth_direction=np.array([1.0, 0.0, 0.0]),
                     range_direction=np.array([0.0, -1.0, 0.0]))
 
 
@@ -45,10 +46,12 @@ def _crossings(heights: np.ndarray, image: SarImage, y: float) -> np.ndarray:
     return h[np.isfinite(h)]
 
 
-@pytest.mark.parametrize("incidence, shift", [(35.0, 0.0), (55.0, 0.0), (35.0, 4000.0)])
-def test_crossings_are_the_closed_forms(incidence, shift):
-    loaded = load_scene(_scene(incidence, shift))
-    image = _image(shift)
+@pytest.mark.parametrize("incidence, shift, lift", [(35.0, 0.0, 0.0), (55.0, 0.0, 0.0), (35.0, 4000.0, 120.0)])
+def test_crossings_are_the_closed_forms(incidence, shift, lift):
+    """Heights above the grid plane z0 = lift, also for a scene 4 km from the origin (traced in a
+    local frame)."""
+    loaded = load_scene(_scene(incidence, shift, lift))
+    image = _image(shift, lift)
     heights = iso_range_heights(loaded, image)
     y_s = ALTITUDE * math.tan(math.radians(incidence))
     layover = 10.0 / math.tan(math.radians(incidence))

@@ -19,6 +19,7 @@ The solvers are the libraries' (cvxpy, SciPy); this module only poses the proble
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -81,6 +82,12 @@ class _L1Problem:
         except cp.SolverError:
             self.problem.solve(solver=cp.SCS)
         return np.zeros(a.shape[1], complex) if self.x.value is None else np.asarray(self.x.value)
+
+
+@functools.lru_cache(maxsize=8)
+def _problem(n: int, n_s: int) -> _L1Problem:
+    """The compiled step-1 problem of ``n`` passes and ``n_s`` elevations, reused across calls."""
+    return _L1Problem(n, n_s)
 
 
 def _candidates(x: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -156,7 +163,7 @@ def sl1mmer(y: np.ndarray, model: PhaseModel, s: np.ndarray, *, regularization: 
     y = np.asarray(y, np.complex128)
     n_pix, n = y.shape
     s = np.asarray(s, np.float64)
-    problem = _L1Problem(n, s.size)
+    problem = _problem(n, s.size)
     profiles = np.zeros((n_pix, s.size))
     elevations = np.full((n_pix, max_scatterers), np.nan)
     amplitudes = np.full((n_pix, max_scatterers), np.nan, complex)
