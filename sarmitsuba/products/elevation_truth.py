@@ -35,7 +35,7 @@ __all__ = ["MAX_CROSSINGS", "iso_range_heights", "nearest_truth"]
 #: Crossings kept per pixel (the lowest, when a pixel has more).
 MAX_CROSSINGS = 4
 #: Two neighbouring hits belong to one surface when closer than this many ray spacings (on the ground).
-_JUMP = 12.0
+_JUMP = 6.0
 #: Rays in flight per batch.
 _BATCH_RAYS = 2_000_000
 
@@ -53,7 +53,7 @@ def _cast(scene: Any, origins: np.ndarray, directions: np.ndarray) -> tuple[np.n
 
 
 def iso_range_heights(loaded: Any, image: SarImage, rows: np.ndarray | None = None, *,
-                      max_crossings: int = MAX_CROSSINGS, oversample: int = 8) -> np.ndarray:
+                      max_crossings: int = MAX_CROSSINGS, oversample: int = 4) -> np.ndarray:
     """Heights above the grid plane where each pixel's iso-range circle meets visible geometry.
 
     Parameters
@@ -101,6 +101,11 @@ def iso_range_heights(loaded: Any, image: SarImage, rows: np.ndarray | None = No
     return out
 
 
+def _length(v: np.ndarray) -> np.ndarray:
+    """``|v|`` over the last axis (float64)."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
 def _aims(image: SarImage, mid: np.ndarray, t: np.ndarray, top: float, oversample: int, row: int) -> np.ndarray:
     """Ground points [M, 3] (world, at azimuth 0) a row's fan aims at: the range axis, extended
     beyond its far edge by as far as ``top`` lays over, ``oversample`` per pixel spacing."""
@@ -123,7 +128,7 @@ def _rows(loaded: Any, image: SarImage, rows: np.ndarray, mid: np.ndarray, t: np
     aims = base[None] + along                                                  # [R, M, 3]
     antennas = mid + (((aims[:, :1] - mid) @ t)[..., None] * t)                # [R, 1, 3] zero Doppler
     directions = aims - antennas
-    directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
+    directions /= _length(directions)[..., None]
     lift = (top - antennas[..., 2]) / directions[..., 2]                       # start just above the scene
     origins = antennas + lift[..., None] * directions
     distance, shape = _cast(loaded.scene, (origins - offset).reshape(-1, 3), directions.reshape(-1, 3))
@@ -131,15 +136,13 @@ def _rows(loaded: Any, image: SarImage, rows: np.ndarray, mid: np.ndarray, t: np
     valid = np.isfinite(distance)
     hits = origins + np.where(valid, distance, 0.0)[..., None] * directions    # a miss: its origin (not used)
     z0 = float(image.origin[2])
-    with np.errstate(invalid="ignore"):
-        slant = np.linalg.norm(hits - antennas, axis=-1)
-        height = hits[..., 2] - z0
+    slant = _length(hits - antennas)
+    height = hits[..., 2] - z0
     pixels = image.origin + along + image.range[None, :, None] * image.range_direction
-    pixel_range = np.linalg.norm(pixels - antennas, axis=-1)                   # [R, n_rg]
+    pixel_range = _length(pixels - antennas)                                   # [R, n_rg]
     spacing = abs(float(image.range[1] - image.range[0])) / oversample
-    with np.errstate(invalid="ignore"):
-        joined = (valid[:, :-1] & valid[:, 1:] & (shape[:, :-1] == shape[:, 1:])
-                  & (np.linalg.norm(hits[:, 1:] - hits[:, :-1], axis=-1) < _JUMP * spacing))
+    joined = (valid[:, :-1] & valid[:, 1:] & (shape[:, :-1] == shape[:, 1:])
+              & (_length(hits[:, 1:] - hits[:, :-1]) < _JUMP * spacing))
     out = np.full((rows.size, image.range.size, max_crossings), np.nan)
     for i in range(rows.size):
         out[i] = _crossings(slant[i], height[i], joined[i], pixel_range[i], max_crossings)

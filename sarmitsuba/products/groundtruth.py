@@ -62,7 +62,7 @@ from ..core.outputs import atomic_savez
 from ..core.geometry import acquisition_geometry
 
 __all__ = ["GroundTruth", "ground_truth", "layover_mask", "shadow_mask", "footprint_mask",
-           "double_bounce_mask", "facade_foot_points", "agreement"]
+           "double_bounce_mask", "facade_foot_points", "agreement", "intersect"]
 
 #: Default height above the image plane ``z0`` [m] above which a surface counts as elevated.
 HEIGHT_THRESHOLD = 0.1
@@ -177,10 +177,27 @@ def _rays(origins: np.ndarray, directions: np.ndarray, maxt: np.ndarray | None) 
     return ray if maxt is None else mi.Ray3f(ray, mi.Float(maxt.astype(np.float32)))
 
 
-def _intersect(scene: Any, origins: np.ndarray, directions: np.ndarray, maxt: np.ndarray | None = None,
-               normals: bool = True) -> dict[str, np.ndarray]:
-    """Closest hits: ``t`` float64 [n] (inf = miss), ``shape`` uint32 [n] (a per-shape id, 0 =
-    miss) and, with ``normals``, ``n`` float64 [n, 3] (geometric normal)."""
+def intersect(scene: Any, origins: np.ndarray, directions: np.ndarray, maxt: np.ndarray | None = None,
+              normals: bool = True) -> dict[str, np.ndarray]:
+    """Closest hits of a batch of rays (one Mitsuba ``ray_intersect``, cast in float32).
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+        The scene, in the frame the rays are given in (a loaded scene's local frame).
+    origins, directions : float [n, 3], m and unit vectors
+        Ray origins and directions (cast to float32).
+    maxt : float [n], m, optional
+        Farthest distance along each ray (default unbounded).
+    normals : bool, default True
+        Also return the geometric normals.
+
+    Returns
+    -------
+    dict
+        ``t`` float64 [n], m (inf on a miss); ``shape`` uint32 [n], a per-shape id (0 on a
+        miss); with ``normals``, ``n`` float64 [n, 3], the geometric normal at the hit.
+    """
     import drjit as dr
     import mitsuba as mi
     si = scene.ray_intersect(_rays(origins, directions, maxt), ray_flags=mi.RayFlags.Minimal, coherent=False)
@@ -406,8 +423,8 @@ def _footprint(frame: _Frame, threshold: float) -> np.ndarray:
         ground = frame.pixels(rows).reshape(-1, 3)
         start = ground.copy()
         start[:, 2] = frame.top
-        hit = _intersect(frame.scene, start, np.broadcast_to(down, start.shape),
-                         np.full(len(start), frame.top - frame.z0 + 1.0), normals=False)
+        hit = intersect(frame.scene, start, np.broadcast_to(down, start.shape),
+                        np.full(len(start), frame.top - frame.z0 + 1.0), normals=False)
         height = frame.top - hit["t"] - frame.z0          # -inf for misses
         out[rows] = (height > threshold).reshape(len(rows), n_rg)
     return out
@@ -445,8 +462,8 @@ def _double_bounce(frame: _Frame, threshold: float, footprint: np.ndarray | None
         start = frame.pixels(rows)
         start[..., 2] += 0.5 * threshold
         start = start.reshape(-1, 3)
-        hit = _intersect(frame.scene, start, np.broadcast_to(ahead, start.shape),
-                         np.full(len(start), frame.spacing))
+        hit = intersect(frame.scene, start, np.broadcast_to(ahead, start.shape),
+                        np.full(len(start), frame.spacing))
         ok = (np.isfinite(hit["t"]) & lit[rows].ravel() & (np.abs(hit["n"][:, 2]) < 0.7)
               & (hit["n"] @ ahead < -0.05))
         foot = start[ok] + hit["t"][ok, None] * ahead
@@ -492,8 +509,8 @@ def _layover(frame: _Frame, threshold: float, oversample: int) -> np.ndarray:
     for rows in _row_batches(n_az, n_rays):
         antenna = frame.row_antennas(rows)
         origins = (antenna[:, None, :] + t_start[None, :, None] * dirs[None, :, :]).reshape(-1, 3)
-        hit = _intersect(frame.scene, origins, np.broadcast_to(dirs[None], (len(rows), n_rays, 3)).reshape(-1, 3),
-                         normals=False)
+        hit = intersect(frame.scene, origins, np.broadcast_to(dirs[None], (len(rows), n_rays, 3)).reshape(-1, 3),
+                        normals=False)
         slant = (t_start[None, :] + hit["t"].reshape(len(rows), n_rays))            # |A - P|, m (float64)
         z = antenna[:, None, 2] - slant * np.sin(psi)[None, :]
         elevated = np.isfinite(slant) & (z - frame.z0 > threshold)
