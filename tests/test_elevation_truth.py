@@ -90,6 +90,31 @@ def test_crossings_are_the_closed_forms(incidence, shift, lift):
     assert _crossings(heights, image, 12.0 + 1.2 * layover) == pytest.approx([0.0], abs=0.01)    # before the layover
 
 
+@pytest.mark.parametrize("incidence", [35.0, 55.0])
+def test_overlapping_faces_are_one_surface(incidence):
+    """A membrane over the roof, triangulated otherwise, in its plane: the rays hit roof and
+    membrane by turns (as the built-in urban scene's rooftop boxes on their roofs), so neither
+    shape is one surface. Each layover pixel still has the ground, the wall and the roof once: the
+    fragments' hits, single ones included, give the roof in the cell they image into, and equal
+    heights of one pixel are one scatterer."""
+    block = trimesh.creation.box((20.0, 20.0, BLOCK))
+    block.apply_translation((0.0, 0.0, BLOCK / 2))
+    ground = trimesh.Trimesh(np.array([[-45, -45, 0], [45, -45, 0], [45, 45, 0], [-45, 45, 0]], float),
+                             [[0, 1, 2], [0, 2, 3]])
+    membrane = trimesh.Trimesh(np.array([[-10, -10, BLOCK], [10, -10, BLOCK], [10, 10, BLOCK], [-10, 10, BLOCK]]),
+                               [[0, 1, 3], [1, 2, 3]]).subdivide().subdivide()
+    scene = sarmitsuba.Scene(meshes=[(block, "concrete", "block"), (ground, "concrete", "ground"),
+                                     (membrane, "concrete", "membrane")],
+                             sensor={"incidence_angle": incidence, "n_pulses": 16, "altitude": ALTITUDE})
+    image = _image()
+    heights = iso_range_heights(load_scene(scene), image, max_crossings=6)
+    layover = BLOCK / math.tan(math.radians(incidence))
+    for y in -image.range[(-image.range > 11.0) & (-image.range < 10.0 + 0.9 * layover)]:
+        assert _crossings(heights, image, y) == pytest.approx([0.0, _wall(incidence, y), BLOCK], abs=0.01), y
+    for y in -image.range[(-image.range > -9.0 + layover) & (-image.range < 9.5)]:
+        assert _crossings(heights, image, y) == pytest.approx([BLOCK], abs=0.01), y
+
+
 def test_each_row_has_its_own_circles_and_a_subset_is_the_same_rows(monkeypatch):
     """Each row's circles are about its own zero-Doppler antenna: rows across the block agree to a
     millimetre (a fan squinted from another row's antenna would not), a row 15 m along the track,

@@ -270,7 +270,7 @@ def _crossings(fan: _Fan, rg: np.ndarray, slant: np.ndarray, shape: np.ndarray, 
     link = link.ravel()                                  # (each row ends unlinked)
     s, height = s.ravel(), (fan.height - s * fan.down).ravel()
     hit, column, h = _segment_crossings(fan.pixel_range, s, height, link)
-    extreme_hit, extreme_column, extreme_h = _extremes(fan, rg, s, height, link)
+    extreme_hit, extreme_column, extreme_h = _extremes(fan, rg, s, height, link, valid.ravel())
     pix = (np.r_[hit, extreme_hit] // n_rays) * rg.size + np.r_[column, extreme_column]
     return _table(pix, np.r_[h, extreme_h], n_rows, rg.size, count, fan.spacing)
 
@@ -301,12 +301,16 @@ def _segment_crossings(pixel_range: np.ndarray, s: np.ndarray, height: np.ndarra
     return a, column, height[a] + frac * (height[b] - height[a])
 
 
-def _extremes(fan: _Fan, rg: np.ndarray, s: np.ndarray, height: np.ndarray,
-              link: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _extremes(fan: _Fan, rg: np.ndarray, s: np.ndarray, height: np.ndarray, link: np.ndarray,
+              valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each surface's nearest and farthest hit, for the column whose cell shows it when the
-    surface's ranges do not reach that column's: (hit [n], column [n], height [n] m)."""
+    surface's ranges do not reach that column's: (hit [n], column [n], height [n] m). A hit
+    linked to neither neighbour is a surface of its own (a small object, a fragment of faces
+    that overlap)."""
     before = np.r_[False, link[:-1]]
-    begin, end = np.flatnonzero(link & ~before), np.flatnonzero(~link & before)     # a surface's hits
+    alone = valid & ~link & ~before
+    begin = np.flatnonzero((link & ~before) | alone)     # a surface's hits: begin..end
+    end = np.flatnonzero((~link & before) | alone)
     if begin.size == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
     n = end - begin + 1
