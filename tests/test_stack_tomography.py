@@ -291,3 +291,16 @@ def test_bad_stacks_end_with_one_message_and_code_2(stack, tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("error:") == 1 and expected in err and "Traceback" not in err, err
     assert not (tmp_path / "c" / "pass-00").exists()
+
+
+def test_an_interval_longer_than_the_ambiguity_is_refused_and_baselines_refer_to_the_reference(stack):
+    from sarmitsuba.analysis.tomography import TomographyError
+    _, summary, st = stack
+    amb = WAVELENGTH * R / (2 * D_B)
+    q = _pixel(st.images[st.reference], ALONE)
+    region = (slice(q[0], q[0] + 1), slice(q[1], q[1] + 1))
+    with pytest.raises(TomographyError, match="alias"):
+        focus_elevation(st.images, st.raws, (-2.0, 1.05 * amb - 2.0), reference=st.reference, region=region)
+    result = focus_elevation(st.images, st.raws, (-2.0, 0.9 * amb - 2.0), reference=st.reference, region=region)
+    expected = summary.plan.baselines.perpendicular - summary.plan.baselines.perpendicular[st.reference]
+    assert result.perpendicular == pytest.approx(expected, abs=1e-4)
