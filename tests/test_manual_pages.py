@@ -25,8 +25,8 @@ MAKE_LINES = FRESH_CLONE | {"make setup", "make docs", "make docs-browser", "mak
 #: The pages whose blocks run, in this order in one folder (a later page may focus what an earlier
 #: one rendered): getting started, then the user guide.
 MANUAL_PAGES = ["getting-started.md"] + [f"guide/{name}.md" for name in (
-    "scenes", "sensor", "rendering", "focusing", "polarimetry", "interferometry", "formats", "gradients", "dask",
-    "gpu", "choosing-settings", "limits")]
+    "scenes", "sensor", "rendering", "focusing", "polarimetry", "interferometry", "tomography", "formats", "gradients",
+    "dask", "gpu", "choosing-settings", "limits")]
 #: A command line's start: a sarmitsuba command through the checkout's venv or an activated one, or dask.
 KNOWN = re.compile(rf"([A-Z_]+=\S+ )*(({re.escape(PYTHON)}|python) -m sarmitsuba|({re.escape(DASK)}|dask)) ")
 #: The Python block of a page that :func:`test_inverse_example_converges` runs (by a line it holds).
