@@ -74,6 +74,13 @@ def stack(tmp_path_factory):
     return folder, summary, read_stack([folder])
 
 
+def _two_way(points: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Twice the distance [m] of points [..., 3] to the nominal track line (along x, at y =
+    GROUND_RANGE, z = ALTITUDE) shifted by ``offset``: a straight track's closest-approach two-way length."""
+    p = np.asarray(points, np.float64)
+    return 2 * np.hypot(p[..., 1] - GROUND_RANGE - offset[1], p[..., 2] - ALTITUDE - offset[2])
+
+
 def _pixel(image: SarImage, point: np.ndarray) -> tuple[int, int]:
     row, col = image.pixel_of(point)
     return int(round(row)), int(round(col))
@@ -109,12 +116,8 @@ def test_the_phase_of_a_point_at_known_height_on_every_pass(stack):
     x = image.positions()[q]
     k = 2 * math.pi / WAVELENGTH
 
-    def two_way(point, offset):
-        foot = np.array([point[0], GROUND_RANGE, ALTITUDE]) + offset
-        return 2 * math.hypot(point[1] - foot[1], point[2] - foot[2])
-
-    expected = np.array([-k * ((two_way(ALONE, o) - two_way(x, o)) - (two_way(ALONE, offsets[ref])
-                                                                      - two_way(x, offsets[ref]))) for o in offsets])
+    expected = np.array([-k * ((_two_way(ALONE, o) - _two_way(x, o)) - (_two_way(ALONE, offsets[ref])
+                                                                        - _two_way(x, offsets[ref]))) for o in offsets])
     observed = np.array([np.angle(im.data[q] * np.conj(image.data[q])) for im in st.images])
     error = np.angle(np.exp(1j * (observed - expected)))
     assert np.ptp(expected) > 2 * math.pi                # the check spans more than a cycle
@@ -207,12 +210,8 @@ def test_an_independent_two_point_fit_agrees_with_the_sparse_inversion(stack):
     points = np.stack([np.full(grid.size, x[0]), centre[1] + radius * np.cos(angle),
                        centre[2] + radius * np.sin(angle)], axis=1)
 
-    def length(p, o):
-        foot = np.array([x[0], GROUND_RANGE, ALTITUDE]) + o
-        return 2 * np.hypot(p[..., 1] - foot[1], p[..., 2] - foot[2])
-
-    steer = np.stack([np.exp(-1j * k * ((length(points, o) - length(x, o))
-                                        - (length(points, offsets[ref]) - length(x, offsets[ref])))) for o in offsets])
+    steer = np.stack([np.exp(-1j * k * ((_two_way(points, o) - _two_way(x, o))
+                                        - (_two_way(points, offsets[ref]) - _two_way(x, offsets[ref])))) for o in offsets])
     best = (np.inf, None)
     for i in range(grid.size):
         for j in range(i + 10, grid.size):

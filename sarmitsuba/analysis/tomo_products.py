@@ -18,6 +18,7 @@ cloud, its truth and the figures (docs/physics.md (TS1)-(TS6); the guide's tomog
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -165,7 +166,7 @@ def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike
         sc["truth_height"] = nearest_truth(stack.truth[sc["row"], sc["col"]].astype(np.float64), sc["height"])
     else:
         sc["truth_height"] = np.full(sc["row"].size, np.nan)
-    result = TomographyResult(**{**result.__dict__, "scatterers": sc})
+    result = dataclasses.replace(result, scatterers=sc)
     n_az = stack.images[0].data.shape[0]
     row = _tomogram_row(result, n_az, tomogram_row)
     error = np.abs(sc["height"] - sc["truth_height"])
