@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 
 import sarmitsuba as sm
-from sarmitsuba.analysis.tomo_products import read_stack
-from sarmitsuba.analysis.tomo_sparse import sl1mmer
-from sarmitsuba.analysis.tomo_stack import focus_elevation
-from sarmitsuba.analysis.tomography import PhaseModel, beamforming, detect_peaks
+from sarmitsuba.stacks.tomo_products import read_stack
+from sarmitsuba.stacks.tomo_sparse import sl1mmer
+from sarmitsuba.stacks.tomo_stack import focus_elevation
+from sarmitsuba.stacks.tomography import PhaseModel, beamforming, detect_peaks
 from sarmitsuba.pipeline import render
 from sarmitsuba.products.elevation_truth import nearest_truth
 from sarmitsuba.scene.baseline import stack_baselines

@@ -367,8 +367,8 @@ def _preview(args: argparse.Namespace) -> int:
 
 def _interferogram(args: argparse.Namespace) -> int:
     """Interferogram, coherence, height and figure of two render directories."""
-    from .analysis.insar_products import write_products
-    from .analysis.interferometry import InterferometryError
+    from .stacks.insar_products import write_products
+    from .stacks.interferometry import InterferometryError
     try:
         products = write_products(args.out, args.primary, args.secondary, looks=args.looks,
                                   progress=not args.no_progress)

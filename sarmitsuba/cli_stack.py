@@ -3,7 +3,7 @@ elevation) and the stack lines of ``info``.
 
 ``python -m sarmitsuba stack SCENE --span 12 --passes 10 --out DIR`` renders the passes
 (:func:`sarmitsuba.stack.render_stack`); ``python -m sarmitsuba tomography DIR --out DIR2``
-writes the products of :func:`sarmitsuba.analysis.tomo_products.write_products`. Bad input ends
+writes the products of :func:`sarmitsuba.stacks.tomo_products.write_products`. Bad input ends
 with one ``error:`` line and exit code 2.
 """
 from __future__ import annotations
@@ -93,8 +93,8 @@ def run_stack(args: argparse.Namespace, sensor: dict, integrator: dict) -> int:
 
 def run_tomography(args: argparse.Namespace) -> int:
     """``tomography``: the products of a stack."""
-    from .analysis.tomo_products import write_products
-    from .analysis.tomography import TomographyError
+    from .stacks.tomo_products import write_products
+    from .stacks.tomography import TomographyError
     try:
         products = write_products(args.out, args.stack, progress=not args.no_progress, method=args.method,
                                   calibration_point=args.reference_point, region=(args.rows, args.cols),

@@ -543,7 +543,7 @@ def _write_products(out: OutputDirectory, raw: RawData, image: SarImage, params,
 def _write_along_track(out: OutputDirectory, sim: Simulation) -> dict:
     """``ati.npz`` (the interferogram ``I_fore I_aft*``), ``dpca.npz`` (``I_fore - I_aft``) and
     ``ati.png``, on the fore image's grid (docs/physics.md (V6), (V7))."""
-    from .analysis.along_track import ati_interferogram, dpca_image
+    from .stacks.along_track import ati_interferogram, dpca_image
     from .products.figures_ati import write_ati_figure
     meta = {**sim.image.metadata, "ati_baseline": sim.loaded.params.ati_baseline}
     ati, dpca = ati_interferogram(sim.image, sim.aft.image), dpca_image(sim.image, sim.aft.image)

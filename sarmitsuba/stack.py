@@ -28,7 +28,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .analysis.tomo_products import STACK_FILE, TRUTH_FILE, pass_folder
+from .stacks.tomo_products import STACK_FILE, TRUTH_FILE, pass_folder
 from .core.outputs import OutputDirectory, atomic_savez, json_default
 from .core.radar import ParameterError
 from .scene.baseline import StackBaselines, stack_baselines

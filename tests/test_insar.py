@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401
-from sarmitsuba.analysis import interferometry as ifm
+from sarmitsuba.stacks import interferometry as ifm
 from sarmitsuba.scene.baseline import baseline
 from sarmitsuba.pipeline import simulate
 from sarmitsuba.scene.loader import load_scene

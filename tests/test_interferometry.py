@@ -1,4 +1,4 @@
-"""Repeat-pass interferometry (sarmitsuba.analysis.interferometry, ``interferogram`` CLI) against closed forms.
+"""Repeat-pass interferometry (sarmitsuba.stacks.interferometry, ``interferogram`` CLI) against closed forms.
 
 Synthetic ground grids and straight tracks, no tracer: a primary track at slant range ``R`` and
 incidence ``theta`` from the scene centre, flying +y with the scene at +x (right-looking), and a
@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pytest
 
-from sarmitsuba.analysis import interferometry as ifm
+from sarmitsuba.stacks import interferometry as ifm
 from sarmitsuba.core.constants import SPEED_OF_LIGHT
 from sarmitsuba.core.image import SarImage
 from sarmitsuba.core.raw import RawData

@@ -150,7 +150,7 @@ def test_along_track_interferometry_phase_and_dpca_of_a_moving_trihedral(tmp_pat
     (caught: its ``4 pi`` as ``2 pi``, twice the speed), and the DPCA image ``I_fore - I_aft`` keeps ``2 |sin(phi / 2)|`` of the fore
     channel's amplitude (-5.7 and +3.0 dB) within 1 dB. The aft channel placed ahead instead of
     behind flips the phase's sign."""
-    from sarmitsuba.analysis.along_track import ati_interferogram, ati_phase, dpca_image, radial_velocity
+    from sarmitsuba.stacks.along_track import ati_interferogram, ati_phase, dpca_image, radial_velocity
     d = 2.0
     shift = -R0 * v_r / SENSOR["velocity"]
     sim = simulate(str(moving_trihedral(tmp_path, v_r * LOOK)), sensor_overrides={**SENSOR, "ati_baseline": d},
@@ -169,7 +169,7 @@ def test_displaced_phase_centres_cancel_the_still_clutter_of_urban():
     """urban with ``ati_baseline = 2`` m: the DPCA image holds at least 20 dB less energy than the
     fore image (measured 35.6 dB), and the interferogram's phase is near zero where the image is
     bright (its still buildings, wall and ground)."""
-    from sarmitsuba.analysis.along_track import ati_interferogram, dpca_image
+    from sarmitsuba.stacks.along_track import ati_interferogram, dpca_image
     sim = simulate("urban", sensor_overrides={"ati_baseline": 2.0})
     fore = np.sum(np.abs(sim.image.data) ** 2)
     assert 10 * np.log10(np.sum(np.abs(dpca_image(sim.image, sim.aft.image)) ** 2) / fore) < -20.0
@@ -259,8 +259,8 @@ def test_ati_products_refuse_images_on_different_grids():
     of two images whose grids differ by a metre: refused, naming the grid (a pixel-by-pixel
     product of different places would look like motion)."""
     import dataclasses
-    from sarmitsuba.analysis.along_track import ati_interferogram, dpca_image
-    from sarmitsuba.analysis.interferometry import InterferometryError
+    from sarmitsuba.stacks.along_track import ati_interferogram, dpca_image
+    from sarmitsuba.stacks.interferometry import InterferometryError
     image = simulate("trihedral", sensor_overrides={"n_pulses": 16}, image_size=(16, 16)).image
     moved = dataclasses.replace(image, origin=image.origin + np.array([1.0, 0.0, 0.0]))
     late = dataclasses.replace(image, data=(image.data * np.exp(-0.7j)).astype(np.complex64))   # 0.7 rad behind

@@ -23,8 +23,8 @@ import pytest
 import trimesh
 
 import sarmitsuba
-from sarmitsuba.analysis.tomo_stack import focus_elevation
-from sarmitsuba.analysis.tomo_products import read_stack
+from sarmitsuba.stacks.tomo_stack import focus_elevation
+from sarmitsuba.stacks.tomo_products import read_stack
 from sarmitsuba.cli import main
 from sarmitsuba.core.image import SarImage
 from sarmitsuba.scene import canonical
@@ -293,7 +293,7 @@ def test_bad_stacks_end_with_one_message_and_code_2(stack, tmp_path, capsys):
 
 
 def test_an_interval_longer_than_the_ambiguity_is_refused_and_baselines_refer_to_the_reference(stack):
-    from sarmitsuba.analysis.tomography import TomographyError
+    from sarmitsuba.stacks.tomography import TomographyError
     _, summary, st = stack
     amb = WAVELENGTH * R / (2 * D_B)
     q = _pixel(st.images[st.reference], ALONE)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import sarmitsuba  # noqa: F401  (libLLVM, variant)
-from sarmitsuba.analysis.tomography import beamforming, capon, detect_peaks, elevation_psf
+from sarmitsuba.stacks.tomography import beamforming, capon, detect_peaks, elevation_psf
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.scene.baseline import baseline, perpendicular_direction, stack_baselines
 from sarmitsuba.scene.loader import load_scene
@@ -129,8 +129,8 @@ def test_detect_peaks_refines_between_samples_and_keeps_the_strongest():
 def test_sl1mmer_keeps_one_scatterer_for_one_scatterer_in_noise():
     """The information criterion's penalty: a lone scatterer at -10 dB SNR, 20 noise draws. With
     it, order 1 in 17 of 20 cells; without it (every candidate kept) 7 of 20."""
-    from sarmitsuba.analysis.tomo_sparse import sl1mmer
-    from sarmitsuba.analysis.tomography import PhaseModel
+    from sarmitsuba.stacks.tomo_sparse import sl1mmer
+    from sarmitsuba.stacks.tomography import PhaseModel
     n, lam, r, cells = 12, 0.031, 1200.0, 20
     b = np.linspace(-6, 6, n)
     slope = 4 * math.pi * b / (lam * r)
@@ -152,7 +152,7 @@ def test_the_phase_model_holds_the_wavefront_curvature(loaded):
     import types
     from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.core.image import SarImage
-    from sarmitsuba.analysis.tomography import elevation_points, phase_model
+    from sarmitsuba.stacks.tomography import elevation_points, phase_model
     p = loaded.params
     plan = stack_baselines(p, span=20.0, count=5)
     raws = []

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import sarmitsuba
-from sarmitsuba.analysis import interferometry as insar
+from sarmitsuba.stacks import interferometry as insar
 from sarmitsuba.products.plotting import edges, label_image_axes, reference_intensity
 
 primary = sarmitsuba.simulate("urban")

@@ -25,8 +25,8 @@ import numpy as np
 import trimesh
 
 import sarmitsuba
-from sarmitsuba.analysis.tomo_products import read_stack
-from sarmitsuba.analysis.tomo_stack import focus_elevation
+from sarmitsuba.stacks.tomo_products import read_stack
+from sarmitsuba.stacks.tomo_stack import focus_elevation
 from sarmitsuba.scene.loader import load_scene
 from sarmitsuba.stack import plan_stack, render_stack
 

@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import sarmitsuba
-from sarmitsuba.analysis import along_track
+from sarmitsuba.stacks import along_track
 from sarmitsuba.products.plotting import (RELATIVE_DB, colorbar, decibels, multilook, reference_intensity,
                                           show_db_image)
 

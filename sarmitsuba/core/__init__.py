@@ -1,7 +1,7 @@
 """The foundation every stage stands on: constants, array checks, all-or-nothing files, and the contracts.
 
 Stage: 0, before the pipeline (core -> scene -> tracing -> signal -> focus -> products ->
-formats -> analysis). Every stage may import it; it imports no stage.
+formats -> stacks -> analysis). Every stage may import it; it imports no stage.
 
 Takes: nothing from the other stages.
 

@@ -21,7 +21,7 @@ import warnings
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["MOVED_MODULES", "TRACING", "MovedModuleFinder", "install", "former_module_attributes"]
+__all__ = ["MOVED_MODULES", "TRACING", "STACKS", "MovedModuleFinder", "install", "former_module_attributes"]
 
 PACKAGE = __name__.split(".")[0]
 
@@ -41,6 +41,10 @@ TRACING: dict[str, str] = {
         ("driver", ("trace", "mesh_trace", "kernel", "launches", "stages", "threads", "distributed")))
     for m in modules}
 
+#: The multi-pass modules that analysis once held -> their module in the stacks stage.
+STACKS: dict[str, str] = {f"analysis.{m}": f"stacks.{m}" for m in (
+    "interferometry", "insar_products", "along_track", "tomography", "tomo_sparse", "tomo_stack", "tomo_products")}
+
 #: Former top-level modules -> their module in the stage packages.
 MOVED_MODULES: dict[str, str] = {
     **{m: f"core.{m}" for m in ("constants", "arrays", "outputs", "georef", "radar", "raw", "image")},
@@ -56,8 +60,9 @@ MOVED_MODULES: dict[str, str] = {
     **{m: f"products.{m}" for m in ("figures", "figures_point", "figures_pol", "figures_raw", "plotting", "preview",
                                     "groundtruth")},
     **{m: f"formats.{m}" for m in ("cphd", "sicd", "geotiff")},
-    **{m: f"analysis.{m}" for m in ("impulse_model", "synthetic", "reference_cases", "cut_metrics", "interferometry",
-                                    "cost")},
+    **{m: f"analysis.{m}" for m in ("impulse_model", "synthetic", "reference_cases", "cut_metrics", "cost")},
+    "interferometry": "stacks.interferometry",
+    **STACKS,
 }
 
 

@@ -1,6 +1,6 @@
 """Stage 4, focusing: range-compressed :class:`~sarmitsuba.core.raw.RawData` to a :class:`~sarmitsuba.core.image.SarImage`.
 
-Stage: 4 (core -> scene -> tracing -> signal -> **focus** -> products -> formats -> analysis).
+Stage: 4 (core -> scene -> tracing -> signal -> **focus** -> products -> formats -> stacks -> analysis).
 
 Takes: ``RawData`` from :mod:`sarmitsuba.signal` (or any file honouring the contract,
 docs/design.md section 3), and optionally the scene for its ground grid (:mod:`.scene_grid`).

@@ -1,6 +1,6 @@
 """Stage 6, standard formats: raw data and images in the files other SAR tools read.
 
-Stage: 6 (core -> scene -> tracing -> signal -> focus -> products -> **formats** -> analysis).
+Stage: 6 (core -> scene -> tracing -> signal -> focus -> products -> **formats** -> stacks -> analysis).
 
 Takes: ``RawData`` and ``SarImage`` with their ``RadarParameters`` and ``GeoReference``.
 

@@ -1,6 +1,6 @@
 """Stage 5, products: the image files and figures a render writes, and the scene's ground truth.
 
-Stage: 5 (core -> scene -> tracing -> signal -> focus -> **products** -> formats -> analysis).
+Stage: 5 (core -> scene -> tracing -> signal -> focus -> **products** -> formats -> stacks -> analysis).
 
 Takes: a ``SarImage`` (and ``RawData`` for the raw figure) from the earlier stages, or the
 saved ``raw.npz``/``image.npz``; the scene for ground truth and preview.

@@ -32,7 +32,7 @@ def write_ati_figure(fore: SarImage, interferogram: np.ndarray, dpca: np.ndarray
     """Write the three-panel PNG (fore intensity, ATI phase, DPCA intensity) to ``path``.
 
     ``interferogram`` and ``dpca`` are complex [n_az, n_rg] on ``fore``'s grid
-    (:func:`sarmitsuba.analysis.along_track.ati_interferogram`, :func:`~sarmitsuba.analysis.along_track.dpca_image`).
+    (:func:`sarmitsuba.stacks.along_track.ati_interferogram`, :func:`~sarmitsuba.stacks.along_track.dpca_image`).
     Returns the path. Raises OSError when it cannot be written."""
     looks = display_looks(fore.data.shape, max_pixels)
     power = multilook(fore.data, looks)

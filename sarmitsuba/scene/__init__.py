@@ -1,6 +1,6 @@
 """Stage 1, the scene: what is there and how it is looked at, checked and planned before any tracing.
 
-Stage: 1 (core -> **scene** -> tracing -> signal -> focus -> products -> formats -> analysis).
+Stage: 1 (core -> **scene** -> tracing -> signal -> focus -> products -> formats -> stacks -> analysis).
 
 Takes: a Mitsuba XML file (or a folder holding ``scene.xml``), a built-in name (``urban``,
 ``dihedral``, ``trihedral``), ``sionna:NAME`` or a :class:`~.builder.Scene` built in Python;

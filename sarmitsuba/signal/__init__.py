@@ -1,6 +1,6 @@
 """Stage 3, the signal: the tracer's returns become raw data, with the receiver and radiometry.
 
-Stage: 3 (core -> scene -> tracing -> **signal** -> focus -> products -> formats -> analysis).
+Stage: 3 (core -> scene -> tracing -> **signal** -> focus -> products -> formats -> stacks -> analysis).
 
 Takes: a ``TraceResult`` from :mod:`sarmitsuba.tracing` and the scene's ``RadarParameters``.
 

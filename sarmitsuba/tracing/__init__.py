@@ -1,6 +1,6 @@
 """Stage 2, tracing: scattering anchored to the mesh, every pulse's return.
 
-Stage: 2 (core -> scene -> **tracing** -> signal -> focus -> products -> formats -> analysis).
+Stage: 2 (core -> scene -> **tracing** -> signal -> focus -> products -> formats -> stacks -> analysis).
 
 Takes: a loaded scene and its plan from :mod:`sarmitsuba.scene` (``RadarParameters``,
 ``TraceSettings``, ``FastTimeWindow``, ``RayFootprint``, ``MaterialTable``, ``EffectSet``).

@@ -25,7 +25,7 @@ flat-earth fringe rate in ground range is ``d phi / d y = 4 pi B_perp cos(theta)
 No coregistration beyond the common grid: an elevated point lays over to pixels about
 ``h B_perp / (R sin^2 theta)`` apart in the two passes, negligible well below the critical baseline.
 
-The product files and figure of a pair of render directories: :mod:`sarmitsuba.analysis.insar_products`.
+The product files and figure of a pair of render directories: :mod:`sarmitsuba.stacks.insar_products`.
 
 Sources: R. Bamler and P. Hartl, "Synthetic aperture radar interferometry", Inverse Problems 14
 (1998) R1-R54 (flat-earth phase, eqs. 12-16; coherence, section 4); H. A. Zebker and
@@ -56,7 +56,7 @@ GRID_TOLERANCE_M = 1e-6
 #: Pixels whose height of ambiguity ``2 pi / |k_z|`` exceeds this [m] get no height (NaN): the
 #: baseline gives them no height sensitivity (a zero-baseline pair).
 MAX_HEIGHT_OF_AMBIGUITY_M = 1e5
-#: Files :func:`~sarmitsuba.analysis.insar_products.write_products` writes.
+#: Files :func:`~sarmitsuba.stacks.insar_products.write_products` writes.
 PRODUCT_FILES = {"interferogram": "interferogram.npz", "coherence": "coherence.npz", "height": "height.npz",
                  "figure": "interferogram.png"}
 #: Steps of one pulse the closest-approach descent takes at most before it searches every pulse.

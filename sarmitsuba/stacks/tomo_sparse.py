@@ -2,7 +2,7 @@
 
 Zhu and Bamler's "Scale-down by L1 norm Minimization, Model selection, and Estimation
 Reconstruction" (IEEE TGRS 48(10), 2010, section III), per pixel of samples ``y`` (``N`` passes)
-and steering matrix ``A`` (:func:`sarmitsuba.analysis.tomography.steering` on an elevation grid):
+and steering matrix ``A`` (:func:`sarmitsuba.stacks.tomography.steering` on an elevation grid):
 
 1. **L1-norm minimisation** (basis pursuit denoising, their eq. 9):
    ``min_x 1/2 ||A x - y||^2 + mu ||x||_1`` with ``mu = regularization * max |A^H y|`` (the value
@@ -133,9 +133,9 @@ def sl1mmer(y: np.ndarray, model: PhaseModel, s: np.ndarray, *, regularization: 
     Parameters
     ----------
     y : complex [P, N]
-        Calibrated samples (:func:`sarmitsuba.analysis.tomography.stack_samples`).
+        Calibrated samples (:func:`sarmitsuba.stacks.tomography.stack_samples`).
     model : PhaseModel
-        Of the same ``P`` pixels (:func:`sarmitsuba.analysis.tomography.phase_model`).
+        Of the same ``P`` pixels (:func:`sarmitsuba.stacks.tomography.phase_model`).
     s : float [S], m
         Elevation grid of the L1 step, inside ``model.interval``.
     regularization : float in (0, 1)

@@ -28,7 +28,7 @@ __all__ = ["ati_interferogram", "dpca_image", "radial_velocity", "ati_phase"]
 
 def _pair(fore: SarImage, aft: SarImage) -> tuple[np.ndarray, np.ndarray]:
     """The two channels' pixels (complex128), checked to lie on one ground grid
-    (:func:`~sarmitsuba.analysis.interferometry.check_pair`)."""
+    (:func:`~sarmitsuba.stacks.interferometry.check_pair`)."""
     check_pair(fore, aft)
     return fore.data.astype(np.complex128), aft.data.astype(np.complex128)
 

@@ -1,9 +1,9 @@
 """Repeat-pass interferometry products: reading two renders, writing interferogram/coherence/height
 files and the figure. :func:`write_products` reads two render directories (:func:`read_render`),
 checks that they form a pair and writes the interferogram, coherence and height of
-:mod:`sarmitsuba.analysis.interferometry` (docs/physics.md (I1)-(I4)), where the math lives, as
+:mod:`sarmitsuba.stacks.interferometry` (docs/physics.md (I1)-(I4)), where the math lives, as
 ``.npz`` files with their grid and metadata plus a three-panel figure, all or none
-(:data:`~sarmitsuba.analysis.interferometry.PRODUCT_FILES`).
+(:data:`~sarmitsuba.stacks.interferometry.PRODUCT_FILES`).
 """
 from __future__ import annotations
 

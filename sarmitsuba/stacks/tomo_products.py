@@ -2,7 +2,7 @@
 cloud, its truth and the figures (docs/physics.md (TS1)-(TS6); the guide's tomography page).
 
 :func:`write_products` reads the passes (:func:`read_stack`), focuses them in elevation
-(:func:`sarmitsuba.analysis.tomo_stack.focus_elevation`) and writes, all or none
+(:func:`sarmitsuba.stacks.tomo_stack.focus_elevation`) and writes, all or none
 (:data:`PRODUCT_FILES`):
 
 * ``profiles.npz``: ``elevation`` float64 [S] m, ``rows``, ``cols`` int64 [P], ``profiles`` float32
@@ -144,14 +144,14 @@ def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike
     """Focus a stack in elevation and write the module's files into ``out_dir``.
 
     ``paths``: see :func:`read_stack`; ``options``: those of
-    :func:`~sarmitsuba.analysis.tomo_stack.focus_elevation` (``method``, ``region``,
+    :func:`~sarmitsuba.stacks.tomo_stack.focus_elevation` (``method``, ``region``,
     ``calibration_point``, ...); ``tomogram_row``: the azimuth row of the tomogram (default: the
     row with the most scatterers).
 
     Raises
     ------
     TomographyError
-        Bad input (:func:`read_stack`, :func:`~sarmitsuba.analysis.tomo_stack.focus_elevation`)
+        Bad input (:func:`read_stack`, :func:`~sarmitsuba.stacks.tomo_stack.focus_elevation`)
         or a ``tomogram_row`` outside the image.
     OSError
         ``out_dir`` cannot be written.

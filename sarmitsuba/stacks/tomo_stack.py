@@ -1,7 +1,7 @@
 """Tomographic focusing of a stack held in memory: profiles, scatterers and the point cloud.
 
 :func:`focus_elevation` is the Python entry point of the ``tomography`` command: it checks the
-stack (:func:`sarmitsuba.analysis.tomography.check_stack`), derives the baselines from the
+stack (:func:`sarmitsuba.stacks.tomography.check_stack`), derives the baselines from the
 passes' own tracks, calibrates (TS6), inverts every chosen pixel by beamforming (TS3), Capon (TS4)
 or SL1MMER (TS5), detects the scatterers and places them in the scene (the reference pass's
 iso-range circle, docs/physics.md (TS2)) and, when the scene has a ``geo_origin``, on the WGS84
@@ -110,7 +110,7 @@ def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: t
     Parameters
     ----------
     images, raws : sequences of SarImage and RawData, one per pass
-        On one ground grid (:func:`~sarmitsuba.analysis.tomography.check_stack`).
+        On one ground grid (:func:`~sarmitsuba.stacks.tomography.check_stack`).
     interval : (float, float), m
         Elevations to invert; its length must stay below the ambiguity ``lambda R / (2 d_b)``.
     method : {"beamforming", "capon", "sparse"}
@@ -124,10 +124,10 @@ def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: t
         Capon's covariance window.
     threshold_db, max_scatterers
         Scatterer detection in the beamforming and Capon profiles
-        (:func:`~sarmitsuba.analysis.tomography.detect_peaks`); ``max_scatterers`` is also the
+        (:func:`~sarmitsuba.stacks.tomography.detect_peaks`); ``max_scatterers`` is also the
         sparse inversion's largest model order.
     regularization : float
-        Of the sparse inversion (:func:`sarmitsuba.analysis.tomo_sparse.sl1mmer`).
+        Of the sparse inversion (:func:`sarmitsuba.stacks.tomo_sparse.sl1mmer`).
 
     Returns
     -------

@@ -20,7 +20,7 @@ The inversions, per pixel (a vector ``y`` of ``N`` passes, steering ``a(s)``, ``
 * :func:`beamforming`: ``P(s) = |a(s)^H y|^2 / N^2`` (TS3);
 * :func:`capon`: ``P(s) = 1 / (a(s)^H R^{-1} a(s))`` with ``R`` the multilooked stack covariance,
   diagonally loaded (TS4);
-* :func:`sarmitsuba.analysis.tomo_sparse.sl1mmer`: the compressive-sensing inversion of Zhu and
+* :func:`sarmitsuba.stacks.tomo_sparse.sl1mmer`: the compressive-sensing inversion of Zhu and
   Bamler (IEEE TGRS 48(10), 2010) for few scatterers per cell (TS5).
 
 Sources: G. Fornaro, F. Serafino and F. Soldovieri, "Three-dimensional focusing with
@@ -61,7 +61,7 @@ class TomographyError(ValueError):
 
 def check_stack(images: Sequence[SarImage], raws: Sequence[Any]) -> None:
     """Refuse a stack of fewer than :data:`MIN_PASSES` passes, or passes not on one ground grid
-    with one carrier (:func:`sarmitsuba.analysis.interferometry.check_pair` of each against the
+    with one carrier (:func:`sarmitsuba.stacks.interferometry.check_pair` of each against the
     first, naming the pass).
 
     Raises
@@ -170,7 +170,7 @@ def phase_model(images: Sequence[SarImage], raws: Sequence[Any], reference: int,
     """The phase model (TS2) of pixels ``(rows[p], cols[p])``.
 
     (TS2) is evaluated exactly (closest-approach lengths of each pass,
-    :func:`sarmitsuba.analysis.interferometry.closest_approach_length`) at the pixels of a
+    :func:`sarmitsuba.stacks.interferometry.closest_approach_length`) at the pixels of a
     lattice every ``lattice`` pixels (and the last row and column), at :data:`_NODES` Chebyshev
     nodes of ``interval``; a least-squares polynomial of degree :data:`POLYNOMIAL_DEGREE` in
     ``s`` is fitted per lattice pixel and pass, and its coefficients are interpolated bilinearly
