@@ -17,7 +17,7 @@ from .signal import binning
 from .scene import planning
 from .products import image_files
 from .analysis.ambiguities import ambiguities
-from .analysis.cost import check_memory
+from .analysis.memory import check_memory
 from .focus import backproject, ffbp
 from .focus.dispatch import azimuth_pattern, backprojector
 from .focus.dispatch import focus as focus_by_name
@@ -28,6 +28,7 @@ from .core.radar import POLARIZATIONS, ParameterError
 from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
+from .formats.exports import EXPORT_FILES, check_formats, write_exports
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
 
 __all__ = ["Simulation", "simulate", "RenderSummary", "render", "refocus", "image_grid", "check_output_dir",
@@ -37,10 +38,6 @@ __all__ = ["Simulation", "simulate", "RenderSummary", "render", "refocus", "imag
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
                 "summary": "summary.json", "pauli": "pauli.png", "ati": "ati.npz", "dpca": "dpca.npz",
                 "ati_png": "ati.png"}
-#: Standard-format files of ``render(formats=...)`` and ``focus --sicd``, by format: CPHD 1.1
-#: phase history (:mod:`sarmitsuba.formats.cphd`), SICD 1.x complex image in NITF (:mod:`sarmitsuba.formats.sicd`),
-#: GeoTIFF ground-plane intensity in UTM (:mod:`sarmitsuba.formats.geotiff`).
-EXPORT_FILES = {"cphd": "raw.cphd", "sicd": "image.nitf", "geotiff": "image.tif"}
 
 
 @dataclass(frozen=True)
@@ -379,54 +376,6 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
     return summary
-
-
-#: Values of ``render``'s ``sicd_plane`` and ``sicd_weighting`` (the default first).
-SICD_CHOICES = {"sicd_plane": ("slant", "image"), "sicd_weighting": ("uniform", "image")}
-
-
-def check_formats(formats: Sequence[str], sicd_plane: str = "slant", sicd_weighting: str = "uniform",
-                  params: Any = None) -> None:
-    """Raise ParameterError naming ``formats`` unless every entry is a key of :data:`EXPORT_FILES`
-    (and not ``sicd`` where the scene's RadarParameters ``params`` have a receiver_* platform), or
-    naming ``sicd_plane`` / ``sicd_weighting`` unless it is one of its two values."""
-    unknown = [f for f in formats if f not in EXPORT_FILES]
-    if unknown:
-        raise ParameterError(f"formats = {unknown!r}: valid formats are {', '.join(EXPORT_FILES)}")
-    if "sicd" in formats and params is not None and params.receiver:
-        raise ParameterError("formats includes 'sicd' (--sicd), but a receiver_* platform makes the data bistatic "
-                             "(docs/physics.md (B1)) and a SICD describes a monostatic collection: write --cphd instead")
-    for name, value in (("sicd_plane", sicd_plane), ("sicd_weighting", sicd_weighting)):
-        if value not in SICD_CHOICES[name]:
-            raise ParameterError(f"{name} = {value!r}: valid values are {' and '.join(SICD_CHOICES[name])} (the "
-                                 "first is the default, the SICD as producers write it)")
-
-
-def write_exports(out: OutputDirectory, raw: RawData | None, image: SarImage | None, formats: Sequence[str],
-                  suffix: str = "", geotiff_north_up: bool = True, sicd_plane: str = "slant",
-                  sicd_weighting: str = "uniform") -> dict:
-    """Write the standard-format files of ``formats`` (:data:`EXPORT_FILES`) into the open output
-    directory ``out``: CPHD from ``raw``, SICD from ``image`` (with ``raw``'s geometry when given),
-    GeoTIFF from ``image`` (resampled onto a north-up UTM grid, or with ``geotiff_north_up``
-    False on the image's own grid with a rotated geotransform); the SICD on ``sicd_plane`` with
-    ``sicd_weighting`` (:func:`render`). ``suffix`` (``_HV``) goes
-    before the extension. Returns paths by format. Raises ParameterError for SICD of bistatic
-    ``raw`` (docs/physics.md (B1)), before any file is written."""
-    writers = {}
-    if "cphd" in formats:
-        from .formats.cphd import write_cphd
-        writers["cphd"] = lambda path: write_cphd(raw, path)
-    if "sicd" in formats:
-        from .formats.sicd import write_sicd
-        if raw is not None and raw.rx_time is None and not np.array_equal(raw.tx_position, raw.rx_position):
-            raise ParameterError("--sicd (formats = sicd): the data are bistatic, and the SICD writer describes a "
-                                 "monostatic collection; use --cphd (CollectType BISTATIC) or --geotiff instead")
-        writers["sicd"] = lambda path: write_sicd(image, path, raw=raw, plane=sicd_plane, weighting=sicd_weighting)
-    if "geotiff" in formats:
-        from .formats.geotiff import write_geotiff
-        writers["geotiff"] = lambda path: write_geotiff(image, path, north_up=geotiff_north_up)
-    return {f"{fmt}{suffix}": out.write(EXPORT_FILES[fmt].replace(".", f"{suffix}."), writer)
-            for fmt, writer in writers.items()}
 
 
 def _write_pauli(out: OutputDirectory, sim: Simulation) -> Path:

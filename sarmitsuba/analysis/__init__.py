@@ -17,6 +17,7 @@ process two or more images of one scene, are the stage before: :mod:`sarmitsuba.
 :mod:`.synthetic`        analytic point-target raw data: the focusers' oracle
 :mod:`.reference_cases`  the standard stripmap point-target acquisitions
 :mod:`.cost`             rays, time and memory of a render, estimated without tracing
+:mod:`.memory`           whether a render fits in memory, checked before tracing
 :mod:`.bistatic`         bistatic angle, bisector and ground-range resolution
 :mod:`.ambiguities`      azimuth and range ambiguity-to-signal ratios (AASR, RASR)
 :mod:`.orders`           each bounce order's share of a render's energy, the depth warning

@@ -11,6 +11,7 @@ section 3), and the primitives they are built from:
 =======================  ===============================================================
 :mod:`.radar`            ``RadarParameters``: the sensor and platform, every stage's input;
                          ``acquisition_geometry``: antenna positions per pulse
+:mod:`.sensor_checks`    the checks a new ``RadarParameters`` runs, the named values' choices
 :mod:`.raw`              ``RawData``: range-compressed echoes, the tracer's output and the
                          focusers' input (``raw.npz``)
 :mod:`.image`            ``SarImage``: a focused image on its grid (``image.npz``)

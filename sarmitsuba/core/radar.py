@@ -3,7 +3,8 @@
 :class:`RadarParameters` holds what the ``<sensor type="sar">`` plugin reads (docs/design.md
 section 4); :func:`sarmitsuba.core.geometry.acquisition_geometry` turns it into per-pulse antenna
 positions (float64, world frame, z up) along its trajectory (docs/physics.md (J1)-(J4)).
-The valid range of each parameter with a unit: :mod:`sarmitsuba.core.valid_ranges`.
+The valid range of each parameter with a unit: :mod:`sarmitsuba.core.valid_ranges`; the checks a
+new set of parameters runs, and the valid values of the named ones: :mod:`sarmitsuba.core.sensor_checks`.
 
 Conventions (docs/design.md section 4): the platform flies along +x rotated by ``heading``
 (degrees, counter-clockwise from +x). ``look_side="right"`` looks to the right of the
@@ -20,27 +21,14 @@ import numpy as np
 
 from . import georef
 from .constants import SPEED_OF_LIGHT
-from .receiver import check_receiver, receiver_values
-from .trajectory import MotionError, StateVectors
-from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, check_ranges, unknown_name
+from .receiver import receiver_values
+from .sensor_checks import (CHANNELS, HALF_POWER_SINC, ORBIT_DIRECTIONS, POLARIZATIONS, TRAJECTORIES, check_sensor,
+                            utc_time)
+from .trajectory import StateVectors
+from .valid_ranges import VALID_RANGES, ParameterError, ValidRange, unknown_name
 
 __all__ = ["CHANNELS", "POLARIZATIONS", "RadarParameters", "ParameterError", "HALF_POWER_SINC", "ValidRange",
            "VALID_RANGES", "utc_time", "TRAJECTORIES", "ORBIT_DIRECTIONS"]
-
-#: ``x`` where ``sinc^2(x) = 1/2`` (``sinc(x) = sin(pi x) / (pi x)``): a uniform aperture of length
-#: ``L`` has its one-way 3 dB points at ``sin(phi) = HALF_POWER_SINC lambda / L``.
-HALF_POWER_SINC = 0.44294647
-
-
-#: The channels of a quad-pol acquisition, receive then transmit letter (Lee and Pottier's
-#: ``S_rx,tx``): ``HV`` is received on H and transmitted on V (docs/physics.md (P4)).
-CHANNELS = ("HH", "HV", "VH", "VV")
-#: Valid values of the sensor parameter ``polarization``.
-POLARIZATIONS = ("VV", "HH", "HV", "VH", "quad")
-#: Named values of the sensor parameter ``trajectory`` (anything else names a CSV of state vectors).
-TRAJECTORIES = ("straight", "circular", "orbit")
-#: Valid values of the sensor parameter ``orbit_direction`` (``trajectory = "orbit"``).
-ORBIT_DIRECTIONS = ("descending", "ascending")
 
 
 @dataclass(frozen=True)
@@ -246,114 +234,8 @@ class RadarParameters:
     receiver: tuple = ()
 
     def __post_init__(self) -> None:
-        if self.sampling_rate == 0 and isinstance(self.bandwidth, (int, float)):
-            object.__setattr__(self, "sampling_rate", 1.2 * self.bandwidth)
-        check_ranges(self)                   # units and ranges first: the checks below divide by them
-        if self.collection_start is not None:
-            object.__setattr__(self, "collection_start", utc_time(self.collection_start))
-        if self.orbit_pass_time is not None:
-            from .state_vectors import utc_instant
-            object.__setattr__(self, "orbit_pass_time", utc_instant(
-                self.orbit_pass_time, "orbit_pass_time", "give the UTC time of the wanted pass's closest approach as "
-                "ISO 8601 with an offset, e.g. --set orbit_pass_time=2026-06-15T12:00:00Z").isoformat())
-        try:
-            georef.parse(self.geo_origin)
-        except georef.GeoReferenceError as exc:
-            raise ParameterError(str(exc)) from None
-        for name in ("antenna_length", "antenna_height"):
-            value = getattr(self, name)
-            if 0 < value <= SPEED_OF_LIGHT / self.frequency:
-                raise ParameterError(f"{name} = {value} m must exceed the wavelength "
-                                     f"{SPEED_OF_LIGHT / self.frequency:.4g} m (or be 0 for no pattern)")
-        if self.beam not in ("tapered", "uniform"):
-            raise ParameterError(f"beam = {self.beam!r}; valid values are 'tapered' and 'uniform'")
-        if self.beam == "uniform" and self.antenna_length > 0:
-            raise ParameterError(f"beam = 'uniform' ignores the pattern of antenna_length = {self.antenna_length} m: "
-                                 "remove antenna_length, or use beam = 'tapered'")
-        if self.azimuth_beamwidth == 0:
-            beam = (math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency
-                                                 / self.antenna_length))
-                    if self.antenna_length > 0 else 1.0)
-            object.__setattr__(self, "azimuth_beamwidth", beam)
-        elif self.antenna_length > 0:
-            own = math.degrees(2.0 * math.asin(HALF_POWER_SINC * SPEED_OF_LIGHT / self.frequency / self.antenna_length))
-            if not math.isclose(self.azimuth_beamwidth, own, rel_tol=1e-3):
-                raise ParameterError(
-                    f"azimuth_beamwidth = {self.azimuth_beamwidth:g} deg disagrees with antenna_length = "
-                    f"{self.antenna_length:g} m, whose 3 dB beamwidth is {own:.4g} deg: give only one of them "
-                    "(e.g. --set azimuth_beamwidth=0 when the scene file sets a beamwidth)")
-        _positive(self, "azimuth_beamwidth")
-        if not 0.0 < self.incidence_angle < 90.0:
-            raise ParameterError(
-                f"incidence_angle = {self.incidence_angle} deg is outside the valid range (0, 90) deg")
-        if self.sampling_rate < self.bandwidth:
-            raise ParameterError(
-                f"sampling_rate = {self.sampling_rate:g} Hz is below bandwidth = {self.bandwidth:g} Hz: "
-                "complex sampling needs sampling_rate >= bandwidth")
-        if self.look_side not in ("right", "left"):
-            raise ParameterError(f"look_side = {self.look_side!r}; valid values are 'right' and 'left'")
-        if self.mode not in ("stripmap", "spotlight"):
-            raise ParameterError(f"mode = {self.mode!r}; valid values are 'stripmap' and 'spotlight'")
-        if self.output not in ("compressed", "raw"):
-            raise ParameterError(f"output = {self.output!r}; valid values are 'compressed' and 'raw'")
-        if self.polarization not in POLARIZATIONS:
-            raise ParameterError(f"polarization = {self.polarization!r}; valid values are "
-                                 f"{', '.join(repr(p) for p in POLARIZATIONS)} (case matters: 'quad' "
-                                 "for all four channels)")
-        if int(self.n_pulses) != self.n_pulses or self.n_pulses < 0:
-            raise ParameterError(f"n_pulses = {self.n_pulses} must be a whole number >= 0 (0 = automatic)")
-        if not 0.0 < self.azimuth_beamwidth < 90.0:
-            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is outside (0, 90) deg")
-        if self.beam == "tapered" and self.antenna_length == 0 and \
-                math.sin(math.radians(self.azimuth_beamwidth) / 2.0) / HALF_POWER_SINC >= 1.0:
-            raise ParameterError(f"azimuth_beamwidth = {self.azimuth_beamwidth} deg is too wide for a tapered beam "
-                                 f"(its first nulls would pass 90 deg): use at most "
-                                 f"{math.degrees(2 * math.asin(HALF_POWER_SINC * 0.99)):.1f} deg, or beam = 'uniform'")
-        if not (isinstance(self.squint, (int, float)) and -60.0 < self.squint < 60.0):
-            raise ParameterError(f"squint = {self.squint!r} deg is outside the valid range (-60, 60) deg")
-        self._check_trajectory()
-
-    def _check_trajectory(self) -> None:
-        """``trajectory``, ``arc_deg``, ``motion_error``, ``stop_and_hop`` (no file is read here)."""
-        if not (isinstance(self.trajectory, StateVectors) or (isinstance(self.trajectory, str) and self.trajectory)):
-            raise ParameterError(f"trajectory = {self.trajectory!r}: give 'straight', 'circular', 'orbit' or the path of a CSV "
-                                 "file of state vectors (time_s,x_m,y_m,z_m[,vx_mps,vy_mps,vz_mps])")
-        if not (isinstance(self.arc_deg, (int, float)) and 0.0 < self.arc_deg <= 360.0):
-            raise ParameterError(f"arc_deg = {self.arc_deg!r} deg is outside the valid range (0, 360] deg (the arc "
-                                 "of a circular trajectory; 360 = a full circle)")
-        if self.arc_deg != 360.0 and self.trajectory != "circular":
-            kind = self.trajectory.source if isinstance(self.trajectory, StateVectors) else repr(self.trajectory)
-            raise ParameterError(f"arc_deg = {self.arc_deg:g} deg is used only by trajectory = 'circular' (the arc it "
-                                 f"flies), but trajectory = {kind}: add trajectory=circular, or remove arc_deg")
-        if self.trajectory == "circular":
-            if self.squint != 0:
-                raise ParameterError(f"squint = {self.squint:g} deg with trajectory = 'circular': the beam follows the "
-                                     "scene centre around the circle; remove squint")
-            if self.mode != "spotlight":           # the beam follows the scene centre
-                object.__setattr__(self, "mode", "spotlight")
-        if not (isinstance(self.orbit_inclination, (int, float)) and 0.0 < self.orbit_inclination < 180.0):
-            raise ParameterError(f"orbit_inclination = {self.orbit_inclination!r} deg is outside the valid range "
-                                 "(0, 180) deg (98.18 for Sentinel-1's sun-synchronous orbit)")
-        if self.orbit_direction not in ORBIT_DIRECTIONS:
-            raise ParameterError(f"orbit_direction = {self.orbit_direction!r}; valid values are 'descending' and "
-                                 "'ascending'")
-        if isinstance(self.trajectory, StateVectors) and self.trajectory.epoch is not None and \
-                self.collection_start is not None:
-            raise ParameterError(f"collection_start = {self.collection_start!r} and the absolute times of trajectory "
-                                 f"{self.trajectory.source} both set the first pulse's UTC time: remove "
-                                 "collection_start (it follows from the trajectory's clock)")
-        error = MotionError.parse(self.motion_error)        # TrajectoryError: a ParameterError
-        object.__setattr__(self, "motion_error", None if error is None else str(error))
-        if not isinstance(self.stop_and_hop, bool):
-            raise ParameterError(f"stop_and_hop = {self.stop_and_hop!r}: give true or false")
-        if not (isinstance(self.ati_baseline, (int, float)) and 0.0 <= self.ati_baseline <= 1e3):
-            raise ParameterError(f"ati_baseline = {self.ati_baseline!r} m is outside the valid range [0, 1000] m (the "
-                                 "along-track separation of the second channel's phase centre; 0 = one channel)")
-        if self.receiver:
-            check_receiver(self, coerce_parameters)
-        if self.ati_baseline > 0 and self.polarization == "quad":
-            raise ParameterError("ati_baseline > 0 with polarization = 'quad': along-track interferometry renders one "
-                                 "polarisation; choose HH, VV, HV or VH")
+        """Check every field and fill the derived defaults (:func:`~.sensor_checks.check_sensor`)."""
+        check_sensor(self, coerce_parameters)
 
     @property
     def bistatic(self) -> bool:
@@ -578,22 +460,3 @@ def _boolean(name: str, value: Any) -> bool:
     if text in ("true", "false"):
         return text == "true"
     raise ValueError("give true or false")
-
-
-def _positive(obj: Any, *names: str) -> None:
-    for name in names:
-        value = getattr(obj, name)
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} = {value!r} must be a finite number > 0")
-
-
-def utc_time(text: Any) -> str:
-    """``collection_start`` as an ISO 8601 UTC string (``"2026-11-24T10:00:00+00:00"``) from an
-    ISO 8601 time with an offset (``Z`` or ``+hh:mm``; ``datetime.fromisoformat``). Raises
-    ParameterError naming ``collection_start`` for anything else, a time without an offset
-    included (it would be read in the machine's own zone)."""
-    from .state_vectors import utc_instant
-    return utc_instant(text, "collection_start", "give the UTC time of the first pulse as ISO 8601 with an offset, "
-                       "e.g. --set collection_start=2026-11-24T10:00:00Z (or leave it out for the moment of the "
-                       "render)").isoformat()
-

@@ -19,6 +19,7 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.sicd_polygons`    SICD image corners, ``ValidData``, ``RadarCollection/Area``
 :mod:`.geotiff`          ``write_geotiff`` (rasterio, pyproj)
 :mod:`.provenance`       collection start, creation time, metadata without the user's paths
+:mod:`.exports`          the formats by name: ``check_formats``, ``write_exports``
 =======================  ===============================================================
 
 Physics: (GEO1) local frame to ECEF, (GEO2) CPHD compensation to the scene reference point,

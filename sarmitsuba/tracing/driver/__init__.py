@@ -16,6 +16,7 @@ How one launch runs (:class:`~.mesh_trace.MeshTracer`), for each bounce order::
 
 ==========================  ===============================================================
 :mod:`.trace`               ``trace``: sub-apertures in launches, launches on host threads
+:mod:`.subapertures`        the sub-apertures (T3), their ray starts and lattice blocks
 :mod:`.launches`            what one launch traces: its sub-apertures and aim-lattice blocks
 :mod:`.kernel`              one launch: the mesh tracer, or the tube preview
                             (``lit_regions = tiles``, and shapes that are not meshes)
