@@ -147,7 +147,7 @@ class SbrIntegrator(mi.SamplingIntegrator):
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         raise RuntimeError("the sbr integrator is not run through mi.render; use sarmitsuba.pipeline.render "
-                           "or `python -m sarmitsuba render SCENE`")
+                           "or `.venv/bin/python -m sarmitsuba render SCENE`")
 
     def aov_names(self):
         return []
