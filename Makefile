@@ -1,6 +1,6 @@
 # sarmitsuba: one command to set up and render, one to set up and test (see README).
 # `make setup` installs libLLVM >= 16 (Debian's libllvm19; Dr.Jit's LLVM backend needs it),
-# creates .venv and installs the package with its dev and Sionna extras.
+# creates .venv and installs the package with its dev, Sionna and FastSAR extras.
 
 VENV   ?= .venv
 PYTHON ?= python3
@@ -28,7 +28,7 @@ $(STAMP): pyproject.toml
 	@# setuptools prints an information-only banner for every editable install of a package-dir layout
 	@# (plugins/ and scenes/ install as sarmitsuba_plugins and sarmitsuba_scenes): only that message is
 	@# filtered; a deprecation or any other build warning still shows
-	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[dev,sionna]'
+	PYTHONWARNINGS="ignore:Editable installation:UserWarning" $(PY) -m pip install -q -e '.[dev,sionna,fastsar]'
 	touch $(STAMP)
 
 render: setup

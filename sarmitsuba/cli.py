@@ -67,10 +67,15 @@ def _integrator_overrides(args: argparse.Namespace) -> dict:
 
 
 def _add_format_arguments(parser: argparse.ArgumentParser, cphd: bool) -> None:
-    """The standard-format flags of ``render`` (``--cphd``, ``--sicd``, ``--geotiff``) and ``focus``."""
+    """The standard-format flags of ``render`` and ``focus`` (``--cphd``, ``--cphd-domain``, ``--sicd``,
+    ``--geotiff``)."""
     if cphd:
         parser.add_argument("--cphd", action="store_true",
                             help="also write the raw data as CPHD 1.1 (raw.cphd; NGA standard, through sarkit)")
+        parser.add_argument("--cphd-domain", default="toa", choices=("toa", "fx"),
+                            help="with --cphd: the signal domain, toa (default: the range-compressed fast-time "
+                                 "samples) or fx (their spectrum along fast time, the form vendors deliver and "
+                                 "FastSAR reads; needs range-compressed data)")
     parser.add_argument("--sicd", action="store_true",
                         help="also write the complex image as SICD in NITF (image.nitf; NGA standard, through sarkit)")
     parser.add_argument("--sicd-plane", default="slant", choices=("slant", "image"),
@@ -122,12 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Ray-traced SAR simulation of urban scenes: trace a scene into raw data, focus it into an "
                     "image, analyse it.",
         epilog="examples:\n"
-               "  python -m sarmitsuba render                  the built-in urban scene -> out/urban\n"
-               "  python -m sarmitsuba info sionna:munich      radar summary and cost, no tracing\n"
-               "  python -m sarmitsuba render dihedral --set frequency=5.4e9 --out out/c-band\n"
-               "  python -m sarmitsuba focus out/urban/raw.npz --algorithm omegak --out out/urban-wk\n"
-               "  python -m sarmitsuba scene from-footprints city.geojson --out city   then: render city\n"
-               "  python -m sarmitsuba COMMAND --help          the options of one command\n"
+               "  .venv/bin/python -m sarmitsuba render                  the built-in urban scene -> out/urban\n"
+               "  .venv/bin/python -m sarmitsuba info sionna:munich      radar summary and cost, no tracing\n"
+               "  .venv/bin/python -m sarmitsuba render dihedral --set frequency=5.4e9 --out out/c-band\n"
+               "  .venv/bin/python -m sarmitsuba focus out/urban/raw.npz --algorithm omegak --out out/urban-wk\n"
+               "  .venv/bin/python -m sarmitsuba scene from-footprints city.geojson --out city   then: render city\n"
+               "  .venv/bin/python -m sarmitsuba COMMAND --help          the options of one command\n"
                "exit codes: 0 success, 2 bad input (the message names it and the fix), 130 interrupted")
     parser.add_argument("--version", action="version", version=f"sarmitsuba {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -203,7 +208,7 @@ def _add_focus_command(sub) -> None:
                             "reflector), from which PGA also removes the along-track shift it cannot see")
     focus.add_argument("--out", type=Path, required=True, help="output directory")
     focus.add_argument("--no-progress", action="store_true", help="no progress bars")
-    _add_format_arguments(focus, cphd=False)
+    _add_format_arguments(focus, cphd=True)
 
 
 def _add_scene_command(sub) -> None:
@@ -258,7 +263,7 @@ def _scene(args: argparse.Namespace) -> int:
         print(f"repaired: {line}", file=sys.stderr)
     path = city.write_city(built, args.out)
     print(f"scene from {args.footprints}: {time.perf_counter() - start:.1f} s, {built.summary()} -> {path} "
-          f"(render it: python -m sarmitsuba render {path})")
+          f"(render it: .venv/bin/python -m sarmitsuba render {path})")
     return 0
 
 
@@ -285,10 +290,11 @@ def _focus(args: argparse.Namespace) -> int:
     import time
 
     from .core.outputs import OutputDirectory, check_output_dir
-    from .pipeline import refocus, window_title, write_exports, write_image_products
+    from .pipeline import check_formats, refocus, window_title, write_exports, write_image_products
     start = time.perf_counter()
     check_output_dir(args.out)
     raw = load_raw(args.raw)
+    check_formats(_formats(args), args.sicd_plane, args.sicd_weighting, cphd_domain=args.cphd_domain, raw=raw)
     try:
         image = refocus(raw, args.algorithm, **_windows(args), progress=not args.no_progress, track=args.track,
                         autofocus=None if args.autofocus == "none" else args.autofocus,
@@ -301,7 +307,8 @@ def _focus(args: argparse.Namespace) -> int:
     with OutputDirectory(args.out, products="add") as out:      # joins a render folder's products
         paths = write_image_products(out, image, title)
         paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated,
-                                   sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting))
+                                   sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting,
+                                   cphd_domain=args.cphd_domain))
     autofocus = image.metadata.get("autofocus")
     rounds = "" if autofocus is None or "rounds" not in autofocus else f"{autofocus['rounds']} round(s) through the pulses, "
     note = "" if autofocus is None else (f", PGA {rounds}{autofocus['iterations']} iterations, phase error "
@@ -342,7 +349,7 @@ def _render(args: argparse.Namespace) -> int:
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
                      progress=not args.no_progress, **_windows(args), focuser=args.focuser,
                      formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated,
-                     sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting)
+                     sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting, cphd_domain=args.cphd_domain)
     print(summary.line())
     if summary.depth_warning:
         print(f"warning: {summary.depth_warning}", file=sys.stderr)

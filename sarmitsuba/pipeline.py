@@ -128,7 +128,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
              material_overrides: Mapping[str, Any] | None = None, progress: bool = False,
              image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
              window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None,
-             window_range: Any = None, window_azimuth: Any = None, formats: Sequence[str] = ()) -> Simulation:
+             window_range: Any = None, window_azimuth: Any = None, formats: Sequence[str] = (),
+             cphd_domain: str = "toa") -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
     Parameters are those of :func:`render` (``window``, ``window_range``, ``window_azimuth`` and
@@ -137,7 +138,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     exactly that size around the scene centre (:func:`sized_grid`; default: :func:`image_grid`,
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
     traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.driver.distributed.trace_on_cluster`).
-    ``formats``: those :func:`render` will write, checked against the sensor (:func:`check_formats`).
+    ``formats``: those :func:`render` will write, in ``cphd_domain``, checked against the sensor
+    (:func:`check_formats`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
@@ -145,7 +147,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     params, settings = loaded.params, loaded.settings
-    check_formats(formats, params=params)
+    check_formats(formats, params=params, cphd_domain=cphd_domain)
     setup = prepare_trace(loaded)
     amb = ambiguities(params, azimuth_window)           # the ghosts `info` warns about, before they are traced
     if amb is not None and amb.warning:
@@ -278,7 +280,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
            material_overrides: Mapping[str, Any] | None = None, progress: bool = True,
            window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
            scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None,
-           geotiff_north_up: bool = True, sicd_plane: str = "slant", sicd_weighting: str = "uniform") -> RenderSummary:
+           geotiff_north_up: bool = True, sicd_plane: str = "slant", sicd_weighting: str = "uniform",
+           cphd_domain: str = "toa") -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -327,6 +330,11 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     sicd_weighting : {"uniform", "image"}, default "uniform"
         The SICD's spectral weighting: the focusing weighting divided out, so that every reader's
         RCS agrees (docs/physics.md (K3')), or the image's own (``weighting`` of ``write_sicd``).
+    cphd_domain : {"toa", "fx"}, default "toa"
+        The CPHD's signal domain: time of arrival (the range-compressed fast-time samples,
+        docs/physics.md (GEO2)) or frequency (their Fourier transform along fast time, (GEO2'),
+        the form vendors deliver and FastSAR reads); ``fx`` needs range-compressed data
+        (``output = "compressed"``, the default) (``domain`` of :func:`sarmitsuba.formats.cphd.write_cphd`).
     scheduler : str, optional
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
         Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.driver.distributed`).
@@ -346,7 +354,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     focus_windows(window, window_range, window_azimuth)
     _focuser(focuser)
-    check_formats(formats, sicd_plane, sicd_weighting)
+    check_formats(formats, sicd_plane, sicd_weighting, cphd_domain=cphd_domain)
     if scheduler is not None:
         from .tracing.driver.distributed import check_scheduler
         check_scheduler(scheduler)
@@ -354,7 +362,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         # an earlier render's files that this one does not write go then (core/outputs.py, "Products")
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
-                       scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth, formats=formats)
+                       scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth, formats=formats,
+                       cphd_domain=cphd_domain)
         t_products = time.perf_counter()
         paths = {}
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
@@ -362,7 +371,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
             paths.update(_write_products(out, channel.raw, channel.image, sim.loaded.params, suffix=label))
             paths.update(write_exports(out, channel.raw, channel.image, formats, suffix=label,
                                        geotiff_north_up=geotiff_north_up, sicd_plane=sicd_plane,
-                                       sicd_weighting=sicd_weighting))
+                                       sicd_weighting=sicd_weighting, cphd_domain=cphd_domain))
             for k, (raw_k, image_k) in enumerate(zip(channel.raw_per_order, channel.images_per_order), start=1):
                 paths.update(_write_products(out, raw_k, image_k, sim.loaded.params, suffix=f"{label}_order{k}"))
         if sim.channels:
@@ -371,7 +380,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
             paths.update(_write_products(out, sim.aft.raw, sim.aft.image, sim.loaded.params, suffix="_aft"))
             paths.update(write_exports(out, sim.aft.raw, sim.aft.image, formats, suffix="_aft",
                                        geotiff_north_up=geotiff_north_up, sicd_plane=sicd_plane,
-                                       sicd_weighting=sicd_weighting))
+                                       sicd_weighting=sicd_weighting, cphd_domain=cphd_domain))
             paths.update(_write_along_track(out, sim))
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))

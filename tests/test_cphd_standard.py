@@ -1,7 +1,8 @@
 """CPHD files other tools read (issue 29): standard layout, image area, times, portable metadata.
 
-- sarpy (NGA's older library, independent of sarkit) opens ``raw.cphd`` of ``render trihedral``,
-  of a small ``urban`` and of a quad-pol render, reads the same samples as sarkit, and its CPHD
+- sarpy (NGA's older library, independent of sarkit) opens ``raw.cphd`` of ``render trihedral``
+  (time of arrival, and ``--cphd-domain fx``: frequency domain), of a small ``urban`` and of a
+  quad-pol render, reads the same samples as sarkit, and its CPHD
   consistency check reports no failure; sarkit's ``cphdcheck --thorough`` exits 0, and the file
   header holds only the keys the standard defines (sarmitsuba's own entries are
   ``ProductInfo/CreationInfo/Parameter`` elements).
@@ -47,16 +48,19 @@ START = "2026-11-24T23:40:16.123456+00:00"
 
 @pytest.fixture(scope="module")
 def renders(tmp_path_factory):
-    """name -> folder of `render --cphd`: trihedral (default), urban (32 pulses, depth 1), quad-pol trihedral."""
+    """name -> folder of `render --cphd`: trihedral (default; TOA and FX domain), urban (32 pulses, depth 1),
+    quad-pol trihedral."""
     root = tmp_path_factory.mktemp("renders")
-    runs = {"trihedral": ["trihedral"], "urban": ["urban", "--pulses", "32", "--max-depth", "1"],
+    runs = {"trihedral": ["trihedral"], "trihedral_fx": ["trihedral", "--cphd-domain", "fx"],
+            "urban": ["urban", "--pulses", "32", "--max-depth", "1"],
             "quad": ["trihedral", "--pulses", "16", "--set", "polarization=quad"]}
     for name, args in runs.items():
         assert main(["render", *args, "--cphd", "--out", str(root / name), "--no-progress"]) == 0
     return root
 
 
-FILES = ["trihedral/raw.cphd", "urban/raw.cphd"] + [f"quad/raw_{p}.cphd" for p in ("HH", "HV", "VH", "VV")]
+FILES = ["trihedral/raw.cphd", "trihedral_fx/raw.cphd", "urban/raw.cphd"] + [f"quad/raw_{p}.cphd"
+                                                                              for p in ("HH", "HV", "VH", "VV")]
 
 
 def read_parts(path):

@@ -9,7 +9,8 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`sarmitsuba.core.outputs`.
 
 =======================  ===============================================================
-:mod:`.cphd`             ``write_cphd`` / ``read_cphd`` (NGA.STND.0068, via sarkit)
+:mod:`.cphd`             ``write_cphd`` / ``read_cphd`` (NGA.STND.0068, via sarkit), TOA or FX domain
+:mod:`.cphd_fx`          CPHD's frequency (FX) domain: fast time to frequency and back
 :mod:`.cphd_geometry`    CPHD scene reference point and image area (from the scene's box)
 :mod:`.sicd`             ``write_sicd`` / ``read_sicd`` (NGA.STND.0024, via sarkit)
 :mod:`.sicd_support`     SICD spatial-frequency support, weighting, centre-of-aperture times
@@ -22,7 +23,8 @@ GeoTIFF (ground-plane intensity in UTM), through the all-or-nothing writer of
 :mod:`.exports`          the formats by name: ``check_formats``, ``write_exports``
 =======================  ===============================================================
 
-Physics: (GEO1) local frame to ECEF, (GEO2) CPHD compensation to the scene reference point,
-(GEO3) GeoTIFF and SICD grids, (GEO4) the slant-plane SICD (section "Geographic reference and
-standard formats"), (K3) SICD radiometric scale factors, (K3') the uniform SICD's weighting taken out.
+Physics: (GEO1) local frame to ECEF, (GEO2) CPHD compensation to the scene reference point and
+(GEO2') its frequency domain, (GEO3) GeoTIFF and SICD grids, (GEO4) the slant-plane SICD (section
+"Geographic reference and standard formats"), (K3) SICD radiometric scale factors, (K3') the
+uniform SICD's weighting taken out.
 """

@@ -3,7 +3,11 @@
 The format is written and read by sarkit (the NGA reference implementation); this module
 only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
 
-- one channel ``"1"``, ``Global/DomainType = TOA``, ``SGN = -1``, signal format ``CF8``;
+- one channel ``"1"``, ``SGN = -1``, signal format ``CF8``, in either domain (``domain``):
+  ``Global/DomainType = TOA`` (default), the range-compressed fast-time samples, or ``FX``, their
+  Fourier transform along fast time over the sampled band, the deramped phase history that
+  vendors deliver and FX readers (FastSAR) take (:mod:`sarmitsuba.formats.cphd_fx`, docs/physics.md
+  (GEO2')); :func:`read_cphd` reads both;
 - PVPs per pulse in ECEF (WGS84) metres: the local east-north-up frame is placed at the
   :class:`~sarmitsuba.core.georef.GeoReference` origin, which is also written as the scene's IARP;
 - the scene reference point (SRP) is the scene centre (``metadata["radar"]["scene_center"]``,
@@ -23,7 +27,7 @@ only maps :class:`~sarmitsuba.core.raw.RawData` onto it:
   ``ReferenceGeometry/Bistatic``). Reading, a MONOSTATIC file's receiver elsewhere with the
   transmitter's velocity gives ``rx_time`` back; a BISTATIC file gives stop-and-hop data;
 - range-compressed data are written as such; chirped data (``range_compressed`` false) are
-  written uncompressed;
+  written uncompressed, in the TOA domain only (an FX vector is a deramped phase history);
 - times: ``Global/Timeline/CollectionStart`` is the first pulse's UTC time,
   ``metadata["radar"]["collection_start"]`` (ISO 8601), else 2000-01-01T00:00:00Z; ``TxTime``
   counts from it. ``ProductInfo/CreationInfo/DateTime`` is the moment the file is written (UTC);
@@ -49,16 +53,20 @@ from ..core import georef
 from ..core.constants import SPEED_OF_LIGHT
 from ..core.outputs import atomic_write, json_default
 from ..core.raw import RawData
+from .cphd_fx import fx_from_toa, fx_grid, fx_layout, toa_from_fx
 from .cphd_geometry import bistatic, receiver_velocity, scene_coordinates, scene_reference_point, srp_delay, unit
 from .provenance import collection_start as provenance_start
 from .provenance import portable_metadata, utc_now
 
-__all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE", "PARAMETERS",
-           "collection_start", "toa_fixed", "TOA_FIXED_TOLERANCE"]
+__all__ = ["CphdError", "write_cphd", "read_cphd", "check_cphd", "CPHD_NAMESPACE", "PARAMETERS", "DOMAINS",
+           "collection_start", "toa_fixed", "TOA_FIXED_TOLERANCE", "check_domain"]
 
 #: XML namespace of the CPHD version written.
 CPHD_NAMESPACE = "http://api.nsgreg.nga.mil/schema/cphd/1.1.0"
 _CHANNEL = "1"
+#: Signal domains :func:`write_cphd` writes (``domain``; the first is the default): time of arrival,
+#: frequency (``Global/DomainType`` TOA, FX).
+DOMAINS = ("toa", "fx")
 #: Spread [s] of the vectors' TOA1 and TOA2 up to which the channel is TOAFixed: sarpy wants TOAFixed
 #: whenever every value lies within 1e-11 s of their mean, which a larger spread rules out (2e-11 s
 #: is 3 mm of range, far below a sample).
@@ -93,8 +101,22 @@ def pvp_dtype_xml() -> dict[str, Any]:
     return pvp
 
 
-def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.ndarray:
-    """PVP array [n_pulses] of ``dtype``: geometry in ECEF, times from the first pulse (CPHD 1.1 sec. 6)."""
+def check_domain(domain: str, raw: RawData | None = None, path: Any = "the CPHD file") -> None:
+    """Raise :class:`CphdError` naming ``path`` unless ``domain`` is one of :data:`DOMAINS`, or when it is
+    ``"fx"`` and ``raw`` holds chirped samples (``range_compressed`` false): an FX vector is the
+    deramped phase history (docs/physics.md (GEO2')), which chirped echoes are not."""
+    if domain not in DOMAINS:
+        raise CphdError(f"cannot write CPHD file {path}: domain = {domain!r}; valid domains are "
+                        f"{' and '.join(DOMAINS)} (the first is the default)")
+    if domain == "fx" and raw is not None and not raw.range_compressed:
+        raise CphdError(f"cannot write CPHD file {path} in the FX domain: the raw data are chirped (sensor "
+                        "output=raw), and an FX vector is the deramped phase history; write the TOA domain, or render "
+                        "with output=compressed")
+
+
+def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype, domain: str = "toa") -> np.ndarray:
+    """PVP array [n_pulses] of ``dtype``: geometry in ECEF, times from the first pulse (CPHD 1.1 sec. 6);
+    the signal's sample axis (``SC0``, ``SCSS``, ``FX1``, ``FX2``) of the TOA or FX ``domain``."""
     rot = georef.enu_axes(ref)
     srp = scene_reference_point(raw)
     tau = srp_delay(raw.tx_position, raw.rx_position, srp)
@@ -115,10 +137,13 @@ def build_pvps(raw: RawData, ref: georef.GeoReference, dtype: np.dtype) -> np.nd
     pvp["aFRR2"] = 2.0 / (SPEED_OF_LIGHT * lfm_rate(raw))
     pvp["aFRR1"] = raw.fc * pvp["aFRR2"]
     pvp["FX1"], pvp["FX2"] = raw.fc - 0.5 * raw.bandwidth, raw.fc + 0.5 * raw.bandwidth
-    pvp["SC0"] = raw.fast_time[0] - tau
-    pvp["SCSS"] = 1.0 / raw.fs
-    pvp["TOA1"] = pvp["SC0"]
-    pvp["TOA2"] = pvp["SC0"] + (raw.n_samples - 1) * pvp["SCSS"]
+    pvp["TOA1"] = raw.fast_time[0] - tau
+    pvp["TOA2"] = pvp["TOA1"] + (raw.n_samples - 1) / raw.fs
+    pvp["SC0"], pvp["SCSS"] = pvp["TOA1"], 1.0 / raw.fs
+    if domain == "fx":                # the bins of the sampled band (GEO2'); FX1, FX2 the transmitted band in it
+        grid = fx_grid(raw.n_samples, raw.fs)
+        pvp["SC0"], pvp["SCSS"] = raw.fc + grid.bins[0] * grid.df, grid.df
+        pvp["FX1"], pvp["FX2"] = grid.band(raw.fc, raw.bandwidth)
     if toa_fixed(pvp):                # a window that follows the SRP (circular track): one saved interval
         pvp["TOA1"], pvp["TOA2"] = pvp["TOA1"].max(), pvp["TOA2"].min()
     pvp["SIGNAL"] = 1
@@ -158,37 +183,44 @@ def radar_words(raw: RawData) -> tuple[str, str, str]:
 
 
 def cphd_dict(raw: RawData, ref: georef.GeoReference, pvp: np.ndarray, start: datetime.datetime,
-              created: datetime.datetime) -> dict[str, Any]:
+              created: datetime.datetime, domain: str = "toa") -> dict[str, Any]:
     """The CPHD XML (less ReferenceGeometry) in sarkit's dictionary form (CPHD 1.1.0 sec. 5-9): the
-    collection starting at ``start`` (the first pulse, UTC), the file made at ``created`` (UTC)."""
+    collection starting at ``start`` (the first pulse, UTC), the file made at ``created`` (UTC), the
+    signal in the TOA or FX ``domain`` (:data:`DOMAINS`)."""
     srp = scene_reference_point(raw)
     scene, area = scene_coordinates(raw, ref, srp)
     mode, tx_pol, rcv_pol = radar_words(raw)
     tref = pvp["TxTime"] + 0.5 * (pvp["RcvTime"] - pvp["TxTime"])
     rate = lfm_rate(raw)
     scene_name = str(raw.metadata.get("scene", "scene")) if isinstance(raw.metadata, dict) else "scene"
+    n_samples = raw.n_samples if domain == "toa" else fx_grid(raw.n_samples, raw.fs).n_bins
+    fx1, fx2 = float(pvp["FX1"].min()), float(pvp["FX2"].max())
+    # FxC, FxBW: (FX1 + FX2) / 2 and FX2 - FX1 (CPHD 1.1 sec. 7), the transmitted band unless fs cut it
+    fxc, fxbw = float(raw.fc), float(raw.bandwidth)
+    if (fx1, fx2) != (raw.fc - 0.5 * raw.bandwidth, raw.fc + 0.5 * raw.bandwidth):
+        fxc, fxbw = 0.5 * (fx1 + fx2), fx2 - fx1
     return {
         "CollectionID": {"CollectorName": "sarmitsuba", "CoreName": scene_name or "scene",
                          # one antenna, moving during the echo or not (CPHD 1.1 sec. 2), or two
                          "CollectType": "BISTATIC" if bistatic(raw) else "MONOSTATIC",
                          "RadarMode": {"ModeType": mode}, "Classification": "UNCLASSIFIED",
                          "ReleaseInfo": "UNRESTRICTED"},
-        "Global": {"DomainType": "TOA", "SGN": -1,
+        "Global": {"DomainType": domain.upper(), "SGN": -1,
                    "Timeline": {"CollectionStart": start, "TxTime1": float(pvp["TxTime"][0]),
                                 "TxTime2": float(pvp["TxTime"][-1])},
-                   "FxBand": {"FxMin": float(pvp["FX1"].min()), "FxMax": float(pvp["FX2"].max())},
+                   "FxBand": {"FxMin": fx1, "FxMax": fx2},
                    "TOASwath": {"TOAMin": float(pvp["TOA1"].min()), "TOAMax": float(pvp["TOA2"].max())}},
         "SceneCoordinates": scene,
         "Data": {"SignalArrayFormat": "CF8", "NumBytesPVP": 8 * sum(s for _, s, _ in _PVP_LAYOUT),
                  "NumCPHDChannels": 1,
-                 "Channel": ({"Identifier": _CHANNEL, "NumVectors": raw.n_pulses, "NumSamples": raw.n_samples,
+                 "Channel": ({"Identifier": _CHANNEL, "NumVectors": raw.n_pulses, "NumSamples": n_samples,
                               "SignalArrayByteOffset": 0, "PVPArrayByteOffset": 0},),
                  "NumSupportArrays": 0},
         "Channel": {"RefChId": _CHANNEL, "FXFixedCPHD": True, "TOAFixedCPHD": toa_fixed(pvp), "SRPFixedCPHD": True,
                     "Parameters": ({"Identifier": _CHANNEL, "RefVectorIndex": raw.n_pulses // 2,
                                     "FXFixed": True, "TOAFixed": toa_fixed(pvp), "SRPFixed": True, "SignalNormal": True,
                                     "Polarization": {"TxPol": tx_pol, "RcvPol": rcv_pol},
-                                    "FxC": float(raw.fc), "FxBW": float(raw.bandwidth),
+                                    "FxC": fxc, "FxBW": fxbw,
                                     "TOASaved": float(pvp["TOA2"].max() - pvp["TOA1"].min()),
                                     "DwellTimes": {"CODId": "1", "DwellId": "1"}, "ImageArea": area,
                                     "TxRcv": {"TxWFId": ("tx",), "RcvId": ("rcv",)}},)},
@@ -235,16 +267,17 @@ def collection_start(raw: RawData, path: Any = "the CPHD file") -> datetime.date
 
 
 def build_metadata(raw: RawData, ref: georef.GeoReference, start: datetime.datetime | None = None,
-                   created: datetime.datetime | None = None) -> tuple[Any, np.ndarray]:
+                   created: datetime.datetime | None = None, domain: str = "toa") -> tuple[Any, np.ndarray]:
     """(sarkit.cphd.Metadata, PVP array) for ``raw`` placed at ``ref``, its collection starting at
-    ``start`` (default :func:`collection_start`), the file made at ``created`` (default now, UTC)."""
+    ``start`` (default :func:`collection_start`), the file made at ``created`` (default now, UTC), the
+    signal in the TOA or FX ``domain``."""
     import lxml.etree
     import sarkit.cphd as skcphd
     root = skcphd.ElementWrapper(lxml.etree.Element(f"{{{CPHD_NAMESPACE}}}CPHD"))
     dtype = skcphd.get_pvp_dtype(_tree_with_pvp_layout(raw))
-    pvp = build_pvps(raw, ref, dtype)
+    pvp = build_pvps(raw, ref, dtype, domain)
     start = collection_start(raw) if start is None else start
-    root.from_dict(cphd_dict(raw, ref, pvp, start, utc_now() if created is None else created))
+    root.from_dict(cphd_dict(raw, ref, pvp, start, utc_now() if created is None else created, domain))
     tree = lxml.etree.ElementTree(root.elem)
     refgeom = skcphd.compute_reference_geometry(tree, pvp)
     root.elem.find("{*}Dwell").addnext(refgeom)
@@ -261,7 +294,8 @@ def _tree_with_pvp_layout(raw: RawData) -> Any:
     return lxml.etree.ElementTree(root.elem)
 
 
-def write_cphd(raw: RawData, path: str | os.PathLike, ref: georef.GeoReference | None = None) -> Path:
+def write_cphd(raw: RawData, path: str | os.PathLike, ref: georef.GeoReference | None = None,
+               domain: str = "toa") -> Path:
     """Write ``raw`` as a one-channel CPHD 1.1.0 file at ``path`` (atomically), placed at ``ref``.
 
     Parameters
@@ -274,17 +308,28 @@ def write_cphd(raw: RawData, path: str | os.PathLike, ref: georef.GeoReference |
     ref : GeoReference, optional
         WGS84 origin of the local frame (default: the ``geo_origin`` recorded in
         ``raw.metadata["radar"]``, see :func:`georef.of`).
+    domain : {"toa", "fx"}, default "toa"
+        ``Global/DomainType``: the fast-time samples compensated to the SRP (docs/physics.md
+        (GEO2)), complex64 [n_pulses, n_samples], or their Fourier transform over the transmitted
+        band (GEO2'), complex64 [n_pulses, M] (``M`` the fast-time length zero-padded by 1.25,
+        :func:`sarmitsuba.formats.cphd_fx.fx_grid`).
+        Monostatic and bistatic (``CollectType`` BISTATIC) data alike.
 
     Returns the path written. Raises :class:`outputs.WriteError` (an OSError) when the file
     cannot be written, :class:`CphdError` naming ``path`` when ``metadata["radar"]["collection_start"]``
-    is not an ISO 8601 time with an offset; nothing is left behind then.
+    is not an ISO 8601 time with an offset, when ``domain`` is none of :data:`DOMAINS`, or for the
+    FX domain of chirped data (:func:`check_domain`); nothing is left behind then.
     """
     import sarkit.cphd as skcphd
+    check_domain(domain, raw, path)
     ref = georef.of(raw.metadata.get("radar", {}) if isinstance(raw.metadata, dict) else {}) if ref is None else ref
-    metadata, pvp = build_metadata(raw, ref, collection_start(raw, path))
+    metadata, pvp = build_metadata(raw, ref, collection_start(raw, path), domain=domain)
     srp = scene_reference_point(raw)
     tau = srp_delay(raw.tx_position, raw.rx_position, srp)
-    signal = (raw.data * np.exp(2j * np.pi * raw.fc * tau)[:, None]).astype(np.complex64)
+    if domain == "fx":
+        signal = fx_from_toa(raw.data, float(raw.fast_time[0]), raw.fs, raw.fc, tau, fx_grid(raw.n_samples, raw.fs))
+    else:
+        signal = (raw.data * np.exp(2j * np.pi * raw.fc * tau)[:, None]).astype(np.complex64)
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as f, skcphd.Writer(f, metadata) as writer:
@@ -303,21 +348,23 @@ def check_cphd(path: str | os.PathLike) -> list[str]:
 
 
 def read_cphd(path: str | os.PathLike) -> RawData:
-    """Read a one-channel TOA-domain CPHD file into RawData in the local ENU frame of its IARP.
+    """Read a one-channel CPHD file, TOA or FX domain, into RawData in the local ENU frame of its IARP.
 
-    Samples are decompensated from the SRP (see the module docstring), geometry is converted
-    from ECEF to the local east-north-up frame at ``SceneCoordinates/IARP/LLH``. Files written
-    by :func:`write_cphd` give back their RawData (metadata included; samples within float32
-    rounding, geometry within micrometres), those of earlier versions (the same entries as
-    file-header keys) too; other tools' files get metadata from the XML only.
+    Samples are decompensated from the SRP (see the module docstring); FX vectors are first
+    transformed back to fast time (:func:`sarmitsuba.formats.cphd_fx.toa_from_fx`, docs/physics.md
+    (GEO2')). Geometry is converted from ECEF to the local east-north-up frame at
+    ``SceneCoordinates/IARP/LLH``. Files written by :func:`write_cphd` give back their RawData
+    (metadata included; TOA samples within float32 rounding, FX ones within the band they keep,
+    geometry within micrometres), those of earlier versions (the same entries as file-header keys)
+    too; other tools' files get metadata from the XML only.
 
     Raises
     ------
     CphdError
         Naming ``path``: missing or unreadable file; an empty, truncated or otherwise damaged
-        file, or one that is not a CPHD file (one line saying which, :func:`damage_message`); an
-        FX-domain file, more than one channel, or a fast-time axis that differs between vectors
-        (needs resampling).
+        file, or one that is not a CPHD file (one line saying which, :func:`damage_message`); more
+        than one channel; a TOA file whose fast-time axis differs between vectors, or an FX file whose
+        frequency axis does (both need resampling).
     """
     import lxml.etree
     import sarkit.cphd as skcphd
@@ -398,8 +445,9 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     """RawData from one channel's XML, file-header keys, signal [n_vectors, n_samples] and PVPs."""
     import sarkit.cphd as skcphd
     xml = skcphd.XmlHelper(tree)
-    if xml.load("{*}Global/{*}DomainType") != "TOA":
-        raise CphdError(f"{path}: only TOA-domain CPHD files can be read (this one is FX domain)")
+    domain = xml.load("{*}Global/{*}DomainType")
+    if domain not in ("TOA", "FX"):
+        raise CphdError(f"{path}: Global/DomainType is {domain!r}; CPHD files are TOA or FX domain")
     if xml.load("{*}Data/{*}NumCPHDChannels") != 1:
         raise CphdError(f"{path}: only one-channel CPHD files can be read")
     llh = xml.load("{*}SceneCoordinates/{*}IARP/{*}LLH")
@@ -407,13 +455,19 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
     rot = georef.enu_axes(ref)
     tx, rx = georef.ecef_to_enu(pvp["TxPos"], ref), georef.ecef_to_enu(pvp["RcvPos"], ref)
     tau = srp_delay(pvp["TxPos"], pvp["RcvPos"], pvp["SRPPos"]) + pvp["TDTropoSRP"]
-    start = pvp["SC0"] + tau
-    if np.ptp(start) > 1e-3 * float(pvp["SCSS"][0]) or np.ptp(pvp["SCSS"]) > 0:
-        raise CphdError(f"{path}: the vectors' fast-time axes differ (SC0 + TOA_SRP varies by "
-                        f"{np.ptp(start):.3g} s); RawData needs one axis, resampling is not supported")
     fc = float(xml.load("{*}Channel/{*}Parameters/{*}FxC"))
-    data = (signal * np.exp(-2j * np.pi * fc * tau)[:, None]).astype(np.complex64)
+    fs = sample_rate(tree, pvp)
     wf = tree.find("{*}TxRcv/{*}TxWFParameters")
+    if domain == "FX":
+        data, fast_time, fc, fs = fx_samples(path, tree, signal, pvp, tau, fc)
+    else:
+        start = pvp["SC0"] + tau
+        if np.ptp(start) > 1e-3 * float(pvp["SCSS"][0]) or np.ptp(pvp["SCSS"]) > 0:
+            raise CphdError(f"{path}: the vectors' fast-time axes differ (SC0 + TOA_SRP varies by "
+                            f"{np.ptp(start):.3g} s); RawData needs one axis, resampling is not supported")
+        data = (signal * np.exp(-2j * np.pi * fc * tau)[:, None]).astype(np.complex64)
+        fast_time = start[0] + np.arange(signal.shape[1]) * float(pvp["SCSS"][0])
+    bandwidth = float(xml.load("{*}Channel/{*}Parameters/{*}FxBW"))
     pulse_length = float(wf.findtext("{*}PulseLength")) if wf is not None else 1.0 / float(xml.load(
         "{*}Channel/{*}Parameters/{*}FxBW"))
     chirp = float(wf.findtext("{*}LFMRate")) if wf is not None and wf.find("{*}LFMRate") is not None else 0.0
@@ -427,10 +481,24 @@ def raw_from_parts(path: Any, tree: Any, kvps: dict[str, str], signal: np.ndarra
               and np.allclose(pvp["RcvVel"], pvp["TxVel"], rtol=0.0, atol=1e-6))
     prf = float(kvps[_KVP_PRF]) if _KVP_PRF in kvps else 1.0 / float(np.median(np.diff(pvp["TxTime"])))
     metadata = json.loads(kvps[_KVP_METADATA]) if _KVP_METADATA in kvps else {"source": str(path)}
-    return RawData(data=data, fast_time=start[0] + np.arange(signal.shape[1]) * float(pvp["SCSS"][0]),
+    return RawData(data=data, fast_time=fast_time,
                    pulse_time=pulse_time, tx_position=tx, rx_position=rx,
                    rx_time=pvp["RcvTime"] + time0 if moving else None,
-                   velocity=np.asarray(pvp["TxVel"]) @ rot.T, fc=fc,
-                   bandwidth=float(xml.load("{*}Channel/{*}Parameters/{*}FxBW")), chirp_rate=chirp,
-                   pulse_length=pulse_length, fs=sample_rate(tree, pvp), prf=prf,
+                   velocity=np.asarray(pvp["TxVel"]) @ rot.T, fc=fc, bandwidth=bandwidth, chirp_rate=chirp,
+                   pulse_length=pulse_length, fs=fs, prf=prf,
                    range_compressed=kvps.get(_KVP_COMPRESSED, "true") == "true", metadata=metadata)
+
+
+def fx_samples(path: Any, tree: Any, signal: np.ndarray, pvp: np.ndarray, tau: np.ndarray,
+               fxc: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(data complex64 [n_vectors, n_samples], fast_time float64 [n_samples] s, fc [Hz], fs [Hz]) of the
+    FX vectors ``signal`` [n_vectors, n_bins] with their PVPs, SRP delays ``tau`` [s] and ``FxC`` [Hz]
+    (:func:`sarmitsuba.formats.cphd_fx.fx_layout`, :func:`~sarmitsuba.formats.cphd_fx.toa_from_fx`);
+    raises :class:`CphdError` naming ``path`` when they need resampling."""
+    text = tree.findtext("{*}TxRcv/{*}RcvParameters/{*}SampleRate")
+    try:
+        layout = fx_layout(pvp["SC0"], pvp["SCSS"], signal.shape[1], fxc, float(text) if text else None)
+        data, fast_time = toa_from_fx(signal, layout, pvp["TOA1"], pvp["TOA2"], tau)
+    except ValueError as exc:
+        raise CphdError(f"{path}: {exc}") from None
+    return data, fast_time, layout.fc, layout.fs
