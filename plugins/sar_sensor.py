@@ -34,7 +34,7 @@
    - string "dx, dy, dz", m
    - Shift of the whole track (default 0, 0, 0): a second pass for repeat-pass
      interferometry. The beam keeps its pointing and the image grid its place, so two
-     passes focus on one grid (``python -m sarmitsuba interferogram``; docs/physics.md (I1)).
+     passes focus on one grid (``.venv/bin/python -m sarmitsuba interferogram``; docs/physics.md (I1)).
  * - geo_origin
    - string "latitude, longitude, height", deg, deg, m
    - WGS84 position of the scene's origin; x, y, z are east, north, up there

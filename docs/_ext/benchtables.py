@@ -1,6 +1,6 @@
 """Benchmark tables of the manual, read from the files the benchmark suite writes.
 
-``python -m sarmitsuba bench --out docs/benchmarks/data`` writes ``<name>.csv``, ``<name>.png``,
+``.venv/bin/python -m sarmitsuba bench --out docs/benchmarks/data`` writes ``<name>.csv``, ``<name>.png``,
 ``checks.csv`` and ``machine.json`` there; the pages of docs/benchmarks/ show them through three
 directives, so a rerun of the suite updates the pages:
 
@@ -80,7 +80,7 @@ def _note(what: str, path: Path) -> list[nodes.Node]:
     warning, so that a manual built with warnings as errors has every page's data."""
     folder = path.parent.name
     logger.warning("benchmark %s %s does not exist", what, path, type="sarmitsuba", subtype="benchdata")
-    command = f"python -m sarmitsuba bench{' --quick' if folder.startswith('quick') else ''} --out docs/benchmarks/data/{folder}"
+    command = f".venv/bin/python -m sarmitsuba bench{' --quick' if folder.startswith('quick') else ''} --out docs/benchmarks/data/{folder}"
     para = nodes.paragraph()
     para += nodes.Text(f"No {what} yet: {path.name} is written by ")
     para += nodes.literal(text=command)

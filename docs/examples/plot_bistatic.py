@@ -76,7 +76,7 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba render urban --set trajectory=orbit --set altitude=693e3 --set mode=spotlight \
+#    .venv/bin/python -m sarmitsuba render urban --set trajectory=orbit --set altitude=693e3 --set mode=spotlight \
 #        --set n_pulses=160 --set receiver_altitude=300 --set receiver_incidence_angle=60 --set receiver_heading=-60 \
 #        --set receiver_velocity=3 --cphd --out out/bistatic
 #

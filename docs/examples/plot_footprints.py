@@ -68,5 +68,5 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba scene from-footprints scenes/footprints.geojson --out out/footprints-scene
-#    python -m sarmitsuba render out/footprints-scene --geotiff --out out/footprints
+#    .venv/bin/python -m sarmitsuba scene from-footprints scenes/footprints.geojson --out out/footprints-scene
+#    .venv/bin/python -m sarmitsuba render out/footprints-scene --geotiff --out out/footprints

@@ -58,6 +58,6 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba render urban --out out/urban-primary
-#    python -m sarmitsuba render urban --out out/urban-secondary --set "track_offset=0, 0.11, -0.11"
-#    python -m sarmitsuba interferogram out/urban-primary out/urban-secondary --out out/urban-insar --looks 5,5
+#    .venv/bin/python -m sarmitsuba render urban --out out/urban-primary
+#    .venv/bin/python -m sarmitsuba render urban --out out/urban-secondary --set "track_offset=0, 0.11, -0.11"
+#    .venv/bin/python -m sarmitsuba interferogram out/urban-primary out/urban-secondary --out out/urban-insar --looks 5,5

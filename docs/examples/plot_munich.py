@@ -52,5 +52,5 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba info sionna:munich --material-set roughness=city
-#    python -m sarmitsuba render sionna:munich --material-set roughness=city --out out/munich
+#    .venv/bin/python -m sarmitsuba info sionna:munich --material-set roughness=city
+#    .venv/bin/python -m sarmitsuba render sionna:munich --material-set roughness=city --out out/munich

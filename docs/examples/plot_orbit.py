@@ -62,6 +62,6 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba info trihedral --set trajectory=orbit --set altitude=693e3 \
+#    .venv/bin/python -m sarmitsuba info trihedral --set trajectory=orbit --set altitude=693e3 \
 #        --set incidence_angle=35 --set "geo_origin=48.1, 11.6, 500" --set prf=4000 \
 #        --set azimuth_beamwidth=0.3 --set orbit_inclination=53 --set orbit_direction=ascending

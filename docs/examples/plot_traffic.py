@@ -133,4 +133,4 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba render traffic --set ati_baseline=0.4 --out out/traffic
+#    .venv/bin/python -m sarmitsuba render traffic --set ati_baseline=0.4 --out out/traffic

@@ -42,4 +42,4 @@ plt.show()
 #
 # .. code-block:: bash
 #
-#    python -m sarmitsuba render urban --out out/urban
+#    .venv/bin/python -m sarmitsuba render urban --out out/urban

@@ -1,6 +1,6 @@
 """Scenes from building footprints: GeoJSON outlines -> local frame -> meshes -> scene.xml.
 
-``python -m sarmitsuba scene from-footprints FILE.geojson --out DIR`` and
+``.venv/bin/python -m sarmitsuba scene from-footprints FILE.geojson --out DIR`` and
 :meth:`sarmitsuba.Scene.from_footprints` run :func:`build_city` (read, check, project, extrude,
 ground; :meth:`sarmitsuba.Scene.from_city` makes a City an in-memory scene) and, given a folder,
 :func:`write_city`, which writes ``DIR/scene.xml`` and
