@@ -24,7 +24,10 @@ caught every one too):
     ``test_shared_lines`` (turned), ``test_covering_nested``, ``test_many_cutouts``,
     ``test_degenerate``, ``test_thread_count``;
   * the on-line tolerance of a cut-out's edge in its piece without its 1 m floor
-    (``COINCIDENT * length``): ``test_shared_lines`` on the 0.5 m square.
+    (``COINCIDENT * length``): ``test_shared_lines`` on the 0.5 m square;
+  * a maximum written ``x >= y ? x : y`` (``_np_max``: the first of two equal zeros):
+    ``test_signed_zeros_are_kept``; the comparison is of the arrays' bits (:func:`bits`), as
+    ``np.array_equal`` takes ``-0.0`` for ``+0.0`` and passes it.
 """
 from __future__ import annotations
 
@@ -40,14 +43,22 @@ ANGLES = (0.0, 0.3, 1.1, np.pi / 2, 2.5, np.radians(37.0), -0.7)
 OFFSETS = ((0.0, 0.0), (1e5, -1e5))
 
 
+def bits(x: np.ndarray) -> np.ndarray:
+    """The array's bits as unsigned integers of its own width: ``-0.0`` and ``+0.0`` differ, as
+    do NaNs of different payloads (``np.array_equal`` takes the zeros as equal)."""
+    x = np.ascontiguousarray(x)
+    return x.view(np.dtype(f"u{x.dtype.itemsize}")) if x.dtype.kind in "fc" else x
+
+
 def _same(*args) -> int:
-    """Assert the device's segments are the reference's, bit for bit; their number."""
+    """Assert the device's segments are the reference's, bit for bit (signed zeros included);
+    their number."""
     want = occlusion.lit_boundary(*args)
     got = lit_boundary(*args)
     assert [x.dtype for x in got] == [x.dtype for x in want]
     assert [x.shape for x in got] == [x.shape for x in want]
     for g, w in zip(got, want):
-        assert np.array_equal(g, w)
+        assert np.array_equal(bits(g), bits(w))
     return len(want[0])
 
 
@@ -199,6 +210,23 @@ def test_degenerate():
                  np.zeros(0, np.int64)) == 0
 
 
+@pytest.mark.parametrize("case", ["random", "shared"])
+def test_signed_zeros_are_kept(case):
+    """The module promises NumPy's bits, signed zeros included: the cases mirrored through the
+    origin (every coordinate negated, so corners on the axes carry ``-0.0``) give segments whose
+    reference holds ``-0.0`` (232 of them in the random case, 6 in the shared lines), and the
+    device's are the same bits. Catches a maximum written ``x >= y ? x : y`` (the first of two
+    equal zeros, where NumPy's is the second), which ``np.array_equal`` (``-0.0 == 0.0``) lets
+    through."""
+    args = (_random_case(np.random.default_rng(0), 200, cuts_per=(3, 8)) if case == "random"
+            else _shared_case(True, 1.0, 0.0))
+    base, base_count, cut, cut_count, owner = args
+    mirrored = (-base, base_count, -cut, cut_count, owner)
+    want = occlusion.lit_boundary(*mirrored)
+    assert sum(int(np.count_nonzero((w == 0) & np.signbit(w))) for w in want[1:]) > 0
+    assert _same(*mirrored) > 0
+
+
 def test_thread_count():
     """The same bits on one Dr.Jit thread and on several (no atomics, no order from timing)."""
     import drjit as dr
@@ -211,7 +239,7 @@ def test_thread_count():
         many = lit_boundary(*args)
     finally:
         dr.set_thread_count(threads)
-    assert all(np.array_equal(x, y) for x, y in zip(one, many))
+    assert all(np.array_equal(bits(x), bits(y)) for x, y in zip(one, many))
     _same(*args)
 
 

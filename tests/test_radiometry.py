@@ -161,16 +161,19 @@ def test_effective_pulses_match_the_integrated_two_way_pattern(antenna_length, s
     assert effective_pulses(p, n) == pytest.approx(n * mean ** 2, rel=2e-3)
 
 
-def test_bistatic_effective_pulses_integrate_the_one_way_pattern():
-    """A bistatic echo carries the transmitter's one-way pattern g = sinc(u) alone (docs/physics.md
-    (B2)): N_eff = N (mean of |g| over the traced beam)^2, the mean int_0^1 sinc(u) du = Si(pi) / pi
-    = 0.58949 (scipy.special.sici), so 0.3475 N; the monostatic 0.2038 N would read 2.3 dB low."""
+@pytest.mark.parametrize("receiver", [{}, {"receiver_antenna_length": 1.5}])
+def test_bistatic_effective_pulses_integrate_the_one_way_pattern(receiver):
+    """A bistatic echo's two-way pattern is g_t g_r: the transmitter's one-way g_t = sinc(u) times
+    the receiver's, which is 1 at the scene centre it stares at (docs/physics.md (B3)), with or
+    without an antenna of its own. So N_eff = N (mean of |g_t| over the traced beam)^2, the mean
+    int_0^1 sinc(u) du = Si(pi) / pi = 0.58949 (scipy.special.sici), 0.3475 N; the monostatic g^2,
+    0.2038 N, would read 2.3 dB low."""
     from scipy.special import sici
 
     from sarmitsuba.core.radar import RadarParameters
     from sarmitsuba.signal.radiometry import effective_pulses
     base = {"frequency": 9.6e9, "antenna_length": 2.0, "n_pulses": 16}
-    p = RadarParameters.from_mapping({**base, "receiver_altitude": 300.0})
+    p = RadarParameters.from_mapping({**base, "receiver_altitude": 300.0, **receiver})
     assert p.bistatic
     n = 4001
     assert effective_pulses(p, n) == pytest.approx(n * (sici(math.pi)[0] / math.pi) ** 2, rel=2e-3)

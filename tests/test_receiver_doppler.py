@@ -83,3 +83,33 @@ def test_info_gives_the_receivers_own_range_and_the_angle_between_the_two_looks(
         return math.sin(math.radians(inc)) * left + math.cos(math.radians(inc)) * np.array([0.0, 0.0, 1.0])
     angle = math.degrees(math.acos(float(toward(0.0, 45.0) @ toward(90.0, 60.0))))
     assert b["angle_deg"] == pytest.approx(angle, abs=0.05)
+
+
+@pytest.mark.parametrize("heading", [0.0, 35.0])
+def test_the_speed_the_warning_names_clears_it(heading):
+    """A receiver on the transmitter's own track (5 pulses: its look directions those of the
+    transmitter) adds ``v_r / v_t`` of the transmitter's band ``B_t = v_t (sin_hi - sin_lo) /
+    lambda``, so the band is ``B_t (1 + v_r / v_t)`` and falls to the PRF at ``v_r = prf lambda /
+    (sin_hi - sin_lo) - v_t``: 57.7 m/s at the PRF chosen here. The warning at 150 m/s names that
+    speed, rounded down (within 1 %, never above it), and the receiver flown at the speed named
+    warns no more. (Caught: the speed rounded to the nearest of two digits, 58 m/s, which still
+    warns; and the speed never checked against its closed form.)"""
+    import math
+    import re
+    base = {"mode": "stripmap", "heading": heading, "altitude": 1000.0, "incidence_angle": 45.0, "velocity": 100.0,
+            "n_pulses": 5, "receiver_altitude": 1000.0, "receiver_incidence_angle": 45.0,
+            "receiver_heading": heading}
+    p = load_scene("urban", base).params
+    sin_lo, sin_hi = p.beam_sines
+    prf = 157.7 / 100.0 * p.velocity * (sin_hi - sin_lo) / p.wavelength
+    closed = prf * p.wavelength / (sin_hi - sin_lo) - p.velocity
+    assert closed == pytest.approx(57.7, rel=1e-9)
+
+    def notes(speed):
+        return [w for w in scene_info("urban", sensor_overrides={**base, "prf": prf, "receiver_velocity": speed}).warnings
+                if "receiver_velocity" in w]
+    warned = notes(150.0)
+    assert len(warned) == 1
+    named = float(re.search(r"slow the receiver to about ([0-9.]+) m/s", warned[0]).group(1))
+    assert 0.99 * closed <= named <= closed and math.isfinite(named)
+    assert notes(named) == []

@@ -67,7 +67,7 @@ def test_sub_apertures_image_like_per_pulse_tracing_with_a_sixteenth_of_the_cast
     # the casts: a sixteenth, plus the lattice cells of the sub-aperture's wider beam (at most 50 %)
     ratio = one.trace.rays_per_order[0] / many.trace.rays_per_order[0]
     assert 16 / 1.5 < ratio <= 16.0, ratio
-    assert many.trace.shadow_rays < one.trace.shadow_rays / 10
+    assert many.trace.shadow_rays <= one.trace.shadow_rays / 10    # (none of their own at one bounce, (M4))
 
 
 @pytest.mark.parametrize("lit_regions", ["patches", "tiles"])

@@ -63,7 +63,7 @@ def test_energy_per_order_and_rays_are_consistent(lit_regions):
     """Energy per order is finite and non-negative; with max_depth 3 there are exactly 3 orders.
     Tubes: closest-hit casts never increase with the order (rays only leave the scene). Patches:
     every order's rays are counted (its pieces' samples and the discovery rays that found its
-    chains, docs/physics.md (M4), (M6)), each sample checked once on its way back."""
+    chains, docs/physics.md (M4), (M6)), each sample past the first bounce checked once on its way back."""
     sim = simulate("dihedral", integrator_overrides={"max_depth": 3, "lit_regions": lit_regions})
     t = sim.trace
     assert t.energy_per_order.shape == (3,) and np.all(np.isfinite(t.energy_per_order))

@@ -39,9 +39,11 @@ The antenna positions come from the scene's resolved radar parameters
 (:func:`sarmitsuba.core.radar.acquisition_geometry`): the zero-Doppler antenna of a pixel is the
 point of the straight track line closest to it (the line is extended beyond the first and
 last pulse when needed). The plane ``z0`` counts as ground everywhere, also where the
-scene has no ground geometry (the dihedral's shadow falls behind its plate). Rays start
-near the scene and are cast in float32 world coordinates, so masks are exact to well under
-a pixel for scenes within some kilometres of the origin.
+scene has no ground geometry (the dihedral's shadow falls behind its plate). The image's grid
+is in the world frame, the loaded scene in its local one (world minus ``loaded.offset``: a
+scene far from the origin is traced about its own centre); the grid is moved into the scene's
+frame, rays start near the scene and are cast in float32 there, so masks are exact to well
+under a pixel for scenes within some kilometres of their local origin, wherever they lie.
 
 Cost: about one ray per pixel for each of shadow, footprint and double bounce, and
 ``oversample`` rays per pixel spacing along each row's fan for layover: about 1 s for the
@@ -49,6 +51,7 @@ built-in urban scene (0.7 M pixels) and 15-20 s for Sionna's munich (11 M pixels
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -118,15 +121,17 @@ class GroundTruth:
 # ============================================================================ geometry
 @dataclass(frozen=True)
 class _Frame:
-    """Image grid and zero-Doppler track geometry, float64 throughout."""
+    """Image grid and zero-Doppler track geometry, float64 throughout, in the scene's local frame
+    (world minus ``offset``, the frame the scene is traced in: ``LoadedScene.offset``)."""
 
-    image: SarImage
+    image: SarImage          # the image's grid moved into the local frame
     scene: Any
     mid: np.ndarray          # [3] mid-aperture antenna, m
     track: np.ndarray        # [3] unit track direction
     z0: float                # image plane height, m
     top: float               # a height above all geometry, m
     spacing: float           # ground-range pixel spacing, m
+    offset: np.ndarray       # [3] world position of the local frame's origin, m
 
     def row_antennas(self, rows: np.ndarray) -> np.ndarray:
         """Zero-Doppler antenna of each image row, float64 [len(rows), 3]."""
@@ -156,11 +161,15 @@ def _frame(loaded: Any, image: SarImage) -> _Frame:
                          f"horizontal; got azimuth_direction {image.azimuth_direction.tolist()}, track "
                          f"{track.tolist()}, range_direction {image.range_direction.tolist()}")
     mid = geometry.positions.mean(axis=0)                  # a point of the (straight) track line
+    # the image is in the world frame, the scene (its geometry, track and box) in its local one
+    offset = np.asarray(getattr(loaded, "offset", np.zeros(3)), np.float64)
+    if np.any(offset):
+        image = dataclasses.replace(image, origin=np.asarray(image.origin, np.float64) - offset)
     z0 = float(image.origin[2])
     top = max(float(loaded.bbox_hi[2]), z0) + 1.0
     spacing = float(abs(image.range[1] - image.range[0]))
     return _Frame(image=image, scene=loaded.scene, mid=np.asarray(mid, np.float64), track=track, z0=z0, top=top,
-                  spacing=spacing)
+                  spacing=spacing, offset=offset)
 
 
 def _row_batches(n_rows: int, rays_per_row: int) -> list[np.ndarray]:
@@ -317,8 +326,9 @@ def facade_foot_points(loaded: Any, image: SarImage, *,
     float64 ndarray [n_points, 3], m
         One point per pixel of :func:`double_bounce_mask` (the hit nearest the sensor).
     """
-    _, points = _double_bounce(_frame(loaded, image), _threshold(height_threshold))
-    return points
+    frame = _frame(loaded, image)
+    _, points = _double_bounce(frame, _threshold(height_threshold))
+    return points + frame.offset
 
 
 def ground_truth(loaded: Any, image: SarImage, *, height_threshold: float = HEIGHT_THRESHOLD,
@@ -349,10 +359,11 @@ def ground_truth(loaded: Any, image: SarImage, *, height_threshold: float = HEIG
     footprint = _footprint(frame, threshold)
     shadow = _shadow(frame) & ~footprint
     double, _ = _double_bounce(frame, threshold, footprint=footprint, shadow=shadow)
-    xy = image.positions()[..., :2]
+    xy = frame.image.positions()[..., :2]                    # local, as the scene's box
     scene_area = np.all((xy >= loaded.bbox_lo[:2]) & (xy <= loaded.bbox_hi[:2]), axis=-1)
     return GroundTruth(layover=_layover(frame, threshold, int(oversample)), shadow=shadow, footprint=footprint,
-                       double_bounce=double, scene_area=scene_area, height_threshold=threshold, z0=frame.z0)
+                       double_bounce=double, scene_area=scene_area, height_threshold=threshold,
+                       z0=frame.z0 + float(frame.offset[2]))
 
 
 def agreement(image: SarImage, truth: GroundTruth, threshold_db: float = 6.0) -> dict[str, Any]:

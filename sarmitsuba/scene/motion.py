@@ -17,6 +17,7 @@ every moving shape's path across the aperture, for the fast-time window and the 
 """
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,7 +156,8 @@ def moving_shapes(scene: Any, velocities: Mapping[str, Any], params: Any, label:
     Raises
     ------
     ParameterError
-        A velocity that is not finite; an id no shape has; a moving shape whose material is
+        A velocity that is not finite; an id no shape has; a moving shape that is not a triangle
+        mesh (a sphere: nothing for the tracer to move); a moving shape whose material is
         rough (its scatterers would have to move with it: not simulated); ``sbr lit_regions``
         other than ``patches`` (the ray tubes do not follow moving shapes).
     """
@@ -173,6 +175,10 @@ def moving_shapes(scene: Any, velocities: Mapping[str, Any], params: Any, label:
         return None
     centres, radii = [], []
     for index, shape_id, _, _ in sorted(rows):
+        if not shapes[index].is_mesh():
+            raise ParameterError(f"scene {label!r}, shape {shape_id!r}: a moving shape must be a triangle mesh "
+                                 "(obj, ply, rectangle, cube or a Python mesh), not a sphere, disk or cylinder: "
+                                 "give it as a mesh, or give it no velocity")
         clutter = getattr(shapes[index].bsdf(), "clutter", (0, 0))
         if clutter[0] > 0:
             raise ParameterError(f"scene {label!r}, shape {shape_id!r}: a moving shape's material must be smooth "
@@ -197,9 +203,9 @@ def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.nd
 
     Raises ParameterError when a moving shape that stands within the box of the still shapes
     (horizontally, a car on its ground) leaves it during the aperture, naming the parameter that
-    moves it (``velocity``, with the largest speed that stays, or ``angular_velocity``). A shape
-    that stands beyond the still ones (a target alone, or the ground itself turning) is not
-    refused: the box returned holds its path.
+    moves it (``velocity``, with the largest speed along the same direction that stays,
+    :func:`_staying_speed`, or ``angular_velocity``). A shape that stands beyond the still ones (a
+    target alone, or the ground itself turning) is not refused: the box returned holds its path.
     """
     still = np.setdiff1d(np.arange(len(boxes)), motion.shapes)
     half = 0.5 * motion.duration * motion.velocities()
@@ -216,15 +222,41 @@ def swept_box(motion: ShapeMotion, boxes: np.ndarray, label: str) -> tuple[np.nd
                 continue                     # it stands beyond the still shapes: its own path is planned below
             outside = max(float(np.max(s_lo[:2] - a[:2])), float(np.max(b[:2] - s_hi[:2])))
             if outside > 1e-6:
-                speed = float(np.linalg.norm(v[:2]))
-                allowed = max(speed - 2.0 * outside / max(motion.duration, 1e-300), 0.0)
                 w = np.degrees(motion.angular_velocities()[list(motion.ids).index(shape_id)])
                 fix = f"angular_velocity {np.round(w, 9).tolist()} deg/s turns it" if t else \
                     f"velocity {v.tolist()} m/s takes it"
-                hint = "a slower turn" if t else f"a speed below about {allowed:.3g} m/s"
+                room = np.minimum(boxes[k, 0, :2] - s_lo[:2], s_hi[:2] - boxes[k, 1, :2])
+                allowed, edge = _staying_speed(v, room, motion.duration)
+                if t:
+                    hint = "give a slower turn, fewer pulses, or a larger ground"
+                elif allowed > 0:
+                    hint = f"give a speed below about {allowed:.3g} m/s, fewer pulses, or a larger ground"
+                else:              # flush with the still shapes' edge along its motion: any speed leaves
+                    hint = (f"it stands at the still shapes' edge along {edge} already: give it a velocity "
+                            f"without an {edge} part, or a larger ground")
                 raise ParameterError(
                     f"scene {label!r}, shape {shape_id!r}: {fix} {outside:.3g} m beyond the still shapes around it "
-                    f"during the aperture ({motion.duration:.4g} s): give {hint}, fewer pulses, or a larger ground")
+                    f"during the aperture ({motion.duration:.4g} s): {hint}")
         lo.append(s_lo)
         hi.append(s_hi)
     return np.min(lo, axis=0), np.max(hi, axis=0)
+
+
+def _staying_speed(velocity: np.ndarray, room: np.ndarray, duration: float) -> tuple[float, str]:
+    """The largest speed [m/s] along ``velocity``'s horizontal direction at which a shape stays
+    within the still shapes around it, rounded down to 3 significant digits (so that the speed
+    named stays), and the axis (``"x"`` or ``"y"``) that limits it. ``room`` float64 [2]: the
+    shape's margin to the still shapes' box on each horizontal axis, m (the smaller of its two
+    sides: it moves ``+- v duration / 2`` about where it stands, (V1)). Along a unit direction
+    ``u`` it stays while ``|u_a| s duration / 2 <= room_a`` on both axes, so
+    ``s = min_a 2 room_a / (duration |u_a|)``; 0 where the shape is flush with an edge it moves
+    toward."""
+    horizontal = np.asarray(velocity, np.float64)[:2]
+    u = np.abs(horizontal) / max(float(np.linalg.norm(horizontal)), 1e-300)
+    limits = [(2.0 * max(float(r), 0.0) / (max(duration, 1e-300) * float(c)), axis)
+              for r, c, axis in zip(room, u, "xy") if c > 1e-12]
+    speed, axis = min(limits) if limits else (math.inf, "x")
+    if not math.isfinite(speed) or speed < 1e-9:
+        return (0.0 if math.isfinite(speed) else speed), axis
+    digits = 10.0 ** (math.floor(math.log10(speed)) - 2)
+    return math.floor(speed / digits) * digits, axis

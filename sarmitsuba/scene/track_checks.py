@@ -276,13 +276,26 @@ def receiver_doppler_note(params: RadarParameters, geometry: AcquisitionGeometry
                           hi: np.ndarray) -> str | None:
     """The warning when a receiver on its own platform spreads the echoes' Doppler band
     (:func:`bistatic_doppler_band`) beyond the PRF, as the monostatic check warns of a PRF below
-    the beam's Doppler bandwidth: azimuth ghosts. None when monostatic or within the PRF."""
+    the beam's Doppler bandwidth: azimuth ghosts. None when monostatic or within the PRF.
+
+    The receiver's part of the band grows in proportion to its speed (its look directions held),
+    so the speed it names, at which the band falls to the PRF, is ``v (prf - B_t) / (B - B_t)``
+    (``B``, ``B_t`` the band and the transmitter's part at the receiver's speed ``v``; docs/physics.md
+    (B5)), rounded down to three significant digits so that the speed named stays within the PRF."""
     band, own = bistatic_doppler_band(params, geometry, lo, hi)
     if band <= params.prf:
         return None
     speed = float(np.linalg.norm(geometry.receiver_velocity[len(geometry.positions) // 2]))
-    slower = f" or slow the receiver to about {speed * (params.prf - own) / (band - own):.2g} m/s" \
+    slower = f" or slow the receiver to about {_round_down(speed * (params.prf - own) / (band - own), 3):.3g} m/s" \
         if own < params.prf else ""
     return (f"the receiver's motion (receiver_velocity {speed:.3g} m/s) spreads the echoes' Doppler band over the lit "
             f"scene to {band:.0f} Hz (the transmitter's part {own:.0f} Hz), above prf = {params.prf:g} Hz: azimuth "
             f"ghosts will appear; raise prf above {band:.0f} Hz{slower}")
+
+
+def _round_down(value: float, digits: int) -> float:
+    """``value`` (> 0) rounded toward zero to ``digits`` significant digits."""
+    if not (math.isfinite(value) and value > 0):
+        return value
+    step = 10.0 ** (math.floor(math.log10(value)) - digits + 1)
+    return math.floor(value / step * (1 + 1e-12)) * step

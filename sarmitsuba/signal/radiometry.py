@@ -61,7 +61,8 @@ def effective_pulses(params: RadarParameters, pulses: int) -> float:
     ``sqrt(N)``, so the image SNR gains ``N_eff = (sum g^2)^2 / N`` (``N`` for a uniform beam,
     0.2038 N = (0.45141)^2 N for the tapered beam traced to its nulls, 0.45141 being the
     mean of sinc^2 between its first nulls). A bistatic echo (``params.bistatic``) carries the
-    transmitter's one-way pattern ``g`` (the receiver stares at the scene, (B2)): ``(sum g)^2 / N``,
+    two-way pattern ``g_t g_r``: the transmitter's one-way ``g_t`` and the receiver's ``g_r``, which
+    is 1 at the scene centre its beam stares at (docs/physics.md (B3)), so ``(sum g_t)^2 / N``,
     0.3475 N = (Si(pi) / pi)^2 N for the tapered beam.
     """
     if params.pattern_length <= 0 or pulses <= 0:

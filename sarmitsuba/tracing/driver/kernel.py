@@ -426,7 +426,10 @@ class Kernel:
                 out["carried"][depth] += carried
             for depth, casts in enumerate(stats["discovery"]):
                 out["rays"][depth + 1] += casts        # and the rays that looked for its chains
-            out["shadow"] += int(sum(stats["samples"]))   # each checked on its way back
+            # each sample's return leg, where it is a ray of its own: past the first bounce, and
+            # bistatic at every bounce, toward the receiver (B2); the monostatic first bounce's
+            # return is its transmit ray, counted above
+            out["shadow"] += int(sum(n for depth, n in enumerate(stats["samples"]) if depth > 0 or self.effects.bistatic))
             out["overflow"] = stats["overflow"]          # rows the fused kernels left to the reference
             out["beyond_rays"] = stats["beyond"] or 0    # rays past the deepest order, where looked for
             out["beyond_unchecked"] = int(stats["beyond"] is None)

@@ -149,7 +149,10 @@ class TraceResult:
     rays_per_order : int64 [max_depth]
         Closest-hit casts per bounce order (order 1 = primary rays).
     shadow_rays : int
-        Shadow (visibility) casts.
+        Shadow (visibility) casts toward the receiving antenna. Tubes: one per visible hit. Patches:
+        one per visibility sample whose return leg is a ray of its own, past the first bounce, and
+        bistatic at every bounce (the leg to the receiver, docs/physics.md (B2)); at the monostatic
+        first bounce the one ray to the sample is both ways, counted in ``rays_per_order``.
     seconds : float
         Wall time of tracing, s.
     spectrum_per_order : complex64 [max_depth, n_pulses, n_pad] or None

@@ -143,16 +143,44 @@ def scene_meshes(scene) -> list[tuple[np.ndarray, np.ndarray]]:
 def set_vertices(scene, vertices: dict) -> None:
     """Move the Mitsuba scene's meshes: shape ``k`` (its index in ``scene.shapes()``) to the
     vertices ``vertices[k]`` (float [n_v, 3], m), the buffer rewritten in float32 and the scene's
-    acceleration structure rebuilt (the rays then meet the moved shapes)."""
+    acceleration structure rebuilt (the rays then meet the moved shapes).
+
+    A mesh that Mitsuba builds from its ``to_world`` (``rectangle``, ``cube``: no vertex buffer
+    to write) takes instead, into its ``to_world``, the rigid motion that carries its present
+    vertices onto ``vertices[k]`` (the shapes' motions are rigid, docs/physics.md (V1)): its
+    vertices are then those within float32 rounding. Raises ValueError for a shape with neither
+    (a sphere: not a mesh)."""
     if not vertices:
         return
     params = mi.traverse(scene)
     shapes = list(scene.shapes())
     for k, v in vertices.items():
-        key = next(key for key in params.keys()
-                   if key.endswith(".vertex_positions") and params.properties[key][2] == shapes[k])
-        params[key] = mi.Float(np.asarray(v, np.float32).ravel())
+        keys = [key for key in params.keys() if params.properties[key][2] == shapes[k]]
+        buffer = [key for key in keys if key.endswith(".vertex_positions")]
+        transform = [key for key in keys if key.endswith(".to_world")]
+        if buffer:
+            params[buffer[0]] = mi.Float(np.asarray(v, np.float32).ravel())
+        elif transform and shapes[k].is_mesh():
+            present = np.array(shapes[k].vertex_positions_buffer(), np.float64).reshape(-1, 3)
+            params[transform[0]] = _moved_transform(params[transform[0]], present, np.asarray(v, np.float64))
+        else:
+            raise ValueError(f"shape {shapes[k].id()!r} has no vertices to move (it is not a triangle mesh)")
     params.update()
+
+
+def _moved_transform(to_world, present: np.ndarray, target: np.ndarray):
+    """``to_world`` (mi.AffineTransform4f) followed by the rigid motion that takes the points
+    ``present`` [n, 3] onto ``target`` [n, 3] (m) in the least-squares sense: the rotation about
+    their centroids by scipy's ``Rotation.align_vectors`` (the Kabsch algorithm; unique for
+    points not all on one line), then the centroids' translation."""
+    from scipy.spatial.transform import Rotation
+    to, at = target.mean(axis=0), present.mean(axis=0)
+    rotation, _ = Rotation.align_vectors(target - to, present - at)
+    motion = np.eye(4)
+    motion[:3, :3] = rotation.as_matrix()
+    motion[:3, 3] = to - rotation.apply(at)
+    matrix = np.array(to_world.matrix, np.float64).reshape(4, 4)
+    return mi.AffineTransform4f((motion @ matrix).astype(np.float32))
 
 
 def mesh_parts(meshes: Sequence[tuple[np.ndarray, np.ndarray]], position_tolerance: float = 1e-5,
