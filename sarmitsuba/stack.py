@@ -2,7 +2,11 @@
 ground grid (docs/physics.md (TS1); the guide's tomography page).
 
 :func:`render_stack` plans the passes' track offsets (:func:`sarmitsuba.scene.baseline.stack_baselines`),
-refuses baselines whose elevation ambiguity is shorter than the scene's height range, renders
+refuses baselines whose elevation ambiguity is shorter than the scene's height range, a render's
+folder as the stack folder, and a stack whose files (:func:`stack_cost`, from the cost model's
+estimate of one pass) would not fit on the output folder's file system, warns
+(:class:`LargeStackWarning`) of one estimated at more than :data:`LARGE_STACK_SECONDS` or
+:data:`LARGE_STACK_BYTES`, all before the first pass, then renders
 every pass with :func:`sarmitsuba.pipeline.render` (in this process or, with ``scheduler``, as
 one Dask task a pass) into ``OUT/pass-00``, ``OUT/pass-01``, ..., and writes last
 
@@ -21,7 +25,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -33,7 +39,24 @@ from .core.outputs import OutputDirectory, atomic_savez, json_default
 from .core.radar import ParameterError
 from .scene.baseline import StackBaselines, stack_baselines
 
-__all__ = ["StackPlan", "StackSummary", "plan_stack", "render_stack", "render_pass"]
+__all__ = ["StackPlan", "StackSummary", "StackCost", "LargeStackWarning", "plan_stack", "stack_cost", "render_stack",
+           "render_pass", "LARGE_STACK_SECONDS", "LARGE_STACK_BYTES", "QUICKLOOK_BYTES", "EXR_PER_IMAGE"]
+
+#: A stack estimated to render longer than this [s], or to write more than
+#: :data:`LARGE_STACK_BYTES`, is announced by a :class:`LargeStackWarning` before its first pass.
+LARGE_STACK_SECONDS = 600.0
+LARGE_STACK_BYTES = 4 * 2**30
+#: Bytes counted for each product's PNG quicklook, ``summary.json`` and the npz and EXR files' axes
+#: and headers (urban's: 0.13 to 0.28 MiB, the 103 x 159-pixel image of three trihedrals' 0.1 MiB).
+QUICKLOOK_BYTES = 2**19
+#: ``image.exr`` holds three float32 channels (intensity, real, imag): 1.5 times ``image.npz``'s
+#: complex64 pixels.
+EXR_PER_IMAGE = 1.5
+
+
+class LargeStackWarning(UserWarning):
+    """A stack whose estimated time or disk is large (:data:`LARGE_STACK_SECONDS`,
+    :data:`LARGE_STACK_BYTES`), announced before its first pass."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +105,52 @@ def plan_stack(loaded: Any, **description: Any) -> StackPlan:
     margin = min(b.elevation_resolution, 0.5 * (b.elevation_ambiguity - extent))
     return StackPlan(baselines=b, interval=(heights[0] / sin_theta - margin, heights[1] / sin_theta + margin),
                      heights=heights)
+
+
+@dataclass(frozen=True)
+class StackCost:
+    """The estimated work and disk of a stack: ``passes`` renders of one scene
+    (:func:`stack_cost`).
+
+    Attributes
+    ----------
+    passes : int
+    seconds_per_pass : float, s
+        One render's trace and focusing (the cost model's ``trace_time_s + focus_time_s``,
+        :class:`~sarmitsuba.analysis.cost.CostEstimate`: an idle 2-core machine, within a factor of 2).
+    bytes_per_pass : int
+        One render folder: per product, ``raw.npz`` (complex64 [pulses, fast-time samples]),
+        ``image.npz`` (complex64 pixels), ``image.exr`` (three float32 channels) and
+        :data:`QUICKLOOK_BYTES` for ``image.png`` and ``summary.json``.
+    truth_bytes : int
+        ``truth.npz``: float32 [n_az, n_rg, MAX_CROSSINGS] (0 without truth).
+    """
+
+    passes: int
+    seconds_per_pass: float
+    bytes_per_pass: int
+    truth_bytes: int
+
+    @property
+    def seconds(self) -> float:
+        """All passes' rendering, one after another [s]."""
+        return self.passes * self.seconds_per_pass
+
+    @property
+    def bytes(self) -> int:
+        """The stack folder's files [bytes]."""
+        return self.passes * self.bytes_per_pass + self.truth_bytes
+
+
+def stack_cost(cost: Any, passes: int, truth: bool = True) -> StackCost:
+    """:class:`StackCost` of ``passes`` renders each of estimated ``cost`` (a
+    :class:`~sarmitsuba.analysis.cost.CostEstimate`), with ``truth.npz`` when ``truth``."""
+    from .products.elevation_truth import MAX_CROSSINGS
+    pixels = int(cost.image_shape[0]) * int(cost.image_shape[1])
+    per_product = cost.raw_bytes + cost.image_bytes * (1.0 + EXR_PER_IMAGE) + QUICKLOOK_BYTES
+    return StackCost(passes=int(passes), seconds_per_pass=float(cost.trace_time_s + cost.focus_time_s),
+                     bytes_per_pass=int(cost.n_products * per_product),
+                     truth_bytes=pixels * MAX_CROSSINGS * 4 if truth else 0)
 
 
 @dataclass(frozen=True)
@@ -143,8 +212,14 @@ def render_stack(source: Any, out_dir: str | os.PathLike, *, sensor_overrides: M
     Raises
     ------
     SceneError, ParameterError, MaterialError, OSError
-        Before any pass is traced: a bad scene, parameter, stack description (fewer than 3 passes,
-        aliasing baselines) or output folder.
+        Before any pass is traced and anything is written: a bad scene, parameter, stack
+        description (fewer than 3 passes, aliasing baselines) or output folder (a render's
+        folder; a file system without room for the stack's estimated files, :func:`stack_cost`).
+
+    Warns
+    -----
+    LargeStackWarning
+        Before the first pass, when the estimated time or disk is large.
     """
     from tqdm.auto import tqdm
 
@@ -159,6 +234,8 @@ def render_stack(source: Any, out_dir: str | os.PathLike, *, sensor_overrides: M
     if scheduler is not None:
         from .tracing.driver.distributed import check_scheduler
         check_scheduler(scheduler)
+    _check_out(out_dir)
+    _check_size(out_dir, stack_cost(_pass_cost(loaded), len(plan.baselines.perpendicular), truth))
     offsets = plan.baselines.track_offsets
     options = [dict(sensor_overrides={**sensor, "track_offset": tuple(float(v) for v in o)},
                     integrator_overrides=integrator_overrides, material_overrides=material_overrides,
@@ -180,6 +257,54 @@ def render_stack(source: Any, out_dir: str | os.PathLike, *, sensor_overrides: M
         out.write(STACK_FILE, lambda path: path.write_text(json.dumps(_description(summary, loaded, truth), indent=2,
                                                                       default=json_default)))
     return summary
+
+
+def _pass_cost(loaded: Any) -> Any:
+    """The cost model's estimate of one pass (:func:`sarmitsuba.analysis.cost.cost_estimate`);
+    the acquisition's warnings are left to each pass's render."""
+    from .analysis.cost import cost_estimate
+    from .scene.planning import AcquisitionWarning
+    from .tracing.driver.trace import prepare_trace
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AcquisitionWarning)
+        setup = prepare_trace(loaded)
+    return cost_estimate(loaded, setup.geometry, setup.window, setup.footprint, setup.effects)
+
+
+def _check_out(out_dir: str | os.PathLike) -> None:
+    """Refuse a render's folder as the stack folder: the passes would lie beside its files."""
+    from .core.outputs import MANIFEST_FILE
+    path = Path(out_dir)
+    if not path.is_dir() or (path / STACK_FILE).is_file():
+        return
+    found = [name for name in (MANIFEST_FILE, "raw.npz", "image.npz") if (path / name).is_file()]
+    if found:
+        raise ParameterError(f"out_dir = {str(path)!r} is a render folder (it holds {', '.join(found)}): the "
+                             f"stack's pass-00, pass-01, ..., {STACK_FILE} and {TRUTH_FILE} would lie beside its "
+                             f"files; give the stack a folder of its own, e.g. "
+                             f"{str(path.with_name(path.name + '-stack'))!r}")
+
+
+def _check_size(out_dir: str | os.PathLike, cost: StackCost) -> None:
+    """Refuse a stack whose files do not fit on the output folder's file system; warn of a large one."""
+    from .analysis.cost import format_bytes
+    where = Path(out_dir).absolute()
+    while not where.exists():
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    what = (f"about {format_bytes(cost.bytes)} ({cost.passes} passes x {format_bytes(cost.bytes_per_pass)}: raw data "
+            f"and images{', and ' + format_bytes(cost.truth_bytes) + ' of truth' if cost.truth_bytes else ''})")
+    if cost.bytes > free:
+        fit = max(0, (free - cost.truth_bytes) // max(cost.bytes_per_pass, 1))
+        raise ParameterError(f"out_dir = {str(out_dir)!r}: the stack would write {what}, but the file system of "
+                             f"{where} has {format_bytes(free)} free: render at most {fit} passes there, fewer "
+                             "pulses, or give a folder on a disk with more room")
+    if cost.seconds > LARGE_STACK_SECONDS or cost.bytes > LARGE_STACK_BYTES:
+        minutes = cost.seconds / 60.0
+        warnings.warn(f"a large stack: {cost.passes} passes, about {cost.seconds:,.0f} s ({minutes:,.0f} min; "
+                      f"{cost.seconds_per_pass:.1f} s a pass, one after another, by the cost model for an idle 2-core "
+                      f"machine) and {what} written to {out_dir} ({format_bytes(free)} free); `info` with the same "
+                      "options gives both before anything starts", LargeStackWarning, stacklevel=3)
 
 
 def _on_cluster(scheduler: str, source: Any, folders: list[Path], options: list[dict], progress: bool) -> list[float]:

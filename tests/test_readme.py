@@ -45,7 +45,8 @@ DASK = ".venv/bin/dask"
 #: Flags added to a sub-command unless the command gives them itself.
 SMALL = {"render": ["--pulses", "16", "--max-depth", "1", "--no-progress"],
          "preview": ["--pulses", "16", "--spp", "1", "--resolution", "200x150"],
-         "info": ["--pulses", "16"], "focus": ["--no-progress"], "interferogram": ["--no-progress"]}
+         "info": ["--pulses", "16"], "focus": ["--no-progress"], "interferogram": ["--no-progress"],
+         "stack": ["--pulses", "16", "--max-depth", "1", "--no-progress"], "tomography": ["--no-progress"]}
 #: README text -> what the test runs instead (see the module docstring).
 SUBSTITUTES = {"render sionna:munich": "render sionna:simple_street_canyon"}
 #: The fresh-clone commands, run by CI on a clean clone rather than inside the suite.

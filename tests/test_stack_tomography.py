@@ -58,8 +58,7 @@ D_S = _elevation(FAR, np.zeros(3))                       # near-far elevation di
 D_B = WAVELENGTH * R / (2.0 * D_S * 10)                  # ten spacings: rho_s = D_S
 
 
-@pytest.fixture(scope="module")
-def stack(tmp_path_factory):
+def _scene() -> sarmitsuba.Scene:
     meshes = []
     for name, apex in (("near", NEAR), ("far", FAR), ("alone", ALONE)):
         mesh = canonical.trihedral(0.4)
@@ -68,9 +67,13 @@ def stack(tmp_path_factory):
     sensor = {"frequency": 9.6e9, "bandwidth": 150e6, "sampling_rate": 180e6, "prf": 250, "velocity": 100,
               "altitude": ALTITUDE, "incidence_angle": 45, "scene_center": "0, 0, 0", "azimuth_beamwidth": 1.2,
               "n_pulses": 64}
+    return sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3})
+
+
+@pytest.fixture(scope="module")
+def stack(tmp_path_factory):
     folder = tmp_path_factory.mktemp("stack")
-    scene = sarmitsuba.Scene(meshes=meshes, sensor=sensor, integrator={"max_depth": 3})
-    summary = render_stack(scene, folder, span=D_B * (N_PASSES - 1), count=N_PASSES, progress=False)
+    summary = render_stack(_scene(), folder, span=D_B * (N_PASSES - 1), count=N_PASSES, progress=False)
     return folder, summary, read_stack([folder])
 
 
@@ -268,28 +271,144 @@ def test_the_cli_writes_the_products_and_any_two_passes_make_an_interferogram(st
                  "--no-progress"]) == 0
 
 
+#: The Python names of the two commands' parameters: a message of the command line names flags.
+PYTHON_NAMES = ("min_power_db", "threshold_db", "max_scatterers", "tomogram_row", "calibration_point", "region",
+                "out_dir", "count =", "seed =", "span =", "track_offsets", "spacing =")
+
+
+def _refused(argv, capsys, *words):
+    """Run ``argv``: exit 2, one ``error:`` line holding ``words`` and no Python name."""
+    capsys.readouterr()
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("error:") == 1 and "Traceback" not in err, err
+    assert all(w in err for w in words), (words, err)
+    assert not [name for name in PYTHON_NAMES if name in err], err
+    return err
+
+
 def test_bad_stacks_end_with_one_message_and_code_2(stack, tmp_path, capsys):
     folder, _, st = stack
     passes = [folder / f"pass-{n:02d}" for n in range(3)]
+    n_az, n_rg = st.images[0].data.shape
     cases = {
-        "at least 3 passes": ["tomography", str(passes[0]), str(passes[1]), "--out", str(tmp_path / "a")],
-        "outside the image": ["tomography", str(folder), "--out", str(tmp_path / "b"), "--reference-point", "0,300,0"],
-        "alias": ["stack", "trihedral", "--span", "300", "--passes", "3", "--out", str(tmp_path / "c")],
-        "at least 3 passes, got count": ["stack", "trihedral", "--span", "2", "--passes", "2", "--out",
-                                         str(tmp_path / "d")],
+        ("one stack folder or three or more render folders", "got 2 render folders"):
+            ["tomography", str(passes[0]), str(passes[1]), "--out", str(tmp_path / "a")],
+        ("outside the image",): ["tomography", str(folder), "--out", str(tmp_path / "b"), "--reference-point", "0,300,0"],
+        ("alias",): ["stack", "trihedral", "--span", "300", "--passes", "3", "--out", str(tmp_path / "c")],
+        ("2 of the 2 folders given are stack folders", "one stack folder, or three or more render folders"):
+            ["tomography", str(folder), str(folder), "--out", str(tmp_path / "f")],
+        ("--rows 0:99999", f"{n_az} azimuth rows", f"{n_az} x {n_rg} pixels"):
+            ["tomography", str(folder), "--out", str(tmp_path / "g"), "--rows", "0:99999"],
+        ("--cols 10:400", f"{n_rg} range columns"):
+            ["tomography", str(folder), "--out", str(tmp_path / "h"), "--cols", "10:400"],
+        ("--tomogram-row 500", f"0 to {n_az - 1}"):
+            ["tomography", str(folder), "--out", str(tmp_path / "i"), "--tomogram-row", "500"],
     }
     shifted = tmp_path / "shifted"
     shutil.copytree(passes[2], shifted)
     image = SarImage.load(shifted / "image.npz")
     dataclasses.replace(image, origin=image.origin + np.array([0.0, 0.5, 0.0])).save(shifted / "image.npz")
-    cases["grids differ in origin"] = ["tomography", str(passes[0]), str(passes[1]), str(shifted), "--out",
-                                       str(tmp_path / "e")]
-    for expected, argv in cases.items():
-        capsys.readouterr()
-        assert main(argv) == 2, expected
-        err = capsys.readouterr().err
-        assert err.count("error:") == 1 and expected in err and "Traceback" not in err, err
-    assert not (tmp_path / "c" / "pass-00").exists()
+    cases[("grids differ in origin",)] = ["tomography", str(passes[0]), str(passes[1]), str(shifted), "--out",
+                                          str(tmp_path / "e")]
+    for words, argv in cases.items():
+        _refused(argv, capsys, *words)
+    assert not [p.name for p in tmp_path.iterdir() if p.name != "shifted"]          # nothing written
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["stack", "trihedral", "--span", "2", "--passes", "2"], ("--passes", "whole number >= 3")),
+    (["tomography", "STACK", "--threshold-db", "3"], ("--threshold-db", "< 0")),
+    (["tomography", "STACK", "--min-power-db", "nan"], ("--min-power-db", "< 0")),
+    (["tomography", "STACK", "--max-scatterers", "0"], ("--max-scatterers", ">= 1")),
+])
+def test_flags_out_of_range_are_refused_by_argparse_with_the_flag(stack, tmp_path, capsys, argv, words):
+    """Flags outside their range stop before anything is read or rendered: argparse's line naming
+    the flag and the range, exit 2."""
+    argv = [str(stack[0]) if a == "STACK" else a for a in argv]
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and all(w in err for w in words), err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("point", [(3.0, 3.0, 0.0), (-4.0, 0.0, 0.0)])
+def test_a_reference_point_on_an_empty_pixel_is_refused_naming_the_brightest_nearby(stack, tmp_path, capsys, point):
+    """(3, 3, 0) images 60 dB below the brightest pixel, on nothing; (-4, 0, 0) 4 m along the track
+    from the near trihedral, on its azimuth sidelobes (their phase is the trihedral's). Calibrating
+    on either would put the clutter's phase into every pass: refused, naming the 20 dB margin and,
+    as the brightest pixel nearby, the near trihedral's (the pixel of its apex)."""
+    folder, _, st = stack
+    image = st.images[st.reference]
+    power = np.mean([np.abs(im.data) ** 2 for im in st.images], axis=0)
+    q = _pixel(image, np.array(point))
+    assert 10 * math.log10(power[q] / power.max()) < -20
+    near = _pixel(image, NEAR)
+    err = _refused(["tomography", str(folder), "--out", str(tmp_path / "t"),
+                    "--reference-point=" + ",".join(str(v) for v in point), "--no-progress"], capsys,
+                   "--reference-point", "20 dB", "1/sqrt(2 SCR)", f"brightest pixel within 15 pixels is {near}")
+    assert not (tmp_path / "t").exists(), err
+
+
+def test_a_window_without_echo_is_refused_naming_its_level(stack, tmp_path, capsys):
+    """A stack whose rows 0 to 19 are 0 in every pass (as beyond a short track): ``--rows 0:20`` wrote
+    empty products with exit 0; now one line naming the window, its brightest pixel's level and
+    the --min-power-db (none) that would include pixels; nothing written."""
+    folder, _, st = stack
+    dark = tmp_path / "dark"
+    shutil.copytree(folder, dark)
+    for n in range(N_PASSES):
+        path = dark / f"pass-{n:02d}" / "image.npz"
+        image = SarImage.load(path)
+        data = image.data.copy()
+        data[:20] = 0
+        dataclasses.replace(image, data=data).save(path)
+    _refused(["tomography", str(dark), "--out", str(tmp_path / "t"), "--rows", "0:20", "--no-progress"], capsys,
+             "no echo", "-inf dBsm", "--min-power-db", "--rows and --cols", "rows 0:20")
+    assert not (tmp_path / "t").exists()
+    assert main(["tomography", str(dark), "--out", str(tmp_path / "u"), "--rows", "15:25", "--no-progress"]) == 0
+
+
+def test_truth_heights_are_paired_by_height_not_by_elevation(stack, tmp_path):
+    """The lone trihedral's scatterer lies at height 3 m, elevation 3 / sin(45 deg) = 4.24 m. With
+    the truth of its pixel 3 m and 4.24 m, its truth_height is 3 m (pairing the elevation with the
+    heights picks 4.24 m)."""
+    from sarmitsuba.stacks.tomo_products import write_products
+    folder, _, st = stack
+    q = _pixel(st.images[st.reference], ALONE)
+    truth = np.full_like(st.truth, np.nan)
+    elevation = _elevation(ALONE, np.zeros(3))
+    truth[q] = [H_ALONE, elevation, np.nan, np.nan]
+    products = write_products(tmp_path / "t", dataclasses.replace(st, truth=truth),
+                              region=(slice(q[0], q[0] + 1), slice(q[1], q[1] + 1)))
+    sc = products.result.scatterers
+    assert sc["row"].size == 1 and sc["height"][0] == pytest.approx(H_ALONE, abs=0.1)
+    assert sc["elevation"][0] == pytest.approx(elevation, abs=0.15)
+    assert sc["truth_height"][0] == pytest.approx(H_ALONE, abs=1e-5)
+
+
+def test_the_disk_estimate_holds_the_files_written(stack):
+    """``stack_cost`` against the stack's own files. Each pass's raw.npz, image.npz and image.exr
+    hold the complex64 raw data, the complex64 image and three float32 channels (1.5 times the
+    image): the estimate of a pass, less its allowance for the quicklook and the summary, falls
+    short of the three files by their axes, metadata and headers alone (under 64 KiB; an EXR
+    counted at the image's size falls 65 KiB more short); truth.npz is float32 [n_az, n_rg, 4];
+    all the files together are at most the estimate."""
+    from sarmitsuba.info import scene_info
+    from sarmitsuba.stack import QUICKLOOK_BYTES, stack_cost
+    folder, _, st = stack
+    estimate = stack_cost(scene_info(_scene()).cost, N_PASSES)
+    n_az, n_rg = st.images[0].data.shape
+    for n in range(N_PASSES):
+        sizes = {p.name: p.stat().st_size for p in (folder / f"pass-{n:02d}").iterdir()}
+        assert sizes["image.npz"] - n_az * n_rg * 8 < 32 * 1024 and sizes["image.exr"] - n_az * n_rg * 12 < 32 * 1024
+        files = sizes["raw.npz"] + sizes["image.npz"] + sizes["image.exr"]
+        assert 0 <= files - (estimate.bytes_per_pass - QUICKLOOK_BYTES) < 64 * 1024, (n, sizes)
+    assert 0 <= (folder / "truth.npz").stat().st_size - estimate.truth_bytes < 32 * 1024
+    assert estimate.truth_bytes == n_az * n_rg * 4 * 4
+    everything = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    assert everything <= estimate.bytes
 
 
 def test_an_interval_longer_than_the_ambiguity_is_refused_and_baselines_refer_to_the_reference(stack):

@@ -182,3 +182,49 @@ def test_the_phase_model_holds_the_wavefront_curvature(loaded):
         fourier = 4 * math.pi * np.outer(plan.perpendicular - plan.perpendicular[plan.reference], s) / (
             p.wavelength * plan.slant_range)
         assert np.max(np.abs(fourier - exact)) > 0.03
+
+
+def _fourier_model(b: np.ndarray, cells: int, lam: float = 0.031, r: float = 1200.0):
+    """A PhaseModel whose phase is the Fourier form 4 pi b_n s / (lambda R) (TS2), ``cells`` pixels alike."""
+    from sarmitsuba.stacks.tomography import PhaseModel
+    slope = 4 * math.pi * b / (lam * r)
+    phase = np.stack([np.zeros(b.size), slope, np.zeros(b.size), np.zeros(b.size)], axis=1)[:, :, None]
+    return PhaseModel(phase=np.repeat(phase, cells, axis=2), height=np.repeat([[0.0], [1.0], [0.0], [0.0]], cells, 1),
+                      scale=1.0, interval=(-2.0, 10.0), fit_error=0.0), slope
+
+
+@pytest.mark.parametrize("n, s0", [(12, 6.0), (16, 3.5)])
+def test_sl1mmer_l1_step_is_the_closed_form_lasso_of_one_scatterer(n, s0):
+    """One noise-free scatterer of amplitude gamma on the grid point s0, steering a(s0) with
+    |a_n| = 1: the L1 problem min 1/2 ||A x - y||^2 + mu ||x||_1 with mu = 0.05 max |A^H y| = 0.05 N |gamma|
+    is solved by x = (1 - 0.05) gamma at s0 and 0 elsewhere (the optimality conditions: A^H r = mu
+    gamma / |gamma| at s0, |a_k^H r| <= mu elsewhere, for the residual r = 0.05 y). So the L1 profile
+    peaks at 0.9025 |gamma|^2 there. The grid (-2 .. 10 m) holds s0 but neither -s0 nor its
+    aliases -s0 + k lambda R / (2 d_b): a regularisation computed from A^T y (the conjugate
+    dropped), whose peak lies there, is smaller, and the profile's peak larger."""
+    from sarmitsuba.stacks.tomo_sparse import sl1mmer
+    b = np.linspace(-6, 6, n)
+    model, slope = _fourier_model(b, 1)
+    s = np.arange(-2.0, 10.0 + 1e-9, 0.125)
+    gamma = 0.8 * np.exp(1.1j)
+    found = sl1mmer((gamma * np.exp(-1j * slope * s0))[None], model, s)
+    j = int(np.argmin(np.abs(s - s0)))
+    assert found.profiles[0, j] == pytest.approx(0.95 ** 2 * abs(gamma) ** 2, rel=2e-3)
+    others = np.delete(found.profiles[0], j)
+    assert others.max() < 1e-4 * abs(gamma) ** 2
+    assert found.orders[0] == 1 and found.elevations[0, 0] == pytest.approx(s0, abs=1e-3)
+
+
+@pytest.mark.parametrize("strong, weak", [((2.0, 1.0), (8.0, 0.4)), ((7.5, 0.9), (1.0, 0.5))])
+def test_sl1mmer_lists_the_scatterers_strongest_first(strong, weak):
+    """Two noise-free scatterers 6 m apart (4 rho_s: lambda R / (2 Delta b) = 1.55 m), amplitudes
+    0.4 to 1.0: both found, the stronger first, at its elevation and with its amplitude (the
+    weaker first, ascending order, fails)."""
+    from sarmitsuba.stacks.tomo_sparse import sl1mmer
+    b = np.linspace(-6, 6, 12)
+    model, slope = _fourier_model(b, 1)
+    y = strong[1] * np.exp(-1j * slope * strong[0]) + weak[1] * np.exp(0.7j - 1j * slope * weak[0])
+    found = sl1mmer(y[None], model, np.arange(-2.0, 10.0 + 1e-9, 0.125))
+    assert found.orders[0] == 2
+    assert found.elevations[0] == pytest.approx([strong[0], weak[0], np.nan], abs=1e-3, nan_ok=True)
+    assert np.abs(found.amplitudes[0, :2]) == pytest.approx([strong[1], weak[1]], abs=1e-3)

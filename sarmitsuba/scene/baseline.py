@@ -167,7 +167,7 @@ def stack_baselines(params: RadarParameters, *, track_offsets: Any = None, basel
     ParameterError
         Not exactly one description; fewer than 3 passes; a non-finite value; two passes with the
         same perpendicular baseline (the stack has no elevation aperture between them); an
-        unknown ``spacing``.
+        unknown ``spacing``; a ``seed`` that is not a whole number >= 0.
     """
     from ..core.radar import ParameterError
     given = [name for name, value in (("track_offsets", track_offsets), ("baselines", baselines),
@@ -220,6 +220,9 @@ def _spread(span: Any, count: Any, spacing: str, seed: int) -> np.ndarray:
                              "3 or more baselines (2 passes: use `interferogram`)")
     if spacing == "uniform":
         return np.linspace(-0.5 * width, 0.5 * width, n)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ParameterError(f"seed = {seed!r}: the random baselines' seed is a whole number >= 0 (any: the same "
+                             "seed gives the same stack), e.g. 3")
     inner = np.random.default_rng(seed).uniform(-0.5 * width, 0.5 * width, n - 2)
     return np.sort(np.concatenate([[-0.5 * width, 0.5 * width], inner]))
 

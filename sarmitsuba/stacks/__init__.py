@@ -18,10 +18,11 @@ elevation profiles, scatterers and point clouds, with the files and figures of e
 :mod:`.along_track`      along-track interferogram and DPCA image of two channels
 :mod:`.tomography`       the stack's phase model, beamforming, Capon, calibration, peaks
 :mod:`.tomo_sparse`      SL1MMER, the sparse inversion of few scatterers per cell
+:mod:`.tomo_pixels`      the pixels a tomographic inversion uses: window, clutter level
 :mod:`.tomo_stack`       tomographic focusing of a stack in memory (``focus_elevation``)
 :mod:`.tomo_products`    the tomography command's files: profiles, scatterers, point cloud
 =======================  ===============================================================
 
-Physics: (I1)-(I4) interferometry; (V6)-(V7) along-track interferometry; (TS1)-(TS6)
+Physics: (I1)-(I4) interferometry; (V6)-(V7) along-track interferometry; (TS1)-(TS7)
 tomography.
 """

@@ -1,5 +1,5 @@
 """Tomography products of a stack folder (or of render folders): profiles, scatterers, the point
-cloud, its truth and the figures (docs/physics.md (TS1)-(TS6); the guide's tomography page).
+cloud, its truth and the figures (docs/physics.md (TS1)-(TS7); the guide's tomography page).
 
 :func:`write_products` reads the passes (:func:`read_stack`), focuses them in elevation
 (:func:`sarmitsuba.stacks.tomo_stack.focus_elevation`) and writes, all or none
@@ -76,13 +76,19 @@ def read_stack(paths: Sequence[str | os.PathLike]) -> StackInput:
     Raises
     ------
     TomographyError
-        No folder, a stack folder without ``stack.json`` or a pass, fewer than 3 render folders,
-        or a missing ``image.npz`` / ``raw.npz`` (naming the folder).
+        No folder, a stack folder without ``stack.json`` or a pass, more than one folder of which
+        one is a stack folder, fewer than 3 render folders, or a missing ``image.npz`` /
+        ``raw.npz`` (naming the folder).
     SarImageError, RawDataError
         A damaged file.
     """
     folders = [Path(p) for p in paths]
-    if len(folders) == 1 and (folders[0] / STACK_FILE).is_file():
+    stacks = [f for f in folders if (f / STACK_FILE).is_file()]
+    if len(folders) > 1 and stacks:
+        raise TomographyError(f"{len(stacks)} of the {len(folders)} folders given are stack folders (with "
+                              f"{STACK_FILE}: {', '.join(repr(str(f)) for f in stacks)}): tomography takes one stack "
+                              "folder, or three or more render folders of one scene; invert each stack on its own")
+    if len(folders) == 1 and stacks:
         body = json.loads((folders[0] / STACK_FILE).read_text())
         passes = tuple(folders[0] / entry["folder"] for entry in body["passes"])
         truth = None
@@ -100,8 +106,9 @@ def read_stack(paths: Sequence[str | os.PathLike]) -> StackInput:
 
 def _read_passes(folders: tuple) -> tuple[tuple, tuple]:
     if len(folders) < 3:
-        raise TomographyError(f"a stack needs at least 3 passes, got {len(folders)} folders: tomography resolves "
-                              "elevation from 3 or more baselines (2 passes: use `interferogram`)")
+        raise TomographyError(f"tomography takes one stack folder or three or more render folders, got "
+                              f"{len(folders)} render folders: it resolves elevation from 3 or more baselines "
+                              "(2 passes: use `interferogram`)")
     pairs = []
     for n, folder in enumerate(folders):
         try:
@@ -139,11 +146,11 @@ class TomographyProducts:
                 f"{self.paths['summary'].parent}")
 
 
-def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike], *, progress: bool = False,
-                   tomogram_row: int | None = None, **options: Any) -> TomographyProducts:
+def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike] | StackInput, *,
+                   progress: bool = False, tomogram_row: int | None = None, **options: Any) -> TomographyProducts:
     """Focus a stack in elevation and write the module's files into ``out_dir``.
 
-    ``paths``: see :func:`read_stack`; ``options``: those of
+    ``paths``: see :func:`read_stack`, or the :class:`StackInput` it returned; ``options``: those of
     :func:`~sarmitsuba.stacks.tomo_stack.focus_elevation` (``method``, ``region``,
     ``calibration_point``, ...); ``tomogram_row``: the azimuth row of the tomogram (default: the
     row with the most scatterers).
@@ -158,7 +165,10 @@ def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike
     """
     from ..products.elevation_truth import nearest_truth
     start = time.perf_counter()
-    stack = read_stack(paths)
+    stack = paths if isinstance(paths, StackInput) else read_stack(paths)
+    n_az = stack.images[0].data.shape[0]
+    if tomogram_row is not None:                  # checked before the (maybe long) inversion
+        _tomogram_row(None, n_az, tomogram_row)
     result = focus_elevation(stack.images, stack.raws, stack.interval, reference=stack.reference,
                              progress=progress, **options)
     sc = dict(result.scatterers)
@@ -167,7 +177,6 @@ def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike
     else:
         sc["truth_height"] = np.full(sc["row"].size, np.nan)
     result = dataclasses.replace(result, scatterers=sc)
-    n_az = stack.images[0].data.shape[0]
     row = _tomogram_row(result, n_az, tomogram_row)
     error = np.abs(sc["height"] - sc["truth_height"])
     summary = {"method": result.method, "passes": len(stack.images), "reference": result.reference,
@@ -184,12 +193,14 @@ def write_products(out_dir: str | os.PathLike, paths: Sequence[str | os.PathLike
     return TomographyProducts(paths=written, result=result, summary=summary)
 
 
-def _tomogram_row(result: TomographyResult, n_az: int, row: int | None) -> int:
+def _tomogram_row(result: TomographyResult | None, n_az: int, row: int | None) -> int:
+    """The tomogram's azimuth row: ``row`` checked, or the row with the most scatterers."""
     if row is None:
         rows = result.scatterers["row"]
         return int(np.bincount(rows, minlength=n_az).argmax()) if rows.size else n_az // 2
-    if not (0 <= int(row) < n_az) or int(row) != row:
-        raise TomographyError(f"tomogram_row = {row!r}: give an azimuth row in [0, {n_az - 1}]")
+    if isinstance(row, bool) or int(row) != row or not (0 <= int(row) < n_az):
+        raise TomographyError(f"tomogram_row = {row!r}: give an azimuth row of the image, 0 to {n_az - 1} "
+                              f"(it has {n_az} rows)")
     return int(row)
 
 

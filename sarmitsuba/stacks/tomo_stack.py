@@ -2,7 +2,8 @@
 
 :func:`focus_elevation` is the Python entry point of the ``tomography`` command: it checks the
 stack (:func:`sarmitsuba.stacks.tomography.check_stack`), derives the baselines from the
-passes' own tracks, calibrates (TS6), inverts every chosen pixel by beamforming (TS3), Capon (TS4)
+passes' own tracks, calibrates (TS6), chooses the pixels to invert
+(:func:`sarmitsuba.stacks.tomo_pixels.select_pixels`, (TS7)), inverts each by beamforming (TS3), Capon (TS4)
 or SL1MMER (TS5), detects the scatterers and places them in the scene (the reference pass's
 iso-range circle, docs/physics.md (TS2)) and, when the scene has a ``geo_origin``, on the WGS84
 ellipsoid (docs/physics.md (GEO1)).
@@ -17,10 +18,11 @@ import numpy as np
 
 from ..core.image import SarImage
 from .interferometry import pair_baseline
+from .tomo_pixels import check_region, select_pixels  # noqa: F401  (select_pixels: its former home)
 from .tomography import (TomographyError, beamforming, calibration_phases, capon, check_stack, detect_peaks,
                          elevation_points, phase_model, stack_samples, steering, window_covariance)
 
-__all__ = ["METHODS", "TomographyResult", "stack_geometry", "focus_elevation", "select_pixels"]
+__all__ = ["METHODS", "TomographyResult", "stack_geometry", "focus_elevation"]
 
 #: Inversions of :func:`focus_elevation`.
 METHODS = ("beamforming", "capon", "sparse")
@@ -83,25 +85,14 @@ def stack_geometry(images: Sequence[SarImage], raws: Sequence[Any], reference: i
     span = float(np.ptp(perp))
     if span <= 0:
         raise TomographyError("the passes have no perpendicular baseline span: tomography needs passes at "
-                              "different perpendicular baselines (track_offset across the line of sight)")
+                              "different perpendicular baselines (tracks offset across the line of sight, as "
+                              "`stack` flies them)")
     return reference, perp, wavelength_range / (2 * span), wavelength_range * (len(perp) - 1) / (2 * span)
-
-
-def select_pixels(images: Sequence[SarImage], region: tuple[slice, slice] = (slice(None), slice(None)),
-                  min_power_db: float = -30.0) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels of ``region`` whose mean power over the passes is within ``min_power_db`` (< 0) of the
-    region's brightest: (rows, cols) int64 [P]."""
-    power = np.mean([np.abs(np.asarray(im.data)[region]) ** 2 for im in images], axis=0)
-    keep = power >= power.max() * 10.0 ** (min_power_db / 10.0)
-    keep &= power > 0
-    r, c = np.nonzero(keep)
-    n_az, n_rg = images[0].data.shape
-    return np.arange(n_az)[region[0]][r], np.arange(n_rg)[region[1]][c]
 
 
 def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: tuple[float, float], *,
                     method: str = "beamforming", reference: int | None = None,
-                    region: tuple[slice, slice] = (slice(None), slice(None)), min_power_db: float = -30.0,
+                    region: tuple[slice, slice] = (slice(None), slice(None)), min_power_db: float | None = None,
                     calibration_point: Sequence[float] | None = None, looks: tuple[int, int] = (3, 3),
                     threshold_db: float = -10.0, max_scatterers: int = 3, regularization: float = 0.05,
                     progress: bool = False) -> TomographyResult:
@@ -117,7 +108,9 @@ def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: t
     reference : int, optional
         The pass whose iso-range circles carry the elevation axis (default: mid-span).
     region, min_power_db
-        Pixels to invert (:func:`select_pixels`).
+        Pixels to invert (:func:`sarmitsuba.stacks.tomo_pixels.select_pixels`): a window of
+        azimuth rows and range columns inside the image, and by default those at most 15 dB below
+        its clutter level (TS7); ``min_power_db`` (< 0, dB): those within it of its brightest.
     calibration_point : 3 floats, m, optional
         A surveyed point scatterer (TS6); default the flat earth.
     looks : (int, int)
@@ -137,7 +130,8 @@ def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: t
     ------
     TomographyError
         Fewer than 3 passes, different grids or carriers, an unknown method, an interval that
-        aliases, a reference point outside the image, bad detection parameters.
+        aliases, a window outside the image or without a pixel to invert, a reference point
+        outside the image or not standing over its surroundings, bad detection parameters.
     """
     check_stack(images, raws)
     if method not in METHODS:
@@ -150,9 +144,12 @@ def focus_elevation(images: Sequence[SarImage], raws: Sequence[Any], interval: t
         raise TomographyError(f"the baselines alias the elevations to invert: {hi - lo:.2f} m of elevation, but the "
                               f"passes' mean spacing repeats elevation every {ambiguity:.2f} m (lambda R / (2 d_b)): "
                               "render the stack with more passes or a smaller span, or invert a shorter interval")
-    if not (threshold_db < 0 and int(max_scatterers) == max_scatterers and max_scatterers >= 1):
-        raise TomographyError(f"threshold_db = {threshold_db!r} (must be < 0) and max_scatterers = {max_scatterers!r} "
-                              "(a whole number >= 1)")
+    if not (math.isfinite(threshold_db) and threshold_db < 0):
+        raise TomographyError(f"threshold_db = {threshold_db!r}: give a finite number of dB < 0 (a scatterer is a "
+                              "profile peak within it of the pixel's strongest; default -10)")
+    if isinstance(max_scatterers, bool) or int(max_scatterers) != max_scatterers or max_scatterers < 1:
+        raise TomographyError(f"max_scatterers = {max_scatterers!r}: give a whole number >= 1 (default 3)")
+    check_region(images[0].data.shape, region)
     calibration, _ = calibration_phases(images, raws, reference, calibration_point)
     rows, cols = select_pixels(images, region, min_power_db)
     s = np.arange(lo, hi + 0.5 * rho / OVERSAMPLING, rho / OVERSAMPLING)

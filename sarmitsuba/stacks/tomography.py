@@ -1,4 +1,4 @@
-"""SAR tomography: a stack of passes on one ground grid, focused in elevation (docs/physics.md (TS1)-(TS6)).
+"""SAR tomography: a stack of passes on one ground grid, focused in elevation (docs/physics.md (TS1)-(TS7)).
 
 Every pass of a stack is focused by backprojection onto the same ground grid, so pixel ``x`` of
 pass ``n`` holds ``y_n(x) = sum_i gamma_i exp(-j phi_n(x, s_i))`` for the scatterers ``i`` that lay
@@ -23,6 +23,9 @@ The inversions, per pixel (a vector ``y`` of ``N`` passes, steering ``a(s)``, ``
 * :func:`sarmitsuba.stacks.tomo_sparse.sl1mmer`: the compressive-sensing inversion of Zhu and
   Bamler (IEEE TGRS 48(10), 2010) for few scatterers per cell (TS5).
 
+:func:`calibration_phases` calibrates on a surveyed point scatterer and refuses one that does not
+stand :data:`MIN_REFERENCE_SCR_DB` over its surroundings (:func:`reference_clutter`, (TS6)).
+
 Sources: G. Fornaro, F. Serafino and F. Soldovieri, "Three-dimensional focusing with
 multipass SAR data", IEEE TGRS 41(3), 2003 (beamforming, the steering model);
 F. Lombardini and A. Reigber, "Adaptive spectral estimation for multibaseline SAR tomography
@@ -32,6 +35,7 @@ inversion by L1-norm regularization - the compressive sensing approach", IEEE TG
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -43,7 +47,8 @@ from .interferometry import InterferometryError, check_pair, closest_approach_le
 
 __all__ = ["TomographyError", "check_stack", "elevation_points", "PhaseModel", "phase_model", "steering",
            "stack_samples", "calibration_phases", "beamforming", "window_covariance", "capon", "detect_peaks", "elevation_psf",
-           "MIN_PASSES", "POLYNOMIAL_DEGREE"]
+           "MIN_PASSES", "POLYNOMIAL_DEGREE", "MIN_REFERENCE_SCR_DB", "CLUTTER_BOX", "ReferenceClutter",
+           "reference_clutter", "sidelobe_level"]
 
 #: Fewest passes a stack may have.
 MIN_PASSES = 3
@@ -51,6 +56,13 @@ MIN_PASSES = 3
 POLYNOMIAL_DEGREE = 3
 #: Elevation nodes of the exact evaluation (Chebyshev nodes over the elevation interval).
 _NODES = 9
+#: Signal-to-clutter ratio [dB] a reference point must reach (TS6): its phase error is about
+#: 1 / sqrt(2 SCR) = 0.07 rad at 20 dB, whose spread of the profile's power (its square, -23 dB)
+#: stays 10 dB under beamforming's -13 dB sidelobes.
+MIN_REFERENCE_SCR_DB = 20.0
+#: Half-width [pixels] of the box about a reference point whose pixels, less the point's
+#: mainlobe, are its surroundings (widened to 3 mainlobes when the mainlobe is wider).
+CLUTTER_BOX = 15
 #: Pixels per inversion chunk (bounds the steering arrays: chunk x N x S complex128).
 _CHUNK = 1024
 
@@ -225,6 +237,99 @@ def stack_samples(images: Sequence[SarImage], rows: np.ndarray, cols: np.ndarray
     return y if calibration is None else y * np.exp(-1j * np.asarray(calibration, np.float64))[None, :]
 
 
+@dataclass(frozen=True)
+class ReferenceClutter:
+    """How a reference point's pixel stands over its surroundings (:func:`reference_clutter`).
+
+    Attributes
+    ----------
+    pixel : (int, int)
+        The point's pixel (row, col).
+    scr_db : float
+        Its mean power over the passes against the mean power of its surroundings, dB
+        (``inf`` when they hold none).
+    phase_error : float, rad
+        ``1 / sqrt(2 SCR)``, capped at ``pi / sqrt(3)`` (a uniformly random phase) (TS6).
+    brightest : (int, int)
+        The brightest pixel of the box about it.
+    brightest_db : float
+        That pixel's power against the point's pixel's, dB.
+    """
+
+    pixel: tuple[int, int]
+    scr_db: float
+    phase_error: float
+    brightest: tuple[int, int]
+    brightest_db: float
+
+
+def _mainlobe(power: np.ndarray, q: tuple[int, int], axis: int) -> int:
+    """Pixels from ``q`` to the first minimum of ``power`` along ``axis``, the farther side."""
+    line = power[q[0], :] if axis == 1 else power[:, q[1]]
+    i = q[axis]
+    reach = 0
+    for step in (-1, 1):
+        j = i
+        while 0 <= j + step < line.size and line[j + step] < line[j]:
+            j += step
+        reach = max(reach, abs(j - i))
+    return reach
+
+
+def sidelobe_level(image: SarImage) -> float:
+    """The peak sidelobe ratio [dB] of the image's focusing windows, the higher of range and
+    azimuth (:func:`sarmitsuba.focus.windows.pslr_theory` of the windows its metadata name,
+    ``focus.window``; -13.26 dB, the unweighted pulse's, when it names none)."""
+    from ..focus.windows import pslr_theory
+    meta = image.metadata if isinstance(image.metadata, dict) else {}
+    label = str((meta.get("focus") or {}).get("window", ""))
+    levels = []
+    for name, args in re.findall(r"(?:range|azimuth)=(\w+)(?:\(([^)]*)\))?", label):
+        try:
+            params = {k.strip(): float(v) for k, v in (kv.split("=") for kv in args.split(",") if "=" in kv)}
+            levels.append(pslr_theory(name, **params))
+        except (ValueError, TypeError):
+            pass
+    return max(levels) if levels else pslr_theory("rect")
+
+
+def reference_clutter(images: Sequence[SarImage], pixel: tuple[int, int]) -> ReferenceClutter:
+    """The signal-to-clutter ratio of a reference point's ``pixel`` (TS6).
+
+    Its surroundings are the pixels of a box :data:`CLUTTER_BOX` pixels each way about it (3 times
+    its mainlobe when that is wider), less its mainlobe: the pixels to the first minimum of the
+    power each way along azimuth and range. The clutter at the pixel is the larger of the speckle
+    of the surroundings (their median power over ln 2, the mean of exponential intensity, robust
+    to the other scatterers among them) and the peak sidelobe that their brightest pixel puts
+    there (its power times :func:`sidelobe_level`). Powers are the passes' means.
+    """
+    n_az, n_rg = images[0].data.shape
+    q = (int(pixel[0]), int(pixel[1]))
+    power = np.mean([np.abs(np.asarray(im.data)).astype(np.float64) ** 2 for im in images], axis=0)
+    lobe = (_mainlobe(power, q, 0), _mainlobe(power, q, 1))
+    half = [max(CLUTTER_BOX, 3 * w) for w in lobe]
+    rows = slice(max(0, q[0] - half[0]), min(n_az, q[0] + half[0] + 1))
+    cols = slice(max(0, q[1] - half[1]), min(n_rg, q[1] + half[1] + 1))
+    box = power[rows, cols]
+    around = np.ones(box.shape, bool)
+    around[max(0, q[0] - lobe[0] - rows.start):q[0] + lobe[0] + 1 - rows.start,
+           max(0, q[1] - lobe[1] - cols.start):q[1] + lobe[1] + 1 - cols.start] = False
+    ring = box[around]
+    speckle = float(np.median(ring)) / math.log(2.0) if ring.size else 0.0
+    sidelobe = float(ring.max()) * 10.0 ** (sidelobe_level(images[0]) / 10.0) if ring.size else 0.0
+    clutter, signal = max(speckle, sidelobe), float(power[q])
+    if signal <= 0:
+        scr = -math.inf
+    else:
+        scr = math.inf if clutter <= 0 else 10.0 * math.log10(signal / clutter)
+    error = math.pi / math.sqrt(3.0) if scr == -math.inf else min(math.pi / math.sqrt(3.0),
+                                                                   1.0 / math.sqrt(2.0 * 10.0 ** (scr / 10.0)))
+    b = np.unravel_index(int(np.argmax(box)), box.shape)
+    brightest = (int(b[0] + rows.start), int(b[1] + cols.start))
+    ratio = (10.0 * math.log10(float(power[brightest]) / signal) if signal > 0 else math.inf)
+    return ReferenceClutter(pixel=q, scr_db=scr, phase_error=error, brightest=brightest, brightest_db=ratio)
+
+
 def calibration_phases(images: Sequence[SarImage], raws: Sequence[Any], reference: int,
                        point: Sequence[float] | None = None) -> tuple[np.ndarray, tuple[int, int] | None]:
     """Per-pass phase offsets [rad] that calibrate the stack (TS6).
@@ -244,7 +349,9 @@ def calibration_phases(images: Sequence[SarImage], raws: Sequence[Any], referenc
     ------
     TomographyError
         ``point`` is not 3 finite numbers, or appears outside the image (naming its pixel and the
-        image's size), or the reference pixel has no echo in some pass.
+        image's size), or the reference pixel has no echo in some pass, or stands less than
+        :data:`MIN_REFERENCE_SCR_DB` over its surroundings (:func:`reference_clutter`; naming the
+        brightest pixel nearby).
     """
     n_pass = len(images)
     if point is None:
@@ -265,11 +372,32 @@ def calibration_phases(images: Sequence[SarImage], raws: Sequence[Any], referenc
     if np.any(np.abs(y) == 0):
         raise TomographyError(f"the reference point {p.tolist()} m has no echo at pixel {q} in passes "
                               f"{np.flatnonzero(np.abs(y) == 0).tolist()}: choose a point that every pass sees")
+    _check_reference(images, q, p)
     x = image.positions()[q]
     k = 2.0 * math.pi * float(raws[reference].fc) / SPEED_OF_LIGHT
     delta = np.array([closest_approach_length(p, raw) - closest_approach_length(x, raw) for raw in raws])
     model = k * (delta - delta[reference])
     return np.angle(y / y[reference]) + model, q
+
+
+def _check_reference(images: Sequence[SarImage], pixel: tuple[int, int], point: np.ndarray) -> None:
+    """Refuse a reference ``point`` (world x, y, z, m) whose ``pixel`` stands less than
+    :data:`MIN_REFERENCE_SCR_DB` over its surroundings (:func:`reference_clutter`), naming the
+    margin, why, and the brightest pixel nearby with its grid position."""
+    found = reference_clutter(images, pixel)
+    if found.scr_db >= MIN_REFERENCE_SCR_DB:
+        return
+    p = [round(float(v), 3) for v in point]
+    grid = images[0].positions()[found.brightest]
+    scr = "no echo" if found.scr_db == -math.inf else f"{found.scr_db:.1f} dB over its surroundings"
+    raise TomographyError(
+        f"calibration_point = {p} m appears at pixel {found.pixel}, {scr}: a reference point needs "
+        f"{MIN_REFERENCE_SCR_DB:g} dB, its phase being off by about 1/sqrt(2 SCR) rad in every pass (here "
+        f"{found.phase_error:.2f} rad; 0.07 rad at {MIN_REFERENCE_SCR_DB:g} dB, docs/physics.md (TS6)). The "
+        f"brightest pixel within {CLUTTER_BOX} pixels is {found.brightest}, {found.brightest_db:+.1f} dB against "
+        f"it, on the grid at ({grid[0]:.2f}, {grid[1]:.2f}, {grid[2]:.2f}) m: give the surveyed position of a "
+        "stable point scatterer (a corner reflector's apex) that images there, or leave the flat earth's "
+        "calibration")
 
 
 # ============================================================================ inversions (TS3), (TS4)
