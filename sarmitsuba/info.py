@@ -51,6 +51,7 @@ from .analysis.memory import MEMORY_LIMIT_ENV, available_memory, check_memory, m
 from .analysis.ambiguities import Ambiguities, ambiguities
 from .analysis import bistatic
 from .scene.effects import Effect, EffectSet, active_effects
+from .scene.roughness import RoughSurfaceWarning
 from .core.radar import RadarParameters
 from .core.geometry import AcquisitionGeometry, acquisition_geometry
 from .scene.radar_equation import radar_equation
@@ -270,7 +271,9 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
         warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
-    effects = active_effects(loaded)                                      # decided once, handed on
+    with warnings.catch_warnings(record=True) as rough:                   # reported in the result instead
+        warnings.simplefilter("always", RoughSurfaceWarning)
+        effects = active_effects(loaded)                                  # decided once, handed on
     radar = _radar_summary(params, geometry, window, lo, hi)
     radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset), bistatic=_bistatic(params, geometry))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
@@ -278,7 +281,8 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     return SceneInfo(scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
                      cost=cost, ambiguities=ambiguous,
-                     warnings=tuple(messages) + tuple(m for m in (memory, ambiguous and ambiguous.warning) if m))
+                     warnings=tuple(messages) + tuple(str(w.message) for w in rough)
+                     + tuple(m for m in (memory, ambiguous and ambiguous.warning) if m))
 
 
 # ============================================================================ scene

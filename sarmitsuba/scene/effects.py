@@ -16,17 +16,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterable
 
 from ..core.constants import SPEED_OF_LIGHT
+from .rough_presets import range_warning
+from .roughness import RoughSurfaceWarning
 
 if TYPE_CHECKING:                      # only for annotations: no import cycle with scene/loader.py
     from ..core.radar import RadarParameters
     from .motion import ShapeMotion
     from .trace_inputs import MaterialTable, TraceSettings
 
-__all__ = ["Effect", "EffectSet", "list_effects", "active_effects", "rough_materials"]
+__all__ = ["Effect", "EffectSet", "list_effects", "active_effects", "warn_rough_surfaces", "rough_materials"]
 
 
 @dataclass(frozen=True)
@@ -205,10 +208,32 @@ class EffectSet:
 
 def active_effects(loaded) -> EffectSet:
     """The :class:`EffectSet` of a loaded scene (overrides applied, parameters resolved): compute it
-    once and hand it on. Rough materials are those of the BSDFs the scene's shapes use."""
-    return EffectSet.of(loaded.params, loaded.settings,
-                        (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0),
-                        getattr(loaded, "motion", None))
+    once and hand it on. Rough materials are those of the BSDFs the scene's shapes use; each whose
+    surface lies outside the I2EM's validated range at the carrier is warned about here, once
+    (:func:`warn_rough_surfaces`)."""
+    rough = (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0)
+    decided = EffectSet.of(loaded.params, loaded.settings, rough, getattr(loaded, "motion", None))
+    warn_rough_surfaces(loaded, decided.cross_polarised)
+    return decided
+
+
+def warn_rough_surfaces(loaded, cross: bool = False) -> None:
+    """One :class:`~sarmitsuba.scene.roughness.RoughSurfaceWarning` per rough material (BSDF) the
+    scene's shapes use whose surface lies outside the I2EM's validated range at the carrier
+    (docs/physics.md (RS5)): the line of :func:`~sarmitsuba.scene.rough_presets.range_warning`, with
+    sigma nought at the scene's incidence. ``cross``: HV is traced (its own range counts)."""
+    params, seen = loaded.params, set()
+    for shape in loaded.scene.shapes():
+        bsdf = shape.bsdf()
+        surface = getattr(bsdf, "surface", None)
+        key = getattr(bsdf, "id_key", id(bsdf))
+        if surface is None or key in seen:
+            continue
+        seen.add(key)
+        line = range_warning(bsdf.name, surface, bsdf.material_at(params.frequency).relative_permittivity,
+                             params.frequency, params.incidence_angle, cross)
+        if line is not None:
+            warnings.warn(line, RoughSurfaceWarning, stacklevel=3)
 
 
 def rough_materials(table: "MaterialTable") -> tuple[str, ...]:

@@ -1,5 +1,6 @@
 """Roughness presets: one setting that gives every ITU-R P.2040 material class of a scene a rough
-surface (docs/physics.md (RS7)), and the one-line summary of a rough material that ``info`` prints.
+surface (docs/physics.md (RS7)), the one-line summary of a rough material that ``info`` prints, and
+the one-line warning for a rough material outside the model's validated range (RS5).
 
 The ``city`` preset's rows say where their numbers come from; most are assumptions, and say so.
 """
@@ -11,9 +12,13 @@ from dataclasses import dataclass
 from ..core.constants import SPEED_OF_LIGHT
 from .fresnel import MaterialError
 from .rough_tables import CONDUCTOR_PERMITTIVITY
-from .roughness import KS_LIMIT, RoughSurface, sigma0_backscatter
+from .roughness import CROSS_KS_LIMIT, KS_LIMIT, SLOPE_LIMIT, RoughSurface, outside_range, sigma0_backscatter
 
-__all__ = ["PresetRow", "PRESETS", "preset_surface", "describe_surface"]
+__all__ = ["PresetRow", "PRESETS", "preset_surface", "describe_surface", "range_warning", "INVISIBLE_DB"]
+
+#: A sigma nought below this [dB] lies far below the noise floor of any radar: the clutter, though
+#: on, adds nothing (said in :func:`range_warning`).
+INVISIBLE_DB = -100.0
 
 
 @dataclass(frozen=True)
@@ -42,7 +47,7 @@ _SMOOTH_INDOOR = PresetRow(None, "assumption: an indoor finish, smooth at radar 
 CITY = {
     "asphalt_concrete": _row(0.5, 5.0, "exponential",
                              "road macrotexture: mean profile depth (MPD, ISO 13473-1) about 1 mm for dense asphalt; "
-                             "assumption: s = MPD / 2, l = half an 11 mm maximum aggregate"),
+                             "assumption: s = MPD / 2, l = 5 mm, about half an 11 mm maximum aggregate"),
     "concrete": _row(0.5, 5.0, "exponential",
                      "as asphalt_concrete (Sionna's city scenes pave their streets with concrete); assumption: a "
                      "brushed pavement's macrotexture, MPD about 1 mm (ISO 13473-1)"),
@@ -95,3 +100,37 @@ def describe_surface(surface: RoughSurface, eta, frequency: float, incidence_deg
     return (f"{model} s {surface.rms_height * 1e3:g} mm, l {surface.correlation_length * 1e3:g} mm, "
             f"{surface.correlation} (ks {ks:.2f}, kl {kl:.1f}): sigma0 HH {db['HH']:.1f} dB, "
             f"VV {db['VV']:.1f} dB at {incidence_deg:g} deg")
+
+
+def range_warning(name: str, surface: RoughSurface, eta, frequency: float, incidence_deg: float,
+                  cross: bool = False) -> str | None:
+    """One line for a rough material outside the I2EM's validated range at the carrier
+    (docs/physics.md (RS5); :func:`sarmitsuba.scene.roughness.outside_range`), or None inside it.
+
+    The line names the material, its ``rms_height`` and ``correlation_length`` [m], the bounds it
+    exceeds with ``k s`` and ``k l``, the range, what the render does (geometric optics beyond
+    ``k s = 3``, else the I2EM beyond its range) with the monostatic sigma nought that gives at
+    ``incidence_deg`` (HH, VV and, for ``cross``, HV, in dB), and the surfaces inside the range at
+    this frequency. ``eta`` None: a conductor's limit. ``cross``: HV is traced.
+    """
+    k = 2.0 * math.pi * frequency / SPEED_OF_LIGHT
+    exceeded = outside_range(surface, k, cross)
+    if not exceeded:
+        return None
+    eta = CONDUCTOR_PERMITTIVITY if eta is None else complex(eta)
+    ks, kl = k * surface.rms_height, k * surface.correlation_length
+    sigma = sigma0_backscatter(surface, eta, k, math.cos(math.radians(incidence_deg)), cross=cross)
+    db = {p: 10.0 * math.log10(max(float(sigma[p]), 1e-300)) for p in ("HH", "VV", "HV")}
+    level = ", ".join(f"{p} {db[p]:.1f} dB" for p in (("HH", "VV", "HV") if cross and ks <= KS_LIMIT else ("HH", "VV")))
+    does = ("renders by geometric optics (no HV)" if ks > KS_LIMIT else "renders by the I2EM beyond that range"
+            if surface.rms_height > SLOPE_LIMIT * surface.correlation_length else
+            "renders its HV by the I2EM's cross-polarised term (RS1x) beyond that range")
+    quiet = (f", far below any radar's noise floor: its clutter is on but adds nothing"
+             if max(db["HH"], db["VV"]) < INVISIBLE_DB else "")
+    hv = f", and k s <= {CROSS_KS_LIMIT:g} for HV" if cross else ""
+    return (f"rough material {name!r} (rms_height {surface.rms_height:g} m, correlation_length "
+            f"{surface.correlation_length:g} m, {surface.correlation}) is outside the I2EM's validated range at "
+            f"{frequency / 1e9:g} GHz: {', '.join(exceeded)} (k l = {kl:.3g}); the range is k s <= {KS_LIMIT:g} and "
+            f"s / l <= {SLOPE_LIMIT:g}{hv} (docs/physics.md (RS5)), here rms_height <= "
+            f"{(CROSS_KS_LIMIT if cross else KS_LIMIT) / k * 1e3:.3g} mm and correlation_length >= "
+            f"{1.0 / SLOPE_LIMIT:g} rms_height; it {does}: sigma0 {level} at {incidence_deg:g} deg{quiet}")

@@ -4,9 +4,18 @@
 # run under GNU Octave. The code is not part of this repository; a public copy is in the history
 # of github.com/Morteza-Khazaei/mwrtms (commit c70b91a, folder .temp/MATLAB/mrs.eecs.umich.edu/).
 #
-# Usage: tests/data/i2em/make_reference.sh BOOK_CODE_DIR [copol|cross]
-#   reads cases_copol.csv or cases_cross.csv beside this script and writes reference_copol.csv or
-#   reference_cross.csv there (columns: the case's, then the code's sigma nought in dB).
+# Usage: tests/data/i2em/make_reference.sh BOOK_CODE_DIR [KIND]
+#   reads cases_KIND.csv beside this script and writes reference_KIND.csv there (columns: the case's,
+#   then the code's sigma nought in dB). A KIND starting with "copol" runs the co-polarised code
+#   (I2EM_Bistat_model), any other the cross-polarised one (IEMX_model). The kinds:
+#     copol          816 monostatic and bistatic cases (k s 0.1 to 2.5, k l 2 to 8);
+#     cross          12 HV cases, s / l <= 0.24, incidence <= 50 deg;
+#     cross_shadow   12 HV cases where Smith's shadowing counts: s / l 0.25 to 0.5, incidence 60 to
+#                    80 deg (the single-scattering shadowing 0.2 to 3.4 dB);
+#     copol_tables, cross_tables (22 and 3 cases)
+#                    the angles of nodes of sarmitsuba/scene/rough_tables.py's tables, for two
+#                    surfaces: monostatic cos = i / 256 (i = 0 at cos = 0.01), bistatic cos_i = a / 32,
+#                    cos_s = b / 32, cos phi_s = -1 + m / 8.
 #
 # Two adaptations, both to Octave's dblquad (the numbers are the book code's own):
 #   1. Octave's dblquad wants a real integrand: the slope-averaged reflection coefficients of
@@ -16,7 +25,7 @@
 # and one to the geometry, unless GUARD=kept:
 #   3. I2EM_Bistat_model evaluates the incidence at theta + 0.01 rad (0.57 deg; a guard against
 #      theta = 0, while the scattering angle stays at theta_s): its "backscatter" is 0.57 deg
-#      bistatic. Every case here has theta >= 15 deg, so the guard is removed and the code is
+#      bistatic. Every case here has theta >= 12 deg, so the guard is removed and the code is
 #      compared at the angles asked. GUARD=kept writes reference_copol_published.csv instead.
 set -euo pipefail
 book=$(cd "$1" && pwd); kind=${2:-copol}; here=$(cd "$(dirname "$0")" && pwd)
@@ -38,7 +47,7 @@ OCT
 cat > "$work/run_cases.m" <<'OCT'
 args = argv(); kind = args{1}; src = args{2}; dst = args{3};
 c = csvread(src, 1, 0); out = fopen(dst, "w");
-if strcmp(kind, "copol")
+if strncmp(kind, "copol", 5)
   fprintf(out, "frequency_ghz,rms_height_m,correlation_length_m,theta_i_deg,theta_s_deg,phi_s_deg,eps_re,eps_im,correlation,vv_db,hh_db\n");
   for i = 1:rows(c)
     [vv, hh] = I2EM_Bistat_model(c(i,1), c(i,2), c(i,3), c(i,4), c(i,5), c(i,6), c(i,7) - 1i * c(i,8), c(i,9), 1.5);
