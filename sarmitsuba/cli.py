@@ -309,12 +309,8 @@ def _focus(args: argparse.Namespace) -> int:
         paths.update(write_exports(out, raw, image, _formats(args), geotiff_north_up=not args.geotiff_rotated,
                                    sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting,
                                    cphd_domain=args.cphd_domain))
-    autofocus = image.metadata.get("autofocus")
-    rounds = "" if autofocus is None or "rounds" not in autofocus else f"{autofocus['rounds']} round(s) through the pulses, "
-    note = "" if autofocus is None else (f", PGA {rounds}{autofocus['iterations']} iterations, phase error "
-                                         f"{autofocus['rms_phase_error_rad']:.3g} rad rms")
-    if autofocus is not None and autofocus.get("applied") is False:       # (PGA3), (PGA4)
-        note = f", PGA not applied ({autofocus.get('refusal') or 'no dominant scatterer'}; image unchanged)"
+    from .focus.autofocus_pulses import outcome_line
+    note = "" if image.metadata.get("autofocus") is None else ", " + outcome_line(image.metadata["autofocus"])
     print(f"focused {args.raw} with {args.algorithm}{' on the nominal track' if args.track == 'nominal' else ''}: "
           f"{time.perf_counter() - start:.1f} s, {raw.n_pulses} pulses, image {image.data.shape[0]}x"
           f"{image.data.shape[1]}{note} -> {paths['png'].parent}")

@@ -7,8 +7,10 @@ spectrum, and PGA recovers it from the image alone (docs/physics.md (PGA)):
 
 1. per range line, circularly shift the brightest azimuth sample to the centre (its position
    is a linear phase in the spectrum, not part of the error);
-2. keep a window about the centre that holds the defocused response and rejects the other
-   targets and clutter (its width from the summed intensity, shrinking every iteration);
+2. keep a window about the centre, distances measured round the periodic line, that holds the
+   defocused response and rejects the other targets and clutter (its width from the summed
+   intensity: every sample above -:data:`WINDOW_DB` dB of its peak and :data:`BACKGROUND` times
+   its median, times :data:`WIDEN`; shrinking every iteration);
 3. take the azimuth spectrum ``G_n(u)`` of every line and estimate the error's gradient by the
    maximum-likelihood kernel ``dphi(u) = arg sum_n G_n(u) G_n*(u - 1)``;
 4. integrate, remove mean and linear trend (a constant phase and a shift), and multiply the
@@ -16,13 +18,16 @@ spectrum, and PGA recovers it from the image alone (docs/physics.md (PGA)):
 
 Backprojected images are first deramped (docs/physics.md (PGA2)): multiplied by
 ``exp(-j k (x - x_ref)^2 / R0)`` so that their azimuth spectrum is indexed by the antenna's position
-along the track, where the error of a motion is one function for every target.
+along the track, where the error of a motion is one function for every target; every line's
+spectrum is read at the same positions whatever its range (:mod:`~sarmitsuba.focus.pga_deramp`).
+The kernel lives in :mod:`~sarmitsuba.focus.pga_kernel`.
 
 PGA runs only where the image holds a dominant scatterer (docs/physics.md (PGA3)): its brightest
 pixel at least :data:`DOMINANCE_DB` above the median intensity of its signal. It learns only from
 the point-like range lines (docs/physics.md (PGA4), :func:`~sarmitsuba.focus.pga_lines.point_lines`):
-a peak well above the clutter holding most of the line's lit energy near it; clutter, rims and the
-double bounce of walls spread along the line and are left out. With fewer than :data:`MIN_LINES`
+a peak well above the clutter whose response fills the beam's Doppler band, as a point's does
+however smeared; rims and the double bounce of walls, extended along the line, fill little of it
+and are left out. With fewer than :data:`MIN_LINES`
 such lines, or no dominant scatterer, it would fit a phase error to speckle and smear an image
 that may have been focused; it warns instead and returns the image unchanged.
 
@@ -51,13 +56,15 @@ from typing import Any
 
 import numpy as np
 
-from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage
 from ..core.trajectory import MotionError
-from .pga_lines import (POINT_DB, POINT_SHARE, linear_shift_bound, point_lines, reference_azimuth,
-                        reference_shift, shift_phase, signal_pixels, upsample)
+from .pga_deramp import FresnelFrame, aperture_grid, column_phase, fresnel_frame, line_spectra
+from .pga_kernel import apply_phase, detrend_phase, extend_phase, iterate, spectral_power, weighted_rms
+from .pga_lines import (POINT_BAND, POINT_DB, band_occupancy, doppler_band, linear_shift_bound, point_lines,
+                        reference_azimuth, reference_shift, shift_phase, signal_pixels, upsample)
 
-__all__ = ["signal_pixels", "point_lines", "pga", "AutofocusReport", "AutofocusWarning"]
+__all__ = ["signal_pixels", "point_lines", "pga", "pga_estimate", "kernel_options", "refusal_of", "AutofocusReport",
+           "AutofocusWarning"]
 
 #: Largest number of iterations.
 MAX_ITERATIONS = 20
@@ -66,9 +73,13 @@ MIN_ITERATIONS = 4
 #: Stop when the rms of an iteration's correction falls below this [rad].
 TOLERANCE = 0.05
 #: The window's first width: the azimuth samples where the summed, centred intensity lies within
-#: this many dB of its peak, times :data:`WIDEN` (Wahl et al. section III-C: -10 dB).
-WINDOW_DB = 10.0
+#: this many dB of its peak and above :data:`BACKGROUND` times its median (what surrounds the
+#: response), times :data:`WIDEN`. Wahl et al. (section III-C) take -10 dB, which holds the gross
+#: error: refining a response to -55 dB sidelobes needs its paired echoes 20 dB down in the
+#: window; the background keeps the window off the clutter about a point far above it.
+WINDOW_DB = 20.0
 WIDEN = 1.5
+BACKGROUND = 4.0
 #: Each iteration's window is this fraction of the last, never narrower than :data:`MIN_WINDOW` nor
 #: than the first over :data:`FLOOR` (a window narrower than the error's paired echoes cuts them off and
 #: loses the error's fast part).
@@ -154,6 +165,8 @@ class AutofocusReport:
         ``-f lambda R0 / 2`` (eq. (PGA2); ``R0`` their power-weighted closest-approach range);
         None otherwise. :func:`~sarmitsuba.focus.autofocus_pulses.pulse_correction` reads
         ``correction`` at each pulse's position through it.
+    line_index : int [lines] or None
+        The range columns PGA learnt from; None where it was not applied.
     """
 
     phase_error: np.ndarray
@@ -172,6 +185,7 @@ class AutofocusReport:
     refusal: str = ""
     correction: np.ndarray | None = None
     aperture_position: np.ndarray | None = None
+    line_index: np.ndarray | None = None
 
     def as_metadata(self) -> dict[str, Any]:
         """The record kept in ``image.metadata["autofocus"]`` (JSON types)."""
@@ -195,8 +209,8 @@ class AutofocusReport:
 
 
 def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITERATIONS,
-        tolerance: float = TOLERANCE, progress: bool = False,
-        aperture_cells: int | None = None) -> tuple[SarImage, AutofocusReport]:
+        tolerance: float = TOLERANCE, progress: bool = False, aperture_cells: int | None = None,
+        max_window: float | None = None) -> tuple[SarImage, AutofocusReport]:
     """Phase gradient autofocus of ``image`` along its azimuth axis (docs/physics.md (PGA)).
 
     Parameters
@@ -219,6 +233,10 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
         On a deramped image, the narrowest window: the one whose spectral cell is the track's
         length over ``aperture_cells`` (:data:`APERTURE_CELLS` through the pulses,
         docs/physics.md (PGA6)); default: the window shrinks as in (PGA).
+    max_window : float, m, optional
+        The widest window (> 0): the first iteration's window is the defocused response's extent
+        (that of the summed intensity above -:data:`WINDOW_DB` dB and :data:`BACKGROUND` times its
+        median, times :data:`WIDEN`) but no wider.
 
     Returns
     -------
@@ -249,56 +267,98 @@ def pga(image: SarImage, *, reference: Any = None, max_iterations: int = MAX_ITE
     The phase error must be common to the targets used. A backprojected image (its
     ``metadata["focus"]["track"]``) is deramped first (docs/physics.md (PGA2)), so that an error
     that is a function of the antenna's position along the track is common to every target, and
-    defocus spread over metres is still a Fourier pair of the aperture; other images (omega-K,
-    RDA) are processed as they are, which holds for a spotlight image or for targets within a
-    small part of one synthetic aperture. The estimate uses only the point-like range lines
-    (eq. (PGA4)): clutter, rims and walls spread along a line are left out. A constant phase is
-    not estimated, nor, without ``reference``, a linear one (a shift, eq. (PGA5)). Measured
+    defocus spread over metres is still a Fourier pair of the aperture; each line's spectrum is
+    read at the antenna positions of one common grid, whatever its range
+    (:func:`~sarmitsuba.focus.pga_deramp.line_spectra`). Other images (omega-K, RDA) are
+    processed as they are, which holds for a spotlight image or for targets within a small part
+    of one synthetic aperture. The estimate uses only the point-like range lines (eq. (PGA4)):
+    clutter, rims and walls spread along a line are left out. A constant phase is not estimated,
+    nor, without ``reference``, a linear one (a shift, eq. (PGA5)). Measured
     (benchmarks/trajectory.py, table ``pga``): a 2 cm, 40 m sinusoidal motion error on a 69 m
     airborne X-band aperture, PSLR -39.6 dB after PGA against -39.4 dB on the true track.
     """
-    data, options = _check(image, max_iterations, tolerance)
-    frame = _fresnel_frame(image)
-    if frame is not None:
-        data = upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
     target = reference_azimuth(image, reference)
-    intensity = np.abs(data).astype(np.float64) ** 2
-    signal = signal_pixels(intensity)
-    dominance = _dominance_db(intensity, signal)
-    lines = point_lines(intensity, signal)
-    reason, refusal = _refusal(dominance, lines.size)
-    if refusal:
-        warnings.warn(refusal, AutofocusWarning, stacklevel=2)
-        report = AutofocusReport(phase_error=np.zeros(data.shape[0]), support=np.zeros(data.shape[0], bool),
-                                 iterations=0, rms_phase_error=0.0, converged=False, lines=int(lines.size), window=[],
-                                 deramp=frame is not None, dominance_db=dominance, applied=False,
-                                 refusal=reason, linear_bound_m=_linear_bound(image))
-        return _with_report(image, image.data, report)
-    spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)   # centred order
-    step = _row_step(image, frame)
-    aperture = _aperture(image, frame, step, lines, intensity)
-    options.update(_track_limits(image, aperture, step, aperture_cells))
-    total, support, centred, widths, converged = _iterate(spectrum, lines, options, progress)
-    if not converged:
-        warnings.warn(f"PGA did not converge in {len(widths)} iterations (last correction above "
-                      f"{options['tolerance']:g} rad rms): the error may vary across the image",
-                      AutofocusWarning, stacklevel=2)
-    total = _extend(_detrend(total, support, _power(centred)), support)
-    shift = None if target is None else reference_shift(_apply(spectrum, total), image, step, target)
-    linear = 0.0 if shift is None else shift_phase(total.size, step, shift)
-    out = _apply(spectrum, total + linear)
+    found = _estimate(image, max_iterations, tolerance, aperture_cells, max_window, progress, stacklevel=3)
+    if not found.report.applied:
+        return _with_report(image, image.data, found.report)
+    report, data, frame = found.report, found.data, found.frame
+    out = _corrected(data, report.phase_error, frame, report.aperture_position, found.r_ref)
+    shift = None if target is None else reference_shift(out, image, found.step, target)
+    linear = 0.0 if shift is None else shift_phase(data.shape[0], found.step, shift)
+    if shift is not None:                         # eq. (PGA5): the same shift on every column
+        out = apply_phase(np.fft.fftshift(np.fft.fft(out, axis=0), axes=0), linear)
     if frame is not None:
         out = (out * np.exp(1j * frame.phase))[::frame.factor]
-    report = AutofocusReport(phase_error=total, support=support, iterations=len(widths),
-                             rms_phase_error=_rms(total, support, centred), converged=converged,
-                             lines=int(lines.size), window=widths, deramp=frame is not None, dominance_db=dominance,
-                             linear_shift_m=shift, reference=None if shift is None else tuple(target[1]),
-                             linear_bound_m=None if shift is not None else _linear_bound(image), correction=total + linear,
-                             aperture_position=aperture)
+    report = dataclasses.replace(report, linear_shift_m=shift, reference=None if shift is None else tuple(target[1]),
+                                 linear_bound_m=None if shift is not None else report.linear_bound_m,
+                                 correction=report.phase_error + linear)
     return _with_report(image, out.astype(np.complex64), report)
 
 
-def _refusal(dominance: float, lines: int) -> tuple[str, str]:
+def pga_estimate(image: SarImage, *, max_iterations: int = MAX_ITERATIONS, tolerance: float = TOLERANCE,
+                 aperture_cells: int | None = None, max_window: float | None = None, lines: Any = None,
+                 progress: bool = False) -> AutofocusReport:
+    """The estimate of :func:`pga` without the corrected image (the rounds through the pulses,
+    docs/physics.md (PGA6), need only the estimate): same parameters but ``reference``, same
+    checks, warnings and refusals; ``correction`` is ``phase_error``. ``lines`` (int [k], range
+    columns), where given, are the lines to learn from instead of the point-like ones (eq. (PGA4)),
+    and the image's dominance is not asked for (the caller found them,
+    :func:`~sarmitsuba.focus.pga_lines.smeared_lines`): the rounds keep the lines chosen on the
+    nominal track's image, so that a wall made to look point-like by a poor first estimate cannot
+    join in and drive the next."""
+    return _estimate(image, max_iterations, tolerance, aperture_cells, max_window, progress, stacklevel=3,
+                     chosen=lines).report
+
+
+@dataclasses.dataclass(frozen=True)
+class _Estimate:
+    """What :func:`_estimate` found: the report, the (deramped) data it worked on, the deramp, the
+    rows' spacing [m] and the range the spectrum's positions are read at [m]."""
+
+    report: AutofocusReport
+    data: np.ndarray
+    frame: FresnelFrame | None
+    step: float
+    r_ref: float
+
+
+def _estimate(image: SarImage, max_iterations: Any, tolerance: Any, aperture_cells: int | None,
+              max_window: Any, progress: bool, stacklevel: int, chosen: Any = None) -> _Estimate:
+    """Steps 1-4 of (PGA) on ``image``, deramped where it can be ((PGA2)), on its point-like lines
+    ((PGA3), (PGA4)); the refusal (warned) where PGA may not run."""
+    data, options = _check(image, max_iterations, tolerance, max_window)
+    frame = fresnel_frame(image)
+    if frame is not None:
+        data = upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
+    intensity = np.abs(data).astype(np.float64) ** 2
+    signal = signal_pixels(intensity)
+    dominance = _dominance_db(intensity, signal)
+    lines = point_lines(intensity, signal, band_occupancy(image.data, doppler_band(image))) if chosen is None \
+        else np.asarray(chosen, int)
+    step = frame.step if frame is not None else _row_step(image)
+    reason, refusal = refusal_of(dominance if chosen is None else np.inf, lines.size)
+    if refusal:
+        warnings.warn(refusal, AutofocusWarning, stacklevel=stacklevel)
+        return _Estimate(_refused(data.shape[0], frame, dominance, lines.size, reason, image), data, frame, step, 0.0)
+    r_ref = _reference_range(frame, lines, intensity)
+    aperture = None if frame is None else aperture_grid(frame, data.shape[0], r_ref)
+    options.update(_track_limits(frame, aperture, aperture_cells, step, options.pop("max_window_m")))
+    found = iterate(_line_spectra(data[:, lines], frame, lines, r_ref), options, progress)
+    if not found.converged:
+        warnings.warn(f"PGA did not converge in {len(found.widths)} iterations (last correction above "
+                      f"{options['tolerance']:g} rad rms): the error may vary across the image",
+                      AutofocusWarning, stacklevel=stacklevel)
+    power = spectral_power(found.centred)
+    total = extend_phase(detrend_phase(found.total, found.support, power), found.support)
+    report = AutofocusReport(phase_error=total, support=found.support, iterations=len(found.widths),
+                             rms_phase_error=weighted_rms(total, found.support, power, RMS_DB),
+                             converged=found.converged, lines=int(lines.size), window=found.widths,
+                             deramp=frame is not None, dominance_db=dominance, linear_bound_m=_linear_bound(image),
+                             correction=total, aperture_position=aperture, line_index=lines)
+    return _Estimate(report, data, frame, step, r_ref)
+
+
+def refusal_of(dominance: float, lines: int) -> tuple[str, str]:
     """Why PGA may not run and its warning (docs/physics.md (PGA3), (PGA4)), or ('', '')."""
     if not dominance >= DOMINANCE_DB:
         return "no dominant scatterer", (
@@ -309,10 +369,18 @@ def _refusal(dominance: float, lines: int) -> tuple[str, str]:
     if lines < MIN_LINES:
         return f"{lines} point-like range line(s)", (
             f"PGA not applied: only {lines} range line(s) hold a point-like scatterer (PGA needs >= {MIN_LINES}: "
-            f"a peak >= {POINT_DB:g} dB above the clutter with >= {POINT_SHARE:g} of the line's energy near it; "
-            f"rims, walls and clutter spread it along the line): the image is returned unchanged. Add a corner "
-            f"reflector, or focus on the true track")
+            f"a peak >= {POINT_DB:g} dB above the clutter whose response fills >= {POINT_BAND:g} of the beam's "
+            f"Doppler band; the double bounce of walls and the rims of plates are extended along the line and fill "
+            f"less): the image is returned unchanged. Add a corner reflector, or focus on the true track")
     return "", ""
+
+
+def _refused(n: int, frame: FresnelFrame | None, dominance: float, lines: int, reason: str,
+             image: SarImage) -> AutofocusReport:
+    """The report of an image handed back unchanged (``reason`` why)."""
+    return AutofocusReport(phase_error=np.zeros(n), support=np.zeros(n, bool), iterations=0, rms_phase_error=0.0,
+                           converged=False, lines=lines, window=[], deramp=frame is not None,
+                           dominance_db=dominance, applied=False, refusal=reason, linear_bound_m=_linear_bound(image))
 
 
 def _with_report(image: SarImage, data: np.ndarray, report: AutofocusReport) -> tuple[SarImage, AutofocusReport]:
@@ -321,40 +389,7 @@ def _with_report(image: SarImage, data: np.ndarray, report: AutofocusReport) -> 
     return dataclasses.replace(image, data=data, metadata=metadata), report
 
 
-def _iterate(spectrum: np.ndarray, lines: np.ndarray, options: dict[str, Any],
-             progress: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int], bool]:
-    """Steps 1-4 of (PGA), iterated on the point-like ``lines``: the summed correction, its support,
-    the last centred lines, the window widths and whether it converged."""
-    from tqdm.auto import tqdm
-    total = np.zeros(spectrum.shape[0])
-    widths: list[int] = []
-    converged = False
-    width = first = None
-    floor = MIN_WINDOW
-    bar = tqdm(total=options["max_iterations"], desc="PGA", unit="iteration", disable=not progress)
-    try:
-        for _ in range(options["max_iterations"]):
-            centred = _centre(_apply(spectrum, total)[:, lines])
-            if width is None:
-                width = first = _window_width(centred)
-            else:
-                width = max(MIN_WINDOW, first // FLOOR, int(width * SHRINK))
-            width = min(max(width, floor), centred.shape[0])
-            widths.append(width)
-            step, support = _estimate(centred, width, options["band"])
-            if options["cells"]:                     # eq. (PGA6): the estimate's span over cells
-                floor = max(MIN_WINDOW, int(np.ceil(centred.shape[0] * options["cells"] / max(support.sum(), 1))))
-            total += step
-            bar.update(1)
-            if len(widths) >= MIN_ITERATIONS and _rms(step, support, centred) < options["tolerance"]:
-                converged = True
-                break
-    finally:
-        bar.close()
-    return total, support, centred, widths, converged
-
-
-def _check(image: SarImage, max_iterations: Any, tolerance: Any) -> tuple[np.ndarray, dict[str, Any]]:
+def _check(image: SarImage, max_iterations: Any, tolerance: Any, max_window: Any) -> tuple[np.ndarray, dict[str, Any]]:
     if not isinstance(image, SarImage):
         raise TypeError(f"image must be a sarmitsuba SarImage, got {type(image).__name__}")
     radar = image.metadata.get("radar") if isinstance(image.metadata, dict) else None
@@ -368,52 +403,19 @@ def _check(image: SarImage, max_iterations: Any, tolerance: Any) -> tuple[np.nda
         raise ValueError(f"max_iterations must be an integer in 1 .. 100, got {max_iterations!r}")
     if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be a positive number of radians, got {tolerance!r}")
-    return np.asarray(image.data), {"max_iterations": int(max_iterations), "tolerance": float(tolerance)}
+    if max_window is not None and not (isinstance(max_window, (int, float)) and np.isfinite(max_window)
+                                         and max_window > 0):
+        raise ValueError(f"max_window must be a positive width in metres, got {max_window!r}")
+    return np.asarray(image.data), kernel_options(max_iterations, tolerance, max_window)
 
 
-@dataclasses.dataclass(frozen=True)
-class _Fresnel:
-    """The deramp of an image: upsampling ``factor`` in azimuth and the phase ``k x^2 / R0``
-    [n_az * factor, n_rg] (rad) of every upsampled pixel."""
-
-    factor: int
-    phase: np.ndarray
-    r0: np.ndarray
-
-
-#: Largest azimuth upsampling for the deramp (beyond it PGA runs on the image as it is).
-MAX_UPSAMPLE = 8
-
-
-def _fresnel_frame(image: SarImage) -> _Fresnel | None:
-    """The deramp of a backprojected image (``metadata["focus"]["track"]``: mid-aperture position,
-    direction and length of the straight track, and ``fc``), or None for other images.
-
-    ``x`` is each pixel's along-track coordinate from the mid-aperture position and ``R0`` its
-    closest-approach range; the deramped spectrum spans ``k (X + L) / (pi R0)`` cycles per metre
-    (``X`` the image's azimuth extent, ``L`` the track's length), which the azimuth sampling must
-    hold: the image is upsampled by the smallest integer that does so with 10 % to spare."""
-    focus = image.metadata.get("focus") if isinstance(image.metadata, dict) else None
-    track = focus.get("track") if isinstance(focus, dict) else None
-    if not (isinstance(track, dict) and track.get("direction") is not None and focus.get("fc")):
-        return None
-    position, direction = np.asarray(track["position"], float), np.asarray(track["direction"], float)
-    k = 2.0 * np.pi * float(focus["fc"]) / SPEED_OF_LIGHT
-    columns = image.origin + image.range[:, None] * image.range_direction - position        # [n_rg, 3]
-    r0 = np.linalg.norm(columns - np.outer(columns @ direction, direction), axis=1)
-    step = float(np.median(np.abs(np.diff(image.azimuth)))) if image.azimuth.size > 1 else 0.0
-    extent = float(np.ptp(image.azimuth)) + float(track.get("length", 0.0))
-    factor = max(1, int(np.ceil(1.1 * k * extent / (np.pi * float(r0.min())) * step)))
-    if not (step > 0 and np.all(r0 > 0)) or factor > MAX_UPSAMPLE:
-        return None
-    rows = image.azimuth[0] + step / factor * np.arange(image.azimuth.size * factor)
-    along = (columns @ direction)[None, :] + rows[:, None] * float(image.azimuth_direction @ direction)
-    return _Fresnel(factor, k * along ** 2 / r0[None, :], r0)
-
-
-def _apply(spectrum: np.ndarray, phase: np.ndarray) -> np.ndarray:
-    """The image of the centred-order azimuth ``spectrum`` [n_az, n] with ``exp(-j phase)`` removed."""
-    return np.fft.ifft(np.fft.ifftshift(spectrum * np.exp(-1j * phase)[:, None], axes=0), axis=0)
+def kernel_options(max_iterations: int = MAX_ITERATIONS, tolerance: float = TOLERANCE,
+                   max_window: float | None = None) -> dict[str, Any]:
+    """The options of :func:`~sarmitsuba.focus.pga_kernel.iterate` from this module's constants
+    (read at the call, so that a changed :data:`SUPPORT_DB` takes effect); ``max_window_m`` [m]."""
+    return {"max_iterations": int(max_iterations), "tolerance": float(tolerance), "min_iterations": MIN_ITERATIONS,
+            "window_db": WINDOW_DB, "widen": WIDEN, "shrink": SHRINK, "min_window": MIN_WINDOW, "first_floor": FLOOR,
+            "support_db": SUPPORT_DB, "rms_db": RMS_DB, "background": BACKGROUND, "max_window_m": max_window}
 
 
 def _dominance_db(intensity: np.ndarray, signal: np.ndarray) -> float:
@@ -426,77 +428,6 @@ def _dominance_db(intensity: np.ndarray, signal: np.ndarray) -> float:
     return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal])))
 
 
-def _centre(lines: np.ndarray) -> np.ndarray:
-    """Step 1: every column circularly shifted so that its brightest sample sits at index 0 (the
-    origin of the FFT: no linear phase is left in its spectrum)."""
-    n = lines.shape[0]
-    rows = (np.arange(n)[:, None] + np.argmax(np.abs(lines), axis=0)[None, :]) % n
-    return np.take_along_axis(lines, rows, axis=0)
-
-
-def _distance(n: int) -> np.ndarray:
-    """Circular distance [samples] of each index from index 0."""
-    k = np.arange(n)
-    return np.minimum(k, n - k)
-
-
-def _window_width(centred: np.ndarray) -> int:
-    """Step 2, first iteration: the width of the summed intensity above -:data:`WINDOW_DB` dB,
-    times :data:`WIDEN` (at least :data:`MIN_WINDOW`, at most the image)."""
-    intensity = np.sum(np.abs(centred) ** 2, axis=1)
-    above = intensity >= intensity.max() * 10.0 ** (-WINDOW_DB / 10.0)
-    width = int(np.ceil(WIDEN * (2 * np.max(_distance(centred.shape[0])[above]) + 1)))
-    return int(np.clip(width, MIN_WINDOW, centred.shape[0]))
-
-
-def _estimate(centred: np.ndarray, width: int, band: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Steps 2-3: the windowed lines' spectra and the integrated maximum-likelihood gradient
-    (zero-mean, no linear trend, over the supported samples), and the support (within ``band``,
-    bool [n], where given); centred order."""
-    keep = _distance(centred.shape[0]) <= width // 2
-    spectra = np.fft.fft(np.where(keep[:, None], centred, 0.0), axis=0)
-    spectra = np.fft.fftshift(spectra, axes=0)                       # contiguous about zero frequency
-    power = np.sum(np.abs(spectra) ** 2, axis=1)
-    support = power >= power.max() * 10.0 ** (-SUPPORT_DB / 10.0)
-    if band is not None:
-        support &= band
-    gradient = np.angle(np.sum(spectra[1:] * np.conj(spectra[:-1]), axis=1))
-    gradient = np.where(support[1:] & support[:-1], gradient, 0.0)    # no estimate across gaps
-    phase = np.concatenate([[0.0], np.cumsum(gradient)])
-    phase = _extend(_detrend(phase, support, power), support)
-    return phase, support
-
-
-def _extend(phase: np.ndarray, support: np.ndarray) -> np.ndarray:
-    """``phase`` on ``support``, interpolated linearly across its gaps and held constant beyond its
-    ends (the weak spectral samples just outside still get the error of their neighbours)."""
-    k = np.arange(phase.size)
-    return np.interp(k, k[support], phase[support]) if support.any() else np.zeros_like(phase)
-
-
-def _detrend(phase: np.ndarray, support: np.ndarray, power: np.ndarray) -> np.ndarray:
-    """``phase`` less its power-weighted mean and linear trend over ``support`` (centred order)."""
-    k = np.arange(phase.size, dtype=float)
-    w = np.where(support, power, 0.0)
-    if not w.sum() > 0:
-        return np.zeros_like(phase)
-    slope, offset = np.polyfit(k[support], phase[support], 1, w=np.sqrt(w[support]))
-    return phase - (slope * k + offset)
-
-
-def _power(centred: np.ndarray) -> np.ndarray:
-    """Summed spectral power of the centred lines, centred order."""
-    return np.fft.fftshift(np.sum(np.abs(np.fft.fft(centred, axis=0)) ** 2, axis=1))
-
-
-def _rms(phase: np.ndarray, support: np.ndarray, centred: np.ndarray) -> float:
-    """Power-weighted rms of ``phase`` (centred order) over the samples within :data:`RMS_DB` of the
-    peak power (the weak samples of ``support`` carry too little signal to say whether it converged)."""
-    power = _power(centred)
-    w = np.where(support & (power >= power.max() * 10.0 ** (-RMS_DB / 10.0)), power, 0.0)
-    return float(np.sqrt(np.sum(w * phase ** 2) / w.sum())) if w.sum() > 0 else 0.0
-
-
 #: The narrowest window smooths the estimate over no more than its support (the along-track span
 #: the used targets were seen from) over this many spectral cells (docs/physics.md (PGA6)). A
 #: window cut to a focused point's few samples smooths it over metres, most at the band's ends,
@@ -505,39 +436,51 @@ def _rms(phase: np.ndarray, support: np.ndarray, centred: np.ndarray) -> float:
 APERTURE_CELLS = 48
 
 
-def _track_limits(image: SarImage, aperture: np.ndarray | None, step: float, cells: int | None) -> dict[str, Any]:
-    """``{"band": bool [n] or None, "cells": int or None}``: with a deramp, the spectral samples
-    that stand for positions on the track (``|s| <= L / 2`` and one cell) and ``cells``, which sets
-    the narrowest window (eq. (PGA6): the window whose smoothing of the spectrum is the estimate's
-    support over ``cells``); without one, no band and no floor."""
-    length = float(image.metadata["focus"]["track"].get("length", 0.0)) if aperture is not None else 0.0
-    if aperture is None or not length > 0 or aperture.size < 2:
-        return {"band": None, "cells": None}
-    cell = float(np.abs(aperture[1] - aperture[0]))        # lambda R0 / (2 n |step|)
-    return {"band": np.abs(aperture) <= length / 2.0 + cell, "cells": cells}
+def _track_limits(frame: FresnelFrame | None, aperture: np.ndarray | None, cells: int | None,
+                  step: float, first_m: float | None) -> dict[str, Any]:
+    """``band`` (bool [n] or None), ``cells`` and ``max_window`` [samples] for :func:`iterate`: with a
+    deramp, the spectral samples that stand for positions on the track (``|s| <= L / 2`` and one
+    cell) and ``cells``, which sets the narrowest window (eq. (PGA6)); without one, no band and no
+    floor. ``first_m``, the first window [m], in rows ``step`` [m] apart."""
+    limits: dict[str, Any] = {"band": None, "cells": None,
+                              "max_window": None if first_m is None else int(np.ceil(first_m / abs(step)))}
+    if frame is not None and aperture is not None and frame.length > 0 and aperture.size >= 2:
+        cell = float(np.abs(aperture[1] - aperture[0]))        # lambda R0 / (2 n |step|)
+        limits.update(band=np.abs(aperture) <= frame.length / 2.0 + cell, cells=cells)
+    return limits
 
 
-def _aperture(image: SarImage, frame: _Fresnel | None, step: float, lines: np.ndarray,
-              intensity: np.ndarray) -> np.ndarray | None:
-    """The antenna's along-track position [m] of every spectral sample of a deramped image (eq.
-    (PGA2)): ``-f lambda R0 / 2`` on rows ``step`` apart (times the sign of the image's azimuth
-    axis along the track), ``R0`` the closest-approach range of the used ``lines`` weighted by their
-    intensity; None without a deramp."""
+def _reference_range(frame: FresnelFrame | None, lines: np.ndarray, intensity: np.ndarray) -> float:
+    """The closest-approach range [m] at which the spectral samples are read as antenna positions:
+    that of the used ``lines``, weighted by their intensity (eq. (PGA2)); 0 without a deramp."""
     if frame is None:
-        return None
-    focus = image.metadata["focus"]
-    wavelength = SPEED_OF_LIGHT / float(focus["fc"])
+        return 0.0
     weight = intensity[:, lines].sum(axis=0)
-    r0 = float(np.sum(weight * frame.r0[lines]) / weight.sum())
-    sense = float(np.sign(image.azimuth_direction @ np.asarray(focus["track"]["direction"], float)) or 1.0)
-    f = np.fft.fftshift(np.fft.fftfreq(intensity.shape[0], d=step))
-    return -sense * f * wavelength * r0 / 2.0
+    return float(np.sum(weight * frame.r0[lines]) / weight.sum())
 
 
-def _row_step(image: SarImage, frame: _Fresnel | None) -> float:
-    """Azimuth spacing [m, signed] of the rows PGA works on (upsampled by the deramp's factor)."""
-    step = float(np.median(np.diff(image.azimuth))) if image.azimuth.size > 1 else 1.0
-    return step / (frame.factor if frame is not None else 1)
+def _line_spectra(lines_data: np.ndarray, frame: FresnelFrame | None, lines: np.ndarray, r_ref: float) -> np.ndarray:
+    """The used lines' azimuth spectra, centred order: on the common grid of antenna positions with a
+    deramp (:func:`~sarmitsuba.focus.pga_deramp.line_spectra`), else their FFT."""
+    if frame is None:
+        return np.fft.fftshift(np.fft.fft(lines_data.astype(np.complex128), axis=0), axes=0)
+    return line_spectra(lines_data.astype(np.complex128), frame.r0[lines], r_ref)
+
+
+def _corrected(data: np.ndarray, phase: np.ndarray, frame: FresnelFrame | None, aperture: np.ndarray | None,
+               r_ref: float) -> np.ndarray:
+    """The image ``data`` [n, n_rg] (deramped where ``frame``) with ``phase`` (centred order) removed from
+    every column's spectrum; with a deramp, read at each column's own antenna positions
+    (:func:`~sarmitsuba.focus.pga_deramp.column_phase`)."""
+    spectrum = np.fft.fftshift(np.fft.fft(data.astype(np.complex128), axis=0), axes=0)
+    if frame is None or aperture is None:
+        return apply_phase(spectrum, phase)
+    return apply_phase(spectrum, column_phase(phase, aperture, frame.r0, r_ref))
+
+
+def _row_step(image: SarImage) -> float:
+    """Azimuth spacing [m, signed] of the image's rows."""
+    return float(np.median(np.diff(image.azimuth))) if image.azimuth.size > 1 else 1.0
 
 
 def _linear_bound(image: SarImage) -> float | None:

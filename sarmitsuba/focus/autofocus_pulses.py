@@ -1,4 +1,4 @@
-"""Phase gradient autofocus through the raw data (docs/physics.md (PGA6)).
+"""Phase gradient autofocus through the raw data (docs/physics.md (PGA6), (PGA7)).
 
 Backprojection weights every pulse by the azimuth window and the antenna pattern seen from each
 pixel, ``w((x - s_p) / R0)``: a weight that follows the pixel. A motion error's phase
@@ -9,15 +9,20 @@ spreads over a good part of the beam (measured: a 2 cm, 30 m sway on the built-i
 -26.8 dB azimuth PSLR even with the true error removed from the spectrum, -58.1 dB on the true
 track). :func:`pga_focus` therefore
 
-1. judges whether PGA may run, (PGA3) and (PGA4), on the image asked for;
-2. focuses the data by backprojection with a rectangular azimuth window on the grid widened by
-   half the azimuth ambiguities' spacing (:func:`ambiguity_spacing`), where the spectrum holds
-   the error as a product (the same correction then gives -38.1 dB against -38.8 dB on the
-   true track), and refuses a sway whose response folds onto its ambiguities;
-3. runs :func:`~sarmitsuba.focus.autofocus.pga` on that image, which says at which along-track
-   antenna position each spectral sample stands (``aperture_position``);
-4. removes the estimate from each pulse, ``d_p exp(-j phi(s_p))`` (:func:`pulse_correction`),
-   repeats 2-4 until a round changes little, and focuses with the focuser and windows asked for.
+1. backprojects the data with a rectangular azimuth window on the grid widened by half the
+   azimuth ambiguities' spacing (:func:`ambiguity_spacing`), and judges there whether PGA may run
+   ((PGA3), (PGA4): a dominant scatterer, or one smeared along a range line that stands out of its
+   clutter) and which lines it learns from;
+2. reads the pulses' echoes of those lines' targets and runs the kernel of (PGA) on them
+   (:func:`~sarmitsuba.focus.pga_pulses.estimate_pulses`, eq. (PGA7)): the phase error of every
+   pulse, however far the sway smears the image;
+3. removes the estimate from each pulse, ``d_p exp(-j phi(s_p))``, repeats 1-2 (the window
+   narrowing round by round) until a round changes little, checks that the scatterer was found,
+   and focuses with the focuser and windows asked for; ``metadata["autofocus"]`` says what it
+   did, and :func:`outcome_line` says it in one line.
+
+:func:`pulse_correction` reads the estimate of :func:`~sarmitsuba.focus.autofocus.pga` on a
+deramped image at every pulse's position, for the image-domain estimate.
 """
 from __future__ import annotations
 
@@ -31,19 +36,25 @@ import numpy as np
 from ..core.image import SarImage
 from ..core.raw import RawData
 from .grid import ImageGrid
-from .autofocus import APERTURE_CELLS, AutofocusReport, AutofocusWarning, pga
+from .autofocus import APERTURE_CELLS, BACKGROUND, DOMINANCE_DB, MIN_LINES, AutofocusReport, AutofocusWarning
+from .pga_lines import band_occupancy, doppler_band, signal_pixels, smeared_lines
+from .pga_pulses import estimate_pulses, pulse_positions, reference_phase
 
-__all__ = ["pulse_correction", "ambiguity_spacing", "pga_focus", "corrected", "response_spread", "ROUNDS",
-           "ROUND_TOLERANCE", "TWO_WAY"]
+__all__ = ["pulse_correction", "ambiguity_spacing", "pga_focus", "outcome_line", "corrected", "response_spread",
+           "ROUNDS", "ROUND_TOLERANCE", "FOUND_DB", "SHARPER"]
 
 
 #: Rounds of estimate-and-correct through the pulses at most, and the rms [rad] of a round's
 #: correction (over the pulses the estimate supports) below which they stop.
 ROUNDS = 6
 ROUND_TOLERANCE = 0.01
-#: The two-way 3 dB Doppler band over the one-way one (``RadarParameters.doppler_bandwidth``) of
-#: a uniformly illuminated antenna: sinc^4 against sinc^2 (docs/physics.md (PGA6)).
-TWO_WAY = 0.72
+#: After the rounds, the scatterer PGA found must stand this far over the clutter [dB] (eq. (PGA3)
+#: on the last estimation image): a point 20 dB over its clutter's mean reads about 21.6 dB over its
+#: median, speckle alone 12 to 14 dB (docs/physics.md (PGA3)).
+FOUND_DB = 18.0
+#: ... and the rounds must leave the estimation image at least this sharp relative to the nominal
+#: track's (``sum I^2 / (sum I)^2``; a barely defocused point may lose a little in the first round).
+SHARPER = 0.98
 
 
 def pulse_correction(report: AutofocusReport, raw: RawData, track: dict[str, Any]) -> np.ndarray:
@@ -100,7 +111,7 @@ def ambiguity_spacing(raw: RawData, grid: ImageGrid, column: int | None = None) 
 
 def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth: Any, reference: Any = None,
               progress: bool = False) -> SarImage:
-    """Autofocus a focusing through its raw data (docs/physics.md (PGA6)).
+    """Autofocus a focusing through its raw data (docs/physics.md (PGA6), (PGA7)).
 
     Parameters
     ----------
@@ -111,90 +122,209 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         made on ``bp`` for ``bp``, else on ``ffbp``.
     window_range, window_azimuth : str or (str, dict)
         The windows of the image returned (:func:`~sarmitsuba.focus.dispatch.focus`).
-    reference, progress
-        As :func:`~sarmitsuba.focus.autofocus.pga`.
+    reference : 3 floats, m, optional
+        A known point-like scatterer: the linear part of the error is removed at it (eq. (PGA5)).
+    progress : bool
 
     Returns
     -------
     SarImage
-        The data, each pulse corrected by the summed :func:`pulse_correction` of up to
-        :data:`ROUNDS` rounds (each PGA on a rectangular-window backprojection widened by half the
-        :func:`ambiguity_spacing` at either end), focused with the windows asked for;
-        ``metadata["autofocus"]`` is the first round's record with ``"applied_to": "pulses"``,
-        ``"rounds"`` and ``"pulse_phase_rad"`` (float [n_pulses], rad). Where PGA declines, the
-        nominal image unchanged (``"applied": False``, ``"refusal"`` why).
+        The data, each pulse corrected by the sum of up to :data:`ROUNDS` rounds (each PGA on the
+        pulses' echoes, eq. (PGA7), of the lines chosen on a rectangular-window backprojection
+        widened by half the :func:`ambiguity_spacing` at either end), focused with the windows
+        asked for. ``metadata["autofocus"]`` says what PGA did: ``applied`` (bool),
+        ``applied_to`` (``"pulses"`` or ``"nothing"``), ``rounds`` (the rounds whose estimate was
+        applied; 0 where refused), ``refusal`` (why it was not applied; ``""`` where it was),
+        ``iterations`` (summed over the rounds), ``per_round`` (each round's ``iterations``,
+        ``window_samples`` [samples of one ambiguity period, ``n_pulses`` of them], ``lines`` and
+        ``converged``), ``converged`` (the last round's), ``dominance_db`` (the first estimation
+        image's, (PGA3)), ``found_db`` (the last one's, :data:`FOUND_DB`), ``lines_found_as``
+        (``"point-like"`` or ``"smeared"``, (PGA4)), ``rms_phase_error_rad`` (of the removed phase
+        over the pulses the estimate supports, less its mean), ``pulse_phase_rad`` (float
+        [n_pulses]) and ``linear_part`` ((PGA5)). Where PGA declines, the nominal image unchanged.
 
     Warns
     -----
     AutofocusWarning
-        As :func:`~sarmitsuba.focus.autofocus.pga`; where no range line is point-like, with the
-        brightest line's spread; a sway beyond PGA (its defocused response folds onto the azimuth
-        ambiguities, docs/physics.md (PGA6)); a first round that does not sharpen the image.
+        Where PGA is not applied, saying why (the metadata's ``refusal``): the first estimation
+        image holds no dominant scatterer (PGA3) nor a smeared one, or too few point-like lines
+        (PGA4), or cannot be deramped; or the rounds made it less sharp, or left no scatterer
+        :data:`FOUND_DB` over its clutter.
     """
-    from .dispatch import autofocus_image, focus, render_focusing
-    estimator = algorithm if algorithm in ("bp", "ffbp") else "ffbp"
-    grid, _, doppler, _, _ = render_focusing(raw)
-    spacing = None if grid is None else ambiguity_spacing(raw, grid)
-
-    def estimate(total: np.ndarray) -> tuple[SarImage, AutofocusReport, list]:
-        data = corrected(raw, total)
-        image = autofocus_image(data, estimator, window_range=window_range, azimuth_margin=(spacing or 0.0) / 2.0,
-                                progress=progress)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", AutofocusWarning)
-            report = pga(image, reference=reference, progress=progress, aperture_cells=APERTURE_CELLS)[1]
-        return image, report, caught
+    from .dispatch import focus, render_focusing
+    rounds = _Rounds(raw, algorithm, window_range, render_focusing(raw), progress)
     nominal = focus(raw, algorithm, window_range=window_range, window_azimuth=window_azimuth, progress=progress)
-    with warnings.catch_warnings(record=True) as caught:     # (PGA3), (PGA4) judged on the image asked for
-        warnings.simplefilter("always", AutofocusWarning)
-        unchanged, gate = pga(nominal, reference=reference, max_iterations=1)
-    if not gate.applied:                        # the real cause first: a sway beyond PGA is not point-like
-        reason = _not_point_like(estimate(np.zeros(raw.n_pulses))[0], raw, doppler) \
-            if gate.refusal.endswith("range line(s)") else ""       # clutter alone has no spread to speak of
-        for w in caught:
-            warnings.warn_explicit(f"{w.message}{reason}", w.category, w.filename, w.lineno)
-        metadata = copy.deepcopy(unchanged.metadata)
-        metadata["autofocus"].update(refusal=gate.refusal + reason, rounds=0, applied_to="nothing")
-        return dataclasses.replace(unchanged, metadata=metadata)
-    total, rounds = np.zeros(raw.n_pulses), 0
-    image, first, caught = estimate(total)
-    report, limit = first, (_beyond(image, raw, doppler) if first.applied else "")
-    while report.applied and report.aperture_position is not None and not limit and rounds < ROUNDS:
-        step = pulse_correction(report, raw, image.metadata["focus"]["track"])
-        inside = _inside(report, raw, image.metadata["focus"]["track"])
-        total, rounds = total + step, rounds + 1
-        if not np.sqrt(np.mean((step - step[inside].mean())[inside] ** 2)) >= ROUND_TOLERANCE:
-            break
-        sharpness = _sharpness(image) if rounds == 1 else None
-        image, report, _ = estimate(total)
-        if sharpness is not None and not _sharpness(image) >= sharpness:
-            limit = "its first round made the image less sharp (no point-like target it could learn from)"
-    for w in caught if not rounds and not limit else ():
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    if limit:
-        warnings.warn(f"PGA not applied: {limit}; the image is focused on the nominal track unchanged",
+    refusal = rounds.run()
+    total = rounds.total
+    shift = None
+    if not refusal and reference is not None:                 # eq. (PGA5), on the last estimation image
+        linear, shift = reference_phase(rounds.image, reference, rounds.positions)
+        total = total + linear
+    if refusal:
+        warnings.warn(f"PGA not applied: {refusal}; the image is focused on the nominal track unchanged",
                       AutofocusWarning, stacklevel=3)
-        total, rounds = total * 0.0, 0
-    out = focus(corrected(raw, total), algorithm, window_range=window_range, window_azimuth=window_azimuth,
-                progress=progress) if rounds else nominal
+    out = nominal if refusal else focus(corrected(raw, total), algorithm, window_range=window_range,
+                                        window_azimuth=window_azimuth, progress=progress)
     metadata = copy.deepcopy(out.metadata)
-    metadata["autofocus"] = {**first.as_metadata(), "applied": bool(rounds), "applied_to": "pulses" if rounds else "nothing",
-                             "refusal": limit or first.refusal, "rounds": rounds,
-                             "pulse_phase_rad": [round(float(v), 5) for v in total]}
+    metadata["autofocus"] = _metadata(rounds, refusal, total, shift, reference)
     return dataclasses.replace(out, metadata=metadata)
+
+
+class _Rounds:
+    """The rounds of estimate-and-correct through the pulses (docs/physics.md (PGA6), (PGA7)): each
+    round backprojects the corrected pulses on the widened grid, picks there the lines to learn from
+    (the first round's, kept after), reads the pulses' echoes at their targets and runs (PGA) on
+    them, and adds the estimate to ``total`` [rad, per pulse]; ``records`` holds what each round did."""
+
+    def __init__(self, raw: RawData, algorithm: str, window_range: Any, focusing: Any, progress: bool) -> None:
+        self.raw, self.window_range, self.progress = raw, window_range, progress
+        self.estimator = algorithm if algorithm in ("bp", "ffbp") else "ffbp"
+        self.spacing = None if focusing.grid is None else ambiguity_spacing(raw, focusing.grid)
+        self.total = np.zeros(raw.n_pulses)
+        self.records: list[dict[str, Any]] = []
+        self.image = self._estimation_image()
+        self.positions = pulse_positions(raw.tx_position, self.image.metadata["focus"]["track"]) \
+            if isinstance(self.image.metadata.get("focus", {}).get("track"), dict) else None
+        self.dominance_db: float | None = None
+        self.found_db: float | None = None
+        self.lines: np.ndarray | None = None
+        self.smeared = np.zeros(0, int)
+        self.found_by = "point-like"
+
+    def _estimation_image(self) -> SarImage:
+        from .dispatch import autofocus_image
+        return autofocus_image(corrected(self.raw, self.total), self.estimator, window_range=self.window_range,
+                               azimuth_margin=(self.spacing or 0.0) / 2.0, progress=self.progress)
+
+    def run(self) -> str:
+        """Up to :data:`ROUNDS` rounds; ``""``, or why PGA may not be applied. The first window holds at
+        most one ambiguity period (the samples' image domain); each round's last window is the next
+        one's widest, so that the window narrows round by round."""
+        refusal = self._gate()
+        if refusal:
+            return refusal
+        sharp, window = _sharpness(self.image), None
+        for _ in range(ROUNDS):
+            step, reason, window = self._round(window)
+            if reason:
+                if self.records:
+                    break
+                return reason
+            self.total = self.total + step
+            self.image = self._estimation_image()
+            inside = self.records[-1]["inside"]
+            if not np.sqrt(np.mean((step - step[inside].mean())[inside] ** 2)) >= ROUND_TOLERANCE:
+                break
+        if not _sharpness(self.image) >= SHARPER * sharp:
+            self.total[:] = 0.0
+            return (f"its {len(self.records)} round(s) made the image less sharp (sum I^2 / (sum I)^2 fell by "
+                    f"{100 * (1 - _sharpness(self.image) / sharp):.0f} %: nothing point-like it could learn from)")
+        return self._found()
+
+    def _gate(self) -> str:
+        """Why the first estimation image holds nothing PGA may learn from, or ``""``: no pixel
+        :data:`~sarmitsuba.focus.autofocus.DOMINANCE_DB` over the median of its signal (eq. (PGA3))
+        and no scatterer smeared along a range line standing out of its clutter
+        (:func:`~sarmitsuba.focus.pga_lines.smeared_lines`, eq. (PGA4)). On clutter alone the rounds
+        would gather speckle into a point: each pulse's phase at one pixel, removed, adds them all
+        in phase there."""
+        if self.positions is None:
+            return "the estimation image records no straight track, so its pulses' positions are unknown"
+        data = np.asarray(self.image.data)
+        intensity = np.abs(data).astype(np.float64) ** 2
+        self.smeared = smeared_lines(intensity, None, band_occupancy(data, doppler_band(self.image)))[0]
+        signal = signal_pixels(intensity)
+        level = 10.0 * np.log10(intensity.max() / np.median(intensity[signal])) if signal.any() else -np.inf
+        self.dominance_db = float(level)
+        if level >= DOMINANCE_DB or self.smeared.size >= MIN_LINES:
+            return ""
+        return (f"no dominant scatterer: the brightest pixel is {level:.1f} dB above the median of the image's signal "
+                f"(PGA needs >= {DOMINANCE_DB:g} dB; clutter alone reaches about 14 dB), and no range line holds a "
+                f"smeared scatterer standing out of its clutter")
+
+    def _found(self) -> str:
+        """``""`` where the last estimation image holds a dominant scatterer (its brightest pixel
+        :data:`FOUND_DB` over the median of its signal, eq. (PGA3)); else why not."""
+        intensity = np.abs(np.asarray(self.image.data)).astype(np.float64) ** 2
+        signal = signal_pixels(intensity)
+        level = 10.0 * np.log10(intensity.max() / np.median(intensity[signal])) if signal.any() else -np.inf
+        self.found_db = float(level)
+        if level >= FOUND_DB:
+            return ""
+        self.total[:] = 0.0
+        return (f"no dominant scatterer found: after {len(self.records)} round(s) the brightest pixel stands "
+                f"{level:.1f} dB over the median of the image's signal (PGA needs >= {FOUND_DB:g} dB once focused; "
+                f"clutter alone reaches about 14 dB)")
+
+    def _round(self, window: int | None) -> tuple[np.ndarray, str, int | None]:
+        """One round's estimate [rad per pulse], or why there is none, and the next round's widest window
+        [samples of the period]."""
+        raw = _compressed(corrected(self.raw, self.total), self.window_range)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", AutofocusWarning)
+            found, reason = estimate_pulses(self.image, raw, self.positions, cells=APERTURE_CELLS, max_window=window,
+                                            lines=self.lines, progress=self.progress)
+            if found is None and self.lines is None and self.smeared.size >= MIN_LINES:
+                self.found_by = "smeared"                     # (PGA4): a scatterer smeared below (PGA3)'s peak
+                found, reason = estimate_pulses(self.image, raw, self.positions, cells=APERTURE_CELLS,
+                                                max_window=window, lines=self.smeared, progress=self.progress)
+        if found is None:
+            return np.zeros(self.raw.n_pulses), reason, window
+        self.lines = found.line_index
+        self.records.append({"iterations": len(found.windows), "window_samples": list(found.windows),
+                             "lines": found.lines, "converged": bool(found.converged), "inside": found.support})
+        return found.phase, "", found.windows[-1]
+
+
+def _compressed(raw: RawData, window_range: Any) -> RawData:
+    """``raw`` range compressed with ``window_range``, as backprojection takes it."""
+    from .range_compression import apply_range_window, range_compress
+    from .windows import window_spec
+    name, params = window_spec(window_range)
+    if not raw.range_compressed:
+        return range_compress(raw, name, **params)
+    return apply_range_window(raw, name, **params) if name != "rect" else raw
+
+
+def _metadata(rounds: _Rounds, refusal: str, total: np.ndarray, shift: float | None, reference: Any) -> dict[str, Any]:
+    """``metadata["autofocus"]`` of :func:`pga_focus` (its Returns give the keys), in JSON types."""
+    applied = not refusal and bool(rounds.records)
+    inside = rounds.records[0]["inside"] if rounds.records else np.ones(total.size, bool)
+    phase = total if applied else np.zeros(total.size)
+    rms = float(np.sqrt(np.mean((phase[inside] - phase[inside].mean()) ** 2))) if inside.any() else 0.0
+    dominance = rounds.dominance_db
+    return {"method": "pga", "applied": applied, "applied_to": "pulses" if applied else "nothing",
+            "rounds": len(rounds.records) if applied else 0, "refusal": "" if applied else refusal,
+            "iterations": sum(r["iterations"] for r in rounds.records) if applied else 0,
+            "per_round": [{k: v for k, v in r.items() if k != "inside"} for r in rounds.records] if applied else [],
+            "converged": bool(applied and rounds.records[-1]["converged"]),
+            "dominance_db": None if dominance is None or not np.isfinite(dominance) else round(float(dominance), 2),
+            "found_db": None if rounds.found_db is None else round(rounds.found_db, 2), "lines_found_as": rounds.found_by,
+            "rms_phase_error_rad": round(rms, 4), "deramp": True,
+            "linear_part": {"estimated": shift is not None, "shift_m": None if shift is None else round(float(shift), 4),
+                            "reference": None if shift is None else [float(v) for v in reference]},
+            "pulse_phase_rad": [round(float(v), 5) for v in phase]}
+
+
+def outcome_line(record: dict[str, Any]) -> str:
+    """One line saying what PGA did, from ``metadata["autofocus"]`` alone (the command line prints it,
+    so that it cannot disagree with the record): ``"PGA applied through the pulses: R round(s), I
+    iterations, phase removed X rad rms[, shift S m removed at the reference]"``, or ``"PGA not
+    applied (REFUSAL; image unchanged)"`` with the recorded refusal."""
+    if not record.get("applied"):
+        return f"PGA not applied ({record.get('refusal') or 'no reason recorded'}; image unchanged)"
+    rms = f"{record.get('rms_phase_error_rad', 0.0):.3g} rad rms"
+    if "rounds" not in record:
+        return f"PGA applied: {record.get('iterations', 0)} iterations, phase error {rms}"
+    linear = record.get("linear_part") or {}
+    shift = f", shift {linear['shift_m']:.3g} m removed at the reference" if linear.get("estimated") else ""
+    return (f"PGA applied through the pulses: {record['rounds']} round(s), {record.get('iterations', 0)} "
+            f"iterations, phase removed {rms}{shift}")
 
 
 def corrected(raw: RawData, phase: np.ndarray) -> RawData:
     """``raw`` with every pulse multiplied by ``exp(-j phase_p)`` (float64 [n_pulses], rad)."""
     return dataclasses.replace(raw, data=(raw.data * np.exp(-1j * phase)[:, None]).astype(raw.data.dtype))
-
-
-def _inside(report: AutofocusReport, raw: RawData, track: dict[str, Any]) -> np.ndarray:
-    """bool [n_pulses]: the pulses within the estimate's support."""
-    along = (np.asarray(raw.tx_position, float) - np.asarray(track["position"], float)) @ np.asarray(track["direction"], float)
-    s = report.aperture_position[report.support]
-    inside = (along >= s.min()) & (along <= s.max()) if s.size else np.zeros(along.size, bool)
-    return inside if inside.any() else np.ones(along.size, bool)
 
 
 def _sharpness(image: SarImage) -> float:
@@ -203,14 +333,17 @@ def _sharpness(image: SarImage) -> float:
     return float(np.sum(intensity ** 2) / np.sum(intensity) ** 2)
 
 
-def response_spread(image: SarImage, spacing: float) -> float:
-    """The full azimuth extent ``X_d = 2 sqrt(2) sigma`` [m] of the defocused response on the brightest
-    range line of ``image``: ``sigma`` the energy-weighted rms distance from its centroid, over the
-    samples within ``spacing / 2`` [m] of it (the azimuth ambiguities lie beyond). For a sinusoidal
+def response_spread(image: SarImage, spacing: float, column: int | None = None) -> float:
+    """The full azimuth extent ``X_d = 2 sqrt(2) sigma`` [m] of the defocused response on range line
+    ``column`` of ``image`` (default the brightest): ``sigma`` the rms distance from its centroid,
+    weighted by the intensity above :data:`~sarmitsuba.focus.autofocus.BACKGROUND` times the line's
+    median (its clutter), over the samples within
+    ``spacing / 2`` [m] of it (the azimuth ambiguities lie beyond). For a sinusoidal
     error ``X_d = lambda R0 max|phi'| / (2 pi)``, the whole sweep of its instantaneous position
     (docs/physics.md (PGA6)); measured within 3 % of it on the built-in trihedral's sways."""
     intensity = np.abs(image.data).astype(np.float64) ** 2
-    line = intensity[:, int(np.argmax(intensity.max(axis=0)))]
+    line = intensity[:, int(np.argmax(intensity.max(axis=0))) if column is None else column]
+    line = np.maximum(line - BACKGROUND * np.median(line), 0.0)
     step = float(np.median(np.abs(np.diff(image.azimuth))))
     n = line.size
     offset = (np.arange(n) - int(np.argmax(line)) + n // 2) % n - n // 2
@@ -222,37 +355,3 @@ def response_spread(image: SarImage, spacing: float) -> float:
     return float(2.0 * np.sqrt(2.0) * sigma)
 
 
-def _not_point_like(first: SarImage, raw: RawData, doppler: float | None) -> str:
-    """What to add to PGA's point-like refusal (PGA4), ``" (...)"``: the spread of the brightest
-    line's response on the first estimation image and, where it reaches the limit of
-    :func:`_beyond`, that a defocused point that wide is beyond PGA (it may be a wall or a rim)."""
-    beyond = _beyond(first, raw, doppler)
-    if beyond:
-        return f" (the brightest line's response: if it is a defocused point, {beyond})"
-    spacing = ambiguity_spacing(raw, first, _brightest(first))
-    return (f" (the brightest line's response spreads over {response_spread(first, spacing):.1f} m of azimuth: a point "
-            f"defocused that far is no longer point-like, and PGA cannot tell it from a wall or a rim)")
-
-
-def _brightest(image: SarImage) -> int:
-    """The range column of ``image``'s brightest pixel."""
-    return int(np.argmax(np.max(np.abs(image.data), axis=0)))
-
-
-def _beyond(first: SarImage, raw: RawData, doppler: float | None) -> str:
-    """Why the sway is beyond PGA (docs/physics.md (PGA6)), or ``""``: the first estimate's defocused
-    response (:func:`response_spread`) ``X_d >= Delta x_amb (1 - TWO_WAY B_D / PRF)``, the
-    ambiguities' spacing ``Delta x_amb`` at the brightest line's range: the phase error's Doppler
-    excursion ``2 v X_d / (lambda R0)`` and the beam's two-way band exceed the PRF, and the
-    defocused image folds onto its ambiguities."""
-    if not doppler:
-        return ""
-    spacing = ambiguity_spacing(raw, first, _brightest(first))
-    spread = response_spread(first, spacing)
-    limit = spacing * (1.0 - TWO_WAY * doppler / raw.prf)
-    if spread < limit:
-        return ""
-    return (f"the sway is beyond PGA: its defocused response spreads over {spread:.1f} m, where the PRF leaves "
-            f"{limit:.1f} m (the azimuth ambiguities' spacing lambda R0 PRF / (2 v) = {spacing:.1f} m less the "
-            f"beam's two-way Doppler band, {TWO_WAY * doppler:.0f} of {raw.prf:.0f} Hz): its Doppler excursion folds; "
-            f"raise prf, or fly slower")

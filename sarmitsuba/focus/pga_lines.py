@@ -3,10 +3,12 @@ what bounds the linear part of the phase error it leaves (docs/physics.md (PGA5)
 
 PGA assumes that each range line it uses holds one point-like scatterer that outshines its
 clutter (Wahl et al. 1994, section II). :func:`signal_pixels` finds the pixels that hold signal
-(the clutter background of (PGA3)); :func:`point_likeness` measures, per range line, how far its
-brightest sample stands above that background and how much of the line's energy lies close to it;
-:func:`point_lines` keeps the lines that are point-like by both measures: clutter, the rims of a
-plate and the double bounce of a wall spread their energy along the line and are rejected.
+(the clutter background of (PGA3)); :func:`line_levels` measures how far each line's brightest
+sample stands above that background, and :func:`band_occupancy` how much of the beam's Doppler band
+the response about it fills. A point fills the band however far a phase error smears it (the
+error moves its energy about and leaves its spectrum's magnitude alone); the double bounce of a
+wall or the rim of a plate is extended along the line, and its spectrum is as narrow as it is long.
+:func:`point_lines` keeps the lines that are point-like by both measures.
 """
 from __future__ import annotations
 
@@ -14,12 +16,15 @@ from typing import Any
 
 import numpy as np
 
+from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage, image_coordinates
 from ..core.valid_ranges import ParameterError
 
-__all__ = ["signal_pixels", "point_likeness", "point_lines", "linear_shift_bound", "upsample", "reference_azimuth",
-           "reference_shift", "shift_phase", "REFERENCE_SEARCH", "REFERENCE_UPSAMPLE",
-           "SIGNAL_BOX", "SIGNAL_DB", "SIGNAL_PERCENTILE", "POINT_DB", "POINT_SHARE", "POINT_EXTENT"]
+__all__ = ["signal_pixels", "line_levels", "point_likeness", "doppler_band", "band_occupancy", "point_lines",
+           "linear_shift_bound",
+           "upsample", "reference_azimuth", "reference_shift", "shift_phase", "REFERENCE_SEARCH", "REFERENCE_UPSAMPLE",
+           "SIGNAL_BOX", "SIGNAL_DB", "SIGNAL_PERCENTILE", "POINT_DB", "POINT_BAND", "RESPONSE_DB", "BAND_DB",
+           "POINT_SHARE", "POINT_EXTENT", "smeared_lines", "SMEAR_WINDOWS", "SMEAR_SIGMAS"]
 
 #: (PGA3)'s background: pixels whose local mean intensity over this many pixels square lies within
 #: :data:`SIGNAL_DB` of the :data:`SIGNAL_PERCENTILE` th percentile of the local means. 9 x 9
@@ -31,12 +36,24 @@ SIGNAL_BOX = 9
 SIGNAL_DB = 20.0
 SIGNAL_PERCENTILE = 90.0
 #: (PGA4): a range line is point-like when its brightest sample stands at least :data:`POINT_DB`
-#: above the median intensity of the image's signal pixels and at least :data:`POINT_SHARE` of its
-#: energy over its lit samples lies within :data:`POINT_EXTENT` of its lit extent about that
-#: sample. Measured on the nominal-track images of docs/physics.md (PGA4)'s table: the lines of a
-#: defocused trihedral that reach 20 dB hold 0.65 to 0.91; those of walls on ground 0.29 to 0.46;
-#: lines below 20 dB reach 0.78 (speckle, rims), which is why both tests are needed.
+#: above the median intensity of the image's signal pixels and the response about it fills at least
+#: :data:`POINT_BAND` of the beam's Doppler band (:func:`band_occupancy`: the response is the
+#: contiguous run of samples within :data:`RESPONSE_DB` of that sample; a spectral sample counts
+#: when it lies within :data:`BAND_DB` of the spectrum's peak). Measured on nominal-track images
+#: (docs/physics.md (PGA4)): trihedrals, focused or smeared by sways of 0.5 to 5 cm, 0.49 to 1; the
+#: double bounce of PEC walls 20 m long 0.28 and 0.35, of the urban scene's buildings 0.16 to 0.30.
 POINT_DB = 20.0
+POINT_BAND = 0.45
+RESPONSE_DB = 20.0
+BAND_DB = 20.0
+
+
+#: Without the beam's band (an image whose metadata do not give it), (PGA4) judges a line by how
+#: its energy gathers instead: at least :data:`POINT_SHARE` of its energy over its lit samples lies
+#: within :data:`POINT_EXTENT` of its lit extent about its brightest sample (:func:`point_likeness`).
+#: Measured on the nominal-track images of docs/physics.md (PGA4)'s table: the lines of a defocused
+#: trihedral that reach 20 dB hold 0.65 to 0.91; those of walls on ground 0.29 to 0.46. It refuses a
+#: point smeared over most of the image, which the band does not.
 POINT_SHARE = 0.5
 POINT_EXTENT = 0.25
 #: Lines with fewer lit samples than this carry no point-likeness (too short to judge).
@@ -52,6 +69,20 @@ def signal_pixels(intensity: np.ndarray) -> np.ndarray:
     local = uniform_filter(intensity, size=SIGNAL_BOX, mode="nearest")
     level = np.percentile(local, SIGNAL_PERCENTILE)
     return (local >= level * 10.0 ** (-SIGNAL_DB / 10.0)) & (intensity > 0)
+
+
+def line_levels(intensity: np.ndarray, signal: np.ndarray | None = None) -> np.ndarray:
+    """float64 [n_rg], dB: every range line's brightest sample over the median intensity of the
+    image's signal pixels (eq. (PGA3)'s background; :func:`signal_pixels` of ``intensity`` [n_az,
+    n_rg], azimuth along axis 0, by default); -inf where the image holds no signal."""
+    intensity = np.asarray(intensity, dtype=np.float64)
+    if signal is None:
+        signal = signal_pixels(intensity)
+    background = np.median(intensity[signal]) if signal.any() else 0.0
+    if not background > 0:
+        return np.full(intensity.shape[1], -np.inf)
+    with np.errstate(divide="ignore"):
+        return 10.0 * np.log10(intensity.max(axis=0) / background)
 
 
 def point_likeness(intensity: np.ndarray, signal: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -94,11 +125,112 @@ def point_likeness(intensity: np.ndarray, signal: np.ndarray | None = None) -> t
     return share, level_db
 
 
-def point_lines(intensity: np.ndarray, signal: np.ndarray | None = None) -> np.ndarray:
-    """int [k]: indices of the range lines that are point-like (eq. (PGA4)): ``level_db >=``
-    :data:`POINT_DB` and ``share >=`` :data:`POINT_SHARE` (:func:`point_likeness`), ascending."""
-    share, level_db = point_likeness(intensity, signal)
-    return np.flatnonzero((level_db >= POINT_DB) & (np.nan_to_num(share, nan=0.0) >= POINT_SHARE))
+def doppler_band(image: SarImage) -> np.ndarray | None:
+    """bool [n_az]: the samples of the azimuth spectrum (``numpy.fft.fftfreq`` order) within the
+    beam's one-way 3 dB Doppler band, ``|f - f_c| <= 2 sin(theta / 2) / lambda`` cycles per metre
+    (``theta`` = ``metadata["radar"]["azimuth_beamwidth"]``, ``lambda`` from ``fc``; ``f_c`` the
+    power-weighted circular mean frequency of the image, the Doppler centroid); None where the
+    metadata do not give the beamwidth and carrier."""
+    meta = image.metadata if isinstance(image.metadata, dict) else {}
+    radar, focus = meta.get("radar") or {}, meta.get("focus") or {}
+    fc, theta = focus.get("fc") or radar.get("frequency"), radar.get("azimuth_beamwidth")
+    if not (fc and theta) or image.azimuth.size < 2:
+        return None
+    n = image.data.shape[0]
+    f = np.fft.fftfreq(n, d=float(np.median(np.abs(np.diff(image.azimuth)))))
+    power = np.sum(np.abs(np.fft.fft(np.asarray(image.data), axis=0)) ** 2, axis=1)
+    turn = np.sum(power * np.exp(2j * np.pi * np.arange(n) / n))
+    centre = f[int(np.round(np.angle(turn) * n / (2.0 * np.pi))) % n]
+    half = 2.0 * np.sin(np.radians(float(theta)) / 2.0) * float(fc) / SPEED_OF_LIGHT
+    offset = (f - centre + 0.5 * n * abs(f[1])) % (n * abs(f[1])) - 0.5 * n * abs(f[1])   # circular
+    return np.abs(offset) <= half
+
+
+def band_occupancy(data: np.ndarray, band: np.ndarray | None) -> np.ndarray:
+    """float64 [n_rg]: per range line of ``data`` (complex [n_az, n_rg], the image as focused, not
+    deramped), the share of the ``band`` (:func:`doppler_band`) in which the spectrum of its
+    response lies within :data:`BAND_DB` of that spectrum's peak (eq. (PGA4)). The response is the
+    contiguous run of samples within :data:`RESPONSE_DB` of the line's brightest sample (the image
+    does not wrap). A point, focused or defocused, gives 0.5 to 1; a scatterer extended along the
+    line over ``l`` metres a few times ``1 / l`` over the band's width. NaN everywhere without a band."""
+    data = np.asarray(data)
+    n, m = data.shape
+    if band is None or not band.any():
+        return np.full(m, np.nan)
+    intensity = np.abs(data).astype(np.float64) ** 2
+    rows = np.arange(n)[:, None]
+    peak = np.argmax(intensity, axis=0)
+    below = intensity < intensity[peak, np.arange(m)] * 10.0 ** (-RESPONSE_DB / 10.0)
+    first = np.array([np.max(np.flatnonzero(below[:p, j]), initial=-1) for j, p in enumerate(peak)]) + 1
+    last = np.array([p + np.min(np.flatnonzero(below[p:, j]), initial=n - p) for j, p in enumerate(peak)])
+    response = np.where((rows >= first) & (rows < last), data, 0.0)
+    spectrum = np.abs(np.fft.fft(response, axis=0)[band]) ** 2
+    return np.mean(spectrum >= spectrum.max(axis=0) * 10.0 ** (-BAND_DB / 10.0), axis=0)
+
+
+def point_lines(intensity: np.ndarray, signal: np.ndarray | None = None,
+                occupancy: np.ndarray | None = None) -> np.ndarray:
+    """int [k]: indices of the range lines that are point-like (eq. (PGA4)), ascending: ``line_levels
+    >=`` :data:`POINT_DB` and ``occupancy >=`` :data:`POINT_BAND` (:func:`band_occupancy`); where
+    ``occupancy`` is None or NaN everywhere (no band known), ``share >=`` :data:`POINT_SHARE`
+    (:func:`point_likeness`) instead."""
+    level = line_levels(intensity, signal)
+    if occupancy is None or np.all(np.isnan(occupancy)):
+        share = point_likeness(intensity, signal)[0]
+        return np.flatnonzero((level >= POINT_DB) & (np.nan_to_num(share, nan=0.0) >= POINT_SHARE))
+    return np.flatnonzero((level >= POINT_DB) & (np.nan_to_num(occupancy, nan=0.0) >= POINT_BAND))
+
+
+#: :func:`smeared_lines`: the azimuth windows [samples] the intensity is averaged over, and how many
+#: nominal standard deviations of such an average of speckle (``sqrt(2 / W)``, two samples a
+#: resolution cell) a line's best window must stand above the background. Speckle is correlated
+#: over more samples than that: measured on the rough ground of tests/test_pga_guard.py (256 lines
+#: of 265 samples), its best window reached 11.4; a trihedral 20 dB over its clutter smeared over
+#: 12 m by a 2 cm, 30 m sway reached 18.2 (benchmarks/pga_sweep.py).
+SMEAR_WINDOWS = (8, 16, 32, 64, 128)
+SMEAR_SIGMAS = 14.0
+
+
+def smeared_lines(intensity: np.ndarray, signal: np.ndarray | None = None,
+                  occupancy: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The range lines that hold a scatterer however far a phase error smears it (eq. (PGA4)): the
+    intensity (float64 [n_az, n_rg]) averaged along azimuth over ``W`` samples (each of
+    :data:`SMEAR_WINDOWS` shorter than the image; scipy.ndimage.uniform_filter1d, the image wrapped),
+    its best window over the median of the averages over the signal pixels (:func:`signal_pixels`)
+    at least ``1 + SMEAR_SIGMAS sqrt(2 / W)`` for some ``W``, and ``occupancy >=`` :data:`POINT_BAND`
+    where given (a wall's energy gathers too); of those, the run of adjacent lines about the one
+    that stands out most (one scatterer's range extent: speckle passes in scattered lines). A point
+    smeared over ``X`` samples with a peak ``SCR`` times the clutter's mean stands about ``SCR / X``
+    over it in a window of ``X``.
+
+    Returns
+    -------
+    lines : int [k]
+        Ascending, adjacent.
+    excess_db : float64 [n_rg], dB
+        Each line's best window over the background, the largest over the windows relative to its
+        threshold (``10 log10(excess / threshold)``; >= 0 for the lines kept).
+    """
+    from scipy.ndimage import uniform_filter1d
+    intensity = np.asarray(intensity, dtype=np.float64)
+    if signal is None:
+        signal = signal_pixels(intensity)
+    best = np.full(intensity.shape[1], -np.inf)
+    for width in (w for w in SMEAR_WINDOWS if w < intensity.shape[0]):
+        smooth = uniform_filter1d(intensity, width, axis=0, mode="wrap")
+        background = np.median(smooth[signal]) if signal.any() else 0.0
+        if not background > 0:
+            continue
+        threshold = 1.0 + SMEAR_SIGMAS * np.sqrt(2.0 / width)
+        best = np.maximum(best, 10.0 * np.log10(smooth.max(axis=0) / background / threshold))
+    broad = np.ones(best.size, bool) if occupancy is None else np.nan_to_num(occupancy, nan=1.0) >= POINT_BAND
+    keep = (best >= 0.0) & broad
+    if not keep.any():
+        return np.zeros(0, int), best
+    top = int(np.argmax(np.where(keep, best, -np.inf)))         # the run of lines about the one that stands out most
+    low = top - int(np.argmin(keep[top::-1])) + 1 if not keep[:top + 1].all() else 0
+    high = top + int(np.argmin(keep[top:])) if not keep[top:].all() else keep.size
+    return np.arange(low, high), best
 
 
 def linear_shift_bound(ground_range: float, max_slope: float) -> float:
