@@ -56,26 +56,22 @@ def _whole(low: int, what: str):
     return parse
 
 
-def _db_below_zero(text: str) -> float:
-    """An argparse type: a finite number of dB < 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value < 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number of dB < 0, e.g. -10, got {text!r}")
-    return value
+def _finite(accept, expected: str):
+    """An argparse type: a finite number for which ``accept(value)`` holds; else the line
+    ``expected ..., got ...``."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and accept(value)):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+    return parse
 
 
-def _metres_above_zero(text: str) -> float:
-    """An argparse type: a finite number of metres > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite span in metres > 0, e.g. 12, got {text!r}")
-    return value
+_db_below_zero = _finite(lambda v: v < 0, "a finite number of dB < 0, e.g. -10")
+_metres_above_zero = _finite(lambda v: v > 0, "a finite span in metres > 0, e.g. 12")
 
 
 def add_stack_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
