@@ -23,9 +23,10 @@ Writes ``pga_sweep.csv`` and ``pga_sweep.png`` (the map: PGA's PSLR shortfall pe
 Usage: ``python benchmarks/pga_sweep.py [--quick]`` (``--quick``: periods 10, 30, 60, 200 m and
 amplitudes 0.5, 2, 5 cm, FFBP and omega-K).
 
-The columns ``rounds``, ``lines_found_as`` (``point-like``, or ``smeared``: the scatterer stood out of
-its clutter only averaged along the line, docs/physics.md (PGA4)) and ``refused`` say what PGA did,
-from the image's ``metadata["autofocus"]``; ``warned`` whether its warnings agree.
+The columns ``rounds``, ``lines_found_as`` (``point-like``; ``smeared``: the scatterer stood out of
+its clutter only averaged along the line, docs/physics.md (PGA4); ``clutter``: only the first round,
+from every range bin of the clutter, was applied, docs/physics.md (PGA8)) and ``refused`` say what
+PGA did, from the image's ``metadata["autofocus"]``; ``warned`` whether its warnings agree.
 """
 from __future__ import annotations
 
@@ -152,8 +153,8 @@ def _case(scene: tuple, amplitude: float, period: float, algorithms) -> list[dic
 
 def _figure(rows: list[dict]) -> None:
     """The map: per algorithm (columns) and scene (rows), PGA's PSLR less the true track's per cell;
-    refused cells grey with the first letter of their cause (B beyond PGA, P not point-like, D no
-    dominant scatterer, S less sharp)."""
+    refused cells grey with the first letter of their cause (P not point-like, D no dominant scatterer,
+    S less sharp, W the clutter in the target's window rivals it)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -173,7 +174,7 @@ def _figure(rows: list[dict]) -> None:
                     continue
                 y, x = amplitudes.index(float(r["amplitude_los_m"])), periods.index(float(r["period_m"]))
                 if r["refused"]:
-                    cause = {"beyond": "B", "point-like": "P", "dominant": "D", "sharp": "S"}
+                    cause = {"in its window": "W", "point-like": "P", "dominant": "D", "sharp": "S"}
                     ax.text(x, y, next((v for k, v in cause.items() if k in r["refused"]), "?"), ha="center",
                             va="center", fontsize=8)
                 else:

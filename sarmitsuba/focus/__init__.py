@@ -8,8 +8,8 @@ docs/design.md section 3), and optionally the scene for its ground grid (:mod:`.
 Gives: a ``SarImage`` on a ground or slant grid, weighted and normalised as the render's own.
 
 Physics: (S1)-(S3) signal model and backprojection; (A) antenna pattern; (K), (K2)
-calibration and energy widths; (F1)-(F9) fast factorised backprojection; (PGA)-(PGA5) phase
-gradient autofocus on point-like range lines. docs/design.md
+calibration and energy widths; (F1)-(F9) fast factorised backprojection; (PGA)-(PGA8) phase
+gradient autofocus, on the pulses' echoes of point-like targets and from the clutter. docs/design.md
 section 8; conventions and precision in docs/design.md section 5, validation targets in
 section 9.
 
@@ -35,6 +35,18 @@ Algorithms
 :func:`omega_k`                     Accurate omega-K with Stolt interpolation (straight track,
                                     squinted too; Cumming and Wong ch. 8).
 :func:`range_doppler`               Range-Doppler with RCMC and optional SRC (ch. 6).
+==================================  =========================================================
+
+Phase gradient autofocus
+------------------------
+==================================  =========================================================
+:mod:`.autofocus`                   ``pga``: PGA of a focused image (PGA)-(PGA5).
+:mod:`.autofocus_pulses`            ``pga_focus``: the rounds through the pulses (PGA6).
+:mod:`.pga_kernel`                  Wahl's kernel: centre, window, gradient, iterate (PGA).
+:mod:`.pga_lines`                   Which range lines PGA learns from (PGA3), (PGA4).
+:mod:`.pga_deramp`                  The deramp of a backprojected image (PGA2).
+:mod:`.pga_pulses`                  The pulses' echoes read at the targets (PGA7).
+:mod:`.pga_clutter`                 The error read from every range bin of the clutter (PGA8).
 ==================================  =========================================================
 
 One call

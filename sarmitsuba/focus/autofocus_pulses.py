@@ -1,4 +1,4 @@
-"""Phase gradient autofocus through the raw data (docs/physics.md (PGA6), (PGA7)).
+"""Phase gradient autofocus through the raw data (docs/physics.md (PGA6), (PGA7), (PGA8)).
 
 Backprojection weights every pulse by the azimuth window and the antenna pattern seen from each
 pixel, ``w((x - s_p) / R0)``: a weight that follows the pixel. A motion error's phase
@@ -10,12 +10,16 @@ spreads over a good part of the beam (measured: a 2 cm, 30 m sway on the built-i
 track). :func:`pga_focus` therefore
 
 1. backprojects the data with a rectangular azimuth window on the grid widened by half the
-   azimuth ambiguities' spacing (:func:`ambiguity_spacing`), and judges there whether PGA may run
-   ((PGA3), (PGA4): a dominant scatterer, or one smeared along a range line that stands out of its
-   clutter) and which lines it learns from;
+   azimuth ambiguities' spacing (:func:`ambiguity_spacing`); reads a first estimate from every
+   range bin of the clutter where no scatterer outshines it (:func:`~sarmitsuba.focus.pga_clutter.across_range`,
+   (PGA8)), kept where it sharpens that image or raises its brightest pixel; and judges on the image then whether PGA may run ((PGA3), (PGA4):
+   a dominant scatterer, or one smeared along a range line that stands out of its clutter) and
+   which lines it learns from;
 2. reads the pulses' echoes of those lines' targets and runs the kernel of (PGA) on them
    (:func:`~sarmitsuba.focus.pga_pulses.estimate_pulses`, eq. (PGA7)): the phase error of every
-   pulse, however far the sway smears the image;
+   pulse, however far the sway smears the image; a round whose window holds less than
+   :data:`WINDOW_SCR_DB` more target than clutter is not applied (its estimate fits the clutter's
+   phase, (PGA8));
 3. removes the estimate from each pulse, ``d_p exp(-j phi(s_p))``, repeats 1-2 (the window
    narrowing round by round) until a round changes little, checks that the scatterer was found,
    and focuses with the focuser and windows asked for; ``metadata["autofocus"]`` says what it
@@ -38,10 +42,11 @@ from ..core.raw import RawData
 from .grid import ImageGrid
 from .autofocus import APERTURE_CELLS, BACKGROUND, DOMINANCE_DB, MIN_LINES, AutofocusReport, AutofocusWarning
 from .pga_lines import band_occupancy, doppler_band, signal_pixels, smeared_lines
+from .pga_clutter import across_range, common_bins
 from .pga_pulses import estimate_pulses, pulse_positions, reference_phase
 
 __all__ = ["pulse_correction", "ambiguity_spacing", "pga_focus", "outcome_line", "corrected", "response_spread",
-           "ROUNDS", "ROUND_TOLERANCE", "FOUND_DB", "SHARPER"]
+           "ROUNDS", "ROUND_TOLERANCE", "FOUND_DB", "SHARPER", "WINDOW_SCR_DB", "MIN_BINS", "ACROSS_RISE_DB"]
 
 
 #: Rounds of estimate-and-correct through the pulses at most, and the rms [rad] of a round's
@@ -55,6 +60,19 @@ FOUND_DB = 18.0
 #: ... and the rounds must leave the estimation image at least this sharp relative to the nominal
 #: track's (``sum I^2 / (sum I)^2``; a barely defocused point may lose a little in the first round).
 SHARPER = 0.98
+#: The first round from the clutter (eq. (PGA8)) needs this many range bins, and is kept where it
+#: leaves the estimation image sharper or its brightest pixel this much higher over the median [dB]:
+#: sharpness hardly moves where clutter fills the image (a trihedral 20 dB over its clutter with a
+#: 5 cm, 60 m sway: 0.95 times the nominal track's with the round, 0.97 with the exact phase, while
+#: the trihedral rose from 17.7 to 21.8 dB over the median).
+MIN_BINS = 16
+ACROSS_RISE_DB = 1.0
+#: A round on the target's lines is applied only where its last window holds this much more of the
+#: target than of the clutter [dB] (:func:`~sarmitsuba.focus.pga_pulses.window_scr_db`): its phase noise
+#: is then about 0.07 rad; below, the estimate fits the clutter's phase inside the window and gathers
+#: that clutter into the peak (a trihedral 20 dB over its clutter: about 10 dB, its IRW 27 % narrower
+#: than the true track's; docs/physics.md (PGA8)).
+WINDOW_SCR_DB = 20.0
 
 
 def pulse_correction(report: AutofocusReport, raw: RawData, track: dict[str, Any]) -> np.ndarray:
@@ -136,20 +154,24 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         ``applied_to`` (``"pulses"`` or ``"nothing"``), ``rounds`` (the rounds whose estimate was
         applied; 0 where refused), ``refusal`` (why it was not applied; ``""`` where it was),
         ``iterations`` (summed over the rounds), ``per_round`` (each round's ``iterations``,
-        ``window_samples`` [samples of one ambiguity period, ``n_pulses`` of them], ``lines`` and
-        ``converged``), ``converged`` (the last round's), ``dominance_db`` (the first estimation
-        image's, (PGA3)), ``found_db`` (the last one's, :data:`FOUND_DB`), ``lines_found_as``
-        (``"point-like"`` or ``"smeared"``, (PGA4)), ``rms_phase_error_rad`` (of the removed phase
-        over the pulses the estimate supports, less its mean), ``pulse_phase_rad`` (float
+        ``window_samples`` [samples of one ambiguity period, ``n_pulses`` of them], ``lines``,
+        ``window_scr_db`` (:func:`~sarmitsuba.focus.pga_pulses.window_scr_db`) and ``converged``;
+        the round from the clutter, (PGA8), has ``across_range`` true, its range bins as ``lines``
+        and no windows), ``converged`` (the last round's), ``dominance_db`` (the estimation
+        image's after the round from the clutter, (PGA3)), ``found_db`` (the last one's,
+        :data:`FOUND_DB`), ``lines_found_as`` (``"point-like"`` or ``"smeared"``, (PGA4), or
+        ``"clutter"`` where only the round from the clutter was applied), ``rms_phase_error_rad``
+        (of the removed phase over the pulses the estimate supports, less its mean), ``pulse_phase_rad`` (float
         [n_pulses]) and ``linear_part`` ((PGA5)). Where PGA declines, the nominal image unchanged.
 
     Warns
     -----
     AutofocusWarning
-        Where PGA is not applied, saying why (the metadata's ``refusal``): the first estimation
-        image holds no dominant scatterer (PGA3) nor a smeared one, or too few point-like lines
-        (PGA4), or cannot be deramped; or the rounds made it less sharp, or left no scatterer
-        :data:`FOUND_DB` over its clutter.
+        Where PGA is not applied, saying why (the metadata's ``refusal``): the estimation image
+        holds no dominant scatterer (PGA3) nor a smeared one, or too few point-like lines (PGA4),
+        or cannot be deramped; or the target's window holds less than :data:`WINDOW_SCR_DB` more
+        target than clutter and the round from the clutter did not sharpen the image (PGA8); or
+        the rounds made it less sharp, or left no scatterer :data:`FOUND_DB` over its clutter.
     """
     from .dispatch import focus, render_focusing
     rounds = _Rounds(raw, algorithm, window_range, render_focusing(raw), progress)
@@ -188,22 +210,29 @@ class _Rounds:
         self.dominance_db: float | None = None
         self.found_db: float | None = None
         self.lines: np.ndarray | None = None
+        self.window_scr_db: float | None = None
         self.smeared = np.zeros(0, int)
         self.found_by = "point-like"
+        self.across_gain: float | None = None
 
-    def _estimation_image(self) -> SarImage:
+    def _estimation_image(self, total: np.ndarray | None = None) -> SarImage:
         from .dispatch import autofocus_image
-        return autofocus_image(corrected(self.raw, self.total), self.estimator, window_range=self.window_range,
-                               azimuth_margin=(self.spacing or 0.0) / 2.0, progress=self.progress)
+        return autofocus_image(corrected(self.raw, self.total if total is None else total), self.estimator,
+                               window_range=self.window_range, azimuth_margin=(self.spacing or 0.0) / 2.0,
+                               progress=self.progress)
 
     def run(self) -> str:
         """Up to :data:`ROUNDS` rounds; ``""``, or why PGA may not be applied. The first window holds at
         most one ambiguity period (the samples' image domain); each round's last window is the next
         one's widest, so that the window narrows round by round."""
+        sharp, window = _sharpness(self.image), None
+        if not _dominance_db(self.image) >= DOMINANCE_DB:       # clutter rivals every scatterer: (PGA8)
+            self._across_range(sharp)
+            sharp = _sharpness(self.image)                      # the rounds are judged against it
         refusal = self._gate()
         if refusal:
+            self.total[:] = 0.0
             return refusal
-        sharp, window = _sharpness(self.image), None
         for _ in range(ROUNDS):
             step, reason, window = self._round(window)
             if reason:
@@ -220,6 +249,32 @@ class _Rounds:
             return (f"its {len(self.records)} round(s) made the image less sharp (sum I^2 / (sum I)^2 fell by "
                     f"{100 * (1 - _sharpness(self.image) / sharp):.0f} %: nothing point-like it could learn from)")
         return self._found()
+
+    def _across_range(self, sharp: float) -> None:
+        """The first round, from every range bin of the clutter (eq. (PGA8),
+        :func:`~sarmitsuba.focus.pga_clutter.across_range`), tried where no pixel of the nominal
+        track's estimation image stands :data:`~sarmitsuba.focus.autofocus.DOMINANCE_DB` over the
+        median of its signal (a scatterer that does outshines the clutter in the range bins, its
+        Doppler ramp is not the beam's centroid, and the rounds on its lines need no help), and
+        kept where it leaves that image sharper than ``sharp`` (``sum I^2 / (sum I)^2`` of the
+        nominal track's) or its brightest pixel :data:`ACROSS_RISE_DB` higher over the median."""
+        raw = _compressed(self.raw, "rect")          # independent bins: a range window would correlate them
+        bins = common_bins(raw, self.image)
+        if np.count_nonzero(bins) < MIN_BINS:
+            return
+        phase, inside = across_range(np.asarray(raw.data)[:, bins])
+        image = self._estimation_image(phase)
+        self.across_gain = _sharpness(image) / sharp
+        if self.across_gain > 1.0 or _dominance_db(image) >= _dominance_db(self.image) + ACROSS_RISE_DB:
+            self.total, self.image = phase, image
+            self.records.append({"iterations": 1, "window_samples": [], "lines": int(np.count_nonzero(bins)),
+                                 "window_scr_db": None, "converged": False, "inside": inside, "across_range": True})
+
+    def _weak(self, scr_db: float) -> str:
+        """Why a round on the target's lines is not applied: the clutter in its window rivals it."""
+        return (f"the scatterer stands only {scr_db:.1f} dB over the clutter in its window (an estimate from its "
+                f"range lines needs >= {WINDOW_SCR_DB:g} dB: below, it fits the clutter's phase and gathers the "
+                f"clutter into the peak), and the estimate from the clutter across range did not sharpen the image")
 
     def _gate(self) -> str:
         """Why the first estimation image holds nothing PGA may learn from, or ``""``: no pixel
@@ -270,9 +325,13 @@ class _Rounds:
                                                 max_window=window, lines=self.smeared, progress=self.progress)
         if found is None:
             return np.zeros(self.raw.n_pulses), reason, window
-        self.lines = found.line_index
+        self.lines, self.window_scr_db = found.line_index, found.window_scr_db
+        if not found.window_scr_db >= WINDOW_SCR_DB:            # eq. (PGA8): it would fit the clutter's phase
+            return np.zeros(self.raw.n_pulses), self._weak(found.window_scr_db), window
         self.records.append({"iterations": len(found.windows), "window_samples": list(found.windows),
-                             "lines": found.lines, "converged": bool(found.converged), "inside": found.support})
+                             "lines": found.lines,
+                             "window_scr_db": round(found.window_scr_db, 2) if np.isfinite(found.window_scr_db) else None,
+                             "converged": bool(found.converged), "inside": found.support})
         return found.phase, "", found.windows[-1]
 
 
@@ -299,7 +358,9 @@ def _metadata(rounds: _Rounds, refusal: str, total: np.ndarray, shift: float | N
             "per_round": [{k: v for k, v in r.items() if k != "inside"} for r in rounds.records] if applied else [],
             "converged": bool(applied and rounds.records[-1]["converged"]),
             "dominance_db": None if dominance is None or not np.isfinite(dominance) else round(float(dominance), 2),
-            "found_db": None if rounds.found_db is None else round(rounds.found_db, 2), "lines_found_as": rounds.found_by,
+            "found_db": None if rounds.found_db is None else round(rounds.found_db, 2),
+            "lines_found_as": "clutter" if applied and all(r.get("across_range") for r in rounds.records)
+            else rounds.found_by,
             "rms_phase_error_rad": round(rms, 4), "deramp": True,
             "linear_part": {"estimated": shift is not None, "shift_m": None if shift is None else round(float(shift), 4),
                             "reference": None if shift is None else [float(v) for v in reference]},
@@ -325,6 +386,14 @@ def outcome_line(record: dict[str, Any]) -> str:
 def corrected(raw: RawData, phase: np.ndarray) -> RawData:
     """``raw`` with every pulse multiplied by ``exp(-j phase_p)`` (float64 [n_pulses], rad)."""
     return dataclasses.replace(raw, data=(raw.data * np.exp(-1j * phase)[:, None]).astype(raw.data.dtype))
+
+
+def _dominance_db(image: SarImage) -> float:
+    """The brightest pixel of ``image`` over the median intensity of its signal [dB] (eq. (PGA3));
+    -inf without signal."""
+    intensity = np.abs(np.asarray(image.data)).astype(np.float64) ** 2
+    signal = signal_pixels(intensity)
+    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal]))) if signal.any() else -np.inf
 
 
 def _sharpness(image: SarImage) -> float:

@@ -26,13 +26,13 @@ from ..core.image import SarImage
 from ..core.raw import RawData
 from .autofocus import RMS_DB, kernel_options, refusal_of
 from .pga_deramp import FresnelFrame, fresnel_frame
-from .pga_kernel import apply_phase, extend_phase, iterate, spectral_power, weighted_rms
+from .pga_kernel import apply_phase, circular_distance, extend_phase, iterate, spectral_power, weighted_rms
 from .range_lines import fft_upsample
 from .pga_lines import (band_occupancy, doppler_band, point_lines, reference_azimuth, reference_shift, signal_pixels,
                         upsample)
 
 __all__ = ["PulseEstimate", "pulse_positions", "recentred", "estimate_pulses", "reference_phase",
-           "target_samples", "line_points", "beam_centred"]
+           "target_samples", "line_points", "beam_centred", "window_scr_db"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,6 +58,9 @@ class PulseEstimate:
         The estimation image's brightest pixel over the median of its signal (eq. (PGA3)).
     line_index : int [lines]
         The range columns used.
+    window_scr_db : float, dB
+        The last window's energy over the clutter it holds (the lines' median intensity outside
+        it, times its width), less one (eq. (PGA8)): ``inf`` without clutter.
     """
 
     phase: np.ndarray
@@ -68,6 +71,7 @@ class PulseEstimate:
     rms: float
     dominance_db: float
     line_index: np.ndarray
+    window_scr_db: float = float("inf")
 
 
 def pulse_positions(tx_position: np.ndarray, track: dict[str, Any]) -> np.ndarray:
@@ -183,7 +187,26 @@ def estimate_pulses(image: SarImage, raw: RawData, positions: np.ndarray, *, max
     power = spectral_power(found.centred)
     phase = recentred(samples, extend_phase(found.total, found.support), 0.0)
     return PulseEstimate(phase, found.support, int(lines.size), found.widths, found.converged,
-                         weighted_rms(phase, found.support, power, RMS_DB), dominance, lines), ""
+                         weighted_rms(phase, found.support, power, RMS_DB), dominance, lines,
+                         window_scr_db(found.centred, found.widths[-1])), ""
+
+
+def window_scr_db(centred: np.ndarray, width: int) -> float:
+    """[dB] The energy of the centred lines (complex [n, m], their responses at index 0) within the
+    window of ``width`` samples (circular), less the clutter it holds, over that clutter: the median
+    intensity of the summed lines outside the window times the window's samples (eq. (PGA8)). An
+    estimate from these lines fits the phase of the clutter inside the window as well as the
+    target's: its phase noise is about ``1 / sqrt(2 r)`` rad at a ratio ``r``. ``inf`` where the
+    lines hold nothing outside the window."""
+    intensity = np.sum(np.abs(centred) ** 2, axis=1)
+    keep = circular_distance(centred.shape[0]) <= width // 2
+    if keep.all():
+        return float("inf")
+    clutter = float(np.median(intensity[~keep])) * int(keep.sum())
+    energy = float(intensity[keep].sum()) - clutter
+    if not clutter > 0:
+        return float("inf")
+    return float(10.0 * np.log10(max(energy, 1e-300) / clutter))
 
 
 def recentred(samples: np.ndarray, phase: np.ndarray, to: float | None = None) -> np.ndarray:
