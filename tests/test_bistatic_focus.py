@@ -32,6 +32,7 @@ from sarmitsuba.focus import backproject, ffbp, omega_k, range_doppler
 from sarmitsuba.focus.grid import ImageGrid
 from sarmitsuba.focus.polar import GeometryNotSupported
 from sarmitsuba.focus.stripmap import stripmap_geometry
+from widths import minus_3db_width
 
 FC, B, FS, PRF = 9.6e9, 150e6, 180e6, 1000.0
 TARGET = np.array([2.5, -1.5, 0.0])
@@ -69,22 +70,6 @@ def range_sum_gradient(tx, rx, point):
     rate = (total(point - h * dirs) - total(point + h * dirs)) / (2 * h)
     k = int(np.argmax(rate))
     return dirs[k], float(rate[k])
-
-
-def minus_3db_width(axis, values):
-    """-3 dB width [m] of |values|^2 sampled on ``axis`` (linear interpolation at the crossings), and the
-    position of the largest sample."""
-    power = np.abs(values) ** 2
-    power = power / power.max()
-    k = int(np.argmax(power))
-    left, right = k, k
-    while power[left] > 0.5:
-        left -= 1
-    while power[right] > 0.5:
-        right += 1
-    x_left = np.interp(0.5, [power[left], power[left + 1]], [axis[left], axis[left + 1]])
-    x_right = np.interp(0.5, [power[right], power[right - 1]], [axis[right], axis[right - 1]])
-    return x_right - x_left, axis[k]
 
 
 # -- the module's geometry against independent truth ----------------------------------------------

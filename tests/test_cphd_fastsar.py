@@ -38,6 +38,7 @@ from sarmitsuba.core import georef  # noqa: E402
 from sarmitsuba.core.constants import SPEED_OF_LIGHT as C  # noqa: E402
 from sarmitsuba.focus import windows  # noqa: E402
 from sarmitsuba.formats.cphd import write_cphd  # noqa: E402
+from widths import minus_3db_width  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 APEX = np.array([4.0, -6.0, 0.0])
@@ -88,17 +89,8 @@ def fx_backprojection(reader, points: np.ndarray) -> np.ndarray:
 
 
 def irw(axis: np.ndarray, amplitude: np.ndarray) -> float:
-    """The -3 dB width [m] of the peak of ``amplitude`` sampled along ``axis`` [m] (linear interpolation)."""
-    power = amplitude ** 2 / np.max(amplitude ** 2)
-    k = int(np.argmax(power))
-    lo, hi = k, k
-    while power[lo] > 0.5:
-        lo -= 1
-    while power[hi] > 0.5:
-        hi += 1
-    left = np.interp(0.5, power[lo:lo + 2], axis[lo:lo + 2])
-    right = np.interp(0.5, power[hi - 1:hi + 1][::-1], axis[hi - 1:hi + 1][::-1])
-    return float(right - left)
+    """The -3 dB width [m] of the peak of ``amplitude`` sampled along ``axis`` [m] (tests/widths.py)."""
+    return minus_3db_width(axis, amplitude)[0]
 
 
 def azimuth_irw_uniform(reader) -> float:

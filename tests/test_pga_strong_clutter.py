@@ -45,6 +45,21 @@ def _raw(los: float, period: float, gamma_db: float = -2.0, scale: float = 0.3, 
         return simulate(scene, focuser="ffbp").raw
 
 
+def _meets_the_true_track(raw) -> dict:
+    """Focus ``raw`` on the nominal track with PGA and assert the sweep's bound against the true
+    track's focus: azimuth PSLR within 3 dB, IRW within 10 %; returns ``metadata["autofocus"]``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        true = analyze_point_target(refocus(raw, "ffbp"), (0, 0, 0), chip=32)
+        image = refocus(raw, "ffbp", track="nominal", autofocus="pga", autofocus_reference=(0.0, 0.0, 0.0))
+    record = image.metadata["autofocus"]
+    assert record["applied"], record["refusal"]
+    fixed = analyze_point_target(image, (0, 0, 0), chip=32)
+    assert fixed.pslr_azimuth_db <= true.pslr_azimuth_db + 3.0
+    assert np.isclose(fixed.irw_azimuth, true.irw_azimuth, rtol=0.10)
+    return record
+
+
 @pytest.mark.parametrize("los, period", [(0.02, 10.0), (0.05, 60.0)])
 def test_a_trihedral_20_db_over_its_clutter_is_found_however_far_the_sway_smears_it(los, period):
     """A 2 cm line-of-sight sway of 10 m period smears the trihedral over some 36 m (its brightest
@@ -54,17 +69,8 @@ def test_a_trihedral_20_db_over_its_clutter_is_found_however_far_the_sway_smears
     and IRW within 10 % of the true track's (the sweep's bound, docs/benchmarks/focusing.md). With
     5 cm of 60 m the round leaves the estimation image a little less sharp (0.95 times, the exact
     phase 0.97) and is kept because the trihedral rises 4 dB over the median."""
-    raw = _raw(los, period)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        true = analyze_point_target(refocus(raw, "ffbp"), (0, 0, 0), chip=32)
-        image = refocus(raw, "ffbp", track="nominal", autofocus="pga", autofocus_reference=(0.0, 0.0, 0.0))
-    record = image.metadata["autofocus"]
-    assert record["applied"], record["refusal"]
+    record = _meets_the_true_track(_raw(los, period))
     assert record["lines_found_as"] == "clutter"
-    fixed = analyze_point_target(image, (0, 0, 0), chip=32)
-    assert fixed.pslr_azimuth_db <= true.pslr_azimuth_db + 3.0
-    assert np.isclose(fixed.irw_azimuth, true.irw_azimuth, rtol=0.10)
 
 
 def test_a_trihedral_65_db_over_its_clutter_is_not_read_from_the_bins_it_fills():
@@ -73,14 +79,5 @@ def test_a_trihedral_65_db_over_its_clutter_is_not_read_from_the_bins_it_fills()
     (its range sidelobes outshine the clutter in every bin, and their Doppler ramp would be read as
     the error); the rounds on its lines meet the true track's azimuth PSLR within 3 dB and IRW within
     10 %."""
-    raw = _raw(0.05, 20.0, gamma_db=-20.0, scale=1.5)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        true = analyze_point_target(refocus(raw, "ffbp"), (0, 0, 0), chip=32)
-        image = refocus(raw, "ffbp", track="nominal", autofocus="pga", autofocus_reference=(0.0, 0.0, 0.0))
-    record = image.metadata["autofocus"]
-    assert record["applied"], record["refusal"]
+    record = _meets_the_true_track(_raw(0.05, 20.0, gamma_db=-20.0, scale=1.5))
     assert not any(r.get("across_range") for r in record["per_round"])
-    fixed = analyze_point_target(image, (0, 0, 0), chip=32)
-    assert fixed.pslr_azimuth_db <= true.pslr_azimuth_db + 3.0
-    assert np.isclose(fixed.irw_azimuth, true.irw_azimuth, rtol=0.10)
