@@ -11,6 +11,7 @@ the scene (their one-sided Doppler tilts the estimate); the slant range taken as
 """
 from __future__ import annotations
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -65,7 +66,7 @@ def test_the_error_is_read_from_the_clutter_and_its_noise_falls_with_the_lines()
 
 
 def test_a_bright_point_does_not_take_the_estimate_over():
-    """256 bins of clutter and one bin holding a point 40 dB brighter whose Doppler sweeps across the
+    """256 bins of clutter and one bin holding a point 35 dB over a clutter bin whose Doppler sweeps across the
     band as the beam passes (a chirp, ``exp(j 0.01 p^2)``): each bin weighs alike, so the point's bin
     is one of 257 and the estimate stays within 0.3 rad (0.16 measured, as without the point);
     summed by energy, its chirp would be read as the error. Catches the bins summed by their energy."""
@@ -112,7 +113,7 @@ def test_the_common_bins_are_those_where_the_sway_scales_alike(incidence):
     image = SimpleNamespace(metadata={"focus": {"track": {"position": [0.0, ground, height],
                                                           "direction": [1.0, 0.0, 0.0]}}},
                             origin=np.zeros(3), range=np.linspace(-50.0, 50.0, 101),
-                            range_direction=np.array([0.0, -1.0, 0.0]))
+                            range_direction=np.array([0.0, -1.0, 0.0]), plane="ground")
     slant = np.linspace(0.5, 1.5, 4001) * centre
     raw = SimpleNamespace(fast_time=2.0 * slant / SPEED_OF_LIGHT)
     s = np.sin(np.radians(incidence)) * np.array([1.0 - COMMON_SCALE, 1.0 + COMMON_SCALE])
@@ -121,6 +122,21 @@ def test_the_common_bins_are_those_where_the_sway_scales_alike(incidence):
     kept = common_bins(raw, image)
     assert np.count_nonzero(kept != expected) <= 2           # the two samples at the limits, rounding
     assert kept.sum() > 100
+    image.plane = "slant"                                     # its origin on the track: no ground to read angles on
+    assert not common_bins(raw, image).any()
+
+
+def test_pulses_without_echo_give_no_estimate_and_no_warning():
+    """All-zero bins and bins of which more than 90 % are zero: the phase is zero, no pulse is
+    inside, and nothing is divided by zero."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        phase, inside = across_range(np.zeros((50, 20), complex))
+        assert not phase.any() and not inside.any()
+        sparse = np.zeros((N_PULSES, 40), complex)
+        sparse[:, :2] = _clutter(2)
+        phase, inside = across_range(sparse)
+    assert np.isfinite(phase).all() and inside.any()
 
 
 def test_the_window_scr_is_the_targets_energy_over_the_clutter_it_holds():

@@ -60,7 +60,7 @@ from ..core.image import SarImage
 from ..core.trajectory import MotionError
 from .pga_deramp import FresnelFrame, aperture_grid, column_phase, fresnel_frame, line_spectra
 from .pga_kernel import apply_phase, detrend_phase, extend_phase, iterate, spectral_power, weighted_rms
-from .pga_lines import (POINT_BAND, POINT_DB, band_occupancy, doppler_band, linear_shift_bound, point_lines,
+from .pga_lines import (POINT_BAND, POINT_DB, band_occupancy, dominance_db, doppler_band, linear_shift_bound, point_lines,
                         reference_azimuth, reference_shift, shift_phase, signal_pixels, upsample)
 
 __all__ = ["signal_pixels", "point_lines", "pga", "pga_estimate", "kernel_options", "refusal_of", "AutofocusReport",
@@ -332,7 +332,7 @@ def _estimate(image: SarImage, max_iterations: Any, tolerance: Any, aperture_cel
         data = upsample(data, frame.factor) * np.exp(-1j * frame.phase)     # deramped, eq. (PGA2)
     intensity = np.abs(data).astype(np.float64) ** 2
     signal = signal_pixels(intensity)
-    dominance = _dominance_db(intensity, signal)
+    dominance = dominance_db(intensity, signal)
     lines = point_lines(intensity, signal, band_occupancy(image.data, doppler_band(image))) if chosen is None \
         else np.asarray(chosen, int)
     step = frame.step if frame is not None else _row_step(image)
@@ -416,16 +416,6 @@ def kernel_options(max_iterations: int = MAX_ITERATIONS, tolerance: float = TOLE
     return {"max_iterations": int(max_iterations), "tolerance": float(tolerance), "min_iterations": MIN_ITERATIONS,
             "window_db": WINDOW_DB, "widen": WIDEN, "shrink": SHRINK, "min_window": MIN_WINDOW, "first_floor": FLOOR,
             "support_db": SUPPORT_DB, "rms_db": RMS_DB, "background": BACKGROUND, "max_window_m": max_window}
-
-
-def _dominance_db(intensity: np.ndarray, signal: np.ndarray) -> float:
-    """The brightest pixel's intensity over the median intensity of the pixels that hold signal
-    (:func:`signal_pixels`) [dB] (eq. (PGA3)); -inf for an image without signal. Empty parts of
-    the image (beyond the scene, in shadow, outside every beam), which only sidelobes reach, are
-    not clutter and do not pull the median down."""
-    if not signal.any():
-        return float("-inf")
-    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal])))
 
 
 #: The narrowest window smooths the estimate over no more than its support (the along-track span

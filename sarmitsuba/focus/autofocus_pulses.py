@@ -41,7 +41,7 @@ from ..core.image import SarImage
 from ..core.raw import RawData
 from .grid import ImageGrid
 from .autofocus import APERTURE_CELLS, BACKGROUND, DOMINANCE_DB, MIN_LINES, AutofocusReport, AutofocusWarning
-from .pga_lines import band_occupancy, doppler_band, signal_pixels, smeared_lines
+from .pga_lines import band_occupancy, dominance_db, doppler_band, smeared_lines
 from .pga_clutter import across_range, common_bins
 from .pga_pulses import estimate_pulses, pulse_positions, reference_phase
 
@@ -57,8 +57,9 @@ ROUND_TOLERANCE = 0.01
 #: on the last estimation image): a point 20 dB over its clutter's mean reads about 21.6 dB over its
 #: median, speckle alone 12 to 14 dB (docs/physics.md (PGA3)).
 FOUND_DB = 18.0
-#: ... and the rounds must leave the estimation image at least this sharp relative to the nominal
-#: track's (``sum I^2 / (sum I)^2``; a barely defocused point may lose a little in the first round).
+#: ... and the rounds must leave the estimation image at least this sharp relative to the one they
+#: started from, the nominal track's or the round from the clutter's where it was kept
+#: (``sum I^2 / (sum I)^2``; a barely defocused point may lose a little in the first round).
 SHARPER = 0.98
 #: The first round from the clutter (eq. (PGA8)) needs this many range bins, and is kept where it
 #: leaves the estimation image sharper or its brightest pixel this much higher over the median [dB]:
@@ -156,8 +157,8 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         ``iterations`` (summed over the rounds), ``per_round`` (each round's ``iterations``,
         ``window_samples`` [samples of one ambiguity period, ``n_pulses`` of them], ``lines``,
         ``window_scr_db`` (:func:`~sarmitsuba.focus.pga_pulses.window_scr_db`) and ``converged``;
-        the round from the clutter, (PGA8), has ``across_range`` true, its range bins as ``lines``
-        and no windows), ``converged`` (the last round's), ``dominance_db`` (the estimation
+        the round from the clutter, (PGA8), has ``across_range`` true, its range bins as ``lines``,
+        no windows and ``converged`` false: one estimate, not iterated), ``converged`` (the last round's), ``dominance_db`` (the estimation
         image's after the round from the clutter, (PGA3)), ``found_db`` (the last one's,
         :data:`FOUND_DB`), ``lines_found_as`` (``"point-like"`` or ``"smeared"``, (PGA4), or
         ``"clutter"`` where only the round from the clutter was applied), ``rms_phase_error_rad``
@@ -170,7 +171,7 @@ def pga_focus(raw: RawData, algorithm: str, *, window_range: Any, window_azimuth
         Where PGA is not applied, saying why (the metadata's ``refusal``): the estimation image
         holds no dominant scatterer (PGA3) nor a smeared one, or too few point-like lines (PGA4),
         or cannot be deramped; or the target's window holds less than :data:`WINDOW_SCR_DB` more
-        target than clutter and the round from the clutter did not sharpen the image (PGA8); or
+        target than clutter and the round from the clutter was not kept (PGA8); or
         the rounds made it less sharp, or left no scatterer :data:`FOUND_DB` over its clutter.
     """
     from .dispatch import focus, render_focusing
@@ -210,10 +211,9 @@ class _Rounds:
         self.dominance_db: float | None = None
         self.found_db: float | None = None
         self.lines: np.ndarray | None = None
-        self.window_scr_db: float | None = None
         self.smeared = np.zeros(0, int)
         self.found_by = "point-like"
-        self.across_gain: float | None = None
+        self.across_tried = False
 
     def _estimation_image(self, total: np.ndarray | None = None) -> SarImage:
         from .dispatch import autofocus_image
@@ -226,10 +226,12 @@ class _Rounds:
         most one ambiguity period (the samples' image domain); each round's last window is the next
         one's widest, so that the window narrows round by round."""
         sharp, window = _sharpness(self.image), None
-        if not _dominance_db(self.image) >= DOMINANCE_DB:       # clutter rivals every scatterer: (PGA8)
-            self._across_range(sharp)
-            sharp = _sharpness(self.image)                      # the rounds are judged against it
-        refusal = self._gate()
+        level = dominance_db(_intensity(self.image))
+        if not level >= DOMINANCE_DB:                           # clutter rivals every scatterer: (PGA8)
+            kept = self._across_range(sharp, level)
+            if kept is not None:
+                sharp, level = kept                             # the rounds are judged against its image
+        refusal = self._gate(level)
         if refusal:
             self.total[:] = 0.0
             return refusal
@@ -250,33 +252,44 @@ class _Rounds:
                     f"{100 * (1 - _sharpness(self.image) / sharp):.0f} %: nothing point-like it could learn from)")
         return self._found()
 
-    def _across_range(self, sharp: float) -> None:
+    def _across_range(self, sharp: float, level: float) -> tuple[float, float] | None:
         """The first round, from every range bin of the clutter (eq. (PGA8),
         :func:`~sarmitsuba.focus.pga_clutter.across_range`), tried where no pixel of the nominal
         track's estimation image stands :data:`~sarmitsuba.focus.autofocus.DOMINANCE_DB` over the
-        median of its signal (a scatterer that does outshines the clutter in the range bins, its
-        Doppler ramp is not the beam's centroid, and the rounds on its lines need no help), and
+        median of its signal (``level`` [dB]: a scatterer that stands that high outshines the clutter in the
+        range bins, its Doppler ramp is not the beam's centroid, and the rounds on its lines need no
+        help), on ground-plane images only (:func:`~sarmitsuba.focus.pga_clutter.common_bins`), and
         kept where it leaves that image sharper than ``sharp`` (``sum I^2 / (sum I)^2`` of the
-        nominal track's) or its brightest pixel :data:`ACROSS_RISE_DB` higher over the median."""
+        nominal track's) or its brightest pixel :data:`ACROSS_RISE_DB` higher over the median.
+        Returns the kept image's ``(sharpness, dominance [dB])``, or None where it was not kept."""
         raw = _compressed(self.raw, "rect")          # independent bins: a range window would correlate them
         bins = common_bins(raw, self.image)
         if np.count_nonzero(bins) < MIN_BINS:
-            return
+            return None
         phase, inside = across_range(np.asarray(raw.data)[:, bins])
+        if not inside.any():
+            return None
+        self.across_tried = True
         image = self._estimation_image(phase)
-        self.across_gain = _sharpness(image) / sharp
-        if self.across_gain > 1.0 or _dominance_db(image) >= _dominance_db(self.image) + ACROSS_RISE_DB:
-            self.total, self.image = phase, image
-            self.records.append({"iterations": 1, "window_samples": [], "lines": int(np.count_nonzero(bins)),
-                                 "window_scr_db": None, "converged": False, "inside": inside, "across_range": True})
+        after, rise = _sharpness(image), dominance_db(_intensity(image))
+        if not (after > sharp or rise >= level + ACROSS_RISE_DB):
+            return None
+        self.total, self.image = phase, image
+        self.records.append({"iterations": 1, "window_samples": [], "lines": int(np.count_nonzero(bins)),
+                             "window_scr_db": None, "converged": False, "inside": inside, "across_range": True})
+        return after, rise
 
     def _weak(self, scr_db: float) -> str:
         """Why a round on the target's lines is not applied: the clutter in its window rivals it."""
+        clutter = ("the estimate from the clutter across range neither sharpened the image nor lifted its peak "
+                   f"{ACROSS_RISE_DB:g} dB" if self.across_tried else
+                   "no estimate from the clutter across range could be tried (a scatterer 25 dB over the median, too "
+                   "few range bins of a common look angle, or a slant-range image)")
         return (f"the scatterer stands only {scr_db:.1f} dB over the clutter in its window (an estimate from its "
                 f"range lines needs >= {WINDOW_SCR_DB:g} dB: below, it fits the clutter's phase and gathers the "
-                f"clutter into the peak), and the estimate from the clutter across range did not sharpen the image")
+                f"clutter into the peak), and {clutter}")
 
-    def _gate(self) -> str:
+    def _gate(self, level: float) -> str:
         """Why the first estimation image holds nothing PGA may learn from, or ``""``: no pixel
         :data:`~sarmitsuba.focus.autofocus.DOMINANCE_DB` over the median of its signal (eq. (PGA3))
         and no scatterer smeared along a range line standing out of its clutter
@@ -286,10 +299,7 @@ class _Rounds:
         if self.positions is None:
             return "the estimation image records no straight track, so its pulses' positions are unknown"
         data = np.asarray(self.image.data)
-        intensity = np.abs(data).astype(np.float64) ** 2
-        self.smeared = smeared_lines(intensity, None, band_occupancy(data, doppler_band(self.image)))[0]
-        signal = signal_pixels(intensity)
-        level = 10.0 * np.log10(intensity.max() / np.median(intensity[signal])) if signal.any() else -np.inf
+        self.smeared = smeared_lines(_intensity(self.image), None, band_occupancy(data, doppler_band(self.image)))[0]
         self.dominance_db = float(level)
         if level >= DOMINANCE_DB or self.smeared.size >= MIN_LINES:
             return ""
@@ -300,9 +310,7 @@ class _Rounds:
     def _found(self) -> str:
         """``""`` where the last estimation image holds a dominant scatterer (its brightest pixel
         :data:`FOUND_DB` over the median of its signal, eq. (PGA3)); else why not."""
-        intensity = np.abs(np.asarray(self.image.data)).astype(np.float64) ** 2
-        signal = signal_pixels(intensity)
-        level = 10.0 * np.log10(intensity.max() / np.median(intensity[signal])) if signal.any() else -np.inf
+        level = dominance_db(_intensity(self.image))
         self.found_db = float(level)
         if level >= FOUND_DB:
             return ""
@@ -325,7 +333,7 @@ class _Rounds:
                                                 max_window=window, lines=self.smeared, progress=self.progress)
         if found is None:
             return np.zeros(self.raw.n_pulses), reason, window
-        self.lines, self.window_scr_db = found.line_index, found.window_scr_db
+        self.lines = found.line_index
         if not found.window_scr_db >= WINDOW_SCR_DB:            # eq. (PGA8): it would fit the clutter's phase
             return np.zeros(self.raw.n_pulses), self._weak(found.window_scr_db), window
         self.records.append({"iterations": len(found.windows), "window_samples": list(found.windows),
@@ -388,17 +396,14 @@ def corrected(raw: RawData, phase: np.ndarray) -> RawData:
     return dataclasses.replace(raw, data=(raw.data * np.exp(-1j * phase)[:, None]).astype(raw.data.dtype))
 
 
-def _dominance_db(image: SarImage) -> float:
-    """The brightest pixel of ``image`` over the median intensity of its signal [dB] (eq. (PGA3));
-    -inf without signal."""
-    intensity = np.abs(np.asarray(image.data)).astype(np.float64) ** 2
-    signal = signal_pixels(intensity)
-    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal]))) if signal.any() else -np.inf
+def _intensity(image: SarImage) -> np.ndarray:
+    """float64 ``|data|^2`` of ``image``."""
+    return np.abs(np.asarray(image.data)).astype(np.float64) ** 2
 
 
 def _sharpness(image: SarImage) -> float:
     """``sum I^2 / (sum I)^2`` of the intensity ``I``: larger for a better focused image."""
-    intensity = np.abs(image.data).astype(np.float64) ** 2
+    intensity = _intensity(image)
     return float(np.sum(intensity ** 2) / np.sum(intensity) ** 2)
 
 

@@ -62,7 +62,10 @@ def _track_frame(image: SarImage) -> tuple[np.ndarray, float]:
 def common_bins(raw: RawData, image: SarImage, scale: float = COMMON_SCALE) -> np.ndarray:
     """bool [n_samples]: the fast-time samples of ``raw`` whose slant range (half the two-way path
     ``c t``) sees the image's plane at a look-angle sine within ``scale`` of the image's middle
-    column's (eq. (PGA8)); samples nearer than the track's height are left out."""
+    column's (eq. (PGA8)); samples nearer than the track's height are left out. None on a
+    slant-range image (``image.plane != "ground"``): its look angles need the ground."""
+    if image.plane != "ground":
+        return np.zeros(np.size(raw.fast_time), bool)
     ground, height = _track_frame(image)
     reference = look_sine(ground[ground.size // 2], height)
     slant = SPEED_OF_LIGHT * np.asarray(raw.fast_time, float) / 2.0
@@ -76,7 +79,8 @@ def common_bins(raw: RawData, image: SarImage, scale: float = COMMON_SCALE) -> n
 #: Where it leaves the scene the beam sees clutter on one side only and the sum's phase is that
 #: side's Doppler (measured on a 120 m plate: 1.3 rad per pulse beyond 1 dB down, 0.01 within).
 EDGE_DB = 1.0
-#: :func:`across_range` uses the bins whose mean power lies within this many dB of the median bin's.
+#: :func:`across_range` uses the bins whose mean power lies within this many dB of the 90th
+#: percentile of the bins' mean powers (and is not zero).
 LIT_DB = 10.0
 
 
@@ -97,7 +101,7 @@ def across_range(data: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Those pulses (the first to the last such pulse).
     """
     level = np.mean(np.abs(np.asarray(data)).astype(np.float64) ** 2, axis=0)
-    lit = level >= np.percentile(level, 90.0) * 10.0 ** (-LIT_DB / 10.0) if level.any() else np.zeros(level.size, bool)
+    lit = (level >= np.percentile(level, 90.0) * 10.0 ** (-LIT_DB / 10.0)) & (level > 0)
     data = np.asarray(data)[:, lit] / np.sqrt(level[lit])           # each bin's clutter weighs alike
     power = np.sum(np.abs(data) ** 2, axis=1)
     inside = np.zeros(power.size, bool)

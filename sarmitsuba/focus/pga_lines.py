@@ -20,7 +20,7 @@ from ..core.constants import SPEED_OF_LIGHT
 from ..core.image import SarImage, image_coordinates
 from ..core.valid_ranges import ParameterError
 
-__all__ = ["signal_pixels", "line_levels", "point_likeness", "doppler_band", "band_occupancy", "point_lines",
+__all__ = ["signal_pixels", "dominance_db", "line_levels", "point_likeness", "doppler_band", "band_occupancy", "point_lines",
            "linear_shift_bound",
            "upsample", "reference_azimuth", "reference_shift", "shift_phase", "REFERENCE_SEARCH", "REFERENCE_UPSAMPLE",
            "SIGNAL_BOX", "SIGNAL_DB", "SIGNAL_PERCENTILE", "POINT_DB", "POINT_BAND", "RESPONSE_DB", "BAND_DB",
@@ -69,6 +69,20 @@ def signal_pixels(intensity: np.ndarray) -> np.ndarray:
     local = uniform_filter(intensity, size=SIGNAL_BOX, mode="nearest")
     level = np.percentile(local, SIGNAL_PERCENTILE)
     return (local >= level * 10.0 ** (-SIGNAL_DB / 10.0)) & (intensity > 0)
+
+
+def dominance_db(intensity: np.ndarray, signal: np.ndarray | None = None) -> float:
+    """[dB] The brightest pixel's intensity over the median intensity of the pixels that hold signal
+    (``signal``, :func:`signal_pixels` of ``intensity`` float64 [n_az, n_rg] by default), eq.
+    (PGA3)'s ``D``; -inf for an image without signal. Empty parts of the image (beyond the scene,
+    in shadow, outside every beam), which only sidelobes reach, are not clutter and do not pull the
+    median down."""
+    intensity = np.asarray(intensity, dtype=np.float64)
+    if signal is None:
+        signal = signal_pixels(intensity)
+    if not signal.any():
+        return float("-inf")
+    return float(10.0 * np.log10(intensity.max() / np.median(intensity[signal])))
 
 
 def line_levels(intensity: np.ndarray, signal: np.ndarray | None = None) -> np.ndarray:

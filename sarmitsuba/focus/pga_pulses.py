@@ -28,7 +28,7 @@ from .autofocus import RMS_DB, kernel_options, refusal_of
 from .pga_deramp import FresnelFrame, fresnel_frame
 from .pga_kernel import apply_phase, circular_distance, extend_phase, iterate, spectral_power, weighted_rms
 from .range_lines import fft_upsample
-from .pga_lines import (band_occupancy, doppler_band, point_lines, reference_azimuth, reference_shift, signal_pixels,
+from .pga_lines import (band_occupancy, dominance_db, doppler_band, point_lines, reference_azimuth, reference_shift, signal_pixels,
                         upsample)
 
 __all__ = ["PulseEstimate", "pulse_positions", "recentred", "estimate_pulses", "reference_phase",
@@ -60,7 +60,7 @@ class PulseEstimate:
         The range columns used.
     window_scr_db : float, dB
         The last window's energy over the clutter it holds (the lines' median intensity outside
-        it, times its width), less one (eq. (PGA8)): ``inf`` without clutter.
+        it, times its samples, ``2 (width // 2) + 1``), less one (eq. (PGA8)): ``inf`` without clutter.
     """
 
     phase: np.ndarray
@@ -170,7 +170,7 @@ def estimate_pulses(image: SarImage, raw: RawData, positions: np.ndarray, *, max
     data = upsample(np.asarray(image.data), frame.factor) * np.exp(-1j * frame.phase)
     intensity = np.abs(data) ** 2
     signal = signal_pixels(intensity)
-    dominance = float(10.0 * np.log10(intensity.max() / np.median(intensity[signal]))) if signal.any() else -np.inf
+    dominance = dominance_db(intensity, signal)
     chosen = lines is not None
     if not chosen:
         lines = point_lines(intensity, signal, band_occupancy(image.data, doppler_band(image)))
