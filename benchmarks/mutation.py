@@ -92,6 +92,9 @@ TARGETS: dict[str, tuple[str, ...]] = {
     "scene/effects.py": ("tests/test_rough_validity.py", "tests/test_effects.py"),
     "tracing/derivatives/rough_tangents.py": ("tests/test_rough_tangents.py",),
     "tracing/integration/clutter_terms.py": ("tests/test_rough_bistatic.py", "tests/test_clutter_bistatic.py"),
+    "focus/pga_kernel.py": ("tests/test_pga_kernel.py", "tests/test_pga_pulses.py"),
+    "focus/pga_clutter.py": ("tests/test_pga_clutter.py",),
+    "focus/autofocus_pulses.py": ("tests/test_pga_strong_clutter.py", "tests/test_autofocus_pulses.py"),
 }
 
 
@@ -185,6 +188,17 @@ PLANTED: tuple[tuple[str, str, str, str], ...] = (
     ("scene/rough_tables.py", "HH and VV swapped in the monostatic table",
      'for p in ("HH", "VV", "HV")], np.float32)', 'for p in ("VV", "HH", "HV")], np.float32)'),
     ("scene/rough_presets.py", "city preset: wood's rms height doubled", '"wood": _row(1.0, 10.0', '"wood": _row(2.0, 10.0'),
+    ("focus/pga_kernel.py", "PGA's circular distance dropped", "    return np.minimum(k, n - k)", "    return k"),
+    ("focus/pga_clutter.py", "PGA from the clutter: steps taken where the beam leaves the scene",
+     "inside[whole[0]:whole[-1] + 1] = True", "inside[:] = True"),
+    ("focus/pga_clutter.py", "PGA from the clutter: bins weighed by their energy",
+     "data = np.asarray(data)[:, lit] / np.sqrt(level[lit])", "data = np.asarray(data)[:, lit]"),
+    ("focus/autofocus_pulses.py", "PGA without the round from the clutter",
+     "kept = self._across_range(sharp, level)", "kept = None"),
+    ("focus/autofocus_pulses.py", "PGA's round from the clutter tried over a dominant scatterer",
+     "if not level >= DOMINANCE_DB:", "if True:"),
+    ("focus/autofocus_pulses.py", "PGA learning from a target whose window holds as much clutter",
+     "if not found.window_scr_db >= WINDOW_SCR_DB:", "if False:"),
 )
 
 _SWAP_BINOP = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult}
