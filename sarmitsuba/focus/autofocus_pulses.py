@@ -214,6 +214,7 @@ class _Rounds:
         self.smeared = np.zeros(0, int)
         self.found_by = "point-like"
         self.across_tried = False
+        self.pulses: RawData | None = None
 
     def _estimation_image(self, total: np.ndarray | None = None) -> SarImage:
         from .dispatch import autofocus_image
@@ -322,7 +323,9 @@ class _Rounds:
     def _round(self, window: int | None) -> tuple[np.ndarray, str, int | None]:
         """One round's estimate [rad per pulse], or why there is none, and the next round's widest window
         [samples of the period]."""
-        raw = _compressed(corrected(self.raw, self.total), self.window_range)
+        if self.pulses is None:               # a per-pulse phase commutes with range compression: compress once
+            self.pulses = _compressed(self.raw, self.window_range)
+        raw = corrected(self.pulses, self.total)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", AutofocusWarning)
             found, reason = estimate_pulses(self.image, raw, self.positions, cells=APERTURE_CELLS, max_window=window,
