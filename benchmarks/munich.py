@@ -30,8 +30,11 @@ Memory before issue 12 (commit c4b9c92, the same command, measured with GNU time
    would take were all its host geometry free.
 
 Writes ``munich.csv`` (in the output folder, ``_table.output_dir``). Needs Sionna RT (``pip install sionna-rt``); ``--quick``:
-urban only; ``--floor``: Munich's unit, one warm render and the floor only (minutes).
-Usage: ``python benchmarks/munich.py [--quick | --floor]``
+urban only; ``--floor``: Munich's unit, one warm render and the floor only (minutes);
+``--scaling``: the default render pinned to one core and on every core, the serial fraction
+(Amdahl) and its projection to 8, 16 and 64 cores, the raw data's bits, and urban with workers
+allowed against one process (about 6 minutes; writes ``munich_scaling.csv``).
+Usage: ``python benchmarks/munich.py [--quick | --floor | --scaling]``
 """
 from __future__ import annotations
 
@@ -126,18 +129,27 @@ def floor(unit: dict, default: dict) -> dict:
             "floor_units": round((casts_s + outside_s) / unit["unit_s"], 3)}
 
 
-def render(scene: str, out: Path, *args: str, kernel_cache: Path | None = None) -> dict:
-    """``sarmitsuba render`` in a subprocess: wall seconds, peak memory [MB], summary.json.
+def render(scene: str, out: Path, *args: str, kernel_cache: Path | None = None, pin: str | None = None,
+           env: dict | None = None) -> dict:
+    """``sarmitsuba render`` in a subprocess: wall seconds, CPU seconds (the process and its
+    workers), peak memory [MB] (the render process's own), summary.json.
     ``kernel_cache``: Dr.Jit's kernel cache folder for the run (``DRJIT_CACHE_DIR``; default: the
-    user's, ``~/.drjit``)."""
-    env = None if kernel_cache is None else {**os.environ, "DRJIT_CACHE_DIR": str(kernel_cache)}
+    user's, ``~/.drjit``); ``pin``: the cores to pin it to (``taskset -c``); ``env``: variables to set."""
+    import resource
+    env = {**os.environ, **(env or {})}
+    if kernel_cache is not None:
+        env["DRJIT_CACHE_DIR"] = str(kernel_cache)
+    command = [sys.executable, "-c", _PROFILED, "render", scene, "--out", str(out), "--no-progress", *args]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", _PROFILED, "render", scene, "--out", str(out), "--no-progress",
-                           *args], capture_output=True, text=True, check=True, env=env)
+    done = subprocess.run((["taskset", "-c", pin] if pin else []) + command, capture_output=True, text=True,
+                          check=True, env=env)
     seconds = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     peak = float(next(line.split()[1] for line in done.stdout.splitlines() if line.startswith("peak_rss_mb")))
     summary = json.loads((out / "summary.json").read_text())
-    return {"seconds": seconds, "peak_mb": peak, "timings": summary["timings"], "summary": summary}
+    return {"seconds": seconds, "cpu_s": cpu, "peak_mb": peak, "timings": summary["timings"], "summary": summary}
 
 
 def nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
@@ -217,10 +229,72 @@ def floor_rows(scene: str = "sionna:munich") -> list[dict]:
     return [row]
 
 
-#: The default render's targets, in units of the bare cast timed in the same run: the mesh
-#: tracer's (its default render was 4.9 units warm when they were set; the ray tubes' targets
-#: were 0.5 and 0.7).
-WARM_UNITS, FIRST_UNITS = 1.0, 1.5
+#: The default render's targets, in units of the bare cast timed in the same run (warm), and the
+#: first run's (empty kernel cache) over the warm run's.
+WARM_UNITS, FIRST_OVER_WARM = 3.5, 1.2
+#: ``--scaling``: the trace on two cores over one (serial fraction at most 8 %), urban's render
+#: with workers allowed over one process, and the core counts of the projection.
+SPEEDUP_2, URBAN_RATIO, PROJECTED_CORES = 1.85, 1.1, (8, 16, 64)
+
+
+def amdahl(one: float, two: float) -> dict:
+    """The serial fraction ``f`` that a speed-up ``S = one / two`` on two cores implies
+    (Amdahl: ``S = 1 / (f + (1 - f) / 2)``, so ``f = 2 / S - 1``), and the trace seconds it
+    projects at :data:`PROJECTED_CORES`, ``one (f + (1 - f) / n)``."""
+    speedup = one / two
+    f = 2.0 / speedup - 1.0
+    return {"speedup_2": round(speedup, 3), "serial_fraction": round(f, 3),
+            **{f"projected_trace_{n}_s": round(one * (f + (1.0 - f) / n), 1) for n in PROJECTED_CORES}}
+
+
+def scaling_rows(scene: str = "sionna:munich") -> list[dict]:
+    """``--scaling``: the default render pinned to one core and on every core, back to back after
+    a warm-up (the kernel cache filled), with its trace and CPU seconds, the serial fraction and
+    projection (:func:`amdahl`), whether the raw data are equal bit for bit, the render in units;
+    and urban's render with workers allowed against one process (``SARMITSUBA_WORKERS=1``)."""
+    from sarmitsuba.core.raw import RawData
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        render(scene, folder / "warm-up")
+        one = render(scene, folder / "one", pin="0")
+        every = render(scene, folder / "every")
+        same = bool(np.array_equal(RawData.load(folder / "one" / "raw.npz").data,
+                                   RawData.load(folder / "every" / "raw.npz").data))
+        render("urban", folder / "urban-warm-up")
+        urban_one, urban = float("inf"), float("inf")
+        for k in range(3):                   # alternated, best of three each: a render's time scatters 15 %
+            urban_one = min(urban_one, render("urban", folder / f"urban-one{k}",
+                                              env={"SARMITSUBA_WORKERS": "1"})["seconds"])
+            urban = min(urban, render("urban", folder / f"urban{k}")["seconds"])
+    unit = unit_of_work(scene)
+    row = {"scene": scene, "cores": os.cpu_count(), "load_average": round(os.getloadavg()[0], 2),
+           "trace_1_s": round(one["timings"]["trace"], 2), "trace_2_s": round(every["timings"]["trace"], 2),
+           "render_1_s": round(one["seconds"], 2), "render_2_s": round(every["seconds"], 2),
+           "cpu_1_s": round(one["cpu_s"], 1), "cpu_2_s": round(every["cpu_s"], 1),
+           "processes": every["summary"].get("workers", 1),
+           **amdahl(one["timings"]["trace"], every["timings"]["trace"]),
+           "raw_equal": same, "unit_s": round(unit["unit_s"], 2),
+           "render_units": round(every["seconds"] / unit["unit_s"], 3),
+           "urban_s": round(urban, 2), "urban_one_process_s": round(urban_one, 2),
+           "urban_ratio": round(urban / urban_one, 3)}
+    print("  ".join(f"{k}={v}" for k, v in row.items()))
+    write_csv(f"{NAME}_scaling.csv", [row])
+    return [row]
+
+
+def scaling_checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    """The acceptance of ``--scaling``, as ratios of one run."""
+    out = []
+    for r in rows:
+        out += [(f"{r['scene']}: trace on 2 cores >= {SPEEDUP_2}x its trace on one", r["speedup_2"] >= SPEEDUP_2,
+                 f"{r['trace_1_s']} s / {r['trace_2_s']} s = {r['speedup_2']}x, serial fraction "
+                 f"{r['serial_fraction']:.1%} ({r['processes']} processes)"),
+                (f"{r['scene']}: default render <= {WARM_UNITS} units", r["render_units"] <= WARM_UNITS,
+                 f"{r['render_2_s']} s = {r['render_units']} units of {r['unit_s']} s"),
+                (f"{r['scene']}: raw data equal bit for bit on one core and on every core", r["raw_equal"], ""),
+                (f"urban: render with workers allowed <= {URBAN_RATIO}x one process", r["urban_ratio"] <= URBAN_RATIO,
+                 f"{r['urban_s']} s against {r['urban_one_process_s']} s (best of three each, alternated)")]
+    return out
 
 
 def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
@@ -234,10 +308,10 @@ def checks(rows: list[dict]) -> list[tuple[str, bool, str]]:
             out.append((f"{scene}: image NRMSE against per-pulse tracing and direct backprojection <= -30 dB",
                         bool(row["nrmse_vs_reference_db"] <= -30.0), f"{row['nrmse_vs_reference_db']} dB"))
         if "render_units" in row and "first_render_units" in row:
-            out.append((f"{scene}: default render, first run (empty kernel cache) <= {FIRST_UNITS:g} units",
-                        bool(row["first_render_units"] <= FIRST_UNITS),
-                        f"{row['first_render_s']} s = {row['first_render_units']} units of {row['unit_s']} s, "
-                        f"{row['kernels_compiled']} kernels compiled"))
+            out.append((f"{scene}: default render, first run (empty kernel cache) <= {FIRST_OVER_WARM:g}x the warm run",
+                        bool(row["first_render_s"] <= FIRST_OVER_WARM * row["render_s"]),
+                        f"{row['first_render_s']} s against {row['render_s']} s = {row['first_render_units']} units "
+                        f"of {row['unit_s']} s, {row['kernels_compiled']} kernels compiled"))
         if "render_units" in row:
             out.append((f"{scene}: default render, warm <= {WARM_UNITS:g} units", bool(row["render_units"] <= WARM_UNITS),
                         f"{row['render_s']} s = {row['render_units']} units of {row['unit_s']} s "
@@ -270,7 +344,11 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--floor"]:
+    if sys.argv[1:] == ["--scaling"]:
+        print(machine())
+        for check, ok, detail in scaling_checks(scaling_rows()):
+            print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
+    elif sys.argv[1:] == ["--floor"]:
         for check, ok, detail in checks(floor_rows()):
             print(f"{'PASS' if ok else 'FAIL'}  {check}  {detail}")
     else:

@@ -348,16 +348,24 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
     materials = {k: float(v) for k, v in [material.split("=")]} if material else None
     cost = scene_info_module.scene_info(scene, sensor_overrides=sensor, material_overrides=materials).cost
     cpu = {}
-    original = pipeline.trace
+    originals = {name: getattr(pipeline, name) for name in ("trace", "trace_in_workers")}
 
-    def timed(*args, **kwargs):
-        start = resource.getrusage(resource.RUSAGE_SELF)
-        try:
-            return original(*args, **kwargs)
-        finally:
-            end = resource.getrusage(resource.RUSAGE_SELF)
-            cpu["trace"] = end.ru_utime + end.ru_stime - start.ru_utime - start.ru_stime
-    pipeline.trace = timed
+    def seconds() -> float:
+        return sum(u.ru_utime + u.ru_stime for u in (resource.getrusage(resource.RUSAGE_SELF),
+                                                     resource.getrusage(resource.RUSAGE_CHILDREN)))
+
+    def timing(original):
+        def timed(*args, **kwargs):         # the trace's CPU seconds, its worker processes' included
+            start = seconds()
+            try:
+                result = original(*args, **kwargs)
+                cpu["workers"] = result.workers
+                return result
+            finally:
+                cpu["trace"] = seconds() - start
+        return timed
+    for name, original in originals.items():
+        setattr(pipeline, name, timing(original))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -365,7 +373,8 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
             sim = simulate(scene, sensor_overrides=sensor, material_overrides=materials, scheduler=scheduler)
             wall = time.perf_counter() - start
     finally:
-        pipeline.trace = original
+        for name, original in originals.items():
+            setattr(pipeline, name, original)
     if save:
         np.save(save, sim.raw.data)
         from sarmitsuba.products.image_files import write_quicklook
@@ -376,10 +385,19 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
             "reach_pieces_mean": round(cost.reach_pieces_mean), "reach_pieces_max": round(cost.reach_pieces_max),
             "wall_s": round(wall, 2), **{f"{k}_s": round(v, 2) for k, v in sim.timings.items()},
             "trace_cpu_s": round(cpu.get("trace", float("nan")), 2),
-            "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024),
+            "workers": cpu.get("workers", 1), "peak_rss_mib": round(peak_rss_mib(cpu.get("workers", 1))),
             "predicted_trace_s": round(cost.trace_time_s, 2),
             "predicted_peak_mib": round(cost.peak_memory_bytes / 2**20),
             "model_terms": _model_terms(cost, sim.loaded.n_triangles, cost_model)}
+
+
+def peak_rss_mib(workers: int) -> float:
+    """The render's peak memory [MiB]: this process's peak resident set plus, with worker processes,
+    the largest worker's peak for each of the others (an upper bound on their sum at any moment)."""
+    import resource
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    worker = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss if workers > 1 else 0
+    return (own + (workers - 1) * worker) / 1024
 
 
 def _model_terms(cost, triangles: int, cost_model) -> list[float]:

@@ -47,6 +47,7 @@ from .scene.baseline import baseline
 from .scene.rough_presets import describe_surface
 from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import CostEstimate, cast_rates, cost_estimate, synthetic_aperture
+from .tracing.driver.workers import WorkerPlan, plan_for
 from .analysis.memory import MEMORY_LIMIT_ENV, available_memory, check_memory, memory_problem
 from .analysis.ambiguities import Ambiguities, ambiguities
 from .analysis import bistatic
@@ -248,6 +249,9 @@ class SceneInfo:
     warnings: tuple[str, ...]
     #: AASR and RASR at the PRF (:mod:`sarmitsuba.analysis.ambiguities`); None in spotlight or on a curved track.
     ambiguities: Ambiguities | None = None
+    #: The processes the trace will use, the memory's cap on them, and why
+    #: (:func:`sarmitsuba.tracing.driver.workers.worker_plan`).
+    workers: WorkerPlan | None = None
 
 
 def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
@@ -278,7 +282,9 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset), bistatic=_bistatic(params, geometry))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
-    return SceneInfo(scene=_scene_size(loaded), radar=radar,
+    spec = (source, sensor_overrides, integrator_overrides, material_overrides)
+    workers = plan_for(spec, loaded, effects, cost)
+    return SceneInfo(workers=workers, scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
                      cost=cost, ambiguities=ambiguous,
                      warnings=tuple(messages) + tuple(str(w.message) for w in rough)

@@ -35,7 +35,7 @@ def format_text(info: Any) -> str:
     for title, body in (("Scene", _scene_lines(info.scene)), ("Radar", _radar_lines(info.radar)),
                         ("Ambiguities", [info.ambiguities.line() if info.ambiguities else "not modelled (spotlight or a "
                                          "curved track)"]), ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
-                        ("Estimated cost", _cost_lines(info.cost, info.radar.bistatic is not None)), ("Warnings", list(info.warnings) or ["none"])):
+                        ("Estimated cost", _cost_lines(info.cost, info.radar.bistatic is not None) + _worker_lines(info.workers)), ("Warnings", list(info.warnings) or ["none"])):
         lines += [title] + [f"  {line}" for line in body] + [""]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -163,6 +163,14 @@ def _cost_lines(c: CostEstimate, bistatic: bool = False) -> list[str]:
         + f"{c.backprojection_pixel_pulses:.3g} pixel-pulses in the beam; direct backprojection ~ "
         f"{_duration(c.direct_backprojection_time_s)})",
         c.time_basis]
+
+
+def _worker_lines(w) -> list[str]:
+    if w is None:
+        return []
+    return [f"processes: {w.workers} ({w.reason}); memory holds {w.memory_cap} worker{'s' if w.memory_cap > 1 else ''} "
+            f"of ~{format_bytes(w.per_worker_bytes)} each beside the render ({w.cores} cores; SARMITSUBA_WORKERS sets "
+            f"the most); peak memory of the render and its workers ~ {format_bytes(w.peak_memory_bytes)}"]
 
 
 def _vec(v) -> str:

@@ -30,6 +30,7 @@ from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .formats.exports import EXPORT_FILES, check_formats, write_exports
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
+from .tracing.driver.workers import plan_for, trace_in_workers
 
 __all__ = ["Simulation", "simulate", "RenderSummary", "render", "refocus", "image_grid", "check_output_dir",
            "OUTPUT_FILES", "EXPORT_FILES", "check_formats", "write_exports"]
@@ -68,6 +69,9 @@ class RenderSummary:
     #: Rows a fused geometry kernel left to its NumPy reference (``geometry = fused``,
     #: docs/design.md section 10.1).
     overflow_rows: int = 0
+    #: Processes that traced, and why that many (:func:`sarmitsuba.tracing.driver.workers.worker_plan`).
+    workers: int = 1
+    workers_note: str = ""
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -153,17 +157,22 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     if amb is not None and amb.warning:
         warnings.warn(amb.warning, planning.AcquisitionWarning, stacklevel=2)
     geometry, window, footprint, effects = setup.geometry, setup.window, setup.footprint, setup.effects
-    check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
+    cost = check_memory(loaded, geometry, window, footprint, effects=effects)      # peak memory, before tracing
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
     t["load"] = time.perf_counter()
-    if scheduler is None:
-        result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, progress=progress,
-                       effects=effects)
+    spec = (source, sensor_overrides, integrator_overrides, material_overrides)
+    if scheduler is None:                                # every core: docs/design.md section 11.1
+        cores = plan_for(spec, loaded, effects, cost)
+        if cores.workers > 1:
+            result = trace_in_workers(spec, loaded, setup, cores.workers, progress=progress)
+        else:
+            result = trace(loaded.scene, params, geometry, window, footprint, settings, setup.table, progress=progress,
+                           effects=effects)
+        result = dataclasses.replace(result, workers_note=cores.reason)
     else:
         from .tracing.driver.distributed import trace_on_cluster
-        result = trace_on_cluster(scheduler, (source, sensor_overrides, integrator_overrides, material_overrides),
-                                  loaded, setup, progress=progress)
+        result = trace_on_cluster(scheduler, spec, loaded, setup, progress=progress)
     t["trace"] = time.perf_counter()
     planning.check_window_energy(result.energy_outside_window, float(np.sum(result.energy_per_order)),
                                  settings.max_depth)
@@ -410,7 +419,8 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
         trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()},
         energy_by_order=energy_by_order(result.raw_energy_per_order),
-        depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond), overflow_rows=result.overflow_rows)
+        depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond), overflow_rows=result.overflow_rows,
+        workers=result.workers, workers_note=result.workers_note)
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

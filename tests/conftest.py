@@ -12,6 +12,9 @@ from pathlib import Path
 if os.environ.get("PYTEST_XDIST_WORKER") and "numpy" not in sys.modules:
     for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_name, "1")
+    #: and no trace worker processes: the xdist workers already fill the cores (tests/test_workers.py
+    #: sets its own counts).
+    os.environ.setdefault("SARMITSUBA_WORKERS", "1")
 
 import pytest  # noqa: E402
 

@@ -33,11 +33,24 @@ def activate() -> str:
             f"sarmitsuba needs a *_mono Mitsuba variant, but {mi.variant()!r} is active "
             "(was sionna imported first? keep Sionna RT out of the simulator process)")
     mi.set_log_level(mi.LogLevel.Warn)
+    _fit_threads_to_affinity()
     _register_plugins(reload=False)
     if not getattr(_register_on_change, "installed", False):
         mi.detail.add_variant_callback(_register_on_change)
         _register_on_change.installed = True
     return mi.variant()
+
+
+def _fit_threads_to_affinity() -> None:
+    """Dr.Jit's threads at most the cores this process may run on (``taskset``; Dr.Jit counts the
+    machine's): two threads on one core traced Munich's 512 central pulses in 47.8 s, one in 37.0 s."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return
+    import drjit as dr
+    if 0 < cores < dr.thread_count():
+        dr.set_thread_count(cores)
 
 
 def _register_on_change(old: str | None, new: str | None) -> None:

@@ -62,7 +62,7 @@ def host_threads(kernel) -> int:
 
 def launches_at_once() -> int:
     """The mesh tracer's launches at once (:data:`HOST_THREADS_VARIABLE`, or :data:`HOST_THREADS`; at
-    most the cores), as :func:`host_threads` gives them to a render and the cost model counts them.
+    most the cores this process may run on), as :func:`host_threads` gives them to a render and the cost model counts them.
     Raises ParameterError for a variable that is not an integer >= 1."""
     text = os.environ.get(HOST_THREADS_VARIABLE, "")
     if text:
@@ -75,7 +75,8 @@ def launches_at_once() -> int:
                                  f"once); unset it for the default, {HOST_THREADS}")
     else:
         wanted = HOST_THREADS
-    return max(1, min(wanted, os.cpu_count() or 1))
+    from .workers import usable_cores
+    return max(1, min(wanted, usable_cores()))
 
 
 def kernel_workers(threads: int, cores: int | None = None) -> int | None:

@@ -192,6 +192,11 @@ class TraceResult:
         The mesh tracer's specular rays from the deepest order that meet another part
         (:func:`~sarmitsuba.tracing.discovery.specular.rays_beyond`; 0: nothing lies beyond the
         traced orders); None where not looked for (tubes, or a deepest order of little power).
+    workers : int
+        Processes that traced the batches (1: this one alone).
+    workers_note : str
+        Why that many (:class:`~sarmitsuba.tracing.driver.workers.WorkerPlan`'s reason; empty
+        where the caller traced directly).
     """
 
     spectrum: np.ndarray
@@ -215,6 +220,8 @@ class TraceResult:
     raw_energy_per_order: np.ndarray | None = None
     overflow_rows: int = 0
     rays_beyond: int | None = None
+    workers: int = 1
+    workers_note: str = ""
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -377,7 +384,7 @@ TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evalu
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
           window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
           material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None,
-          run_batches=None) -> TraceResult:
+          run_batches=None, batch_size=None, trace_here: bool = False) -> TraceResult:
     """Trace all pulses of an acquisition (see module docstring for the model).
 
     Parameters
@@ -402,6 +409,14 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         ``run_batches(plan, batches)`` yields the :func:`trace_batch` results of the batches
         (first sub-aperture indices) in any order, traced elsewhere (for instance on Dask
         workers, :mod:`sarmitsuba.tracing.driver.distributed`). Default: traced here, in order.
+    batch_size : callable, optional
+        ``batch_size(per_batch, n_subapertures)``: the sub-apertures per batch to use instead of
+        the plan's (worker processes cut them smaller, :mod:`sarmitsuba.tracing.driver.workers`);
+        the raw data do not depend on it.
+    trace_here : bool
+        With ``run_batches``: this process traces batches too. ``run_batches`` is then called as
+        ``run_batches(plan, batches, here)``, where ``here(g0)`` traces the batch ``g0`` in this
+        process (one launch at a time).
 
     Returns
     -------
@@ -411,6 +426,8 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     if effects is None:
         effects = EffectSet.of(params, settings, rough_materials(material_table))
     plan = plan_trace(scene, params, geometry, window, footprint, settings, effects)
+    if batch_size is not None:
+        plan = dataclasses.replace(plan, per_batch=batch_size(plan.per_batch, len(plan.subs.first)))
     spectrum = np.zeros((plan.n_channels * plan.kept, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
     paths = {}
     totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
@@ -420,7 +437,8 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)
-    threads = host_threads(kernel)
+    threads = host_threads(kernel) if run_batches is None else 1
+    made = {}                            # trace_here: the kernel, built at the first batch (workers start first)
     if threads > 1:                      # launches of 1 / threads the size, as many at once: no more memory
         plan = dataclasses.replace(plan, per_batch=max(1, plan.per_batch // threads))
         kernel.returns.sums.shared_by(threads)
@@ -429,11 +447,14 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
     with kernel_pool(threads):           # host threads that fill the cores run their own blocks
         try:
+            def one(g0):
+                here = kernel if kernel is not None else made.get("kernel")
+                if here is None:
+                    here = made["kernel"] = Kernel(scene, params, window, footprint, settings, material_table, effects)
+                return trace_batch(here, plan, g0, geometry, window, footprint, settings, params.frequency)
             if run_batches is not None:
-                results = run_batches(plan, plan.batches)
+                results = run_batches(plan, plan.batches, one) if trace_here else run_batches(plan, plan.batches)
             else:
-                def one(g0):
-                    return trace_batch(kernel, plan, g0, geometry, window, footprint, settings, params.frequency)
                 results = pool.map(one, plan.batches) if pool is not None else (one(g0) for g0 in plan.batches)
             for out in results:
                 p0, p1 = out["pulses"]
@@ -448,6 +469,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                 pool.shutdown(wait=True, cancel_futures=True)
             bar.close()
             del kernel
+            made.clear()
             dr.flush_malloc_cache()          # Dr.Jit keeps freed arrays cached: give them back for focusing
     for p0 in sorted(batch_totals):
         for name in totals:
