@@ -283,7 +283,7 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
     spec = (source, sensor_overrides, integrator_overrides, material_overrides)
-    workers = plan_for(spec, loaded, effects, cost)
+    workers = plan_for(spec, loaded, effects, cost, available_memory())
     return SceneInfo(workers=workers, scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
                      cost=cost, ambiguities=ambiguous,

@@ -17,7 +17,7 @@ from .signal import binning
 from .scene import planning
 from .products import image_files
 from .analysis.ambiguities import ambiguities
-from .analysis.memory import check_memory
+from .analysis.memory import available_memory, check_memory
 from .focus import backproject, ffbp
 from .focus.dispatch import azimuth_pattern, backprojector
 from .focus.dispatch import focus as focus_by_name
@@ -163,7 +163,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t["load"] = time.perf_counter()
     spec = (source, sensor_overrides, integrator_overrides, material_overrides)
     if scheduler is None:                                # every core: docs/design.md section 11.1
-        cores = plan_for(spec, loaded, effects, cost)
+        cores = plan_for(spec, loaded, effects, cost, available_memory())
         if cores.workers > 1:
             result = trace_in_workers(spec, loaded, setup, cores.workers, progress=progress)
         else:

@@ -26,7 +26,7 @@ import pytest
 import sarmitsuba  # noqa: F401
 from sarmitsuba.core.radar import ParameterError
 from sarmitsuba.scene.loader import load_scene
-from sarmitsuba.tracing.driver import threads, workers
+from sarmitsuba.tracing.driver import threads
 from sarmitsuba.tracing.driver import trace as tracing
 from sarmitsuba.tracing.loops import evaluated_loops, float64_lanes
 
@@ -66,15 +66,15 @@ def test_two_threads_give_the_sequential_result(monkeypatch):
 
 def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
     kernel = type("K", (), {"mesh": object()})()
-    monkeypatch.setattr(workers, "usable_cores", lambda: 8)        # the cores it may run on
+    monkeypatch.setattr(threads, "usable_cores", lambda: 8)        # the cores it may run on
     monkeypatch.delenv(threads.HOST_THREADS_VARIABLE, raising=False)
     assert threads.host_threads(kernel) == threads.HOST_THREADS == 2          # two by default
     monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "3")
     assert threads.host_threads(kernel) == 3
-    monkeypatch.setattr(workers, "usable_cores", lambda: 2)        # the cores it may run on
+    monkeypatch.setattr(threads, "usable_cores", lambda: 2)        # the cores it may run on
     assert threads.host_threads(kernel) == 2                                # at most the cores
     monkeypatch.delenv(threads.HOST_THREADS_VARIABLE)
-    monkeypatch.setattr(workers, "usable_cores", lambda: 1)        # the cores it may run on
+    monkeypatch.setattr(threads, "usable_cores", lambda: 1)        # the cores it may run on
     assert threads.host_threads(kernel) == 1                                # the default too
     for bad in ("0", "-1", "two", "1.5"):
         monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, bad)
@@ -84,7 +84,7 @@ def test_the_variable_sets_the_threads_and_bad_values_are_refused(monkeypatch):
 
 def test_one_thread_for_the_preview_and_inside_the_derivatives(monkeypatch):
     monkeypatch.setenv(threads.HOST_THREADS_VARIABLE, "2")
-    monkeypatch.setattr(workers, "usable_cores", lambda: 4)        # the cores it may run on
+    monkeypatch.setattr(threads, "usable_cores", lambda: 4)        # the cores it may run on
     mesh = type("K", (), {"mesh": object()})()
     assert threads.host_threads(mesh) == 2
     assert threads.host_threads(type("K", (), {"mesh": None})()) == 1       # the tube preview

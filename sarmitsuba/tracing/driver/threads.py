@@ -37,7 +37,7 @@ import numpy as np
 from ...core.radar import ParameterError
 from ..loops import lane_float, loop_mode
 
-__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "kernel_workers",
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "usable_cores", "kernel_workers",
            "kernel_pool", "caused_by_interrupt"]
 
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
@@ -75,8 +75,15 @@ def launches_at_once() -> int:
                                  f"once); unset it for the default, {HOST_THREADS}")
     else:
         wanted = HOST_THREADS
-    from .workers import usable_cores
     return max(1, min(wanted, usable_cores()))
+
+
+def usable_cores() -> int:
+    """Cores this process may run on: its affinity mask (``taskset``), which ``os.cpu_count`` ignores."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
 
 
 def kernel_workers(threads: int, cores: int | None = None) -> int | None:

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from typing import Any, BinaryIO
 
 from ...core.radar import ParameterError
+from .threads import usable_cores
 
 __all__ = ["WORKERS_VARIABLE", "MIN_TRACE_SECONDS", "WorkerError", "WorkerPlan", "worker_plan", "memory_cap",
            "usable_cores", "trace_in_workers", "plan_for", "can_use_workers", "load_batch_tracer", "KILL_AFTER_ENV"]
@@ -104,14 +105,6 @@ class WorkerPlan:
     peak_memory_bytes: int = 0
 
 
-def usable_cores() -> int:
-    """Cores this process may run on: its affinity mask (``taskset``), which ``os.cpu_count`` ignores."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 def requested_workers() -> int | None:
     """:data:`WORKERS_VARIABLE` as an integer, None when unset. Raises ParameterError otherwise."""
     text = os.environ.get(WORKERS_VARIABLE, "")
@@ -137,17 +130,15 @@ def memory_cap(cost: Any, available: int) -> tuple[int, int]:
     return max(1, free // max(per_worker, 1)), per_worker
 
 
-def worker_plan(cost: Any, batches: int, mesh: bool, available: int | None = None,
-                cores: int | None = None) -> WorkerPlan:
+def worker_plan(cost: Any, batches: int, mesh: bool, available: int, cores: int | None = None) -> WorkerPlan:
     """The :class:`WorkerPlan` of a render with estimated ``cost``
     (:class:`~sarmitsuba.analysis.cost.CostEstimate`) and ``batches`` trace batches; ``mesh``:
     the mesh tracer traces it (the tube preview and moving shapes stay in one process).
-    ``available``: memory [bytes] (default :func:`sarmitsuba.analysis.memory.available_memory`).
+    ``available``: the memory the render may use [bytes]
+    (:func:`sarmitsuba.analysis.memory.available_memory`); ``cores``: default :func:`usable_cores`.
     Raises ParameterError for a bad :data:`WORKERS_VARIABLE`."""
-    from ...analysis.memory import available_memory
     wanted = requested_workers()
     cores = usable_cores() if cores is None else cores
-    available = available_memory() if available is None else available
     cap, per_worker = memory_cap(cost, available)
     n, why = _count(cost, batches, mesh, wanted, cores, cap, per_worker, available)
     return WorkerPlan(n, cores, cap, per_worker, why, int(cost.peak_memory_bytes) + (n - 1) * per_worker)
@@ -481,12 +472,12 @@ def can_use_workers(spec: tuple, loaded: Any, effects: Any) -> bool:
     return True
 
 
-def plan_for(spec: tuple, loaded: Any, effects: Any, cost: Any) -> WorkerPlan:
-    """The :class:`WorkerPlan` of a render: :func:`worker_plan` for its estimated ``cost``, with
-    workers only where :func:`can_use_workers`. ``spec``: ``(source, sensor, integrator, material
-    overrides)`` as :func:`~sarmitsuba.scene.loader.load_scene` took them. Raises ParameterError
-    (a bad :data:`WORKERS_VARIABLE`)."""
-    return worker_plan(cost, cost.subapertures, can_use_workers(spec, loaded, effects))
+def plan_for(spec: tuple, loaded: Any, effects: Any, cost: Any, available: int) -> WorkerPlan:
+    """The :class:`WorkerPlan` of a render: :func:`worker_plan` for its estimated ``cost`` and
+    ``available`` memory [bytes], with workers only where :func:`can_use_workers`. ``spec``:
+    ``(source, sensor, integrator, material overrides)`` as :func:`~sarmitsuba.scene.loader.load_scene`
+    took them. Raises ParameterError (a bad :data:`WORKERS_VARIABLE`)."""
+    return worker_plan(cost, cost.subapertures, can_use_workers(spec, loaded, effects), available)
 
 
 if __name__ == "__main__":
