@@ -2,11 +2,13 @@
 process for any number of workers, one clear message when a worker dies (and nothing written),
 the memory's cap on the workers, and small scenes kept in one process.
 
-Deliberate bugs these tests were run against (the closing note of the change lists which test
-caught each): the driver's spectra placed in arrival order instead of by pulse index; the
-workers left with the plan's batch size instead of the driver's; a worker's death read as an
-empty batch; the memory cap computed without the driver's own peak; the small-scene rule
-skipped.
+Deliberate bugs these tests were run against, each caught: the driver's spectra placed in
+arrival order instead of by pulse index, and the workers left with the plan's batch size instead
+of the driver's (the bits, at 2 processes); a worker's death read as the end of its batches
+(the death's message: the driver would otherwise wait for ever, and now says the workers
+stopped); the memory cap computed without the render's own peak (the cap); the small-scene rule
+and the large-copy rule skipped (their tests); the cores counted by ``os.cpu_count`` instead of
+the affinity (the pinned process).
 """
 from __future__ import annotations
 
@@ -149,3 +151,17 @@ def test_urban_render_stays_in_one_process(tmp_path, monkeypatch):
     from sarmitsuba.info import format_text, scene_info
     text = format_text(scene_info("urban"))
     assert "processes: 1" in text and "memory holds" in text
+
+
+def test_a_pinned_process_counts_the_cores_it_is_given():
+    """Pinned to one core with ``taskset``, the package counts one core (``os.cpu_count`` would
+    say the machine's), traces one launch at a time and runs Dr.Jit on one thread."""
+    import shutil
+    if shutil.which("taskset") is None or len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs taskset and two cores")
+    code = ("import drjit as dr, sarmitsuba; from sarmitsuba.tracing.driver import threads; "
+            "print(threads.usable_cores(), threads.launches_at_once(), dr.thread_count())")
+    env = {k: v for k, v in os.environ.items() if k != "SARMITSUBA_HOST_THREADS"}
+    done = subprocess.run(["taskset", "-c", "0", sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, check=True)
+    assert done.stdout.split() == ["1", "1", "1"]
