@@ -477,7 +477,14 @@ def plan_for(spec: tuple, loaded: Any, effects: Any, cost: Any, available: int) 
     ``available`` memory [bytes], with workers only where :func:`can_use_workers`. ``spec``:
     ``(source, sensor, integrator, material overrides)`` as :func:`~sarmitsuba.scene.loader.load_scene`
     took them. Raises ParameterError (a bad :data:`WORKERS_VARIABLE`)."""
-    return worker_plan(cost, cost.subapertures, can_use_workers(spec, loaded, effects), available)
+    import mitsuba as mi
+    plan = worker_plan(cost, cost.subapertures, can_use_workers(spec, loaded, effects), available)
+    if plan.workers > 1 and mi.variant().startswith("cuda") and requested_workers() is None:
+        import dataclasses
+        return dataclasses.replace(plan, workers=1, peak_memory_bytes=int(cost.peak_memory_bytes),
+                                   reason="traced in this process (cuda: worker processes sharing the GPU are not yet "
+                                          f"measured; {WORKERS_VARIABLE}=N starts them)")
+    return plan
 
 
 if __name__ == "__main__":
