@@ -37,7 +37,7 @@ import numpy as np
 from ...core.radar import ParameterError
 from ..loops import lane_float, loop_mode
 
-__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "usable_cores", "kernel_workers",
+__all__ = ["HOST_THREADS", "HOST_THREADS_VARIABLE", "host_threads", "launches_at_once", "usable_cores", "count_variable", "kernel_workers",
            "kernel_pool", "caused_by_interrupt"]
 
 #: The environment variable that sets how many launches the mesh tracer traces at once, each on
@@ -64,18 +64,23 @@ def launches_at_once() -> int:
     """The mesh tracer's launches at once (:data:`HOST_THREADS_VARIABLE`, or :data:`HOST_THREADS`; at
     most the cores this process may run on), as :func:`host_threads` gives them to a render and the cost model counts them.
     Raises ParameterError for a variable that is not an integer >= 1."""
-    text = os.environ.get(HOST_THREADS_VARIABLE, "")
-    if text:
-        try:
-            wanted = int(text)
-        except ValueError:
-            wanted = 0
-        if wanted < 1:
-            raise ParameterError(f"{HOST_THREADS_VARIABLE}={text!r}: expected an integer >= 1 (launches traced at "
-                                 f"once); unset it for the default, {HOST_THREADS}")
-    else:
-        wanted = HOST_THREADS
-    return max(1, min(wanted, usable_cores()))
+    wanted = count_variable(HOST_THREADS_VARIABLE, f"launches traced at once); unset it for the default, {HOST_THREADS}")
+    return max(1, min(HOST_THREADS if wanted is None else wanted, usable_cores()))
+
+
+def count_variable(name: str, meaning: str) -> int | None:
+    """The environment variable ``name`` as an integer >= 1, None when unset or empty. Raises
+    ParameterError naming it, with ``meaning`` (what the count is, and the fix), otherwise."""
+    text = os.environ.get(name, "")
+    if not text:
+        return None
+    try:
+        wanted = int(text)
+    except ValueError:
+        wanted = 0
+    if wanted < 1:
+        raise ParameterError(f"{name}={text!r}: expected an integer >= 1 ({meaning}")
+    return wanted
 
 
 def usable_cores() -> int:

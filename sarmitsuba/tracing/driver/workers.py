@@ -45,7 +45,7 @@ from dataclasses import dataclass
 from typing import Any, BinaryIO
 
 from ...core.radar import ParameterError
-from .threads import usable_cores
+from .threads import count_variable, usable_cores
 
 __all__ = ["WORKERS_VARIABLE", "MIN_TRACE_SECONDS", "WorkerError", "WorkerPlan", "worker_plan", "memory_cap",
            "usable_cores", "trace_in_workers", "plan_for", "can_use_workers", "load_batch_tracer", "KILL_AFTER_ENV"]
@@ -107,17 +107,8 @@ class WorkerPlan:
 
 def requested_workers() -> int | None:
     """:data:`WORKERS_VARIABLE` as an integer, None when unset. Raises ParameterError otherwise."""
-    text = os.environ.get(WORKERS_VARIABLE, "")
-    if not text:
-        return None
-    try:
-        wanted = int(text)
-    except ValueError:
-        wanted = 0
-    if wanted < 1:
-        raise ParameterError(f"{WORKERS_VARIABLE}={text!r}: expected an integer >= 1 (worker processes that trace; "
-                             "1 traces in the render's own process); unset it to use every core")
-    return wanted
+    return count_variable(WORKERS_VARIABLE, "worker processes that trace; 1 traces in the render's own process); "
+                                            "unset it to use every core")
 
 
 def memory_cap(cost: Any, available: int) -> tuple[int, int]:
