@@ -226,8 +226,7 @@ def worker_main() -> int:
     spec, per_batch, dr_threads = start
     kill_after = int(os.environ.get(KILL_AFTER_ENV, "0") or 0)
     try:
-        import drjit as dr
-        import sarmitsuba  # noqa: F401  - the variant and plugins
+        import drjit as dr                # (`-m` imported the package first: the variant and plugins are set)
         from .trace import trace_batch
         if dr_threads:
             dr.set_thread_count(dr_threads)
