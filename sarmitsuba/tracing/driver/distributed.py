@@ -31,7 +31,7 @@ import re
 from typing import Any, Iterator
 
 from ...core.radar import ParameterError
-from .trace import TraceResult, plan_trace, prepare_trace, trace, trace_batch
+from .trace import TraceResult, trace, trace_batch
 
 __all__ = ["ClusterError", "check_scheduler", "connect", "trace_on_cluster", "trace_task", "worker_loads", "LOCAL_WORKERS"]
 
@@ -109,16 +109,10 @@ def scene_key(spec: tuple) -> str:
 def _worker_state(spec: tuple, key: str) -> tuple:
     """(loaded scene, setup, plan, kernel) for ``spec``, loaded once per worker process."""
     if key not in _WORKER_CACHE:
-        from .kernel import Kernel
-        from ...scene.loader import load_scene
+        from .workers import load_batch_tracer
         _WORKER_CACHE.clear()
-        loaded = load_scene(*spec)
+        loaded, setup, plan, kernel = load_batch_tracer(spec)
         _LOADS[0] += 1
-        setup = prepare_trace(loaded)
-        plan = plan_trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint,
-                          loaded.settings, setup.effects)
-        kernel = Kernel(loaded.scene, loaded.params, setup.window, setup.footprint, loaded.settings, setup.table,
-                        setup.effects)
         # a worker with several threads runs several tasks at once on this kernel: atomic deposits
         kernel.returns.sums.shared_by(_worker_threads())
         _WORKER_CACHE[key] = (loaded, setup, plan, kernel)
