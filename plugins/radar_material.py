@@ -99,6 +99,9 @@ class RadarMaterial(mi.BSDF):
         self.clutter, self.specular_factor = (0, 0.0), 1.0
         #: The rough surface's statistics (kind 3 clutter, docs/physics.md (RS1)-(RS6)), or None.
         self.surface = None
+        #: A preset's surfaces by role where they differ from ``surface`` (docs/physics.md (RS8)),
+        #: and the role of each shape (by Mitsuba shape id) that takes one: :meth:`set_role_surfaces`.
+        self.role_surfaces, self.shape_roles, self.role_materials = {}, {}, {}
         if sionna:
             self._spec = dict(material=str(values.pop("type", "concrete")), model="slab",
                               thickness=float(values.pop("thickness", _ITU_DEFAULT_THICKNESS)))
@@ -155,14 +158,14 @@ class RadarMaterial(mi.BSDF):
             if not math.isfinite(float(gamma_db)):
                 raise ParameterError(f"{label}: gamma_db = {gamma_db} must be finite")
             self.clutter, self.specular_factor = (1, 10.0 ** (float(gamma_db) / 10.0)), 1.0
-            self.surface = None
+            self.surface, self.role_surfaces, self.shape_roles = None, {}, {}
         if scattering_coefficient is not None:
             s = float(scattering_coefficient)
             if not 0.0 <= s <= 1.0:
                 raise ParameterError(f"{label}: scattering_coefficient = {s} is outside the valid range [0, 1]")
             self.clutter = (2, 4.0 * s**2) if s > 0 else (0, 0.0)
             self.specular_factor = math.sqrt(1.0 - s**2)
-            self.surface = None
+            self.surface, self.role_surfaces, self.shape_roles = None, {}, {}
 
     @property
     def itu_name(self) -> str | None:
@@ -173,8 +176,31 @@ class RadarMaterial(mi.BSDF):
         """Make the material a randomly rough surface of ``surface``'s statistics
         (:class:`sarmitsuba.scene.roughness.RoughSurface`; None: smooth), whose sigma nought is the
         I2EM's (docs/physics.md (RS1)-(RS6)); replaces any other clutter model."""
-        self.surface = surface
+        self.surface, self.role_surfaces, self.shape_roles = surface, {}, {}
         self.clutter, self.specular_factor = ((3, 1.0) if surface is not None else (0, 0.0)), 1.0
+
+    def set_role_surfaces(self, surfaces: dict, shape_roles: dict, role_materials: dict | None = None) -> None:
+        """Give the shapes of some roles another surface than :attr:`surface` (a preset's rules,
+        docs/physics.md (RS8)): ``surfaces`` maps a role to its
+        :class:`~sarmitsuba.scene.roughness.RoughSurface` (None: smooth), ``shape_roles`` a
+        Mitsuba shape id to its role (shapes not in it keep :attr:`surface`), ``role_materials`` a
+        role to the ITU class whose permittivity its shapes take (absent: the material's own)."""
+        self.role_surfaces = dict(surfaces)
+        self.shape_roles = {int(k): r for k, r in shape_roles.items() if r in self.role_surfaces}
+        self.role_materials = {r: m for r, m in (role_materials or {}).items() if m is not None}
+
+    def role_material_at(self, role: str | None, frequency: float) -> "materials.Material":
+        """:meth:`material_at` for the shapes of ``role``: the role's ITU class in this material's
+        model (slab or half space) where a preset's rule names one, else the material itself."""
+        name = getattr(self, "role_materials", {}).get(role) if role is not None else None
+        if name is None or self._spec["model"] == "pec":
+            return self.material_at(frequency)
+        return materials.Material(f"{self.name} ({role})", materials.itu_permittivity(name, frequency),
+                                  self._spec["model"], self._spec["thickness"])
+
+    def role_of(self, shape_id: int) -> str | None:
+        """The role whose surface shape ``shape_id`` takes, or None (it takes :attr:`surface`)."""
+        return self.shape_roles.get(int(shape_id))
 
     def material_at(self, frequency: float) -> "materials.Material":
         """The electromagnetic model at ``frequency`` [Hz] (raises MaterialError outside the fit's range)."""

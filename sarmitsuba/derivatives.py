@@ -204,6 +204,11 @@ def _material(scene, table, name: str, frequency: float):
     for shape in scene.shapes():
         bsdf = shape.bsdf()
         if getattr(bsdf, "name", None) == name:
+            if getattr(bsdf, "role_surfaces", None):
+                raise ParameterError(f"material {name!r} gives its {', '.join(sorted(bsdf.role_surfaces))} shapes the "
+                                     "roughness preset's role surfaces (docs/physics.md (RS8)), so it is more than "
+                                     "one table row; derive it without --material-set roughness=..., or give those "
+                                     "shapes a material of their own")
             return table.names.index(name), bsdf.material_at(frequency), bsdf
     raise ParameterError(f"material {name!r} is not used by any shape")
 

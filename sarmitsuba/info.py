@@ -332,10 +332,21 @@ def _material(bsdf: Any, frequency: float, n_shapes: int, incidence_deg: float) 
                  2: f"scattering_coefficient {math.sqrt(value / 4.0):g}",
                  3: describe_surface(bsdf.surface, eta, frequency, incidence_deg) if clutter_kind == 3 else ""
                  }[int(clutter_kind)]
+    by_role = getattr(bsdf, "role_surfaces", {})        # a preset's role rules (docs/physics.md (RS8))
+    for role in sorted(by_role):
+        count = sum(1 for r in bsdf.shape_roles.values() if r == role)
+        role_eta = bsdf.role_material_at(role, frequency).relative_permittivity
+        text = (describe_surface(by_role[role], role_eta, frequency, incidence_deg) if by_role[role] is not None
+                else "smooth")
+        if bsdf.role_materials.get(role):
+            text = f"as ITU {bsdf.role_materials[role]}, {text}"
+        roughness = "; ".join(filter(None, [roughness if n_shapes > count * (len(by_role) > 0) else "",
+                                            f"{count} {role} shape{'s' if count != 1 else ''}: {text}"]))
     return MaterialInfo(name=bsdf.name, kind=kind, description=description, model=material.model,
                         permittivity_real=None if eta is None else float(eta.real),
                         permittivity_imag=None if eta is None else float(eta.imag),
-                        thickness_m=material.thickness, rough=clutter_kind > 0, roughness=roughness,
+                        thickness_m=material.thickness,
+                        rough=clutter_kind > 0 or any(v is not None for v in by_role.values()), roughness=roughness,
                         n_shapes=n_shapes)
 
 

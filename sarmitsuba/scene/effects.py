@@ -211,10 +211,18 @@ def active_effects(loaded) -> EffectSet:
     once and hand it on. Rough materials are those of the BSDFs the scene's shapes use; each whose
     surface lies outside the I2EM's validated range at the carrier is warned about here, once
     (:func:`warn_rough_surfaces`)."""
-    rough = (s.bsdf().name for s in loaded.scene.shapes() if getattr(s.bsdf(), "clutter", (0, 0))[0] > 0)
+    rough = [name for s in loaded.scene.shapes() for name in _rough_names(s.bsdf())]
     decided = EffectSet.of(loaded.params, loaded.settings, rough, getattr(loaded, "motion", None))
     warn_rough_surfaces(loaded, decided.cross_polarised)
     return decided
+
+
+def _rough_names(bsdf) -> list[str]:
+    """The rough rows of a BSDF as :func:`rough_materials` names them: its own (a clutter model),
+    and ``"NAME (ROLE)"`` for each role whose surface a preset's rule gives it (RS8)."""
+    own = [bsdf.name] if getattr(bsdf, "clutter", (0, 0))[0] > 0 else []
+    return own + [f"{bsdf.name} ({role})" for role, surface in getattr(bsdf, "role_surfaces", {}).items()
+                  if surface is not None]
 
 
 def warn_rough_surfaces(loaded, cross: bool = False) -> None:
@@ -225,15 +233,20 @@ def warn_rough_surfaces(loaded, cross: bool = False) -> None:
     params, seen = loaded.params, set()
     for shape in loaded.scene.shapes():
         bsdf = shape.bsdf()
-        surface = getattr(bsdf, "surface", None)
         key = getattr(bsdf, "id_key", id(bsdf))
-        if surface is None or key in seen:
+        if key in seen:
             continue
         seen.add(key)
-        line = range_warning(bsdf.name, surface, bsdf.material_at(params.frequency).relative_permittivity,
-                             params.frequency, params.incidence_angle, cross)
-        if line is not None:
-            warnings.warn(line, RoughSurfaceWarning, stacklevel=3)
+        # the material's own surface, and those a preset's rules give its shapes of some roles (RS8)
+        named = [(bsdf.name, getattr(bsdf, "surface", None))]
+        named += [(f"{bsdf.name} ({role})", surface) for role, surface in getattr(bsdf, "role_surfaces", {}).items()]
+        for (name, surface), role in zip(named, [None, *getattr(bsdf, "role_surfaces", {})]):
+            eta = (bsdf.material_at(params.frequency) if role is None
+                   else bsdf.role_material_at(role, params.frequency)).relative_permittivity
+            line = None if surface is None else range_warning(name, surface, eta, params.frequency,
+                                                              params.incidence_angle, cross)
+            if line is not None:
+                warnings.warn(line, RoughSurfaceWarning, stacklevel=3)
 
 
 def rough_materials(table: "MaterialTable") -> tuple[str, ...]:

@@ -38,7 +38,8 @@ from ..core.valid_ranges import unknown_name
 from ..core.outputs import product_kind
 from .ground import ground_shapes
 from .rough_tables import coherent_factor, rough_tables
-from .rough_presets import PRESETS, preset_surface
+from .rough_presets import PRESETS, ROLE_PRESETS, preset_row, preset_surface
+from .roles import shape_roles
 from ..core.constants import SPEED_OF_LIGHT
 from .mitsuba_errors import located, mitsuba_message
 from .motion import ShapeMotion, file_velocities, moving_shapes, swept_box, xml_velocities
@@ -407,13 +408,39 @@ def _override_materials(scene: Any, overrides: Mapping[str, Any]) -> None:
                              f"it cannot be combined with {', '.join(sorted(overrides))}")
     if preset is not None and str(preset) not in PRESETS:
         raise ParameterError(unknown_name("roughness preset", str(preset), tuple(PRESETS)))
-    for bsdf in {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values():
+    bsdfs = {id(s.bsdf()): s.bsdf() for s in scene.shapes()}.values()
+    for bsdf in bsdfs:
         if preset is not None and hasattr(bsdf, "set_surface"):
             # an ITU class the preset names takes its surface; other materials keep theirs
             if str(preset) == "none" or bsdf.itu_name in PRESETS[str(preset)]:
                 bsdf.set_surface(preset_surface(str(preset), bsdf.itu_name))
         elif hasattr(bsdf, "set_roughness"):
             bsdf.set_roughness(**{k: float(v) for k, v in overrides.items()})
+    if preset is not None:
+        _set_role_surfaces(scene, str(preset))
+
+
+def _set_role_surfaces(scene: Any, preset: str) -> None:
+    """Where the preset's rules say a class does not describe a role's surface (Sionna's metal
+    roofs), the shapes of that role take the role's surface (docs/physics.md (RS8)). The roles are
+    cast only when some material in the scene has such a rule."""
+    rules = ROLE_PRESETS[preset][1]
+    shapes = list(scene.shapes())
+    ruled = {r for bsdf in (s.bsdf() for s in shapes) for (name, r) in rules
+             if getattr(bsdf, "itu_name", None) == name and hasattr(bsdf, "set_role_surfaces")}
+    if not ruled:
+        return
+    roles = shape_roles(scene)
+    by_bsdf: dict[int, tuple[Any, dict]] = {}
+    for shape, role in zip(shapes, roles.role):
+        bsdf = shape.bsdf()
+        if hasattr(bsdf, "set_role_surfaces") and (bsdf.itu_name, role) in rules:
+            shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+            by_bsdf.setdefault(id(bsdf), (bsdf, {}))[1][shape_id] = role
+    for bsdf, members in by_bsdf.values():
+        rows = {r: preset_row(preset, bsdf.itu_name, r) for r in set(members.values())}
+        bsdf.set_role_surfaces({r: row.surface for r, row in rows.items()}, members,
+                               {r: row.material for r, row in rows.items()})
 
 
 #: A vertex counts as distinct from the frame's origin, and from the line of its first axis,
@@ -519,12 +546,16 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
             raise SceneError(f"shape {shape.id()!r} uses BSDF {bsdf.class_().name() if hasattr(bsdf, 'class_') else bsdf}"
                              ", which has no radar properties; give it a <bsdf type=\"radar\"> or "
                              "<bsdf type=\"itu-radio-material\">")
-        material = bsdf.material_at(frequency)
-        key = bsdf.id_key            # one row per BSDF object: inline (id-less) BSDFs share no name
+        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+        # one row per BSDF object (inline, id-less BSDFs share no name) and role whose surface
+        # a preset's rule gives it (RS8)
+        role = bsdf.role_of(shape_id) if hasattr(bsdf, "role_of") else None
+        material = bsdf.material_at(frequency) if role is None else bsdf.role_material_at(role, frequency)
+        key = (bsdf.id_key, role)
         if key not in rows:
             rows[key] = len(tables)
-            names.append(bsdf.name)
-            surface = getattr(bsdf, "surface", None)
+            names.append(bsdf.name if role is None else f"{bsdf.name} ({role})")
+            surface = getattr(bsdf, "surface", None) if role is None else bsdf.role_surfaces[role]
             # a rough surface's specular reflection carries its coherent factor (RS6)
             coherent = 1.0 if surface is None else coherent_factor(surface, wavenumber, np.linspace(0, 1, TABLE_SIZE))
             tables_te.append((materials.reflection_table(material, frequency, "HH", n=TABLE_SIZE) * coherent).astype(np.complex64))
@@ -534,9 +565,8 @@ def material_table(scene: Any, frequency: float, polarization: str) -> MaterialT
             tables.append(tables_tm[-1] if polarization == "VV" else tables_te[-1])
             cross_pol.append(getattr(bsdf, "cross_pol", 0.0))
             grazing.append(materials.grazing_impedance(material, frequency))
-            clutter.append(bsdf.clutter)
-            specular.append(bsdf.specular_factor)
-        shape_id = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+            clutter.append(bsdf.clutter if role is None else ((3, 1.0) if surface is not None else (0, 0.0)))
+            specular.append(bsdf.specular_factor if role is None else 1.0)
         # the clutter hash's key: the shape's id, or for an id-less shape its place in the file
         # (never its position, so moving it keeps its speckle; never shared, so two id-less
         # copies of one shape get independent speckle)

@@ -1,8 +1,12 @@
-"""Roughness presets: one setting that gives every ITU-R P.2040 material class of a scene a rough
-surface (docs/physics.md (RS7)), the one-line summary of a rough material that ``info`` prints, and
-the one-line warning for a rough material outside the model's validated range (RS5).
+"""Roughness presets: one setting that gives every surface of a scene a rough surface by its ITU-R
+P.2040 material class and its role (roof, facade, ground, underside; :mod:`.roles`), docs/physics.md
+(RS7), (RS8); the one-line summary of a rough material that ``info`` prints, and the one-line
+warning for a rough material outside the model's validated range (RS5).
 
-The ``city`` preset's rows say where their numbers come from; most are assumptions, and say so.
+The ``city`` preset's rows and rules say where their numbers come from; most are assumptions, and
+say so. A class takes its own row in every role, except where :data:`CITY_RULES` says that the
+class does not describe that role's surface (Sionna's metal roofs): there the role's row of
+:data:`CITY_ROLES` applies.
 """
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ from .fresnel import MaterialError
 from .rough_tables import CONDUCTOR_PERMITTIVITY
 from .roughness import CROSS_KS_LIMIT, KS_LIMIT, SLOPE_LIMIT, RoughSurface, outside_range, sigma0_backscatter
 
-__all__ = ["PresetRow", "PRESETS", "preset_surface", "describe_surface", "range_warning", "INVISIBLE_DB"]
+__all__ = ["PresetRow", "PRESETS", "ROLE_PRESETS", "CITY_ROLES", "CITY_RULES", "preset_row", "preset_surface", "describe_surface", "range_warning", "INVISIBLE_DB"]
 
 #: A sigma nought below this [dB] lies far below the noise floor of any radar: the clutter, though
 #: on, adds nothing (said in :func:`range_warning`).
@@ -31,10 +35,14 @@ class PresetRow:
         None: the class stays smooth (PO only).
     source : str
         Where the numbers come from, or ``"assumption: ..."``.
+    material : str or None
+        A role's row only: the ITU class whose permittivity the role's surfaces take where a rule
+        applies (a metal-labelled roof of tiles is no conductor); None keeps the class's own.
     """
 
     surface: RoughSurface | None
     source: str
+    material: str | None = None
 
 
 def _row(s_mm: float, l_mm: float, correlation: str, source: str) -> PresetRow:
@@ -69,12 +77,40 @@ CITY = {
     "vacuum": PresetRow(None, "assumption: not a surface, smooth"),
 }
 
+#: ``city``: the surface of each role (:data:`sarmitsuba.scene.roles.ROLES`) where the class does
+#: not describe it (:data:`CITY_RULES`). rms height and correlation length in mm.
+CITY_ROLES = {
+    "roof": PresetRow(RoughSurface(5e-3, 25e-3, "exponential"),
+                      "assumption: a European city's roofs are clay or concrete tiles, or gravel ballast (16-32 mm "
+                      "grading, DIN 18531) on a flat roof; s = 5 mm and l = 25 mm stand for a tile's profile and a "
+                      "gravel bed alike (k s = 1 at 9.6 GHz), and concrete's permittivity for tile and stone",
+                      "concrete"),
+    "facade": PresetRow(CITY["marble"].surface, "as marble: rendered or dressed-stone facades (assumption)", "marble"),
+    "ground": PresetRow(CITY["concrete"].surface, "as concrete: paved streets and squares (ISO 13473-1 "
+                                                  "macrotexture; assumption as for concrete)", "concrete"),
+    "underside": PresetRow(CITY["marble"].surface, "assumption: a soffit is finished as the facade above it; "
+                                                   "the radar meets it only after another bounce", "marble"),
+}
+
+_ROOF_LABEL = ("assumption: Sionna's city scenes label every roof itu_metal (all 1,142 of Munich's) and footprint "
+               "cities give a building one class; neither says what covers the roof, so the roof's surface applies")
+#: ``city``: (class, role) pairs whose class does not describe the surface; the role's row applies.
+CITY_RULES = {
+    **{(name, "roof"): _ROOF_LABEL for name in ("metal", "concrete", "marble", "brick", "wood", "asphalt_concrete")},
+    ("metal", "ground"): "assumption: metal-labelled ground is a mislabel (no city street is sheet metal)",
+    ("asphalt_concrete", "facade"): "assumption: asphalt-labelled walls are a mislabel; the facade's surface applies",
+}
+
 #: Presets by name (``--material-set roughness=NAME``); ``none`` makes every material smooth.
 PRESETS = {"city": CITY, "none": {}}
+#: Each preset's role rows and rules (``none``: none).
+ROLE_PRESETS = {"city": (CITY_ROLES, CITY_RULES), "none": ({}, {})}
 
 
-def preset_surface(preset: str, itu_name: str | None) -> RoughSurface | None:
-    """The surface the preset gives an ITU class (None: smooth, or not an ITU material).
+def preset_row(preset: str, itu_name: str | None, role: str | None = None) -> PresetRow | None:
+    """The :class:`PresetRow` the preset gives an ITU class in a role (None: the preset does not
+    name the class; ``role`` None: the class's own row). A (class, role) pair of the preset's rules
+    takes the role's row, with the rule's source prepended.
 
     Raises
     ------
@@ -83,7 +119,24 @@ def preset_surface(preset: str, itu_name: str | None) -> RoughSurface | None:
     """
     if preset not in PRESETS:
         raise MaterialError(f"roughness preset {preset!r} is unknown; valid: {', '.join(PRESETS)}")
-    row = PRESETS[preset].get(itu_name) if itu_name is not None else None
+    if itu_name is None or itu_name not in PRESETS[preset]:
+        return None
+    roles, rules = ROLE_PRESETS[preset]
+    if role is not None and (itu_name, role) in rules:
+        return PresetRow(roles[role].surface, f"{rules[itu_name, role]}; {roles[role].source}", roles[role].material)
+    return PRESETS[preset][itu_name]
+
+
+def preset_surface(preset: str, itu_name: str | None, role: str | None = None) -> RoughSurface | None:
+    """The surface the preset gives an ITU class in a role (None: smooth, or not an ITU material);
+    see :func:`preset_row`.
+
+    Raises
+    ------
+    MaterialError
+        For an unknown preset name.
+    """
+    row = preset_row(preset, itu_name, role)
     return None if row is None else row.surface
 
 
