@@ -240,6 +240,13 @@ def _add_scene_command(sub) -> None:
                                                           "and report each (default: refuse them)")
     fp.add_argument("--set", dest="sensor_set", type=cli_types.assignment, action="append", default=[],
                     metavar="NAME=VALUE", help="a sar sensor parameter written into scene.xml (repeatable)")
+    fp.add_argument("--windows", action="store_true",
+                    help="recessed windows of glass (and, with balcony_share, balconies) on every wall: 3 m storeys, "
+                         "1.2 m x 1.5 m windows every 3 m, 0.15 m deep, unless --facade-set says otherwise")
+    fp.add_argument("--facade-set", dest="facade_set", type=cli_types.assignment, action="append", default=[],
+                    metavar="NAME=VALUE", help="a facade setting (implies --windows): floor_height, window_width, "
+                                               "window_height, window_spacing, sill_height, recess_depth (m), "
+                                               "balcony_share (0-1), balcony_depth (m), seed (repeatable)")
 
 
 def _scene(args: argparse.Namespace) -> int:
@@ -247,10 +254,17 @@ def _scene(args: argparse.Namespace) -> int:
     import time
 
     from .scene import city
+    from .scene.facades import FacadeError, FacadeLayout
     from .scene.footprints import FootprintError
     start = time.perf_counter()
     options = {k: getattr(args, k) for k in ("scattering_coefficient", "ground_scattering_coefficient")
                if getattr(args, k) is not None}
+    if args.windows or args.facade_set:
+        try:
+            options["facade"] = FacadeLayout.from_mapping(dict(args.facade_set))
+        except FacadeError as exc:
+            print(f"error: --facade-set: {exc}", file=sys.stderr)
+            return 2
     try:
         built = city.build_city(args.footprints, default_height=args.default_height, material=args.material,
                                 ground_material=args.ground_material, dem=args.dem, elevation=args.elevation,

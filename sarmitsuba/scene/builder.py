@@ -129,13 +129,12 @@ class Scene:
 
     @classmethod
     def from_city(cls, city: Any, name: str | None = None) -> "Scene":
-        """The Scene of a :class:`sarmitsuba.scene.city.City`: its buildings (shape ids
-        ``mesh-<slug>``), ground (``mesh-ground``), materials and ``sar`` sensor, as
+        """The Scene of a :class:`sarmitsuba.scene.city.City`: its buildings' parts (shape ids
+        ``mesh-<slug>`` for the walls, ``mesh-<slug>-roof``, ``mesh-<slug>-windows``), ground (``mesh-ground``), materials and ``sar`` sensor, as
         :func:`~sarmitsuba.scene.city.write_city` writes them; named after the footprint file."""
         from pathlib import Path
         specs = {key: {"id": key, **spec} for key, spec in city.material_specs().items()}
-        meshes = [(mesh, specs[footprint.material], f"mesh-{footprint.slug}") for footprint, mesh in city.buildings]
-        meshes.append((city.ground, specs["ground"], "mesh-ground"))
+        meshes = [(mesh, specs[material], f"mesh-{name}") for name, mesh, material in city.shapes()]
         return cls(meshes, sensor=city.sensor, name=name or Path(city.source).stem)
 
     @property

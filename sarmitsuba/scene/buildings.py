@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-__all__ = ["building_mesh", "flat_building_mesh", "roof_planes", "roof_height_at"]
+__all__ = ["building_mesh", "building_parts", "flat_building_mesh", "roof_planes", "roof_height_at"]
 
 #: Shared vertices are merged to 1e-6 m (pieces cut from one outline meet to rounding).
 _MERGE_DIGITS = 6
@@ -180,6 +180,74 @@ def building_mesh(polygon, base: float, eaves: float, roof_shape: str = "flat", 
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.remove_unreferenced_vertices()
     return mesh
+
+
+def building_parts(polygon, base: float, eaves: float, roof_shape: str = "flat", roof_height: float = 0.0,
+                   across: bool = False, ground: float | None = None, facade=None, key: str = "") -> dict:
+    """One building as the meshes of its parts, so that each is one surface to a radar
+    (:mod:`sarmitsuba.scene.roles`): ``"roof"`` (the roof's planes), ``"walls"`` (the walls and
+    the floor; with ``facade``, their window recesses and balconies) and, with ``facade``,
+    ``"windows"`` (the panes). Together they close the building as :func:`building_mesh` does
+    (balconies stand on the wall).
+
+    Parameters
+    ----------
+    polygon, base, eaves, roof_shape, roof_height, across
+        As :func:`building_mesh`.
+    ground : float, m, optional
+        Height of the ground the storeys count from (default ``base``).
+    facade : sarmitsuba.scene.facades.FacadeLayout, optional
+        Windows and balconies (:func:`sarmitsuba.scene.facades.wall_with_windows`); None: plain walls.
+    key : str
+        The building's name: seeds its balconies.
+
+    Returns
+    -------
+    dict of str -> trimesh.Trimesh
+        Float64 vertices, outward normals; ``"windows"`` only where a window fits.
+    """
+    from .facades import wall_with_windows
+    if not eaves > base:
+        raise ValueError(f"eaves {eaves:g} m must lie above the base {base:g} m")
+    planes = roof_planes(polygon, roof_shape, roof_height, across)
+
+    def top(xy):
+        return eaves + roof_height_at(planes, xy)
+
+    groups: dict = {"roof": [], "walls": [], "windows": []}
+    for k, piece in _pieces(polygon, planes):
+        roof = _cap(piece, lambda xy, k=k: eaves + xy @ planes[k, :2] + planes[k, 2])
+        floor = _cap(piece, lambda xy: np.full(len(xy), base))
+        groups["roof"].append(roof)
+        groups["walls"].append((floor[0], floor[1][:, ::-1]))          # the floor faces down
+        corners, faces = _walls(piece, polygon, base, top)
+        if facade is None:
+            groups["walls"].append((corners, faces))
+            continue
+        n = len(corners) // 4
+        for i in range(n):
+            a, b = corners[i, :2], corners[i + n, :2]
+            wall_v, wall_f, pane_v, pane_f = wall_with_windows(
+                a, b, base, corners[i + 3 * n, 2], corners[i + 2 * n, 2], base if ground is None else ground,
+                eaves, facade, f"{key}/{k}/{i}")
+            groups["walls"].append((wall_v, wall_f))
+            if len(pane_f):
+                groups["windows"].append((pane_v, pane_f))
+    out = {}
+    for name, parts in groups.items():
+        if not parts:
+            continue
+        vertices, faces, count = [], [], 0
+        for v, f in parts:
+            vertices.append(v)
+            faces.append(f + count)
+            count += len(v)
+        mesh = trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=False)
+        mesh.merge_vertices(digits_vertex=_MERGE_DIGITS)
+        mesh.update_faces(mesh.nondegenerate_faces())
+        mesh.remove_unreferenced_vertices()
+        out[name] = mesh
+    return out
 
 
 def flat_building_mesh(polygon, base: float, height: float) -> trimesh.Trimesh:

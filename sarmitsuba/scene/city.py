@@ -37,7 +37,8 @@ import numpy as np
 from ..core import georef
 from ..core.folder_lock import STAGING_PREFIX, hold_folder
 from ..core.radar import RadarParameters
-from .buildings import building_mesh
+from .buildings import building_mesh, building_parts
+from .facades import FacadeLayout
 from .footprints import ROOF_PITCH_DEG, FootprintError, FootprintSet, building_material, read_footprints
 from .terrain import GroundSurface, flat_ground, read_dem
 
@@ -81,6 +82,13 @@ class City:
     scattering_coefficient, ground_scattering_coefficient : float
     dem : str or None
     repairs : tuple of str
+    parts : tuple of dict
+        Per building, the meshes of its parts (:func:`sarmitsuba.scene.buildings.building_parts`):
+        ``"walls"`` (with the floor, recesses and balconies), ``"roof"`` and, with a facade
+        layout, ``"windows"`` (glass panes). Written as separate shapes, so that a roughness
+        preset tells roofs from walls (:mod:`sarmitsuba.scene.roles`).
+    facade : FacadeLayout or None
+        The windows and balconies of every wall (:mod:`sarmitsuba.scene.facades`); None: plain walls.
     """
 
     source: str
@@ -94,6 +102,8 @@ class City:
     ground_scattering_coefficient: float = GROUND_SCATTERING_COEFFICIENT
     dem: str | None = None
     repairs: tuple = field(default_factory=tuple)
+    parts: tuple = field(default_factory=tuple)
+    facade: FacadeLayout | None = None
 
     def material_specs(self) -> dict[str, dict]:
         """BSDF parameters per material id: ``{"plugin": "itu-radio-material", "type": ..., ...}``."""
@@ -102,17 +112,37 @@ class City:
             specs[footprint.material] = {"plugin": "itu-radio-material", "type": footprint.material,
                                          "thickness": WALL_THICKNESS.get(footprint.material, DEFAULT_WALL_THICKNESS),
                                          "scattering_coefficient": self.scattering_coefficient}
+        if any("windows" in p for p in self.parts):
+            specs["glass"] = {"plugin": "itu-radio-material", "type": "glass", "thickness": WALL_THICKNESS["glass"],
+                              "scattering_coefficient": 0.0}
         specs["ground"] = {"plugin": "itu-radio-material", "type": self.ground_material,
                            "thickness": GROUND_THICKNESS, "scattering_coefficient": self.ground_scattering_coefficient}
         return specs
 
+    def shapes(self) -> list:
+        """``[(shape name, mesh, material id)]``: every building's parts (``slug``: walls,
+        ``slug-roof``, ``slug-windows``), then ``ground``, as :func:`write_city` writes them."""
+        out = []
+        for (footprint, closed), parts in zip(self.buildings, self.parts or [None] * len(self.buildings)):
+            if parts is None:
+                out.append((footprint.slug, closed, footprint.material))
+                continue
+            out += [(footprint.slug + ("" if name == "walls" else f"-{name}"), mesh,
+                     "glass" if name == "windows" else footprint.material) for name, mesh in parts.items()]
+        return out + [("ground", self.ground, "ground")]
+
+    def window_count(self) -> int:
+        """Windows of all facades (two triangles each)."""
+        return sum(len(p["windows"].faces) // 2 for p in self.parts if "windows" in p)
+
     def summary(self) -> str:
         """``12 buildings, 3,456 triangles, 480 m x 360 m about 48.13780 N, 11.57570 E, 519.0 m``."""
         x0, y0, x1, y1 = self.extent
-        triangles = sum(len(m.faces) for _, m in self.buildings) + len(self.ground.faces)
+        triangles = sum(len(m.faces) for _, m, _ in self.shapes())
         n = len(self.buildings)
-        return (f"{n} building{'' if n == 1 else 's'}, {triangles:,} triangles, {x1 - x0:.0f} m x {y1 - y0:.0f} m "
-                f"about {self.geo_origin.describe()}")
+        windows = f", {self.window_count():,} windows" if self.facade is not None else ""
+        return (f"{n} building{'' if n == 1 else 's'}{windows}, {triangles:,} triangles, {x1 - x0:.0f} m x "
+                f"{y1 - y0:.0f} m about {self.geo_origin.describe()}")
 
 
 def build_city(footprints: str | Path | FootprintSet, default_height: float | None = None,
@@ -120,7 +150,8 @@ def build_city(footprints: str | Path | FootprintSet, default_height: float | No
                elevation: float = 0.0, margin: float | None = None, repair: bool = False,
                scattering_coefficient: float = SCATTERING_COEFFICIENT,
                ground_scattering_coefficient: float = GROUND_SCATTERING_COEFFICIENT,
-               sensor: Mapping[str, Any] | None = None, origin: Any = None) -> City:
+               sensor: Mapping[str, Any] | None = None, origin: Any = None,
+               facade: FacadeLayout | None = None) -> City:
     """Read, check, project and extrude footprints (module docstring).
 
     Parameters
@@ -145,6 +176,8 @@ def build_city(footprints: str | Path | FootprintSet, default_height: float | No
         The local frame's origin instead of the footprints' centre (to share another scene's
         frame); its height replaces ``elevation`` (the ground stays at z = 0; with a DEM,
         z = DEM - height).
+    facade : FacadeLayout, optional
+        Windows (recessed panes of glass) and balconies on every wall (:mod:`sarmitsuba.scene.facades`).
 
     Raises
     ------
@@ -174,10 +207,11 @@ def build_city(footprints: str | Path | FootprintSet, default_height: float | No
                               "would sink its edges by the Earth's curvature; split the area into tiles"])
     ground = flat_ground(*extent) if terrain is None else terrain.mesh(ref)
     surface = GroundSurface(None if terrain is None else ground)
-    buildings, problems = [], []
+    buildings, parts, problems = [], [], []
     for footprint, outline in zip(fs.footprints, outlines):
         try:
             buildings.append((footprint, _building(footprint, outline, surface)))
+            parts.append(_building(footprint, outline, surface, facade, split=True))
         except ValueError as exc:
             problems.append(f"{fs.source}: {footprint.label}: {exc}")
     if problems:
@@ -187,7 +221,7 @@ def build_city(footprints: str | Path | FootprintSet, default_height: float | No
     RadarParameters.from_mapping(values)            # ParameterError names a bad one
     return City(fs.source, ref, tuple(buildings), ground, tuple(float(v) for v in extent), ground_material,
                 values, scattering_coefficient, ground_scattering_coefficient, None if dem is None else str(dem),
-                fs.repairs)
+                fs.repairs, tuple(parts), facade)
 
 
 def _check_options(ground_material: str, elevation: float, margin: float | None, *scattering: float) -> None:
@@ -225,8 +259,9 @@ def _project(polygon, ref: georef.GeoReference):
     return shapely.transform(polygon, to_local)
 
 
-def _building(footprint, outline, surface: GroundSurface):
-    """The closed mesh of one footprint on its lowest ground (flat: z = 0; DEM: its mesh under the outline)."""
+def _building(footprint, outline, surface: GroundSurface, facade: FacadeLayout | None = None, split: bool = False):
+    """The closed mesh of one footprint on its lowest ground (flat: z = 0; DEM: its mesh under the
+    outline); ``split``: its parts (:func:`~sarmitsuba.scene.buildings.building_parts`) with ``facade``."""
     ground = surface.lowest_under(outline)
     roof = footprint.roof_height
     if roof is None:                 # a 30 deg pitch over half the rectangle's short side
@@ -238,6 +273,9 @@ def _building(footprint, outline, surface: GroundSurface):
     if eaves <= 0.0:
         raise ValueError(f"roof:height {roof:g} m is not below the height {footprint.height:g} m; fix height "
                          "or roof:height")
+    if split:
+        return building_parts(outline, ground - BASE_DEPTH, ground + eaves, footprint.roof_shape, roof,
+                              footprint.roof_across, ground=ground, facade=facade, key=footprint.slug)
     return building_mesh(outline, ground - BASE_DEPTH, ground + eaves, footprint.roof_shape, roof,
                          footprint.roof_across)
 
@@ -260,7 +298,7 @@ def write_city(city: City, out: str | Path) -> Path:
             raise OSError(f"--out {out}: cannot create it ({exc.strerror or exc}); choose another folder") from None
         try:
             (staging / "meshes").mkdir()
-            for name, mesh in [(f.slug, m) for f, m in city.buildings] + [("ground", city.ground)]:
+            for name, mesh, _ in city.shapes():
                 lean = trimesh.Trimesh(np.asarray(mesh.vertices, np.float32), mesh.faces, process=False)
                 (staging / "meshes" / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(lean, encoding="binary"))
             (staging / "scene.xml").write_text(_xml(city), encoding="utf-8")
@@ -301,9 +339,9 @@ def _xml(city: City) -> str:
                   f'        <float name="scattering_coefficient" value="{spec["scattering_coefficient"]!r}"/>',
                   "    </bsdf>"]
     lines.append("")
-    shapes = [(f.slug, f.material, f.label) for f, _ in city.buildings] + [("ground", "ground", "ground")]
-    for slug, material, label in shapes:
-        lines += [f"    <!-- {escape(label).replace('--', '- -')} -->" if slug != "ground" else "",
+    labels = {f.slug: f.label for f, _ in city.buildings}
+    for slug, _, material in city.shapes():
+        lines += [f"    <!-- {escape(labels[slug]).replace('--', '- -')} -->" if slug in labels else "",
                   f'    <shape type="ply" id={quoteattr("mesh-" + slug)}>',
                   f'        <string name="filename" value={quoteattr(f"meshes/{slug}.ply")}/>',
                   '        <boolean name="face_normals" value="true"/>',
