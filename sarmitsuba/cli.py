@@ -213,7 +213,8 @@ def _add_focus_command(sub) -> None:
 
 def _add_scene_command(sub) -> None:
     """``scene from-footprints FILE.geojson --out DIR``: a scene folder from building footprints."""
-    scene = sub.add_parser("scene", help="make scenes: `scene from-footprints FILE.geojson --out DIR`")
+    scene = sub.add_parser("scene", help="make scenes: `scene from-footprints FILE.geojson --out DIR`, "
+                                         "`scene add-windows SCENE --out DIR`")
     make = scene.add_subparsers(dest="scene_command", required=True)
     fp = make.add_parser("from-footprints", help="a scene folder (scene.xml, meshes/) from building footprints in "
                                                  "GeoJSON (OpenStreetMap, cadastral, Microsoft/Google footprints)")
@@ -240,6 +241,7 @@ def _add_scene_command(sub) -> None:
                                                           "and report each (default: refuse them)")
     fp.add_argument("--set", dest="sensor_set", type=cli_types.assignment, action="append", default=[],
                     metavar="NAME=VALUE", help="a sar sensor parameter written into scene.xml (repeatable)")
+    _add_windows_command(make)
     fp.add_argument("--windows", action="store_true",
                     help="recessed windows of glass (and, with balcony_share, balconies) on every wall: 3 m storeys, "
                          "1.2 m x 1.5 m windows every 3 m, 0.15 m deep, unless --facade-set says otherwise")
@@ -249,9 +251,40 @@ def _add_scene_command(sub) -> None:
                                                "balcony_share (0-1), balcony_depth (m), seed (repeatable)")
 
 
+def _add_windows_command(make) -> None:
+    aw = make.add_parser("add-windows", help="a copy of a scene whose plain walls get recessed windows (a Sionna "
+                                             "city, a scene folder or XML file)")
+    aw.add_argument("scene", help="XML file, scene folder, built-in name or sionna:NAME")
+    aw.add_argument("--out", type=Path, required=True, help="folder for scene.xml and meshes/ (render takes it)")
+    aw.add_argument("--facade-set", dest="facade_set", type=cli_types.assignment, action="append", default=[],
+                    metavar="NAME=VALUE", help="a facade setting, as for from-footprints (repeatable)")
+
+
+def _add_windows(args: argparse.Namespace) -> int:
+    """``scene add-windows``: the scene's plain walls with windows, written to a new folder."""
+    import time
+
+    from .scene.facades import FacadeError, FacadeLayout
+    from .scene.loader import resolve_source
+    from .scene.windowed import write_windowed
+    start = time.perf_counter()
+    try:
+        layout = FacadeLayout.from_mapping(dict(args.facade_set))
+    except FacadeError as exc:
+        print(f"error: --facade-set: {exc}", file=sys.stderr)
+        return 2
+    source = resolve_source(args.scene)
+    written = write_windowed(source, args.out, layout)
+    print(f"windows for {args.scene}: {time.perf_counter() - start:.1f} s, {written.summary()} -> {written.path} "
+          f"(render it: .venv/bin/python -m sarmitsuba render {written.path})")
+    return 0
+
+
 def _scene(args: argparse.Namespace) -> int:
     """``scene from-footprints``: build, check and write a footprint scene; one line per bad feature."""
     import time
+    if args.scene_command == "add-windows":
+        return _add_windows(args)
 
     from .scene import city
     from .scene.facades import FacadeError, FacadeLayout

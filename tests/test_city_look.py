@@ -18,7 +18,7 @@ import trimesh
 import sarmitsuba as sm
 from sarmitsuba.analysis import point_target as analysis
 from sarmitsuba.pipeline import simulate
-from sarmitsuba.scene.facades import FacadeError, FacadeLayout, wall_with_windows
+from sarmitsuba.scene.facades import FacadeError, FacadeLayout, add_windows, wall_with_windows
 from sarmitsuba.scene.loader import load_scene, material_table
 from sarmitsuba.scene.materials import itu_material_names
 from sarmitsuba.scene.roles import ROLES, face_roles, shape_roles
@@ -213,3 +213,50 @@ def test_the_window_grid_sets_the_azimuth_spectrum_of_the_facade():
     band = freq > 0.2
     peak = freq[band][np.argmax(spectrum[band])]
     assert peak == pytest.approx(1 / 2.5, rel=0.05), peak
+
+
+def test_add_windows_cuts_the_plain_walls_of_a_closed_building():
+    """A 20 m x 11 m box building, 9 m tall: its four walls are upright rectangles of two
+    triangles each. With the default layout (3 m storeys and bays, 1.2 m x 1.5 m windows 0.15 m
+    deep, 0.3 m of wall around each) the long walls hold 1 + (20 - 0.6 - 1.2) // 3 = 7 bays and the
+    short ones 1 + (11 - 1.8) // 3 = 4, on 3 storeys: 66 windows; the body stays closed, its volume
+    less each recess, ``66 x 1.2 x 1.5 x 0.15`` m^3, and the panes face out.
+    A gable wall (a triangle) is left as it is. Bugs: bays counted from the wall's end instead of
+    centred (a window cut by the corner), walls taken to face inward (recesses standing out of
+    the body: the volume grows)."""
+    box = trimesh.creation.box(bounds=[[0, 0, 0], [20, 11, 9]])
+    layout = FacadeLayout()
+    v, f, pv, pf, count = add_windows(box.vertices, box.faces, layout, "box")
+    assert count == 2 * 3 * 7 + 2 * 3 * 4 == 66
+    body = trimesh.Trimesh(np.vstack([v, pv]), np.vstack([f, pf + len(v)]), process=False)
+    assert body.volume == pytest.approx(20 * 11 * 9 - 66 * 1.2 * 1.5 * 0.15, rel=1e-9)
+    centre = np.array([10.0, 5.5, 4.5])
+    panes = trimesh.Trimesh(pv, pf, process=False)
+    outward = np.einsum("ij,ij->i", panes.face_normals, panes.triangles_center - centre)
+    assert np.all(outward > 0)
+    gable = trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [5, 0, 6]], [[0, 2, 1]], process=False)
+    v2, f2, _, pf2, n2 = add_windows(gable.vertices, gable.faces, layout)
+    assert n2 == 0 and len(pf2) == 0 and np.array_equal(f2, gable.faces)
+
+
+def test_add_windows_writes_a_scene_that_loads(tmp_path):
+    """``scene add-windows`` on a scene file: the walls get windows, the panes a glass shape, and
+    the copy loads with every shape; the original is untouched."""
+    from sarmitsuba.scene.windowed import GLASS_ID, write_windowed
+    box = trimesh.creation.box(bounds=[[-10, -5, 0], [10, 5, 9]])
+    walls = trimesh.Trimesh(box.vertices, box.faces[np.abs(box.face_normals[:, 2]) < 0.5], process=False)
+    walls.export(tmp_path / "walls.ply")
+    (tmp_path / "city.xml").write_text(
+        '<scene version="3.0.0"><sensor type="sar"><string name="scene_center" value="0, 0, 0"/></sensor>'
+        '<bsdf type="itu-radio-material" id="marble"><string name="type" value="marble"/></bsdf>'
+        '<shape type="ply" id="mesh-walls"><string name="filename" value="walls.ply"/><ref id="marble" name="bsdf"/></shape>'
+        '<shape type="rectangle" id="ground"><transform name="to_world"><scale x="40" y="40"/></transform>'
+        '<ref id="marble" name="bsdf"/></shape></scene>')
+    written = write_windowed(tmp_path / "city.xml", tmp_path / "out", FacadeLayout())
+    assert written.windows == 2 * 3 * 7 + 2 * 3 * 3 and written.facades == 1      # 20 m: 7 bays, 10 m: 3
+    loaded = load_scene(str(written.path))
+    ids = [s.id() for s in loaded.scene.shapes()]
+    assert sorted(ids) == ["ground", "mesh-walls", "mesh-walls-windows"]
+    pane = next(s for s in loaded.scene.shapes() if s.id() == "mesh-walls-windows")
+    assert pane.bsdf().itu_name == "glass" and pane.bsdf().name == GLASS_ID
+    assert len(trimesh.load(tmp_path / "walls.ply", process=False).faces) == 8

@@ -29,7 +29,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-__all__ = ["FacadeLayout", "wall_with_windows", "EDGE_MARGIN", "BALCONY_THICKNESS", "FacadeError"]
+__all__ = ["FacadeLayout", "wall_with_windows", "wall_rectangles", "add_windows", "EDGE_MARGIN", "BALCONY_THICKNESS",
+           "FacadeError"]
 
 #: m: wall left around every window (to the wall's ends, its foot and its eaves) and beside balconies.
 EDGE_MARGIN = 0.3
@@ -204,3 +205,92 @@ def wall_with_windows(start, end, base: float, top_start: float, top_end: float,
     pane_v = np.vstack(panes_v) if panes_v else np.zeros((0, 3))
     pane_f = np.vstack(panes_f) if panes_f else np.zeros((0, 3), np.int64)
     return np.vstack(vertices), np.vstack(faces), pane_v, pane_f
+
+
+def wall_rectangles(vertices: np.ndarray, faces: np.ndarray) -> list:
+    """The plain walls of a mesh: pairs of coplanar vertical triangles (normal within
+    :data:`sarmitsuba.scene.roles.STEEP_DEG` of horizontal) that share an edge and make a rectangle
+    with a horizontal bottom and top, as extruded city models build their walls.
+
+    Returns
+    -------
+    list of (i, j, start, end, bottom, top)
+        The two triangles' indices, and the wall from ``start`` to ``end`` (x, y; the wall faces
+        to their right, as :func:`wall_with_windows` takes it) between heights ``bottom`` and ``top``.
+    """
+    from .roles import STEEP_DEG
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        return []
+    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    length = np.linalg.norm(normal, axis=1)
+    normal = np.divide(normal, length[:, None], out=np.zeros_like(normal), where=length[:, None] > 0)
+    steep = (np.abs(normal[:, 2]) < math.sin(math.radians(STEEP_DEG))) & (length > 0)
+    scale = max(1.0, float(np.abs(v).max()))
+    key = np.round(v / (1e-6 * scale)).astype(np.int64)          # vertices equal to rounding
+    _, vid = np.unique(key, axis=0, return_inverse=True)
+    vid = vid.ravel()
+    edges: dict = {}
+    for t in np.flatnonzero(steep):
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            edges.setdefault(tuple(sorted((vid[f[t, a]], vid[f[t, b]]))), []).append(t)
+    out, used = [], set()
+    tolerance = 1e-4 * scale
+    for pair in edges.values():
+        if len(pair) != 2 or pair[0] in used or pair[1] in used:
+            continue
+        i, j = pair
+        if normal[i] @ normal[j] < 1.0 - 1e-6:
+            continue
+        corners = {vid[x]: v[x] for x in np.concatenate([f[i], f[j]])}
+        if len(corners) != 4:
+            continue
+        p = np.array(list(corners.values()))
+        low = p[:, 2] < p[:, 2].min() + tolerance
+        high = p[:, 2] > p[:, 2].max() - tolerance
+        if low.sum() != 2 or high.sum() != 2 or np.any(low & high):
+            continue
+        bottom, top = p[low], p[high]
+        if not np.allclose(np.sort(bottom[:, :2], axis=0), np.sort(top[:, :2], axis=0), atol=tolerance):
+            continue
+        a, b = bottom[0, :2], bottom[1, :2]
+        right = np.array([b[1] - a[1], a[0] - b[0]])               # to the right of a -> b
+        if right @ normal[i, :2] < 0:
+            a, b = b, a
+        used |= {i, j}
+        out.append((i, j, a, b, float(bottom[0, 2]), float(top[0, 2])))
+    return out
+
+
+def add_windows(vertices: np.ndarray, faces: np.ndarray, layout: FacadeLayout, key: str = ""):
+    """A mesh with windows in its plain walls (:func:`wall_rectangles`): each such wall's two
+    triangles replaced by :func:`wall_with_windows` from its bottom (the ground its storeys count
+    from) to its top; other faces kept as they are.
+
+    Returns
+    -------
+    vertices float64 [n, 3], faces int64 [m, 3], pane_vertices float64 [k, 3], pane_faces int64 [j, 3], windows int
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    walls = wall_rectangles(v, f)
+    keep = np.ones(len(f), bool)
+    parts_v, parts_f, panes_v, panes_f = [v], [f], [], []
+    count, pane_count, windows = len(v), 0, 0
+    for n, (i, j, a, b, bottom, top) in enumerate(walls):
+        wall_v, wall_f, pane_v, pane_f = wall_with_windows(a, b, bottom, top, top, bottom, top, layout, f"{key}/{n}")
+        if not len(pane_f):
+            continue                                               # no window fits: the wall as it was
+        keep[[i, j]] = False
+        parts_v.append(wall_v)
+        parts_f.append(wall_f + count)
+        count += len(wall_v)
+        panes_v.append(pane_v)
+        panes_f.append(pane_f + pane_count)
+        pane_count += len(pane_v)
+        windows += len(pane_f) // 2
+    parts_f[0] = f[keep]
+    pane_v = np.vstack(panes_v) if panes_v else np.zeros((0, 3))
+    pane_f = np.vstack(panes_f) if panes_f else np.zeros((0, 3), np.int64)
+    return np.vstack(parts_v), np.vstack(parts_f), pane_v, pane_f, windows
