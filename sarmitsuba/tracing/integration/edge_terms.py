@@ -20,7 +20,7 @@ from . import jones as pol
 from ..device import device_array
 from .edges import GRAZING_EDGE, SINGULAR_STEP, SINGULAR_WINDOW, TRANSITION_SERIES
 
-__all__ = ["EdgeTerms", "boundary_clearance", "boundary_step", "fringe_coefficients", "sinc", "x_dsinc",
+__all__ = ["EdgeTerms", "edge_tangent", "boundary_clearance", "boundary_step", "fringe_coefficients", "sinc", "x_dsinc",
            "end_slope", "MIN_END_ALPHA"]
 
 _SMALL = 1e-4
@@ -50,6 +50,31 @@ def sinc(x):
 def x_dsinc(x):
     """``x d sinc(x) / dx = cos(x) - sinc(x)``."""
     return dr.select(dr.abs(x) < _SMALL, -x * x * (1.0 / 3.0), dr.cos(x) - dr.sin(x) / x)
+
+
+def edge_tangent(edge, x0, n0):
+    """The unit tangent of each lane's edge (either sense: the edge terms are even in it): its
+    segment's direction ``edge``, or where that has no length the wedge's ``x0 x n0`` (zero on a
+    lane of no wedge, whose edge terms are not deposited).
+
+    A sub-aperture moves a segment's ends with the antenna, ``x + t x'`` (docs/physics.md (M8)):
+    a short segment that a moving line (a mirrored window's, (M3), or a shadow's) cuts shrinks to
+    a point at the pulse where that line reaches its other end (a recessed window's pane corner at
+    the second bounce: 1.4 mm at ``A``, exactly zero in float32 at the pulse 6.4 m before it,
+    tests/test_recess_edges.py). There ``edge`` is zero and ``normalize`` gave NaN, which the
+    fringe (E4) and the double term (E6) carried into the deposit (NaN times the segment's zero
+    line integral: UnrepresentableSum, (D7)). The wedge's own direction keeps the Keller cone's
+    angles, and so the double lane's grazing leg, what they are on a segment of any length; the
+    term, ``|a| sinc`` (or a split end's ``1 / (k u . a^)`` at its floor), is zero, the limit of
+    the shrinking segment's."""
+    length2 = dr.squared_norm(edge)
+    some = length2 > 0.0
+    frame = dr.cross(x0, n0)
+    frame = frame * dr.rsqrt(dr.maximum(dr.squared_norm(frame), 1e-30))
+    # dr.normalize's own arithmetic where the segment has a length (the same bits), and no
+    # division by zero on either side of the select (whose other side would still carry NaN
+    # into a replayed reverse pass)
+    return dr.select(some, edge * dr.rsqrt(dr.select(some, length2, 1.0)), frame)
 
 
 def _cot(x):
@@ -185,8 +210,8 @@ class EdgeTerms:
         whether the lane carries it (not deferred to the wedge's other face): the Dr.Jit form of
         :func:`sarmitsuba.tracing.integration.edges.edge_field` (its NumPy reference)."""
         r = self.r
-        t = dr.normalize(data["edge"])
         x0, xn = data["wedge_x0"], data["wedge_xn"]
+        t = edge_tangent(data["edge"], x0, n0)
         two_pi = 2.0 * math.pi
 
         def angle(v):
@@ -297,8 +322,8 @@ class EdgeTerms:
         grazing, diffracted again toward the receiver. Hard polarisation only (a soft wave
         vanishes on the face at grazing). NumPy reference: :func:`sarmitsuba.tracing.integration.edges.double_field`."""
         r, k = self.r, self.k
-        t = dr.normalize(data["edge"])
         x0, across = data["wedge_x0"], data["across"]
+        t = edge_tangent(data["edge"], x0, n0)
         two_pi = 2.0 * math.pi
 
         def angle(v, x):
