@@ -94,7 +94,7 @@ def test_terrain_is_the_dem_grid_and_the_total_is_the_closed_form(small):
     written = cg.count_triangles(xml)
     assert written == plan.building_triangles() + len(ground.faces)
     assert abs(written - plan.triangles()) <= 4 * n + 4                   # the closed form, to a pixel row
-    assert len(list((Path(xml).parent / "meshes").glob("*.ply"))) == len(plan.kinds) + 1
+    assert len(list((Path(xml).parent / "meshes").glob("*.ply"))) == 2 * len(plan.kinds) + 1   # walls, roofs, ground
 
 
 def test_the_dask_path_gives_the_one_process_raw_data(small):

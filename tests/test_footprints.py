@@ -171,11 +171,12 @@ def test_render_takes_the_folder(tmp_path):
     data = collection(feature([rectangle(0, 0, 20, 10)], height=10))
     out = tmp_path / "city"
     assert main(["scene", "from-footprints", str(write(tmp_path, data)), "--out", str(out)]) == 0
-    assert sorted(p.name for p in (out / "meshes").iterdir()) == ["b0.ply", "ground.ply"]
+    # each building's walls and roof are shapes of their own (the city preset tells them apart)
+    assert sorted(p.name for p in (out / "meshes").iterdir()) == ["b0-roof.ply", "b0.ply", "ground.ply"]
     from sarmitsuba.scene.loader import load_scene
     for source in (out, out / "scene.xml"):
         loaded = load_scene(str(source))
-        assert loaded.params.geo_origin is not None and loaded.n_shapes == 2
+        assert loaded.params.geo_origin is not None and loaded.n_shapes == 3     # walls, roof, ground
 
 
 # --- bad input: exit 2, one line per feature, nothing written ----------------------------------------
@@ -207,7 +208,7 @@ def test_repair_reports_each_feature(tmp_path, capsys):
     assert main(["scene", "from-footprints", str(write(tmp_path, data)), "--out", str(out), "--repair"]) == 0
     err = capsys.readouterr().err
     assert err.count("repaired: ") == 1 and "feature 0 (id way/1)" in err and "MultiPolygon of 2 part" in err
-    assert len(list((out / "meshes").iterdir())) == 3
+    assert len(list((out / "meshes").iterdir())) == 5          # two buildings' walls and roofs, the ground
 
 
 @pytest.mark.parametrize("text, words", [("not json at all", "not GeoJSON"),
@@ -239,7 +240,7 @@ def test_rewrite_replaces_the_scene(tmp_path):
     two = collection(feature([rectangle(0, 0, 20, 10)], height=10), feature([rectangle(40, 0, 20, 10)], height=10))
     write_city(build_city(parse_footprints(two)), out)
     write_city(build_city(parse_footprints(collection(two["features"][0]))), out)
-    assert sorted(p.name for p in (out / "meshes").iterdir()) == ["b0.ply", "ground.ply"]
+    assert sorted(p.name for p in (out / "meshes").iterdir()) == ["b0-roof.ply", "b0.ply", "ground.ply"]
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
 
 
