@@ -269,7 +269,7 @@ def shadow_mask(loaded: Any, image: SarImage, *, height_threshold: float = HEIGH
 
 
 def layover_mask(loaded: Any, image: SarImage, *, height_threshold: float = HEIGHT_THRESHOLD,
-                 oversample: int = 2, surfaces: str = "all") -> np.ndarray:
+                 oversample: int = 2, shapes: Any = None) -> np.ndarray:
     """Layover: pixels onto which elevated surfaces visible from the antenna are mapped.
 
     For every image row, a fan of rays leaves the row's zero-Doppler antenna in the plane
@@ -288,9 +288,9 @@ def layover_mask(loaded: Any, image: SarImage, *, height_threshold: float = HEIG
     oversample : int, default 2
         Rays per pixel spacing at the far edge (>= 1); the interval filling makes more
         unnecessary.
-    surfaces : {"all", "roofs", "facades"}
-        Which elevated surfaces count: all, those facing up (roofs: normal within 70 deg of
-        vertical) or the steep ones (facades), as :mod:`sarmitsuba.scene.roles` tells them apart.
+    shapes : collection of int, optional
+        Only the elevated surfaces of these shapes count (their indices in ``scene.shapes()``:
+        the roofs of :func:`sarmitsuba.scene.roles.shape_roles`, say); default all.
 
     Returns
     -------
@@ -298,9 +298,15 @@ def layover_mask(loaded: Any, image: SarImage, *, height_threshold: float = HEIG
     """
     if int(oversample) != oversample or oversample < 1:
         raise ValueError(f"oversample must be a whole number >= 1, got {oversample!r}")
-    if surfaces not in _FACING:
-        raise ValueError(f"surfaces must be one of {', '.join(_FACING)}, got {surfaces!r}")
-    return _layover(_frame(loaded, image), _threshold(height_threshold), int(oversample), surfaces)
+    frame = _frame(loaded, image)
+    ids = None
+    if shapes is not None:
+        import drjit as dr
+        import mitsuba as mi
+        every = list(frame.scene.shapes())
+        ids = np.array([int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(every[int(k)]))[0]) for k in shapes],
+                       np.uint32)
+    return _layover(frame, _threshold(height_threshold), int(oversample), ids)
 
 
 def double_bounce_mask(loaded: Any, image: SarImage, *,
@@ -493,13 +499,7 @@ def _double_bounce(frame: _Frame, threshold: float, footprint: np.ndarray | None
     return mask, (np.concatenate(points) if points else np.zeros((0, 3)))
 
 
-#: layover_mask's ``surfaces``: which hit normals count (``n_z`` against sin 20 deg, as
-#: :data:`sarmitsuba.scene.roles.STEEP_DEG`).
-_FACING = {"all": lambda nz: np.ones(nz.shape, bool), "roofs": lambda nz: nz >= math.sin(math.radians(20.0)),
-           "facades": lambda nz: np.abs(nz) < math.sin(math.radians(20.0))}
-
-
-def _layover(frame: _Frame, threshold: float, oversample: int, surfaces: str = "all") -> np.ndarray:
+def _layover(frame: _Frame, threshold: float, oversample: int, shapes: np.ndarray | None = None) -> np.ndarray:
     im = frame.image
     n_az, n_rg = im.data.shape
     look = im.range_direction
@@ -532,13 +532,12 @@ def _layover(frame: _Frame, threshold: float, oversample: int, surfaces: str = "
         antenna = frame.row_antennas(rows)
         origins = (antenna[:, None, :] + t_start[None, :, None] * dirs[None, :, :]).reshape(-1, 3)
         hit = intersect(frame.scene, origins, np.broadcast_to(dirs[None], (len(rows), n_rays, 3)).reshape(-1, 3),
-                        normals=surfaces != "all")
+                        normals=False)
         slant = (t_start[None, :] + hit["t"].reshape(len(rows), n_rays))            # |A - P|, m (float64)
         z = antenna[:, None, 2] - slant * np.sin(psi)[None, :]
         elevated = np.isfinite(slant) & (z - frame.z0 > threshold)
-        if surfaces != "all":        # the normal's side is the mesh's winding: its height counts either way
-            elevated &= _FACING[surfaces](np.abs(hit["n"][:, 2]) if surfaces == "roofs" else hit["n"][:, 2]
-                                          ).reshape(len(rows), n_rays)
+        if shapes is not None:
+            elevated &= np.isin(hit["shape"], shapes).reshape(len(rows), n_rays)
         with np.errstate(invalid="ignore"):
             r_img = r_antenna + np.sqrt(np.maximum(slant**2 - height**2, 0.0))
         col = (r_img - im.range[0]) / d_rg                                          # fractional column
