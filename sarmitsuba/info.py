@@ -121,6 +121,9 @@ class SceneSize:
     frame_offset_m: tuple[float, float, float]
     scene_center_m: tuple[float, float, float]
     materials: tuple[MaterialInfo, ...]
+    #: Windows of the facades (panes of the shapes whose id ends in ``-windows``, as
+    #: ``scene from-footprints --windows`` and ``scene add-windows`` write them); 0 without.
+    windows: int = 0
 
 
 @dataclass(frozen=True)
@@ -297,10 +300,16 @@ def _scene_size(loaded: LoadedScene) -> SceneSize:
     center = np.asarray(loaded.params.scene_center) + offset
     return SceneSize(source=loaded.source, path=str(loaded.path or "built in Python"),
                      has_sar_sensor=loaded.has_sensor,
-                     n_shapes=loaded.n_shapes, n_triangles=loaded.n_triangles,
+                     n_shapes=loaded.n_shapes, n_triangles=loaded.n_triangles, **_windows(loaded.scene),
                      bbox_min_m=_floats(loaded.bbox_lo + offset), bbox_max_m=_floats(loaded.bbox_hi + offset),
                      frame_offset_m=_floats(offset), scene_center_m=_floats(center),
                      materials=_materials(loaded.scene, loaded.params.frequency, loaded.params.incidence_angle))
+
+
+def _windows(scene: Any) -> dict:
+    """``windows`` of :class:`SceneSize`: two pane triangles a window."""
+    panes = sum(s.face_count() for s in scene.shapes() if s.is_mesh() and (s.id() or "").endswith("-windows"))
+    return {"windows": panes // 2}
 
 
 def _materials(scene: Any, frequency: float, incidence_deg: float) -> tuple[MaterialInfo, ...]:

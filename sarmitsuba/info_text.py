@@ -45,6 +45,8 @@ def _scene_lines(s: Any) -> list[str]:
              f"{'in the scene' if s.has_sar_sensor else 'absent (defaults)'}",
              f"bounding box {_vec(s.bbox_min_m)} .. {_vec(s.bbox_max_m)} m",
              f"scene centre {_vec(s.scene_center_m)} m, frame offset {_vec(s.frame_offset_m)} m",
+             *([f"windows {s.windows:,} (their recesses and panes are geometry: the estimated cost below "
+                "counts them; docs/physics.md (FA1))"] if s.windows else []),
              f"materials ({len(s.materials)}):"]
     for m in s.materials:
         rough = f"rough ({m.roughness})" if m.rough else "smooth"

@@ -260,3 +260,15 @@ def test_add_windows_writes_a_scene_that_loads(tmp_path):
     pane = next(s for s in loaded.scene.shapes() if s.id() == "mesh-walls-windows")
     assert pane.bsdf().itu_name == "glass" and pane.bsdf().name == GLASS_ID
     assert len(trimesh.load(tmp_path / "walls.ply", process=False).faces) == 8
+
+
+def test_info_counts_the_windows_of_a_footprint_city(tmp_path):
+    """``scene from-footprints --windows`` then ``info``: the windows info counts are those the
+    scene was built with (two pane triangles each). Bug: panes counted per triangle."""
+    from sarmitsuba.info import scene_info
+    from sarmitsuba.scene.city import build_city, write_city
+    from pathlib import Path
+    city = build_city(Path(__file__).resolve().parent.parent / "scenes" / "footprints.geojson", facade=FacadeLayout())
+    path = write_city(city, tmp_path / "city")
+    assert city.window_count() > 500
+    assert scene_info(str(path)).scene.windows == city.window_count()

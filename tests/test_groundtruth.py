@@ -198,3 +198,16 @@ def test_bad_arguments(dihedral):
         groundtruth.layover_mask(loaded, image, height_threshold=0.0)
     with pytest.raises(ValueError, match="oversample"):
         groundtruth.layover_mask(loaded, image, oversample=0)
+
+
+def test_layover_of_chosen_shapes(tower):
+    """``layover_mask(shapes=...)``: every shape's layover is the whole layover; the ground (never
+    elevated) lays over nothing; the tower alone lays over a part of it. Bug: shape indices taken
+    for Mitsuba's registry ids (a mask of the wrong shapes, or none)."""
+    loaded, image, truth = tower
+    shapes = list(loaded.scene.shapes())
+    index = {s.id(): k for k, s in enumerate(shapes)}
+    assert np.array_equal(groundtruth.layover_mask(loaded, image, shapes=range(len(shapes))), truth.layover)
+    assert not groundtruth.layover_mask(loaded, image, shapes=[index["ground"]]).any()
+    alone = groundtruth.layover_mask(loaded, image, shapes=[index["tower"]])
+    assert alone.any() and not np.any(alone & ~truth.layover)

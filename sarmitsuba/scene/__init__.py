@@ -26,12 +26,15 @@ it switches on (``EffectSet``):
 :mod:`.footprints`       GeoJSON building footprints: outlines, heights, roofs, materials
 :mod:`.city`             footprints -> local frame -> meshes -> scene folder (``City``)
 :mod:`.buildings`        closed building meshes with flat, gabled, hipped, pyramidal roofs
+:mod:`.facades`          windows and balconies as geometry on a wall
+:mod:`.windowed`         a copy of any scene whose plain walls get windows
+:mod:`.roles`            roof, facade, ground or underside: each surface's role
 :mod:`.terrain`          the ground: a plane, or a DEM GeoTIFF meshed at its resolution
 :mod:`.mesh_footprints`  a mesh scene's buildings as GeoJSON footprints
 =======================  ===============================================================
 
 Physics: (R) reflection coefficients, (R1)-(R3) radar equation, (T1)-(T2) ray footprint and
-refinement, (I1)-(I3) baselines, (FP1)-(FP3) scenes from footprints.
+refinement, (I1)-(I3) baselines, (FP1)-(FP3) scenes from footprints, (RS8) roles, (FA1) windows.
 
 ``from sarmitsuba.scene import load_scene`` (the module ``sarmitsuba.scene`` before the stage
 packages) still works: names not found here are looked up in :mod:`.loader`.
