@@ -140,7 +140,9 @@ class City:
         x0, y0, x1, y1 = self.extent
         triangles = sum(len(m.faces) for _, m, _ in self.shapes())
         n = len(self.buildings)
-        windows = f", {self.window_count():,} windows" if self.facade is not None else ""
+        plain = sum(len(m.faces) for _, m in self.buildings) + len(self.ground.faces)
+        windows = (f", {self.window_count():,} windows (+{triangles - plain:,} triangles)" if self.facade is not None
+                   else "")
         return (f"{n} building{'' if n == 1 else 's'}{windows}, {triangles:,} triangles, {x1 - x0:.0f} m x "
                 f"{y1 - y0:.0f} m about {self.geo_origin.describe()}")
 
