@@ -39,12 +39,16 @@ def covered_parts(normal: np.ndarray, offset: np.ndarray, corners: list, shape: 
         u /= np.linalg.norm(u)
         v = np.cross(normal[members[0]], u)
         flat = [shapely.Polygon(np.c_[corners[m] @ u, corners[m] @ v]) for m in members]
-        for i, a in enumerate(members):
-            for j, b in enumerate(members):
-                if j <= i or shape[a] == shape[b] or flat[i].intersection(flat[j]).area <= 1e-9:
-                    continue
-                small, large = (a, b) if (area[a], a) < (area[b], b) else (b, a)
-                pairs.append((large, small))
+        # only the pairs whose boxes meet (an STRtree): a plane of many parts (a facade's row of
+        # window panes) would otherwise cost every pair
+        # pairs (in the order of a loop over i < j, as before)
+        left, right = shapely.STRtree(flat).query(flat, predicate="intersects")
+        for i, j in sorted((i, j) for i, j in zip(left.tolist(), right.tolist()) if j > i):
+            a, b = members[i], members[j]
+            if shape[a] == shape[b] or flat[i].intersection(flat[j]).area <= 1e-9:
+                continue
+            small, large = (a, b) if (area[a], a) < (area[b], b) else (b, a)
+            pairs.append((large, small))
     return np.array(pairs, np.int64).reshape(-1, 2)
 
 
