@@ -55,3 +55,32 @@ def test_locate_is_its_reference(seed):
 
 def test_locate_of_no_points():
     assert locate(np.zeros((0, 2)), [], np.zeros((2, 3, 2)), np.array([3, 3])).shape == (0,)
+
+
+def test_covered_pairs_of_many_coplanar_parts_match_every_pair_checked():
+    """200 squares of three shapes, scattered in one plane so that some overlap, and a few in a
+    second plane: the pairs ``covered_parts`` finds through its tree of boxes are those a check of
+    every pair finds (shapely's own intersection areas), each once. Bug: a pair missed where one
+    square's box holds the other's, or listed twice (once from each side of the tree's query)."""
+    import shapely
+    from sarmitsuba.tracing.mesh.covers import covered_parts
+    rng = np.random.default_rng(7)
+    n = 200
+    lo = rng.uniform(0, 40, (n, 2))
+    size = rng.uniform(0.5, 6, n)
+    z = np.where(np.arange(n) % 17 == 0, 1.0, 0.0)
+    corners = [np.array([[x, y, h], [x + s, y, h], [x + s, y + s, h], [x, y + s, h]])
+               for (x, y), s, h in zip(lo, size, z)]
+    normal, offset = np.tile([0.0, 0.0, 1.0], (n, 1)), z.copy()
+    shape, area = np.arange(n) % 3, size**2
+    found = covered_parts(normal, offset, corners, shape, area)
+    expected = []
+    for a in range(n):
+        for b in range(a + 1, n):
+            if z[a] != z[b] or shape[a] == shape[b]:
+                continue
+            pa, pb = shapely.Polygon(corners[a][:, :2]), shapely.Polygon(corners[b][:, :2])
+            if pa.intersection(pb).area > 1e-9:
+                expected.append((b, a) if (area[a], a) < (area[b], b) else (a, b))
+    assert len(expected) > 50
+    assert len(found) == len(expected) and sorted(map(tuple, found.tolist())) == sorted(expected)
