@@ -31,9 +31,11 @@ def covered_parts(normal: np.ndarray, offset: np.ndarray, corners: list, shape: 
     key = np.round(np.column_stack([normal / COPLANAR_ANGLE, offset / COPLANAR_DISTANCE])).astype(np.int64)
     _, group = unique_rows(key, return_inverse=True)
     pairs = []
-    for g in np.flatnonzero(np.bincount(group) > 1):
-        members = np.flatnonzero(group == g)
-        if len(np.unique(shape[members])) < 2:
+    group = np.asarray(group).ravel()
+    order = np.argsort(group, kind="stable")             # each group's members, ascending, in one pass
+    bounds = np.flatnonzero(np.diff(group[order])) + 1
+    for members in np.split(order, bounds):
+        if len(members) < 2 or len(np.unique(shape[members])) < 2:
             continue
         u = corners[members[0]][1] - corners[members[0]][0]
         u /= np.linalg.norm(u)
