@@ -79,7 +79,24 @@ def on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool
     qi, cand = (np.concatenate(column) for column in zip(*found))
     if len(qi) == 0:
         return out
-    xy = s.to_face(cand, point[qi])
+    # in blocks of candidates of similar corner counts, each padded to its own widest: a few
+    # parts of many corners (a city's ground) would otherwise widen every row
+    order = np.argsort(s.n_corners[cand], kind="stable")
+    for block in np.array_split(order, -(-len(order) // _INSIDE_BLOCK)):
+        hit = _inside(s, cand[block], point[qi[block]], strict)
+        out[qi[block][hit]] = True
+    return out
+
+
+#: Candidate (point, part) pairs tested at once by :func:`on_other_part` (memory: about
+#: 100 B per pair and polygon corner).
+_INSIDE_BLOCK = 1 << 16
+
+
+def _inside(s: Surfaces, cand: np.ndarray, point: np.ndarray, strict: bool) -> np.ndarray:
+    """bool [k]: each ``point`` [k, 3] (on part ``cand``'s plane) lies inside the part's polygon
+    or on its border (``strict``: at least :data:`JUNCTION` inside)."""
+    xy = s.to_face(cand, point)
     corners = s.n_corners[cand]
     poly = s.polygon[cand, :int(corners.max())]          # the slots some candidate uses
     valid = np.arange(poly.shape[1])[None, :] < corners[:, None]
@@ -90,6 +107,4 @@ def on_other_part(s: Surfaces, part: np.ndarray, point: np.ndarray, strict: bool
     length = np.linalg.norm(nxt - poly, axis=2)
     # inside, or on the polygon's border (a wall on the ground's rim) unless strict
     margin = (JUNCTION if strict else -JUNCTION) * np.maximum(length, 1e-30)
-    hit = np.all(~valid | (cross >= margin), axis=1)
-    out[qi[hit]] = True
-    return out
+    return np.all(~valid | (cross >= margin), axis=1)
