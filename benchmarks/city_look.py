@@ -8,7 +8,7 @@ figure 4 dB, losses 3 dB: ``info``'s NESZ -22.6 dB at Munich's centre):
 1. Sionna's Munich, 512 central pulses; and its full default render (``--full``).
 2. The footprint city ``scenes/footprints.geojson`` (five blocks) with windows
    (``--windows``, the default layout) and without; with ``--munich-windows`` also Munich's 512
-   pulses with ``scene add-windows``'s windows (2.1 M triangles; about 10 GiB).
+   pulses with ``scene add-windows``'s windows (2.1 M triangles; more than 24 GiB).
 
 For each image: sigma nought per unit ground area, multilooked 5 x 5, its median over the pixels
 of each class, the classes cut from the geometry, never from the image

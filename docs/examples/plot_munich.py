@@ -63,7 +63,7 @@ plt.show()
 #        --set transmit_power=1 --set antenna_gain_db=24 --set noise_figure_db=4 --set losses_db=3 --out out/munich
 #
 # And with a window in every bay of every storey of its plain walls (143,000 windows; 2.1 million
-# triangles, which a render traces at many times the cost of the bare city):
+# triangles, 54 times the city's: its render needs more than 24 GiB of memory):
 #
 # .. code-block:: bash
 #
