@@ -102,7 +102,7 @@ def city_scene():
     from sarmitsuba.scene.footprints import parse_footprints
     city = build_city(parse_footprints(footprints(), "city"), origin=origin(), margin=20.0, sensor=SENSOR,
                       scattering_coefficient=0.0, ground_scattering_coefficient=0.0)
-    return sarmitsuba.Scene.from_city(city, name=NAME), [f"mesh-{f.slug}" for f, _ in city.buildings]
+    return sarmitsuba.Scene.from_city(city, name=NAME, split=False), [f"mesh-{f.slug}" for f, _ in city.buildings]
 
 
 class TaperedAmplitudeLoss:

@@ -128,13 +128,15 @@ class Scene:
         return cls.from_city(city)
 
     @classmethod
-    def from_city(cls, city: Any, name: str | None = None) -> "Scene":
+    def from_city(cls, city: Any, name: str | None = None, split: bool = True) -> "Scene":
         """The Scene of a :class:`sarmitsuba.scene.city.City`: its buildings' parts (shape ids
         ``mesh-<slug>`` for the walls, ``mesh-<slug>-roof``, ``mesh-<slug>-windows``), ground (``mesh-ground``), materials and ``sar`` sensor, as
-        :func:`~sarmitsuba.scene.city.write_city` writes them; named after the footprint file."""
+        :func:`~sarmitsuba.scene.city.write_city` writes them; named after the footprint file.
+        ``split`` False: each building one closed mesh ``mesh-<slug>`` (a body whose height or
+        pose a :class:`~sarmitsuba.derivatives.ShapeParameter` moves whole)."""
         from pathlib import Path
         specs = {key: {"id": key, **spec} for key, spec in city.material_specs().items()}
-        meshes = [(mesh, specs[material], f"mesh-{name}") for name, mesh, material in city.shapes()]
+        meshes = [(mesh, specs[material], f"mesh-{name}") for name, mesh, material in city.shapes(split)]
         return cls(meshes, sensor=city.sensor, name=name or Path(city.source).stem)
 
     @property

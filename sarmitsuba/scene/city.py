@@ -119,11 +119,14 @@ class City:
                            "thickness": GROUND_THICKNESS, "scattering_coefficient": self.ground_scattering_coefficient}
         return specs
 
-    def shapes(self) -> list:
+    def shapes(self, split: bool = True) -> list:
         """``[(shape name, mesh, material id)]``: every building's parts (``slug``: walls,
-        ``slug-roof``, ``slug-windows``), then ``ground``, as :func:`write_city` writes them."""
+        ``slug-roof``, ``slug-windows``), then ``ground``, as :func:`write_city` writes them;
+        ``split`` False: each building as one closed mesh ``slug`` (no windows), a body that moves
+        or grows whole (the shape parameters of :mod:`sarmitsuba.derivatives`)."""
         out = []
-        for (footprint, closed), parts in zip(self.buildings, self.parts or [None] * len(self.buildings)):
+        parts_of = self.parts if split and self.parts else [None] * len(self.buildings)
+        for (footprint, closed), parts in zip(self.buildings, parts_of):
             if parts is None:
                 out.append((footprint.slug, closed, footprint.material))
                 continue

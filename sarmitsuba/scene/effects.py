@@ -241,10 +241,11 @@ def warn_rough_surfaces(loaded, cross: bool = False) -> None:
         named = [(bsdf.name, getattr(bsdf, "surface", None))]
         named += [(f"{bsdf.name} ({role})", surface) for role, surface in getattr(bsdf, "role_surfaces", {}).items()]
         for (name, surface), role in zip(named, [None, *getattr(bsdf, "role_surfaces", {})]):
+            if surface is None:          # smooth: no range to check (nor a permittivity to ask for)
+                continue
             eta = (bsdf.material_at(params.frequency) if role is None
                    else bsdf.role_material_at(role, params.frequency)).relative_permittivity
-            line = None if surface is None else range_warning(name, surface, eta, params.frequency,
-                                                              params.incidence_angle, cross)
+            line = range_warning(name, surface, eta, params.frequency, params.incidence_angle, cross)
             if line is not None:
                 warnings.warn(line, RoughSurfaceWarning, stacklevel=3)
 

@@ -53,6 +53,7 @@ class WindowedScene:
     triangles_after: int
 
     def summary(self) -> str:
+        """One line: ``143,179 windows on 1,163 facades, 38,936 -> 2,102,734 triangles (+2,063,798)``."""
         added = self.triangles_after - self.triangles_before
         return (f"{self.windows:,} windows on {self.facades:,} facades, {self.triangles_before:,} -> "
                 f"{self.triangles_after:,} triangles (+{added:,})")
