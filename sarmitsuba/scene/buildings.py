@@ -166,15 +166,22 @@ def building_mesh(polygon, base: float, eaves: float, roof_shape: str = "flat", 
     def top(xy):
         return eaves + roof_height_at(planes, xy)
 
-    vertices, faces, count = [], [], 0
+    parts = []
     for k, piece in _pieces(polygon, planes):
-        parts = [_cap(piece, lambda xy, k=k: eaves + xy @ planes[k, :2] + planes[k, 2]),
-                 _cap(piece, lambda xy: np.full(len(xy), base)), _walls(piece, polygon, base, top)]
-        parts[1] = (parts[1][0], parts[1][1][:, ::-1])             # the floor faces down
-        for v, f in parts:
-            vertices.append(v)
-            faces.append(f + count)
-            count += len(v)
+        floor = _cap(piece, lambda xy: np.full(len(xy), base))
+        parts += [_cap(piece, lambda xy, k=k: eaves + xy @ planes[k, :2] + planes[k, 2]),
+                  (floor[0], floor[1][:, ::-1]), _walls(piece, polygon, base, top)]     # the floor faces down
+    return _joined(parts)
+
+
+def _joined(parts: list) -> trimesh.Trimesh:
+    """One mesh of ``(vertices, faces)`` pieces: shared vertices merged (to :data:`_MERGE_DIGITS`),
+    degenerate faces and unused vertices dropped."""
+    vertices, faces, count = [], [], 0
+    for v, f in parts:
+        vertices.append(v)
+        faces.append(f + count)
+        count += len(v)
     mesh = trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=False)
     mesh.merge_vertices(digits_vertex=_MERGE_DIGITS)
     mesh.update_faces(mesh.nondegenerate_faces())
@@ -233,21 +240,7 @@ def building_parts(polygon, base: float, eaves: float, roof_shape: str = "flat",
             groups["walls"].append((wall_v, wall_f))
             if len(pane_f):
                 groups["windows"].append((pane_v, pane_f))
-    out = {}
-    for name, parts in groups.items():
-        if not parts:
-            continue
-        vertices, faces, count = [], [], 0
-        for v, f in parts:
-            vertices.append(v)
-            faces.append(f + count)
-            count += len(v)
-        mesh = trimesh.Trimesh(np.vstack(vertices), np.vstack(faces), process=False)
-        mesh.merge_vertices(digits_vertex=_MERGE_DIGITS)
-        mesh.update_faces(mesh.nondegenerate_faces())
-        mesh.remove_unreferenced_vertices()
-        out[name] = mesh
-    return out
+    return {name: _joined(parts) for name, parts in groups.items() if parts}
 
 
 def flat_building_mesh(polygon, base: float, height: float) -> trimesh.Trimesh:
