@@ -23,13 +23,14 @@ looking right, i.e. south) aimed at the origin, ``n_pulses`` automatic.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterator, Mapping
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
@@ -42,7 +43,7 @@ from .facades import FacadeLayout
 from .footprints import ROOF_PITCH_DEG, FootprintError, FootprintSet, building_material, read_footprints
 from .terrain import GroundSurface, flat_ground, read_dem
 
-__all__ = ["City", "build_city", "write_city", "MAX_EXTENT", "BASE_DEPTH", "WALL_THICKNESS", "GROUND_THICKNESS",
+__all__ = ["City", "build_city", "write_city", "scene_folder", "MAX_EXTENT", "BASE_DEPTH", "WALL_THICKNESS", "GROUND_THICKNESS",
            "SCATTERING_COEFFICIENT", "GROUND_SCATTERING_COEFFICIENT"]
 
 #: m: widest area (east-west or north-south, margin included) a flat local frame is built for.
@@ -293,6 +294,23 @@ def write_city(city: City, out: str | Path) -> Path:
     Raises OSError naming ``out`` when it is a file or cannot be written.
     """
     import trimesh
+    with scene_folder(out) as staging:
+        for name, mesh, _ in city.shapes():
+            lean = trimesh.Trimesh(np.asarray(mesh.vertices, np.float32), mesh.faces, process=False)
+            (staging / "meshes" / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(lean, encoding="binary"))
+        (staging / "scene.xml").write_text(_xml(city), encoding="utf-8")
+    return Path(out) / "scene.xml"
+
+
+@contextlib.contextmanager
+def scene_folder(out: str | Path) -> Iterator[Path]:
+    """Write a scene folder (``out/scene.xml`` and ``out/meshes/``) atomically: yields an empty
+    staging folder holding ``meshes/``, whose ``scene.xml`` and ``meshes/`` replace ``out``'s when
+    the block ends without an error; a failure or Ctrl-C leaves ``out`` as it was. One run per
+    folder (:func:`~sarmitsuba.core.folder_lock.hold_folder`).
+
+    Raises OSError naming ``out`` when it is a file or cannot be written.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OSError(f"--out {out}: an existing file, not a directory; give a folder for scene.xml and meshes/")
@@ -303,14 +321,10 @@ def write_city(city: City, out: str | Path) -> Path:
             raise OSError(f"--out {out}: cannot create it ({exc.strerror or exc}); choose another folder") from None
         try:
             (staging / "meshes").mkdir()
-            for name, mesh, _ in city.shapes():
-                lean = trimesh.Trimesh(np.asarray(mesh.vertices, np.float32), mesh.faces, process=False)
-                (staging / "meshes" / f"{name}.ply").write_bytes(trimesh.exchange.ply.export_ply(lean, encoding="binary"))
-            (staging / "scene.xml").write_text(_xml(city), encoding="utf-8")
+            yield staging
             _swap_in(staging, out)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
-    return out / "scene.xml"
 
 
 def _swap_in(staging: Path, out: Path) -> None:

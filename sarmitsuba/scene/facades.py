@@ -218,21 +218,19 @@ def wall_rectangles(vertices: np.ndarray, faces: np.ndarray) -> list:
         The two triangles' indices, and the wall from ``start`` to ``end`` (x, y; the wall faces
         to their right, as :func:`wall_with_windows` takes it) between heights ``bottom`` and ``top``.
     """
-    from .roles import STEEP_DEG
+    from .roles import face_normals, steep
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64).reshape(-1, 3)
     if len(f) == 0:
         return []
-    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    length = np.linalg.norm(normal, axis=1)
-    normal = np.divide(normal, length[:, None], out=np.zeros_like(normal), where=length[:, None] > 0)
-    steep = (np.abs(normal[:, 2]) < math.sin(math.radians(STEEP_DEG))) & (length > 0)
+    normal = face_normals(v, f)[0]
+    upright = steep(normal)
     scale = max(1.0, float(np.abs(v).max()))
     key = np.round(v / (1e-6 * scale)).astype(np.int64)          # vertices equal to rounding
     _, vid = np.unique(key, axis=0, return_inverse=True)
     vid = vid.ravel()
     edges: dict = {}
-    for t in np.flatnonzero(steep):
+    for t in np.flatnonzero(upright):
         for a, b in ((0, 1), (1, 2), (2, 0)):
             edges.setdefault(tuple(sorted((vid[f[t, a]], vid[f[t, b]]))), []).append(t)
     out, used = [], set()

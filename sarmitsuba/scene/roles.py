@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ROLES", "STEEP_DEG", "ROOF_MIN_HEIGHT", "MIXED_SHARE", "face_roles", "ShapeRoles", "shape_roles"]
+__all__ = ["ROLES", "STEEP_DEG", "ROOF_MIN_HEIGHT", "MIXED_SHARE", "face_normals", "steep", "face_roles", "ShapeRoles",
+           "shape_roles"]
 
 #: The roles, in the order of their codes (``face_roles`` returns indices into this tuple).
 ROLES = ("roof", "facade", "ground", "underside")
@@ -39,6 +40,21 @@ ROOF_MIN_HEIGHT = 2.0
 #: A shape whose majority role holds less than this share of its area is listed as mixed.
 MIXED_SHARE = 0.95
 _BELOW_START = 0.01      # m: the downward ray starts this far below the face (clears the face itself)
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's unit normal ``(v1 - v0) x (v2 - v0)`` normalised (float64 [n_f, 3]; zero
+    for a degenerate triangle) and its area (float64 [n_f], m^2)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    twice = np.linalg.norm(normal, axis=1)
+    return np.divide(normal, twice[:, None], out=np.zeros_like(normal), where=twice[:, None] > 0), 0.5 * twice
+
+
+def steep(normal: np.ndarray) -> np.ndarray:
+    """bool [n]: unit normals within :data:`STEEP_DEG` of horizontal (a facade's); zero normals are not."""
+    return (np.abs(normal[:, 2]) < math.sin(math.radians(STEEP_DEG))) & np.any(normal != 0, axis=1)
 
 
 def face_roles(vertices: np.ndarray, faces: np.ndarray, height_below) -> np.ndarray:
@@ -61,14 +77,13 @@ def face_roles(vertices: np.ndarray, faces: np.ndarray, height_below) -> np.ndar
     """
     v = np.asarray(vertices, np.float64)
     f = np.asarray(faces, np.int64).reshape(-1, 3)
-    normal = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    length = np.linalg.norm(normal, axis=1)
-    nz = np.divide(normal[:, 2], length, out=np.ones(len(f)), where=length > 0)
-    steep = math.sin(math.radians(STEEP_DEG))
+    normal, area = face_normals(v, f)
+    nz = np.where(area > 0, normal[:, 2], 1.0)
+    limit = math.sin(math.radians(STEEP_DEG))
     role = np.full(len(f), ROLES.index("ground"), np.int8)
-    role[np.abs(nz) < steep] = ROLES.index("facade")
-    role[nz <= -steep] = ROLES.index("underside")
-    up = np.flatnonzero(nz >= steep)
+    role[steep(normal)] = ROLES.index("facade")
+    role[nz <= -limit] = ROLES.index("underside")
+    up = np.flatnonzero(nz >= limit)
     if up.size:
         centre = v[f[up]].mean(axis=1)
         centre[:, 2] -= _BELOW_START
@@ -130,8 +145,7 @@ def shape_roles(scene: Any) -> ShapeRoles:
         faces = np.vstack([f + b for (_, _, f), b in zip(pieces, base)])
         owner = np.repeat(np.arange(len(pieces)), [len(f) for _, _, f in pieces])
         codes = face_roles(vertices, faces, height_below)
-        area = 0.5 * np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
-                                             vertices[faces[:, 2]] - vertices[faces[:, 0]]), axis=1)
+        area = face_normals(vertices, faces)[1]
         totals = np.zeros((len(pieces), len(ROLES)))
         np.add.at(totals, (owner, codes), area)
         for k, (index, _, _) in enumerate(pieces):

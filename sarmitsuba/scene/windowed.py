@@ -13,16 +13,15 @@ renders, with ``info`` and ``preview``, as the original does.
 from __future__ import annotations
 
 import shutil
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..core.folder_lock import STAGING_PREFIX, hold_folder
+from .city import scene_folder
 from .facades import FacadeLayout, add_windows
-from .roles import STEEP_DEG
+from .roles import face_normals, steep
 
 __all__ = ["WindowedScene", "write_windowed", "GLASS_ID"]
 
@@ -60,14 +59,10 @@ class WindowedScene:
 
 
 def _steep_share(vertices: np.ndarray, faces: np.ndarray) -> float:
-    import math
-    n = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    area = np.linalg.norm(n, axis=1)
+    """The share of a mesh's area that is steep (a facade's, :func:`sarmitsuba.scene.roles.steep`)."""
+    normal, area = face_normals(vertices, faces)
     total = float(area.sum())
-    if total <= 0:
-        return 0.0
-    steep = np.abs(n[:, 2]) < math.sin(math.radians(STEEP_DEG)) * area
-    return float(area[steep].sum() / total)
+    return float(area[steep(normal)].sum() / total) if total > 0 else 0.0
 
 
 def write_windowed(xml_path: str | Path, out: str | Path, layout: FacadeLayout) -> WindowedScene:
@@ -84,8 +79,6 @@ def write_windowed(xml_path: str | Path, out: str | Path, layout: FacadeLayout) 
     import trimesh
     xml_path = Path(xml_path).resolve()
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OSError(f"--out {out}: an existing file, not a directory; give a folder for scene.xml and meshes/")
     if out.resolve() == xml_path.parent:
         raise OSError(f"--out {out}: the source scene's own folder; give another folder")
     try:
@@ -94,55 +87,45 @@ def write_windowed(xml_path: str | Path, out: str | Path, layout: FacadeLayout) 
         raise ValueError(f"{xml_path}: not readable XML ({exc})") from None
     root = tree.getroot()
     windows = facades = before = after = 0
-    with hold_folder(out):
-        staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
-        try:
-            (staging / "meshes").mkdir()
-            added = []
-            for index, shape in enumerate(root.findall("shape")):
-                name = shape.find("string[@name='filename']")
-                if name is None or shape.get("type") not in ("ply", "obj"):
-                    continue
-                source = (xml_path.parent / name.get("value")).resolve()
-                ident = shape.get("id") or f"shape{index}"
-                target = f"meshes/{index:05d}-{Path(source).name}"
-                mesh = trimesh.load(source, process=False, force="mesh")
-                vertices, faces = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-                before += len(faces)
-                result = None
-                if shape.find("transform") is None and len(faces) and _steep_share(vertices, faces) > 0.5:
-                    result = add_windows(vertices, faces, layout, ident)
-                if result is None or result[4] == 0:
-                    shutil.copyfile(source, staging / target)
-                    after += len(faces)
-                else:
-                    wall_v, wall_f, pane_v, pane_f, count = result
-                    _write_ply(staging / target, wall_v, wall_f)
-                    pane_target = f"meshes/{index:05d}-windows.ply"
-                    _write_ply(staging / pane_target, pane_v, pane_f)
-                    added.append((ident, pane_target))
-                    windows += count
-                    facades += 1
-                    after += len(wall_f) + len(pane_f)
-                name.set("value", target)
-            if added:
-                glass = ET.Element("bsdf", {"type": "itu-radio-material", "id": GLASS_ID})
-                ET.SubElement(glass, "string", {"name": "type", "value": "glass"})
-                ET.SubElement(glass, "float", {"name": "thickness", "value": repr(_GLASS_THICKNESS)})
-                root.insert(0, glass)
-                for ident, target in added:
-                    pane = ET.SubElement(root, "shape", {"type": "ply", "id": f"{ident}-windows"})
-                    ET.SubElement(pane, "string", {"name": "filename", "value": target})
-                    ET.SubElement(pane, "boolean", {"name": "face_normals", "value": "true"})
-                    ET.SubElement(pane, "ref", {"id": GLASS_ID, "name": "bsdf"})
-            tree.write(staging / "scene.xml", encoding="utf-8", xml_declaration=True)
-            old = staging / "old-meshes"
-            if (out / "meshes").exists():
-                (out / "meshes").rename(old)
-            (staging / "meshes").rename(out / "meshes")
-            (staging / "scene.xml").replace(out / "scene.xml")
-        finally:
-            shutil.rmtree(staging, ignore_errors=True)
+    with scene_folder(out) as staging:
+        added = []
+        for index, shape in enumerate(root.findall("shape")):
+            name = shape.find("string[@name='filename']")
+            if name is None or shape.get("type") not in ("ply", "obj"):
+                continue
+            source = (xml_path.parent / name.get("value")).resolve()
+            ident = shape.get("id") or f"shape{index}"
+            target = f"meshes/{index:05d}-{Path(source).name}"
+            mesh = trimesh.load(source, process=False, force="mesh")
+            vertices, faces = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+            before += len(faces)
+            result = None
+            if shape.find("transform") is None and len(faces) and _steep_share(vertices, faces) > 0.5:
+                result = add_windows(vertices, faces, layout, ident)
+            if result is None or result[4] == 0:
+                shutil.copyfile(source, staging / target)
+                after += len(faces)
+            else:
+                wall_v, wall_f, pane_v, pane_f, count = result
+                _write_ply(staging / target, wall_v, wall_f)
+                pane_target = f"meshes/{index:05d}-windows.ply"
+                _write_ply(staging / pane_target, pane_v, pane_f)
+                added.append((ident, pane_target))
+                windows += count
+                facades += 1
+                after += len(wall_f) + len(pane_f)
+            name.set("value", target)
+        if added:
+            glass = ET.Element("bsdf", {"type": "itu-radio-material", "id": GLASS_ID})
+            ET.SubElement(glass, "string", {"name": "type", "value": "glass"})
+            ET.SubElement(glass, "float", {"name": "thickness", "value": repr(_GLASS_THICKNESS)})
+            root.insert(0, glass)
+            for ident, target in added:
+                pane = ET.SubElement(root, "shape", {"type": "ply", "id": f"{ident}-windows"})
+                ET.SubElement(pane, "string", {"name": "filename", "value": target})
+                ET.SubElement(pane, "boolean", {"name": "face_normals", "value": "true"})
+                ET.SubElement(pane, "ref", {"id": GLASS_ID, "name": "bsdf"})
+        tree.write(staging / "scene.xml", encoding="utf-8", xml_declaration=True)
     return WindowedScene(out / "scene.xml", windows, facades, before, after)
 
 
