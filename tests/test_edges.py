@@ -297,6 +297,25 @@ def test_junctions_do_not_depend_on_the_sphere_blocks(monkeypatch):
     np.testing.assert_array_equal(whole.free, split.free)
 
 
+def test_junctions_do_not_depend_on_the_corner_blocks(monkeypatch):
+    """The open box on a 16-cornered ground and a plate, the candidate pairs tested a few at a
+    time in blocks of similar corner counts: the same free edges and junctions as all at once.
+    Bug: a block's results written back to the wrong points (the pairs were sorted by corners)."""
+    import shapely
+    box = trimesh.creation.box((2.0, 3.0, 4.0))
+    open_box = trimesh.Trimesh(box.vertices + [0, 0, 2.0], box.faces[np.abs(box.face_normals[:, 2] + 1) > 1e-9])
+    disc = trimesh.creation.extrude_polygon(shapely.Point(0, 0).buffer(8.0, quad_segs=4), 1.0)
+    ground = trimesh.Trimesh(disc.vertices - [0, 0, 1.0], disc.faces[disc.face_normals[:, 2] > 0.5])
+    s = _surfaces([open_box, ground, rectangle((6.0, 0, 0.5), (1.0, 0, 0), (0, 1.0, 0)), box])
+    whole = edges.find_wedges(s)
+    assert len(np.unique(s.n_corners)) > 2
+    monkeypatch.setattr(junctions, "_INSIDE_BLOCK", 3)
+    split = edges.find_wedges(s)
+    assert whole.junction.any() and whole.free.any()
+    np.testing.assert_array_equal(whole.junction, split.junction)
+    np.testing.assert_array_equal(whole.free, split.free)
+
+
 def test_a_finely_tessellated_curve_has_no_wedges():
     """A cylinder of 72 facets (5 deg between neighbours, below the 10 deg threshold): its side's
     vertical edges do not diffract; its rims against the caps do."""
