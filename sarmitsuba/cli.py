@@ -37,7 +37,9 @@ def _add_scene_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPa
 
 def _add_tracer_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the sbr integrator and material flags shared by render and info."""
-    parser.add_argument("--max-depth", type=int, default=None, help="bounce orders traced (sbr max_depth)")
+    parser.add_argument("--max-depth", type=cli_types.depth, default=None, metavar="N|auto",
+                        help="bounce orders traced (sbr max_depth): a number, or auto (the default: the depth the "
+                             "scene calls for, chosen by a probe)")
     parser.add_argument("--ray-spacing", type=float, default=None, help="ray-tube width at the scene centre [m]")
     parser.add_argument("--range-kernel", choices=("nearest", "linear", "sinc", "exact"), default=None,
                         help="fast-time deposit kernel")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["assignment", "resolution", "positive_int", "looks", "point", "numbers", "vectors", "index_range"]
+__all__ = ["assignment", "resolution", "positive_int", "depth", "looks", "point", "numbers", "vectors", "index_range"]
 
 
 def assignment(text: str) -> tuple[str, str]:
@@ -39,6 +39,20 @@ def positive_int(text: str) -> int:
         value = 0
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
+
+
+def depth(text: str) -> "int | str":
+    """``--max-depth``: ``auto`` or a whole number in [1, 64]."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 64:
+        raise argparse.ArgumentTypeError(f"expected auto (the depth the scene calls for) or a whole number of "
+                                         f"bounce orders in [1, 64], got {text!r}")
     return value
 
 

@@ -53,6 +53,7 @@ from .core.raw import RawData
 from .scene.loader import TABLE_SIZE, load_scene
 from .signal import binning
 from .tracing.mesh.facets import scene_meshes
+from .tracing.driver.depth import choose_depth
 from .tracing.derivatives.geometry_tangents import GeometryMove, move_scene
 from .tracing.derivatives.lane_pairs import GeometryChange, GeometryChangeWarning
 from .tracing.loops import evaluated_loops
@@ -296,6 +297,8 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     """The loaded scene, its shapes moved by ``at`` (ShapeParameter -> amount), and its trace
     set-up, checked for what derivatives support."""
     loaded = load_scene(source, sensor_overrides, integrator_overrides)
+    # max_depth = auto: the unmoved scene's probe, so that every evaluation traces the same orders
+    loaded = choose_depth(loaded)[0]
     if loaded.settings.split_bounces:
         raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
     if loaded.motion is not None:

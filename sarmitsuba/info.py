@@ -13,13 +13,16 @@ acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`Scen
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
+- the depth ``max_depth = auto`` will trace, from the render's own probe (a few sub-apertures
+  traced to the cap, :mod:`sarmitsuba.tracing.driver.depth`), with each order's share and
+  predicted seconds;
 - the estimated cost: sub-apertures, ray casts, returns, trace time, peak memory (the render
   process's peak resident set: runtime, scene, tracer's working set and arrays), image size and
   focusing time (:mod:`sarmitsuba.analysis.cost` and :mod:`sarmitsuba.analysis.memory`, re-exported here: :class:`CostEstimate`,
   :func:`cast_rates`, :func:`check_memory`, ...).
 
 :mod:`sarmitsuba.info_text` writes it as text (:func:`format_text`, what the command prints) or
-JSON (:func:`to_json`). Nothing is traced: the cost is an estimate from the measured rates of :mod:`sarmitsuba.analysis.cost`. Every number is
+JSON (:func:`to_json`). Nothing else is traced: the cost is an estimate from the measured rates of :mod:`sarmitsuba.analysis.cost`. Every number is
 SI with its unit in the field name (``_m``, ``_hz``, ``_s``, ``_deg``, ``_db``, ``_bytes``).
 
 References
@@ -47,6 +50,7 @@ from .scene.baseline import baseline
 from .scene.rough_presets import describe_surface
 from .core.constants import SPEED_OF_LIGHT
 from .analysis.cost import CostEstimate, cast_rates, cost_estimate, synthetic_aperture
+from .tracing.driver.depth import choose_depth
 from .tracing.driver.workers import WorkerPlan, plan_for
 from .analysis.memory import MEMORY_LIMIT_ENV, available_memory, check_memory, memory_problem
 from .analysis.ambiguities import Ambiguities, ambiguities
@@ -255,12 +259,18 @@ class SceneInfo:
     #: The processes the trace will use, the memory's cap on them, and why
     #: (:func:`sarmitsuba.tracing.driver.workers.worker_plan`).
     workers: WorkerPlan | None = None
+    #: ``max_depth = auto``: the probe's choice (:meth:`~sarmitsuba.tracing.driver.depth.DepthChoice.as_dict`):
+    #: the depth the render will trace, why, and each order's share and predicted seconds;
+    #: ``{"mode": "fixed", "depth": N}`` for a fixed depth.
+    depth: dict | None = None
 
 
 def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None = None,
                integrator_overrides: Mapping[str, Any] | None = None,
                material_overrides: Mapping[str, Any] | None = None) -> SceneInfo:
-    """Load and plan a scene, without tracing, and summarise it.
+    """Load and plan a scene, and summarise it; nothing is traced but, with ``max_depth = auto``,
+    the probe that chooses the depth (:func:`~sarmitsuba.tracing.driver.depth.choose_depth`, a few
+    sub-apertures), which the render repeats exactly.
 
     Parameters are those of :func:`sarmitsuba.pipeline.render` (no output directory).
 
@@ -278,6 +288,10 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
         warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
+    loaded, choice = choose_depth(loaded)                                 # the render's probe, the render's depth
+    if choice is not None:
+        window = planning.fast_time_window(params, geometry, lo, hi, loaded.settings)
+        footprint = planning.ray_footprint(params, geometry, lo, hi, loaded.settings, shape_boxes=loaded.shape_boxes)
     with warnings.catch_warnings(record=True) as rough:                   # reported in the result instead
         warnings.simplefilter("always", RoughSurfaceWarning)
         effects = active_effects(loaded)                                  # decided once, handed on
@@ -285,9 +299,11 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
     radar = dataclasses.replace(radar, orbit_pass=_orbit_pass(params, loaded.offset), bistatic=_bistatic(params, geometry))
     cost = cost_estimate(loaded, geometry, window, footprint, effects)
     memory, ambiguous = memory_problem(cost, params), ambiguities(params)   # the render's Taylor window
-    spec = (source, sensor_overrides, integrator_overrides, material_overrides)
+    spec = (source, sensor_overrides, {**(integrator_overrides or {}), "max_depth": loaded.settings.max_depth},
+            material_overrides)
     workers = plan_for(spec, loaded, effects, cost, available_memory())
-    return SceneInfo(workers=workers, scene=_scene_size(loaded), radar=radar,
+    depth = choice.as_dict() if choice is not None else {"mode": "fixed", "depth": loaded.settings.max_depth}
+    return SceneInfo(workers=workers, depth=depth, scene=_scene_size(loaded), radar=radar,
                      radiometry=_radiometry(params, radar.pulses_per_point, effects), effects=effects.listed,
                      cost=cost, ambiguities=ambiguous,
                      warnings=tuple(messages) + tuple(str(w.message) for w in rough)

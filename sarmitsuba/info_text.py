@@ -35,9 +35,15 @@ def format_text(info: Any) -> str:
     for title, body in (("Scene", _scene_lines(info.scene)), ("Radar", _radar_lines(info.radar)),
                         ("Ambiguities", [info.ambiguities.line() if info.ambiguities else "not modelled (spotlight or a "
                                          "curved track)"]), ("Radiometry", _radiometry_lines(info.radiometry)), ("Effects", _effect_lines(info.effects)),
+                        ("Bounce depth", _depth_lines(getattr(info, "depth", None))),
                         ("Estimated cost", _cost_lines(info.cost, info.radar.bistatic is not None) + _worker_lines(info.workers)), ("Warnings", list(info.warnings) or ["none"])):
         lines += [title] + [f"  {line}" for line in body] + [""]
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _depth_lines(depth: dict | None) -> list[str]:
+    from .analysis.orders import format_depth
+    return format_depth(depth) or ["not planned"]
 
 
 def _scene_lines(s: Any) -> list[str]:

@@ -29,6 +29,7 @@ from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .formats.exports import EXPORT_FILES, check_formats, write_exports
+from .tracing.driver.depth import DepthChoice, choose_depth
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
 from .tracing.driver.workers import plan_for, trace_in_workers
 
@@ -72,6 +73,11 @@ class RenderSummary:
     #: Processes that traced, and why that many (:func:`sarmitsuba.tracing.driver.workers.worker_plan`).
     workers: int = 1
     workers_note: str = ""
+    #: The depth traced and how it was chosen (:func:`depth_summary`): ``mode`` (``auto`` or ``fixed``),
+    #: ``depth``; with ``auto`` the reason, the probe's shares and predicted seconds per order, and
+    #: ``beyond_db``, the probe's share of the energy in the orders left out; ``seconds_by_order``
+    #: the trace's own.
+    depth: dict = dataclasses.field(default_factory=dict)
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -81,8 +87,11 @@ class RenderSummary:
 
     def line(self) -> str:
         """One-line summary for the end of a run."""
+        depth = self.depth or {}
+        how = (f" (auto, {depth['reason']})" if depth.get("mode") == "auto" else "") if depth else ""
         return (f"rendered {self.scene}: {self.timings['total']:.1f} s (trace {self.timings['trace']:.1f} s, "
-                f"focus {self.timings['focus']:.1f} s), {self.n_pulses} pulses, {self.rays_traced:,} rays cast "
+                f"focus {self.timings['focus']:.1f} s), {self.n_pulses} pulses, "
+                + (f"depth {depth['depth']}{how}, " if depth else "") + f"{self.rays_traced:,} rays cast "
                 f"({self.pulses_per_trace} pulses per trace), {self.pulse_paths_per_second:.3g} pulse-paths/s, "
                 f"raw {self.raw_shape[0]}x{self.raw_shape[1]}, image {self.image_shape[0]}x{self.image_shape[1]} "
                 f"-> {Path(next(iter(self.outputs.values()))).parent}")
@@ -109,6 +118,8 @@ class Simulation:
     #: Sensor ``ati_baseline`` > 0: the trailing channel's Simulation (its raw data and image on
     #: this one's grid, docs/physics.md (V6)); else None.
     aft: "Simulation | None" = None
+    #: ``max_depth = auto``: the depth chosen and the probe's evidence; None for a fixed depth.
+    depth: "DepthChoice | None" = None
 
     def summary(self) -> str:
         """One line: scene, pulses, raw and image sizes, trace and focus seconds, and the azimuth
@@ -150,8 +161,9 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     range_window, azimuth_window = focus_windows(window, window_range, window_azimuth)   # checked before loading
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
+    check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
+    loaded, depth = choose_depth(loaded)                 # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings
-    check_formats(formats, params=params, cphd_domain=cphd_domain)
     setup = prepare_trace(loaded)
     amb = ambiguities(params, azimuth_window)           # the ghosts `info` warns about, before they are traced
     if amb is not None and amb.warning:
@@ -161,7 +173,9 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     grid = image_grid(loaded, geometry) if image_size is None else sized_grid(params, geometry, image_size, image_spacing)
     grid = dataclasses.replace(grid, origin=grid.origin + loaded.offset)      # checked before tracing
     t["load"] = time.perf_counter()
-    spec = (source, sensor_overrides, integrator_overrides, material_overrides)
+    # other processes load the scene again: with the depth chosen here
+    spec = (source, sensor_overrides, {**(integrator_overrides or {}), "max_depth": settings.max_depth},
+            material_overrides)
     if scheduler is None:                                # every core: docs/design.md section 11.1
         cores = plan_for(spec, loaded, effects, cost, available_memory())
         if cores.workers > 1:
@@ -177,6 +191,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     planning.check_window_energy(result.energy_outside_window, float(np.sum(result.energy_per_order)),
                                  settings.max_depth)
     metadata = _metadata(loaded, footprint.spacing_azimuth, result, effects)
+    metadata["depth"] = depth_summary(depth, result)
     world = _shifted(geometry, loaded.offset)            # outputs in the world frame (float64)
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     pattern = azimuth_pattern(params)
@@ -199,7 +214,9 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
         spent["bin"] += binned - t["trace"] - spent["bin"] - spent["focus"]
         spent["focus"] += time.perf_counter() - binned
         products[name] = (raw, image, channel, per_order, images)
-    timings = {"load": t["load"] - t["start"], "trace": t["trace"] - t["load"], **spent}
+    timings = {"load": t["load"] - t["start"] - (depth.probe_seconds if depth is not None else 0.0),
+               **({"depth_probe": depth.probe_seconds} if depth is not None else {}),
+               "trace": t["trace"] - t["load"], **spent}
     if not result.channels:
         raw, image, _, per_order, images = products[params.polarization]
         aft = None
@@ -211,8 +228,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
                                           _shifted(trailing, loaded.offset), {**metadata, "ati_channel": "aft"},
                                           noise_seed=settings.seed + (1 << 40))
             aft = Simulation(loaded, aft_raw, focus(aft_raw, "focus aft"), aft_result, timings)
-        return Simulation(loaded, raw, image, result, timings, per_order, images, aft=aft)
-    channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images)
+        return Simulation(loaded, raw, image, result, timings, per_order, images, aft=aft, depth=depth)
+    channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images, depth=depth)
                 for name, (raw, image, channel, per_order, images) in products.items()}
     return dataclasses.replace(channels["HH"], trace=result, channels=channels)
 
@@ -407,7 +424,7 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
     """The RenderSummary of a finished simulation whose products went to ``paths``."""
     timings = {**sim.timings, "products": time.perf_counter() - t_products}
     timings["total"] = time.perf_counter() - start
-    from .analysis.orders import depth_warning, energy_by_order
+    from .analysis.orders import cap_warning, depth_warning, energy_by_order
     result = sim.trace
     return RenderSummary(
         scene=Path(sim.loaded.source).name, timings=timings, n_pulses=sim.raw.n_pulses,
@@ -419,8 +436,18 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         pulse_paths=result.pulse_paths, trace_stages=dict(result.stage_seconds),
         trace_stages_by_order={order: dict(stages) for order, stages in result.stage_seconds_by_order.items()},
         energy_by_order=energy_by_order(result.raw_energy_per_order),
-        depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond), overflow_rows=result.overflow_rows,
-        workers=result.workers, workers_note=result.workers_note)
+        depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond) if sim.depth is None
+        else cap_warning(sim.depth.as_dict()), overflow_rows=result.overflow_rows,
+        workers=result.workers, workers_note=result.workers_note, depth=depth_summary(sim.depth, result))
+
+
+def depth_summary(choice: "DepthChoice | None", result: TraceResult) -> dict:
+    """``summary.json``'s ``depth``: ``{"mode": "fixed", "depth": N}`` or the choice's
+    (:meth:`~sarmitsuba.tracing.driver.depth.DepthChoice.as_dict`), with the trace's seconds per
+    order (host-thread seconds, as ``trace_stages_by_order``)."""
+    seconds = {str(k): round(sum(stages.values()), 3) for k, stages in result.stage_seconds_by_order.items()}
+    body = choice.as_dict() if choice is not None else {"mode": "fixed", "depth": len(result.energy_per_order)}
+    return {**body, "seconds_by_order": seconds}
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

@@ -231,6 +231,10 @@ def render_stack(source: Any, out_dir: str | os.PathLike, *, sensor_overrides: M
                              "baselines, or span and count instead")
     loaded = load_scene(source, sensor, integrator_overrides, material_overrides)
     plan = plan_stack(loaded, **description)
+    if loaded.settings.auto_depth:         # one depth for every pass (the reference track's probe): coherent passes
+        from .tracing.driver.depth import choose_depth
+        loaded = choose_depth(loaded)[0]
+        integrator_overrides = {**(integrator_overrides or {}), "max_depth": loaded.settings.max_depth}
     if scheduler is not None:
         from .tracing.driver.distributed import check_scheduler
         check_scheduler(scheduler)

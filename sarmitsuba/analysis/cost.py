@@ -351,7 +351,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
     per_sub = (footprint.n_azimuth + spread) * footprint.n_range
     pulses_seeing = synthetic_aperture(p)[1]
     primary = per_sub * n_subs + footprint.refined_rays * math.ceil(pulses_seeing / size)
-    casts = primary * st.max_depth
+    casts = primary * st.depth
     hit_rate, shadow_rate = cast_rates(loaded.n_triangles)
     tube_pulses = footprint.rays_per_pulse * n_pulses + footprint.refined_rays * pulses_seeing
     tube_area = footprint.spacing_azimuth * footprint.spacing_range
@@ -371,7 +371,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
         # the pieces' corners are the rays: every part in each sub-aperture's reach, cut into patches
         reach_pieces, reach_triangles, reach_area = reach_work(loaded, geometry, footprint.patch_size, size,
                                               not (effects.spotlight or effects.curved_track))
-        orders = [PIECES_PER_ORDER[min(d, len(PIECES_PER_ORDER) - 1)] for d in range(st.max_depth)]
+        orders = [PIECES_PER_ORDER[min(d, len(PIECES_PER_ORDER) - 1)] for d in range(st.depth)]
         primary = int(SAMPLES_PER_PIECE * reach_pieces.sum())
         casts = int(primary * sum(w * (d + 1) for d, w in enumerate(orders)))
         counts = np.minimum(size, n_pulses - size * np.arange(n_subs))          # pulses per sub-aperture
@@ -404,7 +404,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
                      piece_bytes, effects.moving_shapes is not None)
     return CostEstimate(
         ray_spacing_m=footprint.spacing_azimuth, rays_per_pulse=footprint.rays_per_pulse, n_pulses=n_pulses,
-        pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.max_depth,
+        pulses_per_trace=size, subapertures=n_subs, primary_rays=primary, max_depth=st.depth,
         closest_hit_casts=casts, shadow_casts=casts, closest_hit_rate_per_s=hit_rate, shadow_rate_per_s=shadow_rate,
         pulse_paths=paths, trace_time_low_s=trace_time(primary), trace_time_high_s=trace_time(casts),
         trace_time_s=trace_time(0.5 * (primary + casts)),

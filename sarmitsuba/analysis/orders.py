@@ -16,7 +16,8 @@ import numpy as np
 
 from ..core.radar import ParameterError
 
-__all__ = ["DEEPEST_SHARE", "ENERGY_UNIT", "energy_by_order", "depth_warning", "render_summary", "format_render"]
+__all__ = ["DEEPEST_SHARE", "ENERGY_UNIT", "energy_by_order", "depth_warning", "cap_warning", "render_summary",
+           "format_render", "format_depth"]
 
 #: The deepest traced order holding at least this share of the orders' energy is warned about.
 #: If the orders beyond it held as much as it does (no decay), the image would miss that share
@@ -61,6 +62,45 @@ def depth_warning(energy: "np.ndarray | None", rays_beyond: int | None = None) -
            "a corner's own order, a dihedral's second or a trihedral's third, may hold most with nothing beyond it")
     return (f"bounce order {depth}, the deepest traced, holds {100 * share:.1f} % of the energy: the orders "
             f"beyond it may hold as much ({why}); render once with --max-depth {depth + 1} to see")
+
+
+def cap_warning(depth: dict) -> str | None:
+    """The warning of a ``max_depth = auto`` render (``summary.json``'s ``depth``, a dict) that the
+    cap stopped: the orders up to the cap still held more than the tolerance beyond each depth
+    below it (docs/physics.md (DEP2)); None for any other reason."""
+    if depth.get("reason") != "cap":
+        return None
+    probe = depth["probe"]
+    last = probe["share"][str(depth["cap"])]
+    goes_on = probe.get("rays_beyond_cap")
+    rays = f"{goes_on:,} of its specular rays meet more of the scene" if goes_on else "its rays go on"
+    return (f"max_depth auto stopped at the cap {depth['cap']}: order {depth['cap']} holds {100 * last:.2f} % of "
+            f"the probe's energy and {rays}; the orders beyond are not traced (raise the sbr depth_cap, "
+            "for instance --integrator-set depth_cap=12, to trace them)")
+
+
+def format_depth(depth: dict | None) -> list[str]:
+    """Text lines of ``summary.json``'s ``depth`` (dict; empty for summaries written without it)."""
+    if not depth:
+        return []
+    if depth.get("mode") != "auto":
+        return [f"depth: {depth['depth']} (fixed: sbr max_depth)"]
+    beyond = "nothing" if depth.get("beyond_db") is None else f"{depth['beyond_db']:.1f} dB"
+    probe = depth["probe"]
+    lines = [f"depth: {depth['depth']} (max_depth auto, {depth['reason']}: {depth['why']}; tolerance "
+             f"{depth['tolerance_db']:g} dB, cap {depth['cap']}); "
+             + ("the orders beyond the cap were not probed" if depth["reason"] == "cap" else
+                f"the orders beyond hold {beyond} of the probe's energy")
+             + f" ({len(probe['subapertures'])} of {probe['of']} sub-apertures, {probe['seconds']:.1f} s)"]
+    seconds = depth.get("seconds_by_order", {})
+    for k, share in probe["share"].items():
+        if int(k) > depth["depth"] and share == 0:
+            continue
+        traced = (f", traced in {seconds[k]:.1f} s" if k in seconds else "" if int(k) <= depth["depth"]
+                  else " (left out)")
+        lines.append(f"  order {k:>2}: probe {100 * share:8.4f} %, predicted {probe['predicted_seconds'][k]:.1f} s"
+                     + traced)
+    return lines
 
 
 def render_summary(path: "str | os.PathLike | None") -> dict | None:
@@ -113,6 +153,7 @@ def format_render(summary: dict) -> str:
         lines.append(f"energy by bounce order ({orders['unit']}, range-compressed raw data; share of the orders' sum):")
         lines += [f"  order {d:>2}: {orders['energy'][d]:11.4e}  {100 * orders['share'][d]:6.2f} %"
                   for d in orders["energy"]]
+    lines += format_depth(summary.get("depth"))
     if summary.get("depth_warning"):
         lines.append(f"warning: {summary['depth_warning']}")
     return "\n".join(lines) + "\n"

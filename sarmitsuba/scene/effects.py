@@ -190,7 +190,7 @@ class EffectSet:
         per-order products): what :func:`sarmitsuba.scene.radar_equation.radar_equation` needs."""
         rough = tuple(sorted(set(rough_materials)))
         split = bool(settings.split_bounces) if settings is not None else False
-        decided = cls(max_depth=settings.max_depth if settings is not None else 1, rough_materials=rough,
+        decided = cls(max_depth=settings.depth if settings is not None else 1, rough_materials=rough,
                       antenna=params.antenna_length > 0 or params.antenna_height > 0,
                       pattern=params.pattern_length > 0 or params.antenna_height > 0,
                       noise=params.noise_figure_db is not None or params.noise_temperature is not None,

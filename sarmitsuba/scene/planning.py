@@ -191,7 +191,7 @@ def fast_time_window(params: RadarParameters, geometry: AcquisitionGeometry, lo:
     and, for chirped output, half a pulse length. The sample count is a fast FFT length.
     """
     l_min, l_max = echo_lengths(geometry.positions, lo, hi, geometry.rx_positions)
-    l_max += (settings.max_depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
+    l_max += (settings.depth - 1) * EXTRA_BOUNCE_FRACTION * float(np.linalg.norm(hi - lo))
     margin = WINDOW_MARGIN_SAMPLES / params.sampling_rate
     if params.output == "raw":                 # chirps centred on their delay: +-T_p / 2
         margin += 0.5 * params.pulse_length

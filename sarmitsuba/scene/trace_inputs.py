@@ -23,9 +23,11 @@ from ..core.radar import ParameterError
 from ..core.valid_ranges import unknown_name
 from .rough_tables import RoughTables
 
-__all__ = ["TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
+__all__ = ["AUTO", "TraceSettings", "FastTimeWindow", "Refinement", "RayFootprint", "MaterialTable", "POLARIMETRY_MODELS",
            "LIT_REGIONS", "RANGE_KERNELS", "GEOMETRY_PIPELINES"]
 
+#: ``max_depth = auto``: the depth the scene calls for (docs/physics.md (DEP1)).
+AUTO = "auto"
 #: Values of the ``sbr`` parameter ``polarimetry``: the Jones model (default) and the scalar one.
 POLARIMETRY_MODELS = ("jones", "scalar")
 #: Values of the ``sbr`` parameter ``lit_regions`` (docs/physics.md (M1)-(M8), (T3)).
@@ -44,8 +46,15 @@ class TraceSettings:
 
     Attributes
     ----------
-    max_depth : int
-        Bounce orders traced, [1, 64].
+    max_depth : int or str
+        Bounce orders traced, [1, 64]; ``"auto"`` (the default): the depth the scene calls for,
+        chosen by a probe before the trace (:func:`sarmitsuba.tracing.driver.depth.choose_depth`,
+        docs/physics.md (DEP1)-(DEP3)).
+    depth_cap : int
+        ``max_depth = auto``: the deepest order the probe traces and the render may choose, [1, 64].
+    depth_tolerance_db : float, dB
+        ``max_depth = auto``: the share of the image's energy that the orders left out may hold
+        together, in (-200, 0) dB; -20 dB is an image NRMSE of about -20 dB against the cap's image.
     ray_spacing : float, m
         Ray-tube width at the scene centre; 0 = automatic (:func:`sarmitsuba.scene.planning.ray_spacing`).
         At most one resolution cell or ``sqrt(2 R_near (pi/2) / k)``, whichever is larger
@@ -114,7 +123,9 @@ class TraceSettings:
         agree but for rows that rounding decides. ``lit_regions = patches`` only.
     """
 
-    max_depth: int = 3
+    max_depth: "int | str" = "auto"
+    depth_cap: int = 8
+    depth_tolerance_db: float = -20.0
     ray_spacing: float = 0.0
     range_kernel: str = "linear"
     oversample: int = 8
@@ -133,8 +144,16 @@ class TraceSettings:
     geometry: str = "fused"
 
     def __post_init__(self) -> None:
-        if int(self.max_depth) != self.max_depth or not 1 <= self.max_depth <= 64:
-            raise ParameterError(f"max_depth = {self.max_depth} must be a whole number in [1, 64]")
+        if self.max_depth != AUTO and (isinstance(self.max_depth, str) or int(self.max_depth) != self.max_depth
+                                       or not 1 <= self.max_depth <= 64):
+            raise ParameterError(f"max_depth = {self.max_depth!r} must be a whole number in [1, 64] or 'auto' "
+                                 "(the depth the scene calls for)")
+        if int(self.depth_cap) != self.depth_cap or not 1 <= self.depth_cap <= 64:
+            raise ParameterError(f"depth_cap = {self.depth_cap} must be a whole number in [1, 64] (the deepest "
+                                 "order max_depth = auto may trace; default 8)")
+        if not -200 < self.depth_tolerance_db < 0:
+            raise ParameterError(f"depth_tolerance_db = {self.depth_tolerance_db} dB must lie in (-200, 0) dB "
+                                 "(the energy share the orders left out may hold; default -20)")
         for name in ("ray_spacing", "scatterer_spacing", "patch_size"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
@@ -166,6 +185,17 @@ class TraceSettings:
             raise ParameterError(f"pulses_per_trace = {self.pulses_per_trace} must be a whole number in [0, 65536] "
                                  "(1 = trace every pulse, 0 = automatic)")
 
+    @property
+    def auto_depth(self) -> bool:
+        """``max_depth = auto``: the depth is still to be chosen (:func:`~sarmitsuba.tracing.driver.depth.choose_depth`)."""
+        return self.max_depth == AUTO
+
+    @property
+    def depth(self) -> int:
+        """The bounce orders to plan and trace for: ``max_depth``, or ``depth_cap`` while it is ``auto``
+        (the deepest the choice can reach: windows and cost bounds are sized for it)."""
+        return int(self.depth_cap if self.max_depth == AUTO else self.max_depth)
+
     @classmethod
     def names(cls) -> tuple[str, ...]:
         """Names of all settings."""
@@ -186,13 +216,25 @@ class TraceSettings:
             if name not in types:
                 raise ParameterError(unknown_name("sbr integrator parameter", name, types))
             try:
+                if name == "max_depth":
+                    kwargs[name] = _depth(value)
+                    continue
                 kwargs[name] = {"int": int, "float": float, "str": str, "bool": _boolean}[types[name]](value)
             except (TypeError, ValueError):
                 expected = {"int": "a whole number", "float": "a number", "str": "a string",
-                            "bool": "true or false"}[types[name]]
+                            "bool": "true or false", "int | str": "a whole number or 'auto'"}[types[name]]
                 raise ParameterError(f"sbr integrator parameter {name}: cannot use value {value!r}; give {expected}") \
                     from None
         return cls(**kwargs)
+
+
+def _depth(value) -> "int | str":
+    """``max_depth`` from a mapping: ``"auto"`` or a whole number (ValueError otherwise)."""
+    if isinstance(value, str) and value.strip().lower() == AUTO:
+        return AUTO
+    if isinstance(value, float) and not value.is_integer():
+        raise ValueError(value)
+    return int(value)
 
 
 def _boolean(value) -> bool:

@@ -435,7 +435,7 @@ class Kernel:
             out["beyond_unchecked"] = int(stats["beyond"] is None)
             return out
         tube, n_lanes = self.launch(launch)
-        for depth in range(st.max_depth):
+        for depth in range(st.depth):
             if tube is None or dr.width(tube.active) == 0:
                 break
             tube = self._bounce(ctx, launch, tube, depth, n_lanes)
@@ -477,9 +477,9 @@ class Kernel:
         rec.flags |= dr.select(split[0], Flags.SPLIT_1, 0) | dr.select(split[1], Flags.SPLIT_2, 0) \
             | dr.select(undecided[0], Flags.UNDECIDED_1, 0) | dr.select(undecided[1], Flags.UNDECIDED_2, 0)
         vis = visible(self.scene, hit, hit.valid & (hit.cos_b > 0))
-        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.max_depth), hit.valid & (hit.cos_b > 0), mode=ctx["tally"])
+        dr.scatter_add(ctx["rays"], mi.UInt32(1), mi.UInt32(st.depth), hit.valid & (hit.cos_b > 0), mode=ctx["tally"])
         ret.tally(ctx, rec, hit, d, alpha, specular, r, count, depth, vis)
-        last = depth + 1 == st.max_depth          # the last bounce order: no reflection compiled
+        last = depth + 1 == st.depth          # the last bounce order: no reflection compiled
         if last:
             nxt = None
         elif reflected is None:

@@ -98,7 +98,7 @@ class MeshTracer:
         self.clutter = ClutterKernel(returns, cell, self.terms.arrival) if returns.clutter_on else None
         self.rough_row = (table.clutter[:, 0] > 0) if table is not None and table.clutter is not None else None
         self.k = returns.k
-        self.depth = settings.max_depth
+        self.depth = settings.depth
         self.cancel = settings.cancel_interior
         #: The Dr.Jit kernels of the stages that have one (docs/design.md section 10.1).
         self.fused = settings.geometry == "fused"

@@ -296,10 +296,15 @@ class TracePlan:
     axes: np.ndarray | None = None
     kept: int = 1
     bandwidth: float = 0.0
+    #: Sub-apertures traced, one per batch, when only some are (the depth probe,
+    #: :mod:`sarmitsuba.tracing.driver.depth`); empty: all of them.
+    only: tuple = ()
 
     @property
     def batches(self) -> list[int]:
         """First sub-aperture of each batch."""
+        if self.only:
+            return list(self.only)
         return list(range(0, len(self.subs.first), self.per_batch))
 
     def pulses(self, g0: int) -> tuple[int, int]:
@@ -367,7 +372,7 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     def reduce(h):
         return reduce_deposit(h, window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
     spectrum = None
-    if not plan.exact and plan.groups == settings.max_depth:            # one group per order: (D6)
+    if not plan.exact and plan.groups == settings.depth:            # one group per order: (D6)
         spectrum, totals["order_energy"] = spectra_by_order(hist, plan.n_channels, plan.kept > 1, reduce, window.fs,
                                                             plan.bandwidth)
     elif not plan.exact:
@@ -384,7 +389,7 @@ TOTALS = ("energy", "carried", "rays", "scatterers", "outside", "shadow", "evalu
 def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometry,
           window: FastTimeWindow, footprint: RayFootprint, settings: TraceSettings,
           material_table: MaterialTable, progress: bool = False, effects: EffectSet | None = None,
-          run_batches=None, batch_size=None, trace_here: bool = False) -> TraceResult:
+          run_batches=None, batch_size=None, trace_here: bool = False, sample=None) -> TraceResult:
     """Trace all pulses of an acquisition (see module docstring for the model).
 
     Parameters
@@ -417,6 +422,9 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         With ``run_batches``: this process traces batches too. ``run_batches`` is then called as
         ``run_batches(plan, batches, here)``, where ``here(g0)`` traces the batch ``g0`` in this
         process (one launch at a time).
+    sample : sequence of int, optional
+        Trace only these sub-apertures (indices into the plan's, one per batch); the other pulses'
+        spectra stay zero and the tallies count the traced ones alone (the depth probe).
 
     Returns
     -------
@@ -428,12 +436,14 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
     plan = plan_trace(scene, params, geometry, window, footprint, settings, effects)
     if batch_size is not None:
         plan = dataclasses.replace(plan, per_batch=batch_size(plan.per_batch, len(plan.subs.first)))
+    if sample is not None:
+        plan = dataclasses.replace(plan, per_batch=1, only=tuple(int(g) for g in sample))
     spectrum = np.zeros((plan.n_channels * plan.kept, n_pulses, 0 if plan.exact else plan.n_pad), np.complex64)
     paths = {}
-    totals = dict(energy=np.zeros(settings.max_depth), carried=np.zeros(settings.max_depth),
-                  rays=np.zeros(settings.max_depth, np.int64), scatterers=np.zeros(settings.max_depth, np.int64),
-                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.max_depth + 1, len(STAGES))),
-                  order_energy=np.zeros(settings.max_depth), overflow=0, beyond_rays=0, beyond_unchecked=0)
+    totals = dict(energy=np.zeros(settings.depth), carried=np.zeros(settings.depth),
+                  rays=np.zeros(settings.depth, np.int64), scatterers=np.zeros(settings.depth, np.int64),
+                  outside=0.0, shadow=0, evaluated=0, stages=np.zeros((settings.depth + 1, len(STAGES))),
+                  order_energy=np.zeros(settings.depth), overflow=0, beyond_rays=0, beyond_unchecked=0)
     start = time.perf_counter()
     kernel = None if run_batches is not None else Kernel(scene, params, window, footprint, settings,
                                                          material_table, effects)

@@ -127,7 +127,7 @@ class ClutterTerms:
                                           lambda i, *_: i < n_cells, step, mode=loop_mode(), label="scatterers")
         power = dr.squared_norm(amplitude) * level
         self.sums.tally(ctx, "energy", mi.Float(found) * power, depth, rough)
-        self.sums.tally(ctx, "energy", mi.Float(outside) * power, self.settings.max_depth, rough)
+        self.sums.tally(ctx, "energy", mi.Float(outside) * power, self.settings.depth, rough)
         dr.scatter_add(ctx["scatterers"], found, mi.UInt32(depth), rough, mode=ctx["tally"])
 
     def rough_returns(self, rec, d, b, n, cosines: tuple, model: tuple, depth: int):

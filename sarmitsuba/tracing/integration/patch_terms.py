@@ -409,7 +409,7 @@ class PatchTerms:
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
             r.sums.tally(ctx, "energy", power, depth, live)
-            r.sums.tally(ctx, "energy", power, r.settings.max_depth, live & ~inside)
+            r.sums.tally(ctx, "energy", power, r.settings.depth, live & ~inside)
 
     @staticmethod
     def _moved(data, antenna):

@@ -142,8 +142,8 @@ class Returns(ClutterTerms):
         st = self.settings
         n_b = launch.n_pulses
         a64, f64 = mi.Array3f64, mi.Float64
-        ctx = dict(**self.sums.tallies(st.max_depth), rays=dr.zeros(mi.UInt32, st.max_depth + 1),
-                   scatterers=dr.zeros(mi.UInt32, st.max_depth),
+        ctx = dict(**self.sums.tallies(st.depth), rays=dr.zeros(mi.UInt32, st.depth + 1),
+                   scatterers=dr.zeros(mi.UInt32, st.depth),
                    antenna=table_array(a64, launch.antenna.T), lref=table_array(f64, launch.lref),
                    first=table_array(mi.UInt32, launch.first), count=table_array(mi.UInt32, launch.count),
                    reference=table_array(a64, launch.reference.T),
@@ -185,8 +185,8 @@ class Returns(ClutterTerms):
         tallies = self.sums.read_tallies(ctx)
         energy = tallies["energy"]
         rays = ctx["rays"].numpy().astype(np.int64)
-        out = dict(energy=energy[:st.max_depth], outside=float(energy[st.max_depth]), rays=rays[:st.max_depth],
-                   shadow=int(rays[st.max_depth]), carried=tallies["carried"],
+        out = dict(energy=energy[:st.depth], outside=float(energy[st.depth]), rays=rays[:st.depth],
+                   shadow=int(rays[st.depth]), carried=tallies["carried"],
                    scatterers=ctx["scatterers"].numpy().astype(np.int64))
         out["evaluated"] = ctx["evaluated"] + int(out["scatterers"].sum())
         out.update(self.sums.collect(ctx))
@@ -394,7 +394,7 @@ class Returns(ClutterTerms):
         rel = hit.s + hit.dist - lref
         bin_, frac = self.anchor(rel, lref)
         outside = (bin_ < 0) | (bin_ >= self.window.n_fine - 1)
-        self.sums.tally(ctx, "energy", power, st.max_depth, vis & outside)
+        self.sums.tally(ctx, "energy", power, st.depth, vis & outside)
 
     # ------------------------------------------------------------------ the returns of one order
     def deposit(self, ctx, rec, depth: int, n_lanes: int) -> None:

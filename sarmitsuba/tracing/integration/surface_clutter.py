@@ -221,7 +221,7 @@ class ClutterKernel:
                                 mi.UInt32(SPECTRAL_ORDERS.index(0)), active, paths, lane * ctx["max_count"] + q)
         power = dr.detach(dr.squared_norm(amplitude) * level)
         r.sums.tally(ctx, "energy", power, depth, active)
-        r.sums.tally(ctx, "energy", power, r.settings.max_depth, active & ~inside)
+        r.sums.tally(ctx, "energy", power, r.settings.depth, active & ~inside)
 
 
 _unused = (math, pol)
