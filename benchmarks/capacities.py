@@ -49,6 +49,9 @@ from sarmitsuba.tracing.visibility import occlusion  # noqa: E402
 NAME = "capacities"
 #: The capacities whose overflow share is reported.
 CAPACITIES = (8, 16, 32, 64)
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 QUANTITIES = ("corners", "occluders", "shadow_planes", "cutout_corners", "boundary", "lanes", "pieces_per_sub",
               "chains_per_sub")
 
@@ -93,7 +96,7 @@ def record(scene: str, overrides: dict) -> dict:
     mesh_trace.MeshTracer._lanes = lanes
     occlusion.clip, occlusion.shared_shadow_lines = clip, shadow
     try:
-        simulate(scene, sensor_overrides=overrides)
+        simulate(scene, sensor_overrides=overrides, integrator_overrides={"max_depth": MAX_DEPTH})
     finally:
         mesh_trace.MeshTracer._lanes = real_lanes
         occlusion.clip, occlusion.shared_shadow_lines = real_clip, real_shadow

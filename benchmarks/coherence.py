@@ -32,6 +32,9 @@ from sarmitsuba.tracing.visibility import lit_pieces as lp
 NAME = "coherence"
 #: The classes as recorded: 0 dark, 1 transmit-lit only, 2 lit, 3 mixed.
 CLASSES = ("dark", "transmit", "lit", "mixed")
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def record(scene: str, pulses: int) -> dict:
@@ -58,7 +61,7 @@ def record(scene: str, pulses: int) -> dict:
     lp.classify = mesh_trace.classify = classify
     mesh_trace.MeshTracer.__call__ = call
     try:
-        simulate(scene, sensor_overrides={"n_pulses": pulses})
+        simulate(scene, sensor_overrides={"n_pulses": pulses}, integrator_overrides={"max_depth": MAX_DEPTH})
     finally:
         lp.classify = mesh_trace.classify = real_classify
         mesh_trace.MeshTracer.__call__ = real_call

@@ -33,6 +33,10 @@ from sarmitsuba.tracing.driver import distributed
 from sarmitsuba.pipeline import simulate
 
 NAME = "dask_scaling"
+#: The integrator overrides of every render here: ``max_depth`` 3, the default render's depth
+#: before ``max_depth = auto``, so that the speed figures stay comparable (``bounce_depth``
+#: measures ``auto``).
+INTEGRATOR = {"max_depth": 3}
 
 
 def nrmse_db(a: np.ndarray, b: np.ndarray) -> float:
@@ -46,12 +50,12 @@ def _one(scene: str, sensor: dict, workers: int | str | None) -> tuple[dict, np.
     str: the running cluster at that address), its seconds and raw samples."""
     start = time.perf_counter()
     if workers is None:
-        sim = simulate(scene, sensor_overrides=sensor)
+        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR)
     elif isinstance(workers, str):
-        sim = simulate(scene, sensor_overrides=sensor, scheduler=workers)
+        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR, scheduler=workers)
     else:
         distributed.LOCAL_WORKERS = workers
-        sim = simulate(scene, sensor_overrides=sensor, scheduler="local")
+        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR, scheduler="local")
     total = time.perf_counter() - start
     setting = ("one process" if workers is None else f"LocalCluster, {workers} worker(s)" if isinstance(workers, int)
                else "running cluster, 2 workers")
@@ -67,7 +71,7 @@ def run(quick: bool = False, tiny: bool = False) -> list[dict]:
     """Measure the settings, print and write the table; returns the rows."""
     print(machine())
     scene, sensor = ("trihedral", {"n_pulses": 32}) if tiny else ("urban", {"n_pulses": 256} if quick else {})
-    simulate(scene, sensor_overrides=sensor)                  # warm-up: kernel compilation in this process
+    simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR)   # warm-up: kernel compilation in this process
     gc.collect()
     saved = distributed.LOCAL_WORKERS
     rows, reference = [], None

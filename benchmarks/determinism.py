@@ -53,6 +53,9 @@ REPEATS = 2
 RUNS = 10
 #: The fixed point's trace time may exceed the float32 sums' by this factor at most (the issue's bound).
 COST_BOUND = 1.05
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 class FloatSums(Accumulator):
@@ -114,8 +117,8 @@ def _digest(*arrays) -> str:
 
 
 def _render(scene: str, **kwargs) -> tuple[float, np.ndarray, np.ndarray]:
-    """Trace seconds, raw data and image of one in-memory render."""
-    sim = simulate(scene, **kwargs)
+    """Trace seconds, raw data and image of one in-memory render (``max_depth`` :data:`MAX_DEPTH`)."""
+    sim = simulate(scene, integrator_overrides={"max_depth": MAX_DEPTH}, **kwargs)
     out = (sim.timings["trace"], sim.raw.data.copy(), sim.image.data.copy())
     del sim
     gc.collect()
@@ -147,7 +150,8 @@ def _load(scene: str):
     def loop():
         with tempfile.TemporaryDirectory() as out:
             while not stop.is_set():
-                subprocess.run([sys.executable, "-m", "sarmitsuba", "render", scene, "--out", out, "--no-progress"],
+                subprocess.run([sys.executable, "-m", "sarmitsuba", "render", scene, "--out", out, "--no-progress",
+                                "--max-depth", str(MAX_DEPTH)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=False)
     worker = threading.Thread(target=loop, daemon=True)
     worker.start()

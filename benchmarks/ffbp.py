@@ -55,6 +55,9 @@ SETTINGS = [("default", {}), ("subaperture=8", {"subaperture": 8}), ("subapertur
             ("range_oversample=1", {"range_oversample": 1}), ("range_oversample=4", {"range_oversample": 4}),
             ("oversample=4", {"oversample": 4})]
 TINY_SETTINGS = SETTINGS[:2]
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
@@ -77,7 +80,7 @@ def _best(focus, repeat: int = 2):
 def _prepared(scene: str, sensor: dict) -> tuple:
     """``(raw, range-windowed raw, grid, focus options, range window name)`` of a render: its image's
     grid and the options its focusing recorded."""
-    sim = simulate(scene, sensor_overrides=sensor)
+    sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"max_depth": MAX_DEPTH})
     raw, image = sim.raw, sim.image
     focus = image.metadata["focus"]
     options = {"azimuth_beamwidth": focus["azimuth_beamwidth"], "squint": focus["squint"],

@@ -54,6 +54,9 @@ SCENES = {
 NOT_GEOMETRY = ("casts", "terms", "deposit")
 #: Largest NRMSE [dB] of the fused raw data against the reference's.
 NRMSE_BOUND_DB = -50.0
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def _render(scene: str, sensor: dict, geometry: str, threads: str | None = THREADS) -> dict:
@@ -74,7 +77,8 @@ def _render(scene: str, sensor: dict, geometry: str, threads: str | None = THREA
 
     mesh_trace.MeshTracer.__call__ = call
     try:
-        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"geometry": geometry})
+        sim = simulate(scene, sensor_overrides=sensor,
+                       integrator_overrides={"max_depth": MAX_DEPTH, "geometry": geometry})
     finally:
         mesh_trace.MeshTracer.__call__ = real
         os.environ["SARMITSUBA_HOST_THREADS"] = THREADS

@@ -6,11 +6,12 @@ variant (``llvm_ad_mono``), in one command on a machine with an NVIDIA GPU.
    variant cannot start, e.g. on a GPU machine without libLLVM >= 16).
 2. The trihedral on cuda three ways, to place any difference: the default render with its raw data
    per bounce order (``--split-bounces``), with Dr.Jit's fast math off, and without diffraction.
-3. ``urban`` and ``sionna:munich`` on cuda, each rendered twice: the first run (kernels compiled)
-   and the second (kernel cache warm) timed, with seconds by pipeline stage and by trace stage
-   (``summary.json``'s ``timings`` and ``trace_stages``). Where the llvm variant starts too, it
-   renders the same and the NRMSE ``10 log10(sum |cuda - llvm|^2 / sum |llvm|^2)`` [dB] of the raw
-   data and the image is computed there.
+3. ``urban`` and ``sionna:munich`` on cuda at ``--max-depth 3`` (:data:`MAX_DEPTH`), each rendered
+   twice: the first run (kernels compiled) and the second (kernel cache warm) timed, with seconds
+   by pipeline stage and by trace stage (``summary.json``'s ``timings`` and ``trace_stages``).
+   Where the llvm variant starts too, it renders the same and the NRMSE
+   ``10 log10(sum |cuda - llvm|^2 / sum |llvm|^2)`` [dB] of the raw data and the image is
+   computed there.
 
 Everything is written under ``--out`` (default: the benchmarks' output folder, ``_table.output_dir``):
 ``gpu.json`` and one folder per render. ``--against DIR`` runs on the CPU machine instead: for each
@@ -38,8 +39,11 @@ from _table import machine, output_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "tests" / "data" / "gpu" / "trihedral_llvm_raw.npz"
-#: The GPU test's render (tests/test_gpu.py renders the same).
+#: The GPU test's render (tests/test_gpu.py renders the same, at the default ``max_depth = auto``).
 TRIHEDRAL = ("trihedral", ["--pulses", "32"])
+#: The bounce orders of the timed renders (urban, Munich): 3, the default render's depth before
+#: ``max_depth = auto``, so that the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 #: Dr.Jit's fast math off for one render (the flag is per process, set before the variant).
 NO_FAST_MATH = "import drjit as dr; dr.set_flag(dr.JitFlag.FastMath, False); "
 
@@ -98,7 +102,7 @@ def stage_row(summary: dict, key: str) -> dict:
 def timed(scene: str, out: Path, pulses: int, with_llvm: bool) -> dict:
     """``scene`` on cuda twice (first run, then warm), and on llvm twice where it starts: stages
     of each, and the NRMSE of raw data and image between the variants' warm renders."""
-    extra = ["--pulses", str(pulses)] if pulses else []
+    extra = ["--max-depth", str(MAX_DEPTH), *(["--pulses", str(pulses)] if pulses else [])]
     row = {"scene": scene}
     folders = {}
     for variant in ("cuda_ad_mono", "llvm_ad_mono") if with_llvm else ("cuda_ad_mono",):
@@ -174,6 +178,8 @@ def against(folder: Path) -> None:
         summary = json.loads((cuda_dir / "summary.json").read_text())
         scene = summary["scene"]
         extra = ["--pulses", str(summary["n_pulses"])]
+        if summary.get("depth", {}).get("mode") != "auto":       # a fixed depth (the timed renders'), as traced
+            extra += ["--max-depth", str(summary["settings"]["max_depth"])]
         extra += ["--split-bounces"] if (cuda_dir / "raw_order1.npz").is_file() else []
         extra += [] if summary["settings"].get("diffraction", True) else ["--integrator-set", "diffraction=false"]
         llvm_dir = folder.parent / f"{folder.name}_llvm" / cuda_dir.name

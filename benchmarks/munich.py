@@ -6,12 +6,13 @@
    coherent=False)``. Timed on the rays of 64 pulses spread over the aperture (about 3 M) and
    scaled to 279 M. Embree alone (``ray_intersect_preliminary``, no surface interaction) is timed
    on the same rays for comparison.
-2. **The default render**, ``python -m sarmitsuba render sionna:munich``, start to end in a
-   subprocess, twice back to back (issue 56): first with an empty Dr.Jit kernel cache (a fresh
-   ``DRJIT_CACHE_DIR``, the variable Dr.Jit 1.5 reads before ``$HOME/.drjit``: every kernel
-   compiles, as on the first run after an install), then warm (the same cache, now filled). Wall
-   seconds of both (also in units), the kernels the first run compiled (files in the cache), and
-   the warm run's peak memory (the process's maximum resident set).
+2. **The default render**, ``python -m sarmitsuba render sionna:munich --max-depth 3``
+   (:data:`MAX_DEPTH`), start to end in a subprocess, twice back to back (issue 56): first with
+   an empty Dr.Jit kernel cache (a fresh ``DRJIT_CACHE_DIR``, the variable Dr.Jit 1.5 reads
+   before ``$HOME/.drjit``: every kernel compiles, as on the first run after an install), then
+   warm (the same cache, now filled). Wall seconds of both (also in units), the kernels the first
+   run compiled (files in the cache), and the warm run's peak memory (the process's maximum
+   resident set).
 3. **The reference render**: every pulse traced on its own and direct backprojection
    (``--integrator-set pulses_per_trace=1 --focuser bp``), seconds and memory, and the image
    NRMSE between the default and the reference, ``10 log10(sum |a - b|^2 / sum |b|^2)`` [dB].
@@ -55,6 +56,9 @@ from _table import bench_main, machine, write_csv
 from ffbp import OMEGA_K_BOUND
 
 NAME = "munich"
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 #: Closest-hit casts of the unit of work (the primary rays of per-pulse tracing before issue 12).
 UNIT_RAYS = 279e6
 #: Peak memory of the Munich default render before issue 12 [MB] (commit c4b9c92, GNU time).
@@ -131,15 +135,16 @@ def floor(unit: dict, default: dict) -> dict:
 
 def render(scene: str, out: Path, *args: str, kernel_cache: Path | None = None, pin: str | None = None,
            env: dict | None = None) -> dict:
-    """``sarmitsuba render`` in a subprocess: wall seconds, CPU seconds (the process and its
-    workers), peak memory [MB] (the render process's own), summary.json.
+    """``sarmitsuba render`` in a subprocess (``--max-depth`` :data:`MAX_DEPTH`): wall seconds, CPU
+    seconds (the process and its workers), peak memory [MB] (the render process's own), summary.json.
     ``kernel_cache``: Dr.Jit's kernel cache folder for the run (``DRJIT_CACHE_DIR``; default: the
     user's, ``~/.drjit``); ``pin``: the cores to pin it to (``taskset -c``); ``env``: variables to set."""
     import resource
     env = {**os.environ, **(env or {})}
     if kernel_cache is not None:
         env["DRJIT_CACHE_DIR"] = str(kernel_cache)
-    command = [sys.executable, "-c", _PROFILED, "render", scene, "--out", str(out), "--no-progress", *args]
+    command = [sys.executable, "-c", _PROFILED, "render", scene, "--out", str(out), "--no-progress",
+               "--max-depth", str(MAX_DEPTH), *args]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run((["taskset", "-c", pin] if pin else []) + command, capture_output=True, text=True,
@@ -195,7 +200,7 @@ def scene_rows(scene: str, folder: Path, with_unit: bool) -> list[dict]:
            "reference_render_s": round(reference["seconds"], 2), "reference_peak_mb": round(reference["peak_mb"]),
            "nrmse_vs_reference_db": round(error, 1)}
     from sarmitsuba.info import scene_info
-    estimate = scene_info(scene).cost
+    estimate = scene_info(scene, integrator_overrides={"max_depth": MAX_DEPTH}).cost
     measured = default["timings"]["trace"] + default["timings"]["focus"]
     row.update({"info_trace_focus_s": round(estimate.trace_time_s + estimate.focus_time_s, 2),
                 "info_over_measured": round((estimate.trace_time_s + estimate.focus_time_s) / measured, 2)})

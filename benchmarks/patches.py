@@ -41,6 +41,9 @@ import sarmitsuba
 from sarmitsuba.pipeline import simulate
 
 NAME = "patches"
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 #: Patch sizes swept, as multiples of the default.
 PATCH_FACTORS = (0.5, 1.0, 2.0)
 #: Plate sides swept [wavelengths].
@@ -51,7 +54,7 @@ import json, resource, sys, time
 import sarmitsuba
 from sarmitsuba.pipeline import simulate
 t = time.perf_counter()
-sim = simulate(sys.argv[1], integrator_overrides={"lit_regions": sys.argv[2]})
+sim = simulate(sys.argv[1], integrator_overrides={"max_depth": int(sys.argv[3]), "lit_regions": sys.argv[2]})
 total = time.perf_counter() - t
 print(json.dumps({**{k: round(v, 2) for k, v in sim.timings.items()}, "total": round(total, 2),
                   "peak_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)}))
@@ -63,8 +66,8 @@ def render_rows(scenes) -> list[dict]:
     rows = []
     for scene in scenes:
         for mode in ("tiles", "patches"):
-            out = subprocess.run([sys.executable, "-c", _RENDER, scene, mode], capture_output=True, text=True,
-                                 check=True)
+            out = subprocess.run([sys.executable, "-c", _RENDER, scene, mode, str(MAX_DEPTH)], capture_output=True,
+                                 text=True, check=True)
             numbers = json.loads(out.stdout.strip().splitlines()[-1])
             rows.append({"table": "render", "scene": scene, "setting": mode, "trace_s": numbers["trace"],
                          "total_s": numbers["total"], "peak_mib": numbers["peak_mib"], "value": numbers["total"],
@@ -109,10 +112,11 @@ def stage_rows(scene: str, sensor: dict) -> list[dict]:
     timed(integration.PatchTerms, "__call__", "patch terms (Dr.Jit, every pulse)")
     timed(surface_clutter.ClutterKernel, "__call__", "clutter scatterers (Dr.Jit, every pulse)")
     timed(mesh_trace.MeshTracer, "__call__", "mesh tracer, all")
+    integrator = {"max_depth": MAX_DEPTH}
     try:
-        simulate(scene, sensor_overrides=sensor)                  # warm: compiled kernels
+        simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)   # warm: compiled kernels
         spent.clear()
-        sim = simulate(scene, sensor_overrides=sensor)
+        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator)
         trace = sim.timings["trace"]
         del sim
     finally:
@@ -129,12 +133,13 @@ def stage_rows(scene: str, sensor: dict) -> list[dict]:
 
 def patch_size_rows(label: str, scene, sensor: dict) -> list[dict]:
     """``patch_size`` swept about its default: NRMSE against the finest, trace seconds."""
-    sim = simulate(scene, sensor_overrides=sensor)
+    sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"max_depth": MAX_DEPTH})
     base = _patch_of(sim)
     del sim
     images, rows = {}, []
     for factor in PATCH_FACTORS:
-        sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"patch_size": factor * base})
+        sim = simulate(scene, sensor_overrides=sensor,
+                       integrator_overrides={"max_depth": MAX_DEPTH, "patch_size": factor * base})
         images[factor] = sim.image.data.copy()
         rows.append({"table": "patch size", "scene": f"{label}, patch size", "setting": f"P = {factor:g} x default ({factor * base:.2f} m)",
                      "trace_s": round(sim.timings["trace"], 2), "total_s": "", "peak_mib": "", "value": None,

@@ -45,6 +45,9 @@ POLARIZATIONS = {"VV": ("VV", "jones"), "VV scalar": ("VV", "scalar"), "HH": ("H
 SCENES = {"urban": {}, "sionna:munich": {"n_pulses": 128}}
 #: Measured runs per setting (after the warm-up); the fastest counts (other work shares the CPU).
 REPEATS = 2
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def nrmse_db(image: np.ndarray, reference: np.ndarray) -> float:
@@ -57,7 +60,7 @@ def _run(scene: str, sensor: dict, setting: str, repeats: int = REPEATS) -> tupl
     """The fastest of ``repeats`` simulations after a warm-up: its numbers and its co-polarised
     images (each simulation is dropped as soon as it is measured)."""
     polarization, model = POLARIZATIONS[setting]
-    overrides, integrator = {**sensor, "polarization": polarization}, {"polarimetry": model}
+    overrides, integrator = {**sensor, "polarization": polarization}, {"max_depth": MAX_DEPTH, "polarimetry": model}
     simulate(scene, sensor_overrides=overrides, integrator_overrides=integrator)
     gc.collect()
     best = None

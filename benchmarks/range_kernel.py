@@ -31,10 +31,13 @@ from sarmitsuba.pipeline import simulate
 
 KERNELS = ("nearest", "linear", "sinc", "exact")
 PSLR_RECT_DB = -13.26
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the speed figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def _sim(scene: str, kernel: str, oversample: int, sensor: dict):
-    overrides = {"range_kernel": kernel, "oversample": oversample}
+    overrides = {"max_depth": MAX_DEPTH, "range_kernel": kernel, "oversample": oversample}
     # rect window: the range IRW and PSLR are compared with the unweighted sinc's closed forms
     simulate(scene, sensor_overrides=sensor, integrator_overrides=overrides, window="rect")   # warm-up (compile)
     gc.collect()

@@ -34,6 +34,9 @@ ON_RIM = 1.0
 BESIDE = (3.0, 50.0)
 #: A rim counts where at least this many of its pixels lie in the image.
 MIN_PIXELS = 200
+#: The bounce orders traced: 3, the default render's depth before ``max_depth = auto``, so that
+#: the figures stay comparable (``bounce_depth`` measures ``auto``).
+MAX_DEPTH = 3
 
 
 def free_rims(loaded) -> list[np.ndarray]:
@@ -53,7 +56,8 @@ def free_rims(loaded) -> list[np.ndarray]:
 
 def measure(scene: str, sensor: dict, ground: str) -> list[dict]:
     """One render; a row per rim with enough pixels in the image."""
-    sim = simulate(scene, sensor_overrides=sensor, integrator_overrides={"ground_shapes": ground})
+    sim = simulate(scene, sensor_overrides=sensor,
+                   integrator_overrides={"max_depth": MAX_DEPTH, "ground_shapes": ground})
     image, loaded = sim.image, sim.loaded
     xyz = (image.origin - loaded.offset + image.azimuth[:, None, None] * image.azimuth_direction
            + image.range[None, :, None] * image.range_direction)

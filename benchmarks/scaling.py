@@ -330,6 +330,10 @@ CALIBRATION = ((1e4, 19, ""), (1e4, 19, "scattering_coefficient=0"), (1e4, 38, "
                (1e5, 19, ""), (1e5, 38, ""), ("urban", 0, ""), ("sionna:munich", 0, ""))
 #: The prediction must hold within this factor (issue 56's acceptance).
 PREDICTION_FACTOR = 1.5
+#: The bounce orders :func:`measure` traces: 3, the default render's depth before
+#: ``max_depth = auto``, so that the speed figures stay comparable (``bounce_depth`` measures
+#: ``auto``; the sweeps' scenes give 3 themselves).
+MAX_DEPTH = 3
 
 
 def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | None = None,
@@ -346,7 +350,9 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
     from sarmitsuba import info as scene_info_module
     sensor = {"n_pulses": pulses} if pulses else None
     materials = {k: float(v) for k, v in [material.split("=")]} if material else None
-    cost = scene_info_module.scene_info(scene, sensor_overrides=sensor, material_overrides=materials).cost
+    integrator = {"max_depth": MAX_DEPTH}
+    cost = scene_info_module.scene_info(scene, sensor_overrides=sensor, integrator_overrides=integrator,
+                                        material_overrides=materials).cost
     cpu = {}
     originals = {name: getattr(pipeline, name) for name in ("trace", "trace_in_workers")}
 
@@ -370,7 +376,8 @@ def measure(scene: str, pulses: int = 0, material: str = "", scheduler: str | No
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             start = time.perf_counter()
-            sim = simulate(scene, sensor_overrides=sensor, material_overrides=materials, scheduler=scheduler)
+            sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=integrator, material_overrides=materials,
+                           scheduler=scheduler)
             wall = time.perf_counter() - start
     finally:
         for name, original in originals.items():

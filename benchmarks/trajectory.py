@@ -56,13 +56,17 @@ SPACEBORNE = {"altitude": 514e3, "velocity": 7600.0, "prf": 4000.0, "azimuth_bea
 #: Sinusoidal motion-error amplitudes [m] of the PGA sweep, at this period [m].
 AMPLITUDES = (0.005, 0.01, 0.02, 0.05)
 PERIOD = 40.0
+#: The integrator overrides of every render here: ``max_depth`` 3, the default render's depth
+#: before ``max_depth = auto``, so that the speed figures stay comparable (``bounce_depth``
+#: measures ``auto``).
+INTEGRATOR = {"max_depth": 3}
 
 
 def _timed(scene: str, sensor: dict, **kwargs) -> tuple:
     """A simulation after a warm-up (the kernels compiled): its trace and focus seconds and the simulation."""
-    simulate(scene, sensor_overrides=sensor, **kwargs)
+    simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR, **kwargs)
     gc.collect()
-    sim = simulate(scene, sensor_overrides=sensor, **kwargs)
+    sim = simulate(scene, sensor_overrides=sensor, integrator_overrides=INTEGRATOR, **kwargs)
     return sim.timings["trace"], sim.timings["focus"], sim
 
 
@@ -88,7 +92,8 @@ def error(geometries: dict) -> list[dict]:
     """Where the trihedral images when continuous-motion data are processed as stop-and-hop."""
     rows = []
     for label, sensor in geometries.items():
-        truth = simulate("trihedral", sensor_overrides=sensor, focuser="bp", image_size=(112, 48))
+        truth = simulate("trihedral", sensor_overrides=sensor, integrator_overrides=INTEGRATOR, focuser="bp",
+                         image_size=(112, 48))
         raw, image = truth.raw, truth.image
         grid = ImageGrid(origin=image.origin, azimuth_direction=image.azimuth_direction,
                          range_direction=image.range_direction, azimuth=image.azimuth, range=image.range,
@@ -98,8 +103,8 @@ def error(geometries: dict) -> list[dict]:
         right = analyze_point_target(backproject(raw, grid), (0.0, 0.0, 0.0), chip=32)   # same focuser, both legs
         hop = backproject(dataclasses.replace(raw, rx_position=raw.tx_position.copy(), rx_time=None), grid)
         wrong = analyze_point_target(hop, (expected, 0.0), chip=32, search_radius=8)
-        flat = simulate("trihedral", sensor_overrides={**sensor, "stop_and_hop": True}, focuser="bp",
-                        image_size=(8, 8)).raw
+        flat = simulate("trihedral", sensor_overrides={**sensor, "stop_and_hop": True},
+                        integrator_overrides=INTEGRATOR, focuser="bp", image_size=(8, 8)).raw
         rows.append({"table": "error", "scene": f"trihedral {label}", "v_R_over_c_m": round(expected, 6),
                      "azimuth_error_m": round(right.azimuth_error, 6),
                      "azimuth_shift_as_stop_and_hop_m": round(wrong.azimuth, 6),
@@ -122,8 +127,8 @@ def pga_sweep(amplitudes: tuple) -> list[dict]:
     """The trihedral's azimuth response on the true track, the nominal one and after PGA."""
     rows = []
     for amplitude in amplitudes:
-        sim = simulate("trihedral", sensor_overrides={"motion_error": f"{amplitude}, {PERIOD}"}, focuser="ffbp",
-                       image_size=(32, 32))
+        sim = simulate("trihedral", sensor_overrides={"motion_error": f"{amplitude}, {PERIOD}"},
+                       integrator_overrides=INTEGRATOR, focuser="ffbp", image_size=(32, 32))
         grid = _fine_grid(sim.image)
         row = {"table": "pga", "scene": "trihedral airborne", "amplitude_m": amplitude, "period_m": PERIOD}
         images = {"true": ffbp(sim.raw, grid), "nominal": ffbp(sim.raw.on_track("nominal"), grid)}

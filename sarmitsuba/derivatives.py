@@ -297,8 +297,6 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     """The loaded scene, its shapes moved by ``at`` (ShapeParameter -> amount), and its trace
     set-up, checked for what derivatives support."""
     loaded = load_scene(source, sensor_overrides, integrator_overrides)
-    # max_depth = auto: the unmoved scene's probe, so that every evaluation traces the same orders
-    loaded = choose_depth(loaded)[0]
     if loaded.settings.split_bounces:
         raise ParameterError("gradients are taken of the raw data of all bounce orders; set split_bounces = false")
     if loaded.motion is not None:
@@ -307,6 +305,8 @@ def _setup(source, sensor_overrides, integrator_overrides, at=None):
     if loaded.params.bistatic:
         raise ParameterError("derivatives of a bistatic acquisition (receiver_* parameters) are not taken: their "
                              "tracers cut the return legs monostatic; remove the receiver_* parameters")
+    # max_depth = auto: the unmoved scene's probe, so that every evaluation traces the same orders
+    loaded = choose_depth(loaded)[0]
     moved = {}
     for parameter, amount in dict(at or {}).items():
         if not isinstance(parameter, ShapeParameter) or not np.isfinite(amount):

@@ -133,7 +133,9 @@ class Simulation:
             ghosts = (" AASR none;" if amb.aasr_db is None else f" AASR {amb.aasr_db:.1f} dB (ghosts at "
                       f"+-{p.prf * p.wavelength * p.slant_range / (2 * p.velocity):.1f} m along track at the centre"
                       f"{advice});")
-        return (f"simulated {self.loaded.source}: {p.n_pulses} pulses at prf {p.prf:g} Hz, "
+        depth = self.loaded.settings.max_depth
+        how = f"depth {depth}" + (f" (auto: {self.depth.reason})" if self.depth is not None else "")
+        return (f"simulated {self.loaded.source}: {p.n_pulses} pulses at prf {p.prf:g} Hz, {how}, "
                 f"raw {self.raw.data.shape[0]}x{self.raw.data.shape[1]}, image {self.image.data.shape[0]}x{self.image.data.shape[1]};{ghosts} trace "
                 f"{self.timings['trace']:.1f} s, focus {self.timings['focus']:.1f} s")
 
@@ -162,6 +164,9 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
+    if loaded.settings.auto_depth:                       # the probe traces to the cap: its memory, first
+        probe = prepare_trace(loaded)
+        check_memory(loaded, probe.geometry, probe.window, probe.footprint, effects=probe.effects)
     loaded, depth = choose_depth(loaded)                 # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings
     setup = prepare_trace(loaded)

@@ -20,7 +20,7 @@ import pytest
 from sarmitsuba.info import scene_info
 from sarmitsuba.pipeline import render, simulate
 from sarmitsuba.scene.loader import load_scene
-from sarmitsuba.tracing.driver.depth import PROBE_MIN, choose_depth, decide, probe_sample
+from sarmitsuba.tracing.driver.depth import choose_depth, decide
 
 SCENES = Path(__file__).parent / "scenes"
 CANYON = str(SCENES / "street_canyon.xml")
@@ -55,12 +55,15 @@ def test_the_tolerance_is_a_share_of_energy_in_decibels():
     assert decide(np.zeros(5), np.zeros(5), -20.0) == (1, "no returns")
 
 
-def test_the_probe_samples_the_centres_of_equal_runs_of_sub_apertures():
-    """Bug: probing the first sub-apertures (the aperture's start) instead of spreading them."""
-    assert probe_sample(27).tolist() == [6, 20]                # 2 runs of 13.5: centres 6.75, 20.25
-    assert probe_sample(123).tolist() == [15, 46, 76, 107]     # ceil(123 / 32) = 4 runs of 30.75
-    assert probe_sample(1).tolist() == [0]
-    assert len(probe_sample(5)) == PROBE_MIN
+def test_the_probe_traces_the_scene_s_ray_tubes_to_the_cap():
+    """The probe traces ray tubes to ``depth_cap``, every order apart, with the scene's own tube
+    spacing. Bugs: probing only to the render's depth (it would never see the orders beyond);
+    probing with per-order spectra kept (``split_bounces``: memory for nothing)."""
+    from sarmitsuba.tracing.driver.depth import probe_settings
+    settings = probe_settings(load_scene("trihedral", {}, {"ray_spacing": 0.5}, {}))
+    assert settings.max_depth == 8 and settings.lit_regions == "tiles" and not settings.split_bounces
+    assert settings.ray_spacing == 0.5
+    assert probe_settings(load_scene("trihedral", {}, {"depth_cap": 5}, {})).max_depth == 5
 
 
 # ---------------------------------------------------------------------------- scenes (DEP1)
@@ -128,10 +131,12 @@ def test_the_render_traces_the_chosen_depth_exactly_and_info_predicts_it():
 
 
 def test_the_summary_says_the_cap_stopped_it(tmp_path):
-    """``depth_cap = 2`` on the canyon (which needs 4): the choice stops at the cap, says so with
-    the reason ``cap``, and the render warns, naming the cap and how to raise it; a fixed depth
-    writes ``mode: fixed``. Bug: a cap that stops the depth without a word."""
-    summary = render(CANYON, tmp_path / "capped", integrator_overrides={"depth_cap": 2}, progress=False)
+    """``depth_cap = 2`` on the trihedral (which needs 3; its first two orders hold about as much
+    as each other, so the first alone leaves half of the energy up to the cap out): the choice
+    stops at the cap, says so with the reason ``cap``, and the render warns, naming the cap and
+    how to raise it; a fixed depth writes ``mode: fixed``. Bug: a cap that stops the depth
+    without a word."""
+    summary = render("trihedral", tmp_path / "capped", integrator_overrides={"depth_cap": 2}, progress=False)
     assert summary.depth["mode"] == "auto" and summary.depth["depth"] == 2 and summary.depth["reason"] == "cap"
     assert "cap 2" in summary.depth_warning and "depth_cap" in summary.depth_warning
     assert set(summary.depth["seconds_by_order"]) == {"1", "2"}

@@ -228,7 +228,8 @@ def test_cli_text_and_json(capsys):
     assert main(["info", "dihedral", "--json", "--set", "prf=300", "--integrator-set", "max_depth=1",
                  "--material-set", "gamma_db=-10"]) == 0
     body = json.loads(capsys.readouterr().out)
-    assert set(body) == {"scene", "radar", "radiometry", "effects", "cost", "warnings", "ambiguities", "workers"}
+    assert set(body) == {"scene", "radar", "radiometry", "effects", "cost", "warnings", "ambiguities", "workers", "depth"}
+    assert body["depth"] == {"mode": "fixed", "depth": 1}
     assert body["workers"]["workers"] >= 1 and body["workers"]["reason"]
     assert body["radar"]["prf_hz"] == 300.0
     assert body["radar"]["slant_range_resolution_m"] == pytest.approx(C / (2 * 150e6))

@@ -124,8 +124,8 @@ def test_render_writes_and_info_reads_the_orders(tmp_path, capsys):
     or the file, and names both kinds of input for anything else. (The dihedral in the tube
     preview, which does not look past its deepest order, so that its second order's 99 % warns.)"""
     out = tmp_path / "dihedral"
-    summary = render("dihedral", out, sensor_overrides={"n_pulses": 32}, integrator_overrides={"lit_regions": "tiles"},
-                     progress=False)
+    summary = render("dihedral", out, sensor_overrides={"n_pulses": 32},
+                     integrator_overrides={"lit_regions": "tiles", "max_depth": 2}, progress=False)
     written = json.loads((out / "summary.json").read_text())
     assert written["energy_by_order"] == summary.energy_by_order
     assert written["energy_by_order"]["share"]["2"] > 0.99

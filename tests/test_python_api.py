@@ -220,8 +220,8 @@ def test_bad_sensor_and_integrator_parameters_are_named():
         sarmitsuba.Scene([(_box(), "metal")], sensor={"incidence_angle": 95})
     with pytest.raises(ParameterError, match="scene_center"):
         sarmitsuba.Scene([(_box(), "metal")], sensor={"scene_center": (0, 0)})
-    with pytest.raises(ParameterError, match="unknown sbr integrator parameter 'depth'; did you mean 'max_depth'[?] valid: .*seed"):
-        sarmitsuba.Scene([(_box(), "metal")], integrator={"depth": 3})
+    with pytest.raises(ParameterError, match="unknown sbr integrator parameter 'max_dept'; did you mean 'max_depth'[?] valid: .*seed"):
+        sarmitsuba.Scene([(_box(), "metal")], integrator={"max_dept": 3})
 
 
 def test_a_python_scene_with_a_bad_override_exits_through_load_scene():

@@ -167,7 +167,8 @@ def test_a_pinned_process_counts_the_cores_it_is_given():
     assert done.stdout.split() == ["1", "1", "1"]
 
 
-@pytest.mark.parametrize("sensor, integrator", [({"n_pulses": 160, "polarization": "quad"}, {"split_bounces": True}),
+@pytest.mark.parametrize("sensor, integrator", [({"n_pulses": 160, "polarization": "quad"},
+                                                 {"split_bounces": True, "max_depth": 3}),
                                                 ({"n_pulses": 120}, {"range_kernel": "exact"})],
                          ids=["quad-split", "exact"])
 def test_every_channel_order_and_kernel_the_same_on_three_processes(monkeypatch, sensor, integrator):

@@ -91,15 +91,17 @@ def format_depth(depth: dict | None) -> list[str]:
              f"{depth['tolerance_db']:g} dB, cap {depth['cap']}); "
              + ("the orders beyond the cap were not probed" if depth["reason"] == "cap" else
                 f"the orders beyond hold {beyond} of the probe's energy")
-             + f" ({len(probe['subapertures'])} of {probe['of']} sub-apertures, {probe['seconds']:.1f} s)"]
+             + f" (probe: {probe['of']} sub-apertures to order {depth['cap']} with {probe['lit_regions']}, "
+               f"{probe['seconds']:.1f} s)"]
     seconds = depth.get("seconds_by_order", {})
     for k, share in probe["share"].items():
         if int(k) > depth["depth"] and share == 0:
             continue
         traced = (f", traced in {seconds[k]:.1f} s" if k in seconds else "" if int(k) <= depth["depth"]
                   else " (left out)")
-        lines.append(f"  order {k:>2}: probe {100 * share:8.4f} %, predicted {probe['predicted_seconds'][k]:.1f} s"
-                     + traced)
+        predicted = probe["predicted_seconds"].get(k)
+        lines.append(f"  order {k:>2}: probe {100 * share:8.4f} %"
+                     + (f", predicted {predicted:.1f} s" if predicted is not None else "") + traced)
     return lines
 
 

@@ -1,13 +1,16 @@
 """``max_depth = auto``: the bounce orders a scene calls for, chosen before the trace by a probe
 (docs/physics.md (DEP1)-(DEP3)).
 
-The probe is the tracer itself, on a few of the acquisition's sub-apertures spread evenly along
-it, traced to ``depth_cap`` with every order deposited apart: each order's energy there is
-measured as the render measures it ((D6)), not guessed from the order before. The depth is the
-smallest whose orders beyond hold at most ``depth_tolerance_db`` of the probe's energy (DEP2),
-so an order that holds little does not stop it while a later one holds much (a chain that needs
-two more mirrors to return). ``render``, ``simulate`` and ``info`` call the same
-:func:`choose_depth` on the same sub-apertures, so ``info`` predicts the depth the render takes.
+The probe measures each order's energy as the render measures it ((D6)), not guessed from the
+order before: ray tubes (``lit_regions = tiles``, a coarse cast, one tube per resolution cell)
+trace the whole acquisition to ``depth_cap``, every order deposited apart,
+so that every part of the scene and every aspect a pulse sees it from is probed. The depth is
+the smallest whose orders beyond hold at most ``depth_tolerance_db`` of the probe's energy
+(:func:`decide`, (DEP2)), so an order that holds little does not stop it while a later one holds
+much (a chain that needs two more mirrors to return). The render's own tracer then traces the
+middle sub-aperture to that depth, and its seconds per order predict the render's. ``render``,
+``simulate`` and ``info`` call the same :func:`choose_depth`, so ``info`` predicts the depth the
+render takes.
 
 A fixed ``max_depth`` is traced as given; :func:`choose_depth` then returns it unchanged.
 """
@@ -24,18 +27,13 @@ import numpy as np
 from ...scene.loader import LoadedScene
 from .trace import plan_trace, prepare_trace, trace
 
-__all__ = ["PROBE_SHARE", "PROBE_MIN", "DepthChoice", "choose_depth", "decide", "probe_sample", "REASONS"]
+__all__ = ["DepthChoice", "choose_depth", "decide", "probe_settings", "REASONS"]
 
-#: Share of the acquisition's sub-apertures the probe traces (at least :data:`PROBE_MIN`): on
-#: Munich's 512 central pulses 2 of 27, on its full default acquisition 4 of 123.
-PROBE_SHARE = 1 / 32
-#: Fewest sub-apertures the probe traces (all of them where the acquisition has fewer).
-PROBE_MIN = 2
 #: Why the choice stopped where it did (:attr:`DepthChoice.reason`).
 REASONS = {"tolerance": "the orders beyond hold at most the tolerance",
            "nothing beyond": "no ray of the deepest order chosen meets more of the scene with power to return",
            "cap": "the orders up to the cap still change the image by more than the tolerance",
-           "no returns": "the probe's sub-apertures return nothing"}
+           "no returns": "the probe returns nothing"}
 
 
 @dataclass(frozen=True)
@@ -51,22 +49,25 @@ class DepthChoice:
     tolerance_db : float, dB
     cap : int
     energy : float64 [cap], m^2
-        Each order's energy over the probe's sub-apertures ((D6), order ``k`` at index ``k - 1``).
+        Each order's energy in the probe ((D6), order ``k`` at index ``k - 1``).
     carried : float64 [cap], sr
         The power carried into each order's lit pieces there (``carried_power_per_order``): 0 from
         the first order no chain reaches.
     seconds : float64 [cap], s
-        Each order's predicted trace seconds for the whole acquisition: the probe's, times the
-        sub-apertures over those probed (host-thread seconds, as ``trace_stages_by_order``).
+        Each traced order's predicted seconds for the whole acquisition: the render's tracer on
+        the middle sub-aperture, times the sub-apertures (host-thread seconds, as
+        ``trace_stages_by_order``); NaN beyond ``depth``.
     probe_seconds : float, s
-        Wall time of the probe.
-    sampled : tuple of int
-        The sub-apertures probed.
+        Wall time of the probe (both traces).
+    timed : int
+        The sub-aperture the render's tracer timed.
     n_subapertures : int
         The acquisition's sub-apertures.
     rays_beyond : int or None
         The probe's specular rays leaving order ``cap`` that meet more of the scene (None: not
-        looked for, its order ``cap`` carried little).
+        looked for: ray tubes, or a mesh probe whose order ``cap`` carried little).
+    lit_regions : str
+        What traced the energies: ``tiles`` (ray tubes).
     """
 
     depth: int
@@ -77,9 +78,10 @@ class DepthChoice:
     carried: np.ndarray
     seconds: np.ndarray
     probe_seconds: float
-    sampled: tuple
+    timed: int
     n_subapertures: int
     rays_beyond: int | None = None
+    lit_regions: str = "tiles"
 
     @property
     def share(self) -> np.ndarray:
@@ -102,11 +104,12 @@ class DepthChoice:
         return {"mode": "auto", "depth": self.depth, "reason": self.reason, "why": REASONS[self.reason],
                 "tolerance_db": self.tolerance_db, "cap": self.cap,
                 "beyond_db": None if math.isinf(tail) else round(tail, 2),
-                "probe": {"subapertures": list(self.sampled), "of": self.n_subapertures,
+                "probe": {"timed_subaperture": self.timed, "of": self.n_subapertures,
                           "seconds": round(self.probe_seconds, 3),
                           "share": {str(k): float(s) for k, s in enumerate(self.share, start=1)},
-                          "predicted_seconds": {str(k): round(float(s), 3) for k, s in enumerate(self.seconds, start=1)},
-                          "rays_beyond_cap": self.rays_beyond}}
+                          "predicted_seconds": {str(k): round(float(s), 3) for k, s in enumerate(self.seconds, start=1)
+                                                if np.isfinite(s)},
+                          "rays_beyond_cap": self.rays_beyond, "lit_regions": self.lit_regions}}
 
     def lines(self) -> list[str]:
         """Text lines: the depth, why, and each order's share and predicted seconds."""
@@ -115,13 +118,12 @@ class DepthChoice:
                f"{self.tolerance_db:g} dB, cap {self.cap}); "
                + ("the orders beyond the cap were not probed" if self.reason == "cap" else "orders beyond it hold "
                   + ("nothing" if math.isinf(tail) else f"{tail:.1f} dB") + " of the probe's energy"),
-               f"  probe: {len(self.sampled)} of {self.n_subapertures} sub-apertures traced to order {self.cap} "
-               f"in {self.probe_seconds:.1f} s"]
+               f"  probe: {self.n_subapertures} sub-apertures traced to order {self.cap} ({self.lit_regions}), and "
+               f"one to order {self.depth} for the seconds, in {self.probe_seconds:.1f} s"]
         last = int(np.flatnonzero(self.carried > 0).max(initial=0)) + 1
         for k in range(1, max(last, self.depth) + 1):
-            mark = " (traced)" if k <= self.depth else ""
-            out.append(f"  order {k:>2}: {100 * self.share[k - 1]:8.4f} % of the energy, "
-                       f"{self.seconds[k - 1]:7.1f} s predicted{mark}")
+            when = f", {self.seconds[k - 1]:.1f} s predicted" if np.isfinite(self.seconds[k - 1]) else ", left out"
+            out.append(f"  order {k:>2}: {100 * self.share[k - 1]:8.4f} % of the energy{when}")
         return out
 
 
@@ -147,21 +149,25 @@ def decide(energy: np.ndarray, carried: np.ndarray, tolerance_db: float,
     return depth, "tolerance" if np.any(carried[depth:] > 0) else "nothing beyond"
 
 
-def probe_sample(n: int) -> np.ndarray:
-    """int64 [K]: the sub-apertures the probe traces out of ``n``, ``K = min(n, max(PROBE_MIN,
-    ceil(n PROBE_SHARE)))``, the centres of ``K`` equal runs along the acquisition."""
-    k = min(n, max(PROBE_MIN, math.ceil(n * PROBE_SHARE)))
-    return np.unique(np.floor((np.arange(k) + 0.5) * n / max(k, 1)).astype(np.int64))
+def probe_settings(loaded: LoadedScene):
+    """The probe's settings for ``loaded`` (``max_depth = auto``): ``max_depth = depth_cap``, every
+    order apart, the ray tubes (``lit_regions = tiles``) of the scene's own ``ray_spacing``; the
+    ``linear`` range kernel for ``exact`` (the same energies, (D6)). Tubes twice as wide missed the
+    order-6 chain of a 4 m street canyon at 40 deg (``tests/scenes/street_canyon.xml``)."""
+    st = loaded.settings
+    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=False, lit_regions="tiles",
+                               range_kernel="linear" if st.range_kernel == "exact" else st.range_kernel)
 
 
 def choose_depth(loaded: LoadedScene) -> tuple[LoadedScene, DepthChoice | None]:
     """``loaded`` with ``max_depth`` chosen, and the choice; ``loaded`` itself and None when its
     ``max_depth`` is a number.
 
-    The probe traces :func:`probe_sample`'s sub-apertures to ``depth_cap`` with the scene's own
-    settings and effects, the first alone (it compiles the kernels) and then the others, whose
-    seconds per order, times the sub-apertures over theirs, predict the render's (every order deposited apart; the ``exact`` range kernel probes with
-    ``linear``, whose energies are the same (D6)), then :func:`decide`.
+    Ray tubes trace :func:`probe_sample`'s sub-apertures to ``depth_cap`` with the scene's own
+    sensor, materials and effects, every order deposited apart (the ``exact`` range kernel probes
+    with ``linear``, whose energies are the same (D6)); :func:`decide` chooses; the scene's own
+    tracer traces the middle sub-aperture to that depth for the seconds. Moving shapes are probed
+    where they stand at mid-aperture (ray tubes do not move them); the seconds are of them moving.
 
     Raises
     ------
@@ -172,31 +178,43 @@ def choose_depth(loaded: LoadedScene) -> tuple[LoadedScene, DepthChoice | None]:
     if not st.auto_depth:
         return loaded, None
     start = time.perf_counter()
-    probe = dataclasses.replace(loaded, settings=dataclasses.replace(
-        st, max_depth=st.depth_cap, split_bounces=False,
-        range_kernel="linear" if st.range_kernel == "exact" else st.range_kernel))
+    # moving shapes are probed where they stand at mid-aperture (ray tubes do not move them)
+    probe = dataclasses.replace(loaded, settings=probe_settings(loaded), motion=None)
     with warnings.catch_warnings():          # the render that follows warns about the same scene once
         warnings.simplefilter("ignore")
         setup = prepare_trace(probe)
-    effects = dataclasses.replace(setup.effects, order_energy=True)
-    plan = plan_trace(probe.scene, probe.params, setup.geometry, setup.window, setup.footprint, probe.settings, effects)
-    n = len(plan.subs.first)
-    sample = probe_sample(n)
-    # the first sub-aperture compiles the kernels; the others time the orders (the first's seconds
-    # where it is the only one)
-    results = [trace(probe.scene, probe.params, setup.geometry, setup.window, setup.footprint, probe.settings,
-                     setup.table, effects=effects, sample=part) for part in (sample[:1], sample[1:]) if len(part)]
-    energy = sum(np.asarray(r.raw_energy_per_order, np.float64) for r in results)
-    carried = sum(np.asarray(r.carried_power_per_order, np.float64) for r in results)
-    beyond = [r.rays_beyond for r in results]
-    depth, reason = decide(energy, carried, st.depth_tolerance_db, None if None in beyond else sum(beyond))
-    timed = results[-1]
-    per_order = np.zeros(st.depth_cap)
+        result = trace(probe.scene, probe.params, setup.geometry, setup.window, setup.footprint, probe.settings,
+                       setup.table, effects=dataclasses.replace(setup.effects, order_energy=True))
+    energy = np.asarray(result.raw_energy_per_order, np.float64)
+    carried = np.asarray(result.carried_power_per_order, np.float64)
+    depth, reason = decide(energy, carried, st.depth_tolerance_db, result.rays_beyond)
+    chosen = dataclasses.replace(loaded, settings=dataclasses.replace(st, max_depth=depth))
+    # the seconds: the render's own tracer on the middle sub-aperture, to the depth chosen
+    timed, n, middle = _timed_trace(chosen)
+    seconds = np.full(st.depth_cap, np.nan)
     for k, stages in timed.stage_seconds_by_order.items():
-        per_order[int(k) - 1] = sum(stages.values())
-    timed_subs = len(sample) - 1 if len(results) > 1 else len(sample)
+        if int(k) <= depth:
+            seconds[int(k) - 1] = sum(stages.values()) * n
     choice = DepthChoice(depth=depth, reason=reason, tolerance_db=st.depth_tolerance_db, cap=st.depth_cap,
-                         energy=energy, carried=carried, seconds=per_order * n / timed_subs,
-                         probe_seconds=time.perf_counter() - start, sampled=tuple(int(g) for g in sample),
-                         n_subapertures=n, rays_beyond=None if None in beyond else sum(beyond))
-    return dataclasses.replace(loaded, settings=dataclasses.replace(st, max_depth=depth)), choice
+                         energy=energy, carried=carried, seconds=seconds, probe_seconds=time.perf_counter() - start,
+                         timed=middle, n_subapertures=n, rays_beyond=result.rays_beyond)
+    return chosen, choice
+
+
+def _timed_trace(loaded: LoadedScene):
+    """The middle sub-aperture of ``loaded`` traced alone with its own settings: (TraceResult,
+    the number of sub-apertures, the middle one's index)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        setup = prepare_trace(loaded)
+    plan = plan_trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint, loaded.settings,
+                      setup.effects)
+    n = len(plan.subs.first)
+
+    def one_kernel(plan, batches, here):     # this process, one launch
+        for g0 in batches:
+            yield here(g0)
+
+    result = trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint, loaded.settings,
+                   setup.table, effects=setup.effects, sample=[n // 2], run_batches=one_kernel, trace_here=True)
+    return result, n, n // 2
