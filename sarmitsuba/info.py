@@ -13,9 +13,9 @@ acquisition (:mod:`sarmitsuba.scene.planning`) and collects, in one :class:`Scen
 - the scene's size and materials;
 - every optional effect, on or off, with the reason (:func:`sarmitsuba.scene.effects.active_effects`,
   computed once and handed to the cost model and the radar equation);
-- the depth ``max_depth = auto`` will trace, from the render's own probe (a few sub-apertures
-  traced to the cap, :mod:`sarmitsuba.tracing.driver.depth`), with each order's share and
-  predicted seconds;
+- the depth ``max_depth = auto`` will trace, from the render's own probe (ray tubes to the cap,
+  :mod:`sarmitsuba.tracing.driver.depth`), with each order's share, and its predicted seconds
+  from the render's tracer on one sub-aperture;
 - the estimated cost: sub-apertures, ray casts, returns, trace time, peak memory (the render
   process's peak resident set: runtime, scene, tracer's working set and arrays), image size and
   focusing time (:mod:`sarmitsuba.analysis.cost` and :mod:`sarmitsuba.analysis.memory`, re-exported here: :class:`CostEstimate`,
@@ -269,8 +269,8 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
                integrator_overrides: Mapping[str, Any] | None = None,
                material_overrides: Mapping[str, Any] | None = None) -> SceneInfo:
     """Load and plan a scene, and summarise it; nothing is traced but, with ``max_depth = auto``,
-    the probe that chooses the depth (:func:`~sarmitsuba.tracing.driver.depth.choose_depth`, a few
-    sub-apertures), which the render repeats exactly.
+    the probe that chooses the depth (:func:`~sarmitsuba.tracing.driver.depth.choose_depth`), which
+    the render repeats exactly, and one sub-aperture for the seconds.
 
     Parameters are those of :func:`sarmitsuba.pipeline.render` (no output directory).
 
@@ -288,7 +288,7 @@ def scene_info(source: str | None, *, sensor_overrides: Mapping[str, Any] | None
         warnings.simplefilter("ignore", planning.AcquisitionWarning)     # reported in the result instead
         messages = planning.check_acquisition(params, geometry, window, lo, hi)
     material_table(loaded.scene, params.frequency, params.polarization)  # same material checks as render
-    loaded, choice = choose_depth(loaded)                                 # the render's probe, the render's depth
+    loaded, choice = choose_depth(loaded, timed=True)                     # the render's probe, the render's depth
     if choice is not None:
         window = planning.fast_time_window(params, geometry, lo, hi, loaded.settings)
         footprint = planning.ray_footprint(params, geometry, lo, hi, loaded.settings, shape_boxes=loaded.shape_boxes)

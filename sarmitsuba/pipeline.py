@@ -29,7 +29,7 @@ from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .formats.exports import EXPORT_FILES, check_formats, write_exports
-from .tracing.driver.depth import DepthChoice, choose_depth
+from .tracing.driver.depth import DepthChoice, choose_depth, depth_summary, probe_scene
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
 from .tracing.driver.workers import plan_for, trace_in_workers
 
@@ -164,9 +164,10 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
-    if loaded.settings.auto_depth:                       # the probe traces to the cap: its memory, first
-        probe = prepare_trace(loaded)
-        check_memory(loaded, probe.geometry, probe.window, probe.footprint, effects=probe.effects)
+    if loaded.settings.auto_depth:                       # the probe's memory, before it traces
+        probe = probe_scene(loaded)
+        ready = prepare_trace(probe)
+        check_memory(probe, ready.geometry, ready.window, ready.footprint, effects=ready.effects)
     loaded, depth = choose_depth(loaded)                 # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings
     setup = prepare_trace(loaded)
@@ -444,15 +445,6 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond) if sim.depth is None
         else cap_warning(sim.depth.as_dict()), overflow_rows=result.overflow_rows,
         workers=result.workers, workers_note=result.workers_note, depth=depth_summary(sim.depth, result))
-
-
-def depth_summary(choice: "DepthChoice | None", result: TraceResult) -> dict:
-    """``summary.json``'s ``depth``: ``{"mode": "fixed", "depth": N}`` or the choice's
-    (:meth:`~sarmitsuba.tracing.driver.depth.DepthChoice.as_dict`), with the trace's seconds per
-    order (host-thread seconds, as ``trace_stages_by_order``)."""
-    seconds = {str(k): round(sum(stages.values()), 3) for k, stages in result.stage_seconds_by_order.items()}
-    body = choice.as_dict() if choice is not None else {"mode": "fixed", "depth": len(result.energy_per_order)}
-    return {**body, "seconds_by_order": seconds}
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

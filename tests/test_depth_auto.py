@@ -55,15 +55,24 @@ def test_the_tolerance_is_a_share_of_energy_in_decibels():
     assert decide(np.zeros(5), np.zeros(5), -20.0) == (1, "no returns")
 
 
-def test_the_probe_traces_the_scene_s_ray_tubes_to_the_cap():
-    """The probe traces ray tubes to ``depth_cap``, every order apart, with the scene's own tube
-    spacing. Bugs: probing only to the render's depth (it would never see the orders beyond);
-    probing with per-order spectra kept (``split_bounces``: memory for nothing)."""
-    from sarmitsuba.tracing.driver.depth import probe_settings
-    settings = probe_settings(load_scene("trihedral", {}, {"ray_spacing": 0.5}, {}))
-    assert settings.max_depth == 8 and settings.lit_regions == "tiles" and not settings.split_bounces
-    assert settings.ray_spacing == 0.5
-    assert probe_settings(load_scene("trihedral", {}, {"depth_cap": 5}, {})).max_depth == 5
+def test_the_probe_traces_every_eighth_pulse_of_the_same_track_to_the_cap():
+    """The probe traces ray tubes with the scene's own spacing to ``depth_cap``, every order apart,
+    on every 8th pulse at an eighth of the PRF: the same track (the first and last positions within
+    8 pulses' travel of the full track's) and the same along-track speed. Bugs: probing only to the
+    render's depth (it would never see the orders beyond); a PRF left as it was (an eighth of
+    the track); probing with the render's fine fast-time grid (eight times the deposit)."""
+    from sarmitsuba.core.geometry import acquisition_geometry
+    from sarmitsuba.tracing.driver.depth import PROBE_STRIDE, probe_scene
+    loaded = load_scene("trihedral", {}, {"ray_spacing": 0.5}, {})
+    probe = probe_scene(loaded)
+    st, p = probe.settings, probe.params
+    assert st.max_depth == 8 and st.lit_regions == "tiles" and st.ray_spacing == 0.5 and st.oversample == 1
+    assert p.n_pulses == loaded.params.n_pulses // PROBE_STRIDE and p.prf == loaded.params.prf / PROBE_STRIDE
+    full, thin = acquisition_geometry(loaded.params).positions, acquisition_geometry(p).positions
+    step = loaded.params.velocity / loaded.params.prf
+    assert np.linalg.norm(thin[0] - full[0]) < PROBE_STRIDE * step
+    assert np.linalg.norm(thin[-1] - full[-1]) < PROBE_STRIDE * step
+    assert probe_scene(load_scene("trihedral", {}, {"depth_cap": 5}, {})).settings.max_depth == 5
 
 
 # ---------------------------------------------------------------------------- scenes (DEP1)

@@ -91,7 +91,7 @@ def format_depth(depth: dict | None) -> list[str]:
              f"{depth['tolerance_db']:g} dB, cap {depth['cap']}); "
              + ("the orders beyond the cap were not probed" if depth["reason"] == "cap" else
                 f"the orders beyond hold {beyond} of the probe's energy")
-             + f" (probe: {probe['of']} sub-apertures to order {depth['cap']} with {probe['lit_regions']}, "
+             + f" (probe: {probe['pulses']} pulses to order {depth['cap']} with {probe['lit_regions']}, "
                f"{probe['seconds']:.1f} s)"]
     seconds = depth.get("seconds_by_order", {})
     for k, share in probe["share"].items():

@@ -2,15 +2,15 @@
 (docs/physics.md (DEP1)-(DEP3)).
 
 The probe measures each order's energy as the render measures it ((D6)), not guessed from the
-order before: ray tubes (``lit_regions = tiles``, a coarse cast, one tube per resolution cell)
-trace the whole acquisition to ``depth_cap``, every order deposited apart,
-so that every part of the scene and every aspect a pulse sees it from is probed. The depth is
-the smallest whose orders beyond hold at most ``depth_tolerance_db`` of the probe's energy
-(:func:`decide`, (DEP2)), so an order that holds little does not stop it while a later one holds
-much (a chain that needs two more mirrors to return). The render's own tracer then traces the
-middle sub-aperture to that depth, and its seconds per order predict the render's. ``render``,
-``simulate`` and ``info`` call the same :func:`choose_depth`, so ``info`` predicts the depth the
-render takes.
+order before. Ray tubes (``lit_regions = tiles``, a coarse cast, one tube per resolution cell)
+trace the whole track, every :data:`PROBE_STRIDE`-th pulse, to ``depth_cap``, every order
+deposited apart, so that every part of the scene, and the aspects the track sees it from, are
+probed. The depth is the smallest whose orders beyond hold at most ``depth_tolerance_db`` of the
+probe's energy (:func:`decide`, (DEP2)). An order that holds little does not stop it while a
+later one holds much (a chain that needs two more mirrors to return). For ``info``, the render's
+own tracer then traces the middle sub-aperture to that depth, and its seconds per order predict
+the render's. ``render``, ``simulate`` and ``info`` call the same :func:`choose_depth`, so
+``info`` predicts the depth the render takes.
 
 A fixed ``max_depth`` is traced as given; :func:`choose_depth` then returns it unchanged.
 """
@@ -27,8 +27,12 @@ import numpy as np
 from ...scene.loader import LoadedScene
 from .trace import plan_trace, prepare_trace, trace
 
-__all__ = ["DepthChoice", "choose_depth", "decide", "probe_settings", "REASONS"]
+__all__ = ["PROBE_STRIDE", "DepthChoice", "probe_scene", "choose_depth", "decide", "depth_summary", "probe_settings", "REASONS"]
 
+#: The probe traces every ``PROBE_STRIDE``-th pulse: the render measures each order's energy on
+#: every 8th pulse too (:data:`~sarmitsuba.tracing.deposit.order_energy.ENERGY_STRIDE`), and
+#: Munich's shares agree with the mesh tracer's within 0.4 % (docs/physics.md (DEP3)).
+PROBE_STRIDE = 8
 #: Why the choice stopped where it did (:attr:`DepthChoice.reason`).
 REASONS = {"tolerance": "the orders beyond hold at most the tolerance",
            "nothing beyond": "no ray of the deepest order chosen meets more of the scene with power to return",
@@ -55,19 +59,21 @@ class DepthChoice:
         the first order no chain reaches.
     seconds : float64 [cap], s
         Each traced order's predicted seconds for the whole acquisition: the render's tracer on
-        the middle sub-aperture, times the sub-apertures (host-thread seconds, as
-        ``trace_stages_by_order``); NaN beyond ``depth``.
+        :attr:`timed`, times the sub-apertures over their number (host-thread seconds, as
+        ``trace_stages_by_order``); NaN beyond ``depth`` and where not timed.
     probe_seconds : float, s
-        Wall time of the probe (both traces).
-    timed : int
-        The sub-aperture the render's tracer timed.
+        Wall time of the probe (and of the timed sub-apertures).
+    timed : tuple of int
+        The sub-apertures the render's tracer timed (empty: not timed).
     n_subapertures : int
-        The acquisition's sub-apertures.
+        The acquisition's sub-apertures (0: not timed).
     rays_beyond : int or None
         The probe's specular rays leaving order ``cap`` that meet more of the scene (None: not
         looked for: ray tubes, or a mesh probe whose order ``cap`` carried little).
     lit_regions : str
         What traced the energies: ``tiles`` (ray tubes).
+    pulses : int
+        The pulses the probe traced (every :data:`PROBE_STRIDE`-th).
     """
 
     depth: int
@@ -78,10 +84,11 @@ class DepthChoice:
     carried: np.ndarray
     seconds: np.ndarray
     probe_seconds: float
-    timed: int
+    timed: tuple
     n_subapertures: int
     rays_beyond: int | None = None
     lit_regions: str = "tiles"
+    pulses: int = 0
 
     @property
     def share(self) -> np.ndarray:
@@ -104,7 +111,7 @@ class DepthChoice:
         return {"mode": "auto", "depth": self.depth, "reason": self.reason, "why": REASONS[self.reason],
                 "tolerance_db": self.tolerance_db, "cap": self.cap,
                 "beyond_db": None if math.isinf(tail) else round(tail, 2),
-                "probe": {"timed_subaperture": self.timed, "of": self.n_subapertures,
+                "probe": {"pulses": self.pulses, "timed_subapertures": list(self.timed), "of": self.n_subapertures,
                           "seconds": round(self.probe_seconds, 3),
                           "share": {str(k): float(s) for k, s in enumerate(self.share, start=1)},
                           "predicted_seconds": {str(k): round(float(s), 3) for k, s in enumerate(self.seconds, start=1)
@@ -118,8 +125,9 @@ class DepthChoice:
                f"{self.tolerance_db:g} dB, cap {self.cap}); "
                + ("the orders beyond the cap were not probed" if self.reason == "cap" else "orders beyond it hold "
                   + ("nothing" if math.isinf(tail) else f"{tail:.1f} dB") + " of the probe's energy"),
-               f"  probe: {self.n_subapertures} sub-apertures traced to order {self.cap} ({self.lit_regions}), and "
-               f"one to order {self.depth} for the seconds, in {self.probe_seconds:.1f} s"]
+               f"  probe: {self.pulses} pulses traced to order {self.cap} ({self.lit_regions})"
+               + (f", and {len(self.timed)} of {self.n_subapertures} sub-apertures to order {self.depth} for the "
+                  "seconds" if self.timed else "") + f", in {self.probe_seconds:.1f} s"]
         last = int(np.flatnonzero(self.carried > 0).max(initial=0)) + 1
         for k in range(1, max(last, self.depth) + 1):
             when = f", {self.seconds[k - 1]:.1f} s predicted" if np.isfinite(self.seconds[k - 1]) else ", left out"
@@ -150,24 +158,36 @@ def decide(energy: np.ndarray, carried: np.ndarray, tolerance_db: float,
 
 
 def probe_settings(loaded: LoadedScene):
-    """The probe's settings for ``loaded`` (``max_depth = auto``): ``max_depth = depth_cap``, every
-    order apart, the ray tubes (``lit_regions = tiles``) of the scene's own ``ray_spacing``; the
-    ``linear`` range kernel for ``exact`` (the same energies, (D6)). Tubes twice as wide missed the
-    order-6 chain of a 4 m street canyon at 40 deg (``tests/scenes/street_canyon.xml``)."""
+    """The probe's settings for ``loaded`` (``max_depth = auto``): ``max_depth = depth_cap``, the
+    ray tubes (``lit_regions = tiles``) of the scene's own ``ray_spacing``, every order apart and
+    measured on every pulse (``split_bounces``), deposited by the ``nearest`` kernel on the coarse
+    samples (``oversample = 1``: an order's energy, not its waveform, (D6)). Tubes twice as wide
+    missed the order-6 chain of a 4 m street canyon at 40 deg (``tests/scenes/street_canyon.xml``)."""
     st = loaded.settings
-    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=False, lit_regions="tiles",
-                               range_kernel="linear" if st.range_kernel == "exact" else st.range_kernel)
+    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=True, lit_regions="tiles",
+                               range_kernel="nearest", oversample=1)
 
 
-def choose_depth(loaded: LoadedScene) -> tuple[LoadedScene, DepthChoice | None]:
+def probe_scene(loaded: LoadedScene) -> LoadedScene:
+    """The scene the probe traces: ``loaded`` with :func:`probe_settings`, every
+    :data:`PROBE_STRIDE`-th pulse (the PRF divided by it, the same track; every pulse where
+    fewer than two would remain), and moving shapes where they stand at mid-aperture (ray tubes
+    do not move them)."""
+    p = loaded.params
+    if p.n_pulses >= 2 * PROBE_STRIDE:
+        p = dataclasses.replace(p, prf=p.prf / PROBE_STRIDE, n_pulses=p.n_pulses // PROBE_STRIDE)
+    return dataclasses.replace(loaded, params=p, settings=probe_settings(loaded), motion=None)
+
+
+def choose_depth(loaded: LoadedScene, timed: bool = False) -> tuple[LoadedScene, DepthChoice | None]:
     """``loaded`` with ``max_depth`` chosen, and the choice; ``loaded`` itself and None when its
     ``max_depth`` is a number.
 
-    Ray tubes trace :func:`probe_sample`'s sub-apertures to ``depth_cap`` with the scene's own
-    sensor, materials and effects, every order deposited apart (the ``exact`` range kernel probes
-    with ``linear``, whose energies are the same (D6)); :func:`decide` chooses; the scene's own
-    tracer traces the middle sub-aperture to that depth for the seconds. Moving shapes are probed
-    where they stand at mid-aperture (ray tubes do not move them); the seconds are of them moving.
+    Ray tubes trace :func:`probe_scene` (every :data:`PROBE_STRIDE`-th pulse, to ``depth_cap``,
+    every order apart); :func:`decide` chooses. With ``timed`` (``info``), the scene's own tracer
+    then traces its middle sub-aperture alone to that depth, and its seconds per order, times the
+    sub-apertures, predict the render's (:attr:`DepthChoice.seconds`; NaN
+    without ``timed``).
 
     Raises
     ------
@@ -178,8 +198,7 @@ def choose_depth(loaded: LoadedScene) -> tuple[LoadedScene, DepthChoice | None]:
     if not st.auto_depth:
         return loaded, None
     start = time.perf_counter()
-    # moving shapes are probed where they stand at mid-aperture (ray tubes do not move them)
-    probe = dataclasses.replace(loaded, settings=probe_settings(loaded), motion=None)
+    probe = probe_scene(loaded)
     with warnings.catch_warnings():          # the render that follows warns about the same scene once
         warnings.simplefilter("ignore")
         setup = prepare_trace(probe)
@@ -189,21 +208,22 @@ def choose_depth(loaded: LoadedScene) -> tuple[LoadedScene, DepthChoice | None]:
     carried = np.asarray(result.carried_power_per_order, np.float64)
     depth, reason = decide(energy, carried, st.depth_tolerance_db, result.rays_beyond)
     chosen = dataclasses.replace(loaded, settings=dataclasses.replace(st, max_depth=depth))
-    # the seconds: the render's own tracer on the middle sub-aperture, to the depth chosen
-    timed, n, middle = _timed_trace(chosen)
-    seconds = np.full(st.depth_cap, np.nan)
-    for k, stages in timed.stage_seconds_by_order.items():
-        if int(k) <= depth:
-            seconds[int(k) - 1] = sum(stages.values()) * n
+    seconds, n, middle = np.full(st.depth_cap, np.nan), 0, ()
+    if timed:                                # the render's own tracer on the middle sub-aperture
+        traced, n, middle = _timed_trace(chosen)
+        for k, stages in traced.stage_seconds_by_order.items():
+            if int(k) <= depth:
+                seconds[int(k) - 1] = sum(stages.values()) * n / len(middle)
     choice = DepthChoice(depth=depth, reason=reason, tolerance_db=st.depth_tolerance_db, cap=st.depth_cap,
                          energy=energy, carried=carried, seconds=seconds, probe_seconds=time.perf_counter() - start,
-                         timed=middle, n_subapertures=n, rays_beyond=result.rays_beyond)
+                         timed=tuple(int(g) for g in middle), n_subapertures=n, rays_beyond=result.rays_beyond,
+                         pulses=probe.params.n_pulses)
     return chosen, choice
 
 
 def _timed_trace(loaded: LoadedScene):
-    """The middle sub-aperture of ``loaded`` traced alone with its own settings: (TraceResult,
-    the number of sub-apertures, the middle one's index)."""
+    """The middle sub-aperture of ``loaded`` traced alone with its own settings, in this process
+    and one launch: (TraceResult, the number of sub-apertures, (its index,))."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         setup = prepare_trace(loaded)
@@ -217,4 +237,14 @@ def _timed_trace(loaded: LoadedScene):
 
     result = trace(loaded.scene, loaded.params, setup.geometry, setup.window, setup.footprint, loaded.settings,
                    setup.table, effects=setup.effects, sample=[n // 2], run_batches=one_kernel, trace_here=True)
-    return result, n, n // 2
+    return result, n, (n // 2,)
+
+
+def depth_summary(choice: "DepthChoice | None", result) -> dict:
+    """``summary.json``'s ``depth``: ``{"mode": "fixed", "depth": N}`` or the choice's
+    (:meth:`~sarmitsuba.tracing.driver.depth.DepthChoice.as_dict`), with the trace's seconds per
+    order (host-thread seconds, as ``trace_stages_by_order``)."""
+    seconds = {str(k): round(sum(stages.values()), 3) for k, stages in result.stage_seconds_by_order.items()}
+    body = choice.as_dict() if choice is not None else {"mode": "fixed", "depth": len(result.energy_per_order)}
+    return {**body, "seconds_by_order": seconds}
+
