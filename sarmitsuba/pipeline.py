@@ -29,7 +29,7 @@ from .core.geometry import AcquisitionGeometry
 from .core.raw import RawData
 from .scene.loader import LoadedScene, load_scene
 from .formats.exports import EXPORT_FILES, check_formats, write_exports
-from .tracing.driver.depth import DepthChoice, choose_depth, depth_summary, probe_scene
+from .tracing.driver.depth import DepthChoice, choose_depth, depth_summary
 from .tracing.driver.trace import TraceResult, prepare_trace, trace
 from .tracing.driver.workers import plan_for, trace_in_workers
 
@@ -164,13 +164,16 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
-    if loaded.settings.auto_depth:                       # the probe's memory, before it traces
-        probe = probe_scene(loaded)
-        ready = prepare_trace(probe)
-        check_memory(probe, ready.geometry, ready.window, ready.footprint, effects=ready.effects)
+    auto = loaded.settings.auto_depth
+    if auto:                                             # the acquisition's checks and memory, before the probe
+        first = prepare_trace(loaded)
+        check_memory(loaded, first.geometry, first.window, first.footprint, effects=first.effects)
     loaded, depth = choose_depth(loaded)                 # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings
-    setup = prepare_trace(loaded)
+    with warnings.catch_warnings():
+        if auto:                                         # said once, above
+            warnings.simplefilter("ignore")
+        setup = prepare_trace(loaded)
     amb = ambiguities(params, azimuth_window)           # the ghosts `info` warns about, before they are traced
     if amb is not None and amb.warning:
         warnings.warn(amb.warning, planning.AcquisitionWarning, stacklevel=2)

@@ -63,10 +63,13 @@ def test_the_probe_traces_every_eighth_pulse_of_the_same_track_to_the_cap():
     the track); probing with the render's fine fast-time grid (eight times the deposit)."""
     from sarmitsuba.core.geometry import acquisition_geometry
     from sarmitsuba.tracing.driver.depth import PROBE_STRIDE, probe_scene
-    loaded = load_scene("trihedral", {}, {"ray_spacing": 0.5}, {})
+    loaded = load_scene("trihedral", {}, {"ray_spacing": 0.05}, {})
     probe = probe_scene(loaded)
     st, p = probe.settings, probe.params
-    assert st.max_depth == 8 and st.lit_regions == "tiles" and st.ray_spacing == 0.5 and st.oversample == 1
+    # the mesh render's ray_spacing is not the probe's: its tubes are one resolution cell
+    assert st.max_depth == 8 and st.lit_regions == "tiles" and st.ray_spacing == 0 and st.oversample == 1
+    tiles = probe_scene(load_scene("trihedral", {}, {"ray_spacing": 0.5, "lit_regions": "tiles"}, {}))
+    assert tiles.settings.ray_spacing == 0.5
     assert p.n_pulses == loaded.params.n_pulses // PROBE_STRIDE and p.prf == loaded.params.prf / PROBE_STRIDE
     full, thin = acquisition_geometry(loaded.params).positions, acquisition_geometry(p).positions
     step = loaded.params.velocity / loaded.params.prf

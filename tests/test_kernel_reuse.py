@@ -122,7 +122,8 @@ def test_histogram_sizes_fall_into_few_buckets():
 def _render(cache: Path, out: Path, pulses: int) -> set[str]:
     env = dict(os.environ, DRJIT_CACHE_DIR=str(cache))
     subprocess.run([sys.executable, "-m", "sarmitsuba", "render", "trihedral", "--pulses", str(pulses),
-                    "--out", str(out), "--no-progress"], check=True, capture_output=True, env=env,
+                    "--max-depth", "3", "--out", str(out), "--no-progress"],
+                   check=True, capture_output=True, env=env,
                    cwd=Path(__file__).resolve().parents[1])
     return set(os.listdir(cache))
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.radar import ParameterError
 from ...scene.loader import LoadedScene
 from .trace import plan_trace, prepare_trace, trace
 
@@ -159,23 +160,27 @@ def decide(energy: np.ndarray, carried: np.ndarray, tolerance_db: float,
 
 def probe_settings(loaded: LoadedScene):
     """The probe's settings for ``loaded`` (``max_depth = auto``): ``max_depth = depth_cap``, the
-    ray tubes (``lit_regions = tiles``) of the scene's own ``ray_spacing``, every order apart and
+    ray tubes (``lit_regions = tiles``; the mesh's lit regions for a bistatic receiver, which tubes
+    do not trace), one per resolution cell (the scene's own ``ray_spacing`` where it renders with
+    tubes), every order apart and
     measured on every pulse (``split_bounces``), deposited by the ``nearest`` kernel on the coarse
     samples (``oversample = 1``: an order's energy, not its waveform, (D6)). Tubes twice as wide
     missed the order-6 chain of a 4 m street canyon at 40 deg (``tests/scenes/street_canyon.xml``)."""
     st = loaded.settings
-    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=True, lit_regions="tiles",
-                               range_kernel="nearest", oversample=1)
+    tubes = "patches" if loaded.params.bistatic else "tiles"      # ray tubes are monostatic
+    spacing = st.ray_spacing if st.lit_regions == "tiles" else 0.0  # the render's own tubes, or one per cell
+    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=True, lit_regions=tubes,
+                               ray_spacing=spacing, range_kernel="nearest", oversample=1)
 
 
-def probe_scene(loaded: LoadedScene) -> LoadedScene:
-    """The scene the probe traces: ``loaded`` with :func:`probe_settings`, every
-    :data:`PROBE_STRIDE`-th pulse (the PRF divided by it, the same track; every pulse where
+def probe_scene(loaded: LoadedScene, stride: int | None = None) -> LoadedScene:
+    """The scene the probe traces: ``loaded`` with :func:`probe_settings`, every ``stride``-th
+    pulse (default :data:`PROBE_STRIDE`; the PRF divided by it, the same track; every pulse where
     fewer than two would remain), and moving shapes where they stand at mid-aperture (ray tubes
     do not move them)."""
-    p = loaded.params
-    if p.n_pulses >= 2 * PROBE_STRIDE:
-        p = dataclasses.replace(p, prf=p.prf / PROBE_STRIDE, n_pulses=p.n_pulses // PROBE_STRIDE)
+    p, stride = loaded.params, PROBE_STRIDE if stride is None else stride
+    if stride > 1 and p.n_pulses >= 2 * stride:
+        p = dataclasses.replace(p, prf=p.prf / stride, n_pulses=p.n_pulses // stride)
     return dataclasses.replace(loaded, params=p, settings=probe_settings(loaded), motion=None)
 
 
@@ -201,7 +206,11 @@ def choose_depth(loaded: LoadedScene, timed: bool = False) -> tuple[LoadedScene,
     probe = probe_scene(loaded)
     with warnings.catch_warnings():          # the render that follows warns about the same scene once
         warnings.simplefilter("ignore")
-        setup = prepare_trace(probe)
+        try:
+            setup = prepare_trace(probe)
+        except ParameterError:               # a check the thinned track fails (an ATI baseline): every pulse
+            probe = probe_scene(loaded, stride=1)
+            setup = prepare_trace(probe)
         result = trace(probe.scene, probe.params, setup.geometry, setup.window, setup.footprint, probe.settings,
                        setup.table, effects=dataclasses.replace(setup.effects, order_energy=True))
     energy = np.asarray(result.raw_energy_per_order, np.float64)
@@ -217,7 +226,7 @@ def choose_depth(loaded: LoadedScene, timed: bool = False) -> tuple[LoadedScene,
     choice = DepthChoice(depth=depth, reason=reason, tolerance_db=st.depth_tolerance_db, cap=st.depth_cap,
                          energy=energy, carried=carried, seconds=seconds, probe_seconds=time.perf_counter() - start,
                          timed=tuple(int(g) for g in middle), n_subapertures=n, rays_beyond=result.rays_beyond,
-                         pulses=probe.params.n_pulses)
+                         pulses=probe.params.n_pulses, lit_regions=probe.settings.lit_regions)
     return chosen, choice
 
 
