@@ -164,16 +164,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     focus_with = _focuser(focuser)
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
-    auto = loaded.settings.auto_depth
-    if auto:                                             # the acquisition's checks and memory, before the probe
-        first = prepare_trace(loaded)
-        check_memory(loaded, first.geometry, first.window, first.footprint, effects=first.effects)
-    loaded, depth = choose_depth(loaded)                 # max_depth = auto: (DEP1)-(DEP3)
+    loaded, depth, setup = _depth_and_setup(loaded)    # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings
-    with warnings.catch_warnings():
-        if auto:                                         # said once, above
-            warnings.simplefilter("ignore")
-        setup = prepare_trace(loaded)
     amb = ambiguities(params, azimuth_window)           # the ghosts `info` warns about, before they are traced
     if amb is not None and amb.warning:
         warnings.warn(amb.warning, planning.AcquisitionWarning, stacklevel=2)
@@ -241,6 +233,19 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images, depth=depth)
                 for name, (raw, image, channel, per_order, images) in products.items()}
     return dataclasses.replace(channels["HH"], trace=result, channels=channels)
+
+
+def _depth_and_setup(loaded: LoadedScene):
+    """(``loaded`` with its depth chosen, the choice or None, its trace setup); with ``auto`` the
+    real track's checks, warnings and memory come first, once (:func:`choose_depth`)."""
+    if auto := loaded.settings.auto_depth:
+        first = prepare_trace(loaded)
+        check_memory(loaded, first.geometry, first.window, first.footprint, effects=first.effects)
+    loaded, depth = choose_depth(loaded)
+    with warnings.catch_warnings():
+        if auto:
+            warnings.simplefilter("ignore")
+        return loaded, depth, prepare_trace(loaded)
 
 
 #: Focusers of :func:`simulate` / :func:`render`: fast factorised backprojection (the default) and

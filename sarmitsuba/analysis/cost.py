@@ -389,7 +389,7 @@ def cost_estimate(loaded: LoadedScene, geometry: AcquisitionGeometry, window: Fa
 
     exact = st.range_kernel == "exact"          # keeps a path list instead of the fine grid
     grid = _checked_grid(loaded, geometry)
-    n_products = (1 + (st.max_depth if effects.split_bounces else 0)) * len(effects.channels)
+    n_products = (1 + (st.depth if effects.split_bounces else 0)) * len(effects.channels)
     pixel_pulses, lit, direct = _backprojection(p, grid)
     fast = FFBP_FIXED_SECONDS + pixel_pulses * FFBP_PIXEL_PULSE_SECONDS + lit * FFBP_PIXEL_SECONDS
     if effects.bistatic:                 # both legs per pixel; FFBP on the range sum's polar images (F10)
