@@ -119,22 +119,6 @@ class DepthChoice:
                                                 if np.isfinite(s)},
                           "rays_beyond_cap": self.rays_beyond, "lit_regions": self.lit_regions}}
 
-    def lines(self) -> list[str]:
-        """Text lines: the depth, why, and each order's share and predicted seconds."""
-        tail = self.beyond_db()
-        out = [f"max_depth auto: depth {self.depth} ({self.reason}: {REASONS[self.reason]}; tolerance "
-               f"{self.tolerance_db:g} dB, cap {self.cap}); "
-               + ("the orders beyond the cap were not probed" if self.reason == "cap" else "orders beyond it hold "
-                  + ("nothing" if math.isinf(tail) else f"{tail:.1f} dB") + " of the probe's energy"),
-               f"  probe: {self.pulses} pulses traced to order {self.cap} ({self.lit_regions})"
-               + (f", and {len(self.timed)} of {self.n_subapertures} sub-apertures to order {self.depth} for the "
-                  "seconds" if self.timed else "") + f", in {self.probe_seconds:.1f} s"]
-        last = int(np.flatnonzero(self.carried > 0).max(initial=0)) + 1
-        for k in range(1, max(last, self.depth) + 1):
-            when = f", {self.seconds[k - 1]:.1f} s predicted" if np.isfinite(self.seconds[k - 1]) else ", left out"
-            out.append(f"  order {k:>2}: {100 * self.share[k - 1]:8.4f} % of the energy{when}")
-        return out
-
 
 def decide(energy: np.ndarray, carried: np.ndarray, tolerance_db: float,
            rays_beyond: int | None = None) -> tuple[int, str]:
