@@ -143,6 +143,13 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--out", type=Path, default=None, help="output directory (default: out/<scene name>)")
     render.add_argument("--split-bounces", action="store_true",
                         help="also write raw data and images per bounce order (*_order1, *_order2, ...)")
+    render.add_argument("--scatterers", action="store_true",
+                        help="also write the scatterer catalogue: scatterers.csv, scatterers.geojson and "
+                             "fig_scatterers.png (each bright point's phase centre, bounce order, shapes and RCS)")
+    render.add_argument("--scatterers-share", type=float, default=0.9, metavar="F",
+                        help="list the strongest scatterers that hold this share of the image's RCS (default 0.9)")
+    render.add_argument("--scatterers-db", type=float, default=None, metavar="DBSM",
+                        help="instead, list every scatterer of at least this RCS [dBsm], in (-200, 100)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     render.add_argument("--figures", action="store_true",
                         help="also draw explanatory figures (fig_*.png, figures.json) from the files written")
@@ -170,6 +177,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_focus_command(sub)
     from .analysis.point_target import add_arguments as analysis_arguments
     analyze = analysis_arguments(sub.add_parser("analyze", help="point-target analysis of a focused image (JSON)"))
+    analyze.add_argument("--explain", type=_image_point, default=None, metavar="AZ,RG",
+                         help="instead of a point-target analysis: the catalogue's scatterers within one resolution "
+                              "cell of image coordinates AZ,RG [m], with their shares of its power (JSON)")
+    analyze.add_argument("--scatterers", type=Path, default=None, metavar="CSV",
+                         help="the catalogue --explain reads (default: scatterers.csv beside the image)")
     analyze.add_argument("--figure", type=Path, default=None, metavar="PNG",
                          help="also draw the point-target figure (chip, cuts, IRW, PSLR) to this file")
     analyze.add_argument("--raw", type=Path, default=None,
@@ -291,8 +303,11 @@ def _render(args: argparse.Namespace) -> int:
                      integrator_overrides=integrator, material_overrides=dict(args.material_set),
                      progress=not args.no_progress, **_windows(args), focuser=args.focuser,
                      formats=_formats(args), scheduler=args.scheduler, geotiff_north_up=not args.geotiff_rotated,
-                     sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting, cphd_domain=args.cphd_domain)
+                     sicd_plane=args.sicd_plane, sicd_weighting=args.sicd_weighting, cphd_domain=args.cphd_domain,
+                     scatterers=_scatterers(args))
     print(summary.line())
+    if summary.scatterers:
+        print(f"scatterers: {summary.scatterers['line']} -> {summary.outputs['scatterers_csv']}")
     if summary.depth_warning:
         print(f"warning: {summary.depth_warning}", file=sys.stderr)
     if args.figures:
@@ -300,6 +315,19 @@ def _render(args: argparse.Namespace) -> int:
         paths = redraw(args.out or _default_out(args.scene), scene=args.scene or "urban")
         print(f"figures: {', '.join(str(p) for p in paths.values())}")
     return 0
+
+
+def _scatterers(args: argparse.Namespace) -> dict | None:
+    """``render``'s catalogue options (None without ``--scatterers``); the share and floor given
+    without it are refused (ParameterError)."""
+    from .analysis.scatterers import check_selection
+    from .core.radar import ParameterError
+    if not args.scatterers:
+        if args.scatterers_db is not None or args.scatterers_share != 0.9:
+            raise ParameterError("--scatterers-db and --scatterers-share choose the catalogue's rows: add --scatterers")
+        return None
+    share, floor = check_selection(args.scatterers_share, args.scatterers_db)
+    return {"scatterers": True, "scatterers_share": share, "scatterers_db": floor}
 
 
 def _preview(args: argparse.Namespace) -> int:
@@ -354,6 +382,12 @@ def _analyze(args: argparse.Namespace) -> int:
     images; for others (omega-K, RDA) the unweighted widths of its radar parameters
     (``c / (2 B sin(theta))`` and the azimuth resolution)."""
     from .analysis.point_target import run
+    if args.explain is not None:
+        return _explain(args)
+    if args.target is None:
+        print("error: analyze needs --target X,Y,Z|AZ,RG (a point-target analysis) or --explain AZ,RG (what "
+              "made that point, from the render's scatterers.csv)", file=sys.stderr)
+        return 2
     if args.resolution is None:
         args.resolution = _resolution_from_metadata(args.image)
     if args.carrier is None and len(args.target) == 3:
@@ -364,6 +398,26 @@ def _analyze(args: argparse.Namespace) -> int:
         print(f"point-target figure -> {point_target_figure(image, report, args.figure)}", file=sys.stderr)
 
     return run(args, figure=figure if args.figure is not None else None)
+
+
+def _image_point(text: str) -> tuple[float, float]:
+    """``AZ,RG``: two finite numbers [m] (argparse type)."""
+    values = cli_types.numbers(text)
+    if len(values) != 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: give two numbers AZ,RG, image coordinates in metres")
+    return values[0], values[1]
+
+
+def _explain(args: argparse.Namespace) -> int:
+    """``analyze IMAGE --explain AZ,RG``: the scatterers of the catalogue beside the image (or
+    ``--scatterers``) within one resolution cell of the point, as JSON."""
+    from .analysis.scatterers import explain
+    from .formats.sicd import load_image
+    from .products.scatterer_files import read_csv
+    image = load_image(args.image)
+    columns = read_csv(args.scatterers or Path(args.image).with_name("scatterers.csv"))
+    print(json.dumps(explain(image, columns, *args.explain, resolution=args.resolution), indent=2))
+    return 0
 
 
 def raw_beside(image_path: Path) -> Path:

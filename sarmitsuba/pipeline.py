@@ -18,8 +18,10 @@ from .scene import planning
 from .products import image_files
 from .analysis.ambiguities import ambiguities
 from .analysis.memory import available_memory, check_memory
+from .analysis.scatterers import build_catalogue, check_selection
+from .products.scatterer_files import CATALOGUE_FILES, Catalogue, write_catalogue_files
 from .focus import backproject, ffbp
-from .focus.dispatch import azimuth_pattern, backprojector
+from .focus.dispatch import azimuth_pattern, backprojector, compressed_for_focus, focus_windows
 from .focus.dispatch import focus as focus_by_name
 from .focus.scene_grid import image_grid, sized_grid
 from .core.image import SarImage
@@ -39,7 +41,8 @@ __all__ = ["Simulation", "simulate", "RenderSummary", "render", "refocus", "imag
 #: Files written by :func:`render`, by role.
 OUTPUT_FILES = {"raw": "raw.npz", "image": "image.npz", "exr": "image.exr", "png": "image.png",
                 "summary": "summary.json", "pauli": "pauli.png", "ati": "ati.npz", "dpca": "dpca.npz",
-                "ati_png": "ati.png"}
+                "ati_png": "ati.png", "scatterers_csv": "scatterers.csv", "scatterers_geojson": "scatterers.geojson",
+                "scatterers_png": "fig_scatterers.png"}
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,8 @@ class RenderSummary:
     #: ``beyond_db``, the probe's share of the energy in the orders left out; ``seconds_by_order``
     #: the trace's own.
     depth: dict = dataclasses.field(default_factory=dict)
+    #: ``--scatterers``: the catalogue's ``count``, ``listed_share``, ``selection`` and ``line``; else empty.
+    scatterers: dict = dataclasses.field(default_factory=dict)
 
     @property
     def pulse_paths_per_second(self) -> float:
@@ -120,6 +125,8 @@ class Simulation:
     aft: "Simulation | None" = None
     #: ``max_depth = auto``: the depth chosen and the probe's evidence; None for a fixed depth.
     depth: "DepthChoice | None" = None
+    #: ``scatterers``: the scatterer catalogue (:func:`sarmitsuba.analysis.scatterers.build_catalogue`); else None.
+    scatterers: "Catalogue | None" = None
 
     def summary(self) -> str:
         """One line: scene, pulses, raw and image sizes, trace and focus seconds, and the azimuth
@@ -146,7 +153,8 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
              image_size: tuple[int, int] | None = None, image_spacing: float | None = None,
              window: Any = "taylor", focuser: str = "ffbp", scheduler: str | None = None,
              window_range: Any = None, window_azimuth: Any = None, formats: Sequence[str] = (),
-             cphd_domain: str = "toa") -> Simulation:
+             cphd_domain: str = "toa", scatterers: bool = False, scatterers_share: float = 0.9,
+             scatterers_db: float | None = None) -> Simulation:
     """Load, trace, bin and focus a scene, in memory (no files written).
 
     Parameters are those of :func:`render` (``window``, ``window_range``, ``window_azimuth`` and
@@ -156,12 +164,17 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     which covers the scene and its layover). ``scheduler`` (``"local"`` or ``"tcp://HOST:PORT"``)
     traces the pulse batches on Dask workers (:func:`sarmitsuba.tracing.driver.distributed.trace_on_cluster`).
     ``formats``: those :func:`render` will write, in ``cphd_domain``, checked against the sensor
-    (:func:`check_formats`).
+    (:func:`check_formats`). ``scatterers``: also build the scatterer catalogue
+    (``Simulation.scatterers``; the strongest holding ``scatterers_share`` of the image's RCS, or all
+    of ``scatterers_db`` dBsm or more, :func:`sarmitsuba.analysis.scatterers.build_catalogue`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}
     range_window, azimuth_window = focus_windows(window, window_range, window_azimuth)   # checked before loading
     focus_with = _focuser(focuser)
+    if scatterers:                                       # the catalogue's options, before loading
+        check_selection(scatterers_share, scatterers_db)
+        integrator_overrides = {**(integrator_overrides or {}), "scatterers": True}
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
     loaded, depth, setup = _depth_and_setup(loaded)    # max_depth = auto: (DEP1)-(DEP3)
@@ -197,7 +210,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     beam = params.traced_beamwidth if params.mode == "stripmap" else None   # spotlight: every pulse sees the patch
     pattern = azimuth_pattern(params)
     focus = lambda r, desc: _calibrated(focus_with(  # noqa: E731
-        _compressed(r, range_window), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
+        compressed_for_focus(r, range_window), grid, azimuth_beamwidth=beam, squint=params.squint, azimuth_pattern=pattern,
         window_azimuth=azimuth_window, progress=progress, desc=desc), params, world)
     products, spent = {}, {"bin": 0.0, "focus": 0.0}
     for name in params.channels:                         # one trace, then each channel's raw data and images
@@ -229,10 +242,13 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
                                           _shifted(trailing, loaded.offset), {**metadata, "ati_channel": "aft"},
                                           noise_seed=settings.seed + (1 << 40))
             aft = Simulation(loaded, aft_raw, focus(aft_raw, "focus aft"), aft_result, timings)
-        return Simulation(loaded, raw, image, result, timings, per_order, images, aft=aft, depth=depth)
-    channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images, depth=depth)
-                for name, (raw, image, channel, per_order, images) in products.items()}
-    return dataclasses.replace(channels["HH"], trace=result, channels=channels)
+        sim = Simulation(loaded, raw, image, result, timings, per_order, images, aft=aft, depth=depth)
+    else:
+        channels = {name: Simulation(loaded, raw, image, channel, timings, per_order, images, depth=depth)
+                    for name, (raw, image, channel, per_order, images) in products.items()}
+        sim = dataclasses.replace(channels["HH"], trace=result, channels=channels)
+    return dataclasses.replace(sim, scatterers=build_catalogue(sim, scatterers_share, scatterers_db)) \
+        if scatterers else sim
 
 
 def _depth_and_setup(loaded: LoadedScene):
@@ -270,36 +286,6 @@ def _shifted(geometry: AcquisitionGeometry, offset: np.ndarray) -> AcquisitionGe
     return geometry.shifted(offset)
 
 
-def focus_windows(window: Any, window_range: Any = None, window_azimuth: Any = None) -> tuple[tuple, tuple]:
-    """The range and azimuth windows ``(name, params)`` of :func:`simulate` / :func:`render`:
-    ``window_range`` and ``window_azimuth``, each defaulting to ``window``; every one checked by
-    :func:`focus_window`. Raises ParameterError naming the window."""
-    return (focus_window(window if window_range is None else window_range),
-            focus_window(window if window_azimuth is None else window_azimuth))
-
-
-def focus_window(window: Any) -> tuple[str, dict]:
-    """Check the focusing window of :func:`simulate` / :func:`render`: a name of
-    :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
-    ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
-    from .focus.windows import window_spec
-    try:
-        return window_spec(window)
-    except ValueError as exc:
-        raise ParameterError(f"window: {exc}") from None
-
-
-def _compressed(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawData:
-    """Range-compressed data for focusing, weighted by the range ``window`` (name, params):
-    chirped raw output is compressed with it (matched filter); compressed output, whose pulse
-    has a rect spectrum, is windowed over the band (:func:`~sarmitsuba.focus.apply_range_window`)."""
-    from .focus.range_compression import apply_range_window, range_compress
-    name, params = window
-    if not raw.range_compressed:
-        return range_compress(raw, name, **params)
-    return apply_range_window(raw, name, **params) if name != "rect" else raw
-
-
 def _calibrated(image: SarImage, params, geometry: AcquisitionGeometry) -> SarImage:
     """In absolute radiometry, divide by the radar equation per pixel so the image is in sqrt(m^2)."""
     from .scene.radar_equation import radar_equation
@@ -321,7 +307,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
            window: Any = "taylor", focuser: str = "ffbp", formats: Sequence[str] = (),
            scheduler: str | None = None, window_range: Any = None, window_azimuth: Any = None,
            geotiff_north_up: bool = True, sicd_plane: str = "slant", sicd_weighting: str = "uniform",
-           cphd_domain: str = "toa") -> RenderSummary:
+           cphd_domain: str = "toa", scatterers: Mapping[str, Any] | None = None) -> RenderSummary:
     """Render a scene into raw data and a focused ground-range image, and write the products.
 
     Parameters
@@ -379,6 +365,10 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         ``"local"`` (a Dask ``LocalCluster`` of processes) or ``"tcp://HOST:PORT"`` (an existing
         Dask scheduler): trace the pulse batches on Dask workers (:mod:`sarmitsuba.tracing.driver.distributed`).
         None: in this process.
+    scatterers : mapping, optional
+        Write the scatterer catalogue too (``scatterers.csv``, ``scatterers.geojson``,
+        ``fig_scatterers.png``): ``{"scatterers": True}`` plus ``scatterers_share`` or
+        ``scatterers_db`` (those of :func:`simulate`). None: no catalogue.
 
     Returns
     -------
@@ -394,6 +384,8 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
     start = time.perf_counter()
     focus_windows(window, window_range, window_azimuth)
     _focuser(focuser)
+    if scatterers:
+        check_selection(scatterers.get("scatterers_share", 0.9), scatterers.get("scatterers_db"))
     check_formats(formats, sicd_plane, sicd_weighting, cphd_domain=cphd_domain)
     if scheduler is not None:
         from .tracing.driver.distributed import check_scheduler
@@ -403,7 +395,7 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
         sim = simulate(source, sensor_overrides=sensor_overrides, integrator_overrides=integrator_overrides,
                        material_overrides=material_overrides, progress=progress, window=window, focuser=focuser,
                        scheduler=scheduler, window_range=window_range, window_azimuth=window_azimuth, formats=formats,
-                       cphd_domain=cphd_domain)
+                       cphd_domain=cphd_domain, **(scatterers or {}))
         t_products = time.perf_counter()
         paths = {}
         for name, channel in (sim.channels or {"": sim}).items():      # quad: raw_HH.npz, image_HH.npz, ...
@@ -422,6 +414,9 @@ def render(source: str | None, out_dir: str | os.PathLike, *, sensor_overrides: 
                                        geotiff_north_up=geotiff_north_up, sicd_plane=sicd_plane,
                                        sicd_weighting=sicd_weighting, cphd_domain=cphd_domain))
             paths.update(_write_along_track(out, sim))
+        if sim.scatterers is not None:
+            paths.update(write_catalogue_files(out, {k: OUTPUT_FILES[k] for k in CATALOGUE_FILES}, sim.image,
+                                               sim.scatterers, sim.loaded, str(sim.raw.metadata["scene"])))
         summary = _summary(sim, paths, start, t_products)
         out.write(OUTPUT_FILES["summary"], lambda path: _write_summary(path, summary, sim.raw.metadata))
     return summary
@@ -452,7 +447,10 @@ def _summary(sim: Simulation, paths: dict, start: float, t_products: float) -> R
         energy_by_order=energy_by_order(result.raw_energy_per_order),
         depth_warning=depth_warning(result.raw_energy_per_order, result.rays_beyond) if sim.depth is None
         else cap_warning(sim.depth.as_dict()), overflow_rows=result.overflow_rows,
-        workers=result.workers, workers_note=result.workers_note, depth=depth_summary(sim.depth, result))
+        workers=result.workers, workers_note=result.workers_note, depth=depth_summary(sim.depth, result),
+        scatterers={} if sim.scatterers is None else dict(
+            count=len(sim.scatterers), listed_share=sim.scatterers.listed_share,
+            selection=sim.scatterers.selection, clutter=list(sim.scatterers.clutter), line=sim.scatterers.line()))
 
 
 def refocus(raw: RawData, algorithm: str = "bp", *, window: Any = "taylor", window_range: Any = None,

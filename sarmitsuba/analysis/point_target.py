@@ -537,7 +537,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the ``analyze`` arguments to ``parser`` (a sub-command parser); returns it."""
     parser.add_argument("image", help="focused image: .npz (image.npz, written by SarImage.save) or SICD NITF "
                                       "(.nitf/.ntf, such as the image.nitf of render --sicd)")
-    parser.add_argument("--target", required=True, type=_floats, metavar="X,Y,Z|AZ,RG",
+    parser.add_argument("--target", default=None, type=_floats, metavar="X,Y,Z|AZ,RG",
                         help="target: world position [m] (looked for at its layover position in the image) or "
                              "image coordinates (azimuth, range) [m]; write --target=-1,2,0 when the first value "
                              "is negative")

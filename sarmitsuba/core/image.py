@@ -22,7 +22,7 @@ import numpy as np
 from .outputs import atomic_savez, json_default
 from .raw import read_npz, refuse_non_finite
 
-__all__ = ["SarImage", "SarImageError", "image_coordinates", "image_track", "layover_position"]
+__all__ = ["SarImage", "SarImageError", "image_coordinates", "image_track", "layover_position", "layover_positions"]
 
 _PLANES = ("ground", "slant")
 _ARRAYS = ("data", "azimuth", "range", "origin", "azimuth_direction", "range_direction")
@@ -300,37 +300,56 @@ def layover_position(image: SarImage, point: Sequence[float] | np.ndarray) -> tu
     x = np.asarray(point, dtype=np.float64).reshape(-1)
     if x.size != 3 or not np.all(np.isfinite(x)):
         raise ValueError(f"point must be 3 finite numbers (world x, y, z in m), got {point!r}")
+    az, rg = layover_positions(image, x[None])
+    if not np.isfinite(az[0]):
+        track = image_track(image)
+        r0 = float(np.linalg.norm(np.cross(x - track[0], track[1])))
+        raise ValueError(f"the point {x.tolist()} lies {r0:.3f} m from the track, which the image plane does "
+                         "not reach along its zero-Doppler line: it cannot appear in this image")
+    return float(az[0]), float(rg[0])
+
+
+def layover_positions(image: SarImage, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`layover_position` of many world points ``points`` float64 [n, 3] (m): ``(azimuth,
+    range)`` float64 [n] each, NaN where a point's circle does not reach the image plane.
+
+    Raises
+    ------
+    ValueError
+        When the metadata record no track, or the image plane contains the track direction in
+        neither axis.
+    """
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     track = image_track(image)
     if track is None:
         raise ValueError("the image metadata record no track (focus['track'] or radar parameters): "
                          "give the target in image coordinates (azimuth, range)")
     a_point, t = track
-    foot = a_point + float((x - a_point) @ t) * t
-    r0 = float(np.linalg.norm(x - foot))
+    foot = a_point + ((x - a_point) @ t)[:, None] * t
+    r0 = np.linalg.norm(x - foot, axis=1)
     e_a, e_r = np.asarray(image.azimuth_direction, float), np.asarray(image.range_direction, float)
     d = np.asarray(image.origin, float) - foot
     # (d + a e_a + r e_r) . t = 0: a line in (a, r); least-norm point plus a direction along it
     g = np.array([e_a @ t, e_r @ t])
     if np.linalg.norm(g) < 1e-12:
         raise ValueError("the image plane is normal to the track: no zero-Doppler line to map the target onto")
-    base = -float(d @ t) * g / float(g @ g)
+    base = -(d @ t)[:, None] * g / float(g @ g)
     step = np.array([g[1], -g[0]]) / np.linalg.norm(g)
-    v0 = d + base[0] * e_a + base[1] * e_r
+    v0 = d + base[:, :1] * e_a + base[:, 1:] * e_r
     v1 = step[0] * e_a + step[1] * e_r
-    qa, qb, qc = float(v1 @ v1), 2.0 * float(v0 @ v1), float(v0 @ v0) - r0 * r0
+    qa, qb, qc = float(v1 @ v1), 2.0 * (v0 @ v1), np.einsum("ij,ij->i", v0, v0) - r0 * r0
     disc = qb * qb - 4.0 * qa * qc
-    if qa <= 0 or disc < 0:
-        raise ValueError(f"the point {x.tolist()} lies {r0:.3f} m from the track, which the image plane does "
-                         "not reach along its zero-Doppler line: it cannot appear in this image")
-    best = None
-    for lam in ((-qb + np.sqrt(disc)) / (2 * qa), (-qb - np.sqrt(disc)) / (2 * qa)):
-        ar = base + lam * step
-        q = d + ar[0] * e_a + ar[1] * e_r                   # Q - F
-        score = float(q @ (x - foot))                       # on the point's side of the track
-        if best is None or score > best[0]:
-            best = (score, ar)
-    a, r = best[1]
-    return float(a), float(r)
+    ok = (disc >= 0) & (qa > 0)
+    root = np.sqrt(np.where(ok, disc, 0.0))
+    best, score = None, None
+    for lam in ((-qb + root) / (2 * qa), (-qb - root) / (2 * qa)):
+        ar = base + lam[:, None] * step
+        q = d + ar[:, :1] * e_a + ar[:, 1:] * e_r                       # Q - F
+        here = np.einsum("ij,ij->i", q, x - foot)                        # on the point's side of the track
+        best = ar if best is None else np.where((here > score)[:, None], ar, best)
+        score = here if score is None else np.maximum(here, score)
+    best = np.where(ok[:, None], best, np.nan)
+    return best[:, 0], best[:, 1]
 
 
 def _read_image_fields(f: Any) -> dict[str, Any]:

@@ -32,7 +32,7 @@ from .windows import spectral_window, window_spec
 
 __all__ = ["WINDOW_TABLE", "BeamWeighting", "beam_weighting", "beam_sines", "beam_axes", "unit_rows",
            "illumination_count", "sine_scale",
-           "expected_gain", "column_gain", "normalise_columns", "pixel_weights", "column_scale"]
+           "expected_gain", "point_gain", "column_gain", "normalise_columns", "pixel_weights", "column_scale"]
 
 #: Samples of the beam-weight tables over u in [0, 1] (linear interpolation between them:
 #: relative error below 1e-6 for every window of the windows module and patterns of up to two
@@ -257,6 +257,18 @@ def _coarse_gain(raw: RawData, beam: BeamWeighting, pts: np.ndarray, pulse_block
         along = np.einsum("npk,pk->np", e, v[p0:p1])
         gain[near] += beam.weights(along, np.linalg.norm(e, axis=2))[1].sum(axis=1)
     return gain
+
+
+def point_gain(raw: RawData, beam: BeamWeighting, points: np.ndarray) -> np.ndarray:
+    """Expected point-target gain ``sum_p w(u_p) g(phi_p)^2`` at world points ``points`` float64
+    [n, 3] (m), float64 [n], evaluated exactly (the gain :func:`normalise_columns` divides a fully
+    illuminated column by). Without a beam (spotlight) every pulse sees every point: the summed
+    window ``sum_p w(p / (N - 1))``."""
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    if beam.sines is None:
+        axes = beam_axes(raw)
+        return sum(pixel_weights(raw, beam, axes, p, pts)[1] for p in range(raw.n_pulses))
+    return _coarse_gain(raw, beam, pts)
 
 
 def expected_gain(raw: RawData, grid: ImageGrid, beam: BeamWeighting, step: int = 16,

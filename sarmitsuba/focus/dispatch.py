@@ -14,7 +14,7 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 
 from ..core.image import SarImage
-from ..core.radar import RadarParameters
+from ..core.radar import ParameterError, RadarParameters
 from ..core.geometry import AcquisitionGeometry, acquisition_geometry
 from ..core.raw import RawData
 from .backprojection import backproject
@@ -27,7 +27,7 @@ from .scene_grid import ground_grid
 from .stripmap import slant_output_grid, stripmap_geometry
 from .windows import window_spec
 
-__all__ = ["ALGORITHMS", "focus", "autofocus_image", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
+__all__ = ["compressed_for_focus", "focus_window", "focus_windows", "ALGORITHMS", "focus", "autofocus_image", "backprojector", "azimuth_pattern", "RenderFocusing", "render_focusing",
            "recorded_geometry"]
 
 #: Algorithm names of :func:`focus`: direct and fast factorised backprojection, omega-K, range-Doppler.
@@ -177,3 +177,31 @@ def _backprojection_input(raw: RawData, window_range: Any, grid: ImageGrid | Non
     if grid is None:
         grid = slant_output_grid(stripmap_geometry(raw), raw)
     return compressed, grid
+
+
+def focus_windows(window: Any, window_range: Any = None, window_azimuth: Any = None) -> tuple[tuple, tuple]:
+    """The range and azimuth windows ``(name, params)`` of :func:`sarmitsuba.pipeline.simulate` / :func:`~sarmitsuba.pipeline.render`:
+    ``window_range`` and ``window_azimuth``, each defaulting to ``window``; every one checked by
+    :func:`focus_window`. Raises ParameterError naming the window."""
+    return (focus_window(window if window_range is None else window_range),
+            focus_window(window if window_azimuth is None else window_azimuth))
+
+
+def focus_window(window: Any) -> tuple[str, dict]:
+    """Check the focusing window of :func:`sarmitsuba.pipeline.simulate` / :func:`~sarmitsuba.pipeline.render`: a name of
+    :mod:`sarmitsuba.focus.windows` (``"rect"`` for none) or ``(name, {params})``; returns
+    ``(name, params)`` with the defaults filled in. Raises ParameterError naming ``window``."""
+    try:
+        return window_spec(window)
+    except ValueError as exc:
+        raise ParameterError(f"window: {exc}") from None
+
+
+def compressed_for_focus(raw: RawData, window: tuple[str, dict] = ("rect", {})) -> RawData:
+    """Range-compressed data for focusing, weighted by the range ``window`` (name, params):
+    chirped raw output is compressed with it (matched filter); compressed output, whose pulse
+    has a rect spectrum, is windowed over the band (:func:`~sarmitsuba.focus.apply_range_window`)."""
+    name, params = window
+    if not raw.range_compressed:
+        return range_compress(raw, name, **params)
+    return apply_range_window(raw, name, **params) if name != "rect" else raw

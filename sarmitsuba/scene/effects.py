@@ -115,6 +115,9 @@ class EffectSet:
         Each bounce order deposited apart, for the energy it holds (``summary.json``'s
         ``energy_by_order``, :attr:`deposit_groups`); on by default, off for the derivatives,
         which take the raw data of all orders at once.
+    scatterers : bool
+        Every term also summed coherently at its phase centre, for the scatterer catalogue
+        (``sbr`` ``scatterers``, ``render --scatterers``, docs/physics.md (SC1)-(SC4)).
     listed : tuple of Effect
         Every effect of docs/design.md section 7, on or off, with the reason (:func:`list_effects`).
 
@@ -141,6 +144,7 @@ class EffectSet:
     order_energy: bool = True
     bistatic: bool = False
     moving_shapes: "ShapeMotion | None" = None
+    scatterers: bool = False
 
     @property
     def cross_polarised(self) -> bool:
@@ -202,7 +206,7 @@ class EffectSet:
                       motion_error=params.motion_error is not None,
                       diffraction=bool(getattr(settings, "diffraction", False))
                       and getattr(settings, "lit_regions", "patches") == "patches", moving_shapes=moving_shapes,
-                      bistatic=params.bistatic)
+                      bistatic=params.bistatic, scatterers=bool(getattr(settings, "scatterers", False)))
         return dataclasses.replace(decided, listed=_listed(decided, params, getattr(settings, "seed", None)))
 
 
@@ -281,7 +285,7 @@ def _listed(e: EffectSet, p: "RadarParameters", seed: int | None) -> tuple[Effec
     """The docs/design.md section 7 table for the decided effects ``e``: each on or off with its reason."""
     return (_bounces(e.max_depth), _clutter(e.rough_materials, seed), _antenna(e, p), _noise(e.noise, p),
             _chirped(e.chirped, p), _radiometry(e.radiometry, p), _spotlight(e.spotlight, p), _squint(e.squint, p),
-            _split(e.split_bounces), _polarimetry(e), _diffraction(e.diffraction), _curved(e.curved_track, p),
+            _split(e.split_bounces), _catalogue(e.scatterers), _polarimetry(e), _diffraction(e.diffraction), _curved(e.curved_track, p),
             _continuous(e.continuous_motion, p), _motion_error(e.motion_error, p), _moving(e.moving_shapes),
             _bistatic(e.bistatic, p))
 
@@ -379,6 +383,13 @@ def _split(on: bool) -> Effect:
     if on:
         return Effect("per-bounce-order products", True, "split_bounces")
     return Effect("per-bounce-order products", False, "split_bounces off: one raw data set and image for all orders")
+
+
+def _catalogue(on: bool) -> Effect:
+    if on:
+        return Effect("scatterer catalogue", True, "scatterers: every term also summed at its phase centre "
+                      "(scatterers.csv, docs/physics.md (SC1)-(SC4))")
+    return Effect("scatterer catalogue", False, "scatterers off: images only")
 
 
 def _polarimetry(e: EffectSet) -> Effect:

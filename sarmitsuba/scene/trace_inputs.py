@@ -70,6 +70,9 @@ class TraceSettings:
         Seed of the clutter scatterers' phases and positions, [0, 2^32).
     split_bounces : bool
         Keep each bounce order's contributions separately.
+    scatterers : bool
+        Also sum every term coherently at its phase centre, for the scatterer catalogue
+        (``render --scatterers``, docs/physics.md (SC1)-(SC4)). ``lit_regions = patches`` only.
     scatterer_spacing : float, m
         Cell size of the surface-attached clutter scatterer lattice; 0 = automatic
         (:func:`sarmitsuba.scene.planning.scatterer_spacing`). Independent of ``ray_spacing``.
@@ -132,6 +135,7 @@ class TraceSettings:
     max_batch_rays: int = 1 << 18
     seed: int = 0
     split_bounces: bool = False
+    scatterers: bool = False
     scatterer_spacing: float = 0.0
     tubes_per_object: int = 48
     pulses_per_trace: int = 0
@@ -177,6 +181,9 @@ class TraceSettings:
             raise ParameterError(f"lit_regions = {self.lit_regions!r}; valid values: "
                                  f"{', '.join(repr(m) for m in LIT_REGIONS)} (patches: scattering anchored to the mesh, "
                                  "docs/physics.md (M1)-(M8); tiles: the ray tubes' tiles, a fast preview)")
+        if self.scatterers and self.lit_regions != "patches":
+            raise ParameterError(f"scatterers = true needs lit_regions = patches (got {self.lit_regions!r}): the "
+                                 "catalogue names the mesh's surfaces, which the tiles' tubes do not follow")
         if self.geometry not in GEOMETRY_PIPELINES:
             raise ParameterError(f"geometry = {self.geometry!r}; valid values: "
                                  f"{', '.join(repr(m) for m in GEOMETRY_PIPELINES)} (reference: the NumPy stages; "

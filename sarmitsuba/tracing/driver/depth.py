@@ -153,7 +153,7 @@ def probe_settings(loaded: LoadedScene):
     st = loaded.settings
     tubes = "patches" if loaded.params.bistatic else "tiles"      # ray tubes are monostatic
     spacing = st.ray_spacing if st.lit_regions == "tiles" else 0.0  # the render's own tubes, or one per cell
-    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=True, lit_regions=tubes,
+    return dataclasses.replace(st, max_depth=st.depth_cap, split_bounces=True, lit_regions=tubes, scatterers=False,
                                ray_spacing=spacing, range_kernel="nearest", oversample=1)
 
 

@@ -48,6 +48,7 @@ from ..mesh.patches import surfaces_of
 from .moving import MovingShapes
 from .launches import Blocks, Launch
 from ..integration import jones as pol
+from ..integration.catalogue import lane_catalogue, rows_of
 from ..integration.ground_wave import grazing_table
 from ..integration.returns import COS_GRAZING, Returns, footprint_edges
 from ..loops import RECORDING
@@ -402,8 +403,10 @@ class Kernel:
         """A :class:`~sarmitsuba.tracing.driver.mesh_trace.MeshTracer` of ``surfaces`` with this kernel's
         acquisition, returns and scene box (the geometric derivatives' moved copies, (AD4))."""
         fx = self.effects
-        return MeshTracer(self.scene, surfaces, self.returns, self.params, self.settings, self.fp.patch_size,
-                          not (fx.spotlight or fx.curved_track), self.bbox, material_table, self.fp.scatterer_spacing)
+        tracer = MeshTracer(self.scene, surfaces, self.returns, self.params, self.settings, self.fp.patch_size,
+                            not (fx.spotlight or fx.curved_track), self.bbox, material_table, self.fp.scatterer_spacing)
+        tracer.catalogue = lane_catalogue(self.scene, self.params, self.fp, fx) if fx.scatterers else None
+        return tracer
 
     # ------------------------------------------------------------------ one launch
     def __call__(self, launch: Launch, capacity: int = 0) -> dict:
@@ -433,6 +436,7 @@ class Kernel:
             out["overflow"] = stats["overflow"]          # rows the fused kernels left to the reference
             out["beyond_rays"] = stats["beyond"] or 0    # rays past the deepest order, where looked for
             out["beyond_unchecked"] = int(stats["beyond"] is None)
+            out["catalogue"] = rows_of(ctx.pop("catalogue", []))     # the scatterer catalogue's rows (SC2)
             return out
         tube, n_lanes = self.launch(launch)
         for depth in range(st.depth):

@@ -33,7 +33,8 @@ from ..discovery.specular import arriving_views, discover, discovery_subdivision
 from ..fused import geometry_kernels
 from ..fused.matching import RowMatcher
 from ..fused.segments import DEVICE_ROWS as SEGMENT_ROWS, SegmentKinds
-from ..integration.patch_terms import NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
+from ..integration.catalogue import catalogued
+from ..integration.patch_terms import AREA, NEAR_SPECULAR, OPEN_START, SINC, SPLIT_START, PatchTerms
 from ..loops import RECORDING
 from ..visibility.lit_pieces import RECHECKS, LitPieces, classify, lit_pieces, recheck, spread_occluders
 from ..visibility.motion import endpoint_rates, line_rates
@@ -120,6 +121,9 @@ class MeshTracer:
         #: Moving shapes: a :class:`~sarmitsuba.tracing.visibility.moving_shapes.TargetMotion` that moves
         #: their lanes per pulse (docs/physics.md (V2)); None: the scene holds still.
         self.target = None
+        #: The scatterer catalogue's configuration (:class:`~sarmitsuba.tracing.integration.catalogue.LaneCatalogue`,
+        #: docs/physics.md (SC1)-(SC4)); None: the catalogue is off.
+        self.catalogue = None
         self._static = None
         self._body_box = None
         # launches on several host threads share these caches: the first to need one builds it
@@ -166,7 +170,10 @@ class MeshTracer:
             with clock("energy"):
                 stats["carried"].append(self._carried(lit, reference, launch.count))
             with clock("lanes"):
-                lanes, table, clipped, cut_lit = self._lanes(lit, views, depth, reference, clock, rx, match)
+                lanes, table, clipped, cut_lit, lane_chain = self._lanes(lit, views, depth, reference, clock, rx, match)
+                if self.catalogue is not None:           # the scatterer catalogue's lanes (SC1)
+                    lanes = catalogued(self.catalogue, self.surfaces, lanes, lane_chain, lit.chains, launch, rx,
+                                       np.asarray(lanes.kind) == AREA)
             stats["pieces"].append(int(cut_lit.lit.sum()))
             stats["lanes"].append(len(lanes))
             with clock("terms"), RECORDING:
@@ -415,9 +422,10 @@ class MeshTracer:
         edges = segment_wedges(s, self.wedges, part[seg_piece], p2, q2) if self.wedges is not None else None
         lanes, table = build_lanes(s, chains, geometry, stable, (seg_piece, p2, q2), kind, table_segments, reference, depth,
                                    self.cancel, motion, edges, match)
+        lane_chain = np.take(region, lanes.piece.astype(np.int64))
         if self.target is not None:
-            lanes = self.target.moved(lanes, s, chains, np.take(region, lanes.piece.astype(np.int64)), reference)
-        return lanes, table, clipped, lit
+            lanes = self.target.moved(lanes, s, chains, lane_chain, reference)
+        return lanes, table, clipped, lit, lane_chain
 
     def _clip(self, lit: LitPieces, antenna: np.ndarray, receiver: np.ndarray | None = None):
         """The mixed pieces of ``lit`` cut against their occluders, the occluders spread to the

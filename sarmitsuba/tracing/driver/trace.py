@@ -35,6 +35,7 @@ from ...scene import planning
 from ...scene.effects import active_effects
 from .kernel import Kernel
 from .launches import Blocks, Launch, receiver_launch
+from ..integration.catalogue import CatalogueRows, merge_rows
 from ..integration.pulse_view import antenna_axes
 from .stages import STAGES, by_order
 from .subapertures import (SUBAPERTURE_CELLS, SubApertures, lattice_blocks, pulses_per_trace,  # noqa: F401
@@ -197,6 +198,10 @@ class TraceResult:
     workers_note : str
         Why that many (:class:`~sarmitsuba.tracing.driver.workers.WorkerPlan`'s reason; empty
         where the caller traced directly).
+    catalogue : CatalogueRows or None
+        With ``scatterers = true``: every chain's lanes summed at their image points, merged by
+        chain and quantisation cube (:mod:`sarmitsuba.tracing.integration.catalogue`, (SC1)-(SC2)),
+        every channel's sums. None: the catalogue is off.
     """
 
     spectrum: np.ndarray
@@ -222,6 +227,7 @@ class TraceResult:
     rays_beyond: int | None = None
     workers: int = 1
     workers_note: str = ""
+    catalogue: CatalogueRows | None = None
 
     def channel(self, name: str) -> "TraceResult":
         """The one-channel result of channel ``name`` (``"HH"``, ...) of a ``quad`` trace; the
@@ -343,7 +349,7 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
     p0, p1 = plan.pulses(g0)
     n_groups = plan.n_channels * plan.groups
     hist = None if plan.exact else np.zeros((len(SPECTRAL_ORDERS), n_groups, p1 - p0, window.n_fine), np.complex64)
-    totals, paths = {}, None
+    totals, paths, catalogue = {}, None, []
     motion = dict(velocity=geometry.velocity[p0:p1], acceleration=geometry.acceleration[p0:p1]) \
         if geometry.continuous else receiver_launch(geometry, p0, p1, subs, g, kernel.effects.continuous_motion)
     if kernel.effects.moving_shapes is not None:        # (V1): the shapes' times, from mid-aperture
@@ -369,6 +375,7 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
             hist += out["hist"]
         for name in TOTALS:
             totals[name] = totals.get(name, 0) + out.get(name, 0)
+        catalogue.append(out.get("catalogue"))
     def reduce(h):
         return reduce_deposit(h, window.fs, window.oversample, frequency, settings.range_kernel, plan.n_pad)
     spectrum = None
@@ -377,7 +384,8 @@ def trace_batch(kernel: Kernel, plan: TracePlan, g0: int, geometry: AcquisitionG
                                                             plan.bandwidth)
     elif not plan.exact:
         spectrum = np.stack([reduce(hist[:, k]) for k in range(n_groups)])
-    return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals}
+    return {"pulses": (p0, p1), "spectrum": spectrum, "paths": paths, "totals": totals,
+            "catalogue": merge_rows(catalogue)}
 
 
 #: Counters every kernel launch returns and :func:`trace` sums (``stages``: the mesh tracer's
@@ -453,7 +461,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         plan = dataclasses.replace(plan, per_batch=max(1, plan.per_batch // threads))
         kernel.returns.sums.shared_by(threads)
     bar = tqdm(total=n_pulses, desc="trace", unit="pulse", disable=not progress)
-    batch_totals = {}                    # by first pulse: summed in pulse order, whatever order batches arrive in
+    batch_totals, rows = {}, {}          # by first pulse: summed in pulse order, whatever order batches arrive in
     pool = ThreadPoolExecutor(threads, thread_name_prefix="trace") if threads > 1 else None
     with kernel_pool(threads):           # host threads that fill the cores run their own blocks
         try:
@@ -473,6 +481,7 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
                 else:
                     spectrum[:, p0:p1] = out["spectrum"]
                 batch_totals[p0] = out["totals"]
+                rows[p0] = out.get("catalogue")
                 bar.update(p1 - p0)
         finally:
             if pool is not None:
@@ -485,7 +494,9 @@ def trace(scene: mi.Scene, params: RadarParameters, geometry: AcquisitionGeometr
         for name in totals:
             totals[name] = totals[name] + batch_totals[p0].get(name, 0)
     seconds = time.perf_counter() - start
-    return _result(plan, spectrum, paths, totals, seconds, effects)
+    result = _result(plan, spectrum, paths, totals, seconds, effects)
+    return dataclasses.replace(result, catalogue=merge_rows([rows[p0] for p0 in sorted(rows)])) \
+        if effects.scatterers else result
 
 
 def _result(plan: TracePlan, spectrum: np.ndarray, paths: dict, totals: dict, seconds: float,

@@ -35,6 +35,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..deposit.fast_time import SPECTRAL_ORDERS
+from .catalogue import LaneSums
 from .edge_terms import EdgeTerms, end_slope, sinc, x_dsinc
 from ..device import device_array
 from . import jones as pol
@@ -153,6 +154,10 @@ class TermLanes:
     across, across_xn : float32 [m, 3], optional
         The vector from the lane's segment to the diffracting edge across its face (zero: none),
         and the unit vector into that edge's other face (zero on a free edge).
+    catalogue : dict, optional
+        With the scatterer catalogue on: what it keeps of each lane, one row per lane
+        (:meth:`sarmitsuba.tracing.integration.catalogue.LaneCatalogue.lanes`); its ``point`` is
+        where the lane's terms are also summed coherently (SC2). None: the catalogue is off.
     """
 
     kind: np.ndarray
@@ -183,6 +188,7 @@ class TermLanes:
     double: np.ndarray | None = None
     across: np.ndarray | None = None
     across_xn: np.ndarray | None = None
+    catalogue: dict | None = None
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -232,13 +238,23 @@ class PatchTerms:
         self.edges = EdgeTerms(returns, self.k)
 
     def __call__(self, ctx: dict, lanes: TermLanes, pieces: PieceTable, depth: int) -> None:
-        """Deposit the lanes' terms for every pulse of their sub-apertures (bounce order ``depth + 1``)."""
+        """Deposit the lanes' terms for every pulse of their sub-apertures (bounce order ``depth + 1``).
+        Lanes that carry a ``catalogue`` are also summed at their image points (SC2), into a
+        :class:`~sarmitsuba.tracing.integration.catalogue.LaneSums` appended with it to the
+        launch's ``ctx["catalogue"]``."""
         if len(lanes) == 0:
             return
-        self.deposit(ctx, self.upload(lanes, pieces, depth), lanes, depth)
+        sums = None
+        if lanes.catalogue is not None:
+            sums = LaneSums(lanes.catalogue["point"], len(self.r.channels))
+            ctx.setdefault("catalogue", []).append((sums, lanes.catalogue))
+        self.deposit(ctx, self.upload(lanes, pieces, depth), lanes, depth, sums)
 
-    def deposit(self, ctx: dict, data: dict, lanes: TermLanes, depth: int) -> None:
+    def deposit(self, ctx: dict, data: dict, lanes: TermLanes, depth: int, sums=None) -> None:
         """Deposit the terms of lanes already on the device (``data``, :meth:`upload`)."""
+        if sums is not None:
+            data = {**data, "catalogue": sums.points}
+            ctx["catalogue_sums"] = sums
         count = dr.gather(mi.UInt32, ctx["count"], data["sub"])
         paths = self.r.sums.path_buffers(len(lanes) * ctx["max_count"] * 2) if self.r.exact else None
         lane = dr.arange(mi.UInt32, len(lanes))
@@ -408,6 +424,8 @@ class PatchTerms:
             power = dr.detach(dr.squared_norm(values[0]))
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
+            if "catalogue" in data:                 # the scatterer catalogue's sums (SC2)
+                ctx["catalogue_sums"].add(ctx, r, data["catalogue"], antenna, view, lref, lane, values, live & inside)
             r.sums.tally(ctx, "energy", power, depth, live)
             r.sums.tally(ctx, "energy", power, r.settings.depth, live & ~inside)
 

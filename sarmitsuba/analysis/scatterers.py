@@ -1,0 +1,291 @@
+"""What made each bright point: the scatterer catalogue of a render (docs/physics.md (SC1)-(SC4)).
+
+The trace (``scatterers = true``) sums every term lane coherently at its image point and merges
+the lanes of one chain of parts by quantisation cube
+(:class:`~sarmitsuba.tracing.integration.catalogue.CatalogueRows`). :func:`build_catalogue` turns
+those rows into the catalogue of a focused image:
+
+1. each row's image point is mapped to the image (its layover position,
+   :func:`~sarmitsuba.core.image.layover_positions`) and rows of one chain of parts whose points
+   fall in one resolution cell (the image's energy widths (K2)) are merged: one *scatterer*;
+2. its coherent sum is divided by the point-target gain the image divides by
+   (:func:`~sarmitsuba.focus.beam.point_gain`, rect window): its complex amplitude, whose
+   ``|.|^2`` is its RCS [m^2] and whose angle its phase (SC2);
+3. the strongest scatterers are kept until they hold ``share`` of the image's integrated RCS,
+   or all above ``floor_db`` dBsm;
+4. distributed clutter is summarised per rough surface: the image pixels its triangles cover and
+   their mean intensity over ``rho_E,az rho_E,rg``, sigma nought (K).
+
+:func:`explain` lists the scatterers within one resolution cell of an image position and their
+shares of its power.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..core import georef
+from ..core.image import SarImage, layover_positions
+from ..core.radar import ParameterError
+from ..focus.beam import beam_weighting, point_gain
+from ..focus.dispatch import azimuth_pattern
+from ..products.scatterer_files import Catalogue, columns_of
+from ..tracing.integration.catalogue import CatalogueRows
+from ..tracing.mesh.facets import scene_meshes
+from .impulse_model import energy_widths, integrated_rcs
+
+__all__ = ["build_catalogue", "explain", "check_selection", "DEFAULT_SHARE", "FLOOR_DB_RANGE"]
+
+#: The share of the image's integrated RCS the listed scatterers hold together, by default.
+DEFAULT_SHARE = 0.9
+#: ``--scatterers-db``: the RCS floor [dBsm] lies in this open interval.
+FLOOR_DB_RANGE = (-200.0, 100.0)
+
+
+def check_selection(share: Any, floor_db: Any) -> tuple[float, float | None]:
+    """``(share, floor_db)`` checked: ``share`` in (0, 1]; ``floor_db`` None or a finite number
+    in :data:`FLOOR_DB_RANGE` dBsm. Raises ParameterError naming the option."""
+    try:
+        share = float(share)
+    except (TypeError, ValueError):
+        share = math.nan
+    if not 0.0 < share <= 1.0:
+        raise ParameterError(f"--scatterers-share = {share}: give a share of the image's energy in (0, 1] "
+                             f"(default {DEFAULT_SHARE})")
+    if floor_db is None:
+        return share, None
+    try:
+        floor = float(floor_db)
+    except (TypeError, ValueError):
+        floor = math.nan
+    lo, hi = FLOOR_DB_RANGE
+    if not lo < floor < hi:
+        raise ParameterError(f"--scatterers-db = {floor_db}: give an RCS floor in dBsm between {lo:g} and {hi:g} "
+                             "(e.g. -10 lists every scatterer of 0.1 m^2 or more; RCS in dBsm is 10 log10 of m^2, "
+                             "and a floor below -200 dBsm keeps rounding noise)")
+    return share, floor
+
+
+def _merged(rows: CatalogueRows, cell: np.ndarray, reciprocal: bool):
+    """``rows`` merged by chain of parts and resolution cell ``cell`` int64 [k, 2]: (first row of
+    each merge, group index of every row, number of merges). ``reciprocal`` (monostatic): a chain
+    and its reverse are one path, travelled both ways, of one length and phase (SC4)."""
+    parts = rows.parts
+    if reciprocal and len(parts):
+        flipped = parts.copy()
+        for i, k in enumerate(rows.order):
+            flipped[i, :k] = parts[i, :k][::-1]
+        lower = np.array([tuple(f) < tuple(q) for f, q in zip(flipped, parts)], bool)
+        parts = np.where(lower[:, None], flipped, parts)
+    key = np.concatenate([parts, cell], axis=1)
+    order = np.lexsort(key.T[::-1])
+    _, first, group = np.unique(key[order], axis=0, return_index=True, return_inverse=True)
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(len(order))
+    return order[first], group.reshape(-1)[inverse], len(first)
+
+
+def _sums(values: np.ndarray, group: np.ndarray, n: int) -> np.ndarray:
+    """Per-group sums of ``values`` [k] or [k, c] (float or complex)."""
+    if values.ndim == 2:
+        return np.stack([_sums(values[:, c], group, n) for c in range(values.shape[1])], axis=1)
+    if np.iscomplexobj(values):
+        return np.bincount(group, values.real, n) + 1j * np.bincount(group, values.imag, n)
+    return np.bincount(group, values, n)
+
+
+def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | None = None) -> Catalogue:
+    """The scatterer catalogue of a simulation traced with ``scatterers = true``.
+
+    Parameters
+    ----------
+    sim : sarmitsuba.pipeline.Simulation
+        Its ``trace.catalogue`` (every channel's sums), image (HH for ``quad``), raw data and scene.
+    share : float in (0, 1]
+        Keep the strongest scatterers until they hold this share of the image's integrated RCS.
+    floor_db : float, optional
+        Instead, keep every scatterer of at least this RCS [dBsm] (all channels' powers summed).
+
+    Returns
+    -------
+    Catalogue
+
+    Raises
+    ------
+    ParameterError
+        When the simulation was traced without the catalogue, or on a bad ``share`` / ``floor_db``.
+    """
+    share, floor_db = check_selection(share, floor_db)
+    rows = sim.trace.catalogue
+    if rows is None:
+        raise ParameterError("the simulation was traced without the scatterer catalogue: render with --scatterers "
+                             "(simulate(..., scatterers=True), or sbr scatterers = true)")
+    loaded, image, raw = sim.loaded, sim.image, sim.raw
+    p = loaded.params
+    offset = np.asarray(loaded.offset, float)
+    track = np.asarray(raw.metadata.get("track_direction", image.azimuth_direction), float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        centre = rows.centre / rows.weight[:, None] + offset
+        point = centre + (rows.shift / rows.weight)[:, None] * track
+    az, rg = layover_positions(image, point) if len(rows) else (np.zeros(0), np.zeros(0))
+    rho_az, rho_rg = energy_widths(image)
+    seen = np.isfinite(az)
+    rows = _select_rows(rows, seen)
+    az, rg, centre, point = az[seen], rg[seen], centre[seen], point[seen]
+    cell = np.stack([np.round(az / rho_az), np.round(rg / rho_rg)], axis=1).astype(np.int64)
+    first, group, n = _merged(rows, cell, reciprocal=not p.bistatic)
+    weight = _sums(rows.weight, group, n)
+    amplitude = _sums(rows.amplitude, group, n)
+    mean = lambda v: _sums(rows.weight[:, None] * v, group, n) / weight[:, None]  # noqa: E731
+    centre, point = mean(centre), mean(point)
+    image_az, image_rg = mean(np.stack([az, rg], axis=1)).T
+    beam = beam_weighting(raw, p.traced_beamwidth if p.mode == "stripmap" else None, p.squint,
+                          azimuth_pattern(p), "rect")
+    gain = point_gain(raw, beam, point)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        field = np.where(gain[:, None] > 0, amplitude / gain[:, None], 0.0)
+    power = np.sum(np.abs(field) ** 2, axis=1)
+    # each scatterer's part of its resolution cell's coherent power (SC4): they add up to |sum|^2
+    _, in_cell = np.unique(cell[first], axis=0, return_inverse=True)
+    in_cell = in_cell.reshape(-1)
+    cell_field = _sums(field, in_cell, int(in_cell.max(initial=-1)) + 1)[in_cell]
+    contribution = np.sum((field * np.conj(cell_field)).real, axis=1)
+    images = [c.image for c in sim.channels.values()] if sim.channels else [image]
+    image_rcs = sum(float(np.sum(np.abs(im.data.astype(np.complex128)) ** 2)) for im in images) \
+        * _pixel_area(image) / (rho_az * rho_rg)
+    keep = _chosen(power, contribution, image_rcs, share, floor_db)
+    table = dict(azimuth=image_az, range=image_rg, centre=centre, field=field, power=power,
+                 contribution=contribution, cell_power=np.sum(np.abs(cell_field) ** 2, axis=1),
+                 order=rows.order[first], shapes=rows.shapes[first], parts=rows.parts[first],
+                 face=_sums(rows.face, group, n) / weight, radial=_sums(rows.radial, group, n) / weight,
+                 shift=_sums(rows.shift, group, n) / weight, lanes=_sums(rows.lanes.astype(float), group, n))
+    table = {k: v[keep] for k, v in table.items()}
+    names = [s.id() or f"#shape{i}" for i, s in enumerate(loaded.scene.shapes())]
+    geo = georef.of(p) if p.geo_origin is not None else None
+    listed = float(np.sum(table["contribution"]))
+    selection = f"rcs >= {floor_db:g} dBsm" if floor_db is not None else f"share {share:g}"
+    return Catalogue(columns=columns_of(table, image, names, p.channels, geo, image_rcs),
+                     clutter=clutter_summary(sim, rho_az, rho_rg), channels=tuple(p.channels), image_rcs=image_rcs,
+                     listed_share=listed / image_rcs if image_rcs > 0 else 0.0, selection=selection,
+                     resolution=(float(rho_az), float(rho_rg)))
+
+
+def _select_rows(rows: CatalogueRows, keep: np.ndarray) -> CatalogueRows:
+    return CatalogueRows(**{name: getattr(rows, name)[keep] for name in CatalogueRows.__dataclass_fields__})
+
+
+def _pixel_area(image: SarImage) -> float:
+    """m^2 of one pixel (the axes' mean steps)."""
+    d_az = abs(float(np.mean(np.diff(image.azimuth)))) if image.azimuth.size > 1 else 1.0
+    d_rg = abs(float(np.mean(np.diff(image.range)))) if image.range.size > 1 else 1.0
+    return d_az * d_rg
+
+
+def _chosen(power: np.ndarray, contribution: np.ndarray, image_rcs: float, share: float,
+            floor_db: float | None) -> np.ndarray:
+    """Rows to list, by contribution to the image's power, largest first: all of at least
+    ``floor_db`` dBsm of their own, or the fewest whose contributions reach ``share`` of
+    ``image_rcs`` (all, where together they hold less)."""
+    order = np.argsort(-contribution, kind="stable")
+    if floor_db is not None:
+        return order[power[order] >= 10.0 ** (floor_db / 10.0)]
+    reached = np.cumsum(contribution[order]) >= share * image_rcs
+    count = int(np.argmax(reached)) + 1 if reached.any() else len(order)
+    return order[:count]
+
+
+def clutter_summary(sim: Any, rho_az: float, rho_rg: float) -> tuple[dict, ...]:
+    """Per rough surface (a shape whose material has a clutter model): its id, material, the image
+    pixels its triangles cover (their layover positions) and its mean sigma nought there,
+    ``mean |I|^2 / (rho_az rho_rg)`` in dB (docs/physics.md (K)). Empty without clutter."""
+    from skimage.draw import polygon
+    from ..scene.loader import material_table
+    loaded, image = sim.loaded, sim.image
+    p = loaded.params
+    table = material_table(loaded.scene, p.frequency, p.polarization)
+    if table.clutter is None:
+        return ()
+    shapes = list(loaded.scene.shapes())
+    rough = table.clutter[table.row_of_shape[:len(shapes)], 0] > 0
+    intensity = np.abs(image.data.astype(np.complex128)) ** 2
+    out = []
+    for index, (vertices, faces) in enumerate(scene_meshes(loaded.scene)):
+        if not rough[index] or len(faces) == 0:
+            continue
+        az, rg = layover_positions(image, vertices + np.asarray(loaded.offset, float))
+        rows = np.interp(az, image.azimuth, np.arange(image.azimuth.size), left=-1, right=image.azimuth.size)
+        cols = np.interp(rg, image.range, np.arange(image.range.size), left=-1, right=image.range.size)
+        mask = np.zeros(image.data.shape, bool)
+        for tri in faces:
+            if np.all(np.isfinite(rows[tri])):
+                rr, cc = polygon(rows[tri], cols[tri], shape=mask.shape)
+                mask[rr, cc] = True
+        pixels = int(mask.sum())
+        sigma0 = float(intensity[mask].mean() / (rho_az * rho_rg)) if pixels else 0.0
+        bsdf = shapes[index].bsdf()
+        out.append(dict(surface=shapes[index].id() or f"#shape{index}",
+                        material=bsdf.id() if bsdf is not None else "", pixels=pixels,
+                        sigma0_db=10.0 * math.log10(sigma0) if sigma0 > 0 else -math.inf))
+    return tuple(out)
+
+
+def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
+            resolution: Sequence[float] | None = None) -> dict:
+    """The catalogue's scatterers within one resolution cell of image position ``(azimuth,
+    range_)`` [m] and their shares of its power.
+
+    Parameters
+    ----------
+    image : SarImage
+    columns : dict
+        The catalogue's columns (:meth:`Catalogue.columns`, or read back by
+        :func:`~sarmitsuba.products.scatterer_files.read_csv`).
+    azimuth, range_ : float, m
+        Image coordinates of the point (the image's axes).
+    resolution : (rho_az, rho_rg), m, optional
+        The cell; default the image's energy widths there (K2).
+
+    Returns
+    -------
+    dict
+        ``point``, ``cell`` [m, m], ``pixel_rcs_m2`` (the image's integrated RCS of a box of one
+        cell about the point, the response's energy outside it restored from the model,
+        :func:`~sarmitsuba.analysis.impulse_model.integrated_rcs`),
+        ``explained`` (the listed scatterers' RCS over it), and ``rows``: each scatterer's
+        columns plus ``share`` of the listed power there, strongest first.
+
+    Raises
+    ------
+    ParameterError
+        When the point lies outside the image (names the axes' extents).
+    """
+    lo_a, hi_a = float(image.azimuth.min()), float(image.azimuth.max())
+    lo_r, hi_r = float(image.range.min()), float(image.range.max())
+    if not (math.isfinite(azimuth) and math.isfinite(range_) and lo_a <= azimuth <= hi_a and lo_r <= range_ <= hi_r):
+        raise ParameterError(f"--explain {azimuth:g},{range_:g}: the point lies outside the image, which spans "
+                             f"azimuth [{lo_a:.2f}, {hi_a:.2f}] m and range [{lo_r:.2f}, {hi_r:.2f}] m; give "
+                             "AZ,RG in the image's coordinates (the axes of its figure)")
+    rho_az, rho_rg = resolution if resolution is not None else energy_widths(image)
+    near = (np.abs(np.asarray(columns["azimuth_m"], float) - azimuth) <= rho_az) & \
+           (np.abs(np.asarray(columns["range_m"], float) - range_) <= rho_rg)
+    power = 10.0 ** (np.asarray(columns["rcs_dbsm"], float)[near] / 10.0)
+    total = float(power.sum())
+    rows = [{name: _plain(values[i]) for name, values in columns.items()} for i in np.flatnonzero(near)]
+    for row, pw in zip(rows, power):
+        row["share"] = pw / total if total > 0 else 0.0
+    rows.sort(key=lambda r: -r["share"])
+    pixel_rcs = integrated_rcs(image, rho_az, rho_rg, center=(azimuth, range_), half_cells=1.0) \
+        if resolution is not None else integrated_rcs(image, center=(azimuth, range_), half_cells=1.0)
+    return dict(point=[azimuth, range_], cell=[float(rho_az), float(rho_rg)], pixel_rcs_m2=pixel_rcs,
+                explained=total / pixel_rcs if pixel_rcs > 0 else 0.0, rows=rows)
+
+
+def _plain(value: Any) -> Any:
+    """A JSON-ready scalar of a column entry."""
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating,)):
+        return float(value)
+    return value

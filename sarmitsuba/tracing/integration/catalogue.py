@@ -1,0 +1,306 @@
+"""What the scatterer catalogue needs from the trace: every term lane's phase centre and its
+returns summed coherently there (docs/physics.md (SC1)-(SC4)).
+
+With ``sbr`` ``scatterers = true`` (``render --scatterers``) the mesh tracer
+(:mod:`sarmitsuba.tracing.driver.mesh_trace`) hands each bounce order's term lanes to a
+:class:`LaneCatalogue` before their pulses run:
+
+1. :func:`phase_centres`, in NumPy, places each lane's phase centre ``P`` (SC1): the point with the
+   path's two-way length ``L`` nearest the middle of its first and last interaction points, moved
+   along the gradient of the range sum (the look direction, or the bistatic bisector); a moving
+   shape's lane is put back where its shape stands at mid-aperture, and images shifted along track
+   by ``-R v_r / V`` (SC3);
+2. every pulse's terms of the lane, as deposited, are multiplied by the conjugate carrier phase
+   of that image point and summed, in fixed point (D7), one complex sum per lane and channel
+   (:meth:`LaneSums.add`, called by :class:`~sarmitsuba.tracing.integration.patch_terms.PatchTerms`):
+   what a focuser matched to the point adds up, without its window (SC2);
+3. :meth:`LaneCatalogue.rows` merges the lanes of one chain of parts whose image points fall in
+   one quantisation cube of ``step`` metres into
+   :class:`CatalogueRows`; :func:`merge_rows` merges the rows of every launch alike.
+
+The products stage (:func:`sarmitsuba.analysis.scatterers.build_catalogue`) divides the sums by
+the image's point-target gain, merges rows into resolution cells and keeps the strongest.
+Distributed clutter is not summed here: the catalogue summarises it per surface from the image.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ...core.constants import SPEED_OF_LIGHT
+from ..deposit.fixed_point import AMPLITUDE
+from ..device import device_array
+from .pulse_view import receive_leg
+
+__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "merge_rows", "rows_of", "phase_centres", "first_points",
+           "NEWTON_STEPS"]
+
+#: Newton steps of (SC1) along the range sum's gradient: each squares the relative error, which
+#: starts below ``(|A - B| / R)^2``; three leave it far below float64 rounding for any chain
+#: shorter than its range.
+NEWTON_STEPS = 3
+
+
+@dataclass(frozen=True)
+class CatalogueRows:
+    """Lanes merged by chain of parts and quantisation cell (NumPy; one row per merge).
+
+    Attributes
+    ----------
+    parts : int64 [k, D]
+        The chain's parts ``X_0 .. X_d`` (rows of :class:`~sarmitsuba.tracing.mesh.patches.Surfaces`),
+        -1 beyond; ``D`` the traced depth.
+    shapes : int64 [k, D]
+        Their shapes' indices in ``mitsuba.Scene.shapes()``, -1 beyond.
+    order : int64 [k]
+        Bounce order ``d + 1``.
+    cell : int64 [k, 3]
+        Quantisation cell of the image point: ``floor(point / step)``, a cube of ``step`` metres.
+    amplitude : complex128 [k, n_channels]
+        ``sum`` over lanes and pulses of each term times ``exp(+j k L_P)`` (SC2), sqrt(m^2) x pulses.
+    weight : float64 [k]
+        ``sum |lane sum|^2`` over the merged lanes (the weights of the centres below).
+    centre : float64 [k, 3]
+        ``sum`` weight x phase centre at mid-aperture (SC1), m (local frame).
+    shift : float64 [k]
+        ``sum`` weight x along-track image shift ``-R v_r / V`` (SC3), m.
+    radial : float64 [k]
+        ``sum`` weight x radial velocity ``v_r`` (half the path's rate of length), m/s.
+    face : float64 [k]
+        ``sum`` weight of the lanes that are area terms (the face near its specular direction);
+        the rest are edge and corner terms (Gordon's boundary form, edge currents).
+    lanes : int64 [k]
+        Lanes merged.
+    """
+
+    parts: np.ndarray
+    shapes: np.ndarray
+    order: np.ndarray
+    cell: np.ndarray
+    amplitude: np.ndarray
+    weight: np.ndarray
+    centre: np.ndarray
+    shift: np.ndarray
+    radial: np.ndarray
+    face: np.ndarray
+    lanes: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    @staticmethod
+    def empty(depth: int, n_channels: int) -> "CatalogueRows":
+        """No rows, of traced depth ``depth`` and ``n_channels`` channels."""
+        i2, f = np.zeros((0, depth), np.int64), np.zeros(0)
+        return CatalogueRows(parts=i2, shapes=i2.copy(), order=np.zeros(0, np.int64), cell=np.zeros((0, 3), np.int64),
+                             amplitude=np.zeros((0, n_channels), np.complex128), weight=f, centre=np.zeros((0, 3)),
+                             shift=f.copy(), radial=f.copy(), face=f.copy(), lanes=np.zeros(0, np.int64))
+
+
+def merge_rows(parts: list[CatalogueRows]) -> CatalogueRows | None:
+    """One :class:`CatalogueRows` of ``parts`` (launches, batches), rows of one chain and cell summed;
+    None when ``parts`` is empty. Rows come out sorted by chain and cell, so the result does not
+    depend on the order of ``parts`` (every sum is over the same rows, in one order)."""
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    cat = {f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(CatalogueRows)}
+    key = np.concatenate([cat["parts"], cat["cell"]], axis=1)
+    if len(key) == 0:
+        return CatalogueRows(**cat)
+    # a stable sort of the rows first, so that every row's sum adds its members in one order
+    order = np.lexsort(key.T[::-1])
+    cat = {name: value[order] for name, value in cat.items()}
+    key = key[order]
+    _, first, group = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    group = group.reshape(-1)
+    n = len(first)
+    out = {name: cat[name][first] for name in ("parts", "shapes", "order", "cell")}
+    for name in ("weight", "shift", "radial", "face", "lanes"):
+        out[name] = np.bincount(group, cat[name], minlength=n).astype(cat[name].dtype)
+    out["centre"] = np.stack([np.bincount(group, cat["centre"][:, c], minlength=n) for c in range(3)], axis=1)
+    amp = cat["amplitude"]
+    out["amplitude"] = np.stack([np.bincount(group, amp[:, c].real, minlength=n)
+                                 + 1j * np.bincount(group, amp[:, c].imag, minlength=n)
+                                 for c in range(amp.shape[1])], axis=1)
+    return CatalogueRows(**out)
+
+
+def first_points(transmit: np.ndarray, unfolded: np.ndarray, last: np.ndarray, normal: np.ndarray,
+                 offset: np.ndarray, single: np.ndarray) -> np.ndarray:
+    """Where each path first meets the scene, float64 [m, 3] (m): the unfolded straight path from
+    the transmitter ``transmit`` [m, 3] to ``unfolded`` (``U_d`` of the last point) crosses the
+    first mirror's plane ``normal . x = offset`` there (docs/physics.md (M3): the unfolded path
+    meets the first mirror where the real one does, ``U_0`` being the identity). ``single`` [m]
+    (first-bounce lanes) and paths parallel to the plane take the last point ``last``."""
+    d = unfolded - transmit
+    den = np.einsum("ij,ij->i", normal, d)
+    ok = ~single & (np.abs(den) > 1e-12 * np.linalg.norm(d, axis=1))
+    t = np.where(ok, (offset - np.einsum("ij,ij->i", normal, transmit)) / np.where(ok, den, 1.0), 0.0)
+    return np.where(ok[:, None], transmit + t[:, None] * d, last)
+
+
+def phase_centres(transmit: np.ndarray, receive: np.ndarray, first: np.ndarray, last: np.ndarray,
+                  length: np.ndarray) -> np.ndarray:
+    """Phase centres float64 [m, 3] (m) of paths that leave ``transmit`` [m, 3], first meet the
+    scene at ``first`` [m, 3], last at ``last`` [m, 3], and reach ``receive`` [m, 3] after
+    ``length`` [m] metres, eq. (SC1): the point ``P`` with ``|P - T| + |P - R| = length`` reached
+    from ``M = (first + last) / 2`` along the gradient ``g = (P - T) / |P - T| + (P - R) / |P - R|``
+    of the range sum (Newton's method, :data:`NEWTON_STEPS` steps). For one bounce ``P`` is the
+    point itself; for a trihedral its apex, for a dihedral the foot of the point on its fold."""
+    p = 0.5 * (first + last)
+    for _ in range(NEWTON_STEPS):
+        a, b = p - transmit, p - receive
+        ra, rb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+        g = a / ra[:, None] + b / rb[:, None]
+        step = (ra + rb - length) / np.einsum("ij,ij->i", g, g)
+        p = p - step[:, None] * g
+    return p
+
+
+class LaneSums:
+    """One order's coherent lane sums on the device: ``n_lanes x n_channels`` complex slots in
+    fixed point (D7), and each lane's image point (the compensation of (SC2))."""
+
+    def __init__(self, points: np.ndarray, n_channels: int):
+        self.n_channels = n_channels
+        self.points = device_array(mi.Array3f64, np.ascontiguousarray(points.T))
+        self.words = AMPLITUDE.zeros(2 * len(points) * n_channels)
+
+    def add(self, ctx: dict, returns, point, antenna, view, lref, lane, values, active) -> None:
+        """Add one pulse's terms ``values`` (one mi.Complex2f per channel) of lanes ``lane`` where
+        ``active``, each times ``exp(+j k (|P - A| + |P - R| - L_ref))`` at its image point ``point``
+        (mi.Array3f64, gathered per lane), eq. (SC2)."""
+        leg = point - antenna
+        s = dr.norm(leg)
+        _, dist = receive_leg(view, antenna, point, s)
+        phase = returns.carrier_phase(s + dist - lref)
+        back = mi.Complex2f(phase.real, -phase.imag)
+        for c, value in enumerate(values):
+            z = value * back
+            slot = (lane * self.n_channels + c) * 2
+            AMPLITUDE.add(self.words, z.real, slot, active, mode=ctx["tally"])
+            AMPLITUDE.add(self.words, z.imag, slot + 1, active, mode=ctx["tally"])
+
+    def read(self) -> np.ndarray:
+        """complex128 [n_lanes, n_channels]: the sums (after the kernel ran)."""
+        pairs = AMPLITUDE.read(self.words).reshape(-1, self.n_channels, 2)
+        return pairs[..., 0] + 1j * pairs[..., 1]
+
+
+@dataclass(frozen=True)
+class LaneCatalogue:
+    """The acquisition's configuration of the catalogue's lane sums (host side).
+
+    Parameters
+    ----------
+    shape_index : int64 [max registry id + 1]
+        Each Mitsuba shape registry id's index in ``mitsuba.Scene.shapes()`` (-1: none), as
+        :attr:`~sarmitsuba.tracing.mesh.patches.Surfaces.shape_id` holds them.
+    velocity : float64 [n_shapes, 3]
+        Each shape's velocity, m/s (zero for shapes that hold still).
+    track : float64 [3]
+        The track's unit direction (along which moving shapes' images shift).
+    speed : float
+        The platform's speed ``V``, m/s.
+    step : float
+        Quantisation cell of the image points (a cube), m.
+    n_channels : int
+    """
+
+    shape_index: np.ndarray
+    velocity: np.ndarray
+    track: np.ndarray
+    speed: float
+    step: float
+    n_channels: int
+
+    def lanes(self, surfaces, lanes, lane_chain: np.ndarray, chains, transmit: np.ndarray, receive: np.ndarray,
+              times: np.ndarray | None, area: np.ndarray) -> dict:
+        """What the catalogue keeps of each lane: a dict of NumPy arrays, one row per lane, for
+        :class:`~sarmitsuba.tracing.integration.patch_terms.TermLanes` ``catalogue``: ``parts``,
+        ``shapes`` int64 [m, D]; ``order`` [m]; ``centre`` (SC1) at mid-aperture and ``point``, the
+        still point that images where the lane does (SC3), float64 [m, 3]; ``shift``, ``radial``
+        [m]; ``cell`` int64 [m, 3]; ``area`` bool [m].
+
+        ``lanes``: the order's :class:`TermLanes` on ``surfaces``; ``lane_chain`` [m]: each lane's
+        row of ``chains``; ``transmit``, ``receive`` float64 [m, 3]: its sub-aperture's reference
+        positions; ``times`` float64 [m] s: its sub-aperture's reference time from mid-aperture
+        (moving shapes stand there), or None; ``area`` bool [m]: the lane is an area term."""
+        chain = np.asarray(lane_chain, np.int64)
+        parts = chains.parts[chain]
+        depth = chains.order[chain]
+        first_part = parts[:, 0]
+        shapes = np.where(parts >= 0, self.shape_index[surfaces.shape_id[np.maximum(parts, 0)].astype(np.int64)], -1)
+        unfolded, last = np.asarray(lanes.unfolded, float), np.asarray(lanes.point, float)
+        first = first_points(transmit, unfolded, last, surfaces.normal[first_part], surfaces.offset[first_part],
+                             depth == 0)
+        leg_in, leg_out = unfolded - transmit, last - receive
+        length = np.linalg.norm(leg_in, axis=1) + np.linalg.norm(leg_out, axis=1)
+        centre = phase_centres(transmit, receive, first, last, length)
+        w_first = self.velocity[np.maximum(shapes[:, 0], 0)] * (shapes[:, :1] >= 0)
+        w_last = self.velocity[np.maximum(shapes[np.arange(len(chain)), depth], 0)]
+        radial = 0.5 * (np.einsum("ij,ij->i", w_first, leg_in / np.linalg.norm(leg_in, axis=1)[:, None])
+                        + np.einsum("ij,ij->i", w_last, leg_out / np.linalg.norm(leg_out, axis=1)[:, None]))
+        if times is not None:           # the shapes stood here at the sub-aperture's time: back to mid-aperture
+            centre = centre - 0.5 * (w_first + w_last) * times[:, None]
+        shift = -np.linalg.norm(centre - transmit, axis=1) * radial / self.speed        # (SC3)
+        point = centre + shift[:, None] * self.track
+        cell = np.floor(point / self.step).astype(np.int64)
+        return dict(parts=parts, shapes=shapes, order=depth + 1, centre=centre, point=point, shift=shift,
+                    radial=radial, cell=cell, area=np.asarray(area, bool))
+
+
+def rows_of(pending: list) -> CatalogueRows | None:
+    """The :class:`CatalogueRows` of a launch's ``(LaneSums, lanes' catalogue dict)`` pairs, read
+    after its kernels ran: lanes merged by chain of parts and quantisation cell; None when empty."""
+    out = []
+    for sums, meta in pending:
+        amplitude = sums.read()
+        weight = np.sum(np.abs(amplitude) ** 2, axis=1)
+        keep = np.flatnonzero(weight > 0)
+        w = weight[keep]
+        out.append(CatalogueRows(parts=meta["parts"][keep], shapes=meta["shapes"][keep], order=meta["order"][keep],
+                                 cell=meta["cell"][keep], amplitude=amplitude[keep], weight=w,
+                                 centre=meta["centre"][keep] * w[:, None], shift=meta["shift"][keep] * w,
+                                 radial=meta["radial"][keep] * w, face=np.where(meta["area"][keep], w, 0.0),
+                                 lanes=np.ones(len(keep), np.int64)))
+    return merge_rows(out)
+
+
+def catalogued(catalogue: LaneCatalogue, surfaces, lanes, lane_chain: np.ndarray, chains, launch, rx,
+               area: np.ndarray):
+    """``lanes`` (:class:`~sarmitsuba.tracing.integration.patch_terms.TermLanes`) with what the
+    catalogue keeps of each (:meth:`LaneCatalogue.lanes`): phase centres from each sub-aperture's
+    reference positions (``rx``: bistatic, the receiver's reference positions first), moving shapes
+    carried back to mid-aperture (SC1)-(SC3)."""
+    sub = np.asarray(lanes.sub, np.int64)
+    transmit = launch.reference[sub]
+    receive = transmit if rx is None else rx[0][sub]
+    times = None
+    if launch.pulse_time is not None and np.any(catalogue.velocity):
+        first, last = launch.first, launch.first + launch.count - 1
+        times = (0.5 * (launch.pulse_time[first] + launch.pulse_time[last]))[sub]
+    meta = catalogue.lanes(surfaces, lanes, lane_chain, chains, transmit, receive, times, area)
+    return dataclasses.replace(lanes, catalogue=meta)
+
+
+def lane_catalogue(scene, params, footprint, effects) -> LaneCatalogue:
+    """The :class:`LaneCatalogue` of an acquisition: the scene's shapes and their velocities
+    (``effects.moving_shapes``), the track (``footprint``), the platform's speed, and a
+    quantisation cell of a quarter of the slant-range resolution ``c / (2 B)``."""
+    from ..mesh.patches import shape_indices
+    ids = shape_indices(list(scene.shapes()))
+    index = np.full(int(ids.max(initial=-1)) + 1, -1, np.int64)
+    index[ids] = np.arange(len(ids))
+    velocity = np.zeros((len(ids), 3))
+    motion = effects.moving_shapes
+    if motion is not None:
+        velocity[list(motion.shapes)] = motion.velocities()
+    return LaneCatalogue(shape_index=index, velocity=velocity, track=np.asarray(footprint.track, float),
+                         speed=float(params.velocity), step=SPEED_OF_LIGHT / (8.0 * params.bandwidth),
+                         n_channels=len(effects.channels))
