@@ -164,6 +164,21 @@ class ImpulseModel:
         self.rho_az = float(0.5 * self.wavelength * _simpson(amplitude ** 2 * cos_phi / slope, u)
                             / _simpson(amplitude, u) ** 2)
 
+    def response(self, d_az: np.ndarray, d_rg: np.ndarray) -> np.ndarray:
+        """The unit-peak impulse response at offsets ``d_az``, ``d_rg`` [m] from the target (any
+        matching shapes), complex (separable model, its carrier phase left out): azimuth
+        ``int A(u) exp(j 4 pi s(u) x / lambda) du / int A du``, range the window's compressed
+        pulse at ``2 n_r B d_rg / c`` (:func:`~sarmitsuba.focus.windows.compressed_pulse`)."""
+        import scipy.integrate
+
+        from ..focus.windows import compressed_pulse
+        d_az, d_rg = np.broadcast_arrays(np.asarray(d_az, float), np.asarray(d_rg, float))
+        phase = np.exp(4j * np.pi / self.wavelength * np.outer(d_az.ravel(), self.sine))
+        az = scipy.integrate.simpson(phase * self.amplitude, x=self.u, axis=1) / _simpson(self.amplitude, self.u)
+        name, params = self.w_rg
+        rg = compressed_pulse(2.0 * self.n_r * self.bandwidth * d_rg.ravel() / SPEED_OF_LIGHT, 1.0, name, **params)
+        return (az * rg).reshape(d_az.shape)
+
     def fraction(self, half_azimuth: float, half_range: float) -> float:
         """Energy fraction of the unit-peak response inside ``|d_az| <= half_azimuth``,
         ``|d_rg| <= half_range`` [m] (separable model): the box of an integrated-energy RCS.

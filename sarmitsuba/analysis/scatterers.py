@@ -27,16 +27,17 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..core import georef
-from ..core.image import SarImage, layover_positions
+from ..core.constants import SPEED_OF_LIGHT
+from ..core.image import SarImage, image_track, layover_positions
 from ..core.radar import ParameterError
 from ..focus.beam import beam_weighting, point_gain
 from ..focus.dispatch import azimuth_pattern
 from ..products.scatterer_files import Catalogue, columns_of
 from ..tracing.integration.catalogue import CatalogueRows
 from ..tracing.mesh.facets import scene_meshes
-from .impulse_model import energy_widths, integrated_rcs
+from .impulse_model import ImpulseModel, energy_widths
 
-__all__ = ["build_catalogue", "explain", "check_selection", "DEFAULT_SHARE", "FLOOR_DB_RANGE"]
+__all__ = ["build_catalogue", "explain", "resynthesised", "check_selection", "DEFAULT_SHARE", "FLOOR_DB_RANGE"]
 
 #: The share of the image's integrated RCS the listed scatterers hold together, by default.
 DEFAULT_SHARE = 0.9
@@ -231,30 +232,63 @@ def clutter_summary(sim: Any, rho_az: float, rho_rg: float) -> tuple[dict, ...]:
     return tuple(out)
 
 
+def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float, channel: str | None = None,
+                  resolution: Sequence[float] | None = None, reach: float = 3.0) -> tuple[np.ndarray, complex, np.ndarray]:
+    """Each catalogue scatterer's part of the image value at ``(azimuth, range_)`` [m] (eq. (SC4)):
+    ``a_i h_az(d_az / rho_az) h_rg(d_rg / rho_rg) exp(j 2 k (R_0(X) - R_0(Q_i)))``, the scatterer
+    ``i`` of amplitude ``a_i`` imaged at ``Q_i`` seen through the image's unit-peak response
+    (:meth:`~sarmitsuba.analysis.impulse_model.ImpulseModel.response`: windows and pattern) and carrier phase (``R_0`` the closest-approach range from the track).
+    Returns ``(rows within reach energy widths [m], their parts complex [m], the image value)``.
+    The image value is interpolated (nearest pixel)."""
+    rho_az, rho_rg = resolution if resolution is not None else energy_widths(image, (azimuth, range_))
+    name = channel or next((k[len("rcs_dbsm_"):] for k in columns if k.startswith("rcs_dbsm_")), "VV")
+    d_az = np.asarray(columns["azimuth_m"], float) - azimuth
+    d_rg = np.asarray(columns["range_m"], float) - range_
+    rows = np.flatnonzero((np.abs(d_az) <= reach * rho_az) & (np.abs(d_rg) <= reach * rho_rg))
+    a = 10.0 ** (np.asarray(columns[f"rcs_dbsm_{name}"], float)[rows] / 20.0) \
+        * np.exp(1j * np.radians(np.asarray(columns[f"phase_deg_{name}"], float)[rows]))
+    h = ImpulseModel(image, (azimuth, range_)).response(-d_az[rows], -d_rg[rows])
+    radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
+    lam = SPEED_OF_LIGHT / float(radar["frequency"]) if radar.get("frequency") else 0.0
+    carrier = np.ones(len(rows), complex)
+    track = image_track(image)
+    if lam > 0 and track is not None:
+        def r0(az, rg):
+            x = image.origin + np.outer(az, image.azimuth_direction) + np.outer(rg, image.range_direction)
+            rel = x - track[0]
+            return np.linalg.norm(rel - np.outer(rel @ track[1], track[1]), axis=1)
+        k = 2.0 * np.pi / lam
+        carrier = np.exp(2j * k * (r0(np.array([azimuth]), np.array([range_])) - r0(azimuth + d_az[rows],
+                                                                                      range_ + d_rg[rows])))
+    i = int(np.argmin(np.abs(image.azimuth - azimuth)))
+    j = int(np.argmin(np.abs(image.range - range_)))
+    return rows, a * h * carrier, complex(image.data[i, j])
+
+
 def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
             resolution: Sequence[float] | None = None) -> dict:
-    """The catalogue's scatterers within one resolution cell of image position ``(azimuth,
-    range_)`` [m] and their shares of its power.
+    """The catalogue's scatterers that make the image at ``(azimuth, range_)`` [m], and their
+    shares of its power (eq. (SC4)).
 
     Parameters
     ----------
     image : SarImage
     columns : dict
-        The catalogue's columns (:meth:`Catalogue.columns`, or read back by
+        The catalogue's columns (:attr:`Catalogue.columns`, or read back by
         :func:`~sarmitsuba.products.scatterer_files.read_csv`).
     azimuth, range_ : float, m
         Image coordinates of the point (the image's axes).
     resolution : (rho_az, rho_rg), m, optional
-        The cell; default the image's energy widths there (K2).
+        The energy widths; default the image's there (K2).
 
     Returns
     -------
     dict
-        ``point``, ``cell`` [m, m], ``pixel_rcs_m2`` (the image's integrated RCS of a box of one
-        cell about the point, the response's energy outside it restored from the model,
-        :func:`~sarmitsuba.analysis.impulse_model.integrated_rcs`),
-        ``explained`` (the listed scatterers' RCS over it), and ``rows``: each scatterer's
-        columns plus ``share`` of the listed power there, strongest first.
+        ``point``, ``pixel`` (row, column of the nearest pixel), ``cell`` [m, m], ``pixel_rcs_m2``
+        (``|I|^2`` there), ``explained`` (the listed scatterers' share of it: ``Re(sum_i p_i conj(I))
+        / |I|^2`` with ``p_i`` each one's part of the image value, :func:`resynthesised`), and
+        ``rows``: the scatterers within one resolution cell, each with its ``share``
+        ``Re(p_i conj(I)) / |I|^2``, largest first.
 
     Raises
     ------
@@ -267,19 +301,18 @@ def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
         raise ParameterError(f"--explain {azimuth:g},{range_:g}: the point lies outside the image, which spans "
                              f"azimuth [{lo_a:.2f}, {hi_a:.2f}] m and range [{lo_r:.2f}, {hi_r:.2f}] m; give "
                              "AZ,RG in the image's coordinates (the axes of its figure)")
-    rho_az, rho_rg = resolution if resolution is not None else energy_widths(image)
-    near = (np.abs(np.asarray(columns["azimuth_m"], float) - azimuth) <= rho_az) & \
-           (np.abs(np.asarray(columns["range_m"], float) - range_) <= rho_rg)
-    power = 10.0 ** (np.asarray(columns["rcs_dbsm"], float)[near] / 10.0)
-    total = float(power.sum())
-    rows = [{name: _plain(values[i]) for name, values in columns.items()} for i in np.flatnonzero(near)]
-    for row, pw in zip(rows, power):
-        row["share"] = pw / total if total > 0 else 0.0
-    rows.sort(key=lambda r: -r["share"])
-    pixel_rcs = integrated_rcs(image, rho_az, rho_rg, center=(azimuth, range_), half_cells=1.0) \
-        if resolution is not None else integrated_rcs(image, center=(azimuth, range_), half_cells=1.0)
-    return dict(point=[azimuth, range_], cell=[float(rho_az), float(rho_rg)], pixel_rcs_m2=pixel_rcs,
-                explained=total / pixel_rcs if pixel_rcs > 0 else 0.0, rows=rows)
+    rho_az, rho_rg = resolution if resolution is not None else energy_widths(image, (azimuth, range_))
+    rows, parts, value = resynthesised(image, columns, azimuth, range_, resolution=(rho_az, rho_rg))
+    power = abs(value) ** 2
+    share = (parts * np.conj(value)).real / power if power > 0 else np.zeros(len(rows))
+    near = (np.abs(np.asarray(columns["azimuth_m"], float)[rows] - azimuth) <= rho_az) & \
+           (np.abs(np.asarray(columns["range_m"], float)[rows] - range_) <= rho_rg)
+    listed = [dict({name: _plain(values[i]) for name, values in columns.items()}, share=float(sh))
+              for i, sh in zip(rows[near], share[near])]
+    listed.sort(key=lambda r: -r["share"])
+    return dict(point=[azimuth, range_], pixel=[int(np.argmin(np.abs(image.azimuth - azimuth))),
+                                                int(np.argmin(np.abs(image.range - range_)))],
+                cell=[float(rho_az), float(rho_rg)], pixel_rcs_m2=power, explained=float(np.sum(share)), rows=listed)
 
 
 def _plain(value: Any) -> Any:
