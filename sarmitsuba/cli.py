@@ -149,7 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--scatterers-share", type=float, default=0.9, metavar="F",
                         help="list the strongest scatterers that hold this share of the image's RCS (default 0.9)")
     render.add_argument("--scatterers-db", type=float, default=None, metavar="DBSM",
-                        help="instead, list every scatterer of at least this RCS [dBsm], in (-200, 100)")
+                        help="instead, list every scatterer within this many dB of the strongest (a number in "
+                             "(-200, 0], e.g. -30)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")
     render.add_argument("--figures", action="store_true",
                         help="also draw explanatory figures (fig_*.png, figures.json) from the files written")

@@ -166,7 +166,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     ``formats``: those :func:`render` will write, in ``cphd_domain``, checked against the sensor
     (:func:`check_formats`). ``scatterers``: also build the scatterer catalogue
     (``Simulation.scatterers``; the strongest holding ``scatterers_share`` of the image's RCS, or all
-    of ``scatterers_db`` dBsm or more, :func:`sarmitsuba.analysis.scatterers.build_catalogue`).
+    within ``-scatterers_db`` dB of the strongest, :func:`sarmitsuba.analysis.scatterers.build_catalogue`).
     Raises SceneError, ParameterError or materials.MaterialError before tracing starts.
     """
     t = {"start": time.perf_counter()}

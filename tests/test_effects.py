@@ -112,6 +112,7 @@ EFFECTS = {
     "curved track": ({"sensor": {"trajectory": "straight"}}, {"sensor": {"trajectory": "circular"}}),   # n_pulses sets the arc
     "stop-and-hop approximation": ({"sensor": {"stop_and_hop": False}}, {"sensor": {"stop_and_hop": True}}),
     "edge diffraction": ({"integrator": {"diffraction": False}}, {"integrator": {"diffraction": True}}),
+    "scatterer catalogue": ({"integrator": {"scatterers": False}}, {"integrator": {"scatterers": True}}),
 }
 #: The baseline: no optional effect, edge diffraction (on by default) off.
 NO_DEPTH = {"ray_spacing": 2.0, "diffraction": False}
@@ -158,7 +159,8 @@ def test_effect_switched_on_is_listed_and_changes_something(effect, plain):
     per_order = on.sim.trace.spectrum_per_order is not None
     # stop-and-hop moves the receive positions by v tau (0.9 mm here: the data change below 1e-3)
     moved = not np.array_equal(on.sim.raw.rx_position, plain.sim.raw.rx_position)
-    assert data_changed or on.work != plain.work or per_order or moved, f"{effect} on changes nothing"
+    catalogue = on.sim.trace.catalogue is not None and plain.sim.trace.catalogue is None
+    assert data_changed or on.work != plain.work or per_order or moved or catalogue, f"{effect} on changes nothing"
 
 
 def test_post_trace_effects_do_no_extra_tracing():

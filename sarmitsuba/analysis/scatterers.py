@@ -12,7 +12,7 @@ those rows into the catalogue of a focused image:
    (:func:`~sarmitsuba.focus.beam.point_gain`, rect window): its complex amplitude, whose
    ``|.|^2`` is its RCS [m^2] and whose angle its phase (SC2);
 3. the strongest scatterers are kept until they hold ``share`` of the image's integrated RCS,
-   or all above ``floor_db`` dBsm;
+   or all within ``-floor_db`` dB of the strongest;
 4. distributed clutter is summarised per rough surface: the image pixels its triangles cover and
    their mean intensity over ``rho_E,az rho_E,rg``, sigma nought (K).
 
@@ -41,13 +41,13 @@ __all__ = ["build_catalogue", "explain", "resynthesised", "check_selection", "DE
 
 #: The share of the image's integrated RCS the listed scatterers hold together, by default.
 DEFAULT_SHARE = 0.9
-#: ``--scatterers-db``: the RCS floor [dBsm] lies in this open interval.
-FLOOR_DB_RANGE = (-200.0, 100.0)
+#: ``--scatterers-db``: the floor, in dB below the strongest scatterer's RCS, lies in (-200, 0].
+FLOOR_DB_RANGE = (-200.0, 0.0)
 
 
 def check_selection(share: Any, floor_db: Any) -> tuple[float, float | None]:
-    """``(share, floor_db)`` checked: ``share`` in (0, 1]; ``floor_db`` None or a finite number
-    in :data:`FLOOR_DB_RANGE` dBsm. Raises ParameterError naming the option."""
+    """``(share, floor_db)`` checked: ``share`` in (0, 1]; ``floor_db`` None or a number in
+    ``(-200, 0]`` dB (relative to the strongest scatterer). Raises ParameterError naming the option."""
     try:
         share = float(share)
     except (TypeError, ValueError):
@@ -62,10 +62,10 @@ def check_selection(share: Any, floor_db: Any) -> tuple[float, float | None]:
     except (TypeError, ValueError):
         floor = math.nan
     lo, hi = FLOOR_DB_RANGE
-    if not lo < floor < hi:
-        raise ParameterError(f"--scatterers-db = {floor_db}: give an RCS floor in dBsm between {lo:g} and {hi:g} "
-                             "(e.g. -10 lists every scatterer of 0.1 m^2 or more; RCS in dBsm is 10 log10 of m^2, "
-                             "and a floor below -200 dBsm keeps rounding noise)")
+    if not lo < floor <= hi:
+        raise ParameterError(f"--scatterers-db = {floor_db}: give a floor in dB relative to the strongest scatterer, "
+                             f"in ({lo:g}, {hi:g}] (e.g. -30 lists every scatterer within 30 dB of the strongest; "
+                             "below -200 dB only rounding noise is left)")
     return share, floor
 
 
@@ -106,8 +106,9 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
         Its ``trace.catalogue`` (every channel's sums), image (HH for ``quad``), raw data and scene.
     share : float in (0, 1]
         Keep the strongest scatterers until they hold this share of the image's integrated RCS.
-    floor_db : float, optional
-        Instead, keep every scatterer of at least this RCS [dBsm] (all channels' powers summed).
+    floor_db : float in (-200, 0], optional
+        Instead, keep every scatterer whose RCS (all channels' powers summed) is within ``-floor_db``
+        dB of the strongest one's.
 
     Returns
     -------
@@ -166,7 +167,7 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
     names = [s.id() or f"#shape{i}" for i, s in enumerate(loaded.scene.shapes())]
     geo = georef.of(p) if p.geo_origin is not None else None
     listed = float(np.sum(table["contribution"]))
-    selection = f"rcs >= {floor_db:g} dBsm" if floor_db is not None else f"share {share:g}"
+    selection = f"rcs within {-floor_db:g} dB of the strongest" if floor_db is not None else f"share {share:g}"
     return Catalogue(columns=columns_of(table, image, names, p.channels, geo, image_rcs),
                      clutter=clutter_summary(sim, rho_az, rho_rg), channels=tuple(p.channels), image_rcs=image_rcs,
                      listed_share=listed / image_rcs if image_rcs > 0 else 0.0, selection=selection,
@@ -186,12 +187,12 @@ def _pixel_area(image: SarImage) -> float:
 
 def _chosen(power: np.ndarray, contribution: np.ndarray, image_rcs: float, share: float,
             floor_db: float | None) -> np.ndarray:
-    """Rows to list, by contribution to the image's power, largest first: all of at least
-    ``floor_db`` dBsm of their own, or the fewest whose contributions reach ``share`` of
+    """Rows to list, by contribution to the image's power, largest first: all whose own RCS is
+    within ``-floor_db`` dB of the strongest's, or the fewest whose contributions reach ``share`` of
     ``image_rcs`` (all, where together they hold less)."""
     order = np.argsort(-contribution, kind="stable")
     if floor_db is not None:
-        return order[power[order] >= 10.0 ** (floor_db / 10.0)]
+        return order[power[order] >= 10.0 ** (floor_db / 10.0) * power.max(initial=0.0)]
     reached = np.cumsum(contribution[order]) >= share * image_rcs
     count = int(np.argmax(reached)) + 1 if reached.any() else len(order)
     return order[:count]

@@ -72,7 +72,7 @@ class Catalogue:
     listed_share : float
         The listed scatterers' RCS over it.
     selection : str
-        How the rows were chosen (``share 0.9`` or ``rcs >= X dBsm``).
+        How the rows were chosen (``share 0.9`` or ``rcs within X dB of the strongest``).
     resolution : (float, float), m
         The resolution cell the rows were merged in: the energy widths ``(rho_az, rho_rg)``.
     """

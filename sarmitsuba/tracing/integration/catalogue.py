@@ -5,9 +5,9 @@ With ``sbr`` ``scatterers = true`` (``render --scatterers``) the mesh tracer
 (:mod:`sarmitsuba.tracing.driver.mesh_trace`) hands each bounce order's term lanes to a
 :class:`LaneCatalogue` before their pulses run:
 
-1. :func:`phase_centres`, in NumPy, places each lane's phase centre ``P`` (SC1): the point with the
-   path's two-way length ``L`` nearest the middle of its first and last interaction points, moved
-   along the gradient of the range sum (the look direction, or the bistatic bisector); a moving
+1. :func:`phase_centres`, in NumPy, places each lane's phase centre ``P`` (SC1): the middle of its
+   last point and that point unfolded (image theory), moved along the gradient of the range sum
+   (the look direction, or the bistatic bisector) to the path's two-way length ``L``; a moving
    shape's lane is put back where its shape stands at mid-aperture, and images shifted along track
    by ``-R v_r / V`` (SC3);
 2. every pulse's terms of the lane, as deposited, are multiplied by the conjugate carrier phase
@@ -36,7 +36,7 @@ from ..deposit.fixed_point import AMPLITUDE
 from ..device import device_array
 from .pulse_view import receive_leg
 
-__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "merge_rows", "rows_of", "phase_centres", "first_points",
+__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "merge_rows", "rows_of", "phase_centres",
            "NEWTON_STEPS"]
 
 #: Newton steps of (SC1) along the range sum's gradient: each squares the relative error, which
@@ -130,29 +130,17 @@ def merge_rows(parts: list[CatalogueRows]) -> CatalogueRows | None:
     return CatalogueRows(**out)
 
 
-def first_points(transmit: np.ndarray, unfolded: np.ndarray, last: np.ndarray, normal: np.ndarray,
-                 offset: np.ndarray, single: np.ndarray) -> np.ndarray:
-    """Where each path first meets the scene, float64 [m, 3] (m): the unfolded straight path from
-    the transmitter ``transmit`` [m, 3] to ``unfolded`` (``U_d`` of the last point) crosses the
-    first mirror's plane ``normal . x = offset`` there (docs/physics.md (M3): the unfolded path
-    meets the first mirror where the real one does, ``U_0`` being the identity). ``single`` [m]
-    (first-bounce lanes) and paths parallel to the plane take the last point ``last``."""
-    d = unfolded - transmit
-    den = np.einsum("ij,ij->i", normal, d)
-    ok = ~single & (np.abs(den) > 1e-12 * np.linalg.norm(d, axis=1))
-    t = np.where(ok, (offset - np.einsum("ij,ij->i", normal, transmit)) / np.where(ok, den, 1.0), 0.0)
-    return np.where(ok[:, None], transmit + t[:, None] * d, last)
-
-
-def phase_centres(transmit: np.ndarray, receive: np.ndarray, first: np.ndarray, last: np.ndarray,
+def phase_centres(transmit: np.ndarray, receive: np.ndarray, unfolded: np.ndarray, last: np.ndarray,
                   length: np.ndarray) -> np.ndarray:
-    """Phase centres float64 [m, 3] (m) of paths that leave ``transmit`` [m, 3], first meet the
-    scene at ``first`` [m, 3], last at ``last`` [m, 3], and reach ``receive`` [m, 3] after
-    ``length`` [m] metres, eq. (SC1): the point ``P`` with ``|P - T| + |P - R| = length`` reached
-    from ``M = (first + last) / 2`` along the gradient ``g = (P - T) / |P - T| + (P - R) / |P - R|``
-    of the range sum (Newton's method, :data:`NEWTON_STEPS` steps). For one bounce ``P`` is the
-    point itself; for a trihedral its apex, for a dihedral the foot of the point on its fold."""
-    p = 0.5 * (first + last)
+    """Phase centres float64 [m, 3] (m) of paths from ``transmit`` [m, 3] that last meet the scene
+    at ``last`` [m, 3], unfolded to ``unfolded`` (``U_d`` of it, docs/physics.md (M3)), and reach
+    ``receive`` [m, 3] after ``length`` [m] metres, eq. (SC1): from the middle ``M = (U_d(B) + B) / 2``,
+    whose range history the path's follows to first order for any motion of the antennas
+    (``|U - T| + |B - R| = 2 |M - T| + O(|U - B|^2 / R)`` monostatic), Newton steps along the
+    gradient ``g = (P - T) / |P - T| + (P - R) / |P - R|`` of the range sum make its length exact
+    (:data:`NEWTON_STEPS`). One bounce: ``B`` itself; a trihedral: its apex (``U`` reflects
+    ``B`` through it); a dihedral: the foot of ``B`` on its fold."""
+    p = 0.5 * (unfolded + last)
     for _ in range(NEWTON_STEPS):
         a, b = p - transmit, p - receive
         ra, rb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
@@ -234,14 +222,11 @@ class LaneCatalogue:
         chain = np.asarray(lane_chain, np.int64)
         parts = chains.parts[chain]
         depth = chains.order[chain]
-        first_part = parts[:, 0]
         shapes = np.where(parts >= 0, self.shape_index[surfaces.shape_id[np.maximum(parts, 0)].astype(np.int64)], -1)
         unfolded, last = np.asarray(lanes.unfolded, float), np.asarray(lanes.point, float)
-        first = first_points(transmit, unfolded, last, surfaces.normal[first_part], surfaces.offset[first_part],
-                             depth == 0)
         leg_in, leg_out = unfolded - transmit, last - receive
         length = np.linalg.norm(leg_in, axis=1) + np.linalg.norm(leg_out, axis=1)
-        centre = phase_centres(transmit, receive, first, last, length)
+        centre = phase_centres(transmit, receive, unfolded, last, length)
         w_first = self.velocity[np.maximum(shapes[:, 0], 0)] * (shapes[:, :1] >= 0)
         w_last = self.velocity[np.maximum(shapes[np.arange(len(chain)), depth], 0)]
         radial = 0.5 * (np.einsum("ij,ij->i", w_first, leg_in / np.linalg.norm(leg_in, axis=1)[:, None])
