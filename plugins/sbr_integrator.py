@@ -54,6 +54,11 @@
    - boolean
    - Also produce raw data and images of each bounce order separately (default false; when
      off, the kernel keeps one histogram).
+ * - scatterers
+   - boolean
+   - Also sum every term coherently at its phase centre and write the scatterer catalogue
+     (scatterers.csv, scatterers.geojson, fig_scatterers.png; default false; needs
+     ``lit_regions = patches``). ``render --scatterers`` sets it.
  * - max_batch_rays
    - integer
    - Ceiling on the ray tubes of one kernel launch (default 262144, at least 1024):

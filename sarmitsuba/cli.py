@@ -148,7 +148,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "fig_scatterers.png (each bright point's phase centre, bounce order, shapes and RCS)")
     render.add_argument("--scatterers-share", type=float, default=0.9, metavar="F",
                         help="list the strongest scatterers that hold this share of the image's RCS (default 0.9)")
-    render.add_argument("--scatterers-db", type=float, default=None, metavar="DBSM",
+    render.add_argument("--scatterers-db", type=float, default=None, metavar="DB",
                         help="instead, list every scatterer within this many dB of the strongest (a number in "
                              "(-200, 0], e.g. -30)")
     render.add_argument("--no-progress", action="store_true", help="no progress bars")

@@ -176,6 +176,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
         check_selection(scatterers_share, scatterers_db)
         integrator_overrides = {**(integrator_overrides or {}), "scatterers": True}
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
+    scatterers = scatterers or loaded.settings.scatterers          # the scene's own sbr switch too
     check_formats(formats, params=loaded.params, cphd_domain=cphd_domain)
     loaded, depth, setup = _depth_and_setup(loaded)    # max_depth = auto: (DEP1)-(DEP3)
     params, settings = loaded.params, loaded.settings

@@ -240,9 +240,12 @@ def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float,
     ``i`` of amplitude ``a_i`` imaged at ``Q_i`` seen through the image's unit-peak response
     (:meth:`~sarmitsuba.analysis.impulse_model.ImpulseModel.response`: windows and pattern) and carrier phase (``R_0`` the closest-approach range from the track).
     Returns ``(rows within reach energy widths [m], their parts complex [m], the image value)``.
-    The image value is interpolated (nearest pixel)."""
+    The image value is the nearest pixel's; ``channel`` (default: the image's own polarisation,
+    ``metadata["polarization"]``) picks the catalogue's amplitudes."""
     rho_az, rho_rg = resolution if resolution is not None else energy_widths(image, (azimuth, range_))
-    name = channel or next((k[len("rcs_dbsm_"):] for k in columns if k.startswith("rcs_dbsm_")), "VV")
+    own = image.metadata.get("polarization") if isinstance(image.metadata, dict) else None
+    name = channel or (own if f"rcs_dbsm_{own}" in columns else
+                       next((k[len("rcs_dbsm_"):] for k in columns if k.startswith("rcs_dbsm_")), "VV"))
     d_az = np.asarray(columns["azimuth_m"], float) - azimuth
     d_rg = np.asarray(columns["range_m"], float) - range_
     rows = np.flatnonzero((np.abs(d_az) <= reach * rho_az) & (np.abs(d_rg) <= reach * rho_rg))

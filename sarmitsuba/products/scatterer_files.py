@@ -2,10 +2,11 @@
 ``fig_scatterers.png`` (docs/physics.md (SC1)-(SC4); built by
 :func:`sarmitsuba.analysis.scatterers.build_catalogue`).
 
-One row per resolved scatterer, strongest first. Columns (units in the names):
+One row per resolved scatterer, the largest share of the image's power first. Columns (units in
+the names):
 
 =========================  ==================================================================
-``rank``                   1 for the strongest
+``rank``                   1 for the largest share
 ``azimuth_m``, ``range_m``  image coordinates where it focuses (its layover position, and a
                            moving shape's along-track shift)
 ``row``, ``column``        the nearest pixel
@@ -62,7 +63,7 @@ class Catalogue:
     Attributes
     ----------
     columns : dict of str -> numpy array [n]
-        The columns of ``scatterers.csv`` (module docstring), in file order, strongest first.
+        The columns of ``scatterers.csv`` (module docstring), in file order, largest share first.
     clutter : tuple of dict
         Per rough surface: ``surface`` (shape id), ``material``, ``pixels`` it covers in the
         image, ``sigma0_db`` (its mean sigma nought there, dB).

@@ -40,7 +40,7 @@ __all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_cat
            "NEWTON_STEPS"]
 
 #: Newton steps of (SC1) along the range sum's gradient: each squares the relative error, which
-#: starts below ``(|A - B| / R)^2``; three leave it far below float64 rounding for any chain
+#: starts below ``(|U - B| / R)^2``; three leave it far below float64 rounding for any chain
 #: shorter than its range.
 NEWTON_STEPS = 3
 
