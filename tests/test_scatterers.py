@@ -247,3 +247,23 @@ def test_check_selection_bounds():
     for share, floor in ((0.9, 0.1), (0.9, -200.0), (0.9, float("nan")), (-0.1, None), (0.9, "x")):
         with pytest.raises(ParameterError):
             check_selection(share, floor)
+
+
+def test_single_bounces_lie_on_the_stacks_elevation_truth(tower):
+    """The heights where each pixel's iso-range circle meets the visible geometry (the stack's
+    ``truth.npz``, :func:`iso_range_heights`, a ray fan independent of the tracer) include the 8
+    strongest single bounces' each phase-centre height at its pixel or a neighbour (an edge's truth is
+    good to a hit spacing, and lays over into the cell its hit images in), within a pixel spacing
+    over tan(theta) (the fan's resolution on a facade)."""
+    from sarmitsuba.products.elevation_truth import iso_range_heights
+    _, incidence, sim = tower
+    col = sim.scatterers.columns
+    rows = np.flatnonzero(col["order"] == 1)
+    rows = rows[np.argsort(-col["rcs_dbsm"][rows])[:8]]                 # the 8 strongest single bounces
+    assert len(rows) >= 3
+    spacing = abs(float(sim.image.range[1] - sim.image.range[0]))
+    tolerance = max(spacing / math.tan(math.radians(incidence)), spacing)
+    for i in rows:
+        c = col["column"][i]
+        heights = iso_range_heights(sim.loaded, sim.image, np.array([col["row"][i]]))[0, max(c - 1, 0):c + 2]
+        assert np.nanmin(np.abs(heights - col["z_m"][i])) < tolerance, (col["shapes"][i], col["z_m"][i], heights)
