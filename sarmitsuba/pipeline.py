@@ -172,8 +172,7 @@ def simulate(source: str | None, *, sensor_overrides: Mapping[str, Any] | None =
     t = {"start": time.perf_counter()}
     range_window, azimuth_window = focus_windows(window, window_range, window_azimuth)   # checked before loading
     focus_with = _focuser(focuser)
-    if scatterers:                                       # the catalogue's options, before loading
-        check_selection(scatterers_share, scatterers_db)
+    if scatterers and check_selection(scatterers_share, scatterers_db):      # checked before loading
         integrator_overrides = {**(integrator_overrides or {}), "scatterers": True}
     loaded = load_scene(source, sensor_overrides, integrator_overrides, material_overrides)
     scatterers = scatterers or loaded.settings.scatterers          # the scene's own sbr switch too
