@@ -235,10 +235,13 @@ def scatterers_figure(path: Path, image: SarImage, catalogue: Catalogue, triangl
                      edgecolors=[cmap(k - 1)], linewidths=1.2, label=f"order {k}")
     for i in range(min(labelled, len(catalogue))):
         left.annotate(f"{i + 1}: {_short(cols['shapes'][i])}", (cols["range_m"][i], cols["azimuth_m"][i]),
-                      xytext=(6, 6), textcoords="offset points", color="yellow", fontsize=7)
+                      xytext=(8, 8 - 9 * (i % 4)), textcoords="offset points", color="yellow", fontsize=7)
     left.set_xlabel("range [m]")
     left.set_ylabel("azimuth [m]")
-    left.set_title(title or f"{len(catalogue)} scatterers, {100 * catalogue.listed_share:.0f} % of the image's RCS")
+    left.set_title(f"{len(catalogue)} scatterers, {100 * catalogue.listed_share:.0f} % of the image's RCS "
+                   "(circles: bounce order)", fontsize=10)
+    if title:
+        fig.suptitle(title, fontsize=10)
     if len(orders):
         left.legend(loc="lower right", fontsize=7)
     polys = [t[:, :2] for tris in triangles for t in tris]
@@ -268,7 +271,7 @@ def write_catalogue_files(out, names: dict, image: SarImage, catalogue: Catalogu
     from ..tracing.mesh.facets import scene_meshes
     offset = np.asarray(loaded.offset, float)
     triangles = [v[f] + offset for v, f in scene_meshes(loaded.scene) if len(f)]
-    title = f"{scene}: {catalogue.line()}"
+    title = f"{scene}: {catalogue.selection}, clutter on {len(catalogue.clutter)} surface(s)"
     writers = {"scatterers_csv": lambda path: write_csv(path, catalogue),
                "scatterers_geojson": lambda path: write_geojson(path, catalogue),
                "scatterers_png": lambda path: scatterers_figure(path, image, catalogue, triangles, title=title)}
