@@ -240,8 +240,11 @@ def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float,
     ``i`` of amplitude ``a_i`` imaged at ``Q_i`` seen through the image's unit-peak response
     (:meth:`~sarmitsuba.analysis.impulse_model.ImpulseModel.response`: windows and pattern) and carrier phase (``R_0`` the closest-approach range from the track).
     Returns ``(rows within reach energy widths [m], their parts complex [m], the image value)``.
-    The image value is the nearest pixel's; ``channel`` (default: the image's own polarisation,
+    The point is taken at the nearest pixel, whose value is the image's; ``channel`` (default: the image's own polarisation,
     ``metadata["polarization"]``) picks the catalogue's amplitudes."""
+    i = int(np.argmin(np.abs(image.azimuth - azimuth)))
+    j = int(np.argmin(np.abs(image.range - range_)))
+    azimuth, range_ = float(image.azimuth[i]), float(image.range[j])          # the pixel's own position
     rho_az, rho_rg = resolution if resolution is not None else energy_widths(image, (azimuth, range_))
     own = image.metadata.get("polarization") if isinstance(image.metadata, dict) else None
     name = channel or (own if f"rcs_dbsm_{own}" in columns else
@@ -264,8 +267,6 @@ def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float,
         k = 2.0 * np.pi / lam
         carrier = np.exp(2j * k * (r0(np.array([azimuth]), np.array([range_])) - r0(azimuth + d_az[rows],
                                                                                       range_ + d_rg[rows])))
-    i = int(np.argmin(np.abs(image.azimuth - azimuth)))
-    j = int(np.argmin(np.abs(image.range - range_)))
     return rows, a * h * carrier, complex(image.data[i, j])
 
 
