@@ -33,7 +33,7 @@ from ..core.radar import ParameterError
 from ..focus.beam import beam_weighting, point_gain
 from ..focus.dispatch import azimuth_pattern
 from ..products.scatterer_files import Catalogue, columns_of
-from ..tracing.integration.catalogue import CatalogueRows
+from ..tracing.integration.catalogue import CatalogueRows, response_offset
 from ..tracing.mesh.facets import scene_meshes
 from .impulse_model import ImpulseModel, energy_widths
 
@@ -158,7 +158,8 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
     image_rcs = sum(float(np.sum(np.abs(im.data.astype(np.complex128)) ** 2)) for im in images) \
         * _pixel_area(image) / (rho_az * rho_rg)
     keep = _chosen(power, contribution, image_rcs, share, floor_db)
-    table = dict(azimuth=image_az, range=image_rg, centre=centre, field=field, power=power,
+    scale, slope = azimuth_response(image, _sums(rows.side, group, n), amplitude[:, 0], response_offset(p))
+    table = dict(azimuth=image_az, range=image_rg, centre=centre, field=field, power=power, scale=scale, slope=slope,
                  contribution=contribution, cell_power=np.sum(np.abs(cell_field) ** 2, axis=1),
                  order=rows.order[first], shapes=rows.shapes[first], parts=rows.parts[first],
                  face=_sums(rows.face, group, n) / weight, radial=_sums(rows.radial, group, n) / weight,
@@ -172,6 +173,31 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
                      clutter=clutter_summary(sim, rho_az, rho_rg), channels=tuple(p.channels), image_rcs=image_rcs,
                      listed_share=listed / image_rcs if image_rcs > 0 else 0.0, selection=selection,
                      resolution=(float(rho_az), float(rho_rg)))
+
+
+def azimuth_response(image: SarImage, side: np.ndarray, centre: np.ndarray, offset: float) -> tuple:
+    """Each scatterer's azimuth response from its sums ``side`` [k, 2] at ``+-offset`` [m] along
+    track and ``centre`` [k] at its image point (SC4): ``(scale, slope)`` float64 [k] such that its
+    response at ``x`` metres is ``h(scale x) exp(j slope x)``, ``h`` the image's (a point seen over
+    the whole aperture: scale 1; a flash seen over part of it: below 1, broader; ``slope`` [rad/m]
+    its Doppler centroid's phase ramp). The sums carry no window: ``scale`` is found on the image's
+    response without its azimuth window, and taken to stretch the windowed one alike."""
+    import dataclasses
+    meta = dict(image.metadata)
+    meta["focus"] = {**meta.get("focus", {}), "window_azimuth": {"name": "rect"}}
+    model = ImpulseModel(dataclasses.replace(image, metadata=meta), (0.0, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = side / centre[:, None]
+    ok = np.all(np.isfinite(ratio), axis=1) & (np.abs(centre) > 0)
+    ratio = np.where(ok[:, None], ratio, 1.0)
+    slope = np.where(ok, np.angle(ratio[:, 0] / ratio[:, 1]) / (2.0 * offset), 0.0)
+    level = np.sqrt(np.abs(ratio[:, 0] * ratio[:, 1]))
+    x = np.linspace(0.0, 4.0 * offset, 257)
+    h = np.abs(model.response(x, np.zeros_like(x)))
+    stop = int(np.argmax(np.diff(h) > 0)) + 1 if np.any(np.diff(h) > 0) else len(h)   # the main lobe
+    reach = np.interp(-level, -h[:stop], x[:stop])            # |h(reach)| = level, decreasing h
+    scale = np.where(ok, reach / offset, 1.0)
+    return scale, slope
 
 
 def _select_rows(rows: CatalogueRows, keep: np.ndarray) -> CatalogueRows:
@@ -238,7 +264,9 @@ def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float,
     """Each catalogue scatterer's part of the image value at ``(azimuth, range_)`` [m] (eq. (SC4)):
     ``a_i h_az(d_az / rho_az) h_rg(d_rg / rho_rg) exp(j 2 k (R_0(X) - R_0(Q_i)))``, the scatterer
     ``i`` of amplitude ``a_i`` imaged at ``Q_i`` seen through the image's unit-peak response
-    (:meth:`~sarmitsuba.analysis.impulse_model.ImpulseModel.response`: windows and pattern) and carrier phase (``R_0`` the closest-approach range from the track).
+    (:meth:`~sarmitsuba.analysis.impulse_model.ImpulseModel.response`: windows and pattern), in
+    azimuth stretched and ramped as the scatterer's own (columns ``azimuth_scale``,
+    ``azimuth_slope_rad_per_m``, :func:`azimuth_response`), and carrier phase (``R_0`` the closest-approach range from the track).
     Returns ``(rows within reach energy widths [m], their parts complex [m], the image value)``.
     The point is taken at the nearest pixel, whose value is the image's; ``channel`` (default: the image's own polarisation,
     ``metadata["polarization"]``) picks the catalogue's amplitudes."""
@@ -254,7 +282,9 @@ def resynthesised(image: SarImage, columns: dict, azimuth: float, range_: float,
     rows = np.flatnonzero((np.abs(d_az) <= reach * rho_az) & (np.abs(d_rg) <= reach * rho_rg))
     a = 10.0 ** (np.asarray(columns[f"rcs_dbsm_{name}"], float)[rows] / 20.0) \
         * np.exp(1j * np.radians(np.asarray(columns[f"phase_deg_{name}"], float)[rows]))
-    h = ImpulseModel(image, (azimuth, range_)).response(-d_az[rows], -d_rg[rows])
+    scale = np.asarray(columns.get("azimuth_scale", np.ones(len(d_az))), float)[rows]
+    slope = np.asarray(columns.get("azimuth_slope_rad_per_m", np.zeros(len(d_az))), float)[rows]
+    h = ImpulseModel(image, (azimuth, range_)).response(-d_az[rows] * scale, -d_rg[rows]) * np.exp(-1j * slope * d_az[rows])
     radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
     lam = SPEED_OF_LIGHT / float(radar["frequency"]) if radar.get("frequency") else 0.0
     carrier = np.ones(len(rows), complex)
@@ -293,7 +323,10 @@ def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
         (``|I|^2`` there), ``explained`` (the listed scatterers' share of it: ``Re(sum_i p_i conj(I))
         / |I|^2`` with ``p_i`` each one's part of the image value, :func:`resynthesised`), and
         ``rows``: the scatterers within one resolution cell, each with its ``share``
-        ``Re(p_i conj(I)) / |I|^2``, largest first.
+        ``Re(p_i conj(I)) / |I|^2``, largest first; ``residual``, ``|I - sum_i p_i|^2 / |I|^2``;
+        ``ghosts``: scatterers whose azimuth ambiguities fall there (:func:`_ghosts`), with their
+        RCS over the pixel's power in dB (a ghost is weaker than its scatterer by the ambiguity
+        ratio, (AMB1)).
 
     Raises
     ------
@@ -310,6 +343,7 @@ def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
     rows, parts, value = resynthesised(image, columns, azimuth, range_, resolution=(rho_az, rho_rg))
     power = abs(value) ** 2
     share = (parts * np.conj(value)).real / power if power > 0 else np.zeros(len(rows))
+    residual = abs(value - np.sum(parts)) ** 2 / power if power > 0 else 0.0
     near = (np.abs(np.asarray(columns["azimuth_m"], float)[rows] - azimuth) <= rho_az) & \
            (np.abs(np.asarray(columns["range_m"], float)[rows] - range_) <= rho_rg)
     listed = [dict({name: _plain(values[i]) for name, values in columns.items()}, share=float(sh))
@@ -317,7 +351,32 @@ def explain(image: SarImage, columns: dict, azimuth: float, range_: float,
     listed.sort(key=lambda r: -r["share"])
     return dict(point=[azimuth, range_], pixel=[int(np.argmin(np.abs(image.azimuth - azimuth))),
                                                 int(np.argmin(np.abs(image.range - range_)))],
-                cell=[float(rho_az), float(rho_rg)], pixel_rcs_m2=power, explained=float(np.sum(share)), rows=listed)
+                cell=[float(rho_az), float(rho_rg)], pixel_rcs_m2=power, explained=float(np.sum(share)),
+                residual=float(residual), rows=listed, ghosts=_ghosts(image, columns, azimuth, range_, rho_az, rho_rg, power))
+
+
+def _ghosts(image: SarImage, columns: dict, azimuth: float, range_: float, rho_az: float, rho_rg: float,
+            power: float) -> list:
+    """The scatterers whose azimuth ambiguities (orders +-1, +-2) fall within one resolution cell
+    of the point: ``m PRF lambda R_0 / (2 V)`` along track from them (docs/physics.md (AMB1)),
+    each with its ``order_m`` and its own RCS over the pixel's power in dB."""
+    radar = image.metadata.get("radar", {}) if isinstance(image.metadata, dict) else {}
+    track = image_track(image)
+    if not radar.get("prf") or not radar.get("velocity") or not radar.get("frequency") or track is None:
+        return []
+    x = image.origin + azimuth * image.azimuth_direction + range_ * image.range_direction
+    rel = x - track[0]
+    r0 = float(np.linalg.norm(rel - (rel @ track[1]) * track[1]))
+    step = float(radar["prf"]) * SPEED_OF_LIGHT / float(radar["frequency"]) * r0 / (2.0 * float(radar["velocity"]))
+    az, rg = np.asarray(columns["azimuth_m"], float), np.asarray(columns["range_m"], float)
+    out = []
+    for m in (-2, -1, 1, 2):
+        near = np.flatnonzero((np.abs(az + m * step - azimuth) <= rho_az) & (np.abs(rg - range_) <= rho_rg))
+        for i in near:
+            level = float(columns["rcs_dbsm"][i]) - 10.0 * math.log10(power) if power > 0 else math.inf
+            out.append(dict(rank=int(columns["rank"][i]), order_m=m, shapes=str(columns["shapes"][i]),
+                            bounce_order=int(columns["order"][i]), offset_m=m * step, level_db=level))
+    return sorted(out, key=lambda g: -g["level_db"])
 
 
 def _plain(value: Any) -> Any:

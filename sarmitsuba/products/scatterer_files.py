@@ -25,6 +25,9 @@ the names):
 ``cell_rcs_dbsm``          the coherent sum of every scatterer in its resolution cell (SC4)
 ``share``                  its part of the image's integrated RCS: ``Re(a conj(A_cell))``
                            over it, where ``A_cell`` is that coherent sum (SC4)
+``azimuth_scale``,         its azimuth response is the image's ``h(scale x) exp(j slope x)``:
+``azimuth_slope_rad_per_m`` scale 1 for a point seen over the whole aperture, below 1 for a
+                           flash seen over part of it (broader); slope its Doppler centroid (SC4)
 ``radial_velocity_mps``    half the path's rate of length (a moving shape's; 0 when still)
 ``azimuth_shift_m``        the image shift that velocity causes, ``-R v_r / V`` (SC3)
 ``lanes``                  term lanes merged into it
@@ -123,6 +126,8 @@ def columns_of(table: dict, image: SarImage, names: Sequence[str], channels: Seq
         cols[f"phase_deg_{name}"] = np.degrees(np.angle(table["field"][:, c]))
     cols["cell_rcs_dbsm"] = _db(table["cell_power"])
     cols["share"] = table["contribution"] / image_rcs if image_rcs > 0 else np.zeros(n)
+    cols["azimuth_scale"] = table["scale"]
+    cols["azimuth_slope_rad_per_m"] = table["slope"]
     cols["radial_velocity_mps"] = table["radial"]
     cols["azimuth_shift_m"] = table["shift"]
     cols["lanes"] = np.asarray(table["lanes"], int)

@@ -36,7 +36,7 @@ from ..deposit.fixed_point import AMPLITUDE
 from ..device import device_array
 from .pulse_view import receive_leg
 
-__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "merge_rows", "rows_of", "phase_centres",
+__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "response_offset", "merge_rows", "rows_of", "phase_centres",
            "NEWTON_STEPS"]
 
 #: Newton steps of (SC1) along the range sum's gradient: each squares the relative error, which
@@ -62,6 +62,9 @@ class CatalogueRows:
         Quantisation cell of the image point: ``floor(point / step)``, a cube of ``step`` metres.
     amplitude : complex128 [k, n_channels]
         ``sum`` over lanes and pulses of each term times ``exp(+j k L_P)`` (SC2), sqrt(m^2) x pulses.
+    side : complex128 [k, 2]
+        The first channel's same sums at the image point moved ``+side`` and ``-side`` along track
+        (:attr:`LaneCatalogue.side`): the azimuth response's samples there (SC4).
     weight : float64 [k]
         ``sum |lane sum|^2`` over the merged lanes (the weights of the centres below).
     centre : float64 [k, 3]
@@ -82,6 +85,7 @@ class CatalogueRows:
     order: np.ndarray
     cell: np.ndarray
     amplitude: np.ndarray
+    side: np.ndarray
     weight: np.ndarray
     centre: np.ndarray
     shift: np.ndarray
@@ -97,7 +101,8 @@ class CatalogueRows:
         """No rows, of traced depth ``depth`` and ``n_channels`` channels."""
         i2, f = np.zeros((0, depth), np.int64), np.zeros(0)
         return CatalogueRows(parts=i2, shapes=i2.copy(), order=np.zeros(0, np.int64), cell=np.zeros((0, 3), np.int64),
-                             amplitude=np.zeros((0, n_channels), np.complex128), weight=f, centre=np.zeros((0, 3)),
+                             amplitude=np.zeros((0, n_channels), np.complex128),
+                             side=np.zeros((0, 2), np.complex128), weight=f, centre=np.zeros((0, 3)),
                              shift=f.copy(), radial=f.copy(), face=f.copy(), lanes=np.zeros(0, np.int64))
 
 
@@ -123,10 +128,11 @@ def merge_rows(parts: list[CatalogueRows]) -> CatalogueRows | None:
     for name in ("weight", "shift", "radial", "face", "lanes"):
         out[name] = np.bincount(group, cat[name], minlength=n).astype(cat[name].dtype)
     out["centre"] = np.stack([np.bincount(group, cat["centre"][:, c], minlength=n) for c in range(3)], axis=1)
-    amp = cat["amplitude"]
-    out["amplitude"] = np.stack([np.bincount(group, amp[:, c].real, minlength=n)
-                                 + 1j * np.bincount(group, amp[:, c].imag, minlength=n)
-                                 for c in range(amp.shape[1])], axis=1)
+    for name in ("amplitude", "side"):
+        amp = cat[name]
+        out[name] = np.stack([np.bincount(group, amp[:, c].real, minlength=n)
+                              + 1j * np.bincount(group, amp[:, c].imag, minlength=n)
+                              for c in range(amp.shape[1])], axis=1).reshape(n, amp.shape[1])
     return CatalogueRows(**out)
 
 
@@ -151,33 +157,48 @@ def phase_centres(transmit: np.ndarray, receive: np.ndarray, unfolded: np.ndarra
 
 
 class LaneSums:
-    """One order's coherent lane sums on the device: ``n_lanes x n_channels`` complex slots in
-    fixed point (D7), and each lane's image point (the compensation of (SC2))."""
+    """One order's coherent lane sums on the device, in fixed point (D7): ``n_lanes x n_channels``
+    complex slots at each lane's image point (SC2), and two more, of the first channel, at the
+    points ``side`` [m] along track on either side (the lane's own azimuth response there, (SC4))."""
 
-    def __init__(self, points: np.ndarray, n_channels: int):
+    def __init__(self, points: np.ndarray, n_channels: int, side: np.ndarray):
         self.n_channels = n_channels
         self.points = device_array(mi.Array3f64, np.ascontiguousarray(points.T))
+        self.side = [float(v) for v in side]
         self.words = AMPLITUDE.zeros(2 * len(points) * n_channels)
+        self.side_words = AMPLITUDE.zeros(4 * len(points))
 
-    def add(self, ctx: dict, returns, point, antenna, view, lref, lane, values, active) -> None:
-        """Add one pulse's terms ``values`` (one mi.Complex2f per channel) of lanes ``lane`` where
-        ``active``, each times ``exp(+j k (|P - A| + |P - R| - L_ref))`` at its image point ``point``
-        (mi.Array3f64, gathered per lane), eq. (SC2)."""
+    def _back(self, returns, point, antenna, view, lref):
+        """``exp(+j k (|P - A| + |P - R| - L_ref))`` at ``point``."""
         leg = point - antenna
         s = dr.norm(leg)
         _, dist = receive_leg(view, antenna, point, s)
         phase = returns.carrier_phase(s + dist - lref)
-        back = mi.Complex2f(phase.real, -phase.imag)
+        return mi.Complex2f(phase.real, -phase.imag)
+
+    def add(self, ctx: dict, returns, point, antenna, view, lref, lane, values, active) -> None:
+        """Add one pulse's terms ``values`` (one mi.Complex2f per channel) of lanes ``lane`` where
+        ``active``, each times ``exp(+j k (|P - A| + |P - R| - L_ref))`` at its image point ``point``
+        (mi.Array3f64, gathered per lane), eq. (SC2); the first channel's also at ``point +- side``."""
+        back = self._back(returns, point, antenna, view, lref)
         for c, value in enumerate(values):
             z = value * back
             slot = (lane * self.n_channels + c) * 2
             AMPLITUDE.add(self.words, z.real, slot, active, mode=ctx["tally"])
             AMPLITUDE.add(self.words, z.imag, slot + 1, active, mode=ctx["tally"])
+        side = mi.Array3f64(*self.side)
+        for k, moved in enumerate((point + side, point - side)):
+            z = values[0] * self._back(returns, moved, antenna, view, lref)
+            slot = (lane * 2 + k) * 2
+            AMPLITUDE.add(self.side_words, z.real, slot, active, mode=ctx["tally"])
+            AMPLITUDE.add(self.side_words, z.imag, slot + 1, active, mode=ctx["tally"])
 
-    def read(self) -> np.ndarray:
-        """complex128 [n_lanes, n_channels]: the sums (after the kernel ran)."""
+    def read(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(complex128 [n_lanes, n_channels], complex128 [n_lanes, 2])``: the sums at the image
+        points and, of the first channel, at ``point + side`` and ``point - side`` (after the kernel ran)."""
         pairs = AMPLITUDE.read(self.words).reshape(-1, self.n_channels, 2)
-        return pairs[..., 0] + 1j * pairs[..., 1]
+        side = AMPLITUDE.read(self.side_words).reshape(-1, 2, 2)
+        return pairs[..., 0] + 1j * pairs[..., 1], side[..., 0] + 1j * side[..., 1]
 
 
 @dataclass(frozen=True)
@@ -198,6 +219,9 @@ class LaneCatalogue:
     step : float
         Quantisation cell of the image points (a cube), m.
     n_channels : int
+    side : float
+        How far along track, each side of its image point, a lane's azimuth response is sampled,
+        m: half the azimuth resolution ``lambda / (2 (sin_hi - sin_lo))`` of the traced beam.
     """
 
     shape_index: np.ndarray
@@ -206,6 +230,7 @@ class LaneCatalogue:
     speed: float
     step: float
     n_channels: int
+    side: float = 0.0
 
     def lanes(self, surfaces, lanes, lane_chain: np.ndarray, chains, transmit: np.ndarray, receive: np.ndarray,
               times: np.ndarray | None, area: np.ndarray) -> dict:
@@ -213,7 +238,8 @@ class LaneCatalogue:
         :class:`~sarmitsuba.tracing.integration.patch_terms.TermLanes` ``catalogue``: ``parts``,
         ``shapes`` int64 [m, D]; ``order`` [m]; ``centre`` (SC1) at mid-aperture and ``point``, the
         still point that images where the lane does (SC3), float64 [m, 3]; ``shift``, ``radial``
-        [m]; ``cell`` int64 [m, 3]; ``area`` bool [m].
+        [m]; ``cell`` int64 [m, 3]; ``area`` bool [m]; ``side`` float64 [3]: where the azimuth
+        response is sampled, from the image point (:attr:`side` along the track).
 
         ``lanes``: the order's :class:`TermLanes` on ``surfaces``; ``lane_chain`` [m]: each lane's
         row of ``chains``; ``transmit``, ``receive`` float64 [m, 3]: its sub-aperture's reference
@@ -237,7 +263,7 @@ class LaneCatalogue:
         point = centre + shift[:, None] * self.track
         cell = np.floor(point / self.step).astype(np.int64)
         return dict(parts=parts, shapes=shapes, order=depth + 1, centre=centre, point=point, shift=shift,
-                    radial=radial, cell=cell, area=np.asarray(area, bool))
+                    radial=radial, cell=cell, area=np.asarray(area, bool), side=self.side * self.track)
 
 
 def rows_of(pending: list) -> CatalogueRows | None:
@@ -245,12 +271,12 @@ def rows_of(pending: list) -> CatalogueRows | None:
     after its kernels ran: lanes merged by chain of parts and quantisation cell; None when empty."""
     out = []
     for sums, meta in pending:
-        amplitude = sums.read()
+        amplitude, side = sums.read()
         weight = np.sum(np.abs(amplitude) ** 2, axis=1)
         keep = np.flatnonzero(weight > 0)
         w = weight[keep]
         out.append(CatalogueRows(parts=meta["parts"][keep], shapes=meta["shapes"][keep], order=meta["order"][keep],
-                                 cell=meta["cell"][keep], amplitude=amplitude[keep], weight=w,
+                                 cell=meta["cell"][keep], amplitude=amplitude[keep], side=side[keep], weight=w,
                                  centre=meta["centre"][keep] * w[:, None], shift=meta["shift"][keep] * w,
                                  radial=meta["radial"][keep] * w, face=np.where(meta["area"][keep], w, 0.0),
                                  lanes=np.ones(len(keep), np.int64)))
@@ -288,4 +314,11 @@ def lane_catalogue(scene, params, footprint, effects) -> LaneCatalogue:
         velocity[list(motion.shapes)] = motion.velocities()
     return LaneCatalogue(shape_index=index, velocity=velocity, track=np.asarray(footprint.track, float),
                          speed=float(params.velocity), step=SPEED_OF_LIGHT / (8.0 * params.bandwidth),
-                         n_channels=len(effects.channels))
+                         n_channels=len(effects.channels), side=response_offset(params))
+
+
+def response_offset(params) -> float:
+    """Where along track a lane's azimuth response is sampled, each side of its image point [m]:
+    half the azimuth resolution of the traced beam, ``lambda / (4 (sin_hi - sin_lo))``."""
+    lo, hi = params.beam_sines
+    return 0.25 * params.wavelength / max(hi - lo, 1e-6)

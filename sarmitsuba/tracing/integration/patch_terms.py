@@ -246,7 +246,7 @@ class PatchTerms:
             return
         sums = None
         if lanes.catalogue is not None:
-            sums = LaneSums(lanes.catalogue["point"], len(self.r.channels))
+            sums = LaneSums(lanes.catalogue["point"], len(self.r.channels), lanes.catalogue["side"])
             ctx.setdefault("catalogue", []).append((sums, lanes.catalogue))
         self.deposit(ctx, self.upload(lanes, pieces, depth), lanes, depth, sums)
 
