@@ -71,7 +71,8 @@ from _table import bench_main, machine, write_csv
 from sarmitsuba.scene import planning
 from sarmitsuba.focus import ImageGrid, backproject
 from sarmitsuba.focus.dispatch import azimuth_pattern
-from sarmitsuba.pipeline import focus_window, simulate, sized_grid
+from sarmitsuba.focus.dispatch import focus_window
+from sarmitsuba.pipeline import simulate, sized_grid
 from sarmitsuba.core.geometry import acquisition_geometry
 
 NAME = "scaling"

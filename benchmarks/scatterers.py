@@ -27,7 +27,8 @@ catalogue's row count, the share of the image's RCS it lists and its rows by bou
 Writes ``scatterers.csv``, ``scatterers.md`` (the cost and pixel tables) and ``scatterers.png``
 (Munich's image in dB with the pixels circled, green where explained >= 0.8, red otherwise; and
 each pixel's explained share) into the output folder (``_table.output_dir``); run alone (not
-``--quick``), it also copies them to ``docs/benchmarks/data/standalone/scatterers-<date>.*``.
+``--quick``), it also copies the CSV and PNG to ``docs/benchmarks/data/standalone/scatterers-<date>.*``
+(the Markdown tables go into ``docs/benchmarks/scatterers.md`` by hand).
 
 Usage: ``python benchmarks/scatterers.py [--quick]`` (``--quick``: the cost on urban only, the
 explanation on 128 of Munich's pulses).
@@ -337,7 +338,7 @@ def main() -> None:
     if not args.quick:                                  # the record beside the other standalone runs
         docs = ROOT / "docs" / "benchmarks" / "data" / "standalone"
         stamp = datetime.date.today().isoformat()
-        for ext in ("csv", "md", "png"):
+        for ext in ("csv", "png"):                     # the tables: docs/benchmarks/scatterers.md
             source = output_dir() / f"scatterers.{ext}"
             if source.exists():
                 shutil.copyfile(source, docs / f"scatterers-{stamp}.{ext}")

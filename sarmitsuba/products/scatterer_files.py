@@ -5,33 +5,42 @@
 One row per resolved scatterer, the largest share of the image's power first. Columns (units in
 the names):
 
-=========================  ==================================================================
-``rank``                   1 for the largest share
-``azimuth_m``, ``range_m``  image coordinates where it focuses (its layover position, and a
-                           moving shape's along-track shift)
-``row``, ``column``        the nearest pixel
-``x_m``, ``y_m``, ``z_m``  its 3-D phase centre in the scene's world frame (SC1), at mid-aperture
-``latitude_deg``,          the same on WGS84, with the sensor's ``geo_origin`` only
-``longitude_deg``,
-``height_m``
-``order``                  bounce order
-``interactions``           the kind of each interaction, ``>``-separated: ``face`` (a specular
-                           reflection, or a face's area term near its specular direction) or
-                           ``edge`` (the lit region's edge and corner terms and edge currents)
-``shapes``                 the shapes in order, ``>``-separated, by their ids in the scene
-``rcs_dbsm``               its own RCS, every channel's power summed (SC2)
-``rcs_dbsm_XY``,           per channel ``XY``: RCS and phase of the complex amplitude
-``phase_deg_XY``
-``cell_rcs_dbsm``          the coherent sum of every scatterer in its resolution cell (SC4)
-``share``                  its part of the image's integrated RCS: ``Re(a conj(A_cell))``
-                           over it, where ``A_cell`` is that coherent sum (SC4)
-``azimuth_scale``,         its azimuth response is the image's ``h(scale x) exp(j slope x)``:
-``azimuth_slope_rad_per_m`` scale 1 for a point seen over the whole aperture, below 1 for a
-                           flash seen over part of it (broader); slope its Doppler centroid (SC4)
-``radial_velocity_mps``    half the path's rate of length (a moving shape's; 0 when still)
-``azimuth_shift_m``        the image shift that velocity causes, ``-R v_r / V`` (SC3)
-``lanes``                  term lanes merged into it
-=========================  ==================================================================
+=================================================  =================================================
+``rank``                                           1 for the largest share
+``azimuth_m``, ``range_m``                         image coordinates where it focuses (its layover
+                                                   position, and a moving shape's along-track shift)
+``row``, ``column``                                the nearest pixel
+``x_m``, ``y_m``, ``z_m``                          its 3-D phase centre in the scene's world frame
+                                                   (SC1), at mid-aperture
+``latitude_deg``, ``longitude_deg``, ``height_m``  the same on WGS84, with the sensor's
+                                                   ``geo_origin`` only
+``order``                                          bounce order
+``interactions``                                   the kind of each interaction, ``>``-separated:
+                                                   ``face`` (a specular reflection, or a face's area
+                                                   term near its specular direction) or ``edge``
+                                                   (the lit region's edge and corner terms and edge
+                                                   currents)
+``shapes``                                         the shapes in order, ``>``-separated, by their
+                                                   ids in the scene
+``rcs_dbsm``                                       its own RCS, every channel's power summed (SC2)
+``rcs_dbsm_XY``, ``phase_deg_XY``                  per channel ``XY``: RCS and phase of the complex
+                                                   amplitude
+``cell_rcs_dbsm``                                  the coherent sum of every scatterer in its
+                                                   resolution cell (SC4)
+``share``                                          its part of the image's integrated RCS:
+                                                   ``Re(a conj(A_cell))`` over it, where ``A_cell``
+                                                   is that coherent sum (SC4)
+``azimuth_scale``, ``azimuth_slope_rad_per_m``     its azimuth response is the image's
+                                                   ``h(scale x) exp(j slope x)``: scale 1 for a
+                                                   point seen over the whole aperture, below 1 for a
+                                                   flash seen over part of it (broader); slope its
+                                                   Doppler centroid (SC4)
+``radial_velocity_mps``                            half the path's rate of length (a moving shape's;
+                                                   0 when still)
+``azimuth_shift_m``                                the image shift that velocity causes,
+                                                   ``-R v_r / V`` (SC3)
+``lanes``                                          term lanes merged into it
+=================================================  =================================================
 """
 from __future__ import annotations
 
