@@ -14,7 +14,8 @@ those rows into the catalogue of a focused image:
 3. the strongest scatterers are kept until they hold ``share`` of the image's integrated RCS,
    or all within ``-floor_db`` dB of the strongest;
 4. distributed clutter is summarised per rough surface: the image pixels its triangles cover and
-   their mean intensity over ``rho_E,az rho_E,rg``, sigma nought (K).
+   their speckle's mean intensity (the median over ln 2) over ``rho_E,az rho_E,rg``, sigma
+   nought (K).
 
 :func:`explain` lists the scatterers within one resolution cell of an image position and their
 shares of its power.
@@ -226,8 +227,10 @@ def _chosen(power: np.ndarray, contribution: np.ndarray, image_rcs: float, share
 
 def clutter_summary(sim: Any, rho_az: float, rho_rg: float) -> tuple[dict, ...]:
     """Per rough surface (a shape whose material has a clutter model): its id, material, the image
-    pixels its triangles cover (their layover positions) and its mean sigma nought there,
-    ``mean |I|^2 / (rho_az rho_rg)`` in dB (docs/physics.md (K)). Empty without clutter."""
+    pixels its triangles cover (their layover positions) and its sigma nought there, ``<|I|^2> /
+    (rho_az rho_rg)`` in dB (docs/physics.md (K)), the mean ``<|I|^2>`` taken as the median over
+    ln 2 (fully developed speckle's intensity is exponential), so that the bright points among
+    those pixels do not pull it up. Empty without clutter."""
     from skimage.draw import polygon
     from ..scene.loader import material_table
     loaded, image = sim.loaded, sim.image
@@ -251,7 +254,9 @@ def clutter_summary(sim: Any, rho_az: float, rho_rg: float) -> tuple[dict, ...]:
                 rr, cc = polygon(rows[tri], cols[tri], shape=mask.shape)
                 mask[rr, cc] = True
         pixels = int(mask.sum())
-        sigma0 = float(intensity[mask].mean() / (rho_az * rho_rg)) if pixels else 0.0
+        # the median over ln 2: the mean of fully developed speckle (exponential intensity), which
+        # the bright points inside the surface's pixels do not pull up
+        sigma0 = float(np.median(intensity[mask]) / math.log(2.0) / (rho_az * rho_rg)) if pixels else 0.0
         bsdf = shapes[index].bsdf()
         out.append(dict(surface=shapes[index].id() or f"#shape{index}",
                         material=bsdf.id() if bsdf is not None else "", pixels=pixels,
