@@ -34,7 +34,7 @@ from ..core.radar import ParameterError
 from ..focus.beam import beam_weighting, point_gain
 from ..focus.dispatch import azimuth_pattern
 from ..products.scatterer_files import Catalogue, columns_of
-from ..tracing.integration.catalogue import CatalogueRows, response_offset
+from ..tracing.integration.catalogue import CatalogueRows, group_sums, response_offset
 from ..tracing.mesh.facets import scene_meshes
 from .impulse_model import ImpulseModel, energy_widths
 
@@ -89,15 +89,6 @@ def _merged(rows: CatalogueRows, cell: np.ndarray, reciprocal: bool):
     return order[first], group.reshape(-1)[inverse], len(first)
 
 
-def _sums(values: np.ndarray, group: np.ndarray, n: int) -> np.ndarray:
-    """Per-group sums of ``values`` [k] or [k, c] (float or complex)."""
-    if values.ndim == 2:
-        return np.stack([_sums(values[:, c], group, n) for c in range(values.shape[1])], axis=1)
-    if np.iscomplexobj(values):
-        return np.bincount(group, values.real, n) + 1j * np.bincount(group, values.imag, n)
-    return np.bincount(group, values, n)
-
-
 def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | None = None) -> Catalogue:
     """The scatterer catalogue of a simulation traced with ``scatterers = true``.
 
@@ -139,9 +130,9 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
     az, rg, centre, point = az[seen], rg[seen], centre[seen], point[seen]
     cell = np.stack([np.round(az / rho_az), np.round(rg / rho_rg)], axis=1).astype(np.int64)
     first, group, n = _merged(rows, cell, reciprocal=not p.bistatic)
-    weight = _sums(rows.weight, group, n)
-    amplitude = _sums(rows.amplitude, group, n)
-    mean = lambda v: _sums(rows.weight[:, None] * v, group, n) / weight[:, None]  # noqa: E731
+    weight = group_sums(rows.weight, group, n)
+    amplitude = group_sums(rows.amplitude, group, n)
+    mean = lambda v: group_sums(rows.weight[:, None] * v, group, n) / weight[:, None]  # noqa: E731
     centre, point = mean(centre), mean(point)
     image_az, image_rg = mean(np.stack([az, rg], axis=1)).T
     beam = beam_weighting(raw, p.traced_beamwidth if p.mode == "stripmap" else None, p.squint,
@@ -153,18 +144,18 @@ def build_catalogue(sim: Any, share: float = DEFAULT_SHARE, floor_db: float | No
     # each scatterer's part of its resolution cell's coherent power (SC4): they add up to |sum|^2
     _, in_cell = np.unique(cell[first], axis=0, return_inverse=True)
     in_cell = in_cell.reshape(-1)
-    cell_field = _sums(field, in_cell, int(in_cell.max(initial=-1)) + 1)[in_cell]
+    cell_field = group_sums(field, in_cell, int(in_cell.max(initial=-1)) + 1)[in_cell]
     contribution = np.sum((field * np.conj(cell_field)).real, axis=1)
     images = [c.image for c in sim.channels.values()] if sim.channels else [image]
     image_rcs = sum(float(np.sum(np.abs(im.data.astype(np.complex128)) ** 2)) for im in images) \
         * _pixel_area(image) / (rho_az * rho_rg)
     keep = _chosen(power, contribution, image_rcs, share, floor_db)
-    scale, slope = azimuth_response(image, _sums(rows.side, group, n), amplitude[:, 0], response_offset(p))
+    scale, slope = azimuth_response(image, group_sums(rows.side, group, n), amplitude[:, 0], response_offset(p))
     table = dict(azimuth=image_az, range=image_rg, centre=centre, field=field, power=power, scale=scale, slope=slope,
                  contribution=contribution, cell_power=np.sum(np.abs(cell_field) ** 2, axis=1),
                  order=rows.order[first], shapes=rows.shapes[first], parts=rows.parts[first],
-                 face=_sums(rows.face, group, n) / weight, radial=_sums(rows.radial, group, n) / weight,
-                 shift=_sums(rows.shift, group, n) / weight, lanes=_sums(rows.lanes.astype(float), group, n))
+                 face=group_sums(rows.face, group, n) / weight, radial=group_sums(rows.radial, group, n) / weight,
+                 shift=group_sums(rows.shift, group, n) / weight, lanes=group_sums(rows.lanes.astype(float), group, n))
     table = {k: v[keep] for k, v in table.items()}
     names = [s.id() or f"#shape{i}" for i, s in enumerate(loaded.scene.shapes())]
     geo = georef.of(p) if p.geo_origin is not None else None

@@ -36,7 +36,7 @@ from ..deposit.fixed_point import AMPLITUDE
 from ..device import device_array
 from .pulse_view import receive_leg
 
-__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "response_offset", "merge_rows", "rows_of", "phase_centres",
+__all__ = ["CatalogueRows", "LaneCatalogue", "LaneSums", "catalogued", "lane_catalogue", "response_offset", "merge_rows", "group_sums", "rows_of", "phase_centres",
            "NEWTON_STEPS"]
 
 #: Newton steps of (SC1) along the range sum's gradient: each squares the relative error, which
@@ -125,15 +125,19 @@ def merge_rows(parts: list[CatalogueRows]) -> CatalogueRows | None:
     group = group.reshape(-1)
     n = len(first)
     out = {name: cat[name][first] for name in ("parts", "shapes", "order", "cell")}
-    for name in ("weight", "shift", "radial", "face", "lanes"):
-        out[name] = np.bincount(group, cat[name], minlength=n).astype(cat[name].dtype)
-    out["centre"] = np.stack([np.bincount(group, cat["centre"][:, c], minlength=n) for c in range(3)], axis=1)
-    for name in ("amplitude", "side"):
-        amp = cat[name]
-        out[name] = np.stack([np.bincount(group, amp[:, c].real, minlength=n)
-                              + 1j * np.bincount(group, amp[:, c].imag, minlength=n)
-                              for c in range(amp.shape[1])], axis=1).reshape(n, amp.shape[1])
+    for name in ("weight", "shift", "radial", "face", "lanes", "centre", "amplitude", "side"):
+        out[name] = group_sums(cat[name], group, n).astype(cat[name].dtype)
     return CatalogueRows(**out)
+
+
+def group_sums(values: np.ndarray, group: np.ndarray, n: int) -> np.ndarray:
+    """Sums of ``values`` [k] or [k, c] (float or complex) over the rows of each of ``n`` groups,
+    ``group`` int [k] each row's: [n] or [n, c], in the rows' order within a group."""
+    if values.ndim == 2:
+        return np.stack([group_sums(values[:, c], group, n) for c in range(values.shape[1])], axis=1).reshape(n, values.shape[1])
+    if np.iscomplexobj(values):
+        return np.bincount(group, values.real, n) + 1j * np.bincount(group, values.imag, n)
+    return np.bincount(group, values, n)
 
 
 def phase_centres(transmit: np.ndarray, receive: np.ndarray, unfolded: np.ndarray, last: np.ndarray,
