@@ -180,19 +180,24 @@ class LaneSums:
         phase = returns.carrier_phase(s + dist - lref)
         return mi.Complex2f(phase.real, -phase.imag)
 
-    def add(self, ctx: dict, returns, point, antenna, view, lref, lane, values, active) -> None:
+    def phases(self, returns, point, antenna, view, lref) -> tuple:
+        """One pulse's compensations of lanes at their image points ``point`` (mi.Array3f64), eq.
+        (SC2): ``exp(+j k (|c - A| + |c - R| - L_ref))`` at ``c = point``, ``point + side`` and
+        ``point - side``; computed once per pulse, for every term :meth:`add` adds."""
+        side = mi.Array3f64(*self.side)
+        return tuple(self._back(returns, c, antenna, view, lref) for c in (point, point + side, point - side))
+
+    def add(self, ctx: dict, phases: tuple, lane, values, active) -> None:
         """Add one pulse's terms ``values`` (one mi.Complex2f per channel) of lanes ``lane`` where
-        ``active``, each times ``exp(+j k (|P - A| + |P - R| - L_ref))`` at its image point ``point``
-        (mi.Array3f64, gathered per lane), eq. (SC2); the first channel's also at ``point +- side``."""
-        back = self._back(returns, point, antenna, view, lref)
+        ``active``, each times its compensation at the image point, the first channel's also at
+        ``point +- side`` (``phases``: :meth:`phases`), eq. (SC2)."""
         for c, value in enumerate(values):
-            z = value * back
+            z = value * phases[0]
             slot = (lane * self.n_channels + c) * 2
             AMPLITUDE.add(self.words, z.real, slot, active, mode=ctx["tally"])
             AMPLITUDE.add(self.words, z.imag, slot + 1, active, mode=ctx["tally"])
-        side = mi.Array3f64(*self.side)
-        for k, moved in enumerate((point + side, point - side)):
-            z = values[0] * self._back(returns, moved, antenna, view, lref)
+        for k in range(2):
+            z = values[0] * phases[1 + k]
             slot = (lane * 2 + k) * 2
             AMPLITUDE.add(self.side_words, z.real, slot, active, mode=ctx["tally"])
             AMPLITUDE.add(self.side_words, z.imag, slot + 1, active, mode=ctx["tally"])

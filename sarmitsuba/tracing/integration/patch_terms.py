@@ -413,6 +413,8 @@ class PatchTerms:
             scale = data["gamma"] * specular * weight * _SQRT_4PI
             fringe = [f * scale for f in fringe]
             line, line_second = self.edges.line(data, (kind == SPLIT_START) | (kind == OPEN_START), u, split)
+        catalogue = ctx["catalogue_sums"].phases(r, data["catalogue"], antenna, view, lref) \
+            if "catalogue" in data else None
         for which, (term, index) in enumerate(((value, order), (second, second_order))):
             live = active if which == 0 else active & ~split
             values = [base * term * phase * c for c in channels]
@@ -424,8 +426,8 @@ class PatchTerms:
             power = dr.detach(dr.squared_norm(values[0]))
             inside = r.sums.deposit(ctx, pulse, depth, anchor, 0.0, values, index, live, paths,
                                     (lane * ctx["max_count"] + q) * 2 + which)
-            if "catalogue" in data:                 # the scatterer catalogue's sums (SC2)
-                ctx["catalogue_sums"].add(ctx, r, data["catalogue"], antenna, view, lref, lane, values, live & inside)
+            if catalogue is not None:               # the scatterer catalogue's sums (SC2)
+                ctx["catalogue_sums"].add(ctx, catalogue, lane, values, live & inside)
             r.sums.tally(ctx, "energy", power, depth, live)
             r.sums.tally(ctx, "energy", power, r.settings.depth, live & ~inside)
 
