@@ -140,6 +140,15 @@ def test_phase_centres_of_chains_built_by_hand():
         single = rng.uniform(-5, 5, (6, 3))
         one = np.linalg.norm(single - t[None], axis=1) * 2.0
         assert np.allclose(phase_centres(ts, ts, single, single, one), single, atol=1e-9)
+    # the defining property, where the middle point alone is far from it: a transmitter 30 m away
+    # (a drone) and a bistatic receiver, the dihedral's two-way length kept exactly
+    t, r = np.array([0.0, 20.0, 22.0]), np.array([5.0, 25.0, 15.0])
+    b2 = np.column_stack([rng.uniform(-3, 3, 6), np.zeros(6), rng.uniform(0.5, 3, 6)])
+    u2 = b2 * np.array([1.0, 1.0, -1.0])
+    length = np.linalg.norm(u2 - t, axis=1) + np.linalg.norm(b2 - r, axis=1)
+    p = phase_centres(np.broadcast_to(t, b2.shape), np.broadcast_to(r, b2.shape), u2, b2, length)
+    assert np.allclose(np.linalg.norm(p - t, axis=1) + np.linalg.norm(p - r, axis=1), length, rtol=0, atol=1e-9)
+    assert np.max(np.linalg.norm(p - 0.5 * (u2 + b2), axis=1)) > 1e-3        # the steps did move it
 
 
 def test_the_trihedrals_rcs_is_the_closed_form_and_the_images():
